@@ -1,0 +1,20 @@
+"""Errors that the command line reports as one line and exit code 2 (bad input)."""
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Bad user input: a scenario value, a file, a USD stage or a BVH.
+
+    The message is one line that names the key (or prim/attribute), the value and what is
+    allowed, e.g. ``sensor[0].resolution = [0, 768]: expected two integers in 1..16384``.
+    Several problems found at once are joined with newlines (one line each).
+    """
+
+    def __init__(self, message: str, problems: list[str] | None = None):
+        self.problems = problems if problems else [message]
+        super().__init__("\n".join(self.problems) if problems else message)
+
+
+def bad_value(key: str, value, allowed: str) -> str:
+    """Format one problem line: ``key = value: allowed``."""
+    return f"{key} = {value!r}: {allowed}"
