@@ -1,0 +1,173 @@
+"""The ``humv-usd`` command line.
+
+Exit codes follow Pixar's USD tools: 0 success, 1 failure (e.g. check findings, a missing
+asset), 2 bad input (one line per problem on stderr naming key, value and allowed range; no
+traceback and nothing written).
+"""
+from __future__ import annotations
+
+import functools
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import click
+
+from humv_usd.assets import MissingAssetError
+from humv_usd.errors import InputError
+
+PROG = "humv-usd"
+
+
+def _fail(lines, code: int):
+    for line in lines:
+        click.echo(f"{PROG}: error: {line}", err=True)
+    sys.exit(code)
+
+
+def reports_errors(fn):
+    """Turn our exceptions into one-line messages and exit codes (no tracebacks)."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except InputError as exc:
+            _fail(exc.problems, 2)
+        except MissingAssetError as exc:
+            _fail([str(exc)], 1)
+    return wrapper
+
+
+def parse_frames(text: str | None) -> list[int] | None:
+    """``"0:10"`` (inclusive), ``"0,5,9"`` or ``"3"`` → frame list; None → all frames."""
+    if text is None:
+        return None
+    try:
+        if ":" in text:
+            a, b = text.split(":", 1)
+            first, last = int(a), int(b)
+            if last < first:
+                raise ValueError
+            return list(range(first, last + 1))
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise InputError(f"--frames = {text!r}: expected FIRST:LAST, a comma list or one "
+                         "integer frame number") from None
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="humv-usd", prog_name=PROG)
+def main():
+    """HumV-USD: USD-native physics-based EO/IR simulation of human signatures."""
+
+
+@main.command()
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--out", "out_dir", required=True, type=click.Path(file_okay=False,
+              path_type=Path), help="Output folder: stage.usda and layers/.")
+@reports_errors
+def compose(scenario: Path, out_dir: Path):
+    """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part."""
+    from humv_usd.pipeline.compose import compose as run_compose
+    from humv_usd.scenario import load_scenario
+
+    report = run_compose(load_scenario(scenario), out_dir)
+    for name, wrote, seconds in report.layers:
+        state = "written" if wrote else "unchanged"
+        click.echo(f"  {name:<14} {state:<9} {seconds * 1000:7.1f} ms")
+    for part, reason in report.skipped:
+        click.echo(f"  {part:<14} skipped   ({reason})")
+    for name in report.removed:
+        click.echo(f"  {name:<14} removed   (no longer in the scenario)")
+    click.echo(f"{report.stage_path}  ({report.seconds:.2f} s)")
+
+
+@main.command()
+@click.argument("stage", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--out", "out_dir", required=True,
+              type=click.Path(file_okay=False, path_type=Path), help="Output folder.")
+@click.option("--frames", default=None, help="Frames to render: FIRST:LAST, a comma list, or "
+              "one number (default: the stage's whole frame range).")
+@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20),
+              help="Samples per pixel.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1))
+@click.option("--sensor", "sensors", multiple=True, help="Render only this sensor (repeatable).")
+@reports_errors
+def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors):
+    """Render every infrared sensor of STAGE to EXR + PNG with a manifest."""
+    from humv_usd.render.run import render_stage
+
+    manifest = render_stage(stage, out_dir, frames=parse_frames(frames), spp=spp,
+                            sensors=list(sensors) or None, seed=seed)
+    err = manifest.get("error", {})
+    click.echo(f"{out_dir}/manifest.json  render {manifest['timings_s']['total']:.2f} s, "
+               f"MC error mean {err.get('temperature_stderr_mean_k', float('nan')):.4f} K, "
+               f"max {err.get('temperature_stderr_max_k', float('nan')):.4f} K")
+    for item in manifest.get("skipped", []):
+        click.echo(f"  skipped {item}")
+
+
+@main.command()
+@click.argument("stages", nargs=-1, required=True,
+                type=click.Path(dir_okay=False, path_type=Path))
+def check(stages):
+    """Run USD's validators and HumV's layer rules on each STAGE."""
+    from humv_usd.usd.check import check_stage
+
+    worst = 0
+    for path in stages:
+        try:
+            findings = check_stage(path)
+        except InputError as exc:
+            for line in exc.problems:
+                click.echo(f"{PROG}: error: {line}", err=True)
+            worst = 2
+            continue
+        for line in findings:
+            click.echo(f"{path}: {line}")
+        if findings:
+            worst = max(worst, 1)
+        else:
+            click.echo(f"{path}: ok")
+    sys.exit(worst)
+
+
+@main.group()
+def bench():
+    """Benchmarks: median run times and error estimates."""
+
+
+@bench.command("pipeline")
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
+@click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100))
+@reports_errors
+def bench_pipeline(scenario: Path, spp: int, repeat: int):
+    """Median wall time of compose (fresh folder) and render of SCENARIO, with the MC error."""
+    from humv_usd.pipeline.compose import compose as run_compose
+    from humv_usd.render.run import render_stage
+    from humv_usd.scenario import load_scenario
+
+    compose_s, render_s, err_k = [], [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeat):
+            out = Path(tmp) / f"run{i}"
+            t = time.perf_counter()
+            run_compose(load_scenario(scenario), out)
+            compose_s.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            manifest = render_stage(out / "stage.usda", out / "render", spp=spp, seed=i)
+            render_s.append(time.perf_counter() - t)
+            err_k.append(manifest["error"]["temperature_stderr_mean_k"])
+    click.echo(f"scenario {scenario}, {spp} spp, {repeat} runs")
+    click.echo(f"  compose  median {statistics.median(compose_s):.3f} s  "
+               f"(min {min(compose_s):.3f}, max {max(compose_s):.3f})")
+    click.echo(f"  render   median {statistics.median(render_s):.3f} s  "
+               f"(min {min(render_s):.3f}, max {max(render_s):.3f}; first run includes JIT)")
+    click.echo(f"  MC error mean per-pixel standard error {statistics.median(err_k):.4f} K")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,252 @@
+"""Load and validate a scenario file (TOML).
+
+Every problem is reported as one line naming the key, the value and what is allowed; all
+problems of a file are collected before :class:`~humv_usd.errors.InputError` is raised, so a user
+fixes them in one go. Unknown keys are errors, with a did-you-mean suggestion.
+"""
+from __future__ import annotations
+
+import copy
+import datetime as dt
+import difflib
+import hashlib
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from humv_usd.errors import InputError, bad_value
+from humv_usd.scenario.spec import BAND_DEFAULT_UM, SECTIONS, Key, Section
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario: ``data`` holds every section with defaults filled in."""
+
+    data: dict[str, Any]
+    path: Path | None = None
+    given: frozenset[str] = frozenset()   # sections present in the file
+
+    @property
+    def infrared_sensors(self) -> list[dict]:
+        """Sensors whose band lies beyond 3 µm (rendered from emission, need sky and thermal)."""
+        return [s for s in self.data["sensor"] if s["wavelength_um"][0] >= 3.0]
+
+    def __getitem__(self, section: str) -> Any:
+        return self.data[section]
+
+    def get(self, section: str, default: Any = None) -> Any:
+        return self.data.get(section, default)
+
+    @property
+    def frame_count(self) -> int:
+        g = self.data["general"]
+        return int(round(g["duration_s"] * g["fps"])) + 1
+
+    def digest(self, *sections: str) -> str:
+        """Content hash of the given sections (all when none): the input key of a layer."""
+        chosen = {k: self.data.get(k) for k in (sections or sorted(self.data))}
+        text = json.dumps(chosen, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _suggest(name: str, known) -> str:
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _range_text(key: Key) -> str:
+    lo = int(key.lo) if key.integer else key.lo
+    hi = int(key.hi) if key.integer else key.hi
+    return f"{lo}..{hi}"
+
+
+def _check_number(where: str, value: Any, key: Key, problems: list[str]) -> Any:
+    integer = key.integer or key.kind == "int"
+    ok_type = isinstance(value, int) if integer else isinstance(value, (int, float))
+    if isinstance(value, bool) or not ok_type:
+        what = "an integer" if integer else "a number"
+        problems.append(bad_value(where, value, f"expected {what} in {_range_text(key)}"))
+        return None
+    if isinstance(value, float) and not math.isfinite(value):
+        problems.append(bad_value(where, value, f"expected a finite number in {_range_text(key)}"))
+        return None
+    if (key.lo is not None and value < key.lo) or (key.hi is not None and value > key.hi):
+        problems.append(bad_value(where, value, f"allowed range {_range_text(key)}"))
+        return None
+    return int(value) if integer else float(value)
+
+
+def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
+    if key.kind in ("float", "int"):
+        return _check_number(where, value, key, problems)
+    if key.kind == "str":
+        if not isinstance(value, str):
+            problems.append(bad_value(where, value, "expected a string"))
+            return None
+        return value
+    if key.kind == "choice":
+        if value not in key.choices:
+            allowed = ", ".join(key.choices)
+            hint = _suggest(str(value), key.choices) if isinstance(value, str) else ""
+            problems.append(bad_value(where, value, f"allowed values: {allowed}") + hint)
+            return None
+        return value
+    if key.kind == "vec":
+        what = "integers" if key.integer else "numbers"
+        if not isinstance(value, list) or len(value) != key.n:
+            problems.append(bad_value(where, value,
+                                      f"expected {key.n} {what}, each in {_range_text(key)}"))
+            return None
+        out = [_check_number(f"{where}[{i}]", v, key, problems) for i, v in enumerate(value)]
+        return None if any(v is None for v in out) else out
+    if key.kind == "datetime":
+        if not isinstance(value, dt.datetime) or value.tzinfo is not None:
+            problems.append(bad_value(where, value if not isinstance(value, dt.datetime)
+                                      else value.isoformat(),
+                                      "expected a TOML local date-time such as "
+                                      "2018-10-24T14:05:00 (no offset; give utc_offset_h)"))
+            return None
+        return value
+    if key.kind == "strlist":
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            problems.append(bad_value(where, value, "expected a list of strings"))
+            return None
+        return list(value)
+    raise AssertionError(f"unknown key kind {key.kind}")
+
+
+def _check_table(where: str, table: Any, section: Section, problems: list[str]) -> dict:
+    if not isinstance(table, dict):
+        problems.append(bad_value(where, table, "expected a table"))
+        return {}
+    out: dict[str, Any] = {}
+    known = list(section.keys) + list(section.subsections)
+    for name, value in table.items():
+        if name in section.subsections:
+            continue
+        if name not in section.keys:
+            problems.append(f"{where}.{name}: unknown key{_suggest(name, known)}; "
+                            f"allowed keys: {', '.join(known)}")
+            continue
+        out[name] = _check_value(f"{where}.{name}", value, section.keys[name], problems)
+    for name, key in section.keys.items():
+        if name not in table:
+            if key.required:
+                problems.append(f"{where}.{name}: missing required key ({key.doc})")
+            else:
+                out[name] = copy.deepcopy(key.default)
+    for name, sub in section.subsections.items():
+        out[name] = _check_section(f"{where}.{name}", table.get(name), sub, problems)
+    return out
+
+
+def _check_section(where: str, raw: Any, section: Section, problems: list[str]):
+    if raw is None:
+        if section.required:
+            problems.append(f"[{where}]: missing required section")
+        if section.array:
+            return []
+        if section.subsections:       # a part of the scene that is absent ([scene])
+            return None
+        raw = {}                      # settings sections ([thermal], [atmosphere]): defaults
+    if section.array:
+        if not isinstance(raw, list):
+            problems.append(bad_value(where, raw, f"expected an array of tables [[{where}]]"))
+            return []
+        return [_check_table(f"{where}[{i}]", t, section, problems) for i, t in enumerate(raw)]
+    return _check_table(where, raw, section, problems)
+
+
+def _check_ids(where: str, items: list[dict], problems: list[str]) -> set[str]:
+    seen: set[str] = set()
+    for i, item in enumerate(items):
+        ident = item.get("id")
+        if ident is None:
+            continue
+        if not _IDENT.match(ident):
+            problems.append(bad_value(f"{where}[{i}].id", ident,
+                                      "expected letters, digits and _ (not starting with a digit)"))
+        elif ident in seen:
+            problems.append(bad_value(f"{where}[{i}].id", ident, "must be unique"))
+        seen.add(ident)
+    return seen
+
+
+def _cross_checks(data: dict, problems: list[str]) -> None:
+    humans = _check_ids("human", data["human"], problems)
+    _check_ids("sensor", data["sensor"], problems)
+    if data["scene"]:
+        _check_ids("scene.object", data["scene"]["object"], problems)
+    placed: set[str] = set()
+    for i, p in enumerate(data["placement"]):
+        h = p.get("human")
+        if h is None:
+            continue
+        if h not in humans:
+            problems.append(bad_value(f"placement[{i}].human", h, "expected the id of a [[human]]: "
+                                      + (", ".join(sorted(humans)) or "none defined"))
+                            + _suggest(h, humans))
+        elif h in placed:
+            problems.append(bad_value(f"placement[{i}].human", h, "each human is placed once"))
+        placed.add(h)
+    for h in sorted(humans - placed):
+        problems.append(f"human id {h!r}: no [[placement]] places this human")
+    for i, hum in enumerate(data["human"]):
+        if hum.get("clothing"):
+            problems.append(bad_value(f"human[{i}].clothing", hum["clothing"],
+                                      "must be empty: garments are not available yet "
+                                      "(the clothing tool is a later issue)"))
+    for i, s in enumerate(data["sensor"]):
+        band = s.get("band")
+        if band is None:
+            continue
+        if s.get("wavelength_um") is None:
+            s["wavelength_um"] = list(BAND_DEFAULT_UM[band])
+        lo, hi = s["wavelength_um"]
+        if lo >= hi:
+            problems.append(bad_value(f"sensor[{i}].wavelength_um", [lo, hi],
+                                      "expected [short, long] with short < long"))
+        if s.get("position_m") and s.get("look_at_m"):
+            d = [a - b for a, b in zip(s["look_at_m"], s["position_m"])]
+            if math.sqrt(sum(x * x for x in d)) < 1e-6:
+                problems.append(bad_value(f"sensor[{i}].look_at_m", s["look_at_m"],
+                                          "must differ from position_m"))
+
+
+def validate(raw: dict, path: Path | None = None) -> Scenario:
+    """Validate a parsed TOML document; raise :class:`InputError` listing every problem."""
+    problems: list[str] = []
+    for name in raw:
+        if name not in SECTIONS:
+            problems.append(f"[{name}]: unknown section{_suggest(name, SECTIONS)}; "
+                            f"allowed sections: {', '.join(SECTIONS)}")
+    data = {name: _check_section(name, raw.get(name), sec, problems)
+            for name, sec in SECTIONS.items()}
+    if not problems:
+        _cross_checks(data, problems)
+    if problems:
+        prefix = f"{path}: " if path else ""
+        raise InputError("", [prefix + p for p in problems])
+    return Scenario(data=data, path=path, given=frozenset(raw) & frozenset(SECTIONS))
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario TOML file."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: scenario file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read scenario file ({exc})") from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    return validate(raw, path)

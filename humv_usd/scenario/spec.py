@@ -1,0 +1,194 @@
+"""The scenario file's keys: type, unit, allowed range, default, and what each one means.
+
+Sections mirror the six tabs of the HumV editor (seed paper §3: General; Human/Clothing/Motion;
+Human Placement; Scene; Sensor; Thermal) plus the atmosphere and weather:
+
+=============  ==============  =========================================================
+section        TOML form       seed editor tab
+=============  ==============  =========================================================
+general        ``[general]``   (i) General: name, site, date/time, frame rate, duration
+human          ``[[human]]``   (ii) Human/Clothing/Motion
+placement      ``[[placement]]`` (iii) Human Placement
+scene          ``[scene]`` with ``[scene.ground]`` and ``[[scene.object]]``  (iv) Scene
+sensor         ``[[sensor]]``  (v) Sensor
+thermal        ``[thermal]``   (vi) Thermal
+atmosphere     ``[atmosphere]`` atmosphere model and weather
+=============  ==============  =========================================================
+
+Units are part of each key's name (``_m``, ``_k``, ``_deg``, ``_um``, ``_mm``); inside the code
+everything is SI. This module is pure data: :mod:`humv_usd.scenario.load` validates against it.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass, field
+from typing import Any
+
+MATERIALS = ("skin", "concrete", "asphalt", "painted_metal", "wood", "grass", "soil",
+             "blackbody")
+BANDS = ("EO", "MWIR", "LWIR")
+ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
+FITNESS = ("low", "average", "high", "athlete")
+OBJECT_KINDS = ("box", "panel")
+OBJECT_CLASSES = ("building", "prop", "panel", "vegetation", "vehicle", "other")
+THERMAL_MODELS = ("fixed",)
+ATMOSPHERE_MODELS = ("analytic",)
+PROFILES = ("tropical", "midlatitudeSummer", "midlatitudeWinter", "subarcticSummer",
+            "subarcticWinter", "usStandard1976")
+
+
+@dataclass(frozen=True)
+class Key:
+    """One scenario key.
+
+    kind: "float", "int", "str", "choice", "vec", "datetime", "strlist".
+    lo/hi: inclusive numeric range (per element for "vec"); n: vector length.
+    """
+
+    kind: str
+    doc: str
+    default: Any = None
+    required: bool = False
+    lo: float | None = None
+    hi: float | None = None
+    n: int | None = None
+    choices: tuple[str, ...] = ()
+    integer: bool = False
+
+
+@dataclass(frozen=True)
+class Section:
+    keys: dict[str, Key]
+    array: bool = False          # [[section]] (list of tables) rather than [section]
+    required: bool = False
+    doc: str = ""
+    subsections: dict[str, "Section"] = field(default_factory=dict)
+
+
+GENERAL = Section(required=True, doc="(i) General", keys={
+    "name": Key("str", "Scenario name; used in file names and metadata.", required=True),
+    "description": Key("str", "Free text.", default=""),
+    "start": Key("datetime", "Local date and time of frame 0 (TOML local date-time, "
+                 "e.g. 2018-10-24T14:05:00).", required=True),
+    "utc_offset_h": Key("float", "Offset of local time from UTC [h] (EDT = -4).", required=True,
+                        lo=-12.0, hi=14.0),
+    "time_zone": Key("str", "IANA time-zone name, informative (e.g. America/New_York).",
+                     default=""),
+    "latitude_deg": Key("float", "Site latitude [deg north].", required=True, lo=-90.0, hi=90.0),
+    "longitude_deg": Key("float", "Site longitude [deg east].", required=True,
+                         lo=-180.0, hi=180.0),
+    "elevation_m": Key("float", "Site elevation above sea level [m].", default=0.0,
+                       lo=-450.0, hi=9000.0),
+    "fps": Key("float", "Frame rate [frames/s].", default=30.0, lo=0.01, hi=1000.0),
+    "duration_s": Key("float", "Length of the scenario [s]; frames = round(duration*fps)+1.",
+                      default=0.0, lo=0.0, hi=86400.0),
+    "seed": Key("int", "Seed of every random choice (sampling, noise).", default=0,
+                lo=0, hi=2**31 - 1, integer=True),
+})
+
+HUMAN = Section(array=True, doc="(ii) Human/Clothing/Motion", keys={
+    "id": Key("str", "Identifier of the person (letters, digits, _).", required=True),
+    "sex": Key("choice", "Sex of the body model.", default="male", choices=("male", "female")),
+    "age_yr": Key("float", "Age [years].", default=30.0, lo=1.0, hi=100.0),
+    "stature_m": Key("float", "Standing height [m].", default=1.75, lo=0.8, hi=2.3),
+    "mass_kg": Key("float", "Body mass [kg].", default=75.0, lo=10.0, hi=250.0),
+    "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
+    "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
+    "clothing": Key("strlist", "Garments worn (the clothing issue adds them; must be empty "
+                    "for now).", default=[]),
+})
+
+PLACEMENT = Section(array=True, doc="(iii) Human Placement", keys={
+    "human": Key("str", "id of the [[human]] placed.", required=True),
+    "position_m": Key("vec", "Position of the feet on the ground, [x east, y north, z up] [m].",
+                      required=True, n=3, lo=-1.0e4, hi=1.0e4),
+    "heading_deg": Key("float", "Direction the person faces, compass azimuth [deg] "
+                       "(0 = north (+y), 90 = east (+x)).", default=0.0, lo=-360.0, hi=360.0),
+})
+
+GROUND = Section(doc="ground plane", keys={
+    "material": Key("choice", "Material of the ground.", default="concrete", choices=MATERIALS),
+    "size_m": Key("vec", "Extent [x, y] of the ground rectangle centred at the origin [m].",
+                  default=[100.0, 100.0], n=2, lo=1.0, hi=1.0e5),
+    "temperature_k": Key("float", "Fixed surface temperature [K] (placeholder until the "
+                         "thermal issue's slab model).", default=293.15, lo=150.0, hi=1000.0),
+})
+
+OBJECT = Section(array=True, doc="scene objects", keys={
+    "id": Key("str", "Identifier of the object.", required=True),
+    "kind": Key("choice", "Geometry: box (closed, e.g. a building) or panel (a thin box, "
+                "e.g. a blackbody).", default="box", choices=OBJECT_KINDS),
+    "class": Key("choice", "Label class.", default="building", choices=OBJECT_CLASSES),
+    "material": Key("choice", "Material.", required=True, choices=MATERIALS),
+    "center_m": Key("vec", "Centre of the base, [x, y, z] [m].", required=True, n=3,
+                    lo=-1.0e4, hi=1.0e4),
+    "size_m": Key("vec", "Size [width x, depth y, height z] before rotation [m].",
+                  required=True, n=3, lo=0.001, hi=1.0e4),
+    "heading_deg": Key("float", "Rotation about z, counter-clockwise [deg].", default=0.0,
+                       lo=-360.0, hi=360.0),
+    "temperature_k": Key("float", "Fixed surface temperature [K].", default=293.15,
+                         lo=150.0, hi=1000.0),
+})
+
+SCENE = Section(doc="(iv) Scene", keys={
+    "site": Key("str", "Name of the site (informative).", default=""),
+}, subsections={"ground": GROUND, "object": OBJECT})
+
+SENSOR = Section(array=True, doc="(v) Sensor", keys={
+    "id": Key("str", "Identifier of the sensor; names its output folder.", required=True),
+    "band": Key("choice", "Spectral band.", default="LWIR", choices=BANDS),
+    "wavelength_um": Key("vec", "Band edges [short, long] [µm] (default by band: EO 0.4-0.7, "
+                         "MWIR 3-5, LWIR 8-14).", n=2, lo=0.3, hi=15.0),
+    "resolution": Key("vec", "Image size [width, height] [px].", required=True, n=2,
+                      lo=1, hi=16384, integer=True),
+    "pixel_pitch_um": Key("float", "Detector pixel pitch [µm].", default=17.0, lo=0.5, hi=100.0),
+    "focal_length_mm": Key("float", "Lens focal length [mm].", required=True, lo=0.5,
+                           hi=5000.0),
+    "f_number": Key("float", "Lens f-number.", default=1.0, lo=0.5, hi=64.0),
+    "netd_k": Key("float", "Noise-equivalent temperature difference [K].", default=0.05,
+                  lo=0.0, hi=5.0),
+    "bit_depth": Key("int", "Bits per pixel of the raw counts.", default=14, lo=8, hi=16,
+                     integer=True),
+    "gain": Key("float", "Counts per band radiance [counts per W m-2 sr-1].", default=100.0,
+                lo=1.0e-6, hi=1.0e9),
+    "offset": Key("float", "Counts at zero radiance.", default=0.0, lo=-1.0e6, hi=1.0e6),
+    "position_m": Key("vec", "Camera position [x, y, z] [m].", required=True, n=3,
+                      lo=-1.0e5, hi=1.0e5),
+    "look_at_m": Key("vec", "Point the optical axis passes through [x, y, z] [m].",
+                     required=True, n=3, lo=-1.0e5, hi=1.0e5),
+})
+
+THERMAL = Section(doc="(vi) Thermal", keys={
+    "model": Key("choice", "Temperature model (fixed: uniform skin temperature; physiology "
+                 "arrives with the thermal issue).", default="fixed", choices=THERMAL_MODELS),
+    "skin_temperature_k": Key("float", "Uniform skin temperature [K] for the fixed model.",
+                              default=306.15, lo=273.15, hi=320.0),
+})
+
+ATMOSPHERE = Section(doc="atmosphere and weather", keys={
+    "model": Key("choice", "Sky/atmosphere model (analytic: Berdahl-Martin clear-sky "
+                 "emissivity; LOWTRAN7 arrives with the atmosphere issue).", default="analytic",
+                 choices=ATMOSPHERE_MODELS),
+    "profile": Key("choice", "Model atmosphere (for LOWTRAN7).", default="usStandard1976",
+                   choices=PROFILES),
+    "air_temperature_k": Key("float", "Air temperature near the ground [K].", default=293.15,
+                             lo=223.15, hi=333.15),
+    "relative_humidity": Key("float", "Relative humidity [0-1].", default=0.5, lo=0.0, hi=1.0),
+    "wind_speed_m_s": Key("float", "Wind speed [m/s].", default=1.0, lo=0.0, hi=60.0),
+    "wind_direction_deg": Key("float", "Direction the wind blows from, compass [deg].",
+                              default=0.0, lo=0.0, hi=360.0),
+    "pressure_pa": Key("float", "Air pressure at the site [Pa].", default=101325.0,
+                       lo=30000.0, hi=110000.0),
+    "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
+    "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05,
+                         hi=300.0),
+})
+
+SECTIONS: dict[str, Section] = {
+    "general": GENERAL, "human": HUMAN, "placement": PLACEMENT, "scene": SCENE,
+    "sensor": SENSOR, "thermal": THERMAL, "atmosphere": ATMOSPHERE,
+}
+
+BAND_DEFAULT_UM = {"EO": [0.4, 0.7], "MWIR": [3.0, 5.0], "LWIR": [8.0, 14.0]}
+
+DATETIME_TYPES = (_dt.datetime,)

@@ -1,0 +1,158 @@
+"""``humv-usd check``: USD's own validators plus HumV layer rules, as checker functions.
+
+usd-core 26.11 no longer ships ``UsdUtils.ComplianceChecker``: its rules moved into the
+UsdValidation framework that ``usdchecker`` runs. We run every registered UsdValidation validator
+(stage metadata, encapsulation, material bindings, composition errors, attribute types, ...)
+and then our own rules. Each finding is one line: ``<rule>: <where>: <message>``.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdValidation
+
+from humv_usd.errors import InputError
+from humv_usd.usd import schemas as S
+
+TEMPERATURE_RANGE_K = (1.0, 5000.0)
+
+
+def open_stage(path: str | Path) -> Usd.Stage:
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: stage file not found")
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Exception as exc:  # USD raises Tf.ErrorException with a multi-line text
+        first = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path}: cannot open as USD ({first.strip()})") from None
+    if stage is None:
+        raise InputError(f"{path}: cannot open as USD")
+    return stage
+
+
+def usd_validators(stage: Usd.Stage) -> list[str]:
+    """Run all validators registered with UsdValidation (the successor of ComplianceChecker)."""
+    registry = UsdValidation.ValidationRegistry()
+    context = UsdValidation.ValidationContext(registry.GetOrLoadAllValidators())
+    out = []
+    for err in context.Validate(stage):
+        if err.GetType() == UsdValidation.ValidationErrorType.Info:
+            continue
+        sites = [str(s.GetPrim().GetPath()) for s in err.GetSites() if s.IsPrim()]
+        where = sites[0] if sites else "stage"
+        message = " ".join(err.GetMessage().split())
+        out.append(f"usd:{err.GetName()}: {where}: {message}")
+    return out
+
+
+def rule_root_layer(stage: Usd.Stage) -> list[str]:
+    """The root layer holds sublayers and metadata only; conventions Z-up, metres, defaultPrim."""
+    out = []
+    root = stage.GetRootLayer()
+    if root.rootPrims:
+        names = ", ".join(p.name for p in root.rootPrims)
+        out.append(f"humv:rootLayer: {root.identifier}: holds prims ({names}); the root layer "
+                   "should only sublayer the part layers")
+    if UsdGeom.GetStageUpAxis(stage) != UsdGeom.Tokens.z:
+        out.append(f"humv:upAxis: stage: upAxis is {UsdGeom.GetStageUpAxis(stage)}, expected Z")
+    if not math.isclose(UsdGeom.GetStageMetersPerUnit(stage), 1.0):
+        out.append(f"humv:metersPerUnit: stage: metersPerUnit is "
+                   f"{UsdGeom.GetStageMetersPerUnit(stage)}, expected 1")
+    if not stage.GetDefaultPrim():
+        out.append("humv:defaultPrim: stage: no valid defaultPrim")
+    tcps = root.timeCodesPerSecond
+    for sub in root.subLayerPaths:
+        layer = Sdf.Layer.FindOrOpenRelativeToLayer(root, sub)
+        if layer is None:
+            out.append(f"humv:sublayer: {sub}: cannot be opened")
+        elif layer.timeCodesPerSecond != tcps:
+            out.append(f"humv:timeCodes: {sub}: timeCodesPerSecond {layer.timeCodesPerSecond} "
+                       f"!= root {tcps} (USD would rescale its time samples)")
+    return out
+
+
+def _times(attr: Usd.Attribute) -> list:
+    samples = attr.GetTimeSamples()
+    return samples if samples else [Usd.TimeCode.Default()]
+
+
+def rule_meshes(stage: Usd.Stage) -> list[str]:
+    """Per-face temperatures (uniform, one per face, finite, in range) and bound materials."""
+    out = []
+    lo, hi = TEMPERATURE_RANGE_K
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdGeom.Mesh):
+            continue
+        path = prim.GetPath()
+        faces = len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get() or [])
+        primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"))
+        if primvar and primvar.HasAuthoredValue():
+            if primvar.GetInterpolation() != UsdGeom.Tokens.uniform:
+                out.append(f"humv:temperature: {path}: interpolation "
+                           f"{primvar.GetInterpolation()}, expected uniform (one value per face)")
+            for t in _times(primvar.GetAttr()):
+                values = np.asarray(primvar.Get(t) or [], dtype=float)
+                when = "" if t.IsDefault() else f" at time {t.GetValue()}"
+                if len(values) != faces:
+                    out.append(f"humv:temperature: {path}{when}: {len(values)} values for "
+                               f"{faces} faces")
+                elif len(values) and not (np.all(np.isfinite(values)) and values.min() >= lo
+                                          and values.max() <= hi):
+                    out.append(f"humv:temperature: {path}{when}: values "
+                               f"{values.min():.6g}..{values.max():.6g} K outside {lo:g}..{hi:g} K")
+        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        if not material:
+            out.append(f"humv:material: {path}: no bound material")
+            continue
+        mprim = material.GetPrim()
+        if not mprim.HasAPI(S.MATERIAL_API):
+            out.append(f"humv:material: {mprim.GetPath()}: bound to {path} but has no "
+                       f"{S.MATERIAL_API}")
+            continue
+        wl = np.asarray(mprim.GetAttribute(S.MATERIAL_WAVELENGTHS).Get() or [], dtype=float)
+        eps = np.asarray(mprim.GetAttribute(S.MATERIAL_EMISSIVITY).Get() or [], dtype=float)
+        if len(wl) == 0 or len(wl) != len(eps):
+            out.append(f"humv:material: {mprim.GetPath()}: {len(wl)} wavelengths and "
+                       f"{len(eps)} emissivities (need the same non-zero count)")
+        elif np.any(np.diff(wl) <= 0) or np.any((eps < 0) | (eps > 1)):
+            out.append(f"humv:material: {mprim.GetPath()}: wavelengths must ascend and "
+                       "emissivity lie in 0..1")
+    return out
+
+
+def rule_sensors_and_labels(stage: Usd.Stage) -> list[str]:
+    out = []
+    ids: dict[int, str] = {}
+    for prim in stage.Traverse():
+        path = prim.GetPath()
+        if prim.HasAPI(S.SENSOR_API):
+            res = prim.GetAttribute(S.SENSOR_RESOLUTION).Get()
+            band = prim.GetAttribute(S.SENSOR_WAVELENGTH_RANGE).Get()
+            if res is None or min(res) < 1:
+                out.append(f"humv:sensor: {path}: resolution {res}, expected two integers >= 1")
+            if band is None or not band[0] < band[1]:
+                out.append(f"humv:sensor: {path}: wavelengthRange {band}, expected short < long")
+        if prim.HasAPI(S.LABEL_API):
+            iid = prim.GetAttribute(S.LABEL_INSTANCE_ID).Get()
+            if iid is None or iid < 1:
+                out.append(f"humv:label: {path}: instanceId {iid}, expected an integer >= 1")
+            elif iid in ids:
+                out.append(f"humv:label: {path}: instanceId {iid} also used by {ids[iid]}")
+            else:
+                ids[iid] = str(path)
+    return out
+
+
+RULES = (rule_root_layer, rule_meshes, rule_sensors_and_labels)
+
+
+def check_stage(path: str | Path) -> list[str]:
+    """All findings for the stage at ``path`` (empty when clean). Bad files raise InputError."""
+    stage = open_stage(path)
+    findings = usd_validators(stage)
+    for rule in RULES:
+        findings.extend(rule(stage))
+    return findings

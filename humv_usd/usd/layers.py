@@ -1,0 +1,106 @@
+"""Helpers shared by the layer tools: new layers with our stage conventions, atomic writes."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from pxr import Gf, Sdf, Usd, UsdGeom
+
+import humv_usd  # noqa: F401  (registers the schemas before any stage exists)
+
+WORLD = Sdf.Path("/World")
+SCOPES = {
+    "environment": WORLD.AppendChild("Environment"),
+    "atmosphere": WORLD.AppendChild("Atmosphere"),
+    "materials": WORLD.AppendChild("Materials"),
+    "scene": WORLD.AppendChild("Scene"),
+    "humans": WORLD.AppendChild("Humans"),
+    "sensors": WORLD.AppendChild("Sensors"),
+}
+
+
+def new_layer_stage(fps: float, frame_count: int, doc: str) -> Usd.Stage:
+    """An in-memory stage whose root layer becomes one of our layers.
+
+    Sets our conventions on the layer (Z-up, metres, defaultPrim /World, frame range) so the
+    layer is a complete USD file on its own, and defines /World.
+    """
+    stage = Usd.Stage.CreateInMemory()
+    set_layer_metadata(stage.GetRootLayer(), fps, frame_count, doc)
+    UsdGeom.Xform.Define(stage, WORLD)
+    return stage
+
+
+def set_layer_metadata(layer: Sdf.Layer, fps: float, frame_count: int, doc: str) -> None:
+    layer.documentation = doc
+    layer.defaultPrim = WORLD.name
+    layer.timeCodesPerSecond = fps
+    layer.framesPerSecond = fps
+    layer.startTimeCode = 0
+    layer.endTimeCode = max(frame_count - 1, 0)
+    pseudo = layer.pseudoRoot
+    pseudo.SetInfo(UsdGeom.Tokens.upAxis, UsdGeom.Tokens.z)
+    pseudo.SetInfo(UsdGeom.Tokens.metersPerUnit, 1.0)
+
+
+def layer_text(layer: Sdf.Layer) -> str:
+    """The usda text of a layer, as it will be written."""
+    return layer.ExportToString()
+
+
+def write_text_atomic(path: Path, text: str) -> bool:
+    """Write text to path through a temp file + rename. Returns False when the file already
+    holds exactly this text (then nothing is written and its mtime is kept)."""
+    path = Path(path)
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return False
+    except (FileNotFoundError, UnicodeDecodeError, IsADirectoryError):
+        pass
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual file mode
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return True
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def look_at_matrix(position, target, up=(0.0, 0.0, 1.0)) -> Gf.Matrix4d:
+    """Local-to-world matrix of a USD camera at ``position`` looking at ``target``.
+
+    USD cameras look down their local -Z with +Y up; world up is +Z. Looking straight up or
+    down falls back to +Y as the up hint.
+    """
+    eye = Gf.Vec3d(*position)
+    forward = (Gf.Vec3d(*target) - eye).GetNormalized()
+    up_hint = Gf.Vec3d(*up)
+    if abs(Gf.Dot(forward, up_hint)) > 0.999:
+        up_hint = Gf.Vec3d(0.0, 1.0, 0.0)
+    right = Gf.Cross(forward, up_hint).GetNormalized()
+    cam_up = Gf.Cross(right, forward)
+    back = -forward
+    return Gf.Matrix4d(
+        right[0], right[1], right[2], 0.0,
+        cam_up[0], cam_up[1], cam_up[2], 0.0,
+        back[0], back[1], back[2], 0.0,
+        eye[0], eye[1], eye[2], 1.0)
+
+
+def finish(stage: Usd.Stage) -> Sdf.Layer:
+    """The stage's root layer as a layer that outlives the stage (GetRootLayer is a weak handle)."""
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.TransferContent(stage.GetRootLayer())
+    return layer

@@ -1,0 +1,68 @@
+"""Author meshes with our conventions: rightHanded (counter-clockwise seen from outside)."""
+from __future__ import annotations
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+
+from humv_usd.usd import schemas as S
+
+
+def define_mesh(stage: Usd.Stage, path: Sdf.Path | str, points: np.ndarray,
+                face_counts: np.ndarray, face_indices: np.ndarray,
+                material: Sdf.Path | None = None) -> UsdGeom.Mesh:
+    """Define a polygon mesh (no subdivision) with extent and an optional material binding."""
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    points = np.asarray(points, dtype=np.float32)
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.asarray(face_counts, np.int32)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.asarray(face_indices, np.int32)))
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+    mesh.CreateDoubleSidedAttr(False)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
+    if material is not None:
+        bind_material(mesh.GetPrim(), material)
+    return mesh
+
+
+def bind_material(prim: Usd.Prim, material: Sdf.Path) -> None:
+    """Direct material binding to a path that may live in another layer (materials.usda)."""
+    UsdShade.MaterialBindingAPI.Apply(prim)
+    prim.CreateRelationship(UsdShade.Tokens.materialBinding, custom=False).SetTargets([material])
+
+
+def label(prim: Usd.Prim, instance_id: int, label_class: str) -> None:
+    prim.ApplyAPI(S.LABEL_API)
+    prim.GetAttribute(S.LABEL_INSTANCE_ID).Set(int(instance_id))
+    prim.GetAttribute(S.LABEL_CLASS).Set(label_class)
+
+
+def triangle_areas(points: np.ndarray, face_counts, face_indices) -> np.ndarray:
+    """Area of each polygon [m^2] (fan triangulation; exact for planar convex faces)."""
+    counts = np.asarray(face_counts)
+    idx = np.asarray(face_indices)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    areas = np.zeros(len(counts))
+    for k in range(1, counts.max() - 1):
+        sel = counts > k + 1
+        a = points[idx[starts[sel]]]
+        b = points[idx[starts[sel] + k]]
+        c = points[idx[starts[sel] + k + 1]]
+        areas[sel] += 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    return areas
+
+
+def signed_volume(points: np.ndarray, face_counts, face_indices) -> float:
+    """Signed enclosed volume [m^3] (divergence theorem); > 0 for outward CCW faces."""
+    counts = np.asarray(face_counts)
+    idx = np.asarray(face_indices)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    vol = 0.0
+    for k in range(1, counts.max() - 1):
+        sel = counts > k + 1
+        a = points[idx[starts[sel]]]
+        b = points[idx[starts[sel] + k]]
+        c = points[idx[starts[sel] + k + 1]]
+        vol += float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
+    return vol
