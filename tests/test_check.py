@@ -1,0 +1,66 @@
+"""check: USD validators and HumV layer rules find what is broken."""
+from __future__ import annotations
+
+import shutil
+
+import pytest
+from pxr import Sdf, Usd, UsdGeom, Vt
+
+from humv_usd.pipeline.compose import compose
+from humv_usd.scenario import validate
+from humv_usd.usd.check import check_stage
+
+
+@pytest.fixture
+def out(tmp_path, raw):
+    compose(validate(raw), tmp_path / "o")
+    return tmp_path / "o"
+
+
+def edit_layer(path, fn):
+    layer = Sdf.Layer.FindOrOpen(str(path))
+    stage = Usd.Stage.Open(layer)
+    fn(stage)
+    layer.Save()
+    Sdf.Layer.Find(str(path)).Reload()
+
+
+def test_clean(out):
+    assert check_stage(out / "stage.usda") == []
+
+
+def test_wrong_temperature_count_and_range(out):
+    def broken(stage):
+        prim = stage.GetPrimAtPath("/World/Scene/Ground")
+        UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature").Set(
+            Vt.FloatArray([300.0] * 3))
+        prim = stage.GetPrimAtPath("/World/Scene/warehouse")
+        UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature").Set(
+            Vt.FloatArray([300.0] * 5 + [float("nan")]))
+    edit_layer(out / "layers" / "thermal.usda", broken)
+    found = check_stage(out / "stage.usda")
+    assert any("/World/Scene/Ground: 3 values for 256 faces" in f for f in found)
+    assert any("/World/Scene/warehouse: values" in f for f in found)
+
+
+def test_missing_material_and_root_prims(out):
+    (out / "layers" / "materials.usda").write_text("#usda 1.0\n")
+    root = Sdf.Layer.FindOrOpen(str(out / "stage.usda"))
+    Sdf.CreatePrimInLayer(root, "/Extra").specifier = Sdf.SpecifierDef
+    root.Save()
+    found = check_stage(out / "stage.usda")
+    assert any(f.startswith("humv:rootLayer:") for f in found)
+    assert any("/World/Scene/Ground: no bound material" in f for f in found)
+    assert any(f.startswith("usd:") for f in found)  # USD's own binding validator fires too
+
+
+def test_conventions(out):
+    bad = out / "bad.usda"
+    shutil.copy(out / "stage.usda", bad)
+    layer = Sdf.Layer.FindOrOpen(str(bad))
+    layer.pseudoRoot.SetInfo("upAxis", "Y")
+    layer.pseudoRoot.SetInfo("metersPerUnit", 0.01)
+    layer.Save()
+    found = check_stage(bad)
+    assert any("upAxis is Y" in f for f in found)
+    assert any("metersPerUnit is 0.01" in f for f in found)
