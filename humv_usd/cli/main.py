@@ -101,12 +101,12 @@ def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors):
 
     manifest = render_stage(stage, out_dir, frames=parse_frames(frames), spp=spp,
                             sensors=list(sensors) or None, seed=seed)
-    err = manifest.get("error", {})
+    err = manifest.get("monte_carlo_error", {})
     click.echo(f"{out_dir}/manifest.json  render {manifest['timings_s']['total']:.2f} s, "
                f"MC error mean {err.get('temperature_stderr_mean_k', float('nan')):.4f} K, "
                f"max {err.get('temperature_stderr_max_k', float('nan')):.4f} K")
-    for item in manifest.get("skipped", []):
-        click.echo(f"  skipped {item}")
+    for item in manifest.get("skipped_sensors", []):
+        click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
 
 
 @main.command()
@@ -160,7 +160,7 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
             t = time.perf_counter()
             manifest = render_stage(out / "stage.usda", out / "render", spp=spp, seed=i)
             render_s.append(time.perf_counter() - t)
-            err_k.append(manifest["error"]["temperature_stderr_mean_k"])
+            err_k.append(manifest["monte_carlo_error"]["temperature_stderr_mean_k"])
     click.echo(f"scenario {scenario}, {spp} spp, {repeat} runs")
     click.echo(f"  compose  median {statistics.median(compose_s):.3f} s  "
                f"(min {min(compose_s):.3f}, max {max(compose_s):.3f})")

@@ -1,0 +1,515 @@
+"""USD stage -> per-frame scene description in plain numpy (no Mitsuba here).
+
+Reads attributes by name (``prim.GetAttribute``), so it works whether or not the Humv API schemas
+are applied or registered. Conventions are those of ``docs/architecture.md``: Z-up metre stages,
+time codes are frames, cameras look down local -Z with +Y up, per-face data are ``uniform``
+primvars (one value per authored face) and polygons are triangulated as fans.
+
+What is read
+------------
+- every ``UsdGeom.Mesh`` with purpose default/render (instance proxies included), when visible
+  at the frame: world points at the frame (``UsdGeom.XformCache``), fan triangles with a
+  triangle -> authored-face map, one part per bound material (``GeomSubset`` material bindings
+  included), ``primvars:humv:thermal:temperature`` at the frame, ``humv:label:instanceId`` of the
+  mesh or its nearest ancestor;
+- materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity``;
+- ``/World/Atmosphere.humv:atmosphere:skyTemperature`` [K] at the frame;
+- every camera with ``humv:sensor:*`` attributes (HumvSensorAPI): band, wavelength range,
+  response, resolution, and its Gf.Camera at the frame.
+
+Not handled (documented limits): UsdSkel skinning (points must be baked), point instancers, hole
+indices, aperture offsets (warned and ignored), topology that changes over time.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from pxr import Gf, Usd, UsdGeom, UsdShade
+
+from humv_usd.errors import InputError, bad_value
+from humv_usd.usd import schemas as _s
+
+# Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
+# depend on whether the schemas are registered or applied.
+TEMPERATURE_ATTR = _s.TEMPERATURE_PRIMVAR
+WAVELENGTHS_ATTR = _s.MATERIAL_WAVELENGTHS
+EMISSIVITY_ATTR = _s.MATERIAL_EMISSIVITY
+SKY_TEMPERATURE_ATTR = _s.ATMOSPHERE_SKY_TEMPERATURE
+INSTANCE_ID_ATTR = _s.LABEL_INSTANCE_ID
+SENSOR_API = _s.SENSOR_API
+SENSOR_BAND_ATTR = _s.SENSOR_BAND
+SENSOR_RANGE_ATTR = _s.SENSOR_WAVELENGTH_RANGE
+SENSOR_RESPONSE_WL_ATTR = _s.SENSOR_RESPONSE_WAVELENGTHS
+SENSOR_RESPONSE_ATTR = _s.SENSOR_RESPONSE
+SENSOR_RESOLUTION_ATTR = _s.SENSOR_RESOLUTION
+SENSOR_PREFIX = "humv:sensor:"
+ATMOSPHERE_PATH = "/World/Atmosphere"
+
+#: Allowed temperatures [K] for surfaces and the sky.
+TEMPERATURE_RANGE_K = (1.0, 5000.0)
+#: A sensor is infrared (rendered here) when its band starts at or above this wavelength [um].
+INFRARED_MIN_UM = 3.0
+#: Largest instance id (stored exactly in a float32 face attribute).
+MAX_INSTANCE_ID = 2**24 - 1
+MAX_RESOLUTION = 16384
+EO_SKIP_REASON = "EO rendering comes with the sensors/atmosphere issue"
+
+
+def _summary(values, limit=6):
+    a = np.asarray(values).ravel()
+    if a.size <= limit:
+        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
+    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
+    return f"[{head}, ...] ({a.size} values)"
+
+
+def _get(attr, time):
+    if not attr or not attr.IsValid():
+        return None
+    return attr.Get(time)
+
+
+@dataclass
+class Sensor:
+    """A camera with HumvSensorAPI attributes."""
+
+    name: str
+    path: str
+    band: str
+    wavelength_range_um: tuple[float, float] | None
+    response: tuple[np.ndarray, np.ndarray] | None
+    resolution: tuple[int, int] | None  # (width, height) [px]
+    skip_reason: str | None = None
+
+    @property
+    def rendered(self) -> bool:
+        return self.skip_reason is None
+
+
+@dataclass
+class CameraPose:
+    """A sensor's camera at one frame (world space, metres)."""
+
+    origin: np.ndarray  # (3,)
+    forward: np.ndarray  # (3,), unit, the optical axis
+    up: np.ndarray  # (3,), unit
+    fov_x_deg: float
+
+
+@dataclass
+class Material:
+    path: str
+    wavelengths_um: np.ndarray
+    emissivity: np.ndarray
+
+
+@dataclass
+class Part:
+    """The faces of one mesh bound to one material, triangulated.
+
+    ``vertex_ids`` index the mesh's points; ``triangles`` index ``vertex_ids`` (authored winding:
+    counter-clockwise is the front for a right-handed mesh); ``triangle_face`` is the authored
+    face of each triangle.
+    """
+
+    key: str
+    mesh_path: str
+    material: Material
+    instance_id: int
+    vertex_ids: np.ndarray
+    triangles: np.ndarray
+    triangle_face: np.ndarray
+
+
+@dataclass
+class MeshInfo:
+    path: str
+    point_count: int
+    face_count: int
+    left_handed: bool
+    parts: list[Part]
+
+
+@dataclass
+class FrameState:
+    """Everything that changes per frame, as numpy arrays keyed by mesh path / sensor name."""
+
+    frame: int
+    meshes: list[MeshInfo]  # visible meshes, in stage order
+    points: dict[str, np.ndarray] = field(default_factory=dict)  # world points (P, 3) [m]
+    flip: dict[str, bool] = field(default_factory=dict)  # reverse the winding (mirror or leftHanded)
+    temperatures: dict[str, np.ndarray] = field(default_factory=dict)  # (F,) [K]
+    cameras: dict[str, CameraPose] = field(default_factory=dict)
+    sky_temperature_k: float = float("nan")
+
+    @property
+    def topology_key(self) -> tuple:
+        """Changes exactly when the Mitsuba scene must be rebuilt."""
+        return tuple((m.path, self.flip[m.path]) for m in self.meshes)
+
+
+def open_stage(stage_path) -> Usd.Stage:
+    """Open a USD stage or raise InputError."""
+    try:
+        stage = Usd.Stage.Open(str(stage_path))
+    except Exception as exc:  # pxr raises Tf.ErrorException
+        raise InputError(bad_value("stage", str(stage_path), f"cannot open as a USD stage ({exc})".replace("\n", " "))) from None
+    if stage is None:
+        raise InputError(bad_value("stage", str(stage_path), "cannot open as a USD stage"))
+    return stage
+
+
+def stage_frames(stage: Usd.Stage) -> list[int]:
+    """All integer frames from the stage's startTimeCode to endTimeCode (at least one)."""
+    start, end = stage.GetStartTimeCode(), stage.GetEndTimeCode()
+    first, last = math.ceil(start), math.floor(end)
+    if last < first:
+        return [int(round(start))]
+    return list(range(int(first), int(last) + 1))
+
+
+def check_temperatures(values, where: str, expected: int | None = None) -> np.ndarray:
+    """Validate an array of temperatures [K] (finite, in TEMPERATURE_RANGE_K, right length)."""
+    lo, hi = TEMPERATURE_RANGE_K
+    a = np.asarray(values, dtype=float).ravel()
+    allowed = f"expected {'' if expected is None else f'{expected} '}finite temperatures in {lo:g}-{hi:g} K"
+    if expected is not None and a.size != expected:
+        raise InputError(bad_value(where, f"<{a.size} values>", allowed + " (one per authored face)"))
+    bad = ~np.isfinite(a) | (a < lo) | (a > hi)
+    if np.any(bad):
+        idx = np.flatnonzero(bad)
+        raise InputError(bad_value(where, f"{a[idx[0]]!r} at index {idx[0]} ({idx.size} bad of {a.size})", allowed))
+    return a
+
+
+class StageExport:
+    """A composed stage read for rendering. Construct, then call :meth:`frame_state` per frame."""
+
+    def __init__(self, stage: Usd.Stage):
+        self.stage = stage
+        self.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
+        self._mesh_prims = self._find_meshes()
+        self._mesh_cache: dict[str, MeshInfo] = {}
+        self._materials: dict[str, Material] = {}
+        self._part_count = 0
+        self.sensors = self._find_sensors()
+
+    # --- discovery ---------------------------------------------------------------------------
+    def _traverse(self):
+        return self.stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate))
+
+    def _find_meshes(self) -> list[Usd.Prim]:
+        out = []
+        for prim in self._traverse():
+            if not prim.IsA(UsdGeom.Mesh):
+                continue
+            purpose = UsdGeom.Imageable(prim).ComputePurpose()
+            if purpose in (UsdGeom.Tokens.default_, UsdGeom.Tokens.render):
+                out.append(prim)
+        return out
+
+    def _find_sensors(self) -> list[Sensor]:
+        sensors: list[Sensor] = []
+        names: dict[str, str] = {}
+        for prim in self._traverse():
+            if not prim.IsA(UsdGeom.Camera):
+                continue
+            has_api = SENSOR_API in prim.GetAppliedSchemas()
+            authored = any(a.GetName().startswith(SENSOR_PREFIX) and a.HasAuthoredValue() for a in prim.GetAttributes())
+            if not (has_api or authored):
+                continue
+            sensor = self._read_sensor(prim)
+            if sensor.name in names:
+                raise InputError(bad_value(
+                    str(prim.GetPath()), sensor.name,
+                    f"sensor names (camera prim names) must be unique; {names[sensor.name]} has it too"))
+            names[sensor.name] = str(prim.GetPath())
+            sensors.append(sensor)
+        return sensors
+
+    def _read_sensor(self, prim: Usd.Prim) -> Sensor:
+        path = str(prim.GetPath())
+        name = prim.GetName()
+        band = _get(prim.GetAttribute(SENSOR_BAND_ATTR), Usd.TimeCode.Default())
+        band = str(band) if band else ""
+        rng = _get(prim.GetAttribute(SENSOR_RANGE_ATTR), Usd.TimeCode.Default())
+        if band == "EO":
+            return Sensor(name, path, band, None if rng is None else (float(rng[0]), float(rng[1])), None, None,
+                          skip_reason=EO_SKIP_REASON)
+        where = f"{path}.{SENSOR_RANGE_ATTR}"
+        if rng is None:
+            raise InputError(bad_value(where, None, "expected (lower, upper) [um] of the sensor band"))
+        lo, hi = float(rng[0]), float(rng[1])
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi <= 1000):
+            raise InputError(bad_value(where, (lo, hi), "expected 0 < lower < upper [um]"))
+        if lo < INFRARED_MIN_UM:
+            return Sensor(name, path, band, (lo, hi), None, None,
+                          skip_reason=f"band starts at {lo:g} um < {INFRARED_MIN_UM:g} um (not infrared): {EO_SKIP_REASON}")
+        projection = UsdGeom.Camera(prim).GetProjectionAttr().Get()
+        if projection and projection != UsdGeom.Tokens.perspective:
+            return Sensor(name, path, band, (lo, hi), None, None,
+                          skip_reason=f"projection {projection!r}: only perspective cameras are rendered")
+        res = _get(prim.GetAttribute(SENSOR_RESOLUTION_ATTR), Usd.TimeCode.Default())
+        where = f"{path}.{SENSOR_RESOLUTION_ATTR}"
+        if res is None:
+            raise InputError(bad_value(where, None, f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]"))
+        w, h = int(res[0]), int(res[1])
+        if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
+            raise InputError(bad_value(where, [w, h], f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]"))
+        response = self._read_response(prim, (lo, hi))
+        return Sensor(name, path, band, (lo, hi), response, (w, h))
+
+    @staticmethod
+    def _read_response(prim, band):
+        path = str(prim.GetPath())
+        wl = _get(prim.GetAttribute(SENSOR_RESPONSE_WL_ATTR), Usd.TimeCode.Default())
+        r = _get(prim.GetAttribute(SENSOR_RESPONSE_ATTR), Usd.TimeCode.Default())
+        has_wl = wl is not None and len(wl) > 0
+        has_r = r is not None and len(r) > 0
+        if not has_wl and not has_r:
+            return None
+        if has_wl != has_r:
+            missing = SENSOR_RESPONSE_ATTR if has_wl else SENSOR_RESPONSE_WL_ATTR
+            raise InputError(bad_value(f"{path}.{missing}", None,
+                                       f"expected both {SENSOR_RESPONSE_WL_ATTR} and {SENSOR_RESPONSE_ATTR}, or neither"))
+        wl = np.asarray(wl, dtype=float)
+        r = np.asarray(r, dtype=float)
+        where = f"{path}.{SENSOR_RESPONSE_ATTR}"
+        if wl.size < 2 or wl.size != r.size:
+            raise InputError(bad_value(where, f"<{r.size} values for {wl.size} wavelengths>",
+                                       "expected one response value per wavelength, at least two"))
+        if not np.all(np.isfinite(wl)) or np.any(np.diff(wl) <= 0):
+            raise InputError(bad_value(f"{path}.{SENSOR_RESPONSE_WL_ATTR}", _summary(wl), "expected finite, strictly ascending wavelengths [um]"))
+        if not np.all(np.isfinite(r)) or np.any(r < 0) or np.any(r > 1):
+            raise InputError(bad_value(where, _summary(r), "expected relative response values in 0-1"))
+        inside = np.interp(np.linspace(band[0], band[1], 1001), wl, r, left=0.0, right=0.0)
+        if not np.any(inside > 0):
+            raise InputError(bad_value(where, _summary(r), f"response is zero over the band {band[0]:g}-{band[1]:g} um"))
+        return wl, r
+
+    # --- per mesh (static) ---------------------------------------------------------------------
+    def _material(self, material: UsdShade.Material, mesh_path: str, time) -> Material:
+        mpath = str(material.GetPath())
+        if mpath in self._materials:
+            return self._materials[mpath]
+        prim = material.GetPrim()
+        wl = _get(prim.GetAttribute(WAVELENGTHS_ATTR), time)
+        eps = _get(prim.GetAttribute(EMISSIVITY_ATTR), time)
+        if wl is None or len(wl) == 0:
+            raise InputError(bad_value(f"{mpath}.{WAVELENGTHS_ATTR}", None,
+                                       f"material bound to {mesh_path} needs wavelengths [um] (HumvMaterialAPI)"))
+        if eps is None or len(eps) == 0:
+            raise InputError(bad_value(f"{mpath}.{EMISSIVITY_ATTR}", None,
+                                       f"material bound to {mesh_path} needs emissivity values 0-1 (HumvMaterialAPI)"))
+        wl = np.asarray(wl, dtype=float)
+        eps = np.asarray(eps, dtype=float)
+        if not np.all(np.isfinite(wl)) or np.any(wl <= 0) or np.any(np.diff(wl) <= 0):
+            raise InputError(bad_value(f"{mpath}.{WAVELENGTHS_ATTR}", _summary(wl), "expected positive, strictly ascending wavelengths [um]"))
+        if eps.size != wl.size:
+            raise InputError(bad_value(f"{mpath}.{EMISSIVITY_ATTR}", f"<{eps.size} values>",
+                                       f"expected {wl.size} values (one per wavelength in {WAVELENGTHS_ATTR})"))
+        if not np.all(np.isfinite(eps)) or np.any(eps < 0) or np.any(eps > 1):
+            raise InputError(bad_value(f"{mpath}.{EMISSIVITY_ATTR}", _summary(eps), "expected emissivities in 0-1"))
+        out = Material(mpath, wl, eps)
+        self._materials[mpath] = out
+        return out
+
+    def _bound_material(self, prim: Usd.Prim, mesh_path: str, time) -> Material:
+        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        if not material or not material.GetPrim().IsValid():
+            raise InputError(bad_value(f"{prim.GetPath()}.material:binding", None,
+                                       "a rendered mesh needs a bound material carrying "
+                                       f"{WAVELENGTHS_ATTR} and {EMISSIVITY_ATTR}"))
+        return self._material(material, mesh_path, time)
+
+    @staticmethod
+    def _instance_id(prim: Usd.Prim) -> int:
+        p = prim
+        while p and p.IsValid() and not p.IsPseudoRoot():
+            attr = p.GetAttribute(INSTANCE_ID_ATTR)
+            if attr and attr.HasAuthoredValue():
+                value = attr.Get()
+                if value is None or not (0 <= int(value) <= MAX_INSTANCE_ID) or int(value) != value:
+                    raise InputError(bad_value(f"{p.GetPath()}.{INSTANCE_ID_ATTR}", value,
+                                               f"expected an integer in 0..{MAX_INSTANCE_ID}"))
+                return int(value)
+            p = p.GetParent()
+        return 0
+
+    def _mesh_info(self, prim: Usd.Prim, time) -> MeshInfo:
+        path = str(prim.GetPath())
+        if path in self._mesh_cache:
+            return self._mesh_cache[path]
+        mesh = UsdGeom.Mesh(prim)
+        counts = _get(mesh.GetFaceVertexCountsAttr(), time)
+        indices = _get(mesh.GetFaceVertexIndicesAttr(), time)
+        points = _get(mesh.GetPointsAttr(), time)
+        counts = np.asarray(counts if counts is not None else [], dtype=np.int64)
+        indices = np.asarray(indices if indices is not None else [], dtype=np.int64)
+        npoints = 0 if points is None else len(points)
+        if np.any(counts < 3) or counts.sum() != indices.size:
+            raise InputError(bad_value(f"{path}.faceVertexCounts", _summary(counts),
+                                       f"expected counts >= 3 summing to len(faceVertexIndices) = {indices.size}"))
+        if indices.size and (indices.min() < 0 or indices.max() >= npoints):
+            raise InputError(bad_value(f"{path}.faceVertexIndices", f"<range {indices.min()}..{indices.max()}>",
+                                       f"expected indices in 0..{npoints - 1}"))
+        triangles, triangle_face = fan_triangulate(counts, indices)
+        nfaces = counts.size
+        # one part per material: GeomSubsets with their own binding first, the rest on the mesh's
+        material_of_face = np.full(nfaces, -1, dtype=np.int64)
+        materials: list[Material] = []
+        order: dict[str, int] = {}
+        binding = UsdShade.MaterialBindingAPI(prim)
+        for subset in binding.GetMaterialBindSubsets():
+            sub_indices = _get(subset.GetIndicesAttr(), time)
+            if sub_indices is None or len(sub_indices) == 0:
+                continue
+            sub_indices = np.asarray(sub_indices, dtype=np.int64)
+            if sub_indices.min() < 0 or sub_indices.max() >= nfaces:
+                raise InputError(bad_value(f"{subset.GetPath()}.indices", _summary(sub_indices), f"expected face indices in 0..{nfaces - 1}"))
+            mat = self._bound_material(subset.GetPrim(), path, time)
+            if mat.path not in order:
+                order[mat.path] = len(materials)
+                materials.append(mat)
+            free = sub_indices[material_of_face[sub_indices] < 0]
+            material_of_face[free] = order[mat.path]
+        if np.any(material_of_face < 0):
+            mat = self._bound_material(prim, path, time)
+            if mat.path not in order:
+                order[mat.path] = len(materials)
+                materials.append(mat)
+            material_of_face[material_of_face < 0] = order[mat.path]
+        instance_id = self._instance_id(prim)
+        parts = []
+        for m_index, mat in enumerate(materials):
+            sel = material_of_face[triangle_face] == m_index
+            if not np.any(sel):
+                continue
+            tris = triangles[sel]
+            vertex_ids, local = np.unique(tris.ravel(), return_inverse=True)
+            parts.append(Part(key=f"part_{self._part_count:05d}", mesh_path=path, material=mat,
+                              instance_id=instance_id, vertex_ids=vertex_ids,
+                              triangles=local.reshape(-1, 3).astype(np.int64),
+                              triangle_face=triangle_face[sel]))
+            self._part_count += 1
+        orientation = mesh.GetOrientationAttr().Get()
+        info = MeshInfo(path=path, point_count=npoints, face_count=nfaces,
+                        left_handed=(orientation == UsdGeom.Tokens.leftHanded), parts=parts)
+        self._mesh_cache[path] = info
+        return info
+
+    # --- per frame ---------------------------------------------------------------------------
+    def sky_temperature(self, time) -> float:
+        prim = self.stage.GetPrimAtPath(ATMOSPHERE_PATH)
+        where = f"{ATMOSPHERE_PATH}.{SKY_TEMPERATURE_ATTR}"
+        value = _get(prim.GetAttribute(SKY_TEMPERATURE_ATTR), time) if prim and prim.IsValid() else None
+        if value is None:
+            what = "" if prim and prim.IsValid() else f" (no prim at {ATMOSPHERE_PATH})"
+            raise InputError(bad_value(where, None, f"expected the effective sky brightness temperature in "
+                                                    f"{TEMPERATURE_RANGE_K[0]:g}-{TEMPERATURE_RANGE_K[1]:g} K (HumvAtmosphereAPI){what}"))
+        return float(check_temperatures([value], where)[0])
+
+    def camera_pose(self, sensor: Sensor, time) -> CameraPose:
+        """The sensor's camera at ``time``: position, optical axis (local -Z), up (local +Y) and
+        horizontal field of view 2 atan(horizontalAperture / (2 focalLength)).
+
+        The vertical field of view follows from the resolution (square pixels); USD clipping
+        ranges are ignored.
+        """
+        prim = self.stage.GetPrimAtPath(sensor.path)
+        cam = UsdGeom.Camera(prim).GetCamera(time)
+        m = cam.transform
+        origin = np.array(m.Transform(Gf.Vec3d(0, 0, 0)), dtype=float)
+        forward = np.array(m.TransformDir(Gf.Vec3d(0, 0, -1)), dtype=float)
+        up = np.array(m.TransformDir(Gf.Vec3d(0, 1, 0)), dtype=float)
+        nf, nu = np.linalg.norm(forward), np.linalg.norm(up)
+        if not (nf > 0 and nu > 0 and np.all(np.isfinite(origin))):
+            raise InputError(bad_value(f"{sensor.path}.xformOp", "<degenerate transform>", "expected an invertible camera transform"))
+        forward, up = forward / nf, up / nu
+        h_ap, focal = float(cam.horizontalAperture), float(cam.focalLength)
+        if not (h_ap > 0 and focal > 0):
+            raise InputError(bad_value(f"{sensor.path}.horizontalAperture/focalLength", (h_ap, focal),
+                                       "expected positive values (tenths of a scene unit)"))
+        if cam.horizontalApertureOffset or cam.verticalApertureOffset:
+            warnings.warn(f"{sensor.path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2)
+        fov_x = math.degrees(2.0 * math.atan(0.5 * h_ap / focal))
+        if not 0 < fov_x < 179:
+            raise InputError(bad_value(f"{sensor.path}.horizontalAperture/focalLength", (h_ap, focal), "expected a field of view below 179 deg"))
+        return CameraPose(origin=origin * self.meters_per_unit, forward=forward, up=up, fov_x_deg=fov_x)
+
+    def face_temperatures(self, prim: Usd.Prim, info: MeshInfo, time) -> np.ndarray:
+        where = f"{info.path}.{TEMPERATURE_ATTR}"
+        attr = prim.GetAttribute(TEMPERATURE_ATTR)
+        if not attr or not attr.HasValue():
+            raise InputError(bad_value(where, None, f"a rendered mesh needs one temperature per authored face "
+                                                    f"({info.face_count} faces, uniform primvar, K, HumvThermalAPI)"))
+        primvar = UsdGeom.Primvar(attr)
+        interpolation = primvar.GetInterpolation() if primvar else UsdGeom.Tokens.uniform
+        if interpolation not in (UsdGeom.Tokens.uniform, UsdGeom.Tokens.constant):
+            raise InputError(bad_value(f"{where} interpolation", str(interpolation),
+                                       "expected uniform (one value per authored face) or constant"))
+        values = primvar.ComputeFlattened(time) if primvar else attr.Get(time)
+        if values is None:
+            raise InputError(bad_value(where, None, f"no value at frame {time.GetValue():g}"))
+        values = np.asarray(values, dtype=float).ravel()
+        if primvar and primvar.GetInterpolation() == UsdGeom.Tokens.constant and values.size == 1:
+            values = np.full(info.face_count, values[0])
+        return check_temperatures(values, where, expected=info.face_count)
+
+    def frame_state(self, frame: int, sensors: list[Sensor]) -> FrameState:
+        """Read everything needed to render ``frame`` for ``sensors``."""
+        time = Usd.TimeCode(frame)
+        cache = UsdGeom.XformCache(time)
+        state = FrameState(frame=frame, meshes=[])
+        state.sky_temperature_k = self.sky_temperature(time)
+        for prim in self._mesh_prims:
+            if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+                continue
+            info = self._mesh_info(prim, time)
+            pts = _get(UsdGeom.Mesh(prim).GetPointsAttr(), time)
+            pts = np.asarray(pts if pts is not None else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
+            if pts.shape[0] != info.point_count:
+                raise InputError(bad_value(f"{info.path}.points", f"<{pts.shape[0]} points at frame {frame}>",
+                                           f"expected {info.point_count} points (topology must not change over time)"))
+            m = np.array(cache.GetLocalToWorldTransform(prim), dtype=float)  # row-vector convention
+            world = (pts @ m[:3, :3] + m[3, :3]) * self.meters_per_unit
+            if not np.all(np.isfinite(world)):
+                raise InputError(bad_value(f"{info.path}.points", "<non-finite>", f"expected finite points at frame {frame}"))
+            state.meshes.append(info)
+            state.points[info.path] = world
+            state.flip[info.path] = bool(info.left_handed) != bool(np.linalg.det(m[:3, :3]) < 0)
+            state.temperatures[info.path] = self.face_temperatures(prim, info, time)
+        for sensor in sensors:
+            state.cameras[sensor.name] = self.camera_pose(sensor, time)
+        return state
+
+
+def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fan-triangulate polygons.
+
+    Parameters
+    ----------
+    counts : (F,) int
+        Vertices per face (>= 3).
+    indices : (sum(counts),) int
+        Face-vertex indices.
+
+    Returns
+    -------
+    triangles : (T, 3) int
+        Vertex indices ``(v0, v_k, v_k+1)`` per face, keeping the face's winding.
+    triangle_face : (T,) int
+        The face each triangle comes from.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    ntri = counts - 2
+    starts = np.cumsum(counts) - counts
+    triangle_face = np.repeat(np.arange(counts.size), ntri)
+    k = np.arange(triangle_face.size) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+    base = starts[triangle_face]
+    triangles = np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1)
+    return triangles, triangle_face

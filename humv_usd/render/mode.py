@@ -1,0 +1,125 @@
+"""The one place that imports Mitsuba and chooses its variant.
+
+Everything else gets the configured module from :func:`mitsuba`. Infrared bands need a *mono*
+variant: the spectral variants sample only 360-830 nm. Preferred is ``llvm_ad_mono`` (vectorised,
+multi-threaded). Dr.Jit's LLVM backend loads ``libLLVM`` at run time; Debian's LLVM 15 crashes
+its code generation on AVX-512 CPUs, so when ``DRJIT_LIBLLVM_PATH`` is unset this module points
+it at Debian's LLVM 19 before Mitsuba is imported. Without a usable LLVM 19 it warns once and
+falls back to ``scalar_rgb`` with gray (equal-channel) spectra, which keeps the radiometry right
+(the luminance weights sum to 1, and the ``moment`` AOVs' Y channels are then the gray values)
+but is much slower.
+
+``HUMV_USD_MITSUBA_VARIANT`` (``llvm_ad_mono`` or ``scalar_rgb``) overrides the choice.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import sys
+import threading
+import warnings
+
+#: Variants the renderer knows how to drive, best first.
+SUPPORTED_VARIANTS = ("llvm_ad_mono", "scalar_rgb")
+#: Environment variable that forces one of :data:`SUPPORTED_VARIANTS`.
+VARIANT_ENV = "HUMV_USD_MITSUBA_VARIANT"
+#: Globs for Debian's LLVM 19 shared library.
+LLVM19_GLOBS = ("/usr/lib/*/libLLVM.so.19*", "/usr/lib/*/libLLVM-19.so*", "/usr/lib/llvm-19/lib/libLLVM*.so*")
+
+_lock = threading.Lock()
+_state: dict = {}
+
+
+def _find_llvm19() -> str | None:
+    for pattern in LLVM19_GLOBS:
+        hits = sorted(glob.glob(pattern))
+        if hits:
+            return hits[0]
+    return None
+
+
+def _choose_variant() -> tuple[str, str]:
+    """(variant, reason) decided before Mitsuba is imported."""
+    forced = os.environ.get(VARIANT_ENV, "").strip()
+    if forced:
+        if forced not in SUPPORTED_VARIANTS:
+            raise ValueError(f"{VARIANT_ENV} = {forced!r}: expected one of {', '.join(SUPPORTED_VARIANTS)}")
+        return forced, f"forced by {VARIANT_ENV}"
+    if os.environ.get("DRJIT_LIBLLVM_PATH"):
+        return "llvm_ad_mono", "DRJIT_LIBLLVM_PATH set by the user"
+    if "drjit" in sys.modules:
+        # Too late to choose the library; trust whatever Dr.Jit found.
+        return "llvm_ad_mono", "drjit already imported"
+    path = _find_llvm19()
+    if path is None:
+        return "scalar_rgb", (
+            "no LLVM 19 found (" + ", ".join(LLVM19_GLOBS) + ") and DRJIT_LIBLLVM_PATH is unset; the "
+            "default LLVM 15 crashes Dr.Jit on AVX-512 CPUs. Install Debian's libllvm19 for the fast "
+            "llvm_ad_mono variant")
+    os.environ["DRJIT_LIBLLVM_PATH"] = path
+    return "llvm_ad_mono", f"DRJIT_LIBLLVM_PATH={path}"
+
+
+def _llvm_works(mi) -> str | None:
+    """None if a tiny LLVM kernel runs, else the error text."""
+    try:
+        mi.set_variant("llvm_ad_mono")
+        import drjit as dr
+
+        x = mi.Float([1.0, 2.0, 3.0]) * 2.0
+        dr.eval(x)
+        if list(x.numpy()) != [2.0, 4.0, 6.0]:
+            return "wrong result from a test kernel"
+        return None
+    except Exception as exc:  # ImportError, RuntimeError from an unusable backend
+        return f"{type(exc).__name__}: {exc}"
+
+
+def mitsuba():
+    """The Mitsuba module with the renderer's variant set (configured on first call).
+
+    Returns
+    -------
+    module
+        ``mitsuba``, with ``mitsuba.variant()`` one of :data:`SUPPORTED_VARIANTS`.
+    """
+    with _lock:
+        if "mi" in _state:
+            mi = _state["mi"]
+            if mi.variant() != _state["variant"]:
+                mi.set_variant(_state["variant"])  # someone else switched it
+            return mi
+        variant, reason = _choose_variant()
+        import mitsuba as mi
+
+        if variant == "llvm_ad_mono":
+            error = _llvm_works(mi)
+            if error is not None:
+                if os.environ.get(VARIANT_ENV):
+                    raise RuntimeError(f"Mitsuba variant llvm_ad_mono ({reason}) does not work: {error}")
+                reason = f"llvm_ad_mono unusable ({error})"
+                variant = "scalar_rgb"
+        if variant == "scalar_rgb" and not os.environ.get(VARIANT_ENV):
+            warnings.warn(
+                f"humv_usd.render: falling back to Mitsuba scalar_rgb (slow): {reason}",
+                RuntimeWarning, stacklevel=2)
+        mi.set_variant(variant)
+        _state.update(mi=mi, variant=variant, reason=reason)
+        return mi
+
+
+def variant() -> str:
+    """Name of the configured Mitsuba variant (configures it if needed)."""
+    mitsuba()
+    return _state["variant"]
+
+
+def variant_reason() -> str:
+    """Why that variant was chosen (for the manifest)."""
+    mitsuba()
+    return _state["reason"]
+
+
+def is_vectorized() -> bool:
+    """True for a JIT (LLVM) variant: whole arrays of rays per call."""
+    return not variant().startswith("scalar")

@@ -1,0 +1,137 @@
+"""Atomic writers for render outputs: multi-channel EXR, 8-bit PNG preview, JSON manifest.
+
+Every file is written to a temporary name in the destination directory and moved into place with
+``os.replace``, so a reader never sees a half-written file.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import tempfile
+
+import numpy as np
+import OpenImageIO as oiio
+
+#: EXR channels, in the order written, with units. OpenEXR stores channels sorted by name, so
+#: read them by name. All are float32; ``instance_id`` holds integers 0..2**24-1 exactly.
+EXR_CHANNELS = {
+    "radiance": "W m^-2 sr^-1 (band radiance, response-weighted)",
+    "brightness_temperature": "K",
+    "radiance_stderr": "W m^-2 sr^-1 (Monte Carlo standard error of the pixel mean)",
+    "depth": "m (distance along the optical axis; inf for sky)",
+    "instance_id": "1 (integer stored as float32; 0 = sky/background)",
+}
+#: Percentiles of the brightness temperature mapped to 0 and 255 in the PNG preview.
+PREVIEW_PERCENTILES = (1.0, 99.0)
+
+
+@contextlib.contextmanager
+def _atomic_path(path):
+    """Yield a temporary path next to ``path`` (same extension); move it into place on success."""
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    os.makedirs(directory, exist_ok=True)
+    base = os.path.basename(path)
+    stem, ext = os.path.splitext(base)
+    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".tmp{ext}", dir=directory)
+    os.close(fd)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(tmp)
+        raise
+
+
+def _write_oiio(path, pixels: np.ndarray, spec: oiio.ImageSpec) -> None:
+    with _atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(tmp)
+        if out is None:
+            raise OSError(f"OpenImageIO cannot write {path}: {oiio.geterror()}")
+        try:
+            if not out.open(tmp, spec):
+                raise OSError(f"OpenImageIO cannot open {tmp}: {out.geterror()}")
+            if not out.write_image(pixels):
+                raise OSError(f"OpenImageIO cannot write {tmp}: {out.geterror()}")
+        finally:
+            out.close()
+
+
+def write_exr(path, channels: dict[str, np.ndarray], metadata: dict[str, str] | None = None) -> None:
+    """Write float32 channels of equal shape (H, W) to an EXR file atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination ``.exr``.
+    channels : dict of str to (H, W) array
+        Channel name to values; written in this order as float32.
+    metadata : dict of str to str, optional
+        Extra header attributes.
+    """
+    names = list(channels)
+    stack = np.stack([np.asarray(channels[n], dtype=np.float32) for n in names], axis=-1)
+    h, w, c = stack.shape
+    spec = oiio.ImageSpec(w, h, c, "float")
+    spec.channelnames = tuple(names)
+    spec.attribute("compression", "zip")
+    for key, value in (metadata or {}).items():
+        spec.attribute(key, str(value))
+    _write_oiio(path, np.ascontiguousarray(stack), spec)
+
+
+def preview_levels(values: np.ndarray) -> tuple[float, float]:
+    """The 1st and 99th percentile of the finite values (the PNG stretch)."""
+    finite = np.asarray(values, dtype=np.float64)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return 0.0, 0.0
+    lo, hi = np.percentile(finite, PREVIEW_PERCENTILES)
+    return float(lo), float(hi)
+
+
+def write_preview_png(path, values: np.ndarray) -> tuple[float, float]:
+    """Write an 8-bit grayscale PNG of ``values`` stretched between its 1st and 99th percentile.
+
+    Returns the (low, high) levels mapped to 0 and 255. A constant image is mid-gray; non-finite
+    values are black.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    lo, hi = preview_levels(values)
+    if hi > lo:
+        scaled = (values - lo) / (hi - lo)
+    else:
+        scaled = np.full(values.shape, 0.5)
+    scaled = np.where(np.isfinite(scaled), scaled, 0.0)
+    pixels = np.rint(np.clip(scaled, 0.0, 1.0) * 255.0).astype(np.uint8)
+    h, w = pixels.shape
+    spec = oiio.ImageSpec(w, h, 1, "uint8")
+    spec.channelnames = ("Y",)
+    _write_oiio(path, np.ascontiguousarray(pixels[..., None]), spec)
+    return lo, hi
+
+
+def _jsonable(obj):
+    """Replace non-finite floats by None (JSON has no inf/NaN) and numpy scalars by Python ones."""
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def write_json(path, data) -> None:
+    """Write ``data`` as indented JSON atomically (non-finite floats become null)."""
+    with _atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(_jsonable(data), f, indent=2, allow_nan=False)
+            f.write("\n")
