@@ -21,7 +21,8 @@ from humv_usd.scenario import Scenario
 from humv_usd.scene import layer as scene_layer
 from humv_usd.sensors import layer as sensors_layer
 from humv_usd.thermal import layer as thermal_layer
-from humv_usd.usd.layers import layer_text, set_layer_metadata, write_text_atomic
+from humv_usd.fileio import write_text_atomic
+from humv_usd.usd.layers import layer_text, set_layer_metadata
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"

@@ -5,14 +5,13 @@ Every file is written to a temporary name in the destination directory and moved
 """
 from __future__ import annotations
 
-import contextlib
 import json
 import math
-import os
-import tempfile
 
 import numpy as np
 import OpenImageIO as oiio
+
+from humv_usd.fileio import atomic_path
 
 #: EXR channels, in the order written, with units. OpenEXR stores channels sorted by name, so
 #: read them by name. All are float32; ``instance_id`` holds integers 0..2**24-1 exactly.
@@ -27,27 +26,8 @@ EXR_CHANNELS = {
 PREVIEW_PERCENTILES = (1.0, 99.0)
 
 
-@contextlib.contextmanager
-def _atomic_path(path):
-    """Yield a temporary path next to ``path`` (same extension); move it into place on success."""
-    path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    base = os.path.basename(path)
-    stem, ext = os.path.splitext(base)
-    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".tmp{ext}", dir=directory)
-    os.close(fd)
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(tmp)
-        raise
-
-
 def _write_oiio(path, pixels: np.ndarray, spec: oiio.ImageSpec) -> None:
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(tmp)
         if out is None:
             raise OSError(f"OpenImageIO cannot write {path}: {oiio.geterror()}")
@@ -131,7 +111,7 @@ def _jsonable(obj):
 
 def write_json(path, data) -> None:
     """Write ``data`` as indented JSON atomically (non-finite floats become null)."""
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump(_jsonable(data), f, indent=2, allow_nan=False)
             f.write("\n")

@@ -1,10 +1,6 @@
 """Helpers shared by the layer tools: new layers with our stage conventions, atomic writes."""
 from __future__ import annotations
 
-import os
-import tempfile
-from pathlib import Path
-
 from pxr import Gf, Sdf, Usd, UsdGeom
 
 import humv_usd  # noqa: F401  (registers the schemas before any stage exists)
@@ -47,35 +43,6 @@ def set_layer_metadata(layer: Sdf.Layer, fps: float, frame_count: int, doc: str)
 def layer_text(layer: Sdf.Layer) -> str:
     """The usda text of a layer, as it will be written."""
     return layer.ExportToString()
-
-
-def write_text_atomic(path: Path, text: str) -> bool:
-    """Write text to path through a temp file + rename. Returns False when the file already
-    holds exactly this text (then nothing is written and its mtime is kept)."""
-    path = Path(path)
-    try:
-        if path.read_text(encoding="utf-8") == text:
-            return False
-    except (FileNotFoundError, UnicodeDecodeError, IsADirectoryError):
-        pass
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual file mode
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return True
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def look_at_matrix(position, target, up=(0.0, 0.0, 1.0)) -> Gf.Matrix4d:
