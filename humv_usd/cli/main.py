@@ -101,10 +101,15 @@ def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors):
 
     manifest = render_stage(stage, out_dir, frames=parse_frames(frames), spp=spp,
                             sensors=list(sensors) or None, seed=seed)
-    err = manifest.get("monte_carlo_error", {})
-    click.echo(f"{out_dir}/manifest.json  render {manifest['timings_s']['total']:.2f} s, "
-               f"MC error mean {err.get('temperature_stderr_mean_k', float('nan')):.4f} K, "
-               f"max {err.get('temperature_stderr_max_k', float('nan')):.4f} K")
+    err = manifest["monte_carlo_error"]
+    rendered = sum(len(s["frames"]) for s in manifest["sensors"])
+    click.echo(f"{out_dir}/manifest.json  {rendered} image(s), "
+               f"render {manifest['timings_s']['total']:.2f} s")
+    if rendered:
+        click.echo(f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
+                   f"max {err['temperature_stderr_max_k']:.4f} K "
+                   f"({err['radiance_stderr_mean']:.4g} / {err['radiance_stderr_max']:.4g} "
+                   "W m-2 sr-1)")
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
 

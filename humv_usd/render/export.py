@@ -151,17 +151,6 @@ class FrameState:
         return tuple((m.path, self.flip[m.path]) for m in self.meshes)
 
 
-def open_stage(stage_path) -> Usd.Stage:
-    """Open a USD stage or raise InputError."""
-    try:
-        stage = Usd.Stage.Open(str(stage_path))
-    except Exception as exc:  # pxr raises Tf.ErrorException
-        raise InputError(bad_value("stage", str(stage_path), f"cannot open as a USD stage ({exc})".replace("\n", " "))) from None
-    if stage is None:
-        raise InputError(bad_value("stage", str(stage_path), "cannot open as a USD stage"))
-    return stage
-
-
 def stage_frames(stage: Usd.Stage) -> list[int]:
     """All integer frames from the stage's startTimeCode to endTimeCode (at least one)."""
     start, end = stage.GetStartTimeCode(), stage.GetEndTimeCode()

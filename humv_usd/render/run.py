@@ -12,7 +12,8 @@ import numpy as np
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
 from humv_usd.render import mode, writers
-from humv_usd.render.export import Sensor, StageExport, open_stage, stage_frames
+from humv_usd.render.export import Sensor, StageExport, stage_frames
+from humv_usd.usd.layers import open_stage
 from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr
 
 #: Temperature of the blackbody that weights the band emissivity [K].
@@ -192,6 +193,9 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     t = time.perf_counter()
     stage = open_stage(stage_path)
     exporter = StageExport(stage)
+    if not exporter.sensors:
+        raise InputError(f"{stage_path}: no sensor to render: the stage has no camera with "
+                         "HumvSensorAPI attributes (add a [[sensor]] to the scenario)")
     frame_list = _select_frames(stage, frames)
     selected = _select_sensors(exporter.sensors, sensors)
     rendered = [s for s in selected if s.rendered]

@@ -13,24 +13,10 @@ from pathlib import Path
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdValidation
 
-from humv_usd.errors import InputError
+from humv_usd.usd.layers import open_stage
 from humv_usd.usd import schemas as S
 
 TEMPERATURE_RANGE_K = (1.0, 5000.0)
-
-
-def open_stage(path: str | Path) -> Usd.Stage:
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: stage file not found")
-    try:
-        stage = Usd.Stage.Open(str(path))
-    except Exception as exc:  # USD raises Tf.ErrorException with a multi-line text
-        first = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"{path}: cannot open as USD ({first.strip()})") from None
-    if stage is None:
-        raise InputError(f"{path}: cannot open as USD")
-    return stage
 
 
 def usd_validators(stage: Usd.Stage) -> list[str]:

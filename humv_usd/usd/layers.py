@@ -1,9 +1,13 @@
 """Helpers shared by the layer tools: new layers with our stage conventions, atomic writes."""
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 from pxr import Gf, Sdf, Usd, UsdGeom
 
 import humv_usd  # noqa: F401  (registers the schemas before any stage exists)
+from humv_usd.errors import InputError
 
 WORLD = Sdf.Path("/World")
 SCOPES = {
@@ -71,3 +75,24 @@ def finish(stage: Usd.Stage) -> Sdf.Layer:
     layer = Sdf.Layer.CreateAnonymous(".usda")
     layer.TransferContent(stage.GetRootLayer())
     return layer
+
+
+def _usd_error_text(exc: Exception) -> str:
+    """The first message of a Tf.ErrorException ("Error in 'f' at line n in file x : 'msg'")."""
+    text = " ".join(str(exc).split())
+    found = re.findall(r" : '(.*?)'(?: Error in|\)?$)", text)
+    return found[0] if found else (text or type(exc).__name__)
+
+
+def open_stage(path) -> Usd.Stage:
+    """Open a USD stage, or raise InputError with one line naming the file and the reason."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: stage file not found")
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Exception as exc:  # pxr raises Tf.ErrorException
+        raise InputError(f"{path}: cannot open as a USD stage ({_usd_error_text(exc)})") from None
+    if stage is None:
+        raise InputError(f"{path}: cannot open as a USD stage")
+    return stage
