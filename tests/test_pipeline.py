@@ -1,0 +1,102 @@
+"""End to end: compose humvvex, render it through the CLI, read the EXR back."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from humv_usd.physics.planck import band_radiance, brightness_temperature
+
+from conftest import HUMVVEX, ROOT
+
+pytestmark = pytest.mark.slow
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "humv_usd.cli.main", *args], cwd=ROOT,
+                          capture_output=True, text=True)
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    out = tmp_path_factory.mktemp("e2e")
+    r = run("compose", str(HUMVVEX), "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    r = run("render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", "8")
+    assert r.returncode == 0, r.stderr
+    assert "Monte Carlo error per pixel" in r.stdout
+    buf = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.exr"))
+    names = list(buf.spec().channelnames)
+    pixels = buf.get_pixels(oiio.FLOAT)
+    channels = {n: pixels[..., i] for i, n in enumerate(names)}
+    manifest = json.loads((out / "render" / "manifest.json").read_text())
+    return out, channels, manifest
+
+
+def test_outputs_and_manifest(rendered):
+    out, ch, manifest = rendered
+    assert set(ch) == {"radiance", "brightness_temperature", "radiance_stderr", "depth",
+                       "instance_id"}
+    assert ch["radiance"].shape == (768, 1024)
+    png = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.png"))
+    assert png.spec().format == oiio.UINT8 and png.spec().width == 1024
+    for key in ("versions", "settings", "timings_s", "monte_carlo_error"):
+        assert key in manifest
+    assert manifest["settings"]["spp"] == 8
+    err = manifest["monte_carlo_error"]
+    assert 0 < err["temperature_stderr_mean_k"] < err["temperature_stderr_max_k"]
+
+
+def test_labels_and_depth(rendered):
+    _, ch, _ = rendered
+    ids = ch["instance_id"].astype(int)
+    # person 1, ground 2, warehouse 3, sky 0 (humans first, then ground, then objects)
+    assert set(np.unique(ids)) == {0, 1, 2, 3}
+    person = ids == 1
+    assert 2000 < person.sum() < 40000
+    # the person stands 15 m in front of the camera (optical-axis depth, body ~0.3 m deep)
+    assert np.median(ch["depth"][person]) == pytest.approx(15.0, abs=0.3)
+    # the warehouse wall is a plane 25 m ahead, facing the camera: exact per pixel
+    wall = ids == 3
+    np.testing.assert_allclose(ch["depth"][wall & (ch["depth"] < 25.5)], 25.0, atol=1e-3)
+    assert np.all(np.isinf(ch["depth"][ids == 0]))
+
+
+def test_radiometry(rendered):
+    out, ch, manifest = rendered
+    band = (8.0, 14.0)
+    sky_k = manifest["sensors"][0]["frames"][0]["sky_temperature_k"]
+    ids = ch["instance_id"]
+    # sky pixels away from edges (a pixel integrates its whole footprint) see only the uniform
+    # sky: exact, no noise
+    sky = np.ones_like(ids, dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            sky &= np.roll(np.roll(ids, dy, axis=0), dx, axis=1) == 0
+    assert sky.sum() > 1000
+    np.testing.assert_allclose(ch["brightness_temperature"][sky], sky_k, atol=1e-3)
+    # skin (eps_band ~ 0.98 at 306.15 K) reflects 2 % of a colder surround: between the two
+    person = ch["instance_id"] == 1
+    t_skin = np.median(ch["brightness_temperature"][person])
+    eps = 0.98
+    lower = brightness_temperature(eps * band_radiance(306.15, band)
+                                   + (1 - eps) * band_radiance(sky_k, band), band)
+    assert lower - 0.3 < t_skin < 306.15
+    # the image is radiance-consistent: T_b inverts L per pixel
+    some = np.s_[::37, ::41]
+    np.testing.assert_allclose(
+        brightness_temperature(ch["radiance"][some].astype(float), band),
+        ch["brightness_temperature"][some], rtol=1e-5)
+
+
+def test_render_bad_stage_exit_2(tmp_path):
+    bad = tmp_path / "bad.usda"
+    bad.write_text("#usda 1.0\nnot usd at all {")
+    r = run("render", str(bad), "-o", str(tmp_path / "r"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "r").exists()
