@@ -92,6 +92,8 @@ HUMAN = Section(array=True, doc="(ii) Human/Clothing/Motion", keys={
     "age_yr": Key("float", "Age [years].", default=30.0, lo=1.0, hi=100.0),
     "stature_m": Key("float", "Standing height [m].", default=1.75, lo=0.8, hi=2.3),
     "mass_kg": Key("float", "Body mass [kg].", default=75.0, lo=10.0, hi=250.0),
+    "build": Key("choice", "Body build (MakeHuman muscle macro).", default="average",
+                 choices=("slim", "average", "muscular")),
     "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
     "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
     "clothing": Key("strlist", "Garments worn (the clothing issue adds them; must be empty "
