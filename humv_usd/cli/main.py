@@ -150,28 +150,47 @@ def bench():
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100))
 @reports_errors
 def bench_pipeline(scenario: Path, spp: int, repeat: int):
-    """Median wall time of compose (fresh folder) and render of SCENARIO, with the MC error."""
+    """Median wall times of compose and render of SCENARIO, with the render's MC error.
+
+    "cli" runs the commands as a user does (a new process each: imports, asset loading and
+    Mitsuba's JIT included); "in-process" repeats the calls in one process (warm caches).
+    """
+    import subprocess
+
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.render.run import render_stage
     from humv_usd.scenario import load_scenario
 
-    compose_s, render_s, err_k = [], [], []
+    load_scenario(scenario)  # bad input: one line, exit 2, before any timing
+    cli = [sys.executable, "-m", "humv_usd.cli.main"]
+    times: dict[str, list[float]] = {k: [] for k in ("compose cli", "render cli",
+                                                      "compose in-process",
+                                                      "render in-process")}
+    err_k = []
     with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeat):
+            out = Path(tmp) / f"cli{i}"
+            for name, args in (("compose cli", ["compose", str(scenario), "-o", str(out)]),
+                               ("render cli", ["render", str(out / "stage.usda"), "-o",
+                                               str(out / "render"), "--spp", str(spp)])):
+                t = time.perf_counter()
+                subprocess.run(cli + args, check=True, capture_output=True)
+                times[name].append(time.perf_counter() - t)
         for i in range(repeat):
             out = Path(tmp) / f"run{i}"
             t = time.perf_counter()
             run_compose(load_scenario(scenario), out)
-            compose_s.append(time.perf_counter() - t)
+            times["compose in-process"].append(time.perf_counter() - t)
             t = time.perf_counter()
             manifest = render_stage(out / "stage.usda", out / "render", spp=spp, seed=i)
-            render_s.append(time.perf_counter() - t)
+            times["render in-process"].append(time.perf_counter() - t)
             err_k.append(manifest["monte_carlo_error"]["temperature_stderr_mean_k"])
-    click.echo(f"scenario {scenario}, {spp} spp, {repeat} runs")
-    click.echo(f"  compose  median {statistics.median(compose_s):.3f} s  "
-               f"(min {min(compose_s):.3f}, max {max(compose_s):.3f})")
-    click.echo(f"  render   median {statistics.median(render_s):.3f} s  "
-               f"(min {min(render_s):.3f}, max {max(render_s):.3f}; first run includes JIT)")
-    click.echo(f"  MC error mean per-pixel standard error {statistics.median(err_k):.4f} K")
+    click.echo(f"scenario {scenario}, {spp} spp, {repeat} runs each (median, min..max)")
+    for name, values in times.items():
+        click.echo(f"  {name:<19} {statistics.median(values):7.3f} s  "
+                   f"({min(values):.3f}..{max(values):.3f})")
+    click.echo(f"  Monte Carlo error: mean per-pixel standard error "
+               f"{statistics.median(err_k):.4f} K (median over runs)")
 
 
 if __name__ == "__main__":
