@@ -6,7 +6,6 @@ traceback and nothing written).
 """
 from __future__ import annotations
 
-import functools
 import statistics
 import sys
 import tempfile
@@ -15,30 +14,8 @@ from pathlib import Path
 
 import click
 
-from humv_usd.assets import MissingAssetError
+from humv_usd.cli.common import PROG, reports_errors
 from humv_usd.errors import InputError
-
-PROG = "humv-usd"
-
-
-def _fail(lines, code: int):
-    for line in lines:
-        click.echo(f"{PROG}: error: {line}", err=True)
-    sys.exit(code)
-
-
-def reports_errors(fn):
-    """Turn our exceptions into one-line messages and exit codes (no tracebacks)."""
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        try:
-            return fn(*args, **kwargs)
-        except InputError as exc:
-            _fail(exc.problems, 2)
-        except MissingAssetError as exc:
-            _fail([str(exc)], 1)
-    return wrapper
-
 
 def parse_frames(text: str | None) -> list[int] | None:
     """``"0:10"`` (inclusive), ``"0,5,9"`` or ``"3"`` → frame list; None → all frames."""
@@ -192,6 +169,13 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
     click.echo(f"  Monte Carlo error: mean per-pixel standard error "
                f"{statistics.median(err_k):.4f} K (median over runs)")
 
+
+def _register_tools():
+    from humv_usd.cli.avatar_cmd import avatar
+    main.add_command(avatar)
+
+
+_register_tools()
 
 if __name__ == "__main__":
     main()
