@@ -1,15 +1,32 @@
-"""Avatar tool → layers/avatar_<id>.usda.
+"""Avatar tool → layers/avatar_<id>.usda: a UsdSkel avatar with labels.
 
 The body is MakeHuman's CC0 mesh with its macro targets fitted to the requested sex, age,
-stature, mass and build (:func:`humv_usd.avatar.body.build_body`), standing still at its
-placement. Still to come (avatar issue): the UsdSkel rig, motion and body-region labels.
+stature, mass and build (:func:`humv_usd.avatar.body.build_body`), rigged with the CMU
+MotionBuilder skeleton (:mod:`humv_usd.avatar.skeleton`) and written as UsdSkel
+(:mod:`humv_usd.avatar.usdskel`)::
+
+    /World/Humans/<id>            SkelRoot: placement (translate + rotateZ), HumvAvatarAPI,
+                                  HumvLabelAPI, humv:label:cocoKeypoints (time-sampled)
+        Skeleton                  UsdSkel.Skeleton, skel:animationSource -> Motion
+        Motion                    UsdSkel.Animation (the standing rest pose without a motion)
+        Body                      Mesh skinned to Skeleton (4 influences per vertex), skin
+                                  material, primvars:humv:label:bodyRegion / jos3Segment
+
+Everything below the SkelRoot is in the avatar frame (+Z up, facing -Y, soles at z = 0, the
+same space as the skeleton's world transforms); the SkelRoot's transform places it.
+The COCO keypoints are in that frame too (the SkelRoot's local space).
 """
 from __future__ import annotations
 
-from pxr import Gf, Sdf, UsdGeom
+import numpy as np
+from pxr import Gf, Sdf, UsdGeom, Vt
 
+from humv_usd.avatar import labels as L
+from humv_usd.avatar import usdskel
 from humv_usd.avatar.basemesh import DEFAULT_FACING_DEG
-from humv_usd.avatar.body import build_body
+from humv_usd.avatar.body import Body, build_body
+from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning,
+                                      skeleton_for, skin_weights, skinning_matrices)
 from humv_usd.materials.layer import material_path
 from humv_usd.scenario import Scenario
 from humv_usd.scene.layer import instance_ids
@@ -29,21 +46,41 @@ def body_path(human_id: str) -> Sdf.Path:
     return human_path(human_id).AppendChild("Body")
 
 
-def build_one(scenario: Scenario, human: dict) -> Sdf.Layer:
+def skeleton_path(human_id: str) -> Sdf.Path:
+    return human_path(human_id).AppendChild("Skeleton")
+
+
+def motion_path(human_id: str) -> Sdf.Path:
+    return human_path(human_id).AppendChild("Motion")
+
+
+def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
+    """The avatar layer of one ``[[human]]``.
+
+    ``motion``: None (stand still in the rest pose) or an object with ``root_translation``
+    (F, 3) and ``local_rotations`` (F, J, 4) in the rig contract (see
+    :mod:`humv_usd.avatar.usdskel`); frame i is authored at time code i.
+    """
     g = scenario["general"]
     place = next(p for p in scenario["placement"] if p["human"] == human["id"])
+    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"],
+                      human["build"])
     stage = new_layer_stage(g["fps"], scenario.frame_count,
-                            f"HumV-USD avatar layer for {human['id']} (static base-mesh placeholder)")
+                            f"HumV-USD avatar layer for {human['id']} (UsdSkel, CMU rig)")
     UsdGeom.Scope.Define(stage, SCOPES["humans"])
-    root = UsdGeom.Xform.Define(stage, human_path(human["id"]))
+    root = usdskel.define_skel_root(stage, human_path(human["id"]))
     root.AddTranslateOp().Set(Gf.Vec3d(*place["position_m"]))
     # compass azimuth (clockwise from +y) -> counter-clockwise rotation about +z
     root.AddRotateZOp().Set(float((DEFAULT_FACING_DEG - place["heading_deg"]) % 360.0))
     prim = root.GetPrim()
+    _avatar_attributes(prim, human, body)
+    label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
+    author_rig(stage, human["id"], body, motion)
+    return finish(stage)
+
+
+def _avatar_attributes(prim, human: dict, body: Body) -> None:
     prim.ApplyAPI(S.AVATAR_API)
-    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"],
-                      human["build"])
-    mesh = body.body_mesh()
     for attr, value in ((S.AVATAR_SEX, human["sex"]), (S.AVATAR_AGE, human["age_yr"]),
                         (S.AVATAR_STATURE, human["stature_m"]), (S.AVATAR_MASS, human["mass_kg"]),
                         (S.AVATAR_FITNESS, human["fitness"]),
@@ -57,7 +94,58 @@ def build_one(scenario: Scenario, human: dict) -> Sdf.Layer:
         "bodyFat_pct": round(body.body_fat_pct, 2), "uniformScale": round(body.uniform_scale, 6),
         "lateralScale": round(body.lateral_scale, 6),
         "macros": {k: round(float(v), 6) for k, v in vars(body.macros).items()}})
-    label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
-    define_mesh(stage, body_path(human["id"]), mesh.points, mesh.face_counts, mesh.face_indices,
-                material=material_path("skin"))
-    return finish(stage)
+
+
+def author_rig(stage, human_id: str, body: Body, motion=None) -> None:
+    """Skeleton, Motion, skinned Body with labels and the COCO keypoints under the SkelRoot
+    ``human_path(human_id)`` (already defined)."""
+    skeleton = skeleton_for(body.points, body.groups)
+    mesh = body.body_mesh()
+    indices, weights = skin_weights(skeleton, mesh.vertex_ids, usdskel.INFLUENCES)
+    pose = usdskel.as_pose(motion, skeleton)
+
+    skel = usdskel.define_skeleton(stage, skeleton_path(human_id), skeleton)
+    usdskel.define_animation(stage, motion_path(human_id), skeleton, pose)
+    usdskel.bind_animation(skel.GetPrim(), motion_path(human_id))
+
+    body_mesh = define_mesh(stage, body_path(human_id), mesh.points, mesh.face_counts,
+                            mesh.face_indices, material=material_path("skin"))
+    usdskel.bind_mesh(body_mesh.GetPrim(), skeleton_path(human_id), indices, weights)
+    author_face_labels(body_mesh.GetPrim(), mesh, skeleton, indices, weights)
+
+    # COCO keypoints per frame: joints from FK, surface points skinned (only those vertices)
+    world = forward_kinematics(skeleton, pose.local_rotations, pose.root_translation)
+    skin = skinning_matrices(skeleton, world)
+    surface = L.coco_surface_vertices()
+    ids = np.array([surface[n] for n in L.COCO_SURFACE])
+    sub = {n: k for k, n in enumerate(L.COCO_SURFACE)}
+    root = stage.GetPrimAtPath(human_path(human_id))
+    kp_attr = root.CreateAttribute(L.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray,
+                                   custom=True)
+    for f in range(pose.frame_count):
+        posed = linear_blend_skinning(mesh.points[ids], indices[ids], weights[ids], skin[f])
+        kp = L.coco_keypoints(skeleton, world[f], posed, vertex_ids=sub)
+        kp_attr.Set(Vt.Vec3fArray.FromNumpy(kp.astype(np.float32)), f)
+    root.CreateAttribute(L.COCO_KEYPOINT_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray,
+                         custom=True).Set(Vt.TokenArray(list(L.COCO_KEYPOINTS)))
+
+
+def author_face_labels(mesh_prim, mesh, skeleton, indices, weights) -> None:
+    """Body-region and JOS-3 segment per face (uniform int primvars) with their name tables."""
+    regions = L.body_regions(mesh, skeleton, indices, weights)
+    segments = L.jos3_segments(regions)
+    primvars = UsdGeom.PrimvarsAPI(mesh_prim)
+    for primvar_name, values, names_attr, names, doc in (
+            (L.BODY_REGION_PRIMVAR, regions, L.BODY_REGION_NAMES_ATTR, L.BODY_REGION_NAMES,
+             "body region id per face (names in humv:label:bodyRegionNames, index = id; "
+             "0 = not the body)"),
+            (L.JOS3_SEGMENT_PRIMVAR, segments, L.JOS3_SEGMENT_NAMES_ATTR, L.JOS3_SEGMENTS,
+             "JOS-3 segment per face: 0-based index into JOS-3's 17 segments "
+             "(names in humv:label:jos3SegmentNames)")):
+        pv = primvars.CreatePrimvar(primvar_name.removeprefix("primvars:"),
+                                    Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform)
+        pv.Set(Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))
+        pv.GetAttr().SetDocumentation(doc)
+        pv.GetAttr().SetCustomDataByKey("humv:names", Vt.StringArray(list(names)))
+        mesh_prim.CreateAttribute(names_attr, Sdf.ValueTypeNames.TokenArray,
+                                  custom=True).Set(Vt.TokenArray(list(names)))

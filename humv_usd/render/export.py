@@ -17,8 +17,14 @@ What is read
 - every camera with ``humv:sensor:*`` attributes (HumvSensorAPI): band, wavelength range,
   response, resolution, and its Gf.Camera at the frame.
 
-Not handled (documented limits): UsdSkel skinning (points must be baked), point instancers, hole
-indices, aperture offsets (warned and ignored), topology that changes over time.
+Skinned meshes (UsdSkel): a mesh under a ``SkelRoot`` bound to a ``Skeleton`` (``skel:skeleton``
+with joint influences) is posed at each frame by UsdSkel itself (``UsdSkel.Cache`` ->
+``SkinningQuery.ComputeSkinnedPoints`` with the skeleton's skinning transforms at the frame's
+time code, i.e. its bound ``skel:animationSource``), giving points in skeleton space that the
+Skeleton prim's local-to-world takes to world space. Blend shapes are not applied (warned).
+
+Not handled (documented limits): point instancers, hole indices, aperture offsets (warned and
+ignored), topology that changes over time, blend shapes.
 """
 from __future__ import annotations
 
@@ -27,7 +33,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom, UsdShade
+from pxr import Gf, Usd, UsdGeom, UsdShade, UsdSkel
 
 from humv_usd.errors import InputError, bad_value
 from humv_usd.usd import schemas as _s
@@ -181,6 +187,7 @@ class StageExport:
         self.stage = stage
         self.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
         self._mesh_prims = self._find_meshes()
+        self._skinned = self._find_skinned()
         self._mesh_cache: dict[str, MeshInfo] = {}
         self._materials: dict[str, Material] = {}
         self._part_count = 0
@@ -199,6 +206,51 @@ class StageExport:
             if purpose in (UsdGeom.Tokens.default_, UsdGeom.Tokens.render):
                 out.append(prim)
         return out
+
+    def _find_skinned(self) -> dict[str, tuple]:
+        """mesh path -> (SkinningQuery, SkelQuery, Skeleton prim) for meshes UsdSkel skins."""
+        roots = [p for p in self._traverse() if p.IsA(UsdSkel.Root)]
+        if not roots:
+            return {}
+        self._skel_cache = UsdSkel.Cache()
+        predicate = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+        for root in roots:
+            self._skel_cache.Populate(UsdSkel.Root(root), predicate)
+        out = {}
+        for prim in self._mesh_prims:
+            query = self._skel_cache.GetSkinningQuery(prim)
+            if not query or not query.HasJointInfluences():
+                continue
+            skel = UsdSkel.BindingAPI(prim).GetInheritedSkeleton()
+            skel_query = self._skel_cache.GetSkelQuery(skel) if skel else None
+            if not skel_query:
+                continue
+            if query.HasBlendShapes():
+                warnings.warn(f"{prim.GetPath()}: blend shapes are not applied by the renderer",
+                              RuntimeWarning, stacklevel=2)
+            out[str(prim.GetPath())] = (query, skel_query, skel.GetPrim())
+        return out
+
+    def _points(self, prim: Usd.Prim, path: str, time, cache: UsdGeom.XformCache):
+        """(local points, local-to-world row-vector matrix) of a mesh at ``time``; skinned meshes
+        are posed by UsdSkel and come in skeleton space with the Skeleton's local-to-world."""
+        pts = _get(UsdGeom.Mesh(prim).GetPointsAttr(), time)
+        skinned = self._skinned.get(path)
+        if skinned is None or pts is None:
+            pts = np.asarray(pts if pts is not None else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
+            return pts, np.array(cache.GetLocalToWorldTransform(prim), dtype=float)
+        query, skel_query, skel_prim = skinned
+        try:
+            xforms = skel_query.ComputeSkinningTransforms(time)
+            ok = bool(xforms) and query.ComputeSkinnedPoints(xforms, pts, time)
+        except Exception:  # pxr raises Tf.ErrorException on malformed skinning data
+            ok = False
+        if not ok:
+            raise InputError(bad_value(f"{path}.primvars:skel:jointIndices", "<cannot skin>",
+                                       f"expected valid UsdSkel joint influences and a posable skeleton "
+                                       f"{skel_prim.GetPath()} at frame {time.GetValue():g}"))
+        return (np.asarray(pts, dtype=float).reshape(-1, 3),
+                np.array(cache.GetLocalToWorldTransform(skel_prim), dtype=float))
 
     def _find_sensors(self) -> list[Sensor]:
         sensors: list[Sensor] = []
@@ -458,12 +510,10 @@ class StageExport:
             if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
                 continue
             info = self._mesh_info(prim, time)
-            pts = _get(UsdGeom.Mesh(prim).GetPointsAttr(), time)
-            pts = np.asarray(pts if pts is not None else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
+            pts, m = self._points(prim, info.path, time, cache)  # m: row-vector convention
             if pts.shape[0] != info.point_count:
                 raise InputError(bad_value(f"{info.path}.points", f"<{pts.shape[0]} points at frame {frame}>",
                                            f"expected {info.point_count} points (topology must not change over time)"))
-            m = np.array(cache.GetLocalToWorldTransform(prim), dtype=float)  # row-vector convention
             world = (pts @ m[:3, :3] + m[3, :3]) * self.meters_per_unit
             if not np.all(np.isfinite(world)):
                 raise InputError(bad_value(f"{info.path}.points", "<non-finite>", f"expected finite points at frame {frame}"))
