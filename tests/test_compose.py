@@ -17,8 +17,9 @@ from humv_usd.usd.check import check_stage
 
 from conftest import ROOT
 
-ALL_LAYERS = {"environment", "atmosphere", "materials", "scene", "avatar_p1", "sensors",
-              "thermal"}
+ALL_LAYERS = {"environment", "atmosphere", "materials", "scene", "avatar_p1", "clothing_p1",
+              "sensors", "thermal"}
+GARMENTS = ("tshirt_white", "shorts", "cap")
 
 
 def layer_names(out):
@@ -55,10 +56,12 @@ def test_each_layer_stands_alone(composed):
 def test_every_mesh_has_material_and_one_temperature_per_face(composed):
     _, _, stage = composed
     meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    garments = {f"/World/Humans/p1/Clothing/{g}" for g in GARMENTS}
     assert {str(p.GetPath()) for p in meshes} == {
-        "/World/Scene/Ground", "/World/Scene/warehouse", "/World/Humans/p1/Body"}
+        "/World/Scene/Ground", "/World/Scene/warehouse", "/World/Humans/p1/Body"} | garments
+    # fixed model: garments at the air temperature (placeholder until the garment balance)
     expected = {"/World/Scene/Ground": 297.0, "/World/Scene/warehouse": 293.0,
-                "/World/Humans/p1/Body": 306.15}
+                "/World/Humans/p1/Body": 306.15} | {g: 289.0 for g in garments}
     for prim in meshes:
         assert prim.HasAPI(S.THERMAL_API)
         pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature")
@@ -144,7 +147,7 @@ def test_parts_the_scenario_lacks_get_no_layer(tmp_path, raw):
     del raw["sensor"]
     del raw["atmosphere"]
     report = compose(validate(raw), out)
-    assert layer_names(out) == {"environment", "materials", "scene", "avatar_p1"}
+    assert layer_names(out) == {"environment", "materials", "scene", "avatar_p1", "clothing_p1"}
     assert set(report.removed) == {"atmosphere.usda", "sensors.usda", "thermal.usda"}
     assert {part for part, _ in report.skipped} == {"atmosphere", "sensors", "thermal"}
     assert check_stage(out / "stage.usda") == []

@@ -79,9 +79,15 @@ def test_radiometry(rendered):
             sky &= np.roll(np.roll(ids, dy, axis=0), dx, axis=1) == 0
     assert sky.sum() > 1000
     np.testing.assert_allclose(ch["brightness_temperature"][sky], sky_k, atol=1e-3)
-    # skin (eps_band ~ 0.98 at 306.15 K) reflects 2 % of a colder surround: between the two
+    # skin (eps_band ~ 0.98 at 306.15 K) reflects 2 % of a colder surround: between the two.
+    # The shins (between the shorts and the feet) are bare skin.
     person = ch["instance_id"] == 1
-    t_skin = np.median(ch["brightness_temperature"][person])
+    rows = np.where(person.any(axis=1))[0]
+    top, height = rows.min(), rows.max() - rows.min()
+    shins = person.copy()
+    shins[: top + int(0.75 * height)] = False
+    shins[top + int(0.92 * height):] = False
+    t_skin = np.median(ch["brightness_temperature"][shins])
     eps = 0.98
     lower = brightness_temperature(eps * band_radiance(306.15, band)
                                    + (1 - eps) * band_radiance(sky_k, band), band)

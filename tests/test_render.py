@@ -549,3 +549,25 @@ def test_variant_choice_points_drjit_at_llvm19(monkeypatch, tmp_path):
     monkeypatch.setenv(mode.VARIANT_ENV, "cuda_ad_rgb")
     with pytest.raises(ValueError, match="HUMV_USD_MITSUBA_VARIANT"):
         mode._choose_variant()
+
+
+def test_double_sided_mesh_emits_and_reflects_on_its_back(tmp_path):
+    """A doubleSided surface (garments, open shells) seen from behind is the same plate as seen
+    from the front; a one-sided one is black from behind (Mitsuba area lights are one-sided)."""
+    eps, t1, t2 = 0.8, 310.0, 260.0
+    expected = eps * planck.band_radiance(t1, LWIR) + (1 - eps) * planck.band_radiance(t2, LWIR)
+    for double, out in ((True, "two"), (False, "one")):
+        stage = new_stage(tmp_path / f"{out}.usda", sky_k=t2)
+        mat = add_material(stage, "plate", eps)
+        mesh = add_mesh(stage, "/World/Scene/plate", *rect_z(-100, 100, -100, 100), material=mat,
+                        temperature_k=t1, instance_id=5)
+        UsdGeom.Mesh(stage.GetPrimAtPath("/World/Scene/plate")).CreateDoubleSidedAttr(double)
+        add_camera(stage, "ir", eye=(0.0, 0.0, -10.0), target=(0.0, 0.0, 0.0), fov_x_deg=30,
+                   up=(0, 1, 0))
+        stage.Save()
+        render_stage(tmp_path / f"{out}.usda", tmp_path / out, spp=8)
+        _, ch = read_exr(tmp_path / out / "ir" / "0000.exr")
+        if double:
+            assert within_noise(ch["radiance"], ch["radiance_stderr"], expected).all()
+        else:
+            assert np.all(ch["radiance"] == 0.0)

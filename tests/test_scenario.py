@@ -104,10 +104,16 @@ def test_band_edges_ordered_and_defaulted(raw):
     assert validate(raw)["sensor"][0]["wavelength_um"] == [3.0, 5.0]
 
 
-def test_garments_not_silently_ignored(raw):
-    raw["human"][0]["clothing"] = ["tshirt_white"]
+def test_garments_from_the_catalogue(raw):
+    raw["human"][0]["clothing"] = ["tshirt_white", "shrts"]
     (line,) = problems(raw)
-    assert "human[0].clothing" in line and "not available yet" in line
+    assert line.startswith("human[0].clothing[1] = 'shrts': allowed garments: ")
+    assert line.endswith("(did you mean 'shorts'?)")
+    raw["human"][0]["clothing"] = ["tshirt", "tshirt_white"]
+    (line,) = problems(raw)
+    assert "human[0].clothing[1] = 'tshirt_white': listed twice" in line
+    raw["human"][0]["clothing"] = ["tshirt_black", "leggings", "cap"]
+    assert validate(raw)["human"][0]["clothing"] == ["tshirt_black", "leggings", "cap"]
 
 
 def test_file_errors(tmp_path):

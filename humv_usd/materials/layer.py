@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pxr import Gf, Sdf, UsdShade, Vt
 
+from humv_usd.clothing.garments import fabrics
 from humv_usd.materials.library import LIBRARY, WAVELENGTHS_UM
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
@@ -17,6 +18,7 @@ def used_materials(scenario: Scenario) -> list[str]:
     names = set()
     if scenario["human"]:
         names.add("skin")
+        names.update(fabrics(g for h in scenario["human"] for g in h["clothing"]))
     scene = scenario["scene"]
     if scene:
         names.add(scene["ground"]["material"])

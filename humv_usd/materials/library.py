@@ -99,3 +99,72 @@ LIBRARY: dict[str, Material] = {m.name: m for m in (
                     "Incropera et al., 6th ed., Table A.1",
              label_class="panel"),
 )}
+
+# ---------------------------------------------------------------------------- fabrics
+# Garment fabrics (humv_usd.clothing). The layer is modelled as opaque (emissivity = 1 - R);
+# real thin fabrics also transmit a few % in the LWIR and up to ~25 % in the NIR, which the
+# opaque model folds into reflectance and absorptivity. Common sources:
+_LWIR_FABRICS = ("LWIR (8-12 µm) emissivity of nylon 0.87, cotton 0.88, polyester 0.88 fabrics at "
+                 "40 °C: Belliveau et al. (2020) Forensic Chemistry 19:100242")
+_KNITS = ("MIR reflection 6-14 %, NIR absorption 10-96 % / reflection 4-67 % of wool, cotton and "
+          "polyester knits, colour mainly acting in the visible/NIR: Bauer, Gresser & Mark (2021) "
+          "J. Textile Sci. Fashion Technol. 8(1)")
+_CP = ("specific heat of dry fibres: Morton & Hearle (2008) Physical Properties of Textile Fibres, "
+       "4th ed., Table 6.1 (cotton 1.22-1.35, wool 1.36, nylon 6.6 1.46, PET 1.03 J/(g K))")
+_K = ("effective fibre+air conductivity of fabrics 0.03-0.07 W/(m K): Baxter (1946) Proc. Phys. "
+      "Soc. 58:105 (wool felts vs bulk density); density = areal mass / thickness of a typical "
+      "fabric of that kind")
+_MWIR = ("MWIR nodes (3 µm O-H/N-H absorption, ε ≈ 0.8 at 5 µm) are estimates, no measured "
+         "spectrum at hand")
+
+FABRICS: dict[str, Material] = {m.name: m for m in (
+    Material("cotton_white",
+             reflectance=(0.72, 0.78, 0.78, 0.65, 0.35, 0.05, 0.18, 0.12, 0.12, 0.12),
+             conductivity=0.05, density=250.0, specific_heat=1300.0, thickness=0.0006,
+             solar_absorptivity=0.30,
+             source=f"white cotton jersey (T-shirt, 150 g/m2, 0.6 mm). {_LWIR_FABRICS}; "
+                    f"visible/NIR of a white knit at the high-reflection end of {_KNITS}; {_CP}; "
+                    f"{_K}; {_MWIR}",
+             label_class="person"),
+    Material("cotton_black",
+             reflectance=(0.04, 0.04, 0.05, 0.30, 0.25, 0.05, 0.15, 0.12, 0.12, 0.12),
+             conductivity=0.05, density=250.0, specific_heat=1300.0, thickness=0.0006,
+             solar_absorptivity=0.88,
+             source=f"black-dyed cotton jersey (150 g/m2, 0.6 mm). {_LWIR_FABRICS} (dye barely "
+                    f"changes the LWIR value); NIR reflectance of black dyes rises beyond 0.7 µm, "
+                    f"low end of {_KNITS}; {_CP}; {_K}; {_MWIR}",
+             label_class="person"),
+    Material("nylon",
+             reflectance=(0.05, 0.05, 0.06, 0.35, 0.30, 0.10, 0.18, 0.13, 0.13, 0.13),
+             conductivity=0.05, density=370.0, specific_heat=1460.0, thickness=0.0006,
+             solar_absorptivity=0.85,
+             source=f"black nylon/elastane knit (leggings, 220 g/m2, 0.6 mm). {_LWIR_FABRICS}; "
+                    f"{_KNITS}; {_CP}; {_K}; {_MWIR}",
+             label_class="person"),
+    Material("polyester",
+             reflectance=(0.30, 0.32, 0.33, 0.50, 0.40, 0.15, 0.20, 0.12, 0.12, 0.12),
+             conductivity=0.045, density=280.0, specific_heat=1030.0, thickness=0.0005,
+             solar_absorptivity=0.60,
+             source=f"mid-grey polyester knit (sportswear, 140 g/m2, 0.5 mm). {_LWIR_FABRICS}; "
+                    f"{_KNITS}; {_CP}; {_K}; {_MWIR}",
+             label_class="person"),
+    Material("wool",
+             reflectance=(0.08, 0.09, 0.10, 0.35, 0.25, 0.05, 0.15, 0.10, 0.10, 0.10),
+             conductivity=0.04, density=200.0, specific_heat=1360.0, thickness=0.002,
+             solar_absorptivity=0.80,
+             source=f"charcoal wool knit (cap, 400 g/m2, 2 mm). LWIR emissivity 0.90 from the "
+                    f"6-14 % MIR reflection of {_KNITS}; {_CP}; {_K}; {_MWIR}",
+             label_class="person"),
+    Material("camouflage_nyco",
+             reflectance=(0.07, 0.12, 0.15, 0.45, 0.35, 0.06, 0.18, 0.12, 0.12, 0.12),
+             conductivity=0.06, density=490.0, specific_heat=1380.0, thickness=0.00045,
+             solar_absorptivity=0.70,
+             source=f"50/50 nylon/cotton (NYCO) camouflage-printed ripstop of combat uniforms "
+                    f"(MIL-DTL-44436B cloth: dyes specified for a foliage-like NIR reflectance; "
+                    f"~220 g/m2, 0.45 mm); pattern-averaged visible reflectance of a woodland/OCP "
+                    f"print and NIR ~0.45 at 1 µm are representative values, not a measurement. "
+                    f"{_LWIR_FABRICS} (both fibres 0.87-0.88); specific heat = mass mean of "
+                    f"nylon and cotton, {_CP}; {_K}; {_MWIR}",
+             label_class="person"),
+)}
+LIBRARY.update(FABRICS)

@@ -15,6 +15,7 @@ from pxr import Sdf, Usd
 import humv_usd
 from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.avatar import layer as avatar_layer
+from humv_usd.clothing import layer as clothing_layer
 from humv_usd.environment import layer as environment_layer
 from humv_usd.materials import layer as materials_layer
 from humv_usd.scenario import Scenario
@@ -28,7 +29,7 @@ LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
 # file-name patterns compose owns inside OUT/layers (stale ones are removed)
 _OWNED = ("environment.usda", "atmosphere.usda", "materials.usda", "scene.usda",
-          "sensors.usda", "thermal.usda", "avatar_*.usda")
+          "sensors.usda", "thermal.usda", "avatar_*.usda", "clothing_*.usda")
 
 
 @dataclass
@@ -63,6 +64,10 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
         skipped.append(("scene", "no [scene] section"))
     if scenario["human"]:
         needed.extend(f"avatar_{h['id']}" for h in scenario["human"])
+        dressed = [h["id"] for h in scenario["human"] if h["clothing"]]
+        needed.extend(clothing_layer.layer_name(i) for i in dressed)
+        if not dressed:
+            skipped.append(("clothing", "nobody wears garments"))
     else:
         skipped.append(("avatar", "no [[human]]"))
     if scenario["sensor"]:
@@ -77,6 +82,10 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
 
 
 def _build(name: str, scenario: Scenario, upstream: Usd.Stage | None) -> Sdf.Layer:
+    if name.startswith("clothing_"):
+        human_id = name.removeprefix("clothing_")
+        human = next(h for h in scenario["human"] if h["id"] == human_id)
+        return clothing_layer.build_one(scenario, human, upstream)
     if name.startswith("avatar_"):
         human_id = name.removeprefix("avatar_")
         human = next(h for h in scenario["human"] if h["id"] == human_id)
@@ -87,8 +96,11 @@ def _build(name: str, scenario: Scenario, upstream: Usd.Stage | None) -> Sdf.Lay
     return tool.build(scenario, upstream)
 
 
-def _compose_in_memory(layers: list[Sdf.Layer]) -> Usd.Stage:
+def _compose_in_memory(layers: list[Sdf.Layer], fps: float) -> Usd.Stage:
     root = Sdf.Layer.CreateAnonymous(".usda")
+    # same time codes per second as the layers, or USD rescales their time samples
+    root.timeCodesPerSecond = fps
+    root.framesPerSecond = fps
     root.subLayerPaths = [lyr.identifier for lyr in reversed(layers)]  # strongest first
     return Usd.Stage.Open(root)
 
@@ -115,7 +127,9 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
     built: list[tuple[str, Sdf.Layer, float]] = []
     for name in names:
         t = time.perf_counter()
-        upstream = _compose_in_memory([lyr for _, lyr, _ in built]) if name == "thermal" else None
+        reads_stage = name == "thermal" or name.startswith("clothing_")
+        upstream = (_compose_in_memory([lyr for _, lyr, _ in built], scenario["general"]["fps"])
+                    if reads_stage else None)
         built.append((name, _build(name, scenario, upstream), time.perf_counter() - t))
     texts = [(name, layer_text(lyr), dt) for name, lyr, dt in built]
     root_text = layer_text(root_layer(scenario, names))

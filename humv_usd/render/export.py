@@ -137,6 +137,11 @@ class MeshInfo:
     face_count: int
     left_handed: bool
     parts: list[Part]
+    # doubleSided meshes (e.g. garments, open shells): the back side is a copy of the surface
+    # with reversed winding, offset by BACK_SIDE_OFFSET_M behind the front; its points are
+    # appended after the authored ones (indices point_count..2*point_count-1)
+    double_sided: bool = False
+    front_triangles: np.ndarray | None = None
 
 
 @dataclass
@@ -155,6 +160,22 @@ class FrameState:
     def topology_key(self) -> tuple:
         """Changes exactly when the Mitsuba scene must be rebuilt."""
         return tuple((m.path, self.flip[m.path]) for m in self.meshes)
+
+
+#: Distance of the back-side copy of a doubleSided mesh behind its front [m]: far above float32
+#: resolution at scene scale (~2e-6 m at 20 m), far below garment air gaps (>= 2 mm).
+BACK_SIDE_OFFSET_M = 1e-4
+
+
+def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals of a triangle mesh (counter-clockwise front)."""
+    a, b, c = (points[triangles[:, k]] for k in range(3))
+    face_n = np.cross(b - a, c - a)
+    n = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(n, triangles[:, k], face_n)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.where(length > 0, length, 1.0)
 
 
 def stage_frames(stage: Usd.Stage) -> list[int]:
@@ -398,6 +419,12 @@ class StageExport:
             raise InputError(bad_value(f"{path}.faceVertexIndices", f"<range {indices.min()}..{indices.max()}>",
                                        f"expected indices in 0..{npoints - 1}"))
         triangles, triangle_face = fan_triangulate(counts, indices)
+        front_triangles = triangles
+        double_sided = bool(mesh.GetDoubleSidedAttr().Get())
+        if double_sided:
+            # the back side: same faces, reversed winding, on the offset copy of the points
+            triangles = np.concatenate([triangles, triangles[:, ::-1] + npoints])
+            triangle_face = np.concatenate([triangle_face, triangle_face])
         nfaces = counts.size
         # one part per material: GeomSubsets with their own binding first, the rest on the mesh's
         material_of_face = np.full(nfaces, -1, dtype=np.int64)
@@ -438,7 +465,9 @@ class StageExport:
             self._part_count += 1
         orientation = mesh.GetOrientationAttr().Get()
         info = MeshInfo(path=path, point_count=npoints, face_count=nfaces,
-                        left_handed=(orientation == UsdGeom.Tokens.leftHanded), parts=parts)
+                        left_handed=(orientation == UsdGeom.Tokens.leftHanded), parts=parts,
+                        double_sided=double_sided,
+                        front_triangles=front_triangles if double_sided else None)
         self._mesh_cache[path] = info
         return info
 
@@ -517,9 +546,14 @@ class StageExport:
             world = (pts @ m[:3, :3] + m[3, :3]) * self.meters_per_unit
             if not np.all(np.isfinite(world)):
                 raise InputError(bad_value(f"{info.path}.points", "<non-finite>", f"expected finite points at frame {frame}"))
+            flip = bool(info.left_handed) != bool(np.linalg.det(m[:3, :3]) < 0)
+            if info.double_sided:
+                # behind the rendered front: against the normal, which a flip turns around
+                normals = vertex_normals(world, info.front_triangles) * (-1.0 if flip else 1.0)
+                world = np.concatenate([world, world - BACK_SIDE_OFFSET_M * normals])
             state.meshes.append(info)
             state.points[info.path] = world
-            state.flip[info.path] = bool(info.left_handed) != bool(np.linalg.det(m[:3, :3]) < 0)
+            state.flip[info.path] = flip
             state.temperatures[info.path] = self.face_temperatures(prim, info, time)
         for sensor in sensors:
             state.cameras[sensor.name] = self.camera_pose(sensor, time)

@@ -197,11 +197,17 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
         placed.add(h)
     for h in sorted(humans - placed):
         problems.append(f"human id {h!r}: no [[placement]] places this human")
+    from humv_usd.clothing.garments import ALIASES, GARMENTS
     for i, hum in enumerate(data["human"]):
-        if hum.get("clothing"):
-            problems.append(bad_value(f"human[{i}].clothing", hum["clothing"],
-                                      "must be empty: garments are not available yet "
-                                      "(the clothing tool is a later issue)"))
+        seen: set[str] = set()
+        for k, name in enumerate(hum.get("clothing") or []):
+            canonical = ALIASES.get(name, name)
+            if canonical not in GARMENTS:
+                problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "allowed garments: "
+                                          + ", ".join(GARMENTS)) + _suggest(name, GARMENTS))
+            elif canonical in seen:
+                problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "listed twice"))
+            seen.add(canonical)
     for i, s in enumerate(data["sensor"]):
         band = s.get("band")
         if band is None:

@@ -96,8 +96,9 @@ HUMAN = Section(array=True, doc="(ii) Human/Clothing/Motion", keys={
                  choices=("slim", "average", "muscular")),
     "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
     "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
-    "clothing": Key("strlist", "Garments worn (the clothing issue adds them; must be empty "
-                    "for now).", default=[]),
+    "clothing": Key("strlist", "Garments worn, from humv_usd.clothing.garments.GARMENTS "
+                    "(e.g. tshirt_white, shorts, leggings, trousers, jacket, robe, cap).",
+                    default=[]),
 })
 
 PLACEMENT = Section(array=True, doc="(iii) Human Placement", keys={

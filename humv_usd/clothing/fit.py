@@ -1,0 +1,262 @@
+"""Fit catalogue garments to a fitted MakeHuman body and skin them to its skeleton.
+
+Rest shape. The garment keeps the faces of its source mesh that its :class:`Cover` rules
+select (see :mod:`humv_usd.clothing.garments`) and moves every vertex by the part's ease along
+the source surface's outward vertex normal: ``rest = helper + ease * n``. The helpers already
+follow the body (MakeHuman's targets deform them with it), so this fits any body from
+:func:`humv_usd.avatar.body.build_body`. The helper's own normal is used rather than the body's
+at the nearest point because it stays smooth where the tights bridge body concavities (crotch,
+armpits, between the buttocks), where the nearest body normal flips between two surfaces; it is
+flipped where it disagrees with the body normal there.
+
+Skinning by weight transfer. Each garment vertex takes the body's skin weights (the 4 CMU-rig
+influences the Body mesh is bound with) at the closest body surface point: barycentric
+interpolation of the closest triangle's three vertices, the 4 largest kept and renormalized.
+The garment then moves with the skin under it through the same Skeleton (UsdSkel), for any
+motion. Loose parts (the robe's skirt) instead: lower-leg and foot influences are moved to
+their thigh, other non-pelvic ones to the pelvis; the weights are smoothed over the part's mesh
+(Laplacian, :data:`LOOSE_SMOOTHING` steps) so front and back blend both legs, and blended
+towards the ``Hips`` joint with height (all pelvis at the waistband, all thighs at the hem).
+That is a rigid-skinning stand-in for cloth simulation: the skirt swings with the mean of the
+thighs and never flows, folds or lags; where a leg would pierce it, the per-frame collision fix
+(:mod:`humv_usd.clothing.collide`) pushes it out.
+
+Labels. Every garment face gets the body region (``primvars:humv:label:bodyRegion`` ids) of
+the body face nearest to it, so per-region statistics and JOS-3 segments work on garments too.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from humv_usd.avatar import labels as L
+from humv_usd.avatar.body import Body, MeshPart
+from humv_usd.avatar.skeleton import Skeleton, skeleton_for, skin_weights
+from humv_usd.clothing.garments import (SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part,
+                                        garment)
+from humv_usd.clothing.geometry import Surface, triangle_face_of, triangulate, vertex_normals
+
+INFLUENCES = 4
+#: Laplacian smoothing steps of a loose part's skin weights.
+LOOSE_SMOOTHING = 40
+_PELVIC = ("Hips", "LowerBack", "LHipJoint", "RHipJoint", "LeftUpLeg", "RightUpLeg")
+_TO_THIGH = {"LeftLeg": "LeftUpLeg", "LeftFoot": "LeftUpLeg", "LeftToeBase": "LeftUpLeg",
+             "RightLeg": "RightUpLeg", "RightFoot": "RightUpLeg", "RightToeBase": "RightUpLeg"}
+
+
+@dataclass(frozen=True)
+class BodyRig:
+    """A fitted body with what fitting and collisions need (rest pose, skeleton space)."""
+    body: Body
+    skeleton: Skeleton
+    mesh: MeshPart                  # the Body mesh (render mesh, compact indices)
+    triangles: np.ndarray           # (T, 3) fan triangles of ``mesh``
+    triangle_face: np.ndarray       # (T,) polygon of each triangle
+    joint_indices: np.ndarray       # (V, 4) the Body mesh's skinning
+    joint_weights: np.ndarray       # (V, 4)
+    face_regions: np.ndarray        # (F,) body region id per Body face
+    surface: Surface                # rest-pose closest-point queries
+
+
+def prepare(body: Body, skeleton: Skeleton | None = None) -> BodyRig:
+    """Skeleton, skinning and region labels of ``body`` exactly as the avatar layer has them."""
+    skeleton = skeleton_for(body.points, body.groups) if skeleton is None else skeleton
+    mesh = body.body_mesh()
+    indices, weights = skin_weights(skeleton, mesh.vertex_ids, INFLUENCES)
+    regions = L.body_regions(mesh, skeleton, indices, weights)
+    tris = triangulate(mesh.face_counts, mesh.face_indices)
+    return BodyRig(body, skeleton, mesh, tris, triangle_face_of(mesh.face_counts), indices,
+                   weights, regions, Surface(mesh.points, tris))
+
+
+@dataclass(frozen=True)
+class FittedGarment:
+    """A garment on one body: rest mesh in skeleton space and its skinning."""
+    garment: Garment
+    points: np.ndarray              # (n, 3) rest points [m]
+    face_counts: np.ndarray         # (F,)
+    face_indices: np.ndarray        # (sum counts,)
+    triangles: np.ndarray           # (T, 3) fan triangles
+    joint_indices: np.ndarray       # (n, 4) int32
+    joint_weights: np.ndarray       # (n, 4) float32, rows sum to 1
+    face_regions: np.ndarray        # (F,) body region id per face
+    part_of: np.ndarray             # (n,) index of the Part each vertex comes from
+
+    @property
+    def name(self) -> str:
+        return self.garment.name
+
+    @property
+    def vertex_count(self) -> int:
+        return len(self.points)
+
+
+# ---------------------------------------------------------------------------- selection
+def _source(rig: BodyRig, source: str) -> tuple[MeshPart, np.ndarray]:
+    """(mesh, outward vertex normals of the whole mesh) of a Part's source."""
+    part = rig.mesh if source == "body" else rig.body.helper(source)
+    tris = triangulate(part.face_counts, part.face_indices)
+    return part, vertex_normals(part.points, tris)
+
+
+def _face_centres(points, counts, indices) -> np.ndarray:
+    counts = np.asarray(counts)
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    sums = np.zeros((len(counts), 3))
+    np.add.at(sums, face_of, points[np.asarray(indices)])
+    return sums / counts[:, None]
+
+
+def _expand(cover: Cover) -> list[tuple[set[int], str | None]]:
+    """A Cover as (region ids, joint name or None) pairs, one per side for sided bones."""
+    if cover.bone in SIDED_BONES:
+        out = []
+        for side, joint in zip(("left", "right"), SIDED_BONES[cover.bone]):
+            names = set()
+            for r in cover.regions:
+                if r not in SIDED_REGIONS:
+                    raise ValueError(f"region {r!r} has no side but bone {cover.bone!r} has")
+                names.add(side + r[0].upper() + r[1:])
+            out.append(({L.REGION_ID[n] for n in names}, joint))
+        return out
+    ids = set()
+    for r in cover.regions:
+        if r in SIDED_REGIONS:
+            ids |= {L.REGION_ID["left" + r[0].upper() + r[1:]],
+                    L.REGION_ID["right" + r[0].upper() + r[1:]]}
+        else:
+            ids.add(L.REGION_ID[r])
+    return [(ids, cover.bone)]
+
+
+def _bone_position(skeleton: Skeleton, joint: str, p: np.ndarray, tilt: float) -> np.ndarray:
+    """Position of points along a bone (0 head, 1 tail) plus ``tilt`` x depth behind the head
+    in bone lengths."""
+    j = skeleton.index(joint)
+    head, tail = skeleton.rest_positions[j], skeleton.tail_positions[j]
+    axis = tail - head
+    length2 = float(axis @ axis)
+    t = (p - head) @ axis / length2
+    if tilt:
+        t = t + tilt * (p[:, 1] - head[1]) / np.sqrt(length2)
+    return t
+
+
+def select_faces(rig: BodyRig, part: MeshPart, covers: tuple[Cover, ...]
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(bool mask of the kept faces, region id of every face of ``part``)."""
+    centres = _face_centres(part.points, part.face_counts, part.face_indices)
+    nearest = rig.surface.closest(centres)
+    region = rig.face_regions[rig.triangle_face[nearest.triangle]]
+    if not covers:
+        return np.ones(len(centres), dtype=bool), region
+    keep = np.zeros(len(centres), dtype=bool)
+    for cover in covers:
+        for ids, joint in _expand(cover):
+            sel = np.isin(region, sorted(ids))
+            if joint is not None:
+                t = _bone_position(rig.skeleton, joint, centres, cover.tilt)
+                sel &= (t >= cover.t_min) & (t <= cover.t_max)
+            keep |= sel
+    return keep, region
+
+
+# ---------------------------------------------------------------------------- weights
+def transfer_weights(rig: BodyRig, points: np.ndarray, k: int = INFLUENCES
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Body skin weights at the closest body points of ``points``; see the module doc."""
+    dense = _dense_at(rig, points)
+    return _top_k(dense, k)
+
+
+def _dense_at(rig: BodyRig, points: np.ndarray) -> np.ndarray:
+    near = rig.surface.closest(points)
+    corners = rig.triangles[near.triangle]                         # (n, 3) body vertices
+    n = len(points)
+    joints = len(rig.skeleton.names)
+    idx = rig.joint_indices[corners]                               # (n, 3, 4)
+    w = rig.joint_weights[corners] * near.bary[:, :, None]         # (n, 3, 4)
+    dense = np.zeros((n, joints))
+    rows = np.repeat(np.arange(n), 3 * rig.joint_indices.shape[1])
+    np.add.at(dense, (rows, idx.ravel()), w.ravel())
+    return dense
+
+
+def _top_k(dense: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    order = np.argsort(-dense, axis=1)[:, :k]
+    weights = np.take_along_axis(dense, order, axis=1)
+    weights /= weights.sum(axis=1, keepdims=True)
+    order = np.where(weights > 0, order, 0)
+    return order.astype(np.int32), weights.astype(np.float32)
+
+
+def _loose_weights(rig: BodyRig, points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Dense weights of a loose part (see the module doc)."""
+    names = rig.skeleton.names
+    dense = _dense_at(rig, points)
+    hips = names.index("Hips")
+    moved = np.zeros_like(dense)
+    for j, name in enumerate(names):
+        target = _TO_THIGH.get(name, name if name in _PELVIC else "Hips")
+        moved[:, names.index(target)] += dense[:, j]
+    # Laplacian smoothing over the part's edges (uniform weights, lambda 0.5)
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 3]], faces[:, [3, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    degree = np.bincount(e.ravel(), minlength=len(points)).astype(np.float64)[:, None]
+    w = moved
+    for _ in range(LOOSE_SMOOTHING):
+        s = np.zeros_like(w)
+        np.add.at(s, e[:, 0], w[e[:, 1]])
+        np.add.at(s, e[:, 1], w[e[:, 0]])
+        w = 0.5 * w + 0.5 * s / np.maximum(degree, 1.0)
+    z = points[:, 2]
+    up = (z - z.min()) / max(z.max() - z.min(), 1e-9)     # 0 at the hem, 1 at the waistband
+    w = (1.0 - up)[:, None] * w
+    w[:, hips] += up
+    return w
+
+
+# ---------------------------------------------------------------------------- fitting
+def _fit_part(rig: BodyRig, part: Part):
+    source, normals = _source(rig, part.source)
+    quads = np.asarray(source.face_indices).reshape(-1, 4)       # all sources are quads
+    keep, region = select_faces(rig, source, part.cover)
+    faces = quads[keep]
+    used, remap = np.unique(faces.ravel(), return_inverse=True)
+    faces = remap.reshape(-1, 4)
+    p = source.points[used]
+    n = normals[used]
+    body_n = rig.surface.closest(p).normal
+    n = np.where(np.einsum("ij,ij->i", n, body_n)[:, None] < 0, -n, n)
+    rest = p + part.ease * n
+    if part.loose:
+        dense = _loose_weights(rig, rest, faces)
+        idx, w = _top_k(dense, INFLUENCES)
+    else:
+        idx, w = transfer_weights(rig, rest)
+    return rest, faces, idx, w, region[keep]
+
+
+def fit_garment(rig: BodyRig, name: str) -> FittedGarment:
+    """Fit the catalogue garment ``name`` to the body of ``rig``."""
+    g = garment(name)
+    pts, faces, idx, wts, regions, part_of = [], [], [], [], [], []
+    offset = 0
+    for k, part in enumerate(g.parts):
+        rest, f, i, w, r = _fit_part(rig, part)
+        if not len(f):
+            raise ValueError(f"garment {g.name!r}: part {k} ({part.source}) selects no faces")
+        pts.append(rest)
+        faces.append(f + offset)
+        idx.append(i)
+        wts.append(w)
+        regions.append(r)
+        part_of.append(np.full(len(rest), k))
+        offset += len(rest)
+    faces = np.concatenate(faces)
+    counts = np.full(len(faces), 4)
+    flat = faces.ravel()
+    return FittedGarment(g, np.concatenate(pts), counts, flat, triangulate(counts, flat),
+                         np.concatenate(idx), np.concatenate(wts),
+                         np.concatenate(regions).astype(np.int32), np.concatenate(part_of))

@@ -1,0 +1,170 @@
+"""The garment catalogue: which part of MakeHuman's helper geometry each garment keeps.
+
+MakeHuman's base mesh carries helper geometry that its macro targets deform together with the
+body (so it fits every fitted body): ``helper-tights`` (a skin-tight suit over torso, arms to
+the wrists, legs and feet; 2650 quads, ~6 mm off the skin) and ``helper-skirt`` (a loose tube
+from the waist to the shins). MakeHuman's own clothes (MakeClothes, which the seed's HART used)
+are fitted to these helpers. A garment here is one or more :class:`Part`: the faces of a source
+mesh (a helper or, for the cap, the body itself) that :class:`Cover` rules keep, offset by the
+garment's ease along the surface normal (:mod:`humv_usd.clothing.fit`).
+
+Face selection. Each face gets the body region (:mod:`humv_usd.avatar.labels`) of the body
+face nearest to its centre, and its position along a bone: ``t`` = projection of the face
+centre on the bone's axis, 0 at the joint (head), 1 at the bone's tail (the child joint), in the
+rest pose. A :class:`Cover` keeps faces of its regions with ``t_min <= t + tilt * y' <= t_max``
+(``y'`` = depth behind the bone's head in bone lengths, + = towards the back; it tilts the cut,
+e.g. a cap lower at the back than at the forehead). Region names without a side
+(``upperArm``, ``lowerLeg``...) and bone names without a side (``Arm``, ``UpLeg``...) apply to
+both sides.
+
+Layers (``layer``, inner first) decide which garment goes over which where they overlap: the
+outer one keeps at least the inner one's air gap + thickness + the minimum gap there
+(:mod:`humv_usd.clothing.collide`). Fabrics are names in
+:data:`humv_usd.materials.library.LIBRARY` (with sources there).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from humv_usd.materials.library import LIBRARY
+
+#: Default smallest skin-garment gap [m] (HumvClothingAPI ``minimumGap`` fallback).
+MINIMUM_GAP = 0.002
+SOURCES = ("tights", "skirt", "body")
+
+#: Side-less region names -> the two sided names of :data:`humv_usd.avatar.labels.BODY_REGIONS`.
+SIDED_REGIONS = ("upperArm", "lowerArm", "hand", "upperLeg", "lowerLeg", "foot")
+#: Side-less limb bone names -> (left, right) joints of the CMU rig.
+SIDED_BONES = {"Arm": ("LeftArm", "RightArm"), "ForeArm": ("LeftForeArm", "RightForeArm"),
+               "UpLeg": ("LeftUpLeg", "RightUpLeg"), "Leg": ("LeftLeg", "RightLeg"),
+               "Foot": ("LeftFoot", "RightFoot")}
+TORSO = ("chest", "abdomen", "back")
+
+
+@dataclass(frozen=True)
+class Cover:
+    """Faces of ``regions`` whose position along ``bone`` is within [t_min, t_max]."""
+    regions: tuple[str, ...]
+    bone: str | None = None
+    t_min: float = float("-inf")
+    t_max: float = float("inf")
+    tilt: float = 0.0
+
+
+@dataclass(frozen=True)
+class Part:
+    """Faces of one source mesh, offset by ``ease`` [m] along the surface normal.
+
+    ``loose``: skin weights smoothed over the part and blended towards the pelvis (a skirt
+    that swings as one piece instead of splitting with the legs; see ``fit``).
+    """
+    source: str
+    cover: tuple[Cover, ...]
+    ease: float
+    loose: bool = False
+
+
+@dataclass(frozen=True)
+class Garment:
+    name: str
+    description: str
+    parts: tuple[Part, ...]
+    fabric: str              # material name in the library
+    layer: int               # 0 = next to the skin; higher goes over lower
+    minimum_gap: float = MINIMUM_GAP
+
+    @property
+    def ease(self) -> float:
+        """The design ease [m] (of the first part; HumvClothingAPI ``ease``)."""
+        return self.parts[0].ease
+
+    @property
+    def thickness(self) -> float:
+        """Fabric thickness [m] (from the fabric's library entry)."""
+        return LIBRARY[self.fabric].thickness
+
+
+def _arms(t_max_upper: float | None, t_max_lower: float | None = None) -> tuple[Cover, ...]:
+    """Sleeves: the upper arm down to ``t_max_upper`` of the humerus, or the whole upper arm
+    and the forearm down to ``t_max_lower``."""
+    if t_max_lower is None:
+        return (Cover(("upperArm",), "Arm", t_max=t_max_upper),)
+    return (Cover(("upperArm",)), Cover(("lowerArm",), "ForeArm", t_max=t_max_lower))
+
+
+# Hem heights along the Hips bone (0 = hip joints' height, 1 = waist, the LowerBack joint).
+_TSHIRT_HEM = -0.4
+_JACKET_HEM = -0.9   # the crotch is at -1.15 (men) .. -1.45 (women)
+
+_TOP = TORSO
+_TROUSER_TOP = (Cover(("pelvis",)),)
+
+
+def _catalogue() -> dict[str, Garment]:
+    tshirt_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(0.45)
+    longsleeve_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(
+        None, 0.93)
+    jacket_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_JACKET_HEM),
+                    Cover(("neck",), "Neck", t_max=0.6)) + _arms(None, 0.95)
+    shorts_cover = _TROUSER_TOP + (Cover(("upperLeg",), "UpLeg", t_max=0.5),)
+    legs_cover = _TROUSER_TOP + (Cover(("upperLeg",)), Cover(("lowerLeg",), "Leg", t_max=0.93))
+    trouser_cover = _TROUSER_TOP + (Cover(("upperLeg",)), Cover(("lowerLeg",), "Leg",
+                                                                 t_max=0.96))
+    garments = (
+        Garment("tshirt_white", "white cotton T-shirt: torso to the hip joints, sleeves to "
+                "mid upper arm", (Part("tights", tshirt_cover, 0.008),), "cotton_white", 2),
+        Garment("tshirt_black", "black cotton T-shirt (same cut as tshirt_white)",
+                (Part("tights", tshirt_cover, 0.008),), "cotton_black", 2),
+        Garment("longsleeve", "grey polyester long-sleeved shirt: torso to the hip joints, "
+                "sleeves to the wrists", (Part("tights", longsleeve_cover, 0.008),),
+                "polyester", 2),
+        Garment("shorts", "grey polyester shorts: waist to mid thigh",
+                (Part("tights", shorts_cover, 0.010),), "polyester", 1),
+        Garment("leggings", "black nylon/elastane leggings: waist to the ankles",
+                (Part("tights", legs_cover, 0.001),), "nylon", 0),
+        Garment("trousers", "black cotton trousers: waist to the ankles",
+                (Part("tights", trouser_cover, 0.012),), "cotton_black", 1),
+        Garment("jacket", "military uniform jacket (NYCO camouflage): torso to below the "
+                "hips, stand-up collar, sleeves to the wrists",
+                (Part("tights", jacket_cover, 0.015),), "camouflage_nyco", 3),
+        Garment("uniform_trousers", "military uniform trousers (NYCO camouflage): waist to "
+                "the ankles", (Part("tights", trouser_cover, 0.015),), "camouflage_nyco", 1),
+        Garment("robe", "loose white cotton robe: long-sleeved top over a skirt from the "
+                "waist to the shins",
+                (Part("tights", (Cover(_TOP),) + _arms(None, 0.93), 0.020),
+                 Part("skirt", (), 0.006, loose=True)), "cotton_white", 3),
+        Garment("cap", "charcoal wool knit cap: the skull above the brow, ears free",
+                (Part("body", (Cover(("head",), "Head", t_min=0.5, tilt=0.4),), 0.003),),
+                "wool", 1),
+    )
+    return {g.name: g for g in garments}
+
+
+GARMENTS: dict[str, Garment] = _catalogue()
+#: Convenience aliases accepted by :func:`garment`.
+ALIASES = {"tshirt": "tshirt_white", "t-shirt": "tshirt_white"}
+#: The seed's Table 1 clothing options (HumV paper, sec. 4.1) as garment lists.
+OUTFITS = {
+    "bare_upper_body_shorts": ("shorts",),
+    "white_shirt_shorts": ("tshirt_white", "shorts"),
+    "black_shirt_shorts": ("tshirt_black", "shorts"),
+    "white_shirt_leggings": ("tshirt_white", "leggings"),
+    "black_shirt_leggings": ("tshirt_black", "leggings"),
+    "military_uniform": ("uniform_trousers", "jacket"),
+    "robe": ("robe",),
+}
+
+
+def garment(name: str) -> Garment:
+    """A catalogue garment by name (or alias); ValueError names the known ones."""
+    key = ALIASES.get(name, name)
+    try:
+        return GARMENTS[key]
+    except KeyError:
+        raise ValueError(f"unknown garment {name!r}; known: {', '.join(GARMENTS)}") from None
+
+
+def fabrics(names) -> list[str]:
+    """Library material names the garments ``names`` need (sorted, unique), e.g. for the
+    materials layer."""
+    return sorted({garment(n).fabric for n in names})

@@ -1,0 +1,190 @@
+"""Mesh queries the clothing tool needs: normals, closest points, signed distance, ray casts.
+
+Pure numpy + scipy (KD-tree) + embreex (ray casts, the Embree kernels trimesh uses). Triangles
+index a point array; polygons are fan-triangulated as the render does.
+
+Closest point on a mesh: the exact point-triangle closest point (Ericson 2005, *Real-Time
+Collision Detection*, sec. 5.1.5) over the ``k`` triangles whose centroids are nearest to the
+query point (a KD-tree over centroids). For a mesh of near-uniform triangles and queries
+within a few edge lengths of the surface (garments: 0-5 cm from the skin, body edges ~1 cm),
+the closest triangle is among the 8 nearest centroids (``tests/test_clothing.py`` checks the
+distance against all triangles; a miss costs a few µm). Sign: the side of the surface given by the normal interpolated
+(barycentric) from the area-weighted vertex normals at the closest point -- robust on a
+smooth closed surface like the body, unlike the flat face normal at edges and vertices.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+#: Nearest triangle centroids searched per query point.
+CANDIDATES = 8
+
+
+def triangulate(face_counts, face_indices) -> np.ndarray:
+    """(T, 3) fan triangles of polygons given as USD counts/indices (orientation kept)."""
+    counts = np.asarray(face_counts, dtype=np.int64)
+    idx = np.asarray(face_indices, dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    out = []
+    for k in range(1, int(counts.max()) - 1):
+        sel = counts > k + 1
+        out.append(np.stack([idx[starts[sel]], idx[starts[sel] + k],
+                             idx[starts[sel] + k + 1]], axis=1))
+    return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
+
+
+def triangle_face_of(face_counts) -> np.ndarray:
+    """Polygon index of each fan triangle, in :func:`triangulate`'s order."""
+    counts = np.asarray(face_counts, dtype=np.int64)
+    return np.concatenate([np.flatnonzero(counts > k + 1) for k in range(1, int(counts.max()) - 1)])
+
+
+def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (0 for unused vertices)."""
+    p = np.asarray(points, dtype=np.float64)
+    a, b, c = p[triangles[:, 0]], p[triangles[:, 1]], p[triangles[:, 2]]
+    fn = np.cross(b - a, c - a)                       # length = 2 x area
+    n = np.zeros_like(p)
+    for k in range(3):
+        for axis in range(3):
+            n[:, axis] += np.bincount(triangles[:, k], weights=fn[:, axis], minlength=len(p))
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+
+def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
+                         c: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (..., 3) of the point of each triangle abc closest to p.
+
+    Vectorized form of Ericson (2005) sec. 5.1.5 (Voronoi regions of vertices, edges, face).
+    """
+    ab, ac, ap = b - a, c - a, p - a
+    bp, cp = p - b, p - c
+    d1 = np.einsum("...i,...i->...", ab, ap)
+    d2 = np.einsum("...i,...i->...", ac, ap)
+    d3 = np.einsum("...i,...i->...", ab, bp)
+    d4 = np.einsum("...i,...i->...", ac, bp)
+    d5 = np.einsum("...i,...i->...", ab, cp)
+    d6 = np.einsum("...i,...i->...", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        total = va + vb + vc
+        v_in = np.where(total != 0, vb / total, 1.0 / 3.0)
+        w_in = np.where(total != 0, vc / total, 1.0 / 3.0)
+        t_ab = np.where(d1 - d3 != 0, d1 / (d1 - d3), 0.0)
+        t_ac = np.where(d2 - d6 != 0, d2 / (d2 - d6), 0.0)
+        e43, e56 = d4 - d3, d5 - d6
+        t_bc = np.where(e43 + e56 != 0, e43 / (e43 + e56), 0.0)
+    zero = np.zeros_like(d1)
+    one = np.ones_like(d1)
+    conditions = [
+        (d1 <= 0) & (d2 <= 0),                                   # vertex a
+        (d3 >= 0) & (d4 <= d3),                                  # vertex b
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),                       # edge ab
+        (d6 >= 0) & (d5 <= d6),                                  # vertex c
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),                       # edge ac
+        (va <= 0) & (e43 >= 0) & (e56 >= 0),                     # edge bc
+    ]
+    v = np.select(conditions, [zero, one, t_ab, zero, zero, 1.0 - t_bc], v_in)
+    w = np.select(conditions, [zero, zero, zero, one, t_ac, t_bc], w_in)
+    return np.stack([1.0 - v - w, v, w], axis=-1)
+
+
+@dataclass
+class Closest:
+    """Closest surface points of query points (all arrays have the query count first)."""
+    point: np.ndarray       # (n, 3) closest point on the surface
+    triangle: np.ndarray    # (n,) triangle index
+    bary: np.ndarray        # (n, 3) barycentric coordinates in that triangle
+    normal: np.ndarray      # (n, 3) interpolated unit normal at the closest point
+    signed: np.ndarray      # (n,) signed distance [m], < 0 inside (behind the normal)
+
+
+class Surface:
+    """A triangle mesh for closest-point and signed-distance queries (see module doc)."""
+
+    def __init__(self, points: np.ndarray, triangles: np.ndarray,
+                 normals: np.ndarray | None = None):
+        self.points = np.asarray(points, dtype=np.float64)
+        self.triangles = np.asarray(triangles, dtype=np.int64)
+        self.normals = vertex_normals(self.points, self.triangles) if normals is None else normals
+        self._tri_points = self.points[self.triangles]            # (T, 3, 3)
+        self._tree = cKDTree(self._tri_points.mean(axis=1))
+
+    def closest(self, query: np.ndarray, k: int = CANDIDATES) -> Closest:
+        q = np.asarray(query, dtype=np.float64)
+        k = min(k, len(self.triangles))
+        _, cand = self._tree.query(q, k=k, workers=-1)
+        cand = cand.reshape(len(q), k)
+        tri = self._tri_points[cand]                               # (n, k, 3, 3)
+        bary = closest_on_triangles(q[:, None, :], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
+        cp = np.einsum("nkj,nkji->nki", bary, tri)
+        d2 = np.einsum("nki,nki->nk", q[:, None, :] - cp, q[:, None, :] - cp)
+        best = np.argmin(d2, axis=1)
+        rows = np.arange(len(q))
+        triangle = cand[rows, best]
+        bary = bary[rows, best]
+        point = cp[rows, best]
+        normal = np.einsum("nj,nji->ni", bary, self.normals[self.triangles[triangle]])
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+        offset = q - point
+        dist = np.sqrt(d2[rows, best])
+        side = np.einsum("ni,ni->n", offset, normal)
+        signed = np.where(side < 0, -dist, dist)
+        return Closest(point, triangle, bary, normal, signed)
+
+
+class RayCaster:
+    """First hits of rays on a triangle mesh (Embree through embreex, float32)."""
+
+    def __init__(self, points: np.ndarray, triangles: np.ndarray):
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+        p = np.asarray(points, dtype=np.float64)
+        # Embree works in float32: shift to the mesh's corner to keep precision
+        self._origin = p.min(axis=0)
+        self._scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(scene=self._scene, vertices=(p - self._origin).astype(np.float32),
+                     indices=np.asarray(triangles, dtype=np.int32))
+
+    def first_hit(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Distance along each unit direction to the first hit [m]; inf where none."""
+        o = (np.asarray(origins, dtype=np.float64) - self._origin).astype(np.float32)
+        d = np.ascontiguousarray(directions, dtype=np.float32)
+        out = self._scene.run(np.ascontiguousarray(o), d, output=1)
+        t = np.asarray(out["tfar"], dtype=np.float64)
+        return np.where(np.asarray(out["primID"]) >= 0, t, np.inf)
+
+    def inside(self, points: np.ndarray, directions: int = 3) -> np.ndarray:
+        """Ray-parity inside test (majority over a few fixed directions); for closed meshes
+        without self-intersections. Independent of :class:`Surface`'s normal sign."""
+        dirs = np.array([[0.0, 0.0, 1.0], [0.577, -0.577, 0.577], [-0.6, 0.48, -0.64],
+                         [0.36, 0.8, 0.48], [-0.8, -0.36, 0.48]])[:directions]
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        votes = np.zeros(len(points), dtype=np.int64)
+        for d in dirs:
+            votes += self._count_hits(points, d) % 2
+        return votes * 2 > len(dirs)
+
+    def _count_hits(self, points: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        o = (np.asarray(points, dtype=np.float64) - self._origin).astype(np.float32)
+        d = np.tile(np.asarray(direction, dtype=np.float32), (len(o), 1))
+        hits = np.zeros(len(o), dtype=np.int64)
+        active = np.arange(len(o))
+        for _ in range(64):
+            if not len(active):
+                break
+            out = self._scene.run(np.ascontiguousarray(o[active]), np.ascontiguousarray(d[active]),
+                                  output=1)
+            hit = np.asarray(out["primID"]) >= 0
+            active = active[hit]
+            hits[active] += 1
+            t = np.asarray(out["tfar"], dtype=np.float32)[hit]
+            o[active] = o[active] + d[active] * (t[:, None] + np.float32(1e-5))
+        return hits

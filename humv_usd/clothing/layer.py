@@ -1,0 +1,226 @@
+"""Clothing tool → layers/clothing_<id>.usda: the garments a person wears, skinned, with air gaps.
+
+For each garment of ``human["clothing"]`` (names of :data:`humv_usd.clothing.garments.GARMENTS`)::
+
+    over /World/Humans/<id>                   the avatar layer's SkelRoot (its label: garments
+                                              inherit the person's instance id and class)
+        def Scope Clothing
+            def Mesh <garment>                HumvClothingAPI (garment, ease, minimumGap,
+                                              primvars:humv:clothing:airGap [m, vertex]),
+                                              material:binding -> /World/Materials/<fabric>,
+                                              UsdSkel binding to ../../Skeleton (4 influences),
+                                              primvars:humv:label:bodyRegion (uniform)
+
+Skinning: the garment is bound to the avatar's Skeleton with weights transferred from the
+body (:mod:`humv_usd.clothing.fit`), so UsdSkel (and the render, and any DCC) poses it with
+the body. The per-frame intersection fix (:mod:`humv_usd.clothing.collide`) is baked into
+time-sampled ``points``: at frame i the rest points that UsdSkel's linear blend skinning takes
+exactly to the fixed posed shape (``rest + A^-1 delta``). ``airGap`` is time-sampled the same
+way. A person who does not move (one distinct pose) gets one value (the default, no samples);
+``points`` without a time sample is then the fixed shape.
+
+The layer records how many garment vertices were inside the skin or closer than the minimum
+gap before and after the fix, per garment (customData ``humv:clothing:fix``: the max over the
+frames and int[] per frame), so a pipeline can fail on ``insideAfterMax > 0``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
+
+from humv_usd.avatar import labels as L
+from humv_usd.avatar import usdskel
+from humv_usd.avatar.body import Body, build_body
+from humv_usd.avatar.layer import human_path, skeleton_path
+from humv_usd.avatar.skeleton import Skeleton, skeleton_for, skinning_matrices
+from humv_usd.clothing.collide import Simulation, dress, simulate
+from humv_usd.clothing.fit import prepare
+from humv_usd.clothing.garments import fabrics
+from humv_usd.materials.layer import material_path
+from humv_usd.scenario import Scenario
+from humv_usd.usd import schemas as S
+from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.mesh import define_mesh
+
+NAME = "clothing"
+READS = ("general", "human", "placement")
+
+
+def layer_name(human_id: str) -> str:
+    return f"{NAME}_{human_id}"
+
+
+def clothing_path(human_id: str) -> Sdf.Path:
+    return human_path(human_id).AppendChild("Clothing")
+
+
+def garment_path(human_id: str, garment: str) -> Sdf.Path:
+    return clothing_path(human_id).AppendChild(garment)
+
+
+# ---------------------------------------------------------------------------- motion input
+def world_transforms_from_stage(stage: Usd.Stage, human_id: str, skeleton: Skeleton,
+                                frame_count: int, fps: float) -> np.ndarray | None:
+    """(F, J, 4, 4) column-vector joint transforms in skeleton space, per frame, of the
+    avatar's UsdSkel Skeleton on ``stage`` (whatever animation the avatar layer bound); None if
+    the stage has no such skeleton. F = 1 when the pose does not change over the frames.
+
+    Frame f is read at the stage time of f / ``fps`` seconds: a root layer without our
+    timeCodesPerSecond (e.g. an anonymous one, 24 by default) rescales its sublayers' times.
+    """
+    prim = stage.GetPrimAtPath(skeleton_path(human_id))
+    if not prim or not prim.IsA(UsdSkel.Skeleton):
+        return None
+    skel = UsdSkel.Skeleton(prim)
+    joints = list(skel.GetJointsAttr().Get() or [])
+    if joints != skeleton.paths:
+        raise ValueError(f"{prim.GetPath()}: joints differ from the CMU rig's "
+                         f"({len(joints)} vs {len(skeleton.paths)})")
+    cache = UsdSkel.Cache()
+    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath(human_path(human_id))),
+                   Usd.PrimDefaultPredicate)
+    query = cache.GetSkelQuery(skel)
+    out = np.empty((max(frame_count, 1), len(joints), 4, 4))
+    scale = stage.GetTimeCodesPerSecond() / fps
+    for f in range(len(out)):
+        m = np.asarray(query.ComputeJointSkelTransforms(Usd.TimeCode(f * scale)),
+                       dtype=np.float64)
+        out[f] = np.transpose(m, (0, 2, 1))        # Gf row-vector -> column-vector
+    if np.allclose(out, out[:1], atol=1e-9):
+        return out[:1]
+    return out
+
+
+# ---------------------------------------------------------------------------- authoring
+def build_for_human(human: dict, body: Body, skeleton: Skeleton | None,
+                    motion_world_transforms: np.ndarray | None, garments, fps: float,
+                    frame_count: int, *, simulation_out: list | None = None) -> Sdf.Layer:
+    """The clothing layer of one person.
+
+    human: the ``[[human]]`` table (``id`` is used); body: :func:`build_body`'s result for that
+    person; skeleton: :func:`skeleton_for` of the body (None: computed);
+    motion_world_transforms: (F, J, 4, 4) joint transforms in skeleton space
+    (:func:`humv_usd.avatar.skeleton.forward_kinematics`), frame i at time code i, or None for
+    the rest pose; garments: catalogue names; fps, frame_count: the scenario's.
+    ``simulation_out``: if a list, the :class:`~humv_usd.clothing.collide.Simulation` is
+    appended (counts, timings) for reports and benchmarks.
+    """
+    rig = prepare(body, skeleton)
+    skeleton = rig.skeleton
+    if motion_world_transforms is None:
+        world = np.tile(np.eye(4), (1, len(skeleton.names), 1, 1))
+        world[0, :, :3, 3] = skeleton.rest_positions
+    else:
+        world = np.asarray(motion_world_transforms, dtype=np.float64)
+        if world.ndim != 4 or world.shape[1:] != (len(skeleton.names), 4, 4):
+            raise ValueError(f"motion_world_transforms must be (F, {len(skeleton.names)}, 4, 4),"
+                             f" got {world.shape}")
+        world = world[:max(frame_count, 1)]
+        if np.allclose(world, world[:1], atol=1e-9):     # does not move: one pose
+            world = world[:1]
+    outfit = dress(rig, list(garments))
+    sim = simulate(outfit, skinning_matrices(skeleton, world))
+    if simulation_out is not None:
+        simulation_out.append(sim)
+    return author(human["id"], sim, fps, frame_count)
+
+
+def author(human_id: str, sim: Simulation, fps: float, frame_count: int) -> Sdf.Layer:
+    """Write a :class:`Simulation` of one person's garments as a layer (see module doc)."""
+    names = ", ".join(a.name for a in sim.garments)
+    stage = new_layer_stage(fps, frame_count,
+                            f"HumV-USD clothing layer for {human_id}: {names or 'no garments'}")
+    stage.OverridePrim(SCOPES["humans"])
+    stage.OverridePrim(human_path(human_id))
+    UsdGeom.Scope.Define(stage, clothing_path(human_id))
+    for anim in sim.garments:
+        _author_garment(stage, human_id, anim)
+    layer = finish(stage)
+    # DefinePrim made the ancestors "def"; they belong to the avatar layer: only "over" here
+    for path in (SCOPES["humans"], human_path(human_id)):
+        layer.GetPrimAtPath(path).specifier = Sdf.SpecifierOver
+    return layer
+
+
+def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
+    fitted = anim.fitted
+    g = fitted.garment
+    frames = anim.rest.shape[0]
+    static = frames == 1
+    default_points = anim.rest[0] if static else fitted.points
+    mesh = define_mesh(stage, garment_path(human_id, g.name), default_points, fitted.face_counts,
+                       fitted.face_indices, material=material_path(g.fabric))
+    # an open shell: seen through sleeves, collars and hems, its inside must render too
+    mesh.GetDoubleSidedAttr().Set(True)
+    prim = mesh.GetPrim()
+    prim.ApplyAPI(S.CLOTHING_API)
+    prim.GetAttribute(S.CLOTHING_GARMENT).Set(g.name)
+    prim.GetAttribute(S.CLOTHING_EASE).Set(float(g.ease))
+    prim.GetAttribute(S.CLOTHING_MINIMUM_GAP).Set(float(g.minimum_gap))
+    gap = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+        S.AIR_GAP_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray,
+        UsdGeom.Tokens.vertex)
+    points = mesh.GetPointsAttr()
+    if static:
+        gap.Set(Vt.FloatArray.FromNumpy(anim.air_gap[0].astype(np.float32)))
+    else:
+        for f in range(frames):
+            time = Usd.TimeCode(f)
+            points.Set(Vt.Vec3fArray.FromNumpy(anim.rest[f].astype(np.float32)), time)
+            gap.Set(Vt.FloatArray.FromNumpy(anim.air_gap[f].astype(np.float32)), time)
+        lo = anim.rest.min(axis=(0, 1))
+        hi = anim.rest.max(axis=(0, 1))
+        mesh.GetExtentAttr().Set(Vt.Vec3fArray.FromNumpy(np.array([lo, hi], dtype=np.float32)))
+    usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
+    regions = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+        L.BODY_REGION_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.IntArray,
+        UsdGeom.Tokens.uniform)
+    regions.Set(Vt.IntArray.FromNumpy(fitted.face_regions.astype(np.int32)))
+    regions.GetAttr().SetDocumentation("body region under each garment face (ids as the Body's "
+                                       "humv:label:bodyRegionNames)")
+    prim.CreateAttribute(L.BODY_REGION_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray,
+                         custom=True).Set(Vt.TokenArray(list(L.BODY_REGION_NAMES)))
+    c = anim.counts
+    prim.SetCustomDataByKey("humv:clothing:fix", {
+        "frames": frames,
+        "insideBeforeMax": max(x.inside_before for x in c),
+        "closeBeforeMax": max(x.close_before for x in c),
+        "layeredBeforeMax": max(x.layered_before for x in c),
+        "insideAfterMax": max(x.inside_after for x in c),
+        "closeAfterMax": max(x.close_after for x in c),
+        "layeredAfterMax": max(x.layered_after for x in c),
+        "minDistance_m": round(min(x.min_distance_m for x in c), 6),
+        "airGapMin_m": round(float(anim.air_gap.min()), 6),
+        "airGapMedian_m": round(float(np.median(anim.air_gap)), 6),
+        # per frame (index = time code)
+        "insideBefore": Vt.IntArray([x.inside_before for x in c]),
+        "closeBefore": Vt.IntArray([x.close_before for x in c]),
+        "insideAfter": Vt.IntArray([x.inside_after for x in c]),
+        "closeAfter": Vt.IntArray([x.close_after for x in c]),
+    })
+
+
+def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None,
+              garments=None) -> Sdf.Layer:
+    """layers/clothing_<id>.usda for one ``[[human]]``.
+
+    The body is rebuilt from the scenario (deterministic, as the avatar layer builds it); the
+    motion is read from the avatar's Skeleton on ``upstream`` (the in-memory composition of the
+    layers before this one) so the garments follow whatever the avatar layer authored; without
+    ``upstream`` (or without that Skeleton) the rest pose. ``garments`` overrides
+    ``human["clothing"]``.
+    """
+    g = scenario["general"]
+    names = list(human.get("clothing") or []) if garments is None else list(garments)
+    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"],
+                      human["build"])
+    skeleton = skeleton_for(body.points, body.groups)
+    world = (world_transforms_from_stage(upstream, human["id"], skeleton, scenario.frame_count,
+                                         g["fps"]) if upstream is not None else None)
+    return build_for_human(human, body, skeleton, world, names, g["fps"], scenario.frame_count)
+
+
+def build(scenario: Scenario, upstream: Usd.Stage | None = None) -> dict[str, Sdf.Layer]:
+    """One layer per person who wears anything: {``clothing_<id>``: layer}."""
+    return {layer_name(h["id"]): build_one(scenario, h, upstream)
+            for h in scenario["human"] if h.get("clothing")}
