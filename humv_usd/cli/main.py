@@ -170,6 +170,27 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
                f"{statistics.median(err_k):.4f} K (median over runs)")
 
 
+@bench.command("clothing")
+@click.option("--garments", default="tshirt_white,trousers,jacket,cap", show_default=True,
+              help="Comma-separated garments (humv_usd.clothing.garments.GARMENTS).")
+@click.option("--activity", default="walk", show_default=True)
+@click.option("--frames", default=30, show_default=True, type=click.IntRange(1, 10000))
+@reports_errors
+def bench_clothing(garments: str, activity: str, frames: int):
+    """Fit an outfit to a walking avatar: intersections before/after the fix, air gaps, and the
+    median per-frame time of the fix."""
+    import json
+
+    from humv_usd.clothing.bench import bench_outfit
+    from humv_usd.clothing.garments import GARMENTS
+
+    names = [g.strip() for g in garments.split(",") if g.strip()]
+    unknown = [g for g in names if g not in GARMENTS]
+    if unknown:
+        raise InputError(f"--garments = {unknown[0]!r}: allowed garments: {', '.join(GARMENTS)}")
+    click.echo(json.dumps(bench_outfit(names, activity=activity, frames=frames), indent=2))
+
+
 def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
     main.add_command(avatar)
