@@ -138,8 +138,9 @@ def test_layer_is_a_usdskel_avatar(rig):
     assert query.GetSkinningQuery(body).HasJointInfluences()
 
 
-def test_without_motion_the_avatar_stands_at_rest(scenario, rig):
-    layer = avatar_layer.build_one(scenario, scenario["human"][0])
+def test_rest_motion_stands_at_rest(scenario, rig):
+    layer = avatar_layer.build_one(scenario, scenario["human"][0],
+                                   motion=usdskel.rest_motion(rig["skel"]))
     stage = Usd.Stage.Open(layer)
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Humans/p1/Motion"))
     assert anim.GetRotationsAttr().GetTimeSamples() == [0.0]      # held for every frame
@@ -291,3 +292,16 @@ def test_render_export_rejects_broken_skinning(rig):
     assert list(exporter._skinned) == ["/World/Humans/p1/Body"]
     with pytest.raises(InputError, match="/World/Humans/p1/Body.primvars:skel:jointIndices"):
         exporter._points(body, "/World/Humans/p1/Body", Usd.TimeCode(1), UsdGeom.XformCache(1))
+
+
+def test_without_motion_the_activity_moves_the_avatar(scenario):
+    """compose passes no motion: the avatar performs its activity (stand: sway and breathing)
+    over every frame, with the metabolic schedule and the contact report on the SkelRoot."""
+    layer = avatar_layer.build_one(scenario, scenario["human"][0])
+    stage = Usd.Stage.Open(layer)
+    anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Humans/p1/Motion"))
+    assert anim.GetRotationsAttr().GetTimeSamples() == [0.0, 1.0, 2.0]
+    root = stage.GetPrimAtPath("/World/Humans/p1")
+    assert 80.0 < root.GetAttribute(S.AVATAR_METABOLIC_RATE).Get(0) < 250.0   # ~1.3 met
+    contact = root.GetCustomDataByKey("humv:contact")
+    assert contact["max_gap_m"] <= 0.01 and contact["max_penetration_m"] <= 0.01

@@ -18,6 +18,8 @@ The COCO keypoints are in that frame too (the SkelRoot's local space).
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from pxr import Gf, Sdf, UsdGeom, Vt
 
@@ -25,6 +27,7 @@ from humv_usd.avatar import labels as L
 from humv_usd.avatar import usdskel
 from humv_usd.avatar.basemesh import DEFAULT_FACING_DEG
 from humv_usd.avatar.body import Body, build_body
+from humv_usd.avatar.motion import make_motion
 from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning,
                                       skeleton_for, skin_weights, skinning_matrices)
 from humv_usd.materials.layer import material_path
@@ -57,9 +60,11 @@ def motion_path(human_id: str) -> Sdf.Path:
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     """The avatar layer of one ``[[human]]``.
 
-    ``motion``: None (stand still in the rest pose) or an object with ``root_translation``
-    (F, 3) and ``local_rotations`` (F, J, 4) in the rig contract (see
-    :mod:`humv_usd.avatar.usdskel`); frame i is authored at time code i.
+    ``motion``: None (the human's activity over the scenario's frames, from
+    :func:`humv_usd.avatar.motion.make_motion` on flat ground) or an object with
+    ``root_translation`` (F, 3) and ``local_rotations`` (F, J, 4) in the rig contract (see
+    :mod:`humv_usd.avatar.usdskel`), e.g. from :func:`humv_usd.avatar.bvh.motion_from_bvh`;
+    frame i is authored at time code i.
     """
     g = scenario["general"]
     place = next(p for p in scenario["placement"] if p["human"] == human["id"])
@@ -74,9 +79,39 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     root.AddRotateZOp().Set(float((DEFAULT_FACING_DEG - place["heading_deg"]) % 360.0))
     prim = root.GetPrim()
     _avatar_attributes(prim, human, body)
+    if motion is None:
+        # the motion model needs two frames at least; a one-frame scenario keeps the first
+        frames = scenario.frame_count
+        motion = make_motion(human["activity"], skeleton_for(body.points, body.groups), g["fps"],
+                             max(frames, 2), speed_m_s=human.get("speed_m_s"),
+                             mass_kg=human["mass_kg"], body_points=body.points,
+                             seed=g["seed"])
+        if frames < 2:
+            motion = dataclasses.replace(
+                motion, root_translation=motion.root_translation[:frames],
+                local_rotations=motion.local_rotations[:frames],
+                metabolic_rate_w=motion.metabolic_rate_w[:frames])
+    _motion_attributes(prim, motion)
     label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
     author_rig(stage, human["id"], body, motion)
     return finish(stage)
+
+
+def _motion_attributes(prim, motion) -> None:
+    """Metabolic-rate schedule per frame and the clip's ground-contact report."""
+    rate = getattr(motion, "metabolic_rate_w", None)
+    if rate is not None:
+        attr = prim.GetAttribute(S.AVATAR_METABOLIC_RATE)
+        if len(rate) == 1 or np.allclose(rate, rate[0]):
+            attr.Set(float(rate[0]))
+        else:
+            for frame, value in enumerate(rate):
+                attr.Set(float(value), frame)
+    contact = getattr(motion, "contact", None) or {}
+    report = {k: round(float(contact[k]), 5) for k in ("max_gap_m", "max_penetration_m",
+                                                        "max_slip_m") if k in contact}
+    if report:
+        prim.SetCustomDataByKey("humv:contact", report)
 
 
 def _avatar_attributes(prim, human: dict, body: Body) -> None:

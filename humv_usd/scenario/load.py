@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from humv_usd.errors import InputError, bad_value
-from humv_usd.scenario.spec import BAND_DEFAULT_UM, SECTIONS, Key, Section
+from humv_usd.scenario.spec import BAND_DEFAULT_UM, SECTIONS, SPEED_RANGE_M_S, Key, Section
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -199,6 +199,15 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
         problems.append(f"human id {h!r}: no [[placement]] places this human")
     from humv_usd.clothing.garments import ALIASES, GARMENTS
     for i, hum in enumerate(data["human"]):
+        speed, activity = hum.get("speed_m_s"), hum.get("activity")
+        if speed is not None and activity is not None:
+            lo, hi = SPEED_RANGE_M_S.get(activity, (None, None))
+            if lo is None:
+                problems.append(bad_value(f"human[{i}].speed_m_s", speed,
+                                          f"only for walk or run (activity is {activity!r})"))
+            elif not lo <= speed <= hi:
+                problems.append(bad_value(f"human[{i}].speed_m_s", speed,
+                                          f"allowed range for {activity}: {lo}..{hi}"))
         seen: set[str] = set()
         for k, name in enumerate(hum.get("clothing") or []):
             canonical = ALIASES.get(name, name)

@@ -96,6 +96,8 @@ HUMAN = Section(array=True, doc="(ii) Human/Clothing/Motion", keys={
                  choices=("slim", "average", "muscular")),
     "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
     "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
+    "speed_m_s": Key("float", "Walking (0.5-2) or running (2-5) speed [m/s]; default 1.4 / "
+                     "3.5. The person moves along the direction they face.", lo=0.0, hi=6.0),
     "clothing": Key("strlist", "Garments worn, from humv_usd.clothing.garments.GARMENTS "
                     "(e.g. tshirt_white, shorts, leggings, trousers, jacket, robe, cap).",
                     default=[]),
@@ -191,6 +193,9 @@ SECTIONS: dict[str, Section] = {
     "general": GENERAL, "human": HUMAN, "placement": PLACEMENT, "scene": SCENE,
     "sensor": SENSOR, "thermal": THERMAL, "atmosphere": ATMOSPHERE,
 }
+
+#: speed range of each moving activity [m/s] (walk: 0.5-2, run: 2-5, as the motion model's data)
+SPEED_RANGE_M_S = {"walk": (0.5, 2.0), "run": (2.0, 5.0)}
 
 BAND_DEFAULT_UM = {"EO": [0.4, 0.7], "MWIR": [3.0, 5.0], "LWIR": [8.0, 14.0]}
 
