@@ -191,6 +191,53 @@ def bench_clothing(garments: str, activity: str, frames: int):
     click.echo(json.dumps(bench_outfit(names, activity=activity, frames=frames), indent=2))
 
 
+@bench.command("avatar")
+@click.option("--repeat", default=3, show_default=True, type=click.IntRange(1, 50))
+@reports_errors
+def bench_avatar(repeat: int):
+    """Body fit errors over a grid, contact figures for walk/run on flat and 5-degree ground,
+    and the median time to author a 10 s, 30 fps walk (the `humv-usd avatar` command)."""
+    import math
+    import subprocess
+
+    from humv_usd.avatar.body import build_body
+    from humv_usd.avatar.motion import make_motion
+    from humv_usd.avatar.skeleton import skeleton_for
+
+    click.echo("body fit, age 30, average build: |error| of stature and of mesh mass [%]")
+    for sex in ("female", "male"):
+        worst_h = worst_m = 0.0
+        for stature in (1.5, 1.75, 2.0):
+            for mass in (50.0, 80.0, 110.0):
+                b = build_body(sex, 30, stature, mass)
+                worst_h = max(worst_h, abs(b.stature_m / stature - 1) * 100)
+                worst_m = max(worst_m, abs(b.mass_kg / mass - 1) * 100)
+        click.echo(f"  {sex:<6} stature 1.5-2.0 m x mass 50-110 kg: max {worst_h:.2e} % / "
+                   f"{worst_m:.2e} %")
+    body = build_body("male", 30, 1.78, 80.0)
+    skel = skeleton_for(body.points, body.groups)
+    slope = math.tan(math.radians(5.0))
+    click.echo("ground contact, 10 s at 30 fps, male 1.78 m / 80 kg (sole vertices) [cm]:")
+    for activity, speed in (("walk", 1.4), ("run", 3.5)):
+        for name, ground in (("flat", None), ("5 deg", lambda x, y: -slope * y)):
+            m = make_motion(activity, skel, 30.0, 300, speed_m_s=speed, mass_kg=80.0,
+                            body_points=body.points, ground=ground)
+            c = m.contact
+            click.echo(f"  {activity:<4} {speed} m/s {name:<6} gap {100 * c['max_gap_m']:.2f}  "
+                       f"penetration {100 * c['max_penetration_m']:.2f}  "
+                       f"stance slip {100 * c['max_slip_m']:.2f}")
+    with tempfile.TemporaryDirectory() as tmp:
+        times = []
+        for i in range(repeat):
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "humv_usd.cli.main", "avatar", "--activity",
+                            "walk", "--duration", "10", "--fps", "30", "-o",
+                            str(Path(tmp) / f"a{i}.usda")], check=True, capture_output=True)
+            times.append(time.perf_counter() - t)
+    click.echo(f"author a 10 s, 30 fps walk (humv-usd avatar, new process): median "
+               f"{statistics.median(times):.2f} s ({min(times):.2f}..{max(times):.2f})")
+
+
 def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
     main.add_command(avatar)
