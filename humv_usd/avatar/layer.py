@@ -27,6 +27,7 @@ from humv_usd.avatar import labels as L
 from humv_usd.avatar import usdskel
 from humv_usd.avatar.basemesh import DEFAULT_FACING_DEG
 from humv_usd.avatar.body import Body, build_body
+from humv_usd.avatar.bvh import motion_from_bvh
 from humv_usd.avatar.motion import make_motion
 from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning,
                                       skeleton_for, skin_weights, skinning_matrices)
@@ -75,26 +76,55 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     UsdGeom.Scope.Define(stage, SCOPES["humans"])
     root = usdskel.define_skel_root(stage, human_path(human["id"]))
     root.AddTranslateOp().Set(Gf.Vec3d(*place["position_m"]))
-    # compass azimuth (clockwise from +y) -> counter-clockwise rotation about +z
-    root.AddRotateZOp().Set(float((DEFAULT_FACING_DEG - place["heading_deg"]) % 360.0))
+    root.AddRotateZOp().Set(_avatar_rotation_deg(place))
     prim = root.GetPrim()
     _avatar_attributes(prim, human, body)
     if motion is None:
-        # the motion model needs two frames at least; a one-frame scenario keeps the first
-        frames = scenario.frame_count
-        motion = make_motion(human["activity"], skeleton_for(body.points, body.groups), g["fps"],
-                             max(frames, 2), speed_m_s=human.get("speed_m_s"),
-                             mass_kg=human["mass_kg"], body_points=body.points,
-                             seed=g["seed"])
-        if frames < 2:
-            motion = dataclasses.replace(
-                motion, root_translation=motion.root_translation[:frames],
-                local_rotations=motion.local_rotations[:frames],
-                metabolic_rate_w=motion.metabolic_rate_w[:frames])
+        motion = scenario_motion(scenario, human, place, body)
     _motion_attributes(prim, motion)
     label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
     author_rig(stage, human["id"], body, motion)
     return finish(stage)
+
+
+def _avatar_rotation_deg(place: dict) -> float:
+    """The SkelRoot's rotateZ: compass azimuth (clockwise from +y) -> counter-clockwise."""
+    return float((DEFAULT_FACING_DEG - place["heading_deg"]) % 360.0)
+
+
+def waypoints_in_avatar_frame(place: dict, start_xy) -> np.ndarray | None:
+    """Hips ground track in the avatar frame: the rest hips, then the placement's waypoints
+    (world [x, y]) moved into the frame of the SkelRoot (translate, then rotateZ)."""
+    if not place["waypoints_m"]:
+        return None
+    phi = np.radians(_avatar_rotation_deg(place))
+    world = np.asarray(place["waypoints_m"], dtype=float) - np.asarray(place["position_m"][:2])
+    c, s = np.cos(phi), np.sin(phi)
+    local = world @ np.array([[c, -s], [s, c]])   # rotate by -phi (row vectors)
+    return np.vstack([np.asarray(start_xy, dtype=float)[None, :2], local])
+
+
+def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
+    """The human's motion over the scenario's frames: the BVH file if given, else the built-in
+    activity (walk/run along the heading or the waypoints) on flat ground."""
+    g = scenario["general"]
+    frames = scenario.frame_count
+    skeleton = skeleton_for(body.points, body.groups)
+    if human.get("bvh"):
+        return motion_from_bvh(human["bvh"], skeleton, g["fps"], frames,
+                               up_axis=human["bvh_up_axis"], mass_kg=human["mass_kg"],
+                               body_points=body.points)
+    # the motion model needs two frames at least; a one-frame scenario keeps the first
+    motion = make_motion(human["activity"], skeleton, g["fps"], max(frames, 2),
+                         speed_m_s=human.get("speed_m_s"),
+                         path=waypoints_in_avatar_frame(place, skeleton.rest_positions[0]),
+                         mass_kg=human["mass_kg"], body_points=body.points, seed=g["seed"])
+    if frames < 2:
+        motion = dataclasses.replace(
+            motion, root_translation=motion.root_translation[:frames],
+            local_rotations=motion.local_rotations[:frames],
+            metabolic_rate_w=motion.metabolic_rate_w[:frames])
+    return motion
 
 
 def _motion_attributes(prim, motion) -> None:

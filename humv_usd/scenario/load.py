@@ -113,6 +113,18 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
                                       "2018-10-24T14:05:00 (no offset; give utc_offset_h)"))
             return None
         return value
+    if key.kind == "points":
+        if not isinstance(value, list):
+            problems.append(bad_value(where, value, f"expected a list of [{', '.join('x y z'.split()[:key.n])}] points"))
+            return None
+        out = [_check_value(f"{where}[{i}]", v, Key("vec", key.doc, n=key.n, lo=key.lo, hi=key.hi),
+                            problems) for i, v in enumerate(value)]
+        return None if any(v is None for v in out) else out
+    if key.kind == "path":
+        if not isinstance(value, str) or not value:
+            problems.append(bad_value(where, value, "expected a file path"))
+            return None
+        return value
     if key.kind == "strlist":
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             problems.append(bad_value(where, value, "expected a list of strings"))
@@ -199,6 +211,9 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
         problems.append(f"human id {h!r}: no [[placement]] places this human")
     from humv_usd.clothing.garments import ALIASES, GARMENTS
     for i, hum in enumerate(data["human"]):
+        if hum.get("bvh") and hum.get("speed_m_s") is not None:
+            problems.append(bad_value(f"human[{i}].speed_m_s", hum["speed_m_s"],
+                                      "not with bvh (the motion file sets the speed)"))
         speed, activity = hum.get("speed_m_s"), hum.get("activity")
         if speed is not None and activity is not None:
             lo, hi = SPEED_RANGE_M_S.get(activity, (None, None))
@@ -234,6 +249,22 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                                           "must differ from position_m"))
 
 
+def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:
+    """File keys become absolute paths (relative ones are relative to the scenario file)."""
+    base = path.resolve().parent if path is not None else Path.cwd()
+    for section, spec in SECTIONS.items():
+        tables = data[section] if spec.array else [data[section]] if data[section] else []
+        for i, table in enumerate(tables):
+            for name, key in spec.keys.items():
+                if key.kind != "path" or table.get(name) is None:
+                    continue
+                resolved = (base / table[name]).resolve()
+                where = f"{section}[{i}].{name}" if spec.array else f"{section}.{name}"
+                if not resolved.is_file():
+                    problems.append(bad_value(where, table[name], f"file not found ({resolved})"))
+                table[name] = str(resolved)
+
+
 def validate(raw: dict, path: Path | None = None) -> Scenario:
     """Validate a parsed TOML document; raise :class:`InputError` listing every problem."""
     problems: list[str] = []
@@ -245,6 +276,7 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
             for name, sec in SECTIONS.items()}
     if not problems:
         _cross_checks(data, problems)
+        _resolve_paths(data, path, problems)
     if problems:
         prefix = f"{path}: " if path else ""
         raise InputError("", [prefix + p for p in problems])

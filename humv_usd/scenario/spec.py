@@ -41,7 +41,8 @@ PROFILES = ("tropical", "midlatitudeSummer", "midlatitudeWinter", "subarcticSumm
 class Key:
     """One scenario key.
 
-    kind: "float", "int", "str", "choice", "vec", "datetime", "strlist".
+    kind: "float", "int", "str", "choice", "vec", "datetime", "strlist", "points" (a list of
+    vectors of length n, each element in lo..hi), "path" (a file path, relative to the scenario).
     lo/hi: inclusive numeric range (per element for "vec"); n: vector length.
     """
 
@@ -96,6 +97,9 @@ HUMAN = Section(array=True, doc="(ii) Human/Clothing/Motion", keys={
                  choices=("slim", "average", "muscular")),
     "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
     "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
+    "bvh": Key("path", "Motion from a Biovision BVH file (CMU joint names; Y up, as CMU files) "
+                "instead of the built-in activity; path relative to the scenario file."),
+    "bvh_up_axis": Key("choice", "Up axis of the BVH file.", default="Y", choices=("Y", "Z")),
     "speed_m_s": Key("float", "Walking (0.5-2) or running (2-5) speed [m/s]; default 1.4 / "
                      "3.5. The person moves along the direction they face.", lo=0.0, hi=6.0),
     "clothing": Key("strlist", "Garments worn, from humv_usd.clothing.garments.GARMENTS "
@@ -109,6 +113,9 @@ PLACEMENT = Section(array=True, doc="(iii) Human Placement", keys={
                       required=True, n=3, lo=-1.0e4, hi=1.0e4),
     "heading_deg": Key("float", "Direction the person faces, compass azimuth [deg] "
                        "(0 = north (+y), 90 = east (+x)).", default=0.0, lo=-360.0, hi=360.0),
+    "waypoints_m": Key("points", "Ground points [[x, y], ...] [m] the hips pass over after the "
+                       "start, in order (walk/run; default: straight ahead along heading_deg).",
+                       default=[], n=2, lo=-1.0e4, hi=1.0e4),
 })
 
 GROUND = Section(doc="ground plane", keys={
