@@ -1,0 +1,192 @@
+"""Convective and linearized radiative heat-transfer coefficients of a clothed person.
+
+The seed's h = 10.45 - V + 10 sqrt(V) is Siple & Passel's (1945) wind-chill coefficient in
+kcal m^-2 h^-1 K^-1; here it returns W m^-2 K^-1. The modern default is Mitchell's (1974)
+forced-convection coefficient of a person, h_c = 8.3 V^0.6 (ASHRAE Fundamentals), with the
+ISO 7730 natural-convection floor 2.38 |dT|^0.25.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from humv_usd.physics.sky import STEFAN_BOLTZMANN
+
+KCAL_PER_HOUR_TO_WATT = 1.163  # 1 kcal h^-1 = 1.163 W (international table calorie)
+
+# Siple-Passel polynomial peaks at V = 25 m/s and falls beyond: hold it there
+_SIPLE_PASSEL_MAX_WIND = 25.0
+
+
+def siple_passel(wind_speed):
+    """Siple & Passel (1945) wind-chill heat-transfer coefficient (the seed's h).
+
+    Parameters
+    ----------
+    wind_speed : numeric
+        Wind speed [m/s]; clipped to [0, 25].
+
+    Returns
+    -------
+    numeric
+        Combined convective heat-transfer coefficient [W m^-2 K^-1].
+
+    Notes
+    -----
+    h = 1.163 (10.45 - V + 10 sqrt(V)), the original being in kcal m^-2 h^-1 K^-1. Fitted to the
+    cooling of a water-filled plastic cylinder (5.7 cm diameter) at Little America, Antarctica,
+    winds about 0-12 m/s; it is commonly used up to about 20 m/s. The polynomial has its maximum
+    at V = 25 m/s (35.45 kcal m^-2 h^-1 K^-1 = 41.23 W m^-2 K^-1) and decreases beyond, which
+    is unphysical, so V is clipped there. At V = 0 it still gives 12.15 W m^-2 K^-1: it includes
+    a still-air (natural convection plus part of radiation) contribution.
+
+    References
+    ----------
+    .. [1] Siple, P. A., Passel, C. F. (1945). Measurements of dry atmospheric cooling in
+       subfreezing temperatures. Proc. Am. Philos. Soc. 89(1), 177-199.
+    """
+    v = np.clip(np.asarray(wind_speed, dtype=float), 0.0, _SIPLE_PASSEL_MAX_WIND)
+    return KCAL_PER_HOUR_TO_WATT * (10.45 - v + 10.0 * np.sqrt(v))
+
+
+def mitchell(wind_speed):
+    """Forced-convection coefficient of a person in moving air (Mitchell 1974).
+
+    Parameters
+    ----------
+    wind_speed : numeric
+        Relative air speed [m/s]; negative values are clipped to 0.
+
+    Returns
+    -------
+    numeric
+        Forced-convection heat-transfer coefficient [W m^-2 K^-1].
+
+    Notes
+    -----
+    h_c = 8.3 V^0.6, listed in ASHRAE Fundamentals (ch. 9, Thermal comfort) for
+    0.2 < V < 4 m/s; beyond that it is the standard cylinder-in-crossflow exponent extrapolated.
+    It goes to 0 in still air: combine with a natural-convection floor
+    (:py:func:`natural_iso7730`), as :py:func:`convective_coefficient` does.
+
+    References
+    ----------
+    .. [1] Mitchell, D. (1974). Convective heat transfer from man and other animals. In Heat Loss
+       from Animals and Man (Monteith, Mount, eds.), Butterworth, London, 59-76.
+    .. [2] ASHRAE (2017). ASHRAE Handbook - Fundamentals, ch. 9, Table 6.
+    """
+    v = np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
+    return 8.3 * v ** 0.6
+
+
+def natural_iso7730(delta_t):
+    """Natural-convection coefficient of a clothed person (ISO 7730).
+
+    Parameters
+    ----------
+    delta_t : numeric
+        Clothing surface minus air temperature [K].
+
+    Returns
+    -------
+    numeric
+        Natural-convection heat-transfer coefficient [W m^-2 K^-1].
+
+    Notes
+    -----
+    h_c = 2.38 |T_cl - T_a|^0.25 (Fanger's PMV model as standardized in ISO 7730).
+
+    References
+    ----------
+    .. [1] ISO 7730:2005. Ergonomics of the thermal environment - Analytical determination and
+       interpretation of thermal comfort using calculation of the PMV and PPD indices.
+    """
+    return 2.38 * np.abs(np.asarray(delta_t, dtype=float)) ** 0.25
+
+
+def iso7730(wind_speed, delta_t=0.0):
+    """Convective coefficient of a clothed person, ISO 7730 (Fanger).
+
+    Parameters
+    ----------
+    wind_speed : numeric
+        Relative air speed [m/s].
+    delta_t : numeric, default 0
+        Clothing surface minus air temperature [K].
+
+    Returns
+    -------
+    numeric
+        Convective heat-transfer coefficient [W m^-2 K^-1].
+
+    Notes
+    -----
+    h_c = max(2.38 |T_cl - T_a|^0.25, 12.1 sqrt(V)).
+
+    References
+    ----------
+    .. [1] ISO 7730:2005, Annex D.
+    """
+    v = np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
+    return np.maximum(natural_iso7730(delta_t), 12.1 * np.sqrt(v))
+
+
+def convective_coefficient(wind_speed, delta_t=0.0, model='mitchell'):
+    """Convective heat-transfer coefficient of a clothed surface by model name.
+
+    Parameters
+    ----------
+    wind_speed : numeric
+        Wind speed [m/s].
+    delta_t : numeric, default 0
+        Surface minus air temperature [K]; used by the natural-convection floor.
+    model : str, default 'mitchell'
+        'mitchell' (max of 8.3 V^0.6 and 2.38 |dT|^0.25), 'iso7730' (max of 12.1 sqrt(V) and
+        2.38 |dT|^0.25) or 'siple_passel' (the seed's coefficient).
+
+    Returns
+    -------
+    numeric
+        Heat-transfer coefficient [W m^-2 K^-1].
+
+    Raises
+    ------
+    ValueError
+        If ``model`` is not one of the above.
+    """
+    if model == 'mitchell':
+        return np.maximum(mitchell(wind_speed), natural_iso7730(delta_t))
+    if model == 'iso7730':
+        return iso7730(wind_speed, delta_t)
+    if model == 'siple_passel':
+        return siple_passel(wind_speed) + 0.0 * np.asarray(delta_t, dtype=float)
+    raise ValueError(f'invalid model selection {model}')
+
+
+def radiative_coefficient(emissivity, mean_temperature_k):
+    """Linearized radiative heat-transfer coefficient.
+
+    Parameters
+    ----------
+    emissivity : numeric
+        Effective emissivity (or exchange factor) [0-1].
+    mean_temperature_k : numeric
+        Mean of the two exchanging surface temperatures [K].
+
+    Returns
+    -------
+    numeric
+        h_r [W m^-2 K^-1].
+
+    Notes
+    -----
+    h_r = 4 eps sigma T_m^3. Exactly, eps sigma (T1^4 - T2^4) = h_r (T1 - T2) (1 + (dT / 2 T_m)^2),
+    so the linearization underestimates the exchange by 0.11 % for dT = 20 K at 300 K. It is the
+    seed's Eq. 7 radiation term with T_m = (T_a + T_skin) / 2.
+
+    References
+    ----------
+    .. [1] Incropera, F. P., DeWitt, D. P. et al. (2007). Fundamentals of Heat and Mass Transfer,
+       6th ed., Wiley, Eq. 1.9.
+    """
+    t = np.asarray(mean_temperature_k, dtype=float)
+    return 4.0 * np.asarray(emissivity, dtype=float) * STEFAN_BOLTZMANN * t ** 3

@@ -1,0 +1,570 @@
+"""Energy balance of a fabric layer over skin with an air gap, per facet (seed Eq. 5-9).
+
+Heat flows from the skin across the air gap (conduction through still air, natural convection
+in wide gaps, grey-body radiation between skin and fabric), through the fabric (conduction),
+and leaves the outer surface by convection and emission, while the outer surface absorbs
+``absorbed_radiation`` (short + long wave, computed elsewhere, seed Eq. 3-4)::
+
+    q_in(T_in) + q_rad = h (T_out - T_air) + eps_f sigma T_out^4        (seed Eq. 5, 8, 9)
+    q_in = q_fabric = k_f / l_f (T_in - T_out)                          (seed Eq. 6, R2)
+
+The unknown is the outer fabric temperature T_out per facet; the inner temperature follows
+from the fabric conduction, T_in = T_out + l_f / k_f q_out(T_out), so the balance is one
+strictly decreasing scalar function of T_out per facet, solved by a bracketed (safeguarded)
+Newton iteration that cannot leave its bracket. All functions are vectorized over facets.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from humv_usd.physics.convection import mitchell
+from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
+
+GRAVITY = 9.80665  # [m s^-2]
+_HOLLANDS_RA_CRITICAL = 1708.0  # onset of Rayleigh-Benard convection, rigid plates
+_T_PROPERTY_MIN = 100.0  # [K], air properties are clamped below (outside any physical state)
+
+
+def air_conductivity(temperature_k):
+    """Thermal conductivity of dry air at 1 atm.
+
+    Parameters
+    ----------
+    temperature_k : numeric
+        Air temperature [K].
+
+    Returns
+    -------
+    numeric
+        Thermal conductivity [W m^-1 K^-1].
+
+    Notes
+    -----
+    k = 0.0263 (T / 300 K)^0.87, a power-law fit to Incropera Table A.4 (250-350 K within 1 %).
+
+    References
+    ----------
+    .. [1] Incropera, F. P., DeWitt, D. P. et al. (2007). Fundamentals of Heat and Mass Transfer,
+       6th ed., Wiley, Table A.4.
+    """
+    t = np.maximum(np.asarray(temperature_k, dtype=float), _T_PROPERTY_MIN)
+    return 0.0263 * (t / 300.0) ** 0.87
+
+
+def air_kinematic_viscosity(temperature_k):
+    """Kinematic viscosity of dry air at 1 atm, nu = 15.89e-6 (T / 300 K)^1.79 [m^2 s^-1].
+
+    Parameters
+    ----------
+    temperature_k : numeric
+        Air temperature [K].
+
+    Returns
+    -------
+    numeric
+        Kinematic viscosity [m^2 s^-1].
+
+    References
+    ----------
+    .. [1] Incropera et al. (2007), Table A.4 (power-law fit, 250-350 K within 1 %).
+    """
+    t = np.maximum(np.asarray(temperature_k, dtype=float), _T_PROPERTY_MIN)
+    return 15.89e-6 * (t / 300.0) ** 1.79
+
+
+def air_thermal_diffusivity(temperature_k):
+    """Thermal diffusivity of dry air at 1 atm, alpha = 22.5e-6 (T / 300 K)^1.87 [m^2 s^-1].
+
+    Parameters
+    ----------
+    temperature_k : numeric
+        Air temperature [K].
+
+    Returns
+    -------
+    numeric
+        Thermal diffusivity [m^2 s^-1].
+
+    References
+    ----------
+    .. [1] Incropera et al. (2007), Table A.4 (power-law fit, 250-350 K within 1.5 %).
+    """
+    t = np.maximum(np.asarray(temperature_k, dtype=float), _T_PROPERTY_MIN)
+    return 22.5e-6 * (t / 300.0) ** 1.87
+
+
+def grey_plates_exchange_factor(emissivity_1, emissivity_2):
+    """Radiative exchange factor of two infinite parallel grey plates.
+
+    Parameters
+    ----------
+    emissivity_1, emissivity_2 : numeric
+        Hemispherical emissivities of the facing surfaces [0-1].
+
+    Returns
+    -------
+    numeric
+        F with q = F sigma (T1^4 - T2^4) [-]; 0 if either emissivity is 0.
+
+    Notes
+    -----
+    F = 1 / (1/eps_1 + 1/eps_2 - 1) = eps_1 eps_2 / (eps_1 + eps_2 - eps_1 eps_2).
+
+    References
+    ----------
+    .. [1] Incropera et al. (2007), Table 13.3.
+    """
+    e1 = np.asarray(emissivity_1, dtype=float)
+    e2 = np.asarray(emissivity_2, dtype=float)
+    den = e1 + e2 - e1 * e2
+    return np.where(den > 0.0, e1 * e2 / np.where(den > 0.0, den, 1.0), 0.0)
+
+
+def _t4(t):
+    # sign(T) T^4: identical to T^4 for T > 0 and monotonic everywhere, so the residual stays
+    # monotonic even at bracket ends far outside the physical range
+    return t * t * t * np.abs(t)
+
+
+def hollands_nusselt(rayleigh):
+    """Nusselt number of an enclosed air layer heated from below (Hollands et al. 1976).
+
+    Parameters
+    ----------
+    rayleigh : numeric
+        Rayleigh number g beta dT d^3 / (nu alpha) of the layer [-].
+
+    Returns
+    -------
+    numeric
+        Nusselt number [-], exactly 1 (pure conduction) below Ra = 1708.
+
+    Notes
+    -----
+    Nu = 1 + 1.44 [1 - 1708/Ra]^+ + [(Ra/5830)^(1/3) - 1]^+ for a horizontal layer heated from
+    below, 0 < Ra < 1e8. This orientation convects most; a vertical layer (ElSherbiny et al.
+    1982) gives Nu within about 20 % for Ra < 1e5, so it is used as the upper bound for all
+    facets. A layer heated from above (fabric warmer than skin) is stable: Nu = 1.
+
+    References
+    ----------
+    .. [1] Hollands, K. G. T., Unny, T. E., Raithby, G. D., Konicek, L. (1976). Free convective
+       heat transfer across inclined air layers. J. Heat Transfer 98(2), 189-193.
+    """
+    ra = np.maximum(np.asarray(rayleigh, dtype=float), 0.0)
+    onset = np.where(ra > _HOLLANDS_RA_CRITICAL,
+                     1.0 - _HOLLANDS_RA_CRITICAL / np.maximum(ra, _HOLLANDS_RA_CRITICAL), 0.0)
+    return 1.0 + 1.44 * onset + np.maximum(np.cbrt(ra / 5830.0) - 1.0, 0.0)
+
+
+def air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, skin_emissivity=0.98,
+                 fabric_emissivity=0.9, model='hollands'):
+    """Heat flux from skin across an air gap to the fabric's inner surface.
+
+    Parameters
+    ----------
+    skin_temperature_k : numeric
+        Skin temperature [K].
+    inner_temperature_k : numeric
+        Fabric inner-surface temperature [K].
+    air_gap_m : numeric
+        Air-gap thickness [m]; must be > 0 (a gap of 0 is contact, handled by the solver).
+    skin_emissivity, fabric_emissivity : numeric
+        Emissivities of skin and of the fabric's inner surface [0-1].
+    model : str, default 'hollands'
+        'hollands' (conduction up to the onset of convection, Ra = 1708, then the Hollands et al.
+        1976 Nusselt number) or 'conduction' (still air, Nu = 1).
+
+    Returns
+    -------
+    tuple of numeric
+        (conduction + convection flux, radiation flux) [W m^-2], positive from skin to fabric.
+
+    Notes
+    -----
+    q_cd = Nu k_air(T_m) / d (T_skin - T_in), Ra = g (1/T_m) (T_skin - T_in)^+ d^3 / (nu alpha),
+    properties at T_m = (T_skin + T_in) / 2; q_r = F sigma (T_skin^4 - T_in^4) with F of two
+    grey parallel plates. This replaces the seed's Eq. 7 (R1 with k_a / l_a and a linearized
+    radiation term at (T_a + T_skin) / 2) by the exact terms at the gap's own temperatures.
+
+    Raises
+    ------
+    ValueError
+        If ``model`` is not one of the above.
+    """
+    if model not in ('hollands', 'conduction'):
+        raise ValueError(f'invalid model selection {model}')
+    t_s = np.asarray(skin_temperature_k, dtype=float)
+    t_i = np.asarray(inner_temperature_k, dtype=float)
+    d = np.asarray(air_gap_m, dtype=float)
+    t_m = 0.5 * (t_s + t_i)
+    dt = t_s - t_i
+    k = air_conductivity(t_m)
+    if model == 'hollands':
+        t_mc = np.maximum(t_m, _T_PROPERTY_MIN)
+        ra = (GRAVITY * np.maximum(dt, 0.0) * d ** 3
+              / (t_mc * air_kinematic_viscosity(t_mc) * air_thermal_diffusivity(t_mc)))
+        nu = hollands_nusselt(ra)
+    else:
+        nu = 1.0
+    d_safe = np.where(d > 0.0, d, 1.0)
+    q_cd = np.where(d > 0.0, nu * k / d_safe * dt, 0.0)
+    q_r = (grey_plates_exchange_factor(skin_emissivity, fabric_emissivity) * STEFAN_BOLTZMANN
+           * (_t4(t_s) - _t4(t_i)))
+    return q_cd, q_r
+
+
+class GarmentBalance(NamedTuple):
+    """Per-facet solution of the garment energy balance; all arrays broadcast to the facets."""
+
+    outer_temperature_k: np.ndarray  # fabric outer surface [K]
+    inner_temperature_k: np.ndarray  # fabric inner surface [K]
+    residual: np.ndarray  # q_in + q_rad - q_conv - q_emit (- storage) [W m^-2]
+    q_in: np.ndarray  # delivered from skin across the gap (or contact) [W m^-2], seed Eq. 6
+    q_gap_conduction: np.ndarray  # conduction + convection part of q_in [W m^-2]
+    q_gap_radiation: np.ndarray  # radiation part of q_in [W m^-2]
+    q_fabric: np.ndarray  # conduction through the fabric [W m^-2]
+    q_rad: np.ndarray  # absorbed environment radiation [W m^-2], seed Eq. 3-4
+    q_conv: np.ndarray  # convection to the air [W m^-2], seed Eq. 9
+    q_emit: np.ndarray  # emission eps sigma T^4 [W m^-2], seed Eq. 8
+    q_storage: np.ndarray  # C (T - T_prev) / dt, 0 in steady state [W m^-2]
+    iterations: int  # Newton/bisection iterations of the slowest facet
+
+
+def _outer_coefficient(h_forced, delta_t, natural_floor):
+    if natural_floor:
+        return np.maximum(h_forced, 2.38 * np.abs(delta_t) ** 0.25)  # ISO 7730 floor
+    return h_forced
+
+
+def _balance(t_out, p):
+    """Residual and flux terms at outer temperature t_out; p holds broadcast parameters."""
+    dt_air = t_out - p['t_air']
+    q_conv = _outer_coefficient(p['h'], dt_air, p['natural_floor']) * dt_air
+    q_emit = p['eps_f'] * STEFAN_BOLTZMANN * _t4(t_out)
+    q_out = q_conv + q_emit - p['q_rad']
+    u_f = p['u_f']
+    insulated = u_f <= 0.0
+    contact = (p['gap'] <= 0.0) & ~insulated
+    u_safe = np.where(insulated, 1.0, u_f)
+    t_in = np.where(insulated | contact, p['t_skin'], t_out + q_out / u_safe)
+    q_cd, q_r = air_gap_flux(p['t_skin'], t_in, p['gap'], p['eps_s'], p['eps_in'],
+                             p['gap_model'])
+    q_fabric = np.where(insulated, 0.0, u_f * (t_in - t_out))
+    # contact: the gap vanishes and q_in is the fabric conduction from skin temperature
+    q_cd = np.where(contact, q_fabric, np.where(insulated, 0.0, q_cd))
+    q_r = np.where(contact | insulated, 0.0, q_r)
+    q_in = q_cd + q_r
+    q_store = p['c_dt'] * (t_out - p['t_prev'])
+    residual = q_in - q_out - q_store
+    return residual, (t_in, q_in, q_cd, q_r, q_fabric, q_conv, q_emit, q_store)
+
+
+def _solve(p, lo, hi, tol, max_iter):
+    """Safeguarded Newton on the strictly decreasing residual, bracket lo < root < hi."""
+    t = 0.5 * (lo + hi)
+    delta = 1e-4  # [K], central-difference step for the derivative
+    iterations = 0
+    active = np.ones(t.shape, dtype=bool)
+    for iterations in range(1, max_iter + 1):
+        f = _balance(t, p)[0]
+        active = np.abs(f) > tol
+        if not active.any():
+            break
+        # shrink the bracket with the current point (f decreasing: f > 0 means root above)
+        lo = np.where(active & (f > 0.0), t, lo)
+        hi = np.where(active & (f < 0.0), t, hi)
+        dfdt = (_balance(t + delta, p)[0] - _balance(t - delta, p)[0]) / (2.0 * delta)
+        ok = dfdt < 0.0
+        t_newton = t - f / np.where(ok, dfdt, -1.0)
+        inside = ok & (t_newton > lo) & (t_newton < hi) & (iterations <= 40)
+        t_next = np.where(inside, t_newton, 0.5 * (lo + hi))
+        # stop on a collapsed bracket (residual at the round-off floor)
+        collapsed = (hi - lo) <= 4.0 * np.finfo(float).eps * np.abs(t)
+        t = np.where(active & ~collapsed, t_next, t)
+        if not (active & ~collapsed).any():
+            break
+    return t, iterations
+
+
+def _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced, air_gap_m,
+                fabric_thickness_m, fabric_conductivity, fabric_emissivity, skin_emissivity,
+                inner_emissivity, natural_floor, gap_model, c_dt, t_prev):
+    if gap_model not in ('hollands', 'conduction'):
+        raise ValueError(f'invalid model selection {gap_model}')
+    eps_f = np.asarray(fabric_emissivity, dtype=float)
+    eps_in = eps_f if inner_emissivity is None else np.asarray(inner_emissivity, dtype=float)
+    thick = np.asarray(fabric_thickness_m, dtype=float)
+    k_f = np.asarray(fabric_conductivity, dtype=float)
+    u_f = k_f / np.maximum(thick, 1e-9)  # fabric conductance k_f / l_f, 1 / R2 (seed Eq. 7)
+    arrays = dict(t_skin=skin_temperature_k, t_air=air_temperature_k, q_rad=absorbed_radiation,
+                  h=h_forced, gap=air_gap_m, u_f=u_f, eps_f=eps_f, eps_in=eps_in,
+                  eps_s=skin_emissivity, c_dt=c_dt, t_prev=t_prev)
+    b = np.broadcast_arrays(*[np.asarray(v, dtype=float) for v in arrays.values()])
+    p = {k: np.array(v) for k, v in zip(arrays, b)}
+    p['natural_floor'] = bool(natural_floor)
+    p['gap_model'] = gap_model
+    return p
+
+
+def _bracket(p):
+    """Bounds with residual >= 0 at lo and <= 0 at hi (see the module docstring)."""
+    with np.errstate(divide='ignore', invalid='ignore'):
+        # outer surface in radiative (or convective) balance with the absorbed radiation alone
+        es = p['eps_f'] * STEFAN_BOLTZMANN
+        t_rad = np.where(es > 0.0, (np.maximum(p['q_rad'], 0.0) / es) ** 0.25, np.inf)
+        t_cnv = np.where(p['h'] > 0.0, p['t_air'] + np.maximum(p['q_rad'], 0.0) / p['h'],
+                         np.inf)
+    lo = np.minimum(np.minimum(p['t_skin'], p['t_air']), t_rad)
+    hi = np.maximum(np.maximum(p['t_skin'], p['t_air']), np.minimum(t_rad, t_cnv))
+    lo = np.minimum(lo, p['t_prev'])
+    hi = np.maximum(hi, p['t_prev'])
+    lo = np.maximum(lo - 1.0, 1.0)
+    hi = np.where(np.isfinite(hi), hi, 1e4) + 1.0
+    return lo, hi
+
+
+def _result(t, p, iterations):
+    residual, (t_in, q_in, q_cd, q_r, q_fab, q_conv, q_emit, q_store) = _balance(t, p)
+    return GarmentBalance(t, t_in, residual, q_in, q_cd, q_r, q_fab, p['q_rad'].copy(), q_conv,
+                          q_emit, q_store, iterations)
+
+
+def steady_state(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced, air_gap_m,
+                 fabric_thickness_m, fabric_conductivity=0.05, fabric_emissivity=0.9,
+                 skin_emissivity=0.98, inner_emissivity=None, natural_floor=True,
+                 gap_model='hollands', tol=1e-6, max_iter=100):
+    """Steady-state garment temperatures per facet (seed Eq. 5-9), bracketed Newton.
+
+    Parameters
+    ----------
+    skin_temperature_k : numeric
+        Skin temperature under the facet [K].
+    air_temperature_k : numeric
+        Ambient air temperature [K].
+    absorbed_radiation : numeric
+        Short + long wave radiation absorbed by the outer fabric surface [W m^-2] (q_rad).
+    h_forced : numeric
+        Outer convective coefficient [W m^-2 K^-1], e.g. from
+        :py:func:`humv_usd.physics.convection.mitchell`.
+    air_gap_m : numeric
+        Skin-fabric air gap [m]; 0 is contact (no gap resistance).
+    fabric_thickness_m : numeric
+        Fabric thickness [m], > 0 (clamped to 1 nm).
+    fabric_conductivity : numeric, default 0.05
+        Fabric (fibre + entrapped air) conductivity [W m^-1 K^-1]; 0 makes an insulated plate.
+    fabric_emissivity : numeric, default 0.9
+        Outer-surface emissivity [0-1] (absorptance for long wave is in ``absorbed_radiation``).
+    skin_emissivity : numeric, default 0.98
+        Skin emissivity [0-1].
+    inner_emissivity : numeric, optional
+        Fabric inner-surface emissivity [0-1]; defaults to ``fabric_emissivity``.
+    natural_floor : bool, default True
+        Use max(h_forced, 2.38 |T_out - T_air|^0.25) outside (ISO 7730 natural convection).
+    gap_model : str, default 'hollands'
+        Air-gap model, see :py:func:`air_gap_flux`.
+    tol : float, default 1e-6
+        Residual tolerance [W m^-2].
+    max_iter : int, default 100
+        Iteration cap (the bracket halves at least every other iteration after 40).
+
+    Returns
+    -------
+    GarmentBalance
+        Temperatures, per-facet residual and the flux terms.
+
+    Notes
+    -----
+    Solves q_in(T_in) + q_rad = h (T_out - T_air) + eps sigma T_out^4 (seed Eq. 5, 8, 9) with
+    T_in = T_out + (l_f / k_f) q_out (seed Eq. 6, R2 = l_f / k_f) and q_in from
+    :py:func:`air_gap_flux` (seed Eq. 7, R1). The residual is strictly decreasing in T_out, and
+    the bracket [min(T_skin, T_air, (q_rad / eps sigma)^(1/4)) - 1,
+    max(T_skin, T_air, min((q_rad / eps sigma)^(1/4), T_air + q_rad / h)) + 1] contains the
+    root; Newton steps that leave the shrinking bracket are replaced by bisection.
+
+    References
+    ----------
+    .. [1] Press, W. H. et al. (2007). Numerical Recipes, 3rd ed., section 9.4 (rtsafe).
+    .. [2] The seed paper, section 2.2.3, Eq. 5-9.
+    """
+    p = _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced,
+                    air_gap_m, fabric_thickness_m, fabric_conductivity, fabric_emissivity,
+                    skin_emissivity, inner_emissivity, natural_floor, gap_model, 0.0,
+                    air_temperature_k)
+    lo, hi = _bracket(p)
+    t, it = _solve(p, lo, hi, tol, max_iter)
+    return _result(t, p, it)
+
+
+def areal_heat_capacity(density, specific_heat, thickness_m):
+    """Areal heat capacity of a fabric, rho c l [J m^-2 K^-1].
+
+    Parameters
+    ----------
+    density : numeric
+        Bulk fabric density [kg m^-3] (about 200-500 for woven textiles).
+    specific_heat : numeric
+        Specific heat [J kg^-1 K^-1] (about 1300 for cotton, 1400 for polyester).
+    thickness_m : numeric
+        Fabric thickness [m].
+
+    Returns
+    -------
+    numeric
+        Heat capacity per unit area [J m^-2 K^-1].
+    """
+    return (np.asarray(density, dtype=float) * np.asarray(specific_heat, dtype=float)
+            * np.asarray(thickness_m, dtype=float))
+
+
+def transient_step(previous_outer_temperature_k, time_step_s, heat_capacity, skin_temperature_k,
+                   air_temperature_k, absorbed_radiation, h_forced, air_gap_m,
+                   fabric_thickness_m, fabric_conductivity=0.05, fabric_emissivity=0.9,
+                   skin_emissivity=0.98, inner_emissivity=None, natural_floor=True,
+                   gap_model='hollands', tol=1e-6, max_iter=100):
+    """One implicit (backward Euler) step of the garment balance with fabric heat capacity.
+
+    Parameters
+    ----------
+    previous_outer_temperature_k : numeric
+        Outer fabric temperature at the start of the step [K].
+    time_step_s : numeric
+        Time step [s]; any size (backward Euler is L-stable); ``np.inf`` gives the steady state.
+    heat_capacity : numeric
+        Areal heat capacity of the fabric [J m^-2 K^-1], see :py:func:`areal_heat_capacity`.
+    skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced, air_gap_m, \
+fabric_thickness_m, fabric_conductivity, fabric_emissivity, skin_emissivity, \
+inner_emissivity, natural_floor, gap_model, tol, max_iter
+        As in :py:func:`steady_state`, at the end of the step.
+
+    Returns
+    -------
+    GarmentBalance
+        State at the end of the step; ``q_storage`` is C (T - T_prev) / dt and the residual
+        q_in + q_rad - q_conv - q_emit - q_storage.
+
+    Notes
+    -----
+    C (T^{n+1} - T^n) / dt = q_in(T^{n+1}) + q_rad - q_conv(T^{n+1}) - q_emit(T^{n+1}), with the
+    capacity lumped in one fabric node (the fabric's Biot number l h / k is below 1 for
+    l < 1 mm; for thicker fabric this is a one-node approximation). Each step is solved with
+    the same bracketed Newton as the steady state; the storage term keeps the residual strictly
+    decreasing, so there is no step-size limit and no overshoot of the equilibrium.
+
+    References
+    ----------
+    .. [1] Hairer, E., Wanner, G. (1996). Solving Ordinary Differential Equations II: Stiff and
+       Differential-Algebraic Problems, 2nd ed., Springer (backward Euler, L-stability).
+    """
+    c_dt = np.asarray(heat_capacity, dtype=float) / np.asarray(time_step_s, dtype=float)
+    p = _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced,
+                    air_gap_m, fabric_thickness_m, fabric_conductivity, fabric_emissivity,
+                    skin_emissivity, inner_emissivity, natural_floor, gap_model, c_dt,
+                    previous_outer_temperature_k)
+    lo, hi = _bracket(p)
+    t, it = _solve(p, lo, hi, tol, max_iter)
+    return _result(t, p, it)
+
+
+def net_flux(outer_temperature_k, skin_temperature_k, air_temperature_k, absorbed_radiation,
+             h_forced, air_gap_m, fabric_thickness_m, fabric_conductivity=0.05,
+             fabric_emissivity=0.9, skin_emissivity=0.98, inner_emissivity=None,
+             natural_floor=True, gap_model='hollands'):
+    """Net heat flux into the outer fabric surface, q_in + q_rad - q_conv - q_emit [W m^-2].
+
+    Parameters
+    ----------
+    outer_temperature_k : numeric
+        Outer fabric temperature [K].
+    skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced, air_gap_m, \
+fabric_thickness_m, fabric_conductivity, fabric_emissivity, skin_emissivity, \
+inner_emissivity, natural_floor, gap_model
+        As in :py:func:`steady_state`.
+
+    Returns
+    -------
+    numeric
+        Net flux [W m^-2]; zero at the steady state, C dT/dt in a transient.
+    """
+    p = _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced,
+                    air_gap_m, fabric_thickness_m, fabric_conductivity, fabric_emissivity,
+                    skin_emissivity, inner_emissivity, natural_floor, gap_model, 0.0,
+                    outer_temperature_k)
+    return _balance(np.broadcast_to(np.asarray(outer_temperature_k, dtype=float),
+                                    p['t_air'].shape), p)[0]
+
+
+def extreme_grid_counts(skin_temperature_k=306.15, fabric_emissivity=0.9,
+                        solar_absorptance=0.7):
+    """Solve the garment balance over the DESIGN.md extreme grid and count what went wrong.
+
+    Parameters
+    ----------
+    skin_temperature_k : float, default 306.15
+        Skin temperature for every case [K].
+    fabric_emissivity : float, default 0.9
+        Outer fabric emissivity (also its long-wave absorptance) [0-1].
+    solar_absorptance : float, default 0.7
+        Fabric solar absorptance [0-1].
+
+    Returns
+    -------
+    dict
+        ``cases`` (steady facets + transient facet-steps), ``steady_cases``,
+        ``transient_cases``, ``nonfinite`` (NaN/Inf in any temperature or flux),
+        ``max_residual`` [W m^-2], ``monotonic_air_violations`` (warmer air gave a colder
+        garment), ``monotonic_wind_violations`` (more wind moved the garment away from the
+        air temperature), ``max_iterations``; monotonicity is checked to 1e-6 K.
+
+    Notes
+    -----
+    Grid: air -40, -10, 10, 30, 55 degC; wind 0, 0.5, 2, 8, 30 m/s (Mitchell h with the ISO 7730
+    floor); absorbed sun 0, 300, 1200 W m^-2 (times ``solar_absorptance``, plus eps sigma T_sky^4
+    of a Berdahl-Martin clear sky at RH 50 %); air gap 0, 1, 5, 20, 50 mm; fabric 0.1, 1, 10 mm;
+    transient steps 1 s, 60 s, 600 s from 20 K below and above the air temperature.
+    """
+    t_air = 273.15 + np.array([-40.0, -10.0, 10.0, 30.0, 55.0])
+    wind = np.array([0.0, 0.5, 2.0, 8.0, 30.0])
+    sun = np.array([0.0, 300.0, 1200.0])
+    gap = np.array([0.0, 1e-3, 5e-3, 20e-3, 50e-3])
+    fabric = np.array([0.1e-3, 1e-3, 10e-3])
+    ta, v, g, d, l = np.meshgrid(t_air, wind, sun, gap, fabric, indexing='ij')
+    t_sky, _ = effective_sky_temperature(ta, 0.5)
+    q_rad = solar_absorptance * g + fabric_emissivity * STEFAN_BOLTZMANN * t_sky ** 4
+    h = mitchell(v)
+    common = dict(skin_temperature_k=skin_temperature_k, air_temperature_k=ta,
+                  absorbed_radiation=q_rad, h_forced=h, air_gap_m=d, fabric_thickness_m=l,
+                  fabric_emissivity=fabric_emissivity)
+    with np.errstate(all='ignore'):
+        st = steady_state(**common)
+        results = [st]
+        n_transient = 0
+        for dt_step in (1.0, 60.0, 600.0):
+            for offset in (-20.0, 20.0):
+                tr = transient_step(ta + offset, dt_step, areal_heat_capacity(300.0, 1300.0, l),
+                                    **common)
+                results.append(tr)
+                n_transient += tr.outer_temperature_k.size
+    nonfinite = 0
+    max_res = 0.0
+    max_it = 0
+    for r in results:
+        fields = [np.asarray(x) for x in r[:-1]]
+        bad = np.zeros(r.outer_temperature_k.shape, dtype=bool)
+        for x in fields:
+            bad |= ~np.isfinite(x)
+        nonfinite += int(bad.sum())
+        max_res = max(max_res, float(np.nanmax(np.abs(r.residual))))
+        max_it = max(max_it, int(r.iterations))
+    t_out = st.outer_temperature_k
+    # 1 uK slack: where the natural floor dominates, neighbouring cases are the same problem
+    # and differ only by the solver tolerance (about 1e-8 K)
+    air_viol = int((np.diff(t_out, axis=0) < -1e-6).sum())
+    dist = np.abs(t_out - ta)
+    wind_viol = int((np.diff(dist, axis=1) > 1e-6).sum())
+    return dict(cases=int(t_out.size + n_transient), steady_cases=int(t_out.size),
+                transient_cases=int(n_transient), nonfinite=nonfinite, max_residual=max_res,
+                monotonic_air_violations=air_viol, monotonic_wind_violations=wind_viol,
+                max_iterations=max_it)
