@@ -1,0 +1,210 @@
+"""Physiology: two-node (Gagge), JOS-3 (pythermalcomfort), heart rate, per-face skin mapping."""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from humv_usd.avatar.labels import JOS3_SEGMENTS
+from humv_usd.avatar.motion import epoc_met
+from humv_usd.thermal import physiology as P
+
+K = 273.15
+HEIGHT, MASS, AGE = 1.75, 75.0, 30.0
+AREA = P.dubois_area(HEIGHT, MASS)
+MET_W = P.MET_W_M2 * AREA              # 1 met for this body [W]
+HOUR = np.arange(0.0, 3601.0, 60.0)    # 1 h at 60 s steps
+SEG = {name: i for i, name in enumerate(JOS3_SEGMENTS)}
+TRUNK = [SEG[s] for s in ("Chest", "Back", "Pelvis")]
+EXTREMITIES = [SEG[s] for s in ("LHand", "RHand", "LFoot", "RFoot")]
+
+pythermalcomfort = pytest.importorskip("pythermalcomfort")
+
+
+def run(model, air_c=29.0, met=1.0, rh=0.5, v=0.1, clo=0.5, times=HOUR, mrt_c=None, **kw):
+    """``met`` in met units, scalar or per step."""
+    mrt_c = air_c if mrt_c is None else mrt_c
+    return P.simulate_physiology(times, np.asarray(met) * MET_W, air_c + K, mrt_c + K, rh, v, clo,
+                                 model=model, height_m=HEIGHT, mass_kg=MASS, age_years=AGE, **kw)
+
+
+def exercise_schedule():
+    """1 met for 10 min, 4 met for 30 min, then the avatar's post-exercise decay for 60 min."""
+    t = np.arange(0.0, 100 * 60.0 + 1.0, 60.0)
+    met = np.where(t < 600.0, 1.0, 4.0)
+    after = t >= 2400.0
+    met[after] = epoc_met(t[after] - 2400.0, 4.0, rest_met=1.0)
+    return t, met
+
+
+@pytest.fixture(scope="module")
+def jos3_runs():
+    """All JOS-3 runs of this module, computed once (numba compiles on the first, ~10 s)."""
+    t, met = exercise_schedule()
+    return {
+        "neutral": run("jos3"),
+        "pmv0": run("jos3", air_c=25.5),
+        "cold": run("jos3", air_c=10.0),
+        "exercise": run("jos3", met=met, times=t),
+    }
+
+
+# ----------------------------------------------------------------------------- heart rate
+def test_heart_rate_rest_and_exercise():
+    hr = P.heart_rate(np.array([1.0, 1.3, 5.0]) * MET_W, mass_kg=MASS, age_years=AGE)
+    assert 60.0 <= hr[0] <= 80.0 and 60.0 <= hr[1] <= 80.0
+    assert 110.0 <= hr[2] <= 150.0
+    # %HRR = %VO2R: at VO2max the heart rate is HRmax = 208 - 0.7 age (Tanaka 2001)
+    vo2max_w = 40.0 * MASS * P.J_PER_ML_O2 / 60.0
+    assert_allclose(P.heart_rate(vo2max_w, MASS, AGE), 208.0 - 0.7 * AGE)
+    assert_allclose(P.heart_rate(0.0, MASS, AGE), P.FITNESS["average"]["resting_hr_bpm"])
+
+
+def test_heart_rate_fitness_and_validation():
+    m = 5.0 * MET_W
+    low, avg, high = (P.heart_rate(m, MASS, AGE, fitness=f) for f in ("low", "average", "high"))
+    assert low > avg > high
+    assert P.heart_rate(m, MASS, 60.0) > avg      # older: lower HRmax but lower VO2max too
+    assert np.all(np.diff(P.heart_rate(np.linspace(50, 2000, 50), MASS, AGE)) >= 0)
+    with pytest.raises(ValueError):
+        P.heart_rate(m, fitness="elite")
+
+
+# ----------------------------------------------------------------------------- two-node
+def test_two_node_neutral():
+    r = run("two_node")
+    assert 33.0 <= r.mean_skin_temperature_k[-1] - K <= 34.5
+    assert 36.8 <= r.core_temperature_k[-1] - K <= 37.2
+    # spin-up: already steady at the first output
+    assert abs(r.mean_skin_temperature_k[-1] - r.mean_skin_temperature_k[0]) < 0.05
+    assert r.segment_skin_temperature_k.shape == (len(HOUR), 17)
+    assert_array_equal(r.segment_skin_temperature_k[:, 5], r.mean_skin_temperature_k)
+    assert np.isnan(r.cardiac_output_l_h).all()
+
+
+def test_two_node_cold_and_hot():
+    neutral, cold, hot = (run("two_node", air_c=a) for a in (29.0, 10.0, 40.0))
+    assert cold.mean_skin_temperature_k[-1] < neutral.mean_skin_temperature_k[-1] - 3.0
+    assert cold.skin_blood_flow_l_h[-1] < neutral.skin_blood_flow_l_h[-1]
+    assert hot.sweat_rate_g_s[-1] > neutral.sweat_rate_g_s[-1] + 0.05
+    assert hot.mean_skin_temperature_k[-1] > neutral.mean_skin_temperature_k[-1]
+
+
+def test_two_node_exercise_and_recovery():
+    t, met = exercise_schedule()
+    r = run("two_node", met=met, times=t)
+    i_rest, i_end, i_rec = 9, 40, len(t) - 1
+    core = r.core_temperature_k
+    assert core[i_end] - core[i_rest] > 0.2
+    assert core[i_rec] < core[i_end] - 0.1              # recovering
+    assert r.heart_rate_bpm[i_end] > r.heart_rate_bpm[i_rest] + 30
+    assert r.heart_rate_bpm[i_rec] < r.heart_rate_bpm[i_rest] + 5
+
+
+@pytest.mark.parametrize("dt", [1.0, 10.0, 30.0])
+def test_two_node_time_step_independence(dt):
+    """1 h from the neutral state into cold air while exercising: same result at any step."""
+    ref = run("two_node", air_c=10.0, met=3.0, spin_up_s=0.0)
+    times = np.arange(0.0, 3600.0 + dt / 2, dt)
+    r = run("two_node", air_c=10.0, met=3.0, spin_up_s=0.0, times=times)
+    assert_allclose(r.core_temperature_k[-1], ref.core_temperature_k[-1], atol=0.1)
+    assert_allclose(r.mean_skin_temperature_k[-1], ref.mean_skin_temperature_k[-1], atol=0.1)
+
+
+def test_two_node_extreme_grid_finite():
+    for air, rh, v, clo, met in itertools.product((-40.0, 0.0, 25.0, 40.0, 55.0), (0.0, 0.5, 1.0),
+                                                  (0.0, 5.0, 30.0), (0.0, 1.5), (1.0, 6.0)):
+        r = run("two_node", air_c=air, rh=rh, v=v, clo=clo, met=met)
+        for a in (r.core_temperature_k, r.mean_skin_temperature_k, r.skin_blood_flow_l_h,
+                  r.sweat_rate_g_s):
+            assert np.isfinite(a).all(), (air, rh, v, clo, met)
+        # no frost model: bare skin in -40 °C at 30 m/s goes far below 0 °C, but not below the
+        # air (evaporation can cool it below a warm, dry air: wet-bulb effect)
+        assert r.mean_skin_temperature_k.min() > min(air, 0.0) + K - 2.0
+
+
+def test_two_node_bad_input():
+    with pytest.raises(ValueError):
+        P.two_node([0.0, 60.0, 30.0], 100.0, 300.0, 300.0, 0.5, 0.1, 0.5)
+    with pytest.raises(ValueError):
+        P.two_node(HOUR, np.ones(3), 300.0, 300.0, 0.5, 0.1, 0.5)
+
+
+# ----------------------------------------------------------------------------- JOS-3
+def test_jos3_neutral(jos3_runs):
+    r = jos3_runs["neutral"]          # 29 °C, 0.5 clo, 1 met: PMV +1.1 (ISO 7730), slightly warm
+    assert 36.8 <= r.core_temperature_k[-1] - K <= 37.2
+    assert 33.0 <= r.mean_skin_temperature_k[-1] - K <= 35.5
+    r0 = jos3_runs["pmv0"]            # 25.5 °C: PMV ~ 0 for 0.5 clo
+    assert 33.0 <= r0.mean_skin_temperature_k[-1] - K <= 35.0
+    assert 36.8 <= r0.core_temperature_k[-1] - K <= 37.2
+    assert r.segment_skin_temperature_k.shape == (len(HOUR), 17)
+    assert np.isfinite(r.cardiac_output_l_h).all() and 150 < r.cardiac_output_l_h[-1] < 600
+    assert abs(r.mean_skin_temperature_k[-1] - r.mean_skin_temperature_k[0]) < 0.1  # spun up
+
+
+@pytest.mark.parametrize("case,air_c", [("neutral", 29.0), ("pmv0", 25.5)])
+def test_two_node_vs_jos3(jos3_runs, case, air_c):
+    two = run("two_node", air_c=air_c)
+    assert abs(two.mean_skin_temperature_k[-1] - jos3_runs[case].mean_skin_temperature_k[-1]) < 1.0
+    assert abs(two.core_temperature_k[-1] - jos3_runs[case].core_temperature_k[-1]) < 0.5
+
+
+def test_jos3_cold(jos3_runs):
+    cold, neutral = jos3_runs["cold"], jos3_runs["neutral"]
+    assert cold.mean_skin_temperature_k[-1] < neutral.mean_skin_temperature_k[-1] - 3.0
+    seg = cold.segment_skin_temperature_k[-1]
+    assert seg[EXTREMITIES].max() < seg[TRUNK].min() - 2.0
+
+
+def test_jos3_exercise_and_recovery(jos3_runs):
+    r = jos3_runs["exercise"]
+    i_rest, i_end, i_rec = 9, 40, len(r.times_s) - 1
+    core = r.core_temperature_k
+    assert core[i_end] - core[i_rest] > 0.2
+    assert core[i_rec] < core[i_end] - 0.1
+    assert r.cardiac_output_l_h[i_end] > r.cardiac_output_l_h[i_rest]
+    assert r.heart_rate_bpm[i_end] > r.heart_rate_bpm[i_rest] + 30
+    assert r.heart_rate_bpm[i_rec] < r.heart_rate_bpm[i_rest] + 5
+
+
+def test_jos3_per_segment_mrt(jos3_runs):
+    mrt = np.full(17, 29.0 + K)
+    mrt[SEG["Head"]] = 60.0 + K      # sun on the head only
+    r = P.jos3(HOUR[:11], MET_W, 29.0 + K, mrt, 0.5, 0.1, 0.5, height_m=HEIGHT, mass_kg=MASS)
+    base = jos3_runs["neutral"].segment_skin_temperature_k[10]
+    d = r.segment_skin_temperature_k[-1] - base
+    assert d[SEG["Head"]] > 1.0 and d[SEG["Head"]] == d.max()
+
+
+def test_jos3_extreme_grid_finite(jos3_runs):
+    for air, rh, v in itertools.product((-40.0, 55.0), (0.0, 1.0), (0.0, 30.0)):
+        r = run("jos3", air_c=air, rh=rh, v=v, times=HOUR[:31], spin_up_s=1800.0)
+        for a in (r.core_temperature_k, r.segment_skin_temperature_k, r.cardiac_output_l_h):
+            assert np.isfinite(a).all(), (air, rh, v)
+
+
+# ----------------------------------------------------------------------------- dispatch, faces
+def test_simulate_physiology_model_selection():
+    with pytest.raises(ValueError, match="invalid model selection"):
+        run("icda")
+    r = run("two_node", times=HOUR[:3], mrt_c=np.full(17, 29.0))   # per-segment MRT → mean
+    assert r.model == "two_node"
+
+
+def test_skin_temperature_per_face():
+    ids = np.random.default_rng(0).integers(0, 17, 1000)
+    seg = 300.0 + np.arange(17) * 0.25
+    assert_array_equal(P.skin_temperature_per_face(ids, seg), seg[ids])
+    series = np.stack([seg, seg + 1.0])
+    out = P.skin_temperature_per_face(ids, series)
+    assert out.shape == (2, 1000)
+    assert_array_equal(out[1], seg[ids] + 1.0)
+    with pytest.raises(ValueError):
+        P.skin_temperature_per_face(np.array([0, 17]), seg)
+    with pytest.raises(ValueError):
+        P.skin_temperature_per_face(np.array([-1, 3]), seg)
+    with pytest.raises(ValueError):
+        P.skin_temperature_per_face(ids, seg[:16])
