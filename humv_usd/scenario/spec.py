@@ -31,7 +31,7 @@ ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel")
 OBJECT_CLASSES = ("building", "prop", "panel", "vegetation", "vehicle", "other")
-THERMAL_MODELS = ("fixed",)
+THERMAL_MODELS = ("fixed", "jos3", "twoNode")
 ATMOSPHERE_MODELS = ("analytic",)
 PROFILES = ("tropical", "midlatitudeSummer", "midlatitudeWinter", "subarcticSummer",
             "subarcticWinter", "usStandard1976")
@@ -171,10 +171,21 @@ SENSOR = Section(array=True, doc="(v) Sensor", keys={
 })
 
 THERMAL = Section(doc="(vi) Thermal", keys={
-    "model": Key("choice", "Temperature model (fixed: uniform skin temperature; physiology "
-                 "arrives with the thermal issue).", default="fixed", choices=THERMAL_MODELS),
+    "model": Key("choice", "Temperature model of people: fixed (uniform skin, garments at air "
+                 "temperature) or jos3 / twoNode (radiation -> MRT -> physiology -> skin; garment "
+                 "energy balance).", default="fixed", choices=THERMAL_MODELS),
     "skin_temperature_k": Key("float", "Uniform skin temperature [K] for the fixed model.",
                               default=306.15, lo=273.15, hi=320.0),
+    "radiation_resolution": Key("int", "Rows and columns of the lat-long radiance map around each "
+                                "person (seed: 360).", default=90, lo=8, hi=720, integer=True),
+    "radiation_rays": Key("int", "Rays per facet of the fast absorbed-radiation method.",
+                          default=32, lo=1, hi=4096, integer=True),
+    "radiation_step_s": Key("float", "Radiation is recomputed every this many seconds [s].",
+                            default=1.0, lo=0.0, hi=3600.0),
+    "spin_up_s": Key("float", "Physiology spin-up at the first frame's conditions [s].",
+                     default=3600.0, lo=0.0, hi=86400.0),
+    "convection_model": Key("choice", "Convective coefficient of garments.",
+                            default="mitchell", choices=("mitchell", "iso7730", "siple_passel")),
 })
 
 ATMOSPHERE = Section(doc="atmosphere and weather", keys={

@@ -1,19 +1,28 @@
 """Thermal tool → layers/thermal.usda: per-face temperature [K] on every mesh of the stage.
 
-Foundation placeholder (model "fixed"): skin at the scenario's uniform skin temperature, ground
-and objects at their fixed temperatures, any other mesh (e.g. from a hand-made layer) at the air
-temperature. The thermal issue replaces this with physiology, garment balance and slab models.
+Models (``[thermal] model``):
+
+* ``fixed``: skin at the scenario's uniform skin temperature, garments and any other mesh (e.g.
+  from a hand-made layer) at the air temperature;
+* ``jos3`` / ``twoNode``: per person, radiation environment → segment MRT → physiology → skin
+  facets, and the garment energy balance for garment facets, per frame
+  (:mod:`humv_usd.thermal.human`).
+
+Ground and scene objects keep their fixed scenario temperatures in every model (the slab model,
+:mod:`humv_usd.physics.slab`, needs the sun of the environment issue).
 """
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, Vt
+from pxr import Sdf, Usd, UsdGeom, UsdShade, Vt
 
-from humv_usd.avatar.layer import body_path
+from humv_usd.avatar.layer import body_path, human_path
+from humv_usd.materials.library import LIBRARY
+from humv_usd.thermal.human import human_temperatures
 from humv_usd.scenario import Scenario
 from humv_usd.scene.layer import GROUND, object_path
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import finish, new_layer_stage
+from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 
 NAME = "thermal"
 READS = ("general", "human", "scene", "thermal", "atmosphere")
@@ -34,19 +43,72 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     g = scenario["general"]
     air = (scenario["atmosphere"] or {}).get("air_temperature_k", 293.15)
     temps = fixed_temperatures(scenario)
+    model = scenario["thermal"]["model"]
     stage = new_layer_stage(g["fps"], scenario.frame_count,
-                            "HumV-USD thermal layer: per-face temperatures (fixed model)")
+                            f"HumV-USD thermal layer: per-face temperatures ({model} model)")
     stage.RemovePrim("/World")  # this layer only adds opinions: overs, no defs
+    solved: dict[str, np.ndarray] = {}
+    if model != "fixed" and scenario["human"]:
+        scene = _scene_surfaces(upstream, temps, air)
+        for h in scenario["human"]:
+            solved.update(human_temperatures(upstream, h, str(human_path(h["id"])), scenario,
+                                             scene, model, scenario["thermal"]))
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
+        path = prim.GetPath()
         faces = len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get() or [])
-        over = stage.OverridePrim(prim.GetPath())
+        over = stage.OverridePrim(path)
         over.ApplyAPI(S.THERMAL_API)
-        over.GetAttribute(S.THERMAL_MODEL).Set("fixed")
         primvar = UsdGeom.PrimvarsAPI(over).CreatePrimvar(
             S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray,
             UsdGeom.Tokens.uniform)
-        value = temps.get(prim.GetPath(), air)
-        primvar.Set(Vt.FloatArray.FromNumpy(np.full(faces, value, dtype=np.float32)))
+        series = solved.get(str(path))
+        if series is None:
+            over.GetAttribute(S.THERMAL_MODEL).Set("fixed")
+            primvar.Set(Vt.FloatArray.FromNumpy(np.full(faces, temps.get(path, air),
+                                                        dtype=np.float32)))
+            continue
+        over.GetAttribute(S.THERMAL_MODEL).Set(model if str(path).endswith("/Body")
+                                               else "balance")
+        if len(series) == 1:
+            primvar.Set(Vt.FloatArray.FromNumpy(series[0].astype(np.float32)))
+        else:
+            for frame, values in enumerate(series):
+                primvar.Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), frame)
     return finish(stage)
+
+
+def _scene_surfaces(upstream: Usd.Stage, temps: dict, air: float):
+    """Scene meshes (not people) as ray-cast occluders with their leaving radiance."""
+    import trimesh
+
+    from humv_usd.thermal import radiation as R
+    from humv_usd.thermal.human import _fan, longwave_emissivity
+    from humv_usd.thermal.sky import ClearSky
+    points, faces, t_face, eps_face, offset = [], [], [], [], 0
+    for prim in upstream.Traverse():
+        if not prim.IsA(UsdGeom.Mesh) or str(prim.GetPath()).startswith(str(SCOPES["humans"])):
+            continue
+        mesh = UsdGeom.Mesh(prim)
+        pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=float)
+        xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(
+            Usd.TimeCode.Default()))
+        pts = pts @ xf[:3, :3] + xf[3, :3]
+        tris, _ = _fan(np.asarray(mesh.GetFaceVertexCountsAttr().Get()),
+                       np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
+        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        name = material.GetPrim().GetName() if material else ""
+        eps = longwave_emissivity(name) if name in LIBRARY else 0.9
+        points.append(pts)
+        faces.append(tris + offset)
+        offset += len(pts)
+        t_face.append(np.full(len(tris), temps.get(prim.GetPath(), air)))
+        eps_face.append(np.full(len(tris), eps))
+    if not points:
+        return None
+    mesh = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
+    sky = ClearSky(air_temperature_k=air, relative_humidity=0.5)
+    radiance = R.scene_surface_radiance(mesh, np.concatenate(t_face), np.concatenate(eps_face),
+                                        sky)
+    return R.SceneSurfaces(mesh, radiance)

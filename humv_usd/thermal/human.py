@@ -1,0 +1,217 @@
+"""Skin and garment facet temperatures of one person over the scenario's frames (seed §2.2).
+
+The chain, per person:
+
+1. radiation environment (seed Eq. 2): a lat-long radiance map around the person from the
+   analytic clear sky (:mod:`humv_usd.thermal.sky`) and the scene surfaces at their temperatures
+   (:mod:`humv_usd.thermal.radiation`);
+2. absorbed radiation per facet (Eq. 3-4), ``fast`` method, on the bare body (for the mean radiant
+   temperature of each JOS-3 segment, Eq. 1) and on the clothed body (for the garments' outer
+   surfaces);
+3. physiology (JOS-3 or Gagge's two-node model, :mod:`humv_usd.thermal.physiology`) driven by
+   the avatar's metabolic-rate schedule, the weather, the segment MRTs and the clothing
+   insulation of each segment, with a spin-up; skin temperature per segment → skin facets;
+4. garment facets: the steady energy balance of Eq. 5-9 (:func:`humv_usd.physics.garment.
+   steady_state`) over the skin temperature of the segment underneath, with the per-face air gap.
+
+Not yet: the sun (no solar position until the environment issue; shortwave is zero), a
+transient garment balance along the frames, and scene temperatures (fixed from the scenario).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from pxr import Usd, UsdGeom
+
+from humv_usd.avatar import labels as L
+from humv_usd.avatar.usdskel import skinned_points
+from humv_usd.clothing.garments import GARMENTS
+from humv_usd.materials.library import LIBRARY, WAVELENGTHS_UM
+from humv_usd.physics.convection import convective_coefficient
+from humv_usd.physics.garment import steady_state
+from humv_usd.thermal import radiation as R
+from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
+from humv_usd.thermal.sky import ClearSky
+from humv_usd.usd import schemas as S
+
+#: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
+#: values for single layers (ISO 9920:2007 Annex A local insulation of light shirts/trousers
+#: 0.2-0.4 clo, jackets 0.4-0.6 clo); a garment not listed adds 0.3 clo.
+LOCAL_CLO = {"cap": 0.2, "leggings": 0.2, "shorts": 0.25, "tshirt_white": 0.3,
+             "tshirt_black": 0.3, "longsleeve": 0.3, "trousers": 0.3, "uniform_trousers": 0.35,
+             "jacket": 0.55, "robe": 0.45}
+
+MODEL_NAMES = {"jos3": "jos3", "twoNode": "two_node"}
+
+
+def longwave_emissivity(material: str) -> float:
+    """Mean emissivity over the library nodes in 8-14 µm (the longwave band's bulk)."""
+    wl = np.asarray(WAVELENGTHS_UM)
+    eps = np.asarray(LIBRARY[material].emissivity)
+    return float(eps[(wl >= 8.0) & (wl <= 14.0)].mean())
+
+
+@dataclass
+class _Part:
+    path: str
+    counts: np.ndarray
+    indices: np.ndarray
+    triangles: np.ndarray      # (T, 3) indices into the part's points
+    tri_face: np.ndarray       # (T,) authored face of each triangle
+    region: np.ndarray         # (F,) body region id per face
+    segment: np.ndarray        # (F,) JOS-3 segment per face
+    garment: str | None = None
+
+
+def _fan(counts, indices):
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    tris, faces = [], []
+    for k in range(1, int(counts.max()) - 1):
+        sel = np.nonzero(counts > k + 1)[0]
+        tris.append(np.stack([indices[starts[sel]], indices[starts[sel] + k],
+                              indices[starts[sel] + k + 1]], axis=1))
+        faces.append(sel)
+    order = np.argsort(np.concatenate(faces), kind="stable")
+    return np.concatenate(tris)[order], np.concatenate(faces)[order]
+
+
+def _part(stage: Usd.Stage, path: str, garment: str | None) -> _Part:
+    prim = stage.GetPrimAtPath(path)
+    mesh = UsdGeom.Mesh(prim)
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
+    tris, tri_face = _fan(counts, indices)
+    region = np.asarray(prim.GetAttribute(L.BODY_REGION_PRIMVAR).Get(), dtype=np.int64)
+    return _Part(path, counts, indices, tris, tri_face, region, L.jos3_segments(region), garment)
+
+
+def _trimesh(points_by_part: list[np.ndarray], parts: list[_Part]) -> trimesh.Trimesh:
+    offset, faces = 0, []
+    for pts, part in zip(points_by_part, parts):
+        faces.append(part.triangles + offset)
+        offset += len(pts)
+    return trimesh.Trimesh(np.concatenate(points_by_part), np.concatenate(faces), process=False)
+
+
+def _self_radiance(parts: list[_Part], skin_k: float, air_k: float) -> np.ndarray:
+    """(2, triangles) leaving radiance of the person's own faces, for rays that the body or
+    a garment blocks (arm against torso, skin under fabric): a first guess, skin at ``skin_k``
+    and fabric half-way to the air, eps sigma T^4 / pi longwave, no shortwave. Without it a
+    blocked ray would bring nothing (the seed's 1_ij = 0) and hidden facets would freeze."""
+    lw = []
+    for p in parts:
+        if p.garment is None:
+            eps, t = longwave_emissivity("skin"), skin_k
+        else:
+            eps, t = longwave_emissivity(GARMENTS[p.garment].fabric), 0.5 * (skin_k + air_k)
+        lw.append(np.full(len(p.triangles), eps * R.STEFAN_BOLTZMANN * t ** 4 / np.pi))
+    lw = np.concatenate(lw)
+    return np.stack([np.zeros_like(lw), lw])
+
+
+def segment_clo(garment_parts: list[_Part]) -> np.ndarray:
+    """(17,) clothing insulation per JOS-3 segment from the garments covering it."""
+    clo = np.zeros(N_SEGMENTS)
+    for part in garment_parts:
+        covered = np.zeros(N_SEGMENTS, dtype=bool)
+        covered[np.unique(part.segment)] = True
+        clo[covered] += LOCAL_CLO.get(part.garment, 0.3)
+    return clo
+
+
+def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario, scene,
+                       model: str, settings: dict) -> dict[str, np.ndarray]:
+    """{mesh path: (frames, faces) temperature [K]} for the body and garments of one person.
+
+    ``stage``: the composed upstream stage (avatar and clothing layers); ``scene``:
+    :class:`humv_usd.thermal.radiation.SceneSurfaces` or None; ``model``: 'jos3' | 'twoNode'.
+    """
+    g, atm = scenario["general"], scenario["atmosphere"]
+    fps, frames = g["fps"], scenario.frame_count
+    air, rh, wind = atm["air_temperature_k"], atm["relative_humidity"], atm["wind_speed_m_s"]
+    body = _part(stage, f"{human_path}/Body", None)
+    garments = []
+    clothing = stage.GetPrimAtPath(f"{human_path}/Clothing")
+    if clothing:
+        for child in clothing.GetChildren():
+            name = child.GetAttribute(S.CLOTHING_GARMENT).Get()
+            garments.append(_part(stage, str(child.GetPath()), name))
+    parts = [body, *garments]
+    sky = ClearSky(air_temperature_k=air, relative_humidity=rh,
+                   ground_temperature_k=scenario["scene"]["ground"]["temperature_k"]
+                   if scenario["scene"] else None)
+    skin_eps = longwave_emissivity("skin")
+    skin_guess = scenario["thermal"]["skin_temperature_k"]
+    absorb_body = np.array([LIBRARY["skin"].solar_absorptivity, skin_eps])
+
+    # radiation at sample frames (every radiation_step_s), held in between
+    step = max(1, int(round(settings["radiation_step_s"] * fps)))
+    samples = list(range(0, frames, step))
+    mrt = np.zeros((len(samples), N_SEGMENTS))
+    q_garment = {p.path: np.zeros((len(samples), len(p.counts))) for p in garments}
+    for k, frame in enumerate(samples):
+        t = Usd.TimeCode(frame)
+        pts = [skinned_points(stage, p.path, t, space="world") for p in parts]
+        centre = pts[0].mean(axis=0)
+        env = R.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
+        bare = _trimesh(pts[:1], parts[:1])
+        q = R.absorbed_radiation(bare, env, absorb_body, scene=scene, method="fast",
+                                 rays=settings["radiation_rays"], seed=g["seed"] + frame,
+                                 mesh_radiance=_self_radiance([body], skin_guess, air))
+        areas = bare.area_faces
+        mrt[k] = R.mean_radiant_temperature(q, areas, body.segment[body.tri_face],
+                                            n_segments=N_SEGMENTS)
+        if garments:
+            clothed = _trimesh(pts, parts)
+            absorb = np.concatenate([
+                np.repeat(absorb_body[:, None], len(body.triangles), axis=1)] + [
+                np.repeat(np.array([LIBRARY[GARMENTS[p.garment].fabric].solar_absorptivity,
+                                    longwave_emissivity(GARMENTS[p.garment].fabric)])[:, None],
+                          len(p.triangles), axis=1) for p in garments], axis=1)
+            qc = R.absorbed_radiation(clothed, env, absorb, scene=scene, method="fast",
+                                      rays=settings["radiation_rays"], seed=g["seed"] + frame,
+                                      mesh_radiance=_self_radiance(parts, skin_guess, air)
+                                      ).sum(axis=0)
+            start = len(body.triangles)
+            for p in garments:
+                qt = qc[start:start + len(p.triangles)]
+                start += len(p.triangles)
+                # area-weighted mean over the triangles of each authored face
+                area = clothed.area_faces[start - len(p.triangles):start]
+                q_garment[p.path][k] = (np.bincount(p.tri_face, qt * area, len(p.counts))
+                                        / np.maximum(np.bincount(p.tri_face, area,
+                                                                 len(p.counts)), 1e-12))
+    nearest = np.minimum(np.arange(frames) // step, len(samples) - 1)
+    mrt_frames = np.nan_to_num(mrt[nearest], nan=air)
+
+    # physiology over the frames
+    root = stage.GetPrimAtPath(human_path)
+    rate_attr = root.GetAttribute(S.AVATAR_METABOLIC_RATE)
+    rate = np.array([rate_attr.Get(Usd.TimeCode(f)) or 100.0 for f in range(frames)])
+    times = np.arange(frames) / fps
+    result = simulate_physiology(
+        times, rate, air, mrt_frames, rh, max(wind, 0.1), segment_clo(garments),
+        model=MODEL_NAMES[model], height_m=human["stature_m"], mass_kg=human["mass_kg"],
+        age_years=human["age_yr"], sex=human["sex"], fitness=human["fitness"],
+        spin_up_s=settings["spin_up_s"])
+    skin = np.asarray(result.segment_skin_temperature_k)             # (frames, 17)
+    out = {body.path: skin[:, body.segment]}
+
+    h = convective_coefficient(wind, model=settings["convection_model"])
+    for p in garments:
+        fabric = LIBRARY[GARMENTS[p.garment].fabric]
+        gap_attr = stage.GetPrimAtPath(p.path).GetAttribute(S.AIR_GAP_PRIMVAR)
+        temps = np.zeros((frames, len(p.counts)))
+        for f in range(frames):
+            gap_v = np.asarray(gap_attr.Get(Usd.TimeCode(f)), dtype=float)
+            gap = (np.add.reduceat(gap_v[p.indices], np.concatenate([[0], np.cumsum(p.counts)[:-1]]))
+                   / p.counts)
+            balance = steady_state(skin[f, p.segment], air, q_garment[p.path][nearest[f]], h, gap,
+                                   fabric.thickness, fabric_conductivity=fabric.conductivity,
+                                   fabric_emissivity=longwave_emissivity(
+                                       GARMENTS[p.garment].fabric))
+            temps[f] = balance.outer_temperature_k
+        out[p.path] = temps
+    return out

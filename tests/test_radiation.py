@@ -1,0 +1,174 @@
+"""Radiance maps and per-facet absorbed radiation (humv_usd.thermal.radiation, .sky)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from numpy.testing import assert_allclose
+
+from humv_usd.physics.sky import STEFAN_BOLTZMANN
+from humv_usd.thermal import radiation as R
+from humv_usd.thermal.sky import ClearSky, UniformSky, angular_sky_emissivity
+
+
+def _facets(centers, normal=(0.0, 0.0, 1.0), size=1e-3):
+    """Tiny separate triangles at the given centres, all facing ``normal``."""
+    n = np.asarray(normal, dtype=float)
+    n /= np.linalg.norm(n)
+    t = np.cross([1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0], n)
+    t /= np.linalg.norm(t)
+    b = np.cross(n, t)
+    tri = size * np.array([t, -0.5 * t + 0.866 * b, -0.5 * t - 0.866 * b])
+    v = (np.asarray(centers, dtype=float)[:, None, :] + tri[None]).reshape(-1, 3)
+    return trimesh.Trimesh(v, np.arange(len(v)).reshape(-1, 3), process=False)
+
+
+def _quads(quads):
+    """Mesh of planar quads (4 corners each, counter-clockwise seen from the front)."""
+    v = np.asarray(quads, dtype=float).reshape(-1, 3)
+    f = np.concatenate([[[4 * i, 4 * i + 1, 4 * i + 2], [4 * i, 4 * i + 2, 4 * i + 3]]
+                        for i in range(len(quads))])
+    return trimesh.Trimesh(v, f, process=False)
+
+
+def test_latlong_solid_angles_sum_to_4pi():
+    d, omega = R.latlong_directions((45, 90))
+    assert_allclose(omega.sum(), 4 * np.pi, rtol=1e-12)
+    assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=1e-12)
+    assert_allclose(R.latlong_index(d, (45, 90)), np.arange(len(d)))
+
+
+def test_uniform_map_hemisphere_integral_360():
+    env = R.RadianceMap(np.full((2, 360, 360), 50.0))
+    rng = np.random.default_rng(1)
+    n = rng.normal(size=(40, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    e = env.irradiance(np.vstack([n, [[0, 0, 1], [1, 0, 0]]]), normalize=False)
+    assert_allclose(e, np.pi * 50.0, rtol=1e-3)
+
+
+@pytest.mark.parametrize("method", ["brute", "fast"])
+def test_uniform_full_sphere_closed_form(method):
+    mesh = trimesh.creation.icosphere(2)
+    env = R.radiance_map([0, 0, 0], UniformSky((10.0, 100.0)), None, 36)
+    q = R.absorbed_radiation(mesh, env, [0.6, 0.9], method=method, rays=16)
+    assert_allclose(q[0], 0.6 * np.pi * 10.0, rtol=1e-5)
+    assert_allclose(q[1], 0.9 * np.pi * 100.0, rtol=1e-5)
+
+
+@pytest.mark.parametrize("method,rtol", [("brute", 2e-3), ("fast", 5e-3)])
+def test_wall_fills_half_the_hemisphere(method, rtol):
+    # horizontal facets at the foot of a huge vertical wall x = 0.01 facing -x: F_wall = 1/2
+    big = 50.0
+    wall = _quads([[[0.01, -big, -big], [0.01, -big, big], [0.01, big, big], [0.01, big, -big]]])
+    assert wall.face_normals[0][0] < 0
+    l_sky, l_wall = 100.0, 160.0
+    sky = UniformSky((0.0, l_sky))
+    scene = R.SceneSurfaces(wall, np.array([[0.0, 0.0], [l_wall, l_wall]]))
+    env = R.radiance_map([0, 0, 0.5], sky, scene, 180)
+    ys = np.linspace(-0.5, 0.5, 64)
+    facets = _facets(np.c_[np.zeros_like(ys), ys, np.zeros_like(ys)])
+    q = R.absorbed_radiation(facets, env, [1.0, 0.9], scene=scene, method=method, rays=256)
+    expected = 0.9 * np.pi * (0.5 * l_wall + 0.5 * l_sky)
+    assert_allclose(q[1].mean(), expected, rtol=rtol)
+    assert_allclose(q[1], expected, rtol=10 * rtol if method == "fast" else rtol)
+
+
+def _well(half_width, height):
+    """Four walls of a square well, normals pointing into the well."""
+    a, h = half_width, height
+    m = _quads([[[x, -a, 0], [x, a, 0], [x, a, h], [x, -a, h]] for x in (a, -a)]
+               + [[[-a, y, 0], [a, y, 0], [a, y, h], [-a, y, h]] for y in (a, -a)])
+    outward = np.einsum("ij,ij->i", m.face_normals[:, :2], m.triangles_center[:, :2]) > 0
+    m.faces[outward] = m.faces[outward][:, ::-1]
+    return trimesh.Trimesh(m.vertices, m.faces, process=False)
+
+
+@pytest.mark.parametrize("method", ["brute", "fast"])
+def test_plate_at_bottom_of_deep_well(method):
+    a, h = 0.5, 2.0
+    walls = _well(a, h)
+    assert np.all(np.einsum("ij,ij->i", walls.face_normals[:, :2], walls.triangles_center[:, :2]) < 0)
+    scene = R.SceneSurfaces(walls, np.zeros((2, len(walls.faces))))  # cold black walls
+    l_sky = 120.0
+    env = R.radiance_map([0, 0, 5.0], UniformSky((0.0, l_sky)), None, 180)  # map sees open sky
+    xy = np.linspace(-4e-3, 4e-3, 8)
+    plate = _facets(np.c_[np.repeat(xy, 8), np.tile(xy, 8), np.zeros(64)])  # 64 facets, centre
+    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=1024).mean(axis=1)[:, None]
+    s = (a / h) / np.sqrt(1 + (a / h) ** 2)
+    f_open = 4.0 / np.pi * s * np.arctan(s)  # element under the centre of a square opening
+    assert_allclose(q[1, 0], np.pi * l_sky * f_open, rtol=1.5e-2)  # fast: MC, ~0.4 % std
+    assert q[1, 0] < 0.5 * np.pi * l_sky  # most of the sky is blocked
+    # sun straight down the well reaches the plate, low sun does not
+    env.sun_direction, env.sun_irradiance = np.array([0.0, 0.0, 1.0]), np.array([900.0, 0.0])
+    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=64)
+    assert_allclose(q[0], 0.7 * 900.0, rtol=1e-12)
+    env.sun_direction = np.array([np.sin(1.0), 0.0, np.cos(1.0)])
+    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=64)
+    assert np.all(q[0] == 0.0)
+
+
+@pytest.mark.parametrize("zenith_deg", [0.0, 30.0, 60.0, 85.0])
+@pytest.mark.parametrize("method", ["brute", "fast"])
+def test_sun_on_horizontal_plate(zenith_deg, method):
+    z = np.radians(zenith_deg)
+    sky = ClearSky(300.0, 0.5, sun_direction=(np.sin(z), 0.0, np.cos(z)), direct_normal_irradiance=1000.0)
+    env = R.radiance_map([0, 0, 0], sky, None, 24)
+    q = R.absorbed_radiation(_facets([[0, 0, 0]]), env, [0.8, 0.0], method=method)
+    assert_allclose(q[0, 0], 0.8 * 1000.0 * np.cos(z), rtol=1e-12)
+
+
+def test_sun_below_horizon_is_no_sun():
+    sky = ClearSky(300.0, 0.5, sun_direction=(1.0, 0.0, -0.1), direct_normal_irradiance=1000.0)
+    assert sky.sun is None
+    env = R.radiance_map([0, 0, 0], sky, None, 12)
+    assert env.sun_direction is None and np.all(env.sun_irradiance == 0)
+
+
+def test_fast_vs_brute_icosphere_mixed_environment():
+    _, scene, sky, alpha, _ = R.bench_scene(2000)
+    sphere = trimesh.creation.icosphere(3, radius=0.4)
+    sphere.apply_translation([0.0, 0.0, 0.6])
+    env = R.radiance_map([0.0, 0.0, 0.6], sky, scene, 90)
+    q_ref = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
+    q_fast = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="fast", rays=64)
+    err = R.relative_errors(q_fast, q_ref)
+    assert err["rms_rel_error"] < 0.01, err
+    assert np.ptp(q_ref.sum(0)) > 100.0  # the environment is really mixed (sun, wall, ground)
+
+
+def test_clear_sky_hemispherical_flux_matches_sky_emissivity():
+    for model in ("martin_berdahl", "unsworth_monteith", "isotropic"):
+        sky = ClearSky(290.0, 0.6, model=model, ground_temperature_k=290.0)
+        env = R.radiance_map([0, 0, 0], sky, None, 360)
+        e_down = env.irradiance(np.array([[0.0, 0.0, 1.0]]))[1, 0]
+        assert_allclose(e_down, sky.emissivity * STEFAN_BOLTZMANN * 290.0 ** 4, rtol=3e-3)
+    eps = angular_sky_emissivity(np.radians([0, 30, 60, 80, 89.9]), 0.75)
+    assert np.all(np.diff(eps) > 0) and eps[0] < 0.75 < eps[-1] <= 1.0
+    with pytest.raises(ValueError, match="invalid model"):
+        angular_sky_emissivity(0.1, 0.7, model="nope")
+
+
+def test_mean_radiant_temperature_of_a_blackbody_enclosure():
+    t = 305.0
+    mesh = trimesh.creation.icosphere(2)
+    env = R.radiance_map([0, 0, 0], UniformSky((0.0, STEFAN_BOLTZMANN * t ** 4 / np.pi)), None, 24)
+    q = R.absorbed_radiation(mesh, env, [0.7, 0.97], method="brute")
+    seg = np.arange(len(mesh.faces)) % 3
+    mrt = R.mean_radiant_temperature(q, mesh.area_faces, seg, emissivity=0.97, n_segments=4)
+    assert_allclose(mrt[:3], t, rtol=1e-6)
+    assert np.isnan(mrt[3])
+
+
+def test_invalid_method():
+    env = R.RadianceMap(np.zeros((2, 4, 8)))
+    with pytest.raises(ValueError, match="invalid method"):
+        R.absorbed_radiation(trimesh.creation.icosphere(0), env, [1, 1], method="sh")
+
+
+def test_bench_qrad_small():
+    rows = R.bench_qrad(facets=400, resolutions=(12, 24), fast_rays=(4, 16))
+    assert rows[0]["reference"] and rows[0]["resolution"] == 24
+    assert len(rows) == 1 + 1 + 2 * 2
+    for r in rows:
+        assert r["seconds"] >= 0 and np.isfinite(r["rms_rel_error"]) and r["facets"] > 300
