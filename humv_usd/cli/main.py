@@ -238,6 +238,74 @@ def bench_avatar(repeat: int):
                f"{statistics.median(times):.2f} s ({min(times):.2f}..{max(times):.2f})")
 
 
+@bench.command("thermal")
+@click.option("--facets", default=30000, show_default=True, type=click.IntRange(100, 10**7),
+              help="Facets of the q_rad bench mesh.")
+@click.option("--resolutions", default="45,90,180", show_default=True,
+              help="Radiance-map sizes n (n x n); the largest is the brute-force reference.")
+@click.option("--rays", default="16,64,256", show_default=True,
+              help="Rays per facet of the fast method.")
+@click.option("--png", "png", default="thermal_bench.png", show_default=True,
+              type=click.Path(dir_okay=False, path_type=Path), help="Error-vs-run-time plot.")
+@reports_errors
+def bench_thermal(facets: int, resolutions: str, rays: str, png: Path):
+    """q_rad error against run time (methods x map resolutions), the garment balance's
+    extreme-grid counts, and the run time of 1 h of physiology (two-node, JOS-3)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from humv_usd.fileio import atomic_path
+    from humv_usd.physics.garment import extreme_grid_counts
+    from humv_usd.thermal.physiology import simulate_physiology
+    from humv_usd.thermal.radiation import bench_qrad
+
+    def ints(text, name):
+        try:
+            return tuple(int(x) for x in text.split(",") if x.strip())
+        except ValueError:
+            raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
+
+    rows = bench_qrad(facets=facets, resolutions=ints(resolutions, "resolutions"),
+                      fast_rays=ints(rays, "rays"))
+    click.echo(f"q_rad on {rows[0]['facets']} facets vs brute force at "
+               f"{rows[0]['resolution']}x{rows[0]['resolution']}:")
+    click.echo("  method  map  rays   seconds  rms rel. error  max rel. error")
+    for r in rows:
+        click.echo(f"  {r['method']:<6} {r['resolution']:>4} {str(r['rays'] or '-'):>5} "
+                   f"{r['seconds']:9.3f}  {r['rms_rel_error']:14.2e}  {r['max_rel_error']:14.2e}")
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for method, marker in (("brute", "s"), ("fast", "o")):
+        pts = [(r["seconds"], r["rms_rel_error"]) for r in rows
+               if r["method"] == method and not r.get("reference")]
+        if pts:
+            ax.loglog(*zip(*pts), marker, label=method)
+    ax.set_xlabel("q_rad run time [s]")
+    ax.set_ylabel("RMS relative error vs brute reference")
+    ax.set_title(f"absorbed radiation, {rows[0]['facets']} facets")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
+    plt.close(fig)
+    click.echo(f"  plot: {png}")
+
+    counts = extreme_grid_counts()
+    click.echo("garment balance extreme grid: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+    times = np.arange(0, 3601, 60.0)
+    for model in ("two_node", "jos3"):
+        simulate_physiology(times[:3], 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model,
+                            spin_up_s=0.0)   # compile / warm up
+        runs = []
+        for _ in range(3):
+            t = time.perf_counter()
+            simulate_physiology(times, 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model,
+                                spin_up_s=0.0)
+            runs.append(time.perf_counter() - t)
+        click.echo(f"1 h of {model} physiology at 60 s steps: median {statistics.median(runs):.3f} s")
+
+
 def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
     main.add_command(avatar)
