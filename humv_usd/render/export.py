@@ -36,6 +36,7 @@ import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdShade, UsdSkel
 
 from humv_usd.errors import InputError, bad_value
+from humv_usd.usd.mesh import fan_triangulate
 from humv_usd.usd import schemas as _s
 
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
@@ -558,31 +559,3 @@ class StageExport:
         for sensor in sensors:
             state.cameras[sensor.name] = self.camera_pose(sensor, time)
         return state
-
-
-def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Fan-triangulate polygons.
-
-    Parameters
-    ----------
-    counts : (F,) int
-        Vertices per face (>= 3).
-    indices : (sum(counts),) int
-        Face-vertex indices.
-
-    Returns
-    -------
-    triangles : (T, 3) int
-        Vertex indices ``(v0, v_k, v_k+1)`` per face, keeping the face's winding.
-    triangle_face : (T,) int
-        The face each triangle comes from.
-    """
-    counts = np.asarray(counts, dtype=np.int64)
-    indices = np.asarray(indices, dtype=np.int64)
-    ntri = counts - 2
-    starts = np.cumsum(counts) - counts
-    triangle_face = np.repeat(np.arange(counts.size), ntri)
-    k = np.arange(triangle_face.size) - np.repeat(np.cumsum(ntri) - ntri, ntri)
-    base = starts[triangle_face]
-    triangles = np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1)
-    return triangles, triangle_face

@@ -35,6 +35,7 @@ from humv_usd.thermal import radiation as R
 from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
 from humv_usd.thermal.sky import ClearSky
 from humv_usd.usd import schemas as S
+from humv_usd.usd.mesh import fan_triangulate
 
 #: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
 #: values for single layers (ISO 9920:2007 Annex A local insulation of light shirts/trousers
@@ -65,24 +66,12 @@ class _Part:
     garment: str | None = None
 
 
-def _fan(counts, indices):
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    tris, faces = [], []
-    for k in range(1, int(counts.max()) - 1):
-        sel = np.nonzero(counts > k + 1)[0]
-        tris.append(np.stack([indices[starts[sel]], indices[starts[sel] + k],
-                              indices[starts[sel] + k + 1]], axis=1))
-        faces.append(sel)
-    order = np.argsort(np.concatenate(faces), kind="stable")
-    return np.concatenate(tris)[order], np.concatenate(faces)[order]
-
-
 def _part(stage: Usd.Stage, path: str, garment: str | None) -> _Part:
     prim = stage.GetPrimAtPath(path)
     mesh = UsdGeom.Mesh(prim)
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
-    tris, tri_face = _fan(counts, indices)
+    tris, tri_face = fan_triangulate(counts, indices)
     region = np.asarray(prim.GetAttribute(L.BODY_REGION_PRIMVAR).Get(), dtype=np.int64)
     return _Part(path, counts, indices, tris, tri_face, region, L.jos3_segments(region), garment)
 

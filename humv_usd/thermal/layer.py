@@ -84,7 +84,8 @@ def _scene_surfaces(upstream: Usd.Stage, temps: dict, air: float):
     import trimesh
 
     from humv_usd.thermal import radiation as R
-    from humv_usd.thermal.human import _fan, longwave_emissivity
+    from humv_usd.thermal.human import longwave_emissivity
+    from humv_usd.usd.mesh import fan_triangulate
     from humv_usd.thermal.sky import ClearSky
     points, faces, t_face, eps_face, offset = [], [], [], [], 0
     for prim in upstream.Traverse():
@@ -95,7 +96,7 @@ def _scene_surfaces(upstream: Usd.Stage, temps: dict, air: float):
         xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(
             Usd.TimeCode.Default()))
         pts = pts @ xf[:3, :3] + xf[3, :3]
-        tris, _ = _fan(np.asarray(mesh.GetFaceVertexCountsAttr().Get()),
+        tris, _ = fan_triangulate(np.asarray(mesh.GetFaceVertexCountsAttr().Get()),
                        np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
         name = material.GetPrim().GetName() if material else ""

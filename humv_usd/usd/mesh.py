@@ -40,29 +40,42 @@ def label(prim: Usd.Prim, instance_id: int, label_class: str) -> None:
 
 def triangle_areas(points: np.ndarray, face_counts, face_indices) -> np.ndarray:
     """Area of each polygon [m^2] (fan triangulation; exact for planar convex faces)."""
-    counts = np.asarray(face_counts)
-    idx = np.asarray(face_indices)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    areas = np.zeros(len(counts))
-    for k in range(1, counts.max() - 1):
-        sel = counts > k + 1
-        a = points[idx[starts[sel]]]
-        b = points[idx[starts[sel] + k]]
-        c = points[idx[starts[sel] + k + 1]]
-        areas[sel] += 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    return areas
+    tris, face = fan_triangulate(face_counts, face_indices)
+    a, b, c = (points[tris[:, k]] for k in range(3))
+    tri_area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    return np.bincount(face, weights=tri_area, minlength=len(face_counts))
 
 
 def signed_volume(points: np.ndarray, face_counts, face_indices) -> float:
     """Signed enclosed volume [m^3] (divergence theorem); > 0 for outward CCW faces."""
-    counts = np.asarray(face_counts)
-    idx = np.asarray(face_indices)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    vol = 0.0
-    for k in range(1, counts.max() - 1):
-        sel = counts > k + 1
-        a = points[idx[starts[sel]]]
-        b = points[idx[starts[sel] + k]]
-        c = points[idx[starts[sel] + k + 1]]
-        vol += float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
-    return vol
+    tris, _ = fan_triangulate(face_counts, face_indices)
+    a, b, c = (points[tris[:, k]] for k in range(3))
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
+
+
+def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fan-triangulate polygons.
+
+    Parameters
+    ----------
+    counts : (F,) int
+        Vertices per face (>= 3).
+    indices : (sum(counts),) int
+        Face-vertex indices.
+
+    Returns
+    -------
+    triangles : (T, 3) int
+        Vertex indices ``(v0, v_k, v_k+1)`` per face, keeping the face's winding.
+    triangle_face : (T,) int
+        The face each triangle comes from.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    ntri = counts - 2
+    starts = np.cumsum(counts) - counts
+    triangle_face = np.repeat(np.arange(counts.size), ntri)
+    k = np.arange(triangle_face.size) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+    base = starts[triangle_face]
+    triangles = np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1)
+    return triangles, triangle_face
