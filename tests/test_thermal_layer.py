@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import copy
+import json
 
 import numpy as np
 import pytest
-from pxr import Usd, UsdGeom
+from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.avatar import labels as L
 from humv_usd.pipeline.compose import compose
@@ -52,6 +53,13 @@ def test_jos3_skin_and_garments(jos3_stage):
         assert np.all((t > air - 10.0) & (t < 306.0))
     shirt = temperatures(stage, "/World/Humans/p1/Clothing/tshirt_white").mean()
     assert shirt < by["Chest"] - 3.0
+    # the layer carries its error estimates; compose.json the run times
+    report = Sdf.Layer.FindOrOpen(str(out / "layers" / "thermal.usda")).customLayerData
+    diag = report["humv:thermal"]["p1"]
+    assert 0.0 < diag["qradRmsRelErrorEstimate"] < 0.1
+    assert diag["garmentMaxResidual_W_m2"] <= 1e-6
+    timings = json.loads((out / "compose.json").read_text())
+    assert {x["name"] for x in timings["layers"]} >= {"thermal", "clothing_p1"}
 
 
 def test_two_node_uniform_skin(humvvex_raw, tmp_path):

@@ -168,3 +168,37 @@ FABRICS: dict[str, Material] = {m.name: m for m in (
              label_class="person"),
 )}
 LIBRARY.update(FABRICS)
+
+# ---------------------------------------------------------------------------- worn equipment
+# Not plain fabrics (thicker, stiffer), so kept out of FABRICS; used by the clothing catalogue's
+# ``vest`` and ``rifle``.
+EQUIPMENT: dict[str, Material] = {m.name: m for m in (
+    Material("kevlar_vest",
+             reflectance=(0.05, 0.06, 0.07, 0.35, 0.30, 0.10, 0.18, 0.13, 0.13, 0.13),
+             conductivity=0.045, density=650.0, specific_heat=1420.0, thickness=0.008,
+             solar_absorptivity=0.85,
+             source=f"soft body armour (NIJ Standard-0101.06 Level IIIA class) in a dark nylon "
+                    f"carrier, modelled as one 8 mm slab: aramid fibre specific heat 1.42 J/(g K) "
+                    f"and conductivity 0.04 W/(m K): DuPont Kevlar Aramid Fiber Technical Guide "
+                    f"(H-77848); panel areal density ~5.2 kg/m2 over ~8 mm (about 25 plies of "
+                    f"~200 g/m2 aramid plus the carrier) is a representative value of commercial "
+                    f"Level IIIA panels, not a measurement (density = areal mass / thickness); "
+                    f"the outer surface is the nylon carrier: {_LWIR_FABRICS}; visible/NIR of a "
+                    f"dark nylon as the 'nylon' entry, {_KNITS}; {_K} (the fibre+air value); "
+                    f"{_MWIR}",
+             label_class="person"),
+    Material("polymer_black",
+             reflectance=(0.05, 0.05, 0.05, 0.06, 0.06, 0.05, 0.06, 0.06, 0.06, 0.07),
+             conductivity=0.30, density=1360.0, specific_heat=1500.0, thickness=0.003,
+             solar_absorptivity=0.94,
+             source="black glass-fibre-reinforced polyamide (PA6-GF30) of rifle furniture, "
+                    "standing in for the whole weapon (receiver and barrel are black-finished "
+                    "metal; one material keeps the prop simple): density 1.36 g/cm3 and "
+                    "conductivity ~0.3 W/(m K) from PA6-GF30 data sheets (e.g. BASF Ultramid "
+                    "B3WG6); specific heat ~1.5 J/(g K) (PA6 ~1.7, glass 0.8, mass mean, "
+                    "estimate); LWIR emissivity 0.93-0.95 of black plastics from thermographic "
+                    "emissivity tables (e.g. Optris / FLIR: plastic, black 0.95); carbon-black "
+                    "pigment keeps the visible and NIR reflectance at ~5 % (estimate); 3 mm wall",
+             label_class="prop"),
+)}
+LIBRARY.update(EQUIPMENT)

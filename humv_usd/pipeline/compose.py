@@ -6,6 +6,7 @@ Parts the scenario lacks get no layer; the report says what was skipped and why.
 """
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +28,7 @@ from humv_usd.usd.layers import layer_text, set_layer_metadata
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
+REPORT_NAME = "compose.json"
 # file-name patterns compose owns inside OUT/layers (stale ones are removed)
 _OWNED = ("environment.usda", "atmosphere.usda", "materials.usda", "scene.usda",
           "sensors.usda", "thermal.usda", "avatar_*.usda", "clothing_*.usda")
@@ -150,4 +152,11 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
     wrote_root = write_text_atomic(out / ROOT_NAME, root_text)
     report.layers.append(("stage", wrote_root, 0.0))
     report.seconds = time.perf_counter() - t0
+    # run times (and what ran) for pipelines; error estimates live in the layers themselves
+    write_text_atomic(out / REPORT_NAME, json.dumps({
+        "humv_usd": humv_usd.__version__, "scenario_digest": scenario.digest(),
+        "seconds_total": round(report.seconds, 4),
+        "layers": [{"name": n, "written": w, "seconds": round(t, 4)} for n, w, t in report.layers],
+        "skipped": [{"part": p, "reason": r} for p, r in report.skipped],
+        "removed": report.removed}, indent=2) + "\n")
     return report

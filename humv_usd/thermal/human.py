@@ -111,8 +111,10 @@ def segment_clo(garment_parts: list[_Part]) -> np.ndarray:
 
 
 def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario, scene,
-                       model: str, settings: dict) -> dict[str, np.ndarray]:
-    """{mesh path: (frames, faces) temperature [K]} for the body and garments of one person.
+                       model: str, settings: dict) -> tuple[dict[str, np.ndarray], dict]:
+    """({mesh path: (frames, faces) temperature [K]}, diagnostics) for the body and garments of
+    one person; diagnostics: the fast q_rad method's relative RMS error estimate (two seeds) and
+    the garment balance's largest residual [W m^-2].
 
     ``stage``: the composed upstream stage (avatar and clothing layers); ``scene``:
     :class:`humv_usd.thermal.radiation.SceneSurfaces` or None; ``model``: 'jos3' | 'twoNode'.
@@ -131,6 +133,7 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
     sky = ClearSky(air_temperature_k=air, relative_humidity=rh,
                    ground_temperature_k=scenario["scene"]["ground"]["temperature_k"]
                    if scenario["scene"] else None)
+    diagnostics: dict = {}
     skin_eps = longwave_emissivity("skin")
     skin_guess = scenario["thermal"]["skin_temperature_k"]
     absorb_body = np.array([LIBRARY["skin"].solar_absorptivity, skin_eps])
@@ -150,6 +153,16 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
                                  rays=settings["radiation_rays"], seed=g["seed"] + frame,
                                  mesh_radiance=_self_radiance([body], skin_guess, air))
         areas = bare.area_faces
+        if k == 0:
+            # Monte Carlo error of the fast method: two independent seeds differ by sqrt(2) x
+            # the error of one; relative to the facet totals
+            q2 = R.absorbed_radiation(bare, env, absorb_body, scene=scene, method="fast",
+                                      rays=settings["radiation_rays"],
+                                      seed=g["seed"] + frame + 7919,
+                                      mesh_radiance=_self_radiance([body], skin_guess, air))
+            tot1, tot2 = q.sum(axis=0), q2.sum(axis=0)
+            diagnostics["qradRmsRelErrorEstimate"] = float(
+                np.sqrt(np.mean(((tot1 - tot2) / np.maximum(np.abs(tot1), 1e-9)) ** 2) / 2.0))
         mrt[k] = R.mean_radiant_temperature(q, areas, body.segment[body.tri_face],
                                             n_segments=N_SEGMENTS)
         if garments:
@@ -202,5 +215,8 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
                                    fabric_emissivity=longwave_emissivity(
                                        GARMENTS[p.garment].fabric))
             temps[f] = balance.outer_temperature_k
+            diagnostics["garmentMaxResidual_W_m2"] = max(
+                diagnostics.get("garmentMaxResidual_W_m2", 0.0),
+                float(np.abs(balance.residual).max()))
         out[p.path] = temps
-    return out
+    return out, diagnostics

@@ -50,9 +50,17 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     solved: dict[str, np.ndarray] = {}
     if model != "fixed" and scenario["human"]:
         scene = _scene_surfaces(upstream, temps, air)
+        th = scenario["thermal"]
+        report = {"model": model, "qradMethod": "fast", "qradRays": th["radiation_rays"],
+                  "mapResolution": th["radiation_resolution"]}
         for h in scenario["human"]:
-            solved.update(human_temperatures(upstream, h, str(human_path(h["id"])), scenario,
-                                             scene, model, scenario["thermal"]))
+            temps_h, diag = human_temperatures(upstream, h, str(human_path(h["id"])), scenario,
+                                               scene, model, th)
+            solved.update(temps_h)
+            report[h["id"]] = {k: round(v, 9) for k, v in diag.items()}
+        # error estimates (deterministic for fixed seeds) travel with the layer; run times go
+        # to compose's report, so an unchanged scenario still rewrites nothing
+        stage.GetRootLayer().customLayerData = {"humv:thermal": report}
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
