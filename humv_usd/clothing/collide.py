@@ -28,6 +28,18 @@ garment outside the skin everywhere. Here, per frame and garment (inner layers f
    instead, both capped at :data:`MAX_AIR_GAP`. Never below the closest-point distance, so
    never below the minimum gap after the fix. For an outer garment it spans the layers under
    it (it is the distance to the skin, as the schema defines it).
+Props (:class:`humv_usd.clothing.garments.Prop`, the rifle) are rigid: they are posed and
+checked (counts, before = after) but never moved, and they take no part in the layering (no
+garment has to stay outside a prop). Garments on higher layers treat the ones under them as
+part of the body (e.g. a T-shirt over the ``vest``): they keep the inner garment's distance +
+its thickness + the minimum gap where both are. A ``body_like`` inner garment (the ``vest``)
+is in addition a surface of its own: after the body pass, outer vertices over its posed mesh
+(closest point inside a face or across a gentle edge: the offset within
+:data:`SHELL_COS` of the face normal, closer than :data:`LAYER_RADIUS`) that are less than its
+thickness + the outer minimum gap outside it are pushed out along its normal
+(:func:`push_off_shell`); the rest of the fix (skin re-check) follows. Vertices still inside it
+count as ``layered_after``.
+
 5. Rest points for UsdSkel: the fixed posed points mapped back through the vertex's blended
    skinning transform (``rest' = rest + A^-1 (fixed - posed)``, exact for linear blend
    skinning), so UsdSkel skinning of the time-sampled rest points reproduces the fixed shape.
@@ -58,6 +70,9 @@ PUSH_MARGIN = 2e-5
 MAX_AIR_GAP = 0.2
 #: Inner/outer garment vertices correspond when their body anchors are this close [m].
 LAYER_RADIUS = 0.025
+#: An outer vertex is "over" a body-like garment when its offset from the closest point makes
+#: an angle below acos(SHELL_COS) with that face's normal (not beside the garment's border).
+SHELL_COS = 0.9
 
 
 @dataclass
@@ -117,6 +132,8 @@ def dress(rig: BodyRig, names) -> Outfit:
     for o, outer in enumerate(fitted):
         pairs = []
         for i in range(o):
+            if outer.garment.is_prop or fitted[i].garment.is_prop:
+                continue
             dist, near = cKDTree(anchors[i]).query(anchors[o], distance_upper_bound=LAYER_RADIUS)
             ok = np.isfinite(dist)
             if ok.any():
@@ -132,6 +149,44 @@ def blend_transforms(indices: np.ndarray, weights: np.ndarray, skin: np.ndarray)
 
 def apply(blended: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.einsum("vij,vj->vi", blended[:, :3, :3], points) + blended[:, :3, 3]
+
+
+def measure(surface: Surface, points: np.ndarray, minimum_gap: float
+            ) -> tuple[np.ndarray, FixCounts]:
+    """Signed distances and counts of points that are not moved (props): after = before."""
+    d = surface.closest(points).signed
+    counts = (int(np.sum(d < 0)), int(np.sum((d >= 0) & (d < minimum_gap))), 0)
+    return d, FixCounts(*counts, *counts, float(d.min()) if len(d) else 0.0)
+
+
+def push_off_shell(shell: Surface, flat_normals: np.ndarray, points: np.ndarray,
+                   clearance: float) -> tuple[np.ndarray, int, int]:
+    """Push ``points`` over ``shell`` (see module doc) to ``clearance`` outside it.
+    Returns (points, violations before, violations after)."""
+    out = points.copy()
+
+    def violating(p):
+        near = shell.closest(p)
+        off = p - near.point
+        dist = np.linalg.norm(off, axis=1)
+        along = np.abs(np.einsum("ij,ij->i", off, flat_normals[near.triangle]))
+        over = (dist < LAYER_RADIUS) & ((along >= SHELL_COS * dist) | (dist < 1e-9))
+        return np.flatnonzero(over & (near.signed < clearance)), near
+
+    bad, near = violating(out)
+    before = len(bad)
+    for _ in range(2 * PUSH_ITERATIONS):     # by the deficit: converges in concave spots
+        if not len(bad):
+            break
+        out[bad] += near.normal[bad] * (clearance - near.signed[bad] + PUSH_MARGIN)[:, None]
+        bad, near = violating(out)
+    return out, before, len(bad)
+
+
+def _flat_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    n = np.cross(points[triangles[:, 1]] - points[triangles[:, 0]],
+                 points[triangles[:, 2]] - points[triangles[:, 0]])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-15)
 
 
 def push_out(surface: Surface, points: np.ndarray, required: np.ndarray, minimum_gap: float
@@ -226,6 +281,7 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None) -> Simulation:
         surface = Surface(body, rig.triangles)
         caster = RayCaster(body, rig.triangles)
         distances: list[np.ndarray] = []
+        shells: list[tuple[Surface, np.ndarray, float]] = []     # posed body-like garments
         for k, (g, anim) in enumerate(zip(outfit.garments, anims)):
             gap = g.garment.minimum_gap
             blended = blend_transforms(g.joint_indices, g.joint_weights, skin[f])
@@ -236,7 +292,22 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None) -> Simulation:
                 need = distances[i][inner_ids] + inner.thickness + gap
                 np.maximum.at(required, outer_ids, need)
             t1 = time.perf_counter()
-            fixed, dist, counts = push_out(surface, posed, required, gap)
+            if g.garment.is_prop:
+                dist, counts = measure(surface, posed, gap)
+                fixed = posed
+            else:
+                fixed, dist, counts = push_out(surface, posed, required, gap)
+                for shell, flat, thickness in shells:
+                    fixed, was, left = push_off_shell(shell, flat, fixed, thickness + gap)
+                    counts.layered_before += was
+                    counts.layered_after += left
+                if shells:                  # the shell pass moved some: skin re-check
+                    fixed, dist, again = push_out(surface, fixed, required, gap)
+                    counts.inside_after, counts.close_after = again.inside_after, again.close_after
+                    counts.min_distance_m = again.min_distance_m
+                if g.garment.body_like:
+                    shells.append((Surface(fixed, g.triangles),
+                                   _flat_normals(fixed, g.triangles), g.garment.thickness))
             fix_s[f] += time.perf_counter() - t1
             distances.append(dist)
             anim.posed[f] = fixed

@@ -21,6 +21,13 @@ That is a rigid-skinning stand-in for cloth simulation: the skirt swings with th
 thighs and never flows, folds or lags; where a leg would pierce it, the per-frame collision fix
 (:mod:`humv_usd.clothing.collide`) pushes it out.
 
+Props (the rifle). A :class:`~humv_usd.clothing.garments.Prop` is built from its boxes and
+8-sided cylinders (closed, outward quads and octagon caps) and placed in the rest pose:
+``between_hands``: length axis along +X (muzzle to the person's left), centred between the
+two hand joints in X and at their mean height, and in front of the body: its back face
+:data:`PROP_CLEARANCE` in front of the most forward skin point within its footprint (+/- 3 cm).
+Every vertex is bound 100 % to the prop's joint, so it moves rigidly with that joint.
+
 Labels. Every garment face gets the body region (``primvars:humv:label:bodyRegion`` ids) of
 the body face nearest to it, so per-region statistics and JOS-3 segments work on garments too.
 """
@@ -34,10 +41,13 @@ from humv_usd.avatar import labels as L
 from humv_usd.avatar.body import Body, MeshPart
 from humv_usd.avatar.skeleton import Skeleton, skeleton_for, skin_weights
 from humv_usd.clothing.garments import (SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part,
-                                        garment)
+                                        Prop, Shape, garment)
 from humv_usd.clothing.geometry import Surface, triangle_face_of, triangulate, vertex_normals
 
 INFLUENCES = 4
+#: Rest-pose distance [m] from the most forward skin point to the back of a prop held in front.
+PROP_CLEARANCE = 0.05
+CYLINDER_SIDES = 8
 #: Laplacian smoothing steps of a loose part's skin weights.
 LOOSE_SMOOTHING = 40
 _PELVIC = ("Hips", "LowerBack", "LHipJoint", "RHipJoint", "LeftUpLeg", "RightUpLeg")
@@ -239,8 +249,10 @@ def _fit_part(rig: BodyRig, part: Part):
 
 
 def fit_garment(rig: BodyRig, name: str) -> FittedGarment:
-    """Fit the catalogue garment ``name`` to the body of ``rig``."""
+    """Fit the catalogue garment ``name`` to the body of ``rig`` (props: :func:`fit_prop`)."""
     g = garment(name)
+    if g.is_prop:
+        return fit_prop(rig, g)
     pts, faces, idx, wts, regions, part_of = [], [], [], [], [], []
     offset = 0
     for k, part in enumerate(g.parts):
@@ -260,3 +272,72 @@ def fit_garment(rig: BodyRig, name: str) -> FittedGarment:
     return FittedGarment(g, np.concatenate(pts), counts, flat, triangulate(counts, flat),
                          np.concatenate(idx), np.concatenate(wts),
                          np.concatenate(regions).astype(np.int32), np.concatenate(part_of))
+
+
+# ---------------------------------------------------------------------------- props
+def _shape_mesh(shape: Shape) -> tuple[np.ndarray, list[list[int]]]:
+    """(points, faces as vertex lists, outward CCW) of a box or an x-axis cylinder."""
+    c = np.asarray(shape.centre, dtype=float)
+    if shape.radius <= 0:
+        h = np.asarray(shape.size, dtype=float) / 2
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+        pts = c + corners * h                      # index = 4 * (x>0) + 2 * (y>0) + (z>0)
+        faces = [[0, 1, 3, 2], [4, 6, 7, 5],       # -x, +x
+                 [0, 4, 5, 1], [2, 3, 7, 6],       # -y, +y
+                 [0, 2, 6, 4], [1, 5, 7, 3]]       # -z, +z
+        return pts, faces
+    n = CYLINDER_SIDES
+    a = 2 * np.pi * (np.arange(n) + 0.5) / n
+    half = shape.size[0] / 2
+    ring = np.stack([np.zeros(n), shape.radius * np.cos(a), shape.radius * np.sin(a)], 1)
+    pts = np.concatenate([c + ring - [half, 0, 0], c + ring + [half, 0, 0]])
+    faces = [[k, (k + 1) % n, n + (k + 1) % n, n + k] for k in range(n)]
+    faces.append(list(range(n - 1, -1, -1)))       # -x cap
+    faces.append(list(range(n, 2 * n)))            # +x cap
+    return pts, faces
+
+
+def prop_mesh(prop: Prop) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points, face counts, face indices) of a prop in its own frame."""
+    pts, counts, indices, offset = [], [], [], 0
+    for shape in prop.shapes:
+        p, faces = _shape_mesh(shape)
+        pts.append(p)
+        counts.extend(len(f) for f in faces)
+        indices.extend(offset + k for f in faces for k in f)
+        offset += len(p)
+    return np.concatenate(pts), np.array(counts), np.array(indices)
+
+
+def place_prop(rig: BodyRig, prop: Prop, points: np.ndarray) -> np.ndarray:
+    """The prop's points (own frame) placed on the body in the rest pose (see module doc)."""
+    if prop.placement != "between_hands":
+        raise ValueError(f"unknown prop placement {prop.placement!r}")
+    sk = rig.skeleton
+    hands = sk.rest_positions[[sk.index("LeftHand"), sk.index("RightHand")]]
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    out = points - [(lo[0] + hi[0]) / 2, 0.0, 0.0]
+    out = out + [hands[:, 0].mean(), 0.0, hands[:, 2].mean()]
+    lo, hi = out.min(axis=0), out.max(axis=0)
+    body = rig.mesh.points
+    foot = ((body[:, 0] >= lo[0] - 0.03) & (body[:, 0] <= hi[0] + 0.03)
+            & (body[:, 2] >= lo[2] - 0.03) & (body[:, 2] <= hi[2] + 0.03))
+    front = body[foot, 1].min() if foot.any() else body[:, 1].min()
+    out[:, 1] += (front - PROP_CLEARANCE) - hi[1]  # the body faces -Y: back face = max y
+    return out
+
+
+def fit_prop(rig: BodyRig, g: Garment) -> FittedGarment:
+    """A rigid prop on the body of ``rig``: placed, bound 100 % to its joint."""
+    local, counts, indices = prop_mesh(g.prop)
+    points = place_prop(rig, g.prop, local)
+    n = len(points)
+    idx = np.zeros((n, INFLUENCES), dtype=np.int32)
+    idx[:, 0] = rig.skeleton.index(g.prop.joint)
+    w = np.zeros((n, INFLUENCES), dtype=np.float32)
+    w[:, 0] = 1.0
+    centres = _face_centres(points, counts, indices)
+    near = rig.surface.closest(centres)
+    regions = rig.face_regions[rig.triangle_face[near.triangle]].astype(np.int32)
+    return FittedGarment(g, points, counts, indices, triangulate(counts, indices), idx, w,
+                         regions, np.zeros(n, dtype=int))

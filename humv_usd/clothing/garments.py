@@ -17,6 +17,11 @@ e.g. a cap lower at the back than at the forehead). Region names without a side
 (``upperArm``, ``lowerLeg``...) and bone names without a side (``Arm``, ``UpLeg``...) apply to
 both sides.
 
+Props (:class:`Prop`, e.g. the ``rifle``) are catalogue entries too (so ``human.clothing``
+selects them) but rigid: a few boxes and cylinders bound 100 % to one joint, placed in the rest
+pose by :mod:`humv_usd.clothing.fit`, never pushed by the collision fix and never a layer for
+another garment; the clothing layer writes them under ``/World/Humans/<id>/Props``.
+
 Layers (``layer``, inner first) decide which garment goes over which where they overlap: the
 outer one keeps at least the inner one's air gap + thickness + the minimum gap there
 (:mod:`humv_usd.clothing.collide`). Fabrics are names in
@@ -65,6 +70,25 @@ class Part:
 
 
 @dataclass(frozen=True)
+class Shape:
+    """A box (``radius`` 0: ``size`` = x, y, z edge lengths) or a cylinder along x (``size``
+    = (length, -, -), ``radius`` > 0) centred at ``centre``, in the prop's frame [m]."""
+    name: str
+    centre: tuple[float, float, float]
+    size: tuple[float, float, float]
+    radius: float = 0.0
+
+
+@dataclass(frozen=True)
+class Prop:
+    """A rigid prop: ``shapes`` in its own frame (x: length axis, z: up), bound 100 % to
+    ``joint``; ``placement`` names the rule :mod:`humv_usd.clothing.fit` places it by."""
+    shapes: tuple[Shape, ...]
+    joint: str
+    placement: str
+
+
+@dataclass(frozen=True)
 class Garment:
     name: str
     description: str
@@ -72,11 +96,19 @@ class Garment:
     fabric: str              # material name in the library
     layer: int               # 0 = next to the skin; higher goes over lower
     minimum_gap: float = MINIMUM_GAP
+    prop: Prop | None = None  # a rigid prop instead of fitted parts
+    #: part of the body for the garments over it: they are also pushed out of its posed
+    #: surface (thickness + their minimum gap), not only by the layer correspondence
+    body_like: bool = False
 
     @property
     def ease(self) -> float:
-        """The design ease [m] (of the first part; HumvClothingAPI ``ease``)."""
-        return self.parts[0].ease
+        """The design ease [m] (of the first part; HumvClothingAPI ``ease``); 0 for props."""
+        return self.parts[0].ease if self.parts else 0.0
+
+    @property
+    def is_prop(self) -> bool:
+        return self.prop is not None
 
     @property
     def thickness(self) -> float:
@@ -96,7 +128,21 @@ def _arms(t_max_upper: float | None, t_max_lower: float | None = None) -> tuple[
 _TSHIRT_HEM = -0.4
 _JACKET_HEM = -0.9   # the crotch is at -1.15 (men) .. -1.45 (women)
 
+_VEST_HEM = 0.5      # carrier ends half way between the hip joints and the waist
 _TOP = TORSO
+#: Layer of props: after every garment (they are never under one).
+PROP_LAYER = 9
+
+#: An assault-rifle-sized prop (M4-like proportions), 0.90 m from butt to muzzle; x towards
+#: the muzzle, origin at the pistol grip's top.
+RIFLE = Prop((
+    Shape("stock", (-0.16, 0.0, -0.015), (0.28, 0.040, 0.10)),
+    Shape("receiver", (0.10, 0.0, 0.010), (0.24, 0.050, 0.08)),
+    Shape("grip", (0.005, 0.0, -0.080), (0.040, 0.030, 0.10)),
+    Shape("magazine", (0.100, 0.0, -0.125), (0.070, 0.030, 0.19)),
+    Shape("handguard", (0.32, 0.0, 0.015), (0.20, 0.0, 0.0), radius=0.024),
+    Shape("barrel", (0.51, 0.0, 0.015), (0.18, 0.0, 0.0), radius=0.008),
+), joint="RightHand", placement="between_hands")
 _TROUSER_TOP = (Cover(("pelvis",)),)
 
 
@@ -133,6 +179,14 @@ def _catalogue() -> dict[str, Garment]:
                 "waist to the shins",
                 (Part("tights", (Cover(_TOP),) + _arms(None, 0.93), 0.020),
                  Part("skirt", (), 0.006, loose=True)), "cotton_white", 3),
+        Garment("vest", "soft body armour carrier worn under the clothing: close-fitting, "
+                "no sleeves, torso from above the hips to the neckline (part of the body for "
+                "the garments over it)",
+                (Part("tights", (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_VEST_HEM)),
+                      0.004),), "kevlar_vest", 1, body_like=True),
+        Garment("rifle", "rifle prop (stock, receiver, grip, magazine, handguard, barrel; "
+                "0.90 m) held across the body between the hands, rigidly bound to the right "
+                "hand", (), "polymer_black", PROP_LAYER, prop=RIFLE),
         Garment("cap", "charcoal wool knit cap: the skull above the brow, ears free",
                 (Part("body", (Cover(("head",), "Head", t_min=0.5, tilt=0.4),), 0.003),),
                 "wool", 1),

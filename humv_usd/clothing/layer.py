@@ -11,6 +11,22 @@ For each garment of ``human["clothing"]`` (names of :data:`humv_usd.clothing.gar
                                               UsdSkel binding to ../../Skeleton (4 influences),
                                               primvars:humv:label:bodyRegion (uniform)
 
+Props (``rifle``)::
+
+    over /World/Humans/<id>
+        def Scope Props
+            def Mesh rifle                    closed rigid mesh, material:binding -> /World/
+                                              Materials/<material>, UsdSkel binding to
+                                              ../../Skeleton (100 % one joint, e.g. RightHand),
+                                              humv:label:class = "prop" (plain attribute: the
+                                              HumvLabelAPI needs a scenario-unique instanceId,
+                                              so the prop keeps the person's, inherited from
+                                              the SkelRoot like the garments),
+                                              customData humv:prop (joint, rest distance to skin)
+
+A prop is not a garment (no HumvClothingAPI, no air gap, no fix: the thermal tool treats it as
+a fixed-temperature scene mesh).
+
 Skinning: the garment is bound to the avatar's Skeleton with weights transferred from the
 body (:mod:`humv_usd.clothing.fit`), so UsdSkel (and the render, and any DCC) poses it with
 the body. The per-frame intersection fix (:mod:`humv_usd.clothing.collide`) is baked into
@@ -56,6 +72,14 @@ def clothing_path(human_id: str) -> Sdf.Path:
 
 def garment_path(human_id: str, garment: str) -> Sdf.Path:
     return clothing_path(human_id).AppendChild(garment)
+
+
+def props_path(human_id: str) -> Sdf.Path:
+    return human_path(human_id).AppendChild("Props")
+
+
+def prop_path(human_id: str, prop: str) -> Sdf.Path:
+    return props_path(human_id).AppendChild(prop)
 
 
 # ---------------------------------------------------------------------------- motion input
@@ -132,9 +156,16 @@ def author(human_id: str, sim: Simulation, fps: float, frame_count: int) -> Sdf.
                             f"HumV-USD clothing layer for {human_id}: {names or 'no garments'}")
     stage.OverridePrim(SCOPES["humans"])
     stage.OverridePrim(human_path(human_id))
-    UsdGeom.Scope.Define(stage, clothing_path(human_id))
-    for anim in sim.garments:
+    garments = [a for a in sim.garments if not a.fitted.garment.is_prop]
+    props = [a for a in sim.garments if a.fitted.garment.is_prop]
+    if garments or not props:
+        UsdGeom.Scope.Define(stage, clothing_path(human_id))
+    for anim in garments:
         _author_garment(stage, human_id, anim)
+    if props:
+        UsdGeom.Scope.Define(stage, props_path(human_id))
+    for anim in props:
+        _author_prop(stage, human_id, anim)
     layer = finish(stage)
     # DefinePrim made the ancestors "def"; they belong to the avatar layer: only "over" here
     for path in (SCOPES["humans"], human_path(human_id)):
@@ -197,6 +228,24 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
         "closeBefore": Vt.IntArray([x.close_before for x in c]),
         "insideAfter": Vt.IntArray([x.inside_after for x in c]),
         "closeAfter": Vt.IntArray([x.close_after for x in c]),
+    })
+
+
+def _author_prop(stage: Usd.Stage, human_id: str, anim) -> None:
+    fitted = anim.fitted
+    g = fitted.garment
+    mesh = define_mesh(stage, prop_path(human_id, g.name), fitted.points, fitted.face_counts,
+                       fitted.face_indices, material=material_path(g.fabric))
+    prim = mesh.GetPrim()
+    usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
+    prim.CreateAttribute(S.LABEL_CLASS, Sdf.ValueTypeNames.Token, custom=True).Set("prop")
+    c = anim.counts
+    prim.SetCustomDataByKey("humv:prop", {
+        "catalogue": g.name, "joint": g.prop.joint, "placement": g.prop.placement,
+        "frames": len(c),
+        "insideMax": max(x.inside_before for x in c),
+        "restMinDistance_m": round(c[0].min_distance_m, 6),
+        "minDistance_m": round(min(x.min_distance_m for x in c), 6),
     })
 
 

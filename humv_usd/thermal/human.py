@@ -42,7 +42,7 @@ from humv_usd.usd.mesh import fan_triangulate
 #: 0.2-0.4 clo, jackets 0.4-0.6 clo); a garment not listed adds 0.3 clo.
 LOCAL_CLO = {"cap": 0.2, "leggings": 0.2, "shorts": 0.25, "tshirt_white": 0.3,
              "tshirt_black": 0.3, "longsleeve": 0.3, "trousers": 0.3, "uniform_trousers": 0.35,
-             "jacket": 0.55, "robe": 0.45}
+             "jacket": 0.55, "robe": 0.45, "vest": 0.4}
 
 MODEL_NAMES = {"jos3": "jos3", "twoNode": "two_node"}
 
