@@ -123,6 +123,8 @@ def test_every_garment_fits_three_bodies(rigs):
         caster = RayCaster(rig.mesh.points, rig.triangles)
         skin = _pose(rig.skeleton, {}, frames=0)
         for name in GARMENTS:
+            if GARMENTS[name].is_prop:
+                continue        # props are placed for the carry pose: tests/test_carry.py
             sim = simulate(dress(rig, [name]), skin)
             anim = sim.garments[0]
             c = anim.counts[0]

@@ -28,6 +28,7 @@ from humv_usd.avatar import usdskel
 from humv_usd.avatar.basemesh import DEFAULT_FACING_DEG
 from humv_usd.avatar.body import Body, build_body
 from humv_usd.avatar.bvh import motion_from_bvh
+from humv_usd.avatar.carry import apply_rifle_carry
 from humv_usd.avatar.motion import make_motion
 from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning,
                                       skeleton_for, skin_weights, skinning_matrices)
@@ -106,14 +107,17 @@ def waypoints_in_avatar_frame(place: dict, start_xy) -> np.ndarray | None:
 
 def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     """The human's motion over the scenario's frames: the BVH file if given, else the built-in
-    activity (walk/run along the heading or the waypoints) on flat ground."""
+    activity (walk/run along the heading or the waypoints) on flat ground; with the arms in the
+    rifle carry (:func:`humv_usd.avatar.carry.apply_rifle_carry`) if the human wears the rifle."""
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
+    carry = "rifle" in (human.get("clothing") or ())
     if human.get("bvh"):
-        return motion_from_bvh(human["bvh"], skeleton, g["fps"], frames,
-                               up_axis=human["bvh_up_axis"], mass_kg=human["mass_kg"],
-                               body_points=body.points)
+        motion = motion_from_bvh(human["bvh"], skeleton, g["fps"], frames,
+                                 up_axis=human["bvh_up_axis"], mass_kg=human["mass_kg"],
+                                 body_points=body.points)
+        return apply_rifle_carry(motion, skeleton) if carry else motion
     # the motion model needs two frames at least; a one-frame scenario keeps the first
     motion = make_motion(human["activity"], skeleton, g["fps"], max(frames, 2),
                          speed_m_s=human.get("speed_m_s"),
@@ -124,7 +128,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             motion, root_translation=motion.root_translation[:frames],
             local_rotations=motion.local_rotations[:frames],
             metabolic_rate_w=motion.metabolic_rate_w[:frames])
-    return motion
+    return apply_rifle_carry(motion, skeleton) if carry else motion
 
 
 def _motion_attributes(prim, motion) -> None:

@@ -23,9 +23,11 @@ thighs and never flows, folds or lags; where a leg would pierce it, the per-fram
 
 Props (the rifle). A :class:`~humv_usd.clothing.garments.Prop` is built from its boxes and
 8-sided cylinders (closed, outward quads and octagon caps) and placed in the rest pose:
-``between_hands``: length axis along +X (muzzle to the person's left), centred between the
-two hand joints in X and at their mean height, and in front of the body: its back face
-:data:`PROP_CLEARANCE` in front of the most forward skin point within its footprint (+/- 3 cm).
+``between_hands``: held in the rifle carry of :mod:`humv_usd.avatar.carry` (which the avatar
+layer applies to the motion of whoever wears the rifle): its grip at the right hand's grasp
+point and its handguard through the left one in the carry pose (standing, frame 0), that
+placement expressed in the RightHand joint's rest frame (so in the rest pose the rifle hangs
+off the right hand wherever the carry's hand rotation puts it).
 Every vertex is bound 100 % to the prop's joint, so it moves rigidly with that joint.
 
 Labels. Every garment face gets the body region (``primvars:humv:label:bodyRegion`` ids) of
@@ -39,14 +41,13 @@ import numpy as np
 
 from humv_usd.avatar import labels as L
 from humv_usd.avatar.body import Body, MeshPart
+from humv_usd.avatar.carry import carry_rest_transform
 from humv_usd.avatar.skeleton import Skeleton, skeleton_for, skin_weights
 from humv_usd.clothing.garments import (SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part,
                                         Prop, Shape, garment)
 from humv_usd.clothing.geometry import Surface, triangle_face_of, triangulate, vertex_normals
 
 INFLUENCES = 4
-#: Rest-pose distance [m] from the most forward skin point to the back of a prop held in front.
-PROP_CLEARANCE = 0.05
 CYLINDER_SIDES = 8
 #: Laplacian smoothing steps of a loose part's skin weights.
 LOOSE_SMOOTHING = 40
@@ -313,18 +314,10 @@ def place_prop(rig: BodyRig, prop: Prop, points: np.ndarray) -> np.ndarray:
     """The prop's points (own frame) placed on the body in the rest pose (see module doc)."""
     if prop.placement != "between_hands":
         raise ValueError(f"unknown prop placement {prop.placement!r}")
-    sk = rig.skeleton
-    hands = sk.rest_positions[[sk.index("LeftHand"), sk.index("RightHand")]]
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    out = points - [(lo[0] + hi[0]) / 2, 0.0, 0.0]
-    out = out + [hands[:, 0].mean(), 0.0, hands[:, 2].mean()]
-    lo, hi = out.min(axis=0), out.max(axis=0)
-    body = rig.mesh.points
-    foot = ((body[:, 0] >= lo[0] - 0.03) & (body[:, 0] <= hi[0] + 0.03)
-            & (body[:, 2] >= lo[2] - 0.03) & (body[:, 2] <= hi[2] + 0.03))
-    front = body[foot, 1].min() if foot.any() else body[:, 1].min()
-    out[:, 1] += (front - PROP_CLEARANCE) - hi[1]  # the body faces -Y: back face = max y
-    return out
+    if prop.joint != "RightHand":
+        raise ValueError(f"the carry holds props in the right hand, not {prop.joint!r}")
+    m = carry_rest_transform(rig.skeleton)
+    return points @ m[:3, :3].T + m[:3, 3]
 
 
 def fit_prop(rig: BodyRig, g: Garment) -> FittedGarment:
