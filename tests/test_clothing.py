@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
+from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.avatar.body import build_body
 from humv_usd.avatar.skeleton import forward_kinematics, skinning_matrices
@@ -239,7 +240,7 @@ def clothed_stage(humvvex_raw):
     pose = Pose(np.repeat(sk.rest_positions[:1], frames, axis=0), q)
     garments = ["tshirt_white", "leggings", "cap"]
     avatar = avatar_layer.build_one(scenario, human, motion=pose)
-    upstream = Usd.Stage.Open(_root([avatar], scenario))
+    upstream = compose_in_memory([avatar], scenario["general"]["fps"])
     clothing = clothing_layer.build_one(scenario, human, upstream, garments=garments)
     original = materials_layer.used_materials
     try:   # the materials tool does not know garments yet: give it the fabrics
@@ -248,15 +249,8 @@ def clothed_stage(humvvex_raw):
         materials = materials_layer.build(scenario)
     finally:
         materials_layer.used_materials = original
-    stage = Usd.Stage.Open(_root([materials, avatar, clothing], scenario))
+    stage = compose_in_memory([materials, avatar, clothing], scenario["general"]["fps"])
     return stage, clothing, garments, frames
-
-
-def _root(layers, scenario) -> Sdf.Layer:
-    root = Sdf.Layer.CreateAnonymous(".usda")
-    root.timeCodesPerSecond = scenario["general"]["fps"]
-    root.subLayerPaths = [lyr.identifier for lyr in reversed(layers)]   # strongest first
-    return root
 
 
 def test_layer_structure_materials_and_air_gap(clothed_stage):

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
+from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.avatar.body import build_body
@@ -178,21 +179,14 @@ def stage_with_outfit(humvvex_raw):
         q[f, sk.index("RightArm")] = _quat_x(-50.0 * f / (frames - 1))
     pose = Pose(np.repeat(sk.rest_positions[:1], frames, axis=0), q)
     avatar = avatar_layer.build_one(scenario, human, motion=pose)
-    upstream = Usd.Stage.Open(_root([avatar], scenario))
+    upstream = compose_in_memory([avatar], scenario["general"]["fps"])
     clothing = clothing_layer.build_one(scenario, human, upstream)
     materials = materials_layer.build(scenario)
     atmosphere = atmosphere_layer.build(scenario)
     layers = [materials, atmosphere, avatar, clothing]
-    thermal = thermal_layer.build(scenario, Usd.Stage.Open(_root(layers, scenario)))
-    stage = Usd.Stage.Open(_root(layers + [thermal], scenario))
+    thermal = thermal_layer.build(scenario, compose_in_memory(layers, scenario["general"]["fps"]))
+    stage = compose_in_memory(layers + [thermal], scenario["general"]["fps"])
     return stage, clothing, frames, sk
-
-
-def _root(layers, scenario) -> Sdf.Layer:
-    root = Sdf.Layer.CreateAnonymous(".usda")
-    root.timeCodesPerSecond = scenario["general"]["fps"]
-    root.subLayerPaths = [lyr.identifier for lyr in reversed(layers)]   # strongest first
-    return root
 
 
 def test_outfit_layer_opens_and_renders(stage_with_outfit):

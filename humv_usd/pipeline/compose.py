@@ -98,7 +98,7 @@ def _build(name: str, scenario: Scenario, upstream: Usd.Stage | None) -> Sdf.Lay
     return tool.build(scenario, upstream)
 
 
-def _compose_in_memory(layers: list[Sdf.Layer], fps: float) -> Usd.Stage:
+def compose_in_memory(layers: list[Sdf.Layer], fps: float) -> Usd.Stage:
     root = Sdf.Layer.CreateAnonymous(".usda")
     # same time codes per second as the layers, or USD rescales their time samples
     root.timeCodesPerSecond = fps
@@ -130,7 +130,7 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
     for name in names:
         t = time.perf_counter()
         reads_stage = name == "thermal" or name.startswith("clothing_")
-        upstream = (_compose_in_memory([lyr for _, lyr, _ in built], scenario["general"]["fps"])
+        upstream = (compose_in_memory([lyr for _, lyr, _ in built], scenario["general"]["fps"])
                     if reads_stage else None)
         built.append((name, _build(name, scenario, upstream), time.perf_counter() - t))
     texts = [(name, layer_text(lyr), dt) for name, lyr, dt in built]
