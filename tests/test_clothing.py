@@ -243,7 +243,7 @@ def clothed_stage(humvvex_raw):
     upstream = compose_in_memory([avatar], scenario["general"]["fps"])
     clothing = clothing_layer.build_one(scenario, human, upstream, garments=garments)
     original = materials_layer.used_materials
-    try:   # the materials tool does not know garments yet: give it the fabrics
+    try:   # the scenario's human wears nothing: give the materials tool these fabrics
         materials_layer.used_materials = lambda s: sorted(set(original(s)) | set(
             fabrics(garments)))
         materials = materials_layer.build(scenario)
