@@ -243,7 +243,7 @@ def clothed_stage(humvvex_raw):
     upstream = compose_in_memory([avatar], scenario["general"]["fps"])
     clothing = clothing_layer.build_one(scenario, human, upstream, garments=garments)
     original = materials_layer.used_materials
-    try:   # the scenario's human wears nothing: give the materials tool these fabrics
+    try:   # these garments differ from the scenario's outfit: give the materials tool their fabrics
         materials_layer.used_materials = lambda s: sorted(set(original(s)) | set(
             fabrics(garments)))
         materials = materials_layer.build(scenario)
