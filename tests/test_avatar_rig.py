@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom, UsdSkel
 
+from humv_usd.avatar.gait import axis_angle_quat
 from humv_usd.assets import makehuman_dir
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.avatar import usdskel
@@ -37,9 +38,7 @@ HEADING_DEG = 120.0
 
 
 def axis_angle(axis, angle) -> np.ndarray:
-    a = np.asarray(axis, dtype=float)
-    a /= np.linalg.norm(a)
-    return np.r_[np.cos(angle / 2), np.sin(angle / 2) * a]
+    return axis_angle_quat(axis, angle)
 
 
 def posed_motion(skel, frames=3) -> usdskel.Pose:

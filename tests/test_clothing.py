@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
+from humv_usd.avatar.gait import axis_angle_quat
 from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.avatar.body import build_body
@@ -31,8 +32,7 @@ def rigs():
 
 
 def _quat_x(deg: float) -> np.ndarray:
-    a = np.radians(deg) / 2
-    return np.array([np.cos(a), np.sin(a), 0.0, 0.0])
+    return axis_angle_quat((1.0, 0.0, 0.0), np.radians(deg))
 
 
 def _pose(skeleton, bends: dict[str, float], frames: int = 1) -> np.ndarray:

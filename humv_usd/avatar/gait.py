@@ -108,6 +108,14 @@ def axis_angle_matrix(axis, angle) -> np.ndarray:
     return np.eye(3) + np.sin(a) * kx + (1 - np.cos(a)) * (kx @ kx)
 
 
+def axis_angle_quat(axis, angle) -> np.ndarray:
+    """Unit quaternions (..., 4) (w, x, y, z) about a fixed ``axis`` (3,) by ``angle`` (...,) [rad]."""
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / np.linalg.norm(k)
+    half = np.asarray(angle, dtype=np.float64)[..., None] / 2.0
+    return np.concatenate([np.cos(half), np.sin(half) * k], axis=-1)
+
+
 def matrix_to_quat(m: np.ndarray) -> np.ndarray:
     """(..., 3, 3) rotation matrices -> (..., 4) unit quaternions (w, x, y, z), w >= 0."""
     m = np.asarray(m, dtype=np.float64)
