@@ -110,14 +110,23 @@ def segment_clo(garment_parts: list[_Part]) -> np.ndarray:
     return clo
 
 
-def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario, scene,
+def scenario_sky(scenario) -> ClearSky:
+    """The analytic clear sky of the scenario's weather over its ground (no sun yet)."""
+    atm = scenario["atmosphere"]
+    ground = scenario["scene"]["ground"]["temperature_k"] if scenario["scene"] else None
+    return ClearSky(air_temperature_k=atm["air_temperature_k"],
+                    relative_humidity=atm["relative_humidity"], ground_temperature_k=ground)
+
+
+def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario, scene, sky,
                        model: str, settings: dict) -> tuple[dict[str, np.ndarray], dict]:
     """({mesh path: (frames, faces) temperature [K]}, diagnostics) for the body and garments of
     one person; diagnostics: the fast q_rad method's relative RMS error estimate (two seeds) and
     the garment balance's largest residual [W m^-2].
 
     ``stage``: the composed upstream stage (avatar and clothing layers); ``scene``:
-    :class:`humv_usd.thermal.radiation.SceneSurfaces` or None; ``model``: 'jos3' | 'twoNode'.
+    :class:`humv_usd.thermal.radiation.SceneSurfaces` or None; ``sky``: :func:`scenario_sky`;
+    ``model``: 'jos3' | 'twoNode'.
     """
     g, atm = scenario["general"], scenario["atmosphere"]
     fps, frames = g["fps"], scenario.frame_count
@@ -130,9 +139,6 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
             name = child.GetAttribute(S.CLOTHING_GARMENT).Get()
             garments.append(_part(stage, str(child.GetPath()), name))
     parts = [body, *garments]
-    sky = ClearSky(air_temperature_k=air, relative_humidity=rh,
-                   ground_temperature_k=scenario["scene"]["ground"]["temperature_k"]
-                   if scenario["scene"] else None)
     diagnostics: dict = {}
     skin_eps = longwave_emissivity("skin")
     skin_guess = scenario["thermal"]["skin_temperature_k"]

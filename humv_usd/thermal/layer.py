@@ -18,7 +18,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from humv_usd.avatar.layer import body_path, human_path
 from humv_usd.materials.library import LIBRARY
-from humv_usd.thermal.human import human_temperatures
+from humv_usd.thermal.human import human_temperatures, scenario_sky
 from humv_usd.scenario import Scenario
 from humv_usd.scene.layer import GROUND, object_path
 from humv_usd.usd import schemas as S
@@ -49,13 +49,14 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     stage.RemovePrim("/World")  # this layer only adds opinions: overs, no defs
     solved: dict[str, np.ndarray] = {}
     if model != "fixed" and scenario["human"]:
-        scene = _scene_surfaces(upstream, temps, air)
+        sky = scenario_sky(scenario)
+        scene = _scene_surfaces(upstream, temps, air, sky)
         th = scenario["thermal"]
         report = {"model": model, "qradMethod": "fast", "qradRays": th["radiation_rays"],
                   "mapResolution": th["radiation_resolution"]}
         for h in scenario["human"]:
             temps_h, diag = human_temperatures(upstream, h, str(human_path(h["id"])), scenario,
-                                               scene, model, th)
+                                               scene, sky, model, th)
             solved.update(temps_h)
             report[h["id"]] = {k: round(v, 9) for k, v in diag.items()}
         # error estimates (deterministic for fixed seeds) travel with the layer; run times go
@@ -87,14 +88,13 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     return finish(stage)
 
 
-def _scene_surfaces(upstream: Usd.Stage, temps: dict, air: float):
+def _scene_surfaces(upstream: Usd.Stage, temps: dict, air: float, sky):
     """Scene meshes (not people) as ray-cast occluders with their leaving radiance."""
     import trimesh
 
     from humv_usd.thermal import radiation as R
     from humv_usd.thermal.human import longwave_emissivity
     from humv_usd.usd.mesh import fan_triangulate
-    from humv_usd.thermal.sky import ClearSky
     points, faces, t_face, eps_face, offset = [], [], [], [], 0
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh) or str(prim.GetPath()).startswith(str(SCOPES["humans"])):
@@ -117,7 +117,6 @@ def _scene_surfaces(upstream: Usd.Stage, temps: dict, air: float):
     if not points:
         return None
     mesh = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
-    sky = ClearSky(air_temperature_k=air, relative_humidity=0.5)
     radiance = R.scene_surface_radiance(mesh, np.concatenate(t_face), np.concatenate(eps_face),
                                         sky)
     return R.SceneSurfaces(mesh, radiance)
