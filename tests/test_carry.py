@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from humv_usd.avatar.body import build_body
-from humv_usd.avatar.carry import (ARM_JOINTS, RIFLE_GRIP, RIFLE_HANDGUARD_Z, apply_rifle_carry,
-                                   carry_rest_transform)
+from humv_usd.avatar.carry import (ARM_JOINTS, CLEARANCE, RIFLE_GRIP, RIFLE_HANDGUARD_Z,
+                                   apply_rifle_carry, carry_body, carry_rest_transform,
+                                   prop_signed_distance)
 from humv_usd.avatar.motion import make_motion
 from humv_usd.avatar.skeleton import forward_kinematics, linear_blend_skinning, skinning_matrices
 from humv_usd.clothing.fit import fit_garment, prepare, prop_mesh
@@ -106,3 +107,167 @@ def test_rifle_does_not_penetrate_the_torso(carried):
         signed = Surface(body, torso).closest(gun).signed
         print(f"  {key}: {int(inside.sum())}  {signed.min() * 100:.1f}")
         assert signed.min() >= 0.0
+
+
+# ---------------------------------------------------------------------------- clearance
+def _bow_and_knee_bvh(tmp_path, sk, body):
+    """A stand clip with the trunk bowing 60 deg and the right knee raised 95 deg (a pose
+    that drives the fixed carry's rifle into the thigh and belly), written and read back as
+    BVH (the BVH path of the avatar tool)."""
+    from humv_usd.avatar.bvh import motion_from_bvh, motion_to_bvh, write_bvh
+    from humv_usd.avatar.gait import axis_angle_quat
+    frames = 21
+    m = make_motion("stand", sk, 30.0, frames, body_points=body.points)
+    q = m.local_rotations.copy()
+    ramp = np.sin(np.linspace(0, np.pi, frames))
+    for joint, deg in (("LowerBack", 25), ("Spine", 20), ("Spine1", 15), ("RightUpLeg", -95),
+                       ("RightLeg", 100)):
+        k = sk.index(joint)
+        bend = np.stack([axis_angle_quat((1.0, 0.0, 0.0), np.radians(deg * r)) for r in ramp])
+        w1, v1 = q[:, k, :1], q[:, k, 1:]
+        w2, v2 = bend[:, :1], bend[:, 1:]
+        q[:, k] = np.concatenate([w1 * w2 - np.sum(v1 * v2, 1, keepdims=True),
+                                  w1 * v2 + w2 * v1 + np.cross(v1, v2)], 1)
+    path = tmp_path / "bow_knee.bvh"
+    write_bvh(path, motion_to_bvh(sk, q, m.root_translation, 30.0))
+    return motion_from_bvh(path, sk, 30.0, body_points=body.points, settle=False)
+
+
+@pytest.fixture(scope="module")
+def stressed(tmp_path_factory):
+    body = build_body("male", 30, 1.78, 80.0)
+    rig = prepare(body)
+    sk = rig.skeleton
+    motion = _bow_and_knee_bvh(tmp_path_factory.mktemp("bvh"), sk, body)
+    report = {}
+    carry = apply_rifle_carry(motion, sk, body, report=report)
+    return rig, motion, carry, report
+
+
+def test_prop_signed_distance_matches_the_rifle_mesh():
+    """The rifle solid's closed-form distance vs the rifle mesh (closest point on each part's
+    closed mesh, inside by ray parity): equal up to the octagons inscribed in the round
+    cylinders."""
+    from humv_usd.clothing.garments import RIFLE
+    from humv_usd.clothing.geometry import triangulate
+    rng = np.random.default_rng(1)
+    q = rng.uniform([-0.35, -0.12, -0.3], [0.65, 0.12, 0.15], (3000, 3))
+    sdf = prop_signed_distance(q)
+    d = np.full(len(q), np.inf)
+    inside = np.zeros(len(q), dtype=bool)
+    for shape in RIFLE.shapes:                       # the union: min over the parts
+        p, c, i = prop_mesh(type(RIFLE)((shape,), RIFLE.joint, RIFLE.placement))
+        t = triangulate(c, i)
+        near = Surface(p, t).closest(q, k=len(t))   # all triangles: exact
+        d = np.minimum(d, np.linalg.norm(q - near.point, axis=1))
+        inside |= RayCaster(p, t).inside(q)
+    outside = ~inside
+    r = max(s.radius for s in RIFLE.shapes)
+    err = sdf[outside] - d[outside]
+    print(f"\noutside points: {outside.sum()}, SDF - mesh distance in "
+          f"[{err.min() * 1e3:.2f}, {err.max() * 1e3:.2f}] mm")
+    assert outside.sum() > 1000 and inside.sum() > 10
+    assert np.all(err <= 1e-9) and np.all(err >= -0.08 * r)     # round >= octagon
+    assert np.all(sdf[inside] <= 1e-9)                             # inside the mesh: <= 0
+
+
+def test_carry_clears_the_body_in_a_bvh_bow_with_a_raised_knee(stressed):
+    rig, motion, carry, rep = stressed
+    sk = rig.skeleton
+    before, after = rep["minDistanceBefore_m"], rep["minDistanceAfter_m"]
+    print(f"\nbow + knee (BVH): min clearance {before.min() * 100:.1f} cm "
+          f"({rep['insideBefore'].max()} body vertices inside) -> {after.min() * 100:.1f} cm "
+          f"({rep['insideAfter'].max()}); offset max {rep['offset_m'].max() * 100:.1f} cm")
+    assert before.min() < 0 and rep["insideBefore"].max() > 0     # the fixed carry fails
+    assert after.min() >= CLEARANCE - 1e-6 and rep["insideAfter"].max() == 0
+    assert max(rep["graspErrorMax_m"].values()) < 1e-6            # both hands still on it
+    step = np.linalg.norm(np.diff(rep["offset_m"]))
+    assert np.abs(np.diff(rep["offset_m"])).max() < 0.06, step    # smooth: no popping
+    assert np.array_equal(carry.root_translation, motion.root_translation)
+    # independent check on the meshes: posed rifle vs posed body, every frame
+    rifle = fit_garment(rig, "rifle")
+    cb = carry_body(rig.body, sk)
+    skin = skinning_matrices(sk, forward_kinematics(sk, carry.local_rotations,
+                                                    carry.root_translation))
+    for f in range(0, len(skin), 4):
+        gun = linear_blend_skinning(rifle.points, rifle.joint_indices, rifle.joint_weights,
+                                    skin[f])
+        body = linear_blend_skinning(cb.points, cb.joint_indices, cb.joint_weights, skin[f])
+        assert not RayCaster(gun, rifle.triangles).inside(body).any()
+        gap = np.linalg.norm(body[:, None] - gun[None], axis=2).min()
+        assert gap >= CLEARANCE - 1e-6
+
+
+def test_carry_clearance_in_built_in_motions():
+    """Stand, standTurn, walk, run, postExercise: the carry clears the body every frame."""
+    body = build_body("female", 30, 1.60, 55.0)
+    rig = prepare(body)
+    cb = carry_body(body, rig.skeleton)
+    print("\nactivity: min clearance before -> after [cm], max offset [cm]")
+    for activity in ("stand", "standTurn", "walk", "run", "postExercise"):
+        m = make_motion(activity, rig.skeleton, 15.0, 16, body_points=body.points)
+        rep = {}
+        apply_rifle_carry(m, rig.skeleton, cb, report=rep)
+        print(f"  {activity:12s} {rep['minDistanceBefore_m'].min() * 100:5.1f} -> "
+              f"{rep['minDistanceAfter_m'].min() * 100:5.1f}  {rep['offset_m'].max() * 100:.1f}")
+        assert rep["minDistanceAfter_m"].min() >= CLEARANCE - 1e-6
+        assert rep["insideAfter"].max() == 0
+
+
+def test_avatar_and_clothing_layers_keep_the_rifle_off_the_body(raw):
+    """Through the tools: a running person with the rifle (where the fixed carry comes within
+    2.3 cm of the thigh): the avatar layer's carry clears it, the clothing layer measures it
+    per frame on the composed motion (customData humv:prop) and labels the rifle as a prop."""
+    from humv_usd.avatar import layer as avatar_layer
+    from humv_usd.clothing import layer as clothing_layer
+    from humv_usd.pipeline.compose import compose_in_memory
+    from humv_usd.scenario.load import validate
+    from humv_usd.scene.layer import instance_ids
+    from humv_usd.usd import schemas as S
+    raw["general"] = dict(raw["general"], fps=15.0, duration_s=1.0)
+    raw["human"][0].update(sex="female", stature_m=1.60, mass_kg=55.0, activity="run",
+                           clothing=["rifle"])
+    scenario = validate(raw)
+    human = scenario["human"][0]
+    avatar = avatar_layer.build_one(scenario, human)
+    upstream = compose_in_memory([avatar], 15.0)
+    layer = clothing_layer.build_one(scenario, human, upstream)
+    stage = compose_in_memory([avatar, layer], 15.0)
+    rifle = stage.GetPrimAtPath("/World/Humans/p1/Props/rifle")
+    info = rifle.GetCustomDataByKey("humv:prop")
+    print(f"\nrun with the rifle: body clearance min {info['bodyClearanceMin_m'] * 100:.2f} cm "
+          f"over {info['frames']} frames")
+    assert info["frames"] == scenario.frame_count == len(info["bodyClearance_m"])
+    assert info["bodyClearanceMin_m"] >= CLEARANCE - 1e-4
+    assert info["bodyVerticesInsideMax"] == 0
+    assert rifle.GetAttribute(S.LABEL_INSTANCE_ID).Get() == instance_ids(scenario)["prop:p1:rifle"]
+    assert rifle.GetAttribute(S.LABEL_CLASS).Get() == "prop"
+
+
+def test_garment_vertices_are_pushed_off_the_carried_rifle():
+    """push_off_prop: points inside the rifle's solid (or nearer than the gap) end the gap
+    off it, moved along the distance gradient by the deficit; the others do not move."""
+    from humv_usd.clothing.collide import push_off_prop
+    rng = np.random.default_rng(3)
+    to_world = np.eye(4)
+    to_world[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0] * [1, 1, 1]
+    if np.linalg.det(to_world[:3, :3]) < 0:
+        to_world[:3, 0] *= -1
+    to_world[:3, 3] = [0.2, -0.3, 1.0]
+    local = rng.uniform([-0.3, -0.06, -0.25], [0.6, 0.06, 0.1], (2000, 3))
+    world = local @ to_world[:3, :3].T + to_world[:3, 3]
+    gap = 0.002
+    out, before, after = push_off_prop(world, to_world, None, gap)
+    d0 = prop_signed_distance(local)
+    back = (out - to_world[:3, 3]) @ to_world[:3, :3]
+    d1 = prop_signed_distance(back)
+    assert before == int(np.sum(d0 < gap)) > 100 and after == 0
+    assert d1.min() >= gap - 1e-9
+    still = d0 >= gap
+    assert np.array_equal(out[still], world[still])
+    # outside but too close: moved by the deficit (+ the float margin) along the gradient,
+    # where the distance is exact
+    close = (d0 < gap) & (d0 >= 0)
+    moved = np.linalg.norm(out - world, axis=1)
+    assert close.sum() > 20
+    assert np.all(moved[close] <= (gap - d0[close]) + 5e-4)     # creases between parts

@@ -24,6 +24,7 @@ from humv_usd.materials import layer as materials_layer
 from humv_usd.materials.library import LIBRARY
 from humv_usd.render.export import StageExport
 from humv_usd.scenario.load import validate
+from humv_usd.scene.layer import instance_ids
 from humv_usd.thermal import layer as thermal_layer
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import rule_sensors_and_labels
@@ -186,18 +187,24 @@ def stage_with_outfit(humvvex_raw):
     layers = [materials, atmosphere, avatar, clothing]
     thermal = thermal_layer.build(scenario, compose_in_memory(layers, scenario["general"]["fps"]))
     stage = compose_in_memory(layers + [thermal], scenario["general"]["fps"])
-    return stage, clothing, frames, sk
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)       # as compose's stage.usda (the layers': m)
+    return stage, clothing, frames, sk, scenario
 
 
 def test_outfit_layer_opens_and_renders(stage_with_outfit):
-    stage, layer, frames, sk = stage_with_outfit
+    stage, layer, frames, sk, scenario = stage_with_outfit
     assert stage.GetPrimAtPath("/World/Humans/p1/Clothing/vest").HasAPI(S.CLOTHING_API)
     assert stage.GetPrimAtPath("/World/Humans/p1/Clothing/tshirt_white").HasAPI(S.CLOTHING_API)
     assert not stage.GetPrimAtPath("/World/Humans/p1/Clothing/rifle")
     rifle = stage.GetPrimAtPath("/World/Humans/p1/Props/rifle")
     assert rifle.IsA(UsdGeom.Mesh) and not rifle.HasAPI(S.CLOTHING_API)
     assert rifle.GetAttribute(S.LABEL_CLASS).Get() == "prop"
-    assert not rifle.HasAPI(S.LABEL_API)          # keeps the person's instance id
+    # its own instance id: after the people, the ground and the scene objects
+    assert rifle.HasAPI(S.LABEL_API)
+    prop_id = rifle.GetAttribute(S.LABEL_INSTANCE_ID).Get()
+    assert prop_id == instance_ids(scenario)["prop:p1:rifle"] == len(instance_ids(scenario))
+    person_id = stage.GetPrimAtPath("/World/Humans/p1").GetAttribute(S.LABEL_INSTANCE_ID).Get()
+    assert prop_id != person_id
     material, _ = UsdShade.MaterialBindingAPI(rifle).ComputeBoundMaterial()
     assert material.GetPath().name == "polymer_black"
     info = rifle.GetCustomDataByKey("humv:prop")
@@ -217,12 +224,41 @@ def test_outfit_layer_opens_and_renders(stage_with_outfit):
     assert np.abs(e0 - e2).max() < 1e-4
     # render export reads every mesh (rifle: fixed temperature from the thermal tool)
     export = StageExport(stage)
-    person = stage.GetPrimAtPath("/World/Humans/p1").GetAttribute(S.LABEL_INSTANCE_ID).Get()
     for f in range(frames):
         state = export.frame_state(f, [])
         paths = {m.path: m for m in state.meshes}
         assert {"/World/Humans/p1/Props/rifle", "/World/Humans/p1/Clothing/vest",
                 "/World/Humans/p1/Clothing/tshirt_white"} <= set(paths)
-        assert {p.instance_id for p in paths["/World/Humans/p1/Props/rifle"].parts} == {person}
+        assert {p.instance_id for p in paths["/World/Humans/p1/Props/rifle"].parts} == {prop_id}
+        assert {p.instance_id for p in paths["/World/Humans/p1/Clothing/vest"].parts} == {
+            person_id}
         assert np.all(np.isfinite(state.temperatures["/World/Humans/p1/Props/rifle"]))
     print(f"\nrifle moved {np.linalg.norm(p2 - p0, axis=1).mean():.3f} m (mean) with the arm")
+
+
+def test_render_rays_show_the_rifle_with_its_own_instance_id(stage_with_outfit, tmp_path):
+    """Pixel-centre rays of a small camera 1.2 m in front of the rifle (the render's own
+    label pass): rifle pixels carry the prop's id, the person's pixels the person's."""
+    from humv_usd.render.export import CameraPose
+    from humv_usd.render.ir import IRScene, SensorSetup
+    stage, _, _, _, scenario = stage_with_outfit
+    ids = instance_ids(scenario)
+    state = StageExport(stage).frame_state(0, [])
+    rifle = state.points["/World/Humans/p1/Props/rifle"]
+    centre = rifle.mean(axis=0)
+    origin = centre + np.array([0.0, -1.2, 0.0])        # the person faces -y (heading 180)
+    pose = CameraPose(origin=origin, forward=np.array([0.0, 1.0, 0.0]),
+                      up=np.array([0.0, 0.0, 1.0]), fov_x_deg=40.0)
+    parts = [(part, state.points[m.path][part.vertex_ids], state.flip[m.path])
+             for m in state.meshes for part in m.parts]
+    scene = IRScene(parts, [SensorSetup("cam", 48, 48, pose)], spp=1, max_depth=2,
+                    workdir=tmp_path)
+    hits = scene.hits("cam")
+    on_rifle = np.zeros(hits.part.shape, dtype=bool)
+    for k, part in enumerate(scene.parts):
+        if part.mesh_path == "/World/Humans/p1/Props/rifle":
+            on_rifle |= hits.part == k
+    assert on_rifle.sum() > 30
+    assert np.all(hits.instance[on_rifle] == ids["prop:p1:rifle"])
+    assert np.all(hits.instance[(hits.part >= 0) & ~on_rifle] == ids["human:p1"])
+    assert set(np.unique(hits.instance).tolist()) == {0, ids["human:p1"], ids["prop:p1:rifle"]}

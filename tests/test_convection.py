@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 
 from humv_usd.physics.convection import (KCAL_PER_HOUR_TO_WATT, convective_coefficient, iso7730,
                                          mitchell, natural_iso7730, radiative_coefficient,
-                                         siple_passel)
+                                         siple_passel, watmuff)
 from humv_usd.physics.sky import STEFAN_BOLTZMANN
 
 
@@ -49,3 +49,8 @@ def test_radiative_coefficient_linearizes_t4():
     exact = 0.9 * STEFAN_BOLTZMANN * (t1 ** 4 - t2 ** 4) / (t1 - t2)
     hr = radiative_coefficient(0.9, 300.0)
     assert_allclose(hr * (1.0 + (10.0 / 300.0) ** 2), exact, rtol=1e-12)
+
+
+def test_watmuff_flat_surface():
+    # Duffie & Beckman (2013) Eq. 3.15.3: h = 2.8 + 3.0 V, no wind -> 2.8
+    assert_allclose(watmuff([0.0, 1.0, 5.0, -1.0]), [2.8, 5.8, 17.8, 2.8])

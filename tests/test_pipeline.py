@@ -9,7 +9,12 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
+from pxr import Usd
+
 from humv_usd.physics.planck import band_radiance, brightness_temperature
+from humv_usd.render.export import StageExport
+from humv_usd.render.radiometry import SubBands
+from humv_usd.usd.layers import open_stage
 
 from conftest import HUMVVEX, ROOT
 
@@ -26,7 +31,8 @@ def rendered(tmp_path_factory):
     out = tmp_path_factory.mktemp("e2e")
     r = run("compose", str(HUMVVEX), "-o", str(out))
     assert r.returncode == 0, r.stderr
-    r = run("render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", "8")
+    r = run("render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", "8",
+            "--sensor", "atom1024_lwir")
     assert r.returncode == 0, r.stderr
     assert "Monte Carlo error per pixel" in r.stdout
     buf = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.exr"))
@@ -39,8 +45,8 @@ def rendered(tmp_path_factory):
 
 def test_outputs_and_manifest(rendered):
     out, ch, manifest = rendered
-    assert set(ch) == {"radiance", "brightness_temperature", "radiance_stderr", "depth",
-                       "instance_id"}
+    assert set(ch) - set(manifest["ground_truth"]["channels"]) - {"counts"} == {  # counts: sensor chain
+        "radiance", "brightness_temperature", "radiance_stderr", "depth", "instance_id"}
     assert ch["radiance"].shape == (768, 1024)
     png = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.png"))
     assert png.spec().format == oiio.UINT8 and png.spec().width == 1024
@@ -69,6 +75,8 @@ def test_labels_and_depth(rendered):
 def test_radiometry(rendered):
     out, ch, manifest = rendered
     band = (8.0, 14.0)
+    r = manifest["sensors"][0]["response"]  # the preset's relative spectral response
+    resp = (r["wavelengths_um"], r["values"]) if r else None
     sky_k = manifest["sensors"][0]["frames"][0]["sky_temperature_k"]
     ids = ch["instance_id"]
     # sky pixels away from edges (a pixel integrates its whole footprint) see only the uniform
@@ -78,7 +86,23 @@ def test_radiometry(rendered):
         for dx in (-1, 0, 1):
             sky &= np.roll(np.roll(ids, dy, axis=0), dx, axis=1) == 0
     assert sky.sum() > 1000
-    np.testing.assert_allclose(ch["brightness_temperature"][sky], sky_k, atol=1e-3)
+    exporter = StageExport(open_stage(out / "stage.usda"))
+    [cam] = [s for s in exporter.sensors if s.name == "atom1024_lwir"]
+    spectra = exporter.atmosphere_spectra(Usd.TimeCode(0))
+    sub = SubBands(band, resp, len(manifest["sensors"][0]["subbands_um"]))
+    if spectra.sky_radiance is None:
+        np.testing.assert_allclose(ch["brightness_temperature"][sky], sky_k, atol=1e-3)
+    else:  # the envmap sky: the table's sub-band radiance at each sky pixel's zenith angle
+        pose = exporter.camera_pose(cam, Usd.TimeCode(0))
+        h, w = ids.shape
+        right = np.cross(pose.forward, pose.up)
+        tx = np.tan(np.radians(pose.fov_x_deg) / 2)
+        xs, ys = np.meshgrid((np.arange(w) + 0.5) / w * 2 - 1, (1 - (np.arange(h) + 0.5) / h * 2) * h / w)
+        dirs = pose.forward + tx * (xs[..., None] * right + ys[..., None] * pose.up)
+        zenith = np.degrees(np.arccos(dirs[..., 2] / np.linalg.norm(dirs, axis=-1)))
+        l_zen = sub.integrate(spectra.wavelengths_um, spectra.sky_radiance).sum(axis=-1)
+        expected = np.interp(zenith[sky], spectra.sky_zenith_deg, l_zen)
+        np.testing.assert_allclose(ch["radiance"][sky], expected, rtol=2e-3)
     # skin (eps_band ~ 0.98 at 306.15 K) reflects 2 % of a colder surround: between the two.
     # The shins (between the shorts and the feet) are bare skin.
     person = ch["instance_id"] == 1
@@ -89,13 +113,17 @@ def test_radiometry(rendered):
     shins[top + int(0.92 * height):] = False
     t_skin = np.median(ch["brightness_temperature"][shins])
     eps = 0.98
-    lower = brightness_temperature(eps * band_radiance(306.15, band)
-                                   + (1 - eps) * band_radiance(sky_k, band), band)
+    surface = eps * band_radiance(306.15, band, resp) + (1 - eps) * band_radiance(sky_k, band, resp)
+    table = exporter.path_table(cam, Usd.TimeCode(0))
+    if table is not None:  # 15 m of air in front of the skin (band-effective transmittance)
+        tau, path = table.reduce(SubBands(band, resp, 1)).at(15.0, 0)
+        surface = tau * surface + path
+    lower = brightness_temperature(surface, band, resp)
     assert lower - 0.3 < t_skin < 306.15
     # the image is radiance-consistent: T_b inverts L per pixel
     some = np.s_[::37, ::41]
     np.testing.assert_allclose(
-        brightness_temperature(ch["radiance"][some].astype(float), band),
+        brightness_temperature(ch["radiance"][some].astype(float), band, resp),
         ch["brightness_temperature"][some], rtol=1e-5)
 
 

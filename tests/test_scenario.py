@@ -25,10 +25,11 @@ def test_humvvex_loads_with_defaults_filled():
     assert s["sensor"][0]["resolution"] == [1024, 768]
     assert s["sensor"][0]["pixel_pitch_um"] == 17.0
     assert s.frame_count == 1
-    assert [x["id"] for x in s.infrared_sensors] == ["atom1024_lwir"]
-    # sections mirror the editor's six tabs plus the atmosphere
+    # the four HUMVVEX imagers: two LWIR, MWIR (infrared) and EO colour
+    assert [x["id"] for x in s.infrared_sensors] == ["atom1024_lwir", "lwir640", "mwir_insb"]
+    # sections mirror the editor's six tabs plus the atmosphere and the ground-truth outputs
     assert list(SECTIONS) == ["general", "human", "placement", "scene", "sensor", "thermal",
-                              "atmosphere"]
+                              "atmosphere", "annotations"]
 
 
 def test_out_of_range_names_key_value_and_range(raw):
@@ -90,9 +91,10 @@ def test_cross_references(raw):
 
 def test_duplicate_and_bad_ids(raw):
     raw["sensor"].append(dict(raw["sensor"][0]))
+    last = len(raw["sensor"]) - 1
     raw["scene"]["object"][0]["id"] = "1wall"
     found = problems(raw)
-    assert any("sensor[1].id = 'atom1024_lwir': must be unique" in p for p in found)
+    assert any(f"sensor[{last}].id = 'atom1024_lwir': must be unique" in p for p in found)
     assert any("scene.object[0].id = '1wall'" in p for p in found)
 
 
@@ -131,3 +133,16 @@ def test_digest_tracks_content(raw):
     b = validate(raw)
     assert a.digest("general") == b.digest("general")
     assert a.digest("thermal") != b.digest("thermal")
+
+
+def test_annotator_names_checked_at_load(raw):
+    from humv_usd.groundtruth.annotators import ANNOTATORS
+    from humv_usd.scenario.spec import ANNOTATIONS
+
+    assert set(ANNOTATIONS.keys["annotators"].choices) == set(ANNOTATORS)
+    raw["annotations"] = {"annotators": ["boxes", "keypionts"]}
+    (line,) = problems(raw)
+    assert line.startswith("annotations.annotators[1] = 'keypionts': allowed: ")
+    assert line.endswith("(did you mean 'keypoints'?)")
+    raw["annotations"] = {"annotators": ["boxes", "keypoints"]}
+    assert validate(raw)["annotations"]["annotators"] == ["boxes", "keypoints"]

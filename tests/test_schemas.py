@@ -20,6 +20,7 @@ APPLIES_TO = {
     hs.SCENARIO_API: {"Xform", "Scope"},
     hs.ENVIRONMENT_API: {"Scope", "Xform"},
     hs.ATMOSPHERE_API: {"Scope", "Xform"},
+    hs.ATMOSPHERE_PATH_API: {"Scope"},
     hs.MATERIAL_API: {"Material"},
     hs.AVATAR_API: {"SkelRoot", "Xform"},
     hs.CLOTHING_API: {"Mesh"},
@@ -44,6 +45,8 @@ ALLOWED_TOKENS = {
     hs.AVATAR_ACTIVITY: ["stand", "standTurn", "walk", "run", "postExercise"],
     hs.THERMAL_MODEL: ["fixed", "twoNode", "jos3", "slab", "balance"],
     hs.SENSOR_BAND: ["EO", "MWIR", "LWIR"],
+    hs.SENSOR_PLATFORM: ["tripod", "mast", "aerial"],
+    hs.SENSOR_AGC: ["none", "linear", "histogram"],
     hs.LABEL_CLASS: ["person", "ground", "building", "prop", "panel", "vegetation", "vehicle", "other"],
 }
 # The table gives no token set for the garment: it names garments of the clothing library.
@@ -97,6 +100,7 @@ def test_schema_names_match_table():
         "HumvScenarioAPI",
         "HumvEnvironmentAPI",
         "HumvAtmosphereAPI",
+        "HumvAtmospherePathAPI",
         "HumvMaterialAPI",
         "HumvAvatarAPI",
         "HumvClothingAPI",

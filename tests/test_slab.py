@@ -6,8 +6,8 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.special import erf
 
-from humv_usd.physics.slab import (diurnal_spin_up, held_temperature, step, surface_flux,
-                                   uniform_layers)
+from humv_usd.physics.slab import (diurnal_spin_up, held_temperature, simulate_many, step,
+                                   step_many, surface_flux, uniform_layers)
 from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
 
 
@@ -103,3 +103,42 @@ def test_held_temperature_and_bad_bottom():
     with pytest.raises(ValueError, match='invalid model selection open'):
         step(np.full(3, 290.0), 60.0, uniform_layers(0.1, 2), 1.0, 1e6, 0, 0, 290, 5,
              bottom='open')
+
+
+@pytest.mark.parametrize("dt", [60.0, 3600.0, np.inf])
+@pytest.mark.parametrize("bottom", ["adiabatic", "fixed"])
+def test_step_many_equals_step_per_slab(dt, bottom):
+    rng = np.random.default_rng(4)
+    dz = np.r_[np.full(5, 0.02), np.full(3, 0.1)]           # two materials
+    k, rc = np.r_[np.full(5, 1.4), np.full(3, 0.5)], np.r_[np.full(5, 2.0e6), np.full(3, 3.0e6)]
+    t0 = 290.0 + 5.0 * rng.random((6, 9))
+    a, lw = rng.uniform(0, 700, 6), rng.uniform(250, 420, 6)
+    ta, h = rng.uniform(260, 320, 6), rng.uniform(2, 40, 6)
+    eps = rng.uniform(0.1, 1.0, 6)
+    t, res = step_many(t0, dt, dz, k, rc, a, lw, ta, h, eps, bottom, 285.0)
+    for i in range(6):
+        ref, r = step(t0[i], dt, dz, k, rc, a[i], lw[i], ta[i], h[i], eps[i], bottom, 285.0)
+        assert_allclose(t[i], ref, rtol=0, atol=1e-8)
+    assert np.all(np.abs(res) < 1e-6)
+
+
+def test_simulate_many_plate_equilibrium_and_history():
+    # constant forcing: the start (mean-forcing steady state) is already the answer; a thin
+    # adiabatic-back plate satisfies alpha G + eps (L - sigma T^4) = h (T - T_air)
+    from scipy.optimize import brentq
+    times = np.arange(0.0, 7200.0, 600.0)
+    a, lw, ta, h, eps = 500.0, 300.0, 290.0, 8.0, 0.9
+    t, res = simulate_many(times, a, lw, ta, h, [0.6e-3 / 4] * 4, 50.0, 3.7e6, emissivity=eps)
+    t_eq = brentq(lambda x: a + eps * (lw - SIGMA * x ** 4) - h * (x - ta), 200.0, 500.0)
+    assert_allclose(t, t_eq, rtol=0, atol=1e-6)
+    assert res < 1e-6
+    # varying forcing for two slabs = two scalar histories with step()
+    a2 = np.stack([np.linspace(0, 800, len(times)), np.zeros(len(times))], axis=1)
+    dz = uniform_layers(0.1, 6)
+    t2, _ = simulate_many(times, a2, lw, ta, h, dz, 1.0, 2e6, emissivity=eps,
+                          initial_temperature_k=295.0)
+    for j in range(2):
+        nodes = np.full(7, 295.0)
+        for i in range(1, len(times)):
+            nodes, _ = step(nodes, 600.0, dz, 1.0, 2e6, a2[i, j], lw, ta, h, eps)
+            assert_allclose(t2[i, j], nodes[0], atol=1e-8)

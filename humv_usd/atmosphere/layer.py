@@ -1,31 +1,115 @@
-"""Atmosphere tool: sky model → layers/atmosphere.usda.
+"""Atmosphere tool: sky, sun and slant paths → layers/atmosphere.usda.
 
-Foundation placeholder: the analytic clear sky of Berdahl & Martin (1984) gives one effective
-sky temperature; LOWTRAN7 band radiance by zenith angle comes with the atmosphere issue.
+Authors what :func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario
+needs, see there): on /World/Atmosphere the model that ran, the effective broadband sky
+(temperature, emissivity: the thermal layer's inputs), the wavelength grid of the sensors'
+bands, the sky spectral radiance against zenith and, while the sun is up, the direct solar
+spectral irradiance per frame; under /World/Atmosphere/Paths one path table per sensor, with
+ranges from 1 m to beyond the scene. What ran and what was skipped is recorded in the layer's
+customLayerData ``humv:atmosphere:ran``.
 """
 from __future__ import annotations
 
-from pxr import Sdf, UsdGeom
+import numpy as np
+from pxr import Sdf, UsdGeom, Vt
 
-from humv_usd.physics.sky import effective_sky_temperature
+from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 
 NAME = "atmosphere"
-READS = ("general", "atmosphere")
+READS = ("general", "atmosphere", "sensor", "scene", "placement")
+PATHS = SCOPES["atmosphere"].AppendChild("Paths")
+
+
+def _floats(a) -> Vt.FloatArray:
+    return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
+
+
+def scene_points(scenario: Scenario) -> np.ndarray:
+    """Points bounding what the sensors look at [m]: ground corners, object tops, people."""
+    pts = []
+    scene = scenario["scene"]
+    if scene:
+        gx, gy = scene["ground"]["size_m"]
+        pts += [(sx * gx / 2, sy * gy / 2, 0.0) for sx in (-1, 1) for sy in (-1, 1)]
+        for o in scene["object"]:
+            cx, cy, cz = o["center_m"]
+            r = 0.5 * float(np.hypot(o["size_m"][0], o["size_m"][1]))
+            pts += [(cx + sx * r, cy + sy * r, cz + o["size_m"][2]) for sx in (-1, 1)
+                    for sy in (-1, 1)]
+    for p in scenario["placement"]:
+        x, y, z = p["position_m"]
+        pts += [(x, y, z), (x, y, z + 2.0)]
+        pts += [(wx, wy, z) for wx, wy in p.get("waypoints_m") or []]
+    return np.asarray(pts, dtype=float).reshape(-1, 3)
+
+
+def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
+    """Ranges [m] of a sensor's path table: the table's nodes up to the farthest scene point
+    (x 1.5, at least twice the look-at distance and 100 m), that range included."""
+    from humv_usd.sensors.layer import camera_positions
+
+    g = scenario["general"]
+    cams = camera_positions(sensor, g["fps"], scenario.frame_count)
+    targets = np.vstack([scene_points(scenario), np.asarray(sensor["look_at_m"], float)[None]])
+    far = max(float(np.max(np.linalg.norm(cams[:, None, :] - targets[None], axis=-1))), 1.0)
+    look = float(np.max(np.linalg.norm(cams - np.asarray(sensor["look_at_m"], float), axis=-1)))
+    r_max = min(max(1.5 * far, 2.0 * look, 100.0), float(PATH_RANGES_M[-1]))
+    return np.unique(np.append(PATH_RANGES_M[PATH_RANGES_M < r_max], r_max))
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g, a = scenario["general"], scenario["atmosphere"]
+    atm = atmosphere_for(scenario)
     stage = new_layer_stage(g["fps"], scenario.frame_count,
-                            "HumV-USD atmosphere layer: analytic clear sky (Berdahl-Martin 1984)")
+                            f"HumV-USD atmosphere layer: {atm.source} sky, sun and sensor paths")
     prim = UsdGeom.Scope.Define(stage, SCOPES["atmosphere"]).GetPrim()
     prim.ApplyAPI(S.ATMOSPHERE_API)
-    t_sky, eps = effective_sky_temperature(a["air_temperature_k"], a["relative_humidity"])
-    prim.GetAttribute(S.ATMOSPHERE_MODEL).Set(a["model"])
+    prim.GetAttribute(S.ATMOSPHERE_MODEL).Set(atm.source)
     prim.GetAttribute(S.ATMOSPHERE_PROFILE).Set(a["profile"])
     prim.GetAttribute(S.ATMOSPHERE_VISIBILITY).Set(a["visibility_km"] * 1000.0)
-    prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(eps), 6))
-    prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(t_sky), 4))
+    prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(atm.sky_emissivity), 6))
+    prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(atm.sky_temperature_k), 4))
+    ran = {k: ("; ".join(v) if isinstance(v, list) else str(v)) for k, v in atm.ran.items()}
+    ran["broadband sky"] = (f"emissivity {atm.sky_emissivity:.4f}, temperature "
+                            f"{atm.sky_temperature_k:.2f} K ({atm.source})")
+    w = atm.wavelengths_um
+    if w.size:
+        codes = np.round(atm.times_s * float(g["fps"]), 6)
+        sampled = scenario.frame_count > 1
+        prim.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Set(_floats(w))
+        prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
+        sky_attr = prim.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE)
+        diffuse_varies = sampled and np.ptp(atm.diffuse_radiance, axis=0).max() > 0
+        if diffuse_varies:
+            for code, t in zip(codes, atm.times_s):
+                sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, t)), float(code))
+        else:
+            sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, atm.times_s[0])))
+        if atm.solar.any():
+            solar_attr = prim.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE)
+            if sampled:
+                for code, row in zip(codes, atm.solar):
+                    solar_attr.Set(_floats(row), float(code))
+            else:
+                solar_attr.Set(_floats(atm.solar[0]))
+        else:
+            ran["solar spectrum"] = "skipped: sun below the horizon (or fully clouded)"
+        UsdGeom.Scope.Define(stage, PATHS)
+        from humv_usd.sensors.layer import sensor_path
+        for s in scenario["sensor"]:
+            path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
+            path.ApplyAPI(S.ATMOSPHERE_PATH_API)
+            ranges = sensor_ranges(scenario, s)
+            tau, rad = atm.path(s["position_m"], ranges)
+            path.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path(s["id"])))
+            path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
+            path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)))
+            path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)))
+        ran["paths"] = ran.get("paths", "") + f"; tables for {len(scenario['sensor'])} sensors"
+    else:
+        ran["spectra"] = "skipped: no sensor"
+    stage.GetRootLayer().customLayerData = {"humv:atmosphere:ran": ran}
     return finish(stage)

@@ -16,6 +16,14 @@ The carry is defined in the Hips joint's frame (rest-aligned axes: +Z up, the bo
 * the wrist is put where that grasp point lands on its target by a two-bone IK per arm
   (shoulder -> elbow -> wrist, law of cosines), the elbow bent down and out (pole vector);
   each segment takes the minimal rotation from its rest direction.
+
+Clearance (with the person's body, :func:`clear_rifle`): the fixed carry can cut into a
+bent trunk or a raised thigh (a squat, a bow, a high knee in a run or a BVH clip). Per frame
+the rifle is then translated in the Hips' frame, with both hands, until every body vertex
+except the holding hands and forearms is :data:`CLEARANCE` off the rifle's solid (its boxes
+and cylinders, closed-form distance :func:`prop_signed_distance`), and the arms' IK is
+re-solved; offsets are smoothed over time. The clothing layer measures the result on the
+authored motion per frame (customData ``humv:prop``).
 """
 from __future__ import annotations
 
@@ -23,7 +31,7 @@ import dataclasses
 
 import numpy as np
 
-from humv_usd.avatar.skeleton import Skeleton, forward_kinematics
+from humv_usd.avatar.skeleton import Skeleton, forward_kinematics, skinning_matrices
 
 #: The rifle's own frame (see :data:`humv_usd.clothing.garments.RIFLE`): x to the muzzle,
 #: origin at the pistol grip's top. Right-hand grasp on the grip, left on the handguard axis.
@@ -131,8 +139,9 @@ def _two_bone(s, t, l1, l2, pole):
     return s + a[:, None] * u + h[:, None] * v
 
 
-def apply_rifle_carry(motion, skeleton: Skeleton):
-    """``motion`` with both arms in the rifle carry in every frame (see module doc)."""
+def _solve_arms(motion, skeleton: Skeleton, offsets: np.ndarray | None = None) -> np.ndarray:
+    """(F, J, 4) local rotations: ``motion``'s with both arms in the carry; ``offsets``
+    (F, 3) translate the rifle (and so both grasp points) per frame in the Hips' frame."""
     q = np.array(motion.local_rotations, dtype=float, copy=True)
     names = skeleton.names
     for name in ARM_JOINTS:                      # clavicles at rest, the rest solved below
@@ -140,15 +149,16 @@ def apply_rifle_carry(motion, skeleton: Skeleton):
     world = forward_kinematics(skeleton, q, motion.root_translation)
     hips_r, hips_p = world[:, 0, :3, :3], world[:, 0, :3, 3]
     targets = grasp_targets(skeleton)
-    offsets = grasp_offsets(skeleton)
+    offsets = np.zeros((len(q), 3)) if offsets is None else np.asarray(offsets, float)
+    grasp_offset = grasp_offsets(skeleton)
     hand_dirs = {"Right": _RIGHT_HAND_DIR, "Left": _LEFT_HAND_DIR}
     rest = skeleton.rest_positions
     for side in ("Right", "Left"):
         arm, fore, hand = (names.index(f"{side}{j}") for j in ("Arm", "ForeArm", "Hand"))
         hand_local = _hand_rotation(skeleton, side, hand_dirs[side])      # in Hips' frame
         hand_world = hips_r @ hand_local                                  # (F, 3, 3)
-        grasp = hips_p + hips_r @ targets[side]
-        wrist = grasp - hand_world @ offsets[side]
+        grasp = hips_p + np.einsum("fij,fj->fi", hips_r, targets[side] + offsets)
+        wrist = grasp - hand_world @ grasp_offset[side]
         shoulder = world[:, arm, :3, 3]
         upper, lower = rest[fore] - rest[arm], rest[hand] - rest[fore]
         elbow = _two_bone(shoulder, wrist, np.linalg.norm(upper), np.linalg.norm(lower),
@@ -159,6 +169,26 @@ def apply_rifle_carry(motion, skeleton: Skeleton):
         q[:, arm] = _matrix_to_quat(np.swapaxes(parent, 1, 2) @ arm_world)
         q[:, fore] = _matrix_to_quat(np.swapaxes(arm_world, 1, 2) @ fore_world)
         q[:, hand] = _matrix_to_quat(np.swapaxes(fore_world, 1, 2) @ hand_world)
+    return q
+
+
+def apply_rifle_carry(motion, skeleton: Skeleton, body=None, *,
+                      clearance: float | None = None, report: dict | None = None):
+    """``motion`` with both arms in the rifle carry in every frame (see module doc).
+
+    ``body``: the person's :class:`humv_usd.avatar.body.Body` (or its :class:`CarryBody`):
+    the carry is then moved per frame until the rifle clears the body by ``clearance`` [m]
+    (default :data:`CLEARANCE`; :func:`clear_rifle`); ``report`` (a dict) receives the
+    clearance before/after per frame. Without ``body`` the carry is fixed in the Hips' frame
+    (no collision check).
+    """
+    if body is None:
+        q = _solve_arms(motion, skeleton)
+    else:
+        cb = body if isinstance(body, CarryBody) else carry_body(body, skeleton)
+        q, rep = clear_rifle(motion, skeleton, cb, CLEARANCE if clearance is None else clearance)
+        if report is not None:
+            report.update(rep)
     return dataclasses.replace(motion, local_rotations=q)
 
 
@@ -173,9 +203,252 @@ def carry_rest_transform(skeleton: Skeleton) -> np.ndarray:
     q = np.zeros((1, len(skeleton.names), 4))
     q[..., 0] = 1.0
     root = skeleton.rest_positions[:1].copy()
-    q = apply_rifle_carry(_Still(q, root), skeleton).local_rotations
+    q = _solve_arms(_Still(q, root), skeleton)
     world = forward_kinematics(skeleton, q, root)[0]
     j = skeleton.index("RightHand")
     skin = world[j].copy()                          # world pose times the inverse rest pose
     skin[:3, 3] -= world[j, :3, :3] @ skeleton.rest_positions[j]
     return np.linalg.inv(skin) @ world[0] @ rifle_frame(skeleton)
+
+
+# ---------------------------------------------------------------------------- clearance
+#: Default rifle-body clearance [m] (skin to the rifle's surface): clears the outermost
+#: garment (a uniform jacket over a shirt ends ~25 mm off the skin) with a few mm to spare.
+CLEARANCE = 0.03
+#: Body regions that may touch the rifle: the gripping hands and the forearms along it.
+HOLDING_REGIONS = ("leftHand", "rightHand", "leftLowerArm", "rightLowerArm")
+#: Search passes per clearance round (each moves the violating frames' carry once).
+CLEAR_PASSES = 4
+#: Shifts tried [m] along each of :data:`_SHIFT_DIRECTIONS` (and the distance gradient).
+SHIFT_STEPS = 0.005 * 2.0 ** (np.arange(14) / 2)          # 5 mm .. 0.45 m
+#: Unit directions (Hips' frame) to the faces, edges and corners of a cube.
+_SHIFT_DIRECTIONS = np.array([[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1)
+                              for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)], dtype=float)
+_SHIFT_DIRECTIONS /= np.linalg.norm(_SHIFT_DIRECTIONS, axis=1, keepdims=True)
+#: Gaussian smoothing of the per-frame carry offsets over time [s] (no popping).
+SMOOTH_S = 0.1
+_FRAME_CHUNK = 32
+
+
+@dataclasses.dataclass(frozen=True)
+class CarryBody:
+    """The body vertices the rifle must clear (all but :data:`HOLDING_REGIONS`), rest pose,
+    with their skinning."""
+    points: np.ndarray              # (n, 3) [m]
+    joint_indices: np.ndarray       # (n, k)
+    joint_weights: np.ndarray       # (n, k)
+
+
+def carry_body(body, skeleton: Skeleton) -> CarryBody:
+    """:class:`CarryBody` of a :class:`humv_usd.avatar.body.Body` (the avatar layer's
+    skinning and body-region labels)."""
+    from humv_usd.avatar import labels as L
+    from humv_usd.avatar.skeleton import skin_weights
+    mesh = body.body_mesh()
+    idx, w = skin_weights(skeleton, mesh.vertex_ids, 4)
+    return carry_body_of(mesh, idx, w, L.body_regions(mesh, skeleton, idx, w))
+
+
+def carry_body_of(mesh, joint_indices, joint_weights, face_regions) -> CarryBody:
+    """:class:`CarryBody` of a body mesh (``face_counts``, ``face_indices``, ``points``) with
+    its skinning and per-face body regions."""
+    from humv_usd.avatar import labels as L
+    counts = np.asarray(mesh.face_counts)
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    holding = np.isin(face_regions, [L.REGION_ID[r] for r in HOLDING_REGIONS])
+    keep = np.zeros(len(mesh.points), dtype=bool)
+    keep[np.asarray(mesh.face_indices)[~holding[face_of]]] = True
+    return CarryBody(np.asarray(mesh.points)[keep], np.asarray(joint_indices)[keep],
+                     np.asarray(joint_weights)[keep])
+
+
+def prop_signed_distance(points: np.ndarray, prop=None) -> np.ndarray:
+    """Signed distance [m] of ``points`` (prop frame) to a prop's solid (default the rifle):
+    the union of its boxes and x-axis cylinders, < 0 inside. Exact for each convex shape
+    (box: Quilez's box distance; cylinder: the same in (axial, radial) coordinates); the
+    union is the minimum, exact outside. The mesh's octagonal cylinders lie within the
+    round ones (inscribed; at most 0.08 r inside them), so this errs on the safe side."""
+    if prop is None:
+        from humv_usd.clothing.garments import RIFLE as prop
+    p = np.asarray(points, dtype=np.float64)
+    out = np.full(p.shape[:-1], np.inf)
+    for s in prop.shapes:
+        d = p - np.asarray(s.centre)
+        if s.radius <= 0:
+            q = np.abs(d) - np.asarray(s.size) / 2
+        else:
+            q = np.stack([np.abs(d[..., 0]) - s.size[0] / 2,
+                          np.hypot(d[..., 1], d[..., 2]) - s.radius], -1)
+        outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+        inside = np.minimum(q.max(axis=-1), 0.0)
+        out = np.minimum(out, outside + inside)
+    return out
+
+
+def _in_rifle_frame(cb: CarryBody, skin: np.ndarray, to_rifle: np.ndarray) -> np.ndarray:
+    """(f, n, 3) the posed body vertices (linear blend skinning) in the rifle's frame."""
+    dense = np.zeros((len(cb.points), skin.shape[1]))          # (n, J) skin weights
+    np.add.at(dense, (np.repeat(np.arange(len(cb.points)), cb.joint_indices.shape[1]),
+                      cb.joint_indices.ravel()), cb.joint_weights.astype(np.float64).ravel())
+    joint = (to_rifle[:, None] @ skin)[..., :3, :].reshape(len(skin), -1, 12)
+    blended = (dense @ joint).reshape(len(skin), -1, 3, 4)
+    return np.einsum("fvij,vj->fvi", blended[..., :3], cb.points) + blended[..., 3]
+
+
+def _union_distance(local: np.ndarray, prop) -> np.ndarray:
+    """(f, n) :func:`prop_signed_distance`, exact wherever it can be a frame's minimum or
+    negative; elsewhere the (lower) distance to the prop's bounding box. The box distance
+    bounds the solid's from below, so a point whose box distance exceeds the exact distance
+    of the frame's box-nearest point cannot be the closest one."""
+    lo, hi = _prop_box(prop)
+    q = np.abs(local - (lo + hi) / 2) - (hi - lo) / 2
+    out = (np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0))
+    rows = np.arange(len(local))
+    near = np.argmin(out, axis=1)
+    bound = prop_signed_distance(local[rows, near], prop)
+    f, v = np.nonzero(out <= bound[:, None])
+    out[f, v] = prop_signed_distance(local[f, v], prop)
+    return out
+
+
+def _prop_box(prop) -> tuple[np.ndarray, np.ndarray]:
+    if prop is None:
+        from humv_usd.clothing.garments import RIFLE as prop
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for s in prop.shapes:
+        half = (np.asarray(s.size, float) / 2 if s.radius <= 0
+                else np.array([s.size[0] / 2, s.radius, s.radius]))
+        c = np.asarray(s.centre, float)
+        lo, hi = np.minimum(lo, c - half), np.maximum(hi, c + half)
+    return lo, hi
+
+
+def rifle_world(skeleton: Skeleton, skin: np.ndarray) -> np.ndarray:
+    """(F, 4, 4) rifle frame -> skeleton space per frame, for skinning matrices ``skin``
+    (F, J, 4, 4): the rifle is bound rigidly to RightHand at :func:`carry_rest_transform`."""
+    return skin[:, skeleton.index("RightHand")] @ carry_rest_transform(skeleton)
+
+
+def rifle_clearance(cb: CarryBody, skeleton: Skeleton, skin: np.ndarray, prop=None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame: (min signed distance [m] of the body's non-holding vertices to the rifle
+    solid, number of them inside it, the rifle-frame position of the closest one)."""
+    skin = np.asarray(skin, dtype=np.float64)
+    to_rifle = np.linalg.inv(rifle_world(skeleton, skin))
+    frames = len(skin)
+    dmin, inside, worst = np.empty(frames), np.empty(frames, dtype=int), np.empty((frames, 3))
+    for a in range(0, frames, _FRAME_CHUNK):
+        b = min(a + _FRAME_CHUNK, frames)
+        local = _in_rifle_frame(cb, skin[a:b], to_rifle[a:b])
+        d = _union_distance(local, prop)
+        k = np.argmin(d, axis=1)
+        dmin[a:b] = d[np.arange(b - a), k]
+        inside[a:b] = (d < 0).sum(axis=1)
+        worst[a:b] = local[np.arange(b - a), k]
+    return dmin, inside, worst
+
+
+def prop_distance_gradient(p: np.ndarray, prop=None, eps: float = 1e-4) -> np.ndarray:
+    """(F, 3) unit gradients of :func:`prop_signed_distance` at ``p`` (central differences)."""
+    g = np.stack([prop_signed_distance(p + eps * e, prop) - prop_signed_distance(p - eps * e, prop)
+                  for e in np.eye(3)], -1)
+    n = np.linalg.norm(g, axis=-1, keepdims=True)
+    return np.where(n > 0, g / np.maximum(n, 1e-12), [0.0, 1.0, 0.0])
+
+
+def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray,
+                clearance: float) -> np.ndarray:
+    """The shortest Hips-frame shift of the rifle (:data:`SHIFT_STEPS` along the distance
+    gradient at the closest body vertex or any of :data:`_SHIFT_DIRECTIONS`) after which
+    every body point ``local`` (rifle frame) is ``clearance`` off the solid (of the shifts of
+    that length that do, the one leaving the most room); if none clears, the one that leaves
+    the largest clearance. A shift of length s can only bring points nearer than
+    s + clearance to the rifle's bounding box into play: only those are checked."""
+    grad_local = prop_distance_gradient(worst[None])[0]                 # body -> out, rifle frame
+    dirs = np.vstack([-(to_local.T @ grad_local), _SHIFT_DIRECTIONS])
+    lo, hi = _prop_box(None)
+    q = np.abs(local - (lo + hi) / 2) - (hi - lo) / 2
+    box = np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0)
+    best, best_d = dirs[0] * SHIFT_STEPS[-1], -np.inf
+    for step in SHIFT_STEPS:
+        near = local[box < step + clearance + 1e-3]
+        shifts = step * dirs                                   # Hips' frame
+        if not len(near):
+            return shifts[0]
+        moved = near[None] - (shifts @ to_local.T)[:, None, :]
+        d = _union_distance(moved, None).min(axis=1)
+        k = int(np.argmax(d))
+        if d[k] >= clearance + 1e-3:
+            return shifts[k]
+        if d[k] > best_d:
+            best, best_d = shifts[k], d[k]
+    return best
+
+
+def clear_rifle(motion, skeleton: Skeleton, cb: CarryBody, clearance: float = CLEARANCE
+                ) -> tuple[np.ndarray, dict]:
+    """Arms in the carry with the rifle at least ``clearance`` off the body in every frame.
+
+    Start from the fixed carry. Where a frame's closest non-holding body vertex is nearer
+    than ``clearance`` to the rifle solid (:func:`rifle_clearance`), translate that frame's
+    rifle (the carry, in the Hips' frame) by the shortest shift that clears every body
+    vertex (:func:`_best_shift`: along the solid's distance gradient at the closest vertex
+    or 26 cube directions, lengths :data:`SHIFT_STEPS`) and re-solve both arms' IK (the
+    rifle is rigid with the right hand, so the re-solved pose is re-checked, not assumed);
+    up to :data:`CLEAR_PASSES` passes. The offsets are then smoothed over :data:`SMOOTH_S`
+    and the passes repeated on frames the smoothing left too close, so the rifle moves ahead
+    of a contact instead of popping. Limits: translation only (no re-orientation of the
+    rifle); a frame that still fails (e.g. out of the arms' reach: ``graspErrorMax_m``) is
+    reported, not hidden. Returns (local rotations, report: per-frame min distance and
+    vertices inside before/after, offset length, the hands' worst grasp error).
+    """
+    frames = len(motion.local_rotations)
+    fps = float(getattr(motion, "fps", 30.0))
+    offsets = np.zeros((frames, 3))
+
+    def solve(off):
+        q = _solve_arms(motion, skeleton, off)
+        world = forward_kinematics(skeleton, q, motion.root_translation)
+        return q, world, rifle_clearance(cb, skeleton, skinning_matrices(skeleton, world))
+
+    def push(off, q, world, check):
+        for _ in range(CLEAR_PASSES):
+            d = check[0]
+            bad = np.flatnonzero(d < clearance)
+            if not len(bad):
+                break
+            skin = skinning_matrices(skeleton, world[bad])
+            rifle = rifle_world(skeleton, skin)
+            local = _in_rifle_frame(cb, skin, np.linalg.inv(rifle))
+            # rifle-frame axes of the Hips' frame: a Hips-frame shift delta moves the rifle by
+            # to_local @ delta in its own frame
+            to_local = np.swapaxes(rifle[:, :3, :3], 1, 2) @ world[bad, 0, :3, :3]
+            for k, f in enumerate(bad):
+                off[f] += _best_shift(local[k], to_local[k], check[2][f], clearance)
+            q, world, check = solve(off)
+        return off, q, world, check
+
+    q, world, check = solve(offsets)
+    before = check[0].copy(), check[1].copy()
+    offsets, q, world, check = push(offsets, q, world, check)
+    if np.any(offsets) and frames > 2:
+        from scipy.ndimage import gaussian_filter1d
+        offsets = gaussian_filter1d(offsets, max(SMOOTH_S * fps, 1e-3), axis=0, mode="nearest")
+        q, world, check = solve(offsets)
+        offsets, q, world, check = push(offsets, q, world, check)
+    # how well the hands still reach their grasp points (an out-of-reach push shows here)
+    targets = grasp_targets(skeleton)
+    reach = {}
+    for side in ("Right", "Left"):
+        j = skeleton.index(f"{side}Hand")
+        grasp = world[:, j, :3, 3] + np.einsum("fij,j->fi", world[:, j, :3, :3],
+                                               grasp_offsets(skeleton)[side])
+        target = world[:, 0, :3, 3] + np.einsum("fij,fj->fi", world[:, 0, :3, :3],
+                                                targets[side] + offsets)
+        reach[side] = float(np.linalg.norm(grasp - target, axis=1).max())
+    report = {"clearance_m": clearance,
+              "minDistanceBefore_m": before[0], "insideBefore": before[1],
+              "minDistanceAfter_m": check[0], "insideAfter": check[1],
+              "offset_m": np.linalg.norm(offsets, axis=1),
+              "graspErrorMax_m": reach}
+    return q, report

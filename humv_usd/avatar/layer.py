@@ -108,7 +108,8 @@ def waypoints_in_avatar_frame(place: dict, start_xy) -> np.ndarray | None:
 def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     """The human's motion over the scenario's frames: the BVH file if given, else the built-in
     activity (walk/run along the heading or the waypoints) on flat ground; with the arms in the
-    rifle carry (:func:`humv_usd.avatar.carry.apply_rifle_carry`) if the human wears the rifle."""
+    rifle carry (:func:`humv_usd.avatar.carry.apply_rifle_carry`, kept clear of the body) if
+    the human wears the rifle."""
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
@@ -117,7 +118,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
         motion = motion_from_bvh(human["bvh"], skeleton, g["fps"], frames,
                                  up_axis=human["bvh_up_axis"], mass_kg=human["mass_kg"],
                                  body_points=body.points)
-        return apply_rifle_carry(motion, skeleton) if carry else motion
+        return apply_rifle_carry(motion, skeleton, body) if carry else motion
     # the motion model needs two frames at least; a one-frame scenario keeps the first
     motion = make_motion(human["activity"], skeleton, g["fps"], max(frames, 2),
                          speed_m_s=human.get("speed_m_s"),
@@ -128,7 +129,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             motion, root_translation=motion.root_translation[:frames],
             local_rotations=motion.local_rotations[:frames],
             metabolic_rate_w=motion.metabolic_rate_w[:frames])
-    return apply_rifle_carry(motion, skeleton) if carry else motion
+    return apply_rifle_carry(motion, skeleton, body) if carry else motion
 
 
 def _motion_attributes(prim, motion) -> None:

@@ -71,18 +71,24 @@ def compose(scenario: Path, out_dir: Path):
               help="Samples per pixel.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1))
 @click.option("--sensor", "sensors", multiple=True, help="Render only this sensor (repeatable).")
+@click.option("--annotators", default=None, help="Ground-truth annotators, comma-separated "
+              "(default: the scenario's [annotations], else all; see humv_usd.groundtruth).")
+@click.option("--subbands", default=None, type=int,
+              help="Sub-bands per infrared band (1-64; default 4, see `humv-usd bench render`).")
 @reports_errors
-def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors):
-    """Render every infrared sensor of STAGE to EXR + PNG with a manifest."""
+def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors, annotators, subbands):
+    """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
     from humv_usd.render.run import render_stage
 
     manifest = render_stage(stage, out_dir, frames=parse_frames(frames), spp=spp,
-                            sensors=list(sensors) or None, seed=seed)
+                            sensors=list(sensors) or None, seed=seed,
+                            annotators=None if annotators is None else annotators.split(","),
+                            subbands=subbands)
     err = manifest["monte_carlo_error"]
-    rendered = sum(len(s["frames"]) for s in manifest["sensors"])
+    rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))
     click.echo(f"{out_dir}/manifest.json  {rendered} image(s), "
                f"render {manifest['timings_s']['total']:.2f} s")
-    if rendered:
+    if manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
         click.echo(f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
                    f"max {err['temperature_stderr_max_k']:.4f} K "
                    f"({err['radiance_stderr_mean']:.4g} / {err['radiance_stderr_max']:.4g} "
@@ -170,6 +176,75 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
                f"{statistics.median(err_k):.4f} K (median over runs)")
 
 
+@bench.command("render")
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--subbands", "counts", default="1,2,4,8,16", show_default=True,
+              help="Sub-band counts to compare, comma-separated.")
+@click.option("--time-subbands", "time_counts", default="1,4", show_default=True,
+              help="Sub-band counts to render and time (all sensors, first frame).")
+@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
+@click.option("--atmosphere-model", default=None, type=click.Choice(["lowtran7", "analytic"]),
+              help="Override [atmosphere] model for the spectral error (default: the scenario's).")
+@reports_errors
+def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosphere_model):
+    """Spectral error against sub-band count, and render time and Monte Carlo error per sensor.
+
+    The error is the brightness-temperature difference of a facet (every material of the
+    stage, its face temperatures, sky, sun and slant path at 5-60 m) between n sub-bands and a
+    fine spectral quadrature; when the stage's atmosphere layer has no spectral tables they
+    come from humv_usd.atmosphere.model.atmosphere_for.
+    """
+    from humv_usd.pipeline.compose import compose as run_compose
+    from humv_usd.render import run as R
+    from humv_usd.scenario import load_scenario
+
+    def ints(text, name):
+        try:
+            values = [int(v) for v in text.split(",") if v.strip()]
+        except ValueError:
+            raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
+        for v in values:
+            R.radiometry.check_subbands(v, f"--{name}")
+        return values
+
+    n_list, t_list = ints(counts, "subbands"), ints(time_counts, "time-subbands")
+    sc = load_scenario(scenario)
+    if atmosphere_model is not None:
+        sc["atmosphere"]["model"] = atmosphere_model
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "stage"
+        run_compose(sc, out)
+        stage = out / "stage.usda"
+        spectra = path = sun_dir = None
+        ex = R.StageExport(R.open_stage(stage))
+        t0 = R.Usd.TimeCode(R.stage_frames(ex.stage)[0])
+        source = "stage"
+        if ex.atmosphere_spectra(t0).sky_radiance is None:
+            from humv_usd.atmosphere.model import atmosphere_for
+            from humv_usd.environment.sun import sun_at
+
+            atm = atmosphere_for(sc)
+            spectra, path = R.spectra_from_atmosphere(atm, 0.0)
+            sun_dir = sun_at(sc, [0.0]).direction[0]
+            source = f"atmosphere_for ({atm.source}; the stage has no spectral tables)"
+        table = R.subband_error_table(stage, n_list, spectra=spectra, path_table=path, sun_direction=sun_dir)
+        click.echo(f"scenario {scenario}: spectral error of the sub-band model [K] (max / rms over "
+                   f"{len(table['materials'])} materials, T = {', '.join(f'{t:.1f}' for t in table['temperatures_k'])} K; "
+                   f"atmosphere from {source})")
+        for name, row in table["sensors"].items():
+            cells = "  ".join(f"n={n}: {e['max_k']:.3f}/{e['rms_k']:.3f}" for n, e in row["error_by_subbands"].items())
+            click.echo(f"  {name:<16} {cells}")
+        click.echo(f"render of frame {R.stage_frames(ex.stage)[0]} at {spp} spp (split over the sub-bands, "
+                   f"at least min(spp, {R.MIN_SUBBAND_SPP}) each): seconds / mean per-pixel MC error [K]")
+        for n in t_list:
+            manifest = R.render_stage(stage, Path(tmp) / f"render{n}", frames=[R.stage_frames(ex.stage)[0]],
+                                      spp=spp, subbands=n)
+            cells = [f"{s['name']} {s['timings_s']['render']:.2f} s / {s['monte_carlo_error']['temperature_stderr_mean_k']:.3f} K"
+                     for s in manifest["sensors"]]
+            cells += [f"{s['name']} (EO) {s['timings_s']['render']:.2f} s" for s in manifest.get("eo_sensors", [])]
+            click.echo(f"  n={n}: " + ";  ".join(cells))
+
+
 @bench.command("clothing")
 @click.option("--garments", default="tshirt_white,trousers,jacket,cap", show_default=True,
               help="Comma-separated garments (humv_usd.clothing.garments.GARMENTS).")
@@ -240,24 +315,35 @@ def bench_avatar(repeat: int):
 
 @bench.command("thermal")
 @click.option("--facets", default=30000, show_default=True, type=click.IntRange(100, 10**7),
-              help="Facets of the q_rad bench mesh.")
+              help="Facets of the q_rad bench mesh (capsule avatar).")
 @click.option("--resolutions", default="45,90,180", show_default=True,
               help="Radiance-map sizes n (n x n); the largest is the brute-force reference.")
 @click.option("--rays", default="16,64,256", show_default=True,
               help="Rays per facet of the fast method.")
+@click.option("--adaptive-rays", default="32,64,128", show_default=True,
+              help="Mean rays per facet of the adaptive method.")
+@click.option("--scenario", "scenario", default=None,
+              type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Bench q_rad on this scenario's first (clothed) person at frame 0 instead "
+                   "of the capsule avatar (composed into a temporary folder).")
 @click.option("--png", "png", default="thermal_bench.png", show_default=True,
               type=click.Path(dir_okay=False, path_type=Path), help="Error-vs-run-time plot.")
+@click.option("--quick", is_flag=True, help="Skip the physiology time-step sweep (slow JOS-3).")
 @reports_errors
-def bench_thermal(facets: int, resolutions: str, rays: str, png: Path):
-    """q_rad error against run time (methods x map resolutions), the garment balance's
-    extreme-grid counts, and the run time of 1 h of physiology (two-node, JOS-3)."""
+def bench_thermal(facets: int, resolutions: str, rays: str, adaptive_rays: str,
+                  scenario: Path | None, png: Path, quick: bool):
+    """q_rad error against run time (methods x map resolutions), skin and garment temperature
+    error against the time step, the garment balance's extreme-grid counts, and the run time of
+    1 h of physiology (two-node, JOS-3)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 
     from humv_usd.fileio import atomic_path
+    from humv_usd.physics.garment import bench_time_steps as garment_steps
     from humv_usd.physics.garment import extreme_grid_counts
+    from humv_usd.thermal.physiology import bench_time_steps as skin_steps
     from humv_usd.thermal.physiology import simulate_physiology
     from humv_usd.thermal.radiation import bench_qrad
 
@@ -267,27 +353,74 @@ def bench_thermal(facets: int, resolutions: str, rays: str, png: Path):
         except ValueError:
             raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
 
+    case, what = None, "capsule avatar"
+    if scenario is not None:
+        from humv_usd.pipeline.compose import compose as run_compose
+        from humv_usd.scenario import load_scenario
+        from humv_usd.thermal.bench import avatar_case
+        sc = load_scenario(scenario)
+        if not sc["human"]:
+            raise InputError(f"--scenario {scenario}: the scenario has no [[human]]")
+        tmp = tempfile.mkdtemp(prefix="humv-bench-")
+        run_compose(sc, tmp)
+        case, what = avatar_case(sc, Path(tmp) / "stage.usda"), f"{scenario.name} person"
     rows = bench_qrad(facets=facets, resolutions=ints(resolutions, "resolutions"),
-                      fast_rays=ints(rays, "rays"))
-    click.echo(f"q_rad on {rows[0]['facets']} facets vs brute force at "
+                      fast_rays=ints(rays, "rays"),
+                      adaptive_rays=ints(adaptive_rays, "adaptive-rays"), case=case)
+    click.echo(f"q_rad on {rows[0]['facets']} facets ({what}) vs brute force at "
                f"{rows[0]['resolution']}x{rows[0]['resolution']}:")
-    click.echo("  method  map  rays   seconds  rms rel. error  max rel. error")
+    click.echo("  method    map  rays  wall [s]  cpu [s]  rms rel. err  max rel. err  "
+               "own estimate")
     for r in rows:
-        click.echo(f"  {r['method']:<6} {r['resolution']:>4} {str(r['rays'] or '-'):>5} "
-                   f"{r['seconds']:9.3f}  {r['rms_rel_error']:14.2e}  {r['max_rel_error']:14.2e}")
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for method, marker in (("brute", "s"), ("fast", "o")):
-        pts = [(r["seconds"], r["rms_rel_error"]) for r in rows
-               if r["method"] == method and not r.get("reference")]
-        if pts:
-            ax.loglog(*zip(*pts), marker, label=method)
-    ax.set_xlabel("q_rad run time [s]")
+        click.echo(f"  {r['method']:<8} {r['resolution']:>4} {str(r['rays'] or '-'):>5} "
+                   f"{r['seconds']:9.3f} {r['cpu_seconds']:8.3f}  {r['rms_rel_error']:12.2e}  "
+                   f"{r['max_rel_error']:12.2e}  {r['rms_rel_error_estimate']:12.2e}")
+    ok = [r for r in rows if not r["reference"] and r["cpu_seconds"] <= 1.0
+          and r["rms_rel_error"] <= 0.01]
+    click.echo("  goal (<= 1 s cpu at <= 1 % rms): " + (
+        "met by " + ", ".join(f"{r['method']} {r['resolution']} {r['rays'] or ''}".strip()
+                              for r in ok) if ok else "not met"))
+
+    g_rows = garment_steps()
+    click.echo("garment temperature error vs time step (implicit step; Radau reference):")
+    for r in g_rows:
+        click.echo(f"  {r['case']:<14} dt {r['step_s']:7.0f} s  max |dT| {r['max_error_k']:.2e} K"
+                   f" at step ends, {r['common_error_k']:.2e} K every "
+                   f"{max(x['step_s'] for x in g_rows):.0f} s  ({r['seconds']:.3f} s)")
+    s_rows = []
+    for model in ("two_node",) + (() if quick else ("jos3",)):
+        s_rows += skin_steps(model)
+    click.echo("mean skin temperature error vs physiology time step (1 h, exercise bout):")
+    for r in s_rows:
+        click.echo(f"  {r['model']:<9} dt {r['step_s']:7.0f} s  max |dT| {r['max_error_k']:.2e} K"
+                   f"  ({r['seconds']:.3f} s)")
+
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    for method, marker in (("brute", "s"), ("fast", "o"), ("adaptive", "^")):
+        for res in sorted({r["resolution"] for r in rows}):
+            pts = [(r["cpu_seconds"], r["rms_rel_error"]) for r in rows
+                   if r["method"] == method and r["resolution"] == res and not r["reference"]]
+            if pts:
+                ax.loglog(*zip(*sorted(pts)), marker + "-", label=f"{method} {res}²")
+    ax.axvline(1.0, color="0.6", lw=0.8)
+    ax.axhline(0.01, color="0.6", lw=0.8)
+    ax.set_xlabel("q_rad run time [cpu s]")
     ax.set_ylabel("RMS relative error vs brute reference")
-    ax.set_title(f"absorbed radiation, {rows[0]['facets']} facets")
+    ax.set_title(f"absorbed radiation, {rows[0]['facets']} facets ({what})")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    with atomic_path(png) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
+    ax.legend(fontsize=7)
+    for key, group, rws in (("case", "garment", g_rows), ("model", "skin", s_rows)):
+        for name in dict.fromkeys(r[key] for r in rws):
+            pts = [(r["step_s"], max(r["max_error_k"], 1e-12)) for r in rws if r[key] == name]
+            ax2.loglog(*zip(*pts), "o-", label=f"{group}: {name}")
+    ax2.set_xlabel("time step [s]")
+    ax2.set_ylabel("max temperature error [K]")
+    ax2.set_title("temperature error vs time step")
+    ax2.grid(True, which="both", alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.tight_layout()
+    with atomic_path(png) as tmp_png:
+        fig.savefig(tmp_png, dpi=120, format="png")
     plt.close(fig)
     click.echo(f"  plot: {png}")
 
@@ -309,6 +442,8 @@ def bench_thermal(facets: int, resolutions: str, rays: str, png: Path):
 def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
     main.add_command(avatar)
+    from humv_usd.groundtruth.cli import register as register_groundtruth  # regions, coco-merge, bench labels
+    register_groundtruth(main, bench)
 
 
 _register_tools()

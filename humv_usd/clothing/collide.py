@@ -29,8 +29,11 @@ garment outside the skin everywhere. Here, per frame and garment (inner layers f
    never below the minimum gap after the fix. For an outer garment it spans the layers under
    it (it is the distance to the skin, as the schema defines it).
 Props (:class:`humv_usd.clothing.garments.Prop`, the rifle) are rigid: they are posed and
-checked (counts, before = after) but never moved, and they take no part in the layering (no
-garment has to stay outside a prop). Garments on higher layers treat the ones under them as
+checked (counts, before = after) but never moved, and they take no part in the layering. A
+carried rifle is a collider for every garment, though: after the body and shell passes,
+garment vertices nearer than the minimum gap to its solid are pushed out along its distance
+gradient (:func:`push_off_prop`), then the skin is re-checked (the skin wins where both
+cannot hold: ``prop_after`` counts what is left). Garments on higher layers treat the ones under them as
 part of the body (e.g. a T-shirt over the ``vest``): they keep the inner garment's distance +
 its thickness + the minimum gap where both are. A ``body_like`` inner garment (the ``vest``)
 is in addition a surface of its own: after the body pass, outer vertices over its posed mesh
@@ -39,6 +42,13 @@ is in addition a surface of its own: after the body pass, outer vertices over it
 thickness + the outer minimum gap outside it are pushed out along its normal
 (:func:`push_off_shell`); the rest of the fix (skin re-check) follows. Vertices still inside it
 count as ``layered_after``.
+
+Before step 1, :func:`dress` splits the garment faces over the neck and pelvis that lie within
+:data:`LAYER_RADIUS` of another garment of the outfit once (:func:`humv_usd.clothing.fit.refine`:
+collars, waistbands, crotch); loose parts are draped (:mod:`humv_usd.clothing.drape`) between
+steps 1 and 2 when :func:`simulate` gets the frame rate. Props get their clearance from the
+body per frame (:func:`humv_usd.avatar.carry.rifle_clearance`: the closed-form distance of the
+body's non-holding vertices to the rifle's boxes and cylinders).
 
 5. Rest points for UsdSkel: the fixed posed points mapped back through the vertex's blended
    skinning transform (``rest' = rest + A^-1 (fixed - posed)``, exact for linear blend
@@ -52,7 +62,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from humv_usd.clothing.fit import BodyRig, FittedGarment, fit_garment
+from humv_usd.avatar.carry import (carry_body_of, prop_distance_gradient, prop_signed_distance,
+                                   rifle_clearance, rifle_world)
+from humv_usd.clothing.drape import Drape
+from humv_usd.clothing.fit import BodyRig, FittedGarment, fit_garment, refine
 from humv_usd.clothing.garments import garment
 from humv_usd.clothing.geometry import RayCaster, Surface, vertex_normals
 
@@ -73,6 +86,10 @@ LAYER_RADIUS = 0.025
 #: An outer vertex is "over" a body-like garment when its offset from the closest point makes
 #: an angle below acos(SHELL_COS) with that face's normal (not beside the garment's border).
 SHELL_COS = 0.9
+#: Rounds of (push off the carried prop, push off the skin) per garment and frame, and
+#: gradient pushes per round (the rifle's parts overlap).
+PROP_ROUNDS = 3
+PROP_PUSH_ITERATIONS = 8
 
 
 @dataclass
@@ -85,6 +102,9 @@ class FixCounts:
     close_after: int
     layered_after: int
     min_distance_m: float       # smallest signed vertex-skin distance after the fix
+    #: vertices inside a carried prop's solid or closer than the minimum gap to it
+    prop_before: int = 0
+    prop_after: int = 0
 
     def as_dict(self) -> dict:
         return dict(vars(self))
@@ -98,6 +118,13 @@ class GarmentAnimation:
     rest: np.ndarray            # (F, n, 3) rest points that UsdSkel skins to ``posed``
     air_gap: np.ndarray         # (F, n) [m]
     counts: list[FixCounts] = field(default_factory=list)
+    #: props: per frame, the smallest distance [m] from the body (all but the holding hands
+    #: and forearms) to the prop's solid and the body vertices inside it
+    #: (:func:`humv_usd.avatar.carry.rifle_clearance`); None for garments
+    clearance: np.ndarray | None = None
+    body_inside: np.ndarray | None = None
+    #: garments with draped (loose) parts: (F, n, 3) the skinned shape before the drape
+    skinned: np.ndarray | None = None
 
     @property
     def name(self) -> str:
@@ -120,14 +147,27 @@ class Simulation:
     fix_seconds: np.ndarray     # (F,) of which the check + fix (all garments)
 
 
-def dress(rig: BodyRig, names) -> Outfit:
-    """Fit ``names`` (catalogue garments, any order; duplicates rejected) to ``rig``."""
+def dress(rig: BodyRig, names, refined: bool = True) -> Outfit:
+    """Fit ``names`` (catalogue garments, any order; duplicates rejected) to ``rig``
+    (``refined``: see :func:`humv_usd.clothing.fit.fit_garment`)."""
     names = [garment(n).name for n in names]          # aliases -> catalogue names
     if len(set(names)) != len(names):
         raise ValueError(f"garment listed twice in {names}")
-    fitted = [fit_garment(rig, n) for n in names]
+    fitted = [fit_garment(rig, n, refined=False) for n in names]
     fitted.sort(key=lambda g: (g.garment.layer, g.garment.ease))
     anchors = [rig.surface.closest(g.points).point for g in fitted]
+    if refined:                 # finer mesh over the neck/pelvis where another garment is
+        joints = len(rig.skeleton.names)
+        for k, g in enumerate(fitted):
+            others = [anchors[i] for i in range(len(fitted))
+                      if i != k and not fitted[i].garment.is_prop]
+            if g.garment.is_prop or not others:
+                continue
+            dist, _ = cKDTree(np.concatenate(others)).query(anchors[k])
+            near = dist < LAYER_RADIUS
+            quads = np.asarray(g.face_indices).reshape(-1, 4)
+            fitted[k] = refine(g, joints, near[quads].any(axis=1))
+        anchors = [rig.surface.closest(g.points).point for g in fitted]
     under: list[list] = []
     for o, outer in enumerate(fitted):
         pairs = []
@@ -180,6 +220,39 @@ def push_off_shell(shell: Surface, flat_normals: np.ndarray, points: np.ndarray,
             break
         out[bad] += near.normal[bad] * (clearance - near.signed[bad] + PUSH_MARGIN)[:, None]
         bad, near = violating(out)
+    return out, before, len(bad)
+
+
+def push_off_prop(points: np.ndarray, to_world: np.ndarray, prop, clearance: float
+                  ) -> tuple[np.ndarray, int, int]:
+    """Push ``points`` out of a carried prop's solid (``to_world``: prop frame -> skeleton
+    space) to ``clearance`` off it, along the solid's distance gradient
+    (:func:`humv_usd.avatar.carry.prop_signed_distance`). Returns (points, violations
+    before, after)."""
+    inv = np.linalg.inv(to_world)
+    local = points @ inv[:3, :3].T + inv[:3, 3]
+    d = prop_signed_distance(local, prop)
+    bad = np.flatnonzero(d < clearance)
+    before = len(bad)
+    moved = bad.copy()
+    for _ in range(PROP_PUSH_ITERATIONS):   # a push out of one part can land in the next
+        if not len(bad):
+            break
+        local[bad] += (prop_distance_gradient(local[bad], prop)
+                       * (clearance - d[bad] + PUSH_MARGIN)[:, None])
+        d[bad] = prop_signed_distance(local[bad], prop)
+        bad = bad[d[bad] < clearance]
+    if len(bad):        # stuck where two parts abut (the gradients alternate): search out
+        steps = 0.002 * 2.0 ** (np.arange(14) / 2)                     # 2 mm .. 0.18 m
+        cand = (local[bad][:, None, None] + steps[None, :, None, None]
+                * _FALLBACK_DIRECTIONS[None, None]).reshape(len(bad), -1, 3)
+        ok = prop_signed_distance(cand, prop) >= clearance + PUSH_MARGIN / 2
+        first = np.argmax(ok, axis=1)                  # steps ascend: the shortest
+        found = ok[np.arange(len(bad)), first]
+        local[bad[found]] = cand[np.flatnonzero(found), first[found]]
+        bad = bad[~found]
+    out = points.copy()
+    out[moved] = local[moved] @ to_world[:3, :3].T + to_world[:3, 3]
     return out, before, len(bad)
 
 
@@ -263,9 +336,26 @@ def air_gap(caster: RayCaster, points: np.ndarray, triangles: np.ndarray,
     return np.clip(np.maximum(gap, fallback), 0.0, MAX_AIR_GAP)
 
 
-def simulate(outfit: Outfit, skin: np.ndarray, progress=None) -> Simulation:
+def drapes_of(g: FittedGarment) -> list[Drape]:
+    """A :class:`~humv_usd.clothing.drape.Drape` per loose part of ``g``."""
+    out = []
+    counts = np.asarray(g.face_counts)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[counts == 4]
+    quads = np.asarray(g.face_indices)[starts[:, None] + np.arange(4)]     # loose parts: quads
+    for k, part in enumerate(g.garment.parts):
+        if part.loose:
+            ids = np.flatnonzero(g.part_of == k)
+            mine = quads[np.all(np.isin(quads, ids), axis=1)]
+            out.append(Drape.for_part(g.points, mine, ids))
+    return out
+
+
+def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None = None
+             ) -> Simulation:
     """Pose, fix and measure every garment for each frame of ``skin`` ((F, J, 4, 4) skinning
-    matrices, :func:`humv_usd.avatar.skeleton.skinning_matrices`)."""
+    matrices, :func:`humv_usd.avatar.skeleton.skinning_matrices`). With ``fps`` (and more
+    than one frame) loose parts are draped (:mod:`humv_usd.clothing.drape`) before the fix;
+    ``GarmentAnimation.skinned`` then keeps the skinned shape they lag."""
     rig = outfit.rig
     skin = np.asarray(skin, dtype=np.float64)
     frames = skin.shape[0]
@@ -274,6 +364,19 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None) -> Simulation:
                               np.empty((frames, g.vertex_count))) for g in outfit.garments]
     frame_s = np.zeros(frames)
     fix_s = np.zeros(frames)
+    carried = [g.garment.prop for g in outfit.garments
+               if g.garment.is_prop and g.garment.prop.placement == "between_hands"]
+    prop_world = rifle_world(rig.skeleton, skin) if carried else None
+    dynamic = fps is not None and fps > 0 and frames > 1
+    drapes = [drapes_of(g) if dynamic else [] for g in outfit.garments]
+    for anim, d in zip(anims, drapes):
+        if d:
+            anim.skinned = np.empty_like(anim.posed)
+    for g, anim in zip(outfit.garments, anims):
+        if g.garment.is_prop and g.garment.prop.placement == "between_hands":
+            cb = carry_body_of(rig.mesh, rig.joint_indices, rig.joint_weights, rig.face_regions)
+            anim.clearance, anim.body_inside, _ = rifle_clearance(cb, rig.skeleton, skin,
+                                                                  g.garment.prop)
     for f in range(frames):
         t0 = time.perf_counter()
         body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]),
@@ -285,7 +388,14 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None) -> Simulation:
         for k, (g, anim) in enumerate(zip(outfit.garments, anims)):
             gap = g.garment.minimum_gap
             blended = blend_transforms(g.joint_indices, g.joint_weights, skin[f])
-            posed = apply(blended, g.points)
+            skinned = apply(blended, g.points)
+            posed = skinned
+            if drapes[k]:
+                posed = skinned.copy()
+                for drape in drapes[k]:
+                    posed[drape.vertices] = drape.step(skinned[drape.vertices], 1.0 / fps,
+                                                       surface, gap)
+                anim.skinned[f] = skinned
             required = np.full(g.vertex_count, gap)
             for i, outer_ids, inner_ids in outfit.under[k]:
                 inner = outfit.garments[i].garment
@@ -305,6 +415,21 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None) -> Simulation:
                     fixed, dist, again = push_out(surface, fixed, required, gap)
                     counts.inside_after, counts.close_after = again.inside_after, again.close_after
                     counts.min_distance_m = again.min_distance_m
+                for prop in carried:        # off the carried rifle, then the skin again
+                    for round_ in range(PROP_ROUNDS):
+                        fixed, was, left = push_off_prop(fixed, prop_world[f], prop, gap)
+                        if round_ == 0:
+                            counts.prop_before += was
+                        if not was:
+                            break
+                        fixed, dist, again = push_out(surface, fixed, required, gap)
+                        counts.inside_after = again.inside_after
+                        counts.close_after = again.close_after
+                        counts.min_distance_m = again.min_distance_m
+                        _, left, _ = push_off_prop(fixed, prop_world[f], prop, gap)
+                        if not left:
+                            break
+                    counts.prop_after += left   # closer than the gap after the skin pass
                 if g.garment.body_like:
                     shells.append((Surface(fixed, g.triangles),
                                    _flat_normals(fixed, g.triangles), g.garment.thickness))
@@ -313,11 +438,13 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None) -> Simulation:
             anim.posed[f] = fixed
             anim.counts.append(counts)
             anim.air_gap[f] = air_gap(caster, fixed, g.triangles, dist)
+            for drape in drapes[k]:
+                drape.settle(fixed[drape.vertices])
             rest = g.points.copy()
-            moved = np.flatnonzero(np.any(fixed != posed, axis=1))
+            moved = np.flatnonzero(np.any(fixed != skinned, axis=1))
             if len(moved):
                 delta = np.linalg.solve(blended[moved, :3, :3],
-                                        (fixed[moved] - posed[moved])[:, :, None])[:, :, 0]
+                                        (fixed[moved] - skinned[moved])[:, :, None])[:, :, 0]
                 rest[moved] += delta
             anim.rest[f] = rest
         frame_s[f] = time.perf_counter() - t0

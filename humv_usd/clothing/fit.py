@@ -17,9 +17,9 @@ motion. Loose parts (the robe's skirt) instead: lower-leg and foot influences ar
 their thigh, other non-pelvic ones to the pelvis; the weights are smoothed over the part's mesh
 (Laplacian, :data:`LOOSE_SMOOTHING` steps) so front and back blend both legs, and blended
 towards the ``Hips`` joint with height (all pelvis at the waistband, all thighs at the hem).
-That is a rigid-skinning stand-in for cloth simulation: the skirt swings with the mean of the
-thighs and never flows, folds or lags; where a leg would pierce it, the per-frame collision fix
-(:mod:`humv_usd.clothing.collide`) pushes it out.
+That skinned shape swings with the mean of the thighs; :mod:`humv_usd.clothing.drape` adds
+inertia (lag) and stretch constraints on top of it per frame, and the per-frame collision fix
+(:mod:`humv_usd.clothing.collide`) pushes out whatever a leg would pierce.
 
 Props (the rifle). A :class:`~humv_usd.clothing.garments.Prop` is built from its boxes and
 8-sided cylinders (closed, outward quads and octagon caps) and placed in the rest pose:
@@ -249,8 +249,10 @@ def _fit_part(rig: BodyRig, part: Part):
     return rest, faces, idx, w, region[keep]
 
 
-def fit_garment(rig: BodyRig, name: str) -> FittedGarment:
-    """Fit the catalogue garment ``name`` to the body of ``rig`` (props: :func:`fit_prop`)."""
+def fit_garment(rig: BodyRig, name: str, refined: bool = False) -> FittedGarment:
+    """Fit the catalogue garment ``name`` to the body of ``rig`` (props: :func:`fit_prop`);
+    ``refined``: with the finer mesh over all of :data:`REFINE_REGIONS` (:func:`refine`;
+    :func:`humv_usd.clothing.collide.dress` refines only where garments overlap)."""
     g = garment(name)
     if g.is_prop:
         return fit_prop(rig, g)
@@ -270,9 +272,83 @@ def fit_garment(rig: BodyRig, name: str) -> FittedGarment:
     faces = np.concatenate(faces)
     counts = np.full(len(faces), 4)
     flat = faces.ravel()
-    return FittedGarment(g, np.concatenate(pts), counts, flat, triangulate(counts, flat),
-                         np.concatenate(idx), np.concatenate(wts),
-                         np.concatenate(regions).astype(np.int32), np.concatenate(part_of))
+    fitted = FittedGarment(g, np.concatenate(pts), counts, flat, triangulate(counts, flat),
+                           np.concatenate(idx), np.concatenate(wts),
+                           np.concatenate(regions).astype(np.int32), np.concatenate(part_of))
+    return refine(fitted, len(rig.skeleton.names)) if refined else fitted
+
+
+# ---------------------------------------------------------------------------- refinement
+#: Body regions where garments overlap (collars at the neck; waistbands, hems and the crotch
+#: over the pelvis): their garment faces are split once (:func:`refine`) where another
+#: garment of the outfit lies within LAYER_RADIUS (:func:`humv_usd.clothing.collide.dress`).
+REFINE_REGIONS = ("neck", "pelvis")
+
+
+def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None
+           ) -> FittedGarment:
+    """One midpoint subdivision of the quads over :data:`REFINE_REGIONS` (not of loose
+    parts, which stay quads for the drape): each such quad becomes four (edge midpoints and
+    the face centre are new vertices); a neighbouring face that shares a split edge gets the
+    midpoint inserted into its boundary (a 5..8-gon, no T-junction crack; its fan
+    triangulation starts at an inserted midpoint, so no triangle is degenerate). New
+    vertices take the mean of their parents' rest points and skin weights (the 4 largest
+    kept, renormalized), the part of their first parent; child faces keep their parent's
+    region. ``faces``: a bool mask restricting the split further (e.g. to where another
+    garment overlaps, :func:`humv_usd.clothing.collide.dress`)."""
+    quads = np.asarray(fitted.face_indices).reshape(-1, 4)
+    ids = [L.REGION_ID[r] for r in REFINE_REGIONS]
+    loose = [k for k, part in enumerate(fitted.garment.parts) if part.loose]
+    split = np.isin(fitted.face_regions, ids) & ~np.isin(fitted.part_of[quads[:, 0]], loose)
+    if faces is not None:
+        split &= faces
+    if not split.any():
+        return fitted
+    n = len(fitted.points)
+    sq = quads[split]
+    edges = np.stack([sq, np.roll(sq, -1, axis=1)], -1).reshape(-1, 2)       # (4s, 2)
+    keys, inverse = np.unique(np.sort(edges, axis=1), axis=0, return_inverse=True)
+    mid = n + inverse.reshape(-1, 4)            # midpoint id of edge (k, k+1) of each quad
+    centre = n + len(keys) + np.arange(len(sq))
+    a, b, c, d = sq.T
+    mab, mbc, mcd, mda = mid.T
+    children = np.stack([np.stack([a, mab, centre, mda], 1), np.stack([mab, b, mbc, centre], 1),
+                         np.stack([centre, mbc, c, mcd], 1), np.stack([mda, centre, mcd, d], 1)],
+                        1).reshape(-1, 4)
+    lookup = {(int(u), int(v)): n + k for k, (u, v) in enumerate(keys)}
+    polys, regions = [], []
+    for f in np.flatnonzero(~split):            # neighbours: insert the split edges' midpoints
+        ring = []
+        for k in range(4):
+            u, v = int(quads[f, k]), int(quads[f, (k + 1) % 4])
+            ring.append(u)
+            m = lookup.get((min(u, v), max(u, v)))
+            if m is not None:
+                ring.append(m)
+        if len(ring) > 4:                       # start the fan at an inserted midpoint
+            first = next(i for i, x in enumerate(ring) if x >= n)
+            ring = ring[first:] + ring[:first]
+        polys.append(ring)
+        regions.append(fitted.face_regions[f])
+    polys += [list(q) for q in children]
+    regions += list(np.repeat(fitted.face_regions[split], 4))
+    counts = np.array([len(r) for r in polys])
+    flat = np.array([i for r in polys for i in r])
+    # new vertices: edge midpoints, then face centres
+    parents = [keys[:, 0], keys[:, 1]]
+    pts = np.concatenate([fitted.points, fitted.points[keys].mean(axis=1),
+                          fitted.points[sq].mean(axis=1)])
+    dense = np.zeros((n, joints))
+    np.add.at(dense, (np.repeat(np.arange(n), fitted.joint_indices.shape[1]),
+                      fitted.joint_indices.ravel()), fitted.joint_weights.astype(float).ravel())
+    new_dense = np.concatenate([dense[keys].mean(axis=1), dense[sq].mean(axis=1)])
+    idx, w = _top_k(new_dense, fitted.joint_indices.shape[1])
+    part_of = np.concatenate([fitted.part_of, fitted.part_of[parents[0]],
+                              fitted.part_of[sq[:, 0]]])
+    return FittedGarment(fitted.garment, pts, counts, flat, triangulate(counts, flat),
+                         np.concatenate([fitted.joint_indices, idx]),
+                         np.concatenate([fitted.joint_weights, w]),
+                         np.asarray(regions, dtype=np.int32), part_of)
 
 
 # ---------------------------------------------------------------------------- props

@@ -18,14 +18,16 @@ Props (``rifle``)::
             def Mesh rifle                    closed rigid mesh, material:binding -> /World/
                                               Materials/<material>, UsdSkel binding to
                                               ../../Skeleton (100 % one joint, e.g. RightHand),
-                                              humv:label:class = "prop" (plain attribute: the
-                                              HumvLabelAPI needs a scenario-unique instanceId,
-                                              so the prop keeps the person's, inherited from
-                                              the SkelRoot like the garments),
-                                              customData humv:prop (joint, rest distance to skin)
+                                              HumvLabelAPI: its own instanceId (the
+                                              scenario's ``prop:<id>:<name>`` entry of
+                                              :func:`humv_usd.scene.layer.instance_ids`:
+                                              after the scene objects) and class "prop",
+                                              customData humv:prop (joint, clearance to the
+                                              body per frame)
 
 A prop is not a garment (no HumvClothingAPI, no air gap, no fix: the thermal tool treats it as
-a fixed-temperature scene mesh).
+a fixed-temperature scene mesh). Without instance ids (``build_for_human`` called outside a
+scenario) the prop gets only the class attribute and inherits the person's id.
 
 Skinning: the garment is bound to the avatar's Skeleton with weights transferred from the
 body (:mod:`humv_usd.clothing.fit`), so UsdSkel (and the render, and any DCC) poses it with
@@ -37,7 +39,9 @@ way. A person who does not move (one distinct pose) gets one value (the default,
 
 The layer records how many garment vertices were inside the skin or closer than the minimum
 gap before and after the fix, per garment (customData ``humv:clothing:fix``: the max over the
-frames and int[] per frame), so a pipeline can fail on ``insideAfterMax > 0``.
+frames and int[] per frame), so a pipeline can fail on ``insideAfterMax > 0``; with a carried
+rifle also the vertices nearer than the minimum gap to it before/after (``propBeforeMax``,
+``propAfterMax``).
 """
 from __future__ import annotations
 
@@ -51,12 +55,13 @@ from humv_usd.avatar.layer import human_path, skeleton_path
 from humv_usd.avatar.skeleton import Skeleton, skeleton_for, skinning_matrices
 from humv_usd.clothing.collide import Simulation, dress, simulate
 from humv_usd.clothing.fit import prepare
-from humv_usd.clothing.garments import fabrics
+from humv_usd.clothing.garments import fabrics, garment
 from humv_usd.materials.layer import material_path
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
-from humv_usd.usd.mesh import define_mesh
+from humv_usd.scene.layer import instance_ids
+from humv_usd.usd.mesh import define_mesh, label
 
 NAME = "clothing"
 READS = ("general", "human", "placement")
@@ -118,7 +123,8 @@ def world_transforms_from_stage(stage: Usd.Stage, human_id: str, skeleton: Skele
 # ---------------------------------------------------------------------------- authoring
 def build_for_human(human: dict, body: Body, skeleton: Skeleton | None,
                     motion_world_transforms: np.ndarray | None, garments, fps: float,
-                    frame_count: int, *, simulation_out: list | None = None) -> Sdf.Layer:
+                    frame_count: int, *, simulation_out: list | None = None,
+                    prop_ids: dict[str, int] | None = None) -> Sdf.Layer:
     """The clothing layer of one person.
 
     human: the ``[[human]]`` table (``id`` is used); body: :func:`build_body`'s result for that
@@ -127,7 +133,8 @@ def build_for_human(human: dict, body: Body, skeleton: Skeleton | None,
     (:func:`humv_usd.avatar.skeleton.forward_kinematics`), frame i at time code i, or None for
     the rest pose; garments: catalogue names; fps, frame_count: the scenario's.
     ``simulation_out``: if a list, the :class:`~humv_usd.clothing.collide.Simulation` is
-    appended (counts, timings) for reports and benchmarks.
+    appended (counts, timings) for reports and benchmarks. ``prop_ids``: instance id per
+    prop (catalogue name), e.g. from :func:`humv_usd.scene.layer.instance_ids`.
     """
     rig = prepare(body, skeleton)
     skeleton = rig.skeleton
@@ -143,13 +150,14 @@ def build_for_human(human: dict, body: Body, skeleton: Skeleton | None,
         if np.allclose(world, world[:1], atol=1e-9):     # does not move: one pose
             world = world[:1]
     outfit = dress(rig, list(garments))
-    sim = simulate(outfit, skinning_matrices(skeleton, world))
+    sim = simulate(outfit, skinning_matrices(skeleton, world), fps=fps)
     if simulation_out is not None:
         simulation_out.append(sim)
-    return author(human["id"], sim, fps, frame_count)
+    return author(human["id"], sim, fps, frame_count, prop_ids)
 
 
-def author(human_id: str, sim: Simulation, fps: float, frame_count: int) -> Sdf.Layer:
+def author(human_id: str, sim: Simulation, fps: float, frame_count: int,
+           prop_ids: dict[str, int] | None = None) -> Sdf.Layer:
     """Write a :class:`Simulation` of one person's garments as a layer (see module doc)."""
     names = ", ".join(a.name for a in sim.garments)
     stage = new_layer_stage(fps, frame_count,
@@ -165,7 +173,7 @@ def author(human_id: str, sim: Simulation, fps: float, frame_count: int) -> Sdf.
     if props:
         UsdGeom.Scope.Define(stage, props_path(human_id))
     for anim in props:
-        _author_prop(stage, human_id, anim)
+        _author_prop(stage, human_id, anim, (prop_ids or {}).get(anim.name))
     layer = finish(stage)
     # DefinePrim made the ancestors "def"; they belong to the avatar layer: only "over" here
     for path in (SCOPES["humans"], human_path(human_id)):
@@ -220,6 +228,8 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
         "insideAfterMax": max(x.inside_after for x in c),
         "closeAfterMax": max(x.close_after for x in c),
         "layeredAfterMax": max(x.layered_after for x in c),
+        "propBeforeMax": max(x.prop_before for x in c),
+        "propAfterMax": max(x.prop_after for x in c),
         "minDistance_m": round(min(x.min_distance_m for x in c), 6),
         "airGapMin_m": round(float(anim.air_gap.min()), 6),
         "airGapMedian_m": round(float(np.median(anim.air_gap)), 6),
@@ -231,22 +241,33 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
     })
 
 
-def _author_prop(stage: Usd.Stage, human_id: str, anim) -> None:
+def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None) -> None:
     fitted = anim.fitted
     g = fitted.garment
     mesh = define_mesh(stage, prop_path(human_id, g.name), fitted.points, fitted.face_counts,
                        fitted.face_indices, material=material_path(g.fabric))
     prim = mesh.GetPrim()
     usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
-    prim.CreateAttribute(S.LABEL_CLASS, Sdf.ValueTypeNames.Token, custom=True).Set("prop")
+    if instance_id is None:
+        prim.CreateAttribute(S.LABEL_CLASS, Sdf.ValueTypeNames.Token, custom=True).Set("prop")
+    else:
+        label(prim, instance_id, "prop")
     c = anim.counts
-    prim.SetCustomDataByKey("humv:prop", {
+    info = {
         "catalogue": g.name, "joint": g.prop.joint, "placement": g.prop.placement,
         "frames": len(c),
         "insideMax": max(x.inside_before for x in c),
         "restMinDistance_m": round(c[0].min_distance_m, 6),
         "minDistance_m": round(min(x.min_distance_m for x in c), 6),
-    })
+    }
+    if anim.clearance is not None:      # the carry's clearance from the body, per frame
+        info.update({
+            "bodyClearanceMin_m": round(float(anim.clearance.min()), 6),
+            "bodyVerticesInsideMax": int(anim.body_inside.max()),
+            "bodyClearance_m": Vt.FloatArray([round(float(x), 6) for x in anim.clearance]),
+            "bodyVerticesInside": Vt.IntArray([int(x) for x in anim.body_inside]),
+        })
+    prim.SetCustomDataByKey("humv:prop", info)
 
 
 def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None,
@@ -266,7 +287,11 @@ def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None
     skeleton = skeleton_for(body.points, body.groups)
     world = (world_transforms_from_stage(upstream, human["id"], skeleton, scenario.frame_count,
                                          g["fps"]) if upstream is not None else None)
-    return build_for_human(human, body, skeleton, world, names, g["fps"], scenario.frame_count)
+    ids = instance_ids(scenario)
+    props = {garment(n).name: ids[f"prop:{human['id']}:{garment(n).name}"] for n in names
+             if garment(n).is_prop and f"prop:{human['id']}:{garment(n).name}" in ids}
+    return build_for_human(human, body, skeleton, world, names, g["fps"], scenario.frame_count,
+                           prop_ids=props)
 
 
 def build(scenario: Scenario, upstream: Usd.Stage | None = None) -> dict[str, Sdf.Layer]:

@@ -130,6 +130,35 @@ def iso7730(wind_speed, delta_t=0.0):
     return np.maximum(natural_iso7730(delta_t), 12.1 * np.sqrt(v))
 
 
+def watmuff(wind_speed):
+    """Wind convection coefficient of a flat outdoor surface (ground, walls, panels).
+
+    Parameters
+    ----------
+    wind_speed : numeric
+        Wind speed [m/s] (negative values are clipped to 0).
+
+    Returns
+    -------
+    numeric
+        h = 2.8 + 3.0 V [W m^-2 K^-1].
+
+    Notes
+    -----
+    Watmuff et al. corrected McAdams' h = 5.7 + 3.8 V for the long-wave radiation that the
+    original plate measurement included, so this is convection alone (radiation is a separate
+    term in :mod:`humv_usd.physics.slab`). Valid for about 0-7 m/s; used beyond as is.
+
+    References
+    ----------
+    .. [1] Watmuff, J. H., Charters, W. W. S., Proctor, D. (1977). Solar and wind induced
+       external coefficients for solar collectors. COMPLES 2, 56.
+    .. [2] Duffie, J. A., Beckman, W. A. (2013). Solar Engineering of Thermal Processes, 4th ed.,
+       section 3.15.
+    """
+    return 2.8 + 3.0 * np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
+
+
 def convective_coefficient(wind_speed, delta_t=0.0, model='mitchell'):
     """Convective heat-transfer coefficient of a clothed surface by model name.
 

@@ -1,7 +1,9 @@
-"""Clear-sky thermal radiation near the ground: dew point and effective sky temperature.
+"""Clear-sky thermal radiation near the ground and simple path extinction (closed forms).
 
-Placeholder sky of the foundation: one effective (broadband, hemispherical) sky temperature.
-The atmosphere issue replaces it with LOWTRAN7 band radiance against zenith angle.
+Effective (broadband, hemispherical) sky emissivity and temperature (Berdahl & Martin 1984), its
+angular distribution (Martin & Berdahl 1984), and the closed-form extinction terms of the
+analytic atmosphere (water-vapour continuum, aerosol from visibility). LOWTRAN7 spectra are in
+:mod:`humv_usd.atmosphere.model`; these are its analytic fallback.
 """
 from __future__ import annotations
 
@@ -96,3 +98,128 @@ def effective_sky_temperature(air_temperature_k, relative_humidity):
     """
     eps = berdahl_martin_emissivity(dew_point(air_temperature_k, relative_humidity))
     return eps ** 0.25 * np.asarray(air_temperature_k, dtype=float), eps
+
+
+def _martin_berdahl_law(zenith_emissivity, mu):
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        out = 1.0 - np.power(1.0 - zenith_emissivity, 1.0 / np.maximum(mu, 1e-12))
+    return np.where(mu > 0, out, 1.0)
+
+
+_GAUSS_200 = None
+
+
+def _hemispherical(zenith_emissivity):
+    global _GAUSS_200
+    if _GAUSS_200 is None:
+        _GAUSS_200 = np.polynomial.legendre.leggauss(200)
+    x, w = _GAUSS_200
+    mu = 0.5 * (x + 1.0)
+    eps = _martin_berdahl_law(np.asarray(zenith_emissivity, dtype=float)[..., None], mu)
+    return np.sum(eps * mu * w, axis=-1)  # 2 int_0^1 eps mu dmu
+
+
+def directional_sky_emissivity(zenith_deg, sky_emissivity):
+    """Clear-sky emissivity by direction with a given hemispherical value (Martin & Berdahl 1984).
+
+    Parameters
+    ----------
+    zenith_deg : numeric
+        Zenith angle of the viewing direction [deg]; 0 = straight up, >= 90 gives 1.
+    sky_emissivity : float
+        Hemispherical broadband clear-sky emissivity eps_sky [0-1] (e.g.
+        :func:`berdahl_martin_emissivity`).
+
+    Returns
+    -------
+    numeric
+        eps(theta) [0-1] with 2 int_0^(pi/2) eps(theta) cos(theta) sin(theta) dtheta = eps_sky.
+
+    Notes
+    -----
+    Slab-atmosphere law eps(theta) = 1 - (1 - eps_z)^(1 / cos theta) of Martin & Berdahl
+    (1984); the zenith emissivity eps_z is solved (bisection, the hemispherical integral is
+    monotonic in eps_z) so that the downwelling flux equals the Berdahl & Martin (1984) value.
+    Same law as ``humv_usd.thermal.sky.angular_sky_emissivity(model='martin_berdahl')``.
+
+    References
+    ----------
+    .. [1] Martin, M., Berdahl, P. (1984). Characteristics of infrared sky radiation in the
+       United States. Solar Energy 33(3/4), 321-336.
+    """
+    target = float(np.clip(sky_emissivity, 0.0, 1.0))
+    lo, hi = 0.0, target
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _hemispherical(mid) < target else (lo, mid)
+    mu = np.cos(np.radians(np.asarray(zenith_deg, dtype=float)))
+    return _martin_berdahl_law(0.5 * (lo + hi), mu)
+
+
+def water_vapour_pressure(air_temperature_k, relative_humidity):
+    """Partial pressure of water vapour [Pa]: RH times the Magnus saturation pressure over water.
+
+    e_s = 610.94 exp(17.625 t / (t + 243.04)) Pa with t in degC (Alduchov & Eskridge 1996).
+    """
+    t_c = np.asarray(air_temperature_k, dtype=float) - 273.15
+    return (np.clip(relative_humidity, 0.0, 1.0)
+            * 610.94 * np.exp(_MAGNUS_A * t_c / (_MAGNUS_B + t_c)))
+
+
+def water_continuum_absorption(wavelength_um, air_temperature_k, relative_humidity,
+                               pressure_pa=101325.0):
+    """Water-vapour continuum absorption coefficient in the 8-14 um window [m-1].
+
+    Parameters
+    ----------
+    wavelength_um : array-like
+        Wavelengths [um]; the fit holds for 400-1250 cm-1 (8-25 um), elsewhere the result is 0.
+    air_temperature_k, relative_humidity, pressure_pa : float
+        Air state.
+
+    Returns
+    -------
+    array
+        k(lambda) [m-1]; the transmittance of a horizontal path of length R is exp(-k R).
+
+    Notes
+    -----
+    Roberts, Selby & Biberman (1976): C_s(nu) = a + b exp(-beta nu) [cm2 molecule-1 atm-1],
+    a = 1.25e-22, b = 1.67e-19, beta = 7.87e-3 cm, at 296 K with the temperature factor
+    exp(1800 (1/T - 1/296)); k = C_s n_w (e + gamma (P - e)) / P0 with the foreign-broadening
+    ratio gamma = 0.002, n_w the water number density and pressures in atm.
+
+    References
+    ----------
+    .. [1] Roberts, R. E., Selby, J. E. A., Biberman, L. M. (1976). Infrared continuum
+       absorption by atmospheric water vapor in the 8-12 um window. Applied Optics 15(9),
+       2085-2090.
+    """
+    nu = 1.0e4 / np.asarray(wavelength_um, dtype=float)          # [cm-1]
+    t = float(air_temperature_k)
+    e_pa = float(water_vapour_pressure(t, relative_humidity))
+    cs = (1.25e-22 + 1.67e-19 * np.exp(-7.87e-3 * nu)) * np.exp(1800.0 * (1.0 / t - 1.0 / 296.0))
+    n_w = e_pa / (1.380649e-23 * t) * 1e-6                      # [molecules cm-3]
+    broad_atm = (e_pa + 0.002 * (float(pressure_pa) - e_pa)) / 101325.0
+    k_cm = cs * n_w * broad_atm                                  # [cm-1]
+    return np.where((nu >= 400.0) & (nu <= 1250.0), k_cm * 100.0, 0.0)
+
+
+def aerosol_extinction(wavelength_um, visibility_km):
+    """Aerosol extinction coefficient from the visibility (Koschmieder, Kruse) [m-1].
+
+    beta(lambda) = (3.912 / V) (lambda / 0.55 um)^(-q) with q = 1.6 (V > 50 km), 1.3
+    (6-50 km), 0.585 V^(1/3) (V < 6 km) (Kruse et al. 1962); the Rayleigh part 0.0116 km-1
+    at 0.55 um is removed from the Koschmieder extinction (Elterman 1968).
+
+    References
+    ----------
+    .. [1] Koschmieder, H. (1924). Theorie der horizontalen Sichtweite. Beitr. Phys. freien
+       Atmos. 12, 33-53.
+    .. [2] Kruse, P. W., McGlauchlin, L. D., McQuistan, R. B. (1962). Elements of Infrared
+       Technology. Wiley, New York.
+    """
+    v = float(visibility_km)
+    q = 1.6 if v > 50.0 else 1.3 if v > 6.0 else 0.585 * v ** (1.0 / 3.0)
+    beta550 = max(3.912 / v - 0.0116, 0.0) * 1e-3                # [m-1]
+    return beta550 * (np.asarray(wavelength_um, dtype=float) / 0.55) ** (-q)

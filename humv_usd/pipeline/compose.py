@@ -24,6 +24,7 @@ from humv_usd.scene import layer as scene_layer
 from humv_usd.sensors import layer as sensors_layer
 from humv_usd.thermal import layer as thermal_layer
 from humv_usd.fileio import write_text_atomic
+from humv_usd.groundtruth import annotators
 from humv_usd.usd.layers import layer_text, set_layer_metadata
 
 LAYER_DIR = "layers"
@@ -117,6 +118,7 @@ def root_layer(scenario: Scenario, names: list[str]) -> Sdf.Layer:
         "humv:scenario": g["name"],
         "humv:scenarioDigest": scenario.digest(),
         "humv:version": humv_usd.__version__,
+        **annotators.stage_metadata(scenario),   # [annotations] -> what the render computes
     }
     return root
 

@@ -14,8 +14,15 @@ What is read
   mesh or its nearest ancestor;
 - materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity``;
 - ``/World/Atmosphere.humv:atmosphere:skyTemperature`` [K] at the frame;
+- optional, per frame (notes/contract_env): ``/World/Atmosphere`` spectral tables
+  (``humv:atmosphere:wavelengths``, ``skyZenithAngles``, ``skySpectralRadiance``,
+  ``solarSpectralIrradiance``), ``/World/Environment.humv:environment:sunDirection`` and the
+  per-sensor slant paths ``/World/Atmosphere/Paths/<sensor>`` (:meth:`StageExport.atmosphere_spectra`,
+  :meth:`StageExport.sun_direction`, :meth:`StageExport.path_table`); materials'
+  ``humv:material:reflectance`` (EO);
 - every camera with ``humv:sensor:*`` attributes (HumvSensorAPI): band, wavelength range,
-  response, resolution, and its Gf.Camera at the frame.
+  response, resolution, and its Gf.Camera at the frame. A band starting below 3 um (or the
+  token ``EO``) is an EO sensor (``Sensor.kind``), rendered by :mod:`humv_usd.render.eo`.
 
 Skinned meshes (UsdSkel): a mesh under a ``SkelRoot`` bound to a ``Skeleton`` (``skel:skeleton``
 with joint influences) is posed at each frame by UsdSkel itself (``UsdSkel.Cache`` ->
@@ -54,6 +61,21 @@ SENSOR_RESPONSE_ATTR = _s.SENSOR_RESPONSE
 SENSOR_RESOLUTION_ATTR = _s.SENSOR_RESOLUTION
 SENSOR_PREFIX = "humv:sensor:"
 ATMOSPHERE_PATH = "/World/Atmosphere"
+ENVIRONMENT_PATH = "/World/Environment"
+#: Per-sensor path tables live under this scope, one child per sensor (contract_env).
+ATMOSPHERE_PATHS = ATMOSPHERE_PATH + "/Paths"
+REFLECTANCE_ATTR = _s.MATERIAL_REFLECTANCE
+# Environment / atmosphere attributes (H-env's layers); read by name, absent -> today's behaviour
+SUN_DIRECTION_ATTR = getattr(_s, "ENVIRONMENT_SUN_DIRECTION", "humv:environment:sunDirection")
+ATM_MODEL_ATTR = _s.ATMOSPHERE_MODEL
+ATM_WAVELENGTHS_ATTR = getattr(_s, "ATMOSPHERE_WAVELENGTHS", "humv:atmosphere:wavelengths")
+ATM_SKY_ZENITH_ATTR = getattr(_s, "ATMOSPHERE_SKY_ZENITH_ANGLES", "humv:atmosphere:skyZenithAngles")
+ATM_SKY_RADIANCE_ATTR = getattr(_s, "ATMOSPHERE_SKY_SPECTRAL_RADIANCE", "humv:atmosphere:skySpectralRadiance")
+ATM_SOLAR_ATTR = getattr(_s, "ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE", "humv:atmosphere:solarSpectralIrradiance")
+PATH_SENSOR_ATTR = getattr(_s, "ATMOSPHERE_PATH_SENSOR", "humv:atmospherePath:sensor")
+PATH_RANGES_ATTR = getattr(_s, "ATMOSPHERE_PATH_RANGES", "humv:atmospherePath:ranges")
+PATH_TRANSMITTANCE_ATTR = getattr(_s, "ATMOSPHERE_PATH_TRANSMITTANCE", "humv:atmospherePath:transmittance")
+PATH_RADIANCE_ATTR = getattr(_s, "ATMOSPHERE_PATH_RADIANCE", "humv:atmospherePath:radiance")
 
 #: Allowed temperatures [K] for surfaces and the sky.
 TEMPERATURE_RANGE_K = (1.0, 5000.0)
@@ -62,7 +84,6 @@ INFRARED_MIN_UM = 3.0
 #: Largest instance id (stored exactly in a float32 face attribute).
 MAX_INSTANCE_ID = 2**24 - 1
 MAX_RESOLUTION = 16384
-EO_SKIP_REASON = "EO rendering comes with the sensors/atmosphere issue"
 
 
 def _summary(values, limit=6):
@@ -90,6 +111,7 @@ class Sensor:
     response: tuple[np.ndarray, np.ndarray] | None
     resolution: tuple[int, int] | None  # (width, height) [px]
     skip_reason: str | None = None
+    kind: str = "IR"  # "IR" (mono sub-band render) or "EO" (spectral render, see render.eo)
 
     @property
     def rendered(self) -> bool:
@@ -111,6 +133,18 @@ class Material:
     path: str
     wavelengths_um: np.ndarray
     emissivity: np.ndarray
+    reflectance: np.ndarray | None = None  # spectral reflectance on wavelengths_um (EO), if authored
+
+
+@dataclass
+class AtmosphereSpectra:
+    """What ``/World/Atmosphere`` says spectrally at one frame (None when not authored)."""
+
+    model: str | None = None
+    wavelengths_um: np.ndarray | None = None  # (W,)
+    sky_zenith_deg: np.ndarray | None = None  # (Z,)
+    sky_radiance: np.ndarray | None = None  # (Z, W) [W m-2 sr-1 um-1]
+    solar_irradiance: np.ndarray | None = None  # (W,) [W m-2 um-1], direct beam, normal incidence
 
 
 @dataclass
@@ -299,18 +333,15 @@ class StageExport:
         band = _get(prim.GetAttribute(SENSOR_BAND_ATTR), Usd.TimeCode.Default())
         band = str(band) if band else ""
         rng = _get(prim.GetAttribute(SENSOR_RANGE_ATTR), Usd.TimeCode.Default())
-        if band == "EO":
-            return Sensor(name, path, band, None if rng is None else (float(rng[0]), float(rng[1])), None, None,
-                          skip_reason=EO_SKIP_REASON)
         where = f"{path}.{SENSOR_RANGE_ATTR}"
+        if band == "EO" and rng is None:
+            rng = (0.38, 0.78)
         if rng is None:
             raise InputError(bad_value(where, None, "expected (lower, upper) [um] of the sensor band"))
         lo, hi = float(rng[0]), float(rng[1])
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi <= 1000):
             raise InputError(bad_value(where, (lo, hi), "expected 0 < lower < upper [um]"))
-        if lo < INFRARED_MIN_UM:
-            return Sensor(name, path, band, (lo, hi), None, None,
-                          skip_reason=f"band starts at {lo:g} um < {INFRARED_MIN_UM:g} um (not infrared): {EO_SKIP_REASON}")
+        kind = "EO" if (band == "EO" or lo < INFRARED_MIN_UM) else "IR"
         projection = UsdGeom.Camera(prim).GetProjectionAttr().Get()
         if projection and projection != UsdGeom.Tokens.perspective:
             return Sensor(name, path, band, (lo, hi), None, None,
@@ -322,6 +353,8 @@ class StageExport:
         w, h = int(res[0]), int(res[1])
         if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
             raise InputError(bad_value(where, [w, h], f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]"))
+        if kind == "EO":  # colour comes from the CIE observer (render.eo), not a band response
+            return Sensor(name, path, band, (lo, hi), None, (w, h), kind="EO")
         response = self._read_response(prim, (lo, hi))
         return Sensor(name, path, band, (lo, hi), response, (w, h))
 
@@ -376,7 +409,15 @@ class StageExport:
                                        f"expected {wl.size} values (one per wavelength in {WAVELENGTHS_ATTR})"))
         if not np.all(np.isfinite(eps)) or np.any(eps < 0) or np.any(eps > 1):
             raise InputError(bad_value(f"{mpath}.{EMISSIVITY_ATTR}", _summary(eps), "expected emissivities in 0-1"))
-        out = Material(mpath, wl, eps)
+        rho = _get(prim.GetAttribute(REFLECTANCE_ATTR), time)
+        if rho is not None and len(rho) > 0:
+            rho = np.asarray(rho, dtype=float)
+            if rho.size != wl.size or not np.all(np.isfinite(rho)) or np.any(rho < 0) or np.any(rho > 1):
+                raise InputError(bad_value(f"{mpath}.{REFLECTANCE_ATTR}", _summary(rho),
+                                           f"expected {wl.size} reflectances in 0-1 (one per wavelength in {WAVELENGTHS_ATTR})"))
+        else:
+            rho = None
+        out = Material(mpath, wl, eps, rho)
         self._materials[mpath] = out
         return out
 
@@ -482,6 +523,115 @@ class StageExport:
             raise InputError(bad_value(where, None, f"expected the effective sky brightness temperature in "
                                                     f"{TEMPERATURE_RANGE_K[0]:g}-{TEMPERATURE_RANGE_K[1]:g} K (HumvAtmosphereAPI){what}"))
         return float(check_temperatures([value], where)[0])
+
+    # --- environment and atmosphere (contract_env; every part optional) ----------------------
+    def _float_array(self, prim, name, time, where_expected, positive=False, ascending=False):
+        value = _get(prim.GetAttribute(name), time)
+        if value is None or len(value) == 0:
+            return None
+        a = np.asarray(value, dtype=float).ravel()
+        where = f"{prim.GetPath()}.{name}"
+        if not np.all(np.isfinite(a)) or (positive and np.any(a < 0)):
+            raise InputError(bad_value(where, _summary(a), where_expected))
+        if ascending and (np.any(a < 0) or np.any(np.diff(a) <= 0)):
+            raise InputError(bad_value(where, _summary(a), where_expected))
+        return a
+
+    def atmosphere_spectra(self, time) -> "AtmosphereSpectra":
+        """Sky spectral radiance against zenith, solar spectral irradiance and the model token
+        of ``/World/Atmosphere`` at ``time`` (None for what is not authored)."""
+        out = AtmosphereSpectra()
+        prim = self.stage.GetPrimAtPath(ATMOSPHERE_PATH)
+        if not (prim and prim.IsValid()):
+            return out
+        model = _get(prim.GetAttribute(ATM_MODEL_ATTR), time)
+        out.model = str(model) if model else None
+        wl = self._float_array(prim, ATM_WAVELENGTHS_ATTR, time, "expected positive, strictly ascending wavelengths [um]",
+                               ascending=True)
+        if wl is None:
+            return out
+        out.wavelengths_um = wl
+        zen = self._float_array(prim, ATM_SKY_ZENITH_ATTR, time, "expected ascending zenith angles in 0-90 deg",
+                                ascending=True)
+        sky = self._float_array(prim, ATM_SKY_RADIANCE_ATTR, time,
+                                "expected finite spectral radiances >= 0 [W m-2 sr-1 um-1]", positive=True)
+        if zen is not None and sky is not None:
+            if zen[-1] > 90.0 + 1e-6:
+                raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_SKY_ZENITH_ATTR}", _summary(zen),
+                                           "expected ascending zenith angles in 0-90 deg"))
+            if sky.size != zen.size * wl.size:
+                raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_SKY_RADIANCE_ATTR}", f"<{sky.size} values>",
+                                           f"expected {zen.size} zenith angles x {wl.size} wavelengths = "
+                                           f"{zen.size * wl.size} values (row-major)"))
+            out.sky_zenith_deg, out.sky_radiance = zen, sky.reshape(zen.size, wl.size)
+        solar = self._float_array(prim, ATM_SOLAR_ATTR, time,
+                                  "expected finite spectral irradiances >= 0 [W m-2 um-1]", positive=True)
+        if solar is not None:
+            if solar.size != wl.size:
+                raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_SOLAR_ATTR}", f"<{solar.size} values>",
+                                           f"expected {wl.size} values (one per wavelength)"))
+            out.solar_irradiance = solar
+        return out
+
+    def sun_direction(self, time) -> np.ndarray | None:
+        """Unit vector toward the sun (stage coordinates) at ``time``, or None if not authored."""
+        prim = self.stage.GetPrimAtPath(ENVIRONMENT_PATH)
+        value = _get(prim.GetAttribute(SUN_DIRECTION_ATTR), time) if prim and prim.IsValid() else None
+        if value is None:
+            return None
+        d = np.asarray(value, dtype=float).ravel()
+        n = float(np.linalg.norm(d)) if d.size == 3 else 0.0
+        if not (np.all(np.isfinite(d)) and n > 0.5):
+            raise InputError(bad_value(f"{ENVIRONMENT_PATH}.{SUN_DIRECTION_ATTR}", _summary(d),
+                                       "expected a unit 3-vector toward the sun"))
+        return d / n
+
+    def path_table(self, sensor: Sensor, time):
+        """The sensor's slant-path table (``radiometry.PathTable``) at ``time``, or None.
+
+        Found under ``/World/Atmosphere/Paths`` by ``humv:atmospherePath:sensor`` == the sensor
+        prim path, else by the child named like the sensor; it needs ``humv:atmosphere:wavelengths``.
+        """
+        from humv_usd.render.radiometry import PathTable
+
+        scope = self.stage.GetPrimAtPath(ATMOSPHERE_PATHS)
+        if not (scope and scope.IsValid()):
+            return None
+        chosen = None
+        for child in scope.GetChildren():
+            target = _get(child.GetAttribute(PATH_SENSOR_ATTR), Usd.TimeCode.Default())
+            if target and str(target) == sensor.path:
+                chosen = child
+                break
+        if chosen is None:
+            child = scope.GetChild(sensor.name)
+            chosen = child if child and child.IsValid() else None
+        if chosen is None:
+            return None
+        atm = self.stage.GetPrimAtPath(ATMOSPHERE_PATH)
+        wl = self._float_array(atm, ATM_WAVELENGTHS_ATTR, time, "expected positive, strictly ascending wavelengths [um]",
+                               ascending=True)
+        where = str(chosen.GetPath())
+        if wl is None:
+            raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_WAVELENGTHS_ATTR}", None,
+                                       f"expected the wavelength grid [um] of the path table {where}"))
+        ranges = self._float_array(chosen, PATH_RANGES_ATTR, time, "expected ascending ranges >= 0 [m]", ascending=True)
+        tau = self._float_array(chosen, PATH_TRANSMITTANCE_ATTR, time, "expected transmittances in 0-1", positive=True)
+        rad = self._float_array(chosen, PATH_RADIANCE_ATTR, time,
+                                "expected finite path radiances >= 0 [W m-2 sr-1 um-1]", positive=True)
+        if ranges is None or tau is None or rad is None:
+            missing = [n for n, v in ((PATH_RANGES_ATTR, ranges), (PATH_TRANSMITTANCE_ATTR, tau),
+                                      (PATH_RADIANCE_ATTR, rad)) if v is None]
+            raise InputError(bad_value(f"{where}.{missing[0]}", None, "expected ranges, transmittance and radiance tables"))
+        for name, a in ((PATH_TRANSMITTANCE_ATTR, tau), (PATH_RADIANCE_ATTR, rad)):
+            if a.size != ranges.size * wl.size:
+                raise InputError(bad_value(f"{where}.{name}", f"<{a.size} values>",
+                                           f"expected {ranges.size} ranges x {wl.size} wavelengths = "
+                                           f"{ranges.size * wl.size} values (row-major)"))
+        if np.any(tau > 1.0 + 1e-6):
+            raise InputError(bad_value(f"{where}.{PATH_TRANSMITTANCE_ATTR}", _summary(tau), "expected transmittances in 0-1"))
+        return PathTable(where, ranges, wl, np.minimum(tau, 1.0).reshape(ranges.size, wl.size),
+                         rad.reshape(ranges.size, wl.size))
 
     def camera_pose(self, sensor: Sensor, time) -> CameraPose:
         """The sensor's camera at ``time``: position, optical axis (local -Z), up (local +Y) and

@@ -13,14 +13,17 @@ its front side and reflects diffusely with reflectance :math:`1 - \\varepsilon_b
 constant environment of radiance :math:`L_b(T_{sky})`. Using the same band-averaged
 :math:`\\varepsilon_b` for emission and reflection keeps an isothermal enclosure exactly at
 :math:`L_b(T)` for any emissivity (furnace test); for a non-gray material the band average is an
-approximation that spectral sub-bands (a later issue) will reduce.
+approximation, so :func:`render_band` renders the band as sub-bands (each a gray band of its own,
+:mod:`humv_usd.render.radiometry`) and adds the atmospheric path per pixel. The sky is either
+that constant environment or an ``envmap`` against zenith; the sun an optional ``directional``
+emitter.
 
 Surfaces are one-sided, as Mitsuba's area emitter and ``diffuse`` BSDF are: the back of a face
 (seen from inside a closed mesh, or the underside of a single-sided plate) neither emits nor
 reflects. Closed meshes with outward normals (USD ``orientation`` honoured) are what compose writes.
 
 The integrator is ``moment`` around ``path`` (``max_depth`` -1: unbiased, Russian roulette), with
-next-event estimation of the sky only (see :data:`AREA_EMITTER_SAMPLING_WEIGHT`); the film is
+next-event estimation of the sky and sun only (see :data:`AREA_EMITTER_SAMPLING_WEIGHT`); the film is
 ``hdrfilm`` luminance with a ``box`` filter, so every sample lands in exactly one pixel and the
 second moment gives the per-pixel Monte Carlo standard error of the mean.
 """
@@ -33,12 +36,15 @@ import numpy as np
 
 from humv_usd.render import mode
 from humv_usd.render.export import CameraPose, Part
+from humv_usd.render.radiometry import sky_latlong
 
 #: Near and far clip of the Mitsuba sensors [m]; USD clipping ranges are ignored (no clipping).
 NEAR_CLIP_M = 1e-3
 FAR_CLIP_M = 1e8
 #: Key of the sky emitter in the Mitsuba scene.
 SKY_ID = "sky"
+#: Key of the sun (directional emitter) in the Mitsuba scene.
+SUN_ID = "sun"
 #: Next-event estimation never picks the surfaces' area emitters. Mitsuba 3.9.1 samples an area
 #: emitter whose radiance is spatially varying (our per-face ``mesh_attribute``) through the
 #: texture's UV parameterization, which a UV-less mesh does not have: in ``llvm_ad_mono`` that
@@ -115,19 +121,38 @@ class IRScene:
         Path depth; -1 is unbounded (Russian roulette).
     workdir : path-like
         Directory for the PLY files (read at load; may be deleted afterwards).
+    sky_map : bool, default False
+        True: the sky is an ``envmap`` (lat-long bitmap against zenith, :meth:`set_sky_map`);
+        False: a ``constant`` environment (:meth:`set_sky`).
+    sun : bool, default False
+        Add a ``directional`` emitter for the sun (:meth:`set_sun`; off until set).
     """
 
-    def __init__(self, parts, sensors: list[SensorSetup], spp: int, max_depth: int, workdir):
+    #: Mitsuba variant family of the scene (True in the EO subclass).
+    spectral = False
+
+    def __init__(self, parts, sensors: list[SensorSetup], spp: int, max_depth: int, workdir,
+                 sky_map: bool = False, sun: bool = False):
         mi = mode.mitsuba()
         self.mi = mi
         self.scalar = not mode.is_vectorized()
         self.parts = [p for p, _, _ in parts]
         self.sensors = {s.id: s for s in sensors}
+        self.sky_map = bool(sky_map)
+        self.has_sun = bool(sun)
         scene: dict = {
             "type": "scene",
             "integrator": {"type": "moment", "nested": {"type": "path", "max_depth": int(max_depth)}},
             SKY_ID: {"type": "constant", "radiance": {"type": "uniform", "value": 0.0}},
         }
+        if self.sky_map:
+            # Mitsuba's envmap is Y-up in its local frame (row 0 of the bitmap = local +Y):
+            # rotating +90 deg about X takes local +Y to the stage's +Z (zenith).
+            scene[SKY_ID] = {"type": "envmap", "bitmap": mi.Bitmap(sky_latlong([0.0, 90.0], [1.0, 1.0])),
+                             "to_world": mi.ScalarTransform4f().rotate([1.0, 0.0, 0.0], 90.0)}
+        if self.has_sun:
+            scene[SUN_ID] = {"type": "directional", "direction": [0.0, 0.0, -1.0],
+                             "irradiance": {"type": "uniform", "value": 0.0}}
         for s in sensors:
             scene[s.id] = {
                 "type": "perspective", "fov": float(s.pose.fov_x_deg), "fov_axis": "x",
@@ -180,8 +205,36 @@ class IRScene:
         self.params[f"{part.key}.bsdf.reflectance.value"] = float(reflectance)
 
     def set_sky(self, radiance: float) -> None:
-        """Sky radiance [W m^-2 sr^-1]."""
+        """Sky radiance [W m^-2 sr^-1] (constant sky)."""
         self.params[f"{SKY_ID}.radiance.value"] = float(radiance)
+
+    def set_sky_map(self, bitmap) -> None:
+        """Sky lat-long bitmap (H, W, 3) [W m^-2 sr^-1] (envmap sky, see ``radiometry.sky_latlong``)."""
+        key = f"{SKY_ID}.data"
+        current = self.params[key]
+        shape = tuple(int(n) for n in current.shape)
+        bitmap = np.asarray(bitmap, dtype=np.float32)
+        if bitmap.shape != shape:  # some variants pad the azimuth columns; the sky is azimuth-free
+            bitmap = np.broadcast_to(bitmap[:, :1, :], shape)
+        self.params[key] = type(current)(np.ascontiguousarray(bitmap))
+
+    def set_sun(self, toward_sun, irradiance: float) -> None:
+        """Sun along the unit vector ``toward_sun`` with irradiance [W m^-2] on a surface normal
+        to the beam; irradiance 0 switches it off (and out of next-event estimation)."""
+        d = -np.asarray(toward_sun, dtype=float)
+        helper = [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0]
+        cls = self.mi.ScalarTransform4f if self.scalar else self.mi.Transform4f
+        # look_at takes local +Z (the emitter's propagation direction) to d
+        self.params[f"{SUN_ID}.to_world"] = cls().look_at(origin=[0.0, 0.0, 0.0], target=[float(v) for v in d],
+                                                          up=helper)
+        self.params[f"{SUN_ID}.irradiance.value"] = float(irradiance)
+        # next-event estimation picks sun or sky in proportion to these weights: the beam-normal
+        # irradiance here, pi x the mean sky radiance for the sky (:meth:`set_sky_weight`)
+        self.params[f"{SUN_ID}.sampling_weight"] = max(float(irradiance), 0.0)
+
+    def set_sky_weight(self, irradiance: float) -> None:
+        """Next-event sampling weight of the sky [W m^-2], e.g. pi x its mean radiance."""
+        self.params[f"{SKY_ID}.sampling_weight"] = max(float(irradiance), 1e-30)
 
     def set_camera(self, sensor_id: str, pose: CameraPose) -> None:
         self.sensors[sensor_id].pose = pose
@@ -189,11 +242,13 @@ class IRScene:
         self.params[f"{sensor_id}.x_fov"] = float(pose.fov_x_deg)
 
     def update(self) -> None:
+        self.mi = mode.mitsuba()  # the EO render may have switched the variant
         self.params.update()
 
     # --- render ------------------------------------------------------------------------------
     def render(self, sensor_id: str, spp: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """First and second moments of the pixel radiance, (H, W) float64 each."""
+        self.mi = mode.mitsuba()
         img = self.mi.render(self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp),
                              seed=int(seed) % 2**32)
         a = np.asarray(img, dtype=np.float64)
@@ -204,35 +259,106 @@ class IRScene:
 
         One ray through each pixel centre, from the same Mitsuba sensor that renders.
         """
-        mi = self.mi
+        hits = self.hits(sensor_id)
+        return hits.depth, hits.instance
+
+    def hits(self, sensor_id: str) -> "Hits":
+        """The first surface hit by the ray through each pixel centre (exact, no Monte Carlo).
+
+        Rays come from the same Mitsuba sensor that renders (``sample_ray`` at the pixel centre,
+        aperture sample 0.5), so labels and image agree by construction. See :class:`Hits`.
+        """
+        mi = self.mi = mode.mitsuba(spectral=self.spectral)  # the other render may have switched it
         setup = self.sensors[sensor_id]
         sensor = self._sensor_objects[sensor_id]
         w, h = setup.width, setup.height
+        n = w * h
         xs, ys = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
         origin = np.asarray(setup.pose.origin, dtype=np.float64)
         forward = np.asarray(setup.pose.forward, dtype=np.float64)
+        part_of_key = {p.key: k for k, p in enumerate(self.parts)}
+        part = np.full(n, -1, dtype=np.int64)
+        triangle = np.full(n, -1, dtype=np.int64)
+        ident = np.zeros(n, dtype=np.uint32)
+        p = np.full((n, 3), np.nan)
+        normal = np.zeros((n, 3))
         if self.scalar:
-            depth = np.full(w * h, np.inf)
-            ident = np.zeros(w * h, dtype=np.uint32)
             for i, (x, y) in enumerate(zip(xs.ravel(), ys.ravel())):
                 ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(float(x), float(y)), mi.Point2f(0.5, 0.5))
                 si = self.scene.ray_intersect(ray)
                 if si.is_valid():
-                    depth[i] = float(np.dot(np.asarray(si.p, dtype=np.float64) - origin, forward))
+                    p[i] = np.asarray(si.p, dtype=np.float64)
+                    normal[i] = np.asarray(si.n, dtype=np.float64)
                     ident[i] = int(round(si.shape.eval_attribute_1("face_instance", si)))
-            return depth.reshape(h, w), ident.reshape(h, w)
-        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(mi.Float(xs.ravel()), mi.Float(ys.ravel())),
-                                   mi.Point2f(0.5, 0.5))
-        si = self.scene.ray_intersect(ray)
-        valid = si.is_valid()
-        ident = si.shape.eval_attribute_1("face_instance", si, valid)
-        valid_np = np.asarray(valid, dtype=bool)
-        p = np.asarray(si.p, dtype=np.float64)  # (3, N)
-        p = p.T if p.shape[0] == 3 and p.ndim == 2 and p.shape[1] == w * h else p
-        depth = (p - origin[None, :]) @ forward
-        depth = np.where(valid_np, depth, np.inf)
-        ident = np.where(valid_np, np.rint(np.asarray(ident, dtype=np.float64)), 0).astype(np.uint32)
-        return depth.reshape(h, w), ident.reshape(h, w)
+                    part[i] = part_of_key[si.shape.id()]
+                    triangle[i] = int(si.prim_index)
+        else:
+            ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(mi.Float(xs.ravel()), mi.Float(ys.ravel())),
+                                       mi.Point2f(0.5, 0.5))
+            import drjit as dr
+
+            si = self.scene.ray_intersect(ray)
+            valid = si.is_valid()
+            ident_dr = si.shape.eval_attribute_1("face_instance", si, valid)
+            # the shape pointer as its registry index: one array for all shapes
+            shape_index = dr.reinterpret_array(mi.UInt32, si.shape)
+            dr.eval(si.p, si.n, si.prim_index, valid, ident_dr, shape_index)  # one kernel
+            valid_np = np.asarray(valid, dtype=bool)
+            ident = np.where(valid_np, np.rint(np.asarray(ident_dr, dtype=np.float64)), 0).astype(np.uint32)
+            p = np.asarray(si.p, dtype=np.float64).reshape(3, n).T
+            normal = np.asarray(si.n, dtype=np.float64).reshape(3, n).T
+            triangle = np.where(valid_np, np.asarray(si.prim_index, dtype=np.int64), -1)
+            shape_np = np.asarray(shape_index, dtype=np.int64)
+            for shape in self.scene.shapes():
+                key = int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape)))[0])
+                on = (shape_np == key) & valid_np
+                if on.any():
+                    part[on] = part_of_key[shape.id()]
+        valid_np = part >= 0
+        depth = np.where(valid_np, (np.nan_to_num(p) - origin[None, :]) @ forward, np.inf)
+        normal[~valid_np] = 0.0
+        return Hits(depth=depth.reshape(h, w), instance=ident.reshape(h, w), part=part.reshape(h, w),
+                    triangle=triangle.reshape(h, w), position=p.reshape(h, w, 3),
+                    normal=normal.reshape(h, w, 3))
+
+    def cast(self, origin, directions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """First hits of rays from ``origin`` (3,) along unit ``directions`` (N, 3) [m]:
+        (distance along the ray [m], inf on a miss; part index, -1; triangle index, -1)."""
+        mi = self.mi = mode.mitsuba(spectral=self.spectral)
+        d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+        o = np.asarray(origin, dtype=np.float64)
+        part_of_key = {p.key: k for k, p in enumerate(self.parts)}
+        t = np.full(len(d), np.inf)
+        part = np.full(len(d), -1, dtype=np.int64)
+        tri = np.full(len(d), -1, dtype=np.int64)
+        for i, di in enumerate(d):   # few rays (keypoints): one at a time in any variant
+            ray = mi.Ray3f(mi.Point3f(*[float(v) for v in o]), mi.Vector3f(*[float(v) for v in di]))
+            si = self.scene.ray_intersect(ray)
+            if bool(np.asarray(si.is_valid()).ravel()[0]):
+                t[i] = float(np.asarray(si.t).ravel()[0])
+                shape = si.shape if self.scalar else si.shape[0]
+                part[i] = part_of_key[shape.id()]
+                tri[i] = int(np.asarray(si.prim_index).ravel()[0])
+        return t, part, tri
+
+
+@dataclass
+class Hits:
+    """Per pixel (H, W) first hits of the pixel-centre rays of one sensor.
+
+    ``part`` indexes :attr:`IRScene.parts` (-1 for sky), ``triangle`` the triangle of that part
+    (``Part.triangles`` / ``Part.triangle_face`` order; -1 for sky); ``position`` is the world hit
+    point [m] (NaN for sky), ``normal`` the unit geometric normal of the hit triangle in world
+    space (its front side by winding, flips applied; 0 for sky); ``depth`` the distance along the
+    optical axis [m] (inf for sky), ``instance`` the part's instance id (0 for sky).
+    """
+
+    depth: np.ndarray
+    instance: np.ndarray
+    part: np.ndarray
+    triangle: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
 
 
 #: Relative resolution of m2 - m1^2 from float32 film accumulation (a few float32 ulps of m2).
@@ -268,3 +394,104 @@ def monte_carlo_stderr(m1, m2, spp: int) -> np.ndarray:
         return np.full_like(m1, np.nan)
     var = np.maximum(m2 - m1**2, MOMENT_RESOLUTION * np.abs(m2))
     return np.sqrt(var / (int(spp) - 1))
+
+
+#: Fewest samples per pixel of one sub-band render (when spp allows): the per-pixel standard
+#: error is estimated from each sub-band's own samples and needs a few.
+MIN_SUBBAND_SPP = 4
+
+
+def subband_spp(spp: int, n: int) -> int:
+    """Samples per pixel of each of ``n`` sub-band renders: the pixel's ``spp`` split over the
+    sub-bands (rounded up), but at least ``min(spp, MIN_SUBBAND_SPP)``.
+
+    Splitting keeps the cost of a band near that of one gray render, and the noise too: the
+    sub-band radiances add, so their variances (each ~ (1/n)^2 of the band's per sample, with
+    n times fewer samples) add up to about the band's.
+    """
+    per = -(-int(spp) // int(n))
+    return max(per, min(int(spp), MIN_SUBBAND_SPP))
+
+
+def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radiometry, spp: int, seed: int):
+    """At-sensor band radiance of one IR sensor at one frame, rendered sub-band by sub-band.
+
+    Parameters
+    ----------
+    scene : IRScene
+        With the frame's vertices and camera already set.
+    sensor_id : str
+        Mitsuba id of the sensor.
+    state : export.FrameState
+        The frame (face temperatures per mesh).
+    sub : radiometry.SubBands
+        The sensor's sub-bands.
+    emissivity_of : callable(Material) -> (n,) array
+        Sub-band emissivity of a material.
+    radiometry : radiometry.FrameRadiometry
+        Sky, sun and path per sub-band at this frame.
+    spp, seed : int
+        Samples per pixel of each sub-band render (see :func:`subband_spp`) and the frame's seed
+        (sub-band k of n renders with Mitsuba seed ``seed * n + k``: distinct for every frame and
+        sub-band).
+
+    Returns
+    -------
+    radiance, stderr : (H, W) float64
+        :math:`\\sum_k \\tau_k(r) S_k + P_k(r)` [W m^-2 sr^-1] (see :mod:`humv_usd.render.radiometry`)
+        and its Monte Carlo standard error :math:`\\sqrt{\\sum_k \\tau_k^2 \\sigma_k^2}` (independent
+        sub-band renders).
+
+    Notes
+    -----
+    Per sub-band k a face emits :math:`\\varepsilon_k L_k(T)` and reflects with
+    :math:`1-\\varepsilon_k` (Kirchhoff); the sky (constant or envmap) and the sun carry their
+    sub-band radiance / irradiance. The range r of a pixel is that of its centre ray's first hit
+    (:meth:`IRScene.hits`); pixels whose centre ray misses the scene get no path term (the sky
+    radiance is already the at-sensor value), so pixels straddling a silhouette against the sky
+    are approximate.
+    """
+    from humv_usd.render.radiometry import apply_path, sky_latlong
+
+    planck_k = {m.path: sub.radiance(state.temperatures[m.path]) for m in state.meshes}  # (F, n)
+    range_m = None
+    if radiometry.path is not None:
+        hits = scene.hits(sensor_id)
+        origin = np.asarray(scene.sensors[sensor_id].pose.origin, dtype=np.float64)
+        hit = np.isfinite(hits.depth)  # the positions of missed rays are undefined
+        range_m = np.where(hit, np.linalg.norm(np.where(hit[..., None], hits.position, 0.0) - origin, axis=-1), np.inf)
+    total = None
+    var = None
+    for k in range(len(sub)):
+        for m in state.meshes:
+            for part in m.parts:
+                eps = float(emissivity_of(part.material)[k])
+                scene.set_surface(part, eps * planck_k[m.path][part.triangle_face, k], 1.0 - eps)
+        if radiometry.sky_maps is not None and scene.sky_map:
+            scene.set_sky_map(radiometry.sky_maps[k])
+        else:
+            if radiometry.sky_maps is not None:  # scene built without the envmap: the map mean
+                value = float(np.mean(radiometry.sky_maps[k]))
+            else:
+                value = float(radiometry.sky_constant[k])
+            if scene.sky_map:
+                scene.set_sky_map(sky_latlong([0.0, 90.0], [value, value]))
+            else:
+                scene.set_sky(value)
+        if scene.has_sun:  # weigh sky against sun in next-event estimation
+            if radiometry.sky_maps is not None:
+                upper = radiometry.sky_maps[k][: radiometry.sky_maps[k].shape[0] // 2 + 1]
+                scene.set_sky_weight(np.pi * float(np.mean(upper)))
+            else:
+                scene.set_sky_weight(np.pi * float(radiometry.sky_constant[k]))
+            if radiometry.sun_irradiance is not None:
+                scene.set_sun(radiometry.sun_direction, float(radiometry.sun_irradiance[k]))
+            else:
+                scene.set_sun([0.0, 0.0, 1.0], 0.0)
+        scene.update()
+        m1, m2 = scene.render(sensor_id, spp=spp, seed=(int(seed) * len(sub) + k) % 2**32)
+        se = monte_carlo_stderr(m1, m2, spp)
+        at_sensor, tau = apply_path(m1, range_m, radiometry.path, k)
+        total = at_sensor if total is None else total + at_sensor
+        var = (tau * se) ** 2 if var is None else var + (tau * se) ** 2
+    return total, np.sqrt(var)

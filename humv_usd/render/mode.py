@@ -10,6 +10,9 @@ falls back to ``scalar_rgb`` with gray (equal-channel) spectra, which keeps the 
 but is much slower.
 
 ``HUMV_USD_MITSUBA_VARIANT`` (``llvm_ad_mono`` or ``scalar_rgb``) overrides the choice.
+
+The visible (EO) render uses the spectral variant of the same backend (``llvm_ad_spectral`` or
+``scalar_spectral``): ``mitsuba(spectral=True)``.
 """
 from __future__ import annotations
 
@@ -75,19 +78,33 @@ def _llvm_works(mi) -> str | None:
         return f"{type(exc).__name__}: {exc}"
 
 
-def mitsuba():
+#: Spectral variant of the EO render for each infrared variant (same backend).
+SPECTRAL_VARIANTS = {"llvm_ad_mono": "llvm_ad_spectral", "scalar_rgb": "scalar_spectral"}
+
+
+def mitsuba(spectral: bool = False):
     """The Mitsuba module with the renderer's variant set (configured on first call).
+
+    Parameters
+    ----------
+    spectral : bool, default False
+        False: the infrared variant (:data:`SUPPORTED_VARIANTS`). True: the matching spectral
+        variant for the visible (EO) render (:data:`SPECTRAL_VARIANTS`, 360-830 nm). Mitsuba
+        has one current variant per process: call this before every use of a scene, and the
+        variant is switched back and forth as needed.
 
     Returns
     -------
     module
-        ``mitsuba``, with ``mitsuba.variant()`` one of :data:`SUPPORTED_VARIANTS`.
+        ``mitsuba``, with ``mitsuba.variant()`` one of :data:`SUPPORTED_VARIANTS` (or its
+        spectral counterpart).
     """
     with _lock:
         if "mi" in _state:
             mi = _state["mi"]
-            if mi.variant() != _state["variant"]:
-                mi.set_variant(_state["variant"])  # someone else switched it
+            want = SPECTRAL_VARIANTS[_state["variant"]] if spectral else _state["variant"]
+            if mi.variant() != want:
+                mi.set_variant(want)  # someone else switched it, or EO <-> IR
             return mi
         variant, reason = _choose_variant()
         import mitsuba as mi
@@ -103,20 +120,23 @@ def mitsuba():
             warnings.warn(
                 f"humv_usd.render: falling back to Mitsuba scalar_rgb (slow): {reason}",
                 RuntimeWarning, stacklevel=2)
-        mi.set_variant(variant)
+        mi.set_variant(SPECTRAL_VARIANTS[variant] if spectral else variant)
         _state.update(mi=mi, variant=variant, reason=reason)
         return mi
 
 
 def variant() -> str:
-    """Name of the configured Mitsuba variant (configures it if needed)."""
-    mitsuba()
+    """Name of the configured (infrared) Mitsuba variant (configures it if needed; does not
+    switch the current variant once configured)."""
+    if "variant" not in _state:
+        mitsuba()
     return _state["variant"]
 
 
 def variant_reason() -> str:
     """Why that variant was chosen (for the manifest)."""
-    mitsuba()
+    if "reason" not in _state:
+        mitsuba()
     return _state["reason"]
 
 

@@ -14,7 +14,10 @@ from humv_usd.physics import planck
 from humv_usd.render import mode, writers
 from humv_usd.render.export import Sensor, StageExport, stage_frames
 from humv_usd.usd.layers import open_stage
-from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr
+from humv_usd.render.ir import (MIN_SUBBAND_SPP, IRScene, SensorSetup, monte_carlo_stderr,  # noqa: F401
+                                render_band, subband_spp)
+from humv_usd.render import eo as eo_render, radiometry
+from pxr import Usd
 
 #: Temperature of the blackbody that weights the band emissivity [K].
 EMISSIVITY_WEIGHTING_TEMPERATURE_K = 300.0
@@ -121,8 +124,9 @@ def _error_stats(stderr_l: np.ndarray, stderr_k: np.ndarray) -> dict:
     return acc.stats()
 
 
-def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0, max_depth=-1) -> dict:
-    """Render the infrared sensors of a composed HumV-USD stage.
+def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0, max_depth=-1,
+                 annotators=None, subbands=None) -> dict:
+    r"""Render the infrared sensors of a composed HumV-USD stage.
 
     For every camera with HumvSensorAPI attributes whose band starts at or above 3 um, and every
     requested frame, renders band radiance with Mitsuba 3 (mono variant, see
@@ -149,6 +153,13 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
         Sampler seed; frame ``f`` uses ``seed + f``.
     max_depth : int, default -1
         Path depth; -1 is unbounded (unbiased, Russian roulette).
+    subbands : int, optional
+        Sub-bands per infrared band (1-64); default
+        :data:`humv_usd.render.radiometry.DEFAULT_SUBBANDS`. ``spp`` is split over them
+        (:func:`humv_usd.render.ir.subband_spp`).
+    annotators : list of str, optional
+        Ground-truth annotators (:data:`humv_usd.groundtruth.ANNOTATORS`); default the stage's
+        (scenario ``[annotations]``) or the default set. See :mod:`humv_usd.groundtruth`.
 
     Returns
     -------
@@ -169,11 +180,18 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     (R the sensor response, or 1 over the band), emits :math:`\\varepsilon_b L_b(T_{face})` from
     its front side and reflects with :math:`1 - \\varepsilon_b` (Kirchhoff). The same
     :math:`\\varepsilon_b` on both sides keeps an isothermal scene exactly at :math:`L_b(T)`;
-    for a non-gray material at a temperature far from 300 K the band average is approximate,
-    and spectral sub-bands (a later issue) reduce that error. The sky is a uniform environment
-    at :math:`L_b(T_{sky})`, no atmospheric path radiance or transmission yet. Faces are
-    one-sided (their back neither emits nor reflects). Next-event estimation samples the sky only
-    (see :data:`humv_usd.render.ir.AREA_EMITTER_SAMPLING_WEIGHT`).
+    for a non-gray material at a temperature far from 300 K the band average is approximate.
+    The band is therefore split into ``subbands`` sub-bands (default
+    :data:`humv_usd.render.radiometry.DEFAULT_SUBBANDS`), each rendered with its own emissivity,
+    sky and sun and summed after the atmospheric path per pixel by range,
+    :math:`L = \sum_k \tau_k(r) S_k + P_k(r)` (:func:`humv_usd.render.ir.render_band`,
+    :mod:`humv_usd.render.radiometry`). The sky is an envmap from the atmosphere's spectral sky
+    table, else a uniform blackbody at :math:`T_{sky}`; the sun a directional emitter when the
+    stage has its direction and spectral irradiance and it is above the horizon. Faces are
+    one-sided (their back neither emits nor reflects). Next-event estimation samples the sky and
+    sun only (see :data:`humv_usd.render.ir.AREA_EMITTER_SAMPLING_WEIGHT`). EO sensors render in
+    Mitsuba's spectral variant (:mod:`humv_usd.render.eo`). After the render, the sensor chain
+    (:mod:`humv_usd.sensors.chain`) writes raw counts and an 8-bit image per IR/EO frame.
 
     Monte Carlo error: ``radiance_stderr`` is the standard error of each pixel's mean from the
     ``moment`` integrator, :math:`\\sqrt{(m_2 - m_1^2)/(n-1)}`, floored at the float32
@@ -193,36 +211,56 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     t = time.perf_counter()
     stage = open_stage(stage_path)
     exporter = StageExport(stage)
+    from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
+    truth = GroundTruth(stage, annotators)
     if not exporter.sensors:
         raise InputError(f"{stage_path}: no sensor to render: the stage has no camera with "
                          "HumvSensorAPI attributes (add a [[sensor]] to the scenario)")
     frame_list = _select_frames(stage, frames)
     selected = _select_sensors(exporter.sensors, sensors)
-    rendered = [s for s in selected if s.rendered]
+    eo_sensors = [s for s in selected if s.rendered and s.kind == "EO"]
+    rendered = [s for s in selected if s.rendered and s.kind != "EO"]  # infrared
     skipped = [{"name": s.name, "prim": s.path, "band": s.band, "reason": s.skip_reason}
                for s in selected if not s.rendered]
     mi = mode.mitsuba()
+    # --- radiometry setup (H-render): sub-bands per IR sensor, environment at the first frame
+    n_sub = radiometry.check_subbands(radiometry.DEFAULT_SUBBANDS if subbands is None else subbands)
+    sub_of = {s.name: radiometry.SubBands(s.wavelength_range_um, s.response, n_sub) for s in rendered}
+    spp_sub = {name: subband_spp(spp, len(sub)) for name, sub in sub_of.items()}
+    sub_eps: dict[tuple[str, str], np.ndarray] = {}
+    first_time = Usd.TimeCode(frame_list[0])
+    spectra0 = exporter.atmosphere_spectra(first_time)
+    sun0 = exporter.sun_direction(first_time)
+    use_sky_map = any(spectra0.sky_radiance is not None and radiometry.covers(spectra0.wavelengths_um, s.wavelength_range_um)
+                      for s in rendered)
+    use_sun = sun0 is not None and spectra0.solar_irradiance is not None
+    eo_run = eo_render.EORender(exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir)
+    eo_sensors = eo_run.sensors
     totals["load_export"] += time.perf_counter() - t
 
     sensor_ids = {s.name: f"sensor_{i}" for i, s in enumerate(rendered)}
     per_sensor = {s.name: {"timings": dict.fromkeys(TIMING_KEYS, 0.0), "frames": [], "errors": _Accumulator()}
                   for s in rendered}
     overall = _Accumulator()
+    chains = _SensorChains(stage, seed, [s.path for s in exporter.sensors])
     band_eps: dict[tuple[str, str], float] = {}
     scene: IRScene | None = None
     scene_key = None
     scene_builds = 0
 
-    for frame in frame_list if rendered else []:
+    for frame in frame_list if (rendered or eo_sensors) else []:
         t = time.perf_counter()
-        state = exporter.frame_state(frame, rendered)
+        state = exporter.frame_state(frame, rendered + eo_sensors)
         parts = [(part, state.points[m.path][part.vertex_ids], state.flip[m.path])
                  for m in state.meshes for part in m.parts]
-        if scene is None or state.topology_key != scene_key:
+        if not rendered:
+            pass
+        elif scene is None or state.topology_key != scene_key:
             setups = [SensorSetup(sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
                       for s in rendered]
             with tempfile.TemporaryDirectory(prefix="humv_render_") as tmp:
-                scene = IRScene(parts, setups, spp=spp, max_depth=max_depth, workdir=tmp)
+                scene = IRScene(parts, setups, spp=spp, max_depth=max_depth, workdir=tmp,
+                                sky_map=use_sky_map, sun=use_sun)
             scene_key = state.topology_key
             scene_builds += 1
         else:
@@ -230,27 +268,28 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
                 scene.set_vertices(part, vertices)
         for s in rendered:
             scene.set_camera(sensor_ids[s.name], state.cameras[s.name])
-        scene.update()
+        if rendered:
+            scene.update()
+        frame_time = Usd.TimeCode(frame)
+        spectra = exporter.atmosphere_spectra(frame_time)
+        sun_direction = exporter.sun_direction(frame_time)
         totals["load_export"] += time.perf_counter() - t
 
         for s in rendered:
             timings = per_sensor[s.name]["timings"]
             band, response = s.wavelength_range_um, s.response
             t = time.perf_counter()
-            for m in state.meshes:
-                face_l = planck.band_radiance(state.temperatures[m.path], band, response)
-                for part in m.parts:
-                    eps = _band_emissivity(band_eps, part.material, s)
-                    scene.set_surface(part, eps * face_l[part.triangle_face], 1.0 - eps)
-            scene.set_sky(planck.band_radiance(state.sky_temperature_k, band, response))
-            scene.update()
+            sub = sub_of[s.name]
+            frame_rad = radiometry.frame_radiometry(sub, state.sky_temperature_k, spectra, sun_direction,
+                                                    exporter.path_table(s, frame_time))
             dt = time.perf_counter() - t
             timings["load_export"] += dt
             totals["load_export"] += dt
 
             t = time.perf_counter()
-            m1, m2 = scene.render(sensor_ids[s.name], spp=spp, seed=seed + frame)
-            stderr_l = monte_carlo_stderr(m1, m2, spp)
+            m1, stderr_l = render_band(scene, sensor_ids[s.name], state, sub,
+                                       lambda material: _subband_emissivity(sub_eps, material, s, sub),
+                                       frame_rad, spp=spp_sub[s.name], seed=seed + frame)
             bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
             with np.errstate(invalid="ignore", divide="ignore"):
                 stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
@@ -259,22 +298,30 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             totals["render"] += dt
 
             t = time.perf_counter()
-            depth, instance = scene.labels(sensor_ids[s.name])
+            rel = os.path.join(s.name, f"{frame:04d}")
+            labels = truth.annotate(scene, sensor_ids[s.name], s, state,
+                                    lambda part: _band_emissivity(band_eps, part.material, s), out_dir, rel)
+            depth, instance = labels.depth, labels.instance
             dt = time.perf_counter() - t
             timings["labels"] += dt
             totals["labels"] += dt
 
             t = time.perf_counter()
             rel = os.path.join(s.name, f"{frame:04d}")
+            chained = chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
             writers.write_exr(os.path.join(out_dir, rel + ".exr"), {
                 "radiance": m1,
                 "brightness_temperature": bt,
                 "radiance_stderr": stderr_l,
                 "depth": depth,
                 "instance_id": instance.astype(np.float32),
+                **labels.channels,
+                **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
             }, metadata={"humv:sensor": s.path, "humv:frame": str(frame),
-                         "humv:band_um": f"{band[0]:g}-{band[1]:g}", "humv:spp": str(spp)})
+                         "humv:band_um": f"{band[0]:g}-{band[1]:g}", "humv:spp": str(spp),
+                         "humv:subbands": str(len(sub))})
             levels = writers.write_preview_png(os.path.join(out_dir, rel + ".png"), bt)
+            chain_record = chains.write(chained, out_dir, rel)
             dt = time.perf_counter() - t
             timings["write"] += dt
             totals["write"] += dt
@@ -291,8 +338,18 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
                 "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
                 "sky_temperature_k": state.sky_temperature_k,
                 "monte_carlo_error": _error_stats(stderr_l, stderr_k),
+                "radiometry": frame_rad.ran,
+                "sensor_chain": chain_record,
             })
 
+        if eo_run.sensors:  # visible sensors: spectral render of the same frame (render.eo)
+            t = time.perf_counter()
+            eo_run.frame(state, frame, chains)
+            totals["eo"] = totals.get("eo", 0.0) + time.perf_counter() - t
+
+    t = time.perf_counter()
+    ground_truth = truth.finish(out_dir, totals["render"])
+    totals["labels"] += time.perf_counter() - t
     totals["total"] = time.perf_counter() - t_start
     manifest = {
         "stage": os.path.abspath(os.fspath(stage_path)),
@@ -309,7 +366,9 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
                       "integrator (the floor is the float32 resolution of the moments; NaN for spp = 1); in K: "
                       "divided by dL_band/dT at the pixel's brightness temperature",
         },
-        "channels": {name: {"unit": unit, "dtype": "float32"} for name, unit in writers.EXR_CHANNELS.items()},
+        "channels": {**{name: {"unit": unit, "dtype": "float32"} for name, unit in writers.EXR_CHANNELS.items()},
+                     **truth.channel_units()},
+        "ground_truth": ground_truth,
         "preview": {"format": "PNG, 8-bit grayscale", "quantity": "brightness_temperature",
                     "stretch": "linear between the 1st and 99th percentile of each image "
                                "(levels per frame in preview_levels_k); non-finite pixels black"},
@@ -318,12 +377,25 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             "wavelength_range_um": list(s.wavelength_range_um),
             "response": None if s.response is None else {"wavelengths_um": s.response[0], "values": s.response[1]},
             "resolution": list(s.resolution),
+            "subbands_um": [list(b) for b in sub_of[s.name].bands],
+            "spp_per_subband": spp_sub[s.name],
             "frames": per_sensor[s.name]["frames"],
             "timings_s": {**per_sensor[s.name]["timings"],
                           "total": sum(per_sensor[s.name]["timings"].values())},
             "monte_carlo_error": per_sensor[s.name]["errors"].stats(),
         } for s in rendered],
-        "skipped_sensors": skipped,
+        "eo_sensors": eo_run.manifest(),
+        "skipped_sensors": skipped + eo_run.skipped,
+        "radiometry": {
+            "subbands": n_sub, "subbands_default": radiometry.DEFAULT_SUBBANDS,
+            "spp_per_subband": spp_sub,
+            "model": "per sub-band gray Lambertian render summed with the sensor response; "
+                     "L = sum_k tau_k(r) S_k + P_k(r) per pixel by range (see humv_usd.render.radiometry)",
+            "sky": "envmap from the zenith table" if use_sky_map else "uniform (blackbody at skyTemperature)",
+            "sun_emitter": bool(use_sun),
+            "atmosphere_model": spectra0.model,
+        },
+        "sensor_chain": chains.status(),
         "scene_builds": scene_builds,
         "timings_s": totals,
         "monte_carlo_error": overall.stats(),
@@ -344,3 +416,148 @@ def _band_emissivity(cache: dict, material, sensor: Sensor) -> float:
         cache[key] = planck.band_emissivity(wl, material.emissivity, band, sensor.response,
                                             temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K)
     return cache[key]
+
+
+def _subband_emissivity(cache: dict, material, sensor: Sensor, sub) -> np.ndarray:
+    """Sub-band emissivities (n,) of a material for a sensor (cached; same table check as
+    :func:`_band_emissivity`)."""
+    key = (material.path, sensor.name)
+    if key not in cache:
+        _band_emissivity({}, material, sensor)  # raises when the table misses the band
+        cache[key] = sub.emissivity(material.wavelengths_um, material.emissivity)
+    return cache[key]
+
+
+class _SensorChains:
+    """The sensor chain (:mod:`humv_usd.sensors.chain`): optics, noise, counts, AGC per sensor
+    and frame, after the render. One model per sensor prim; the noise generator is seeded from
+    (seed, sensor index in the stage, frame), so outputs are reproducible."""
+
+    def __init__(self, stage, seed: int, sensor_paths: list[str]):
+        self.stage = stage
+        self.seed = int(seed)
+        self.index = {p: i for i, p in enumerate(sensor_paths)}
+        self.models: dict = {}
+        self.ran: dict[str, str] = {}
+        try:
+            from humv_usd.sensors import chain
+        except ImportError as exc:  # not there yet: radiance only
+            chain, self.reason = None, f"skipped: humv_usd.sensors.chain not importable ({exc})"
+        else:
+            self.reason = None
+        self.chain = chain
+
+    def apply(self, sensor: Sensor, radiance, frame: int, eo_space: str | None = None):
+        """ChainOutput for one frame, or None when the chain is unavailable."""
+        if self.chain is None:
+            return None
+        if sensor.path not in self.models:
+            self.models[sensor.path] = self.chain.SensorModel.from_prim(self.stage.GetPrimAtPath(sensor.path))
+        rng = np.random.default_rng([self.seed, self.index.get(sensor.path, 0), int(frame)])
+        extra = {} if eo_space is None else {"eo_space": eo_space}
+        out = self.chain.apply_chain(radiance, self.models[sensor.path], rng, reference_temperature_k=300.0, **extra)
+        self.ran[sensor.name] = "ran"
+        return out
+
+    def write(self, out, out_dir, rel) -> dict | None:
+        """Write ``<rel>_counts.png`` (16-bit raw counts) and ``<rel>_image8.png`` (8-bit AGC)."""
+        if out is None:
+            return None
+        writers.write_png16(os.path.join(out_dir, rel + "_counts.png"), out.counts)
+        writers.write_png(os.path.join(out_dir, rel + "_image8.png"), out.image8)
+        return {"counts_png": rel + "_counts.png", "image8_png": rel + "_image8.png",
+                "noise_sigma": float(out.noise_sigma), "settings": out.settings}
+
+    def status(self) -> str:
+        return self.reason or "ran: counts (16-bit PNG, EXR channel counts) and image8 (PNG) per frame"
+
+
+# --- bench: spectral error against sub-band count, render time per sensor ----------------------
+
+#: Ranges [m] at which the bench evaluates the path term when the stage has a path table.
+BENCH_RANGES_M = (5.0, 15.0, 30.0, 60.0)
+
+
+def spectra_from_atmosphere(atm, time_s: float = 0.0, sun_direction=None):
+    """(AtmosphereSpectra, PathTable) from a :class:`humv_usd.atmosphere.model.Atmosphere`, for a
+    bench on a stage whose atmosphere layer has no spectral tables."""
+    from humv_usd.render.export import AtmosphereSpectra
+
+    wl = np.asarray(atm.wavelengths_um, dtype=float)
+    spectra = AtmosphereSpectra(model=atm.source, wavelengths_um=wl,
+                                sky_zenith_deg=np.asarray(atm.sky_zenith_deg, dtype=float),
+                                sky_radiance=atm.sky_spectral_radiance(atm.sky_zenith_deg, time_s),
+                                solar_irradiance=atm.solar_spectral_irradiance([time_s])[0])
+    tau, rad = atm.path()
+    table = radiometry.PathTable(f"atmosphere_for ({atm.source})", np.asarray(atm.path_ranges_m, dtype=float),
+                                 wl, np.asarray(tau, dtype=float), np.asarray(rad, dtype=float))
+    return spectra, table
+
+
+def subband_error_table(stage_path, counts=(1, 2, 3, 4, 6, 8, 16), frame=None, spectra=None,
+                        path_table=None, sun_direction=None) -> dict:
+    """Spectral (not Monte Carlo) error of the sub-band model against sub-band count.
+
+    For every IR sensor of the stage, every material bound to a rendered mesh and the face
+    temperatures of the frame (1st, 50th and 99th percentile over all faces), the at-sensor
+    brightness temperature of a horizontal opaque Lambertian facet under the stage's sky (its
+    spectral table, cosine-weighted over the hemisphere, else the blackbody at skyTemperature),
+    the stage's sun (if up) and the sensor's path table at :data:`BENCH_RANGES_M` (if any) is
+    computed with n sub-bands and on a fine spectral grid
+    (:func:`humv_usd.render.radiometry.subband_error`). Returns, per sensor and n, the largest
+    and the RMS error [K] over materials, temperatures and ranges. ``spectra``, ``path_table``
+    and ``sun_direction`` replace what the stage has (see :func:`spectra_from_atmosphere`).
+    """
+    stage = open_stage(stage_path)
+    exporter = StageExport(stage)
+    frames = stage_frames(stage)
+    frame = frames[0] if frame is None else int(frame)
+    ir = [s for s in exporter.sensors if s.rendered and s.kind != "EO"]
+    state = exporter.frame_state(frame, ir)
+    time_code = Usd.TimeCode(frame)
+    spectra = exporter.atmosphere_spectra(time_code) if spectra is None else spectra
+    sun_dir = exporter.sun_direction(time_code) if sun_direction is None else np.asarray(sun_direction, float)
+    temps = np.concatenate([state.temperatures[m.path] for m in state.meshes]) if state.meshes else np.array([300.0])
+    temps = np.percentile(temps, [1.0, 50.0, 99.0])
+    materials = {part.material.path: part.material for m in state.meshes for part in m.parts}
+    out: dict = {"frame": frame, "temperatures_k": temps.tolist(), "materials": sorted(materials),
+                 "reference": f"trapezoid on {radiometry.REFERENCE_NODES}+ nodes per band", "sensors": {}}
+    for s in ir:
+        band, resp = s.wavelength_range_um, s.response
+        wl = spectra.wavelengths_um
+        notes = {}
+        if spectra.sky_radiance is not None and radiometry.covers(wl, band):
+            sky_l = np.array([radiometry.hemisphere_mean(spectra.sky_zenith_deg, spectra.sky_radiance[:, j])
+                              for j in range(wl.size)])
+            sky = (wl, sky_l)
+            notes["sky"] = "spectral table"
+        else:
+            x = np.linspace(band[0], band[1], 512)
+            sky = (x, planck.spectral_radiance(x, state.sky_temperature_k))
+            notes["sky"] = f"blackbody {state.sky_temperature_k:.1f} K"
+        sun = None
+        if (sun_dir is not None and sun_dir[2] > 0 and spectra.solar_irradiance is not None
+                and radiometry.covers(wl, band)):
+            sun = (wl, spectra.solar_irradiance, float(sun_dir[2]))
+            notes["sun"] = f"cos(zenith) {sun_dir[2]:.3f}"
+        table = exporter.path_table(s, time_code) if path_table is None else path_table
+        paths = [None]
+        if table is not None and radiometry.covers(table.wavelengths_um, band):
+            paths = []
+            for r in BENCH_RANGES_M:
+                tau = np.array([np.interp(r, table.ranges_m, table.transmittance[:, j]) for j in range(wl.size)])
+                lp = np.array([np.interp(r, table.ranges_m, table.radiance[:, j]) for j in range(wl.size)])
+                paths.append((table.wavelengths_um, tau, lp))
+            notes["path"] = f"table {table.prim} at {list(BENCH_RANGES_M)} m"
+        rows = {}
+        for n in counts:
+            errs = []
+            sub = radiometry.SubBands(band, resp, n)
+            for mat in materials.values():
+                for path in paths:
+                    errs.append(radiometry.subband_error(band, resp, mat.wavelengths_um, mat.emissivity, temps, n,
+                                                         sky=sky, sun=sun, path=path, subbands=sub))
+            e = np.abs(np.concatenate(errs))
+            rows[int(n)] = {"max_k": float(e.max()), "rms_k": float(np.sqrt(np.mean(e**2)))}
+        out["sensors"][s.name] = {"band_um": list(band), "inputs": notes, "error_by_subbands": rows}
+    return out

@@ -94,6 +94,17 @@ def write_preview_png(path, values: np.ndarray) -> tuple[float, float]:
     return lo, hi
 
 
+def write_png(path, pixels: np.ndarray) -> None:
+    """Write uint8 pixels (H, W) gray or (H, W, 3) RGB to a PNG atomically (label masks)."""
+    pixels = np.asarray(pixels, dtype=np.uint8)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    h, w, c = pixels.shape
+    spec = oiio.ImageSpec(w, h, c, "uint8")
+    spec.channelnames = ("Y",) if c == 1 else ("R", "G", "B", "A")[:c]
+    _write_oiio(path, np.ascontiguousarray(pixels), spec)
+
+
 def _jsonable(obj):
     """Replace non-finite floats by None (JSON has no inf/NaN) and numpy scalars by Python ones."""
     if isinstance(obj, dict):
@@ -115,3 +126,15 @@ def write_json(path, data) -> None:
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump(_jsonable(data), f, indent=2, allow_nan=False)
             f.write("\n")
+
+
+def write_png16(path, counts: np.ndarray) -> None:
+    """Write uint16 counts (H, W) gray or (H, W, 3) RGB to a 16-bit PNG atomically (raw
+    sensor counts of :mod:`humv_usd.sensors.chain`)."""
+    pixels = np.asarray(counts, dtype=np.uint16)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    h, w, c = pixels.shape
+    spec = oiio.ImageSpec(w, h, c, "uint16")
+    spec.channelnames = ("Y",) if c == 1 else ("R", "G", "B")[:c]
+    _write_oiio(path, np.ascontiguousarray(pixels), spec)

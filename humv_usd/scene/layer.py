@@ -15,7 +15,11 @@ GROUND = SCOPES["scene"].AppendChild("Ground")
 
 
 def instance_ids(scenario: Scenario) -> dict[str, int]:
-    """Stable instance ids: humans 1..N in file order, then the ground, then scene objects."""
+    """Stable instance ids: humans 1..N in file order, then the ground, then scene objects,
+    then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
+    each one's props in the order of its ``clothing`` list). Props come last so that adding
+    or dropping one never renumbers a person or a scene object."""
+    from humv_usd.clothing.garments import garment
     ids: dict[str, int] = {}
     for h in scenario["human"]:
         ids[f"human:{h['id']}"] = len(ids) + 1
@@ -23,6 +27,11 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
         ids["ground"] = len(ids) + 1
         for o in scenario["scene"]["object"]:
             ids[f"object:{o['id']}"] = len(ids) + 1
+    for h in scenario["human"]:
+        for name in h.get("clothing") or ():
+            g = garment(name)
+            if g.is_prop:
+                ids[f"prop:{h['id']}:{g.name}"] = len(ids) + 1
     return ids
 
 

@@ -1,11 +1,23 @@
-"""Sensor tool: cameras with HumvSensorAPI → layers/sensors.usda."""
+"""Sensor tool: cameras with HumvSensorAPI → layers/sensors.usda.
+
+One UsdGeom.Camera per ``[[sensor]]`` with the radiometric model (HumvSensorAPI) from the table
+and its preset (:mod:`humv_usd.sensors.presets`). Tripod and mast cameras have one transform;
+an aerial camera's transform is time-sampled at every frame (orbit looking at its centre), so
+all sensors share the frame times (synchronised, multi-view).
+"""
 from __future__ import annotations
 
-from pxr import Gf, Sdf, UsdGeom
+import datetime as _dt
+from pathlib import Path
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.scenario import Scenario
+from humv_usd.sensors.presets import orbit_positions, preset
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import SCOPES, look_at_matrix, finish, new_layer_stage
+from humv_usd.fileio import write_text_atomic
+from humv_usd.usd.layers import SCOPES, finish, layer_text, look_at_matrix, new_layer_stage
 
 NAME = "sensors"
 READS = ("general", "sensor")
@@ -18,13 +30,46 @@ def sensor_path(sensor_id: str) -> Sdf.Path:
     return SCOPES["sensors"].AppendChild(sensor_id)
 
 
+def camera_positions(s: dict, fps: float, frame_count: int) -> np.ndarray:
+    """Camera position [m] per frame, (frame_count, 3): constant unless the platform is aerial."""
+    if s["platform"] != "aerial":
+        return np.tile(np.asarray(s["position_m"], dtype=float), (max(frame_count, 1), 1))
+    times = np.arange(max(frame_count, 1)) / fps
+    return orbit_positions(s["look_at_m"], s["altitude_m"], s["orbit_radius_m"],
+                           s["orbit_speed_m_s"], times, start_deg=s["orbit_start_deg"],
+                           clockwise=s["orbit_clockwise"] == "yes")
+
+
+def _response(s: dict):
+    """Response curve and EO channel responses authored for the sensor: the preset's when the
+    band is the preset's, clipped to the sensor's band edges; none (flat) otherwise."""
+    if not s.get("preset"):
+        return None, None, None
+    p = preset(s["preset"])
+    if p.band != s["band"]:
+        return None, None, None
+    wl = np.asarray(p.response_wavelengths_um, dtype=float)
+    lo, hi = s["wavelength_um"]
+    if not np.any((wl >= lo) & (wl <= hi)):
+        return None, None, None
+    channels = None if p.channel_response is None else np.asarray(p.channel_response, dtype=float)
+    return wl, np.asarray(p.response, dtype=float), channels
+
+
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g = scenario["general"]
-    stage = new_layer_stage(g["fps"], scenario.frame_count, "HumV-USD sensors layer")
+    frames = scenario.frame_count
+    stage = new_layer_stage(g["fps"], frames, "HumV-USD sensors layer")
     UsdGeom.Scope.Define(stage, SCOPES["sensors"])
     for s in scenario["sensor"]:
         cam = UsdGeom.Camera.Define(stage, sensor_path(s["id"]))
-        cam.AddTransformOp().Set(look_at_matrix(s["position_m"], s["look_at_m"]))
+        op = cam.AddTransformOp()
+        positions = camera_positions(s, g["fps"], frames)
+        if s["platform"] == "aerial":
+            for frame, pos in enumerate(positions):
+                op.Set(look_at_matrix(pos.tolist(), s["look_at_m"]), Usd.TimeCode(frame))
+        else:
+            op.Set(look_at_matrix(s["position_m"], s["look_at_m"]))
         width, height = s["resolution"]
         pitch_mm = s["pixel_pitch_um"] * 1e-3
         cam.CreateProjectionAttr(UsdGeom.Tokens.perspective)
@@ -35,12 +80,66 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         cam.CreateClippingRangeAttr(Gf.Vec2f(0.05, 1.0e5))
         prim = cam.GetPrim()
         prim.ApplyAPI(S.SENSOR_API)
-        for attr, value in ((S.SENSOR_BAND, s["band"]),
-                            (S.SENSOR_WAVELENGTH_RANGE, Gf.Vec2f(*s["wavelength_um"])),
-                            (S.SENSOR_RESOLUTION, Gf.Vec2i(width, height)),
-                            (S.SENSOR_PIXEL_PITCH, s["pixel_pitch_um"] * 1e-6),
-                            (S.SENSOR_F_NUMBER, s["f_number"]), (S.SENSOR_NETD, s["netd_k"]),
-                            (S.SENSOR_BIT_DEPTH, s["bit_depth"]), (S.SENSOR_GAIN, s["gain"]),
-                            (S.SENSOR_OFFSET, s["offset"])):
+        values = [(S.SENSOR_BAND, s["band"]),
+                  (S.SENSOR_WAVELENGTH_RANGE, Gf.Vec2f(*s["wavelength_um"])),
+                  (S.SENSOR_RESOLUTION, Gf.Vec2i(width, height)),
+                  (S.SENSOR_PIXEL_PITCH, s["pixel_pitch_um"] * 1e-6),
+                  (S.SENSOR_F_NUMBER, s["f_number"]), (S.SENSOR_NETD, s["netd_k"]),
+                  (S.SENSOR_BIT_DEPTH, s["bit_depth"]), (S.SENSOR_OFFSET, s["offset"]),
+                  (S.SENSOR_PRESET, s.get("preset") or ""), (S.SENSOR_PLATFORM, s["platform"]),
+                  (S.SENSOR_AGC, s["agc"]),
+                  (S.SENSOR_AGC_PERCENTILES, Gf.Vec2f(*s["agc_percentiles"]))]
+        if s["gain"] is not None:          # EO presets: no gain = auto exposure
+            values.append((S.SENSOR_GAIN, s["gain"]))
+        if s["band"] == "EO":
+            values += [(S.SENSOR_FULL_WELL, s["full_well_e"]),
+                       (S.SENSOR_READ_NOISE, s["read_noise_e"])]
+        wl, response, channels = _response(s)
+        if wl is not None:
+            values += [(S.SENSOR_RESPONSE_WAVELENGTHS, Vt.FloatArray(wl.tolist())),
+                       (S.SENSOR_RESPONSE, Vt.FloatArray(response.tolist()))]
+            if channels is not None:
+                values.append((S.SENSOR_CHANNEL_RESPONSE, Vt.FloatArray(channels.ravel().tolist())))
+        for attr, value in values:
             prim.GetAttribute(attr).Set(value)
     return finish(stage)
+
+
+# ---------------------------------------------------------------------------- presets file
+PRESETS_FILE = Path(__file__).resolve().parents[2] / "layers" / "sensors.usda"
+
+
+def build_presets() -> Sdf.Layer:
+    """Every sensor preset as a camera /World/Sensors/<preset> (the reusable layers/sensors.usda):
+    on a tripod 1.6 m above the origin's south, 15 m away, looking north (as in humvvex)."""
+    from humv_usd.scenario import validate
+    from humv_usd.sensors.presets import PRESETS
+    raw = {"general": {"name": "sensor_presets", "start": _dt.datetime(2018, 10, 24, 14, 5),
+                       "utc_offset_h": 0.0, "latitude_deg": 0.0, "longitude_deg": 0.0,
+                       "fps": 1.0},
+           "sensor": [{"id": name, "preset": name, "position_m": [0.0, -15.0, 1.6],
+                       "look_at_m": [0.0, 0.0, 1.6]} for name in PRESETS]}
+    layer = build(validate(raw))
+    layer.documentation = ("HumV-USD sensor presets (humv_usd.sensors.presets), one camera each. "
+                           "Generated: python -m humv_usd.sensors.layer")
+    return layer
+
+
+def main(argv=None) -> int:
+    """Write layers/sensors.usda (``--check``: exit 1 if it is out of date)."""
+    import argparse
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("--check", action="store_true")
+    args = parser.parse_args(argv)
+    text = layer_text(build_presets())
+    if args.check:
+        ok = PRESETS_FILE.is_file() and PRESETS_FILE.read_text(encoding="utf-8") == text
+        print(f"{PRESETS_FILE}: {'up to date' if ok else 'out of date'}")
+        return 0 if ok else 1
+    write_text_atomic(PRESETS_FILE, text)
+    print(f"wrote {PRESETS_FILE}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -11,11 +11,15 @@ The chain, per person:
 3. physiology (JOS-3 or Gagge's two-node model, :mod:`humv_usd.thermal.physiology`) driven by
    the avatar's metabolic-rate schedule, the weather, the segment MRTs and the clothing
    insulation of each segment, with a spin-up; skin temperature per segment → skin facets;
-4. garment facets: the steady energy balance of Eq. 5-9 (:func:`humv_usd.physics.garment.
-   steady_state`) over the skin temperature of the segment underneath, with the per-face air gap.
+4. garment facets: the energy balance of Eq. 5-9 over the skin temperature of the segment
+   underneath, with the per-face air gap: steady state at frame 0
+   (:func:`humv_usd.physics.garment.steady_state`), then implicit steps with the fabric's heat
+   capacity along the frames (:func:`humv_usd.physics.garment.transient_step`).
 
-Not yet: the sun (no solar position until the environment issue; shortwave is zero), a
-transient garment balance along the frames, and scene temperatures (fixed from the scenario).
+The sky (weather and sun of :mod:`humv_usd.environment`) and the scene surfaces (their
+temperatures from :mod:`humv_usd.thermal.surfaces`) are given per radiation sample by the
+caller (:class:`Surroundings`). Not modelled: sunlight reflected from one body part onto
+another (a ray blocked by the person brings its long-wave emission only).
 """
 from __future__ import annotations
 
@@ -30,7 +34,7 @@ from humv_usd.avatar.usdskel import skinned_points
 from humv_usd.clothing.garments import GARMENTS
 from humv_usd.materials.library import LIBRARY, WAVELENGTHS_UM
 from humv_usd.physics.convection import convective_coefficient
-from humv_usd.physics.garment import steady_state
+from humv_usd.physics.garment import areal_heat_capacity, steady_state, transient_step
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
 from humv_usd.thermal.sky import ClearSky
@@ -110,27 +114,64 @@ def segment_clo(garment_parts: list[_Part]) -> np.ndarray:
     return clo
 
 
-def scenario_sky(scenario) -> ClearSky:
-    """The analytic clear sky of the scenario's weather over its ground (no sun yet)."""
-    atm = scenario["atmosphere"]
-    ground = scenario["scene"]["ground"]["temperature_k"] if scenario["scene"] else None
-    return ClearSky(air_temperature_k=atm["air_temperature_k"],
-                    relative_humidity=atm["relative_humidity"], ground_temperature_k=ground)
+def scenario_sky(scenario, weather: dict | None = None, sun: tuple | None = None,
+                 ground_k: float | None = None) -> ClearSky:
+    """The analytic clear sky of the scenario's weather over its ground.
 
-
-def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario, scene, sky,
-                       model: str, settings: dict) -> tuple[dict[str, np.ndarray], dict]:
-    """({mesh path: (frames, faces) temperature [K]}, diagnostics) for the body and garments of
-    one person; diagnostics: the fast q_rad method's relative RMS error estimate (two seeds) and
-    the garment balance's largest residual [W m^-2].
-
-    ``stage``: the composed upstream stage (avatar and clothing layers); ``scene``:
-    :class:`humv_usd.thermal.radiation.SceneSurfaces` or None; ``sky``: :func:`scenario_sky`;
-    ``model``: 'jos3' | 'twoNode'.
+    ``weather``: one sample of :func:`humv_usd.environment.weather.weather_at` as a dict (default
+    the constant ``[atmosphere]`` values); ``sun``: (unit direction towards the sun, DNI, DHI)
+    [W m^-2] or None (night / no sun); ``ground_k``: ground surface temperature (default the
+    scenario's held ground temperature, else the air temperature).
     """
-    g, atm = scenario["general"], scenario["atmosphere"]
+    atm = weather if weather is not None else scenario["atmosphere"]
+    if ground_k is None and scenario["scene"]:
+        ground_k = scenario["scene"]["ground"].get("temperature_k")
+    albedo = 0.2
+    if scenario["scene"]:
+        albedo = 1.0 - LIBRARY[scenario["scene"]["ground"]["material"]].solar_absorptivity
+    kw = {}
+    if sun is not None:
+        kw = dict(sun_direction=tuple(float(x) for x in sun[0]),
+                  direct_normal_irradiance=float(sun[1]),
+                  diffuse_horizontal_irradiance=float(sun[2]))
+    return ClearSky(air_temperature_k=float(atm["air_temperature_k"]),
+                    relative_humidity=float(atm["relative_humidity"]),
+                    ground_temperature_k=None if ground_k is None else float(ground_k),
+                    ground_solar_reflectance=albedo, **kw)
+
+
+@dataclass
+class Surroundings:
+    """What one person's thermal model needs from the world, per radiation sample and frame.
+
+    samples: frame index of each radiation sample (ascending, starting at 0); skies, scenes:
+    the ClearSky and the SceneSurfaces (or None) at each sample; air_k, rh, wind: weather per
+    frame (frames,) [K, 0-1, m/s].
+    """
+
+    samples: list
+    skies: list
+    scenes: list
+    air_k: np.ndarray
+    rh: np.ndarray
+    wind: np.ndarray
+
+
+def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
+                       world: Surroundings, model: str, settings: dict
+                       ) -> tuple[dict[str, np.ndarray], dict]:
+    """({mesh path: (frames, faces) temperature [K]}, diagnostics) for the body and garments of
+    one person; diagnostics: the q_rad method's relative RMS error estimate (per-ray sample
+    variance, bare body, first sample), the mean absorbed short wave on the skin at the first
+    sample [W m^-2] and the garment balance's largest residual [W m^-2].
+
+    ``stage``: the composed upstream stage (avatar and clothing layers); ``world``: sky, scene
+    and weather per sample / frame (:class:`Surroundings`); ``model``: 'jos3' | 'twoNode';
+    ``settings``: the scenario's ``[thermal]`` section.
+    """
+    g = scenario["general"]
     fps, frames = g["fps"], scenario.frame_count
-    air, rh, wind = atm["air_temperature_k"], atm["relative_humidity"], atm["wind_speed_m_s"]
+    air, rh, wind = world.air_k, world.rh, world.wind
     body = _part(stage, f"{human_path}/Body", None)
     garments = []
     clothing = stage.GetPrimAtPath(f"{human_path}/Clothing")
@@ -143,32 +184,33 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
     skin_eps = longwave_emissivity("skin")
     skin_guess = scenario["thermal"]["skin_temperature_k"]
     absorb_body = np.array([LIBRARY["skin"].solar_absorptivity, skin_eps])
+    method = settings.get("radiation_method", "adaptive")
+    qrad = dict(method=method, rays=settings["radiation_rays"])
 
     # radiation at sample frames (every radiation_step_s), held in between
-    step = max(1, int(round(settings["radiation_step_s"] * fps)))
-    samples = list(range(0, frames, step))
+    samples = list(world.samples)
     mrt = np.zeros((len(samples), N_SEGMENTS))
     q_garment = {p.path: np.zeros((len(samples), len(p.counts))) for p in garments}
     for k, frame in enumerate(samples):
         t = Usd.TimeCode(frame)
+        sky, scene = world.skies[k], world.scenes[k]
+        air_k = float(air[frame])
         pts = [skinned_points(stage, p.path, t, space="world") for p in parts]
         centre = pts[0].mean(axis=0)
         env = R.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
-        q = R.absorbed_radiation(bare, env, absorb_body, scene=scene, method="fast",
-                                 rays=settings["radiation_rays"], seed=g["seed"] + frame,
-                                 mesh_radiance=_self_radiance([body], skin_guess, air))
+        self_bare = _self_radiance([body], skin_guess, air_k)
+        stats: dict = {}
+        q = R.absorbed_radiation(bare, env, absorb_body, scene=scene, seed=g["seed"] + frame,
+                                 mesh_radiance=self_bare, stats=stats, **qrad)
         areas = bare.area_faces
+        if k == 0 and method != "brute":
+            # Monte Carlo error of the ray methods from the per-ray sample variance (an upper
+            # estimate: stratification makes the true error smaller)
+            diagnostics["qradRmsRelErrorEstimate"] = stats["rms_rel_error_estimate"]
         if k == 0:
-            # Monte Carlo error of the fast method: two independent seeds differ by sqrt(2) x
-            # the error of one; relative to the facet totals
-            q2 = R.absorbed_radiation(bare, env, absorb_body, scene=scene, method="fast",
-                                      rays=settings["radiation_rays"],
-                                      seed=g["seed"] + frame + 7919,
-                                      mesh_radiance=_self_radiance([body], skin_guess, air))
-            tot1, tot2 = q.sum(axis=0), q2.sum(axis=0)
-            diagnostics["qradRmsRelErrorEstimate"] = float(
-                np.sqrt(np.mean(((tot1 - tot2) / np.maximum(np.abs(tot1), 1e-9)) ** 2) / 2.0))
+            diagnostics["absorbedShortwaveMean_W_m2"] = float(
+                np.average(q[0], weights=areas))
         mrt[k] = R.mean_radiant_temperature(q, areas, body.segment[body.tri_face],
                                             n_segments=N_SEGMENTS)
         if garments:
@@ -178,10 +220,9 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
                 np.repeat(np.array([LIBRARY[GARMENTS[p.garment].fabric].solar_absorptivity,
                                     longwave_emissivity(GARMENTS[p.garment].fabric)])[:, None],
                           len(p.triangles), axis=1) for p in garments], axis=1)
-            qc = R.absorbed_radiation(clothed, env, absorb, scene=scene, method="fast",
-                                      rays=settings["radiation_rays"], seed=g["seed"] + frame,
-                                      mesh_radiance=_self_radiance(parts, skin_guess, air)
-                                      ).sum(axis=0)
+            qc = R.absorbed_radiation(clothed, env, absorb, scene=scene, seed=g["seed"] + frame,
+                                      mesh_radiance=_self_radiance(parts, skin_guess, air_k),
+                                      **qrad).sum(axis=0)
             start = len(body.triangles)
             for p in garments:
                 qt = qc[start:start + len(p.triangles)]
@@ -191,8 +232,8 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
                 q_garment[p.path][k] = (np.bincount(p.tri_face, qt * area, len(p.counts))
                                         / np.maximum(np.bincount(p.tri_face, area,
                                                                  len(p.counts)), 1e-12))
-    nearest = np.minimum(np.arange(frames) // step, len(samples) - 1)
-    mrt_frames = np.nan_to_num(mrt[nearest], nan=air)
+    nearest = np.searchsorted(np.asarray(samples), np.arange(frames), side="right") - 1
+    mrt_frames = np.where(np.isnan(mrt[nearest]), air[:, None], mrt[nearest])
 
     # physiology over the frames
     root = stage.GetPrimAtPath(human_path)
@@ -200,26 +241,33 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
     rate = np.array([rate_attr.Get(Usd.TimeCode(f)) or 100.0 for f in range(frames)])
     times = np.arange(frames) / fps
     result = simulate_physiology(
-        times, rate, air, mrt_frames, rh, max(wind, 0.1), segment_clo(garments),
+        times, rate, air, mrt_frames, rh, np.maximum(wind, 0.1), segment_clo(garments),
         model=MODEL_NAMES[model], height_m=human["stature_m"], mass_kg=human["mass_kg"],
         age_years=human["age_yr"], sex=human["sex"], fitness=human["fitness"],
         spin_up_s=settings["spin_up_s"])
     skin = np.asarray(result.segment_skin_temperature_k)             # (frames, 17)
     out = {body.path: skin[:, body.segment]}
 
-    h = convective_coefficient(wind, model=settings["convection_model"])
+    transient = settings.get("garment_transient", "transient") == "transient"
     for p in garments:
         fabric = LIBRARY[GARMENTS[p.garment].fabric]
+        eps_f = longwave_emissivity(GARMENTS[p.garment].fabric)
+        heat_capacity = areal_heat_capacity(fabric.density, fabric.specific_heat,
+                                            fabric.thickness)
         gap_attr = stage.GetPrimAtPath(p.path).GetAttribute(S.AIR_GAP_PRIMVAR)
+        starts = np.concatenate([[0], np.cumsum(p.counts)[:-1]])
         temps = np.zeros((frames, len(p.counts)))
         for f in range(frames):
             gap_v = np.asarray(gap_attr.Get(Usd.TimeCode(f)), dtype=float)
-            gap = (np.add.reduceat(gap_v[p.indices], np.concatenate([[0], np.cumsum(p.counts)[:-1]]))
-                   / p.counts)
-            balance = steady_state(skin[f, p.segment], air, q_garment[p.path][nearest[f]], h, gap,
-                                   fabric.thickness, fabric_conductivity=fabric.conductivity,
-                                   fabric_emissivity=longwave_emissivity(
-                                       GARMENTS[p.garment].fabric))
+            gap = np.add.reduceat(gap_v[p.indices], starts) / p.counts
+            h = convective_coefficient(wind[f], model=settings["convection_model"])
+            args = (skin[f, p.segment], air[f], q_garment[p.path][nearest[f]], h, gap,
+                    fabric.thickness)
+            kw = dict(fabric_conductivity=fabric.conductivity, fabric_emissivity=eps_f)
+            if f == 0 or not transient:
+                balance = steady_state(*args, **kw)
+            else:
+                balance = transient_step(temps[f - 1], 1.0 / fps, heat_capacity, *args, **kw)
             temps[f] = balance.outer_temperature_k
             diagnostics["garmentMaxResidual_W_m2"] = max(
                 diagnostics.get("garmentMaxResidual_W_m2", 0.0),

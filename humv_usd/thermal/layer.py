@@ -1,67 +1,107 @@
 """Thermal tool → layers/thermal.usda: per-face temperature [K] on every mesh of the stage.
 
-Models (``[thermal] model``):
+People (``[thermal] model``):
 
-* ``fixed``: skin at the scenario's uniform skin temperature, garments and any other mesh (e.g.
-  from a hand-made layer) at the air temperature;
-* ``jos3`` / ``twoNode``: per person, radiation environment → segment MRT → physiology → skin
-  facets, and the garment energy balance for garment facets, per frame
-  (:mod:`humv_usd.thermal.human`).
+* ``fixed``: skin at the scenario's uniform skin temperature, garments at the air temperature;
+* ``jos3`` / ``twoNode``: per person, radiation environment (sky + sun + scene surfaces) →
+  segment MRT → physiology → skin facets, and the garment energy balance for garment facets, per
+  frame (:mod:`humv_usd.thermal.human`).
 
-Ground and scene objects keep their fixed scenario temperatures in every model (the slab model,
-:mod:`humv_usd.physics.slab`, needs the sun of the environment issue).
+Scene surfaces (ground, objects, any other mesh outside /World/Humans), in every model: held at
+the scenario's ``temperature_k`` when it is given, else a 1-D slab of the material with sun,
+sky, wind and a diurnal spin-up ending at frame 0 (:mod:`humv_usd.thermal.surfaces`).
+Weather and sun come from :mod:`humv_usd.environment` (``weather_at``, ``sun_at``).
 """
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdShade, Vt
+from pxr import Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.avatar.layer import body_path, human_path
 from humv_usd.materials.library import LIBRARY
-from humv_usd.thermal.human import human_temperatures, scenario_sky
+from humv_usd.environment.weather import weather_at
+from humv_usd.thermal import radiation as R
+from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
+from humv_usd.thermal.surfaces import (SPIN_UP_STEP_S, forcing_at, longwave_emissivity,
+                                       scene_meshes, surface_temperatures)
 from humv_usd.scenario import Scenario
-from humv_usd.scene.layer import GROUND, object_path
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.layers import finish, new_layer_stage
 
 NAME = "thermal"
 READS = ("general", "human", "scene", "thermal", "atmosphere")
 
 
-def fixed_temperatures(scenario: Scenario) -> dict[Sdf.Path, float]:
-    th = scenario["thermal"]
-    temps = {body_path(h["id"]): th["skin_temperature_k"] for h in scenario["human"]}
-    if scenario["scene"]:
-        temps[GROUND] = scenario["scene"]["ground"]["temperature_k"]
-        for o in scenario["scene"]["object"]:
-            temps[object_path(o["id"])] = o["temperature_k"]
-    return temps
-
-
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     """Read the meshes of the composed ``upstream`` stage; write one temperature per face."""
     g = scenario["general"]
-    air = (scenario["atmosphere"] or {}).get("air_temperature_k", 293.15)
-    temps = fixed_temperatures(scenario)
-    model = scenario["thermal"]["model"]
-    stage = new_layer_stage(g["fps"], scenario.frame_count,
+    th = scenario["thermal"]
+    model = th["model"]
+    frames, fps = scenario.frame_count, g["fps"]
+    stage = new_layer_stage(fps, frames,
                             f"HumV-USD thermal layer: per-face temperatures ({model} model)")
     stage.RemovePrim("/World")  # this layer only adds opinions: overs, no defs
+    people = model != "fixed" and bool(scenario["human"])
+    step = max(1, int(round(th["radiation_step_s"] * fps)))
+    samples = list(range(0, frames, step))
+    sample_t = np.asarray(samples, dtype=float) / fps
+    nearest = np.searchsorted(np.asarray(samples), np.arange(frames), side="right") - 1
+
+    meshes = scene_meshes(upstream, scenario)
+    slabs = any(m.held_k is None for m in meshes)
+    report: dict = {"model": model}
+    surf: dict[str, np.ndarray] = {}
+    forcing = None
+    if slabs or people:
+        spin = th["surface_spin_up_s"] if slabs else 0.0
+        spin_t = np.arange(-spin, 0.0, SPIN_UP_STEP_S) if spin > 0 else np.zeros(0)
+        all_t = np.concatenate([spin_t, sample_t])
+        forcing = forcing_at(scenario, all_t)
+        surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing)
+        report["surfaces"] = {"model": "slab" if slabs else "held",
+                              "spinUp_s": spin,
+                              "slabMaxResidual_W_m2": round(sdiag["slabMaxResidual_W_m2"], 9)}
+        ground_k = sdiag["groundMeanTemperature_k"]
     solved: dict[str, np.ndarray] = {}
-    if model != "fixed" and scenario["human"]:
-        sky = scenario_sky(scenario)
-        scene = _scene_surfaces(upstream, temps, air, sky)
-        th = scenario["thermal"]
-        report = {"model": model, "qradMethod": "fast", "qradRays": th["radiation_rays"],
-                  "mapResolution": th["radiation_resolution"]}
+    for m in meshes:
+        solved[m.path] = (surf[m.path][nearest] if m.path in surf
+                          else np.full((1, m.n_faces), float(m.held_k)))
+    if people:
+        w = weather_at(scenario, np.arange(frames) / fps)
+        n_spin = len(forcing.times_s) - len(samples)
+        skies, scenes = [], []
+        mesh, eps_tri, tri_offsets = _scene_trimesh(meshes)
+        for k in range(len(samples)):
+            i = n_spin + k
+            sun = ((forcing.sun_direction[i], forcing.dni_w_m2[i], forcing.dhi_w_m2[i])
+                   if forcing.sun_up[i] else None)
+            weather = {"air_temperature_k": forcing.air_temperature_k[i],
+                       "relative_humidity": forcing.relative_humidity[i]}
+            sky = scenario_sky(scenario, weather, sun, float(ground_k[k]) if
+                               scenario["scene"] else None)
+            skies.append(sky)
+            if mesh is None:
+                scenes.append(None)
+                continue
+            t_tri = np.concatenate([surf[m.path][k][m.tri_face] for m in meshes])
+            scenes.append(R.SceneSurfaces(mesh, R.scene_surface_radiance(
+                mesh, t_tri, eps_tri, sky, solar_reflectance=_solar_reflectance(meshes))))
+        world = Surroundings(samples, skies, scenes, w.air_temperature_k, w.relative_humidity,
+                             w.wind_speed_m_s)
+        report.update({"qradMethod": th["radiation_method"], "qradRays": th["radiation_rays"],
+                       "mapResolution": th["radiation_resolution"],
+                       "garmentBalance": th["garment_transient"]})
         for h in scenario["human"]:
             temps_h, diag = human_temperatures(upstream, h, str(human_path(h["id"])), scenario,
-                                               scene, sky, model, th)
+                                               world, model, th)
             solved.update(temps_h)
             report[h["id"]] = {k: round(v, 9) for k, v in diag.items()}
-        # error estimates (deterministic for fixed seeds) travel with the layer; run times go
-        # to compose's report, so an unchanged scenario still rewrites nothing
-        stage.GetRootLayer().customLayerData = {"humv:thermal": report}
+    # error estimates (deterministic for fixed seeds) travel with the layer; run times go
+    # to compose's report, so an unchanged scenario still rewrites nothing
+    stage.GetRootLayer().customLayerData = {"humv:thermal": report}
+    fixed = _fixed_people(scenario)
+    air0 = float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
+    kinds = {m.path: ("fixed" if m.held_k is not None else "slab") for m in meshes}
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
@@ -75,12 +115,15 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         series = solved.get(str(path))
         if series is None:
             over.GetAttribute(S.THERMAL_MODEL).Set("fixed")
-            primvar.Set(Vt.FloatArray.FromNumpy(np.full(faces, temps.get(path, air),
+            primvar.Set(Vt.FloatArray.FromNumpy(np.full(faces, fixed.get(path, air0),
                                                         dtype=np.float32)))
             continue
-        over.GetAttribute(S.THERMAL_MODEL).Set(model if str(path).endswith("/Body")
-                                               else "balance")
-        if len(series) == 1:
+        if str(path) in kinds:
+            over.GetAttribute(S.THERMAL_MODEL).Set(kinds[str(path)])
+        else:
+            over.GetAttribute(S.THERMAL_MODEL).Set(model if str(path).endswith("/Body")
+                                                   else "balance")
+        if len(series) == 1 or np.all(series == series[:1]):
             primvar.Set(Vt.FloatArray.FromNumpy(series[0].astype(np.float32)))
         else:
             for frame, values in enumerate(series):
@@ -88,35 +131,31 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     return finish(stage)
 
 
-def _scene_surfaces(upstream: Usd.Stage, temps: dict, air: float, sky):
-    """Scene meshes (not people) as ray-cast occluders with their leaving radiance."""
-    import trimesh
+def _fixed_people(scenario: Scenario) -> dict[Sdf.Path, float]:
+    """Skin of every person at the scenario's uniform skin temperature (fixed model)."""
+    th = scenario["thermal"]
+    return {body_path(h["id"]): th["skin_temperature_k"] for h in scenario["human"]}
 
-    from humv_usd.thermal import radiation as R
-    from humv_usd.thermal.human import longwave_emissivity
-    from humv_usd.usd.mesh import fan_triangulate
-    points, faces, t_face, eps_face, offset = [], [], [], [], 0
-    for prim in upstream.Traverse():
-        if not prim.IsA(UsdGeom.Mesh) or str(prim.GetPath()).startswith(str(SCOPES["humans"])):
-            continue
-        mesh = UsdGeom.Mesh(prim)
-        pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=float)
-        xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(
-            Usd.TimeCode.Default()))
-        pts = pts @ xf[:3, :3] + xf[3, :3]
-        tris, _ = fan_triangulate(np.asarray(mesh.GetFaceVertexCountsAttr().Get()),
-                       np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
-        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
-        name = material.GetPrim().GetName() if material else ""
-        eps = longwave_emissivity(name) if name in LIBRARY else 0.9
-        points.append(pts)
-        faces.append(tris + offset)
-        offset += len(pts)
-        t_face.append(np.full(len(tris), temps.get(prim.GetPath(), air)))
-        eps_face.append(np.full(len(tris), eps))
-    if not points:
-        return None
+
+def _scene_trimesh(meshes):
+    """(trimesh of every scene mesh, long-wave emissivity per triangle, triangle offsets)."""
+    import trimesh
+    if not meshes:
+        return None, None, None
+    points, faces, eps, offsets, offset, tri = [], [], [], [], 0, 0
+    for m in meshes:
+        points.append(m.points)
+        faces.append(m.triangles + offset)
+        offset += len(m.points)
+        offsets.append(tri)
+        tri += len(m.triangles)
+        e = longwave_emissivity(m.material) if m.material in LIBRARY else 0.9
+        eps.append(np.full(len(m.triangles), e))
     mesh = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
-    radiance = R.scene_surface_radiance(mesh, np.concatenate(t_face), np.concatenate(eps_face),
-                                        sky)
-    return R.SceneSurfaces(mesh, radiance)
+    return mesh, np.concatenate(eps), offsets
+
+
+def _solar_reflectance(meshes):
+    """Broadband short-wave reflectance 1 - solar absorptivity per triangle."""
+    return np.concatenate([np.full(len(m.triangles), 1.0 - LIBRARY[m.material].solar_absorptivity
+                                   if m.material in LIBRARY else 0.2) for m in meshes])

@@ -41,6 +41,88 @@ except ImportError:  # pragma: no cover
     from trimesh.ray.ray_triangle import RayMeshIntersector as _Intersector
 
 _CHUNK_RAYS = 2_000_000
+RAY_BACKENDS = ("embree", "mitsuba")
+
+
+class MitsubaIntersector:
+    """First-hit queries on a triangle mesh with Mitsuba's ray tracer (``scene.ray_intersect_
+    preliminary``, Embree inside, vectorised over the LLVM backend's threads).
+
+    Same interface as trimesh's embree intersector for what this module uses:
+    ``intersects_first(origins, directions)`` -> face index or -1. About twice the throughput
+    of single-threaded embreex on two cores; costs the Mitsuba import (about 1 s) once.
+    """
+
+    def __init__(self, mesh):
+        from humv_usd.render.mode import mitsuba
+        mi = mitsuba()
+        self._mi = mi
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        self._origin = v.min(axis=0) if len(v) else np.zeros(3)
+        self._scale = 100.0 / max(float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0,
+                                  1e-12)  # as EmbreeIntersector
+        m = mi.Mesh("occluders", len(mesh.vertices), len(mesh.faces))
+        params = mi.traverse(m)
+        params["vertex_positions"] = mi.Float(
+            ((v - self._origin) * self._scale).astype(np.float32).ravel())
+        params["faces"] = mi.UInt32(np.asarray(mesh.faces, np.uint32).ravel())
+        params.update()
+        self._scene = mi.load_dict({"type": "scene", "occluders": m})
+
+    def intersects_first(self, origins, directions):
+        mi = self._mi
+        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(
+            np.float32)
+        d = np.ascontiguousarray(directions, dtype=np.float32)
+        ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+        pi = self._scene.ray_intersect_preliminary(ray)
+        hit = np.array(pi.prim_index, dtype=np.int64)
+        return np.where(np.array(pi.is_valid(), dtype=bool), hit, -1)
+
+    def intersects_any(self, origins, directions):
+        return self.intersects_first(origins, directions) >= 0
+
+
+class EmbreeIntersector:
+    """First-hit queries through embreex directly (as trimesh's wrapper does, without its
+    per-call copies and re-normalisation of already unit directions). Coordinates are shifted
+    to the mesh's lower corner and scaled before they go to float32."""
+
+    def __init__(self, mesh):
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        self._origin = v.min(axis=0) if len(v) else np.zeros(3)
+        # as trimesh: the bounding diagonal becomes 100 units (embree's own epsilons are tuned
+        # for scenes of that size)
+        diag = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0
+        self._scale = 100.0 / max(diag, 1e-12)
+        self._scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(scene=self._scene,
+                     vertices=((v - self._origin) * self._scale).astype(np.float32),
+                     indices=np.asarray(mesh.faces, dtype=np.int32))
+
+    def _run(self, origins, directions, query):
+        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
+        d = np.ascontiguousarray(directions, dtype=np.float32)
+        return self._scene.run(o, d, query=query)
+
+    def intersects_first(self, origins, directions):
+        return self._run(origins, directions, "INTERSECT").astype(np.int64)
+
+    def intersects_any(self, origins, directions):
+        return self._run(origins, directions, "OCCLUDED") >= 0
+
+
+def _intersector(mesh, backend="embree"):
+    if backend == "mitsuba":
+        return MitsubaIntersector(mesh)
+    if backend != "embree":
+        raise ValueError(f"invalid ray backend {backend!r}: expected one of {RAY_BACKENDS}")
+    try:
+        return EmbreeIntersector(mesh)
+    except ImportError:  # pragma: no cover - embreex missing: trimesh's pure-python caster
+        return _Intersector(mesh)
 
 
 # --------------------------------------------------------------------------- map geometry
@@ -259,10 +341,13 @@ def _first_hit(intersector, origins, directions) -> np.ndarray:
     return out
 
 
-def _facet_hits(occ, facet, centroids, normals, directions, offset):
-    """First face hit by rays leaving facets; a ray that hits its own facet (float32 precision
-    of embree on large scenes) is re-cast from farther out."""
-    hit = _first_hit(occ.intersector, centroids[facet] + normals[facet] * offset, directions)
+def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None):
+    """First face hit by rays leaving facets (``origins``: the offset ray origins when the
+    caller has them); a ray that hits its own facet (float32 precision of embree on large
+    scenes) is re-cast from farther out."""
+    if origins is None:
+        origins = centroids[facet] + normals[facet] * offset
+    hit = _first_hit(occ.intersector, origins, directions)
     for k in (10.0, 100.0, 1000.0):
         own = np.nonzero(hit == facet)[0]
         if len(own) == 0:
@@ -315,7 +400,7 @@ def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360
 class _Occluders:
     """The facet mesh + scene as one embree scene with per-band leaving radiance per face."""
 
-    def __init__(self, mesh, n_bands, mesh_radiance, scene):
+    def __init__(self, mesh, n_bands, mesh_radiance, scene, backend="embree"):
         self.n_mesh = len(mesh.faces)
         rad_mesh = (np.zeros((n_bands, self.n_mesh)) if mesh_radiance is None
                     else np.broadcast_to(np.asarray(mesh_radiance, dtype=float), (n_bands, self.n_mesh)))
@@ -324,8 +409,15 @@ class _Occluders:
             self.radiance = np.concatenate([rad_mesh, np.asarray(scene.radiance, dtype=float)], axis=1)
         else:
             combined, self.radiance = mesh, rad_mesh
-        self.intersector = _Intersector(combined)
+        self._combined, self._backend, self._intersector = combined, backend, None
         self.extents = combined.extents
+
+    @property
+    def intersector(self):
+        """The ray caster, built on first use (a cached replay casts no rays)."""
+        if self._intersector is None:
+            self._intersector = _intersector(self._combined, self._backend)
+        return self._intersector
 
 
 def _absorptivity(absorptivity, n_bands, n_faces):
@@ -335,7 +427,7 @@ def _absorptivity(absorptivity, n_bands, n_faces):
     return np.broadcast_to(a, (n_bands, n_faces))
 
 
-def _sun_term(env, centroids, normals, occ, offset):
+def _sun_term(env, centroids, normals, occ, offset, cache=None):
     """Beam irradiance per band and facet: E_sun max(n.s, 0) V [W m^-2]."""
     out = np.zeros((env.n_bands, len(normals)))
     if env.sun_direction is None or not np.any(env.sun_irradiance > 0):
@@ -343,8 +435,14 @@ def _sun_term(env, centroids, normals, occ, offset):
     s = np.asarray(env.sun_direction, dtype=float)
     cos = normals @ s
     idx = np.nonzero(cos > 0)[0]
-    lit = _facet_hits(occ, idx, centroids, normals,
-                      np.ascontiguousarray(np.broadcast_to(s, (len(idx), 3))), offset) < 0
+    sun_key = (cache or {}).get("key"), tuple(s)
+    if cache is not None and cache.get("sun_key") == sun_key:
+        lit = cache["sun_lit"]
+    else:
+        lit = _facet_hits(occ, idx, centroids, normals,
+                          np.ascontiguousarray(np.broadcast_to(s, (len(idx), 3))), offset) < 0
+        if cache is not None:
+            cache.update(sun_key=sun_key, sun_lit=lit)
     out[:, idx] = np.asarray(env.sun_irradiance)[:, None] * (cos[idx] * lit)
     return out
 
@@ -374,23 +472,54 @@ def _diffuse_brute(env, centroids, normals, occ, offset):
 def irradiance_table(env: RadianceMap, grid=64):
     """Cosine-convolved map on a lat-long grid of normals incl. the poles, for interpolation.
 
-    Returns (table (bands, grid+1, 2*grid+1)) with rows theta = 0..pi and columns
-    phi = 0..2pi (last column repeats the first).
+    Parameters
+    ----------
+    env : RadianceMap
+    grid : int
+        Rows of the table over the normal's zenith 0..pi (grid + 1 rows incl. both poles).
+
+    Returns
+    -------
+    array (bands, grid + 1, cols + 1)
+        Irradiance [W m^-2] (cosine weights of each normal rescaled to sum to pi, as
+        ``RadianceMap.irradiance(normalize=True)``) at normal zenith theta_i = i pi / grid and
+        azimuth phi_j = 2 pi j / cols, cols = the map's columns; the last column repeats the
+        first.
+
+    Notes
+    -----
+    For a fixed normal zenith, the clamped-cosine kernel max(0, cos t_n cos t + sin t_n sin t
+    cos(phi - phi_n)) depends on azimuth only through phi - phi_n, so each map row's
+    contribution is a circular cross-correlation in azimuth, done exactly by FFT
+    (O(rows_n rows cols log cols) instead of a dense (normals x pixels) product).
     """
-    theta = np.linspace(0.0, np.pi, grid + 1)
-    phi = np.linspace(0.0, 2.0 * np.pi, 2 * grid + 1)
-    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
-    nrm = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi), ct), axis=-1).reshape(-1, 3)
-    e = env.irradiance(nrm, normalize=True)
-    return e.reshape(env.n_bands, grid + 1, 2 * grid + 1)
+    n_theta, n_phi = env.resolution
+    edges = np.linspace(0.0, np.pi, n_theta + 1)
+    theta = 0.5 * (edges[:-1] + edges[1:])
+    omega = (2.0 * np.pi / n_phi) * (np.cos(edges[:-1]) - np.cos(edges[1:]))   # (R,)
+    theta_n = np.linspace(0.0, np.pi, int(grid) + 1)                          # (T,)
+    dphi = (np.arange(n_phi) + 0.5) * (2.0 * np.pi / n_phi)                   # phi_c - phi_n
+    kern = (np.cos(theta_n)[:, None, None] * np.cos(theta)[None, :, None]
+            + np.sin(theta_n)[:, None, None] * np.sin(theta)[None, :, None]
+            * np.cos(dphi)[None, None, :])
+    np.maximum(kern, 0.0, out=kern)
+    kern *= omega[None, :, None]                                              # (T, R, C)
+    weight_sum = kern.sum(axis=(1, 2))                                        # (T,)
+    fk = np.conj(np.fft.rfft(kern, axis=2))                                   # (T, R, F)
+    fl = np.fft.rfft(env.radiance, axis=2)                                    # (B, R, F)
+    prod = np.matmul(fl.transpose(2, 0, 1), fk.transpose(2, 1, 0))            # (F, B, T)
+    e = np.fft.irfft(prod.transpose(1, 2, 0), n=n_phi, axis=2)                # (B, T, C)
+    e *= (np.pi / weight_sum)[None, :, None]
+    return np.concatenate([e, e[:, :, :1]], axis=2)
 
 
 def _interp_table(table, normals):
     grid = table.shape[1] - 1
+    cols = table.shape[2] - 1
     theta = np.arccos(np.clip(normals[:, 2], -1.0, 1.0)) * (grid / np.pi)
-    phi = np.mod(np.arctan2(normals[:, 1], normals[:, 0]), 2.0 * np.pi) * (grid / np.pi)
+    phi = np.mod(np.arctan2(normals[:, 1], normals[:, 0]), 2.0 * np.pi) * (cols / (2.0 * np.pi))
     i = np.minimum(theta.astype(np.int64), grid - 1)
-    j = np.minimum(phi.astype(np.int64), 2 * grid - 1)
+    j = np.minimum(phi.astype(np.int64), cols - 1)
     u, v = theta - i, phi - j
     return ((1 - u) * (1 - v) * table[:, i, j] + (1 - u) * v * table[:, i, j + 1]
             + u * (1 - v) * table[:, i + 1, j] + u * v * table[:, i + 1, j + 1])
@@ -411,35 +540,167 @@ def _stratified_unit_square(n, k, rng):
     return np.concatenate([u, rng.random((n, k - m * m, 2))], axis=1) if k > m * m else u
 
 
-def _diffuse_fast(env, centroids, normals, occ, offset, rays, seed, table):
-    n_f = len(normals)
-    out = _interp_table(table, normals)  # unoccluded part
+def _cast_corrections(env, centroids, normals, occ, offset, facets, k, rng, frames, weight,
+                      record=None):
+    """k stratified cosine-weighted rays from each facet in ``facets``.
+
+    Returns (per-band sums of L_hit - L_map over the hit rays (bands, len(facets)), sums of the
+    squared per-ray scalar ``weight . delta`` (len(facets),)); a missed ray adds 0. With a
+    ``record`` list, appends (facet, direction, face hit) of every ray that hit something."""
+    t, bt = frames
+    t32, bt32, n32 = (np.asarray(x, dtype=np.float32) for x in (t, bt, normals))
+    nb = env.n_bands
+    sums = np.zeros((nb, len(facets)))
+    sq = np.zeros(len(facets))
+    chunk = max(1, _CHUNK_RAYS // k)
     lmap = env.flat()
-    rng = np.random.default_rng(seed)
-    t, bt = _tangent_frames(normals)
-    chunk = max(1, _CHUNK_RAYS // rays)
-    for a in range(0, n_f, chunk):
-        b = min(n_f, a + chunk)
-        fc = b - a
-        u = _stratified_unit_square(fc, rays, rng)  # cosine-weighted (Malley) per facet
-        r = np.sqrt(u[..., 0])
-        ang = 2.0 * np.pi * u[..., 1]
-        x, y, z = r * np.cos(ang), r * np.sin(ang), np.sqrt(1.0 - u[..., 0])
-        d = (x[..., None] * t[a:b, None] + y[..., None] * bt[a:b, None]
-             + z[..., None] * normals[a:b, None]).reshape(-1, 3)
-        fi = np.repeat(np.arange(fc), rays)
-        hit = _facet_hits(occ, a + fi, centroids, normals, d, offset)
+    for a in range(0, len(facets), chunk):
+        f = facets[a:a + chunk]
+        fc = len(f)
+        u = _stratified_unit_square(fc, k, rng)  # cosine-weighted (Malley) per facet
+        r = np.sqrt(u[..., 0]).astype(np.float32)
+        ang = (2.0 * np.pi * u[..., 1]).astype(np.float32)
+        z = np.sqrt(1.0 - u[..., 0]).astype(np.float32)
+        d = np.empty((fc, k, 3), dtype=np.float32)
+        x, y = r * np.cos(ang), r * np.sin(ang)
+        for c in range(3):  # float32 is what the ray caster takes; half the memory traffic
+            d[..., c] = (x * t32[f, None, c] + y * bt32[f, None, c] + z * n32[f, None, c])
+        d = d.reshape(-1, 3)
+        fi = np.repeat(np.arange(fc), k)
+        origins = np.repeat(centroids[f] + normals[f] * offset, k, axis=0)
+        hit = _facet_hits(occ, f[fi], centroids, normals, d, offset, origins)
         m = hit >= 0
+        if record is not None:
+            record.append((f[fi[m]].astype(np.int32), d[m], hit[m].astype(np.int32)))
         if np.any(m):
             delta = occ.radiance[:, hit[m]] - lmap[:, latlong_index(d[m], env.resolution)]
-            for k in range(env.n_bands):
-                out[k, a:b] += (np.pi / rays) * np.bincount(fi[m], weights=delta[k], minlength=fc)
-    return out
+            for b in range(nb):
+                sums[b, a:a + fc] = np.bincount(fi[m], weights=delta[b], minlength=fc)
+            w = np.asarray(weight, dtype=float)
+            wd = ((w[:, f[fi[m]]] if w.ndim == 2 else w[:, None]) * delta).sum(axis=0)
+            sq[a:a + fc] = np.bincount(fi[m], weights=wd * wd, minlength=fc)
+    return sums, sq
+
+
+def _mean_variance(wsum, sq, k):
+    """Variance of the mean correction pi * mean(x) from sums of x and x^2 over k rays
+    (iid estimate; stratification makes the true variance smaller, so this is an upper
+    estimate)."""
+    k = np.asarray(k, dtype=float)
+    mean = wsum / k
+    s2 = np.maximum(sq - k * mean ** 2, 0.0) / np.maximum(k - 1.0, 1.0)
+    return np.pi ** 2 * s2 / k
+
+
+def _diffuse_fast(env, centroids, normals, occ, offset, rays, seed, table, weight, record=None):
+    """Control variate: the irradiance table (unoccluded part) + ``rays`` stratified
+    cosine-weighted rays per facet estimating pi/K sum_k (L_hit - L_map(w_k)) over hit rays.
+
+    Returns (per-band flux (bands, F), variance of the ``weight``-summed flux (F,))."""
+    w = np.asarray(weight, dtype=float)
+    sums, sq = _cast_corrections(env, centroids, normals, occ, offset, np.arange(len(normals)),
+                                 rays, np.random.default_rng(seed), _tangent_frames(normals), w,
+                                 record)
+    var = _mean_variance((w * sums).sum(axis=0), sq, rays)
+    return _interp_table(table, normals) + (np.pi / rays) * sums, var
+
+
+_LEVELS = (16, 36, 64, 144, 256, 576, 1024)  # square counts keep the jittered grid complete
+
+
+def _diffuse_adaptive(env, centroids, normals, occ, offset, rays, seed, table, pilot, weight,
+                      max_rays, record=None):
+    """Control variate with two-stage (Neyman) allocation of the correction rays.
+
+    Stage 1: ``pilot`` stratified rays per facet. Stage 2: the remaining budget
+    (rays - pilot) x facets goes to facets in proportion to their sample standard deviation
+    of the per-ray correction relative to the facet's flux, K_i ~ s_i / q_i, which minimises
+    sum_i Var(q_i) / q_i^2 for a fixed ray count (Neyman 1934; Cochran 1977, Sampling
+    Techniques, section 5.5). Facets whose pilot rays all agree (typically: nothing in the
+    way) and whose neighbours' pilot rays agree too get no more rays.
+
+    Returns (per-band flux (bands, F), variance of the ``weight``-summed flux (F,), rays per
+    facet (F,)).
+    """
+    n_f = len(normals)
+    out = _interp_table(table, normals)  # unoccluded part
+    rng = np.random.default_rng(seed)
+    frames = _tangent_frames(normals)
+    w = np.asarray(weight, dtype=float)
+    all_f = np.arange(n_f)
+    s1, sq1 = _cast_corrections(env, centroids, normals, occ, offset, all_f, pilot, rng, frames, w,
+                                record)
+    mean_w = (w * s1).sum(axis=0) / pilot
+    var = np.maximum(sq1 / pilot - mean_w ** 2, 0.0) * pilot / max(pilot - 1, 1)
+    q0 = np.abs((w * out).sum(axis=0))
+    # pilot estimate of the facet's flux, floored at a quarter of the median so that facets
+    # buried inside other geometry (q -> 0) do not take the whole budget
+    q1 = q0 + np.pi * mean_w
+    score = np.sqrt(var) / np.maximum(q1, 0.25 * max(float(np.median(np.abs(q1))), 1e-30))
+    # a facet's own pilot can miss a small opening (all rays hit one uniform occluder, zero
+    # sample variance); its neighbours see nearly the same hemisphere, so each facet takes the
+    # larger of its own score and the mean score of its 8 nearest facets
+    if n_f > 1:
+        from scipy.spatial import cKDTree
+        _, nb = cKDTree(centroids).query(centroids, min(8, n_f))
+        score = np.maximum(score, score[nb].mean(axis=1))
+    budget = max(0, int(rays) - pilot) * n_f
+    extra = np.zeros(n_f, dtype=np.int64)
+    if budget > 0 and score.sum() > 0:
+        want = budget * score / score.sum()
+        levels = np.array([lv for lv in _LEVELS if lv <= max_rays], dtype=np.int64)
+        # round each wish to the nearest level (0 below half the smallest)
+        idx = np.searchsorted(levels, want)
+        lo = levels[np.maximum(idx - 1, 0)]
+        hi = levels[np.minimum(idx, len(levels) - 1)]
+        extra = np.where(want - lo < hi - want, lo, hi)
+        extra = np.where(want < 0.5 * levels[0], 0, extra)
+    sums, sq, counts = s1, sq1, np.full(n_f, float(pilot))
+    for lv in np.unique(extra[extra > 0]):
+        f = np.nonzero(extra == lv)[0]
+        s2, sq2 = _cast_corrections(env, centroids, normals, occ, offset, f, int(lv), rng,
+                                    frames, w, record)
+        sums[:, f] += s2
+        sq[f] += sq2
+        counts[f] += lv
+    variance = _mean_variance((w * sums).sum(axis=0), sq, counts)
+    out += np.pi * sums / counts
+    return out, variance, counts
+
+
+def _replay(env, radiance, records, counts, table, normals, weight):
+    """The ray methods' estimate from recorded hits, for a new environment: the geometry (and
+    hence which face each ray hits) is unchanged, only the radiances are new."""
+    fidx, d, hit = records
+    n_f = len(normals)
+    w = np.asarray(weight, dtype=float)
+    sums = np.zeros((env.n_bands, n_f))
+    sq = np.zeros(n_f)
+    if len(hit):
+        delta = radiance[:, hit] - env.flat()[:, latlong_index(d, env.resolution)]
+        for b in range(env.n_bands):
+            sums[b] = np.bincount(fidx, weights=delta[b], minlength=n_f)
+        wd = (w[:, fidx] * delta).sum(axis=0)
+        sq = np.bincount(fidx, weights=wd * wd, minlength=n_f)
+    var = _mean_variance((w * sums).sum(axis=0), sq, counts)
+    return _interp_table(table, normals) + np.pi * sums / counts, var
+
+
+def _geometry_key(mesh, scene, *params) -> str:
+    import hashlib
+    h = hashlib.sha1()
+    for m in (mesh, None if scene is None else scene.mesh):
+        if m is not None:
+            h.update(np.ascontiguousarray(m.vertices, dtype=np.float64).tobytes())
+            h.update(np.ascontiguousarray(m.faces, dtype=np.int64).tobytes())
+    h.update(repr(params).encode())
+    return h.hexdigest()
 
 
 def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=None,
                        mesh_radiance=None, method="brute", rays=64, seed=0, table_grid=64,
-                       offset=None) -> np.ndarray:
+                       offset=None, pilot=16, max_rays=1024, backend="embree",
+                       stats: dict | None = None, cache: dict | None = None) -> np.ndarray:
     """Absorbed radiation per facet and band, with occlusion (seed Eq. 3-4).
 
     Parameters
@@ -456,38 +717,92 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
         Leaving radiance of the mesh's own faces for self-occluded rays [W m^-2 sr^-1]
         (e.g. eps sigma T^4 / pi from the previous thermal iterate). Default 0: a blocked ray
         brings nothing, as in the seed (1_ij = 0).
-    method : {'brute', 'fast'}
+    method : {'brute', 'fast', 'adaptive'}
         'brute': every map pixel x facet with an occlusion ray (reference).
         'fast': irradiance-table control variate + ``rays`` stratified cosine-weighted rays.
+        'adaptive': the same control variate with ``pilot`` rays per facet, then the rest of
+        a budget of ``rays`` x facets spread by Neyman allocation (more rays where the pilot
+        rays disagree, none where nothing is in the way).
     rays : int
-        Rays per facet for 'fast'.
+        Rays per facet for 'fast'; mean rays per facet for 'adaptive'.
     seed : int
-        Random seed for 'fast'.
+        Random seed for 'fast' / 'adaptive'.
     table_grid : int
-        Irradiance table rows for 'fast' (columns 2 x rows).
+        Irradiance table rows over the normal's zenith (columns: the map's).
     offset : float, optional
         Ray origin offset along the normal [m]; default the larger of 1e-5 x the mesh's and
         1e-6 x the mesh-plus-scene bounding diagonal (embree works in float32).
+    pilot : int
+        'adaptive': first-stage rays per facet (a square keeps the jittered grid whole).
+    max_rays : int
+        'adaptive': cap of the second-stage rays of one facet.
+    backend : {'embree', 'mitsuba'}
+        Ray caster: embreex through trimesh (single-threaded) or Mitsuba's
+        (:class:`MitsubaIntersector`, multi-threaded, costs the Mitsuba import).
+    stats : dict, optional
+        Filled with the ray methods' Monte Carlo error from the per-ray sample variance (0 for
+        'brute'): ``rms_rel_error_estimate`` (RMS over facets of the standard error relative to
+        the facet's q_rad, floored at a quarter of the median q_rad), ``nrmse_estimate``
+        (RMS standard error / mean q_rad), ``rays`` (rays behind the diffuse part) and
+        ``cached`` (True when they were replayed from ``cache``).
+    cache : dict, optional
+        Visibility cache for 'fast' / 'adaptive' across calls (e.g. the frames of a person who
+        stands still): the first call records every ray that hit something (facet, direction,
+        face); a later call whose mesh, scene geometry and ray settings are identical replays
+        those rays with the new radiances instead of casting new ones (the same random rays,
+        whatever ``seed``), and reuses the sun's shadow test while the sun stays put.
 
     Returns
     -------
     array (bands, faces)
         Absorbed flux per band [W m^-2]; q_rad (seed Eq. 3) is ``.sum(axis=0)``.
     """
-    if method not in ("brute", "fast"):
+    if method not in ("brute", "fast", "adaptive"):
         raise ValueError(f"invalid method selection {method}")
     normals = np.asarray(mesh.face_normals, dtype=float)
     centroids = np.asarray(mesh.triangles_center, dtype=float)
-    occ = _Occluders(mesh, environment.n_bands, mesh_radiance, scene)
+    occ = _Occluders(mesh, environment.n_bands, mesh_radiance, scene, backend)
     if offset is None:
         offset = max(_offset(mesh), 1e-6 * float(np.linalg.norm(occ.extents)))
     if method == "brute":
         e = _diffuse_brute(environment, centroids, normals, occ, offset)
+        var, counts, replayed = np.zeros(len(normals)), None, False
     else:
         table = irradiance_table(environment, table_grid)
-        e = _diffuse_fast(environment, centroids, normals, occ, offset, int(rays), seed, table)
-    e += _sun_term(environment, centroids, normals, occ, offset)
-    return _absorptivity(absorptivity, environment.n_bands, len(normals)) * e
+        alpha = _absorptivity(absorptivity, environment.n_bands, len(normals))
+        key = None if cache is None else _geometry_key(
+            mesh, scene, method, int(rays), int(pilot), int(max_rays), float(offset))
+        replayed = cache is not None and cache.get("key") == key
+        if replayed:
+            counts = cache["counts"]
+            e, var = _replay(environment, occ.radiance, cache["records"], counts, table,
+                             normals, alpha)
+        else:
+            record = None if cache is None else []
+            if method == "adaptive":
+                e, var, counts = _diffuse_adaptive(environment, centroids, normals, occ, offset,
+                                                   int(rays), seed, table, int(pilot), alpha,
+                                                   int(max_rays), record)
+            else:
+                e, var = _diffuse_fast(environment, centroids, normals, occ, offset, int(rays),
+                                       seed, table, alpha, record)
+                counts = np.full(len(normals), float(rays))
+            if cache is not None:
+                cache.clear()
+                cache.update(key=key, counts=counts, records=tuple(
+                    np.concatenate([r[i] for r in record]) if record else
+                    np.zeros((0,) if i != 1 else (0, 3)) for i in range(3)))
+    e += _sun_term(environment, centroids, normals, occ, offset, cache)
+    q = _absorptivity(absorptivity, environment.n_bands, len(normals)) * e
+    if stats is not None:
+        tot = q.sum(axis=0)
+        floor = 0.25 * max(float(np.median(np.abs(tot))), 1e-30)
+        stats["rms_rel_error_estimate"] = float(np.sqrt(np.mean(var / np.maximum(tot, floor)
+                                                                ** 2)))
+        stats["nrmse_estimate"] = float(np.sqrt(np.mean(var)) / max(float(np.mean(tot)), 1e-30))
+        stats["rays"] = 0 if counts is None else int(counts.sum())
+        stats["cached"] = bool(replayed)
+    return q
 
 
 def mean_radiant_temperature(absorbed, areas, segment_ids, emissivity=0.97, n_segments=None):
@@ -582,55 +897,78 @@ def bench_scene(facets=30000):
 
 
 def bench_qrad(facets=30000, resolutions=(90, 180, 360), fast_rays=(16, 64, 256),
-               reference_resolution=None, mesh=None, seed=0) -> list[dict]:
+               reference_resolution=None, mesh=None, seed=0, adaptive_rays=(32, 64, 128),
+               case=None, reference=None) -> list[dict]:
     """Run time and error of q_rad methods against the brute-force reference.
 
     Parameters
     ----------
     facets : int
-        Approximate facet count of the bench mesh (ignored when ``mesh`` is given).
+        Approximate facet count of the bench mesh (ignored when ``mesh`` or ``case`` is given).
     resolutions : sequence of int
         Map sizes n (n x n) to try.
-    fast_rays : sequence of int
-        Rays per facet for the fast method.
+    fast_rays, adaptive_rays : sequence of int
+        Rays per facet of the fast method / mean rays per facet of the adaptive one.
     reference_resolution : int, optional
         Map size of the brute reference; default max(resolutions).
     mesh : trimesh.Trimesh, optional
         Facets to evaluate instead of the capsule avatar (e.g. a MakeHuman body).
+    case : dict, optional
+        A whole case instead of the capsule scene: ``mesh``, ``scene`` (SceneSurfaces or None),
+        ``sky``, ``absorptivity`` (bands,) or (bands, faces), ``center``, optional
+        ``mesh_radiance`` (e.g. :func:`humv_usd.thermal.bench.avatar_case`).
+    reference : array (bands, faces), optional
+        A precomputed brute reference at ``reference_resolution`` (its run time is then NaN).
 
     Returns
     -------
     list of dict
-        One row per (method, resolution, rays): facets, seconds (q_rad only; map build in
-        ``map_seconds``), rms_rel_error, max_rel_error, nrmse against the reference
-        (the reference row has zeros).
+        One row per (method, resolution, rays): facets, seconds (wall), cpu_seconds (process
+        time; the embree caster is single-threaded, so this is the run time on an idle
+        machine), map_seconds (map build), rms_rel_error, max_rel_error, nrmse against the
+        reference (the reference row has zeros) and the method's own rms_rel_error_estimate.
     """
-    bmesh, scene, sky, alpha, center = bench_scene(facets)
-    if mesh is not None:
-        bmesh = mesh
-        center = np.asarray(mesh.bounds.mean(axis=0))
+    if case is None:
+        bmesh, scene, sky, alpha, center = bench_scene(facets)
+        mrad = None
+        if mesh is not None:
+            bmesh = mesh
+            center = np.asarray(mesh.bounds.mean(axis=0))
+    else:
+        bmesh, scene, sky, alpha = case["mesh"], case["scene"], case["sky"], case["absorptivity"]
+        center, mrad = case["center"], case.get("mesh_radiance")
     ref_res = int(max(resolutions) if reference_resolution is None else reference_resolution)
     maps, map_seconds = {}, {}
     for res in sorted(set(resolutions) | {ref_res}):
         t0 = time.perf_counter()
         maps[res] = radiance_map(center, sky, scene, res)
         map_seconds[res] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    q_ref = absorbed_radiation(bmesh, maps[ref_res], alpha, scene=scene, method="brute")
+    kw = dict(scene=scene, mesh_radiance=mrad)
+
+    def timed(env, **extra):
+        stats: dict = {}
+        w0, c0 = time.perf_counter(), time.process_time()
+        q = absorbed_radiation(bmesh, env, alpha, stats=stats, **kw, **extra)
+        return q, time.perf_counter() - w0, time.process_time() - c0, stats
+
+    if reference is None:
+        q_ref, wall, cpu, _ = timed(maps[ref_res], method="brute")
+    else:
+        q_ref, wall, cpu = np.asarray(reference, dtype=float), float("nan"), float("nan")
     rows = [{"method": "brute", "resolution": ref_res, "rays": None, "facets": len(bmesh.faces),
-             "seconds": time.perf_counter() - t0, "map_seconds": map_seconds[ref_res],
-             "rms_rel_error": 0.0, "max_rel_error": 0.0, "nrmse": 0.0, "reference": True}]
+             "seconds": wall, "cpu_seconds": cpu, "map_seconds": map_seconds[ref_res],
+             "rms_rel_error": 0.0, "max_rel_error": 0.0, "nrmse": 0.0,
+             "rms_rel_error_estimate": 0.0, "reference": True}]
     for res in resolutions:
+        runs = [("fast", k) for k in fast_rays] + [("adaptive", k) for k in adaptive_rays]
         if res != ref_res:
-            t0 = time.perf_counter()
-            q = absorbed_radiation(bmesh, maps[res], alpha, scene=scene, method="brute")
-            rows.append({"method": "brute", "resolution": res, "rays": None, "facets": len(bmesh.faces),
-                         "seconds": time.perf_counter() - t0, "map_seconds": map_seconds[res],
-                         **relative_errors(q, q_ref), "reference": False})
-        for k in fast_rays:
-            t0 = time.perf_counter()
-            q = absorbed_radiation(bmesh, maps[res], alpha, scene=scene, method="fast", rays=k, seed=seed)
-            rows.append({"method": "fast", "resolution": res, "rays": k, "facets": len(bmesh.faces),
-                         "seconds": time.perf_counter() - t0, "map_seconds": map_seconds[res],
-                         **relative_errors(q, q_ref), "reference": False})
+            runs.insert(0, ("brute", None))
+        for method, k in runs:
+            extra = {} if k is None else {"rays": k, "seed": seed}
+            q, wall, cpu, stats = timed(maps[res], method=method, **extra)
+            rows.append({"method": method, "resolution": res, "rays": k,
+                         "facets": len(bmesh.faces), "seconds": wall, "cpu_seconds": cpu,
+                         "map_seconds": map_seconds[res], **relative_errors(q, q_ref),
+                         "rms_rel_error_estimate": stats.get("rms_rel_error_estimate", 0.0),
+                         "reference": False})
     return rows

@@ -31,6 +31,7 @@ PLUGIN_NAME = "humvUsd"
 SCENARIO_API = "HumvScenarioAPI"
 ENVIRONMENT_API = "HumvEnvironmentAPI"
 ATMOSPHERE_API = "HumvAtmosphereAPI"
+ATMOSPHERE_PATH_API = "HumvAtmospherePathAPI"
 MATERIAL_API = "HumvMaterialAPI"
 AVATAR_API = "HumvAvatarAPI"
 CLOTHING_API = "HumvClothingAPI"
@@ -42,6 +43,7 @@ SCHEMAS = (
     SCENARIO_API,
     ENVIRONMENT_API,
     ATMOSPHERE_API,
+    ATMOSPHERE_PATH_API,
     MATERIAL_API,
     AVATAR_API,
     CLOTHING_API,
@@ -67,6 +69,12 @@ ENVIRONMENT_WIND_SPEED = "humv:environment:windSpeed"
 ENVIRONMENT_WIND_DIRECTION = "humv:environment:windDirection"
 ENVIRONMENT_PRESSURE = "humv:environment:pressure"
 ENVIRONMENT_CLOUD_COVER = "humv:environment:cloudCover"
+ENVIRONMENT_SUN_DIRECTION = "humv:environment:sunDirection"
+ENVIRONMENT_SUN_ZENITH = "humv:environment:sunZenith"
+ENVIRONMENT_SUN_AZIMUTH = "humv:environment:sunAzimuth"
+ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE = "humv:environment:directNormalIrradiance"
+ENVIRONMENT_DIFFUSE_HORIZONTAL_IRRADIANCE = "humv:environment:diffuseHorizontalIrradiance"
+ENVIRONMENT_GLOBAL_HORIZONTAL_IRRADIANCE = "humv:environment:globalHorizontalIrradiance"
 
 # --- HumvAtmosphereAPI (Scope, Xform) ---------------------------------------------------------
 ATMOSPHERE_MODEL = "humv:atmosphere:model"
@@ -74,11 +82,22 @@ ATMOSPHERE_PROFILE = "humv:atmosphere:profile"
 ATMOSPHERE_VISIBILITY = "humv:atmosphere:visibility"
 ATMOSPHERE_SKY_EMISSIVITY = "humv:atmosphere:skyEmissivity"
 ATMOSPHERE_SKY_TEMPERATURE = "humv:atmosphere:skyTemperature"
+ATMOSPHERE_WAVELENGTHS = "humv:atmosphere:wavelengths"
+ATMOSPHERE_SKY_ZENITH_ANGLES = "humv:atmosphere:skyZenithAngles"
+ATMOSPHERE_SKY_SPECTRAL_RADIANCE = "humv:atmosphere:skySpectralRadiance"
+ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE = "humv:atmosphere:solarSpectralIrradiance"
+
+# --- HumvAtmospherePathAPI (Scope) ------------------------------------------------------------
+ATMOSPHERE_PATH_SENSOR = "humv:atmospherePath:sensor"
+ATMOSPHERE_PATH_RANGES = "humv:atmospherePath:ranges"
+ATMOSPHERE_PATH_TRANSMITTANCE = "humv:atmospherePath:transmittance"
+ATMOSPHERE_PATH_RADIANCE = "humv:atmospherePath:radiance"
 
 # --- HumvMaterialAPI (Material) ---------------------------------------------------------------
 MATERIAL_WAVELENGTHS = "humv:material:wavelengths"
 MATERIAL_EMISSIVITY = "humv:material:emissivity"
 MATERIAL_REFLECTANCE = "humv:material:reflectance"
+MATERIAL_TRANSMITTANCE = "humv:material:transmittance"
 MATERIAL_CONDUCTIVITY = "humv:material:conductivity"
 MATERIAL_DENSITY = "humv:material:density"
 MATERIAL_SPECIFIC_HEAT = "humv:material:specificHeat"
@@ -119,6 +138,14 @@ SENSOR_NETD = "humv:sensor:netd"
 SENSOR_BIT_DEPTH = "humv:sensor:bitDepth"
 SENSOR_GAIN = "humv:sensor:gain"
 SENSOR_OFFSET = "humv:sensor:offset"
+SENSOR_PRESET = "humv:sensor:preset"
+SENSOR_PLATFORM = "humv:sensor:platform"
+SENSOR_AGC = "humv:sensor:agc"
+SENSOR_AGC_PERCENTILES = "humv:sensor:agcPercentiles"
+SENSOR_CHANNEL_RESPONSE = "humv:sensor:channelResponse"
+SENSOR_FULL_WELL = "humv:sensor:fullWell"
+SENSOR_READ_NOISE = "humv:sensor:readNoise"
+SENSOR_REFERENCE_TEMPERATURE = "humv:sensor:referenceTemperature"
 
 # --- HumvLabelAPI (Xform, Scope, Mesh, SkelRoot) ----------------------------------------------
 LABEL_INSTANCE_ID = "humv:label:instanceId"

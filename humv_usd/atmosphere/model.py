@@ -1,0 +1,561 @@
+"""The scenario's atmosphere: spectral sky, slant paths and direct sun, LOWTRAN7 or analytic.
+
+:func:`atmosphere_for` builds an :class:`Atmosphere` with only what the scenario needs:
+
+- wavelengths: the union of the sensors' bands (LOWTRAN's 20 cm-1 sampling beyond 2.5 um,
+  100 cm-1 below), nothing when there is no sensor;
+- LOWTRAN7 only when an infrared sensor (band beyond 3 um) needs it and ``[atmosphere] model``
+  is ``lowtran7`` (the default); with EO sensors only, or ``model = "analytic"``, the analytic
+  model; when LOWTRAN7 cannot be loaded or fails, the analytic model with a warning on stderr;
+- the solar terms only at times the sun is up.
+
+Models (weather of frame 0, :func:`humv_usd.environment.weather.weather_at`):
+
+Sky, LOWTRAN7: two layers. The lowest ``SKY_LAYER_KM`` above the site is a user-defined
+(MODEL 7) layer from the weather (air temperature with a 6.5 K/km lapse rate, hydrostatic
+pressure, constant relative humidity, fixed trace gases), above it the chosen standard profile
+(MODELs 1-6) to space. Thermal emission without scattering adds exactly:
+L(theta) = L_low(theta) + tau_low(theta) L_up(theta'), with sin theta' = R sin theta / (R + h)
+the zenith angle where the ray leaves the layer. Most of the window emission (water vapour,
+scale height ~2 km) comes from the weather layer; ozone and the upper troposphere from the
+profile. Below 2.5 um the sky adds the isotropic diffuse skylight of SPCTRL2 (Bird & Riordan
+1986) scaled to the scenario's diffuse irradiance (:func:`humv_usd.environment.sun.sun_at`).
+
+Slant paths: the sensors are near the ground (< ~1 km), so a path is a homogeneous horizontal
+path of the same length in the weather layer (LOWTRAN7 MODEL 7, ITYPE 1, thermal radiance); the
+absorber amount of a path climbing h km is overestimated by about h/8 km. The ``lowtran``
+wrapper runs without aerosol, so the aerosol extinction of the visibility (Koschmieder, Kruse;
+:func:`humv_usd.physics.sky.aerosol_extinction`) multiplies the transmittance, treated as
+absorbing (path radiance (1 - tau_a) tau_m B(T_air) added, Kirchhoff for an isothermal path).
+
+Direct sun: below 2.5 um SPCTRL2's direct normal spectrum scaled to the scenario's DNI; from 2.5 um
+LOWTRAN7's directly transmitted solar irradiance (IEMSCT 3, standard profile) times the Sun-Earth
+distance factor and the cloud reduction of the DNI (Kasten & Czeplak 1980).
+
+Analytic fallback: sky eps(theta) B(lambda, T_air) with the Berdahl & Martin (1984) emissivity
+spread over zenith by the Martin & Berdahl (1984) slab law; path transmittance from the water
+continuum of Roberts et al. (1976), aerosol (Koschmieder/Kruse) and Rayleigh extinction
+(0.0116 km-1 at 0.55 um, lambda^-4.08; Elterman 1968), path radiance (1 - tau) B(T_air); direct
+sun beyond 2.5 um a 5772 K blackbody (IAU 2015 nominal solar temperature) attenuated by the
+broadband DNI / extraterrestrial ratio.
+
+Results of LOWTRAN runs are cached on disk (``$HUMV_USD_CACHE/atmosphere`` or
+``~/.cache/humv-usd/atmosphere``), keyed by a hash of the runs' inputs.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import sys
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from humv_usd.atmosphere import lowtran as lt
+from humv_usd.environment.sun import SunState, sun_at
+from humv_usd.environment.weather import Weather, weather_at
+from humv_usd.fileio import atomic_path
+from humv_usd.physics import planck
+from humv_usd.physics.sky import (STEFAN_BOLTZMANN, aerosol_extinction,
+                                  directional_sky_emissivity, effective_sky_temperature,
+                                  water_continuum_absorption)
+from humv_usd.scenario import Scenario
+
+CACHE_ENV = "HUMV_USD_CACHE"
+#: bump when the cached quantities or their meaning change
+CACHE_VERSION = "humv-atmosphere-1"
+#: zenith angles of the sky table [deg] (89 is the last above-horizon sample)
+SKY_ZENITH_DEG = np.array([0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 75.0, 80.0, 85.0, 89.0])
+#: depth of the weather layer under the standard profile [km]
+SKY_LAYER_KM = 1.0
+#: ranges of the slant-path table [m]
+PATH_RANGES_M = np.geomspace(1.0, 30000.0, 19)
+#: longwave band of the broadband sky (thermal) [um]
+LONGWAVE_UM = (4.0, 50.0)
+#: LOWTRAN sampling [cm-1] beyond / below SOLAR_SPLIT_UM
+IR_STEP_CM, VIS_STEP_CM = 20.0, 100.0
+#: below this wavelength the sun and skylight come from SPCTRL2, above from LOWTRAN / Planck
+SOLAR_SPLIT_UM = 2.5
+#: LOWTRAN7 Earth radius for the layer-exit angle [km]
+EARTH_RADIUS_KM = 6371.23
+#: nominal effective temperature of the Sun (IAU 2015 B3) [K] and its radius / 1 au
+SUN_TEMPERATURE_K, SUN_ANGULAR_RADIUS = 5772.0, 6.957e8 / 1.495978707e11
+#: samples of the time-varying quantities: at most this many over the scenario
+MAX_TIME_SAMPLES = 500
+
+
+def cache_dir() -> Path:
+    base = os.environ.get(CACHE_ENV)
+    root = Path(base) if base else Path.home() / ".cache" / "humv-usd"
+    return root / "atmosphere"
+
+
+def frame_times(scenario: Scenario) -> np.ndarray:
+    """Times [s after frame 0] at which time-varying quantities are sampled: every frame, or
+    evenly strided frames plus the last one when there are more than MAX_TIME_SAMPLES."""
+    g = scenario["general"]
+    n = scenario.frame_count
+    stride = max(1, int(np.ceil(n / MAX_TIME_SAMPLES)))
+    frames = np.unique(np.append(np.arange(0, n, stride), n - 1))
+    return frames / float(g["fps"])
+
+
+def sensor_bands(scenario: Scenario) -> list[tuple[float, float]]:
+    """Merged [lo, hi] um bands of the scenario's sensors (overlapping ones joined)."""
+    bands = sorted((float(s["wavelength_um"][0]), float(s["wavelength_um"][1]))
+                   for s in scenario["sensor"])
+    merged: list[list[float]] = []
+    for lo, hi in bands:
+        if merged and lo <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], hi)
+        else:
+            merged.append([lo, hi])
+    return [(lo, hi) for lo, hi in merged]
+
+
+def _intervals(bands) -> list[tuple[float, float, float]]:
+    """LOWTRAN intervals (lo, hi, step cm-1), split at SOLAR_SPLIT_UM, padded by one sample."""
+    out = []
+    for lo, hi in bands:
+        for a, b, step in ((lo, min(hi, SOLAR_SPLIT_UM), VIS_STEP_CM),
+                           (max(lo, SOLAR_SPLIT_UM), hi, IR_STEP_CM)):
+            if b <= a:
+                continue
+            # one sample beyond each edge: LOWTRAN rounds the wavenumbers to its 5 cm-1 grid
+            a_pad = 1e4 / (1e4 / a + step)
+            b_pad = 1e4 / max(1e4 / b - step, 1.0)
+            out.append((round(a_pad, 6), round(b_pad, 6), step))
+    return out
+
+
+def _grid(bands) -> np.ndarray:
+    """Analytic wavelength grid: the same sampling as LOWTRAN's, without running it."""
+    parts = []
+    for lo, hi, step in _intervals(bands):
+        nu = np.arange(1e4 / hi, 1e4 / lo + step, step)
+        parts.append(1e4 / nu[::-1])
+    return np.unique(np.concatenate(parts)) if parts else np.zeros(0)
+
+
+# --- LOWTRAN runs with a disk cache --------------------------------------------------------------
+def _key(cases) -> str:
+    text = json.dumps([CACHE_VERSION, cases], sort_keys=True, default=float)
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+def run_cached(cases: list[dict], ran: dict | None = None, what: str = "") -> list[lt.Run]:
+    """LOWTRAN runs for ``cases``, from the disk cache when the same cases ran before.
+
+    Raises :class:`humv_usd.atmosphere.lowtran.LowtranError` when LOWTRAN is needed and fails.
+    """
+    path = cache_dir() / f"{_key(cases)}.npz"
+    fields = ("wavelengths_um", "transmittance", "radiance", "solar", "solar_toa")
+    if path.is_file():
+        try:
+            with np.load(path) as z:
+                stacked = [z[f] for f in fields]
+            runs = [lt.Run(*(a[i] for a in stacked)) for i in range(len(cases))]
+            if ran is not None:
+                ran.setdefault("cache", []).append(f"{what}: hit")
+            return runs
+        except Exception:  # a damaged cache entry is recomputed
+            pass
+    runs = [lt.run(c) for c in cases]
+    try:
+        arrays = {f: np.stack([getattr(r, f) for r in runs]) for f in fields}
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **arrays)
+    except (OSError, ValueError) as e:  # no cache is not an error
+        print(f"humv-usd: atmosphere cache not written ({e})", file=sys.stderr)
+    if ran is not None:
+        ran.setdefault("cache", []).append(f"{what}: miss ({len(cases)} LOWTRAN7 runs)")
+    return runs
+
+
+# --- the atmosphere ----------------------------------------------------------------------------
+@dataclass
+class Atmosphere:
+    """Spectral atmosphere of a scenario (see the module doc). Build with :func:`atmosphere_for`.
+
+    Arrays: ``wavelengths_um`` (W,) ascending; ``sky_zenith_deg`` (Z,); ``sky_radiance`` (Z, W)
+    thermal sky [W m-2 sr-1 um-1]; ``diffuse_radiance`` (n, W) isotropic skylight at
+    ``times_s``; ``path_ranges_m`` (R,), ``path_transmittance``, ``path_radiance`` (R, W);
+    ``solar`` (n, W) direct normal [W m-2 um-1] at ``times_s``; broadband longwave sky
+    ``longwave_radiance`` (Z,) [W m-2 sr-1], ``sky_emissivity``, ``sky_temperature_k``.
+    """
+
+    source: str
+    wavelengths_um: np.ndarray
+    sky_zenith_deg: np.ndarray
+    sky_radiance: np.ndarray
+    times_s: np.ndarray
+    diffuse_radiance: np.ndarray
+    path_ranges_m: np.ndarray
+    path_transmittance: np.ndarray
+    path_radiance: np.ndarray
+    solar: np.ndarray
+    longwave_radiance: np.ndarray
+    sky_emissivity: float
+    sky_temperature_k: float
+    air_temperature_k: float
+    profile: str
+    ran: dict = field(default_factory=dict)
+
+    def _time_index(self, t):
+        """Linear-interpolation weights of time t over ``times_s``."""
+        ts = self.times_s
+        if ts.size == 1:
+            return 0, 0, 0.0
+        t = float(np.clip(t, ts[0], ts[-1]))
+        j = int(np.clip(np.searchsorted(ts, t) - 1, 0, ts.size - 2))
+        f = (t - ts[j]) / (ts[j + 1] - ts[j])
+        return j, j + 1, f
+
+    def sky_spectral_radiance(self, zenith_deg, time_s: float = 0.0) -> np.ndarray:
+        """Downwelling sky radiance (len(zenith), W) [W m-2 sr-1 um-1] at ``time_s``.
+
+        Linear in zenith between the table's angles; beyond its last angle (89 deg) the last
+        row (callers handle the ground below the horizon).
+        """
+        z = np.atleast_1d(np.asarray(zenith_deg, dtype=float))
+        if self.wavelengths_um.size == 0:
+            return np.zeros((z.size, 0))
+        zt = self.sky_zenith_deg
+        out = np.stack([np.interp(z, zt, self.sky_radiance[:, k])
+                        for k in range(self.wavelengths_um.size)], axis=-1)
+        a, b, f = self._time_index(time_s)
+        diffuse = (1 - f) * self.diffuse_radiance[a] + f * self.diffuse_radiance[b]
+        return out + diffuse[None, :]
+
+    def sky_longwave_radiance(self, zenith_deg) -> np.ndarray:
+        """Broadband (4-50 um plus a blackbody at air temperature beyond) sky radiance
+        [W m-2 sr-1] against zenith angle [deg]; pi times its cosine-weighted hemispherical
+        mean is sky_emissivity * sigma * T_air^4."""
+        return np.interp(np.asarray(zenith_deg, dtype=float), self.sky_zenith_deg,
+                         self.longwave_radiance)
+
+    def path(self, sensor_position_m=None, ranges_m=None) -> tuple[np.ndarray, np.ndarray]:
+        """(transmittance (R, W), path radiance (R, W) [W m-2 sr-1 um-1]) at ``ranges_m``.
+
+        Homogeneous near-ground paths: the sensor position does not change them (see the module
+        doc). Log-linear interpolation in range over the table; ``ranges_m`` None gives the
+        table's own ranges. Range 0 gives transmittance 1 and no path radiance.
+        """
+        if ranges_m is None:
+            return self.path_transmittance.copy(), self.path_radiance.copy()
+        r = np.atleast_1d(np.asarray(ranges_m, dtype=float))
+        if self.wavelengths_um.size == 0:
+            return np.ones((r.size, 0)), np.zeros((r.size, 0))
+        rt = np.concatenate([[0.0], self.path_ranges_m])
+        tau = np.vstack([np.ones(self.wavelengths_um.size), self.path_transmittance])
+        rad = np.vstack([np.zeros(self.wavelengths_um.size), self.path_radiance])
+        # interpolate optical depth (linear in range for a homogeneous path) and the radiance
+        od = -np.log(np.clip(tau, 1e-300, 1.0))
+        x = np.clip(r, 0.0, rt[-1])
+        od_r = np.stack([np.interp(x, rt, od[:, k]) for k in range(od.shape[1])], axis=-1)
+        rad_r = np.stack([np.interp(x, rt, rad[:, k]) for k in range(od.shape[1])], axis=-1)
+        return np.exp(-od_r).reshape(r.size, -1), rad_r.reshape(r.size, -1)
+
+    def solar_spectral_irradiance(self, times_s) -> np.ndarray:
+        """Direct solar irradiance at the ground, normal incidence, (n, W) [W m-2 um-1];
+        zero when the sun is down. Linear in time between the samples."""
+        t = np.atleast_1d(np.asarray(times_s, dtype=float))
+        out = np.zeros((t.size, self.wavelengths_um.size))
+        for i, ti in enumerate(t):
+            a, b, f = self._time_index(ti)
+            out[i] = (1 - f) * self.solar[a] + f * self.solar[b]
+        return out
+
+
+def _spectrl2(sun: SunState, weather: Weather, scenario: Scenario, grid_um: np.ndarray):
+    """SPCTRL2 direct-normal and diffuse-horizontal spectra (n, W) [W m-2 um-1] on ``grid_um``
+    (below SOLAR_SPLIT_UM; zero beyond), scaled to the scenario's DNI and DHI."""
+    import pvlib
+
+    from humv_usd.environment.sun import utc_times
+
+    n = sun.times_s.size
+    dni = np.zeros((n, grid_um.size))
+    dhi = np.zeros((n, grid_um.size))
+    sel = grid_um < SOLAR_SPLIT_UM
+    up = np.flatnonzero(sun.up)
+    if up.size == 0 or not sel.any():
+        return dni, dhi
+    import pandas as pd
+    zen = sun.zenith_deg[up]
+    idx = utc_times(scenario, sun.times_s[up])
+    am = pvlib.atmosphere.get_relative_airmass(zen, model="kasten1966")
+    pw = pvlib.atmosphere.gueymard94_pw(weather.air_temperature_k[up] - 273.15,
+                                        np.maximum(weather.relative_humidity[up], 0.01) * 100.0)
+    vis = float(scenario["atmosphere"]["visibility_km"])
+    tau500 = float(aerosol_extinction(0.5, vis)) * 1.2e3   # 1.2 km aerosol scale height
+    spec = pvlib.spectrum.spectrl2(apparent_zenith=zen, aoi=np.zeros_like(zen), surface_tilt=0.0,
+                                   ground_albedo=0.2, surface_pressure=weather.pressure_pa[up],
+                                   relative_airmass=am, precipitable_water=pw, ozone=0.31,
+                                   aerosol_turbidity_500nm=tau500,
+                                   dayofyear=pd.DatetimeIndex(idx).dayofyear.to_numpy())
+    wl = np.asarray(spec["wavelength"], dtype=float) * 1e-3            # [um]
+    for key, target, out in (("dni", sun.dni_w_m2, dni), ("dhi", sun.dhi_w_m2, dhi)):
+        s = np.nan_to_num(np.asarray(spec[key], dtype=float)) * 1e3     # [W m-2 um-1]
+        s = s.reshape(wl.size, -1)
+        total = np.trapz(s, wl, axis=0)
+        scale = np.where(total > 0, target[up] / np.where(total > 0, total, 1.0), 0.0)
+        for j, i in enumerate(up):
+            out[i, sel] = np.interp(grid_um[sel], wl, s[:, j]) * scale[j]
+    return dni, dhi
+
+
+def _earth_sun_factor(scenario: Scenario, times_s) -> np.ndarray:
+    """(r0 / r)^2: extraterrestrial irradiance over its annual mean (Spencer 1971, pvlib)."""
+    import pvlib
+
+    from humv_usd.environment.sun import utc_times
+    return np.asarray(pvlib.irradiance.get_extra_radiation(utc_times(scenario, times_s),
+                                                           solar_constant=1.0), dtype=float)
+
+
+def _cloud_dni_factor(sun: SunState, clear: SunState) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(clear.dni_w_m2 > 0, sun.dni_w_m2 / clear.dni_w_m2, 0.0)
+
+
+def _broadband(zenith_deg, lw_spectral, wl_um, t_air) -> tuple[np.ndarray, float, float]:
+    """Broadband sky radiance (Z,), hemispherical emissivity and effective temperature from a
+    spectral longwave sky on LONGWAVE_UM, with a blackbody at T_air outside it (opaque
+    far infrared; the thermal sky below 4 um is negligible at terrestrial temperatures)."""
+    inside = np.trapz(lw_spectral, wl_um, axis=-1)
+    total_bb = STEFAN_BOLTZMANN * t_air ** 4 / np.pi
+    bb_inside = float(planck.band_radiance(t_air, [wl_um[0], wl_um[-1]]))
+    lw = inside + (total_bb - bb_inside)
+    mu = np.cos(np.radians(zenith_deg))
+    # hemispherical flux 2 pi int L mu dmu, trapezoid in mu with L(mu=0) = L(89 deg)
+    mus = np.append(mu, 0.0)
+    ls = np.append(lw, lw[-1])
+    flux = 2.0 * np.pi * abs(np.trapz(ls * mus, mus))
+    eps = flux / (STEFAN_BOLTZMANN * t_air ** 4)
+    return lw, float(eps), float((flux / STEFAN_BOLTZMANN) ** 0.25)
+
+
+
+def _mid_layer(t_air, p, rh, h_km):
+    """(T, RH, P) at the middle of the weather layer: 6.5 K/km lapse rate, hydrostatic pressure,
+    constant relative humidity (US Standard Atmosphere 1976 lapse rate)."""
+    t_mid = t_air - 6.5 * h_km / 2
+    p_mid = p * (t_mid / t_air) ** (9.80665 * 0.0289644 / (8.3144598 * 6.5e-3))
+    return (t_mid, rh, p_mid)
+
+
+def _profile_mid(profile: str, z0_km: float, h_km: float):
+    """(T, RH, P) of a standard profile at z0 + h/2 from its sea-level state: 6.5 K/km lapse
+    rate, hydrostatic pressure, water vapour density with a 2 km scale height."""
+    from humv_usd.physics.sky import water_vapour_pressure
+
+    t0, p0, rho0 = lt.PROFILE_SURFACE[profile]
+    z = z0_km + h_km / 2
+    t = t0 - 6.5 * z
+    p = p0 * (t / t0) ** (9.80665 * 0.0289644 / (8.3144598 * 6.5e-3))
+    e = rho0 * np.exp(-z / 2.0) * 1e-3 * 461.5 * t                 # [Pa]
+    return (t, float(min(e / water_vapour_pressure(t, 1.0), 1.0)), p)
+
+
+def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ran: dict):
+    """Sky, path and solar tables from LOWTRAN7 (raises LowtranError).
+
+    Runs: one infrared interval (the IR bands' span, extended to LONGWAVE_UM for the
+    broadband sky) for the sky: 4 runs per zenith angle; paths: one run per range per interval
+    (visible and infrared); direct sun: one run per zenith node per infrared interval.
+    """
+    g, a = scenario["general"], scenario["atmosphere"]
+    z0 = float(g["elevation_m"]) / 1e3
+    t_air, rh, p = w0["air_temperature_k"], w0["relative_humidity"], w0["pressure_pa"]
+    model = lt.PROFILE_MODEL[a["profile"]]
+    h = SKY_LAYER_KM
+    zen = SKY_ZENITH_DEG
+    sin_t = np.sin(np.radians(zen))
+    exit_zen = np.degrees(np.arcsin(EARTH_RADIUS_KM * sin_t / (EARTH_RADIUS_KM + z0 + h)))
+    # slant length through the layer on a spherical earth [km]
+    r0 = EARTH_RADIUS_KM + z0
+    length_km = np.sqrt((r0 + h) ** 2 - (r0 * sin_t) ** 2) - r0 * np.cos(np.radians(zen))
+    weather_mid = _mid_layer(t_air, p, rh, h)
+    profile_mid = _profile_mid(a["profile"], z0, h)
+
+    intervals = _intervals(bands)
+    vis = [iv for iv in intervals if iv[2] == VIS_STEP_CM]
+    ir_parts = [iv for iv in intervals if iv[2] == IR_STEP_CM]
+    ir = (min(iv[0] for iv in ir_parts), max(iv[1] for iv in ir_parts), IR_STEP_CM)
+
+    # --- sky: full profile + weather-layer perturbation (module doc) ---------------------------
+    sky_lo = min(ir[0], LONGWAVE_UM[0])
+    spec = lt.spectral_case(sky_lo, LONGWAVE_UM[1], IR_STEP_CM)
+    cases = ([dict(spec, model=model, itype=3, iemsct=1, h1=z0, angle=float(t)) for t in zen]
+             + [dict(spec, model=model, itype=3, iemsct=1, h1=z0 + h, angle=float(t))
+                for t in exit_zen]
+             + [dict(lt.layer_case(state[0], state[1], state[2], [z0 + h / 2]), **spec, itype=1,
+                     iemsct=1, h1=z0 + h / 2, range_km=float(s))
+                for state in (weather_mid, profile_mid) for s in length_km])
+    runs = run_cached(cases, ran, "sky")
+    n = zen.size
+    full, upper, low_w, low_p = runs[:n], runs[n:2 * n], runs[2 * n:3 * n], runs[3 * n:]
+    sky_wl = full[0].wavelengths_um
+    sky_ir = np.stack([f.radiance + (w.radiance - q.radiance)
+                       + (w.transmittance - q.transmittance) * u.radiance
+                       for f, u, w, q in zip(full, upper, low_w, low_p)])
+    sky_ir = np.maximum(sky_ir, 0.0)
+    ran["sky"] = (f"LOWTRAN7 thermal sky, {n} zenith angles: profile {a['profile']} "
+                  f"(MODEL {model}) with its lowest {h:g} km replaced by the weather (MODEL 7)")
+
+    # --- wavelength grid: visible samples + infrared samples inside the IR bands ----------------
+    in_ir = np.zeros(sky_wl.size, bool)
+    for lo, hi, _ in ir_parts:
+        in_ir |= (sky_wl >= lo - 1e-9) & (sky_wl <= hi + 1e-9)
+    vis_grid = _grid(bands)
+    vis_grid = vis_grid[vis_grid < SOLAR_SPLIT_UM]
+    grid = np.unique(np.concatenate([vis_grid, sky_wl[in_ir]]))
+    sky = np.zeros((n, grid.size))
+    sky[:, np.searchsorted(grid, sky_wl[in_ir])] = sky_ir[:, in_ir]
+
+    # --- broadband longwave sky for the thermal layer -----------------------------------------
+    sel = (sky_wl >= LONGWAVE_UM[0]) & (sky_wl <= LONGWAVE_UM[1])
+    broadband = _broadband(zen, sky_ir[:, sel], sky_wl[sel], t_air)
+
+    # --- paths ------------------------------------------------------------------------------
+    tau_m = np.ones((PATH_RANGES_M.size, grid.size))
+    rad_m = np.zeros((PATH_RANGES_M.size, grid.size))
+    flat = lt.layer_case(t_air, rh, p, [z0])
+    for lo, hi, step in vis + [ir]:
+        cases = [dict(flat, **lt.spectral_case(lo, hi, step), itype=1, iemsct=1, h1=z0,
+                      range_km=float(r) / 1e3) for r in PATH_RANGES_M]
+        runs = run_cached(cases, ran, f"paths {lo:.3g}-{hi:.3g} um")
+        wl = runs[0].wavelengths_um
+        for j, r in enumerate(runs):
+            tau_m[j] = _resample(grid, wl, r.transmittance, tau_m[j])
+            rad_m[j] = _resample(grid, wl, r.radiance, rad_m[j])
+    ran["paths"] = (f"LOWTRAN7 horizontal homogeneous paths (MODEL 7, weather), "
+                    f"{PATH_RANGES_M.size} ranges {PATH_RANGES_M[0]:g}-{PATH_RANGES_M[-1]:g} m, "
+                    "times Koschmieder/Kruse aerosol")
+
+    # --- direct sun beyond SOLAR_SPLIT_UM ---------------------------------------------------
+    solar = np.zeros((sun.times_s.size, grid.size))
+    if sun.up.any():
+        zs = sun.zenith_deg[sun.up]
+        z_nodes = np.unique(np.round(np.concatenate(
+            [[zs.min(), zs.max()], np.arange(np.ceil(zs.min()), np.floor(zs.max()) + 0.5, 1.0)]), 3))
+        cases = [dict(lt.spectral_case(*ir), model=model, itype=3, iemsct=3, h1=z0,
+                      angle=float(zz)) for zz in z_nodes]
+        runs = run_cached(cases, ran, "sun")
+        table = np.stack([_resample(grid, r.wavelengths_um, r.solar, np.zeros(grid.size))
+                          for r in runs])
+        factor = _earth_sun_factor(scenario, sun.times_s) * _cloud_dni_factor(sun, clear)
+        for i in np.flatnonzero(sun.up):
+            row = np.array([np.interp(sun.zenith_deg[i], z_nodes, table[:, k])
+                            for k in range(grid.size)])
+            solar[i] = np.where(grid >= SOLAR_SPLIT_UM, row * factor[i], 0.0)
+        ran["sun"] = (f"LOWTRAN7 direct transmitted sun (IEMSCT 3) >= {SOLAR_SPLIT_UM} um, "
+                      f"{z_nodes.size} zenith nodes")
+    return grid, sky, tau_m, rad_m, solar, broadband
+
+
+def _resample(grid, wl, values, default):
+    """values on wl put onto grid where grid lies inside wl's span (linear), else ``default``."""
+    inside = (grid >= wl[0] - 1e-9) & (grid <= wl[-1] + 1e-9)
+    out = np.array(default, dtype=float, copy=True)
+    out[inside] = np.interp(grid[inside], wl, values)
+    return out
+
+
+def _analytic_parts(scenario, w0: dict, bands, sun: SunState):
+    a = scenario["atmosphere"]
+    t_air, rh, p = w0["air_temperature_k"], w0["relative_humidity"], w0["pressure_pa"]
+    grid = _grid(bands)
+    zen = SKY_ZENITH_DEG
+    _, eps_sky = effective_sky_temperature(t_air, rh)
+    eps_theta = directional_sky_emissivity(zen, float(eps_sky))
+    bb = planck.spectral_radiance(grid, t_air) if grid.size else np.zeros(0)
+    sky = eps_theta[:, None] * bb[None, :]
+    k = (water_continuum_absorption(grid, t_air, rh, p) + aerosol_extinction(grid, a["visibility_km"])
+         + 0.0116e-3 * (grid / 0.55) ** -4.08 * (p / 101325.0))
+    tau = np.exp(-np.outer(PATH_RANGES_M, k))
+    rad = (1.0 - tau) * bb[None, :]
+    lw_bb = STEFAN_BOLTZMANN * t_air ** 4 / np.pi
+    longwave = eps_theta * lw_bb
+    broadband = (longwave, float(eps_sky), float(eps_sky) ** 0.25 * t_air)
+    solar = np.zeros((sun.times_s.size, grid.size))
+    if sun.up.any() and grid.size:
+        import pvlib
+
+        from humv_usd.environment.sun import utc_times
+        extra = np.asarray(pvlib.irradiance.get_extra_radiation(utc_times(scenario, sun.times_s)),
+                           dtype=float)
+        toa = (np.pi * SUN_ANGULAR_RADIUS ** 2 * planck.spectral_radiance(grid, SUN_TEMPERATURE_K))
+        for i in np.flatnonzero(sun.up):
+            solar[i] = np.where(grid >= SOLAR_SPLIT_UM,
+                                toa * extra[i] / 1361.0 * sun.dni_w_m2[i] / extra[i], 0.0)
+    return grid, sky, tau, rad, solar, broadband
+
+
+def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
+    """The scenario's :class:`Atmosphere` (see the module doc for what runs when).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    times_s : array-like, optional
+        Sample times of the sun terms [s after frame 0]; default :func:`frame_times`.
+    """
+    a = scenario["atmosphere"]
+    t = frame_times(scenario) if times_s is None else np.atleast_1d(np.asarray(times_s, float))
+    weather = weather_at(scenario, t)
+    w0 = weather_at(scenario, [0.0]).at(0)
+    sun = sun_at(scenario, t, weather)
+    clear = sun_at(scenario, t, dataclasses.replace(weather, cloud_cover=np.zeros_like(t)))
+    bands = sensor_bands(scenario)
+    ran: dict = {"weather": "frame 0: " + ", ".join(f"{k}={v:g}" for k, v in w0.items())}
+    has_ir = bool(scenario.infrared_sensors)
+    source = "analytic"
+    parts = None
+    if not bands:
+        ran["lowtran7"] = "skipped: no sensor"
+    elif a["model"] == "analytic":
+        ran["lowtran7"] = "skipped: [atmosphere] model = analytic"
+    elif not has_ir:
+        ran["lowtran7"] = "skipped: no infrared sensor"
+    else:
+        try:
+            parts = _lowtran_parts(scenario, w0, bands, sun, clear, ran)
+            source = "lowtran7"
+            ran["lowtran7"] = "ran"
+        except lt.LowtranError as e:
+            msg = f"{e}; using the analytic atmosphere (Berdahl-Martin sky, Roberts continuum path)"
+            warnings.warn(msg, RuntimeWarning, stacklevel=2)
+            print(f"humv-usd: warning: {msg}", file=sys.stderr)
+            ran["lowtran7"] = f"failed: {e}"
+    if parts is None:
+        parts = _analytic_parts(scenario, w0, bands, sun)
+        if bands:
+            ran["sky"] = "analytic: Berdahl-Martin emissivity, Martin-Berdahl angular law, gray"
+            ran["paths"] = "analytic: Roberts water continuum, Kruse aerosol, Rayleigh"
+    grid, sky, tau_m, rad_m, solar, (lw, eps, t_sky) = parts
+    if source == "lowtran7" and grid.size:
+        # aerosol (absent from the wrapper's runs) as an absorbing, isothermal extinction
+        tau_a = np.exp(-np.outer(PATH_RANGES_M, aerosol_extinction(grid, a["visibility_km"])))
+        rad_m = rad_m + tau_m * (1.0 - tau_a) * planck.spectral_radiance(grid, w0["air_temperature_k"])
+        tau_m = tau_m * tau_a
+    dni_s, dhi_s = _spectrl2(sun, weather, scenario, grid)
+    solar = solar + dni_s
+    diffuse = dhi_s / np.pi
+    if not sun.up.any():
+        ran["sun"] = "skipped: sun below the horizon at every frame"
+    elif grid.size and (grid < SOLAR_SPLIT_UM).any():
+        ran["skylight"] = f"SPCTRL2 direct and isotropic diffuse < {SOLAR_SPLIT_UM} um"
+    return Atmosphere(source=source, wavelengths_um=grid, sky_zenith_deg=SKY_ZENITH_DEG.copy(),
+                      sky_radiance=sky, times_s=t, diffuse_radiance=diffuse,
+                      path_ranges_m=PATH_RANGES_M.copy(), path_transmittance=tau_m,
+                      path_radiance=rad_m, solar=solar, longwave_radiance=np.asarray(lw, float),
+                      sky_emissivity=eps, sky_temperature_k=t_sky,
+                      air_temperature_k=float(w0["air_temperature_k"]), profile=a["profile"],
+                      ran=ran)

@@ -1,0 +1,269 @@
+"""The render's ground-truth step: one call per sensor and frame, one at the end.
+
+``GroundTruth(stage, annotators)`` is made once per render; :meth:`GroundTruth.annotate` takes the
+Mitsuba scene (for the exact pixel-centre ray cast, :meth:`humv_usd.render.ir.IRScene.hits`),
+the frame's :class:`~humv_usd.render.export.FrameState` and the sensor, and returns the label
+channels for the EXR plus the per-object annotations (also written next to the frame:
+``<frame>.objects.json`` and the PNG masks); :meth:`GroundTruth.finish` writes ``coco.json`` and
+``regions.json`` and returns the manifest's ``ground_truth`` section (what ran and what it cost).
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from pxr import Usd, UsdGeom
+
+from humv_usd.errors import InputError
+from humv_usd.groundtruth import annotators as A
+from humv_usd.groundtruth import boxes as B
+from humv_usd.groundtruth import keypoints as K
+from humv_usd.groundtruth import labels as L
+from humv_usd.groundtruth import regions as R
+from humv_usd.groundtruth.camera import Camera
+from humv_usd.groundtruth.coco import CocoBuilder
+from humv_usd.render import writers
+
+#: EXR channels this package adds, with units (depth and instance_id are the render's).
+CHANNELS = {
+    "class_id": "1 (integer; humv_usd.groundtruth.labels.CLASSES: 0 background, 1 person, 2 ground, "
+                "3 building, 4 prop, 5 panel, 6 vegetation, 7 vehicle, 8 other)",
+    "material_kind": "1 (integer; 0 background, 1 skin, 2 garment, 3 prop, 4 scene)",
+    "body_region": "1 (integer; humv_usd.avatar.labels.BODY_REGIONS ids, 0 = not the body)",
+    "jos3_segment": "1 (integer; 0-based JOS-3 segment, -1 = none)",
+    "normal_x": "1 (world space, x east; unit geometric normal of the hit triangle, front side; 0 for sky)",
+    "normal_y": "1 (world space, y north)",
+    "normal_z": "1 (world space, z up)",
+    "surface_temperature": "K (kinetic temperature of the hit face; NaN for sky)",
+    "emissivity": "1 (band emissivity of the hit material for this sensor; NaN for sky)",
+}
+_CHANNELS_OF = {"semantic": ("class_id", "material_kind"), "body_region": ("body_region", "jos3_segment"),
+                "normal": ("normal_x", "normal_y", "normal_z"),
+                "surface": ("surface_temperature", "emissivity")}
+COCO_NAME = "coco.json"
+
+
+@dataclass
+class ImageTruth:
+    depth: np.ndarray
+    instance: np.ndarray
+    channels: dict[str, np.ndarray]
+    objects: list[dict] = field(default_factory=list)
+
+
+def _safe_emissivity(emissivity_of, part) -> float:
+    """Band emissivity of a part, NaN where the material's table does not cover the band."""
+    try:
+        return float(emissivity_of(part))
+    except InputError:
+        return float("nan")
+
+
+class GroundTruth:
+    """Ground truth of one render (see the module doc).
+
+    Parameters
+    ----------
+    stage : Usd.Stage
+        The composed stage being rendered.
+    annotators : list of str, optional
+        Annotator names (:data:`humv_usd.groundtruth.annotators.ANNOTATORS`); default: the
+        stage's list (root layer customLayerData, from the scenario's ``[annotations]``), else
+        the default set.
+    """
+
+    def __init__(self, stage: Usd.Stage, annotators=None):
+        self.stage = stage
+        if annotators is None:
+            self.annotators, self.source = A.from_stage(stage)
+        else:
+            self.annotators, self.source = A.resolve(list(annotators) if not isinstance(annotators, str) else annotators), "argument"
+        self.want = set(self.annotators)
+        self.timings = dict.fromkeys(("ray_cast",) + self.annotators, 0.0)
+        self._mesh_labels: dict[str, L.MeshLabels] = {}
+        self._objects: dict[str, L.ObjectInfo] = {}
+        self._keypoint_prims = None
+        self.coco = CocoBuilder() if "coco" in self.want else None
+        self.images: list[dict] = []
+
+    def _tick(self, name, t0):
+        t = time.perf_counter()
+        self.timings[name] = self.timings.get(name, 0.0) + t - t0
+        return t
+
+    # --- per mesh --------------------------------------------------------------------------
+    def _labels(self, mesh) -> L.MeshLabels:
+        if mesh.path not in self._mesh_labels:
+            self._mesh_labels[mesh.path] = L.mesh_labels(self.stage.GetPrimAtPath(mesh.path), mesh.face_count)
+        return self._mesh_labels[mesh.path]
+
+    def _object(self, mesh_path: str) -> L.ObjectInfo:
+        if mesh_path not in self._objects:
+            self._objects[mesh_path] = L.object_info(self.stage.GetPrimAtPath(mesh_path))
+        return self._objects[mesh_path]
+
+    # --- per sensor and frame ----------------------------------------------------------------
+    def annotate(self, scene, sensor_id: str, sensor, state, emissivity_of, out_dir: str, rel: str) -> ImageTruth:
+        """Labels of one sensor at one frame.
+
+        ``scene`` is the render's :class:`~humv_usd.render.ir.IRScene`, ``sensor`` the
+        :class:`~humv_usd.render.export.Sensor`, ``state`` the frame's FrameState,
+        ``emissivity_of(part)`` the band emissivity of a part's material for this sensor;
+        ``rel`` the frame's output path without extension, relative to ``out_dir``.
+        """
+        t = time.perf_counter()
+        hits = scene.hits(sensor_id)
+        t = self._tick("ray_cast", t)
+        want = self.want
+        channels: dict[str, np.ndarray] = {}
+        parts = scene.parts
+        images = {}
+        tables = None
+        if want & {"semantic", "body_region", "surface", "keypoints", "masks"}:
+            meshes = {m.path: m for m in state.meshes}
+            labels = {path: self._labels(m) for path, m in meshes.items()}
+            eps = [_safe_emissivity(emissivity_of, p) for p in parts] if "surface" in want else [np.nan] * len(parts)
+            tables = L.PartTables(parts, labels, state.temperatures, eps)
+            images = tables.images(hits.part, hits.triangle)
+            t = self._tick("label_tables", t)
+        for name, chans in _CHANNELS_OF.items():
+            if name not in want:
+                continue
+            if name == "normal":
+                for k, c in enumerate(chans):
+                    channels[c] = hits.normal[..., k]
+            else:
+                for c in chans:
+                    channels[c] = images[c]
+        h, w = hits.instance.shape
+        camera = Camera.from_pose(state.cameras[sensor.name], w, h)
+        if "masks" in want:
+            writers.write_png(os.path.join(out_dir, rel + ".instance.png"), L.colour_instances(hits.instance))
+            writers.write_png(os.path.join(out_dir, rel + ".region.png"), L.colour_regions(images["body_region"]))
+            writers.write_png(os.path.join(out_dir, rel + ".region_ids.png"),
+                              np.asarray(images["body_region"], dtype=np.uint8))
+            t = self._tick("masks", t)
+        objects = []
+        if want & {"boxes", "keypoints", "occlusion", "coco"}:
+            objects = self._objects_of(scene, tables, parts, state, camera, hits, sensor)
+        if want & {"boxes", "keypoints", "occlusion"}:
+            writers.write_json(os.path.join(out_dir, rel + ".objects.json"), {
+                "sensor": sensor.name, "frame": state.frame, "width": w, "height": h, "objects": objects})
+        if self.coco is not None:
+            t = time.perf_counter()
+            image_id = self.coco.add_image(rel + ".png", w, h, humv_sensor=sensor.name, humv_frame=state.frame,
+                                           humv_exr=rel + ".exr")
+            for obj in objects:
+                self.coco.add_object(image_id, hits.instance == obj["instance_id"], obj)
+            self._tick("coco", t)
+        self.images.append({"sensor": sensor.name, "frame": state.frame, "exr": rel + ".exr"})
+        return ImageTruth(depth=hits.depth, instance=hits.instance, channels=channels, objects=objects)
+
+    @staticmethod
+    def _first_hit(scene, camera, tables, directions):
+        """(depth along the axis [m], instance id, body region) of the first surface on rays
+        from the camera centre (keypoint visibility)."""
+        t, part, tri = scene.cast(camera.origin, directions)
+        hit = part >= 0
+        instance = np.array([scene.parts[p].instance_id if p >= 0 else 0 for p in part])
+        return np.where(hit, t * (directions @ camera.forward), np.inf), instance, tables.region_at(part, tri)
+
+    def _objects_of(self, scene, tables, parts, state, camera, hits, sensor) -> list[dict]:
+        want = self.want
+        by_id: dict[int, list] = {}
+        for p in parts:
+            if p.instance_id > 0:
+                by_id.setdefault(int(p.instance_id), []).append(p)
+        persons = {}
+        if "keypoints" in want:
+            if self._keypoint_prims is None:
+                self._keypoint_prims = K.find_keypoint_prims(self.stage)
+            cache = UsdGeom.XformCache(Usd.TimeCode(state.frame))
+            for prim in self._keypoint_prims:
+                info = L.object_info(prim)
+                if info.instance_id in by_id:
+                    persons[info.instance_id] = K.world_keypoints(prim, state.frame, cache)
+        objects = []
+        for ident, ps in sorted(by_id.items()):
+            info = min((self._object(p.mesh_path) for p in ps), key=lambda o: len(o.prim))
+            mask = hits.instance == ident
+            obj = {"instance_id": ident, "class": info.class_name, "prim": info.prim,
+                   "visible_pixels": int(mask.sum())}
+            box_full = None
+            if want & {"boxes", "occlusion", "coco"}:
+                t = time.perf_counter()
+                verts, tris = [], []
+                n = 0
+                for p in ps:
+                    v = state.points[p.mesh_path][p.vertex_ids]
+                    verts.append(v)
+                    tris.append(p.triangles + n)
+                    n += len(v)
+                verts = np.concatenate(verts)
+                tris = np.concatenate(tris)
+                box_full = B.full_box(camera, verts[tris])
+                if "boxes" in want or "coco" in want:
+                    obj["box_full"] = box_full
+                    obj["box_visible"] = B.visible_box(mask)
+                    obj["box_3d"] = B.box_3d(verts)
+                t = self._tick("boxes" if "boxes" in want else "coco", t)
+                if "occlusion" in want:
+                    unoccluded = B.unoccluded_mask(camera, verts, tris, box_full, visible=mask)
+                    obj["unoccluded_pixels"] = int(unoccluded.sum())
+                    obj["occlusion"] = B.occlusion_fraction(int((mask & unoccluded).sum()), int(unoccluded.sum()))
+                    t = self._tick("occlusion", t)
+            if "keypoints" in want and info.class_name == "person":
+                t = time.perf_counter()
+                kp = persons.get(ident)
+                if kp is None:
+                    obj["keypoints"] = [0.0, 0.0, 0] * 17
+                else:
+                    vis = K.keypoint_visibility(camera, kp, ident, lambda d: self._first_hit(scene, camera, tables, d))
+                    obj["keypoints"] = vis["keypoints"]
+                    obj["keypoints_world_m"] = kp.tolist()
+                    obj["keypoints_depth_m"] = vis["depth_m"].tolist()
+                t = self._tick("keypoints", t)
+            objects.append(obj)
+        return objects
+
+    # --- end of render ----------------------------------------------------------------------
+    def finish(self, out_dir: str, render_seconds: float | None = None) -> dict:
+        """Write coco.json / regions.json; the manifest's ``ground_truth`` section."""
+        files = {}
+        if self.coco is not None:
+            t = time.perf_counter()
+            self.coco.info = {"stage": self.stage.GetRootLayer().realPath}
+            self.coco.write(os.path.join(out_dir, COCO_NAME))
+            files["coco"] = COCO_NAME
+            self._tick("coco", t)
+        if "regions" in self.want and self.images:
+            t = time.perf_counter()
+            records = R.images_regions(out_dir, self.images)
+            R.write_regions(out_dir, records)
+            files["regions"] = R.REGIONS_NAME
+            self._tick("regions", t)
+        total = sum(self.timings.values())
+        per_frame = []
+        if "masks" in self.want:
+            per_frame += ["<frame>.instance.png", "<frame>.region.png", "<frame>.region_ids.png"]
+        if self.want & {"boxes", "keypoints", "occlusion"}:
+            per_frame.append("<frame>.objects.json")
+        return {
+            "annotators": list(self.annotators), "source": self.source,
+            "available": list(A.ANNOTATORS),
+            "channels": {c: CHANNELS[c] for name, chans in _CHANNELS_OF.items() if name in self.want for c in chans},
+            "files": files, "per_frame_files": per_frame,
+            "labels": "one ray per pixel centre from the render's own Mitsuba sensor (exact, no Monte Carlo)",
+            "keypoint_visibility": {"tolerance_m": K.KEYPOINT_TOLERANCE_M, "regions": K.KEYPOINT_REGIONS},
+            "timings_s": {**self.timings, "total": total},
+            "timings_note": "ray_cast: the pixel-centre ray cast (depth, instance_id, normals); semantic, "
+                            "body_region and surface channels come from one table lookup (label_tables); "
+                            "per-frame PNG/JSON writes are in their annotator's time",
+            "cost_relative_to_render": (total / render_seconds) if render_seconds else None,
+        }
+
+    def channel_units(self) -> dict:
+        return {c: {"unit": CHANNELS[c], "dtype": "float32"}
+                for name, chans in _CHANNELS_OF.items() if name in self.want for c in chans}

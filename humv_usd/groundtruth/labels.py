@@ -1,0 +1,215 @@
+"""Per-face label tables read from USD, and per-pixel label images from the render's ray cast.
+
+Per mesh (read once, by attribute name, instance proxies included):
+
+- ``class``: ``humv:label:class`` of the mesh or its nearest ancestor that has one (authored,
+  or the HumvLabelAPI fallback "other" where the API is applied); ids :data:`CLASSES`.
+- material kind (:data:`KINDS`): ``garment`` for a mesh with HumvClothingAPI or
+  ``humv:clothing:garment``; ``skin`` for a mesh with a ``primvars:humv:label:bodyRegion`` that is
+  not a garment (a person's body); ``prop`` for class ``prop`` (carried or in the scene);
+  ``scene`` otherwise; ``background`` (0) where no surface is hit.
+- body region per authored face: ``primvars:humv:label:bodyRegion`` (ids of
+  :data:`humv_usd.avatar.labels.BODY_REGIONS`, 0 = not the body); 0 where absent.
+- JOS-3 segment per face: ``primvars:humv:label:jos3Segment`` (0-based, JOS-3 order) or, where
+  absent, derived from the region (:data:`humv_usd.avatar.labels.REGION_TO_JOS3`); -1 = none.
+
+An object is an instance id. Its class is the one at the prim that carries the id (the
+"id prim", e.g. the person's SkelRoot), so a garment with its own ``class`` does not change
+the person's class, and a prop with its own id is its own object.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pxr import Usd, UsdGeom
+
+from humv_usd.avatar import labels as AL
+from humv_usd.errors import InputError, bad_value
+from humv_usd.usd import schemas as S
+
+#: Class ids (index = id): 0 background, then the HumvLabelAPI tokens in the schema's order.
+CLASSES: tuple[str, ...] = ("background", "person", "ground", "building", "prop", "panel",
+                            "vegetation", "vehicle", "other")
+CLASS_ID = {name: i for i, name in enumerate(CLASSES)}
+#: Material kinds (index = id).
+KINDS: tuple[str, ...] = ("background", "skin", "garment", "prop", "scene")
+KIND_ID = {name: i for i, name in enumerate(KINDS)}
+#: JOS-3 segment value of pixels that are not on a body region.
+NO_SEGMENT = -1
+
+_REGION_TO_SEGMENT = np.full(len(AL.BODY_REGION_NAMES), NO_SEGMENT, dtype=np.int32)
+for _rid, _name in AL.BODY_REGIONS:
+    _REGION_TO_SEGMENT[_rid] = AL.JOS3_SEGMENTS.index(AL.REGION_TO_JOS3[_name])
+
+
+@dataclass
+class MeshLabels:
+    path: str
+    class_id: int
+    kind: int
+    region: np.ndarray   # (F,) int32 per authored face
+    segment: np.ndarray  # (F,) int32 per authored face
+
+
+@dataclass
+class ObjectInfo:
+    instance_id: int
+    prim: str            # the prim that carries the instance id
+    class_name: str
+
+
+def _label_api(prim) -> bool:
+    return S.LABEL_API in prim.GetAppliedSchemas()
+
+
+def _nearest(prim: Usd.Prim, name: str, api_fallback: bool):
+    p = prim
+    while p and p.IsValid() and not p.IsPseudoRoot():
+        attr = p.GetAttribute(name)
+        if attr and (attr.HasAuthoredValue() or (api_fallback and _label_api(p) and attr.Get() is not None)):
+            return p, attr.Get()
+        p = p.GetParent()
+    return None, None
+
+
+def class_of(prim: Usd.Prim) -> str:
+    """The class token of ``prim`` or its nearest ancestor with one ("other" when none)."""
+    where, value = _nearest(prim, S.LABEL_CLASS, api_fallback=True)
+    if where is None:
+        return "other"
+    value = str(value)
+    if value not in CLASS_ID:
+        raise InputError(bad_value(f"{where.GetPath()}.{S.LABEL_CLASS}", value,
+                                   "expected one of " + ", ".join(CLASSES[1:])))
+    return value
+
+
+def object_info(prim: Usd.Prim) -> ObjectInfo:
+    """The object (instance) a mesh belongs to: id, the prim carrying it, and its class."""
+    where, value = _nearest(prim, S.LABEL_INSTANCE_ID, api_fallback=False)
+    if where is None:
+        return ObjectInfo(0, "", "background")
+    return ObjectInfo(int(value), str(where.GetPath()), class_of(where))
+
+
+def _face_ints(prim: Usd.Prim, name: str, faces: int, lo: int, hi: int) -> np.ndarray | None:
+    attr = prim.GetAttribute(name)
+    if not attr or not attr.HasValue():
+        return None
+    primvar = UsdGeom.Primvar(attr)
+    values = primvar.ComputeFlattened() if primvar else attr.Get()
+    a = np.asarray(values if values is not None else [], dtype=np.int64).ravel()
+    where = f"{prim.GetPath()}.{name}"
+    if a.size != faces:
+        raise InputError(bad_value(where, f"<{a.size} values>", f"expected {faces} values (one per authored face, uniform)"))
+    if a.size and (a.min() < lo or a.max() > hi):
+        raise InputError(bad_value(where, f"<range {a.min()}..{a.max()}>", f"expected ids in {lo}..{hi}"))
+    return a.astype(np.int32)
+
+
+def mesh_labels(prim: Usd.Prim, face_count: int) -> MeshLabels:
+    """Class, material kind, and per-face region and JOS-3 segment of one mesh (see module doc)."""
+    cls = class_of(prim)
+    region = _face_ints(prim, AL.BODY_REGION_PRIMVAR, face_count, 0, len(AL.BODY_REGIONS))
+    segment = _face_ints(prim, AL.JOS3_SEGMENT_PRIMVAR, face_count, 0, len(AL.JOS3_SEGMENTS) - 1)
+    garment = S.CLOTHING_API in prim.GetAppliedSchemas() or bool(
+        prim.GetAttribute(S.CLOTHING_GARMENT) and prim.GetAttribute(S.CLOTHING_GARMENT).HasAuthoredValue())
+    if garment:
+        kind = "garment"
+    elif region is not None:
+        kind = "skin"
+    elif cls == "prop":
+        kind = "prop"
+    else:
+        kind = "scene"
+    if region is None:
+        region = np.zeros(face_count, dtype=np.int32)
+    if segment is None:
+        segment = _REGION_TO_SEGMENT[region]
+    return MeshLabels(str(prim.GetPath()), CLASS_ID[cls], KIND_ID[kind], region, segment)
+
+
+class PartTables:
+    """Concatenated per-triangle label arrays of the render's parts, indexed by (part, triangle).
+
+    Built per frame and sensor from the meshes' :class:`MeshLabels`, the frame's face
+    temperatures and the parts' band emissivities.
+    """
+
+    def __init__(self, parts, labels: dict[str, MeshLabels], temperatures: dict[str, np.ndarray],
+                 emissivity: list[float]):
+        sizes = np.array([len(p.triangle_face) for p in parts], dtype=np.int64)
+        self.offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]) if len(parts) else np.zeros(0, np.int64)
+        self.class_id = np.array([labels[p.mesh_path].class_id for p in parts], dtype=np.int32)
+        self.kind = np.array([labels[p.mesh_path].kind for p in parts], dtype=np.int32)
+        self.emissivity = np.asarray(emissivity, dtype=float)
+        cat = (lambda xs, dt: np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt))
+        self.region = cat([labels[p.mesh_path].region[p.triangle_face] for p in parts], np.int32)
+        self.segment = cat([labels[p.mesh_path].segment[p.triangle_face] for p in parts], np.int32)
+        self.temperature = cat([temperatures[p.mesh_path][p.triangle_face] for p in parts], float)
+
+    def region_at(self, part: np.ndarray, triangle: np.ndarray) -> np.ndarray:
+        """Body region id of hits given as (part, triangle) indices (-1 = miss -> 0)."""
+        part, triangle = np.asarray(part), np.asarray(triangle)
+        hit = part >= 0
+        if not self.region.size:
+            return np.zeros(part.shape, dtype=np.int32)
+        g = self.offset[np.where(hit, part, 0)] + np.where(hit, triangle, 0)
+        return np.where(hit, self.region[g], 0)
+
+    def images(self, part: np.ndarray, triangle: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-pixel label images from the ray cast's part and triangle indices (-1 = sky)."""
+        hit = part >= 0
+        p = np.where(hit, part, 0)
+        g = np.where(hit, self.offset[p] + np.where(hit, triangle, 0), 0) if len(self.offset) else p
+        out = {
+            "class_id": np.where(hit, self.class_id[p] if len(self.class_id) else 0, 0),
+            "material_kind": np.where(hit, self.kind[p] if len(self.kind) else 0, 0),
+            "body_region": np.where(hit, self.region[g] if self.region.size else 0, 0),
+            "jos3_segment": np.where(hit, self.segment[g] if self.segment.size else 0, NO_SEGMENT),
+            "surface_temperature": np.where(hit, self.temperature[g] if self.temperature.size else 0, np.nan),
+            "emissivity": np.where(hit, self.emissivity[p] if self.emissivity.size else 0, np.nan),
+        }
+        return out
+
+
+# --------------------------------------------------------------------------- colour masks
+def _hsv_to_rgb(h, s, v):
+    i = np.floor(h * 6.0).astype(int) % 6
+    f = h * 6.0 - np.floor(h * 6.0)
+    p, q, t = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
+    table = np.stack([np.stack(c, -1) for c in ((v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v), (v, p, q))])
+    return table[i, np.arange(len(h))]
+
+
+def instance_colours(ids) -> np.ndarray:
+    """RGB uint8 colour of each instance id: hue steps by the golden ratio (neighbours differ);
+    id 0 (background) is black."""
+    ids = np.asarray(ids, dtype=np.int64).ravel()
+    h = (ids * 0.6180339887498949) % 1.0
+    s = np.where(ids % 2 == 0, 0.65, 0.9)
+    v = np.where(ids % 3 == 0, 0.75, 0.95)
+    rgb = np.rint(_hsv_to_rgb(h, s, v) * 255).astype(np.uint8)
+    rgb[ids == 0] = 0
+    return rgb
+
+
+#: RGB colour per body region id (index = id; 0 = black): matplotlib's tab20, which has 20.
+REGION_COLOURS = np.array([
+    (0, 0, 0), (31, 119, 180), (174, 199, 232), (255, 127, 14), (255, 187, 120), (44, 160, 44),
+    (152, 223, 138), (214, 39, 40), (255, 152, 150), (148, 103, 189), (197, 176, 213),
+    (140, 86, 75), (196, 156, 148), (227, 119, 194), (247, 182, 210), (127, 127, 127),
+    (199, 199, 199), (188, 189, 34), (219, 219, 141), (23, 190, 207)], dtype=np.uint8)
+assert len(REGION_COLOURS) == len(AL.BODY_REGION_NAMES)
+
+
+def colour_instances(instance: np.ndarray) -> np.ndarray:
+    """(H, W) instance ids -> (H, W, 3) uint8 colour-coded mask."""
+    ids, inverse = np.unique(np.asarray(instance, dtype=np.int64), return_inverse=True)
+    return instance_colours(ids)[inverse].reshape(np.shape(instance) + (3,))
+
+
+def colour_regions(region: np.ndarray) -> np.ndarray:
+    """(H, W) body region ids -> (H, W, 3) uint8 colour-coded mask (:data:`REGION_COLOURS`)."""
+    return REGION_COLOURS[np.clip(np.asarray(region, dtype=np.int64), 0, len(REGION_COLOURS) - 1)]

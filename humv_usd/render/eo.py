@@ -1,0 +1,358 @@
+"""Visible (EO) rendering with Mitsuba's spectral variant: reflectance spectra, sun and sky.
+
+Radiometry (opaque Lambertian surfaces, no emission in the visible)
+-----------------------------------------------------------------
+Each part reflects diffusely with its material's spectral reflectance
+``humv:material:reflectance`` on ``humv:material:wavelengths`` (linear, held beyond the ends),
+sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spectrum. Illumination:
+
+- the sun: a ``directional`` emitter along ``humv:environment:sunDirection`` with the direct
+  beam spectral irradiance at the ground ``humv:atmosphere:solarSpectralIrradiance``
+  (beam-normal, W m-2 um-1 -> W m-2 nm-1); none when the sun is below the horizon;
+- the sky: a ``constant`` environment with, per wavelength, the cosine-weighted hemispherical
+  mean of ``humv:atmosphere:skySpectralRadiance`` against zenith (the uniform sky that gives the
+  same irradiance on a horizontal surface; its angular structure is not kept in the visible).
+
+No atmospheric path (transmittance, path radiance) is applied between the surfaces and the
+camera in the visible (ranges of tens of metres; the IR render applies it).
+
+Colour: the film integrates the spectrum against the CIE 1931 2° colour-matching functions and
+gives CIE XYZ normalised so that a constant spectral radiance :math:`L` [W m-2 sr-1 nm-1] has
+:math:`Y = L` (Mitsuba divides by :math:`\\int\\bar y\\,d\\lambda` = 106.857 nm): the luminance is
+:math:`683\\,\\mathrm{lm\\,W^{-1}} \\times 106.857\\,\\mathrm{nm} \\times Y` [cd m-2]. XYZ goes to
+linear sRGB (D65) with ``colour.XYZ_to_sRGB`` (colour-science; CIE 1931 and IEC 61966-2-1).
+
+Closed-form check: a white Lambertian plate (:math:`\\rho = 1`) under a beam of spectral
+irradiance :math:`E` at incidence :math:`\\theta` has radiance :math:`E\\rho\\cos\\theta/\\pi`
+(tests/test_render_eo.py).
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from humv_usd.render import mode
+from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply  # noqa: F401
+from humv_usd.render.radiometry import hemisphere_mean
+
+#: Wavelength grid of the Mitsuba spectra [nm] (Mitsuba's spectral variants sample 360-830 nm).
+EO_STEP_NM = 5.0
+EO_WAVELENGTHS_NM = np.arange(360.0, 830.0 + 0.5 * EO_STEP_NM, EO_STEP_NM)
+#: The visible range an EO render needs covered by the illumination tables [um] (within 0.01 um);
+#: beyond it, up to Mitsuba's 360-830 nm, the tables are held at their end values (the CIE
+#: colour-matching functions carry ~1 % of their weight there).
+EO_RANGE_UM = (0.40, 0.70)
+#: Mitsuba's normalisation of Y: the integral of the CIE 1931 y-bar over 360-830 nm [nm].
+CIE_Y_INTEGRAL_NM = 106.856895
+#: Maximum luminous efficacy [lm W-1].
+KM_LM_PER_W = 683.0
+#: Spectra are never exactly zero in Mitsuba (its spectrum sampling needs probability mass);
+#: "off" emitters get this value and a sampling weight of 0.
+TINY = 1e-12
+#: PNG preview exposure (without the sensor chain): this percentile of Y maps to PREVIEW_WHITE.
+PREVIEW_PERCENTILE = 99.0
+PREVIEW_WHITE = 0.9
+
+
+def _spectrum(values_nm_grid) -> dict:
+    """A Mitsuba ``regular`` spectrum on :data:`EO_WAVELENGTHS_NM` (never collapsed to a uniform
+    one, so its values stay updatable per frame)."""
+    v = np.maximum(np.asarray(values_nm_grid, dtype=float), TINY)
+    return {"type": "regular", "wavelength_min": float(EO_WAVELENGTHS_NM[0]),
+            "wavelength_max": float(EO_WAVELENGTHS_NM[-1]), "values": ", ".join(f"{x:.9g}" for x in v)}
+
+
+def reflectance_spectrum(material) -> np.ndarray:
+    """A material's reflectance on :data:`EO_WAVELENGTHS_NM` (linear, held beyond the table)."""
+    wl = np.asarray(material.wavelengths_um, dtype=float)
+    rho = np.asarray(material.reflectance, dtype=float)
+    if wl.size == 1:
+        return np.full(EO_WAVELENGTHS_NM.size, float(rho[0]))
+    return np.clip(np.interp(EO_WAVELENGTHS_NM / 1000.0, wl, rho), 0.0, 1.0)
+
+
+def illumination(spectra, sun_direction) -> tuple[np.ndarray | None, np.ndarray | None, dict]:
+    """Sun irradiance and uniform-sky radiance on :data:`EO_WAVELENGTHS_NM`, per nm, and notes.
+
+    Returns (sun [W m-2 nm-1] or None, sky [W m-2 sr-1 nm-1] or None, ran).
+    """
+    ran: dict = {}
+    wl = None if spectra is None else spectra.wavelengths_um
+    covered = wl is not None and wl.size > 1 and wl[0] <= EO_RANGE_UM[0] + 0.01 and wl[-1] >= EO_RANGE_UM[1] - 0.01
+    x = EO_WAVELENGTHS_NM / 1000.0
+    sun = sky = None
+    if not covered:
+        ran["sun"] = ran["sky"] = "skipped: no atmosphere spectra covering 0.40-0.70 um"
+        return None, None, ran
+    if spectra.solar_irradiance is None:
+        ran["sun"] = "skipped: no humv:atmosphere:solarSpectralIrradiance"
+    elif sun_direction is None:
+        ran["sun"] = "skipped: no humv:environment:sunDirection"
+    elif sun_direction[2] <= 0:
+        ran["sun"] = "skipped: sun below the horizon (night)"
+    else:
+        sun = np.interp(x, wl, spectra.solar_irradiance) / 1000.0
+        ran["sun"] = "directional, spectral irradiance from humv:atmosphere:solarSpectralIrradiance"
+    if spectra.sky_radiance is None:
+        ran["sky"] = "skipped: no humv:atmosphere:skySpectralRadiance"
+    else:
+        per_wl = np.array([hemisphere_mean(spectra.sky_zenith_deg, spectra.sky_radiance[:, j])
+                           for j in range(wl.size)])
+        sky = np.interp(x, wl, per_wl) / 1000.0
+        ran["sky"] = "uniform, cosine-weighted hemispherical mean of humv:atmosphere:skySpectralRadiance"
+    return sun, sky, ran
+
+
+class EOScene(IRScene):
+    """The Mitsuba scene of the EO sensors (spectral variant), built once per mesh topology.
+
+    Shares vertex and camera updates and the label ray cast (:meth:`IRScene.hits`) with
+    :class:`~humv_usd.render.ir.IRScene`; surfaces only reflect.
+
+    Parameters
+    ----------
+    parts : list of (Part, vertices, flip)
+        Every material must carry a reflectance (``Material.reflectance``).
+    sensors : list of SensorSetup
+    spp, max_depth : int
+    workdir : path-like
+    sky, sun : bool
+        Include the uniform sky / the sun.
+    """
+
+    spectral = True
+
+    def __init__(self, parts, sensors: list[SensorSetup], spp: int, max_depth: int, workdir,
+                 sky: bool = True, sun: bool = True):
+        mi = mode.mitsuba(spectral=True)
+        self.mi = mi
+        self.scalar = not mode.is_vectorized()
+        self.parts = [p for p, _, _ in parts]
+        self.sensors = {s.id: s for s in sensors}
+        self.sky_map = False
+        self.has_sun = bool(sun)
+        self.has_sky = bool(sky)
+        scene: dict = {
+            "type": "scene",
+            "integrator": {"type": "moment", "nested": {"type": "path", "max_depth": int(max_depth)}},
+        }
+        if self.has_sky:
+            scene["sky"] = {"type": "constant", "radiance": _spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY))}
+        if self.has_sun:
+            scene["sun"] = {"type": "directional", "direction": [0.0, 0.0, -1.0],
+                            "irradiance": _spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY))}
+        for s in sensors:
+            scene[s.id] = {
+                "type": "perspective", "fov": float(s.pose.fov_x_deg), "fov_axis": "x",
+                "near_clip": 1e-3, "far_clip": 1e8,
+                "to_world": _look_at(mi, s.pose),
+                "film": {"type": "hdrfilm", "width": int(s.width), "height": int(s.height),
+                         "pixel_format": "xyz", "component_format": "float32", "rfilter": {"type": "box"}},
+                "sampler": {"type": "independent", "sample_count": int(spp)},
+            }
+        for part, vertices, flip in parts:
+            tris = part.triangles[:, [0, 2, 1]] if flip else part.triangles
+            filename = os.path.join(str(workdir), f"eo_{part.key}.ply")
+            write_ply(filename, vertices, tris, {"instance_0": np.full(len(tris), float(part.instance_id))})
+            scene[part.key] = {"type": "ply", "filename": filename, "face_normals": True,
+                               "bsdf": {"type": "diffuse", "reflectance": _spectrum(reflectance_spectrum(part.material))}}
+        self.scene = mi.load_dict(scene, optimize=False)
+        self.params = mi.traverse(self.scene)
+        self._sensor_objects = {s.id(): s for s in self.scene.sensors()}
+        channels = ["X", "Y", "Z"] + list(self.scene.integrator().aov_names())
+        self._m1 = [channels.index(f"nested.{c}") for c in "XYZ"]
+        self._m2 = channels.index("m2_nested.Y")
+        self._positions = {p.key: np.asarray(v, dtype=np.float32) for p, v, _ in parts}
+
+    def _mi(self):
+        self.mi = mode.mitsuba(spectral=True)
+        return self.mi
+
+    def set_illumination(self, sun_direction, sun_nm, sky_nm) -> None:
+        """Sun (toward-sun unit vector, irradiance per nm on the grid or None = off) and sky
+        (radiance per nm or None = off)."""
+        self._mi()
+        if self.has_sun:
+            on = sun_nm is not None and sun_direction is not None
+            vals = np.maximum(np.asarray(sun_nm if on else np.zeros(EO_WAVELENGTHS_NM.size), dtype=float), TINY)
+            self._set_array("sun.irradiance.values", vals)
+            # next-event estimation picks sun or sky in proportion to the irradiance each can
+            # deliver (beam-normal sun, pi x mean sky radiance): far less noise than 1:1
+            self.params["sun.sampling_weight"] = float(np.sum(vals)) if on else 0.0
+            if on:
+                d = -np.asarray(sun_direction, dtype=float)
+                helper = [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0]
+                cls = self.mi.ScalarTransform4f if self.scalar else self.mi.Transform4f
+                self.params["sun.to_world"] = cls().look_at(origin=[0.0, 0.0, 0.0], target=[float(v) for v in d], up=helper)
+        if self.has_sky:
+            on = sky_nm is not None
+            vals = np.maximum(np.asarray(sky_nm if on else np.zeros(EO_WAVELENGTHS_NM.size), dtype=float), TINY)
+            self._set_array("sky.radiance.values", vals)
+            self.params["sky.sampling_weight"] = float(np.pi * np.sum(vals)) if on else 0.0
+
+    def set_camera(self, sensor_id, pose) -> None:
+        self._mi()
+        super().set_camera(sensor_id, pose)
+
+    def update(self) -> None:
+        self._mi()
+        self.params.update()
+
+    def render_xyz(self, sensor_id: str, spp: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """CIE XYZ (H, W, 3) [W m-2 sr-1 nm-1, see module notes] and the standard error of Y."""
+        mi = self._mi()
+        img = mi.render(self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp), seed=int(seed) % 2**32)
+        a = np.asarray(img, dtype=np.float64)
+        xyz = a[..., self._m1]
+        return xyz, monte_carlo_stderr(xyz[..., 1], a[..., self._m2], spp)
+
+
+def _look_at(mi, pose):
+    return mi.ScalarTransform4f().look_at(origin=[float(v) for v in pose.origin],
+                                          target=[float(v) for v in pose.origin + pose.forward],
+                                          up=[float(v) for v in pose.up])
+
+
+def xyz_to_linear_srgb(xyz) -> np.ndarray:
+    """Linear sRGB (D65) from CIE XYZ with colour-science (no transfer function)."""
+    import colour
+
+    return np.asarray(colour.XYZ_to_sRGB(np.asarray(xyz, dtype=float), apply_cctf_encoding=False))
+
+
+def srgb_preview(xyz) -> tuple[np.ndarray, float]:
+    """8-bit sRGB (H, W, 3) of an XYZ image exposed so that the :data:`PREVIEW_PERCENTILE` of Y
+    maps to :data:`PREVIEW_WHITE`, and that exposure (a scale on XYZ); colour-science does the
+    XYZ -> sRGB matrix and the IEC 61966-2-1 encoding."""
+    import colour
+
+    xyz = np.asarray(xyz, dtype=float)
+    y = xyz[..., 1][np.isfinite(xyz[..., 1])]
+    top = float(np.percentile(y, PREVIEW_PERCENTILE)) if y.size else 0.0
+    exposure = PREVIEW_WHITE / top if top > 0 else 1.0
+    rgb = np.asarray(colour.XYZ_to_sRGB(np.nan_to_num(xyz) * exposure))
+    return np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8), exposure
+
+
+#: EXR channels of an EO frame (float32), with units.
+EO_EXR_CHANNELS = {
+    "X": "CIE 1931 XYZ, W m-2 sr-1 nm-1 (y-bar weighted mean spectral radiance; luminance = 683 * 106.857 * Y cd m-2)",
+    "Y": "as X", "Z": "as X",
+    "R": "linear sRGB (D65) from XYZ via colour.XYZ_to_sRGB, same scale as XYZ", "G": "as R", "B": "as R",
+    "Y_stderr": "Monte Carlo standard error of Y",
+    "depth": "m (distance along the optical axis; inf for sky)",
+    "instance_id": "1 (integer stored as float32; 0 = sky/background)",
+}
+
+
+class EORender:
+    """Renders the EO sensors of a stage frame by frame (called from ``render_stage``).
+
+    Skips (with the reason in :attr:`skipped`) when the stage has no visible illumination data,
+    or a rendered material has no ``humv:material:reflectance``.
+    """
+
+    def __init__(self, exporter, sensors, spp: int, max_depth: int, seed: int, out_dir):
+        from pxr import Usd
+
+        self.exporter = exporter
+        self.spp, self.max_depth, self.seed, self.out_dir = int(spp), int(max_depth), int(seed), out_dir
+        self.sensors = list(sensors)
+        self.skipped: list[dict] = []
+        self.scene: EOScene | None = None
+        self.key = None
+        self.records = {s.name: {"frames": [], "timings_s": {"render": 0.0, "labels": 0.0, "write": 0.0}}
+                        for s in self.sensors}
+        self.ids = {s.name: f"eo_{i}" for i, s in enumerate(self.sensors)}
+        if not self.sensors:
+            return
+        stage = exporter.stage
+        frames = [int(round(stage.GetStartTimeCode()))]
+        spectra = exporter.atmosphere_spectra(Usd.TimeCode(frames[0]))
+        wl = spectra.wavelengths_um
+        covered = wl is not None and wl.size > 1 and wl[0] <= EO_RANGE_UM[0] + 0.01 and wl[-1] >= EO_RANGE_UM[1] - 0.01
+        self.has_sun = covered and spectra.solar_irradiance is not None and exporter.sun_direction(Usd.TimeCode(frames[0])) is not None
+        self.has_sky = covered and spectra.sky_radiance is not None
+        if not (self.has_sun or self.has_sky):
+            self._skip_all("no visible illumination in the stage: humv:atmosphere:solarSpectralIrradiance / "
+                           "skySpectralRadiance covering 0.40-0.70 um (atmosphere layer) are absent")
+
+    def _skip_all(self, reason: str) -> None:
+        self.skipped += [{"name": s.name, "prim": s.path, "band": s.band, "reason": reason} for s in self.sensors]
+        self.sensors = []
+
+    def frame(self, state, frame: int, chains) -> None:
+        """Render, label and write every EO sensor at ``frame``."""
+        import tempfile
+        import time
+
+        from pxr import Usd
+
+        from humv_usd.render import writers
+
+        if not self.sensors:
+            return
+        parts = [(part, state.points[m.path][part.vertex_ids], state.flip[m.path])
+                 for m in state.meshes for part in m.parts]
+        if self.scene is None or state.topology_key != self.key:
+            bare = sorted({p.material.path for p, _, _ in parts if p.material.reflectance is None})
+            if bare:
+                self._skip_all(f"material {bare[0]} (and {len(bare) - 1} more) has no humv:material:reflectance"
+                               if len(bare) > 1 else f"material {bare[0]} has no humv:material:reflectance")
+                return
+            setups = [SensorSetup(self.ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
+                      for s in self.sensors]
+            with tempfile.TemporaryDirectory(prefix="humv_eo_") as tmp:
+                self.scene = EOScene(parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun)
+            self.key = state.topology_key
+        else:
+            for part, vertices, _ in parts:
+                self.scene.set_vertices(part, vertices)
+        scene = self.scene
+        for s in self.sensors:
+            scene.set_camera(self.ids[s.name], state.cameras[s.name])
+        time_code = Usd.TimeCode(frame)
+        sun, sky, ran = illumination(self.exporter.atmosphere_spectra(time_code), self.exporter.sun_direction(time_code))
+        scene.set_illumination(self.exporter.sun_direction(time_code), sun, sky)
+        scene.update()
+        for s in self.sensors:
+            rec = self.records[s.name]
+            t = time.perf_counter()
+            xyz, y_err = scene.render_xyz(self.ids[s.name], self.spp, self.seed + frame)
+            rgb = xyz_to_linear_srgb(xyz)
+            rec["timings_s"]["render"] += time.perf_counter() - t
+            t = time.perf_counter()
+            hits = scene.hits(self.ids[s.name])
+            rec["timings_s"]["labels"] += time.perf_counter() - t
+            t = time.perf_counter()
+            rel = os.path.join(s.name, f"{frame:04d}")
+            chained = chains.apply(s, rgb, frame, eo_space="srgb")  # sensor chain: the single call site for EO
+            channels = {"X": xyz[..., 0], "Y": xyz[..., 1], "Z": xyz[..., 2],
+                        "R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2], "Y_stderr": y_err,
+                        "depth": hits.depth, "instance_id": hits.instance.astype(np.float32)}
+            if chained is not None:
+                channels.update({f"counts_{c}": chained.counts[..., i].astype(np.float32) for i, c in enumerate("RGB")})
+            writers.write_exr(os.path.join(self.out_dir, rel + ".exr"), channels,
+                              metadata={"humv:sensor": s.path, "humv:frame": str(frame), "humv:spp": str(self.spp),
+                                        "humv:colour": "CIE 1931 XYZ and linear sRGB (D65)"})
+            png, exposure = srgb_preview(xyz)
+            writers.write_png(os.path.join(self.out_dir, rel + ".png"), png)
+            chain_record = chains.write(chained, self.out_dir, rel)
+            rec["timings_s"]["write"] += time.perf_counter() - t
+            y = xyz[..., 1]
+            rec["frames"].append({"frame": frame, "exr": rel + ".exr", "png": rel + ".png",
+                                  "preview_exposure": exposure, "Y_mean": float(np.mean(y)),
+                                  "luminance_mean_cd_m2": float(KM_LM_PER_W * CIE_Y_INTEGRAL_NM * np.mean(y)),
+                                  "Y_stderr_mean": float(np.nanmean(y_err)), "illumination": ran,
+                                  "sensor_chain": chain_record})
+
+    def manifest(self) -> list[dict]:
+        return [{"name": s.name, "prim": s.path, "band": s.band, "resolution": list(s.resolution),
+                 "variant": mode.SPECTRAL_VARIANTS[mode.variant()], "spp": self.spp,
+                 "channels": EO_EXR_CHANNELS,
+                 "preview": f"PNG 8-bit sRGB; the {PREVIEW_PERCENTILE:g}th percentile of Y exposed to {PREVIEW_WHITE:g}",
+                 "frames": self.records[s.name]["frames"],
+                 "timings_s": {**self.records[s.name]["timings_s"],
+                               "total": sum(self.records[s.name]["timings_s"].values())}}
+                for s in self.sensors]

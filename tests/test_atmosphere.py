@@ -1,0 +1,273 @@
+"""Atmosphere: LOWTRAN7 sky, paths and sun; analytic fallback; cache; the atmosphere layer."""
+from __future__ import annotations
+
+import copy
+import datetime as dt
+
+import numpy as np
+import pytest
+
+from humv_usd.atmosphere import layer as atmosphere_layer
+from humv_usd.atmosphere import lowtran as lt
+from humv_usd.atmosphere import model as M
+from humv_usd.environment import layer as environment_layer
+from humv_usd.environment.sun import sun_at
+from humv_usd.physics import planck
+from humv_usd.physics.sky import (STEFAN_BOLTZMANN, directional_sky_emissivity,
+                                  effective_sky_temperature)
+from humv_usd.scenario import validate
+from humv_usd.usd import schemas as S
+
+needs_lowtran = pytest.mark.skipif(not lt.available(), reason="LOWTRAN7 not built")
+
+
+def _band_bt(wl, spectral, band=(8.0, 14.0)):
+    m = (wl >= band[0]) & (wl <= band[1])
+    radiance = np.trapz(spectral[..., m], wl[m], axis=-1)
+    return planck.brightness_temperature(radiance, [wl[m][0], wl[m][-1]])
+
+
+@pytest.fixture(scope="session")
+def lowtran_cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("atmosphere-cache")
+
+
+@pytest.fixture(scope="session")
+def humvvex_lowtran(humvvex_raw, lowtran_cache):
+    """humvvex with LOWTRAN7, computed once into an empty cache: (scenario, atmosphere, runs)."""
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "lowtran7"
+    sc = validate(raw)
+    mp = pytest.MonkeyPatch()
+    mp.setenv(M.CACHE_ENV, str(lowtran_cache))
+    try:
+        before = lt.CALLS
+        atm = M.atmosphere_for(sc)
+        runs = lt.CALLS - before
+    finally:
+        mp.undo()
+    return sc, atm, runs
+
+
+@needs_lowtran
+def test_lowtran_runs_once_then_cache(humvvex_lowtran, lowtran_cache, monkeypatch):
+    sc, atm, runs = humvvex_lowtran
+    assert atm.source == "lowtran7" and atm.ran["lowtran7"] == "ran"
+    assert 0 < runs < 150                                  # batched: sky, paths, sun
+    assert all("miss" in c for c in atm.ran["cache"])
+    monkeypatch.setenv(M.CACHE_ENV, str(lowtran_cache))
+    before = lt.CALLS
+    again = M.atmosphere_for(sc)
+    assert lt.CALLS == before                              # nothing rerun
+    assert all(c.endswith("hit") for c in again.ran["cache"])
+    np.testing.assert_array_equal(again.sky_radiance, atm.sky_radiance)
+    np.testing.assert_array_equal(again.path_transmittance, atm.path_transmittance)
+
+
+@needs_lowtran
+def test_grid_covers_only_the_sensor_bands(humvvex_lowtran):
+    from humv_usd.render.radiometry import covers
+    sc, atm, _ = humvvex_lowtran
+    wl = atm.wavelengths_um
+    assert np.all(np.diff(wl) > 0)
+    for s in sc["sensor"]:
+        assert covers(wl, s["wavelength_um"]), s["id"]
+    bands = M.sensor_bands(sc)
+    pad = 0.3   # one LOWTRAN sample beyond each edge
+    inside = np.zeros(wl.size, bool)
+    for lo, hi in bands:
+        inside |= (wl >= lo - pad) & (wl <= hi + pad)
+    assert inside.all()
+    assert not np.any((wl > 5.4) & (wl < 7.0))             # the gap between MWIR and LWIR
+
+
+@needs_lowtran
+def test_clear_sky_colder_than_air_and_rises_to_horizon(humvvex_lowtran):
+    sc, atm, _ = humvvex_lowtran
+    t_air = sc["atmosphere"]["air_temperature_k"]
+    zen = np.array([0.0, 30.0, 60.0, 80.0, 89.0])
+    bt = _band_bt(atm.wavelengths_um, atm.sky_spectral_radiance(zen))
+    assert bt[0] < t_air - 40.0                            # 8-14 um zenith: ~217 K vs 289 K
+    assert np.all(np.diff(bt) > 0)                         # brighter toward the horizon
+    assert abs(bt[-1] - t_air) < 8.0                       # near-horizontal: almost the air
+    assert np.all(atm.sky_spectral_radiance(zen) >= 0)
+
+
+@needs_lowtran
+def test_broadband_sky_close_to_berdahl_martin(humvvex_lowtran):
+    sc, atm, _ = humvvex_lowtran
+    a = sc["atmosphere"]
+    _, eps_bm = effective_sky_temperature(a["air_temperature_k"], a["relative_humidity"])
+    assert atm.sky_emissivity == pytest.approx(float(eps_bm), abs=0.05)
+    # effective temperature and emissivity are the same flux
+    assert STEFAN_BOLTZMANN * atm.sky_temperature_k ** 4 == pytest.approx(
+        atm.sky_emissivity * STEFAN_BOLTZMANN * a["air_temperature_k"] ** 4, rel=1e-9)
+
+
+@needs_lowtran
+def test_paths_fall_with_range_and_obey_kirchhoff(humvvex_lowtran):
+    sc, atm, _ = humvvex_lowtran
+    wl = atm.wavelengths_um
+    tau, rad = atm.path(None, atm.path_ranges_m)
+    assert np.all(np.diff(tau, axis=0) <= 1e-6)            # every wavelength, every range step
+    lw = (wl >= 8) & (wl <= 14)
+    mean = tau[:, lw].mean(axis=1)
+    assert mean[0] > 0.99 and mean[-1] < 0.3
+    # isothermal, non-scattering path: L = (1 - tau) B(T_air) (LOWTRAN's own emission)
+    bb = planck.spectral_radiance(wl, sc["atmosphere"]["air_temperature_k"])
+    ir = wl > 2.5
+    np.testing.assert_allclose(np.trapz(rad[:, ir], wl[ir], axis=1),
+                               np.trapz(((1 - tau) * bb)[:, ir], wl[ir], axis=1), rtol=0.02)
+    opaque = (tau[-1] < 1e-4) & ir
+    assert opaque.sum() > 5                                # CO2 4.3 um, 14 um edges
+    np.testing.assert_allclose(rad[-1, opaque], bb[opaque], rtol=0.01)   # units: W m-2 sr-1 um-1
+    t0, r0 = atm.path(None, [0.0])
+    assert np.all(t0 == 1.0) and np.all(r0 == 0.0)
+
+
+@needs_lowtran
+def test_transmittance_falls_with_humidity():
+    spec = lt.spectral_case(8.0, 14.0, 20.0)
+    taus = []
+    for rh in (0.2, 0.5, 0.8):
+        case = dict(lt.layer_case(293.15, rh, 101325.0, [0.0]), **spec, itype=1, iemsct=1,
+                    h1=0.0, range_km=1.0)
+        taus.append(lt.run(case).transmittance.mean())
+    assert taus[0] > taus[1] > taus[2]
+    assert taus[0] - taus[2] > 0.05
+
+
+@needs_lowtran
+def test_direct_sun_in_mwir(humvvex_lowtran):
+    sc, atm, _ = humvvex_lowtran
+    wl = atm.wavelengths_um
+    e = atm.solar_spectral_irradiance([0.0])[0]
+    toa = np.pi * M.SUN_ANGULAR_RADIUS ** 2 * planck.spectral_radiance(wl, M.SUN_TEMPERATURE_K)
+    mw = (wl >= 3.0) & (wl <= 5.0)
+    ratio = e[mw] / toa[mw]
+    assert np.all(ratio <= 1.1) and ratio.max() > 0.6      # 3.8 um window ~0.85 at 53 deg
+    assert ratio[np.argmin(np.abs(wl[mw] - 4.3))] < 0.01   # CO2 band
+    band = np.trapz(e[mw], wl[mw])
+    assert 3.0 < band < 25.0                                # ~10.6 W m-2 at humvvex
+    eo = (wl >= 0.4) & (wl <= 0.7)
+    sun = sun_at(sc, [0.0])
+    assert 0.15 * sun.dni_w_m2[0] < np.trapz(e[eo], wl[eo]) < 0.6 * sun.dni_w_m2[0]
+
+
+def test_lowtran_unavailable_falls_back_with_warning(humvvex_raw, monkeypatch, tmp_path, capsys):
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "lowtran7"
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
+
+    def broken():
+        raise lt.LowtranError("LOWTRAN7 unavailable: test")
+    monkeypatch.setattr(lt, "_lowtran", broken)
+    with pytest.warns(RuntimeWarning, match="analytic"):
+        atm = M.atmosphere_for(validate(raw))
+    assert "warning" in capsys.readouterr().err
+    assert atm.source == "analytic" and atm.ran["lowtran7"].startswith("failed")
+    t_air = raw["atmosphere"]["air_temperature_k"]
+    bt = _band_bt(atm.wavelengths_um, atm.sky_spectral_radiance([0.0, 60.0, 89.0]))
+    assert bt[0] < t_air - 5 and np.all(np.diff(bt) > 0)
+
+
+def test_analytic_model_checks(humvvex_raw):
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "analytic"
+    sc = validate(raw)
+    atm = M.atmosphere_for(sc)
+    assert atm.source == "analytic"
+    a = sc["atmosphere"]
+    # hemispherical integral of the angular law returns the Berdahl-Martin emissivity
+    mu = np.linspace(0, 1, 2001)
+    eps = directional_sky_emissivity(np.degrees(np.arccos(mu)), atm.sky_emissivity)
+    assert 2 * np.trapz(eps * mu, mu) == pytest.approx(atm.sky_emissivity, abs=2e-3)
+    assert atm.sky_emissivity == pytest.approx(
+        float(effective_sky_temperature(a["air_temperature_k"], a["relative_humidity"])[1]))
+    tau, _ = atm.path(None, [10.0, 100.0, 1000.0])
+    assert np.all(np.diff(tau, axis=0) <= 0)
+    raw["atmosphere"]["relative_humidity"] = 0.9
+    wet, _ = M.atmosphere_for(validate(raw)).path(None, [1000.0])
+    lw = (atm.wavelengths_um >= 8) & (atm.wavelengths_um <= 14)
+    assert wet[0, lw].mean() < tau[2, lw].mean()
+
+
+def test_only_what_the_scene_needs(humvvex_raw, monkeypatch, tmp_path):
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "lowtran7"
+    eo_only = copy.deepcopy(raw)
+    eo_only["sensor"] = [s for s in raw["sensor"] if s.get("band", "LWIR") == "EO"
+                         or "eo" in s["id"]]
+    assert eo_only["sensor"]
+    before = lt.CALLS
+    atm = M.atmosphere_for(validate(eo_only))
+    assert lt.CALLS == before                              # no infrared sensor: no LOWTRAN
+    assert atm.ran["lowtran7"] == "skipped: no infrared sensor"
+    assert atm.wavelengths_um.max() < 1.0
+    none = copy.deepcopy(raw)
+    none["sensor"] = []
+    atm = M.atmosphere_for(validate(none))
+    assert atm.wavelengths_um.size == 0 and lt.CALLS == before
+    # night: no sun term
+    night = copy.deepcopy(eo_only)
+    night["general"]["start"] = dt.datetime(2018, 10, 24, 23, 5)
+    atm = M.atmosphere_for(validate(night))
+    assert not atm.solar.any() and not atm.diffuse_radiance.any()
+    assert atm.ran["sun"].startswith("skipped")
+
+
+def _stage(*layers):
+    from humv_usd.pipeline.compose import compose_in_memory
+    return compose_in_memory(list(layers), 30.0)
+
+
+def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "analytic"    # fast; the LOWTRAN tables have the same shape
+    raw["general"]["duration_s"] = 2.0 / 30.0  # three frames
+    sc = validate(raw)
+    env, atm_layer = environment_layer.build(sc), atmosphere_layer.build(sc)
+    stage = _stage(env, atm_layer)
+    e = stage.GetPrimAtPath("/World/Environment")
+    sun = sun_at(sc, [0.0, 1 / 30, 2 / 30])
+    for f in range(3):
+        d = np.array(e.GetAttribute(S.ENVIRONMENT_SUN_DIRECTION).Get(f))
+        np.testing.assert_allclose(d, sun.direction[f], atol=1e-6)
+        assert e.GetAttribute(S.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE).Get(f) == pytest.approx(
+            sun.dni_w_m2[f], rel=1e-6)
+    assert e.GetAttribute(S.ENVIRONMENT_SUN_ZENITH).GetNumTimeSamples() == 3
+    assert not e.GetAttribute(S.ENVIRONMENT_AIR_TEMPERATURE).GetNumTimeSamples()  # constant
+    a = stage.GetPrimAtPath("/World/Atmosphere")
+    assert a.GetAttribute(S.ATMOSPHERE_MODEL).Get() == "analytic"
+    wl = np.array(a.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())
+    zen = np.array(a.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Get())
+    sky = np.array(a.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Get(0))
+    solar = np.array(a.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).Get(1))
+    assert sky.size == zen.size * wl.size and solar.size == wl.size and zen[-1] <= 90
+    assert a.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).GetNumTimeSamples() == 3
+    paths = stage.GetPrimAtPath(atmosphere_layer.PATHS).GetChildren()
+    assert sorted(p.GetName() for p in paths) == sorted(s["id"] for s in sc["sensor"])
+    for p in paths:
+        assert p.HasAPI(S.ATMOSPHERE_PATH_API)
+        assert p.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Get() == f"/World/Sensors/{p.GetName()}"
+        r = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Get())
+        tau = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Get())
+        assert r[0] <= 1.0 and r[-1] >= 30.0 and np.all(np.diff(r) > 0)   # beyond the 25 m scene
+        assert tau.size == r.size * wl.size and tau.max() <= 1.0
+    ran = atm_layer.customLayerData["humv:atmosphere:ran"]
+    assert ran["lowtran7"].startswith("skipped") and "sky" in ran
+    assert "sun" in env.customLayerData["humv:environment:ran"]
+
+
+def test_night_layer_has_no_solar_term(humvvex_raw, monkeypatch, tmp_path):
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "analytic"
+    raw["general"]["start"] = dt.datetime(2018, 10, 24, 23, 5)
+    layer = atmosphere_layer.build(validate(raw))
+    stage = _stage(layer)
+    a = stage.GetPrimAtPath("/World/Atmosphere")
+    assert not a.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).HasAuthoredValue()
+    assert "skipped" in layer.customLayerData["humv:atmosphere:ran"]["solar spectrum"]

@@ -1,0 +1,386 @@
+"""Ground truth: exact labels vs an independent ray cast, references/instancing, boxes, keypoints,
+annotator selection. Small hand-built stages (64x48), one render per module fixture."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+from numpy.testing import assert_allclose
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+
+from humv_usd.avatar import labels as AL
+from humv_usd.errors import InputError
+from humv_usd.groundtruth import annotators as A
+from humv_usd.groundtruth import keypoints as K
+from humv_usd.groundtruth import labels as GL
+from humv_usd.render import render_stage
+
+W, H = 64, 48
+
+
+# --- stage building (attributes by name, as a DCC would author them) --------------------------
+
+def new_stage(path):
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(0)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    UsdGeom.Scope.Define(stage, "/World/Atmosphere").GetPrim().CreateAttribute(
+        "humv:atmosphere:skyTemperature", Sdf.ValueTypeNames.Float).Set(260.0)
+    return stage
+
+
+def material(stage, path, eps):
+    m = UsdShade.Material.Define(stage, path)
+    m.GetPrim().CreateAttribute("humv:material:wavelengths", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray([1.0, 20.0]))
+    m.GetPrim().CreateAttribute("humv:material:emissivity", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray([eps, eps]))
+    return m
+
+
+def mesh(stage, path, points, counts, indices, mat, temps, instance_id=None, cls=None):
+    m = UsdGeom.Mesh.Define(stage, path)
+    m.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, p)) for p in points]))
+    m.CreateFaceVertexCountsAttr(Vt.IntArray([int(c) for c in counts]))
+    m.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for i in indices]))
+    prim = m.GetPrim()
+    UsdShade.MaterialBindingAPI.Apply(prim).Bind(mat)
+    temps = np.broadcast_to(np.asarray(temps, dtype=float), (len(counts),))
+    UsdGeom.PrimvarsAPI(prim).CreatePrimvar("humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray,
+                                            UsdGeom.Tokens.uniform).Set(Vt.FloatArray(temps.tolist()))
+    label(prim, instance_id, cls)
+    return m
+
+
+def label(prim, instance_id=None, cls=None):
+    if instance_id is not None:
+        prim.CreateAttribute("humv:label:instanceId", Sdf.ValueTypeNames.Int).Set(int(instance_id))
+    if cls is not None:
+        prim.CreateAttribute("humv:label:class", Sdf.ValueTypeNames.Token).Set(cls)
+
+
+def grid_quad(x0, x1, y0, y1, z, n):
+    """n x n quads of a horizontal rectangle facing +Z."""
+    xs, ys = np.linspace(x0, x1, n + 1), np.linspace(y0, y1, n + 1)
+    pts = [(x, y, z) for y in ys for x in xs]
+    idx = []
+    for j in range(n):
+        for i in range(n):
+            a = j * (n + 1) + i
+            idx += [a, a + 1, a + n + 2, a + n + 1]
+    return pts, [4] * n * n, idx
+
+
+def wall(x0, x1, z0, z1, y):
+    """Rectangle at y facing -Y."""
+    return [(x0, y, z0), (x1, y, z0), (x1, y, z1), (x0, y, z1)], [4], [0, 1, 2, 3]
+
+
+def sphere_mesh(center, radius, subdivisions=2):
+    import trimesh
+    s = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    return (s.vertices + np.asarray(center)).tolist(), [3] * len(s.faces), s.faces.ravel().tolist()
+
+
+def camera(stage, name, eye, target, fov_x_deg=50.0, res=(W, H)):
+    cam = UsdGeom.Camera.Define(stage, f"/World/Sensors/{name}")
+    view = Gf.Matrix4d().SetLookAt(Gf.Vec3d(*eye), Gf.Vec3d(*target), Gf.Vec3d(0, 0, 1))
+    cam.AddTransformOp().Set(view.GetInverse())
+    h_ap = 2 * 0.25 * np.tan(np.radians(fov_x_deg) / 2)
+    cam.CreateFocalLengthAttr(0.25)
+    cam.CreateHorizontalApertureAttr(float(h_ap))
+    cam.CreateVerticalApertureAttr(float(h_ap * res[1] / res[0]))
+    prim = cam.GetPrim()
+    prim.CreateAttribute("humv:sensor:band", Sdf.ValueTypeNames.Token).Set("LWIR")
+    prim.CreateAttribute("humv:sensor:wavelengthRange", Sdf.ValueTypeNames.Float2).Set(Gf.Vec2f(8.0, 14.0))
+    prim.CreateAttribute("humv:sensor:resolution", Sdf.ValueTypeNames.Int2).Set(Gf.Vec2i(*res))
+
+
+def read_exr(path):
+    inp = oiio.ImageInput.open(str(path))
+    spec = inp.spec()
+    px = inp.read_image("float")
+    inp.close()
+    return {n: px[..., i] for i, n in enumerate(spec.channelnames)}
+
+
+EYE, TARGET = (0.3, -6.0, 1.6), (0.0, 0.0, 0.9)
+
+
+@pytest.fixture(scope="module")
+def scene_render(tmp_path_factory):
+    """Ground (fine grid, per-face temperatures), a labelled 'person' sphere with body regions, a
+    box-ish wall partly hiding it."""
+    tmp = tmp_path_factory.mktemp("gt")
+    stage = new_stage(tmp / "stage.usda")
+    concrete = material(stage, "/World/Materials/concrete", 0.9)
+    skin = material(stage, "/World/Materials/skin", 0.98)
+    pts, counts, idx = grid_quad(-10, 10, -10, 10, 0.0, 8)
+    mesh(stage, "/World/Scene/ground", pts, counts, idx, concrete, 280.0 + np.arange(64), instance_id=2, cls="ground")
+    root = UsdGeom.Xform.Define(stage, "/World/Humans/p1").GetPrim()
+    label(root, 1, "person")
+    pts, counts, idx = sphere_mesh((0.0, 0.0, 0.9), 0.6)
+    nf = len(counts)
+    body = mesh(stage, "/World/Humans/p1/Body", pts, counts, idx, skin, 300.0 + 0.01 * np.arange(nf)).GetPrim()
+    regions = 1 + np.arange(nf) % 19
+    UsdGeom.PrimvarsAPI(body).CreatePrimvar("humv:label:bodyRegion", Sdf.ValueTypeNames.IntArray,
+                                            UsdGeom.Tokens.uniform).Set(Vt.IntArray(regions.tolist()))
+    pts, counts, idx = wall(-1.5, -0.1, 0.0, 2.0, -1.0)
+    mesh(stage, "/World/Scene/wall", pts, counts, idx, concrete, 295.0, instance_id=3, cls="building")
+    # keypoints on a SkelRoot-like prim (any prim carries them) with a transform
+    kp_root = UsdGeom.Xform.Define(stage, "/World/Humans/p1/Keys")
+    kp_root.AddTranslateOp().Set(Gf.Vec3d(0.0, 0.0, 0.9))
+    kps = np.zeros((17, 3))
+    kps[:] = (0.3, -0.55, 0.0)          # in front of the sphere's right half: visible
+    kps[AL.COCO_KEYPOINTS.index("left_knee")] = (-0.4, -0.40, -0.3)   # behind the wall
+    kps[AL.COCO_KEYPOINTS.index("right_ankle")] = (30.0, 0.0, 0.0)    # outside the image
+    kps[AL.COCO_KEYPOINTS.index("nose")] = (0.3, 0.55, 0.0)           # on the far side
+    kp_root.GetPrim().CreateAttribute(AL.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray).Set(
+        Vt.Vec3fArray.FromNumpy(kps.astype(np.float32)), 0)
+    camera(stage, "cam", EYE, TARGET)
+    stage.Save()
+    manifest = render_stage(tmp / "stage.usda", tmp / "out", spp=1)
+    return tmp, manifest, read_exr(tmp / "out" / "cam" / "0000.exr")
+
+
+def _world_triangles(stage_path):
+    """Every rendered triangle in world space with its mesh path and authored face (own code)."""
+    stage = Usd.Stage.Open(str(stage_path))
+    tris, owner, face = [], [], []
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        if not prim.IsA(UsdGeom.Mesh):
+            continue
+        m = UsdGeom.Mesh(prim)
+        xf = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(0), dtype=float)
+        p = np.asarray(m.GetPointsAttr().Get(), dtype=float) @ xf[:3, :3] + xf[3, :3]
+        start = 0
+        for f, c in enumerate(m.GetFaceVertexCountsAttr().Get()):
+            ids = m.GetFaceVertexIndicesAttr().Get()[start:start + c]
+            for k in range(1, c - 1):
+                tris.append(p[[ids[0], ids[k], ids[k + 1]]])
+                owner.append(str(prim.GetPath()))
+                face.append(f)
+            start += c
+    return np.array(tris), owner, np.array(face)
+
+
+def _pixel_rays(eye, target, fov_x_deg=50.0):
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    fwd = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(fwd, (0, 0, 1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    tx = np.tan(np.radians(fov_x_deg) / 2)
+    u = ((np.arange(W) + 0.5) / W * 2 - 1) * tx
+    v = (1 - (np.arange(H) + 0.5) / H * 2) * tx * H / W
+    uu, vv = np.meshgrid(u, v)
+    d = fwd + uu[..., None] * right + vv[..., None] * up
+    return d / np.linalg.norm(d, axis=-1, keepdims=True), fwd
+
+
+def test_labels_agree_with_an_independent_ray_cast(scene_render):
+    import trimesh
+    tmp, manifest, ch = scene_render
+    tris, owner, face = _world_triangles(tmp / "stage.usda")
+    tm = trimesh.Trimesh(vertices=tris.reshape(-1, 3), faces=np.arange(len(tris) * 3).reshape(-1, 3), process=False)
+    dirs, fwd = _pixel_rays(EYE, TARGET)
+    origins = np.broadcast_to(np.asarray(EYE, float), (W * H, 3))
+    loc, ray_idx, tri_idx = tm.ray.intersects_location(origins, dirs.reshape(-1, 3), multiple_hits=False)
+    hit_tri = np.full(W * H, -1)
+    hit_tri[ray_idx] = tri_idx
+    depth = np.full(W * H, np.inf)
+    depth[ray_idx] = (loc - np.asarray(EYE)) @ fwd
+    ids = {"/World/Scene/ground": 2, "/World/Humans/p1/Body": 1, "/World/Scene/wall": 3}
+    classes = {"/World/Scene/ground": "ground", "/World/Humans/p1/Body": "person", "/World/Scene/wall": "building"}
+    expect_id = np.array([ids[owner[t]] if t >= 0 else 0 for t in hit_tri]).reshape(H, W)
+    agree = ch["instance_id"] == expect_id
+    fraction = agree.mean()
+    print(f"label agreement with the trimesh/embree ray cast: {fraction:.5f} of {W * H} pixels")
+    assert fraction >= 0.995, fraction        # edge pixels may differ by float rounding
+    assert {0, 1, 2, 3} <= set(np.unique(expect_id).tolist())
+    expect_cls = np.array([GL.CLASS_ID[classes[owner[t]]] if t >= 0 else 0 for t in hit_tri]).reshape(H, W)
+    assert (ch["class_id"][agree] == expect_cls[agree]).all()
+    kind = np.array([GL.KIND_ID["skin" if "Body" in owner[t] else "scene"] if t >= 0 else 0 for t in hit_tri]).reshape(H, W)
+    assert (ch["material_kind"][agree] == kind[agree]).all()
+    # same triangle -> the same authored face: temperature and body region exact
+    tri2d = hit_tri.reshape(H, W)
+    body = agree & (expect_id == 1)
+    assert (ch["body_region"][body] == 1 + face[tri2d[body]] % 19).mean() > 0.99
+    t_expected = 300.0 + 0.01 * face[tri2d[body]]
+    assert (np.abs(ch["surface_temperature"][body] - t_expected) < 1e-4).mean() > 0.99
+    ground = agree & (expect_id == 2)
+    assert (np.abs(ch["surface_temperature"][ground] - (280.0 + face[tri2d[ground]])) < 1e-3).mean() > 0.99
+    # JOS-3 segment from the region when not authored; -1 off the body
+    seg = ch["jos3_segment"]
+    assert (seg[expect_id == 0] == GL.NO_SEGMENT).all()
+    assert_allclose(seg[body], GL._REGION_TO_SEGMENT[ch["body_region"][body].astype(int)])
+    # depth, normals (world space, unit, facing the camera for these front faces), emissivity
+    hit = agree & (expect_id > 0)
+    assert_allclose(ch["depth"][hit], depth.reshape(H, W)[hit], rtol=1e-4)
+    n = np.stack([ch["normal_x"], ch["normal_y"], ch["normal_z"]], -1)
+    tri = tris[tri2d[hit]]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    assert (np.abs(np.sum(n[hit] * fn, axis=1) - 1) < 1e-3).mean() > 0.99
+    assert_allclose(ch["emissivity"][expect_id == 1][agree[expect_id == 1]], 0.98, rtol=1e-6)
+    assert np.isnan(ch["surface_temperature"][expect_id == 0]).all()
+    gt = manifest["ground_truth"]
+    assert gt["annotators"] == list(A.DEFAULT_ANNOTATORS) and gt["source"] == "default"
+    assert gt["timings_s"]["total"] > 0 and gt["cost_relative_to_render"] > 0
+
+
+def test_objects_boxes_occlusion_and_keypoints(scene_render):
+    tmp, _, ch = scene_render
+    doc = json.loads((tmp / "out" / "cam" / "0000.objects.json").read_text())
+    objs = {o["instance_id"]: o for o in doc["objects"]}
+    person, wall_obj = objs[1], objs[3]
+    assert person["class"] == "person" and person["prim"] == "/World/Humans/p1"
+    assert wall_obj["class"] == "building"
+    mask = ch["instance_id"] == 1
+    rows, cols = np.nonzero(mask)
+    assert person["box_visible"] == [cols.min(), rows.min(), cols.max() + 1, rows.max() + 1]
+    # the full box bounds the whole sphere: contains the visible one, and is larger on the wall side
+    fb = person["box_full"]
+    vb = person["box_visible"]
+    assert fb[0] <= vb[0] + 1e-9 and fb[1] <= vb[1] + 1 and fb[2] >= vb[2] - 1 and fb[3] >= vb[3] - 1
+    assert fb[0] < vb[0] - 2           # the wall hides the sphere's left part
+    # the icosphere's vertices lie on the sphere: its world AABB is the sphere's
+    assert_allclose(person["box_3d"]["min"], [-0.6, -0.6, 0.3], atol=1e-5)
+    assert_allclose(person["box_3d"]["max"], [0.6, 0.6, 1.5], atol=1e-5)
+    assert 0.05 < person["occlusion"] < 0.6
+    assert person["unoccluded_pixels"] > person["visible_pixels"] == mask.sum()
+    assert wall_obj["occlusion"] == 0.0
+    kp = np.array(person["keypoints"]).reshape(17, 3)
+    v = kp[:, 2]
+    names = list(AL.COCO_KEYPOINTS)
+    assert v[names.index("right_ankle")] == 0 and kp[names.index("right_ankle"), :2].tolist() == [0, 0]
+    assert v[names.index("left_knee")] == 1     # behind the wall
+    assert v[names.index("nose")] == 1          # the sphere's own front is in front of it
+    # the visible ones follow the rule: same person, one of the keypoint's regions at its pixel
+    for k, name in enumerate(names):
+        if v[k] != 2:
+            continue
+        c, r = int(kp[k, 0]), int(kp[k, 1])
+        allowed = {AL.REGION_ID[x] for x in K.KEYPOINT_REGIONS[name]}
+        assert ch["instance_id"][r, c] == 1 and int(ch["body_region"][r, c]) in allowed
+    assert (v == 2).sum() >= 1
+
+
+def test_masks_pngs(scene_render):
+    tmp, _, ch = scene_render
+    inp = oiio.ImageInput.open(str(tmp / "out" / "cam" / "0000.region_ids.png"))
+    ids = np.rint(inp.read_image("float")[..., 0] * 255).astype(int)
+    inp.close()
+    assert (ids == ch["body_region"]).all()
+    inp = oiio.ImageInput.open(str(tmp / "out" / "cam" / "0000.instance.png"))
+    rgb = np.rint(inp.read_image("float") * 255).astype(int)
+    inp.close()
+    assert rgb.shape == (H, W, 3)
+    assert (rgb[ch["instance_id"] == 0] == 0).all()
+    colours = {tuple(rgb[ch["instance_id"] == i][0]) for i in (1, 2, 3)}
+    assert len(colours) == 3                     # distinct per instance
+
+
+def test_references_and_instancing_get_their_own_labels(tmp_path):
+    asset = Usd.Stage.CreateNew(str(tmp_path / "asset.usda"))
+    UsdGeom.SetStageUpAxis(asset, UsdGeom.Tokens.z)
+    root = UsdGeom.Xform.Define(asset, "/Asset")
+    asset.SetDefaultPrim(root.GetPrim())
+    mat = material(asset, "/Asset/Looks/paint", 0.9)
+    pts, counts, idx = wall(-0.5, 0.5, 0.0, 1.0, 0.0)
+    mesh(asset, "/Asset/Geom/panel", pts, counts, idx, mat, 300.0)
+    asset.Save()
+
+    stage = new_stage(tmp_path / "stage.usda")
+    for name, x, ident, cls, instanceable in (("ref", -1.5, 7, "vehicle", False),
+                                               ("inst_a", 0.0, 8, "building", True),
+                                               ("inst_b", 1.5, 9, "other", True)):
+        prim = UsdGeom.Xform.Define(stage, f"/World/Scene/{name}").GetPrim()
+        prim.GetReferences().AddReference(str(tmp_path / "asset.usda"))
+        UsdGeom.Xformable(prim).AddTranslateOp().Set(Gf.Vec3d(x, 0.0, 0.0))
+        label(prim, ident, cls)
+        prim.SetInstanceable(instanceable)
+    camera(stage, "cam", (0.0, -5.0, 0.5), (0.0, 0.0, 0.5), fov_x_deg=60.0)
+    stage.Save()
+    assert Usd.Stage.Open(str(tmp_path / "stage.usda")).GetPrimAtPath("/World/Scene/inst_a/Geom/panel").IsInstanceProxy()
+    manifest = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=1, annotators=["semantic", "coco"])
+    ch = read_exr(tmp_path / "out" / "cam" / "0000.exr")
+    cols = {i: np.nonzero(ch["instance_id"] == i)[1] for i in (7, 8, 9)}
+    assert all(c.size > 50 for c in cols.values())
+    assert cols[7].max() < cols[8].min() and cols[8].max() < cols[9].min()   # left to right
+    for i, cls in ((7, "vehicle"), (8, "building"), (9, "other")):
+        assert (ch["class_id"][ch["instance_id"] == i] == GL.CLASS_ID[cls]).all()
+    coco = json.loads((tmp_path / "out" / "coco.json").read_text())
+    got = {a["humv_instance_id"]: (a["humv_prim"], a["category_id"]) for a in coco["annotations"]}
+    assert got == {7: ("/World/Scene/ref", GL.CLASS_ID["vehicle"]), 8: ("/World/Scene/inst_a", GL.CLASS_ID["building"]),
+                   9: ("/World/Scene/inst_b", GL.CLASS_ID["other"])}
+    assert manifest["ground_truth"]["annotators"] == ["semantic", "coco"]
+
+
+def test_only_requested_annotators_run(tmp_path):
+    stage = new_stage(tmp_path / "stage.usda")
+    mat = material(stage, "/World/Materials/m", 0.9)
+    pts, counts, idx = wall(-5, 5, -5, 5, 3.0)
+    mesh(stage, "/World/Scene/w", pts, counts, idx, mat, 300.0, instance_id=4)
+    camera(stage, "cam", (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), res=(16, 12))
+    stage.GetRootLayer().customLayerData = {A.STAGE_KEY: Vt.StringArray(["normal"])}
+    stage.Save()
+    m = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=1)
+    ch = read_exr(tmp_path / "out" / "cam" / "0000.exr")
+    assert {"normal_x", "normal_y", "normal_z"} <= set(ch)
+    assert not {"class_id", "body_region", "surface_temperature"} & set(ch)
+    assert_allclose(ch["normal_y"], -1.0, atol=1e-6)
+    assert m["ground_truth"]["annotators"] == ["normal"] and m["ground_truth"]["source"] == "stage"
+    assert set(m["ground_truth"]["timings_s"]) == {"ray_cast", "normal", "total"}
+    files = {p.name for p in (tmp_path / "out").rglob("*")}
+    assert not files & {"coco.json", "regions.json", "0000.objects.json", "0000.instance.png"}
+    # an argument overrides the stage; requirements come along; bad names are one-line errors
+    assert A.resolve(["regions"]) == ("body_region", "regions")
+    with pytest.raises(InputError, match=r"annotators\[1\] = 'boxez'.*allowed annotators"):
+        A.resolve(["normal", "boxez"])
+
+
+def test_scenario_annotations_reach_the_stage(raw, tmp_path):
+    from humv_usd.pipeline.compose import root_layer
+    from humv_usd.scenario.load import validate
+    raw["annotations"] = {"annotators": ["coco", "keypoints"]}
+    scenario = validate(raw)
+    layer = root_layer(scenario, [])
+    assert list(layer.customLayerData[A.STAGE_KEY]) == ["keypoints", "coco"]
+    raw["annotations"] = {"annotators": ["cocoo"]}
+    with pytest.raises(InputError, match="annotations.annotators"):
+        root_layer(validate(raw), [])
+    del raw["annotations"]
+    assert A.STAGE_KEY not in root_layer(validate(raw), []).customLayerData
+
+
+def test_avatar_keypoints_front_and_side(raw, tmp_path):
+    """A composed person facing east, seen from the front (+x) and from his right (-y): from the
+    front every keypoint is visible, from the side exactly the right-side ones (and the nose)."""
+    from humv_usd.pipeline.compose import compose
+    from humv_usd.scenario.load import validate
+    raw["placement"][0]["heading_deg"] = 90.0
+    raw["human"][0]["clothing"] = ["shorts"]
+    cam = {"band": "LWIR", "resolution": [96, 160], "focal_length_mm": 6.0, "pixel_pitch_um": 17.0,
+           "look_at_m": [0.0, 0.0, 0.9]}
+    raw["sensor"] = [dict(cam, id="front", position_m=[6.0, 0.0, 1.0]),
+                     dict(cam, id="side", position_m=[0.0, -6.0, 1.0])]
+    raw["atmosphere"]["model"] = "analytic"
+    raw["annotations"] = {"annotators": ["keypoints"]}
+    compose(validate(raw), tmp_path)
+    m = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=1)
+    assert m["ground_truth"]["annotators"] == ["keypoints"] and m["ground_truth"]["source"] == "stage"
+    for view in ("front", "side"):
+        [person] = [o for o in json.loads((tmp_path / "out" / view / "0000.objects.json").read_text())["objects"]
+                    if o["class"] == "person"]
+        v = dict(zip(AL.COCO_KEYPOINTS, person["keypoints"][2::3]))
+        if view == "front":
+            assert set(v.values()) == {2}, v
+        else:
+            assert v["nose"] == 2
+            assert all(v[k] == 2 for k in v if k.startswith("right_")), v
+            assert all(v[k] == 1 for k in v if k.startswith("left_")), v
