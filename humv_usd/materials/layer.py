@@ -9,8 +9,7 @@ from humv_usd.clothing.garments import fabrics
 from humv_usd.materials.library import LIBRARY
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
-from humv_usd.fileio import write_text_atomic
-from humv_usd.usd.layers import SCOPES, finish, layer_text, new_layer_stage
+from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
 
 NAME = "materials"
 READS = ("general", "human", "scene")
@@ -92,18 +91,7 @@ def build_library() -> Sdf.Layer:
 
 def main(argv=None) -> int:
     """Write layers/materials.usda (``--check``: exit 1 if it is out of date)."""
-    import argparse
-    parser = argparse.ArgumentParser(description=main.__doc__)
-    parser.add_argument("--check", action="store_true")
-    args = parser.parse_args(argv)
-    text = layer_text(build_library())
-    if args.check:
-        ok = LIBRARY_FILE.is_file() and LIBRARY_FILE.read_text(encoding="utf-8") == text
-        print(f"{LIBRARY_FILE}: {'up to date' if ok else 'out of date'}")
-        return 0 if ok else 1
-    write_text_atomic(LIBRARY_FILE, text)
-    print(f"wrote {LIBRARY_FILE}")
-    return 0
+    return library_layer_main(LIBRARY_FILE, build_library, main.__doc__, argv)
 
 
 if __name__ == "__main__":

@@ -16,8 +16,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 from humv_usd.scenario import Scenario
 from humv_usd.sensors.presets import orbit_positions, preset
 from humv_usd.usd import schemas as S
-from humv_usd.fileio import write_text_atomic
-from humv_usd.usd.layers import SCOPES, finish, layer_text, look_at_matrix, new_layer_stage
+from humv_usd.usd.layers import SCOPES, finish, library_layer_main, look_at_matrix, new_layer_stage
 
 NAME = "sensors"
 READS = ("general", "sensor")
@@ -127,18 +126,7 @@ def build_presets() -> Sdf.Layer:
 
 def main(argv=None) -> int:
     """Write layers/sensors.usda (``--check``: exit 1 if it is out of date)."""
-    import argparse
-    parser = argparse.ArgumentParser(description=main.__doc__)
-    parser.add_argument("--check", action="store_true")
-    args = parser.parse_args(argv)
-    text = layer_text(build_presets())
-    if args.check:
-        ok = PRESETS_FILE.is_file() and PRESETS_FILE.read_text(encoding="utf-8") == text
-        print(f"{PRESETS_FILE}: {'up to date' if ok else 'out of date'}")
-        return 0 if ok else 1
-    write_text_atomic(PRESETS_FILE, text)
-    print(f"wrote {PRESETS_FILE}")
-    return 0
+    return library_layer_main(PRESETS_FILE, build_presets, main.__doc__, argv)
 
 
 if __name__ == "__main__":

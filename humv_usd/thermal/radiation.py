@@ -435,14 +435,20 @@ def _sun_term(env, centroids, normals, occ, offset, cache=None):
     s = np.asarray(env.sun_direction, dtype=float)
     cos = normals @ s
     idx = np.nonzero(cos > 0)[0]
-    sun_key = (cache or {}).get("key"), tuple(s)
+    sun_key = (cache or {}).get("key"), (cache or {}).get("generation"), tuple(s)
     if cache is not None and cache.get("sun_key") == sun_key:
-        lit = cache["sun_lit"]
+        tested, lit_all = cache["sun_tested"], cache["sun_lit"]
     else:
-        lit = _facet_hits(occ, idx, centroids, normals,
-                          np.ascontiguousarray(np.broadcast_to(s, (len(idx), 3))), offset) < 0
-        if cache is not None:
-            cache.update(sun_key=sun_key, sun_lit=lit)
+        tested, lit_all = np.zeros(len(normals), bool), np.zeros(len(normals), bool)
+    new = idx[~tested[idx]]  # facets not tested yet (all of them without a cache)
+    if len(new):
+        lit_all[new] = _facet_hits(occ, new, centroids, normals,
+                                   np.ascontiguousarray(np.broadcast_to(s, (len(new), 3))),
+                                   offset) < 0
+        tested[new] = True
+    if cache is not None:
+        cache.update(sun_key=sun_key, sun_tested=tested, sun_lit=lit_all)
+    lit = lit_all[idx]
     out[:, idx] = np.asarray(env.sun_irradiance)[:, None] * (cos[idx] * lit)
     return out
 
@@ -687,20 +693,31 @@ def _replay(env, radiance, records, counts, table, normals, weight):
 
 
 def _geometry_key(mesh, scene, *params) -> str:
+    """Hash of the facet mesh's topology, the scene geometry and the ray settings (the facet
+    mesh's vertex positions are compared separately, with a tolerance)."""
     import hashlib
     h = hashlib.sha1()
-    for m in (mesh, None if scene is None else scene.mesh):
-        if m is not None:
-            h.update(np.ascontiguousarray(m.vertices, dtype=np.float64).tobytes())
-            h.update(np.ascontiguousarray(m.faces, dtype=np.int64).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
+    if scene is not None:
+        h.update(np.ascontiguousarray(scene.mesh.vertices, dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(scene.mesh.faces, dtype=np.int64).tobytes())
     h.update(repr(params).encode())
     return h.hexdigest()
+
+
+def _cache_valid(cache, key, mesh, tolerance_m) -> bool:
+    if cache is None or cache.get("key") != key:
+        return False
+    v = np.asarray(mesh.vertices, dtype=float)
+    old = cache["vertices"]
+    return old.shape == v.shape and float(np.max(np.abs(v - old), initial=0.0)) <= tolerance_m
 
 
 def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=None,
                        mesh_radiance=None, method="brute", rays=64, seed=0, table_grid=64,
                        offset=None, pilot=16, max_rays=1024, backend="embree",
-                       stats: dict | None = None, cache: dict | None = None) -> np.ndarray:
+                       stats: dict | None = None, cache: dict | None = None,
+                       cache_tolerance_m: float = 0.0) -> np.ndarray:
     """Absorbed radiation per facet and band, with occlusion (seed Eq. 3-4).
 
     Parameters
@@ -748,9 +765,13 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
     cache : dict, optional
         Visibility cache for 'fast' / 'adaptive' across calls (e.g. the frames of a person who
         stands still): the first call records every ray that hit something (facet, direction,
-        face); a later call whose mesh, scene geometry and ray settings are identical replays
-        those rays with the new radiances instead of casting new ones (the same random rays,
-        whatever ``seed``), and reuses the sun's shadow test while the sun stays put.
+        face); a later call with the same facet topology, scene geometry and ray settings, and
+        no vertex moved by more than ``cache_tolerance_m``, replays those rays with the new
+        radiances instead of casting new ones (the same random rays, whatever ``seed``); the
+        sun's shadow test is reused while neither the mesh nor the sun moves.
+    cache_tolerance_m : float
+        Largest vertex displacement [m] for which the cached visibility is reused (0: the
+        geometry must be identical).
 
     Returns
     -------
@@ -771,8 +792,8 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
         table = irradiance_table(environment, table_grid)
         alpha = _absorptivity(absorptivity, environment.n_bands, len(normals))
         key = None if cache is None else _geometry_key(
-            mesh, scene, method, int(rays), int(pilot), int(max_rays), float(offset))
-        replayed = cache is not None and cache.get("key") == key
+            mesh, scene, method, int(rays), int(pilot), int(max_rays))
+        replayed = _cache_valid(cache, key, mesh, cache_tolerance_m)
         if replayed:
             counts = cache["counts"]
             e, var = _replay(environment, occ.radiance, cache["records"], counts, table,
@@ -788,11 +809,17 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
                                        seed, table, alpha, record)
                 counts = np.full(len(normals), float(rays))
             if cache is not None:
+                generation = cache.get("generation", 0) + 1
                 cache.clear()
-                cache.update(key=key, counts=counts, records=tuple(
+                cache.update(key=key, generation=generation,
+                             vertices=np.array(mesh.vertices, dtype=float),
+                             counts=counts, records=tuple(
                     np.concatenate([r[i] for r in record]) if record else
                     np.zeros((0,) if i != 1 else (0, 3)) for i in range(3)))
-    e += _sun_term(environment, centroids, normals, occ, offset, cache)
+    # the sun's shadow test (one ray per facet) is reused only for an unmoved mesh
+    same = (cache is not None and "vertices" in cache
+            and np.array_equal(cache["vertices"], np.asarray(mesh.vertices, dtype=float)))
+    e += _sun_term(environment, centroids, normals, occ, offset, cache if same else None)
     q = _absorptivity(absorptivity, environment.n_bands, len(normals)) * e
     if stats is not None:
         tot = q.sum(axis=0)

@@ -96,3 +96,26 @@ def open_stage(path) -> Usd.Stage:
     if stage is None:
         raise InputError(f"{path}: cannot open as a USD stage")
     return stage
+
+
+def library_layer_main(path: Path, build, doc: str, argv=None) -> int:
+    """Command line of a committed library layer (layers/*.usda): write it, or ``--check`` it.
+
+    ``build()`` returns the Sdf.Layer; ``--check`` prints whether ``path`` holds exactly its text
+    and exits 1 when it does not (CI keeps the committed files in step with the code).
+    """
+    import argparse
+
+    from humv_usd.fileio import write_text_atomic
+
+    parser = argparse.ArgumentParser(description=doc)
+    parser.add_argument("--check", action="store_true", help="exit 1 if the file is out of date")
+    args = parser.parse_args(argv)
+    text = layer_text(build())
+    if args.check:
+        ok = path.is_file() and path.read_text(encoding="utf-8") == text
+        print(f"{path}: {'up to date' if ok else 'out of date'}")
+        return 0 if ok else 1
+    write_text_atomic(path, text)
+    print(f"wrote {path}")
+    return 0
