@@ -1,6 +1,8 @@
 """compose: one layer per part, conventions, idempotence, nothing written on bad input."""
 from __future__ import annotations
 
+import json
+
 import math
 import os
 import subprocess
@@ -43,6 +45,9 @@ def test_one_layer_per_part_and_clean(composed):
     assert stage.GetDefaultPrim().GetPath() == "/World"
     assert len(stage.GetRootLayer().rootPrims) == 0      # sublayers + metadata only
     assert stage.GetTimeCodesPerSecond() == 30
+    ran = json.loads((out / "compose.json").read_text())["ran"]
+    assert set(ran) == {"environment", "atmosphere"}      # each tool says what it ran and skipped
+    assert "sun up at 1 of 1" in ran["environment"]["sun"]
 
 
 def test_each_layer_stands_alone(composed):

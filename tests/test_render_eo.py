@@ -74,6 +74,12 @@ def test_white_plate_under_sun_closed_form(tmp_path, zenith_deg):
     assert_allclose(ch["X"].mean() / ch["Y"].mean(), 1.0, atol=2e-3)
     [eo] = manifest["eo_sensors"]
     assert eo["frames"][0]["illumination"]["sun"].startswith("directional")
+    # EO gets the same ground truth as IR: labels at pixel centres, the plate fills the view
+    assert (ch["material_kind"] == 4).all() and (ch["instance_id"] > 0).all()
+    assert_allclose(ch["surface_temperature"], 300.0, rtol=1e-6)
+    assert_allclose(ch["normal_z"], 1.0, atol=1e-6)
+    assert (tmp_path / "out" / "eo" / "0000.instance.png").is_file()
+    assert (tmp_path / "out" / "coco.json").is_file()
     png = oiio.ImageInput.open(str(tmp_path / "out" / "eo" / "0000.png"))
     assert png.spec().nchannels == 3 and str(png.spec().format) == "uint8"
     png.close()

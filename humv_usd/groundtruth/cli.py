@@ -18,8 +18,8 @@ from humv_usd.errors import InputError
 @click.option("--masks", default=None, type=click.Path(dir_okay=False, path_type=Path),
               help="PNG of body region ids for --real (0 = not the person; ids of "
                    "humv_usd.avatar.labels.BODY_REGIONS; the render writes <frame>.region_ids.png).")
-@click.option("--quantity", default=None, type=click.Choice(["counts", "radiance", "temperature"]),
-              help="Image quantity (default: counts if the EXR has them, else radiance).")
+@click.option("--quantity", default=None, type=click.Choice(["counts", "radiance", "Y", "temperature"]),
+              help="Image quantity (default: counts if the EXR has them, else radiance; EO: luminance Y).")
 @click.option("--sensor", default=None, help="Sensor compared with --real (default: the first).")
 @click.option("--frame", default=None, type=int, help="Frame compared with --real (default: the first).")
 @reports_errors

@@ -9,14 +9,14 @@ of the body under them; props and the background are left out):
 
 - mean and standard deviation (population, ddof = 0) of the image quantity: ``counts`` when the
   EXR has that channel (the sensor chain's digital counts), else band ``radiance``
-  [W m^-2 sr^-1];
+  [W m^-2 sr^-1]; for EO sensors the rendered luminance ``Y`` (CIE Y of the radiance);
 - mean and standard deviation of the apparent (brightness) temperature [K].
 
 Real image comparison (``humv-usd regions RENDER_DIR --real IMAGE --masks MASKS``):
 
 - IMAGE: any single-channel image OpenImageIO reads (PNG, TIFF, EXR...); for several channels
   the first is used. Its values are compared with the simulated quantity chosen by
-  ``--quantity`` (default: counts if present, else radiance), so give them in the same units.
+  ``--quantity`` (default: counts if present, else radiance, else Y), so give them in the same units.
 - MASKS: a single-channel PNG of the same size whose pixel values are body region ids
   (:data:`humv_usd.avatar.labels.BODY_REGIONS`: 1 head, 2 face, 3 neck, 4 chest, 5 abdomen,
   6 back, 7 pelvis, 8-10 left upper arm / lower arm / hand, 11-13 right ..., 14-16 left upper
@@ -43,7 +43,7 @@ TABLE2: dict[str, np.ndarray] = {
     name: np.array([AL.REGION_ID[r] for r in regions])
     for name, regions in AL.SEED_TABLE2_REGIONS.items()}
 TEMPERATURE_CHANNELS = ("brightness_temperature", "apparent_temperature")
-QUANTITIES = ("counts", "radiance", "temperature")
+QUANTITIES = ("counts", "radiance", "Y", "temperature")
 REGIONS_NAME = "regions.json"
 
 
@@ -91,7 +91,8 @@ def image_regions(channels: dict[str, np.ndarray], quantity: str | None = None) 
     """Per person (instance id with body-region pixels) region statistics of one EXR image."""
     if "body_region" not in channels:
         raise InputError("the EXR has no body_region channel (render with the body_region annotator)")
-    quantity = quantity or ("counts" if "counts" in channels else "radiance")
+    # IR: the chain's counts, else band radiance; EO: luminance Y (relative, as rendered)
+    quantity = quantity or next((c for c in ("counts", "radiance", "Y") if c in channels), "radiance")
     temp_name = next((c for c in TEMPERATURE_CHANNELS if c in channels), None)
     temperature = channels[temp_name] if temp_name else None
     if quantity == "temperature":

@@ -136,6 +136,9 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
                     if reads_stage else None)
         built.append((name, _build(name, scenario, upstream), time.perf_counter() - t))
     texts = [(name, layer_text(lyr), dt) for name, lyr, dt in built]
+    # what each tool ran and skipped (its layer's customLayerData "humv:<tool>:ran"), for compose.json
+    ran = {name: dict(value) for name, lyr, _ in built
+           for key, value in dict(lyr.customLayerData).items() if key.endswith(":ran")}
     root_text = layer_text(root_layer(scenario, names))
 
     report = ComposeReport(stage_path=out / ROOT_NAME, skipped=skipped)
@@ -160,5 +163,6 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
         "seconds_total": round(report.seconds, 4),
         "layers": [{"name": n, "written": w, "seconds": round(t, 4)} for n, w, t in report.layers],
         "skipped": [{"part": p, "reason": r} for p, r in report.skipped],
+        "ran": ran,
         "removed": report.removed}, indent=2) + "\n")
     return report

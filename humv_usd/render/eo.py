@@ -253,10 +253,11 @@ class EORender:
     or a rendered material has no ``humv:material:reflectance``.
     """
 
-    def __init__(self, exporter, sensors, spp: int, max_depth: int, seed: int, out_dir):
+    def __init__(self, exporter, sensors, spp: int, max_depth: int, seed: int, out_dir, truth=None):
         from pxr import Usd
 
         self.exporter = exporter
+        self.truth = truth  # humv_usd.groundtruth.GroundTruth: the same labels as the IR sensors
         self.spp, self.max_depth, self.seed, self.out_dir = int(spp), int(max_depth), int(seed), out_dir
         self.sensors = list(sensors)
         self.skipped: list[dict] = []
@@ -323,14 +324,19 @@ class EORender:
             rgb = xyz_to_linear_srgb(xyz)
             rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
-            hits = scene.hits(self.ids[s.name])
+            rel = os.path.join(s.name, f"{frame:04d}")
+            if self.truth is not None:  # emissivity is a thermal-band quantity: NaN for EO
+                hits = self.truth.annotate(scene, self.ids[s.name], s, state, lambda part: float("nan"),
+                                           self.out_dir, rel)
+                extra = hits.channels
+            else:
+                hits, extra = scene.hits(self.ids[s.name]), {}
             rec["timings_s"]["labels"] += time.perf_counter() - t
             t = time.perf_counter()
-            rel = os.path.join(s.name, f"{frame:04d}")
             chained = chains.apply(s, rgb, frame, eo_space="srgb")  # sensor chain: the single call site for EO
             channels = {"X": xyz[..., 0], "Y": xyz[..., 1], "Z": xyz[..., 2],
                         "R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2], "Y_stderr": y_err,
-                        "depth": hits.depth, "instance_id": hits.instance.astype(np.float32)}
+                        "depth": hits.depth, "instance_id": hits.instance.astype(np.float32), **extra}
             if chained is not None:
                 channels.update({f"counts_{c}": chained.counts[..., i].astype(np.float32) for i, c in enumerate("RGB")})
             writers.write_exr(os.path.join(self.out_dir, rel + ".exr"), channels,

@@ -234,7 +234,8 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     use_sky_map = any(spectra0.sky_radiance is not None and radiometry.covers(spectra0.wavelengths_um, s.wavelength_range_um)
                       for s in rendered)
     use_sun = sun0 is not None and spectra0.solar_irradiance is not None
-    eo_run = eo_render.EORender(exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir)
+    eo_run = eo_render.EORender(exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir,
+                                truth=truth)
     eo_sensors = eo_run.sensors
     totals["load_export"] += time.perf_counter() - t
 

@@ -12,7 +12,7 @@ Per-facet absorbed radiation (seed Eq. 3, summed over bands as Eq. 4 does):
 
 where 1_ij is 1 when the ray from facet i towards w_j reaches the far field. A blocked ray sees
 the face it hits: its per-band leaving radiance (scene surfaces, or the mesh's own faces when the
-caller gives their radiance; 0 as in the seed otherwise). Two methods:
+caller gives their radiance; 0 as in the seed otherwise). Three methods:
 
 * ``brute`` (reference, the seed's): every map pixel in a facet's upper hemisphere x every facet,
   one embree occlusion ray each, in chunks.
@@ -20,7 +20,14 @@ caller gives their radiance; 0 as in the seed otherwise). Two methods:
   a lat-long grid of normals, interpolated) is exact up to interpolation; K stratified
   cosine-weighted rays per facet estimate only the difference that occluders make,
   pi/K sum_k (L_hit - L_map(w_k)) over rays that hit something. A fully unoccluded facet has no
-  Monte Carlo error at all.
+  Monte Carlo error at all. The table is computed exactly by FFT in azimuth.
+* ``adaptive``: the same estimator with a pilot of rays per facet and the rest of the ray
+  budget spread by Neyman allocation to the facets whose pilot rays (or neighbours' pilot rays)
+  disagree, i.e. the partly occluded ones.
+
+Both ray methods report their own Monte Carlo error (per-ray sample variance) and can replay a
+recorded visibility (which face each ray hits) for an unmoved or barely moved mesh with new
+radiances (``cache``). Ray casting: embreex directly (single-threaded) or Mitsuba.
 
 Units: SI; radiance [W m^-2 sr^-1], irradiance and absorbed flux [W m^-2], temperature [K].
 """
@@ -317,7 +324,7 @@ def scene_surface_radiance(mesh, temperature_k, emissivity, sky, solar_reflectan
         cos = np.maximum(n @ s, 0.0)
         lit = np.ones(len(n), dtype=bool)
         if shadows:
-            lit = _unblocked(_Intersector(mesh), mesh.triangles_center + n * _offset(mesh),
+            lit = _unblocked(_intersector(mesh), mesh.triangles_center + n * _offset(mesh),
                              np.broadcast_to(s, n.shape))
         e_sw = e_sw + e_sun[0] * cos * lit
     t = np.broadcast_to(np.asarray(temperature_k, dtype=float), nz.shape)
@@ -388,7 +395,7 @@ def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360
     rad = np.asarray(sky.radiance(d), dtype=float)
     if scene is not None and len(scene.mesh.faces):
         origins = np.broadcast_to(np.asarray(center, dtype=float), d.shape)
-        hit = _first_hit(_Intersector(scene.mesh), np.ascontiguousarray(origins), d)
+        hit = _first_hit(_intersector(scene.mesh), np.ascontiguousarray(origins), d)
         rad[:, hit >= 0] = np.asarray(scene.radiance)[:, hit[hit >= 0]]
     sun = sky.sun
     return RadianceMap(rad.reshape(-1, n_theta, n_phi), np.asarray(center, dtype=float),

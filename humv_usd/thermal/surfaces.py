@@ -109,7 +109,7 @@ def _sunlit_fraction(meshes, sun_dirs, up):
     """(times, faces of all meshes) sunlit fraction from 4 points per triangle."""
     import trimesh
 
-    from humv_usd.thermal.radiation import _Intersector
+    from humv_usd.thermal.radiation import _intersector
     offset = 0
     faces, points = [], []
     for m in meshes:
@@ -117,7 +117,7 @@ def _sunlit_fraction(meshes, sun_dirs, up):
         points.append(m.points)
         offset += len(m.points)
     combined = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
-    intersector = _Intersector(combined)
+    intersector = _intersector(combined)
     tri_n = np.asarray(combined.face_normals)
     v = np.asarray(combined.triangles)
     bary = np.array([[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6],
