@@ -258,7 +258,7 @@ def test_render_poses_the_avatar_per_frame(humvvex_raw, tmp_path):
     avatar_layer.build_one(scenario, h, motion=motion).Export(str(out / "layers/avatar_p1.usda"))
     assert check_stage(out / "stage.usda") == []
 
-    render_stage(out / "stage.usda", tmp_path / "render", spp=4)
+    render_stage(out / "stage.usda", tmp_path / "render", spp=4, sensors=["atom1024_lwir"])
     columns = []
     for frame in (0, 1):
         inp = oiio.ImageInput.open(str(tmp_path / f"render/atom1024_lwir/{frame:04d}.exr"))

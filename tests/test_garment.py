@@ -140,3 +140,12 @@ def test_transient_relaxes_to_steady_state():
 def test_invalid_gap_model():
     with pytest.raises(ValueError, match='invalid model selection nope'):
         steady_state(306.0, 290.0, 300.0, 5.0, 1e-3, 1e-3, gap_model='nope')
+
+
+def test_time_step_bench_converges_to_the_radau_reference():
+    from humv_usd.physics.garment import bench_time_steps
+    rows = bench_time_steps(steps_s=(60.0, 600.0), duration_s=1800.0)
+    for case in {r["case"] for r in rows}:
+        fine, coarse = [r for r in rows if r["case"] == case]
+        assert fine["common_error_k"] < coarse["common_error_k"]
+        assert fine["max_error_k"] < 0.5 and np.isfinite(coarse["max_error_k"])

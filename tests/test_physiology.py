@@ -208,3 +208,10 @@ def test_skin_temperature_per_face():
         P.skin_temperature_per_face(np.array([-1, 3]), seg)
     with pytest.raises(ValueError):
         P.skin_temperature_per_face(ids, seg[:16])
+
+
+def test_time_step_bench_two_node_first_order():
+    from humv_usd.thermal.physiology import bench_time_steps
+    rows = bench_time_steps("two_node", steps_s=(5.0, 20.0, 60.0), duration_s=1800.0)
+    err = [r["max_error_k"] for r in rows]
+    assert err[0] < err[1] < err[2] < 0.5   # explicit Euler: error grows with the step

@@ -108,3 +108,21 @@ def test_regions_command_against_a_real_image(render_dir, tmp_path):
     assert lonely.exit_code == 2
     missing = CliRunner().invoke(main, ["regions", str(tmp_path)])
     assert missing.exit_code == 2 and "manifest.json" in missing.output
+
+
+def test_real_counts_png_compared_in_counts(render_dir, tmp_path):
+    """A 16-bit PNG of counts (the render's own <frame>_counts.png format) is read as stored
+    integers, not rescaled to 0..1, so sim - real is in counts."""
+    out, _ = render_dir
+    ch = read_exr(out / "cam" / "0000.exr")
+    assert "counts" in ch
+    real = tmp_path / "real_counts.png"
+    writers.write_png16(real, np.clip(ch["counts"] - 100.0, 0, 65535).astype(np.uint16))
+    masks = out / "cam" / "0000.region_ids.png"
+    result = CliRunner().invoke(main, ["regions", str(out), "--real", str(real), "--masks", str(masks),
+                                       "--quantity", "counts"])
+    assert result.exit_code == 0, result.output
+    rows = [line.split() for line in result.output.splitlines() if line[:2].strip().isdigit()]
+    diffs = [float(r[-1]) for r in rows if r[-1] != "-"]
+    assert len(diffs) >= 10
+    assert_allclose(diffs, 100.0, atol=0.05)

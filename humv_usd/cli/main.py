@@ -382,7 +382,8 @@ def bench_thermal(facets: int, resolutions: str, rays: str, adaptive_rays: str,
                               for r in ok) if ok else "not met"))
 
     g_rows = garment_steps()
-    click.echo("garment temperature error vs time step (implicit step; Radau reference):")
+    click.echo("garment temperature error vs time step (implicit step; Radau reference; "
+               "sun ramp + wind drop):")
     for r in g_rows:
         click.echo(f"  {r['case']:<14} dt {r['step_s']:7.0f} s  max |dT| {r['max_error_k']:.2e} K"
                    f" at step ends, {r['common_error_k']:.2e} K every "

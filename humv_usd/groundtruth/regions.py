@@ -47,20 +47,25 @@ QUANTITIES = ("counts", "radiance", "Y", "temperature")
 REGIONS_NAME = "regions.json"
 
 
-def read_image(path) -> dict[str, np.ndarray]:
-    """All channels of an image file as float64 (H, W) arrays, by channel name."""
+def read_image(path, with_format: bool = False):
+    """All channels of an image file as float64 (H, W) arrays, by channel name, holding the
+    values as stored: integer files (8/16-bit PNG counts, region ids) keep their integers
+    (OpenImageIO would otherwise rescale them to 0..1). ``with_format`` also returns the
+    pixel format name (e.g. "uint16", "float")."""
     inp = oiio.ImageInput.open(os.fspath(path))
     if inp is None:
         raise InputError(f"{path}: cannot read the image ({oiio.geterror().strip() or 'unknown format'})")
     try:
         spec = inp.spec()
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")
+        fmt = str(spec.format)
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)  # the file's own type
     finally:
         inp.close()
     if pixels is None:
         raise InputError(f"{path}: cannot read the pixels")
-    pixels = np.asarray(pixels, dtype=np.float64).reshape(spec.height, spec.width, spec.nchannels)
-    return {name: pixels[..., i] for i, name in enumerate(spec.channelnames)}
+    pixels = np.asarray(pixels).astype(np.float64).reshape(spec.height, spec.width, spec.nchannels)
+    channels = {name: pixels[..., i] for i, name in enumerate(spec.channelnames)}
+    return (channels, fmt) if with_format else channels
 
 
 def _stats(values: np.ndarray) -> tuple[float | None, float | None]:
@@ -149,16 +154,10 @@ def real_regions(image_path, masks_path, select_shape=None) -> dict[str, dict]:
     """Per Table 2 region statistics of a real image under a region-id mask PNG."""
     image = read_image(image_path)
     values = next(iter(image.values()))
-    masks = read_image(masks_path)
-    mask_values = next(iter(masks.values()))
-    # OIIO normalises integer images to 0..1: back to the stored integers
-    inp = oiio.ImageInput.open(os.fspath(masks_path))
-    fmt = str(inp.spec().format)
-    inp.close()
-    scale = {"uint8": 255.0, "uint16": 65535.0}.get(fmt)
-    if scale is None:
+    masks, fmt = read_image(masks_path, with_format=True)
+    if fmt not in ("uint8", "uint16"):
         raise InputError(bad_value(f"{masks_path} pixel format", fmt, "expected an 8- or 16-bit PNG of region ids"))
-    region = np.rint(mask_values * scale).astype(np.int64)
+    region = np.rint(next(iter(masks.values()))).astype(np.int64)
     if region.shape != values.shape:
         raise InputError(bad_value(f"{masks_path} size", list(region.shape[::-1]),
                                    f"expected the size of {image_path}: {list(values.shape[::-1])}"))

@@ -8,19 +8,30 @@ sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spe
 
 - the sun: a ``directional`` emitter along ``humv:environment:sunDirection`` with the direct
   beam spectral irradiance at the ground ``humv:atmosphere:solarSpectralIrradiance``
-  (beam-normal, W m-2 um-1 -> W m-2 nm-1); none when the sun is below the horizon;
+  (beam-normal, W m-2 um-1 -> W m-2 nm-1); without that table (or one not covering
+  0.40-0.70 um), a 5778 K blackbody spectrum scaled to the broadband
+  ``humv:environment:directNormalIrradiance``
+  (:func:`humv_usd.render.radiometry.blackbody_sun`, an approximation: no spectral
+  atmospheric extinction); none when the sun is below the horizon;
 - the sky: a ``constant`` environment with, per wavelength, the cosine-weighted hemispherical
   mean of ``humv:atmosphere:skySpectralRadiance`` against zenith (the uniform sky that gives the
   same irradiance on a horizontal surface; its angular structure is not kept in the visible).
 
-No atmospheric path (transmittance, path radiance) is applied between the surfaces and the
-camera in the visible (ranges of tens of metres; the IR render applies it).
+Atmospheric path: per pixel by range as in the infrared, on the film's X, Y, Z channels,
+:math:`XYZ_{sensor} = \\tau_{xyz}(r)\\,XYZ + P_{xyz}(r)` with the sensor's spectral path table
+``/World/Atmosphere/Paths/<sensor>`` reduced to the channels with the CIE colour-matching
+functions (:func:`humv_usd.render.radiometry.reduce_xyz`: the transmittance weighted for a
+spectrally flat surface radiance, an approximation); r is the range of the pixel centre's first
+hit; sky pixels get no path term. Skipped (and listed) when there is no table or it does not
+cover 0.40-0.70 um.
 
 Colour: the film integrates the spectrum against the CIE 1931 2° colour-matching functions and
 gives CIE XYZ normalised so that a constant spectral radiance :math:`L` [W m-2 sr-1 nm-1] has
 :math:`Y = L` (Mitsuba divides by :math:`\\int\\bar y\\,d\\lambda` = 106.857 nm): the luminance is
 :math:`683\\,\\mathrm{lm\\,W^{-1}} \\times 106.857\\,\\mathrm{nm} \\times Y` [cd m-2]. XYZ goes to
-linear sRGB (D65) with ``colour.XYZ_to_sRGB`` (colour-science; CIE 1931 and IEC 61966-2-1).
+linear sRGB (D65) with colour-science's sRGB matrix (``colour.XYZ_to_sRGB``; CIE 1931 and
+IEC 61966-2-1), frozen in :mod:`humv_usd.render.cie` so that a render does not import
+colour-science.
 
 Closed-form check: a white Lambertian plate (:math:`\\rho = 1`) under a beam of spectral
 irradiance :math:`E` at incidence :math:`\\theta` has radiance :math:`E\\rho\\cos\\theta/\\pi`
@@ -34,6 +45,7 @@ import numpy as np
 
 from humv_usd.render import mode
 from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply  # noqa: F401
+from humv_usd.render import radiometry
 from humv_usd.render.radiometry import hemisphere_mean
 
 #: Wavelength grid of the Mitsuba spectra [nm] (Mitsuba's spectral variants sample 360-830 nm).
@@ -72,29 +84,40 @@ def reflectance_spectrum(material) -> np.ndarray:
     return np.clip(np.interp(EO_WAVELENGTHS_NM / 1000.0, wl, rho), 0.0, 1.0)
 
 
-def illumination(spectra, sun_direction) -> tuple[np.ndarray | None, np.ndarray | None, dict]:
+def _covers_visible(wl) -> bool:
+    return wl is not None and wl.size > 1 and wl[0] <= EO_RANGE_UM[0] + 0.01 and wl[-1] >= EO_RANGE_UM[1] - 0.01
+
+
+def illumination(spectra, sun_direction, dni_w_m2: float | None = None) -> tuple[np.ndarray | None, np.ndarray | None, dict]:
     """Sun irradiance and uniform-sky radiance on :data:`EO_WAVELENGTHS_NM`, per nm, and notes.
 
+    The sun comes from the solar spectral table when it covers 0.40-0.70 um, else from the
+    broadband ``dni_w_m2`` with a blackbody shape (:func:`humv_usd.render.radiometry.blackbody_sun`).
     Returns (sun [W m-2 nm-1] or None, sky [W m-2 sr-1 nm-1] or None, ran).
     """
     ran: dict = {}
     wl = None if spectra is None else spectra.wavelengths_um
-    covered = wl is not None and wl.size > 1 and wl[0] <= EO_RANGE_UM[0] + 0.01 and wl[-1] >= EO_RANGE_UM[1] - 0.01
+    covered = _covers_visible(wl)
     x = EO_WAVELENGTHS_NM / 1000.0
     sun = sky = None
-    if not covered:
-        ran["sun"] = ran["sky"] = "skipped: no atmosphere spectra covering 0.40-0.70 um"
-        return None, None, ran
-    if spectra.solar_irradiance is None:
-        ran["sun"] = "skipped: no humv:atmosphere:solarSpectralIrradiance"
-    elif sun_direction is None:
+    table = covered and spectra.solar_irradiance is not None
+    if sun_direction is None:
         ran["sun"] = "skipped: no humv:environment:sunDirection"
+    elif not table and not dni_w_m2:
+        ran["sun"] = ("skipped: no humv:atmosphere:solarSpectralIrradiance covering 0.40-0.70 um "
+                      "(and no humv:environment:directNormalIrradiance)")
     elif sun_direction[2] <= 0:
         ran["sun"] = "skipped: sun below the horizon (night)"
-    else:
+    elif table:
         sun = np.interp(x, wl, spectra.solar_irradiance) / 1000.0
         ran["sun"] = "directional, spectral irradiance from humv:atmosphere:solarSpectralIrradiance"
-    if spectra.sky_radiance is None:
+    else:
+        sun = radiometry.blackbody_sun(x, dni_w_m2) / 1000.0
+        ran["sun"] = (f"directional, no humv:atmosphere:solarSpectralIrradiance covering 0.40-0.70 um: "
+                      f"DNI {float(dni_w_m2):.4g} W m-2 with a {radiometry.SUN_FALLBACK_NOTE}")
+    if not covered:
+        ran["sky"] = "skipped: no atmosphere spectra covering 0.40-0.70 um"
+    elif spectra.sky_radiance is None:
         ran["sky"] = "skipped: no humv:atmosphere:skySpectralRadiance"
     else:
         per_wl = np.array([hemisphere_mean(spectra.sky_zenith_deg, spectra.sky_radiance[:, j])
@@ -215,23 +238,25 @@ def _look_at(mi, pose):
 
 
 def xyz_to_linear_srgb(xyz) -> np.ndarray:
-    """Linear sRGB (D65) from CIE XYZ with colour-science (no transfer function)."""
-    import colour
+    """Linear sRGB (D65) from CIE XYZ: colour-science's ``XYZ_to_sRGB`` without the transfer
+    function, i.e. its sRGB matrix (:data:`humv_usd.render.cie.XYZ_TO_SRGB`)."""
+    from humv_usd.render.cie import XYZ_TO_SRGB
 
-    return np.asarray(colour.XYZ_to_sRGB(np.asarray(xyz, dtype=float), apply_cctf_encoding=False))
+    return np.asarray(xyz, dtype=float) @ XYZ_TO_SRGB.T
 
 
 def srgb_preview(xyz) -> tuple[np.ndarray, float]:
     """8-bit sRGB (H, W, 3) of an XYZ image exposed so that the :data:`PREVIEW_PERCENTILE` of Y
-    maps to :data:`PREVIEW_WHITE`, and that exposure (a scale on XYZ); colour-science does the
-    XYZ -> sRGB matrix and the IEC 61966-2-1 encoding."""
-    import colour
+    maps to :data:`PREVIEW_WHITE`, and that exposure (a scale on XYZ); colour-science's
+    XYZ -> sRGB matrix (:func:`xyz_to_linear_srgb`) and the IEC 61966-2-1 encoding
+    (:func:`humv_usd.sensors.chain.srgb_encode`), as ``colour.XYZ_to_sRGB``."""
+    from humv_usd.sensors.chain import srgb_encode
 
     xyz = np.asarray(xyz, dtype=float)
     y = xyz[..., 1][np.isfinite(xyz[..., 1])]
     top = float(np.percentile(y, PREVIEW_PERCENTILE)) if y.size else 0.0
     exposure = PREVIEW_WHITE / top if top > 0 else 1.0
-    rgb = np.asarray(colour.XYZ_to_sRGB(np.nan_to_num(xyz) * exposure))
+    rgb = srgb_encode(xyz_to_linear_srgb(np.nan_to_num(xyz) * exposure))
     return np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8), exposure
 
 
@@ -270,18 +295,39 @@ class EORender:
             return
         stage = exporter.stage
         frames = [int(round(stage.GetStartTimeCode()))]
-        spectra = exporter.atmosphere_spectra(Usd.TimeCode(frames[0]))
-        wl = spectra.wavelengths_um
-        covered = wl is not None and wl.size > 1 and wl[0] <= EO_RANGE_UM[0] + 0.01 and wl[-1] >= EO_RANGE_UM[1] - 0.01
-        self.has_sun = covered and spectra.solar_irradiance is not None and exporter.sun_direction(Usd.TimeCode(frames[0])) is not None
+        t0 = Usd.TimeCode(frames[0])
+        spectra = exporter.atmosphere_spectra(t0)
+        covered = _covers_visible(spectra.wavelengths_um)
+        self.has_sun = (exporter.sun_direction(t0) is not None
+                        and ((covered and spectra.solar_irradiance is not None)
+                             or exporter.direct_normal_irradiance(t0) is not None))
         self.has_sky = covered and spectra.sky_radiance is not None
+        self._paths: dict = {}  # sensor name -> (PathTable identity, XYZPath)
         if not (self.has_sun or self.has_sky):
             self._skip_all("no visible illumination in the stage: humv:atmosphere:solarSpectralIrradiance / "
-                           "skySpectralRadiance covering 0.40-0.70 um (atmosphere layer) are absent")
+                           "skySpectralRadiance covering 0.40-0.70 um (atmosphere layer) and "
+                           "humv:environment:directNormalIrradiance are absent")
 
     def _skip_all(self, reason: str) -> None:
         self.skipped += [{"name": s.name, "prim": s.path, "band": s.band, "reason": reason} for s in self.sensors]
         self.sensors = []
+
+    def path(self, sensor, time_code) -> tuple[radiometry.XYZPath | None, str]:
+        """The sensor's path table reduced to X, Y, Z (:func:`radiometry.reduce_xyz`), or None,
+        and what ran."""
+        table = self.exporter.path_table(sensor, time_code)
+        if table is None:
+            return None, "skipped: no path table under /World/Atmosphere/Paths (no transmittance or path radiance)"
+        if not _covers_visible(table.wavelengths_um):
+            return None, f"skipped: path table {table.prim} does not cover 0.40-0.70 um"
+        key = (table.ranges_m.tobytes(), table.wavelengths_um.tobytes(), table.transmittance.tobytes(),
+               table.radiance.tobytes())
+        cached = self._paths.get(sensor.name)
+        if cached is None or cached[0] != key:
+            cached = self._paths[sensor.name] = (key, radiometry.reduce_xyz(table))
+        return cached[1], (f"per pixel by range from {table.prim} reduced to CIE X, Y, Z (colour-matching "
+                           f"functions, flat-spectrum transmittance weighting; {table.ranges_m.size} ranges "
+                           f"{table.ranges_m[0]:g}-{table.ranges_m[-1]:g} m)")
 
     def frame(self, state, frame: int, chains) -> None:
         """Render, label and write every EO sensor at ``frame``."""
@@ -314,14 +360,14 @@ class EORender:
         for s in self.sensors:
             scene.set_camera(self.ids[s.name], state.cameras[s.name])
         time_code = Usd.TimeCode(frame)
-        sun, sky, ran = illumination(self.exporter.atmosphere_spectra(time_code), self.exporter.sun_direction(time_code))
+        sun, sky, ran = illumination(self.exporter.atmosphere_spectra(time_code), self.exporter.sun_direction(time_code),
+                                     self.exporter.direct_normal_irradiance(time_code))
         scene.set_illumination(self.exporter.sun_direction(time_code), sun, sky)
         scene.update()
         for s in self.sensors:
             rec = self.records[s.name]
             t = time.perf_counter()
             xyz, y_err = scene.render_xyz(self.ids[s.name], self.spp, self.seed + frame)
-            rgb = xyz_to_linear_srgb(xyz)
             rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
             rel = os.path.join(s.name, f"{frame:04d}")
@@ -332,6 +378,18 @@ class EORender:
             else:
                 hits, extra = scene.hits(self.ids[s.name]), {}
             rec["timings_s"]["labels"] += time.perf_counter() - t
+            t = time.perf_counter()
+            path, path_ran = self.path(s, time_code)
+            if path is not None:  # atmosphere per pixel by range of the pixel centre's first hit
+                h = scene.hits(self.ids[s.name])
+                origin = np.asarray(state.cameras[s.name].origin, dtype=np.float64)
+                hit = np.isfinite(h.depth)
+                range_m = np.where(hit, np.linalg.norm(np.where(hit[..., None], h.position, 0.0) - origin, axis=-1),
+                                   np.inf)
+                xyz, tau = radiometry.apply_xyz_path(xyz, range_m, path)
+                y_err = y_err * tau[..., 1]
+            rgb = xyz_to_linear_srgb(xyz)
+            rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
             chained = chains.apply(s, rgb, frame, eo_space="srgb")  # sensor chain: the single call site for EO
             channels = {"X": xyz[..., 0], "Y": xyz[..., 1], "Z": xyz[..., 2],
@@ -351,6 +409,7 @@ class EORender:
                                   "preview_exposure": exposure, "Y_mean": float(np.mean(y)),
                                   "luminance_mean_cd_m2": float(KM_LM_PER_W * CIE_Y_INTEGRAL_NM * np.mean(y)),
                                   "Y_stderr_mean": float(np.nanmean(y_err)), "illumination": ran,
+                                  "atmosphere": path_ran,
                                   "sensor_chain": chain_record})
 
     def manifest(self) -> list[dict]:

@@ -59,6 +59,8 @@ SENSOR_RANGE_ATTR = _s.SENSOR_WAVELENGTH_RANGE
 SENSOR_RESPONSE_WL_ATTR = _s.SENSOR_RESPONSE_WAVELENGTHS
 SENSOR_RESPONSE_ATTR = _s.SENSOR_RESPONSE
 SENSOR_RESOLUTION_ATTR = _s.SENSOR_RESOLUTION
+SENSOR_SUBBANDS_ATTR = _s.SENSOR_SUBBANDS
+ENV_DNI_ATTR = _s.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE
 SENSOR_PREFIX = "humv:sensor:"
 ATMOSPHERE_PATH = "/World/Atmosphere"
 ENVIRONMENT_PATH = "/World/Environment"
@@ -112,6 +114,7 @@ class Sensor:
     resolution: tuple[int, int] | None  # (width, height) [px]
     skip_reason: str | None = None
     kind: str = "IR"  # "IR" (mono sub-band render) or "EO" (spectral render, see render.eo)
+    subbands: int | None = None  # humv:sensor:subbands when authored (IR), else None (render default)
 
     @property
     def rendered(self) -> bool:
@@ -356,7 +359,12 @@ class StageExport:
         if kind == "EO":  # colour comes from the CIE observer (render.eo), not a band response
             return Sensor(name, path, band, (lo, hi), None, (w, h), kind="EO")
         response = self._read_response(prim, (lo, hi))
-        return Sensor(name, path, band, (lo, hi), response, (w, h))
+        subbands = _get(prim.GetAttribute(SENSOR_SUBBANDS_ATTR), Usd.TimeCode.Default())
+        if subbands is not None:
+            from humv_usd.render.radiometry import check_subbands
+
+            subbands = check_subbands(subbands, f"{path}.{SENSOR_SUBBANDS_ATTR}")
+        return Sensor(name, path, band, (lo, hi), response, (w, h), subbands=subbands)
 
     @staticmethod
     def _read_response(prim, band):
@@ -585,6 +593,19 @@ class StageExport:
             raise InputError(bad_value(f"{ENVIRONMENT_PATH}.{SUN_DIRECTION_ATTR}", _summary(d),
                                        "expected a unit 3-vector toward the sun"))
         return d / n
+
+    def direct_normal_irradiance(self, time) -> float | None:
+        """Broadband direct normal irradiance ``humv:environment:directNormalIrradiance`` [W m-2]
+        at ``time``, or None if not authored."""
+        prim = self.stage.GetPrimAtPath(ENVIRONMENT_PATH)
+        value = _get(prim.GetAttribute(ENV_DNI_ATTR), time) if prim and prim.IsValid() else None
+        if value is None:
+            return None
+        v = float(value)
+        if not (math.isfinite(v) and 0.0 <= v <= 2000.0):
+            raise InputError(bad_value(f"{ENVIRONMENT_PATH}.{ENV_DNI_ATTR}", v,
+                                       "expected a direct normal irradiance in 0..2000 W m-2"))
+        return v
 
     def path_table(self, sensor: Sensor, time):
         """The sensor's slant-path table (``radiometry.PathTable``) at ``time``, or None.

@@ -198,6 +198,7 @@ class IRScene:
             return
         self._positions[part.key] = v
         self._set_array(f"{part.key}.vertex_positions", v.ravel())
+        self._hits = {}  # the geometry changed
 
     def set_surface(self, part: Part, face_radiance, reflectance: float) -> None:
         """Per-triangle emitted radiance [W m^-2 sr^-1] and diffuse reflectance of a part."""
@@ -237,6 +238,7 @@ class IRScene:
         self.params[f"{SKY_ID}.sampling_weight"] = max(float(irradiance), 1e-30)
 
     def set_camera(self, sensor_id: str, pose: CameraPose) -> None:
+        getattr(self, "_hits", {}).pop(sensor_id, None)
         self.sensors[sensor_id].pose = pose
         self.params[f"{sensor_id}.to_world"] = _look_at(self.mi, pose, scalar=self.scalar)
         self.params[f"{sensor_id}.x_fov"] = float(pose.fov_x_deg)
@@ -267,7 +269,15 @@ class IRScene:
 
         Rays come from the same Mitsuba sensor that renders (``sample_ray`` at the pixel centre,
         aperture sample 0.5), so labels and image agree by construction. See :class:`Hits`.
+        Cached per sensor until its camera (:meth:`set_camera`) or a part's vertices
+        (:meth:`set_vertices`) change; treat the arrays as read-only.
         """
+        cache = self.__dict__.setdefault("_hits", {})
+        if sensor_id not in cache:
+            cache[sensor_id] = self._cast_hits(sensor_id)
+        return cache[sensor_id]
+
+    def _cast_hits(self, sensor_id: str) -> "Hits":
         mi = self.mi = mode.mitsuba(spectral=self.spectral)  # the other render may have switched it
         setup = self.sensors[sensor_id]
         sensor = self._sensor_objects[sensor_id]

@@ -35,15 +35,17 @@ import numpy as np
 
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
+from humv_usd.scenario import spec as _spec
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
 #: ``humv-usd bench render`` on humvvex with LOWTRAN7 paths and sky: the largest spectral error
 #: over its materials, temperatures and ranges 5-60 m is 0.03 K (atom1024 LWIR), 0.06 K
 #: (LWIR 640) and 0.07 K (MWIR) at 4 sub-bands, against 0.11, 0.10 and 1.3 K for one gray band;
 #: below the Monte Carlo error of a 16 spp render (~0.3 K per pixel).
-DEFAULT_SUBBANDS = 4
+#: (The value lives in :mod:`humv_usd.scenario.spec`, the default of the sensor key ``subbands``.)
+DEFAULT_SUBBANDS = _spec.DEFAULT_SUBBANDS
 #: Largest accepted sub-band count.
-MAX_SUBBANDS = 64
+MAX_SUBBANDS = _spec.MAX_SUBBANDS
 #: Temperature of the blackbody weighting the sub-band emissivity and transmittance [K].
 WEIGHTING_TEMPERATURE_K = 300.0
 #: Uniform quadrature nodes per sub-band (table and response wavelengths are added).
@@ -346,15 +348,44 @@ class FrameRadiometry:
     ran: dict
 
 
+# --- sun without a solar spectral table --------------------------------------------------------
+
+#: Blackbody temperature of the fallback solar spectrum [K] (the Sun's effective temperature,
+#: e.g. Iqbal, An Introduction to Solar Radiation, Academic Press 1983, §3.1: 5777-5778 K).
+SUN_BLACKBODY_K = 5778.0
+STEFAN_BOLTZMANN = 5.670374419e-8  # W m-2 K-4 (CODATA 2018)
+#: What the fallback is, for the manifest.
+SUN_FALLBACK_NOTE = (f"blackbody {SUN_BLACKBODY_K:g} K spectral shape scaled so that its integral over all "
+                     "wavelengths is humv:environment:directNormalIrradiance (approximation: no spectral "
+                     "atmospheric absorption, e.g. the 2.7 and 4.3 um CO2/H2O bands, so the in-band sun is "
+                     "overestimated where the atmosphere absorbs)")
+
+
+def blackbody_sun(wavelengths_um, dni_w_m2: float) -> np.ndarray:
+    r"""Direct solar spectral irradiance [W m-2 um-1] (beam-normal) from a broadband DNI:
+    :math:`E_\lambda = \mathrm{DNI}\,\pi B(\lambda, T_\odot) / (\sigma T_\odot^4)`, whose integral
+    over all wavelengths is the DNI (Planck; Stefan-Boltzmann :math:`\int B\,d\lambda = \sigma T^4/\pi`).
+    The approximation of :data:`SUN_FALLBACK_NOTE`."""
+    t = SUN_BLACKBODY_K
+    return float(dni_w_m2) * np.pi * planck.spectral_radiance(np.asarray(wavelengths_um, float), t) / (STEFAN_BOLTZMANN * t**4)
+
+
+def blackbody_sun_subbands(sub: SubBands, dni_w_m2: float) -> np.ndarray:
+    """:func:`blackbody_sun` integrated per sub-band with the response, exactly (n,) [W m-2]."""
+    t = SUN_BLACKBODY_K
+    return float(dni_w_m2) * np.pi * sub.radiance(t) / (STEFAN_BOLTZMANN * t**4)
+
+
 def frame_radiometry(sub: SubBands, sky_temperature_k: float, spectra=None, sun_direction=None,
-                     path_table: PathTable | None = None) -> FrameRadiometry:
+                     path_table: PathTable | None = None, dni_w_m2: float | None = None) -> FrameRadiometry:
     """Sub-band sky, sun and path terms for one IR sensor at one frame, from what the stage has.
 
     - sky: the spectral sky table (``spectra.sky_zenith_deg``/``sky_radiance``) integrated per
       sub-band as a lat-long envmap when it covers the band, else a blackbody sky at the
       effective ``sky_temperature_k`` (uniform);
     - sun: ``spectra.solar_irradiance`` integrated per sub-band along ``sun_direction`` when the
-      sun is above the horizon and the table covers the band; none at night;
+      sun is above the horizon and the table covers the band; without such a table, a blackbody
+      sun scaled to the broadband ``dni_w_m2`` (:func:`blackbody_sun_subbands`); none at night;
     - path: the sensor's path table reduced to sub-bands (:meth:`PathTable.reduce`), else none.
 
     ``ran`` records each choice for the manifest.
@@ -373,21 +404,26 @@ def frame_radiometry(sub: SubBands, sky_temperature_k: float, spectra=None, sun_
                else "sky table does not cover the band")
         ran["sky"] = f"uniform blackbody at humv:atmosphere:skyTemperature ({why})"
     sun_dir = sun_e = None
+    no_table = ("no humv:atmosphere:solarSpectralIrradiance" if spectra is None or spectra.solar_irradiance is None
+                else None if covers(wl, band) else "solar table does not cover the band")
     if sun_direction is None:
         ran["sun"] = "skipped: no humv:environment:sunDirection"
-    elif spectra is None or spectra.solar_irradiance is None:
-        ran["sun"] = "skipped: no humv:atmosphere:solarSpectralIrradiance"
+    elif no_table is not None and not dni_w_m2:
+        ran["sun"] = f"skipped: {no_table} (and no humv:environment:directNormalIrradiance)"
     elif sun_direction[2] <= 0.0:
         ran["sun"] = "skipped: sun below the horizon (night)"
-    elif not covers(wl, band):
-        ran["sun"] = "skipped: solar table does not cover the band"
     else:
-        e = sub.integrate(wl, spectra.solar_irradiance)
+        if no_table is None:
+            e, source = sub.integrate(wl, spectra.solar_irradiance), "humv:atmosphere:solarSpectralIrradiance"
+        else:
+            e = blackbody_sun_subbands(sub, dni_w_m2)
+            source = f"{no_table}: DNI {float(dni_w_m2):.4g} W m-2 with a {SUN_FALLBACK_NOTE}"
         if not np.any(e > 0):
             ran["sun"] = "skipped: zero solar irradiance in the band"
         else:
             sun_dir, sun_e = np.asarray(sun_direction, dtype=float), e
-            ran["sun"] = f"directional, {float(e.sum()):.4g} W m-2 in band (beam-normal), zenith {np.degrees(np.arccos(np.clip(sun_dir[2], -1, 1))):.2f} deg"
+            ran["sun"] = (f"directional, {float(e.sum()):.4g} W m-2 in band (beam-normal), zenith "
+                          f"{np.degrees(np.arccos(np.clip(sun_dir[2], -1, 1))):.2f} deg, from {source}")
     path = None
     if path_table is None:
         ran["atmosphere"] = "skipped: no path table under /World/Atmosphere/Paths (no transmittance or path radiance)"
@@ -398,3 +434,86 @@ def frame_radiometry(sub: SubBands, sky_temperature_k: float, spectra=None, sun_
         ran["atmosphere"] = (f"per pixel by range from {path_table.prim} ({path_table.ranges_m.size} ranges "
                              f"{path_table.ranges_m[0]:g}-{path_table.ranges_m[-1]:g} m)")
     return FrameRadiometry(sky_constant, sky_maps, sun_dir, sun_e, path, ran)
+
+
+# --- EO: the path reduced to the CIE XYZ channels -------------------------------------------------
+
+def cie_1931_cmfs() -> tuple[np.ndarray, np.ndarray]:
+    """CIE 1931 2° colour-matching functions: (wavelengths [nm] (W,), x-bar, y-bar, z-bar (W, 3)),
+    360-830 nm every nm (colour-science's ``MSDS_CMFS['CIE 1931 2 Degree Standard Observer']``,
+    frozen in :mod:`humv_usd.render.cie`)."""
+    from humv_usd.render import cie
+
+    return cie.CMF_WAVELENGTHS_NM, cie.CMF_XYZ
+
+
+@dataclass
+class XYZPath:
+    """Slant path of an EO sensor reduced to the CIE X, Y, Z channels against range."""
+
+    ranges_m: np.ndarray  # (R,)
+    transmittance: np.ndarray  # (R, 3)
+    radiance: np.ndarray  # (R, 3), same scale as the film's XYZ [W m-2 sr-1 nm-1]
+
+    def at(self, range_m) -> tuple[np.ndarray, np.ndarray]:
+        """(transmittance, path radiance), each ``range_m.shape + (3,)`` (linear in range, held
+        beyond the last table range)."""
+        r = np.asarray(range_m, dtype=float)
+        tau = np.stack([np.interp(r, self.ranges_m, self.transmittance[:, c]) for c in range(3)], axis=-1)
+        lp = np.stack([np.interp(r, self.ranges_m, self.radiance[:, c]) for c in range(3)], axis=-1)
+        return tau, lp
+
+
+def reduce_xyz(table: PathTable) -> XYZPath:
+    r"""Reduce a spectral path table to the film's X, Y, Z channels.
+
+    With the CIE 1931 colour-matching functions :math:`\bar x_c` (:func:`cie_1931_cmfs`) and the
+    film's normalisation (Mitsuba divides every channel by :math:`\int\bar y\,d\lambda`, so a flat
+    spectral radiance :math:`L` per nm has :math:`Y = L`):
+
+    .. math::
+
+        \tau_c(r) = \frac{\int \bar x_c\,\tau(\lambda, r)\,d\lambda}{\int \bar x_c\,d\lambda},
+        \qquad
+        P_c(r) = \frac{\int \bar x_c\,L_{path}(\lambda, r)\,d\lambda}{\int \bar y\,d\lambda}
+
+    (trapezoid on the CIE 5 nm table over 360-830 nm, the tables linear in wavelength and held beyond their
+    ends; :math:`L_{path}` converted from per um to per nm). The path radiance is exact; the
+    channel transmittance assumes a spectrally flat surface-leaving radiance within each
+    channel (an illumination- and reflectance-free weighting, exact when either the
+    transmittance or the radiance is flat over the channel; the visible transmittance of the
+    scene's ranges varies by well under 1 % across a channel). A zero range (tau 1, P 0) is
+    prepended when the table starts above 0 m. Then per pixel
+    :math:`XYZ_{sensor} = \tau_{xyz}(r)\,XYZ + P_{xyz}(r)` (:func:`apply_xyz_path`).
+    """
+    wl_nm, cmf = cie_1931_cmfs()
+    x_um = wl_nm / 1000.0
+    wl = np.asarray(table.wavelengths_um, dtype=float)
+    tau_l = _interp_last(x_um, wl, np.asarray(table.transmittance, dtype=float))  # (R, W)
+    rad_l = _interp_last(x_um, wl, np.asarray(table.radiance, dtype=float)) / 1000.0
+    dx = np.diff(wl_nm)
+    w = np.zeros_like(wl_nm)
+    w[:-1] += 0.5 * dx
+    w[1:] += 0.5 * dx
+    wc = cmf * w[:, None]  # (W, 3)
+    tau = (tau_l @ wc) / wc.sum(axis=0)
+    path = (rad_l @ wc) / wc[:, 1].sum()
+    ranges = np.asarray(table.ranges_m, dtype=float)
+    if ranges[0] > 0:
+        ranges = np.concatenate([[0.0], ranges])
+        tau = np.concatenate([np.ones((1, 3)), tau])
+        path = np.concatenate([np.zeros((1, 3)), path])
+    return XYZPath(ranges, tau, path)
+
+
+def apply_xyz_path(xyz, range_m, path: XYZPath | None) -> tuple[np.ndarray, np.ndarray]:
+    """At-sensor XYZ (H, W, 3) :math:`\\tau_{xyz}(r)\\,XYZ + P_{xyz}(r)` for pixels that see a
+    surface (finite range); sky pixels unchanged (the sky is the at-sensor value). Also returns
+    :math:`\\tau_{xyz}` (1 for sky pixels)."""
+    xyz = np.asarray(xyz, dtype=float)
+    if path is None:
+        return xyz, np.ones_like(xyz)
+    hit = np.isfinite(range_m)
+    tau, lp = path.at(np.where(hit, range_m, 0.0))
+    tau = np.where(hit[..., None], tau, 1.0)
+    return np.where(hit[..., None], tau * xyz + lp, xyz), tau

@@ -154,7 +154,8 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     max_depth : int, default -1
         Path depth; -1 is unbounded (unbiased, Russian roulette).
     subbands : int, optional
-        Sub-bands per infrared band (1-64); default
+        Sub-bands per infrared band (1-64) for every IR sensor; default each sensor's
+        ``humv:sensor:subbands`` (scenario key ``subbands``), else
         :data:`humv_usd.render.radiometry.DEFAULT_SUBBANDS`. ``spp`` is split over them
         (:func:`humv_usd.render.ir.subband_spp`).
     annotators : list of str, optional
@@ -224,8 +225,12 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
                for s in selected if not s.rendered]
     mi = mode.mitsuba()
     # --- radiometry setup (H-render): sub-bands per IR sensor, environment at the first frame
-    n_sub = radiometry.check_subbands(radiometry.DEFAULT_SUBBANDS if subbands is None else subbands)
-    sub_of = {s.name: radiometry.SubBands(s.wavelength_range_um, s.response, n_sub) for s in rendered}
+    # sub-bands per sensor: the render option, else the sensor's humv:sensor:subbands, else the default
+    override = None if subbands is None else radiometry.check_subbands(subbands)
+    n_of = {s.name: override or s.subbands or radiometry.DEFAULT_SUBBANDS for s in rendered}
+    n_source = {s.name: ("render option subbands" if override else "humv:sensor:subbands" if s.subbands
+                         else "default (humv_usd.render.radiometry.DEFAULT_SUBBANDS)") for s in rendered}
+    sub_of = {s.name: radiometry.SubBands(s.wavelength_range_um, s.response, n_of[s.name]) for s in rendered}
     spp_sub = {name: subband_spp(spp, len(sub)) for name, sub in sub_of.items()}
     sub_eps: dict[tuple[str, str], np.ndarray] = {}
     first_time = Usd.TimeCode(frame_list[0])
@@ -233,7 +238,9 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     sun0 = exporter.sun_direction(first_time)
     use_sky_map = any(spectra0.sky_radiance is not None and radiometry.covers(spectra0.wavelengths_um, s.wavelength_range_um)
                       for s in rendered)
-    use_sun = sun0 is not None and spectra0.solar_irradiance is not None
+    dni0 = exporter.direct_normal_irradiance(first_time)
+    # the sun: the solar table, else a blackbody scaled to the broadband DNI (radiometry.blackbody_sun)
+    use_sun = sun0 is not None and (spectra0.solar_irradiance is not None or dni0 is not None)
     eo_run = eo_render.EORender(exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir,
                                 truth=truth)
     eo_sensors = eo_run.sensors
@@ -282,7 +289,8 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             t = time.perf_counter()
             sub = sub_of[s.name]
             frame_rad = radiometry.frame_radiometry(sub, state.sky_temperature_k, spectra, sun_direction,
-                                                    exporter.path_table(s, frame_time))
+                                                    exporter.path_table(s, frame_time),
+                                                    dni_w_m2=exporter.direct_normal_irradiance(frame_time))
             dt = time.perf_counter() - t
             timings["load_export"] += dt
             totals["load_export"] += dt
@@ -379,6 +387,7 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             "response": None if s.response is None else {"wavelengths_um": s.response[0], "values": s.response[1]},
             "resolution": list(s.resolution),
             "subbands_um": [list(b) for b in sub_of[s.name].bands],
+            "subbands_requested": n_of[s.name], "subbands_source": n_source[s.name],
             "spp_per_subband": spp_sub[s.name],
             "frames": per_sensor[s.name]["frames"],
             "timings_s": {**per_sensor[s.name]["timings"],
@@ -388,12 +397,15 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
         "eo_sensors": eo_run.manifest(),
         "skipped_sensors": skipped + eo_run.skipped,
         "radiometry": {
-            "subbands": n_sub, "subbands_default": radiometry.DEFAULT_SUBBANDS,
+            "subbands": n_of, "subbands_option": override, "subbands_default": radiometry.DEFAULT_SUBBANDS,
             "spp_per_subband": spp_sub,
             "model": "per sub-band gray Lambertian render summed with the sensor response; "
                      "L = sum_k tau_k(r) S_k + P_k(r) per pixel by range (see humv_usd.render.radiometry)",
             "sky": "envmap from the zenith table" if use_sky_map else "uniform (blackbody at skyTemperature)",
             "sun_emitter": bool(use_sun),
+            "sun_source": ("humv:atmosphere:solarSpectralIrradiance" if spectra0.solar_irradiance is not None
+                           else f"humv:environment:directNormalIrradiance with a {radiometry.SUN_FALLBACK_NOTE}"
+                           if use_sun else None),
             "atmosphere_model": spectra0.model,
         },
         "sensor_chain": chains.status(),

@@ -31,6 +31,9 @@ BANDS = ("EO", "MWIR", "LWIR")
 SENSOR_PRESETS = ("atom1024_lwir", "lwir640_12um", "mwir_insb640", "rgb_imx273")  # sensors.presets
 PLATFORMS = ("tripod", "mast", "aerial")
 AGC_MODES = ("none", "linear", "histogram")
+#: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
+#: default is chosen there with ``humv-usd bench render``).
+DEFAULT_SUBBANDS, MAX_SUBBANDS = 4, 64
 ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel")
@@ -181,6 +184,9 @@ SENSOR = Section(array=True, doc="(v) Sensor", keys={
     "full_well_e": Key("float", "EO: full-well capacity [electrons] (default 10500).",
                        lo=1.0, hi=1.0e7),
     "read_noise_e": Key("float", "EO: read noise [electrons] (default 2.5).", lo=0.0, hi=1.0e4),
+    "subbands": Key("int", "Infrared: sub-bands the render splits the band into (humv_usd.render."
+                    "radiometry; the render's --subbands overrides it).", default=DEFAULT_SUBBANDS,
+                    lo=1, hi=MAX_SUBBANDS, integer=True),
     "platform": Key("choice", "Platform: tripod or mast (fixed camera at position_m; a mast's "
                     "height is position_m's z, 2-100 m) or aerial (orbit around look_at_m, per frame).",
                     default="tripod", choices=PLATFORMS),

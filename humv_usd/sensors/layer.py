@@ -14,7 +14,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.scenario import Scenario
-from humv_usd.sensors.presets import orbit_positions, preset
+from humv_usd.sensors.presets import netd_for_f_number, orbit_positions, preset
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, look_at_matrix, new_layer_stage
 
@@ -55,6 +55,27 @@ def _response(s: dict):
     return wl, np.asarray(p.response, dtype=float), channels
 
 
+def netd_of(s: dict) -> tuple[float, str | None]:
+    """The NETD [K] to author for a sensor table, and a note when it was derived.
+
+    An infrared sensor with a preset whose ``f_number`` differs from the preset's, and whose
+    ``netd_k`` is the preset's (not given in the table, or given equal to it: the scenario
+    does not tell them apart), gets the preset's NETD scaled to the new f-number with the
+    detector-limited law :func:`humv_usd.sensors.presets.netd_for_f_number`. Otherwise the
+    table's ``netd_k`` as is (None note).
+    """
+    netd = float(s["netd_k"])
+    if s["band"] == "EO" or not s.get("preset"):
+        return netd, None
+    p = preset(s["preset"])
+    if p.band != s["band"] or float(s["f_number"]) == float(p.f_number) or netd != float(p.netd_k):
+        return netd, None
+    scaled = netd_for_f_number(p.netd_k, p.f_number, s["f_number"])
+    note = (f"scaled from preset {p.name} NETD {p.netd_k:g} K at f/{p.f_number:g} to f/{float(s['f_number']):g}: "
+            f"x (4N^2+1)/(4N0^2+1) (detector-limited; humv_usd.sensors.presets.netd_for_f_number)")
+    return scaled, note
+
+
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g = scenario["general"]
     frames = scenario.frame_count
@@ -79,17 +100,20 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         cam.CreateClippingRangeAttr(Gf.Vec2f(0.05, 1.0e5))
         prim = cam.GetPrim()
         prim.ApplyAPI(S.SENSOR_API)
+        netd, netd_note = netd_of(s)
         values = [(S.SENSOR_BAND, s["band"]),
                   (S.SENSOR_WAVELENGTH_RANGE, Gf.Vec2f(*s["wavelength_um"])),
                   (S.SENSOR_RESOLUTION, Gf.Vec2i(width, height)),
                   (S.SENSOR_PIXEL_PITCH, s["pixel_pitch_um"] * 1e-6),
-                  (S.SENSOR_F_NUMBER, s["f_number"]), (S.SENSOR_NETD, s["netd_k"]),
+                  (S.SENSOR_F_NUMBER, s["f_number"]), (S.SENSOR_NETD, netd),
                   (S.SENSOR_BIT_DEPTH, s["bit_depth"]), (S.SENSOR_OFFSET, s["offset"]),
                   (S.SENSOR_PRESET, s.get("preset") or ""), (S.SENSOR_PLATFORM, s["platform"]),
                   (S.SENSOR_AGC, s["agc"]),
                   (S.SENSOR_AGC_PERCENTILES, Gf.Vec2f(*s["agc_percentiles"]))]
         if s["gain"] is not None:          # EO presets: no gain = auto exposure
             values.append((S.SENSOR_GAIN, s["gain"]))
+        if s["band"] != "EO":              # the render's sub-band count (--subbands overrides)
+            values.append((S.SENSOR_SUBBANDS, s["subbands"]))
         if s["band"] == "EO":
             values += [(S.SENSOR_FULL_WELL, s["full_well_e"]),
                        (S.SENSOR_READ_NOISE, s["read_noise_e"])]
@@ -101,6 +125,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
                 values.append((S.SENSOR_CHANNEL_RESPONSE, Vt.FloatArray(channels.ravel().tolist())))
         for attr, value in values:
             prim.GetAttribute(attr).Set(value)
+        if netd_note:
+            prim.GetAttribute(S.SENSOR_NETD).SetCustomDataByKey("humv:netdScaling", netd_note)
     return finish(stage)
 
 

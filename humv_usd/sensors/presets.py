@@ -161,6 +161,35 @@ def calibration(name: str) -> tuple[float | None, float]:
     return default_gain_offset(model, p.span_k)
 
 
+def netd_for_f_number(netd_k: float, preset_f_number: float, f_number: float) -> float:
+    r"""NETD [K] of a detector-limited thermal imager whose lens f-number changes from
+    ``preset_f_number`` (where ``netd_k`` was specified) to ``f_number``.
+
+    .. math::
+
+        \mathrm{NETD}(N) = \mathrm{NETD}(N_0)\,\frac{4N^2 + 1}{4N_0^2 + 1}
+
+    The signal power on a pixel is proportional to the projected solid angle of the optics,
+    :math:`\pi/(4N^2 + 1)` (exact for an aplanatic lens, :math:`\sin\theta = 1/(2N)`), and a
+    detector-limited imager (noise independent of the scene and background flux: uncooled
+    microbolometers) has an NETD inversely proportional to it (everything else fixed).
+    Background-limited (BLIP) cooled detectors with a matched cold stop scale more slowly
+    (about :math:`\sqrt{4N^2+1}`); this law is used for every infrared sensor (see
+    :mod:`humv_usd.sensors.layer`).
+
+    References
+    ----------
+    .. [1] E. L. Dereniak, G. D. Boreman, Infrared Detectors and Systems, Wiley, 1996, §5.8:
+       :math:`\mathrm{NETD} = (4N^2 + 1)\sqrt{\Delta f} / (\pi\,\tau_o D^* \sqrt{A_d}\,\partial L/\partial T)`.
+    .. [2] M. Vollmer, K.-P. Möllmann, Infrared Thermal Imaging, 2nd ed., Wiley-VCH, 2017,
+       ch. 2 (NETD and the f-number of microbolometer cameras).
+    .. [3] G. C. Holst, Common Sense Approach to Thermal Imaging, JCD Publishing / SPIE Press,
+       2000 (NETD of detector-limited systems).
+    """
+    n0, n = float(preset_f_number), float(f_number)
+    return float(netd_k) * (4.0 * n * n + 1.0) / (4.0 * n0 * n0 + 1.0)
+
+
 def scenario_values(name: str) -> dict:
     """The preset as [[sensor]] key values (what a table with only ``preset`` gets)."""
     p = preset(name)

@@ -146,6 +146,7 @@ SENSOR_CHANNEL_RESPONSE = "humv:sensor:channelResponse"
 SENSOR_FULL_WELL = "humv:sensor:fullWell"
 SENSOR_READ_NOISE = "humv:sensor:readNoise"
 SENSOR_REFERENCE_TEMPERATURE = "humv:sensor:referenceTemperature"
+SENSOR_SUBBANDS = "humv:sensor:subbands"
 
 # --- HumvLabelAPI (Xform, Scope, Mesh, SkelRoot) ----------------------------------------------
 LABEL_INSTANCE_ID = "humv:label:instanceId"
