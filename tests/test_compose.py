@@ -64,16 +64,23 @@ def test_every_mesh_has_material_and_one_temperature_per_face(composed):
     garments = {f"/World/Humans/p1/Clothing/{g}" for g in GARMENTS}
     assert {str(p.GetPath()) for p in meshes} == {
         "/World/Scene/Ground", "/World/Scene/warehouse", "/World/Humans/p1/Body"} | garments
-    # fixed model: garments at the air temperature (placeholder until the garment balance)
-    expected = {"/World/Scene/Ground": 297.0, "/World/Scene/warehouse": 293.0,
-                "/World/Humans/p1/Body": 306.15} | {g: 289.0 for g in garments}
+    # fixed model: skin as given, garments at the air temperature; the scene (no temperature_k in
+    # humvvex) from the slab model in the afternoon sun: the sunlit pad warmer than the 289 K air,
+    # the pad in the warehouse's shadow colder than the sunlit pad
+    expected = {"/World/Humans/p1/Body": 306.15} | {g: 289.0 for g in garments}
     for prim in meshes:
         assert prim.HasAPI(S.THERMAL_API)
         pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature")
         assert pv.GetInterpolation() == "uniform"
         temps = np.asarray(pv.Get())
         assert len(temps) == len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get())
-        np.testing.assert_allclose(temps, expected[str(prim.GetPath())], rtol=1e-6)
+        path = str(prim.GetPath())
+        if path in expected:
+            np.testing.assert_allclose(temps, expected[path], rtol=1e-6)
+        else:
+            assert np.isfinite(temps).all() and (temps > 275.0).all() and (temps < 330.0).all()
+        if path == "/World/Scene/Ground":
+            assert np.median(temps) > 289.0 + 3.0 and temps.min() < np.median(temps) - 3.0
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
         assert material.GetPrim().HasAPI(S.MATERIAL_API)
 

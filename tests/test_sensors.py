@@ -363,3 +363,48 @@ def test_presets_file_is_up_to_date():
     stage = Usd.Stage.Open(str(sensors_layer.PRESETS_FILE))
     names = {p.GetName() for p in stage.GetPrimAtPath("/World/Sensors").GetChildren()}
     assert names == set(presets.PRESETS)
+
+
+# ---------------------------------------------------------------------------- NETD vs f-number
+def test_netd_scales_with_f_number_when_not_given(raw):
+    """A preset's f-number overridden without a netd_k: NETD x (4N^2 + 1)/(4N0^2 + 1) on the prim
+    (detector-limited, Dereniak & Boreman 1996 §5.8), recorded in the attribute's customData; a
+    netd_k given explicitly (other than the preset's) or the preset's f-number: unchanged."""
+    by_id = {s["id"]: s for s in raw["sensor"]}
+    by_id["atom1024_lwir"]["f_number"] = 1.4          # preset f/1, 50 mK
+    by_id["lwir640"].update(f_number=2.0, netd_k=0.03)  # explicit NETD wins
+    by_id["mwir_insb"]["f_number"] = 2.5              # the preset's own f-number
+    stage = Usd.Stage.Open(sensors_layer.build(validate(raw)))
+
+    def netd(name):
+        return stage.GetPrimAtPath(f"/World/Sensors/{name}").GetAttribute(S.SENSOR_NETD)
+
+    assert netd("atom1024_lwir").Get() == pytest.approx(0.05 * (4 * 1.4**2 + 1) / 5.0, rel=1e-6)
+    assert "x (4N^2+1)/(4N0^2+1)" in netd("atom1024_lwir").GetCustomDataByKey("humv:netdScaling")
+    assert netd("lwir640").Get() == pytest.approx(0.03, rel=1e-6)
+    assert netd("mwir_insb").Get() == pytest.approx(0.02, rel=1e-6)
+    for name in ("lwir640", "mwir_insb"):
+        assert netd(name).GetCustomDataByKey("humv:netdScaling") is None
+    # the chain's noise follows: sigma_L = NETD dL/dT
+    m = SensorModel.from_prim(stage.GetPrimAtPath("/World/Sensors/atom1024_lwir"))
+    assert m.netd_k == pytest.approx(0.0884, rel=1e-5)
+    assert presets.netd_for_f_number(0.05, 1.0, 1.0) == 0.05
+
+
+def test_subbands_key_is_authored_for_infrared_sensors(raw):
+    from humv_usd.render import radiometry
+    from humv_usd.scenario import spec
+
+    assert spec.SENSOR.keys["subbands"].default == radiometry.DEFAULT_SUBBANDS
+    by_id = {s["id"]: s for s in raw["sensor"]}
+    by_id["lwir640"]["subbands"] = 6
+    stage = Usd.Stage.Open(sensors_layer.build(validate(raw)))
+
+    def sub(name):
+        return stage.GetPrimAtPath(f"/World/Sensors/{name}").GetAttribute(S.SENSOR_SUBBANDS)
+
+    assert sub("lwir640").Get() == 6 and sub("atom1024_lwir").Get() == radiometry.DEFAULT_SUBBANDS
+    assert not sub("eo_rgb").HasAuthoredValue()
+    by_id["lwir640"]["subbands"] = 0
+    with pytest.raises(InputError, match="subbands"):
+        validate(raw)

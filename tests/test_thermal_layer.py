@@ -39,6 +39,8 @@ def temperatures(stage, path, frame=0):
 def jos3_stage(tmp_path_factory, humvvex_raw):
     raw = copy.deepcopy(humvvex_raw)
     raw["thermal"]["model"] = "jos3"
+    raw["scene"]["ground"]["temperature_k"] = 297.0          # held surfaces (the slab: below)
+    raw["scene"]["object"][0]["temperature_k"] = 293.0
     out = tmp_path_factory.mktemp("jos3")
     compose(validate(raw), out)
     return out, Usd.Stage.Open(str(out / "stage.usda")), raw
@@ -95,7 +97,7 @@ def test_two_node_at_night_with_slab_surfaces(humvvex_raw, tmp_path):
     raw["thermal"]["surface_spin_up_s"] = 43200.0
     raw["human"][0]["clothing"] = []
     raw["general"]["start"] = raw["general"]["start"].replace(hour=2)   # 02:05 local
-    del raw["scene"]["ground"]["temperature_k"]                          # -> slab
+    raw["scene"]["ground"].pop("temperature_k", None)                    # -> slab
     raw["scene"]["object"][0]["temperature_k"] = 310.0                   # held
     compose(validate(raw), tmp_path)
     stage = Usd.Stage.Open(str(tmp_path / "stage.usda"))

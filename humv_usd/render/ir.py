@@ -461,15 +461,16 @@ def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radio
     radiance is already the at-sensor value), so pixels straddling a silhouette against the sky
     are approximate.
     """
-    from humv_usd.render.radiometry import apply_path, sky_latlong
+    from humv_usd.render.radiometry import apply_path, range_weights, sky_latlong
 
     planck_k = {m.path: sub.radiance(state.temperatures[m.path]) for m in state.meshes}  # (F, n)
-    range_m = None
+    range_m = weights = None
     if radiometry.path is not None:
         hits = scene.hits(sensor_id)
         origin = np.asarray(scene.sensors[sensor_id].pose.origin, dtype=np.float64)
         hit = np.isfinite(hits.depth)  # the positions of missed rays are undefined
         range_m = np.where(hit, np.linalg.norm(np.where(hit[..., None], hits.position, 0.0) - origin, axis=-1), np.inf)
+        weights = range_weights(radiometry.path.ranges_m, np.where(hit, range_m, 0.0))  # shared by the sub-bands
     total = None
     var = None
     for k in range(len(sub)):
@@ -501,7 +502,7 @@ def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radio
         scene.update()
         m1, m2 = scene.render(sensor_id, spp=spp, seed=(int(seed) * len(sub) + k) % 2**32)
         se = monte_carlo_stderr(m1, m2, spp)
-        at_sensor, tau = apply_path(m1, range_m, radiometry.path, k)
+        at_sensor, tau = apply_path(m1, range_m, radiometry.path, k, weights)
         total = at_sensor if total is None else total + at_sensor
         var = (tau * se) ** 2 if var is None else var + (tau * se) ** 2
     return total, np.sqrt(var)

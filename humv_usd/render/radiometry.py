@@ -188,30 +188,53 @@ class PathTable:
         return SubBandPath(ranges, tau, path)
 
 
+def range_weights(table_ranges, range_m) -> tuple[np.ndarray, np.ndarray]:
+    """Linear-interpolation nodes and weights of ``range_m`` in an ascending table (held beyond
+    its ends, as ``np.interp``): (index i, weight t) with value = v[i] (1 - t) + v[i + 1] t.
+    Computed once per image and shared by every sub-band / channel."""
+    x = np.asarray(table_ranges, dtype=float)
+    r = np.asarray(range_m, dtype=float)
+    if x.size == 1:
+        return np.zeros(r.shape, dtype=np.intp), np.zeros(r.shape)
+    i = np.clip(np.searchsorted(x, r, side="right") - 1, 0, x.size - 2)
+    t = np.clip((r - x[i]) / (x[i + 1] - x[i]), 0.0, 1.0)
+    return i, t
+
+
+def _lerp(values, weights):
+    i, t = weights
+    v = np.asarray(values, dtype=float)
+    if v.shape[0] == 1:
+        return np.broadcast_to(v[0], i.shape + v.shape[1:]).copy()
+    t = t.reshape(t.shape + (1,) * (v.ndim - 1))
+    return v[i] * (1.0 - t) + v[i + 1] * t
+
+
 @dataclass
 class SubBandPath:
     ranges_m: np.ndarray  # (R,)
     transmittance: np.ndarray  # (R, n)
     radiance: np.ndarray  # (R, n) [W m-2 sr-1]
 
-    def at(self, range_m, k: int) -> tuple[np.ndarray, np.ndarray]:
+    def at(self, range_m, k: int, weights=None) -> tuple[np.ndarray, np.ndarray]:
         """(transmittance, path radiance) of sub-band k at ranges ``range_m`` (linear in range,
-        held beyond the last table range)."""
-        r = np.asarray(range_m, dtype=float)
-        return (np.interp(r, self.ranges_m, self.transmittance[:, k]),
-                np.interp(r, self.ranges_m, self.radiance[:, k]))
+        held beyond the last table range); ``weights`` = :func:`range_weights` of ``range_m``
+        when already known."""
+        w = range_weights(self.ranges_m, range_m) if weights is None else weights
+        return _lerp(self.transmittance[:, k], w), _lerp(self.radiance[:, k], w)
 
 
-def apply_path(surface, range_m, path: SubBandPath | None, k: int):
+def apply_path(surface, range_m, path: SubBandPath | None, k: int, weights=None):
     """At-sensor radiance :math:`\\tau_k(r) S + P_k(r)` of sub-band k for pixels that see a
     surface (finite range); sky pixels (infinite range) are returned unchanged, the sky
     radiance being already the at-sensor downwelling value. Also returns :math:`\\tau_k(r)`
-    (1 for sky pixels) for the error propagation."""
+    (1 for sky pixels) for the error propagation. ``weights``: :func:`range_weights` of
+    ``where(finite, range_m, 0)`` when already known (shared by the sub-bands)."""
     surface = np.asarray(surface, dtype=float)
     if path is None:
         return surface, np.ones_like(surface)
     hit = np.isfinite(range_m)
-    tau, lp = path.at(np.where(hit, range_m, 0.0), k)
+    tau, lp = path.at(np.where(hit, range_m, 0.0), k, weights)
     tau = np.where(hit, tau, 1.0)
     return np.where(hit, tau * surface + lp, surface), tau
 
@@ -458,10 +481,8 @@ class XYZPath:
     def at(self, range_m) -> tuple[np.ndarray, np.ndarray]:
         """(transmittance, path radiance), each ``range_m.shape + (3,)`` (linear in range, held
         beyond the last table range)."""
-        r = np.asarray(range_m, dtype=float)
-        tau = np.stack([np.interp(r, self.ranges_m, self.transmittance[:, c]) for c in range(3)], axis=-1)
-        lp = np.stack([np.interp(r, self.ranges_m, self.radiance[:, c]) for c in range(3)], axis=-1)
-        return tau, lp
+        w = range_weights(self.ranges_m, range_m)
+        return _lerp(self.transmittance, w), _lerp(self.radiance, w)
 
 
 def reduce_xyz(table: PathTable) -> XYZPath:

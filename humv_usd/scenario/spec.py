@@ -231,7 +231,7 @@ THERMAL = Section(doc="(vi) Thermal", keys={
                             choices=("adaptive", "fast", "brute")),
     "radiation_rays": Key("int", "Rays per facet (mean, for adaptive) of the absorbed-radiation "
                           "method.",
-                          default=32, lo=1, hi=4096, integer=True),
+                          default=64, lo=1, hi=4096, integer=True),
     "radiation_step_s": Key("float", "Radiation is recomputed every this many seconds [s].",
                             default=1.0, lo=0.0, hi=3600.0),
     "spin_up_s": Key("float", "Physiology spin-up at the first frame's conditions [s].",

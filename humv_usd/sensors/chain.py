@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import signal, special
+from scipy import fft as sp_fft
+from scipy import special
 
 from humv_usd.physics import planck
 
@@ -402,11 +403,18 @@ def psf_kernel(model: SensorModel, wavelengths_um=None, *, pixel_footprint: bool
     sub = (np.arange(q) + 0.5) / q - 0.5  # sub-sample offsets within a pixel [px]
     centres = np.arange(-radius, radius + 1, dtype=float)
     axis = (centres[:, None] + sub[None, :]).ravel() * pitch_um  # [um]
-    r2 = axis[:, None] ** 2 + axis[None, :] ** 2
-    rr = np.sqrt(r2)
-    fine = np.zeros_like(rr)
+    # the grid is symmetric about its centre sample: evaluate one quadrant and mirror it
+    c = axis.size // 2
+    half = axis[c:]
+    rr = np.sqrt(half[:, None] ** 2 + half[None, :] ** 2)
+    quadrant = np.zeros_like(rr)
     for lam, weight in zip(wl, w):
-        fine += weight * airy_psf(rr, lam, n)
+        quadrant += weight * airy_psf(rr, lam, n)
+    fine = np.empty((axis.size, axis.size))
+    fine[c:, c:] = quadrant
+    fine[:c + 1, c:] = quadrant[::-1, :]
+    fine[c:, :c + 1] = quadrant[:, ::-1]
+    fine[:c + 1, :c + 1] = quadrant[::-1, ::-1]
     size = 2 * radius + 1
     # mean over the q x q sub-samples x pixel area = integral over the pixel
     kernel = fine.reshape(size, q, size, q).mean(axis=(1, 3)) * pitch_um * pitch_um
@@ -448,10 +456,15 @@ def kernel_fwhm_px(kernel: np.ndarray) -> float:
 
 def convolve_psf(image: np.ndarray, kernel: np.ndarray) -> np.ndarray:
     """Convolve a 2-D image with a PSF kernel, edges extended (reflect) so that borders keep
-    their level."""
+    their level. FFT convolution on fast transform sizes (what ``scipy.signal.fftconvolve(...,
+    mode="valid")`` does, without importing scipy.signal)."""
     k = kernel.shape[0] // 2
     padded = np.pad(np.asarray(image, dtype=float), k, mode="reflect")
-    return signal.fftconvolve(padded, kernel, mode="valid")
+    full = [a + b - 1 for a, b in zip(padded.shape, kernel.shape)]
+    fast = [sp_fft.next_fast_len(n, True) for n in full]
+    out = sp_fft.irfft2(sp_fft.rfft2(padded, fast) * sp_fft.rfft2(np.asarray(kernel, dtype=float), fast), fast)
+    h, w = np.shape(image)
+    return out[2 * k:2 * k + h, 2 * k:2 * k + w]
 
 
 # ============================================================================ radiometry
@@ -763,8 +776,14 @@ def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
         white = white if white > 0 else full
         info = {"mode": model.agc, "white_count": white + black,
                 "percentile": model.agc_percentiles[1]}
-    rgb = lin / white
     m = colour_correction_matrix(model) if eo_space == "camera" else np.eye(3)
+    if model.agc != "histogram" and np.array_equal(m, np.eye(3)):
+        # per-channel map of the integer counts: a lookup table gives the very same values
+        levels = np.clip(np.arange(model.max_count + 1, dtype=float) - black, 0.0, None) / white
+        lut = np.clip(np.rint(srgb_encode(levels) * 255.0), 0, 255).astype(np.uint8)
+        info["colour_matrix"] = np.round(m, 6).tolist()
+        return lut[np.minimum(counts, model.max_count)], info
+    rgb = lin / white
     rgb = rgb @ m.T
     if model.agc == "histogram":
         lum = np.clip(rgb @ np.array([0.2126, 0.7152, 0.0722]), 0.0, None)
