@@ -271,3 +271,29 @@ def test_night_layer_has_no_solar_term(humvvex_raw, monkeypatch, tmp_path):
     a = stage.GetPrimAtPath("/World/Atmosphere")
     assert not a.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).HasAuthoredValue()
     assert "skipped" in layer.customLayerData["humv:atmosphere:ran"]["solar spectrum"]
+
+
+@needs_lowtran
+def test_direct_mwir_sun_dims_with_haze(humvvex_raw, lowtran_cache, monkeypatch):
+    """The LOWTRAN runs have no aerosol; the visibility's aerosol (Koschmieder/Kruse over the
+    1.2 km scale height, times the air mass) must dim the direct MWIR sun as Beer-Lambert says."""
+    import pvlib
+
+    from humv_usd.physics.sky import aerosol_extinction
+
+    monkeypatch.setenv(M.CACHE_ENV, str(lowtran_cache))
+    out = {}
+    for vis in (23.0, 5.0):
+        raw = copy.deepcopy(humvvex_raw)
+        raw["atmosphere"].update(model="lowtran7", visibility_km=vis)
+        atm = M.atmosphere_for(validate(raw))
+        out[vis] = (atm.wavelengths_um, atm.solar_spectral_irradiance([0.0])[0])
+    wl, clear = out[23.0]
+    _, hazy = out[5.0]
+    zen = sun_at(validate(humvvex_raw), [0.0]).zenith_deg[0]
+    m = float(pvlib.atmosphere.get_relative_airmass(zen, model="kasten1966"))
+    at = np.argmin(np.abs(wl - 3.8))
+    expected = np.exp(-(aerosol_extinction(wl[at], 5.0) - aerosol_extinction(wl[at], 23.0))
+                      * M.AEROSOL_SCALE_HEIGHT_M * m)
+    assert clear[at] > 0 and abs(hazy[at] / clear[at] - expected) < 1e-6
+    assert expected < 0.97                                   # a visible effect at 5 km

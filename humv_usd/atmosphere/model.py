@@ -80,6 +80,8 @@ LONGWAVE_UM = (4.0, 50.0)
 IR_STEP_CM, VIS_STEP_CM = 20.0, 100.0
 #: below this wavelength the sun and skylight come from SPCTRL2, above from LOWTRAN / Planck
 SOLAR_SPLIT_UM = 2.5
+#: aerosol scale height for the vertical optical depth of the visibility's extinction [m]
+AEROSOL_SCALE_HEIGHT_M = 1.2e3
 #: LOWTRAN7 Earth radius for the layer-exit angle [km]
 EARTH_RADIUS_KM = 6371.23
 #: nominal effective temperature of the Sun (IAU 2015 B3) [K] and its radius / 1 au
@@ -293,7 +295,7 @@ def _spectrl2(sun: SunState, weather: Weather, scenario: Scenario, grid_um: np.n
     pw = pvlib.atmosphere.gueymard94_pw(weather.air_temperature_k[up] - 273.15,
                                         np.maximum(weather.relative_humidity[up], 0.01) * 100.0)
     vis = float(scenario["atmosphere"]["visibility_km"])
-    tau500 = float(aerosol_extinction(0.5, vis)) * 1.2e3   # 1.2 km aerosol scale height
+    tau500 = float(aerosol_extinction(0.5, vis)) * AEROSOL_SCALE_HEIGHT_M
     spec = pvlib.spectrum.spectrl2(apparent_zenith=zen, aoi=np.zeros_like(zen), surface_tilt=0.0,
                                    ground_albedo=0.2, surface_pressure=weather.pressure_pa[up],
                                    relative_airmass=am, precipitable_water=pw, ozone=0.31,
@@ -451,12 +453,22 @@ def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ra
         table = np.stack([_resample(grid, r.wavelengths_um, r.solar, np.zeros(grid.size))
                           for r in runs])
         factor = _earth_sun_factor(scenario, sun.times_s) * _cloud_dni_factor(sun, clear)
+        # the wrapper's runs have no aerosol: the vertical aerosol optical depth of the
+        # visibility's extinction over a 1.2 km scale height (as the SPCTRL2 branch below
+        # SOLAR_SPLIT_UM) times the relative air mass (Kasten 1966), Beer-Lambert
+        import pvlib
+
+        tau_aerosol = aerosol_extinction(grid, scenario["atmosphere"]["visibility_km"]) * AEROSOL_SCALE_HEIGHT_M
+        airmass = np.asarray(pvlib.atmosphere.get_relative_airmass(sun.zenith_deg, model="kasten1966"),
+                             dtype=float)
         for i in np.flatnonzero(sun.up):
             row = np.array([np.interp(sun.zenith_deg[i], z_nodes, table[:, k])
                             for k in range(grid.size)])
+            row = row * np.exp(-tau_aerosol * np.nan_to_num(airmass[i], nan=38.0))
             solar[i] = np.where(grid >= SOLAR_SPLIT_UM, row * factor[i], 0.0)
         ran["sun"] = (f"LOWTRAN7 direct transmitted sun (IEMSCT 3) >= {SOLAR_SPLIT_UM} um, "
-                      f"{z_nodes.size} zenith nodes")
+                      f"{z_nodes.size} zenith nodes, times Koschmieder/Kruse aerosol over "
+                      f"{AEROSOL_SCALE_HEIGHT_M / 1e3:g} km x air mass")
     return grid, sky, tau_m, rad_m, solar, broadband
 
 
