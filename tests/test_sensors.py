@@ -388,6 +388,8 @@ def test_netd_scales_with_f_number_when_not_given(raw):
     # the chain's noise follows: sigma_L = NETD dL/dT
     m = SensorModel.from_prim(stage.GetPrimAtPath("/World/Sensors/atom1024_lwir"))
     assert m.netd_k == pytest.approx(0.0884, rel=1e-5)
+    noise = apply_chain(np.full((8, 8), 40.0), m, np.random.default_rng(0), psf=False).settings["noise"]
+    assert noise["netd_k"] == m.netd_k and noise["netd_source"].startswith("scaled from preset atom1024_lwir")
     assert presets.netd_for_f_number(0.05, 1.0, 1.0) == 0.05
 
 

@@ -115,3 +115,47 @@ def test_two_node_at_night_with_slab_surfaces(humvvex_raw, tmp_path):
     assert 279.0 < np.median(t_ground) < 289.0
     wall = temperatures(stage, "/World/Scene/warehouse")
     assert np.all(wall == np.float32(310.0))
+
+
+def _night_jos3(humvvex_raw, out, cloud):
+    raw = copy.deepcopy(humvvex_raw)
+    raw["thermal"]["model"] = "jos3"
+    raw["thermal"]["radiation_rays"] = 16
+    raw["general"]["start"] = raw["general"]["start"].replace(hour=2)   # night: no sun
+    raw["scene"]["ground"]["temperature_k"] = 286.0                      # held surfaces
+    raw["scene"]["object"][0]["temperature_k"] = 287.0
+    raw["atmosphere"]["cloud_cover"] = cloud
+    raw["atmosphere"]["model"] = "analytic"
+    raw["sensor"] = raw["sensor"][:1]
+    compose(validate(raw), out)
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    report = Sdf.Layer.FindOrOpen(str(out / "layers" / "thermal.usda")).customLayerData
+    return stage, dict(report["humv:thermal"]["sky"])
+
+
+def test_overcast_night_sky_warms_skin_and_garments(humvvex_raw, tmp_path):
+    """The thermal layer reads the atmosphere layer's sky: at night (only the long-wave sky
+    changes with the clouds) an overcast sky warms the skin and the garments."""
+    from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
+    from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
+    result = {c: _night_jos3(humvvex_raw, tmp_path / f"c{c}", c) for c in (0.0, 1.0)}
+    for c, (stage, sky) in result.items():
+        assert sky["source"].startswith("atmosphere layer") and sky["cloudCover"] == c
+        table = stage_longwave_table(stage)
+        assert sky["longwaveIrradiance_W_m2"] == pytest.approx(hemispherical_irradiance(*table),
+                                                               rel=1e-6)
+    t_air = humvvex_raw["atmosphere"]["air_temperature_k"]
+    assert result[1.0][1]["longwaveIrradiance_W_m2"] == pytest.approx(SIGMA * t_air ** 4,
+                                                                      rel=1e-5)
+    assert result[1.0][1]["longwaveIrradiance_W_m2"] > result[0.0][1]["longwaveIrradiance_W_m2"] + 80
+    (clear, _), (cloudy, _) = result[0.0], result[1.0]
+    skin_c, skin_o = (temperatures(s, "/World/Humans/p1/Body") for s in (clear, cloudy))
+    assert skin_o.mean() > skin_c.mean() + 0.3
+    for garment in ("tshirt_white", "shorts", "cap"):
+        path = f"/World/Humans/p1/Clothing/{garment}"
+        t_c, t_o = temperatures(clear, path), temperatures(cloudy, path)
+        assert t_o.mean() > t_c.mean() + 0.1       # shorts: mostly facing the (held) ground
+        # upward-facing fabric (shoulders, cap crown) sees the most sky: the largest change
+        up = face_normals(clear, path)[:, 2] > 0.7
+        if up.sum() >= 10:
+            assert (t_o - t_c)[up].mean() > max(1.0, (t_o - t_c)[~up].mean())

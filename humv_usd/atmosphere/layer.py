@@ -1,8 +1,10 @@
 """Atmosphere tool: sky, sun and slant paths → layers/atmosphere.usda.
 
 Authors what :func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario
-needs, see there): on /World/Atmosphere the model that ran, the effective broadband sky
-(temperature, emissivity: the thermal layer's inputs), the wavelength grid of the sensors'
+needs, see there) with the frame-0 cloud cover mixed into the thermal sky
+(:func:`humv_usd.thermal.sky.with_cloud_cover`, Crawford & Duchon 1999): on /World/Atmosphere
+the model that ran, the effective broadband sky (temperature, emissivity, and the longwave
+radiance against zenith that the thermal layer reads), the wavelength grid of the sensors'
 bands, the sky spectral radiance against zenith and, while the sun is up, the direct solar
 spectral irradiance per frame; under /World/Atmosphere/Paths one path table per sensor, with
 ranges from 1 m to beyond the scene. What ran and what was skipped is recorded in the layer's
@@ -14,6 +16,7 @@ import numpy as np
 from pxr import Sdf, UsdGeom, Vt
 
 from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for
+from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
@@ -62,7 +65,8 @@ def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g, a = scenario["general"], scenario["atmosphere"]
-    atm = atmosphere_for(scenario)
+    from humv_usd.thermal.sky import with_cloud_cover
+    atm = with_cloud_cover(atmosphere_for(scenario), weather_at(scenario, [0.0]).cloud_cover[0])
     stage = new_layer_stage(g["fps"], scenario.frame_count,
                             f"HumV-USD atmosphere layer: {atm.source} sky, sun and sensor paths")
     prim = UsdGeom.Scope.Define(stage, SCOPES["atmosphere"]).GetPrim()
@@ -72,6 +76,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     prim.GetAttribute(S.ATMOSPHERE_VISIBILITY).Set(a["visibility_km"] * 1000.0)
     prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(atm.sky_emissivity), 6))
     prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(atm.sky_temperature_k), 4))
+    prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
+    prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(atm.longwave_radiance))
     ran = {k: ("; ".join(v) if isinstance(v, list) else str(v)) for k, v in atm.ran.items()}
     ran["broadband sky"] = (f"emissivity {atm.sky_emissivity:.4f}, temperature "
                             f"{atm.sky_temperature_k:.2f} K ({atm.source})")

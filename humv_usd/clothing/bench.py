@@ -11,7 +11,10 @@ Also: ``unrefined`` — the same counts with the garments on the helpers' resolu
 changes; for a loose garment (``robe``) ``drape``: the hem's lag behind the skinned shape and
 the edge strain, draped vs skinned; with the ``rifle``: ``carry`` — the rifle's clearance from
 the body before/after :func:`humv_usd.avatar.carry.clear_rifle` and per frame after the fix;
-``surface_misses`` (:func:`surface_misses`) refined vs unrefined.
+``surface_misses`` (:func:`surface_misses`): refined (the default fix, vertices and
+:func:`humv_usd.clothing.collide.push_between`), ``vertex_fix_only`` (before that pass),
+``between_layers`` (the pass also off the inner garments) and unrefined, with the fix times.
+The fix's CPU time (all threads) is reported next to the wall time (a loaded machine).
 """
 from __future__ import annotations
 
@@ -111,15 +114,25 @@ def bench_outfit(garments, sex: str = "male", stature_m: float = 1.78, mass_kg: 
            "activity": activity, "frames": frames,
            "seconds": {"body_and_motion": t1 - t0, "fit": t2 - t1,
                        "frame_median": float(np.median(sim.frame_seconds)),
-                       "fix_median": float(np.median(sim.fix_seconds))},
+                       "fix_median": float(np.median(sim.fix_seconds)),
+                       "fix_cpu_median": float(np.median(sim.fix_cpu_seconds))},
            "garments": _counts(sim)}
     coarse = simulate(dress(rig, garments, refined=False), skin, fps=fps)
     out["unrefined"] = {k: {"vertices": v["vertices"], "before": v["before"],
                             "after": v["after"]} for k, v in _counts(coarse).items()}
     out["unrefined"]["seconds"] = {"frame_median": float(np.median(coarse.frame_seconds)),
                                    "fix_median": float(np.median(coarse.fix_seconds))}
+    vertex_only = simulate(outfit, skin, fps=fps, between=False)
+    layered = simulate(outfit, skin, fps=fps, between_layers=True)
     out["surface_misses"] = {"refined": surface_misses(rig, skin, sim),
+                             "vertex_fix_only": surface_misses(rig, skin, vertex_only),
+                             "between_layers": surface_misses(rig, skin, layered),
                              "unrefined": surface_misses(rig, skin, coarse)}
+    out["surface_misses"]["seconds"] = {
+        "vertex_fix_only": {"fix_median": float(np.median(vertex_only.fix_seconds)),
+                            "fix_cpu_median": float(np.median(vertex_only.fix_cpu_seconds))},
+        "between_layers": {"fix_median": float(np.median(layered.fix_seconds)),
+                           "fix_cpu_median": float(np.median(layered.fix_cpu_seconds))}}
     for a in sim.garments:
         if a.skinned is not None:
             for d in drapes_of(a.fitted):

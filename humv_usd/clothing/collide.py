@@ -19,9 +19,15 @@ garment outside the skin everywhere. Here, per frame and garment (inner layers f
    of the body normals they met (which points out of the wedge), the last or the first
    body normal, or else the 26 directions to a cube's faces, edges and corners; where the
    layering cannot be met, for the minimum gap alone. Vertices that none clears
-   stay as they are and are counted (``*_after``). Only vertices are checked: a garment
-   edge between two outside vertices can still graze a convex body edge by up to ~the sagitta
-   of a face (< 1 mm for the helpers' ~2.5 cm faces on limbs).
+   stay as they are and are counted (``*_after``).
+   Between the vertices (:func:`push_between`): the edge midpoints and triangle centroids
+   inside the body or closer than the minimum gap ask their edge's / triangle's vertices to
+   move by their deficit along the body normal at their closest point (the least-norm vertex
+   move that moves the sample so), a few rounds, then the full vertex fix again. Residual
+   (``between_*_after``): samples in wedges (armpit, crotch, a leg through the robe's
+   long skirt faces) where the move out of one surface pushes a vertex into the other.
+   With ``between_layers`` the samples and vertices over an inner garment's faces are
+   pushed off it too (thickness + minimum gap).
 4. Air gap: distance from each garment vertex to the skin along the inward garment normal
    (Embree ray cast); where the ray misses the body or goes farther than :data:`MAX_AIR_GAP`
    (hems, open ends, a skirt between the legs), the straight distance to the closest skin point
@@ -90,6 +96,17 @@ SHELL_COS = 0.9
 #: gradient pushes per round (the rifle's parts overlap).
 PROP_ROUNDS = 3
 PROP_PUSH_ITERATIONS = 8
+#: Rounds of the between-vertex pass (:func:`push_between`): check the samples, push the
+#: triangles of those too close, re-fix the moved vertices.
+BETWEEN_ROUNDS = 3
+#: Samples deeper than this [m] are left (counted): a limb through a garment face (the robe's
+#: skirt between striding legs) needs a move around the limb, not a local push.
+BETWEEN_DEPTH = 0.02
+#: A sample is checked when the Lipschitz bound of its vertices' distances
+#: (max_i d_i - |s - v_i|) is below the clearance + this [m]: a sample farther from the
+#: body than that cannot be too close to it (the signed distance changes by at most the
+#: distance moved); the slack covers sign errors in wedges (thighs in contact).
+BETWEEN_SLACK = 0.005
 
 
 @dataclass
@@ -105,6 +122,14 @@ class FixCounts:
     #: vertices inside a carried prop's solid or closer than the minimum gap to it
     prop_before: int = 0
     prop_after: int = 0
+    #: between the vertices (:func:`push_between`): edge midpoints and triangle centroids
+    #: inside the body, closer than the minimum gap to it, inside a garment under it
+    between_inside_before: int = 0
+    between_close_before: int = 0
+    between_layered_before: int = 0
+    between_inside_after: int = 0
+    between_close_after: int = 0
+    between_layered_after: int = 0
 
     def as_dict(self) -> dict:
         return dict(vars(self))
@@ -145,6 +170,8 @@ class Simulation:
     garments: list[GarmentAnimation]
     frame_seconds: np.ndarray   # (F,) wall time of the per-frame work (pose, check, fix, gap)
     fix_seconds: np.ndarray     # (F,) of which the check + fix (all garments)
+    #: (F,) CPU time (all threads of the process) of the check + fix
+    fix_cpu_seconds: np.ndarray | None = None
 
 
 def dress(rig: BodyRig, names, refined: bool = True) -> Outfit:
@@ -326,6 +353,146 @@ def _escape(surface: Surface, out: np.ndarray, d: np.ndarray, todo: np.ndarray,
     return todo[~found]
 
 
+def between_samples(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points checked between the vertices of a triangle mesh: each unique edge's
+    midpoint and each triangle's centroid, as (S, 3) vertex ids and (S, 3) barycentric
+    weights (an edge's third id repeats its first with weight 0)."""
+    t = np.asarray(triangles, dtype=np.int64)
+    e = np.unique(np.sort(np.stack([t, np.roll(t, -1, 1)], -1).reshape(-1, 2), axis=1), axis=0)
+    ids = np.concatenate([np.column_stack([e, e[:, 0]]), t])
+    w = np.concatenate([np.tile([0.5, 0.5, 0.0], (len(e), 1)),
+                        np.full((len(t), 3), 1.0 / 3.0)])
+    return ids, w
+
+
+def _shell_deficit(shell: Surface, flat: np.ndarray, clearance: float, q: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For points ``q`` over ``shell`` (:func:`push_off_shell`'s test): (clearance - signed
+    distance, -inf where not over; shell normal; unsigned distance; inside the fabric)."""
+    near = shell.closest(q)
+    off = q - near.point
+    dist = np.linalg.norm(off, axis=1)
+    along = np.abs(np.einsum("ij,ij->i", off, flat[near.triangle]))
+    over = (dist < LAYER_RADIUS) & ((along >= SHELL_COS * dist) | (dist < 1e-9))
+    return np.where(over, clearance - near.signed, -np.inf), near.normal, dist, over
+
+
+def _between_counts(signed: np.ndarray, layered: np.ndarray, minimum_gap: float) -> tuple:
+    return (int(np.sum(signed < 0)), int(np.sum((signed >= 0) & (signed < minimum_gap))),
+            int(layered.sum()))
+
+
+def push_between(surface: Surface, points: np.ndarray, d: np.ndarray, samples,
+                 minimum_gap: float, required: np.ndarray,
+                 shells=()) -> tuple[np.ndarray, np.ndarray, tuple, tuple]:
+    """Resolve what a vertex-only fix misses: garment points between the vertices (edge
+    midpoints and triangle centroids, :func:`between_samples`) inside the body or closer
+    than ``minimum_gap`` to it, or inside a garment under it (``shells``: (posed Surface,
+    flat face normals, thickness) of the inner garments; over their faces as
+    :func:`push_off_shell` defines it, closer than thickness + ``minimum_gap``; for the
+    shells the vertices are checked too).
+
+    ``d``: the vertices' signed body distances (after :func:`push_out`). A sample at
+    barycentric weights w moves by the displacement D of its vertices i by sum_i w_i D_i;
+    the smallest (least-norm) vertex displacements that move it by the vector t are
+    D_i = w_i t / sum_j w_j^2, i.e. t for both vertices of an edge and all three of a
+    triangle (the face is translated). So each too-close sample asks its vertices to move
+    by t = (deficit + :data:`PUSH_MARGIN`) along the body (or shell) normal at its closest
+    point; a vertex shared by several takes the largest request. Then the moved vertices
+    are re-fixed by :func:`push_out` (a push in a wedge can land near the other surface)
+    and the samples that touch a moved vertex are checked again, for
+    :data:`BETWEEN_ROUNDS` rounds. Only samples whose vertices' Lipschitz bound is below
+    the clearance + :data:`BETWEEN_SLACK` are checked (the rest cannot be too close).
+
+    Returns (points, signed vertex distances, counts before, counts after), counts =
+    (inside, close, layered) samples.
+    """
+    ids, w = samples
+    out = points.copy()
+    d = d.copy()
+    n = len(out)
+    reach = np.linalg.norm(out[ids] - np.einsum("sk,ski->si", w, out[ids])[:, None], axis=2)
+    bound = np.max(d[ids] - reach, axis=1)
+    near_any = bound < minimum_gap + BETWEEN_SLACK
+    shell_cand = []
+    for shell, flat, thickness in shells:       # vertices' distances to the shell: bound
+        _, _, dist_v, _ = _shell_deficit(shell, flat, thickness + minimum_gap, out)
+        b = np.max(dist_v[ids] - reach, axis=1)
+        shell_cand.append(b < thickness + minimum_gap + BETWEEN_SLACK)
+        near_any |= shell_cand[-1]
+    cand = np.flatnonzero(near_any)
+    vertex_check = np.arange(n)
+    is_cand = np.zeros(len(ids), dtype=bool)
+    is_cand[cand] = True
+    signed = np.full(len(ids), np.inf)        # last checked state of every sample
+    layered = np.zeros(len(ids), dtype=bool)
+    ever = np.zeros(n, dtype=bool)
+    before = None
+    last = False                              # the recheck after the full vertex fix
+    for round_ in range(BETWEEN_ROUNDS + 2):
+        q = np.einsum("sk,ski->si", w[cand], out[ids[cand]])
+        near = surface.closest(q)
+        signed[cand] = near.signed
+        layered[cand] = False
+        deficit = minimum_gap - near.signed
+        normal = near.normal
+        v_def = np.full(len(vertex_check), -np.inf)
+        v_normal = np.zeros((len(vertex_check), 3))
+        for (shell, flat, thickness), sc in zip(shells, shell_cand):
+            clearance = thickness + minimum_gap
+            use = sc[cand]
+            if use.any():
+                sd, sn, _, _ = _shell_deficit(shell, flat, clearance, q[use])
+                rows = np.flatnonzero(use)
+                layered[cand[rows]] |= sd > minimum_gap          # inside the inner fabric
+                take = sd > deficit[rows]
+                deficit[rows[take]] = sd[take]
+                normal[rows[take]] = sn[take]
+            if len(vertex_check):
+                vd, vn, _, _ = _shell_deficit(shell, flat, clearance, out[vertex_check])
+                take = vd > v_def
+                v_def[take], v_normal[take] = vd[take], vn[take]
+        if before is None:
+            before = _between_counts(signed, layered, minimum_gap)
+        bad = (deficit > 0) & (deficit < BETWEEN_DEPTH)
+        bad_v = v_def > 0
+        if last:
+            break
+        if (not bad.any() and not bad_v.any()) or round_ >= BETWEEN_ROUNDS:
+            # the full vertex fix (wedges: escapes) on every vertex moved here, then recheck
+            moved = np.flatnonzero(ever)
+            if not len(moved):
+                break
+            fixed, dm, _ = push_out(surface, out[moved], required[moved], minimum_gap)
+            changed = moved[np.any(fixed != out[moved], axis=1)]
+            out[moved], d[moved] = fixed, dm
+            last = True
+        else:
+            # per vertex: the request of its most violated sample (own requests first)
+            order = np.flatnonzero(bad)[np.argsort(-deficit[bad])]
+            take = w[cand[order]] > 0
+            rows = np.repeat(order, take.sum(axis=1))
+            verts = np.concatenate([vertex_check[bad_v], ids[cand[order]][take]])
+            push = np.concatenate([v_normal[bad_v] * (v_def[bad_v] + PUSH_MARGIN)[:, None],
+                                   normal[rows] * (deficit[rows] + PUSH_MARGIN)[:, None]])
+            changed, first = np.unique(verts, return_index=True)
+            out[changed] += push[first]
+            near_v = surface.closest(out[changed])      # keep the moved ones off the body
+            low = near_v.signed < required[changed]
+            out[changed[low]] = near_v.point[low] + near_v.normal[low] * (
+                required[changed[low]] + PUSH_MARGIN)[:, None]
+            ever[changed] = True
+        # re-check the candidate samples that touch a moved vertex
+        touched = np.zeros(n, dtype=bool)
+        touched[changed] = True
+        cand = np.flatnonzero(is_cand & np.any(touched[ids] & (w > 0), axis=1))
+        vertex_check = changed if shells else changed[:0]
+        if not len(cand) and not len(vertex_check):
+            break
+    after = _between_counts(signed, layered, minimum_gap)
+    return out, d, before, after
+
+
 def air_gap(caster: RayCaster, points: np.ndarray, triangles: np.ndarray,
             distance: np.ndarray) -> np.ndarray:
     """Per-vertex air gap [m] along the inward garment normal; see the module doc."""
@@ -350,12 +517,15 @@ def drapes_of(g: FittedGarment) -> list[Drape]:
     return out
 
 
-def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None = None
-             ) -> Simulation:
+def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None = None,
+             between: bool = True, between_layers: bool = False) -> Simulation:
     """Pose, fix and measure every garment for each frame of ``skin`` ((F, J, 4, 4) skinning
     matrices, :func:`humv_usd.avatar.skeleton.skinning_matrices`). With ``fps`` (and more
     than one frame) loose parts are draped (:mod:`humv_usd.clothing.drape`) before the fix;
-    ``GarmentAnimation.skinned`` then keeps the skinned shape they lag."""
+    ``GarmentAnimation.skinned`` then keeps the skinned shape they lag. ``between``: also
+    fix the points between the vertices (:func:`push_between`; False: vertices only, for
+    benchmarks); ``between_layers``: that pass also pushes them off the garments under them
+    (slower: ~2-3x the fix time for a full outfit; off by default)."""
     rig = outfit.rig
     skin = np.asarray(skin, dtype=np.float64)
     frames = skin.shape[0]
@@ -364,6 +534,11 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
                               np.empty((frames, g.vertex_count))) for g in outfit.garments]
     frame_s = np.zeros(frames)
     fix_s = np.zeros(frames)
+    fix_cpu = np.zeros(frames)
+    samples = [between_samples(g.triangles) if between and not g.garment.is_prop else None
+               for g in outfit.garments]
+    last_cloth = max([k for k, g in enumerate(outfit.garments) if not g.garment.is_prop],
+                     default=-1)
     carried = [g.garment.prop for g in outfit.garments
                if g.garment.is_prop and g.garment.prop.placement == "between_hands"]
     prop_world = rifle_world(rig.skeleton, skin) if carried else None
@@ -385,6 +560,7 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
         caster = RayCaster(body, rig.triangles)
         distances: list[np.ndarray] = []
         shells: list[tuple[Surface, np.ndarray, float]] = []     # posed body-like garments
+        worn: list[tuple[Surface, np.ndarray, float]] = []       # all posed garments so far
         for k, (g, anim) in enumerate(zip(outfit.garments, anims)):
             gap = g.garment.minimum_gap
             blended = blend_transforms(g.joint_indices, g.joint_weights, skin[f])
@@ -401,7 +577,7 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
                 inner = outfit.garments[i].garment
                 need = distances[i][inner_ids] + inner.thickness + gap
                 np.maximum.at(required, outer_ids, need)
-            t1 = time.perf_counter()
+            t1, c1 = time.perf_counter(), time.process_time()
             if g.garment.is_prop:
                 dist, counts = measure(surface, posed, gap)
                 fixed = posed
@@ -415,6 +591,16 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
                     fixed, dist, again = push_out(surface, fixed, required, gap)
                     counts.inside_after, counts.close_after = again.inside_after, again.close_after
                     counts.min_distance_m = again.min_distance_m
+                if samples[k] is not None:  # between the vertices (body, inner garments)
+                    fixed, dist, was, left = push_between(surface, fixed, dist, samples[k],
+                                                          gap, required, worn)
+                    (counts.between_inside_before, counts.between_close_before,
+                     counts.between_layered_before) = was
+                    (counts.between_inside_after, counts.between_close_after,
+                     counts.between_layered_after) = left
+                    counts.inside_after = int(np.sum(dist < 0))
+                    counts.close_after = int(np.sum((dist >= 0) & (dist < gap)))
+                    counts.min_distance_m = float(dist.min())
                 for prop in carried:        # off the carried rifle, then the skin again
                     for round_ in range(PROP_ROUNDS):
                         fixed, was, left = push_off_prop(fixed, prop_world[f], prop, gap)
@@ -433,7 +619,11 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
                 if g.garment.body_like:
                     shells.append((Surface(fixed, g.triangles),
                                    _flat_normals(fixed, g.triangles), g.garment.thickness))
+                if between and between_layers and k < last_cloth:
+                    worn.append((Surface(fixed, g.triangles),
+                                  _flat_normals(fixed, g.triangles), g.garment.thickness))
             fix_s[f] += time.perf_counter() - t1
+            fix_cpu[f] += time.process_time() - c1
             distances.append(dist)
             anim.posed[f] = fixed
             anim.counts.append(counts)
@@ -450,4 +640,4 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
         frame_s[f] = time.perf_counter() - t0
         if progress is not None:
             progress(f)
-    return Simulation(anims, frame_s, fix_s)
+    return Simulation(anims, frame_s, fix_s, fix_cpu)

@@ -230,6 +230,11 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
         "layeredAfterMax": max(x.layered_after for x in c),
         "propBeforeMax": max(x.prop_before for x in c),
         "propAfterMax": max(x.prop_after for x in c),
+        # between the vertices (edge midpoints, triangle centroids)
+        "betweenInsideBeforeMax": max(x.between_inside_before for x in c),
+        "betweenCloseBeforeMax": max(x.between_close_before for x in c),
+        "betweenInsideAfterMax": max(x.between_inside_after for x in c),
+        "betweenCloseAfterMax": max(x.between_close_after for x in c),
         "minDistance_m": round(min(x.min_distance_m for x in c), 6),
         "airGapMin_m": round(float(anim.air_gap.min()), 6),
         "airGapMedian_m": round(float(np.median(anim.air_gap)), 6),

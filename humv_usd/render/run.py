@@ -134,7 +134,8 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     ``radiance`` [W m^-2 sr^-1], ``brightness_temperature`` [K], ``radiance_stderr``
     [W m^-2 sr^-1], ``depth`` [m], ``instance_id`` [integer stored as float32]), an 8-bit
     grayscale preview ``OUT/<sensor>/<frame:04d>.png`` (brightness temperature stretched between
-    its 1st and 99th percentile) and ``OUT/manifest.json``. EO sensors are listed as skipped.
+    its 1st and 99th percentile) and ``OUT/manifest.json``. EO sensors render in the spectral
+    variant (:mod:`humv_usd.render.eo`).
 
     Parameters
     ----------

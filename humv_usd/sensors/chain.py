@@ -94,6 +94,9 @@ class SensorModel:
         EO only: full-well capacity and read noise [electrons].
     reference_temperature_k : float
         Scene temperature at which the NETD is specified [K].
+    netd_note : str
+        How the NETD was derived, when it was (e.g. scaled to an overridden f-number by the
+        sensors layer; the ``humv:netdScaling`` customData of ``humv:sensor:netd``); else "".
     """
 
     name: str
@@ -116,6 +119,7 @@ class SensorModel:
     read_noise_e: float = 2.5
     reference_temperature_k: float = 300.0
     preset: str = ""
+    netd_note: str = ""
 
     def __post_init__(self):
         if self.band not in BANDS:
@@ -224,7 +228,9 @@ class SensorModel:
                 full_well_e=float(get(S.SENSOR_FULL_WELL, 10500.0)),
                 read_noise_e=float(get(S.SENSOR_READ_NOISE, 2.5)),
                 reference_temperature_k=float(get(S.SENSOR_REFERENCE_TEMPERATURE, 300.0)),
-                preset=str(get(S.SENSOR_PRESET, "")))
+                preset=str(get(S.SENSOR_PRESET, "")),
+                netd_note=str(prim.GetAttribute(S.SENSOR_NETD).GetCustomDataByKey("humv:netdScaling") or "")
+                if prim.GetAttribute(S.SENSOR_NETD) else "")
         except ValueError as exc:
             raise InputError(f"{path}: {exc}") from None
 
@@ -726,6 +732,7 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
         else:
             gain, offset, gain_source = model.gain, model.offset, "authored"
         settings["noise"] = {"model": "Gaussian, NETD-calibrated", "netd_k": model.netd_k,
+                             **({"netd_source": model.netd_note} if model.netd_note else {}),
                              "reference_temperature_k": reference_temperature_k,
                              "sigma_radiance": sigma}
         noise_sigma = sigma

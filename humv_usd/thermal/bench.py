@@ -20,8 +20,9 @@ from humv_usd.materials.library import LIBRARY
 from humv_usd.thermal import human as H
 from humv_usd.thermal import layer as TL
 from humv_usd.thermal import radiation as R
+from humv_usd.thermal.sky import stage_longwave_table
 from humv_usd.thermal.surfaces import (SPIN_UP_STEP_S, forcing_at, scene_meshes,
-                                       surface_temperatures)
+                                       surface_temperatures, with_sky_table)
 from humv_usd.usd import schemas as S
 
 
@@ -48,13 +49,16 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
     slabs = any(m.held_k is None for m in meshes)
     spin = th["surface_spin_up_s"] if slabs else 0.0
     spin_t = np.arange(-spin, 0.0, SPIN_UP_STEP_S) if spin > 0 else np.zeros(0)
-    f = forcing_at(scenario, np.r_[spin_t, 0.0])
+    table = stage_longwave_table(stage)
+    f = with_sky_table(forcing_at(scenario, np.r_[spin_t, 0.0]), table, len(spin_t))
     surf, diag = surface_temperatures(scenario, meshes, np.array([0.0]), spin, f)
     i = len(spin_t)
     sun = (f.sun_direction[i], f.dni_w_m2[i], f.dhi_w_m2[i]) if f.sun_up[i] else None
     sky = H.scenario_sky(scenario, {"air_temperature_k": f.air_temperature_k[i],
-                                    "relative_humidity": f.relative_humidity[i]}, sun,
-                         float(diag["groundMeanTemperature_k"][0]) if scenario["scene"] else None)
+                                    "relative_humidity": f.relative_humidity[i],
+                                    "cloud_cover": f.cloud_cover[i]}, sun,
+                         float(diag["groundMeanTemperature_k"][0]) if scenario["scene"] else None,
+                         longwave=table)
     scene = None
     mesh, eps_tri, _ = TL._scene_trimesh(meshes)
     if mesh is not None:

@@ -3,8 +3,9 @@
 The chain, per person:
 
 1. radiation environment (seed Eq. 2): a lat-long radiance map around the person from the
-   analytic clear sky (:mod:`humv_usd.thermal.sky`) and the scene surfaces at their temperatures
-   (:mod:`humv_usd.thermal.radiation`);
+   sky (:mod:`humv_usd.thermal.sky`: the atmosphere layer's longwave table with cloud cover
+   when the stage has one, else the analytic clear sky with the cloud mix) and the scene
+   surfaces at their temperatures (:mod:`humv_usd.thermal.radiation`);
 2. absorbed radiation per facet (Eq. 3-4), ``fast`` method, on the bare body (for the mean radiant
    temperature of each JOS-3 segment, Eq. 1) and on the clothed body (for the garments' outer
    surfaces);
@@ -123,13 +124,15 @@ def segment_clo(garment_parts: list[_Part]) -> np.ndarray:
 
 
 def scenario_sky(scenario, weather: dict | None = None, sun: tuple | None = None,
-                 ground_k: float | None = None) -> ClearSky:
-    """The analytic clear sky of the scenario's weather over its ground.
+                 ground_k: float | None = None, longwave: tuple | None = None) -> ClearSky:
+    """The sky of the scenario's weather over its ground.
 
     ``weather``: one sample of :func:`humv_usd.environment.weather.weather_at` as a dict (default
-    the constant ``[atmosphere]`` values); ``sun``: (unit direction towards the sun, DNI, DHI)
-    [W m^-2] or None (night / no sun); ``ground_k``: ground surface temperature (default the
-    scenario's held ground temperature, else the air temperature).
+    the constant ``[atmosphere]`` values; ``cloud_cover`` defaults to 0); ``sun``: (unit
+    direction towards the sun, DNI, DHI) [W m^-2] or None (night / no sun); ``ground_k``: ground
+    surface temperature (default the scenario's held ground temperature, else the air
+    temperature); ``longwave``: (zenith angles [deg], longwave sky radiance [W m^-2 sr^-1])
+    from the atmosphere layer (clouds included), else the analytic sky with the cloud mix.
     """
     atm = weather if weather is not None else scenario["atmosphere"]
     if ground_k is None and scenario["scene"]:
@@ -142,8 +145,12 @@ def scenario_sky(scenario, weather: dict | None = None, sun: tuple | None = None
         kw = dict(sun_direction=tuple(float(x) for x in sun[0]),
                   direct_normal_irradiance=float(sun[1]),
                   diffuse_horizontal_irradiance=float(sun[2]))
+    if longwave is not None:
+        kw.update(longwave_zenith_deg=tuple(float(x) for x in longwave[0]),
+                  longwave_radiance=tuple(float(x) for x in longwave[1]))
     return ClearSky(air_temperature_k=float(atm["air_temperature_k"]),
                     relative_humidity=float(atm["relative_humidity"]),
+                    cloud_cover=float(atm.get("cloud_cover", 0.0) or 0.0),
                     ground_temperature_k=None if ground_k is None else float(ground_k),
                     ground_solar_reflectance=albedo, **kw)
 

@@ -10,7 +10,13 @@ People (``[thermal] model``):
 Scene surfaces (ground, objects, any other mesh outside /World/Humans), in every model: held at
 the scenario's ``temperature_k`` when it is given, else a 1-D slab of the material with sun,
 sky, wind and a diurnal spin-up ending at frame 0 (:mod:`humv_usd.thermal.surfaces`).
-Weather and sun come from :mod:`humv_usd.environment` (``weather_at``, ``sun_at``).
+Weather and sun come from :mod:`humv_usd.environment` (``weather_at``, ``sun_at``). The long-wave
+sky comes from the upstream stage's /World/Atmosphere (``skyLongwaveRadiance`` against zenith,
+LOWTRAN7 or analytic, cloud cover included) when the atmosphere layer authored it: the people's
+radiance maps use the table itself and the slabs its hemispherical irradiance, so MRT, q_rad and
+the scene see the render's sky; without it, the analytic Berdahl & Martin sky with the
+Crawford & Duchon cloud mix. The table holds the weather of frame 0; at other times (spin-up,
+later radiation samples) it is scaled with the analytic sky's irradiance (1 at frame 0).
 """
 from __future__ import annotations
 
@@ -22,8 +28,9 @@ from humv_usd.materials.library import LIBRARY
 from humv_usd.environment.weather import weather_at
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
+from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
 from humv_usd.thermal.surfaces import (SPIN_UP_STEP_S, forcing_at, longwave_emissivity,
-                                       scene_meshes, surface_temperatures)
+                                       scene_meshes, surface_temperatures, with_sky_table)
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import finish, new_layer_stage
@@ -56,7 +63,9 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         spin = th["surface_spin_up_s"] if slabs else 0.0
         spin_t = np.arange(-spin, 0.0, SPIN_UP_STEP_S) if spin > 0 else np.zeros(0)
         all_t = np.concatenate([spin_t, sample_t])
-        forcing = forcing_at(scenario, all_t)
+        table = stage_longwave_table(upstream)
+        forcing = with_sky_table(forcing_at(scenario, all_t), table, len(spin_t))
+        report["sky"] = _sky_report(forcing, table, len(spin_t), upstream)
         surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing)
         report["surfaces"] = {"model": "slab" if slabs else "held",
                               "spinUp_s": spin,
@@ -76,9 +85,11 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
             sun = ((forcing.sun_direction[i], forcing.dni_w_m2[i], forcing.dhi_w_m2[i])
                    if forcing.sun_up[i] else None)
             weather = {"air_temperature_k": forcing.air_temperature_k[i],
-                       "relative_humidity": forcing.relative_humidity[i]}
+                       "relative_humidity": forcing.relative_humidity[i],
+                       "cloud_cover": forcing.cloud_cover[i]}
             sky = scenario_sky(scenario, weather, sun, float(ground_k[k]) if
-                               scenario["scene"] else None)
+                               scenario["scene"] else None,
+                               longwave=_scaled_table(table, forcing, i))
             skies.append(sky)
             if mesh is None:
                 scenes.append(None)
@@ -129,6 +140,29 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
             for frame, values in enumerate(series):
                 primvar.Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), frame)
     return finish(stage)
+
+
+def _scaled_table(table, forcing, i):
+    """The atmosphere's longwave table scaled to the sky irradiance of forcing sample i (the
+    table itself at frame 0), or None without a table."""
+    if table is None:
+        return None
+    zen, rad = table
+    return zen, rad * (float(forcing.sky_longwave[i]) / hemispherical_irradiance(zen, rad))
+
+
+def _sky_report(forcing, table, i0, upstream) -> dict:
+    """Where the long-wave sky came from and its irradiance at frame 0 (for the layer)."""
+    if table is None:
+        source = "analytic: Berdahl & Martin (1984) + Crawford & Duchon (1999) clouds"
+    else:
+        model = upstream.GetPrimAtPath("/World/Atmosphere").GetAttribute(S.ATMOSPHERE_MODEL).Get()
+        source = f"atmosphere layer skyLongwaveRadiance ({model})"
+    return {"source": source,
+            "cloudCover": round(float(forcing.cloud_cover[i0]), 6),
+            "longwaveIrradiance_W_m2": round(float(forcing.sky_longwave[i0]), 4),
+            "emissivity": round(float(forcing.sky_longwave[i0] / (
+                R.STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6)}
 
 
 def _fixed_people(scenario: Scenario) -> dict[Sdf.Path, float]:

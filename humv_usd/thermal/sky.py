@@ -1,15 +1,21 @@
-"""Analytic clear-sky radiance by direction, in broadband shortwave and longwave "bands".
+"""Sky radiance by direction, in broadband shortwave and longwave "bands", with cloud cover.
 
-Stand-in for the atmosphere tool until LOWTRAN7 sky radiance by zenith lands: the longwave sky is
-the Berdahl & Martin (1984) effective emissivity (``humv_usd.physics.sky``) spread over zenith
-angle with an angular model, the shortwave sky is an isotropic diffuse sky, the sun is a separate
-directional term, and below the horizon an infinite flat ground reflects and emits.
+The longwave sky is either the atmosphere layer's table of broadband radiance against zenith
+(``humv:atmosphere:skyLongwaveRadiance`` on ``skyZenithAngles``: LOWTRAN7 when it ran, else the
+analytic law below; :func:`stage_longwave_table` reads it) or, without an atmosphere layer, the
+analytic sky: the Berdahl & Martin (1984) clear-sky emissivity (``humv_usd.physics.sky``) spread
+over zenith angle with an angular model. Cloud cover enters both through the Crawford & Duchon
+(1999) mix (:func:`cloudy_sky_emissivity`): the atmosphere layer applies it to the table it
+authors (broadband and spectral, so the render sees the same sky), the analytic sky here. The
+shortwave sky is an isotropic diffuse sky, the sun is a separate directional term, and below
+the horizon an infinite flat ground reflects and emits.
 
 Directions are unit vectors in the stage frame (Z up). Radiance [W m^-2 sr^-1], irradiance
 [W m^-2]. Band 0 is shortwave (solar, 0.3-3 um), band 1 longwave (thermal, 3-100 um).
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -119,16 +125,177 @@ def angular_sky_emissivity(zenith_rad, sky_emissivity, model="martin_berdahl"):
     return np.where(mu > 0, eps, 1.0)
 
 
+def cloudy_sky_emissivity(clear_emissivity, cloud_cover):
+    """Effective sky emissivity with a cloud fraction (Crawford & Duchon 1999).
+
+    Parameters
+    ----------
+    clear_emissivity : numeric
+        Clear-sky emissivity, hemispherical or directional eps(theta) [0-1].
+    cloud_cover : numeric
+        Cloud fraction c [0-1] (clipped).
+
+    Returns
+    -------
+    numeric
+        eps = c + (1 - c) eps_clear [0-1].
+
+    Notes
+    -----
+    The clouds are taken as blackbodies at the screen-level air temperature covering the
+    fraction c of the dome (low, optically thick cloud base), so the same mix holds for the
+    hemispherical emissivity and, direction by direction, for eps(theta): an overcast sky
+    (c = 1) radiates sigma T_air^4. High thin cloud (cirrus) is colder and partly transparent;
+    the mix overestimates its emission.
+
+    References
+    ----------
+    .. [1] Crawford, T. M., Duchon, C. E. (1999). An improved parameterization for estimating
+       effective atmospheric emissivity for use in calculating daytime downwelling longwave
+       radiation. J. Appl. Meteor. 38, 474-480 (their Eq. 20, clf the cloud fraction).
+    """
+    c = np.clip(np.asarray(cloud_cover, dtype=float), 0.0, 1.0)
+    return c + (1.0 - c) * np.asarray(clear_emissivity, dtype=float)
+
+
+def _extended_table(zenith_deg, radiance):
+    """Table nodes [rad] and values extended as np.interp does: constant to 0 and to 90 deg."""
+    z = np.asarray(zenith_deg, dtype=float).ravel()
+    val = np.asarray(radiance, dtype=float).ravel()
+    if z.size == 0 or z.size != val.size or np.any(np.diff(z) <= 0) or z[0] < 0 or z[-1] > 90:
+        raise ValueError("sky table: zenith angles must ascend within 0-90 deg, one value each")
+    if z[0] > 0:
+        z, val = np.r_[0.0, z], np.r_[val[0], val]
+    if z[-1] < 90:
+        z, val = np.r_[z, 90.0], np.r_[val, val[-1]]
+    return np.radians(z), val
+
+
+def hemispherical_irradiance(zenith_deg, radiance) -> float:
+    """Irradiance on a horizontal plane from a sky tabulated against zenith [W m^-2].
+
+    Parameters
+    ----------
+    zenith_deg : array (Z,)
+        Ascending zenith angles of the table [deg] within 0-90.
+    radiance : array (Z,)
+        Radiance at those angles, azimuthally uniform [W m^-2 sr^-1].
+
+    Returns
+    -------
+    float
+        E = 2 pi int_0^(pi/2) L(theta) cos(theta) sin(theta) dtheta, i.e. pi times the
+        cosine-weighted hemispherical mean of L.
+
+    Notes
+    -----
+    Exact for the interpolant the radiance maps use (:meth:`ClearSky.radiance`): L linear in
+    theta between the nodes, constant before the first and after the last node (np.interp).
+    On a segment L = a + s theta, with int sin cos = sin^2/2 and
+    int theta sin cos = -theta cos(2 theta)/4 + sin(2 theta)/8.
+    """
+    th, val = _extended_table(zenith_deg, radiance)
+    a, b = th[:-1], th[1:]
+    slope = np.diff(val) / np.diff(th)
+    f0 = lambda t: 0.5 * np.sin(t) ** 2                                       # noqa: E731
+    f1 = lambda t: -t * np.cos(2.0 * t) / 4.0 + np.sin(2.0 * t) / 8.0         # noqa: E731
+    seg = (val[:-1] - slope * a) * (f0(b) - f0(a)) + slope * (f1(b) - f1(a))
+    return float(2.0 * np.pi * seg.sum())
+
+
+def with_cloud_cover(atmosphere, cloud_cover: float):
+    """The atmosphere's thermal sky with a cloud fraction (Crawford & Duchon 1999).
+
+    Parameters
+    ----------
+    atmosphere : humv_usd.atmosphere.model.Atmosphere
+        Clear-sky atmosphere (LOWTRAN7 or analytic).
+    cloud_cover : float
+        Cloud fraction c [0-1] (the weather of frame 0, like the atmosphere).
+
+    Returns
+    -------
+    Atmosphere
+        A copy whose thermal sky is L = c B(T_air) + (1 - c) L_clear: spectral rows
+        ``sky_radiance`` with the Planck radiance B(lambda, T_air), the broadband
+        ``longwave_radiance`` with sigma T_air^4 / pi, ``sky_emissivity`` =
+        c + (1 - c) eps_clear and ``sky_temperature_k`` = eps^(1/4) T_air. The isotropic diffuse
+        skylight (already reduced by the clouds through the scenario's DHI), the paths and the
+        direct sun are unchanged. c = 0 returns the atmosphere itself.
+
+    Notes
+    -----
+    Clouds as blackbodies at the air temperature (see :func:`cloudy_sky_emissivity`);
+    LOWTRAN7 runs without its cloud models, so the clear-sky spectrum is mixed the same way.
+    """
+    from humv_usd.physics import planck
+
+    c = float(np.clip(cloud_cover, 0.0, 1.0))
+    if c == 0.0:
+        return atmosphere
+    t_air = float(atmosphere.air_temperature_k)
+    wl = np.asarray(atmosphere.wavelengths_um, dtype=float)
+    bb = planck.spectral_radiance(wl, t_air) if wl.size else np.zeros(0)
+    eps = float(cloudy_sky_emissivity(atmosphere.sky_emissivity, c))
+    ran = dict(atmosphere.ran)
+    ran["clouds"] = (f"cloud cover {c:g}: Crawford & Duchon (1999) mix, clouds as blackbodies "
+                     f"at the air temperature {t_air:.2f} K (broadband and spectral sky)")
+    return dataclasses.replace(
+        atmosphere,
+        sky_radiance=c * bb[None, :] + (1.0 - c) * np.asarray(atmosphere.sky_radiance),
+        longwave_radiance=(c * STEFAN_BOLTZMANN * t_air ** 4 / np.pi
+                           + (1.0 - c) * np.asarray(atmosphere.longwave_radiance)),
+        sky_emissivity=eps, sky_temperature_k=eps ** 0.25 * t_air, ran=ran)
+
+
+def stage_longwave_table(stage) -> tuple[np.ndarray, np.ndarray] | None:
+    """(zenith angles [deg], broadband longwave sky radiance [W m^-2 sr^-1]) authored on the
+    stage's /World/Atmosphere (``skyZenithAngles``, ``skyLongwaveRadiance``), or None when the
+    stage has no atmosphere layer or the layer has no such table.
+
+    Raises :class:`humv_usd.errors.InputError` for a malformed table (lengths differ, angles
+    not ascending within 0-90 deg, negative or non-finite radiances).
+    """
+    from humv_usd.errors import InputError, bad_value
+    from humv_usd.usd import schemas as S
+    from humv_usd.usd.layers import SCOPES
+
+    if stage is None:
+        return None
+    prim = stage.GetPrimAtPath(SCOPES["atmosphere"])
+    if not prim:
+        return None
+    z_attr = prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES)
+    l_attr = prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE)
+    z = z_attr.Get() if z_attr else None
+    lw = l_attr.Get() if l_attr else None
+    if z is None or lw is None:
+        return None
+    z, lw = np.asarray(z, dtype=float), np.asarray(lw, dtype=float)
+    where = f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE}"
+    if lw.size != z.size or not np.all(np.isfinite(lw)) or np.any(lw < 0):
+        raise InputError(bad_value(where, f"<{lw.size} values>",
+                                   f"{z.size} finite radiances >= 0, one per skyZenithAngles"))
+    try:
+        _extended_table(z, lw)
+    except ValueError:
+        raise InputError(bad_value(f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_ZENITH_ANGLES}",
+                                   str(np.round(z, 3).tolist()),
+                                   "ascending zenith angles within 0-90 deg")) from None
+    return z, lw
+
+
 @dataclass(frozen=True)
 class ClearSky:
-    """Analytic clear sky over an infinite flat ground, with the sun as a directional term.
+    """Sky (analytic or tabulated longwave, with clouds) over an infinite flat ground, with the
+    sun as a directional term.
 
     Parameters
     ----------
     air_temperature_k : float
         Screen-level air temperature [K].
     relative_humidity : float
-        [0-1]; sets eps_sky via Berdahl & Martin (1984).
+        [0-1]; sets the clear-sky eps_sky via Berdahl & Martin (1984).
     sun_direction : array-like (3,) or None
         Unit vector towards the sun; None or z <= 0 means no sun.
     direct_normal_irradiance : float
@@ -142,9 +309,16 @@ class ClearSky:
     ground_solar_reflectance : float
         Broadband shortwave albedo of the ground [0-1].
     model : str
-        Angular sky emissivity model (see :func:`angular_sky_emissivity`).
+        Angular clear-sky emissivity model (see :func:`angular_sky_emissivity`).
     sky_emissivity : float or None
-        Override eps_sky (e.g. from the atmosphere layer); None -> Berdahl & Martin.
+        Override the clear-sky eps_sky; None -> Berdahl & Martin.
+    cloud_cover : float
+        Cloud fraction [0-1] of the analytic sky (:func:`cloudy_sky_emissivity`); not applied
+        to a table (the atmosphere layer's table already has it).
+    longwave_zenith_deg, longwave_radiance : tuple or None
+        Longwave sky radiance [W m^-2 sr^-1] tabulated against zenith [deg] (the atmosphere
+        layer's ``skyLongwaveRadiance``); when given it replaces the analytic longwave sky, linear
+        in zenith between the nodes and constant beyond the last one (89 deg) to the horizon.
     """
 
     air_temperature_k: float
@@ -157,15 +331,49 @@ class ClearSky:
     ground_solar_reflectance: float = 0.2
     model: str = "martin_berdahl"
     sky_emissivity: float | None = None
+    cloud_cover: float = 0.0
+    longwave_zenith_deg: tuple | None = None
+    longwave_radiance: tuple | None = None
 
     bands = BANDS
 
     @property
-    def emissivity(self) -> float:
-        """Hemispherical clear-sky emissivity eps_sky [0-1]."""
+    def tabulated(self) -> bool:
+        """True when the longwave sky comes from a table (the atmosphere layer)."""
+        return self.longwave_radiance is not None
+
+    @property
+    def clear_emissivity(self) -> float:
+        """Hemispherical clear-sky emissivity of the analytic sky [0-1]."""
         if self.sky_emissivity is not None:
             return float(self.sky_emissivity)
         return float(effective_sky_temperature(self.air_temperature_k, self.relative_humidity)[1])
+
+    @property
+    def emissivity(self) -> float:
+        """Hemispherical effective sky emissivity E_sky / (sigma T_air^4) [0-1]: of the table,
+        else the analytic clear sky with the cloud mix."""
+        if self.tabulated:
+            return self.longwave_irradiance() / (STEFAN_BOLTZMANN
+                                                 * float(self.air_temperature_k) ** 4)
+        return float(cloudy_sky_emissivity(self.clear_emissivity, self.cloud_cover))
+
+    def longwave_irradiance(self) -> float:
+        """Downwelling longwave sky irradiance on a horizontal plane E_sky [W m^-2]: the table's
+        :func:`hemispherical_irradiance`, else eps sigma T_air^4."""
+        if self.tabulated:
+            return hemispherical_irradiance(self.longwave_zenith_deg, self.longwave_radiance)
+        return self.emissivity * STEFAN_BOLTZMANN * float(self.air_temperature_k) ** 4
+
+    def longwave_sky_radiance(self, zenith_rad) -> np.ndarray:
+        """Longwave sky radiance [W m^-2 sr^-1] at zenith angles [rad] above the horizon."""
+        zen = np.asarray(zenith_rad, dtype=float)
+        if self.tabulated:
+            return np.interp(np.degrees(zen), np.asarray(self.longwave_zenith_deg, float),
+                             np.asarray(self.longwave_radiance, float))
+        eps = cloudy_sky_emissivity(
+            angular_sky_emissivity(zen, self.clear_emissivity, self.model), self.cloud_cover)
+        return eps * STEFAN_BOLTZMANN * float(self.air_temperature_k) ** 4 / np.pi
 
     @property
     def sun(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -184,8 +392,7 @@ class ClearSky:
         sun = self.sun
         if sun is not None:
             sw += sun[1][0] * sun[0][2]
-        lw = self.emissivity * STEFAN_BOLTZMANN * float(self.air_temperature_k) ** 4
-        return np.array([sw, lw])
+        return np.array([sw, self.longwave_irradiance()])
 
     def ground_radiance(self) -> np.ndarray:
         """Per-band radiance leaving the (Lambertian) ground [W m^-2 sr^-1]."""
@@ -212,8 +419,7 @@ class ClearSky:
         d = np.asarray(directions, dtype=float)
         up = d[:, 2] > 0
         zen = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
-        sky_lw = (angular_sky_emissivity(zen, self.emissivity, self.model)
-                  * STEFAN_BOLTZMANN * float(self.air_temperature_k) ** 4 / np.pi)
+        sky_lw = self.longwave_sky_radiance(np.minimum(zen, 0.5 * np.pi))
         sky_sw = np.full(len(d), float(self.diffuse_horizontal_irradiance) / np.pi)
         ground = self.ground_radiance()
         return np.stack([np.where(up, sky_sw, ground[0]), np.where(up, sky_lw, ground[1])])

@@ -13,7 +13,10 @@ f_lit the sunlit fraction of the face (shadow rays against the scene from points
   (isotropic diffuse sky and Lambertian ground of albedo rho_g, view factors (1 +- n_z)/2;
   Duffie & Beckman 2013, section 2.15-2.16);
 * incident long wave  E_sky (1 + n_z)/2 + [eps_g sigma T_g^4 + (1 - eps_g) E_sky] (1 - n_z)/2,
-  E_sky = eps_sky sigma T_air^4 with the Berdahl & Martin (1984) clear-sky emissivity;
+  E_sky = eps_sky sigma T_air^4 with the Berdahl & Martin (1984) clear-sky emissivity and the
+  cloud cover mixed in (Crawford & Duchon 1999); with an atmosphere layer, E_sky is scaled so
+  that at frame 0 it is the hemispherical irradiance of the layer's longwave sky table
+  (:func:`with_sky_table`), the sky the render and the people's radiance maps see;
 * convection  h = 2.8 + 3.0 V (Watmuff et al. 1977).
 
 Constructions: the ground is its material's layer over soil down to 1 m, with the bottom held
@@ -23,6 +26,7 @@ each other beyond the ground term, and people do not shade the scene.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +38,7 @@ from humv_usd.physics.convection import watmuff
 from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
 from humv_usd.scene.layer import GROUND, object_path
 from humv_usd.thermal.human import longwave_emissivity
+from humv_usd.thermal.sky import cloudy_sky_emissivity, hemispherical_irradiance
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.mesh import fan_triangulate
 
@@ -165,7 +170,11 @@ def _construction(material: str, is_ground: bool):
 
 @dataclass
 class SurfaceForcing:
-    """Weather and sun at the slab's sample times (seconds after frame 0)."""
+    """Weather and sun at the slab's sample times (seconds after frame 0).
+
+    ``cloud_cover`` (M,) [0-1] or None (clear); ``sky_longwave_factor`` multiplies the analytic
+    sky long wave (1: Berdahl & Martin with the cloud mix; :func:`with_sky_table` sets it).
+    """
 
     times_s: np.ndarray
     air_temperature_k: np.ndarray
@@ -176,12 +185,45 @@ class SurfaceForcing:
     dni_w_m2: np.ndarray
     dhi_w_m2: np.ndarray
     ghi_w_m2: np.ndarray
+    cloud_cover: np.ndarray | None = None
+    sky_longwave_factor: float = 1.0
 
     @property
     def sky_longwave(self) -> np.ndarray:
-        """Clear-sky downwelling long wave eps_sky sigma T_air^4 [W m^-2] (Berdahl & Martin)."""
+        """Downwelling sky long wave [W m^-2]: factor x eps sigma T_air^4, eps the Berdahl &
+        Martin (1984) clear-sky emissivity with the Crawford & Duchon (1999) cloud mix."""
         _, eps = effective_sky_temperature(self.air_temperature_k, self.relative_humidity)
-        return eps * STEFAN_BOLTZMANN * self.air_temperature_k ** 4
+        if self.cloud_cover is not None:
+            eps = cloudy_sky_emissivity(eps, self.cloud_cover)
+        return self.sky_longwave_factor * eps * STEFAN_BOLTZMANN * self.air_temperature_k ** 4
+
+
+def with_sky_table(forcing: SurfaceForcing, table, frame0: int) -> SurfaceForcing:
+    """The forcing with its sky long wave scaled to an atmosphere layer's sky table.
+
+    Parameters
+    ----------
+    forcing : SurfaceForcing
+    table : (zenith_deg (Z,), radiance (Z,)) or None
+        The layer's ``skyLongwaveRadiance`` (:func:`humv_usd.thermal.sky.stage_longwave_table`);
+        None returns ``forcing`` unchanged.
+    frame0 : int
+        Index of frame 0 in ``forcing.times_s``.
+
+    Returns
+    -------
+    SurfaceForcing
+        ``sky_longwave_factor`` = E_table / E_analytic(frame 0), E_table the table's
+        :func:`humv_usd.thermal.sky.hemispherical_irradiance`: at frame 0 the slab sees the
+        layer's sky exactly; before (spin-up) and after, the analytic sky's changes with the
+        weather (air temperature, humidity, cloud cover) carry the table along, since the
+        atmosphere is computed for the weather of frame 0 only.
+    """
+    if table is None:
+        return forcing
+    base = dataclasses.replace(forcing, sky_longwave_factor=1.0)
+    factor = hemispherical_irradiance(*table) / float(base.sky_longwave[frame0])
+    return dataclasses.replace(forcing, sky_longwave_factor=factor)
 
 
 def forcing_at(scenario, times_s) -> SurfaceForcing:
@@ -201,7 +243,8 @@ def forcing_at(scenario, times_s) -> SurfaceForcing:
     w = weather_at(scenario, t_w)
     sun = sun_at(scenario, t, w)
     return SurfaceForcing(t, w.air_temperature_k, w.relative_humidity, w.wind_speed_m_s,
-                          sun.direction, sun.up, sun.dni_w_m2, sun.dhi_w_m2, sun.ghi_w_m2)
+                          sun.direction, sun.up, sun.dni_w_m2, sun.dhi_w_m2, sun.ghi_w_m2,
+                          w.cloud_cover)
 
 
 def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, ground_eps,

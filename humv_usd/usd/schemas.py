@@ -85,6 +85,7 @@ ATMOSPHERE_SKY_TEMPERATURE = "humv:atmosphere:skyTemperature"
 ATMOSPHERE_WAVELENGTHS = "humv:atmosphere:wavelengths"
 ATMOSPHERE_SKY_ZENITH_ANGLES = "humv:atmosphere:skyZenithAngles"
 ATMOSPHERE_SKY_SPECTRAL_RADIANCE = "humv:atmosphere:skySpectralRadiance"
+ATMOSPHERE_SKY_LONGWAVE_RADIANCE = "humv:atmosphere:skyLongwaveRadiance"
 ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE = "humv:atmosphere:solarSpectralIrradiance"
 
 # --- HumvAtmospherePathAPI (Scope) ------------------------------------------------------------
