@@ -317,6 +317,28 @@ def test_sun_reflected_in_mwir(tmp_path, toward, lit):
     assert ran.startswith("directional") if lit else ran == "skipped: sun below the horizon (night)"
 
 
+def test_glass_reflects_only_its_reflectance(tmp_path):
+    """A see-through material (eps 0.3, transmittance 0.6, so R 0.1) under a blackbody sky
+    reflects R, not 1 - eps (found in review: a window in MWIR mirrored ~50 %); what it
+    transmits is not traced (the render's surfaces are opaque, documented)."""
+    eps, trans, t, t_sky = 0.3, 0.6, 300.0, 250.0
+    stage = new_stage(tmp_path / "s.usda", sky_k=t_sky)
+    glass = material(stage, "glass", eps)
+    farr(glass.GetPrim(), "humv:material:transmittance", [trans, trans])
+    plate(stage, "/World/p", 1e4, 0.0, glass, t)
+    camera(stage, "ir", (0, 0, 10), (0, 0, 0), fov_x_deg=10.0, band=MWIR)
+    stage.Save()
+    render_stage(tmp_path / "s.usda", tmp_path / "out", spp=64)
+    ch = read_exr(tmp_path / "out" / "ir" / "0000.exr")
+    expected = eps * planck.band_radiance(t, MWIR) + (1 - eps - trans) * planck.band_radiance(t_sky, MWIR)
+    assert abs(ch["radiance"].mean() / expected - 1) < 2e-3
+    # a transmittance that leaves no room for the emissivity is one clear error
+    farr(glass.GetPrim(), "humv:material:transmittance", [0.9, 0.9])
+    stage.Save()
+    with pytest.raises(InputError, match="transmittance"):
+        render_stage(tmp_path / "s.usda", tmp_path / "out2", spp=4)
+
+
 # --- blackbody read-back through the sensor chain ----------------------------------------------
 
 def test_blackbody_panel_reads_back_within_netd(tmp_path):

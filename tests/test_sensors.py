@@ -169,6 +169,20 @@ def test_noise_of_a_flat_300k_field_is_the_netd(name):
         m.netd_k * planck.band_radiance_derivative(300.0, band, resp))
 
 
+def test_noise_uses_the_sensors_reference_temperature():
+    """An authored humv:sensor:referenceTemperature sets where the NETD is defined (found in
+    review: the render passed a fixed 300 K)."""
+    import dataclasses
+
+    m = dataclasses.replace(model_from_preset("atom1024_lwir"), reference_temperature_k=330.0)
+    band, resp = m.wavelength_range_um, m.response_pair
+    radiance = np.full((8, 8), planck.band_radiance(330.0, band, resp))
+    out = apply_chain(radiance, m, np.random.default_rng(0), psf=False)
+    assert out.noise_sigma == pytest.approx(m.netd_k * planck.band_radiance_derivative(330.0, band, resp))
+    assert out.noise_sigma > 1.2 * m.netd_k * planck.band_radiance_derivative(300.0, band, resp)
+    assert out.settings["noise"]["reference_temperature_k"] == 330.0
+
+
 def test_eo_shot_and_read_noise_follow_the_photon_transfer_curve():
     m = model_from_preset("rgb_imx273", gain=None)
     rgb = np.full((64, 64, 3), 0.3)
@@ -391,6 +405,11 @@ def test_netd_scales_with_f_number_when_not_given(raw):
     noise = apply_chain(np.full((8, 8), 40.0), m, np.random.default_rng(0), psf=False).settings["noise"]
     assert noise["netd_k"] == m.netd_k and noise["netd_source"].startswith("scaled from preset atom1024_lwir")
     assert presets.netd_for_f_number(0.05, 1.0, 1.0) == 0.05
+    # a netd_k given equal to the preset's value is the user's word: not scaled
+    by_id["atom1024_lwir"]["netd_k"] = 0.05
+    stage = Usd.Stage.Open(sensors_layer.build(validate(raw)))
+    assert netd("atom1024_lwir").Get() == pytest.approx(0.05, rel=1e-6)
+    assert netd("atom1024_lwir").GetCustomDataByKey("humv:netdScaling") is None
 
 
 def test_subbands_key_is_authored_for_infrared_sensors(raw):

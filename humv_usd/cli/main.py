@@ -74,7 +74,7 @@ def compose(scenario: Path, out_dir: Path):
 @click.option("--annotators", default=None, help="Ground-truth annotators, comma-separated "
               "(default: the scenario's [annotations], else all; see humv_usd.groundtruth).")
 @click.option("--subbands", default=None, type=int,
-              help="Sub-bands per infrared band (1-64; default 4, see `humv-usd bench render`).")
+              help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 4; see `humv-usd bench render`).")
 @reports_errors
 def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors, annotators, subbands):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""

@@ -137,6 +137,7 @@ class Material:
     wavelengths_um: np.ndarray
     emissivity: np.ndarray
     reflectance: np.ndarray | None = None  # spectral reflectance on wavelengths_um (EO), if authored
+    transmittance: np.ndarray | None = None  # spectral transmittance (glass), if authored; else opaque
 
 
 @dataclass
@@ -425,7 +426,17 @@ class StageExport:
                                            f"expected {wl.size} reflectances in 0-1 (one per wavelength in {WAVELENGTHS_ATTR})"))
         else:
             rho = None
-        out = Material(mpath, wl, eps, rho)
+        tau = _get(prim.GetAttribute(_s.MATERIAL_TRANSMITTANCE), time)
+        if tau is not None and len(tau) > 0:
+            tau = np.asarray(tau, dtype=float)
+            if (tau.size != wl.size or not np.all(np.isfinite(tau)) or np.any(tau < 0)
+                    or np.any(tau + eps > 1.0 + 1e-6)):
+                raise InputError(bad_value(f"{mpath}.{_s.MATERIAL_TRANSMITTANCE}", _summary(tau),
+                                           f"expected {wl.size} transmittances in 0-1 with emissivity + "
+                                           "transmittance <= 1 (one per wavelength)"))
+        else:
+            tau = None
+        out = Material(mpath, wl, eps, rho, tau)
         self._materials[mpath] = out
         return out
 

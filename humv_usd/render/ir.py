@@ -423,7 +423,8 @@ def subband_spp(spp: int, n: int) -> int:
     return max(per, min(int(spp), MIN_SUBBAND_SPP))
 
 
-def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radiometry, spp: int, seed: int):
+def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radiometry, spp: int, seed: int,
+                transmittance_of=None):
     """At-sensor band radiance of one IR sensor at one frame, rendered sub-band by sub-band.
 
     Parameters
@@ -438,6 +439,10 @@ def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radio
         The sensor's sub-bands.
     emissivity_of : callable(Material) -> (n,) array
         Sub-band emissivity of a material.
+    transmittance_of : callable(Material) -> (n,) array or None, optional
+        Sub-band transmittance of a see-through material (glass), None when opaque. Such a face
+        reflects only R = 1 - eps - T; what it transmits is not traced (the surfaces are
+        opaque to the render), so the scene behind a window is missing where T > 0.
     radiometry : radiometry.FrameRadiometry
         Sky, sun and path per sub-band at this frame.
     spp, seed : int
@@ -477,7 +482,9 @@ def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radio
         for m in state.meshes:
             for part in m.parts:
                 eps = float(emissivity_of(part.material)[k])
-                scene.set_surface(part, eps * planck_k[m.path][part.triangle_face, k], 1.0 - eps)
+                tau = None if transmittance_of is None else transmittance_of(part.material)
+                rho = 1.0 - eps - (0.0 if tau is None else float(tau[k]))
+                scene.set_surface(part, eps * planck_k[m.path][part.triangle_face, k], max(rho, 0.0))
         if radiometry.sky_maps is not None and scene.sky_map:
             scene.set_sky_map(radiometry.sky_maps[k])
         else:

@@ -299,7 +299,8 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             t = time.perf_counter()
             m1, stderr_l = render_band(scene, sensor_ids[s.name], state, sub,
                                        lambda material: _subband_emissivity(sub_eps, material, s, sub),
-                                       frame_rad, spp=spp_sub[s.name], seed=seed + frame)
+                                       frame_rad, spp=spp_sub[s.name], seed=seed + frame,
+                                       transmittance_of=lambda material: _subband_transmittance(sub_eps, material, s, sub))
             bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
             with np.errstate(invalid="ignore", divide="ignore"):
                 stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
@@ -442,6 +443,16 @@ def _subband_emissivity(cache: dict, material, sensor: Sensor, sub) -> np.ndarra
     return cache[key]
 
 
+def _subband_transmittance(cache: dict, material, sensor: Sensor, sub) -> np.ndarray | None:
+    """Sub-band transmittances (n,) of a see-through material (glass), None when opaque."""
+    if material.transmittance is None:
+        return None
+    key = ("transmittance", material.path, sensor.name)
+    if key not in cache:
+        cache[key] = sub.emissivity(material.wavelengths_um, material.transmittance)
+    return cache[key]
+
+
 class _SensorChains:
     """The sensor chain (:mod:`humv_usd.sensors.chain`): optics, noise, counts, AGC per sensor
     and frame, after the render. One model per sensor prim; the noise generator is seeded from
@@ -469,7 +480,7 @@ class _SensorChains:
             self.models[sensor.path] = self.chain.SensorModel.from_prim(self.stage.GetPrimAtPath(sensor.path))
         rng = np.random.default_rng([self.seed, self.index.get(sensor.path, 0), int(frame)])
         extra = {} if eo_space is None else {"eo_space": eo_space}
-        out = self.chain.apply_chain(radiance, self.models[sensor.path], rng, reference_temperature_k=300.0, **extra)
+        out = self.chain.apply_chain(radiance, self.models[sensor.path], rng, **extra)
         self.ran[sensor.name] = "ran"
         return out
 

@@ -280,9 +280,14 @@ def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
         for name in ("wavelength_um", "gain", "offset"):   # another band than the preset's:
             del values[name]                                # edges by band, fallback counts
     gain_given = s.get("gain") is not None
+    netd_given = s.get("netd_k") is not None
     for name in SENSOR_PRESET_KEYS:
         if s.get(name) is None:
             s[name] = copy.deepcopy(values.get(name, SENSOR_FALLBACK.get(name)))
+    if values and not netd_given and s.get("band") == values.get("band") != "EO" \
+            and s.get("f_number") is not None and s["f_number"] != values.get("f_number"):
+        from humv_usd.sensors.presets import netd_for_f_number   # another aperture than the preset's
+        s["netd_k"] = netd_for_f_number(values["netd_k"], values["f_number"], s["f_number"])
     if s.get("band") == "EO" and not values and not gain_given:
         s["gain"] = None                 # EO without a gain: auto exposure
     if s.get("wavelength_um") is None and s.get("band") is not None:

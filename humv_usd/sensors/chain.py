@@ -504,7 +504,7 @@ def integrate_response(wavelengths_um, spectral_radiance, model: SensorModel) ->
     return out[..., 0] if model.is_infrared else out
 
 
-def noise_sigma_radiance(model: SensorModel, reference_temperature_k: float = 300.0) -> float:
+def noise_sigma_radiance(model: SensorModel, reference_temperature_k: float | None = None) -> float:
     r"""Temporal noise of an IR sensor as band radiance [W m^-2 sr^-1].
 
     Notes
@@ -524,8 +524,9 @@ def noise_sigma_radiance(model: SensorModel, reference_temperature_k: float = 30
     .. [1] E. L. Dereniak, G. D. Boreman, Infrared Detectors and Systems, Wiley, 1996.
     .. [2] M. Vollmer, K.-P. Möllmann, Infrared Thermal Imaging, 2nd ed., Wiley-VCH, 2017.
     """
+    t_ref = model.reference_temperature_k if reference_temperature_k is None else reference_temperature_k
     return float(model.netd_k) * planck.band_radiance_derivative(
-        reference_temperature_k, model.wavelength_range_um, model.response_pair)
+        t_ref, model.wavelength_range_um, model.response_pair)
 
 
 def default_gain_offset(model: SensorModel, span_k=DEFAULT_SPAN_K) -> tuple[float, float]:
@@ -648,7 +649,7 @@ def colour_correction_matrix(model: SensorModel) -> np.ndarray:
 
 # ============================================================================ chain
 def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
-                reference_temperature_k: float = 300.0, psf: bool = True, noise: bool = True,
+                reference_temperature_k: float | None = None, psf: bool = True, noise: bool = True,
                 eo_space: str = "camera", psf_wavelengths_um=None) -> ChainOutput:
     r"""Run the sensor chain on one frame.
 
@@ -661,8 +662,9 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
     model : SensorModel
     rng : numpy.random.Generator
         Noise source (seed it from the scenario seed, sensor and frame for repeatability).
-    reference_temperature_k : float, default 300
-        Scene temperature at which the NETD converts to radiance noise [K].
+    reference_temperature_k : float, optional
+        Scene temperature at which the NETD converts to radiance noise [K]; default the
+        sensor's ``humv:sensor:referenceTemperature`` (``model.reference_temperature_k``).
     psf, noise : bool
         Switch the optics/detector PSF and the noise off (for tests and ground truth).
     eo_space : {"camera", "srgb"}
@@ -722,6 +724,8 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
         settings["psf"] = None
 
     # 2-3. noise, gain/offset, counts
+    if reference_temperature_k is None:
+        reference_temperature_k = float(model.reference_temperature_k)
     if model.is_infrared:
         sigma = noise_sigma_radiance(model, reference_temperature_k) if noise else 0.0
         if sigma > 0:

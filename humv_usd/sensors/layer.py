@@ -58,19 +58,21 @@ def _response(s: dict):
 def netd_of(s: dict) -> tuple[float, str | None]:
     """The NETD [K] to author for a sensor table, and a note when it was derived.
 
-    An infrared sensor with a preset whose ``f_number`` differs from the preset's, and whose
-    ``netd_k`` is the preset's (not given in the table, or given equal to it: the scenario
-    does not tell them apart), gets the preset's NETD scaled to the new f-number with the
-    detector-limited law :func:`humv_usd.sensors.presets.netd_for_f_number`. Otherwise the
-    table's ``netd_k`` as is (None note).
+    An infrared sensor with a preset whose ``f_number`` differs from the preset's and whose
+    table does not give ``netd_k`` gets, at scenario load (``_fill_sensor``), the preset's NETD
+    scaled to the new f-number with the detector-limited law
+    :func:`humv_usd.sensors.presets.netd_for_f_number`; this says so in a note. A given
+    ``netd_k`` is used as is (None note).
     """
     netd = float(s["netd_k"])
     if s["band"] == "EO" or not s.get("preset"):
         return netd, None
     p = preset(s["preset"])
-    if p.band != s["band"] or float(s["f_number"]) == float(p.f_number) or netd != float(p.netd_k):
+    if p.band != s["band"] or float(s["f_number"]) == float(p.f_number):
         return netd, None
     scaled = netd_for_f_number(p.netd_k, p.f_number, s["f_number"])
+    if netd != scaled:
+        return netd, None
     note = (f"scaled from preset {p.name} NETD {p.netd_k:g} K at f/{p.f_number:g} to f/{float(s['f_number']):g}: "
             f"x (4N^2+1)/(4N0^2+1) (detector-limited; humv_usd.sensors.presets.netd_for_f_number)")
     return scaled, note
