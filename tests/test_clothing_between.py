@@ -58,7 +58,7 @@ def test_triangle_straddling_a_box_edge_is_fixed():
     for _ in range(3):          # 768 faces: interpolated normals bend only along the edges
         v, f = trimesh.remesh.subdivide(np.asarray(v), np.asarray(f))
     body = Surface(v, f)
-    tri = np.array([[-0.03, 0.103, 0.03], [0.03, 0.103, 0.03], [0.0, 0.03, 0.103]])
+    tri = np.array([[-0.02, 0.103, 0.07], [0.02, 0.103, 0.07], [0.0, 0.07, 0.103]])
     faces = np.array([[0, 1, 2]])
     caster = RayCaster(v, f)
     ids, w = between_samples(faces)

@@ -7,7 +7,8 @@ import pytest
 from humv_usd.avatar.body import build_body
 from humv_usd.avatar.motion import make_motion
 from humv_usd.avatar.skeleton import forward_kinematics, skinning_matrices
-from humv_usd.clothing.collide import apply, blend_transforms, dress, drapes_of, simulate
+from humv_usd.clothing.collide import (BETWEEN_MOVE, apply, blend_transforms, dress, drapes_of,
+                                       simulate)
 from humv_usd.clothing.drape import MAX_LAG, Drape
 from humv_usd.clothing.fit import prepare
 from humv_usd.clothing.geometry import Surface
@@ -46,7 +47,9 @@ def test_robe_lags_the_skinned_shape_and_stays_off_the_body(walked):
           f"{np.median(strain) * 100:.1f}/{np.quantile(strain, 0.95) * 100:.1f} % vs skinned "
           f"{np.median(skinned_strain) * 100:.1f}/{np.quantile(skinned_strain, 0.95) * 100:.1f} %")
     assert np.median(lag[5:, hem]) > 0.003                       # the hem lags ...
-    assert lag.max() <= MAX_LAG + 0.03                           # ... boundedly
+    # ... boundedly: the tether (MAX_LAG) + the collision fix (vertex escapes and the
+    # between-vertex pass, BETWEEN_MOVE, push the skirt off a leg that swings through it)
+    assert lag.max() <= MAX_LAG + BETWEEN_MOVE + 0.01
     assert np.median(lag[:, waist]) < 0.001                      # the waistband follows
     assert np.median(strain) < 0.05
     assert np.quantile(strain, 0.95) <= np.quantile(skinned_strain, 0.95)

@@ -21,6 +21,8 @@ from scipy.spatial import cKDTree
 
 #: Nearest triangle centroids searched per query point.
 CANDIDATES = 8
+#: Queries above which the KD-tree search runs on all cores.
+PARALLEL_QUERIES = 4096
 
 
 def triangulate(face_counts, face_indices) -> np.ndarray:
@@ -119,7 +121,8 @@ class Surface:
     def closest(self, query: np.ndarray, k: int = CANDIDATES) -> Closest:
         q = np.asarray(query, dtype=np.float64)
         k = min(k, len(self.triangles))
-        _, cand = self._tree.query(q, k=k, workers=-1)
+        # threads only pay off for large queries (their start-up costs ~0.1 ms per call)
+        _, cand = self._tree.query(q, k=k, workers=-1 if len(q) > PARALLEL_QUERIES else 1)
         cand = cand.reshape(len(q), k)
         tri = self._tri_points[cand]                               # (n, k, 3, 3)
         bary = closest_on_triangles(q[:, None, :], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
