@@ -127,7 +127,8 @@ def render_regions(render_dir, quantity: str | None = None) -> list[dict]:
     except (OSError, json.JSONDecodeError) as exc:
         raise InputError(f"{manifest_path}: cannot read ({exc})") from None
     images = [{"sensor": sensor["name"], "frame": frame["frame"], "exr": frame["exr"]}
-              for sensor in manifest.get("sensors", []) for frame in sensor.get("frames", [])]
+              for key in ("sensors", "eo_sensors")          # infrared, then EO (luminance Y)
+              for sensor in manifest.get(key, []) for frame in sensor.get("frames", [])]
     return images_regions(render_dir, images, quantity)
 
 
