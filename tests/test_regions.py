@@ -126,3 +126,21 @@ def test_real_counts_png_compared_in_counts(render_dir, tmp_path):
     diffs = [float(r[-1]) for r in rows if r[-1] != "-"]
     assert len(diffs) >= 10
     assert_allclose(diffs, 100.0, atol=0.05)
+
+
+def test_eo_images_are_in_the_table_by_luminance(tmp_path):
+    """EO sensors (manifest "eo_sensors", EXR without counts or radiance) get region rows of
+    their luminance Y and no temperature."""
+    region = np.zeros((4, 6))
+    region[:, :3] = AL.BODY_REGIONS.index(AL.BODY_REGIONS[0]) + 1
+    y = np.where(region > 0, 0.25, 0.9)
+    (tmp_path / "eo").mkdir()
+    writers.write_exr(tmp_path / "eo" / "0000.exr", {"Y": y, "body_region": region,
+                                                      "instance_id": (region > 0).astype(float)})
+    (tmp_path / "manifest.json").write_text(json.dumps(
+        {"sensors": [], "eo_sensors": [{"name": "eo", "frames": [{"frame": 0, "exr": "eo/0000.exr"}]}]}))
+    [rec] = R.render_regions(tmp_path)
+    assert rec["sensor"] == "eo" and rec["quantity"] == "Y"
+    full = rec["regions"][next(iter(R.TABLE2))]
+    assert full["pixels"] == 12 and full["mean"] == pytest.approx(0.25) and full["std"] == pytest.approx(0.0)
+    assert "temperature_mean_k" not in full                   # no temperature for EO
