@@ -65,6 +65,22 @@ def _response_at(response, x):
     return np.interp(x, response[0], response[1], left=0.0, right=0.0)
 
 
+def _response_trapezoid(lo: float, hi: float, n: int, tables, response):
+    """Trapezoid-rule nodes x [um] and weights R(x) dx [um] over [lo, hi]: ``n`` even nodes plus
+    every wavelength of ``tables`` (and of the response table) inside the interval, so the
+    piecewise-linear tables are integrated exactly where they break."""
+    pts = [np.linspace(lo, hi, n)]
+    for table in list(tables) + ([] if response is None else [response[0]]):
+        t = np.asarray(table, dtype=float)
+        pts.append(t[(t > lo) & (t < hi)])
+    x = np.unique(np.concatenate(pts))
+    dx = np.diff(x)
+    w = np.zeros_like(x)
+    w[:-1] += 0.5 * dx
+    w[1:] += 0.5 * dx
+    return x, w * _response_at(response, x)
+
+
 class SubBands:
     """Equal-width sub-bands of a sensor band with the sensor response folded into the weights.
 
@@ -96,16 +112,7 @@ class SubBands:
 
     def _quadrature(self, lo, hi, extra):
         """Trapezoid nodes [um] and weights R(x) dx [um] over [lo, hi], breaks at ``extra``."""
-        pts = [np.linspace(lo, hi, NODES_PER_SUBBAND)]
-        for table in (extra, () if self.response is None else self.response[0]):
-            t = np.asarray(table, dtype=float)
-            pts.append(t[(t > lo) & (t < hi)])
-        x = np.unique(np.concatenate(pts))
-        dx = np.diff(x)
-        w = np.zeros_like(x)
-        w[:-1] += 0.5 * dx
-        w[1:] += 0.5 * dx
-        return x, w * _response_at(self.response, x)
+        return _response_trapezoid(lo, hi, NODES_PER_SUBBAND, [extra], self.response)
 
     def _nodes_for(self, k, wavelengths):
         lo, hi = self.bands[k]
@@ -307,17 +314,9 @@ def reference_radiance(band, response, wavelengths_um, emissivity, temperature_k
     :math:`\int R\,[\tau(\varepsilon B(T) + (1-\varepsilon)(L_{sky} + E\cos\theta/\pi)) + P]\,d\lambda`
     by the trapezoid rule on :data:`REFERENCE_NODES` nodes plus every table wavelength."""
     lo, hi = float(band[0]), float(band[1])
-    pts = [np.linspace(lo, hi, REFERENCE_NODES)]
-    for table in ([wavelengths_um] + [t[0] for t in (sky, sun, path) if t is not None]
-                  + ([] if response is None else [response[0]])):
-        t = np.asarray(table, dtype=float)
-        pts.append(t[(t > lo) & (t < hi)])
-    x = np.unique(np.concatenate(pts))
-    dx = np.diff(x)
-    w = np.zeros_like(x)
-    w[:-1] += 0.5 * dx
-    w[1:] += 0.5 * dx
-    w = w * _response_at(response, x)
+    x, w = _response_trapezoid(lo, hi, REFERENCE_NODES,
+                               [wavelengths_um] + [t[0] for t in (sky, sun, path) if t is not None],
+                               response)
     wl = np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
     eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
     e = np.full_like(x, eps[0]) if wl.size == 1 else np.interp(x, wl, eps)
