@@ -16,11 +16,15 @@ caller gives their radiance; 0 as in the seed otherwise). Three methods:
 
 * ``brute`` (reference, the seed's): every map pixel in a facet's upper hemisphere x every facet,
   one embree occlusion ray each, in chunks.
-* ``fast``: control variate. The unoccluded part (the cosine-convolved map, an irradiance table on
-  a lat-long grid of normals, interpolated) is exact up to interpolation; K stratified
-  cosine-weighted rays per facet estimate only the difference that occluders make,
-  pi/K sum_k (L_hit - L_map(w_k)) over rays that hit something. A fully unoccluded facet has no
-  Monte Carlo error at all. The table is computed exactly by FFT in azimuth.
+* ``fast``: control variate. The unoccluded part T (the cosine-convolved map, an irradiance
+  table on a lat-long grid of normals, interpolated; computed exactly by FFT in azimuth) is
+  exact up to interpolation; K cosine-weighted rays per facet (Hammersley points with a random
+  Cranley-Patterson rotation per facet) see y = L_hit or, when they escape, x = L_map(w), and
+  E = beta T + pi/K sum_k (y_k - beta x_k). The coefficient beta per facet and band is the
+  regression slope Cov(x, y) / Var(x) of the facet's edge neighbours' rays (independent of its
+  own rays, so E stays unbiased): ~1 for open facets (no Monte Carlo error at all when nothing
+  is in the way), ~0 for facets buried under one uniform occluder (skin under a garment: also
+  exact), in between for partly occluded ones.
 * ``adaptive``: the same estimator with a pilot of rays per facet and the rest of the ray
   budget spread by Neyman allocation to the facets whose pilot rays (or neighbours' pilot rays)
   disagree, i.e. the partly occluded ones.
@@ -48,6 +52,7 @@ except ImportError:  # pragma: no cover
     from trimesh.ray.ray_triangle import RayMeshIntersector as _Intersector
 
 _CHUNK_RAYS = 2_000_000
+_CHUNK_CV_RAYS = 1_048_576  # rays per chunk of the ray methods (moments in float64)
 RAY_BACKENDS = ("embree", "mitsuba")
 
 
@@ -116,6 +121,17 @@ class EmbreeIntersector:
 
     def intersects_first(self, origins, directions):
         return self._run(origins, directions, "INTERSECT").astype(np.int64)
+
+    def local(self, points) -> np.ndarray:
+        """World points -> the caster's shifted and scaled float32 frame (for
+        :meth:`first_hit_local`, so that many rays from one point convert it once)."""
+        return ((np.asarray(points, dtype=np.float64) - self._origin) * self._scale).astype(
+            np.float32)
+
+    def first_hit_local(self, origins32, directions32) -> np.ndarray:
+        """First face hit (-1: none) of rays with origins already in the :meth:`local` frame;
+        float32 contiguous (n, 3) arrays."""
+        return self._scene.run(origins32, directions32, query="INTERSECT").astype(np.int64)
 
     def intersects_any(self, origins, directions):
         return self._run(origins, directions, "OCCLUDED") >= 0
@@ -348,13 +364,14 @@ def _first_hit(intersector, origins, directions) -> np.ndarray:
     return out
 
 
-def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None):
+def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None, hit=None):
     """First face hit by rays leaving facets (``origins``: the offset ray origins when the
-    caller has them); a ray that hits its own facet (float32 precision of embree on large
-    scenes) is re-cast from farther out."""
-    if origins is None:
-        origins = centroids[facet] + normals[facet] * offset
-    hit = _first_hit(occ.intersector, origins, directions)
+    caller has them; ``hit``: the first hits when already cast); a ray that hits its own facet
+    (float32 precision of embree on large scenes) is re-cast from farther out."""
+    if hit is None:
+        if origins is None:
+            origins = centroids[facet] + normals[facet] * offset
+        hit = _first_hit(occ.intersector, origins, directions)
     for k in (10.0, 100.0, 1000.0):
         own = np.nonzero(hit == facet)[0]
         if len(own) == 0:
@@ -553,103 +570,260 @@ def _stratified_unit_square(n, k, rng):
     return np.concatenate([u, rng.random((n, k - m * m, 2))], axis=1) if k > m * m else u
 
 
-def _cast_corrections(env, centroids, normals, occ, offset, facets, k, rng, frames, weight,
-                      record=None):
-    """k stratified cosine-weighted rays from each facet in ``facets``.
+def _radical_inverse2(j) -> np.ndarray:
+    """Van der Corput radical inverse in base 2 of integers j (< 2**32)."""
+    j = np.asarray(j, dtype=np.uint64)
+    out = np.zeros(j.shape)
+    f = 0.5
+    while np.any(j):
+        out += f * (j & np.uint64(1))
+        j = j >> np.uint64(1)
+        f *= 0.5
+    return out
 
-    Returns (per-band sums of L_hit - L_map over the hit rays (bands, len(facets)), sums of the
-    squared per-ray scalar ``weight . delta`` (len(facets),)); a missed ray adds 0. With a
-    ``record`` list, appends (facet, direction, face hit) of every ray that hit something."""
-    t, bt = frames
-    t32, bt32, n32 = (np.asarray(x, dtype=np.float32) for x in (t, bt, normals))
-    nb = env.n_bands
-    sums = np.zeros((nb, len(facets)))
-    sq = np.zeros(len(facets))
-    chunk = max(1, _CHUNK_RAYS // k)
-    lmap = env.flat()
+
+def _hammersley(k) -> np.ndarray:
+    """(k, 2) Hammersley points ((j + 1/2) / k, phi_2(j)) in the unit square (a (0, m, 2)-net
+    for k = 2^m; Niederreiter 1992, Random Number Generation and Quasi-Monte Carlo Methods,
+    ch. 3-4)."""
+    j = np.arange(int(k))
+    return np.stack([(j + 0.5) / k, _radical_inverse2(j)], axis=1)
+
+
+SAMPLERS = ("hammersley", "jitter")
+
+
+def _cosine_directions(f, k, rng, frames, sampler="hammersley"):
+    """(len(f) * k, 3) float32 cosine-weighted directions around each facet's normal.
+
+    The unit square (u, v) maps to the hemisphere by Malley's method (r = sqrt(u),
+    phi = 2 pi v, z = sqrt(1 - u)). ``sampler``:
+
+    * ``'hammersley'``: k Hammersley points with an independent uniform Cranley-Patterson
+      rotation (u, v) -> ({u + s}, {v + t}) per facet (Cranley & Patterson 1976, SIAM J.
+      Numer. Anal. 13, 904): every point is uniform on the square, so the per-facet mean is
+      unbiased, while the points stay evenly spread (randomised QMC; Owen 2013, ch. 17). The
+      shift in v is a rotation of the facet's tangent frame, so the point set's sines and
+      cosines are computed once for all facets.
+    * ``'jitter'``: a sqrt(k) x sqrt(k) jittered grid, independent jitter per ray.
+    """
+    t32, bt32, n32 = frames
+    fc = len(f)
+    if sampler == "jitter":
+        u = _stratified_unit_square(fc, k, rng).astype(np.float32)
+        r = np.sqrt(u[..., 0])
+        ang = np.float32(2.0 * np.pi) * u[..., 1]
+        z = np.sqrt(np.float32(1.0) - u[..., 0])
+        x, y = r * np.cos(ang), r * np.sin(ang)
+        t, bt = t32[f], bt32[f]
+    elif sampler == "hammersley":
+        p = _hammersley(k)
+        shift = rng.random((fc, 2))
+        u = (p[None, :, 0] + shift[:, :1]).astype(np.float32)
+        u[u >= 1.0] -= np.float32(1.0)
+        u = np.minimum(u, np.float32(1.0 - 1e-7))
+        r = np.sqrt(u)
+        z = np.sqrt(np.float32(1.0) - u)
+        x = r * np.cos(2.0 * np.pi * p[:, 1]).astype(np.float32)
+        y = r * np.sin(2.0 * np.pi * p[:, 1]).astype(np.float32)
+        rot = 2.0 * np.pi * shift[:, 1:]
+        c, s = np.cos(rot).astype(np.float32), np.sin(rot).astype(np.float32)
+        t = c * t32[f] + s * bt32[f]
+        bt = c * bt32[f] - s * t32[f]
+    else:
+        raise ValueError(f"invalid sampler {sampler!r}: expected one of {SAMPLERS}")
+    d = np.empty((fc, k, 3), dtype=np.float32)
+    nf = n32[f]
+    for c in range(3):  # float32 is what the ray caster takes; half the memory traffic
+        d[..., c] = x * t[:, None, c] + y * bt[:, None, c] + z * nf[:, None, c]
+    return d.reshape(-1, 3)
+
+
+def _latlong_index32(d, resolution) -> np.ndarray:
+    """:func:`latlong_index` in float32 (the ray directions' precision), for many rays."""
+    n_theta, n_phi = _resolution(resolution)
+    theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+    phi = np.arctan2(d[:, 1], d[:, 0])
+    phi[phi < 0] += np.float32(2.0 * np.pi)
+    i = np.minimum((theta * np.float32(n_theta / np.pi)).astype(np.int64), n_theta - 1)
+    j = np.minimum((phi * np.float32(n_phi / (2.0 * np.pi))).astype(np.int64), n_phi - 1)
+    return i * n_phi + j
+
+
+def _ray_moments(env, radiance, d, hit, fc, k):
+    """Per-facet sums of v = (x, y) and of v v^T over k consecutive rays per facet, with
+    x_b = L_map,b(w) the map's radiance in the ray's direction and y_b the radiance the ray
+    actually sees (the hit face's, or x_b when it reaches the far field).
+
+    Returns (S1 (fc, 2B), S2 (fc, 2B, 2B)) in float64."""
+    nb, nr = env.n_bands, radiance.shape[1]
+    pix = _latlong_index32(d, env.resolution)
+    lookup = np.concatenate([env.flat(), np.asarray(radiance, dtype=float)], axis=1)
+    v = np.empty((2 * nb, len(pix)))
+    np.take(lookup, pix, axis=1, out=v[:nb])
+    np.take(lookup, np.where(hit >= 0, hit + len(lookup[0]) - nr, pix), axis=1, out=v[nb:])
+    v = v.reshape(2 * nb, fc, k)
+    s2 = np.empty((fc, len(v), len(v)))
+    for i in range(len(v)):
+        for j in range(i, len(v)):
+            s2[:, i, j] = s2[:, j, i] = np.einsum("fk,fk->f", v[i], v[j])
+    return v.sum(axis=2).T, s2
+
+
+class _Moments:
+    """Running per-facet ray moments (count, S1, S2) for the control-variate estimator."""
+
+    def __init__(self, n_f, n_bands):
+        self.n = np.zeros(n_f)
+        self.s1 = np.zeros((n_f, 2 * n_bands))
+        self.s2 = np.zeros((n_f, 2 * n_bands, 2 * n_bands))
+
+    def add(self, env, radiance, f, k, d, hit):
+        s1, s2 = _ray_moments(env, radiance, d, hit, len(f), k)
+        self.n[f] += k
+        self.s1[f] += s1
+        self.s2[f] += s2
+
+
+def _cast_facets(env, centroids, normals, occ, offset, facets, k, rng, frames, local, moments,
+                 record=None):
+    """k cosine-weighted rays from each facet in ``facets``; their moments go into
+    ``moments``; with a ``record`` list, appends (facets, k, directions, faces hit) per chunk."""
+    chunk = max(1, _CHUNK_CV_RAYS // k)
     for a in range(0, len(facets), chunk):
         f = facets[a:a + chunk]
-        fc = len(f)
-        u = _stratified_unit_square(fc, k, rng)  # cosine-weighted (Malley) per facet
-        r = np.sqrt(u[..., 0]).astype(np.float32)
-        ang = (2.0 * np.pi * u[..., 1]).astype(np.float32)
-        z = np.sqrt(1.0 - u[..., 0]).astype(np.float32)
-        d = np.empty((fc, k, 3), dtype=np.float32)
-        x, y = r * np.cos(ang), r * np.sin(ang)
-        for c in range(3):  # float32 is what the ray caster takes; half the memory traffic
-            d[..., c] = (x * t32[f, None, c] + y * bt32[f, None, c] + z * n32[f, None, c])
-        d = d.reshape(-1, 3)
-        fi = np.repeat(np.arange(fc), k)
-        origins = np.repeat(centroids[f] + normals[f] * offset, k, axis=0)
-        hit = _facet_hits(occ, f[fi], centroids, normals, d, offset, origins)
-        m = hit >= 0
+        d = _cosine_directions(f, k, rng, frames)
+        fr = np.repeat(f, k)
+        it = occ.intersector
+        if local is not None and hasattr(it, "first_hit_local"):
+            hit = it.first_hit_local(np.repeat(local[f], k, axis=0), d)
+        else:
+            hit = None
+        hit = _facet_hits(occ, fr, centroids, normals, d, offset, hit=hit)
         if record is not None:
-            record.append((f[fi[m]].astype(np.int32), d[m], hit[m].astype(np.int32)))
-        if np.any(m):
-            delta = occ.radiance[:, hit[m]] - lmap[:, latlong_index(d[m], env.resolution)]
-            for b in range(nb):
-                sums[b, a:a + fc] = np.bincount(fi[m], weights=delta[b], minlength=fc)
-            w = np.asarray(weight, dtype=float)
-            wd = ((w[:, f[fi[m]]] if w.ndim == 2 else w[:, None]) * delta).sum(axis=0)
-            sq[a:a + fc] = np.bincount(fi[m], weights=wd * wd, minlength=fc)
-    return sums, sq
+            record.append((f.astype(np.int32), int(k), d, hit.astype(np.int32)))
+        moments.add(env, occ.radiance, f, k, d, hit)
 
 
-def _mean_variance(wsum, sq, k):
-    """Variance of the mean correction pi * mean(x) from sums of x and x^2 over k rays
-    (iid estimate; stratification makes the true variance smaller, so this is an upper
-    estimate)."""
-    k = np.asarray(k, dtype=float)
-    mean = wsum / k
-    s2 = np.maximum(sq - k * mean ** 2, 0.0) / np.maximum(k - 1.0, 1.0)
-    return np.pi ** 2 * s2 / k
+def _neighbour_matrix(mesh):
+    """Sparse (F, F) 0/1 matrix of edge-adjacent facets (None when no facet has one)."""
+    from scipy import sparse
+    n_f = len(mesh.faces)
+    try:
+        adj = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    except Exception:  # pragma: no cover - degenerate meshes
+        return None
+    if len(adj) == 0:
+        return None
+    rows = np.r_[adj[:, 0], adj[:, 1]]
+    cols = np.r_[adj[:, 1], adj[:, 0]]
+    a = sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_f, n_f))
+    a.data[:] = 1.0  # duplicate pairs count once
+    return a
 
 
-def _diffuse_fast(env, centroids, normals, occ, offset, rays, seed, table, weight, record=None):
+def _cv_estimate(moments, e_table, weight, neighbours):
+    """Control variate with a per-facet coefficient beta fitted on the neighbours' rays.
+
+    For facet i and band b, with x = L_map,b(w) and y = L_b(w) (what the ray sees) over
+    cosine-weighted directions w, E[pi y] is the occluded irradiance and E[pi x] = T_b(n_i), the
+    irradiance table. The estimator
+
+        E_b = beta_b T_b + pi (mean(y_b) - beta_b mean(x_b))
+
+    is unbiased for any beta_b independent of facet i's own rays (Glasserman 2004, Monte Carlo
+    Methods in Financial Engineering, section 4.1; Owen 2013, Monte Carlo theory, methods and
+    examples, section 8.9). The variance-optimal beta_b = Cov(x_b, y_b) / Var(x_b) is taken
+    from the pooled rays of the facet's edge neighbours (which see nearly the same hemisphere
+    but are independent of its own rays), clipped to [0, 1]: beta = 1 is the plain difference
+    estimator (exact for an open facet, y = x), beta = 0 plain Monte Carlo of y (exact for a
+    facet buried under one uniform occluder, e.g. skin under a garment). A facet without edge
+    neighbours (e.g. a triangle soup) keeps beta = 1.
+
+    Returns (per-band flux (B, F), variance of the ``weight``-summed flux (F,)).
+    """
+    nb = e_table.shape[0]
+    n, s1, s2 = moments.n, moments.s1, moments.s2
+    bi = np.arange(nb)
+    beta = np.ones((len(n), nb))
+    if neighbours is not None:
+        nn = neighbours @ n
+        p1 = neighbours @ s1
+        p2 = (neighbours @ s2.reshape(len(n), -1)).reshape(s2.shape)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mp = p1 / nn[:, None]
+            cxx = p2[:, bi, bi] / nn[:, None] - mp[:, bi] ** 2
+            cxy = p2[:, bi, nb + bi] / nn[:, None] - mp[:, bi] * mp[:, nb + bi]
+            ok = (nn[:, None] > 1) & (cxx > 1e-12 * np.maximum(mp[:, bi] ** 2, 1e-300))
+            beta = np.where(ok, np.clip(cxy / cxx, 0.0, 1.0), 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m = s1 / n[:, None]
+        est = beta.T * e_table + np.pi * (m[:, nb:] - beta * m[:, :nb]).T
+        cov = (s2 / n[:, None, None] - m[:, :, None] * m[:, None, :]) * (
+            n / np.maximum(n - 1.0, 1.0))[:, None, None]
+    w = np.broadcast_to(np.asarray(weight, dtype=float), e_table.shape).T
+    c = np.concatenate([-w * beta, w], axis=1)
+    var_z = np.einsum("fi,fij,fj->f", c, cov, c)
+    return est, np.pi ** 2 * np.maximum(var_z, 0.0) / n
+
+
+def _float32_frames(normals):
+    t, bt = _tangent_frames(normals)
+    return tuple(np.asarray(x, dtype=np.float32) for x in (t, bt, normals))
+
+
+def _local_origins(occ, centroids, normals, offset):
+    it = occ.intersector
+    if hasattr(it, "local"):
+        return it.local(centroids + normals * offset)
+    return None
+
+
+def _diffuse_fast(env, centroids, normals, occ, offset, rays, seed, table, weight, record=None,
+                  neighbours=None):
     """Control variate: the irradiance table (unoccluded part) + ``rays`` stratified
-    cosine-weighted rays per facet estimating pi/K sum_k (L_hit - L_map(w_k)) over hit rays.
+    cosine-weighted rays per facet (:func:`_cv_estimate`).
 
     Returns (per-band flux (bands, F), variance of the ``weight``-summed flux (F,))."""
-    w = np.asarray(weight, dtype=float)
-    sums, sq = _cast_corrections(env, centroids, normals, occ, offset, np.arange(len(normals)),
-                                 rays, np.random.default_rng(seed), _tangent_frames(normals), w,
-                                 record)
-    var = _mean_variance((w * sums).sum(axis=0), sq, rays)
-    return _interp_table(table, normals) + (np.pi / rays) * sums, var
+    mom = _Moments(len(normals), env.n_bands)
+    _cast_facets(env, centroids, normals, occ, offset, np.arange(len(normals)), int(rays),
+                 np.random.default_rng(seed), _float32_frames(normals),
+                 _local_origins(occ, centroids, normals, offset), mom, record)
+    return _cv_estimate(mom, _interp_table(table, normals), weight, neighbours)
 
 
-_LEVELS = (16, 36, 64, 144, 256, 576, 1024)  # square counts keep the jittered grid complete
+_LEVELS = (16, 32, 64, 128, 256, 512, 1024)  # powers of two: Hammersley sets are (0, m, 2)-nets
 
 
 def _diffuse_adaptive(env, centroids, normals, occ, offset, rays, seed, table, pilot, weight,
-                      max_rays, record=None):
+                      max_rays, record=None, neighbours=None):
     """Control variate with two-stage (Neyman) allocation of the correction rays.
 
     Stage 1: ``pilot`` stratified rays per facet. Stage 2: the remaining budget
     (rays - pilot) x facets goes to facets in proportion to their sample standard deviation
-    of the per-ray correction relative to the facet's flux, K_i ~ s_i / q_i, which minimises
-    sum_i Var(q_i) / q_i^2 for a fixed ray count (Neyman 1934; Cochran 1977, Sampling
-    Techniques, section 5.5). Facets whose pilot rays all agree (typically: nothing in the
-    way) and whose neighbours' pilot rays agree too get no more rays.
+    of the per-ray control-variate term relative to the facet's flux, K_i ~ s_i / q_i, which
+    minimises sum_i Var(q_i) / q_i^2 for a fixed ray count (Neyman 1934; Cochran 1977,
+    Sampling Techniques, section 5.5). Facets whose pilot rays all agree (typically: nothing in
+    the way, or one uniform occluder everywhere) and whose neighbours' pilot rays agree too get
+    no more rays.
 
     Returns (per-band flux (bands, F), variance of the ``weight``-summed flux (F,), rays per
     facet (F,)).
     """
     n_f = len(normals)
-    out = _interp_table(table, normals)  # unoccluded part
+    e_table = _interp_table(table, normals)  # unoccluded part
     rng = np.random.default_rng(seed)
-    frames = _tangent_frames(normals)
+    frames = _float32_frames(normals)
+    local = _local_origins(occ, centroids, normals, offset)
+    mom = _Moments(n_f, env.n_bands)
+    _cast_facets(env, centroids, normals, occ, offset, np.arange(n_f), pilot, rng, frames,
+                 local, mom, record)
+    e1, var1 = _cv_estimate(mom, e_table, weight, neighbours)
     w = np.asarray(weight, dtype=float)
-    all_f = np.arange(n_f)
-    s1, sq1 = _cast_corrections(env, centroids, normals, occ, offset, all_f, pilot, rng, frames, w,
-                                record)
-    mean_w = (w * s1).sum(axis=0) / pilot
-    var = np.maximum(sq1 / pilot - mean_w ** 2, 0.0) * pilot / max(pilot - 1, 1)
-    q0 = np.abs((w * out).sum(axis=0))
     # pilot estimate of the facet's flux, floored at a quarter of the median so that facets
     # buried inside other geometry (q -> 0) do not take the whole budget
-    q1 = q0 + np.pi * mean_w
-    score = np.sqrt(var) / np.maximum(q1, 0.25 * max(float(np.median(np.abs(q1))), 1e-30))
+    q1 = np.abs(np.broadcast_to(w, e1.shape) * e1).sum(axis=0)
+    score = np.sqrt(var1 * pilot) / np.maximum(q1, 0.25 * max(float(np.median(q1)), 1e-30))
     # a facet's own pilot can miss a small opening (all rays hit one uniform occluder, zero
     # sample variance); its neighbours see nearly the same hemisphere, so each facet takes the
     # larger of its own score and the mean score of its 8 nearest facets
@@ -668,35 +842,21 @@ def _diffuse_adaptive(env, centroids, normals, occ, offset, rays, seed, table, p
         hi = levels[np.minimum(idx, len(levels) - 1)]
         extra = np.where(want - lo < hi - want, lo, hi)
         extra = np.where(want < 0.5 * levels[0], 0, extra)
-    sums, sq, counts = s1, sq1, np.full(n_f, float(pilot))
     for lv in np.unique(extra[extra > 0]):
         f = np.nonzero(extra == lv)[0]
-        s2, sq2 = _cast_corrections(env, centroids, normals, occ, offset, f, int(lv), rng,
-                                    frames, w, record)
-        sums[:, f] += s2
-        sq[f] += sq2
-        counts[f] += lv
-    variance = _mean_variance((w * sums).sum(axis=0), sq, counts)
-    out += np.pi * sums / counts
-    return out, variance, counts
+        _cast_facets(env, centroids, normals, occ, offset, f, int(lv), rng, frames, local, mom,
+                     record)
+    out, variance = _cv_estimate(mom, e_table, weight, neighbours)
+    return out, variance, mom.n.copy()
 
 
-def _replay(env, radiance, records, counts, table, normals, weight):
-    """The ray methods' estimate from recorded hits, for a new environment: the geometry (and
+def _replay(env, radiance, records, counts, table, normals, weight, neighbours=None):
+    """The ray methods' estimate from recorded rays, for a new environment: the geometry (and
     hence which face each ray hits) is unchanged, only the radiances are new."""
-    fidx, d, hit = records
-    n_f = len(normals)
-    w = np.asarray(weight, dtype=float)
-    sums = np.zeros((env.n_bands, n_f))
-    sq = np.zeros(n_f)
-    if len(hit):
-        delta = radiance[:, hit] - env.flat()[:, latlong_index(d, env.resolution)]
-        for b in range(env.n_bands):
-            sums[b] = np.bincount(fidx, weights=delta[b], minlength=n_f)
-        wd = (w[:, fidx] * delta).sum(axis=0)
-        sq = np.bincount(fidx, weights=wd * wd, minlength=n_f)
-    var = _mean_variance((w * sums).sum(axis=0), sq, counts)
-    return _interp_table(table, normals) + np.pi * sums / counts, var
+    mom = _Moments(len(normals), env.n_bands)
+    for f, k, d, hit in records:
+        mom.add(env, radiance, f, k, d, hit)
+    return _cv_estimate(mom, _interp_table(table, normals), weight, neighbours)
 
 
 def _geometry_key(mesh, scene, *params) -> str:
@@ -743,7 +903,9 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
         brings nothing, as in the seed (1_ij = 0).
     method : {'brute', 'fast', 'adaptive'}
         'brute': every map pixel x facet with an occlusion ray (reference).
-        'fast': irradiance-table control variate + ``rays`` stratified cosine-weighted rays.
+        'fast': irradiance-table control variate (coefficient fitted on the neighbouring
+        facets' rays) + ``rays`` cosine-weighted rays (Cranley-Patterson-rotated Hammersley
+        points) per facet.
         'adaptive': the same control variate with ``pilot`` rays per facet, then the rest of
         a budget of ``rays`` x facets spread by Neyman allocation (more rays where the pilot
         rays disagree, none where nothing is in the way).
@@ -757,7 +919,8 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
         Ray origin offset along the normal [m]; default the larger of 1e-5 x the mesh's and
         1e-6 x the mesh-plus-scene bounding diagonal (embree works in float32).
     pilot : int
-        'adaptive': first-stage rays per facet (a square keeps the jittered grid whole).
+        'adaptive': first-stage rays per facet (a power of two keeps the Hammersley set a
+        (0, m, 2)-net).
     max_rays : int
         'adaptive': cap of the second-stage rays of one facet.
     backend : {'embree', 'mitsuba'}
@@ -801,28 +964,27 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
         key = None if cache is None else _geometry_key(
             mesh, scene, method, int(rays), int(pilot), int(max_rays))
         replayed = _cache_valid(cache, key, mesh, cache_tolerance_m)
+        neighbours = _neighbour_matrix(mesh)
         if replayed:
             counts = cache["counts"]
             e, var = _replay(environment, occ.radiance, cache["records"], counts, table,
-                             normals, alpha)
+                             normals, alpha, neighbours)
         else:
             record = None if cache is None else []
             if method == "adaptive":
                 e, var, counts = _diffuse_adaptive(environment, centroids, normals, occ, offset,
                                                    int(rays), seed, table, int(pilot), alpha,
-                                                   int(max_rays), record)
+                                                   int(max_rays), record, neighbours)
             else:
                 e, var = _diffuse_fast(environment, centroids, normals, occ, offset, int(rays),
-                                       seed, table, alpha, record)
+                                       seed, table, alpha, record, neighbours)
                 counts = np.full(len(normals), float(rays))
             if cache is not None:
                 generation = cache.get("generation", 0) + 1
                 cache.clear()
                 cache.update(key=key, generation=generation,
                              vertices=np.array(mesh.vertices, dtype=float),
-                             counts=counts, records=tuple(
-                    np.concatenate([r[i] for r in record]) if record else
-                    np.zeros((0,) if i != 1 else (0, 3)) for i in range(3)))
+                             counts=counts, records=tuple(record))
     # the sun's shadow test (one ray per facet) is reused only for an unmoved mesh
     same = (cache is not None and "vertices" in cache
             and np.array_equal(cache["vertices"], np.asarray(mesh.vertices, dtype=float)))
