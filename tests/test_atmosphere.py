@@ -297,3 +297,21 @@ def test_direct_mwir_sun_dims_with_haze(humvvex_raw, lowtran_cache, monkeypatch)
                       * M.AEROSOL_SCALE_HEIGHT_M * m)
     assert clear[at] > 0 and abs(hazy[at] / clear[at] - expected) < 1e-6
     assert expected < 0.97                                   # a visible effect at 5 km
+
+
+@needs_lowtran
+def test_layer_text_does_not_depend_on_the_cache(humvvex_raw, monkeypatch, tmp_path):
+    """A cold-cache and a warm-cache compose write the same atmosphere layer (an unchanged
+    scenario rewrites nothing); the cache's hit/miss is not in the layer."""
+    from humv_usd.usd.layers import layer_text
+
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "lowtran7"
+    raw["sensor"] = raw["sensor"][:1]
+    sc = validate(raw)
+    before = lt.CALLS
+    cold = layer_text(atmosphere_layer.build(sc))
+    assert lt.CALLS > before                                # the cache was empty: LOWTRAN ran
+    warm = layer_text(atmosphere_layer.build(sc))
+    assert cold == warm and ": hit" not in cold and ": miss" not in cold

@@ -78,7 +78,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(atm.sky_temperature_k), 4))
     prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
     prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(atm.longwave_radiance))
-    ran = {k: ("; ".join(v) if isinstance(v, list) else str(v)) for k, v in atm.ran.items()}
+    # the disk cache's hit/miss stays out of the layer: an unchanged scenario must give the same text
+    ran = {k: ("; ".join(v) if isinstance(v, list) else str(v)) for k, v in atm.ran.items() if k != "cache"}
     ran["broadband sky"] = (f"emissivity {atm.sky_emissivity:.4f}, temperature "
                             f"{atm.sky_temperature_k:.2f} K ({atm.source})")
     w = atm.wavelengths_um
