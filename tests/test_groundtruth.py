@@ -13,9 +13,12 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 from humv_usd.avatar import labels as AL
 from humv_usd.errors import InputError
 from humv_usd.groundtruth import annotators as A
+from humv_usd.groundtruth import boxes as B
+from humv_usd.groundtruth.camera import Camera
 from humv_usd.groundtruth import keypoints as K
 from humv_usd.groundtruth import labels as GL
 from humv_usd.render import render_stage
+from humv_usd.render.export import CameraPose
 
 W, H = 64, 48
 
@@ -251,6 +254,19 @@ def test_objects_boxes_occlusion_and_keypoints(scene_render):
     # the icosphere's vertices lie on the sphere: its world AABB is the sphere's
     assert_allclose(person["box_3d"]["min"], [-0.6, -0.6, 0.3], atol=1e-5)
     assert_allclose(person["box_3d"]["max"], [0.6, 0.6, 1.5], atol=1e-5)
+    # oriented box: z extent exact, footprint inside the sphere's square, corners projected by
+    # the render's camera model (the same object record reaches coco.json)
+    ob = person["box_3d_oriented"]
+    assert_allclose([ob["center"][2], ob["size"][2]], [0.9, 1.2], atol=1e-5)
+    assert 1.1 < ob["size"][1] <= ob["size"][0] <= 1.2 + 1e-5 and -np.pi / 2 < ob["yaw"] <= np.pi / 2
+    cam = Camera.from_pose(CameraPose(np.array(EYE), (np.array(TARGET) - EYE) / np.linalg.norm(np.subtract(TARGET, EYE)),
+                                      np.array([0.0, 0.0, 1.0]), 50.0), W, H)
+    uv, _ = cam.project(np.array(ob["corners_world"]))
+    assert ob["behind_camera"] == [False] * 8
+    assert_allclose(np.array(ob["corners_image"]), uv, atol=1e-5)   # the stage's pose is float32
+    coco = json.loads((tmp / "out" / "coco.json").read_text())
+    [ann] = [a for a in coco["annotations"] if a["humv_instance_id"] == 1]
+    assert ann["bbox_3d_oriented"] == ob and ann["bbox_3d"] == person["box_3d"]
     assert 0.05 < person["occlusion"] < 0.6
     assert person["unoccluded_pixels"] > person["visible_pixels"] == mask.sum()
     assert wall_obj["occlusion"] == 0.0
@@ -384,3 +400,93 @@ def test_avatar_keypoints_front_and_side(raw, tmp_path):
             assert v["nose"] == 2
             assert all(v[k] == 2 for k in v if k.startswith("right_")), v
             assert all(v[k] == 1 for k in v if k.startswith("left_")), v
+
+
+# --- oriented 3D boxes (no render) -------------------------------------------------------------
+def _box_cloud(rng, center, size, yaw, n=200):
+    """The 8 corners of a yaw-only box plus n random points inside it (world space)."""
+    inner = (rng.random((n, 3)) - 0.5) * np.asarray(size)
+    c, s = np.cos(yaw), np.sin(yaw)
+    inner = inner @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]).T + center
+    return np.concatenate([B.box_corners(center, size, yaw), inner])
+
+
+@pytest.mark.parametrize("yaw, size, expect_yaw", [
+    (0.0, (3.0, 1.2, 1.8), 0.0),
+    (0.7, (3.0, 1.2, 1.8), 0.7),
+    (-1.2, (0.5, 0.2, 1.7), -1.2),
+    (np.pi / 2, (2.0, 1.0, 1.0), np.pi / 2),           # the closed end of (-pi/2, pi/2]
+    (-np.pi / 2, (2.0, 1.0, 1.0), np.pi / 2),          # the same box
+    (2.5, (2.0, 1.0, 1.0), 2.5 - np.pi),               # turned by pi: the same box
+    (0.3, (1.0, 3.0, 1.0), 0.3 - np.pi / 2),           # width > length: axes swap
+    (1.0, (1.0, 1.0, 2.0), 1.0 - np.pi / 2),           # square footprint: yaw in (-pi/4, pi/4]
+])
+def test_oriented_box_recovers_yaw_and_size(yaw, size, expect_yaw):
+    rng = np.random.default_rng(7)
+    center = np.array([12.0, -4.0, 0.9])
+    ob = B.box_3d_oriented(_box_cloud(rng, center, size, yaw))
+    length, width = max(size[:2]), min(size[:2])
+    assert_allclose(ob["size"], [length, width, size[2]], rtol=1e-12, atol=1e-12)
+    assert_allclose(ob["yaw"], expect_yaw, rtol=0, atol=1e-12)
+    assert -np.pi / 2 < ob["yaw"] <= np.pi / 2
+    assert_allclose(ob["center"], center, atol=1e-12)
+    # the corners are the input box's corners (as a set)
+    d = np.linalg.norm(np.array(ob["corners_world"])[:, None] - B.box_corners(center, size, yaw)[None], axis=-1)
+    assert d.min(axis=1).max() < 1e-9
+    assert "corners_image" not in ob
+
+
+def test_oriented_box_is_minimal_area_against_a_brute_force_yaw_search():
+    rng = np.random.default_rng(3)
+    pts = rng.normal(size=(300, 3)) * [2.0, 0.6, 0.5] @ np.array([[0.8, 0.6, 0], [-0.6, 0.8, 0], [0, 0, 1.0]])
+    ob = B.box_3d_oriented(pts)
+    area = ob["size"][0] * ob["size"][1]
+    yaws = np.linspace(0.0, np.pi / 2, 20001)            # every rectangle is one of these, turned
+    u = pts[:, 0] * np.cos(yaws)[:, None] + pts[:, 1] * np.sin(yaws)[:, None]
+    v = -pts[:, 0] * np.sin(yaws)[:, None] + pts[:, 1] * np.cos(yaws)[:, None]
+    brute = (u.max(1) - u.min(1)) * (v.max(1) - v.min(1))
+    assert area <= brute.min() * (1 + 1e-12)             # never worse than any sampled yaw
+    # and the grid gets within its resolution: |dA/dyaw| <= 2 D^2 (D the cloud's diameter in the
+    # plane), the optimum at most half a step from a grid yaw
+    diameter = np.ptp(pts[:, :2], axis=0).max() * np.sqrt(2)
+    assert brute.min() - area <= 2 * diameter ** 2 * 0.5 * (yaws[1] - yaws[0])
+    assert brute.min() <= area * (1 + 1e-4)
+    # every point inside the box, and the footprint touches the points on all four sides
+    c, s = np.cos(ob["yaw"]), np.sin(ob["yaw"])
+    local = (pts - ob["center"]) @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1.0]]).T
+    half = 0.5 * np.array(ob["size"])
+    assert (np.abs(local) <= half + 1e-9).all()
+    assert_allclose(np.abs(local).max(axis=0), half, rtol=1e-12)
+    assert_allclose([local[:, k].max() for k in range(3)], half, rtol=1e-12)
+    # degenerate input: collinear points give width 0 along the line, one point a zero box
+    line = B.box_3d_oriented(np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.5], [2.0, 2.0, 1.0]]))
+    assert_allclose(line["size"], [2 * np.sqrt(2), 0.0, 1.0], atol=1e-12)
+    assert_allclose(line["yaw"], np.pi / 4, atol=1e-12)
+    assert B.box_3d_oriented(np.zeros((1, 3)))["size"] == [0.0, 0.0, 0.0]
+    assert B.box_3d_oriented(np.zeros((0, 3))) is None
+
+
+def test_oriented_box_corners_project_with_the_camera_model():
+    pose = CameraPose(np.array([0.0, -6.0, 1.5]), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), 60.0)
+    cam = Camera.from_pose(pose, 80, 60)
+    rng = np.random.default_rng(5)
+    # a box in view, and one straddling the camera plane (y = -6): its near corners are behind
+    for center, expect_behind in (((0.5, 0.0, 0.9), [False] * 8),
+                                  ((0.0, -6.2, 1.0), None)):
+        ob = B.box_3d_oriented(_box_cloud(rng, np.array(center), (2.0, 1.0, 1.8), 0.4, n=50), cam)
+        corners = np.array(ob["corners_world"])
+        uv, depth = cam.project(corners)
+        assert ob["behind_camera"] == (depth <= 0).tolist()
+        if expect_behind is not None:
+            assert ob["behind_camera"] == expect_behind
+        else:
+            assert 0 < sum(ob["behind_camera"]) < 8
+        for k in range(8):
+            if ob["behind_camera"][k]:
+                assert ob["corners_image"][k] is None
+                continue
+            assert_allclose(ob["corners_image"][k], uv[k], rtol=1e-12)
+            # inverse check: the pixel ray through the projected point passes through the corner
+            ray = cam.pixel_rays(np.array(uv[k, 0] - 0.5), np.array(uv[k, 1] - 0.5))
+            to_corner = (corners[k] - pose.origin) / np.linalg.norm(corners[k] - pose.origin)
+            assert_allclose(ray, to_corner, atol=1e-12)

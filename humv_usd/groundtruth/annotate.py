@@ -208,6 +208,7 @@ class GroundTruth:
                     obj["box_full"] = box_full
                     obj["box_visible"] = B.visible_box(mask)
                     obj["box_3d"] = B.box_3d(verts)
+                    obj["box_3d_oriented"] = B.box_3d_oriented(verts, camera)
                 t = self._tick("boxes" if "boxes" in want else "coco", t)
                 if "occlusion" in want:
                     unoccluded = B.unoccluded_mask(camera, verts, tris, box_full, visible=mask)

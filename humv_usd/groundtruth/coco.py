@@ -6,7 +6,8 @@ object with visible pixels: ``segmentation`` (compressed RLE from ``pycocotools.
 ``area`` (visible pixels), ``bbox`` [x, y, w, h] of the visible mask (COCO's convention),
 ``iscrowd`` 0, and for persons ``keypoints`` / ``num_keypoints`` (COCO-17). HumV extras on each
 annotation: ``humv_instance_id``, ``humv_prim``, ``bbox_full`` [x, y, w, h] (projected geometry,
-occluded parts included), ``bbox_3d`` (world AABB [m]), ``occlusion``. Category ids are
+occluded parts included), ``bbox_3d`` (world AABB [m]), ``bbox_3d_oriented`` (yaw-only oriented box: centre, size,
+yaw, corners in world and image, see :mod:`humv_usd.groundtruth.boxes`), ``occlusion``. Category ids are
 :data:`humv_usd.groundtruth.labels.CLASSES` indices (1 = person); the person category carries
 COCO's keypoint names and skeleton.
 
@@ -83,6 +84,8 @@ class CocoBuilder:
             ann["bbox_full"] = xyxy_to_xywh(obj["box_full"])
         if "box_3d" in obj:
             ann["bbox_3d"] = obj["box_3d"]
+        if "box_3d_oriented" in obj:
+            ann["bbox_3d_oriented"] = obj["box_3d_oriented"]
         if "occlusion" in obj:
             ann["occlusion"] = obj["occlusion"]
         if obj.get("keypoints") is not None:
