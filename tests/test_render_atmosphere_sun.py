@@ -4,6 +4,8 @@ Closed forms (small synthetic stages, helpers of test_render_radiometry):
 - EO: a white Lambertian plate under a spectrally flat sun seen through an authored spectral
   path: the film's Y is int ybar (tau(l, r) E cos / pi + P(l, r)) dl / int ybar, i.e.
   tau_Y(r) E cos / pi + P_Y(r), per pixel by range (colour-science's CIE 1931 tables, 1 nm);
+- EO airlight (Koschmieder 1924): a black plate seen through the path has Y = Y_h (1 - tau_Y(r)),
+  Y_h the horizon sky; a white plate's contrast against the horizon is C(r) = C0 tau_Y(r);
 - sun without a solar table: E(l) = DNI pi B(l, 5778 K) / (sigma T^4), in MWIR and in the visible;
 - sub-band count: the sensor's humv:sensor:subbands, overridden by the render option.
 """
@@ -143,6 +145,108 @@ def test_eo_path_per_pixel_closed_form(tmp_path):
     assert_allclose(rgb, colour.XYZ_to_sRGB(xyz, apply_cctf_encoding=False), rtol=1e-4, atol=1e-6)
     frame = manifest["eo_sensors"][0]["frames"][0]
     assert frame["atmosphere"].startswith("per pixel by range")
+    assert "no airlight: no humv:atmosphere:skySpectralRadiance" in frame["atmosphere"]
+
+
+def test_horizon_sky_rows_near_the_horizon():
+    zen = np.array([0.0, 45.0, 85.0, 89.0])
+    rad = np.array([[10.0, 20.0], [30.0, 40.0], [100.0, 200.0], [120.0, 220.0]])
+    l_h, rule = radiometry.horizon_sky(zen, rad)
+    assert_allclose(l_h, [110.0, 210.0]) and "85, 89" in rule
+    # no row at 85-90 deg: the cosine-weighted hemispherical mean (the EO render's uniform sky)
+    l_h, rule = radiometry.horizon_sky(zen[:2], rad[:2])
+    assert_allclose(l_h, [radiometry.hemisphere_mean(zen[:2], rad[:2, j]) for j in range(2)])
+    assert "cosine-weighted" in rule
+
+
+def test_reduce_xyz_airlight_closed_form():
+    """P^air_c(r) = int xbar_c L_h (1 - tau(l, r)) dl / int ybar (1 nm colour-science reference);
+    a flat L_h gives Y_h (1 - tau_Y(r)) exactly; the thermal part is kept, 0 m has none."""
+    wl = np.array([0.35, 0.45, 0.55, 0.65, 0.85])
+    ranges = np.array([1000.0, 5000.0])
+    tau = np.array([[0.80, 0.84, 0.86, 0.88, 0.9], [0.33, 0.40, 0.45, 0.52, 0.6]])
+    thermal = np.full((2, wl.size), 1e-3)  # per um
+    table = radiometry.PathTable("t", ranges, wl, tau, thermal)
+    bare = radiometry.reduce_xyz(table)
+    assert bare.airlight is None and bare.horizon_xyz is None
+    l_h = np.array([90.0, 120.0, 100.0, 80.0, 40.0])  # per um
+    red = radiometry.reduce_xyz(table, (wl, l_h))
+    integrals = np.trapz(XYZ_BAR, LAM_NM, axis=0)
+    lh_nm = np.interp(LAM_NM / 1000, wl, l_h) / 1000.0
+    assert_allclose(red.horizon_xyz, np.trapz(XYZ_BAR * lh_nm[:, None], LAM_NM, axis=0) / integrals[1], rtol=2e-3)
+    assert_allclose(red.airlight[0], 0.0) and assert_allclose(red.radiance[0], 0.0)
+    for j in range(2):
+        one_minus = 1.0 - np.interp(LAM_NM / 1000, wl, tau[j])
+        ref = np.trapz(XYZ_BAR * (lh_nm * one_minus)[:, None], LAM_NM, axis=0) / integrals[1]
+        assert_allclose(red.airlight[j + 1], ref, rtol=2e-3)
+        assert_allclose(red.radiance[j + 1], ref + bare.radiance[j + 1], rtol=2e-3)
+    # flat horizon: Y = Y_h (1 - tau_Y), so a black object at 5 km is 55 % of the horizon sky
+    flat = radiometry.reduce_xyz(table, (wl, np.full(wl.size, 100.0)))
+    assert_allclose(flat.horizon_xyz[1], 0.1, rtol=2e-3)
+    assert_allclose(flat.airlight[1:, 1], 0.1 * (1.0 - flat.transmittance[1:, 1]), rtol=1e-9)
+    assert 0.5 < flat.airlight[2, 1] / flat.horizon_xyz[1] < 0.6
+
+
+def quad(stage, path, x0, x1, y0, y1, mat, instance_id):
+    mesh = plate(stage, path, 1.0, 0.0, mat, 300.0, instance_id)
+    mesh.GetPointsAttr().Set([(x0, y0, 0.0), (x1, y0, 0.0), (x1, y1, 0.0), (x0, y1, 0.0)])
+    return mesh
+
+
+def test_eo_airlight_black_and_white_plate_closed_form(tmp_path):
+    """A black plate (rho = 0) and a white one (rho = 1) under a flat sun at zenith and a sky
+    brighter at the horizon (flat spectra), seen through a non-gray path (tau linear in range,
+    no thermal path radiance): per pixel, the black plate is Y = Y_h (1 - tau_Y(r)) with Y_h the
+    sky table's horizon rows (not its hemispherical mean), and the white plate's contrast against
+    the horizon is Koschmieder's C(r) = C0 tau_Y(r), C0 = (E / pi + L_sky - Y_h) / Y_h."""
+    e_um, zen, sky_rows = 1500.0, np.array([0.0, 45.0, 85.0, 89.0]), np.array([30.0, 60.0, 120.0, 120.0])
+    eye, target, fov = (0.0, -30.0, 6.0), (0.0, 0.0, 1.5), 40.0
+    stage = new_stage(tmp_path / "s.usda")
+    quad(stage, "/World/black", -200.0, 0.0, -200.0, 200.0, reflective(stage, "black", [0.3, 1.0], [0.0, 0.0]), 1)
+    quad(stage, "/World/white", 0.0, 200.0, -200.0, 200.0, reflective(stage, "white", [0.3, 1.0], [1.0, 1.0]), 2)
+    cam = eo_camera(stage, "eo", eye, target, fov_x_deg=fov, up=(0, 0, 1))
+    wl = np.array([0.3, 0.45, 0.55, 0.65, 0.9])
+    atmosphere_tables(stage, wl, sky=np.repeat(sky_rows, wl.size), zenith=zen, solar=np.full(wl.size, e_um))
+    sun(stage, (0.0, 0.0, 1.0))
+    ranges = np.array([1.0, 100.0])
+    a = np.array([2e-3, 6e-3, 3e-3, 5e-3, 1e-3])  # per metre
+    path_table(stage, str(cam.GetPath()), ranges, np.stack([1.0 - a * r for r in ranges]), np.zeros((2, wl.size)))
+    stage.Save()
+    manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=128)
+    ch = read_exr(tmp_path / "out" / "eo" / "0000.exr")
+    depth = ch["depth"].astype(float)
+    hit = np.isfinite(depth)
+    r = np.clip(np.where(hit, pixel_ranges(depth, eye, target, fov), 0.0), 0.0, 100.0)
+    tau_l = np.where(r[..., None] >= 1.0, 1.0 - np.interp(LAM_NM / 1000, wl, a) * r[..., None],
+                     1.0 - np.clip(r, 0, 1)[..., None] * np.interp(LAM_NM / 1000, wl, a))
+    tau_y = np.trapz(tau_l * XYZ_BAR[:, 1], LAM_NM, axis=-1) / np.trapz(XYZ_BAR[:, 1], LAM_NM)
+    y_h = 0.12  # flat 120 W m-2 sr-1 um-1 at zenith 85-89 deg
+    l_sky = radiometry.hemisphere_mean(zen, sky_rows) / 1000.0  # the uniform sky that lights the plates
+    inst = ch["instance_id"]
+    edge = silhouette(hit) | silhouette(inst == 1)
+    black, white = (inst == 1) & ~edge, (inst == 2) & ~edge
+    assert black.sum() > 50 and white.sum() > 50 and (r[black] > 30).any() and (tau_y[black] < 0.85).any()
+    # black: pure airlight, no Monte Carlo noise (nothing reflects)
+    assert_allclose(ch["Y"][black], y_h * (1.0 - tau_y[black]), rtol=3e-3, atol=1e-9)
+    # white: contrast against the horizon, per pixel within noise and as a fitted slope
+    s_white = e_um / 1000.0 / np.pi + l_sky
+    c0 = (s_white - y_h) / y_h
+    expected = tau_y * s_white + y_h * (1.0 - tau_y)
+    ok = within_noise(ch["Y"], ch["Y_stderr"], expected, rel=3e-3)
+    assert ok[white].all(), f"{(~ok[white]).sum()} white pixels off"
+    c = (ch["Y"][white] - y_h) / y_h
+    ratio = c / (c0 * tau_y[white])  # Koschmieder: 1 at every range
+    tol = 4 * ratio.std() / np.sqrt(ratio.size) + 3e-3
+    assert abs(ratio.mean() - 1.0) < tol < 0.02, (ratio.mean(), tol)
+    slope = np.sum(c * tau_y[white]) / np.sum(tau_y[white] ** 2)
+    assert abs(slope / c0 - 1.0) < tol
+    assert np.ptp(tau_y[white]) > 0.1  # the contrast really varies with range
+    # without the airlight (Y = tau_Y S, the plate only darkens) the white plate would be darker
+    dark = ch["Y"][white] / (tau_y[white] * s_white) - 1.0
+    assert dark.mean() > 4 * dark.std() / np.sqrt(dark.size) + 0.02
+    frame = manifest["eo_sensors"][0]["frames"][0]
+    assert "Koschmieder airlight" in frame["atmosphere"] and "zenith 85, 89 deg" in frame["atmosphere"]
+    assert "Y_h = 0.12 W m-2 sr-1 nm-1" in frame["atmosphere"]
 
 
 def test_eo_path_skipped_without_visible_table(tmp_path):

@@ -23,7 +23,14 @@ Atmospheric path: per pixel by range as in the infrared, on the film's X, Y, Z c
 functions (:func:`humv_usd.render.radiometry.reduce_xyz`: the transmittance weighted for a
 spectrally flat surface radiance, an approximation); r is the range of the pixel centre's first
 hit; sky pixels get no path term. Skipped (and listed) when there is no table or it does not
-cover 0.40-0.70 um.
+cover 0.40-0.70 um. The table's path radiance is thermal only (≈ 0 in the visible), so
+:math:`P_{xyz}` also carries Koschmieder's airlight :math:`L_h (1 - \\tau(r))`, the horizon sky
+radiance :math:`L_h` (the sky table's rows at zenith 85-90°, else its cosine-weighted mean;
+:func:`humv_usd.render.radiometry.horizon_sky`) scattered into the line of sight, with the path
+transmittance standing in for the scattering transmittance (Koschmieder 1924; Middleton 1952;
+:func:`humv_usd.render.radiometry.reduce_xyz`): distant objects fade toward the horizon sky,
+their contrast falling as :math:`C(r) = C_0\\,\\tau(r)`. No airlight (and noted) without a sky
+table covering 0.40-0.70 um.
 
 Colour: the film integrates the spectrum against the CIE 1931 2° colour-matching functions and
 gives CIE XYZ normalised so that a constant spectral radiance :math:`L` [W m-2 sr-1 nm-1] has
@@ -312,22 +319,34 @@ class EORender:
         self.skipped += [{"name": s.name, "prim": s.path, "band": s.band, "reason": reason} for s in self.sensors]
         self.sensors = []
 
-    def path(self, sensor, time_code) -> tuple[radiometry.XYZPath | None, str]:
-        """The sensor's path table reduced to X, Y, Z (:func:`radiometry.reduce_xyz`), or None,
-        and what ran."""
+    def path(self, sensor, time_code, spectra=None) -> tuple[radiometry.XYZPath | None, str]:
+        """The sensor's path table reduced to X, Y, Z with the Koschmieder airlight of the horizon
+        sky of ``spectra`` (:func:`radiometry.reduce_xyz`, :func:`radiometry.horizon_sky`), or
+        None, and what ran."""
         table = self.exporter.path_table(sensor, time_code)
         if table is None:
             return None, "skipped: no path table under /World/Atmosphere/Paths (no transmittance or path radiance)"
         if not _covers_visible(table.wavelengths_um):
             return None, f"skipped: path table {table.prim} does not cover 0.40-0.70 um"
+        horizon, rule = None, None
+        if spectra is not None and _covers_visible(spectra.wavelengths_um) and spectra.sky_radiance is not None:
+            l_h, rule = radiometry.horizon_sky(spectra.sky_zenith_deg, spectra.sky_radiance)
+            horizon = (spectra.wavelengths_um, l_h)
         key = (table.ranges_m.tobytes(), table.wavelengths_um.tobytes(), table.transmittance.tobytes(),
-               table.radiance.tobytes())
+               table.radiance.tobytes(), None if horizon is None else (horizon[0].tobytes(), horizon[1].tobytes()))
         cached = self._paths.get(sensor.name)
         if cached is None or cached[0] != key:
-            cached = self._paths[sensor.name] = (key, radiometry.reduce_xyz(table))
-        return cached[1], (f"per pixel by range from {table.prim} reduced to CIE X, Y, Z (colour-matching "
-                           f"functions, flat-spectrum transmittance weighting; {table.ranges_m.size} ranges "
-                           f"{table.ranges_m[0]:g}-{table.ranges_m[-1]:g} m)")
+            cached = self._paths[sensor.name] = (key, radiometry.reduce_xyz(table, horizon))
+        path = cached[1]
+        if path.horizon_xyz is None:
+            air = ("no airlight: no humv:atmosphere:skySpectralRadiance covering 0.40-0.70 um "
+                   "(thermal path radiance only, no fading toward the horizon sky)")
+        else:
+            air = (f"Koschmieder airlight L_h (1 - tau(r)) added (path tau for the scattering tau), "
+                   f"L_h = {rule}, Y_h = {path.horizon_xyz[1]:.6g} W m-2 sr-1 nm-1")
+        return path, (f"per pixel by range from {table.prim} reduced to CIE X, Y, Z (colour-matching "
+                      f"functions, flat-spectrum transmittance weighting; {table.ranges_m.size} ranges "
+                      f"{table.ranges_m[0]:g}-{table.ranges_m[-1]:g} m); {air}")
 
     def frame(self, state, frame: int, chains) -> None:
         """Render, label and write every EO sensor at ``frame``."""
@@ -360,7 +379,8 @@ class EORender:
         for s in self.sensors:
             scene.set_camera(self.ids[s.name], state.cameras[s.name])
         time_code = Usd.TimeCode(frame)
-        sun, sky, ran = illumination(self.exporter.atmosphere_spectra(time_code), self.exporter.sun_direction(time_code),
+        spectra = self.exporter.atmosphere_spectra(time_code)
+        sun, sky, ran = illumination(spectra, self.exporter.sun_direction(time_code),
                                      self.exporter.direct_normal_irradiance(time_code))
         scene.set_illumination(self.exporter.sun_direction(time_code), sun, sky)
         scene.update()
@@ -379,7 +399,7 @@ class EORender:
                 hits, extra = scene.hits(self.ids[s.name]), {}
             rec["timings_s"]["labels"] += time.perf_counter() - t
             t = time.perf_counter()
-            path, path_ran = self.path(s, time_code)
+            path, path_ran = self.path(s, time_code, spectra)
             if path is not None:  # atmosphere per pixel by range of the pixel centre's first hit
                 h = scene.hits(self.ids[s.name])
                 origin = np.asarray(state.cameras[s.name].origin, dtype=np.float64)

@@ -475,7 +475,9 @@ class XYZPath:
 
     ranges_m: np.ndarray  # (R,)
     transmittance: np.ndarray  # (R, 3)
-    radiance: np.ndarray  # (R, 3), same scale as the film's XYZ [W m-2 sr-1 nm-1]
+    radiance: np.ndarray  # (R, 3), same scale as the film's XYZ [W m-2 sr-1 nm-1]; thermal + airlight
+    airlight: np.ndarray | None = None  # (R, 3), the Koschmieder airlight part of ``radiance``
+    horizon_xyz: np.ndarray | None = None  # (3,), the horizon sky radiance in X, Y, Z
 
     def at(self, range_m) -> tuple[np.ndarray, np.ndarray]:
         """(transmittance, path radiance), each ``range_m.shape + (3,)`` (linear in range, held
@@ -484,8 +486,31 @@ class XYZPath:
         return _lerp(self.transmittance, w), _lerp(self.radiance, w)
 
 
-def reduce_xyz(table: PathTable) -> XYZPath:
-    r"""Reduce a spectral path table to the film's X, Y, Z channels.
+#: Zenith angles [deg] of the sky-table rows that give the horizon sky radiance of the EO airlight.
+HORIZON_ZENITH_DEG = (85.0, 90.0)
+
+
+def horizon_sky(zenith_deg, radiance) -> tuple[np.ndarray, str]:
+    r"""Horizon sky spectral radiance :math:`L_h(\lambda)` (W,) from a sky table (Z, W) against
+    zenith, and which rule gave it.
+
+    The mean of the rows at zenith :data:`HORIZON_ZENITH_DEG` (85-90°, the sky just above the
+    horizon that a horizontal line of sight ends on); without such a row, the cosine-weighted
+    hemispherical mean (:func:`hemisphere_mean`, the EO render's uniform sky). Below 2.5 um the
+    atmosphere layer's sky is isotropic (SPCTRL2 diffuse skylight), so both rules agree there.
+    """
+    zen = np.asarray(zenith_deg, dtype=float)
+    rad = np.asarray(radiance, dtype=float).reshape(zen.size, -1)
+    near = (zen >= HORIZON_ZENITH_DEG[0] - 1e-6) & (zen <= HORIZON_ZENITH_DEG[1] + 1e-6)
+    if near.any():
+        rows = ", ".join(f"{z:g}" for z in zen[near])
+        return rad[near].mean(axis=0), f"mean of the sky table's rows at zenith {rows} deg"
+    return (np.array([hemisphere_mean(zen, rad[:, j]) for j in range(rad.shape[1])]),
+            "cosine-weighted hemispherical mean of the sky table (no row at zenith 85-90 deg)")
+
+
+def reduce_xyz(table: PathTable, horizon=None) -> XYZPath:
+    r"""Reduce a spectral path table to the film's X, Y, Z channels, with the Koschmieder airlight.
 
     With the CIE 1931 colour-matching functions :math:`\bar x_c` (:func:`cie_1931_cmfs`) and the
     film's normalisation (Mitsuba divides every channel by :math:`\int\bar y\,d\lambda`, so a flat
@@ -505,6 +530,30 @@ def reduce_xyz(table: PathTable) -> XYZPath:
     scene's ranges varies by well under 1 % across a channel). A zero range (tau 1, P 0) is
     prepended when the table starts above 0 m. Then per pixel
     :math:`XYZ_{sensor} = \tau_{xyz}(r)\,XYZ + P_{xyz}(r)` (:func:`apply_xyz_path`).
+
+    Airlight (``horizon`` = (wavelengths [um], horizon sky radiance :math:`L_h` [W m-2 sr-1 um-1]),
+    e.g. :func:`horizon_sky`): the path table's radiance is thermal emission only (LOWTRAN's
+    visible path radiance is ≈ 0), so the sunlight and skylight scattered into the line of sight
+    is added with Koschmieder's law (Koschmieder 1924, Beitr. Phys. freien Atm. 12, 33-53, 171-181;
+    Middleton 1952, *Vision through the atmosphere*, ch. 4): a homogeneous, uniformly lit path
+    seen against the horizon sky has
+
+    .. math::
+
+        L(r) = \tau_s(r)\,L_0 + L_h\,(1 - \tau_s(r)),
+        \qquad
+        P^{air}_c(r) = \frac{\int \bar x_c\,L_h(\lambda)\,(1 - \tau(\lambda, r))\,d\lambda}{\int \bar y\,d\lambda},
+
+    so an object's contrast against the horizon falls as :math:`C(r) = C_0\,\tau_s(r)`, and a
+    black object reaches the horizon sky at long range. :math:`\tau_s` should be the scattering
+    (aerosol + Rayleigh) transmittance; the full path transmittance is used instead, an
+    approximation valid in the visible where molecular absorption is weak (ozone's Chappuis
+    band and narrow O2 / water lines, small against the aerosol and Rayleigh extinction of a
+    horizontal path near the ground). Further
+    approximations: the path is treated as horizontal and uniformly lit (a downward-looking path
+    ends on a background darker than the horizon sky, so the airlight is somewhat overstated
+    there), and the sun is not given its forward-scattering peak. :math:`P_c` becomes the thermal
+    part plus :math:`P^{air}_c`; the airlight alone is kept in :attr:`XYZPath.airlight`.
     """
     wl_nm, cmf = cie_1931_cmfs()
     x_um = wl_nm / 1000.0
@@ -518,12 +567,21 @@ def reduce_xyz(table: PathTable) -> XYZPath:
     wc = cmf * w[:, None]  # (W, 3)
     tau = (tau_l @ wc) / wc.sum(axis=0)
     path = (rad_l @ wc) / wc[:, 1].sum()
+    air = horizon_xyz = None
+    if horizon is not None:
+        h_wl, h_rad = (np.asarray(v, dtype=float) for v in horizon)
+        l_h = _interp_last(x_um, h_wl, h_rad[None, :])[0] / 1000.0  # per nm
+        horizon_xyz = (l_h @ wc) / wc[:, 1].sum()
+        air = ((1.0 - tau_l) * l_h) @ wc / wc[:, 1].sum()
+        path = path + air
     ranges = np.asarray(table.ranges_m, dtype=float)
     if ranges[0] > 0:
         ranges = np.concatenate([[0.0], ranges])
         tau = np.concatenate([np.ones((1, 3)), tau])
         path = np.concatenate([np.zeros((1, 3)), path])
-    return XYZPath(ranges, tau, path)
+        if air is not None:
+            air = np.concatenate([np.zeros((1, 3)), air])
+    return XYZPath(ranges, tau, path, air, horizon_xyz)
 
 
 def apply_xyz_path(xyz, range_m, path: XYZPath | None) -> tuple[np.ndarray, np.ndarray]:
