@@ -315,3 +315,66 @@ def test_layer_text_does_not_depend_on_the_cache(humvvex_raw, monkeypatch, tmp_p
     assert lt.CALLS > before                                # the cache was empty: LOWTRAN ran
     warm = layer_text(atmosphere_layer.build(sc))
     assert cold == warm and ": hit" not in cold and ": miss" not in cold
+
+
+@needs_lowtran
+def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch, tmp_path):
+    """Humidity 0.2 -> 0.9 over 2 h (hourly CSV): the composed stage's LWIR path transmittance
+    falls and the sky radiance rises from frame 0 to the last frame; one LOWTRAN batch per
+    weather node (frame 0, the CSV's middle hour, the last frame), a rerun from the cache."""
+    from humv_usd.render.export import StageExport
+    from humv_usd.sensors import layer as sensors_layer
+    from humv_usd.thermal.sky import stage_longwave_table
+
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
+    csv = tmp_path / "w.csv"
+    csv.write_text("time,relative_humidity\n2018-10-24T14:05:00,0.2\n"
+                   "2018-10-24T15:05:00,0.55\n2018-10-24T16:05:00,0.9\n")
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"].update(model="lowtran7", weather_csv=str(csv))
+    raw["general"].update(duration_s=7200.0, fps=0.01)      # 73 frames, 100 s apart
+    raw["sensor"] = [s for s in raw["sensor"] if s["id"] == "lwir640"]
+    sc = validate(raw)
+    before = lt.CALLS
+    layer = atmosphere_layer.build(sc)
+    runs = lt.CALLS - before
+    from humv_usd.pipeline.compose import compose_in_memory
+    stage = compose_in_memory([sensors_layer.build(sc), layer], 0.01)
+    a = stage.GetPrimAtPath("/World/Atmosphere")
+    p = stage.GetPrimAtPath(atmosphere_layer.PATHS.AppendChild("lwir640"))
+    tau_attr = p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE)
+    assert tau_attr.GetTimeSamples() == [0.0, 36.0, 72.0]        # the weather nodes' frames
+    wl = np.array(a.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())
+    ranges = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Get())
+    band = (wl >= 8.0) & (wl <= 12.0)
+    far = ranges.size - 1
+
+    def tau(f):
+        return np.array(tau_attr.Get(f)).reshape(ranges.size, wl.size)[far, band].mean()
+
+    def sky_bt(f):
+        sky = np.array(a.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Get(f))
+        return _band_bt(wl, sky.reshape(-1, wl.size)[0])         # zenith
+
+    assert tau(72) < tau(0) - 0.01                               # wetter air, more absorption
+    assert sky_bt(72) > sky_bt(0) + 2.0                          # and a warmer (brighter) sky
+    assert tau(0) > tau(18) > tau(36)                            # USD: linear between nodes
+    assert tau(18) == pytest.approx(0.5 * (tau(0) + tau(36)), rel=1e-5)
+    # the render's reader gets the time samples
+    reader = StageExport(stage)
+    sensor = next(s for s in reader.sensors if s.name == "lwir640")
+    table0, table72 = reader.path_table(sensor, 0.0), reader.path_table(sensor, 72.0)
+    assert not np.allclose(table0.transmittance, table72.transmittance)
+    spectra = reader.atmosphere_spectra(72.0)
+    np.testing.assert_allclose(spectra.sky_radiance.ravel(),
+                               a.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Get(72))
+    # broadband sky: samples for the render, frame-0 default for the thermal tool
+    eps = a.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY)
+    assert eps.Get(72) > eps.Get(0) == eps.Get()
+    _, lw0 = stage_longwave_table(stage)
+    np.testing.assert_allclose(lw0, a.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Get(0))
+    # LOWTRAN: 3 nodes x (sky 48 + paths 19 per interval) + sun once; then all from the cache
+    assert 0 < runs <= 3 * (4 * M.SKY_ZENITH_DEG.size + M.PATH_RANGES_M.size) + 60
+    before = lt.CALLS
+    atmosphere_layer.build(sc)
+    assert lt.CALLS == before

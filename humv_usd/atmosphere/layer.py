@@ -9,13 +9,20 @@ bands, the sky spectral radiance against zenith and, while the sun is up, the di
 spectral irradiance per frame; under /World/Atmosphere/Paths one path table per sensor, with
 ranges from 1 m to beyond the scene. What ran and what was skipped is recorded in the layer's
 customLayerData ``humv:atmosphere:ran``.
+
+When the weather varies (:func:`humv_usd.atmosphere.model.weather_varies`), the thermal sky
+(spectral and broadband, with each node's cloud cover) and the path tables get time samples at
+the weather nodes' frames (:func:`humv_usd.atmosphere.model.weather_nodes`; USD interpolates
+float arrays linearly between them) and keep the frame-0 values as their defaults, which
+readers without a time (:func:`humv_usd.thermal.sky.stage_longwave_table`) get. Constant
+weather authors single default values, as before.
 """
 from __future__ import annotations
 
 import numpy as np
 from pxr import Sdf, UsdGeom, Vt
 
-from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for
+from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
@@ -66,7 +73,15 @@ def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g, a = scenario["general"], scenario["atmosphere"]
     from humv_usd.thermal.sky import with_cloud_cover
-    atm = with_cloud_cover(atmosphere_for(scenario), weather_at(scenario, [0.0]).cloud_cover[0])
+    full = atmosphere_for(scenario)
+    nodes = None
+    if full.node_times_s is None:
+        atm = with_cloud_cover(full, weather_at(scenario, [0.0]).cloud_cover[0])
+    else:
+        nodes = [with_cloud_cover(full.at_node(k), full.node_cloud_cover[k])
+                 for k in range(full.node_times_s.size)]
+        node_codes = [float(c) for c in np.round(full.node_times_s * float(g["fps"]), 6)]
+        atm = nodes[0]
     stage = new_layer_stage(g["fps"], scenario.frame_count,
                             f"HumV-USD atmosphere layer: {atm.source} sky, sun and sensor paths")
     prim = UsdGeom.Scope.Define(stage, SCOPES["atmosphere"]).GetPrim()
@@ -78,10 +93,20 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(atm.sky_temperature_k), 4))
     prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
     prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(atm.longwave_radiance))
+    if nodes is not None:   # defaults = frame 0 (above) plus samples at the weather nodes
+        for code, n in zip(node_codes, nodes):
+            prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(n.sky_emissivity), 6), code)
+            prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(n.sky_temperature_k), 4), code)
+            prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(n.longwave_radiance), code)
     # the disk cache's hit/miss stays out of the layer: an unchanged scenario must give the same text
     ran = {k: ("; ".join(v) if isinstance(v, list) else str(v)) for k, v in atm.ran.items() if k != "cache"}
     ran["broadband sky"] = (f"emissivity {atm.sky_emissivity:.4f}, temperature "
                             f"{atm.sky_temperature_k:.2f} K ({atm.source})")
+    if nodes is not None:
+        ran["broadband sky"] += (f" at frame 0; {len(nodes)} weather nodes: emissivity "
+                                 + ", ".join(f"{n.sky_emissivity:.4f}" for n in nodes)
+                                 + "; time samples at frames "
+                                 + ", ".join(f"{c:g}" for c in node_codes))
     w = atm.wavelengths_um
     if w.size:
         codes = np.round(atm.times_s * float(g["fps"]), 6)
@@ -90,7 +115,17 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
         sky_attr = prim.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE)
         diffuse_varies = sampled and np.ptp(atm.diffuse_radiance, axis=0).max() > 0
-        if diffuse_varies:
+        if nodes is not None:
+            # thermal sky linear between the nodes, diffuse skylight at its own samples
+            thermal = np.stack([n.sky_radiance for n in nodes])
+            sky_codes = sorted(set(node_codes) | (set(float(c) for c in codes) if diffuse_varies
+                                                  else set()))
+            sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, atm.times_s[0])))
+            for code in sky_codes:
+                t = code / float(g["fps"])
+                sky_attr.Set(_floats(lerp_nodes(full.node_times_s, thermal, t)
+                                     + atm.diffuse_at(t)[None, :]), code)
+        elif diffuse_varies:
             for code, t in zip(codes, atm.times_s):
                 sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, t)), float(code))
         else:
@@ -115,6 +150,11 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
             path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)))
             path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)))
+            for code, n in zip(node_codes if nodes is not None else [], nodes or []):
+                tau, rad = n.path(s["position_m"], ranges)
+                path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(
+                    _floats(np.clip(tau, 0.0, 1.0)), code)
+                path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)), code)
         ran["paths"] = ran.get("paths", "") + f"; tables for {len(scenario['sensor'])} sensors"
     else:
         ran["spectra"] = "skipped: no sensor"

@@ -9,7 +9,10 @@
   model; when LOWTRAN7 cannot be loaded or fails, the analytic model with a warning on stderr;
 - the solar terms only at times the sun is up.
 
-Models (weather of frame 0, :func:`humv_usd.environment.weather.weather_at`):
+Models (weather of frame 0, :func:`humv_usd.environment.weather.weather_at`; when the
+air temperature, humidity, pressure or cloud cover change over the frames (an hourly
+``weather_csv``), the sky and paths are computed at weather nodes instead, see
+:func:`weather_nodes`, and interpolated linearly in time between them):
 
 Sky, LOWTRAN7: two layers. The lowest ``SKY_LAYER_KM`` above the site is a user-defined
 (MODEL 7) layer from the weather (air temperature with a 6.5 K/km lapse rate, hydrostatic
@@ -104,6 +107,36 @@ def frame_times(scenario: Scenario) -> np.ndarray:
     stride = max(1, int(np.ceil(n / MAX_TIME_SAMPLES)))
     frames = np.unique(np.append(np.arange(0, n, stride), n - 1))
     return frames / float(g["fps"])
+
+
+#: weather quantities the sky and the paths depend on (cloud cover through the thermal layer)
+ATMOSPHERE_WEATHER = ("air_temperature_k", "relative_humidity", "pressure_pa", "cloud_cover")
+
+
+def weather_varies(weather: Weather) -> bool:
+    """True when a quantity of :data:`ATMOSPHERE_WEATHER` changes over the samples (wind alone
+    leaves the atmosphere as it is)."""
+    return any(np.ptp(getattr(weather, k)) > 0 for k in ATMOSPHERE_WEATHER
+               if len(getattr(weather, k)))
+
+
+def weather_nodes(scenario: Scenario) -> np.ndarray:
+    """Times [s after frame 0] of the weather nodes: frame 0, the last frame and the hours of
+    ``[atmosphere] weather_csv`` in between, each snapped to the nearest frame.
+
+    Between the series' rows the weather is linear in time, so linear interpolation of the sky
+    and path tables between these nodes follows it (to first order in the weather change)."""
+    from humv_usd.environment.weather import frame_epoch_s, read_weather_csv
+
+    fps = float(scenario["general"]["fps"])
+    last = scenario.frame_count - 1
+    frames = [0.0, float(last)]
+    path = (scenario["atmosphere"] or {}).get("weather_csv")
+    if path:
+        ts, _ = read_weather_csv(path, scenario)
+        rel = (np.asarray(ts, float) - frame_epoch_s(scenario)) * fps
+        frames += [float(f) for f in np.round(rel[(rel > 0) & (rel < last)])]
+    return np.unique(frames) / fps
 
 
 def sensor_bands(scenario: Scenario) -> list[tuple[float, float]]:
@@ -207,6 +240,46 @@ class Atmosphere:
     air_temperature_k: float
     profile: str
     ran: dict = field(default_factory=dict)
+    #: weather nodes (None for constant weather): times [s] (K,), and per node the thermal sky
+    #: (K, Z, W), path tables (K, R, W) twice, longwave (K, Z), emissivity, sky and air
+    #: temperature, cloud cover (K,); the unsuffixed fields above hold node 0
+    node_times_s: np.ndarray | None = None
+    node_sky_radiance: np.ndarray | None = None
+    node_path_transmittance: np.ndarray | None = None
+    node_path_radiance: np.ndarray | None = None
+    node_longwave_radiance: np.ndarray | None = None
+    node_sky_emissivity: np.ndarray | None = None
+    node_sky_temperature_k: np.ndarray | None = None
+    node_air_temperature_k: np.ndarray | None = None
+    node_cloud_cover: np.ndarray | None = None
+
+    def _node_mix(self, table, fallback, t):
+        """Linear interpolation over the weather nodes of ``table`` at time t (``fallback``
+        for constant weather)."""
+        if self.node_times_s is None:
+            return fallback
+        return lerp_nodes(self.node_times_s, table, t)
+
+    def at_node(self, k: int) -> "Atmosphere":
+        """The atmosphere with the weather of node k (no nodes: itself)."""
+        if self.node_times_s is None:
+            return self
+        return dataclasses.replace(
+            self, sky_radiance=self.node_sky_radiance[k],
+            path_transmittance=self.node_path_transmittance[k],
+            path_radiance=self.node_path_radiance[k],
+            longwave_radiance=self.node_longwave_radiance[k],
+            sky_emissivity=float(self.node_sky_emissivity[k]),
+            sky_temperature_k=float(self.node_sky_temperature_k[k]),
+            air_temperature_k=float(self.node_air_temperature_k[k]),
+            node_times_s=None, node_sky_radiance=None, node_path_transmittance=None,
+            node_path_radiance=None, node_longwave_radiance=None, node_sky_emissivity=None,
+            node_sky_temperature_k=None, node_air_temperature_k=None, node_cloud_cover=None)
+
+    def diffuse_at(self, time_s: float) -> np.ndarray:
+        """Isotropic diffuse skylight (W,) [W m-2 sr-1 um-1] at ``time_s``."""
+        a, b, f = self._time_index(time_s)
+        return (1 - f) * self.diffuse_radiance[a] + f * self.diffuse_radiance[b]
 
     def _time_index(self, t):
         """Linear-interpolation weights of time t over ``times_s``."""
@@ -228,26 +301,34 @@ class Atmosphere:
         if self.wavelengths_um.size == 0:
             return np.zeros((z.size, 0))
         zt = self.sky_zenith_deg
-        out = np.stack([np.interp(z, zt, self.sky_radiance[:, k])
+        sky = self._node_mix(self.node_sky_radiance, self.sky_radiance, time_s)
+        out = np.stack([np.interp(z, zt, sky[:, k])
                         for k in range(self.wavelengths_um.size)], axis=-1)
-        a, b, f = self._time_index(time_s)
-        diffuse = (1 - f) * self.diffuse_radiance[a] + f * self.diffuse_radiance[b]
-        return out + diffuse[None, :]
+        return out + self.diffuse_at(time_s)[None, :]
 
-    def sky_longwave_radiance(self, zenith_deg) -> np.ndarray:
+    def sky_longwave_radiance(self, zenith_deg, time_s: float = 0.0) -> np.ndarray:
         """Broadband (4-50 um plus a blackbody at air temperature beyond) sky radiance
         [W m-2 sr-1] against zenith angle [deg]; pi times its cosine-weighted hemispherical
         mean is sky_emissivity * sigma * T_air^4."""
         return np.interp(np.asarray(zenith_deg, dtype=float), self.sky_zenith_deg,
-                         self.longwave_radiance)
+                         self._node_mix(self.node_longwave_radiance, self.longwave_radiance,
+                                        time_s))
 
-    def path(self, sensor_position_m=None, ranges_m=None) -> tuple[np.ndarray, np.ndarray]:
+    def path(self, sensor_position_m=None, ranges_m=None,
+             time_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """(transmittance (R, W), path radiance (R, W) [W m-2 sr-1 um-1]) at ``ranges_m``.
 
         Homogeneous near-ground paths: the sensor position does not change them (see the module
         doc). Log-linear interpolation in range over the table; ``ranges_m`` None gives the
-        table's own ranges. Range 0 gives transmittance 1 and no path radiance.
+        table's own ranges. Range 0 gives transmittance 1 and no path radiance. ``time_s``
+        matters only with weather nodes (tables linear in time between them).
         """
+        if self.node_times_s is not None:
+            now = dataclasses.replace(
+                self.at_node(0),
+                path_transmittance=lerp_nodes(self.node_times_s, self.node_path_transmittance, time_s),
+                path_radiance=lerp_nodes(self.node_times_s, self.node_path_radiance, time_s))
+            return now.path(sensor_position_m, ranges_m)
         if ranges_m is None:
             return self.path_transmittance.copy(), self.path_radiance.copy()
         r = np.atleast_1d(np.asarray(ranges_m, dtype=float))
@@ -272,6 +353,19 @@ class Atmosphere:
             a, b, f = self._time_index(ti)
             out[i] = (1 - f) * self.solar[a] + f * self.solar[b]
         return out
+
+
+def lerp_nodes(node_times_s, table, t) -> np.ndarray:
+    """table (K, ...) at time t, linear between the node times (K,), held beyond them (as USD
+    interpolates float-array time samples)."""
+    ts = np.asarray(node_times_s, dtype=float)
+    table = np.asarray(table)
+    if ts.size == 1:
+        return table[0]
+    t = float(np.clip(t, ts[0], ts[-1]))
+    j = int(np.clip(np.searchsorted(ts, t) - 1, 0, ts.size - 2))
+    f = (t - ts[j]) / (ts[j + 1] - ts[j])
+    return (1 - f) * table[j] + f * table[j + 1]
 
 
 def _spectrl2(sun: SunState, weather: Weather, scenario: Scenario, grid_um: np.ndarray):
@@ -365,7 +459,8 @@ def _profile_mid(profile: str, z0_km: float, h_km: float):
     return (t, float(min(e / water_vapour_pressure(t, 1.0), 1.0)), p)
 
 
-def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ran: dict):
+def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ran: dict,
+                   sun_too: bool = True):
     """Sky, path and solar tables from LOWTRAN7 (raises LowtranError).
 
     Runs: one infrared interval (the IR bands' span, extended to LONGWAVE_UM for the
@@ -443,7 +538,7 @@ def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ra
 
     # --- direct sun beyond SOLAR_SPLIT_UM ---------------------------------------------------
     solar = np.zeros((sun.times_s.size, grid.size))
-    if sun.up.any():
+    if sun.up.any() and sun_too:
         zs = sun.zenith_deg[sun.up]
         z_nodes = np.unique(np.round(np.concatenate(
             [[zs.min(), zs.max()], np.arange(np.ceil(zs.min()), np.floor(zs.max()) + 0.5, 1.0)]), 3))
@@ -518,6 +613,10 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
     scenario : Scenario
     times_s : array-like, optional
         Sample times of the sun terms [s after frame 0]; default :func:`frame_times`.
+
+    When the weather's temperature, humidity, pressure or cloud cover vary over the frames
+    (:func:`weather_varies`), the sky and the paths are computed at :func:`weather_nodes` (one
+    cached LOWTRAN batch per node; the direct sun once) and stored per node.
     """
     a = scenario["atmosphere"]
     t = frame_times(scenario) if times_s is None else np.atleast_1d(np.asarray(times_s, float))
@@ -527,9 +626,21 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
     clear = sun_at(scenario, t, dataclasses.replace(weather, cloud_cover=np.zeros_like(t)))
     bands = sensor_bands(scenario)
     ran: dict = {"weather": "frame 0: " + ", ".join(f"{k}={v:g}" for k, v in w0.items())}
+    nodes = None
+    if bands and weather_varies(weather):
+        nodes = weather_nodes(scenario)
+        wn = weather_at(scenario, nodes)
+        fps = float(scenario["general"]["fps"])
+        ran["weather"] = (f"{nodes.size} weather nodes (linear between): " + "; ".join(
+            f"frame {round(tn * fps)}: T={wn.air_temperature_k[k]:g} K, "
+            f"RH={wn.relative_humidity[k]:g}, p={wn.pressure_pa[k]:g} Pa, "
+            f"clouds={wn.cloud_cover[k]:g}" for k, tn in enumerate(nodes)))
+        node_weather = [wn.at(k) for k in range(nodes.size)]
+    else:
+        node_weather = [w0]
     has_ir = bool(scenario.infrared_sensors)
     source = "analytic"
-    parts = None
+    per_node = None
     if not bands:
         ran["lowtran7"] = "skipped: no sensor"
     elif a["model"] == "analytic":
@@ -538,7 +649,8 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
         ran["lowtran7"] = "skipped: no infrared sensor"
     else:
         try:
-            parts = _lowtran_parts(scenario, w0, bands, sun, clear, ran)
+            per_node = [_lowtran_parts(scenario, w, bands, sun, clear, ran, sun_too=(k == 0))
+                        for k, w in enumerate(node_weather)]
             source = "lowtran7"
             ran["lowtran7"] = "ran"
         except lt.LowtranError as e:
@@ -546,17 +658,25 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
             warnings.warn(msg, RuntimeWarning, stacklevel=2)
             print(f"humv-usd: warning: {msg}", file=sys.stderr)
             ran["lowtran7"] = f"failed: {e}"
-    if parts is None:
-        parts = _analytic_parts(scenario, w0, bands, sun)
+    if per_node is None:
+        per_node = [_analytic_parts(scenario, w, bands, sun) for w in node_weather]
         if bands:
             ran["sky"] = "analytic: Berdahl-Martin emissivity, Martin-Berdahl angular law, gray"
             ran["paths"] = "analytic: Roberts water continuum, Kruse aerosol, Rayleigh"
-    grid, sky, tau_m, rad_m, solar, (lw, eps, t_sky) = parts
-    if source == "lowtran7" and grid.size:
-        # aerosol (absent from the wrapper's runs) as an absorbing, isothermal extinction
-        tau_a = np.exp(-np.outer(PATH_RANGES_M, aerosol_extinction(grid, a["visibility_km"])))
-        rad_m = rad_m + tau_m * (1.0 - tau_a) * planck.spectral_radiance(grid, w0["air_temperature_k"])
-        tau_m = tau_m * tau_a
+    grid, _, _, _, solar, _ = per_node[0]
+    skies, taus, rads, lws, epss, t_skies = [], [], [], [], [], []
+    for w, (_, sky, tau_m, rad_m, _, (lw, eps, t_sky)) in zip(node_weather, per_node):
+        if source == "lowtran7" and grid.size:
+            # aerosol (absent from the wrapper's runs) as an absorbing, isothermal extinction
+            tau_a = np.exp(-np.outer(PATH_RANGES_M, aerosol_extinction(grid, a["visibility_km"])))
+            rad_m = rad_m + tau_m * (1.0 - tau_a) * planck.spectral_radiance(grid, w["air_temperature_k"])
+            tau_m = tau_m * tau_a
+        skies.append(sky)
+        taus.append(tau_m)
+        rads.append(rad_m)
+        lws.append(np.asarray(lw, float))
+        epss.append(eps)
+        t_skies.append(t_sky)
     dni_s, dhi_s = _spectrl2(sun, weather, scenario, grid)
     solar = solar + dni_s
     diffuse = dhi_s / np.pi
@@ -564,10 +684,19 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
         ran["sun"] = "skipped: sun below the horizon at every frame"
     elif grid.size and (grid < SOLAR_SPLIT_UM).any():
         ran["skylight"] = f"SPCTRL2 direct and isotropic diffuse < {SOLAR_SPLIT_UM} um"
+    node_fields = {}
+    if nodes is not None:
+        node_fields = dict(
+            node_times_s=nodes, node_sky_radiance=np.stack(skies),
+            node_path_transmittance=np.stack(taus), node_path_radiance=np.stack(rads),
+            node_longwave_radiance=np.stack(lws), node_sky_emissivity=np.asarray(epss, float),
+            node_sky_temperature_k=np.asarray(t_skies, float),
+            node_air_temperature_k=np.array([w["air_temperature_k"] for w in node_weather]),
+            node_cloud_cover=np.array([w["cloud_cover"] for w in node_weather]))
     return Atmosphere(source=source, wavelengths_um=grid, sky_zenith_deg=SKY_ZENITH_DEG.copy(),
-                      sky_radiance=sky, times_s=t, diffuse_radiance=diffuse,
-                      path_ranges_m=PATH_RANGES_M.copy(), path_transmittance=tau_m,
-                      path_radiance=rad_m, solar=solar, longwave_radiance=np.asarray(lw, float),
-                      sky_emissivity=eps, sky_temperature_k=t_sky,
+                      sky_radiance=skies[0], times_s=t, diffuse_radiance=diffuse,
+                      path_ranges_m=PATH_RANGES_M.copy(), path_transmittance=taus[0],
+                      path_radiance=rads[0], solar=solar, longwave_radiance=lws[0],
+                      sky_emissivity=epss[0], sky_temperature_k=t_skies[0],
                       air_temperature_k=float(w0["air_temperature_k"]), profile=a["profile"],
-                      ran=ran)
+                      ran=ran, **node_fields)
