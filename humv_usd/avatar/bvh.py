@@ -332,7 +332,10 @@ def format_bvh(bvh: BVH, precision: int = 6) -> str:
 
 
 def write_bvh(path, bvh: BVH, precision: int = 6) -> None:
-    Path(path).write_text(format_bvh(bvh, precision), encoding="utf-8")
+    """Write ``bvh`` to ``path`` atomically (temp file + rename)."""
+    from humv_usd.fileio import write_text_atomic
+
+    write_text_atomic(Path(path), format_bvh(bvh, precision))
 
 
 # ------------------------------------------------------------------------- axes
