@@ -125,3 +125,29 @@ def test_eo_skipped_without_reflectance_or_light(tmp_path):
     [skipped] = manifest["skipped_sensors"]
     assert "/World/Materials/gray has no humv:material:reflectance" in skipped["reason"]
     assert manifest["eo_sensors"] == []
+
+
+def test_eo_only_scenario_composes_and_renders(raw, tmp_path):
+    """A scenario whose only sensor is EO (no [atmosphere] section): compose writes the
+    atmosphere (sun and skylight spectra, paths; no LOWTRAN, no thermal layer) and the render
+    needs no temperatures (regression: it asked for the sky temperature)."""
+    from humv_usd.pipeline.compose import compose
+    from humv_usd.scenario import validate
+
+    raw["sensor"] = [dict(s, resolution=[64, 48], pixel_pitch_um=80.0)
+                     for s in raw["sensor"] if s.get("preset") == "rgb_imx273"]
+    assert len(raw["sensor"]) == 1
+    raw.pop("atmosphere", None)
+    report = compose(validate(raw), tmp_path / "c")
+    names = {p.stem for p in (tmp_path / "c" / "layers").glob("*.usda")}
+    assert "atmosphere" in names and "thermal" not in names
+    manifest = render_stage(tmp_path / "c" / "stage.usda", tmp_path / "r", spp=4)
+    [eo] = manifest["eo_sensors"]
+    frame = eo["frames"][0]
+    assert frame["illumination"]["sun"].startswith("directional, spectral irradiance")
+    assert "skipped" not in frame["illumination"]["sky"]
+    ch = read_exr(tmp_path / "r" / eo["name"] / "0000.exr")
+    person = ch["instance_id"] == 1
+    assert person.any() and np.isnan(ch["surface_temperature"][person]).all()
+    assert np.isfinite(ch["Y"]).all() and ch["Y"].mean() > 0
+    assert any(name == "thermal" for name, _ in report.skipped)

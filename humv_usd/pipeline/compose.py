@@ -53,10 +53,12 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
     needed, skipped = ["environment"], []
     has_ir = bool(scenario.infrared_sensors)
     has_meshes = bool(scenario["human"]) or scenario["scene"] is not None
-    if has_ir or "atmosphere" in scenario.given:
+    # EO sensors need the atmosphere too (sun and skylight spectra, paths); it runs LOWTRAN7
+    # only for infrared bands (an EO-only scenario gets the analytic/SPCTRL2 tables)
+    if scenario["sensor"] or "atmosphere" in scenario.given:
         needed.append("atmosphere")
     else:
-        skipped.append(("atmosphere", "no infrared sensor and no [atmosphere] section"))
+        skipped.append(("atmosphere", "no sensor and no [atmosphere] section"))
     if has_meshes:
         needed.append("materials")
     else:

@@ -713,11 +713,18 @@ class StageExport:
         return check_temperatures(values, where, expected=info.face_count)
 
     def frame_state(self, frame: int, sensors: list[Sensor]) -> FrameState:
-        """Read everything needed to render ``frame`` for ``sensors``."""
+        """Read everything needed to render ``frame`` for ``sensors``.
+
+        Temperatures (faces, sky) are required only when an infrared sensor is among
+        ``sensors``; for EO sensors alone (a stage without a thermal or atmosphere layer) an
+        unauthored face temperature is NaN (it only feeds the surface_temperature label) and the
+        sky temperature is NaN.
+        """
         time = Usd.TimeCode(frame)
         cache = UsdGeom.XformCache(time)
         state = FrameState(frame=frame, meshes=[])
-        state.sky_temperature_k = self.sky_temperature(time)
+        infrared = any(s.kind != "EO" for s in sensors)
+        state.sky_temperature_k = self.sky_temperature(time) if infrared else float("nan")
         for prim in self._mesh_prims:
             if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
                 continue
@@ -737,7 +744,11 @@ class StageExport:
             state.meshes.append(info)
             state.points[info.path] = world
             state.flip[info.path] = flip
-            state.temperatures[info.path] = self.face_temperatures(prim, info, time)
+            attr = prim.GetAttribute(TEMPERATURE_ATTR)
+            if infrared or (attr and attr.HasValue()):
+                state.temperatures[info.path] = self.face_temperatures(prim, info, time)
+            else:
+                state.temperatures[info.path] = np.full(info.face_count, np.nan)
         for sensor in sensors:
             state.cameras[sensor.name] = self.camera_pose(sensor, time)
         return state
