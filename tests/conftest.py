@@ -22,3 +22,32 @@ def humvvex_raw() -> dict:
 def raw(humvvex_raw) -> dict:
     """A fresh, mutable copy of the humvvex scenario document."""
     return copy.deepcopy(humvvex_raw)
+
+
+def quat_x(deg: float):
+    """Unit quaternion (w, x, y, z) of a rotation by ``deg`` degrees about X."""
+    import numpy as np
+
+    from humv_usd.avatar.gait import axis_angle_quat
+
+    return axis_angle_quat((1.0, 0.0, 0.0), np.radians(deg))
+
+
+def ramp_pose(scenario, human, end_deg: dict):
+    """(skeleton, Pose) of the person's fitted body: the joints of ``end_deg`` bend about X
+    linearly from rest at frame 0 to their angle [deg] at the scenario's last frame."""
+    import numpy as np
+
+    from humv_usd.avatar.body import build_body
+    from humv_usd.avatar.skeleton import skeleton_for
+    from humv_usd.avatar.usdskel import Pose
+
+    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"], human["build"])
+    sk = skeleton_for(body.points, body.groups)
+    frames = scenario.frame_count
+    q = np.zeros((frames, len(sk.names), 4))
+    q[..., 0] = 1.0
+    for f in range(frames):
+        for joint, deg in end_deg.items():
+            q[f, sk.index(joint)] = quat_x(deg * f / (frames - 1))
+    return sk, Pose(np.repeat(sk.rest_positions[:1], frames, axis=0), q)

@@ -5,12 +5,11 @@ import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
-from humv_usd.avatar.gait import axis_angle_quat
 from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.avatar.body import build_body
 from humv_usd.avatar.skeleton import forward_kinematics, skinning_matrices
-from humv_usd.avatar.usdskel import Pose, skinned_points
+from humv_usd.avatar.usdskel import skinned_points
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.collide import apply, blend_transforms, dress, simulate
 from humv_usd.clothing.fit import prepare
@@ -20,6 +19,7 @@ from humv_usd.materials import layer as materials_layer
 from humv_usd.materials.library import FABRICS, LIBRARY, WAVELENGTHS_UM
 from humv_usd.scenario.load import validate
 from humv_usd.usd import schemas as S
+from conftest import quat_x, ramp_pose
 
 BODIES = {"female_160_55": ("female", 1.60, 55.0), "male_178_80": ("male", 1.78, 80.0),
           "male_190_105": ("male", 1.90, 105.0)}
@@ -31,10 +31,6 @@ def rigs():
     return {k: prepare(build_body(sex, 30, h, m)) for k, (sex, h, m) in BODIES.items()}
 
 
-def _quat_x(deg: float) -> np.ndarray:
-    return axis_angle_quat((1.0, 0.0, 0.0), np.radians(deg))
-
-
 def _pose(skeleton, bends: dict[str, float], frames: int = 1) -> np.ndarray:
     """Skinning matrices (frames + 1, J, 4, 4): frame 0 rest, then the joints of ``bends``
     rotated about X by the given angles [deg] (ramped over ``frames``)."""
@@ -42,7 +38,7 @@ def _pose(skeleton, bends: dict[str, float], frames: int = 1) -> np.ndarray:
     q[..., 0] = 1.0
     for f in range(1, frames + 1):
         for joint, deg in bends.items():
-            q[f, skeleton.index(joint)] = _quat_x(deg * f / frames)
+            q[f, skeleton.index(joint)] = quat_x(deg * f / frames)
     root = np.repeat(skeleton.rest_positions[:1], frames + 1, axis=0)
     return skinning_matrices(skeleton, forward_kinematics(skeleton, q, root))
 
@@ -227,17 +223,8 @@ def clothed_stage(humvvex_raw):
     raw["general"] = dict(raw["general"], duration_s=0.1)      # 3 frames at 30 fps
     scenario = validate(raw)
     human = scenario["human"][0]
-    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"],
-                      human["build"])
-    from humv_usd.avatar.skeleton import skeleton_for
-    sk = skeleton_for(body.points, body.groups)
     frames = scenario.frame_count
-    q = np.zeros((frames, len(sk.names), 4))
-    q[..., 0] = 1.0
-    for f in range(frames):                   # a knee bend over the frames
-        q[f, sk.index("RightUpLeg")] = _quat_x(-30.0 * f / (frames - 1))
-        q[f, sk.index("RightLeg")] = _quat_x(60.0 * f / (frames - 1))
-    pose = Pose(np.repeat(sk.rest_positions[:1], frames, axis=0), q)
+    _, pose = ramp_pose(scenario, human, {"RightUpLeg": -30.0, "RightLeg": 60.0})   # a knee bend
     garments = ["tshirt_white", "leggings", "cap"]
     avatar = avatar_layer.build_one(scenario, human, motion=pose)
     upstream = compose_in_memory([avatar], scenario["general"]["fps"])

@@ -5,15 +5,14 @@ import copy
 
 import numpy as np
 import pytest
-from pxr import Sdf, Usd, UsdGeom, UsdShade
+from pxr import Usd, UsdGeom, UsdShade
 
-from humv_usd.avatar.gait import axis_angle_quat
 from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.avatar.body import build_body
-from humv_usd.avatar.skeleton import forward_kinematics, skeleton_for, skinning_matrices
-from humv_usd.avatar.usdskel import Pose, skinned_points
+from humv_usd.avatar.skeleton import forward_kinematics, skinning_matrices
+from humv_usd.avatar.usdskel import skinned_points
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.collide import (LAYER_RADIUS, SHELL_COS, apply, blend_transforms, dress,
                                        simulate)
@@ -27,6 +26,7 @@ from humv_usd.scenario.load import validate
 from humv_usd.scene.layer import instance_ids
 from humv_usd.thermal import layer as thermal_layer
 from humv_usd.usd import schemas as S
+from conftest import quat_x, ramp_pose
 from humv_usd.usd.check import rule_sensors_and_labels
 from humv_usd.usd.mesh import signed_volume
 
@@ -41,16 +41,12 @@ def rigs():
     return {k: prepare(build_body(sex, 30, h, m)) for k, (sex, h, m) in BODIES.items()}
 
 
-def _quat_x(deg: float) -> np.ndarray:
-    return axis_angle_quat((1.0, 0.0, 0.0), np.radians(deg))
-
-
 def _world(skeleton, bends: dict[str, float]) -> np.ndarray:
     """(2, J, 4, 4) joint transforms: frame 0 rest, frame 1 ``bends`` [deg about X]."""
     q = np.zeros((2, len(skeleton.names), 4))
     q[..., 0] = 1.0
     for joint, deg in bends.items():
-        q[1, skeleton.index(joint)] = _quat_x(deg)
+        q[1, skeleton.index(joint)] = quat_x(deg)
     return forward_kinematics(skeleton, q, np.repeat(skeleton.rest_positions[:1], 2, axis=0))
 
 
@@ -170,15 +166,8 @@ def stage_with_outfit(humvvex_raw):
     raw["human"][0]["clothing"] = list(OUTFIT)
     scenario = validate(raw)
     human = scenario["human"][0]
-    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"],
-                      human["build"])
-    sk = skeleton_for(body.points, body.groups)
     frames = scenario.frame_count
-    q = np.zeros((frames, len(sk.names), 4))
-    q[..., 0] = 1.0
-    for f in range(frames):                          # raise the right arm forward
-        q[f, sk.index("RightArm")] = _quat_x(-50.0 * f / (frames - 1))
-    pose = Pose(np.repeat(sk.rest_positions[:1], frames, axis=0), q)
+    sk, pose = ramp_pose(scenario, human, {"RightArm": -50.0})   # raise the right arm forward
     avatar = avatar_layer.build_one(scenario, human, motion=pose)
     upstream = compose_in_memory([avatar], scenario["general"]["fps"])
     clothing = clothing_layer.build_one(scenario, human, upstream)

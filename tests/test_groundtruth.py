@@ -19,6 +19,7 @@ from humv_usd.groundtruth import keypoints as K
 from humv_usd.groundtruth import labels as GL
 from humv_usd.render import render_stage
 from humv_usd.render.export import CameraPose
+from test_render import add_camera, new_stage as _new_stage, read_exr as _read_exr
 
 W, H = 64, 48
 
@@ -26,16 +27,7 @@ W, H = 64, 48
 # --- stage building (attributes by name, as a DCC would author them) --------------------------
 
 def new_stage(path):
-    stage = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(0)
-    world = UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(world.GetPrim())
-    UsdGeom.Scope.Define(stage, "/World/Atmosphere").GetPrim().CreateAttribute(
-        "humv:atmosphere:skyTemperature", Sdf.ValueTypeNames.Float).Set(260.0)
-    return stage
+    return _new_stage(path, sky_k=260.0)
 
 
 def material(stage, path, eps):
@@ -90,25 +82,11 @@ def sphere_mesh(center, radius, subdivisions=2):
 
 
 def camera(stage, name, eye, target, fov_x_deg=50.0, res=(W, H)):
-    cam = UsdGeom.Camera.Define(stage, f"/World/Sensors/{name}")
-    view = Gf.Matrix4d().SetLookAt(Gf.Vec3d(*eye), Gf.Vec3d(*target), Gf.Vec3d(0, 0, 1))
-    cam.AddTransformOp().Set(view.GetInverse())
-    h_ap = 2 * 0.25 * np.tan(np.radians(fov_x_deg) / 2)
-    cam.CreateFocalLengthAttr(0.25)
-    cam.CreateHorizontalApertureAttr(float(h_ap))
-    cam.CreateVerticalApertureAttr(float(h_ap * res[1] / res[0]))
-    prim = cam.GetPrim()
-    prim.CreateAttribute("humv:sensor:band", Sdf.ValueTypeNames.Token).Set("LWIR")
-    prim.CreateAttribute("humv:sensor:wavelengthRange", Sdf.ValueTypeNames.Float2).Set(Gf.Vec2f(8.0, 14.0))
-    prim.CreateAttribute("humv:sensor:resolution", Sdf.ValueTypeNames.Int2).Set(Gf.Vec2i(*res))
+    return add_camera(stage, name, eye, target, fov_x_deg=fov_x_deg, resolution=res)
 
 
 def read_exr(path):
-    inp = oiio.ImageInput.open(str(path))
-    spec = inp.spec()
-    px = inp.read_image("float")
-    inp.close()
-    return {n: px[..., i] for i, n in enumerate(spec.channelnames)}
+    return _read_exr(path)[1]
 
 
 EYE, TARGET = (0.3, -6.0, 1.6), (0.0, 0.0, 0.9)

@@ -144,3 +144,24 @@ def test_eo_images_are_in_the_table_by_luminance(tmp_path):
     full = rec["regions"][next(iter(R.TABLE2))]
     assert full["pixels"] == 12 and full["mean"] == pytest.approx(0.25) and full["std"] == pytest.approx(0.0)
     assert "temperature_mean_k" not in full                   # no temperature for EO
+
+
+def test_render_computes_regions_without_reading_its_images_back(render_dir, tmp_path, monkeypatch):
+    """The render hands each written image's channels to the ground truth (image_written), so
+    regions.json needs no read-back of the EXRs; the records equal those of the read-back."""
+    out, _ = render_dir
+    expected = R.render_regions(out)                      # from the EXRs on disk
+    stage_path = out.parent / "stage.usda"
+
+    def no_read(*args, **kwargs):
+        raise AssertionError("regions read an EXR back")
+
+    monkeypatch.setattr(R, "read_image", no_read)
+    render_stage(stage_path, tmp_path / "again", spp=2, annotators=["regions", "masks"])
+    doc = json.loads((tmp_path / "again" / "regions.json").read_text())
+    assert [r["exr"] for r in doc["images"]] == [r["exr"] for r in expected]
+    for got, want in zip(doc["images"], expected):
+        for name, row in want["regions"].items():
+            assert got["regions"][name]["pixels"] == row["pixels"]
+            if row["pixels"]:
+                assert_allclose(got["regions"][name]["mean"], row["mean"], rtol=1e-9)

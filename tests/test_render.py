@@ -125,7 +125,7 @@ def box(center, size):
 
 
 def add_camera(stage, name, eye, target, fov_x_deg=40.0, resolution=(W, H), band=LWIR, band_token="LWIR",
-               up=(0, 0, 1)):
+               up=(0, 0, 1), netd=None):
     cam = UsdGeom.Camera.Define(stage, f"/World/Sensors/{name}")
     view = Gf.Matrix4d().SetLookAt(Gf.Vec3d(*eye), Gf.Vec3d(*target), Gf.Vec3d(*up))
     cam.AddTransformOp().Set(view.GetInverse())
@@ -138,6 +138,8 @@ def add_camera(stage, name, eye, target, fov_x_deg=40.0, resolution=(W, H), band
     prim.CreateAttribute("humv:sensor:band", Sdf.ValueTypeNames.Token).Set(band_token)
     prim.CreateAttribute("humv:sensor:wavelengthRange", Sdf.ValueTypeNames.Float2).Set(Gf.Vec2f(*band))
     prim.CreateAttribute("humv:sensor:resolution", Sdf.ValueTypeNames.Int2).Set(Gf.Vec2i(*resolution))
+    if netd is not None:
+        prim.CreateAttribute("humv:sensor:netd", Sdf.ValueTypeNames.Float).Set(float(netd))
     return cam
 
 
@@ -158,7 +160,7 @@ def within_noise(radiance, stderr, expected, k=5.0, rel=1e-4):
     roulette) and now and then much too small.
     """
     pooled = np.sqrt(np.mean(np.square(stderr)))
-    return np.abs(radiance - expected) <= k * np.maximum(stderr, 0.5 * pooled) + rel * expected
+    return np.abs(radiance - expected) <= k * np.maximum(stderr, 0.5 * pooled) + rel * np.abs(expected)
 
 
 # --- closed-form radiometry -------------------------------------------------------------------

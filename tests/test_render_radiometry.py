@@ -11,15 +11,16 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import OpenImageIO as oiio
 import pytest
 from numpy.testing import assert_allclose
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+from pxr import Gf, Sdf, UsdGeom, UsdShade, Vt
 
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
 from humv_usd.render import radiometry, render_stage
 from humv_usd.render.radiometry import SubBands
+from test_render import add_camera, add_material as material, new_stage as _new_stage, read_exr as _read_exr
+from test_render import within_noise
 
 W, H = 32, 24
 LWIR = (8.0, 14.0)
@@ -29,29 +30,14 @@ MWIR = (3.0, 5.0)
 # --- stage helpers ------------------------------------------------------------------------------
 
 def new_stage(path, sky_k=280.0):
-    stage = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(0)
-    world = UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(world.GetPrim())
-    atm = UsdGeom.Scope.Define(stage, "/World/Atmosphere").GetPrim()
-    atm.CreateAttribute("humv:atmosphere:skyTemperature", Sdf.ValueTypeNames.Float).Set(float(sky_k))
+    """test_render's stage plus the /World/Environment scope the sun goes on."""
+    stage = _new_stage(path, sky_k=sky_k)
     UsdGeom.Scope.Define(stage, "/World/Environment")
     return stage
 
 
 def farr(prim, name, values):
     prim.CreateAttribute(name, Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray([float(v) for v in np.ravel(values)]))
-
-
-def material(stage, name, emissivity, wavelengths=(1.0, 20.0)):
-    m = UsdShade.Material.Define(stage, f"/World/Materials/{name}")
-    eps = np.broadcast_to(np.asarray(emissivity, float), (len(wavelengths),))
-    farr(m.GetPrim(), "humv:material:wavelengths", wavelengths)
-    farr(m.GetPrim(), "humv:material:emissivity", eps)
-    return m
 
 
 def plate(stage, path, half, z, mat, temperature_k, instance_id=1):
@@ -68,21 +54,8 @@ def plate(stage, path, half, z, mat, temperature_k, instance_id=1):
 
 
 def camera(stage, name, eye, target, fov_x_deg=20.0, band=LWIR, up=(0, 1, 0), netd=None):
-    cam = UsdGeom.Camera.Define(stage, f"/World/Sensors/{name}")
-    view = Gf.Matrix4d().SetLookAt(Gf.Vec3d(*eye), Gf.Vec3d(*target), Gf.Vec3d(*up))
-    cam.AddTransformOp().Set(view.GetInverse())
-    focal = 0.25
-    h_ap = 2 * focal * np.tan(np.radians(fov_x_deg) / 2)
-    cam.CreateFocalLengthAttr(focal)
-    cam.CreateHorizontalApertureAttr(float(h_ap))
-    cam.CreateVerticalApertureAttr(float(h_ap * H / W))
-    p = cam.GetPrim()
-    p.CreateAttribute("humv:sensor:band", Sdf.ValueTypeNames.Token).Set("LWIR" if band[0] >= 7 else "MWIR")
-    p.CreateAttribute("humv:sensor:wavelengthRange", Sdf.ValueTypeNames.Float2).Set(Gf.Vec2f(*band))
-    p.CreateAttribute("humv:sensor:resolution", Sdf.ValueTypeNames.Int2).Set(Gf.Vec2i(W, H))
-    if netd is not None:
-        p.CreateAttribute("humv:sensor:netd", Sdf.ValueTypeNames.Float).Set(float(netd))
-    return cam
+    return add_camera(stage, name, eye, target, fov_x_deg=fov_x_deg, resolution=(W, H), band=band,
+                      band_token="LWIR" if band[0] >= 7 else "MWIR", up=up, netd=netd)
 
 
 def atmosphere_tables(stage, wavelengths, sky=None, zenith=None, solar=None):
@@ -110,16 +83,7 @@ def sun(stage, toward):
 
 
 def read_exr(path):
-    inp = oiio.ImageInput.open(str(path))
-    spec = inp.spec()
-    pixels = inp.read_image(format="float")
-    inp.close()
-    return {name: pixels[..., i] for i, name in enumerate(spec.channelnames)}
-
-
-def within_noise(value, stderr, expected, k=5.0, rel=1e-4):
-    pooled = np.sqrt(np.mean(np.square(stderr)))
-    return np.abs(value - expected) <= k * np.maximum(stderr, 0.5 * pooled) + rel * np.abs(expected)
+    return _read_exr(path)[1]
 
 
 # --- sub-bands (numpy) -------------------------------------------------------------------------

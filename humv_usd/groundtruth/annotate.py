@@ -87,6 +87,8 @@ class GroundTruth:
         self._keypoint_prims = None
         self.coco = CocoBuilder() if "coco" in self.want else None
         self.images: list[dict] = []
+        self._region_records: list[dict] = []   # per image, from image_written (no re-read)
+        self._regions_done: set[str] = set()      # EXRs whose region records are in memory
 
     def _tick(self, name, t0):
         t = time.perf_counter()
@@ -160,6 +162,21 @@ class GroundTruth:
             self._tick("coco", t)
         self.images.append({"sensor": sensor.name, "frame": state.frame, "exr": rel + ".exr"})
         return ImageTruth(depth=hits.depth, instance=hits.instance, channels=channels, objects=objects)
+
+    def image_written(self, rel: str, channels: dict) -> None:
+        """Region statistics of the image the render just wrote to ``rel + ".exr"`` (``rel`` as
+        given to :meth:`annotate`), from its channels as stored (float32), so that
+        :meth:`finish` need not read the EXRs back."""
+        if "regions" not in self.want:
+            return
+        t = time.perf_counter()
+        exr = rel + ".exr"
+        item = next(i for i in reversed(self.images) if i["exr"] == exr)
+        stored = {k: np.asarray(v, dtype=np.float32).astype(np.float64)
+                  for k, v in channels.items() if np.ndim(v) == 2}
+        self._region_records += [{**item, **person} for person in R.image_regions(stored)]
+        self._regions_done.add(exr)
+        self._tick("regions", t)
 
     @staticmethod
     def _first_hit(scene, camera, tables, directions):
@@ -241,7 +258,11 @@ class GroundTruth:
             self._tick("coco", t)
         if "regions" in self.want and self.images:
             t = time.perf_counter()
-            records = R.images_regions(out_dir, self.images)
+            # images the render reported through image_written are done; others are read back
+            unread = [i for i in self.images if i["exr"] not in self._regions_done]
+            records = self._region_records + (R.images_regions(out_dir, unread) if unread else [])
+            order = {i["exr"]: k for k, i in enumerate(self.images)}
+            records.sort(key=lambda r: order[r["exr"]])
             R.write_regions(out_dir, records)
             files["regions"] = R.REGIONS_NAME
             self._tick("regions", t)

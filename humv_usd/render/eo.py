@@ -420,6 +420,8 @@ class EORender:
             writers.write_exr(os.path.join(self.out_dir, rel + ".exr"), channels,
                               metadata={"humv:sensor": s.path, "humv:frame": str(frame), "humv:spp": str(self.spp),
                                         "humv:colour": "CIE 1931 XYZ and linear sRGB (D65)"})
+            if self.truth is not None:
+                self.truth.image_written(rel, channels)
             png, exposure = srgb_preview(xyz)
             writers.write_png(os.path.join(self.out_dir, rel + ".png"), png)
             chain_record = chains.write(chained, self.out_dir, rel)

@@ -492,7 +492,7 @@ HORIZON_ZENITH_DEG = (85.0, 90.0)
 
 def horizon_sky(zenith_deg, radiance) -> tuple[np.ndarray, str]:
     r"""Horizon sky spectral radiance :math:`L_h(\lambda)` (W,) from a sky table (Z, W) against
-    zenith, and which rule gave it.
+    zenith [deg], in the table's units [W m-2 sr-1 um-1], and which rule gave it.
 
     The mean of the rows at zenith :data:`HORIZON_ZENITH_DEG` (85-90°, the sky just above the
     horizon that a horizontal line of sight ends on); without such a row, the cosine-weighted
@@ -586,8 +586,10 @@ def reduce_xyz(table: PathTable, horizon=None) -> XYZPath:
 
 def apply_xyz_path(xyz, range_m, path: XYZPath | None) -> tuple[np.ndarray, np.ndarray]:
     """At-sensor XYZ (H, W, 3) :math:`\\tau_{xyz}(r)\\,XYZ + P_{xyz}(r)` for pixels that see a
-    surface (finite range); sky pixels unchanged (the sky is the at-sensor value). Also returns
-    :math:`\\tau_{xyz}` (1 for sky pixels)."""
+    surface (finite range ``range_m`` [m]); sky pixels unchanged (the sky is the at-sensor value).
+    XYZ and P in the film's units (W m-2 sr-1 nm-1, CIE-weighted). The transfer equation of a
+    homogeneous path (see the module references); the channel reduction is
+    :func:`reduce_xyz`'s. Also returns :math:`\\tau_{xyz}` (1 for sky pixels)."""
     xyz = np.asarray(xyz, dtype=float)
     if path is None:
         return xyz, np.ones_like(xyz)

@@ -260,24 +260,22 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     for frame in frame_list if (rendered or eo_sensors) else []:
         t = time.perf_counter()
         state = exporter.frame_state(frame, rendered + eo_sensors)
-        parts = [(part, state.points[m.path][part.vertex_ids], state.flip[m.path])
-                 for m in state.meshes for part in m.parts]
-        if not rendered:
-            pass
-        elif scene is None or state.topology_key != scene_key:
-            setups = [SensorSetup(sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
-                      for s in rendered]
-            with tempfile.TemporaryDirectory(prefix="humv_render_") as tmp:
-                scene = IRScene(parts, setups, spp=spp, max_depth=max_depth, workdir=tmp,
-                                sky_map=use_sky_map, sun=use_sun)
-            scene_key = state.topology_key
-            scene_builds += 1
-        else:
-            for part, vertices, _ in parts:
-                scene.set_vertices(part, vertices)
-        for s in rendered:
-            scene.set_camera(sensor_ids[s.name], state.cameras[s.name])
-        if rendered:
+        if rendered:  # the infrared scene (EO sensors have their own, in eo_run)
+            parts = [(part, state.points[m.path][part.vertex_ids], state.flip[m.path])
+                     for m in state.meshes for part in m.parts]
+            if scene is None or state.topology_key != scene_key:
+                setups = [SensorSetup(sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
+                          for s in rendered]
+                with tempfile.TemporaryDirectory(prefix="humv_render_") as tmp:
+                    scene = IRScene(parts, setups, spp=spp, max_depth=max_depth, workdir=tmp,
+                                    sky_map=use_sky_map, sun=use_sun)
+                scene_key = state.topology_key
+                scene_builds += 1
+            else:
+                for part, vertices, _ in parts:
+                    scene.set_vertices(part, vertices)
+            for s in rendered:
+                scene.set_camera(sensor_ids[s.name], state.cameras[s.name])
             scene.update()
         frame_time = Usd.TimeCode(frame)
         spectra = exporter.atmosphere_spectra(frame_time)
@@ -320,7 +318,7 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             t = time.perf_counter()
             rel = os.path.join(s.name, f"{frame:04d}")
             chained = chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
-            writers.write_exr(os.path.join(out_dir, rel + ".exr"), {
+            channels = {
                 "radiance": m1,
                 "brightness_temperature": bt,
                 "radiance_stderr": stderr_l,
@@ -328,9 +326,12 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
                 "instance_id": instance.astype(np.float32),
                 **labels.channels,
                 **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
-            }, metadata={"humv:sensor": s.path, "humv:frame": str(frame),
-                         "humv:band_um": f"{band[0]:g}-{band[1]:g}", "humv:spp": str(spp),
-                         "humv:subbands": str(len(sub))})
+            }
+            writers.write_exr(os.path.join(out_dir, rel + ".exr"), channels,
+                              metadata={"humv:sensor": s.path, "humv:frame": str(frame),
+                                        "humv:band_um": f"{band[0]:g}-{band[1]:g}", "humv:spp": str(spp),
+                                        "humv:subbands": str(len(sub))})
+            truth.image_written(rel, channels)
             levels = writers.write_preview_png(os.path.join(out_dir, rel + ".png"), bt)
             chain_record = chains.write(chained, out_dir, rel)
             dt = time.perf_counter() - t
