@@ -4,7 +4,7 @@ PY     := $(VENV)/bin/python
 OUT    ?= out/humvvex
 SPP    ?= 16
 
-.PHONY: setup demo test test-fast bench schemas clean
+.PHONY: setup demo test test-fast lint format bench schemas clean
 
 setup:
 	@./tools/setup.sh
@@ -16,6 +16,18 @@ demo: setup
 
 test: setup
 	@$(PY) -m pytest -q
+
+# everything but the tests marked slow (renders, end-to-end CLI runs, JOS-3, Blender)
+test-fast: setup
+	@$(PY) -m pytest -q -m "not slow"
+
+lint: setup
+	@$(VENV)/bin/ruff check humv_usd tests tools
+	@$(VENV)/bin/ruff format --check humv_usd tests tools
+
+format: setup
+	@$(VENV)/bin/ruff check --fix humv_usd tests tools
+	@$(VENV)/bin/ruff format humv_usd tests tools
 
 bench: setup
 	@$(VENV)/bin/humv-usd bench pipeline examples/humvvex.toml --spp $(SPP)

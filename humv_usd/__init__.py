@@ -4,6 +4,7 @@ Importing the package registers the HumV USD schemas (``schemas/``) with USD. Th
 before any ``Usd.Stage`` exists, so import ``humv_usd`` before opening or creating stages. The
 import stays cheap: only ``pxr`` is loaded here, never mitsuba or bpy.
 """
+
 from humv_usd.usd.schemas import register_schemas
 
 __version__ = "0.1.0"

@@ -1,4 +1,5 @@
 """Where HumV-USD finds data that is fetched at set-up rather than committed."""
+
 from __future__ import annotations
 
 import os
@@ -29,5 +30,6 @@ def makehuman_file(relative: str) -> Path:
     if not path.is_file():
         raise MissingAssetError(
             f"MakeHuman data file {path} is missing; run `make setup` "
-            "(or `python tools/fetch_makehuman.py`) to fetch it")
+            "(or `python tools/fetch_makehuman.py`) to fetch it"
+        )
     return path

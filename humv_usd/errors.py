@@ -1,4 +1,5 @@
 """Errors that the command line reports as one line and exit code 2 (bad input)."""
+
 from __future__ import annotations
 
 

@@ -1,10 +1,15 @@
 """Atomic file writes: every output goes to a temp name beside it and is renamed into place."""
+
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 import os
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 
 def _umask() -> int:
@@ -49,3 +54,26 @@ def write_text_atomic(path, text: str) -> bool:
         with open(tmp, "w", encoding="utf-8") as fh:
             fh.write(text)
     return True
+
+
+def jsonable(obj):
+    """Replace non-finite floats by None (JSON has no inf/NaN) and numpy scalars by Python ones."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def write_json(path, data) -> None:
+    """Write ``data`` as indented JSON atomically (non-finite floats become null)."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(jsonable(data), f, indent=2, allow_nan=False)
+            f.write("\n")

@@ -1,4 +1,5 @@
 """Shared fixtures. ``import humv_usd`` first: the schemas must register before any stage."""
+
 from __future__ import annotations
 
 import copy
@@ -28,7 +29,7 @@ def quat_x(deg: float):
     """Unit quaternion (w, x, y, z) of a rotation by ``deg`` degrees about X."""
     import numpy as np
 
-    from humv_usd.avatar.gait import axis_angle_quat
+    from humv_usd.human.gait import axis_angle_quat
 
     return axis_angle_quat((1.0, 0.0, 0.0), np.radians(deg))
 
@@ -38,9 +39,9 @@ def ramp_pose(scenario, human, end_deg: dict):
     linearly from rest at frame 0 to their angle [deg] at the scenario's last frame."""
     import numpy as np
 
-    from humv_usd.avatar.body import build_body
-    from humv_usd.avatar.skeleton import skeleton_for
-    from humv_usd.avatar.usdskel import Pose
+    from humv_usd.human.body import build_body
+    from humv_usd.human.skeleton import skeleton_for
+    from humv_usd.human.usdskel import Pose
 
     body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"], human["build"])
     sk = skeleton_for(body.points, body.groups)

@@ -1,4 +1,5 @@
 """Atmosphere: LOWTRAN7 sky, paths and sun; analytic fallback; cache; the atmosphere layer."""
+
 from __future__ import annotations
 
 import copy
@@ -13,8 +14,7 @@ from humv_usd.atmosphere import model as M
 from humv_usd.environment import layer as environment_layer
 from humv_usd.environment.sun import sun_at
 from humv_usd.physics import planck
-from humv_usd.physics.sky import (STEFAN_BOLTZMANN, directional_sky_emissivity,
-                                  effective_sky_temperature)
+from humv_usd.physics.sky import STEFAN_BOLTZMANN, directional_sky_emissivity, effective_sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
 
@@ -53,12 +53,12 @@ def humvvex_lowtran(humvvex_raw, lowtran_cache):
 def test_lowtran_runs_once_then_cache(humvvex_lowtran, lowtran_cache, monkeypatch):
     sc, atm, runs = humvvex_lowtran
     assert atm.source == "lowtran7" and atm.ran["lowtran7"] == "ran"
-    assert 0 < runs < 150                                  # batched: sky, paths, sun
+    assert 0 < runs < 150  # batched: sky, paths, sun
     assert all("miss" in c for c in atm.ran["cache"])
     monkeypatch.setenv(M.CACHE_ENV, str(lowtran_cache))
     before = lt.CALLS
     again = M.atmosphere_for(sc)
-    assert lt.CALLS == before                              # nothing rerun
+    assert lt.CALLS == before  # nothing rerun
     assert all(c.endswith("hit") for c in again.ran["cache"])
     np.testing.assert_array_equal(again.sky_radiance, atm.sky_radiance)
     np.testing.assert_array_equal(again.path_transmittance, atm.path_transmittance)
@@ -67,18 +67,19 @@ def test_lowtran_runs_once_then_cache(humvvex_lowtran, lowtran_cache, monkeypatc
 @needs_lowtran
 def test_grid_covers_only_the_sensor_bands(humvvex_lowtran):
     from humv_usd.render.radiometry import covers
+
     sc, atm, _ = humvvex_lowtran
     wl = atm.wavelengths_um
     assert np.all(np.diff(wl) > 0)
     for s in sc["sensor"]:
         assert covers(wl, s["wavelength_um"]), s["id"]
     bands = M.sensor_bands(sc)
-    pad = 0.3   # one LOWTRAN sample beyond each edge
+    pad = 0.3  # one LOWTRAN sample beyond each edge
     inside = np.zeros(wl.size, bool)
     for lo, hi in bands:
         inside |= (wl >= lo - pad) & (wl <= hi + pad)
     assert inside.all()
-    assert not np.any((wl > 5.4) & (wl < 7.0))             # the gap between MWIR and LWIR
+    assert not np.any((wl > 5.4) & (wl < 7.0))  # the gap between MWIR and LWIR
 
 
 @needs_lowtran
@@ -87,9 +88,9 @@ def test_clear_sky_colder_than_air_and_rises_to_horizon(humvvex_lowtran):
     t_air = sc["atmosphere"]["air_temperature_k"]
     zen = np.array([0.0, 30.0, 60.0, 80.0, 89.0])
     bt = _band_bt(atm.wavelengths_um, atm.sky_spectral_radiance(zen))
-    assert bt[0] < t_air - 40.0                            # 8-14 um zenith: ~217 K vs 289 K
-    assert np.all(np.diff(bt) > 0)                         # brighter toward the horizon
-    assert abs(bt[-1] - t_air) < 8.0                       # near-horizontal: almost the air
+    assert bt[0] < t_air - 40.0  # 8-14 um zenith: ~217 K vs 289 K
+    assert np.all(np.diff(bt) > 0)  # brighter toward the horizon
+    assert abs(bt[-1] - t_air) < 8.0  # near-horizontal: almost the air
     assert np.all(atm.sky_spectral_radiance(zen) >= 0)
 
 
@@ -100,8 +101,9 @@ def test_broadband_sky_close_to_berdahl_martin(humvvex_lowtran):
     _, eps_bm = effective_sky_temperature(a["air_temperature_k"], a["relative_humidity"])
     assert atm.sky_emissivity == pytest.approx(float(eps_bm), abs=0.05)
     # effective temperature and emissivity are the same flux
-    assert STEFAN_BOLTZMANN * atm.sky_temperature_k ** 4 == pytest.approx(
-        atm.sky_emissivity * STEFAN_BOLTZMANN * a["air_temperature_k"] ** 4, rel=1e-9)
+    assert STEFAN_BOLTZMANN * atm.sky_temperature_k**4 == pytest.approx(
+        atm.sky_emissivity * STEFAN_BOLTZMANN * a["air_temperature_k"] ** 4, rel=1e-9
+    )
 
 
 @needs_lowtran
@@ -109,18 +111,19 @@ def test_paths_fall_with_range_and_obey_kirchhoff(humvvex_lowtran):
     sc, atm, _ = humvvex_lowtran
     wl = atm.wavelengths_um
     tau, rad = atm.path(None, atm.path_ranges_m)
-    assert np.all(np.diff(tau, axis=0) <= 1e-6)            # every wavelength, every range step
+    assert np.all(np.diff(tau, axis=0) <= 1e-6)  # every wavelength, every range step
     lw = (wl >= 8) & (wl <= 14)
     mean = tau[:, lw].mean(axis=1)
     assert mean[0] > 0.99 and mean[-1] < 0.3
     # isothermal, non-scattering path: L = (1 - tau) B(T_air) (LOWTRAN's own emission)
     bb = planck.spectral_radiance(wl, sc["atmosphere"]["air_temperature_k"])
     ir = wl > 2.5
-    np.testing.assert_allclose(np.trapz(rad[:, ir], wl[ir], axis=1),
-                               np.trapz(((1 - tau) * bb)[:, ir], wl[ir], axis=1), rtol=0.02)
+    np.testing.assert_allclose(
+        np.trapz(rad[:, ir], wl[ir], axis=1), np.trapz(((1 - tau) * bb)[:, ir], wl[ir], axis=1), rtol=0.02
+    )
     opaque = (tau[-1] < 1e-4) & ir
-    assert opaque.sum() > 5                                # CO2 4.3 um, 14 um edges
-    np.testing.assert_allclose(rad[-1, opaque], bb[opaque], rtol=0.01)   # units: W m-2 sr-1 um-1
+    assert opaque.sum() > 5  # CO2 4.3 um, 14 um edges
+    np.testing.assert_allclose(rad[-1, opaque], bb[opaque], rtol=0.01)  # units: W m-2 sr-1 um-1
     t0, r0 = atm.path(None, [0.0])
     assert np.all(t0 == 1.0) and np.all(r0 == 0.0)
 
@@ -130,8 +133,9 @@ def test_transmittance_falls_with_humidity():
     spec = lt.spectral_case(8.0, 14.0, 20.0)
     taus = []
     for rh in (0.2, 0.5, 0.8):
-        case = dict(lt.layer_case(293.15, rh, 101325.0, [0.0]), **spec, itype=1, iemsct=1,
-                    h1=0.0, range_km=1.0)
+        case = dict(
+            lt.layer_case(293.15, rh, 101325.0, [0.0]), **spec, itype=1, iemsct=1, h1=0.0, range_km=1.0
+        )
         taus.append(lt.run(case).transmittance.mean())
     assert taus[0] > taus[1] > taus[2]
     assert taus[0] - taus[2] > 0.05
@@ -142,13 +146,13 @@ def test_direct_sun_in_mwir(humvvex_lowtran):
     sc, atm, _ = humvvex_lowtran
     wl = atm.wavelengths_um
     e = atm.solar_spectral_irradiance([0.0])[0]
-    toa = np.pi * M.SUN_ANGULAR_RADIUS ** 2 * planck.spectral_radiance(wl, M.SUN_TEMPERATURE_K)
+    toa = np.pi * M.SUN_ANGULAR_RADIUS**2 * planck.spectral_radiance(wl, M.SUN_TEMPERATURE_K)
     mw = (wl >= 3.0) & (wl <= 5.0)
     ratio = e[mw] / toa[mw]
-    assert np.all(ratio <= 1.1) and ratio.max() > 0.6      # 3.8 um window ~0.85 at 53 deg
-    assert ratio[np.argmin(np.abs(wl[mw] - 4.3))] < 0.01   # CO2 band
+    assert np.all(ratio <= 1.1) and ratio.max() > 0.6  # 3.8 um window ~0.85 at 53 deg
+    assert ratio[np.argmin(np.abs(wl[mw] - 4.3))] < 0.01  # CO2 band
     band = np.trapz(e[mw], wl[mw])
-    assert 3.0 < band < 25.0                                # ~10.6 W m-2 at humvvex
+    assert 3.0 < band < 25.0  # ~10.6 W m-2 at humvvex
     eo = (wl >= 0.4) & (wl <= 0.7)
     sun = sun_at(sc, [0.0])
     assert 0.15 * sun.dni_w_m2[0] < np.trapz(e[eo], wl[eo]) < 0.6 * sun.dni_w_m2[0]
@@ -161,10 +165,10 @@ def test_lowtran_unavailable_falls_back_with_warning(humvvex_raw, monkeypatch, t
 
     def broken():
         raise lt.LowtranError("LOWTRAN7 unavailable: test")
+
     monkeypatch.setattr(lt, "_lowtran", broken)
     with pytest.warns(RuntimeWarning, match="analytic"):
         atm = M.atmosphere_for(validate(raw))
-    assert "warning" in capsys.readouterr().err
     assert atm.source == "analytic" and atm.ran["lowtran7"].startswith("failed")
     t_air = raw["atmosphere"]["air_temperature_k"]
     bt = _band_bt(atm.wavelengths_um, atm.sky_spectral_radiance([0.0, 60.0, 89.0]))
@@ -183,7 +187,8 @@ def test_analytic_model_checks(humvvex_raw):
     eps = directional_sky_emissivity(np.degrees(np.arccos(mu)), atm.sky_emissivity)
     assert 2 * np.trapz(eps * mu, mu) == pytest.approx(atm.sky_emissivity, abs=2e-3)
     assert atm.sky_emissivity == pytest.approx(
-        float(effective_sky_temperature(a["air_temperature_k"], a["relative_humidity"])[1]))
+        float(effective_sky_temperature(a["air_temperature_k"], a["relative_humidity"])[1])
+    )
     tau, _ = atm.path(None, [10.0, 100.0, 1000.0])
     assert np.all(np.diff(tau, axis=0) <= 0)
     raw["atmosphere"]["relative_humidity"] = 0.9
@@ -197,12 +202,11 @@ def test_only_what_the_scene_needs(humvvex_raw, monkeypatch, tmp_path):
     raw = copy.deepcopy(humvvex_raw)
     raw["atmosphere"]["model"] = "lowtran7"
     eo_only = copy.deepcopy(raw)
-    eo_only["sensor"] = [s for s in raw["sensor"] if s.get("band", "LWIR") == "EO"
-                         or "eo" in s["id"]]
+    eo_only["sensor"] = [s for s in raw["sensor"] if s.get("band", "LWIR") == "EO" or "eo" in s["id"]]
     assert eo_only["sensor"]
     before = lt.CALLS
     atm = M.atmosphere_for(validate(eo_only))
-    assert lt.CALLS == before                              # no infrared sensor: no LOWTRAN
+    assert lt.CALLS == before  # no infrared sensor: no LOWTRAN
     assert atm.ran["lowtran7"] == "skipped: no infrared sensor"
     assert atm.wavelengths_um.max() < 1.0
     none = copy.deepcopy(raw)
@@ -219,13 +223,14 @@ def test_only_what_the_scene_needs(humvvex_raw, monkeypatch, tmp_path):
 
 def _stage(*layers):
     from humv_usd.pipeline.compose import compose_in_memory
+
     return compose_in_memory(list(layers), 30.0)
 
 
 def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
     raw = copy.deepcopy(humvvex_raw)
-    raw["atmosphere"]["model"] = "analytic"    # fast; the LOWTRAN tables have the same shape
+    raw["atmosphere"]["model"] = "analytic"  # fast; the LOWTRAN tables have the same shape
     raw["general"]["duration_s"] = 2.0 / 30.0  # three frames
     sc = validate(raw)
     env, atm_layer = environment_layer.build(sc), atmosphere_layer.build(sc)
@@ -236,7 +241,8 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
         d = np.array(e.GetAttribute(S.ENVIRONMENT_SUN_DIRECTION).Get(f))
         np.testing.assert_allclose(d, sun.direction[f], atol=1e-6)
         assert e.GetAttribute(S.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE).Get(f) == pytest.approx(
-            sun.dni_w_m2[f], rel=1e-6)
+            sun.dni_w_m2[f], rel=1e-6
+        )
     assert e.GetAttribute(S.ENVIRONMENT_SUN_ZENITH).GetNumTimeSamples() == 3
     assert not e.GetAttribute(S.ENVIRONMENT_AIR_TEMPERATURE).GetNumTimeSamples()  # constant
     a = stage.GetPrimAtPath("/World/Atmosphere")
@@ -254,7 +260,7 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
         assert p.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Get() == f"/World/Sensors/{p.GetName()}"
         r = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Get())
         tau = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Get())
-        assert r[0] <= 1.0 and r[-1] >= 30.0 and np.all(np.diff(r) > 0)   # beyond the 25 m scene
+        assert r[0] <= 1.0 and r[-1] >= 30.0 and np.all(np.diff(r) > 0)  # beyond the 25 m scene
         assert tau.size == r.size * wl.size and tau.max() <= 1.0
     ran = atm_layer.customLayerData["humv:atmosphere:ran"]
     assert ran["lowtran7"].startswith("skipped") and "sky" in ran
@@ -293,10 +299,11 @@ def test_direct_mwir_sun_dims_with_haze(humvvex_raw, lowtran_cache, monkeypatch)
     zen = sun_at(validate(humvvex_raw), [0.0]).zenith_deg[0]
     m = float(pvlib.atmosphere.get_relative_airmass(zen, model="kasten1966"))
     at = np.argmin(np.abs(wl - 3.8))
-    expected = np.exp(-(aerosol_extinction(wl[at], 5.0) - aerosol_extinction(wl[at], 23.0))
-                      * M.AEROSOL_SCALE_HEIGHT_M * m)
+    expected = np.exp(
+        -(aerosol_extinction(wl[at], 5.0) - aerosol_extinction(wl[at], 23.0)) * M.AEROSOL_SCALE_HEIGHT_M * m
+    )
     assert clear[at] > 0 and abs(hazy[at] / clear[at] - expected) < 1e-6
-    assert expected < 0.97                                   # a visible effect at 5 km
+    assert expected < 0.97  # a visible effect at 5 km
 
 
 @needs_lowtran
@@ -312,7 +319,7 @@ def test_layer_text_does_not_depend_on_the_cache(humvvex_raw, monkeypatch, tmp_p
     sc = validate(raw)
     before = lt.CALLS
     cold = layer_text(atmosphere_layer.build(sc))
-    assert lt.CALLS > before                                # the cache was empty: LOWTRAN ran
+    assert lt.CALLS > before  # the cache was empty: LOWTRAN ran
     warm = layer_text(atmosphere_layer.build(sc))
     assert cold == warm and ": hit" not in cold and ": miss" not in cold
 
@@ -328,22 +335,24 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
 
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
     csv = tmp_path / "w.csv"
-    csv.write_text("time,relative_humidity\n2018-10-24T14:05:00,0.2\n"
-                   "2018-10-24T15:05:00,0.55\n2018-10-24T16:05:00,0.9\n")
+    csv.write_text(
+        "time,relative_humidity\n2018-10-24T14:05:00,0.2\n2018-10-24T15:05:00,0.55\n2018-10-24T16:05:00,0.9\n"
+    )
     raw = copy.deepcopy(humvvex_raw)
     raw["atmosphere"].update(model="lowtran7", weather_csv=str(csv))
-    raw["general"].update(duration_s=7200.0, fps=0.01)      # 73 frames, 100 s apart
+    raw["general"].update(duration_s=7200.0, fps=0.01)  # 73 frames, 100 s apart
     raw["sensor"] = [s for s in raw["sensor"] if s["id"] == "lwir640"]
     sc = validate(raw)
     before = lt.CALLS
     layer = atmosphere_layer.build(sc)
     runs = lt.CALLS - before
     from humv_usd.pipeline.compose import compose_in_memory
+
     stage = compose_in_memory([sensors_layer.build(sc), layer], 0.01)
     a = stage.GetPrimAtPath("/World/Atmosphere")
     p = stage.GetPrimAtPath(atmosphere_layer.PATHS.AppendChild("lwir640"))
     tau_attr = p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE)
-    assert tau_attr.GetTimeSamples() == [0.0, 36.0, 72.0]        # the weather nodes' frames
+    assert tau_attr.GetTimeSamples() == [0.0, 36.0, 72.0]  # the weather nodes' frames
     wl = np.array(a.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())
     ranges = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Get())
     band = (wl >= 8.0) & (wl <= 12.0)
@@ -354,11 +363,11 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
 
     def sky_bt(f):
         sky = np.array(a.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Get(f))
-        return _band_bt(wl, sky.reshape(-1, wl.size)[0])         # zenith
+        return _band_bt(wl, sky.reshape(-1, wl.size)[0])  # zenith
 
-    assert tau(72) < tau(0) - 0.01                               # wetter air, more absorption
-    assert sky_bt(72) > sky_bt(0) + 2.0                          # and a warmer (brighter) sky
-    assert tau(0) > tau(18) > tau(36)                            # USD: linear between nodes
+    assert tau(72) < tau(0) - 0.01  # wetter air, more absorption
+    assert sky_bt(72) > sky_bt(0) + 2.0  # and a warmer (brighter) sky
+    assert tau(0) > tau(18) > tau(36)  # USD: linear between nodes
     assert tau(18) == pytest.approx(0.5 * (tau(0) + tau(36)), rel=1e-5)
     # the render's reader gets the time samples
     reader = StageExport(stage)
@@ -366,8 +375,9 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     table0, table72 = reader.path_table(sensor, 0.0), reader.path_table(sensor, 72.0)
     assert not np.allclose(table0.transmittance, table72.transmittance)
     spectra = reader.atmosphere_spectra(72.0)
-    np.testing.assert_allclose(spectra.sky_radiance.ravel(),
-                               a.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Get(72))
+    np.testing.assert_allclose(
+        spectra.sky_radiance.ravel(), a.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Get(72)
+    )
     # broadband sky: samples for the render, frame-0 default for the thermal tool
     eps = a.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY)
     assert eps.Get(72) > eps.Get(0) == eps.Get()

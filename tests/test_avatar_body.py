@@ -1,4 +1,5 @@
-"""Avatar body: MakeHuman macro targets fitted to stature and mass (humv_usd.avatar.body)."""
+"""Avatar body: MakeHuman macro targets fitted to stature and mass (humv_usd.human.body)."""
+
 from __future__ import annotations
 
 import time
@@ -15,9 +16,8 @@ try:
 except MissingAssetError as exc:  # pragma: no cover - data fetched by `make setup`
     pytest.skip(str(exc), allow_module_level=True)
 
-from humv_usd.avatar import macro as M  # noqa: E402
-from humv_usd.avatar.body import (  # noqa: E402
-    body_fat_pct, build_body, build_to_muscle, dubois_bsa, siri_density, to_usd)
+from humv_usd.human import macro as M  # noqa: E402
+from humv_usd.human.body import body_fat_pct, build_body, build_to_muscle, dubois_bsa, siri_density, to_usd  # noqa: E402
 
 SEXES = ("female", "male")
 STATURES = (1.5, 1.75, 2.0)
@@ -26,8 +26,7 @@ MASSES = (50.0, 80.0, 110.0)
 
 @pytest.fixture(scope="module")
 def grid():
-    return {(sex, h, m): build_body(sex, 30.0, h, m)
-            for sex in SEXES for h in STATURES for m in MASSES}
+    return {(sex, h, m): build_body(sex, 30.0, h, m) for sex in SEXES for h in STATURES for m in MASSES}
 
 
 # ---------------------------------------------------------------------------- data layout
@@ -46,8 +45,10 @@ def test_target_weights_follow_makehuman_scheme():
     race = {k: v for k, v in w.items() if "/universal-" not in k and "/height/" not in k}
     assert len(race) == 6 and sum(race.values()) == pytest.approx(1.0)  # 3 races x 2 genders
     univ = {k: v for k, v in w.items() if "/universal-" in k}
-    assert set(univ) == {f"targets/macrodetails/universal-{g}-young-averagemuscle-averageweight"
-                         ".target.gz" for g in ("female", "male")}
+    assert set(univ) == {
+        f"targets/macrodetails/universal-{g}-young-averagemuscle-averageweight.target.gz"
+        for g in ("female", "male")
+    }
     assert sum(univ.values()) == pytest.approx(1.0)
     assert not any("/height/" in k or "/proportions/" in k for k in w)  # 0.5 = no file
     # male, 57.5 yr (age 0.75), muscle 0.25, weight 0.9, height 1: products of linear factors
@@ -118,7 +119,7 @@ def test_points_are_makehuman_model(grid):
 def test_stature_outside_height_macro_uses_uniform_scale():
     tall = build_body("female", 30, 2.45, 120)  # height macro tops out at ~2.31 m
     assert tall.uniform_scale > 1.0 and tall.macros.height == 1.0
-    small = build_body("male", 30, 1.2, 30)   # bottoms out at ~1.36 m
+    small = build_body("male", 30, 1.2, 30)  # bottoms out at ~1.36 m
     assert small.uniform_scale < 1.0 and small.macros.height == 0.0
     for b, h, m in ((tall, 2.45, 120), (small, 1.2, 30)):
         assert abs(b.stature_m / h - 1) < 0.01 and abs(b.mass_kg / m - 1) < 0.05
@@ -154,8 +155,9 @@ def test_body_mesh_closed_and_volume_positive(grid):
     assert len(np.unique(keys)) == len(keys)
     assert np.array_equal(np.sort(keys), np.sort(rev))
     part = b.body_mesh()
-    tri = np.concatenate([part.face_indices.reshape(-1, 4)[:, [0, 1, 2]],
-                          part.face_indices.reshape(-1, 4)[:, [0, 2, 3]]])
+    tri = np.concatenate(
+        [part.face_indices.reshape(-1, 4)[:, [0, 1, 2]], part.face_indices.reshape(-1, 4)[:, [0, 2, 3]]]
+    )
     mesh = trimesh.Trimesh(part.points, tri, process=False)
     assert mesh.is_watertight and mesh.is_winding_consistent
     assert b.volume_m3 > 0
@@ -171,7 +173,7 @@ def test_surface_area_vs_du_bois(grid):
     checked = 0
     for (sex, h, m), b in grid.items():
         ratio = b.body_surface_area_m2 / dubois_bsa(m, h)
-        if 16 <= m / h ** 2 <= 36:
+        if 16 <= m / h**2 <= 36:
             assert abs(ratio - 1) < 0.10, (sex, h, m, ratio)
             checked += 1
         else:
@@ -193,7 +195,7 @@ def _vertex_band(lo: float, hi: float, max_abs_x: float) -> np.ndarray:
 
 
 def test_female_and_male_differ():
-    hips = _vertex_band(0.46, 0.52, 0.20)       # pelvis/hips, clear of the hands
+    hips = _vertex_band(0.46, 0.52, 0.20)  # pelvis/hips, clear of the hands
     shoulders = _vertex_band(0.80, 0.84, 0.30)  # shoulders with the deltoids
     ratio = {}
     for sex in SEXES:
@@ -222,8 +224,7 @@ def test_helper_tights_move_with_body():
     for args in (("female", 25, 2.0, 110.0), ("male", 60, 1.5, 50.0), ("female", 8, 1.3, 26)):
         b = build_body(*args)
         tights = b.helper("tights")
-        assert tights.vertex_ids.size > 2000 and b.helper("helper-tights").points.shape == \
-            tights.points.shape
+        assert tights.vertex_ids.size > 2000 and b.helper("helper-tights").points.shape == tights.points.shape
         dist, _ = cKDTree(b.body_mesh().points).query(tights.points)
         assert dist.max() < 0.04, (args, dist.max())  # still hugging the skin
         base = to_usd(verts)[tights.vertex_ids]
@@ -239,6 +240,6 @@ def test_density_siri_deurenberg(grid):
     assert body_fat_pct("female", 10, 17) == pytest.approx(1.51 * 17 - 7 + 1.4)  # child form
     assert body_fat_pct("male", 30, 80) == 60.0  # clipped
     b = grid["female", 1.75, 80.0]
-    bmi = 80 / 1.75 ** 2
+    bmi = 80 / 1.75**2
     assert b.body_fat_pct == pytest.approx(1.2 * bmi + 0.23 * 30 - 5.4)
     assert 1000 < b.density_kg_m3 < 1100

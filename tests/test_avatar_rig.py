@@ -2,10 +2,11 @@
 
 A non-trivial pose (root turned and moved, left knee bent, right arm raised, spine bent) is
 authored through ``avatar.layer.build_one(..., motion=...)``; UsdSkel's skinning of the layer
-must reproduce :func:`humv_usd.avatar.skeleton.linear_blend_skinning` to 1 mm and Blender's
+must reproduce :func:`humv_usd.human.skeleton.linear_blend_skinning` to 1 mm and Blender's
 armature (``bpy.ops.wm.usd_import``, in a child process so Blender's state stays out of the
 test session) our forward kinematics to 1 cm.
 """
+
 from __future__ import annotations
 
 import copy
@@ -20,18 +21,24 @@ import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom, UsdSkel
 
-from humv_usd.avatar.gait import axis_angle_quat
 from humv_usd.assets import makehuman_dir
 from humv_usd.avatar import layer as avatar_layer
-from humv_usd.avatar import usdskel
-from humv_usd.avatar.body import build_body
-from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning, skeleton_for,
-                                      skin_weights, skinning_matrices)
+from humv_usd.human import usdskel
+from humv_usd.human.body import build_body
+from humv_usd.human.gait import axis_angle_quat
+from humv_usd.human.skeleton import (
+    forward_kinematics,
+    linear_blend_skinning,
+    skeleton_for,
+    skin_weights,
+    skinning_matrices,
+)
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
 
-pytestmark = pytest.mark.skipif(not (makehuman_dir() / "rigs").is_dir(),
-                                reason="MakeHuman data not fetched (make setup)")
+pytestmark = pytest.mark.skipif(
+    not (makehuman_dir() / "rigs").is_dir(), reason="MakeHuman data not fetched (make setup)"
+)
 
 POSITION = (1.5, -2.0, 0.25)
 HEADING_DEG = 120.0
@@ -61,7 +68,7 @@ def scenario(humvvex_raw):
     raw = copy.deepcopy(humvvex_raw)
     raw["placement"][0]["position_m"] = list(POSITION)
     raw["placement"][0]["heading_deg"] = HEADING_DEG
-    raw["general"]["duration_s"] = 2 / 30          # frames 0..2
+    raw["general"]["duration_s"] = 2 / 30  # frames 0..2
     return validate(raw)
 
 
@@ -75,11 +82,18 @@ def rig(scenario):
     motion = posed_motion(skel)
     world = forward_kinematics(skel, motion.local_rotations, motion.root_translation)
     skin = skinning_matrices(skel, world)
-    ours = np.stack([linear_blend_skinning(mesh.points, idx, w, skin[f])
-                     for f in range(motion.frame_count)])
+    ours = np.stack([linear_blend_skinning(mesh.points, idx, w, skin[f]) for f in range(motion.frame_count)])
     layer = avatar_layer.build_one(scenario, h, motion=motion)
-    return dict(body=body, skel=skel, mesh=mesh, motion=motion, world=world, ours=ours,
-                layer=layer, stage=Usd.Stage.Open(layer))
+    return dict(
+        body=body,
+        skel=skel,
+        mesh=mesh,
+        motion=motion,
+        world=world,
+        ours=ours,
+        layer=layer,
+        stage=Usd.Stage.Open(layer),
+    )
 
 
 def placement_matrix() -> np.ndarray:
@@ -102,8 +116,10 @@ def test_layer_is_a_usdskel_avatar(rig):
     root = stage.GetPrimAtPath("/World/Humans/p1")
     assert root.IsA(UsdSkel.Root)
     assert root.HasAPI(S.AVATAR_API) and root.HasAPI(S.LABEL_API)
-    assert list(UsdGeom.Xformable(root).GetXformOpOrderAttr().Get()) == ["xformOp:translate",
-                                                                         "xformOp:rotateZ"]
+    assert list(UsdGeom.Xformable(root).GetXformOpOrderAttr().Get()) == [
+        "xformOp:translate",
+        "xformOp:rotateZ",
+    ]
     m = np.asarray(UsdGeom.Xformable(root).ComputeLocalToWorldTransform(Usd.TimeCode(0))).T
     np.testing.assert_allclose(m, placement_matrix(), atol=1e-9)
 
@@ -114,8 +130,9 @@ def test_layer_is_a_usdskel_avatar(rig):
     np.testing.assert_allclose(bind[:, 3, :3], skel.rest_positions, atol=1e-9)
     np.testing.assert_allclose(rest[:, 3, :3], skel.rest_local_translations, atol=1e-9)
     np.testing.assert_allclose(bind[:, :3, :3], np.tile(np.eye(3), (31, 1, 1)))
-    assert [str(t) for t in UsdSkel.BindingAPI(sk.GetPrim()).GetAnimationSourceRel().GetTargets()] \
-        == ["/World/Humans/p1/Motion"]
+    assert [str(t) for t in UsdSkel.BindingAPI(sk.GetPrim()).GetAnimationSourceRel().GetTargets()] == [
+        "/World/Humans/p1/Motion"
+    ]
 
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Humans/p1/Motion"))
     assert list(anim.GetJointsAttr().Get()) == skel.paths
@@ -138,11 +155,10 @@ def test_layer_is_a_usdskel_avatar(rig):
 
 
 def test_rest_motion_stands_at_rest(scenario, rig):
-    layer = avatar_layer.build_one(scenario, scenario["human"][0],
-                                   motion=usdskel.rest_motion(rig["skel"]))
+    layer = avatar_layer.build_one(scenario, scenario["human"][0], motion=usdskel.rest_motion(rig["skel"]))
     stage = Usd.Stage.Open(layer)
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Humans/p1/Motion"))
-    assert anim.GetRotationsAttr().GetTimeSamples() == [0.0]      # held for every frame
+    assert anim.GetRotationsAttr().GetTimeSamples() == [0.0]  # held for every frame
     for frame in (0, 2):
         pts = usdskel.skinned_points(stage, "/World/Humans/p1/Body", Usd.TimeCode(frame))
         np.testing.assert_allclose(pts, rig["mesh"].points, atol=1e-6)
@@ -162,25 +178,22 @@ def test_bad_motion_is_rejected(scenario, rig):
 def test_usdskel_skinning_matches_ours(rig):
     """UsdSkel (Cache + SkinningQuery.ComputeSkinnedPoints) vs our LBS, < 1 mm every frame."""
     stage, ours = rig["stage"], rig["ours"]
-    assert np.abs(ours[1] - rig["mesh"].points).max() > 0.3      # the pose is non-trivial
+    assert np.abs(ours[1] - rig["mesh"].points).max() > 0.3  # the pose is non-trivial
     worst = 0.0
     for frame in range(len(ours)):
         pts = usdskel.skinned_points(stage, "/World/Humans/p1/Body", Usd.TimeCode(frame))
         worst = max(worst, float(np.linalg.norm(pts - ours[frame], axis=1).max()))
-        world = usdskel.skinned_points(stage, "/World/Humans/p1/Body", Usd.TimeCode(frame),
-                                       space="world")
+        world = usdskel.skinned_points(stage, "/World/Humans/p1/Body", Usd.TimeCode(frame), space="world")
         np.testing.assert_allclose(world, to_world(ours[frame]), atol=1e-3)
     print(f"UsdSkel vs ours: max {worst * 1e3:.2e} mm")
     assert worst < 1e-3
     # the joints too: UsdSkel's skel-space joint transforms are our FK
     cache = UsdSkel.Cache()
-    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath("/World/Humans/p1")),
-                   Usd.PrimDefaultPredicate)
+    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath("/World/Humans/p1")), Usd.PrimDefaultPredicate)
     query = cache.GetSkelQuery(UsdSkel.Skeleton(stage.GetPrimAtPath("/World/Humans/p1/Skeleton")))
     for frame in range(len(ours)):
         joints = np.asarray(query.ComputeJointSkelTransforms(Usd.TimeCode(frame)))
-        np.testing.assert_allclose(np.transpose(joints, (0, 2, 1)), rig["world"][frame],
-                                   atol=1e-5)
+        np.testing.assert_allclose(np.transpose(joints, (0, 2, 1)), rig["world"][frame], atol=1e-5)
 
 
 # --------------------------------------------------------------------------------- Blender
@@ -215,8 +228,13 @@ def test_blender_imports_armature_and_action(rig, tmp_path):
     start = time.perf_counter()
     path = tmp_path / "avatar.usda"
     rig["layer"].Export(str(path))
-    proc = subprocess.run([sys.executable, "-c", BLENDER_SCRIPT, str(path), "0,1,2"],
-                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    proc = subprocess.run(
+        [sys.executable, "-c", BLENDER_SCRIPT, str(path), "0,1,2"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     (line,) = [x for x in proc.stdout.splitlines() if x.startswith("RESULT ")]
     result = json.loads(line.removeprefix("RESULT "))
@@ -229,22 +247,25 @@ def test_blender_imports_armature_and_action(rig, tmp_path):
         ours = to_world(world[int(frame), :, :3, 3])
         theirs = np.array([heads[name] for name in skel.names])
         worst = max(worst, float(np.linalg.norm(theirs - ours, axis=1).max()))
-    print(f"Blender vs ours: max {worst * 1e3:.2e} mm over 31 bone heads x 3 frames; "
-          f"{time.perf_counter() - start:.1f} s")
+    print(
+        f"Blender vs ours: max {worst * 1e3:.2e} mm over 31 bone heads x 3 frames; "
+        f"{time.perf_counter() - start:.1f} s"
+    )
     assert worst < 0.01
 
 
 # --------------------------------------------------------------------------------- render
+@pytest.mark.slow
 def test_render_poses_the_avatar_per_frame(humvvex_raw, tmp_path):
     """The person's instance-id pixels follow the animation (UsdSkel posing in render)."""
     import OpenImageIO as oiio
 
     from humv_usd.pipeline.compose import compose
-    from humv_usd.render import render_stage
+    from humv_usd.pipeline.render import render_stage
     from humv_usd.usd.check import check_stage
 
     raw = copy.deepcopy(humvvex_raw)
-    raw["general"]["duration_s"] = 1 / 30                          # frames 0, 1
+    raw["general"]["duration_s"] = 1 / 30  # frames 0, 1
     raw["sensor"][0].update(resolution=[96, 64], pixel_pitch_um=100.0)
     scenario = validate(raw)
     out = tmp_path / "out"
@@ -254,7 +275,7 @@ def test_render_poses_the_avatar_per_frame(humvvex_raw, tmp_path):
     skel = skeleton_for(body.points, body.groups)
     motion = usdskel.rest_motion(skel, frames=2)
     shift_m = 0.8
-    motion.root_translation[1, 0] += shift_m                     # heading 180: avatar x = world x
+    motion.root_translation[1, 0] += shift_m  # heading 180: avatar x = world x
     avatar_layer.build_one(scenario, h, motion=motion).Export(str(out / "layers/avatar_p1.usda"))
     assert check_stage(out / "stage.usda") == []
 
@@ -285,8 +306,7 @@ def test_render_export_rejects_broken_skinning(rig):
     layer.TransferContent(rig["layer"])
     stage = Usd.Stage.Open(layer)
     body = stage.GetPrimAtPath("/World/Humans/p1/Body")
-    UsdSkel.BindingAPI(body).GetJointIndicesPrimvar().Set(
-        Vt.IntArray([99] * (4 * len(rig["mesh"].points))))
+    UsdSkel.BindingAPI(body).GetJointIndicesPrimvar().Set(Vt.IntArray([99] * (4 * len(rig["mesh"].points))))
     exporter = StageExport(stage)
     assert list(exporter._skinned) == ["/World/Humans/p1/Body"]
     with pytest.raises(InputError, match="/World/Humans/p1/Body.primvars:skel:jointIndices"):
@@ -301,6 +321,6 @@ def test_without_motion_the_activity_moves_the_avatar(scenario):
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Humans/p1/Motion"))
     assert anim.GetRotationsAttr().GetTimeSamples() == [0.0, 1.0, 2.0]
     root = stage.GetPrimAtPath("/World/Humans/p1")
-    assert 80.0 < root.GetAttribute(S.AVATAR_METABOLIC_RATE).Get(0) < 250.0   # ~1.3 met
+    assert 80.0 < root.GetAttribute(S.AVATAR_METABOLIC_RATE).Get(0) < 250.0  # ~1.3 met
     contact = root.GetCustomDataByKey("humv:contact")
     assert contact["max_gap_m"] <= 0.01 and contact["max_penetration_m"] <= 0.01

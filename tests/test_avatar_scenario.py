@@ -1,4 +1,5 @@
 """Scenario keys that drive the avatar's motion: speed, waypoints, a BVH file."""
+
 from __future__ import annotations
 
 import copy
@@ -6,14 +7,13 @@ import tomllib
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from pxr import Usd, UsdGeom, UsdSkel
 
 from humv_usd.avatar import layer as avatar_layer
-from humv_usd.avatar.usdskel import skinned_points
 from humv_usd.errors import InputError
+from humv_usd.human.usdskel import skinned_points
 from humv_usd.scenario import validate
-
-from conftest import ROOT
 
 BVH = ROOT / "tests" / "data" / "knee_bend_cmu.bvh"
 
@@ -26,7 +26,8 @@ def walk_raw():
 def body_centre(stage, frame):
     pts = skinned_points(stage, "/World/Humans/p1/Body", Usd.TimeCode(frame))
     xf = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Humans/p1")).ComputeLocalToWorldTransform(
-        Usd.TimeCode(frame))
+        Usd.TimeCode(frame)
+    )
     return np.asarray(xf.Transform(tuple(float(v) for v in pts.mean(axis=0))))
 
 
@@ -37,9 +38,9 @@ def test_walk_follows_waypoints(walk_raw):
     s = validate(raw)
     stage = Usd.Stage.Open(avatar_layer.build_one(s, s["human"][0]))
     start, turn, later = (body_centre(stage, f) for f in (0, 20, 50))
-    assert start[:2] == pytest.approx([-1.4, 0.0], abs=0.15)       # the placement
-    assert abs(turn[0]) < 0.3                                      # rounded the corner at (0, 0)
-    assert abs(later[0]) < 0.1 and later[1] > 1.5                  # heading north along x = 0
+    assert start[:2] == pytest.approx([-1.4, 0.0], abs=0.15)  # the placement
+    assert abs(turn[0]) < 0.3  # rounded the corner at (0, 0)
+    assert abs(later[0]) < 0.1 and later[1] > 1.5  # heading north along x = 0
     # 1.4 m/s: the path length covered matches the speed
     assert np.linalg.norm(later[:2] - turn[:2]) == pytest.approx(1.4 * 30 / 15, rel=0.2)
 
@@ -61,8 +62,10 @@ def test_bvh_motion_from_scenario(walk_raw, tmp_path):
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/World/Humans/p1/Motion"))
     assert len(anim.GetRotationsAttr().GetTimeSamples()) == s.frame_count
     # the knee bend: the hips drop during the clip
-    z = [skinned_points(stage, "/World/Humans/p1/Body", Usd.TimeCode(f))[:, 2].max()
-         for f in (0, s.frame_count // 2)]
+    z = [
+        skinned_points(stage, "/World/Humans/p1/Body", Usd.TimeCode(f))[:, 2].max()
+        for f in (0, s.frame_count // 2)
+    ]
     assert z[1] < z[0] - 0.05
 
 

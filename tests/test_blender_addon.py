@@ -4,6 +4,7 @@ Blender runs in a separate process of the venv's Python (``import bpy``), so its
 leak into the test session, with every Blender user folder (scripts, config, …) in a temporary
 folder so that installing the add-on does not touch the machine's Blender set-up.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -16,15 +17,16 @@ import time
 import zipfile
 
 import pytest
+from conftest import ROOT
 from pxr import Usd
 
 from humv_usd.usd import schemas as S
 
-from conftest import ROOT
-
 # find_spec, not importorskip: bpy is never imported into the test session itself
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("bpy") is None,
-                                reason="needs Blender as a Python module: pip install '.[blender]'")
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("bpy") is None,
+    reason="needs Blender as a Python module: pip install '.[blender]'",
+)
 
 SCRIPT = textwrap.dedent("""
     import json, sys
@@ -68,27 +70,40 @@ SCRIPT = textwrap.dedent("""
     print("RESULT " + json.dumps(result))
 """)
 
-BLENDER_USER_VARS = ("BLENDER_USER_RESOURCES", "BLENDER_USER_SCRIPTS", "BLENDER_USER_CONFIG",
-                     "BLENDER_USER_DATAFILES", "BLENDER_USER_EXTENSIONS")
+BLENDER_USER_VARS = (
+    "BLENDER_USER_RESOURCES",
+    "BLENDER_USER_SCRIPTS",
+    "BLENDER_USER_CONFIG",
+    "BLENDER_USER_DATAFILES",
+    "BLENDER_USER_EXTENSIONS",
+)
 
 
 @pytest.mark.slow
 def test_addon_installs_builds_and_imports_the_avatar(tmp_path):
     start = time.perf_counter()
     zip_path = tmp_path / "dist" / "humv_usd_avatar.zip"
-    subprocess.run([sys.executable, str(ROOT / "tools" / "build_blender_addon.py"),
-                    "-o", str(zip_path)], check=True, capture_output=True, text=True)
+    subprocess.run(
+        [sys.executable, str(ROOT / "tools" / "build_blender_addon.py"), "-o", str(zip_path)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     with zipfile.ZipFile(zip_path) as zf:
         assert "humv_usd_avatar/__init__.py" in zf.namelist()
 
     user = tmp_path / "blender_user"
-    env = dict(os.environ, **{var: str(user / var.rsplit("_", 1)[-1].lower())
-                              for var in BLENDER_USER_VARS})
+    env = dict(os.environ, **{var: str(user / var.rsplit("_", 1)[-1].lower()) for var in BLENDER_USER_VARS})
     out = tmp_path / "layers" / "anna.usda"
     bad = tmp_path / "layers" / "anna.txt"
-    proc = subprocess.run([sys.executable, "-c", SCRIPT, str(zip_path), str(out), str(bad),
-                           str(user)], env=env, cwd=tmp_path, capture_output=True, text=True,
-                          timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(zip_path), str(out), str(bad), str(user)],
+        env=env,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     (line,) = [x for x in proc.stdout.splitlines() if x.startswith("RESULT ")]
     result = json.loads(line.removeprefix("RESULT "))

@@ -1,4 +1,5 @@
 """check: USD validators and HumV layer rules find what is broken."""
+
 from __future__ import annotations
 
 import shutil
@@ -32,11 +33,12 @@ def test_clean(out):
 def test_wrong_temperature_count_and_range(out):
     def broken(stage):
         prim = stage.GetPrimAtPath("/World/Scene/Ground")
-        UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature").Set(
-            Vt.FloatArray([300.0] * 3))
+        UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature").Set(Vt.FloatArray([300.0] * 3))
         prim = stage.GetPrimAtPath("/World/Scene/warehouse")
         UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature").Set(
-            Vt.FloatArray([300.0] * 5 + [float("nan")]))
+            Vt.FloatArray([300.0] * 5 + [float("nan")])
+        )
+
     edit_layer(out / "layers" / "thermal.usda", broken)
     found = check_stage(out / "stage.usda")
     assert any("/World/Scene/Ground: 3 values for 256 faces" in f for f in found)

@@ -1,28 +1,32 @@
 """Clothing: catalogue, fabrics, fitting on three bodies, intersection fix, skinning, layer."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import quat_x, ramp_pose
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
-from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.avatar import layer as avatar_layer
-from humv_usd.avatar.body import build_body
-from humv_usd.avatar.skeleton import forward_kinematics, skinning_matrices
-from humv_usd.avatar.usdskel import skinned_points
+from humv_usd.catalog.garments import GARMENTS, OUTFITS, fabrics, garment
+from humv_usd.catalog.materials import FABRICS, LIBRARY, WAVELENGTHS_UM
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.collide import apply, blend_transforms, dress, simulate
 from humv_usd.clothing.fit import prepare
-from humv_usd.clothing.garments import GARMENTS, OUTFITS, fabrics, garment
-from humv_usd.clothing.geometry import RayCaster, Surface, closest_on_triangles
+from humv_usd.geometry.mesh import RayCaster, Surface, closest_on_triangles
+from humv_usd.human.body import build_body
+from humv_usd.human.skeleton import forward_kinematics, skinning_matrices
+from humv_usd.human.usdskel import skinned_points
 from humv_usd.materials import layer as materials_layer
-from humv_usd.materials.library import FABRICS, LIBRARY, WAVELENGTHS_UM
+from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.scenario.load import validate
 from humv_usd.usd import schemas as S
-from conftest import quat_x, ramp_pose
 
-BODIES = {"female_160_55": ("female", 1.60, 55.0), "male_178_80": ("male", 1.78, 80.0),
-          "male_190_105": ("male", 1.90, 105.0)}
+BODIES = {
+    "female_160_55": ("female", 1.60, 55.0),
+    "male_178_80": ("male", 1.78, 80.0),
+    "male_190_105": ("male", 1.90, 105.0),
+}
 TOL = 1e-6  # [m] float round-off allowance in distance checks
 
 
@@ -45,8 +49,17 @@ def _pose(skeleton, bends: dict[str, float], frames: int = 1) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- catalogue
 def test_catalogue_names_fabrics_and_seed_outfits():
-    assert {"tshirt_white", "tshirt_black", "longsleeve", "shorts", "leggings", "trousers",
-            "jacket", "robe", "cap"} <= set(GARMENTS)
+    assert {
+        "tshirt_white",
+        "tshirt_black",
+        "longsleeve",
+        "shorts",
+        "leggings",
+        "trousers",
+        "jacket",
+        "robe",
+        "cap",
+    } <= set(GARMENTS)
     assert garment("tshirt").name == "tshirt_white"
     with pytest.raises(ValueError, match="unknown garment 'toga'.*tshirt_white"):
         garment("toga")
@@ -56,8 +69,7 @@ def test_catalogue_names_fabrics_and_seed_outfits():
     assert garment("tshirt_white").fabric != garment("tshirt_black").fabric
     assert garment("jacket").fabric == "camouflage_nyco"
     assert {n for names in OUTFITS.values() for n in names} <= set(GARMENTS)
-    assert fabrics(["jacket", "uniform_trousers", "tshirt"]) == ["camouflage_nyco",
-                                                                 "cotton_white"]
+    assert fabrics(["jacket", "uniform_trousers", "tshirt"]) == ["camouflage_nyco", "cotton_white"]
 
 
 def test_fabrics_have_sources_and_plausible_spectra():
@@ -69,13 +81,11 @@ def test_fabrics_have_sources_and_plausible_spectra():
         assert "Belliveau" in m.source or "Bauer" in m.source, name
         assert "Morton & Hearle" in m.source and len(m.source) > 200
         eps = np.array(m.emissivity)[lwir]
-        assert np.all((eps >= 0.85) & (eps <= 0.92)), (name, eps)   # measured 0.87-0.90
+        assert np.all((eps >= 0.85) & (eps <= 0.92)), (name, eps)  # measured 0.87-0.90
         assert 0.02 < m.conductivity < 0.1 and 100 < m.density < 700
         assert 1000 <= m.specific_heat <= 1500 and 0 < m.thickness <= 0.003
-    assert FABRICS["cotton_white"].reflectance[vis] > 0.7 > 0.1 > FABRICS[
-        "cotton_black"].reflectance[vis]
-    assert FABRICS["cotton_black"].solar_absorptivity > 2 * FABRICS[
-        "cotton_white"].solar_absorptivity
+    assert FABRICS["cotton_white"].reflectance[vis] > 0.7 > 0.1 > FABRICS["cotton_black"].reflectance[vis]
+    assert FABRICS["cotton_black"].solar_absorptivity > 2 * FABRICS["cotton_white"].solar_absorptivity
 
 
 # ---------------------------------------------------------------------------- geometry
@@ -90,8 +100,11 @@ def test_closest_point_matches_brute_force():
     u, v = np.meshgrid(np.linspace(0, 1, 81), np.linspace(0, 1, 81))
     keep = u + v <= 1
     u, v = u[keep], v[keep]
-    samples = (a[:, None] * (1 - u - v)[None, :, None] + b[:, None] * u[None, :, None]
-               + c[:, None] * v[None, :, None])
+    samples = (
+        a[:, None] * (1 - u - v)[None, :, None]
+        + b[:, None] * u[None, :, None]
+        + c[:, None] * v[None, :, None]
+    )
     brute = np.linalg.norm(samples - p[:, None], axis=2).min(axis=1)
     assert np.all(got <= brute + 1e-12)
     assert np.all(brute - got < 0.02 * np.linalg.norm(b - a, axis=1) + 1e-9)
@@ -112,6 +125,7 @@ def test_body_closest_point_matches_brute_force(rigs):
 
 
 # ---------------------------------------------------------------------------- fitting
+@pytest.mark.slow
 def test_every_garment_fits_three_bodies(rigs):
     """Rest pose: after the fix no vertex is inside the skin (closest-point sign AND an
     independent ray-parity test) and the air gap never drops below the minimum gap."""
@@ -121,7 +135,7 @@ def test_every_garment_fits_three_bodies(rigs):
         skin = _pose(rig.skeleton, {}, frames=0)
         for name in GARMENTS:
             if GARMENTS[name].is_prop:
-                continue        # props are placed for the carry pose: tests/test_carry.py
+                continue  # props are placed for the carry pose: tests/test_carry.py
             sim = simulate(dress(rig, [name]), skin)
             anim = sim.garments[0]
             c = anim.counts[0]
@@ -132,12 +146,19 @@ def test_every_garment_fits_three_bodies(rigs):
             assert rig.surface.closest(fixed).signed.min() >= gap - TOL, (key, name)
             assert anim.air_gap.min() >= gap - TOL, (key, name)
             assert anim.fitted.face_regions.min() >= 1
-            report[key, name] = (c.inside_before + c.close_before, anim.air_gap.min(),
-                                 float(np.median(anim.air_gap)))
+            report[key, name] = (
+                c.inside_before + c.close_before,
+                anim.air_gap.min(),
+                float(np.median(anim.air_gap)),
+            )
     # the garments differ in what they cover and how loose they are, on every body
     for key in rigs:
-        assert report[key, "leggings"][2] < report[key, "tshirt_white"][2] < report[
-            key, "jacket"][2] < report[key, "robe"][2]
+        assert (
+            report[key, "leggings"][2]
+            < report[key, "tshirt_white"][2]
+            < report[key, "jacket"][2]
+            < report[key, "robe"][2]
+        )
         assert 0.004 < report[key, "leggings"][2] < 0.012
     print("\n(before fix: inside + closer than the gap, min / median air gap [mm])")
     for (key, name), (before, lo, med) in report.items():
@@ -146,8 +167,8 @@ def test_every_garment_fits_three_bodies(rigs):
 
 def test_coverage_follows_the_catalogue(rigs):
     rig = rigs["male_178_80"]
-    from humv_usd.avatar.labels import BODY_REGION_NAMES
     from humv_usd.clothing.fit import fit_garment
+    from humv_usd.human.labels import BODY_REGION_NAMES
 
     def regions(name):
         return {BODY_REGION_NAMES[r] for r in np.unique(fit_garment(rig, name).face_regions)}
@@ -161,7 +182,7 @@ def test_coverage_follows_the_catalogue(rigs):
     with pytest.raises(ValueError, match="listed twice"):
         dress(rig, ["tshirt", "tshirt_white"])
     z = fit_garment(rig, "robe").points[:, 2]
-    assert z.min() < 0.2 * rig.body.stature_m       # the skirt reaches the shins
+    assert z.min() < 0.2 * rig.body.stature_m  # the skirt reaches the shins
 
 
 def test_garments_follow_a_bent_knee(rigs):
@@ -171,8 +192,7 @@ def test_garments_follow_a_bent_knee(rigs):
     sk = rig.skeleton
     skin = _pose(sk, {"LeftUpLeg": -40.0, "LeftLeg": 70.0})
     anim = simulate(dress(rig, ["leggings"]), skin).garments[0]
-    body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[1]),
-                 rig.mesh.points)
+    body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[1]), rig.mesh.points)
     d0 = rig.surface.closest(anim.posed[0]).signed
     d1 = Surface(body, rig.triangles).closest(anim.posed[1]).signed
     j = sk.index("LeftLeg")
@@ -193,12 +213,14 @@ def test_fix_detects_and_removes_intersections_in_a_stride(rigs):
     """A deep stride drives garments into the body (the check must see it, and an
     independent parity test must agree); after the fix none is inside, for a full outfit."""
     rig = rigs["female_160_55"]
-    skin = _pose(rig.skeleton, {"LeftUpLeg": -50.0, "LeftLeg": 60.0, "RightUpLeg": 25.0,
-                                "LeftArm": 40.0, "RightArm": -40.0}, frames=2)
+    skin = _pose(
+        rig.skeleton,
+        {"LeftUpLeg": -50.0, "LeftLeg": 60.0, "RightUpLeg": 25.0, "LeftArm": 40.0, "RightArm": -40.0},
+        frames=2,
+    )
     outfit = dress(rig, ["trousers", "tshirt_black", "jacket", "robe", "cap"])
     sim = simulate(outfit, skin)
-    body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[-1]),
-                 rig.mesh.points)
+    body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[-1]), rig.mesh.points)
     caster, surface = RayCaster(body, rig.triangles), Surface(body, rig.triangles)
     before = 0
     for anim in sim.garments:
@@ -220,19 +242,18 @@ def test_fix_detects_and_removes_intersections_in_a_stride(rigs):
 @pytest.fixture(scope="module")
 def clothed_stage(humvvex_raw):
     raw = dict(humvvex_raw)
-    raw["general"] = dict(raw["general"], duration_s=0.1)      # 3 frames at 30 fps
+    raw["general"] = dict(raw["general"], duration_s=0.1)  # 3 frames at 30 fps
     scenario = validate(raw)
     human = scenario["human"][0]
     frames = scenario.frame_count
-    _, pose = ramp_pose(scenario, human, {"RightUpLeg": -30.0, "RightLeg": 60.0})   # a knee bend
+    _, pose = ramp_pose(scenario, human, {"RightUpLeg": -30.0, "RightLeg": 60.0})  # a knee bend
     garments = ["tshirt_white", "leggings", "cap"]
     avatar = avatar_layer.build_one(scenario, human, motion=pose)
     upstream = compose_in_memory([avatar], scenario["general"]["fps"])
     clothing = clothing_layer.build_one(scenario, human, upstream, garments=garments)
     original = materials_layer.used_materials
-    try:   # these garments differ from the scenario's outfit: give the materials tool their fabrics
-        materials_layer.used_materials = lambda s: sorted(set(original(s)) | set(
-            fabrics(garments)))
+    try:  # these garments differ from the scenario's outfit: give the materials tool their fabrics
+        materials_layer.used_materials = lambda s: sorted(set(original(s)) | set(fabrics(garments)))
         materials = materials_layer.build(scenario)
     finally:
         materials_layer.used_materials = original
@@ -252,8 +273,9 @@ def test_layer_structure_materials_and_air_gap(clothed_stage):
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
         assert material and material.GetPrim().HasAPI(S.MATERIAL_API)
         assert material.GetPath().name == garment(name).fabric
-        assert material.GetPrim().GetAttribute(S.MATERIAL_SOURCE).Get() == LIBRARY[
-            garment(name).fabric].source
+        assert (
+            material.GetPrim().GetAttribute(S.MATERIAL_SOURCE).Get() == LIBRARY[garment(name).fabric].source
+        )
         n = len(UsdGeom.Mesh(prim).GetPointsAttr().Get(0))
         gap = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:clothing:airGap")
         assert gap.GetInterpolation() == UsdGeom.Tokens.vertex
@@ -276,7 +298,8 @@ def test_usdskel_poses_garments_outside_the_posed_body(clothed_stage):
     body_path = "/World/Humans/p1/Body"
     counts = UsdGeom.Mesh(stage.GetPrimAtPath(body_path)).GetFaceVertexCountsAttr().Get()
     indices = UsdGeom.Mesh(stage.GetPrimAtPath(body_path)).GetFaceVertexIndicesAttr().Get()
-    from humv_usd.clothing.geometry import triangulate
+    from humv_usd.geometry.mesh import triangulate
+
     tris = triangulate(np.asarray(counts), np.asarray(indices))
     rest_legs = None
     for f in range(frames):
@@ -288,18 +311,17 @@ def test_usdskel_poses_garments_outside_the_posed_body(clothed_stage):
             if name == "leggings":
                 rest_legs = pts if rest_legs is None else rest_legs
                 last_legs = pts
-    assert np.abs(last_legs - rest_legs).max() > 0.1    # the bent right leg moved them
+    assert np.abs(last_legs - rest_legs).max() > 0.1  # the bent right leg moved them
 
 
 def test_static_person_gets_one_value(humvvex_raw):
-    scenario = validate(humvvex_raw)                        # one frame, standing
+    scenario = validate(humvvex_raw)  # one frame, standing
     layer = clothing_layer.build_one(scenario, scenario["human"][0], garments=["shorts"])
     stage = Usd.Stage.Open(layer)
     prim = stage.GetPrimAtPath("/World/Humans/p1/Clothing/shorts")
     gap = prim.GetAttribute(S.AIR_GAP_PRIMVAR)
-    assert gap.GetNumTimeSamples() == 0 and len(gap.Get()) == len(
-        UsdGeom.Mesh(prim).GetPointsAttr().Get())
+    assert gap.GetNumTimeSamples() == 0 and len(gap.Get()) == len(UsdGeom.Mesh(prim).GetPointsAttr().Get())
     assert clothing_layer.layer_name("p1") == "clothing_p1"
-    assert set(clothing_layer.build(scenario, None)) == {"clothing_p1"}   # humvvex is dressed
+    assert set(clothing_layer.build(scenario, None)) == {"clothing_p1"}  # humvvex is dressed
     humvvex_raw = dict(humvvex_raw, human=[dict(humvvex_raw["human"][0], clothing=[])])
-    assert clothing_layer.build(validate(humvvex_raw), None) == {}      # nobody wears anything
+    assert clothing_layer.build(validate(humvvex_raw), None) == {}  # nobody wears anything

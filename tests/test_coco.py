@@ -1,4 +1,5 @@
 """COCO output: loads in pycocotools, annToMask equals our instance masks, merge into a dataset."""
+
 from __future__ import annotations
 
 import json
@@ -8,13 +9,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
+from test_groundtruth import camera, label, material, mesh, new_stage, read_exr, sphere_mesh, wall
 
 from humv_usd.cli.main import main
 from humv_usd.errors import InputError
 from humv_usd.groundtruth import coco as C
 from humv_usd.groundtruth import labels as GL
-from humv_usd.render import render_stage
-from test_groundtruth import camera, label, material, mesh, new_stage, read_exr, sphere_mesh, wall
+from humv_usd.pipeline.render import render_stage
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +36,7 @@ def render_dir(tmp_path_factory):
 
 def test_coco_loads_in_pycocotools_and_masks_match(render_dir):
     from pycocotools.coco import COCO
+
     coco = COCO(str(render_dir / "coco.json"))
     assert len(coco.getImgIds()) == 2
     assert {c["name"] for c in coco.loadCats(coco.getCatIds())} == set(GL.CLASSES[1:])
@@ -44,14 +46,24 @@ def test_coco_loads_in_pycocotools_and_masks_match(render_dir):
         assert (render_dir / img["file_name"]).is_file()
         ch = read_exr(render_dir / img["humv_exr"])
         anns = coco.loadAnns(coco.getAnnIds(imgIds=[img["id"]]))
-        assert {a["humv_instance_id"] for a in anns} == set(np.unique(ch["instance_id"]).astype(int).tolist()) - {0}
+        assert {a["humv_instance_id"] for a in anns} == set(
+            np.unique(ch["instance_id"]).astype(int).tolist()
+        ) - {0}
         for a in anns:
             ours = ch["instance_id"] == a["humv_instance_id"]
             assert np.array_equal(coco.annToMask(a).astype(bool), ours)
             assert a["area"] == ours.sum()
             rows, cols = np.nonzero(ours)
-            assert a["bbox"] == [cols.min(), rows.min(), cols.max() - cols.min() + 1, rows.max() - rows.min() + 1]
-            assert a["category_id"] == GL.CLASS_ID[{1: "person", 2: "building", 3: "prop"}[a["humv_instance_id"]]]
+            assert a["bbox"] == [
+                cols.min(),
+                rows.min(),
+                cols.max() - cols.min() + 1,
+                rows.max() - rows.min() + 1,
+            ]
+            assert (
+                a["category_id"]
+                == GL.CLASS_ID[{1: "person", 2: "building", 3: "prop"}[a["humv_instance_id"]]]
+            )
             x, y, w, h = a["bbox_full"]
             # the full box contains every visible pixel centre (the visible box is in whole pixels)
             assert x <= a["bbox"][0] + 0.5 and x + w >= a["bbox"][0] + a["bbox"][2] - 0.5
@@ -66,10 +78,13 @@ def test_coco_loads_in_pycocotools_and_masks_match(render_dir):
 
 def test_merge_renumbers_and_relinks(render_dir, tmp_path):
     from pycocotools.coco import COCO
+
     second = tmp_path / "second"
     shutil.copytree(render_dir, second)
     out = tmp_path / "dataset" / "all.json"
-    result = CliRunner().invoke(main, ["coco-merge", str(render_dir), str(second / "coco.json"), "-o", str(out)])
+    result = CliRunner().invoke(
+        main, ["coco-merge", str(render_dir), str(second / "coco.json"), "-o", str(out)]
+    )
     assert result.exit_code == 0, result.output
     doc = json.loads(out.read_text())
     single = json.loads((render_dir / "coco.json").read_text())
@@ -80,7 +95,7 @@ def test_merge_renumbers_and_relinks(render_dir, tmp_path):
     for img in doc["images"]:
         assert (out.parent / img["file_name"]).is_file()
     coco = COCO(str(out))
-    a = coco.loadAnns(coco.getAnnIds(imgIds=[3]))[0]            # first image of the second render
+    a = coco.loadAnns(coco.getAnnIds(imgIds=[3]))[0]  # first image of the second render
     ours = read_exr(second / coco.loadImgs([3])[0]["humv_exr"])["instance_id"] == a["humv_instance_id"]
     assert np.array_equal(coco.annToMask(a).astype(bool), ours)
 
@@ -96,6 +111,7 @@ def test_merge_rejects_non_coco(tmp_path):
 
 def test_rle_round_trip():
     from pycocotools import mask as mask_util
+
     rng = np.random.default_rng(0)
     m = rng.random((7, 11)) > 0.6
     rle = C.encode_mask(m)

@@ -1,8 +1,8 @@
 """compose: one layer per part, conventions, idempotence, nothing written on bad input."""
+
 from __future__ import annotations
 
 import json
-
 import math
 import os
 import subprocess
@@ -10,6 +10,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from pxr import Usd, UsdGeom, UsdShade
 
 from humv_usd.pipeline.compose import compose
@@ -17,10 +18,16 @@ from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import check_stage
 
-from conftest import ROOT
-
-ALL_LAYERS = {"environment", "atmosphere", "materials", "scene", "avatar_p1", "clothing_p1",
-              "sensors", "thermal"}
+ALL_LAYERS = {
+    "environment",
+    "atmosphere",
+    "materials",
+    "scene",
+    "avatar_p1",
+    "clothing_p1",
+    "sensors",
+    "thermal",
+}
 GARMENTS = ("tshirt_white", "shorts", "cap")
 
 
@@ -43,10 +50,10 @@ def test_one_layer_per_part_and_clean(composed):
     assert UsdGeom.GetStageUpAxis(stage) == "Z"
     assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
     assert stage.GetDefaultPrim().GetPath() == "/World"
-    assert len(stage.GetRootLayer().rootPrims) == 0      # sublayers + metadata only
+    assert len(stage.GetRootLayer().rootPrims) == 0  # sublayers + metadata only
     assert stage.GetTimeCodesPerSecond() == 30
     ran = json.loads((out / "compose.json").read_text())["ran"]
-    assert set(ran) == {"environment", "atmosphere"}      # each tool says what it ran and skipped
+    assert set(ran) == {"environment", "atmosphere"}  # each tool says what it ran and skipped
     assert "sun up at 1 of 1" in ran["environment"]["sun"]
 
 
@@ -63,7 +70,10 @@ def test_every_mesh_has_material_and_one_temperature_per_face(composed):
     meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
     garments = {f"/World/Humans/p1/Clothing/{g}" for g in GARMENTS}
     assert {str(p.GetPath()) for p in meshes} == {
-        "/World/Scene/Ground", "/World/Scene/warehouse", "/World/Humans/p1/Body"} | garments
+        "/World/Scene/Ground",
+        "/World/Scene/warehouse",
+        "/World/Humans/p1/Body",
+    } | garments
     # fixed model: skin as given, garments at the air temperature; the scene (no temperature_k in
     # humvvex) from the slab model in the afternoon sun: the sunlit pad warmer than the 289 K air,
     # the pad in the warehouse's shadow colder than the sunlit pad
@@ -88,24 +98,28 @@ def test_every_mesh_has_material_and_one_temperature_per_face(composed):
 def test_meshes_closed_and_outward(composed):
     """Mitsuba area emitters emit on the front side only: boxes must wind outward."""
     from humv_usd.usd.mesh import signed_volume
+
     _, _, stage = composed
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Scene/warehouse"))
     pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=float)
-    vol = signed_volume(pts, mesh.GetFaceVertexCountsAttr().Get(),
-                        mesh.GetFaceVertexIndicesAttr().Get())
+    vol = signed_volume(pts, mesh.GetFaceVertexCountsAttr().Get(), mesh.GetFaceVertexIndicesAttr().Get())
     assert vol == pytest.approx(40.0 * 15.0 * 8.0, rel=1e-6)
     body = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Humans/p1/Body"))
     pts = np.asarray(body.GetPointsAttr().Get(), dtype=float)
-    assert signed_volume(pts, body.GetFaceVertexCountsAttr().Get(),
-                         body.GetFaceVertexIndicesAttr().Get()) > 0.03  # ~0.07 m^3 body
+    assert (
+        signed_volume(pts, body.GetFaceVertexCountsAttr().Get(), body.GetFaceVertexIndicesAttr().Get()) > 0.03
+    )  # ~0.07 m^3 body
 
 
 def test_avatar_stature_heading_and_attributes(composed):
     _, _, stage = composed
     human = stage.GetPrimAtPath("/World/Humans/p1")
     body = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Humans/p1/Body"))
-    bbox = UsdGeom.BBoxCache(Usd.TimeCode.Default(), ["default"]).ComputeWorldBound(
-        body.GetPrim()).ComputeAlignedRange()
+    bbox = (
+        UsdGeom.BBoxCache(Usd.TimeCode.Default(), ["default"])
+        .ComputeWorldBound(body.GetPrim())
+        .ComputeAlignedRange()
+    )
     assert bbox.GetSize()[2] == pytest.approx(1.78, rel=1e-5)
     assert bbox.GetMin()[2] == pytest.approx(0.0, abs=1e-6)
     assert human.GetAttribute(S.AVATAR_STATURE).Get() == pytest.approx(1.78)
@@ -126,7 +140,7 @@ def test_camera_matches_sensor_geometry(composed):
     m = gf.transform
     assert tuple(m.ExtractTranslation()) == pytest.approx((0.0, -15.0, 1.6))
     forward = -np.asarray(m.TransformDir((0, 0, 1)))
-    assert forward == pytest.approx((0.0, 1.0, 0.0), abs=1e-9)   # looks north at the person
+    assert forward == pytest.approx((0.0, 1.0, 0.0), abs=1e-9)  # looks north at the person
     prim = cam.GetPrim()
     assert tuple(prim.GetAttribute(S.SENSOR_RESOLUTION).Get()) == (1024, 768)
     assert prim.GetAttribute(S.SENSOR_PIXEL_PITCH).Get() == pytest.approx(17e-6)
@@ -166,15 +180,20 @@ def test_parts_the_scenario_lacks_get_no_layer(tmp_path, raw):
 
 
 def cli(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "humv_usd.cli.main", *args], cwd=cwd,
-                          capture_output=True, text=True)
+    return subprocess.run(
+        [sys.executable, "-m", "humv_usd.cli.main", *args], cwd=cwd, capture_output=True, text=True
+    )
 
 
+@pytest.mark.slow
 def test_cli_bad_input_one_line_per_problem_exit_2_nothing_written(tmp_path):
     bad = tmp_path / "bad.toml"
     text = (ROOT / "examples" / "humvvex.toml").read_text()
-    bad.write_text(text.replace("latitude_deg = 39.80", "latitude_deg = 139.8")
-                   .replace("bit_depth = 14", "bit_depth = 40"))
+    bad.write_text(
+        text.replace("latitude_deg = 39.80", "latitude_deg = 139.8").replace(
+            "bit_depth = 14", "bit_depth = 40"
+        )
+    )
     out = tmp_path / "out"
     r = cli("compose", str(bad), "-o", str(out))
     assert r.returncode == 2
@@ -185,6 +204,7 @@ def test_cli_bad_input_one_line_per_problem_exit_2_nothing_written(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_cli_compose_then_check(tmp_path):
     out = tmp_path / "out"
     r = cli("compose", "examples/humvvex.toml", "-o", str(out))
@@ -201,15 +221,16 @@ def test_cli_compose_then_check(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_usd_tools_see_schemas_without_humv(tmp_path):
     """A plain USD process loads the stage's schemas through PXR_PLUGINPATH_NAME."""
     out = tmp_path / "out"
-    compose(validate(__import__("tomllib").loads((ROOT / "examples/humvvex.toml").read_text())),
-            out)
-    code = ("from pxr import Usd; s = Usd.Stage.Open(%r); "
-            "p = s.GetPrimAtPath('/World/Sensors/atom1024_lwir'); "
-            "print(p.HasAPI('HumvSensorAPI'), p.GetAttribute('humv:sensor:netd').Get())"
-            % str(out / "stage.usda"))
+    compose(validate(__import__("tomllib").loads((ROOT / "examples/humvvex.toml").read_text())), out)
+    code = (
+        f"from pxr import Usd; s = Usd.Stage.Open({str(out / 'stage.usda')!r}); "
+        "p = s.GetPrimAtPath('/World/Sensors/atom1024_lwir'); "
+        "print(p.HasAPI('HumvSensorAPI'), p.GetAttribute('humv:sensor:netd').Get())"
+    )
     env = dict(os.environ, PXR_PLUGINPATH_NAME=str(ROOT / "schemas"))
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     has_api, netd = r.stdout.split()

@@ -1,5 +1,6 @@
 """Contact machinery: ground queries, foot contact points, planted stance (rolling without
 slipping on a support plane), swing clearance, two-bone leg IK and the contact report."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,29 +8,32 @@ import pytest
 
 from humv_usd.assets import makehuman_dir
 
-pytestmark = pytest.mark.skipif(not (makehuman_dir() / "rigs").is_dir(),
-                                reason="MakeHuman data not fetched (make setup)")
+pytestmark = pytest.mark.skipif(
+    not (makehuman_dir() / "rigs").is_dir(), reason="MakeHuman data not fetched (make setup)"
+)
 
 
 @pytest.fixture(scope="module")
 def rig():
-    from humv_usd.avatar.body import build_body
-    from humv_usd.avatar.skeleton import skeleton_for
+    from humv_usd.human.body import build_body
+    from humv_usd.human.skeleton import skeleton_for
+
     body = build_body("male", 30, 1.78, 80)
     return body, skeleton_for(body.points, body.groups)
 
 
 def plane_mesh(slope_deg=5.0, size=4.0):
     import trimesh
+
     t = np.tan(np.radians(slope_deg))
-    v = np.array([[-size, -size, 0], [size, -size, 0], [size, size, 0], [-size, size, 0]],
-                 dtype=float)
+    v = np.array([[-size, -size, 0], [size, -size, 0], [size, size, 0], [-size, size, 0]], dtype=float)
     v[:, 2] = -t * v[:, 1]
     return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
 
 
 def test_ground_queries():
-    from humv_usd.avatar.contact import Ground
+    from humv_usd.human.contact import Ground
+
     xy = np.array([[0.3, -1.2], [-2.0, 3.1], [1.0, 0.0]])
     t = np.tan(np.radians(5.0))
     assert np.allclose(Ground(None).height(xy), 0.0)
@@ -37,7 +41,7 @@ def test_ground_queries():
     mesh = Ground(plane_mesh())
     assert fn.kind == "function" and mesh.kind == "mesh"
     assert np.allclose(fn.height(xy), -t * xy[:, 1])
-    assert np.allclose(mesh.height(xy), -t * xy[:, 1], atol=1e-9)        # ray cast
+    assert np.allclose(mesh.height(xy), -t * xy[:, 1], atol=1e-9)  # ray cast
     assert mesh.height(np.zeros((0, 2))).shape == (0,)
     # outside the mesh: nearest vertex height, no error
     assert np.isfinite(mesh.height(np.array([[10.0, 10.0]]))).all()
@@ -46,24 +50,26 @@ def test_ground_queries():
 
 
 def test_foot_points(rig):
-    from humv_usd.avatar.contact import foot_points_from_body, foot_points_from_joints
+    from humv_usd.human.contact import foot_points_from_body, foot_points_from_joints
+
     body, skel = rig
     eye = np.eye(3)
     for feet in (foot_points_from_joints(skel), foot_points_from_body(skel, body.points)):
         for side, fp in feet.items():
             rest = skel.rest_positions[fp.foot] + fp.relative(eye, eye)
-            assert np.abs(rest[:, 2]).max() < 0.011                # on the rest sole plane
+            assert np.abs(rest[:, 2]).max() < 0.011  # on the rest sole plane
             sign = 1 if side == "Left" else -1
-            assert np.all(sign * rest[:, 0] > 0.1)                 # +x is the person's left
+            assert np.all(sign * rest[:, 0] > 0.1)  # +x is the person's left
             assert ((fp.toe_weight >= 0) & (fp.toe_weight <= 1)).all()
-            assert fp.toe_weight.max() > 0.9 and fp.toe_weight.min() < 0.1   # heel and toes
+            assert fp.toe_weight.max() > 0.9 and fp.toe_weight.min() < 0.1  # heel and toes
             span = np.ptp(rest[:, 1])
-            assert 0.2 < span < 0.3                                # heel to toe tip
+            assert 0.2 < span < 0.3  # heel to toe tip
     assert len(foot_points_from_body(skel, body.points)["Left"].rest) > 30
 
 
 def test_plant_stance_rolls_without_slipping_on_a_slope(rig):
-    from humv_usd.avatar.contact import Ground, foot_points_from_joints, plant_stance
+    from humv_usd.human.contact import Ground, foot_points_from_joints, plant_stance
+
     _, skel = rig
     fp = foot_points_from_joints(skel)["Left"]
     t = np.tan(np.radians(5.0))
@@ -76,29 +82,30 @@ def test_plant_stance_rolls_without_slipping_on_a_slope(rig):
     # the support plane is the slope
     assert np.allclose(st.plane[:, 2], [0, t / np.hypot(1, t), 1 / np.hypot(1, t)])  # normal
     rel = fp.relative(st.foot_rot, st.toe_rot)
-    pts = st.ankle[:, None, :] + rel                               # (n, m, 3) world
+    pts = st.ankle[:, None, :] + rel  # (n, m, 3) world
     h = pts[..., 2] - ground.height(pts[..., :2])
-    assert np.abs(h.min(axis=1)).max() < 1e-9                       # always touching
-    assert h.min() > -1e-9                                          # never below
+    assert np.abs(h.min(axis=1)).max() < 1e-9  # always touching
+    assert h.min() > -1e-9  # never below
     touching = h < 1e-6
-    for j in range(rel.shape[1]):                                   # touching points stay
+    for j in range(rel.shape[1]):  # touching points stay
         sel = pts[touching[:, j], j, :2]
         if len(sel) > 1:
-            assert np.linalg.norm(sel - sel[0], axis=1).max() < 1e-4   # 0.1 mm
+            assert np.linalg.norm(sel - sel[0], axis=1).max() < 1e-4  # 0.1 mm
     # heel first, toes last
     assert touching[0].sum() >= 1 and not touching[0, fp.toe_weight > 0.5].any()
     assert touching[-1, fp.toe_weight > 0.5].all() and not touching[-1, fp.toe_weight < 0.5].any()
 
 
 def test_swing_clearance_over_a_bump(rig):
-    from humv_usd.avatar.contact import Ground, foot_points_from_joints, swing_targets
-    from humv_usd.avatar.gait import rot_x
+    from humv_usd.human.contact import Ground, foot_points_from_joints, swing_targets
+    from humv_usd.human.gait import rot_x
+
     _, skel = rig
     fp = foot_points_from_joints(skel)["Left"]
     n = 20
     ankle = np.column_stack([np.full(n, 0.2), np.linspace(0.3, -0.5, n), np.full(n, 0.09)])
-    foot = rot_x(np.full(n, np.radians(10.0)))                      # toes slightly down
-    bump = Ground(lambda x, y: 0.05 * np.exp(-((np.asarray(y) + 0.1) / 0.1) ** 2))
+    foot = rot_x(np.full(n, np.radians(10.0)))  # toes slightly down
+    bump = Ground(lambda x, y: 0.05 * np.exp(-(((np.asarray(y) + 0.1) / 0.1) ** 2)))
     tg = swing_targets(bump, fp, [], ankle, foot, np.zeros(n))
     pts = tg.ankle[:, None, :] + fp.relative(tg.foot_rot, tg.toe_rot)
     clearance = pts[..., 2] - bump.height(pts[..., :2])
@@ -108,8 +115,9 @@ def test_swing_clearance_over_a_bump(rig):
 
 
 def test_leg_ik_reaches_targets(rig):
-    from humv_usd.avatar.contact import FootTargets, leg_chain, leg_ik
-    from humv_usd.avatar.gait import fk_matrices, rot_x, rot_y, rot_z
+    from humv_usd.human.contact import FootTargets, leg_chain, leg_ik
+    from humv_usd.human.gait import fk_matrices, rot_x, rot_y, rot_z
+
     _, skel = rig
     rng = np.random.default_rng(0)
     n = 50
@@ -146,8 +154,9 @@ def test_leg_ik_reaches_targets(rig):
 
 def test_contact_report_catches_errors(rig):
     """The report is a real check: sinking, floating and sliding feet are reported."""
-    from humv_usd.avatar.contact import Ground, contact_report, foot_points_from_joints
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.contact import Ground, contact_report, foot_points_from_joints
+    from humv_usd.human.motion import make_motion
+
     _, skel = rig
     m = make_motion("walk", skel, 30, 60)
     feet = foot_points_from_joints(skel)
@@ -160,14 +169,15 @@ def test_contact_report_catches_errors(rig):
     floating = contact_report(Ground(None), feet, rot, pos + [0, 0, 0.015], stance)
     assert abs(floating["max_gap_m"] - 0.015) < 1e-6
     slide = pos.copy()
-    slide[..., 1] -= 0.01 * np.arange(60)[:, None]                 # 1 cm per frame forward
+    slide[..., 1] -= 0.01 * np.arange(60)[:, None]  # 1 cm per frame forward
     slid = contact_report(Ground(None), feet, rot, slide, stance)
     assert slid["left"]["max_slip_m"] > 0.1 and slid["right"]["max_slip_m"] > 0.1
 
 
 def test_settle_root(rig):
-    from humv_usd.avatar.contact import Ground, foot_points_from_joints, settle_root
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.contact import Ground, foot_points_from_joints, settle_root
+    from humv_usd.human.motion import make_motion
+
     _, skel = rig
     m = make_motion("stand", skel, 30, 30)
     rot, pos = m.world(skel)

@@ -1,21 +1,28 @@
 """Convective coefficients: Siple-Passel in both unit systems, Mitchell, ISO 7730, h_r."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from humv_usd.physics.convection import (KCAL_PER_HOUR_TO_WATT, convective_coefficient, iso7730,
-                                         mitchell, natural_iso7730, radiative_coefficient,
-                                         siple_passel, watmuff)
+from humv_usd.physics.convection import (
+    KCAL_PER_HOUR_TO_WATT,
+    convective_coefficient,
+    iso7730,
+    mitchell,
+    natural_iso7730,
+    radiative_coefficient,
+    siple_passel,
+    watmuff,
+)
 from humv_usd.physics.sky import STEFAN_BOLTZMANN
 
 
 def test_siple_passel_both_unit_systems():
     h = siple_passel(np.array([0.0, 5.0]))
     # kcal m^-2 h^-1 K^-1: 10.45 at rest, 10.45 - 5 + 10 sqrt(5) = 27.8107 at 5 m/s
-    assert_allclose(h / KCAL_PER_HOUR_TO_WATT, [10.45, 10.45 - 5.0 + 10.0 * np.sqrt(5.0)],
-                    rtol=1e-12)
+    assert_allclose(h / KCAL_PER_HOUR_TO_WATT, [10.45, 10.45 - 5.0 + 10.0 * np.sqrt(5.0)], rtol=1e-12)
     assert_allclose(h, [12.15335, 32.343821], rtol=1e-7)  # W m^-2 K^-1
 
 
@@ -26,7 +33,7 @@ def test_siple_passel_held_beyond_its_maximum():
 
 
 def test_mitchell():
-    assert_allclose(mitchell([0.0, 1.0, 4.0]), [0.0, 8.3, 8.3 * 4.0 ** 0.6], rtol=1e-12)
+    assert_allclose(mitchell([0.0, 1.0, 4.0]), [0.0, 8.3, 8.3 * 4.0**0.6], rtol=1e-12)
 
 
 def test_iso7730_and_natural_floor():
@@ -37,16 +44,16 @@ def test_iso7730_and_natural_floor():
 
 def test_convective_coefficient_models():
     assert_allclose(convective_coefficient(0.0, 81.0), 2.38 * 3.0, rtol=1e-12)
-    assert_allclose(convective_coefficient(2.0, 0.0), 8.3 * 2.0 ** 0.6, rtol=1e-12)
-    assert_allclose(convective_coefficient(5.0, model='siple_passel'), siple_passel(5.0))
-    assert_allclose(convective_coefficient(4.0, model='iso7730'), 24.2, rtol=1e-12)
-    with pytest.raises(ValueError, match='invalid model selection bogus'):
-        convective_coefficient(1.0, model='bogus')
+    assert_allclose(convective_coefficient(2.0, 0.0), 8.3 * 2.0**0.6, rtol=1e-12)
+    assert_allclose(convective_coefficient(5.0, model="siple_passel"), siple_passel(5.0))
+    assert_allclose(convective_coefficient(4.0, model="iso7730"), 24.2, rtol=1e-12)
+    with pytest.raises(ValueError, match="invalid model selection bogus"):
+        convective_coefficient(1.0, model="bogus")
 
 
 def test_radiative_coefficient_linearizes_t4():
     t1, t2 = 310.0, 290.0
-    exact = 0.9 * STEFAN_BOLTZMANN * (t1 ** 4 - t2 ** 4) / (t1 - t2)
+    exact = 0.9 * STEFAN_BOLTZMANN * (t1**4 - t2**4) / (t1 - t2)
     hr = radiative_coefficient(0.9, 300.0)
     assert_allclose(hr * (1.0 + (10.0 / 300.0) ** 2), exact, rtol=1e-12)
 

@@ -1,4 +1,5 @@
 """Sun and weather at the frame times (humv_usd.environment) and the environment layer."""
+
 from __future__ import annotations
 
 import datetime as dt
@@ -23,8 +24,14 @@ def test_sun_matches_spa_reference_case(raw):
     """Reda & Andreas (2004) Table A5.1: 2003-10-17 12:30:30 MST, Golden CO -> topocentric
     zenith 50.11162 deg, azimuth 194.34024 deg (820 mbar, 11 degC)."""
     raw["atmosphere"].update(pressure_pa=82000.0, air_temperature_k=284.15)
-    sc = _scenario(raw, start=dt.datetime(2003, 10, 17, 12, 30, 30), utc_offset_h=-7.0,
-                   latitude_deg=39.742476, longitude_deg=-105.1786, elevation_m=1830.14)
+    sc = _scenario(
+        raw,
+        start=dt.datetime(2003, 10, 17, 12, 30, 30),
+        utc_offset_h=-7.0,
+        latitude_deg=39.742476,
+        longitude_deg=-105.1786,
+        elevation_m=1830.14,
+    )
     s = sun_at(sc, [0.0])
     assert abs(s.zenith_deg[0] - 50.11162) < 0.01
     assert abs(s.azimuth_deg[0] - 194.34024) < 0.01
@@ -37,9 +44,14 @@ def test_sun_matches_pvlib_spa_over_a_day(raw):
     g, a = sc["general"], sc["atmosphere"]
     idx = pd.Timestamp("2018-10-24T18:05:00Z") + pd.to_timedelta(t, unit="s")
     ref = pvlib.solarposition.get_solarposition(
-        idx, g["latitude_deg"], g["longitude_deg"], altitude=g["elevation_m"],
-        pressure=a["pressure_pa"], temperature=a["air_temperature_k"] - 273.15,
-        method="nrel_numpy")
+        idx,
+        g["latitude_deg"],
+        g["longitude_deg"],
+        altitude=g["elevation_m"],
+        pressure=a["pressure_pa"],
+        temperature=a["air_temperature_k"] - 273.15,
+        method="nrel_numpy",
+    )
     assert np.max(np.abs(s.zenith_deg - ref["apparent_zenith"].to_numpy())) < 0.01
     daz = (s.azimuth_deg - ref["azimuth"].to_numpy() + 180.0) % 360.0 - 180.0
     assert np.max(np.abs(daz)) < 0.01
@@ -66,8 +78,7 @@ def test_clear_sky_irradiance_matches_pvlib_ineichen(raw):
     s = sun_at(sc, [0.0])
     g = sc["general"]
     loc = pvlib.location.Location(g["latitude_deg"], g["longitude_deg"], altitude=g["elevation_m"])
-    ref = loc.get_clearsky(pd.DatetimeIndex([pd.Timestamp("2018-10-24T18:05:00Z")]),
-                           model="ineichen")
+    ref = loc.get_clearsky(pd.DatetimeIndex([pd.Timestamp("2018-10-24T18:05:00Z")]), model="ineichen")
     # same model; pvlib's Location uses the standard-pressure air mass at the altitude
     assert s.ghi_w_m2[0] == pytest.approx(ref["ghi"].iloc[0], rel=0.02)
     assert s.dni_w_m2[0] == pytest.approx(ref["dni"].iloc[0], rel=0.02)
@@ -78,7 +89,7 @@ def test_clear_sky_irradiance_matches_pvlib_ineichen(raw):
 def test_cloud_reduction_kasten_czeplak():
     ghi, dhi, dni = cloud_reduction(800.0, 100.0, 30.0, [0.0, 0.5, 1.0])
     assert ghi[0] == 800.0 and dhi[0] == 100.0
-    assert ghi[1] == pytest.approx(800.0 * (1 - 0.75 * 0.5 ** 3.4))
+    assert ghi[1] == pytest.approx(800.0 * (1 - 0.75 * 0.5**3.4))
     assert ghi[2] == pytest.approx(200.0) and dhi[2] == pytest.approx(200.0)
     assert dni[2] == pytest.approx(0.0, abs=1e-9)
     assert np.all(np.diff(dni) < 0)
@@ -99,28 +110,33 @@ def test_weather_constant(raw):
 
 def test_weather_csv_interpolates(raw, tmp_path):
     csv = tmp_path / "w.csv"
-    csv.write_text("time,air_temperature_k,wind_direction_deg\n"
-                   "2018-10-24T14:00:00,288.0,350.0\n"
-                   "2018-10-24T15:00:00,290.0,10.0\n"
-                   "2018-10-24T20:00:00+00:00,292.0,10.0\n")  # 16:00 EDT
+    csv.write_text(
+        "time,air_temperature_k,wind_direction_deg\n"
+        "2018-10-24T14:00:00,288.0,350.0\n"
+        "2018-10-24T15:00:00,290.0,10.0\n"
+        "2018-10-24T20:00:00+00:00,292.0,10.0\n"
+    )  # 16:00 EDT
     raw["atmosphere"]["weather_csv"] = str(csv)
     sc = validate(raw)
-    w = weather_at(sc, [0.0, 1500.0, 3300.0 + 1800.0])   # 14:05, 14:30, 15:30
+    w = weather_at(sc, [0.0, 1500.0, 3300.0 + 1800.0])  # 14:05, 14:30, 15:30
     np.testing.assert_allclose(w.air_temperature_k, [288.0 + 2 * 5 / 60, 289.0, 291.0])
     dwind = (w.wind_direction_deg[1] + 180.0) % 360.0 - 180.0
-    assert abs(dwind) < 1e-9                           # 350 and 10 meet at north, not south
+    assert abs(dwind) < 1e-9  # 350 and 10 meet at north, not south
     assert w.relative_humidity.tolist() == [0.45] * 3  # column absent: [atmosphere] value
     assert w.varies
     with pytest.raises(InputError, match="atmosphere.weather_csv"):
-        weather_at(sc, [3 * 3600.0])                   # 17:05, past the series
+        weather_at(sc, [3 * 3600.0])  # 17:05, past the series
 
 
-@pytest.mark.parametrize("text, msg", [
-    ("time,air_temp\n2018-10-24T14:00:00,1\n", "allowed columns"),
-    ("time,relative_humidity\n2018-10-24T14:00:00,1.5\n", "line 2 relative_humidity"),
-    ("time,cloud_cover\n2018-10-24T15:00:00,0\n2018-10-24T14:00:00,0\n", "strictly increase"),
-    ("time,cloud_cover\nyesterday,0\n", "ISO date-time"),
-])
+@pytest.mark.parametrize(
+    "text, msg",
+    [
+        ("time,air_temp\n2018-10-24T14:00:00,1\n", "allowed columns"),
+        ("time,relative_humidity\n2018-10-24T14:00:00,1.5\n", "line 2 relative_humidity"),
+        ("time,cloud_cover\n2018-10-24T15:00:00,0\n2018-10-24T14:00:00,0\n", "strictly increase"),
+        ("time,cloud_cover\nyesterday,0\n", "ISO date-time"),
+    ],
+)
 def test_weather_csv_bad_input(raw, tmp_path, text, msg):
     csv = tmp_path / "w.csv"
     csv.write_text(text)

@@ -1,5 +1,6 @@
 """Ground truth: exact labels vs an independent ray cast, references/instancing, boxes, keypoints,
 annotator selection. Small hand-built stages (64x48), one render per module fixture."""
+
 from __future__ import annotations
 
 import json
@@ -9,22 +10,25 @@ import OpenImageIO as oiio
 import pytest
 from numpy.testing import assert_allclose
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+from test_render import add_camera
+from test_render import new_stage as _new_stage
+from test_render import read_exr as _read_exr
 
-from humv_usd.avatar import labels as AL
 from humv_usd.errors import InputError
+from humv_usd.geometry.camera import Camera
 from humv_usd.groundtruth import annotators as A
 from humv_usd.groundtruth import boxes as B
-from humv_usd.groundtruth.camera import Camera
 from humv_usd.groundtruth import keypoints as K
 from humv_usd.groundtruth import labels as GL
-from humv_usd.render import render_stage
+from humv_usd.human import labels as AL
+from humv_usd.pipeline.render import render_stage
 from humv_usd.render.export import CameraPose
-from test_render import add_camera, new_stage as _new_stage, read_exr as _read_exr
 
 W, H = 64, 48
 
 
 # --- stage building (attributes by name, as a DCC would author them) --------------------------
+
 
 def new_stage(path):
     return _new_stage(path, sky_k=260.0)
@@ -32,8 +36,12 @@ def new_stage(path):
 
 def material(stage, path, eps):
     m = UsdShade.Material.Define(stage, path)
-    m.GetPrim().CreateAttribute("humv:material:wavelengths", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray([1.0, 20.0]))
-    m.GetPrim().CreateAttribute("humv:material:emissivity", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray([eps, eps]))
+    m.GetPrim().CreateAttribute("humv:material:wavelengths", Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray([1.0, 20.0])
+    )
+    m.GetPrim().CreateAttribute("humv:material:emissivity", Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray([eps, eps])
+    )
     return m
 
 
@@ -45,8 +53,9 @@ def mesh(stage, path, points, counts, indices, mat, temps, instance_id=None, cls
     prim = m.GetPrim()
     UsdShade.MaterialBindingAPI.Apply(prim).Bind(mat)
     temps = np.broadcast_to(np.asarray(temps, dtype=float), (len(counts),))
-    UsdGeom.PrimvarsAPI(prim).CreatePrimvar("humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray,
-                                            UsdGeom.Tokens.uniform).Set(Vt.FloatArray(temps.tolist()))
+    UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+        "humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform
+    ).Set(Vt.FloatArray(temps.tolist()))
     label(prim, instance_id, cls)
     return m
 
@@ -77,6 +86,7 @@ def wall(x0, x1, z0, z1, y):
 
 def sphere_mesh(center, radius, subdivisions=2):
     import trimesh
+
     s = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
     return (s.vertices + np.asarray(center)).tolist(), [3] * len(s.faces), s.faces.ravel().tolist()
 
@@ -101,27 +111,41 @@ def scene_render(tmp_path_factory):
     concrete = material(stage, "/World/Materials/concrete", 0.9)
     skin = material(stage, "/World/Materials/skin", 0.98)
     pts, counts, idx = grid_quad(-10, 10, -10, 10, 0.0, 8)
-    mesh(stage, "/World/Scene/ground", pts, counts, idx, concrete, 280.0 + np.arange(64), instance_id=2, cls="ground")
+    mesh(
+        stage,
+        "/World/Scene/ground",
+        pts,
+        counts,
+        idx,
+        concrete,
+        280.0 + np.arange(64),
+        instance_id=2,
+        cls="ground",
+    )
     root = UsdGeom.Xform.Define(stage, "/World/Humans/p1").GetPrim()
     label(root, 1, "person")
     pts, counts, idx = sphere_mesh((0.0, 0.0, 0.9), 0.6)
     nf = len(counts)
-    body = mesh(stage, "/World/Humans/p1/Body", pts, counts, idx, skin, 300.0 + 0.01 * np.arange(nf)).GetPrim()
+    body = mesh(
+        stage, "/World/Humans/p1/Body", pts, counts, idx, skin, 300.0 + 0.01 * np.arange(nf)
+    ).GetPrim()
     regions = 1 + np.arange(nf) % 19
-    UsdGeom.PrimvarsAPI(body).CreatePrimvar("humv:label:bodyRegion", Sdf.ValueTypeNames.IntArray,
-                                            UsdGeom.Tokens.uniform).Set(Vt.IntArray(regions.tolist()))
+    UsdGeom.PrimvarsAPI(body).CreatePrimvar(
+        "humv:label:bodyRegion", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
+    ).Set(Vt.IntArray(regions.tolist()))
     pts, counts, idx = wall(-1.5, -0.1, 0.0, 2.0, -1.0)
     mesh(stage, "/World/Scene/wall", pts, counts, idx, concrete, 295.0, instance_id=3, cls="building")
     # keypoints on a SkelRoot-like prim (any prim carries them) with a transform
     kp_root = UsdGeom.Xform.Define(stage, "/World/Humans/p1/Keys")
     kp_root.AddTranslateOp().Set(Gf.Vec3d(0.0, 0.0, 0.9))
     kps = np.zeros((17, 3))
-    kps[:] = (0.3, -0.55, 0.0)          # in front of the sphere's right half: visible
-    kps[AL.COCO_KEYPOINTS.index("left_knee")] = (-0.4, -0.40, -0.3)   # behind the wall
-    kps[AL.COCO_KEYPOINTS.index("right_ankle")] = (30.0, 0.0, 0.0)    # outside the image
-    kps[AL.COCO_KEYPOINTS.index("nose")] = (0.3, 0.55, 0.0)           # on the far side
+    kps[:] = (0.3, -0.55, 0.0)  # in front of the sphere's right half: visible
+    kps[AL.COCO_KEYPOINTS.index("left_knee")] = (-0.4, -0.40, -0.3)  # behind the wall
+    kps[AL.COCO_KEYPOINTS.index("right_ankle")] = (30.0, 0.0, 0.0)  # outside the image
+    kps[AL.COCO_KEYPOINTS.index("nose")] = (0.3, 0.55, 0.0)  # on the far side
     kp_root.GetPrim().CreateAttribute(AL.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray).Set(
-        Vt.Vec3fArray.FromNumpy(kps.astype(np.float32)), 0)
+        Vt.Vec3fArray.FromNumpy(kps.astype(np.float32)), 0
+    )
     camera(stage, "cam", EYE, TARGET)
     stage.Save()
     manifest = render_stage(tmp / "stage.usda", tmp / "out", spp=1)
@@ -140,7 +164,7 @@ def _world_triangles(stage_path):
         p = np.asarray(m.GetPointsAttr().Get(), dtype=float) @ xf[:3, :3] + xf[3, :3]
         start = 0
         for f, c in enumerate(m.GetFaceVertexCountsAttr().Get()):
-            ids = m.GetFaceVertexIndicesAttr().Get()[start:start + c]
+            ids = m.GetFaceVertexIndicesAttr().Get()[start : start + c]
             for k in range(1, c - 1):
                 tris.append(p[[ids[0], ids[k], ids[k + 1]]])
                 owner.append(str(prim.GetPath()))
@@ -165,9 +189,12 @@ def _pixel_rays(eye, target, fov_x_deg=50.0):
 
 def test_labels_agree_with_an_independent_ray_cast(scene_render):
     import trimesh
+
     tmp, manifest, ch = scene_render
     tris, owner, face = _world_triangles(tmp / "stage.usda")
-    tm = trimesh.Trimesh(vertices=tris.reshape(-1, 3), faces=np.arange(len(tris) * 3).reshape(-1, 3), process=False)
+    tm = trimesh.Trimesh(
+        vertices=tris.reshape(-1, 3), faces=np.arange(len(tris) * 3).reshape(-1, 3), process=False
+    )
     dirs, fwd = _pixel_rays(EYE, TARGET)
     origins = np.broadcast_to(np.asarray(EYE, float), (W * H, 3))
     loc, ray_idx, tri_idx = tm.ray.intersects_location(origins, dirs.reshape(-1, 3), multiple_hits=False)
@@ -176,16 +203,22 @@ def test_labels_agree_with_an_independent_ray_cast(scene_render):
     depth = np.full(W * H, np.inf)
     depth[ray_idx] = (loc - np.asarray(EYE)) @ fwd
     ids = {"/World/Scene/ground": 2, "/World/Humans/p1/Body": 1, "/World/Scene/wall": 3}
-    classes = {"/World/Scene/ground": "ground", "/World/Humans/p1/Body": "person", "/World/Scene/wall": "building"}
+    classes = {
+        "/World/Scene/ground": "ground",
+        "/World/Humans/p1/Body": "person",
+        "/World/Scene/wall": "building",
+    }
     expect_id = np.array([ids[owner[t]] if t >= 0 else 0 for t in hit_tri]).reshape(H, W)
     agree = ch["instance_id"] == expect_id
     fraction = agree.mean()
     print(f"label agreement with the trimesh/embree ray cast: {fraction:.5f} of {W * H} pixels")
-    assert fraction >= 0.995, fraction        # edge pixels may differ by float rounding
+    assert fraction >= 0.995, fraction  # edge pixels may differ by float rounding
     assert {0, 1, 2, 3} <= set(np.unique(expect_id).tolist())
     expect_cls = np.array([GL.CLASS_ID[classes[owner[t]]] if t >= 0 else 0 for t in hit_tri]).reshape(H, W)
     assert (ch["class_id"][agree] == expect_cls[agree]).all()
-    kind = np.array([GL.KIND_ID["skin" if "Body" in owner[t] else "scene"] if t >= 0 else 0 for t in hit_tri]).reshape(H, W)
+    kind = np.array(
+        [GL.KIND_ID["skin" if "Body" in owner[t] else "scene"] if t >= 0 else 0 for t in hit_tri]
+    ).reshape(H, W)
     assert (ch["material_kind"][agree] == kind[agree]).all()
     # same triangle -> the same authored face: temperature and body region exact
     tri2d = hit_tri.reshape(H, W)
@@ -228,7 +261,7 @@ def test_objects_boxes_occlusion_and_keypoints(scene_render):
     fb = person["box_full"]
     vb = person["box_visible"]
     assert fb[0] <= vb[0] + 1e-9 and fb[1] <= vb[1] + 1 and fb[2] >= vb[2] - 1 and fb[3] >= vb[3] - 1
-    assert fb[0] < vb[0] - 2           # the wall hides the sphere's left part
+    assert fb[0] < vb[0] - 2  # the wall hides the sphere's left part
     # the icosphere's vertices lie on the sphere: its world AABB is the sphere's
     assert_allclose(person["box_3d"]["min"], [-0.6, -0.6, 0.3], atol=1e-5)
     assert_allclose(person["box_3d"]["max"], [0.6, 0.6, 1.5], atol=1e-5)
@@ -237,11 +270,19 @@ def test_objects_boxes_occlusion_and_keypoints(scene_render):
     ob = person["box_3d_oriented"]
     assert_allclose([ob["center"][2], ob["size"][2]], [0.9, 1.2], atol=1e-5)
     assert 1.1 < ob["size"][1] <= ob["size"][0] <= 1.2 + 1e-5 and -np.pi / 2 < ob["yaw"] <= np.pi / 2
-    cam = Camera.from_pose(CameraPose(np.array(EYE), (np.array(TARGET) - EYE) / np.linalg.norm(np.subtract(TARGET, EYE)),
-                                      np.array([0.0, 0.0, 1.0]), 50.0), W, H)
+    cam = Camera.from_pose(
+        CameraPose(
+            np.array(EYE),
+            (np.array(TARGET) - EYE) / np.linalg.norm(np.subtract(TARGET, EYE)),
+            np.array([0.0, 0.0, 1.0]),
+            50.0,
+        ),
+        W,
+        H,
+    )
     uv, _ = cam.project(np.array(ob["corners_world"]))
     assert ob["behind_camera"] == [False] * 8
-    assert_allclose(np.array(ob["corners_image"]), uv, atol=1e-5)   # the stage's pose is float32
+    assert_allclose(np.array(ob["corners_image"]), uv, atol=1e-5)  # the stage's pose is float32
     coco = json.loads((tmp / "out" / "coco.json").read_text())
     [ann] = [a for a in coco["annotations"] if a["humv_instance_id"] == 1]
     assert ann["bbox_3d_oriented"] == ob and ann["bbox_3d"] == person["box_3d"]
@@ -252,8 +293,8 @@ def test_objects_boxes_occlusion_and_keypoints(scene_render):
     v = kp[:, 2]
     names = list(AL.COCO_KEYPOINTS)
     assert v[names.index("right_ankle")] == 0 and kp[names.index("right_ankle"), :2].tolist() == [0, 0]
-    assert v[names.index("left_knee")] == 1     # behind the wall
-    assert v[names.index("nose")] == 1          # the sphere's own front is in front of it
+    assert v[names.index("left_knee")] == 1  # behind the wall
+    assert v[names.index("nose")] == 1  # the sphere's own front is in front of it
     # the visible ones follow the rule: same person, one of the keypoint's regions at its pixel
     for k, name in enumerate(names):
         if v[k] != 2:
@@ -276,7 +317,7 @@ def test_masks_pngs(scene_render):
     assert rgb.shape == (H, W, 3)
     assert (rgb[ch["instance_id"] == 0] == 0).all()
     colours = {tuple(rgb[ch["instance_id"] == i][0]) for i in (1, 2, 3)}
-    assert len(colours) == 3                     # distinct per instance
+    assert len(colours) == 3  # distinct per instance
 
 
 def test_references_and_instancing_get_their_own_labels(tmp_path):
@@ -290,9 +331,11 @@ def test_references_and_instancing_get_their_own_labels(tmp_path):
     asset.Save()
 
     stage = new_stage(tmp_path / "stage.usda")
-    for name, x, ident, cls, instanceable in (("ref", -1.5, 7, "vehicle", False),
-                                               ("inst_a", 0.0, 8, "building", True),
-                                               ("inst_b", 1.5, 9, "other", True)):
+    for name, x, ident, cls, instanceable in (
+        ("ref", -1.5, 7, "vehicle", False),
+        ("inst_a", 0.0, 8, "building", True),
+        ("inst_b", 1.5, 9, "other", True),
+    ):
         prim = UsdGeom.Xform.Define(stage, f"/World/Scene/{name}").GetPrim()
         prim.GetReferences().AddReference(str(tmp_path / "asset.usda"))
         UsdGeom.Xformable(prim).AddTranslateOp().Set(Gf.Vec3d(x, 0.0, 0.0))
@@ -300,18 +343,25 @@ def test_references_and_instancing_get_their_own_labels(tmp_path):
         prim.SetInstanceable(instanceable)
     camera(stage, "cam", (0.0, -5.0, 0.5), (0.0, 0.0, 0.5), fov_x_deg=60.0)
     stage.Save()
-    assert Usd.Stage.Open(str(tmp_path / "stage.usda")).GetPrimAtPath("/World/Scene/inst_a/Geom/panel").IsInstanceProxy()
+    assert (
+        Usd.Stage.Open(str(tmp_path / "stage.usda"))
+        .GetPrimAtPath("/World/Scene/inst_a/Geom/panel")
+        .IsInstanceProxy()
+    )
     manifest = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=1, annotators=["semantic", "coco"])
     ch = read_exr(tmp_path / "out" / "cam" / "0000.exr")
     cols = {i: np.nonzero(ch["instance_id"] == i)[1] for i in (7, 8, 9)}
     assert all(c.size > 50 for c in cols.values())
-    assert cols[7].max() < cols[8].min() and cols[8].max() < cols[9].min()   # left to right
+    assert cols[7].max() < cols[8].min() and cols[8].max() < cols[9].min()  # left to right
     for i, cls in ((7, "vehicle"), (8, "building"), (9, "other")):
         assert (ch["class_id"][ch["instance_id"] == i] == GL.CLASS_ID[cls]).all()
     coco = json.loads((tmp_path / "out" / "coco.json").read_text())
     got = {a["humv_instance_id"]: (a["humv_prim"], a["category_id"]) for a in coco["annotations"]}
-    assert got == {7: ("/World/Scene/ref", GL.CLASS_ID["vehicle"]), 8: ("/World/Scene/inst_a", GL.CLASS_ID["building"]),
-                   9: ("/World/Scene/inst_b", GL.CLASS_ID["other"])}
+    assert got == {
+        7: ("/World/Scene/ref", GL.CLASS_ID["vehicle"]),
+        8: ("/World/Scene/inst_a", GL.CLASS_ID["building"]),
+        9: ("/World/Scene/inst_b", GL.CLASS_ID["other"]),
+    }
     assert manifest["ground_truth"]["annotators"] == ["semantic", "coco"]
 
 
@@ -341,6 +391,7 @@ def test_only_requested_annotators_run(tmp_path):
 def test_scenario_annotations_reach_the_stage(raw, tmp_path):
     from humv_usd.pipeline.compose import root_layer
     from humv_usd.scenario.load import validate
+
     raw["annotations"] = {"annotators": ["coco", "keypoints"]}
     scenario = validate(raw)
     layer = root_layer(scenario, [])
@@ -352,25 +403,37 @@ def test_scenario_annotations_reach_the_stage(raw, tmp_path):
     assert A.STAGE_KEY not in root_layer(validate(raw), []).customLayerData
 
 
+@pytest.mark.slow
 def test_avatar_keypoints_front_and_side(raw, tmp_path):
     """A composed person facing east, seen from the front (+x) and from his right (-y): from the
     front every keypoint is visible, from the side exactly the right-side ones (and the nose)."""
     from humv_usd.pipeline.compose import compose
     from humv_usd.scenario.load import validate
+
     raw["placement"][0]["heading_deg"] = 90.0
     raw["human"][0]["clothing"] = ["shorts"]
-    cam = {"band": "LWIR", "resolution": [96, 160], "focal_length_mm": 6.0, "pixel_pitch_um": 17.0,
-           "look_at_m": [0.0, 0.0, 0.9]}
-    raw["sensor"] = [dict(cam, id="front", position_m=[6.0, 0.0, 1.0]),
-                     dict(cam, id="side", position_m=[0.0, -6.0, 1.0])]
+    cam = {
+        "band": "LWIR",
+        "resolution": [96, 160],
+        "focal_length_mm": 6.0,
+        "pixel_pitch_um": 17.0,
+        "look_at_m": [0.0, 0.0, 0.9],
+    }
+    raw["sensor"] = [
+        dict(cam, id="front", position_m=[6.0, 0.0, 1.0]),
+        dict(cam, id="side", position_m=[0.0, -6.0, 1.0]),
+    ]
     raw["atmosphere"]["model"] = "analytic"
     raw["annotations"] = {"annotators": ["keypoints"]}
     compose(validate(raw), tmp_path)
     m = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=1)
     assert m["ground_truth"]["annotators"] == ["keypoints"] and m["ground_truth"]["source"] == "stage"
     for view in ("front", "side"):
-        [person] = [o for o in json.loads((tmp_path / "out" / view / "0000.objects.json").read_text())["objects"]
-                    if o["class"] == "person"]
+        [person] = [
+            o
+            for o in json.loads((tmp_path / "out" / view / "0000.objects.json").read_text())["objects"]
+            if o["class"] == "person"
+        ]
         v = dict(zip(AL.COCO_KEYPOINTS, person["keypoints"][2::3]))
         if view == "front":
             assert set(v.values()) == {2}, v
@@ -389,16 +452,19 @@ def _box_cloud(rng, center, size, yaw, n=200):
     return np.concatenate([B.box_corners(center, size, yaw), inner])
 
 
-@pytest.mark.parametrize("yaw, size, expect_yaw", [
-    (0.0, (3.0, 1.2, 1.8), 0.0),
-    (0.7, (3.0, 1.2, 1.8), 0.7),
-    (-1.2, (0.5, 0.2, 1.7), -1.2),
-    (np.pi / 2, (2.0, 1.0, 1.0), np.pi / 2),           # the closed end of (-pi/2, pi/2]
-    (-np.pi / 2, (2.0, 1.0, 1.0), np.pi / 2),          # the same box
-    (2.5, (2.0, 1.0, 1.0), 2.5 - np.pi),               # turned by pi: the same box
-    (0.3, (1.0, 3.0, 1.0), 0.3 - np.pi / 2),           # width > length: axes swap
-    (1.0, (1.0, 1.0, 2.0), 1.0 - np.pi / 2),           # square footprint: yaw in (-pi/4, pi/4]
-])
+@pytest.mark.parametrize(
+    "yaw, size, expect_yaw",
+    [
+        (0.0, (3.0, 1.2, 1.8), 0.0),
+        (0.7, (3.0, 1.2, 1.8), 0.7),
+        (-1.2, (0.5, 0.2, 1.7), -1.2),
+        (np.pi / 2, (2.0, 1.0, 1.0), np.pi / 2),  # the closed end of (-pi/2, pi/2]
+        (-np.pi / 2, (2.0, 1.0, 1.0), np.pi / 2),  # the same box
+        (2.5, (2.0, 1.0, 1.0), 2.5 - np.pi),  # turned by pi: the same box
+        (0.3, (1.0, 3.0, 1.0), 0.3 - np.pi / 2),  # width > length: axes swap
+        (1.0, (1.0, 1.0, 2.0), 1.0 - np.pi / 2),  # square footprint: yaw in (-pi/4, pi/4]
+    ],
+)
 def test_oriented_box_recovers_yaw_and_size(yaw, size, expect_yaw):
     rng = np.random.default_rng(7)
     center = np.array([12.0, -4.0, 0.9])
@@ -409,7 +475,9 @@ def test_oriented_box_recovers_yaw_and_size(yaw, size, expect_yaw):
     assert -np.pi / 2 < ob["yaw"] <= np.pi / 2
     assert_allclose(ob["center"], center, atol=1e-12)
     # the corners are the input box's corners (as a set)
-    d = np.linalg.norm(np.array(ob["corners_world"])[:, None] - B.box_corners(center, size, yaw)[None], axis=-1)
+    d = np.linalg.norm(
+        np.array(ob["corners_world"])[:, None] - B.box_corners(center, size, yaw)[None], axis=-1
+    )
     assert d.min(axis=1).max() < 1e-9
     assert "corners_image" not in ob
 
@@ -419,15 +487,15 @@ def test_oriented_box_is_minimal_area_against_a_brute_force_yaw_search():
     pts = rng.normal(size=(300, 3)) * [2.0, 0.6, 0.5] @ np.array([[0.8, 0.6, 0], [-0.6, 0.8, 0], [0, 0, 1.0]])
     ob = B.box_3d_oriented(pts)
     area = ob["size"][0] * ob["size"][1]
-    yaws = np.linspace(0.0, np.pi / 2, 20001)            # every rectangle is one of these, turned
+    yaws = np.linspace(0.0, np.pi / 2, 20001)  # every rectangle is one of these, turned
     u = pts[:, 0] * np.cos(yaws)[:, None] + pts[:, 1] * np.sin(yaws)[:, None]
     v = -pts[:, 0] * np.sin(yaws)[:, None] + pts[:, 1] * np.cos(yaws)[:, None]
     brute = (u.max(1) - u.min(1)) * (v.max(1) - v.min(1))
-    assert area <= brute.min() * (1 + 1e-12)             # never worse than any sampled yaw
+    assert area <= brute.min() * (1 + 1e-12)  # never worse than any sampled yaw
     # and the grid gets within its resolution: |dA/dyaw| <= 2 D^2 (D the cloud's diameter in the
     # plane), the optimum at most half a step from a grid yaw
     diameter = np.ptp(pts[:, :2], axis=0).max() * np.sqrt(2)
-    assert brute.min() - area <= 2 * diameter ** 2 * 0.5 * (yaws[1] - yaws[0])
+    assert brute.min() - area <= 2 * diameter**2 * 0.5 * (yaws[1] - yaws[0])
     assert brute.min() <= area * (1 + 1e-4)
     # every point inside the box, and the footprint touches the points on all four sides
     c, s = np.cos(ob["yaw"]), np.sin(ob["yaw"])
@@ -449,8 +517,7 @@ def test_oriented_box_corners_project_with_the_camera_model():
     cam = Camera.from_pose(pose, 80, 60)
     rng = np.random.default_rng(5)
     # a box in view, and one straddling the camera plane (y = -6): its near corners are behind
-    for center, expect_behind in (((0.5, 0.0, 0.9), [False] * 8),
-                                  ((0.0, -6.2, 1.0), None)):
+    for center, expect_behind in (((0.5, 0.0, 0.9), [False] * 8), ((0.0, -6.2, 1.0), None)):
         ob = B.box_3d_oriented(_box_cloud(rng, np.array(center), (2.0, 1.0, 1.8), 0.4, n=50), cam)
         corners = np.array(ob["corners_world"])
         uv, depth = cam.project(corners)

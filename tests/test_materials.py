@@ -1,4 +1,5 @@
 """Material library: sources, spectra, Kirchhoff, literature band emissivities; materials layer."""
+
 from __future__ import annotations
 
 import copy
@@ -7,16 +8,30 @@ import numpy as np
 import pytest
 from pxr import Usd
 
+from humv_usd.catalog.materials import FABRICS, LIBRARY, WAVELENGTHS_UM
 from humv_usd.materials import layer as materials_layer
-from humv_usd.materials.library import FABRICS, LIBRARY, WAVELENGTHS_UM
 from humv_usd.physics.planck import band_emissivity
 from humv_usd.scenario import validate
 from humv_usd.scenario.spec import MATERIALS
 from humv_usd.usd import schemas as S
 
-REQUIRED = {"skin", "cotton_white", "cotton_black", "nylon", "polyester", "wool",
-            "camouflage_nyco", "concrete", "asphalt", "grass", "soil", "painted_metal", "wood",
-            "glass", "blackbody"}
+REQUIRED = {
+    "skin",
+    "cotton_white",
+    "cotton_black",
+    "nylon",
+    "polyester",
+    "wool",
+    "camouflage_nyco",
+    "concrete",
+    "asphalt",
+    "grass",
+    "soil",
+    "painted_metal",
+    "wood",
+    "glass",
+    "blackbody",
+}
 
 
 def lwir(m) -> float:
@@ -33,7 +48,7 @@ def test_library_has_every_required_material_and_scenario_choices_exist():
 @pytest.mark.parametrize("name", sorted(LIBRARY))
 def test_spectra_are_physical_and_sourced(name):
     m = LIBRARY[name]
-    assert len(m.source) > 150 and any(ch.isdigit() for ch in m.source), name   # cites a year/table
+    assert len(m.source) > 150 and any(ch.isdigit() for ch in m.source), name  # cites a year/table
     wl = np.asarray(m.spectrum_wavelengths)
     assert np.all(np.diff(wl) > 0) and wl[0] <= 0.4 and wl[-1] >= 14.0
     r = np.asarray(m.spectrum_reflectance)
@@ -41,7 +56,7 @@ def test_spectra_are_physical_and_sourced(name):
     t = np.zeros_like(r) if m.opaque else np.asarray(m.spectrum_transmittance)
     for values in (r, e, t):
         assert values.size == wl.size and np.all((values >= 0) & (values <= 1))
-    np.testing.assert_allclose(e + r + t, 1.0, atol=1e-6)          # Kirchhoff / energy balance
+    np.testing.assert_allclose(e + r + t, 1.0, atol=1e-6)  # Kirchhoff / energy balance
     if m.opaque:
         np.testing.assert_allclose(e, 1.0 - r, atol=1e-6)
     # the common-grid values the thermal tools use are the same spectrum
@@ -50,17 +65,20 @@ def test_spectra_are_physical_and_sourced(name):
     assert 0 <= m.solar_absorptivity <= 1
 
 
-@pytest.mark.parametrize("name, lo, hi", [
-    ("skin", 0.97, 0.99),          # Steketee 1973: 0.98 +- 0.01
-    ("grass", 0.97, 0.99),         # Salisbury & D'Aria 1992: green foliage
-    ("soil", 0.93, 0.97),
-    ("concrete", 0.93, 0.97),
-    ("asphalt", 0.93, 0.97),
-    ("wood", 0.90, 0.96),
-    ("painted_metal", 0.88, 0.94),
-    ("glass", 0.84, 0.92),
-    ("blackbody", 0.965, 0.975),
-])
+@pytest.mark.parametrize(
+    "name, lo, hi",
+    [
+        ("skin", 0.97, 0.99),  # Steketee 1973: 0.98 +- 0.01
+        ("grass", 0.97, 0.99),  # Salisbury & D'Aria 1992: green foliage
+        ("soil", 0.93, 0.97),
+        ("concrete", 0.93, 0.97),
+        ("asphalt", 0.93, 0.97),
+        ("wood", 0.90, 0.96),
+        ("painted_metal", 0.88, 0.94),
+        ("glass", 0.84, 0.92),
+        ("blackbody", 0.965, 0.975),
+    ],
+)
 def test_lwir_band_emissivity_matches_literature(name, lo, hi):
     assert lo <= lwir(LIBRARY[name]) <= hi
 

@@ -1,5 +1,6 @@
 """Procedural motion: gait laws, joint angles, arm swing, paths, contact on flat/sloped/uneven
 ground, standing activities, metabolic rate and timing."""
+
 from __future__ import annotations
 
 import time
@@ -9,16 +10,18 @@ import pytest
 
 from humv_usd.assets import makehuman_dir
 
-pytestmark = pytest.mark.skipif(not (makehuman_dir() / "rigs").is_dir(),
-                                reason="MakeHuman data not fetched (make setup)")
+pytestmark = pytest.mark.skipif(
+    not (makehuman_dir() / "rigs").is_dir(), reason="MakeHuman data not fetched (make setup)"
+)
 
 SLOPE = np.radians(5.0)
 
 
 @pytest.fixture(scope="module")
 def rig():
-    from humv_usd.avatar.body import build_body
-    from humv_usd.avatar.skeleton import skeleton_for
+    from humv_usd.human.body import build_body
+    from humv_usd.human.skeleton import skeleton_for
+
     body = build_body("male", 30, 1.78, 80)
     return body, skeleton_for(body.points, body.groups)
 
@@ -26,6 +29,7 @@ def rig():
 def bumpy_ground(seed=3, amp=0.03, res=0.05, y_range=(-26.0, 4.0), x_range=(-2.5, 2.5)):
     """A smooth random heightfield mesh (+-3 cm, wavelengths ~0.8-2 m), 5 cm grid."""
     import trimesh
+
     rng = np.random.default_rng(seed)
     xs = np.arange(x_range[0], x_range[1] + res / 2, res)
     ys = np.arange(y_range[0], y_range[1] + res / 2, res)
@@ -38,11 +42,9 @@ def bumpy_ground(seed=3, amp=0.03, res=0.05, y_range=(-26.0, 4.0), x_range=(-2.5
     Z *= amp / np.abs(Z).max()
     ny, nx = X.shape
     ij = np.arange(nx * ny).reshape(ny, nx)
-    a, b, c, d = (ij[:-1, :-1].ravel(), ij[:-1, 1:].ravel(), ij[1:, 1:].ravel(),
-                  ij[1:, :-1].ravel())
+    a, b, c, d = (ij[:-1, :-1].ravel(), ij[:-1, 1:].ravel(), ij[1:, 1:].ravel(), ij[1:, :-1].ravel())
     faces = np.vstack([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
-    return trimesh.Trimesh(np.column_stack([X.ravel(), Y.ravel(), Z.ravel()]), faces,
-                           process=False)
+    return trimesh.Trimesh(np.column_stack([X.ravel(), Y.ravel(), Z.ravel()]), faces, process=False)
 
 
 def uphill(x, y):
@@ -51,7 +53,8 @@ def uphill(x, y):
 
 
 def angles(motion, skel):
-    from humv_usd.avatar.gait import sagittal_angles
+    from humv_usd.human.gait import sagittal_angles
+
     rot, pos = motion.world(skel)
     return sagittal_angles(skel, rot, pos)
 
@@ -61,15 +64,23 @@ def angles(motion, skel):
 # and 0.71 m steps (Perry & Burnfield 2010); slow/fast walking and the walk ratio
 # (Grieve & Gear 1966; Oberg, Karsznia & Oberg 1993; Sekiya & Nagasaki 1998); running
 # cadence ~160-180 steps/min nearly independent of speed (Cavanagh & Kram 1989).
-WALK_RANGES = {0.5: ((55, 85), (0.30, 0.55)), 1.0: ((85, 110), (0.55, 0.72)),
-               1.4: ((100, 125), (0.65, 0.85)), 2.0: ((125, 150), (0.78, 0.98))}
-RUN_RANGES = {2.5: ((150, 180), (0.80, 1.10)), 3.5: ((155, 185), (1.10, 1.40)),
-              5.0: ((165, 200), (1.45, 1.90))}
+WALK_RANGES = {
+    0.5: ((55, 85), (0.30, 0.55)),
+    1.0: ((85, 110), (0.55, 0.72)),
+    1.4: ((100, 125), (0.65, 0.85)),
+    2.0: ((125, 150), (0.78, 0.98)),
+}
+RUN_RANGES = {
+    2.5: ((150, 180), (0.80, 1.10)),
+    3.5: ((155, 185), (1.10, 1.40)),
+    5.0: ((165, 200), (1.45, 1.90)),
+}
 
 
 @pytest.mark.parametrize("mode,table", [("walk", WALK_RANGES), ("run", RUN_RANGES)])
 def test_cadence_and_step_length_follow_speed(rig, mode, table):
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     _, skel = rig
     cad = []
     for v, ((c_lo, c_hi), (s_lo, s_hi)) in table.items():
@@ -77,7 +88,7 @@ def test_cadence_and_step_length_follow_speed(rig, mode, table):
         cadence, step = m.gait["cadence_steps_min"], m.gait["step_length_m"]
         assert c_lo <= cadence <= c_hi, (v, cadence)
         assert s_lo <= step <= s_hi, (v, step)
-        assert abs(cadence / 60.0 * step - v) < 1e-6 * v          # v = cadence * step
+        assert abs(cadence / 60.0 * step - v) < 1e-6 * v  # v = cadence * step
         # the clip really walks at that cadence and speed
         st = m.gait["stance"]["left"]
         ic = np.flatnonzero(st[1:] & ~st[:-1])
@@ -96,7 +107,8 @@ def test_walking_joint_angles_in_normative_ranges(rig):
     """Perry & Burnfield (2010) / Winter (2009): knee ~0-5 deg at contact, ~60-65 deg peak
     in swing; thigh ~20-30 deg flexion and ~10-20 deg extension; ankle ~20 deg plantar
     flexion after toe-off, ~10 deg dorsiflexion in terminal stance."""
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     body, skel = rig
     m = make_motion("walk", skel, 30, 150, speed_m_s=1.4, body_points=body.points)
     a = angles(m, skel)
@@ -109,39 +121,42 @@ def test_walking_joint_angles_in_normative_ranges(rig):
         # loading response: the knee flexes 10-25 deg early in stance
         st = m.gait["stance"][side.lower()]
         first = np.flatnonzero(st[1:] & ~st[:-1])[0] + 1
-        assert 10.0 <= knee[first:first + 6].max() <= 25.0
+        assert 10.0 <= knee[first : first + 6].max() <= 25.0
 
 
 def test_running_kinematics(rig):
     """Novacheck (1998): knee ~40 deg at mid-stance, ~90-105 deg in swing; flight phases."""
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     _, skel = rig
     m = make_motion("run", skel, 30, 150, speed_m_s=3.5)
     a = angles(m, skel)
     knee, hip = a["LeftKnee"], a["LeftHip"]
     assert 80.0 <= knee.max() <= 110.0 and knee.min() >= 5.0
     st = m.gait["stance"]["left"]
-    assert 25.0 <= knee[st].max() <= 55.0                       # stance flexion
+    assert 25.0 <= knee[st].max() <= 55.0  # stance flexion
     assert 40.0 <= hip.max() <= 65.0 and -35.0 <= hip.min() <= -10.0
     assert m.contact["flight_frames"] > 0.1 * m.frame_count
 
 
 def test_arm_swing_opposes_the_legs(rig):
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     _, skel = rig
     for mode, v in (("walk", 1.4), ("run", 3.5)):
         a = angles(make_motion(mode, skel, 30, 120, speed_m_s=v), skel)
         for side, other in (("Left", "Right"), ("Right", "Left")):
             sh = a[f"{side}Shoulder"]
-            assert np.corrcoef(sh, a[f"{side}Hip"])[0, 1] < -0.6     # same side: opposite
-            assert np.corrcoef(sh, a[f"{other}Hip"])[0, 1] > 0.6     # other leg: together
+            assert np.corrcoef(sh, a[f"{side}Hip"])[0, 1] < -0.6  # same side: opposite
+            assert np.corrcoef(sh, a[f"{other}Hip"])[0, 1] > 0.6  # other leg: together
             assert 20.0 <= np.ptp(sh) <= 80.0
 
 
 def test_pelvis_excursions(rig):
     """Vertical CoM excursion ~3-5 cm and mediolateral ~4-6 cm at 1.4 m/s (Orendurff et al.
     2004); the vertical one is not imposed, it follows from legs and ground contact."""
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     _, skel = rig
     m = make_motion("walk", skel, 30, 120, speed_m_s=1.4)
     r = m.root_translation
@@ -149,7 +164,7 @@ def test_pelvis_excursions(rig):
     assert 0.02 <= np.ptp(r[:, 0]) <= 0.08
     # one vertical oscillation per step, lowest in double support
     z = r[:, 2] - r[:, 2].mean()
-    steps = m.gait["cadence_steps_min"] / 60.0 * 4.0                # 120 frames = 4 s
+    steps = m.gait["cadence_steps_min"] / 60.0 * 4.0  # 120 frames = 4 s
     assert abs(np.sum((z[1:] > 0) & (z[:-1] <= 0)) - steps) <= 1.0
     both = m.gait["stance"]["left"] & m.gait["stance"]["right"]
     assert z[both].mean() < z[~both].mean() - 0.01
@@ -164,7 +179,8 @@ GROUNDS = {"flat": lambda: None, "slope5": lambda: uphill, "uneven": bumpy_groun
 def test_ground_contact(rig, mode, speed, ground):
     """Contact points: the body's sole vertices (rest height < 1 cm), skinned to the foot and
     toe joints with their MakeHuman weights. Gap and penetration <= 1 cm, slip <= 2 cm."""
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     body, skel = rig
     g = GROUNDS[ground]()
     m = make_motion(mode, skel, 30, 180, speed_m_s=speed, ground=g, body_points=body.points)
@@ -175,7 +191,7 @@ def test_ground_contact(rig, mode, speed, ground):
     for side in ("left", "right"):
         assert c[side]["max_slip_m"] <= 0.02, c
         assert c[side]["stance_frames"] > 0.25 * m.frame_count
-    if ground == "slope5":   # the pelvis climbs with the ground
+    if ground == "slope5":  # the pelvis climbs with the ground
         rise = m.root_translation[-1, 2] - m.root_translation[0, 2]
         run = np.linalg.norm(m.root_translation[-1, :2] - m.root_translation[0, :2])
         assert abs(rise / run - np.tan(SLOPE)) < 0.01
@@ -184,9 +200,14 @@ def test_ground_contact(rig, mode, speed, ground):
 def test_skinned_soles_touch_the_ground(rig):
     """The full skinned mesh (4 influences), not only the contact points, stands on the
     ground: lowest sole vertex within 1 cm in stance frames, nothing deeper than 1 cm."""
-    from humv_usd.avatar.motion import make_motion
-    from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning,
-                                          skin_weights, skinning_matrices)
+    from humv_usd.human.motion import make_motion
+    from humv_usd.human.skeleton import (
+        forward_kinematics,
+        linear_blend_skinning,
+        skin_weights,
+        skinning_matrices,
+    )
+
     body, skel = rig
     mesh = body.body_mesh()
     low = np.flatnonzero(mesh.points[:, 2] < 0.05)
@@ -199,18 +220,19 @@ def test_skinned_soles_touch_the_ground(rig):
 
 
 def test_path_following(rig):
-    from humv_usd.avatar.gait import yaw_of
-    from humv_usd.avatar.motion import Path, make_motion
+    from humv_usd.human.gait import yaw_of
+    from humv_usd.human.motion import Path, make_motion
+
     body, skel = rig
-    wp = np.array([[0.0, 0.137], [0.0, -4.0], [4.0, -4.0], [4.0, 0.0]])   # 12 m, U-turn
+    wp = np.array([[0.0, 0.137], [0.0, -4.0], [4.0, -4.0], [4.0, 0.0]])  # 12 m, U-turn
     m = make_motion("walk", skel, 30, 240, speed_m_s=1.4, path=wp, body_points=body.points)
     r = m.root_translation
     track = Path(wp, None)
     dist = [np.min(np.linalg.norm(track.xy - q, axis=1)) for q in r[:, :2]]
-    assert max(dist) < 0.06                      # on the (corner-rounded) track, +- sway
+    assert max(dist) < 0.06  # on the (corner-rounded) track, +- sway
     arc = np.cumsum(np.linalg.norm(np.diff(track.xy, axis=0), axis=1))
     done = arc[np.argmin(np.linalg.norm(track.xy[1:] - r[-1, :2], axis=1))]
-    assert abs(done / (239 / 30.0) - 1.4) < 0.03   # the requested speed along the path
+    assert abs(done / (239 / 30.0) - 1.4) < 0.03  # the requested speed along the path
     rot, _ = m.world(skel)
     heading = np.degrees(np.unwrap(yaw_of(rot[:, 0])))  # includes +-pelvis rotation
     assert abs(heading[:20].mean()) < 6.0 and abs(heading[-20:].mean() - 180.0) < 6.0
@@ -224,7 +246,8 @@ def test_path_following(rig):
 
 # ------------------------------------------------------------------------- standing
 def test_quiet_standing(rig):
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     body, skel = rig
     m = make_motion("stand", skel, 30, 900, body_points=body.points, seed=2)
     r = m.root_translation
@@ -234,7 +257,7 @@ def test_quiet_standing(rig):
     f = np.fft.rfftfreq(len(ap), 1 / 30.0)
     p = np.abs(np.fft.rfft(ap)) ** 2
     band = (f >= 0.08) & (f <= 0.55)
-    assert p[band].sum() > 0.9 * p[1:].sum()                       # sway at 0.1-0.5 Hz
+    assert p[band].sum() > 0.9 * p[1:].sum()  # sway at 0.1-0.5 Hz
     assert 12.0 <= 60 * np.mean(m.gait["breath_rate_hz"]) <= 16.5
     c = m.contact
     assert c["max_slip_m"] < 0.002 and c["max_gap_m"] < 0.01 and c["max_penetration_m"] < 0.01
@@ -245,27 +268,29 @@ def test_quiet_standing(rig):
 
 
 def test_stand_turn(rig):
-    from humv_usd.avatar.gait import yaw_of
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.gait import yaw_of
+    from humv_usd.human.motion import make_motion
+
     body, skel = rig
     m = make_motion("standTurn", skel, 30, 150, body_points=body.points, ground=uphill)
     rot, _ = m.world(skel)
     heading = np.degrees(np.unwrap(yaw_of(rot[:, 0])))
-    assert abs(heading[0]) < 1.0 and abs(heading[-1] - 180.0) < 1.0   # + = to the left
+    assert abs(heading[0]) < 1.0 and abs(heading[-1] - 180.0) < 1.0  # + = to the left
     assert np.all(np.diff(heading) > -0.5)
     for side in ("left", "right"):
         st = m.gait["stance"][side]
-        assert 2 <= np.sum(st[1:] & ~st[:-1]) <= 4          # a few steps per foot
+        assert 2 <= np.sum(st[1:] & ~st[:-1]) <= 4  # a few steps per foot
     c = m.contact
     assert c["max_slip_m"] <= 0.02 and c["max_gap_m"] <= 0.01 and c["max_penetration_m"] <= 0.01
-    assert np.ptp(m.root_translation[:, :2], axis=0).max() < 0.08   # turns in place
+    assert np.ptp(m.root_translation[:, :2], axis=0).max() < 0.08  # turns in place
     right = make_motion("standTurn", skel, 30, 150, turn_deg=-90)
     rot, _ = right.world(skel)
     assert abs(np.degrees(yaw_of(rot[-1, 0])) + 90.0) < 1.0
 
 
 def test_post_exercise(rig):
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     _, skel = rig
     m = make_motion("postExercise", skel, 30, 600, mass_kg=75, exercise_met=10.0)
     rate = m.metabolic_rate_w
@@ -279,7 +304,8 @@ def test_post_exercise(rig):
 
 # ------------------------------------------------------------------------- metabolic rate
 def test_metabolic_rates(rig):
-    from humv_usd.avatar.motion import acsm_vo2, make_motion, met_to_watts, metabolic_rate
+    from humv_usd.human.motion import acsm_vo2, make_motion, met_to_watts, metabolic_rate
+
     _, skel = rig
     t = np.arange(10) / 30.0
     walk = metabolic_rate("walk", 75.0, t, 1.4)
@@ -302,8 +328,9 @@ def test_metabolic_rates(rig):
 
 # ------------------------------------------------------------------------- API
 def test_motion_arrays_and_errors(rig):
-    from humv_usd.avatar.motion import ACTIVITIES, make_motion
     from humv_usd.errors import InputError
+    from humv_usd.human.motion import ACTIVITIES, make_motion
+
     _, skel = rig
     for act in ACTIVITIES:
         m = make_motion(act, skel, 24, 48)
@@ -312,7 +339,7 @@ def test_motion_arrays_and_errors(rig):
         assert m.local_rotations.shape == (48, len(skel.names), 4)
         assert np.allclose(np.linalg.norm(m.local_rotations, axis=-1), 1.0)
         dots = np.sum(m.local_rotations[1:] * m.local_rotations[:-1], axis=-1)
-        assert dots.min() > 0.9                                  # continuous signs, smooth
+        assert dots.min() > 0.9  # continuous signs, smooth
         assert m.metabolic_rate_w.shape == (48,)
         for key in ("max_gap_m", "max_penetration_m", "max_slip_m", "left", "right"):
             assert key in m.contact
@@ -328,7 +355,8 @@ def test_motion_arrays_and_errors(rig):
 
 def test_ten_second_walk_is_fast(rig):
     """Goal: <= 2 s for a 10 s, 30 fps walk (the avatar layer's budget is 10 s in total)."""
-    from humv_usd.avatar.motion import make_motion
+    from humv_usd.human.motion import make_motion
+
     body, skel = rig
     times = []
     for _ in range(3):

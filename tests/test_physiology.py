@@ -1,4 +1,5 @@
 """Physiology: two-node (Gagge), JOS-3 (pythermalcomfort), heart rate, per-face skin mapping."""
+
 from __future__ import annotations
 
 import itertools
@@ -7,15 +8,15 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from humv_usd.avatar.labels import JOS3_SEGMENTS
-from humv_usd.avatar.motion import epoc_met
+from humv_usd.human.labels import JOS3_SEGMENTS
+from humv_usd.human.motion import epoc_met
 from humv_usd.thermal import physiology as P
 
 K = 273.15
 HEIGHT, MASS, AGE = 1.75, 75.0, 30.0
 AREA = P.dubois_area(HEIGHT, MASS)
-MET_W = P.MET_W_M2 * AREA              # 1 met for this body [W]
-HOUR = np.arange(0.0, 3601.0, 60.0)    # 1 h at 60 s steps
+MET_W = P.MET_W_M2 * AREA  # 1 met for this body [W]
+HOUR = np.arange(0.0, 3601.0, 60.0)  # 1 h at 60 s steps
 SEG = {name: i for i, name in enumerate(JOS3_SEGMENTS)}
 TRUNK = [SEG[s] for s in ("Chest", "Back", "Pelvis")]
 EXTREMITIES = [SEG[s] for s in ("LHand", "RHand", "LFoot", "RFoot")]
@@ -26,8 +27,20 @@ pythermalcomfort = pytest.importorskip("pythermalcomfort")
 def run(model, air_c=29.0, met=1.0, rh=0.5, v=0.1, clo=0.5, times=HOUR, mrt_c=None, **kw):
     """``met`` in met units, scalar or per step."""
     mrt_c = air_c if mrt_c is None else mrt_c
-    return P.simulate_physiology(times, np.asarray(met) * MET_W, air_c + K, mrt_c + K, rh, v, clo,
-                                 model=model, height_m=HEIGHT, mass_kg=MASS, age_years=AGE, **kw)
+    return P.simulate_physiology(
+        times,
+        np.asarray(met) * MET_W,
+        air_c + K,
+        mrt_c + K,
+        rh,
+        v,
+        clo,
+        model=model,
+        height_m=HEIGHT,
+        mass_kg=MASS,
+        age_years=AGE,
+        **kw,
+    )
 
 
 def exercise_schedule():
@@ -66,7 +79,7 @@ def test_heart_rate_fitness_and_validation():
     m = 5.0 * MET_W
     low, avg, high = (P.heart_rate(m, MASS, AGE, fitness=f) for f in ("low", "average", "high"))
     assert low > avg > high
-    assert P.heart_rate(m, MASS, 60.0) > avg      # older: lower HRmax but lower VO2max too
+    assert P.heart_rate(m, MASS, 60.0) > avg  # older: lower HRmax but lower VO2max too
     assert np.all(np.diff(P.heart_rate(np.linspace(50, 2000, 50), MASS, AGE)) >= 0)
     with pytest.raises(ValueError):
         P.heart_rate(m, fitness="elite")
@@ -98,7 +111,7 @@ def test_two_node_exercise_and_recovery():
     i_rest, i_end, i_rec = 9, 40, len(t) - 1
     core = r.core_temperature_k
     assert core[i_end] - core[i_rest] > 0.2
-    assert core[i_rec] < core[i_end] - 0.1              # recovering
+    assert core[i_rec] < core[i_end] - 0.1  # recovering
     assert r.heart_rate_bpm[i_end] > r.heart_rate_bpm[i_rest] + 30
     assert r.heart_rate_bpm[i_rec] < r.heart_rate_bpm[i_rest] + 5
 
@@ -113,12 +126,13 @@ def test_two_node_time_step_independence(dt):
     assert_allclose(r.mean_skin_temperature_k[-1], ref.mean_skin_temperature_k[-1], atol=0.1)
 
 
+@pytest.mark.slow
 def test_two_node_extreme_grid_finite():
-    for air, rh, v, clo, met in itertools.product((-40.0, 0.0, 25.0, 40.0, 55.0), (0.0, 0.5, 1.0),
-                                                  (0.0, 5.0, 30.0), (0.0, 1.5), (1.0, 6.0)):
+    for air, rh, v, clo, met in itertools.product(
+        (-40.0, 0.0, 25.0, 40.0, 55.0), (0.0, 0.5, 1.0), (0.0, 5.0, 30.0), (0.0, 1.5), (1.0, 6.0)
+    ):
         r = run("two_node", air_c=air, rh=rh, v=v, clo=clo, met=met)
-        for a in (r.core_temperature_k, r.mean_skin_temperature_k, r.skin_blood_flow_l_h,
-                  r.sweat_rate_g_s):
+        for a in (r.core_temperature_k, r.mean_skin_temperature_k, r.skin_blood_flow_l_h, r.sweat_rate_g_s):
             assert np.isfinite(a).all(), (air, rh, v, clo, met)
         # no frost model: bare skin in -40 °C at 30 m/s goes far below 0 °C, but not below the
         # air (evaporation can cool it below a warm, dry air: wet-bulb effect)
@@ -133,11 +147,12 @@ def test_two_node_bad_input():
 
 
 # ----------------------------------------------------------------------------- JOS-3
+@pytest.mark.slow
 def test_jos3_neutral(jos3_runs):
-    r = jos3_runs["neutral"]          # 29 °C, 0.5 clo, 1 met: PMV +1.1 (ISO 7730), slightly warm
+    r = jos3_runs["neutral"]  # 29 °C, 0.5 clo, 1 met: PMV +1.1 (ISO 7730), slightly warm
     assert 36.8 <= r.core_temperature_k[-1] - K <= 37.2
     assert 33.0 <= r.mean_skin_temperature_k[-1] - K <= 35.5
-    r0 = jos3_runs["pmv0"]            # 25.5 °C: PMV ~ 0 for 0.5 clo
+    r0 = jos3_runs["pmv0"]  # 25.5 °C: PMV ~ 0 for 0.5 clo
     assert 33.0 <= r0.mean_skin_temperature_k[-1] - K <= 35.0
     assert 36.8 <= r0.core_temperature_k[-1] - K <= 37.2
     assert r.segment_skin_temperature_k.shape == (len(HOUR), 17)
@@ -172,13 +187,14 @@ def test_jos3_exercise_and_recovery(jos3_runs):
 
 def test_jos3_per_segment_mrt(jos3_runs):
     mrt = np.full(17, 29.0 + K)
-    mrt[SEG["Head"]] = 60.0 + K      # sun on the head only
+    mrt[SEG["Head"]] = 60.0 + K  # sun on the head only
     r = P.jos3(HOUR[:11], MET_W, 29.0 + K, mrt, 0.5, 0.1, 0.5, height_m=HEIGHT, mass_kg=MASS)
     base = jos3_runs["neutral"].segment_skin_temperature_k[10]
     d = r.segment_skin_temperature_k[-1] - base
     assert d[SEG["Head"]] > 1.0 and d[SEG["Head"]] == d.max()
 
 
+@pytest.mark.slow
 def test_jos3_extreme_grid_finite(jos3_runs):
     for air, rh, v in itertools.product((-40.0, 55.0), (0.0, 1.0), (0.0, 30.0)):
         r = run("jos3", air_c=air, rh=rh, v=v, times=HOUR[:31], spin_up_s=1800.0)
@@ -190,7 +206,7 @@ def test_jos3_extreme_grid_finite(jos3_runs):
 def test_simulate_physiology_model_selection():
     with pytest.raises(ValueError, match="invalid model selection"):
         run("icda")
-    r = run("two_node", times=HOUR[:3], mrt_c=np.full(17, 29.0))   # per-segment MRT → mean
+    r = run("two_node", times=HOUR[:3], mrt_c=np.full(17, 29.0))  # per-segment MRT → mean
     assert r.model == "two_node"
 
 
@@ -212,6 +228,7 @@ def test_skin_temperature_per_face():
 
 def test_time_step_bench_two_node_first_order():
     from humv_usd.thermal.physiology import bench_time_steps
+
     rows = bench_time_steps("two_node", steps_s=(5.0, 20.0, 60.0), duration_s=1800.0)
     err = [r["max_error_k"] for r in rows]
-    assert err[0] < err[1] < err[2] < 0.5   # explicit Euler: error grows with the step
+    assert err[0] < err[1] < err[2] < 0.5  # explicit Euler: error grows with the step

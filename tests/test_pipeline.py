@@ -1,4 +1,5 @@
 """End to end: compose humvvex, render it through the CLI, read the EXR back."""
+
 from __future__ import annotations
 
 import json
@@ -8,7 +9,7 @@ import sys
 import numpy as np
 import OpenImageIO as oiio
 import pytest
-
+from conftest import HUMVVEX, ROOT
 from pxr import Usd
 
 from humv_usd.physics.planck import band_radiance, brightness_temperature
@@ -16,14 +17,13 @@ from humv_usd.render.export import StageExport
 from humv_usd.render.radiometry import SubBands
 from humv_usd.usd.layers import open_stage
 
-from conftest import HUMVVEX, ROOT
-
 pytestmark = pytest.mark.slow
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "humv_usd.cli.main", *args], cwd=ROOT,
-                          capture_output=True, text=True)
+    return subprocess.run(
+        [sys.executable, "-m", "humv_usd.cli.main", *args], cwd=ROOT, capture_output=True, text=True
+    )
 
 
 @pytest.fixture(scope="module")
@@ -31,8 +31,16 @@ def rendered(tmp_path_factory):
     out = tmp_path_factory.mktemp("e2e")
     r = run("compose", str(HUMVVEX), "-o", str(out))
     assert r.returncode == 0, r.stderr
-    r = run("render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", "8",
-            "--sensor", "atom1024_lwir")
+    r = run(
+        "render",
+        str(out / "stage.usda"),
+        "-o",
+        str(out / "render"),
+        "--spp",
+        "8",
+        "--sensor",
+        "atom1024_lwir",
+    )
     assert r.returncode == 0, r.stderr
     assert "Monte Carlo error per pixel" in r.stdout
     buf = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.exr"))
@@ -46,7 +54,12 @@ def rendered(tmp_path_factory):
 def test_outputs_and_manifest(rendered):
     out, ch, manifest = rendered
     assert set(ch) - set(manifest["ground_truth"]["channels"]) - {"counts"} == {  # counts: sensor chain
-        "radiance", "brightness_temperature", "radiance_stderr", "depth", "instance_id"}
+        "radiance",
+        "brightness_temperature",
+        "radiance_stderr",
+        "depth",
+        "instance_id",
+    }
     assert ch["radiance"].shape == (768, 1024)
     png = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.png"))
     assert png.spec().format == oiio.UINT8 and png.spec().width == 1024
@@ -110,7 +123,7 @@ def test_radiometry(rendered):
     top, height = rows.min(), rows.max() - rows.min()
     shins = person.copy()
     shins[: top + int(0.75 * height)] = False
-    shins[top + int(0.92 * height):] = False
+    shins[top + int(0.92 * height) :] = False
     t_skin = np.median(ch["brightness_temperature"][shins])
     eps = 0.98
     surface = eps * band_radiance(306.15, band, resp) + (1 - eps) * band_radiance(sky_k, band, resp)
@@ -124,7 +137,9 @@ def test_radiometry(rendered):
     some = np.s_[::37, ::41]
     np.testing.assert_allclose(
         brightness_temperature(ch["radiance"][some].astype(float), band, resp),
-        ch["brightness_temperature"][some], rtol=1e-5)
+        ch["brightness_temperature"][some],
+        rtol=1e-5,
+    )
 
 
 def test_render_bad_stage_exit_2(tmp_path):

@@ -1,4 +1,5 @@
 """Planck's law, band radiance and its inverse against closed forms and independent quadrature."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,12 +17,18 @@ RESPONSE = (np.array([7.5, 8.0, 12.0, 14.5]), np.array([0.0, 1.0, 0.8, 0.0]))
 
 def _quad_band(t, band, response=None):
     if response is None:
+
         def f(lam):
             return planck.spectral_radiance(lam, t)
+
         points = None
     else:
+
         def f(lam):
-            return np.interp(lam, response[0], response[1], left=0.0, right=0.0) * planck.spectral_radiance(lam, t)
+            return np.interp(lam, response[0], response[1], left=0.0, right=0.0) * planck.spectral_radiance(
+                lam, t
+            )
+
         points = [p for p in response[0] if band[0] < p < band[1]]
     return quad(f, band[0], band[1], points=points, epsabs=0.0, epsrel=1e-12, limit=500)[0]
 

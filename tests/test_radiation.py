@@ -1,4 +1,5 @@
 """Radiance maps and per-facet absorbed radiation (humv_usd.thermal.radiation, .sky)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,8 +27,9 @@ def _facets(centers, normal=(0.0, 0.0, 1.0), size=1e-3):
 def _quads(quads):
     """Mesh of planar quads (4 corners each, counter-clockwise seen from the front)."""
     v = np.asarray(quads, dtype=float).reshape(-1, 3)
-    f = np.concatenate([[[4 * i, 4 * i + 1, 4 * i + 2], [4 * i, 4 * i + 2, 4 * i + 3]]
-                        for i in range(len(quads))])
+    f = np.concatenate(
+        [[[4 * i, 4 * i + 1, 4 * i + 2], [4 * i, 4 * i + 2, 4 * i + 3]] for i in range(len(quads))]
+    )
     return trimesh.Trimesh(v, f, process=False)
 
 
@@ -77,8 +79,10 @@ def test_wall_fills_half_the_hemisphere(method, rtol):
 def _well(half_width, height):
     """Four walls of a square well, normals pointing into the well."""
     a, h = half_width, height
-    m = _quads([[[x, -a, 0], [x, a, 0], [x, a, h], [x, -a, h]] for x in (a, -a)]
-               + [[[-a, y, 0], [a, y, 0], [a, y, h], [-a, y, h]] for y in (a, -a)])
+    m = _quads(
+        [[[x, -a, 0], [x, a, 0], [x, a, h], [x, -a, h]] for x in (a, -a)]
+        + [[[-a, y, 0], [a, y, 0], [a, y, h], [-a, y, h]] for y in (a, -a)]
+    )
     outward = np.einsum("ij,ij->i", m.face_normals[:, :2], m.triangles_center[:, :2]) > 0
     m.faces[outward] = m.faces[outward][:, ::-1]
     return trimesh.Trimesh(m.vertices, m.faces, process=False)
@@ -94,7 +98,9 @@ def test_plate_at_bottom_of_deep_well(method):
     env = R.radiance_map([0, 0, 5.0], UniformSky((0.0, l_sky)), None, 180)  # map sees open sky
     xy = np.linspace(-4e-3, 4e-3, 8)
     plate = _facets(np.c_[np.repeat(xy, 8), np.tile(xy, 8), np.zeros(64)])  # 64 facets, centre
-    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=1024).mean(axis=1)[:, None]
+    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=1024).mean(axis=1)[
+        :, None
+    ]
     s = (a / h) / np.sqrt(1 + (a / h) ** 2)
     f_open = 4.0 / np.pi * s * np.arctan(s)  # element under the centre of a square opening
     assert_allclose(q[1, 0], np.pi * l_sky * f_open, rtol=1.5e-2)  # fast: MC, ~0.4 % std
@@ -142,7 +148,7 @@ def test_clear_sky_hemispherical_flux_matches_sky_emissivity():
         sky = ClearSky(290.0, 0.6, model=model, ground_temperature_k=290.0)
         env = R.radiance_map([0, 0, 0], sky, None, 360)
         e_down = env.irradiance(np.array([[0.0, 0.0, 1.0]]))[1, 0]
-        assert_allclose(e_down, sky.emissivity * STEFAN_BOLTZMANN * 290.0 ** 4, rtol=3e-3)
+        assert_allclose(e_down, sky.emissivity * STEFAN_BOLTZMANN * 290.0**4, rtol=3e-3)
     eps = angular_sky_emissivity(np.radians([0, 30, 60, 80, 89.9]), 0.75)
     assert np.all(np.diff(eps) > 0) and eps[0] < 0.75 < eps[-1] <= 1.0
     with pytest.raises(ValueError, match="invalid model"):
@@ -152,7 +158,7 @@ def test_clear_sky_hemispherical_flux_matches_sky_emissivity():
 def test_mean_radiant_temperature_of_a_blackbody_enclosure():
     t = 305.0
     mesh = trimesh.creation.icosphere(2)
-    env = R.radiance_map([0, 0, 0], UniformSky((0.0, STEFAN_BOLTZMANN * t ** 4 / np.pi)), None, 24)
+    env = R.radiance_map([0, 0, 0], UniformSky((0.0, STEFAN_BOLTZMANN * t**4 / np.pi)), None, 24)
     q = R.absorbed_radiation(mesh, env, [0.7, 0.97], method="brute")
     seg = np.arange(len(mesh.faces)) % 3
     mrt = R.mean_radiant_temperature(q, mesh.area_faces, seg, emissivity=0.97, n_segments=4)
@@ -197,19 +203,21 @@ def test_adaptive_rays_go_to_partly_occluded_facets():
     wall = _quads([[[0.01, -big, -big], [0.01, -big, big], [0.01, big, big], [0.01, big, -big]]])
     scene = R.SceneSurfaces(wall, np.array([[0.0, 0.0], [160.0, 160.0]]))
     env = R.radiance_map([0, 0, 0.5], UniformSky((0.0, 100.0)), scene, 90)
-    facets = _facets(np.r_[np.c_[np.zeros(50), np.linspace(-.5, .5, 50), np.zeros(50)],
-                           np.c_[-np.full(50, 200.0), np.linspace(-.5, .5, 50), np.zeros(50)]])
+    facets = _facets(
+        np.r_[
+            np.c_[np.zeros(50), np.linspace(-0.5, 0.5, 50), np.zeros(50)],
+            np.c_[-np.full(50, 200.0), np.linspace(-0.5, 0.5, 50), np.zeros(50)],
+        ]
+    )
     normals, centroids = facets.face_normals, facets.triangles_center
     occ = R._Occluders(facets, 2, None, scene)
     table = R.irradiance_table(env, 32)
     alpha = np.ones((2, 100))
-    _, var, counts = R._diffuse_adaptive(env, centroids, normals, occ, 1e-6, 64, 0, table, 16,
-                                         alpha, 1024)
-    assert np.all(counts[50:] == 16) and np.all(var[50:] == 0.0)    # open: pilot only, exact
+    _, var, counts = R._diffuse_adaptive(env, centroids, normals, occ, 1e-6, 64, 0, table, 16, alpha, 1024)
+    assert np.all(counts[50:] == 16) and np.all(var[50:] == 0.0)  # open: pilot only, exact
     assert counts[:50].mean() > 100 and counts.sum() <= 64 * 100 * 1.3
     stats = {}
-    R.absorbed_radiation(facets, env, [1.0, 1.0], scene=scene,
-                         method="adaptive", rays=64, stats=stats)
+    R.absorbed_radiation(facets, env, [1.0, 1.0], scene=scene, method="adaptive", rays=64, stats=stats)
     assert 0.0 < stats["rms_rel_error_estimate"] < 0.05 and stats["rays"] == counts.sum()
 
 
@@ -221,8 +229,7 @@ def test_error_estimate_bounds_the_actual_error():
     q_ref = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
     for method in ("fast", "adaptive"):
         stats = {}
-        q = R.absorbed_radiation(sphere, env, alpha, scene=scene, method=method, rays=16,
-                                 stats=stats)
+        q = R.absorbed_radiation(sphere, env, alpha, scene=scene, method=method, rays=16, stats=stats)
         actual = R.relative_errors(q, q_ref)["nrmse"]
         assert 0.5 * actual < stats["nrmse_estimate"] < 10.0 * actual, (method, stats, actual)
 
@@ -231,8 +238,7 @@ def test_mitsuba_ray_backend_matches_embree():
     mesh, scene, sky, alpha, center = R.bench_scene(600)
     env = R.radiance_map(center, sky, scene, 24)
     q_e = R.absorbed_radiation(mesh, env, alpha, scene=scene, method="fast", rays=16)
-    q_m = R.absorbed_radiation(mesh, env, alpha, scene=scene, method="fast", rays=16,
-                               backend="mitsuba")
+    q_m = R.absorbed_radiation(mesh, env, alpha, scene=scene, method="fast", rays=16, backend="mitsuba")
     # same rays; float32 ray casters may differ on a grazing ray or two
     assert R.relative_errors(q_m, q_e)["nrmse"] < 1e-3
     with pytest.raises(ValueError, match="ray backend"):
@@ -244,27 +250,27 @@ def test_visibility_cache_replays_the_same_rays_with_new_radiances(method):
     mesh, scene, sky, alpha, center = R.bench_scene(600)
     env = R.radiance_map(center, sky, scene, 24)
     cache, stats = {}, {}
-    q1 = R.absorbed_radiation(mesh, env, alpha, scene=scene, method=method, rays=32,
-                              cache=cache, stats=stats)
+    q1 = R.absorbed_radiation(mesh, env, alpha, scene=scene, method=method, rays=32, cache=cache, stats=stats)
     assert not stats["cached"] and len(cache["records"][0]) > 0
     # same geometry, new radiances (a warmer sky, hotter scene, weaker sun)
-    env2 = R.RadianceMap(env.radiance * 1.1, env.center, env.bands, env.sun_direction,
-                         env.sun_irradiance * 0.5)
+    env2 = R.RadianceMap(
+        env.radiance * 1.1, env.center, env.bands, env.sun_direction, env.sun_irradiance * 0.5
+    )
     scene2 = R.SceneSurfaces(scene.mesh, scene.radiance * 1.3)
-    q2 = R.absorbed_radiation(mesh, env2, alpha, scene=scene2, method=method, rays=32,
-                              cache=cache, stats=stats, seed=5)
+    q2 = R.absorbed_radiation(
+        mesh, env2, alpha, scene=scene2, method=method, rays=32, cache=cache, stats=stats, seed=5
+    )
     assert stats["cached"]
     fresh = R.absorbed_radiation(mesh, env2, alpha, scene=scene2, method=method, rays=32)
-    if method == "fast":   # the same rays as a fresh run with the recording's seed
+    if method == "fast":  # the same rays as a fresh run with the recording's seed
         assert_allclose(q2, fresh, rtol=1e-9, atol=1e-9)
-    else:                  # the allocation depends on the radiances: equal within the noise
+    else:  # the allocation depends on the radiances: equal within the noise
         assert R.relative_errors(q2, fresh)["nrmse"] < 0.05
     assert not np.allclose(q1, q2)
     # the person moved: the cache is stale and is rebuilt
     moved = mesh.copy()
     moved.apply_translation([0.3, 0.0, 0.0])
-    R.absorbed_radiation(moved, env2, alpha, scene=scene2, method=method, rays=32,
-                         cache=cache, stats=stats)
+    R.absorbed_radiation(moved, env2, alpha, scene=scene2, method=method, rays=32, cache=cache, stats=stats)
     assert not stats["cached"]
 
 
@@ -294,8 +300,7 @@ def test_facets_under_a_uniform_occluder_are_exact(method):
     rng = np.random.default_rng(1)
     env = R.RadianceMap(rng.uniform(0.0, 300.0, (2, 24, 48)))
     stats = {}
-    q = R.absorbed_radiation(plate, env, [1.0, 1.0], scene=scene, method=method, rays=16,
-                             stats=stats)
+    q = R.absorbed_radiation(plate, env, [1.0, 1.0], scene=scene, method=method, rays=16, stats=stats)
     assert_allclose(q, np.pi * np.repeat(l_c[:, None], len(plate.faces), axis=1), rtol=1e-9)
     assert stats["nrmse_estimate"] < 1e-9
 
@@ -307,10 +312,18 @@ def test_fast_error_falls_with_more_rays():
     sphere.apply_translation([0.0, 0.0, 0.6])
     env = R.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
     q_ref = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
-    err = [np.mean([R.relative_errors(R.absorbed_radiation(sphere, env, alpha, scene=scene,
-                                                           method="fast", rays=k, seed=s),
-                                      q_ref)["rms_rel_error"] for s in range(2)])
-           for k in (4, 32, 256)]
+    err = [
+        np.mean(
+            [
+                R.relative_errors(
+                    R.absorbed_radiation(sphere, env, alpha, scene=scene, method="fast", rays=k, seed=s),
+                    q_ref,
+                )["rms_rel_error"]
+                for s in range(2)
+            ]
+        )
+        for k in (4, 32, 256)
+    ]
     assert err[0] > 2.0 * err[1] > 4.0 * err[2], err
 
 
@@ -325,16 +338,16 @@ def test_ray_directions_are_cosine_weighted(sampler):
     assert cos.min() >= 0.0
     # cosine-weighted hemisphere: E[cos] = 2/3, E[cos^2] = 1/2; each facet's set is evenly
     # spread, so even per facet the means are close
-    assert abs(cos.mean() - 2 / 3) < 2e-3 and abs((cos ** 2).mean() - 0.5) < 2e-3
+    assert abs(cos.mean() - 2 / 3) < 2e-3 and abs((cos**2).mean() - 0.5) < 2e-3
     assert np.abs(cos.mean(axis=1) - 2 / 3).max() < 0.05
     with pytest.raises(ValueError, match="sampler"):
         R._cosine_directions(np.arange(4), 4, np.random.default_rng(0), frames, "sobol")
 
 
 def test_radical_inverse_and_hammersley():
-    assert_allclose(R._radical_inverse2(np.arange(8)), [0, .5, .25, .75, .125, .625, .375, .875])
+    assert_allclose(R._radical_inverse2(np.arange(8)), [0, 0.5, 0.25, 0.75, 0.125, 0.625, 0.375, 0.875])
     p = R._hammersley(16)
     # a (0, 4, 2)-net: every 2^-a x 2^-(4-a) elementary box holds exactly one point
     for a in range(5):
-        cells = np.floor(p[:, 0] * 2 ** a) * 2 ** (4 - a) + np.floor(p[:, 1] * 2 ** (4 - a))
+        cells = np.floor(p[:, 0] * 2**a) * 2 ** (4 - a) + np.floor(p[:, 1] * 2 ** (4 - a))
         assert len(np.unique(cells)) == 16

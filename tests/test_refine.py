@@ -1,13 +1,14 @@
 """Finer garment mesh where garments overlap (neck, pelvis): one midpoint subdivision."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from humv_usd.avatar import labels as L
-from humv_usd.avatar.body import build_body
 from humv_usd.clothing.fit import REFINE_REGIONS, fit_garment, prepare
-from humv_usd.clothing.geometry import triangulate
+from humv_usd.geometry.mesh import triangulate
+from humv_usd.human import labels as L
+from humv_usd.human.body import build_body
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +20,7 @@ def _edges(counts, flat):
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     out = []
     for s, c in zip(starts, counts):
-        ring = flat[s:s + c]
+        ring = flat[s : s + c]
         out += [tuple(sorted((int(ring[k]), int(ring[(k + 1) % c])))) for k in range(c)]
     return out
 
@@ -29,7 +30,7 @@ def test_refined_garment_is_crack_free_and_interpolates(rig, name):
     coarse = fit_garment(rig, name, refined=False)
     fine = fit_garment(rig, name, refined=True)
     n = coarse.vertex_count
-    assert np.array_equal(fine.points[:n], coarse.points)             # old vertices kept
+    assert np.array_equal(fine.points[:n], coarse.points)  # old vertices kept
     assert np.array_equal(fine.joint_indices[:n], coarse.joint_indices)
     split = np.isin(coarse.face_regions, [L.REGION_ID[r] for r in REFINE_REGIONS])
     loose = [k for k, p in enumerate(coarse.garment.parts) if p.loose]
@@ -37,8 +38,7 @@ def test_refined_garment_is_crack_free_and_interpolates(rig, name):
     split &= ~np.isin(coarse.part_of[quads[:, 0]], loose)
     assert split.sum() > 20
     # counts: + one vertex per split edge and per split face; 3 more faces per split face
-    split_edges = {tuple(sorted((int(q[k]), int(q[(k + 1) % 4])))) for q in quads[split]
-                   for k in range(4)}
+    split_edges = {tuple(sorted((int(q[k]), int(q[(k + 1) % 4])))) for q in quads[split] for k in range(4)}
     assert fine.vertex_count == n + len(split_edges) + split.sum()
     assert len(fine.face_counts) == len(coarse.face_counts) + 3 * split.sum()
     # no T-junction: no face still uses a split edge; every edge in at most two faces
@@ -59,8 +59,7 @@ def test_refined_garment_is_crack_free_and_interpolates(rig, name):
     assert area.min() > 1e-7
     # same surface (fans of planar-ish quads): area within 1 %
     tri_c = coarse.points[coarse.triangles]
-    area_c = 0.5 * np.linalg.norm(np.cross(tri_c[:, 1] - tri_c[:, 0], tri_c[:, 2] - tri_c[:, 0]),
-                                  axis=1)
+    area_c = 0.5 * np.linalg.norm(np.cross(tri_c[:, 1] - tri_c[:, 0], tri_c[:, 2] - tri_c[:, 0]), axis=1)
     assert area.sum() == pytest.approx(area_c.sum(), rel=0.01)
     # weights: rows sum to 1; a midpoint's dominant joint is one of its parents' joints
     assert np.allclose(fine.joint_weights.sum(axis=1), 1.0, atol=1e-6)
@@ -70,8 +69,9 @@ def test_refined_garment_is_crack_free_and_interpolates(rig, name):
 
 def test_dress_refines_only_where_garments_overlap(rig):
     from humv_usd.clothing.collide import dress
+
     alone = dress(rig, ["trousers"]).garments[0]
-    assert alone.vertex_count == fit_garment(rig, "trousers").vertex_count   # nothing over it
+    assert alone.vertex_count == fit_garment(rig, "trousers").vertex_count  # nothing over it
     both = {g.name: g for g in dress(rig, ["trousers", "tshirt_white"]).garments}
     full = fit_garment(rig, "trousers", refined=True)
     assert alone.vertex_count < both["trousers"].vertex_count <= full.vertex_count

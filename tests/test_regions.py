@@ -1,4 +1,5 @@
 """Per-body-region statistics (seed Table 2) and the regions command with a real image."""
+
 from __future__ import annotations
 
 import json
@@ -8,13 +9,13 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 from pxr import Sdf, UsdGeom, Vt
+from test_groundtruth import camera, label, material, mesh, new_stage, read_exr, sphere_mesh
 
-from humv_usd.avatar import labels as AL
 from humv_usd.cli.main import main
 from humv_usd.errors import InputError
 from humv_usd.groundtruth import regions as R
-from humv_usd.render import render_stage, writers
-from test_groundtruth import camera, label, material, mesh, new_stage, read_exr, sphere_mesh
+from humv_usd.human import labels as AL
+from humv_usd.pipeline.render import render_stage, writers
 
 
 def test_region_stats_match_numpy_on_unions():
@@ -58,9 +59,12 @@ def render_dir(tmp_path_factory):
     label(stage.DefinePrim("/World/Humans/p1", "Xform"), 1, "person")
     pts, counts, idx = sphere_mesh((0.0, 0.0, 1.0), 0.5, 1)
     nf = len(counts)
-    body = mesh(stage, "/World/Humans/p1/Body", pts, counts, idx, m, 300.0 + 0.1 * (np.arange(nf) % 19)).GetPrim()
-    UsdGeom.PrimvarsAPI(body).CreatePrimvar("humv:label:bodyRegion", Sdf.ValueTypeNames.IntArray,
-                                            UsdGeom.Tokens.uniform).Set(Vt.IntArray((1 + np.arange(nf) % 19).tolist()))
+    body = mesh(
+        stage, "/World/Humans/p1/Body", pts, counts, idx, m, 300.0 + 0.1 * (np.arange(nf) % 19)
+    ).GetPrim()
+    UsdGeom.PrimvarsAPI(body).CreatePrimvar(
+        "humv:label:bodyRegion", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
+    ).Set(Vt.IntArray((1 + np.arange(nf) % 19).tolist()))
     camera(stage, "cam", (0.0, -4.0, 1.0), (0.0, 0.0, 1.0), res=(40, 30))
     stage.Save()
     manifest = render_stage(tmp / "stage.usda", tmp / "out", spp=2, annotators=["regions", "masks"])
@@ -79,7 +83,11 @@ def test_render_writes_regions_json(render_dir):
         assert rec["regions"][name]["pixels"] == sel.sum()
         if sel.any():
             filled += 1
-            assert_allclose(rec["regions"][name]["temperature_mean_k"], ch["brightness_temperature"][sel].mean(), rtol=1e-6)
+            assert_allclose(
+                rec["regions"][name]["temperature_mean_k"],
+                ch["brightness_temperature"][sel].mean(),
+                rtol=1e-6,
+            )
             assert_allclose(rec["regions"][name]["std"], ch[rec["quantity"]][sel].std(), rtol=1e-4, atol=1e-9)
     assert filled >= 8
     assert manifest["ground_truth"]["files"]["regions"] == "regions.json"
@@ -89,20 +97,23 @@ def test_regions_command_against_a_real_image(render_dir, tmp_path):
     out, _ = render_dir
     ch = read_exr(out / "cam" / "0000.exr")
     real = tmp_path / "real.exr"
-    writers.write_exr(real, {"Y": ch["brightness_temperature"] - 1.5})     # a "real" image 1.5 K colder
+    writers.write_exr(real, {"Y": ch["brightness_temperature"] - 1.5})  # a "real" image 1.5 K colder
     masks = out / "cam" / "0000.region_ids.png"
-    result = CliRunner().invoke(main, ["regions", str(out), "--real", str(real), "--masks", str(masks),
-                                       "--quantity", "temperature"])
+    result = CliRunner().invoke(
+        main, ["regions", str(out), "--real", str(real), "--masks", str(masks), "--quantity", "temperature"]
+    )
     assert result.exit_code == 0, result.output
     rows = [line.split() for line in result.output.splitlines() if line[:2].strip().isdigit()]
     assert len(rows) == len(AL.SEED_TABLE2_REGIONS)
     diffs = [float(r[-1]) for r in rows if r[-1] != "-"]
     assert len(diffs) >= 10
-    assert_allclose(diffs, 1.5, atol=2e-4)          # sim - real, region by region
+    assert_allclose(diffs, 1.5, atol=2e-4)  # sim - real, region by region
     assert (out / "regions.json").is_file()
     # masks of another size: one line, exit 2
     writers.write_png(tmp_path / "small.png", np.zeros((3, 4), dtype=np.uint8))
-    bad = CliRunner().invoke(main, ["regions", str(out), "--real", str(real), "--masks", str(tmp_path / "small.png")])
+    bad = CliRunner().invoke(
+        main, ["regions", str(out), "--real", str(real), "--masks", str(tmp_path / "small.png")]
+    )
     assert bad.exit_code == 2 and "size" in bad.output
     lonely = CliRunner().invoke(main, ["regions", str(out), "--real", str(real)])
     assert lonely.exit_code == 2
@@ -119,8 +130,9 @@ def test_real_counts_png_compared_in_counts(render_dir, tmp_path):
     real = tmp_path / "real_counts.png"
     writers.write_png16(real, np.clip(ch["counts"] - 100.0, 0, 65535).astype(np.uint16))
     masks = out / "cam" / "0000.region_ids.png"
-    result = CliRunner().invoke(main, ["regions", str(out), "--real", str(real), "--masks", str(masks),
-                                       "--quantity", "counts"])
+    result = CliRunner().invoke(
+        main, ["regions", str(out), "--real", str(real), "--masks", str(masks), "--quantity", "counts"]
+    )
     assert result.exit_code == 0, result.output
     rows = [line.split() for line in result.output.splitlines() if line[:2].strip().isdigit()]
     diffs = [float(r[-1]) for r in rows if r[-1] != "-"]
@@ -135,22 +147,27 @@ def test_eo_images_are_in_the_table_by_luminance(tmp_path):
     region[:, :3] = AL.BODY_REGIONS.index(AL.BODY_REGIONS[0]) + 1
     y = np.where(region > 0, 0.25, 0.9)
     (tmp_path / "eo").mkdir()
-    writers.write_exr(tmp_path / "eo" / "0000.exr", {"Y": y, "body_region": region,
-                                                      "instance_id": (region > 0).astype(float)})
-    (tmp_path / "manifest.json").write_text(json.dumps(
-        {"sensors": [], "eo_sensors": [{"name": "eo", "frames": [{"frame": 0, "exr": "eo/0000.exr"}]}]}))
+    writers.write_exr(
+        tmp_path / "eo" / "0000.exr",
+        {"Y": y, "body_region": region, "instance_id": (region > 0).astype(float)},
+    )
+    (tmp_path / "manifest.json").write_text(
+        json.dumps(
+            {"sensors": [], "eo_sensors": [{"name": "eo", "frames": [{"frame": 0, "exr": "eo/0000.exr"}]}]}
+        )
+    )
     [rec] = R.render_regions(tmp_path)
     assert rec["sensor"] == "eo" and rec["quantity"] == "Y"
     full = rec["regions"][next(iter(R.TABLE2))]
     assert full["pixels"] == 12 and full["mean"] == pytest.approx(0.25) and full["std"] == pytest.approx(0.0)
-    assert "temperature_mean_k" not in full                   # no temperature for EO
+    assert "temperature_mean_k" not in full  # no temperature for EO
 
 
 def test_render_computes_regions_without_reading_its_images_back(render_dir, tmp_path, monkeypatch):
     """The render hands each written image's channels to the ground truth (image_written), so
     regions.json needs no read-back of the EXRs; the records equal those of the read-back."""
     out, _ = render_dir
-    expected = R.render_regions(out)                      # from the EXRs on disk
+    expected = R.render_regions(out)  # from the EXRs on disk
     stage_path = out.parent / "stage.usda"
 
     def no_read(*args, **kwargs):

@@ -3,6 +3,7 @@
 Stages are built by hand in tmp_path and author attributes by name (no API schema applied), as the
 renderer must not depend on it. Images are small (64x48) to keep each test around a second.
 """
+
 from __future__ import annotations
 
 import json
@@ -19,7 +20,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
-from humv_usd.render import render_stage
+from humv_usd.pipeline.render import render_stage
 
 W, H = 64, 48
 LWIR = (8.0, 14.0)
@@ -28,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 # --- stage building ---------------------------------------------------------------------------
+
 
 def new_stage(path, sky_k=300.0, start=0, end=0) -> Usd.Stage:
     stage = Usd.Stage.CreateNew(str(path))
@@ -55,8 +57,12 @@ def add_material(stage, name, emissivity, wavelengths=(1.0, 20.0)) -> UsdShade.M
     material = UsdShade.Material.Define(stage, f"/World/Materials/{name}")
     prim = material.GetPrim()
     eps = np.broadcast_to(np.asarray(emissivity, dtype=float), (len(wavelengths),))
-    prim.CreateAttribute("humv:material:wavelengths", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray(list(wavelengths)))
-    prim.CreateAttribute("humv:material:emissivity", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray(eps.tolist()))
+    prim.CreateAttribute("humv:material:wavelengths", Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray(list(wavelengths))
+    )
+    prim.CreateAttribute("humv:material:emissivity", Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray(eps.tolist())
+    )
     return material
 
 
@@ -69,11 +75,18 @@ def add_mesh(stage, path, points, counts, indices, material=None, temperature_k=
     if material is not None:
         UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
     if temperature_k is not None:
-        primvar = UsdGeom.PrimvarsAPI(prim).CreatePrimvar("humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray,
-                                                          UsdGeom.Tokens.uniform)
-        samples = temperature_k if isinstance(temperature_k, dict) else {Usd.TimeCode.Default(): temperature_k}
+        primvar = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+            "humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform
+        )
+        samples = (
+            temperature_k if isinstance(temperature_k, dict) else {Usd.TimeCode.Default(): temperature_k}
+        )
         for time, values in samples.items():
-            values = np.broadcast_to(np.asarray(values, dtype=float), (len(counts),)) if np.ndim(values) == 0 else values
+            values = (
+                np.broadcast_to(np.asarray(values, dtype=float), (len(counts),))
+                if np.ndim(values) == 0
+                else values
+            )
             primvar.Set(Vt.FloatArray([float(v) for v in values]), time)
     if instance_id is not None:
         prim.CreateAttribute("humv:label:instanceId", Sdf.ValueTypeNames.Int).Set(int(instance_id))
@@ -124,8 +137,18 @@ def box(center, size):
     return pts, counts, idx
 
 
-def add_camera(stage, name, eye, target, fov_x_deg=40.0, resolution=(W, H), band=LWIR, band_token="LWIR",
-               up=(0, 0, 1), netd=None):
+def add_camera(
+    stage,
+    name,
+    eye,
+    target,
+    fov_x_deg=40.0,
+    resolution=(W, H),
+    band=LWIR,
+    band_token="LWIR",
+    up=(0, 0, 1),
+    netd=None,
+):
     cam = UsdGeom.Camera.Define(stage, f"/World/Sensors/{name}")
     view = Gf.Matrix4d().SetLookAt(Gf.Vec3d(*eye), Gf.Vec3d(*target), Gf.Vec3d(*up))
     cam.AddTransformOp().Set(view.GetInverse())
@@ -165,13 +188,18 @@ def within_noise(radiance, stderr, expected, k=5.0, rel=1e-4):
 
 # --- closed-form radiometry -------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("emissivity", [0.1, 0.5, 0.95])
 def test_furnace_isothermal_scene_is_blackbody(tmp_path, emissivity):
     t = 300.0
     stage = new_stage(tmp_path / "stage.usda", sky_k=t)
     mat = add_material(stage, "gray", emissivity)
-    add_mesh(stage, "/World/Scene/ground", *rect_z(-30, 30, -30, 30), material=mat, temperature_k=t, instance_id=1)
-    add_mesh(stage, "/World/Scene/wall", *box((0.0, 0.0, 1.0), 2.0), material=mat, temperature_k=t, instance_id=2)
+    add_mesh(
+        stage, "/World/Scene/ground", *rect_z(-30, 30, -30, 30), material=mat, temperature_k=t, instance_id=1
+    )
+    add_mesh(
+        stage, "/World/Scene/wall", *box((0.0, 0.0, 1.0), 2.0), material=mat, temperature_k=t, instance_id=2
+    )
     add_camera(stage, "lwir", eye=(3.0, -6.0, 3.0), target=(0.0, 0.0, 0.8), fov_x_deg=50)
     stage.Save()
     manifest = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=32)
@@ -188,17 +216,35 @@ def test_furnace_isothermal_scene_is_blackbody(tmp_path, emissivity):
     assert_allclose(err["radiance_stderr_mean"], ch["radiance_stderr"].astype(float).mean(), rtol=1e-5)
 
 
-@pytest.mark.parametrize("eps,t1,t2,band", [
-    (0.9, 310.0, 250.0, LWIR),
-    (0.3, 350.0, 280.0, LWIR),
-    (0.6, 310.0, 290.0, MWIR),
-])
+@pytest.mark.parametrize(
+    "eps,t1,t2,band",
+    [
+        (0.9, 310.0, 250.0, LWIR),
+        (0.3, 350.0, 280.0, LWIR),
+        (0.6, 310.0, 290.0, MWIR),
+    ],
+)
 def test_plate_under_sky(tmp_path, eps, t1, t2, band):
     stage = new_stage(tmp_path / "stage.usda", sky_k=t2)
     mat = add_material(stage, "plate", eps)
-    add_mesh(stage, "/World/Scene/plate", *rect_z(-100, 100, -100, 100), material=mat, temperature_k=t1, instance_id=5)
-    add_camera(stage, "ir", eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_x_deg=30, up=(0, 1, 0),
-               band=band, band_token="LWIR" if band == LWIR else "MWIR")
+    add_mesh(
+        stage,
+        "/World/Scene/plate",
+        *rect_z(-100, 100, -100, 100),
+        material=mat,
+        temperature_k=t1,
+        instance_id=5,
+    )
+    add_camera(
+        stage,
+        "ir",
+        eye=(0.0, 0.0, 10.0),
+        target=(0.0, 0.0, 0.0),
+        fov_x_deg=30,
+        up=(0, 1, 0),
+        band=band,
+        band_token="LWIR" if band == LWIR else "MWIR",
+    )
     stage.Save()
     # one gray band, 16 samples per pixel: the 5-sigma per-pixel check needs the per-pixel error
     # estimate of 16 samples (sub-bands: tests/test_render_radiometry.py)
@@ -214,6 +260,7 @@ def test_plate_under_sky(tmp_path, eps, t1, t2, band):
 
 
 # --- labels -----------------------------------------------------------------------------------
+
 
 def _pinhole_rays(eye, target, up, fov_x_deg, w, h, dx=0.0, dy=0.0):
     """Unit ray directions through pixel centres (+offset in pixels), row 0 at the top."""
@@ -241,8 +288,13 @@ def _closest_hit(eye, dirs, rects):
         with np.errstate(divide="ignore", invalid="ignore"):
             t = (value - eye[axis]) / dirs[..., axis]
         p = eye + t[..., None] * dirs
-        inside = (t > 0) & (p[..., others[0]] >= a0) & (p[..., others[0]] <= a1) & \
-                 (p[..., others[1]] >= b0) & (p[..., others[1]] <= b1)
+        inside = (
+            (t > 0)
+            & (p[..., others[0]] >= a0)
+            & (p[..., others[0]] <= a1)
+            & (p[..., others[1]] >= b0)
+            & (p[..., others[1]] <= b1)
+        )
         better = inside & (t < t_best)
         t_best = np.where(better, t, t_best)
         id_best = np.where(better, ident, id_best)
@@ -254,11 +306,20 @@ def test_depth_and_instance_labels(tmp_path):
     mat = add_material(stage, "m", 0.9)
     # ground labelled through its parent Xform (nearest labelled ancestor)
     UsdGeom.Xform.Define(stage, "/World/Scene/terrain").GetPrim().CreateAttribute(
-        "humv:label:instanceId", Sdf.ValueTypeNames.Int).Set(11)
-    add_mesh(stage, "/World/Scene/terrain/ground", *rect_z(-500, 500, -500, 500), material=mat, temperature_k=290.0)
+        "humv:label:instanceId", Sdf.ValueTypeNames.Int
+    ).Set(11)
+    add_mesh(
+        stage, "/World/Scene/terrain/ground", *rect_z(-500, 500, -500, 500), material=mat, temperature_k=290.0
+    )
     # a wall on the right half of the view, facing the camera
-    add_mesh(stage, "/World/Scene/wall", *rect_y(1.0, 6.0, 0.0, 4.0, y=12.0), material=mat, temperature_k=300.0,
-             instance_id=42)
+    add_mesh(
+        stage,
+        "/World/Scene/wall",
+        *rect_y(1.0, 6.0, 0.0, 4.0, y=12.0),
+        material=mat,
+        temperature_k=300.0,
+        instance_id=42,
+    )
     eye, target, up, fov = (0.0, 0.0, 2.0), (0.0, 10.0, 1.2), (0, 0, 1), 60.0
     add_camera(stage, "cam", eye=eye, target=target, fov_x_deg=fov, up=up)
     stage.Save()
@@ -291,8 +352,14 @@ def test_depth_of_a_perpendicular_plane_is_constant(tmp_path):
     # optical-axis distance, not Euclidean distance: the same for every pixel of the plane
     stage = new_stage(tmp_path / "stage.usda")
     mat = add_material(stage, "m", 1.0)
-    add_mesh(stage, "/World/Scene/plane", *rect_y(-50, 50, -50, 50, y=7.5), material=mat, temperature_k=300.0,
-             instance_id=3)
+    add_mesh(
+        stage,
+        "/World/Scene/plane",
+        *rect_y(-50, 50, -50, 50, y=7.5),
+        material=mat,
+        temperature_k=300.0,
+        instance_id=3,
+    )
     add_camera(stage, "cam", eye=(0.0, 0.0, 0.0), target=(0.0, 1.0, 0.0), fov_x_deg=70)
     stage.Save()
     render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=4)
@@ -308,15 +375,30 @@ def test_depth_of_a_perpendicular_plane_is_constant(tmp_path):
 
 # --- outputs ----------------------------------------------------------------------------------
 
+
 def _small_scene(path, start=0, end=1, temperature=305.0):
     stage = new_stage(path, sky_k=270.0, start=start, end=end)
     mat = add_material(stage, "m", 0.8)
-    add_mesh(stage, "/World/Scene/ground", *rect_z(-20, 20, -20, 20), material=mat, temperature_k=temperature,
-             instance_id=1)
-    add_mesh(stage, "/World/Scene/box", *box((0.0, 0.0, 0.5), 1.0), material=mat, temperature_k=310.0,
-             instance_id=2)
+    add_mesh(
+        stage,
+        "/World/Scene/ground",
+        *rect_z(-20, 20, -20, 20),
+        material=mat,
+        temperature_k=temperature,
+        instance_id=1,
+    )
+    add_mesh(
+        stage,
+        "/World/Scene/box",
+        *box((0.0, 0.0, 0.5), 1.0),
+        material=mat,
+        temperature_k=310.0,
+        instance_id=2,
+    )
     add_camera(stage, "lwir", eye=(2.0, -5.0, 2.0), target=(0.0, 0.0, 0.5))
-    cam = add_camera(stage, "eo", eye=(2.0, -5.0, 2.0), target=(0.0, 0.0, 0.5), band=(0.4, 0.7), band_token="EO")
+    cam = add_camera(
+        stage, "eo", eye=(2.0, -5.0, 2.0), target=(0.0, 0.0, 0.5), band=(0.4, 0.7), band_token="EO"
+    )
     assert cam
     return stage
 
@@ -331,11 +413,21 @@ def test_outputs_manifest_and_reproducibility(tmp_path):
     spec, ch = read_exr(exr)
     labels = set(manifest["ground_truth"]["channels"])  # ground-truth channels: tests/test_groundtruth.py
     chain = {"counts"} if manifest["sensor_chain"].startswith("ran") else set()  # sensor chain raw counts
-    assert set(spec.channelnames) - labels - chain == {"radiance", "brightness_temperature", "radiance_stderr", "depth", "instance_id"}
+    assert set(spec.channelnames) - labels - chain == {
+        "radiance",
+        "brightness_temperature",
+        "radiance_stderr",
+        "depth",
+        "instance_id",
+    }
     assert len(spec.channelnames) == 5 + len(labels) + len(chain)
-    assert str(spec.format) == "float" and all(str(f) == "float" for f in (spec.channelformats or [spec.format]))
+    assert str(spec.format) == "float" and all(
+        str(f) == "float" for f in (spec.channelformats or [spec.format])
+    )
     assert (spec.width, spec.height) == (W, H)
-    assert_allclose(ch["brightness_temperature"], planck.brightness_temperature(ch["radiance"], LWIR), atol=1e-3)
+    assert_allclose(
+        ch["brightness_temperature"], planck.brightness_temperature(ch["radiance"], LWIR), atol=1e-3
+    )
     assert (ch["radiance_stderr"] >= 0).all() and ch["radiance_stderr"].max() > 0
 
     png = oiio.ImageInput.open(str(out / "lwir" / "0001.png"))
@@ -354,12 +446,18 @@ def test_outputs_manifest_and_reproducibility(tmp_path):
     [sensor] = on_disk["sensors"]
     assert sensor["name"] == "lwir" and [f["frame"] for f in sensor["frames"]] == [0, 1]
     assert set(sensor["timings_s"]) == {"load_export", "render", "labels", "write", "total"}
-    for err in [on_disk["monte_carlo_error"], sensor["monte_carlo_error"], sensor["frames"][1]["monte_carlo_error"]]:
+    for err in [
+        on_disk["monte_carlo_error"],
+        sensor["monte_carlo_error"],
+        sensor["frames"][1]["monte_carlo_error"],
+    ]:
         assert 0 < err["radiance_stderr_mean"] <= err["radiance_stderr_max"]
         assert 0 < err["temperature_stderr_mean_k"] <= err["temperature_stderr_max_k"]
     assert "percentile" in on_disk["preview"]["stretch"]
     [skipped] = on_disk["skipped_sensors"]
-    assert skipped["name"] == "eo" and "no visible illumination" in skipped["reason"]  # no atmosphere tables here
+    assert (
+        skipped["name"] == "eo" and "no visible illumination" in skipped["reason"]
+    )  # no atmosphere tables here
     assert not (out / "eo").exists()
 
     # same seed: the same radiance; another seed: different noise
@@ -374,8 +472,14 @@ def test_outputs_manifest_and_reproducibility(tmp_path):
 def test_time_sampled_temperature_updates_without_rebuild(tmp_path):
     stage = new_stage(tmp_path / "stage.usda", sky_k=250.0, start=0, end=1)
     mat = add_material(stage, "black", 1.0)
-    add_mesh(stage, "/World/Scene/plate", *rect_z(-100, 100, -100, 100), material=mat,
-             temperature_k={0: [300.0], 1: [320.0]}, instance_id=1)
+    add_mesh(
+        stage,
+        "/World/Scene/plate",
+        *rect_z(-100, 100, -100, 100),
+        material=mat,
+        temperature_k={0: [300.0], 1: [320.0]},
+        instance_id=1,
+    )
     add_camera(stage, "ir", eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), up=(0, 1, 0))
     stage.Save()
     manifest = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=4)
@@ -390,8 +494,14 @@ def test_time_sampled_temperature_updates_without_rebuild(tmp_path):
 def test_moving_mesh_updates_vertices(tmp_path):
     stage = new_stage(tmp_path / "stage.usda", sky_k=250.0, start=0, end=1)
     mat = add_material(stage, "black", 1.0)
-    mesh = add_mesh(stage, "/World/Scene/plate", *rect_y(-100, 100, -100, 100, y=5.0), material=mat,
-                    temperature_k=300.0, instance_id=1)
+    mesh = add_mesh(
+        stage,
+        "/World/Scene/plate",
+        *rect_y(-100, 100, -100, 100, y=5.0),
+        material=mat,
+        temperature_k=300.0,
+        instance_id=1,
+    )
     mesh.AddTranslateOp().Set(Gf.Vec3d(0, 0, 0), 0)
     mesh.GetPrim().GetAttribute("xformOp:translate").Set(Gf.Vec3d(0, 4.0, 0), 1)
     add_camera(stage, "ir", eye=(0.0, 0.0, 0.0), target=(0.0, 1.0, 0.0))
@@ -405,6 +515,7 @@ def test_moving_mesh_updates_vertices(tmp_path):
 
 
 # --- bad input --------------------------------------------------------------------------------
+
 
 def _plate_stage(path, **mesh_kwargs):
     stage = new_stage(path)
@@ -423,7 +534,9 @@ def test_missing_temperature_primvar(tmp_path):
 
 def test_wrong_temperature_length(tmp_path):
     _plate_stage(tmp_path / "s.usda", temperature_k=[300.0, 301.0, 302.0]).Save()
-    with pytest.raises(InputError, match=r"/World/Scene/plate\.primvars:humv:thermal:temperature.*3 values.*expected 1 "):
+    with pytest.raises(
+        InputError, match=r"/World/Scene/plate\.primvars:humv:thermal:temperature.*3 values.*expected 1 "
+    ):
         render_stage(tmp_path / "s.usda", tmp_path / "out")
 
 
@@ -461,21 +574,35 @@ def test_bad_frames_and_settings(tmp_path):
 
 # --- fallback variant -------------------------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_scalar_rgb_fallback_keeps_radiometry(tmp_path):
     """The scalar fallback (no LLVM 19) renders the two-temperature plate right, in a subprocess."""
     eps, t1, t2 = 0.7, 320.0, 260.0
     stage = new_stage(tmp_path / "stage.usda", sky_k=t2)
     mat = add_material(stage, "plate", eps)
-    add_mesh(stage, "/World/Scene/plate", *rect_z(-100, 100, -100, 100), material=mat, temperature_k=t1,
-             instance_id=5)
+    add_mesh(
+        stage,
+        "/World/Scene/plate",
+        *rect_z(-100, 100, -100, 100),
+        material=mat,
+        temperature_k=t1,
+        instance_id=5,
+    )
     add_camera(stage, "ir", eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), up=(0, 1, 0), resolution=(16, 12))
     stage.Save()
-    code = ("import json, sys; from humv_usd.render import render_stage; "
-            "m = render_stage(sys.argv[1], sys.argv[2], spp=16); print(json.dumps(m['mitsuba_variant']))")
+    code = (
+        "import json, sys; from humv_usd.pipeline.render import render_stage; "
+        "m = render_stage(sys.argv[1], sys.argv[2], spp=16); print(json.dumps(m['mitsuba_variant']))"
+    )
     env = {**os.environ, "HUMV_USD_MITSUBA_VARIANT": "scalar_rgb", "PYTHONPATH": str(ROOT)}
-    run = subprocess.run([sys.executable, "-c", code, str(tmp_path / "stage.usda"), str(tmp_path / "out")],
-                         env=env, capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path / "stage.usda"), str(tmp_path / "out")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr[-2000:]
     assert json.loads(run.stdout.strip().splitlines()[-1]) == "scalar_rgb"
     _, ch = read_exr(tmp_path / "out" / "ir" / "0000.exr")
@@ -487,6 +614,7 @@ def test_scalar_rgb_fallback_keeps_radiometry(tmp_path):
 
 # --- materials, winding, response -------------------------------------------------------------
 
+
 def test_geom_subset_materials_and_left_handed_winding(tmp_path):
     t, t_sky = 320.0, 260.0
     stage = new_stage(tmp_path / "stage.usda", sky_k=t_sky)
@@ -494,8 +622,16 @@ def test_geom_subset_materials_and_left_handed_winding(tmp_path):
     gray = add_material(stage, "gray", 0.5)
     # two faces side by side, authored clockwise seen from above (leftHanded): x<0 black, x>0 gray
     pts = [(-50, -50, 0), (0, -50, 0), (50, -50, 0), (-50, 50, 0), (0, 50, 0), (50, 50, 0)]
-    mesh = add_mesh(stage, "/World/Scene/plate", pts, [4, 4], [0, 3, 4, 1, 1, 4, 5, 2], material=black,
-                    temperature_k=t, instance_id=1)
+    mesh = add_mesh(
+        stage,
+        "/World/Scene/plate",
+        pts,
+        [4, 4],
+        [0, 3, 4, 1, 1, 4, 5, 2],
+        material=black,
+        temperature_k=t,
+        instance_id=1,
+    )
     mesh.CreateOrientationAttr(UsdGeom.Tokens.leftHanded)
     binding = UsdShade.MaterialBindingAPI(mesh.GetPrim())
     subset = binding.CreateMaterialBindSubset("right", Vt.IntArray([1]))
@@ -505,7 +641,7 @@ def test_geom_subset_materials_and_left_handed_winding(tmp_path):
     render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=16)
     _, ch = read_exr(tmp_path / "out" / "ir" / "0000.exr")
     b, b_sky = planck.band_radiance(t, LWIR), planck.band_radiance(t_sky, LWIR)
-    left, right = ch["radiance"][:, : W // 2 - 1], ch["radiance"][:, W // 2 + 1:]
+    left, right = ch["radiance"][:, : W // 2 - 1], ch["radiance"][:, W // 2 + 1 :]
     assert_allclose(left, b, rtol=1e-5)  # front side seen: leftHanded winding was honoured
     assert abs(right.mean() / (0.5 * b + 0.5 * b_sky) - 1) < 2e-3
 
@@ -514,9 +650,13 @@ def test_sensor_response_weights_the_band(tmp_path):
     stage = new_stage(tmp_path / "stage.usda", sky_k=250.0)
     mat = add_material(stage, "black", 1.0)
     add_mesh(stage, "/World/Scene/plate", *rect_z(-100, 100, -100, 100), material=mat, temperature_k=310.0)
-    cam = add_camera(stage, "ir", eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), up=(0, 1, 0), band=(7.5, 14.5))
+    cam = add_camera(
+        stage, "ir", eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), up=(0, 1, 0), band=(7.5, 14.5)
+    )
     wl, r = [7.5, 8.0, 12.0, 14.5], [0.0, 1.0, 0.8, 0.0]
-    cam.GetPrim().CreateAttribute("humv:sensor:responseWavelengths", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray(wl))
+    cam.GetPrim().CreateAttribute("humv:sensor:responseWavelengths", Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray(wl)
+    )
     cam.GetPrim().CreateAttribute("humv:sensor:response", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray(r))
     stage.Save()
     manifest = render_stage(tmp_path / "stage.usda", tmp_path / "out", spp=2)
@@ -529,8 +669,9 @@ def test_sensor_response_weights_the_band(tmp_path):
 
 # --- variant choice ---------------------------------------------------------------------------
 
+
 def test_variant_choice_without_llvm19(monkeypatch):
-    from humv_usd.render import mode
+    from humv_usd import mode
 
     monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
     monkeypatch.delenv(mode.VARIANT_ENV, raising=False)
@@ -542,7 +683,7 @@ def test_variant_choice_without_llvm19(monkeypatch):
 
 
 def test_variant_choice_points_drjit_at_llvm19(monkeypatch, tmp_path):
-    from humv_usd.render import mode
+    from humv_usd import mode
 
     fake = tmp_path / "libLLVM.so.19.1"
     fake.write_bytes(b"")
@@ -565,11 +706,16 @@ def test_double_sided_mesh_emits_and_reflects_on_its_back(tmp_path):
     for double, out in ((True, "two"), (False, "one")):
         stage = new_stage(tmp_path / f"{out}.usda", sky_k=t2)
         mat = add_material(stage, "plate", eps)
-        mesh = add_mesh(stage, "/World/Scene/plate", *rect_z(-100, 100, -100, 100), material=mat,
-                        temperature_k=t1, instance_id=5)
+        add_mesh(
+            stage,
+            "/World/Scene/plate",
+            *rect_z(-100, 100, -100, 100),
+            material=mat,
+            temperature_k=t1,
+            instance_id=5,
+        )
         UsdGeom.Mesh(stage.GetPrimAtPath("/World/Scene/plate")).CreateDoubleSidedAttr(double)
-        add_camera(stage, "ir", eye=(0.0, 0.0, -10.0), target=(0.0, 0.0, 0.0), fov_x_deg=30,
-                   up=(0, 1, 0))
+        add_camera(stage, "ir", eye=(0.0, 0.0, -10.0), target=(0.0, 0.0, 0.0), fov_x_deg=30, up=(0, 1, 0))
         stage.Save()
         render_stage(tmp_path / f"{out}.usda", tmp_path / out, spp=8)
         _, ch = read_exr(tmp_path / out / "ir" / "0000.exr")

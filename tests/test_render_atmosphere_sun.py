@@ -9,6 +9,7 @@ Closed forms (small synthetic stages, helpers of test_render_radiometry):
 - sun without a solar table: E(l) = DNI pi B(l, 5778 K) / (sigma T^4), in MWIR and in the visible;
 - sub-band count: the sensor's humv:sensor:subbands, overridden by the render option.
 """
+
 from __future__ import annotations
 
 import colour
@@ -17,14 +18,26 @@ import pytest
 from numpy.testing import assert_allclose
 from pxr import Sdf
 from scipy import constants
+from test_render_eo import eo_camera, reflective
+from test_render_radiometry import (
+    MWIR,
+    H,
+    W,
+    atmosphere_tables,
+    camera,
+    material,
+    new_stage,
+    path_table,
+    plate,
+    read_exr,
+    sun,
+    within_noise,
+)
 
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
-from humv_usd.render import cie, radiometry, render_stage
-
-from test_render_eo import eo_camera, reflective
-from test_render_radiometry import (H, MWIR, W, atmosphere_tables, camera, material, new_stage, path_table,
-                                    plate, read_exr, sun, within_noise)
+from humv_usd.pipeline.render import render_stage
+from humv_usd.render import cie, radiometry
 
 SIGMA = constants.Stefan_Boltzmann
 CMFS = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
@@ -34,7 +47,8 @@ XYZ_BAR = np.asarray(CMFS.values, dtype=float)  # (471, 3), 1 nm
 
 def dni_attr(stage, value):
     stage.GetPrimAtPath("/World/Environment").CreateAttribute(
-        "humv:environment:directNormalIrradiance", Sdf.ValueTypeNames.Float).Set(float(value))
+        "humv:environment:directNormalIrradiance", Sdf.ValueTypeNames.Float
+    ).Set(float(value))
 
 
 def pixel_ranges(depth, eye, target, fov_x_deg):
@@ -58,11 +72,14 @@ def silhouette(hit):
 
 # --- EO atmosphere ---------------------------------------------------------------------------------
 
+
 def test_cie_tables_are_colour_sciences():
     """The frozen CMFs and sRGB matrix are colour-science's (and the generator is in sync)."""
     assert cie.main(["--check"]) == 0
     for c in range(3):
-        assert_allclose(cie.CMF_XYZ[:, c], np.interp(cie.CMF_WAVELENGTHS_NM, LAM_NM, XYZ_BAR[:, c]), rtol=0, atol=1e-12)
+        assert_allclose(
+            cie.CMF_XYZ[:, c], np.interp(cie.CMF_WAVELENGTHS_NM, LAM_NM, XYZ_BAR[:, c]), rtol=0, atol=1e-12
+        )
     assert_allclose(cie.XYZ_TO_SRGB, colour.models.RGB_COLOURSPACE_sRGB.matrix_XYZ_to_RGB, atol=1e-12)
 
 
@@ -173,7 +190,9 @@ def test_reduce_xyz_airlight_closed_form():
     red = radiometry.reduce_xyz(table, (wl, l_h))
     integrals = np.trapz(XYZ_BAR, LAM_NM, axis=0)
     lh_nm = np.interp(LAM_NM / 1000, wl, l_h) / 1000.0
-    assert_allclose(red.horizon_xyz, np.trapz(XYZ_BAR * lh_nm[:, None], LAM_NM, axis=0) / integrals[1], rtol=2e-3)
+    assert_allclose(
+        red.horizon_xyz, np.trapz(XYZ_BAR * lh_nm[:, None], LAM_NM, axis=0) / integrals[1], rtol=2e-3
+    )
     assert_allclose(red.airlight[0], 0.0) and assert_allclose(red.radiance[0], 0.0)
     for j in range(2):
         one_minus = 1.0 - np.interp(LAM_NM / 1000, wl, tau[j])
@@ -202,23 +221,46 @@ def test_eo_airlight_black_and_white_plate_closed_form(tmp_path):
     e_um, zen, sky_rows = 1500.0, np.array([0.0, 45.0, 85.0, 89.0]), np.array([30.0, 60.0, 120.0, 120.0])
     eye, target, fov = (0.0, -30.0, 6.0), (0.0, 0.0, 1.5), 40.0
     stage = new_stage(tmp_path / "s.usda")
-    quad(stage, "/World/black", -200.0, 0.0, -200.0, 200.0, reflective(stage, "black", [0.3, 1.0], [0.0, 0.0]), 1)
-    quad(stage, "/World/white", 0.0, 200.0, -200.0, 200.0, reflective(stage, "white", [0.3, 1.0], [1.0, 1.0]), 2)
+    quad(
+        stage,
+        "/World/black",
+        -200.0,
+        0.0,
+        -200.0,
+        200.0,
+        reflective(stage, "black", [0.3, 1.0], [0.0, 0.0]),
+        1,
+    )
+    quad(
+        stage,
+        "/World/white",
+        0.0,
+        200.0,
+        -200.0,
+        200.0,
+        reflective(stage, "white", [0.3, 1.0], [1.0, 1.0]),
+        2,
+    )
     cam = eo_camera(stage, "eo", eye, target, fov_x_deg=fov, up=(0, 0, 1))
     wl = np.array([0.3, 0.45, 0.55, 0.65, 0.9])
     atmosphere_tables(stage, wl, sky=np.repeat(sky_rows, wl.size), zenith=zen, solar=np.full(wl.size, e_um))
     sun(stage, (0.0, 0.0, 1.0))
     ranges = np.array([1.0, 100.0])
     a = np.array([2e-3, 6e-3, 3e-3, 5e-3, 1e-3])  # per metre
-    path_table(stage, str(cam.GetPath()), ranges, np.stack([1.0 - a * r for r in ranges]), np.zeros((2, wl.size)))
+    path_table(
+        stage, str(cam.GetPath()), ranges, np.stack([1.0 - a * r for r in ranges]), np.zeros((2, wl.size))
+    )
     stage.Save()
     manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=128)
     ch = read_exr(tmp_path / "out" / "eo" / "0000.exr")
     depth = ch["depth"].astype(float)
     hit = np.isfinite(depth)
     r = np.clip(np.where(hit, pixel_ranges(depth, eye, target, fov), 0.0), 0.0, 100.0)
-    tau_l = np.where(r[..., None] >= 1.0, 1.0 - np.interp(LAM_NM / 1000, wl, a) * r[..., None],
-                     1.0 - np.clip(r, 0, 1)[..., None] * np.interp(LAM_NM / 1000, wl, a))
+    tau_l = np.where(
+        r[..., None] >= 1.0,
+        1.0 - np.interp(LAM_NM / 1000, wl, a) * r[..., None],
+        1.0 - np.clip(r, 0, 1)[..., None] * np.interp(LAM_NM / 1000, wl, a),
+    )
     tau_y = np.trapz(tau_l * XYZ_BAR[:, 1], LAM_NM, axis=-1) / np.trapz(XYZ_BAR[:, 1], LAM_NM)
     y_h = 0.12  # flat 120 W m-2 sr-1 um-1 at zenith 85-89 deg
     l_sky = radiometry.hemisphere_mean(zen, sky_rows) / 1000.0  # the uniform sky that lights the plates
@@ -270,6 +312,7 @@ def test_eo_path_skipped_without_visible_table(tmp_path):
 
 # --- sun from the broadband DNI -----------------------------------------------------------------------
 
+
 def blackbody_sun_band(dni, band):
     """In-band irradiance of a 5778 K blackbody spectrum scaled to the DNI (fine trapezoid)."""
     x = np.linspace(band[0], band[1], 20001)
@@ -285,7 +328,8 @@ def mwir_white_plate(tmp_path, toward, dni=800.0):
     eps, t, t_sky = 0.1, 300.0, 270.0
     stage = new_stage(tmp_path / "s.usda", sky_k=t_sky)
     stage.GetPrimAtPath("/World/Atmosphere").CreateAttribute(
-        "humv:atmosphere:model", Sdf.ValueTypeNames.Token).Set("analytic")
+        "humv:atmosphere:model", Sdf.ValueTypeNames.Token
+    ).Set("analytic")
     plate(stage, "/World/p", 1e4, 0.0, material(stage, "white", eps), t)
     camera(stage, "ir", (0, 0, 10), (0, 0, 0), fov_x_deg=10.0, band=MWIR)
     sun(stage, toward)
@@ -338,6 +382,7 @@ def test_eo_sun_from_dni_without_solar_table(tmp_path):
 
 
 # --- sub-band count from the sensor prim ------------------------------------------------------------
+
 
 def subbands_stage(tmp_path, value):
     stage = new_stage(tmp_path / "s.usda", sky_k=290.0)

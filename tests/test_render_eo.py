@@ -4,6 +4,7 @@ Closed form: a white Lambertian plate under a sun beam of spectral irradiance E 
 theta has radiance E rho cos(theta) / pi; Mitsuba's XYZ film gives Y = that radiance per nm for a
 flat spectrum. Colour: linear sRGB must be colour-science's XYZ_to_sRGB of the XYZ channels.
 """
+
 from __future__ import annotations
 
 import colour
@@ -12,12 +13,11 @@ import OpenImageIO as oiio
 import pytest
 from numpy.testing import assert_allclose
 from pxr import Gf, Sdf, UsdGeom
+from test_render_radiometry import H, W, atmosphere_tables, farr, material, new_stage, plate, read_exr, sun
 
-from humv_usd.render import render_stage
+from humv_usd.pipeline.render import render_stage
 from humv_usd.render.eo import EO_WAVELENGTHS_NM, reflectance_spectrum
 from humv_usd.render.export import Material
-
-from test_render_radiometry import H, W, atmosphere_tables, farr, material, new_stage, plate, read_exr, sun
 
 
 def eo_camera(stage, name, eye, target, fov_x_deg=20.0, up=(0, 1, 0)):
@@ -69,7 +69,9 @@ def test_white_plate_under_sun_closed_form(tmp_path, zenith_deg):
     assert sigma < 3e-3 * expected
     xyz = np.stack([ch["X"], ch["Y"], ch["Z"]], axis=-1)
     rgb = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1)
-    assert_allclose(rgb, colour.XYZ_to_sRGB(xyz.astype(float), apply_cctf_encoding=False), rtol=1e-4, atol=1e-6)
+    assert_allclose(
+        rgb, colour.XYZ_to_sRGB(xyz.astype(float), apply_cctf_encoding=False), rtol=1e-4, atol=1e-6
+    )
     # flat spectrum: X, Y and Z agree to the CIE integrals (equal-energy white)
     assert_allclose(ch["X"].mean() / ch["Y"].mean(), 1.0, atol=2e-3)
     [eo] = manifest["eo_sensors"]
@@ -107,7 +109,10 @@ def test_colour_follows_reflectance_and_sky(tmp_path):
     rho = np.interp(lam / 1000.0, wl, [0.05, 0.05, 0.8, 0.8])
     rho_y = float((rho * ybar).sum() / ybar.sum())
     assert_allclose(ch["Y"].mean(), rho_y * 0.2, rtol=0.02)
-    assert manifest["eo_sensors"][0]["frames"][0]["illumination"]["sun"] == "skipped: sun below the horizon (night)"
+    assert (
+        manifest["eo_sensors"][0]["frames"][0]["illumination"]["sun"]
+        == "skipped: sun below the horizon (night)"
+    )
 
 
 def test_eo_skipped_without_reflectance_or_light(tmp_path):
@@ -127,6 +132,7 @@ def test_eo_skipped_without_reflectance_or_light(tmp_path):
     assert manifest["eo_sensors"] == []
 
 
+@pytest.mark.slow
 def test_eo_only_scenario_composes_and_renders(raw, tmp_path):
     """A scenario whose only sensor is EO (no [atmosphere] section): compose writes the
     atmosphere (sun and skylight spectra, paths; no LOWTRAN, no thermal layer) and the render
@@ -134,8 +140,11 @@ def test_eo_only_scenario_composes_and_renders(raw, tmp_path):
     from humv_usd.pipeline.compose import compose
     from humv_usd.scenario import validate
 
-    raw["sensor"] = [dict(s, resolution=[64, 48], pixel_pitch_um=80.0)
-                     for s in raw["sensor"] if s.get("preset") == "rgb_imx273"]
+    raw["sensor"] = [
+        dict(s, resolution=[64, 48], pixel_pitch_um=80.0)
+        for s in raw["sensor"]
+        if s.get("preset") == "rgb_imx273"
+    ]
     assert len(raw["sensor"]) == 1
     raw.pop("atmosphere", None)
     report = compose(validate(raw), tmp_path / "c")

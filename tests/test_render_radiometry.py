@@ -6,6 +6,7 @@ hemispherical mean), a plate lit by the sun (E cos(theta) / pi), and a blackbody
 through the sensor chain after atmospheric correction. Stages are small synthetic ones authored
 here with the attributes of notes/contract_env.md.
 """
+
 from __future__ import annotations
 
 import json
@@ -14,13 +15,16 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from pxr import Gf, Sdf, UsdGeom, UsdShade, Vt
+from test_render import add_camera, within_noise
+from test_render import add_material as material
+from test_render import new_stage as _new_stage
+from test_render import read_exr as _read_exr
 
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
-from humv_usd.render import radiometry, render_stage
+from humv_usd.pipeline.render import render_stage
+from humv_usd.render import radiometry
 from humv_usd.render.radiometry import SubBands
-from test_render import add_camera, add_material as material, new_stage as _new_stage, read_exr as _read_exr
-from test_render import within_noise
 
 W, H = 32, 24
 LWIR = (8.0, 14.0)
@@ -28,6 +32,7 @@ MWIR = (3.0, 5.0)
 
 
 # --- stage helpers ------------------------------------------------------------------------------
+
 
 def new_stage(path, sky_k=280.0):
     """test_render's stage plus the /World/Environment scope the sun goes on."""
@@ -37,25 +42,46 @@ def new_stage(path, sky_k=280.0):
 
 
 def farr(prim, name, values):
-    prim.CreateAttribute(name, Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray([float(v) for v in np.ravel(values)]))
+    prim.CreateAttribute(name, Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray([float(v) for v in np.ravel(values)])
+    )
 
 
 def plate(stage, path, half, z, mat, temperature_k, instance_id=1):
     mesh = UsdGeom.Mesh.Define(stage, path)
-    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(-half, -half, z), Gf.Vec3f(half, -half, z),
-                                         Gf.Vec3f(half, half, z), Gf.Vec3f(-half, half, z)]))
+    mesh.CreatePointsAttr(
+        Vt.Vec3fArray(
+            [
+                Gf.Vec3f(-half, -half, z),
+                Gf.Vec3f(half, -half, z),
+                Gf.Vec3f(half, half, z),
+                Gf.Vec3f(-half, half, z),
+            ]
+        )
+    )
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
     mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
     UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
     UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
-        "humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform).Set(Vt.FloatArray([temperature_k]))
+        "humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform
+    ).Set(Vt.FloatArray([temperature_k]))
     mesh.GetPrim().CreateAttribute("humv:label:instanceId", Sdf.ValueTypeNames.Int).Set(instance_id)
     return mesh
 
 
 def camera(stage, name, eye, target, fov_x_deg=20.0, band=LWIR, up=(0, 1, 0), netd=None):
-    return add_camera(stage, name, eye, target, fov_x_deg=fov_x_deg, resolution=(W, H), band=band,
-                      band_token="LWIR" if band[0] >= 7 else "MWIR", up=up, netd=netd)
+    return add_camera(
+        stage,
+        name,
+        eye,
+        target,
+        fov_x_deg=fov_x_deg,
+        resolution=(W, H),
+        band=band,
+        band_token="LWIR" if band[0] >= 7 else "MWIR",
+        up=up,
+        netd=netd,
+    )
 
 
 def atmosphere_tables(stage, wavelengths, sky=None, zenith=None, solar=None):
@@ -79,7 +105,8 @@ def path_table(stage, sensor, ranges, tau, rad):
 def sun(stage, toward):
     d = np.asarray(toward, float) / np.linalg.norm(toward)
     stage.GetPrimAtPath("/World/Environment").CreateAttribute(
-        "humv:environment:sunDirection", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(*map(float, d)))
+        "humv:environment:sunDirection", Sdf.ValueTypeNames.Float3
+    ).Set(Gf.Vec3f(*map(float, d)))
 
 
 def read_exr(path):
@@ -87,6 +114,7 @@ def read_exr(path):
 
 
 # --- sub-bands (numpy) -------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("n", [1, 3, 7])
 def test_subband_planck_sums_to_band(n):
@@ -98,7 +126,9 @@ def test_subband_planck_sums_to_band(n):
     x = np.linspace(7.0, 15.0, 9)
     ones = sub.integrate(x, np.ones_like(x))
     r8 = 0.2 + 0.8 * 0.5 / 1.5  # response at the band edge 8 um
-    assert_allclose(ones.sum(), 0.5 * (r8 + 1.0) * 1.0 + 0.5 * (1.0 + 0.8) * 3.0 + 0.5 * 0.8 * 2.0, rtol=1e-12)
+    assert_allclose(
+        ones.sum(), 0.5 * (r8 + 1.0) * 1.0 + 0.5 * (1.0 + 0.8) * 3.0 + 0.5 * 0.8 * 2.0, rtol=1e-12
+    )
     assert_allclose(sub.weighted_mean(x, np.full_like(x, 0.37)), 0.37, rtol=1e-12)
 
 
@@ -115,10 +145,11 @@ def test_subband_error_gray_exact_and_falls_for_nongray():
     for n in (1, 4):
         assert np.abs(radiometry.subband_error(LWIR, None, wl, gray, t, n, sky=sky)).max() < 1e-6
     quartz = np.array([0.95, 0.6, 0.7, 0.95, 0.95])  # reststrahlen-like dip near 9 um
-    tau = (np.linspace(8, 14, 61), 0.6 + 0.3 * np.sin(np.linspace(0, 6, 61)) ** 2,
-           np.linspace(0.1, 2.0, 61))
-    errs = [np.abs(radiometry.subband_error(LWIR, None, wl, quartz, t, n, sky=sky, path=tau)).max()
-            for n in (1, 4, 16, 64)]
+    tau = (np.linspace(8, 14, 61), 0.6 + 0.3 * np.sin(np.linspace(0, 6, 61)) ** 2, np.linspace(0.1, 2.0, 61))
+    errs = [
+        np.abs(radiometry.subband_error(LWIR, None, wl, quartz, t, n, sky=sky, path=tau)).max()
+        for n in (1, 4, 16, 64)
+    ]
     assert errs[0] > 0.05 and errs[-1] < 0.02 * errs[0] and errs[2] < errs[0]
 
 
@@ -132,6 +163,7 @@ def test_subbands_option_validated(tmp_path):
 
 
 # --- atmosphere per pixel by range -------------------------------------------------------------
+
 
 def test_path_radiance_and_transmittance_per_pixel(tmp_path):
     """A plate seen obliquely through a path whose tau and P are linear in range and non-gray:
@@ -209,16 +241,25 @@ def test_bad_path_table_is_input_error(tmp_path):
 
 # --- sky and sun -------------------------------------------------------------------------------
 
+
 def test_sky_map_rows_match_mitsuba_envmap_lookup():
     """The lat-long map's rows sit where Mitsuba's envmap looks zenith angles up."""
-    from humv_usd.render import mode
+    from humv_usd import mode
     from humv_usd.render.radiometry import sky_latlong
 
     mi = mode.mitsuba()
     zen = np.array([0.0, 90.0])
     bitmap = sky_latlong(zen, [0.0, 90.0])  # radiance = zenith angle in degrees
-    scene = mi.load_dict({"type": "scene", "sky": {"type": "envmap", "bitmap": mi.Bitmap(bitmap),
-                                                   "to_world": mi.ScalarTransform4f().rotate([1, 0, 0], 90)}})
+    scene = mi.load_dict(
+        {
+            "type": "scene",
+            "sky": {
+                "type": "envmap",
+                "bitmap": mi.Bitmap(bitmap),
+                "to_world": mi.ScalarTransform4f().rotate([1, 0, 0], 90),
+            },
+        }
+    )
     emitter = scene.emitters()[0]
     for z in (0.0, 0.3, 17.0, 63.4, 89.0, 89.9):
         th = np.radians(z)
@@ -305,24 +346,29 @@ def test_glass_reflects_only_its_reflectance(tmp_path):
 
 # --- blackbody read-back through the sensor chain ----------------------------------------------
 
+
 def test_blackbody_panel_reads_back_within_netd(tmp_path):
     """Issue 6 check: a blackbody panel (eps 1) at 308 K, 40 m away, through a non-gray path
     (LWIR, tau 0.55-0.95, path radiance of a 285 K air column), rendered, passed through the
     sensor chain (PSF, NETD noise, 14-bit counts), corrected with the band-effective path
     ((L - L_path) / tau) and converted to brightness temperature: the panel's mean reads back
     within the NETD, and its pixel scatter is about the NETD."""
-    chain = pytest.importorskip("humv_usd.sensors.chain")
+    chain = pytest.importorskip("humv_usd.physics.sensor")
     t_panel, rng_m, netd = 308.0, 40.0, 0.05
     stage = new_stage(tmp_path / "s.usda", sky_k=250.0)
     bb = material(stage, "blackbody", 1.0)
     mesh = UsdGeom.Mesh.Define(stage, "/World/panel")  # 8 m x 8 m, facing -y, centre 40 m away
-    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(-4, rng_m, -4), Gf.Vec3f(4, rng_m, -4),
-                                         Gf.Vec3f(4, rng_m, 4), Gf.Vec3f(-4, rng_m, 4)]))
+    mesh.CreatePointsAttr(
+        Vt.Vec3fArray(
+            [Gf.Vec3f(-4, rng_m, -4), Gf.Vec3f(4, rng_m, -4), Gf.Vec3f(4, rng_m, 4), Gf.Vec3f(-4, rng_m, 4)]
+        )
+    )
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
     mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
     UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(bb)
     UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
-        "humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform).Set(Vt.FloatArray([t_panel]))
+        "humv:thermal:temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform
+    ).Set(Vt.FloatArray([t_panel]))
     cam = camera(stage, "ir", (0, 0, 0), (0, 1, 0), fov_x_deg=8.0, up=(0, 0, 1), netd=netd)
     wl = np.linspace(7.0, 15.0, 17)
     ranges = np.array([1.0, 20.0, 60.0, 200.0])
@@ -339,7 +385,7 @@ def test_blackbody_panel_reads_back_within_netd(tmp_path):
     # atmospheric correction with the band-effective path at the panel's range (a user's view:
     # the sensor-response-weighted, 300 K Planck-weighted transmittance and the band path radiance)
     whole = radiometry.PathTable("p", ranges, wl, tau, rad).reduce(SubBands(LWIR, None, 1))
-    r_px = float(np.nanmedian(ch["depth"][H // 2 - 3:H // 2 + 3, W // 2 - 3:W // 2 + 3]))
+    r_px = float(np.nanmedian(ch["depth"][H // 2 - 3 : H // 2 + 3, W // 2 - 3 : W // 2 + 3]))
     tau_b, lp_b = whole.at(r_px, 0)
     bt = planck.brightness_temperature((l_meas - lp_b) / tau_b, LWIR)
     centre = bt[4:-4, 6:-6]  # away from the PSF-blurred panel edges (the panel fills the view)
@@ -349,7 +395,12 @@ def test_blackbody_panel_reads_back_within_netd(tmp_path):
     assert abs(centre.mean() - t_panel) < netd  # ... and is corrected within the NETD
     # NETD noise (sigma_L = NETD dL/dT at 300 K), divided by tau and dL/dT at the panel by the
     # correction; Monte Carlo noise and the PSF's averaging change it by a few per cent
-    expected_std = netd * planck.band_radiance_derivative(300.0, LWIR) / planck.band_radiance_derivative(t_panel, LWIR) / tau_b
+    expected_std = (
+        netd
+        * planck.band_radiance_derivative(300.0, LWIR)
+        / planck.band_radiance_derivative(t_panel, LWIR)
+        / tau_b
+    )
     assert 0.75 * expected_std < centre.std() < 1.25 * expected_std
     on_disk = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert on_disk["sensor_chain"].startswith("ran")

@@ -1,15 +1,15 @@
 """Scenario validation: defaults, one line per problem with key, value and range."""
+
 from __future__ import annotations
 
 import datetime as dt
 
 import pytest
+from conftest import HUMVVEX
 
 from humv_usd.errors import InputError
 from humv_usd.scenario import load_scenario, validate
 from humv_usd.scenario.spec import SECTIONS
-
-from conftest import HUMVVEX
 
 
 def problems(raw) -> list[str]:
@@ -28,8 +28,16 @@ def test_humvvex_loads_with_defaults_filled():
     # the four HUMVVEX imagers: two LWIR, MWIR (infrared) and EO colour
     assert [x["id"] for x in s.infrared_sensors] == ["atom1024_lwir", "lwir640", "mwir_insb"]
     # sections mirror the editor's six tabs plus the atmosphere and the ground-truth outputs
-    assert list(SECTIONS) == ["general", "human", "placement", "scene", "sensor", "thermal",
-                              "atmosphere", "annotations"]
+    assert list(SECTIONS) == [
+        "general",
+        "human",
+        "placement",
+        "scene",
+        "sensor",
+        "thermal",
+        "atmosphere",
+        "annotations",
+    ]
 
 
 def test_out_of_range_names_key_value_and_range(raw):
@@ -77,7 +85,7 @@ def test_missing_required(raw):
 
 
 def test_datetime_must_be_local(raw):
-    raw["general"]["start"] = dt.datetime(2018, 10, 24, 14, 5, tzinfo=dt.timezone.utc)
+    raw["general"]["start"] = dt.datetime(2018, 10, 24, 14, 5, tzinfo=dt.UTC)
     (line,) = problems(raw)
     assert "expected a TOML local date-time" in line
 

@@ -1,4 +1,5 @@
 """The codeless HumV USD schemas: registered, applicable where allowed, documented, up to date."""
+
 from __future__ import annotations
 
 import os
@@ -6,11 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+from pxr import Sdf, Usd
+
 # Registration must happen before any stage exists: import the package first.
 import humv_usd  # noqa: F401  (registers the schemas)
-import pytest
 from humv_usd.usd import schemas as hs
-from pxr import Sdf, Usd
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMAS_DIR = REPO / "schemas"
@@ -249,7 +251,13 @@ def test_plug_info_is_codeless_resource():
     assert "@PLUG_INFO_" not in text
     info = json.loads("\n".join(l for l in text.splitlines() if not l.lstrip().startswith("#")))
     (plugin,) = info["Plugins"]
-    assert (plugin["Name"], plugin["Type"], plugin["LibraryPath"], plugin["ResourcePath"], plugin["Root"]) == (
+    assert (
+        plugin["Name"],
+        plugin["Type"],
+        plugin["LibraryPath"],
+        plugin["ResourcePath"],
+        plugin["Root"],
+    ) == (
         "humvUsd",
         "resource",
         "",
@@ -298,9 +306,7 @@ def test_other_usd_tools_load_schemas_through_plugin_path(tmp_path):
     )
     env = _clean_env()
     env["PXR_PLUGINPATH_NAME"] = str(SCHEMAS_DIR.resolve())
-    proc = subprocess.run(
-        [sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True
-    )
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "ok"
 

@@ -1,4 +1,5 @@
 """Sensor presets, platforms and the sensor chain (PSF, NETD noise, counts, AGC)."""
+
 from __future__ import annotations
 
 import copy
@@ -8,36 +9,59 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
 
+from humv_usd.catalog import sensors as presets
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
+from humv_usd.physics import sensor as chain
+from humv_usd.physics.sensor import SensorModel, apply_chain, psf_kernel
 from humv_usd.scenario import validate
 from humv_usd.scenario.spec import SENSOR_PRESETS
-from humv_usd.sensors import chain, layer as sensors_layer, presets
-from humv_usd.sensors.chain import SensorModel, apply_chain, psf_kernel
+from humv_usd.sensors import layer as sensors_layer
 from humv_usd.usd import schemas as S
+from humv_usd.usd.sensor import read_sensor_model
 
 
 def model_from_preset(name: str, **over) -> SensorModel:
     p = presets.preset(name)
     gain, offset = presets.calibration(name)
-    kw = dict(name=name, band=p.band, wavelength_range_um=p.wavelength_um,
-              response_wavelengths_um=np.asarray(p.response_wavelengths_um),
-              response=np.asarray(p.response), resolution=p.resolution,
-              pixel_pitch_m=p.pixel_pitch_um * 1e-6, f_number=p.f_number,
-              focal_length_m=p.focal_length_mm * 1e-3, netd_k=p.netd_k, bit_depth=p.bit_depth,
-              gain=gain, offset=offset, agc=p.agc, agc_percentiles=p.agc_percentiles,
-              channel_response=None if p.channel_response is None else np.asarray(p.channel_response),
-              full_well_e=p.full_well_e, read_noise_e=p.read_noise_e, preset=name)
+    kw = dict(
+        name=name,
+        band=p.band,
+        wavelength_range_um=p.wavelength_um,
+        response_wavelengths_um=np.asarray(p.response_wavelengths_um),
+        response=np.asarray(p.response),
+        resolution=p.resolution,
+        pixel_pitch_m=p.pixel_pitch_um * 1e-6,
+        f_number=p.f_number,
+        focal_length_m=p.focal_length_mm * 1e-3,
+        netd_k=p.netd_k,
+        bit_depth=p.bit_depth,
+        gain=gain,
+        offset=offset,
+        agc=p.agc,
+        agc_percentiles=p.agc_percentiles,
+        channel_response=None if p.channel_response is None else np.asarray(p.channel_response),
+        full_well_e=p.full_well_e,
+        read_noise_e=p.read_noise_e,
+        preset=name,
+    )
     kw.update(over)
     return SensorModel(**kw)
 
 
 def mono(wavelength_um: float, pitch_um: float, f_number: float) -> SensorModel:
     """A sensor with a narrow flat response around one wavelength."""
-    return SensorModel(name="m", band="LWIR", wavelength_range_um=(wavelength_um - 0.01, wavelength_um + 0.01),
-                       response_wavelengths_um=np.array([wavelength_um - 0.01, wavelength_um + 0.01]),
-                       response=np.array([1.0, 1.0]), resolution=(8, 8), pixel_pitch_m=pitch_um * 1e-6,
-                       f_number=f_number, focal_length_m=0.025)
+    return SensorModel(
+        name="m",
+        band="LWIR",
+        wavelength_range_um=(wavelength_um - 0.01, wavelength_um + 0.01),
+        response_wavelengths_um=np.array([wavelength_um - 0.01, wavelength_um + 0.01]),
+        response=np.array([1.0, 1.0]),
+        resolution=(8, 8),
+        pixel_pitch_m=pitch_um * 1e-6,
+        f_number=f_number,
+        focal_length_m=0.025,
+    )
 
 
 # ---------------------------------------------------------------------------- presets
@@ -112,11 +136,12 @@ def test_psf_encircled_energy_matches_rayleigh():
     lam, n, pitch = 10.0, 1.0, 1.0
     k = psf_kernel(mono(lam, pitch, n), [lam], energy=0.99)
     c = k.shape[0] // 2
-    y, x = np.mgrid[-c:c + 1, -c:c + 1] * pitch
+    y, x = np.mgrid[-c : c + 1, -c : c + 1] * pitch
     inside = np.hypot(x, y) <= 1.2197 * lam * n
     kept = chain.airy_encircled_energy(c * pitch, lam, n)  # the kernel is renormalised to its extent
-    assert k[inside].sum() == pytest.approx(chain.airy_encircled_energy(1.2197 * lam * n, lam, n) / kept,
-                                            abs=0.01)
+    assert k[inside].sum() == pytest.approx(
+        chain.airy_encircled_energy(1.2197 * lam * n, lam, n) / kept, abs=0.01
+    )
 
 
 def test_psf_of_big_pixels_is_nearly_a_delta_and_band_average_lies_between():
@@ -143,8 +168,11 @@ def test_psf_convolution_keeps_flat_fields_and_total_power():
     point[30, 30] = 1.0
     out = chain.convolve_psf(point, k)
     assert out.sum() == pytest.approx(1.0, rel=1e-9)
-    np.testing.assert_allclose(out[30 - k.shape[0] // 2:31 + k.shape[0] // 2,
-                                   30 - k.shape[0] // 2:31 + k.shape[0] // 2], k, atol=1e-12)
+    np.testing.assert_allclose(
+        out[30 - k.shape[0] // 2 : 31 + k.shape[0] // 2, 30 - k.shape[0] // 2 : 31 + k.shape[0] // 2],
+        k,
+        atol=1e-12,
+    )
 
 
 # ---------------------------------------------------------------------------- noise
@@ -162,11 +190,12 @@ def test_noise_of_a_flat_300k_field_is_the_netd(name):
     # sampling error of a std from n Gaussian samples: 1/sqrt(2 n) (~0.5 %); the quantizer adds
     # step^2/12 to the variance
     step_k = 1.0 / m.gain / planck.band_radiance_derivative(300.0, band, resp)
-    expected = math.sqrt(m.netd_k ** 2 + step_k ** 2 / 12)
-    assert np.sqrt(np.mean(std ** 2)) == pytest.approx(expected, rel=4 / math.sqrt(2 * n))
+    expected = math.sqrt(m.netd_k**2 + step_k**2 / 12)
+    assert np.sqrt(np.mean(std**2)) == pytest.approx(expected, rel=4 / math.sqrt(2 * n))
     assert np.mean(temps) == pytest.approx(300.0, abs=0.01)
     assert apply_chain(radiance, m, rng).noise_sigma == pytest.approx(
-        m.netd_k * planck.band_radiance_derivative(300.0, band, resp))
+        m.netd_k * planck.band_radiance_derivative(300.0, band, resp)
+    )
 
 
 def test_noise_uses_the_sensors_reference_temperature():
@@ -194,7 +223,7 @@ def test_eo_shot_and_read_noise_follow_the_photon_transfer_curve():
         e = out.radiance[half] * e_per_unit
         mean_e = level * e_per_unit
         # EMVA 1288: variance [e-^2] = mean signal + read noise^2
-        assert e.var(ddof=1) == pytest.approx(mean_e + m.read_noise_e ** 2, rel=0.05)
+        assert e.var(ddof=1) == pytest.approx(mean_e + m.read_noise_e**2, rel=0.05)
     # auto exposure: the 99.5th percentile sits at 80 % of full well
     assert 0.3 * e_per_unit == pytest.approx(0.8 * m.full_well_e, rel=1e-9)
     assert out.counts.dtype == np.uint16 and out.counts.max() <= 4095
@@ -203,6 +232,7 @@ def test_eo_shot_and_read_noise_follow_the_photon_transfer_curve():
 
 def test_colour_matrix_maps_d65_white_to_grey():
     import colour
+
     m = model_from_preset("rgb_imx273")
     ccm = chain.colour_correction_matrix(m)
     shape = colour.SpectralShape(400, 700, 10)
@@ -240,10 +270,12 @@ def test_agc_modes():
     lin, info = chain.agc(counts, "linear", (1.0, 99.0), 14)
     lo, hi = np.percentile(counts, [1, 99])
     assert info["black_count"] == lo and info["white_count"] == hi
-    assert np.mean(lin == 0) == pytest.approx(0.01, abs=0.005) and np.mean(lin == 255) == pytest.approx(0.01, abs=0.005)
+    assert np.mean(lin == 0) == pytest.approx(0.01, abs=0.005) and np.mean(lin == 255) == pytest.approx(
+        0.01, abs=0.005
+    )
     eq, _ = chain.agc(counts, "histogram", bit_depth=14)
     hist = np.bincount(eq.ravel() // 32, minlength=8) / eq.size
-    np.testing.assert_allclose(hist, 1 / 8, atol=0.02)        # equalised: flat histogram
+    np.testing.assert_allclose(hist, 1 / 8, atol=0.02)  # equalised: flat histogram
     fixed, _ = chain.agc(counts, "none", bit_depth=14)
     np.testing.assert_array_equal(fixed, np.rint(counts * 255.0 / 16383).astype(np.uint8))
     with pytest.raises(ValueError, match="invalid AGC mode"):
@@ -260,6 +292,7 @@ def test_apply_chain_records_settings_and_checks_shapes():
     assert s["gain"] == m.gain and s["offset"] == m.offset and s["saturated_fraction"] == 0
     assert out.counts.shape == img.shape and out.image8.dtype == np.uint8
     import json
+
     json.dumps(s)
     with pytest.raises(ValueError, match="must be"):
         apply_chain(np.zeros((4, 4, 3)), m, np.random.default_rng(0))
@@ -290,13 +323,19 @@ def test_scenario_preset_fills_and_table_wins(raw):
     with pytest.raises(InputError, match=r"sensor\[0\]\.preset = 'atom2048': allowed values"):
         validate(bad)
     other = copy.deepcopy(raw)
-    other["sensor"][0]["band"] = "MWIR"      # another band than the preset's: no LWIR edges/counts
+    other["sensor"][0]["band"] = "MWIR"  # another band than the preset's: no LWIR edges/counts
     o = validate(other)["sensor"][0]
     assert o["wavelength_um"] == [3.0, 5.0] and o["gain"] == 100.0 and o["resolution"] == [1024, 768]
     eo = copy.deepcopy(raw)
-    eo["sensor"][0] = {"id": "cam", "band": "EO", "resolution": [64, 48], "focal_length_mm": 8.0,
-                       "position_m": [0, -5, 1.6], "look_at_m": [0, 0, 1]}
-    assert validate(eo)["sensor"][0]["gain"] is None          # EO: auto exposure
+    eo["sensor"][0] = {
+        "id": "cam",
+        "band": "EO",
+        "resolution": [64, 48],
+        "focal_length_mm": 8.0,
+        "position_m": [0, -5, 1.6],
+        "look_at_m": [0, 0, 1],
+    }
+    assert validate(eo)["sensor"][0]["gain"] is None  # EO: auto exposure
     bare = copy.deepcopy(raw)
     del bare["sensor"][0]["preset"]
     with pytest.raises(InputError, match=r"sensor\[0\]\.resolution: missing required key"):
@@ -317,8 +356,14 @@ def aerial_raw(raw):
     raw["general"]["fps"] = 10.0
     s = raw["sensor"][0]
     del s["position_m"]
-    s.update(platform="aerial", look_at_m=[1.0, 2.0, 0.0], altitude_m=120.0, orbit_radius_m=150.0,
-             orbit_speed_m_s=30.0, orbit_start_deg=180.0)
+    s.update(
+        platform="aerial",
+        look_at_m=[1.0, 2.0, 0.0],
+        altitude_m=120.0,
+        orbit_radius_m=150.0,
+        orbit_speed_m_s=30.0,
+        orbit_start_deg=180.0,
+    )
     raw["sensor"] = [s]
     return raw
 
@@ -340,12 +385,12 @@ def test_aerial_orbit_is_time_sampled_and_looks_at_the_centre(raw):
         assert np.hypot(*(pos[:2] - centre[:2])) == pytest.approx(150.0)
         to_centre = (centre - pos) / np.linalg.norm(centre - pos)
         assert np.dot(fwd / np.linalg.norm(fwd), to_centre) == pytest.approx(1.0, abs=1e-9)
-        if prev is not None:   # arc length per frame = speed / fps
+        if prev is not None:  # arc length per frame = speed / fps
             chord = np.linalg.norm(pos - prev)
             assert 2 * 150.0 * math.asin(chord / 300.0) == pytest.approx(30.0 / 10.0, rel=1e-6)
         prev = pos
     start = np.array(UsdGeom.Camera(prim).GetCamera(Usd.TimeCode(0)).transform.Transform((0, 0, 0)))
-    np.testing.assert_allclose(start[:2], [1.0, 2.0 - 150.0], atol=1e-9)   # 180 deg: south
+    np.testing.assert_allclose(start[:2], [1.0, 2.0 - 150.0], atol=1e-9)  # 180 deg: south
     bad = aerial_raw(copy.deepcopy(raw))
     bad["sensor"][0]["position_m"] = [0, 0, 1]
     with pytest.raises(InputError, match="not with platform = 'aerial'"):
@@ -357,7 +402,7 @@ def test_sensors_layer_round_trips_to_the_chain_model(raw):
     stage = Usd.Stage.Open(sensors_layer.build(scenario))
     for s in scenario["sensor"]:
         prim = stage.GetPrimAtPath(f"/World/Sensors/{s['id']}")
-        m = SensorModel.from_prim(prim)
+        m = read_sensor_model(prim)
         p = presets.preset(s["preset"])
         assert m.preset == p.name and m.band == p.band and m.agc == p.agc
         assert m.resolution == p.resolution and m.bit_depth == p.bit_depth
@@ -385,9 +430,9 @@ def test_netd_scales_with_f_number_when_not_given(raw):
     (detector-limited, Dereniak & Boreman 1996 §5.8), recorded in the attribute's customData; a
     netd_k given explicitly (other than the preset's) or the preset's f-number: unchanged."""
     by_id = {s["id"]: s for s in raw["sensor"]}
-    by_id["atom1024_lwir"]["f_number"] = 1.4          # preset f/1, 50 mK
+    by_id["atom1024_lwir"]["f_number"] = 1.4  # preset f/1, 50 mK
     by_id["lwir640"].update(f_number=2.0, netd_k=0.03)  # explicit NETD wins
-    by_id["mwir_insb"]["f_number"] = 2.5              # the preset's own f-number
+    by_id["mwir_insb"]["f_number"] = 2.5  # the preset's own f-number
     stage = Usd.Stage.Open(sensors_layer.build(validate(raw)))
 
     def netd(name):
@@ -400,7 +445,7 @@ def test_netd_scales_with_f_number_when_not_given(raw):
     for name in ("lwir640", "mwir_insb"):
         assert netd(name).GetCustomDataByKey("humv:netdScaling") is None
     # the chain's noise follows: sigma_L = NETD dL/dT
-    m = SensorModel.from_prim(stage.GetPrimAtPath("/World/Sensors/atom1024_lwir"))
+    m = read_sensor_model(stage.GetPrimAtPath("/World/Sensors/atom1024_lwir"))
     assert m.netd_k == pytest.approx(0.0884, rel=1e-5)
     noise = apply_chain(np.full((8, 8), 40.0), m, np.random.default_rng(0), psf=False).settings["noise"]
     assert noise["netd_k"] == m.netd_k and noise["netd_source"].startswith("scaled from preset atom1024_lwir")

@@ -1,4 +1,5 @@
 """Skeleton: CMU rig on the fitted body, weights, forward kinematics and skinning."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -6,14 +7,16 @@ import pytest
 
 from humv_usd.assets import makehuman_dir
 
-pytestmark = pytest.mark.skipif(not (makehuman_dir() / "rigs").is_dir(),
-                                reason="MakeHuman data not fetched (make setup)")
+pytestmark = pytest.mark.skipif(
+    not (makehuman_dir() / "rigs").is_dir(), reason="MakeHuman data not fetched (make setup)"
+)
 
 
 @pytest.fixture(scope="module")
 def rigged():
-    from humv_usd.avatar.body import build_body
-    from humv_usd.avatar.skeleton import skeleton_for, skin_weights
+    from humv_usd.human.body import build_body
+    from humv_usd.human.skeleton import skeleton_for, skin_weights
+
     body = build_body("male", 30, 1.78, 80)
     skel = skeleton_for(body.points, body.groups)
     mesh = body.body_mesh()
@@ -24,10 +27,9 @@ def rigged():
 def test_hierarchy_and_sides(rigged):
     _, skel, *_ = rigged
     assert len(skel.names) == 31 and skel.names[0] == "Hips" and skel.parents[0] == -1
-    assert all(skel.parents[j] < j for j in range(1, 31))        # topological
-    left, right = skel.rest_positions[skel.index("LeftUpLeg")], \
-        skel.rest_positions[skel.index("RightUpLeg")]
-    assert left[0] > 0.05 and right[0] < -0.05                   # +x is the person's left
+    assert all(skel.parents[j] < j for j in range(1, 31))  # topological
+    left, right = skel.rest_positions[skel.index("LeftUpLeg")], skel.rest_positions[skel.index("RightUpLeg")]
+    assert left[0] > 0.05 and right[0] < -0.05  # +x is the person's left
     head = skel.rest_positions[skel.index("Head")]
     foot = skel.rest_positions[skel.index("LeftFoot")]
     assert 1.4 < head[2] < 1.78 and 0.0 < foot[2] < 0.15
@@ -42,8 +44,8 @@ def test_weights_normalized(rigged):
 
 
 def test_rest_pose_is_identity_and_rotation_is_rigid(rigged):
-    from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning,
-                                          skinning_matrices)
+    from humv_usd.human.skeleton import forward_kinematics, linear_blend_skinning, skinning_matrices
+
     _, skel, mesh, idx, w = rigged
     q = np.zeros((1, len(skel.names), 4))
     q[..., 0] = 1.0

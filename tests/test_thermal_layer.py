@@ -1,4 +1,5 @@
 """Thermal layer with physiology: radiation -> MRT -> JOS-3 / two-node -> skin; garment balance."""
+
 from __future__ import annotations
 
 import copy
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom
 
-from humv_usd.avatar import labels as L
+from humv_usd.human import labels as L
 from humv_usd.pipeline.compose import compose
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
@@ -19,7 +20,8 @@ pytestmark = pytest.mark.slow
 
 def face_normals(stage, path, frame=0):
     """Unit normals of the authored faces of a (skinned) mesh at a frame, world space."""
-    from humv_usd.avatar.usdskel import skinned_points
+    from humv_usd.human.usdskel import skinned_points
+
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath(path))
     pts = skinned_points(stage, path, Usd.TimeCode(frame), space="world")
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
@@ -39,7 +41,7 @@ def temperatures(stage, path, frame=0):
 def jos3_stage(tmp_path_factory, humvvex_raw):
     raw = copy.deepcopy(humvvex_raw)
     raw["thermal"]["model"] = "jos3"
-    raw["scene"]["ground"]["temperature_k"] = 297.0          # held surfaces (the slab: below)
+    raw["scene"]["ground"]["temperature_k"] = 297.0  # held surfaces (the slab: below)
     raw["scene"]["object"][0]["temperature_k"] = 293.0
     out = tmp_path_factory.mktemp("jos3")
     compose(validate(raw), out)
@@ -60,8 +62,10 @@ def test_jos3_skin_and_garments(jos3_stage):
     by = {n: skin[seg == names.index(n)].mean() for n in ("Head", "Chest", "LHand", "RFoot")}
     assert by["LHand"] < by["Chest"] - 2.0 and by["RFoot"] < by["Chest"] - 2.0
     assert by["Head"] > 303.0
-    sun = np.asarray(stage.GetPrimAtPath("/World/Environment").GetAttribute(
-        "humv:environment:sunDirection").Get(0), dtype=float)
+    sun = np.asarray(
+        stage.GetPrimAtPath("/World/Environment").GetAttribute("humv:environment:sunDirection").Get(0),
+        dtype=float,
+    )
     assert sun[2] > 0.5  # 14:05 EDT in October: the sun is up in the south-south-west
     for garment in ("tshirt_white", "shorts", "cap"):
         path = f"/World/Humans/p1/Clothing/{garment}"
@@ -77,8 +81,10 @@ def test_jos3_skin_and_garments(jos3_stage):
     n = face_normals(stage, "/World/Humans/p1/Clothing/tshirt_white")
     assert shirt[n @ sun < -0.3].mean() < by["Chest"] - 3.0
     # scene surfaces keep the scenario's temperatures (held)
-    for path, key in (("/World/Scene/Ground", raw["scene"]["ground"]),
-                      ("/World/Scene/warehouse", raw["scene"]["object"][0])):
+    for path, key in (
+        ("/World/Scene/Ground", raw["scene"]["ground"]),
+        ("/World/Scene/warehouse", raw["scene"]["object"][0]),
+    ):
         prim = stage.GetPrimAtPath(path)
         assert prim.GetAttribute(S.THERMAL_MODEL).Get() == "fixed"
         assert np.all(temperatures(stage, path) == np.float32(key["temperature_k"]))
@@ -96,16 +102,16 @@ def test_two_node_at_night_with_slab_surfaces(humvvex_raw, tmp_path):
     raw["thermal"]["model"] = "twoNode"
     raw["thermal"]["surface_spin_up_s"] = 43200.0
     raw["human"][0]["clothing"] = []
-    raw["general"]["start"] = raw["general"]["start"].replace(hour=2)   # 02:05 local
-    raw["scene"]["ground"].pop("temperature_k", None)                    # -> slab
-    raw["scene"]["object"][0]["temperature_k"] = 310.0                   # held
+    raw["general"]["start"] = raw["general"]["start"].replace(hour=2)  # 02:05 local
+    raw["scene"]["ground"].pop("temperature_k", None)  # -> slab
+    raw["scene"]["object"][0]["temperature_k"] = 310.0  # held
     compose(validate(raw), tmp_path)
     stage = Usd.Stage.Open(str(tmp_path / "stage.usda"))
     skin = temperatures(stage, "/World/Humans/p1/Body")
     # Gagge: one mean skin node; naked at 16 degC in a 3 m/s wind for an hour: cold skin
     assert np.ptp(skin) == 0.0 and 290.0 < skin[0] < 303.0
     report = Sdf.Layer.FindOrOpen(str(tmp_path / "layers" / "thermal.usda")).customLayerData
-    assert report["humv:thermal"]["p1"]["absorbedShortwaveMean_W_m2"] == 0.0   # no sun at night
+    assert report["humv:thermal"]["p1"]["absorbedShortwaveMean_W_m2"] == 0.0  # no sun at night
     assert report["humv:thermal"]["surfaces"]["slabMaxResidual_W_m2"] < 1e-6
     ground = stage.GetPrimAtPath("/World/Scene/Ground")
     assert ground.GetAttribute(S.THERMAL_MODEL).Get() == "slab"
@@ -121,8 +127,8 @@ def _night_jos3(humvvex_raw, out, cloud):
     raw = copy.deepcopy(humvvex_raw)
     raw["thermal"]["model"] = "jos3"
     raw["thermal"]["radiation_rays"] = 16
-    raw["general"]["start"] = raw["general"]["start"].replace(hour=2)   # night: no sun
-    raw["scene"]["ground"]["temperature_k"] = 286.0                      # held surfaces
+    raw["general"]["start"] = raw["general"]["start"].replace(hour=2)  # night: no sun
+    raw["scene"]["ground"]["temperature_k"] = 286.0  # held surfaces
     raw["scene"]["object"][0]["temperature_k"] = 287.0
     raw["atmosphere"]["cloud_cover"] = cloud
     raw["atmosphere"]["model"] = "analytic"
@@ -138,15 +144,14 @@ def test_overcast_night_sky_warms_skin_and_garments(humvvex_raw, tmp_path):
     changes with the clouds) an overcast sky warms the skin and the garments."""
     from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
     from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
+
     result = {c: _night_jos3(humvvex_raw, tmp_path / f"c{c}", c) for c in (0.0, 1.0)}
     for c, (stage, sky) in result.items():
         assert sky["source"].startswith("atmosphere layer") and sky["cloudCover"] == c
         table = stage_longwave_table(stage)
-        assert sky["longwaveIrradiance_W_m2"] == pytest.approx(hemispherical_irradiance(*table),
-                                                               rel=1e-6)
+        assert sky["longwaveIrradiance_W_m2"] == pytest.approx(hemispherical_irradiance(*table), rel=1e-6)
     t_air = humvvex_raw["atmosphere"]["air_temperature_k"]
-    assert result[1.0][1]["longwaveIrradiance_W_m2"] == pytest.approx(SIGMA * t_air ** 4,
-                                                                      rel=1e-5)
+    assert result[1.0][1]["longwaveIrradiance_W_m2"] == pytest.approx(SIGMA * t_air**4, rel=1e-5)
     assert result[1.0][1]["longwaveIrradiance_W_m2"] > result[0.0][1]["longwaveIrradiance_W_m2"] + 80
     (clear, _), (cloudy, _) = result[0.0], result[1.0]
     skin_c, skin_o = (temperatures(s, "/World/Humans/p1/Body") for s in (clear, cloudy))
@@ -154,7 +159,7 @@ def test_overcast_night_sky_warms_skin_and_garments(humvvex_raw, tmp_path):
     for garment in ("tshirt_white", "shorts", "cap"):
         path = f"/World/Humans/p1/Clothing/{garment}"
         t_c, t_o = temperatures(clear, path), temperatures(cloudy, path)
-        assert t_o.mean() > t_c.mean() + 0.1       # shorts: mostly facing the (held) ground
+        assert t_o.mean() > t_c.mean() + 0.1  # shorts: mostly facing the (held) ground
         # upward-facing fabric (shoulders, cap crown) sees the most sky: the largest change
         up = face_normals(clear, path)[:, 2] > 0.7
         if up.sum() >= 10:

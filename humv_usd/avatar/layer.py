@@ -1,9 +1,9 @@
 """Avatar tool → layers/avatar_<id>.usda: a UsdSkel avatar with labels.
 
 The body is MakeHuman's CC0 mesh with its macro targets fitted to the requested sex, age,
-stature, mass and build (:func:`humv_usd.avatar.body.build_body`), rigged with the CMU
-MotionBuilder skeleton (:mod:`humv_usd.avatar.skeleton`) and written as UsdSkel
-(:mod:`humv_usd.avatar.usdskel`)::
+stature, mass and build (:func:`humv_usd.human.body.build_body`), rigged with the CMU
+MotionBuilder skeleton (:mod:`humv_usd.human.skeleton`) and written as UsdSkel
+(:mod:`humv_usd.human.usdskel`)::
 
     /World/Humans/<id>            SkelRoot: placement (translate + rotateZ), HumvAvatarAPI,
                                   HumvLabelAPI, humv:label:cocoKeypoints (time-sampled)
@@ -16,6 +16,7 @@ Everything below the SkelRoot is in the avatar frame (+Z up, facing -Y, soles at
 same space as the skeleton's world transforms); the SkelRoot's transform places it.
 The COCO keypoints are in that frame too (the SkelRoot's local space).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -23,57 +24,46 @@ import dataclasses
 import numpy as np
 from pxr import Gf, Sdf, UsdGeom, Vt
 
-from humv_usd.avatar import labels as L
-from humv_usd.avatar import usdskel
-from humv_usd.avatar.basemesh import DEFAULT_FACING_DEG
-from humv_usd.avatar.body import Body, build_body
-from humv_usd.avatar.bvh import motion_from_bvh
-from humv_usd.avatar.carry import apply_rifle_carry
-from humv_usd.avatar.motion import make_motion
-from humv_usd.avatar.skeleton import (forward_kinematics, linear_blend_skinning,
-                                      skeleton_for, skin_weights, skinning_matrices)
-from humv_usd.materials.layer import material_path
+from humv_usd.human import labels as L
+from humv_usd.human import usdskel
+from humv_usd.human.basemesh import DEFAULT_FACING_DEG
+from humv_usd.human.body import Body, build_body
+from humv_usd.human.bvh import motion_from_bvh
+from humv_usd.human.carry import apply_rifle_carry
+from humv_usd.human.motion import make_motion
+from humv_usd.human.skeleton import (
+    forward_kinematics,
+    linear_blend_skinning,
+    skeleton_for,
+    skin_weights,
+    skinning_matrices,
+)
 from humv_usd.scenario import Scenario
-from humv_usd.scene.layer import instance_ids
+from humv_usd.scenario.ids import instance_ids
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
+from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, skeleton_path
 
 NAME = "avatar"
 READS = ("general", "human", "placement", "scene")
-
-
-def human_path(human_id: str) -> Sdf.Path:
-    return SCOPES["humans"].AppendChild(human_id)
-
-
-def body_path(human_id: str) -> Sdf.Path:
-    return human_path(human_id).AppendChild("Body")
-
-
-def skeleton_path(human_id: str) -> Sdf.Path:
-    return human_path(human_id).AppendChild("Skeleton")
-
-
-def motion_path(human_id: str) -> Sdf.Path:
-    return human_path(human_id).AppendChild("Motion")
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     """The avatar layer of one ``[[human]]``.
 
     ``motion``: None (the human's activity over the scenario's frames, from
-    :func:`humv_usd.avatar.motion.make_motion` on flat ground) or an object with
+    :func:`humv_usd.human.motion.make_motion` on flat ground) or an object with
     ``root_translation`` (F, 3) and ``local_rotations`` (F, J, 4) in the rig contract (see
-    :mod:`humv_usd.avatar.usdskel`), e.g. from :func:`humv_usd.avatar.bvh.motion_from_bvh`;
+    :mod:`humv_usd.human.usdskel`), e.g. from :func:`humv_usd.human.bvh.motion_from_bvh`;
     frame i is authored at time code i.
     """
     g = scenario["general"]
     place = next(p for p in scenario["placement"] if p["human"] == human["id"])
-    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"],
-                      human["build"])
-    stage = new_layer_stage(g["fps"], scenario.frame_count,
-                            f"HumV-USD avatar layer for {human['id']} (UsdSkel, CMU rig)")
+    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"], human["build"])
+    stage = new_layer_stage(
+        g["fps"], scenario.frame_count, f"HumV-USD avatar layer for {human['id']} (UsdSkel, CMU rig)"
+    )
     UsdGeom.Scope.Define(stage, SCOPES["humans"])
     root = usdskel.define_skel_root(stage, human_path(human["id"]))
     root.AddTranslateOp().Set(Gf.Vec3d(*place["position_m"]))
@@ -101,34 +91,49 @@ def waypoints_in_avatar_frame(place: dict, start_xy) -> np.ndarray | None:
     phi = np.radians(_avatar_rotation_deg(place))
     world = np.asarray(place["waypoints_m"], dtype=float) - np.asarray(place["position_m"][:2])
     c, s = np.cos(phi), np.sin(phi)
-    local = world @ np.array([[c, -s], [s, c]])   # rotate by -phi (row vectors)
+    local = world @ np.array([[c, -s], [s, c]])  # rotate by -phi (row vectors)
     return np.vstack([np.asarray(start_xy, dtype=float)[None, :2], local])
 
 
 def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     """The human's motion over the scenario's frames: the BVH file if given, else the built-in
     activity (walk/run along the heading or the waypoints) on flat ground; with the arms in the
-    rifle carry (:func:`humv_usd.avatar.carry.apply_rifle_carry`, kept clear of the body) if
+    rifle carry (:func:`humv_usd.human.carry.apply_rifle_carry`, kept clear of the body) if
     the human wears the rifle."""
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
     carry = "rifle" in (human.get("clothing") or ())
     if human.get("bvh"):
-        motion = motion_from_bvh(human["bvh"], skeleton, g["fps"], frames,
-                                 up_axis=human["bvh_up_axis"], mass_kg=human["mass_kg"],
-                                 body_points=body.points)
+        motion = motion_from_bvh(
+            human["bvh"],
+            skeleton,
+            g["fps"],
+            frames,
+            up_axis=human["bvh_up_axis"],
+            mass_kg=human["mass_kg"],
+            body_points=body.points,
+        )
         return apply_rifle_carry(motion, skeleton, body) if carry else motion
     # the motion model needs two frames at least; a one-frame scenario keeps the first
-    motion = make_motion(human["activity"], skeleton, g["fps"], max(frames, 2),
-                         speed_m_s=human.get("speed_m_s"),
-                         path=waypoints_in_avatar_frame(place, skeleton.rest_positions[0]),
-                         mass_kg=human["mass_kg"], body_points=body.points, seed=g["seed"])
+    motion = make_motion(
+        human["activity"],
+        skeleton,
+        g["fps"],
+        max(frames, 2),
+        speed_m_s=human.get("speed_m_s"),
+        path=waypoints_in_avatar_frame(place, skeleton.rest_positions[0]),
+        mass_kg=human["mass_kg"],
+        body_points=body.points,
+        seed=g["seed"],
+    )
     if frames < 2:
         motion = dataclasses.replace(
-            motion, root_translation=motion.root_translation[:frames],
+            motion,
+            root_translation=motion.root_translation[:frames],
             local_rotations=motion.local_rotations[:frames],
-            metabolic_rate_w=motion.metabolic_rate_w[:frames])
+            metabolic_rate_w=motion.metabolic_rate_w[:frames],
+        )
     return apply_rifle_carry(motion, skeleton, body) if carry else motion
 
 
@@ -143,27 +148,41 @@ def _motion_attributes(prim, motion) -> None:
             for frame, value in enumerate(rate):
                 attr.Set(float(value), frame)
     contact = getattr(motion, "contact", None) or {}
-    report = {k: round(float(contact[k]), 5) for k in ("max_gap_m", "max_penetration_m",
-                                                        "max_slip_m") if k in contact}
+    report = {
+        k: round(float(contact[k]), 5)
+        for k in ("max_gap_m", "max_penetration_m", "max_slip_m")
+        if k in contact
+    }
     if report:
         prim.SetCustomDataByKey("humv:contact", report)
 
 
 def _avatar_attributes(prim, human: dict, body: Body) -> None:
     prim.ApplyAPI(S.AVATAR_API)
-    for attr, value in ((S.AVATAR_SEX, human["sex"]), (S.AVATAR_AGE, human["age_yr"]),
-                        (S.AVATAR_STATURE, human["stature_m"]), (S.AVATAR_MASS, human["mass_kg"]),
-                        (S.AVATAR_FITNESS, human["fitness"]),
-                        (S.AVATAR_ACTIVITY, human["activity"]),
-                        (S.AVATAR_BODY_SURFACE_AREA, round(body.body_surface_area_m2, 4))):
+    for attr, value in (
+        (S.AVATAR_SEX, human["sex"]),
+        (S.AVATAR_AGE, human["age_yr"]),
+        (S.AVATAR_STATURE, human["stature_m"]),
+        (S.AVATAR_MASS, human["mass_kg"]),
+        (S.AVATAR_FITNESS, human["fitness"]),
+        (S.AVATAR_ACTIVITY, human["activity"]),
+        (S.AVATAR_BODY_SURFACE_AREA, round(body.body_surface_area_m2, 4)),
+    ):
         prim.GetAttribute(attr).Set(value)
     # how the request was met: measured values and the macro/scale fit (for reports and QA)
-    prim.SetCustomDataByKey("humv:fit", {
-        "statureMeasured_m": round(body.stature_m, 5), "massFromVolume_kg": round(body.mass_kg, 4),
-        "volume_m3": round(body.volume_m3, 6), "density_kg_m3": round(body.density_kg_m3, 2),
-        "bodyFat_pct": round(body.body_fat_pct, 2), "uniformScale": round(body.uniform_scale, 6),
-        "lateralScale": round(body.lateral_scale, 6),
-        "macros": {k: round(float(v), 6) for k, v in vars(body.macros).items()}})
+    prim.SetCustomDataByKey(
+        "humv:fit",
+        {
+            "statureMeasured_m": round(body.stature_m, 5),
+            "massFromVolume_kg": round(body.mass_kg, 4),
+            "volume_m3": round(body.volume_m3, 6),
+            "density_kg_m3": round(body.density_kg_m3, 2),
+            "bodyFat_pct": round(body.body_fat_pct, 2),
+            "uniformScale": round(body.uniform_scale, 6),
+            "lateralScale": round(body.lateral_scale, 6),
+            "macros": {k: round(float(v), 6) for k, v in vars(body.macros).items()},
+        },
+    )
 
 
 def author_rig(stage, human_id: str, body: Body, motion=None) -> None:
@@ -178,8 +197,14 @@ def author_rig(stage, human_id: str, body: Body, motion=None) -> None:
     usdskel.define_animation(stage, motion_path(human_id), skeleton, pose)
     usdskel.bind_animation(skel.GetPrim(), motion_path(human_id))
 
-    body_mesh = define_mesh(stage, body_path(human_id), mesh.points, mesh.face_counts,
-                            mesh.face_indices, material=material_path("skin"))
+    body_mesh = define_mesh(
+        stage,
+        body_path(human_id),
+        mesh.points,
+        mesh.face_counts,
+        mesh.face_indices,
+        material=material_path("skin"),
+    )
     usdskel.bind_mesh(body_mesh.GetPrim(), skeleton_path(human_id), indices, weights)
     author_face_labels(body_mesh.GetPrim(), mesh, skeleton, indices, weights)
 
@@ -190,14 +215,14 @@ def author_rig(stage, human_id: str, body: Body, motion=None) -> None:
     ids = np.array([surface[n] for n in L.COCO_SURFACE])
     sub = {n: k for k, n in enumerate(L.COCO_SURFACE)}
     root = stage.GetPrimAtPath(human_path(human_id))
-    kp_attr = root.CreateAttribute(L.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray,
-                                   custom=True)
+    kp_attr = root.CreateAttribute(L.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray, custom=True)
     for f in range(pose.frame_count):
         posed = linear_blend_skinning(mesh.points[ids], indices[ids], weights[ids], skin[f])
         kp = L.coco_keypoints(skeleton, world[f], posed, vertex_ids=sub)
         kp_attr.Set(Vt.Vec3fArray.FromNumpy(kp.astype(np.float32)), f)
-    root.CreateAttribute(L.COCO_KEYPOINT_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray,
-                         custom=True).Set(Vt.TokenArray(list(L.COCO_KEYPOINTS)))
+    root.CreateAttribute(L.COCO_KEYPOINT_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
+        Vt.TokenArray(list(L.COCO_KEYPOINTS))
+    )
 
 
 def author_face_labels(mesh_prim, mesh, skeleton, indices, weights) -> None:
@@ -206,16 +231,28 @@ def author_face_labels(mesh_prim, mesh, skeleton, indices, weights) -> None:
     segments = L.jos3_segments(regions)
     primvars = UsdGeom.PrimvarsAPI(mesh_prim)
     for primvar_name, values, names_attr, names, doc in (
-            (L.BODY_REGION_PRIMVAR, regions, L.BODY_REGION_NAMES_ATTR, L.BODY_REGION_NAMES,
-             "body region id per face (names in humv:label:bodyRegionNames, index = id; "
-             "0 = not the body)"),
-            (L.JOS3_SEGMENT_PRIMVAR, segments, L.JOS3_SEGMENT_NAMES_ATTR, L.JOS3_SEGMENTS,
-             "JOS-3 segment per face: 0-based index into JOS-3's 17 segments "
-             "(names in humv:label:jos3SegmentNames)")):
-        pv = primvars.CreatePrimvar(primvar_name.removeprefix("primvars:"),
-                                    Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform)
+        (
+            L.BODY_REGION_PRIMVAR,
+            regions,
+            L.BODY_REGION_NAMES_ATTR,
+            L.BODY_REGION_NAMES,
+            "body region id per face (names in humv:label:bodyRegionNames, index = id; 0 = not the body)",
+        ),
+        (
+            L.JOS3_SEGMENT_PRIMVAR,
+            segments,
+            L.JOS3_SEGMENT_NAMES_ATTR,
+            L.JOS3_SEGMENTS,
+            "JOS-3 segment per face: 0-based index into JOS-3's 17 segments "
+            "(names in humv:label:jos3SegmentNames)",
+        ),
+    ):
+        pv = primvars.CreatePrimvar(
+            primvar_name.removeprefix("primvars:"), Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
+        )
         pv.Set(Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))
         pv.GetAttr().SetDocumentation(doc)
         pv.GetAttr().SetCustomDataByKey("humv:names", Vt.StringArray(list(names)))
-        mesh_prim.CreateAttribute(names_attr, Sdf.ValueTypeNames.TokenArray,
-                                  custom=True).Set(Vt.TokenArray(list(names)))
+        mesh_prim.CreateAttribute(names_attr, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
+            Vt.TokenArray(list(names))
+        )

@@ -5,6 +5,7 @@ The options mirror :func:`humv_usd.avatar.api.author_avatar`; a bad value is rep
 line naming the option (``--stature = 3.0: allowed range 0.8..2.3``), exit code 2, and nothing
 is written.
 """
+
 from __future__ import annotations
 
 import re
@@ -32,8 +33,10 @@ OPTION_OF_KEY = {
     "general.duration_s": "--duration",
     "out_path": "-o/--out",
 }
-_KEY = re.compile(r"^(?P<key>[A-Za-z_]+(?:\[0\])?(?:\.[A-Za-z_]+)?)"
-                  r"(?P<index>\[\d+\])?(?P<rest> .*)$")
+_KEY = re.compile(
+    r"^(?P<key>[A-Za-z_]+(?:\[0\])?(?:\.[A-Za-z_]+)?)"
+    r"(?P<index>\[\d+\])?(?P<rest> .*)$"
+)
 
 
 def option_message(line: str) -> str:
@@ -49,37 +52,81 @@ def _choices(name: str) -> str:
 
 
 @click.command("avatar", context_settings={"help_option_names": ["-h", "--help"]})
-@click.option("-o", "--out", "out_path", required=True,
-              type=click.Path(dir_okay=False, path_type=Path),
-              help="Avatar layer file to write (.usda).")
-@click.option("--id", "human_id", default="p1", show_default=True,
-              help="Id of the person: the prim /World/Humans/<id>.")
+@click.option(
+    "-o",
+    "--out",
+    "out_path",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Avatar layer file to write (.usda).",
+)
+@click.option(
+    "--id", "human_id", default="p1", show_default=True, help="Id of the person: the prim /World/Humans/<id>."
+)
 @click.option("--sex", default="male", show_default=True, help=f"One of: {_choices('sex')}.")
-@click.option("--age", "age_yr", default=30.0, show_default=True, type=float,
-              help="Age [years], 1..100.")
-@click.option("--stature", "stature_m", default=1.75, show_default=True, type=float,
-              help="Standing height [m], 0.8..2.3.")
-@click.option("--mass", "mass_kg", default=75.0, show_default=True, type=float,
-              help="Body mass [kg], 10..250.")
-@click.option("--build", default="average", show_default=True,
-              help=f"One of: {_choices('build')}.")
-@click.option("--fitness", default="average", show_default=True,
-              help=f"One of: {', '.join(FITNESS)}.")
-@click.option("--activity", default="stand", show_default=True,
-              help=f"One of: {', '.join(ACTIVITIES)}.")
-@click.option("--position", "position_m", default=(0.0, 0.0, 0.0), show_default=True,
-              type=(float, float, float), metavar="X Y Z",
-              help="Position of the feet [m] (x east, y north, z up).")
-@click.option("--heading", "heading_deg", default=0.0, show_default=True, type=float,
-              help="Direction faced, compass azimuth [deg] (0 = north, 90 = east).")
-@click.option("--fps", default=30.0, show_default=True, type=float,
-              help="Frame rate [frames/s] (time codes per second of the layer).")
-@click.option("--duration", "duration_s", default=0.0, show_default=True, type=float,
-              help="Length [s]; frames = round(duration*fps)+1.")
+@click.option("--age", "age_yr", default=30.0, show_default=True, type=float, help="Age [years], 1..100.")
+@click.option(
+    "--stature",
+    "stature_m",
+    default=1.75,
+    show_default=True,
+    type=float,
+    help="Standing height [m], 0.8..2.3.",
+)
+@click.option(
+    "--mass", "mass_kg", default=75.0, show_default=True, type=float, help="Body mass [kg], 10..250."
+)
+@click.option("--build", default="average", show_default=True, help=f"One of: {_choices('build')}.")
+@click.option("--fitness", default="average", show_default=True, help=f"One of: {', '.join(FITNESS)}.")
+@click.option("--activity", default="stand", show_default=True, help=f"One of: {', '.join(ACTIVITIES)}.")
+@click.option(
+    "--position",
+    "position_m",
+    default=(0.0, 0.0, 0.0),
+    show_default=True,
+    type=(float, float, float),
+    metavar="X Y Z",
+    help="Position of the feet [m] (x east, y north, z up).",
+)
+@click.option(
+    "--heading",
+    "heading_deg",
+    default=0.0,
+    show_default=True,
+    type=float,
+    help="Direction faced, compass azimuth [deg] (0 = north, 90 = east).",
+)
+@click.option(
+    "--fps",
+    default=30.0,
+    show_default=True,
+    type=float,
+    help="Frame rate [frames/s] (time codes per second of the layer).",
+)
+@click.option(
+    "--duration",
+    "duration_s",
+    default=0.0,
+    show_default=True,
+    type=float,
+    help="Length [s]; frames = round(duration*fps)+1.",
+)
 @reports_errors
-def avatar(out_path: Path, human_id: str, sex: str, age_yr: float, stature_m: float,
-           mass_kg: float, build: str, fitness: str, activity: str, position_m, heading_deg,
-           fps: float, duration_s: float):
+def avatar(
+    out_path: Path,
+    human_id: str,
+    sex: str,
+    age_yr: float,
+    stature_m: float,
+    mass_kg: float,
+    build: str,
+    fitness: str,
+    activity: str,
+    position_m,
+    heading_deg,
+    fps: float,
+    duration_s: float,
+):
     """Write the avatar layer of one person to OUT (no scenario file needed).
 
     The same layer `compose` writes as layers/avatar_<id>.usda; the ranges are those of the
@@ -91,10 +138,21 @@ def avatar(out_path: Path, human_id: str, sex: str, age_yr: float, stature_m: fl
 
     start = time.perf_counter()
     try:
-        path = author_avatar(out_path, id=human_id, sex=sex, age_yr=age_yr,
-                             stature_m=stature_m, mass_kg=mass_kg, build=build,
-                             fitness=fitness, activity=activity, position_m=position_m,
-                             heading_deg=heading_deg, fps=fps, duration_s=duration_s)
+        path = author_avatar(
+            out_path,
+            id=human_id,
+            sex=sex,
+            age_yr=age_yr,
+            stature_m=stature_m,
+            mass_kg=mass_kg,
+            build=build,
+            fitness=fitness,
+            activity=activity,
+            position_m=position_m,
+            heading_deg=heading_deg,
+            fps=fps,
+            duration_s=duration_s,
+        )
     except InputError as exc:
         raise InputError("", [option_message(line) for line in exc.problems]) from None
     click.echo(f"{path}  ({time.perf_counter() - start:.2f} s)")

@@ -1,4 +1,5 @@
 """What every command shares: bad input as one line per problem and exit code 2."""
+
 from __future__ import annotations
 
 import functools
@@ -20,6 +21,7 @@ def _fail(lines, code: int):
 
 def reports_errors(fn):
     """Turn our exceptions into one-line messages and exit codes (no tracebacks)."""
+
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
@@ -28,4 +30,5 @@ def reports_errors(fn):
             _fail(exc.problems, 2)
         except MissingAssetError as exc:
             _fail([str(exc)], 1)
+
     return wrapper

@@ -4,6 +4,7 @@ Exit codes follow Pixar's USD tools: 0 success, 1 failure (e.g. check findings, 
 asset), 2 bad input (one line per problem on stderr naming key, value and allowed range; no
 traceback and nothing written).
 """
+
 from __future__ import annotations
 
 import statistics
@@ -16,6 +17,7 @@ import click
 
 from humv_usd.cli.common import PROG, reports_errors
 from humv_usd.errors import InputError
+
 
 def parse_frames(text: str | None) -> list[int] | None:
     """``"0:10"`` (inclusive), ``"0,5,9"`` or ``"3"`` → frame list; None → all frames."""
@@ -30,8 +32,9 @@ def parse_frames(text: str | None) -> list[int] | None:
             return list(range(first, last + 1))
         return [int(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise InputError(f"--frames = {text!r}: expected FIRST:LAST, a comma list or one "
-                         "integer frame number") from None
+        raise InputError(
+            f"--frames = {text!r}: expected FIRST:LAST, a comma list or one integer frame number"
+        ) from None
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -42,8 +45,14 @@ def main():
 
 @main.command()
 @click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--out", "out_dir", required=True, type=click.Path(file_okay=False,
-              path_type=Path), help="Output folder: stage.usda and layers/.")
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Output folder: stage.usda and layers/.",
+)
 @reports_errors
 def compose(scenario: Path, out_dir: Path):
     """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part."""
@@ -63,43 +72,68 @@ def compose(scenario: Path, out_dir: Path):
 
 @main.command()
 @click.argument("stage", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--out", "out_dir", required=True,
-              type=click.Path(file_okay=False, path_type=Path), help="Output folder.")
-@click.option("--frames", default=None, help="Frames to render: FIRST:LAST, a comma list, or "
-              "one number (default: the stage's whole frame range).")
-@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20),
-              help="Samples per pixel.")
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Output folder.",
+)
+@click.option(
+    "--frames",
+    default=None,
+    help="Frames to render: FIRST:LAST, a comma list, or "
+    "one number (default: the stage's whole frame range).",
+)
+@click.option(
+    "--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20), help="Samples per pixel."
+)
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1))
 @click.option("--sensor", "sensors", multiple=True, help="Render only this sensor (repeatable).")
-@click.option("--annotators", default=None, help="Ground-truth annotators, comma-separated "
-              "(default: the scenario's [annotations], else all; see humv_usd.groundtruth).")
-@click.option("--subbands", default=None, type=int,
-              help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 4; see `humv-usd bench render`).")
+@click.option(
+    "--annotators",
+    default=None,
+    help="Ground-truth annotators, comma-separated "
+    "(default: the scenario's [annotations], else all; see humv_usd.groundtruth).",
+)
+@click.option(
+    "--subbands",
+    default=None,
+    type=int,
+    help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 4; see `humv-usd bench render`).",
+)
 @reports_errors
 def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors, annotators, subbands):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
-    from humv_usd.render.run import render_stage
+    from humv_usd.pipeline.render import render_stage
 
-    manifest = render_stage(stage, out_dir, frames=parse_frames(frames), spp=spp,
-                            sensors=list(sensors) or None, seed=seed,
-                            annotators=None if annotators is None else annotators.split(","),
-                            subbands=subbands)
+    manifest = render_stage(
+        stage,
+        out_dir,
+        frames=parse_frames(frames),
+        spp=spp,
+        sensors=list(sensors) or None,
+        seed=seed,
+        annotators=None if annotators is None else annotators.split(","),
+        subbands=subbands,
+    )
     err = manifest["monte_carlo_error"]
     rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))
-    click.echo(f"{out_dir}/manifest.json  {rendered} image(s), "
-               f"render {manifest['timings_s']['total']:.2f} s")
+    click.echo(f"{out_dir}/manifest.json  {rendered} image(s), render {manifest['timings_s']['total']:.2f} s")
     if manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
-        click.echo(f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
-                   f"max {err['temperature_stderr_max_k']:.4f} K "
-                   f"({err['radiance_stderr_mean']:.4g} / {err['radiance_stderr_max']:.4g} "
-                   "W m-2 sr-1)")
+        click.echo(
+            f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
+            f"max {err['temperature_stderr_max_k']:.4f} K "
+            f"({err['radiance_stderr_mean']:.4g} / {err['radiance_stderr_max']:.4g} "
+            "W m-2 sr-1)"
+        )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
 
 
 @main.command()
-@click.argument("stages", nargs=-1, required=True,
-                type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("stages", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 def check(stages):
     """Run USD's validators and HumV's layer rules on each STAGE."""
     from humv_usd.usd.check import check_stage
@@ -141,21 +175,25 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
     import subprocess
 
     from humv_usd.pipeline.compose import compose as run_compose
-    from humv_usd.render.run import render_stage
+    from humv_usd.pipeline.render import render_stage
     from humv_usd.scenario import load_scenario
 
     load_scenario(scenario)  # bad input: one line, exit 2, before any timing
     cli = [sys.executable, "-m", "humv_usd.cli.main"]
-    times: dict[str, list[float]] = {k: [] for k in ("compose cli", "render cli",
-                                                      "compose in-process",
-                                                      "render in-process")}
+    times: dict[str, list[float]] = {
+        k: [] for k in ("compose cli", "render cli", "compose in-process", "render in-process")
+    }
     err_k = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(repeat):
             out = Path(tmp) / f"cli{i}"
-            for name, args in (("compose cli", ["compose", str(scenario), "-o", str(out)]),
-                               ("render cli", ["render", str(out / "stage.usda"), "-o",
-                                               str(out / "render"), "--spp", str(spp)])):
+            for name, args in (
+                ("compose cli", ["compose", str(scenario), "-o", str(out)]),
+                (
+                    "render cli",
+                    ["render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", str(spp)],
+                ),
+            ):
                 t = time.perf_counter()
                 subprocess.run(cli + args, check=True, capture_output=True)
                 times[name].append(time.perf_counter() - t)
@@ -170,21 +208,36 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
             err_k.append(manifest["monte_carlo_error"]["temperature_stderr_mean_k"])
     click.echo(f"scenario {scenario}, {spp} spp, {repeat} runs each (median, min..max)")
     for name, values in times.items():
-        click.echo(f"  {name:<19} {statistics.median(values):7.3f} s  "
-                   f"({min(values):.3f}..{max(values):.3f})")
-    click.echo(f"  Monte Carlo error: mean per-pixel standard error "
-               f"{statistics.median(err_k):.4f} K (median over runs)")
+        click.echo(f"  {name:<19} {statistics.median(values):7.3f} s  ({min(values):.3f}..{max(values):.3f})")
+    click.echo(
+        f"  Monte Carlo error: mean per-pixel standard error "
+        f"{statistics.median(err_k):.4f} K (median over runs)"
+    )
 
 
 @bench.command("render")
 @click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--subbands", "counts", default="1,2,4,8,16", show_default=True,
-              help="Sub-band counts to compare, comma-separated.")
-@click.option("--time-subbands", "time_counts", default="1,4", show_default=True,
-              help="Sub-band counts to render and time (all sensors, first frame).")
+@click.option(
+    "--subbands",
+    "counts",
+    default="1,2,4,8,16",
+    show_default=True,
+    help="Sub-band counts to compare, comma-separated.",
+)
+@click.option(
+    "--time-subbands",
+    "time_counts",
+    default="1,4",
+    show_default=True,
+    help="Sub-band counts to render and time (all sensors, first frame).",
+)
 @click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
-@click.option("--atmosphere-model", default=None, type=click.Choice(["lowtran7", "analytic"]),
-              help="Override [atmosphere] model for the spectral error (default: the scenario's).")
+@click.option(
+    "--atmosphere-model",
+    default=None,
+    type=click.Choice(["lowtran7", "analytic"]),
+    help="Override [atmosphere] model for the spectral error (default: the scenario's).",
+)
 @reports_errors
 def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosphere_model):
     """Spectral error against sub-band count, and render time and Monte Carlo error per sensor.
@@ -194,8 +247,8 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
     fine spectral quadrature; when the stage's atmosphere layer has no spectral tables they
     come from humv_usd.atmosphere.model.atmosphere_for.
     """
+    from humv_usd.pipeline import render as R
     from humv_usd.pipeline.compose import compose as run_compose
-    from humv_usd.render import run as R
     from humv_usd.scenario import load_scenario
 
     def ints(text, name):
@@ -228,26 +281,41 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
             sun_dir = sun_at(sc, [0.0]).direction[0]
             source = f"atmosphere_for ({atm.source}; the stage has no spectral tables)"
         table = R.subband_error_table(stage, n_list, spectra=spectra, path_table=path, sun_direction=sun_dir)
-        click.echo(f"scenario {scenario}: spectral error of the sub-band model [K] (max / rms over "
-                   f"{len(table['materials'])} materials, T = {', '.join(f'{t:.1f}' for t in table['temperatures_k'])} K; "
-                   f"atmosphere from {source})")
+        click.echo(
+            f"scenario {scenario}: spectral error of the sub-band model [K] (max / rms over "
+            f"{len(table['materials'])} materials, T = {', '.join(f'{t:.1f}' for t in table['temperatures_k'])} K; "
+            f"atmosphere from {source})"
+        )
         for name, row in table["sensors"].items():
-            cells = "  ".join(f"n={n}: {e['max_k']:.3f}/{e['rms_k']:.3f}" for n, e in row["error_by_subbands"].items())
+            cells = "  ".join(
+                f"n={n}: {e['max_k']:.3f}/{e['rms_k']:.3f}" for n, e in row["error_by_subbands"].items()
+            )
             click.echo(f"  {name:<16} {cells}")
-        click.echo(f"render of frame {R.stage_frames(ex.stage)[0]} at {spp} spp (split over the sub-bands, "
-                   f"at least min(spp, {R.MIN_SUBBAND_SPP}) each): seconds / mean per-pixel MC error [K]")
+        click.echo(
+            f"render of frame {R.stage_frames(ex.stage)[0]} at {spp} spp (split over the sub-bands, "
+            f"at least min(spp, {R.MIN_SUBBAND_SPP}) each): seconds / mean per-pixel MC error [K]"
+        )
         for n in t_list:
-            manifest = R.render_stage(stage, Path(tmp) / f"render{n}", frames=[R.stage_frames(ex.stage)[0]],
-                                      spp=spp, subbands=n)
-            cells = [f"{s['name']} {s['timings_s']['render']:.2f} s / {s['monte_carlo_error']['temperature_stderr_mean_k']:.3f} K"
-                     for s in manifest["sensors"]]
-            cells += [f"{s['name']} (EO) {s['timings_s']['render']:.2f} s" for s in manifest.get("eo_sensors", [])]
+            manifest = R.render_stage(
+                stage, Path(tmp) / f"render{n}", frames=[R.stage_frames(ex.stage)[0]], spp=spp, subbands=n
+            )
+            cells = [
+                f"{s['name']} {s['timings_s']['render']:.2f} s / {s['monte_carlo_error']['temperature_stderr_mean_k']:.3f} K"
+                for s in manifest["sensors"]
+            ]
+            cells += [
+                f"{s['name']} (EO) {s['timings_s']['render']:.2f} s" for s in manifest.get("eo_sensors", [])
+            ]
             click.echo(f"  n={n}: " + ";  ".join(cells))
 
 
 @bench.command("clothing")
-@click.option("--garments", default="tshirt_white,trousers,jacket,cap", show_default=True,
-              help="Comma-separated garments (humv_usd.clothing.garments.GARMENTS).")
+@click.option(
+    "--garments",
+    default="tshirt_white,trousers,jacket,cap",
+    show_default=True,
+    help="Comma-separated garments (humv_usd.catalog.garments.GARMENTS).",
+)
 @click.option("--activity", default="walk", show_default=True)
 @click.option("--frames", default=30, show_default=True, type=click.IntRange(1, 10000))
 @reports_errors
@@ -256,8 +324,8 @@ def bench_clothing(garments: str, activity: str, frames: int):
     median per-frame time of the fix."""
     import json
 
-    from humv_usd.clothing.bench import bench_outfit
-    from humv_usd.clothing.garments import GARMENTS
+    from humv_usd.bench.clothing import bench_outfit
+    from humv_usd.catalog.garments import GARMENTS
 
     names = [g.strip() for g in garments.split(",") if g.strip()]
     unknown = [g for g in names if g not in GARMENTS]
@@ -275,9 +343,9 @@ def bench_avatar(repeat: int):
     import math
     import subprocess
 
-    from humv_usd.avatar.body import build_body
-    from humv_usd.avatar.motion import make_motion
-    from humv_usd.avatar.skeleton import skeleton_for
+    from humv_usd.human.body import build_body
+    from humv_usd.human.motion import make_motion
+    from humv_usd.human.skeleton import skeleton_for
 
     click.echo("body fit, age 30, average build: |error| of stature and of mesh mass [%]")
     for sex in ("female", "male"):
@@ -287,55 +355,111 @@ def bench_avatar(repeat: int):
                 b = build_body(sex, 30, stature, mass)
                 worst_h = max(worst_h, abs(b.stature_m / stature - 1) * 100)
                 worst_m = max(worst_m, abs(b.mass_kg / mass - 1) * 100)
-        click.echo(f"  {sex:<6} stature 1.5-2.0 m x mass 50-110 kg: max {worst_h:.2e} % / "
-                   f"{worst_m:.2e} %")
+        click.echo(f"  {sex:<6} stature 1.5-2.0 m x mass 50-110 kg: max {worst_h:.2e} % / {worst_m:.2e} %")
     body = build_body("male", 30, 1.78, 80.0)
     skel = skeleton_for(body.points, body.groups)
     slope = math.tan(math.radians(5.0))
     click.echo("ground contact, 10 s at 30 fps, male 1.78 m / 80 kg (sole vertices) [cm]:")
     for activity, speed in (("walk", 1.4), ("run", 3.5)):
         for name, ground in (("flat", None), ("5 deg", lambda x, y: -slope * y)):
-            m = make_motion(activity, skel, 30.0, 300, speed_m_s=speed, mass_kg=80.0,
-                            body_points=body.points, ground=ground)
+            m = make_motion(
+                activity,
+                skel,
+                30.0,
+                300,
+                speed_m_s=speed,
+                mass_kg=80.0,
+                body_points=body.points,
+                ground=ground,
+            )
             c = m.contact
-            click.echo(f"  {activity:<4} {speed} m/s {name:<6} gap {100 * c['max_gap_m']:.2f}  "
-                       f"penetration {100 * c['max_penetration_m']:.2f}  "
-                       f"stance slip {100 * c['max_slip_m']:.2f}")
+            click.echo(
+                f"  {activity:<4} {speed} m/s {name:<6} gap {100 * c['max_gap_m']:.2f}  "
+                f"penetration {100 * c['max_penetration_m']:.2f}  "
+                f"stance slip {100 * c['max_slip_m']:.2f}"
+            )
     with tempfile.TemporaryDirectory() as tmp:
         times = []
         for i in range(repeat):
             t = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "humv_usd.cli.main", "avatar", "--activity",
-                            "walk", "--duration", "10", "--fps", "30", "-o",
-                            str(Path(tmp) / f"a{i}.usda")], check=True, capture_output=True)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "humv_usd.cli.main",
+                    "avatar",
+                    "--activity",
+                    "walk",
+                    "--duration",
+                    "10",
+                    "--fps",
+                    "30",
+                    "-o",
+                    str(Path(tmp) / f"a{i}.usda"),
+                ],
+                check=True,
+                capture_output=True,
+            )
             times.append(time.perf_counter() - t)
-    click.echo(f"author a 10 s, 30 fps walk (humv-usd avatar, new process): median "
-               f"{statistics.median(times):.2f} s ({min(times):.2f}..{max(times):.2f})")
+    click.echo(
+        f"author a 10 s, 30 fps walk (humv-usd avatar, new process): median "
+        f"{statistics.median(times):.2f} s ({min(times):.2f}..{max(times):.2f})"
+    )
 
 
 @bench.command("thermal")
-@click.option("--facets", default=30000, show_default=True, type=click.IntRange(100, 10**7),
-              help="Facets of the q_rad bench mesh (capsule avatar).")
-@click.option("--resolutions", default="45,90,180", show_default=True,
-              help="Radiance-map sizes n (n x n); the largest is the brute-force reference.")
-@click.option("--rays", default="16,64,256", show_default=True,
-              help="Rays per facet of the fast method.")
-@click.option("--adaptive-rays", default="32,64,128", show_default=True,
-              help="Mean rays per facet of the adaptive method.")
-@click.option("--scenario", "scenario", default=None,
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Bench q_rad on this scenario's first (clothed) person at frame 0 instead "
-                   "of the capsule avatar (composed into a temporary folder).")
-@click.option("--png", "png", default="thermal_bench.png", show_default=True,
-              type=click.Path(dir_okay=False, path_type=Path), help="Error-vs-run-time plot.")
+@click.option(
+    "--facets",
+    default=30000,
+    show_default=True,
+    type=click.IntRange(100, 10**7),
+    help="Facets of the q_rad bench mesh (capsule avatar).",
+)
+@click.option(
+    "--resolutions",
+    default="45,90,180",
+    show_default=True,
+    help="Radiance-map sizes n (n x n); the largest is the brute-force reference.",
+)
+@click.option("--rays", default="16,64,256", show_default=True, help="Rays per facet of the fast method.")
+@click.option(
+    "--adaptive-rays",
+    default="32,64,128",
+    show_default=True,
+    help="Mean rays per facet of the adaptive method.",
+)
+@click.option(
+    "--scenario",
+    "scenario",
+    default=None,
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Bench q_rad on this scenario's first (clothed) person at frame 0 instead "
+    "of the capsule avatar (composed into a temporary folder).",
+)
+@click.option(
+    "--png",
+    "png",
+    default="thermal_bench.png",
+    show_default=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Error-vs-run-time plot.",
+)
 @click.option("--quick", is_flag=True, help="Skip the physiology time-step sweep (slow JOS-3).")
 @reports_errors
-def bench_thermal(facets: int, resolutions: str, rays: str, adaptive_rays: str,
-                  scenario: Path | None, png: Path, quick: bool):
+def bench_thermal(
+    facets: int,
+    resolutions: str,
+    rays: str,
+    adaptive_rays: str,
+    scenario: Path | None,
+    png: Path,
+    quick: bool,
+):
     """q_rad error against run time (methods x map resolutions), skin and garment temperature
     error against the time step, the garment balance's extreme-grid counts, and the run time of
     1 h of physiology (two-node, JOS-3)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
@@ -355,52 +479,72 @@ def bench_thermal(facets: int, resolutions: str, rays: str, adaptive_rays: str,
 
     case, what = None, "capsule avatar"
     if scenario is not None:
+        from humv_usd.bench.thermal import avatar_case
         from humv_usd.pipeline.compose import compose as run_compose
         from humv_usd.scenario import load_scenario
-        from humv_usd.thermal.bench import avatar_case
+
         sc = load_scenario(scenario)
         if not sc["human"]:
             raise InputError(f"--scenario {scenario}: the scenario has no [[human]]")
         tmp = tempfile.mkdtemp(prefix="humv-bench-")
         run_compose(sc, tmp)
         case, what = avatar_case(sc, Path(tmp) / "stage.usda"), f"{scenario.name} person"
-    rows = bench_qrad(facets=facets, resolutions=ints(resolutions, "resolutions"),
-                      fast_rays=ints(rays, "rays"),
-                      adaptive_rays=ints(adaptive_rays, "adaptive-rays"), case=case)
-    click.echo(f"q_rad on {rows[0]['facets']} facets ({what}) vs brute force at "
-               f"{rows[0]['resolution']}x{rows[0]['resolution']}:")
-    click.echo("  method    map  rays  wall [s]  cpu [s]  rms rel. err  max rel. err  "
-               "own estimate")
+    rows = bench_qrad(
+        facets=facets,
+        resolutions=ints(resolutions, "resolutions"),
+        fast_rays=ints(rays, "rays"),
+        adaptive_rays=ints(adaptive_rays, "adaptive-rays"),
+        case=case,
+    )
+    click.echo(
+        f"q_rad on {rows[0]['facets']} facets ({what}) vs brute force at "
+        f"{rows[0]['resolution']}x{rows[0]['resolution']}:"
+    )
+    click.echo("  method    map  rays  wall [s]  cpu [s]  rms rel. err  max rel. err  own estimate")
     for r in rows:
-        click.echo(f"  {r['method']:<8} {r['resolution']:>4} {str(r['rays'] or '-'):>5} "
-                   f"{r['seconds']:9.3f} {r['cpu_seconds']:8.3f}  {r['rms_rel_error']:12.2e}  "
-                   f"{r['max_rel_error']:12.2e}  {r['rms_rel_error_estimate']:12.2e}")
-    ok = [r for r in rows if not r["reference"] and r["cpu_seconds"] <= 1.0
-          and r["rms_rel_error"] <= 0.01]
-    click.echo("  goal (<= 1 s cpu at <= 1 % rms): " + (
-        "met by " + ", ".join(f"{r['method']} {r['resolution']} {r['rays'] or ''}".strip()
-                              for r in ok) if ok else "not met"))
+        click.echo(
+            f"  {r['method']:<8} {r['resolution']:>4} {str(r['rays'] or '-'):>5} "
+            f"{r['seconds']:9.3f} {r['cpu_seconds']:8.3f}  {r['rms_rel_error']:12.2e}  "
+            f"{r['max_rel_error']:12.2e}  {r['rms_rel_error_estimate']:12.2e}"
+        )
+    ok = [r for r in rows if not r["reference"] and r["cpu_seconds"] <= 1.0 and r["rms_rel_error"] <= 0.01]
+    click.echo(
+        "  goal (<= 1 s cpu at <= 1 % rms): "
+        + (
+            "met by " + ", ".join(f"{r['method']} {r['resolution']} {r['rays'] or ''}".strip() for r in ok)
+            if ok
+            else "not met"
+        )
+    )
 
     g_rows = garment_steps()
-    click.echo("garment temperature error vs time step (implicit step; Radau reference; "
-               "sun ramp + wind drop):")
+    click.echo(
+        "garment temperature error vs time step (implicit step; Radau reference; sun ramp + wind drop):"
+    )
     for r in g_rows:
-        click.echo(f"  {r['case']:<14} dt {r['step_s']:7.0f} s  max |dT| {r['max_error_k']:.2e} K"
-                   f" at step ends, {r['common_error_k']:.2e} K every "
-                   f"{max(x['step_s'] for x in g_rows):.0f} s  ({r['seconds']:.3f} s)")
+        click.echo(
+            f"  {r['case']:<14} dt {r['step_s']:7.0f} s  max |dT| {r['max_error_k']:.2e} K"
+            f" at step ends, {r['common_error_k']:.2e} K every "
+            f"{max(x['step_s'] for x in g_rows):.0f} s  ({r['seconds']:.3f} s)"
+        )
     s_rows = []
     for model in ("two_node",) + (() if quick else ("jos3",)):
         s_rows += skin_steps(model)
     click.echo("mean skin temperature error vs physiology time step (1 h, exercise bout):")
     for r in s_rows:
-        click.echo(f"  {r['model']:<9} dt {r['step_s']:7.0f} s  max |dT| {r['max_error_k']:.2e} K"
-                   f"  ({r['seconds']:.3f} s)")
+        click.echo(
+            f"  {r['model']:<9} dt {r['step_s']:7.0f} s  max |dT| {r['max_error_k']:.2e} K"
+            f"  ({r['seconds']:.3f} s)"
+        )
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4))
     for method, marker in (("brute", "s"), ("fast", "o"), ("adaptive", "^")):
         for res in sorted({r["resolution"] for r in rows}):
-            pts = [(r["cpu_seconds"], r["rms_rel_error"]) for r in rows
-                   if r["method"] == method and r["resolution"] == res and not r["reference"]]
+            pts = [
+                (r["cpu_seconds"], r["rms_rel_error"])
+                for r in rows
+                if r["method"] == method and r["resolution"] == res and not r["reference"]
+            ]
             if pts:
                 ax.loglog(*zip(*sorted(pts)), marker + "-", label=f"{method} {res}²")
     ax.axvline(1.0, color="0.6", lw=0.8)
@@ -429,21 +573,25 @@ def bench_thermal(facets: int, resolutions: str, rays: str, adaptive_rays: str,
     click.echo("garment balance extreme grid: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
     times = np.arange(0, 3601, 60.0)
     for model in ("two_node", "jos3"):
-        simulate_physiology(times[:3], 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model,
-                            spin_up_s=0.0)   # compile / warm up
+        simulate_physiology(
+            times[:3], 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model, spin_up_s=0.0
+        )  # compile / warm up
         runs = []
         for _ in range(3):
             t = time.perf_counter()
-            simulate_physiology(times, 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model,
-                                spin_up_s=0.0)
+            simulate_physiology(times, 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model, spin_up_s=0.0)
             runs.append(time.perf_counter() - t)
         click.echo(f"1 h of {model} physiology at 60 s steps: median {statistics.median(runs):.3f} s")
 
 
 def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
+
     main.add_command(avatar)
-    from humv_usd.groundtruth.cli import register as register_groundtruth  # regions, coco-merge, bench labels
+    from humv_usd.cli.groundtruth_cmd import (
+        register as register_groundtruth,  # regions, coco-merge, bench labels
+    )
+
     register_groundtruth(main, bench)
 
 

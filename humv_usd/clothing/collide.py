@@ -7,7 +7,7 @@ garment outside the skin everywhere. Here, per frame and garment (inner layers f
 1. Pose: linear blend skinning of the body and garment rest points with the frame's skinning
    matrices (what UsdSkel does at render time).
 2. Check: signed distance of every garment vertex to the posed body (closest point on the body
-   mesh, sign from the interpolated normal; :class:`humv_usd.clothing.geometry.Surface`).
+   mesh, sign from the interpolated normal; :class:`humv_usd.geometry.mesh.Surface`).
    ``inside``: d < 0; ``close``: 0 <= d < minimum gap; ``layered``: closer than the garment
    under it requires (the inner garment's distance + its fabric thickness + the minimum gap, at
    the inner vertex whose body anchor is nearest, within :data:`LAYER_RADIUS`).
@@ -34,7 +34,7 @@ garment outside the skin everywhere. Here, per frame and garment (inner layers f
    instead, both capped at :data:`MAX_AIR_GAP`. Never below the closest-point distance, so
    never below the minimum gap after the fix. For an outer garment it spans the layers under
    it (it is the distance to the skin, as the schema defines it).
-Props (:class:`humv_usd.clothing.garments.Prop`, the rifle) are rigid: they are posed and
+Props (:class:`humv_usd.catalog.garments.Prop`, the rifle) are rigid: they are posed and
 checked (counts, before = after) but never moved, and they take no part in the layering. A
 carried rifle is a collider for every garment, though: after the body and shell passes,
 garment vertices nearer than the minimum gap to its solid are pushed out along its distance
@@ -53,13 +53,14 @@ Before step 1, :func:`dress` splits the garment faces over the neck and pelvis t
 :data:`LAYER_RADIUS` of another garment of the outfit once (:func:`humv_usd.clothing.fit.refine`:
 collars, waistbands, crotch); loose parts are draped (:mod:`humv_usd.clothing.drape`) between
 steps 1 and 2 when :func:`simulate` gets the frame rate. Props get their clearance from the
-body per frame (:func:`humv_usd.avatar.carry.rifle_clearance`: the closed-form distance of the
+body per frame (:func:`humv_usd.human.carry.rifle_clearance`: the closed-form distance of the
 body's non-holding vertices to the rifle's boxes and cylinders).
 
 5. Rest points for UsdSkel: the fixed posed points mapped back through the vertex's blended
    skinning transform (``rest' = rest + A^-1 (fixed - posed)``, exact for linear blend
    skinning), so UsdSkel skinning of the time-sampled rest points reproduces the fixed shape.
 """
+
 from __future__ import annotations
 
 import time
@@ -68,20 +69,27 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from humv_usd.avatar.carry import (carry_body_of, prop_distance_gradient, prop_signed_distance,
-                                   rifle_clearance, rifle_world)
+from humv_usd.catalog.garments import garment
 from humv_usd.clothing.drape import Drape
 from humv_usd.clothing.fit import BodyRig, FittedGarment, fit_garment, refine
-from humv_usd.clothing.garments import garment
-from humv_usd.clothing.geometry import RayCaster, Surface, vertex_normals
+from humv_usd.geometry.mesh import RayCaster, Surface, vertex_normals
+from humv_usd.human.carry import (
+    carry_body_of,
+    prop_distance_gradient,
+    prop_signed_distance,
+    rifle_clearance,
+    rifle_world,
+)
 
 PUSH_ITERATIONS = 3
 #: Distances [m] tried along the summed body normals for vertices still too close after the
 #: pushes (wedges such as the crotch and armpits, where the nearest surface alternates).
-ESCAPE_STEPS = 0.002 * 2.0 ** np.arange(6)       # 2 mm .. 64 mm
+ESCAPE_STEPS = 0.002 * 2.0 ** np.arange(6)  # 2 mm .. 64 mm
 # ... and, if those fail, along the 26 directions to the faces, edges and corners of a cube
-_FALLBACK_DIRECTIONS = np.array([[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1)
-                                 for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)], dtype=float)
+_FALLBACK_DIRECTIONS = np.array(
+    [[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)],
+    dtype=float,
+)
 _FALLBACK_DIRECTIONS /= np.linalg.norm(_FALLBACK_DIRECTIONS, axis=1, keepdims=True)
 #: Extra distance a pushed vertex gets beyond the required gap [m] (float32/USD round-off).
 PUSH_MARGIN = 2e-5
@@ -116,13 +124,14 @@ BETWEEN_SLACK = 0.005
 @dataclass
 class FixCounts:
     """Garment vertices in violation, before and after the fix, for one garment and frame."""
+
     inside_before: int
     close_before: int
     layered_before: int
     inside_after: int
     close_after: int
     layered_after: int
-    min_distance_m: float       # smallest signed vertex-skin distance after the fix
+    min_distance_m: float  # smallest signed vertex-skin distance after the fix
     #: vertices inside a carried prop's solid or closer than the minimum gap to it
     prop_before: int = 0
     prop_after: int = 0
@@ -142,14 +151,15 @@ class FixCounts:
 @dataclass
 class GarmentAnimation:
     """One garment over the frames."""
+
     fitted: FittedGarment
-    posed: np.ndarray           # (F, n, 3) fixed posed points (skeleton space) [m]
-    rest: np.ndarray            # (F, n, 3) rest points that UsdSkel skins to ``posed``
-    air_gap: np.ndarray         # (F, n) [m]
+    posed: np.ndarray  # (F, n, 3) fixed posed points (skeleton space) [m]
+    rest: np.ndarray  # (F, n, 3) rest points that UsdSkel skins to ``posed``
+    air_gap: np.ndarray  # (F, n) [m]
     counts: list[FixCounts] = field(default_factory=list)
     #: props: per frame, the smallest distance [m] from the body (all but the holding hands
     #: and forearms) to the prop's solid and the body vertices inside it
-    #: (:func:`humv_usd.avatar.carry.rifle_clearance`); None for garments
+    #: (:func:`humv_usd.human.carry.rifle_clearance`); None for garments
     clearance: np.ndarray | None = None
     body_inside: np.ndarray | None = None
     #: garments with draped (loose) parts: (F, n, 3) the skinned shape before the drape
@@ -163,6 +173,7 @@ class GarmentAnimation:
 @dataclass
 class Outfit:
     """Garments fitted to one body, inner layers first, with their layer correspondences."""
+
     rig: BodyRig
     garments: list[FittedGarment]
     # per garment: list of (inner garment position, outer vertex ids, inner vertex ids)
@@ -172,8 +183,8 @@ class Outfit:
 @dataclass
 class Simulation:
     garments: list[GarmentAnimation]
-    frame_seconds: np.ndarray   # (F,) wall time of the per-frame work (pose, check, fix, gap)
-    fix_seconds: np.ndarray     # (F,) of which the check + fix (all garments)
+    frame_seconds: np.ndarray  # (F,) wall time of the per-frame work (pose, check, fix, gap)
+    fix_seconds: np.ndarray  # (F,) of which the check + fix (all garments)
     #: (F,) CPU time (all threads of the process) of the check + fix
     fix_cpu_seconds: np.ndarray | None = None
 
@@ -181,17 +192,16 @@ class Simulation:
 def dress(rig: BodyRig, names, refined: bool = True) -> Outfit:
     """Fit ``names`` (catalogue garments, any order; duplicates rejected) to ``rig``
     (``refined``: see :func:`humv_usd.clothing.fit.fit_garment`)."""
-    names = [garment(n).name for n in names]          # aliases -> catalogue names
+    names = [garment(n).name for n in names]  # aliases -> catalogue names
     if len(set(names)) != len(names):
         raise ValueError(f"garment listed twice in {names}")
     fitted = [fit_garment(rig, n, refined=False) for n in names]
     fitted.sort(key=lambda g: (g.garment.layer, g.garment.ease))
     anchors = [rig.surface.closest(g.points).point for g in fitted]
-    if refined:                 # finer mesh over the neck/pelvis where another garment is
+    if refined:  # finer mesh over the neck/pelvis where another garment is
         joints = len(rig.skeleton.names)
         for k, g in enumerate(fitted):
-            others = [anchors[i] for i in range(len(fitted))
-                      if i != k and not fitted[i].garment.is_prop]
+            others = [anchors[i] for i in range(len(fitted)) if i != k and not fitted[i].garment.is_prop]
             if g.garment.is_prop or not others:
                 continue
             dist, _ = cKDTree(np.concatenate(others)).query(anchors[k])
@@ -222,16 +232,16 @@ def apply(blended: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.einsum("vij,vj->vi", blended[:, :3, :3], points) + blended[:, :3, 3]
 
 
-def measure(surface: Surface, points: np.ndarray, minimum_gap: float
-            ) -> tuple[np.ndarray, FixCounts]:
+def measure(surface: Surface, points: np.ndarray, minimum_gap: float) -> tuple[np.ndarray, FixCounts]:
     """Signed distances and counts of points that are not moved (props): after = before."""
     d = surface.closest(points).signed
     counts = (int(np.sum(d < 0)), int(np.sum((d >= 0) & (d < minimum_gap))), 0)
     return d, FixCounts(*counts, *counts, float(d.min()) if len(d) else 0.0)
 
 
-def push_off_shell(shell: Surface, flat_normals: np.ndarray, points: np.ndarray,
-                   clearance: float) -> tuple[np.ndarray, int, int]:
+def push_off_shell(
+    shell: Surface, flat_normals: np.ndarray, points: np.ndarray, clearance: float
+) -> tuple[np.ndarray, int, int]:
     """Push ``points`` over ``shell`` (see module doc) to ``clearance`` outside it.
     Returns (points, violations before, violations after)."""
     out = points.copy()
@@ -246,7 +256,7 @@ def push_off_shell(shell: Surface, flat_normals: np.ndarray, points: np.ndarray,
 
     bad, near = violating(out)
     before = len(bad)
-    for _ in range(2 * PUSH_ITERATIONS):     # by the deficit: converges in concave spots
+    for _ in range(2 * PUSH_ITERATIONS):  # by the deficit: converges in concave spots
         if not len(bad):
             break
         out[bad] += near.normal[bad] * (clearance - near.signed[bad] + PUSH_MARGIN)[:, None]
@@ -254,11 +264,12 @@ def push_off_shell(shell: Surface, flat_normals: np.ndarray, points: np.ndarray,
     return out, before, len(bad)
 
 
-def push_off_prop(points: np.ndarray, to_world: np.ndarray, prop, clearance: float
-                  ) -> tuple[np.ndarray, int, int]:
+def push_off_prop(
+    points: np.ndarray, to_world: np.ndarray, prop, clearance: float
+) -> tuple[np.ndarray, int, int]:
     """Push ``points`` out of a carried prop's solid (``to_world``: prop frame -> skeleton
     space) to ``clearance`` off it, along the solid's distance gradient
-    (:func:`humv_usd.avatar.carry.prop_signed_distance`). Returns (points, violations
+    (:func:`humv_usd.human.carry.prop_signed_distance`). Returns (points, violations
     before, after)."""
     inv = np.linalg.inv(to_world)
     local = points @ inv[:3, :3].T + inv[:3, 3]
@@ -266,19 +277,19 @@ def push_off_prop(points: np.ndarray, to_world: np.ndarray, prop, clearance: flo
     bad = np.flatnonzero(d < clearance)
     before = len(bad)
     moved = bad.copy()
-    for _ in range(PROP_PUSH_ITERATIONS):   # a push out of one part can land in the next
+    for _ in range(PROP_PUSH_ITERATIONS):  # a push out of one part can land in the next
         if not len(bad):
             break
-        local[bad] += (prop_distance_gradient(local[bad], prop)
-                       * (clearance - d[bad] + PUSH_MARGIN)[:, None])
+        local[bad] += prop_distance_gradient(local[bad], prop) * (clearance - d[bad] + PUSH_MARGIN)[:, None]
         d[bad] = prop_signed_distance(local[bad], prop)
         bad = bad[d[bad] < clearance]
-    if len(bad):        # stuck where two parts abut (the gradients alternate): search out
-        steps = 0.002 * 2.0 ** (np.arange(14) / 2)                     # 2 mm .. 0.18 m
-        cand = (local[bad][:, None, None] + steps[None, :, None, None]
-                * _FALLBACK_DIRECTIONS[None, None]).reshape(len(bad), -1, 3)
+    if len(bad):  # stuck where two parts abut (the gradients alternate): search out
+        steps = 0.002 * 2.0 ** (np.arange(14) / 2)  # 2 mm .. 0.18 m
+        cand = (
+            local[bad][:, None, None] + steps[None, :, None, None] * _FALLBACK_DIRECTIONS[None, None]
+        ).reshape(len(bad), -1, 3)
         ok = prop_signed_distance(cand, prop) >= clearance + PUSH_MARGIN / 2
-        first = np.argmax(ok, axis=1)                  # steps ascend: the shortest
+        first = np.argmax(ok, axis=1)  # steps ascend: the shortest
         found = ok[np.arange(len(bad)), first]
         local[bad[found]] = cand[np.flatnonzero(found), first[found]]
         bad = bad[~found]
@@ -288,13 +299,15 @@ def push_off_prop(points: np.ndarray, to_world: np.ndarray, prop, clearance: flo
 
 
 def _flat_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    n = np.cross(points[triangles[:, 1]] - points[triangles[:, 0]],
-                 points[triangles[:, 2]] - points[triangles[:, 0]])
+    n = np.cross(
+        points[triangles[:, 1]] - points[triangles[:, 0]], points[triangles[:, 2]] - points[triangles[:, 0]]
+    )
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-15)
 
 
-def push_out(surface: Surface, points: np.ndarray, required: np.ndarray, minimum_gap: float
-             ) -> tuple[np.ndarray, np.ndarray, FixCounts]:
+def push_out(
+    surface: Surface, points: np.ndarray, required: np.ndarray, minimum_gap: float
+) -> tuple[np.ndarray, np.ndarray, FixCounts]:
     """Move vertices closer to the body than ``required`` out along the body normal.
 
     Returns (fixed points, signed distance after the fix, counts).
@@ -303,14 +316,17 @@ def push_out(surface: Surface, points: np.ndarray, required: np.ndarray, minimum
     d = near.signed.copy()
 
     def count(dist):
-        return (int(np.sum(dist < 0)), int(np.sum((dist >= 0) & (dist < minimum_gap))),
-                int(np.sum((dist >= minimum_gap) & (dist < required))))
+        return (
+            int(np.sum(dist < 0)),
+            int(np.sum((dist >= 0) & (dist < minimum_gap))),
+            int(np.sum((dist >= minimum_gap) & (dist < required))),
+        )
 
     before = count(d)
     out = points.copy()
     todo = np.flatnonzero(d < required)
     point, normal = near.point[todo], near.normal[todo]
-    heading = normal.copy()             # sum of the body normals met: out of a wedge
+    heading = normal.copy()  # sum of the body normals met: out of a wedge
     for _ in range(PUSH_ITERATIONS):
         if not len(todo):
             break
@@ -320,13 +336,13 @@ def push_out(surface: Surface, points: np.ndarray, required: np.ndarray, minimum
         still = again.signed < required[todo]
         todo, point, normal = todo[still], again.point[still], again.normal[still]
         heading = heading[still] + normal
-    if len(todo):                       # wedge (crotch, armpit): search outward directions
+    if len(todo):  # wedge (crotch, armpit): search outward directions
         informed = np.stack([heading, normal, near.normal[todo]], 1)
         informed /= np.maximum(np.linalg.norm(informed, axis=2, keepdims=True), 1e-12)
         left = _escape(surface, out, d, todo, informed, required)
         if len(left):
             left = _escape(surface, out, d, left, _fallback(len(left)), required)
-        if len(left):                   # give up the layering there, keep off the skin
+        if len(left):  # give up the layering there, keep off the skin
             relaxed = np.full_like(required, minimum_gap)
             left = _escape(surface, out, d, left, _fallback(len(left)), relaxed)
     after = count(d)
@@ -337,14 +353,15 @@ def _fallback(m: int) -> np.ndarray:
     return np.broadcast_to(_FALLBACK_DIRECTIONS, (m,) + _FALLBACK_DIRECTIONS.shape)
 
 
-def _escape(surface: Surface, out: np.ndarray, d: np.ndarray, todo: np.ndarray,
-            dirs: np.ndarray, required: np.ndarray) -> np.ndarray:
+def _escape(
+    surface: Surface, out: np.ndarray, d: np.ndarray, todo: np.ndarray, dirs: np.ndarray, required: np.ndarray
+) -> np.ndarray:
     """Move ``out[todo]`` by the shortest of :data:`ESCAPE_STEPS` along any of ``dirs``
     ((m, k, 3) unit vectors) that clears the required distance (in place, also ``d``).
     Returns the vertices none cleared."""
     steps = ESCAPE_STEPS
     m, ndir, nstep = len(todo), dirs.shape[1], len(steps)
-    cand = (out[todo][:, None, None, :] + steps[None, None, :, None] * dirs[:, :, None, :])
+    cand = out[todo][:, None, None, :] + steps[None, None, :, None] * dirs[:, :, None, :]
     cand = cand.reshape(m, ndir * nstep, 3)
     check = surface.closest(cand.reshape(-1, 3)).signed.reshape(m, ndir * nstep)
     ok = check >= (required[todo] + PUSH_MARGIN / 2)[:, None]
@@ -364,13 +381,13 @@ def between_samples(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(triangles, dtype=np.int64)
     e = np.unique(np.sort(np.stack([t, np.roll(t, -1, 1)], -1).reshape(-1, 2), axis=1), axis=0)
     ids = np.concatenate([np.column_stack([e, e[:, 0]]), t])
-    w = np.concatenate([np.tile([0.5, 0.5, 0.0], (len(e), 1)),
-                        np.full((len(t), 3), 1.0 / 3.0)])
+    w = np.concatenate([np.tile([0.5, 0.5, 0.0], (len(e), 1)), np.full((len(t), 3), 1.0 / 3.0)])
     return ids, w
 
 
-def _shell_deficit(shell: Surface, flat: np.ndarray, clearance: float, q: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _shell_deficit(
+    shell: Surface, flat: np.ndarray, clearance: float, q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """For points ``q`` over ``shell`` (:func:`push_off_shell`'s test): (clearance - signed
     distance, -inf where not over; shell normal; unsigned distance; inside the fabric)."""
     near = shell.closest(q)
@@ -382,13 +399,18 @@ def _shell_deficit(shell: Surface, flat: np.ndarray, clearance: float, q: np.nda
 
 
 def _between_counts(signed: np.ndarray, layered: np.ndarray, minimum_gap: float) -> tuple:
-    return (int(np.sum(signed < 0)), int(np.sum((signed >= 0) & (signed < minimum_gap))),
-            int(layered.sum()))
+    return (int(np.sum(signed < 0)), int(np.sum((signed >= 0) & (signed < minimum_gap))), int(layered.sum()))
 
 
-def push_between(surface: Surface, points: np.ndarray, d: np.ndarray, samples,
-                 minimum_gap: float, required: np.ndarray,
-                 shells=()) -> tuple[np.ndarray, np.ndarray, tuple, tuple]:
+def push_between(
+    surface: Surface,
+    points: np.ndarray,
+    d: np.ndarray,
+    samples,
+    minimum_gap: float,
+    required: np.ndarray,
+    shells=(),
+) -> tuple[np.ndarray, np.ndarray, tuple, tuple]:
     """Resolve what a vertex-only fix misses: garment points between the vertices (edge
     midpoints and triangle centroids, :func:`between_samples`) inside the body or closer
     than ``minimum_gap`` to it, or inside a garment under it (``shells``: (posed Surface,
@@ -428,7 +450,7 @@ def push_between(surface: Surface, points: np.ndarray, d: np.ndarray, samples,
     bound = np.max(d[ids] - reach, axis=1)
     near_any = bound < minimum_gap + BETWEEN_SLACK
     shell_cand = []
-    for shell, flat, thickness in shells:       # vertices' distances to the shell: bound
+    for shell, flat, thickness in shells:  # vertices' distances to the shell: bound
         _, _, dist_v, _ = _shell_deficit(shell, flat, thickness + minimum_gap, out)
         b = np.max(dist_v[ids] - reach, axis=1)
         shell_cand.append(b < thickness + minimum_gap + BETWEEN_SLACK)
@@ -437,11 +459,11 @@ def push_between(surface: Surface, points: np.ndarray, d: np.ndarray, samples,
     vertex_check = np.arange(n)
     is_cand = np.zeros(len(ids), dtype=bool)
     is_cand[cand] = True
-    signed = np.full(len(ids), np.inf)        # last checked state of every sample
+    signed = np.full(len(ids), np.inf)  # last checked state of every sample
     layered = np.zeros(len(ids), dtype=bool)
     ever = np.zeros(n, dtype=bool)
     before = None
-    last = False                              # the recheck after the full vertex fix
+    last = False  # the recheck after the full vertex fix
     for round_ in range(BETWEEN_ROUNDS + 2):
         q = np.einsum("sk,ski->si", w[cand], out[ids[cand]])
         near = surface.closest(q)
@@ -457,7 +479,7 @@ def push_between(surface: Surface, points: np.ndarray, d: np.ndarray, samples,
             if use.any():
                 sd, sn, _, _ = _shell_deficit(shell, flat, clearance, q[use])
                 rows = np.flatnonzero(use)
-                layered[cand[rows]] |= sd > minimum_gap          # inside the inner fabric
+                layered[cand[rows]] |= sd > minimum_gap  # inside the inner fabric
                 take = sd > deficit[rows]
                 deficit[rows[take]] = sd[take]
                 normal[rows[take]] = sn[take]
@@ -497,17 +519,21 @@ def push_between(surface: Surface, points: np.ndarray, d: np.ndarray, samples,
             take = w[cand[order]] > 0
             rows = np.repeat(order, take.sum(axis=1))
             verts = np.concatenate([vertex_check[bad_v], ids[cand[order]][take]])
-            push = np.concatenate([v_normal[bad_v] * (v_def[bad_v] + PUSH_MARGIN)[:, None],
-                                   normal[rows] * (deficit[rows] + PUSH_MARGIN)[:, None]])
+            push = np.concatenate(
+                [
+                    v_normal[bad_v] * (v_def[bad_v] + PUSH_MARGIN)[:, None],
+                    normal[rows] * (deficit[rows] + PUSH_MARGIN)[:, None],
+                ]
+            )
             changed, first = np.unique(verts, return_index=True)
-            total = out[changed] + push[first] - points[changed]    # bounded in all
+            total = out[changed] + push[first] - points[changed]  # bounded in all
             length = np.linalg.norm(total, axis=1, keepdims=True)
-            out[changed] = points[changed] + total * np.minimum(
-                1.0, BETWEEN_MOVE / np.maximum(length, 1e-12))
-            near_v = surface.closest(out[changed])      # keep the moved ones off the body
+            out[changed] = points[changed] + total * np.minimum(1.0, BETWEEN_MOVE / np.maximum(length, 1e-12))
+            near_v = surface.closest(out[changed])  # keep the moved ones off the body
             low = near_v.signed < required[changed]
-            out[changed[low]] = near_v.point[low] + near_v.normal[low] * (
-                required[changed[low]] + PUSH_MARGIN)[:, None]
+            out[changed[low]] = (
+                near_v.point[low] + near_v.normal[low] * (required[changed[low]] + PUSH_MARGIN)[:, None]
+            )
             ever[changed] = True
         # re-check the candidate samples that touch a moved vertex
         touched = np.zeros(n, dtype=bool)
@@ -520,8 +546,7 @@ def push_between(surface: Surface, points: np.ndarray, d: np.ndarray, samples,
     return out, d, before, after
 
 
-def air_gap(caster: RayCaster, points: np.ndarray, triangles: np.ndarray,
-            distance: np.ndarray) -> np.ndarray:
+def air_gap(caster: RayCaster, points: np.ndarray, triangles: np.ndarray, distance: np.ndarray) -> np.ndarray:
     """Per-vertex air gap [m] along the inward garment normal; see the module doc."""
     n = vertex_normals(points, triangles)
     t = caster.first_hit(points, -n)
@@ -535,7 +560,7 @@ def drapes_of(g: FittedGarment) -> list[Drape]:
     out = []
     counts = np.asarray(g.face_counts)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[counts == 4]
-    quads = np.asarray(g.face_indices)[starts[:, None] + np.arange(4)]     # loose parts: quads
+    quads = np.asarray(g.face_indices)[starts[:, None] + np.arange(4)]  # loose parts: quads
     for k, part in enumerate(g.garment.parts):
         if part.loose:
             ids = np.flatnonzero(g.part_of == k)
@@ -544,10 +569,16 @@ def drapes_of(g: FittedGarment) -> list[Drape]:
     return out
 
 
-def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None = None,
-             between: bool = True, between_layers: bool = False) -> Simulation:
+def simulate(
+    outfit: Outfit,
+    skin: np.ndarray,
+    progress=None,
+    fps: float | None = None,
+    between: bool = True,
+    between_layers: bool = False,
+) -> Simulation:
     """Pose, fix and measure every garment for each frame of ``skin`` ((F, J, 4, 4) skinning
-    matrices, :func:`humv_usd.avatar.skeleton.skinning_matrices`). With ``fps`` (and more
+    matrices, :func:`humv_usd.human.skeleton.skinning_matrices`). With ``fps`` (and more
     than one frame) loose parts are draped (:mod:`humv_usd.clothing.drape`) before the fix;
     ``GarmentAnimation.skinned`` then keeps the skinned shape they lag. ``between``: also
     fix the points between the vertices (:func:`push_between`; False: vertices only, for
@@ -556,18 +587,27 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
     rig = outfit.rig
     skin = np.asarray(skin, dtype=np.float64)
     frames = skin.shape[0]
-    anims = [GarmentAnimation(g, np.empty((frames, g.vertex_count, 3)),
-                              np.empty((frames, g.vertex_count, 3)),
-                              np.empty((frames, g.vertex_count))) for g in outfit.garments]
+    anims = [
+        GarmentAnimation(
+            g,
+            np.empty((frames, g.vertex_count, 3)),
+            np.empty((frames, g.vertex_count, 3)),
+            np.empty((frames, g.vertex_count)),
+        )
+        for g in outfit.garments
+    ]
     frame_s = np.zeros(frames)
     fix_s = np.zeros(frames)
     fix_cpu = np.zeros(frames)
-    samples = [between_samples(g.triangles) if between and not g.garment.is_prop else None
-               for g in outfit.garments]
-    last_cloth = max([k for k, g in enumerate(outfit.garments) if not g.garment.is_prop],
-                     default=-1)
-    carried = [g.garment.prop for g in outfit.garments
-               if g.garment.is_prop and g.garment.prop.placement == "between_hands"]
+    samples = [
+        between_samples(g.triangles) if between and not g.garment.is_prop else None for g in outfit.garments
+    ]
+    last_cloth = max([k for k, g in enumerate(outfit.garments) if not g.garment.is_prop], default=-1)
+    carried = [
+        g.garment.prop
+        for g in outfit.garments
+        if g.garment.is_prop and g.garment.prop.placement == "between_hands"
+    ]
     prop_world = rifle_world(rig.skeleton, skin) if carried else None
     dynamic = fps is not None and fps > 0 and frames > 1
     drapes = [drapes_of(g) if dynamic else [] for g in outfit.garments]
@@ -577,17 +617,15 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
     for g, anim in zip(outfit.garments, anims):
         if g.garment.is_prop and g.garment.prop.placement == "between_hands":
             cb = carry_body_of(rig.mesh, rig.joint_indices, rig.joint_weights, rig.face_regions)
-            anim.clearance, anim.body_inside, _ = rifle_clearance(cb, rig.skeleton, skin,
-                                                                  g.garment.prop)
+            anim.clearance, anim.body_inside, _ = rifle_clearance(cb, rig.skeleton, skin, g.garment.prop)
     for f in range(frames):
         t0 = time.perf_counter()
-        body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]),
-                     rig.mesh.points)
+        body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]), rig.mesh.points)
         surface = Surface(body, rig.triangles)
         caster = RayCaster(body, rig.triangles)
         distances: list[np.ndarray] = []
-        shells: list[tuple[Surface, np.ndarray, float]] = []     # posed body-like garments
-        worn: list[tuple[Surface, np.ndarray, float]] = []       # all posed garments so far
+        shells: list[tuple[Surface, np.ndarray, float]] = []  # posed body-like garments
+        worn: list[tuple[Surface, np.ndarray, float]] = []  # all posed garments so far
         for k, (g, anim) in enumerate(zip(outfit.garments, anims)):
             gap = g.garment.minimum_gap
             blended = blend_transforms(g.joint_indices, g.joint_weights, skin[f])
@@ -596,8 +634,7 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
             if drapes[k]:
                 posed = skinned.copy()
                 for drape in drapes[k]:
-                    posed[drape.vertices] = drape.step(skinned[drape.vertices], 1.0 / fps,
-                                                       surface, gap)
+                    posed[drape.vertices] = drape.step(skinned[drape.vertices], 1.0 / fps, surface, gap)
                 anim.skinned[f] = skinned
             required = np.full(g.vertex_count, gap)
             for i, outer_ids, inner_ids in outfit.under[k]:
@@ -614,21 +651,28 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
                     fixed, was, left = push_off_shell(shell, flat, fixed, thickness + gap)
                     counts.layered_before += was
                     counts.layered_after += left
-                if shells:                  # the shell pass moved some: skin re-check
+                if shells:  # the shell pass moved some: skin re-check
                     fixed, dist, again = push_out(surface, fixed, required, gap)
                     counts.inside_after, counts.close_after = again.inside_after, again.close_after
                     counts.min_distance_m = again.min_distance_m
                 if samples[k] is not None:  # between the vertices (body, inner garments)
-                    fixed, dist, was, left = push_between(surface, fixed, dist, samples[k],
-                                                          gap, required, worn)
-                    (counts.between_inside_before, counts.between_close_before,
-                     counts.between_layered_before) = was
-                    (counts.between_inside_after, counts.between_close_after,
-                     counts.between_layered_after) = left
+                    fixed, dist, was, left = push_between(
+                        surface, fixed, dist, samples[k], gap, required, worn
+                    )
+                    (
+                        counts.between_inside_before,
+                        counts.between_close_before,
+                        counts.between_layered_before,
+                    ) = was
+                    (
+                        counts.between_inside_after,
+                        counts.between_close_after,
+                        counts.between_layered_after,
+                    ) = left
                     counts.inside_after = int(np.sum(dist < 0))
                     counts.close_after = int(np.sum((dist >= 0) & (dist < gap)))
                     counts.min_distance_m = float(dist.min())
-                for prop in carried:        # off the carried rifle, then the skin again
+                for prop in carried:  # off the carried rifle, then the skin again
                     for round_ in range(PROP_ROUNDS):
                         fixed, was, left = push_off_prop(fixed, prop_world[f], prop, gap)
                         if round_ == 0:
@@ -642,13 +686,15 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
                         _, left, _ = push_off_prop(fixed, prop_world[f], prop, gap)
                         if not left:
                             break
-                    counts.prop_after += left   # closer than the gap after the skin pass
+                    counts.prop_after += left  # closer than the gap after the skin pass
                 if g.garment.body_like:
-                    shells.append((Surface(fixed, g.triangles),
-                                   _flat_normals(fixed, g.triangles), g.garment.thickness))
+                    shells.append(
+                        (Surface(fixed, g.triangles), _flat_normals(fixed, g.triangles), g.garment.thickness)
+                    )
                 if between and between_layers and k < last_cloth:
-                    worn.append((Surface(fixed, g.triangles),
-                                  _flat_normals(fixed, g.triangles), g.garment.thickness))
+                    worn.append(
+                        (Surface(fixed, g.triangles), _flat_normals(fixed, g.triangles), g.garment.thickness)
+                    )
             fix_s[f] += time.perf_counter() - t1
             fix_cpu[f] += time.process_time() - c1
             distances.append(dist)
@@ -660,8 +706,9 @@ def simulate(outfit: Outfit, skin: np.ndarray, progress=None, fps: float | None 
             rest = g.points.copy()
             moved = np.flatnonzero(np.any(fixed != skinned, axis=1))
             if len(moved):
-                delta = np.linalg.solve(blended[moved, :3, :3],
-                                        (fixed[moved] - skinned[moved])[:, :, None])[:, :, 0]
+                delta = np.linalg.solve(blended[moved, :3, :3], (fixed[moved] - skinned[moved])[:, :, None])[
+                    :, :, 0
+                ]
                 rest[moved] += delta
             anim.rest[f] = rest
         frame_s[f] = time.perf_counter() - t0

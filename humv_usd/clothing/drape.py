@@ -34,6 +34,7 @@ and the lag only), no wind, and the clip starts at rest (frame 0 is the skinned 
 zero velocity; the lag builds over the first ~0.2 s). Only parts marked ``loose`` are
 simulated; a person who does not move gets the skinned shape.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -57,35 +58,35 @@ GRAVITY = np.array([0.0, 0.0, -9.81])
 @dataclass
 class Drape:
     """State of one loose part over the frames (skeleton space)."""
-    vertices: np.ndarray        # (m,) garment vertex ids of the part
-    edges: np.ndarray           # (e, 2) indices into ``vertices``
-    rest_length: np.ndarray     # (e,)
-    tau: np.ndarray             # (m,) follow time constant [s]
+
+    vertices: np.ndarray  # (m,) garment vertex ids of the part
+    edges: np.ndarray  # (e, 2) indices into ``vertices``
+    rest_length: np.ndarray  # (e,)
+    tau: np.ndarray  # (m,) follow time constant [s]
     x: np.ndarray | None = None
     v: np.ndarray | None = None
     target: np.ndarray | None = None
 
     @classmethod
-    def for_part(cls, rest_points: np.ndarray, quads: np.ndarray, vertices: np.ndarray
-                 ) -> "Drape":
+    def for_part(cls, rest_points: np.ndarray, quads: np.ndarray, vertices: np.ndarray) -> Drape:
         """A drape of the garment vertices ``vertices`` whose faces are ``quads`` (garment
         vertex ids, (q, 4)); rest lengths from ``rest_points`` (the garment's rest mesh)."""
         local = np.full(int(quads.max()) + 1, -1)
         local[vertices] = np.arange(len(vertices))
         q = local[quads]
-        e = np.concatenate([q[:, [0, 1]], q[:, [1, 2]], q[:, [2, 3]], q[:, [3, 0]],
-                            q[:, [0, 2]], q[:, [1, 3]]])          # edges + shear diagonals
+        e = np.concatenate(
+            [q[:, [0, 1]], q[:, [1, 2]], q[:, [2, 3]], q[:, [3, 0]], q[:, [0, 2]], q[:, [1, 3]]]
+        )  # edges + shear diagonals
         e = np.unique(np.sort(e, axis=1), axis=0)
         p = rest_points[vertices]
         z = p[:, 2]
-        u = (z - z.min()) / max(float(np.ptp(z)), 1e-9)           # 0 hem .. 1 waistband
-        return cls(vertices, e, np.linalg.norm(p[e[:, 0]] - p[e[:, 1]], axis=1),
-                   TAU_HEM * (1.0 - u) ** 2)
+        u = (z - z.min()) / max(float(np.ptp(z)), 1e-9)  # 0 hem .. 1 waistband
+        return cls(vertices, e, np.linalg.norm(p[e[:, 0]] - p[e[:, 1]], axis=1), TAU_HEM * (1.0 - u) ** 2)
 
     def step(self, skinned: np.ndarray, dt: float, body=None, gap: float = 0.0) -> np.ndarray:
         """The part's positions this frame (m, 3) given its skinned positions; ``dt`` the
         frame time [s] (the first call returns ``skinned``). ``body``: the frame's posed body
-        (:class:`humv_usd.clothing.geometry.Surface`): after each sub-step vertices nearer
+        (:class:`humv_usd.geometry.mesh.Surface`): after each sub-step vertices nearer
         than ``gap`` are projected out to it along the body normal (step 6)."""
         s1 = np.asarray(skinned, dtype=np.float64)
         if self.x is None or dt <= 0:
@@ -95,7 +96,7 @@ class Drape:
         a = 1.0 - np.exp(-h / np.maximum(self.tau, 1e-12))[:, None]
         i, j = self.edges[:, 0], self.edges[:, 1]
         count = np.bincount(self.edges.ravel(), minlength=len(s1)).astype(float)[:, None]
-        w = self.tau / max(float(self.tau.max()), 1e-12)          # inverse mass: 0 pinned
+        w = self.tau / max(float(self.tau.max()), 1e-12)  # inverse mass: 0 pinned
         wsum = np.maximum(w[i] + w[j], 1e-12)
         wi, wj = (w[i] / wsum)[:, None], (w[j] / wsum)[:, None]
         x, v, s0 = self.x, self.v, self.target
@@ -107,8 +108,7 @@ class Drape:
             for _ in range(ITERATIONS):
                 d = p[j] - p[i]
                 length = np.linalg.norm(d, axis=1)
-                corr = (STIFFNESS * (length - self.rest_length)
-                        / np.maximum(length, 1e-12))[:, None] * d
+                corr = (STIFFNESS * (length - self.rest_length) / np.maximum(length, 1e-12))[:, None] * d
                 delta = np.zeros_like(p)
                 np.add.at(delta, i, wi * corr)
                 np.add.at(delta, j, -wj * corr)

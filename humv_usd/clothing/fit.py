@@ -1,10 +1,10 @@
 """Fit catalogue garments to a fitted MakeHuman body and skin them to its skeleton.
 
 Rest shape. The garment keeps the faces of its source mesh that its :class:`Cover` rules
-select (see :mod:`humv_usd.clothing.garments`) and moves every vertex by the part's ease along
+select (see :mod:`humv_usd.catalog.garments`) and moves every vertex by the part's ease along
 the source surface's outward vertex normal: ``rest = helper + ease * n``. The helpers already
 follow the body (MakeHuman's targets deform them with it), so this fits any body from
-:func:`humv_usd.avatar.body.build_body`. The helper's own normal is used rather than the body's
+:func:`humv_usd.human.body.build_body`. The helper's own normal is used rather than the body's
 at the nearest point because it stays smooth where the tights bridge body concavities (crotch,
 armpits, between the buttocks), where the nearest body normal flips between two surfaces; it is
 flipped where it disagrees with the body normal there.
@@ -21,9 +21,9 @@ That skinned shape swings with the mean of the thighs; :mod:`humv_usd.clothing.d
 inertia (lag) and stretch constraints on top of it per frame, and the per-frame collision fix
 (:mod:`humv_usd.clothing.collide`) pushes out whatever a leg would pierce.
 
-Props (the rifle). A :class:`~humv_usd.clothing.garments.Prop` is built from its boxes and
+Props (the rifle). A :class:`~humv_usd.catalog.garments.Prop` is built from its boxes and
 8-sided cylinders (closed, outward quads and octagon caps) and placed in the rest pose:
-``between_hands``: held in the rifle carry of :mod:`humv_usd.avatar.carry` (which the avatar
+``between_hands``: held in the rifle carry of :mod:`humv_usd.human.carry` (which the avatar
 layer applies to the motion of whoever wears the rifle): its grip at the right hand's grasp
 point and its handguard through the left one in the carry pose (standing, frame 0), that
 placement expressed in the RightHand joint's rest frame (so in the rest pose the rifle hangs
@@ -33,41 +33,48 @@ Every vertex is bound 100 % to the prop's joint, so it moves rigidly with that j
 Labels. Every garment face gets the body region (``primvars:humv:label:bodyRegion`` ids) of
 the body face nearest to it, so per-region statistics and JOS-3 segments work on garments too.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from humv_usd.avatar import labels as L
-from humv_usd.avatar.body import Body, MeshPart
-from humv_usd.avatar.carry import carry_rest_transform
-from humv_usd.avatar.skeleton import Skeleton, skeleton_for, skin_weights
-from humv_usd.clothing.garments import (SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part,
-                                        Prop, Shape, garment)
-from humv_usd.clothing.geometry import Surface, triangle_face_of, triangulate, vertex_normals
+from humv_usd.catalog.garments import SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part, Prop, Shape, garment
+from humv_usd.geometry.mesh import Surface, triangle_face_of, triangulate, vertex_normals
+from humv_usd.human import labels as L
+from humv_usd.human.body import Body, MeshPart
+from humv_usd.human.carry import carry_rest_transform
+from humv_usd.human.skeleton import Skeleton, skeleton_for, skin_weights
 
 INFLUENCES = 4
 CYLINDER_SIDES = 8
 #: Laplacian smoothing steps of a loose part's skin weights.
 LOOSE_SMOOTHING = 40
 _PELVIC = ("Hips", "LowerBack", "LHipJoint", "RHipJoint", "LeftUpLeg", "RightUpLeg")
-_TO_THIGH = {"LeftLeg": "LeftUpLeg", "LeftFoot": "LeftUpLeg", "LeftToeBase": "LeftUpLeg",
-             "RightLeg": "RightUpLeg", "RightFoot": "RightUpLeg", "RightToeBase": "RightUpLeg"}
+_TO_THIGH = {
+    "LeftLeg": "LeftUpLeg",
+    "LeftFoot": "LeftUpLeg",
+    "LeftToeBase": "LeftUpLeg",
+    "RightLeg": "RightUpLeg",
+    "RightFoot": "RightUpLeg",
+    "RightToeBase": "RightUpLeg",
+}
 
 
 @dataclass(frozen=True)
 class BodyRig:
     """A fitted body with what fitting and collisions need (rest pose, skeleton space)."""
+
     body: Body
     skeleton: Skeleton
-    mesh: MeshPart                  # the Body mesh (render mesh, compact indices)
-    triangles: np.ndarray           # (T, 3) fan triangles of ``mesh``
-    triangle_face: np.ndarray       # (T,) polygon of each triangle
-    joint_indices: np.ndarray       # (V, 4) the Body mesh's skinning
-    joint_weights: np.ndarray       # (V, 4)
-    face_regions: np.ndarray        # (F,) body region id per Body face
-    surface: Surface                # rest-pose closest-point queries
+    mesh: MeshPart  # the Body mesh (render mesh, compact indices)
+    triangles: np.ndarray  # (T, 3) fan triangles of ``mesh``
+    triangle_face: np.ndarray  # (T,) polygon of each triangle
+    joint_indices: np.ndarray  # (V, 4) the Body mesh's skinning
+    joint_weights: np.ndarray  # (V, 4)
+    face_regions: np.ndarray  # (F,) body region id per Body face
+    surface: Surface  # rest-pose closest-point queries
 
 
 def prepare(body: Body, skeleton: Skeleton | None = None) -> BodyRig:
@@ -77,22 +84,32 @@ def prepare(body: Body, skeleton: Skeleton | None = None) -> BodyRig:
     indices, weights = skin_weights(skeleton, mesh.vertex_ids, INFLUENCES)
     regions = L.body_regions(mesh, skeleton, indices, weights)
     tris = triangulate(mesh.face_counts, mesh.face_indices)
-    return BodyRig(body, skeleton, mesh, tris, triangle_face_of(mesh.face_counts), indices,
-                   weights, regions, Surface(mesh.points, tris))
+    return BodyRig(
+        body,
+        skeleton,
+        mesh,
+        tris,
+        triangle_face_of(mesh.face_counts),
+        indices,
+        weights,
+        regions,
+        Surface(mesh.points, tris),
+    )
 
 
 @dataclass(frozen=True)
 class FittedGarment:
     """A garment on one body: rest mesh in skeleton space and its skinning."""
+
     garment: Garment
-    points: np.ndarray              # (n, 3) rest points [m]
-    face_counts: np.ndarray         # (F,)
-    face_indices: np.ndarray        # (sum counts,)
-    triangles: np.ndarray           # (T, 3) fan triangles
-    joint_indices: np.ndarray       # (n, 4) int32
-    joint_weights: np.ndarray       # (n, 4) float32, rows sum to 1
-    face_regions: np.ndarray        # (F,) body region id per face
-    part_of: np.ndarray             # (n,) index of the Part each vertex comes from
+    points: np.ndarray  # (n, 3) rest points [m]
+    face_counts: np.ndarray  # (F,)
+    face_indices: np.ndarray  # (sum counts,)
+    triangles: np.ndarray  # (T, 3) fan triangles
+    joint_indices: np.ndarray  # (n, 4) int32
+    joint_weights: np.ndarray  # (n, 4) float32, rows sum to 1
+    face_regions: np.ndarray  # (F,) body region id per face
+    part_of: np.ndarray  # (n,) index of the Part each vertex comes from
 
     @property
     def name(self) -> str:
@@ -134,8 +151,7 @@ def _expand(cover: Cover) -> list[tuple[set[int], str | None]]:
     ids = set()
     for r in cover.regions:
         if r in SIDED_REGIONS:
-            ids |= {L.REGION_ID["left" + r[0].upper() + r[1:]],
-                    L.REGION_ID["right" + r[0].upper() + r[1:]]}
+            ids |= {L.REGION_ID["left" + r[0].upper() + r[1:]], L.REGION_ID["right" + r[0].upper() + r[1:]]}
         else:
             ids.add(L.REGION_ID[r])
     return [(ids, cover.bone)]
@@ -154,8 +170,7 @@ def _bone_position(skeleton: Skeleton, joint: str, p: np.ndarray, tilt: float) -
     return t
 
 
-def select_faces(rig: BodyRig, part: MeshPart, covers: tuple[Cover, ...]
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def select_faces(rig: BodyRig, part: MeshPart, covers: tuple[Cover, ...]) -> tuple[np.ndarray, np.ndarray]:
     """(bool mask of the kept faces, region id of every face of ``part``)."""
     centres = _face_centres(part.points, part.face_counts, part.face_indices)
     nearest = rig.surface.closest(centres)
@@ -174,8 +189,7 @@ def select_faces(rig: BodyRig, part: MeshPart, covers: tuple[Cover, ...]
 
 
 # ---------------------------------------------------------------------------- weights
-def transfer_weights(rig: BodyRig, points: np.ndarray, k: int = INFLUENCES
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def transfer_weights(rig: BodyRig, points: np.ndarray, k: int = INFLUENCES) -> tuple[np.ndarray, np.ndarray]:
     """Body skin weights at the closest body points of ``points``; see the module doc."""
     dense = _dense_at(rig, points)
     return _top_k(dense, k)
@@ -183,11 +197,11 @@ def transfer_weights(rig: BodyRig, points: np.ndarray, k: int = INFLUENCES
 
 def _dense_at(rig: BodyRig, points: np.ndarray) -> np.ndarray:
     near = rig.surface.closest(points)
-    corners = rig.triangles[near.triangle]                         # (n, 3) body vertices
+    corners = rig.triangles[near.triangle]  # (n, 3) body vertices
     n = len(points)
     joints = len(rig.skeleton.names)
-    idx = rig.joint_indices[corners]                               # (n, 3, 4)
-    w = rig.joint_weights[corners] * near.bary[:, :, None]         # (n, 3, 4)
+    idx = rig.joint_indices[corners]  # (n, 3, 4)
+    w = rig.joint_weights[corners] * near.bary[:, :, None]  # (n, 3, 4)
     dense = np.zeros((n, joints))
     rows = np.repeat(np.arange(n), 3 * rig.joint_indices.shape[1])
     np.add.at(dense, (rows, idx.ravel()), w.ravel())
@@ -222,7 +236,7 @@ def _loose_weights(rig: BodyRig, points: np.ndarray, faces: np.ndarray) -> np.nd
         np.add.at(s, e[:, 1], w[e[:, 0]])
         w = 0.5 * w + 0.5 * s / np.maximum(degree, 1.0)
     z = points[:, 2]
-    up = (z - z.min()) / max(z.max() - z.min(), 1e-9)     # 0 at the hem, 1 at the waistband
+    up = (z - z.min()) / max(z.max() - z.min(), 1e-9)  # 0 at the hem, 1 at the waistband
     w = (1.0 - up)[:, None] * w
     w[:, hips] += up
     return w
@@ -231,7 +245,7 @@ def _loose_weights(rig: BodyRig, points: np.ndarray, faces: np.ndarray) -> np.nd
 # ---------------------------------------------------------------------------- fitting
 def _fit_part(rig: BodyRig, part: Part):
     source, normals = _source(rig, part.source)
-    quads = np.asarray(source.face_indices).reshape(-1, 4)       # all sources are quads
+    quads = np.asarray(source.face_indices).reshape(-1, 4)  # all sources are quads
     keep, region = select_faces(rig, source, part.cover)
     faces = quads[keep]
     used, remap = np.unique(faces.ravel(), return_inverse=True)
@@ -272,9 +286,17 @@ def fit_garment(rig: BodyRig, name: str, refined: bool = False) -> FittedGarment
     faces = np.concatenate(faces)
     counts = np.full(len(faces), 4)
     flat = faces.ravel()
-    fitted = FittedGarment(g, np.concatenate(pts), counts, flat, triangulate(counts, flat),
-                           np.concatenate(idx), np.concatenate(wts),
-                           np.concatenate(regions).astype(np.int32), np.concatenate(part_of))
+    fitted = FittedGarment(
+        g,
+        np.concatenate(pts),
+        counts,
+        flat,
+        triangulate(counts, flat),
+        np.concatenate(idx),
+        np.concatenate(wts),
+        np.concatenate(regions).astype(np.int32),
+        np.concatenate(part_of),
+    )
     return refine(fitted, len(rig.skeleton.names)) if refined else fitted
 
 
@@ -285,8 +307,7 @@ def fit_garment(rig: BodyRig, name: str, refined: bool = False) -> FittedGarment
 REFINE_REGIONS = ("neck", "pelvis")
 
 
-def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None
-           ) -> FittedGarment:
+def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None) -> FittedGarment:
     """One midpoint subdivision of the quads over :data:`REFINE_REGIONS` (not of loose
     parts, which stay quads for the drape): each such quad becomes four (edge midpoints and
     the face centre are new vertices); a neighbouring face that shares a split edge gets the
@@ -306,18 +327,24 @@ def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None
         return fitted
     n = len(fitted.points)
     sq = quads[split]
-    edges = np.stack([sq, np.roll(sq, -1, axis=1)], -1).reshape(-1, 2)       # (4s, 2)
+    edges = np.stack([sq, np.roll(sq, -1, axis=1)], -1).reshape(-1, 2)  # (4s, 2)
     keys, inverse = np.unique(np.sort(edges, axis=1), axis=0, return_inverse=True)
-    mid = n + inverse.reshape(-1, 4)            # midpoint id of edge (k, k+1) of each quad
+    mid = n + inverse.reshape(-1, 4)  # midpoint id of edge (k, k+1) of each quad
     centre = n + len(keys) + np.arange(len(sq))
     a, b, c, d = sq.T
     mab, mbc, mcd, mda = mid.T
-    children = np.stack([np.stack([a, mab, centre, mda], 1), np.stack([mab, b, mbc, centre], 1),
-                         np.stack([centre, mbc, c, mcd], 1), np.stack([mda, centre, mcd, d], 1)],
-                        1).reshape(-1, 4)
+    children = np.stack(
+        [
+            np.stack([a, mab, centre, mda], 1),
+            np.stack([mab, b, mbc, centre], 1),
+            np.stack([centre, mbc, c, mcd], 1),
+            np.stack([mda, centre, mcd, d], 1),
+        ],
+        1,
+    ).reshape(-1, 4)
     lookup = {(int(u), int(v)): n + k for k, (u, v) in enumerate(keys)}
     polys, regions = [], []
-    for f in np.flatnonzero(~split):            # neighbours: insert the split edges' midpoints
+    for f in np.flatnonzero(~split):  # neighbours: insert the split edges' midpoints
         ring = []
         for k in range(4):
             u, v = int(quads[f, k]), int(quads[f, (k + 1) % 4])
@@ -325,7 +352,7 @@ def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None
             m = lookup.get((min(u, v), max(u, v)))
             if m is not None:
                 ring.append(m)
-        if len(ring) > 4:                       # start the fan at an inserted midpoint
+        if len(ring) > 4:  # start the fan at an inserted midpoint
             first = next(i for i, x in enumerate(ring) if x >= n)
             ring = ring[first:] + ring[:first]
         polys.append(ring)
@@ -336,19 +363,27 @@ def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None
     flat = np.array([i for r in polys for i in r])
     # new vertices: edge midpoints, then face centres
     parents = [keys[:, 0], keys[:, 1]]
-    pts = np.concatenate([fitted.points, fitted.points[keys].mean(axis=1),
-                          fitted.points[sq].mean(axis=1)])
+    pts = np.concatenate([fitted.points, fitted.points[keys].mean(axis=1), fitted.points[sq].mean(axis=1)])
     dense = np.zeros((n, joints))
-    np.add.at(dense, (np.repeat(np.arange(n), fitted.joint_indices.shape[1]),
-                      fitted.joint_indices.ravel()), fitted.joint_weights.astype(float).ravel())
+    np.add.at(
+        dense,
+        (np.repeat(np.arange(n), fitted.joint_indices.shape[1]), fitted.joint_indices.ravel()),
+        fitted.joint_weights.astype(float).ravel(),
+    )
     new_dense = np.concatenate([dense[keys].mean(axis=1), dense[sq].mean(axis=1)])
     idx, w = _top_k(new_dense, fitted.joint_indices.shape[1])
-    part_of = np.concatenate([fitted.part_of, fitted.part_of[parents[0]],
-                              fitted.part_of[sq[:, 0]]])
-    return FittedGarment(fitted.garment, pts, counts, flat, triangulate(counts, flat),
-                         np.concatenate([fitted.joint_indices, idx]),
-                         np.concatenate([fitted.joint_weights, w]),
-                         np.asarray(regions, dtype=np.int32), part_of)
+    part_of = np.concatenate([fitted.part_of, fitted.part_of[parents[0]], fitted.part_of[sq[:, 0]]])
+    return FittedGarment(
+        fitted.garment,
+        pts,
+        counts,
+        flat,
+        triangulate(counts, flat),
+        np.concatenate([fitted.joint_indices, idx]),
+        np.concatenate([fitted.joint_weights, w]),
+        np.asarray(regions, dtype=np.int32),
+        part_of,
+    )
 
 
 # ---------------------------------------------------------------------------- props
@@ -358,10 +393,15 @@ def _shape_mesh(shape: Shape) -> tuple[np.ndarray, list[list[int]]]:
     if shape.radius <= 0:
         h = np.asarray(shape.size, dtype=float) / 2
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
-        pts = c + corners * h                      # index = 4 * (x>0) + 2 * (y>0) + (z>0)
-        faces = [[0, 1, 3, 2], [4, 6, 7, 5],       # -x, +x
-                 [0, 4, 5, 1], [2, 3, 7, 6],       # -y, +y
-                 [0, 2, 6, 4], [1, 5, 7, 3]]       # -z, +z
+        pts = c + corners * h  # index = 4 * (x>0) + 2 * (y>0) + (z>0)
+        faces = [
+            [0, 1, 3, 2],
+            [4, 6, 7, 5],  # -x, +x
+            [0, 4, 5, 1],
+            [2, 3, 7, 6],  # -y, +y
+            [0, 2, 6, 4],
+            [1, 5, 7, 3],
+        ]  # -z, +z
         return pts, faces
     n = CYLINDER_SIDES
     a = 2 * np.pi * (np.arange(n) + 0.5) / n
@@ -369,8 +409,8 @@ def _shape_mesh(shape: Shape) -> tuple[np.ndarray, list[list[int]]]:
     ring = np.stack([np.zeros(n), shape.radius * np.cos(a), shape.radius * np.sin(a)], 1)
     pts = np.concatenate([c + ring - [half, 0, 0], c + ring + [half, 0, 0]])
     faces = [[k, (k + 1) % n, n + (k + 1) % n, n + k] for k in range(n)]
-    faces.append(list(range(n - 1, -1, -1)))       # -x cap
-    faces.append(list(range(n, 2 * n)))            # +x cap
+    faces.append(list(range(n - 1, -1, -1)))  # -x cap
+    faces.append(list(range(n, 2 * n)))  # +x cap
     return pts, faces
 
 
@@ -408,5 +448,6 @@ def fit_prop(rig: BodyRig, g: Garment) -> FittedGarment:
     centres = _face_centres(points, counts, indices)
     near = rig.surface.closest(centres)
     regions = rig.face_regions[rig.triangle_face[near.triangle]].astype(np.int32)
-    return FittedGarment(g, points, counts, indices, triangulate(counts, indices), idx, w,
-                         regions, np.zeros(n, dtype=int))
+    return FittedGarment(
+        g, points, counts, indices, triangulate(counts, indices), idx, w, regions, np.zeros(n, dtype=int)
+    )

@@ -1,6 +1,6 @@
 """Clothing tool → layers/clothing_<id>.usda: the garments a person wears, skinned, with air gaps.
 
-For each garment of ``human["clothing"]`` (names of :data:`humv_usd.clothing.garments.GARMENTS`)::
+For each garment of ``human["clothing"]`` (names of :data:`humv_usd.catalog.garments.GARMENTS`)::
 
     over /World/Humans/<id>                   the avatar layer's SkelRoot (its label: garments
                                               inherit the person's instance id and class)
@@ -43,25 +43,25 @@ frames and int[] per frame), so a pipeline can fail on ``insideAfterMax > 0``; w
 rifle also the vertices nearer than the minimum gap to it before/after (``propBeforeMax``,
 ``propAfterMax``).
 """
+
 from __future__ import annotations
 
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
 
-from humv_usd.avatar import labels as L
-from humv_usd.avatar import usdskel
-from humv_usd.avatar.body import Body, build_body
-from humv_usd.avatar.layer import human_path, skeleton_path
-from humv_usd.avatar.skeleton import Skeleton, skeleton_for, skinning_matrices
+from humv_usd.catalog.garments import garment
 from humv_usd.clothing.collide import Simulation, dress, simulate
 from humv_usd.clothing.fit import prepare
-from humv_usd.clothing.garments import fabrics, garment
-from humv_usd.materials.layer import material_path
+from humv_usd.human import labels as L
+from humv_usd.human import usdskel
+from humv_usd.human.body import Body, build_body
+from humv_usd.human.skeleton import Skeleton, skeleton_for, skinning_matrices
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.ids import instance_ids
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
-from humv_usd.scene.layer import instance_ids
 from humv_usd.usd.mesh import define_mesh, label
+from humv_usd.usd.paths import clothing_path, human_path, material_path, props_path, skeleton_path
 
 NAME = "clothing"
 READS = ("general", "human", "placement")
@@ -71,16 +71,8 @@ def layer_name(human_id: str) -> str:
     return f"{NAME}_{human_id}"
 
 
-def clothing_path(human_id: str) -> Sdf.Path:
-    return human_path(human_id).AppendChild("Clothing")
-
-
 def garment_path(human_id: str, garment: str) -> Sdf.Path:
     return clothing_path(human_id).AppendChild(garment)
-
-
-def props_path(human_id: str) -> Sdf.Path:
-    return human_path(human_id).AppendChild("Props")
 
 
 def prop_path(human_id: str, prop: str) -> Sdf.Path:
@@ -88,8 +80,9 @@ def prop_path(human_id: str, prop: str) -> Sdf.Path:
 
 
 # ---------------------------------------------------------------------------- motion input
-def world_transforms_from_stage(stage: Usd.Stage, human_id: str, skeleton: Skeleton,
-                                frame_count: int, fps: float) -> np.ndarray | None:
+def world_transforms_from_stage(
+    stage: Usd.Stage, human_id: str, skeleton: Skeleton, frame_count: int, fps: float
+) -> np.ndarray | None:
     """(F, J, 4, 4) column-vector joint transforms in skeleton space, per frame, of the
     avatar's UsdSkel Skeleton on ``stage`` (whatever animation the avatar layer bound); None if
     the stage has no such skeleton. F = 1 when the pose does not change over the frames.
@@ -103,34 +96,41 @@ def world_transforms_from_stage(stage: Usd.Stage, human_id: str, skeleton: Skele
     skel = UsdSkel.Skeleton(prim)
     joints = list(skel.GetJointsAttr().Get() or [])
     if joints != skeleton.paths:
-        raise ValueError(f"{prim.GetPath()}: joints differ from the CMU rig's "
-                         f"({len(joints)} vs {len(skeleton.paths)})")
+        raise ValueError(
+            f"{prim.GetPath()}: joints differ from the CMU rig's ({len(joints)} vs {len(skeleton.paths)})"
+        )
     cache = UsdSkel.Cache()
-    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath(human_path(human_id))),
-                   Usd.PrimDefaultPredicate)
+    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath(human_path(human_id))), Usd.PrimDefaultPredicate)
     query = cache.GetSkelQuery(skel)
     out = np.empty((max(frame_count, 1), len(joints), 4, 4))
     scale = stage.GetTimeCodesPerSecond() / fps
     for f in range(len(out)):
-        m = np.asarray(query.ComputeJointSkelTransforms(Usd.TimeCode(f * scale)),
-                       dtype=np.float64)
-        out[f] = np.transpose(m, (0, 2, 1))        # Gf row-vector -> column-vector
+        m = np.asarray(query.ComputeJointSkelTransforms(Usd.TimeCode(f * scale)), dtype=np.float64)
+        out[f] = np.transpose(m, (0, 2, 1))  # Gf row-vector -> column-vector
     if np.allclose(out, out[:1], atol=1e-9):
         return out[:1]
     return out
 
 
 # ---------------------------------------------------------------------------- authoring
-def build_for_human(human: dict, body: Body, skeleton: Skeleton | None,
-                    motion_world_transforms: np.ndarray | None, garments, fps: float,
-                    frame_count: int, *, simulation_out: list | None = None,
-                    prop_ids: dict[str, int] | None = None) -> Sdf.Layer:
+def build_for_human(
+    human: dict,
+    body: Body,
+    skeleton: Skeleton | None,
+    motion_world_transforms: np.ndarray | None,
+    garments,
+    fps: float,
+    frame_count: int,
+    *,
+    simulation_out: list | None = None,
+    prop_ids: dict[str, int] | None = None,
+) -> Sdf.Layer:
     """The clothing layer of one person.
 
     human: the ``[[human]]`` table (``id`` is used); body: :func:`build_body`'s result for that
     person; skeleton: :func:`skeleton_for` of the body (None: computed);
     motion_world_transforms: (F, J, 4, 4) joint transforms in skeleton space
-    (:func:`humv_usd.avatar.skeleton.forward_kinematics`), frame i at time code i, or None for
+    (:func:`humv_usd.human.skeleton.forward_kinematics`), frame i at time code i, or None for
     the rest pose; garments: catalogue names; fps, frame_count: the scenario's.
     ``simulation_out``: if a list, the :class:`~humv_usd.clothing.collide.Simulation` is
     appended (counts, timings) for reports and benchmarks. ``prop_ids``: instance id per
@@ -144,10 +144,11 @@ def build_for_human(human: dict, body: Body, skeleton: Skeleton | None,
     else:
         world = np.asarray(motion_world_transforms, dtype=np.float64)
         if world.ndim != 4 or world.shape[1:] != (len(skeleton.names), 4, 4):
-            raise ValueError(f"motion_world_transforms must be (F, {len(skeleton.names)}, 4, 4),"
-                             f" got {world.shape}")
-        world = world[:max(frame_count, 1)]
-        if np.allclose(world, world[:1], atol=1e-9):     # does not move: one pose
+            raise ValueError(
+                f"motion_world_transforms must be (F, {len(skeleton.names)}, 4, 4), got {world.shape}"
+            )
+        world = world[: max(frame_count, 1)]
+        if np.allclose(world, world[:1], atol=1e-9):  # does not move: one pose
             world = world[:1]
     outfit = dress(rig, list(garments))
     sim = simulate(outfit, skinning_matrices(skeleton, world), fps=fps)
@@ -156,12 +157,14 @@ def build_for_human(human: dict, body: Body, skeleton: Skeleton | None,
     return author(human["id"], sim, fps, frame_count, prop_ids)
 
 
-def author(human_id: str, sim: Simulation, fps: float, frame_count: int,
-           prop_ids: dict[str, int] | None = None) -> Sdf.Layer:
+def author(
+    human_id: str, sim: Simulation, fps: float, frame_count: int, prop_ids: dict[str, int] | None = None
+) -> Sdf.Layer:
     """Write a :class:`Simulation` of one person's garments as a layer (see module doc)."""
     names = ", ".join(a.name for a in sim.garments)
-    stage = new_layer_stage(fps, frame_count,
-                            f"HumV-USD clothing layer for {human_id}: {names or 'no garments'}")
+    stage = new_layer_stage(
+        fps, frame_count, f"HumV-USD clothing layer for {human_id}: {names or 'no garments'}"
+    )
     stage.OverridePrim(SCOPES["humans"])
     stage.OverridePrim(human_path(human_id))
     garments = [a for a in sim.garments if not a.fitted.garment.is_prop]
@@ -187,8 +190,14 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
     frames = anim.rest.shape[0]
     static = frames == 1
     default_points = anim.rest[0] if static else fitted.points
-    mesh = define_mesh(stage, garment_path(human_id, g.name), default_points, fitted.face_counts,
-                       fitted.face_indices, material=material_path(g.fabric))
+    mesh = define_mesh(
+        stage,
+        garment_path(human_id, g.name),
+        default_points,
+        fitted.face_counts,
+        fitted.face_indices,
+        material=material_path(g.fabric),
+    )
     # an open shell: seen through sleeves, collars and hems, its inside must render too
     mesh.GetDoubleSidedAttr().Set(True)
     prim = mesh.GetPrim()
@@ -197,8 +206,8 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
     prim.GetAttribute(S.CLOTHING_EASE).Set(float(g.ease))
     prim.GetAttribute(S.CLOTHING_MINIMUM_GAP).Set(float(g.minimum_gap))
     gap = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
-        S.AIR_GAP_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray,
-        UsdGeom.Tokens.vertex)
+        S.AIR_GAP_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
+    )
     points = mesh.GetPointsAttr()
     if static:
         gap.Set(Vt.FloatArray.FromNumpy(anim.air_gap[0].astype(np.float32)))
@@ -212,45 +221,56 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
         mesh.GetExtentAttr().Set(Vt.Vec3fArray.FromNumpy(np.array([lo, hi], dtype=np.float32)))
     usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
     regions = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
-        L.BODY_REGION_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.IntArray,
-        UsdGeom.Tokens.uniform)
+        L.BODY_REGION_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
+    )
     regions.Set(Vt.IntArray.FromNumpy(fitted.face_regions.astype(np.int32)))
-    regions.GetAttr().SetDocumentation("body region under each garment face (ids as the Body's "
-                                       "humv:label:bodyRegionNames)")
-    prim.CreateAttribute(L.BODY_REGION_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray,
-                         custom=True).Set(Vt.TokenArray(list(L.BODY_REGION_NAMES)))
+    regions.GetAttr().SetDocumentation(
+        "body region under each garment face (ids as the Body's humv:label:bodyRegionNames)"
+    )
+    prim.CreateAttribute(L.BODY_REGION_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
+        Vt.TokenArray(list(L.BODY_REGION_NAMES))
+    )
     c = anim.counts
-    prim.SetCustomDataByKey("humv:clothing:fix", {
-        "frames": frames,
-        "insideBeforeMax": max(x.inside_before for x in c),
-        "closeBeforeMax": max(x.close_before for x in c),
-        "layeredBeforeMax": max(x.layered_before for x in c),
-        "insideAfterMax": max(x.inside_after for x in c),
-        "closeAfterMax": max(x.close_after for x in c),
-        "layeredAfterMax": max(x.layered_after for x in c),
-        "propBeforeMax": max(x.prop_before for x in c),
-        "propAfterMax": max(x.prop_after for x in c),
-        # between the vertices (edge midpoints, triangle centroids)
-        "betweenInsideBeforeMax": max(x.between_inside_before for x in c),
-        "betweenCloseBeforeMax": max(x.between_close_before for x in c),
-        "betweenInsideAfterMax": max(x.between_inside_after for x in c),
-        "betweenCloseAfterMax": max(x.between_close_after for x in c),
-        "minDistance_m": round(min(x.min_distance_m for x in c), 6),
-        "airGapMin_m": round(float(anim.air_gap.min()), 6),
-        "airGapMedian_m": round(float(np.median(anim.air_gap)), 6),
-        # per frame (index = time code)
-        "insideBefore": Vt.IntArray([x.inside_before for x in c]),
-        "closeBefore": Vt.IntArray([x.close_before for x in c]),
-        "insideAfter": Vt.IntArray([x.inside_after for x in c]),
-        "closeAfter": Vt.IntArray([x.close_after for x in c]),
-    })
+    prim.SetCustomDataByKey(
+        "humv:clothing:fix",
+        {
+            "frames": frames,
+            "insideBeforeMax": max(x.inside_before for x in c),
+            "closeBeforeMax": max(x.close_before for x in c),
+            "layeredBeforeMax": max(x.layered_before for x in c),
+            "insideAfterMax": max(x.inside_after for x in c),
+            "closeAfterMax": max(x.close_after for x in c),
+            "layeredAfterMax": max(x.layered_after for x in c),
+            "propBeforeMax": max(x.prop_before for x in c),
+            "propAfterMax": max(x.prop_after for x in c),
+            # between the vertices (edge midpoints, triangle centroids)
+            "betweenInsideBeforeMax": max(x.between_inside_before for x in c),
+            "betweenCloseBeforeMax": max(x.between_close_before for x in c),
+            "betweenInsideAfterMax": max(x.between_inside_after for x in c),
+            "betweenCloseAfterMax": max(x.between_close_after for x in c),
+            "minDistance_m": round(min(x.min_distance_m for x in c), 6),
+            "airGapMin_m": round(float(anim.air_gap.min()), 6),
+            "airGapMedian_m": round(float(np.median(anim.air_gap)), 6),
+            # per frame (index = time code)
+            "insideBefore": Vt.IntArray([x.inside_before for x in c]),
+            "closeBefore": Vt.IntArray([x.close_before for x in c]),
+            "insideAfter": Vt.IntArray([x.inside_after for x in c]),
+            "closeAfter": Vt.IntArray([x.close_after for x in c]),
+        },
+    )
 
 
 def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None) -> None:
     fitted = anim.fitted
     g = fitted.garment
-    mesh = define_mesh(stage, prop_path(human_id, g.name), fitted.points, fitted.face_counts,
-                       fitted.face_indices, material=material_path(g.fabric))
+    mesh = define_mesh(
+        stage,
+        prop_path(human_id, g.name),
+        fitted.points,
+        fitted.face_counts,
+        fitted.face_indices,
+        material=material_path(g.fabric),
+    )
     prim = mesh.GetPrim()
     usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
     if instance_id is None:
@@ -259,24 +279,27 @@ def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None)
         label(prim, instance_id, "prop")
     c = anim.counts
     info = {
-        "catalogue": g.name, "joint": g.prop.joint, "placement": g.prop.placement,
+        "catalogue": g.name,
+        "joint": g.prop.joint,
+        "placement": g.prop.placement,
         "frames": len(c),
         "insideMax": max(x.inside_before for x in c),
         "restMinDistance_m": round(c[0].min_distance_m, 6),
         "minDistance_m": round(min(x.min_distance_m for x in c), 6),
     }
-    if anim.clearance is not None:      # the carry's clearance from the body, per frame
-        info.update({
-            "bodyClearanceMin_m": round(float(anim.clearance.min()), 6),
-            "bodyVerticesInsideMax": int(anim.body_inside.max()),
-            "bodyClearance_m": Vt.FloatArray([round(float(x), 6) for x in anim.clearance]),
-            "bodyVerticesInside": Vt.IntArray([int(x) for x in anim.body_inside]),
-        })
+    if anim.clearance is not None:  # the carry's clearance from the body, per frame
+        info.update(
+            {
+                "bodyClearanceMin_m": round(float(anim.clearance.min()), 6),
+                "bodyVerticesInsideMax": int(anim.body_inside.max()),
+                "bodyClearance_m": Vt.FloatArray([round(float(x), 6) for x in anim.clearance]),
+                "bodyVerticesInside": Vt.IntArray([int(x) for x in anim.body_inside]),
+            }
+        )
     prim.SetCustomDataByKey("humv:prop", info)
 
 
-def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None,
-              garments=None) -> Sdf.Layer:
+def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None, garments=None) -> Sdf.Layer:
     """layers/clothing_<id>.usda for one ``[[human]]``.
 
     The body is rebuilt from the scenario (deterministic, as the avatar layer builds it); the
@@ -287,19 +310,26 @@ def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None
     """
     g = scenario["general"]
     names = list(human.get("clothing") or []) if garments is None else list(garments)
-    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"],
-                      human["build"])
+    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"], human["build"])
     skeleton = skeleton_for(body.points, body.groups)
-    world = (world_transforms_from_stage(upstream, human["id"], skeleton, scenario.frame_count,
-                                         g["fps"]) if upstream is not None else None)
+    world = (
+        world_transforms_from_stage(upstream, human["id"], skeleton, scenario.frame_count, g["fps"])
+        if upstream is not None
+        else None
+    )
     ids = instance_ids(scenario)
-    props = {garment(n).name: ids[f"prop:{human['id']}:{garment(n).name}"] for n in names
-             if garment(n).is_prop and f"prop:{human['id']}:{garment(n).name}" in ids}
-    return build_for_human(human, body, skeleton, world, names, g["fps"], scenario.frame_count,
-                           prop_ids=props)
+    props = {
+        garment(n).name: ids[f"prop:{human['id']}:{garment(n).name}"]
+        for n in names
+        if garment(n).is_prop and f"prop:{human['id']}:{garment(n).name}" in ids
+    }
+    return build_for_human(
+        human, body, skeleton, world, names, g["fps"], scenario.frame_count, prop_ids=props
+    )
 
 
 def build(scenario: Scenario, upstream: Usd.Stage | None = None) -> dict[str, Sdf.Layer]:
     """One layer per person who wears anything: {``clothing_<id>``: layer}."""
-    return {layer_name(h["id"]): build_one(scenario, h, upstream)
-            for h in scenario["human"] if h.get("clothing")}
+    return {
+        layer_name(h["id"]): build_one(scenario, h, upstream) for h in scenario["human"] if h.get("clothing")
+    }

@@ -7,14 +7,16 @@ the site (pvlib ``lookup_linke_turbidity``). Clouds: Kasten & Czeplak (1980).
 
 Stage frame: x east, y north, z up; azimuth is a compass angle (0 = north, 90 = east).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from humv_usd.environment.weather import Weather, frame_epoch_s, weather_at
+from humv_usd.environment.weather import Weather, weather_at
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.times import frame_epoch_s
 
 
 @dataclass
@@ -76,7 +78,7 @@ def cloud_reduction(ghi_clear, dhi_clear, zenith_deg, cloud_cover):
     n = np.clip(np.asarray(cloud_cover, dtype=float), 0.0, 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         kd_clear = np.where(ghi_c > 0, np.asarray(dhi_clear, dtype=float) / ghi_c, 1.0)
-    ghi = ghi_c * (1.0 - 0.75 * n ** 3.4)
+    ghi = ghi_c * (1.0 - 0.75 * n**3.4)
     dhi = ghi * np.clip(kd_clear + (1.0 - kd_clear) * n * n, 0.0, 1.0)
     cosz = np.cos(np.radians(np.asarray(zenith_deg, dtype=float)))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -87,6 +89,7 @@ def cloud_reduction(ghi_clear, dhi_clear, zenith_deg, cloud_cover):
 def utc_times(scenario: Scenario, times_s):
     """pandas DatetimeIndex (UTC) of ``times_s`` seconds after frame 0."""
     import pandas as pd
+
     t = frame_epoch_s(scenario) + np.atleast_1d(np.asarray(times_s, dtype=float))
     return pd.to_datetime(t, unit="s", utc=True)
 
@@ -131,9 +134,9 @@ def sun_at(scenario: Scenario, times_s, weather: Weather | None = None) -> SunSt
     w = weather if weather is not None else weather_at(scenario, t)
     idx = utc_times(scenario, t)
     lat, lon, elev = g["latitude_deg"], g["longitude_deg"], g["elevation_m"]
-    sp = pvlib.solarposition.spa_python(idx, lat, lon, altitude=elev,
-                                        pressure=w.pressure_pa,
-                                        temperature=w.air_temperature_k - 273.15)
+    sp = pvlib.solarposition.spa_python(
+        idx, lat, lon, altitude=elev, pressure=w.pressure_pa, temperature=w.air_temperature_k - 273.15
+    )
     zen = sp["apparent_zenith"].to_numpy(dtype=float)
     azi = sp["azimuth"].to_numpy(dtype=float) % 360.0
     up = sp["apparent_elevation"].to_numpy(dtype=float) > 0.0
@@ -149,5 +152,13 @@ def sun_at(scenario: Scenario, times_s, weather: Weather | None = None) -> SunSt
         cs = pvlib.clearsky.ineichen(zen[u], am_abs, tl, altitude=elev, dni_extra=dni_extra)
         cg, cd = (np.nan_to_num(np.asarray(cs[k], dtype=float)) for k in ("ghi", "dhi"))
         ghi[u], dhi[u], dni[u] = cloud_reduction(cg, cd, zen[u], w.cloud_cover[u])
-    return SunState(times_s=t, zenith_deg=zen, azimuth_deg=azi, direction=sun_direction(zen, azi),
-                    dni_w_m2=dni, dhi_w_m2=dhi, ghi_w_m2=ghi, up=up)
+    return SunState(
+        times_s=t,
+        zenith_deg=zen,
+        azimuth_deg=azi,
+        direction=sun_direction(zen, azi),
+        dni_w_m2=dni,
+        dhi_w_m2=dhi,
+        ghi_w_m2=ghi,
+        up=up,
+    )

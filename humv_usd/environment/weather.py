@@ -7,6 +7,7 @@ left out take the constant ``[atmosphere]`` value. Values are interpolated linea
 direction through its east/north components, so 350 deg and 10 deg average to 0 deg, not 180);
 frame times outside the series are an input error rather than an extrapolation.
 """
+
 from __future__ import annotations
 
 import csv
@@ -20,10 +21,17 @@ import numpy as np
 from humv_usd.errors import InputError, bad_value
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.spec import ATMOSPHERE
+from humv_usd.scenario.times import frame_epoch_s
 
 #: weather quantities: Weather field = [atmosphere] key = CSV column
-COLUMNS = ("air_temperature_k", "relative_humidity", "wind_speed_m_s", "wind_direction_deg",
-           "pressure_pa", "cloud_cover")
+COLUMNS = (
+    "air_temperature_k",
+    "relative_humidity",
+    "wind_speed_m_s",
+    "wind_direction_deg",
+    "pressure_pa",
+    "cloud_cover",
+)
 
 
 @dataclass
@@ -51,13 +59,6 @@ class Weather:
         return any(np.ptp(getattr(self, k)) > 0 for k in COLUMNS if len(getattr(self, k)))
 
 
-def frame_epoch_s(scenario: Scenario) -> float:
-    """UTC POSIX time [s] of frame 0 (local ``general.start`` minus ``utc_offset_h``)."""
-    g = scenario["general"]
-    tz = dt.timezone(dt.timedelta(hours=g["utc_offset_h"]))
-    return g["start"].replace(tzinfo=tz).timestamp()
-
-
 def _parse_time(text: str, tz: dt.timezone) -> float:
     t = dt.datetime.fromisoformat(text.strip())
     if t.tzinfo is None:
@@ -82,13 +83,15 @@ def read_weather_csv(path: str | Path, scenario: Scenario) -> tuple[np.ndarray, 
         raise InputError(bad_value(where, str(path), f"cannot read ({e.strerror})")) from None
     rows = [r for r in rows if r and any(c.strip() for c in r)]
     if len(rows) < 2:
-        raise InputError(bad_value(where, str(path), "expected a header row and at least one "
-                                   "data row"))
+        raise InputError(bad_value(where, str(path), "expected a header row and at least one data row"))
     header = [c.strip() for c in rows[0]]
     if "time" not in header:
         raise InputError(bad_value(where, str(path), "header needs a 'time' column"))
-    problems = [bad_value(f"{where} column", c, "allowed columns: time, " + ", ".join(COLUMNS))
-                for c in header if c != "time" and c not in COLUMNS]
+    problems = [
+        bad_value(f"{where} column", c, "allowed columns: time, " + ", ".join(COLUMNS))
+        for c in header
+        if c != "time" and c not in COLUMNS
+    ]
     if len(set(header)) != len(header):
         problems.append(bad_value(f"{where} header", ",".join(header), "columns must be unique"))
     if problems:
@@ -96,16 +99,20 @@ def read_weather_csv(path: str | Path, scenario: Scenario) -> tuple[np.ndarray, 
     times, values = [], {c: [] for c in header if c != "time"}
     for n, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):
-            problems.append(bad_value(f"{where} line {n}", ",".join(row),
-                                      f"expected {len(header)} fields"))
+            problems.append(bad_value(f"{where} line {n}", ",".join(row), f"expected {len(header)} fields"))
             continue
         for c, text in zip(header, row):
             if c == "time":
                 try:
                     times.append(_parse_time(text, tz))
                 except ValueError:
-                    problems.append(bad_value(f"{where} line {n} time", text,
-                                              "expected an ISO date-time, e.g. 2018-10-24T14:00:00"))
+                    problems.append(
+                        bad_value(
+                            f"{where} line {n} time",
+                            text,
+                            "expected an ISO date-time, e.g. 2018-10-24T14:00:00",
+                        )
+                    )
                     times.append(math.nan)
                 continue
             key = ATMOSPHERE.keys[c]
@@ -114,8 +121,9 @@ def read_weather_csv(path: str | Path, scenario: Scenario) -> tuple[np.ndarray, 
             except ValueError:
                 v = math.nan
             if not (math.isfinite(v) and key.lo <= v <= key.hi):
-                problems.append(bad_value(f"{where} line {n} {c}", text,
-                                          f"expected a number in {key.lo}..{key.hi}"))
+                problems.append(
+                    bad_value(f"{where} line {n} {c}", text, f"expected a number in {key.lo}..{key.hi}")
+                )
             values[c].append(v)
     t = np.asarray(times, dtype=float)
     if not problems and np.any(np.diff(t) <= 0):
@@ -149,10 +157,15 @@ def weather_at(scenario: Scenario, times_s) -> Weather:
         ts, series = read_weather_csv(path, scenario)
         abs_t = frame_epoch_s(scenario) + t
         if len(t) and (abs_t.min() < ts[0] - 1e-6 or abs_t.max() > ts[-1] + 1e-6):
-            first = dt.datetime.fromtimestamp(ts[0], dt.timezone.utc).isoformat()
-            last = dt.datetime.fromtimestamp(ts[-1], dt.timezone.utc).isoformat()
-            raise InputError(bad_value("atmosphere.weather_csv", str(path),
-                                       f"series covers {first} .. {last} UTC, not every frame"))
+            first = dt.datetime.fromtimestamp(ts[0], dt.UTC).isoformat()
+            last = dt.datetime.fromtimestamp(ts[-1], dt.UTC).isoformat()
+            raise InputError(
+                bad_value(
+                    "atmosphere.weather_csv",
+                    str(path),
+                    f"series covers {first} .. {last} UTC, not every frame",
+                )
+            )
         for k, v in series.items():
             if k == "wind_direction_deg":
                 rad = np.radians(v)

@@ -7,6 +7,7 @@ channels for the EXR plus the per-object annotations (also written next to the f
 ``<frame>.objects.json`` and the PNG masks); :meth:`GroundTruth.finish` writes ``coco.json`` and
 ``regions.json`` and returns the manifest's ``ground_truth`` section (what ran and what it cost).
 """
+
 from __future__ import annotations
 
 import os
@@ -16,22 +17,23 @@ from dataclasses import dataclass, field
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from humv_usd import images as writers
 from humv_usd.errors import InputError
+from humv_usd.fileio import write_json
+from humv_usd.geometry.camera import Camera
 from humv_usd.groundtruth import annotators as A
 from humv_usd.groundtruth import boxes as B
 from humv_usd.groundtruth import keypoints as K
 from humv_usd.groundtruth import labels as L
 from humv_usd.groundtruth import regions as R
-from humv_usd.groundtruth.camera import Camera
 from humv_usd.groundtruth.coco import CocoBuilder
-from humv_usd.render import writers
 
 #: EXR channels this package adds, with units (depth and instance_id are the render's).
 CHANNELS = {
     "class_id": "1 (integer; humv_usd.groundtruth.labels.CLASSES: 0 background, 1 person, 2 ground, "
-                "3 building, 4 prop, 5 panel, 6 vegetation, 7 vehicle, 8 other)",
+    "3 building, 4 prop, 5 panel, 6 vegetation, 7 vehicle, 8 other)",
     "material_kind": "1 (integer; 0 background, 1 skin, 2 garment, 3 prop, 4 scene)",
-    "body_region": "1 (integer; humv_usd.avatar.labels.BODY_REGIONS ids, 0 = not the body)",
+    "body_region": "1 (integer; humv_usd.human.labels.BODY_REGIONS ids, 0 = not the body)",
     "jos3_segment": "1 (integer; 0-based JOS-3 segment, -1 = none)",
     "normal_x": "1 (world space, x east; unit geometric normal of the hit triangle, front side; 0 for sky)",
     "normal_y": "1 (world space, y north)",
@@ -39,9 +41,12 @@ CHANNELS = {
     "surface_temperature": "K (kinetic temperature of the hit face; NaN for sky)",
     "emissivity": "1 (band emissivity of the hit material for this sensor; NaN for sky)",
 }
-_CHANNELS_OF = {"semantic": ("class_id", "material_kind"), "body_region": ("body_region", "jos3_segment"),
-                "normal": ("normal_x", "normal_y", "normal_z"),
-                "surface": ("surface_temperature", "emissivity")}
+_CHANNELS_OF = {
+    "semantic": ("class_id", "material_kind"),
+    "body_region": ("body_region", "jos3_segment"),
+    "normal": ("normal_x", "normal_y", "normal_z"),
+    "surface": ("surface_temperature", "emissivity"),
+}
 COCO_NAME = "coco.json"
 
 
@@ -79,7 +84,10 @@ class GroundTruth:
         if annotators is None:
             self.annotators, self.source = A.from_stage(stage)
         else:
-            self.annotators, self.source = A.resolve(list(annotators) if not isinstance(annotators, str) else annotators), "argument"
+            self.annotators, self.source = (
+                A.resolve(list(annotators) if not isinstance(annotators, str) else annotators),
+                "argument",
+            )
         self.want = set(self.annotators)
         self.timings = dict.fromkeys(("ray_cast",) + self.annotators, 0.0)
         self._mesh_labels: dict[str, L.MeshLabels] = {}
@@ -87,8 +95,8 @@ class GroundTruth:
         self._keypoint_prims = None
         self.coco = CocoBuilder() if "coco" in self.want else None
         self.images: list[dict] = []
-        self._region_records: list[dict] = []   # per image, from image_written (no re-read)
-        self._regions_done: set[str] = set()      # EXRs whose region records are in memory
+        self._region_records: list[dict] = []  # per image, from image_written (no re-read)
+        self._regions_done: set[str] = set()  # EXRs whose region records are in memory
 
     def _tick(self, name, t0):
         t = time.perf_counter()
@@ -107,7 +115,9 @@ class GroundTruth:
         return self._objects[mesh_path]
 
     # --- per sensor and frame ----------------------------------------------------------------
-    def annotate(self, scene, sensor_id: str, sensor, state, emissivity_of, out_dir: str, rel: str) -> ImageTruth:
+    def annotate(
+        self, scene, sensor_id: str, sensor, state, emissivity_of, out_dir: str, rel: str
+    ) -> ImageTruth:
         """Labels of one sensor at one frame.
 
         ``scene`` is the render's :class:`~humv_usd.render.ir.IRScene`, ``sensor`` the
@@ -126,7 +136,11 @@ class GroundTruth:
         if want & {"semantic", "body_region", "surface", "keypoints", "masks"}:
             meshes = {m.path: m for m in state.meshes}
             labels = {path: self._labels(m) for path, m in meshes.items()}
-            eps = [_safe_emissivity(emissivity_of, p) for p in parts] if "surface" in want else [np.nan] * len(parts)
+            eps = (
+                [_safe_emissivity(emissivity_of, p) for p in parts]
+                if "surface" in want
+                else [np.nan] * len(parts)
+            )
             tables = L.PartTables(parts, labels, state.temperatures, eps)
             images = tables.images(hits.part, hits.triangle)
             t = self._tick("label_tables", t)
@@ -143,20 +157,27 @@ class GroundTruth:
         camera = Camera.from_pose(state.cameras[sensor.name], w, h)
         if "masks" in want:
             writers.write_png(os.path.join(out_dir, rel + ".instance.png"), L.colour_instances(hits.instance))
-            writers.write_png(os.path.join(out_dir, rel + ".region.png"), L.colour_regions(images["body_region"]))
-            writers.write_png(os.path.join(out_dir, rel + ".region_ids.png"),
-                              np.asarray(images["body_region"], dtype=np.uint8))
+            writers.write_png(
+                os.path.join(out_dir, rel + ".region.png"), L.colour_regions(images["body_region"])
+            )
+            writers.write_png(
+                os.path.join(out_dir, rel + ".region_ids.png"),
+                np.asarray(images["body_region"], dtype=np.uint8),
+            )
             t = self._tick("masks", t)
         objects = []
         if want & {"boxes", "keypoints", "occlusion", "coco"}:
             objects = self._objects_of(scene, tables, parts, state, camera, hits, sensor)
         if want & {"boxes", "keypoints", "occlusion"}:
-            writers.write_json(os.path.join(out_dir, rel + ".objects.json"), {
-                "sensor": sensor.name, "frame": state.frame, "width": w, "height": h, "objects": objects})
+            write_json(
+                os.path.join(out_dir, rel + ".objects.json"),
+                {"sensor": sensor.name, "frame": state.frame, "width": w, "height": h, "objects": objects},
+            )
         if self.coco is not None:
             t = time.perf_counter()
-            image_id = self.coco.add_image(rel + ".png", w, h, humv_sensor=sensor.name, humv_frame=state.frame,
-                                           humv_exr=rel + ".exr")
+            image_id = self.coco.add_image(
+                rel + ".png", w, h, humv_sensor=sensor.name, humv_frame=state.frame, humv_exr=rel + ".exr"
+            )
             for obj in objects:
                 self.coco.add_object(image_id, hits.instance == obj["instance_id"], obj)
             self._tick("coco", t)
@@ -172,8 +193,11 @@ class GroundTruth:
         t = time.perf_counter()
         exr = rel + ".exr"
         item = next(i for i in reversed(self.images) if i["exr"] == exr)
-        stored = {k: np.asarray(v, dtype=np.float32).astype(np.float64)
-                  for k, v in channels.items() if np.ndim(v) == 2}
+        stored = {
+            k: np.asarray(v, dtype=np.float32).astype(np.float64)
+            for k, v in channels.items()
+            if np.ndim(v) == 2
+        }
         self._region_records += [{**item, **person} for person in R.image_regions(stored)]
         self._regions_done.add(exr)
         self._tick("regions", t)
@@ -206,8 +230,12 @@ class GroundTruth:
         for ident, ps in sorted(by_id.items()):
             info = min((self._object(p.mesh_path) for p in ps), key=lambda o: len(o.prim))
             mask = hits.instance == ident
-            obj = {"instance_id": ident, "class": info.class_name, "prim": info.prim,
-                   "visible_pixels": int(mask.sum())}
+            obj = {
+                "instance_id": ident,
+                "class": info.class_name,
+                "prim": info.prim,
+                "visible_pixels": int(mask.sum()),
+            }
             box_full = None
             if want & {"boxes", "occlusion", "coco"}:
                 t = time.perf_counter()
@@ -230,7 +258,9 @@ class GroundTruth:
                 if "occlusion" in want:
                     unoccluded = B.unoccluded_mask(camera, verts, tris, box_full, visible=mask)
                     obj["unoccluded_pixels"] = int(unoccluded.sum())
-                    obj["occlusion"] = B.occlusion_fraction(int((mask & unoccluded).sum()), int(unoccluded.sum()))
+                    obj["occlusion"] = B.occlusion_fraction(
+                        int((mask & unoccluded).sum()), int(unoccluded.sum())
+                    )
                     t = self._tick("occlusion", t)
             if "keypoints" in want and info.class_name == "person":
                 t = time.perf_counter()
@@ -238,7 +268,9 @@ class GroundTruth:
                 if kp is None:
                     obj["keypoints"] = [0.0, 0.0, 0] * 17
                 else:
-                    vis = K.keypoint_visibility(camera, kp, ident, lambda d: self._first_hit(scene, camera, tables, d))
+                    vis = K.keypoint_visibility(
+                        camera, kp, ident, lambda d: self._first_hit(scene, camera, tables, d)
+                    )
                     obj["keypoints"] = vis["keypoints"]
                     obj["keypoints_world_m"] = kp.tolist()
                     obj["keypoints_depth_m"] = vis["depth_m"].tolist()
@@ -273,19 +305,27 @@ class GroundTruth:
         if self.want & {"boxes", "keypoints", "occlusion"}:
             per_frame.append("<frame>.objects.json")
         return {
-            "annotators": list(self.annotators), "source": self.source,
+            "annotators": list(self.annotators),
+            "source": self.source,
             "available": list(A.ANNOTATORS),
-            "channels": {c: CHANNELS[c] for name, chans in _CHANNELS_OF.items() if name in self.want for c in chans},
-            "files": files, "per_frame_files": per_frame,
+            "channels": {
+                c: CHANNELS[c] for name, chans in _CHANNELS_OF.items() if name in self.want for c in chans
+            },
+            "files": files,
+            "per_frame_files": per_frame,
             "labels": "one ray per pixel centre from the render's own Mitsuba sensor (exact, no Monte Carlo)",
             "keypoint_visibility": {"tolerance_m": K.KEYPOINT_TOLERANCE_M, "regions": K.KEYPOINT_REGIONS},
             "timings_s": {**self.timings, "total": total},
             "timings_note": "ray_cast: the pixel-centre ray cast (depth, instance_id, normals); semantic, "
-                            "body_region and surface channels come from one table lookup (label_tables); "
-                            "per-frame PNG/JSON writes are in their annotator's time",
+            "body_region and surface channels come from one table lookup (label_tables); "
+            "per-frame PNG/JSON writes are in their annotator's time",
             "cost_relative_to_render": (total / render_seconds) if render_seconds else None,
         }
 
     def channel_units(self) -> dict:
-        return {c: {"unit": CHANNELS[c], "dtype": "float32"}
-                for name, chans in _CHANNELS_OF.items() if name in self.want for c in chans}
+        return {
+            c: {"unit": CHANNELS[c], "dtype": "float32"}
+            for name, chans in _CHANNELS_OF.items()
+            if name in self.want
+            for c in chans
+        }

@@ -6,6 +6,7 @@ the root layer's ``customLayerData`` under :data:`STAGE_KEY` (the render reads o
 requested annotators are computed. ``depth`` and ``instance_id`` are always written (they come
 with the ray cast the render already makes).
 """
+
 from __future__ import annotations
 
 from humv_usd.errors import InputError, bad_value
@@ -13,19 +14,19 @@ from humv_usd.errors import InputError, bad_value
 #: Annotator name -> what it produces.
 ANNOTATORS: dict[str, str] = {
     "semantic": "EXR channels class_id and material_kind",
-    "body_region": "EXR channels body_region (ids of humv_usd.avatar.labels.BODY_REGIONS) and jos3_segment",
+    "body_region": "EXR channels body_region (ids of humv_usd.human.labels.BODY_REGIONS) and jos3_segment",
     "normal": "EXR channels normal_x, normal_y, normal_z (world space, unit geometric normal)",
     "surface": "EXR channels surface_temperature [K] and emissivity (band)",
     "masks": "PNG masks: <frame>.instance.png, <frame>.region.png (colour-coded), "
-             "<frame>.region_ids.png (8-bit region ids, the regions --masks format)",
+    "<frame>.region_ids.png (8-bit region ids, the regions --masks format)",
     "boxes": "per object: 2D boxes (full, from the projected geometry; visible, from the mask) "
-             "and the world-space axis-aligned 3D box",
+    "and the world-space axis-aligned 3D box",
     "keypoints": "per person: the 17 COCO keypoints projected, with visibility from the depth buffer",
     "occlusion": "per object: occlusion fraction (1 - visible / unoccluded pixels; unoccluded by a "
-                 "ray cast of the object alone)",
+    "ray cast of the object alone)",
     "coco": "coco.json: one COCO image per sensor and frame, RLE segmentation per object",
     "regions": "regions.json: per body region (seed Table 2) mean and std of counts (or radiance) "
-               "and apparent temperature per sensor and frame",
+    "and apparent temperature per sensor and frame",
 }
 #: Default set: everything (each is cheap next to the Monte Carlo render; see the manifest).
 DEFAULT_ANNOTATORS: tuple[str, ...] = tuple(ANNOTATORS)
@@ -52,7 +53,9 @@ def from_stage(stage) -> tuple[tuple[str, ...], str]:
     """(annotators, source) for a stage: its root layer's list, or the default."""
     data = stage.GetRootLayer().customLayerData or {}
     if STAGE_KEY in data:
-        return resolve(list(data[STAGE_KEY]), where=f"{stage.GetRootLayer().identifier} customLayerData {STAGE_KEY}"), "stage"
+        return resolve(
+            list(data[STAGE_KEY]), where=f"{stage.GetRootLayer().identifier} customLayerData {STAGE_KEY}"
+        ), "stage"
     return DEFAULT_ANNOTATORS, "default"
 
 

@@ -2,7 +2,7 @@
 
 - Full 2D box: the image-plane bounds of the object's whole geometry, occluded parts included:
   its triangles clipped at the near plane (:data:`NEAR_M`, so geometry behind or beside the camera
-  bounds the box correctly) and projected with :class:`~humv_usd.groundtruth.camera.Camera`, then
+  bounds the box correctly) and projected with :class:`~humv_usd.geometry.camera.Camera`, then
   clipped to the image. ``[x0, y0, x1, y1]`` in continuous pixel coordinates (COCO convention:
   pixel (i, j) covers [i, i+1) x [j, j+1)); None when nothing is in front of the camera or the
   box misses the image.
@@ -27,11 +27,12 @@
   rays inside the full box against the object's own triangles only (embree through trimesh).
   Pixels outside the image do not count (truncation is not occlusion).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from humv_usd.groundtruth.camera import Camera
+from humv_usd.geometry.camera import Camera
 
 #: Near plane for clipping [m] (the render's near clip, humv_usd.render.ir.NEAR_CLIP_M).
 NEAR_M = 1e-3
@@ -88,8 +89,10 @@ def box_3d(points_world: np.ndarray) -> dict | None:
 
 
 #: Corner signs (length, width, height axes of the box frame) in the order of ``corners_world``.
-CORNER_SIGNS = np.array([[1, 1, -1], [-1, 1, -1], [-1, -1, -1], [1, -1, -1],
-                         [1, 1, 1], [-1, 1, 1], [-1, -1, 1], [1, -1, 1]], dtype=float)
+CORNER_SIGNS = np.array(
+    [[1, 1, -1], [-1, 1, -1], [-1, -1, -1], [1, -1, -1], [1, 1, 1], [-1, 1, 1], [-1, -1, 1], [1, -1, 1]],
+    dtype=float,
+)
 
 
 def _hull_2d(xy: np.ndarray) -> np.ndarray | None:
@@ -116,7 +119,7 @@ def _support(pts: np.ndarray, alpha: np.ndarray, phi: np.ndarray) -> np.ndarray:
     q = alpha[0] + np.mod(phi + 0.5 * np.pi - alpha[0], 2.0 * np.pi)
     k = np.searchsorted(alpha, q, side="left")
     w = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-    cand = pts[np.stack([(k - 1) % h, k % h, (k + 1) % h], axis=-1)]   # (n, 3, 2)
+    cand = pts[np.stack([(k - 1) % h, k % h, (k + 1) % h], axis=-1)]  # (n, 3, 2)
     return np.max(np.einsum("nkc,nc->nk", cand, w), axis=1)
 
 
@@ -146,15 +149,15 @@ def min_area_rectangle(xy) -> tuple[np.ndarray, float, float, float]:
         length, width = float(np.ptp(u)), float(np.ptp(v))
         mid_u, mid_v = 0.5 * (u.max() + u.min()), 0.5 * (v.max() + v.min())
     else:
-        origin = hull.mean(axis=0)                    # conditioning: far-off coordinates
+        origin = hull.mean(axis=0)  # conditioning: far-off coordinates
         pts = hull - origin
         edges = np.roll(pts, -1, axis=0) - pts
-        alpha = np.unwrap(np.arctan2(edges[:, 1], edges[:, 0]))   # exterior angles in (0, pi)
+        alpha = np.unwrap(np.arctan2(edges[:, 1], edges[:, 0]))  # exterior angles in (0, pi)
         d = np.stack([np.cos(alpha), np.sin(alpha)], axis=-1)
-        n = np.stack([-d[:, 1], d[:, 0]], axis=-1)   # inward normal (counter-clockwise hull)
+        n = np.stack([-d[:, 1], d[:, 0]], axis=-1)  # inward normal (counter-clockwise hull)
         u_max = _support(pts, alpha, alpha)
         u_min = -_support(pts, alpha, alpha + np.pi)
-        v_min = np.einsum("nc,nc->n", pts, n)         # the edge itself
+        v_min = np.einsum("nc,nc->n", pts, n)  # the edge itself
         v_max = _support(pts, alpha, alpha + 0.5 * np.pi)
         area = (u_max - u_min) * (v_max - v_min)
         k = int(np.argmin(area))
@@ -167,7 +170,7 @@ def min_area_rectangle(xy) -> tuple[np.ndarray, float, float, float]:
     if width > length:
         length, width, yaw = width, length, yaw + 0.5 * np.pi
     half = 0.25 * np.pi if np.isclose(length, width, rtol=1e-9, atol=0.0) else 0.5 * np.pi
-    yaw = float(yaw - 2.0 * half * np.ceil((yaw - half) / (2.0 * half)))   # into (-half, half]
+    yaw = float(yaw - 2.0 * half * np.ceil((yaw - half) / (2.0 * half)))  # into (-half, half]
     return centre, float(length), float(width), yaw
 
 
@@ -181,8 +184,12 @@ def box_3d_oriented(points_world: np.ndarray, camera: Camera | None = None) -> d
     z0, z1 = float(pts[:, 2].min()), float(pts[:, 2].max())
     centre = np.array([centre_xy[0], centre_xy[1], 0.5 * (z0 + z1)])
     corners = box_corners(centre, (length, width, z1 - z0), yaw)
-    out = {"center": centre.tolist(), "size": [length, width, z1 - z0], "yaw": yaw,
-           "corners_world": corners.tolist()}
+    out = {
+        "center": centre.tolist(),
+        "size": [length, width, z1 - z0],
+        "yaw": yaw,
+        "corners_world": corners.tolist(),
+    }
     if camera is not None:
         uv, depth = camera.project(corners)
         behind = depth <= 0
@@ -199,8 +206,13 @@ def box_corners(center, size, yaw: float) -> np.ndarray:
     return local @ rot.T + np.asarray(center, dtype=float)
 
 
-def unoccluded_mask(camera: Camera, vertices: np.ndarray, triangles: np.ndarray,
-                    box: list[float] | None, visible: np.ndarray | None = None) -> np.ndarray:
+def unoccluded_mask(
+    camera: Camera,
+    vertices: np.ndarray,
+    triangles: np.ndarray,
+    box: list[float] | None,
+    visible: np.ndarray | None = None,
+) -> np.ndarray:
     """(H, W) bool: pixels whose centre ray hits the object's own triangles (nothing else in the
     scene), cast only inside ``box`` (the full 2D box). Pixels in ``visible`` (the object's
     mask: its first hit is the object) are unoccluded without a cast."""
@@ -217,8 +229,12 @@ def unoccluded_mask(camera: Camera, vertices: np.ndarray, triangles: np.ndarray,
     if cols.size == 0:
         return out
     dirs = camera.pixel_rays(cols.ravel(), rows.ravel())
-    mesh = trimesh.Trimesh(vertices=np.asarray(vertices, dtype=np.float64),
-                           faces=np.asarray(triangles, dtype=np.int64), process=False, validate=False)
+    mesh = trimesh.Trimesh(
+        vertices=np.asarray(vertices, dtype=np.float64),
+        faces=np.asarray(triangles, dtype=np.int64),
+        process=False,
+        validate=False,
+    )
     origins = np.broadcast_to(camera.origin, dirs.shape)
     hit = _intersector(mesh).intersects_any(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
     out[rows.ravel()[hit], cols.ravel()[hit]] = True

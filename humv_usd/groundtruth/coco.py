@@ -14,6 +14,7 @@ COCO's keypoint names and skeleton.
 :func:`merge` joins per-render files into one dataset file: image and annotation ids are
 renumbered, file names made relative to the merged file's folder.
 """
+
 from __future__ import annotations
 
 import json
@@ -21,11 +22,11 @@ import os
 
 import numpy as np
 
-from humv_usd.avatar import labels as AL
 from humv_usd.errors import InputError
+from humv_usd.fileio import write_json
 from humv_usd.groundtruth.keypoints import COCO_SKELETON
 from humv_usd.groundtruth.labels import CLASSES
-from humv_usd.render.writers import write_json
+from humv_usd.human import labels as AL
 
 
 def categories() -> list[dict]:
@@ -63,8 +64,9 @@ class CocoBuilder:
 
     def add_image(self, file_name: str, width: int, height: int, **extra) -> int:
         image_id = len(self.images) + 1
-        self.images.append({"id": image_id, "file_name": file_name, "width": int(width),
-                            "height": int(height), **extra})
+        self.images.append(
+            {"id": image_id, "file_name": file_name, "width": int(width), "height": int(height), **extra}
+        )
         return image_id
 
     def add_object(self, image_id: int, mask: np.ndarray, obj: dict) -> None:
@@ -76,10 +78,17 @@ class CocoBuilder:
 
         rle = encode_mask(mask)
         bbox = mask_util.toBbox({"size": rle["size"], "counts": rle["counts"].encode("ascii")}).tolist()
-        ann = {"id": len(self.annotations) + 1, "image_id": image_id,
-               "category_id": CLASSES.index(obj["class"]), "segmentation": rle, "area": area,
-               "bbox": [float(v) for v in bbox], "iscrowd": 0,
-               "humv_instance_id": obj["instance_id"], "humv_prim": obj["prim"]}
+        ann = {
+            "id": len(self.annotations) + 1,
+            "image_id": image_id,
+            "category_id": CLASSES.index(obj["class"]),
+            "segmentation": rle,
+            "area": area,
+            "bbox": [float(v) for v in bbox],
+            "iscrowd": 0,
+            "humv_instance_id": obj["instance_id"],
+            "humv_prim": obj["prim"],
+        }
         if "box_full" in obj:
             ann["bbox_full"] = xyxy_to_xywh(obj["box_full"])
         if "box_3d" in obj:
@@ -95,8 +104,13 @@ class CocoBuilder:
         self.annotations.append(ann)
 
     def document(self) -> dict:
-        return {"info": {"description": "HumV-USD render", **self.info}, "licenses": [],
-                "images": self.images, "annotations": self.annotations, "categories": categories()}
+        return {
+            "info": {"description": "HumV-USD render", **self.info},
+            "licenses": [],
+            "images": self.images,
+            "annotations": self.annotations,
+            "categories": categories(),
+        }
 
     def write(self, path) -> None:
         write_json(path, self.document())
@@ -105,8 +119,13 @@ class CocoBuilder:
 def merge(paths, out_path) -> dict:
     """Merge per-render COCO files into one (ids renumbered, file names relative to ``out_path``)."""
     out_dir = os.path.dirname(os.path.abspath(os.fspath(out_path)))
-    merged = {"info": {"description": "HumV-USD dataset", "sources": []}, "licenses": [],
-              "images": [], "annotations": [], "categories": None}
+    merged = {
+        "info": {"description": "HumV-USD dataset", "sources": []},
+        "licenses": [],
+        "images": [],
+        "annotations": [],
+        "categories": None,
+    }
     for path in paths:
         path = os.fspath(path)
         try:
@@ -128,8 +147,9 @@ def merge(paths, out_path) -> dict:
             image_ids[img["id"]] = new["id"]
             merged["images"].append(new)
         for ann in doc["annotations"]:
-            merged["annotations"].append(dict(ann, id=len(merged["annotations"]) + 1,
-                                              image_id=image_ids[ann["image_id"]]))
+            merged["annotations"].append(
+                dict(ann, id=len(merged["annotations"]) + 1, image_id=image_ids[ann["image_id"]])
+            )
         merged["info"]["sources"].append(os.path.relpath(os.path.abspath(path), out_dir))
     merged["categories"] = merged["categories"] or categories()
     write_json(out_path, merged)

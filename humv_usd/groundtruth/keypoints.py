@@ -18,12 +18,13 @@ Visibility (COCO: v = 0 not labelled, 1 labelled but occluded, 2 visible):
   surface points);
 - v = 1 otherwise (another object, another body part, or the person's own far side is in front).
 """
+
 from __future__ import annotations
 
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from humv_usd.avatar import labels as AL
+from humv_usd.human import labels as AL
 
 _L, _R = "left", "right"
 
@@ -32,10 +33,13 @@ def _side(side: str, *parts: str) -> tuple[str, ...]:
     return tuple(side + p for p in parts)
 
 
-#: Body regions (names of humv_usd.avatar.labels.BODY_REGIONS) on which a keypoint counts as seen.
+#: Body regions (names of humv_usd.human.labels.BODY_REGIONS) on which a keypoint counts as seen.
 KEYPOINT_REGIONS: dict[str, tuple[str, ...]] = {
-    "nose": ("face",), "left_eye": ("face",), "right_eye": ("face",),
-    "left_ear": ("head", "face"), "right_ear": ("head", "face"),
+    "nose": ("face",),
+    "left_eye": ("face",),
+    "right_eye": ("face",),
+    "left_ear": ("head", "face"),
+    "right_ear": ("head", "face"),
     **{f"{s}_shoulder": ("chest", "back", "neck") + _side(s, "UpperArm") for s in (_L, _R)},
     **{f"{s}_elbow": _side(s, "UpperArm", "LowerArm") for s in (_L, _R)},
     **{f"{s}_wrist": _side(s, "LowerArm", "Hand") for s in (_L, _R)},
@@ -46,15 +50,46 @@ KEYPOINT_REGIONS: dict[str, tuple[str, ...]] = {
 #: How far [m] the depth buffer may lie in front of a keypoint for it to count as visible: about
 #: the largest joint-centre-to-skin depth (plus clothing) of each joint; 3 cm for surface points.
 KEYPOINT_TOLERANCE_M: dict[str, float] = {
-    "nose": 0.03, "left_eye": 0.03, "right_eye": 0.03, "left_ear": 0.03, "right_ear": 0.03,
-    "left_shoulder": 0.12, "right_shoulder": 0.12, "left_elbow": 0.08, "right_elbow": 0.08,
-    "left_wrist": 0.06, "right_wrist": 0.06, "left_hip": 0.18, "right_hip": 0.18,
-    "left_knee": 0.10, "right_knee": 0.10, "left_ankle": 0.08, "right_ankle": 0.08,
+    "nose": 0.03,
+    "left_eye": 0.03,
+    "right_eye": 0.03,
+    "left_ear": 0.03,
+    "right_ear": 0.03,
+    "left_shoulder": 0.12,
+    "right_shoulder": 0.12,
+    "left_elbow": 0.08,
+    "right_elbow": 0.08,
+    "left_wrist": 0.06,
+    "right_wrist": 0.06,
+    "left_hip": 0.18,
+    "right_hip": 0.18,
+    "left_knee": 0.10,
+    "right_knee": 0.10,
+    "left_ankle": 0.08,
+    "right_ankle": 0.08,
 }
 #: COCO's skeleton (1-based keypoint index pairs), as in person_keypoints_*.json.
-COCO_SKELETON = [[16, 14], [14, 12], [17, 15], [15, 13], [12, 13], [6, 12], [7, 13], [6, 7],
-                 [6, 8], [7, 9], [8, 10], [9, 11], [2, 3], [1, 2], [1, 3], [2, 4], [3, 5], [4, 6],
-                 [5, 7]]
+COCO_SKELETON = [
+    [16, 14],
+    [14, 12],
+    [17, 15],
+    [15, 13],
+    [12, 13],
+    [6, 12],
+    [7, 13],
+    [6, 7],
+    [6, 8],
+    [7, 9],
+    [8, 10],
+    [9, 11],
+    [2, 3],
+    [1, 2],
+    [1, 3],
+    [2, 4],
+    [3, 5],
+    [4, 6],
+    [5, 7],
+]
 
 _ALLOWED = [np.array([AL.REGION_ID[r] for r in KEYPOINT_REGIONS[k]]) for k in AL.COCO_KEYPOINTS]
 _TOL = np.array([KEYPOINT_TOLERANCE_M[k] for k in AL.COCO_KEYPOINTS])
@@ -63,8 +98,12 @@ _TOL = np.array([KEYPOINT_TOLERANCE_M[k] for k in AL.COCO_KEYPOINTS])
 def find_keypoint_prims(stage: Usd.Stage) -> list[Usd.Prim]:
     """Prims carrying ``humv:label:cocoKeypoints`` (the persons' SkelRoots)."""
     pred = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
-    return [p for p in stage.Traverse(pred) if p.GetAttribute(AL.COCO_KEYPOINTS_ATTR).IsValid()
-            and p.GetAttribute(AL.COCO_KEYPOINTS_ATTR).HasValue()]
+    return [
+        p
+        for p in stage.Traverse(pred)
+        if p.GetAttribute(AL.COCO_KEYPOINTS_ATTR).IsValid()
+        and p.GetAttribute(AL.COCO_KEYPOINTS_ATTR).HasValue()
+    ]
 
 
 def world_keypoints(prim: Usd.Prim, frame: int, cache: UsdGeom.XformCache) -> np.ndarray | None:

@@ -9,14 +9,15 @@ Per mesh (read once, by attribute name, instance proxies included):
   not a garment (a person's body); ``prop`` for class ``prop`` (carried or in the scene);
   ``scene`` otherwise; ``background`` (0) where no surface is hit.
 - body region per authored face: ``primvars:humv:label:bodyRegion`` (ids of
-  :data:`humv_usd.avatar.labels.BODY_REGIONS`, 0 = not the body); 0 where absent.
+  :data:`humv_usd.human.labels.BODY_REGIONS`, 0 = not the body); 0 where absent.
 - JOS-3 segment per face: ``primvars:humv:label:jos3Segment`` (0-based, JOS-3 order) or, where
-  absent, derived from the region (:data:`humv_usd.avatar.labels.REGION_TO_JOS3`); -1 = none.
+  absent, derived from the region (:data:`humv_usd.human.labels.REGION_TO_JOS3`); -1 = none.
 
 An object is an instance id. Its class is the one at the prim that carries the id (the
 "id prim", e.g. the person's SkelRoot), so a garment with its own ``class`` does not change
 the person's class, and a prop with its own id is its own object.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,13 +25,22 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from humv_usd.avatar import labels as AL
 from humv_usd.errors import InputError, bad_value
+from humv_usd.human import labels as AL
 from humv_usd.usd import schemas as S
 
 #: Class ids (index = id): 0 background, then the HumvLabelAPI tokens in the schema's order.
-CLASSES: tuple[str, ...] = ("background", "person", "ground", "building", "prop", "panel",
-                            "vegetation", "vehicle", "other")
+CLASSES: tuple[str, ...] = (
+    "background",
+    "person",
+    "ground",
+    "building",
+    "prop",
+    "panel",
+    "vegetation",
+    "vehicle",
+    "other",
+)
 CLASS_ID = {name: i for i, name in enumerate(CLASSES)}
 #: Material kinds (index = id).
 KINDS: tuple[str, ...] = ("background", "skin", "garment", "prop", "scene")
@@ -48,14 +58,14 @@ class MeshLabels:
     path: str
     class_id: int
     kind: int
-    region: np.ndarray   # (F,) int32 per authored face
+    region: np.ndarray  # (F,) int32 per authored face
     segment: np.ndarray  # (F,) int32 per authored face
 
 
 @dataclass
 class ObjectInfo:
     instance_id: int
-    prim: str            # the prim that carries the instance id
+    prim: str  # the prim that carries the instance id
     class_name: str
 
 
@@ -80,8 +90,11 @@ def class_of(prim: Usd.Prim) -> str:
         return "other"
     value = str(value)
     if value not in CLASS_ID:
-        raise InputError(bad_value(f"{where.GetPath()}.{S.LABEL_CLASS}", value,
-                                   "expected one of " + ", ".join(CLASSES[1:])))
+        raise InputError(
+            bad_value(
+                f"{where.GetPath()}.{S.LABEL_CLASS}", value, "expected one of " + ", ".join(CLASSES[1:])
+            )
+        )
     return value
 
 
@@ -102,7 +115,11 @@ def _face_ints(prim: Usd.Prim, name: str, faces: int, lo: int, hi: int) -> np.nd
     a = np.asarray(values if values is not None else [], dtype=np.int64).ravel()
     where = f"{prim.GetPath()}.{name}"
     if a.size != faces:
-        raise InputError(bad_value(where, f"<{a.size} values>", f"expected {faces} values (one per authored face, uniform)"))
+        raise InputError(
+            bad_value(
+                where, f"<{a.size} values>", f"expected {faces} values (one per authored face, uniform)"
+            )
+        )
     if a.size and (a.min() < lo or a.max() > hi):
         raise InputError(bad_value(where, f"<range {a.min()}..{a.max()}>", f"expected ids in {lo}..{hi}"))
     return a.astype(np.int32)
@@ -114,7 +131,8 @@ def mesh_labels(prim: Usd.Prim, face_count: int) -> MeshLabels:
     region = _face_ints(prim, AL.BODY_REGION_PRIMVAR, face_count, 0, len(AL.BODY_REGIONS))
     segment = _face_ints(prim, AL.JOS3_SEGMENT_PRIMVAR, face_count, 0, len(AL.JOS3_SEGMENTS) - 1)
     garment = S.CLOTHING_API in prim.GetAppliedSchemas() or bool(
-        prim.GetAttribute(S.CLOTHING_GARMENT) and prim.GetAttribute(S.CLOTHING_GARMENT).HasAuthoredValue())
+        prim.GetAttribute(S.CLOTHING_GARMENT) and prim.GetAttribute(S.CLOTHING_GARMENT).HasAuthoredValue()
+    )
     if garment:
         kind = "garment"
     elif region is not None:
@@ -137,14 +155,22 @@ class PartTables:
     temperatures and the parts' band emissivities.
     """
 
-    def __init__(self, parts, labels: dict[str, MeshLabels], temperatures: dict[str, np.ndarray],
-                 emissivity: list[float]):
+    def __init__(
+        self,
+        parts,
+        labels: dict[str, MeshLabels],
+        temperatures: dict[str, np.ndarray],
+        emissivity: list[float],
+    ):
         sizes = np.array([len(p.triangle_face) for p in parts], dtype=np.int64)
         self.offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]) if len(parts) else np.zeros(0, np.int64)
         self.class_id = np.array([labels[p.mesh_path].class_id for p in parts], dtype=np.int32)
         self.kind = np.array([labels[p.mesh_path].kind for p in parts], dtype=np.int32)
         self.emissivity = np.asarray(emissivity, dtype=float)
-        cat = (lambda xs, dt: np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt))
+
+        def cat(xs, dt):
+            return np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt)
+
         self.region = cat([labels[p.mesh_path].region[p.triangle_face] for p in parts], np.int32)
         self.segment = cat([labels[p.mesh_path].segment[p.triangle_face] for p in parts], np.int32)
         self.temperature = cat([temperatures[p.mesh_path][p.triangle_face] for p in parts], float)
@@ -179,7 +205,9 @@ def _hsv_to_rgb(h, s, v):
     i = np.floor(h * 6.0).astype(int) % 6
     f = h * 6.0 - np.floor(h * 6.0)
     p, q, t = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
-    table = np.stack([np.stack(c, -1) for c in ((v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v), (v, p, q))])
+    table = np.stack(
+        [np.stack(c, -1) for c in ((v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v), (v, p, q))]
+    )
     return table[i, np.arange(len(h))]
 
 
@@ -196,11 +224,31 @@ def instance_colours(ids) -> np.ndarray:
 
 
 #: RGB colour per body region id (index = id; 0 = black): matplotlib's tab20, which has 20.
-REGION_COLOURS = np.array([
-    (0, 0, 0), (31, 119, 180), (174, 199, 232), (255, 127, 14), (255, 187, 120), (44, 160, 44),
-    (152, 223, 138), (214, 39, 40), (255, 152, 150), (148, 103, 189), (197, 176, 213),
-    (140, 86, 75), (196, 156, 148), (227, 119, 194), (247, 182, 210), (127, 127, 127),
-    (199, 199, 199), (188, 189, 34), (219, 219, 141), (23, 190, 207)], dtype=np.uint8)
+REGION_COLOURS = np.array(
+    [
+        (0, 0, 0),
+        (31, 119, 180),
+        (174, 199, 232),
+        (255, 127, 14),
+        (255, 187, 120),
+        (44, 160, 44),
+        (152, 223, 138),
+        (214, 39, 40),
+        (255, 152, 150),
+        (148, 103, 189),
+        (197, 176, 213),
+        (140, 86, 75),
+        (196, 156, 148),
+        (227, 119, 194),
+        (247, 182, 210),
+        (127, 127, 127),
+        (199, 199, 199),
+        (188, 189, 34),
+        (219, 219, 141),
+        (23, 190, 207),
+    ],
+    dtype=np.uint8,
+)
 assert len(REGION_COLOURS) == len(AL.BODY_REGION_NAMES)
 
 

@@ -2,7 +2,7 @@
 
 The seed (HumanView, Sec. 4.2, Fig. 11, Table 2) segments the person in a simulated and a real
 LWIR image into body regions and compares the mean image intensity per region. Here, per sensor,
-frame and person, for each Table 2 region (:data:`humv_usd.avatar.labels.SEED_TABLE2_REGIONS`:
+frame and person, for each Table 2 region (:data:`humv_usd.human.labels.SEED_TABLE2_REGIONS`:
 unions of our 19 regions; "Hat" is the head, "Torso" abdomen + back + pelvis, "Full body" every
 region) over the pixels whose ``body_region`` channel is in it (garment pixels carry the region
 of the body under them; props and the background are left out):
@@ -18,7 +18,7 @@ Real image comparison (``humv-usd regions RENDER_DIR --real IMAGE --masks MASKS`
   the first is used. Its values are compared with the simulated quantity chosen by
   ``--quantity`` (default: counts if present, else radiance, else Y), so give them in the same units.
 - MASKS: a single-channel PNG of the same size whose pixel values are body region ids
-  (:data:`humv_usd.avatar.labels.BODY_REGIONS`: 1 head, 2 face, 3 neck, 4 chest, 5 abdomen,
+  (:data:`humv_usd.human.labels.BODY_REGIONS`: 1 head, 2 face, 3 neck, 4 chest, 5 abdomen,
   6 back, 7 pelvis, 8-10 left upper arm / lower arm / hand, 11-13 right ..., 14-16 left upper
   leg / lower leg / foot, 17-19 right ...; 0 = not the person). The render writes this format
   for every frame as ``<frame>.region_ids.png`` (annotator ``masks``), which a user can start
@@ -26,6 +26,7 @@ Real image comparison (``humv-usd regions RENDER_DIR --real IMAGE --masks MASKS`
 
 The difference printed is simulated minus real, per region, of the means.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,14 +35,14 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
-from humv_usd.avatar import labels as AL
 from humv_usd.errors import InputError, bad_value
-from humv_usd.render.writers import write_json
+from humv_usd.fileio import write_json
+from humv_usd.human import labels as AL
 
 #: Table 2 regions in the seed's order, each as a set of our region ids.
 TABLE2: dict[str, np.ndarray] = {
-    name: np.array([AL.REGION_ID[r] for r in regions])
-    for name, regions in AL.SEED_TABLE2_REGIONS.items()}
+    name: np.array([AL.REGION_ID[r] for r in regions]) for name, regions in AL.SEED_TABLE2_REGIONS.items()
+}
 TEMPERATURE_CHANNELS = ("brightness_temperature", "apparent_temperature")
 QUANTITIES = ("counts", "radiance", "Y", "temperature")
 REGIONS_NAME = "regions.json"
@@ -75,8 +76,12 @@ def _stats(values: np.ndarray) -> tuple[float | None, float | None]:
     return float(v.mean()), float(v.std())
 
 
-def region_stats(region: np.ndarray, value: np.ndarray, temperature: np.ndarray | None = None,
-                 select: np.ndarray | None = None) -> dict[str, dict]:
+def region_stats(
+    region: np.ndarray,
+    value: np.ndarray,
+    temperature: np.ndarray | None = None,
+    select: np.ndarray | None = None,
+) -> dict[str, dict]:
     """Per Table 2 region: pixel count, mean/std of ``value`` and of ``temperature`` [K]."""
     region = np.asarray(region)
     out = {}
@@ -107,13 +112,25 @@ def image_regions(channels: dict[str, np.ndarray], quantity: str | None = None) 
     elif quantity in channels:
         value = channels[quantity]
     else:
-        raise InputError(bad_value("quantity", quantity, "expected a channel of the EXR: "
-                                   + ", ".join(c for c in QUANTITIES if c in channels or c == "temperature")))
+        raise InputError(
+            bad_value(
+                "quantity",
+                quantity,
+                "expected a channel of the EXR: "
+                + ", ".join(c for c in QUANTITIES if c in channels or c == "temperature"),
+            )
+        )
     region = np.rint(channels["body_region"]).astype(np.int64)
     instance = np.rint(channels.get("instance_id", np.zeros_like(region))).astype(np.int64)
     people = sorted(set(np.unique(instance[region > 0]).tolist()))
-    return [{"instance_id": int(i), "quantity": quantity,
-             "regions": region_stats(region, value, temperature, select=instance == i)} for i in people]
+    return [
+        {
+            "instance_id": int(i),
+            "quantity": quantity,
+            "regions": region_stats(region, value, temperature, select=instance == i),
+        }
+        for i in people
+    ]
 
 
 def render_regions(render_dir, quantity: str | None = None) -> list[dict]:
@@ -126,9 +143,12 @@ def render_regions(render_dir, quantity: str | None = None) -> list[dict]:
         raise InputError(f"{render_dir}: not a render folder (no manifest.json)") from None
     except (OSError, json.JSONDecodeError) as exc:
         raise InputError(f"{manifest_path}: cannot read ({exc})") from None
-    images = [{"sensor": sensor["name"], "frame": frame["frame"], "exr": frame["exr"]}
-              for key in ("sensors", "eo_sensors")          # infrared, then EO (luminance Y)
-              for sensor in manifest.get(key, []) for frame in sensor.get("frames", [])]
+    images = [
+        {"sensor": sensor["name"], "frame": frame["frame"], "exr": frame["exr"]}
+        for key in ("sensors", "eo_sensors")  # infrared, then EO (luminance Y)
+        for sensor in manifest.get(key, [])
+        for frame in sensor.get("frames", [])
+    ]
     return images_regions(render_dir, images, quantity)
 
 
@@ -144,10 +164,15 @@ def images_regions(render_dir, images: list[dict], quantity: str | None = None) 
 
 def write_regions(render_dir, records: list[dict]) -> str:
     path = os.path.join(os.fspath(render_dir), REGIONS_NAME)
-    write_json(path, {"regions": {k: [int(i) for i in v] for k, v in TABLE2.items()},
-                      "region_names": list(AL.BODY_REGION_NAMES),
-                      "std": "population standard deviation (ddof = 0) over the region's pixels",
-                      "images": records})
+    write_json(
+        path,
+        {
+            "regions": {k: [int(i) for i in v] for k, v in TABLE2.items()},
+            "region_names": list(AL.BODY_REGION_NAMES),
+            "std": "population standard deviation (ddof = 0) over the region's pixels",
+            "images": records,
+        },
+    )
     return path
 
 
@@ -157,18 +182,31 @@ def real_regions(image_path, masks_path, select_shape=None) -> dict[str, dict]:
     values = next(iter(image.values()))
     masks, fmt = read_image(masks_path, with_format=True)
     if fmt not in ("uint8", "uint16"):
-        raise InputError(bad_value(f"{masks_path} pixel format", fmt, "expected an 8- or 16-bit PNG of region ids"))
+        raise InputError(
+            bad_value(f"{masks_path} pixel format", fmt, "expected an 8- or 16-bit PNG of region ids")
+        )
     region = np.rint(next(iter(masks.values()))).astype(np.int64)
     if region.shape != values.shape:
-        raise InputError(bad_value(f"{masks_path} size", list(region.shape[::-1]),
-                                   f"expected the size of {image_path}: {list(values.shape[::-1])}"))
+        raise InputError(
+            bad_value(
+                f"{masks_path} size",
+                list(region.shape[::-1]),
+                f"expected the size of {image_path}: {list(values.shape[::-1])}",
+            )
+        )
     if select_shape is not None and tuple(values.shape) != tuple(select_shape):
-        raise InputError(bad_value(f"{image_path} size", list(values.shape[::-1]),
-                                   f"expected the rendered size {list(select_shape)[::-1]}"))
+        raise InputError(
+            bad_value(
+                f"{image_path} size",
+                list(values.shape[::-1]),
+                f"expected the rendered size {list(select_shape)[::-1]}",
+            )
+        )
     bad = (region < 0) | (region > len(AL.BODY_REGIONS))
     if bad.any():
-        raise InputError(bad_value(f"{masks_path}", int(region[bad][0]),
-                                   f"expected region ids 0..{len(AL.BODY_REGIONS)}"))
+        raise InputError(
+            bad_value(f"{masks_path}", int(region[bad][0]), f"expected region ids 0..{len(AL.BODY_REGIONS)}")
+        )
     return region_stats(region, values)
 
 
@@ -179,13 +217,20 @@ def _fmt(x, width=9, digits=2):
 def format_table(record: dict, real: dict | None = None) -> str:
     """The Table 2 layout for one image and person (and the real image's columns)."""
     q = record["quantity"]
-    head = f"{'#':>2} {'region':<16} {'pixels':>7} {q + ' mean':>14} {'std':>9} {'T mean [K]':>10} {'T std':>6}"
+    head = (
+        f"{'#':>2} {'region':<16} {'pixels':>7} {q + ' mean':>14} {'std':>9} {'T mean [K]':>10} {'T std':>6}"
+    )
     if real is not None:
         head += f" {'real mean':>10} {'real std':>9} {'sim-real':>9}"
-    lines = [f"sensor {record['sensor']}, frame {record['frame']}, person instance {record['instance_id']}", head]
+    lines = [
+        f"sensor {record['sensor']}, frame {record['frame']}, person instance {record['instance_id']}",
+        head,
+    ]
     for k, (name, row) in enumerate(record["regions"].items(), start=1):
-        line = (f"{k:>2} {name:<16} {row['pixels']:>7} {_fmt(row['mean'], 14, 4)} {_fmt(row['std'], 9, 4)} "
-                f"{_fmt(row.get('temperature_mean_k'), 10)} {_fmt(row.get('temperature_std_k'), 6)}")
+        line = (
+            f"{k:>2} {name:<16} {row['pixels']:>7} {_fmt(row['mean'], 14, 4)} {_fmt(row['std'], 9, 4)} "
+            f"{_fmt(row.get('temperature_mean_k'), 10)} {_fmt(row.get('temperature_std_k'), 6)}"
+        )
         if real is not None:
             r = real[name]
             diff = None if r["mean"] is None or row["mean"] is None else row["mean"] - r["mean"]

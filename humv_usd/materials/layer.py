@@ -1,15 +1,17 @@
 """Materials tool: the library entries a scenario uses → layers/materials.usda."""
+
 from __future__ import annotations
 
 from pathlib import Path
 
 from pxr import Gf, Sdf, UsdShade, Vt
 
-from humv_usd.clothing.garments import fabrics
-from humv_usd.materials.library import LIBRARY
+from humv_usd.catalog.garments import fabrics
+from humv_usd.catalog.materials import LIBRARY
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
+from humv_usd.usd.layers import finish, library_layer_main, new_layer_stage
+from humv_usd.usd.paths import material_path
 
 NAME = "materials"
 READS = ("general", "human", "scene")
@@ -28,10 +30,6 @@ def used_materials(scenario: Scenario) -> list[str]:
     return sorted(names)
 
 
-def material_path(name: str) -> Sdf.Path:
-    return SCOPES["materials"].AppendChild(name)
-
-
 def author_material(stage, name: str) -> UsdShade.Material:
     """Define /World/Materials/<name> from the library: HumvMaterialAPI spectra (the material's
     own wavelength grid; transmittance only for materials one can see through) and thermal data,
@@ -45,20 +43,21 @@ def author_material(stage, name: str) -> UsdShade.Material:
     prim.GetAttribute(S.MATERIAL_REFLECTANCE).Set(Vt.FloatArray(m.spectrum_reflectance))
     if not m.opaque:
         prim.GetAttribute(S.MATERIAL_TRANSMITTANCE).Set(Vt.FloatArray(m.spectrum_transmittance))
-    for attr, value in ((S.MATERIAL_CONDUCTIVITY, m.conductivity),
-                        (S.MATERIAL_DENSITY, m.density),
-                        (S.MATERIAL_SPECIFIC_HEAT, m.specific_heat),
-                        (S.MATERIAL_THICKNESS, m.thickness),
-                        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.solar_absorptivity),
-                        (S.MATERIAL_SOURCE, m.source)):
+    for attr, value in (
+        (S.MATERIAL_CONDUCTIVITY, m.conductivity),
+        (S.MATERIAL_DENSITY, m.density),
+        (S.MATERIAL_SPECIFIC_HEAT, m.specific_heat),
+        (S.MATERIAL_THICKNESS, m.thickness),
+        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.solar_absorptivity),
+        (S.MATERIAL_SOURCE, m.source),
+    ):
         prim.GetAttribute(attr).Set(value)
     # A UsdPreviewSurface so DCC tools (Blender, usdview) show a sensible colour.
     shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
     shader.CreateIdAttr("UsdPreviewSurface")
-    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(
-        Gf.Vec3f(*m.display_color))
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*m.display_color))
     shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.9)
-    if not m.opaque:   # glass: see-through in viewports
+    if not m.opaque:  # glass: see-through in viewports
         visible = float(m.at([0.45, 0.55, 0.65], "transmittance").mean())
         shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(round(1.0 - visible, 6))
         shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.05)
@@ -68,8 +67,9 @@ def author_material(stage, name: str) -> UsdShade.Material:
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g = scenario["general"]
-    stage = new_layer_stage(g["fps"], scenario.frame_count,
-                            "HumV-USD materials layer: spectral and thermal material properties")
+    stage = new_layer_stage(
+        g["fps"], scenario.frame_count, "HumV-USD materials layer: spectral and thermal material properties"
+    )
     for name in used_materials(scenario):
         author_material(stage, name)
     return finish(stage)
@@ -81,9 +81,13 @@ LIBRARY_FILE = Path(__file__).resolve().parents[2] / "layers" / "materials.usda"
 
 def build_library() -> Sdf.Layer:
     """Every library material in one layer (the reusable layers/materials.usda)."""
-    stage = new_layer_stage(1.0, 1, "HumV-USD material library: every built-in material "
-                            "(humv_usd.materials.library) with its spectra, thermal data and sources. "
-                            "Generated: python -m humv_usd.materials.layer")
+    stage = new_layer_stage(
+        1.0,
+        1,
+        "HumV-USD material library: every built-in material "
+        "(humv_usd.catalog.materials) with its spectra, thermal data and sources. "
+        "Generated: python -m humv_usd.materials.layer",
+    )
     for name in sorted(LIBRARY):
         author_material(stage, name)
     return finish(stage)

@@ -5,6 +5,7 @@ kcal m^-2 h^-1 K^-1; here it returns W m^-2 K^-1. The modern default is Mitchell
 forced-convection coefficient of a person, h_c = 8.3 V^0.6 (ASHRAE Fundamentals), with the
 ISO 7730 natural-convection floor 2.38 |dT|^0.25.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -75,7 +76,7 @@ def mitchell(wind_speed):
     .. [2] ASHRAE (2017). ASHRAE Handbook - Fundamentals, ch. 9, Table 6.
     """
     v = np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
-    return 8.3 * v ** 0.6
+    return 8.3 * v**0.6
 
 
 def natural_iso7730(delta_t):
@@ -159,7 +160,7 @@ def watmuff(wind_speed):
     return 2.8 + 3.0 * np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
 
 
-def convective_coefficient(wind_speed, delta_t=0.0, model='mitchell'):
+def convective_coefficient(wind_speed, delta_t=0.0, model="mitchell"):
     """Convective heat-transfer coefficient of a clothed surface by model name.
 
     Parameters
@@ -182,13 +183,13 @@ def convective_coefficient(wind_speed, delta_t=0.0, model='mitchell'):
     ValueError
         If ``model`` is not one of the above.
     """
-    if model == 'mitchell':
+    if model == "mitchell":
         return np.maximum(mitchell(wind_speed), natural_iso7730(delta_t))
-    if model == 'iso7730':
+    if model == "iso7730":
         return iso7730(wind_speed, delta_t)
-    if model == 'siple_passel':
+    if model == "siple_passel":
         return siple_passel(wind_speed) + 0.0 * np.asarray(delta_t, dtype=float)
-    raise ValueError(f'invalid model selection {model}')
+    raise ValueError(f"invalid model selection {model}")
 
 
 def radiative_coefficient(emissivity, mean_temperature_k):
@@ -218,4 +219,4 @@ def radiative_coefficient(emissivity, mean_temperature_k):
        6th ed., Wiley, Eq. 1.9.
     """
     t = np.asarray(mean_temperature_k, dtype=float)
-    return 4.0 * np.asarray(emissivity, dtype=float) * STEFAN_BOLTZMANN * t ** 3
+    return 4.0 * np.asarray(emissivity, dtype=float) * STEFAN_BOLTZMANN * t**3

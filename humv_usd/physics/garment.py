@@ -13,6 +13,7 @@ from the fabric conduction, T_in = T_out + l_f / k_f q_out(T_out), so the balanc
 strictly decreasing scalar function of T_out per facet, solved by a bracketed (safeguarded)
 Newton iteration that cannot leave its bracket. All functions are vectorized over facets.
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -154,13 +155,20 @@ def hollands_nusselt(rayleigh):
        heat transfer across inclined air layers. J. Heat Transfer 98(2), 189-193.
     """
     ra = np.maximum(np.asarray(rayleigh, dtype=float), 0.0)
-    onset = np.where(ra > _HOLLANDS_RA_CRITICAL,
-                     1.0 - _HOLLANDS_RA_CRITICAL / np.maximum(ra, _HOLLANDS_RA_CRITICAL), 0.0)
+    onset = np.where(
+        ra > _HOLLANDS_RA_CRITICAL, 1.0 - _HOLLANDS_RA_CRITICAL / np.maximum(ra, _HOLLANDS_RA_CRITICAL), 0.0
+    )
     return 1.0 + 1.44 * onset + np.maximum(np.cbrt(ra / 5830.0) - 1.0, 0.0)
 
 
-def air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, skin_emissivity=0.98,
-                 fabric_emissivity=0.9, model='hollands'):
+def air_gap_flux(
+    skin_temperature_k,
+    inner_temperature_k,
+    air_gap_m,
+    skin_emissivity=0.98,
+    fabric_emissivity=0.9,
+    model="hollands",
+):
     """Heat flux from skin across an air gap to the fabric's inner surface.
 
     Parameters
@@ -194,25 +202,32 @@ def air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, skin_emissi
     ValueError
         If ``model`` is not one of the above.
     """
-    if model not in ('hollands', 'conduction'):
-        raise ValueError(f'invalid model selection {model}')
+    if model not in ("hollands", "conduction"):
+        raise ValueError(f"invalid model selection {model}")
     t_s = np.asarray(skin_temperature_k, dtype=float)
     t_i = np.asarray(inner_temperature_k, dtype=float)
     d = np.asarray(air_gap_m, dtype=float)
     t_m = 0.5 * (t_s + t_i)
     dt = t_s - t_i
     k = air_conductivity(t_m)
-    if model == 'hollands':
+    if model == "hollands":
         t_mc = np.maximum(t_m, _T_PROPERTY_MIN)
-        ra = (GRAVITY * np.maximum(dt, 0.0) * d ** 3
-              / (t_mc * air_kinematic_viscosity(t_mc) * air_thermal_diffusivity(t_mc)))
+        ra = (
+            GRAVITY
+            * np.maximum(dt, 0.0)
+            * d**3
+            / (t_mc * air_kinematic_viscosity(t_mc) * air_thermal_diffusivity(t_mc))
+        )
         nu = hollands_nusselt(ra)
     else:
         nu = 1.0
     d_safe = np.where(d > 0.0, d, 1.0)
     q_cd = np.where(d > 0.0, nu * k / d_safe * dt, 0.0)
-    q_r = (grey_plates_exchange_factor(skin_emissivity, fabric_emissivity) * STEFAN_BOLTZMANN
-           * (_t4(t_s) - _t4(t_i)))
+    q_r = (
+        grey_plates_exchange_factor(skin_emissivity, fabric_emissivity)
+        * STEFAN_BOLTZMANN
+        * (_t4(t_s) - _t4(t_i))
+    )
     return q_cd, q_r
 
 
@@ -241,23 +256,22 @@ def _outer_coefficient(h_forced, delta_t, natural_floor):
 
 def _balance(t_out, p):
     """Residual and flux terms at outer temperature t_out; p holds broadcast parameters."""
-    dt_air = t_out - p['t_air']
-    q_conv = _outer_coefficient(p['h'], dt_air, p['natural_floor']) * dt_air
-    q_emit = p['eps_f'] * STEFAN_BOLTZMANN * _t4(t_out)
-    q_out = q_conv + q_emit - p['q_rad']
-    u_f = p['u_f']
+    dt_air = t_out - p["t_air"]
+    q_conv = _outer_coefficient(p["h"], dt_air, p["natural_floor"]) * dt_air
+    q_emit = p["eps_f"] * STEFAN_BOLTZMANN * _t4(t_out)
+    q_out = q_conv + q_emit - p["q_rad"]
+    u_f = p["u_f"]
     insulated = u_f <= 0.0
-    contact = (p['gap'] <= 0.0) & ~insulated
+    contact = (p["gap"] <= 0.0) & ~insulated
     u_safe = np.where(insulated, 1.0, u_f)
-    t_in = np.where(insulated | contact, p['t_skin'], t_out + q_out / u_safe)
-    q_cd, q_r = air_gap_flux(p['t_skin'], t_in, p['gap'], p['eps_s'], p['eps_in'],
-                             p['gap_model'])
+    t_in = np.where(insulated | contact, p["t_skin"], t_out + q_out / u_safe)
+    q_cd, q_r = air_gap_flux(p["t_skin"], t_in, p["gap"], p["eps_s"], p["eps_in"], p["gap_model"])
     q_fabric = np.where(insulated, 0.0, u_f * (t_in - t_out))
     # contact: the gap vanishes and q_in is the fabric conduction from skin temperature
     q_cd = np.where(contact, q_fabric, np.where(insulated, 0.0, q_cd))
     q_r = np.where(contact | insulated, 0.0, q_r)
     q_in = q_cd + q_r
-    q_store = p['c_dt'] * (t_out - p['t_prev'])
+    q_store = p["c_dt"] * (t_out - p["t_prev"])
     residual = q_in - q_out - q_store
     return residual, (t_in, q_in, q_cd, q_r, q_fabric, q_conv, q_emit, q_store)
 
@@ -289,38 +303,60 @@ def _solve(p, lo, hi, tol, max_iter):
     return t, iterations
 
 
-def _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced, air_gap_m,
-                fabric_thickness_m, fabric_conductivity, fabric_emissivity, skin_emissivity,
-                inner_emissivity, natural_floor, gap_model, c_dt, t_prev):
-    if gap_model not in ('hollands', 'conduction'):
-        raise ValueError(f'invalid model selection {gap_model}')
+def _parameters(
+    skin_temperature_k,
+    air_temperature_k,
+    absorbed_radiation,
+    h_forced,
+    air_gap_m,
+    fabric_thickness_m,
+    fabric_conductivity,
+    fabric_emissivity,
+    skin_emissivity,
+    inner_emissivity,
+    natural_floor,
+    gap_model,
+    c_dt,
+    t_prev,
+):
+    if gap_model not in ("hollands", "conduction"):
+        raise ValueError(f"invalid model selection {gap_model}")
     eps_f = np.asarray(fabric_emissivity, dtype=float)
     eps_in = eps_f if inner_emissivity is None else np.asarray(inner_emissivity, dtype=float)
     thick = np.asarray(fabric_thickness_m, dtype=float)
     k_f = np.asarray(fabric_conductivity, dtype=float)
     u_f = k_f / np.maximum(thick, 1e-9)  # fabric conductance k_f / l_f, 1 / R2 (seed Eq. 7)
-    arrays = dict(t_skin=skin_temperature_k, t_air=air_temperature_k, q_rad=absorbed_radiation,
-                  h=h_forced, gap=air_gap_m, u_f=u_f, eps_f=eps_f, eps_in=eps_in,
-                  eps_s=skin_emissivity, c_dt=c_dt, t_prev=t_prev)
+    arrays = dict(
+        t_skin=skin_temperature_k,
+        t_air=air_temperature_k,
+        q_rad=absorbed_radiation,
+        h=h_forced,
+        gap=air_gap_m,
+        u_f=u_f,
+        eps_f=eps_f,
+        eps_in=eps_in,
+        eps_s=skin_emissivity,
+        c_dt=c_dt,
+        t_prev=t_prev,
+    )
     b = np.broadcast_arrays(*[np.asarray(v, dtype=float) for v in arrays.values()])
     p = {k: np.array(v) for k, v in zip(arrays, b)}
-    p['natural_floor'] = bool(natural_floor)
-    p['gap_model'] = gap_model
+    p["natural_floor"] = bool(natural_floor)
+    p["gap_model"] = gap_model
     return p
 
 
 def _bracket(p):
     """Bounds with residual >= 0 at lo and <= 0 at hi (see the module docstring)."""
-    with np.errstate(divide='ignore', invalid='ignore'):
+    with np.errstate(divide="ignore", invalid="ignore"):
         # outer surface in radiative (or convective) balance with the absorbed radiation alone
-        es = p['eps_f'] * STEFAN_BOLTZMANN
-        t_rad = np.where(es > 0.0, (np.maximum(p['q_rad'], 0.0) / es) ** 0.25, np.inf)
-        t_cnv = np.where(p['h'] > 0.0, p['t_air'] + np.maximum(p['q_rad'], 0.0) / p['h'],
-                         np.inf)
-    lo = np.minimum(np.minimum(p['t_skin'], p['t_air']), t_rad)
-    hi = np.maximum(np.maximum(p['t_skin'], p['t_air']), np.minimum(t_rad, t_cnv))
-    lo = np.minimum(lo, p['t_prev'])
-    hi = np.maximum(hi, p['t_prev'])
+        es = p["eps_f"] * STEFAN_BOLTZMANN
+        t_rad = np.where(es > 0.0, (np.maximum(p["q_rad"], 0.0) / es) ** 0.25, np.inf)
+        t_cnv = np.where(p["h"] > 0.0, p["t_air"] + np.maximum(p["q_rad"], 0.0) / p["h"], np.inf)
+    lo = np.minimum(np.minimum(p["t_skin"], p["t_air"]), t_rad)
+    hi = np.maximum(np.maximum(p["t_skin"], p["t_air"]), np.minimum(t_rad, t_cnv))
+    lo = np.minimum(lo, p["t_prev"])
+    hi = np.maximum(hi, p["t_prev"])
     lo = np.maximum(lo - 1.0, 1.0)
     hi = np.where(np.isfinite(hi), hi, 1e4) + 1.0
     return lo, hi
@@ -328,14 +364,27 @@ def _bracket(p):
 
 def _result(t, p, iterations):
     residual, (t_in, q_in, q_cd, q_r, q_fab, q_conv, q_emit, q_store) = _balance(t, p)
-    return GarmentBalance(t, t_in, residual, q_in, q_cd, q_r, q_fab, p['q_rad'].copy(), q_conv,
-                          q_emit, q_store, iterations)
+    return GarmentBalance(
+        t, t_in, residual, q_in, q_cd, q_r, q_fab, p["q_rad"].copy(), q_conv, q_emit, q_store, iterations
+    )
 
 
-def steady_state(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced, air_gap_m,
-                 fabric_thickness_m, fabric_conductivity=0.05, fabric_emissivity=0.9,
-                 skin_emissivity=0.98, inner_emissivity=None, natural_floor=True,
-                 gap_model='hollands', tol=1e-6, max_iter=100):
+def steady_state(
+    skin_temperature_k,
+    air_temperature_k,
+    absorbed_radiation,
+    h_forced,
+    air_gap_m,
+    fabric_thickness_m,
+    fabric_conductivity=0.05,
+    fabric_emissivity=0.9,
+    skin_emissivity=0.98,
+    inner_emissivity=None,
+    natural_floor=True,
+    gap_model="hollands",
+    tol=1e-6,
+    max_iter=100,
+):
     """Steady-state garment temperatures per facet (seed Eq. 5-9), bracketed Newton.
 
     Parameters
@@ -389,10 +438,22 @@ def steady_state(skin_temperature_k, air_temperature_k, absorbed_radiation, h_fo
     .. [1] Press, W. H. et al. (2007). Numerical Recipes, 3rd ed., section 9.4 (rtsafe).
     .. [2] The seed paper, section 2.2.3, Eq. 5-9.
     """
-    p = _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced,
-                    air_gap_m, fabric_thickness_m, fabric_conductivity, fabric_emissivity,
-                    skin_emissivity, inner_emissivity, natural_floor, gap_model, 0.0,
-                    air_temperature_k)
+    p = _parameters(
+        skin_temperature_k,
+        air_temperature_k,
+        absorbed_radiation,
+        h_forced,
+        air_gap_m,
+        fabric_thickness_m,
+        fabric_conductivity,
+        fabric_emissivity,
+        skin_emissivity,
+        inner_emissivity,
+        natural_floor,
+        gap_model,
+        0.0,
+        air_temperature_k,
+    )
     lo, hi = _bracket(p)
     t, it = _solve(p, lo, hi, tol, max_iter)
     return _result(t, p, it)
@@ -415,15 +476,32 @@ def areal_heat_capacity(density, specific_heat, thickness_m):
     numeric
         Heat capacity per unit area [J m^-2 K^-1].
     """
-    return (np.asarray(density, dtype=float) * np.asarray(specific_heat, dtype=float)
-            * np.asarray(thickness_m, dtype=float))
+    return (
+        np.asarray(density, dtype=float)
+        * np.asarray(specific_heat, dtype=float)
+        * np.asarray(thickness_m, dtype=float)
+    )
 
 
-def transient_step(previous_outer_temperature_k, time_step_s, heat_capacity, skin_temperature_k,
-                   air_temperature_k, absorbed_radiation, h_forced, air_gap_m,
-                   fabric_thickness_m, fabric_conductivity=0.05, fabric_emissivity=0.9,
-                   skin_emissivity=0.98, inner_emissivity=None, natural_floor=True,
-                   gap_model='hollands', tol=1e-6, max_iter=100):
+def transient_step(
+    previous_outer_temperature_k,
+    time_step_s,
+    heat_capacity,
+    skin_temperature_k,
+    air_temperature_k,
+    absorbed_radiation,
+    h_forced,
+    air_gap_m,
+    fabric_thickness_m,
+    fabric_conductivity=0.05,
+    fabric_emissivity=0.9,
+    skin_emissivity=0.98,
+    inner_emissivity=None,
+    natural_floor=True,
+    gap_model="hollands",
+    tol=1e-6,
+    max_iter=100,
+):
     """One implicit (backward Euler) step of the garment balance with fabric heat capacity.
 
     Parameters
@@ -459,19 +537,42 @@ inner_emissivity, natural_floor, gap_model, tol, max_iter
        Differential-Algebraic Problems, 2nd ed., Springer (backward Euler, L-stability).
     """
     c_dt = np.asarray(heat_capacity, dtype=float) / np.asarray(time_step_s, dtype=float)
-    p = _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced,
-                    air_gap_m, fabric_thickness_m, fabric_conductivity, fabric_emissivity,
-                    skin_emissivity, inner_emissivity, natural_floor, gap_model, c_dt,
-                    previous_outer_temperature_k)
+    p = _parameters(
+        skin_temperature_k,
+        air_temperature_k,
+        absorbed_radiation,
+        h_forced,
+        air_gap_m,
+        fabric_thickness_m,
+        fabric_conductivity,
+        fabric_emissivity,
+        skin_emissivity,
+        inner_emissivity,
+        natural_floor,
+        gap_model,
+        c_dt,
+        previous_outer_temperature_k,
+    )
     lo, hi = _bracket(p)
     t, it = _solve(p, lo, hi, tol, max_iter)
     return _result(t, p, it)
 
 
-def net_flux(outer_temperature_k, skin_temperature_k, air_temperature_k, absorbed_radiation,
-             h_forced, air_gap_m, fabric_thickness_m, fabric_conductivity=0.05,
-             fabric_emissivity=0.9, skin_emissivity=0.98, inner_emissivity=None,
-             natural_floor=True, gap_model='hollands'):
+def net_flux(
+    outer_temperature_k,
+    skin_temperature_k,
+    air_temperature_k,
+    absorbed_radiation,
+    h_forced,
+    air_gap_m,
+    fabric_thickness_m,
+    fabric_conductivity=0.05,
+    fabric_emissivity=0.9,
+    skin_emissivity=0.98,
+    inner_emissivity=None,
+    natural_floor=True,
+    gap_model="hollands",
+):
     """Net heat flux into the outer fabric surface, q_in + q_rad - q_conv - q_emit [W m^-2].
 
     Parameters
@@ -488,16 +589,26 @@ inner_emissivity, natural_floor, gap_model
     numeric
         Net flux [W m^-2]; zero at the steady state, C dT/dt in a transient.
     """
-    p = _parameters(skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced,
-                    air_gap_m, fabric_thickness_m, fabric_conductivity, fabric_emissivity,
-                    skin_emissivity, inner_emissivity, natural_floor, gap_model, 0.0,
-                    outer_temperature_k)
-    return _balance(np.broadcast_to(np.asarray(outer_temperature_k, dtype=float),
-                                    p['t_air'].shape), p)[0]
+    p = _parameters(
+        skin_temperature_k,
+        air_temperature_k,
+        absorbed_radiation,
+        h_forced,
+        air_gap_m,
+        fabric_thickness_m,
+        fabric_conductivity,
+        fabric_emissivity,
+        skin_emissivity,
+        inner_emissivity,
+        natural_floor,
+        gap_model,
+        0.0,
+        outer_temperature_k,
+    )
+    return _balance(np.broadcast_to(np.asarray(outer_temperature_k, dtype=float), p["t_air"].shape), p)[0]
 
 
-def extreme_grid_counts(skin_temperature_k=306.15, fabric_emissivity=0.9,
-                        solar_absorptance=0.7):
+def extreme_grid_counts(skin_temperature_k=306.15, fabric_emissivity=0.9, solar_absorptance=0.7):
     """Solve the garment balance over the DESIGN.md extreme grid and count what went wrong.
 
     Parameters
@@ -530,21 +641,26 @@ def extreme_grid_counts(skin_temperature_k=306.15, fabric_emissivity=0.9,
     sun = np.array([0.0, 300.0, 1200.0])
     gap = np.array([0.0, 1e-3, 5e-3, 20e-3, 50e-3])
     fabric = np.array([0.1e-3, 1e-3, 10e-3])
-    ta, v, g, d, l = np.meshgrid(t_air, wind, sun, gap, fabric, indexing='ij')
+    ta, v, g, d, l = np.meshgrid(t_air, wind, sun, gap, fabric, indexing="ij")
     t_sky, _ = effective_sky_temperature(ta, 0.5)
-    q_rad = solar_absorptance * g + fabric_emissivity * STEFAN_BOLTZMANN * t_sky ** 4
+    q_rad = solar_absorptance * g + fabric_emissivity * STEFAN_BOLTZMANN * t_sky**4
     h = mitchell(v)
-    common = dict(skin_temperature_k=skin_temperature_k, air_temperature_k=ta,
-                  absorbed_radiation=q_rad, h_forced=h, air_gap_m=d, fabric_thickness_m=l,
-                  fabric_emissivity=fabric_emissivity)
-    with np.errstate(all='ignore'):
+    common = dict(
+        skin_temperature_k=skin_temperature_k,
+        air_temperature_k=ta,
+        absorbed_radiation=q_rad,
+        h_forced=h,
+        air_gap_m=d,
+        fabric_thickness_m=l,
+        fabric_emissivity=fabric_emissivity,
+    )
+    with np.errstate(all="ignore"):
         st = steady_state(**common)
         results = [st]
         n_transient = 0
         for dt_step in (1.0, 60.0, 600.0):
             for offset in (-20.0, 20.0):
-                tr = transient_step(ta + offset, dt_step, areal_heat_capacity(300.0, 1300.0, l),
-                                    **common)
+                tr = transient_step(ta + offset, dt_step, areal_heat_capacity(300.0, 1300.0, l), **common)
                 results.append(tr)
                 n_transient += tr.outer_temperature_k.size
     nonfinite = 0
@@ -564,10 +680,16 @@ def extreme_grid_counts(skin_temperature_k=306.15, fabric_emissivity=0.9,
     air_viol = int((np.diff(t_out, axis=0) < -1e-6).sum())
     dist = np.abs(t_out - ta)
     wind_viol = int((np.diff(dist, axis=1) > 1e-6).sum())
-    return dict(cases=int(t_out.size + n_transient), steady_cases=int(t_out.size),
-                transient_cases=int(n_transient), nonfinite=nonfinite, max_residual=max_res,
-                monotonic_air_violations=air_viol, monotonic_wind_violations=wind_viol,
-                max_iterations=max_it)
+    return dict(
+        cases=int(t_out.size + n_transient),
+        steady_cases=int(t_out.size),
+        transient_cases=int(n_transient),
+        nonfinite=nonfinite,
+        max_residual=max_res,
+        monotonic_air_violations=air_viol,
+        monotonic_wind_violations=wind_viol,
+        max_iterations=max_it,
+    )
 
 
 def bench_time_steps(steps_s=(10.0, 60.0, 300.0, 600.0, 1800.0), duration_s=3600.0):
@@ -584,9 +706,12 @@ def bench_time_steps(steps_s=(10.0, 60.0, 300.0, 600.0, 1800.0), duration_s=3600
     import time as _time
 
     from scipy.integrate import solve_ivp
-    cases = {"shirt 0.5 mm": (0.5e-3, 0.01, 0.04, areal_heat_capacity(300.0, 1300.0, 0.5e-3)),
-             "jacket 5 mm": (5e-3, 0.02, 0.04, areal_heat_capacity(150.0, 1400.0, 5e-3))}
-    t_air, t_skin, q_sky = 283.15, 306.15, 0.9 * STEFAN_BOLTZMANN * 265.0 ** 4
+
+    cases = {
+        "shirt 0.5 mm": (0.5e-3, 0.01, 0.04, areal_heat_capacity(300.0, 1300.0, 0.5e-3)),
+        "jacket 5 mm": (5e-3, 0.02, 0.04, areal_heat_capacity(150.0, 1400.0, 5e-3)),
+    }
+    t_air, t_skin, q_sky = 283.15, 306.15, 0.9 * STEFAN_BOLTZMANN * 265.0**4
 
     def forcing(t):
         sun = 500.0 * min(max(t / 900.0, 0.0), 1.0)
@@ -596,28 +721,49 @@ def bench_time_steps(steps_s=(10.0, 60.0, 300.0, 600.0, 1800.0), duration_s=3600
     rows = []
     common = max(steps_s)
     for name, (thick, gap, k_f, cap) in cases.items():
-        kw = dict(fabric_thickness_m=thick, fabric_conductivity=k_f, air_gap_m=gap,
-                  skin_temperature_k=t_skin, air_temperature_k=t_air)
-        t0 = float(steady_state(absorbed_radiation=q_sky, h_forced=mitchell(2.0),
-                                **kw).outer_temperature_k)
+        kw = dict(
+            fabric_thickness_m=thick,
+            fabric_conductivity=k_f,
+            air_gap_m=gap,
+            skin_temperature_k=t_skin,
+            air_temperature_k=t_air,
+        )
+        t0 = float(steady_state(absorbed_radiation=q_sky, h_forced=mitchell(2.0), **kw).outer_temperature_k)
 
         def rhs(t, y):
             q, h = forcing(t)
             return [float(net_flux(y[0], absorbed_radiation=q, h_forced=h, **kw)) / cap]
-        ref = solve_ivp(rhs, (0.0, duration_s), [t0], method="Radau", rtol=1e-10, atol=1e-10,
-                        dense_output=True, max_step=60.0)
+
+        ref = solve_ivp(
+            rhs,
+            (0.0, duration_s),
+            [t0],
+            method="Radau",
+            rtol=1e-10,
+            atol=1e-10,
+            dense_output=True,
+            max_step=60.0,
+        )
         for dt in steps_s:
             tic = _time.perf_counter()
             t, now, err, err_common = t0, 0.0, 0.0, 0.0
             while now < duration_s - 1e-9:
                 now += dt
                 q, h = forcing(now - 1e-9)
-                t = float(transient_step(t, dt, cap, absorbed_radiation=q, h_forced=h,
-                                         **kw).outer_temperature_k)
+                t = float(
+                    transient_step(t, dt, cap, absorbed_radiation=q, h_forced=h, **kw).outer_temperature_k
+                )
                 e = abs(t - float(ref.sol(now)[0]))
                 err = max(err, e)
                 if abs(now / common - round(now / common)) < 1e-9:
                     err_common = max(err_common, e)
-            rows.append({"case": name, "step_s": float(dt), "max_error_k": err,
-                         "common_error_k": err_common, "seconds": _time.perf_counter() - tic})
+            rows.append(
+                {
+                    "case": name,
+                    "step_s": float(dt),
+                    "max_error_k": err,
+                    "common_error_k": err_common,
+                    "seconds": _time.perf_counter() - tic,
+                }
+            )
     return rows

@@ -10,6 +10,7 @@ steepness of the Wien tail at the lowest requested temperature, so they are accu
 with a monotone table (log radiance against log temperature, cubic Hermite with exact slopes)
 followed by Newton steps on the same quadrature, so the two are inverse to rounding.
 """
+
 from __future__ import annotations
 
 import functools
@@ -162,7 +163,7 @@ def _log_band(t_k, band, response, chunk=4096):
     dlog = np.empty_like(t_k)
     order = np.argsort(t_k)
     for start in range(0, t_k.size, chunk):
-        idx = order[start:start + chunk]
+        idx = order[start : start + chunk]
         tt = t_k[idx]
         x, w = _nodes(band, response, float(tt.min()))
         keep = w > 0
@@ -322,7 +323,9 @@ def band_emissivity(wavelengths_um, emissivity, band_um, response=None, temperat
     wl = np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
     eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
     if wl.size != eps.size or wl.size == 0:
-        raise ValueError(f"wavelengths_um and emissivity must have the same length >= 1, got {wl.size} and {eps.size}")
+        raise ValueError(
+            f"wavelengths_um and emissivity must have the same length >= 1, got {wl.size} and {eps.size}"
+        )
     if wl.size > 1 and np.any(np.diff(wl) <= 0):
         raise ValueError("wavelengths_um must be strictly ascending")
     x, w = _nodes(band, resp, float(temperature_k), extra_breaks=wl if wl.size > 1 else ())

@@ -5,6 +5,7 @@ angular distribution (Martin & Berdahl 1984), and the closed-form extinction ter
 analytic atmosphere (water-vapour continuum, aerosol from visibility). LOWTRAN7 spectra are in
 :mod:`humv_usd.atmosphere.model`; these are its analytic fallback.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -97,7 +98,7 @@ def effective_sky_temperature(air_temperature_k, relative_humidity):
     .. [1] Berdahl, P., Martin, M. (1984). Emissivity of clear skies. Solar Energy 32(5), 663.
     """
     eps = berdahl_martin_emissivity(dew_point(air_temperature_k, relative_humidity))
-    return eps ** 0.25 * np.asarray(air_temperature_k, dtype=float), eps
+    return eps**0.25 * np.asarray(air_temperature_k, dtype=float), eps
 
 
 def _martin_berdahl_law(zenith_emissivity, mu):
@@ -162,12 +163,10 @@ def water_vapour_pressure(air_temperature_k, relative_humidity):
     e_s = 610.94 exp(17.625 t / (t + 243.04)) Pa with t in degC (Alduchov & Eskridge 1996).
     """
     t_c = np.asarray(air_temperature_k, dtype=float) - 273.15
-    return (np.clip(relative_humidity, 0.0, 1.0)
-            * 610.94 * np.exp(_MAGNUS_A * t_c / (_MAGNUS_B + t_c)))
+    return np.clip(relative_humidity, 0.0, 1.0) * 610.94 * np.exp(_MAGNUS_A * t_c / (_MAGNUS_B + t_c))
 
 
-def water_continuum_absorption(wavelength_um, air_temperature_k, relative_humidity,
-                               pressure_pa=101325.0):
+def water_continuum_absorption(wavelength_um, air_temperature_k, relative_humidity, pressure_pa=101325.0):
     """Water-vapour continuum absorption coefficient in the 8-14 um window [m-1].
 
     Parameters
@@ -195,13 +194,13 @@ def water_continuum_absorption(wavelength_um, air_temperature_k, relative_humidi
        absorption by atmospheric water vapor in the 8-12 um window. Applied Optics 15(9),
        2085-2090.
     """
-    nu = 1.0e4 / np.asarray(wavelength_um, dtype=float)          # [cm-1]
+    nu = 1.0e4 / np.asarray(wavelength_um, dtype=float)  # [cm-1]
     t = float(air_temperature_k)
     e_pa = float(water_vapour_pressure(t, relative_humidity))
     cs = (1.25e-22 + 1.67e-19 * np.exp(-7.87e-3 * nu)) * np.exp(1800.0 * (1.0 / t - 1.0 / 296.0))
-    n_w = e_pa / (1.380649e-23 * t) * 1e-6                      # [molecules cm-3]
+    n_w = e_pa / (1.380649e-23 * t) * 1e-6  # [molecules cm-3]
     broad_atm = (e_pa + 0.002 * (float(pressure_pa) - e_pa)) / 101325.0
-    k_cm = cs * n_w * broad_atm                                  # [cm-1]
+    k_cm = cs * n_w * broad_atm  # [cm-1]
     return np.where((nu >= 400.0) & (nu <= 1250.0), k_cm * 100.0, 0.0)
 
 
@@ -221,5 +220,5 @@ def aerosol_extinction(wavelength_um, visibility_km):
     """
     v = float(visibility_km)
     q = 1.6 if v > 50.0 else 1.3 if v > 6.0 else 0.585 * v ** (1.0 / 3.0)
-    beta550 = max(3.912 / v - 0.0116, 0.0) * 1e-3                # [m-1]
+    beta550 = max(3.912 / v - 0.0116, 0.0) * 1e-3  # [m-1]
     return beta550 * (np.asarray(wavelength_um, dtype=float) / 0.55) ** (-q)

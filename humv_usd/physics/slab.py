@@ -7,6 +7,7 @@ temperature. Time stepping is implicit (theta method, backward Euler by default)
 nonlinear emission term Newton-linearized and iterated to convergence, so 10-minute steps are
 stable. This is the role of DIRSIG's THERM model in the seed.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -33,8 +34,7 @@ def uniform_layers(total_thickness_m, n_layers):
     return np.full(int(n_layers), float(total_thickness_m) / int(n_layers))
 
 
-def surface_flux(surface_temperature_k, absorbed_solar, sky_longwave, air_temperature_k, h_conv,
-                 emissivity):
+def surface_flux(surface_temperature_k, absorbed_solar, sky_longwave, air_temperature_k, h_conv, emissivity):
     """Net heat flux into the top surface [W m^-2].
 
     Parameters
@@ -63,9 +63,11 @@ def surface_flux(surface_temperature_k, absorbed_solar, sky_longwave, air_temper
        (surface energy balance).
     """
     t = np.asarray(surface_temperature_k, dtype=float)
-    return (np.asarray(absorbed_solar, dtype=float)
-            + emissivity * (sky_longwave - STEFAN_BOLTZMANN * t ** 4)
-            + h_conv * (air_temperature_k - t))
+    return (
+        np.asarray(absorbed_solar, dtype=float)
+        + emissivity * (sky_longwave - STEFAN_BOLTZMANN * t**4)
+        + h_conv * (air_temperature_k - t)
+    )
 
 
 def _operators(layer_thickness_m, conductivity, volumetric_heat_capacity):
@@ -89,9 +91,23 @@ def _conduction(t, g):
     return q
 
 
-def step(temperatures_k, time_step_s, layer_thickness_m, conductivity, volumetric_heat_capacity,
-         absorbed_solar, sky_longwave, air_temperature_k, h_conv, emissivity=0.95,
-         bottom='adiabatic', deep_temperature_k=None, theta=1.0, tol=1e-9, max_iter=50):
+def step(
+    temperatures_k,
+    time_step_s,
+    layer_thickness_m,
+    conductivity,
+    volumetric_heat_capacity,
+    absorbed_solar,
+    sky_longwave,
+    air_temperature_k,
+    h_conv,
+    emissivity=0.95,
+    bottom="adiabatic",
+    deep_temperature_k=None,
+    theta=1.0,
+    tol=1e-9,
+    max_iter=50,
+):
     """Advance a slab's node temperatures by one implicit step.
 
     Parameters
@@ -156,13 +172,13 @@ def step(temperatures_k, time_step_s, layer_thickness_m, conductivity, volumetri
     .. [3] Schott, J. R. et al. DIRSIG THERM: the surface temperature model of DIRSIG,
        Rochester Institute of Technology.
     """
-    if bottom not in ('adiabatic', 'fixed'):
-        raise ValueError(f'invalid model selection {bottom}')
+    if bottom not in ("adiabatic", "fixed"):
+        raise ValueError(f"invalid model selection {bottom}")
     t_old = np.asarray(temperatures_k, dtype=float)
     g, cap = _operators(layer_thickness_m, conductivity, volumetric_heat_capacity)
     n1 = t_old.size
     if n1 != g.size + 1:
-        raise ValueError('temperatures_k needs one more entry than layer_thickness_m')
+        raise ValueError("temperatures_k needs one more entry than layer_thickness_m")
     c_dt = cap / time_step_s
     forcing = (absorbed_solar, sky_longwave, air_temperature_k, h_conv, emissivity)
     explicit = np.zeros(n1)
@@ -178,7 +194,7 @@ def step(temperatures_k, time_step_s, layer_thickness_m, conductivity, volumetri
     ab[0, 1:] = -theta * g  # upper
     ab[2, :-1] = -theta * g  # lower
     t = t_old.copy()
-    if bottom == 'fixed':
+    if bottom == "fixed":
         t[-1] = deep_temperature_k
     for _ in range(max_iter):
         res = c_dt * (t - t_old) - theta * _conduction(t, g) - explicit
@@ -186,7 +202,7 @@ def step(temperatures_k, time_step_s, layer_thickness_m, conductivity, volumetri
         jac = ab.copy()
         jac[1] = diag
         jac[1, 0] += theta * (4.0 * emissivity * STEFAN_BOLTZMANN * t[0] ** 3 + h_conv)
-        if bottom == 'fixed':
+        if bottom == "fixed":
             res[-1] = 0.0
             jac[1, -1] = 1.0
             jac[2, -2] = 0.0  # row N is the identity
@@ -194,15 +210,30 @@ def step(temperatures_k, time_step_s, layer_thickness_m, conductivity, volumetri
         t = t + dt_nodes
         if np.max(np.abs(dt_nodes)) < tol:
             break
-    residual = (theta * (surface_flux(t[0], *forcing) + g[0] * (t[1] - t[0])) + explicit[0]
-                - c_dt[0] * (t[0] - t_old[0]))
+    residual = (
+        theta * (surface_flux(t[0], *forcing) + g[0] * (t[1] - t[0]))
+        + explicit[0]
+        - c_dt[0] * (t[0] - t_old[0])
+    )
     return t, residual
 
 
-def diurnal_spin_up(initial_temperature_k, time_step_s, layer_thickness_m, conductivity,
-                    volumetric_heat_capacity, absorbed_solar, sky_longwave, air_temperature_k,
-                    h_conv, emissivity=0.95, n_cycles=1, bottom='adiabatic',
-                    deep_temperature_k=None, theta=1.0):
+def diurnal_spin_up(
+    initial_temperature_k,
+    time_step_s,
+    layer_thickness_m,
+    conductivity,
+    volumetric_heat_capacity,
+    absorbed_solar,
+    sky_longwave,
+    air_temperature_k,
+    h_conv,
+    emissivity=0.95,
+    n_cycles=1,
+    bottom="adiabatic",
+    deep_temperature_k=None,
+    theta=1.0,
+):
     """Run a slab through repeated diurnal forcing (24 h spin-up) and return the last cycle.
 
     Parameters
@@ -228,16 +259,32 @@ deep_temperature_k, theta
     """
     dz = np.asarray(layer_thickness_m, dtype=float)
     t = np.broadcast_to(np.asarray(initial_temperature_k, dtype=float), (dz.size + 1,)).copy()
-    forcing = np.broadcast_arrays(*[np.atleast_1d(np.asarray(f, dtype=float)) for f in
-                                    (absorbed_solar, sky_longwave, air_temperature_k, h_conv)])
+    forcing = np.broadcast_arrays(
+        *[
+            np.atleast_1d(np.asarray(f, dtype=float))
+            for f in (absorbed_solar, sky_longwave, air_temperature_k, h_conv)
+        ]
+    )
     m = forcing[0].size
     history = np.empty((m, dz.size + 1))
     max_res = 0.0
     for _ in range(int(n_cycles)):
         for i in range(m):
-            t, res = step(t, time_step_s, dz, conductivity, volumetric_heat_capacity,
-                          forcing[0][i], forcing[1][i], forcing[2][i], forcing[3][i],
-                          emissivity, bottom, deep_temperature_k, theta)
+            t, res = step(
+                t,
+                time_step_s,
+                dz,
+                conductivity,
+                volumetric_heat_capacity,
+                forcing[0][i],
+                forcing[1][i],
+                forcing[2][i],
+                forcing[3][i],
+                emissivity,
+                bottom,
+                deep_temperature_k,
+                theta,
+            )
             history[i] = t
             max_res = max(max_res, abs(float(res)))
     return history[:, 0].copy(), history, max_res
@@ -284,10 +331,22 @@ def _thomas(lower, diag, upper, rhs):
     return x
 
 
-def step_many(temperatures_k, time_step_s, layer_thickness_m, conductivity,
-              volumetric_heat_capacity, absorbed_solar, sky_longwave, air_temperature_k, h_conv,
-              emissivity=0.95, bottom='adiabatic', deep_temperature_k=None, tol=1e-9,
-              max_iter=50):
+def step_many(
+    temperatures_k,
+    time_step_s,
+    layer_thickness_m,
+    conductivity,
+    volumetric_heat_capacity,
+    absorbed_solar,
+    sky_longwave,
+    air_temperature_k,
+    h_conv,
+    emissivity=0.95,
+    bottom="adiabatic",
+    deep_temperature_k=None,
+    tol=1e-9,
+    max_iter=50,
+):
     """Backward-Euler step of many slabs of one construction at once (vectorized :func:`step`).
 
     Parameters
@@ -315,18 +374,20 @@ def step_many(temperatures_k, time_step_s, layer_thickness_m, conductivity,
     emission is Newton-linearised and each Newton update solves F tridiagonal systems by the
     Thomas algorithm (Patankar 1980, section 4.2-5).
     """
-    if bottom not in ('adiabatic', 'fixed'):
-        raise ValueError(f'invalid model selection {bottom}')
+    if bottom not in ("adiabatic", "fixed"):
+        raise ValueError(f"invalid model selection {bottom}")
     t_old = np.atleast_2d(np.asarray(temperatures_k, dtype=float))
     nf, n1 = t_old.shape
     g, cap = _operators(layer_thickness_m, conductivity, volumetric_heat_capacity)
     if n1 != g.size + 1:
-        raise ValueError('temperatures_k needs one more entry than layer_thickness_m')
+        raise ValueError("temperatures_k needs one more entry than layer_thickness_m")
 
     def col(v):
         return np.broadcast_to(np.asarray(v, dtype=float), (nf,))
-    a_s, l_sky, t_air, h, eps = (col(v) for v in (absorbed_solar, sky_longwave,
-                                                  air_temperature_k, h_conv, emissivity))
+
+    a_s, l_sky, t_air, h, eps = (
+        col(v) for v in (absorbed_solar, sky_longwave, air_temperature_k, h_conv, emissivity)
+    )
     c_dt = np.broadcast_to(cap / time_step_s, (nf, n1))
     lower = np.zeros((nf, n1))
     upper = np.zeros((nf, n1))
@@ -336,7 +397,7 @@ def step_many(temperatures_k, time_step_s, layer_thickness_m, conductivity,
     diag0[:, :-1] += g
     diag0[:, 1:] += g
     t = t_old.copy()
-    if bottom == 'fixed':
+    if bottom == "fixed":
         t[:, -1] = col(deep_temperature_k)
         lower[:, -1] = 0.0
     for _ in range(max_iter):
@@ -348,21 +409,35 @@ def step_many(temperatures_k, time_step_s, layer_thickness_m, conductivity,
         res[:, 0] -= surface_flux(t[:, 0], a_s, l_sky, t_air, h, eps)
         diag = diag0.copy()
         diag[:, 0] += 4.0 * eps * STEFAN_BOLTZMANN * t[:, 0] ** 3 + h
-        if bottom == 'fixed':
+        if bottom == "fixed":
             res[:, -1] = 0.0
             diag[:, -1] = 1.0
         dt_nodes = _thomas(lower, diag, upper, -res)
         t = t + dt_nodes
         if np.max(np.abs(dt_nodes)) < tol:
             break
-    residual = (surface_flux(t[:, 0], a_s, l_sky, t_air, h, eps) + g[0] * (t[:, 1] - t[:, 0])
-                - c_dt[:, 0] * (t[:, 0] - t_old[:, 0]))
+    residual = (
+        surface_flux(t[:, 0], a_s, l_sky, t_air, h, eps)
+        + g[0] * (t[:, 1] - t[:, 0])
+        - c_dt[:, 0] * (t[:, 0] - t_old[:, 0])
+    )
     return t, residual
 
 
-def simulate_many(forcing_times_s, absorbed_solar, sky_longwave, air_temperature_k, h_conv,
-                  layer_thickness_m, conductivity, volumetric_heat_capacity, emissivity=0.95,
-                  bottom='adiabatic', deep_temperature_k=None, initial_temperature_k=None):
+def simulate_many(
+    forcing_times_s,
+    absorbed_solar,
+    sky_longwave,
+    air_temperature_k,
+    h_conv,
+    layer_thickness_m,
+    conductivity,
+    volumetric_heat_capacity,
+    emissivity=0.95,
+    bottom="adiabatic",
+    deep_temperature_k=None,
+    initial_temperature_k=None,
+):
     """Surface temperatures of F slabs of one construction along a forcing time series.
 
     Parameters
@@ -386,33 +461,53 @@ deep_temperature_k
     """
     times = np.asarray(forcing_times_s, dtype=float)
     m = times.size
+
     def as_2d(v):
         v = np.asarray(v, dtype=float)
         return v.reshape(-1, 1) if v.ndim == 1 else v
+
     forcing = [as_2d(v) for v in (absorbed_solar, sky_longwave, air_temperature_k, h_conv)]
     shape = np.broadcast_shapes(*[f.shape for f in forcing], (m, 1))
     forcing = [np.broadcast_to(f, shape) for f in forcing]
     nf = shape[1]
     n1 = np.asarray(layer_thickness_m).size + 1
-    kw = dict(layer_thickness_m=layer_thickness_m, conductivity=conductivity,
-              volumetric_heat_capacity=volumetric_heat_capacity, emissivity=emissivity,
-              bottom=bottom, deep_temperature_k=deep_temperature_k)
+    kw = dict(
+        layer_thickness_m=layer_thickness_m,
+        conductivity=conductivity,
+        volumetric_heat_capacity=volumetric_heat_capacity,
+        emissivity=emissivity,
+        bottom=bottom,
+        deep_temperature_k=deep_temperature_k,
+    )
     if initial_temperature_k is None:
         # steady state of the time-mean forcing; the emission term is nonlinear, so the mean of
         # sigma T^4 is not matched exactly, which the spin-up removes
         mean = [f.mean(axis=0) for f in forcing]
         start = np.broadcast_to(mean[2][:, None], (nf, n1))
-        t, _ = step_many(start, np.inf, absorbed_solar=mean[0], sky_longwave=mean[1],
-                         air_temperature_k=mean[2], h_conv=mean[3], **kw)
+        t, _ = step_many(
+            start,
+            np.inf,
+            absorbed_solar=mean[0],
+            sky_longwave=mean[1],
+            air_temperature_k=mean[2],
+            h_conv=mean[3],
+            **kw,
+        )
     else:
         t = np.broadcast_to(np.asarray(initial_temperature_k, dtype=float), (nf, n1)).copy()
     out = np.empty((m, nf))
     out[0] = t[:, 0]
     max_res = 0.0
     for i in range(1, m):
-        t, res = step_many(t, times[i] - times[i - 1], absorbed_solar=forcing[0][i],
-                           sky_longwave=forcing[1][i], air_temperature_k=forcing[2][i],
-                           h_conv=forcing[3][i], **kw)
+        t, res = step_many(
+            t,
+            times[i] - times[i - 1],
+            absorbed_solar=forcing[0][i],
+            sky_longwave=forcing[1][i],
+            air_temperature_k=forcing[2][i],
+            h_conv=forcing[3][i],
+            **kw,
+        )
         out[i] = t[:, 0]
         max_res = max(max_res, float(np.max(np.abs(res))))
     return out, max_res

@@ -4,6 +4,7 @@ Every layer is built in memory first; only when all of them succeeded is anythin
 file atomically and only if its text changed (so an unchanged scenario rewrites nothing).
 Parts the scenario lacks get no layer; the report says what was skipped and why.
 """
+
 from __future__ import annotations
 
 import json
@@ -18,28 +19,36 @@ from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.environment import layer as environment_layer
+from humv_usd.fileio import write_text_atomic
+from humv_usd.groundtruth import annotators
 from humv_usd.materials import layer as materials_layer
 from humv_usd.scenario import Scenario
 from humv_usd.scene import layer as scene_layer
 from humv_usd.sensors import layer as sensors_layer
 from humv_usd.thermal import layer as thermal_layer
-from humv_usd.fileio import write_text_atomic
-from humv_usd.groundtruth import annotators
 from humv_usd.usd.layers import layer_text, set_layer_metadata
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
 REPORT_NAME = "compose.json"
 # file-name patterns compose owns inside OUT/layers (stale ones are removed)
-_OWNED = ("environment.usda", "atmosphere.usda", "materials.usda", "scene.usda",
-          "sensors.usda", "thermal.usda", "avatar_*.usda", "clothing_*.usda")
+_OWNED = (
+    "environment.usda",
+    "atmosphere.usda",
+    "materials.usda",
+    "scene.usda",
+    "sensors.usda",
+    "thermal.usda",
+    "avatar_*.usda",
+    "clothing_*.usda",
+)
 
 
 @dataclass
 class ComposeReport:
     stage_path: Path
     layers: list[tuple[str, bool, float]] = field(default_factory=list)  # name, written, seconds
-    skipped: list[tuple[str, str]] = field(default_factory=list)          # part, reason
+    skipped: list[tuple[str, str]] = field(default_factory=list)  # part, reason
     removed: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
@@ -95,9 +104,14 @@ def _build(name: str, scenario: Scenario, upstream: Usd.Stage | None) -> Sdf.Lay
         human_id = name.removeprefix("avatar_")
         human = next(h for h in scenario["human"] if h["id"] == human_id)
         return avatar_layer.build_one(scenario, human)
-    tool = {"environment": environment_layer, "atmosphere": atmosphere_layer,
-            "materials": materials_layer, "scene": scene_layer, "sensors": sensors_layer,
-            "thermal": thermal_layer}[name]
+    tool = {
+        "environment": environment_layer,
+        "atmosphere": atmosphere_layer,
+        "materials": materials_layer,
+        "scene": scene_layer,
+        "sensors": sensors_layer,
+        "thermal": thermal_layer,
+    }[name]
     return tool.build(scenario, upstream)
 
 
@@ -113,14 +127,18 @@ def compose_in_memory(layers: list[Sdf.Layer], fps: float) -> Usd.Stage:
 def root_layer(scenario: Scenario, names: list[str]) -> Sdf.Layer:
     g = scenario["general"]
     root = Sdf.Layer.CreateAnonymous(".usda")
-    set_layer_metadata(root, g["fps"], scenario.frame_count,
-                       f"HumV-USD stage for scenario '{g['name']}' (composed by humv-usd compose)")
+    set_layer_metadata(
+        root,
+        g["fps"],
+        scenario.frame_count,
+        f"HumV-USD stage for scenario '{g['name']}' (composed by humv-usd compose)",
+    )
     root.subLayerPaths = [f"./{LAYER_DIR}/{n}.usda" for n in reversed(names)]
     root.customLayerData = {
         "humv:scenario": g["name"],
         "humv:scenarioDigest": scenario.digest(),
         "humv:version": humv_usd.__version__,
-        **annotators.stage_metadata(scenario),   # [annotations] -> what the render computes
+        **annotators.stage_metadata(scenario),  # [annotations] -> what the render computes
     }
     return root
 
@@ -134,13 +152,20 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
     for name in names:
         t = time.perf_counter()
         reads_stage = name == "thermal" or name.startswith("clothing_")
-        upstream = (compose_in_memory([lyr for _, lyr, _ in built], scenario["general"]["fps"])
-                    if reads_stage else None)
+        upstream = (
+            compose_in_memory([lyr for _, lyr, _ in built], scenario["general"]["fps"])
+            if reads_stage
+            else None
+        )
         built.append((name, _build(name, scenario, upstream), time.perf_counter() - t))
     texts = [(name, layer_text(lyr), dt) for name, lyr, dt in built]
     # what each tool ran and skipped (its layer's customLayerData "humv:<tool>:ran"), for compose.json
-    ran = {name: dict(value) for name, lyr, _ in built
-           for key, value in dict(lyr.customLayerData).items() if key.endswith(":ran")}
+    ran = {
+        name: dict(value)
+        for name, lyr, _ in built
+        for key, value in dict(lyr.customLayerData).items()
+        if key.endswith(":ran")
+    }
     root_text = layer_text(root_layer(scenario, names))
 
     report = ComposeReport(stage_path=out / ROOT_NAME, skipped=skipped)
@@ -160,11 +185,20 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
     report.layers.append(("stage", wrote_root, 0.0))
     report.seconds = time.perf_counter() - t0
     # run times (and what ran) for pipelines; error estimates live in the layers themselves
-    write_text_atomic(out / REPORT_NAME, json.dumps({
-        "humv_usd": humv_usd.__version__, "scenario_digest": scenario.digest(),
-        "seconds_total": round(report.seconds, 4),
-        "layers": [{"name": n, "written": w, "seconds": round(t, 4)} for n, w, t in report.layers],
-        "skipped": [{"part": p, "reason": r} for p, r in report.skipped],
-        "ran": ran,
-        "removed": report.removed}, indent=2) + "\n")
+    write_text_atomic(
+        out / REPORT_NAME,
+        json.dumps(
+            {
+                "humv_usd": humv_usd.__version__,
+                "scenario_digest": scenario.digest(),
+                "seconds_total": round(report.seconds, 4),
+                "layers": [{"name": n, "written": w, "seconds": round(t, 4)} for n, w, t in report.layers],
+                "skipped": [{"part": p, "reason": r} for p, r in report.skipped],
+                "ran": ran,
+                "removed": report.removed,
+            },
+            indent=2,
+        )
+        + "\n",
+    )
     return report

@@ -1,7 +1,5 @@
-"""Rendering of composed stages: infrared band radiance with Mitsuba 3, plus labels.
+"""USD → Mitsuba 3: infrared band radiance and EO spectral renders of a composed stage.
 
-``render_stage`` is the entry point; ``mode`` is the one place that imports Mitsuba.
+The per-frame orchestration with ground truth and the manifest is
+:func:`humv_usd.pipeline.render.render_stage`; this package does not import ``groundtruth``.
 """
-from humv_usd.render.run import render_stage
-
-__all__ = ["render_stage"]

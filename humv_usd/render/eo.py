@@ -44,15 +44,19 @@ Closed-form check: a white Lambertian plate (:math:`\\rho = 1`) under a beam of 
 irradiance :math:`E` at incidence :math:`\\theta` has radiance :math:`E\\rho\\cos\\theta/\\pi`
 (tests/test_render_eo.py).
 """
+
 from __future__ import annotations
 
 import os
 
 import numpy as np
 
-from humv_usd.render import mode
-from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply  # noqa: F401
+from humv_usd import images as writers
+from humv_usd import mode
+from humv_usd.physics.sensor import srgb_encode
 from humv_usd.render import radiometry
+from humv_usd.render.cie import XYZ_TO_SRGB
+from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply  # noqa: F401
 from humv_usd.render.radiometry import hemisphere_mean
 
 #: Wavelength grid of the Mitsuba spectra [nm] (Mitsuba's spectral variants sample 360-830 nm).
@@ -78,8 +82,12 @@ def _spectrum(values_nm_grid) -> dict:
     """A Mitsuba ``regular`` spectrum on :data:`EO_WAVELENGTHS_NM` (never collapsed to a uniform
     one, so its values stay updatable per frame)."""
     v = np.maximum(np.asarray(values_nm_grid, dtype=float), TINY)
-    return {"type": "regular", "wavelength_min": float(EO_WAVELENGTHS_NM[0]),
-            "wavelength_max": float(EO_WAVELENGTHS_NM[-1]), "values": ", ".join(f"{x:.9g}" for x in v)}
+    return {
+        "type": "regular",
+        "wavelength_min": float(EO_WAVELENGTHS_NM[0]),
+        "wavelength_max": float(EO_WAVELENGTHS_NM[-1]),
+        "values": ", ".join(f"{x:.9g}" for x in v),
+    }
 
 
 def reflectance_spectrum(material) -> np.ndarray:
@@ -92,10 +100,14 @@ def reflectance_spectrum(material) -> np.ndarray:
 
 
 def _covers_visible(wl) -> bool:
-    return wl is not None and wl.size > 1 and wl[0] <= EO_RANGE_UM[0] + 0.01 and wl[-1] >= EO_RANGE_UM[1] - 0.01
+    return (
+        wl is not None and wl.size > 1 and wl[0] <= EO_RANGE_UM[0] + 0.01 and wl[-1] >= EO_RANGE_UM[1] - 0.01
+    )
 
 
-def illumination(spectra, sun_direction, dni_w_m2: float | None = None) -> tuple[np.ndarray | None, np.ndarray | None, dict]:
+def illumination(
+    spectra, sun_direction, dni_w_m2: float | None = None
+) -> tuple[np.ndarray | None, np.ndarray | None, dict]:
     """Sun irradiance and uniform-sky radiance on :data:`EO_WAVELENGTHS_NM`, per nm, and notes.
 
     The sun comes from the solar spectral table when it covers 0.40-0.70 um, else from the
@@ -111,8 +123,10 @@ def illumination(spectra, sun_direction, dni_w_m2: float | None = None) -> tuple
     if sun_direction is None:
         ran["sun"] = "skipped: no humv:environment:sunDirection"
     elif not table and not dni_w_m2:
-        ran["sun"] = ("skipped: no humv:atmosphere:solarSpectralIrradiance covering 0.40-0.70 um "
-                      "(and no humv:environment:directNormalIrradiance)")
+        ran["sun"] = (
+            "skipped: no humv:atmosphere:solarSpectralIrradiance covering 0.40-0.70 um "
+            "(and no humv:environment:directNormalIrradiance)"
+        )
     elif sun_direction[2] <= 0:
         ran["sun"] = "skipped: sun below the horizon (night)"
     elif table:
@@ -120,15 +134,18 @@ def illumination(spectra, sun_direction, dni_w_m2: float | None = None) -> tuple
         ran["sun"] = "directional, spectral irradiance from humv:atmosphere:solarSpectralIrradiance"
     else:
         sun = radiometry.blackbody_sun(x, dni_w_m2) / 1000.0
-        ran["sun"] = (f"directional, no humv:atmosphere:solarSpectralIrradiance covering 0.40-0.70 um: "
-                      f"DNI {float(dni_w_m2):.4g} W m-2 with a {radiometry.SUN_FALLBACK_NOTE}")
+        ran["sun"] = (
+            f"directional, no humv:atmosphere:solarSpectralIrradiance covering 0.40-0.70 um: "
+            f"DNI {float(dni_w_m2):.4g} W m-2 with a {radiometry.SUN_FALLBACK_NOTE}"
+        )
     if not covered:
         ran["sky"] = "skipped: no atmosphere spectra covering 0.40-0.70 um"
     elif spectra.sky_radiance is None:
         ran["sky"] = "skipped: no humv:atmosphere:skySpectralRadiance"
     else:
-        per_wl = np.array([hemisphere_mean(spectra.sky_zenith_deg, spectra.sky_radiance[:, j])
-                           for j in range(wl.size)])
+        per_wl = np.array(
+            [hemisphere_mean(spectra.sky_zenith_deg, spectra.sky_radiance[:, j]) for j in range(wl.size)]
+        )
         sky = np.interp(x, wl, per_wl) / 1000.0
         ran["sky"] = "uniform, cosine-weighted hemispherical mean of humv:atmosphere:skySpectralRadiance"
     return sun, sky, ran
@@ -153,8 +170,16 @@ class EOScene(IRScene):
 
     spectral = True
 
-    def __init__(self, parts, sensors: list[SensorSetup], spp: int, max_depth: int, workdir,
-                 sky: bool = True, sun: bool = True):
+    def __init__(
+        self,
+        parts,
+        sensors: list[SensorSetup],
+        spp: int,
+        max_depth: int,
+        workdir,
+        sky: bool = True,
+        sun: bool = True,
+    ):
         mi = mode.mitsuba(spectral=True)
         self.mi = mi
         self.scalar = not mode.is_vectorized()
@@ -170,23 +195,39 @@ class EOScene(IRScene):
         if self.has_sky:
             scene["sky"] = {"type": "constant", "radiance": _spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY))}
         if self.has_sun:
-            scene["sun"] = {"type": "directional", "direction": [0.0, 0.0, -1.0],
-                            "irradiance": _spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY))}
+            scene["sun"] = {
+                "type": "directional",
+                "direction": [0.0, 0.0, -1.0],
+                "irradiance": _spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY)),
+            }
         for s in sensors:
             scene[s.id] = {
-                "type": "perspective", "fov": float(s.pose.fov_x_deg), "fov_axis": "x",
-                "near_clip": 1e-3, "far_clip": 1e8,
+                "type": "perspective",
+                "fov": float(s.pose.fov_x_deg),
+                "fov_axis": "x",
+                "near_clip": 1e-3,
+                "far_clip": 1e8,
                 "to_world": _look_at(mi, s.pose),
-                "film": {"type": "hdrfilm", "width": int(s.width), "height": int(s.height),
-                         "pixel_format": "xyz", "component_format": "float32", "rfilter": {"type": "box"}},
+                "film": {
+                    "type": "hdrfilm",
+                    "width": int(s.width),
+                    "height": int(s.height),
+                    "pixel_format": "xyz",
+                    "component_format": "float32",
+                    "rfilter": {"type": "box"},
+                },
                 "sampler": {"type": "independent", "sample_count": int(spp)},
             }
         for part, vertices, flip in parts:
             tris = part.triangles[:, [0, 2, 1]] if flip else part.triangles
             filename = os.path.join(str(workdir), f"eo_{part.key}.ply")
             write_ply(filename, vertices, tris, {"instance_0": np.full(len(tris), float(part.instance_id))})
-            scene[part.key] = {"type": "ply", "filename": filename, "face_normals": True,
-                               "bsdf": {"type": "diffuse", "reflectance": _spectrum(reflectance_spectrum(part.material))}}
+            scene[part.key] = {
+                "type": "ply",
+                "filename": filename,
+                "face_normals": True,
+                "bsdf": {"type": "diffuse", "reflectance": _spectrum(reflectance_spectrum(part.material))},
+            }
         self.scene = mi.load_dict(scene, optimize=False)
         self.params = mi.traverse(self.scene)
         self._sensor_objects = {s.id(): s for s in self.scene.sensors()}
@@ -205,7 +246,9 @@ class EOScene(IRScene):
         self._mi()
         if self.has_sun:
             on = sun_nm is not None and sun_direction is not None
-            vals = np.maximum(np.asarray(sun_nm if on else np.zeros(EO_WAVELENGTHS_NM.size), dtype=float), TINY)
+            vals = np.maximum(
+                np.asarray(sun_nm if on else np.zeros(EO_WAVELENGTHS_NM.size), dtype=float), TINY
+            )
             self._set_array("sun.irradiance.values", vals)
             # next-event estimation picks sun or sky in proportion to the irradiance each can
             # deliver (beam-normal sun, pi x mean sky radiance): far less noise than 1:1
@@ -214,10 +257,14 @@ class EOScene(IRScene):
                 d = -np.asarray(sun_direction, dtype=float)
                 helper = [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0]
                 cls = self.mi.ScalarTransform4f if self.scalar else self.mi.Transform4f
-                self.params["sun.to_world"] = cls().look_at(origin=[0.0, 0.0, 0.0], target=[float(v) for v in d], up=helper)
+                self.params["sun.to_world"] = cls().look_at(
+                    origin=[0.0, 0.0, 0.0], target=[float(v) for v in d], up=helper
+                )
         if self.has_sky:
             on = sky_nm is not None
-            vals = np.maximum(np.asarray(sky_nm if on else np.zeros(EO_WAVELENGTHS_NM.size), dtype=float), TINY)
+            vals = np.maximum(
+                np.asarray(sky_nm if on else np.zeros(EO_WAVELENGTHS_NM.size), dtype=float), TINY
+            )
             self._set_array("sky.radiance.values", vals)
             self.params["sky.sampling_weight"] = float(np.pi * np.sum(vals)) if on else 0.0
 
@@ -232,22 +279,25 @@ class EOScene(IRScene):
     def render_xyz(self, sensor_id: str, spp: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """CIE XYZ (H, W, 3) [W m-2 sr-1 nm-1, see module notes] and the standard error of Y."""
         mi = self._mi()
-        img = mi.render(self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp), seed=int(seed) % 2**32)
+        img = mi.render(
+            self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp), seed=int(seed) % 2**32
+        )
         a = np.asarray(img, dtype=np.float64)
         xyz = a[..., self._m1]
         return xyz, monte_carlo_stderr(xyz[..., 1], a[..., self._m2], spp)
 
 
 def _look_at(mi, pose):
-    return mi.ScalarTransform4f().look_at(origin=[float(v) for v in pose.origin],
-                                          target=[float(v) for v in pose.origin + pose.forward],
-                                          up=[float(v) for v in pose.up])
+    return mi.ScalarTransform4f().look_at(
+        origin=[float(v) for v in pose.origin],
+        target=[float(v) for v in pose.origin + pose.forward],
+        up=[float(v) for v in pose.up],
+    )
 
 
 def xyz_to_linear_srgb(xyz) -> np.ndarray:
     """Linear sRGB (D65) from CIE XYZ: colour-science's ``XYZ_to_sRGB`` without the transfer
     function, i.e. its sRGB matrix (:data:`humv_usd.render.cie.XYZ_TO_SRGB`)."""
-    from humv_usd.render.cie import XYZ_TO_SRGB
 
     return np.asarray(xyz, dtype=float) @ XYZ_TO_SRGB.T
 
@@ -256,8 +306,7 @@ def srgb_preview(xyz) -> tuple[np.ndarray, float]:
     """8-bit sRGB (H, W, 3) of an XYZ image exposed so that the :data:`PREVIEW_PERCENTILE` of Y
     maps to :data:`PREVIEW_WHITE`, and that exposure (a scale on XYZ); colour-science's
     XYZ -> sRGB matrix (:func:`xyz_to_linear_srgb`) and the IEC 61966-2-1 encoding
-    (:func:`humv_usd.sensors.chain.srgb_encode`), as ``colour.XYZ_to_sRGB``."""
-    from humv_usd.sensors.chain import srgb_encode
+    (:func:`humv_usd.physics.sensor.srgb_encode`), as ``colour.XYZ_to_sRGB``."""
 
     xyz = np.asarray(xyz, dtype=float)
     y = xyz[..., 1][np.isfinite(xyz[..., 1])]
@@ -270,8 +319,11 @@ def srgb_preview(xyz) -> tuple[np.ndarray, float]:
 #: EXR channels of an EO frame (float32), with units.
 EO_EXR_CHANNELS = {
     "X": "CIE 1931 XYZ, W m-2 sr-1 nm-1 (y-bar weighted mean spectral radiance; luminance = 683 * 106.857 * Y cd m-2)",
-    "Y": "as X", "Z": "as X",
-    "R": "linear sRGB (D65) from XYZ via colour.XYZ_to_sRGB, same scale as XYZ", "G": "as R", "B": "as R",
+    "Y": "as X",
+    "Z": "as X",
+    "R": "linear sRGB (D65) from XYZ via colour.XYZ_to_sRGB, same scale as XYZ",
+    "G": "as R",
+    "B": "as R",
     "Y_stderr": "Monte Carlo standard error of Y",
     "depth": "m (distance along the optical axis; inf for sky)",
     "instance_id": "1 (integer stored as float32; 0 = sky/background)",
@@ -295,8 +347,10 @@ class EORender:
         self.skipped: list[dict] = []
         self.scene: EOScene | None = None
         self.key = None
-        self.records = {s.name: {"frames": [], "timings_s": {"render": 0.0, "labels": 0.0, "write": 0.0}}
-                        for s in self.sensors}
+        self.records = {
+            s.name: {"frames": [], "timings_s": {"render": 0.0, "labels": 0.0, "write": 0.0}}
+            for s in self.sensors
+        }
         self.ids = {s.name: f"eo_{i}" for i, s in enumerate(self.sensors)}
         if not self.sensors:
             return
@@ -305,18 +359,23 @@ class EORender:
         t0 = Usd.TimeCode(frames[0])
         spectra = exporter.atmosphere_spectra(t0)
         covered = _covers_visible(spectra.wavelengths_um)
-        self.has_sun = (exporter.sun_direction(t0) is not None
-                        and ((covered and spectra.solar_irradiance is not None)
-                             or exporter.direct_normal_irradiance(t0) is not None))
+        self.has_sun = exporter.sun_direction(t0) is not None and (
+            (covered and spectra.solar_irradiance is not None)
+            or exporter.direct_normal_irradiance(t0) is not None
+        )
         self.has_sky = covered and spectra.sky_radiance is not None
         self._paths: dict = {}  # sensor name -> (PathTable identity, XYZPath)
         if not (self.has_sun or self.has_sky):
-            self._skip_all("no visible illumination in the stage: humv:atmosphere:solarSpectralIrradiance / "
-                           "skySpectralRadiance covering 0.40-0.70 um (atmosphere layer) and "
-                           "humv:environment:directNormalIrradiance are absent")
+            self._skip_all(
+                "no visible illumination in the stage: humv:atmosphere:solarSpectralIrradiance / "
+                "skySpectralRadiance covering 0.40-0.70 um (atmosphere layer) and "
+                "humv:environment:directNormalIrradiance are absent"
+            )
 
     def _skip_all(self, reason: str) -> None:
-        self.skipped += [{"name": s.name, "prim": s.path, "band": s.band, "reason": reason} for s in self.sensors]
+        self.skipped += [
+            {"name": s.name, "prim": s.path, "band": s.band, "reason": reason} for s in self.sensors
+        ]
         self.sensors = []
 
     def path(self, sensor, time_code, spectra=None) -> tuple[radiometry.XYZPath | None, str]:
@@ -325,28 +384,46 @@ class EORender:
         None, and what ran."""
         table = self.exporter.path_table(sensor, time_code)
         if table is None:
-            return None, "skipped: no path table under /World/Atmosphere/Paths (no transmittance or path radiance)"
+            return (
+                None,
+                "skipped: no path table under /World/Atmosphere/Paths (no transmittance or path radiance)",
+            )
         if not _covers_visible(table.wavelengths_um):
             return None, f"skipped: path table {table.prim} does not cover 0.40-0.70 um"
         horizon, rule = None, None
-        if spectra is not None and _covers_visible(spectra.wavelengths_um) and spectra.sky_radiance is not None:
+        if (
+            spectra is not None
+            and _covers_visible(spectra.wavelengths_um)
+            and spectra.sky_radiance is not None
+        ):
             l_h, rule = radiometry.horizon_sky(spectra.sky_zenith_deg, spectra.sky_radiance)
             horizon = (spectra.wavelengths_um, l_h)
-        key = (table.ranges_m.tobytes(), table.wavelengths_um.tobytes(), table.transmittance.tobytes(),
-               table.radiance.tobytes(), None if horizon is None else (horizon[0].tobytes(), horizon[1].tobytes()))
+        key = (
+            table.ranges_m.tobytes(),
+            table.wavelengths_um.tobytes(),
+            table.transmittance.tobytes(),
+            table.radiance.tobytes(),
+            None if horizon is None else (horizon[0].tobytes(), horizon[1].tobytes()),
+        )
         cached = self._paths.get(sensor.name)
         if cached is None or cached[0] != key:
             cached = self._paths[sensor.name] = (key, radiometry.reduce_xyz(table, horizon))
         path = cached[1]
         if path.horizon_xyz is None:
-            air = ("no airlight: no humv:atmosphere:skySpectralRadiance covering 0.40-0.70 um "
-                   "(thermal path radiance only, no fading toward the horizon sky)")
+            air = (
+                "no airlight: no humv:atmosphere:skySpectralRadiance covering 0.40-0.70 um "
+                "(thermal path radiance only, no fading toward the horizon sky)"
+            )
         else:
-            air = (f"Koschmieder airlight L_h (1 - tau(r)) added (path tau for the scattering tau), "
-                   f"L_h = {rule}, Y_h = {path.horizon_xyz[1]:.6g} W m-2 sr-1 nm-1")
-        return path, (f"per pixel by range from {table.prim} reduced to CIE X, Y, Z (colour-matching "
-                      f"functions, flat-spectrum transmittance weighting; {table.ranges_m.size} ranges "
-                      f"{table.ranges_m[0]:g}-{table.ranges_m[-1]:g} m); {air}")
+            air = (
+                f"Koschmieder airlight L_h (1 - tau(r)) added (path tau for the scattering tau), "
+                f"L_h = {rule}, Y_h = {path.horizon_xyz[1]:.6g} W m-2 sr-1 nm-1"
+            )
+        return path, (
+            f"per pixel by range from {table.prim} reduced to CIE X, Y, Z (colour-matching "
+            f"functions, flat-spectrum transmittance weighting; {table.ranges_m.size} ranges "
+            f"{table.ranges_m[0]:g}-{table.ranges_m[-1]:g} m); {air}"
+        )
 
     def frame(self, state, frame: int, chains) -> None:
         """Render, label and write every EO sensor at ``frame``."""
@@ -355,22 +432,30 @@ class EORender:
 
         from pxr import Usd
 
-        from humv_usd.render import writers
-
         if not self.sensors:
             return
-        parts = [(part, state.points[m.path][part.vertex_ids], state.flip[m.path])
-                 for m in state.meshes for part in m.parts]
+        parts = [
+            (part, state.points[m.path][part.vertex_ids], state.flip[m.path])
+            for m in state.meshes
+            for part in m.parts
+        ]
         if self.scene is None or state.topology_key != self.key:
             bare = sorted({p.material.path for p, _, _ in parts if p.material.reflectance is None})
             if bare:
-                self._skip_all(f"material {bare[0]} (and {len(bare) - 1} more) has no humv:material:reflectance"
-                               if len(bare) > 1 else f"material {bare[0]} has no humv:material:reflectance")
+                self._skip_all(
+                    f"material {bare[0]} (and {len(bare) - 1} more) has no humv:material:reflectance"
+                    if len(bare) > 1
+                    else f"material {bare[0]} has no humv:material:reflectance"
+                )
                 return
-            setups = [SensorSetup(self.ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
-                      for s in self.sensors]
+            setups = [
+                SensorSetup(self.ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
+                for s in self.sensors
+            ]
             with tempfile.TemporaryDirectory(prefix="humv_eo_") as tmp:
-                self.scene = EOScene(parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun)
+                self.scene = EOScene(
+                    parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun
+                )
             self.key = state.topology_key
         else:
             for part, vertices, _ in parts:
@@ -380,8 +465,9 @@ class EORender:
             scene.set_camera(self.ids[s.name], state.cameras[s.name])
         time_code = Usd.TimeCode(frame)
         spectra = self.exporter.atmosphere_spectra(time_code)
-        sun, sky, ran = illumination(spectra, self.exporter.sun_direction(time_code),
-                                     self.exporter.direct_normal_irradiance(time_code))
+        sun, sky, ran = illumination(
+            spectra, self.exporter.sun_direction(time_code), self.exporter.direct_normal_irradiance(time_code)
+        )
         scene.set_illumination(self.exporter.sun_direction(time_code), sun, sky)
         scene.update()
         for s in self.sensors:
@@ -392,8 +478,9 @@ class EORender:
             t = time.perf_counter()
             rel = os.path.join(s.name, f"{frame:04d}")
             if self.truth is not None:  # emissivity is a thermal-band quantity: NaN for EO
-                hits = self.truth.annotate(scene, self.ids[s.name], s, state, lambda part: float("nan"),
-                                           self.out_dir, rel)
+                hits = self.truth.annotate(
+                    scene, self.ids[s.name], s, state, lambda part: float("nan"), self.out_dir, rel
+                )
                 extra = hits.channels
             else:
                 hits, extra = scene.hits(self.ids[s.name]), {}
@@ -404,22 +491,43 @@ class EORender:
                 h = scene.hits(self.ids[s.name])
                 origin = np.asarray(state.cameras[s.name].origin, dtype=np.float64)
                 hit = np.isfinite(h.depth)
-                range_m = np.where(hit, np.linalg.norm(np.where(hit[..., None], h.position, 0.0) - origin, axis=-1),
-                                   np.inf)
+                range_m = np.where(
+                    hit, np.linalg.norm(np.where(hit[..., None], h.position, 0.0) - origin, axis=-1), np.inf
+                )
                 xyz, tau = radiometry.apply_xyz_path(xyz, range_m, path)
                 y_err = y_err * tau[..., 1]
             rgb = xyz_to_linear_srgb(xyz)
             rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
-            chained = chains.apply(s, rgb, frame, eo_space="srgb")  # sensor chain: the single call site for EO
-            channels = {"X": xyz[..., 0], "Y": xyz[..., 1], "Z": xyz[..., 2],
-                        "R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2], "Y_stderr": y_err,
-                        "depth": hits.depth, "instance_id": hits.instance.astype(np.float32), **extra}
+            chained = chains.apply(
+                s, rgb, frame, eo_space="srgb"
+            )  # sensor chain: the single call site for EO
+            channels = {
+                "X": xyz[..., 0],
+                "Y": xyz[..., 1],
+                "Z": xyz[..., 2],
+                "R": rgb[..., 0],
+                "G": rgb[..., 1],
+                "B": rgb[..., 2],
+                "Y_stderr": y_err,
+                "depth": hits.depth,
+                "instance_id": hits.instance.astype(np.float32),
+                **extra,
+            }
             if chained is not None:
-                channels.update({f"counts_{c}": chained.counts[..., i].astype(np.float32) for i, c in enumerate("RGB")})
-            writers.write_exr(os.path.join(self.out_dir, rel + ".exr"), channels,
-                              metadata={"humv:sensor": s.path, "humv:frame": str(frame), "humv:spp": str(self.spp),
-                                        "humv:colour": "CIE 1931 XYZ and linear sRGB (D65)"})
+                channels.update(
+                    {f"counts_{c}": chained.counts[..., i].astype(np.float32) for i, c in enumerate("RGB")}
+                )
+            writers.write_exr(
+                os.path.join(self.out_dir, rel + ".exr"),
+                channels,
+                metadata={
+                    "humv:sensor": s.path,
+                    "humv:frame": str(frame),
+                    "humv:spp": str(self.spp),
+                    "humv:colour": "CIE 1931 XYZ and linear sRGB (D65)",
+                },
+            )
             if self.truth is not None:
                 self.truth.image_written(rel, channels)
             png, exposure = srgb_preview(xyz)
@@ -427,19 +535,37 @@ class EORender:
             chain_record = chains.write(chained, self.out_dir, rel)
             rec["timings_s"]["write"] += time.perf_counter() - t
             y = xyz[..., 1]
-            rec["frames"].append({"frame": frame, "exr": rel + ".exr", "png": rel + ".png",
-                                  "preview_exposure": exposure, "Y_mean": float(np.mean(y)),
-                                  "luminance_mean_cd_m2": float(KM_LM_PER_W * CIE_Y_INTEGRAL_NM * np.mean(y)),
-                                  "Y_stderr_mean": float(np.nanmean(y_err)), "illumination": ran,
-                                  "atmosphere": path_ran,
-                                  "sensor_chain": chain_record})
+            rec["frames"].append(
+                {
+                    "frame": frame,
+                    "exr": rel + ".exr",
+                    "png": rel + ".png",
+                    "preview_exposure": exposure,
+                    "Y_mean": float(np.mean(y)),
+                    "luminance_mean_cd_m2": float(KM_LM_PER_W * CIE_Y_INTEGRAL_NM * np.mean(y)),
+                    "Y_stderr_mean": float(np.nanmean(y_err)),
+                    "illumination": ran,
+                    "atmosphere": path_ran,
+                    "sensor_chain": chain_record,
+                }
+            )
 
     def manifest(self) -> list[dict]:
-        return [{"name": s.name, "prim": s.path, "band": s.band, "resolution": list(s.resolution),
-                 "variant": mode.SPECTRAL_VARIANTS[mode.variant()], "spp": self.spp,
-                 "channels": EO_EXR_CHANNELS,
-                 "preview": f"PNG 8-bit sRGB; the {PREVIEW_PERCENTILE:g}th percentile of Y exposed to {PREVIEW_WHITE:g}",
-                 "frames": self.records[s.name]["frames"],
-                 "timings_s": {**self.records[s.name]["timings_s"],
-                               "total": sum(self.records[s.name]["timings_s"].values())}}
-                for s in self.sensors]
+        return [
+            {
+                "name": s.name,
+                "prim": s.path,
+                "band": s.band,
+                "resolution": list(s.resolution),
+                "variant": mode.SPECTRAL_VARIANTS[mode.variant()],
+                "spp": self.spp,
+                "channels": EO_EXR_CHANNELS,
+                "preview": f"PNG 8-bit sRGB; the {PREVIEW_PERCENTILE:g}th percentile of Y exposed to {PREVIEW_WHITE:g}",
+                "frames": self.records[s.name]["frames"],
+                "timings_s": {
+                    **self.records[s.name]["timings_s"],
+                    "total": sum(self.records[s.name]["timings_s"].values()),
+                },
+            }
+            for s in self.sensors
+        ]

@@ -33,6 +33,7 @@ Skeleton prim's local-to-world takes to world space. Blend shapes are not applie
 Not handled (documented limits): point instancers, hole indices, aperture offsets (warned and
 ignored), topology that changes over time, blend shapes.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,8 +44,9 @@ import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdShade, UsdSkel
 
 from humv_usd.errors import InputError, bad_value
-from humv_usd.usd.mesh import fan_triangulate
+from humv_usd.render.radiometry import PathTable, check_subbands
 from humv_usd.usd import schemas as _s
+from humv_usd.usd.mesh import fan_triangulate
 
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
 # depend on whether the schemas are registered or applied.
@@ -73,7 +75,9 @@ ATM_MODEL_ATTR = _s.ATMOSPHERE_MODEL
 ATM_WAVELENGTHS_ATTR = getattr(_s, "ATMOSPHERE_WAVELENGTHS", "humv:atmosphere:wavelengths")
 ATM_SKY_ZENITH_ATTR = getattr(_s, "ATMOSPHERE_SKY_ZENITH_ANGLES", "humv:atmosphere:skyZenithAngles")
 ATM_SKY_RADIANCE_ATTR = getattr(_s, "ATMOSPHERE_SKY_SPECTRAL_RADIANCE", "humv:atmosphere:skySpectralRadiance")
-ATM_SOLAR_ATTR = getattr(_s, "ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE", "humv:atmosphere:solarSpectralIrradiance")
+ATM_SOLAR_ATTR = getattr(
+    _s, "ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE", "humv:atmosphere:solarSpectralIrradiance"
+)
 PATH_SENSOR_ATTR = getattr(_s, "ATMOSPHERE_PATH_SENSOR", "humv:atmospherePath:sensor")
 PATH_RANGES_ATTR = getattr(_s, "ATMOSPHERE_PATH_RANGES", "humv:atmospherePath:ranges")
 PATH_TRANSMITTANCE_ATTR = getattr(_s, "ATMOSPHERE_PATH_TRANSMITTANCE", "humv:atmospherePath:transmittance")
@@ -236,7 +240,9 @@ def check_temperatures(values, where: str, expected: int | None = None) -> np.nd
     bad = ~np.isfinite(a) | (a < lo) | (a > hi)
     if np.any(bad):
         idx = np.flatnonzero(bad)
-        raise InputError(bad_value(where, f"{a[idx[0]]!r} at index {idx[0]} ({idx.size} bad of {a.size})", allowed))
+        raise InputError(
+            bad_value(where, f"{a[idx[0]]!r} at index {idx[0]} ({idx.size} bad of {a.size})", allowed)
+        )
     return a
 
 
@@ -286,8 +292,11 @@ class StageExport:
             if not skel_query:
                 continue
             if query.HasBlendShapes():
-                warnings.warn(f"{prim.GetPath()}: blend shapes are not applied by the renderer",
-                              RuntimeWarning, stacklevel=2)
+                warnings.warn(
+                    f"{prim.GetPath()}: blend shapes are not applied by the renderer",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
             out[str(prim.GetPath())] = (query, skel_query, skel.GetPrim())
         return out
 
@@ -306,11 +315,18 @@ class StageExport:
         except Exception:  # pxr raises Tf.ErrorException on malformed skinning data
             ok = False
         if not ok:
-            raise InputError(bad_value(f"{path}.primvars:skel:jointIndices", "<cannot skin>",
-                                       f"expected valid UsdSkel joint influences and a posable skeleton "
-                                       f"{skel_prim.GetPath()} at frame {time.GetValue():g}"))
-        return (np.asarray(pts, dtype=float).reshape(-1, 3),
-                np.array(cache.GetLocalToWorldTransform(skel_prim), dtype=float))
+            raise InputError(
+                bad_value(
+                    f"{path}.primvars:skel:jointIndices",
+                    "<cannot skin>",
+                    f"expected valid UsdSkel joint influences and a posable skeleton "
+                    f"{skel_prim.GetPath()} at frame {time.GetValue():g}",
+                )
+            )
+        return (
+            np.asarray(pts, dtype=float).reshape(-1, 3),
+            np.array(cache.GetLocalToWorldTransform(skel_prim), dtype=float),
+        )
 
     def _find_sensors(self) -> list[Sensor]:
         sensors: list[Sensor] = []
@@ -319,14 +335,20 @@ class StageExport:
             if not prim.IsA(UsdGeom.Camera):
                 continue
             has_api = SENSOR_API in prim.GetAppliedSchemas()
-            authored = any(a.GetName().startswith(SENSOR_PREFIX) and a.HasAuthoredValue() for a in prim.GetAttributes())
+            authored = any(
+                a.GetName().startswith(SENSOR_PREFIX) and a.HasAuthoredValue() for a in prim.GetAttributes()
+            )
             if not (has_api or authored):
                 continue
             sensor = self._read_sensor(prim)
             if sensor.name in names:
-                raise InputError(bad_value(
-                    str(prim.GetPath()), sensor.name,
-                    f"sensor names (camera prim names) must be unique; {names[sensor.name]} has it too"))
+                raise InputError(
+                    bad_value(
+                        str(prim.GetPath()),
+                        sensor.name,
+                        f"sensor names (camera prim names) must be unique; {names[sensor.name]} has it too",
+                    )
+                )
             names[sensor.name] = str(prim.GetPath())
             sensors.append(sensor)
         return sensors
@@ -348,22 +370,31 @@ class StageExport:
         kind = "EO" if (band == "EO" or lo < INFRARED_MIN_UM) else "IR"
         projection = UsdGeom.Camera(prim).GetProjectionAttr().Get()
         if projection and projection != UsdGeom.Tokens.perspective:
-            return Sensor(name, path, band, (lo, hi), None, None,
-                          skip_reason=f"projection {projection!r}: only perspective cameras are rendered")
+            return Sensor(
+                name,
+                path,
+                band,
+                (lo, hi),
+                None,
+                None,
+                skip_reason=f"projection {projection!r}: only perspective cameras are rendered",
+            )
         res = _get(prim.GetAttribute(SENSOR_RESOLUTION_ATTR), Usd.TimeCode.Default())
         where = f"{path}.{SENSOR_RESOLUTION_ATTR}"
         if res is None:
-            raise InputError(bad_value(where, None, f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]"))
+            raise InputError(
+                bad_value(where, None, f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]")
+            )
         w, h = int(res[0]), int(res[1])
         if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
-            raise InputError(bad_value(where, [w, h], f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]"))
+            raise InputError(
+                bad_value(where, [w, h], f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]")
+            )
         if kind == "EO":  # colour comes from the CIE observer (render.eo), not a band response
             return Sensor(name, path, band, (lo, hi), None, (w, h), kind="EO")
         response = self._read_response(prim, (lo, hi))
         subbands = _get(prim.GetAttribute(SENSOR_SUBBANDS_ATTR), Usd.TimeCode.Default())
         if subbands is not None:
-            from humv_usd.render.radiometry import check_subbands
-
             subbands = check_subbands(subbands, f"{path}.{SENSOR_SUBBANDS_ATTR}")
         return Sensor(name, path, band, (lo, hi), response, (w, h), subbands=subbands)
 
@@ -378,21 +409,39 @@ class StageExport:
             return None
         if has_wl != has_r:
             missing = SENSOR_RESPONSE_ATTR if has_wl else SENSOR_RESPONSE_WL_ATTR
-            raise InputError(bad_value(f"{path}.{missing}", None,
-                                       f"expected both {SENSOR_RESPONSE_WL_ATTR} and {SENSOR_RESPONSE_ATTR}, or neither"))
+            raise InputError(
+                bad_value(
+                    f"{path}.{missing}",
+                    None,
+                    f"expected both {SENSOR_RESPONSE_WL_ATTR} and {SENSOR_RESPONSE_ATTR}, or neither",
+                )
+            )
         wl = np.asarray(wl, dtype=float)
         r = np.asarray(r, dtype=float)
         where = f"{path}.{SENSOR_RESPONSE_ATTR}"
         if wl.size < 2 or wl.size != r.size:
-            raise InputError(bad_value(where, f"<{r.size} values for {wl.size} wavelengths>",
-                                       "expected one response value per wavelength, at least two"))
+            raise InputError(
+                bad_value(
+                    where,
+                    f"<{r.size} values for {wl.size} wavelengths>",
+                    "expected one response value per wavelength, at least two",
+                )
+            )
         if not np.all(np.isfinite(wl)) or np.any(np.diff(wl) <= 0):
-            raise InputError(bad_value(f"{path}.{SENSOR_RESPONSE_WL_ATTR}", _summary(wl), "expected finite, strictly ascending wavelengths [um]"))
+            raise InputError(
+                bad_value(
+                    f"{path}.{SENSOR_RESPONSE_WL_ATTR}",
+                    _summary(wl),
+                    "expected finite, strictly ascending wavelengths [um]",
+                )
+            )
         if not np.all(np.isfinite(r)) or np.any(r < 0) or np.any(r > 1):
             raise InputError(bad_value(where, _summary(r), "expected relative response values in 0-1"))
         inside = np.interp(np.linspace(band[0], band[1], 1001), wl, r, left=0.0, right=0.0)
         if not np.any(inside > 0):
-            raise InputError(bad_value(where, _summary(r), f"response is zero over the band {band[0]:g}-{band[1]:g} um"))
+            raise InputError(
+                bad_value(where, _summary(r), f"response is zero over the band {band[0]:g}-{band[1]:g} um")
+            )
         return wl, r
 
     # --- per mesh (static) ---------------------------------------------------------------------
@@ -404,36 +453,73 @@ class StageExport:
         wl = _get(prim.GetAttribute(WAVELENGTHS_ATTR), time)
         eps = _get(prim.GetAttribute(EMISSIVITY_ATTR), time)
         if wl is None or len(wl) == 0:
-            raise InputError(bad_value(f"{mpath}.{WAVELENGTHS_ATTR}", None,
-                                       f"material bound to {mesh_path} needs wavelengths [um] (HumvMaterialAPI)"))
+            raise InputError(
+                bad_value(
+                    f"{mpath}.{WAVELENGTHS_ATTR}",
+                    None,
+                    f"material bound to {mesh_path} needs wavelengths [um] (HumvMaterialAPI)",
+                )
+            )
         if eps is None or len(eps) == 0:
-            raise InputError(bad_value(f"{mpath}.{EMISSIVITY_ATTR}", None,
-                                       f"material bound to {mesh_path} needs emissivity values 0-1 (HumvMaterialAPI)"))
+            raise InputError(
+                bad_value(
+                    f"{mpath}.{EMISSIVITY_ATTR}",
+                    None,
+                    f"material bound to {mesh_path} needs emissivity values 0-1 (HumvMaterialAPI)",
+                )
+            )
         wl = np.asarray(wl, dtype=float)
         eps = np.asarray(eps, dtype=float)
         if not np.all(np.isfinite(wl)) or np.any(wl <= 0) or np.any(np.diff(wl) <= 0):
-            raise InputError(bad_value(f"{mpath}.{WAVELENGTHS_ATTR}", _summary(wl), "expected positive, strictly ascending wavelengths [um]"))
+            raise InputError(
+                bad_value(
+                    f"{mpath}.{WAVELENGTHS_ATTR}",
+                    _summary(wl),
+                    "expected positive, strictly ascending wavelengths [um]",
+                )
+            )
         if eps.size != wl.size:
-            raise InputError(bad_value(f"{mpath}.{EMISSIVITY_ATTR}", f"<{eps.size} values>",
-                                       f"expected {wl.size} values (one per wavelength in {WAVELENGTHS_ATTR})"))
+            raise InputError(
+                bad_value(
+                    f"{mpath}.{EMISSIVITY_ATTR}",
+                    f"<{eps.size} values>",
+                    f"expected {wl.size} values (one per wavelength in {WAVELENGTHS_ATTR})",
+                )
+            )
         if not np.all(np.isfinite(eps)) or np.any(eps < 0) or np.any(eps > 1):
-            raise InputError(bad_value(f"{mpath}.{EMISSIVITY_ATTR}", _summary(eps), "expected emissivities in 0-1"))
+            raise InputError(
+                bad_value(f"{mpath}.{EMISSIVITY_ATTR}", _summary(eps), "expected emissivities in 0-1")
+            )
         rho = _get(prim.GetAttribute(REFLECTANCE_ATTR), time)
         if rho is not None and len(rho) > 0:
             rho = np.asarray(rho, dtype=float)
             if rho.size != wl.size or not np.all(np.isfinite(rho)) or np.any(rho < 0) or np.any(rho > 1):
-                raise InputError(bad_value(f"{mpath}.{REFLECTANCE_ATTR}", _summary(rho),
-                                           f"expected {wl.size} reflectances in 0-1 (one per wavelength in {WAVELENGTHS_ATTR})"))
+                raise InputError(
+                    bad_value(
+                        f"{mpath}.{REFLECTANCE_ATTR}",
+                        _summary(rho),
+                        f"expected {wl.size} reflectances in 0-1 (one per wavelength in {WAVELENGTHS_ATTR})",
+                    )
+                )
         else:
             rho = None
         tau = _get(prim.GetAttribute(_s.MATERIAL_TRANSMITTANCE), time)
         if tau is not None and len(tau) > 0:
             tau = np.asarray(tau, dtype=float)
-            if (tau.size != wl.size or not np.all(np.isfinite(tau)) or np.any(tau < 0)
-                    or np.any(tau + eps > 1.0 + 1e-6)):
-                raise InputError(bad_value(f"{mpath}.{_s.MATERIAL_TRANSMITTANCE}", _summary(tau),
-                                           f"expected {wl.size} transmittances in 0-1 with emissivity + "
-                                           "transmittance <= 1 (one per wavelength)"))
+            if (
+                tau.size != wl.size
+                or not np.all(np.isfinite(tau))
+                or np.any(tau < 0)
+                or np.any(tau + eps > 1.0 + 1e-6)
+            ):
+                raise InputError(
+                    bad_value(
+                        f"{mpath}.{_s.MATERIAL_TRANSMITTANCE}",
+                        _summary(tau),
+                        f"expected {wl.size} transmittances in 0-1 with emissivity + "
+                        "transmittance <= 1 (one per wavelength)",
+                    )
+                )
         else:
             tau = None
         out = Material(mpath, wl, eps, rho, tau)
@@ -443,9 +529,14 @@ class StageExport:
     def _bound_material(self, prim: Usd.Prim, mesh_path: str, time) -> Material:
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
         if not material or not material.GetPrim().IsValid():
-            raise InputError(bad_value(f"{prim.GetPath()}.material:binding", None,
-                                       "a rendered mesh needs a bound material carrying "
-                                       f"{WAVELENGTHS_ATTR} and {EMISSIVITY_ATTR}"))
+            raise InputError(
+                bad_value(
+                    f"{prim.GetPath()}.material:binding",
+                    None,
+                    "a rendered mesh needs a bound material carrying "
+                    f"{WAVELENGTHS_ATTR} and {EMISSIVITY_ATTR}",
+                )
+            )
         return self._material(material, mesh_path, time)
 
     @staticmethod
@@ -456,8 +547,13 @@ class StageExport:
             if attr and attr.HasAuthoredValue():
                 value = attr.Get()
                 if value is None or not (0 <= int(value) <= MAX_INSTANCE_ID) or int(value) != value:
-                    raise InputError(bad_value(f"{p.GetPath()}.{INSTANCE_ID_ATTR}", value,
-                                               f"expected an integer in 0..{MAX_INSTANCE_ID}"))
+                    raise InputError(
+                        bad_value(
+                            f"{p.GetPath()}.{INSTANCE_ID_ATTR}",
+                            value,
+                            f"expected an integer in 0..{MAX_INSTANCE_ID}",
+                        )
+                    )
                 return int(value)
             p = p.GetParent()
         return 0
@@ -474,11 +570,21 @@ class StageExport:
         indices = np.asarray(indices if indices is not None else [], dtype=np.int64)
         npoints = 0 if points is None else len(points)
         if np.any(counts < 3) or counts.sum() != indices.size:
-            raise InputError(bad_value(f"{path}.faceVertexCounts", _summary(counts),
-                                       f"expected counts >= 3 summing to len(faceVertexIndices) = {indices.size}"))
+            raise InputError(
+                bad_value(
+                    f"{path}.faceVertexCounts",
+                    _summary(counts),
+                    f"expected counts >= 3 summing to len(faceVertexIndices) = {indices.size}",
+                )
+            )
         if indices.size and (indices.min() < 0 or indices.max() >= npoints):
-            raise InputError(bad_value(f"{path}.faceVertexIndices", f"<range {indices.min()}..{indices.max()}>",
-                                       f"expected indices in 0..{npoints - 1}"))
+            raise InputError(
+                bad_value(
+                    f"{path}.faceVertexIndices",
+                    f"<range {indices.min()}..{indices.max()}>",
+                    f"expected indices in 0..{npoints - 1}",
+                )
+            )
         triangles, triangle_face = fan_triangulate(counts, indices)
         front_triangles = triangles
         double_sided = bool(mesh.GetDoubleSidedAttr().Get())
@@ -498,7 +604,13 @@ class StageExport:
                 continue
             sub_indices = np.asarray(sub_indices, dtype=np.int64)
             if sub_indices.min() < 0 or sub_indices.max() >= nfaces:
-                raise InputError(bad_value(f"{subset.GetPath()}.indices", _summary(sub_indices), f"expected face indices in 0..{nfaces - 1}"))
+                raise InputError(
+                    bad_value(
+                        f"{subset.GetPath()}.indices",
+                        _summary(sub_indices),
+                        f"expected face indices in 0..{nfaces - 1}",
+                    )
+                )
             mat = self._bound_material(subset.GetPrim(), path, time)
             if mat.path not in order:
                 order[mat.path] = len(materials)
@@ -519,16 +631,28 @@ class StageExport:
                 continue
             tris = triangles[sel]
             vertex_ids, local = np.unique(tris.ravel(), return_inverse=True)
-            parts.append(Part(key=f"part_{self._part_count:05d}", mesh_path=path, material=mat,
-                              instance_id=instance_id, vertex_ids=vertex_ids,
-                              triangles=local.reshape(-1, 3).astype(np.int64),
-                              triangle_face=triangle_face[sel]))
+            parts.append(
+                Part(
+                    key=f"part_{self._part_count:05d}",
+                    mesh_path=path,
+                    material=mat,
+                    instance_id=instance_id,
+                    vertex_ids=vertex_ids,
+                    triangles=local.reshape(-1, 3).astype(np.int64),
+                    triangle_face=triangle_face[sel],
+                )
+            )
             self._part_count += 1
         orientation = mesh.GetOrientationAttr().Get()
-        info = MeshInfo(path=path, point_count=npoints, face_count=nfaces,
-                        left_handed=(orientation == UsdGeom.Tokens.leftHanded), parts=parts,
-                        double_sided=double_sided,
-                        front_triangles=front_triangles if double_sided else None)
+        info = MeshInfo(
+            path=path,
+            point_count=npoints,
+            face_count=nfaces,
+            left_handed=(orientation == UsdGeom.Tokens.leftHanded),
+            parts=parts,
+            double_sided=double_sided,
+            front_triangles=front_triangles if double_sided else None,
+        )
         self._mesh_cache[path] = info
         return info
 
@@ -539,8 +663,14 @@ class StageExport:
         value = _get(prim.GetAttribute(SKY_TEMPERATURE_ATTR), time) if prim and prim.IsValid() else None
         if value is None:
             what = "" if prim and prim.IsValid() else f" (no prim at {ATMOSPHERE_PATH})"
-            raise InputError(bad_value(where, None, f"expected the effective sky brightness temperature in "
-                                                    f"{TEMPERATURE_RANGE_K[0]:g}-{TEMPERATURE_RANGE_K[1]:g} K (HumvAtmosphereAPI){what}"))
+            raise InputError(
+                bad_value(
+                    where,
+                    None,
+                    f"expected the effective sky brightness temperature in "
+                    f"{TEMPERATURE_RANGE_K[0]:g}-{TEMPERATURE_RANGE_K[1]:g} K (HumvAtmosphereAPI){what}",
+                )
+            )
         return float(check_temperatures([value], where)[0])
 
     # --- environment and atmosphere (contract_env; every part optional) ----------------------
@@ -556,7 +686,7 @@ class StageExport:
             raise InputError(bad_value(where, _summary(a), where_expected))
         return a
 
-    def atmosphere_spectra(self, time) -> "AtmosphereSpectra":
+    def atmosphere_spectra(self, time) -> AtmosphereSpectra:
         """Sky spectral radiance against zenith, solar spectral irradiance and the model token
         of ``/World/Atmosphere`` at ``time`` (None for what is not authored)."""
         out = AtmosphereSpectra()
@@ -565,30 +695,61 @@ class StageExport:
             return out
         model = _get(prim.GetAttribute(ATM_MODEL_ATTR), time)
         out.model = str(model) if model else None
-        wl = self._float_array(prim, ATM_WAVELENGTHS_ATTR, time, "expected positive, strictly ascending wavelengths [um]",
-                               ascending=True)
+        wl = self._float_array(
+            prim,
+            ATM_WAVELENGTHS_ATTR,
+            time,
+            "expected positive, strictly ascending wavelengths [um]",
+            ascending=True,
+        )
         if wl is None:
             return out
         out.wavelengths_um = wl
-        zen = self._float_array(prim, ATM_SKY_ZENITH_ATTR, time, "expected ascending zenith angles in 0-90 deg",
-                                ascending=True)
-        sky = self._float_array(prim, ATM_SKY_RADIANCE_ATTR, time,
-                                "expected finite spectral radiances >= 0 [W m-2 sr-1 um-1]", positive=True)
+        zen = self._float_array(
+            prim, ATM_SKY_ZENITH_ATTR, time, "expected ascending zenith angles in 0-90 deg", ascending=True
+        )
+        sky = self._float_array(
+            prim,
+            ATM_SKY_RADIANCE_ATTR,
+            time,
+            "expected finite spectral radiances >= 0 [W m-2 sr-1 um-1]",
+            positive=True,
+        )
         if zen is not None and sky is not None:
             if zen[-1] > 90.0 + 1e-6:
-                raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_SKY_ZENITH_ATTR}", _summary(zen),
-                                           "expected ascending zenith angles in 0-90 deg"))
+                raise InputError(
+                    bad_value(
+                        f"{ATMOSPHERE_PATH}.{ATM_SKY_ZENITH_ATTR}",
+                        _summary(zen),
+                        "expected ascending zenith angles in 0-90 deg",
+                    )
+                )
             if sky.size != zen.size * wl.size:
-                raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_SKY_RADIANCE_ATTR}", f"<{sky.size} values>",
-                                           f"expected {zen.size} zenith angles x {wl.size} wavelengths = "
-                                           f"{zen.size * wl.size} values (row-major)"))
+                raise InputError(
+                    bad_value(
+                        f"{ATMOSPHERE_PATH}.{ATM_SKY_RADIANCE_ATTR}",
+                        f"<{sky.size} values>",
+                        f"expected {zen.size} zenith angles x {wl.size} wavelengths = "
+                        f"{zen.size * wl.size} values (row-major)",
+                    )
+                )
             out.sky_zenith_deg, out.sky_radiance = zen, sky.reshape(zen.size, wl.size)
-        solar = self._float_array(prim, ATM_SOLAR_ATTR, time,
-                                  "expected finite spectral irradiances >= 0 [W m-2 um-1]", positive=True)
+        solar = self._float_array(
+            prim,
+            ATM_SOLAR_ATTR,
+            time,
+            "expected finite spectral irradiances >= 0 [W m-2 um-1]",
+            positive=True,
+        )
         if solar is not None:
             if solar.size != wl.size:
-                raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_SOLAR_ATTR}", f"<{solar.size} values>",
-                                           f"expected {wl.size} values (one per wavelength)"))
+                raise InputError(
+                    bad_value(
+                        f"{ATMOSPHERE_PATH}.{ATM_SOLAR_ATTR}",
+                        f"<{solar.size} values>",
+                        f"expected {wl.size} values (one per wavelength)",
+                    )
+                )
             out.solar_irradiance = solar
         return out
 
@@ -601,8 +762,13 @@ class StageExport:
         d = np.asarray(value, dtype=float).ravel()
         n = float(np.linalg.norm(d)) if d.size == 3 else 0.0
         if not (np.all(np.isfinite(d)) and n > 0.5):
-            raise InputError(bad_value(f"{ENVIRONMENT_PATH}.{SUN_DIRECTION_ATTR}", _summary(d),
-                                       "expected a unit 3-vector toward the sun"))
+            raise InputError(
+                bad_value(
+                    f"{ENVIRONMENT_PATH}.{SUN_DIRECTION_ATTR}",
+                    _summary(d),
+                    "expected a unit 3-vector toward the sun",
+                )
+            )
         return d / n
 
     def direct_normal_irradiance(self, time) -> float | None:
@@ -614,8 +780,13 @@ class StageExport:
             return None
         v = float(value)
         if not (math.isfinite(v) and 0.0 <= v <= 2000.0):
-            raise InputError(bad_value(f"{ENVIRONMENT_PATH}.{ENV_DNI_ATTR}", v,
-                                       "expected a direct normal irradiance in 0..2000 W m-2"))
+            raise InputError(
+                bad_value(
+                    f"{ENVIRONMENT_PATH}.{ENV_DNI_ATTR}",
+                    v,
+                    "expected a direct normal irradiance in 0..2000 W m-2",
+                )
+            )
         return v
 
     def path_table(self, sensor: Sensor, time):
@@ -624,7 +795,6 @@ class StageExport:
         Found under ``/World/Atmosphere/Paths`` by ``humv:atmospherePath:sensor`` == the sensor
         prim path, else by the child named like the sensor; it needs ``humv:atmosphere:wavelengths``.
         """
-        from humv_usd.render.radiometry import PathTable
 
         scope = self.stage.GetPrimAtPath(ATMOSPHERE_PATHS)
         if not (scope and scope.IsValid()):
@@ -641,29 +811,71 @@ class StageExport:
         if chosen is None:
             return None
         atm = self.stage.GetPrimAtPath(ATMOSPHERE_PATH)
-        wl = self._float_array(atm, ATM_WAVELENGTHS_ATTR, time, "expected positive, strictly ascending wavelengths [um]",
-                               ascending=True)
+        wl = self._float_array(
+            atm,
+            ATM_WAVELENGTHS_ATTR,
+            time,
+            "expected positive, strictly ascending wavelengths [um]",
+            ascending=True,
+        )
         where = str(chosen.GetPath())
         if wl is None:
-            raise InputError(bad_value(f"{ATMOSPHERE_PATH}.{ATM_WAVELENGTHS_ATTR}", None,
-                                       f"expected the wavelength grid [um] of the path table {where}"))
-        ranges = self._float_array(chosen, PATH_RANGES_ATTR, time, "expected ascending ranges >= 0 [m]", ascending=True)
-        tau = self._float_array(chosen, PATH_TRANSMITTANCE_ATTR, time, "expected transmittances in 0-1", positive=True)
-        rad = self._float_array(chosen, PATH_RADIANCE_ATTR, time,
-                                "expected finite path radiances >= 0 [W m-2 sr-1 um-1]", positive=True)
+            raise InputError(
+                bad_value(
+                    f"{ATMOSPHERE_PATH}.{ATM_WAVELENGTHS_ATTR}",
+                    None,
+                    f"expected the wavelength grid [um] of the path table {where}",
+                )
+            )
+        ranges = self._float_array(
+            chosen, PATH_RANGES_ATTR, time, "expected ascending ranges >= 0 [m]", ascending=True
+        )
+        tau = self._float_array(
+            chosen, PATH_TRANSMITTANCE_ATTR, time, "expected transmittances in 0-1", positive=True
+        )
+        rad = self._float_array(
+            chosen,
+            PATH_RADIANCE_ATTR,
+            time,
+            "expected finite path radiances >= 0 [W m-2 sr-1 um-1]",
+            positive=True,
+        )
         if ranges is None or tau is None or rad is None:
-            missing = [n for n, v in ((PATH_RANGES_ATTR, ranges), (PATH_TRANSMITTANCE_ATTR, tau),
-                                      (PATH_RADIANCE_ATTR, rad)) if v is None]
-            raise InputError(bad_value(f"{where}.{missing[0]}", None, "expected ranges, transmittance and radiance tables"))
+            missing = [
+                n
+                for n, v in (
+                    (PATH_RANGES_ATTR, ranges),
+                    (PATH_TRANSMITTANCE_ATTR, tau),
+                    (PATH_RADIANCE_ATTR, rad),
+                )
+                if v is None
+            ]
+            raise InputError(
+                bad_value(f"{where}.{missing[0]}", None, "expected ranges, transmittance and radiance tables")
+            )
         for name, a in ((PATH_TRANSMITTANCE_ATTR, tau), (PATH_RADIANCE_ATTR, rad)):
             if a.size != ranges.size * wl.size:
-                raise InputError(bad_value(f"{where}.{name}", f"<{a.size} values>",
-                                           f"expected {ranges.size} ranges x {wl.size} wavelengths = "
-                                           f"{ranges.size * wl.size} values (row-major)"))
+                raise InputError(
+                    bad_value(
+                        f"{where}.{name}",
+                        f"<{a.size} values>",
+                        f"expected {ranges.size} ranges x {wl.size} wavelengths = "
+                        f"{ranges.size * wl.size} values (row-major)",
+                    )
+                )
         if np.any(tau > 1.0 + 1e-6):
-            raise InputError(bad_value(f"{where}.{PATH_TRANSMITTANCE_ATTR}", _summary(tau), "expected transmittances in 0-1"))
-        return PathTable(where, ranges, wl, np.minimum(tau, 1.0).reshape(ranges.size, wl.size),
-                         rad.reshape(ranges.size, wl.size))
+            raise InputError(
+                bad_value(
+                    f"{where}.{PATH_TRANSMITTANCE_ATTR}", _summary(tau), "expected transmittances in 0-1"
+                )
+            )
+        return PathTable(
+            where,
+            ranges,
+            wl,
+            np.minimum(tau, 1.0).reshape(ranges.size, wl.size),
+            rad.reshape(ranges.size, wl.size),
+        )
 
     def camera_pose(self, sensor: Sensor, time) -> CameraPose:
         """The sensor's camera at ``time``: position, optical axis (local -Z), up (local +Y) and
@@ -680,30 +892,60 @@ class StageExport:
         up = np.array(m.TransformDir(Gf.Vec3d(0, 1, 0)), dtype=float)
         nf, nu = np.linalg.norm(forward), np.linalg.norm(up)
         if not (nf > 0 and nu > 0 and np.all(np.isfinite(origin))):
-            raise InputError(bad_value(f"{sensor.path}.xformOp", "<degenerate transform>", "expected an invertible camera transform"))
+            raise InputError(
+                bad_value(
+                    f"{sensor.path}.xformOp",
+                    "<degenerate transform>",
+                    "expected an invertible camera transform",
+                )
+            )
         forward, up = forward / nf, up / nu
         h_ap, focal = float(cam.horizontalAperture), float(cam.focalLength)
         if not (h_ap > 0 and focal > 0):
-            raise InputError(bad_value(f"{sensor.path}.horizontalAperture/focalLength", (h_ap, focal),
-                                       "expected positive values (tenths of a scene unit)"))
+            raise InputError(
+                bad_value(
+                    f"{sensor.path}.horizontalAperture/focalLength",
+                    (h_ap, focal),
+                    "expected positive values (tenths of a scene unit)",
+                )
+            )
         if cam.horizontalApertureOffset or cam.verticalApertureOffset:
-            warnings.warn(f"{sensor.path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2)
+            warnings.warn(
+                f"{sensor.path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2
+            )
         fov_x = math.degrees(2.0 * math.atan(0.5 * h_ap / focal))
         if not 0 < fov_x < 179:
-            raise InputError(bad_value(f"{sensor.path}.horizontalAperture/focalLength", (h_ap, focal), "expected a field of view below 179 deg"))
+            raise InputError(
+                bad_value(
+                    f"{sensor.path}.horizontalAperture/focalLength",
+                    (h_ap, focal),
+                    "expected a field of view below 179 deg",
+                )
+            )
         return CameraPose(origin=origin * self.meters_per_unit, forward=forward, up=up, fov_x_deg=fov_x)
 
     def face_temperatures(self, prim: Usd.Prim, info: MeshInfo, time) -> np.ndarray:
         where = f"{info.path}.{TEMPERATURE_ATTR}"
         attr = prim.GetAttribute(TEMPERATURE_ATTR)
         if not attr or not attr.HasValue():
-            raise InputError(bad_value(where, None, f"a rendered mesh needs one temperature per authored face "
-                                                    f"({info.face_count} faces, uniform primvar, K, HumvThermalAPI)"))
+            raise InputError(
+                bad_value(
+                    where,
+                    None,
+                    f"a rendered mesh needs one temperature per authored face "
+                    f"({info.face_count} faces, uniform primvar, K, HumvThermalAPI)",
+                )
+            )
         primvar = UsdGeom.Primvar(attr)
         interpolation = primvar.GetInterpolation() if primvar else UsdGeom.Tokens.uniform
         if interpolation not in (UsdGeom.Tokens.uniform, UsdGeom.Tokens.constant):
-            raise InputError(bad_value(f"{where} interpolation", str(interpolation),
-                                       "expected uniform (one value per authored face) or constant"))
+            raise InputError(
+                bad_value(
+                    f"{where} interpolation",
+                    str(interpolation),
+                    "expected uniform (one value per authored face) or constant",
+                )
+            )
         values = primvar.ComputeFlattened(time) if primvar else attr.Get(time)
         if values is None:
             raise InputError(bad_value(where, None, f"no value at frame {time.GetValue():g}"))
@@ -731,11 +973,20 @@ class StageExport:
             info = self._mesh_info(prim, time)
             pts, m = self._points(prim, info.path, time, cache)  # m: row-vector convention
             if pts.shape[0] != info.point_count:
-                raise InputError(bad_value(f"{info.path}.points", f"<{pts.shape[0]} points at frame {frame}>",
-                                           f"expected {info.point_count} points (topology must not change over time)"))
+                raise InputError(
+                    bad_value(
+                        f"{info.path}.points",
+                        f"<{pts.shape[0]} points at frame {frame}>",
+                        f"expected {info.point_count} points (topology must not change over time)",
+                    )
+                )
             world = (pts @ m[:3, :3] + m[3, :3]) * self.meters_per_unit
             if not np.all(np.isfinite(world)):
-                raise InputError(bad_value(f"{info.path}.points", "<non-finite>", f"expected finite points at frame {frame}"))
+                raise InputError(
+                    bad_value(
+                        f"{info.path}.points", "<non-finite>", f"expected finite points at frame {frame}"
+                    )
+                )
             flip = bool(info.left_handed) != bool(np.linalg.det(m[:3, :3]) < 0)
             if info.double_sided:
                 # behind the rendered front: against the normal, which a flip turns around

@@ -27,6 +27,7 @@ next-event estimation of the sky and sun only (see :data:`AREA_EMITTER_SAMPLING_
 ``hdrfilm`` luminance with a ``box`` filter, so every sample lands in exactly one pixel and the
 second moment gives the per-pixel Monte Carlo standard error of the mean.
 """
+
 from __future__ import annotations
 
 import os
@@ -34,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from humv_usd.render import mode
+from humv_usd import mode
 from humv_usd.render.export import CameraPose, Part
-from humv_usd.render.radiometry import sky_latlong
+from humv_usd.render.radiometry import apply_path, range_weights, sky_latlong
 
 #: Near and far clip of the Mitsuba sensors [m]; USD clipping ranges are ignored (no clipping).
 NEAR_CLIP_M = 1e-3
@@ -72,9 +73,16 @@ def write_ply(path, vertices, triangles, face_attributes: dict[str, np.ndarray])
     """
     vertices = np.ascontiguousarray(vertices, dtype="<f4").reshape(-1, 3)
     triangles = np.asarray(triangles, dtype="<i4").reshape(-1, 3)
-    header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(vertices)}",
-              "property float x", "property float y", "property float z",
-              f"element face {len(triangles)}", "property list uchar int vertex_indices"]
+    header = [
+        "ply",
+        "format binary_little_endian 1.0",
+        f"element vertex {len(vertices)}",
+        "property float x",
+        "property float y",
+        "property float z",
+        f"element face {len(triangles)}",
+        "property list uchar int vertex_indices",
+    ]
     header += [f"property float {name}" for name in face_attributes]
     header.append("end_header")
     dtype = np.dtype([("n", "u1"), ("v", "<i4", 3)] + [(name, "<f4") for name in face_attributes])
@@ -131,8 +139,16 @@ class IRScene:
     #: Mitsuba variant family of the scene (True in the EO subclass).
     spectral = False
 
-    def __init__(self, parts, sensors: list[SensorSetup], spp: int, max_depth: int, workdir,
-                 sky_map: bool = False, sun: bool = False):
+    def __init__(
+        self,
+        parts,
+        sensors: list[SensorSetup],
+        spp: int,
+        max_depth: int,
+        workdir,
+        sky_map: bool = False,
+        sun: bool = False,
+    ):
         mi = mode.mitsuba()
         self.mi = mi
         self.scalar = not mode.is_vectorized()
@@ -148,33 +164,57 @@ class IRScene:
         if self.sky_map:
             # Mitsuba's envmap is Y-up in its local frame (row 0 of the bitmap = local +Y):
             # rotating +90 deg about X takes local +Y to the stage's +Z (zenith).
-            scene[SKY_ID] = {"type": "envmap", "bitmap": mi.Bitmap(sky_latlong([0.0, 90.0], [1.0, 1.0])),
-                             "to_world": mi.ScalarTransform4f().rotate([1.0, 0.0, 0.0], 90.0)}
+            scene[SKY_ID] = {
+                "type": "envmap",
+                "bitmap": mi.Bitmap(sky_latlong([0.0, 90.0], [1.0, 1.0])),
+                "to_world": mi.ScalarTransform4f().rotate([1.0, 0.0, 0.0], 90.0),
+            }
         if self.has_sun:
-            scene[SUN_ID] = {"type": "directional", "direction": [0.0, 0.0, -1.0],
-                             "irradiance": {"type": "uniform", "value": 0.0}}
+            scene[SUN_ID] = {
+                "type": "directional",
+                "direction": [0.0, 0.0, -1.0],
+                "irradiance": {"type": "uniform", "value": 0.0},
+            }
         for s in sensors:
             scene[s.id] = {
-                "type": "perspective", "fov": float(s.pose.fov_x_deg), "fov_axis": "x",
-                "near_clip": NEAR_CLIP_M, "far_clip": FAR_CLIP_M,
+                "type": "perspective",
+                "fov": float(s.pose.fov_x_deg),
+                "fov_axis": "x",
+                "near_clip": NEAR_CLIP_M,
+                "far_clip": FAR_CLIP_M,
                 "to_world": _look_at(mi, s.pose, scalar=True),
-                "film": {"type": "hdrfilm", "width": int(s.width), "height": int(s.height),
-                         "pixel_format": "luminance", "component_format": "float32",
-                         "rfilter": {"type": "box"}},
+                "film": {
+                    "type": "hdrfilm",
+                    "width": int(s.width),
+                    "height": int(s.height),
+                    "pixel_format": "luminance",
+                    "component_format": "float32",
+                    "rfilter": {"type": "box"},
+                },
                 "sampler": {"type": "independent", "sample_count": int(spp)},
             }
         for part, vertices, flip in parts:
             tris = part.triangles[:, [0, 2, 1]] if flip else part.triangles
             filename = os.path.join(str(workdir), f"{part.key}.ply")
-            write_ply(filename, vertices, tris, {
-                "radiance_0": np.zeros(len(tris)),
-                "instance_0": np.full(len(tris), float(part.instance_id)),
-            })
+            write_ply(
+                filename,
+                vertices,
+                tris,
+                {
+                    "radiance_0": np.zeros(len(tris)),
+                    "instance_0": np.full(len(tris), float(part.instance_id)),
+                },
+            )
             scene[part.key] = {
-                "type": "ply", "filename": filename, "face_normals": True,
+                "type": "ply",
+                "filename": filename,
+                "face_normals": True,
                 "bsdf": {"type": "diffuse", "reflectance": {"type": "uniform", "value": 0.5}},
-                "emitter": {"type": "area", "sampling_weight": AREA_EMITTER_SAMPLING_WEIGHT,
-                            "radiance": {"type": "mesh_attribute", "name": "face_radiance"}},
+                "emitter": {
+                    "type": "area",
+                    "sampling_weight": AREA_EMITTER_SAMPLING_WEIGHT,
+                    "radiance": {"type": "mesh_attribute", "name": "face_radiance"},
+                },
             }
         # optimize=False: Mitsuba >= 3.6 otherwise merges equal nodes (e.g. two parts' BSDFs that
         # start with the same reflectance) and meshes, and per-part parameters would be shared.
@@ -226,8 +266,9 @@ class IRScene:
         helper = [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0]
         cls = self.mi.ScalarTransform4f if self.scalar else self.mi.Transform4f
         # look_at takes local +Z (the emitter's propagation direction) to d
-        self.params[f"{SUN_ID}.to_world"] = cls().look_at(origin=[0.0, 0.0, 0.0], target=[float(v) for v in d],
-                                                          up=helper)
+        self.params[f"{SUN_ID}.to_world"] = cls().look_at(
+            origin=[0.0, 0.0, 0.0], target=[float(v) for v in d], up=helper
+        )
         self.params[f"{SUN_ID}.irradiance.value"] = float(irradiance)
         # next-event estimation picks sun or sky in proportion to these weights: the beam-normal
         # irradiance here, pi x the mean sky radiance for the sky (:meth:`set_sky_weight`)
@@ -251,8 +292,9 @@ class IRScene:
     def render(self, sensor_id: str, spp: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """First and second moments of the pixel radiance, (H, W) float64 each."""
         self.mi = mode.mitsuba()
-        img = self.mi.render(self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp),
-                             seed=int(seed) % 2**32)
+        img = self.mi.render(
+            self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp), seed=int(seed) % 2**32
+        )
         a = np.asarray(img, dtype=np.float64)
         return a[..., self._m1], a[..., self._m2]
 
@@ -264,7 +306,7 @@ class IRScene:
         hits = self.hits(sensor_id)
         return hits.depth, hits.instance
 
-    def hits(self, sensor_id: str) -> "Hits":
+    def hits(self, sensor_id: str) -> Hits:
         """The first surface hit by the ray through each pixel centre (exact, no Monte Carlo).
 
         Rays come from the same Mitsuba sensor that renders (``sample_ray`` at the pixel centre,
@@ -277,7 +319,7 @@ class IRScene:
             cache[sensor_id] = self._cast_hits(sensor_id)
         return cache[sensor_id]
 
-    def _cast_hits(self, sensor_id: str) -> "Hits":
+    def _cast_hits(self, sensor_id: str) -> Hits:
         mi = self.mi = mode.mitsuba(spectral=self.spectral)  # the other render may have switched it
         setup = self.sensors[sensor_id]
         sensor = self._sensor_objects[sensor_id]
@@ -303,8 +345,9 @@ class IRScene:
                     part[i] = part_of_key[si.shape.id()]
                     triangle[i] = int(si.prim_index)
         else:
-            ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(mi.Float(xs.ravel()), mi.Float(ys.ravel())),
-                                       mi.Point2f(0.5, 0.5))
+            ray, _ = sensor.sample_ray(
+                0.0, 0.5, mi.Point2f(mi.Float(xs.ravel()), mi.Float(ys.ravel())), mi.Point2f(0.5, 0.5)
+            )
             import drjit as dr
 
             si = self.scene.ray_intersect(ray)
@@ -327,9 +370,14 @@ class IRScene:
         valid_np = part >= 0
         depth = np.where(valid_np, (np.nan_to_num(p) - origin[None, :]) @ forward, np.inf)
         normal[~valid_np] = 0.0
-        return Hits(depth=depth.reshape(h, w), instance=ident.reshape(h, w), part=part.reshape(h, w),
-                    triangle=triangle.reshape(h, w), position=p.reshape(h, w, 3),
-                    normal=normal.reshape(h, w, 3))
+        return Hits(
+            depth=depth.reshape(h, w),
+            instance=ident.reshape(h, w),
+            part=part.reshape(h, w),
+            triangle=triangle.reshape(h, w),
+            position=p.reshape(h, w, 3),
+            normal=normal.reshape(h, w, 3),
+        )
 
     def cast(self, origin, directions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """First hits of rays from ``origin`` (3,) along unit ``directions`` (N, 3) [m]:
@@ -341,7 +389,7 @@ class IRScene:
         t = np.full(len(d), np.inf)
         part = np.full(len(d), -1, dtype=np.int64)
         tri = np.full(len(d), -1, dtype=np.int64)
-        for i, di in enumerate(d):   # few rays (keypoints): one at a time in any variant
+        for i, di in enumerate(d):  # few rays (keypoints): one at a time in any variant
             ray = mi.Ray3f(mi.Point3f(*[float(v) for v in o]), mi.Vector3f(*[float(v) for v in di]))
             si = self.scene.ray_intersect(ray)
             if bool(np.asarray(si.is_valid()).ravel()[0]):
@@ -423,8 +471,17 @@ def subband_spp(spp: int, n: int) -> int:
     return max(per, min(int(spp), MIN_SUBBAND_SPP))
 
 
-def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radiometry, spp: int, seed: int,
-                transmittance_of=None):
+def render_band(
+    scene: IRScene,
+    sensor_id: str,
+    state,
+    sub,
+    emissivity_of,
+    radiometry,
+    spp: int,
+    seed: int,
+    transmittance_of=None,
+):
     """At-sensor band radiance of one IR sensor at one frame, rendered sub-band by sub-band.
 
     Parameters
@@ -466,7 +523,6 @@ def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radio
     radiance is already the at-sensor value), so pixels straddling a silhouette against the sky
     are approximate.
     """
-    from humv_usd.render.radiometry import apply_path, range_weights, sky_latlong
 
     planck_k = {m.path: sub.radiance(state.temperatures[m.path]) for m in state.meshes}  # (F, n)
     range_m = weights = None
@@ -474,8 +530,12 @@ def render_band(scene: IRScene, sensor_id: str, state, sub, emissivity_of, radio
         hits = scene.hits(sensor_id)
         origin = np.asarray(scene.sensors[sensor_id].pose.origin, dtype=np.float64)
         hit = np.isfinite(hits.depth)  # the positions of missed rays are undefined
-        range_m = np.where(hit, np.linalg.norm(np.where(hit[..., None], hits.position, 0.0) - origin, axis=-1), np.inf)
-        weights = range_weights(radiometry.path.ranges_m, np.where(hit, range_m, 0.0))  # shared by the sub-bands
+        range_m = np.where(
+            hit, np.linalg.norm(np.where(hit[..., None], hits.position, 0.0) - origin, axis=-1), np.inf
+        )
+        weights = range_weights(
+            radiometry.path.ranges_m, np.where(hit, range_m, 0.0)
+        )  # shared by the sub-bands
     total = None
     var = None
     for k in range(len(sub)):

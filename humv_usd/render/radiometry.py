@@ -27,6 +27,7 @@ without scattering into the beam other than the tabulated path radiance,
 :math:`L_{sensor} = \\tau L_{surface} + L_{path}` (e.g. Schott, *Remote Sensing: The Image Chain
 Approach*, 2nd ed., Oxford UP 2007, eq. 4.62 "big equation").
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ import numpy as np
 
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
+from humv_usd.render import cie
 from humv_usd.scenario import spec as _spec
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
@@ -54,7 +56,11 @@ NODES_PER_SUBBAND = 65
 
 def check_subbands(value, where: str = "subbands") -> int:
     """A sub-band count in 1..MAX_SUBBANDS, else InputError naming ``where``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= int(value) <= MAX_SUBBANDS:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not 1 <= int(value) <= MAX_SUBBANDS
+    ):
         raise InputError(bad_value(where, value, f"expected an integer in 1..{MAX_SUBBANDS}"))
     return int(value)
 
@@ -132,7 +138,9 @@ class SubBands:
             out[..., k] = _interp_last(x, wl, v) @ w
         return out
 
-    def weighted_mean(self, wavelengths_um, values, temperature_k: float = WEIGHTING_TEMPERATURE_K) -> np.ndarray:
+    def weighted_mean(
+        self, wavelengths_um, values, temperature_k: float = WEIGHTING_TEMPERATURE_K
+    ) -> np.ndarray:
         """Mean of a table over each sub-band weighted by :math:`R\\,B(\\lambda, T)`; (..., n)."""
         wl = np.asarray(wavelengths_um, dtype=float)
         v = np.asarray(values, dtype=float)
@@ -169,6 +177,7 @@ def _interp_last(x, wl, v):
 
 # --- atmosphere -------------------------------------------------------------------------------
 
+
 @dataclass
 class PathTable:
     """Slant-path transmittance and path radiance of one sensor against range (from the stage)."""
@@ -179,7 +188,7 @@ class PathTable:
     transmittance: np.ndarray  # (R, W)
     radiance: np.ndarray  # (R, W) [W m-2 sr-1 um-1]
 
-    def reduce(self, sub: SubBands) -> "SubBandPath":
+    def reduce(self, sub: SubBands) -> SubBandPath:
         """Sub-band transmittance (weighted mean) and path radiance (integral) against range.
 
         A zero range (transmittance 1, path radiance 0) is prepended when the table starts
@@ -268,7 +277,9 @@ def sky_latlong(zenith_deg, radiance) -> np.ndarray:
     v = np.asarray(radiance, dtype=float)
     rows = np.arange(SKY_MAP_HEIGHT) * 180.0 / (SKY_MAP_HEIGHT - 1)
     col = np.interp(np.minimum(rows, 90.0), z, v)
-    return np.ascontiguousarray(np.broadcast_to(col[:, None, None], (SKY_MAP_HEIGHT, SKY_MAP_WIDTH, 3)), dtype=np.float32)
+    return np.ascontiguousarray(
+        np.broadcast_to(col[:, None, None], (SKY_MAP_HEIGHT, SKY_MAP_WIDTH, 3)), dtype=np.float32
+    )
 
 
 def hemisphere_mean(zenith_deg, radiance) -> float:
@@ -282,8 +293,10 @@ def hemisphere_mean(zenith_deg, radiance) -> float:
 
 # --- spectral error of the sub-band approximation -----------------------------------------------
 
-def facet_radiance(sub: SubBands, wavelengths_um, emissivity, temperature_k, sky=None, sun=None,
-                   path=None) -> np.ndarray:
+
+def facet_radiance(
+    sub: SubBands, wavelengths_um, emissivity, temperature_k, sky=None, sun=None, path=None
+) -> np.ndarray:
     """At-sensor radiance of an opaque Lambertian facet with the sub-band model.
 
     :math:`\\sum_k \\tau_k(\\varepsilon_k L_k(T) + (1-\\varepsilon_k)(S_k + E_k\\cos\\theta/\\pi)) + P_k`
@@ -308,15 +321,20 @@ def facet_radiance(sub: SubBands, wavelengths_um, emissivity, temperature_k, sky
 REFERENCE_NODES = 4001
 
 
-def reference_radiance(band, response, wavelengths_um, emissivity, temperature_k, sky=None, sun=None,
-                       path=None) -> np.ndarray:
+def reference_radiance(
+    band, response, wavelengths_um, emissivity, temperature_k, sky=None, sun=None, path=None
+) -> np.ndarray:
     r"""Exact (fine-grid) at-sensor radiance of the facet of :func:`facet_radiance`:
     :math:`\int R\,[\tau(\varepsilon B(T) + (1-\varepsilon)(L_{sky} + E\cos\theta/\pi)) + P]\,d\lambda`
     by the trapezoid rule on :data:`REFERENCE_NODES` nodes plus every table wavelength."""
     lo, hi = float(band[0]), float(band[1])
-    x, w = _response_trapezoid(lo, hi, REFERENCE_NODES,
-                               [wavelengths_um] + [t[0] for t in (sky, sun, path) if t is not None],
-                               response)
+    x, w = _response_trapezoid(
+        lo,
+        hi,
+        REFERENCE_NODES,
+        [wavelengths_um] + [t[0] for t in (sky, sun, path) if t is not None],
+        response,
+    )
     wl = np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
     eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
     e = np.full_like(x, eps[0]) if wl.size == 1 else np.interp(x, wl, eps)
@@ -333,15 +351,26 @@ def reference_radiance(band, response, wavelengths_um, emissivity, temperature_k
     return surface @ w
 
 
-def subband_error(band, response, wavelengths_um, emissivity, temperatures_k, n: int, sky=None, sun=None,
-                  path=None, subbands: SubBands | None = None) -> np.ndarray:
+def subband_error(
+    band,
+    response,
+    wavelengths_um,
+    emissivity,
+    temperatures_k,
+    n: int,
+    sky=None,
+    sun=None,
+    path=None,
+    subbands: SubBands | None = None,
+) -> np.ndarray:
     """Brightness-temperature error [K] of the n-sub-band model (:func:`facet_radiance`) against
     the fine spectral reference (:func:`reference_radiance`) for a facet at ``temperatures_k``."""
     sub = SubBands(band, response, n) if subbands is None else subbands
     ref = reference_radiance(band, response, wavelengths_um, emissivity, temperatures_k, sky, sun, path)
     approx = facet_radiance(sub, wavelengths_um, emissivity, temperatures_k, sky, sun, path)
-    return (planck.brightness_temperature(approx, band, response)
-            - planck.brightness_temperature(ref, band, response))
+    return planck.brightness_temperature(approx, band, response) - planck.brightness_temperature(
+        ref, band, response
+    )
 
 
 # --- one sensor at one frame -----------------------------------------------------------------
@@ -377,10 +406,12 @@ class FrameRadiometry:
 SUN_BLACKBODY_K = 5778.0
 STEFAN_BOLTZMANN = 5.670374419e-8  # W m-2 K-4 (CODATA 2018)
 #: What the fallback is, for the manifest.
-SUN_FALLBACK_NOTE = (f"blackbody {SUN_BLACKBODY_K:g} K spectral shape scaled so that its integral over all "
-                     "wavelengths is humv:environment:directNormalIrradiance (approximation: no spectral "
-                     "atmospheric absorption, e.g. the 2.7 and 4.3 um CO2/H2O bands, so the in-band sun is "
-                     "overestimated where the atmosphere absorbs)")
+SUN_FALLBACK_NOTE = (
+    f"blackbody {SUN_BLACKBODY_K:g} K spectral shape scaled so that its integral over all "
+    "wavelengths is humv:environment:directNormalIrradiance (approximation: no spectral "
+    "atmospheric absorption, e.g. the 2.7 and 4.3 um CO2/H2O bands, so the in-band sun is "
+    "overestimated where the atmosphere absorbs)"
+)
 
 
 def blackbody_sun(wavelengths_um, dni_w_m2: float) -> np.ndarray:
@@ -389,7 +420,12 @@ def blackbody_sun(wavelengths_um, dni_w_m2: float) -> np.ndarray:
     over all wavelengths is the DNI (Planck; Stefan-Boltzmann :math:`\int B\,d\lambda = \sigma T^4/\pi`).
     The approximation of :data:`SUN_FALLBACK_NOTE`."""
     t = SUN_BLACKBODY_K
-    return float(dni_w_m2) * np.pi * planck.spectral_radiance(np.asarray(wavelengths_um, float), t) / (STEFAN_BOLTZMANN * t**4)
+    return (
+        float(dni_w_m2)
+        * np.pi
+        * planck.spectral_radiance(np.asarray(wavelengths_um, float), t)
+        / (STEFAN_BOLTZMANN * t**4)
+    )
 
 
 def blackbody_sun_subbands(sub: SubBands, dni_w_m2: float) -> np.ndarray:
@@ -398,8 +434,14 @@ def blackbody_sun_subbands(sub: SubBands, dni_w_m2: float) -> np.ndarray:
     return float(dni_w_m2) * np.pi * sub.radiance(t) / (STEFAN_BOLTZMANN * t**4)
 
 
-def frame_radiometry(sub: SubBands, sky_temperature_k: float, spectra=None, sun_direction=None,
-                     path_table: PathTable | None = None, dni_w_m2: float | None = None) -> FrameRadiometry:
+def frame_radiometry(
+    sub: SubBands,
+    sky_temperature_k: float,
+    spectra=None,
+    sun_direction=None,
+    path_table: PathTable | None = None,
+    dni_w_m2: float | None = None,
+) -> FrameRadiometry:
     """Sub-band sky, sun and path terms for one IR sensor at one frame, from what the stage has.
 
     - sky: the spectral sky table (``spectra.sky_zenith_deg``/``sky_radiance``) integrated per
@@ -419,15 +461,25 @@ def frame_radiometry(sub: SubBands, sky_temperature_k: float, spectra=None, sun_
     if spectra is not None and spectra.sky_radiance is not None and covers(wl, band):
         per_k = sub.integrate(wl, spectra.sky_radiance)  # (Z, n)
         sky_maps = [sky_latlong(spectra.sky_zenith_deg, per_k[:, k]) for k in range(len(sub))]
-        ran["sky"] = "envmap from humv:atmosphere:skySpectralRadiance (zenith table, held at the horizon value below it)"
+        ran["sky"] = (
+            "envmap from humv:atmosphere:skySpectralRadiance (zenith table, held at the horizon value below it)"
+        )
     else:
         sky_constant = sub.radiance(float(sky_temperature_k))
-        why = ("no humv:atmosphere:skySpectralRadiance" if spectra is None or spectra.sky_radiance is None
-               else "sky table does not cover the band")
+        why = (
+            "no humv:atmosphere:skySpectralRadiance"
+            if spectra is None or spectra.sky_radiance is None
+            else "sky table does not cover the band"
+        )
         ran["sky"] = f"uniform blackbody at humv:atmosphere:skyTemperature ({why})"
     sun_dir = sun_e = None
-    no_table = ("no humv:atmosphere:solarSpectralIrradiance" if spectra is None or spectra.solar_irradiance is None
-                else None if covers(wl, band) else "solar table does not cover the band")
+    no_table = (
+        "no humv:atmosphere:solarSpectralIrradiance"
+        if spectra is None or spectra.solar_irradiance is None
+        else None
+        if covers(wl, band)
+        else "solar table does not cover the band"
+    )
     if sun_direction is None:
         ran["sun"] = "skipped: no humv:environment:sunDirection"
     elif no_table is not None and not dni_w_m2:
@@ -444,27 +496,33 @@ def frame_radiometry(sub: SubBands, sky_temperature_k: float, spectra=None, sun_
             ran["sun"] = "skipped: zero solar irradiance in the band"
         else:
             sun_dir, sun_e = np.asarray(sun_direction, dtype=float), e
-            ran["sun"] = (f"directional, {float(e.sum()):.4g} W m-2 in band (beam-normal), zenith "
-                          f"{np.degrees(np.arccos(np.clip(sun_dir[2], -1, 1))):.2f} deg, from {source}")
+            ran["sun"] = (
+                f"directional, {float(e.sum()):.4g} W m-2 in band (beam-normal), zenith "
+                f"{np.degrees(np.arccos(np.clip(sun_dir[2], -1, 1))):.2f} deg, from {source}"
+            )
     path = None
     if path_table is None:
-        ran["atmosphere"] = "skipped: no path table under /World/Atmosphere/Paths (no transmittance or path radiance)"
+        ran["atmosphere"] = (
+            "skipped: no path table under /World/Atmosphere/Paths (no transmittance or path radiance)"
+        )
     elif not covers(path_table.wavelengths_um, band):
         ran["atmosphere"] = f"skipped: path table {path_table.prim} does not cover the band"
     else:
         path = path_table.reduce(sub)
-        ran["atmosphere"] = (f"per pixel by range from {path_table.prim} ({path_table.ranges_m.size} ranges "
-                             f"{path_table.ranges_m[0]:g}-{path_table.ranges_m[-1]:g} m)")
+        ran["atmosphere"] = (
+            f"per pixel by range from {path_table.prim} ({path_table.ranges_m.size} ranges "
+            f"{path_table.ranges_m[0]:g}-{path_table.ranges_m[-1]:g} m)"
+        )
     return FrameRadiometry(sky_constant, sky_maps, sun_dir, sun_e, path, ran)
 
 
 # --- EO: the path reduced to the CIE XYZ channels -------------------------------------------------
 
+
 def cie_1931_cmfs() -> tuple[np.ndarray, np.ndarray]:
     """CIE 1931 2° colour-matching functions: (wavelengths [nm] (W,), x-bar, y-bar, z-bar (W, 3)),
     360-830 nm every nm (colour-science's ``MSDS_CMFS['CIE 1931 2 Degree Standard Observer']``,
     frozen in :mod:`humv_usd.render.cie`)."""
-    from humv_usd.render import cie
 
     return cie.CMF_WAVELENGTHS_NM, cie.CMF_XYZ
 
@@ -505,8 +563,10 @@ def horizon_sky(zenith_deg, radiance) -> tuple[np.ndarray, str]:
     if near.any():
         rows = ", ".join(f"{z:g}" for z in zen[near])
         return rad[near].mean(axis=0), f"mean of the sky table's rows at zenith {rows} deg"
-    return (np.array([hemisphere_mean(zen, rad[:, j]) for j in range(rad.shape[1])]),
-            "cosine-weighted hemispherical mean of the sky table (no row at zenith 85-90 deg)")
+    return (
+        np.array([hemisphere_mean(zen, rad[:, j]) for j in range(rad.shape[1])]),
+        "cosine-weighted hemispherical mean of the sky table (no row at zenith 85-90 deg)",
+    )
 
 
 def reduce_xyz(table: PathTable, horizon=None) -> XYZPath:

@@ -4,6 +4,7 @@ Every problem is reported as one line naming the key, the value and what is allo
 problems of a file are collected before :class:`~humv_usd.errors.InputError` is raised, so a user
 fixes them in one go. Unknown keys are errors, with a did-you-mean suggestion.
 """
+
 from __future__ import annotations
 
 import copy
@@ -18,9 +19,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from humv_usd.catalog.garments import ALIASES, GARMENTS
+from humv_usd.catalog.sensors import (
+    netd_for_f_number,  # another aperture than the preset's
+    scenario_values,
+)
 from humv_usd.errors import InputError, bad_value
-from humv_usd.scenario.spec import (BAND_DEFAULT_UM, SECTIONS, SENSOR_FALLBACK,
-                                    SENSOR_PRESET_KEYS, SPEED_RANGE_M_S, Key, Section)
+from humv_usd.scenario.spec import (
+    BAND_DEFAULT_UM,
+    SECTIONS,
+    SENSOR_FALLBACK,
+    SENSOR_PRESET_KEYS,
+    SPEED_RANGE_M_S,
+    Key,
+    Section,
+)
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -31,7 +44,7 @@ class Scenario:
 
     data: dict[str, Any]
     path: Path | None = None
-    given: frozenset[str] = frozenset()   # sections present in the file
+    given: frozenset[str] = frozenset()  # sections present in the file
 
     @property
     def infrared_sensors(self) -> list[dict]:
@@ -101,25 +114,32 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
     if key.kind == "vec":
         what = "integers" if key.integer else "numbers"
         if not isinstance(value, list) or len(value) != key.n:
-            problems.append(bad_value(where, value,
-                                      f"expected {key.n} {what}, each in {_range_text(key)}"))
+            problems.append(bad_value(where, value, f"expected {key.n} {what}, each in {_range_text(key)}"))
             return None
         out = [_check_number(f"{where}[{i}]", v, key, problems) for i, v in enumerate(value)]
         return None if any(v is None for v in out) else out
     if key.kind == "datetime":
         if not isinstance(value, dt.datetime) or value.tzinfo is not None:
-            problems.append(bad_value(where, value if not isinstance(value, dt.datetime)
-                                      else value.isoformat(),
-                                      "expected a TOML local date-time such as "
-                                      "2018-10-24T14:05:00 (no offset; give utc_offset_h)"))
+            problems.append(
+                bad_value(
+                    where,
+                    value if not isinstance(value, dt.datetime) else value.isoformat(),
+                    "expected a TOML local date-time such as "
+                    "2018-10-24T14:05:00 (no offset; give utc_offset_h)",
+                )
+            )
             return None
         return value
     if key.kind == "points":
         if not isinstance(value, list):
-            problems.append(bad_value(where, value, f"expected a list of [{', '.join('x y z'.split()[:key.n])}] points"))
+            problems.append(
+                bad_value(where, value, f"expected a list of [{', '.join('x y z'.split()[: key.n])}] points")
+            )
             return None
-        out = [_check_value(f"{where}[{i}]", v, Key("vec", key.doc, n=key.n, lo=key.lo, hi=key.hi),
-                            problems) for i, v in enumerate(value)]
+        out = [
+            _check_value(f"{where}[{i}]", v, Key("vec", key.doc, n=key.n, lo=key.lo, hi=key.hi), problems)
+            for i, v in enumerate(value)
+        ]
         return None if any(v is None for v in out) else out
     if key.kind == "path":
         if not isinstance(value, str) or not value:
@@ -133,8 +153,11 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
         if key.choices:
             bad = [(i, v) for i, v in enumerate(value) if v not in key.choices]
             for i, v in bad:
-                problems.append(bad_value(f"{where}[{i}]", v, f"allowed: {', '.join(key.choices)}"
-                                          f"{_suggest(v, key.choices)}"))
+                problems.append(
+                    bad_value(
+                        f"{where}[{i}]", v, f"allowed: {', '.join(key.choices)}{_suggest(v, key.choices)}"
+                    )
+                )
             if bad:
                 return None
         return list(value)
@@ -151,8 +174,9 @@ def _check_table(where: str, table: Any, section: Section, problems: list[str]) 
         if name in section.subsections:
             continue
         if name not in section.keys:
-            problems.append(f"{where}.{name}: unknown key{_suggest(name, known)}; "
-                            f"allowed keys: {', '.join(known)}")
+            problems.append(
+                f"{where}.{name}: unknown key{_suggest(name, known)}; allowed keys: {', '.join(known)}"
+            )
             continue
         out[name] = _check_value(f"{where}.{name}", value, section.keys[name], problems)
     for name, key in section.keys.items():
@@ -172,9 +196,9 @@ def _check_section(where: str, raw: Any, section: Section, problems: list[str]):
             problems.append(f"[{where}]: missing required section")
         if section.array:
             return []
-        if section.subsections:       # a part of the scene that is absent ([scene])
+        if section.subsections:  # a part of the scene that is absent ([scene])
             return None
-        raw = {}                      # settings sections ([thermal], [atmosphere]): defaults
+        raw = {}  # settings sections ([thermal], [atmosphere]): defaults
     if section.array:
         if not isinstance(raw, list):
             problems.append(bad_value(where, raw, f"expected an array of tables [[{where}]]"))
@@ -190,8 +214,11 @@ def _check_ids(where: str, items: list[dict], problems: list[str]) -> set[str]:
         if ident is None:
             continue
         if not _IDENT.match(ident):
-            problems.append(bad_value(f"{where}[{i}].id", ident,
-                                      "expected letters, digits and _ (not starting with a digit)"))
+            problems.append(
+                bad_value(
+                    f"{where}[{i}].id", ident, "expected letters, digits and _ (not starting with a digit)"
+                )
+            )
         elif ident in seen:
             problems.append(bad_value(f"{where}[{i}].id", ident, "must be unique"))
         seen.add(ident)
@@ -209,34 +236,47 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
         if h is None:
             continue
         if h not in humans:
-            problems.append(bad_value(f"placement[{i}].human", h, "expected the id of a [[human]]: "
-                                      + (", ".join(sorted(humans)) or "none defined"))
-                            + _suggest(h, humans))
+            problems.append(
+                bad_value(
+                    f"placement[{i}].human",
+                    h,
+                    "expected the id of a [[human]]: " + (", ".join(sorted(humans)) or "none defined"),
+                )
+                + _suggest(h, humans)
+            )
         elif h in placed:
             problems.append(bad_value(f"placement[{i}].human", h, "each human is placed once"))
         placed.add(h)
     for h in sorted(humans - placed):
         problems.append(f"human id {h!r}: no [[placement]] places this human")
-    from humv_usd.clothing.garments import ALIASES, GARMENTS
     for i, hum in enumerate(data["human"]):
         if hum.get("bvh") and hum.get("speed_m_s") is not None:
-            problems.append(bad_value(f"human[{i}].speed_m_s", hum["speed_m_s"],
-                                      "not with bvh (the motion file sets the speed)"))
+            problems.append(
+                bad_value(
+                    f"human[{i}].speed_m_s", hum["speed_m_s"], "not with bvh (the motion file sets the speed)"
+                )
+            )
         speed, activity = hum.get("speed_m_s"), hum.get("activity")
         if speed is not None and activity is not None:
             lo, hi = SPEED_RANGE_M_S.get(activity, (None, None))
             if lo is None:
-                problems.append(bad_value(f"human[{i}].speed_m_s", speed,
-                                          f"only for walk or run (activity is {activity!r})"))
+                problems.append(
+                    bad_value(
+                        f"human[{i}].speed_m_s", speed, f"only for walk or run (activity is {activity!r})"
+                    )
+                )
             elif not lo <= speed <= hi:
-                problems.append(bad_value(f"human[{i}].speed_m_s", speed,
-                                          f"allowed range for {activity}: {lo}..{hi}"))
+                problems.append(
+                    bad_value(f"human[{i}].speed_m_s", speed, f"allowed range for {activity}: {lo}..{hi}")
+                )
         seen: set[str] = set()
         for k, name in enumerate(hum.get("clothing") or []):
             canonical = ALIASES.get(name, name)
             if canonical not in GARMENTS:
-                problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "allowed garments: "
-                                          + ", ".join(GARMENTS)) + _suggest(name, GARMENTS))
+                problems.append(
+                    bad_value(f"human[{i}].clothing[{k}]", name, "allowed garments: " + ", ".join(GARMENTS))
+                    + _suggest(name, GARMENTS)
+                )
             elif canonical in seen:
                 problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "listed twice"))
             seen.add(canonical)
@@ -247,55 +287,77 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
             continue
         lo, hi = s["wavelength_um"]
         if lo >= hi:
-            problems.append(bad_value(f"sensor[{i}].wavelength_um", [lo, hi],
-                                      "expected [short, long] with short < long"))
+            problems.append(
+                bad_value(f"sensor[{i}].wavelength_um", [lo, hi], "expected [short, long] with short < long")
+            )
         p_lo, p_hi = s["agc_percentiles"]
         if p_lo >= p_hi:
-            problems.append(bad_value(f"sensor[{i}].agc_percentiles", [p_lo, p_hi],
-                                      "expected [low, high] with low < high"))
+            problems.append(
+                bad_value(
+                    f"sensor[{i}].agc_percentiles", [p_lo, p_hi], "expected [low, high] with low < high"
+                )
+            )
         if s["platform"] == "aerial":
             if s.get("position_m") is not None:
-                problems.append(bad_value(f"sensor[{i}].position_m", s["position_m"],
-                                          "not with platform = 'aerial' (the orbit sets it: "
-                                          "altitude_m, orbit_radius_m, orbit_speed_m_s)"))
+                problems.append(
+                    bad_value(
+                        f"sensor[{i}].position_m",
+                        s["position_m"],
+                        "not with platform = 'aerial' (the orbit sets it: "
+                        "altitude_m, orbit_radius_m, orbit_speed_m_s)",
+                    )
+                )
             continue
         if s.get("position_m") is None:
-            problems.append(f"sensor[{i}].position_m: missing required key (camera position "
-                            f"[x, y, z] [m] of a {s['platform']})")
+            problems.append(
+                f"sensor[{i}].position_m: missing required key (camera position "
+                f"[x, y, z] [m] of a {s['platform']})"
+            )
         elif s["platform"] == "mast" and not 2.0 <= s["position_m"][2] <= 100.0:
-            problems.append(bad_value(f"sensor[{i}].position_m[2]", s["position_m"][2],
-                                      "a mast camera's height above the ground: 2.0..100.0 m"))
+            problems.append(
+                bad_value(
+                    f"sensor[{i}].position_m[2]",
+                    s["position_m"][2],
+                    "a mast camera's height above the ground: 2.0..100.0 m",
+                )
+            )
         if s.get("position_m") and s.get("look_at_m"):
             d = [a - b for a, b in zip(s["look_at_m"], s["position_m"])]
             if math.sqrt(sum(x * x for x in d)) < 1e-6:
-                problems.append(bad_value(f"sensor[{i}].look_at_m", s["look_at_m"],
-                                          "must differ from position_m"))
+                problems.append(
+                    bad_value(f"sensor[{i}].look_at_m", s["look_at_m"], "must differ from position_m")
+                )
 
 
 def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
     """Sensor keys not given: from the preset, else SENSOR_FALLBACK (band edges by band)."""
-    from humv_usd.sensors.presets import scenario_values
     values = scenario_values(s["preset"]) if s.get("preset") else {}
     if s.get("band") is not None and values and s["band"] != values["band"]:
-        for name in ("wavelength_um", "gain", "offset"):   # another band than the preset's:
-            del values[name]                                # edges by band, fallback counts
+        for name in ("wavelength_um", "gain", "offset"):  # another band than the preset's:
+            del values[name]  # edges by band, fallback counts
     gain_given = s.get("gain") is not None
     netd_given = s.get("netd_k") is not None
     for name in SENSOR_PRESET_KEYS:
         if s.get(name) is None:
             s[name] = copy.deepcopy(values.get(name, SENSOR_FALLBACK.get(name)))
-    if values and not netd_given and s.get("band") == values.get("band") != "EO" \
-            and s.get("f_number") is not None and s["f_number"] != values.get("f_number"):
-        from humv_usd.sensors.presets import netd_for_f_number   # another aperture than the preset's
+    if (
+        values
+        and not netd_given
+        and s.get("band") == values.get("band") != "EO"
+        and s.get("f_number") is not None
+        and s["f_number"] != values.get("f_number")
+    ):
         s["netd_k"] = netd_for_f_number(values["netd_k"], values["f_number"], s["f_number"])
     if s.get("band") == "EO" and not values and not gain_given:
-        s["gain"] = None                 # EO without a gain: auto exposure
+        s["gain"] = None  # EO without a gain: auto exposure
     if s.get("wavelength_um") is None and s.get("band") is not None:
         s["wavelength_um"] = list(BAND_DEFAULT_UM[s["band"]])
     for name in ("resolution", "focal_length_mm"):
         if s.get(name) is None:
-            problems.append(f"sensor[{i}].{name}: missing required key (no preset gives it: "
-                            f"{SECTIONS['sensor'].keys[name].doc})")
+            problems.append(
+                f"sensor[{i}].{name}: missing required key (no preset gives it: "
+                f"{SECTIONS['sensor'].keys[name].doc})"
+            )
 
 
 def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:
@@ -319,10 +381,11 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
     problems: list[str] = []
     for name in raw:
         if name not in SECTIONS:
-            problems.append(f"[{name}]: unknown section{_suggest(name, SECTIONS)}; "
-                            f"allowed sections: {', '.join(SECTIONS)}")
-    data = {name: _check_section(name, raw.get(name), sec, problems)
-            for name, sec in SECTIONS.items()}
+            problems.append(
+                f"[{name}]: unknown section{_suggest(name, SECTIONS)}; "
+                f"allowed sections: {', '.join(SECTIONS)}"
+            )
+    data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}
     if not problems:
         _cross_checks(data, problems)
         _resolve_paths(data, path, problems)

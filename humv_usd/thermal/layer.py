@@ -18,22 +18,29 @@ the scene see the render's sky; without it, the analytic Berdahl & Martin sky wi
 Crawford & Duchon cloud mix. The table holds the weather of frame 0; at other times (spin-up,
 later radiation samples) it is scaled with the analytic sky's irradiance (1 at frame 0).
 """
+
 from __future__ import annotations
 
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
-from humv_usd.avatar.layer import body_path, human_path
-from humv_usd.materials.library import LIBRARY
+from humv_usd.catalog.materials import LIBRARY
 from humv_usd.environment.weather import weather_at
+from humv_usd.scenario import Scenario
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
 from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
-from humv_usd.thermal.surfaces import (SPIN_UP_STEP_S, forcing_at, longwave_emissivity,
-                                       scene_meshes, surface_temperatures, with_sky_table)
-from humv_usd.scenario import Scenario
+from humv_usd.thermal.surfaces import (
+    SPIN_UP_STEP_S,
+    forcing_at,
+    longwave_emissivity,
+    scene_meshes,
+    surface_temperatures,
+    with_sky_table,
+)
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import finish, new_layer_stage
+from humv_usd.usd.paths import body_path, human_path
 
 NAME = "thermal"
 READS = ("general", "human", "scene", "thermal", "atmosphere")
@@ -45,8 +52,7 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     th = scenario["thermal"]
     model = th["model"]
     frames, fps = scenario.frame_count, g["fps"]
-    stage = new_layer_stage(fps, frames,
-                            f"HumV-USD thermal layer: per-face temperatures ({model} model)")
+    stage = new_layer_stage(fps, frames, f"HumV-USD thermal layer: per-face temperatures ({model} model)")
     stage.RemovePrim("/World")  # this layer only adds opinions: overs, no defs
     people = model != "fixed" and bool(scenario["human"])
     step = max(1, int(round(th["radiation_step_s"] * fps)))
@@ -67,14 +73,15 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         forcing = with_sky_table(forcing_at(scenario, all_t), table, len(spin_t))
         report["sky"] = _sky_report(forcing, table, len(spin_t), upstream)
         surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing)
-        report["surfaces"] = {"model": "slab" if slabs else "held",
-                              "spinUp_s": spin,
-                              "slabMaxResidual_W_m2": round(sdiag["slabMaxResidual_W_m2"], 9)}
+        report["surfaces"] = {
+            "model": "slab" if slabs else "held",
+            "spinUp_s": spin,
+            "slabMaxResidual_W_m2": round(sdiag["slabMaxResidual_W_m2"], 9),
+        }
         ground_k = sdiag["groundMeanTemperature_k"]
     solved: dict[str, np.ndarray] = {}
     for m in meshes:
-        solved[m.path] = (surf[m.path][nearest] if m.path in surf
-                          else np.full((1, m.n_faces), float(m.held_k)))
+        solved[m.path] = surf[m.path][nearest] if m.path in surf else np.full((1, m.n_faces), float(m.held_k))
     if people:
         w = weather_at(scenario, np.arange(frames) / fps)
         n_spin = len(forcing.times_s) - len(samples)
@@ -82,29 +89,51 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         mesh, eps_tri, tri_offsets = _scene_trimesh(meshes)
         for k in range(len(samples)):
             i = n_spin + k
-            sun = ((forcing.sun_direction[i], forcing.dni_w_m2[i], forcing.dhi_w_m2[i])
-                   if forcing.sun_up[i] else None)
-            weather = {"air_temperature_k": forcing.air_temperature_k[i],
-                       "relative_humidity": forcing.relative_humidity[i],
-                       "cloud_cover": forcing.cloud_cover[i]}
-            sky = scenario_sky(scenario, weather, sun, float(ground_k[k]) if
-                               scenario["scene"] else None,
-                               longwave=_scaled_table(table, forcing, i))
+            sun = (
+                (forcing.sun_direction[i], forcing.dni_w_m2[i], forcing.dhi_w_m2[i])
+                if forcing.sun_up[i]
+                else None
+            )
+            weather = {
+                "air_temperature_k": forcing.air_temperature_k[i],
+                "relative_humidity": forcing.relative_humidity[i],
+                "cloud_cover": forcing.cloud_cover[i],
+            }
+            sky = scenario_sky(
+                scenario,
+                weather,
+                sun,
+                float(ground_k[k]) if scenario["scene"] else None,
+                longwave=_scaled_table(table, forcing, i),
+            )
             skies.append(sky)
             if mesh is None:
                 scenes.append(None)
                 continue
             t_tri = np.concatenate([surf[m.path][k][m.tri_face] for m in meshes])
-            scenes.append(R.SceneSurfaces(mesh, R.scene_surface_radiance(
-                mesh, t_tri, eps_tri, sky, solar_reflectance=_solar_reflectance(meshes))))
-        world = Surroundings(samples, skies, scenes, w.air_temperature_k, w.relative_humidity,
-                             w.wind_speed_m_s)
-        report.update({"qradMethod": th["radiation_method"], "qradRays": th["radiation_rays"],
-                       "mapResolution": th["radiation_resolution"],
-                       "garmentBalance": th["garment_transient"]})
+            scenes.append(
+                R.SceneSurfaces(
+                    mesh,
+                    R.scene_surface_radiance(
+                        mesh, t_tri, eps_tri, sky, solar_reflectance=_solar_reflectance(meshes)
+                    ),
+                )
+            )
+        world = Surroundings(
+            samples, skies, scenes, w.air_temperature_k, w.relative_humidity, w.wind_speed_m_s
+        )
+        report.update(
+            {
+                "qradMethod": th["radiation_method"],
+                "qradRays": th["radiation_rays"],
+                "mapResolution": th["radiation_resolution"],
+                "garmentBalance": th["garment_transient"],
+            }
+        )
         for h in scenario["human"]:
-            temps_h, diag = human_temperatures(upstream, h, str(human_path(h["id"])), scenario,
-                                               world, model, th)
+            temps_h, diag = human_temperatures(
+                upstream, h, str(human_path(h["id"])), scenario, world, model, th
+            )
             solved.update(temps_h)
             report[h["id"]] = {k: round(v, 9) for k, v in diag.items()}
     # error estimates (deterministic for fixed seeds) travel with the layer; run times go
@@ -121,19 +150,19 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         over = stage.OverridePrim(path)
         over.ApplyAPI(S.THERMAL_API)
         primvar = UsdGeom.PrimvarsAPI(over).CreatePrimvar(
-            S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray,
-            UsdGeom.Tokens.uniform)
+            S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"),
+            Sdf.ValueTypeNames.FloatArray,
+            UsdGeom.Tokens.uniform,
+        )
         series = solved.get(str(path))
         if series is None:
             over.GetAttribute(S.THERMAL_MODEL).Set("fixed")
-            primvar.Set(Vt.FloatArray.FromNumpy(np.full(faces, fixed.get(path, air0),
-                                                        dtype=np.float32)))
+            primvar.Set(Vt.FloatArray.FromNumpy(np.full(faces, fixed.get(path, air0), dtype=np.float32)))
             continue
         if str(path) in kinds:
             over.GetAttribute(S.THERMAL_MODEL).Set(kinds[str(path)])
         else:
-            over.GetAttribute(S.THERMAL_MODEL).Set(model if str(path).endswith("/Body")
-                                                   else "balance")
+            over.GetAttribute(S.THERMAL_MODEL).Set(model if str(path).endswith("/Body") else "balance")
         if len(series) == 1 or np.all(series == series[:1]):
             primvar.Set(Vt.FloatArray.FromNumpy(series[0].astype(np.float32)))
         else:
@@ -158,11 +187,14 @@ def _sky_report(forcing, table, i0, upstream) -> dict:
     else:
         model = upstream.GetPrimAtPath("/World/Atmosphere").GetAttribute(S.ATMOSPHERE_MODEL).Get()
         source = f"atmosphere layer skyLongwaveRadiance ({model})"
-    return {"source": source,
-            "cloudCover": round(float(forcing.cloud_cover[i0]), 6),
-            "longwaveIrradiance_W_m2": round(float(forcing.sky_longwave[i0]), 4),
-            "emissivity": round(float(forcing.sky_longwave[i0] / (
-                R.STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6)}
+    return {
+        "source": source,
+        "cloudCover": round(float(forcing.cloud_cover[i0]), 6),
+        "longwaveIrradiance_W_m2": round(float(forcing.sky_longwave[i0]), 4),
+        "emissivity": round(
+            float(forcing.sky_longwave[i0] / (R.STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
+        ),
+    }
 
 
 def _fixed_people(scenario: Scenario) -> dict[Sdf.Path, float]:
@@ -174,6 +206,7 @@ def _fixed_people(scenario: Scenario) -> dict[Sdf.Path, float]:
 def _scene_trimesh(meshes):
     """(trimesh of every scene mesh, long-wave emissivity per triangle, triangle offsets)."""
     import trimesh
+
     if not meshes:
         return None, None, None
     points, faces, eps, offsets, offset, tri = [], [], [], [], 0, 0
@@ -191,5 +224,12 @@ def _scene_trimesh(meshes):
 
 def _solar_reflectance(meshes):
     """Broadband short-wave reflectance 1 - solar absorptivity per triangle."""
-    return np.concatenate([np.full(len(m.triangles), 1.0 - LIBRARY[m.material].solar_absorptivity
-                                   if m.material in LIBRARY else 0.2) for m in meshes])
+    return np.concatenate(
+        [
+            np.full(
+                len(m.triangles),
+                1.0 - LIBRARY[m.material].solar_absorptivity if m.material in LIBRARY else 0.2,
+            )
+            for m in meshes
+        ]
+    )

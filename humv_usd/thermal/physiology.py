@@ -18,7 +18,7 @@ constant over each step), start from a spin-up at the first step's conditions, a
 heart rate of :func:`heart_rate`. Inputs and outputs are SI with temperatures in kelvin (the
 project's convention); the models work in degrees Celsius internally.
 
-All segment arrays use JOS-3's order (:data:`humv_usd.avatar.labels.JOS3_SEGMENTS`), the same
+All segment arrays use JOS-3's order (:data:`humv_usd.human.labels.JOS3_SEGMENTS`), the same
 index the avatar writes per face as ``primvars:humv:label:jos3Segment``, so
 :func:`skin_temperature_per_face` is a lookup.
 
@@ -45,6 +45,7 @@ References
 .. [9] Yokota, M., Berglund, L. G. (2006). ICDA thermoregulatory model (USARIEM technical
    report; cited by the seed).
 """
+
 from __future__ import annotations
 
 import math
@@ -52,19 +53,37 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from humv_usd.avatar.labels import JOS3_PYTHERMALCOMFORT, JOS3_SEGMENTS
+from humv_usd.human.labels import JOS3_PYTHERMALCOMFORT, JOS3_SEGMENTS
 
 N_SEGMENTS = len(JOS3_SEGMENTS)  # 17
 ZERO_C = 273.15
-MET_W_M2 = 58.2           # 1 met [W/m^2] (ASHRAE)
-J_PER_ML_O2 = 20.1        # energy equivalent of oxygen [J/mL] (RER ~0.85-0.9; as avatar.motion)
+MET_W_M2 = 58.2  # 1 met [W/m^2] (ASHRAE)
+J_PER_ML_O2 = 20.1  # energy equivalent of oxygen [J/mL] (RER ~0.85-0.9; as avatar.motion)
 VO2_REST_ML_KG_MIN = 3.5  # 1 MET [mL/kg/min]
 LATENT_HEAT_J_G = 2418.0  # latent heat of sweat evaporation [J/g] (as JOS-3)
 #: JOS-3 segment areas [m^2] for the standard body (1.72 m, 74.43 kg; Takahashi et al. 2021):
 #: the weights of JOS-3's own mean skin temperature.
-JOS3_STANDARD_AREAS_M2 = np.array([
-    0.110, 0.029, 0.175, 0.161, 0.221, 0.096, 0.063, 0.050, 0.096, 0.063, 0.050,
-    0.209, 0.112, 0.056, 0.209, 0.112, 0.056])
+JOS3_STANDARD_AREAS_M2 = np.array(
+    [
+        0.110,
+        0.029,
+        0.175,
+        0.161,
+        0.221,
+        0.096,
+        0.063,
+        0.050,
+        0.096,
+        0.063,
+        0.050,
+        0.209,
+        0.112,
+        0.056,
+        0.209,
+        0.112,
+        0.056,
+    ]
+)
 
 #: Fitness classes for :func:`heart_rate`: resting heart rate [bpm] and VO2max [mL/kg/min] of a
 #: 30-year-old man. Assumed typical values (VO2max near the 20th / 50th / 80th percentiles of
@@ -74,7 +93,7 @@ FITNESS = {
     "average": {"resting_hr_bpm": 68.0, "vo2max_ml_kg_min": 40.0},
     "high": {"resting_hr_bpm": 58.0, "vo2max_ml_kg_min": 48.0},
 }
-FEMALE_VO2MAX_FACTOR = 0.82   # women's VO2max relative to men's (ACSM norms, ~18 % lower)
+FEMALE_VO2MAX_FACTOR = 0.82  # women's VO2max relative to men's (ACSM norms, ~18 % lower)
 VO2MAX_DECLINE_PER_YEAR = 0.01  # ~1 %/year after 30 (Fleg et al. 2005, Circulation 112:674)
 
 
@@ -84,9 +103,15 @@ def max_heart_rate(age_years) -> np.ndarray:
     return 208.0 - 0.7 * np.asarray(age_years, dtype=np.float64)
 
 
-def heart_rate(metabolic_rate_w, mass_kg: float = 75.0, age_years: float = 30.0,
-               fitness: str = "average", sex: str = "male", vo2max_ml_kg_min: float | None = None,
-               resting_hr_bpm: float | None = None) -> np.ndarray:
+def heart_rate(
+    metabolic_rate_w,
+    mass_kg: float = 75.0,
+    age_years: float = 30.0,
+    fitness: str = "average",
+    sex: str = "male",
+    vo2max_ml_kg_min: float | None = None,
+    resting_hr_bpm: float | None = None,
+) -> np.ndarray:
     """Heart rate [bpm] from the metabolic rate, per frame.
 
     Parameters
@@ -130,8 +155,7 @@ def heart_rate(metabolic_rate_w, mass_kg: float = 75.0, age_years: float = 30.0,
         raise ValueError(f"invalid sex {sex!r}; expected 'male' or 'female'")
     cls = FITNESS[fitness]
     if vo2max_ml_kg_min is None:
-        vo2max_ml_kg_min = cls["vo2max_ml_kg_min"] * (FEMALE_VO2MAX_FACTOR if sex == "female"
-                                                      else 1.0)
+        vo2max_ml_kg_min = cls["vo2max_ml_kg_min"] * (FEMALE_VO2MAX_FACTOR if sex == "female" else 1.0)
         vo2max_ml_kg_min *= 1.0 - VO2MAX_DECLINE_PER_YEAR * max(age_years - 30.0, 0.0)
     hr_rest = cls["resting_hr_bpm"] if resting_hr_bpm is None else float(resting_hr_bpm)
     hr_max = float(max_heart_rate(age_years))
@@ -143,7 +167,7 @@ def heart_rate(metabolic_rate_w, mass_kg: float = 75.0, age_years: float = 30.0,
 # ----------------------------------------------------------------------------- helpers
 def dubois_area(height_m: float, mass_kg: float) -> float:
     """Body surface area [m^2], DuBois & DuBois (1916): 0.202 m^0.425 h^0.725."""
-    return 0.202 * mass_kg ** 0.425 * height_m ** 0.725
+    return 0.202 * mass_kg**0.425 * height_m**0.725
 
 
 def _series(value, n: int, name: str) -> np.ndarray:
@@ -177,15 +201,16 @@ def _times(times_s) -> np.ndarray:
 @dataclass(frozen=True)
 class PhysiologyResult:
     """Physiology over a time line (T steps). Temperatures [K]."""
+
     model: str
-    times_s: np.ndarray                     # (T,) [s]
-    core_temperature_k: np.ndarray          # (T,) core (two-node) / pelvis core ~ rectal (JOS-3)
-    mean_skin_temperature_k: np.ndarray     # (T,) area-weighted mean skin temperature
+    times_s: np.ndarray  # (T,) [s]
+    core_temperature_k: np.ndarray  # (T,) core (two-node) / pelvis core ~ rectal (JOS-3)
+    mean_skin_temperature_k: np.ndarray  # (T,) area-weighted mean skin temperature
     segment_skin_temperature_k: np.ndarray  # (T, 17) JOS-3 order; two-node: the mean skin
-    skin_blood_flow_l_h: np.ndarray         # (T,) whole-body skin blood flow [L/h]
-    sweat_rate_g_s: np.ndarray              # (T,) regulatory sweat rate [g/s]
-    heart_rate_bpm: np.ndarray              # (T,) from the metabolic rate (heart_rate)
-    cardiac_output_l_h: np.ndarray          # (T,) JOS-3's cardiac output [L/h]; NaN for two-node
+    skin_blood_flow_l_h: np.ndarray  # (T,) whole-body skin blood flow [L/h]
+    sweat_rate_g_s: np.ndarray  # (T,) regulatory sweat rate [g/s]
+    heart_rate_bpm: np.ndarray  # (T,) from the metabolic rate (heart_rate)
+    cardiac_output_l_h: np.ndarray  # (T,) JOS-3's cardiac output [L/h]; NaN for two-node
 
 
 # ----------------------------------------------------------------------------- two-node
@@ -197,15 +222,22 @@ def _p_sat_kpa(t_c: float) -> float:
 class _TwoNode:
     """State and one explicit step of Gagge's two-node model (ASHRAE 55-2020 App. D loop)."""
 
-    T_SKIN_NEUTRAL = 33.7   # [°C]
-    T_CORE_NEUTRAL = 36.8   # [°C]
-    SKBF_NEUTRAL = 6.3      # [L/(m^2 h)]
+    T_SKIN_NEUTRAL = 33.7  # [°C]
+    T_CORE_NEUTRAL = 36.8  # [°C]
+    SKBF_NEUTRAL = 6.3  # [L/(m^2 h)]
     C_SW, C_DIL, C_STR = 170.0, 120.0, 0.5
     SKBF_MAX, SKBF_MIN, SWEAT_MAX = 90.0, 0.5, 500.0
     C_TISSUE = 0.97 * 3600.0  # body heat capacity [J/(kg K)]
 
-    def __init__(self, mass_kg: float, area_m2: float, p_atm_pa: float, posture: str,
-                 t_core_c: float | None = None, t_skin_c: float | None = None):
+    def __init__(
+        self,
+        mass_kg: float,
+        area_m2: float,
+        p_atm_pa: float,
+        posture: str,
+        t_core_c: float | None = None,
+        t_skin_c: float | None = None,
+    ):
         self.mass, self.area, self.posture = mass_kg, area_m2, posture
         self.p_atm = p_atm_pa / 101325.0
         self.t_core = self.T_CORE_NEUTRAL if t_core_c is None else t_core_c
@@ -213,25 +245,24 @@ class _TwoNode:
         self.alpha = 0.1
         self.t_body_neutral = 0.1 * self.T_SKIN_NEUTRAL + 0.9 * self.T_CORE_NEUTRAL
         self.skbf = self.SKBF_NEUTRAL
-        self.sweat = 0.0        # regulatory sweat [g/(m^2 h)]
-        self.e_skin = None      # evaporative heat loss [W/m^2]; set on the first step
+        self.sweat = 0.0  # regulatory sweat [g/(m^2 h)]
+        self.e_skin = None  # evaporative heat loss [W/m^2]; set on the first step
         self.t_cl = None
 
-    def step(self, dt: float, m_w_m2: float, tdb: float, tr: float, rh: float, v: float,
-             clo: float) -> None:
+    def step(self, dt: float, m_w_m2: float, tdb: float, tr: float, rh: float, v: float, clo: float) -> None:
         """Advance ``dt`` [s] (explicit Euler; keep dt <= ~10 s) at constant conditions."""
         m_act = max(m_w_m2, 0.0)
         met = m_act / MET_W_M2
-        p_a = rh * _p_sat_kpa(tdb)                              # ambient vapour pressure [kPa]
+        p_a = rh * _p_sat_kpa(tdb)  # ambient vapour pressure [kPa]
         if self.e_skin is None:
             self.e_skin = 0.1 * met
         air_speed = max(v, 0.1)
-        r_clo = 0.155 * clo                                     # [m^2 K/W]
+        r_clo = 0.155 * clo  # [m^2 K/W]
         f_a_cl = 1.0 + 0.15 * clo
-        lr = 2.2 / self.p_atm                                   # Lewis ratio [K/mmHg]
+        lr = 2.2 / self.p_atm  # Lewis ratio [K/mmHg]
         i_cl = 0.45 if clo > 0 else 1.0
-        w_max = 0.59 * air_speed ** -0.08 if clo > 0 else 0.38 * air_speed ** -0.29
-        h_cc = max(3.0 * self.p_atm ** 0.53, 8.6 * (air_speed * self.p_atm) ** 0.53)
+        w_max = 0.59 * air_speed**-0.08 if clo > 0 else 0.38 * air_speed**-0.29
+        h_cc = max(3.0 * self.p_atm**0.53, 8.6 * (air_speed * self.p_atm) ** 0.53)
         if met > 0.85:
             h_cc = max(h_cc, 5.66 * (met - 0.85) ** 0.39)
         # clothing surface temperature and linear radiative coefficient (fixed point)
@@ -256,7 +287,7 @@ class _TwoNode:
         hf_cs = (self.t_core - self.t_skin) * (5.28 + 1.163 * self.skbf)  # core → skin [W/m^2]
         s_core = m_total - hf_cs - q_res - c_res
         s_skin = hf_cs - q_sensible - self.e_skin
-        c_sk = self.C_TISSUE * self.alpha * self.mass / self.area          # [J/(m^2 K)]
+        c_sk = self.C_TISSUE * self.alpha * self.mass / self.area  # [J/(m^2 K)]
         c_cr = self.C_TISSUE * (1.0 - self.alpha) * self.mass / self.area
         self.t_skin += s_skin * dt / c_sk
         self.t_core += s_core * dt / c_cr
@@ -268,13 +299,13 @@ class _TwoNode:
         skbf = (self.SKBF_NEUTRAL + self.C_DIL * c_warm) / (1.0 + self.C_STR * self._colds())
         self.skbf = min(max(skbf, self.SKBF_MIN), self.SKBF_MAX)
         m_rsw = min(self.C_SW * warm_b * math.exp(warm_sk / 10.7), self.SWEAT_MAX)
-        e_rsw = 0.68 * m_rsw                                     # [W/m^2]
+        e_rsw = 0.68 * m_rsw  # [W/m^2]
         r_ea = 1.0 / (lr * f_a_cl * h_cc)
         r_ecl = r_clo / (lr * i_cl)
         e_max = (_p_sat_kpa(self.t_skin) - p_a) / 0.1333224 / (r_ea + r_ecl)
-        if e_max <= 0.0:                 # air more humid than the skin: no evaporation
+        if e_max <= 0.0:  # air more humid than the skin: no evaporation
             self.e_skin = 0.0
-            self.sweat = m_rsw           # dripping, not evaporating
+            self.sweat = m_rsw  # dripping, not evaporating
         else:
             w = 0.06 + 0.94 * e_rsw / e_max
             e_diff = w * e_max - e_rsw
@@ -293,11 +324,25 @@ class _TwoNode:
         return max(self.T_CORE_NEUTRAL - self.t_core, 0.0)
 
 
-def two_node(times_s, metabolic_rate_w, air_temperature_k, mean_radiant_temperature_k,
-             relative_humidity, air_speed_m_s, clothing_clo, *, height_m: float = 1.75,
-             mass_kg: float = 75.0, age_years: float = 30.0, sex: str = "male",
-             fitness: str = "average", posture: str = "standing", pressure_pa: float = 101325.0,
-             spin_up_s: float = 3600.0, max_substep_s: float = 5.0) -> PhysiologyResult:
+def two_node(
+    times_s,
+    metabolic_rate_w,
+    air_temperature_k,
+    mean_radiant_temperature_k,
+    relative_humidity,
+    air_speed_m_s,
+    clothing_clo,
+    *,
+    height_m: float = 1.75,
+    mass_kg: float = 75.0,
+    age_years: float = 30.0,
+    sex: str = "male",
+    fitness: str = "average",
+    posture: str = "standing",
+    pressure_pa: float = 101325.0,
+    spin_up_s: float = 3600.0,
+    max_substep_s: float = 5.0,
+) -> PhysiologyResult:
     """Gagge's two-node model (the ICDA-like option), transient over a time line.
 
     Parameters
@@ -375,12 +420,16 @@ def two_node(times_s, metabolic_rate_w, air_temperature_k, mean_radiant_temperat
         core[i], skin[i] = body.t_core, body.t_skin
         skbf[i], sweat[i] = body.skbf * area, body.sweat * area / 3600.0
     return PhysiologyResult(
-        model="two_node", times_s=t, core_temperature_k=core + ZERO_C,
+        model="two_node",
+        times_s=t,
+        core_temperature_k=core + ZERO_C,
         mean_skin_temperature_k=skin + ZERO_C,
         segment_skin_temperature_k=np.repeat(skin[:, None] + ZERO_C, N_SEGMENTS, axis=1),
-        skin_blood_flow_l_h=skbf, sweat_rate_g_s=sweat,
+        skin_blood_flow_l_h=skbf,
+        sweat_rate_g_s=sweat,
         heart_rate_bpm=heart_rate(met, mass_kg, age_years, fitness, sex),
-        cardiac_output_l_h=np.full(n, np.nan))
+        cardiac_output_l_h=np.full(n, np.nan),
+    )
 
 
 # ----------------------------------------------------------------------------- JOS-3
@@ -388,11 +437,25 @@ def two_node(times_s, metabolic_rate_w, air_temperature_k, mean_radiant_temperat
 JOS3_CORE_SEGMENT = JOS3_SEGMENTS.index("Pelvis")
 
 
-def jos3(times_s, metabolic_rate_w, air_temperature_k, mean_radiant_temperature_k,
-         relative_humidity, air_speed_m_s, clothing_clo, *, height_m: float = 1.75,
-         mass_kg: float = 75.0, age_years: float = 30.0, sex: str = "male",
-         fitness: str = "average", body_fat_percent: float = 15.0, posture: str = "standing",
-         spin_up_s: float = 3600.0, max_substep_s: float = 60.0) -> PhysiologyResult:
+def jos3(
+    times_s,
+    metabolic_rate_w,
+    air_temperature_k,
+    mean_radiant_temperature_k,
+    relative_humidity,
+    air_speed_m_s,
+    clothing_clo,
+    *,
+    height_m: float = 1.75,
+    mass_kg: float = 75.0,
+    age_years: float = 30.0,
+    sex: str = "male",
+    fitness: str = "average",
+    body_fat_percent: float = 15.0,
+    posture: str = "standing",
+    spin_up_s: float = 3600.0,
+    max_substep_s: float = 60.0,
+) -> PhysiologyResult:
     """JOS-3 (17 segments) through pythermalcomfort's ``JOS3``, transient over a time line.
 
     Parameters
@@ -438,8 +501,7 @@ def jos3(times_s, metabolic_rate_w, air_temperature_k, mean_radiant_temperature_
     rh = np.clip(_segment_series(relative_humidity, n, "relative_humidity"), 0.0, 1.0) * 100.0
     v = np.maximum(_segment_series(air_speed_m_s, n, "air_speed_m_s"), 0.0)
     clo = np.maximum(_segment_series(clothing_clo, n, "clothing_clo"), 0.0)
-    model = JOS3(height=height_m, weight=mass_kg, fat=body_fat_percent, age=int(round(age_years)),
-                 sex=sex)
+    model = JOS3(height=height_m, weight=mass_kg, fat=body_fat_percent, age=int(round(age_years)), sex=sex)
     model.posture = posture
     bmr_w = model.bmr * float(np.sum(model.bsa))
     par = np.maximum(met / bmr_w, 1.0)
@@ -466,26 +528,40 @@ def jos3(times_s, metabolic_rate_w, air_temperature_k, mean_radiant_temperature_
         out = last["out"]
         seg_skin[i] = model.t_skin
         core[i] = model.t_core[JOS3_CORE_SEGMENT]
-        skbf[i] = sum(getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT) \
-            + 2.0 * (out.bf_ava_hand + out.bf_ava_foot)
+        skbf[i] = sum(getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT) + 2.0 * (
+            out.bf_ava_hand + out.bf_ava_foot
+        )
         sweat[i] = sum(getattr(out.e_sweat, s) for s in JOS3_PYTHERMALCOMFORT) / LATENT_HEAT_J_G
         co[i] = out.cardiac_output
     mean_skin = seg_skin @ JOS3_STANDARD_AREAS_M2 / JOS3_STANDARD_AREAS_M2.sum()
     return PhysiologyResult(
-        model="jos3", times_s=t, core_temperature_k=core + ZERO_C,
+        model="jos3",
+        times_s=t,
+        core_temperature_k=core + ZERO_C,
         mean_skin_temperature_k=mean_skin + ZERO_C,
-        segment_skin_temperature_k=seg_skin + ZERO_C, skin_blood_flow_l_h=skbf,
-        sweat_rate_g_s=sweat, heart_rate_bpm=heart_rate(met, mass_kg, age_years, fitness, sex),
-        cardiac_output_l_h=co)
+        segment_skin_temperature_k=seg_skin + ZERO_C,
+        skin_blood_flow_l_h=skbf,
+        sweat_rate_g_s=sweat,
+        heart_rate_bpm=heart_rate(met, mass_kg, age_years, fitness, sex),
+        cardiac_output_l_h=co,
+    )
 
 
 # ----------------------------------------------------------------------------- dispatch
 MODELS = {"two_node": two_node, "jos3": jos3}
 
 
-def simulate_physiology(times_s, metabolic_rate_w, air_temperature_k,
-                        mean_radiant_temperature_k, relative_humidity, air_speed_m_s,
-                        clothing_clo, model: str = "jos3", **kwargs) -> PhysiologyResult:
+def simulate_physiology(
+    times_s,
+    metabolic_rate_w,
+    air_temperature_k,
+    mean_radiant_temperature_k,
+    relative_humidity,
+    air_speed_m_s,
+    clothing_clo,
+    model: str = "jos3",
+    **kwargs,
+) -> PhysiologyResult:
     """Physiology over a time line with the chosen ``model`` ('two_node' | 'jos3').
 
     Same inputs as :func:`two_node` / :func:`jos3` (keyword options are passed on). The
@@ -493,14 +569,13 @@ def simulate_physiology(times_s, metabolic_rate_w, air_temperature_k,
     """
     if model not in MODELS:
         raise ValueError(f"invalid model selection {model}")
-    args = [air_temperature_k, mean_radiant_temperature_k, relative_humidity, air_speed_m_s,
-            clothing_clo]
+    args = [air_temperature_k, mean_radiant_temperature_k, relative_humidity, air_speed_m_s, clothing_clo]
     if model == "two_node":
         n = len(np.atleast_1d(times_s))
-        per_segment = [np.ndim(a) == 2 or (np.shape(a) == (N_SEGMENTS,) and n != N_SEGMENTS)
-                       for a in args]
-        args = [_segment_series(a, n, "input").mean(axis=1) if seg else a
-                for a, seg in zip(args, per_segment)]
+        per_segment = [np.ndim(a) == 2 or (np.shape(a) == (N_SEGMENTS,) and n != N_SEGMENTS) for a in args]
+        args = [
+            _segment_series(a, n, "input").mean(axis=1) if seg else a for a, seg in zip(args, per_segment)
+        ]
     return MODELS[model](times_s, metabolic_rate_w, *args, **kwargs)
 
 
@@ -531,8 +606,9 @@ def skin_temperature_per_face(segment_ids, segment_skin_k) -> np.ndarray:
     return temps[..., ids]
 
 
-def bench_time_steps(model: str = "jos3", steps_s=None, reference_step_s=None,
-                     duration_s: float = 3600.0) -> list[dict]:
+def bench_time_steps(
+    model: str = "jos3", steps_s=None, reference_step_s=None, duration_s: float = 3600.0
+) -> list[dict]:
     """Mean-skin-temperature error against the internal time step (an exercise bout and rest).
 
     The schedule: 100 W standing, 450 W from 10 to 30 min, 100 W after, at 20 degC, MRT 20 degC,
@@ -543,6 +619,7 @@ def bench_time_steps(model: str = "jos3", steps_s=None, reference_step_s=None,
     Returns a list of dicts: model, step_s, max_error_k, seconds (run time).
     """
     import time as _time
+
     if steps_s is None:
         steps_s = (30.0, 60.0, 120.0, 300.0) if model == "jos3" else (5.0, 10.0, 30.0, 60.0)
     if reference_step_s is None:

@@ -35,6 +35,7 @@ radiances (``cache``). Ray casting: embreex directly (single-threaded) or Mitsub
 
 Units: SI; radiance [W m^-2 sr^-1], irradiance and absorbed flux [W m^-2], temperature [K].
 """
+
 from __future__ import annotations
 
 import time
@@ -43,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from humv_usd.mode import mitsuba
 from humv_usd.physics.sky import STEFAN_BOLTZMANN
 from humv_usd.thermal.sky import BANDS, ClearSky
 
@@ -66,25 +68,23 @@ class MitsubaIntersector:
     """
 
     def __init__(self, mesh):
-        from humv_usd.render.mode import mitsuba
         mi = mitsuba()
         self._mi = mi
         v = np.asarray(mesh.vertices, dtype=np.float64)
         self._origin = v.min(axis=0) if len(v) else np.zeros(3)
-        self._scale = 100.0 / max(float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0,
-                                  1e-12)  # as EmbreeIntersector
+        self._scale = 100.0 / max(
+            float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0, 1e-12
+        )  # as EmbreeIntersector
         m = mi.Mesh("occluders", len(mesh.vertices), len(mesh.faces))
         params = mi.traverse(m)
-        params["vertex_positions"] = mi.Float(
-            ((v - self._origin) * self._scale).astype(np.float32).ravel())
+        params["vertex_positions"] = mi.Float(((v - self._origin) * self._scale).astype(np.float32).ravel())
         params["faces"] = mi.UInt32(np.asarray(mesh.faces, np.uint32).ravel())
         params.update()
         self._scene = mi.load_dict({"type": "scene", "occluders": m})
 
     def intersects_first(self, origins, directions):
         mi = self._mi
-        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(
-            np.float32)
+        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
         d = np.ascontiguousarray(directions, dtype=np.float32)
         ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
         pi = self._scene.ray_intersect_preliminary(ray)
@@ -103,6 +103,7 @@ class EmbreeIntersector:
     def __init__(self, mesh):
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
+
         v = np.asarray(mesh.vertices, dtype=np.float64)
         self._origin = v.min(axis=0) if len(v) else np.zeros(3)
         # as trimesh: the bounding diagonal becomes 100 units (embree's own epsilons are tuned
@@ -110,9 +111,11 @@ class EmbreeIntersector:
         diag = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0
         self._scale = 100.0 / max(diag, 1e-12)
         self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(scene=self._scene,
-                     vertices=((v - self._origin) * self._scale).astype(np.float32),
-                     indices=np.asarray(mesh.faces, dtype=np.int32))
+        TriangleMesh(
+            scene=self._scene,
+            vertices=((v - self._origin) * self._scale).astype(np.float32),
+            indices=np.asarray(mesh.faces, dtype=np.int32),
+        )
 
     def _run(self, origins, directions, query):
         o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
@@ -125,8 +128,7 @@ class EmbreeIntersector:
     def local(self, points) -> np.ndarray:
         """World points -> the caster's shifted and scaled float32 frame (for
         :meth:`first_hit_local`, so that many rays from one point convert it once)."""
-        return ((np.asarray(points, dtype=np.float64) - self._origin) * self._scale).astype(
-            np.float32)
+        return ((np.asarray(points, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
 
     def first_hit_local(self, origins32, directions32) -> np.ndarray:
         """First face hit (-1: none) of rays with origins already in the :meth:`local` frame;
@@ -275,9 +277,13 @@ class RadianceMap:
         normals = np.asarray(normals, dtype=float)
         out = np.empty((self.n_bands, len(normals)))
         for a in range(0, len(normals), chunk):
-            w = _cosine_weights(normals[a:a + chunk].astype(np.float32), d.astype(np.float32),
-                                omega.astype(np.float32), normalize)
-            out[:, a:a + chunk] = (w @ lflat).T
+            w = _cosine_weights(
+                normals[a : a + chunk].astype(np.float32),
+                d.astype(np.float32),
+                omega.astype(np.float32),
+                normalize,
+            )
+            out[:, a : a + chunk] = (w @ lflat).T
         return out
 
 
@@ -297,8 +303,9 @@ class SceneSurfaces:
     radiance: np.ndarray
 
 
-def scene_surface_radiance(mesh, temperature_k, emissivity, sky, solar_reflectance=0.2,
-                           shadows=True) -> np.ndarray:
+def scene_surface_radiance(
+    mesh, temperature_k, emissivity, sky, solar_reflectance=0.2, shadows=True
+) -> np.ndarray:
     """Per-face leaving radiance of opaque Lambertian scene surfaces, per band.
 
     Parameters
@@ -340,13 +347,14 @@ def scene_surface_radiance(mesh, temperature_k, emissivity, sky, solar_reflectan
         cos = np.maximum(n @ s, 0.0)
         lit = np.ones(len(n), dtype=bool)
         if shadows:
-            lit = _unblocked(_intersector(mesh), mesh.triangles_center + n * _offset(mesh),
-                             np.broadcast_to(s, n.shape))
+            lit = _unblocked(
+                _intersector(mesh), mesh.triangles_center + n * _offset(mesh), np.broadcast_to(s, n.shape)
+            )
         e_sw = e_sw + e_sun[0] * cos * lit
     t = np.broadcast_to(np.asarray(temperature_k, dtype=float), nz.shape)
     eps = np.broadcast_to(np.asarray(emissivity, dtype=float), nz.shape)
     rho = np.broadcast_to(np.asarray(solar_reflectance, dtype=float), nz.shape)
-    lw = (eps * STEFAN_BOLTZMANN * t ** 4 + (1.0 - eps) * e_lw) / np.pi
+    lw = (eps * STEFAN_BOLTZMANN * t**4 + (1.0 - eps) * e_lw) / np.pi
     return np.stack([rho * e_sw / np.pi, lw])
 
 
@@ -359,8 +367,9 @@ def _first_hit(intersector, origins, directions) -> np.ndarray:
     """Index of the first face hit per ray (-1 = miss), in chunks."""
     out = np.empty(len(origins), dtype=np.int64)
     for a in range(0, len(origins), _CHUNK_RAYS):
-        out[a:a + _CHUNK_RAYS] = intersector.intersects_first(origins[a:a + _CHUNK_RAYS],
-                                                              directions[a:a + _CHUNK_RAYS])
+        out[a : a + _CHUNK_RAYS] = intersector.intersects_first(
+            origins[a : a + _CHUNK_RAYS], directions[a : a + _CHUNK_RAYS]
+        )
     return out
 
 
@@ -384,8 +393,9 @@ def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None
 def _unblocked(intersector, origins, directions) -> np.ndarray:
     out = np.empty(len(origins), dtype=bool)
     for a in range(0, len(origins), _CHUNK_RAYS):
-        out[a:a + _CHUNK_RAYS] = ~intersector.intersects_any(origins[a:a + _CHUNK_RAYS],
-                                                             directions[a:a + _CHUNK_RAYS])
+        out[a : a + _CHUNK_RAYS] = ~intersector.intersects_any(
+            origins[a : a + _CHUNK_RAYS], directions[a : a + _CHUNK_RAYS]
+        )
     return out
 
 
@@ -415,9 +425,13 @@ def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360
         hit = _first_hit(_intersector(scene.mesh), np.ascontiguousarray(origins), d)
         rad[:, hit >= 0] = np.asarray(scene.radiance)[:, hit[hit >= 0]]
     sun = sky.sun
-    return RadianceMap(rad.reshape(-1, n_theta, n_phi), np.asarray(center, dtype=float),
-                       tuple(sky.bands), None if sun is None else sun[0],
-                       np.zeros(rad.shape[0]) if sun is None else sun[1])
+    return RadianceMap(
+        rad.reshape(-1, n_theta, n_phi),
+        np.asarray(center, dtype=float),
+        tuple(sky.bands),
+        None if sun is None else sun[0],
+        np.zeros(rad.shape[0]) if sun is None else sun[1],
+    )
 
 
 # --------------------------------------------------------------------------- absorbed radiation
@@ -426,8 +440,11 @@ class _Occluders:
 
     def __init__(self, mesh, n_bands, mesh_radiance, scene, backend="embree"):
         self.n_mesh = len(mesh.faces)
-        rad_mesh = (np.zeros((n_bands, self.n_mesh)) if mesh_radiance is None
-                    else np.broadcast_to(np.asarray(mesh_radiance, dtype=float), (n_bands, self.n_mesh)))
+        rad_mesh = (
+            np.zeros((n_bands, self.n_mesh))
+            if mesh_radiance is None
+            else np.broadcast_to(np.asarray(mesh_radiance, dtype=float), (n_bands, self.n_mesh))
+        )
         if scene is not None and len(scene.mesh.faces):
             combined = trimesh.util.concatenate([mesh, scene.mesh])
             self.radiance = np.concatenate([rad_mesh, np.asarray(scene.radiance, dtype=float)], axis=1)
@@ -466,9 +483,12 @@ def _sun_term(env, centroids, normals, occ, offset, cache=None):
         tested, lit_all = np.zeros(len(normals), bool), np.zeros(len(normals), bool)
     new = idx[~tested[idx]]  # facets not tested yet (all of them without a cache)
     if len(new):
-        lit_all[new] = _facet_hits(occ, new, centroids, normals,
-                                   np.ascontiguousarray(np.broadcast_to(s, (len(new), 3))),
-                                   offset) < 0
+        lit_all[new] = (
+            _facet_hits(
+                occ, new, centroids, normals, np.ascontiguousarray(np.broadcast_to(s, (len(new), 3))), offset
+            )
+            < 0
+        )
         tested[new] = True
     if cache is not None:
         cache.update(sun_key=sun_key, sun_tested=tested, sun_lit=lit_all)
@@ -526,19 +546,20 @@ def irradiance_table(env: RadianceMap, grid=64):
     n_theta, n_phi = env.resolution
     edges = np.linspace(0.0, np.pi, n_theta + 1)
     theta = 0.5 * (edges[:-1] + edges[1:])
-    omega = (2.0 * np.pi / n_phi) * (np.cos(edges[:-1]) - np.cos(edges[1:]))   # (R,)
-    theta_n = np.linspace(0.0, np.pi, int(grid) + 1)                          # (T,)
-    dphi = (np.arange(n_phi) + 0.5) * (2.0 * np.pi / n_phi)                   # phi_c - phi_n
-    kern = (np.cos(theta_n)[:, None, None] * np.cos(theta)[None, :, None]
-            + np.sin(theta_n)[:, None, None] * np.sin(theta)[None, :, None]
-            * np.cos(dphi)[None, None, :])
+    omega = (2.0 * np.pi / n_phi) * (np.cos(edges[:-1]) - np.cos(edges[1:]))  # (R,)
+    theta_n = np.linspace(0.0, np.pi, int(grid) + 1)  # (T,)
+    dphi = (np.arange(n_phi) + 0.5) * (2.0 * np.pi / n_phi)  # phi_c - phi_n
+    kern = (
+        np.cos(theta_n)[:, None, None] * np.cos(theta)[None, :, None]
+        + np.sin(theta_n)[:, None, None] * np.sin(theta)[None, :, None] * np.cos(dphi)[None, None, :]
+    )
     np.maximum(kern, 0.0, out=kern)
-    kern *= omega[None, :, None]                                              # (T, R, C)
-    weight_sum = kern.sum(axis=(1, 2))                                        # (T,)
-    fk = np.conj(np.fft.rfft(kern, axis=2))                                   # (T, R, F)
-    fl = np.fft.rfft(env.radiance, axis=2)                                    # (B, R, F)
-    prod = np.matmul(fl.transpose(2, 0, 1), fk.transpose(2, 1, 0))            # (F, B, T)
-    e = np.fft.irfft(prod.transpose(1, 2, 0), n=n_phi, axis=2)                # (B, T, C)
+    kern *= omega[None, :, None]  # (T, R, C)
+    weight_sum = kern.sum(axis=(1, 2))  # (T,)
+    fk = np.conj(np.fft.rfft(kern, axis=2))  # (T, R, F)
+    fl = np.fft.rfft(env.radiance, axis=2)  # (B, R, F)
+    prod = np.matmul(fl.transpose(2, 0, 1), fk.transpose(2, 1, 0))  # (F, B, T)
+    e = np.fft.irfft(prod.transpose(1, 2, 0), n=n_phi, axis=2)  # (B, T, C)
     e *= (np.pi / weight_sum)[None, :, None]
     return np.concatenate([e, e[:, :, :1]], axis=2)
 
@@ -551,8 +572,12 @@ def _interp_table(table, normals):
     i = np.minimum(theta.astype(np.int64), grid - 1)
     j = np.minimum(phi.astype(np.int64), cols - 1)
     u, v = theta - i, phi - j
-    return ((1 - u) * (1 - v) * table[:, i, j] + (1 - u) * v * table[:, i, j + 1]
-            + u * (1 - v) * table[:, i + 1, j] + u * v * table[:, i + 1, j + 1])
+    return (
+        (1 - u) * (1 - v) * table[:, i, j]
+        + (1 - u) * v * table[:, i, j + 1]
+        + u * (1 - v) * table[:, i + 1, j]
+        + u * v * table[:, i + 1, j + 1]
+    )
 
 
 def _tangent_frames(normals):
@@ -685,13 +710,12 @@ class _Moments:
         self.s2[f] += s2
 
 
-def _cast_facets(env, centroids, normals, occ, offset, facets, k, rng, frames, local, moments,
-                 record=None):
+def _cast_facets(env, centroids, normals, occ, offset, facets, k, rng, frames, local, moments, record=None):
     """k cosine-weighted rays from each facet in ``facets``; their moments go into
     ``moments``; with a ``record`` list, appends (facets, k, directions, faces hit) per chunk."""
     chunk = max(1, _CHUNK_CV_RAYS // k)
     for a in range(0, len(facets), chunk):
-        f = facets[a:a + chunk]
+        f = facets[a : a + chunk]
         d = _cosine_directions(f, k, rng, frames)
         fr = np.repeat(f, k)
         it = occ.intersector
@@ -708,6 +732,7 @@ def _cast_facets(env, centroids, normals, occ, offset, facets, k, rng, frames, l
 def _neighbour_matrix(mesh):
     """Sparse (F, F) 0/1 matrix of edge-adjacent facets (None when no facet has one)."""
     from scipy import sparse
+
     n_f = len(mesh.faces)
     try:
         adj = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
@@ -759,12 +784,13 @@ def _cv_estimate(moments, e_table, weight, neighbours):
     with np.errstate(invalid="ignore", divide="ignore"):
         m = s1 / n[:, None]
         est = beta.T * e_table + np.pi * (m[:, nb:] - beta * m[:, :nb]).T
-        cov = (s2 / n[:, None, None] - m[:, :, None] * m[:, None, :]) * (
-            n / np.maximum(n - 1.0, 1.0))[:, None, None]
+        cov = (s2 / n[:, None, None] - m[:, :, None] * m[:, None, :]) * (n / np.maximum(n - 1.0, 1.0))[
+            :, None, None
+        ]
     w = np.broadcast_to(np.asarray(weight, dtype=float), e_table.shape).T
     c = np.concatenate([-w * beta, w], axis=1)
     var_z = np.einsum("fi,fij,fj->f", c, cov, c)
-    return est, np.pi ** 2 * np.maximum(var_z, 0.0) / n
+    return est, np.pi**2 * np.maximum(var_z, 0.0) / n
 
 
 def _float32_frames(normals):
@@ -779,24 +805,49 @@ def _local_origins(occ, centroids, normals, offset):
     return None
 
 
-def _diffuse_fast(env, centroids, normals, occ, offset, rays, seed, table, weight, record=None,
-                  neighbours=None):
+def _diffuse_fast(
+    env, centroids, normals, occ, offset, rays, seed, table, weight, record=None, neighbours=None
+):
     """Control variate: the irradiance table (unoccluded part) + ``rays`` stratified
     cosine-weighted rays per facet (:func:`_cv_estimate`).
 
     Returns (per-band flux (bands, F), variance of the ``weight``-summed flux (F,))."""
     mom = _Moments(len(normals), env.n_bands)
-    _cast_facets(env, centroids, normals, occ, offset, np.arange(len(normals)), int(rays),
-                 np.random.default_rng(seed), _float32_frames(normals),
-                 _local_origins(occ, centroids, normals, offset), mom, record)
+    _cast_facets(
+        env,
+        centroids,
+        normals,
+        occ,
+        offset,
+        np.arange(len(normals)),
+        int(rays),
+        np.random.default_rng(seed),
+        _float32_frames(normals),
+        _local_origins(occ, centroids, normals, offset),
+        mom,
+        record,
+    )
     return _cv_estimate(mom, _interp_table(table, normals), weight, neighbours)
 
 
 _LEVELS = (16, 32, 64, 128, 256, 512, 1024)  # powers of two: Hammersley sets are (0, m, 2)-nets
 
 
-def _diffuse_adaptive(env, centroids, normals, occ, offset, rays, seed, table, pilot, weight,
-                      max_rays, record=None, neighbours=None):
+def _diffuse_adaptive(
+    env,
+    centroids,
+    normals,
+    occ,
+    offset,
+    rays,
+    seed,
+    table,
+    pilot,
+    weight,
+    max_rays,
+    record=None,
+    neighbours=None,
+):
     """Control variate with two-stage (Neyman) allocation of the correction rays.
 
     Stage 1: ``pilot`` stratified rays per facet. Stage 2: the remaining budget
@@ -816,8 +867,7 @@ def _diffuse_adaptive(env, centroids, normals, occ, offset, rays, seed, table, p
     frames = _float32_frames(normals)
     local = _local_origins(occ, centroids, normals, offset)
     mom = _Moments(n_f, env.n_bands)
-    _cast_facets(env, centroids, normals, occ, offset, np.arange(n_f), pilot, rng, frames,
-                 local, mom, record)
+    _cast_facets(env, centroids, normals, occ, offset, np.arange(n_f), pilot, rng, frames, local, mom, record)
     e1, var1 = _cv_estimate(mom, e_table, weight, neighbours)
     w = np.asarray(weight, dtype=float)
     # pilot estimate of the facet's flux, floored at a quarter of the median so that facets
@@ -829,6 +879,7 @@ def _diffuse_adaptive(env, centroids, normals, occ, offset, rays, seed, table, p
     # larger of its own score and the mean score of its 8 nearest facets
     if n_f > 1:
         from scipy.spatial import cKDTree
+
         _, nb = cKDTree(centroids).query(centroids, min(8, n_f))
         score = np.maximum(score, score[nb].mean(axis=1))
     budget = max(0, int(rays) - pilot) * n_f
@@ -844,8 +895,7 @@ def _diffuse_adaptive(env, centroids, normals, occ, offset, rays, seed, table, p
         extra = np.where(want < 0.5 * levels[0], 0, extra)
     for lv in np.unique(extra[extra > 0]):
         f = np.nonzero(extra == lv)[0]
-        _cast_facets(env, centroids, normals, occ, offset, f, int(lv), rng, frames, local, mom,
-                     record)
+        _cast_facets(env, centroids, normals, occ, offset, f, int(lv), rng, frames, local, mom, record)
     out, variance = _cv_estimate(mom, e_table, weight, neighbours)
     return out, variance, mom.n.copy()
 
@@ -863,6 +913,7 @@ def _geometry_key(mesh, scene, *params) -> str:
     """Hash of the facet mesh's topology, the scene geometry and the ray settings (the facet
     mesh's vertex positions are compared separately, with a tolerance)."""
     import hashlib
+
     h = hashlib.sha1()
     h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
     if scene is not None:
@@ -880,11 +931,25 @@ def _cache_valid(cache, key, mesh, tolerance_m) -> bool:
     return old.shape == v.shape and float(np.max(np.abs(v - old), initial=0.0)) <= tolerance_m
 
 
-def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=None,
-                       mesh_radiance=None, method="brute", rays=64, seed=0, table_grid=64,
-                       offset=None, pilot=16, max_rays=1024, backend="embree",
-                       stats: dict | None = None, cache: dict | None = None,
-                       cache_tolerance_m: float = 0.0) -> np.ndarray:
+def absorbed_radiation(
+    mesh,
+    environment: RadianceMap,
+    absorptivity,
+    *,
+    scene=None,
+    mesh_radiance=None,
+    method="brute",
+    rays=64,
+    seed=0,
+    table_grid=64,
+    offset=None,
+    pilot=16,
+    max_rays=1024,
+    backend="embree",
+    stats: dict | None = None,
+    cache: dict | None = None,
+    cache_tolerance_m: float = 0.0,
+) -> np.ndarray:
     """Absorbed radiation per facet and band, with occlusion (seed Eq. 3-4).
 
     Parameters
@@ -961,40 +1026,73 @@ def absorbed_radiation(mesh, environment: RadianceMap, absorptivity, *, scene=No
     else:
         table = irradiance_table(environment, table_grid)
         alpha = _absorptivity(absorptivity, environment.n_bands, len(normals))
-        key = None if cache is None else _geometry_key(
-            mesh, scene, method, int(rays), int(pilot), int(max_rays))
+        key = (
+            None
+            if cache is None
+            else _geometry_key(mesh, scene, method, int(rays), int(pilot), int(max_rays))
+        )
         replayed = _cache_valid(cache, key, mesh, cache_tolerance_m)
         neighbours = _neighbour_matrix(mesh)
         if replayed:
             counts = cache["counts"]
-            e, var = _replay(environment, occ.radiance, cache["records"], counts, table,
-                             normals, alpha, neighbours)
+            e, var = _replay(
+                environment, occ.radiance, cache["records"], counts, table, normals, alpha, neighbours
+            )
         else:
             record = None if cache is None else []
             if method == "adaptive":
-                e, var, counts = _diffuse_adaptive(environment, centroids, normals, occ, offset,
-                                                   int(rays), seed, table, int(pilot), alpha,
-                                                   int(max_rays), record, neighbours)
+                e, var, counts = _diffuse_adaptive(
+                    environment,
+                    centroids,
+                    normals,
+                    occ,
+                    offset,
+                    int(rays),
+                    seed,
+                    table,
+                    int(pilot),
+                    alpha,
+                    int(max_rays),
+                    record,
+                    neighbours,
+                )
             else:
-                e, var = _diffuse_fast(environment, centroids, normals, occ, offset, int(rays),
-                                       seed, table, alpha, record, neighbours)
+                e, var = _diffuse_fast(
+                    environment,
+                    centroids,
+                    normals,
+                    occ,
+                    offset,
+                    int(rays),
+                    seed,
+                    table,
+                    alpha,
+                    record,
+                    neighbours,
+                )
                 counts = np.full(len(normals), float(rays))
             if cache is not None:
                 generation = cache.get("generation", 0) + 1
                 cache.clear()
-                cache.update(key=key, generation=generation,
-                             vertices=np.array(mesh.vertices, dtype=float),
-                             counts=counts, records=tuple(record))
+                cache.update(
+                    key=key,
+                    generation=generation,
+                    vertices=np.array(mesh.vertices, dtype=float),
+                    counts=counts,
+                    records=tuple(record),
+                )
     # the sun's shadow test (one ray per facet) is reused only for an unmoved mesh
-    same = (cache is not None and "vertices" in cache
-            and np.array_equal(cache["vertices"], np.asarray(mesh.vertices, dtype=float)))
+    same = (
+        cache is not None
+        and "vertices" in cache
+        and np.array_equal(cache["vertices"], np.asarray(mesh.vertices, dtype=float))
+    )
     e += _sun_term(environment, centroids, normals, occ, offset, cache if same else None)
     q = _absorptivity(absorptivity, environment.n_bands, len(normals)) * e
     if stats is not None:
         tot = q.sum(axis=0)
         floor = 0.25 * max(float(np.median(np.abs(tot))), 1e-30)
-        stats["rms_rel_error_estimate"] = float(np.sqrt(np.mean(var / np.maximum(tot, floor)
-                                                                ** 2)))
+        stats["rms_rel_error_estimate"] = float(np.sqrt(np.mean(var / np.maximum(tot, floor) ** 2)))
         stats["nrmse_estimate"] = float(np.sqrt(np.mean(var)) / max(float(np.mean(tot)), 1e-30))
         stats["rays"] = 0 if counts is None else int(counts.sum())
         stats["cached"] = bool(replayed)
@@ -1054,9 +1152,11 @@ def relative_errors(q, q_ref) -> dict:
         a, b = a.sum(axis=0), b.sum(axis=0)
     keep = b > 1e-6 * np.max(np.abs(b))
     rel = (a[keep] - b[keep]) / b[keep]
-    return {"rms_rel_error": float(np.sqrt(np.mean(rel ** 2))),
-            "max_rel_error": float(np.max(np.abs(rel))),
-            "nrmse": float(np.sqrt(np.mean((a - b) ** 2)) / np.mean(b))}
+    return {
+        "rms_rel_error": float(np.sqrt(np.mean(rel**2))),
+        "max_rel_error": float(np.max(np.abs(rel))),
+        "nrmse": float(np.sqrt(np.mean((a - b) ** 2)) / np.mean(b)),
+    }
 
 
 def bench_scene(facets=30000):
@@ -1071,10 +1171,14 @@ def bench_scene(facets=30000):
         c.apply_translation([x, y, z])
         return c
 
-    mesh = trimesh.util.concatenate([capsule(0.17, 0.45, 0.0, 0.0, 1.25),
-                                     capsule(0.075, 0.75, 0.0, -0.1, 0.45),
-                                     capsule(0.075, 0.75, 0.0, 0.1, 0.45),
-                                     capsule(0.05, 0.55, 0.12, 0.25, 1.2)])
+    mesh = trimesh.util.concatenate(
+        [
+            capsule(0.17, 0.45, 0.0, 0.0, 1.25),
+            capsule(0.075, 0.75, 0.0, -0.1, 0.45),
+            capsule(0.075, 0.75, 0.0, 0.1, 0.45),
+            capsule(0.05, 0.55, 0.12, 0.25, 1.2),
+        ]
+    )
     ground = trimesh.creation.box(extents=[60.0, 60.0, 0.2])
     ground.apply_translation([0.0, 0.0, -0.1])
     wall = trimesh.creation.box(extents=[0.3, 6.0, 3.0])
@@ -1085,16 +1189,29 @@ def bench_scene(facets=30000):
     eps = np.r_[np.full(n_g, 0.95), np.full(len(wall.faces), 0.9)]
     rho = np.r_[np.full(n_g, 0.2), np.full(len(wall.faces), 0.35)]
     s = np.array([np.sin(np.radians(40.0)), 0.3, np.cos(np.radians(40.0))])
-    sky = ClearSky(air_temperature_k=303.0, relative_humidity=0.4, sun_direction=tuple(s / np.linalg.norm(s)),
-                   direct_normal_irradiance=800.0, diffuse_horizontal_irradiance=100.0,
-                   ground_temperature_k=318.0)
+    sky = ClearSky(
+        air_temperature_k=303.0,
+        relative_humidity=0.4,
+        sun_direction=tuple(s / np.linalg.norm(s)),
+        direct_normal_irradiance=800.0,
+        diffuse_horizontal_irradiance=100.0,
+        ground_temperature_k=318.0,
+    )
     scene = SceneSurfaces(smesh, scene_surface_radiance(smesh, temp, eps, sky, rho))
     return mesh, scene, sky, np.array([0.7, 0.95]), np.array([0.0, 0.0, 1.0])
 
 
-def bench_qrad(facets=30000, resolutions=(90, 180, 360), fast_rays=(16, 64, 256),
-               reference_resolution=None, mesh=None, seed=0, adaptive_rays=(32, 64, 128),
-               case=None, reference=None) -> list[dict]:
+def bench_qrad(
+    facets=30000,
+    resolutions=(90, 180, 360),
+    fast_rays=(16, 64, 256),
+    reference_resolution=None,
+    mesh=None,
+    seed=0,
+    adaptive_rays=(32, 64, 128),
+    case=None,
+    reference=None,
+) -> list[dict]:
     """Run time and error of q_rad methods against the brute-force reference.
 
     Parameters
@@ -1112,7 +1229,7 @@ def bench_qrad(facets=30000, resolutions=(90, 180, 360), fast_rays=(16, 64, 256)
     case : dict, optional
         A whole case instead of the capsule scene: ``mesh``, ``scene`` (SceneSurfaces or None),
         ``sky``, ``absorptivity`` (bands,) or (bands, faces), ``center``, optional
-        ``mesh_radiance`` (e.g. :func:`humv_usd.thermal.bench.avatar_case`).
+        ``mesh_radiance`` (e.g. :func:`humv_usd.bench.thermal.avatar_case`).
     reference : array (bands, faces), optional
         A precomputed brute reference at ``reference_resolution`` (its run time is then NaN).
 
@@ -1151,10 +1268,22 @@ def bench_qrad(facets=30000, resolutions=(90, 180, 360), fast_rays=(16, 64, 256)
         q_ref, wall, cpu, _ = timed(maps[ref_res], method="brute")
     else:
         q_ref, wall, cpu = np.asarray(reference, dtype=float), float("nan"), float("nan")
-    rows = [{"method": "brute", "resolution": ref_res, "rays": None, "facets": len(bmesh.faces),
-             "seconds": wall, "cpu_seconds": cpu, "map_seconds": map_seconds[ref_res],
-             "rms_rel_error": 0.0, "max_rel_error": 0.0, "nrmse": 0.0,
-             "rms_rel_error_estimate": 0.0, "reference": True}]
+    rows = [
+        {
+            "method": "brute",
+            "resolution": ref_res,
+            "rays": None,
+            "facets": len(bmesh.faces),
+            "seconds": wall,
+            "cpu_seconds": cpu,
+            "map_seconds": map_seconds[ref_res],
+            "rms_rel_error": 0.0,
+            "max_rel_error": 0.0,
+            "nrmse": 0.0,
+            "rms_rel_error_estimate": 0.0,
+            "reference": True,
+        }
+    ]
     for res in resolutions:
         runs = [("fast", k) for k in fast_rays] + [("adaptive", k) for k in adaptive_rays]
         if res != ref_res:
@@ -1162,9 +1291,18 @@ def bench_qrad(facets=30000, resolutions=(90, 180, 360), fast_rays=(16, 64, 256)
         for method, k in runs:
             extra = {} if k is None else {"rays": k, "seed": seed}
             q, wall, cpu, stats = timed(maps[res], method=method, **extra)
-            rows.append({"method": method, "resolution": res, "rays": k,
-                         "facets": len(bmesh.faces), "seconds": wall, "cpu_seconds": cpu,
-                         "map_seconds": map_seconds[res], **relative_errors(q, q_ref),
-                         "rms_rel_error_estimate": stats.get("rms_rel_error_estimate", 0.0),
-                         "reference": False})
+            rows.append(
+                {
+                    "method": method,
+                    "resolution": res,
+                    "rays": k,
+                    "facets": len(bmesh.faces),
+                    "seconds": wall,
+                    "cpu_seconds": cpu,
+                    "map_seconds": map_seconds[res],
+                    **relative_errors(q, q_ref),
+                    "rms_rel_error_estimate": stats.get("rms_rel_error_estimate", 0.0),
+                    "reference": False,
+                }
+            )
     return rows

@@ -13,6 +13,7 @@ the horizon an infinite flat ground reflects and emits.
 Directions are unit vectors in the stage frame (Z up). Radiance [W m^-2 sr^-1], irradiance
 [W m^-2]. Band 0 is shortwave (solar, 0.3-3 um), band 1 longwave (thermal, 3-100 um).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -20,7 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd.errors import InputError, bad_value
+from humv_usd.physics import planck
 from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
+from humv_usd.usd import schemas as S
+from humv_usd.usd.layers import SCOPES
 
 BANDS = ("shortwave", "longwave")
 SHORTWAVE, LONGWAVE = 0, 1
@@ -197,8 +202,8 @@ def hemispherical_irradiance(zenith_deg, radiance) -> float:
     th, val = _extended_table(zenith_deg, radiance)
     a, b = th[:-1], th[1:]
     slope = np.diff(val) / np.diff(th)
-    f0 = lambda t: 0.5 * np.sin(t) ** 2                                       # noqa: E731
-    f1 = lambda t: -t * np.cos(2.0 * t) / 4.0 + np.sin(2.0 * t) / 8.0         # noqa: E731
+    f0 = lambda t: 0.5 * np.sin(t) ** 2  # noqa: E731
+    f1 = lambda t: -t * np.cos(2.0 * t) / 4.0 + np.sin(2.0 * t) / 8.0  # noqa: E731
     seg = (val[:-1] - slope * a) * (f0(b) - f0(a)) + slope * (f1(b) - f1(a))
     return float(2.0 * np.pi * seg.sum())
 
@@ -228,7 +233,6 @@ def with_cloud_cover(atmosphere, cloud_cover: float):
     Clouds as blackbodies at the air temperature (see :func:`cloudy_sky_emissivity`);
     LOWTRAN7 runs without its cloud models, so the clear-sky spectrum is mixed the same way.
     """
-    from humv_usd.physics import planck
 
     c = float(np.clip(cloud_cover, 0.0, 1.0))
     if c == 0.0:
@@ -238,14 +242,20 @@ def with_cloud_cover(atmosphere, cloud_cover: float):
     bb = planck.spectral_radiance(wl, t_air) if wl.size else np.zeros(0)
     eps = float(cloudy_sky_emissivity(atmosphere.sky_emissivity, c))
     ran = dict(atmosphere.ran)
-    ran["clouds"] = (f"cloud cover {c:g}: Crawford & Duchon (1999) mix, clouds as blackbodies "
-                     f"at the air temperature {t_air:.2f} K (broadband and spectral sky)")
+    ran["clouds"] = (
+        f"cloud cover {c:g}: Crawford & Duchon (1999) mix, clouds as blackbodies "
+        f"at the air temperature {t_air:.2f} K (broadband and spectral sky)"
+    )
     return dataclasses.replace(
         atmosphere,
         sky_radiance=c * bb[None, :] + (1.0 - c) * np.asarray(atmosphere.sky_radiance),
-        longwave_radiance=(c * STEFAN_BOLTZMANN * t_air ** 4 / np.pi
-                           + (1.0 - c) * np.asarray(atmosphere.longwave_radiance)),
-        sky_emissivity=eps, sky_temperature_k=eps ** 0.25 * t_air, ran=ran)
+        longwave_radiance=(
+            c * STEFAN_BOLTZMANN * t_air**4 / np.pi + (1.0 - c) * np.asarray(atmosphere.longwave_radiance)
+        ),
+        sky_emissivity=eps,
+        sky_temperature_k=eps**0.25 * t_air,
+        ran=ran,
+    )
 
 
 def stage_longwave_table(stage) -> tuple[np.ndarray, np.ndarray] | None:
@@ -256,9 +266,6 @@ def stage_longwave_table(stage) -> tuple[np.ndarray, np.ndarray] | None:
     Raises :class:`humv_usd.errors.InputError` for a malformed table (lengths differ, angles
     not ascending within 0-90 deg, negative or non-finite radiances).
     """
-    from humv_usd.errors import InputError, bad_value
-    from humv_usd.usd import schemas as S
-    from humv_usd.usd.layers import SCOPES
 
     if stage is None:
         return None
@@ -274,14 +281,21 @@ def stage_longwave_table(stage) -> tuple[np.ndarray, np.ndarray] | None:
     z, lw = np.asarray(z, dtype=float), np.asarray(lw, dtype=float)
     where = f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE}"
     if lw.size != z.size or not np.all(np.isfinite(lw)) or np.any(lw < 0):
-        raise InputError(bad_value(where, f"<{lw.size} values>",
-                                   f"{z.size} finite radiances >= 0, one per skyZenithAngles"))
+        raise InputError(
+            bad_value(
+                where, f"<{lw.size} values>", f"{z.size} finite radiances >= 0, one per skyZenithAngles"
+            )
+        )
     try:
         _extended_table(z, lw)
     except ValueError:
-        raise InputError(bad_value(f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_ZENITH_ANGLES}",
-                                   str(np.round(z, 3).tolist()),
-                                   "ascending zenith angles within 0-90 deg")) from None
+        raise InputError(
+            bad_value(
+                f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_ZENITH_ANGLES}",
+                str(np.round(z, 3).tolist()),
+                "ascending zenith angles within 0-90 deg",
+            )
+        ) from None
     return z, lw
 
 
@@ -354,8 +368,7 @@ class ClearSky:
         """Hemispherical effective sky emissivity E_sky / (sigma T_air^4) [0-1]: of the table,
         else the analytic clear sky with the cloud mix."""
         if self.tabulated:
-            return self.longwave_irradiance() / (STEFAN_BOLTZMANN
-                                                 * float(self.air_temperature_k) ** 4)
+            return self.longwave_irradiance() / (STEFAN_BOLTZMANN * float(self.air_temperature_k) ** 4)
         return float(cloudy_sky_emissivity(self.clear_emissivity, self.cloud_cover))
 
     def longwave_irradiance(self) -> float:
@@ -369,10 +382,14 @@ class ClearSky:
         """Longwave sky radiance [W m^-2 sr^-1] at zenith angles [rad] above the horizon."""
         zen = np.asarray(zenith_rad, dtype=float)
         if self.tabulated:
-            return np.interp(np.degrees(zen), np.asarray(self.longwave_zenith_deg, float),
-                             np.asarray(self.longwave_radiance, float))
+            return np.interp(
+                np.degrees(zen),
+                np.asarray(self.longwave_zenith_deg, float),
+                np.asarray(self.longwave_radiance, float),
+            )
         eps = cloudy_sky_emissivity(
-            angular_sky_emissivity(zen, self.clear_emissivity, self.model), self.cloud_cover)
+            angular_sky_emissivity(zen, self.clear_emissivity, self.model), self.cloud_cover
+        )
         return eps * STEFAN_BOLTZMANN * float(self.air_temperature_k) ** 4 / np.pi
 
     @property
@@ -399,8 +416,10 @@ class ClearSky:
         t_g = self.air_temperature_k if self.ground_temperature_k is None else self.ground_temperature_k
         e_down = self.downwelling_irradiance()
         sw = self.ground_solar_reflectance * e_down[0] / np.pi
-        lw = (self.ground_emissivity * STEFAN_BOLTZMANN * float(t_g) ** 4
-              + (1.0 - self.ground_emissivity) * e_down[1]) / np.pi
+        lw = (
+            self.ground_emissivity * STEFAN_BOLTZMANN * float(t_g) ** 4
+            + (1.0 - self.ground_emissivity) * e_down[1]
+        ) / np.pi
         return np.array([sw, lw])
 
     def radiance(self, directions) -> np.ndarray:

@@ -24,6 +24,7 @@ at the mean air temperature of the spin-up day; objects are their material's lay
 adiabatic back (insulated siding, a panel on a stand). Scene faces do not exchange radiation with
 each other beyond the ground term, and people do not shade the scene.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -32,15 +33,19 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Usd, UsdGeom, UsdShade
 
-from humv_usd.materials.library import LIBRARY
+from humv_usd.catalog.materials import LIBRARY
+from humv_usd.environment.sun import sun_at
+from humv_usd.environment.weather import read_weather_csv, weather_at
 from humv_usd.physics import slab
 from humv_usd.physics.convection import watmuff
 from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
-from humv_usd.scene.layer import GROUND, object_path
+from humv_usd.scenario.times import frame_epoch_s
 from humv_usd.thermal.human import longwave_emissivity
+from humv_usd.thermal.radiation import _intersector
 from humv_usd.thermal.sky import cloudy_sky_emissivity, hemispherical_irradiance
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.mesh import fan_triangulate
+from humv_usd.usd.paths import GROUND, object_path
 
 #: Depth of the ground construction (material layer + soil) [m]
 GROUND_DEPTH_M = 1.0
@@ -55,12 +60,12 @@ class SceneMesh:
     """One scene mesh in world coordinates with its material and held temperature."""
 
     path: str
-    points: np.ndarray          # (P, 3) [m], world
-    triangles: np.ndarray       # (T, 3)
-    tri_face: np.ndarray        # (T,) authored face of each triangle
+    points: np.ndarray  # (P, 3) [m], world
+    triangles: np.ndarray  # (T, 3)
+    tri_face: np.ndarray  # (T,) authored face of each triangle
     n_faces: int
     material: str
-    held_k: float | None        # scenario temperature_k: held at it; None: slab
+    held_k: float | None  # scenario temperature_k: held at it; None: slab
     is_ground: bool
 
     def face_geometry(self):
@@ -69,11 +74,15 @@ class SceneMesh:
         cross = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
         area_t = 0.5 * np.linalg.norm(cross, axis=1)
         area = np.bincount(self.tri_face, area_t, self.n_faces)
-        nrm = np.stack([np.bincount(self.tri_face, cross[:, k], self.n_faces)
-                        for k in range(3)], axis=1)
+        nrm = np.stack([np.bincount(self.tri_face, cross[:, k], self.n_faces) for k in range(3)], axis=1)
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
-        cen = np.stack([np.bincount(self.tri_face, v.mean(axis=1)[:, k] * area_t, self.n_faces)
-                        for k in range(3)], axis=1) / np.maximum(area, 1e-30)[:, None]
+        cen = (
+            np.stack(
+                [np.bincount(self.tri_face, v.mean(axis=1)[:, k] * area_t, self.n_faces) for k in range(3)],
+                axis=1,
+            )
+            / np.maximum(area, 1e-30)[:, None]
+        )
         return nrm, cen, area
 
 
@@ -91,8 +100,7 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         mesh = UsdGeom.Mesh(prim)
         counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
         pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=float)
-        xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(
-            Usd.TimeCode.Default()))
+        xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode.Default()))
         pts = pts @ xf[:3, :3] + xf[3, :3]
         tris, tri_face = fan_triangulate(counts, np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
@@ -101,12 +109,14 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         if path in held:
             h = held[path]
         else:  # a mesh from a hand-made layer: a slab of its material, or held at the air
-            h = None if name in LIBRARY else float(
-                (scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
+            h = (
+                None
+                if name in LIBRARY
+                else float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
+            )
         if h is None and name not in LIBRARY:
             h = float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
-        out.append(SceneMesh(path, pts, tris, tri_face, len(counts), name, h,
-                             path == str(GROUND)))
+        out.append(SceneMesh(path, pts, tris, tri_face, len(counts), name, h, path == str(GROUND)))
     return out
 
 
@@ -114,7 +124,6 @@ def _sunlit_fraction(meshes, sun_dirs, up):
     """(times, faces of all meshes) sunlit fraction from 4 points per triangle."""
     import trimesh
 
-    from humv_usd.thermal.radiation import _intersector
     offset = 0
     faces, points = [], []
     for m in meshes:
@@ -125,13 +134,15 @@ def _sunlit_fraction(meshes, sun_dirs, up):
     intersector = _intersector(combined)
     tri_n = np.asarray(combined.face_normals)
     v = np.asarray(combined.triangles)
-    bary = np.array([[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6],
-                     [1 / 6, 1 / 6, 2 / 3]])
+    bary = np.array(
+        [[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]
+    )
     eps = 2e-5 * float(np.linalg.norm(combined.extents)) + 1e-4
     pts = (np.einsum("kj,tjc->tkc", bary, v) + eps * tri_n[:, None]).reshape(-1, 3)
     tri_area = np.asarray(combined.area_faces)
-    face_of_tri = np.concatenate([m.tri_face + sum(x.n_faces for x in meshes[:i])
-                                  for i, m in enumerate(meshes)])
+    face_of_tri = np.concatenate(
+        [m.tri_face + sum(x.n_faces for x in meshes[:i]) for i, m in enumerate(meshes)]
+    )
     n_faces = sum(m.n_faces for m in meshes)
     face_area = np.bincount(face_of_tri, tri_area, n_faces)
     out = np.zeros((len(sun_dirs), n_faces))
@@ -144,8 +155,7 @@ def _sunlit_fraction(meshes, sun_dirs, up):
             o = pts[facing]
             lit[facing] = ~intersector.intersects_any(o, np.broadcast_to(s, o.shape).copy())
         frac_t = lit.reshape(-1, 4).mean(axis=1)
-        out[i] = np.bincount(face_of_tri, frac_t * tri_area, n_faces) / np.maximum(face_area,
-                                                                                   1e-30)
+        out[i] = np.bincount(face_of_tri, frac_t * tri_area, n_faces) / np.maximum(face_area, 1e-30)
     return out
 
 
@@ -180,7 +190,7 @@ class SurfaceForcing:
     air_temperature_k: np.ndarray
     relative_humidity: np.ndarray
     wind_speed_m_s: np.ndarray
-    sun_direction: np.ndarray      # (M, 3)
+    sun_direction: np.ndarray  # (M, 3)
     sun_up: np.ndarray
     dni_w_m2: np.ndarray
     dhi_w_m2: np.ndarray
@@ -195,7 +205,7 @@ class SurfaceForcing:
         _, eps = effective_sky_temperature(self.air_temperature_k, self.relative_humidity)
         if self.cloud_cover is not None:
             eps = cloudy_sky_emissivity(eps, self.cloud_cover)
-        return self.sky_longwave_factor * eps * STEFAN_BOLTZMANN * self.air_temperature_k ** 4
+        return self.sky_longwave_factor * eps * STEFAN_BOLTZMANN * self.air_temperature_k**4
 
 
 def with_sky_table(forcing: SurfaceForcing, table, frame0: int) -> SurfaceForcing:
@@ -230,9 +240,6 @@ def forcing_at(scenario, times_s) -> SurfaceForcing:
     """Weather (:func:`humv_usd.environment.weather.weather_at`) and sun
     (:func:`humv_usd.environment.sun.sun_at`) at ``times_s`` seconds after frame 0. Spin-up
     times before a weather series starts take the series' first sample."""
-    from humv_usd.environment.sun import sun_at
-    from humv_usd.environment.weather import (frame_epoch_s, read_weather_csv,
-                                              weather_at)
     t = np.asarray(times_s, dtype=float)
     t_w = t
     path = (scenario["atmosphere"] or {}).get("weather_csv")
@@ -242,23 +249,35 @@ def forcing_at(scenario, times_s) -> SurfaceForcing:
         t_w = np.clip(t, ts[0] - t0, ts[-1] - t0)
     w = weather_at(scenario, t_w)
     sun = sun_at(scenario, t, w)
-    return SurfaceForcing(t, w.air_temperature_k, w.relative_humidity, w.wind_speed_m_s,
-                          sun.direction, sun.up, sun.dni_w_m2, sun.dhi_w_m2, sun.ghi_w_m2,
-                          w.cloud_cover)
+    return SurfaceForcing(
+        t,
+        w.air_temperature_k,
+        w.relative_humidity,
+        w.wind_speed_m_s,
+        sun.direction,
+        sun.up,
+        sun.dni_w_m2,
+        sun.dhi_w_m2,
+        sun.ghi_w_m2,
+        w.cloud_cover,
+    )
 
 
-def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, ground_eps,
-                  ground_albedo):
+def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, ground_eps, ground_albedo):
     """(absorbed solar, incident long wave, air, h), each (M, F)."""
     mat = LIBRARY[mesh.material]
     nz = normals[:, 2][None, :]
     up, down = 0.5 * (1.0 + nz), 0.5 * (1.0 - nz)
     cos = np.maximum(f.sun_direction @ normals.T, 0.0) * f.sun_up[:, None]
-    e_sw = (f.dni_w_m2[:, None] * cos * lit + f.dhi_w_m2[:, None] * up
-            + ground_albedo * f.ghi_w_m2[:, None] * down)
+    e_sw = (
+        f.dni_w_m2[:, None] * cos * lit
+        + f.dhi_w_m2[:, None] * up
+        + ground_albedo * f.ghi_w_m2[:, None] * down
+    )
     e_sky = f.sky_longwave[:, None]
-    ground_lw = ground_eps * STEFAN_BOLTZMANN * np.asarray(ground_k)[:, None] ** 4 \
-        + (1.0 - ground_eps) * e_sky
+    ground_lw = (
+        ground_eps * STEFAN_BOLTZMANN * np.asarray(ground_k)[:, None] ** 4 + (1.0 - ground_eps) * e_sky
+    )
     lw = e_sky * up + ground_lw * down
     shape = e_sw.shape
     air = np.broadcast_to(f.air_temperature_k[:, None], shape)
@@ -270,21 +289,28 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     """(M, F) surface temperatures of one mesh's slab faces, and the max residual."""
     a_s, lw, air, h = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo)
     # faces with the same forcing history (most of an unshaded ground) are solved once
-    stacked = np.concatenate([a_s, lw, air, h], axis=0).T              # (F, 4M)
+    stacked = np.concatenate([a_s, lw, air, h], axis=0).T  # (F, 4M)
     uniq, inverse = np.unique(np.round(stacked, 9), axis=0, return_inverse=True)
     inverse = np.asarray(inverse).ravel()
     m = len(f.times_s)
-    cols = [uniq[:, k * m:(k + 1) * m].T for k in range(4)]               # (M, U) each
+    cols = [uniq[:, k * m : (k + 1) * m].T for k in range(4)]  # (M, U) each
     dz, k, rc = _construction(mesh.material, mesh.is_ground)
-    t_surf, res = slab.simulate_many(f.times_s, *cols, dz, k, rc,
-                                     emissivity=longwave_emissivity(mesh.material),
-                                     bottom="fixed" if mesh.is_ground else "adiabatic",
-                                     deep_temperature_k=deep_k)
+    t_surf, res = slab.simulate_many(
+        f.times_s,
+        *cols,
+        dz,
+        k,
+        rc,
+        emissivity=longwave_emissivity(mesh.material),
+        bottom="fixed" if mesh.is_ground else "adiabatic",
+        deep_temperature_k=deep_k,
+    )
     return t_surf[:, inverse], res
 
 
-def surface_temperatures(scenario, meshes: list[SceneMesh], times_s, spin_up_s=86400.0,
-                         forcing: SurfaceForcing | None = None):
+def surface_temperatures(
+    scenario, meshes: list[SceneMesh], times_s, spin_up_s=86400.0, forcing: SurfaceForcing | None = None
+):
     """Per-face temperatures of the scene meshes at ``times_s`` (seconds after frame 0, >= 0).
 
     Parameters
@@ -319,8 +345,11 @@ def surface_temperatures(scenario, meshes: list[SceneMesh], times_s, spin_up_s=8
     geo = [m.face_geometry() for m in meshes]
     lit_all = _sunlit_fraction(meshes, f.sun_direction, f.sun_up) if meshes else None
     starts = np.cumsum([0] + [m.n_faces for m in meshes])
-    deep = float(np.mean(f.air_temperature_k[all_t <= 0.0])) if np.any(all_t <= 0.0) \
+    deep = (
+        float(np.mean(f.air_temperature_k[all_t <= 0.0]))
+        if np.any(all_t <= 0.0)
         else float(f.air_temperature_k[0])
+    )
     out, kinds, max_res = {}, {}, 0.0
     ground_k = f.air_temperature_k.copy()
     ground_eps, ground_albedo = 0.95, 0.2
@@ -332,9 +361,8 @@ def surface_temperatures(scenario, meshes: list[SceneMesh], times_s, spin_up_s=8
             t_all = np.full((len(all_t), m.n_faces), float(m.held_k))
             kinds[m.path] = "held"
         else:
-            lit = lit_all[:, starts[i]:starts[i + 1]]
-            t_all, res = _solve_mesh(m, normals, lit, f, ground_k, ground_eps, ground_albedo,
-                                     deep)
+            lit = lit_all[:, starts[i] : starts[i + 1]]
+            t_all, res = _solve_mesh(m, normals, lit, f, ground_k, ground_eps, ground_albedo, deep)
             max_res = max(max_res, res)
             kinds[m.path] = "slab"
         if m.is_ground:
@@ -342,5 +370,8 @@ def surface_temperatures(scenario, meshes: list[SceneMesh], times_s, spin_up_s=8
             ground_eps = longwave_emissivity(m.material)
             ground_albedo = 1.0 - LIBRARY[m.material].solar_absorptivity
         out[m.path] = t_all[idx]
-    return out, {"slabMaxResidual_W_m2": max_res, "groundMeanTemperature_k": ground_k[idx],
-                 "surfaceModels": kinds}
+    return out, {
+        "slabMaxResidual_W_m2": max_res,
+        "groundMeanTemperature_k": ground_k[idx],
+        "surfaceModels": kinds,
+    }

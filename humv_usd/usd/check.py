@@ -5,6 +5,7 @@ UsdValidation framework that ``usdchecker`` runs. We run every registered UsdVal
 (stage metadata, encapsulation, material bindings, composition errors, attribute types, ...)
 and then our own rules. Each finding is one line: ``<rule>: <where>: <message>``.
 """
+
 from __future__ import annotations
 
 import math
@@ -13,8 +14,8 @@ from pathlib import Path
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdValidation
 
-from humv_usd.usd.layers import open_stage
 from humv_usd.usd import schemas as S
+from humv_usd.usd.layers import open_stage
 
 TEMPERATURE_RANGE_K = (1.0, 5000.0)
 
@@ -40,13 +41,16 @@ def rule_root_layer(stage: Usd.Stage) -> list[str]:
     root = stage.GetRootLayer()
     if root.rootPrims:
         names = ", ".join(p.name for p in root.rootPrims)
-        out.append(f"humv:rootLayer: {root.identifier}: holds prims ({names}); the root layer "
-                   "should only sublayer the part layers")
+        out.append(
+            f"humv:rootLayer: {root.identifier}: holds prims ({names}); the root layer "
+            "should only sublayer the part layers"
+        )
     if UsdGeom.GetStageUpAxis(stage) != UsdGeom.Tokens.z:
         out.append(f"humv:upAxis: stage: upAxis is {UsdGeom.GetStageUpAxis(stage)}, expected Z")
     if not math.isclose(UsdGeom.GetStageMetersPerUnit(stage), 1.0):
-        out.append(f"humv:metersPerUnit: stage: metersPerUnit is "
-                   f"{UsdGeom.GetStageMetersPerUnit(stage)}, expected 1")
+        out.append(
+            f"humv:metersPerUnit: stage: metersPerUnit is {UsdGeom.GetStageMetersPerUnit(stage)}, expected 1"
+        )
     if not stage.GetDefaultPrim():
         out.append("humv:defaultPrim: stage: no valid defaultPrim")
     tcps = root.timeCodesPerSecond
@@ -55,8 +59,10 @@ def rule_root_layer(stage: Usd.Stage) -> list[str]:
         if layer is None:
             out.append(f"humv:sublayer: {sub}: cannot be opened")
         elif layer.timeCodesPerSecond != tcps:
-            out.append(f"humv:timeCodes: {sub}: timeCodesPerSecond {layer.timeCodesPerSecond} "
-                       f"!= root {tcps} (USD would rescale its time samples)")
+            out.append(
+                f"humv:timeCodes: {sub}: timeCodesPerSecond {layer.timeCodesPerSecond} "
+                f"!= root {tcps} (USD would rescale its time samples)"
+            )
     return out
 
 
@@ -77,35 +83,41 @@ def rule_meshes(stage: Usd.Stage) -> list[str]:
         primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"))
         if primvar and primvar.HasAuthoredValue():
             if primvar.GetInterpolation() != UsdGeom.Tokens.uniform:
-                out.append(f"humv:temperature: {path}: interpolation "
-                           f"{primvar.GetInterpolation()}, expected uniform (one value per face)")
+                out.append(
+                    f"humv:temperature: {path}: interpolation "
+                    f"{primvar.GetInterpolation()}, expected uniform (one value per face)"
+                )
             for t in _times(primvar.GetAttr()):
                 values = np.asarray(primvar.Get(t) or [], dtype=float)
                 when = "" if t.IsDefault() else f" at time {t.GetValue()}"
                 if len(values) != faces:
-                    out.append(f"humv:temperature: {path}{when}: {len(values)} values for "
-                               f"{faces} faces")
-                elif len(values) and not (np.all(np.isfinite(values)) and values.min() >= lo
-                                          and values.max() <= hi):
-                    out.append(f"humv:temperature: {path}{when}: values "
-                               f"{values.min():.6g}..{values.max():.6g} K outside {lo:g}..{hi:g} K")
+                    out.append(f"humv:temperature: {path}{when}: {len(values)} values for {faces} faces")
+                elif len(values) and not (
+                    np.all(np.isfinite(values)) and values.min() >= lo and values.max() <= hi
+                ):
+                    out.append(
+                        f"humv:temperature: {path}{when}: values "
+                        f"{values.min():.6g}..{values.max():.6g} K outside {lo:g}..{hi:g} K"
+                    )
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
         if not material:
             out.append(f"humv:material: {path}: no bound material")
             continue
         mprim = material.GetPrim()
         if not mprim.HasAPI(S.MATERIAL_API):
-            out.append(f"humv:material: {mprim.GetPath()}: bound to {path} but has no "
-                       f"{S.MATERIAL_API}")
+            out.append(f"humv:material: {mprim.GetPath()}: bound to {path} but has no {S.MATERIAL_API}")
             continue
         wl = np.asarray(mprim.GetAttribute(S.MATERIAL_WAVELENGTHS).Get() or [], dtype=float)
         eps = np.asarray(mprim.GetAttribute(S.MATERIAL_EMISSIVITY).Get() or [], dtype=float)
         if len(wl) == 0 or len(wl) != len(eps):
-            out.append(f"humv:material: {mprim.GetPath()}: {len(wl)} wavelengths and "
-                       f"{len(eps)} emissivities (need the same non-zero count)")
+            out.append(
+                f"humv:material: {mprim.GetPath()}: {len(wl)} wavelengths and "
+                f"{len(eps)} emissivities (need the same non-zero count)"
+            )
         elif np.any(np.diff(wl) <= 0) or np.any((eps < 0) | (eps > 1)):
-            out.append(f"humv:material: {mprim.GetPath()}: wavelengths must ascend and "
-                       "emissivity lie in 0..1")
+            out.append(
+                f"humv:material: {mprim.GetPath()}: wavelengths must ascend and emissivity lie in 0..1"
+            )
     return out
 
 

@@ -1,4 +1,5 @@
 """Helpers shared by the layer tools: new layers with our stage conventions, atomic writes."""
+
 from __future__ import annotations
 
 import re
@@ -8,6 +9,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom
 
 import humv_usd  # noqa: F401  (registers the schemas before any stage exists)
 from humv_usd.errors import InputError
+from humv_usd.fileio import write_text_atomic
 
 WORLD = Sdf.Path("/World")
 SCOPES = {
@@ -64,10 +66,23 @@ def look_at_matrix(position, target, up=(0.0, 0.0, 1.0)) -> Gf.Matrix4d:
     cam_up = Gf.Cross(right, forward)
     back = -forward
     return Gf.Matrix4d(
-        right[0], right[1], right[2], 0.0,
-        cam_up[0], cam_up[1], cam_up[2], 0.0,
-        back[0], back[1], back[2], 0.0,
-        eye[0], eye[1], eye[2], 1.0)
+        right[0],
+        right[1],
+        right[2],
+        0.0,
+        cam_up[0],
+        cam_up[1],
+        cam_up[2],
+        0.0,
+        back[0],
+        back[1],
+        back[2],
+        0.0,
+        eye[0],
+        eye[1],
+        eye[2],
+        1.0,
+    )
 
 
 def finish(stage: Usd.Stage) -> Sdf.Layer:
@@ -106,16 +121,14 @@ def library_layer_main(path: Path, build, doc: str, argv=None) -> int:
     """
     import argparse
 
-    from humv_usd.fileio import write_text_atomic
-
     parser = argparse.ArgumentParser(description=doc)
     parser.add_argument("--check", action="store_true", help="exit 1 if the file is out of date")
     args = parser.parse_args(argv)
     text = layer_text(build())
     if args.check:
         ok = path.is_file() and path.read_text(encoding="utf-8") == text
-        print(f"{path}: {'up to date' if ok else 'out of date'}")
+        print(f"{path}: {'up to date' if ok else 'out of date'}")  # noqa: T201 (a `python -m` command)
         return 0 if ok else 1
     write_text_atomic(path, text)
-    print(f"wrote {path}")
+    print(f"wrote {path}")  # noqa: T201 (a `python -m` command)
     return 0

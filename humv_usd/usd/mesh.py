@@ -1,4 +1,5 @@
 """Author meshes with our conventions: rightHanded (counter-clockwise seen from outside)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,9 +8,14 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 from humv_usd.usd import schemas as S
 
 
-def define_mesh(stage: Usd.Stage, path: Sdf.Path | str, points: np.ndarray,
-                face_counts: np.ndarray, face_indices: np.ndarray,
-                material: Sdf.Path | None = None) -> UsdGeom.Mesh:
+def define_mesh(
+    stage: Usd.Stage,
+    path: Sdf.Path | str,
+    points: np.ndarray,
+    face_counts: np.ndarray,
+    face_indices: np.ndarray,
+    material: Sdf.Path | None = None,
+) -> UsdGeom.Mesh:
     """Define a polygon mesh (no subdivision) with extent and an optional material binding."""
     mesh = UsdGeom.Mesh.Define(stage, path)
     points = np.asarray(points, dtype=np.float32)

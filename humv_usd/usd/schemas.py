@@ -14,6 +14,7 @@ Names (the contract in docs/architecture.md, "Schemas"; units and ranges are in 
     prim.ApplyAPI(THERMAL_API)
     prim.GetAttribute(TEMPERATURE_PRIMVAR).Set(temperatures_k, frame)
 """
+
 from __future__ import annotations
 
 import os

@@ -11,6 +11,7 @@ with tan(fov_y/2) = tan(fov_x/2) H / W (square pixels). Pixel (column i, row j) 
 [i, i+1) x [j, j+1); its centre is (i + 0.5, j + 0.5), row 0 at the top (the COCO convention).
 ``depth`` is z, the distance along the optical axis, as in the EXR ``depth`` channel.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,15 +32,23 @@ class Camera:
     height: int
 
     @classmethod
-    def from_pose(cls, pose, width: int, height: int) -> "Camera":
+    def from_pose(cls, pose, width: int, height: int) -> Camera:
         fwd = np.asarray(pose.forward, dtype=float)
         fwd = fwd / np.linalg.norm(fwd)
         right = np.cross(fwd, np.asarray(pose.up, dtype=float))
         right /= np.linalg.norm(right)
         up = np.cross(right, fwd)
         tan_x = math.tan(math.radians(pose.fov_x_deg) / 2.0)
-        return cls(np.asarray(pose.origin, dtype=float), fwd, right, up, tan_x,
-                   tan_x * height / width, int(width), int(height))
+        return cls(
+            np.asarray(pose.origin, dtype=float),
+            fwd,
+            right,
+            up,
+            tan_x,
+            tan_x * height / width,
+            int(width),
+            int(height),
+        )
 
     def to_camera(self, points) -> np.ndarray:
         """World points (..., 3) [m] -> camera coordinates (x right, y up, z forward) [m]."""

@@ -8,7 +8,7 @@ are fitted to these helpers. A garment here is one or more :class:`Part`: the fa
 mesh (a helper or, for the cap, the body itself) that :class:`Cover` rules keep, offset by the
 garment's ease along the surface normal (:mod:`humv_usd.clothing.fit`).
 
-Face selection. Each face gets the body region (:mod:`humv_usd.avatar.labels`) of the body
+Face selection. Each face gets the body region (:mod:`humv_usd.human.labels`) of the body
 face nearest to its centre, and its position along a bone: ``t`` = projection of the face
 centre on the bone's axis, 0 at the joint (head), 1 at the bone's tail (the child joint), in the
 rest pose. A :class:`Cover` keeps faces of its regions with ``t_min <= t + tilt * y' <= t_max``
@@ -25,30 +25,36 @@ another garment; the clothing layer writes them under ``/World/Humans/<id>/Props
 Layers (``layer``, inner first) decide which garment goes over which where they overlap: the
 outer one keeps at least the inner one's air gap + thickness + the minimum gap there
 (:mod:`humv_usd.clothing.collide`). Fabrics are names in
-:data:`humv_usd.materials.library.LIBRARY` (with sources there).
+:data:`humv_usd.catalog.materials.LIBRARY` (with sources there).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from humv_usd.materials.library import LIBRARY
+from humv_usd.catalog.materials import LIBRARY
 
 #: Default smallest skin-garment gap [m] (HumvClothingAPI ``minimumGap`` fallback).
 MINIMUM_GAP = 0.002
 SOURCES = ("tights", "skirt", "body")
 
-#: Side-less region names -> the two sided names of :data:`humv_usd.avatar.labels.BODY_REGIONS`.
+#: Side-less region names -> the two sided names of :data:`humv_usd.human.labels.BODY_REGIONS`.
 SIDED_REGIONS = ("upperArm", "lowerArm", "hand", "upperLeg", "lowerLeg", "foot")
 #: Side-less limb bone names -> (left, right) joints of the CMU rig.
-SIDED_BONES = {"Arm": ("LeftArm", "RightArm"), "ForeArm": ("LeftForeArm", "RightForeArm"),
-               "UpLeg": ("LeftUpLeg", "RightUpLeg"), "Leg": ("LeftLeg", "RightLeg"),
-               "Foot": ("LeftFoot", "RightFoot")}
+SIDED_BONES = {
+    "Arm": ("LeftArm", "RightArm"),
+    "ForeArm": ("LeftForeArm", "RightForeArm"),
+    "UpLeg": ("LeftUpLeg", "RightUpLeg"),
+    "Leg": ("LeftLeg", "RightLeg"),
+    "Foot": ("LeftFoot", "RightFoot"),
+}
 TORSO = ("chest", "abdomen", "back")
 
 
 @dataclass(frozen=True)
 class Cover:
     """Faces of ``regions`` whose position along ``bone`` is within [t_min, t_max]."""
+
     regions: tuple[str, ...]
     bone: str | None = None
     t_min: float = float("-inf")
@@ -63,6 +69,7 @@ class Part:
     ``loose``: skin weights smoothed over the part and blended towards the pelvis (a skirt
     that swings as one piece instead of splitting with the legs; see ``fit``).
     """
+
     source: str
     cover: tuple[Cover, ...]
     ease: float
@@ -73,6 +80,7 @@ class Part:
 class Shape:
     """A box (``radius`` 0: ``size`` = x, y, z edge lengths) or a cylinder along x (``size``
     = (length, -, -), ``radius`` > 0) centred at ``centre``, in the prop's frame [m]."""
+
     name: str
     centre: tuple[float, float, float]
     size: tuple[float, float, float]
@@ -83,6 +91,7 @@ class Shape:
 class Prop:
     """A rigid prop: ``shapes`` in its own frame (x: length axis, z: up), bound 100 % to
     ``joint``; ``placement`` names the rule :mod:`humv_usd.clothing.fit` places it by."""
+
     shapes: tuple[Shape, ...]
     joint: str
     placement: str
@@ -93,8 +102,8 @@ class Garment:
     name: str
     description: str
     parts: tuple[Part, ...]
-    fabric: str              # material name in the library
-    layer: int               # 0 = next to the skin; higher goes over lower
+    fabric: str  # material name in the library
+    layer: int  # 0 = next to the skin; higher goes over lower
     minimum_gap: float = MINIMUM_GAP
     prop: Prop | None = None  # a rigid prop instead of fitted parts
     #: part of the body for the garments over it: they are also pushed out of its posed
@@ -126,70 +135,133 @@ def _arms(t_max_upper: float | None, t_max_lower: float | None = None) -> tuple[
 
 # Hem heights along the Hips bone (0 = hip joints' height, 1 = waist, the LowerBack joint).
 _TSHIRT_HEM = -0.4
-_JACKET_HEM = -0.9   # the crotch is at -1.15 (men) .. -1.45 (women)
+_JACKET_HEM = -0.9  # the crotch is at -1.15 (men) .. -1.45 (women)
 
-_VEST_HEM = 0.5      # carrier ends half way between the hip joints and the waist
+_VEST_HEM = 0.5  # carrier ends half way between the hip joints and the waist
 _TOP = TORSO
 #: Layer of props: after every garment (they are never under one).
 PROP_LAYER = 9
 
 #: An assault-rifle-sized prop (M4-like proportions), 0.90 m from butt to muzzle; x towards
 #: the muzzle, origin at the pistol grip's top.
-RIFLE = Prop((
-    Shape("stock", (-0.16, 0.0, -0.015), (0.28, 0.040, 0.10)),
-    Shape("receiver", (0.10, 0.0, 0.010), (0.24, 0.050, 0.08)),
-    Shape("grip", (0.005, 0.0, -0.080), (0.040, 0.030, 0.10)),
-    Shape("magazine", (0.100, 0.0, -0.125), (0.070, 0.030, 0.19)),
-    Shape("handguard", (0.32, 0.0, 0.015), (0.20, 0.0, 0.0), radius=0.024),
-    Shape("barrel", (0.51, 0.0, 0.015), (0.18, 0.0, 0.0), radius=0.008),
-), joint="RightHand", placement="between_hands")
+RIFLE = Prop(
+    (
+        Shape("stock", (-0.16, 0.0, -0.015), (0.28, 0.040, 0.10)),
+        Shape("receiver", (0.10, 0.0, 0.010), (0.24, 0.050, 0.08)),
+        Shape("grip", (0.005, 0.0, -0.080), (0.040, 0.030, 0.10)),
+        Shape("magazine", (0.100, 0.0, -0.125), (0.070, 0.030, 0.19)),
+        Shape("handguard", (0.32, 0.0, 0.015), (0.20, 0.0, 0.0), radius=0.024),
+        Shape("barrel", (0.51, 0.0, 0.015), (0.18, 0.0, 0.0), radius=0.008),
+    ),
+    joint="RightHand",
+    placement="between_hands",
+)
 _TROUSER_TOP = (Cover(("pelvis",)),)
 
 
 def _catalogue() -> dict[str, Garment]:
     tshirt_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(0.45)
-    longsleeve_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(
-        None, 0.93)
-    jacket_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_JACKET_HEM),
-                    Cover(("neck",), "Neck", t_max=0.6)) + _arms(None, 0.95)
+    longsleeve_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(None, 0.93)
+    jacket_cover = (
+        Cover(_TOP),
+        Cover(("pelvis",), "Hips", t_min=_JACKET_HEM),
+        Cover(("neck",), "Neck", t_max=0.6),
+    ) + _arms(None, 0.95)
     shorts_cover = _TROUSER_TOP + (Cover(("upperLeg",), "UpLeg", t_max=0.5),)
     legs_cover = _TROUSER_TOP + (Cover(("upperLeg",)), Cover(("lowerLeg",), "Leg", t_max=0.93))
-    trouser_cover = _TROUSER_TOP + (Cover(("upperLeg",)), Cover(("lowerLeg",), "Leg",
-                                                                 t_max=0.96))
+    trouser_cover = _TROUSER_TOP + (Cover(("upperLeg",)), Cover(("lowerLeg",), "Leg", t_max=0.96))
     garments = (
-        Garment("tshirt_white", "white cotton T-shirt: torso to the hip joints, sleeves to "
-                "mid upper arm", (Part("tights", tshirt_cover, 0.008),), "cotton_white", 2),
-        Garment("tshirt_black", "black cotton T-shirt (same cut as tshirt_white)",
-                (Part("tights", tshirt_cover, 0.008),), "cotton_black", 2),
-        Garment("longsleeve", "grey polyester long-sleeved shirt: torso to the hip joints, "
-                "sleeves to the wrists", (Part("tights", longsleeve_cover, 0.008),),
-                "polyester", 2),
-        Garment("shorts", "grey polyester shorts: waist to mid thigh",
-                (Part("tights", shorts_cover, 0.010),), "polyester", 1),
-        Garment("leggings", "black nylon/elastane leggings: waist to the ankles",
-                (Part("tights", legs_cover, 0.001),), "nylon", 0),
-        Garment("trousers", "black cotton trousers: waist to the ankles",
-                (Part("tights", trouser_cover, 0.012),), "cotton_black", 1),
-        Garment("jacket", "military uniform jacket (NYCO camouflage): torso to below the "
-                "hips, stand-up collar, sleeves to the wrists",
-                (Part("tights", jacket_cover, 0.015),), "camouflage_nyco", 3),
-        Garment("uniform_trousers", "military uniform trousers (NYCO camouflage): waist to "
-                "the ankles", (Part("tights", trouser_cover, 0.015),), "camouflage_nyco", 1),
-        Garment("robe", "loose white cotton robe: long-sleeved top over a skirt from the "
-                "waist to the shins",
-                (Part("tights", (Cover(_TOP),) + _arms(None, 0.93), 0.020),
-                 Part("skirt", (), 0.006, loose=True)), "cotton_white", 3),
-        Garment("vest", "soft body armour carrier worn under the clothing: close-fitting, "
-                "no sleeves, torso from above the hips to the neckline (part of the body for "
-                "the garments over it)",
-                (Part("tights", (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_VEST_HEM)),
-                      0.004),), "kevlar_vest", 1, body_like=True),
-        Garment("rifle", "rifle prop (stock, receiver, grip, magazine, handguard, barrel; "
-                "0.90 m) held across the body between the hands, rigidly bound to the right "
-                "hand", (), "polymer_black", PROP_LAYER, prop=RIFLE),
-        Garment("cap", "charcoal wool knit cap: the skull above the brow, ears free",
-                (Part("body", (Cover(("head",), "Head", t_min=0.5, tilt=0.4),), 0.003),),
-                "wool", 1),
+        Garment(
+            "tshirt_white",
+            "white cotton T-shirt: torso to the hip joints, sleeves to mid upper arm",
+            (Part("tights", tshirt_cover, 0.008),),
+            "cotton_white",
+            2,
+        ),
+        Garment(
+            "tshirt_black",
+            "black cotton T-shirt (same cut as tshirt_white)",
+            (Part("tights", tshirt_cover, 0.008),),
+            "cotton_black",
+            2,
+        ),
+        Garment(
+            "longsleeve",
+            "grey polyester long-sleeved shirt: torso to the hip joints, sleeves to the wrists",
+            (Part("tights", longsleeve_cover, 0.008),),
+            "polyester",
+            2,
+        ),
+        Garment(
+            "shorts",
+            "grey polyester shorts: waist to mid thigh",
+            (Part("tights", shorts_cover, 0.010),),
+            "polyester",
+            1,
+        ),
+        Garment(
+            "leggings",
+            "black nylon/elastane leggings: waist to the ankles",
+            (Part("tights", legs_cover, 0.001),),
+            "nylon",
+            0,
+        ),
+        Garment(
+            "trousers",
+            "black cotton trousers: waist to the ankles",
+            (Part("tights", trouser_cover, 0.012),),
+            "cotton_black",
+            1,
+        ),
+        Garment(
+            "jacket",
+            "military uniform jacket (NYCO camouflage): torso to below the "
+            "hips, stand-up collar, sleeves to the wrists",
+            (Part("tights", jacket_cover, 0.015),),
+            "camouflage_nyco",
+            3,
+        ),
+        Garment(
+            "uniform_trousers",
+            "military uniform trousers (NYCO camouflage): waist to the ankles",
+            (Part("tights", trouser_cover, 0.015),),
+            "camouflage_nyco",
+            1,
+        ),
+        Garment(
+            "robe",
+            "loose white cotton robe: long-sleeved top over a skirt from the waist to the shins",
+            (Part("tights", (Cover(_TOP),) + _arms(None, 0.93), 0.020), Part("skirt", (), 0.006, loose=True)),
+            "cotton_white",
+            3,
+        ),
+        Garment(
+            "vest",
+            "soft body armour carrier worn under the clothing: close-fitting, "
+            "no sleeves, torso from above the hips to the neckline (part of the body for "
+            "the garments over it)",
+            (Part("tights", (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_VEST_HEM)), 0.004),),
+            "kevlar_vest",
+            1,
+            body_like=True,
+        ),
+        Garment(
+            "rifle",
+            "rifle prop (stock, receiver, grip, magazine, handguard, barrel; "
+            "0.90 m) held across the body between the hands, rigidly bound to the right "
+            "hand",
+            (),
+            "polymer_black",
+            PROP_LAYER,
+            prop=RIFLE,
+        ),
+        Garment(
+            "cap",
+            "charcoal wool knit cap: the skull above the brow, ears free",
+            (Part("body", (Cover(("head",), "Head", t_min=0.5, tilt=0.4),), 0.003),),
+            "wool",
+            1,
+        ),
     )
     return {g.name: g for g in garments}
 

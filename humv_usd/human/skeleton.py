@@ -16,6 +16,7 @@ Conventions (the contract between the rig, motion and USD writers):
 * Joint positions come from MakeHuman's joint cubes (``joint-*`` groups of base.obj) on the
   fitted body, so they follow the macro targets.
 """
+
 from __future__ import annotations
 
 import json
@@ -31,10 +32,10 @@ RIG = "cmu_mb"
 
 @dataclass(frozen=True)
 class Skeleton:
-    names: tuple[str, ...]        # joint names, topological order
-    parents: np.ndarray           # (J,) parent index, -1 for the root
-    rest_positions: np.ndarray    # (J, 3) joint (head) positions at rest, world [m]
-    tail_positions: np.ndarray    # (J, 3) bone tail positions at rest, world [m]
+    names: tuple[str, ...]  # joint names, topological order
+    parents: np.ndarray  # (J,) parent index, -1 for the root
+    rest_positions: np.ndarray  # (J, 3) joint (head) positions at rest, world [m]
+    tail_positions: np.ndarray  # (J, 3) bone tail positions at rest, world [m]
 
     @property
     def paths(self) -> list[str]:
@@ -97,19 +98,19 @@ def _end_position(end: dict, points: np.ndarray, groups) -> np.ndarray:
 
 def skeleton_for(points: np.ndarray, groups, rig: str = RIG) -> Skeleton:
     """The rig's joints placed on a body: ``points`` is the FULL base.obj vertex list in our
-    frame (e.g. :attr:`humv_usd.avatar.body.Body.points`), ``groups`` its OBJ groups."""
+    frame (e.g. :attr:`humv_usd.human.body.Body.points`), ``groups`` its OBJ groups."""
     definition = rig_definition(rig)
     names = _topological(definition)
     index = {n: i for i, n in enumerate(names)}
-    parents = np.array([index[definition[n]["parent"]] if definition[n]["parent"] else -1
-                        for n in names])
+    parents = np.array([index[definition[n]["parent"]] if definition[n]["parent"] else -1 for n in names])
     heads = np.array([_end_position(definition[n]["head"], points, groups) for n in names])
     tails = np.array([_end_position(definition[n]["tail"], points, groups) for n in names])
     return Skeleton(tuple(names), parents, heads, tails)
 
 
-def skin_weights(skeleton: Skeleton, vertex_ids: np.ndarray, max_influences: int = 4,
-                 rig: str = RIG) -> tuple[np.ndarray, np.ndarray]:
+def skin_weights(
+    skeleton: Skeleton, vertex_ids: np.ndarray, max_influences: int = 4, rig: str = RIG
+) -> tuple[np.ndarray, np.ndarray]:
     """Per-vertex joint indices and weights for the vertices ``vertex_ids`` of the full list.
 
     Keeps the ``max_influences`` largest weights per vertex and renormalizes them to sum 1;
@@ -146,15 +147,19 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=np.float64)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
 
 
-def forward_kinematics(skeleton: Skeleton, local_rotations: np.ndarray,
-                       root_translation: np.ndarray) -> np.ndarray:
+def forward_kinematics(
+    skeleton: Skeleton, local_rotations: np.ndarray, root_translation: np.ndarray
+) -> np.ndarray:
     """World joint transforms for each frame.
 
     local_rotations: (F, J, 4) quaternions (w, x, y, z) of each joint relative to its parent
@@ -184,12 +189,13 @@ def skinning_matrices(skeleton: Skeleton, world: np.ndarray) -> np.ndarray:
     return world @ inv_rest
 
 
-def linear_blend_skinning(rest_points: np.ndarray, indices: np.ndarray, weights: np.ndarray,
-                          skin: np.ndarray) -> np.ndarray:
+def linear_blend_skinning(
+    rest_points: np.ndarray, indices: np.ndarray, weights: np.ndarray, skin: np.ndarray
+) -> np.ndarray:
     """Linear blend skinning (Magnenat-Thalmann et al. 1988) of rest points for one frame.
 
     rest_points (V, 3); indices/weights (V, k); skin (J, 4, 4) from :func:`skinning_matrices`.
     """
-    mats = skin[indices]                                   # (V, k, 4, 4)
+    mats = skin[indices]  # (V, k, 4, 4)
     blended = np.einsum("vk,vkij->vij", weights.astype(np.float64), mats)
     return np.einsum("vij,vj->vi", blended[:, :3, :3], rest_points) + blended[:, :3, 3]

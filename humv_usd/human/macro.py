@@ -34,6 +34,7 @@ A target's weight is the product of its levels' factors, and the model is
 ``base + sum(weight * delta)``. The base.obj itself is not MakeHuman's default human: that is
 all axes at 0.5 with the three races at 1/3, which adds the race/gender/age targets.
 """
+
 from __future__ import annotations
 
 import gzip
@@ -42,7 +43,7 @@ import os
 import shutil
 import tempfile
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 from itertools import product
 from pathlib import Path
 
@@ -87,8 +88,7 @@ def age_factors(v: float) -> dict[str, float]:
     if v < 0.5:
         young = max(0.0, (v - CHILD_AGE) / (0.5 - CHILD_AGE))
         baby = max(0.0, 1.0 - v / CHILD_AGE)
-        return {"baby": baby, "child": max(0.0, min(1.0, v / CHILD_AGE) - young),
-                "young": young, "old": 0.0}
+        return {"baby": baby, "child": max(0.0, min(1.0, v / CHILD_AGE) - young), "young": young, "old": 0.0}
     old = max(0.0, 2.0 * v - 1.0)
     return {"baby": 0.0, "child": 0.0, "young": 1.0 - old, "old": old}
 
@@ -107,8 +107,9 @@ def two_sided_factors(v: float, low: str, high: str) -> dict[str, float]:
 @dataclass(frozen=True)
 class MacroValues:
     """MakeHuman macro slider values, each in [0, 1] (0.5 = MakeHuman's default)."""
-    gender: float = 0.5       # 0 female, 1 male
-    age: float = 0.5          # see age_to_macro
+
+    gender: float = 0.5  # 0 female, 1 male
+    age: float = 0.5  # see age_to_macro
     muscle: float = 0.5
     weight: float = 0.5
     height: float = 0.5
@@ -140,8 +141,7 @@ def target_weights(m: MacroValues) -> dict[str, float]:
     out: dict[str, float] = {}
     for (rk, rv), (gk, gv), (ak, av) in product(m.races().items(), g.items(), a.items()):
         out[f"{MACRO_DIR}/{rk}-{gk}-{ak}.target.gz"] = rv * gv * av
-    for (gk, gv), (ak, av), (mk, mv), (wk, wv) in product(g.items(), a.items(), mu.items(),
-                                                          we.items()):
+    for (gk, gv), (ak, av), (mk, mv), (wk, wv) in product(g.items(), a.items(), mu.items(), we.items()):
         base = gv * av * mv * wv
         if base == 0.0:
             continue
@@ -167,17 +167,14 @@ def _parse_obj() -> tuple[np.ndarray, dict[str, np.ndarray]]:
             elif tag == "g ":
                 current = line.split()[1]
             elif tag == "f ":
-                faces.setdefault(current, []).append(
-                    [int(t.split("/")[0]) - 1 for t in line.split()[1:]])
-    return (np.asarray(verts, dtype=np.float64),
-            {k: np.asarray(v, dtype=np.int64) for k, v in faces.items()})
+                faces.setdefault(current, []).append([int(t.split("/")[0]) - 1 for t in line.split()[1:]])
+    return (np.asarray(verts, dtype=np.float64), {k: np.asarray(v, dtype=np.int64) for k, v in faces.items()})
 
 
 @lru_cache(maxsize=1)
 def available_targets() -> frozenset[str]:
     root = makehuman_dir()
-    return frozenset(p.relative_to(root).as_posix()
-                     for p in (root / MACRO_DIR).rglob("*.target.gz"))
+    return frozenset(p.relative_to(root).as_posix() for p in (root / MACRO_DIR).rglob("*.target.gz"))
 
 
 def parse_target(raw: bytes) -> tuple[np.ndarray, np.ndarray]:
@@ -240,8 +237,7 @@ def obj_data() -> tuple[np.ndarray, dict[str, np.ndarray]]:
     (F, 4) array of indices into that full vertex list (repeated groups are merged)."""
     c = _cache()
     off = c["group_offsets"]
-    faces = {str(n): np.array(c["group_faces"][off[i]:off[i + 1]])
-             for i, n in enumerate(c["group_names"])}
+    faces = {str(n): np.array(c["group_faces"][off[i] : off[i + 1]]) for i, n in enumerate(c["group_names"])}
     verts = np.array(c["verts"])
     for a in (verts, *faces.values()):
         a.flags.writeable = False  # shared by every caller
@@ -255,7 +251,7 @@ def _target_index() -> dict[str, tuple[int, int]]:
     return {str(n): (int(off[i]), int(off[i + 1])) for i, n in enumerate(c["target_names"])}
 
 
-@lru_cache(maxsize=None)
+@cache
 def load_target(rel: str) -> tuple[np.ndarray, np.ndarray]:
     """(vertex indices, offsets [MakeHuman units]) of one target, e.g.
     ``targets/macrodetails/universal-male-young-averagemuscle-maxweight.target.gz``."""

@@ -27,6 +27,7 @@ axis) to the ankle target; the hip turns by the minimal rotation from its nomina
 Ground: ``None`` (flat z = 0), a callable ``height(x, y)`` (vectorized) or a
 ``trimesh.Trimesh`` (vertical rays cast down, embree when available), all in the avatar frame.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -34,10 +35,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
-from humv_usd.avatar.gait import (
-    align_matrix, axis_angle_matrix, matrix_to_quat, quat_slerp, rot_x, rot_z,
+from humv_usd.human.gait import (
+    align_matrix,
+    axis_angle_matrix,
+    matrix_to_quat,
+    quat_slerp,
+    rot_x,
+    rot_z,
 )
-from humv_usd.avatar.skeleton import Skeleton, quat_to_matrix, skin_weights
+from humv_usd.human.macro import obj_data
+from humv_usd.human.skeleton import Skeleton, quat_to_matrix, skin_weights
 
 SIDES = ("Left", "Right")
 
@@ -66,8 +73,9 @@ class Ground:
         if self.kind == "flat":
             out = np.zeros(len(flat))
         elif self.kind == "function":
-            out = np.broadcast_to(np.asarray(self.source(flat[:, 0], flat[:, 1]),
-                                             dtype=np.float64), (len(flat),)).copy()
+            out = np.broadcast_to(
+                np.asarray(self.source(flat[:, 0], flat[:, 1]), dtype=np.float64), (len(flat),)
+            ).copy()
         else:
             out = self._cast(flat)
         return out.reshape(shape)
@@ -90,6 +98,7 @@ class Ground:
             # outside the mesh's footprint (or through a hole): the nearest vertex's height
             if self._tree is None:
                 from scipy.spatial import cKDTree
+
                 self._tree = cKDTree(np.asarray(self.source.vertices)[:, :2])
             _, i = self._tree.query(xy[miss])
             out[miss] = np.asarray(self.source.vertices)[i, 2]
@@ -102,12 +111,13 @@ class FootPoints:
     """Contact points of one foot: ``rest`` (n, 3) rest positions relative to the rest ankle,
     skinned to the foot and toe joints with weights 1 - ``toe_weight`` and ``toe_weight``
     (linear blend skinning restricted to those two joints, as the mesh deforms)."""
+
     side: str
-    foot: int                 # joint index of <side>Foot
-    toe: int                  # joint index of <side>ToeBase
+    foot: int  # joint index of <side>Foot
+    toe: int  # joint index of <side>ToeBase
     rest: np.ndarray
     toe_weight: np.ndarray
-    toe_offset: np.ndarray    # (3,) rest toe joint minus rest ankle
+    toe_offset: np.ndarray  # (3,) rest toe joint minus rest ankle
     source: str
 
     def relative(self, foot_rot: np.ndarray, toe_rot: np.ndarray) -> np.ndarray:
@@ -123,12 +133,14 @@ class FootPoints:
         return world_pos[:, self.foot][:, None, :] + rel
 
 
-def _foot_points(skeleton: Skeleton, side: str, points: np.ndarray, toe_weight: np.ndarray,
-                 source: str) -> FootPoints:
+def _foot_points(
+    skeleton: Skeleton, side: str, points: np.ndarray, toe_weight: np.ndarray, source: str
+) -> FootPoints:
     f, t = skeleton.index(f"{side}Foot"), skeleton.index(f"{side}ToeBase")
     rest = skeleton.rest_positions
-    return FootPoints(side, f, t, points - rest[f], np.asarray(toe_weight, dtype=np.float64),
-                      rest[t] - rest[f], source)
+    return FootPoints(
+        side, f, t, points - rest[f], np.asarray(toe_weight, dtype=np.float64), rest[t] - rest[f], source
+    )
 
 
 def foot_points_from_joints(skeleton: Skeleton) -> dict[str, FootPoints]:
@@ -156,17 +168,16 @@ def foot_points_from_joints(skeleton: Skeleton) -> dict[str, FootPoints]:
             on_toe.append(True)
             pts.append(t0 + 0.39 * a * fwd + s * 0.12 * a * lat)
             on_toe.append(True)
-        out[side] = _foot_points(skeleton, side, np.array(pts), np.array(on_toe, float),
-                                 "joints")
+        out[side] = _foot_points(skeleton, side, np.array(pts), np.array(on_toe, float), "joints")
     return out
 
 
-def foot_points_from_body(skeleton: Skeleton, body_points: np.ndarray, max_height: float = 0.01,
-                          spacing: float = 0.012) -> dict[str, FootPoints]:
+def foot_points_from_body(
+    skeleton: Skeleton, body_points: np.ndarray, max_height: float = 0.01, spacing: float = 0.012
+) -> dict[str, FootPoints]:
     """Sole vertices of a fitted body (``body_points``: the FULL base.obj vertex list, e.g.
     ``Body.points``) below ``max_height`` at rest, thinned to about one per ``spacing`` grid
     cell, skinned with their MakeHuman weights renormalized over the foot and toe joints."""
-    from humv_usd.avatar.macro import obj_data
 
     _, groups = obj_data()
     used = np.unique(groups["body"])
@@ -188,8 +199,7 @@ def foot_points_from_body(skeleton: Skeleton, body_points: np.ndarray, max_heigh
         cs = cells[order]
         first = np.r_[True, np.any(cs[1:] != cs[:-1], axis=1)]
         pick = order[first]
-        out[side] = _foot_points(skeleton, side, P[ids[pick]],
-                                 wt[pick] / (wt[pick] + wf[pick]), "body")
+        out[side] = _foot_points(skeleton, side, P[ids[pick]], wt[pick] / (wt[pick] + wf[pick]), "body")
     return out
 
 
@@ -197,15 +207,16 @@ def foot_points_from_body(skeleton: Skeleton, body_points: np.ndarray, max_heigh
 @dataclass
 class Stance:
     """One planted stance phase of one foot (frames ``start`` .. ``stop - 1``)."""
+
     start: int
     stop: int
-    origin: np.ndarray        # (3,) plane point under the first pivot (world)
-    plane: np.ndarray         # (3, 3) rotation: plane frame -> world (z = plane normal)
-    yaw: float                # frozen heading [rad]
-    ankle: np.ndarray | None = None      # (n, 3) world ankle positions
-    foot_rot: np.ndarray | None = None   # (n, 3, 3) world foot rotations
-    toe_rot: np.ndarray | None = None    # (n, 3, 3) world toe rotations
-    pivot_z: np.ndarray | None = None    # (n,) world height of the pivot
+    origin: np.ndarray  # (3,) plane point under the first pivot (world)
+    plane: np.ndarray  # (3, 3) rotation: plane frame -> world (z = plane normal)
+    yaw: float  # frozen heading [rad]
+    ankle: np.ndarray | None = None  # (n, 3) world ankle positions
+    foot_rot: np.ndarray | None = None  # (n, 3, 3) world foot rotations
+    toe_rot: np.ndarray | None = None  # (n, 3, 3) world toe rotations
+    pivot_z: np.ndarray | None = None  # (n,) world height of the pivot
 
 
 def intervals(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -223,7 +234,7 @@ def _fit_planes(ground: Ground, prints: list[np.ndarray]) -> list[tuple[np.ndarr
     heights = ground.height(np.concatenate(prints))
     out, k = [], 0
     for fp in prints:
-        h = heights[k:k + len(fp)]
+        h = heights[k : k + len(fp)]
         k += len(fp)
         d = fp - fp[0]
         A = np.column_stack([np.ones(len(fp)), d])
@@ -231,13 +242,18 @@ def _fit_planes(ground: Ground, prints: list[np.ndarray]) -> list[tuple[np.ndarr
         coef[0] += max(float(np.max(h - A @ coef)), 0.0)
         n = np.array([-coef[1], -coef[2], 1.0])
         n /= np.linalg.norm(n)
-        out.append((np.array([fp[0, 0], fp[0, 1], coef[0]]),
-                    align_matrix(np.array([0.0, 0.0, 1.0]), n)))
+        out.append((np.array([fp[0, 0], fp[0, 1], coef[0]]), align_matrix(np.array([0.0, 0.0, 1.0]), n)))
     return out
 
 
-def plant_stance(ground: Ground, feet: FootPoints, stance: np.ndarray, ankle_xy: np.ndarray,
-                 yaw: np.ndarray, pitch: np.ndarray) -> list[Stance]:
+def plant_stance(
+    ground: Ground,
+    feet: FootPoints,
+    stance: np.ndarray,
+    ankle_xy: np.ndarray,
+    yaw: np.ndarray,
+    pitch: np.ndarray,
+) -> list[Stance]:
     """Planted stance phases of one foot.
 
     stance (F,) bool; ankle_xy (F, 2) nominal ankle position (only the first frame of each
@@ -246,7 +262,7 @@ def plant_stance(ground: Ground, feet: FootPoints, stance: np.ndarray, ankle_xy:
     """
     runs = intervals(stance)
     prints, firsts = [], []
-    flat_rel = feet.relative(np.eye(3), np.eye(3))                       # (n, 3)
+    flat_rel = feet.relative(np.eye(3), np.eye(3))  # (n, 3)
     for a, _ in runs:
         qf = rot_z(yaw[a]) @ rot_x(-pitch[a])
         qt = rot_z(yaw[a]) @ rot_x(-max(pitch[a], 0.0))
@@ -263,7 +279,7 @@ def plant_stance(ground: Ground, feet: FootPoints, stance: np.ndarray, ankle_xy:
         p = pitch[a:b]
         qf = rot_z(psi) @ rot_x(-p)
         qt = rot_z(psi) @ rot_x(-np.maximum(p, 0.0))
-        rel = feet.relative(qf, qt)                                      # (n, m, 3) plane frame
+        rel = feet.relative(qf, qt)  # (n, m, 3) plane frame
         ankle = np.empty((b - a, 3))
         anchor = np.zeros(3)
         for i in range(b - a):
@@ -287,8 +303,11 @@ def plant_stance(ground: Ground, feet: FootPoints, stance: np.ndarray, ankle_xy:
 def support_height(stances: dict[str, list[Stance]], frames: int) -> np.ndarray:
     """Ground height under the body: through the mean pivot height of each stance phase at
     its middle frame, linear in between (a ramp on a slope, a smooth track over bumps)."""
-    keys = sorted(((st.start + st.stop - 1) / 2.0, float(np.mean(st.pivot_z)))
-                  for runs in stances.values() for st in runs)
+    keys = sorted(
+        ((st.start + st.stop - 1) / 2.0, float(np.mean(st.pivot_z)))
+        for runs in stances.values()
+        for st in runs
+    )
     if not keys:
         return np.zeros(frames)
     t, h = np.array(keys).T
@@ -298,10 +317,10 @@ def support_height(stances: dict[str, list[Stance]], frames: int) -> np.ndarray:
 # ------------------------------------------------------------------------- swing
 @dataclass
 class FootTargets:
-    ankle: np.ndarray        # (F, 3)
-    foot_rot: np.ndarray     # (F, 3, 3)
-    toe_rot: np.ndarray      # (F, 3, 3)
-    lift: np.ndarray         # (F,) clearance lift applied in swing [m]
+    ankle: np.ndarray  # (F, 3)
+    foot_rot: np.ndarray  # (F, 3, 3)
+    toe_rot: np.ndarray  # (F, 3, 3)
+    lift: np.ndarray  # (F,) clearance lift applied in swing [m]
 
 
 def _rot_blend(r0: np.ndarray, r1: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -310,10 +329,17 @@ def _rot_blend(r0: np.ndarray, r1: np.ndarray, s: np.ndarray) -> np.ndarray:
     return quat_to_matrix(q)
 
 
-def swing_targets(ground: Ground, feet: FootPoints, stances: list[Stance],
-                  nominal_ankle: np.ndarray, nominal_foot: np.ndarray,
-                  nominal_toe_angle: np.ndarray, support: np.ndarray | None = None,
-                  margin: float = 0.005, max_dorsi: float = np.radians(15.0)) -> FootTargets:
+def swing_targets(
+    ground: Ground,
+    feet: FootPoints,
+    stances: list[Stance],
+    nominal_ankle: np.ndarray,
+    nominal_foot: np.ndarray,
+    nominal_toe_angle: np.ndarray,
+    support: np.ndarray | None = None,
+    margin: float = 0.005,
+    max_dorsi: float = np.radians(15.0),
+) -> FootTargets:
     """Targets for every frame: planted poses in stance; in swing the nominal pose plus an
     offset blended from lift-off to touch-down, following the terrain under the foot (the
     nominal swing is designed over flat ground at height ``support`` (F,)), plus a clearance
@@ -328,12 +354,12 @@ def swing_targets(ground: Ground, feet: FootPoints, stances: list[Stance],
     foot = nominal_foot.copy()
     in_stance = np.zeros(F, bool)
     for st in stances:
-        ankle[st.start:st.stop] = st.ankle
-        foot[st.start:st.stop] = st.foot_rot
-        in_stance[st.start:st.stop] = True
+        ankle[st.start : st.stop] = st.ankle
+        foot[st.start : st.stop] = st.foot_rot
+        in_stance[st.start : st.stop] = True
     toe = foot @ rot_x(-nominal_toe_angle)
     for st in stances:
-        toe[st.start:st.stop] = st.toe_rot
+        toe[st.start : st.stop] = st.toe_rot
     swing = ~in_stance
     taper = np.zeros(F)
     runs = intervals(swing)
@@ -372,7 +398,7 @@ def swing_targets(ground: Ground, feet: FootPoints, stances: list[Stance],
         if deficit.max() > 0:
             need = np.where(ahead, deficit / np.maximum(reach, 0.05), 0.0)
             tilt = np.minimum(_envelope(need, swing), max_dorsi)
-            lat = foot[:, :, 0]                                          # foot's lateral axis
+            lat = foot[:, :, 0]  # foot's lateral axis
             turn = np.stack([_axis_rot(lat[i], tilt[i]) for i in range(F)])
             foot = turn @ foot
             toe = turn @ toe
@@ -390,7 +416,7 @@ def _clearance(ground, feet, ankle, foot, toe, swing, margin):
     deficit = np.zeros(F)
     reach = np.ones(F)
     ahead = np.zeros(F, bool)
-    rel = feet.relative(foot[swing], toe[swing])                         # (m, n, 3)
+    rel = feet.relative(foot[swing], toe[swing])  # (m, n, 3)
     pts = ankle[swing][:, None, :] + rel
     h = pts[..., 2] - ground.height(pts[..., :2])
     k = np.argmin(h, axis=1)
@@ -425,11 +451,11 @@ class LegChain:
     knee: int
     ankle: int
     toe: int
-    hip_offset: np.ndarray   # rest hip joint minus rest root
-    u: np.ndarray            # rest thigh vector
-    w: np.ndarray            # rest shank vector
-    phi0: float              # knee angle of the straightest leg [rad]
-    reach: float             # max hip-ankle distance (knee at phi0 + min flexion)
+    hip_offset: np.ndarray  # rest hip joint minus rest root
+    u: np.ndarray  # rest thigh vector
+    w: np.ndarray  # rest shank vector
+    phi0: float  # knee angle of the straightest leg [rad]
+    reach: float  # max hip-ankle distance (knee at phi0 + min flexion)
 
 
 def leg_chain(skeleton: Skeleton, side: str, min_flexion: float = np.radians(1.0)) -> LegChain:
@@ -452,12 +478,13 @@ def reach_drop(chain: LegChain, root_pos, root_rot, ankle: np.ndarray) -> np.nda
     """How far (>= 0) [m] the root must drop per frame for the ankle target to be in reach."""
     r = ankle - hip_positions(chain, root_pos, root_rot)
     lim = chain.reach * 0.9995
-    horiz = np.maximum(lim ** 2 - r[:, 0] ** 2 - r[:, 1] ** 2, 0.0)
+    horiz = np.maximum(lim**2 - r[:, 0] ** 2 - r[:, 1] ** 2, 0.0)
     return np.maximum(-np.sqrt(horiz) - r[:, 2], 0.0)
 
 
-def leg_ik(chain: LegChain, root_pos: np.ndarray, root_rot: np.ndarray, hip_nominal: np.ndarray,
-           targets: FootTargets) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def leg_ik(
+    chain: LegChain, root_pos: np.ndarray, root_rot: np.ndarray, hip_nominal: np.ndarray, targets: FootTargets
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Local rotations (hip, knee, ankle, toe), each (F, 3, 3), placing the ankle on its target
     (clamped to the leg's reach) with the target foot and toe orientations. ``hip_nominal``
     (F, 3, 3) is the hip's nominal local rotation (its swivel is kept)."""
@@ -469,9 +496,8 @@ def leg_ik(chain: LegChain, root_pos: np.ndarray, root_rot: np.ndarray, hip_nomi
     pp = u[1] * w[1] + u[2] * w[2]
     qq = u[2] * w[1] - u[1] * w[2]
     rho = np.hypot(pp, qq)
-    c = (d ** 2 - uu - ww - 2 * u[0] * w[0]) / (2 * rho)
-    min_flex = np.arccos(np.clip((chain.reach ** 2 - uu - ww - 2 * u[0] * w[0]) / (2 * rho),
-                                 -1.0, 1.0))
+    c = (d**2 - uu - ww - 2 * u[0] * w[0]) / (2 * rho)
+    min_flex = np.arccos(np.clip((chain.reach**2 - uu - ww - 2 * u[0] * w[0]) / (2 * rho), -1.0, 1.0))
     kappa = chain.phi0 + np.maximum(np.arccos(np.clip(c, -1.0, 1.0)), min_flex)
     knee = rot_x(kappa)
     thigh_nom = root_rot @ hip_nominal
@@ -485,9 +511,15 @@ def leg_ik(chain: LegChain, root_pos: np.ndarray, root_rot: np.ndarray, hip_nomi
 
 
 # ------------------------------------------------------------------------- settle
-def settle_root(ground: Ground, feet: dict[str, FootPoints], world_rot: np.ndarray,
-                world_pos: np.ndarray, fps: float, speed_tol: float = 0.25,
-                near: float = 0.05) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def settle_root(
+    ground: Ground,
+    feet: dict[str, FootPoints],
+    world_rot: np.ndarray,
+    world_pos: np.ndarray,
+    fps: float,
+    speed_tol: float = 0.25,
+    near: float = 0.05,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Vertical root offsets (F,) for a given motion (e.g. imported mocap): in frames where a
     foot is planted (its lowest point within ``near`` of the ground and moving horizontally
     slower than ``speed_tol`` [m/s]) the lowest planted point is put on the ground; no foot
@@ -512,7 +544,7 @@ def settle_root(ground: Ground, feet: dict[str, FootPoints], world_rot: np.ndarr
         planted[side] = (low < near) & (speed < speed_tol)
         low_all = np.minimum(low_all, low)
         low_planted = np.where(planted[side], np.minimum(low_planted, low), low_planted)
-    floor = -low_all                                          # lift out of the ground
+    floor = -low_all  # lift out of the ground
     want = np.where(np.isfinite(low_planted), -low_planted, floor)
     off = np.maximum(gaussian_filter1d(np.maximum(want, floor), 1.0, mode="nearest"), floor)
     return off, planted
@@ -528,9 +560,14 @@ def smooth_drop(need: np.ndarray, sigma: float) -> np.ndarray:
     return np.maximum(env, need)
 
 
-def contact_report(ground: Ground, feet: dict[str, FootPoints], world_rot: np.ndarray,
-                   world_pos: np.ndarray, stance: dict[str, np.ndarray],
-                   contact_tol: float = 0.01) -> dict:
+def contact_report(
+    ground: Ground,
+    feet: dict[str, FootPoints],
+    world_rot: np.ndarray,
+    world_pos: np.ndarray,
+    stance: dict[str, np.ndarray],
+    contact_tol: float = 0.01,
+) -> dict:
     """Gap, penetration and stance slip of the posed feet.
 
     * gap: per frame with a foot in stance, the height of the lowest point of the stance feet
@@ -544,7 +581,7 @@ def contact_report(ground: Ground, feet: dict[str, FootPoints], world_rot: np.nd
     lowest = np.full(F, np.inf)
     deepest = 0.0
     for side, fp in feet.items():
-        pts = fp.world(world_rot, world_pos)                             # (F, n, 3)
+        pts = fp.world(world_rot, world_pos)  # (F, n, 3)
         h = pts[..., 2] - ground.height(pts[..., :2])
         st = np.asarray(stance[side], bool)
         low = h.min(axis=1)
@@ -560,14 +597,19 @@ def contact_report(ground: Ground, feet: dict[str, FootPoints], world_rot: np.nd
                 sel = xy[touch[:, j], j]
                 if len(sel) > 1:
                     slip = max(slip, float(np.max(np.linalg.norm(sel - sel[0], axis=1))))
-        per[side.lower()] = {"max_gap_m": gap, "max_penetration_m": pen, "max_slip_m": slip,
-                             "stance_frames": int(st.sum())}
+        per[side.lower()] = {
+            "max_gap_m": gap,
+            "max_penetration_m": pen,
+            "max_slip_m": slip,
+            "stance_frames": int(st.sum()),
+        }
     have = np.isfinite(lowest)
     return {
         "max_gap_m": float(max(lowest[have].max(), 0.0)) if have.any() else 0.0,
         "max_penetration_m": deepest,
         "max_slip_m": max(v["max_slip_m"] for v in per.values()),
-        "left": per["left"], "right": per["right"],
+        "left": per["left"],
+        "right": per["right"],
         "flight_frames": int((~have).sum()),
         "contact_points": next(iter(feet.values())).source,
         "contact_tolerance_m": contact_tol,

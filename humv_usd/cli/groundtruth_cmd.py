@@ -1,5 +1,6 @@
 """Ground-truth commands: ``humv-usd regions``, ``humv-usd coco-merge``, ``humv-usd bench labels``
 (registered on the ``humv-usd`` group by :func:`register`)."""
+
 from __future__ import annotations
 
 import json
@@ -13,13 +14,26 @@ from humv_usd.errors import InputError
 
 @click.command()
 @click.argument("render_dir", type=click.Path(file_okay=False, path_type=Path))
-@click.option("--real", "real", default=None, type=click.Path(dir_okay=False, path_type=Path),
-              help="A real image (single channel; any format OpenImageIO reads) to compare with.")
-@click.option("--masks", default=None, type=click.Path(dir_okay=False, path_type=Path),
-              help="PNG of body region ids for --real (0 = not the person; ids of "
-                   "humv_usd.avatar.labels.BODY_REGIONS; the render writes <frame>.region_ids.png).")
-@click.option("--quantity", default=None, type=click.Choice(["counts", "radiance", "Y", "temperature"]),
-              help="Image quantity (default: counts if the EXR has them, else radiance; EO: luminance Y).")
+@click.option(
+    "--real",
+    "real",
+    default=None,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="A real image (single channel; any format OpenImageIO reads) to compare with.",
+)
+@click.option(
+    "--masks",
+    default=None,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="PNG of body region ids for --real (0 = not the person; ids of "
+    "humv_usd.human.labels.BODY_REGIONS; the render writes <frame>.region_ids.png).",
+)
+@click.option(
+    "--quantity",
+    default=None,
+    type=click.Choice(["counts", "radiance", "Y", "temperature"]),
+    help="Image quantity (default: counts if the EXR has them, else radiance; EO: luminance Y).",
+)
 @click.option("--sensor", default=None, help="Sensor compared with --real (default: the first).")
 @click.option("--frame", default=None, type=int, help="Frame compared with --real (default: the first).")
 @reports_errors
@@ -33,11 +47,15 @@ def regions(render_dir: Path, real, masks, quantity, sensor, frame):
     path = R.write_regions(render_dir, records)
     chosen = real_stats = None
     if real is not None:
-        candidates = [r for r in records if (sensor is None or r["sensor"] == sensor)
-                      and (frame is None or r["frame"] == frame)]
+        candidates = [
+            r
+            for r in records
+            if (sensor is None or r["sensor"] == sensor) and (frame is None or r["frame"] == frame)
+        ]
         if not candidates:
-            raise InputError(f"--sensor/--frame = {sensor}/{frame}: no rendered person image with "
-                             "body regions matches")
+            raise InputError(
+                f"--sensor/--frame = {sensor}/{frame}: no rendered person image with body regions matches"
+            )
         chosen = candidates[0]
         real_stats = R.real_regions(real, masks)
     for r in records:
@@ -48,8 +66,14 @@ def regions(render_dir: Path, real, masks, quantity, sensor, frame):
 
 @click.command("coco-merge")
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("-o", "--out", "out", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="The merged dataset JSON.")
+@click.option(
+    "-o",
+    "--out",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The merged dataset JSON.",
+)
 @reports_errors
 def coco_merge(inputs, out: Path):
     """Merge per-render COCO files (coco.json, or render folders holding one) into one dataset."""
@@ -68,7 +92,7 @@ def coco_merge(inputs, out: Path):
 def bench_labels(render_dir: Path, sensor, frame):
     """Label agreement of a render with an independent embree ray cast, and the ground truth's
     cost relative to the Monte Carlo render (from the manifest)."""
-    from humv_usd.groundtruth.bench import label_agreement
+    from humv_usd.bench.labels import label_agreement
 
     try:
         manifest = json.loads((render_dir / "manifest.json").read_text())
@@ -79,9 +103,11 @@ def bench_labels(render_dir: Path, sensor, frame):
         click.echo(json.dumps(label_agreement(render_dir, name, frame)))
     gt = manifest.get("ground_truth") or {}
     if gt.get("cost_relative_to_render") is not None:
-        click.echo(f"ground truth {gt['timings_s']['total']:.2f} s = {gt['cost_relative_to_render']:.3f} x "
-                   f"the Monte Carlo render ({manifest['settings']['spp']} spp); per annotator: "
-                   + ", ".join(f"{k} {v:.2f}" for k, v in gt["timings_s"].items() if k != "total" and v))
+        click.echo(
+            f"ground truth {gt['timings_s']['total']:.2f} s = {gt['cost_relative_to_render']:.3f} x "
+            f"the Monte Carlo render ({manifest['settings']['spp']} spp); per annotator: "
+            + ", ".join(f"{k} {v:.2f}" for k, v in gt["timings_s"].items() if k != "total" and v)
+        )
 
 
 def register(main, bench) -> None:

@@ -2,11 +2,12 @@
 
 The stage's frame is exported again (:class:`humv_usd.render.export.StageExport`: world points
 posed by UsdSkel, fan triangles), every triangle goes into one embree BVH (trimesh + embreex,
-not Mitsuba), and the pixel-centre rays of :class:`~humv_usd.groundtruth.camera.Camera` find the
+not Mitsuba), and the pixel-centre rays of :class:`~humv_usd.geometry.camera.Camera` find the
 first triangle; its part's instance id and its face's body region are compared with the EXR's
 ``instance_id`` and ``body_region``. Disagreements are split into edge pixels (a 4-neighbour
 has another id: the two casts round a ray that grazes a triangle edge differently) and the rest.
 """
+
 from __future__ import annotations
 
 import json
@@ -15,9 +16,12 @@ import os
 import numpy as np
 
 from humv_usd.errors import InputError
+from humv_usd.geometry.camera import Camera
 from humv_usd.groundtruth import labels as L
-from humv_usd.groundtruth.camera import Camera
+from humv_usd.groundtruth.boxes import _intersector
 from humv_usd.groundtruth.regions import read_image
+from humv_usd.render.export import StageExport
+from humv_usd.usd.layers import open_stage
 
 
 def _edge(ids: np.ndarray) -> np.ndarray:
@@ -32,9 +36,6 @@ def _edge(ids: np.ndarray) -> np.ndarray:
 def label_agreement(render_dir, sensor: str | None = None, frame: int | None = None) -> dict:
     """Fractions of pixels whose instance id and body region agree with an embree ray cast."""
     import trimesh
-
-    from humv_usd.render.export import StageExport
-    from humv_usd.usd.layers import open_stage
 
     with open(os.path.join(os.fspath(render_dir), "manifest.json"), encoding="utf-8") as f:
         manifest = json.load(f)
@@ -66,17 +67,21 @@ def label_agreement(render_dir, sensor: str | None = None, frame: int | None = N
     w, h = rec["resolution"]
     cam = Camera.from_pose(state.cameras[sen.name], w, h)
     dirs = cam.pixel_rays().reshape(-1, 3)
-    from humv_usd.groundtruth.boxes import _intersector
     first = _intersector(mesh).intersects_first(np.broadcast_to(cam.origin, dirs.shape).copy(), dirs)
     hit = first >= 0
     ref_inst = np.where(hit, inst[np.where(hit, first, 0)], 0).reshape(h, w)
     ref_region = np.where(hit, region[np.where(hit, first, 0)], 0).reshape(h, w)
     ours_inst = np.rint(ch["instance_id"]).astype(np.int64)
     same = ours_inst == ref_inst
-    out = {"sensor": rec["name"], "frame": fr["frame"], "pixels": int(w * h), "triangles": int(len(mesh.faces)),
-           "instance_agreement": float(same.mean()),
-           "instance_disagreeing_off_edges": int((~same & ~_edge(ref_inst)).sum()),
-           "instance_disagreeing_on_edges": int((~same & _edge(ref_inst)).sum())}
+    out = {
+        "sensor": rec["name"],
+        "frame": fr["frame"],
+        "pixels": int(w * h),
+        "triangles": int(len(mesh.faces)),
+        "instance_agreement": float(same.mean()),
+        "instance_disagreeing_off_edges": int((~same & ~_edge(ref_inst)).sum()),
+        "instance_disagreeing_on_edges": int((~same & _edge(ref_inst)).sum()),
+    }
     if "body_region" in ch:
         ours_region = np.rint(ch["body_region"]).astype(np.int64)
         same_r = ours_region == ref_region

@@ -1,9 +1,9 @@
 """Sensor chain: optics PSF, detector noise, quantization to counts, gain/offset and AGC.
 
 Pure numpy (scipy for the FFT convolution and the Bessel function); no USD except in
-:meth:`SensorModel.from_prim`. The render calls it once per sensor and frame::
+:func:`humv_usd.usd.sensor.read_sensor_model`. The render calls it once per sensor and frame::
 
-    model = SensorModel.from_prim(camera_prim)          # once per sensor
+    model = read_sensor_model(camera_prim)          # once per sensor
     out = apply_chain(radiance, model, rng)             # per frame
     out.counts   # uint16 raw counts (bit_depth bits): the 14/16-bit output
     out.image8   # uint8 after AGC: the 8-bit output
@@ -26,6 +26,7 @@ integrated over the pixel footprint) -> detector noise (IR: Gaussian with sigma 
 NETD; EO: photon shot noise + read noise in electrons) -> counts = clip(round(gain L + offset),
 0, 2^bits - 1) -> AGC to 8 bits (none, linear percentile stretch, histogram equalisation).
 """
+
 from __future__ import annotations
 
 import functools
@@ -153,8 +154,10 @@ class SensorModel:
         """Full horizontal and vertical field of view [deg]."""
         w, h = self.resolution
         f = self.focal_length_m
-        return (math.degrees(2 * math.atan(0.5 * w * self.pixel_pitch_m / f)),
-                math.degrees(2 * math.atan(0.5 * h * self.pixel_pitch_m / f)))
+        return (
+            math.degrees(2 * math.atan(0.5 * w * self.pixel_pitch_m / f)),
+            math.degrees(2 * math.atan(0.5 * h * self.pixel_pitch_m / f)),
+        )
 
     @property
     def ifov_rad(self) -> float:
@@ -165,74 +168,6 @@ class SensorModel:
     def response_pair(self):
         """(wavelengths_um, response) as :mod:`humv_usd.physics.planck` takes it."""
         return self.response_wavelengths_um, self.response
-
-    # --- from USD ------------------------------------------------------------------------------
-    @classmethod
-    def from_prim(cls, prim) -> "SensorModel":
-        """Read a UsdGeom.Camera with HumvSensorAPI (schema fallbacks for unauthored values).
-
-        Focal length comes from the camera (tenths of a scene unit, scaled by the stage's
-        metersPerUnit); everything else from ``humv:sensor:*``.
-        """
-        from pxr import UsdGeom  # USD only here: the chain itself is pure numpy
-
-        from humv_usd.errors import InputError, bad_value
-        from humv_usd.usd import schemas as S
-
-        path = str(prim.GetPath())
-
-        def get(name, default=None):
-            attr = prim.GetAttribute(name)
-            value = attr.Get() if attr else None
-            return default if value is None else value
-
-        band = str(get(S.SENSOR_BAND, "LWIR"))
-        rng = get(S.SENSOR_WAVELENGTH_RANGE)
-        if rng is None:
-            raise InputError(bad_value(f"{path}.{S.SENSOR_WAVELENGTH_RANGE}", None,
-                                       "expected (lower, upper) [um]"))
-        lo, hi = float(rng[0]), float(rng[1])
-        wl = get(S.SENSOR_RESPONSE_WAVELENGTHS)
-        r = get(S.SENSOR_RESPONSE)
-        if wl is None or len(wl) < 2:
-            wl, r = np.array([lo, hi]), np.array([1.0, 1.0])
-        wl = np.asarray(wl, dtype=float)
-        r = np.asarray(r, dtype=float)
-        channel = get(S.SENSOR_CHANNEL_RESPONSE)
-        if channel is not None and len(channel) > 0:
-            channel = np.asarray(channel, dtype=float)
-            if channel.size % wl.size:
-                raise InputError(bad_value(f"{path}.{S.SENSOR_CHANNEL_RESPONSE}", f"<{channel.size} values>",
-                                           f"expected a multiple of {wl.size} (channels x responseWavelengths)"))
-            channel = channel.reshape(-1, wl.size)
-        else:
-            channel = None
-        res = get(S.SENSOR_RESOLUTION, (640, 512))
-        stage = prim.GetStage()
-        mpu = UsdGeom.GetStageMetersPerUnit(stage) if stage else 1.0
-        focal = UsdGeom.Camera(prim).GetFocalLengthAttr().Get()
-        focal_m = float(focal) * 0.1 * mpu if focal else 0.0
-        gain = get(S.SENSOR_GAIN)
-        pct = get(S.SENSOR_AGC_PERCENTILES, (1.0, 99.0))
-        try:
-            return cls(
-                name=prim.GetName(), band=band, wavelength_range_um=(lo, hi),
-                response_wavelengths_um=wl, response=r, channel_response=channel,
-                resolution=(int(res[0]), int(res[1])),
-                pixel_pitch_m=float(get(S.SENSOR_PIXEL_PITCH, 12e-6)),
-                f_number=float(get(S.SENSOR_F_NUMBER, 1.0)), focal_length_m=focal_m,
-                netd_k=float(get(S.SENSOR_NETD, 0.05)), bit_depth=int(get(S.SENSOR_BIT_DEPTH, 14)),
-                gain=None if gain is None else float(gain), offset=float(get(S.SENSOR_OFFSET, 0.0)),
-                agc=str(get(S.SENSOR_AGC, "linear")),
-                agc_percentiles=(float(pct[0]), float(pct[1])),
-                full_well_e=float(get(S.SENSOR_FULL_WELL, 10500.0)),
-                read_noise_e=float(get(S.SENSOR_READ_NOISE, 2.5)),
-                reference_temperature_k=float(get(S.SENSOR_REFERENCE_TEMPERATURE, 300.0)),
-                preset=str(get(S.SENSOR_PRESET, "")),
-                netd_note=str(prim.GetAttribute(S.SENSOR_NETD).GetCustomDataByKey("humv:netdScaling") or "")
-                if prim.GetAttribute(S.SENSOR_NETD) else "")
-        except ValueError as exc:
-            raise InputError(f"{path}: {exc}") from None
 
 
 @dataclass
@@ -341,9 +276,15 @@ def psf_weights(model: SensorModel, wavelengths_um, channel: int | None = None) 
     return w / total
 
 
-def psf_kernel(model: SensorModel, wavelengths_um=None, *, pixel_footprint: bool = True,
-               channel: int | None = None, energy: float = PSF_ENERGY,
-               max_radius_px: int = PSF_MAX_RADIUS_PX) -> np.ndarray:
+def psf_kernel(
+    model: SensorModel,
+    wavelengths_um=None,
+    *,
+    pixel_footprint: bool = True,
+    channel: int | None = None,
+    energy: float = PSF_ENERGY,
+    max_radius_px: int = PSF_MAX_RADIUS_PX,
+) -> np.ndarray:
     r"""Discrete optics + detector PSF on the pixel grid: a square, odd-sized kernel summing to 1.
 
     Parameters
@@ -387,8 +328,11 @@ def psf_kernel(model: SensorModel, wavelengths_um=None, *, pixel_footprint: bool
     .. [2] G. D. Boreman, Modulation Transfer Function in Optical and Electro-Optical Systems,
        SPIE Press, 2001.
     """
-    wl = _default_wavelengths(model) if wavelengths_um is None else np.atleast_1d(
-        np.asarray(wavelengths_um, dtype=float))
+    wl = (
+        _default_wavelengths(model)
+        if wavelengths_um is None
+        else np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
+    )
     w = psf_weights(model, wl, channel)
     keep = w > 0
     wl, w = wl[keep], w[keep]
@@ -418,9 +362,9 @@ def psf_kernel(model: SensorModel, wavelengths_um=None, *, pixel_footprint: bool
         quadrant += weight * airy_psf(rr, lam, n)
     fine = np.empty((axis.size, axis.size))
     fine[c:, c:] = quadrant
-    fine[:c + 1, c:] = quadrant[::-1, :]
-    fine[c:, :c + 1] = quadrant[:, ::-1]
-    fine[:c + 1, :c + 1] = quadrant[::-1, ::-1]
+    fine[: c + 1, c:] = quadrant[::-1, :]
+    fine[c:, : c + 1] = quadrant[:, ::-1]
+    fine[: c + 1, : c + 1] = quadrant[::-1, ::-1]
     size = 2 * radius + 1
     # mean over the q x q sub-samples x pixel area = integral over the pixel
     kernel = fine.reshape(size, q, size, q).mean(axis=(1, 3)) * pitch_um * pitch_um
@@ -432,12 +376,21 @@ _KERNELS: dict[tuple, np.ndarray] = {}
 
 def cached_psf_kernel(model: SensorModel, wavelengths_um=None, channel: int | None = None) -> np.ndarray:
     """:func:`psf_kernel` memoised on everything it depends on (the chain runs every frame)."""
-    curve = model.response if channel is None or model.channel_response is None \
+    curve = (
+        model.response
+        if channel is None or model.channel_response is None
         else model.channel_response[channel]
-    key = (model.band, float(model.f_number), float(model.pixel_pitch_m),
-           float(model.reference_temperature_k), tuple(model.response_wavelengths_um.tolist()),
-           tuple(np.asarray(curve).tolist()), model.wavelength_range_um,
-           None if wavelengths_um is None else tuple(np.atleast_1d(wavelengths_um).tolist()))
+    )
+    key = (
+        model.band,
+        float(model.f_number),
+        float(model.pixel_pitch_m),
+        float(model.reference_temperature_k),
+        tuple(model.response_wavelengths_um.tolist()),
+        tuple(np.asarray(curve).tolist()),
+        model.wavelength_range_um,
+        None if wavelengths_um is None else tuple(np.atleast_1d(wavelengths_um).tolist()),
+    )
     kernel = _KERNELS.get(key)
     if kernel is None:
         if len(_KERNELS) > 64:
@@ -468,9 +421,11 @@ def convolve_psf(image: np.ndarray, kernel: np.ndarray) -> np.ndarray:
     padded = np.pad(np.asarray(image, dtype=float), k, mode="reflect")
     full = [a + b - 1 for a, b in zip(padded.shape, kernel.shape)]
     fast = [sp_fft.next_fast_len(n, True) for n in full]
-    out = sp_fft.irfft2(sp_fft.rfft2(padded, fast) * sp_fft.rfft2(np.asarray(kernel, dtype=float), fast), fast)
+    out = sp_fft.irfft2(
+        sp_fft.rfft2(padded, fast) * sp_fft.rfft2(np.asarray(kernel, dtype=float), fast), fast
+    )
     h, w = np.shape(image)
-    return out[2 * k:2 * k + h, 2 * k:2 * k + w]
+    return out[2 * k : 2 * k + h, 2 * k : 2 * k + w]
 
 
 # ============================================================================ radiometry
@@ -497,8 +452,11 @@ def integrate_response(wavelengths_um, spectral_radiance, model: SensorModel) ->
     """
     wl = np.asarray(wavelengths_um, dtype=float)
     spec = np.asarray(spectral_radiance, dtype=float)
-    curves = model.channel_response if (not model.is_infrared and model.channel_response is not None) \
+    curves = (
+        model.channel_response
+        if (not model.is_infrared and model.channel_response is not None)
         else model.response[None, :]
+    )
     r = np.stack([np.interp(wl, model.response_wavelengths_um, c, left=0.0, right=0.0) for c in curves])
     out = np.stack([np.trapz(spec * rc, wl, axis=-1) for rc in r], axis=-1)
     return out[..., 0] if model.is_infrared else out
@@ -526,7 +484,8 @@ def noise_sigma_radiance(model: SensorModel, reference_temperature_k: float | No
     """
     t_ref = model.reference_temperature_k if reference_temperature_k is None else reference_temperature_k
     return float(model.netd_k) * planck.band_radiance_derivative(
-        t_ref, model.wavelength_range_um, model.response_pair)
+        t_ref, model.wavelength_range_um, model.response_pair
+    )
 
 
 def default_gain_offset(model: SensorModel, span_k=DEFAULT_SPAN_K) -> tuple[float, float]:
@@ -618,9 +577,10 @@ def _ccm_cached(wl: tuple, curves: tuple) -> np.ndarray:
     xyz_bar = cmfs.copy().align(colour.SpectralShape(400, 700, 5)).values  # (K, 3)
     s_d65 = d65.copy().align(colour.SpectralShape(400, 700, 5)).values
     xyz_to_srgb = colour.models.RGB_COLOURSPACE_sRGB.matrix_XYZ_to_RGB
-    target = xyz_bar @ xyz_to_srgb.T                      # sRGB colour-matching functions (K, 3)
-    cam = np.stack([np.interp(lam_nm / 1000.0, np.asarray(wl), np.asarray(c), left=0, right=0)
-                    for c in curves], axis=1)             # (K, 3)
+    target = xyz_bar @ xyz_to_srgb.T  # sRGB colour-matching functions (K, 3)
+    cam = np.stack(
+        [np.interp(lam_nm / 1000.0, np.asarray(wl), np.asarray(c), left=0, right=0) for c in curves], axis=1
+    )  # (K, 3)
     # least-squares M with cam @ M.T ~ target, weighted by D65 (Luther-Ives fit)
     sw = np.sqrt(s_d65)[:, None]
     m_t, *_ = np.linalg.lstsq(cam * sw, target * sw, rcond=None)
@@ -643,14 +603,24 @@ def colour_correction_matrix(model: SensorModel) -> np.ndarray:
     """
     if model.channel_response is None or model.channel_response.shape[0] != 3:
         return np.eye(3)
-    return _ccm_cached(tuple(model.response_wavelengths_um.tolist()),
-                       tuple(tuple(c) for c in model.channel_response.tolist()))
+    return _ccm_cached(
+        tuple(model.response_wavelengths_um.tolist()),
+        tuple(tuple(c) for c in model.channel_response.tolist()),
+    )
 
 
 # ============================================================================ chain
-def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
-                reference_temperature_k: float | None = None, psf: bool = True, noise: bool = True,
-                eo_space: str = "camera", psf_wavelengths_um=None) -> ChainOutput:
+def apply_chain(
+    radiance,
+    model: SensorModel,
+    rng: np.random.Generator,
+    *,
+    reference_temperature_k: float | None = None,
+    psf: bool = True,
+    noise: bool = True,
+    eo_space: str = "camera",
+    psf_wavelengths_um=None,
+) -> ChainOutput:
     r"""Run the sensor chain on one frame.
 
     Parameters
@@ -698,11 +668,14 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
     if not model.is_infrared and (x.ndim != 3 or x.shape[2] != 3):
         raise ValueError(f"sensor {model.name!r}: EO input must be (H, W, 3), got shape {x.shape}")
     bad = ~np.isfinite(x)
-    if bad.any():   # one NaN would spread over the whole frame through the FFT convolution
+    if bad.any():  # one NaN would spread over the whole frame through the FFT convolution
         x = np.where(bad, 0.0, x)
-    settings: dict[str, Any] = {"band": model.band, "preset": model.preset,
-                                "bit_depth": int(model.bit_depth),
-                                "nonfinite_inputs_zeroed": int(bad.sum())}
+    settings: dict[str, Any] = {
+        "band": model.band,
+        "preset": model.preset,
+        "bit_depth": int(model.bit_depth),
+        "nonfinite_inputs_zeroed": int(bad.sum()),
+    }
 
     # 1. optics and pixel footprint
     if psf:
@@ -711,15 +684,21 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
             x = convolve_psf(x, kernel)
             kernels = [kernel]
         else:
-            kernels = [cached_psf_kernel(model, psf_wavelengths_um,
-                                         c if model.channel_response is not None else None)
-                       for c in range(3)]
+            kernels = [
+                cached_psf_kernel(
+                    model, psf_wavelengths_um, c if model.channel_response is not None else None
+                )
+                for c in range(3)
+            ]
             x = np.stack([convolve_psf(x[..., c], kernels[c]) for c in range(3)], axis=-1)
         pitch_um = model.pixel_pitch_m * 1e6
-        settings["psf"] = {"model": "Airy (circular pupil) x pixel footprint",
-                           "kernel_px": int(kernels[0].shape[0]),
-                           "fwhm_um": [round(kernel_fwhm_px(k) * pitch_um, 4) for k in kernels],
-                           "f_number": model.f_number, "pixel_pitch_um": pitch_um}
+        settings["psf"] = {
+            "model": "Airy (circular pupil) x pixel footprint",
+            "kernel_px": int(kernels[0].shape[0]),
+            "fwhm_um": [round(kernel_fwhm_px(k) * pitch_um, 4) for k in kernels],
+            "f_number": model.f_number,
+            "pixel_pitch_um": pitch_um,
+        }
     else:
         settings["psf"] = None
 
@@ -735,17 +714,22 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
             gain_source = f"default: {DEFAULT_SPAN_K[0]:g}-{DEFAULT_SPAN_K[1]:g} K span"
         else:
             gain, offset, gain_source = model.gain, model.offset, "authored"
-        settings["noise"] = {"model": "Gaussian, NETD-calibrated", "netd_k": model.netd_k,
-                             **({"netd_source": model.netd_note} if model.netd_note else {}),
-                             "reference_temperature_k": reference_temperature_k,
-                             "sigma_radiance": sigma}
+        settings["noise"] = {
+            "model": "Gaussian, NETD-calibrated",
+            "netd_k": model.netd_k,
+            **({"netd_source": model.netd_note} if model.netd_note else {}),
+            "reference_temperature_k": reference_temperature_k,
+            "sigma_radiance": sigma,
+        }
         noise_sigma = sigma
     else:
         if model.gain is None:
             level = float(np.percentile(x.max(axis=-1), EO_AUTO_EXPOSURE_PERCENTILE)) if x.size else 0.0
             l_sat = level / EO_AUTO_EXPOSURE_FILL if level > 0 else 1.0
-            gain_source = (f"auto exposure: {EO_AUTO_EXPOSURE_PERCENTILE:g}th percentile at "
-                           f"{EO_AUTO_EXPOSURE_FILL:.0%} of full well")
+            gain_source = (
+                f"auto exposure: {EO_AUTO_EXPOSURE_PERCENTILE:g}th percentile at "
+                f"{EO_AUTO_EXPOSURE_FILL:.0%} of full well"
+            )
             offset = model.offset
             gain = (model.max_count - offset) / l_sat
         else:
@@ -754,17 +738,26 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
         e_per_unit = model.full_well_e / l_sat
         if noise:
             electrons = np.clip(x, 0.0, None) * e_per_unit
-            electrons = rng.poisson(electrons).astype(float) + rng.normal(0.0, model.read_noise_e, size=x.shape)
+            electrons = rng.poisson(electrons).astype(float) + rng.normal(
+                0.0, model.read_noise_e, size=x.shape
+            )
             x = electrons / e_per_unit
         half = 0.5 * model.full_well_e
-        noise_sigma = math.sqrt(half + model.read_noise_e ** 2) / e_per_unit if noise else 0.0
-        settings["noise"] = {"model": "shot (Poisson) + read (Gaussian), EMVA 1288",
-                             "full_well_e": model.full_well_e, "read_noise_e": model.read_noise_e,
-                             "saturation_input": l_sat}
+        noise_sigma = math.sqrt(half + model.read_noise_e**2) / e_per_unit if noise else 0.0
+        settings["noise"] = {
+            "model": "shot (Poisson) + read (Gaussian), EMVA 1288",
+            "full_well_e": model.full_well_e,
+            "read_noise_e": model.read_noise_e,
+            "saturation_input": l_sat,
+        }
     counts = quantize(x, gain, offset, model.bit_depth)
-    settings.update(gain=float(gain), offset=float(offset), gain_source=gain_source,
-                    saturated_fraction=float(np.mean(counts == model.max_count)),
-                    noise_sigma=float(noise_sigma))
+    settings.update(
+        gain=float(gain),
+        offset=float(offset),
+        gain_source=gain_source,
+        saturated_fraction=float(np.mean(counts == model.max_count)),
+        noise_sigma=float(noise_sigma),
+    )
 
     # 4. AGC -> 8 bit
     if model.is_infrared:
@@ -772,8 +765,9 @@ def apply_chain(radiance, model: SensorModel, rng: np.random.Generator, *,
     else:
         image8, info = _eo_display(counts, model, offset, eo_space)
     settings["agc"] = info
-    return ChainOutput(counts=counts, image8=image8, radiance=x, noise_sigma=float(noise_sigma),
-                       settings=settings)
+    return ChainOutput(
+        counts=counts, image8=image8, radiance=x, noise_sigma=float(noise_sigma), settings=settings
+    )
 
 
 def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
@@ -785,8 +779,7 @@ def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
     else:
         white = float(np.percentile(lin.max(axis=-1), model.agc_percentiles[1]))
         white = white if white > 0 else full
-        info = {"mode": model.agc, "white_count": white + black,
-                "percentile": model.agc_percentiles[1]}
+        info = {"mode": model.agc, "white_count": white + black, "percentile": model.agc_percentiles[1]}
     m = colour_correction_matrix(model) if eo_space == "camera" else np.eye(3)
     if model.agc != "histogram" and np.array_equal(m, np.eye(3)):
         # per-channel map of the integer counts: a lookup table gives the very same values

@@ -25,15 +25,18 @@ and cylinders, closed-form distance :func:`prop_signed_distance`), and the arms'
 re-solved; offsets are smoothed over time. The clothing layer measures the result on the
 authored motion per frame (customData ``humv:prop``).
 """
+
 from __future__ import annotations
 
 import dataclasses
 
 import numpy as np
 
-from humv_usd.avatar.skeleton import Skeleton, forward_kinematics, skinning_matrices
+from humv_usd.catalog.garments import RIFLE
+from humv_usd.human import labels as L
+from humv_usd.human.skeleton import Skeleton, forward_kinematics, skin_weights, skinning_matrices
 
-#: The rifle's own frame (see :data:`humv_usd.clothing.garments.RIFLE`): x to the muzzle,
+#: The rifle's own frame (see :data:`humv_usd.catalog.garments.RIFLE`): x to the muzzle,
 #: origin at the pistol grip's top. Right-hand grasp on the grip, left on the handguard axis.
 RIFLE_GRIP = np.array([0.0, 0.0, -0.065])
 RIFLE_HANDGUARD_Z = 0.015
@@ -47,8 +50,7 @@ _RIGHT_HAND_DIR = np.array([0.25, -1.0, -0.35])
 _LEFT_HAND_DIR = np.array([-0.45, -1.0, -0.15])
 #: Elbow pole directions (down, out, a little back).
 _POLES = {"Right": np.array([-0.6, 0.3, -1.0]), "Left": np.array([0.6, 0.3, -1.0])}
-ARM_JOINTS = tuple(f"{s}{j}" for s in ("Right", "Left")
-                   for j in ("Shoulder", "Arm", "ForeArm", "Hand"))
+ARM_JOINTS = tuple(f"{s}{j}" for s in ("Right", "Left") for j in ("Shoulder", "Arm", "ForeArm", "Hand"))
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -89,8 +91,11 @@ def _hand_rotation(skeleton: Skeleton, side: str, direction: np.ndarray) -> np.n
 
 def grasp_offsets(skeleton: Skeleton) -> dict[str, np.ndarray]:
     """Rest offset wrist -> grasp point (the hand bone's tail) per side."""
-    return {s: skeleton.tail_positions[skeleton.index(f"{s}Hand")]
-            - skeleton.rest_positions[skeleton.index(f"{s}Hand")] for s in ("Right", "Left")}
+    return {
+        s: skeleton.tail_positions[skeleton.index(f"{s}Hand")]
+        - skeleton.rest_positions[skeleton.index(f"{s}Hand")]
+        for s in ("Right", "Left")
+    }
 
 
 def rifle_frame(skeleton: Skeleton) -> np.ndarray:
@@ -100,7 +105,7 @@ def rifle_frame(skeleton: Skeleton) -> np.ndarray:
     left = right + GRIP_SPAN * _unit(_SPAN_DIR)
     # the handguard point at GRIP_SPAN from the grip point, in the rifle's frame
     dz = RIFLE_HANDGUARD_Z - RIFLE_GRIP[2]
-    guard = np.array([np.sqrt(GRIP_SPAN ** 2 - dz ** 2), 0.0, RIFLE_HANDGUARD_Z])
+    guard = np.array([np.sqrt(GRIP_SPAN**2 - dz**2), 0.0, RIFLE_HANDGUARD_Z])
     local_axis = _unit(guard - RIFLE_GRIP)
     # rifle axes: x along the barrel; y (its side) towards the body (+Y) as far as possible
     world_axis = _unit(left - right)
@@ -109,8 +114,8 @@ def rifle_frame(skeleton: Skeleton) -> np.ndarray:
     y = np.array([0.0, 1.0, 0.0]) - x * x[1]
     y = _unit(y)
     z = np.cross(x, y)
-    frame = np.stack([x, y, z], 1)                 # rifle-line frame -> Hips' frame
-    tilt = _min_rotation(local_axis, np.array([1.0, 0.0, 0.0]))   # rifle -> line frame
+    frame = np.stack([x, y, z], 1)  # rifle-line frame -> Hips' frame
+    tilt = _min_rotation(local_axis, np.array([1.0, 0.0, 0.0]))  # rifle -> line frame
     rot = frame @ tilt
     out = np.eye(4)
     out[:3, :3] = rot
@@ -122,7 +127,7 @@ def grasp_targets(skeleton: Skeleton) -> dict[str, np.ndarray]:
     """The hands' grasp points in the Hips' frame: grip and the handguard point."""
     m = rifle_frame(skeleton)
     dz = RIFLE_HANDGUARD_Z - RIFLE_GRIP[2]
-    guard = np.array([np.sqrt(GRIP_SPAN ** 2 - dz ** 2), 0.0, RIFLE_HANDGUARD_Z])
+    guard = np.array([np.sqrt(GRIP_SPAN**2 - dz**2), 0.0, RIFLE_HANDGUARD_Z])
     return {"Right": m[:3, :3] @ RIFLE_GRIP + m[:3, 3], "Left": m[:3, :3] @ guard + m[:3, 3]}
 
 
@@ -132,8 +137,8 @@ def _two_bone(s, t, l1, l2, pole):
     d = np.linalg.norm(d_vec, axis=1)
     d = np.clip(d, abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
     u = _unit(d_vec)
-    a = (l1 ** 2 - l2 ** 2 + d ** 2) / (2 * d)
-    h = np.sqrt(np.maximum(l1 ** 2 - a ** 2, 0.0))
+    a = (l1**2 - l2**2 + d**2) / (2 * d)
+    h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
     v = pole - u * np.einsum("fi,fi->f", pole, u)[:, None]
     v = _unit(v)
     return s + a[:, None] * u + h[:, None] * v
@@ -144,7 +149,7 @@ def _solve_arms(motion, skeleton: Skeleton, offsets: np.ndarray | None = None) -
     (F, 3) translate the rifle (and so both grasp points) per frame in the Hips' frame."""
     q = np.array(motion.local_rotations, dtype=float, copy=True)
     names = skeleton.names
-    for name in ARM_JOINTS:                      # clavicles at rest, the rest solved below
+    for name in ARM_JOINTS:  # clavicles at rest, the rest solved below
         q[:, names.index(name)] = (1.0, 0.0, 0.0, 0.0)
     world = forward_kinematics(skeleton, q, motion.root_translation)
     hips_r, hips_p = world[:, 0, :3, :3], world[:, 0, :3, 3]
@@ -155,14 +160,15 @@ def _solve_arms(motion, skeleton: Skeleton, offsets: np.ndarray | None = None) -
     rest = skeleton.rest_positions
     for side in ("Right", "Left"):
         arm, fore, hand = (names.index(f"{side}{j}") for j in ("Arm", "ForeArm", "Hand"))
-        hand_local = _hand_rotation(skeleton, side, hand_dirs[side])      # in Hips' frame
-        hand_world = hips_r @ hand_local                                  # (F, 3, 3)
+        hand_local = _hand_rotation(skeleton, side, hand_dirs[side])  # in Hips' frame
+        hand_world = hips_r @ hand_local  # (F, 3, 3)
         grasp = hips_p + np.einsum("fij,fj->fi", hips_r, targets[side] + offsets)
         wrist = grasp - hand_world @ grasp_offset[side]
         shoulder = world[:, arm, :3, 3]
         upper, lower = rest[fore] - rest[arm], rest[hand] - rest[fore]
-        elbow = _two_bone(shoulder, wrist, np.linalg.norm(upper), np.linalg.norm(lower),
-                          hips_r @ _POLES[side])
+        elbow = _two_bone(
+            shoulder, wrist, np.linalg.norm(upper), np.linalg.norm(lower), hips_r @ _POLES[side]
+        )
         parent = world[:, skeleton.parents[arm], :3, :3]
         arm_world = _min_rotation(upper, elbow - shoulder)
         fore_world = _min_rotation(arm_world @ lower, wrist - elbow) @ arm_world
@@ -172,11 +178,12 @@ def _solve_arms(motion, skeleton: Skeleton, offsets: np.ndarray | None = None) -
     return q
 
 
-def apply_rifle_carry(motion, skeleton: Skeleton, body=None, *,
-                      clearance: float | None = None, report: dict | None = None):
+def apply_rifle_carry(
+    motion, skeleton: Skeleton, body=None, *, clearance: float | None = None, report: dict | None = None
+):
     """``motion`` with both arms in the rifle carry in every frame (see module doc).
 
-    ``body``: the person's :class:`humv_usd.avatar.body.Body` (or its :class:`CarryBody`):
+    ``body``: the person's :class:`humv_usd.human.body.Body` (or its :class:`CarryBody`):
     the carry is then moved per frame until the rifle clears the body by ``clearance`` [m]
     (default :data:`CLEARANCE`; :func:`clear_rifle`); ``report`` (a dict) receives the
     clearance before/after per frame. Without ``body`` the carry is fixed in the Hips' frame
@@ -196,17 +203,19 @@ def carry_rest_transform(skeleton: Skeleton) -> np.ndarray:
     """4x4 transform rifle frame -> rest pose such that, bound rigidly to RightHand, the rifle
     is at the carry pose's hands (computed on frame 0 of a standing rest motion; the rifle is
     then fixed in the Hips' frame in every frame of any motion)."""
+
     @dataclasses.dataclass
     class _Still:
         local_rotations: np.ndarray
         root_translation: np.ndarray
+
     q = np.zeros((1, len(skeleton.names), 4))
     q[..., 0] = 1.0
     root = skeleton.rest_positions[:1].copy()
     q = _solve_arms(_Still(q, root), skeleton)
     world = forward_kinematics(skeleton, q, root)[0]
     j = skeleton.index("RightHand")
-    skin = world[j].copy()                          # world pose times the inverse rest pose
+    skin = world[j].copy()  # world pose times the inverse rest pose
     skin[:3, 3] -= world[j, :3, :3] @ skeleton.rest_positions[j]
     return np.linalg.inv(skin) @ world[0] @ rifle_frame(skeleton)
 
@@ -220,10 +229,12 @@ HOLDING_REGIONS = ("leftHand", "rightHand", "leftLowerArm", "rightLowerArm")
 #: Search passes per clearance round (each moves the violating frames' carry once).
 CLEAR_PASSES = 4
 #: Shifts tried [m] along each of :data:`_SHIFT_DIRECTIONS` (and the distance gradient).
-SHIFT_STEPS = 0.005 * 2.0 ** (np.arange(14) / 2)          # 5 mm .. 0.45 m
+SHIFT_STEPS = 0.005 * 2.0 ** (np.arange(14) / 2)  # 5 mm .. 0.45 m
 #: Unit directions (Hips' frame) to the faces, edges and corners of a cube.
-_SHIFT_DIRECTIONS = np.array([[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1)
-                              for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)], dtype=float)
+_SHIFT_DIRECTIONS = np.array(
+    [[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)],
+    dtype=float,
+)
 _SHIFT_DIRECTIONS /= np.linalg.norm(_SHIFT_DIRECTIONS, axis=1, keepdims=True)
 #: Gaussian smoothing of the per-frame carry offsets over time [s] (no popping).
 SMOOTH_S = 0.1
@@ -234,16 +245,15 @@ _FRAME_CHUNK = 32
 class CarryBody:
     """The body vertices the rifle must clear (all but :data:`HOLDING_REGIONS`), rest pose,
     with their skinning."""
-    points: np.ndarray              # (n, 3) [m]
-    joint_indices: np.ndarray       # (n, k)
-    joint_weights: np.ndarray       # (n, k)
+
+    points: np.ndarray  # (n, 3) [m]
+    joint_indices: np.ndarray  # (n, k)
+    joint_weights: np.ndarray  # (n, k)
 
 
 def carry_body(body, skeleton: Skeleton) -> CarryBody:
-    """:class:`CarryBody` of a :class:`humv_usd.avatar.body.Body` (the avatar layer's
+    """:class:`CarryBody` of a :class:`humv_usd.human.body.Body` (the avatar layer's
     skinning and body-region labels)."""
-    from humv_usd.avatar import labels as L
-    from humv_usd.avatar.skeleton import skin_weights
     mesh = body.body_mesh()
     idx, w = skin_weights(skeleton, mesh.vertex_ids, 4)
     return carry_body_of(mesh, idx, w, L.body_regions(mesh, skeleton, idx, w))
@@ -252,14 +262,14 @@ def carry_body(body, skeleton: Skeleton) -> CarryBody:
 def carry_body_of(mesh, joint_indices, joint_weights, face_regions) -> CarryBody:
     """:class:`CarryBody` of a body mesh (``face_counts``, ``face_indices``, ``points``) with
     its skinning and per-face body regions."""
-    from humv_usd.avatar import labels as L
     counts = np.asarray(mesh.face_counts)
     face_of = np.repeat(np.arange(len(counts)), counts)
     holding = np.isin(face_regions, [L.REGION_ID[r] for r in HOLDING_REGIONS])
     keep = np.zeros(len(mesh.points), dtype=bool)
     keep[np.asarray(mesh.face_indices)[~holding[face_of]]] = True
-    return CarryBody(np.asarray(mesh.points)[keep], np.asarray(joint_indices)[keep],
-                     np.asarray(joint_weights)[keep])
+    return CarryBody(
+        np.asarray(mesh.points)[keep], np.asarray(joint_indices)[keep], np.asarray(joint_weights)[keep]
+    )
 
 
 def prop_signed_distance(points: np.ndarray, prop=None) -> np.ndarray:
@@ -269,7 +279,7 @@ def prop_signed_distance(points: np.ndarray, prop=None) -> np.ndarray:
     union is the minimum, exact outside. The mesh's octagonal cylinders lie within the
     round ones (inscribed; at most 0.08 r inside them), so this errs on the safe side."""
     if prop is None:
-        from humv_usd.clothing.garments import RIFLE as prop
+        prop = RIFLE
     p = np.asarray(points, dtype=np.float64)
     out = np.full(p.shape[:-1], np.inf)
     for s in prop.shapes:
@@ -277,8 +287,7 @@ def prop_signed_distance(points: np.ndarray, prop=None) -> np.ndarray:
         if s.radius <= 0:
             q = np.abs(d) - np.asarray(s.size) / 2
         else:
-            q = np.stack([np.abs(d[..., 0]) - s.size[0] / 2,
-                          np.hypot(d[..., 1], d[..., 2]) - s.radius], -1)
+            q = np.stack([np.abs(d[..., 0]) - s.size[0] / 2, np.hypot(d[..., 1], d[..., 2]) - s.radius], -1)
         outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
         inside = np.minimum(q.max(axis=-1), 0.0)
         out = np.minimum(out, outside + inside)
@@ -287,9 +296,12 @@ def prop_signed_distance(points: np.ndarray, prop=None) -> np.ndarray:
 
 def _in_rifle_frame(cb: CarryBody, skin: np.ndarray, to_rifle: np.ndarray) -> np.ndarray:
     """(f, n, 3) the posed body vertices (linear blend skinning) in the rifle's frame."""
-    dense = np.zeros((len(cb.points), skin.shape[1]))          # (n, J) skin weights
-    np.add.at(dense, (np.repeat(np.arange(len(cb.points)), cb.joint_indices.shape[1]),
-                      cb.joint_indices.ravel()), cb.joint_weights.astype(np.float64).ravel())
+    dense = np.zeros((len(cb.points), skin.shape[1]))  # (n, J) skin weights
+    np.add.at(
+        dense,
+        (np.repeat(np.arange(len(cb.points)), cb.joint_indices.shape[1]), cb.joint_indices.ravel()),
+        cb.joint_weights.astype(np.float64).ravel(),
+    )
     joint = (to_rifle[:, None] @ skin)[..., :3, :].reshape(len(skin), -1, 12)
     blended = (dense @ joint).reshape(len(skin), -1, 3, 4)
     return np.einsum("fvij,vj->fvi", blended[..., :3], cb.points) + blended[..., 3]
@@ -302,7 +314,7 @@ def _union_distance(local: np.ndarray, prop) -> np.ndarray:
     of the frame's box-nearest point cannot be the closest one."""
     lo, hi = _prop_box(prop)
     q = np.abs(local - (lo + hi) / 2) - (hi - lo) / 2
-    out = (np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0))
+    out = np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0)
     rows = np.arange(len(local))
     near = np.argmin(out, axis=1)
     bound = prop_signed_distance(local[rows, near], prop)
@@ -313,11 +325,12 @@ def _union_distance(local: np.ndarray, prop) -> np.ndarray:
 
 def _prop_box(prop) -> tuple[np.ndarray, np.ndarray]:
     if prop is None:
-        from humv_usd.clothing.garments import RIFLE as prop
+        prop = RIFLE
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for s in prop.shapes:
-        half = (np.asarray(s.size, float) / 2 if s.radius <= 0
-                else np.array([s.size[0] / 2, s.radius, s.radius]))
+        half = (
+            np.asarray(s.size, float) / 2 if s.radius <= 0 else np.array([s.size[0] / 2, s.radius, s.radius])
+        )
         c = np.asarray(s.centre, float)
         lo, hi = np.minimum(lo, c - half), np.maximum(hi, c + half)
     return lo, hi
@@ -329,8 +342,9 @@ def rifle_world(skeleton: Skeleton, skin: np.ndarray) -> np.ndarray:
     return skin[:, skeleton.index("RightHand")] @ carry_rest_transform(skeleton)
 
 
-def rifle_clearance(cb: CarryBody, skeleton: Skeleton, skin: np.ndarray, prop=None
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rifle_clearance(
+    cb: CarryBody, skeleton: Skeleton, skin: np.ndarray, prop=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per frame: (min signed distance [m] of the body's non-holding vertices to the rifle
     solid, number of them inside it, the rifle-frame position of the closest one)."""
     skin = np.asarray(skin, dtype=np.float64)
@@ -350,21 +364,25 @@ def rifle_clearance(cb: CarryBody, skeleton: Skeleton, skin: np.ndarray, prop=No
 
 def prop_distance_gradient(p: np.ndarray, prop=None, eps: float = 1e-4) -> np.ndarray:
     """(F, 3) unit gradients of :func:`prop_signed_distance` at ``p`` (central differences)."""
-    g = np.stack([prop_signed_distance(p + eps * e, prop) - prop_signed_distance(p - eps * e, prop)
-                  for e in np.eye(3)], -1)
+    g = np.stack(
+        [
+            prop_signed_distance(p + eps * e, prop) - prop_signed_distance(p - eps * e, prop)
+            for e in np.eye(3)
+        ],
+        -1,
+    )
     n = np.linalg.norm(g, axis=-1, keepdims=True)
     return np.where(n > 0, g / np.maximum(n, 1e-12), [0.0, 1.0, 0.0])
 
 
-def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray,
-                clearance: float) -> np.ndarray:
+def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray, clearance: float) -> np.ndarray:
     """The shortest Hips-frame shift of the rifle (:data:`SHIFT_STEPS` along the distance
     gradient at the closest body vertex or any of :data:`_SHIFT_DIRECTIONS`) after which
     every body point ``local`` (rifle frame) is ``clearance`` off the solid (of the shifts of
     that length that do, the one leaving the most room); if none clears, the one that leaves
     the largest clearance. A shift of length s can only bring points nearer than
     s + clearance to the rifle's bounding box into play: only those are checked."""
-    grad_local = prop_distance_gradient(worst[None])[0]                 # body -> out, rifle frame
+    grad_local = prop_distance_gradient(worst[None])[0]  # body -> out, rifle frame
     dirs = np.vstack([-(to_local.T @ grad_local), _SHIFT_DIRECTIONS])
     lo, hi = _prop_box(None)
     q = np.abs(local - (lo + hi) / 2) - (hi - lo) / 2
@@ -372,7 +390,7 @@ def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray,
     best, best_d = dirs[0] * SHIFT_STEPS[-1], -np.inf
     for step in SHIFT_STEPS:
         near = local[box < step + clearance + 1e-3]
-        shifts = step * dirs                                   # Hips' frame
+        shifts = step * dirs  # Hips' frame
         if not len(near):
             return shifts[0]
         moved = near[None] - (shifts @ to_local.T)[:, None, :]
@@ -385,8 +403,9 @@ def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray,
     return best
 
 
-def clear_rifle(motion, skeleton: Skeleton, cb: CarryBody, clearance: float = CLEARANCE
-                ) -> tuple[np.ndarray, dict]:
+def clear_rifle(
+    motion, skeleton: Skeleton, cb: CarryBody, clearance: float = CLEARANCE
+) -> tuple[np.ndarray, dict]:
     """Arms in the carry with the rifle at least ``clearance`` off the body in every frame.
 
     Start from the fixed carry. Where a frame's closest non-holding body vertex is nearer
@@ -433,6 +452,7 @@ def clear_rifle(motion, skeleton: Skeleton, cb: CarryBody, clearance: float = CL
     offsets, q, world, check = push(offsets, q, world, check)
     if np.any(offsets) and frames > 2:
         from scipy.ndimage import gaussian_filter1d
+
         offsets = gaussian_filter1d(offsets, max(SMOOTH_S * fps, 1e-3), axis=0, mode="nearest")
         q, world, check = solve(offsets)
         offsets, q, world, check = push(offsets, q, world, check)
@@ -441,14 +461,18 @@ def clear_rifle(motion, skeleton: Skeleton, cb: CarryBody, clearance: float = CL
     reach = {}
     for side in ("Right", "Left"):
         j = skeleton.index(f"{side}Hand")
-        grasp = world[:, j, :3, 3] + np.einsum("fij,j->fi", world[:, j, :3, :3],
-                                               grasp_offsets(skeleton)[side])
-        target = world[:, 0, :3, 3] + np.einsum("fij,fj->fi", world[:, 0, :3, :3],
-                                                targets[side] + offsets)
+        grasp = world[:, j, :3, 3] + np.einsum(
+            "fij,j->fi", world[:, j, :3, :3], grasp_offsets(skeleton)[side]
+        )
+        target = world[:, 0, :3, 3] + np.einsum("fij,fj->fi", world[:, 0, :3, :3], targets[side] + offsets)
         reach[side] = float(np.linalg.norm(grasp - target, axis=1).max())
-    report = {"clearance_m": clearance,
-              "minDistanceBefore_m": before[0], "insideBefore": before[1],
-              "minDistanceAfter_m": check[0], "insideAfter": check[1],
-              "offset_m": np.linalg.norm(offsets, axis=1),
-              "graspErrorMax_m": reach}
+    report = {
+        "clearance_m": clearance,
+        "minDistanceBefore_m": before[0],
+        "insideBefore": before[1],
+        "minDistanceAfter_m": check[0],
+        "insideAfter": check[1],
+        "offset_m": np.linalg.norm(offsets, axis=1),
+        "graspErrorMax_m": reach,
+    }
     return q, report

@@ -12,6 +12,7 @@ distance against all triangles; a miss costs a few µm). Sign: the side of the s
 (barycentric) from the area-weighted vertex normals at the closest point -- robust on a
 smooth closed surface like the body, unlike the flat face normal at edges and vertices.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,8 +34,7 @@ def triangulate(face_counts, face_indices) -> np.ndarray:
     out = []
     for k in range(1, int(counts.max()) - 1):
         sel = counts > k + 1
-        out.append(np.stack([idx[starts[sel]], idx[starts[sel] + k],
-                             idx[starts[sel] + k + 1]], axis=1))
+        out.append(np.stack([idx[starts[sel]], idx[starts[sel] + k], idx[starts[sel] + k + 1]], axis=1))
     return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
 
 
@@ -48,7 +48,7 @@ def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals (0 for unused vertices)."""
     p = np.asarray(points, dtype=np.float64)
     a, b, c = p[triangles[:, 0]], p[triangles[:, 1]], p[triangles[:, 2]]
-    fn = np.cross(b - a, c - a)                       # length = 2 x area
+    fn = np.cross(b - a, c - a)  # length = 2 x area
     n = np.zeros_like(p)
     for k in range(3):
         for axis in range(3):
@@ -57,8 +57,7 @@ def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
 
-def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
-                         c: np.ndarray) -> np.ndarray:
+def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Barycentric coordinates (..., 3) of the point of each triangle abc closest to p.
 
     Vectorized form of Ericson (2005) sec. 5.1.5 (Voronoi regions of vertices, edges, face).
@@ -85,12 +84,12 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
     zero = np.zeros_like(d1)
     one = np.ones_like(d1)
     conditions = [
-        (d1 <= 0) & (d2 <= 0),                                   # vertex a
-        (d3 >= 0) & (d4 <= d3),                                  # vertex b
-        (vc <= 0) & (d1 >= 0) & (d3 <= 0),                       # edge ab
-        (d6 >= 0) & (d5 <= d6),                                  # vertex c
-        (vb <= 0) & (d2 >= 0) & (d6 <= 0),                       # edge ac
-        (va <= 0) & (e43 >= 0) & (e56 >= 0),                     # edge bc
+        (d1 <= 0) & (d2 <= 0),  # vertex a
+        (d3 >= 0) & (d4 <= d3),  # vertex b
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),  # edge ab
+        (d6 >= 0) & (d5 <= d6),  # vertex c
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),  # edge ac
+        (va <= 0) & (e43 >= 0) & (e56 >= 0),  # edge bc
     ]
     v = np.select(conditions, [zero, one, t_ab, zero, zero, 1.0 - t_bc], v_in)
     w = np.select(conditions, [zero, zero, zero, one, t_ac, t_bc], w_in)
@@ -100,22 +99,22 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
 @dataclass
 class Closest:
     """Closest surface points of query points (all arrays have the query count first)."""
-    point: np.ndarray       # (n, 3) closest point on the surface
-    triangle: np.ndarray    # (n,) triangle index
-    bary: np.ndarray        # (n, 3) barycentric coordinates in that triangle
-    normal: np.ndarray      # (n, 3) interpolated unit normal at the closest point
-    signed: np.ndarray      # (n,) signed distance [m], < 0 inside (behind the normal)
+
+    point: np.ndarray  # (n, 3) closest point on the surface
+    triangle: np.ndarray  # (n,) triangle index
+    bary: np.ndarray  # (n, 3) barycentric coordinates in that triangle
+    normal: np.ndarray  # (n, 3) interpolated unit normal at the closest point
+    signed: np.ndarray  # (n,) signed distance [m], < 0 inside (behind the normal)
 
 
 class Surface:
     """A triangle mesh for closest-point and signed-distance queries (see module doc)."""
 
-    def __init__(self, points: np.ndarray, triangles: np.ndarray,
-                 normals: np.ndarray | None = None):
+    def __init__(self, points: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None):
         self.points = np.asarray(points, dtype=np.float64)
         self.triangles = np.asarray(triangles, dtype=np.int64)
         self.normals = vertex_normals(self.points, self.triangles) if normals is None else normals
-        self._tri_points = self.points[self.triangles]            # (T, 3, 3)
+        self._tri_points = self.points[self.triangles]  # (T, 3, 3)
         self._tree = cKDTree(self._tri_points.mean(axis=1))
 
     def closest(self, query: np.ndarray, k: int = CANDIDATES) -> Closest:
@@ -124,7 +123,7 @@ class Surface:
         # threads only pay off for large queries (their start-up costs ~0.1 ms per call)
         _, cand = self._tree.query(q, k=k, workers=-1 if len(q) > PARALLEL_QUERIES else 1)
         cand = cand.reshape(len(q), k)
-        tri = self._tri_points[cand]                               # (n, k, 3, 3)
+        tri = self._tri_points[cand]  # (n, k, 3, 3)
         bary = closest_on_triangles(q[:, None, :], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
         cp = np.einsum("nkj,nkji->nki", bary, tri)
         d2 = np.einsum("nki,nki->nk", q[:, None, :] - cp, q[:, None, :] - cp)
@@ -149,12 +148,16 @@ class RayCaster:
     def __init__(self, points: np.ndarray, triangles: np.ndarray):
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
+
         p = np.asarray(points, dtype=np.float64)
         # Embree works in float32: shift to the mesh's corner to keep precision
         self._origin = p.min(axis=0)
         self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(scene=self._scene, vertices=(p - self._origin).astype(np.float32),
-                     indices=np.asarray(triangles, dtype=np.int32))
+        TriangleMesh(
+            scene=self._scene,
+            vertices=(p - self._origin).astype(np.float32),
+            indices=np.asarray(triangles, dtype=np.int32),
+        )
 
     def first_hit(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """Distance along each unit direction to the first hit [m]; inf where none."""
@@ -167,8 +170,15 @@ class RayCaster:
     def inside(self, points: np.ndarray, directions: int = 3) -> np.ndarray:
         """Ray-parity inside test (majority over a few fixed directions); for closed meshes
         without self-intersections. Independent of :class:`Surface`'s normal sign."""
-        dirs = np.array([[0.0, 0.0, 1.0], [0.577, -0.577, 0.577], [-0.6, 0.48, -0.64],
-                         [0.36, 0.8, 0.48], [-0.8, -0.36, 0.48]])[:directions]
+        dirs = np.array(
+            [
+                [0.0, 0.0, 1.0],
+                [0.577, -0.577, 0.577],
+                [-0.6, 0.48, -0.64],
+                [0.36, 0.8, 0.48],
+                [-0.8, -0.36, 0.48],
+            ]
+        )[:directions]
         dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
         votes = np.zeros(len(points), dtype=np.int64)
         for d in dirs:
@@ -183,8 +193,7 @@ class RayCaster:
         for _ in range(64):
             if not len(active):
                 break
-            out = self._scene.run(np.ascontiguousarray(o[active]), np.ascontiguousarray(d[active]),
-                                  output=1)
+            out = self._scene.run(np.ascontiguousarray(o[active]), np.ascontiguousarray(d[active]), output=1)
             hit = np.asarray(out["primID"]) >= 0
             active = active[hit]
             hits[active] += 1

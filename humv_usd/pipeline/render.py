@@ -1,4 +1,5 @@
 """``render_stage``: render every infrared sensor of a composed stage, frame by frame."""
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -8,16 +9,29 @@ import time
 from collections import defaultdict
 
 import numpy as np
-
-from humv_usd.errors import InputError, bad_value
-from humv_usd.physics import planck
-from humv_usd.render import mode, writers
-from humv_usd.render.export import Sensor, StageExport, stage_frames
-from humv_usd.usd.layers import open_stage
-from humv_usd.render.ir import (MIN_SUBBAND_SPP, IRScene, SensorSetup, monte_carlo_stderr,  # noqa: F401
-                                render_band, subband_spp)
-from humv_usd.render import eo as eo_render, radiometry
 from pxr import Usd
+
+import humv_usd
+from humv_usd import images as writers
+from humv_usd import mode
+from humv_usd.errors import InputError, bad_value
+from humv_usd.fileio import jsonable, write_json
+from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
+from humv_usd.physics import planck
+from humv_usd.physics import sensor as chain
+from humv_usd.render import eo as eo_render
+from humv_usd.render import radiometry
+from humv_usd.render.export import AtmosphereSpectra, Sensor, StageExport, stage_frames
+from humv_usd.render.ir import (  # noqa: F401
+    MIN_SUBBAND_SPP,
+    IRScene,
+    SensorSetup,
+    monte_carlo_stderr,
+    render_band,
+    subband_spp,
+)
+from humv_usd.usd.layers import open_stage
+from humv_usd.usd.sensor import read_sensor_model
 
 #: Temperature of the blackbody that weights the band emissivity [K].
 EMISSIVITY_WEIGHTING_TEMPERATURE_K = 300.0
@@ -29,8 +43,6 @@ def _versions(mi) -> dict:
     import drjit
     import OpenImageIO
     from pxr import Usd
-
-    import humv_usd
 
     return {
         "humv_usd": humv_usd.__version__,
@@ -47,8 +59,14 @@ def _check_settings(spp, seed, max_depth):
         raise InputError(bad_value("spp", spp, "expected an integer in 1..1048576"))
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
         raise InputError(bad_value("seed", seed, "expected an integer in 0..4294967295"))
-    if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or not (max_depth == -1 or max_depth >= 1):
-        raise InputError(bad_value("max_depth", max_depth, "expected -1 (unbounded, Russian roulette) or an integer >= 1"))
+    if (
+        isinstance(max_depth, bool)
+        or not isinstance(max_depth, (int, np.integer))
+        or not (max_depth == -1 or max_depth >= 1)
+    ):
+        raise InputError(
+            bad_value("max_depth", max_depth, "expected -1 (unbounded, Russian roulette) or an integer >= 1")
+        )
 
 
 def _select_frames(stage, frames) -> list[int]:
@@ -62,8 +80,14 @@ def _select_frames(stage, frames) -> list[int]:
         if isinstance(f, bool) or not isinstance(f, (int, np.integer)):
             raise InputError(bad_value("frames", f, "expected integer frames"))
         if not available[0] <= f <= available[-1]:
-            raise InputError(bad_value("frames", int(f), f"expected frames in the stage's time range "
-                                                         f"{available[0]}..{available[-1]} (startTimeCode..endTimeCode)"))
+            raise InputError(
+                bad_value(
+                    "frames",
+                    int(f),
+                    f"expected frames in the stage's time range "
+                    f"{available[0]}..{available[-1]} (startTimeCode..endTimeCode)",
+                )
+            )
         if int(f) not in out:
             out.append(int(f))
     if not out:
@@ -84,7 +108,9 @@ def _select_sensors(all_sensors: list[Sensor], wanted) -> list[Sensor]:
     for w in wanted:
         if w not in by_key:
             names = ", ".join(s.name for s in all_sensors) or "none"
-            raise InputError(bad_value("sensors", w, f"expected a sensor name or prim path; the stage has: {names}"))
+            raise InputError(
+                bad_value("sensors", w, f"expected a sensor name or prim path; the stage has: {names}")
+            )
         if by_key[w] not in out:
             out.append(by_key[w])
     return out
@@ -124,13 +150,22 @@ def _error_stats(stderr_l: np.ndarray, stderr_k: np.ndarray) -> dict:
     return acc.stats()
 
 
-def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0, max_depth=-1,
-                 annotators=None, subbands=None) -> dict:
+def render_stage(
+    stage_path,
+    out_dir,
+    frames=None,
+    spp=16,
+    sensors=None,
+    seed=0,
+    max_depth=-1,
+    annotators=None,
+    subbands=None,
+) -> dict:
     r"""Render the infrared sensors of a composed HumV-USD stage.
 
     For every camera with HumvSensorAPI attributes whose band starts at or above 3 um, and every
     requested frame, renders band radiance with Mitsuba 3 (mono variant, see
-    :mod:`humv_usd.render.mode`) and writes ``OUT/<sensor>/<frame:04d>.exr`` (float32 channels
+    :mod:`humv_usd.mode`) and writes ``OUT/<sensor>/<frame:04d>.exr`` (float32 channels
     ``radiance`` [W m^-2 sr^-1], ``brightness_temperature`` [K], ``radiance_stderr``
     [W m^-2 sr^-1], ``depth`` [m], ``instance_id`` [integer stored as float32]), an 8-bit
     grayscale preview ``OUT/<sensor>/<frame:04d>.png`` (brightness temperature stretched between
@@ -193,7 +228,7 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     one-sided (their back neither emits nor reflects). Next-event estimation samples the sky and
     sun only (see :data:`humv_usd.render.ir.AREA_EMITTER_SAMPLING_WEIGHT`). EO sensors render in
     Mitsuba's spectral variant (:mod:`humv_usd.render.eo`). After the render, the sensor chain
-    (:mod:`humv_usd.sensors.chain`) writes raw counts and an 8-bit image per IR/EO frame.
+    (:mod:`humv_usd.physics.sensor`) writes raw counts and an 8-bit image per IR/EO frame.
 
     Monte Carlo error: ``radiance_stderr`` is the standard error of each pixel's mean from the
     ``moment`` integrator, :math:`\\sqrt{(m_2 - m_1^2)/(n-1)}`, floored at the float32
@@ -213,43 +248,61 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     t = time.perf_counter()
     stage = open_stage(stage_path)
     exporter = StageExport(stage)
-    from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
     truth = GroundTruth(stage, annotators)
     if not exporter.sensors:
-        raise InputError(f"{stage_path}: no sensor to render: the stage has no camera with "
-                         "HumvSensorAPI attributes (add a [[sensor]] to the scenario)")
+        raise InputError(
+            f"{stage_path}: no sensor to render: the stage has no camera with "
+            "HumvSensorAPI attributes (add a [[sensor]] to the scenario)"
+        )
     frame_list = _select_frames(stage, frames)
     selected = _select_sensors(exporter.sensors, sensors)
     eo_sensors = [s for s in selected if s.rendered and s.kind == "EO"]
     rendered = [s for s in selected if s.rendered and s.kind != "EO"]  # infrared
-    skipped = [{"name": s.name, "prim": s.path, "band": s.band, "reason": s.skip_reason}
-               for s in selected if not s.rendered]
+    skipped = [
+        {"name": s.name, "prim": s.path, "band": s.band, "reason": s.skip_reason}
+        for s in selected
+        if not s.rendered
+    ]
     mi = mode.mitsuba()
     # --- radiometry setup (H-render): sub-bands per IR sensor, environment at the first frame
     # sub-bands per sensor: the render option, else the sensor's humv:sensor:subbands, else the default
     override = None if subbands is None else radiometry.check_subbands(subbands)
     n_of = {s.name: override or s.subbands or radiometry.DEFAULT_SUBBANDS for s in rendered}
-    n_source = {s.name: ("render option subbands" if override else "humv:sensor:subbands" if s.subbands
-                         else "default (humv_usd.render.radiometry.DEFAULT_SUBBANDS)") for s in rendered}
+    n_source = {
+        s.name: (
+            "render option subbands"
+            if override
+            else "humv:sensor:subbands"
+            if s.subbands
+            else "default (humv_usd.render.radiometry.DEFAULT_SUBBANDS)"
+        )
+        for s in rendered
+    }
     sub_of = {s.name: radiometry.SubBands(s.wavelength_range_um, s.response, n_of[s.name]) for s in rendered}
     spp_sub = {name: subband_spp(spp, len(sub)) for name, sub in sub_of.items()}
     sub_eps: dict[tuple[str, str], np.ndarray] = {}
     first_time = Usd.TimeCode(frame_list[0])
     spectra0 = exporter.atmosphere_spectra(first_time)
     sun0 = exporter.sun_direction(first_time)
-    use_sky_map = any(spectra0.sky_radiance is not None and radiometry.covers(spectra0.wavelengths_um, s.wavelength_range_um)
-                      for s in rendered)
+    use_sky_map = any(
+        spectra0.sky_radiance is not None
+        and radiometry.covers(spectra0.wavelengths_um, s.wavelength_range_um)
+        for s in rendered
+    )
     dni0 = exporter.direct_normal_irradiance(first_time)
     # the sun: the solar table, else a blackbody scaled to the broadband DNI (radiometry.blackbody_sun)
     use_sun = sun0 is not None and (spectra0.solar_irradiance is not None or dni0 is not None)
-    eo_run = eo_render.EORender(exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir,
-                                truth=truth)
+    eo_run = eo_render.EORender(
+        exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir, truth=truth
+    )
     eo_sensors = eo_run.sensors
     totals["load_export"] += time.perf_counter() - t
 
     sensor_ids = {s.name: f"sensor_{i}" for i, s in enumerate(rendered)}
-    per_sensor = {s.name: {"timings": dict.fromkeys(TIMING_KEYS, 0.0), "frames": [], "errors": _Accumulator()}
-                  for s in rendered}
+    per_sensor = {
+        s.name: {"timings": dict.fromkeys(TIMING_KEYS, 0.0), "frames": [], "errors": _Accumulator()}
+        for s in rendered
+    }
     overall = _Accumulator()
     chains = _SensorChains(stage, seed, [s.path for s in exporter.sensors])
     band_eps: dict[tuple[str, str], float] = {}
@@ -261,14 +314,26 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
         t = time.perf_counter()
         state = exporter.frame_state(frame, rendered + eo_sensors)
         if rendered:  # the infrared scene (EO sensors have their own, in eo_run)
-            parts = [(part, state.points[m.path][part.vertex_ids], state.flip[m.path])
-                     for m in state.meshes for part in m.parts]
+            parts = [
+                (part, state.points[m.path][part.vertex_ids], state.flip[m.path])
+                for m in state.meshes
+                for part in m.parts
+            ]
             if scene is None or state.topology_key != scene_key:
-                setups = [SensorSetup(sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
-                          for s in rendered]
+                setups = [
+                    SensorSetup(sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
+                    for s in rendered
+                ]
                 with tempfile.TemporaryDirectory(prefix="humv_render_") as tmp:
-                    scene = IRScene(parts, setups, spp=spp, max_depth=max_depth, workdir=tmp,
-                                    sky_map=use_sky_map, sun=use_sun)
+                    scene = IRScene(
+                        parts,
+                        setups,
+                        spp=spp,
+                        max_depth=max_depth,
+                        workdir=tmp,
+                        sky_map=use_sky_map,
+                        sun=use_sun,
+                    )
                 scene_key = state.topology_key
                 scene_builds += 1
             else:
@@ -287,18 +352,30 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             band, response = s.wavelength_range_um, s.response
             t = time.perf_counter()
             sub = sub_of[s.name]
-            frame_rad = radiometry.frame_radiometry(sub, state.sky_temperature_k, spectra, sun_direction,
-                                                    exporter.path_table(s, frame_time),
-                                                    dni_w_m2=exporter.direct_normal_irradiance(frame_time))
+            frame_rad = radiometry.frame_radiometry(
+                sub,
+                state.sky_temperature_k,
+                spectra,
+                sun_direction,
+                exporter.path_table(s, frame_time),
+                dni_w_m2=exporter.direct_normal_irradiance(frame_time),
+            )
             dt = time.perf_counter() - t
             timings["load_export"] += dt
             totals["load_export"] += dt
 
             t = time.perf_counter()
-            m1, stderr_l = render_band(scene, sensor_ids[s.name], state, sub,
-                                       lambda material: _subband_emissivity(sub_eps, material, s, sub),
-                                       frame_rad, spp=spp_sub[s.name], seed=seed + frame,
-                                       transmittance_of=lambda material: _subband_transmittance(sub_eps, material, s, sub))
+            m1, stderr_l = render_band(
+                scene,
+                sensor_ids[s.name],
+                state,
+                sub,
+                lambda material: _subband_emissivity(sub_eps, material, s, sub),
+                frame_rad,
+                spp=spp_sub[s.name],
+                seed=seed + frame,
+                transmittance_of=lambda material: _subband_transmittance(sub_eps, material, s, sub),
+            )
             bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
             with np.errstate(invalid="ignore", divide="ignore"):
                 stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
@@ -308,8 +385,15 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
 
             t = time.perf_counter()
             rel = os.path.join(s.name, f"{frame:04d}")
-            labels = truth.annotate(scene, sensor_ids[s.name], s, state,
-                                    lambda part: _band_emissivity(band_eps, part.material, s), out_dir, rel)
+            labels = truth.annotate(
+                scene,
+                sensor_ids[s.name],
+                s,
+                state,
+                lambda part: _band_emissivity(band_eps, part.material, s),
+                out_dir,
+                rel,
+            )
             depth, instance = labels.depth, labels.instance
             dt = time.perf_counter() - t
             timings["labels"] += dt
@@ -327,10 +411,17 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
                 **labels.channels,
                 **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
             }
-            writers.write_exr(os.path.join(out_dir, rel + ".exr"), channels,
-                              metadata={"humv:sensor": s.path, "humv:frame": str(frame),
-                                        "humv:band_um": f"{band[0]:g}-{band[1]:g}", "humv:spp": str(spp),
-                                        "humv:subbands": str(len(sub))})
+            writers.write_exr(
+                os.path.join(out_dir, rel + ".exr"),
+                channels,
+                metadata={
+                    "humv:sensor": s.path,
+                    "humv:frame": str(frame),
+                    "humv:band_um": f"{band[0]:g}-{band[1]:g}",
+                    "humv:spp": str(spp),
+                    "humv:subbands": str(len(sub)),
+                },
+            )
             truth.image_written(rel, channels)
             levels = writers.write_preview_png(os.path.join(out_dir, rel + ".png"), bt)
             chain_record = chains.write(chained, out_dir, rel)
@@ -341,18 +432,20 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
             per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
             overall.add(stderr_l, stderr_k)
             finite_bt = bt[np.isfinite(bt)]
-            per_sensor[s.name]["frames"].append({
-                "frame": frame,
-                "exr": rel + ".exr",
-                "png": rel + ".png",
-                "preview_levels_k": list(levels),
-                "radiance_mean": float(np.mean(m1)),
-                "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
-                "sky_temperature_k": state.sky_temperature_k,
-                "monte_carlo_error": _error_stats(stderr_l, stderr_k),
-                "radiometry": frame_rad.ran,
-                "sensor_chain": chain_record,
-            })
+            per_sensor[s.name]["frames"].append(
+                {
+                    "frame": frame,
+                    "exr": rel + ".exr",
+                    "png": rel + ".png",
+                    "preview_levels_k": list(levels),
+                    "radiance_mean": float(np.mean(m1)),
+                    "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
+                    "sky_temperature_k": state.sky_temperature_k,
+                    "monte_carlo_error": _error_stats(stderr_l, stderr_k),
+                    "radiometry": frame_rad.ran,
+                    "sensor_chain": chain_record,
+                }
+            )
 
         if eo_run.sensors:  # visible sensors: spectral render of the same frame (render.eo)
             t = time.perf_counter()
@@ -366,49 +459,76 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
     manifest = {
         "stage": os.path.abspath(os.fspath(stage_path)),
         "output_dir": out_dir,
-        "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "versions": _versions(mi),
         "mitsuba_variant": mode.variant(),
         "mitsuba_variant_reason": mode.variant_reason(),
         "settings": {
-            "spp": int(spp), "frames": frame_list, "seed": int(seed), "seed_per_frame": "seed + frame",
-            "max_depth": int(max_depth), "integrator": "moment(path)", "film": "hdrfilm luminance, box filter",
-            "sampler": "independent", "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
+            "spp": int(spp),
+            "frames": frame_list,
+            "seed": int(seed),
+            "seed_per_frame": "seed + frame",
+            "max_depth": int(max_depth),
+            "integrator": "moment(path)",
+            "film": "hdrfilm luminance, box filter",
+            "sampler": "independent",
+            "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
             "stderr": "sqrt(max(m2 - m1^2, 4 * 2^-24 * m2) / (spp - 1)) per pixel from the moment "
-                      "integrator (the floor is the float32 resolution of the moments; NaN for spp = 1); in K: "
-                      "divided by dL_band/dT at the pixel's brightness temperature",
+            "integrator (the floor is the float32 resolution of the moments; NaN for spp = 1); in K: "
+            "divided by dL_band/dT at the pixel's brightness temperature",
         },
-        "channels": {**{name: {"unit": unit, "dtype": "float32"} for name, unit in writers.EXR_CHANNELS.items()},
-                     **truth.channel_units()},
+        "channels": {
+            **{name: {"unit": unit, "dtype": "float32"} for name, unit in writers.EXR_CHANNELS.items()},
+            **truth.channel_units(),
+        },
         "ground_truth": ground_truth,
-        "preview": {"format": "PNG, 8-bit grayscale", "quantity": "brightness_temperature",
-                    "stretch": "linear between the 1st and 99th percentile of each image "
-                               "(levels per frame in preview_levels_k); non-finite pixels black"},
-        "sensors": [{
-            "name": s.name, "prim": s.path, "band": s.band,
-            "wavelength_range_um": list(s.wavelength_range_um),
-            "response": None if s.response is None else {"wavelengths_um": s.response[0], "values": s.response[1]},
-            "resolution": list(s.resolution),
-            "subbands_um": [list(b) for b in sub_of[s.name].bands],
-            "subbands_requested": n_of[s.name], "subbands_source": n_source[s.name],
-            "spp_per_subband": spp_sub[s.name],
-            "frames": per_sensor[s.name]["frames"],
-            "timings_s": {**per_sensor[s.name]["timings"],
-                          "total": sum(per_sensor[s.name]["timings"].values())},
-            "monte_carlo_error": per_sensor[s.name]["errors"].stats(),
-        } for s in rendered],
+        "preview": {
+            "format": "PNG, 8-bit grayscale",
+            "quantity": "brightness_temperature",
+            "stretch": "linear between the 1st and 99th percentile of each image "
+            "(levels per frame in preview_levels_k); non-finite pixels black",
+        },
+        "sensors": [
+            {
+                "name": s.name,
+                "prim": s.path,
+                "band": s.band,
+                "wavelength_range_um": list(s.wavelength_range_um),
+                "response": None
+                if s.response is None
+                else {"wavelengths_um": s.response[0], "values": s.response[1]},
+                "resolution": list(s.resolution),
+                "subbands_um": [list(b) for b in sub_of[s.name].bands],
+                "subbands_requested": n_of[s.name],
+                "subbands_source": n_source[s.name],
+                "spp_per_subband": spp_sub[s.name],
+                "frames": per_sensor[s.name]["frames"],
+                "timings_s": {
+                    **per_sensor[s.name]["timings"],
+                    "total": sum(per_sensor[s.name]["timings"].values()),
+                },
+                "monte_carlo_error": per_sensor[s.name]["errors"].stats(),
+            }
+            for s in rendered
+        ],
         "eo_sensors": eo_run.manifest(),
         "skipped_sensors": skipped + eo_run.skipped,
         "radiometry": {
-            "subbands": n_of, "subbands_option": override, "subbands_default": radiometry.DEFAULT_SUBBANDS,
+            "subbands": n_of,
+            "subbands_option": override,
+            "subbands_default": radiometry.DEFAULT_SUBBANDS,
             "spp_per_subband": spp_sub,
             "model": "per sub-band gray Lambertian render summed with the sensor response; "
-                     "L = sum_k tau_k(r) S_k + P_k(r) per pixel by range (see humv_usd.render.radiometry)",
+            "L = sum_k tau_k(r) S_k + P_k(r) per pixel by range (see humv_usd.render.radiometry)",
             "sky": "envmap from the zenith table" if use_sky_map else "uniform (blackbody at skyTemperature)",
             "sun_emitter": bool(use_sun),
-            "sun_source": ("humv:atmosphere:solarSpectralIrradiance" if spectra0.solar_irradiance is not None
-                           else f"humv:environment:directNormalIrradiance with a {radiometry.SUN_FALLBACK_NOTE}"
-                           if use_sun else None),
+            "sun_source": (
+                "humv:atmosphere:solarSpectralIrradiance"
+                if spectra0.solar_irradiance is not None
+                else f"humv:environment:directNormalIrradiance with a {radiometry.SUN_FALLBACK_NOTE}"
+                if use_sun
+                else None
+            ),
             "atmosphere_model": spectra0.model,
         },
         "sensor_chain": chains.status(),
@@ -416,8 +536,8 @@ def render_stage(stage_path, out_dir, frames=None, spp=16, sensors=None, seed=0,
         "timings_s": totals,
         "monte_carlo_error": overall.stats(),
     }
-    writers.write_json(os.path.join(out_dir, MANIFEST_NAME), manifest)
-    return writers._jsonable(manifest)
+    write_json(os.path.join(out_dir, MANIFEST_NAME), manifest)
+    return jsonable(manifest)
 
 
 def _band_emissivity(cache: dict, material, sensor: Sensor) -> float:
@@ -426,11 +546,16 @@ def _band_emissivity(cache: dict, material, sensor: Sensor) -> float:
         band = sensor.wavelength_range_um
         wl = material.wavelengths_um
         if wl.size > 1 and (wl[-1] < band[0] or wl[0] > band[1]):
-            raise InputError(bad_value(
-                f"{material.path}.humv:material:wavelengths", f"{wl[0]:g}-{wl[-1]:g} um",
-                f"expected a table that reaches into the band {band[0]:g}-{band[1]:g} um of sensor {sensor.path}"))
-        cache[key] = planck.band_emissivity(wl, material.emissivity, band, sensor.response,
-                                            temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K)
+            raise InputError(
+                bad_value(
+                    f"{material.path}.humv:material:wavelengths",
+                    f"{wl[0]:g}-{wl[-1]:g} um",
+                    f"expected a table that reaches into the band {band[0]:g}-{band[1]:g} um of sensor {sensor.path}",
+                )
+            )
+        cache[key] = planck.band_emissivity(
+            wl, material.emissivity, band, sensor.response, temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K
+        )
     return cache[key]
 
 
@@ -455,7 +580,7 @@ def _subband_transmittance(cache: dict, material, sensor: Sensor, sub) -> np.nda
 
 
 class _SensorChains:
-    """The sensor chain (:mod:`humv_usd.sensors.chain`): optics, noise, counts, AGC per sensor
+    """The sensor chain (:mod:`humv_usd.physics.sensor`): optics, noise, counts, AGC per sensor
     and frame, after the render. One model per sensor prim; the noise generator is seeded from
     (seed, sensor index in the stage, frame), so outputs are reproducible."""
 
@@ -465,12 +590,7 @@ class _SensorChains:
         self.index = {p: i for i, p in enumerate(sensor_paths)}
         self.models: dict = {}
         self.ran: dict[str, str] = {}
-        try:
-            from humv_usd.sensors import chain
-        except ImportError as exc:  # not there yet: radiance only
-            chain, self.reason = None, f"skipped: humv_usd.sensors.chain not importable ({exc})"
-        else:
-            self.reason = None
+        self.reason = None
         self.chain = chain
 
     def apply(self, sensor: Sensor, radiance, frame: int, eo_space: str | None = None):
@@ -478,7 +598,7 @@ class _SensorChains:
         if self.chain is None:
             return None
         if sensor.path not in self.models:
-            self.models[sensor.path] = self.chain.SensorModel.from_prim(self.stage.GetPrimAtPath(sensor.path))
+            self.models[sensor.path] = read_sensor_model(self.stage.GetPrimAtPath(sensor.path))
         rng = np.random.default_rng([self.seed, self.index.get(sensor.path, 0), int(frame)])
         extra = {} if eo_space is None else {"eo_space": eo_space}
         out = self.chain.apply_chain(radiance, self.models[sensor.path], rng, **extra)
@@ -491,8 +611,12 @@ class _SensorChains:
             return None
         writers.write_png16(os.path.join(out_dir, rel + "_counts.png"), out.counts)
         writers.write_png(os.path.join(out_dir, rel + "_image8.png"), out.image8)
-        return {"counts_png": rel + "_counts.png", "image8_png": rel + "_image8.png",
-                "noise_sigma": float(out.noise_sigma), "settings": out.settings}
+        return {
+            "counts_png": rel + "_counts.png",
+            "image8_png": rel + "_image8.png",
+            "noise_sigma": float(out.noise_sigma),
+            "settings": out.settings,
+        }
 
     def status(self) -> str:
         return self.reason or "ran: counts (16-bit PNG, EXR channel counts) and image8 (PNG) per frame"
@@ -507,21 +631,29 @@ BENCH_RANGES_M = (5.0, 15.0, 30.0, 60.0)
 def spectra_from_atmosphere(atm, time_s: float = 0.0, sun_direction=None):
     """(AtmosphereSpectra, PathTable) from a :class:`humv_usd.atmosphere.model.Atmosphere`, for a
     bench on a stage whose atmosphere layer has no spectral tables."""
-    from humv_usd.render.export import AtmosphereSpectra
 
     wl = np.asarray(atm.wavelengths_um, dtype=float)
-    spectra = AtmosphereSpectra(model=atm.source, wavelengths_um=wl,
-                                sky_zenith_deg=np.asarray(atm.sky_zenith_deg, dtype=float),
-                                sky_radiance=atm.sky_spectral_radiance(atm.sky_zenith_deg, time_s),
-                                solar_irradiance=atm.solar_spectral_irradiance([time_s])[0])
+    spectra = AtmosphereSpectra(
+        model=atm.source,
+        wavelengths_um=wl,
+        sky_zenith_deg=np.asarray(atm.sky_zenith_deg, dtype=float),
+        sky_radiance=atm.sky_spectral_radiance(atm.sky_zenith_deg, time_s),
+        solar_irradiance=atm.solar_spectral_irradiance([time_s])[0],
+    )
     tau, rad = atm.path()
-    table = radiometry.PathTable(f"atmosphere_for ({atm.source})", np.asarray(atm.path_ranges_m, dtype=float),
-                                 wl, np.asarray(tau, dtype=float), np.asarray(rad, dtype=float))
+    table = radiometry.PathTable(
+        f"atmosphere_for ({atm.source})",
+        np.asarray(atm.path_ranges_m, dtype=float),
+        wl,
+        np.asarray(tau, dtype=float),
+        np.asarray(rad, dtype=float),
+    )
     return spectra, table
 
 
-def subband_error_table(stage_path, counts=(1, 2, 3, 4, 6, 8, 16), frame=None, spectra=None,
-                        path_table=None, sun_direction=None) -> dict:
+def subband_error_table(
+    stage_path, counts=(1, 2, 3, 4, 6, 8, 16), frame=None, spectra=None, path_table=None, sun_direction=None
+) -> dict:
     """Spectral (not Monte Carlo) error of the sub-band model against sub-band count.
 
     For every IR sensor of the stage, every material bound to a rendered mesh and the face
@@ -543,18 +675,31 @@ def subband_error_table(stage_path, counts=(1, 2, 3, 4, 6, 8, 16), frame=None, s
     time_code = Usd.TimeCode(frame)
     spectra = exporter.atmosphere_spectra(time_code) if spectra is None else spectra
     sun_dir = exporter.sun_direction(time_code) if sun_direction is None else np.asarray(sun_direction, float)
-    temps = np.concatenate([state.temperatures[m.path] for m in state.meshes]) if state.meshes else np.array([300.0])
+    temps = (
+        np.concatenate([state.temperatures[m.path] for m in state.meshes])
+        if state.meshes
+        else np.array([300.0])
+    )
     temps = np.percentile(temps, [1.0, 50.0, 99.0])
     materials = {part.material.path: part.material for m in state.meshes for part in m.parts}
-    out: dict = {"frame": frame, "temperatures_k": temps.tolist(), "materials": sorted(materials),
-                 "reference": f"trapezoid on {radiometry.REFERENCE_NODES}+ nodes per band", "sensors": {}}
+    out: dict = {
+        "frame": frame,
+        "temperatures_k": temps.tolist(),
+        "materials": sorted(materials),
+        "reference": f"trapezoid on {radiometry.REFERENCE_NODES}+ nodes per band",
+        "sensors": {},
+    }
     for s in ir:
         band, resp = s.wavelength_range_um, s.response
         wl = spectra.wavelengths_um
         notes = {}
         if spectra.sky_radiance is not None and radiometry.covers(wl, band):
-            sky_l = np.array([radiometry.hemisphere_mean(spectra.sky_zenith_deg, spectra.sky_radiance[:, j])
-                              for j in range(wl.size)])
+            sky_l = np.array(
+                [
+                    radiometry.hemisphere_mean(spectra.sky_zenith_deg, spectra.sky_radiance[:, j])
+                    for j in range(wl.size)
+                ]
+            )
             sky = (wl, sky_l)
             notes["sky"] = "spectral table"
         else:
@@ -562,8 +707,12 @@ def subband_error_table(stage_path, counts=(1, 2, 3, 4, 6, 8, 16), frame=None, s
             sky = (x, planck.spectral_radiance(x, state.sky_temperature_k))
             notes["sky"] = f"blackbody {state.sky_temperature_k:.1f} K"
         sun = None
-        if (sun_dir is not None and sun_dir[2] > 0 and spectra.solar_irradiance is not None
-                and radiometry.covers(wl, band)):
+        if (
+            sun_dir is not None
+            and sun_dir[2] > 0
+            and spectra.solar_irradiance is not None
+            and radiometry.covers(wl, band)
+        ):
             sun = (wl, spectra.solar_irradiance, float(sun_dir[2]))
             notes["sun"] = f"cos(zenith) {sun_dir[2]:.3f}"
         table = exporter.path_table(s, time_code) if path_table is None else path_table
@@ -571,7 +720,9 @@ def subband_error_table(stage_path, counts=(1, 2, 3, 4, 6, 8, 16), frame=None, s
         if table is not None and radiometry.covers(table.wavelengths_um, band):
             paths = []
             for r in BENCH_RANGES_M:
-                tau = np.array([np.interp(r, table.ranges_m, table.transmittance[:, j]) for j in range(wl.size)])
+                tau = np.array(
+                    [np.interp(r, table.ranges_m, table.transmittance[:, j]) for j in range(wl.size)]
+                )
                 lp = np.array([np.interp(r, table.ranges_m, table.radiance[:, j]) for j in range(wl.size)])
                 paths.append((table.wavelengths_um, tau, lp))
             notes["path"] = f"table {table.prim} at {list(BENCH_RANGES_M)} m"
@@ -581,8 +732,20 @@ def subband_error_table(stage_path, counts=(1, 2, 3, 4, 6, 8, 16), frame=None, s
             sub = radiometry.SubBands(band, resp, n)
             for mat in materials.values():
                 for path in paths:
-                    errs.append(radiometry.subband_error(band, resp, mat.wavelengths_um, mat.emissivity, temps, n,
-                                                         sky=sky, sun=sun, path=path, subbands=sub))
+                    errs.append(
+                        radiometry.subband_error(
+                            band,
+                            resp,
+                            mat.wavelengths_um,
+                            mat.emissivity,
+                            temps,
+                            n,
+                            sky=sky,
+                            sun=sun,
+                            path=path,
+                            subbands=sub,
+                        )
+                    )
             e = np.abs(np.concatenate(errs))
             rows[int(n)] = {"max_k": float(e.max()), "rms_k": float(np.sqrt(np.mean(e**2)))}
         out["sensors"][s.name] = {"band_um": list(band), "inputs": notes, "error_by_subbands": rows}

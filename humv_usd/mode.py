@@ -14,6 +14,7 @@ but is much slower.
 The visible (EO) render uses the spectral variant of the same backend (``llvm_ad_spectral`` or
 ``scalar_spectral``): ``mitsuba(spectral=True)``.
 """
+
 from __future__ import annotations
 
 import glob
@@ -58,7 +59,8 @@ def _choose_variant() -> tuple[str, str]:
         return "scalar_rgb", (
             "no LLVM 19 found (" + ", ".join(LLVM19_GLOBS) + ") and DRJIT_LIBLLVM_PATH is unset; the "
             "default LLVM 15 crashes Dr.Jit on AVX-512 CPUs. Install Debian's libllvm19 for the fast "
-            "llvm_ad_mono variant")
+            "llvm_ad_mono variant"
+        )
     os.environ["DRJIT_LIBLLVM_PATH"] = path
     return "llvm_ad_mono", f"DRJIT_LIBLLVM_PATH={path}"
 
@@ -119,7 +121,9 @@ def mitsuba(spectral: bool = False):
         if variant == "scalar_rgb" and not os.environ.get(VARIANT_ENV):
             warnings.warn(
                 f"humv_usd.render: falling back to Mitsuba scalar_rgb (slow): {reason}",
-                RuntimeWarning, stacklevel=2)
+                RuntimeWarning,
+                stacklevel=2,
+            )
         mi.set_variant(SPECTRAL_VARIANTS[variant] if spectral else variant)
         _state.update(mi=mi, variant=variant, reason=reason)
         return mi

@@ -1,6 +1,6 @@
 """UsdSkel authoring for the avatar: Skeleton, Animation and the skinned body binding.
 
-Maps the rig contract of :mod:`humv_usd.avatar.skeleton` one to one onto UsdSkel:
+Maps the rig contract of :mod:`humv_usd.human.skeleton` one to one onto UsdSkel:
 
 * ``Skeleton.joints`` = :attr:`Skeleton.paths` (topological order, ``Hips`` first);
 * ``bindTransforms`` = the world (skeleton-space) rest transforms: pure translations to the
@@ -11,13 +11,14 @@ Maps the rig contract of :mod:`humv_usd.avatar.skeleton` one to one onto UsdSkel
   unit scale, time-sampled per frame (frame i of a motion at time code ``first_frame + i``).
 
 With these, UsdSkel's skinning (``inverse(bind) * skel-space joint transform``, linear blend) is
-exactly :func:`humv_usd.avatar.skeleton.linear_blend_skinning` of
-:func:`~humv_usd.avatar.skeleton.skinning_matrices` (checked in ``tests/test_avatar_rig.py``).
+exactly :func:`humv_usd.human.skeleton.linear_blend_skinning` of
+:func:`~humv_usd.human.skeleton.skinning_matrices` (checked in ``tests/test_avatar_rig.py``).
 
 A motion is any object with ``root_translation`` (F, 3) [m, avatar frame: the root joint's
 position] and ``local_rotations`` (F, J, 4) (w, x, y, z) (``rotations`` is accepted as an
-alias), e.g. ``humv_usd.avatar.motion.Motion``; :func:`rest_motion` is the standing rest pose.
+alias), e.g. ``humv_usd.human.motion.Motion``; :func:`rest_motion` is the standing rest pose.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
-from humv_usd.avatar.skeleton import Skeleton
+from humv_usd.human.skeleton import Skeleton
 
 #: Joint influences per vertex (``primvars:skel:jointIndices`` / ``jointWeights`` elementSize).
 INFLUENCES = 4
@@ -34,8 +35,9 @@ INFLUENCES = 4
 @dataclass(frozen=True)
 class Pose:
     """A joint motion in the rig contract's terms (what :func:`define_animation` authors)."""
-    root_translation: np.ndarray   # (F, 3) root joint position [m], avatar frame
-    local_rotations: np.ndarray    # (F, J, 4) unit quaternions (w, x, y, z), identity = rest
+
+    root_translation: np.ndarray  # (F, 3) root joint position [m], avatar frame
+    local_rotations: np.ndarray  # (F, J, 4) unit quaternions (w, x, y, z), identity = rest
 
     @property
     def frame_count(self) -> int:
@@ -58,8 +60,10 @@ def as_pose(motion, skeleton: Skeleton) -> Pose:
         rot = getattr(motion, "rotations", None)
     root = getattr(motion, "root_translation", None)
     if rot is None or root is None:
-        raise TypeError("a motion needs root_translation (F, 3) and local_rotations (F, J, 4), "
-                        f"got {type(motion).__name__}")
+        raise TypeError(
+            "a motion needs root_translation (F, 3) and local_rotations (F, J, 4), "
+            f"got {type(motion).__name__}"
+        )
     rot = np.asarray(rot, dtype=np.float64)
     root = np.asarray(root, dtype=np.float64)
     joints = len(skeleton.names)
@@ -76,7 +80,7 @@ def as_pose(motion, skeleton: Skeleton) -> Pose:
 # ---------------------------------------------------------------------------- conversions
 def _translations(t: np.ndarray) -> Vt.Matrix4dArray:
     out = np.tile(np.eye(4), (len(t), 1, 1))
-    out[:, 3, :3] = t                      # Gf matrices are row-vector: translation in row 3
+    out[:, 3, :3] = t  # Gf matrices are row-vector: translation in row 3
     return Vt.Matrix4dArray.FromNumpy(out)
 
 
@@ -97,8 +101,9 @@ def define_skeleton(stage: Usd.Stage, path, skeleton: Skeleton) -> UsdSkel.Skele
     return skel
 
 
-def define_animation(stage: Usd.Stage, path, skeleton: Skeleton, pose: Pose,
-                     first_frame: int = 0) -> UsdSkel.Animation:
+def define_animation(
+    stage: Usd.Stage, path, skeleton: Skeleton, pose: Pose, first_frame: int = 0
+) -> UsdSkel.Animation:
     """A UsdSkel.Animation of ``pose``: frame i at time code ``first_frame + i``.
 
     Scales are a constant 1 (default value only); translations and rotations are time samples.
@@ -126,8 +131,9 @@ def bind_animation(skeleton_prim: Usd.Prim, animation_path) -> None:
     binding.CreateAnimationSourceRel().SetTargets([Sdf.Path(animation_path)])
 
 
-def bind_mesh(mesh_prim: Usd.Prim, skeleton_path, joint_indices: np.ndarray,
-              joint_weights: np.ndarray) -> UsdSkel.BindingAPI:
+def bind_mesh(
+    mesh_prim: Usd.Prim, skeleton_path, joint_indices: np.ndarray, joint_weights: np.ndarray
+) -> UsdSkel.BindingAPI:
     """Skin a mesh: ``skel:skeleton``, per-vertex joint indices/weights (elementSize
     :data:`INFLUENCES`, vertex interpolation) and an identity ``skel:geomBindTransform`` (the
     mesh points are authored in skeleton space at the bind pose)."""
@@ -137,8 +143,7 @@ def bind_mesh(mesh_prim: Usd.Prim, skeleton_path, joint_indices: np.ndarray,
     binding = UsdSkel.BindingAPI.Apply(mesh_prim)
     binding.CreateSkeletonRel().SetTargets([Sdf.Path(skeleton_path)])
     binding.CreateJointIndicesPrimvar(False, k).Set(Vt.IntArray.FromNumpy(joint_indices.ravel()))
-    binding.CreateJointWeightsPrimvar(False, k).Set(
-        Vt.FloatArray.FromNumpy(joint_weights.ravel()))
+    binding.CreateJointWeightsPrimvar(False, k).Set(Vt.FloatArray.FromNumpy(joint_weights.ravel()))
     binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
     return binding
 
@@ -148,8 +153,12 @@ def define_skel_root(stage: Usd.Stage, path) -> UsdSkel.Root:
 
 
 # ---------------------------------------------------------------------------- reading back
-def skinned_points(stage: Usd.Stage, mesh_path, time=Usd.TimeCode.Default(),
-                   space: str = "skel") -> np.ndarray:
+def skinned_points(
+    stage: Usd.Stage,
+    mesh_path,
+    time=Usd.TimeCode.Default(),  # noqa: B008 (an immutable value)
+    space: str = "skel",
+) -> np.ndarray:
     """Points of a skinned mesh posed by UsdSkel (``UsdSkel.Cache`` + ``SkinningQuery``).
 
     ``space`` "skel": in the Skeleton's space (= the SkelRoot's local space for our layers);

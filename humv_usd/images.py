@@ -3,10 +3,8 @@
 Every file is written to a temporary name in the destination directory and moved into place with
 ``os.replace``, so a reader never sees a half-written file.
 """
-from __future__ import annotations
 
-import json
-import math
+from __future__ import annotations
 
 import numpy as np
 import OpenImageIO as oiio
@@ -107,32 +105,9 @@ def write_png(path, pixels: np.ndarray) -> None:
     _write_oiio(path, np.ascontiguousarray(pixels), spec)
 
 
-def _jsonable(obj):
-    """Replace non-finite floats by None (JSON has no inf/NaN) and numpy scalars by Python ones."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
-def write_json(path, data) -> None:
-    """Write ``data`` as indented JSON atomically (non-finite floats become null)."""
-    with atomic_path(path) as tmp:
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(_jsonable(data), f, indent=2, allow_nan=False)
-            f.write("\n")
-
-
 def write_png16(path, counts: np.ndarray) -> None:
     """Write uint16 counts (H, W) gray or (H, W, 3) RGB to a 16-bit PNG atomically (raw
-    sensor counts of :mod:`humv_usd.sensors.chain`)."""
+    sensor counts of :mod:`humv_usd.physics.sensor`)."""
     pixels = np.asarray(counts, dtype=np.uint16)
     if pixels.ndim == 2:
         pixels = pixels[..., None]

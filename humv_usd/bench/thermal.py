@@ -6,6 +6,7 @@ scene surfaces at their temperatures, the sky with the sun, the person's own lea
 for self-occluded rays), so that the fast methods can be timed against the brute reference on a
 real ~30k-facet clothed avatar instead of the capsule stand-in.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,17 +14,22 @@ from pathlib import Path
 import numpy as np
 from pxr import Usd
 
-from humv_usd.avatar.layer import human_path
-from humv_usd.avatar.usdskel import skinned_points
-from humv_usd.clothing.garments import GARMENTS
-from humv_usd.materials.library import LIBRARY
+from humv_usd.catalog.garments import GARMENTS
+from humv_usd.catalog.materials import LIBRARY
+from humv_usd.human.usdskel import skinned_points
 from humv_usd.thermal import human as H
 from humv_usd.thermal import layer as TL
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.sky import stage_longwave_table
-from humv_usd.thermal.surfaces import (SPIN_UP_STEP_S, forcing_at, scene_meshes,
-                                       surface_temperatures, with_sky_table)
+from humv_usd.thermal.surfaces import (
+    SPIN_UP_STEP_S,
+    forcing_at,
+    scene_meshes,
+    surface_temperatures,
+    with_sky_table,
+)
 from humv_usd.usd import schemas as S
+from humv_usd.usd.paths import human_path
 
 
 def avatar_case(scenario, stage_path: str | Path) -> dict:
@@ -54,31 +60,47 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
     surf, diag = surface_temperatures(scenario, meshes, np.array([0.0]), spin, f)
     i = len(spin_t)
     sun = (f.sun_direction[i], f.dni_w_m2[i], f.dhi_w_m2[i]) if f.sun_up[i] else None
-    sky = H.scenario_sky(scenario, {"air_temperature_k": f.air_temperature_k[i],
-                                    "relative_humidity": f.relative_humidity[i],
-                                    "cloud_cover": f.cloud_cover[i]}, sun,
-                         float(diag["groundMeanTemperature_k"][0]) if scenario["scene"] else None,
-                         longwave=table)
+    sky = H.scenario_sky(
+        scenario,
+        {
+            "air_temperature_k": f.air_temperature_k[i],
+            "relative_humidity": f.relative_humidity[i],
+            "cloud_cover": f.cloud_cover[i],
+        },
+        sun,
+        float(diag["groundMeanTemperature_k"][0]) if scenario["scene"] else None,
+        longwave=table,
+    )
     scene = None
     mesh, eps_tri, _ = TL._scene_trimesh(meshes)
     if mesh is not None:
         t_tri = np.concatenate([surf[m.path][0][m.tri_face] for m in meshes])
-        scene = R.SceneSurfaces(mesh, R.scene_surface_radiance(
-            mesh, t_tri, eps_tri, sky, solar_reflectance=TL._solar_reflectance(meshes)))
+        scene = R.SceneSurfaces(
+            mesh,
+            R.scene_surface_radiance(
+                mesh, t_tri, eps_tri, sky, solar_reflectance=TL._solar_reflectance(meshes)
+            ),
+        )
     hp = str(human_path(scenario["human"][0]["id"]))
     parts = [H._part(stage, f"{hp}/Body", None)]
     clothing = stage.GetPrimAtPath(f"{hp}/Clothing")
     if clothing:
-        parts += [H._part(stage, str(c.GetPath()), c.GetAttribute(S.CLOTHING_GARMENT).Get())
-                  for c in clothing.GetChildren()]
+        parts += [
+            H._part(stage, str(c.GetPath()), c.GetAttribute(S.CLOTHING_GARMENT).Get())
+            for c in clothing.GetChildren()
+        ]
     pts = [skinned_points(stage, p.path, Usd.TimeCode(0), space="world") for p in parts]
 
     def alpha(p):
         name = "skin" if p.garment is None else GARMENTS[p.garment].fabric
         return np.array([LIBRARY[name].solar_absorptivity, H.longwave_emissivity(name)])
-    absorb = np.concatenate([np.repeat(alpha(p)[:, None], len(p.triangles), axis=1)
-                             for p in parts], axis=1)
-    return {"mesh": H._trimesh(pts, parts), "scene": scene, "sky": sky, "absorptivity": absorb,
-            "mesh_radiance": H._self_radiance(parts, th["skin_temperature_k"],
-                                              float(f.air_temperature_k[i])),
-            "center": pts[0].mean(axis=0)}
+
+    absorb = np.concatenate([np.repeat(alpha(p)[:, None], len(p.triangles), axis=1) for p in parts], axis=1)
+    return {
+        "mesh": H._trimesh(pts, parts),
+        "scene": scene,
+        "sky": sky,
+        "absorptivity": absorb,
+        "mesh_radiance": H._self_radiance(parts, th["skin_temperature_k"], float(f.air_temperature_k[i])),
+        "center": pts[0].mean(axis=0),
+    }

@@ -7,7 +7,7 @@ the scene), a metabolic rate per frame and a contact report.
 
 Pipeline (walk/run):
 
-1. :mod:`humv_usd.avatar.gait` gives the nominal body-frame pose per gait phase: normative
+1. :mod:`humv_usd.human.gait` gives the nominal body-frame pose per gait phase: normative
    sagittal hip/knee/ankle curves (Winter 2009, Perry & Burnfield 2010; running Novacheck
    1998), pelvis rotation/obliquity/tilt, counter-rotating thorax, arm swing opposite to the
    legs, cadence and stride length from the speed (Grieve & Gear 1966; Cavanagh & Kram 1989).
@@ -20,7 +20,7 @@ Pipeline (walk/run):
    step 2), heading along the path's tangent, with a mediolateral sway toward the stance foot;
    its height follows the ground under the stance feet. The clip is steady-state gait (it
    starts and ends mid-stride; one stride is simulated beyond each end and cropped).
-4. :mod:`humv_usd.avatar.contact` plants each stance foot on the ground (support plane,
+4. :mod:`humv_usd.human.contact` plants each stance foot on the ground (support plane,
    rolling without slipping); a contact the leg cannot reach starts up to 5 % of a cycle later
    or ends up to 8 % earlier (the tables do not close exactly in double support), swing feet
    are blended between plants and follow the terrain with clearance, the root drops where a
@@ -44,6 +44,7 @@ the fast VO2 off-transient (tau ~ 30-40 s for moderate exercise, Ozyener et al. 
 533:891-902) plus a small prolonged EPOC component (Borsheim & Bahr 2003, *Sports Med*
 33:1037-1060).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -51,13 +52,23 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from humv_usd.avatar import contact as C
-from humv_usd.avatar.gait import (
-    GaitParams, NominalGait, axis_angle_matrix, fk_matrices, gait_params, matrix_to_quat,
-    nominal_gait, rig_info, rot_x, rot_y, rot_z, set_ankles,
-)
-from humv_usd.avatar.skeleton import Skeleton
 from humv_usd.errors import InputError, bad_value
+from humv_usd.human import contact as C
+from humv_usd.human.gait import (
+    GaitParams,
+    NominalGait,
+    axis_angle_matrix,
+    fk_matrices,
+    gait_params,
+    matrix_to_quat,
+    nominal_gait,
+    rig_info,
+    rot_x,
+    rot_y,
+    rot_z,
+    set_ankles,
+)
+from humv_usd.human.skeleton import Skeleton, quat_to_matrix
 
 ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
 SPEED_RANGE = {"walk": (0.3, 2.2), "run": (1.8, 6.0)}
@@ -66,18 +77,18 @@ MET_ML_KG_MIN = 3.5
 J_PER_ML_O2 = 20.1
 MET_STAND = 1.3
 MET_STEPPING = 2.0
-EPOC = ((0.9, 40.0), (0.1, 600.0))          # (fraction, time constant [s]) of the excess
+EPOC = ((0.9, 40.0), (0.1, 600.0))  # (fraction, time constant [s]) of the excess
 
 
 @dataclass(frozen=True)
 class Motion:
     fps: float
-    root_translation: np.ndarray   # (F, 3) world position of the Hips joint [m], avatar frame
-    local_rotations: np.ndarray    # (F, J, 4) wxyz, joint order = skeleton.names
+    root_translation: np.ndarray  # (F, 3) world position of the Hips joint [m], avatar frame
+    local_rotations: np.ndarray  # (F, J, 4) wxyz, joint order = skeleton.names
     activity: str
-    metabolic_rate_w: np.ndarray   # (F,) metabolic rate [W] per frame
-    contact: dict                  # per-clip report: max gap, max penetration, max slip per foot
-    gait: dict = field(default_factory=dict)   # cadence, step length, stance masks, ...
+    metabolic_rate_w: np.ndarray  # (F,) metabolic rate [W] per frame
+    contact: dict  # per-clip report: max gap, max penetration, max slip per foot
+    gait: dict = field(default_factory=dict)  # cadence, step length, stance masks, ...
 
     @property
     def frame_count(self) -> int:
@@ -89,7 +100,6 @@ class Motion:
 
     def world(self, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
         """World joint rotations (F, J, 3, 3) and positions (F, J, 3)."""
-        from humv_usd.avatar.skeleton import quat_to_matrix
         rot = quat_to_matrix(self.local_rotations)
         return fk_matrices(skeleton, rot, rot[:, 0], self.root_translation)
 
@@ -117,9 +127,16 @@ def epoc_met(t_s, exercise_met: float, rest_met: float = MET_STAND) -> np.ndarra
     return rest_met + excess * sum(a * np.exp(-t / tau) for a, tau in EPOC)
 
 
-def metabolic_rate(activity: str, mass_kg: float, times: np.ndarray, speed_m_s: float = 0.0,
-                   grade=0.0, exercise_met: float = 10.0, time_since_exercise_s: float = 0.0,
-                   stepping=None) -> np.ndarray:
+def metabolic_rate(
+    activity: str,
+    mass_kg: float,
+    times: np.ndarray,
+    speed_m_s: float = 0.0,
+    grade=0.0,
+    exercise_met: float = 10.0,
+    time_since_exercise_s: float = 0.0,
+    stepping=None,
+) -> np.ndarray:
     """Metabolic rate [W] per frame (``times`` [s]); ``stepping`` (F,) bool marks the turning
     steps of ``standTurn``."""
     n = len(times)
@@ -147,8 +164,11 @@ class Path:
         else:
             w = np.asarray(waypoints, dtype=np.float64)
             if w.ndim != 2 or w.shape[1] != 2 or len(w) < 2 or not np.isfinite(w).all():
-                raise InputError(bad_value("path", np.asarray(waypoints).tolist(),
-                                           "expected at least two (x, y) waypoints [m]"))
+                raise InputError(
+                    bad_value(
+                        "path", np.asarray(waypoints).tolist(), "expected at least two (x, y) waypoints [m]"
+                    )
+                )
             seg = np.linalg.norm(np.diff(w, axis=0), axis=1)
             w = w[np.r_[True, seg > 1e-9]]
             if len(w) < 2:
@@ -178,8 +198,7 @@ class Path:
         tang = np.gradient(self.xy, self.s, axis=0)
         tang /= np.linalg.norm(tang, axis=1, keepdims=True)
         sc = np.clip(s, 0.0, L)
-        xy = np.column_stack([np.interp(sc, self.s, self.xy[:, 0]),
-                              np.interp(sc, self.s, self.xy[:, 1])])
+        xy = np.column_stack([np.interp(sc, self.s, self.xy[:, 0]), np.interp(sc, self.s, self.xy[:, 1])])
         tx = np.interp(sc, self.s, tang[:, 0])
         ty = np.interp(sc, self.s, tang[:, 1])
         before, after = s < 0, s > L
@@ -198,8 +217,9 @@ def _pivots(feet: dict, rot: np.ndarray, pos: np.ndarray) -> dict:
     return out
 
 
-def _lock(nom: NominalGait, rot: np.ndarray, pos: np.ndarray, feet: dict, dt: float,
-          speed: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _lock(
+    nom: NominalGait, rot: np.ndarray, pos: np.ndarray, feet: dict, dt: float, speed: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Root forward progression (F,) and height (F,) that keep the stance foot's pivot still
     on flat ground z = 0, and the (F - 1,) mask of steps carried by a stance foot. In double
     support the newly landed foot carries the progression and the height is load-weighted."""
@@ -211,15 +231,17 @@ def _lock(nom: NominalGait, rot: np.ndarray, pos: np.ndarray, feet: dict, dt: fl
     i = np.arange(n - 1)
     # the most recently landed stance foot carries the progression (in double support the
     # tables' two pivots do not move exactly alike; the trailing leg, still flexed, absorbs it)
-    age = {s: np.where(nom.stance[s], np.mod(nom.phase + off, 1.0), np.inf)
-           for s, off in (("Left", 0.0), ("Right", 0.5))}
+    age = {
+        s: np.where(nom.stance[s], np.mod(nom.phase + off, 1.0), np.inf)
+        for s, off in (("Left", 0.0), ("Right", 0.5))
+    }
     for side, (pts, k) in _pivots(feet, rot, pos).items():
         st = nom.stance[side]
         other = age["Right" if side == "Left" else "Left"]
         wz = np.where(st, nom.load[side] + 1e-6, 0.0)
         znum += wz * -pts[np.arange(n), k, 2]
         zden += wz
-        d = pts[i + 1, k[:-1], 1] - pts[i, k[:-1], 1]           # foot moves back = body forward
+        d = pts[i + 1, k[:-1], 1] - pts[i, k[:-1], 1]  # foot moves back = body forward
         w = np.where(st[:-1] & st[1:] & (age[side][:-1] <= other[:-1]), 1.0, 0.0)
         num += w * d
         den += w
@@ -240,8 +262,9 @@ def _lock(nom: NominalGait, rot: np.ndarray, pos: np.ndarray, feet: dict, dt: fl
     return prog, z, carried
 
 
-def _stance_speed(skeleton: Skeleton, params: GaitParams, feet: dict, fps: float,
-                  start_phase: float = 0.0) -> float:
+def _stance_speed(
+    skeleton: Skeleton, params: GaitParams, feet: dict, fps: float, start_phase: float = 0.0
+) -> float:
     """Mean progression speed over the stance-carried steps of ~3 cycles sampled at ``fps``
     (the flat-ground lock depends a little on the sampling)."""
     dt = 1.0 / fps
@@ -255,11 +278,13 @@ def _stance_speed(skeleton: Skeleton, params: GaitParams, feet: dict, fps: float
     return float(steps[carried].sum() / (carried.sum() * dt))
 
 
-def calibrated_params(mode: str, speed: float, skeleton: Skeleton, feet: dict, fps: float = 120.0,
-                      start_phase: float = 0.0) -> GaitParams:
+def calibrated_params(
+    mode: str, speed: float, skeleton: Skeleton, feet: dict, fps: float = 120.0, start_phase: float = 0.0
+) -> GaitParams:
     """Gait parameters whose hip amplitude makes the locked stance progression match the
     requested speed (secant iteration on ``hip_scale``)."""
     from dataclasses import replace
+
     p = gait_params(mode, speed, skeleton)
     k0, v0 = 1.0, _stance_speed(skeleton, p, feet, fps, start_phase)
     k1 = float(np.clip(k0 * speed / v0, 0.3, 2.0))
@@ -304,24 +329,33 @@ def _locomotion(mode, skeleton, fps, frames, speed, path, ground, feet, start_ph
     s = speed * t + (prog - slope * t) - (prog[pad] - slope * t[pad])
     track, psi = path.at(s)
     heading = rot_z(psi)
-    xy = track + np.einsum("fij,fj->fi", heading, nom.root)[:, :2]       # + sway
+    xy = track + np.einsum("fij,fj->fi", heading, nom.root)[:, :2]  # + sway
     stances, stance_mask, ankle_xys = {}, {}, {}
     for side in C.SIDES:
         j = ix[f"{side}Foot"]
         ankle_xys[side] = track + np.einsum("fij,fj->fi", heading, pos_b[:, j])[:, :2]
-        stances[side] = C.plant_stance(ground, feet[side], nom.stance[side], ankle_xys[side],
-                                       psi + nom.yaw[side], nom.pitch[side])
+        stances[side] = C.plant_stance(
+            ground, feet[side], nom.stance[side], ankle_xys[side], psi + nom.yaw[side], nom.pitch[side]
+        )
         stance_mask[side] = nom.stance[side].copy()
     root_rot = heading @ nom.pelvis
     root_pos = np.column_stack([xy, z_lock + C.support_height(stances, n)])
     # contacts the legs cannot reach start a little later / end a little earlier; re-plant
     cycle = fps / params.frequency
     for side in C.SIDES:
-        stance_mask[side] = _trim_contacts(skeleton, side, stance_mask[side], stances[side],
-                                           root_pos, root_rot, int(round(0.05 * cycle)),
-                                           int(round(0.08 * cycle)))
-        stances[side] = C.plant_stance(ground, feet[side], stance_mask[side], ankle_xys[side],
-                                       psi + nom.yaw[side], nom.pitch[side])
+        stance_mask[side] = _trim_contacts(
+            skeleton,
+            side,
+            stance_mask[side],
+            stances[side],
+            root_pos,
+            root_rot,
+            int(round(0.05 * cycle)),
+            int(round(0.08 * cycle)),
+        )
+        stances[side] = C.plant_stance(
+            ground, feet[side], stance_mask[side], ankle_xys[side], psi + nom.yaw[side], nom.pitch[side]
+        )
     support = C.support_height(stances, n)
     root_pos = np.column_stack([xy, z_lock + support])
     drop = _reach_drop(skeleton, stances, root_pos, root_rot, n)
@@ -331,11 +365,17 @@ def _locomotion(mode, skeleton, fps, frames, speed, path, ground, feet, start_ph
     for side in C.SIDES:
         j = ix[f"{side}Foot"]
         nominal_ankle = root_pos + np.einsum("fij,fj->fi", heading, pos_b[:, j] - nom.root)
-        targets = C.swing_targets(ground, feet[side], stances[side], nominal_ankle,
-                                  heading @ rot_b[:, j], nom.toe[side], support - drop)
+        targets = C.swing_targets(
+            ground,
+            feet[side],
+            stances[side],
+            nominal_ankle,
+            heading @ rot_b[:, j],
+            nom.toe[side],
+            support - drop,
+        )
         chain = C.leg_chain(skeleton, side)
-        hip, knee, ankle, toe = C.leg_ik(chain, root_pos, root_rot, nom.local[:, chain.hip],
-                                         targets)
+        hip, knee, ankle, toe = C.leg_ik(chain, root_pos, root_rot, nom.local[:, chain.hip], targets)
         local[:, chain.hip], local[:, chain.knee] = hip, knee
         local[:, chain.ankle], local[:, chain.toe] = ankle, toe
         lifts[side] = targets.lift
@@ -347,19 +387,27 @@ def _locomotion(mode, skeleton, fps, frames, speed, path, ground, feet, start_ph
     dz = np.gradient(gaussian_filter1d(support, sigma, mode="nearest"))
     ds = np.gradient(gaussian_filter1d(s, sigma, mode="nearest"))
     grade = (dz / np.maximum(ds, 1e-9))[keep]
-    info = {"speed_m_s": speed, "cadence_steps_min": params.cadence,
-            "step_length_m": params.step_length, "stride_length_m": params.stride_length,
-            "stride_frequency_hz": params.frequency, "duty_factor": params.duty,
-            "hip_scale": params.hip_scale, "phase": np.mod(phase[keep], 1.0),
-            "stance": {s.lower(): m[keep] for s, m in stance_mask.items()},
-            "grade": grade, "swing_lift_max_m": max(float(v[keep].max()) for v in lifts.values()),
-            "source": "gait tables: " + {"walk": "Winter 2009 / Perry & Burnfield 2010",
-                                         "run": "Novacheck 1998"}[mode]}
+    info = {
+        "speed_m_s": speed,
+        "cadence_steps_min": params.cadence,
+        "step_length_m": params.step_length,
+        "stride_length_m": params.stride_length,
+        "stride_frequency_hz": params.frequency,
+        "duty_factor": params.duty,
+        "hip_scale": params.hip_scale,
+        "phase": np.mod(phase[keep], 1.0),
+        "stance": {s.lower(): m[keep] for s, m in stance_mask.items()},
+        "grade": grade,
+        "swing_lift_max_m": max(float(v[keep].max()) for v in lifts.values()),
+        "source": "gait tables: "
+        + {"walk": "Winter 2009 / Perry & Burnfield 2010", "run": "Novacheck 1998"}[mode],
+    }
     return quats, root, report, info
 
 
-def _trim_contacts(skeleton, side, mask, stances, root_pos, root_rot, max_head: int,
-                   max_tail: int, tol=1e-3) -> np.ndarray:
+def _trim_contacts(
+    skeleton, side, mask, stances, root_pos, root_rot, max_head: int, max_tail: int, tol=1e-3
+) -> np.ndarray:
     """Contact mask of one foot with each stance shortened (by at most ``max_head`` frames at
     the start and ``max_tail`` at the end) to the frames its leg can reach: a late touch-down
     (heel still above the ground) or an early lift-off of the unloading trailing foot. The
@@ -379,8 +427,8 @@ def _trim_contacts(skeleton, side, mask, stances, root_pos, root_rot, max_head: 
         tail = np.flatnonzero(bad[lo:])
         if len(tail):
             stop = lo + int(tail[0])
-        out[st.start:st.start + head] = False
-        out[st.start + stop:st.stop] = False
+        out[st.start : st.start + head] = False
+        out[st.start + stop : st.stop] = False
     return out
 
 
@@ -390,15 +438,14 @@ def _reach_drop(skeleton, stances, root_pos, root_rot, n) -> np.ndarray:
         chain = C.leg_chain(skeleton, side)
         for st in runs:
             sl = slice(st.start, st.stop)
-            need[sl] = np.maximum(need[sl], C.reach_drop(chain, root_pos[sl], root_rot[sl],
-                                                         st.ankle))
+            need[sl] = np.maximum(need[sl], C.reach_drop(chain, root_pos[sl], root_rot[sl], st.ankle))
     return C.smooth_drop(need, 2.0)
 
 
 # ------------------------------------------------------------------------- standing
 def _minjerk(x) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
-    return x ** 3 * (10 - 15 * x + 6 * x * x)
+    return x**3 * (10 - 15 * x + 6 * x * x)
 
 
 def _sway(t: np.ndarray, rng: np.random.Generator, rms: float) -> np.ndarray:
@@ -407,12 +454,24 @@ def _sway(t: np.ndarray, rng: np.random.Generator, rms: float) -> np.ndarray:
     amp = rng.uniform(0.5, 1.0, len(freqs)) / np.sqrt(freqs / freqs[0])
     ph = rng.uniform(0, 2 * np.pi, len(freqs))
     x = (amp[:, None] * np.sin(2 * np.pi * freqs[:, None] * t + ph[:, None])).sum(0)
-    norm = np.sqrt(0.5 * np.sum(amp ** 2))
+    norm = np.sqrt(0.5 * np.sum(amp**2))
     return rms * x / norm
 
 
-def _standing(activity, skeleton, fps, frames, path, ground, feet, seed, turn_deg,
-              turn_duration_s, exercise_met, time_since_exercise_s):
+def _standing(
+    activity,
+    skeleton,
+    fps,
+    frames,
+    path,
+    ground,
+    feet,
+    seed,
+    turn_deg,
+    turn_duration_s,
+    exercise_met,
+    time_since_exercise_s,
+):
     info = rig_info(skeleton)
     ix = info.index
     rest = skeleton.rest_positions
@@ -460,15 +519,14 @@ def _standing(activity, skeleton, fps, frames, path, ground, feet, seed, turn_de
             # shift the pelvis over the stance foot while the other one steps
             other = trail if side == lead else lead
             sgn = 1.0 if other == "Left" else -1.0
-            shift += sgn * 0.025 * np.sin(np.pi * np.clip((t - a + 0.1 * ts) / (b - a + 0.2 * ts),
-                                                          0, 1)) ** 2
+            shift += sgn * 0.025 * np.sin(np.pi * np.clip((t - a + 0.1 * ts) / (b - a + 0.2 * ts), 0, 1)) ** 2
     # breathing and sway
     if activity == "postExercise":
         # breathing follows the fast EPOC component: ~39/min and 3x deeper right after
         # ~10 MET, back to ~15/min at rest
         excess = float(np.clip((exercise_met - MET_STAND) / (10.0 - MET_STAND), 0.0, 1.5))
         decay = excess * np.exp(-(t + time_since_exercise_s) / EPOC[0][1])
-        rate = 0.25 + 0.40 * decay                     # breaths/s
+        rate = 0.25 + 0.40 * decay  # breaths/s
         depth = 1.0 + 2.0 * decay
         sway_rms = (0.006, 0.004)
         lean = np.radians(3.0)
@@ -478,7 +536,7 @@ def _standing(activity, skeleton, fps, frames, path, ground, feet, seed, turn_de
         sway_rms = (0.004, 0.0025)
         lean = 0.0
     breath_phase = 2 * np.pi * np.cumsum(rate) / fps + rng.uniform(0, 2 * np.pi)
-    breath = depth * 0.5 * (1 - np.cos(breath_phase))   # 0 (exhaled) .. depth (inhaled)
+    breath = depth * 0.5 * (1 - np.cos(breath_phase))  # 0 (exhaled) .. depth (inhaled)
     ap = _sway(t, rng, sway_rms[0])
     ml = _sway(t, rng, sway_rms[1])
     # root
@@ -496,8 +554,9 @@ def _standing(activity, skeleton, fps, frames, path, ground, feet, seed, turn_de
         off = np.array([rest[ix[f"{side}UpLeg"]][0], rest[j][1]]) - hips[:2]
         off_w = np.einsum("fij,j->fi", rot_z(foot_yaw[side])[:, :2, :2], off)
         ankle_xy = start + off_w
-        stances[side] = C.plant_stance(ground, feet[side], stance[side], ankle_xy,
-                                       foot_yaw[side], np.zeros(frames))
+        stances[side] = C.plant_stance(
+            ground, feet[side], stance[side], ankle_xy, foot_yaw[side], np.zeros(frames)
+        )
         nominal_ankle[side] = np.column_stack([ankle_xy, np.full(frames, rest[j][2])])
         local[:, ix[f"{side}UpLeg"]] = rot_y(sign * info.rest_abd[side])
         local[:, ix[f"{side}Leg"]] = rot_x(np.radians(5.0) - info.rest_knee[side])
@@ -522,7 +581,7 @@ def _standing(activity, skeleton, fps, frames, path, ground, feet, seed, turn_de
         for st in stances[side]:
             sl = slice(st.start, st.stop)
             r = st.ankle - (np.column_stack([xy[sl], np.zeros(st.stop - st.start)]) + hip_off[sl])
-            horiz = np.maximum(d_nom ** 2 - r[:, 0] ** 2 - r[:, 1] ** 2, 0.0)
+            horiz = np.maximum(d_nom**2 - r[:, 0] ** 2 - r[:, 1] ** 2, 0.0)
             z[sl] = np.minimum(z[sl], st.ankle[:, 2] - hip_off[sl, 2] + np.sqrt(horiz))
     z = np.where(np.isfinite(z), z, hips[2])
     z = gaussian_filter1d(z, 1.0, mode="nearest") - 0.002 * breath
@@ -530,8 +589,9 @@ def _standing(activity, skeleton, fps, frames, path, ground, feet, seed, turn_de
     root_pos[:, 2] -= _reach_drop(skeleton, stances, root_pos, root_rot, frames)
     for side in C.SIDES:
         j = ix[f"{side}Foot"]
-        targets = C.swing_targets(ground, feet[side], stances[side], nominal_ankle[side],
-                                  rot_z(foot_yaw[side]), np.zeros(frames))
+        targets = C.swing_targets(
+            ground, feet[side], stances[side], nominal_ankle[side], rot_z(foot_yaw[side]), np.zeros(frames)
+        )
         chain = C.leg_chain(skeleton, side)
         hip, knee, ankle, toe = C.leg_ik(chain, root_pos, root_rot, local[:, chain.hip], targets)
         local[:, chain.hip], local[:, chain.knee] = hip, knee
@@ -550,22 +610,38 @@ def _standing(activity, skeleton, fps, frames, path, ground, feet, seed, turn_de
         add = info.arm_rest_abd[side] - np.radians(8.0)
         local[:, ix[f"{side}Arm"]] = rot_x(-np.radians(2.0) * breath) @ rot_y(sign * add)
         local[:, ix[f"{side}ForeArm"]] = axis_angle_matrix(
-            info.elbow_axis[side], np.radians(15.0) - info.elbow_rest[side])
+            info.elbow_axis[side], np.radians(15.0) - info.elbow_rest[side]
+        )
     local[:, 0] = root_rot
-    quats, root, report = _finish(skeleton, ground, feet, local, root_pos, stance,
-                                  slice(0, frames))
-    extra = {"breath_rate_hz": rate, "stance": {s.lower(): m for s, m in stance.items()},
-             "stepping": stepping, "sway_rms_m": {"ap": sway_rms[0], "ml": sway_rms[1]}}
+    quats, root, report = _finish(skeleton, ground, feet, local, root_pos, stance, slice(0, frames))
+    extra = {
+        "breath_rate_hz": rate,
+        "stance": {s.lower(): m for s, m in stance.items()},
+        "stepping": stepping,
+        "sway_rms_m": {"ap": sway_rms[0], "ml": sway_rms[1]},
+    }
     return quats, root, report, extra
 
 
 # ------------------------------------------------------------------------- entry point
-def make_motion(activity: str, skeleton: Skeleton, fps: float, frame_count: int,
-                speed_m_s: float | None = None, path=None, ground=None, mass_kg: float = 75.0,
-                *, body_points: np.ndarray | None = None, start_phase: float = 0.0,
-                turn_deg: float = 180.0, turn_duration_s: float | None = None,
-                exercise_met: float = 10.0, time_since_exercise_s: float = 0.0,
-                seed: int = 0) -> Motion:
+def make_motion(
+    activity: str,
+    skeleton: Skeleton,
+    fps: float,
+    frame_count: int,
+    speed_m_s: float | None = None,
+    path=None,
+    ground=None,
+    mass_kg: float = 75.0,
+    *,
+    body_points: np.ndarray | None = None,
+    start_phase: float = 0.0,
+    turn_deg: float = 180.0,
+    turn_duration_s: float | None = None,
+    exercise_met: float = 10.0,
+    time_since_exercise_s: float = 0.0,
+    seed: int = 0,
+) -> Motion:
     """Synthesize ``frame_count`` frames at ``fps`` of ``activity`` (one of ACTIVITIES).
 
     speed_m_s: walk (default 1.4, 0.3-2.2) or run (default 3.5, 1.8-6.0) speed [m/s];
@@ -591,27 +667,47 @@ def make_motion(activity: str, skeleton: Skeleton, fps: float, frame_count: int,
         raise InputError(bad_value("activity", activity, f"expected one of {list(ACTIVITIES)}"))
     frames = int(frame_count)
     if frames < 2 or not fps > 0:
-        raise InputError(bad_value("frame_count/fps", (frame_count, fps),
-                                   "expected >= 2 frames at a positive fps"))
-    feet = (C.foot_points_from_body(skeleton, body_points) if body_points is not None
-            else C.foot_points_from_joints(skeleton))
+        raise InputError(
+            bad_value("frame_count/fps", (frame_count, fps), "expected >= 2 frames at a positive fps")
+        )
+    feet = (
+        C.foot_points_from_body(skeleton, body_points)
+        if body_points is not None
+        else C.foot_points_from_joints(skeleton)
+    )
     g = C.Ground(ground)
     times = np.arange(frames) / fps
     if activity in ("walk", "run"):
         v = DEFAULT_SPEED[activity] if speed_m_s is None else float(speed_m_s)
         lo, hi = SPEED_RANGE[activity]
         if not lo <= v <= hi:
-            raise InputError(bad_value("speed_m_s", v, f"{activity} speed must be in "
-                                                       f"{lo}..{hi} m/s"))
+            raise InputError(bad_value("speed_m_s", v, f"{activity} speed must be in {lo}..{hi} m/s"))
         start = skeleton.rest_positions[0, :2]
-        quats, root, report, info = _locomotion(activity, skeleton, fps, frames, v,
-                                                Path(path, start), g, feet, start_phase)
+        quats, root, report, info = _locomotion(
+            activity, skeleton, fps, frames, v, Path(path, start), g, feet, start_phase
+        )
         rate = metabolic_rate(activity, mass_kg, times, v, info["grade"])
     else:
-        quats, root, report, info = _standing(activity, skeleton, fps, frames, path, g, feet,
-                                              seed, turn_deg, turn_duration_s, exercise_met,
-                                              time_since_exercise_s)
-        rate = metabolic_rate(activity, mass_kg, times, exercise_met=exercise_met,
-                              time_since_exercise_s=time_since_exercise_s,
-                              stepping=info.get("stepping"))
+        quats, root, report, info = _standing(
+            activity,
+            skeleton,
+            fps,
+            frames,
+            path,
+            g,
+            feet,
+            seed,
+            turn_deg,
+            turn_duration_s,
+            exercise_met,
+            time_since_exercise_s,
+        )
+        rate = metabolic_rate(
+            activity,
+            mass_kg,
+            times,
+            exercise_met=exercise_met,
+            time_since_exercise_s=time_since_exercise_s,
+            stepping=info.get("stepping"),
+        )
     return Motion(float(fps), root, quats, activity, rate, report, info)

@@ -1,8 +1,8 @@
 """Gait data and the nominal (flat-ground, straight-line) gait kinematics of the avatar.
 
-Everything here is in the *body frame*: the avatar frame of :mod:`humv_usd.avatar.skeleton`
+Everything here is in the *body frame*: the avatar frame of :mod:`humv_usd.human.skeleton`
 (+Z up, the body faces -Y, +X is the person's left) with the root (Hips) at the origin and no
-heading. :mod:`humv_usd.avatar.motion` places it on a path and :mod:`humv_usd.avatar.contact`
+heading. :mod:`humv_usd.human.motion` places it on a path and :mod:`humv_usd.human.contact`
 plants the feet on the ground.
 
 Sign conventions (rest frames are world-aligned, see ``skeleton``): a rotation about -X swings
@@ -59,6 +59,7 @@ Spatio-temporal relations (see :func:`walk_stride`, :func:`run_stride`):
   2004, *J Rehabil Res Dev* 41:829-834); vertical excursion is not imposed -- it follows from
   the leg kinematics and the ground contact.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -67,7 +68,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from humv_usd.avatar.skeleton import Skeleton
+from humv_usd.human.skeleton import Skeleton
 
 G = 9.81
 
@@ -79,24 +80,21 @@ def rot_x(a) -> np.ndarray:
     a = np.asarray(a, dtype=np.float64)
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1),
-                     np.stack([z, s, c], -1)], -2)
+    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
 
 
 def rot_y(a) -> np.ndarray:
     a = np.asarray(a, dtype=np.float64)
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1),
-                     np.stack([-s, z, c], -1)], -2)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
 
 
 def rot_z(a) -> np.ndarray:
     a = np.asarray(a, dtype=np.float64)
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
-                     np.stack([z, z, o], -1)], -2)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
 
 
 def axis_angle_matrix(axis, angle) -> np.ndarray:
@@ -122,17 +120,41 @@ def matrix_to_quat(m: np.ndarray) -> np.ndarray:
     shape = m.shape[:-2]
     m = m.reshape(-1, 3, 3)
     t = np.einsum("nii->n", m)
-    cand = np.stack([
-        np.stack([1 + t, m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0],
-                  m[:, 1, 0] - m[:, 0, 1]], -1),
-        np.stack([m[:, 2, 1] - m[:, 1, 2], 1 + 2 * m[:, 0, 0] - t, m[:, 0, 1] + m[:, 1, 0],
-                  m[:, 0, 2] + m[:, 2, 0]], -1),
-        np.stack([m[:, 0, 2] - m[:, 2, 0], m[:, 0, 1] + m[:, 1, 0], 1 + 2 * m[:, 1, 1] - t,
-                  m[:, 1, 2] + m[:, 2, 1]], -1),
-        np.stack([m[:, 1, 0] - m[:, 0, 1], m[:, 0, 2] + m[:, 2, 0], m[:, 1, 2] + m[:, 2, 1],
-                  1 + 2 * m[:, 2, 2] - t], -1)], 1)                      # (n, 4, 4)
+    cand = np.stack(
+        [
+            np.stack([1 + t, m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], -1),
+            np.stack(
+                [
+                    m[:, 2, 1] - m[:, 1, 2],
+                    1 + 2 * m[:, 0, 0] - t,
+                    m[:, 0, 1] + m[:, 1, 0],
+                    m[:, 0, 2] + m[:, 2, 0],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[:, 0, 2] - m[:, 2, 0],
+                    m[:, 0, 1] + m[:, 1, 0],
+                    1 + 2 * m[:, 1, 1] - t,
+                    m[:, 1, 2] + m[:, 2, 1],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[:, 1, 0] - m[:, 0, 1],
+                    m[:, 0, 2] + m[:, 2, 0],
+                    m[:, 1, 2] + m[:, 2, 1],
+                    1 + 2 * m[:, 2, 2] - t,
+                ],
+                -1,
+            ),
+        ],
+        1,
+    )  # (n, 4, 4)
     diag = np.stack([t, m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]], -1)
-    best = np.argmax(diag, axis=1)                                       # Shepperd's choice
+    best = np.argmax(diag, axis=1)  # Shepperd's choice
     q = cand[np.arange(len(m)), best]
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     q *= np.where(q[:, :1] < 0, -1.0, 1.0)
@@ -142,10 +164,15 @@ def matrix_to_quat(m: np.ndarray) -> np.ndarray:
 def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=np.float64), -1, 0)
     bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=np.float64), -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], -1)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )
 
 
 def quat_conj(q: np.ndarray) -> np.ndarray:
@@ -177,9 +204,14 @@ def align_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     v = np.cross(a, b)
     c = np.sum(a * b, axis=-1)[..., None, None]
     z = np.zeros(v.shape[:-1])
-    k = np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                  np.stack([v[..., 2], z, -v[..., 0]], -1),
-                  np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+    k = np.stack(
+        [
+            np.stack([z, -v[..., 2], v[..., 1]], -1),
+            np.stack([v[..., 2], z, -v[..., 0]], -1),
+            np.stack([-v[..., 1], v[..., 0], z], -1),
+        ],
+        -2,
+    )
     return np.eye(3) + k + (k @ k) / np.maximum(1.0 + c, 1e-9)
 
 
@@ -190,8 +222,9 @@ def yaw_of(m: np.ndarray) -> np.ndarray:
     return np.arctan2(f[..., 0], -f[..., 1])
 
 
-def fk_matrices(skeleton: Skeleton, local: np.ndarray, root_rotation: np.ndarray,
-                root_translation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def fk_matrices(
+    skeleton: Skeleton, local: np.ndarray, root_rotation: np.ndarray, root_translation: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """World rotations (F, J, 3, 3) and positions (F, J, 3) from local rotation matrices
     (F, J, 3, 3); the root's local entry is ignored in favour of ``root_rotation`` (F, 3, 3)."""
     frames, joints = local.shape[:2]
@@ -213,36 +246,124 @@ def fk_matrices(skeleton: Skeleton, local: np.ndarray, root_rotation: np.ndarray
 @dataclass(frozen=True)
 class GaitTable:
     """Normative sagittal angles over one cycle (percent -> degrees) of one gait mode."""
+
     name: str
-    toe_off_pct: float                 # stance fraction of the source data [%]
-    hip: tuple                         # ((pct, deg), ...) thigh angle to the vertical
+    toe_off_pct: float  # stance fraction of the source data [%]
+    hip: tuple  # ((pct, deg), ...) thigh angle to the vertical
     knee: tuple
     ankle: tuple
-    flat: tuple                        # (start, full, end-full, end) foot-flat window [%]
+    flat: tuple  # (start, full, end-full, end) foot-flat window [%]
     source: str
 
 
 WALK = GaitTable(
-    name="walk", toe_off_pct=62.0,
-    hip=((0, 22), (8, 21), (15, 17), (30, 3), (42, -10), (50, -17), (55, -18), (62, -12),
-         (70, 2), (80, 18), (87, 24), (94, 23.5), (100, 22)),
-    knee=((0, 4), (6, 12), (14, 18), (25, 11), (35, 5), (42, 4), (50, 10), (56, 24),
-          (62, 40), (68, 56), (73, 61), (80, 52), (87, 30), (93, 11), (100, 4)),
-    ankle=((0, 0), (6, -6), (12, -2), (25, 5), (40, 9), (48, 10), (54, 4), (58, -6),
-           (62, -16), (66, -18), (72, -9), (78, -3), (85, 1), (92, 1.5), (100, 0)),
+    name="walk",
+    toe_off_pct=62.0,
+    hip=(
+        (0, 22),
+        (8, 21),
+        (15, 17),
+        (30, 3),
+        (42, -10),
+        (50, -17),
+        (55, -18),
+        (62, -12),
+        (70, 2),
+        (80, 18),
+        (87, 24),
+        (94, 23.5),
+        (100, 22),
+    ),
+    knee=(
+        (0, 4),
+        (6, 12),
+        (14, 18),
+        (25, 11),
+        (35, 5),
+        (42, 4),
+        (50, 10),
+        (56, 24),
+        (62, 40),
+        (68, 56),
+        (73, 61),
+        (80, 52),
+        (87, 30),
+        (93, 11),
+        (100, 4),
+    ),
+    ankle=(
+        (0, 0),
+        (6, -6),
+        (12, -2),
+        (25, 5),
+        (40, 9),
+        (48, 10),
+        (54, 4),
+        (58, -6),
+        (62, -16),
+        (66, -18),
+        (72, -9),
+        (78, -3),
+        (85, 1),
+        (92, 1.5),
+        (100, 0),
+    ),
     flat=(6, 12, 30, 40),
-    source="Winter (2009) ch. 5/App. A; Perry & Burnfield (2010) ch. 4-6 (key points, +-2 deg)")
+    source="Winter (2009) ch. 5/App. A; Perry & Burnfield (2010) ch. 4-6 (key points, +-2 deg)",
+)
 
 RUN = GaitTable(
-    name="run", toe_off_pct=39.0,
-    hip=((0, 28), (10, 20), (20, 8), (30, -6), (39, -15), (45, -16), (52, -8), (60, 8),
-         (70, 26), (80, 40), (87, 42), (94, 36), (100, 28)),
-    knee=((0, 18), (8, 32), (15, 40), (25, 30), (35, 18), (39, 17), (45, 25), (55, 55),
-          (65, 85), (72, 92), (80, 75), (88, 45), (95, 25), (100, 18)),
-    ankle=((0, 3), (7, 12), (15, 20), (25, 14), (33, -5), (39, -20), (45, -22), (55, -10),
-           (65, 2), (75, 8), (85, 7), (95, 4), (100, 3)),
+    name="run",
+    toe_off_pct=39.0,
+    hip=(
+        (0, 28),
+        (10, 20),
+        (20, 8),
+        (30, -6),
+        (39, -15),
+        (45, -16),
+        (52, -8),
+        (60, 8),
+        (70, 26),
+        (80, 40),
+        (87, 42),
+        (94, 36),
+        (100, 28),
+    ),
+    knee=(
+        (0, 18),
+        (8, 32),
+        (15, 40),
+        (25, 30),
+        (35, 18),
+        (39, 17),
+        (45, 25),
+        (55, 55),
+        (65, 85),
+        (72, 92),
+        (80, 75),
+        (88, 45),
+        (95, 25),
+        (100, 18),
+    ),
+    ankle=(
+        (0, 3),
+        (7, 12),
+        (15, 20),
+        (25, 14),
+        (33, -5),
+        (39, -20),
+        (45, -22),
+        (55, -10),
+        (65, 2),
+        (75, 8),
+        (85, 7),
+        (95, 4),
+        (100, 3),
+    ),
     flat=(4, 8, 13, 18),
-    source="Novacheck (1998) Gait & Posture 7:77-95, running (key points, +-3 deg)")
+    source="Novacheck (1998) Gait & Posture 7:77-95, running (key points, +-3 deg)",
+)
 
 TABLES = {"walk": WALK, "run": RUN}
 
@@ -262,8 +383,9 @@ def warp_phase(phase, duty: float, toe_off_ref: float) -> np.ndarray:
     """Map a gait phase with stance fraction ``duty`` onto the data's phase (toe-off at
     ``toe_off_ref``), piecewise linear in stance and in swing."""
     p = np.mod(phase, 1.0)
-    return np.where(p < duty, p * toe_off_ref / duty,
-                    toe_off_ref + (p - duty) * (1 - toe_off_ref) / (1 - duty))
+    return np.where(
+        p < duty, p * toe_off_ref / duty, toe_off_ref + (p - duty) * (1 - toe_off_ref) / (1 - duty)
+    )
 
 
 def smoothstep(x) -> np.ndarray:
@@ -274,8 +396,9 @@ def smoothstep(x) -> np.ndarray:
 # ------------------------------------------------------------------------- spatio-temporal
 def leg_length(skeleton: Skeleton) -> float:
     """Hip-joint height at rest [m] (mean of both sides): the leg length of the gait laws."""
-    return float(np.mean([skeleton.rest_positions[skeleton.index(n), 2]
-                          for n in ("LeftUpLeg", "RightUpLeg")]))
+    return float(
+        np.mean([skeleton.rest_positions[skeleton.index(n), 2] for n in ("LeftUpLeg", "RightUpLeg")])
+    )
 
 
 def walk_stride(speed: float, leg: float) -> tuple[float, float]:
@@ -292,7 +415,7 @@ def walk_duty(speed: float) -> float:
 
 def run_stride(speed: float, leg: float) -> tuple[float, float]:
     """(stride length [m], stride frequency [Hz]) of running (Cavanagh & Kram 1989)."""
-    cadence = float(np.clip(142.0 + 8.0 * speed, 150.0, 200.0))      # steps/min
+    cadence = float(np.clip(142.0 + 8.0 * speed, 150.0, 200.0))  # steps/min
     freq = cadence / 120.0
     return speed / freq, freq
 
@@ -305,25 +428,26 @@ def run_duty(speed: float) -> float:
 @dataclass(frozen=True)
 class GaitParams:
     """Everything the nominal gait needs besides the clock; see :func:`gait_params`."""
-    mode: str                # "walk" | "run"
-    speed: float             # [m/s]
-    stride_length: float     # [m]
-    frequency: float         # stride frequency [Hz]
-    duty: float              # stance fraction
-    hip_scale: float         # sagittal hip amplitude factor (calibrated to the stride length)
+
+    mode: str  # "walk" | "run"
+    speed: float  # [m/s]
+    stride_length: float  # [m]
+    frequency: float  # stride frequency [Hz]
+    duty: float  # stance fraction
+    hip_scale: float  # sagittal hip amplitude factor (calibrated to the stride length)
     knee_stance_scale: float
-    half_width: float        # foot (ankle) distance from the line of progression [m]
-    pelvis_rotation: float   # amplitudes [rad]
+    half_width: float  # foot (ankle) distance from the line of progression [m]
+    pelvis_rotation: float  # amplitudes [rad]
     pelvis_obliquity: float
     pelvis_tilt: float
     thorax_rotation: float
-    trunk_lean: float        # [rad], forward
-    lateral_sway: float      # [m] amplitude of the pelvis' side-to-side motion
-    shoulder_mean: float     # [rad] flexion
+    trunk_lean: float  # [rad], forward
+    lateral_sway: float  # [m] amplitude of the pelvis' side-to-side motion
+    shoulder_mean: float  # [rad] flexion
     shoulder_amp: float
-    elbow_mean: float        # [rad] anatomical elbow flexion
+    elbow_mean: float  # [rad] anatomical elbow flexion
     elbow_amp: float
-    arm_abduction: float     # [rad] arm angle from the vertical in the frontal plane
+    arm_abduction: float  # [rad] arm angle from the vertical in the frontal plane
 
     @property
     def cadence(self) -> float:
@@ -348,32 +472,49 @@ def gait_params(mode: str, speed: float, skeleton: Skeleton) -> GaitParams:
         stride, freq = walk_stride(speed, leg)
         r = speed / 1.37
         return GaitParams(
-            mode=mode, speed=speed, stride_length=stride, frequency=freq,
-            duty=walk_duty(speed), hip_scale=1.0,
-            knee_stance_scale=float(np.clip(r ** 0.6, 0.5, 1.35)), half_width=0.05,
-            pelvis_rotation=np.radians(np.clip(4.0 * r ** 0.8, 2.0, 8.0)),
-            pelvis_obliquity=np.radians(np.clip(4.0 * r ** 0.5, 2.0, 6.0)),
+            mode=mode,
+            speed=speed,
+            stride_length=stride,
+            frequency=freq,
+            duty=walk_duty(speed),
+            hip_scale=1.0,
+            knee_stance_scale=float(np.clip(r**0.6, 0.5, 1.35)),
+            half_width=0.05,
+            pelvis_rotation=np.radians(np.clip(4.0 * r**0.8, 2.0, 8.0)),
+            pelvis_obliquity=np.radians(np.clip(4.0 * r**0.5, 2.0, 6.0)),
             pelvis_tilt=np.radians(1.5),
             thorax_rotation=np.radians(np.clip(3.0 * r, 1.5, 6.0)),
             trunk_lean=np.radians(2.0 + 2.0 * max(speed - 1.0, 0.0)),
             lateral_sway=float(np.clip(0.035 - 0.017 * (speed - 0.7), 0.01, 0.04)),
             shoulder_mean=np.radians(-6.0),
-            shoulder_amp=np.radians(np.clip(15.0 * r ** 0.8, 5.0, 30.0)),
+            shoulder_amp=np.radians(np.clip(15.0 * r**0.8, 5.0, 30.0)),
             elbow_mean=np.radians(25.0 + 5.0 * max(r - 1.0, 0.0)),
             elbow_amp=np.radians(np.clip(8.0 * r, 3.0, 15.0)),
-            arm_abduction=np.radians(9.0))
+            arm_abduction=np.radians(9.0),
+        )
     if mode == "run":
         stride, freq = run_stride(speed, leg)
         return GaitParams(
-            mode=mode, speed=speed, stride_length=stride, frequency=freq,
-            duty=run_duty(speed), hip_scale=1.0, knee_stance_scale=1.0, half_width=0.03,
-            pelvis_rotation=np.radians(6.0), pelvis_obliquity=np.radians(6.0),
-            pelvis_tilt=np.radians(2.5), thorax_rotation=np.radians(5.0),
-            trunk_lean=np.radians(6.0 + 1.5 * (speed - 3.0)), lateral_sway=0.012,
+            mode=mode,
+            speed=speed,
+            stride_length=stride,
+            frequency=freq,
+            duty=run_duty(speed),
+            hip_scale=1.0,
+            knee_stance_scale=1.0,
+            half_width=0.03,
+            pelvis_rotation=np.radians(6.0),
+            pelvis_obliquity=np.radians(6.0),
+            pelvis_tilt=np.radians(2.5),
+            thorax_rotation=np.radians(5.0),
+            trunk_lean=np.radians(6.0 + 1.5 * (speed - 3.0)),
+            lateral_sway=0.012,
             shoulder_mean=np.radians(-10.0),
             shoulder_amp=np.radians(np.clip(20.0 + 4.0 * speed, 20.0, 45.0)),
-            elbow_mean=np.radians(85.0), elbow_amp=np.radians(12.0),
-            arm_abduction=np.radians(12.0))
+            elbow_mean=np.radians(85.0),
+            elbow_amp=np.radians(12.0),
+            arm_abduction=np.radians(12.0),
+        )
     raise ValueError(f"unknown gait mode {mode!r}")
 
 
@@ -381,13 +522,14 @@ def gait_params(mode: str, speed: float, skeleton: Skeleton) -> GaitParams:
 @dataclass(frozen=True)
 class RigInfo:
     """Rest-pose quantities of a skeleton the gait code needs (per side 'Left'/'Right')."""
+
     index: dict
-    rest_hip: dict           # rest anatomical hip flexion [rad] (thigh to vertical)
+    rest_hip: dict  # rest anatomical hip flexion [rad] (thigh to vertical)
     rest_knee: dict
-    rest_abd: dict           # rest thigh abduction [rad] (ankle outward of the hip)
-    arm_rest_abd: dict       # rest upper-arm angle from the vertical, frontal plane [rad]
-    elbow_axis: dict         # (3,) unit flexion axis of the elbow at rest
-    elbow_rest: dict         # rest anatomical elbow flexion [rad]
+    rest_abd: dict  # rest thigh abduction [rad] (ankle outward of the hip)
+    arm_rest_abd: dict  # rest upper-arm angle from the vertical, frontal plane [rad]
+    elbow_axis: dict  # (3,) unit flexion axis of the elbow at rest
+    elbow_rest: dict  # rest anatomical elbow flexion [rad]
 
 
 def _sag(v: np.ndarray) -> float:
@@ -426,8 +568,7 @@ def _rig_info(skeleton: Skeleton) -> RigInfo:
         arm_abd[side] = float(np.arctan2(sign * upper[0], -upper[2]))
         ax = np.cross(upper, fore)
         eax[side] = ax / np.linalg.norm(ax)
-        erest[side] = float(np.arccos(np.dot(upper, fore) / np.linalg.norm(upper)
-                                      / np.linalg.norm(fore)))
+        erest[side] = float(np.arccos(np.dot(upper, fore) / np.linalg.norm(upper) / np.linalg.norm(fore)))
     return RigInfo(idx, rest_hip, rest_knee, rest_abd, arm_abd, eax, erest)
 
 
@@ -443,6 +584,7 @@ class NominalGait:
     while in stance, pitch (F,) target foot pitch to the ground [rad] (+ = toes up),
     toe (F,) toe extension [rad], yaw (F,) foot heading in the body frame [rad].
     """
+
     params: GaitParams
     local: np.ndarray
     pelvis: np.ndarray
@@ -483,7 +625,7 @@ def side_angles(params: GaitParams, phase) -> dict:
     knee = table_curve(table.name, "knee", ref)
     if params.knee_stance_scale != 1.0:
         base = min(v for _, v in table.knee)
-        w = 1 - smoothstep((ref * 100 - 30.0) / 10.0)       # loading-response bump only
+        w = 1 - smoothstep((ref * 100 - 30.0) / 10.0)  # loading-response bump only
         knee = knee + (params.knee_stance_scale - 1.0) * (knee - base) * w
     ankle = table_curve(table.name, "ankle", ref)
     pitch = hip - knee + ankle
@@ -496,13 +638,13 @@ def side_angles(params: GaitParams, phase) -> dict:
     toe_stance = np.maximum(-pitch, 0.0)
     to_ref = table.toe_off_pct / 100.0
     hip_to = hip_mean + params.hip_scale * (table_curve(table.name, "hip", to_ref) - hip_mean)
-    toe_at_off = max(-(hip_to - table_curve(table.name, "knee", to_ref)
-                       + table_curve(table.name, "ankle", to_ref)), 0.0)
+    toe_at_off = max(
+        -(hip_to - table_curve(table.name, "knee", to_ref) + table_curve(table.name, "ankle", to_ref)), 0.0
+    )
     sw = (p - params.duty) / (1 - params.duty)
     toe_swing = toe_at_off * (1 - smoothstep(sw / 0.25))
     toe = np.where(stance, toe_stance, toe_swing)
-    return {"hip": hip, "knee": knee, "ankle": ankle, "pitch": pitch, "toe": toe,
-            "stance": stance}
+    return {"hip": hip, "knee": knee, "ankle": ankle, "pitch": pitch, "toe": toe, "stance": stance}
 
 
 @lru_cache(maxsize=4)
@@ -527,19 +669,20 @@ def nominal_gait(skeleton: Skeleton, params: GaitParams, phase: np.ndarray) -> N
     J = len(skeleton.names)
     local = np.tile(np.eye(3), (F, J, 1, 1))
     tau = 2 * np.pi
-    gamma = -params.pelvis_rotation * np.cos(tau * phase)              # left side forward at IC
-    beta = -params.pelvis_obliquity * np.cos(tau * (phase - 0.17))     # right side drops after IC
+    gamma = -params.pelvis_rotation * np.cos(tau * phase)  # left side forward at IC
+    beta = -params.pelvis_obliquity * np.cos(tau * (phase - 0.17))  # right side drops after IC
     alpha = params.pelvis_tilt * np.cos(2 * tau * (phase - 0.45))
     pelvis = rot_z(gamma) @ rot_y(beta) @ rot_x(alpha)
-    sway = params.lateral_sway * np.cos(tau * (phase - 0.3))         # toward the stance foot
+    sway = params.lateral_sway * np.cos(tau * (phase - 0.3))  # toward the stance foot
     stance, load, pitch, toe, yaw = {}, {}, {}, {}, {}
     for side, off in (("Left", 0.0), ("Right", 0.5)):
         ph = np.mod(phase + off, 1.0)  # right IC half a cycle after the left one
         a = side_angles(params, ph)
         sign = 1.0 if side == "Left" else -1.0
         hip_x = skeleton.rest_positions[ix[f"{side}UpLeg"]][0]
-        leg = np.linalg.norm(skeleton.rest_positions[ix[f"{side}Foot"]]
-                             - skeleton.rest_positions[ix[f"{side}UpLeg"]])
+        leg = np.linalg.norm(
+            skeleton.rest_positions[ix[f"{side}Foot"]] - skeleton.rest_positions[ix[f"{side}UpLeg"]]
+        )
         # adduct the (rest-abducted) leg so the ankle runs at half_width from the midline
         want = np.arctan2(sign * params.half_width - hip_x, leg) * sign
         add = info.rest_abd[side] - want
@@ -560,8 +703,7 @@ def nominal_gait(skeleton: Skeleton, params: GaitParams, phase: np.ndarray) -> N
     spine = [("LowerBack", 0.3), ("Spine", 0.35), ("Spine1", 0.35)]
     twist = (params.pelvis_rotation + params.thorax_rotation) * np.cos(tau * phase)
     for name, w in spine:
-        local[:, ix[name]] = (rot_z(w * twist) @ rot_y(-w * beta)
-                              @ rot_x(w * (params.trunk_lean - alpha)))
+        local[:, ix[name]] = rot_z(w * twist) @ rot_y(-w * beta) @ rot_x(w * (params.trunk_lean - alpha))
     thorax_yaw = params.thorax_rotation * np.cos(tau * phase)
     for name, w in (("Neck", 0.5), ("Neck1", 0.3), ("Head", 0.2)):
         local[:, ix[name]] = rot_z(-w * thorax_yaw) @ rot_x(-w * 0.8 * params.trunk_lean)
@@ -574,12 +716,12 @@ def nominal_gait(skeleton: Skeleton, params: GaitParams, phase: np.ndarray) -> N
         flex = params.shoulder_mean + params.shoulder_amp * np.cos(tau * (phase - off - peak))
         local[:, ix[f"{side}Arm"]] = rot_x(-flex) @ rot_y(sign * add)
         elbow = params.elbow_mean + params.elbow_amp * np.cos(tau * (phase - off - peak - 0.03))
-        local[:, ix[f"{side}ForeArm"]] = axis_angle_matrix(info.elbow_axis[side],
-                                                           elbow - info.elbow_rest[side])
+        local[:, ix[f"{side}ForeArm"]] = axis_angle_matrix(
+            info.elbow_axis[side], elbow - info.elbow_rest[side]
+        )
     root = np.zeros((F, 3))
     root[:, 0] = sway
-    return NominalGait(params, local, pelvis, root, np.mod(phase, 1.0), stance, load, pitch, toe,
-                       yaw)
+    return NominalGait(params, local, pelvis, root, np.mod(phase, 1.0), stance, load, pitch, toe, yaw)
 
 
 def set_ankles(skeleton: Skeleton, gait: NominalGait) -> None:
@@ -611,15 +753,12 @@ def sagittal_angles(skeleton: Skeleton, world_rot: np.ndarray, world_pos: np.nda
         return np.degrees(np.arctan2(-v[:, 1], -v[:, 2]))
 
     for side in ("Left", "Right"):
-        hip, knee, ankle, toe = (world_pos[:, ix[f"{side}{n}"]]
-                                 for n in ("UpLeg", "Leg", "Foot", "ToeBase"))
+        hip, knee, ankle, toe = (world_pos[:, ix[f"{side}{n}"]] for n in ("UpLeg", "Leg", "Foot", "ToeBase"))
         th = sag(in_frame(pel, knee - hip))
         sh = sag(in_frame(pel, ankle - knee))
         foot = in_frame(pel, toe - ankle)
-        rest_foot = skeleton.rest_positions[ix[f"{side}ToeBase"]] - \
-            skeleton.rest_positions[ix[f"{side}Foot"]]
-        fp = np.degrees(np.arctan2(foot[:, 2], -foot[:, 1])
-                        - np.arctan2(rest_foot[2], -rest_foot[1]))
+        rest_foot = skeleton.rest_positions[ix[f"{side}ToeBase"]] - skeleton.rest_positions[ix[f"{side}Foot"]]
+        fp = np.degrees(np.arctan2(foot[:, 2], -foot[:, 1]) - np.arctan2(rest_foot[2], -rest_foot[1]))
         out[f"{side}Hip"] = th
         out[f"{side}Knee"] = th - sh
         out[f"{side}Ankle"] = fp - sh

@@ -2,7 +2,7 @@
 
 ``build_body(sex, age_yr, stature_m, mass_kg, build)`` returns a :class:`Body`. Pure numpy
 (no torch, no ``anny`` import); the target layout and MakeHuman's weighting scheme are
-described in :mod:`humv_usd.avatar.macro`.
+described in :mod:`humv_usd.human.macro`.
 
 Inputs map to MakeHuman macro values (each in [0, 1]):
 
@@ -45,6 +45,7 @@ which conserves the tissue volume the targets displaced.
 Frame: metres, +Z up, facing -Y (``basemesh``'s rotation (x, y, z) -> (x, -z, y) * 0.1), soles
 at z = 0, the body's bounding box centred on the z axis (as ``avatar.layer.body_mesh``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -54,8 +55,8 @@ from types import MappingProxyType
 import numpy as np
 from scipy.optimize import brentq
 
-from humv_usd.avatar.basemesh import _MH_TO_USD
-from humv_usd.avatar.macro import MacroValues, age_to_macro, apply_macros, obj_data
+from humv_usd.human.basemesh import _MH_TO_USD
+from humv_usd.human.macro import MacroValues, age_to_macro, apply_macros, obj_data
 from humv_usd.usd.mesh import signed_volume, triangle_areas
 
 BUILD_MUSCLE = {"slim": 0.25, "average": 0.5, "muscular": 0.75}
@@ -82,7 +83,7 @@ def siri_density(bf_pct: float) -> float:
 
 def dubois_bsa(mass_kg: float, stature_m: float) -> float:
     """Du Bois & Du Bois (1916) body surface area [m^2] = 0.007184 W^0.425 H^0.725 (H in cm)."""
-    return 0.007184 * mass_kg ** 0.425 * (100.0 * stature_m) ** 0.725
+    return 0.007184 * mass_kg**0.425 * (100.0 * stature_m) ** 0.725
 
 
 def _sex(sex: str) -> str:
@@ -99,8 +100,7 @@ def build_to_muscle(build: str | float) -> float:
         try:
             return BUILD_MUSCLE[build.strip().lower()]
         except KeyError:
-            raise ValueError(f"build must be one of {sorted(BUILD_MUSCLE)} or 0..1, "
-                             f"not {build!r}") from None
+            raise ValueError(f"build must be one of {sorted(BUILD_MUSCLE)} or 0..1, not {build!r}") from None
     v = float(build)
     if not 0.0 <= v <= 1.0:
         raise ValueError(f"build (muscle) must be in [0, 1], not {v}")
@@ -111,10 +111,11 @@ def build_to_muscle(build: str | float) -> float:
 @dataclass(frozen=True)
 class MeshPart:
     """One OBJ group re-indexed on its own vertices (what a USD Mesh needs)."""
-    points: np.ndarray          # (n, 3) [m]
-    face_counts: np.ndarray     # (F,)
-    face_indices: np.ndarray    # (sum counts,) into ``points``
-    vertex_ids: np.ndarray      # (n,) indices into Body.points (the full vertex list)
+
+    points: np.ndarray  # (n, 3) [m]
+    face_counts: np.ndarray  # (F,)
+    face_indices: np.ndarray  # (sum counts,) into ``points``
+    vertex_ids: np.ndarray  # (n,) indices into Body.points (the full vertex list)
 
 
 @dataclass(frozen=True)
@@ -127,26 +128,27 @@ class Body:
     ``points`` -- not re-indexed; :meth:`body_mesh` gives the compact re-indexed mesh and
     :meth:`helper` any other group (e.g. ``helper("tights")``).
     """
+
     points: np.ndarray
     body_faces: tuple[np.ndarray, np.ndarray]
     groups: MappingProxyType = field(repr=False)  # group -> (F, 4) indices into points
     sex: str
     age_yr: float
-    build: float                 # MakeHuman muscle value used
-    stature_m: float             # measured: soles to top of the head
-    volume_m3: float             # closed body-mesh volume
+    build: float  # MakeHuman muscle value used
+    stature_m: float  # measured: soles to top of the head
+    volume_m3: float  # closed body-mesh volume
     density_kg_m3: float
     body_fat_pct: float
-    mass_kg: float               # volume_m3 * density_kg_m3
+    mass_kg: float  # volume_m3 * density_kg_m3
     body_surface_area_m2: float  # mesh area of the body group
     macros: MacroValues
-    uniform_scale: float         # 1 unless the stature was outside the height macro's range
-    lateral_scale: float         # 1 unless the mass was outside the weight macro's range
+    uniform_scale: float  # 1 unless the stature was outside the height macro's range
+    lateral_scale: float  # 1 unless the mass was outside the weight macro's range
     requested: dict = field(default_factory=dict)
 
     @property
     def bmi(self) -> float:
-        return self.mass_kg / self.stature_m ** 2
+        return self.mass_kg / self.stature_m**2
 
     @property
     def dubois_bsa_m2(self) -> float:
@@ -163,8 +165,7 @@ class Body:
     def group(self, name: str) -> MeshPart:
         faces = self.groups[name]
         used, remap = np.unique(faces.ravel(), return_inverse=True)
-        return MeshPart(self.points[used], np.full(len(faces), faces.shape[1]),
-                        remap.astype(np.int64), used)
+        return MeshPart(self.points[used], np.full(len(faces), faces.shape[1]), remap.astype(np.int64), used)
 
     def helper(self, name: str) -> MeshPart:
         """A helper group by name, with or without the ``helper-`` prefix."""
@@ -186,8 +187,9 @@ class _Basis:
 
     def __init__(self, m: MacroValues, vertices: np.ndarray):
         levels = (0.0, 0.5, 1.0)
-        T = np.array([[apply_macros(_with(m, weight=wc, height=hk))[vertices] for hk in levels]
-                      for wc in levels])
+        T = np.array(
+            [[apply_macros(_with(m, weight=wc, height=hk))[vertices] for hk in levels] for wc in levels]
+        )
         self.avg = T[:, 1]
         self.dlo = T[:, 0] - T[:, 1]
         self.dhi = T[:, 2] - T[:, 1]
@@ -241,11 +243,12 @@ def _solve(f, target: float) -> tuple[float, float]:
 
 
 _MH_LEN = 0.1  # metres per MakeHuman unit
-_UP = 1        # MakeHuman's vertical axis (Y)
+_UP = 1  # MakeHuman's vertical axis (Y)
 
 
-def fit_macros(m: MacroValues, stature_m: float, volume_m3: float,
-               iterations: int = 12) -> tuple[MacroValues, float, float]:
+def fit_macros(
+    m: MacroValues, stature_m: float, volume_m3: float, iterations: int = 12
+) -> tuple[MacroValues, float, float]:
     """Weight and height macros (others from ``m``) for a stature and closed-mesh volume.
 
     Returns (macros, uniform_scale, lateral_scale); see the module docstring.
@@ -258,18 +261,18 @@ def fit_macros(m: MacroValues, stature_m: float, volume_m3: float,
         return (z.max() - z.min()) * _MH_LEN
 
     def volume(w, h):
-        return _volume_mh(basis.points(w, h), tris) * _MH_LEN ** 3
+        return _volume_mh(basis.points(w, h), tris) * _MH_LEN**3
 
     w, h = m.weight, m.height
     for _ in range(iterations):
         h_new, s = _solve(lambda x: stature(w, x), stature_m)
-        w_new, _ = _solve(lambda x: volume(x, h_new), volume_m3 / s ** 3)
+        w_new, _ = _solve(lambda x: volume(x, h_new), volume_m3 / s**3)
         done = abs(h_new - h) < 1e-7 and abs(w_new - w) < 1e-7
         w, h = w_new, h_new
         if done:
             break
     s = stature_m / stature(w, h)  # exact after the last weight step
-    r = volume_m3 / (volume(w, h) * s ** 3)
+    r = volume_m3 / (volume(w, h) * s**3)
     # snap to 1 what is solver noise (brentq xtol 1e-9 on the macros -> ~1e-8 relative)
     k = 1.0 if abs(r - 1.0) < 1e-6 else float(np.sqrt(r))
     s = 1.0 if abs(s - 1.0) < 1e-6 else float(s)
@@ -281,8 +284,9 @@ def to_usd(points_mh: np.ndarray) -> np.ndarray:
     return points_mh @ _MH_TO_USD.T
 
 
-def build_body(sex: str, age_yr: float, stature_m: float, mass_kg: float,
-               build: str | float = "average") -> Body:
+def build_body(
+    sex: str, age_yr: float, stature_m: float, mass_kg: float, build: str | float = "average"
+) -> Body:
     """Fit MakeHuman's macro targets to a person; see the module docstring.
 
     sex 'male'/'female'; age_yr [yr]; stature_m [m] (soles to top of head, standing);
@@ -292,7 +296,7 @@ def build_body(sex: str, age_yr: float, stature_m: float, mass_kg: float,
     if not (stature_m > 0 and mass_kg > 0):
         raise ValueError("stature_m and mass_kg must be positive")
     muscle = build_to_muscle(build)
-    bf = body_fat_pct(sex, age_yr, mass_kg / stature_m ** 2)
+    bf = body_fat_pct(sex, age_yr, mass_kg / stature_m**2)
     density = siri_density(bf)
     start = MacroValues(gender=SEX_GENDER[sex], age=age_to_macro(age_yr), muscle=muscle)
     macros, s, k = fit_macros(start, stature_m, mass_kg / density)
@@ -311,10 +315,26 @@ def build_body(sex: str, age_yr: float, stature_m: float, mass_kg: float,
     zb = p[used, 2]
     volume = signed_volume(p, counts, flat)
     return Body(
-        points=p, body_faces=(counts, flat), groups=MappingProxyType(groups), sex=sex,
-        age_yr=float(age_yr), build=muscle, stature_m=float(zb.max() - zb.min()), volume_m3=volume,
-        density_kg_m3=density, body_fat_pct=bf, mass_kg=volume * density,
-        body_surface_area_m2=float(triangle_areas(p, counts, flat).sum()), macros=macros,
-        uniform_scale=s, lateral_scale=k,
-        requested={"sex": sex, "age_yr": float(age_yr), "stature_m": float(stature_m),
-                   "mass_kg": float(mass_kg), "build": build})
+        points=p,
+        body_faces=(counts, flat),
+        groups=MappingProxyType(groups),
+        sex=sex,
+        age_yr=float(age_yr),
+        build=muscle,
+        stature_m=float(zb.max() - zb.min()),
+        volume_m3=volume,
+        density_kg_m3=density,
+        body_fat_pct=bf,
+        mass_kg=volume * density,
+        body_surface_area_m2=float(triangle_areas(p, counts, flat).sum()),
+        macros=macros,
+        uniform_scale=s,
+        lateral_scale=k,
+        requested={
+            "sex": sex,
+            "age_yr": float(age_yr),
+            "stature_m": float(stature_m),
+            "mass_kg": float(mass_kg),
+            "build": build,
+        },
+    )

@@ -10,25 +10,36 @@ Also: ``unrefined`` — the same counts with the garments on the helpers' resolu
 :func:`humv_usd.clothing.fit.refine`), to show what the finer mesh over the neck and pelvis
 changes; for a loose garment (``robe``) ``drape``: the hem's lag behind the skinned shape and
 the edge strain, draped vs skinned; with the ``rifle``: ``carry`` — the rifle's clearance from
-the body before/after :func:`humv_usd.avatar.carry.clear_rifle` and per frame after the fix;
+the body before/after :func:`humv_usd.human.carry.clear_rifle` and per frame after the fix;
 ``surface_misses`` (:func:`surface_misses`): refined (the default fix, vertices and
 :func:`humv_usd.clothing.collide.push_between`), ``vertex_fix_only`` (before that pass),
 ``between_layers`` (the pass also off the inner garments) and unrefined, with the fix times.
 The fix's CPU time (all threads) is reported next to the wall time (a loaded machine).
 """
+
 from __future__ import annotations
 
 import time
 
 import numpy as np
 
-from humv_usd.avatar.body import build_body
-from humv_usd.avatar.skeleton import forward_kinematics, skinning_matrices
-from humv_usd.clothing.collide import (LAYER_RADIUS, SHELL_COS, _flat_normals, apply,
-                                       blend_transforms, dress, drapes_of, simulate)
+from humv_usd.catalog.garments import garment
+from humv_usd.clothing.collide import (
+    LAYER_RADIUS,
+    SHELL_COS,
+    _flat_normals,
+    apply,
+    blend_transforms,
+    drapes_of,
+    dress,
+    simulate,
+)
 from humv_usd.clothing.fit import prepare
-from humv_usd.clothing.garments import garment
-from humv_usd.clothing.geometry import Surface
+from humv_usd.geometry.mesh import Surface
+from humv_usd.human.body import build_body
+from humv_usd.human.carry import apply_rifle_carry
+from humv_usd.human.motion import make_motion
+from humv_usd.human.skeleton import forward_kinematics, skinning_matrices
 
 
 def _counts(sim) -> dict:
@@ -37,14 +48,18 @@ def _counts(sim) -> dict:
         c = a.counts
         out[a.name] = {
             "vertices": a.fitted.vertex_count,
-            "before": {"inside": max(x.inside_before for x in c),
-                       "close": max(x.close_before for x in c),
-                       "layered": max(x.layered_before for x in c),
-                       "prop": max(x.prop_before for x in c)},
-            "after": {"inside": max(x.inside_after for x in c),
-                      "close": max(x.close_after for x in c),
-                      "layered": max(x.layered_after for x in c),
-                      "prop": max(x.prop_after for x in c)},
+            "before": {
+                "inside": max(x.inside_before for x in c),
+                "close": max(x.close_before for x in c),
+                "layered": max(x.layered_before for x in c),
+                "prop": max(x.prop_before for x in c),
+            },
+            "after": {
+                "inside": max(x.inside_after for x in c),
+                "close": max(x.close_after for x in c),
+                "layered": max(x.layered_after for x in c),
+                "prop": max(x.prop_after for x in c),
+            },
             "air_gap_min_m": float(a.air_gap.min()),
             "air_gap_median_m": float(np.median(a.air_gap)),
         }
@@ -57,11 +72,13 @@ def surface_misses(rig, skin: np.ndarray, sim) -> dict:
     than the minimum gap, and inside a garment under it (over its faces, as
     :func:`humv_usd.clothing.collide.push_off_shell` defines "over", closer than its
     thickness). The fix checks vertices only: these are what a coarse mesh misses."""
-    out = {a.name: {"samples": 0, "inside": 0, "close": 0, "layered": 0}
-           for a in sim.garments if not a.fitted.garment.is_prop}
+    out = {
+        a.name: {"samples": 0, "inside": 0, "close": 0, "layered": 0}
+        for a in sim.garments
+        if not a.fitted.garment.is_prop
+    }
     for f in range(len(skin)):
-        body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]),
-                     rig.mesh.points)
+        body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]), rig.mesh.points)
         surface = Surface(body, rig.triangles)
         inner: list = []
         for a in sim.garments:
@@ -69,8 +86,10 @@ def surface_misses(rig, skin: np.ndarray, sim) -> dict:
             if g.garment.is_prop:
                 continue
             p = a.posed[f]
-            e = np.unique(np.sort(np.stack([g.triangles, np.roll(g.triangles, -1, 1)], -1)
-                                  .reshape(-1, 2), axis=1), axis=0)
+            e = np.unique(
+                np.sort(np.stack([g.triangles, np.roll(g.triangles, -1, 1)], -1).reshape(-1, 2), axis=1),
+                axis=0,
+            )
             samples = np.concatenate([p[e].mean(axis=1), p[g.triangles].mean(axis=1)])
             d = surface.closest(samples).signed
             layered = np.zeros(len(samples), dtype=bool)
@@ -86,53 +105,76 @@ def surface_misses(rig, skin: np.ndarray, sim) -> dict:
             r["inside"] = max(r["inside"], int(np.sum(d < 0)))
             r["close"] = max(r["close"], int(np.sum((d >= 0) & (d < g.garment.minimum_gap))))
             r["layered"] = max(r["layered"], int(layered.sum()))
-            inner.append((Surface(p, g.triangles), _flat_normals(p, g.triangles),
-                          g.garment.thickness))
+            inner.append((Surface(p, g.triangles), _flat_normals(p, g.triangles), g.garment.thickness))
     return out
 
 
-def bench_outfit(garments, sex: str = "male", stature_m: float = 1.78, mass_kg: float = 80.0,
-                 activity: str = "walk", fps: float = 30.0, frames: int = 30) -> dict:
+def bench_outfit(
+    garments,
+    sex: str = "male",
+    stature_m: float = 1.78,
+    mass_kg: float = 80.0,
+    activity: str = "walk",
+    fps: float = 30.0,
+    frames: int = 30,
+) -> dict:
     t0 = time.perf_counter()
     body = build_body(sex, 30.0, stature_m, mass_kg)
     rig = prepare(body)
-    from humv_usd.avatar.motion import make_motion
-    motion = make_motion(activity, rig.skeleton, fps, max(frames, 2), mass_kg=mass_kg,
-                         body_points=body.points)
+    motion = make_motion(
+        activity, rig.skeleton, fps, max(frames, 2), mass_kg=mass_kg, body_points=body.points
+    )
     carry = None
     if any(garment(n).is_prop for n in garments):
-        from humv_usd.avatar.carry import apply_rifle_carry
         carry = {}
         motion = apply_rifle_carry(motion, rig.skeleton, body, report=carry)
-    skin = skinning_matrices(rig.skeleton, forward_kinematics(
-        rig.skeleton, motion.local_rotations, motion.root_translation))[:frames]
+    skin = skinning_matrices(
+        rig.skeleton, forward_kinematics(rig.skeleton, motion.local_rotations, motion.root_translation)
+    )[:frames]
     t1 = time.perf_counter()
     outfit = dress(rig, garments)
     t2 = time.perf_counter()
     sim = simulate(outfit, skin, fps=fps)
-    out = {"body": {"sex": sex, "stature_m": stature_m, "mass_kg": mass_kg},
-           "activity": activity, "frames": frames,
-           "seconds": {"body_and_motion": t1 - t0, "fit": t2 - t1,
-                       "frame_median": float(np.median(sim.frame_seconds)),
-                       "fix_median": float(np.median(sim.fix_seconds)),
-                       "fix_cpu_median": float(np.median(sim.fix_cpu_seconds))},
-           "garments": _counts(sim)}
+    out = {
+        "body": {"sex": sex, "stature_m": stature_m, "mass_kg": mass_kg},
+        "activity": activity,
+        "frames": frames,
+        "seconds": {
+            "body_and_motion": t1 - t0,
+            "fit": t2 - t1,
+            "frame_median": float(np.median(sim.frame_seconds)),
+            "fix_median": float(np.median(sim.fix_seconds)),
+            "fix_cpu_median": float(np.median(sim.fix_cpu_seconds)),
+        },
+        "garments": _counts(sim),
+    }
     coarse = simulate(dress(rig, garments, refined=False), skin, fps=fps)
-    out["unrefined"] = {k: {"vertices": v["vertices"], "before": v["before"],
-                            "after": v["after"]} for k, v in _counts(coarse).items()}
-    out["unrefined"]["seconds"] = {"frame_median": float(np.median(coarse.frame_seconds)),
-                                   "fix_median": float(np.median(coarse.fix_seconds))}
+    out["unrefined"] = {
+        k: {"vertices": v["vertices"], "before": v["before"], "after": v["after"]}
+        for k, v in _counts(coarse).items()
+    }
+    out["unrefined"]["seconds"] = {
+        "frame_median": float(np.median(coarse.frame_seconds)),
+        "fix_median": float(np.median(coarse.fix_seconds)),
+    }
     vertex_only = simulate(outfit, skin, fps=fps, between=False)
     layered = simulate(outfit, skin, fps=fps, between_layers=True)
-    out["surface_misses"] = {"refined": surface_misses(rig, skin, sim),
-                             "vertex_fix_only": surface_misses(rig, skin, vertex_only),
-                             "between_layers": surface_misses(rig, skin, layered),
-                             "unrefined": surface_misses(rig, skin, coarse)}
+    out["surface_misses"] = {
+        "refined": surface_misses(rig, skin, sim),
+        "vertex_fix_only": surface_misses(rig, skin, vertex_only),
+        "between_layers": surface_misses(rig, skin, layered),
+        "unrefined": surface_misses(rig, skin, coarse),
+    }
     out["surface_misses"]["seconds"] = {
-        "vertex_fix_only": {"fix_median": float(np.median(vertex_only.fix_seconds)),
-                            "fix_cpu_median": float(np.median(vertex_only.fix_cpu_seconds))},
-        "between_layers": {"fix_median": float(np.median(layered.fix_seconds)),
-                           "fix_cpu_median": float(np.median(layered.fix_cpu_seconds))}}
+        "vertex_fix_only": {
+            "fix_median": float(np.median(vertex_only.fix_seconds)),
+            "fix_cpu_median": float(np.median(vertex_only.fix_cpu_seconds)),
+        },
+        "between_layers": {
+            "fix_median": float(np.median(layered.fix_seconds)),
+            "fix_cpu_median": float(np.median(layered.fix_cpu_seconds)),
+        },
+    }
     for a in sim.garments:
         if a.skinned is not None:
             for d in drapes_of(a.fitted):
@@ -143,17 +185,21 @@ def bench_outfit(garments, sex: str = "male", stature_m: float = 1.78, mass_kg: 
                 def strain(p):
                     e = d.edges
                     q = p[:, d.vertices]
-                    return np.abs(np.linalg.norm(q[:, e[:, 0]] - q[:, e[:, 1]], axis=2)
-                                  / d.rest_length - 1)
+                    return np.abs(np.linalg.norm(q[:, e[:, 0]] - q[:, e[:, 1]], axis=2) / d.rest_length - 1)
+
                 s_draped, s_skinned = strain(a.posed), strain(a.skinned)
                 out.setdefault("drape", {})[a.name] = {
                     "vertices": len(d.vertices),
                     "hem_lag_median_m": float(np.median(lag[:, hem])),
                     "lag_max_m": float(lag.max()),
-                    "strain_median": {"draped": float(np.median(s_draped)),
-                                      "skinned": float(np.median(s_skinned))},
-                    "strain_p95": {"draped": float(np.quantile(s_draped, 0.95)),
-                                   "skinned": float(np.quantile(s_skinned, 0.95))},
+                    "strain_median": {
+                        "draped": float(np.median(s_draped)),
+                        "skinned": float(np.median(s_skinned)),
+                    },
+                    "strain_p95": {
+                        "draped": float(np.quantile(s_draped, 0.95)),
+                        "skinned": float(np.quantile(s_skinned, 0.95)),
+                    },
                 }
         if a.clearance is not None:
             out["carry"] = {

@@ -31,6 +31,7 @@ Retargeting (:func:`motion_from_bvh`):
 Errors in a file raise :class:`humv_usd.errors.InputError` with one line naming the file, the
 line number and what was expected.
 """
+
 from __future__ import annotations
 
 import re
@@ -40,9 +41,12 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from humv_usd.avatar.gait import align_matrix, fk_matrices, matrix_to_quat, quat_slerp
-from humv_usd.avatar.skeleton import Skeleton, quat_to_matrix
 from humv_usd.errors import InputError
+from humv_usd.fileio import write_text_atomic
+from humv_usd.human import contact as C
+from humv_usd.human.gait import align_matrix, fk_matrices, matrix_to_quat, quat_slerp
+from humv_usd.human.motion import Motion, _continuous, metabolic_rate
+from humv_usd.human.skeleton import Skeleton, quat_to_matrix
 
 POS_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROT_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
@@ -53,18 +57,18 @@ _AXES = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([
 @dataclass
 class BVHJoint:
     name: str
-    parent: int                       # index into BVH.joints, -1 for the root
-    offset: np.ndarray                # (3,)
+    parent: int  # index into BVH.joints, -1 for the root
+    offset: np.ndarray  # (3,)
     channels: list[str]
     end_site: np.ndarray | None = None
-    first_channel: int = 0            # column of its first channel in BVH.values
+    first_channel: int = 0  # column of its first channel in BVH.values
 
 
 @dataclass
 class BVH:
     joints: list[BVHJoint]
     frame_time: float
-    values: np.ndarray                # (frames, channels)
+    values: np.ndarray  # (frames, channels)
     path: str = ""
     meta: dict = field(default_factory=dict)
 
@@ -95,8 +99,7 @@ class BVH:
             order = [c for c in j.channels if c in ROT_CHANNELS]
             if order:
                 ang = np.column_stack([self.channel(i, c) for c in order])
-                rot[:, i] = Rotation.from_euler("".join(c[0] for c in order), ang,
-                                                degrees=True).as_matrix()
+                rot[:, i] = Rotation.from_euler("".join(c[0] for c in order), ang, degrees=True).as_matrix()
             trans[:, i] = j.offset
             for k, c in enumerate(POS_CHANNELS):
                 v = self.channel(i, c)
@@ -186,8 +189,12 @@ def _parse_joint(s: _Lines, joints: list[BVHJoint], parent: int, name: str, n_ch
         for _ in range(count):
             tok, cl = s.next("a channel name")
             if tok not in POS_CHANNELS + ROT_CHANNELS:
-                raise s.fail(cl, f"a channel name ({', '.join(POS_CHANNELS + ROT_CHANNELS)}) "
-                             f"-- CHANNELS {count} lists {count} names", tok)
+                raise s.fail(
+                    cl,
+                    f"a channel name ({', '.join(POS_CHANNELS + ROT_CHANNELS)}) "
+                    f"-- CHANNELS {count} lists {count} names",
+                    tok,
+                )
             if tok in channels:
                 raise s.fail(cl, "each channel once per joint", tok)
             channels.append(tok)
@@ -207,8 +214,7 @@ def _parse_joint(s: _Lines, joints: list[BVHJoint], parent: int, name: str, n_ch
             tok, l2 = s.next("'OFFSET'")
             if tok != "OFFSET":
                 raise s.fail(l2, "'OFFSET'", tok)
-            joints[me].end_site = np.array([s.number("a number (OFFSET x y z)")
-                                            for _ in range(3)])
+            joints[me].end_site = np.array([s.number("a number (OFFSET x y z)") for _ in range(3)])
             s.expect("}")
         else:
             raise s.fail(line, "'JOINT', 'End Site' or '}'", tok)
@@ -233,8 +239,9 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BVH:
     names = [j.name for j in joints]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
-        raise InputError(f"{path}:{s.line_of_motion}: expected unique joint names, got "
-                         f"duplicates {sorted(dup)}")
+        raise InputError(
+            f"{path}:{s.line_of_motion}: expected unique joint names, got duplicates {sorted(dup)}"
+        )
     # MOTION section: "Frames: N", "Frame Time: dt", N lines of values
     lines = s.lines
     n = s.line_of_motion
@@ -262,14 +269,12 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BVH:
     rows = body[2:]
     if len(rows) < frames:
         last = rows[-1][0] if rows else k
-        raise InputError(f"{path}:{last}: expected {frames} frame lines (Frames: {frames}), "
-                         f"got {len(rows)}")
+        raise InputError(f"{path}:{last}: expected {frames} frame lines (Frames: {frames}), got {len(rows)}")
     values = np.empty((frames, n_ch[0]))
     for f, (k, t) in enumerate(rows[:frames]):
         parts = t.split()
         if len(parts) != n_ch[0]:
-            raise InputError(f"{path}:{k}: expected {n_ch[0]} channel values (frame {f}), "
-                             f"got {len(parts)}")
+            raise InputError(f"{path}:{k}: expected {n_ch[0]} channel values (frame {f}), got {len(parts)}")
         try:
             values[f] = [float(p) for p in parts]
         except ValueError:
@@ -321,8 +326,7 @@ def format_bvh(bvh: BVH, precision: int = 6) -> str:
         for c in children.get(i, []):
             emit(c, depth + 1)
         if j.end_site is not None:
-            out.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {num(j.end_site)}",
-                        f"{pad}  }}"])
+            out.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {num(j.end_site)}", f"{pad}  }}"])
         out.append(f"{pad}}}")
 
     emit(children[-1][0], 0)
@@ -333,7 +337,6 @@ def format_bvh(bvh: BVH, precision: int = 6) -> str:
 
 def write_bvh(path, bvh: BVH, precision: int = 6) -> None:
     """Write ``bvh`` to ``path`` atomically (temp file + rename)."""
-    from humv_usd.fileio import write_text_atomic
 
     write_text_atomic(Path(path), format_bvh(bvh, precision))
 
@@ -342,6 +345,7 @@ def write_bvh(path, bvh: BVH, precision: int = 6) -> None:
 def axis_matrix(up_axis: str = "Y", forward_axis: str = "Z") -> np.ndarray:
     """Rotation A taking BVH vectors to ours: BVH up -> +Z, BVH facing -> -Y, BVH left
     (up x facing) -> +X. Axes are "X", "Y", "Z", optionally signed ("-Z")."""
+
     def parse(a: str, what: str) -> np.ndarray:
         a = str(a).strip().upper()
         sign = -1.0 if a.startswith("-") else 1.0
@@ -349,10 +353,12 @@ def axis_matrix(up_axis: str = "Y", forward_axis: str = "Z") -> np.ndarray:
         if a not in _AXES:
             raise InputError(f"{what} = {a!r}: expected one of X, Y, Z, -X, -Y, -Z")
         return sign * _AXES[a]
+
     up, fw = parse(up_axis, "up_axis"), parse(forward_axis, "forward_axis")
     if abs(np.dot(up, fw)) > 0.5:
-        raise InputError(f"up_axis = {up_axis!r}, forward_axis = {forward_axis!r}: "
-                         "expected two different axes")
+        raise InputError(
+            f"up_axis = {up_axis!r}, forward_axis = {forward_axis!r}: expected two different axes"
+        )
     left = np.cross(up, fw)
     src = np.column_stack([left, fw, up])
     dst = np.column_stack([[1.0, 0, 0], [0, -1.0, 0], [0, 0, 1.0]])
@@ -360,10 +366,17 @@ def axis_matrix(up_axis: str = "Y", forward_axis: str = "Z") -> np.ndarray:
 
 
 # ------------------------------------------------------------------------- rig -> BVH
-def motion_to_bvh(skeleton: Skeleton, local_rotations: np.ndarray, root_translation: np.ndarray,
-                  fps: float, rotation_order: str = "ZXY", up_axis: str = "Y",
-                  forward_axis: str = "Z", scale: float = 0.01,
-                  position_channels: str = "XYZ") -> BVH:
+def motion_to_bvh(
+    skeleton: Skeleton,
+    local_rotations: np.ndarray,
+    root_translation: np.ndarray,
+    fps: float,
+    rotation_order: str = "ZXY",
+    up_axis: str = "Y",
+    forward_axis: str = "Z",
+    scale: float = 0.01,
+    position_channels: str = "XYZ",
+) -> BVH:
     """Our rig's motion as a BVH (CMU names, world-aligned rest frames = our A-pose): local
     rotations (F, J, 4) wxyz and root translation (F, 3) [m] in our frame; ``scale`` [m per
     BVH unit] (0.01: centimetres); ``rotation_order`` e.g. "ZXY" (-> Zrotation Xrotation
@@ -411,6 +424,7 @@ def _depth_first(skeleton: Skeleton) -> list[int]:
         for k in range(len(skeleton.names)):
             if skeleton.parents[k] == j:
                 visit(k)
+
     visit(int(np.flatnonzero(skeleton.parents < 0)[0]))
     return out
 
@@ -419,9 +433,10 @@ def _depth_first(skeleton: Skeleton) -> list[int]:
 @dataclass(frozen=True)
 class Retarget:
     """How BVH joints drive our rig (see the module docstring)."""
-    source: dict              # our joint index -> BVH joint index
-    correction: np.ndarray    # (J, 3, 3) rest correction C per our joint
-    axes: np.ndarray          # (3, 3) A
+
+    source: dict  # our joint index -> BVH joint index
+    correction: np.ndarray  # (J, 3, 3) rest correction C per our joint
+    axes: np.ndarray  # (3, 3) A
     scale: float
 
 
@@ -433,9 +448,15 @@ def _primary_child(skeleton: Skeleton, j: int) -> int | None:
 ALIGN = ("UpLeg", "Leg", "Arm", "ForeArm", "Hand")
 
 
-def build_retarget(bvh: BVH, skeleton: Skeleton, name_map: dict | None = None,
-                   up_axis: str = "Y", forward_axis: str = "Z", scale: float | None = None,
-                   align=ALIGN) -> Retarget:
+def build_retarget(
+    bvh: BVH,
+    skeleton: Skeleton,
+    name_map: dict | None = None,
+    up_axis: str = "Y",
+    forward_axis: str = "Z",
+    scale: float | None = None,
+    align=ALIGN,
+) -> Retarget:
     """Joint mapping, rest corrections, axes and scale. ``align``: name endings of our joints
     whose rest direction is aligned to the BVH's (the limb bones, where T- and A-pose
     differ); the others (pelvis, spine, clavicles, head, feet, toes, fingers) keep the BVH's
@@ -453,8 +474,10 @@ def build_retarget(bvh: BVH, skeleton: Skeleton, name_map: dict | None = None,
         if target in ours and ours[target] not in source:
             source[ours[target]] = b
     if not source:
-        raise InputError(f"{bvh.path}: no BVH joint maps onto the rig (BVH joints "
-                         f"{bvh.names[:6]}...; pass name_map={{bvh name: rig name}})")
+        raise InputError(
+            f"{bvh.path}: no BVH joint maps onto the rig (BVH joints "
+            f"{bvh.names[:6]}...; pass name_map={{bvh name: rig name}})"
+        )
     rest_b, ends_b = bvh.rest_positions()
     rest_b = rest_b @ A.T
     ends_b = [None if e is None else A @ e for e in ends_b]
@@ -464,15 +487,16 @@ def build_retarget(bvh: BVH, skeleton: Skeleton, name_map: dict | None = None,
         ankles = [ours[n] for n in ("LeftFoot", "RightFoot") if ours[n] in source]
         if 0 in source and ankles:
             h_b = np.mean([rest_b[source[0], 2] - rest_b[source[a], 2] for a in ankles])
-            h_o = np.mean([skeleton.rest_positions[0, 2] - skeleton.rest_positions[a, 2]
-                           for a in ankles])
+            h_o = np.mean([skeleton.rest_positions[0, 2] - skeleton.rest_positions[a, 2] for a in ankles])
         else:
             pts = np.vstack([rest_b] + [e[None] for e in ends_b if e is not None])
             h_b = rest_b[0, 2] - pts[:, 2].min()
             h_o = skeleton.rest_positions[0, 2]
         if h_b <= 1e-9:
-            raise InputError(f"{bvh.path}: cannot derive the BVH scale (its rest pose has no "
-                             f"height along up_axis={up_axis!r}); pass scale")
+            raise InputError(
+                f"{bvh.path}: cannot derive the BVH scale (its rest pose has no "
+                f"height along up_axis={up_axis!r}); pass scale"
+            )
         scale = h_o / h_b
     J = len(skeleton.names)
     corr = np.tile(np.eye(3), (J, 1, 1))
@@ -481,7 +505,7 @@ def build_retarget(bvh: BVH, skeleton: Skeleton, name_map: dict | None = None,
         bchildren.setdefault(j.parent, []).append(i)
     for j, b in source.items():
         name = skeleton.names[j]
-        if not any(name.endswith(a) and name[:-len(a)] in ("Left", "Right") for a in align):
+        if not any(name.endswith(a) and name[: -len(a)] in ("Left", "Right") for a in align):
             continue
         c = _primary_child(skeleton, j)
         if c is None:
@@ -526,12 +550,12 @@ def retarget(bvh: BVH, skeleton: Skeleton, rt: Retarget) -> tuple[np.ndarray, np
         else:
             local[:, j] = np.eye(3)
             world[:, j] = parent
-    if 0 not in rt.source:           # nothing drives our Hips: it stays where it rests
+    if 0 not in rt.source:  # nothing drives our Hips: it stays where it rests
         return local, np.tile(skeleton.rest_positions[0], (F, 1))
     b0 = rt.source[0]
     if bvh.joints[b0].parent < 0:
         root = (trans_b[:, b0] @ A.T) * rt.scale
-    else:                            # a non-root BVH joint drives our Hips: its world position
+    else:  # a non-root BVH joint drives our Hips: its world position
         _, pos = fk_matrices_bvh(bvh, rot_b, trans_b)
         root = (pos[:, b0] @ A.T) * rt.scale
     return local, root
@@ -551,8 +575,9 @@ def fk_matrices_bvh(bvh: BVH, rot: np.ndarray, trans: np.ndarray):
     return wr, wp
 
 
-def resample(times_src: np.ndarray, quats: np.ndarray, root: np.ndarray,
-             times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def resample(
+    times_src: np.ndarray, quats: np.ndarray, root: np.ndarray, times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Slerp local quaternions (F, J, 4) and lerp the root (F, 3) onto ``times``."""
     t = np.clip(times, times_src[0], times_src[-1])
     k = np.clip(np.searchsorted(times_src, t, side="right") - 1, 0, len(times_src) - 1)
@@ -564,12 +589,25 @@ def resample(times_src: np.ndarray, quats: np.ndarray, root: np.ndarray,
     return q, r
 
 
-def motion_from_bvh(path, skeleton: Skeleton, fps: float, frame_count: int | None = None,
-                    name_map: dict | None = None, up_axis: str = "Y", forward_axis: str = "Z",
-                    scale: float | None = None, recenter: bool = True, settle: bool = True,
-                    activity: str = "walk", mass_kg: float = 75.0, ground=None,
-                    body_points=None, align=ALIGN, bvh: BVH | None = None):
-    """A :class:`humv_usd.avatar.motion.Motion` from a BVH file retargeted onto ``skeleton``
+def motion_from_bvh(
+    path,
+    skeleton: Skeleton,
+    fps: float,
+    frame_count: int | None = None,
+    name_map: dict | None = None,
+    up_axis: str = "Y",
+    forward_axis: str = "Z",
+    scale: float | None = None,
+    recenter: bool = True,
+    settle: bool = True,
+    activity: str = "walk",
+    mass_kg: float = 75.0,
+    ground=None,
+    body_points=None,
+    align=ALIGN,
+    bvh: BVH | None = None,
+):
+    """A :class:`humv_usd.human.motion.Motion` from a BVH file retargeted onto ``skeleton``
     and resampled to ``fps`` (``frame_count`` frames; default: the file's duration).
 
     recenter: move the first frame's root ground position onto our rest Hips position (the
@@ -581,8 +619,6 @@ def motion_from_bvh(path, skeleton: Skeleton, fps: float, frame_count: int | Non
     uses ``activity`` with the clip's mean horizontal root speed (walk/run) or the standing
     rate.
     """
-    from humv_usd.avatar import contact as C
-    from humv_usd.avatar.motion import Motion, _continuous, metabolic_rate
 
     src = bvh if bvh is not None else read_bvh(path)
     rt = build_retarget(src, skeleton, name_map, up_axis, forward_axis, scale, align)
@@ -597,8 +633,11 @@ def motion_from_bvh(path, skeleton: Skeleton, fps: float, frame_count: int | Non
     q, r = resample(t_src, quats, root, times)
     q = _continuous(q)
     # contact report with detected stance
-    feet = (C.foot_points_from_body(skeleton, body_points) if body_points is not None
-            else C.foot_points_from_joints(skeleton))
+    feet = (
+        C.foot_points_from_body(skeleton, body_points)
+        if body_points is not None
+        else C.foot_points_from_joints(skeleton)
+    )
     g = C.Ground(ground)
     rot = quat_to_matrix(q)
     wr, wp = fk_matrices(skeleton, rot, rot[:, 0], r)
@@ -607,12 +646,16 @@ def motion_from_bvh(path, skeleton: Skeleton, fps: float, frame_count: int | Non
         r[:, 2] += off
         wp[..., 2] += off[:, None]
     report = C.contact_report(g, feet, wr, wp, stance)
-    speed = float(np.linalg.norm(r[-1, :2] - r[0, :2]) / max(times[-1], 1e-9)) \
-        if len(times) > 1 else 0.0
+    speed = float(np.linalg.norm(r[-1, :2] - r[0, :2]) / max(times[-1], 1e-9)) if len(times) > 1 else 0.0
     act = activity if activity in ("walk", "run") else "stand"
     rate = metabolic_rate(act, mass_kg, times, speed)
-    info = {"source": str(src.path), "bvh_fps": src.fps, "bvh_frames": src.frame_count,
-            "scale_m_per_unit": rt.scale,
-            "mapped": {skeleton.names[j]: src.joints[b].name for j, b in rt.source.items()},
-            "stance": {s.lower(): m for s, m in stance.items()}, "speed_m_s": speed}
+    info = {
+        "source": str(src.path),
+        "bvh_fps": src.fps,
+        "bvh_frames": src.frame_count,
+        "scale_m_per_unit": rt.scale,
+        "mapped": {skeleton.names[j]: src.joints[b].name for j, b in rt.source.items()},
+        "stance": {s.lower(): m for s, m in stance.items()},
+        "speed_m_s": speed,
+    }
     return Motion(float(fps), r, q, activity, rate, report, info)

@@ -36,6 +36,7 @@ group's topology is the same for every fitted body): the nose tip (most anterior
 nose targets' region), the body vertex nearest the front of each eyeball (``helper-*-eye``)
 and the body vertex nearest each ear's centre (``ears/*-ear-scale-incr`` target region).
 """
+
 from __future__ import annotations
 
 import gzip
@@ -45,17 +46,32 @@ from types import MappingProxyType
 import numpy as np
 
 from humv_usd.assets import makehuman_dir
-from humv_usd.avatar.skeleton import Skeleton
+from humv_usd.human.body import to_usd
+from humv_usd.human.macro import obj_data, parse_target
+from humv_usd.human.skeleton import Skeleton
 
 # ---------------------------------------------------------------------------- id tables
 #: Body region ids (1-based; 0 = not the body) and names (USD tokens).
 BODY_REGIONS: tuple[tuple[int, str], ...] = (
-    (1, "head"), (2, "face"), (3, "neck"), (4, "chest"), (5, "abdomen"), (6, "back"),
+    (1, "head"),
+    (2, "face"),
+    (3, "neck"),
+    (4, "chest"),
+    (5, "abdomen"),
+    (6, "back"),
     (7, "pelvis"),
-    (8, "leftUpperArm"), (9, "leftLowerArm"), (10, "leftHand"),
-    (11, "rightUpperArm"), (12, "rightLowerArm"), (13, "rightHand"),
-    (14, "leftUpperLeg"), (15, "leftLowerLeg"), (16, "leftFoot"),
-    (17, "rightUpperLeg"), (18, "rightLowerLeg"), (19, "rightFoot"),
+    (8, "leftUpperArm"),
+    (9, "leftLowerArm"),
+    (10, "leftHand"),
+    (11, "rightUpperArm"),
+    (12, "rightLowerArm"),
+    (13, "rightHand"),
+    (14, "leftUpperLeg"),
+    (15, "leftLowerLeg"),
+    (16, "leftFoot"),
+    (17, "rightUpperLeg"),
+    (18, "rightLowerLeg"),
+    (19, "rightFoot"),
 )
 REGION_ID = {name: rid for rid, name in BODY_REGIONS}
 #: names indexed by id (index 0 = "background"), as written to ``humv:label:bodyRegionNames``.
@@ -63,79 +79,163 @@ BODY_REGION_NAMES: tuple[str, ...] = ("background",) + tuple(n for _, n in BODY_
 
 #: JOS-3's 17 segments in JOS-3's order (index = ``jos3Segment`` value).
 JOS3_SEGMENTS: tuple[str, ...] = (
-    "Head", "Neck", "Chest", "Back", "Pelvis", "LShoulder", "LArm", "LHand",
-    "RShoulder", "RArm", "RHand", "LThigh", "LLeg", "LFoot", "RThigh", "RLeg", "RFoot")
+    "Head",
+    "Neck",
+    "Chest",
+    "Back",
+    "Pelvis",
+    "LShoulder",
+    "LArm",
+    "LHand",
+    "RShoulder",
+    "RArm",
+    "RHand",
+    "LThigh",
+    "LLeg",
+    "LFoot",
+    "RThigh",
+    "RLeg",
+    "RFoot",
+)
 #: The same segments as pythermalcomfort names them (``JOS3BodyParts`` fields).
 JOS3_PYTHERMALCOMFORT: tuple[str, ...] = (
-    "head", "neck", "chest", "back", "pelvis", "left_shoulder", "left_arm", "left_hand",
-    "right_shoulder", "right_arm", "right_hand", "left_thigh", "left_leg", "left_foot",
-    "right_thigh", "right_leg", "right_foot")
+    "head",
+    "neck",
+    "chest",
+    "back",
+    "pelvis",
+    "left_shoulder",
+    "left_arm",
+    "left_hand",
+    "right_shoulder",
+    "right_arm",
+    "right_hand",
+    "left_thigh",
+    "left_leg",
+    "left_foot",
+    "right_thigh",
+    "right_leg",
+    "right_foot",
+)
 
 REGION_TO_JOS3 = {
-    "head": "Head", "face": "Head", "neck": "Neck", "chest": "Chest", "abdomen": "Chest",
-    "back": "Back", "pelvis": "Pelvis",
-    "leftUpperArm": "LShoulder", "leftLowerArm": "LArm", "leftHand": "LHand",
-    "rightUpperArm": "RShoulder", "rightLowerArm": "RArm", "rightHand": "RHand",
-    "leftUpperLeg": "LThigh", "leftLowerLeg": "LLeg", "leftFoot": "LFoot",
-    "rightUpperLeg": "RThigh", "rightLowerLeg": "RLeg", "rightFoot": "RFoot",
+    "head": "Head",
+    "face": "Head",
+    "neck": "Neck",
+    "chest": "Chest",
+    "abdomen": "Chest",
+    "back": "Back",
+    "pelvis": "Pelvis",
+    "leftUpperArm": "LShoulder",
+    "leftLowerArm": "LArm",
+    "leftHand": "LHand",
+    "rightUpperArm": "RShoulder",
+    "rightLowerArm": "RArm",
+    "rightHand": "RHand",
+    "leftUpperLeg": "LThigh",
+    "leftLowerLeg": "LLeg",
+    "leftFoot": "LFoot",
+    "rightUpperLeg": "RThigh",
+    "rightLowerLeg": "RLeg",
+    "rightFoot": "RFoot",
 }
 
 #: The seed's Table 2 regions (HumV paper, Sec. 4) as unions of ours.
 SEED_TABLE2_REGIONS = {
     "Full body": tuple(n for _, n in BODY_REGIONS),
-    "Hat": ("head",), "Chest": ("chest",), "Torso": ("abdomen", "back", "pelvis"),
-    "Left upper arm": ("leftUpperArm",), "Left lower arm": ("leftLowerArm",),
-    "Right upper arm": ("rightUpperArm",), "Right lower arm": ("rightLowerArm",),
-    "Left upper leg": ("leftUpperLeg",), "Left lower leg": ("leftLowerLeg",),
-    "Left foot": ("leftFoot",), "Right upper leg": ("rightUpperLeg",),
-    "Right lower leg": ("rightLowerLeg",), "Right foot": ("rightFoot",), "Face": ("face",),
+    "Hat": ("head",),
+    "Chest": ("chest",),
+    "Torso": ("abdomen", "back", "pelvis"),
+    "Left upper arm": ("leftUpperArm",),
+    "Left lower arm": ("leftLowerArm",),
+    "Right upper arm": ("rightUpperArm",),
+    "Right lower arm": ("rightLowerArm",),
+    "Left upper leg": ("leftUpperLeg",),
+    "Left lower leg": ("leftLowerLeg",),
+    "Left foot": ("leftFoot",),
+    "Right upper leg": ("rightUpperLeg",),
+    "Right lower leg": ("rightLowerLeg",),
+    "Right foot": ("rightFoot",),
+    "Face": ("face",),
 }
 
 #: COCO person keypoints, COCO's order.
 COCO_KEYPOINTS: tuple[str, ...] = (
-    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
-    "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
-    "left_knee", "right_knee", "left_ankle", "right_ankle")
+    "nose",
+    "left_eye",
+    "right_eye",
+    "left_ear",
+    "right_ear",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_hip",
+    "right_hip",
+    "left_knee",
+    "right_knee",
+    "left_ankle",
+    "right_ankle",
+)
 #: Joints whose heads are the limb keypoints.
 COCO_JOINTS = {
-    "left_shoulder": "LeftArm", "right_shoulder": "RightArm",
-    "left_elbow": "LeftForeArm", "right_elbow": "RightForeArm",
-    "left_wrist": "LeftHand", "right_wrist": "RightHand",
-    "left_hip": "LeftUpLeg", "right_hip": "RightUpLeg",
-    "left_knee": "LeftLeg", "right_knee": "RightLeg",
-    "left_ankle": "LeftFoot", "right_ankle": "RightFoot",
+    "left_shoulder": "LeftArm",
+    "right_shoulder": "RightArm",
+    "left_elbow": "LeftForeArm",
+    "right_elbow": "RightForeArm",
+    "left_wrist": "LeftHand",
+    "right_wrist": "RightHand",
+    "left_hip": "LeftUpLeg",
+    "right_hip": "RightUpLeg",
+    "left_knee": "LeftLeg",
+    "right_knee": "RightLeg",
+    "left_ankle": "LeftFoot",
+    "right_ankle": "RightFoot",
 }
 COCO_SURFACE = ("nose", "left_eye", "right_eye", "left_ear", "right_ear")
 
 # --- attribute names (authored by humv_usd.avatar.layer) --------------------------------------
-BODY_REGION_PRIMVAR = "primvars:humv:label:bodyRegion"        # int[], uniform
-BODY_REGION_NAMES_ATTR = "humv:label:bodyRegionNames"         # token[], index = id
-JOS3_SEGMENT_PRIMVAR = "primvars:humv:label:jos3Segment"      # int[], uniform
-JOS3_SEGMENT_NAMES_ATTR = "humv:label:jos3SegmentNames"       # token[], index = value
-COCO_KEYPOINTS_ATTR = "humv:label:cocoKeypoints"              # point3f[], time-sampled
-COCO_KEYPOINT_NAMES_ATTR = "humv:label:cocoKeypointNames"     # token[]
+BODY_REGION_PRIMVAR = "primvars:humv:label:bodyRegion"  # int[], uniform
+BODY_REGION_NAMES_ATTR = "humv:label:bodyRegionNames"  # token[], index = id
+JOS3_SEGMENT_PRIMVAR = "primvars:humv:label:jos3Segment"  # int[], uniform
+JOS3_SEGMENT_NAMES_ATTR = "humv:label:jos3SegmentNames"  # token[], index = value
+COCO_KEYPOINTS_ATTR = "humv:label:cocoKeypoints"  # point3f[], time-sampled
+COCO_KEYPOINT_NAMES_ATTR = "humv:label:cocoKeypointNames"  # token[]
 
 # joint name -> coarse class for the dominant-joint rule
-_TRUNK = {"Hips", "LHipJoint", "RHipJoint", "LowerBack", "Spine", "Spine1", "LeftShoulder",
-          "RightShoulder"}
+_TRUNK = {"Hips", "LHipJoint", "RHipJoint", "LowerBack", "Spine", "Spine1", "LeftShoulder", "RightShoulder"}
 _LIMB = {
-    "LeftArm": "leftUpperArm", "LeftForeArm": "leftLowerArm", "LeftHand": "leftHand",
-    "LThumb": "leftHand", "LeftFingerBase": "leftHand", "LeftHandFinger1": "leftHand",
-    "RightArm": "rightUpperArm", "RightForeArm": "rightLowerArm", "RightHand": "rightHand",
-    "RThumb": "rightHand", "RightFingerBase": "rightHand", "RightHandFinger1": "rightHand",
-    "LeftUpLeg": "leftUpperLeg", "LeftLeg": "leftLowerLeg", "LeftFoot": "leftFoot",
+    "LeftArm": "leftUpperArm",
+    "LeftForeArm": "leftLowerArm",
+    "LeftHand": "leftHand",
+    "LThumb": "leftHand",
+    "LeftFingerBase": "leftHand",
+    "LeftHandFinger1": "leftHand",
+    "RightArm": "rightUpperArm",
+    "RightForeArm": "rightLowerArm",
+    "RightHand": "rightHand",
+    "RThumb": "rightHand",
+    "RightFingerBase": "rightHand",
+    "RightHandFinger1": "rightHand",
+    "LeftUpLeg": "leftUpperLeg",
+    "LeftLeg": "leftLowerLeg",
+    "LeftFoot": "leftFoot",
     "LeftToeBase": "leftFoot",
-    "RightUpLeg": "rightUpperLeg", "RightLeg": "rightLowerLeg", "RightFoot": "rightFoot",
+    "RightUpLeg": "rightUpperLeg",
+    "RightLeg": "rightLowerLeg",
+    "RightFoot": "rightFoot",
     "RightToeBase": "rightFoot",
-    "Neck": "neck", "Neck1": "neck",
+    "Neck": "neck",
+    "Neck1": "neck",
 }
-_SLICE_M = 0.02   # height of the slices for the trunk's mid-depth [m]
+_SLICE_M = 0.02  # height of the slices for the trunk's mid-depth [m]
 
 
 # ---------------------------------------------------------------------------- landmarks
 def _target_vertices(name: str, strength: float = 0.5) -> np.ndarray:
     """Full-list vertex ids a MakeHuman target moves by >= ``strength`` x its largest offset."""
-    from humv_usd.avatar.macro import parse_target
     raw = gzip.decompress((makehuman_dir() / "targets" / f"{name}.target.gz").read_bytes())
     idx, delta = parse_target(raw)
     mag = np.linalg.norm(delta, axis=1)
@@ -166,8 +266,6 @@ def coco_surface_vertices() -> MappingProxyType:
 
     Chosen once on MakeHuman's base mesh, in our frame (front = -Y, left = +X).
     """
-    from humv_usd.avatar.body import to_usd
-    from humv_usd.avatar.macro import obj_data
     points_mh, groups = obj_data()
     p = to_usd(points_mh)
     body_ids = np.unique(groups["body"])
@@ -179,25 +277,23 @@ def coco_surface_vertices() -> MappingProxyType:
 
     out: dict[str, int] = {}
     nose = _compact(body_ids, lm["nose"])
-    out["nose"] = int(nose[np.argmin(body_p[nose, 1])])               # most anterior
+    out["nose"] = int(nose[np.argmin(body_p[nose, 1])])  # most anterior
     for side in ("left", "right"):
         eye = p[np.unique(groups[f"helper-{side[0]}-eye"])]
-        out[f"{side}_eye"] = nearest(eye[np.argmin(eye[:, 1])])       # front of the eyeball
+        out[f"{side}_eye"] = nearest(eye[np.argmin(eye[:, 1])])  # front of the eyeball
         out[f"{side}_ear"] = nearest(p[lm[f"ear_{side}"]].mean(axis=0))
     return MappingProxyType({name: out[name] for name in COCO_SURFACE})
 
 
 # ---------------------------------------------------------------------------- regions
-def face_joint_weights(face_counts, face_indices, joint_indices, joint_weights,
-                       joints: int) -> np.ndarray:
+def face_joint_weights(face_counts, face_indices, joint_indices, joint_weights, joints: int) -> np.ndarray:
     """(F, J) summed skinning weight of each joint over each face's vertices."""
     counts = np.asarray(face_counts, dtype=np.int64)
     idx = np.asarray(face_indices, dtype=np.int64)
     face_of = np.repeat(np.arange(counts.size), counts)
     k = joint_indices.shape[1]
     out = np.zeros((counts.size, joints))
-    np.add.at(out, (np.repeat(face_of, k), joint_indices[idx].ravel()),
-              joint_weights[idx].ravel())
+    np.add.at(out, (np.repeat(face_of, k), joint_indices[idx].ravel()), joint_weights[idx].ravel())
     return out
 
 
@@ -224,18 +320,20 @@ def _mid_depth(points: np.ndarray, z: np.ndarray) -> np.ndarray:
     return np.interp(z, centres[ok], 0.5 * (ymin[ok] + ymax[ok]))
 
 
-def body_regions(mesh, skeleton: Skeleton, joint_indices: np.ndarray,
-                 joint_weights: np.ndarray) -> np.ndarray:
+def body_regions(
+    mesh, skeleton: Skeleton, joint_indices: np.ndarray, joint_weights: np.ndarray
+) -> np.ndarray:
     """Region id (:data:`BODY_REGIONS`) of every face of the rest-pose body mesh.
 
-    ``mesh`` is :meth:`humv_usd.avatar.body.Body.body_mesh` (points in skeleton space at rest,
+    ``mesh`` is :meth:`humv_usd.human.body.Body.body_mesh` (points in skeleton space at rest,
     ``vertex_ids`` into base.obj); ``joint_indices``/``joint_weights`` its skinning
-    (:func:`humv_usd.avatar.skeleton.skin_weights`). Rules: see the module docstring.
+    (:func:`humv_usd.human.skeleton.skin_weights`). Rules: see the module docstring.
     """
     points = np.asarray(mesh.points, dtype=np.float64)
     names = skeleton.names
-    per_joint = face_joint_weights(mesh.face_counts, mesh.face_indices, joint_indices,
-                                   joint_weights, len(names))
+    per_joint = face_joint_weights(
+        mesh.face_counts, mesh.face_indices, joint_indices, joint_weights, len(names)
+    )
     dominant = per_joint.argmax(axis=1)
     centre = _face_centres(points, mesh.face_counts, mesh.face_indices)
     x, y, z = centre.T
@@ -309,13 +407,16 @@ def region_area_fractions(areas: np.ndarray, regions: np.ndarray) -> dict[str, f
 
 
 # ---------------------------------------------------------------------------- keypoints
-def coco_keypoints(skeleton: Skeleton, world_transforms: np.ndarray,
-                   body_points_posed: np.ndarray,
-                   vertex_ids: dict[str, int] | None = None) -> np.ndarray:
+def coco_keypoints(
+    skeleton: Skeleton,
+    world_transforms: np.ndarray,
+    body_points_posed: np.ndarray,
+    vertex_ids: dict[str, int] | None = None,
+) -> np.ndarray:
     """The 17 COCO keypoints (:data:`COCO_KEYPOINTS` order) [m] for one or more frames.
 
     world_transforms: (..., J, 4, 4) joint transforms (column-vector, e.g. from
-    :func:`humv_usd.avatar.skeleton.forward_kinematics`); body_points_posed: (..., V, 3) the
+    :func:`humv_usd.human.skeleton.forward_kinematics`); body_points_posed: (..., V, 3) the
     posed body mesh points in the same space; vertex_ids: the surface vertices of nose, eyes
     and ears (indices into those points), default :func:`coco_surface_vertices`.
     Returns (..., 17, 3).

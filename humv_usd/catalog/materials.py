@@ -1,0 +1,845 @@
+"""Built-in material library: spectral reflectance/emissivity over 0.4-14 µm and thermal data.
+
+Each material has its own wavelength grid [µm] (finer where the spectrum has features: the
+water bands of skin and leaves at 1.45/1.94/2.8-3 µm, the chlorophyll red edge, the 8-10 µm
+silicate reststrahlen bands of concrete, soil and glass) and is interpolated linearly between
+nodes. Opaque materials obey Kirchhoff's law, emissivity = 1 - directional-hemispherical
+reflectance; glass also carries a transmittance (emissivity = 1 - R - T). Every entry names its
+sources; spectral values taken "after" a library are representative readings of the library's
+curves for that class of material (shape and level), not its data points.
+
+``Material.reflectance`` and ``Material.emissivity`` give the values at the common coarse grid
+``WAVELENGTHS_UM`` (what the thermal tools use); ``spectrum_*`` is the full table that the
+materials layer writes.
+
+Common sources:
+- ECOSTRESS spectral library v1.0: Meerdink, Hook, Roberts & Abbott (2019) Remote Sens.
+  Environ. 230:111196 (0.35-15.4 µm directional-hemispherical reflectance).
+- ASTER spectral library v2.0: Baldridge, Hook, Grove & Rivera (2009) Remote Sens. Environ.
+  113:711-715.
+- Salisbury & D'Aria (1992) "Emissivity of terrestrial materials in the 8-14 µm atmospheric
+  window", Remote Sens. Environ. 42:83-106; (1994) "... in the 3-5 µm atmospheric window",
+  Remote Sens. Environ. 47:345-361.
+- Incropera, DeWitt, Bergman & Lavine, Fundamentals of Heat and Mass Transfer, 6th ed. (2007),
+  Tables A.1 (metals), A.3 (building materials), A.11 (total emissivities).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Common coarse grid of the thermal tools (and of the fabric entries).
+WAVELENGTHS_UM = (0.4, 0.55, 0.7, 1.0, 2.5, 3.0, 5.0, 8.0, 11.0, 14.0)
+
+#: Fine grid for spectra with features: visible every 50 nm, the water bands (1.45, 1.94,
+#: 2.8-3.0 µm), the carbonate band (6.5-7 µm) and the silicate reststrahlen region (8-10 µm).
+FINE_WAVELENGTHS_UM = (
+    0.40,
+    0.45,
+    0.50,
+    0.55,
+    0.60,
+    0.65,
+    0.70,
+    0.75,
+    0.80,
+    0.90,
+    1.00,
+    1.20,
+    1.45,
+    1.65,
+    1.94,
+    2.20,
+    2.50,
+    2.80,
+    3.00,
+    3.50,
+    4.00,
+    4.50,
+    5.00,
+    6.00,
+    6.50,
+    7.00,
+    7.50,
+    8.00,
+    8.50,
+    9.00,
+    9.30,
+    9.60,
+    10.00,
+    10.50,
+    11.00,
+    11.50,
+    12.00,
+    12.50,
+    13.00,
+    13.50,
+    14.00,
+)
+_FINE = FINE_WAVELENGTHS_UM
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    spectrum_reflectance: tuple[float, ...]  # at spectrum_wavelengths [0-1]
+    conductivity: float  # [W m-1 K-1]
+    density: float  # [kg m-3]
+    specific_heat: float  # [J kg-1 K-1]
+    thickness: float  # [m] of the slab or layer
+    solar_absorptivity: float  # [0-1]
+    source: str
+    label_class: str = "other"
+    spectrum_wavelengths: tuple[float, ...] = WAVELENGTHS_UM  # [µm], ascending
+    spectrum_transmittance: tuple[float, ...] | None = None  # None: opaque
+
+    def __post_init__(self):
+        n = len(self.spectrum_wavelengths)
+        if len(self.spectrum_reflectance) != n or (
+            self.spectrum_transmittance is not None and len(self.spectrum_transmittance) != n
+        ):
+            raise ValueError(f"material {self.name}: one value per wavelength expected")
+
+    @property
+    def opaque(self) -> bool:
+        return self.spectrum_transmittance is None
+
+    @property
+    def spectrum_emissivity(self) -> tuple[float, ...]:
+        """Kirchhoff: emissivity = absorptivity = 1 - R - T at each node."""
+        t = self.spectrum_transmittance or (0.0,) * len(self.spectrum_reflectance)
+        return tuple(round(1.0 - r - tt, 6) for r, tt in zip(self.spectrum_reflectance, t))
+
+    def at(self, wavelengths_um, what: str = "reflectance") -> np.ndarray:
+        """Reflectance, emissivity or transmittance interpolated at wavelengths [µm]."""
+        table = {
+            "reflectance": self.spectrum_reflectance,
+            "emissivity": self.spectrum_emissivity,
+            "transmittance": self.spectrum_transmittance or (0.0,) * len(self.spectrum_wavelengths),
+        }[what]
+        return np.interp(wavelengths_um, self.spectrum_wavelengths, table)
+
+    @property
+    def reflectance(self) -> tuple[float, ...]:
+        """Reflectance at the common grid WAVELENGTHS_UM."""
+        return tuple(round(float(v), 6) for v in self.at(WAVELENGTHS_UM, "reflectance"))
+
+    @property
+    def emissivity(self) -> tuple[float, ...]:
+        """Emissivity at the common grid WAVELENGTHS_UM."""
+        return tuple(round(float(v), 6) for v in self.at(WAVELENGTHS_UM, "emissivity"))
+
+    @property
+    def display_color(self) -> tuple[float, float, float]:
+        """Rough sRGB-linear colour for DCC viewports (reflectance at 0.65, 0.55, 0.45 µm)."""
+        r, g, b = self.at([0.65, 0.55, 0.45], "reflectance")
+        return (float(r), float(g), float(b))
+
+
+def _fine(values) -> dict:
+    values = tuple(float(v) for v in values)
+    assert len(values) == len(_FINE), len(values)
+    return {"spectrum_wavelengths": _FINE, "spectrum_reflectance": values}
+
+
+_ECOSTRESS = "ECOSTRESS spectral library v1.0 (Meerdink et al. 2019, Remote Sens. Environ. 230:111196)"
+_SD92 = "Salisbury & D'Aria (1992) Remote Sens. Environ. 42:83-106 (8-14 µm)"
+_SD94 = "Salisbury & D'Aria (1994) Remote Sens. Environ. 47:345-361 (3-5 µm)"
+_INCROPERA = "Incropera et al., Fundamentals of Heat and Mass Transfer, 6th ed., 2007"
+
+LIBRARY: dict[str, Material] = {
+    m.name: m
+    for m in (
+        Material(
+            "skin",
+            **_fine(
+                (
+                    0.20,
+                    0.25,
+                    0.29,
+                    0.30,
+                    0.42,
+                    0.54,
+                    0.58,
+                    0.60,
+                    0.60,
+                    0.58,
+                    0.55,
+                    0.45,
+                    0.14,
+                    0.36,
+                    0.06,
+                    0.16,
+                    0.05,
+                    0.02,
+                    0.02,
+                    0.03,
+                    0.03,
+                    0.03,
+                    0.03,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                )
+            ),
+            conductivity=0.37,
+            density=1109.0,
+            specific_heat=3391.0,
+            thickness=0.002,
+            solar_absorptivity=0.62,
+            source="IR emissivity 0.98 +- 0.01 over the measured 2-14 µm, independent of "
+            "pigmentation: Steketee (1973) Phys. Med. Biol. 18:686-694 (reflectance "
+            "0.02 here from 2.8 µm on; 0.97 in 3.5-5 µm where water absorbs least, "
+            "estimate); visible/NIR reflectance of light skin with the haemoglobin dip "
+            "at 0.54-0.58 µm and the water bands at 1.45 and 1.94 µm: Anderson & "
+            "Parrish (1981) J. Invest. Dermatol. 77:13-19 (0.25-2.5 µm), Jacques (2013) "
+            "Phys. Med. Biol. 58:R37; k, rho, c: IT'IS tissue database v4.1 (skin)",
+            label_class="person",
+        ),
+        Material(
+            "concrete",
+            **_fine(
+                (
+                    0.20,
+                    0.23,
+                    0.26,
+                    0.28,
+                    0.30,
+                    0.31,
+                    0.32,
+                    0.33,
+                    0.34,
+                    0.35,
+                    0.36,
+                    0.37,
+                    0.33,
+                    0.38,
+                    0.30,
+                    0.33,
+                    0.30,
+                    0.12,
+                    0.08,
+                    0.10,
+                    0.11,
+                    0.08,
+                    0.07,
+                    0.04,
+                    0.06,
+                    0.05,
+                    0.04,
+                    0.03,
+                    0.06,
+                    0.09,
+                    0.08,
+                    0.06,
+                    0.05,
+                    0.04,
+                    0.03,
+                    0.04,
+                    0.03,
+                    0.03,
+                    0.03,
+                    0.03,
+                    0.03,
+                )
+            ),
+            conductivity=1.4,
+            density=2300.0,
+            specific_heat=880.0,
+            thickness=0.2,
+            solar_absorptivity=0.65,
+            source=f"construction concrete after {_ECOSTRESS}: grey, rising slowly through "
+            f"the visible, bound-water bands at 1.45/1.94 µm and 2.8-3 µm, carbonate "
+            f"(calcite) features at 6.5 and 11.3 µm, quartz-aggregate reststrahlen "
+            f"peak at 8.5-9.3 µm; 8-14 µm emissivity 0.94-0.96 as {_SD92}; MWIR "
+            f"0.89-0.93 as {_SD94}; k, rho, c: {_INCROPERA}, Table A.3 (stone mix "
+            f"concrete)",
+            label_class="ground",
+        ),
+        Material(
+            "asphalt",
+            **_fine(
+                (
+                    0.05,
+                    0.05,
+                    0.055,
+                    0.06,
+                    0.062,
+                    0.065,
+                    0.07,
+                    0.072,
+                    0.075,
+                    0.078,
+                    0.08,
+                    0.085,
+                    0.085,
+                    0.10,
+                    0.09,
+                    0.10,
+                    0.09,
+                    0.08,
+                    0.07,
+                    0.06,
+                    0.07,
+                    0.065,
+                    0.06,
+                    0.05,
+                    0.05,
+                    0.05,
+                    0.05,
+                    0.05,
+                    0.06,
+                    0.07,
+                    0.065,
+                    0.06,
+                    0.05,
+                    0.045,
+                    0.04,
+                    0.04,
+                    0.04,
+                    0.04,
+                    0.04,
+                    0.045,
+                    0.05,
+                )
+            ),
+            conductivity=0.75,
+            density=2120.0,
+            specific_heat=920.0,
+            thickness=0.1,
+            solar_absorptivity=0.93,
+            source=f"paving asphalt after {_ECOSTRESS} (construction asphalt): dark and "
+            f"nearly flat, C-H absorption of the binder at 3.4 µm, weak aggregate "
+            f"reststrahlen near 9 µm; 8-14 µm emissivity ~0.95; k, rho, c: "
+            f"{_INCROPERA}, Table A.3 (asphalt)",
+            label_class="ground",
+        ),
+        Material(
+            "painted_metal",
+            **_fine(
+                (
+                    0.30,
+                    0.34,
+                    0.37,
+                    0.40,
+                    0.41,
+                    0.41,
+                    0.42,
+                    0.43,
+                    0.44,
+                    0.45,
+                    0.45,
+                    0.44,
+                    0.40,
+                    0.40,
+                    0.32,
+                    0.30,
+                    0.25,
+                    0.12,
+                    0.10,
+                    0.08,
+                    0.12,
+                    0.12,
+                    0.10,
+                    0.06,
+                    0.06,
+                    0.06,
+                    0.06,
+                    0.06,
+                    0.08,
+                    0.10,
+                    0.10,
+                    0.09,
+                    0.08,
+                    0.08,
+                    0.08,
+                    0.08,
+                    0.09,
+                    0.09,
+                    0.10,
+                    0.10,
+                    0.10,
+                )
+            ),
+            conductivity=50.0,
+            density=7850.0,
+            specific_heat=470.0,
+            thickness=0.0006,
+            solar_absorptivity=0.6,
+            source=f"light grey/beige painted steel siding: 8-14 µm emissivity ~0.91 from "
+            f"{_INCROPERA}, Table A.11 (paints 0.90-0.98, lower end for a weathered "
+            f"light siding); spectral shape (TiO2-pigmented binder: bright visible/NIR, "
+            f"C-H band at 3.4 µm, polymer C-O bands at 8-10 µm) typical of paint "
+            f"spectra in {_ECOSTRESS} (manmade, paint), not a measurement of the NCMR "
+            f"warehouse; steel k, rho, c: Table A.1 (plain carbon steel)",
+            label_class="building",
+        ),
+        Material(
+            "wood",
+            **_fine(
+                (
+                    0.15,
+                    0.20,
+                    0.25,
+                    0.30,
+                    0.36,
+                    0.40,
+                    0.44,
+                    0.47,
+                    0.50,
+                    0.53,
+                    0.55,
+                    0.55,
+                    0.40,
+                    0.50,
+                    0.25,
+                    0.40,
+                    0.20,
+                    0.04,
+                    0.03,
+                    0.05,
+                    0.08,
+                    0.07,
+                    0.06,
+                    0.04,
+                    0.04,
+                    0.04,
+                    0.04,
+                    0.05,
+                    0.06,
+                    0.04,
+                    0.03,
+                    0.03,
+                    0.04,
+                    0.05,
+                    0.06,
+                    0.06,
+                    0.07,
+                    0.07,
+                    0.07,
+                    0.08,
+                    0.08,
+                )
+            ),
+            conductivity=0.12,
+            density=510.0,
+            specific_heat=1380.0,
+            thickness=0.02,
+            solar_absorptivity=0.6,
+            source=f"dry sawn pine after {_ECOSTRESS} (construction wood): rising visible/NIR "
+            f"reflectance, water and cellulose bands at 1.45/1.94/2.1 µm, strong "
+            f"cellulose C-O absorption at 9-10 µm; 8-14 µm emissivity 0.90-0.95; k, "
+            f"rho, c: {_INCROPERA}, Table A.3 (softwood)",
+            label_class="prop",
+        ),
+        Material(
+            "grass",
+            **_fine(
+                (
+                    0.04,
+                    0.045,
+                    0.06,
+                    0.11,
+                    0.07,
+                    0.05,
+                    0.15,
+                    0.42,
+                    0.47,
+                    0.48,
+                    0.47,
+                    0.40,
+                    0.18,
+                    0.30,
+                    0.08,
+                    0.17,
+                    0.05,
+                    0.02,
+                    0.02,
+                    0.03,
+                    0.04,
+                    0.04,
+                    0.04,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.025,
+                    0.03,
+                    0.03,
+                    0.025,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                    0.02,
+                )
+            ),
+            conductivity=0.5,
+            density=1000.0,
+            specific_heat=3000.0,
+            thickness=0.05,
+            solar_absorptivity=0.8,
+            source=f"green lawn grass after {_ECOSTRESS} (vegetation, grass): green peak at "
+            f"0.55 µm, chlorophyll absorption at 0.67 µm, red edge to the NIR plateau "
+            f"~0.47, leaf-water bands at 1.45/1.94/2.8 µm; 8-14 µm emissivity 0.97-0.98 "
+            f"as {_SD92} (green foliage); bulk properties of a wet sod layer (order of "
+            f"magnitude)",
+            label_class="vegetation",
+        ),
+        Material(
+            "soil",
+            **_fine(
+                (
+                    0.06,
+                    0.08,
+                    0.10,
+                    0.12,
+                    0.15,
+                    0.18,
+                    0.20,
+                    0.22,
+                    0.23,
+                    0.25,
+                    0.27,
+                    0.30,
+                    0.27,
+                    0.33,
+                    0.25,
+                    0.29,
+                    0.28,
+                    0.10,
+                    0.05,
+                    0.08,
+                    0.10,
+                    0.09,
+                    0.08,
+                    0.04,
+                    0.03,
+                    0.03,
+                    0.03,
+                    0.04,
+                    0.09,
+                    0.10,
+                    0.07,
+                    0.05,
+                    0.04,
+                    0.03,
+                    0.03,
+                    0.03,
+                    0.03,
+                    0.035,
+                    0.03,
+                    0.03,
+                    0.03,
+                )
+            ),
+            conductivity=0.52,
+            density=2050.0,
+            specific_heat=1840.0,
+            thickness=0.3,
+            solar_absorptivity=0.8,
+            source=f"brown loam after {_ECOSTRESS} / ASTER v2.0 (Baldridge et al. 2009, "
+            f"Remote Sens. Environ. 113:711; soils, Inceptisol/Mollisol): reflectance "
+            f"rising from the visible to 2.5 µm with clay OH bands at 1.4/1.9/2.2 µm, "
+            f"water band at 2.8-3 µm, quartz reststrahlen doublet at 8.2-9.3 µm and "
+            f"12.6 µm; 8-14 µm emissivity 0.94-0.96 as {_SD92}; k, rho, c: "
+            f"{_INCROPERA}, Table A.3 (soil)",
+            label_class="ground",
+        ),
+        Material(
+            "glass",
+            spectrum_wavelengths=_FINE,
+            spectrum_reflectance=(
+                0.08,
+                0.08,
+                0.08,
+                0.08,
+                0.08,
+                0.08,
+                0.08,
+                0.08,
+                0.08,
+                0.08,
+                0.075,
+                0.075,
+                0.075,
+                0.075,
+                0.075,
+                0.075,
+                0.075,
+                0.07,
+                0.07,
+                0.06,
+                0.055,
+                0.05,
+                0.045,
+                0.04,
+                0.03,
+                0.02,
+                0.03,
+                0.06,
+                0.10,
+                0.22,
+                0.28,
+                0.25,
+                0.15,
+                0.08,
+                0.06,
+                0.05,
+                0.05,
+                0.05,
+                0.05,
+                0.06,
+                0.06,
+            ),
+            spectrum_transmittance=(
+                0.86,
+                0.89,
+                0.90,
+                0.90,
+                0.89,
+                0.88,
+                0.87,
+                0.85,
+                0.82,
+                0.78,
+                0.75,
+                0.76,
+                0.78,
+                0.80,
+                0.80,
+                0.80,
+                0.80,
+                0.55,
+                0.45,
+                0.50,
+                0.35,
+                0.05,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+            ),
+            conductivity=1.4,
+            density=2500.0,
+            specific_heat=750.0,
+            thickness=0.006,
+            solar_absorptivity=0.12,
+            source="6 mm clear soda-lime float glass: optical constants of soda-lime-silica "
+            "glass from Rubin (1985) Solar Energy Materials 12:275-288 (0.3-50 µm): "
+            "~4 % reflection per face in the visible, Fe2+ absorption near 1 µm, OH band "
+            "at 2.8 µm, opaque beyond ~4.5 µm, silica reststrahlen reflectance peak "
+            "~0.28 at 9.3 µm, 8-14 µm emissivity ~0.90 (broadband 0.84-0.92, "
+            f"{_INCROPERA}, Table A.11, glass); transmittance in the visible 0.89, "
+            "typical of clear float glass data sheets (EN 410); k, rho, c: "
+            f"{_INCROPERA}, Table A.3 (glass, plate)",
+            label_class="building",
+        ),
+        Material(
+            "blackbody",
+            spectrum_reflectance=(0.03,) * len(WAVELENGTHS_UM),
+            conductivity=200.0,
+            density=2700.0,
+            specific_heat=900.0,
+            thickness=0.006,
+            solar_absorptivity=0.97,
+            source="extended-area blackbody panel, emissivity 0.97 (typical specification of "
+            "field calibration sources, e.g. CI Systems SR-800); aluminium plate k, rho, c: "
+            f"{_INCROPERA}, Table A.1",
+            label_class="panel",
+        ),
+    )
+}
+
+# ---------------------------------------------------------------------------- fabrics
+# Garment fabrics (humv_usd.clothing). The layer is modelled as opaque (emissivity = 1 - R);
+# real thin fabrics also transmit a few % in the LWIR and up to ~25 % in the NIR, which the
+# opaque model folds into reflectance and absorptivity. Common sources:
+_LWIR_FABRICS = (
+    "LWIR (8-12 µm) emissivity of nylon 0.87, cotton 0.88, polyester 0.88 fabrics at "
+    "40 °C: Belliveau et al. (2020) Forensic Chemistry 19:100242"
+)
+_KNITS = (
+    "MIR reflection 6-14 %, NIR absorption 10-96 % / reflection 4-67 % of wool, cotton and "
+    "polyester knits, colour mainly acting in the visible/NIR: Bauer, Gresser & Mark (2021) "
+    "J. Textile Sci. Fashion Technol. 8(1)"
+)
+_CP = (
+    "specific heat of dry fibres: Morton & Hearle (2008) Physical Properties of Textile Fibres, "
+    "4th ed., Table 6.1 (cotton 1.22-1.35, wool 1.36, nylon 6.6 1.46, PET 1.03 J/(g K))"
+)
+_K = (
+    "effective fibre+air conductivity of fabrics 0.03-0.07 W/(m K): Baxter (1946) Proc. Phys. "
+    "Soc. 58:105 (wool felts vs bulk density); density = areal mass / thickness of a typical "
+    "fabric of that kind"
+)
+_MWIR = "MWIR nodes (3 µm O-H/N-H absorption, ε ≈ 0.8 at 5 µm) are estimates, no measured spectrum at hand"
+
+FABRICS: dict[str, Material] = {
+    m.name: m
+    for m in (
+        Material(
+            "cotton_white",
+            spectrum_reflectance=(0.72, 0.78, 0.78, 0.65, 0.35, 0.05, 0.18, 0.12, 0.12, 0.12),
+            conductivity=0.05,
+            density=250.0,
+            specific_heat=1300.0,
+            thickness=0.0006,
+            solar_absorptivity=0.30,
+            source=f"white cotton jersey (T-shirt, 150 g/m2, 0.6 mm). {_LWIR_FABRICS}; "
+            f"visible/NIR of a white knit at the high-reflection end of {_KNITS}; {_CP}; "
+            f"{_K}; {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "cotton_black",
+            spectrum_reflectance=(0.04, 0.04, 0.05, 0.30, 0.25, 0.05, 0.15, 0.12, 0.12, 0.12),
+            conductivity=0.05,
+            density=250.0,
+            specific_heat=1300.0,
+            thickness=0.0006,
+            solar_absorptivity=0.88,
+            source=f"black-dyed cotton jersey (150 g/m2, 0.6 mm). {_LWIR_FABRICS} (dye barely "
+            f"changes the LWIR value); NIR reflectance of black dyes rises beyond 0.7 µm, "
+            f"low end of {_KNITS}; {_CP}; {_K}; {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "nylon",
+            spectrum_reflectance=(0.05, 0.05, 0.06, 0.35, 0.30, 0.10, 0.18, 0.13, 0.13, 0.13),
+            conductivity=0.05,
+            density=370.0,
+            specific_heat=1460.0,
+            thickness=0.0006,
+            solar_absorptivity=0.85,
+            source=f"black nylon/elastane knit (leggings, 220 g/m2, 0.6 mm). {_LWIR_FABRICS}; "
+            f"{_KNITS}; {_CP}; {_K}; {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "polyester",
+            spectrum_reflectance=(0.30, 0.32, 0.33, 0.50, 0.40, 0.15, 0.20, 0.12, 0.12, 0.12),
+            conductivity=0.045,
+            density=280.0,
+            specific_heat=1030.0,
+            thickness=0.0005,
+            solar_absorptivity=0.60,
+            source=f"mid-grey polyester knit (sportswear, 140 g/m2, 0.5 mm). {_LWIR_FABRICS}; "
+            f"{_KNITS}; {_CP}; {_K}; {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "wool",
+            spectrum_reflectance=(0.08, 0.09, 0.10, 0.35, 0.25, 0.05, 0.15, 0.10, 0.10, 0.10),
+            conductivity=0.04,
+            density=200.0,
+            specific_heat=1360.0,
+            thickness=0.002,
+            solar_absorptivity=0.80,
+            source=f"charcoal wool knit (cap, 400 g/m2, 2 mm). LWIR emissivity 0.90 from the "
+            f"6-14 % MIR reflection of {_KNITS}; {_CP}; {_K}; {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "camouflage_nyco",
+            spectrum_reflectance=(0.07, 0.12, 0.15, 0.45, 0.35, 0.06, 0.18, 0.12, 0.12, 0.12),
+            conductivity=0.06,
+            density=490.0,
+            specific_heat=1380.0,
+            thickness=0.00045,
+            solar_absorptivity=0.70,
+            source=f"50/50 nylon/cotton (NYCO) camouflage-printed ripstop of combat uniforms "
+            f"(MIL-DTL-44436B cloth: dyes specified for a foliage-like NIR reflectance; "
+            f"~220 g/m2, 0.45 mm); pattern-averaged visible reflectance of a woodland/OCP "
+            f"print and NIR ~0.45 at 1 µm are representative values, not a measurement. "
+            f"{_LWIR_FABRICS} (both fibres 0.87-0.88); specific heat = mass mean of "
+            f"nylon and cotton, {_CP}; {_K}; {_MWIR}",
+            label_class="person",
+        ),
+    )
+}
+LIBRARY.update(FABRICS)
+
+# ---------------------------------------------------------------------------- worn equipment
+# Not plain fabrics (thicker, stiffer), so kept out of FABRICS; used by the clothing catalogue's
+# ``vest`` and ``rifle``.
+EQUIPMENT: dict[str, Material] = {
+    m.name: m
+    for m in (
+        Material(
+            "kevlar_vest",
+            spectrum_reflectance=(0.05, 0.06, 0.07, 0.35, 0.30, 0.10, 0.18, 0.13, 0.13, 0.13),
+            conductivity=0.045,
+            density=650.0,
+            specific_heat=1420.0,
+            thickness=0.008,
+            solar_absorptivity=0.85,
+            source=f"soft body armour (NIJ Standard-0101.06 Level IIIA class) in a dark nylon "
+            f"carrier, modelled as one 8 mm slab: aramid fibre specific heat 1.42 J/(g K) "
+            f"and conductivity 0.04 W/(m K): DuPont Kevlar Aramid Fiber Technical Guide "
+            f"(H-77848); panel areal density ~5.2 kg/m2 over ~8 mm (about 25 plies of "
+            f"~200 g/m2 aramid plus the carrier) is a representative value of commercial "
+            f"Level IIIA panels, not a measurement (density = areal mass / thickness); "
+            f"the outer surface is the nylon carrier: {_LWIR_FABRICS}; visible/NIR of a "
+            f"dark nylon as the 'nylon' entry, {_KNITS}; {_K} (the fibre+air value); "
+            f"{_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "polymer_black",
+            spectrum_reflectance=(0.05, 0.05, 0.05, 0.06, 0.06, 0.05, 0.06, 0.06, 0.06, 0.07),
+            conductivity=0.30,
+            density=1360.0,
+            specific_heat=1500.0,
+            thickness=0.003,
+            solar_absorptivity=0.94,
+            source="black glass-fibre-reinforced polyamide (PA6-GF30) of rifle furniture, "
+            "standing in for the whole weapon (receiver and barrel are black-finished "
+            "metal; one material keeps the prop simple): density 1.36 g/cm3 and "
+            "conductivity ~0.3 W/(m K) from PA6-GF30 data sheets (e.g. BASF Ultramid "
+            "B3WG6); specific heat ~1.5 J/(g K) (PA6 ~1.7, glass 0.8, mass mean, "
+            "estimate); LWIR emissivity 0.93-0.95 of black plastics from thermographic "
+            "emissivity tables (e.g. Optris / FLIR: plastic, black 0.95); carbon-black "
+            "pigment keeps the visible and NIR reflectance at ~5 % (estimate); 3 mm wall",
+            label_class="prop",
+        ),
+    )
+}
+LIBRARY.update(EQUIPMENT)

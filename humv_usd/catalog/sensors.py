@@ -1,0 +1,334 @@
+"""Sensor presets: the four imagers of the seed's HUMVVEX experiment (EO colour, MWIR, 2 x LWIR).
+
+A ``[[sensor]]`` table with ``preset = "<name>"`` takes every value below unless the table gives
+it. Each preset names its sources; values marked *typical* are representative of the class of
+camera, not a data-sheet number of one product. The counts calibration (gain/offset) of the IR
+presets maps blackbody scenes over ``span_k`` onto the full count range
+(:func:`humv_usd.physics.sensor.default_gain_offset`): 233.15-373.15 K (-40 to +100 degC, the
+usual high-gain range of uncooled cores) for LWIR, 253.15-328.15 K for the cooled MWIR camera.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from humv_usd.physics.sensor import SensorModel, default_gain_offset
+
+PLATFORMS = ("tripod", "mast", "aerial")
+
+
+@dataclass(frozen=True)
+class SensorPreset:
+    name: str
+    description: str
+    band: str
+    wavelength_um: tuple[float, float]
+    response_wavelengths_um: tuple[float, ...]
+    response: tuple[float, ...]  # peak 1
+    resolution: tuple[int, int]  # (width, height) [px]
+    pixel_pitch_um: float
+    focal_length_mm: float
+    f_number: float
+    netd_k: float  # [K] (EO: 0, not used)
+    bit_depth: int
+    agc: str
+    source: str
+    agc_percentiles: tuple[float, float] = (1.0, 99.0)
+    channel_response: tuple[tuple[float, ...], ...] | None = None  # EO (R, G, B)
+    full_well_e: float = 10500.0
+    read_noise_e: float = 2.5
+    gain: float | None = None  # None: IR calibration span / EO auto exposure
+    offset: float | None = None
+    span_k: tuple[float, float] = (233.15, 373.15)  # IR: blackbody range mapped to 0..full scale [K]
+
+    @property
+    def fov_deg(self) -> tuple[float, float]:
+        """Full horizontal and vertical field of view [deg] = 2 atan(n p / 2 f)."""
+        w, h = self.resolution
+        p, f = self.pixel_pitch_um * 1e-3, self.focal_length_mm
+        return (math.degrees(2 * math.atan(0.5 * w * p / f)), math.degrees(2 * math.atan(0.5 * h * p / f)))
+
+
+def _gauss_channel(wl, peak_um, sigma_um, cut_um=0.650, cut_width_um=0.010):
+    """Gaussian colour-filter band times a logistic IR-cut edge (50 % at cut_um)."""
+    g = np.exp(-0.5 * ((wl - peak_um) / sigma_um) ** 2)
+    return g / (1.0 + np.exp((wl - cut_um) / cut_width_um))
+
+
+def _rgb_curves():
+    wl = np.round(np.arange(0.40, 0.7001, 0.01), 3)
+    # typical Sony Pregius colour response (B/G/R peaks near 455/535/600 nm) behind an IR-cut filter
+    r = _gauss_channel(wl, 0.600, 0.030)
+    g = _gauss_channel(wl, 0.535, 0.040)
+    b = _gauss_channel(wl, 0.455, 0.030)
+    peak = max(r.max(), g.max(), b.max())
+    r, g, b = r / peak, g / peak, b / peak
+    envelope = np.maximum(np.maximum(r, g), b)
+    envelope = envelope / envelope.max()
+    rnd = lambda a: tuple(round(float(v), 4) for v in a)  # noqa: E731
+    return tuple(wl.tolist()), rnd(envelope), (rnd(r), rnd(g), rnd(b))
+
+
+_RGB_WL, _RGB_ENVELOPE, _RGB_CHANNELS = _rgb_curves()
+
+PRESETS: dict[str, SensorPreset] = {
+    p.name: p
+    for p in (
+        SensorPreset(
+            name="atom1024_lwir",
+            description="Uncooled LWIR microbolometer core, 1024x768, 17 um (Lynred ATOM 1024-like), "
+            "25 mm f/1.0 lens",
+            band="LWIR",
+            wavelength_um=(8.0, 14.0),
+            response_wavelengths_um=(8.0, 8.5, 9.0, 11.0, 12.5, 13.0, 13.5, 14.0),
+            response=(0.85, 0.97, 1.0, 1.0, 0.97, 0.9, 0.75, 0.55),
+            resolution=(1024, 768),
+            pixel_pitch_um=17.0,
+            focal_length_mm=25.0,
+            f_number=1.0,
+            netd_k=0.05,
+            bit_depth=14,
+            agc="linear",
+            source="1024x768, 17 um pitch, 8-14 um, NETD < 50 mK at f/1: Lynred (ULIS) ATOM 1024 "
+            "thermal camera core product brief (2018); 14-bit output, 25 mm f/1.0 lens "
+            "(HFOV 38.4 deg) and the response shape (germanium optics + microbolometer "
+            "absorber, flat 9-12.5 um, falling past 13 um) are typical values of uncooled "
+            "cores, not ATOM data",
+        ),
+        SensorPreset(
+            name="lwir640_12um",
+            description="Uncooled VOx LWIR core, 640x512, 12 um (FLIR Boson 640-like), 18 mm f/1.0",
+            band="LWIR",
+            wavelength_um=(7.5, 13.5),
+            response_wavelengths_um=(7.5, 8.0, 8.5, 9.0, 12.0, 12.5, 13.0, 13.5),
+            response=(0.5, 0.85, 0.97, 1.0, 1.0, 0.95, 0.8, 0.5),
+            resolution=(640, 512),
+            pixel_pitch_um=12.0,
+            focal_length_mm=18.0,
+            f_number=1.0,
+            netd_k=0.05,
+            bit_depth=14,
+            agc="histogram",
+            source="640x512, 12 um VOx, 7.5-13.5 um, NETD < 50 mK (industrial grade < 40 mK), "
+            "18 mm f/1.0 lens HFOV 24 deg, 14-bit pre-AGC video and plateau-equalisation AGC: "
+            "Teledyne FLIR Boson product datasheet (2019); response shape typical, not "
+            "measured",
+        ),
+        SensorPreset(
+            name="mwir_insb640",
+            description="Cooled InSb MWIR camera, 640x512, 15 um, 3-5 um cold filter, 50 mm f/2.5",
+            band="MWIR",
+            wavelength_um=(3.0, 5.0),
+            response_wavelengths_um=(3.0, 3.1, 3.5, 4.0, 4.5, 4.9, 4.95, 5.0),
+            response=(0.5, 0.62, 0.71, 0.81, 0.91, 0.99, 1.0, 0.5),
+            resolution=(640, 512),
+            pixel_pitch_um=15.0,
+            focal_length_mm=50.0,
+            f_number=2.5,
+            netd_k=0.02,
+            bit_depth=14,
+            agc="linear",
+            span_k=(253.15, 328.15),
+            source="InSb 640x512, 15 um pitch, 3-5 um, NETD < 20 mK, 14-bit, f/2.5 cold stop, "
+            "lowest calibrated range -20 to +55 degC (the counts span here): "
+            "Teledyne FLIR X6900sc / A6750sc MWIR data sheets (typical of cooled InSb "
+            "science cameras); response = photon detector with flat quantum efficiency, "
+            "relative per-watt response proportional to wavelength (Dereniak & Boreman 1996, "
+            "Infrared Detectors and Systems, §4), band-limited by the cold filter (edges "
+            "typical); 50 mm lens (HFOV 11.0 deg) typical",
+        ),
+        SensorPreset(
+            name="rgb_imx273",
+            description="Global-shutter colour CMOS, 1440x1080, 3.45 um (Sony IMX273, e.g. FLIR "
+            "Blackfly S BFS-U3-16S2C), 12 mm f/2.8",
+            band="EO",
+            wavelength_um=(0.4, 0.7),
+            response_wavelengths_um=_RGB_WL,
+            response=_RGB_ENVELOPE,
+            channel_response=_RGB_CHANNELS,
+            resolution=(1440, 1080),
+            pixel_pitch_um=3.45,
+            focal_length_mm=12.0,
+            f_number=2.8,
+            netd_k=0.0,
+            bit_depth=12,
+            agc="linear",
+            agc_percentiles=(0.0, 99.5),
+            full_well_e=10500.0,
+            read_noise_e=2.4,
+            offset=0.0,
+            source="Sony IMX273 1440x1080, 3.45 um pixels, 12-bit ADC (8-bit mode too): Sony "
+            "IMX273LQR product brief; saturation capacity ~10.5 ke- and temporal dark noise "
+            "~2.4 e- of 3.45 um Pregius sensors: FLIR Blackfly S EMVA 1288 imaging "
+            "performance reports (typical); channel responses are Gaussian approximations "
+            "(B 455 nm / G 535 nm / R 600 nm peaks, IR-cut 50 % at 650 nm) of the relative "
+            "response plot of Sony colour Pregius data sheets, typical not measured; 12 mm "
+            "f/2.8 lens (HFOV 23.3 deg) typical",
+        ),
+    )
+}
+
+
+def preset(name: str) -> SensorPreset:
+    try:
+        return PRESETS[name]
+    except KeyError:
+        raise ValueError(f"unknown sensor preset {name!r}: allowed {', '.join(PRESETS)}") from None
+
+
+@functools.cache
+def calibration(name: str) -> tuple[float | None, float]:
+    """Gain [counts per W m^-2 sr^-1] and offset [counts] of a preset.
+
+    IR: :func:`humv_usd.physics.sensor.default_gain_offset` over the preset's response (a
+    blackbody at 233.15 K gives 0 counts, at 373.15 K full scale). EO: the authored offset and
+    no gain (auto exposure).
+    """
+    p = preset(name)
+    if p.band == "EO":
+        return p.gain, p.offset or 0.0
+    model = SensorModel(
+        name=p.name,
+        band=p.band,
+        wavelength_range_um=p.wavelength_um,
+        response_wavelengths_um=np.asarray(p.response_wavelengths_um),
+        response=np.asarray(p.response),
+        resolution=p.resolution,
+        pixel_pitch_m=p.pixel_pitch_um * 1e-6,
+        f_number=p.f_number,
+        focal_length_m=p.focal_length_mm * 1e-3,
+        netd_k=p.netd_k,
+        bit_depth=p.bit_depth,
+    )
+    return default_gain_offset(model, p.span_k)
+
+
+def netd_for_f_number(netd_k: float, preset_f_number: float, f_number: float) -> float:
+    r"""NETD [K] of a detector-limited thermal imager whose lens f-number changes from
+    ``preset_f_number`` (where ``netd_k`` was specified) to ``f_number``.
+
+    .. math::
+
+        \mathrm{NETD}(N) = \mathrm{NETD}(N_0)\,\frac{4N^2 + 1}{4N_0^2 + 1}
+
+    The signal power on a pixel is proportional to the projected solid angle of the optics,
+    :math:`\pi/(4N^2 + 1)` (exact for an aplanatic lens, :math:`\sin\theta = 1/(2N)`), and a
+    detector-limited imager (noise independent of the scene and background flux: uncooled
+    microbolometers) has an NETD inversely proportional to it (everything else fixed).
+    Background-limited (BLIP) cooled detectors with a matched cold stop scale more slowly
+    (about :math:`\sqrt{4N^2+1}`); this law is used for every infrared sensor (see
+    :mod:`humv_usd.sensors.layer`).
+
+    References
+    ----------
+    .. [1] E. L. Dereniak, G. D. Boreman, Infrared Detectors and Systems, Wiley, 1996, §5.8:
+       :math:`\mathrm{NETD} = (4N^2 + 1)\sqrt{\Delta f} / (\pi\,\tau_o D^* \sqrt{A_d}\,\partial L/\partial T)`.
+    .. [2] M. Vollmer, K.-P. Möllmann, Infrared Thermal Imaging, 2nd ed., Wiley-VCH, 2017,
+       ch. 2 (NETD and the f-number of microbolometer cameras).
+    .. [3] G. C. Holst, Common Sense Approach to Thermal Imaging, JCD Publishing / SPIE Press,
+       2000 (NETD of detector-limited systems).
+    """
+    n0, n = float(preset_f_number), float(f_number)
+    return float(netd_k) * (4.0 * n * n + 1.0) / (4.0 * n0 * n0 + 1.0)
+
+
+def scenario_values(name: str) -> dict:
+    """The preset as [[sensor]] key values (what a table with only ``preset`` gets)."""
+    p = preset(name)
+    gain, offset = calibration(name)
+    return {
+        "band": p.band,
+        "wavelength_um": list(p.wavelength_um),
+        "resolution": list(p.resolution),
+        "pixel_pitch_um": p.pixel_pitch_um,
+        "focal_length_mm": p.focal_length_mm,
+        "f_number": p.f_number,
+        "netd_k": p.netd_k,
+        "bit_depth": p.bit_depth,
+        "gain": gain,
+        "offset": offset,
+        "agc": p.agc,
+        "agc_percentiles": list(p.agc_percentiles),
+        "full_well_e": p.full_well_e,
+        "read_noise_e": p.read_noise_e,
+    }
+
+
+def table_rows() -> list[dict]:
+    """One row per preset for the docs/report table."""
+    rows = []
+    for p in PRESETS.values():
+        gain, offset = calibration(p.name)
+        hfov, vfov = p.fov_deg
+        rows.append(
+            {
+                "preset": p.name,
+                "band": p.band,
+                "um": p.wavelength_um,
+                "px": p.resolution,
+                "pitch_um": p.pixel_pitch_um,
+                "f_mm": p.focal_length_mm,
+                "N": p.f_number,
+                "fov_deg": (round(hfov, 1), round(vfov, 1)),
+                "netd_k": p.netd_k,
+                "bits": p.bit_depth,
+                "gain": gain,
+                "offset": offset,
+                "agc": p.agc,
+            }
+        )
+    return rows
+
+
+# ---------------------------------------------------------------------------- platforms
+def orbit_positions(
+    center_m,
+    altitude_m: float,
+    radius_m: float,
+    speed_m_s: float,
+    times_s,
+    start_deg: float = 180.0,
+    clockwise: bool = False,
+) -> np.ndarray:
+    r"""Camera positions [m] of an aerial platform circling ``center_m`` at constant speed.
+
+    Parameters
+    ----------
+    center_m : array-like (3,)
+        Orbit centre on the ground [x east, y north, z up] [m]; the camera looks at it.
+    altitude_m : float
+        Flight height above the ground plane z = 0 [m].
+    radius_m : float
+        Horizontal orbit radius [m], > 0.
+    speed_m_s : float
+        Ground speed along the orbit [m/s].
+    times_s : array-like
+        Times after frame 0 [s].
+    start_deg : float, default 180
+        Compass azimuth of the camera seen from the centre at t = 0 [deg] (180 = south).
+    clockwise : bool, default False
+        Direction seen from above.
+
+    Returns
+    -------
+    ndarray (n, 3)
+
+    Notes
+    -----
+    Azimuth :math:`\psi(t) = \psi_0 \pm (v/R)\,t` (compass, so east = +x at 90 deg):
+    :math:`p = c + (R\sin\psi, R\cos\psi, 0)` with z = altitude.
+    Counter-clockwise seen from above means decreasing compass azimuth.
+    """
+    c = np.asarray(center_m, dtype=float)
+    t = np.atleast_1d(np.asarray(times_s, dtype=float))
+    rate = speed_m_s / radius_m * (1.0 if clockwise else -1.0)
+    psi = np.radians(start_deg) + rate * t
+    out = np.empty((t.size, 3))
+    out[:, 0] = c[0] + radius_m * np.sin(psi)
+    out[:, 1] = c[1] + radius_m * np.cos(psi)
+    out[:, 2] = altitude_m
+    return out

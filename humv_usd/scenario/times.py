@@ -1,0 +1,38 @@
+"""Frame times of a scenario: frame 0's absolute time and the sample times of time-varying
+quantities. Every tool that samples in time uses these, so their time samples line up."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+#: most time samples a time-varying quantity gets (longer scenarios are strided)
+MAX_TIME_SAMPLES = 500
+
+if TYPE_CHECKING:
+    from humv_usd.scenario.load import Scenario
+
+
+def frame_times(scenario: Scenario) -> np.ndarray:
+    """Times [s after frame 0] at which time-varying quantities are sampled: every frame, or
+    evenly strided frames plus the last one when there are more than MAX_TIME_SAMPLES."""
+    g = scenario["general"]
+    n = scenario.frame_count
+    stride = max(1, int(np.ceil(n / MAX_TIME_SAMPLES)))
+    frames = np.unique(np.append(np.arange(0, n, stride), n - 1))
+    return frames / float(g["fps"])
+
+
+def frame_epoch_s(scenario: Scenario) -> float:
+    """UTC POSIX time [s] of frame 0 (local ``general.start`` minus ``utc_offset_h``)."""
+    g = scenario["general"]
+    tz = dt.timezone(dt.timedelta(hours=g["utc_offset_h"]))
+    return g["start"].replace(tzinfo=tz).timestamp()
+
+
+def local_start_iso(general: dict) -> str:
+    """Frame 0 as an ISO 8601 local date-time with its UTC offset."""
+    tz = dt.timezone(dt.timedelta(hours=general["utc_offset_h"]))
+    return general["start"].replace(tzinfo=tz).isoformat()

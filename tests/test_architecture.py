@@ -1,0 +1,166 @@
+"""The package graph (docs/architecture.md "Package graph"): packages form layers, an import only
+points down, the layer tools do not import each other, and no module hides a ``humv_usd`` import
+inside a function (the usual way to dodge a cycle). Checked on the source with ``ast``, so a new
+cycle or a tool importing another tool fails here, in ``make test-fast``."""
+
+from __future__ import annotations
+
+import ast
+import functools
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1] / "humv_usd"
+
+#: bottom to top; a package may import its own modules and packages of lower levels only
+LEVELS = [
+    {"core"},  # the modules directly in humv_usd/: constants, errors, fileio, images, mode, assets
+    {"physics", "geometry"},  # pure functions
+    {"catalog"},  # data tables
+    {"scenario"},  # spec, ids, frame times
+    {"usd"},  # schemas, paths, readers
+    {"human"},  # body model, rig, motion
+    {
+        "environment",
+        "atmosphere",
+        "materials",
+        "scene",
+        "avatar",
+        "clothing",
+        "sensors",
+        "thermal",
+    },  # layer tools
+    {"render", "groundtruth"},  # consumers of the stage
+    {"pipeline", "bench"},  # graph, caching, benches
+    {"cli"},
+]
+LEVEL = {pkg: i for i, level in enumerate(LEVELS) for pkg in level}
+TOOLS = LEVELS[6]
+
+#: edges being removed (issue 11: weather, sun and cameras read from the stage); must shrink to empty
+PENDING = {
+    ("humv_usd.atmosphere.layer", "humv_usd.environment.weather"),
+    ("humv_usd.atmosphere.layer", "humv_usd.sensors.layer"),
+    ("humv_usd.atmosphere.layer", "humv_usd.thermal.sky"),
+    ("humv_usd.atmosphere.model", "humv_usd.environment.sun"),
+    ("humv_usd.atmosphere.model", "humv_usd.environment.weather"),
+    ("humv_usd.thermal.layer", "humv_usd.environment.weather"),
+    ("humv_usd.thermal.surfaces", "humv_usd.environment.sun"),
+    ("humv_usd.thermal.surfaces", "humv_usd.environment.weather"),
+}
+
+
+def _package(module: str) -> str:
+    parts = module.split(".")
+    if len(parts) < 2:
+        return ""
+    return parts[1] if (ROOT / parts[1]).is_dir() else "core"
+
+
+def _modules():
+    for path in sorted(ROOT.rglob("*.py")):
+        rel = path.relative_to(ROOT.parent).with_suffix("")
+        name = ".".join(rel.parts).removesuffix(".__init__")
+        yield name, path, ast.parse(path.read_text(), str(path))
+
+
+def _imports(tree: ast.AST):
+    """(imported humv_usd module, line, inside a function) for every import of the module."""
+    nested = {
+        id(n)
+        for f in ast.walk(tree)
+        if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+        for n in ast.walk(f)
+        if isinstance(n, (ast.Import, ast.ImportFrom))
+    }
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names = [node.module] if node.module != "humv_usd" else [f"humv_usd.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        else:
+            continue
+        for name in names:
+            if name == "humv_usd" or name.startswith("humv_usd."):
+                yield name, node.lineno, id(node) in nested
+
+
+@functools.cache
+def _edge_list():
+    return list(_edges_uncached())
+
+
+def _edges():
+    return iter(_edge_list())
+
+
+def _edges_uncached():
+    for module, path, tree in _modules():
+        src = _package(module)
+        for target, line, hidden in _imports(tree):
+            yield module, src, target, _package(target), f"{path.relative_to(ROOT.parent)}:{line}", hidden
+
+
+def test_every_package_has_a_level():
+    packages = {_package(m) for m, _, _ in _modules()} - {""}
+    assert packages <= set(LEVEL), f"packages without a level: {sorted(packages - set(LEVEL))}"
+
+
+def test_imports_point_down_and_tools_are_independent():
+    bad, pending = [], set()
+    for module, src, target, dst, where, _ in _edges():
+        if not src or not dst or src == dst:
+            continue
+        if (module, target) in PENDING:
+            pending.add((module, target))
+            continue
+        if LEVEL[dst] >= LEVEL[src]:
+            what = "tool imports another tool" if src in TOOLS and dst in TOOLS else "import points up"
+            bad.append(f"{where}: {module} -> {target} ({what})")
+    assert not bad, "\n".join(bad)
+    assert pending == PENDING, f"fixed, remove from PENDING: {sorted(PENDING - pending)}"
+
+
+def test_no_package_cycles():
+    graph: dict[str, set[str]] = {}
+    for _, src, _, dst, _, _ in _edges():
+        if src and dst and src != dst:
+            graph.setdefault(src, set()).add(dst)
+    seen, stack, cycles = set(), [], []
+
+    def visit(node):
+        if node in stack:
+            cycles.append(stack[stack.index(node) :] + [node])
+            return
+        if node in seen:
+            return
+        seen.add(node)
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            visit(nxt)
+        stack.pop()
+
+    for node in sorted(graph):
+        visit(node)
+    assert not cycles, cycles
+
+
+def test_no_humv_usd_import_hidden_in_a_function():
+    """Only the command line imports lazily (``humv-usd --help`` must not load Mitsuba)."""
+    hidden = [
+        f"{where}: {target}" for _, src, target, _, where, nested in _edges() if nested and src != "cli"
+    ]
+    assert not hidden, "\n".join(hidden)
+
+
+@pytest.mark.parametrize("tool", sorted(TOOLS))
+def test_tool_reads_upstream_only_through_usd(tool):
+    """A tool package imports no other tool, render or ground truth (its inputs are the
+    scenario section and the upstream stage, read through humv_usd.usd)."""
+    found = {
+        dst
+        for module, src, target, dst, _, _ in _edges()
+        if src == tool and dst != tool and (module, target) not in PENDING
+    }
+    assert not found & (TOOLS | LEVELS[7] | LEVELS[8] | LEVELS[9])
