@@ -164,6 +164,7 @@ def _avatar_attributes(prim, human: dict, body: Body) -> None:
         (S.AVATAR_AGE, human["age_yr"]),
         (S.AVATAR_STATURE, human["stature_m"]),
         (S.AVATAR_MASS, human["mass_kg"]),
+        (S.AVATAR_BUILD, float(body.build)),  # the muscle value: the clothing tool rebuilds the body
         (S.AVATAR_FITNESS, human["fitness"]),
         (S.AVATAR_ACTIVITY, human["activity"]),
         (S.AVATAR_BODY_SURFACE_AREA, round(body.body_surface_area_m2, 4)),
