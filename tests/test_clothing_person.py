@@ -14,6 +14,7 @@ from humv_usd.avatar import layer as avatar_layer
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.person import MATCH_TOLERANCE_M, read_person, transfer_to_body
 from humv_usd.errors import InputError
+from humv_usd.human import labels as L
 from humv_usd.human.body import build_body
 from humv_usd.human.skeleton import skeleton_for, skin_weights
 from humv_usd.pipeline.compose import compose_in_memory
@@ -77,6 +78,7 @@ def test_readers_give_what_the_avatar_tool_wrote(people):
     idx, w = skin_weights(sk, mesh.vertex_ids, 4)
     np.testing.assert_array_equal(stage_mesh.joint_indices, idx)
     np.testing.assert_allclose(stage_mesh.joint_weights, w)
+    np.testing.assert_array_equal(stage_mesh.face_regions, L.body_regions(mesh, sk, idx, w))
     rest = read_skeleton_rest(stage, "p1")
     assert rest.joints == sk.paths
     np.testing.assert_allclose(rest.bind_positions, sk.rest_positions, atol=1e-9)
@@ -153,3 +155,19 @@ def test_body_of_another_topology_is_one_clear_error(people):
     mesh.GetFaceVertexIndicesAttr().Set(Vt.IntArray([0, 1, 2]))
     with pytest.raises(InputError, match=rf"^{BODY}: \d+ points and 1 faces, not the MakeHuman body's"):
         read_person(stage, "p1")
+
+
+def test_garment_regions_follow_the_stage_labels(people):
+    """A TD relabels the Body's regions in a stronger layer: the garment faces take the
+    stage's region under them (here every body face is the left thigh)."""
+    base, _, base_avatar, _ = people
+    stage = stage_of(base_avatar)
+    body = stage.GetPrimAtPath(BODY)
+    faces = len(UsdGeom.Mesh(body).GetFaceVertexCountsAttr().Get())
+    thigh = L.REGION_ID["leftUpperLeg"]
+    UsdGeom.PrimvarsAPI(body).GetPrimvar("humv:label:bodyRegion").Set(Vt.IntArray([thigh] * faces))
+    layer = clothing_layer.build_one(base, base["human"][0], stage, garments=GARMENTS)
+    dressed = Usd.Stage.Open(layer)
+    garment = dressed.GetPrimAtPath("/World/Humans/p1/Clothing/leggings")
+    regions = np.asarray(garment.GetAttribute(L.BODY_REGION_PRIMVAR).Get())
+    assert len(regions) > 100 and set(regions.tolist()) == {thigh}

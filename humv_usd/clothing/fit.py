@@ -81,12 +81,14 @@ def prepare(
     body: Body,
     skeleton: Skeleton | None = None,
     skinning: tuple[np.ndarray, np.ndarray] | None = None,
+    face_regions: np.ndarray | None = None,
 ) -> BodyRig:
     """Skeleton, skinning and region labels of ``body`` exactly as the avatar layer has them.
 
     ``skinning``: the Body mesh's (joint indices, weights), (V, 4) each, as bound on the stage
     (:func:`humv_usd.usd.avatar.read_body_mesh`); None: the rig's weights (what the avatar
-    tool binds).
+    tool binds). ``face_regions``: the body region id per Body face as labelled on the stage
+    (None: labelled here as the avatar tool labels them).
     """
     skeleton = skeleton_for(body.points, body.groups) if skeleton is None else skeleton
     mesh = body.body_mesh()
@@ -94,7 +96,7 @@ def prepare(
         indices, weights = skin_weights(skeleton, mesh.vertex_ids, INFLUENCES)
     else:
         indices, weights = (np.asarray(a) for a in skinning)
-    regions = L.body_regions(mesh, skeleton, indices, weights)
+    regions = L.body_regions(mesh, skeleton, indices, weights) if face_regions is None else face_regions
     tris = triangulate(mesh.face_counts, mesh.face_indices)
     return BodyRig(
         body,

@@ -100,6 +100,7 @@ def build_for_human(
     simulation_out: list | None = None,
     prop_ids: dict[str, int] | None = None,
     skinning: tuple[np.ndarray, np.ndarray] | None = None,
+    face_regions: np.ndarray | None = None,
 ) -> Sdf.Layer:
     """The clothing layer of one person.
 
@@ -113,8 +114,9 @@ def build_for_human(
     prop (catalogue name), e.g. from :func:`humv_usd.scenario.ids.instance_ids`.
     ``skinning``: the Body mesh's (joint indices, weights) as bound on the stage (None: the
     rig's weights).
+    ``face_regions``: its body region per face (None: labelled as the avatar tool labels them).
     """
-    rig = prepare(body, skeleton, skinning)
+    rig = prepare(body, skeleton, skinning, face_regions)
     skeleton = rig.skeleton
     if motion_world_transforms is None:
         world = np.tile(np.eye(4), (1, len(skeleton.names), 1, 1))
@@ -311,6 +313,7 @@ def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None, garme
         scenario.frame_count,
         prop_ids=props,
         skinning=(person.joint_indices, person.joint_weights),
+        face_regions=person.face_regions,
     )
 
 

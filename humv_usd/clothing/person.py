@@ -2,7 +2,8 @@
 
 Everything about the person comes from the stage (:mod:`humv_usd.usd.avatar`): HumvAvatarAPI's
 sex, age, stature, mass and build, the Skeleton's joints and bind pose, the Body mesh's rest
-points and its UsdSkel skin weights, and (in :mod:`humv_usd.clothing.layer`) the joint motion.
+points, its UsdSkel skin weights and body-region labels (garment faces take the region under
+them), and (in :mod:`humv_usd.clothing.layer`) the joint motion.
 
 Garments are cut from MakeHuman's helper geometry (helper-tights, helper-skirt), which the avatar
 layer does not carry. So the MakeHuman body is rebuilt from the parameters read from the stage
@@ -63,6 +64,7 @@ class Person:
     skeleton: Skeleton  # CMU rig at the stage's bind positions
     joint_indices: np.ndarray  # (V, 4) the stage Body's skinning
     joint_weights: np.ndarray  # (V, 4)
+    face_regions: np.ndarray | None  # (F,) the Body's region labels, if authored
     body_deviation_m: float  # max distance of the stage's Body from the rebuilt body
 
 
@@ -140,4 +142,12 @@ def read_person(stage: Usd.Stage, human_id: str) -> Person:
     skeleton = skeleton_on_stage(body, rest, str(skeleton_path(human_id)))
     if stage_mesh.joint_indices.shape[1] != 4 or stage_mesh.joint_indices.max() >= len(rest.joints):
         raise InputError(f"{stage_mesh.path}: expected 4 influences per point into the Skeleton's joints")
-    return Person(parameters, body, skeleton, stage_mesh.joint_indices, stage_mesh.joint_weights, deviation)
+    return Person(
+        parameters,
+        body,
+        skeleton,
+        stage_mesh.joint_indices,
+        stage_mesh.joint_weights,
+        stage_mesh.face_regions,
+        deviation,
+    )

@@ -51,6 +51,7 @@ class BodyMesh:
     face_indices: np.ndarray  # (sum counts,)
     joint_indices: np.ndarray  # (V, k) int32 into SkeletonRest.joints
     joint_weights: np.ndarray  # (V, k) float32, rows sum to 1
+    face_regions: np.ndarray | None  # (F,) body region id per face (bodyRegion primvar), if authored
 
 
 def _avatar_prim(stage: Usd.Stage, human_id: str) -> Usd.Prim:
@@ -139,7 +140,8 @@ def read_body_mesh(stage: Usd.Stage, human_id: str) -> BodyMesh:
     """``/World/Humans/<id>/Body``: authored rest points, faces and UsdSkel joint influences.
 
     The points must be in skeleton space (identity ``skel:geomBindTransform``, as the avatar
-    tool writes them) and the influences per vertex (``vertex`` interpolation).
+    tool writes them) and the influences per vertex (``vertex`` interpolation). The body region
+    per face (``primvars:humv:label:bodyRegion``, uniform) comes along when authored.
     """
     path = body_path(human_id)
     prim = stage.GetPrimAtPath(path)
@@ -165,4 +167,15 @@ def read_body_mesh(stage: Usd.Stage, human_id: str) -> BodyMesh:
         raise InputError(
             f"{path}: {len(joint_indices)} joint influences for {len(points)} points (need one per point)"
         )
-    return BodyMesh(str(path), points, counts, indices, joint_indices, joint_weights)
+    return BodyMesh(
+        str(path), points, counts, indices, joint_indices, joint_weights, _face_ints(prim, len(counts))
+    )
+
+
+def _face_ints(prim: Usd.Prim, faces: int) -> np.ndarray | None:
+    """The body-region primvar (one int per face), or None when missing or of another size."""
+    primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(S.BODY_REGION_PRIMVAR.removeprefix("primvars:"))
+    values = primvar.Get() if primvar and primvar.GetInterpolation() == UsdGeom.Tokens.uniform else None
+    if values is None or len(values) != faces:
+        return None
+    return np.asarray(values, dtype=np.int32)
