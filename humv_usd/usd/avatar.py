@@ -17,6 +17,14 @@ from humv_usd.errors import InputError
 from humv_usd.usd import schemas as S
 from humv_usd.usd.paths import body_path, human_path, skeleton_path
 
+# Label attributes of the avatar's Body (and garments, props): custom, not in the schemas
+BODY_REGION_PRIMVAR = "primvars:humv:label:bodyRegion"  # int[], uniform
+BODY_REGION_NAMES_ATTR = "humv:label:bodyRegionNames"  # token[], index = id
+JOS3_SEGMENT_PRIMVAR = "primvars:humv:label:jos3Segment"  # int[], uniform
+JOS3_SEGMENT_NAMES_ATTR = "humv:label:jos3SegmentNames"  # token[], index = value
+COCO_KEYPOINTS_ATTR = "humv:label:cocoKeypoints"  # point3f[], time-sampled
+COCO_KEYPOINT_NAMES_ATTR = "humv:label:cocoKeypointNames"  # token[]
+
 
 @dataclass(frozen=True)
 class AvatarParameters:
@@ -174,7 +182,7 @@ def read_body_mesh(stage: Usd.Stage, human_id: str) -> BodyMesh:
 
 def _face_ints(prim: Usd.Prim, faces: int) -> np.ndarray | None:
     """The body-region primvar (one int per face), or None when missing or of another size."""
-    primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(S.BODY_REGION_PRIMVAR.removeprefix("primvars:"))
+    primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(BODY_REGION_PRIMVAR.removeprefix("primvars:"))
     values = primvar.Get() if primvar and primvar.GetInterpolation() == UsdGeom.Tokens.uniform else None
     if values is None or len(values) != faces:
         return None

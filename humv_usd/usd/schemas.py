@@ -154,13 +154,6 @@ SENSOR_SUBBANDS = "humv:sensor:subbands"
 # --- HumvLabelAPI (Xform, Scope, Mesh, SkelRoot) ----------------------------------------------
 LABEL_INSTANCE_ID = "humv:label:instanceId"
 LABEL_CLASS = "humv:label:class"
-# custom (not in the schema) label attributes of the avatar's Body and garments
-BODY_REGION_PRIMVAR = "primvars:humv:label:bodyRegion"  # int[], uniform
-BODY_REGION_NAMES_ATTR = "humv:label:bodyRegionNames"  # token[], index = id
-JOS3_SEGMENT_PRIMVAR = "primvars:humv:label:jos3Segment"  # int[], uniform
-JOS3_SEGMENT_NAMES_ATTR = "humv:label:jos3SegmentNames"  # token[], index = value
-COCO_KEYPOINTS_ATTR = "humv:label:cocoKeypoints"  # point3f[], time-sampled
-COCO_KEYPOINT_NAMES_ATTR = "humv:label:cocoKeypointNames"  # token[]
 
 _lock = threading.Lock()
 _registered_dir: Path | None = None
