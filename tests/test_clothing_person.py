@@ -171,3 +171,21 @@ def test_garment_regions_follow_the_stage_labels(people):
     garment = dressed.GetPrimAtPath("/World/Humans/p1/Clothing/leggings")
     regions = np.asarray(garment.GetAttribute(L.BODY_REGION_PRIMVAR).Get())
     assert len(regions) > 100 and set(regions.tolist()) == {thigh}
+
+
+def test_parameters_overridden_without_a_new_body_keep_garments_on_the_stage_body(
+    people, base_garment, caplog
+):
+    """A stronger layer says 1.95 m / 95 kg but keeps the 1.75 m Body mesh: the garments fit
+    the body the render shows (within 1 cm of the 1.75 m garments: helpers of the 1.95 m
+    rebuild transferred back onto it), not a 1.95 m body, and a warning names the Body."""
+    base, _, base_avatar, _ = people
+    stage = stage_of(base_avatar)
+    person = stage.GetPrimAtPath("/World/Humans/p1")
+    person.GetAttribute(S.AVATAR_STATURE).Set(1.95)
+    person.GetAttribute(S.AVATAR_MASS).Set(95.0)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="humv_usd.clothing.person"):
+        kept = garment_points(base, stage)
+    assert [r.getMessage().split(":")[0] for r in caplog.records] == [BODY]
+    assert np.abs(kept - base_garment).max() < 0.01

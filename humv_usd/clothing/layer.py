@@ -29,6 +29,12 @@ A prop is not a garment (no HumvClothingAPI, no air gap, no fix: the thermal too
 a fixed-temperature scene mesh). Without instance ids (``build_for_human`` called outside a
 scenario) the prop gets only the class attribute and inherits the person's id.
 
+Inputs: the person from the upstream stage's avatar layer (:mod:`humv_usd.clothing.person`:
+HumvAvatarAPI parameters, Body rest points, skin weights and region labels, Skeleton bind pose;
+:func:`humv_usd.usd.avatar.read_joint_transforms`: the motion), so an edited or replaced avatar
+layer is dressed as it is; from the scenario only the person's ``clothing`` list, the props'
+instance ids and the frame rate and count (:data:`READS`).
+
 Skinning: the garment is bound to the avatar's Skeleton with weights transferred from the
 body (:mod:`humv_usd.clothing.fit`), so UsdSkel (and the render, and any DCC) poses it with
 the body. The per-frame intersection fix (:mod:`humv_usd.clothing.collide`) is baked into
