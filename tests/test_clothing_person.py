@@ -20,7 +20,7 @@ from humv_usd.human.skeleton import skeleton_for, skin_weights
 from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.scenario.load import validate
 from humv_usd.usd import schemas as S
-from humv_usd.usd.avatar import read_avatar, read_body_mesh, read_skeleton_rest
+from humv_usd.usd.avatar import read_avatar, read_body_mesh, read_joint_transforms, read_skeleton_rest
 
 GARMENTS = ["leggings"]
 BODY = "/World/Humans/p1/Body"
@@ -189,3 +189,18 @@ def test_parameters_overridden_without_a_new_body_keep_garments_on_the_stage_bod
         kept = garment_points(base, stage)
     assert [r.getMessage().split(":")[0] for r in caplog.records] == [BODY]
     assert np.abs(kept - base_garment).max() < 0.01
+
+
+def test_unchanged_avatar_layer_gives_the_clothing_of_the_scenario_body(people):
+    """Reading the person back from an untouched avatar layer changes nothing: the layer text
+    equals that of garments fitted on the avatar tool's own body (HumvAvatarAPI's float32
+    stature/mass are read as written, 1.78 not 1.7799999713897705)."""
+    base, _, base_avatar, _ = people
+    human = base["human"][0]
+    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"], human["build"])
+    stage = stage_of(base_avatar)
+    motion = read_joint_transforms(stage, "p1", base.frame_count, 30.0)  # the same for both
+    direct = clothing_layer.build_for_human(human, body, None, motion, GARMENTS, 30.0, base.frame_count)
+    from_stage = clothing_layer.build_one(base, human, stage, garments=GARMENTS)
+    assert read_avatar(stage_of(base_avatar), "p1").stature_m == human["stature_m"]
+    assert from_stage.ExportToString() == direct.ExportToString()

@@ -90,13 +90,20 @@ def read_avatar(stage: Usd.Stage, human_id: str) -> AvatarParameters:
     return AvatarParameters(
         human_id=human_id,
         sex=str(value(S.AVATAR_SEX, True)),
-        age_yr=float(value(S.AVATAR_AGE, True)),
-        stature_m=float(value(S.AVATAR_STATURE, True)),
-        mass_kg=float(value(S.AVATAR_MASS, True)),
-        build=float(value(S.AVATAR_BUILD, False) or 0.5),
+        age_yr=_as_written(value(S.AVATAR_AGE, True)),
+        stature_m=_as_written(value(S.AVATAR_STATURE, True)),
+        mass_kg=_as_written(value(S.AVATAR_MASS, True)),
+        build=_as_written(value(S.AVATAR_BUILD, False) or 0.5),
         fitness=str(value(S.AVATAR_FITNESS, False) or "average"),
         activity=str(value(S.AVATAR_ACTIVITY, False) or "stand"),
     )
+
+
+def _as_written(value) -> float:
+    """A float attribute as the layer's text shows it: the shortest decimal that gives the same
+    float32 (1.78 stays 1.78 instead of 1.7799999713897705), so a body rebuilt from the stage is
+    the avatar tool's to the last bit."""
+    return float(str(np.float32(value)))
 
 
 def _skeleton(stage: Usd.Stage, human_id: str) -> UsdSkel.Skeleton:
