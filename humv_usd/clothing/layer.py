@@ -58,13 +58,16 @@ from humv_usd.human.body import Body, build_body
 from humv_usd.human.skeleton import Skeleton, skeleton_for, skinning_matrices
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import clothing_path, human_path, material_path, props_path, skeleton_path
 
-NAME = "clothing"
-READS = ("general", "human", "placement")
+NAME = "clothing_{id}"  # one layer per dressed [[human]]
+READS = (*FRAMES, "human[{id}]", "@ids")
+UPSTREAM = ("avatar_{id}",)
+VERSION = "1"
 
 
 def layer_name(human_id: str) -> str:
