@@ -92,10 +92,12 @@ class ComposeReport:
 
     def summary(self) -> str:
         """One line: how many layers were rebuilt, cached, kept; the time."""
-        counts = {}
-        for s in self.states.values():
-            counts.setdefault(s.state, []).append(s.name)
-        parts = [f"{len(v)} {k}" + (f" ({', '.join(v)})" if k != "cached" else "") for k, v in counts.items()]
+        counts: dict[str, list[str]] = {"rebuilt": [], "kept hand edit": [], "cached": []}
+        for st in self.states.values():
+            counts[st.state].append(st.name)
+        parts = [
+            f"{len(v)} {k}" + (f" ({', '.join(v)})" if k != "cached" else "") for k, v in counts.items() if v
+        ]
         user = f"; {len(self.user_layers)} user layer(s) kept" if self.user_layers else ""
         return f"{len(self.states)} layers: {', '.join(parts)}{user}; {self.seconds:.2f} s"
 
