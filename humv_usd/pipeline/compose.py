@@ -38,12 +38,11 @@ from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
-from humv_usd.usd.layers import layer_text, set_layer_metadata
+from humv_usd.usd.layers import layer_text, set_inputs_key, set_layer_metadata
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
 REPORT_NAME = "compose.json"
-KEY = "humv:inputsKey"  # a layer's cache key, in its customLayerData
 _KEY_TEXT = re.compile(r'"humv:inputsKey"\s*=\s*"([0-9a-f]+)"')
 
 
@@ -350,7 +349,7 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False) -> Com
             below = [layer_of(u) for u in reversed(strength) if u in node.upstream]
             upstream = compose_in_memory(below + list(reversed(user_layers)), fps)
         layer = node.tool.build(scenario, node.human, upstream)
-        layer.customLayerData = {**dict(layer.customLayerData), KEY: state.key}
+        set_inputs_key(layer, state.key)
         layers[name], texts[name] = layer, layer_text(layer)
         state.sha256 = _sha(texts[name])
         state.seconds = time.perf_counter() - t
