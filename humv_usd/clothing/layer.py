@@ -71,7 +71,7 @@ VERSION = "1"
 
 
 def layer_name(human_id: str) -> str:
-    return f"{NAME}_{human_id}"
+    return NAME.format(id=human_id)
 
 
 def garment_path(human_id: str, garment: str) -> Sdf.Path:
