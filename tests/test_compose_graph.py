@@ -298,3 +298,14 @@ def test_cli_refuses_hand_edit_with_one_line_exit_2(out, tmp_path):
         r.stdout.strip().splitlines()[-1].endswith("s)")
         and "3 rebuilt (atmosphere, sensors, thermal), 5 cached" in r.stdout
     )
+
+
+def test_hand_edited_layer_the_scenario_drops_is_not_removed_silently(out, raw):
+    layer = out / "layers" / "sensors.usda"
+    _hand_edit(layer, "focalLength = ", "focalLength = 1")
+    del raw["sensor"]
+    with pytest.raises(InputError, match="sensors.usda: edited by hand, and the scenario no longer has"):
+        compose(validate(raw), out)
+    assert layer.is_file()
+    report = compose(validate(raw), out, force=True)
+    assert not layer.exists() and "sensors.usda" in report.removed
