@@ -26,6 +26,7 @@ from pxr import Sdf, UsdGeom, Vt
 from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import CLOCK
 from humv_usd.sensors.layer import camera_positions
 from humv_usd.thermal.sky import with_cloud_cover
 from humv_usd.usd import schemas as S
@@ -33,7 +34,32 @@ from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.paths import sensor_path
 
 NAME = "atmosphere"
-READS = ("general", "atmosphere", "sensor", "scene", "placement")
+READS = (
+    *CLOCK,
+    "atmosphere",
+    *(
+        f"sensor.*.{k}"
+        for k in (
+            "id",
+            "wavelength_um",
+            "platform",
+            "position_m",
+            "look_at_m",
+            "altitude_m",
+            "orbit_radius_m",
+            "orbit_speed_m_s",
+            "orbit_start_deg",
+            "orbit_clockwise",
+        )
+    ),
+    "scene.ground.size_m",
+    "scene.object.*.center_m",
+    "scene.object.*.size_m",
+    "placement.*.position_m",
+    "placement.*.waypoints_m",
+)
+UPSTREAM = ()
+VERSION = "1"
 PATHS = SCOPES["atmosphere"].AppendChild("Paths")
 
 

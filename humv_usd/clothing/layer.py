@@ -66,23 +66,24 @@ from humv_usd.human.body import Body
 from humv_usd.human.skeleton import Skeleton, skinning_matrices
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd import schemas as S
 from humv_usd.usd.avatar import read_joint_transforms
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import clothing_path, human_path, material_path, props_path, skeleton_path
 
-NAME = "clothing"
-#: Scenario sections read: general (fps, frame count), human (each person's ``clothing`` list),
-#: scene (the props' instance ids follow the scene objects': :func:`instance_ids`). The person
-#: (body, skin, skeleton, motion, placement) comes from the upstream avatar layer.
-READS = ("general", "human", "scene")
-#: Upstream layers read from the composed stage: the person's own ``avatar_<id>`` layer.
-UPSTREAM = ("avatar",)
+#: Scenario values read: frame count and fps, the person's own entry (its ``clothing`` list) and
+#: the instance ids (props follow the scene objects). The person (body, skin, skeleton, motion,
+#: placement) comes from the upstream avatar layer (:mod:`humv_usd.clothing.person`).
+NAME = "clothing_{id}"  # one layer per dressed [[human]]
+READS = (*FRAMES, "human[{id}]", "@ids")
+UPSTREAM = ("avatar_{id}",)
+VERSION = "1"
 
 
 def layer_name(human_id: str) -> str:
-    return f"{NAME}_{human_id}"
+    return NAME.format(id=human_id)
 
 
 def garment_path(human_id: str, garment: str) -> Sdf.Path:

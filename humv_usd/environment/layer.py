@@ -12,14 +12,23 @@ import numpy as np
 from pxr import Gf, Sdf, UsdGeom
 
 from humv_usd.environment.sun import sun_at
-from humv_usd.environment.weather import weather_at
+from humv_usd.environment.weather import COLUMNS, weather_at
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import frame_times, local_start_iso
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, WORLD, finish, new_layer_stage
 
 NAME = "environment"
-READS = ("general", "atmosphere")
+READS = (
+    "general.name",
+    "general.description",
+    *CLOCK,
+    *(f"atmosphere.{k}" for k in COLUMNS),
+    "atmosphere.weather_csv",
+)
+UPSTREAM = ()
+VERSION = "1"
 
 _WEATHER_ATTRS = (
     (S.ENVIRONMENT_AIR_TEMPERATURE, "air_temperature_k"),

@@ -27,6 +27,7 @@ from pxr import Sdf, Usd, UsdGeom, Vt
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import CLOCK
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
 from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
@@ -43,7 +44,9 @@ from humv_usd.usd.layers import finish, new_layer_stage
 from humv_usd.usd.paths import body_path, human_path
 
 NAME = "thermal"
-READS = ("general", "human", "scene", "thermal", "atmosphere")
+READS = (*CLOCK, "human", "scene", "thermal", "atmosphere")
+UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*")
+VERSION = "1"
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
