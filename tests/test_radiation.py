@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from numpy.testing import assert_allclose
 
-from humv_usd.physics.sky import STEFAN_BOLTZMANN
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.sky import ClearSky, UniformSky, angular_sky_emissivity
 

@@ -12,9 +12,9 @@ from pxr import Usd
 from scipy.integrate import quad
 
 from humv_usd.atmosphere import layer as atmosphere_layer
+from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
-from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.physics.sky import effective_sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.thermal import radiation as R

@@ -14,6 +14,7 @@ from pxr import Usd
 import humv_usd
 from humv_usd import images as writers
 from humv_usd import mode
+from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import jsonable, write_json
 from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
@@ -33,8 +34,6 @@ from humv_usd.render.ir import (  # noqa: F401
 from humv_usd.usd.layers import open_stage
 from humv_usd.usd.sensor import read_sensor_model
 
-#: Temperature of the blackbody that weights the band emissivity [K].
-EMISSIVITY_WEIGHTING_TEMPERATURE_K = 300.0
 MANIFEST_NAME = "manifest.json"
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 

@@ -33,6 +33,7 @@ from pxr import Usd, UsdGeom
 
 from humv_usd.catalog.garments import GARMENTS
 from humv_usd.catalog.materials import LIBRARY, WAVELENGTHS_UM
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.human import labels as L
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.physics.convection import convective_coefficient
@@ -119,7 +120,7 @@ def _self_radiance(parts: list[_Part], skin_k: float, air_k: float) -> np.ndarra
             eps, t = longwave_emissivity("skin"), skin_k
         else:
             eps, t = longwave_emissivity(GARMENTS[p.garment].fabric), 0.5 * (skin_k + air_k)
-        lw.append(np.full(len(p.triangles), eps * R.STEFAN_BOLTZMANN * t**4 / np.pi))
+        lw.append(np.full(len(p.triangles), eps * STEFAN_BOLTZMANN * t**4 / np.pi))
     lw = np.concatenate(lw)
     return np.stack([np.zeros_like(lw), lw])
 

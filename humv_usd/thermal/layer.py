@@ -25,6 +25,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.catalog.materials import LIBRARY
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
 from humv_usd.thermal import radiation as R
@@ -192,7 +193,7 @@ def _sky_report(forcing, table, i0, upstream) -> dict:
         "cloudCover": round(float(forcing.cloud_cover[i0]), 6),
         "longwaveIrradiance_W_m2": round(float(forcing.sky_longwave[i0]), 4),
         "emissivity": round(
-            float(forcing.sky_longwave[i0] / (R.STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
+            float(forcing.sky_longwave[i0] / (STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
         ),
     }
 

@@ -44,8 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.mode import mitsuba
-from humv_usd.physics.sky import STEFAN_BOLTZMANN
 from humv_usd.thermal.sky import BANDS, ClearSky
 
 try:  # embree through trimesh; the pure-python fallback is far too slow for real meshes

@@ -34,11 +34,12 @@ import numpy as np
 from pxr import Usd, UsdGeom, UsdShade
 
 from humv_usd.catalog.materials import LIBRARY
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.sun import sun_at
 from humv_usd.environment.weather import read_weather_csv, weather_at
 from humv_usd.physics import slab
 from humv_usd.physics.convection import watmuff
-from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
+from humv_usd.physics.sky import effective_sky_temperature
 from humv_usd.scenario.times import frame_epoch_s
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.radiation import _intersector
