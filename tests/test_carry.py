@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from humv_usd.clothing.fit import fit_garment, prepare, prop_mesh
-from humv_usd.geometry.mesh import RayCaster, Surface
+from humv_usd.geometry.mesh import Surface
+from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.body import build_body
 from humv_usd.human.carry import (
     ARM_JOINTS,

@@ -13,7 +13,8 @@ from humv_usd.catalog.materials import FABRICS, LIBRARY, WAVELENGTHS_UM
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.collide import apply, blend_transforms, dress, simulate
 from humv_usd.clothing.fit import prepare
-from humv_usd.geometry.mesh import RayCaster, Surface, closest_on_triangles
+from humv_usd.geometry.mesh import Surface, closest_on_triangles
+from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.body import build_body
 from humv_usd.human.skeleton import forward_kinematics, skinning_matrices
 from humv_usd.human.usdskel import skinned_points

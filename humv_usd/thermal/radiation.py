@@ -45,109 +45,15 @@ import numpy as np
 import trimesh
 
 from humv_usd.constants import STEFAN_BOLTZMANN
-from humv_usd.mode import mitsuba
+from humv_usd.geometry.raycast import CHUNK_RAYS, first_faces, ray_caster, unblocked
 from humv_usd.thermal.sky import BANDS, ClearSky
 
-try:  # embree through trimesh; the pure-python fallback is far too slow for real meshes
-    from trimesh.ray.ray_pyembree import RayMeshIntersector as _Intersector
-except ImportError:  # pragma: no cover
-    from trimesh.ray.ray_triangle import RayMeshIntersector as _Intersector
-
-_CHUNK_RAYS = 2_000_000
 _CHUNK_CV_RAYS = 1_048_576  # rays per chunk of the ray methods (moments in float64)
-RAY_BACKENDS = ("embree", "mitsuba")
 
 
-class MitsubaIntersector:
-    """First-hit queries on a triangle mesh with Mitsuba's ray tracer (``scene.ray_intersect_
-    preliminary``, Embree inside, vectorised over the LLVM backend's threads).
-
-    Same interface as trimesh's embree intersector for what this module uses:
-    ``intersects_first(origins, directions)`` -> face index or -1. About twice the throughput
-    of single-threaded embreex on two cores; costs the Mitsuba import (about 1 s) once.
-    """
-
-    def __init__(self, mesh):
-        mi = mitsuba()
-        self._mi = mi
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        self._origin = v.min(axis=0) if len(v) else np.zeros(3)
-        self._scale = 100.0 / max(
-            float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0, 1e-12
-        )  # as EmbreeIntersector
-        m = mi.Mesh("occluders", len(mesh.vertices), len(mesh.faces))
-        params = mi.traverse(m)
-        params["vertex_positions"] = mi.Float(((v - self._origin) * self._scale).astype(np.float32).ravel())
-        params["faces"] = mi.UInt32(np.asarray(mesh.faces, np.uint32).ravel())
-        params.update()
-        self._scene = mi.load_dict({"type": "scene", "occluders": m})
-
-    def intersects_first(self, origins, directions):
-        mi = self._mi
-        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
-        d = np.ascontiguousarray(directions, dtype=np.float32)
-        ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
-        pi = self._scene.ray_intersect_preliminary(ray)
-        hit = np.array(pi.prim_index, dtype=np.int64)
-        return np.where(np.array(pi.is_valid(), dtype=bool), hit, -1)
-
-    def intersects_any(self, origins, directions):
-        return self.intersects_first(origins, directions) >= 0
-
-
-class EmbreeIntersector:
-    """First-hit queries through embreex directly (as trimesh's wrapper does, without its
-    per-call copies and re-normalisation of already unit directions). Coordinates are shifted
-    to the mesh's lower corner and scaled before they go to float32."""
-
-    def __init__(self, mesh):
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
-
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        self._origin = v.min(axis=0) if len(v) else np.zeros(3)
-        # as trimesh: the bounding diagonal becomes 100 units (embree's own epsilons are tuned
-        # for scenes of that size)
-        diag = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0
-        self._scale = 100.0 / max(diag, 1e-12)
-        self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(
-            scene=self._scene,
-            vertices=((v - self._origin) * self._scale).astype(np.float32),
-            indices=np.asarray(mesh.faces, dtype=np.int32),
-        )
-
-    def _run(self, origins, directions, query):
-        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
-        d = np.ascontiguousarray(directions, dtype=np.float32)
-        return self._scene.run(o, d, query=query)
-
-    def intersects_first(self, origins, directions):
-        return self._run(origins, directions, "INTERSECT").astype(np.int64)
-
-    def local(self, points) -> np.ndarray:
-        """World points -> the caster's shifted and scaled float32 frame (for
-        :meth:`first_hit_local`, so that many rays from one point convert it once)."""
-        return ((np.asarray(points, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
-
-    def first_hit_local(self, origins32, directions32) -> np.ndarray:
-        """First face hit (-1: none) of rays with origins already in the :meth:`local` frame;
-        float32 contiguous (n, 3) arrays."""
-        return self._scene.run(origins32, directions32, query="INTERSECT").astype(np.int64)
-
-    def intersects_any(self, origins, directions):
-        return self._run(origins, directions, "OCCLUDED") >= 0
-
-
-def _intersector(mesh, backend="embree"):
-    if backend == "mitsuba":
-        return MitsubaIntersector(mesh)
-    if backend != "embree":
-        raise ValueError(f"invalid ray backend {backend!r}: expected one of {RAY_BACKENDS}")
-    try:
-        return EmbreeIntersector(mesh)
-    except ImportError:  # pragma: no cover - embreex missing: trimesh's pure-python caster
-        return _Intersector(mesh)
+def _caster(mesh, backend="embree"):
+    """The ray caster (:mod:`humv_usd.geometry.raycast`) on a trimesh's triangles."""
+    return ray_caster(mesh.vertices, mesh.faces, backend)
 
 
 # --------------------------------------------------------------------------- map geometry
@@ -347,8 +253,8 @@ def scene_surface_radiance(
         cos = np.maximum(n @ s, 0.0)
         lit = np.ones(len(n), dtype=bool)
         if shadows:
-            lit = _unblocked(
-                _intersector(mesh), mesh.triangles_center + n * _offset(mesh), np.broadcast_to(s, n.shape)
+            lit = unblocked(
+                _caster(mesh), mesh.triangles_center + n * _offset(mesh), np.broadcast_to(s, n.shape)
             )
         e_sw = e_sw + e_sun[0] * cos * lit
     t = np.broadcast_to(np.asarray(temperature_k, dtype=float), nz.shape)
@@ -363,16 +269,6 @@ def _offset(mesh) -> float:
     return 1e-5 * float(np.linalg.norm(mesh.extents)) + 1e-7
 
 
-def _first_hit(intersector, origins, directions) -> np.ndarray:
-    """Index of the first face hit per ray (-1 = miss), in chunks."""
-    out = np.empty(len(origins), dtype=np.int64)
-    for a in range(0, len(origins), _CHUNK_RAYS):
-        out[a : a + _CHUNK_RAYS] = intersector.intersects_first(
-            origins[a : a + _CHUNK_RAYS], directions[a : a + _CHUNK_RAYS]
-        )
-    return out
-
-
 def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None, hit=None):
     """First face hit by rays leaving facets (``origins``: the offset ray origins when the
     caller has them; ``hit``: the first hits when already cast); a ray that hits its own facet
@@ -380,23 +276,14 @@ def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None
     if hit is None:
         if origins is None:
             origins = centroids[facet] + normals[facet] * offset
-        hit = _first_hit(occ.intersector, origins, directions)
+        hit = first_faces(occ.intersector, origins, directions)
     for k in (10.0, 100.0, 1000.0):
         own = np.nonzero(hit == facet)[0]
         if len(own) == 0:
             break
         f = facet[own]
-        hit[own] = _first_hit(occ.intersector, centroids[f] + normals[f] * (k * offset), directions[own])
+        hit[own] = first_faces(occ.intersector, centroids[f] + normals[f] * (k * offset), directions[own])
     return hit
-
-
-def _unblocked(intersector, origins, directions) -> np.ndarray:
-    out = np.empty(len(origins), dtype=bool)
-    for a in range(0, len(origins), _CHUNK_RAYS):
-        out[a : a + _CHUNK_RAYS] = ~intersector.intersects_any(
-            origins[a : a + _CHUNK_RAYS], directions[a : a + _CHUNK_RAYS]
-        )
-    return out
 
 
 def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360) -> RadianceMap:
@@ -422,7 +309,7 @@ def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360
     rad = np.asarray(sky.radiance(d), dtype=float)
     if scene is not None and len(scene.mesh.faces):
         origins = np.broadcast_to(np.asarray(center, dtype=float), d.shape)
-        hit = _first_hit(_intersector(scene.mesh), np.ascontiguousarray(origins), d)
+        hit = first_faces(_caster(scene.mesh), np.ascontiguousarray(origins), d)
         rad[:, hit >= 0] = np.asarray(scene.radiance)[:, hit[hit >= 0]]
     sun = sky.sun
     return RadianceMap(
@@ -457,7 +344,7 @@ class _Occluders:
     def intersector(self):
         """The ray caster, built on first use (a cached replay casts no rays)."""
         if self._intersector is None:
-            self._intersector = _intersector(self._combined, self._backend)
+            self._intersector = _caster(self._combined, self._backend)
         return self._intersector
 
 
@@ -503,7 +390,7 @@ def _diffuse_brute(env, centroids, normals, occ, offset):
     n_pix = len(d)
     n_f = len(normals)
     out = np.zeros((env.n_bands, n_f))
-    chunk = max(1, _CHUNK_RAYS // max(1, n_pix // 2))
+    chunk = max(1, CHUNK_RAYS // max(1, n_pix // 2))
     for a in range(0, n_f, chunk):
         b = min(n_f, a + chunk)
         w = _cosine_weights(normals[a:b], d, omega, normalize=True)  # (fc, P), rows sum to pi
@@ -800,7 +687,7 @@ def _float32_frames(normals):
 
 def _local_origins(occ, centroids, normals, offset):
     it = occ.intersector
-    if hasattr(it, "local"):
+    if hasattr(it, "first_hit_local"):
         return it.local(centroids + normals * offset)
     return None
 
@@ -990,7 +877,7 @@ def absorbed_radiation(
         'adaptive': cap of the second-stage rays of one facet.
     backend : {'embree', 'mitsuba'}
         Ray caster: embreex through trimesh (single-threaded) or Mitsuba's
-        (:class:`MitsubaIntersector`, multi-threaded, costs the Mitsuba import).
+        (:class:`humv_usd.geometry.raycast.MitsubaRayCaster`, multi-threaded, costs the Mitsuba import).
     stats : dict, optional
         Filled with the ray methods' Monte Carlo error from the per-ray sample variance (0 for
         'brute'): ``rms_rel_error_estimate`` (RMS over facets of the standard error relative to
