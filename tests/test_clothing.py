@@ -299,9 +299,9 @@ def test_usdskel_poses_garments_outside_the_posed_body(clothed_stage):
     body_path = "/World/Humans/p1/Body"
     counts = UsdGeom.Mesh(stage.GetPrimAtPath(body_path)).GetFaceVertexCountsAttr().Get()
     indices = UsdGeom.Mesh(stage.GetPrimAtPath(body_path)).GetFaceVertexIndicesAttr().Get()
-    from humv_usd.geometry.mesh import triangulate
+    from humv_usd.geometry.mesh import fan_triangulate
 
-    tris = triangulate(np.asarray(counts), np.asarray(indices))
+    tris, _ = fan_triangulate(np.asarray(counts), np.asarray(indices))
     rest_legs = None
     for f in range(frames):
         body = skinned_points(stage, body_path, Usd.TimeCode(f))

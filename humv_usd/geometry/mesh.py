@@ -1,7 +1,7 @@
 """Mesh queries the clothing tool needs: normals, closest points, signed distance.
 
 Pure numpy + scipy (KD-tree); ray casts are in :mod:`humv_usd.geometry.raycast`. Triangles
-index a point array; polygons are fan-triangulated as the render does.
+index a point array; polygons are fan-triangulated (:func:`fan_triangulate`) as the render does.
 
 Closest point on a mesh: the exact point-triangle closest point (Ericson 2005, *Real-Time
 Collision Detection*, sec. 5.1.5) over the ``k`` triangles whose centroids are nearest to the
@@ -26,22 +26,33 @@ CANDIDATES = 8
 PARALLEL_QUERIES = 4096
 
 
-def triangulate(face_counts, face_indices) -> np.ndarray:
-    """(T, 3) fan triangles of polygons given as USD counts/indices (orientation kept)."""
-    counts = np.asarray(face_counts, dtype=np.int64)
-    idx = np.asarray(face_indices, dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    out = []
-    for k in range(1, int(counts.max()) - 1):
-        sel = counts > k + 1
-        out.append(np.stack([idx[starts[sel]], idx[starts[sel] + k], idx[starts[sel] + k + 1]], axis=1))
-    return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
+def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fan-triangulate polygons given as USD face-vertex counts and indices (the one triangulation
+    of HumV-USD: the render, thermal, clothing and the USD mesh helpers use it).
 
+    Parameters
+    ----------
+    counts : (F,) int
+        Vertices per face (>= 3).
+    indices : (sum(counts),) int
+        Face-vertex indices.
 
-def triangle_face_of(face_counts) -> np.ndarray:
-    """Polygon index of each fan triangle, in :func:`triangulate`'s order."""
-    counts = np.asarray(face_counts, dtype=np.int64)
-    return np.concatenate([np.flatnonzero(counts > k + 1) for k in range(1, int(counts.max()) - 1)])
+    Returns
+    -------
+    triangles : (T, 3) int
+        Vertex indices ``(v0, v_k, v_k+1)`` per face, keeping the face's winding.
+    triangle_face : (T,) int
+        The face each triangle comes from.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    ntri = counts - 2
+    starts = np.cumsum(counts) - counts
+    triangle_face = np.repeat(np.arange(counts.size), ntri)
+    k = np.arange(triangle_face.size) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+    base = starts[triangle_face]
+    triangles = np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1)
+    return triangles, triangle_face
 
 
 def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:

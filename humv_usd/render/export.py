@@ -44,9 +44,9 @@ import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdShade, UsdSkel
 
 from humv_usd.errors import InputError, bad_value
+from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.render.radiometry import PathTable, check_subbands
 from humv_usd.usd import schemas as _s
-from humv_usd.usd.mesh import fan_triangulate
 
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
 # depend on whether the schemas are registered or applied.

@@ -34,6 +34,7 @@ from pxr import Usd, UsdGeom
 from humv_usd.catalog.garments import GARMENTS
 from humv_usd.catalog.materials import LIBRARY, WAVELENGTHS_UM
 from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human import labels as L
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.physics.convection import convective_coefficient
@@ -42,7 +43,6 @@ from humv_usd.thermal import radiation as R
 from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
 from humv_usd.thermal.sky import ClearSky
 from humv_usd.usd import schemas as S
-from humv_usd.usd.mesh import fan_triangulate
 
 #: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
 #: values for single layers (ISO 9920:2007 Annex A local insulation of light shirts/trousers

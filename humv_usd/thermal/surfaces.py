@@ -37,6 +37,7 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.sun import sun_at
 from humv_usd.environment.weather import read_weather_csv, weather_at
+from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.raycast import ray_caster
 from humv_usd.physics import slab
 from humv_usd.physics.convection import watmuff
@@ -45,7 +46,6 @@ from humv_usd.scenario.times import frame_epoch_s
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.sky import cloudy_sky_emissivity, hemispherical_irradiance
 from humv_usd.usd.layers import SCOPES
-from humv_usd.usd.mesh import fan_triangulate
 from humv_usd.usd.paths import GROUND, object_path
 
 #: Depth of the ground construction (material layer + soil) [m]
