@@ -241,7 +241,7 @@ def test_outfit_layer_opens_and_renders(stage_with_outfit):
 def test_render_rays_show_the_rifle_with_its_own_instance_id(stage_with_outfit, tmp_path):
     """Pixel-centre rays of a small camera 1.2 m in front of the rifle (the render's own
     label pass): rifle pixels carry the prop's id, the person's pixels the person's."""
-    from humv_usd.render.export import CameraPose
+    from humv_usd.geometry.camera import CameraPose
     from humv_usd.render.ir import IRScene, SensorSetup
 
     stage, _, _, _, scenario = stage_with_outfit

@@ -41,12 +41,14 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom, UsdShade, UsdSkel
+from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 
 from humv_usd.errors import InputError, bad_value
+from humv_usd.geometry.camera import CameraPose
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.render.radiometry import PathTable, check_subbands
 from humv_usd.usd import schemas as _s
+from humv_usd.usd.sensor import read_camera_pose
 
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
 # depend on whether the schemas are registered or applied.
@@ -123,16 +125,6 @@ class Sensor:
     @property
     def rendered(self) -> bool:
         return self.skip_reason is None
-
-
-@dataclass
-class CameraPose:
-    """A sensor's camera at one frame (world space, metres)."""
-
-    origin: np.ndarray  # (3,)
-    forward: np.ndarray  # (3,), unit, the optical axis
-    up: np.ndarray  # (3,), unit
-    fov_x_deg: float
 
 
 @dataclass
@@ -878,51 +870,8 @@ class StageExport:
         )
 
     def camera_pose(self, sensor: Sensor, time) -> CameraPose:
-        """The sensor's camera at ``time``: position, optical axis (local -Z), up (local +Y) and
-        horizontal field of view 2 atan(horizontalAperture / (2 focalLength)).
-
-        The vertical field of view follows from the resolution (square pixels); USD clipping
-        ranges are ignored.
-        """
-        prim = self.stage.GetPrimAtPath(sensor.path)
-        cam = UsdGeom.Camera(prim).GetCamera(time)
-        m = cam.transform
-        origin = np.array(m.Transform(Gf.Vec3d(0, 0, 0)), dtype=float)
-        forward = np.array(m.TransformDir(Gf.Vec3d(0, 0, -1)), dtype=float)
-        up = np.array(m.TransformDir(Gf.Vec3d(0, 1, 0)), dtype=float)
-        nf, nu = np.linalg.norm(forward), np.linalg.norm(up)
-        if not (nf > 0 and nu > 0 and np.all(np.isfinite(origin))):
-            raise InputError(
-                bad_value(
-                    f"{sensor.path}.xformOp",
-                    "<degenerate transform>",
-                    "expected an invertible camera transform",
-                )
-            )
-        forward, up = forward / nf, up / nu
-        h_ap, focal = float(cam.horizontalAperture), float(cam.focalLength)
-        if not (h_ap > 0 and focal > 0):
-            raise InputError(
-                bad_value(
-                    f"{sensor.path}.horizontalAperture/focalLength",
-                    (h_ap, focal),
-                    "expected positive values (tenths of a scene unit)",
-                )
-            )
-        if cam.horizontalApertureOffset or cam.verticalApertureOffset:
-            warnings.warn(
-                f"{sensor.path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2
-            )
-        fov_x = math.degrees(2.0 * math.atan(0.5 * h_ap / focal))
-        if not 0 < fov_x < 179:
-            raise InputError(
-                bad_value(
-                    f"{sensor.path}.horizontalAperture/focalLength",
-                    (h_ap, focal),
-                    "expected a field of view below 179 deg",
-                )
-            )
-        return CameraPose(origin=origin * self.meters_per_unit, forward=forward, up=up, fov_x_deg=fov_x)
+        """The sensor's camera at ``time`` (:func:`humv_usd.usd.sensor.read_camera_pose`)."""
+        return read_camera_pose(self.stage.GetPrimAtPath(sensor.path), time)
 
     def face_temperatures(self, prim: Usd.Prim, info: MeshInfo, time) -> np.ndarray:
         where = f"{info.path}.{TEMPERATURE_ATTR}"

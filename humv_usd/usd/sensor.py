@@ -1,12 +1,17 @@
 """The one sensor reader: a UsdGeom.Camera with HumvSensorAPI → :class:`SensorModel`
-(render, sensor chain, labels and atmosphere all read sensors through here)."""
+(render, sensor chain, labels and atmosphere all read sensors through here), and its pose at a
+time → :class:`humv_usd.geometry.camera.CameraPose`."""
 
 from __future__ import annotations
 
+import math
+import warnings
+
 import numpy as np
-from pxr import UsdGeom
+from pxr import Gf, UsdGeom
 
 from humv_usd.errors import InputError, bad_value
+from humv_usd.geometry.camera import CameraPose
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.usd import schemas as S
 
@@ -86,3 +91,54 @@ def read_sensor_model(prim) -> SensorModel:
         )
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None
+
+
+def read_camera_pose(prim, time) -> CameraPose:
+    """A sensor's camera (UsdGeom.Camera prim) at ``time``: position [m], optical axis (local -Z), up (local +Y) and
+    horizontal field of view 2 atan(horizontalAperture / (2 focalLength)).
+
+    The vertical field of view follows from the resolution (square pixels); USD clipping
+    ranges are ignored.
+    """
+    path = str(prim.GetPath())
+    cam = UsdGeom.Camera(prim).GetCamera(time)
+    m = cam.transform
+    origin = np.array(m.Transform(Gf.Vec3d(0, 0, 0)), dtype=float)
+    forward = np.array(m.TransformDir(Gf.Vec3d(0, 0, -1)), dtype=float)
+    up = np.array(m.TransformDir(Gf.Vec3d(0, 1, 0)), dtype=float)
+    nf, nu = np.linalg.norm(forward), np.linalg.norm(up)
+    if not (nf > 0 and nu > 0 and np.all(np.isfinite(origin))):
+        raise InputError(
+            bad_value(
+                f"{path}.xformOp",
+                "<degenerate transform>",
+                "expected an invertible camera transform",
+            )
+        )
+    forward, up = forward / nf, up / nu
+    h_ap, focal = float(cam.horizontalAperture), float(cam.focalLength)
+    if not (h_ap > 0 and focal > 0):
+        raise InputError(
+            bad_value(
+                f"{path}.horizontalAperture/focalLength",
+                (h_ap, focal),
+                "expected positive values (tenths of a scene unit)",
+            )
+        )
+    if cam.horizontalApertureOffset or cam.verticalApertureOffset:
+        warnings.warn(f"{path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2)
+    fov_x = math.degrees(2.0 * math.atan(0.5 * h_ap / focal))
+    if not 0 < fov_x < 179:
+        raise InputError(
+            bad_value(
+                f"{path}.horizontalAperture/focalLength",
+                (h_ap, focal),
+                "expected a field of view below 179 deg",
+            )
+        )
+    return CameraPose(
+        origin=origin * UsdGeom.GetStageMetersPerUnit(prim.GetStage()),
+        forward=forward,
+        up=up,
+        fov_x_deg=fov_x,
+    )
