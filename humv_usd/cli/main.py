@@ -470,12 +470,12 @@ def bench_thermal(
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from humv_usd.bench.thermal import bench_qrad
     from humv_usd.fileio import atomic_path
     from humv_usd.physics.garment import bench_time_steps as garment_steps
     from humv_usd.physics.garment import extreme_grid_counts
     from humv_usd.thermal.physiology import bench_time_steps as skin_steps
     from humv_usd.thermal.physiology import simulate_physiology
-    from humv_usd.thermal.radiation import bench_qrad
 
     def ints(text, name):
         try:

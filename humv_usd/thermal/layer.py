@@ -28,7 +28,7 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
-from humv_usd.thermal import radiation as R
+from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
 from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
 from humv_usd.thermal.surfaces import (
@@ -113,9 +113,9 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
                 continue
             t_tri = np.concatenate([surf[m.path][k][m.tri_face] for m in meshes])
             scenes.append(
-                R.SceneSurfaces(
+                SR.SceneSurfaces(
                     mesh,
-                    R.scene_surface_radiance(
+                    SR.scene_surface_radiance(
                         mesh, t_tri, eps_tri, sky, solar_reflectance=_solar_reflectance(meshes)
                     ),
                 )
