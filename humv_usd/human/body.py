@@ -159,10 +159,6 @@ class Body:
     def scaled(self) -> bool:
         return self.uniform_scale != 1.0 or self.lateral_scale != 1.0
 
-    @property
-    def helper_names(self) -> list[str]:
-        return sorted(g for g in self.groups if g.startswith("helper-"))
-
     def group(self, name: str) -> MeshPart:
         faces = self.groups[name]
         used, remap = np.unique(faces.ravel(), return_inverse=True)

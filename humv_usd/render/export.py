@@ -14,7 +14,7 @@ What is read
   mesh or its nearest ancestor;
 - materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity``;
 - ``/World/Atmosphere.humv:atmosphere:skyTemperature`` [K] at the frame;
-- optional, per frame (notes/contract_env): ``/World/Atmosphere`` spectral tables
+- optional, per frame: ``/World/Atmosphere`` spectral tables
   (``humv:atmosphere:wavelengths``, ``skyZenithAngles``, ``skySpectralRadiance``,
   ``solarSpectralIrradiance``), ``/World/Environment.humv:environment:sunDirection`` and the
   per-sensor slant paths ``/World/Atmosphere/Paths/<sensor>`` (:meth:`StageExport.atmosphere_spectra`,
@@ -68,10 +68,10 @@ ENV_DNI_ATTR = _s.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE
 SENSOR_PREFIX = "humv:sensor:"
 ATMOSPHERE_PATH = "/World/Atmosphere"
 ENVIRONMENT_PATH = "/World/Environment"
-#: Per-sensor path tables live under this scope, one child per sensor (contract_env).
+#: Per-sensor path tables live under this scope, one child per sensor.
 ATMOSPHERE_PATHS = ATMOSPHERE_PATH + "/Paths"
 REFLECTANCE_ATTR = _s.MATERIAL_REFLECTANCE
-# Environment / atmosphere attributes (H-env's layers); read by name, absent -> today's behaviour
+# Environment / atmosphere attributes (the environment and atmosphere layers); absent -> not used
 SUN_DIRECTION_ATTR = getattr(_s, "ENVIRONMENT_SUN_DIRECTION", "humv:environment:sunDirection")
 ATM_MODEL_ATTR = _s.ATMOSPHERE_MODEL
 ATM_WAVELENGTHS_ATTR = getattr(_s, "ATMOSPHERE_WAVELENGTHS", "humv:atmosphere:wavelengths")
@@ -665,7 +665,7 @@ class StageExport:
             )
         return float(check_temperatures([value], where)[0])
 
-    # --- environment and atmosphere (contract_env; every part optional) ----------------------
+    # --- environment and atmosphere (every part optional) ----------------------------------
     def _float_array(self, prim, name, time, where_expected, positive=False, ascending=False):
         value = _get(prim.GetAttribute(name), time)
         if value is None or len(value) == 0:
