@@ -21,9 +21,10 @@ from humv_usd.fileio import jsonable, write_json
 from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
 from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
+from humv_usd.physics.sensor import SensorModel
 from humv_usd.render import eo as eo_render
 from humv_usd.render import radiometry
-from humv_usd.render.export import AtmosphereSpectra, Sensor, StageExport, stage_frames
+from humv_usd.render.export import AtmosphereSpectra, StageExport, stage_frames
 from humv_usd.render.ir import (  # noqa: F401
     MIN_SUBBAND_SPP,
     IRScene,
@@ -95,7 +96,7 @@ def _select_frames(stage, frames) -> list[int]:
     return out
 
 
-def _select_sensors(all_sensors: list[Sensor], wanted) -> list[Sensor]:
+def _select_sensors(all_sensors: list[SensorModel], wanted) -> list[SensorModel]:
     if wanted is None:
         return list(all_sensors)
     if isinstance(wanted, str):
@@ -184,7 +185,7 @@ def render_stage(
     spp : int, default 16
         Samples per pixel.
     sensors : list of str, optional
-        Sensor names (camera prim names) or prim paths; default all.
+        SensorModel names (camera prim names) or prim paths; default all.
     seed : int, default 0
         Sampler seed; frame ``f`` uses ``seed + f``.
     max_depth : int, default -1
@@ -274,7 +275,7 @@ class _Plan:
     truth: GroundTruth
     mi: object  # the mitsuba module (its variant is set)
     frames: list[int]
-    rendered: list[Sensor]  # infrared sensors
+    rendered: list[SensorModel]  # infrared sensors
     skipped: list[dict]
     eo_run: eo_render.EORender
     spp: int
@@ -325,7 +326,9 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
         )
         for s in rendered
     }
-    sub_of = {s.name: radiometry.SubBands(s.wavelength_range_um, s.response, n_of[s.name]) for s in rendered}
+    sub_of = {
+        s.name: radiometry.SubBands(s.wavelength_range_um, s.band_response, n_of[s.name]) for s in rendered
+    }
     first_time = Usd.TimeCode(frame_list[0])
     spectra0 = exporter.atmosphere_spectra(first_time)
     sun0 = exporter.sun_direction(first_time)
@@ -441,11 +444,11 @@ class _FrameRenderer:
         self.totals[key] += dt
         return time.perf_counter()
 
-    def _render_sensor(self, s: Sensor, state, frame, frame_time, spectra, sun_direction) -> None:
+    def _render_sensor(self, s: SensorModel, state, frame, frame_time, spectra, sun_direction) -> None:
         """One IR sensor at one frame: radiometry, render, labels, sensor chain, files, record."""
         plan, exporter, scene = self.plan, self.plan.exporter, self.scene
         timings = self.per_sensor[s.name]["timings"]
-        band, response = s.wavelength_range_um, s.response
+        band, response = s.wavelength_range_um, s.band_response
         sensor_id = plan.sensor_ids[s.name]
         t = time.perf_counter()
         sub = plan.sub_of[s.name]
@@ -533,7 +536,7 @@ class _FrameRenderer:
 
 
 # ------------------------------------------------------------------------------- manifest
-def _sensor_record(plan: _Plan, run: _FrameRenderer, s: Sensor) -> dict:
+def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
     """The manifest entry of one IR sensor."""
     rec = run.per_sensor[s.name]
     return {
@@ -542,8 +545,8 @@ def _sensor_record(plan: _Plan, run: _FrameRenderer, s: Sensor) -> dict:
         "band": s.band,
         "wavelength_range_um": list(s.wavelength_range_um),
         "response": None
-        if s.response is None
-        else {"wavelengths_um": s.response[0], "values": s.response[1]},
+        if s.band_response is None
+        else {"wavelengths_um": s.band_response[0], "values": s.band_response[1]},
         "resolution": list(s.resolution),
         "subbands_um": [list(b) for b in plan.sub_of[s.name].bands],
         "subbands_requested": plan.n_of[s.name],
@@ -624,7 +627,7 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
     }
 
 
-def _band_emissivity(cache: dict, material, sensor: Sensor) -> float:
+def _band_emissivity(cache: dict, material, sensor: SensorModel) -> float:
     key = (material.path, sensor.name)
     if key not in cache:
         band = sensor.wavelength_range_um
@@ -638,12 +641,16 @@ def _band_emissivity(cache: dict, material, sensor: Sensor) -> float:
                 )
             )
         cache[key] = planck.band_emissivity(
-            wl, material.emissivity, band, sensor.response, temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K
+            wl,
+            material.emissivity,
+            band,
+            sensor.band_response,
+            temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K,
         )
     return cache[key]
 
 
-def _subband_emissivity(cache: dict, material, sensor: Sensor, sub) -> np.ndarray:
+def _subband_emissivity(cache: dict, material, sensor: SensorModel, sub) -> np.ndarray:
     """Sub-band emissivities (n,) of a material for a sensor (cached; same table check as
     :func:`_band_emissivity`)."""
     key = (material.path, sensor.name)
@@ -653,7 +660,7 @@ def _subband_emissivity(cache: dict, material, sensor: Sensor, sub) -> np.ndarra
     return cache[key]
 
 
-def _subband_transmittance(cache: dict, material, sensor: Sensor, sub) -> np.ndarray | None:
+def _subband_transmittance(cache: dict, material, sensor: SensorModel, sub) -> np.ndarray | None:
     """Sub-band transmittances (n,) of a see-through material (glass), None when opaque."""
     if material.transmittance is None:
         return None
@@ -677,7 +684,7 @@ class _SensorChains:
         self.reason = None
         self.chain = chain
 
-    def apply(self, sensor: Sensor, radiance, frame: int, eo_space: str | None = None):
+    def apply(self, sensor: SensorModel, radiance, frame: int, eo_space: str | None = None):
         """ChainOutput for one frame, or None when the chain is unavailable."""
         if self.chain is None:
             return None
@@ -774,7 +781,7 @@ def subband_error_table(
         "sensors": {},
     }
     for s in ir:
-        band, resp = s.wavelength_range_um, s.response
+        band, resp = s.wavelength_range_um, s.band_response
         wl = spectra.wavelengths_um
         notes = {}
         if spectra.sky_radiance is not None and radiometry.covers(wl, band):

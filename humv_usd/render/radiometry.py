@@ -35,10 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K, STEFAN_BOLTZMANN, SUN_TEMPERATURE_K
-from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
 from humv_usd.render import cie
 from humv_usd.scenario import spec as _spec
+from humv_usd.usd.sensor import check_subbands  # noqa: F401 (the render option's check too)
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
 #: ``humv-usd bench render`` on humvvex with LOWTRAN7 paths and sky: the largest spectral error
@@ -51,17 +51,6 @@ DEFAULT_SUBBANDS = _spec.DEFAULT_SUBBANDS
 MAX_SUBBANDS = _spec.MAX_SUBBANDS
 #: Uniform quadrature nodes per sub-band (table and response wavelengths are added).
 NODES_PER_SUBBAND = 65
-
-
-def check_subbands(value, where: str = "subbands") -> int:
-    """A sub-band count in 1..MAX_SUBBANDS, else InputError naming ``where``."""
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, np.integer))
-        or not 1 <= int(value) <= MAX_SUBBANDS
-    ):
-        raise InputError(bad_value(where, value, f"expected an integer in 1..{MAX_SUBBANDS}"))
-    return int(value)
 
 
 def _response_at(response, x):
