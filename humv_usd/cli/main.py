@@ -256,6 +256,7 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
     from humv_usd.pipeline import render as R
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.scenario import load_scenario
+    from humv_usd.usd.sensor import check_subbands
 
     def ints(text, name):
         try:
@@ -263,7 +264,7 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
         except ValueError:
             raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
         for v in values:
-            R.radiometry.check_subbands(v, f"--{name}")
+            check_subbands(v, f"--{name}")
         return values
 
     n_list, t_list = ints(counts, "subbands"), ints(time_counts, "time-subbands")

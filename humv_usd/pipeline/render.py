@@ -34,7 +34,7 @@ from humv_usd.render.ir import (  # noqa: F401
     subband_spp,
 )
 from humv_usd.usd.layers import open_stage
-from humv_usd.usd.sensor import read_sensor_model
+from humv_usd.usd.sensor import check_subbands, read_sensor_model
 
 MANIFEST_NAME = "manifest.json"
 TIMING_KEYS = ("load_export", "render", "labels", "write")
@@ -314,7 +314,7 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
     ]
     mi = mode.mitsuba()
     # sub-bands per sensor: the render option, else the sensor's humv:sensor:subbands, else the default
-    override = None if subbands is None else radiometry.check_subbands(subbands)
+    override = None if subbands is None else check_subbands(subbands)
     n_of = {s.name: override or s.subbands or radiometry.DEFAULT_SUBBANDS for s in rendered}
     n_source = {
         s.name: (

@@ -38,7 +38,6 @@ from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K, STEFAN_BOLTZM
 from humv_usd.physics import planck
 from humv_usd.render import cie
 from humv_usd.scenario import spec as _spec
-from humv_usd.usd.sensor import check_subbands  # noqa: F401 (the render option's check too)
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
 #: ``humv-usd bench render`` on humvvex with LOWTRAN7 paths and sky: the largest spectral error
