@@ -20,9 +20,11 @@ What is read
   per-sensor slant paths ``/World/Atmosphere/Paths/<sensor>`` (:meth:`StageExport.atmosphere_spectra`,
   :meth:`StageExport.sun_direction`, :meth:`StageExport.path_table`); materials'
   ``humv:material:reflectance`` (EO);
-- every camera with ``humv:sensor:*`` attributes (HumvSensorAPI): band, wavelength range,
-  response, resolution, and its Gf.Camera at the frame. A band starting below 3 um (or the
-  token ``EO``) is an EO sensor (``SensorModel.kind``), rendered by :mod:`humv_usd.render.eo`.
+- every camera with ``humv:sensor:*`` attributes (HumvSensorAPI), as the one sensor model
+  (:func:`humv_usd.usd.sensor.read_sensor` -> :class:`humv_usd.physics.sensor.SensorModel`), and
+  its pose at the frame (:func:`humv_usd.usd.sensor.read_camera_pose`). A band starting below
+  3 um (or the token ``EO``) is an EO sensor (``SensorModel.kind``), rendered by
+  :mod:`humv_usd.render.eo`.
 
 Skinned meshes (UsdSkel): a mesh under a ``SkelRoot`` bound to a ``Skeleton`` (``skel:skeleton``
 with joint influences) is posed at each frame by UsdSkel itself (``UsdSkel.Cache`` ->
