@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 
 class InputError(ValueError):
     """Bad user input: a scenario value, a file, a USD stage or a BVH.
@@ -19,3 +21,13 @@ class InputError(ValueError):
 def bad_value(key: str, value, allowed: str) -> str:
     """Format one problem line: ``key = value: allowed``."""
     return f"{key} = {value!r}: {allowed}"
+
+
+def summary(values, limit: int = 6) -> str:
+    """A short text of a numeric array for an error line: all values up to ``limit``, else the
+    first ``limit`` and the count."""
+    a = np.asarray(values).ravel()
+    if a.size <= limit:
+        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
+    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
+    return f"[{head}, ...] ({a.size} values)"

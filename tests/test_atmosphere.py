@@ -11,10 +11,11 @@ import pytest
 from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.atmosphere import lowtran as lt
 from humv_usd.atmosphere import model as M
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment import layer as environment_layer
 from humv_usd.environment.sun import sun_at
 from humv_usd.physics import planck
-from humv_usd.physics.sky import STEFAN_BOLTZMANN, directional_sky_emissivity, effective_sky_temperature
+from humv_usd.physics.sky import directional_sky_emissivity, effective_sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
 

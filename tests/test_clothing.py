@@ -13,7 +13,8 @@ from humv_usd.catalog.materials import FABRICS, LIBRARY, WAVELENGTHS_UM
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.collide import apply, blend_transforms, dress, simulate
 from humv_usd.clothing.fit import prepare
-from humv_usd.geometry.mesh import RayCaster, Surface, closest_on_triangles
+from humv_usd.geometry.mesh import Surface, closest_on_triangles
+from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.body import build_body
 from humv_usd.human.skeleton import forward_kinematics, skinning_matrices
 from humv_usd.human.usdskel import skinned_points
@@ -298,9 +299,9 @@ def test_usdskel_poses_garments_outside_the_posed_body(clothed_stage):
     body_path = "/World/Humans/p1/Body"
     counts = UsdGeom.Mesh(stage.GetPrimAtPath(body_path)).GetFaceVertexCountsAttr().Get()
     indices = UsdGeom.Mesh(stage.GetPrimAtPath(body_path)).GetFaceVertexIndicesAttr().Get()
-    from humv_usd.geometry.mesh import triangulate
+    from humv_usd.geometry.mesh import fan_triangulate
 
-    tris = triangulate(np.asarray(counts), np.asarray(indices))
+    tris, _ = fan_triangulate(np.asarray(counts), np.asarray(indices))
     rest_legs = None
     for f in range(frames):
         body = skinned_points(stage, body_path, Usd.TimeCode(f))

@@ -8,7 +8,8 @@ import pytest
 import trimesh
 
 from humv_usd.clothing.collide import between_samples, push_between, push_out
-from humv_usd.geometry.mesh import RayCaster, Surface
+from humv_usd.geometry.mesh import Surface
+from humv_usd.geometry.raycast import RayCaster
 
 GAP = 0.002
 

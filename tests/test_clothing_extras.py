@@ -16,7 +16,8 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.collide import LAYER_RADIUS, SHELL_COS, apply, blend_transforms, dress, simulate
 from humv_usd.clothing.fit import prepare
-from humv_usd.geometry.mesh import RayCaster, Surface
+from humv_usd.geometry.mesh import Surface
+from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.body import build_body
 from humv_usd.human.skeleton import forward_kinematics, skinning_matrices
 from humv_usd.human.usdskel import skinned_points
@@ -240,7 +241,7 @@ def test_outfit_layer_opens_and_renders(stage_with_outfit):
 def test_render_rays_show_the_rifle_with_its_own_instance_id(stage_with_outfit, tmp_path):
     """Pixel-centre rays of a small camera 1.2 m in front of the rifle (the render's own
     label pass): rifle pixels carry the prop's id, the person's pixels the person's."""
-    from humv_usd.render.export import CameraPose
+    from humv_usd.geometry.camera import CameraPose
     from humv_usd.render.ir import IRScene, SensorSetup
 
     stage, _, _, _, scenario = stage_with_outfit

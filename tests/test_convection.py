@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.physics.convection import (
     KCAL_PER_HOUR_TO_WATT,
     convective_coefficient,
@@ -16,7 +17,6 @@ from humv_usd.physics.convection import (
     siple_passel,
     watmuff,
 )
-from humv_usd.physics.sky import STEFAN_BOLTZMANN
 
 
 def test_siple_passel_both_unit_systems():

@@ -97,7 +97,7 @@ def test_robe_between_the_vertices_over_a_walk(walked):
     through the long skirt faces, armpit wedges) is counted honestly: an independent
     closest-point check and a ray-parity test of the samples confirm them."""
     from humv_usd.clothing.collide import between_samples
-    from humv_usd.geometry.mesh import RayCaster
+    from humv_usd.geometry.raycast import RayCaster
 
     rig, skin, robe = walked
     before = np.array([c.between_inside_before for c in robe.counts])

@@ -7,6 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.optimize import brentq
 
+from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.physics.garment import (
     air_conductivity,
     air_gap_flux,
@@ -17,7 +18,6 @@ from humv_usd.physics.garment import (
     steady_state,
     transient_step,
 )
-from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
 
 
 def test_air_conductivity_incropera_table():

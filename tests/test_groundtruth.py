@@ -15,14 +15,13 @@ from test_render import new_stage as _new_stage
 from test_render import read_exr as _read_exr
 
 from humv_usd.errors import InputError
-from humv_usd.geometry.camera import Camera
+from humv_usd.geometry.camera import Camera, CameraPose
 from humv_usd.groundtruth import annotators as A
 from humv_usd.groundtruth import boxes as B
 from humv_usd.groundtruth import keypoints as K
 from humv_usd.groundtruth import labels as GL
 from humv_usd.human import labels as AL
 from humv_usd.pipeline.render import render_stage
-from humv_usd.render.export import CameraPose
 
 W, H = 64, 48
 

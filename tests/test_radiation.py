@@ -1,4 +1,5 @@
-"""Radiance maps and per-facet absorbed radiation (humv_usd.thermal.radiation, .sky)."""
+"""Radiance maps, scene radiance and per-facet absorbed radiation (humv_usd.thermal.radiance_map,
+scene_radiance, qrad; .sky)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,11 @@ import pytest
 import trimesh
 from numpy.testing import assert_allclose
 
-from humv_usd.physics.sky import STEFAN_BOLTZMANN
-from humv_usd.thermal import radiation as R
+from humv_usd.bench import thermal as BT
+from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.thermal import qrad as Q
+from humv_usd.thermal import radiance_map as RM
+from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.sky import ClearSky, UniformSky, angular_sky_emissivity
 
 
@@ -34,14 +38,14 @@ def _quads(quads):
 
 
 def test_latlong_solid_angles_sum_to_4pi():
-    d, omega = R.latlong_directions((45, 90))
+    d, omega = RM.latlong_directions((45, 90))
     assert_allclose(omega.sum(), 4 * np.pi, rtol=1e-12)
     assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=1e-12)
-    assert_allclose(R.latlong_index(d, (45, 90)), np.arange(len(d)))
+    assert_allclose(RM.latlong_index(d, (45, 90)), np.arange(len(d)))
 
 
 def test_uniform_map_hemisphere_integral_360():
-    env = R.RadianceMap(np.full((2, 360, 360), 50.0))
+    env = RM.RadianceMap(np.full((2, 360, 360), 50.0))
     rng = np.random.default_rng(1)
     n = rng.normal(size=(40, 3))
     n /= np.linalg.norm(n, axis=1, keepdims=True)
@@ -52,8 +56,8 @@ def test_uniform_map_hemisphere_integral_360():
 @pytest.mark.parametrize("method", ["brute", "fast", "adaptive"])
 def test_uniform_full_sphere_closed_form(method):
     mesh = trimesh.creation.icosphere(2)
-    env = R.radiance_map([0, 0, 0], UniformSky((10.0, 100.0)), None, 36)
-    q = R.absorbed_radiation(mesh, env, [0.6, 0.9], method=method, rays=16)
+    env = SR.radiance_map([0, 0, 0], UniformSky((10.0, 100.0)), None, 36)
+    q = Q.absorbed_radiation(mesh, env, [0.6, 0.9], method=method, rays=16)
     assert_allclose(q[0], 0.6 * np.pi * 10.0, rtol=1e-5)
     assert_allclose(q[1], 0.9 * np.pi * 100.0, rtol=1e-5)
 
@@ -66,11 +70,11 @@ def test_wall_fills_half_the_hemisphere(method, rtol):
     assert wall.face_normals[0][0] < 0
     l_sky, l_wall = 100.0, 160.0
     sky = UniformSky((0.0, l_sky))
-    scene = R.SceneSurfaces(wall, np.array([[0.0, 0.0], [l_wall, l_wall]]))
-    env = R.radiance_map([0, 0, 0.5], sky, scene, 180)
+    scene = SR.SceneSurfaces(wall, np.array([[0.0, 0.0], [l_wall, l_wall]]))
+    env = SR.radiance_map([0, 0, 0.5], sky, scene, 180)
     ys = np.linspace(-0.5, 0.5, 64)
     facets = _facets(np.c_[np.zeros_like(ys), ys, np.zeros_like(ys)])
-    q = R.absorbed_radiation(facets, env, [1.0, 0.9], scene=scene, method=method, rays=256)
+    q = Q.absorbed_radiation(facets, env, [1.0, 0.9], scene=scene, method=method, rays=256)
     expected = 0.9 * np.pi * (0.5 * l_wall + 0.5 * l_sky)
     assert_allclose(q[1].mean(), expected, rtol=rtol)
     assert_allclose(q[1], expected, rtol=rtol if method == "brute" else 10 * rtol)
@@ -93,12 +97,12 @@ def test_plate_at_bottom_of_deep_well(method):
     a, h = 0.5, 2.0
     walls = _well(a, h)
     assert np.all(np.einsum("ij,ij->i", walls.face_normals[:, :2], walls.triangles_center[:, :2]) < 0)
-    scene = R.SceneSurfaces(walls, np.zeros((2, len(walls.faces))))  # cold black walls
+    scene = SR.SceneSurfaces(walls, np.zeros((2, len(walls.faces))))  # cold black walls
     l_sky = 120.0
-    env = R.radiance_map([0, 0, 5.0], UniformSky((0.0, l_sky)), None, 180)  # map sees open sky
+    env = SR.radiance_map([0, 0, 5.0], UniformSky((0.0, l_sky)), None, 180)  # map sees open sky
     xy = np.linspace(-4e-3, 4e-3, 8)
     plate = _facets(np.c_[np.repeat(xy, 8), np.tile(xy, 8), np.zeros(64)])  # 64 facets, centre
-    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=1024).mean(axis=1)[
+    q = Q.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=1024).mean(axis=1)[
         :, None
     ]
     s = (a / h) / np.sqrt(1 + (a / h) ** 2)
@@ -107,10 +111,10 @@ def test_plate_at_bottom_of_deep_well(method):
     assert q[1, 0] < 0.5 * np.pi * l_sky  # most of the sky is blocked
     # sun straight down the well reaches the plate, low sun does not
     env.sun_direction, env.sun_irradiance = np.array([0.0, 0.0, 1.0]), np.array([900.0, 0.0])
-    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=64)
+    q = Q.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=64)
     assert_allclose(q[0], 0.7 * 900.0, rtol=1e-12)
     env.sun_direction = np.array([np.sin(1.0), 0.0, np.cos(1.0)])
-    q = R.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=64)
+    q = Q.absorbed_radiation(plate, env, [0.7, 1.0], scene=scene, method=method, rays=64)
     assert np.all(q[0] == 0.0)
 
 
@@ -119,26 +123,26 @@ def test_plate_at_bottom_of_deep_well(method):
 def test_sun_on_horizontal_plate(zenith_deg, method):
     z = np.radians(zenith_deg)
     sky = ClearSky(300.0, 0.5, sun_direction=(np.sin(z), 0.0, np.cos(z)), direct_normal_irradiance=1000.0)
-    env = R.radiance_map([0, 0, 0], sky, None, 24)
-    q = R.absorbed_radiation(_facets([[0, 0, 0]]), env, [0.8, 0.0], method=method)
+    env = SR.radiance_map([0, 0, 0], sky, None, 24)
+    q = Q.absorbed_radiation(_facets([[0, 0, 0]]), env, [0.8, 0.0], method=method)
     assert_allclose(q[0, 0], 0.8 * 1000.0 * np.cos(z), rtol=1e-12)
 
 
 def test_sun_below_horizon_is_no_sun():
     sky = ClearSky(300.0, 0.5, sun_direction=(1.0, 0.0, -0.1), direct_normal_irradiance=1000.0)
     assert sky.sun is None
-    env = R.radiance_map([0, 0, 0], sky, None, 12)
+    env = SR.radiance_map([0, 0, 0], sky, None, 12)
     assert env.sun_direction is None and np.all(env.sun_irradiance == 0)
 
 
 def test_fast_vs_brute_icosphere_mixed_environment():
-    _, scene, sky, alpha, _ = R.bench_scene(2000)
+    _, scene, sky, alpha, _ = BT.bench_scene(2000)
     sphere = trimesh.creation.icosphere(3, radius=0.4)
     sphere.apply_translation([0.0, 0.0, 0.6])
-    env = R.radiance_map([0.0, 0.0, 0.6], sky, scene, 90)
-    q_ref = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
-    q_fast = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="fast", rays=64)
-    err = R.relative_errors(q_fast, q_ref)
+    env = SR.radiance_map([0.0, 0.0, 0.6], sky, scene, 90)
+    q_ref = Q.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
+    q_fast = Q.absorbed_radiation(sphere, env, alpha, scene=scene, method="fast", rays=64)
+    err = BT.relative_errors(q_fast, q_ref)
     assert err["rms_rel_error"] < 0.01, err
     assert np.ptp(q_ref.sum(0)) > 100.0  # the environment is really mixed (sun, wall, ground)
 
@@ -146,7 +150,7 @@ def test_fast_vs_brute_icosphere_mixed_environment():
 def test_clear_sky_hemispherical_flux_matches_sky_emissivity():
     for model in ("martin_berdahl", "unsworth_monteith", "isotropic"):
         sky = ClearSky(290.0, 0.6, model=model, ground_temperature_k=290.0)
-        env = R.radiance_map([0, 0, 0], sky, None, 360)
+        env = SR.radiance_map([0, 0, 0], sky, None, 360)
         e_down = env.irradiance(np.array([[0.0, 0.0, 1.0]]))[1, 0]
         assert_allclose(e_down, sky.emissivity * STEFAN_BOLTZMANN * 290.0**4, rtol=3e-3)
     eps = angular_sky_emissivity(np.radians([0, 30, 60, 80, 89.9]), 0.75)
@@ -158,22 +162,22 @@ def test_clear_sky_hemispherical_flux_matches_sky_emissivity():
 def test_mean_radiant_temperature_of_a_blackbody_enclosure():
     t = 305.0
     mesh = trimesh.creation.icosphere(2)
-    env = R.radiance_map([0, 0, 0], UniformSky((0.0, STEFAN_BOLTZMANN * t**4 / np.pi)), None, 24)
-    q = R.absorbed_radiation(mesh, env, [0.7, 0.97], method="brute")
+    env = SR.radiance_map([0, 0, 0], UniformSky((0.0, STEFAN_BOLTZMANN * t**4 / np.pi)), None, 24)
+    q = Q.absorbed_radiation(mesh, env, [0.7, 0.97], method="brute")
     seg = np.arange(len(mesh.faces)) % 3
-    mrt = R.mean_radiant_temperature(q, mesh.area_faces, seg, emissivity=0.97, n_segments=4)
+    mrt = Q.mean_radiant_temperature(q, mesh.area_faces, seg, emissivity=0.97, n_segments=4)
     assert_allclose(mrt[:3], t, rtol=1e-6)
     assert np.isnan(mrt[3])
 
 
 def test_invalid_method():
-    env = R.RadianceMap(np.zeros((2, 4, 8)))
+    env = RM.RadianceMap(np.zeros((2, 4, 8)))
     with pytest.raises(ValueError, match="invalid method"):
-        R.absorbed_radiation(trimesh.creation.icosphere(0), env, [1, 1], method="sh")
+        Q.absorbed_radiation(trimesh.creation.icosphere(0), env, [1, 1], method="sh")
 
 
 def test_bench_qrad_small():
-    rows = R.bench_qrad(facets=400, resolutions=(12, 24), fast_rays=(4, 16), adaptive_rays=(16,))
+    rows = BT.bench_qrad(facets=400, resolutions=(12, 24), fast_rays=(4, 16), adaptive_rays=(16,))
     assert rows[0]["reference"] and rows[0]["resolution"] == 24
     assert len(rows) == 1 + 1 + 2 * 3
     for r in rows:
@@ -182,17 +186,17 @@ def test_bench_qrad_small():
 
 def test_irradiance_table_fft_equals_dense_sum_at_nodes():
     # the FFT in azimuth is exact: compare with the dense double-precision cosine sum
-    _, scene, sky, _, _ = R.bench_scene(500)
-    env = R.radiance_map([0.0, 0.0, 1.0], sky, scene, (30, 48))
+    _, scene, sky, _, _ = BT.bench_scene(500)
+    env = SR.radiance_map([0.0, 0.0, 1.0], sky, scene, (30, 48))
     grid = 12
-    table = R.irradiance_table(env, grid)
+    table = RM.irradiance_table(env, grid)
     assert table.shape == (2, grid + 1, 48 + 1)
     assert_allclose(table[:, :, -1], table[:, :, 0], rtol=0, atol=0)
     th = np.repeat(np.linspace(0.0, np.pi, grid + 1), 48)
     ph = np.tile(np.arange(48) * 2.0 * np.pi / 48, grid + 1)
     n = np.c_[np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)]
     d, omega = env.geometry()
-    w = R._cosine_weights(n, d, omega, normalize=True)
+    w = RM.cosine_weights(n, d, omega, normalize=True)
     dense = (w @ env.flat().T).T.reshape(2, grid + 1, 48)
     assert_allclose(table[:, :, :-1], dense, rtol=1e-10, atol=1e-9)
 
@@ -201,8 +205,8 @@ def test_adaptive_rays_go_to_partly_occluded_facets():
     # facets at the foot of a wall (half the sky blocked) and far from it (nothing blocked)
     big = 50.0
     wall = _quads([[[0.01, -big, -big], [0.01, -big, big], [0.01, big, big], [0.01, big, -big]]])
-    scene = R.SceneSurfaces(wall, np.array([[0.0, 0.0], [160.0, 160.0]]))
-    env = R.radiance_map([0, 0, 0.5], UniformSky((0.0, 100.0)), scene, 90)
+    scene = SR.SceneSurfaces(wall, np.array([[0.0, 0.0], [160.0, 160.0]]))
+    env = SR.radiance_map([0, 0, 0.5], UniformSky((0.0, 100.0)), scene, 90)
     facets = _facets(
         np.r_[
             np.c_[np.zeros(50), np.linspace(-0.5, 0.5, 50), np.zeros(50)],
@@ -210,67 +214,67 @@ def test_adaptive_rays_go_to_partly_occluded_facets():
         ]
     )
     normals, centroids = facets.face_normals, facets.triangles_center
-    occ = R._Occluders(facets, 2, None, scene)
-    table = R.irradiance_table(env, 32)
+    occ = Q._Occluders(facets, 2, None, scene)
+    table = RM.irradiance_table(env, 32)
     alpha = np.ones((2, 100))
-    _, var, counts = R._diffuse_adaptive(env, centroids, normals, occ, 1e-6, 64, 0, table, 16, alpha, 1024)
+    _, var, counts = Q._diffuse_adaptive(env, centroids, normals, occ, 1e-6, 64, 0, table, 16, alpha, 1024)
     assert np.all(counts[50:] == 16) and np.all(var[50:] == 0.0)  # open: pilot only, exact
     assert counts[:50].mean() > 100 and counts.sum() <= 64 * 100 * 1.3
     stats = {}
-    R.absorbed_radiation(facets, env, [1.0, 1.0], scene=scene, method="adaptive", rays=64, stats=stats)
+    Q.absorbed_radiation(facets, env, [1.0, 1.0], scene=scene, method="adaptive", rays=64, stats=stats)
     assert 0.0 < stats["rms_rel_error_estimate"] < 0.05 and stats["rays"] == counts.sum()
 
 
 def test_error_estimate_bounds_the_actual_error():
-    _, scene, sky, alpha, _ = R.bench_scene(2000)
+    _, scene, sky, alpha, _ = BT.bench_scene(2000)
     sphere = trimesh.creation.icosphere(2, radius=0.4)
     sphere.apply_translation([0.0, 0.0, 0.6])
-    env = R.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
-    q_ref = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
+    env = SR.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
+    q_ref = Q.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
     for method in ("fast", "adaptive"):
         stats = {}
-        q = R.absorbed_radiation(sphere, env, alpha, scene=scene, method=method, rays=16, stats=stats)
-        actual = R.relative_errors(q, q_ref)["nrmse"]
+        q = Q.absorbed_radiation(sphere, env, alpha, scene=scene, method=method, rays=16, stats=stats)
+        actual = BT.relative_errors(q, q_ref)["nrmse"]
         assert 0.5 * actual < stats["nrmse_estimate"] < 10.0 * actual, (method, stats, actual)
 
 
 def test_mitsuba_ray_backend_matches_embree():
-    mesh, scene, sky, alpha, center = R.bench_scene(600)
-    env = R.radiance_map(center, sky, scene, 24)
-    q_e = R.absorbed_radiation(mesh, env, alpha, scene=scene, method="fast", rays=16)
-    q_m = R.absorbed_radiation(mesh, env, alpha, scene=scene, method="fast", rays=16, backend="mitsuba")
+    mesh, scene, sky, alpha, center = BT.bench_scene(600)
+    env = SR.radiance_map(center, sky, scene, 24)
+    q_e = Q.absorbed_radiation(mesh, env, alpha, scene=scene, method="fast", rays=16)
+    q_m = Q.absorbed_radiation(mesh, env, alpha, scene=scene, method="fast", rays=16, backend="mitsuba")
     # same rays; float32 ray casters may differ on a grazing ray or two
-    assert R.relative_errors(q_m, q_e)["nrmse"] < 1e-3
+    assert BT.relative_errors(q_m, q_e)["nrmse"] < 1e-3
     with pytest.raises(ValueError, match="ray backend"):
-        R.absorbed_radiation(mesh, env, alpha, method="fast", backend="optix")
+        Q.absorbed_radiation(mesh, env, alpha, method="fast", backend="optix")
 
 
 @pytest.mark.parametrize("method", ["fast", "adaptive"])
 def test_visibility_cache_replays_the_same_rays_with_new_radiances(method):
-    mesh, scene, sky, alpha, center = R.bench_scene(600)
-    env = R.radiance_map(center, sky, scene, 24)
+    mesh, scene, sky, alpha, center = BT.bench_scene(600)
+    env = SR.radiance_map(center, sky, scene, 24)
     cache, stats = {}, {}
-    q1 = R.absorbed_radiation(mesh, env, alpha, scene=scene, method=method, rays=32, cache=cache, stats=stats)
+    q1 = Q.absorbed_radiation(mesh, env, alpha, scene=scene, method=method, rays=32, cache=cache, stats=stats)
     assert not stats["cached"] and len(cache["records"][0]) > 0
     # same geometry, new radiances (a warmer sky, hotter scene, weaker sun)
-    env2 = R.RadianceMap(
+    env2 = RM.RadianceMap(
         env.radiance * 1.1, env.center, env.bands, env.sun_direction, env.sun_irradiance * 0.5
     )
-    scene2 = R.SceneSurfaces(scene.mesh, scene.radiance * 1.3)
-    q2 = R.absorbed_radiation(
+    scene2 = SR.SceneSurfaces(scene.mesh, scene.radiance * 1.3)
+    q2 = Q.absorbed_radiation(
         mesh, env2, alpha, scene=scene2, method=method, rays=32, cache=cache, stats=stats, seed=5
     )
     assert stats["cached"]
-    fresh = R.absorbed_radiation(mesh, env2, alpha, scene=scene2, method=method, rays=32)
+    fresh = Q.absorbed_radiation(mesh, env2, alpha, scene=scene2, method=method, rays=32)
     if method == "fast":  # the same rays as a fresh run with the recording's seed
         assert_allclose(q2, fresh, rtol=1e-9, atol=1e-9)
     else:  # the allocation depends on the radiances: equal within the noise
-        assert R.relative_errors(q2, fresh)["nrmse"] < 0.05
+        assert BT.relative_errors(q2, fresh)["nrmse"] < 0.05
     assert not np.allclose(q1, q2)
     # the person moved: the cache is stale and is rebuilt
     moved = mesh.copy()
     moved.apply_translation([0.3, 0.0, 0.0])
-    R.absorbed_radiation(moved, env2, alpha, scene=scene2, method=method, rays=32, cache=cache, stats=stats)
+    Q.absorbed_radiation(moved, env2, alpha, scene=scene2, method=method, rays=32, cache=cache, stats=stats)
     assert not stats["cached"]
 
 
@@ -296,27 +300,27 @@ def test_facets_under_a_uniform_occluder_are_exact(method):
     big = 1e3
     ceiling = _quads([[[-big, -big, 0.1], [-big, big, 0.1], [big, big, 0.1], [big, -big, 0.1]]])
     l_c = np.array([30.0, 140.0])
-    scene = R.SceneSurfaces(ceiling, np.repeat(l_c[:, None], 2, axis=1))
+    scene = SR.SceneSurfaces(ceiling, np.repeat(l_c[:, None], 2, axis=1))
     rng = np.random.default_rng(1)
-    env = R.RadianceMap(rng.uniform(0.0, 300.0, (2, 24, 48)))
+    env = RM.RadianceMap(rng.uniform(0.0, 300.0, (2, 24, 48)))
     stats = {}
-    q = R.absorbed_radiation(plate, env, [1.0, 1.0], scene=scene, method=method, rays=16, stats=stats)
+    q = Q.absorbed_radiation(plate, env, [1.0, 1.0], scene=scene, method=method, rays=16, stats=stats)
     assert_allclose(q, np.pi * np.repeat(l_c[:, None], len(plate.faces), axis=1), rtol=1e-9)
     assert stats["nrmse_estimate"] < 1e-9
 
 
 def test_fast_error_falls_with_more_rays():
     # unbiased: against the brute reference the error keeps falling as rays are added
-    _, scene, sky, alpha, _ = R.bench_scene(2000)
+    _, scene, sky, alpha, _ = BT.bench_scene(2000)
     sphere = trimesh.creation.icosphere(2, radius=0.4)
     sphere.apply_translation([0.0, 0.0, 0.6])
-    env = R.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
-    q_ref = R.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
+    env = SR.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
+    q_ref = Q.absorbed_radiation(sphere, env, alpha, scene=scene, method="brute")
     err = [
         np.mean(
             [
-                R.relative_errors(
-                    R.absorbed_radiation(sphere, env, alpha, scene=scene, method="fast", rays=k, seed=s),
+                BT.relative_errors(
+                    Q.absorbed_radiation(sphere, env, alpha, scene=scene, method="fast", rays=k, seed=s),
                     q_ref,
                 )["rms_rel_error"]
                 for s in range(2)
@@ -327,11 +331,11 @@ def test_fast_error_falls_with_more_rays():
     assert err[0] > 2.0 * err[1] > 4.0 * err[2], err
 
 
-@pytest.mark.parametrize("sampler", R.SAMPLERS)
+@pytest.mark.parametrize("sampler", Q.SAMPLERS)
 def test_ray_directions_are_cosine_weighted(sampler):
     normals = trimesh.unitize(np.random.default_rng(2).normal(size=(400, 3)))
-    frames = R._float32_frames(normals)
-    d = R._cosine_directions(np.arange(400), 64, np.random.default_rng(3), frames, sampler)
+    frames = Q._float32_frames(normals)
+    d = Q._cosine_directions(np.arange(400), 64, np.random.default_rng(3), frames, sampler)
     d = d.reshape(400, 64, 3).astype(float)
     assert_allclose(np.linalg.norm(d, axis=2), 1.0, atol=1e-6)
     cos = np.einsum("fkc,fc->fk", d, normals)
@@ -341,12 +345,12 @@ def test_ray_directions_are_cosine_weighted(sampler):
     assert abs(cos.mean() - 2 / 3) < 2e-3 and abs((cos**2).mean() - 0.5) < 2e-3
     assert np.abs(cos.mean(axis=1) - 2 / 3).max() < 0.05
     with pytest.raises(ValueError, match="sampler"):
-        R._cosine_directions(np.arange(4), 4, np.random.default_rng(0), frames, "sobol")
+        Q._cosine_directions(np.arange(4), 4, np.random.default_rng(0), frames, "sobol")
 
 
 def test_radical_inverse_and_hammersley():
-    assert_allclose(R._radical_inverse2(np.arange(8)), [0, 0.5, 0.25, 0.75, 0.125, 0.625, 0.375, 0.875])
-    p = R._hammersley(16)
+    assert_allclose(Q._radical_inverse2(np.arange(8)), [0, 0.5, 0.25, 0.75, 0.125, 0.625, 0.375, 0.875])
+    p = Q._hammersley(16)
     # a (0, 4, 2)-net: every 2^-a x 2^-(4-a) elementary box holds exactly one point
     for a in range(5):
         cells = np.floor(p[:, 0] * 2**a) * 2 ** (4 - a) + np.floor(p[:, 1] * 2 ** (4 - a))

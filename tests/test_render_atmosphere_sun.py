@@ -6,7 +6,7 @@ Closed forms (small synthetic stages, helpers of test_render_radiometry):
   tau_Y(r) E cos / pi + P_Y(r), per pixel by range (colour-science's CIE 1931 tables, 1 nm);
 - EO airlight (Koschmieder 1924): a black plate seen through the path has Y = Y_h (1 - tau_Y(r)),
   Y_h the horizon sky; a white plate's contrast against the horizon is C(r) = C0 tau_Y(r);
-- sun without a solar table: E(l) = DNI pi B(l, 5778 K) / (sigma T^4), in MWIR and in the visible;
+- sun without a solar table: E(l) = DNI pi B(l, 5772 K) / (sigma T^4), in MWIR and in the visible;
 - sub-band count: the sensor's humv:sensor:subbands, overridden by the render option.
 """
 
@@ -40,6 +40,8 @@ from humv_usd.pipeline.render import render_stage
 from humv_usd.render import cie, radiometry
 
 SIGMA = constants.Stefan_Boltzmann
+#: the Sun's nominal effective temperature, IAU 2015 Resolution B3 [K] (an independent literal)
+T_SUN = 5772.0
 CMFS = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
 LAM_NM = np.asarray(CMFS.wavelengths, dtype=float)
 XYZ_BAR = np.asarray(CMFS.values, dtype=float)  # (471, 3), 1 nm
@@ -314,9 +316,9 @@ def test_eo_path_skipped_without_visible_table(tmp_path):
 
 
 def blackbody_sun_band(dni, band):
-    """In-band irradiance of a 5778 K blackbody spectrum scaled to the DNI (fine trapezoid)."""
+    """In-band irradiance of a 5772 K blackbody spectrum scaled to the DNI (fine trapezoid)."""
     x = np.linspace(band[0], band[1], 20001)
-    return dni * np.trapz(planck.spectral_radiance(x, 5778.0), x) * np.pi / (SIGMA * 5778.0**4)
+    return dni * np.trapz(planck.spectral_radiance(x, T_SUN), x) * np.pi / (SIGMA * T_SUN**4)
 
 
 def test_blackbody_sun_integrates_to_the_dni():
@@ -356,8 +358,8 @@ def test_mwir_sun_from_dni_without_solar_table(tmp_path):
     assert ok.all(), f"night: {(~ok).sum()} pixels off"
     assert day["radiance"].mean() - night["radiance"].mean() > 20 * day["radiance_stderr"].mean()
     ran = day_m["sensors"][0]["frames"][0]["radiometry"]["sun"]
-    assert ran.startswith("directional") and "blackbody 5778 K" in ran and "DNI 800" in ran
-    assert "blackbody 5778 K" in day_m["radiometry"]["sun_source"]
+    assert ran.startswith("directional") and "blackbody 5772 K" in ran and "DNI 800" in ran
+    assert "blackbody 5772 K" in day_m["radiometry"]["sun_source"]
     assert night_m["sensors"][0]["frames"][0]["radiometry"]["sun"] == "skipped: sun below the horizon (night)"
 
 
@@ -374,11 +376,11 @@ def test_eo_sun_from_dni_without_solar_table(tmp_path):
     manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=16)
     assert not manifest["skipped_sensors"]
     ch = read_exr(tmp_path / "out" / "eo" / "0000.exr")
-    e_nm = 700.0 * np.pi * planck.spectral_radiance(LAM_NM / 1000, 5778.0) / (SIGMA * 5778.0**4) / 1000.0
+    e_nm = 700.0 * np.pi * planck.spectral_radiance(LAM_NM / 1000, T_SUN) / (SIGMA * T_SUN**4) / 1000.0
     expected = np.trapz(e_nm * XYZ_BAR[:, 1], LAM_NM) / np.trapz(XYZ_BAR[:, 1], LAM_NM) * np.cos(th) / np.pi
     sigma = np.sqrt(np.mean(ch["Y_stderr"] ** 2) / ch["Y"].size)
     assert abs(ch["Y"].mean() - expected) < 4 * sigma + 3e-3 * expected
-    assert "blackbody 5778 K" in manifest["eo_sensors"][0]["frames"][0]["illumination"]["sun"]
+    assert "blackbody 5772 K" in manifest["eo_sensors"][0]["frames"][0]["illumination"]["sun"]
 
 
 # --- sub-band count from the sensor prim ------------------------------------------------------------

@@ -4,7 +4,7 @@ Closed forms: Planck sub-band sums, a plate seen through an authored path table
 (tau(r) S + P(r) per pixel), a perfect reflector under a zenith-dependent sky (cosine-weighted
 hemispherical mean), a plate lit by the sun (E cos(theta) / pi), and a blackbody panel read back
 through the sensor chain after atmospheric correction. Stages are small synthetic ones authored
-here with the attributes of notes/contract_env.md.
+here with the atmosphere and environment attributes of humv_usd.usd.schemas.
 """
 
 from __future__ import annotations

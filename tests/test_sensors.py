@@ -15,7 +15,7 @@ from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel, apply_chain, psf_kernel
 from humv_usd.scenario import validate
-from humv_usd.scenario.spec import SENSOR_PRESETS
+from humv_usd.scenario.spec import DEFAULT_SUBBANDS, SENSOR_PRESETS
 from humv_usd.sensors import layer as sensors_layer
 from humv_usd.usd import schemas as S
 from humv_usd.usd.sensor import read_sensor_model
@@ -474,3 +474,54 @@ def test_subbands_key_is_authored_for_infrared_sensors(raw):
     by_id["lwir640"]["subbands"] = 0
     with pytest.raises(InputError, match="subbands"):
         validate(raw)
+
+
+# ---------------------------------------------------------------------------- the render's read
+def _camera(stage, name, **attrs):
+    cam = UsdGeom.Camera.Define(stage, f"/World/{name}")
+    prim = cam.GetPrim()
+    prim.ApplyAPI(S.SENSOR_API)
+    for key, value in attrs.items():
+        prim.GetAttribute(key).Set(value)
+    return prim
+
+
+def test_read_sensor_is_the_model_with_what_the_render_needs():
+    """One sensor model: the render's read (read_sensor) is read_sensor_model plus path,
+    sub-bands, skip reason and whether the response is authored."""
+    from pxr import Gf, Vt
+
+    from humv_usd.usd.sensor import read_sensor
+
+    stage = Usd.Stage.CreateInMemory()
+    res = Gf.Vec2i(64, 48)
+    lw = _camera(
+        stage,
+        "lw",
+        **{S.SENSOR_BAND: "LWIR", S.SENSOR_WAVELENGTH_RANGE: Gf.Vec2f(8, 14), S.SENSOR_RESOLUTION: res},
+    )
+    m = read_sensor(lw)
+    assert isinstance(m, SensorModel) and m.path == "/World/lw" and m.kind == "IR" and m.rendered
+    assert m.band_response is None and m.subbands == DEFAULT_SUBBANDS  # the schema's fallback
+    np.testing.assert_allclose(m.response_pair[0], [8.0, 14.0])  # flat band for the chain
+    lw.GetAttribute(S.SENSOR_RESPONSE_WAVELENGTHS).Set(Vt.FloatArray([8.0, 11.0, 14.0]))
+    lw.GetAttribute(S.SENSOR_RESPONSE).Set(Vt.FloatArray([0.5, 1.0, 0.25]))
+    lw.GetAttribute(S.SENSOR_SUBBANDS).Set(3)
+    m = read_sensor(lw)
+    np.testing.assert_allclose(m.band_response[1], [0.5, 1.0, 0.25])
+    assert m.subbands == 3
+    lw.GetAttribute(S.SENSOR_RESPONSE).Set(Vt.FloatArray([0.5, 1.0]))
+    with pytest.raises(InputError, match="expected one response value per wavelength"):
+        read_sensor(lw)
+    eo = _camera(stage, "eo", **{S.SENSOR_WAVELENGTH_RANGE: Gf.Vec2f(0.4, 0.7), S.SENSOR_RESOLUTION: res})
+    eo.GetAttribute(S.SENSOR_RESPONSE).Set(Vt.FloatArray([1.0, 1.0]))  # not checked: EO uses the CIE observer
+    m = read_sensor(eo)
+    assert m.kind == "EO" and m.band_response is None  # by its range below 3 um
+    ortho = _camera(
+        stage,
+        "ortho",
+        **{S.SENSOR_BAND: "MWIR", S.SENSOR_WAVELENGTH_RANGE: Gf.Vec2f(3, 5), S.SENSOR_RESOLUTION: res},
+    )
+    UsdGeom.Camera(ortho).GetProjectionAttr().Set(UsdGeom.Tokens.orthographic)
+    m = read_sensor(ortho)
+    assert not m.rendered and "only perspective cameras are rendered" in m.skip_reason

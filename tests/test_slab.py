@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.special import erf
 
-from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
+from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.physics.slab import (
     diurnal_spin_up,
     held_temperature,

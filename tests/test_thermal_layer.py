@@ -142,7 +142,7 @@ def _night_jos3(humvvex_raw, out, cloud):
 def test_overcast_night_sky_warms_skin_and_garments(humvvex_raw, tmp_path):
     """The thermal layer reads the atmosphere layer's sky: at night (only the long-wave sky
     changes with the clouds) an overcast sky warms the skin and the garments."""
-    from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
+    from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
     from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
 
     result = {c: _night_jos3(humvvex_raw, tmp_path / f"c{c}", c) for c in (0.0, 1.0)}

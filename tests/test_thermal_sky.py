@@ -12,12 +12,13 @@ from pxr import Usd
 from scipy.integrate import quad
 
 from humv_usd.atmosphere import layer as atmosphere_layer
+from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
-from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.physics.sky import effective_sky_temperature
 from humv_usd.scenario import validate
-from humv_usd.thermal import radiation as R
+from humv_usd.thermal import qrad as Q
+from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal import surfaces as SF
 from humv_usd.thermal.human import scenario_sky
 from humv_usd.thermal.sky import (
@@ -117,7 +118,7 @@ def test_thermal_sky_irradiance_is_the_tables(skies):
     assert sky.tabulated
     # what the slabs and the scene surfaces use, and what the radiance maps integrate to
     assert_allclose(sky.downwelling_irradiance()[1], closed, rtol=1e-3)
-    env = R.radiance_map([0, 0, 0], sky, None, 90)
+    env = SR.radiance_map([0, 0, 0], sky, None, 90)
     assert_allclose(env.irradiance(np.array([[0.0, 0.0, 1.0]]))[1, 0], closed, rtol=1e-3)
     # the radiance map takes the table's values by zenith
     zen = np.radians([5.0, 40.0, 80.0])
@@ -187,10 +188,10 @@ def test_overcast_sky_is_a_uniform_enclosure(tabulated):
         kw.update(cloud_cover=1.0)
     sky = ClearSky(**kw)
     sphere = trimesh.creation.icosphere(2, radius=0.3)
-    env = R.radiance_map([0, 0, 0], sky, None, 48)
+    env = SR.radiance_map([0, 0, 0], sky, None, 48)
     assert_allclose(env.radiance[1], SIGMA * t**4 / np.pi, rtol=1e-12)
     for method in ("brute", "fast"):
-        q = R.absorbed_radiation(sphere, env, [0.6, 0.95], method=method, rays=16)
+        q = Q.absorbed_radiation(sphere, env, [0.6, 0.95], method=method, rays=16)
         assert_allclose(q[1], 0.95 * SIGMA * t**4, rtol=1e-6)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.physics.convection import mitchell
 from humv_usd.physics.garment import (
     areal_heat_capacity,
@@ -12,7 +13,6 @@ from humv_usd.physics.garment import (
     steady_state,
     transient_step,
 )
-from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.physics.slab import step, uniform_layers
 
 

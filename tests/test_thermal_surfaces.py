@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 from scipy.optimize import brentq
 
 from humv_usd.catalog.materials import LIBRARY
-from humv_usd.physics.sky import STEFAN_BOLTZMANN as SIGMA
+from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.thermal import surfaces as SF
 from humv_usd.thermal.human import longwave_emissivity
 

@@ -6,7 +6,7 @@
 
 Runs Pixar's usdGenSchema (`python -m pxr.Usd.usdGenSchema`, ships in usd-core, needs jinja2)
 into a temporary folder, then fixes what it leaves undone for a codeless schema plug-in loaded
-straight from this folder (see ../../shared/RECIPES.md, "USD: codeless schema registration"):
+straight from this folder:
 
 - plugInfo.json: the `@PLUG_INFO_*@` placeholders become LibraryPath "", ResourcePath ".",
   Root "."; every Types entry gets a `schemaIdentifier` and loses any `alias` (an alias makes

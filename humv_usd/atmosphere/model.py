@@ -60,12 +60,12 @@ from pathlib import Path
 import numpy as np
 
 from humv_usd.atmosphere import lowtran as lt
+from humv_usd.constants import STEFAN_BOLTZMANN, SUN_ANGULAR_RADIUS, SUN_TEMPERATURE_K
 from humv_usd.environment.sun import SunState, sun_at, utc_times
 from humv_usd.environment.weather import Weather, read_weather_csv, weather_at
 from humv_usd.fileio import atomic_path
 from humv_usd.physics import planck
 from humv_usd.physics.sky import (
-    STEFAN_BOLTZMANN,
     aerosol_extinction,
     directional_sky_emissivity,
     effective_sky_temperature,
@@ -96,8 +96,6 @@ SOLAR_SPLIT_UM = 2.5
 AEROSOL_SCALE_HEIGHT_M = 1.2e3
 #: LOWTRAN7 Earth radius for the layer-exit angle [km]
 EARTH_RADIUS_KM = 6371.23
-#: nominal effective temperature of the Sun (IAU 2015 B3) [K] and its radius / 1 au
-SUN_TEMPERATURE_K, SUN_ANGULAR_RADIUS = 5772.0, 6.957e8 / 1.495978707e11
 #: samples of the time-varying quantities: at most this many over the scenario
 
 

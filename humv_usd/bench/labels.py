@@ -1,8 +1,8 @@
 """``humv-usd bench labels``: agreement of a render's label channels with an independent ray cast.
 
 The stage's frame is exported again (:class:`humv_usd.render.export.StageExport`: world points
-posed by UsdSkel, fan triangles), every triangle goes into one embree BVH (trimesh + embreex,
-not Mitsuba), and the pixel-centre rays of :class:`~humv_usd.geometry.camera.Camera` find the
+posed by UsdSkel, fan triangles), every triangle goes into one embree BVH (embreex through
+:mod:`humv_usd.geometry.raycast`, not Mitsuba), and the pixel-centre rays of :class:`~humv_usd.geometry.camera.Camera` find the
 first triangle; its part's instance id and its face's body region are compared with the EXR's
 ``instance_id`` and ``body_region``. Disagreements are split into edge pixels (a 4-neighbour
 has another id: the two casts round a ray that grazes a triangle edge differently) and the rest.
@@ -17,8 +17,8 @@ import numpy as np
 
 from humv_usd.errors import InputError
 from humv_usd.geometry.camera import Camera
+from humv_usd.geometry.raycast import RayCaster
 from humv_usd.groundtruth import labels as L
-from humv_usd.groundtruth.boxes import _intersector
 from humv_usd.groundtruth.regions import read_image
 from humv_usd.render.export import StageExport
 from humv_usd.usd.layers import open_stage
@@ -35,8 +35,6 @@ def _edge(ids: np.ndarray) -> np.ndarray:
 
 def label_agreement(render_dir, sensor: str | None = None, frame: int | None = None) -> dict:
     """Fractions of pixels whose instance id and body region agree with an embree ray cast."""
-    import trimesh
-
     with open(os.path.join(os.fspath(render_dir), "manifest.json"), encoding="utf-8") as f:
         manifest = json.load(f)
     sensors = [s for s in manifest["sensors"] if sensor is None or s["name"] == sensor]
@@ -62,12 +60,12 @@ def label_agreement(render_dir, sensor: str | None = None, frame: int | None = N
             inst.append(np.full(len(part.triangles), part.instance_id))
             region.append(labels.region[part.triangle_face])
             n += len(v)
-    mesh = trimesh.Trimesh(np.concatenate(verts), np.concatenate(tris), process=False, validate=False)
+    caster = RayCaster(np.concatenate(verts), np.concatenate(tris))
     inst, region = np.concatenate(inst), np.concatenate(region)
     w, h = rec["resolution"]
     cam = Camera.from_pose(state.cameras[sen.name], w, h)
     dirs = cam.pixel_rays().reshape(-1, 3)
-    first = _intersector(mesh).intersects_first(np.broadcast_to(cam.origin, dirs.shape).copy(), dirs)
+    first = caster.intersects_first(np.broadcast_to(cam.origin, dirs.shape), dirs)
     hit = first >= 0
     ref_inst = np.where(hit, inst[np.where(hit, first, 0)], 0).reshape(h, w)
     ref_region = np.where(hit, region[np.where(hit, first, 0)], 0).reshape(h, w)
@@ -77,7 +75,7 @@ def label_agreement(render_dir, sensor: str | None = None, frame: int | None = N
         "sensor": rec["name"],
         "frame": fr["frame"],
         "pixels": int(w * h),
-        "triangles": int(len(mesh.faces)),
+        "triangles": int(len(caster.triangles)),
         "instance_agreement": float(same.mean()),
         "instance_disagreeing_off_edges": int((~same & ~_edge(ref_inst)).sum()),
         "instance_disagreeing_on_edges": int((~same & _edge(ref_inst)).sum()),

@@ -9,9 +9,11 @@ real ~30k-facet clothed avatar instead of the capsule stand-in.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
+import trimesh
 from pxr import Usd
 
 from humv_usd.catalog.garments import GARMENTS
@@ -19,8 +21,9 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.thermal import human as H
 from humv_usd.thermal import layer as TL
-from humv_usd.thermal import radiation as R
-from humv_usd.thermal.sky import stage_longwave_table
+from humv_usd.thermal.qrad import absorbed_radiation
+from humv_usd.thermal.scene_radiance import SceneSurfaces, radiance_map, scene_surface_radiance
+from humv_usd.thermal.sky import ClearSky, stage_longwave_table
 from humv_usd.thermal.surfaces import (
     SPIN_UP_STEP_S,
     forcing_at,
@@ -47,7 +50,7 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
     dict
         ``mesh`` (trimesh, body + garments), ``scene`` (SceneSurfaces or None), ``sky``
         (ClearSky with the sun), ``absorptivity`` (2, faces), ``mesh_radiance`` (2, faces),
-        ``center`` (3,), as :func:`humv_usd.thermal.radiation.bench_qrad` takes them.
+        ``center`` (3,), as :func:`bench_qrad` takes them.
     """
     stage = Usd.Stage.Open(str(stage_path))
     th = scenario["thermal"]
@@ -75,9 +78,9 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
     mesh, eps_tri, _ = TL._scene_trimesh(meshes)
     if mesh is not None:
         t_tri = np.concatenate([surf[m.path][0][m.tri_face] for m in meshes])
-        scene = R.SceneSurfaces(
+        scene = SceneSurfaces(
             mesh,
-            R.scene_surface_radiance(
+            scene_surface_radiance(
                 mesh, t_tri, eps_tri, sky, solar_reflectance=TL._solar_reflectance(meshes)
             ),
         )
@@ -104,3 +107,172 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
         "mesh_radiance": H._self_radiance(parts, th["skin_temperature_k"], float(f.air_temperature_k[i])),
         "center": pts[0].mean(axis=0),
     }
+
+
+# --------------------------------------------------------------------------- error vs run time
+def relative_errors(q, q_ref) -> dict:
+    """RMS and max relative error of a q_rad estimate against a reference (facet totals).
+
+    Facets whose reference total is below 1e-6 of the largest are left out of the relative
+    figures; ``nrmse`` = rms(q - q_ref) / mean(q_ref) uses all facets.
+    """
+    a = np.asarray(q, dtype=float)
+    b = np.asarray(q_ref, dtype=float)
+    if a.ndim == 2:
+        a, b = a.sum(axis=0), b.sum(axis=0)
+    keep = b > 1e-6 * np.max(np.abs(b))
+    rel = (a[keep] - b[keep]) / b[keep]
+    return {
+        "rms_rel_error": float(np.sqrt(np.mean(rel**2))),
+        "max_rel_error": float(np.max(np.abs(rel))),
+        "nrmse": float(np.sqrt(np.mean((a - b) ** 2)) / np.mean(b)),
+    }
+
+
+def bench_scene(facets=30000):
+    """Test setup: a crude capsule 'avatar' (self-occluding), ground slab, a warm wall, a clear sky.
+
+    Returns (mesh, scene, sky, absorptivity, center).
+    """
+    per = max(8, int(np.sqrt(facets / 4.0 / 2.0)))  # 4 capsules, ~2 per^2 faces each
+
+    def capsule(radius, height, x, y, z):
+        c = trimesh.creation.capsule(height=height, radius=radius, count=[per, per])
+        c.apply_translation([x, y, z])
+        return c
+
+    mesh = trimesh.util.concatenate(
+        [
+            capsule(0.17, 0.45, 0.0, 0.0, 1.25),
+            capsule(0.075, 0.75, 0.0, -0.1, 0.45),
+            capsule(0.075, 0.75, 0.0, 0.1, 0.45),
+            capsule(0.05, 0.55, 0.12, 0.25, 1.2),
+        ]
+    )
+    ground = trimesh.creation.box(extents=[60.0, 60.0, 0.2])
+    ground.apply_translation([0.0, 0.0, -0.1])
+    wall = trimesh.creation.box(extents=[0.3, 6.0, 3.0])
+    wall.apply_translation([2.0, 0.0, 1.5])
+    smesh = trimesh.util.concatenate([ground, wall])
+    n_g = len(ground.faces)
+    temp = np.r_[np.full(n_g, 318.0), np.full(len(wall.faces), 305.0)]
+    eps = np.r_[np.full(n_g, 0.95), np.full(len(wall.faces), 0.9)]
+    rho = np.r_[np.full(n_g, 0.2), np.full(len(wall.faces), 0.35)]
+    s = np.array([np.sin(np.radians(40.0)), 0.3, np.cos(np.radians(40.0))])
+    sky = ClearSky(
+        air_temperature_k=303.0,
+        relative_humidity=0.4,
+        sun_direction=tuple(s / np.linalg.norm(s)),
+        direct_normal_irradiance=800.0,
+        diffuse_horizontal_irradiance=100.0,
+        ground_temperature_k=318.0,
+    )
+    scene = SceneSurfaces(smesh, scene_surface_radiance(smesh, temp, eps, sky, rho))
+    return mesh, scene, sky, np.array([0.7, 0.95]), np.array([0.0, 0.0, 1.0])
+
+
+def bench_qrad(
+    facets=30000,
+    resolutions=(90, 180, 360),
+    fast_rays=(16, 64, 256),
+    reference_resolution=None,
+    mesh=None,
+    seed=0,
+    adaptive_rays=(32, 64, 128),
+    case=None,
+    reference=None,
+) -> list[dict]:
+    """Run time and error of q_rad methods against the brute-force reference.
+
+    Parameters
+    ----------
+    facets : int
+        Approximate facet count of the bench mesh (ignored when ``mesh`` or ``case`` is given).
+    resolutions : sequence of int
+        Map sizes n (n x n) to try.
+    fast_rays, adaptive_rays : sequence of int
+        Rays per facet of the fast method / mean rays per facet of the adaptive one.
+    reference_resolution : int, optional
+        Map size of the brute reference; default max(resolutions).
+    mesh : trimesh.Trimesh, optional
+        Facets to evaluate instead of the capsule avatar (e.g. a MakeHuman body).
+    case : dict, optional
+        A whole case instead of the capsule scene: ``mesh``, ``scene`` (SceneSurfaces or None),
+        ``sky``, ``absorptivity`` (bands,) or (bands, faces), ``center``, optional
+        ``mesh_radiance`` (e.g. :func:`humv_usd.bench.thermal.avatar_case`).
+    reference : array (bands, faces), optional
+        A precomputed brute reference at ``reference_resolution`` (its run time is then NaN).
+
+    Returns
+    -------
+    list of dict
+        One row per (method, resolution, rays): facets, seconds (wall), cpu_seconds (process
+        time; the embree caster is single-threaded, so this is the run time on an idle
+        machine), map_seconds (map build), rms_rel_error, max_rel_error, nrmse against the
+        reference (the reference row has zeros) and the method's own rms_rel_error_estimate.
+    """
+    if case is None:
+        bmesh, scene, sky, alpha, center = bench_scene(facets)
+        mrad = None
+        if mesh is not None:
+            bmesh = mesh
+            center = np.asarray(mesh.bounds.mean(axis=0))
+    else:
+        bmesh, scene, sky, alpha = case["mesh"], case["scene"], case["sky"], case["absorptivity"]
+        center, mrad = case["center"], case.get("mesh_radiance")
+    ref_res = int(max(resolutions) if reference_resolution is None else reference_resolution)
+    maps, map_seconds = {}, {}
+    for res in sorted(set(resolutions) | {ref_res}):
+        t0 = time.perf_counter()
+        maps[res] = radiance_map(center, sky, scene, res)
+        map_seconds[res] = time.perf_counter() - t0
+    kw = dict(scene=scene, mesh_radiance=mrad)
+
+    def timed(env, **extra):
+        stats: dict = {}
+        w0, c0 = time.perf_counter(), time.process_time()
+        q = absorbed_radiation(bmesh, env, alpha, stats=stats, **kw, **extra)
+        return q, time.perf_counter() - w0, time.process_time() - c0, stats
+
+    if reference is None:
+        q_ref, wall, cpu, _ = timed(maps[ref_res], method="brute")
+    else:
+        q_ref, wall, cpu = np.asarray(reference, dtype=float), float("nan"), float("nan")
+    rows = [
+        {
+            "method": "brute",
+            "resolution": ref_res,
+            "rays": None,
+            "facets": len(bmesh.faces),
+            "seconds": wall,
+            "cpu_seconds": cpu,
+            "map_seconds": map_seconds[ref_res],
+            "rms_rel_error": 0.0,
+            "max_rel_error": 0.0,
+            "nrmse": 0.0,
+            "rms_rel_error_estimate": 0.0,
+            "reference": True,
+        }
+    ]
+    for res in resolutions:
+        runs = [("fast", k) for k in fast_rays] + [("adaptive", k) for k in adaptive_rays]
+        if res != ref_res:
+            runs.insert(0, ("brute", None))
+        for method, k in runs:
+            extra = {} if k is None else {"rays": k, "seed": seed}
+            q, wall, cpu, stats = timed(maps[res], method=method, **extra)
+            rows.append(
+                {
+                    "method": method,
+                    "resolution": res,
+                    "rays": k,
+                    "facets": len(bmesh.faces),
+                    "seconds": wall,
+                    "cpu_seconds": cpu,
+                    "map_seconds": map_seconds[res],
+                    **relative_errors(q, q_ref),
+                    "rms_rel_error_estimate": stats.get("rms_rel_error_estimate", 0.0),
+                    "reference": False,
+                }
+            )
+    return rows

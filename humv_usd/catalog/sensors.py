@@ -258,32 +258,6 @@ def scenario_values(name: str) -> dict:
     }
 
 
-def table_rows() -> list[dict]:
-    """One row per preset for the docs/report table."""
-    rows = []
-    for p in PRESETS.values():
-        gain, offset = calibration(p.name)
-        hfov, vfov = p.fov_deg
-        rows.append(
-            {
-                "preset": p.name,
-                "band": p.band,
-                "um": p.wavelength_um,
-                "px": p.resolution,
-                "pitch_um": p.pixel_pitch_um,
-                "f_mm": p.focal_length_mm,
-                "N": p.f_number,
-                "fov_deg": (round(hfov, 1), round(vfov, 1)),
-                "netd_k": p.netd_k,
-                "bits": p.bit_depth,
-                "gain": gain,
-                "offset": offset,
-                "agc": p.agc,
-            }
-        )
-    return rows
-
-
 # ---------------------------------------------------------------------------- platforms
 def orbit_positions(
     center_m,

@@ -264,6 +264,7 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
     from humv_usd.pipeline import render as R
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.scenario import load_scenario
+    from humv_usd.usd.sensor import check_subbands
 
     def ints(text, name):
         try:
@@ -271,7 +272,7 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
         except ValueError:
             raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
         for v in values:
-            R.radiometry.check_subbands(v, f"--{name}")
+            check_subbands(v, f"--{name}")
         return values
 
     n_list, t_list = ints(counts, "subbands"), ints(time_counts, "time-subbands")
@@ -478,12 +479,12 @@ def bench_thermal(
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from humv_usd.bench.thermal import bench_qrad
     from humv_usd.fileio import atomic_path
     from humv_usd.physics.garment import bench_time_steps as garment_steps
     from humv_usd.physics.garment import extreme_grid_counts
     from humv_usd.thermal.physiology import bench_time_steps as skin_steps
     from humv_usd.thermal.physiology import simulate_physiology
-    from humv_usd.thermal.radiation import bench_qrad
 
     def ints(text, name):
         try:

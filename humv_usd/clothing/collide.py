@@ -72,7 +72,8 @@ from scipy.spatial import cKDTree
 from humv_usd.catalog.garments import garment
 from humv_usd.clothing.drape import Drape
 from humv_usd.clothing.fit import BodyRig, FittedGarment, fit_garment, refine
-from humv_usd.geometry.mesh import RayCaster, Surface, vertex_normals
+from humv_usd.geometry.mesh import Surface, vertex_normals
+from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.carry import (
     carry_body_of,
     prop_distance_gradient,
@@ -549,7 +550,7 @@ def push_between(
 def air_gap(caster: RayCaster, points: np.ndarray, triangles: np.ndarray, distance: np.ndarray) -> np.ndarray:
     """Per-vertex air gap [m] along the inward garment normal; see the module doc."""
     n = vertex_normals(points, triangles)
-    t = caster.first_hit(points, -n)
+    t = caster.hit_distance(points, -n)
     fallback = np.abs(distance)
     gap = np.where(np.isfinite(t) & (t <= MAX_AIR_GAP), t, fallback)
     return np.clip(np.maximum(gap, fallback), 0.0, MAX_AIR_GAP)
@@ -622,7 +623,7 @@ def simulate(
         t0 = time.perf_counter()
         body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]), rig.mesh.points)
         surface = Surface(body, rig.triangles)
-        caster = RayCaster(body, rig.triangles)
+        caster = RayCaster(body, rig.triangles, normalize=False)
         distances: list[np.ndarray] = []
         shells: list[tuple[Surface, np.ndarray, float]] = []  # posed body-like garments
         worn: list[tuple[Surface, np.ndarray, float]] = []  # all posed garments so far

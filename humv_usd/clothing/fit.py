@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from humv_usd.catalog.garments import SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part, Prop, Shape, garment
-from humv_usd.geometry.mesh import Surface, triangle_face_of, triangulate, vertex_normals
+from humv_usd.geometry.mesh import Surface, fan_triangulate, vertex_normals
 from humv_usd.human import labels as L
 from humv_usd.human.body import Body, MeshPart
 from humv_usd.human.carry import carry_rest_transform
@@ -97,13 +97,13 @@ def prepare(
     else:
         indices, weights = (np.asarray(a) for a in skinning)
     regions = L.body_regions(mesh, skeleton, indices, weights) if face_regions is None else face_regions
-    tris = triangulate(mesh.face_counts, mesh.face_indices)
+    tris, triangle_face = fan_triangulate(mesh.face_counts, mesh.face_indices)
     return BodyRig(
         body,
         skeleton,
         mesh,
         tris,
-        triangle_face_of(mesh.face_counts),
+        triangle_face,
         indices,
         weights,
         regions,
@@ -138,7 +138,7 @@ class FittedGarment:
 def _source(rig: BodyRig, source: str) -> tuple[MeshPart, np.ndarray]:
     """(mesh, outward vertex normals of the whole mesh) of a Part's source."""
     part = rig.mesh if source == "body" else rig.body.helper(source)
-    tris = triangulate(part.face_counts, part.face_indices)
+    tris, _ = fan_triangulate(part.face_counts, part.face_indices)
     return part, vertex_normals(part.points, tris)
 
 
@@ -305,7 +305,7 @@ def fit_garment(rig: BodyRig, name: str, refined: bool = False) -> FittedGarment
         np.concatenate(pts),
         counts,
         flat,
-        triangulate(counts, flat),
+        fan_triangulate(counts, flat)[0],
         np.concatenate(idx),
         np.concatenate(wts),
         np.concatenate(regions).astype(np.int32),
@@ -392,7 +392,7 @@ def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None) 
         pts,
         counts,
         flat,
-        triangulate(counts, flat),
+        fan_triangulate(counts, flat)[0],
         np.concatenate([fitted.joint_indices, idx]),
         np.concatenate([fitted.joint_weights, w]),
         np.asarray(regions, dtype=np.int32),
@@ -463,5 +463,13 @@ def fit_prop(rig: BodyRig, g: Garment) -> FittedGarment:
     near = rig.surface.closest(centres)
     regions = rig.face_regions[rig.triangle_face[near.triangle]].astype(np.int32)
     return FittedGarment(
-        g, points, counts, indices, triangulate(counts, indices), idx, w, regions, np.zeros(n, dtype=int)
+        g,
+        points,
+        counts,
+        indices,
+        fan_triangulate(counts, indices)[0],
+        idx,
+        w,
+        regions,
+        np.zeros(n, dtype=int),
     )

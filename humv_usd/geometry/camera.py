@@ -1,7 +1,8 @@
 """Pinhole projection of the render's sensors (the model Mitsuba's ``perspective`` sensor uses).
 
-A :class:`humv_usd.render.export.CameraPose` (origin, optical axis ``forward``, ``up``, horizontal
-field of view) and a resolution (W, H) define the camera: ``right = forward x up`` (normalised),
+A :class:`CameraPose` (origin, optical axis ``forward``, ``up``, horizontal field of view; read
+from a UsdGeom.Camera by :func:`humv_usd.usd.sensor.read_camera_pose`) and a resolution (W, H)
+define the :class:`Camera`: ``right = forward x up`` (normalised),
 ``true_up = right x forward``; a world point at camera coordinates (x right, y up, z along the
 axis) lands at continuous pixel coordinates
 
@@ -20,8 +21,20 @@ from dataclasses import dataclass
 import numpy as np
 
 
+@dataclass
+class CameraPose:
+    """A sensor's camera at one frame (world space, metres)."""
+
+    origin: np.ndarray  # (3,) [m]
+    forward: np.ndarray  # (3,), unit, the optical axis
+    up: np.ndarray  # (3,), unit
+    fov_x_deg: float  # full horizontal field of view [deg]
+
+
 @dataclass(frozen=True)
 class Camera:
+    """The pinhole camera of a :class:`CameraPose` and a resolution (see the module doc)."""
+
     origin: np.ndarray
     forward: np.ndarray
     right: np.ndarray
@@ -32,7 +45,7 @@ class Camera:
     height: int
 
     @classmethod
-    def from_pose(cls, pose, width: int, height: int) -> Camera:
+    def from_pose(cls, pose: CameraPose, width: int, height: int) -> Camera:
         fwd = np.asarray(pose.forward, dtype=float)
         fwd = fwd / np.linalg.norm(fwd)
         right = np.cross(fwd, np.asarray(pose.up, dtype=float))

@@ -1,7 +1,7 @@
-"""Mesh queries the clothing tool needs: normals, closest points, signed distance, ray casts.
+"""Mesh queries the clothing tool needs: normals, closest points, signed distance.
 
-Pure numpy + scipy (KD-tree) + embreex (ray casts, the Embree kernels trimesh uses). Triangles
-index a point array; polygons are fan-triangulated as the render does.
+Pure numpy + scipy (KD-tree); ray casts are in :mod:`humv_usd.geometry.raycast`. Triangles
+index a point array; polygons are fan-triangulated (:func:`fan_triangulate`) as the render does.
 
 Closest point on a mesh: the exact point-triangle closest point (Ericson 2005, *Real-Time
 Collision Detection*, sec. 5.1.5) over the ``k`` triangles whose centroids are nearest to the
@@ -26,22 +26,33 @@ CANDIDATES = 8
 PARALLEL_QUERIES = 4096
 
 
-def triangulate(face_counts, face_indices) -> np.ndarray:
-    """(T, 3) fan triangles of polygons given as USD counts/indices (orientation kept)."""
-    counts = np.asarray(face_counts, dtype=np.int64)
-    idx = np.asarray(face_indices, dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    out = []
-    for k in range(1, int(counts.max()) - 1):
-        sel = counts > k + 1
-        out.append(np.stack([idx[starts[sel]], idx[starts[sel] + k], idx[starts[sel] + k + 1]], axis=1))
-    return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
+def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fan-triangulate polygons given as USD face-vertex counts and indices (the one triangulation
+    of HumV-USD: the render, thermal, clothing and the USD mesh helpers use it).
 
+    Parameters
+    ----------
+    counts : (F,) int
+        Vertices per face (>= 3).
+    indices : (sum(counts),) int
+        Face-vertex indices.
 
-def triangle_face_of(face_counts) -> np.ndarray:
-    """Polygon index of each fan triangle, in :func:`triangulate`'s order."""
-    counts = np.asarray(face_counts, dtype=np.int64)
-    return np.concatenate([np.flatnonzero(counts > k + 1) for k in range(1, int(counts.max()) - 1)])
+    Returns
+    -------
+    triangles : (T, 3) int
+        Vertex indices ``(v0, v_k, v_k+1)`` per face, keeping the face's winding.
+    triangle_face : (T,) int
+        The face each triangle comes from.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    ntri = counts - 2
+    starts = np.cumsum(counts) - counts
+    triangle_face = np.repeat(np.arange(counts.size), ntri)
+    k = np.arange(triangle_face.size) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+    base = starts[triangle_face]
+    triangles = np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1)
+    return triangles, triangle_face
 
 
 def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -140,63 +151,3 @@ class Surface:
         side = np.einsum("ni,ni->n", offset, normal)
         signed = np.where(side < 0, -dist, dist)
         return Closest(point, triangle, bary, normal, signed)
-
-
-class RayCaster:
-    """First hits of rays on a triangle mesh (Embree through embreex, float32)."""
-
-    def __init__(self, points: np.ndarray, triangles: np.ndarray):
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
-
-        p = np.asarray(points, dtype=np.float64)
-        # Embree works in float32: shift to the mesh's corner to keep precision
-        self._origin = p.min(axis=0)
-        self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(
-            scene=self._scene,
-            vertices=(p - self._origin).astype(np.float32),
-            indices=np.asarray(triangles, dtype=np.int32),
-        )
-
-    def first_hit(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """Distance along each unit direction to the first hit [m]; inf where none."""
-        o = (np.asarray(origins, dtype=np.float64) - self._origin).astype(np.float32)
-        d = np.ascontiguousarray(directions, dtype=np.float32)
-        out = self._scene.run(np.ascontiguousarray(o), d, output=1)
-        t = np.asarray(out["tfar"], dtype=np.float64)
-        return np.where(np.asarray(out["primID"]) >= 0, t, np.inf)
-
-    def inside(self, points: np.ndarray, directions: int = 3) -> np.ndarray:
-        """Ray-parity inside test (majority over a few fixed directions); for closed meshes
-        without self-intersections. Independent of :class:`Surface`'s normal sign."""
-        dirs = np.array(
-            [
-                [0.0, 0.0, 1.0],
-                [0.577, -0.577, 0.577],
-                [-0.6, 0.48, -0.64],
-                [0.36, 0.8, 0.48],
-                [-0.8, -0.36, 0.48],
-            ]
-        )[:directions]
-        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-        votes = np.zeros(len(points), dtype=np.int64)
-        for d in dirs:
-            votes += self._count_hits(points, d) % 2
-        return votes * 2 > len(dirs)
-
-    def _count_hits(self, points: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        o = (np.asarray(points, dtype=np.float64) - self._origin).astype(np.float32)
-        d = np.tile(np.asarray(direction, dtype=np.float32), (len(o), 1))
-        hits = np.zeros(len(o), dtype=np.int64)
-        active = np.arange(len(o))
-        for _ in range(64):
-            if not len(active):
-                break
-            out = self._scene.run(np.ascontiguousarray(o[active]), np.ascontiguousarray(d[active]), output=1)
-            hit = np.asarray(out["primID"]) >= 0
-            active = active[hit]
-            hits[active] += 1
-            t = np.asarray(out["tfar"], dtype=np.float32)[hit]
-            o[active] = o[active] + d[active] * (t[:, None] + np.float32(1e-5))
-        return hits

@@ -121,7 +121,7 @@ class GroundTruth:
         """Labels of one sensor at one frame.
 
         ``scene`` is the render's :class:`~humv_usd.render.ir.IRScene`, ``sensor`` the
-        :class:`~humv_usd.render.export.Sensor`, ``state`` the frame's FrameState,
+        :class:`~humv_usd.physics.sensor.SensorModel`, ``state`` the frame's FrameState,
         ``emissivity_of(part)`` the band emissivity of a part's material for this sensor;
         ``rel`` the frame's output path without extension, relative to ``out_dir``.
         """

@@ -24,7 +24,7 @@
   frame; ``corners_image`` (8, 2) [px] projected with :class:`Camera` (None for a corner at or
   behind the camera plane, flagged in ``behind_camera``).
 - Occlusion fraction: 1 - visible / unoccluded pixels, where "unoccluded" casts the pixel-centre
-  rays inside the full box against the object's own triangles only (embree through trimesh).
+  rays inside the full box against the object's own triangles only (embree, :mod:`humv_usd.geometry.raycast`).
   Pixels outside the image do not count (truncation is not occlusion).
 """
 
@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from humv_usd.geometry.camera import Camera
+from humv_usd.geometry.raycast import RayCaster
 
 #: Near plane for clipping [m] (the render's near clip, humv_usd.render.ir.NEAR_CLIP_M).
 NEAR_M = 1e-3
@@ -219,8 +220,6 @@ def unoccluded_mask(
     out = np.zeros((camera.height, camera.width), dtype=bool) if visible is None else visible.copy()
     if box is None or len(triangles) == 0:
         return out
-    import trimesh
-
     c0, r0 = int(np.floor(box[0])), int(np.floor(box[1]))
     c1, r1 = int(np.ceil(box[2])), int(np.ceil(box[3]))
     cols, rows = np.meshgrid(np.arange(c0, c1), np.arange(r0, r1))
@@ -229,24 +228,10 @@ def unoccluded_mask(
     if cols.size == 0:
         return out
     dirs = camera.pixel_rays(cols.ravel(), rows.ravel())
-    mesh = trimesh.Trimesh(
-        vertices=np.asarray(vertices, dtype=np.float64),
-        faces=np.asarray(triangles, dtype=np.int64),
-        process=False,
-        validate=False,
-    )
     origins = np.broadcast_to(camera.origin, dirs.shape)
-    hit = _intersector(mesh).intersects_any(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
+    hit = RayCaster(vertices, triangles).intersects_any(origins, dirs)
     out[rows.ravel()[hit], cols.ravel()[hit]] = True
     return out
-
-
-def _intersector(mesh):
-    try:
-        from trimesh.ray.ray_pyembree import RayMeshIntersector
-    except ImportError:  # embreex missing: trimesh's pure-numpy intersector (slower, same answer)
-        from trimesh.ray.ray_triangle import RayMeshIntersector
-    return RayMeshIntersector(mesh)
 
 
 def occlusion_fraction(visible_pixels: int, unoccluded_pixels: int) -> float | None:

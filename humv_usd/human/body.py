@@ -55,6 +55,7 @@ from types import MappingProxyType
 import numpy as np
 from scipy.optimize import brentq
 
+from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human.basemesh import _MH_TO_USD
 from humv_usd.human.macro import MacroValues, age_to_macro, apply_macros, obj_data
 from humv_usd.usd.mesh import signed_volume, triangle_areas
@@ -158,10 +159,6 @@ class Body:
     def scaled(self) -> bool:
         return self.uniform_scale != 1.0 or self.lateral_scale != 1.0
 
-    @property
-    def helper_names(self) -> list[str]:
-        return sorted(g for g in self.groups if g.startswith("helper-"))
-
     def group(self, name: str) -> MeshPart:
         faces = self.groups[name]
         used, remap = np.unique(faces.ravel(), return_inverse=True)
@@ -222,7 +219,7 @@ def _body_topology():
     faces = groups["body"]
     used, remap = np.unique(faces.ravel(), return_inverse=True)
     quads = remap.reshape(-1, 4)
-    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    tris, _ = fan_triangulate(np.full(len(quads), 4), quads.ravel())
     return used, tris
 
 

@@ -25,7 +25,8 @@ axis) to the ankle target; the hip turns by the minimal rotation from its nomina
 (keeps the knee's swivel), the ankle and toes take the target orientations.
 
 Ground: ``None`` (flat z = 0), a callable ``height(x, y)`` (vectorized) or a
-``trimesh.Trimesh`` (vertical rays cast down, embree when available), all in the avatar frame.
+``trimesh.Trimesh`` (vertical rays cast down, :mod:`humv_usd.geometry.raycast`), all in the
+avatar frame.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
+from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.gait import (
     align_matrix,
     axis_angle_matrix,
@@ -62,6 +64,7 @@ class Ground:
         elif hasattr(ground, "ray") and hasattr(ground, "bounds"):
             self.kind = "mesh"
             self._top = float(ground.bounds[1][2]) + 1.0
+            self._caster = RayCaster(ground.vertices, ground.faces)
             self._tree = None
         else:
             raise TypeError("ground must be None, a callable height(x, y) or a trimesh.Trimesh")
@@ -86,13 +89,8 @@ class Ground:
             return out
         origins = np.column_stack([xy, np.full(len(xy), self._top)])
         dirs = np.tile([0.0, 0.0, -1.0], (len(xy), 1))
-        loc, ray, _ = self.source.ray.intersects_location(origins, dirs, multiple_hits=False)
-        # keep the highest hit per ray (first hit of a downward ray)
-        if len(ray):
-            order = np.lexsort((-loc[:, 2], ray))
-            ray, loc = ray[order], loc[order]
-            first = np.r_[True, ray[1:] != ray[:-1]]
-            out[ray[first]] = loc[first, 2]
+        _, points = self._caster.first_points(origins, dirs)  # the highest hit: first one down
+        out[:] = points[:, 2]
         miss = np.isnan(out)
         if miss.any():
             # outside the mesh's footprint (or through a hole): the nearest vertex's height

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from humv_usd.physics.sky import STEFAN_BOLTZMANN
+from humv_usd.constants import STEFAN_BOLTZMANN
 
 KCAL_PER_HOUR_TO_WATT = 1.163  # 1 kcal h^-1 = 1.163 W (international table calorie)
 

@@ -20,8 +20,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.physics.convection import mitchell
-from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
+from humv_usd.physics.sky import effective_sky_temperature
 
 GRAVITY = 9.80665  # [m s^-2]
 _HOLLANDS_RA_CRITICAL = 1708.0  # onset of Rayleigh-Benard convection, rigid plates

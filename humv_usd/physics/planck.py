@@ -17,10 +17,12 @@ import functools
 
 import numpy as np
 
-# CODATA 2018 (exact in the 2019 SI).
-PLANCK_CONSTANT = 6.62607015e-34  # h [J s]
-SPEED_OF_LIGHT = 299792458.0  # c [m s^-1]
-BOLTZMANN_CONSTANT = 1.380649e-23  # k [J K^-1]
+from humv_usd.constants import (
+    BOLTZMANN_CONSTANT,
+    EMISSIVITY_WEIGHTING_TEMPERATURE_K,
+    PLANCK_CONSTANT,
+    SPEED_OF_LIGHT,
+)
 
 #: First radiation constant for spectral radiance, 2 h c^2, expressed for wavelengths in um and
 #: radiance per um: [W m^-2 sr^-1 um^-1 um^5] = [W m^2 sr^-1] * 1e24 (m^5 -> um^5) * 1e-6 (/m -> /um).
@@ -281,7 +283,9 @@ def band_radiance_derivative(temperature_k, band_um, response=None):
     return out if out.ndim else float(out)
 
 
-def band_emissivity(wavelengths_um, emissivity, band_um, response=None, temperature_k=300.0):
+def band_emissivity(
+    wavelengths_um, emissivity, band_um, response=None, temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K
+):
     r"""Planck-weighted band average of a spectral emissivity.
 
     Parameters

@@ -41,6 +41,9 @@ from scipy import special
 from humv_usd.physics import planck
 
 BANDS = ("EO", "MWIR", "LWIR")
+#: A sensor is infrared (rendered by the IR render) when its band starts at or above this
+#: wavelength [um]; below it, or with band "EO", it is rendered spectrally in the visible.
+INFRARED_MIN_UM = 3.0
 AGC_MODES = ("none", "linear", "histogram")
 EO_SPACES = ("camera", "srgb")
 #: Temperatures [K] spanned by the counts when no gain/offset is authored for an IR sensor
@@ -98,6 +101,14 @@ class SensorModel:
     netd_note : str
         How the NETD was derived, when it was (e.g. scaled to an overridden f-number by the
         sensors layer; the ``humv:netdScaling`` customData of ``humv:sensor:netd``); else "".
+    path : str
+        The camera prim's path ("" for a model not read from a stage).
+    subbands : int or None
+        ``humv:sensor:subbands`` when authored (IR), else None (the render's default).
+    skip_reason : str or None
+        Why the render skips this camera (e.g. not a perspective projection); None: rendered.
+    response_authored : bool
+        Whether the stage gives a spectral response (else the flat band is assumed).
     """
 
     name: str
@@ -121,6 +132,10 @@ class SensorModel:
     reference_temperature_k: float = 300.0
     preset: str = ""
     netd_note: str = ""
+    path: str = ""
+    subbands: int | None = None
+    skip_reason: str | None = None
+    response_authored: bool = True
 
     def __post_init__(self):
         if self.band not in BANDS:
@@ -163,6 +178,21 @@ class SensorModel:
     def ifov_rad(self) -> float:
         """Instantaneous field of view of one pixel, pitch / focal length [rad]."""
         return self.pixel_pitch_m / self.focal_length_m
+
+    @property
+    def kind(self) -> str:
+        """ "EO" (spectral render in the visible) or "IR" (sub-band render)."""
+        return "EO" if (self.band == "EO" or self.wavelength_range_um[0] < INFRARED_MIN_UM) else "IR"
+
+    @property
+    def rendered(self) -> bool:
+        return self.skip_reason is None
+
+    @property
+    def band_response(self):
+        """(wavelengths_um, response) when the stage gives one, else None (flat over the band),
+        as the render's radiometry takes it."""
+        return self.response_pair if self.response_authored else None
 
     @property
     def response_pair(self):

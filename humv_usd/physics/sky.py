@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-STEFAN_BOLTZMANN = 5.670374419e-8  # [W m^-2 K^-4], CODATA 2018
+from humv_usd.constants import BOLTZMANN_CONSTANT
 
 # Magnus coefficients over water, Alduchov & Eskridge (1996): a [-], b [degC]
 _MAGNUS_A = 17.625
@@ -198,7 +198,7 @@ def water_continuum_absorption(wavelength_um, air_temperature_k, relative_humidi
     t = float(air_temperature_k)
     e_pa = float(water_vapour_pressure(t, relative_humidity))
     cs = (1.25e-22 + 1.67e-19 * np.exp(-7.87e-3 * nu)) * np.exp(1800.0 * (1.0 / t - 1.0 / 296.0))
-    n_w = e_pa / (1.380649e-23 * t) * 1e-6  # [molecules cm-3]
+    n_w = e_pa / (BOLTZMANN_CONSTANT * t) * 1e-6  # [molecules cm-3]
     broad_atm = (e_pa + 0.002 * (float(pressure_pa) - e_pa)) / 101325.0
     k_cm = cs * n_w * broad_atm  # [cm-1]
     return np.where((nu >= 400.0) & (nu <= 1250.0), k_cm * 100.0, 0.0)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_banded
 
-from humv_usd.physics.sky import STEFAN_BOLTZMANN
+from humv_usd.constants import STEFAN_BOLTZMANN
 
 
 def uniform_layers(total_thickness_m, n_layers):

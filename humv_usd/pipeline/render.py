@@ -7,6 +7,7 @@ import os
 import tempfile
 import time
 from collections import defaultdict
+from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import Usd
@@ -14,14 +15,16 @@ from pxr import Usd
 import humv_usd
 from humv_usd import images as writers
 from humv_usd import mode
+from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import jsonable, write_json
 from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
 from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
+from humv_usd.physics.sensor import SensorModel
 from humv_usd.render import eo as eo_render
 from humv_usd.render import radiometry
-from humv_usd.render.export import AtmosphereSpectra, Sensor, StageExport, stage_frames
+from humv_usd.render.export import AtmosphereSpectra, StageExport, stage_frames
 from humv_usd.render.ir import (  # noqa: F401
     MIN_SUBBAND_SPP,
     IRScene,
@@ -31,10 +34,8 @@ from humv_usd.render.ir import (  # noqa: F401
     subband_spp,
 )
 from humv_usd.usd.layers import open_stage
-from humv_usd.usd.sensor import read_sensor_model
+from humv_usd.usd.sensor import check_subbands, read_sensor_model
 
-#: Temperature of the blackbody that weights the band emissivity [K].
-EMISSIVITY_WEIGHTING_TEMPERATURE_K = 300.0
 MANIFEST_NAME = "manifest.json"
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 
@@ -95,7 +96,7 @@ def _select_frames(stage, frames) -> list[int]:
     return out
 
 
-def _select_sensors(all_sensors: list[Sensor], wanted) -> list[Sensor]:
+def _select_sensors(all_sensors: list[SensorModel], wanted) -> list[SensorModel]:
     if wanted is None:
         return list(all_sensors)
     if isinstance(wanted, str):
@@ -184,7 +185,7 @@ def render_stage(
     spp : int, default 16
         Samples per pixel.
     sensors : list of str, optional
-        Sensor names (camera prim names) or prim paths; default all.
+        SensorModel names (camera prim names) or prim paths; default all.
     seed : int, default 0
         Sampler seed; frame ``f`` uses ``seed + f``.
     max_depth : int, default -1
@@ -246,6 +247,54 @@ def render_stage(
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
 
     t = time.perf_counter()
+    plan = _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
+    totals["load_export"] += time.perf_counter() - t
+
+    run = _FrameRenderer(plan, totals)
+    for frame in plan.frames if (plan.rendered or plan.eo_run.sensors) else []:
+        run.render_frame(frame)
+
+    t = time.perf_counter()
+    ground_truth = plan.truth.finish(out_dir, totals["render"])
+    totals["labels"] += time.perf_counter() - t
+    totals["total"] = time.perf_counter() - t_start
+    manifest = _manifest(plan, run, ground_truth, totals)
+    write_json(os.path.join(out_dir, MANIFEST_NAME), manifest)
+    return jsonable(manifest)
+
+
+# ------------------------------------------------------------------------------- the plan
+@dataclass
+class _Plan:
+    """What :func:`render_stage` renders, decided once from the stage and its options."""
+
+    stage_path: str
+    out_dir: str
+    stage: Usd.Stage
+    exporter: StageExport
+    truth: GroundTruth
+    mi: object  # the mitsuba module (its variant is set)
+    frames: list[int]
+    rendered: list[SensorModel]  # infrared sensors
+    skipped: list[dict]
+    eo_run: eo_render.EORender
+    spp: int
+    seed: int
+    max_depth: int
+    subbands_option: int | None
+    n_of: dict[str, int]  # sub-bands per IR sensor
+    n_source: dict[str, str]  # where that count comes from
+    sub_of: dict[str, radiometry.SubBands]
+    spp_sub: dict[str, int]
+    spectra0: AtmosphereSpectra  # the atmosphere at the first frame
+    use_sky_map: bool
+    use_sun: bool
+    sensor_ids: dict[str, str] = field(default_factory=dict)
+
+
+def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands) -> _Plan:
+    """Open the stage, select frames and sensors, and set up the radiometry (sub-bands per IR
+    sensor; sky map and sun from the environment at the first frame) and the EO run."""
     stage = open_stage(stage_path)
     exporter = StageExport(stage)
     truth = GroundTruth(stage, annotators)
@@ -264,9 +313,8 @@ def render_stage(
         if not s.rendered
     ]
     mi = mode.mitsuba()
-    # --- radiometry setup (H-render): sub-bands per IR sensor, environment at the first frame
     # sub-bands per sensor: the render option, else the sensor's humv:sensor:subbands, else the default
-    override = None if subbands is None else radiometry.check_subbands(subbands)
+    override = None if subbands is None else check_subbands(subbands)
     n_of = {s.name: override or s.subbands or radiometry.DEFAULT_SUBBANDS for s in rendered}
     n_source = {
         s.name: (
@@ -278,9 +326,9 @@ def render_stage(
         )
         for s in rendered
     }
-    sub_of = {s.name: radiometry.SubBands(s.wavelength_range_um, s.response, n_of[s.name]) for s in rendered}
-    spp_sub = {name: subband_spp(spp, len(sub)) for name, sub in sub_of.items()}
-    sub_eps: dict[tuple[str, str], np.ndarray] = {}
+    sub_of = {
+        s.name: radiometry.SubBands(s.wavelength_range_um, s.band_response, n_of[s.name]) for s in rendered
+    }
     first_time = Usd.TimeCode(frame_list[0])
     spectra0 = exporter.atmosphere_spectra(first_time)
     sun0 = exporter.sun_direction(first_time)
@@ -295,180 +343,260 @@ def render_stage(
     eo_run = eo_render.EORender(
         exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir, truth=truth
     )
-    eo_sensors = eo_run.sensors
-    totals["load_export"] += time.perf_counter() - t
+    return _Plan(
+        stage_path=os.fspath(stage_path),
+        out_dir=out_dir,
+        stage=stage,
+        exporter=exporter,
+        truth=truth,
+        mi=mi,
+        frames=frame_list,
+        rendered=rendered,
+        skipped=skipped,
+        eo_run=eo_run,
+        spp=spp,
+        seed=seed,
+        max_depth=max_depth,
+        subbands_option=override,
+        n_of=n_of,
+        n_source=n_source,
+        sub_of=sub_of,
+        spp_sub={name: subband_spp(spp, len(sub)) for name, sub in sub_of.items()},
+        spectra0=spectra0,
+        use_sky_map=use_sky_map,
+        use_sun=use_sun,
+        sensor_ids={s.name: f"sensor_{i}" for i, s in enumerate(rendered)},
+    )
 
-    sensor_ids = {s.name: f"sensor_{i}" for i, s in enumerate(rendered)}
-    per_sensor = {
-        s.name: {"timings": dict.fromkeys(TIMING_KEYS, 0.0), "frames": [], "errors": _Accumulator()}
-        for s in rendered
-    }
-    overall = _Accumulator()
-    chains = _SensorChains(stage, seed, [s.path for s in exporter.sensors])
-    band_eps: dict[tuple[str, str], float] = {}
-    scene: IRScene | None = None
-    scene_key = None
-    scene_builds = 0
 
-    for frame in frame_list if (rendered or eo_sensors) else []:
+# ------------------------------------------------------------------------------- per frame
+class _FrameRenderer:
+    """Renders the plan frame by frame: keeps the IR scene (rebuilt when the visible meshes
+    change), the emissivity caches, the sensor chains and the per-sensor records."""
+
+    def __init__(self, plan: _Plan, totals: dict):
+        self.plan, self.totals = plan, totals
+        self.per_sensor = {
+            s.name: {"timings": dict.fromkeys(TIMING_KEYS, 0.0), "frames": [], "errors": _Accumulator()}
+            for s in plan.rendered
+        }
+        self.overall = _Accumulator()
+        self.chains = _SensorChains(plan.stage, plan.seed, [s.path for s in plan.exporter.sensors])
+        self.band_eps: dict[tuple[str, str], float] = {}
+        self.sub_eps: dict[tuple[str, str], np.ndarray] = {}
+        self.scene: IRScene | None = None
+        self.scene_key = None
+        self.scene_builds = 0
+
+    def render_frame(self, frame: int) -> None:
+        plan, exporter = self.plan, self.plan.exporter
         t = time.perf_counter()
-        state = exporter.frame_state(frame, rendered + eo_sensors)
-        if rendered:  # the infrared scene (EO sensors have their own, in eo_run)
-            parts = [
-                (part, state.points[m.path][part.vertex_ids], state.flip[m.path])
-                for m in state.meshes
-                for part in m.parts
-            ]
-            if scene is None or state.topology_key != scene_key:
-                setups = [
-                    SensorSetup(sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
-                    for s in rendered
-                ]
-                with tempfile.TemporaryDirectory(prefix="humv_render_") as tmp:
-                    scene = IRScene(
-                        parts,
-                        setups,
-                        spp=spp,
-                        max_depth=max_depth,
-                        workdir=tmp,
-                        sky_map=use_sky_map,
-                        sun=use_sun,
-                    )
-                scene_key = state.topology_key
-                scene_builds += 1
-            else:
-                for part, vertices, _ in parts:
-                    scene.set_vertices(part, vertices)
-            for s in rendered:
-                scene.set_camera(sensor_ids[s.name], state.cameras[s.name])
-            scene.update()
+        state = exporter.frame_state(frame, plan.rendered + plan.eo_run.sensors)
+        if plan.rendered:  # the infrared scene (EO sensors have their own, in eo_run)
+            self._update_scene(state)
         frame_time = Usd.TimeCode(frame)
         spectra = exporter.atmosphere_spectra(frame_time)
         sun_direction = exporter.sun_direction(frame_time)
-        totals["load_export"] += time.perf_counter() - t
-
-        for s in rendered:
-            timings = per_sensor[s.name]["timings"]
-            band, response = s.wavelength_range_um, s.response
+        self.totals["load_export"] += time.perf_counter() - t
+        for s in plan.rendered:
+            self._render_sensor(s, state, frame, frame_time, spectra, sun_direction)
+        if plan.eo_run.sensors:  # visible sensors: spectral render of the same frame (render.eo)
             t = time.perf_counter()
-            sub = sub_of[s.name]
-            frame_rad = radiometry.frame_radiometry(
-                sub,
-                state.sky_temperature_k,
-                spectra,
-                sun_direction,
-                exporter.path_table(s, frame_time),
-                dni_w_m2=exporter.direct_normal_irradiance(frame_time),
-            )
-            dt = time.perf_counter() - t
-            timings["load_export"] += dt
-            totals["load_export"] += dt
+            plan.eo_run.frame(state, frame, self.chains)
+            self.totals["eo"] = self.totals.get("eo", 0.0) + time.perf_counter() - t
 
-            t = time.perf_counter()
-            m1, stderr_l = render_band(
-                scene,
-                sensor_ids[s.name],
-                state,
-                sub,
-                lambda material: _subband_emissivity(sub_eps, material, s, sub),
-                frame_rad,
-                spp=spp_sub[s.name],
-                seed=seed + frame,
-                transmittance_of=lambda material: _subband_transmittance(sub_eps, material, s, sub),
-            )
-            bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
-            dt = time.perf_counter() - t
-            timings["render"] += dt
-            totals["render"] += dt
+    def _update_scene(self, state) -> None:
+        """Build the IR scene (first frame, or new visible meshes) or move its vertices; set
+        the cameras."""
+        plan = self.plan
+        parts = [
+            (part, state.points[m.path][part.vertex_ids], state.flip[m.path])
+            for m in state.meshes
+            for part in m.parts
+        ]
+        if self.scene is None or state.topology_key != self.scene_key:
+            setups = [
+                SensorSetup(plan.sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
+                for s in plan.rendered
+            ]
+            with tempfile.TemporaryDirectory(prefix="humv_render_") as tmp:
+                self.scene = IRScene(
+                    parts,
+                    setups,
+                    spp=plan.spp,
+                    max_depth=plan.max_depth,
+                    workdir=tmp,
+                    sky_map=plan.use_sky_map,
+                    sun=plan.use_sun,
+                )
+            self.scene_key = state.topology_key
+            self.scene_builds += 1
+        else:
+            for part, vertices, _ in parts:
+                self.scene.set_vertices(part, vertices)
+        for s in plan.rendered:
+            self.scene.set_camera(plan.sensor_ids[s.name], state.cameras[s.name])
+        self.scene.update()
 
-            t = time.perf_counter()
-            rel = os.path.join(s.name, f"{frame:04d}")
-            labels = truth.annotate(
-                scene,
-                sensor_ids[s.name],
-                s,
-                state,
-                lambda part: _band_emissivity(band_eps, part.material, s),
-                out_dir,
-                rel,
-            )
-            depth, instance = labels.depth, labels.instance
-            dt = time.perf_counter() - t
-            timings["labels"] += dt
-            totals["labels"] += dt
+    def _tick(self, timings: dict, key: str, t: float) -> float:
+        dt = time.perf_counter() - t
+        timings[key] += dt
+        self.totals[key] += dt
+        return time.perf_counter()
 
-            t = time.perf_counter()
-            rel = os.path.join(s.name, f"{frame:04d}")
-            chained = chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
-            channels = {
-                "radiance": m1,
-                "brightness_temperature": bt,
-                "radiance_stderr": stderr_l,
-                "depth": depth,
-                "instance_id": instance.astype(np.float32),
-                **labels.channels,
-                **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
+    def _render_sensor(self, s: SensorModel, state, frame, frame_time, spectra, sun_direction) -> None:
+        """One IR sensor at one frame: radiometry, render, labels, sensor chain, files, record."""
+        plan, exporter, scene = self.plan, self.plan.exporter, self.scene
+        timings = self.per_sensor[s.name]["timings"]
+        band, response = s.wavelength_range_um, s.band_response
+        sensor_id = plan.sensor_ids[s.name]
+        t = time.perf_counter()
+        sub = plan.sub_of[s.name]
+        frame_rad = radiometry.frame_radiometry(
+            sub,
+            state.sky_temperature_k,
+            spectra,
+            sun_direction,
+            exporter.path_table(s, frame_time),
+            dni_w_m2=exporter.direct_normal_irradiance(frame_time),
+        )
+        t = self._tick(timings, "load_export", t)
+
+        m1, stderr_l = render_band(
+            scene,
+            sensor_id,
+            state,
+            sub,
+            lambda material: _subband_emissivity(self.sub_eps, material, s, sub),
+            frame_rad,
+            spp=plan.spp_sub[s.name],
+            seed=plan.seed + frame,
+            transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
+        )
+        bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
+        t = self._tick(timings, "render", t)
+
+        rel = os.path.join(s.name, f"{frame:04d}")
+        labels = plan.truth.annotate(
+            scene,
+            sensor_id,
+            s,
+            state,
+            lambda part: _band_emissivity(self.band_eps, part.material, s),
+            plan.out_dir,
+            rel,
+        )
+        t = self._tick(timings, "labels", t)
+
+        chained = self.chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
+        channels = {
+            "radiance": m1,
+            "brightness_temperature": bt,
+            "radiance_stderr": stderr_l,
+            "depth": labels.depth,
+            "instance_id": labels.instance.astype(np.float32),
+            **labels.channels,
+            **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
+        }
+        writers.write_exr(
+            os.path.join(plan.out_dir, rel + ".exr"),
+            channels,
+            metadata={
+                "humv:sensor": s.path,
+                "humv:frame": str(frame),
+                "humv:band_um": f"{band[0]:g}-{band[1]:g}",
+                "humv:spp": str(plan.spp),
+                "humv:subbands": str(len(sub)),
+            },
+        )
+        plan.truth.image_written(rel, channels)
+        levels = writers.write_preview_png(os.path.join(plan.out_dir, rel + ".png"), bt)
+        chain_record = self.chains.write(chained, plan.out_dir, rel)
+        self._tick(timings, "write", t)
+
+        self.per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
+        self.overall.add(stderr_l, stderr_k)
+        finite_bt = bt[np.isfinite(bt)]
+        self.per_sensor[s.name]["frames"].append(
+            {
+                "frame": frame,
+                "exr": rel + ".exr",
+                "png": rel + ".png",
+                "preview_levels_k": list(levels),
+                "radiance_mean": float(np.mean(m1)),
+                "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
+                "sky_temperature_k": state.sky_temperature_k,
+                "monte_carlo_error": _error_stats(stderr_l, stderr_k),
+                "radiometry": frame_rad.ran,
+                "sensor_chain": chain_record,
             }
-            writers.write_exr(
-                os.path.join(out_dir, rel + ".exr"),
-                channels,
-                metadata={
-                    "humv:sensor": s.path,
-                    "humv:frame": str(frame),
-                    "humv:band_um": f"{band[0]:g}-{band[1]:g}",
-                    "humv:spp": str(spp),
-                    "humv:subbands": str(len(sub)),
-                },
-            )
-            truth.image_written(rel, channels)
-            levels = writers.write_preview_png(os.path.join(out_dir, rel + ".png"), bt)
-            chain_record = chains.write(chained, out_dir, rel)
-            dt = time.perf_counter() - t
-            timings["write"] += dt
-            totals["write"] += dt
+        )
 
-            per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
-            overall.add(stderr_l, stderr_k)
-            finite_bt = bt[np.isfinite(bt)]
-            per_sensor[s.name]["frames"].append(
-                {
-                    "frame": frame,
-                    "exr": rel + ".exr",
-                    "png": rel + ".png",
-                    "preview_levels_k": list(levels),
-                    "radiance_mean": float(np.mean(m1)),
-                    "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
-                    "sky_temperature_k": state.sky_temperature_k,
-                    "monte_carlo_error": _error_stats(stderr_l, stderr_k),
-                    "radiometry": frame_rad.ran,
-                    "sensor_chain": chain_record,
-                }
-            )
 
-        if eo_run.sensors:  # visible sensors: spectral render of the same frame (render.eo)
-            t = time.perf_counter()
-            eo_run.frame(state, frame, chains)
-            totals["eo"] = totals.get("eo", 0.0) + time.perf_counter() - t
+# ------------------------------------------------------------------------------- manifest
+def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
+    """The manifest entry of one IR sensor."""
+    rec = run.per_sensor[s.name]
+    return {
+        "name": s.name,
+        "prim": s.path,
+        "band": s.band,
+        "wavelength_range_um": list(s.wavelength_range_um),
+        "response": None
+        if s.band_response is None
+        else {"wavelengths_um": s.band_response[0], "values": s.band_response[1]},
+        "resolution": list(s.resolution),
+        "subbands_um": [list(b) for b in plan.sub_of[s.name].bands],
+        "subbands_requested": plan.n_of[s.name],
+        "subbands_source": plan.n_source[s.name],
+        "spp_per_subband": plan.spp_sub[s.name],
+        "frames": rec["frames"],
+        "timings_s": {**rec["timings"], "total": sum(rec["timings"].values())},
+        "monte_carlo_error": rec["errors"].stats(),
+    }
 
-    t = time.perf_counter()
-    ground_truth = truth.finish(out_dir, totals["render"])
-    totals["labels"] += time.perf_counter() - t
-    totals["total"] = time.perf_counter() - t_start
-    manifest = {
-        "stage": os.path.abspath(os.fspath(stage_path)),
-        "output_dir": out_dir,
+
+def _radiometry_record(plan: _Plan) -> dict:
+    """The manifest's radiometry: sub-bands, sky and sun models."""
+    if plan.spectra0.solar_irradiance is not None:
+        sun_source = "humv:atmosphere:solarSpectralIrradiance"
+    elif plan.use_sun:
+        sun_source = f"humv:environment:directNormalIrradiance with a {radiometry.SUN_FALLBACK_NOTE}"
+    else:
+        sun_source = None
+    return {
+        "subbands": plan.n_of,
+        "subbands_option": plan.subbands_option,
+        "subbands_default": radiometry.DEFAULT_SUBBANDS,
+        "spp_per_subband": plan.spp_sub,
+        "model": "per sub-band gray Lambertian render summed with the sensor response; "
+        "L = sum_k tau_k(r) S_k + P_k(r) per pixel by range (see humv_usd.render.radiometry)",
+        "sky": "envmap from the zenith table"
+        if plan.use_sky_map
+        else "uniform (blackbody at skyTemperature)",
+        "sun_emitter": bool(plan.use_sun),
+        "sun_source": sun_source,
+        "atmosphere_model": plan.spectra0.model,
+    }
+
+
+def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> dict:
+    """The run's manifest (``OUT/manifest.json``)."""
+    return {
+        "stage": os.path.abspath(plan.stage_path),
+        "output_dir": plan.out_dir,
         "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "versions": _versions(mi),
+        "versions": _versions(plan.mi),
         "mitsuba_variant": mode.variant(),
         "mitsuba_variant_reason": mode.variant_reason(),
         "settings": {
-            "spp": int(spp),
-            "frames": frame_list,
-            "seed": int(seed),
+            "spp": int(plan.spp),
+            "frames": plan.frames,
+            "seed": int(plan.seed),
             "seed_per_frame": "seed + frame",
-            "max_depth": int(max_depth),
+            "max_depth": int(plan.max_depth),
             "integrator": "moment(path)",
             "film": "hdrfilm luminance, box filter",
             "sampler": "independent",
@@ -479,7 +607,7 @@ def render_stage(
         },
         "channels": {
             **{name: {"unit": unit, "dtype": "float32"} for name, unit in writers.EXR_CHANNELS.items()},
-            **truth.channel_units(),
+            **plan.truth.channel_units(),
         },
         "ground_truth": ground_truth,
         "preview": {
@@ -488,59 +616,18 @@ def render_stage(
             "stretch": "linear between the 1st and 99th percentile of each image "
             "(levels per frame in preview_levels_k); non-finite pixels black",
         },
-        "sensors": [
-            {
-                "name": s.name,
-                "prim": s.path,
-                "band": s.band,
-                "wavelength_range_um": list(s.wavelength_range_um),
-                "response": None
-                if s.response is None
-                else {"wavelengths_um": s.response[0], "values": s.response[1]},
-                "resolution": list(s.resolution),
-                "subbands_um": [list(b) for b in sub_of[s.name].bands],
-                "subbands_requested": n_of[s.name],
-                "subbands_source": n_source[s.name],
-                "spp_per_subband": spp_sub[s.name],
-                "frames": per_sensor[s.name]["frames"],
-                "timings_s": {
-                    **per_sensor[s.name]["timings"],
-                    "total": sum(per_sensor[s.name]["timings"].values()),
-                },
-                "monte_carlo_error": per_sensor[s.name]["errors"].stats(),
-            }
-            for s in rendered
-        ],
-        "eo_sensors": eo_run.manifest(),
-        "skipped_sensors": skipped + eo_run.skipped,
-        "radiometry": {
-            "subbands": n_of,
-            "subbands_option": override,
-            "subbands_default": radiometry.DEFAULT_SUBBANDS,
-            "spp_per_subband": spp_sub,
-            "model": "per sub-band gray Lambertian render summed with the sensor response; "
-            "L = sum_k tau_k(r) S_k + P_k(r) per pixel by range (see humv_usd.render.radiometry)",
-            "sky": "envmap from the zenith table" if use_sky_map else "uniform (blackbody at skyTemperature)",
-            "sun_emitter": bool(use_sun),
-            "sun_source": (
-                "humv:atmosphere:solarSpectralIrradiance"
-                if spectra0.solar_irradiance is not None
-                else f"humv:environment:directNormalIrradiance with a {radiometry.SUN_FALLBACK_NOTE}"
-                if use_sun
-                else None
-            ),
-            "atmosphere_model": spectra0.model,
-        },
-        "sensor_chain": chains.status(),
-        "scene_builds": scene_builds,
+        "sensors": [_sensor_record(plan, run, s) for s in plan.rendered],
+        "eo_sensors": plan.eo_run.manifest(),
+        "skipped_sensors": plan.skipped + plan.eo_run.skipped,
+        "radiometry": _radiometry_record(plan),
+        "sensor_chain": run.chains.status(),
+        "scene_builds": run.scene_builds,
         "timings_s": totals,
-        "monte_carlo_error": overall.stats(),
+        "monte_carlo_error": run.overall.stats(),
     }
-    write_json(os.path.join(out_dir, MANIFEST_NAME), manifest)
-    return jsonable(manifest)
 
 
-def _band_emissivity(cache: dict, material, sensor: Sensor) -> float:
+def _band_emissivity(cache: dict, material, sensor: SensorModel) -> float:
     key = (material.path, sensor.name)
     if key not in cache:
         band = sensor.wavelength_range_um
@@ -554,12 +641,16 @@ def _band_emissivity(cache: dict, material, sensor: Sensor) -> float:
                 )
             )
         cache[key] = planck.band_emissivity(
-            wl, material.emissivity, band, sensor.response, temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K
+            wl,
+            material.emissivity,
+            band,
+            sensor.band_response,
+            temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K,
         )
     return cache[key]
 
 
-def _subband_emissivity(cache: dict, material, sensor: Sensor, sub) -> np.ndarray:
+def _subband_emissivity(cache: dict, material, sensor: SensorModel, sub) -> np.ndarray:
     """Sub-band emissivities (n,) of a material for a sensor (cached; same table check as
     :func:`_band_emissivity`)."""
     key = (material.path, sensor.name)
@@ -569,7 +660,7 @@ def _subband_emissivity(cache: dict, material, sensor: Sensor, sub) -> np.ndarra
     return cache[key]
 
 
-def _subband_transmittance(cache: dict, material, sensor: Sensor, sub) -> np.ndarray | None:
+def _subband_transmittance(cache: dict, material, sensor: SensorModel, sub) -> np.ndarray | None:
     """Sub-band transmittances (n,) of a see-through material (glass), None when opaque."""
     if material.transmittance is None:
         return None
@@ -593,7 +684,7 @@ class _SensorChains:
         self.reason = None
         self.chain = chain
 
-    def apply(self, sensor: Sensor, radiance, frame: int, eo_space: str | None = None):
+    def apply(self, sensor: SensorModel, radiance, frame: int, eo_space: str | None = None):
         """ChainOutput for one frame, or None when the chain is unavailable."""
         if self.chain is None:
             return None
@@ -690,7 +781,7 @@ def subband_error_table(
         "sensors": {},
     }
     for s in ir:
-        band, resp = s.wavelength_range_um, s.response
+        band, resp = s.wavelength_range_um, s.band_response
         wl = spectra.wavelengths_um
         notes = {}
         if spectra.sky_radiance is not None and radiometry.covers(wl, band):

@@ -9,7 +9,7 @@ sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spe
 - the sun: a ``directional`` emitter along ``humv:environment:sunDirection`` with the direct
   beam spectral irradiance at the ground ``humv:atmosphere:solarSpectralIrradiance``
   (beam-normal, W m-2 um-1 -> W m-2 nm-1); without that table (or one not covering
-  0.40-0.70 um), a 5778 K blackbody spectrum scaled to the broadband
+  0.40-0.70 um), a 5772 K blackbody spectrum scaled to the broadband
   ``humv:environment:directNormalIrradiance``
   (:func:`humv_usd.render.radiometry.blackbody_sun`, an approximation: no spectral
   atmospheric extinction); none when the sun is below the horizon;

@@ -14,15 +14,17 @@ What is read
   mesh or its nearest ancestor;
 - materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity``;
 - ``/World/Atmosphere.humv:atmosphere:skyTemperature`` [K] at the frame;
-- optional, per frame (notes/contract_env): ``/World/Atmosphere`` spectral tables
+- optional, per frame: ``/World/Atmosphere`` spectral tables
   (``humv:atmosphere:wavelengths``, ``skyZenithAngles``, ``skySpectralRadiance``,
   ``solarSpectralIrradiance``), ``/World/Environment.humv:environment:sunDirection`` and the
   per-sensor slant paths ``/World/Atmosphere/Paths/<sensor>`` (:meth:`StageExport.atmosphere_spectra`,
   :meth:`StageExport.sun_direction`, :meth:`StageExport.path_table`); materials'
   ``humv:material:reflectance`` (EO);
-- every camera with ``humv:sensor:*`` attributes (HumvSensorAPI): band, wavelength range,
-  response, resolution, and its Gf.Camera at the frame. A band starting below 3 um (or the
-  token ``EO``) is an EO sensor (``Sensor.kind``), rendered by :mod:`humv_usd.render.eo`.
+- every camera with ``humv:sensor:*`` attributes (HumvSensorAPI), as the one sensor model
+  (:func:`humv_usd.usd.sensor.read_sensor` -> :class:`humv_usd.physics.sensor.SensorModel`), and
+  its pose at the frame (:func:`humv_usd.usd.sensor.read_camera_pose`). A band starting below
+  3 um (or the token ``EO``) is an EO sensor (``SensorModel.kind``), rendered by
+  :mod:`humv_usd.render.eo`.
 
 Skinned meshes (UsdSkel): a mesh under a ``SkelRoot`` bound to a ``Skeleton`` (``skel:skeleton``
 with joint influences) is posed at each frame by UsdSkel itself (``UsdSkel.Cache`` ->
@@ -41,12 +43,15 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom, UsdShade, UsdSkel
+from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 
-from humv_usd.errors import InputError, bad_value
-from humv_usd.render.radiometry import PathTable, check_subbands
+from humv_usd.errors import InputError, bad_value, summary
+from humv_usd.geometry.camera import CameraPose
+from humv_usd.geometry.mesh import fan_triangulate
+from humv_usd.physics.sensor import SensorModel
+from humv_usd.render.radiometry import PathTable
 from humv_usd.usd import schemas as _s
-from humv_usd.usd.mesh import fan_triangulate
+from humv_usd.usd.sensor import read_camera_pose, read_sensor
 
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
 # depend on whether the schemas are registered or applied.
@@ -56,20 +61,14 @@ EMISSIVITY_ATTR = _s.MATERIAL_EMISSIVITY
 SKY_TEMPERATURE_ATTR = _s.ATMOSPHERE_SKY_TEMPERATURE
 INSTANCE_ID_ATTR = _s.LABEL_INSTANCE_ID
 SENSOR_API = _s.SENSOR_API
-SENSOR_BAND_ATTR = _s.SENSOR_BAND
-SENSOR_RANGE_ATTR = _s.SENSOR_WAVELENGTH_RANGE
-SENSOR_RESPONSE_WL_ATTR = _s.SENSOR_RESPONSE_WAVELENGTHS
-SENSOR_RESPONSE_ATTR = _s.SENSOR_RESPONSE
-SENSOR_RESOLUTION_ATTR = _s.SENSOR_RESOLUTION
-SENSOR_SUBBANDS_ATTR = _s.SENSOR_SUBBANDS
 ENV_DNI_ATTR = _s.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE
 SENSOR_PREFIX = "humv:sensor:"
 ATMOSPHERE_PATH = "/World/Atmosphere"
 ENVIRONMENT_PATH = "/World/Environment"
-#: Per-sensor path tables live under this scope, one child per sensor (contract_env).
+#: Per-sensor path tables live under this scope, one child per sensor.
 ATMOSPHERE_PATHS = ATMOSPHERE_PATH + "/Paths"
 REFLECTANCE_ATTR = _s.MATERIAL_REFLECTANCE
-# Environment / atmosphere attributes (H-env's layers); read by name, absent -> today's behaviour
+# Environment / atmosphere attributes (the environment and atmosphere layers); absent -> not used
 SUN_DIRECTION_ATTR = getattr(_s, "ENVIRONMENT_SUN_DIRECTION", "humv:environment:sunDirection")
 ATM_MODEL_ATTR = _s.ATMOSPHERE_MODEL
 ATM_WAVELENGTHS_ATTR = getattr(_s, "ATMOSPHERE_WAVELENGTHS", "humv:atmosphere:wavelengths")
@@ -85,54 +84,14 @@ PATH_RADIANCE_ATTR = getattr(_s, "ATMOSPHERE_PATH_RADIANCE", "humv:atmospherePat
 
 #: Allowed temperatures [K] for surfaces and the sky.
 TEMPERATURE_RANGE_K = (1.0, 5000.0)
-#: A sensor is infrared (rendered here) when its band starts at or above this wavelength [um].
-INFRARED_MIN_UM = 3.0
 #: Largest instance id (stored exactly in a float32 face attribute).
 MAX_INSTANCE_ID = 2**24 - 1
-MAX_RESOLUTION = 16384
-
-
-def _summary(values, limit=6):
-    a = np.asarray(values).ravel()
-    if a.size <= limit:
-        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
-    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
-    return f"[{head}, ...] ({a.size} values)"
 
 
 def _get(attr, time):
     if not attr or not attr.IsValid():
         return None
     return attr.Get(time)
-
-
-@dataclass
-class Sensor:
-    """A camera with HumvSensorAPI attributes."""
-
-    name: str
-    path: str
-    band: str
-    wavelength_range_um: tuple[float, float] | None
-    response: tuple[np.ndarray, np.ndarray] | None
-    resolution: tuple[int, int] | None  # (width, height) [px]
-    skip_reason: str | None = None
-    kind: str = "IR"  # "IR" (mono sub-band render) or "EO" (spectral render, see render.eo)
-    subbands: int | None = None  # humv:sensor:subbands when authored (IR), else None (render default)
-
-    @property
-    def rendered(self) -> bool:
-        return self.skip_reason is None
-
-
-@dataclass
-class CameraPose:
-    """A sensor's camera at one frame (world space, metres)."""
-
-    origin: np.ndarray  # (3,)
-    forward: np.ndarray  # (3,), unit, the optical axis
-    up: np.ndarray  # (3,), unit
-    fov_x_deg: float
 
 
 @dataclass
@@ -328,8 +287,8 @@ class StageExport:
             np.array(cache.GetLocalToWorldTransform(skel_prim), dtype=float),
         )
 
-    def _find_sensors(self) -> list[Sensor]:
-        sensors: list[Sensor] = []
+    def _find_sensors(self) -> list[SensorModel]:
+        sensors: list[SensorModel] = []
         names: dict[str, str] = {}
         for prim in self._traverse():
             if not prim.IsA(UsdGeom.Camera):
@@ -340,7 +299,7 @@ class StageExport:
             )
             if not (has_api or authored):
                 continue
-            sensor = self._read_sensor(prim)
+            sensor = read_sensor(prim)
             if sensor.name in names:
                 raise InputError(
                     bad_value(
@@ -352,97 +311,6 @@ class StageExport:
             names[sensor.name] = str(prim.GetPath())
             sensors.append(sensor)
         return sensors
-
-    def _read_sensor(self, prim: Usd.Prim) -> Sensor:
-        path = str(prim.GetPath())
-        name = prim.GetName()
-        band = _get(prim.GetAttribute(SENSOR_BAND_ATTR), Usd.TimeCode.Default())
-        band = str(band) if band else ""
-        rng = _get(prim.GetAttribute(SENSOR_RANGE_ATTR), Usd.TimeCode.Default())
-        where = f"{path}.{SENSOR_RANGE_ATTR}"
-        if band == "EO" and rng is None:
-            rng = (0.38, 0.78)
-        if rng is None:
-            raise InputError(bad_value(where, None, "expected (lower, upper) [um] of the sensor band"))
-        lo, hi = float(rng[0]), float(rng[1])
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi <= 1000):
-            raise InputError(bad_value(where, (lo, hi), "expected 0 < lower < upper [um]"))
-        kind = "EO" if (band == "EO" or lo < INFRARED_MIN_UM) else "IR"
-        projection = UsdGeom.Camera(prim).GetProjectionAttr().Get()
-        if projection and projection != UsdGeom.Tokens.perspective:
-            return Sensor(
-                name,
-                path,
-                band,
-                (lo, hi),
-                None,
-                None,
-                skip_reason=f"projection {projection!r}: only perspective cameras are rendered",
-            )
-        res = _get(prim.GetAttribute(SENSOR_RESOLUTION_ATTR), Usd.TimeCode.Default())
-        where = f"{path}.{SENSOR_RESOLUTION_ATTR}"
-        if res is None:
-            raise InputError(
-                bad_value(where, None, f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]")
-            )
-        w, h = int(res[0]), int(res[1])
-        if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
-            raise InputError(
-                bad_value(where, [w, h], f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]")
-            )
-        if kind == "EO":  # colour comes from the CIE observer (render.eo), not a band response
-            return Sensor(name, path, band, (lo, hi), None, (w, h), kind="EO")
-        response = self._read_response(prim, (lo, hi))
-        subbands = _get(prim.GetAttribute(SENSOR_SUBBANDS_ATTR), Usd.TimeCode.Default())
-        if subbands is not None:
-            subbands = check_subbands(subbands, f"{path}.{SENSOR_SUBBANDS_ATTR}")
-        return Sensor(name, path, band, (lo, hi), response, (w, h), subbands=subbands)
-
-    @staticmethod
-    def _read_response(prim, band):
-        path = str(prim.GetPath())
-        wl = _get(prim.GetAttribute(SENSOR_RESPONSE_WL_ATTR), Usd.TimeCode.Default())
-        r = _get(prim.GetAttribute(SENSOR_RESPONSE_ATTR), Usd.TimeCode.Default())
-        has_wl = wl is not None and len(wl) > 0
-        has_r = r is not None and len(r) > 0
-        if not has_wl and not has_r:
-            return None
-        if has_wl != has_r:
-            missing = SENSOR_RESPONSE_ATTR if has_wl else SENSOR_RESPONSE_WL_ATTR
-            raise InputError(
-                bad_value(
-                    f"{path}.{missing}",
-                    None,
-                    f"expected both {SENSOR_RESPONSE_WL_ATTR} and {SENSOR_RESPONSE_ATTR}, or neither",
-                )
-            )
-        wl = np.asarray(wl, dtype=float)
-        r = np.asarray(r, dtype=float)
-        where = f"{path}.{SENSOR_RESPONSE_ATTR}"
-        if wl.size < 2 or wl.size != r.size:
-            raise InputError(
-                bad_value(
-                    where,
-                    f"<{r.size} values for {wl.size} wavelengths>",
-                    "expected one response value per wavelength, at least two",
-                )
-            )
-        if not np.all(np.isfinite(wl)) or np.any(np.diff(wl) <= 0):
-            raise InputError(
-                bad_value(
-                    f"{path}.{SENSOR_RESPONSE_WL_ATTR}",
-                    _summary(wl),
-                    "expected finite, strictly ascending wavelengths [um]",
-                )
-            )
-        if not np.all(np.isfinite(r)) or np.any(r < 0) or np.any(r > 1):
-            raise InputError(bad_value(where, _summary(r), "expected relative response values in 0-1"))
-        inside = np.interp(np.linspace(band[0], band[1], 1001), wl, r, left=0.0, right=0.0)
-        if not np.any(inside > 0):
-            raise InputError(
-                bad_value(where, _summary(r), f"response is zero over the band {band[0]:g}-{band[1]:g} um")
-            )
-        return wl, r
 
     # --- per mesh (static) ---------------------------------------------------------------------
     def _material(self, material: UsdShade.Material, mesh_path: str, time) -> Material:
@@ -474,7 +342,7 @@ class StageExport:
             raise InputError(
                 bad_value(
                     f"{mpath}.{WAVELENGTHS_ATTR}",
-                    _summary(wl),
+                    summary(wl),
                     "expected positive, strictly ascending wavelengths [um]",
                 )
             )
@@ -488,7 +356,7 @@ class StageExport:
             )
         if not np.all(np.isfinite(eps)) or np.any(eps < 0) or np.any(eps > 1):
             raise InputError(
-                bad_value(f"{mpath}.{EMISSIVITY_ATTR}", _summary(eps), "expected emissivities in 0-1")
+                bad_value(f"{mpath}.{EMISSIVITY_ATTR}", summary(eps), "expected emissivities in 0-1")
             )
         rho = _get(prim.GetAttribute(REFLECTANCE_ATTR), time)
         if rho is not None and len(rho) > 0:
@@ -497,7 +365,7 @@ class StageExport:
                 raise InputError(
                     bad_value(
                         f"{mpath}.{REFLECTANCE_ATTR}",
-                        _summary(rho),
+                        summary(rho),
                         f"expected {wl.size} reflectances in 0-1 (one per wavelength in {WAVELENGTHS_ATTR})",
                     )
                 )
@@ -515,7 +383,7 @@ class StageExport:
                 raise InputError(
                     bad_value(
                         f"{mpath}.{_s.MATERIAL_TRANSMITTANCE}",
-                        _summary(tau),
+                        summary(tau),
                         f"expected {wl.size} transmittances in 0-1 with emissivity + "
                         "transmittance <= 1 (one per wavelength)",
                     )
@@ -573,7 +441,7 @@ class StageExport:
             raise InputError(
                 bad_value(
                     f"{path}.faceVertexCounts",
-                    _summary(counts),
+                    summary(counts),
                     f"expected counts >= 3 summing to len(faceVertexIndices) = {indices.size}",
                 )
             )
@@ -607,7 +475,7 @@ class StageExport:
                 raise InputError(
                     bad_value(
                         f"{subset.GetPath()}.indices",
-                        _summary(sub_indices),
+                        summary(sub_indices),
                         f"expected face indices in 0..{nfaces - 1}",
                     )
                 )
@@ -673,7 +541,7 @@ class StageExport:
             )
         return float(check_temperatures([value], where)[0])
 
-    # --- environment and atmosphere (contract_env; every part optional) ----------------------
+    # --- environment and atmosphere (every part optional) ----------------------------------
     def _float_array(self, prim, name, time, where_expected, positive=False, ascending=False):
         value = _get(prim.GetAttribute(name), time)
         if value is None or len(value) == 0:
@@ -681,9 +549,9 @@ class StageExport:
         a = np.asarray(value, dtype=float).ravel()
         where = f"{prim.GetPath()}.{name}"
         if not np.all(np.isfinite(a)) or (positive and np.any(a < 0)):
-            raise InputError(bad_value(where, _summary(a), where_expected))
+            raise InputError(bad_value(where, summary(a), where_expected))
         if ascending and (np.any(a < 0) or np.any(np.diff(a) <= 0)):
-            raise InputError(bad_value(where, _summary(a), where_expected))
+            raise InputError(bad_value(where, summary(a), where_expected))
         return a
 
     def atmosphere_spectra(self, time) -> AtmosphereSpectra:
@@ -720,7 +588,7 @@ class StageExport:
                 raise InputError(
                     bad_value(
                         f"{ATMOSPHERE_PATH}.{ATM_SKY_ZENITH_ATTR}",
-                        _summary(zen),
+                        summary(zen),
                         "expected ascending zenith angles in 0-90 deg",
                     )
                 )
@@ -765,7 +633,7 @@ class StageExport:
             raise InputError(
                 bad_value(
                     f"{ENVIRONMENT_PATH}.{SUN_DIRECTION_ATTR}",
-                    _summary(d),
+                    summary(d),
                     "expected a unit 3-vector toward the sun",
                 )
             )
@@ -789,7 +657,7 @@ class StageExport:
             )
         return v
 
-    def path_table(self, sensor: Sensor, time):
+    def path_table(self, sensor: SensorModel, time):
         """The sensor's slant-path table (``radiometry.PathTable``) at ``time``, or None.
 
         Found under ``/World/Atmosphere/Paths`` by ``humv:atmospherePath:sensor`` == the sensor
@@ -866,7 +734,7 @@ class StageExport:
         if np.any(tau > 1.0 + 1e-6):
             raise InputError(
                 bad_value(
-                    f"{where}.{PATH_TRANSMITTANCE_ATTR}", _summary(tau), "expected transmittances in 0-1"
+                    f"{where}.{PATH_TRANSMITTANCE_ATTR}", summary(tau), "expected transmittances in 0-1"
                 )
             )
         return PathTable(
@@ -877,52 +745,9 @@ class StageExport:
             rad.reshape(ranges.size, wl.size),
         )
 
-    def camera_pose(self, sensor: Sensor, time) -> CameraPose:
-        """The sensor's camera at ``time``: position, optical axis (local -Z), up (local +Y) and
-        horizontal field of view 2 atan(horizontalAperture / (2 focalLength)).
-
-        The vertical field of view follows from the resolution (square pixels); USD clipping
-        ranges are ignored.
-        """
-        prim = self.stage.GetPrimAtPath(sensor.path)
-        cam = UsdGeom.Camera(prim).GetCamera(time)
-        m = cam.transform
-        origin = np.array(m.Transform(Gf.Vec3d(0, 0, 0)), dtype=float)
-        forward = np.array(m.TransformDir(Gf.Vec3d(0, 0, -1)), dtype=float)
-        up = np.array(m.TransformDir(Gf.Vec3d(0, 1, 0)), dtype=float)
-        nf, nu = np.linalg.norm(forward), np.linalg.norm(up)
-        if not (nf > 0 and nu > 0 and np.all(np.isfinite(origin))):
-            raise InputError(
-                bad_value(
-                    f"{sensor.path}.xformOp",
-                    "<degenerate transform>",
-                    "expected an invertible camera transform",
-                )
-            )
-        forward, up = forward / nf, up / nu
-        h_ap, focal = float(cam.horizontalAperture), float(cam.focalLength)
-        if not (h_ap > 0 and focal > 0):
-            raise InputError(
-                bad_value(
-                    f"{sensor.path}.horizontalAperture/focalLength",
-                    (h_ap, focal),
-                    "expected positive values (tenths of a scene unit)",
-                )
-            )
-        if cam.horizontalApertureOffset or cam.verticalApertureOffset:
-            warnings.warn(
-                f"{sensor.path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2
-            )
-        fov_x = math.degrees(2.0 * math.atan(0.5 * h_ap / focal))
-        if not 0 < fov_x < 179:
-            raise InputError(
-                bad_value(
-                    f"{sensor.path}.horizontalAperture/focalLength",
-                    (h_ap, focal),
-                    "expected a field of view below 179 deg",
-                )
-            )
-        return CameraPose(origin=origin * self.meters_per_unit, forward=forward, up=up, fov_x_deg=fov_x)
+    def camera_pose(self, sensor: SensorModel, time) -> CameraPose:
+        """The sensor's camera at ``time`` (:func:`humv_usd.usd.sensor.read_camera_pose`)."""
+        return read_camera_pose(self.stage.GetPrimAtPath(sensor.path), time)
 
     def face_temperatures(self, prim: Usd.Prim, info: MeshInfo, time) -> np.ndarray:
         where = f"{info.path}.{TEMPERATURE_ATTR}"
@@ -954,7 +779,7 @@ class StageExport:
             values = np.full(info.face_count, values[0])
         return check_temperatures(values, where, expected=info.face_count)
 
-    def frame_state(self, frame: int, sensors: list[Sensor]) -> FrameState:
+    def frame_state(self, frame: int, sensors: list[SensorModel]) -> FrameState:
         """Read everything needed to render ``frame`` for ``sensors``.
 
         Temperatures (faces, sky) are required only when an infrared sensor is among

@@ -36,7 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from humv_usd import mode
-from humv_usd.render.export import CameraPose, Part
+from humv_usd.geometry.camera import CameraPose
+from humv_usd.render.export import Part
 from humv_usd.render.radiometry import apply_path, range_weights, sky_latlong
 
 #: Near and far clip of the Mitsuba sensors [m]; USD clipping ranges are ignored (no clipping).

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from humv_usd.errors import InputError, bad_value
+from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K, STEFAN_BOLTZMANN, SUN_TEMPERATURE_K
 from humv_usd.physics import planck
 from humv_usd.render import cie
 from humv_usd.scenario import spec as _spec
@@ -48,21 +48,8 @@ from humv_usd.scenario import spec as _spec
 DEFAULT_SUBBANDS = _spec.DEFAULT_SUBBANDS
 #: Largest accepted sub-band count.
 MAX_SUBBANDS = _spec.MAX_SUBBANDS
-#: Temperature of the blackbody weighting the sub-band emissivity and transmittance [K].
-WEIGHTING_TEMPERATURE_K = 300.0
 #: Uniform quadrature nodes per sub-band (table and response wavelengths are added).
 NODES_PER_SUBBAND = 65
-
-
-def check_subbands(value, where: str = "subbands") -> int:
-    """A sub-band count in 1..MAX_SUBBANDS, else InputError naming ``where``."""
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, np.integer))
-        or not 1 <= int(value) <= MAX_SUBBANDS
-    ):
-        raise InputError(bad_value(where, value, f"expected an integer in 1..{MAX_SUBBANDS}"))
-    return int(value)
 
 
 def _response_at(response, x):
@@ -139,7 +126,7 @@ class SubBands:
         return out
 
     def weighted_mean(
-        self, wavelengths_um, values, temperature_k: float = WEIGHTING_TEMPERATURE_K
+        self, wavelengths_um, values, temperature_k: float = EMISSIVITY_WEIGHTING_TEMPERATURE_K
     ) -> np.ndarray:
         """Mean of a table over each sub-band weighted by :math:`R\\,B(\\lambda, T)`; (..., n)."""
         wl = np.asarray(wavelengths_um, dtype=float)
@@ -401,13 +388,10 @@ class FrameRadiometry:
 
 # --- sun without a solar spectral table --------------------------------------------------------
 
-#: Blackbody temperature of the fallback solar spectrum [K] (the Sun's effective temperature,
-#: e.g. Iqbal, An Introduction to Solar Radiation, Academic Press 1983, §3.1: 5777-5778 K).
-SUN_BLACKBODY_K = 5778.0
-STEFAN_BOLTZMANN = 5.670374419e-8  # W m-2 K-4 (CODATA 2018)
-#: What the fallback is, for the manifest.
+#: What the fallback is, for the manifest (the blackbody is the Sun's nominal effective
+#: temperature, IAU 2015 Resolution B3, :data:`humv_usd.constants.SUN_TEMPERATURE_K`).
 SUN_FALLBACK_NOTE = (
-    f"blackbody {SUN_BLACKBODY_K:g} K spectral shape scaled so that its integral over all "
+    f"blackbody {SUN_TEMPERATURE_K:g} K spectral shape scaled so that its integral over all "
     "wavelengths is humv:environment:directNormalIrradiance (approximation: no spectral "
     "atmospheric absorption, e.g. the 2.7 and 4.3 um CO2/H2O bands, so the in-band sun is "
     "overestimated where the atmosphere absorbs)"
@@ -419,7 +403,7 @@ def blackbody_sun(wavelengths_um, dni_w_m2: float) -> np.ndarray:
     :math:`E_\lambda = \mathrm{DNI}\,\pi B(\lambda, T_\odot) / (\sigma T_\odot^4)`, whose integral
     over all wavelengths is the DNI (Planck; Stefan-Boltzmann :math:`\int B\,d\lambda = \sigma T^4/\pi`).
     The approximation of :data:`SUN_FALLBACK_NOTE`."""
-    t = SUN_BLACKBODY_K
+    t = SUN_TEMPERATURE_K
     return (
         float(dni_w_m2)
         * np.pi
@@ -430,7 +414,7 @@ def blackbody_sun(wavelengths_um, dni_w_m2: float) -> np.ndarray:
 
 def blackbody_sun_subbands(sub: SubBands, dni_w_m2: float) -> np.ndarray:
     """:func:`blackbody_sun` integrated per sub-band with the response, exactly (n,) [W m-2]."""
-    t = SUN_BLACKBODY_K
+    t = SUN_TEMPERATURE_K
     return float(dni_w_m2) * np.pi * sub.radiance(t) / (STEFAN_BOLTZMANN * t**4)
 
 

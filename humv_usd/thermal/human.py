@@ -5,7 +5,7 @@ The chain, per person:
 1. radiation environment (seed Eq. 2): a lat-long radiance map around the person from the
    sky (:mod:`humv_usd.thermal.sky`: the atmosphere layer's longwave table with cloud cover
    when the stage has one, else the analytic clear sky with the cloud mix) and the scene
-   surfaces at their temperatures (:mod:`humv_usd.thermal.radiation`);
+   surfaces at their temperatures (:mod:`humv_usd.thermal.scene_radiance`, :mod:`humv_usd.thermal.qrad`);
 2. absorbed radiation per facet (Eq. 3-4), ``fast`` method, on the bare body (for the mean radiant
    temperature of each JOS-3 segment, Eq. 1) and on the clothed body (for the garments' outer
    surfaces);
@@ -33,15 +33,17 @@ from pxr import Usd, UsdGeom
 
 from humv_usd.catalog.garments import GARMENTS
 from humv_usd.catalog.materials import LIBRARY, WAVELENGTHS_UM
+from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human import labels as L
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.physics.convection import convective_coefficient
 from humv_usd.physics.garment import areal_heat_capacity, steady_state, transient_step
-from humv_usd.thermal import radiation as R
+from humv_usd.thermal import qrad as Q
+from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
 from humv_usd.thermal.sky import ClearSky
 from humv_usd.usd import schemas as S
-from humv_usd.usd.mesh import fan_triangulate
 
 #: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
 #: values for single layers (ISO 9920:2007 Annex A local insulation of light shirts/trousers
@@ -119,7 +121,7 @@ def _self_radiance(parts: list[_Part], skin_k: float, air_k: float) -> np.ndarra
             eps, t = longwave_emissivity("skin"), skin_k
         else:
             eps, t = longwave_emissivity(GARMENTS[p.garment].fabric), 0.5 * (skin_k + air_k)
-        lw.append(np.full(len(p.triangles), eps * R.STEFAN_BOLTZMANN * t**4 / np.pi))
+        lw.append(np.full(len(p.triangles), eps * STEFAN_BOLTZMANN * t**4 / np.pi))
     lw = np.concatenate(lw)
     return np.stack([np.zeros_like(lw), lw])
 
@@ -239,11 +241,11 @@ def human_temperatures(
         air_k = float(air[frame])
         pts = [skinned_points(stage, p.path, t, space="world") for p in parts]
         centre = pts[0].mean(axis=0)
-        env = R.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
+        env = SR.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
         self_bare = _self_radiance([body], skin_guess, air_k)
         stats: dict = {}
-        q = R.absorbed_radiation(
+        q = Q.absorbed_radiation(
             bare,
             env,
             absorb_body,
@@ -262,7 +264,7 @@ def human_temperatures(
             diagnostics["qradRmsRelErrorEstimate"] = stats["rms_rel_error_estimate"]
         if k == 0:
             diagnostics["absorbedShortwaveMean_W_m2"] = float(np.average(q[0], weights=areas))
-        mrt[k] = R.mean_radiant_temperature(q, areas, body.segment[body.tri_face], n_segments=N_SEGMENTS)
+        mrt[k] = Q.mean_radiant_temperature(q, areas, body.segment[body.tri_face], n_segments=N_SEGMENTS)
         if garments:
             clothed = _trimesh(pts, parts)
             absorb = np.concatenate(
@@ -282,7 +284,7 @@ def human_temperatures(
                 ],
                 axis=1,
             )
-            qc = R.absorbed_radiation(
+            qc = Q.absorbed_radiation(
                 clothed,
                 env,
                 absorb,

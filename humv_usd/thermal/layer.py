@@ -25,10 +25,11 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.catalog.materials import LIBRARY
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
-from humv_usd.thermal import radiation as R
+from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
 from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
 from humv_usd.thermal.surfaces import (
@@ -115,9 +116,9 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
                 continue
             t_tri = np.concatenate([surf[m.path][k][m.tri_face] for m in meshes])
             scenes.append(
-                R.SceneSurfaces(
+                SR.SceneSurfaces(
                     mesh,
-                    R.scene_surface_radiance(
+                    SR.scene_surface_radiance(
                         mesh, t_tri, eps_tri, sky, solar_reflectance=_solar_reflectance(meshes)
                     ),
                 )
@@ -195,7 +196,7 @@ def _sky_report(forcing, table, i0, upstream) -> dict:
         "cloudCover": round(float(forcing.cloud_cover[i0]), 6),
         "longwaveIrradiance_W_m2": round(float(forcing.sky_longwave[i0]), 4),
         "emissivity": round(
-            float(forcing.sky_longwave[i0] / (R.STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
+            float(forcing.sky_longwave[i0] / (STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
         ),
     }
 

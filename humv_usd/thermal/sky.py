@@ -21,9 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
-from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
+from humv_usd.physics.sky import effective_sky_temperature
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES
 

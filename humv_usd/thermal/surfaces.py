@@ -34,17 +34,18 @@ import numpy as np
 from pxr import Usd, UsdGeom, UsdShade
 
 from humv_usd.catalog.materials import LIBRARY
+from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.sun import sun_at
 from humv_usd.environment.weather import read_weather_csv, weather_at
+from humv_usd.geometry.mesh import fan_triangulate
+from humv_usd.geometry.raycast import ray_caster
 from humv_usd.physics import slab
 from humv_usd.physics.convection import watmuff
-from humv_usd.physics.sky import STEFAN_BOLTZMANN, effective_sky_temperature
+from humv_usd.physics.sky import effective_sky_temperature
 from humv_usd.scenario.times import frame_epoch_s
 from humv_usd.thermal.human import longwave_emissivity
-from humv_usd.thermal.radiation import _intersector
 from humv_usd.thermal.sky import cloudy_sky_emissivity, hemispherical_irradiance
 from humv_usd.usd.layers import SCOPES
-from humv_usd.usd.mesh import fan_triangulate
 from humv_usd.usd.paths import GROUND, object_path
 
 #: Depth of the ground construction (material layer + soil) [m]
@@ -131,7 +132,7 @@ def _sunlit_fraction(meshes, sun_dirs, up):
         points.append(m.points)
         offset += len(m.points)
     combined = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
-    intersector = _intersector(combined)
+    caster = ray_caster(combined.vertices, combined.faces)
     tri_n = np.asarray(combined.face_normals)
     v = np.asarray(combined.triangles)
     bary = np.array(
@@ -153,7 +154,7 @@ def _sunlit_fraction(meshes, sun_dirs, up):
         lit = np.zeros(len(pts), dtype=bool)
         if facing.any():
             o = pts[facing]
-            lit[facing] = ~intersector.intersects_any(o, np.broadcast_to(s, o.shape).copy())
+            lit[facing] = ~caster.intersects_any(o, np.broadcast_to(s, o.shape).copy())
         frac_t = lit.reshape(-1, 4).mean(axis=1)
         out[i] = np.bincount(face_of_tri, frac_t * tri_area, n_faces) / np.maximum(face_area, 1e-30)
     return out

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
+from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.usd import schemas as S
 
 
@@ -57,31 +58,3 @@ def signed_volume(points: np.ndarray, face_counts, face_indices) -> float:
     tris, _ = fan_triangulate(face_counts, face_indices)
     a, b, c = (points[tris[:, k]] for k in range(3))
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
-
-
-def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Fan-triangulate polygons.
-
-    Parameters
-    ----------
-    counts : (F,) int
-        Vertices per face (>= 3).
-    indices : (sum(counts),) int
-        Face-vertex indices.
-
-    Returns
-    -------
-    triangles : (T, 3) int
-        Vertex indices ``(v0, v_k, v_k+1)`` per face, keeping the face's winding.
-    triangle_face : (T,) int
-        The face each triangle comes from.
-    """
-    counts = np.asarray(counts, dtype=np.int64)
-    indices = np.asarray(indices, dtype=np.int64)
-    ntri = counts - 2
-    starts = np.cumsum(counts) - counts
-    triangle_face = np.repeat(np.arange(counts.size), ntri)
-    k = np.arange(triangle_face.size) - np.repeat(np.cumsum(ntri) - ntri, ntri)
-    base = starts[triangle_face]
-    triangles = np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1)
-    return triangles, triangle_face

@@ -1,14 +1,139 @@
 """The one sensor reader: a UsdGeom.Camera with HumvSensorAPI → :class:`SensorModel`
-(render, sensor chain, labels and atmosphere all read sensors through here)."""
+(render, sensor chain, labels and atmosphere all read sensors through here), and its pose at a
+time → :class:`humv_usd.geometry.camera.CameraPose`.
+
+:func:`read_sensor` is what the render reads: :func:`read_sensor_model` after the checks the
+render needs (band range, resolution, response table, sub-band count; a camera that is not a
+perspective one is kept with a ``skip_reason``)."""
 
 from __future__ import annotations
 
-import numpy as np
-from pxr import UsdGeom
+import dataclasses
+import math
+import warnings
 
-from humv_usd.errors import InputError, bad_value
+import numpy as np
+from pxr import Gf, UsdGeom
+
+from humv_usd.errors import InputError, bad_value, summary
+from humv_usd.geometry.camera import CameraPose
 from humv_usd.physics.sensor import SensorModel
+from humv_usd.scenario.spec import MAX_SUBBANDS
 from humv_usd.usd import schemas as S
+
+#: Band of an EO sensor whose ``humv:sensor:wavelengthRange`` is not authored [um].
+EO_DEFAULT_RANGE_UM = (0.38, 0.78)
+#: Largest accepted sensor width or height [px].
+MAX_RESOLUTION = 16384
+
+
+def check_subbands(value, where: str = "subbands") -> int:
+    """A sub-band count in 1..MAX_SUBBANDS, else InputError naming ``where``."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not 1 <= int(value) <= MAX_SUBBANDS
+    ):
+        raise InputError(bad_value(where, value, f"expected an integer in 1..{MAX_SUBBANDS}"))
+    return int(value)
+
+
+def _value(prim, name):
+    attr = prim.GetAttribute(name)
+    return attr.Get() if attr and attr.IsValid() else None
+
+
+def read_sensor(prim) -> SensorModel:
+    """The render's read of a sensor camera: :func:`read_sensor_model` with ``path``,
+    ``subbands``, ``skip_reason`` and ``response_authored`` set, after checking the band range
+    (0 < lower < upper <= 1000 um), the resolution (authored, 1..MAX_RESOLUTION), an IR
+    sensor's response table and sub-band count. InputError names the attribute."""
+    path = str(prim.GetPath())
+    band = _value(prim, S.SENSOR_BAND)
+    band = str(band) if band else ""
+    rng = _value(prim, S.SENSOR_WAVELENGTH_RANGE)
+    where = f"{path}.{S.SENSOR_WAVELENGTH_RANGE}"
+    if band == "EO" and rng is None:
+        rng = EO_DEFAULT_RANGE_UM
+    if rng is None:
+        raise InputError(bad_value(where, None, "expected (lower, upper) [um] of the sensor band"))
+    lo, hi = float(rng[0]), float(rng[1])
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi <= 1000):
+        raise InputError(bad_value(where, (lo, hi), "expected 0 < lower < upper [um]"))
+    projection = UsdGeom.Camera(prim).GetProjectionAttr().Get()
+    if projection and projection != UsdGeom.Tokens.perspective:
+        return dataclasses.replace(
+            read_sensor_model(prim),
+            path=path,
+            skip_reason=f"projection {projection!r}: only perspective cameras are rendered",
+        )
+    res = _value(prim, S.SENSOR_RESOLUTION)
+    where = f"{path}.{S.SENSOR_RESOLUTION}"
+    if res is None:
+        raise InputError(
+            bad_value(where, None, f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]")
+        )
+    w, h = int(res[0]), int(res[1])
+    if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
+        raise InputError(
+            bad_value(where, [w, h], f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]")
+        )
+    model = read_sensor_model(prim)
+    if model.kind == "EO":  # colour comes from the CIE observer (render.eo), not a band response
+        return dataclasses.replace(model, path=path, response_authored=False)
+    response = _check_response(prim, (lo, hi))
+    subbands = _value(prim, S.SENSOR_SUBBANDS)
+    if subbands is not None:
+        subbands = check_subbands(subbands, f"{path}.{S.SENSOR_SUBBANDS}")
+    return dataclasses.replace(model, path=path, subbands=subbands, response_authored=response is not None)
+
+
+def _check_response(prim, band):
+    """The authored (wavelengths, response) of an IR sensor, None when neither is authored;
+    InputError for one without the other, a bad table, or a response zero over the band."""
+    path = str(prim.GetPath())
+    wl = _value(prim, S.SENSOR_RESPONSE_WAVELENGTHS)
+    r = _value(prim, S.SENSOR_RESPONSE)
+    has_wl = wl is not None and len(wl) > 0
+    has_r = r is not None and len(r) > 0
+    if not has_wl and not has_r:
+        return None
+    if has_wl != has_r:
+        missing = S.SENSOR_RESPONSE if has_wl else S.SENSOR_RESPONSE_WAVELENGTHS
+        raise InputError(
+            bad_value(
+                f"{path}.{missing}",
+                None,
+                f"expected both {S.SENSOR_RESPONSE_WAVELENGTHS} and {S.SENSOR_RESPONSE}, or neither",
+            )
+        )
+    wl = np.asarray(wl, dtype=float)
+    r = np.asarray(r, dtype=float)
+    where = f"{path}.{S.SENSOR_RESPONSE}"
+    if wl.size < 2 or wl.size != r.size:
+        raise InputError(
+            bad_value(
+                where,
+                f"<{r.size} values for {wl.size} wavelengths>",
+                "expected one response value per wavelength, at least two",
+            )
+        )
+    if not np.all(np.isfinite(wl)) or np.any(np.diff(wl) <= 0):
+        raise InputError(
+            bad_value(
+                f"{path}.{S.SENSOR_RESPONSE_WAVELENGTHS}",
+                summary(wl),
+                "expected finite, strictly ascending wavelengths [um]",
+            )
+        )
+    if not np.all(np.isfinite(r)) or np.any(r < 0) or np.any(r > 1):
+        raise InputError(bad_value(where, summary(r), "expected relative response values in 0-1"))
+    inside = np.interp(np.linspace(band[0], band[1], 1001), wl, r, left=0.0, right=0.0)
+    if not np.any(inside > 0):
+        raise InputError(
+            bad_value(where, summary(r), f"response is zero over the band {band[0]:g}-{band[1]:g} um")
+        )
+    return wl, r
 
 
 def read_sensor_model(prim) -> SensorModel:
@@ -25,7 +150,7 @@ def read_sensor_model(prim) -> SensorModel:
         return default if value is None else value
 
     band = str(get(S.SENSOR_BAND, "LWIR"))
-    rng = get(S.SENSOR_WAVELENGTH_RANGE)
+    rng = get(S.SENSOR_WAVELENGTH_RANGE, EO_DEFAULT_RANGE_UM if band == "EO" else None)
     if rng is None:
         raise InputError(
             bad_value(f"{path}.{S.SENSOR_WAVELENGTH_RANGE}", None, "expected (lower, upper) [um]")
@@ -86,3 +211,54 @@ def read_sensor_model(prim) -> SensorModel:
         )
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None
+
+
+def read_camera_pose(prim, time) -> CameraPose:
+    """A sensor's camera (UsdGeom.Camera prim) at ``time``: position [m], optical axis (local -Z), up (local +Y) and
+    horizontal field of view 2 atan(horizontalAperture / (2 focalLength)).
+
+    The vertical field of view follows from the resolution (square pixels); USD clipping
+    ranges are ignored.
+    """
+    path = str(prim.GetPath())
+    cam = UsdGeom.Camera(prim).GetCamera(time)
+    m = cam.transform
+    origin = np.array(m.Transform(Gf.Vec3d(0, 0, 0)), dtype=float)
+    forward = np.array(m.TransformDir(Gf.Vec3d(0, 0, -1)), dtype=float)
+    up = np.array(m.TransformDir(Gf.Vec3d(0, 1, 0)), dtype=float)
+    nf, nu = np.linalg.norm(forward), np.linalg.norm(up)
+    if not (nf > 0 and nu > 0 and np.all(np.isfinite(origin))):
+        raise InputError(
+            bad_value(
+                f"{path}.xformOp",
+                "<degenerate transform>",
+                "expected an invertible camera transform",
+            )
+        )
+    forward, up = forward / nf, up / nu
+    h_ap, focal = float(cam.horizontalAperture), float(cam.focalLength)
+    if not (h_ap > 0 and focal > 0):
+        raise InputError(
+            bad_value(
+                f"{path}.horizontalAperture/focalLength",
+                (h_ap, focal),
+                "expected positive values (tenths of a scene unit)",
+            )
+        )
+    if cam.horizontalApertureOffset or cam.verticalApertureOffset:
+        warnings.warn(f"{path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2)
+    fov_x = math.degrees(2.0 * math.atan(0.5 * h_ap / focal))
+    if not 0 < fov_x < 179:
+        raise InputError(
+            bad_value(
+                f"{path}.horizontalAperture/focalLength",
+                (h_ap, focal),
+                "expected a field of view below 179 deg",
+            )
+        )
+    return CameraPose(
+        origin=origin * UsdGeom.GetStageMetersPerUnit(prim.GetStage()),
+        forward=forward,
+        up=up,
+        fov_x_deg=fov_x,
+    )

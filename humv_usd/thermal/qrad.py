@@ -1,10 +1,4 @@
-"""Radiance environment maps and per-facet absorbed radiation (seed section 2.2.2, Eq. 1-4).
-
-The seed's DIRSIG spherical collector becomes a :class:`RadianceMap`: an equirectangular
-(lat-long) image per band around a point (the avatar's centre), rows = zenith angle 0..pi from +Z,
-columns = azimuth 0..2pi counter-clockwise from +X. A pixel holds the radiance arriving from its
-direction [W m^-2 sr^-1]; its solid angle is seed Eq. 2. The sun is not in the map: it is a
-directional term (unit vector + per-band normal irradiance), so no map resolution smears it.
+"""Per-facet absorbed radiation q_rad (seed section 2.2.2, Eq. 3-4) from a radiance map.
 
 Per-facet absorbed radiation (seed Eq. 3, summed over bands as Eq. 4 does):
 
@@ -31,346 +25,29 @@ caller gives their radiance; 0 as in the seed otherwise). Three methods:
 
 Both ray methods report their own Monte Carlo error (per-ray sample variance) and can replay a
 recorded visibility (which face each ray hits) for an unmoved or barely moved mesh with new
-radiances (``cache``). Ray casting: embreex directly (single-threaded) or Mitsuba.
+radiances (``cache``). Ray casting: :mod:`humv_usd.geometry.raycast` (embreex directly,
+single-threaded, or Mitsuba). Maps: :mod:`humv_usd.thermal.radiance_map`.
 
 Units: SI; radiance [W m^-2 sr^-1], irradiance and absorbed flux [W m^-2], temperature [K].
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
-
 import numpy as np
 import trimesh
 
-from humv_usd.mode import mitsuba
-from humv_usd.physics.sky import STEFAN_BOLTZMANN
-from humv_usd.thermal.sky import BANDS, ClearSky
+from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.geometry.raycast import CHUNK_RAYS, first_faces
+from humv_usd.thermal.radiance_map import (
+    RadianceMap,
+    cosine_weights,
+    interp_table,
+    irradiance_table,
+    map_shape,
+)
+from humv_usd.thermal.scene_radiance import mesh_caster, ray_offset
 
-try:  # embree through trimesh; the pure-python fallback is far too slow for real meshes
-    from trimesh.ray.ray_pyembree import RayMeshIntersector as _Intersector
-except ImportError:  # pragma: no cover
-    from trimesh.ray.ray_triangle import RayMeshIntersector as _Intersector
-
-_CHUNK_RAYS = 2_000_000
 _CHUNK_CV_RAYS = 1_048_576  # rays per chunk of the ray methods (moments in float64)
-RAY_BACKENDS = ("embree", "mitsuba")
-
-
-class MitsubaIntersector:
-    """First-hit queries on a triangle mesh with Mitsuba's ray tracer (``scene.ray_intersect_
-    preliminary``, Embree inside, vectorised over the LLVM backend's threads).
-
-    Same interface as trimesh's embree intersector for what this module uses:
-    ``intersects_first(origins, directions)`` -> face index or -1. About twice the throughput
-    of single-threaded embreex on two cores; costs the Mitsuba import (about 1 s) once.
-    """
-
-    def __init__(self, mesh):
-        mi = mitsuba()
-        self._mi = mi
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        self._origin = v.min(axis=0) if len(v) else np.zeros(3)
-        self._scale = 100.0 / max(
-            float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0, 1e-12
-        )  # as EmbreeIntersector
-        m = mi.Mesh("occluders", len(mesh.vertices), len(mesh.faces))
-        params = mi.traverse(m)
-        params["vertex_positions"] = mi.Float(((v - self._origin) * self._scale).astype(np.float32).ravel())
-        params["faces"] = mi.UInt32(np.asarray(mesh.faces, np.uint32).ravel())
-        params.update()
-        self._scene = mi.load_dict({"type": "scene", "occluders": m})
-
-    def intersects_first(self, origins, directions):
-        mi = self._mi
-        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
-        d = np.ascontiguousarray(directions, dtype=np.float32)
-        ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
-        pi = self._scene.ray_intersect_preliminary(ray)
-        hit = np.array(pi.prim_index, dtype=np.int64)
-        return np.where(np.array(pi.is_valid(), dtype=bool), hit, -1)
-
-    def intersects_any(self, origins, directions):
-        return self.intersects_first(origins, directions) >= 0
-
-
-class EmbreeIntersector:
-    """First-hit queries through embreex directly (as trimesh's wrapper does, without its
-    per-call copies and re-normalisation of already unit directions). Coordinates are shifted
-    to the mesh's lower corner and scaled before they go to float32."""
-
-    def __init__(self, mesh):
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
-
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        self._origin = v.min(axis=0) if len(v) else np.zeros(3)
-        # as trimesh: the bounding diagonal becomes 100 units (embree's own epsilons are tuned
-        # for scenes of that size)
-        diag = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0
-        self._scale = 100.0 / max(diag, 1e-12)
-        self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(
-            scene=self._scene,
-            vertices=((v - self._origin) * self._scale).astype(np.float32),
-            indices=np.asarray(mesh.faces, dtype=np.int32),
-        )
-
-    def _run(self, origins, directions, query):
-        o = ((np.asarray(origins, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
-        d = np.ascontiguousarray(directions, dtype=np.float32)
-        return self._scene.run(o, d, query=query)
-
-    def intersects_first(self, origins, directions):
-        return self._run(origins, directions, "INTERSECT").astype(np.int64)
-
-    def local(self, points) -> np.ndarray:
-        """World points -> the caster's shifted and scaled float32 frame (for
-        :meth:`first_hit_local`, so that many rays from one point convert it once)."""
-        return ((np.asarray(points, dtype=np.float64) - self._origin) * self._scale).astype(np.float32)
-
-    def first_hit_local(self, origins32, directions32) -> np.ndarray:
-        """First face hit (-1: none) of rays with origins already in the :meth:`local` frame;
-        float32 contiguous (n, 3) arrays."""
-        return self._scene.run(origins32, directions32, query="INTERSECT").astype(np.int64)
-
-    def intersects_any(self, origins, directions):
-        return self._run(origins, directions, "OCCLUDED") >= 0
-
-
-def _intersector(mesh, backend="embree"):
-    if backend == "mitsuba":
-        return MitsubaIntersector(mesh)
-    if backend != "embree":
-        raise ValueError(f"invalid ray backend {backend!r}: expected one of {RAY_BACKENDS}")
-    try:
-        return EmbreeIntersector(mesh)
-    except ImportError:  # pragma: no cover - embreex missing: trimesh's pure-python caster
-        return _Intersector(mesh)
-
-
-# --------------------------------------------------------------------------- map geometry
-def _resolution(resolution) -> tuple[int, int]:
-    if np.isscalar(resolution):
-        return int(resolution), int(resolution)
-    n_theta, n_phi = resolution
-    return int(n_theta), int(n_phi)
-
-
-def latlong_directions(resolution=360) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel-centre directions and pixel solid angles of a lat-long map (seed Eq. 2).
-
-    Parameters
-    ----------
-    resolution : int or (int, int)
-        (rows, columns) = (zenith steps over [0, pi], azimuth steps over [0, 2 pi]); an int n
-        means n x n as the seed's 360 x 360 collector.
-
-    Returns
-    -------
-    directions : array (rows*cols, 3)
-        Unit vectors, row-major (row = zenith index).
-    solid_angles : array (rows*cols,)
-        Omega = dphi (cos theta0 - cos theta1) [sr]; sums to 4 pi.
-    """
-    n_theta, n_phi = _resolution(resolution)
-    edges = np.linspace(0.0, np.pi, n_theta + 1)
-    theta = 0.5 * (edges[:-1] + edges[1:])
-    phi = (np.arange(n_phi) + 0.5) * (2.0 * np.pi / n_phi)
-    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
-    d = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi), ct), axis=-1)
-    omega = (2.0 * np.pi / n_phi) * (np.cos(edges[:-1]) - np.cos(edges[1:]))
-    return d.reshape(-1, 3), np.repeat(omega, n_phi)
-
-
-def latlong_index(directions, resolution) -> np.ndarray:
-    """Flat pixel index (nearest pixel) of each unit direction in a lat-long map."""
-    n_theta, n_phi = _resolution(resolution)
-    d = np.asarray(directions, dtype=float)
-    theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
-    phi = np.mod(np.arctan2(d[:, 1], d[:, 0]), 2.0 * np.pi)
-    i = np.minimum((theta * (n_theta / np.pi)).astype(np.int64), n_theta - 1)
-    j = np.minimum((phi * (n_phi / (2.0 * np.pi))).astype(np.int64), n_phi - 1)
-    return i * n_phi + j
-
-
-def _cosine_weights(normals, directions, solid_angles, normalize):
-    """max(n.w, 0) Omega per (normal, pixel); normalized rows sum to pi exactly."""
-    w = normals @ directions.T
-    np.maximum(w, 0.0, out=w)
-    w *= solid_angles
-    if normalize:
-        s = w.sum(axis=1, keepdims=True)
-        w *= np.divide(np.pi, s, out=np.zeros_like(s), where=s > 0)
-    return w
-
-
-@dataclass
-class RadianceMap:
-    """Lat-long radiance per band around a point, plus the sun as a directional term.
-
-    Attributes
-    ----------
-    radiance : array (bands, rows, cols)
-        Incoming radiance by direction [W m^-2 sr^-1], sun excluded.
-    center : array (3,)
-        Collector position [m].
-    bands : tuple of str
-    sun_direction : array (3,) or None
-        Unit vector towards the sun (None: no sun, e.g. night or below the horizon).
-    sun_irradiance : array (bands,)
-        Normal beam irradiance per band [W m^-2].
-    """
-
-    radiance: np.ndarray
-    center: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    bands: tuple = BANDS
-    sun_direction: np.ndarray | None = None
-    sun_irradiance: np.ndarray | None = None
-
-    def __post_init__(self):
-        self.radiance = np.asarray(self.radiance, dtype=float)
-        if self.sun_irradiance is None:
-            self.sun_irradiance = np.zeros(self.radiance.shape[0])
-        self._geometry = None
-
-    @property
-    def resolution(self) -> tuple[int, int]:
-        return self.radiance.shape[1], self.radiance.shape[2]
-
-    @property
-    def n_bands(self) -> int:
-        return self.radiance.shape[0]
-
-    def geometry(self):
-        """(directions (P, 3), solid angles (P,)), cached."""
-        if self._geometry is None:
-            self._geometry = latlong_directions(self.resolution)
-        return self._geometry
-
-    def flat(self) -> np.ndarray:
-        """Radiance as (bands, pixels)."""
-        return self.radiance.reshape(self.n_bands, -1)
-
-    def lookup(self, directions) -> np.ndarray:
-        """Per-band radiance of the pixel holding each direction (nearest) -> (bands, N)."""
-        return self.flat()[:, latlong_index(directions, self.resolution)]
-
-    def irradiance(self, normals, normalize=False, chunk=256) -> np.ndarray:
-        """Unoccluded irradiance int L max(cos, 0) d omega on planes with these normals.
-
-        Parameters
-        ----------
-        normals : array (N, 3)
-            Unit plane normals.
-        normalize : bool
-            Rescale the cosine weights of each normal to sum to pi (removes the terminator's
-            discretisation bias; a uniform map then gives pi L exactly).
-
-        Returns
-        -------
-        array (bands, N) [W m^-2], sun excluded.
-        """
-        d, omega = self.geometry()
-        lflat = self.flat().T.astype(np.float32)
-        normals = np.asarray(normals, dtype=float)
-        out = np.empty((self.n_bands, len(normals)))
-        for a in range(0, len(normals), chunk):
-            w = _cosine_weights(
-                normals[a : a + chunk].astype(np.float32),
-                d.astype(np.float32),
-                omega.astype(np.float32),
-                normalize,
-            )
-            out[:, a : a + chunk] = (w @ lflat).T
-        return out
-
-
-# --------------------------------------------------------------------------- scene surfaces
-@dataclass
-class SceneSurfaces:
-    """Scene geometry for ray casting with the per-band radiance leaving each face.
-
-    Attributes
-    ----------
-    mesh : trimesh.Trimesh
-    radiance : array (bands, faces)
-        Lambertian leaving radiance per face [W m^-2 sr^-1].
-    """
-
-    mesh: trimesh.Trimesh
-    radiance: np.ndarray
-
-
-def scene_surface_radiance(
-    mesh, temperature_k, emissivity, sky, solar_reflectance=0.2, shadows=True
-) -> np.ndarray:
-    """Per-face leaving radiance of opaque Lambertian scene surfaces, per band.
-
-    Parameters
-    ----------
-    mesh : trimesh.Trimesh
-        Scene faces (normals point out of the solid, into the air).
-    temperature_k : numeric, (faces,)
-        Surface temperature [K].
-    emissivity : numeric, (faces,)
-        Longwave emissivity [0-1]; longwave reflectance is 1 - emissivity.
-    sky : ClearSky or UniformSky
-        Environment that lights the surfaces.
-    solar_reflectance : numeric, (faces,)
-        Broadband shortwave reflectance [0-1].
-    shadows : bool
-        Test each face centroid for sun visibility against the scene.
-
-    Returns
-    -------
-    array (2, faces) [W m^-2 sr^-1]: shortwave, longwave.
-
-    Notes
-    -----
-    L_lw = [eps sigma T^4 + (1 - eps) E_lw] / pi, L_sw = rho E_sw / pi, with the incident E from
-    an isotropic-sky view-factor split: E = E_down (1 + n_z)/2 + pi L_ground (1 - n_z)/2, plus
-    the beam E_sun max(n.s, 0) if lit. One bounce, no inter-reflection between scene faces.
-    """
-    n = np.asarray(mesh.face_normals, dtype=float)
-    nz = n[:, 2]
-    e_down = sky.downwelling_irradiance()
-    ground = sky.radiance(np.array([[0.0, 0.0, -1.0]]))[:, 0]
-    up, down = 0.5 * (1.0 + nz), 0.5 * (1.0 - nz)
-    e_lw = e_down[1] * up + np.pi * ground[1] * down
-    sun = sky.sun
-    e_sw_diffuse = e_down[0] - (0.0 if sun is None else sun[1][0] * sun[0][2])
-    e_sw = e_sw_diffuse * up + np.pi * ground[0] * down
-    if sun is not None:
-        s, e_sun = sun
-        cos = np.maximum(n @ s, 0.0)
-        lit = np.ones(len(n), dtype=bool)
-        if shadows:
-            lit = _unblocked(
-                _intersector(mesh), mesh.triangles_center + n * _offset(mesh), np.broadcast_to(s, n.shape)
-            )
-        e_sw = e_sw + e_sun[0] * cos * lit
-    t = np.broadcast_to(np.asarray(temperature_k, dtype=float), nz.shape)
-    eps = np.broadcast_to(np.asarray(emissivity, dtype=float), nz.shape)
-    rho = np.broadcast_to(np.asarray(solar_reflectance, dtype=float), nz.shape)
-    lw = (eps * STEFAN_BOLTZMANN * t**4 + (1.0 - eps) * e_lw) / np.pi
-    return np.stack([rho * e_sw / np.pi, lw])
-
-
-# --------------------------------------------------------------------------- ray helpers
-def _offset(mesh) -> float:
-    return 1e-5 * float(np.linalg.norm(mesh.extents)) + 1e-7
-
-
-def _first_hit(intersector, origins, directions) -> np.ndarray:
-    """Index of the first face hit per ray (-1 = miss), in chunks."""
-    out = np.empty(len(origins), dtype=np.int64)
-    for a in range(0, len(origins), _CHUNK_RAYS):
-        out[a : a + _CHUNK_RAYS] = intersector.intersects_first(
-            origins[a : a + _CHUNK_RAYS], directions[a : a + _CHUNK_RAYS]
-        )
-    return out
 
 
 def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None, hit=None):
@@ -380,61 +57,16 @@ def _facet_hits(occ, facet, centroids, normals, directions, offset, origins=None
     if hit is None:
         if origins is None:
             origins = centroids[facet] + normals[facet] * offset
-        hit = _first_hit(occ.intersector, origins, directions)
+        hit = first_faces(occ.intersector, origins, directions)
     for k in (10.0, 100.0, 1000.0):
         own = np.nonzero(hit == facet)[0]
         if len(own) == 0:
             break
         f = facet[own]
-        hit[own] = _first_hit(occ.intersector, centroids[f] + normals[f] * (k * offset), directions[own])
+        hit[own] = first_faces(occ.intersector, centroids[f] + normals[f] * (k * offset), directions[own])
     return hit
 
 
-def _unblocked(intersector, origins, directions) -> np.ndarray:
-    out = np.empty(len(origins), dtype=bool)
-    for a in range(0, len(origins), _CHUNK_RAYS):
-        out[a : a + _CHUNK_RAYS] = ~intersector.intersects_any(
-            origins[a : a + _CHUNK_RAYS], directions[a : a + _CHUNK_RAYS]
-        )
-    return out
-
-
-def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360) -> RadianceMap:
-    """Build the lat-long radiance map around a point (the DIRSIG spherical collector).
-
-    Parameters
-    ----------
-    center : array-like (3,)
-        Collector position [m] (the avatar's centre; the avatar itself is not in ``scene``).
-    sky : ClearSky or UniformSky
-        Far-field radiance by direction (sky above, ground below the horizon) and the sun.
-    scene : SceneSurfaces, optional
-        Scene faces; a pixel whose ray hits one shows that face's leaving radiance.
-    resolution : int or (int, int)
-        Map rows x columns (seed: 360 x 360).
-
-    Returns
-    -------
-    RadianceMap
-    """
-    n_theta, n_phi = _resolution(resolution)
-    d, _ = latlong_directions((n_theta, n_phi))
-    rad = np.asarray(sky.radiance(d), dtype=float)
-    if scene is not None and len(scene.mesh.faces):
-        origins = np.broadcast_to(np.asarray(center, dtype=float), d.shape)
-        hit = _first_hit(_intersector(scene.mesh), np.ascontiguousarray(origins), d)
-        rad[:, hit >= 0] = np.asarray(scene.radiance)[:, hit[hit >= 0]]
-    sun = sky.sun
-    return RadianceMap(
-        rad.reshape(-1, n_theta, n_phi),
-        np.asarray(center, dtype=float),
-        tuple(sky.bands),
-        None if sun is None else sun[0],
-        np.zeros(rad.shape[0]) if sun is None else sun[1],
-    )
-
-
-# --------------------------------------------------------------------------- absorbed radiation
 class _Occluders:
     """The facet mesh + scene as one embree scene with per-band leaving radiance per face."""
 
@@ -457,7 +89,7 @@ class _Occluders:
     def intersector(self):
         """The ray caster, built on first use (a cached replay casts no rays)."""
         if self._intersector is None:
-            self._intersector = _intersector(self._combined, self._backend)
+            self._intersector = mesh_caster(self._combined, self._backend)
         return self._intersector
 
 
@@ -503,10 +135,10 @@ def _diffuse_brute(env, centroids, normals, occ, offset):
     n_pix = len(d)
     n_f = len(normals)
     out = np.zeros((env.n_bands, n_f))
-    chunk = max(1, _CHUNK_RAYS // max(1, n_pix // 2))
+    chunk = max(1, CHUNK_RAYS // max(1, n_pix // 2))
     for a in range(0, n_f, chunk):
         b = min(n_f, a + chunk)
-        w = _cosine_weights(normals[a:b], d, omega, normalize=True)  # (fc, P), rows sum to pi
+        w = cosine_weights(normals[a:b], d, omega, normalize=True)  # (fc, P), rows sum to pi
         out[:, a:b] = (w @ lmap.T).T  # unoccluded part
         fi, pj = np.nonzero(w > 0)
         hit = _facet_hits(occ, a + fi, centroids, normals, d[pj], offset)
@@ -517,67 +149,6 @@ def _diffuse_brute(env, centroids, normals, occ, offset):
             for k in range(env.n_bands):
                 out[k, a:b] += np.bincount(fi[m], weights=wij * delta[k], minlength=b - a)
     return out
-
-
-def irradiance_table(env: RadianceMap, grid=64):
-    """Cosine-convolved map on a lat-long grid of normals incl. the poles, for interpolation.
-
-    Parameters
-    ----------
-    env : RadianceMap
-    grid : int
-        Rows of the table over the normal's zenith 0..pi (grid + 1 rows incl. both poles).
-
-    Returns
-    -------
-    array (bands, grid + 1, cols + 1)
-        Irradiance [W m^-2] (cosine weights of each normal rescaled to sum to pi, as
-        ``RadianceMap.irradiance(normalize=True)``) at normal zenith theta_i = i pi / grid and
-        azimuth phi_j = 2 pi j / cols, cols = the map's columns; the last column repeats the
-        first.
-
-    Notes
-    -----
-    For a fixed normal zenith, the clamped-cosine kernel max(0, cos t_n cos t + sin t_n sin t
-    cos(phi - phi_n)) depends on azimuth only through phi - phi_n, so each map row's
-    contribution is a circular cross-correlation in azimuth, done exactly by FFT
-    (O(rows_n rows cols log cols) instead of a dense (normals x pixels) product).
-    """
-    n_theta, n_phi = env.resolution
-    edges = np.linspace(0.0, np.pi, n_theta + 1)
-    theta = 0.5 * (edges[:-1] + edges[1:])
-    omega = (2.0 * np.pi / n_phi) * (np.cos(edges[:-1]) - np.cos(edges[1:]))  # (R,)
-    theta_n = np.linspace(0.0, np.pi, int(grid) + 1)  # (T,)
-    dphi = (np.arange(n_phi) + 0.5) * (2.0 * np.pi / n_phi)  # phi_c - phi_n
-    kern = (
-        np.cos(theta_n)[:, None, None] * np.cos(theta)[None, :, None]
-        + np.sin(theta_n)[:, None, None] * np.sin(theta)[None, :, None] * np.cos(dphi)[None, None, :]
-    )
-    np.maximum(kern, 0.0, out=kern)
-    kern *= omega[None, :, None]  # (T, R, C)
-    weight_sum = kern.sum(axis=(1, 2))  # (T,)
-    fk = np.conj(np.fft.rfft(kern, axis=2))  # (T, R, F)
-    fl = np.fft.rfft(env.radiance, axis=2)  # (B, R, F)
-    prod = np.matmul(fl.transpose(2, 0, 1), fk.transpose(2, 1, 0))  # (F, B, T)
-    e = np.fft.irfft(prod.transpose(1, 2, 0), n=n_phi, axis=2)  # (B, T, C)
-    e *= (np.pi / weight_sum)[None, :, None]
-    return np.concatenate([e, e[:, :, :1]], axis=2)
-
-
-def _interp_table(table, normals):
-    grid = table.shape[1] - 1
-    cols = table.shape[2] - 1
-    theta = np.arccos(np.clip(normals[:, 2], -1.0, 1.0)) * (grid / np.pi)
-    phi = np.mod(np.arctan2(normals[:, 1], normals[:, 0]), 2.0 * np.pi) * (cols / (2.0 * np.pi))
-    i = np.minimum(theta.astype(np.int64), grid - 1)
-    j = np.minimum(phi.astype(np.int64), cols - 1)
-    u, v = theta - i, phi - j
-    return (
-        (1 - u) * (1 - v) * table[:, i, j]
-        + (1 - u) * v * table[:, i, j + 1]
-        + u * (1 - v) * table[:, i + 1, j]
-        + u * v * table[:, i + 1, j + 1]
-    )
 
 
 def _tangent_frames(normals):
@@ -666,7 +237,7 @@ def _cosine_directions(f, k, rng, frames, sampler="hammersley"):
 
 def _latlong_index32(d, resolution) -> np.ndarray:
     """:func:`latlong_index` in float32 (the ray directions' precision), for many rays."""
-    n_theta, n_phi = _resolution(resolution)
+    n_theta, n_phi = map_shape(resolution)
     theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
     phi = np.arctan2(d[:, 1], d[:, 0])
     phi[phi < 0] += np.float32(2.0 * np.pi)
@@ -800,7 +371,7 @@ def _float32_frames(normals):
 
 def _local_origins(occ, centroids, normals, offset):
     it = occ.intersector
-    if hasattr(it, "local"):
+    if hasattr(it, "first_hit_local"):
         return it.local(centroids + normals * offset)
     return None
 
@@ -827,7 +398,7 @@ def _diffuse_fast(
         mom,
         record,
     )
-    return _cv_estimate(mom, _interp_table(table, normals), weight, neighbours)
+    return _cv_estimate(mom, interp_table(table, normals), weight, neighbours)
 
 
 _LEVELS = (16, 32, 64, 128, 256, 512, 1024)  # powers of two: Hammersley sets are (0, m, 2)-nets
@@ -862,7 +433,7 @@ def _diffuse_adaptive(
     facet (F,)).
     """
     n_f = len(normals)
-    e_table = _interp_table(table, normals)  # unoccluded part
+    e_table = interp_table(table, normals)  # unoccluded part
     rng = np.random.default_rng(seed)
     frames = _float32_frames(normals)
     local = _local_origins(occ, centroids, normals, offset)
@@ -906,7 +477,7 @@ def _replay(env, radiance, records, counts, table, normals, weight, neighbours=N
     mom = _Moments(len(normals), env.n_bands)
     for f, k, d, hit in records:
         mom.add(env, radiance, f, k, d, hit)
-    return _cv_estimate(mom, _interp_table(table, normals), weight, neighbours)
+    return _cv_estimate(mom, interp_table(table, normals), weight, neighbours)
 
 
 def _geometry_key(mesh, scene, *params) -> str:
@@ -990,7 +561,7 @@ def absorbed_radiation(
         'adaptive': cap of the second-stage rays of one facet.
     backend : {'embree', 'mitsuba'}
         Ray caster: embreex through trimesh (single-threaded) or Mitsuba's
-        (:class:`MitsubaIntersector`, multi-threaded, costs the Mitsuba import).
+        (:class:`humv_usd.geometry.raycast.MitsubaRayCaster`, multi-threaded, costs the Mitsuba import).
     stats : dict, optional
         Filled with the ray methods' Monte Carlo error from the per-ray sample variance (0 for
         'brute'): ``rms_rel_error_estimate`` (RMS over facets of the standard error relative to
@@ -1019,7 +590,7 @@ def absorbed_radiation(
     centroids = np.asarray(mesh.triangles_center, dtype=float)
     occ = _Occluders(mesh, environment.n_bands, mesh_radiance, scene, backend)
     if offset is None:
-        offset = max(_offset(mesh), 1e-6 * float(np.linalg.norm(occ.extents)))
+        offset = max(ray_offset(mesh), 1e-6 * float(np.linalg.norm(occ.extents)))
     if method == "brute":
         e = _diffuse_brute(environment, centroids, normals, occ, offset)
         var, counts, replayed = np.zeros(len(normals)), None, False
@@ -1137,172 +708,3 @@ def mean_radiant_temperature(absorbed, areas, segment_ids, emissivity=0.97, n_se
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(area > 0, qa / area, np.nan)
     return (np.maximum(mean, 0.0) / (emissivity * STEFAN_BOLTZMANN)) ** 0.25
-
-
-# --------------------------------------------------------------------------- error vs run time
-def relative_errors(q, q_ref) -> dict:
-    """RMS and max relative error of a q_rad estimate against a reference (facet totals).
-
-    Facets whose reference total is below 1e-6 of the largest are left out of the relative
-    figures; ``nrmse`` = rms(q - q_ref) / mean(q_ref) uses all facets.
-    """
-    a = np.asarray(q, dtype=float)
-    b = np.asarray(q_ref, dtype=float)
-    if a.ndim == 2:
-        a, b = a.sum(axis=0), b.sum(axis=0)
-    keep = b > 1e-6 * np.max(np.abs(b))
-    rel = (a[keep] - b[keep]) / b[keep]
-    return {
-        "rms_rel_error": float(np.sqrt(np.mean(rel**2))),
-        "max_rel_error": float(np.max(np.abs(rel))),
-        "nrmse": float(np.sqrt(np.mean((a - b) ** 2)) / np.mean(b)),
-    }
-
-
-def bench_scene(facets=30000):
-    """Test setup: a crude capsule 'avatar' (self-occluding), ground slab, a warm wall, a clear sky.
-
-    Returns (mesh, scene, sky, absorptivity, center).
-    """
-    per = max(8, int(np.sqrt(facets / 4.0 / 2.0)))  # 4 capsules, ~2 per^2 faces each
-
-    def capsule(radius, height, x, y, z):
-        c = trimesh.creation.capsule(height=height, radius=radius, count=[per, per])
-        c.apply_translation([x, y, z])
-        return c
-
-    mesh = trimesh.util.concatenate(
-        [
-            capsule(0.17, 0.45, 0.0, 0.0, 1.25),
-            capsule(0.075, 0.75, 0.0, -0.1, 0.45),
-            capsule(0.075, 0.75, 0.0, 0.1, 0.45),
-            capsule(0.05, 0.55, 0.12, 0.25, 1.2),
-        ]
-    )
-    ground = trimesh.creation.box(extents=[60.0, 60.0, 0.2])
-    ground.apply_translation([0.0, 0.0, -0.1])
-    wall = trimesh.creation.box(extents=[0.3, 6.0, 3.0])
-    wall.apply_translation([2.0, 0.0, 1.5])
-    smesh = trimesh.util.concatenate([ground, wall])
-    n_g = len(ground.faces)
-    temp = np.r_[np.full(n_g, 318.0), np.full(len(wall.faces), 305.0)]
-    eps = np.r_[np.full(n_g, 0.95), np.full(len(wall.faces), 0.9)]
-    rho = np.r_[np.full(n_g, 0.2), np.full(len(wall.faces), 0.35)]
-    s = np.array([np.sin(np.radians(40.0)), 0.3, np.cos(np.radians(40.0))])
-    sky = ClearSky(
-        air_temperature_k=303.0,
-        relative_humidity=0.4,
-        sun_direction=tuple(s / np.linalg.norm(s)),
-        direct_normal_irradiance=800.0,
-        diffuse_horizontal_irradiance=100.0,
-        ground_temperature_k=318.0,
-    )
-    scene = SceneSurfaces(smesh, scene_surface_radiance(smesh, temp, eps, sky, rho))
-    return mesh, scene, sky, np.array([0.7, 0.95]), np.array([0.0, 0.0, 1.0])
-
-
-def bench_qrad(
-    facets=30000,
-    resolutions=(90, 180, 360),
-    fast_rays=(16, 64, 256),
-    reference_resolution=None,
-    mesh=None,
-    seed=0,
-    adaptive_rays=(32, 64, 128),
-    case=None,
-    reference=None,
-) -> list[dict]:
-    """Run time and error of q_rad methods against the brute-force reference.
-
-    Parameters
-    ----------
-    facets : int
-        Approximate facet count of the bench mesh (ignored when ``mesh`` or ``case`` is given).
-    resolutions : sequence of int
-        Map sizes n (n x n) to try.
-    fast_rays, adaptive_rays : sequence of int
-        Rays per facet of the fast method / mean rays per facet of the adaptive one.
-    reference_resolution : int, optional
-        Map size of the brute reference; default max(resolutions).
-    mesh : trimesh.Trimesh, optional
-        Facets to evaluate instead of the capsule avatar (e.g. a MakeHuman body).
-    case : dict, optional
-        A whole case instead of the capsule scene: ``mesh``, ``scene`` (SceneSurfaces or None),
-        ``sky``, ``absorptivity`` (bands,) or (bands, faces), ``center``, optional
-        ``mesh_radiance`` (e.g. :func:`humv_usd.bench.thermal.avatar_case`).
-    reference : array (bands, faces), optional
-        A precomputed brute reference at ``reference_resolution`` (its run time is then NaN).
-
-    Returns
-    -------
-    list of dict
-        One row per (method, resolution, rays): facets, seconds (wall), cpu_seconds (process
-        time; the embree caster is single-threaded, so this is the run time on an idle
-        machine), map_seconds (map build), rms_rel_error, max_rel_error, nrmse against the
-        reference (the reference row has zeros) and the method's own rms_rel_error_estimate.
-    """
-    if case is None:
-        bmesh, scene, sky, alpha, center = bench_scene(facets)
-        mrad = None
-        if mesh is not None:
-            bmesh = mesh
-            center = np.asarray(mesh.bounds.mean(axis=0))
-    else:
-        bmesh, scene, sky, alpha = case["mesh"], case["scene"], case["sky"], case["absorptivity"]
-        center, mrad = case["center"], case.get("mesh_radiance")
-    ref_res = int(max(resolutions) if reference_resolution is None else reference_resolution)
-    maps, map_seconds = {}, {}
-    for res in sorted(set(resolutions) | {ref_res}):
-        t0 = time.perf_counter()
-        maps[res] = radiance_map(center, sky, scene, res)
-        map_seconds[res] = time.perf_counter() - t0
-    kw = dict(scene=scene, mesh_radiance=mrad)
-
-    def timed(env, **extra):
-        stats: dict = {}
-        w0, c0 = time.perf_counter(), time.process_time()
-        q = absorbed_radiation(bmesh, env, alpha, stats=stats, **kw, **extra)
-        return q, time.perf_counter() - w0, time.process_time() - c0, stats
-
-    if reference is None:
-        q_ref, wall, cpu, _ = timed(maps[ref_res], method="brute")
-    else:
-        q_ref, wall, cpu = np.asarray(reference, dtype=float), float("nan"), float("nan")
-    rows = [
-        {
-            "method": "brute",
-            "resolution": ref_res,
-            "rays": None,
-            "facets": len(bmesh.faces),
-            "seconds": wall,
-            "cpu_seconds": cpu,
-            "map_seconds": map_seconds[ref_res],
-            "rms_rel_error": 0.0,
-            "max_rel_error": 0.0,
-            "nrmse": 0.0,
-            "rms_rel_error_estimate": 0.0,
-            "reference": True,
-        }
-    ]
-    for res in resolutions:
-        runs = [("fast", k) for k in fast_rays] + [("adaptive", k) for k in adaptive_rays]
-        if res != ref_res:
-            runs.insert(0, ("brute", None))
-        for method, k in runs:
-            extra = {} if k is None else {"rays": k, "seed": seed}
-            q, wall, cpu, stats = timed(maps[res], method=method, **extra)
-            rows.append(
-                {
-                    "method": method,
-                    "resolution": res,
-                    "rays": k,
-                    "facets": len(bmesh.faces),
-                    "seconds": wall,
-                    "cpu_seconds": cpu,
-                    "map_seconds": map_seconds[res],
-                    **relative_errors(q, q_ref),
-                    "rms_rel_error_estimate": stats.get("rms_rel_error_estimate", 0.0),
-                    "reference": False,
-                }
-            )
-    return rows
