@@ -17,6 +17,8 @@ import functools
 
 import numpy as np
 
+from humv_usd.constants import WEIGHTING_TEMPERATURE_K
+
 # CODATA 2018 (exact in the 2019 SI).
 PLANCK_CONSTANT = 6.62607015e-34  # h [J s]
 SPEED_OF_LIGHT = 299792458.0  # c [m s^-1]
@@ -281,7 +283,9 @@ def band_radiance_derivative(temperature_k, band_um, response=None):
     return out if out.ndim else float(out)
 
 
-def band_emissivity(wavelengths_um, emissivity, band_um, response=None, temperature_k=300.0):
+def band_emissivity(
+    wavelengths_um, emissivity, band_um, response=None, temperature_k=WEIGHTING_TEMPERATURE_K
+):
     r"""Planck-weighted band average of a spectral emissivity.
 
     Parameters
@@ -295,7 +299,7 @@ def band_emissivity(wavelengths_um, emissivity, band_um, response=None, temperat
         Band limits (lower, upper) [um].
     response : tuple of two array-like, optional
         Relative spectral response ``(wavelengths_um, values)``, see :func:`band_radiance`.
-    temperature_k : float, default 300
+    temperature_k : float, default :data:`humv_usd.constants.WEIGHTING_TEMPERATURE_K` (300)
         Temperature of the weighting blackbody [K].
 
     Returns

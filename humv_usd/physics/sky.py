@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-STEFAN_BOLTZMANN = 5.670374419e-8  # [W m^-2 K^-4], CODATA 2018
+from humv_usd.constants import STEFAN_BOLTZMANN  # noqa: F401  re-exported for the sky users
 
 # Magnus coefficients over water, Alduchov & Eskridge (1996): a [-], b [degC]
 _MAGNUS_A = 17.625

@@ -46,6 +46,7 @@ from pxr import Gf, Usd, UsdGeom, UsdShade, UsdSkel
 from humv_usd.errors import InputError, bad_value
 from humv_usd.render.radiometry import PathTable, check_subbands
 from humv_usd.usd import schemas as _s
+from humv_usd.usd.materials import StageMaterial, bound_material, read_material
 from humv_usd.usd.mesh import fan_triangulate
 
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
@@ -135,13 +136,8 @@ class CameraPose:
     fov_x_deg: float
 
 
-@dataclass
-class Material:
-    path: str
-    wavelengths_um: np.ndarray
-    emissivity: np.ndarray
-    reflectance: np.ndarray | None = None  # spectral reflectance on wavelengths_um (EO), if authored
-    transmittance: np.ndarray | None = None  # spectral transmittance (glass), if authored; else opaque
+#: A material as the render reads it (:func:`humv_usd.usd.materials.read_material`).
+Material = StageMaterial
 
 
 @dataclass
@@ -447,97 +443,12 @@ class StageExport:
     # --- per mesh (static) ---------------------------------------------------------------------
     def _material(self, material: UsdShade.Material, mesh_path: str, time) -> Material:
         mpath = str(material.GetPath())
-        if mpath in self._materials:
-            return self._materials[mpath]
-        prim = material.GetPrim()
-        wl = _get(prim.GetAttribute(WAVELENGTHS_ATTR), time)
-        eps = _get(prim.GetAttribute(EMISSIVITY_ATTR), time)
-        if wl is None or len(wl) == 0:
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{WAVELENGTHS_ATTR}",
-                    None,
-                    f"material bound to {mesh_path} needs wavelengths [um] (HumvMaterialAPI)",
-                )
-            )
-        if eps is None or len(eps) == 0:
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{EMISSIVITY_ATTR}",
-                    None,
-                    f"material bound to {mesh_path} needs emissivity values 0-1 (HumvMaterialAPI)",
-                )
-            )
-        wl = np.asarray(wl, dtype=float)
-        eps = np.asarray(eps, dtype=float)
-        if not np.all(np.isfinite(wl)) or np.any(wl <= 0) or np.any(np.diff(wl) <= 0):
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{WAVELENGTHS_ATTR}",
-                    _summary(wl),
-                    "expected positive, strictly ascending wavelengths [um]",
-                )
-            )
-        if eps.size != wl.size:
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{EMISSIVITY_ATTR}",
-                    f"<{eps.size} values>",
-                    f"expected {wl.size} values (one per wavelength in {WAVELENGTHS_ATTR})",
-                )
-            )
-        if not np.all(np.isfinite(eps)) or np.any(eps < 0) or np.any(eps > 1):
-            raise InputError(
-                bad_value(f"{mpath}.{EMISSIVITY_ATTR}", _summary(eps), "expected emissivities in 0-1")
-            )
-        rho = _get(prim.GetAttribute(REFLECTANCE_ATTR), time)
-        if rho is not None and len(rho) > 0:
-            rho = np.asarray(rho, dtype=float)
-            if rho.size != wl.size or not np.all(np.isfinite(rho)) or np.any(rho < 0) or np.any(rho > 1):
-                raise InputError(
-                    bad_value(
-                        f"{mpath}.{REFLECTANCE_ATTR}",
-                        _summary(rho),
-                        f"expected {wl.size} reflectances in 0-1 (one per wavelength in {WAVELENGTHS_ATTR})",
-                    )
-                )
-        else:
-            rho = None
-        tau = _get(prim.GetAttribute(_s.MATERIAL_TRANSMITTANCE), time)
-        if tau is not None and len(tau) > 0:
-            tau = np.asarray(tau, dtype=float)
-            if (
-                tau.size != wl.size
-                or not np.all(np.isfinite(tau))
-                or np.any(tau < 0)
-                or np.any(tau + eps > 1.0 + 1e-6)
-            ):
-                raise InputError(
-                    bad_value(
-                        f"{mpath}.{_s.MATERIAL_TRANSMITTANCE}",
-                        _summary(tau),
-                        f"expected {wl.size} transmittances in 0-1 with emissivity + "
-                        "transmittance <= 1 (one per wavelength)",
-                    )
-                )
-        else:
-            tau = None
-        out = Material(mpath, wl, eps, rho, tau)
-        self._materials[mpath] = out
-        return out
+        if mpath not in self._materials:
+            self._materials[mpath] = read_material(material, mesh_path, time)
+        return self._materials[mpath]
 
     def _bound_material(self, prim: Usd.Prim, mesh_path: str, time) -> Material:
-        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
-        if not material or not material.GetPrim().IsValid():
-            raise InputError(
-                bad_value(
-                    f"{prim.GetPath()}.material:binding",
-                    None,
-                    "a rendered mesh needs a bound material carrying "
-                    f"{WAVELENGTHS_ATTR} and {EMISSIVITY_ATTR}",
-                )
-            )
-        return self._material(material, mesh_path, time)
+        return self._material(bound_material(prim), mesh_path, time)
 
     @staticmethod
     def _instance_id(prim: Usd.Prim) -> int:

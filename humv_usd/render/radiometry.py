@@ -34,10 +34,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd import constants
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
 from humv_usd.render import cie
 from humv_usd.scenario import spec as _spec
+from humv_usd.usd.materials import band_mean
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
 #: ``humv-usd bench render`` on humvvex with LOWTRAN7 paths and sky: the largest spectral error
@@ -49,7 +51,7 @@ DEFAULT_SUBBANDS = _spec.DEFAULT_SUBBANDS
 #: Largest accepted sub-band count.
 MAX_SUBBANDS = _spec.MAX_SUBBANDS
 #: Temperature of the blackbody weighting the sub-band emissivity and transmittance [K].
-WEIGHTING_TEMPERATURE_K = 300.0
+WEIGHTING_TEMPERATURE_K = constants.WEIGHTING_TEMPERATURE_K
 #: Uniform quadrature nodes per sub-band (table and response wavelengths are added).
 NODES_PER_SUBBAND = 65
 
@@ -158,12 +160,14 @@ class SubBands:
         return np.stack([planck.band_radiance(t, b, self.response) for b in self.bands], axis=-1)
 
     def emissivity(self, wavelengths_um, emissivity) -> np.ndarray:
-        """Sub-band emissivity (Planck 300 K and response weighted), (n,)."""
+        """Sub-band emissivity (n,): Planck (WEIGHTING_TEMPERATURE_K) and response weighted
+        mean of each sub-band, the band mean every tool uses
+        (:func:`humv_usd.usd.materials.band_mean`)."""
         wl = np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
         eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
         if wl.size == 1:
             return np.full(len(self), float(eps[0]))
-        return self.weighted_mean(wl, eps)
+        return np.array([band_mean(wl, eps, b, self.response) for b in self.bands])
 
 
 def _interp_last(x, wl, v):
@@ -404,7 +408,7 @@ class FrameRadiometry:
 #: Blackbody temperature of the fallback solar spectrum [K] (the Sun's effective temperature,
 #: e.g. Iqbal, An Introduction to Solar Radiation, Academic Press 1983, §3.1: 5777-5778 K).
 SUN_BLACKBODY_K = 5778.0
-STEFAN_BOLTZMANN = 5.670374419e-8  # W m-2 K-4 (CODATA 2018)
+STEFAN_BOLTZMANN = constants.STEFAN_BOLTZMANN  # W m-2 K-4 (CODATA 2018)
 #: What the fallback is, for the manifest.
 SUN_FALLBACK_NOTE = (
     f"blackbody {SUN_BLACKBODY_K:g} K spectral shape scaled so that its integral over all "
