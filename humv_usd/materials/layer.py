@@ -11,7 +11,6 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import finish, library_layer_main, new_layer_stage
-from humv_usd.usd.materials import SUBSTRATE
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
@@ -31,15 +30,23 @@ def used_materials(scenario: Scenario) -> list[str]:
     if scene:
         names.add(scene["ground"]["material"])
         names.update(o["material"] for o in scene["object"])
+        if _slab_ground(scenario):
+            names.add(GROUND_SUBSTRATE)
     return sorted(names)
 
 
-def author_material(stage, name: str, path=None) -> UsdShade.Material:
-    """Define /World/Materials/<name> (or ``path``) from the library: HumvMaterialAPI spectra
-    (the material's own wavelength grid; transmittance only for materials one can see through)
-    and thermal data, plus a UsdPreviewSurface for DCC viewports."""
+def _slab_ground(scenario: Scenario) -> bool:
+    """The ground is solved as a slab (no held temperature_k): it needs its substrate."""
+    ground = (scenario["scene"] or {}).get("ground")
+    return bool(ground) and ground.get("temperature_k") is None
+
+
+def author_material(stage, name: str) -> UsdShade.Material:
+    """Define /World/Materials/<name> from the library: HumvMaterialAPI spectra (the material's
+    own wavelength grid; transmittance only for materials one can see through) and thermal data,
+    plus a UsdPreviewSurface for DCC viewports."""
     m = LIBRARY[name]
-    mat = UsdShade.Material.Define(stage, path or material_path(name))
+    mat = UsdShade.Material.Define(stage, material_path(name))
     prim = mat.GetPrim()
     prim.ApplyAPI(S.MATERIAL_API)
     prim.GetAttribute(S.MATERIAL_WAVELENGTHS).Set(Vt.FloatArray(m.spectrum_wavelengths))
@@ -76,11 +83,13 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     )
     for name in used_materials(scenario):
         author_material(stage, name)
-    ground = (scenario["scene"] or {}).get("ground")
-    if ground and ground.get("temperature_k") is None:
-        # a slab ground: the thermal tool's construction continues below the ground material
-        # with this substrate, read from the stage like every other material property
-        author_material(stage, GROUND_SUBSTRATE, material_path(ground["material"]).AppendChild(SUBSTRATE))
+    if _slab_ground(scenario):
+        # the thermal tool's ground construction continues below the ground material with
+        # this substrate, read from the stage like every other material property
+        ground = stage.GetPrimAtPath(material_path(scenario["scene"]["ground"]["material"]))
+        ground.CreateRelationship(S.MATERIAL_SUBSTRATE, custom=True).SetTargets(
+            [material_path(GROUND_SUBSTRATE)]
+        )
     return finish(stage)
 
 

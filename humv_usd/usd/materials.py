@@ -22,10 +22,6 @@ from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
 from humv_usd.usd import schemas as S
 
-#: Child of a ground material that holds the material under it (the ground slab's substrate,
-#: "soil"); the materials tool authors it when the scenario's ground is a slab.
-SUBSTRATE = "Substrate"
-
 #: Thermal properties (attribute, field) a slab or a fabric needs.
 THERMAL_ATTRIBUTES = {
     "conductivity": S.MATERIAL_CONDUCTIVITY,
@@ -217,14 +213,16 @@ def mesh_material(prim: Usd.Prim, time=None) -> StageMaterial:
 
 
 def substrate(material: StageMaterial, stage: Usd.Stage, mesh_path: str) -> StageMaterial:
-    """The material under a ground material (its child :data:`SUBSTRATE`), else InputError
-    naming the ground mesh."""
-    prim = stage.GetPrimAtPath(f"{material.path}/{SUBSTRATE}")
+    """The material under a ground material (its relationship ``humv:material:substrate``),
+    else InputError naming the ground mesh."""
+    rel = stage.GetPrimAtPath(material.path).GetRelationship(S.MATERIAL_SUBSTRATE)
+    targets = rel.GetTargets() if rel else []
+    prim = stage.GetPrimAtPath(targets[0]) if targets else None
     if not prim:
         raise InputError(
             bad_value(
-                f"{material.path}/{SUBSTRATE}",
-                None,
+                f"{material.path}.{S.MATERIAL_SUBSTRATE}",
+                [str(t) for t in targets] or None,
                 f"the slab of {mesh_path} is thinner than its construction and needs the material under "
                 "it (the materials tool authors it for a ground without temperature_k)",
             )
