@@ -12,7 +12,8 @@ What is read
   triangle -> authored-face map, one part per bound material (``GeomSubset`` material bindings
   included), ``primvars:humv:thermal:temperature`` at the frame, ``humv:label:instanceId`` of the
   mesh or its nearest ancestor;
-- materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity``;
+- materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity`` through
+  :func:`humv_usd.usd.materials.read_material` (the reader the thermal tool uses too);
 - ``/World/Atmosphere.humv:atmosphere:skyTemperature`` [K] at the frame;
 - optional, per frame (notes/contract_env): ``/World/Atmosphere`` spectral tables
   (``humv:atmosphere:wavelengths``, ``skyZenithAngles``, ``skySpectralRadiance``,
@@ -52,8 +53,6 @@ from humv_usd.usd.mesh import fan_triangulate
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
 # depend on whether the schemas are registered or applied.
 TEMPERATURE_ATTR = _s.TEMPERATURE_PRIMVAR
-WAVELENGTHS_ATTR = _s.MATERIAL_WAVELENGTHS
-EMISSIVITY_ATTR = _s.MATERIAL_EMISSIVITY
 SKY_TEMPERATURE_ATTR = _s.ATMOSPHERE_SKY_TEMPERATURE
 INSTANCE_ID_ATTR = _s.LABEL_INSTANCE_ID
 SENSOR_API = _s.SENSOR_API
@@ -69,7 +68,6 @@ ATMOSPHERE_PATH = "/World/Atmosphere"
 ENVIRONMENT_PATH = "/World/Environment"
 #: Per-sensor path tables live under this scope, one child per sensor (contract_env).
 ATMOSPHERE_PATHS = ATMOSPHERE_PATH + "/Paths"
-REFLECTANCE_ATTR = _s.MATERIAL_REFLECTANCE
 # Environment / atmosphere attributes (H-env's layers); read by name, absent -> today's behaviour
 SUN_DIRECTION_ATTR = getattr(_s, "ENVIRONMENT_SUN_DIRECTION", "humv:environment:sunDirection")
 ATM_MODEL_ATTR = _s.ATMOSPHERE_MODEL
