@@ -11,6 +11,7 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import finish, library_layer_main, new_layer_stage
+from humv_usd.usd.materials import SUBSTRATE_RELATIONSHIP
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
@@ -87,7 +88,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         # the thermal tool's ground construction continues below the ground material with
         # this substrate, read from the stage like every other material property
         ground = stage.GetPrimAtPath(material_path(scenario["scene"]["ground"]["material"]))
-        ground.CreateRelationship(S.MATERIAL_SUBSTRATE, custom=True).SetTargets(
+        ground.CreateRelationship(SUBSTRATE_RELATIONSHIP, custom=True).SetTargets(
             [material_path(GROUND_SUBSTRATE)]
         )
     return finish(stage)

@@ -22,6 +22,11 @@ from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
 from humv_usd.usd import schemas as S
 
+#: Relationship of a ground material to the material under it (the ground slab's substrate,
+#: authored by the materials tool for a slab ground). A custom property, not part of
+#: HumvMaterialAPI: only a ground's material carries it.
+SUBSTRATE_RELATIONSHIP = "humv:material:substrate"
+
 #: Thermal properties (attribute, field) a slab or a fabric needs.
 THERMAL_ATTRIBUTES = {
     "conductivity": S.MATERIAL_CONDUCTIVITY,
@@ -215,13 +220,13 @@ def mesh_material(prim: Usd.Prim, time=None) -> StageMaterial:
 def substrate(material: StageMaterial, stage: Usd.Stage, mesh_path: str) -> StageMaterial:
     """The material under a ground material (its relationship ``humv:material:substrate``),
     else InputError naming the ground mesh."""
-    rel = stage.GetPrimAtPath(material.path).GetRelationship(S.MATERIAL_SUBSTRATE)
+    rel = stage.GetPrimAtPath(material.path).GetRelationship(SUBSTRATE_RELATIONSHIP)
     targets = rel.GetTargets() if rel else []
     prim = stage.GetPrimAtPath(targets[0]) if targets else None
     if not prim:
         raise InputError(
             bad_value(
-                f"{material.path}.{S.MATERIAL_SUBSTRATE}",
+                f"{material.path}.{SUBSTRATE_RELATIONSHIP}",
                 [str(t) for t in targets] or None,
                 f"the slab of {mesh_path} is thinner than its construction and needs the material under "
                 "it (the materials tool authors it for a ground without temperature_k)",

@@ -106,9 +106,6 @@ MATERIAL_SPECIFIC_HEAT = "humv:material:specificHeat"
 MATERIAL_THICKNESS = "humv:material:thickness"
 MATERIAL_SOLAR_ABSORPTIVITY = "humv:material:solarAbsorptivity"
 MATERIAL_SOURCE = "humv:material:source"
-#: Relationship of a ground material to the material under it (the ground slab's substrate);
-#: a custom property, not part of HumvMaterialAPI.
-MATERIAL_SUBSTRATE = "humv:material:substrate"
 
 # --- HumvAvatarAPI (SkelRoot, Xform) ----------------------------------------------------------
 AVATAR_SEX = "humv:avatar:sex"
