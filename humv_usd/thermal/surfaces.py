@@ -21,8 +21,8 @@ f_lit the sunlit fraction of the face (shadow rays against the scene from points
 
 Constructions (every property from the bound material on the stage,
 :mod:`humv_usd.usd.materials`): the ground is its material's layer over its substrate (the
-material its ``humv:material:substrate`` points to, soil from the materials tool) down to 1 m, with the bottom held
-at the mean air temperature of the spin-up day; objects are their material's layer with an
+material its ``humv:material:substrate`` points to, soil from the materials tool) down to 1 m,
+with the bottom held at the mean air temperature of the spin-up day; objects are their material's layer with an
 adiabatic back (insulated siding, a panel on a stand). Scene faces do not exchange radiation with
 each other beyond the ground term, and people do not shade the scene.
 """
