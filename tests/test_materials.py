@@ -9,11 +9,13 @@ import pytest
 from pxr import Usd
 
 from humv_usd.catalog.materials import FABRICS, LIBRARY, WAVELENGTHS_UM
+from humv_usd.errors import InputError
 from humv_usd.materials import layer as materials_layer
 from humv_usd.physics.planck import band_emissivity
 from humv_usd.scenario import validate
 from humv_usd.scenario.spec import MATERIALS
 from humv_usd.usd import schemas as S
+from humv_usd.usd.materials import read_material, substrate
 
 REQUIRED = {
     "skin",
@@ -105,9 +107,11 @@ def test_glass_is_transparent_in_the_visible_and_opaque_in_the_lwir():
     assert float(g.at(9.3, "emissivity")) < 0.75 < float(g.at(12.0, "emissivity"))
 
 
-def scenario_with(raw, ground: str, objects: list[str], humans: bool):
+def scenario_with(raw, ground: str, objects: list[str], humans: bool, ground_k=None):
     raw = copy.deepcopy(raw)
     raw["scene"]["ground"]["material"] = ground
+    if ground_k is not None:  # held ground: no slab, so no substrate under it
+        raw["scene"]["ground"]["temperature_k"] = ground_k
     base = raw["scene"]["object"][0]
     raw["scene"]["object"] = [dict(base, id=f"o{i}", material=m) for i, m in enumerate(objects)]
     if not humans:
@@ -117,7 +121,7 @@ def scenario_with(raw, ground: str, objects: list[str], humans: bool):
 
 
 def test_materials_layer_authors_only_what_the_scenario_uses(raw):
-    scenario = scenario_with(raw, "grass", ["glass", "glass", "wood"], humans=False)
+    scenario = scenario_with(raw, "grass", ["glass", "glass", "wood"], humans=False, ground_k=290.0)
     assert materials_layer.used_materials(scenario) == ["glass", "grass", "wood"]
     stage = Usd.Stage.Open(materials_layer.build(scenario))
     prims = stage.GetPrimAtPath("/World/Materials").GetChildren()
@@ -136,6 +140,25 @@ def test_materials_layer_authors_only_what_the_scenario_uses(raw):
     people = scenario_with(raw, "soil", [], humans=True)
     used = materials_layer.used_materials(people)
     assert {"skin", "soil", "cotton_white"} <= set(used) and "glass" not in used
+
+
+def test_slab_ground_gets_its_substrate_from_the_materials_layer(raw):
+    """A ground without temperature_k is a slab over soil: the materials layer authors the soil
+    and points the ground material at it; the thermal tool reads it from there."""
+    slab = scenario_with(raw, "grass", ["wood"], humans=False)
+    assert materials_layer.used_materials(slab) == ["grass", "soil", "wood"]
+    stage = Usd.Stage.Open(materials_layer.build(slab))
+    grass = read_material(stage.GetPrimAtPath("/World/Materials/grass"))
+    soil = substrate(grass, stage, "/World/Scene/Ground")
+    assert soil.path == "/World/Materials/soil"
+    assert soil.conductivity == pytest.approx(LIBRARY["soil"].conductivity, rel=1e-6)
+    assert soil.thickness == pytest.approx(LIBRARY["soil"].thickness, rel=1e-6)
+    held = Usd.Stage.Open(materials_layer.build(scenario_with(raw, "grass", ["wood"], False, ground_k=290.0)))
+    assert not held.GetPrimAtPath("/World/Materials/soil")
+    with pytest.raises(
+        InputError, match=r"/World/Materials/grass\.humv:material:substrate.*/World/Scene/Ground"
+    ):
+        substrate(read_material(held.GetPrimAtPath("/World/Materials/grass")), held, "/World/Scene/Ground")
 
 
 def test_library_file_is_up_to_date():

@@ -4,18 +4,37 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.testing import assert_allclose
+from pxr import Usd
 from scipy.optimize import brentq
 
-from humv_usd.catalog.materials import LIBRARY
 from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
+from humv_usd.materials.layer import LIBRARY_FILE
 from humv_usd.thermal import surfaces as SF
 from humv_usd.thermal.human import longwave_emissivity
+from humv_usd.usd.materials import read_material
+from humv_usd.usd.paths import material_path
+
+# materials as the stage holds them: the library layer (layers/materials.usda)
+_LIBRARY = Usd.Stage.Open(str(LIBRARY_FILE))
+
+
+def stage_material(name):
+    return read_material(_LIBRARY.GetPrimAtPath(material_path(name)))
 
 
 def _quad(corners, path, material, held=None, ground=False):
     pts = np.asarray(corners, dtype=float)
+    under = stage_material("soil") if ground else None
     return SF.SceneMesh(
-        path, pts, np.array([[0, 1, 2], [0, 2, 3]]), np.array([0, 0]), 1, material, held, ground
+        path,
+        pts,
+        np.array([[0, 1, 2], [0, 2, 3]]),
+        np.array([0, 0]),
+        1,
+        stage_material(material),
+        held,
+        ground,
+        under,
     )
 
 
@@ -39,8 +58,8 @@ def _forcing(n, sun_dir, dni=800.0, dhi=100.0, ghi=500.0, air=290.0, rh=0.5, win
 
 def _panel_equilibrium(cos_sun, lit, f, ground_k, ground_eps, albedo, material, nz):
     """alpha_s E_sw + eps E_lw = eps sigma T^4 + h (T - T_air) for a thin adiabatic plate."""
-    a_s = LIBRARY[material].solar_absorptivity
-    eps = longwave_emissivity(material)
+    a_s = stage_material(material).solar_absorptivity
+    eps = longwave_emissivity(stage_material(material))
     up, down = 0.5 * (1 + nz), 0.5 * (1 - nz)
     e_sky = float(f.sky_longwave[0])
     e_sw = f.dni_w_m2[0] * cos_sun * lit + f.dhi_w_m2[0] * up + albedo * f.ghi_w_m2[0] * down
@@ -78,7 +97,8 @@ def test_sunlit_and_shaded_panels_reach_the_closed_form_equilibrium():
         "/World/Scene/c": "held",
     }
     assert out["/World/Scene/Ground"][0, 0] == 300.0 and out["/World/Scene/c"][0, 0] == 295.0
-    eps_g, albedo = longwave_emissivity("concrete"), 1 - LIBRARY["concrete"].solar_absorptivity
+    concrete = stage_material("concrete")
+    eps_g, albedo = longwave_emissivity(concrete), 1 - concrete.solar_absorptivity
     expect_lit = _panel_equilibrium(
         np.cos(np.radians(40)), 1.0, f, 300.0, eps_g, albedo, "painted_metal", 0.0
     )

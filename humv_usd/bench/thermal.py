@@ -16,8 +16,6 @@ import numpy as np
 import trimesh
 from pxr import Usd
 
-from humv_usd.catalog.garments import GARMENTS
-from humv_usd.catalog.materials import LIBRARY
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.thermal import human as H
 from humv_usd.thermal import layer as TL
@@ -27,6 +25,7 @@ from humv_usd.thermal.sky import ClearSky, stage_longwave_table
 from humv_usd.thermal.surfaces import (
     SPIN_UP_STEP_S,
     forcing_at,
+    ground_albedo,
     scene_meshes,
     surface_temperatures,
     with_sky_table,
@@ -73,6 +72,7 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
         sun,
         float(diag["groundMeanTemperature_k"][0]) if scenario["scene"] else None,
         longwave=table,
+        ground_albedo=ground_albedo(meshes),
     )
     scene = None
     mesh, eps_tri, _ = TL._scene_trimesh(meshes)
@@ -93,12 +93,9 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
             for c in clothing.GetChildren()
         ]
     pts = [skinned_points(stage, p.path, Usd.TimeCode(0), space="world") for p in parts]
-
-    def alpha(p):
-        name = "skin" if p.garment is None else GARMENTS[p.garment].fabric
-        return np.array([LIBRARY[name].solar_absorptivity, H.longwave_emissivity(name)])
-
-    absorb = np.concatenate([np.repeat(alpha(p)[:, None], len(p.triangles), axis=1) for p in parts], axis=1)
+    absorb = np.concatenate(
+        [np.repeat(p.absorptivity()[:, None], len(p.triangles), axis=1) for p in parts], axis=1
+    )
     return {
         "mesh": H._trimesh(pts, parts),
         "scene": scene,

@@ -12,12 +12,16 @@ from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import finish, library_layer_main, new_layer_stage
+from humv_usd.usd.materials import SUBSTRATE_RELATIONSHIP
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
 READS = (*FRAMES, "human.*.clothing", "scene.ground.material", "scene.object.*.material")
 UPSTREAM = ()
 VERSION = "1"
+
+#: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
+GROUND_SUBSTRATE = "soil"
 
 
 def used_materials(scenario: Scenario) -> list[str]:
@@ -30,7 +34,15 @@ def used_materials(scenario: Scenario) -> list[str]:
     if scene:
         names.add(scene["ground"]["material"])
         names.update(o["material"] for o in scene["object"])
+        if _slab_ground(scenario):
+            names.add(GROUND_SUBSTRATE)
     return sorted(names)
+
+
+def _slab_ground(scenario: Scenario) -> bool:
+    """The ground is solved as a slab (no held temperature_k): it needs its substrate."""
+    ground = (scenario["scene"] or {}).get("ground")
+    return bool(ground) and ground.get("temperature_k") is None
 
 
 def author_material(stage, name: str) -> UsdShade.Material:
@@ -75,6 +87,13 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     )
     for name in used_materials(scenario):
         author_material(stage, name)
+    if _slab_ground(scenario):
+        # the thermal tool's ground construction continues below the ground material with
+        # this substrate, read from the stage like every other material property
+        ground = stage.GetPrimAtPath(material_path(scenario["scene"]["ground"]["material"]))
+        ground.CreateRelationship(SUBSTRATE_RELATIONSHIP, custom=True).SetTargets(
+            [material_path(GROUND_SUBSTRATE)]
+        )
     return finish(stage)
 
 

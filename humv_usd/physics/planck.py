@@ -299,7 +299,7 @@ def band_emissivity(
         Band limits (lower, upper) [um].
     response : tuple of two array-like, optional
         Relative spectral response ``(wavelengths_um, values)``, see :func:`band_radiance`.
-    temperature_k : float, default 300
+    temperature_k : float, default :data:`humv_usd.constants.EMISSIVITY_WEIGHTING_TEMPERATURE_K` (300)
         Temperature of the weighting blackbody [K].
 
     Returns

@@ -34,6 +34,7 @@ from humv_usd.render.ir import (  # noqa: F401
     subband_spp,
 )
 from humv_usd.usd.layers import open_stage
+from humv_usd.usd.materials import band_emissivity, subband_emissivity, subband_transmittance
 from humv_usd.usd.sensor import check_subbands, read_sensor_model
 
 MANIFEST_NAME = "manifest.json"
@@ -628,45 +629,28 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
 
 
 def _band_emissivity(cache: dict, material, sensor: SensorModel) -> float:
+    """Band emissivity of a material for a sensor (cached): the one function the thermal solve
+    uses too (:func:`humv_usd.usd.materials.band_emissivity`)."""
     key = (material.path, sensor.name)
     if key not in cache:
-        band = sensor.wavelength_range_um
-        wl = material.wavelengths_um
-        if wl.size > 1 and (wl[-1] < band[0] or wl[0] > band[1]):
-            raise InputError(
-                bad_value(
-                    f"{material.path}.humv:material:wavelengths",
-                    f"{wl[0]:g}-{wl[-1]:g} um",
-                    f"expected a table that reaches into the band {band[0]:g}-{band[1]:g} um of sensor {sensor.path}",
-                )
-            )
-        cache[key] = planck.band_emissivity(
-            wl,
-            material.emissivity,
-            band,
-            sensor.band_response,
-            temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K,
-        )
+        cache[key] = band_emissivity(material, sensor.wavelength_range_um, sensor.band_response)
     return cache[key]
 
 
 def _subband_emissivity(cache: dict, material, sensor: SensorModel, sub) -> np.ndarray:
-    """Sub-band emissivities (n,) of a material for a sensor (cached; same table check as
-    :func:`_band_emissivity`)."""
+    """Sub-band emissivities (n,) of a material for a sensor (cached;
+    :func:`humv_usd.usd.materials.subband_emissivity`)."""
     key = (material.path, sensor.name)
     if key not in cache:
-        _band_emissivity({}, material, sensor)  # raises when the table misses the band
-        cache[key] = sub.emissivity(material.wavelengths_um, material.emissivity)
+        cache[key] = subband_emissivity(material, sensor.wavelength_range_um, sub.bands, sub.response)
     return cache[key]
 
 
 def _subband_transmittance(cache: dict, material, sensor: SensorModel, sub) -> np.ndarray | None:
     """Sub-band transmittances (n,) of a see-through material (glass), None when opaque."""
-    if material.transmittance is None:
-        return None
     key = ("transmittance", material.path, sensor.name)
     if key not in cache:
-        cache[key] = sub.emissivity(material.wavelengths_um, material.transmittance)
+        cache[key] = subband_transmittance(material, sub.bands, sub.response)
     return cache[key]
 
 

@@ -12,7 +12,8 @@ What is read
   triangle -> authored-face map, one part per bound material (``GeomSubset`` material bindings
   included), ``primvars:humv:thermal:temperature`` at the frame, ``humv:label:instanceId`` of the
   mesh or its nearest ancestor;
-- materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity``;
+- materials: ``humv:material:wavelengths`` [um] and ``humv:material:emissivity`` through
+  :func:`humv_usd.usd.materials.read_material` (the reader the thermal tool uses too);
 - ``/World/Atmosphere.humv:atmosphere:skyTemperature`` [K] at the frame;
 - optional, per frame: ``/World/Atmosphere`` spectral tables
   (``humv:atmosphere:wavelengths``, ``skyZenithAngles``, ``skySpectralRadiance``,
@@ -51,13 +52,12 @@ from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.render.radiometry import PathTable
 from humv_usd.usd import schemas as _s
+from humv_usd.usd.materials import StageMaterial, bound_material, read_material
 from humv_usd.usd.sensor import read_camera_pose, read_sensor
 
 # Attribute names: the contract of docs/architecture.md, read by name so that rendering does not
 # depend on whether the schemas are registered or applied.
 TEMPERATURE_ATTR = _s.TEMPERATURE_PRIMVAR
-WAVELENGTHS_ATTR = _s.MATERIAL_WAVELENGTHS
-EMISSIVITY_ATTR = _s.MATERIAL_EMISSIVITY
 SKY_TEMPERATURE_ATTR = _s.ATMOSPHERE_SKY_TEMPERATURE
 INSTANCE_ID_ATTR = _s.LABEL_INSTANCE_ID
 SENSOR_API = _s.SENSOR_API
@@ -67,7 +67,6 @@ ATMOSPHERE_PATH = "/World/Atmosphere"
 ENVIRONMENT_PATH = "/World/Environment"
 #: Per-sensor path tables live under this scope, one child per sensor.
 ATMOSPHERE_PATHS = ATMOSPHERE_PATH + "/Paths"
-REFLECTANCE_ATTR = _s.MATERIAL_REFLECTANCE
 # Environment / atmosphere attributes (the environment and atmosphere layers); absent -> not used
 SUN_DIRECTION_ATTR = getattr(_s, "ENVIRONMENT_SUN_DIRECTION", "humv:environment:sunDirection")
 ATM_MODEL_ATTR = _s.ATMOSPHERE_MODEL
@@ -94,13 +93,8 @@ def _get(attr, time):
     return attr.Get(time)
 
 
-@dataclass
-class Material:
-    path: str
-    wavelengths_um: np.ndarray
-    emissivity: np.ndarray
-    reflectance: np.ndarray | None = None  # spectral reflectance on wavelengths_um (EO), if authored
-    transmittance: np.ndarray | None = None  # spectral transmittance (glass), if authored; else opaque
+#: A material as the render reads it (:func:`humv_usd.usd.materials.read_material`).
+Material = StageMaterial
 
 
 @dataclass
@@ -315,97 +309,12 @@ class StageExport:
     # --- per mesh (static) ---------------------------------------------------------------------
     def _material(self, material: UsdShade.Material, mesh_path: str, time) -> Material:
         mpath = str(material.GetPath())
-        if mpath in self._materials:
-            return self._materials[mpath]
-        prim = material.GetPrim()
-        wl = _get(prim.GetAttribute(WAVELENGTHS_ATTR), time)
-        eps = _get(prim.GetAttribute(EMISSIVITY_ATTR), time)
-        if wl is None or len(wl) == 0:
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{WAVELENGTHS_ATTR}",
-                    None,
-                    f"material bound to {mesh_path} needs wavelengths [um] (HumvMaterialAPI)",
-                )
-            )
-        if eps is None or len(eps) == 0:
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{EMISSIVITY_ATTR}",
-                    None,
-                    f"material bound to {mesh_path} needs emissivity values 0-1 (HumvMaterialAPI)",
-                )
-            )
-        wl = np.asarray(wl, dtype=float)
-        eps = np.asarray(eps, dtype=float)
-        if not np.all(np.isfinite(wl)) or np.any(wl <= 0) or np.any(np.diff(wl) <= 0):
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{WAVELENGTHS_ATTR}",
-                    summary(wl),
-                    "expected positive, strictly ascending wavelengths [um]",
-                )
-            )
-        if eps.size != wl.size:
-            raise InputError(
-                bad_value(
-                    f"{mpath}.{EMISSIVITY_ATTR}",
-                    f"<{eps.size} values>",
-                    f"expected {wl.size} values (one per wavelength in {WAVELENGTHS_ATTR})",
-                )
-            )
-        if not np.all(np.isfinite(eps)) or np.any(eps < 0) or np.any(eps > 1):
-            raise InputError(
-                bad_value(f"{mpath}.{EMISSIVITY_ATTR}", summary(eps), "expected emissivities in 0-1")
-            )
-        rho = _get(prim.GetAttribute(REFLECTANCE_ATTR), time)
-        if rho is not None and len(rho) > 0:
-            rho = np.asarray(rho, dtype=float)
-            if rho.size != wl.size or not np.all(np.isfinite(rho)) or np.any(rho < 0) or np.any(rho > 1):
-                raise InputError(
-                    bad_value(
-                        f"{mpath}.{REFLECTANCE_ATTR}",
-                        summary(rho),
-                        f"expected {wl.size} reflectances in 0-1 (one per wavelength in {WAVELENGTHS_ATTR})",
-                    )
-                )
-        else:
-            rho = None
-        tau = _get(prim.GetAttribute(_s.MATERIAL_TRANSMITTANCE), time)
-        if tau is not None and len(tau) > 0:
-            tau = np.asarray(tau, dtype=float)
-            if (
-                tau.size != wl.size
-                or not np.all(np.isfinite(tau))
-                or np.any(tau < 0)
-                or np.any(tau + eps > 1.0 + 1e-6)
-            ):
-                raise InputError(
-                    bad_value(
-                        f"{mpath}.{_s.MATERIAL_TRANSMITTANCE}",
-                        summary(tau),
-                        f"expected {wl.size} transmittances in 0-1 with emissivity + "
-                        "transmittance <= 1 (one per wavelength)",
-                    )
-                )
-        else:
-            tau = None
-        out = Material(mpath, wl, eps, rho, tau)
-        self._materials[mpath] = out
-        return out
+        if mpath not in self._materials:
+            self._materials[mpath] = read_material(material, mesh_path, time)
+        return self._materials[mpath]
 
     def _bound_material(self, prim: Usd.Prim, mesh_path: str, time) -> Material:
-        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
-        if not material or not material.GetPrim().IsValid():
-            raise InputError(
-                bad_value(
-                    f"{prim.GetPath()}.material:binding",
-                    None,
-                    "a rendered mesh needs a bound material carrying "
-                    f"{WAVELENGTHS_ATTR} and {EMISSIVITY_ATTR}",
-                )
-            )
-        return self._material(material, mesh_path, time)
+        return self._material(bound_material(prim), mesh_path, time)
 
     @staticmethod
     def _instance_id(prim: Usd.Prim) -> int:

@@ -38,6 +38,7 @@ from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K, STEFAN_BOLTZM
 from humv_usd.physics import planck
 from humv_usd.render import cie
 from humv_usd.scenario import spec as _spec
+from humv_usd.usd.materials import band_mean
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
 #: ``humv-usd bench render`` on humvvex with LOWTRAN7 paths and sky: the largest spectral error
@@ -145,12 +146,14 @@ class SubBands:
         return np.stack([planck.band_radiance(t, b, self.response) for b in self.bands], axis=-1)
 
     def emissivity(self, wavelengths_um, emissivity) -> np.ndarray:
-        """Sub-band emissivity (Planck 300 K and response weighted), (n,)."""
+        """Sub-band emissivity (n,): Planck (EMISSIVITY_WEIGHTING_TEMPERATURE_K) and response weighted
+        mean of each sub-band, the band mean every tool uses
+        (:func:`humv_usd.usd.materials.band_mean`)."""
         wl = np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
         eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
         if wl.size == 1:
             return np.full(len(self), float(eps[0]))
-        return self.weighted_mean(wl, eps)
+        return np.array([band_mean(wl, eps, b, self.response) for b in self.bands])
 
 
 def _interp_last(x, wl, v):

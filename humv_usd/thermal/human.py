@@ -31,8 +31,6 @@ import numpy as np
 import trimesh
 from pxr import Usd, UsdGeom
 
-from humv_usd.catalog.garments import GARMENTS
-from humv_usd.catalog.materials import LIBRARY, WAVELENGTHS_UM
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human import labels as L
@@ -44,6 +42,7 @@ from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
 from humv_usd.thermal.sky import ClearSky
 from humv_usd.usd import schemas as S
+from humv_usd.usd.materials import StageMaterial, band_emissivity, mesh_material
 
 #: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
 #: values for single layers (ISO 9920:2007 Annex A local insulation of light shirts/trousers
@@ -73,11 +72,16 @@ MODEL_NAMES = {"jos3": "jos3", "twoNode": "two_node"}
 VISIBILITY_REUSE_M = 0.025
 
 
-def longwave_emissivity(material: str) -> float:
-    """Mean emissivity over the library nodes in 8-14 µm (the longwave band's bulk)."""
-    wl = np.asarray(WAVELENGTHS_UM)
-    eps = np.asarray(LIBRARY[material].emissivity)
-    return float(eps[(wl >= 8.0) & (wl <= 14.0)].mean())
+#: Band [um] of the long-wave emissivity of the thermal balances (the bulk of the thermal
+#: emission at 250-350 K).
+LONGWAVE_BAND_UM = (8.0, 14.0)
+
+
+def longwave_emissivity(material: StageMaterial) -> float:
+    """Long-wave emissivity of a stage material: its band emissivity over
+    :data:`LONGWAVE_BAND_UM` (:func:`humv_usd.usd.materials.band_emissivity`, the function the
+    render uses for a sensor band, so both see one number for one band)."""
+    return band_emissivity(material, LONGWAVE_BAND_UM)
 
 
 @dataclass
@@ -89,7 +93,13 @@ class _Part:
     tri_face: np.ndarray  # (T,) authored face of each triangle
     region: np.ndarray  # (F,) body region id per face
     segment: np.ndarray  # (F,) JOS-3 segment per face
+    material: StageMaterial  # bound on the stage (skin, or the garment's fabric)
     garment: str | None = None
+
+    def absorptivity(self) -> np.ndarray:
+        """(solar absorptivity, long-wave emissivity) of the part's bound material."""
+        alpha = self.material.require("solar_absorptivity", self.path)
+        return np.array([alpha, longwave_emissivity(self.material)])
 
 
 def _part(stage: Usd.Stage, path: str, garment: str | None) -> _Part:
@@ -99,7 +109,8 @@ def _part(stage: Usd.Stage, path: str, garment: str | None) -> _Part:
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
     tris, tri_face = fan_triangulate(counts, indices)
     region = np.asarray(prim.GetAttribute(L.BODY_REGION_PRIMVAR).Get(), dtype=np.int64)
-    return _Part(path, counts, indices, tris, tri_face, region, L.jos3_segments(region), garment)
+    material = mesh_material(prim)
+    return _Part(path, counts, indices, tris, tri_face, region, L.jos3_segments(region), material, garment)
 
 
 def _trimesh(points_by_part: list[np.ndarray], parts: list[_Part]) -> trimesh.Trimesh:
@@ -117,10 +128,8 @@ def _self_radiance(parts: list[_Part], skin_k: float, air_k: float) -> np.ndarra
     blocked ray would bring nothing (the seed's 1_ij = 0) and hidden facets would freeze."""
     lw = []
     for p in parts:
-        if p.garment is None:
-            eps, t = longwave_emissivity("skin"), skin_k
-        else:
-            eps, t = longwave_emissivity(GARMENTS[p.garment].fabric), 0.5 * (skin_k + air_k)
+        eps = longwave_emissivity(p.material)
+        t = skin_k if p.garment is None else 0.5 * (skin_k + air_k)
         lw.append(np.full(len(p.triangles), eps * STEFAN_BOLTZMANN * t**4 / np.pi))
     lw = np.concatenate(lw)
     return np.stack([np.zeros_like(lw), lw])
@@ -142,6 +151,7 @@ def scenario_sky(
     sun: tuple | None = None,
     ground_k: float | None = None,
     longwave: tuple | None = None,
+    ground_albedo: float = 0.2,
 ) -> ClearSky:
     """The sky of the scenario's weather over its ground.
 
@@ -150,14 +160,13 @@ def scenario_sky(
     direction towards the sun, DNI, DHI) [W m^-2] or None (night / no sun); ``ground_k``: ground
     surface temperature (default the scenario's held ground temperature, else the air
     temperature); ``longwave``: (zenith angles [deg], longwave sky radiance [W m^-2 sr^-1])
-    from the atmosphere layer (clouds included), else the analytic sky with the cloud mix.
+    from the atmosphere layer (clouds included), else the analytic sky with the cloud mix;
+    ``ground_albedo``: 1 - solar absorptivity of the ground's material on the stage
+    (:func:`humv_usd.thermal.surfaces.ground_albedo`).
     """
     atm = weather if weather is not None else scenario["atmosphere"]
     if ground_k is None and scenario["scene"]:
         ground_k = scenario["scene"]["ground"].get("temperature_k")
-    albedo = 0.2
-    if scenario["scene"]:
-        albedo = 1.0 - LIBRARY[scenario["scene"]["ground"]["material"]].solar_absorptivity
     kw = {}
     if sun is not None:
         kw = dict(
@@ -175,7 +184,7 @@ def scenario_sky(
         relative_humidity=float(atm["relative_humidity"]),
         cloud_cover=float(atm.get("cloud_cover", 0.0) or 0.0),
         ground_temperature_k=None if ground_k is None else float(ground_k),
-        ground_solar_reflectance=albedo,
+        ground_solar_reflectance=float(ground_albedo),
         **kw,
     )
 
@@ -221,9 +230,8 @@ def human_temperatures(
             garments.append(_part(stage, str(child.GetPath()), name))
     parts = [body, *garments]
     diagnostics: dict = {}
-    skin_eps = longwave_emissivity("skin")
     skin_guess = scenario["thermal"]["skin_temperature_k"]
-    absorb_body = np.array([LIBRARY["skin"].solar_absorptivity, skin_eps])
+    absorb_body = body.absorptivity()
     method = settings.get("radiation_method", "adaptive")
     qrad = dict(method=method, rays=settings["radiation_rays"])
 
@@ -269,19 +277,7 @@ def human_temperatures(
             clothed = _trimesh(pts, parts)
             absorb = np.concatenate(
                 [np.repeat(absorb_body[:, None], len(body.triangles), axis=1)]
-                + [
-                    np.repeat(
-                        np.array(
-                            [
-                                LIBRARY[GARMENTS[p.garment].fabric].solar_absorptivity,
-                                longwave_emissivity(GARMENTS[p.garment].fabric),
-                            ]
-                        )[:, None],
-                        len(p.triangles),
-                        axis=1,
-                    )
-                    for p in garments
-                ],
+                + [np.repeat(p.absorptivity()[:, None], len(p.triangles), axis=1) for p in garments],
                 axis=1,
             )
             qc = Q.absorbed_radiation(
@@ -333,9 +329,14 @@ def human_temperatures(
 
     transient = settings.get("garment_transient", "transient") == "transient"
     for p in garments:
-        fabric = LIBRARY[GARMENTS[p.garment].fabric]
-        eps_f = longwave_emissivity(GARMENTS[p.garment].fabric)
-        heat_capacity = areal_heat_capacity(fabric.density, fabric.specific_heat, fabric.thickness)
+        # the fabric is the material bound to the garment mesh (the clothing layer binds the
+        # catalogue fabric; a stronger layer may bind or override another)
+        fabric = {
+            k: p.material.require(k, p.path)
+            for k in ("conductivity", "density", "specific_heat", "thickness")
+        }
+        eps_f = longwave_emissivity(p.material)
+        heat_capacity = areal_heat_capacity(fabric["density"], fabric["specific_heat"], fabric["thickness"])
         gap_attr = stage.GetPrimAtPath(p.path).GetAttribute(S.AIR_GAP_PRIMVAR)
         starts = np.concatenate([[0], np.cumsum(p.counts)[:-1]])
         temps = np.zeros((frames, len(p.counts)))
@@ -343,8 +344,8 @@ def human_temperatures(
             gap_v = np.asarray(gap_attr.Get(Usd.TimeCode(f)), dtype=float)
             gap = np.add.reduceat(gap_v[p.indices], starts) / p.counts
             h = convective_coefficient(wind[f], model=settings["convection_model"])
-            args = (skin[f, p.segment], air[f], q_garment[p.path][nearest[f]], h, gap, fabric.thickness)
-            kw = dict(fabric_conductivity=fabric.conductivity, fabric_emissivity=eps_f)
+            args = (skin[f, p.segment], air[f], q_garment[p.path][nearest[f]], h, gap, fabric["thickness"])
+            kw = dict(fabric_conductivity=fabric["conductivity"], fabric_emissivity=eps_f)
             if f == 0 or not transient:
                 balance = steady_state(*args, **kw)
             else:

@@ -24,7 +24,6 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
-from humv_usd.catalog.materials import LIBRARY
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
@@ -35,6 +34,7 @@ from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
 from humv_usd.thermal.surfaces import (
     SPIN_UP_STEP_S,
     forcing_at,
+    ground_albedo,
     longwave_emissivity,
     scene_meshes,
     surface_temperatures,
@@ -109,6 +109,7 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
                 sun,
                 float(ground_k[k]) if scenario["scene"] else None,
                 longwave=_scaled_table(table, forcing, i),
+                ground_albedo=ground_albedo(meshes),
             )
             skies.append(sky)
             if mesh is None:
@@ -220,20 +221,11 @@ def _scene_trimesh(meshes):
         offset += len(m.points)
         offsets.append(tri)
         tri += len(m.triangles)
-        e = longwave_emissivity(m.material) if m.material in LIBRARY else 0.9
-        eps.append(np.full(len(m.triangles), e))
+        eps.append(np.full(len(m.triangles), longwave_emissivity(m.material)))
     mesh = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
     return mesh, np.concatenate(eps), offsets
 
 
 def _solar_reflectance(meshes):
-    """Broadband short-wave reflectance 1 - solar absorptivity per triangle."""
-    return np.concatenate(
-        [
-            np.full(
-                len(m.triangles),
-                1.0 - LIBRARY[m.material].solar_absorptivity if m.material in LIBRARY else 0.2,
-            )
-            for m in meshes
-        ]
-    )
+    """Broadband short-wave reflectance 1 - solar absorptivity per triangle (bound materials)."""
+    return np.concatenate([np.full(len(m.triangles), 1.0 - m.solar_absorptivity) for m in meshes])

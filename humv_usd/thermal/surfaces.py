@@ -19,8 +19,10 @@ f_lit the sunlit fraction of the face (shadow rays against the scene from points
   (:func:`with_sky_table`), the sky the render and the people's radiance maps see;
 * convection  h = 2.8 + 3.0 V (Watmuff et al. 1977).
 
-Constructions: the ground is its material's layer over soil down to 1 m, with the bottom held
-at the mean air temperature of the spin-up day; objects are their material's layer with an
+Constructions (every property from the bound material on the stage,
+:mod:`humv_usd.usd.materials`): the ground is its material's layer over its substrate (the
+material its ``humv:material:substrate`` points to, soil from the materials tool) down to 1 m,
+with the bottom held at the mean air temperature of the spin-up day; objects are their material's layer with an
 adiabatic back (insulated siding, a panel on a stand). Scene faces do not exchange radiation with
 each other beyond the ground term, and people do not shade the scene.
 """
@@ -31,9 +33,8 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Usd, UsdGeom, UsdShade
+from pxr import Usd, UsdGeom
 
-from humv_usd.catalog.materials import LIBRARY
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment.sun import sun_at
 from humv_usd.environment.weather import read_weather_csv, weather_at
@@ -46,6 +47,7 @@ from humv_usd.scenario.times import frame_epoch_s
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.sky import cloudy_sky_emissivity, hemispherical_irradiance
 from humv_usd.usd.layers import SCOPES
+from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, mesh_material, substrate
 from humv_usd.usd.paths import GROUND, object_path
 
 #: Depth of the ground construction (material layer + soil) [m]
@@ -58,16 +60,21 @@ SPIN_UP_STEP_S = 600.0
 
 @dataclass
 class SceneMesh:
-    """One scene mesh in world coordinates with its material and held temperature."""
+    """One scene mesh in world coordinates with its bound material and held temperature."""
 
     path: str
     points: np.ndarray  # (P, 3) [m], world
     triangles: np.ndarray  # (T, 3)
     tri_face: np.ndarray  # (T,) authored face of each triangle
     n_faces: int
-    material: str
+    material: StageMaterial  # bound on the stage
     held_k: float | None  # scenario temperature_k: held at it; None: slab
     is_ground: bool
+    substrate: StageMaterial | None = None  # under a slab ground thinner than GROUND_DEPTH_M
+
+    @property
+    def solar_absorptivity(self) -> float:
+        return self.material.require("solar_absorptivity", self.path)
 
     def face_geometry(self):
         """(normals (F, 3), centroids (F, 3), areas (F,)) of the authored faces."""
@@ -88,7 +95,12 @@ class SceneMesh:
 
 
 def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
-    """Every mesh of the composed stage outside /World/Humans, with material and held value."""
+    """Every mesh of the composed stage outside /World/Humans, with its bound material
+    (:func:`humv_usd.usd.materials.mesh_material`) and held value.
+
+    A mesh the scenario does not hold (a slab, also one from a hand-made layer) needs the
+    thermal properties of HumvMaterialAPI on its material, a slab ground thinner than
+    :data:`GROUND_DEPTH_M` also its substrate; InputError naming the mesh otherwise."""
     held: dict[str, float | None] = {}
     if scenario["scene"]:
         held[str(GROUND)] = scenario["scene"]["ground"].get("temperature_k")
@@ -104,21 +116,29 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode.Default()))
         pts = pts @ xf[:3, :3] + xf[3, :3]
         tris, tri_face = fan_triangulate(counts, np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
-        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
-        name = material.GetPrim().GetName() if material else ""
         path = str(prim.GetPath())
-        if path in held:
-            h = held[path]
-        else:  # a mesh from a hand-made layer: a slab of its material, or held at the air
-            h = (
-                None
-                if name in LIBRARY
-                else float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
-            )
-        if h is None and name not in LIBRARY:
-            h = float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
-        out.append(SceneMesh(path, pts, tris, tri_face, len(counts), name, h, path == str(GROUND)))
+        material = mesh_material(prim)
+        h = held.get(path)  # a mesh from a hand-made layer: a slab of its material
+        is_ground = path == str(GROUND)
+        under = None
+        if h is None:
+            for field in THERMAL_ATTRIBUTES:
+                material.require(field, path)
+            if is_ground and material.thickness < GROUND_DEPTH_M:
+                under = substrate(material, upstream, path)
+                for field in THERMAL_ATTRIBUTES:
+                    under.require(field, path)
+        out.append(SceneMesh(path, pts, tris, tri_face, len(counts), material, h, is_ground, under))
     return out
+
+
+def ground_albedo(meshes: list[SceneMesh], default: float = 0.2) -> float:
+    """Short-wave albedo of the ground, 1 - solar absorptivity of its material on the stage;
+    ``default`` when the stage has no ground."""
+    for m in meshes:
+        if m.is_ground:
+            return 1.0 - m.solar_absorptivity
+    return default
 
 
 def _sunlit_fraction(meshes, sun_dirs, up):
@@ -160,15 +180,16 @@ def _sunlit_fraction(meshes, sun_dirs, up):
     return out
 
 
-def _construction(material: str, is_ground: bool):
-    """(layer thicknesses, conductivity, rho c per layer) of a face's slab."""
-    mat = LIBRARY[material]
+def _construction(mesh: SceneMesh):
+    """(layer thicknesses, conductivity, rho c per layer) of a face's slab: the mesh's material
+    over, for the ground, its substrate down to GROUND_DEPTH_M."""
+    mat = mesh.material
     n = int(np.clip(np.ceil(mat.thickness / MAX_LAYER_M), 4, 40))
     dz = [np.full(n, mat.thickness / n)]
     k = [np.full(n, mat.conductivity)]
     rc = [np.full(n, mat.density * mat.specific_heat)]
-    if is_ground and mat.thickness < GROUND_DEPTH_M:
-        soil = LIBRARY["soil"]
+    if mesh.is_ground and mat.thickness < GROUND_DEPTH_M:
+        soil = mesh.substrate
         rest = GROUND_DEPTH_M - mat.thickness
         # 8 soil layers growing geometrically (x 8 over the column): the diurnal wave is
         # damped within ~0.15 m, deeper layers only need to carry the mean
@@ -266,7 +287,6 @@ def forcing_at(scenario, times_s) -> SurfaceForcing:
 
 def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, ground_eps, ground_albedo):
     """(absorbed solar, incident long wave, air, h), each (M, F)."""
-    mat = LIBRARY[mesh.material]
     nz = normals[:, 2][None, :]
     up, down = 0.5 * (1.0 + nz), 0.5 * (1.0 - nz)
     cos = np.maximum(f.sun_direction @ normals.T, 0.0) * f.sun_up[:, None]
@@ -283,7 +303,7 @@ def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, gr
     shape = e_sw.shape
     air = np.broadcast_to(f.air_temperature_k[:, None], shape)
     h = np.broadcast_to(watmuff(f.wind_speed_m_s)[:, None], shape)
-    return mat.solar_absorptivity * e_sw, lw, air, h
+    return mesh.solar_absorptivity * e_sw, lw, air, h
 
 
 def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k):
@@ -295,7 +315,7 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     inverse = np.asarray(inverse).ravel()
     m = len(f.times_s)
     cols = [uniq[:, k * m : (k + 1) * m].T for k in range(4)]  # (M, U) each
-    dz, k, rc = _construction(mesh.material, mesh.is_ground)
+    dz, k, rc = _construction(mesh)
     t_surf, res = slab.simulate_many(
         f.times_s,
         *cols,
@@ -369,7 +389,7 @@ def surface_temperatures(
         if m.is_ground:
             ground_k = (t_all * area).sum(axis=1) / max(area.sum(), 1e-30)
             ground_eps = longwave_emissivity(m.material)
-            ground_albedo = 1.0 - LIBRARY[m.material].solar_absorptivity
+            ground_albedo = 1.0 - m.solar_absorptivity
         out[m.path] = t_all[idx]
     return out, {
         "slabMaxResidual_W_m2": max_res,
