@@ -35,7 +35,7 @@ import numpy as np
 from pxr import Usd
 
 from humv_usd.errors import InputError
-from humv_usd.geometry.mesh import Surface, triangulate
+from humv_usd.geometry.mesh import Surface, fan_triangulate
 from humv_usd.human.body import Body, build_body
 from humv_usd.human.skeleton import Skeleton, skeleton_for
 from humv_usd.usd.avatar import (
@@ -83,7 +83,7 @@ def transfer_to_body(template: Body, body_points: np.ndarray) -> Body:
     the same translation); derived measures (stature, volume, mass) stay the template's.
     """
     mesh = template.body_mesh()
-    tris = triangulate(mesh.face_counts, mesh.face_indices)
+    tris, _ = fan_triangulate(mesh.face_counts, mesh.face_indices)
     delta = np.asarray(body_points, dtype=np.float64) - mesh.points
     others = np.setdiff1d(np.arange(len(template.points)), mesh.vertex_ids)
     near = Surface(mesh.points, tris).closest(template.points[others])
