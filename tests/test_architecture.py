@@ -45,9 +45,6 @@ PENDING = {
     ("humv_usd.atmosphere.layer", "humv_usd.thermal.sky"),
     ("humv_usd.atmosphere.model", "humv_usd.environment.sun"),
     ("humv_usd.atmosphere.model", "humv_usd.environment.weather"),
-    ("humv_usd.thermal.layer", "humv_usd.environment.weather"),
-    ("humv_usd.thermal.surfaces", "humv_usd.environment.sun"),
-    ("humv_usd.thermal.surfaces", "humv_usd.environment.weather"),
 }
 
 

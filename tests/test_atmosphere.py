@@ -232,6 +232,9 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     raw = copy.deepcopy(humvvex_raw)
     raw["atmosphere"]["model"] = "analytic"  # fast; the LOWTRAN tables have the same shape
     raw["general"]["duration_s"] = 2.0 / 30.0  # three frames
+    # no slab spin-up: the environment layer then holds the sun at the three frames only
+    # (the spin-up's negative time codes are tested in test_environment.py)
+    raw["thermal"] = dict(raw.get("thermal") or {}, surface_spin_up_s=0.0)
     sc = validate(raw)
     env, atm_layer = environment_layer.build(sc), atmosphere_layer.build(sc)
     stage = _stage(env, atm_layer)

@@ -157,6 +157,84 @@ def directional_sky_emissivity(zenith_deg, sky_emissivity):
     return _martin_berdahl_law(0.5 * (lo + hi), mu)
 
 
+def cloudy_sky_emissivity(clear_emissivity, cloud_cover):
+    """Effective sky emissivity with a cloud fraction (Crawford & Duchon 1999).
+
+    Parameters
+    ----------
+    clear_emissivity : numeric
+        Clear-sky emissivity, hemispherical or directional eps(theta) [0-1].
+    cloud_cover : numeric
+        Cloud fraction c [0-1] (clipped).
+
+    Returns
+    -------
+    numeric
+        eps = c + (1 - c) eps_clear [0-1].
+
+    Notes
+    -----
+    The clouds are taken as blackbodies at the screen-level air temperature covering the
+    fraction c of the dome (low, optically thick cloud base), so the same mix holds for the
+    hemispherical emissivity and, direction by direction, for eps(theta): an overcast sky
+    (c = 1) radiates sigma T_air^4. High thin cloud (cirrus) is colder and partly transparent;
+    the mix overestimates its emission.
+
+    References
+    ----------
+    .. [1] Crawford, T. M., Duchon, C. E. (1999). An improved parameterization for estimating
+       effective atmospheric emissivity for use in calculating daytime downwelling longwave
+       radiation. J. Appl. Meteor. 38, 474-480 (their Eq. 20, clf the cloud fraction).
+    """
+    c = np.clip(np.asarray(cloud_cover, dtype=float), 0.0, 1.0)
+    return c + (1.0 - c) * np.asarray(clear_emissivity, dtype=float)
+
+
+def extended_sky_table(zenith_deg, radiance):
+    """Table nodes [rad] and values extended as np.interp does: constant to 0 and to 90 deg."""
+    z = np.asarray(zenith_deg, dtype=float).ravel()
+    val = np.asarray(radiance, dtype=float).ravel()
+    if z.size == 0 or z.size != val.size or np.any(np.diff(z) <= 0) or z[0] < 0 or z[-1] > 90:
+        raise ValueError("sky table: zenith angles must ascend within 0-90 deg, one value each")
+    if z[0] > 0:
+        z, val = np.r_[0.0, z], np.r_[val[0], val]
+    if z[-1] < 90:
+        z, val = np.r_[z, 90.0], np.r_[val, val[-1]]
+    return np.radians(z), val
+
+
+def hemispherical_irradiance(zenith_deg, radiance) -> float:
+    """Irradiance on a horizontal plane from a sky tabulated against zenith [W m^-2].
+
+    Parameters
+    ----------
+    zenith_deg : array (Z,)
+        Ascending zenith angles of the table [deg] within 0-90.
+    radiance : array (Z,)
+        Radiance at those angles, azimuthally uniform [W m^-2 sr^-1].
+
+    Returns
+    -------
+    float
+        E = 2 pi int_0^(pi/2) L(theta) cos(theta) sin(theta) dtheta, i.e. pi times the
+        cosine-weighted hemispherical mean of L.
+
+    Notes
+    -----
+    Exact for the interpolant the radiance maps use (:meth:`ClearSky.radiance`): L linear in
+    theta between the nodes, constant before the first and after the last node (np.interp).
+    On a segment L = a + s theta, with int sin cos = sin^2/2 and
+    int theta sin cos = -theta cos(2 theta)/4 + sin(2 theta)/8.
+    """
+    th, val = extended_sky_table(zenith_deg, radiance)
+    a, b = th[:-1], th[1:]
+    slope = np.diff(val) / np.diff(th)
+    f0 = lambda t: 0.5 * np.sin(t) ** 2  # noqa: E731
+    f1 = lambda t: -t * np.cos(2.0 * t) / 4.0 + np.sin(2.0 * t) / 8.0  # noqa: E731
+    seg = (val[:-1] - slope * a) * (f0(b) - f0(a)) + slope * (f1(b) - f1(a))
+    return float(2.0 * np.pi * seg.sum())
+
+
 def water_vapour_pressure(air_temperature_k, relative_humidity):
     """Partial pressure of water vapour [Pa]: RH times the Magnus saturation pressure over water.
 
