@@ -68,8 +68,8 @@ def _upstream(sc, *extra):
         materials_layer.build(sc),
         scene_layer.build(sc),
         sensors_layer.build(sc),
-        atmosphere_layer.build(sc),
     ]
+    layers.append(atmosphere_layer.build(sc, compose_in_memory(layers, FPS)))
     return layers, compose_in_memory(layers, FPS)
 
 

@@ -1,8 +1,11 @@
 """Atmosphere tool: sky, sun and slant paths → layers/atmosphere.usda.
 
-Authors what :func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario
-needs, see there) with the frame-0 cloud cover mixed into the thermal sky
-(:func:`humv_usd.thermal.sky.with_cloud_cover`, Crawford & Duchon 1999): on /World/Atmosphere
+Reads the upstream stage (:data:`UPSTREAM`): weather and sun from the environment layer
+(:mod:`humv_usd.usd.environment`), camera positions from the sensors layer
+(:func:`humv_usd.usd.sensor.camera_positions`); it computes neither. Authors what
+:func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario needs, see
+there) with the frame-0 cloud cover mixed into the thermal sky
+(:func:`humv_usd.atmosphere.model.with_cloud_cover`, Crawford & Duchon 1999): on /World/Atmosphere
 the model that ran, the effective broadband sky (temperature, emissivity, and the longwave
 radiance against zenith that the thermal layer reads), the wavelength grid of the sensors'
 bands, the sky spectral radiance against zenith and, while the sun is up, the direct solar
@@ -14,7 +17,8 @@ When the weather varies (:func:`humv_usd.atmosphere.model.weather_varies`), the 
 (spectral and broadband, with each node's cloud cover) and the path tables get time samples at
 the weather nodes' frames (:func:`humv_usd.atmosphere.model.weather_nodes`; USD interpolates
 float arrays linearly between them) and keep the frame-0 values as their defaults, which
-readers without a time (:func:`humv_usd.thermal.sky.stage_longwave_table`) get. Constant
+readers without a time get (the thermal tool and the render read the sample of their frame,
+:mod:`humv_usd.usd.atmosphere`). Constant
 weather authors single default values, as before.
 """
 
@@ -23,17 +27,18 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom, Vt
 
-from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes
-from humv_usd.environment.weather import weather_at
+from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes, with_cloud_cover
 from humv_usd.scenario import Scenario
-from humv_usd.sensors.layer import camera_positions
-from humv_usd.thermal.sky import with_cloud_cover
 from humv_usd.usd import schemas as S
+from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.paths import sensor_path
+from humv_usd.usd.sensor import camera_positions
 
 NAME = "atmosphere"
 READS = ("general", "atmosphere", "sensor", "scene", "placement")
+#: layers that must be on the upstream stage (built before this one)
+UPSTREAM = ("environment", "sensors")
 PATHS = SCOPES["atmosphere"].AppendChild("Paths")
 
 
@@ -59,12 +64,11 @@ def scene_points(scenario: Scenario) -> np.ndarray:
     return np.asarray(pts, dtype=float).reshape(-1, 3)
 
 
-def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
+def sensor_ranges(scenario: Scenario, sensor: dict, cams: np.ndarray) -> np.ndarray:
     """Ranges [m] of a sensor's path table: the table's nodes up to the farthest scene point
-    (x 1.5, at least twice the look-at distance and 100 m), that range included."""
+    (x 1.5, at least twice the look-at distance and 100 m), that range included; ``cams``
+    the camera positions per frame (n, 3) [m] of the sensors layer."""
 
-    g = scenario["general"]
-    cams = camera_positions(sensor, g["fps"], scenario.frame_count)
     targets = np.vstack([scene_points(scenario), np.asarray(sensor["look_at_m"], float)[None]])
     far = max(float(np.max(np.linalg.norm(cams[:, None, :] - targets[None], axis=-1))), 1.0)
     look = float(np.max(np.linalg.norm(cams - np.asarray(sensor["look_at_m"], float), axis=-1)))
@@ -72,12 +76,13 @@ def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
     return np.unique(np.append(PATH_RANGES_M[PATH_RANGES_M < r_max], r_max))
 
 
-def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
+def build(scenario: Scenario, upstream) -> Sdf.Layer:
+    """The atmosphere layer; ``upstream``: a stage with the :data:`UPSTREAM` layers."""
     g, a = scenario["general"], scenario["atmosphere"]
-    full = atmosphere_for(scenario)
+    full = atmosphere_for(scenario, upstream)
     nodes = None
     if full.node_times_s is None:
-        atm = with_cloud_cover(full, weather_at(scenario, [0.0]).cloud_cover[0])
+        atm = with_cloud_cover(full, read_weather(upstream, [0.0]).cloud_cover[0])
     else:
         nodes = [
             with_cloud_cover(full.at_node(k), full.node_cloud_cover[k]) for k in range(full.node_times_s.size)
@@ -149,14 +154,15 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         for s in scenario["sensor"]:
             path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
             path.ApplyAPI(S.ATMOSPHERE_PATH_API)
-            ranges = sensor_ranges(scenario, s)
-            tau, rad = atm.path(s["position_m"], ranges)
+            cams = camera_positions(upstream, sensor_path(s["id"]), np.arange(max(scenario.frame_count, 1)))
+            ranges = sensor_ranges(scenario, s, cams)
+            tau, rad = atm.path(cams[0], ranges)
             path.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path(s["id"])))
             path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
             path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)))
             path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)))
             for code, n in zip(node_codes if nodes is not None else [], nodes or []):
-                tau, rad = n.path(s["position_m"], ranges)
+                tau, rad = n.path(cams[0], ranges)
                 path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)), code)
                 path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)), code)
         ran["paths"] = ran.get("paths", "") + f"; tables for {len(scenario['sensor'])} sensors"

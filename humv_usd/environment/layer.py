@@ -20,9 +20,10 @@ import numpy as np
 from pxr import Sdf, UsdGeom
 
 from humv_usd.environment.sun import sun_at
-from humv_usd.environment.weather import read_weather_csv, weather_at
+from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.times import frame_epoch_s, frame_times, local_start_iso, spin_up_times
+from humv_usd.scenario.weather_csv import read_weather_csv
 from humv_usd.usd import environment as E
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage

@@ -16,15 +16,7 @@ from humv_usd.environment.weather import weather_at
 from humv_usd.physics.sun import SunState, cloud_reduction, sun_direction
 from humv_usd.physics.weather import Weather
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.times import frame_epoch_s
-
-
-def utc_times(scenario: Scenario, times_s):
-    """pandas DatetimeIndex (UTC) of ``times_s`` seconds after frame 0."""
-    import pandas as pd
-
-    t = frame_epoch_s(scenario) + np.atleast_1d(np.asarray(times_s, dtype=float))
-    return pd.to_datetime(t, unit="s", utc=True)
+from humv_usd.scenario.times import utc_times
 
 
 def sun_at(scenario: Scenario, times_s, weather: Weather | None = None) -> SunState:

@@ -77,3 +77,22 @@ def cloud_reduction(ghi_clear, dhi_clear, zenith_deg, cloud_cover):
     with np.errstate(divide="ignore", invalid="ignore"):
         dni = np.where(cosz > 1e-6, (ghi - dhi) / cosz, 0.0)
     return ghi, dhi, np.maximum(dni, 0.0)
+
+
+def cloud_dni_factor(cloud_cover) -> np.ndarray:
+    """Direct-normal irradiance under a cloud cover over the clear-sky one, DNI / DNI_clear.
+
+    Parameters
+    ----------
+    cloud_cover : array-like
+        Cloud cover fraction N [0-1].
+
+    Returns
+    -------
+    array
+        (1 - 0.75 N^3.4) (1 - N^2): :func:`cloud_reduction`'s DNI over its N = 0 value, which
+        does not depend on the clear-sky diffuse fraction (GHI - DHI = GHI_clear (1 - 0.75
+        N^3.4) (1 - kd_clear) (1 - N^2); Kasten & Czeplak 1980).
+    """
+    n = np.clip(np.asarray(cloud_cover, dtype=float), 0.0, 1.0)
+    return (1.0 - 0.75 * n**3.4) * (1.0 - n * n)

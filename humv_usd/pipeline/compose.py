@@ -64,10 +64,6 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
     has_meshes = bool(scenario["human"]) or scenario["scene"] is not None
     # EO sensors need the atmosphere too (sun and skylight spectra, paths); it runs LOWTRAN7
     # only for infrared bands (an EO-only scenario gets the analytic/SPCTRL2 tables)
-    if scenario["sensor"] or "atmosphere" in scenario.given:
-        needed.append("atmosphere")
-    else:
-        skipped.append(("atmosphere", "no sensor and no [atmosphere] section"))
     if has_meshes:
         needed.append("materials")
     else:
@@ -88,6 +84,11 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
         needed.append("sensors")
     else:
         skipped.append(("sensors", "no [[sensor]]"))
+    # after the sensors: the atmosphere reads their camera positions (atmosphere UPSTREAM)
+    if scenario["sensor"] or "atmosphere" in scenario.given:
+        needed.append("atmosphere")
+    else:
+        skipped.append(("atmosphere", "no sensor and no [atmosphere] section"))
     if has_meshes and has_ir:
         needed.append("thermal")
     else:
@@ -151,7 +152,7 @@ def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
     built: list[tuple[str, Sdf.Layer, float]] = []
     for name in names:
         t = time.perf_counter()
-        reads_stage = name == "thermal" or name.startswith("clothing_")
+        reads_stage = name in ("thermal", "atmosphere") or name.startswith("clothing_")
         upstream = (
             compose_in_memory([lyr for _, lyr, _ in built], scenario["general"]["fps"])
             if reads_stage

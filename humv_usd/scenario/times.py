@@ -32,6 +32,14 @@ def frame_epoch_s(scenario: Scenario) -> float:
     return g["start"].replace(tzinfo=tz).timestamp()
 
 
+def utc_times(scenario: Scenario, times_s):
+    """pandas DatetimeIndex (UTC) of ``times_s`` seconds after frame 0."""
+    import pandas as pd
+
+    t = frame_epoch_s(scenario) + np.atleast_1d(np.asarray(times_s, dtype=float))
+    return pd.to_datetime(t, unit="s", utc=True)
+
+
 def local_start_iso(general: dict) -> str:
     """Frame 0 as an ISO 8601 local date-time with its UTC offset."""
     tz = dt.timezone(dt.timedelta(hours=general["utc_offset_h"]))

@@ -16,12 +16,10 @@ Directions are unit vectors in the stage frame (Z up). Radiance [W m^-2 sr^-1], 
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from humv_usd.physics import planck
 from humv_usd.physics.sky import (
     STEFAN_BOLTZMANN,
     cloudy_sky_emissivity,
@@ -134,56 +132,6 @@ def angular_sky_emissivity(zenith_rad, sky_emissivity, model="martin_berdahl"):
     else:
         raise ValueError(f"invalid model selection {model}")
     return np.where(mu > 0, eps, 1.0)
-
-
-def with_cloud_cover(atmosphere, cloud_cover: float):
-    """The atmosphere's thermal sky with a cloud fraction (Crawford & Duchon 1999).
-
-    Parameters
-    ----------
-    atmosphere : humv_usd.atmosphere.model.Atmosphere
-        Clear-sky atmosphere (LOWTRAN7 or analytic).
-    cloud_cover : float
-        Cloud fraction c [0-1] (the weather of frame 0, like the atmosphere).
-
-    Returns
-    -------
-    Atmosphere
-        A copy whose thermal sky is L = c B(T_air) + (1 - c) L_clear: spectral rows
-        ``sky_radiance`` with the Planck radiance B(lambda, T_air), the broadband
-        ``longwave_radiance`` with sigma T_air^4 / pi, ``sky_emissivity`` =
-        c + (1 - c) eps_clear and ``sky_temperature_k`` = eps^(1/4) T_air. The isotropic diffuse
-        skylight (already reduced by the clouds through the scenario's DHI), the paths and the
-        direct sun are unchanged. c = 0 returns the atmosphere itself.
-
-    Notes
-    -----
-    Clouds as blackbodies at the air temperature (see :func:`cloudy_sky_emissivity`);
-    LOWTRAN7 runs without its cloud models, so the clear-sky spectrum is mixed the same way.
-    """
-
-    c = float(np.clip(cloud_cover, 0.0, 1.0))
-    if c == 0.0:
-        return atmosphere
-    t_air = float(atmosphere.air_temperature_k)
-    wl = np.asarray(atmosphere.wavelengths_um, dtype=float)
-    bb = planck.spectral_radiance(wl, t_air) if wl.size else np.zeros(0)
-    eps = float(cloudy_sky_emissivity(atmosphere.sky_emissivity, c))
-    ran = dict(atmosphere.ran)
-    ran["clouds"] = (
-        f"cloud cover {c:g}: Crawford & Duchon (1999) mix, clouds as blackbodies "
-        f"at the air temperature {t_air:.2f} K (broadband and spectral sky)"
-    )
-    return dataclasses.replace(
-        atmosphere,
-        sky_radiance=c * bb[None, :] + (1.0 - c) * np.asarray(atmosphere.sky_radiance),
-        longwave_radiance=(
-            c * STEFAN_BOLTZMANN * t_air**4 / np.pi + (1.0 - c) * np.asarray(atmosphere.longwave_radiance)
-        ),
-        sky_emissivity=eps,
-        sky_temperature_k=eps**0.25 * t_air,
-        ran=ran,
-    )
 
 
 @dataclass(frozen=True)
