@@ -191,3 +191,23 @@ def test_hand_edited_air_temperature_changes_the_thermal_layer(humvvex_raw, tmp_
         values = stage.GetPrimAtPath("/World/Scene/Ground").GetAttribute(S.TEMPERATURE_PRIMVAR).Get(0)
         ground[name] = float(np.mean(values))
     assert ground["edited"] > ground["as built"] + 1.0
+
+
+def test_hand_edited_cloud_cover_changes_the_atmosphere_layer(humvvex_raw, tmp_path, monkeypatch):
+    """The atmosphere tool reads the environment layer too: a stronger layer setting the cloud
+    cover to 1 makes the sky it authors a blackbody at the air temperature (Crawford & Duchon)."""
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
+    sc = _scenario(humvvex_raw, tmp_path, csv=False)
+    assert sc["atmosphere"]["cloud_cover"] == 0.0
+    override = Sdf.Layer.CreateAnonymous(".usda")
+    edit = Usd.Stage.Open(override)
+    prim = edit.OverridePrim("/World/Environment")
+    prim.CreateAttribute(S.ENVIRONMENT_CLOUD_COVER, Sdf.ValueTypeNames.Float).Set(1.0)
+    emissivity = {}
+    for name, extra in (("as built", ()), ("overcast", (override,))):
+        layers, stage = _upstream(sc, *extra)
+        emissivity[name] = (
+            stage.GetPrimAtPath("/World/Atmosphere").GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Get()
+        )
+    assert emissivity["as built"] < 0.9
+    assert emissivity["overcast"] == pytest.approx(1.0, abs=1e-6)

@@ -316,16 +316,6 @@ class Atmosphere:
         out = np.stack([np.interp(z, zt, sky[:, k]) for k in range(self.wavelengths_um.size)], axis=-1)
         return out + self.diffuse_at(time_s)[None, :]
 
-    def sky_longwave_radiance(self, zenith_deg, time_s: float = 0.0) -> np.ndarray:
-        """Broadband (4-50 um plus a blackbody at air temperature beyond) sky radiance
-        [W m-2 sr-1] against zenith angle [deg]; pi times its cosine-weighted hemispherical
-        mean is sky_emissivity * sigma * T_air^4."""
-        return np.interp(
-            np.asarray(zenith_deg, dtype=float),
-            self.sky_zenith_deg,
-            self._node_mix(self.node_longwave_radiance, self.longwave_radiance, time_s),
-        )
-
     def path(
         self, sensor_position_m=None, ranges_m=None, time_s: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray]:

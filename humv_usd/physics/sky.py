@@ -1,9 +1,12 @@
-"""Clear-sky thermal radiation near the ground and simple path extinction (closed forms).
+"""The sky laws (the one module for them) and simple path extinction (closed forms, arrays in).
 
 Effective (broadband, hemispherical) sky emissivity and temperature (Berdahl & Martin 1984), its
-angular distribution (Martin & Berdahl 1984), and the closed-form extinction terms of the
-analytic atmosphere (water-vapour continuum, aerosol from visibility). LOWTRAN7 spectra are in
-:mod:`humv_usd.atmosphere.model`; these are its analytic fallback.
+angular distribution (Martin & Berdahl 1984) and that law's hemispherical integral, the cloud
+mix (Crawford & Duchon 1999), the exact hemispherical irradiance of a sky tabulated against
+zenith (the atmosphere layer's ``skyLongwaveRadiance``), and the closed-form extinction terms of
+the analytic atmosphere (water-vapour continuum, aerosol from visibility). LOWTRAN7 spectra are
+in :mod:`humv_usd.atmosphere.model`; these are its analytic fallback. The thermal tool's sky
+radiance model (:mod:`humv_usd.thermal.sky`) builds on these.
 """
 
 from __future__ import annotations
@@ -101,23 +104,62 @@ def effective_sky_temperature(air_temperature_k, relative_humidity):
     return eps**0.25 * np.asarray(air_temperature_k, dtype=float), eps
 
 
-def _martin_berdahl_law(zenith_emissivity, mu):
+def martin_berdahl_law(zenith_emissivity, mu):
+    """Slab-atmosphere angular law eps(mu) = 1 - (1 - eps_z)^(1/mu) (Martin & Berdahl 1984).
+
+    Parameters
+    ----------
+    zenith_emissivity : numeric
+        Zenith emissivity eps_z [0-1].
+    mu : numeric
+        Cosine of the zenith angle [-]; mu <= 0 (horizon and below) gives 1.
+    """
+    # mu -> 0 makes the exponent blow up; (1-eps_z)^inf = 0 -> eps = 1 at the horizon
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         out = 1.0 - np.power(1.0 - zenith_emissivity, 1.0 / np.maximum(mu, 1e-12))
     return np.where(mu > 0, out, 1.0)
 
 
-_GAUSS_200 = None
+_GAUSS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
 
-def _hemispherical(zenith_emissivity):
-    global _GAUSS_200
-    if _GAUSS_200 is None:
-        _GAUSS_200 = np.polynomial.legendre.leggauss(200)
-    x, w = _GAUSS_200
+def hemispherical_martin_berdahl(zenith_emissivity, n: int = 400):
+    """Hemispherical emissivity 2 int_0^1 eps(mu) mu dmu of :func:`martin_berdahl_law`
+    (Gauss-Legendre in mu with ``n`` nodes; the integrand is bounded and smooth on (0, 1])."""
+    if n not in _GAUSS:
+        _GAUSS[n] = np.polynomial.legendre.leggauss(n)
+    x, w = _GAUSS[n]
     mu = 0.5 * (x + 1.0)
-    eps = _martin_berdahl_law(np.asarray(zenith_emissivity, dtype=float)[..., None], mu)
-    return np.sum(eps * mu * w, axis=-1)  # 2 int_0^1 eps mu dmu
+    eps = martin_berdahl_law(np.asarray(zenith_emissivity, dtype=float)[..., None], mu)
+    return np.sum(eps * mu * w, axis=-1)  # 2 * 0.5 * sum(...)
+
+
+def zenith_emissivity_martin_berdahl(sky_emissivity):
+    """Zenith emissivity eps_z whose Martin-Berdahl angular law has hemispherical value eps_sky.
+
+    Parameters
+    ----------
+    sky_emissivity : numeric
+        Hemispherical (flux) clear-sky emissivity [0-1].
+
+    Returns
+    -------
+    numeric
+        Zenith emissivity eps_z [0-1] with 2 int eps(theta) cos sin dtheta = eps_sky.
+
+    Notes
+    -----
+    Solved by bisection (the hemispherical value is monotonic in eps_z). Martin & Berdahl (1984)
+    fit eps_z ~ 1 - (1 - eps_sky)^(1/1.8); solving keeps the downwelling flux identical to the
+    Berdahl & Martin hemispherical emissivity the rest of the code uses.
+    """
+    target = np.clip(np.asarray(sky_emissivity, dtype=float), 0.0, 1.0)
+    lo, hi = np.zeros_like(target), np.array(target, copy=True)  # eps_z <= eps_sky
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        too_low = hemispherical_martin_berdahl(mid) < target
+        lo, hi = np.where(too_low, mid, lo), np.where(too_low, hi, mid)
+    return 0.5 * (lo + hi)
 
 
 def directional_sky_emissivity(zenith_deg, sky_emissivity):
@@ -140,21 +182,17 @@ def directional_sky_emissivity(zenith_deg, sky_emissivity):
     -----
     Slab-atmosphere law eps(theta) = 1 - (1 - eps_z)^(1 / cos theta) of Martin & Berdahl
     (1984); the zenith emissivity eps_z is solved (bisection, the hemispherical integral is
-    monotonic in eps_z) so that the downwelling flux equals the Berdahl & Martin (1984) value.
-    Same law as ``humv_usd.thermal.sky.angular_sky_emissivity(model='martin_berdahl')``.
+    monotonic in eps_z, :func:`zenith_emissivity_martin_berdahl`) so that the downwelling flux
+    equals the Berdahl & Martin (1984) value. The thermal tool's
+    ``angular_sky_emissivity(model='martin_berdahl')`` is this function.
 
     References
     ----------
     .. [1] Martin, M., Berdahl, P. (1984). Characteristics of infrared sky radiation in the
        United States. Solar Energy 33(3/4), 321-336.
     """
-    target = float(np.clip(sky_emissivity, 0.0, 1.0))
-    lo, hi = 0.0, target
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _hemispherical(mid) < target else (lo, mid)
     mu = np.cos(np.radians(np.asarray(zenith_deg, dtype=float)))
-    return _martin_berdahl_law(0.5 * (lo + hi), mu)
+    return martin_berdahl_law(float(zenith_emissivity_martin_berdahl(float(sky_emissivity))), mu)
 
 
 def cloudy_sky_emissivity(clear_emissivity, cloud_cover):

@@ -25,6 +25,8 @@ from humv_usd.physics.sky import (
     cloudy_sky_emissivity,
     effective_sky_temperature,
     hemispherical_irradiance,
+    martin_berdahl_law,
+    zenith_emissivity_martin_berdahl,
 )
 from humv_usd.usd.atmosphere import longwave_sky
 
@@ -36,54 +38,6 @@ SHORTWAVE, LONGWAVE = 0, 1
 
 # Unsworth & Monteith (1975): eps(theta) = a + b ln(sec theta), b from their Table 2 (clear sky)
 _UNSWORTH_MONTEITH_B = 0.09
-
-
-def _martin_berdahl(zenith_emissivity, mu):
-    # mu -> 0 makes the exponent blow up; (1-eps_z)^inf = 0 -> eps = 1 at the horizon
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        out = 1.0 - np.power(1.0 - zenith_emissivity, 1.0 / np.maximum(mu, 1e-12))
-    return np.where(mu > 0, out, 1.0)
-
-
-_GAUSS = {}
-
-
-def _hemispherical_martin_berdahl(zenith_emissivity, n=400):
-    """2 int_0^1 eps(mu) mu dmu by Gauss-Legendre in mu (bounded, smooth on (0, 1])."""
-    if n not in _GAUSS:
-        _GAUSS[n] = np.polynomial.legendre.leggauss(n)
-    x, w = _GAUSS[n]
-    mu = 0.5 * (x + 1.0)
-    eps = _martin_berdahl(np.asarray(zenith_emissivity, dtype=float)[..., None], mu)
-    return np.sum(eps * mu * w, axis=-1)  # 2 * 0.5 * sum(...)
-
-
-def zenith_emissivity_martin_berdahl(sky_emissivity):
-    """Zenith emissivity eps_z whose Martin-Berdahl angular law has hemispherical value eps_sky.
-
-    Parameters
-    ----------
-    sky_emissivity : numeric
-        Hemispherical (flux) clear-sky emissivity [0-1].
-
-    Returns
-    -------
-    numeric
-        Zenith emissivity eps_z [0-1] with 2 int eps(theta) cos sin dtheta = eps_sky.
-
-    Notes
-    -----
-    Solved by bisection (the hemispherical value is monotonic in eps_z). Martin & Berdahl (1984)
-    fit eps_z ~ 1 - (1 - eps_sky)^(1/1.8); solving keeps the downwelling flux identical to the
-    Berdahl & Martin hemispherical emissivity the rest of the code uses.
-    """
-    target = np.clip(np.asarray(sky_emissivity, dtype=float), 0.0, 1.0)
-    lo, hi = np.zeros_like(target), np.array(target, copy=True)  # eps_z <= eps_sky
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        too_low = _hemispherical_martin_berdahl(mid) < target
-        lo, hi = np.where(too_low, mid, lo), np.where(too_low, hi, mid)
-    return 0.5 * (lo + hi)
 
 
 def angular_sky_emissivity(zenith_rad, sky_emissivity, model="martin_berdahl"):
@@ -121,7 +75,7 @@ def angular_sky_emissivity(zenith_rad, sky_emissivity, model="martin_berdahl"):
     mu = np.cos(np.asarray(zenith_rad, dtype=float))
     eps_sky = float(sky_emissivity)
     if model == "martin_berdahl":
-        eps = _martin_berdahl(float(zenith_emissivity_martin_berdahl(eps_sky)), mu)
+        eps = martin_berdahl_law(float(zenith_emissivity_martin_berdahl(eps_sky)), mu)
     elif model == "unsworth_monteith":
         b = _UNSWORTH_MONTEITH_B
         with np.errstate(divide="ignore"):
