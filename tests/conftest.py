@@ -15,13 +15,16 @@ HUMVVEX = ROOT / "examples" / "humvvex.toml"
 
 
 def upstream_of(scenario):
-    """The stage the atmosphere tool reads (its UPSTREAM: environment and sensors layers),
-    composed in memory."""
+    """The stage the atmosphere tool reads (its UPSTREAM: environment, sensors and, when the
+    scenario has one, scene layers), composed in memory."""
     from humv_usd.environment import layer as environment_layer
     from humv_usd.pipeline.compose import compose_in_memory
+    from humv_usd.scene import layer as scene_layer
     from humv_usd.sensors import layer as sensors_layer
 
     layers = [environment_layer.build(scenario), sensors_layer.build(scenario)]
+    if scenario["scene"] is not None:
+        layers.append(scene_layer.build(scenario))
     return compose_in_memory(layers, scenario["general"]["fps"])
 
 

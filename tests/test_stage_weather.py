@@ -211,3 +211,32 @@ def test_hand_edited_cloud_cover_changes_the_atmosphere_layer(humvvex_raw, tmp_p
         )
     assert emissivity["as built"] < 0.9
     assert emissivity["overcast"] == pytest.approx(1.0, abs=1e-6)
+
+
+def test_path_ranges_reach_a_hand_made_mesh_of_the_stage(humvvex_raw, tmp_path, monkeypatch):
+    """The path table's ranges come from the scene on the stage: a mast 3 km away, added by a
+    stronger layer (not in the scenario), stretches the sensor's table to 1.5 x its distance."""
+    from pxr import UsdGeom
+
+    from humv_usd.atmosphere.layer import PATHS
+
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
+    sc = _scenario(humvvex_raw, tmp_path, csv=False)
+    extra = Sdf.Layer.CreateAnonymous(".usda")
+    edit = Usd.Stage.Open(extra)
+    mast = UsdGeom.Mesh.Define(edit, "/World/Scene/far_mast")
+    mast.CreatePointsAttr([(3000.0, 0.0, 0.0), (3001.0, 0.0, 0.0), (3000.0, 0.0, 20.0)])
+    mast.CreateFaceVertexCountsAttr([3])
+    mast.CreateFaceVertexIndicesAttr([0, 1, 2])
+    mast.CreateExtentAttr([(3000.0, 0.0, 0.0), (3001.0, 0.0, 20.0)])
+    far = {}
+    for name, layers in (("as built", ()), ("with mast", (extra,))):
+        _, stage = _upstream(sc, *layers)
+        ranges = (
+            stage.GetPrimAtPath(PATHS.AppendChild("lwir640")).GetAttribute(S.ATMOSPHERE_PATH_RANGES).Get()
+        )
+        far[name] = float(ranges[-1])
+    cam = np.asarray(sc["sensor"][0]["position_m"], float)
+    corner = np.array([3001.0, 0.0, 20.0])
+    assert far["as built"] < 1000.0
+    assert far["with mast"] == pytest.approx(1.5 * np.linalg.norm(corner - cam), rel=1e-5)

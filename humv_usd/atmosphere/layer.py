@@ -2,7 +2,8 @@
 
 Reads the upstream stage (:data:`UPSTREAM`): weather and sun from the environment layer
 (:mod:`humv_usd.usd.environment`), camera positions from the sensors layer
-(:func:`humv_usd.usd.sensor.camera_positions`); it computes neither. Authors what
+(:func:`humv_usd.usd.sensor.camera_positions`) and the scene's extent from the scene layer
+(:func:`scene_points`); it computes none of them. Authors what
 :func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario needs, see
 there) with the frame-0 cloud cover mixed into the thermal sky
 (:func:`humv_usd.atmosphere.model.with_cloud_cover`, Crawford & Duchon 1999): on /World/Atmosphere
@@ -32,13 +33,15 @@ from humv_usd.scenario import Scenario
 from humv_usd.usd import schemas as S
 from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.mesh import bound_corners
 from humv_usd.usd.paths import sensor_path
 from humv_usd.usd.sensor import camera_positions
 
 NAME = "atmosphere"
-READS = ("general", "atmosphere", "sensor", "scene", "placement")
-#: layers that must be on the upstream stage (built before this one)
-UPSTREAM = ("environment", "sensors")
+READS = ("general", "atmosphere", "sensor", "placement")
+#: layers read from the upstream stage (built before this one): weather and sun, camera
+#: positions, and the scene's extent for the path ranges (optional: a scenario may have no scene)
+UPSTREAM = ("environment", "sensors", "scene")
 PATHS = SCOPES["atmosphere"].AppendChild("Paths")
 
 
@@ -46,30 +49,26 @@ def _floats(a) -> Vt.FloatArray:
     return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
 
 
-def scene_points(scenario: Scenario) -> np.ndarray:
-    """Points bounding what the sensors look at [m]: ground corners, object tops, people."""
-    pts = []
-    scene = scenario["scene"]
-    if scene:
-        gx, gy = scene["ground"]["size_m"]
-        pts += [(sx * gx / 2, sy * gy / 2, 0.0) for sx in (-1, 1) for sy in (-1, 1)]
-        for o in scene["object"]:
-            cx, cy, cz = o["center_m"]
-            r = 0.5 * float(np.hypot(o["size_m"][0], o["size_m"][1]))
-            pts += [(cx + sx * r, cy + sy * r, cz + o["size_m"][2]) for sx in (-1, 1) for sy in (-1, 1)]
+def scene_points(scenario: Scenario, upstream) -> np.ndarray:
+    """Points bounding what the sensors look at [m]: the corners of every scene mesh's bounding
+    box on the upstream stage (the scene layer: ground, objects, hand-made meshes), and the
+    people's placements and waypoints up to 2 m (from ``[[placement]]``: their skinned extents
+    over every frame would cost more than the range table needs)."""
+    pts = [bound_corners(upstream, SCOPES["scene"])]
     for p in scenario["placement"]:
         x, y, z = p["position_m"]
-        pts += [(x, y, z), (x, y, z + 2.0)]
-        pts += [(wx, wy, z) for wx, wy in p.get("waypoints_m") or []]
-    return np.asarray(pts, dtype=float).reshape(-1, 3)
+        people = [(x, y, z), (x, y, z + 2.0)] + [(wx, wy, z) for wx, wy in p.get("waypoints_m") or []]
+        pts.append(np.asarray(people, dtype=float))
+    return np.vstack([np.zeros((0, 3))] + pts)
 
 
-def sensor_ranges(scenario: Scenario, sensor: dict, cams: np.ndarray) -> np.ndarray:
+def sensor_ranges(sensor: dict, cams: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Ranges [m] of a sensor's path table: the table's nodes up to the farthest scene point
     (x 1.5, at least twice the look-at distance and 100 m), that range included; ``cams``
-    the camera positions per frame (n, 3) [m] of the sensors layer."""
+    the camera positions per frame (n, 3) [m] of the sensors layer, ``points`` the
+    :func:`scene_points`."""
 
-    targets = np.vstack([scene_points(scenario), np.asarray(sensor["look_at_m"], float)[None]])
+    targets = np.vstack([points, np.asarray(sensor["look_at_m"], float)[None]])
     far = max(float(np.max(np.linalg.norm(cams[:, None, :] - targets[None], axis=-1))), 1.0)
     look = float(np.max(np.linalg.norm(cams - np.asarray(sensor["look_at_m"], float), axis=-1)))
     r_max = min(max(1.5 * far, 2.0 * look, 100.0), float(PATH_RANGES_M[-1]))
@@ -151,11 +150,12 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
         else:
             ran["solar spectrum"] = "skipped: sun below the horizon (or fully clouded)"
         UsdGeom.Scope.Define(stage, PATHS)
+        points = scene_points(scenario, upstream)
         for s in scenario["sensor"]:
             path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
             path.ApplyAPI(S.ATMOSPHERE_PATH_API)
             cams = camera_positions(upstream, sensor_path(s["id"]), np.arange(max(scenario.frame_count, 1)))
-            ranges = sensor_ranges(scenario, s, cams)
+            ranges = sensor_ranges(s, cams, points)
             tau, rad = atm.path(cams[0], ranges)
             path.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path(s["id"])))
             path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
