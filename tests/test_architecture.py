@@ -7,6 +7,9 @@ from __future__ import annotations
 
 import ast
 import functools
+import re
+import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -155,3 +158,30 @@ def test_tool_reads_upstream_only_through_usd(tool):
         if src == tool and dst != tool and (module, target) not in PENDING
     }
     assert not found & (TOOLS | LEVELS[7] | LEVELS[8] | LEVELS[9])
+
+
+#: import name -> distribution name where they differ
+DISTRIBUTIONS = {"pxr": "usd-core", "colour": "colour-science", "bpy": "bpy"}
+
+
+def test_pyproject_declares_every_imported_package():
+    """Every third-party package the library imports (at the top or lazily) is a declared
+    dependency (bpy as the ``blender`` extra), and every declared dependency is imported."""
+    project = tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["project"]
+    declared = {
+        re.split(r"[<>=!~ \[]", d, maxsplit=1)[0].lower()
+        for d in project["dependencies"] + project["optional-dependencies"]["blender"]
+    }
+    imported = set()
+    for _, _, tree in _modules():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                imported |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                imported.add(node.module.split(".")[0])
+    third_party = {m for m in imported if m not in sys.stdlib_module_names and m != "humv_usd"}
+    needed = {DISTRIBUTIONS.get(m, m).lower() for m in third_party}
+    assert needed <= declared, f"imported but not declared in pyproject.toml: {sorted(needed - declared)}"
+    # bpy: the Blender add-on and the interop tests use it, the library does not
+    unused = declared - needed - {"bpy"}
+    assert not unused, f"declared but never imported: {sorted(unused)}"

@@ -7,6 +7,7 @@ traceback and nothing written).
 
 from __future__ import annotations
 
+import logging
 import statistics
 import sys
 import tempfile
@@ -39,8 +40,13 @@ def parse_frames(text: str | None) -> list[int] | None:
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="humv-usd", prog_name=PROG)
-def main():
+@click.option("-v", "--verbose", count=True, help="More log output on stderr (-v info, -vv debug).")
+def main(verbose: int = 0):
     """HumV-USD: USD-native physics-based EO/IR simulation of human signatures."""
+    # the library logs through `logging` (warnings through `warnings`); the command line shows them
+    level = logging.WARNING if verbose == 0 else logging.INFO if verbose == 1 else logging.DEBUG
+    logging.basicConfig(level=level, format=f"{PROG}: %(levelname)s: %(message)s", stream=sys.stderr)
+    logging.captureWarnings(True)
 
 
 @main.command()
