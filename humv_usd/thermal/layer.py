@@ -33,6 +33,7 @@ from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
 from humv_usd.thermal.surfaces import (
+    air_at_frame0,
     forcing_at,
     longwave_emissivity,
     scene_meshes,
@@ -41,7 +42,7 @@ from humv_usd.thermal.surfaces import (
 )
 from humv_usd.usd import schemas as S
 from humv_usd.usd.atmosphere import longwave_sky, model_name
-from humv_usd.usd.environment import ENVIRONMENT_PATH, read_weather
+from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import finish, new_layer_stage
 from humv_usd.usd.paths import body_path, human_path
 
@@ -143,7 +144,7 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     # to compose's report, so an unchanged scenario still rewrites nothing
     stage.GetRootLayer().customLayerData = {"humv:thermal": report}
     fixed = _fixed_people(scenario)
-    air0 = _air_at_frame0(upstream, scenario)
+    air0 = air_at_frame0(upstream, scenario)
     kinds = {m.path: ("fixed" if m.held_k is not None else "slab") for m in meshes}
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
@@ -195,15 +196,6 @@ def _sky_report(forcing, tables, i0, upstream) -> dict:
             float(forcing.sky_longwave[i0] / (R.STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
         ),
     }
-
-
-def _air_at_frame0(upstream: Usd.Stage, scenario: Scenario) -> float:
-    """Air temperature of frame 0 [K] for meshes nothing solves: the environment layer's, or
-    the scenario's constant one when the stage has no environment layer (a fixed-model stage
-    assembled without it)."""
-    if upstream.GetPrimAtPath(ENVIRONMENT_PATH):
-        return float(read_weather(upstream, [0.0]).air_temperature_k[0])
-    return float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
 
 
 def _fixed_people(scenario: Scenario) -> dict[Sdf.Path, float]:

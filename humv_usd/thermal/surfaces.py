@@ -50,7 +50,7 @@ from humv_usd.physics.sky import (
 from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.radiation import _intersector
-from humv_usd.usd.environment import read_sun, read_weather, time_codes
+from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.mesh import fan_triangulate
 from humv_usd.usd.paths import GROUND, object_path
@@ -92,6 +92,15 @@ class SceneMesh:
         return nrm, cen, area
 
 
+def air_at_frame0(upstream: Usd.Stage, scenario) -> float:
+    """Air temperature of frame 0 [K] for meshes nothing solves: the environment layer's, or
+    the scenario's constant one when the stage has no environment layer (a fixed-model stage
+    assembled without it)."""
+    if upstream.GetPrimAtPath(ENVIRONMENT_PATH):
+        return float(read_weather(upstream, [0.0]).air_temperature_k[0])
+    return float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
+
+
 def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
     """Every mesh of the composed stage outside /World/Humans, with material and held value."""
     held: dict[str, float | None] = {}
@@ -115,13 +124,9 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         if path in held:
             h = held[path]
         else:  # a mesh from a hand-made layer: a slab of its material, or held at the air
-            h = (
-                None
-                if name in LIBRARY
-                else float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
-            )
+            h = None if name in LIBRARY else air_at_frame0(upstream, scenario)
         if h is None and name not in LIBRARY:
-            h = float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
+            h = air_at_frame0(upstream, scenario)
         out.append(SceneMesh(path, pts, tris, tri_face, len(counts), name, h, path == str(GROUND)))
     return out
 
