@@ -21,8 +21,6 @@ from humv_usd.scenario.spec import ATMOSPHERE
 from humv_usd.scenario.times import frame_epoch_s
 from humv_usd.scenario.weather_csv import read_weather_csv
 
-__all__ = ["COLUMNS", "Weather", "read_weather_csv", "weather_at"]
-
 
 def weather_at(scenario: Scenario, times_s) -> Weather:
     """Weather at ``times_s`` seconds after frame 0.
