@@ -5,7 +5,7 @@ from __future__ import annotations
 import shutil
 
 import pytest
-from pxr import Sdf, Usd, UsdGeom, Vt
+from pxr import Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from humv_usd.pipeline.compose import compose
 from humv_usd.scenario import validate
@@ -66,3 +66,36 @@ def test_conventions(out):
     found = check_stage(bad)
     assert any("upAxis is Y" in f for f in found)
     assert any("metersPerUnit is 0.01" in f for f in found)
+
+
+def _time_sampled_mesh_stage(samples: dict[float, list[float]]) -> Usd.Stage:
+    """One triangle with a HumvMaterialAPI material and time-sampled per-face temperatures."""
+    from humv_usd.usd import schemas as S
+    from humv_usd.usd.mesh import define_mesh
+
+    stage = Usd.Stage.CreateInMemory()
+    material = UsdShade.Material.Define(stage, "/World/Materials/m").GetPrim()
+    material.ApplyAPI(S.MATERIAL_API)
+    material.GetAttribute(S.MATERIAL_WAVELENGTHS).Set(Vt.FloatArray([8.0, 12.0]))
+    material.GetAttribute(S.MATERIAL_EMISSIVITY).Set(Vt.FloatArray([0.9, 0.9]))
+    mesh = define_mesh(
+        stage, "/World/Tri", [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [3], [0, 1, 2], material.GetPath()
+    )
+    primvar = UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+        S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform
+    )
+    for time, values in samples.items():
+        primvar.Set(Vt.FloatArray(values), time)
+    return stage
+
+
+def test_time_sampled_temperatures_are_checked_per_sample():
+    """A multi-frame thermal layer (jos3/twoNode) has time samples: each is checked and named
+    by its time (GetTimeSamples gives floats, not time codes: this crashed once)."""
+    from humv_usd.usd.check import rule_meshes
+
+    assert rule_meshes(_time_sampled_mesh_stage({0.0: [300.0], 1.0: [301.0], 2.0: [302.0]})) == []
+    found = rule_meshes(_time_sampled_mesh_stage({0.0: [300.0], 1.0: [float("nan")], 2.0: [300.0, 1.0]}))
+    assert len(found) == 2
+    assert "/World/Tri at time 1.0: values nan..nan K outside 1..5000 K" in found[0]
+    assert "/World/Tri at time 2.0: 2 values for 1 faces" in found[1]

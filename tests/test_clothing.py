@@ -316,12 +316,16 @@ def test_usdskel_poses_garments_outside_the_posed_body(clothed_stage):
 
 def test_static_person_gets_one_value(humvvex_raw):
     scenario = validate(humvvex_raw)  # one frame, standing
-    layer = clothing_layer.build_one(scenario, scenario["human"][0], garments=["shorts"])
+    # the clothing tool reads the person from the avatar layer
+    upstream = compose_in_memory(
+        [avatar_layer.build_one(scenario, scenario["human"][0])], scenario["general"]["fps"]
+    )
+    layer = clothing_layer.build_one(scenario, scenario["human"][0], upstream, garments=["shorts"])
     stage = Usd.Stage.Open(layer)
     prim = stage.GetPrimAtPath("/World/Humans/p1/Clothing/shorts")
     gap = prim.GetAttribute(S.AIR_GAP_PRIMVAR)
     assert gap.GetNumTimeSamples() == 0 and len(gap.Get()) == len(UsdGeom.Mesh(prim).GetPointsAttr().Get())
     assert clothing_layer.layer_name("p1") == "clothing_p1"
-    assert set(clothing_layer.build(scenario, None)) == {"clothing_p1"}  # humvvex is dressed
+    assert set(clothing_layer.build(scenario, upstream)) == {"clothing_p1"}  # humvvex is dressed
     humvvex_raw = dict(humvvex_raw, human=[dict(humvvex_raw["human"][0], clothing=[])])
     assert clothing_layer.build(validate(humvvex_raw), None) == {}  # nobody wears anything

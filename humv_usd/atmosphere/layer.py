@@ -30,6 +30,7 @@ from pxr import Sdf, UsdGeom, Vt
 
 from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes, with_cloud_cover
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import CLOCK
 from humv_usd.usd import schemas as S
 from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
@@ -38,10 +39,19 @@ from humv_usd.usd.paths import sensor_path
 from humv_usd.usd.sensor import camera_positions
 
 NAME = "atmosphere"
-READS = ("general", "atmosphere", "sensor", "placement")
-#: layers read from the upstream stage (built before this one): weather and sun, camera
-#: positions, and the scene's extent for the path ranges (optional: a scenario may have no scene)
+READS = (
+    *CLOCK,
+    "atmosphere",  # model, profile, visibility; weather_csv: its hours are the weather nodes
+    "sensor.*.id",
+    "sensor.*.wavelength_um",
+    "sensor.*.look_at_m",
+    "placement.*.position_m",
+    "placement.*.waypoints_m",
+)
+#: layers read from the upstream stage: weather and sun (environment), camera positions
+#: (sensors) and the scene's extent for the path ranges (scene; a scenario may have none)
 UPSTREAM = ("environment", "sensors", "scene")
+VERSION = "2"
 PATHS = SCOPES["atmosphere"].AppendChild("Paths")
 
 

@@ -28,11 +28,12 @@ import os
 from numbers import Number
 from pathlib import Path
 
-from humv_usd.avatar.layer import build_one
+from humv_usd.avatar.layer import READS, VERSION, build_one
 from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import write_text_atomic
 from humv_usd.scenario import validate
-from humv_usd.usd.layers import layer_text
+from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.usd.layers import layer_text, set_inputs_key
 
 #: The neutral ``[general]`` values used for a stand-alone avatar (see the module doc).
 NEUTRAL_GENERAL = {
@@ -176,7 +177,11 @@ def author_avatar(
 
     # imported here: pxr and the avatar code load only when a layer is really built
 
-    layer = build_one(scenario, scenario["human"][0])
+    human = scenario["human"][0]
+    layer = build_one(scenario, human)
+    # the key compose gives this layer (the avatar reads no other layer): the file is the one
+    # compose writes, and compose takes it as an unchanged avatar layer
+    set_inputs_key(layer, inputs_key(VERSION, read_values(scenario, READS, human["id"]), {}))
     try:
         write_text_atomic(path, layer_text(layer))
     except OSError as exc:

@@ -40,13 +40,16 @@ from humv_usd.human.skeleton import (
 )
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, skeleton_path
 
-NAME = "avatar"
-READS = ("general", "human", "placement", "scene")
+NAME = "avatar_{id}"  # one layer per [[human]]
+READS = (*FRAMES, "general.seed", "human[{id}]", "placement[{id}]", "@ids")
+UPSTREAM = ()
+VERSION = "1"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -164,6 +167,7 @@ def _avatar_attributes(prim, human: dict, body: Body) -> None:
         (S.AVATAR_AGE, human["age_yr"]),
         (S.AVATAR_STATURE, human["stature_m"]),
         (S.AVATAR_MASS, human["mass_kg"]),
+        (S.AVATAR_BUILD, float(body.build)),  # the muscle value: the clothing tool rebuilds the body
         (S.AVATAR_FITNESS, human["fitness"]),
         (S.AVATAR_ACTIVITY, human["activity"]),
         (S.AVATAR_BODY_SURFACE_AREA, round(body.body_surface_area_m2, 4)),

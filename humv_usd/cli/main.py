@@ -59,21 +59,29 @@ def main(verbose: int = 0):
     type=click.Path(file_okay=False, path_type=Path),
     help="Output folder: stage.usda and layers/.",
 )
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Overwrite layers edited by hand (default: stop and say which; put edits in a user layer, "
+    "a sublayer you add to OUT/stage.usda, which compose keeps).",
+)
 @reports_errors
-def compose(scenario: Path, out_dir: Path):
-    """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part."""
+def compose(scenario: Path, out_dir: Path, force: bool):
+    """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part; rebuilds only the
+    layers whose inputs changed (OUT/compose.json says which and why)."""
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.scenario import load_scenario
 
-    report = run_compose(load_scenario(scenario), out_dir)
+    report = run_compose(load_scenario(scenario), out_dir, force=force)
     for name, wrote, seconds in report.layers:
         state = "written" if wrote else "unchanged"
-        click.echo(f"  {name:<14} {state:<9} {seconds * 1000:7.1f} ms")
+        why = report.states[name].why if name in report.states else ""
+        click.echo(f"  {name:<14} {state:<9} {seconds * 1000:7.1f} ms  {why}")
     for part, reason in report.skipped:
         click.echo(f"  {part:<14} skipped   ({reason})")
     for name in report.removed:
         click.echo(f"  {name:<14} removed   (no longer in the scenario)")
-    click.echo(f"{report.stage_path}  ({report.seconds:.2f} s)")
+    click.echo(f"{report.stage_path}  ({report.summary()})")
 
 
 @main.command()

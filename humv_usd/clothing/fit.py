@@ -77,12 +77,26 @@ class BodyRig:
     surface: Surface  # rest-pose closest-point queries
 
 
-def prepare(body: Body, skeleton: Skeleton | None = None) -> BodyRig:
-    """Skeleton, skinning and region labels of ``body`` exactly as the avatar layer has them."""
+def prepare(
+    body: Body,
+    skeleton: Skeleton | None = None,
+    skinning: tuple[np.ndarray, np.ndarray] | None = None,
+    face_regions: np.ndarray | None = None,
+) -> BodyRig:
+    """Skeleton, skinning and region labels of ``body`` exactly as the avatar layer has them.
+
+    ``skinning``: the Body mesh's (joint indices, weights), (V, 4) each, as bound on the stage
+    (:func:`humv_usd.usd.avatar.read_body_mesh`); None: the rig's weights (what the avatar
+    tool binds). ``face_regions``: the body region id per Body face as labelled on the stage
+    (None: labelled here as the avatar tool labels them).
+    """
     skeleton = skeleton_for(body.points, body.groups) if skeleton is None else skeleton
     mesh = body.body_mesh()
-    indices, weights = skin_weights(skeleton, mesh.vertex_ids, INFLUENCES)
-    regions = L.body_regions(mesh, skeleton, indices, weights)
+    if skinning is None:
+        indices, weights = skin_weights(skeleton, mesh.vertex_ids, INFLUENCES)
+    else:
+        indices, weights = (np.asarray(a) for a in skinning)
+    regions = L.body_regions(mesh, skeleton, indices, weights) if face_regions is None else face_regions
     tris = triangulate(mesh.face_counts, mesh.face_indices)
     return BodyRig(
         body,

@@ -29,6 +29,12 @@ A prop is not a garment (no HumvClothingAPI, no air gap, no fix: the thermal too
 a fixed-temperature scene mesh). Without instance ids (``build_for_human`` called outside a
 scenario) the prop gets only the class attribute and inherits the person's id.
 
+Inputs: the person from the upstream stage's avatar layer (:mod:`humv_usd.clothing.person`:
+HumvAvatarAPI parameters, Body rest points, skin weights and region labels, Skeleton bind pose;
+:func:`humv_usd.usd.avatar.read_joint_transforms`: the motion), so an edited or replaced avatar
+layer is dressed as it is; from the scenario only the person's ``clothing`` list, the props'
+instance ids and the frame rate and count (:data:`READS`).
+
 Skinning: the garment is bound to the avatar's Skeleton with weights transferred from the
 body (:mod:`humv_usd.clothing.fit`), so UsdSkel (and the render, and any DCC) poses it with
 the body. The per-frame intersection fix (:mod:`humv_usd.clothing.collide`) is baked into
@@ -47,28 +53,37 @@ rifle also the vertices nearer than the minimum gap to it before/after (``propBe
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
+from pxr import Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.catalog.garments import garment
 from humv_usd.clothing.collide import Simulation, dress, simulate
 from humv_usd.clothing.fit import prepare
+from humv_usd.clothing.person import read_person
+from humv_usd.errors import InputError
 from humv_usd.human import labels as L
 from humv_usd.human import usdskel
-from humv_usd.human.body import Body, build_body
-from humv_usd.human.skeleton import Skeleton, skeleton_for, skinning_matrices
+from humv_usd.human.body import Body
+from humv_usd.human.skeleton import Skeleton, skinning_matrices
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd import schemas as S
+from humv_usd.usd.avatar import read_joint_transforms
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import clothing_path, human_path, material_path, props_path, skeleton_path
 
-NAME = "clothing"
-READS = ("general", "human", "placement")
+#: Scenario values read: frame count and fps, the person's own entry (its ``clothing`` list) and
+#: the instance ids (props follow the scene objects). The person (body, skin, skeleton, motion,
+#: placement) comes from the upstream avatar layer (:mod:`humv_usd.clothing.person`).
+NAME = "clothing_{id}"  # one layer per dressed [[human]]
+READS = (*FRAMES, "human[{id}]", "@ids")
+UPSTREAM = ("avatar_{id}",)
+VERSION = "1"
 
 
 def layer_name(human_id: str) -> str:
-    return f"{NAME}_{human_id}"
+    return NAME.format(id=human_id)
 
 
 def garment_path(human_id: str, garment: str) -> Sdf.Path:
@@ -77,39 +92,6 @@ def garment_path(human_id: str, garment: str) -> Sdf.Path:
 
 def prop_path(human_id: str, prop: str) -> Sdf.Path:
     return props_path(human_id).AppendChild(prop)
-
-
-# ---------------------------------------------------------------------------- motion input
-def world_transforms_from_stage(
-    stage: Usd.Stage, human_id: str, skeleton: Skeleton, frame_count: int, fps: float
-) -> np.ndarray | None:
-    """(F, J, 4, 4) column-vector joint transforms in skeleton space, per frame, of the
-    avatar's UsdSkel Skeleton on ``stage`` (whatever animation the avatar layer bound); None if
-    the stage has no such skeleton. F = 1 when the pose does not change over the frames.
-
-    Frame f is read at the stage time of f / ``fps`` seconds: a root layer without our
-    timeCodesPerSecond (e.g. an anonymous one, 24 by default) rescales its sublayers' times.
-    """
-    prim = stage.GetPrimAtPath(skeleton_path(human_id))
-    if not prim or not prim.IsA(UsdSkel.Skeleton):
-        return None
-    skel = UsdSkel.Skeleton(prim)
-    joints = list(skel.GetJointsAttr().Get() or [])
-    if joints != skeleton.paths:
-        raise ValueError(
-            f"{prim.GetPath()}: joints differ from the CMU rig's ({len(joints)} vs {len(skeleton.paths)})"
-        )
-    cache = UsdSkel.Cache()
-    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath(human_path(human_id))), Usd.PrimDefaultPredicate)
-    query = cache.GetSkelQuery(skel)
-    out = np.empty((max(frame_count, 1), len(joints), 4, 4))
-    scale = stage.GetTimeCodesPerSecond() / fps
-    for f in range(len(out)):
-        m = np.asarray(query.ComputeJointSkelTransforms(Usd.TimeCode(f * scale)), dtype=np.float64)
-        out[f] = np.transpose(m, (0, 2, 1))  # Gf row-vector -> column-vector
-    if np.allclose(out, out[:1], atol=1e-9):
-        return out[:1]
-    return out
 
 
 # ---------------------------------------------------------------------------- authoring
@@ -124,6 +106,8 @@ def build_for_human(
     *,
     simulation_out: list | None = None,
     prop_ids: dict[str, int] | None = None,
+    skinning: tuple[np.ndarray, np.ndarray] | None = None,
+    face_regions: np.ndarray | None = None,
 ) -> Sdf.Layer:
     """The clothing layer of one person.
 
@@ -134,9 +118,12 @@ def build_for_human(
     the rest pose; garments: catalogue names; fps, frame_count: the scenario's.
     ``simulation_out``: if a list, the :class:`~humv_usd.clothing.collide.Simulation` is
     appended (counts, timings) for reports and benchmarks. ``prop_ids``: instance id per
-    prop (catalogue name), e.g. from :func:`humv_usd.scene.layer.instance_ids`.
+    prop (catalogue name), e.g. from :func:`humv_usd.scenario.ids.instance_ids`.
+    ``skinning``: the Body mesh's (joint indices, weights) as bound on the stage (None: the
+    rig's weights).
+    ``face_regions``: its body region per face (None: labelled as the avatar tool labels them).
     """
-    rig = prepare(body, skeleton)
+    rig = prepare(body, skeleton, skinning, face_regions)
     skeleton = rig.skeleton
     if motion_world_transforms is None:
         world = np.tile(np.eye(4), (1, len(skeleton.names), 1, 1))
@@ -299,24 +286,24 @@ def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None)
     prim.SetCustomDataByKey("humv:prop", info)
 
 
-def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None, garments=None) -> Sdf.Layer:
+def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None, garments=None) -> Sdf.Layer:
     """layers/clothing_<id>.usda for one ``[[human]]``.
 
-    The body is rebuilt from the scenario (deterministic, as the avatar layer builds it); the
-    motion is read from the avatar's Skeleton on ``upstream`` (the in-memory composition of the
-    layers before this one) so the garments follow whatever the avatar layer authored; without
-    ``upstream`` (or without that Skeleton) the rest pose. ``garments`` overrides
-    ``human["clothing"]``.
+    The person comes from the avatar layer on ``upstream`` (the in-memory composition of the
+    layers before this one): body parameters, body mesh, skin weights, skeleton and motion
+    (:func:`humv_usd.clothing.person.read_person`,
+    :func:`humv_usd.usd.avatar.read_joint_transforms`); from the scenario only what is clothing
+    input: ``human["clothing"]`` (``garments`` overrides it), the props' instance ids and the
+    frame rate and count. A missing avatar (or one without HumvAvatarAPI) is one InputError.
     """
+    if upstream is None:
+        raise InputError(
+            f"clothing of {human['id']!r}: needs the composed stage with its avatar layer (upstream)"
+        )
     g = scenario["general"]
     names = list(human.get("clothing") or []) if garments is None else list(garments)
-    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"], human["build"])
-    skeleton = skeleton_for(body.points, body.groups)
-    world = (
-        world_transforms_from_stage(upstream, human["id"], skeleton, scenario.frame_count, g["fps"])
-        if upstream is not None
-        else None
-    )
+    person = read_person(upstream, human["id"])
+    world = read_joint_transforms(upstream, human["id"], scenario.frame_count, g["fps"])
     ids = instance_ids(scenario)
     props = {
         garment(n).name: ids[f"prop:{human['id']}:{garment(n).name}"]
@@ -324,11 +311,20 @@ def build_one(scenario: Scenario, human: dict, upstream: Usd.Stage | None = None
         if garment(n).is_prop and f"prop:{human['id']}:{garment(n).name}" in ids
     }
     return build_for_human(
-        human, body, skeleton, world, names, g["fps"], scenario.frame_count, prop_ids=props
+        human,
+        person.body,
+        person.skeleton,
+        world,
+        names,
+        g["fps"],
+        scenario.frame_count,
+        prop_ids=props,
+        skinning=(person.joint_indices, person.joint_weights),
+        face_regions=person.face_regions,
     )
 
 
-def build(scenario: Scenario, upstream: Usd.Stage | None = None) -> dict[str, Sdf.Layer]:
+def build(scenario: Scenario, upstream: Usd.Stage | None) -> dict[str, Sdf.Layer]:
     """One layer per person who wears anything: {``clothing_<id>``: layer}."""
     return {
         layer_name(h["id"]): build_one(scenario, h, upstream) for h in scenario["human"] if h.get("clothing")

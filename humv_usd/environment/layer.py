@@ -21,7 +21,9 @@ from pxr import Sdf, UsdGeom
 
 from humv_usd.environment.sun import sun_at
 from humv_usd.environment.weather import weather_at
+from humv_usd.physics.weather import COLUMNS
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import frame_epoch_s, frame_times, local_start_iso, spin_up_times
 from humv_usd.scenario.weather_csv import read_weather_csv
 from humv_usd.usd import environment as E
@@ -29,7 +31,16 @@ from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 
 NAME = "environment"
-READS = ("general", "atmosphere", "thermal")
+READS = (
+    "general.name",
+    "general.description",
+    *CLOCK,
+    *(f"atmosphere.{k}" for k in COLUMNS),
+    "atmosphere.weather_csv",
+    "thermal.surface_spin_up_s",  # the spin-up window before frame 0 (negative time codes)
+)
+UPSTREAM = ()
+VERSION = "2"
 
 
 def _weather_times(scenario: Scenario, times_s: np.ndarray) -> np.ndarray:

@@ -9,12 +9,15 @@ from pxr import Gf, Sdf, UsdShade, Vt
 from humv_usd.catalog.garments import fabrics
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import finish, library_layer_main, new_layer_stage
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
-READS = ("general", "human", "scene")
+READS = (*FRAMES, "human.*.clothing", "scene.ground.material", "scene.object.*.material")
+UPSTREAM = ()
+VERSION = "1"
 
 
 def used_materials(scenario: Scenario) -> list[str]:

@@ -1,5 +1,19 @@
 """``humv-usd compose``: scenario → one USD layer per part + a root stage that sublayers them.
 
+The layers form a graph (:mod:`humv_usd.pipeline.graph`): each tool declares the scenario values
+it reads and the layers it reads from the stage; compose builds upstream layers first and gives
+each layer a cache key, the hash of its tool's version, the values it reads and the keys of its
+upstream layers (``humv:inputsKey`` in the layer's customLayerData). A layer whose key is
+unchanged is not rebuilt: the file on disk is used (also as upstream of the layers that read it).
+
+Hand edits are never discarded silently. compose.json records the hash of every layer text
+compose wrote; a layer edited since is kept while its key is unchanged (and the layers reading
+it are rebuilt on the edited file); if it would be rebuilt, compose stops with one error line
+per file before writing anything, unless ``force``. The supported way to edit is a user layer:
+any sublayer of OUT/stage.usda that compose did not write is kept on re-runs, stronger than
+compose's layers, and is part of the stage every tool with upstream layers reads (its content
+enters their keys).
+
 Every layer is built in memory first; only when all of them succeeded is anything written, each
 file atomically and only if its text changed (so an unchanged scenario rewrites nothing).
 Parts the scenario lacks get no layer; the report says what was skipped and why.
@@ -7,41 +21,54 @@ Parts the scenario lacks get no layer; the report says what was skipped and why.
 
 from __future__ import annotations
 
+import hashlib
 import json
+import re
 import time
 from dataclasses import dataclass, field
+from fnmatch import fnmatchcase
 from pathlib import Path
 
 from pxr import Sdf, Usd
 
 import humv_usd
-from humv_usd.atmosphere import layer as atmosphere_layer
-from humv_usd.avatar import layer as avatar_layer
-from humv_usd.clothing import layer as clothing_layer
-from humv_usd.environment import layer as environment_layer
+from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
 from humv_usd.groundtruth import annotators
-from humv_usd.materials import layer as materials_layer
+from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
-from humv_usd.scene import layer as scene_layer
-from humv_usd.sensors import layer as sensors_layer
-from humv_usd.thermal import layer as thermal_layer
-from humv_usd.usd.layers import layer_text, set_layer_metadata
+from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.usd.layers import layer_text, set_inputs_key, set_layer_metadata
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
 REPORT_NAME = "compose.json"
-# file-name patterns compose owns inside OUT/layers (stale ones are removed)
-_OWNED = (
-    "environment.usda",
-    "atmosphere.usda",
-    "materials.usda",
-    "scene.usda",
-    "sensors.usda",
-    "thermal.usda",
-    "avatar_*.usda",
-    "clothing_*.usda",
-)
+_KEY_TEXT = re.compile(r'"humv:inputsKey"\s*=\s*"([0-9a-f]+)"')
+
+
+@dataclass
+class LayerState:
+    """What compose did with one layer and why."""
+
+    name: str
+    key: str
+    inputs: dict
+    upstream: dict[str, str]  # upstream layer -> the key it passes on
+    state: str = "cached"  # "rebuilt", "cached" or "kept hand edit"
+    why: str = "cached"
+    sha256: str | None = None  # of the text compose wrote (kept across runs while cached)
+    edited_sha256: str | None = None  # of the file, when edited by hand
+    written: bool = False
+    seconds: float = 0.0
+
+    @property
+    def rebuild(self) -> bool:
+        return self.state == "rebuilt"
+
+    @property
+    def passed_key(self) -> str:
+        """The key downstream layers see: a hand edit counts as a change of this layer."""
+        return self.key if self.edited_sha256 is None else _sha(self.key + self.edited_sha256)
 
 
 @dataclass
@@ -50,20 +77,44 @@ class ComposeReport:
     layers: list[tuple[str, bool, float]] = field(default_factory=list)  # name, written, seconds
     skipped: list[tuple[str, str]] = field(default_factory=list)  # part, reason
     removed: list[str] = field(default_factory=list)
+    states: dict[str, LayerState] = field(default_factory=dict)  # in build order
+    user_layers: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
     @property
     def written(self) -> list[str]:
         return [name for name, wrote, _ in self.layers if wrote]
 
+    @property
+    def rebuilt(self) -> list[str]:
+        return [n for n, s in self.states.items() if s.rebuild]
+
+    def summary(self) -> str:
+        """One line: how many layers were rebuilt, cached, kept; the time."""
+        counts: dict[str, list[str]] = {"rebuilt": [], "kept hand edit": [], "cached": []}
+        for st in self.states.values():
+            counts[st.state].append(st.name)
+        parts = [
+            f"{len(v)} {k}" + (f" ({', '.join(v)})" if k != "cached" else "") for k, v in counts.items() if v
+        ]
+        user = f"; {len(self.user_layers)} user layer(s) kept" if self.user_layers else ""
+        return f"{len(self.states)} layers: {', '.join(parts)}{user}; {self.seconds:.2f} s"
+
 
 def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
-    """Which layers this scenario needs (weakest first) and which parts are skipped, and why."""
+    """Which layers this scenario needs and which parts are skipped, and why.
+
+    A tool module that none of the rules below names gets its layer when all its upstream
+    layers are needed (per person: for every ``[[human]]``)."""
     needed, skipped = ["environment"], []
     has_ir = bool(scenario.infrared_sensors)
     has_meshes = bool(scenario["human"]) or scenario["scene"] is not None
     # EO sensors need the atmosphere too (sun and skylight spectra, paths); it runs LOWTRAN7
     # only for infrared bands (an EO-only scenario gets the analytic/SPCTRL2 tables)
+    if scenario["sensor"] or "atmosphere" in scenario.given:
+        needed.append("atmosphere")
+    else:
+        skipped.append(("atmosphere", "no sensor and no [atmosphere] section"))
     if has_meshes:
         needed.append("materials")
     else:
@@ -75,7 +126,7 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
     if scenario["human"]:
         needed.extend(f"avatar_{h['id']}" for h in scenario["human"])
         dressed = [h["id"] for h in scenario["human"] if h["clothing"]]
-        needed.extend(clothing_layer.layer_name(i) for i in dressed)
+        needed.extend(f"clothing_{i}" for i in dressed)
         if not dressed:
             skipped.append(("clothing", "nobody wears garments"))
     else:
@@ -84,39 +135,26 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
         needed.append("sensors")
     else:
         skipped.append(("sensors", "no [[sensor]]"))
-    # after the sensors: the atmosphere reads their camera positions (atmosphere UPSTREAM)
-    if scenario["sensor"] or "atmosphere" in scenario.given:
-        needed.append("atmosphere")
-    else:
-        skipped.append(("atmosphere", "no sensor and no [atmosphere] section"))
     if has_meshes and has_ir:
         needed.append("thermal")
     else:
         skipped.append(("thermal", "no infrared sensor" if has_meshes else "no meshes"))
+    ruled = {"environment", "atmosphere", "materials", "scene", "avatar_{id}", "clothing_{id}", "sensors"}
+    for tool in discover_tools().values():  # tools the rules above do not know
+        if tool.name in ruled | {"thermal"}:
+            continue
+        names = [tool.layer_name(h["id"]) for h in scenario["human"]] if tool.per_human else [tool.name]
+        for name in names:
+            wanted = [u.format(id=name.removeprefix(tool.name.split("{id}")[0])) for u in tool.upstream]
+            if all(any(fnmatchcase(n, u) for n in needed) for u in wanted):
+                needed.append(name)
+            else:
+                skipped.append((name, f"needs {', '.join(tool.upstream)}"))
     return needed, skipped
 
 
-def _build(name: str, scenario: Scenario, upstream: Usd.Stage | None) -> Sdf.Layer:
-    if name.startswith("clothing_"):
-        human_id = name.removeprefix("clothing_")
-        human = next(h for h in scenario["human"] if h["id"] == human_id)
-        return clothing_layer.build_one(scenario, human, upstream)
-    if name.startswith("avatar_"):
-        human_id = name.removeprefix("avatar_")
-        human = next(h for h in scenario["human"] if h["id"] == human_id)
-        return avatar_layer.build_one(scenario, human)
-    tool = {
-        "environment": environment_layer,
-        "atmosphere": atmosphere_layer,
-        "materials": materials_layer,
-        "scene": scene_layer,
-        "sensors": sensors_layer,
-        "thermal": thermal_layer,
-    }[name]
-    return tool.build(scenario, upstream)
-
-
 def compose_in_memory(layers: list[Sdf.Layer], fps: float) -> Usd.Stage:
+    """A stage of ``layers`` (weakest first) in memory."""
     root = Sdf.Layer.CreateAnonymous(".usda")
     # same time codes per second as the layers, or USD rescales their time samples
     root.timeCodesPerSecond = fps
@@ -125,7 +163,8 @@ def compose_in_memory(layers: list[Sdf.Layer], fps: float) -> Usd.Stage:
     return Usd.Stage.Open(root)
 
 
-def root_layer(scenario: Scenario, names: list[str]) -> Sdf.Layer:
+def root_layer(scenario: Scenario, names: list[str], user: list[str] = ()) -> Sdf.Layer:
+    """The root layer: ``user`` sublayers (kept as given), then ``names`` (strongest first)."""
     g = scenario["general"]
     root = Sdf.Layer.CreateAnonymous(".usda")
     set_layer_metadata(
@@ -134,7 +173,7 @@ def root_layer(scenario: Scenario, names: list[str]) -> Sdf.Layer:
         scenario.frame_count,
         f"HumV-USD stage for scenario '{g['name']}' (composed by humv-usd compose)",
     )
-    root.subLayerPaths = [f"./{LAYER_DIR}/{n}.usda" for n in reversed(names)]
+    root.subLayerPaths = [*user, *(f"./{LAYER_DIR}/{n}.usda" for n in names)]
     root.customLayerData = {
         "humv:scenario": g["name"],
         "humv:scenarioDigest": scenario.digest(),
@@ -144,62 +183,243 @@ def root_layer(scenario: Scenario, names: list[str]) -> Sdf.Layer:
     return root
 
 
-def compose(scenario: Scenario, out_dir: str | Path) -> ComposeReport:
-    """Write OUT/layers/*.usda and OUT/stage.usda for ``scenario``; see the module doc."""
+def _sha(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _previous(out: Path) -> dict:
+    """The previous run's compose.json (empty when there is none or it is unreadable)."""
+    try:
+        return json.loads((out / REPORT_NAME).read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def _owned(sub: str) -> bool:
+    """Whether a sublayer path of the root is one of compose's layers."""
+    prefix = f"./{LAYER_DIR}/"
+    return sub.startswith(prefix) and any(
+        fnmatchcase(sub.removeprefix(prefix), t.pattern) for t in discover_tools().values()
+    )
+
+
+def _why(state: LayerState, prev: dict | None, version: str, current_key: str | None) -> str:
+    if current_key is None:
+        return "no inputs key in the file (not written by this compose)"
+    if prev is None:
+        return "key changed (no record of the previous inputs in compose.json)"
+    reasons = []
+    if prev.get("version") != version:
+        reasons.append(f"version changed: {prev.get('version')} -> {version}")
+    old = prev.get("inputs", {})
+    changed = sorted(k for k in old.keys() | state.inputs.keys() if old.get(k) != state.inputs.get(k))
+    if changed:
+        more = f" and {len(changed) - 5} more" if len(changed) > 5 else ""
+        reasons.append("inputs changed: " + ", ".join(changed[:5]) + more)
+    old_up = prev.get("upstream", {})
+    ups = [u for u in state.upstream if old_up.get(u) != state.upstream[u]]
+    if ups:
+        reasons.append("upstream changed: " + ", ".join(ups))
+    return "; ".join(reasons) or "key changed"
+
+
+def _decide(node: Node, state: LayerState, path: Path, prev: dict | None, force: bool) -> str | None:
+    """Set ``state`` (rebuild or use the file); return an error line for a hand edit in the way."""
+    if not path.is_file():
+        state.state, state.why = "rebuilt", "new"
+        return None
+    text = path.read_text()
+    found = _KEY_TEXT.search(text)
+    on_disk = found.group(1) if found else None
+    file_sha = _sha(text)
+    recorded = prev.get("sha256") if prev else None
+    edited = recorded is not None and recorded != file_sha
+    state.sha256 = recorded or file_sha
+    if on_disk == state.key:
+        if edited:
+            state.state, state.why, state.edited_sha256 = "kept hand edit", "kept hand edit", file_sha
+        return None
+    state.state, state.why = "rebuilt", _why(state, prev, node.tool.version, on_disk)
+    if edited:
+        if not force:
+            return (
+                f"{path}: edited by hand since compose wrote it, and compose would rebuild it "
+                f"({state.why}); re-run with --force to overwrite the edit, or put the edit in a user "
+                f"layer (a sublayer you add to {path.parent.parent / ROOT_NAME}: compose keeps it, "
+                "stronger than its own layers)"
+            )
+        state.why += "; hand edit overwritten (--force)"
+    return None
+
+
+def _user_layers(out: Path, prev: dict, root_sha: str, force: bool):
+    """Sublayers of OUT/stage.usda compose did not write, the hashes of their files, whether the
+    root was edited otherwise, and an error line if compose would rewrite such an edit."""
+    root_path = out / ROOT_NAME
+    if not root_path.is_file():
+        return [], {}, False, []
+    try:
+        root = Sdf.Layer.OpenAsAnonymous(str(root_path))
+    except Exception:  # noqa: BLE001 (USD raises Tf.ErrorException; unreadable roots are rewritten)
+        root = None
+    if root is None:
+        return [], {}, False, []
+    user = [s for s in root.subLayerPaths if not _owned(s)]
+    hashes, errors = {}, []
+    for sub in user:
+        file = (out / sub).resolve()
+        if not file.is_file():
+            errors.append(f"{root_path}: user sublayer {sub}: file not found ({file})")
+            continue
+        hashes[sub] = hashlib.sha256(file.read_bytes()).hexdigest()[:16]
+    root.subLayerPaths = [s for s in root.subLayerPaths if _owned(s)]
+    recorded = prev.get("stage", {}).get("sha256")
+    edited = bool(recorded) and _sha(layer_text(root)) != recorded and not force
+    if edited and root_sha != recorded:
+        errors.append(
+            f"{root_path}: edited by hand (other than adding sublayers) since compose wrote it, and "
+            "compose would rewrite it; re-run with --force to overwrite the edit, or put the edit in a "
+            "user layer (a sublayer you add to the root)"
+        )
+    return user, hashes, edited, errors
+
+
+def compose(scenario: Scenario, out_dir: str | Path, force: bool = False) -> ComposeReport:
+    """Write OUT/layers/*.usda and OUT/stage.usda for ``scenario``; see the module doc.
+
+    ``force``: overwrite layers (and the root) edited by hand instead of stopping."""
     t0 = time.perf_counter()
     out = Path(out_dir)
-    names, skipped = plan(scenario)
-    built: list[tuple[str, Sdf.Layer, float]] = []
-    for name in names:
-        t = time.perf_counter()
-        reads_stage = name in ("thermal", "atmosphere") or name.startswith("clothing_")
-        upstream = (
-            compose_in_memory([lyr for _, lyr, _ in built], scenario["general"]["fps"])
-            if reads_stage
-            else None
-        )
-        built.append((name, _build(name, scenario, upstream), time.perf_counter() - t))
-    texts = [(name, layer_text(lyr), dt) for name, lyr, dt in built]
-    # what each tool ran and skipped (its layer's customLayerData "humv:<tool>:ran"), for compose.json
-    ran = {
-        name: dict(value)
-        for name, lyr, _ in built
-        for key, value in dict(lyr.customLayerData).items()
-        if key.endswith(":ran")
-    }
-    root_text = layer_text(root_layer(scenario, names))
-
-    report = ComposeReport(stage_path=out / ROOT_NAME, skipped=skipped)
     layer_dir = out / LAYER_DIR
-    for name, text, dt in texts:
+    fps = scenario["general"]["fps"]
+    needed, skipped = plan(scenario)
+    nodes = layer_graph(scenario, needed)
+    order = build_order(nodes)
+    strength = strength_order(nodes)
+    prev_report = _previous(out)
+    prev_layers = {e["name"]: e for e in prev_report.get("layers", []) if "key" in e}
+    root_sha = _sha(layer_text(root_layer(scenario, strength)))
+    user, user_hashes, root_edited, errors = _user_layers(out, prev_report, root_sha, force)
+
+    # 1. decide what to rebuild, before building (or writing) anything
+    states: dict[str, LayerState] = {}
+    for name in order:
+        node = nodes[name]
+        upstream = {u: states[u].passed_key for u in node.upstream}
+        if node.upstream:
+            upstream.update({f"user:{u}": h for u, h in user_hashes.items()})
+        values = read_values(scenario, node.tool.reads, node.human_id)
+        key = inputs_key(node.tool.version, values, upstream)
+        states[name] = LayerState(name, key, values, upstream)
+        error = _decide(node, states[name], layer_dir / f"{name}.usda", prev_layers.get(name), force)
+        errors += [error] if error else []
+    stale = [
+        p
+        for t in discover_tools().values()
+        for p in (sorted(layer_dir.glob(t.pattern)) if layer_dir.is_dir() else [])
+        if p.stem not in nodes
+    ]
+    for p in stale:
+        recorded = prev_layers.get(p.stem, {}).get("sha256")
+        if recorded and recorded != _sha(p.read_text()) and not force:
+            errors.append(
+                f"{p}: edited by hand, and the scenario no longer has this layer; re-run with --force "
+                "to remove it, or move the edit into a user layer"
+            )
+    if errors:
+        raise InputError("", errors)
+
+    # 2. build in dependency order; unchanged layers come from their files
+    layers: dict[str, Sdf.Layer] = {}
+    texts: dict[str, str] = {}
+    user_layers = [Sdf.Layer.OpenAsAnonymous(str((out / u).resolve())) for u in user]
+
+    def layer_of(name: str) -> Sdf.Layer:
+        if name not in layers:
+            layers[name] = Sdf.Layer.OpenAsAnonymous(str(layer_dir / f"{name}.usda"))
+        return layers[name]
+
+    for name in order:
+        node, state = nodes[name], states[name]
+        if not state.rebuild:
+            continue
         t = time.perf_counter()
-        wrote = write_text_atomic(layer_dir / f"{name}.usda", text)
-        report.layers.append((name, wrote, dt + time.perf_counter() - t))
-    keep = {f"{n}.usda" for n in names}
-    if layer_dir.is_dir():
-        for pattern in _OWNED:
-            for stale in sorted(layer_dir.glob(pattern)):
-                if stale.name not in keep:
-                    stale.unlink()
-                    report.removed.append(stale.name)
-    wrote_root = write_text_atomic(out / ROOT_NAME, root_text)
+        upstream = None
+        if node.upstream:
+            below = [layer_of(u) for u in reversed(strength) if u in node.upstream]
+            upstream = compose_in_memory(below + list(reversed(user_layers)), fps)
+        layer = node.tool.build(scenario, node.human, upstream)
+        set_inputs_key(layer, state.key)
+        layers[name], texts[name] = layer, layer_text(layer)
+        state.sha256 = _sha(texts[name])
+        state.seconds = time.perf_counter() - t
+    root_text = layer_text(root_layer(scenario, strength, user))
+
+    # 3. write: changed layers, then the root, then the report
+    report = ComposeReport(stage_path=out / ROOT_NAME, skipped=skipped, states=states, user_layers=user)
+    for name in order:
+        state = states[name]
+        if state.rebuild:
+            t = time.perf_counter()
+            state.written = write_text_atomic(layer_dir / f"{name}.usda", texts[name])
+            state.seconds += time.perf_counter() - t
+        report.layers.append((name, state.written, state.seconds))
+    for p in stale:
+        p.unlink()
+        report.removed.append(p.name)
+    # a root edited by hand whose content compose would not change stays as it is
+    wrote_root = not root_edited and write_text_atomic(out / ROOT_NAME, root_text)
     report.layers.append(("stage", wrote_root, 0.0))
     report.seconds = time.perf_counter() - t0
-    # run times (and what ran) for pipelines; error estimates live in the layers themselves
-    write_text_atomic(
-        out / REPORT_NAME,
-        json.dumps(
-            {
-                "humv_usd": humv_usd.__version__,
-                "scenario_digest": scenario.digest(),
-                "seconds_total": round(report.seconds, 4),
-                "layers": [{"name": n, "written": w, "seconds": round(t, 4)} for n, w, t in report.layers],
-                "skipped": [{"part": p, "reason": r} for p, r in report.skipped],
-                "ran": ran,
-                "removed": report.removed,
-            },
-            indent=2,
-        )
-        + "\n",
-    )
+    _write_report(out, scenario, report, prev_report, layers, nodes, order, strength, root_sha)
     return report
+
+
+def _write_report(out, scenario, report, prev_report, layers, nodes, order, strength, root_sha) -> None:
+    """compose.json: the graph, what was rebuilt and why, run times, the hashes of what compose
+    wrote (to recognise hand edits) and what each tool ran."""
+    prev_ran = prev_report.get("ran", {})
+    ran = {}
+    for name in order:  # what each tool ran and skipped (its layer's "humv:<tool>:ran")
+        if not report.states[name].rebuild:
+            if name in prev_ran:
+                ran[name] = prev_ran[name]
+            continue
+        for k, v in dict(layers[name].customLayerData).items():
+            if k.endswith(":ran"):
+                ran[name] = dict(v)
+    entries = []
+    for name in order:
+        s, node = report.states[name], nodes[name]
+        entries.append(
+            {
+                "name": name,
+                "state": s.state,
+                "why": s.why,
+                "written": s.written,
+                "seconds": round(s.seconds, 4),
+                "key": s.key,
+                "version": node.tool.version,
+                "reads": list(node.tool.reads),
+                "upstream": s.upstream,
+                "inputs": s.inputs,
+                "sha256": s.sha256,
+            }
+        )
+    root_written = report.layers[-1][1]
+    entries.append({"name": "stage", "written": root_written, "seconds": 0.0})
+    doc = {
+        "humv_usd": humv_usd.__version__,
+        "scenario_digest": scenario.digest(),
+        "summary": report.summary(),
+        "seconds_total": round(report.seconds, 4),
+        "build_order": order,
+        "strength": strength,
+        "user_layers": report.user_layers,
+        "layers": entries,
+        "stage": {"sha256": root_sha, "written": root_written},
+        "skipped": [{"part": p, "reason": r} for p, r in report.skipped],
+        "ran": ran,
+        "removed": report.removed,
+    }
+    write_text_atomic(out / REPORT_NAME, json.dumps(doc, indent=2) + "\n")

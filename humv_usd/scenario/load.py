@@ -62,10 +62,10 @@ class Scenario:
         g = self.data["general"]
         return int(round(g["duration_s"] * g["fps"])) + 1
 
-    def digest(self, *sections: str) -> str:
-        """Content hash of the given sections (all when none): the input key of a layer."""
-        chosen = {k: self.data.get(k) for k in (sections or sorted(self.data))}
-        text = json.dumps(chosen, sort_keys=True, default=str)
+    def digest(self) -> str:
+        """Content hash of the whole scenario (the root layer records it; each layer's own key
+        hashes only what its tool reads: :mod:`humv_usd.scenario.inputs`)."""
+        text = json.dumps(self.data, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

@@ -6,13 +6,16 @@ from pxr import Sdf, UsdGeom
 
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.scene.geometry import box, ground_grid
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import GROUND, material_path, object_path
 
 NAME = "scene"
-READS = ("general", "human", "scene")
+READS = (*FRAMES, "scene", "@ids")
+UPSTREAM = ()
+VERSION = "1"
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:

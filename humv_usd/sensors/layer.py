@@ -16,12 +16,15 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.catalog.sensors import PRESETS, netd_for_f_number, orbit_positions, preset
 from humv_usd.scenario import Scenario, validate
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, look_at_matrix, new_layer_stage
 from humv_usd.usd.paths import sensor_path
 
 NAME = "sensors"
-READS = ("general", "sensor")
+READS = (*FRAMES, "sensor")
+UPSTREAM = ()
+VERSION = "1"
 
 # UsdGeom lens and filmback values are in tenths of a scene unit: on a metre stage 1 mm = 0.01.
 _MM_TO_TENTHS_OF_M = 0.01

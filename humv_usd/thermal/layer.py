@@ -29,6 +29,7 @@ from pxr import Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import radiation as R
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
@@ -47,7 +48,10 @@ from humv_usd.usd.layers import finish, new_layer_stage
 from humv_usd.usd.paths import body_path, human_path
 
 NAME = "thermal"
-READS = ("general", "human", "scene", "thermal", "atmosphere")
+#: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
+READS = (*CLOCK, "human", "scene", "thermal")
+UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*")
+VERSION = "2"
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:

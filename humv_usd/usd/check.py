@@ -66,9 +66,11 @@ def rule_root_layer(stage: Usd.Stage) -> list[str]:
     return out
 
 
-def _times(attr: Usd.Attribute) -> list:
+def _times(attr: Usd.Attribute) -> list[Usd.TimeCode]:
+    """The attribute's sample times as time codes (GetTimeSamples gives plain floats), or the
+    default time when it has none."""
     samples = attr.GetTimeSamples()
-    return samples if samples else [Usd.TimeCode.Default()]
+    return [Usd.TimeCode(t) for t in samples] if samples else [Usd.TimeCode.Default()]
 
 
 def rule_meshes(stage: Usd.Stage) -> list[str]:

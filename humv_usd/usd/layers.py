@@ -46,6 +46,15 @@ def set_layer_metadata(layer: Sdf.Layer, fps: float, frame_count: int, doc: str)
     pseudo.SetInfo(UsdGeom.Tokens.metersPerUnit, 1.0)
 
 
+#: a layer's cache key (customLayerData): hash of its tool's version, the scenario values it reads
+#: and the keys of the layers it reads (humv_usd.scenario.inputs.inputs_key)
+INPUTS_KEY = "humv:inputsKey"
+
+
+def set_inputs_key(layer: Sdf.Layer, key: str) -> None:
+    layer.customLayerData = {**dict(layer.customLayerData), INPUTS_KEY: key}
+
+
 def layer_text(layer: Sdf.Layer) -> str:
     """The usda text of a layer, as it will be written."""
     return layer.ExportToString()

@@ -1,0 +1,118 @@
+"""What a layer tool reads from the scenario, as flat ``{dotted key: value}`` tables: the inputs of
+a layer's cache key (``humv_usd.pipeline.graph``) and what compose.json compares between runs.
+
+A tool declares ``READS``, a tuple of read paths:
+
+* ``"thermal"`` -- a whole section; ``"general.start"`` -- one key;
+* ``"sensor.*.position_m"`` -- one key of every entry of an array section;
+* ``"human[{id}]"``, ``"placement[{id}]"`` -- the entry of the person a per-person layer is
+  built for (``{id}`` is that person's id; an entry matches on its ``id`` or, for placements,
+  its ``human`` key);
+* ``"@ids"`` -- the instance ids (:func:`humv_usd.scenario.ids.instance_ids`), derived from the
+  order of people, objects and props.
+
+Values are JSON values (date-times as ISO text). A file the scenario names (``weather_csv``,
+``bvh``) is read by content: its value is ``"<path> sha256:<hash of the bytes>"``, so editing the
+file changes the key of every layer that reads it.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import functools
+import hashlib
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.spec import SECTIONS
+
+if TYPE_CHECKING:
+    from humv_usd.scenario.load import Scenario
+
+#: the frame range: frame count and time codes (``general.fps``, ``general.duration_s``)
+FRAMES = ("general.fps", "general.duration_s")
+#: when and where: frame times, the sun, the weather series (everything of [general] but the
+#: scenario's name and description)
+CLOCK = (
+    *FRAMES,
+    "general.start",
+    "general.utc_offset_h",
+    "general.time_zone",
+    "general.latitude_deg",
+    "general.longitude_deg",
+    "general.elevation_m",
+    "general.seed",
+)
+DERIVED = {"@ids": instance_ids}
+#: keys whose values name files (read by content)
+FILE_KEYS = frozenset(name for s in SECTIONS.values() for name, key in s.keys.items() if key.kind == "path")
+
+
+def read_values(scenario: Scenario, reads, human_id: str | None = None) -> dict[str, Any]:
+    """The values a tool reads, flattened to ``{dotted key: JSON value}`` (sorted keys)."""
+    out: dict[str, Any] = {}
+    for read in reads:
+        path = read.format(id=human_id) if human_id is not None else read
+        if path in DERIVED:
+            out[path] = _plain(DERIVED[path](scenario))
+            continue
+        head, *rest = path.split(".")
+        _flatten(head, _select(scenario, head), rest, out)
+    return dict(sorted(out.items()))
+
+
+def _select(scenario: Scenario, head: str):
+    """A section, or the entry ``section[ident]`` of an array section."""
+    if "[" not in head:
+        return scenario[head]
+    section, ident = head.rstrip("]").split("[")
+    return next((e for e in scenario[section] if ident in (e.get("id"), e.get("human"))), None)
+
+
+def _flatten(where: str, value, rest: list[str], out: dict) -> None:
+    if rest:
+        step, *more = rest
+        if step == "*":
+            for i, item in enumerate(value or []):
+                _flatten(f"{where}.{i}", item, more, out)
+        else:
+            _flatten(f"{where}.{step}", None if value is None else value.get(step), more, out)
+        return
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _flatten(f"{where}.{k}", v, [], out)
+        if not value:
+            out[where] = {}
+    elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+        for i, v in enumerate(value):
+            _flatten(f"{where}.{i}", v, [], out)
+    else:
+        leaf = where.rsplit(".", 1)[-1]
+        out[where] = _file_value(value) if leaf in FILE_KEYS and value else _plain(value)
+
+
+def _plain(value):
+    """A JSON value: date-times as ISO text, tuples as lists."""
+    return json.loads(
+        json.dumps(value, default=lambda v: v.isoformat() if isinstance(v, dt.datetime) else str(v))
+    )
+
+
+def _file_value(path: str) -> str:
+    p = Path(path)
+    stat = p.stat()
+    return f"{path} sha256:{_file_hash(str(p), stat.st_size, stat.st_mtime_ns)}"
+
+
+@functools.lru_cache(maxsize=64)
+def _file_hash(path: str, size: int, mtime_ns: int) -> str:  # size and mtime: the cache key
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
+def inputs_key(version: str, values: dict, upstream_keys: dict[str, str]) -> str:
+    """A layer's cache key: hash of its tool's version, the values it reads and the keys of the
+    layers it reads from the stage."""
+    text = json.dumps({"version": version, "reads": values, "upstream": upstream_keys}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -1,0 +1,311 @@
+"""compose as a layer graph: build order from the tools' UPSTREAM, per-layer cache keys (only the
+layers whose inputs changed are rebuilt, and those reading them), hand edits kept or refused,
+user sublayers kept and stronger."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT
+from pxr import Sdf, Usd, UsdGeom
+
+from humv_usd.errors import InputError
+from humv_usd.pipeline import graph
+from humv_usd.pipeline.compose import compose, plan
+from humv_usd.scenario import validate
+from humv_usd.scenario.inputs import inputs_key, read_values
+
+ALL = ["environment", "atmosphere", "materials", "scene", "avatar_p1", "clothing_p1", "sensors", "thermal"]
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory, humvvex_raw):
+    """humvvex composed once; each test works on a copy."""
+    out = tmp_path_factory.mktemp("graph") / "base"
+    report = compose(validate(humvvex_raw), out)
+    assert report.rebuilt == list(report.states) and set(report.rebuilt) == set(ALL)
+    return out
+
+
+@pytest.fixture
+def out(base, tmp_path):
+    dst = tmp_path / "o"
+    shutil.copytree(base, dst)
+    return dst
+
+
+def test_build_order_respects_upstream(humvvex_raw):
+    scenario = validate(humvvex_raw)
+    nodes = graph.layer_graph(scenario, plan(scenario)[0])
+    order = graph.build_order(nodes)
+    assert sorted(order) == sorted(ALL)
+    for name in order:
+        assert all(order.index(u) < order.index(name) for u in nodes[name].upstream), name
+    assert nodes["clothing_p1"].upstream == ("avatar_p1",)
+    assert set(nodes["thermal"].upstream) == {
+        "environment",
+        "atmosphere",
+        "materials",
+        "scene",
+        "avatar_p1",
+        "clothing_p1",
+    }
+    # strength is its own order: strongest first, not the build order
+    assert graph.strength_order(nodes) == [
+        "thermal",
+        "sensors",
+        "clothing_p1",
+        "avatar_p1",
+        "scene",
+        "materials",
+        "atmosphere",
+        "environment",
+    ]
+
+
+def _tool(name, upstream=()):
+    return graph.Tool(name, (), tuple(upstream), "1", None)
+
+
+def test_a_new_tool_slots_in_by_its_declarations():
+    """A layer (e.g. sensor paths reading atmosphere and sensors) is built after its upstream
+    layers, whatever the order it is listed in, and sits just above its strongest upstream layer."""
+    tools = [
+        _tool("paths", ["atmosphere", "sensors"]),
+        _tool("sensors"),
+        _tool("atmosphere"),
+        _tool("thermal"),
+    ]
+    nodes = {t.name: graph.Node(t.name, t, None, t.upstream) for t in tools}
+    order = graph.build_order(nodes)
+    assert order.index("paths") > max(order.index("atmosphere"), order.index("sensors"))
+    assert graph.strength_order(nodes) == ["thermal", "paths", "sensors", "atmosphere"]
+    loop = {"a": graph.Node("a", _tool("a"), None, ("b",)), "b": graph.Node("b", _tool("b"), None, ("a",))}
+    with pytest.raises(InputError, match="cycle"):
+        graph.build_order(loop)
+
+
+def test_every_tool_declares_what_it_reads(humvvex_raw):
+    tools = graph.discover_tools()
+    assert set(tools) == {
+        "environment",
+        "atmosphere",
+        "materials",
+        "scene",
+        "avatar_{id}",
+        "clothing_{id}",
+        "sensors",
+        "thermal",
+    }
+    scenario = validate(humvvex_raw)
+    for tool in tools.values():
+        assert tool.version and tool.reads
+        values = read_values(scenario, tool.reads, "p1")
+        assert values and all(isinstance(k, str) for k in values)  # every read path resolves
+
+
+def test_read_values_pick_exactly_what_is_read(raw):
+    a = validate(raw)
+    raw["sensor"][1]["position_m"] = [0.9, -15.0, 1.6]
+    b = validate(raw)
+    reads = ("sensor.*.position_m", "human[{id}]", "placement[{id}]", "@ids")
+    va, vb = read_values(a, reads, "p1"), read_values(b, reads, "p1")
+    assert va["sensor.1.position_m"] == [0.8, -15.0, 1.6] and vb["sensor.1.position_m"] == [0.9, -15.0, 1.6]
+    assert {k for k in va if va[k] != vb[k]} == {"sensor.1.position_m"}
+    assert va["human[p1].clothing"] == ["tshirt_white", "shorts", "cap"]
+    assert va["placement[p1].heading_deg"] == 180.0
+    assert va["@ids"] == {"human:p1": 1, "ground": 2, "object:warehouse": 3}
+    assert inputs_key("1", va, {}) != inputs_key("1", vb, {})
+    assert inputs_key("1", va, {}) != inputs_key("2", va, {})  # the tool version enters the key
+    assert inputs_key("1", va, {"x": "k1"}) != inputs_key("1", va, {"x": "k2"})
+
+
+def test_files_named_by_the_scenario_are_read_by_content(raw, tmp_path):
+    csv = tmp_path / "w.csv"
+    csv.write_text("time,air_temperature_k\n2018-10-24T13:00:00,288.0\n2018-10-24T15:00:00,290.0\n")
+    raw["atmosphere"]["weather_csv"] = str(csv)
+    before = read_values(validate(raw), ["atmosphere.weather_csv"])
+    csv.write_text("time,air_temperature_k\n2018-10-24T13:00:00,288.0\n2018-10-24T15:00:00,291.0\n")
+    after = read_values(validate(raw), ["atmosphere.weather_csv"])
+    assert before != after and str(csv) in after["atmosphere.weather_csv"]
+
+
+def test_unchanged_rerun_builds_nothing(out, humvvex_raw, monkeypatch):
+    def no_build(*args, **kwargs):
+        raise AssertionError("a tool ran on an unchanged scenario")
+
+    monkeypatch.setattr(graph.Tool, "build", no_build)
+    mtimes = {p: p.stat().st_mtime_ns for p in out.rglob("*.usda")}
+    report = compose(validate(humvvex_raw), out)
+    assert report.rebuilt == [] and report.written == []
+    assert {s.state for s in report.states.values()} == {"cached"}
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*.usda")} == mtimes
+    doc = json.loads((out / "compose.json").read_text())
+    assert doc["summary"].startswith("8 layers: 8 cached")
+    assert set(doc["ran"]) == {"environment", "atmosphere"}  # carried over from the run that built them
+
+
+def _edit(raw, key):
+    if key == "sensor position":
+        raw["sensor"][0]["position_m"] = [0.0, -14.0, 1.6]
+    elif key == "clothing":
+        raw["human"][0]["clothing"] = ["tshirt_white", "shorts"]
+    elif key == "start":
+        raw["general"]["start"] = raw["general"]["start"].replace(hour=15)
+    elif key == "weather":
+        raw["atmosphere"]["air_temperature_k"] = 290.0
+    return raw
+
+
+# which layers a single-key edit of humvvex rebuilds. The atmosphere layer holds the sensors'
+# path tables and the thermal tool reads the atmosphere's sky, so a sensor move still rebuilds
+# thermal; splitting the paths into their own layer removes it from the first set.
+REBUILT = {
+    "sensor position": {"sensors", "atmosphere", "thermal"},
+    "clothing": {"materials", "avatar_p1", "clothing_p1", "thermal"},
+    "start": {"environment", "atmosphere", "thermal"},
+    "weather": {"environment", "atmosphere", "thermal"},
+}
+
+
+@pytest.mark.parametrize("key", list(REBUILT))
+def test_single_key_edit_rebuilds_exactly_what_reads_it(out, raw, key):
+    report = compose(validate(_edit(raw, key)), out)
+    assert set(report.rebuilt) == REBUILT[key]
+    assert set(report.written) <= REBUILT[key] | {"stage"}
+    doc = {e["name"]: e for e in json.loads((out / "compose.json").read_text())["layers"]}
+    for name in ALL:
+        assert doc[name]["state"] == ("rebuilt" if name in REBUILT[key] else "cached")
+        assert (
+            Sdf.Layer.OpenAsAnonymous(str(out / "layers" / f"{name}.usda")).customLayerData["humv:inputsKey"]
+            == doc[name]["key"]
+        )
+    if key == "sensor position":
+        assert doc["sensors"]["why"] == "inputs changed: sensor.0.position_m"
+        assert doc["thermal"]["why"] == "upstream changed: atmosphere"
+        assert doc["avatar_p1"]["why"] == "cached"
+    if key == "clothing":
+        assert doc["clothing_p1"]["why"] == "inputs changed: human[p1].clothing; upstream changed: avatar_p1"
+
+
+def test_key_records_upstream_and_reads(out):
+    doc = {e["name"]: e for e in json.loads((out / "compose.json").read_text())["layers"]}
+    assert doc["clothing_p1"]["upstream"] == {"avatar_p1": doc["avatar_p1"]["key"]}
+    assert "human[{id}]" in doc["avatar_p1"]["reads"]
+    assert doc["sensors"]["inputs"]["sensor.0.position_m"] == [0.0, -15.0, 1.6]
+
+
+def _hand_edit(path, old, new):
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+
+
+def test_hand_edit_kept_while_inputs_unchanged_and_read_downstream(out, humvvex_raw):
+    layer = out / "layers" / "avatar_p1.usda"
+    _hand_edit(layer, "HumV-USD avatar layer for p1", "HumV-USD avatar layer for p1 (hand edited)")
+    edited = layer.read_text()
+    report = compose(validate(humvvex_raw), out)
+    assert report.states["avatar_p1"].state == "kept hand edit"
+    assert layer.read_text() == edited
+    # the layers that read the avatar are rebuilt on the edited file; a second run keeps all
+    assert set(report.rebuilt) == {"clothing_p1", "thermal"}
+    assert report.states["thermal"].why == "upstream changed: avatar_p1, clothing_p1"
+    again = compose(validate(humvvex_raw), out)
+    assert again.rebuilt == [] and again.states["avatar_p1"].state == "kept hand edit"
+
+
+def test_hand_edit_in_the_way_stops_compose_and_force_overwrites(out, raw):
+    layer = out / "layers" / "sensors.usda"
+    _hand_edit(layer, "focalLength = ", "focalLength = 1")
+    edited = layer.read_text()
+    mtimes = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
+    scenario = validate(_edit(raw, "sensor position"))
+    with pytest.raises(InputError) as err:
+        compose(scenario, out)
+    (line,) = err.value.problems
+    assert str(layer) in line and "--force" in line and "user layer" in line
+    assert "inputs changed: sensor.0.position_m" in line
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == mtimes  # nothing written
+    report = compose(scenario, out, force=True)
+    assert "sensors" in report.rebuilt and layer.read_text() != edited
+    assert "hand edit overwritten" in report.states["sensors"].why
+
+
+USER_LAYER = """#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "Z"
+)
+
+over "World"
+{
+    over "Sensors"
+    {
+        over "atom1024_lwir"
+        {
+            float focalLength = 99
+        }
+    }
+}
+"""
+
+
+def test_user_sublayer_survives_reruns_and_wins(out, raw):
+    (out / "fix.usda").write_text(USER_LAYER)
+    root = Sdf.Layer.FindOrOpen(str(out / "stage.usda"))
+    root.subLayerPaths.insert(0, "./fix.usda")
+    root.Save()
+    report = compose(validate(raw), out)
+    assert report.user_layers == ["./fix.usda"]
+    # tools reading the stage see the user layer: its content enters their keys
+    assert set(report.rebuilt) == {"clothing_p1", "thermal"}
+    report = compose(validate(_edit(raw, "sensor position")), out)
+    assert "sensors" in report.rebuilt
+    text = (out / "stage.usda").read_text()
+    assert text.index("./fix.usda") < text.index("./layers/thermal.usda")
+    stage = Usd.Stage.Open(str(out / "stage.usda"), Usd.Stage.LoadAll)
+    cam = UsdGeom.Camera(stage.GetPrimAtPath("/World/Sensors/atom1024_lwir"))
+    assert cam.GetFocalLengthAttr().Get() == pytest.approx(99.0)
+    assert compose(validate(raw), out).user_layers == ["./fix.usda"]
+
+
+def test_root_edited_by_hand_is_refused_when_it_would_change(out, raw):
+    _hand_edit(out / "stage.usda", "composed by humv-usd compose", "composed by hand")
+    assert compose(validate(raw), out).written == []  # nothing to change: the edit stays
+    assert "composed by hand" in (out / "stage.usda").read_text()
+    raw["general"]["description"] = "another"
+    with pytest.raises(InputError, match="stage.usda: edited by hand"):
+        compose(validate(raw), out)
+
+
+@pytest.mark.slow
+def test_cli_refuses_hand_edit_with_one_line_exit_2(out, tmp_path):
+    _hand_edit(out / "layers" / "sensors.usda", "focalLength = ", "focalLength = 1")
+    toml = tmp_path / "moved.toml"
+    text = (ROOT / "examples" / "humvvex.toml").read_text()
+    toml.write_text(text.replace("position_m = [0.0, -15.0, 1.6]", "position_m = [0.0, -14.0, 1.6]"))
+    run = [sys.executable, "-m", "humv_usd.cli.main", "compose", str(toml), "-o", str(out)]
+    r = subprocess.run(run, cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "--force" in r.stderr
+    r = subprocess.run([*run, "--force"], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert (
+        r.stdout.strip().splitlines()[-1].endswith("s)")
+        and "3 rebuilt (atmosphere, sensors, thermal), 5 cached" in r.stdout
+    )
+
+
+def test_hand_edited_layer_the_scenario_drops_is_not_removed_silently(out, raw):
+    layer = out / "layers" / "sensors.usda"
+    _hand_edit(layer, "focalLength = ", "focalLength = 1")
+    del raw["sensor"]
+    with pytest.raises(InputError, match="sensors.usda: edited by hand, and the scenario no longer has"):
+        compose(validate(raw), out)
+    assert layer.is_file()
+    report = compose(validate(raw), out, force=True)
+    assert not layer.exists() and "sensors.usda" in report.removed
