@@ -14,6 +14,27 @@ ROOT = Path(__file__).resolve().parents[1]
 HUMVVEX = ROOT / "examples" / "humvvex.toml"
 
 
+def upstream_of(scenario):
+    """The stage the atmosphere tool reads (its UPSTREAM: environment, sensors and, when the
+    scenario has one, scene layers), composed in memory."""
+    from humv_usd.environment import layer as environment_layer
+    from humv_usd.pipeline.compose import compose_in_memory
+    from humv_usd.scene import layer as scene_layer
+    from humv_usd.sensors import layer as sensors_layer
+
+    layers = [environment_layer.build(scenario), sensors_layer.build(scenario)]
+    if scenario["scene"] is not None:
+        layers.append(scene_layer.build(scenario))
+    return compose_in_memory(layers, scenario["general"]["fps"])
+
+
+def atmosphere_layer_of(scenario):
+    """The atmosphere layer of ``scenario`` built on :func:`upstream_of`."""
+    from humv_usd.atmosphere import layer as atmosphere_layer
+
+    return atmosphere_layer.build(scenario, upstream_of(scenario))
+
+
 @pytest.fixture(scope="session")
 def humvvex_raw() -> dict:
     return tomllib.loads(HUMVVEX.read_text())

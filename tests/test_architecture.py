@@ -42,16 +42,7 @@ LEVEL = {pkg: i for i, level in enumerate(LEVELS) for pkg in level}
 TOOLS = LEVELS[6]
 
 #: edges being removed (issue 11: weather, sun and cameras read from the stage); must shrink to empty
-PENDING = {
-    ("humv_usd.atmosphere.layer", "humv_usd.environment.weather"),
-    ("humv_usd.atmosphere.layer", "humv_usd.sensors.layer"),
-    ("humv_usd.atmosphere.layer", "humv_usd.thermal.sky"),
-    ("humv_usd.atmosphere.model", "humv_usd.environment.sun"),
-    ("humv_usd.atmosphere.model", "humv_usd.environment.weather"),
-    ("humv_usd.thermal.layer", "humv_usd.environment.weather"),
-    ("humv_usd.thermal.surfaces", "humv_usd.environment.sun"),
-    ("humv_usd.thermal.surfaces", "humv_usd.environment.weather"),
-}
+PENDING: set[tuple[str, str]] = set()
 
 
 def _package(module: str) -> str:

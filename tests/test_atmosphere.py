@@ -7,6 +7,7 @@ import datetime as dt
 
 import numpy as np
 import pytest
+from conftest import atmosphere_layer_of, upstream_of
 
 from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.atmosphere import lowtran as lt
@@ -18,6 +19,12 @@ from humv_usd.physics import planck
 from humv_usd.physics.sky import directional_sky_emissivity, effective_sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
+
+
+def _atmosphere_for(sc):
+    """The scenario's Atmosphere, with weather and sun of its environment layer."""
+    return M.atmosphere_for(sc, upstream_of(sc))
+
 
 needs_lowtran = pytest.mark.skipif(not lt.available(), reason="LOWTRAN7 not built")
 
@@ -43,7 +50,7 @@ def humvvex_lowtran(humvvex_raw, lowtran_cache):
     mp.setenv(M.CACHE_ENV, str(lowtran_cache))
     try:
         before = lt.CALLS
-        atm = M.atmosphere_for(sc)
+        atm = _atmosphere_for(sc)
         runs = lt.CALLS - before
     finally:
         mp.undo()
@@ -58,7 +65,7 @@ def test_lowtran_runs_once_then_cache(humvvex_lowtran, lowtran_cache, monkeypatc
     assert all("miss" in c for c in atm.ran["cache"])
     monkeypatch.setenv(M.CACHE_ENV, str(lowtran_cache))
     before = lt.CALLS
-    again = M.atmosphere_for(sc)
+    again = _atmosphere_for(sc)
     assert lt.CALLS == before  # nothing rerun
     assert all(c.endswith("hit") for c in again.ran["cache"])
     np.testing.assert_array_equal(again.sky_radiance, atm.sky_radiance)
@@ -169,7 +176,7 @@ def test_lowtran_unavailable_falls_back_with_warning(humvvex_raw, monkeypatch, t
 
     monkeypatch.setattr(lt, "_lowtran", broken)
     with pytest.warns(RuntimeWarning, match="analytic"):
-        atm = M.atmosphere_for(validate(raw))
+        atm = _atmosphere_for(validate(raw))
     assert atm.source == "analytic" and atm.ran["lowtran7"].startswith("failed")
     t_air = raw["atmosphere"]["air_temperature_k"]
     bt = _band_bt(atm.wavelengths_um, atm.sky_spectral_radiance([0.0, 60.0, 89.0]))
@@ -180,7 +187,7 @@ def test_analytic_model_checks(humvvex_raw):
     raw = copy.deepcopy(humvvex_raw)
     raw["atmosphere"]["model"] = "analytic"
     sc = validate(raw)
-    atm = M.atmosphere_for(sc)
+    atm = _atmosphere_for(sc)
     assert atm.source == "analytic"
     a = sc["atmosphere"]
     # hemispherical integral of the angular law returns the Berdahl-Martin emissivity
@@ -193,7 +200,7 @@ def test_analytic_model_checks(humvvex_raw):
     tau, _ = atm.path(None, [10.0, 100.0, 1000.0])
     assert np.all(np.diff(tau, axis=0) <= 0)
     raw["atmosphere"]["relative_humidity"] = 0.9
-    wet, _ = M.atmosphere_for(validate(raw)).path(None, [1000.0])
+    wet, _ = _atmosphere_for(validate(raw)).path(None, [1000.0])
     lw = (atm.wavelengths_um >= 8) & (atm.wavelengths_um <= 14)
     assert wet[0, lw].mean() < tau[2, lw].mean()
 
@@ -206,18 +213,18 @@ def test_only_what_the_scene_needs(humvvex_raw, monkeypatch, tmp_path):
     eo_only["sensor"] = [s for s in raw["sensor"] if s.get("band", "LWIR") == "EO" or "eo" in s["id"]]
     assert eo_only["sensor"]
     before = lt.CALLS
-    atm = M.atmosphere_for(validate(eo_only))
+    atm = _atmosphere_for(validate(eo_only))
     assert lt.CALLS == before  # no infrared sensor: no LOWTRAN
     assert atm.ran["lowtran7"] == "skipped: no infrared sensor"
     assert atm.wavelengths_um.max() < 1.0
     none = copy.deepcopy(raw)
     none["sensor"] = []
-    atm = M.atmosphere_for(validate(none))
+    atm = _atmosphere_for(validate(none))
     assert atm.wavelengths_um.size == 0 and lt.CALLS == before
     # night: no sun term
     night = copy.deepcopy(eo_only)
     night["general"]["start"] = dt.datetime(2018, 10, 24, 23, 5)
-    atm = M.atmosphere_for(validate(night))
+    atm = _atmosphere_for(validate(night))
     assert not atm.solar.any() and not atm.diffuse_radiance.any()
     assert atm.ran["sun"].startswith("skipped")
 
@@ -233,8 +240,11 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     raw = copy.deepcopy(humvvex_raw)
     raw["atmosphere"]["model"] = "analytic"  # fast; the LOWTRAN tables have the same shape
     raw["general"]["duration_s"] = 2.0 / 30.0  # three frames
+    # no slab spin-up: the environment layer then holds the sun at the three frames only
+    # (the spin-up's negative time codes are tested in test_environment.py)
+    raw["thermal"] = dict(raw.get("thermal") or {}, surface_spin_up_s=0.0)
     sc = validate(raw)
-    env, atm_layer = environment_layer.build(sc), atmosphere_layer.build(sc)
+    env, atm_layer = environment_layer.build(sc), atmosphere_layer_of(sc)
     stage = _stage(env, atm_layer)
     e = stage.GetPrimAtPath("/World/Environment")
     sun = sun_at(sc, [0.0, 1 / 30, 2 / 30])
@@ -273,7 +283,7 @@ def test_night_layer_has_no_solar_term(humvvex_raw, monkeypatch, tmp_path):
     raw = copy.deepcopy(humvvex_raw)
     raw["atmosphere"]["model"] = "analytic"
     raw["general"]["start"] = dt.datetime(2018, 10, 24, 23, 5)
-    layer = atmosphere_layer.build(validate(raw))
+    layer = atmosphere_layer_of(validate(raw))
     stage = _stage(layer)
     a = stage.GetPrimAtPath("/World/Atmosphere")
     assert not a.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).HasAuthoredValue()
@@ -293,7 +303,7 @@ def test_direct_mwir_sun_dims_with_haze(humvvex_raw, lowtran_cache, monkeypatch)
     for vis in (23.0, 5.0):
         raw = copy.deepcopy(humvvex_raw)
         raw["atmosphere"].update(model="lowtran7", visibility_km=vis)
-        atm = M.atmosphere_for(validate(raw))
+        atm = _atmosphere_for(validate(raw))
         out[vis] = (atm.wavelengths_um, atm.solar_spectral_irradiance([0.0])[0])
     wl, clear = out[23.0]
     _, hazy = out[5.0]
@@ -319,9 +329,9 @@ def test_layer_text_does_not_depend_on_the_cache(humvvex_raw, monkeypatch, tmp_p
     raw["sensor"] = raw["sensor"][:1]
     sc = validate(raw)
     before = lt.CALLS
-    cold = layer_text(atmosphere_layer.build(sc))
+    cold = layer_text(atmosphere_layer_of(sc))
     assert lt.CALLS > before  # the cache was empty: LOWTRAN ran
-    warm = layer_text(atmosphere_layer.build(sc))
+    warm = layer_text(atmosphere_layer_of(sc))
     assert cold == warm and ": hit" not in cold and ": miss" not in cold
 
 
@@ -345,7 +355,7 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     raw["sensor"] = [s for s in raw["sensor"] if s["id"] == "lwir640"]
     sc = validate(raw)
     before = lt.CALLS
-    layer = atmosphere_layer.build(sc)
+    layer = atmosphere_layer_of(sc)
     runs = lt.CALLS - before
     from humv_usd.pipeline.compose import compose_in_memory
 
@@ -387,5 +397,5 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     # LOWTRAN: 3 nodes x (sky 48 + paths 19 per interval) + sun once; then all from the cache
     assert 0 < runs <= 3 * (4 * M.SKY_ZENITH_DEG.size + M.PATH_RANGES_M.size) + 60
     before = lt.CALLS
-    atmosphere_layer.build(sc)
+    atmosphere_layer_of(sc)
     assert lt.CALLS == before

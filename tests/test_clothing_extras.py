@@ -16,6 +16,7 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.clothing import layer as clothing_layer
 from humv_usd.clothing.collide import LAYER_RADIUS, SHELL_COS, apply, blend_transforms, dress, simulate
 from humv_usd.clothing.fit import prepare
+from humv_usd.environment import layer as environment_layer
 from humv_usd.geometry.mesh import Surface
 from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.body import build_body
@@ -26,6 +27,7 @@ from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.render.export import StageExport
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.load import validate
+from humv_usd.sensors import layer as sensors_layer
 from humv_usd.thermal import layer as thermal_layer
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import rule_sensors_and_labels
@@ -183,8 +185,12 @@ def stage_with_outfit(humvvex_raw):
     upstream = compose_in_memory([avatar], scenario["general"]["fps"])
     clothing = clothing_layer.build_one(scenario, human, upstream)
     materials = materials_layer.build(scenario)
-    atmosphere = atmosphere_layer.build(scenario)
-    layers = [materials, atmosphere, avatar, clothing]
+    environment = environment_layer.build(scenario)  # the weather the thermal tool reads
+    sensors = sensors_layer.build(scenario)
+    atmosphere = atmosphere_layer.build(
+        scenario, compose_in_memory([environment, sensors], scenario["general"]["fps"])
+    )
+    layers = [environment, materials, atmosphere, avatar, clothing]
     thermal = thermal_layer.build(scenario, compose_in_memory(layers, scenario["general"]["fps"]))
     stage = compose_in_memory(layers + [thermal], scenario["general"]["fps"])
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)  # as compose's stage.usda (the layers': m)

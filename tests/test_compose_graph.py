@@ -262,8 +262,9 @@ def test_user_sublayer_survives_reruns_and_wins(out, raw):
     root.Save()
     report = compose(validate(raw), out)
     assert report.user_layers == ["./fix.usda"]
-    # tools reading the stage see the user layer: its content enters their keys
-    assert set(report.rebuilt) == {"clothing_p1", "thermal"}
+    # tools reading the stage see the user layer: its content enters their keys (the atmosphere
+    # reads weather, sun, cameras and scene off the stage)
+    assert set(report.rebuilt) == {"atmosphere", "clothing_p1", "thermal"}
     report = compose(validate(_edit(raw, "sensor position")), out)
     assert "sensors" in report.rebuilt
     text = (out / "stage.usda").read_text()
@@ -296,7 +297,7 @@ def test_cli_refuses_hand_edit_with_one_line_exit_2(out, tmp_path):
     assert r.returncode == 0, r.stderr
     assert (
         r.stdout.strip().splitlines()[-1].endswith("s)")
-        and "3 rebuilt (atmosphere, sensors, thermal), 5 cached" in r.stdout
+        and "3 rebuilt (sensors, atmosphere, thermal), 5 cached" in r.stdout
     )
 
 

@@ -143,3 +143,17 @@ def test_weather_csv_bad_input(raw, tmp_path, text, msg):
     raw["atmosphere"]["weather_csv"] = str(csv)
     with pytest.raises(InputError, match=msg):
         weather_at(validate(raw), [0.0])
+
+
+def test_cloud_dni_factor_is_the_ratio_of_cloud_reduction():
+    """The atmosphere's DNI / clear DNI (physics.sun.cloud_dni_factor) equals Kasten & Czeplak's
+    cloudy over clear DNI for any clear-sky diffuse fraction."""
+    from humv_usd.physics.sun import cloud_dni_factor
+
+    n = np.array([0.0, 0.2, 0.5, 0.8, 1.0])
+    for kd in (0.1, 0.3, 0.6):
+        ghi_c, zen = 700.0, 40.0
+        _, _, clear = cloud_reduction(ghi_c, kd * ghi_c, zen, 0.0)
+        _, _, cloudy = cloud_reduction(ghi_c, kd * ghi_c, zen, n)
+        np.testing.assert_allclose(cloud_dni_factor(n), cloudy / clear, rtol=1e-12, atol=1e-15)
+    assert cloud_dni_factor(1.0) == 0.0 and cloud_dni_factor(0.0) == 1.0

@@ -7,11 +7,11 @@ import copy
 import numpy as np
 import pytest
 import trimesh
+from conftest import atmosphere_layer_of
 from numpy.testing import assert_allclose
 from pxr import Usd
 from scipy.integrate import quad
 
-from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
@@ -35,7 +35,7 @@ def _atmosphere_stage(raw, cloud):
     raw["atmosphere"]["model"] = "analytic"
     raw["atmosphere"]["cloud_cover"] = cloud
     sc = validate(raw)
-    stage = Usd.Stage.Open(atmosphere_layer.build(sc))
+    stage = Usd.Stage.Open(atmosphere_layer_of(sc))
     return sc, stage
 
 

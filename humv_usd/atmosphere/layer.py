@@ -1,8 +1,12 @@
 """Atmosphere tool: sky, sun and slant paths → layers/atmosphere.usda.
 
-Authors what :func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario
-needs, see there) with the frame-0 cloud cover mixed into the thermal sky
-(:func:`humv_usd.thermal.sky.with_cloud_cover`, Crawford & Duchon 1999): on /World/Atmosphere
+Reads the upstream stage (:data:`UPSTREAM`): weather and sun from the environment layer
+(:mod:`humv_usd.usd.environment`), camera positions from the sensors layer
+(:func:`humv_usd.usd.sensor.camera_positions`) and the scene's extent from the scene layer
+(:func:`scene_points`); it computes none of them. Authors what
+:func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario needs, see
+there) with the frame-0 cloud cover mixed into the thermal sky
+(:func:`humv_usd.atmosphere.model.with_cloud_cover`, Crawford & Duchon 1999): on /World/Atmosphere
 the model that ran, the effective broadband sky (temperature, emissivity, and the longwave
 radiance against zenith that the thermal layer reads), the wavelength grid of the sensors'
 bands, the sky spectral radiance against zenith and, while the sun is up, the direct solar
@@ -14,7 +18,8 @@ When the weather varies (:func:`humv_usd.atmosphere.model.weather_varies`), the 
 (spectral and broadband, with each node's cloud cover) and the path tables get time samples at
 the weather nodes' frames (:func:`humv_usd.atmosphere.model.weather_nodes`; USD interpolates
 float arrays linearly between them) and keep the frame-0 values as their defaults, which
-readers without a time (:func:`humv_usd.thermal.sky.stage_longwave_table`) get. Constant
+readers without a time get (the thermal tool and the render read the sample of their frame,
+:mod:`humv_usd.usd.atmosphere`). Constant
 weather authors single default values, as before.
 """
 
@@ -23,43 +28,30 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom, Vt
 
-from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes
-from humv_usd.environment.weather import weather_at
+from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes, with_cloud_cover
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
-from humv_usd.sensors.layer import camera_positions
-from humv_usd.thermal.sky import with_cloud_cover
 from humv_usd.usd import schemas as S
+from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.mesh import bound_corners
 from humv_usd.usd.paths import sensor_path
+from humv_usd.usd.sensor import camera_positions
 
 NAME = "atmosphere"
 READS = (
     *CLOCK,
-    "atmosphere",
-    *(
-        f"sensor.*.{k}"
-        for k in (
-            "id",
-            "wavelength_um",
-            "platform",
-            "position_m",
-            "look_at_m",
-            "altitude_m",
-            "orbit_radius_m",
-            "orbit_speed_m_s",
-            "orbit_start_deg",
-            "orbit_clockwise",
-        )
-    ),
-    "scene.ground.size_m",
-    "scene.object.*.center_m",
-    "scene.object.*.size_m",
+    "atmosphere",  # model, profile, visibility; weather_csv: its hours are the weather nodes
+    "sensor.*.id",
+    "sensor.*.wavelength_um",
+    "sensor.*.look_at_m",
     "placement.*.position_m",
     "placement.*.waypoints_m",
 )
-UPSTREAM = ()
-VERSION = "1"
+#: layers read from the upstream stage: weather and sun (environment), camera positions
+#: (sensors) and the scene's extent for the path ranges (scene; a scenario may have none)
+UPSTREAM = ("environment", "sensors", "scene")
+VERSION = "2"
 PATHS = SCOPES["atmosphere"].AppendChild("Paths")
 
 
@@ -67,43 +59,39 @@ def _floats(a) -> Vt.FloatArray:
     return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
 
 
-def scene_points(scenario: Scenario) -> np.ndarray:
-    """Points bounding what the sensors look at [m]: ground corners, object tops, people."""
-    pts = []
-    scene = scenario["scene"]
-    if scene:
-        gx, gy = scene["ground"]["size_m"]
-        pts += [(sx * gx / 2, sy * gy / 2, 0.0) for sx in (-1, 1) for sy in (-1, 1)]
-        for o in scene["object"]:
-            cx, cy, cz = o["center_m"]
-            r = 0.5 * float(np.hypot(o["size_m"][0], o["size_m"][1]))
-            pts += [(cx + sx * r, cy + sy * r, cz + o["size_m"][2]) for sx in (-1, 1) for sy in (-1, 1)]
+def scene_points(scenario: Scenario, upstream) -> np.ndarray:
+    """Points bounding what the sensors look at [m]: the corners of every scene mesh's bounding
+    box on the upstream stage (the scene layer: ground, objects, hand-made meshes), and the
+    people's placements and waypoints up to 2 m (from ``[[placement]]``: their skinned extents
+    over every frame would cost more than the range table needs)."""
+    pts = [bound_corners(upstream, SCOPES["scene"])]
     for p in scenario["placement"]:
         x, y, z = p["position_m"]
-        pts += [(x, y, z), (x, y, z + 2.0)]
-        pts += [(wx, wy, z) for wx, wy in p.get("waypoints_m") or []]
-    return np.asarray(pts, dtype=float).reshape(-1, 3)
+        people = [(x, y, z), (x, y, z + 2.0)] + [(wx, wy, z) for wx, wy in p.get("waypoints_m") or []]
+        pts.append(np.asarray(people, dtype=float))
+    return np.vstack([np.zeros((0, 3))] + pts)
 
 
-def sensor_ranges(scenario: Scenario, sensor: dict) -> np.ndarray:
+def sensor_ranges(sensor: dict, cams: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Ranges [m] of a sensor's path table: the table's nodes up to the farthest scene point
-    (x 1.5, at least twice the look-at distance and 100 m), that range included."""
+    (x 1.5, at least twice the look-at distance and 100 m), that range included; ``cams``
+    the camera positions per frame (n, 3) [m] of the sensors layer, ``points`` the
+    :func:`scene_points`."""
 
-    g = scenario["general"]
-    cams = camera_positions(sensor, g["fps"], scenario.frame_count)
-    targets = np.vstack([scene_points(scenario), np.asarray(sensor["look_at_m"], float)[None]])
+    targets = np.vstack([points, np.asarray(sensor["look_at_m"], float)[None]])
     far = max(float(np.max(np.linalg.norm(cams[:, None, :] - targets[None], axis=-1))), 1.0)
     look = float(np.max(np.linalg.norm(cams - np.asarray(sensor["look_at_m"], float), axis=-1)))
     r_max = min(max(1.5 * far, 2.0 * look, 100.0), float(PATH_RANGES_M[-1]))
     return np.unique(np.append(PATH_RANGES_M[PATH_RANGES_M < r_max], r_max))
 
 
-def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
+def build(scenario: Scenario, upstream) -> Sdf.Layer:
+    """The atmosphere layer; ``upstream``: a stage with the :data:`UPSTREAM` layers."""
     g, a = scenario["general"], scenario["atmosphere"]
-    full = atmosphere_for(scenario)
+    full = atmosphere_for(scenario, upstream)
     nodes = None
     if full.node_times_s is None:
-        atm = with_cloud_cover(full, weather_at(scenario, [0.0]).cloud_cover[0])
+        atm = with_cloud_cover(full, read_weather(upstream, [0.0]).cloud_cover[0])
     else:
         nodes = [
             with_cloud_cover(full.at_node(k), full.node_cloud_cover[k]) for k in range(full.node_times_s.size)
@@ -172,17 +160,19 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         else:
             ran["solar spectrum"] = "skipped: sun below the horizon (or fully clouded)"
         UsdGeom.Scope.Define(stage, PATHS)
+        points = scene_points(scenario, upstream)
         for s in scenario["sensor"]:
             path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
             path.ApplyAPI(S.ATMOSPHERE_PATH_API)
-            ranges = sensor_ranges(scenario, s)
-            tau, rad = atm.path(s["position_m"], ranges)
+            cams = camera_positions(upstream, sensor_path(s["id"]), np.arange(max(scenario.frame_count, 1)))
+            ranges = sensor_ranges(s, cams, points)
+            tau, rad = atm.path(cams[0], ranges)
             path.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path(s["id"])))
             path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
             path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)))
             path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)))
             for code, n in zip(node_codes if nodes is not None else [], nodes or []):
-                tau, rad = n.path(s["position_m"], ranges)
+                tau, rad = n.path(cams[0], ranges)
                 path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)), code)
                 path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)), code)
         ran["paths"] = ran.get("paths", "") + f"; tables for {len(scenario['sensor'])} sensors"

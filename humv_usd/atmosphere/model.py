@@ -9,7 +9,10 @@
   model; when LOWTRAN7 cannot be loaded or fails, the analytic model with a warning on stderr;
 - the solar terms only at times the sun is up.
 
-Models (weather of frame 0, :func:`humv_usd.environment.weather.weather_at`; when the
+Weather and sun are read from the upstream stage's environment layer
+(:mod:`humv_usd.usd.environment`); the atmosphere computes neither.
+
+Models (weather of frame 0; when the
 air temperature, humidity, pressure or cloud cover change over the frames (an hourly
 ``weather_csv``), the sky and paths are computed at weather nodes instead, see
 :func:`weather_nodes`, and interpolated linearly in time between them):
@@ -22,7 +25,7 @@ L(theta) = L_low(theta) + tau_low(theta) L_up(theta'), with sin theta' = R sin t
 the zenith angle where the ray leaves the layer. Most of the window emission (water vapour,
 scale height ~2 km) comes from the weather layer; ozone and the upper troposphere from the
 profile. Below 2.5 um the sky adds the isotropic diffuse skylight of SPCTRL2 (Bird & Riordan
-1986) scaled to the scenario's diffuse irradiance (:func:`humv_usd.environment.sun.sun_at`).
+1986) scaled to the environment layer's diffuse irradiance.
 
 Slant paths: the sensors are near the ground (< ~1 km), so a path is a homogeneous horizontal
 path of the same length in the weather layer (LOWTRAN7 MODEL 7, ITYPE 1, thermal radiance); the
@@ -61,19 +64,22 @@ import numpy as np
 
 from humv_usd.atmosphere import lowtran as lt
 from humv_usd.constants import STEFAN_BOLTZMANN, SUN_ANGULAR_RADIUS, SUN_TEMPERATURE_K
-from humv_usd.environment.sun import SunState, sun_at, utc_times
-from humv_usd.environment.weather import Weather, read_weather_csv, weather_at
 from humv_usd.fileio import atomic_path
 from humv_usd.physics import planck
 from humv_usd.physics.sky import (
     aerosol_extinction,
+    cloudy_sky_emissivity,
     directional_sky_emissivity,
     effective_sky_temperature,
     water_continuum_absorption,
     water_vapour_pressure,
 )
+from humv_usd.physics.sun import SunState, cloud_dni_factor
+from humv_usd.physics.weather import Weather
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.times import frame_epoch_s, frame_times
+from humv_usd.scenario.times import frame_epoch_s, frame_times, utc_times
+from humv_usd.scenario.weather_csv import read_weather_csv
+from humv_usd.usd.environment import read_sun, read_weather, time_codes
 
 log = logging.getLogger(__name__)
 
@@ -308,16 +314,6 @@ class Atmosphere:
         out = np.stack([np.interp(z, zt, sky[:, k]) for k in range(self.wavelengths_um.size)], axis=-1)
         return out + self.diffuse_at(time_s)[None, :]
 
-    def sky_longwave_radiance(self, zenith_deg, time_s: float = 0.0) -> np.ndarray:
-        """Broadband (4-50 um plus a blackbody at air temperature beyond) sky radiance
-        [W m-2 sr-1] against zenith angle [deg]; pi times its cosine-weighted hemispherical
-        mean is sky_emissivity * sigma * T_air^4."""
-        return np.interp(
-            np.asarray(zenith_deg, dtype=float),
-            self.sky_zenith_deg,
-            self._node_mix(self.node_longwave_radiance, self.longwave_radiance, time_s),
-        )
-
     def path(
         self, sensor_position_m=None, ranges_m=None, time_s: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -359,6 +355,56 @@ class Atmosphere:
             a, b, f = self._time_index(ti)
             out[i] = (1 - f) * self.solar[a] + f * self.solar[b]
         return out
+
+
+def with_cloud_cover(atmosphere, cloud_cover: float):
+    """The atmosphere's thermal sky with a cloud fraction (Crawford & Duchon 1999).
+
+    Parameters
+    ----------
+    atmosphere : humv_usd.atmosphere.model.Atmosphere
+        Clear-sky atmosphere (LOWTRAN7 or analytic).
+    cloud_cover : float
+        Cloud fraction c [0-1] (the weather of frame 0, like the atmosphere).
+
+    Returns
+    -------
+    Atmosphere
+        A copy whose thermal sky is L = c B(T_air) + (1 - c) L_clear: spectral rows
+        ``sky_radiance`` with the Planck radiance B(lambda, T_air), the broadband
+        ``longwave_radiance`` with sigma T_air^4 / pi, ``sky_emissivity`` =
+        c + (1 - c) eps_clear and ``sky_temperature_k`` = eps^(1/4) T_air. The isotropic diffuse
+        skylight (already reduced by the clouds through the scenario's DHI), the paths and the
+        direct sun are unchanged. c = 0 returns the atmosphere itself.
+
+    Notes
+    -----
+    Clouds as blackbodies at the air temperature (see :func:`cloudy_sky_emissivity`);
+    LOWTRAN7 runs without its cloud models, so the clear-sky spectrum is mixed the same way.
+    """
+
+    c = float(np.clip(cloud_cover, 0.0, 1.0))
+    if c == 0.0:
+        return atmosphere
+    t_air = float(atmosphere.air_temperature_k)
+    wl = np.asarray(atmosphere.wavelengths_um, dtype=float)
+    bb = planck.spectral_radiance(wl, t_air) if wl.size else np.zeros(0)
+    eps = float(cloudy_sky_emissivity(atmosphere.sky_emissivity, c))
+    ran = dict(atmosphere.ran)
+    ran["clouds"] = (
+        f"cloud cover {c:g}: Crawford & Duchon (1999) mix, clouds as blackbodies "
+        f"at the air temperature {t_air:.2f} K (broadband and spectral sky)"
+    )
+    return dataclasses.replace(
+        atmosphere,
+        sky_radiance=c * bb[None, :] + (1.0 - c) * np.asarray(atmosphere.sky_radiance),
+        longwave_radiance=(
+            c * STEFAN_BOLTZMANN * t_air**4 / np.pi + (1.0 - c) * np.asarray(atmosphere.longwave_radiance)
+        ),
+        sky_emissivity=eps,
+        sky_temperature_k=eps**0.25 * t_air,
+        ran=ran,
+    )
 
 
 def lerp_nodes(node_times_s, table, t) -> np.ndarray:
@@ -428,9 +474,9 @@ def _earth_sun_factor(scenario: Scenario, times_s) -> np.ndarray:
     )
 
 
-def _cloud_dni_factor(sun: SunState, clear: SunState) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(clear.dni_w_m2 > 0, sun.dni_w_m2 / clear.dni_w_m2, 0.0)
+def _cloud_dni_factor(sun: SunState, weather: Weather) -> np.ndarray:
+    """DNI / clear-sky DNI of the environment layer's sun (0 where there is no direct sun)."""
+    return np.where(sun.dni_w_m2 > 0, cloud_dni_factor(weather.cloud_cover), 0.0)
 
 
 def _broadband(zenith_deg, lw_spectral, wl_um, t_air) -> tuple[np.ndarray, float, float]:
@@ -471,7 +517,7 @@ def _profile_mid(profile: str, z0_km: float, h_km: float):
 
 
 def _lowtran_parts(
-    scenario, w0: dict, bands, sun: SunState, clear: SunState, ran: dict, sun_too: bool = True
+    scenario, w0: dict, bands, sun: SunState, weather: Weather, ran: dict, sun_too: bool = True
 ):
     """Sky, path and solar tables from LOWTRAN7 (raises LowtranError).
 
@@ -585,7 +631,7 @@ def _lowtran_parts(
         ]
         runs = run_cached(cases, ran, "sun")
         table = np.stack([_resample(grid, r.wavelengths_um, r.solar, np.zeros(grid.size)) for r in runs])
-        factor = _earth_sun_factor(scenario, sun.times_s) * _cloud_dni_factor(sun, clear)
+        factor = _earth_sun_factor(scenario, sun.times_s) * _cloud_dni_factor(sun, weather)
         # the wrapper's runs have no aerosol: the vertical aerosol optical depth of the
         # visibility's extinction over a 1.2 km scale height (as the SPCTRL2 branch below
         # SOLAR_SPLIT_UM) times the relative air mass (Kasten 1966), Beer-Lambert
@@ -651,12 +697,15 @@ def _analytic_parts(scenario, w0: dict, bands, sun: SunState):
     return grid, sky, tau, rad, solar, broadband
 
 
-def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
+def atmosphere_for(scenario: Scenario, upstream, times_s=None) -> Atmosphere:
     """The scenario's :class:`Atmosphere` (see the module doc for what runs when).
 
     Parameters
     ----------
     scenario : Scenario
+    upstream : Usd.Stage
+        A stage with the environment layer: weather and sun at the sample times and weather
+        nodes (:mod:`humv_usd.usd.environment`).
     times_s : array-like, optional
         Sample times of the sun terms [s after frame 0]; default :func:`frame_times`.
 
@@ -666,16 +715,15 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
     """
     a = scenario["atmosphere"]
     t = frame_times(scenario) if times_s is None else np.atleast_1d(np.asarray(times_s, float))
-    weather = weather_at(scenario, t)
-    w0 = weather_at(scenario, [0.0]).at(0)
-    sun = sun_at(scenario, t, weather)
-    clear = sun_at(scenario, t, dataclasses.replace(weather, cloud_cover=np.zeros_like(t)))
+    weather = read_weather(upstream, time_codes(upstream, t))
+    w0 = read_weather(upstream, [0.0]).at(0)
+    sun = read_sun(upstream, time_codes(upstream, t))
     bands = sensor_bands(scenario)
     ran: dict = {"weather": "frame 0: " + ", ".join(f"{k}={v:g}" for k, v in w0.items())}
     nodes = None
     if bands and weather_varies(weather):
         nodes = weather_nodes(scenario)
-        wn = weather_at(scenario, nodes)
+        wn = read_weather(upstream, time_codes(upstream, nodes))
         fps = float(scenario["general"]["fps"])
         ran["weather"] = f"{nodes.size} weather nodes (linear between): " + "; ".join(
             f"frame {round(tn * fps)}: T={wn.air_temperature_k[k]:g} K, "
@@ -698,7 +746,7 @@ def atmosphere_for(scenario: Scenario, times_s=None) -> Atmosphere:
     else:
         try:
             per_node = [
-                _lowtran_parts(scenario, w, bands, sun, clear, ran, sun_too=(k == 0))
+                _lowtran_parts(scenario, w, bands, sun, weather, ran, sun_too=(k == 0))
                 for k, w in enumerate(node_weather)
             ]
             source = "lowtran7"

@@ -17,13 +17,13 @@ import trimesh
 from pxr import Usd
 
 from humv_usd.human.usdskel import skinned_points
+from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import human as H
 from humv_usd.thermal import layer as TL
 from humv_usd.thermal.qrad import absorbed_radiation
 from humv_usd.thermal.scene_radiance import SceneSurfaces, radiance_map, scene_surface_radiance
-from humv_usd.thermal.sky import ClearSky, stage_longwave_table
+from humv_usd.thermal.sky import ClearSky
 from humv_usd.thermal.surfaces import (
-    SPIN_UP_STEP_S,
     forcing_at,
     ground_albedo,
     scene_meshes,
@@ -56,9 +56,9 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
     meshes = scene_meshes(stage, scenario)
     slabs = any(m.held_k is None for m in meshes)
     spin = th["surface_spin_up_s"] if slabs else 0.0
-    spin_t = np.arange(-spin, 0.0, SPIN_UP_STEP_S) if spin > 0 else np.zeros(0)
-    table = stage_longwave_table(stage)
-    f = with_sky_table(forcing_at(scenario, np.r_[spin_t, 0.0]), table, len(spin_t))
+    spin_t = spin_up_times(scenario) if slabs else np.zeros(0)
+    tables = TL.sky_tables(stage, [0])
+    f = with_sky_table(forcing_at(stage, np.r_[spin_t, 0.0]), tables, len(spin_t))
     surf, diag = surface_temperatures(scenario, meshes, np.array([0.0]), spin, f)
     i = len(spin_t)
     sun = (f.sun_direction[i], f.dni_w_m2[i], f.dhi_w_m2[i]) if f.sun_up[i] else None
@@ -71,7 +71,7 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
         },
         sun,
         float(diag["groundMeanTemperature_k"][0]) if scenario["scene"] else None,
-        longwave=table,
+        longwave=None if tables is None else tables[0],
         ground_albedo=ground_albedo(meshes),
     )
     scene = None

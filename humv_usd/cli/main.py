@@ -289,11 +289,10 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
         source = "stage"
         if ex.atmosphere_spectra(t0).sky_radiance is None:
             from humv_usd.atmosphere.model import atmosphere_for
-            from humv_usd.environment.sun import sun_at
 
-            atm = atmosphere_for(sc)
+            atm = atmosphere_for(sc, ex.stage)  # weather and sun of the stage's environment layer
             spectra, path = R.spectra_from_atmosphere(atm, 0.0)
-            sun_dir = sun_at(sc, [0.0]).direction[0]
+            sun_dir = ex.sun_direction(0.0)
             source = f"atmosphere_for ({atm.source}; the stage has no spectral tables)"
         table = R.subband_error_table(stage, n_list, spectra=spectra, path_table=path, sun_direction=sun_dir)
         click.echo(

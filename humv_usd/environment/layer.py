@@ -1,23 +1,34 @@
 """Environment tool: scenario/site metadata, weather and the sun → layers/environment.usda.
 
-Weather (:func:`humv_usd.environment.weather.weather_at`) is authored as default values when it
-is constant and time-sampled when an hourly series makes it vary; the sun
-(:func:`humv_usd.environment.sun.sun_at`) is time-sampled per frame (strided frames for very
-long scenarios, see :func:`humv_usd.atmosphere.model.frame_times`; USD interpolates between).
+The one place that computes the weather (:func:`humv_usd.environment.weather.weather_at`) and
+the sun (:func:`humv_usd.environment.sun.sun_at`); every other tool and the render read them back
+through :mod:`humv_usd.usd.environment`. Weather is authored as default values when it is constant
+and time-sampled when an hourly series makes it vary; the sun is time-sampled per frame (strided
+frames for very long scenarios, see :func:`humv_usd.scenario.times.frame_times`; USD interpolates
+between).
+
+The layer also holds the weather and the sun of the thermal tool's scene-surface spin-up, at
+negative time codes (``[thermal] surface_spin_up_s`` before frame 0 in 10-minute steps,
+:func:`humv_usd.scenario.times.spin_up_times`). An hourly series that starts after the spin-up
+does holds its first row there (the sun still follows the clock). Readers at frames >= 0 (the
+render) see the same values as without these samples.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from pxr import Gf, Sdf, UsdGeom
+from pxr import Sdf, UsdGeom
 
 from humv_usd.environment.sun import sun_at
-from humv_usd.environment.weather import COLUMNS, weather_at
+from humv_usd.environment.weather import weather_at
+from humv_usd.physics.weather import COLUMNS
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
-from humv_usd.scenario.times import frame_times, local_start_iso
+from humv_usd.scenario.times import frame_epoch_s, frame_times, local_start_iso, spin_up_times
+from humv_usd.scenario.weather_csv import read_weather_csv
+from humv_usd.usd import environment as E
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import SCOPES, WORLD, finish, new_layer_stage
+from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 
 NAME = "environment"
 READS = (
@@ -26,26 +37,21 @@ READS = (
     *CLOCK,
     *(f"atmosphere.{k}" for k in COLUMNS),
     "atmosphere.weather_csv",
+    "thermal.surface_spin_up_s",  # the spin-up window before frame 0 (negative time codes)
 )
 UPSTREAM = ()
-VERSION = "1"
-
-_WEATHER_ATTRS = (
-    (S.ENVIRONMENT_AIR_TEMPERATURE, "air_temperature_k"),
-    (S.ENVIRONMENT_RELATIVE_HUMIDITY, "relative_humidity"),
-    (S.ENVIRONMENT_WIND_SPEED, "wind_speed_m_s"),
-    (S.ENVIRONMENT_WIND_DIRECTION, "wind_direction_deg"),
-    (S.ENVIRONMENT_PRESSURE, "pressure_pa"),
-    (S.ENVIRONMENT_CLOUD_COVER, "cloud_cover"),
-)
+VERSION = "2"
 
 
-def _set(attr, values, codes, sampled: bool, convert=float):
-    if sampled:
-        for code, v in zip(codes, values):
-            attr.Set(convert(v), float(code))
-    else:
-        attr.Set(convert(values[0]))
+def _weather_times(scenario: Scenario, times_s: np.ndarray) -> np.ndarray:
+    """Times at which to evaluate the weather: spin-up times before an hourly series starts take
+    its first row (the series must cover the frames, not the spin-up day)."""
+    path = (scenario["atmosphere"] or {}).get("weather_csv")
+    if not path:
+        return times_s
+    ts, _ = read_weather_csv(path, scenario)
+    t0 = frame_epoch_s(scenario)
+    return np.where(times_s < 0.0, np.clip(times_s, ts[0] - t0, ts[-1] - t0), times_s)
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -53,45 +59,34 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, "HumV-USD environment layer: scenario, site, date/time, weather, sun"
     )
-    world = stage.GetPrimAtPath(WORLD)
-    world.ApplyAPI(S.SCENARIO_API)
-    for attr, value in (
-        (S.SCENARIO_NAME, g["name"]),
-        (S.SCENARIO_DESCRIPTION, g["description"]),
-        (S.SCENARIO_START_TIME, local_start_iso(g)),
-        (S.SCENARIO_TIME_ZONE, g["time_zone"]),
-        (S.SCENARIO_LATITUDE, g["latitude_deg"]),
-        (S.SCENARIO_LONGITUDE, g["longitude_deg"]),
-        (S.SCENARIO_ELEVATION, g["elevation_m"]),
-        (S.SCENARIO_SEED, g["seed"]),
-    ):
-        world.GetAttribute(attr).Set(value)
+    E.write_site(
+        stage,
+        E.Site(
+            name=g["name"],
+            description=g["description"],
+            start_time=local_start_iso(g),
+            time_zone=g["time_zone"],
+            latitude_deg=g["latitude_deg"],
+            longitude_deg=g["longitude_deg"],
+            elevation_m=g["elevation_m"],
+            seed=g["seed"],
+        ),
+    )
     env = UsdGeom.Scope.Define(stage, SCOPES["environment"]).GetPrim()
     env.ApplyAPI(S.ENVIRONMENT_API)
 
-    times = frame_times(scenario)
+    frames_t = frame_times(scenario)
+    spin_t = spin_up_times(scenario)
+    times = np.concatenate([spin_t, frames_t])
     codes = np.round(times * float(g["fps"]), 6)
-    sampled = scenario.frame_count > 1
-    weather = weather_at(scenario, times)
-    for attr, key in _WEATHER_ATTRS:
-        _set(env.GetAttribute(attr), getattr(weather, key), codes, weather.varies)
+    weather = weather_at(scenario, _weather_times(scenario, times))
+    E.write_weather(env, weather, codes)
     sun = sun_at(scenario, times, weather)
-    _set(
-        env.GetAttribute(S.ENVIRONMENT_SUN_DIRECTION),
-        sun.direction,
-        codes,
-        sampled,
-        lambda d: Gf.Vec3f(*map(float, d)),
-    )
-    for attr, values in (
-        (S.ENVIRONMENT_SUN_ZENITH, sun.zenith_deg),
-        (S.ENVIRONMENT_SUN_AZIMUTH, sun.azimuth_deg),
-        (S.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE, sun.dni_w_m2),
-        (S.ENVIRONMENT_DIFFUSE_HORIZONTAL_IRRADIANCE, sun.dhi_w_m2),
-        (S.ENVIRONMENT_GLOBAL_HORIZONTAL_IRRADIANCE, sun.ghi_w_m2),
-    ):
-        _set(env.GetAttribute(attr), values, codes, sampled)
-    n_up = int(sun.up.sum())
+    if scenario.frame_count > 1 or spin_t.size:
+        E.write_sun(env, sun, codes)
+    else:
+        E.write_sun(env, sun, codes[:1])
+    n_up = int(sun.up[spin_t.size :].sum())
     ran = {
         "weather": (
             "hourly series " + str(scenario["atmosphere"].get("weather_csv"))
@@ -100,9 +95,14 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         ),
         "sun": (
             "NREL SPA (pvlib), Ineichen-Perez clear sky, Kasten-Czeplak clouds; "
-            f"sun up at {n_up} of {sun.up.size} samples"
+            f"sun up at {n_up} of {frames_t.size} samples"
         ),
-        "samples": f"{times.size} of {scenario.frame_count} frames",
+        "samples": f"{frames_t.size} of {scenario.frame_count} frames",
     }
+    if spin_t.size:
+        ran["spinUp"] = (
+            f"{spin_t.size} samples at negative time codes {codes[0]:g} .. {codes[spin_t.size - 1]:g} "
+            f"(thermal.surface_spin_up_s = {-spin_t[0]:g} s, 600 s steps)"
+        )
     stage.GetRootLayer().customLayerData = {"humv:environment:ran": ran}
     return finish(stage)

@@ -1,9 +1,12 @@
-"""Clear-sky thermal radiation near the ground and simple path extinction (closed forms).
+"""The sky laws (the one module for them) and simple path extinction (closed forms, arrays in).
 
 Effective (broadband, hemispherical) sky emissivity and temperature (Berdahl & Martin 1984), its
-angular distribution (Martin & Berdahl 1984), and the closed-form extinction terms of the
-analytic atmosphere (water-vapour continuum, aerosol from visibility). LOWTRAN7 spectra are in
-:mod:`humv_usd.atmosphere.model`; these are its analytic fallback.
+angular distribution (Martin & Berdahl 1984) and that law's hemispherical integral, the cloud
+mix (Crawford & Duchon 1999), the exact hemispherical irradiance of a sky tabulated against
+zenith (the atmosphere layer's ``skyLongwaveRadiance``), and the closed-form extinction terms of
+the analytic atmosphere (water-vapour continuum, aerosol from visibility). LOWTRAN7 spectra are
+in :mod:`humv_usd.atmosphere.model`; these are its analytic fallback. The thermal tool's sky
+radiance model (:mod:`humv_usd.thermal.sky`) builds on these.
 """
 
 from __future__ import annotations
@@ -101,23 +104,62 @@ def effective_sky_temperature(air_temperature_k, relative_humidity):
     return eps**0.25 * np.asarray(air_temperature_k, dtype=float), eps
 
 
-def _martin_berdahl_law(zenith_emissivity, mu):
+def martin_berdahl_law(zenith_emissivity, mu):
+    """Slab-atmosphere angular law eps(mu) = 1 - (1 - eps_z)^(1/mu) (Martin & Berdahl 1984).
+
+    Parameters
+    ----------
+    zenith_emissivity : numeric
+        Zenith emissivity eps_z [0-1].
+    mu : numeric
+        Cosine of the zenith angle [-]; mu <= 0 (horizon and below) gives 1.
+    """
+    # mu -> 0 makes the exponent blow up; (1-eps_z)^inf = 0 -> eps = 1 at the horizon
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         out = 1.0 - np.power(1.0 - zenith_emissivity, 1.0 / np.maximum(mu, 1e-12))
     return np.where(mu > 0, out, 1.0)
 
 
-_GAUSS_200 = None
+_GAUSS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
 
-def _hemispherical(zenith_emissivity):
-    global _GAUSS_200
-    if _GAUSS_200 is None:
-        _GAUSS_200 = np.polynomial.legendre.leggauss(200)
-    x, w = _GAUSS_200
+def hemispherical_martin_berdahl(zenith_emissivity, n: int = 400):
+    """Hemispherical emissivity 2 int_0^1 eps(mu) mu dmu of :func:`martin_berdahl_law`
+    (Gauss-Legendre in mu with ``n`` nodes; the integrand is bounded and smooth on (0, 1])."""
+    if n not in _GAUSS:
+        _GAUSS[n] = np.polynomial.legendre.leggauss(n)
+    x, w = _GAUSS[n]
     mu = 0.5 * (x + 1.0)
-    eps = _martin_berdahl_law(np.asarray(zenith_emissivity, dtype=float)[..., None], mu)
-    return np.sum(eps * mu * w, axis=-1)  # 2 int_0^1 eps mu dmu
+    eps = martin_berdahl_law(np.asarray(zenith_emissivity, dtype=float)[..., None], mu)
+    return np.sum(eps * mu * w, axis=-1)  # 2 * 0.5 * sum(...)
+
+
+def zenith_emissivity_martin_berdahl(sky_emissivity):
+    """Zenith emissivity eps_z whose Martin-Berdahl angular law has hemispherical value eps_sky.
+
+    Parameters
+    ----------
+    sky_emissivity : numeric
+        Hemispherical (flux) clear-sky emissivity [0-1].
+
+    Returns
+    -------
+    numeric
+        Zenith emissivity eps_z [0-1] with 2 int eps(theta) cos sin dtheta = eps_sky.
+
+    Notes
+    -----
+    Solved by bisection (the hemispherical value is monotonic in eps_z). Martin & Berdahl (1984)
+    fit eps_z ~ 1 - (1 - eps_sky)^(1/1.8); solving keeps the downwelling flux identical to the
+    Berdahl & Martin hemispherical emissivity the rest of the code uses.
+    """
+    target = np.clip(np.asarray(sky_emissivity, dtype=float), 0.0, 1.0)
+    lo, hi = np.zeros_like(target), np.array(target, copy=True)  # eps_z <= eps_sky
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        too_low = hemispherical_martin_berdahl(mid) < target
+        lo, hi = np.where(too_low, mid, lo), np.where(too_low, hi, mid)
+    return 0.5 * (lo + hi)
 
 
 def directional_sky_emissivity(zenith_deg, sky_emissivity):
@@ -140,21 +182,95 @@ def directional_sky_emissivity(zenith_deg, sky_emissivity):
     -----
     Slab-atmosphere law eps(theta) = 1 - (1 - eps_z)^(1 / cos theta) of Martin & Berdahl
     (1984); the zenith emissivity eps_z is solved (bisection, the hemispherical integral is
-    monotonic in eps_z) so that the downwelling flux equals the Berdahl & Martin (1984) value.
-    Same law as ``humv_usd.thermal.sky.angular_sky_emissivity(model='martin_berdahl')``.
+    monotonic in eps_z, :func:`zenith_emissivity_martin_berdahl`) so that the downwelling flux
+    equals the Berdahl & Martin (1984) value. The thermal tool's
+    ``angular_sky_emissivity(model='martin_berdahl')`` is this function.
 
     References
     ----------
     .. [1] Martin, M., Berdahl, P. (1984). Characteristics of infrared sky radiation in the
        United States. Solar Energy 33(3/4), 321-336.
     """
-    target = float(np.clip(sky_emissivity, 0.0, 1.0))
-    lo, hi = 0.0, target
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _hemispherical(mid) < target else (lo, mid)
     mu = np.cos(np.radians(np.asarray(zenith_deg, dtype=float)))
-    return _martin_berdahl_law(0.5 * (lo + hi), mu)
+    return martin_berdahl_law(float(zenith_emissivity_martin_berdahl(float(sky_emissivity))), mu)
+
+
+def cloudy_sky_emissivity(clear_emissivity, cloud_cover):
+    """Effective sky emissivity with a cloud fraction (Crawford & Duchon 1999).
+
+    Parameters
+    ----------
+    clear_emissivity : numeric
+        Clear-sky emissivity, hemispherical or directional eps(theta) [0-1].
+    cloud_cover : numeric
+        Cloud fraction c [0-1] (clipped).
+
+    Returns
+    -------
+    numeric
+        eps = c + (1 - c) eps_clear [0-1].
+
+    Notes
+    -----
+    The clouds are taken as blackbodies at the screen-level air temperature covering the
+    fraction c of the dome (low, optically thick cloud base), so the same mix holds for the
+    hemispherical emissivity and, direction by direction, for eps(theta): an overcast sky
+    (c = 1) radiates sigma T_air^4. High thin cloud (cirrus) is colder and partly transparent;
+    the mix overestimates its emission.
+
+    References
+    ----------
+    .. [1] Crawford, T. M., Duchon, C. E. (1999). An improved parameterization for estimating
+       effective atmospheric emissivity for use in calculating daytime downwelling longwave
+       radiation. J. Appl. Meteor. 38, 474-480 (their Eq. 20, clf the cloud fraction).
+    """
+    c = np.clip(np.asarray(cloud_cover, dtype=float), 0.0, 1.0)
+    return c + (1.0 - c) * np.asarray(clear_emissivity, dtype=float)
+
+
+def extended_sky_table(zenith_deg, radiance):
+    """Table nodes [rad] and values extended as np.interp does: constant to 0 and to 90 deg."""
+    z = np.asarray(zenith_deg, dtype=float).ravel()
+    val = np.asarray(radiance, dtype=float).ravel()
+    if z.size == 0 or z.size != val.size or np.any(np.diff(z) <= 0) or z[0] < 0 or z[-1] > 90:
+        raise ValueError("sky table: zenith angles must ascend within 0-90 deg, one value each")
+    if z[0] > 0:
+        z, val = np.r_[0.0, z], np.r_[val[0], val]
+    if z[-1] < 90:
+        z, val = np.r_[z, 90.0], np.r_[val, val[-1]]
+    return np.radians(z), val
+
+
+def hemispherical_irradiance(zenith_deg, radiance) -> float:
+    """Irradiance on a horizontal plane from a sky tabulated against zenith [W m^-2].
+
+    Parameters
+    ----------
+    zenith_deg : array (Z,)
+        Ascending zenith angles of the table [deg] within 0-90.
+    radiance : array (Z,)
+        Radiance at those angles, azimuthally uniform [W m^-2 sr^-1].
+
+    Returns
+    -------
+    float
+        E = 2 pi int_0^(pi/2) L(theta) cos(theta) sin(theta) dtheta, i.e. pi times the
+        cosine-weighted hemispherical mean of L.
+
+    Notes
+    -----
+    Exact for the interpolant the radiance maps use (:meth:`ClearSky.radiance`): L linear in
+    theta between the nodes, constant before the first and after the last node (np.interp).
+    On a segment L = a + s theta, with int sin cos = sin^2/2 and
+    int theta sin cos = -theta cos(2 theta)/4 + sin(2 theta)/8.
+    """
+    th, val = extended_sky_table(zenith_deg, radiance)
+    a, b = th[:-1], th[1:]
+    slope = np.diff(val) / np.diff(th)
+    f0 = lambda t: 0.5 * np.sin(t) ** 2  # noqa: E731
+    f1 = lambda t: -t * np.cos(2.0 * t) / 4.0 + np.sin(2.0 * t) / 8.0  # noqa: E731
+    seg = (val[:-1] - slope * a) * (f0(b) - f0(a)) + slope * (f1(b) - f1(a))
+    return float(2.0 * np.pi * seg.sum())
 
 
 def water_vapour_pressure(air_temperature_k, relative_humidity):

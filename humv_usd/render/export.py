@@ -51,7 +51,10 @@ from humv_usd.geometry.camera import CameraPose
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.render.radiometry import PathTable
+from humv_usd.usd import atmosphere as usd_atmosphere
+from humv_usd.usd import environment as usd_environment
 from humv_usd.usd import schemas as _s
+from humv_usd.usd.atmosphere import AtmosphereSpectra
 from humv_usd.usd.materials import StageMaterial, bound_material, read_material
 from humv_usd.usd.sensor import read_camera_pose, read_sensor
 
@@ -95,17 +98,6 @@ def _get(attr, time):
 
 #: A material as the render reads it (:func:`humv_usd.usd.materials.read_material`).
 Material = StageMaterial
-
-
-@dataclass
-class AtmosphereSpectra:
-    """What ``/World/Atmosphere`` says spectrally at one frame (None when not authored)."""
-
-    model: str | None = None
-    wavelengths_um: np.ndarray | None = None  # (W,)
-    sky_zenith_deg: np.ndarray | None = None  # (Z,)
-    sky_radiance: np.ndarray | None = None  # (Z, W) [W m-2 sr-1 um-1]
-    solar_irradiance: np.ndarray | None = None  # (W,) [W m-2 um-1], direct beam, normal incidence
 
 
 @dataclass
@@ -435,224 +427,34 @@ class StageExport:
 
     # --- per frame ---------------------------------------------------------------------------
     def sky_temperature(self, time) -> float:
-        prim = self.stage.GetPrimAtPath(ATMOSPHERE_PATH)
-        where = f"{ATMOSPHERE_PATH}.{SKY_TEMPERATURE_ATTR}"
-        value = _get(prim.GetAttribute(SKY_TEMPERATURE_ATTR), time) if prim and prim.IsValid() else None
-        if value is None:
-            what = "" if prim and prim.IsValid() else f" (no prim at {ATMOSPHERE_PATH})"
-            raise InputError(
-                bad_value(
-                    where,
-                    None,
-                    f"expected the effective sky brightness temperature in "
-                    f"{TEMPERATURE_RANGE_K[0]:g}-{TEMPERATURE_RANGE_K[1]:g} K (HumvAtmosphereAPI){what}",
-                )
-            )
-        return float(check_temperatures([value], where)[0])
+        value = usd_atmosphere.sky_temperature(self.stage, time)
+        return float(check_temperatures([value], f"{ATMOSPHERE_PATH}.{SKY_TEMPERATURE_ATTR}")[0])
 
-    # --- environment and atmosphere (every part optional) ----------------------------------
+    # --- environment and atmosphere (humv_usd.usd readers; every part optional) ---------------
     def _float_array(self, prim, name, time, where_expected, positive=False, ascending=False):
-        value = _get(prim.GetAttribute(name), time)
-        if value is None or len(value) == 0:
-            return None
-        a = np.asarray(value, dtype=float).ravel()
-        where = f"{prim.GetPath()}.{name}"
-        if not np.all(np.isfinite(a)) or (positive and np.any(a < 0)):
-            raise InputError(bad_value(where, summary(a), where_expected))
-        if ascending and (np.any(a < 0) or np.any(np.diff(a) <= 0)):
-            raise InputError(bad_value(where, summary(a), where_expected))
-        return a
+        return usd_atmosphere.float_array(prim, name, time, where_expected, positive, ascending)
 
     def atmosphere_spectra(self, time) -> AtmosphereSpectra:
         """Sky spectral radiance against zenith, solar spectral irradiance and the model token
         of ``/World/Atmosphere`` at ``time`` (None for what is not authored)."""
-        out = AtmosphereSpectra()
-        prim = self.stage.GetPrimAtPath(ATMOSPHERE_PATH)
-        if not (prim and prim.IsValid()):
-            return out
-        model = _get(prim.GetAttribute(ATM_MODEL_ATTR), time)
-        out.model = str(model) if model else None
-        wl = self._float_array(
-            prim,
-            ATM_WAVELENGTHS_ATTR,
-            time,
-            "expected positive, strictly ascending wavelengths [um]",
-            ascending=True,
-        )
-        if wl is None:
-            return out
-        out.wavelengths_um = wl
-        zen = self._float_array(
-            prim, ATM_SKY_ZENITH_ATTR, time, "expected ascending zenith angles in 0-90 deg", ascending=True
-        )
-        sky = self._float_array(
-            prim,
-            ATM_SKY_RADIANCE_ATTR,
-            time,
-            "expected finite spectral radiances >= 0 [W m-2 sr-1 um-1]",
-            positive=True,
-        )
-        if zen is not None and sky is not None:
-            if zen[-1] > 90.0 + 1e-6:
-                raise InputError(
-                    bad_value(
-                        f"{ATMOSPHERE_PATH}.{ATM_SKY_ZENITH_ATTR}",
-                        summary(zen),
-                        "expected ascending zenith angles in 0-90 deg",
-                    )
-                )
-            if sky.size != zen.size * wl.size:
-                raise InputError(
-                    bad_value(
-                        f"{ATMOSPHERE_PATH}.{ATM_SKY_RADIANCE_ATTR}",
-                        f"<{sky.size} values>",
-                        f"expected {zen.size} zenith angles x {wl.size} wavelengths = "
-                        f"{zen.size * wl.size} values (row-major)",
-                    )
-                )
-            out.sky_zenith_deg, out.sky_radiance = zen, sky.reshape(zen.size, wl.size)
-        solar = self._float_array(
-            prim,
-            ATM_SOLAR_ATTR,
-            time,
-            "expected finite spectral irradiances >= 0 [W m-2 um-1]",
-            positive=True,
-        )
-        if solar is not None:
-            if solar.size != wl.size:
-                raise InputError(
-                    bad_value(
-                        f"{ATMOSPHERE_PATH}.{ATM_SOLAR_ATTR}",
-                        f"<{solar.size} values>",
-                        f"expected {wl.size} values (one per wavelength)",
-                    )
-                )
-            out.solar_irradiance = solar
-        return out
+        return usd_atmosphere.atmosphere_spectra(self.stage, time)
 
     def sun_direction(self, time) -> np.ndarray | None:
         """Unit vector toward the sun (stage coordinates) at ``time``, or None if not authored."""
-        prim = self.stage.GetPrimAtPath(ENVIRONMENT_PATH)
-        value = _get(prim.GetAttribute(SUN_DIRECTION_ATTR), time) if prim and prim.IsValid() else None
-        if value is None:
-            return None
-        d = np.asarray(value, dtype=float).ravel()
-        n = float(np.linalg.norm(d)) if d.size == 3 else 0.0
-        if not (np.all(np.isfinite(d)) and n > 0.5):
-            raise InputError(
-                bad_value(
-                    f"{ENVIRONMENT_PATH}.{SUN_DIRECTION_ATTR}",
-                    summary(d),
-                    "expected a unit 3-vector toward the sun",
-                )
-            )
-        return d / n
+        return usd_environment.sun_direction(self.stage, time)
 
     def direct_normal_irradiance(self, time) -> float | None:
         """Broadband direct normal irradiance ``humv:environment:directNormalIrradiance`` [W m-2]
         at ``time``, or None if not authored."""
-        prim = self.stage.GetPrimAtPath(ENVIRONMENT_PATH)
-        value = _get(prim.GetAttribute(ENV_DNI_ATTR), time) if prim and prim.IsValid() else None
-        if value is None:
-            return None
-        v = float(value)
-        if not (math.isfinite(v) and 0.0 <= v <= 2000.0):
-            raise InputError(
-                bad_value(
-                    f"{ENVIRONMENT_PATH}.{ENV_DNI_ATTR}",
-                    v,
-                    "expected a direct normal irradiance in 0..2000 W m-2",
-                )
-            )
-        return v
+        return usd_environment.direct_normal_irradiance(self.stage, time)
 
     def path_table(self, sensor: SensorModel, time):
-        """The sensor's slant-path table (``radiometry.PathTable``) at ``time``, or None.
-
-        Found under ``/World/Atmosphere/Paths`` by ``humv:atmospherePath:sensor`` == the sensor
-        prim path, else by the child named like the sensor; it needs ``humv:atmosphere:wavelengths``.
-        """
-
-        scope = self.stage.GetPrimAtPath(ATMOSPHERE_PATHS)
-        if not (scope and scope.IsValid()):
+        """The sensor's slant-path table (``radiometry.PathTable``) at ``time``, or None
+        (:func:`humv_usd.usd.atmosphere.path_table`)."""
+        t = usd_atmosphere.path_table(self.stage, sensor.path, sensor.name, time)
+        if t is None:
             return None
-        chosen = None
-        for child in scope.GetChildren():
-            target = _get(child.GetAttribute(PATH_SENSOR_ATTR), Usd.TimeCode.Default())
-            if target and str(target) == sensor.path:
-                chosen = child
-                break
-        if chosen is None:
-            child = scope.GetChild(sensor.name)
-            chosen = child if child and child.IsValid() else None
-        if chosen is None:
-            return None
-        atm = self.stage.GetPrimAtPath(ATMOSPHERE_PATH)
-        wl = self._float_array(
-            atm,
-            ATM_WAVELENGTHS_ATTR,
-            time,
-            "expected positive, strictly ascending wavelengths [um]",
-            ascending=True,
-        )
-        where = str(chosen.GetPath())
-        if wl is None:
-            raise InputError(
-                bad_value(
-                    f"{ATMOSPHERE_PATH}.{ATM_WAVELENGTHS_ATTR}",
-                    None,
-                    f"expected the wavelength grid [um] of the path table {where}",
-                )
-            )
-        ranges = self._float_array(
-            chosen, PATH_RANGES_ATTR, time, "expected ascending ranges >= 0 [m]", ascending=True
-        )
-        tau = self._float_array(
-            chosen, PATH_TRANSMITTANCE_ATTR, time, "expected transmittances in 0-1", positive=True
-        )
-        rad = self._float_array(
-            chosen,
-            PATH_RADIANCE_ATTR,
-            time,
-            "expected finite path radiances >= 0 [W m-2 sr-1 um-1]",
-            positive=True,
-        )
-        if ranges is None or tau is None or rad is None:
-            missing = [
-                n
-                for n, v in (
-                    (PATH_RANGES_ATTR, ranges),
-                    (PATH_TRANSMITTANCE_ATTR, tau),
-                    (PATH_RADIANCE_ATTR, rad),
-                )
-                if v is None
-            ]
-            raise InputError(
-                bad_value(f"{where}.{missing[0]}", None, "expected ranges, transmittance and radiance tables")
-            )
-        for name, a in ((PATH_TRANSMITTANCE_ATTR, tau), (PATH_RADIANCE_ATTR, rad)):
-            if a.size != ranges.size * wl.size:
-                raise InputError(
-                    bad_value(
-                        f"{where}.{name}",
-                        f"<{a.size} values>",
-                        f"expected {ranges.size} ranges x {wl.size} wavelengths = "
-                        f"{ranges.size * wl.size} values (row-major)",
-                    )
-                )
-        if np.any(tau > 1.0 + 1e-6):
-            raise InputError(
-                bad_value(
-                    f"{where}.{PATH_TRANSMITTANCE_ATTR}", summary(tau), "expected transmittances in 0-1"
-                )
-            )
-        return PathTable(
-            where,
-            ranges,
-            wl,
-            np.minimum(tau, 1.0).reshape(ranges.size, wl.size),
-            rad.reshape(ranges.size, wl.size),
-        )
+        return PathTable(t.prim, t.ranges_m, t.wavelengths_um, t.transmittance, t.radiance)
 
     def camera_pose(self, sensor: SensorModel, time) -> CameraPose:
         """The sensor's camera at ``time`` (:func:`humv_usd.usd.sensor.read_camera_pose`)."""

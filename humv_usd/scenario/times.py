@@ -32,7 +32,28 @@ def frame_epoch_s(scenario: Scenario) -> float:
     return g["start"].replace(tzinfo=tz).timestamp()
 
 
+def utc_times(scenario: Scenario, times_s):
+    """pandas DatetimeIndex (UTC) of ``times_s`` seconds after frame 0."""
+    import pandas as pd
+
+    t = frame_epoch_s(scenario) + np.atleast_1d(np.asarray(times_s, dtype=float))
+    return pd.to_datetime(t, unit="s", utc=True)
+
+
 def local_start_iso(general: dict) -> str:
     """Frame 0 as an ISO 8601 local date-time with its UTC offset."""
     tz = dt.timezone(dt.timedelta(hours=general["utc_offset_h"]))
     return general["start"].replace(tzinfo=tz).isoformat()
+
+
+#: step of the scene-surface spin-up before frame 0 [s]
+SPIN_UP_STEP_S = 600.0
+
+
+def spin_up_times(scenario: Scenario) -> np.ndarray:
+    """Times [s after frame 0, < 0] of the scene-surface spin-up: ``[thermal] surface_spin_up_s``
+    before frame 0 in :data:`SPIN_UP_STEP_S` steps (empty without a spin-up). The environment
+    layer holds the weather and the sun at these times, and the thermal tool steps its slabs
+    through them."""
+    spin = float((scenario["thermal"] or {}).get("surface_spin_up_s", 0.0) or 0.0)
+    return np.arange(-spin, 0.0, SPIN_UP_STEP_S) if spin > 0 else np.zeros(0)

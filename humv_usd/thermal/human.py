@@ -17,8 +17,8 @@ The chain, per person:
    (:func:`humv_usd.physics.garment.steady_state`), then implicit steps with the fabric's heat
    capacity along the frames (:func:`humv_usd.physics.garment.transient_step`).
 
-The sky (weather and sun of :mod:`humv_usd.environment`) and the scene surfaces (their
-temperatures from :mod:`humv_usd.thermal.surfaces`) are given per radiation sample by the
+The sky (weather and sun of the environment layer, :mod:`humv_usd.usd.environment`) and the
+scene surfaces (their temperatures from :mod:`humv_usd.thermal.surfaces`) are given per radiation sample by the
 caller (:class:`Surroundings`). Not modelled: sunlight reflected from one body part onto
 another (a ray blocked by the person brings its long-wave emission only).
 """
@@ -155,8 +155,10 @@ def scenario_sky(
 ) -> ClearSky:
     """The sky of the scenario's weather over its ground.
 
-    ``weather``: one sample of :func:`humv_usd.environment.weather.weather_at` as a dict (default
-    the constant ``[atmosphere]`` values; ``cloud_cover`` defaults to 0); ``sun``: (unit
+    ``weather``: one sample of the environment layer's weather
+    (:func:`humv_usd.usd.environment.read_weather`) as a dict, as the thermal layer passes it
+    (default the constant ``[atmosphere]`` values, for benches and tests without a stage;
+    ``cloud_cover`` defaults to 0); ``sun``: (unit
     direction towards the sun, DNI, DHI) [W m^-2] or None (night / no sun); ``ground_k``: ground
     surface temperature (default the scenario's held ground temperature, else the air
     temperature); ``longwave``: (zenith angles [deg], longwave sky radiance [W m^-2 sr^-1])

@@ -10,13 +10,16 @@ People (``[thermal] model``):
 Scene surfaces (ground, objects, any other mesh outside /World/Humans), in every model: held at
 the scenario's ``temperature_k`` when it is given, else a 1-D slab of the material with sun,
 sky, wind and a diurnal spin-up ending at frame 0 (:mod:`humv_usd.thermal.surfaces`).
-Weather and sun come from :mod:`humv_usd.environment` (``weather_at``, ``sun_at``). The long-wave
-sky comes from the upstream stage's /World/Atmosphere (``skyLongwaveRadiance`` against zenith,
-LOWTRAN7 or analytic, cloud cover included) when the atmosphere layer authored it: the people's
-radiance maps use the table itself and the slabs its hemispherical irradiance, so MRT, q_rad and
-the scene see the render's sky; without it, the analytic Berdahl & Martin sky with the
-Crawford & Duchon cloud mix. The table holds the weather of frame 0; at other times (spin-up,
-later radiation samples) it is scaled with the analytic sky's irradiance (1 at frame 0).
+Weather and sun are read from the upstream stage's environment layer
+(:mod:`humv_usd.usd.environment`, at each frame / radiation sample / spin-up step's time code).
+The long-wave sky is read from the upstream stage's /World/Atmosphere (``skyLongwaveRadiance``
+against zenith, LOWTRAN7 or analytic, cloud cover included; :func:`humv_usd.usd.atmosphere.longwave_sky`)
+at each radiation sample's time code, exactly as the render reads it: the people's radiance maps
+use the table itself and the slabs its hemispherical irradiance, so MRT, q_rad and the scene see
+the render's sky at every frame, also when an hourly ``weather_csv`` time-samples it. Where the
+layer has no value the analytic Berdahl & Martin sky with the Crawford & Duchon cloud mix stands
+in: without an atmosphere layer, and in the slab spin-up before frame 0 (scaled there to frame
+0's table, :func:`humv_usd.thermal.surfaces.with_sky_table`).
 """
 
 from __future__ import annotations
@@ -25,14 +28,13 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.constants import STEFAN_BOLTZMANN
-from humv_usd.environment.weather import weather_at
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
+from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
-from humv_usd.thermal.sky import hemispherical_irradiance, stage_longwave_table
 from humv_usd.thermal.surfaces import (
-    SPIN_UP_STEP_S,
+    air_at_frame0,
     forcing_at,
     ground_albedo,
     longwave_emissivity,
@@ -41,13 +43,16 @@ from humv_usd.thermal.surfaces import (
     with_sky_table,
 )
 from humv_usd.usd import schemas as S
+from humv_usd.usd.atmosphere import longwave_sky, model_name
+from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import finish, new_layer_stage
 from humv_usd.usd.paths import body_path, human_path
 
 NAME = "thermal"
-READS = (*CLOCK, "human", "scene", "thermal", "atmosphere")
+#: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
+READS = (*CLOCK, "human", "scene", "thermal")
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*")
-VERSION = "1"
+VERSION = "2"
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
@@ -71,11 +76,11 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     forcing = None
     if slabs or people:
         spin = th["surface_spin_up_s"] if slabs else 0.0
-        spin_t = np.arange(-spin, 0.0, SPIN_UP_STEP_S) if spin > 0 else np.zeros(0)
+        spin_t = spin_up_times(scenario) if slabs else np.zeros(0)
         all_t = np.concatenate([spin_t, sample_t])
-        table = stage_longwave_table(upstream)
-        forcing = with_sky_table(forcing_at(scenario, all_t), table, len(spin_t))
-        report["sky"] = _sky_report(forcing, table, len(spin_t), upstream)
+        tables = sky_tables(upstream, samples)
+        forcing = with_sky_table(forcing_at(upstream, all_t), tables, len(spin_t))
+        report["sky"] = _sky_report(forcing, tables, len(spin_t), upstream)
         surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing)
         report["surfaces"] = {
             "model": "slab" if slabs else "held",
@@ -87,7 +92,7 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     for m in meshes:
         solved[m.path] = surf[m.path][nearest] if m.path in surf else np.full((1, m.n_faces), float(m.held_k))
     if people:
-        w = weather_at(scenario, np.arange(frames) / fps)
+        w = read_weather(upstream, np.arange(frames, dtype=float))
         n_spin = len(forcing.times_s) - len(samples)
         skies, scenes = [], []
         mesh, eps_tri, tri_offsets = _scene_trimesh(meshes)
@@ -108,7 +113,7 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
                 weather,
                 sun,
                 float(ground_k[k]) if scenario["scene"] else None,
-                longwave=_scaled_table(table, forcing, i),
+                longwave=None if tables is None else tables[k],
                 ground_albedo=ground_albedo(meshes),
             )
             skies.append(sky)
@@ -145,7 +150,7 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     # to compose's report, so an unchanged scenario still rewrites nothing
     stage.GetRootLayer().customLayerData = {"humv:thermal": report}
     fixed = _fixed_people(scenario)
-    air0 = float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
+    air0 = air_at_frame0(upstream, scenario)
     kinds = {m.path: ("fixed" if m.held_k is not None else "slab") for m in meshes}
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
@@ -176,22 +181,19 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     return finish(stage)
 
 
-def _scaled_table(table, forcing, i):
-    """The atmosphere's longwave table scaled to the sky irradiance of forcing sample i (the
-    table itself at frame 0), or None without a table."""
-    if table is None:
-        return None
-    zen, rad = table
-    return zen, rad * (float(forcing.sky_longwave[i]) / hemispherical_irradiance(zen, rad))
+def sky_tables(upstream: Usd.Stage, frames) -> list | None:
+    """The atmosphere layer's long-wave sky table at each frame of ``frames`` (the radiation
+    samples), as the render reads it, or None without an atmosphere layer / table."""
+    tables = [longwave_sky(upstream, float(f)) for f in frames]
+    return None if any(t is None for t in tables) else tables
 
 
-def _sky_report(forcing, table, i0, upstream) -> dict:
+def _sky_report(forcing, tables, i0, upstream) -> dict:
     """Where the long-wave sky came from and its irradiance at frame 0 (for the layer)."""
-    if table is None:
+    if tables is None:
         source = "analytic: Berdahl & Martin (1984) + Crawford & Duchon (1999) clouds"
     else:
-        model = upstream.GetPrimAtPath("/World/Atmosphere").GetAttribute(S.ATMOSPHERE_MODEL).Get()
-        source = f"atmosphere layer skyLongwaveRadiance ({model})"
+        source = f"atmosphere layer skyLongwaveRadiance ({model_name(upstream)}) at each radiation sample"
     return {
         "source": source,
         "cloudCover": round(float(forcing.cloud_cover[i0]), 6),

@@ -16,71 +16,28 @@ Directions are unit vectors in the stage frame (Z up). Radiance [W m^-2 sr^-1], 
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from humv_usd.constants import STEFAN_BOLTZMANN
-from humv_usd.errors import InputError, bad_value
-from humv_usd.physics import planck
-from humv_usd.physics.sky import effective_sky_temperature
-from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import SCOPES
+from humv_usd.physics.sky import (
+    cloudy_sky_emissivity,
+    effective_sky_temperature,
+    hemispherical_irradiance,
+    martin_berdahl_law,
+    zenith_emissivity_martin_berdahl,
+)
+from humv_usd.usd.atmosphere import longwave_sky
+
+#: the atmosphere layer's broadband long-wave sky (``stage_longwave_table(stage, time)``)
+stage_longwave_table = longwave_sky
 
 BANDS = ("shortwave", "longwave")
 SHORTWAVE, LONGWAVE = 0, 1
 
 # Unsworth & Monteith (1975): eps(theta) = a + b ln(sec theta), b from their Table 2 (clear sky)
 _UNSWORTH_MONTEITH_B = 0.09
-
-
-def _martin_berdahl(zenith_emissivity, mu):
-    # mu -> 0 makes the exponent blow up; (1-eps_z)^inf = 0 -> eps = 1 at the horizon
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        out = 1.0 - np.power(1.0 - zenith_emissivity, 1.0 / np.maximum(mu, 1e-12))
-    return np.where(mu > 0, out, 1.0)
-
-
-_GAUSS = {}
-
-
-def _hemispherical_martin_berdahl(zenith_emissivity, n=400):
-    """2 int_0^1 eps(mu) mu dmu by Gauss-Legendre in mu (bounded, smooth on (0, 1])."""
-    if n not in _GAUSS:
-        _GAUSS[n] = np.polynomial.legendre.leggauss(n)
-    x, w = _GAUSS[n]
-    mu = 0.5 * (x + 1.0)
-    eps = _martin_berdahl(np.asarray(zenith_emissivity, dtype=float)[..., None], mu)
-    return np.sum(eps * mu * w, axis=-1)  # 2 * 0.5 * sum(...)
-
-
-def zenith_emissivity_martin_berdahl(sky_emissivity):
-    """Zenith emissivity eps_z whose Martin-Berdahl angular law has hemispherical value eps_sky.
-
-    Parameters
-    ----------
-    sky_emissivity : numeric
-        Hemispherical (flux) clear-sky emissivity [0-1].
-
-    Returns
-    -------
-    numeric
-        Zenith emissivity eps_z [0-1] with 2 int eps(theta) cos sin dtheta = eps_sky.
-
-    Notes
-    -----
-    Solved by bisection (the hemispherical value is monotonic in eps_z). Martin & Berdahl (1984)
-    fit eps_z ~ 1 - (1 - eps_sky)^(1/1.8); solving keeps the downwelling flux identical to the
-    Berdahl & Martin hemispherical emissivity the rest of the code uses.
-    """
-    target = np.clip(np.asarray(sky_emissivity, dtype=float), 0.0, 1.0)
-    lo, hi = np.zeros_like(target), np.array(target, copy=True)  # eps_z <= eps_sky
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        too_low = _hemispherical_martin_berdahl(mid) < target
-        lo, hi = np.where(too_low, mid, lo), np.where(too_low, hi, mid)
-    return 0.5 * (lo + hi)
 
 
 def angular_sky_emissivity(zenith_rad, sky_emissivity, model="martin_berdahl"):
@@ -118,7 +75,7 @@ def angular_sky_emissivity(zenith_rad, sky_emissivity, model="martin_berdahl"):
     mu = np.cos(np.asarray(zenith_rad, dtype=float))
     eps_sky = float(sky_emissivity)
     if model == "martin_berdahl":
-        eps = _martin_berdahl(float(zenith_emissivity_martin_berdahl(eps_sky)), mu)
+        eps = martin_berdahl_law(float(zenith_emissivity_martin_berdahl(eps_sky)), mu)
     elif model == "unsworth_monteith":
         b = _UNSWORTH_MONTEITH_B
         with np.errstate(divide="ignore"):
@@ -129,175 +86,6 @@ def angular_sky_emissivity(zenith_rad, sky_emissivity, model="martin_berdahl"):
     else:
         raise ValueError(f"invalid model selection {model}")
     return np.where(mu > 0, eps, 1.0)
-
-
-def cloudy_sky_emissivity(clear_emissivity, cloud_cover):
-    """Effective sky emissivity with a cloud fraction (Crawford & Duchon 1999).
-
-    Parameters
-    ----------
-    clear_emissivity : numeric
-        Clear-sky emissivity, hemispherical or directional eps(theta) [0-1].
-    cloud_cover : numeric
-        Cloud fraction c [0-1] (clipped).
-
-    Returns
-    -------
-    numeric
-        eps = c + (1 - c) eps_clear [0-1].
-
-    Notes
-    -----
-    The clouds are taken as blackbodies at the screen-level air temperature covering the
-    fraction c of the dome (low, optically thick cloud base), so the same mix holds for the
-    hemispherical emissivity and, direction by direction, for eps(theta): an overcast sky
-    (c = 1) radiates sigma T_air^4. High thin cloud (cirrus) is colder and partly transparent;
-    the mix overestimates its emission.
-
-    References
-    ----------
-    .. [1] Crawford, T. M., Duchon, C. E. (1999). An improved parameterization for estimating
-       effective atmospheric emissivity for use in calculating daytime downwelling longwave
-       radiation. J. Appl. Meteor. 38, 474-480 (their Eq. 20, clf the cloud fraction).
-    """
-    c = np.clip(np.asarray(cloud_cover, dtype=float), 0.0, 1.0)
-    return c + (1.0 - c) * np.asarray(clear_emissivity, dtype=float)
-
-
-def _extended_table(zenith_deg, radiance):
-    """Table nodes [rad] and values extended as np.interp does: constant to 0 and to 90 deg."""
-    z = np.asarray(zenith_deg, dtype=float).ravel()
-    val = np.asarray(radiance, dtype=float).ravel()
-    if z.size == 0 or z.size != val.size or np.any(np.diff(z) <= 0) or z[0] < 0 or z[-1] > 90:
-        raise ValueError("sky table: zenith angles must ascend within 0-90 deg, one value each")
-    if z[0] > 0:
-        z, val = np.r_[0.0, z], np.r_[val[0], val]
-    if z[-1] < 90:
-        z, val = np.r_[z, 90.0], np.r_[val, val[-1]]
-    return np.radians(z), val
-
-
-def hemispherical_irradiance(zenith_deg, radiance) -> float:
-    """Irradiance on a horizontal plane from a sky tabulated against zenith [W m^-2].
-
-    Parameters
-    ----------
-    zenith_deg : array (Z,)
-        Ascending zenith angles of the table [deg] within 0-90.
-    radiance : array (Z,)
-        Radiance at those angles, azimuthally uniform [W m^-2 sr^-1].
-
-    Returns
-    -------
-    float
-        E = 2 pi int_0^(pi/2) L(theta) cos(theta) sin(theta) dtheta, i.e. pi times the
-        cosine-weighted hemispherical mean of L.
-
-    Notes
-    -----
-    Exact for the interpolant the radiance maps use (:meth:`ClearSky.radiance`): L linear in
-    theta between the nodes, constant before the first and after the last node (np.interp).
-    On a segment L = a + s theta, with int sin cos = sin^2/2 and
-    int theta sin cos = -theta cos(2 theta)/4 + sin(2 theta)/8.
-    """
-    th, val = _extended_table(zenith_deg, radiance)
-    a, b = th[:-1], th[1:]
-    slope = np.diff(val) / np.diff(th)
-    f0 = lambda t: 0.5 * np.sin(t) ** 2  # noqa: E731
-    f1 = lambda t: -t * np.cos(2.0 * t) / 4.0 + np.sin(2.0 * t) / 8.0  # noqa: E731
-    seg = (val[:-1] - slope * a) * (f0(b) - f0(a)) + slope * (f1(b) - f1(a))
-    return float(2.0 * np.pi * seg.sum())
-
-
-def with_cloud_cover(atmosphere, cloud_cover: float):
-    """The atmosphere's thermal sky with a cloud fraction (Crawford & Duchon 1999).
-
-    Parameters
-    ----------
-    atmosphere : humv_usd.atmosphere.model.Atmosphere
-        Clear-sky atmosphere (LOWTRAN7 or analytic).
-    cloud_cover : float
-        Cloud fraction c [0-1] (the weather of frame 0, like the atmosphere).
-
-    Returns
-    -------
-    Atmosphere
-        A copy whose thermal sky is L = c B(T_air) + (1 - c) L_clear: spectral rows
-        ``sky_radiance`` with the Planck radiance B(lambda, T_air), the broadband
-        ``longwave_radiance`` with sigma T_air^4 / pi, ``sky_emissivity`` =
-        c + (1 - c) eps_clear and ``sky_temperature_k`` = eps^(1/4) T_air. The isotropic diffuse
-        skylight (already reduced by the clouds through the scenario's DHI), the paths and the
-        direct sun are unchanged. c = 0 returns the atmosphere itself.
-
-    Notes
-    -----
-    Clouds as blackbodies at the air temperature (see :func:`cloudy_sky_emissivity`);
-    LOWTRAN7 runs without its cloud models, so the clear-sky spectrum is mixed the same way.
-    """
-
-    c = float(np.clip(cloud_cover, 0.0, 1.0))
-    if c == 0.0:
-        return atmosphere
-    t_air = float(atmosphere.air_temperature_k)
-    wl = np.asarray(atmosphere.wavelengths_um, dtype=float)
-    bb = planck.spectral_radiance(wl, t_air) if wl.size else np.zeros(0)
-    eps = float(cloudy_sky_emissivity(atmosphere.sky_emissivity, c))
-    ran = dict(atmosphere.ran)
-    ran["clouds"] = (
-        f"cloud cover {c:g}: Crawford & Duchon (1999) mix, clouds as blackbodies "
-        f"at the air temperature {t_air:.2f} K (broadband and spectral sky)"
-    )
-    return dataclasses.replace(
-        atmosphere,
-        sky_radiance=c * bb[None, :] + (1.0 - c) * np.asarray(atmosphere.sky_radiance),
-        longwave_radiance=(
-            c * STEFAN_BOLTZMANN * t_air**4 / np.pi + (1.0 - c) * np.asarray(atmosphere.longwave_radiance)
-        ),
-        sky_emissivity=eps,
-        sky_temperature_k=eps**0.25 * t_air,
-        ran=ran,
-    )
-
-
-def stage_longwave_table(stage) -> tuple[np.ndarray, np.ndarray] | None:
-    """(zenith angles [deg], broadband longwave sky radiance [W m^-2 sr^-1]) authored on the
-    stage's /World/Atmosphere (``skyZenithAngles``, ``skyLongwaveRadiance``), or None when the
-    stage has no atmosphere layer or the layer has no such table.
-
-    Raises :class:`humv_usd.errors.InputError` for a malformed table (lengths differ, angles
-    not ascending within 0-90 deg, negative or non-finite radiances).
-    """
-
-    if stage is None:
-        return None
-    prim = stage.GetPrimAtPath(SCOPES["atmosphere"])
-    if not prim:
-        return None
-    z_attr = prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES)
-    l_attr = prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE)
-    z = z_attr.Get() if z_attr else None
-    lw = l_attr.Get() if l_attr else None
-    if z is None or lw is None:
-        return None
-    z, lw = np.asarray(z, dtype=float), np.asarray(lw, dtype=float)
-    where = f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE}"
-    if lw.size != z.size or not np.all(np.isfinite(lw)) or np.any(lw < 0):
-        raise InputError(
-            bad_value(
-                where, f"<{lw.size} values>", f"{z.size} finite radiances >= 0, one per skyZenithAngles"
-            )
-        )
-    try:
-        _extended_table(z, lw)
-    except ValueError:
-        raise InputError(
-            bad_value(
-                f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_ZENITH_ANGLES}",
-                str(np.round(z, 3).tolist()),
-                "ascending zenith angles within 0-90 deg",
-            )
-        ) from None
-    return z, lw
 
 
 @dataclass(frozen=True)

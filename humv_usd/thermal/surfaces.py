@@ -14,10 +14,15 @@ f_lit the sunlit fraction of the face (shadow rays against the scene from points
   Duffie & Beckman 2013, section 2.15-2.16);
 * incident long wave  E_sky (1 + n_z)/2 + [eps_g sigma T_g^4 + (1 - eps_g) E_sky] (1 - n_z)/2,
   E_sky = eps_sky sigma T_air^4 with the Berdahl & Martin (1984) clear-sky emissivity and the
-  cloud cover mixed in (Crawford & Duchon 1999); with an atmosphere layer, E_sky is scaled so
-  that at frame 0 it is the hemispherical irradiance of the layer's longwave sky table
-  (:func:`with_sky_table`), the sky the render and the people's radiance maps see;
+  cloud cover mixed in (Crawford & Duchon 1999); with an atmosphere layer, E_sky at each
+  sample from frame 0 on is the hemispherical irradiance of the layer's longwave sky table at
+  that time code (:func:`with_sky_table`), the sky the render and the people's radiance maps
+  see; during the spin-up before frame 0 (no layer value there) the analytic sky scaled to
+  frame 0's table;
 * convection  h = 2.8 + 3.0 V (Watmuff et al. 1977).
+
+Weather and sun (spin-up included) are read from the environment layer on the stage
+(:func:`forcing_at`, :mod:`humv_usd.usd.environment`).
 
 Constructions (every property from the bound material on the stage,
 :mod:`humv_usd.usd.materials`): the ground is its material's layer over its substrate (the
@@ -36,16 +41,14 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from humv_usd.constants import STEFAN_BOLTZMANN
-from humv_usd.environment.sun import sun_at
-from humv_usd.environment.weather import read_weather_csv, weather_at
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.raycast import ray_caster
 from humv_usd.physics import slab
 from humv_usd.physics.convection import watmuff
-from humv_usd.physics.sky import effective_sky_temperature
-from humv_usd.scenario.times import frame_epoch_s
+from humv_usd.physics.sky import cloudy_sky_emissivity, effective_sky_temperature, hemispherical_irradiance
+from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
-from humv_usd.thermal.sky import cloudy_sky_emissivity, hemispherical_irradiance
+from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, mesh_material, substrate
 from humv_usd.usd.paths import GROUND, object_path
@@ -54,8 +57,6 @@ from humv_usd.usd.paths import GROUND, object_path
 GROUND_DEPTH_M = 1.0
 #: Largest layer of the slab discretisation [m] (at least 4 layers per material)
 MAX_LAYER_M = 0.01
-#: Spin-up step [s]
-SPIN_UP_STEP_S = 600.0
 
 
 @dataclass
@@ -92,6 +93,15 @@ class SceneMesh:
             / np.maximum(area, 1e-30)[:, None]
         )
         return nrm, cen, area
+
+
+def air_at_frame0(upstream: Usd.Stage, scenario) -> float:
+    """Air temperature of frame 0 [K] for meshes nothing solves: the environment layer's, or
+    the scenario's constant one when the stage has no environment layer (a fixed-model stage
+    assembled without it)."""
+    if upstream.GetPrimAtPath(ENVIRONMENT_PATH):
+        return float(read_weather(upstream, [0.0]).air_temperature_k[0])
+    return float((scenario["atmosphere"] or {}).get("air_temperature_k", 293.15))
 
 
 def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
@@ -204,8 +214,9 @@ def _construction(mesh: SceneMesh):
 class SurfaceForcing:
     """Weather and sun at the slab's sample times (seconds after frame 0).
 
-    ``cloud_cover`` (M,) [0-1] or None (clear); ``sky_longwave_factor`` multiplies the analytic
-    sky long wave (1: Berdahl & Martin with the cloud mix; :func:`with_sky_table` sets it).
+    ``cloud_cover`` (M,) [0-1] or None (clear); ``sky_longwave_factor`` (scalar or (M,))
+    multiplies the analytic sky long wave (1: Berdahl & Martin with the cloud mix;
+    :func:`with_sky_table` sets it so that the slab sees the atmosphere layer's sky).
     """
 
     times_s: np.ndarray
@@ -218,7 +229,7 @@ class SurfaceForcing:
     dhi_w_m2: np.ndarray
     ghi_w_m2: np.ndarray
     cloud_cover: np.ndarray | None = None
-    sky_longwave_factor: float = 1.0
+    sky_longwave_factor: float | np.ndarray = 1.0
 
     @property
     def sky_longwave(self) -> np.ndarray:
@@ -231,13 +242,14 @@ class SurfaceForcing:
 
 
 def with_sky_table(forcing: SurfaceForcing, table, frame0: int) -> SurfaceForcing:
-    """The forcing with its sky long wave scaled to an atmosphere layer's sky table.
+    """The forcing with its sky long wave taken from the atmosphere layer's sky table(s).
 
     Parameters
     ----------
     forcing : SurfaceForcing
-    table : (zenith_deg (Z,), radiance (Z,)) or None
-        The layer's ``skyLongwaveRadiance`` (:func:`humv_usd.thermal.sky.stage_longwave_table`);
+    table : (zenith_deg (Z,), radiance (Z,)), a list of them, or None
+        The layer's ``skyLongwaveRadiance`` (:func:`humv_usd.usd.atmosphere.longwave_sky`) at
+        the time code of each sample from frame 0 on (one table: the same for all of them);
         None returns ``forcing`` unchanged.
     frame0 : int
         Index of frame 0 in ``forcing.times_s``.
@@ -245,32 +257,33 @@ def with_sky_table(forcing: SurfaceForcing, table, frame0: int) -> SurfaceForcin
     Returns
     -------
     SurfaceForcing
-        ``sky_longwave_factor`` = E_table / E_analytic(frame 0), E_table the table's
-        :func:`humv_usd.thermal.sky.hemispherical_irradiance`: at frame 0 the slab sees the
-        layer's sky exactly; before (spin-up) and after, the analytic sky's changes with the
-        weather (air temperature, humidity, cloud cover) carry the table along, since the
-        atmosphere is computed for the weather of frame 0 only.
+        From frame 0 on, E_sky of sample i is the :func:`humv_usd.physics.sky.hemispherical_irradiance`
+        of its table: the slab sees the sky the render and the people's radiance maps see at
+        that time code. Before frame 0 (the spin-up) the layer has no sky: there the analytic
+        sky (Berdahl & Martin with the cloud mix, following the spin-up weather) is scaled by
+        E_table / E_analytic of frame 0.
     """
     if table is None:
         return forcing
-    base = dataclasses.replace(forcing, sky_longwave_factor=1.0)
-    factor = hemispherical_irradiance(*table) / float(base.sky_longwave[frame0])
+    n = len(forcing.times_s)
+    tables = list(table) if isinstance(table, list) else [table] * (n - frame0)
+    if len(tables) != n - frame0:
+        raise ValueError(f"expected {n - frame0} sky tables (one per sample from frame 0), got {len(tables)}")
+    analytic = dataclasses.replace(forcing, sky_longwave_factor=1.0).sky_longwave
+    factor = np.empty(n)
+    factor[frame0:] = [hemispherical_irradiance(*t) / float(e) for t, e in zip(tables, analytic[frame0:])]
+    factor[:frame0] = factor[frame0]
     return dataclasses.replace(forcing, sky_longwave_factor=factor)
 
 
-def forcing_at(scenario, times_s) -> SurfaceForcing:
-    """Weather (:func:`humv_usd.environment.weather.weather_at`) and sun
-    (:func:`humv_usd.environment.sun.sun_at`) at ``times_s`` seconds after frame 0. Spin-up
-    times before a weather series starts take the series' first sample."""
+def forcing_at(stage, times_s) -> SurfaceForcing:
+    """Weather and sun of the stage's environment layer (:mod:`humv_usd.usd.environment`) at
+    ``times_s`` seconds after frame 0; the spin-up times (< 0) are the layer's negative time
+    codes (see :mod:`humv_usd.environment.layer`)."""
     t = np.asarray(times_s, dtype=float)
-    t_w = t
-    path = (scenario["atmosphere"] or {}).get("weather_csv")
-    if path:
-        ts, _ = read_weather_csv(path, scenario)
-        t0 = frame_epoch_s(scenario)
-        t_w = np.clip(t, ts[0] - t0, ts[-1] - t0)
-    w = weather_at(scenario, t_w)
-    sun = sun_at(scenario, t, w)
+    codes = time_codes(stage, t)
+    w = read_weather(stage, codes)
+    sun = read_sun(stage, codes)
     return SurfaceForcing(
         t,
         w.air_temperature_k,
@@ -331,7 +344,7 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
 
 def surface_temperatures(
     scenario, meshes: list[SceneMesh], times_s, spin_up_s=86400.0, forcing: SurfaceForcing | None = None
-):
+):  # scenario: unused, kept for callers' signature
     """Per-face temperatures of the scene meshes at ``times_s`` (seconds after frame 0, >= 0).
 
     Parameters
@@ -344,8 +357,8 @@ def surface_temperatures(
     spin_up_s : float
         Length of the diurnal spin-up that ends at time 0 [s] (10-minute steps); the slab
         starts in equilibrium with the spin-up's mean forcing.
-    forcing : SurfaceForcing, optional
-        Weather and sun at the spin-up and output times (computed when not given).
+    forcing : SurfaceForcing
+        Weather and sun at the spin-up and output times (:func:`forcing_at` of the stage).
 
     Returns
     -------
@@ -359,7 +372,9 @@ def surface_temperatures(
     all_t = np.concatenate([spin, times[times > (spin[-1] if len(spin) else -np.inf)]])
     if len(all_t) == 0 or all_t[-1] < times[-1]:
         all_t = np.concatenate([all_t, times])
-    f = forcing if forcing is not None else forcing_at(scenario, all_t)
+    if forcing is None:
+        raise ValueError("surface_temperatures needs the forcing (forcing_at of the composed stage)")
+    f = forcing
     if len(f.times_s) != len(all_t) or not np.allclose(f.times_s, all_t):
         raise ValueError("forcing times must be the spin-up steps followed by times_s")
     idx = np.searchsorted(all_t, times)

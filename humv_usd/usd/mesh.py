@@ -58,3 +58,21 @@ def signed_volume(points: np.ndarray, face_counts, face_indices) -> float:
     tris, _ = fan_triangulate(face_counts, face_indices)
     a, b, c = (points[tris[:, k]] for k in range(3))
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
+
+
+def bound_corners(stage, root) -> np.ndarray:
+    """World-space corners [m] of the axis-aligned bounding box of every mesh under ``root``
+    (default time code), (8 x meshes, 3); empty when the stage has no prim there."""
+    prim = stage.GetPrimAtPath(str(root)) if stage is not None else None
+    if not (prim and prim.IsValid()):
+        return np.zeros((0, 3))
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render])
+    corners = []
+    for p in Usd.PrimRange(prim):
+        if not p.IsA(UsdGeom.Mesh):
+            continue
+        box = cache.ComputeWorldBound(p).ComputeAlignedRange()
+        if box.IsEmpty():
+            continue
+        corners += [np.asarray(box.GetCorner(i), dtype=float) for i in range(8)]
+    return np.asarray(corners, dtype=float).reshape(-1, 3)

@@ -262,3 +262,19 @@ def read_camera_pose(prim, time) -> CameraPose:
         up=up,
         fov_x_deg=fov_x,
     )
+
+
+def camera_positions(stage, path, frames) -> np.ndarray:
+    """World position [m] of the camera at ``path`` at each frame of ``frames``, (n, 3).
+
+    Raises :class:`InputError` when the stage has no camera there (the sensors layer must be
+    composed before a tool that reads cameras)."""
+    prim = stage.GetPrimAtPath(str(path)) if stage is not None else None
+    if not (prim and prim.IsValid() and prim.IsA(UsdGeom.Camera)):
+        raise InputError(bad_value(str(path), None, "expected a sensor camera (the sensors layer)"))
+    xf = UsdGeom.Xformable(prim)
+    codes = [float(f) for f in np.atleast_1d(frames)]
+    if not xf.TransformMightBeTimeVarying():
+        codes = codes[:1]
+    pos = np.array([np.asarray(xf.ComputeLocalToWorldTransform(c).ExtractTranslation()) for c in codes])
+    return np.broadcast_to(pos, (len(np.atleast_1d(frames)), 3)).copy() if len(codes) == 1 else pos

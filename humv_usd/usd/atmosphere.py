@@ -1,0 +1,306 @@
+"""Typed readers of the atmosphere layer (/World/Atmosphere: HumvAtmosphereAPI; its Paths:
+HumvAtmospherePathAPI): the only code that reads these attribute names. Every reader takes a time
+code: the layer time-samples the sky and the paths when the weather varies (hourly
+``weather_csv``), and the thermal tool and the render read the same sample at the same frame.
+
+* :func:`longwave_sky`: broadband long-wave sky radiance against zenith (the thermal tool's sky);
+* :func:`sky_temperature`: effective broadband sky brightness temperature (the render's IR sky);
+* :func:`atmosphere_spectra`: sky spectral radiance against zenith, direct solar spectrum;
+* :func:`path_table`: one sensor's slant-path transmittance and radiance against range.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pxr import Usd
+
+from humv_usd.errors import InputError, bad_value
+from humv_usd.physics.sky import extended_sky_table
+from humv_usd.usd import schemas as S
+from humv_usd.usd.layers import SCOPES
+
+ATMOSPHERE_PATH = SCOPES["atmosphere"]
+PATHS = ATMOSPHERE_PATH.AppendChild("Paths")
+#: brightness temperatures the readers accept [K]
+TEMPERATURE_RANGE_K = (1.0, 5000.0)
+
+DEFAULT = Usd.TimeCode.Default()
+
+
+@dataclass
+class AtmosphereSpectra:
+    """What ``/World/Atmosphere`` says spectrally at one frame (None when not authored)."""
+
+    model: str | None = None
+    wavelengths_um: np.ndarray | None = None  # (W,)
+    sky_zenith_deg: np.ndarray | None = None  # (Z,)
+    sky_radiance: np.ndarray | None = None  # (Z, W) [W m-2 sr-1 um-1]
+    solar_irradiance: np.ndarray | None = None  # (W,) [W m-2 um-1], direct beam, normal incidence
+
+
+@dataclass
+class PathArrays:
+    """One sensor's path table as authored: ranges (R,) [m], wavelengths (W,) [um],
+    transmittance and path radiance (R, W) [-, W m-2 sr-1 um-1]; ``prim`` where it was found."""
+
+    prim: str
+    ranges_m: np.ndarray
+    wavelengths_um: np.ndarray
+    transmittance: np.ndarray
+    radiance: np.ndarray
+
+
+def summary(values, limit=6) -> str:
+    """Short text of an array for error messages."""
+    a = np.asarray(values).ravel()
+    if a.size <= limit:
+        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
+    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
+    return f"[{head}, ...] ({a.size} values)"
+
+
+def _get(attr, time):
+    if not attr or not attr.IsValid():
+        return None
+    return attr.Get(time)
+
+
+def _atmosphere(stage) -> Usd.Prim | None:
+    if stage is None:
+        return None
+    prim = stage.GetPrimAtPath(ATMOSPHERE_PATH)
+    return prim if prim and prim.IsValid() else None
+
+
+def float_array(prim, name, time, where_expected, positive=False, ascending=False) -> np.ndarray | None:
+    """A float array attribute at ``time`` (None when unauthored or empty); InputError naming
+    the attribute when it is not finite, negative (``positive``) or not ascending >= 0."""
+    value = _get(prim.GetAttribute(name), time)
+    if value is None or len(value) == 0:
+        return None
+    a = np.asarray(value, dtype=float).ravel()
+    where = f"{prim.GetPath()}.{name}"
+    if not np.all(np.isfinite(a)) or (positive and np.any(a < 0)):
+        raise InputError(bad_value(where, summary(a), where_expected))
+    if ascending and (np.any(a < 0) or np.any(np.diff(a) <= 0)):
+        raise InputError(bad_value(where, summary(a), where_expected))
+    return a
+
+
+def longwave_sky(stage, time=DEFAULT) -> tuple[np.ndarray, np.ndarray] | None:
+    """(zenith angles [deg], broadband long-wave sky radiance [W m^-2 sr^-1]) of
+    /World/Atmosphere (``skyZenithAngles``, ``skyLongwaveRadiance``) at time code ``time``
+    (default: the layer's default value, frame 0), or None when the stage has no atmosphere
+    layer or the layer has no such table.
+
+    Raises :class:`humv_usd.errors.InputError` for a malformed table (lengths differ, angles
+    not ascending within 0-90 deg, negative or non-finite radiances).
+    """
+    prim = _atmosphere(stage)
+    if prim is None:
+        return None
+    z = _get(prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES), time)
+    lw = _get(prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE), time)
+    if z is None or lw is None:
+        return None
+    z, lw = np.asarray(z, dtype=float), np.asarray(lw, dtype=float)
+    where = f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE}"
+    if lw.size != z.size or not np.all(np.isfinite(lw)) or np.any(lw < 0):
+        raise InputError(
+            bad_value(
+                where, f"<{lw.size} values>", f"{z.size} finite radiances >= 0, one per skyZenithAngles"
+            )
+        )
+    try:
+        extended_sky_table(z, lw)
+    except ValueError:
+        raise InputError(
+            bad_value(
+                f"{prim.GetPath()}.{S.ATMOSPHERE_SKY_ZENITH_ANGLES}",
+                str(np.round(z, 3).tolist()),
+                "ascending zenith angles within 0-90 deg",
+            )
+        ) from None
+    return z, lw
+
+
+def sky_temperature(stage, time) -> float:
+    """Effective broadband sky brightness temperature ``skyTemperature`` [K] at ``time``;
+    InputError when it is missing or outside :data:`TEMPERATURE_RANGE_K`."""
+    prim = _atmosphere(stage)
+    where = f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_SKY_TEMPERATURE}"
+    value = _get(prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE), time) if prim is not None else None
+    lo, hi = TEMPERATURE_RANGE_K
+    if value is None:
+        what = "" if prim is not None else f" (no prim at {ATMOSPHERE_PATH})"
+        raise InputError(
+            bad_value(
+                where,
+                None,
+                f"expected the effective sky brightness temperature in {lo:g}-{hi:g} K (HumvAtmosphereAPI){what}",
+            )
+        )
+    return float(value)
+
+
+def model_name(stage, time=DEFAULT) -> str | None:
+    """The ``humv:atmosphere:model`` token (what computed the layer), or None."""
+    prim = _atmosphere(stage)
+    value = _get(prim.GetAttribute(S.ATMOSPHERE_MODEL), time) if prim is not None else None
+    return str(value) if value else None
+
+
+def _wavelengths(prim, time):
+    return float_array(
+        prim,
+        S.ATMOSPHERE_WAVELENGTHS,
+        time,
+        "expected positive, strictly ascending wavelengths [um]",
+        ascending=True,
+    )
+
+
+def atmosphere_spectra(stage, time) -> AtmosphereSpectra:
+    """Sky spectral radiance against zenith, solar spectral irradiance and the model token
+    of ``/World/Atmosphere`` at ``time`` (None for what is not authored)."""
+    out = AtmosphereSpectra()
+    prim = _atmosphere(stage)
+    if prim is None:
+        return out
+    out.model = model_name(stage, time)
+    wl = _wavelengths(prim, time)
+    if wl is None:
+        return out
+    out.wavelengths_um = wl
+    zen = float_array(
+        prim,
+        S.ATMOSPHERE_SKY_ZENITH_ANGLES,
+        time,
+        "expected ascending zenith angles in 0-90 deg",
+        ascending=True,
+    )
+    sky = float_array(
+        prim,
+        S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE,
+        time,
+        "expected finite spectral radiances >= 0 [W m-2 sr-1 um-1]",
+        positive=True,
+    )
+    if zen is not None and sky is not None:
+        if zen[-1] > 90.0 + 1e-6:
+            raise InputError(
+                bad_value(
+                    f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_SKY_ZENITH_ANGLES}",
+                    summary(zen),
+                    "expected ascending zenith angles in 0-90 deg",
+                )
+            )
+        if sky.size != zen.size * wl.size:
+            raise InputError(
+                bad_value(
+                    f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE}",
+                    f"<{sky.size} values>",
+                    f"expected {zen.size} zenith angles x {wl.size} wavelengths = "
+                    f"{zen.size * wl.size} values (row-major)",
+                )
+            )
+        out.sky_zenith_deg, out.sky_radiance = zen, sky.reshape(zen.size, wl.size)
+    solar = float_array(
+        prim,
+        S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE,
+        time,
+        "expected finite spectral irradiances >= 0 [W m-2 um-1]",
+        positive=True,
+    )
+    if solar is not None:
+        if solar.size != wl.size:
+            raise InputError(
+                bad_value(
+                    f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE}",
+                    f"<{solar.size} values>",
+                    f"expected {wl.size} values (one per wavelength)",
+                )
+            )
+        out.solar_irradiance = solar
+    return out
+
+
+def _path_prim(stage, sensor_path: str, sensor_name: str):
+    scope = stage.GetPrimAtPath(PATHS)
+    if not (scope and scope.IsValid()):
+        return None
+    for child in scope.GetChildren():
+        target = _get(child.GetAttribute(S.ATMOSPHERE_PATH_SENSOR), DEFAULT)
+        if target and str(target) == sensor_path:
+            return child
+    child = scope.GetChild(sensor_name)
+    return child if child and child.IsValid() else None
+
+
+def path_table(stage, sensor_path: str, sensor_name: str, time) -> PathArrays | None:
+    """The slant-path table of the sensor at ``sensor_path`` at ``time``, or None.
+
+    Found under ``/World/Atmosphere/Paths`` by ``humv:atmospherePath:sensor`` == the sensor
+    prim path, else by the child named like the sensor; it needs ``humv:atmosphere:wavelengths``.
+    """
+    chosen = _path_prim(stage, sensor_path, sensor_name)
+    if chosen is None:
+        return None
+    wl = _wavelengths(stage.GetPrimAtPath(ATMOSPHERE_PATH), time)
+    where = str(chosen.GetPath())
+    if wl is None:
+        raise InputError(
+            bad_value(
+                f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_WAVELENGTHS}",
+                None,
+                f"expected the wavelength grid [um] of the path table {where}",
+            )
+        )
+    ranges = float_array(
+        chosen, S.ATMOSPHERE_PATH_RANGES, time, "expected ascending ranges >= 0 [m]", ascending=True
+    )
+    tau = float_array(
+        chosen, S.ATMOSPHERE_PATH_TRANSMITTANCE, time, "expected transmittances in 0-1", positive=True
+    )
+    rad = float_array(
+        chosen,
+        S.ATMOSPHERE_PATH_RADIANCE,
+        time,
+        "expected finite path radiances >= 0 [W m-2 sr-1 um-1]",
+        positive=True,
+    )
+    named = (
+        (S.ATMOSPHERE_PATH_RANGES, ranges),
+        (S.ATMOSPHERE_PATH_TRANSMITTANCE, tau),
+        (S.ATMOSPHERE_PATH_RADIANCE, rad),
+    )
+    missing = [n for n, v in named if v is None]
+    if missing:
+        raise InputError(
+            bad_value(f"{where}.{missing[0]}", None, "expected ranges, transmittance and radiance tables")
+        )
+    for name, a in named[1:]:
+        if a.size != ranges.size * wl.size:
+            raise InputError(
+                bad_value(
+                    f"{where}.{name}",
+                    f"<{a.size} values>",
+                    f"expected {ranges.size} ranges x {wl.size} wavelengths = "
+                    f"{ranges.size * wl.size} values (row-major)",
+                )
+            )
+    if np.any(tau > 1.0 + 1e-6):
+        raise InputError(
+            bad_value(
+                f"{where}.{S.ATMOSPHERE_PATH_TRANSMITTANCE}", summary(tau), "expected transmittances in 0-1"
+            )
+        )
+    return PathArrays(
+        where,
+        ranges,
+        wl,
+        np.minimum(tau, 1.0).reshape(ranges.size, wl.size),
+        rad.reshape(ranges.size, wl.size),
+    )

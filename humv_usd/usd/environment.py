@@ -1,0 +1,266 @@
+"""Typed readers and writers of the environment layer (/World: HumvScenarioAPI; /World/Environment:
+HumvEnvironmentAPI): the only code that knows these attribute names.
+
+The environment tool computes the weather and the sun once and writes them here; every other tool
+and the render read them back at the time codes they need (frames; USD interpolates linearly
+between samples and holds the first / last sample outside them).
+
+Time codes of the environment layer:
+
+* frames 0 .. N-1 (every frame, or strided frames of long scenarios, see
+  :func:`humv_usd.scenario.times.frame_times`): what the render and the per-frame tools read;
+* negative time codes, the scene-surface spin-up window before frame 0
+  (:func:`humv_usd.scenario.times.spin_up_times`, 10-minute steps over
+  ``[thermal] surface_spin_up_s``): read by the thermal tool's slab spin-up only. USD holds the
+  frame-0 sample for every time code >= 0 beyond the samples, so readers at frames >= 0 see the
+  same values as without them.
+
+Constant weather is authored as default values (the same at every time code).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pxr import Gf, Usd
+
+from humv_usd.errors import InputError, bad_value
+from humv_usd.physics.sun import SunState
+from humv_usd.physics.weather import Weather
+from humv_usd.scenario.spec import ATMOSPHERE
+from humv_usd.usd import schemas as S
+from humv_usd.usd.layers import SCOPES, WORLD
+
+ENVIRONMENT_PATH = SCOPES["environment"]
+
+#: (attribute, Weather field)
+WEATHER_ATTRS = (
+    (S.ENVIRONMENT_AIR_TEMPERATURE, "air_temperature_k"),
+    (S.ENVIRONMENT_RELATIVE_HUMIDITY, "relative_humidity"),
+    (S.ENVIRONMENT_WIND_SPEED, "wind_speed_m_s"),
+    (S.ENVIRONMENT_WIND_DIRECTION, "wind_direction_deg"),
+    (S.ENVIRONMENT_PRESSURE, "pressure_pa"),
+    (S.ENVIRONMENT_CLOUD_COVER, "cloud_cover"),
+)
+
+#: (attribute, SunState field) of the scalar sun quantities
+SUN_ATTRS = (
+    (S.ENVIRONMENT_SUN_ZENITH, "zenith_deg"),
+    (S.ENVIRONMENT_SUN_AZIMUTH, "azimuth_deg"),
+    (S.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE, "dni_w_m2"),
+    (S.ENVIRONMENT_DIFFUSE_HORIZONTAL_IRRADIANCE, "dhi_w_m2"),
+    (S.ENVIRONMENT_GLOBAL_HORIZONTAL_IRRADIANCE, "ghi_w_m2"),
+)
+
+#: (attribute, Site field)
+SITE_ATTRS = (
+    (S.SCENARIO_NAME, "name"),
+    (S.SCENARIO_DESCRIPTION, "description"),
+    (S.SCENARIO_START_TIME, "start_time"),
+    (S.SCENARIO_TIME_ZONE, "time_zone"),
+    (S.SCENARIO_LATITUDE, "latitude_deg"),
+    (S.SCENARIO_LONGITUDE, "longitude_deg"),
+    (S.SCENARIO_ELEVATION, "elevation_m"),
+    (S.SCENARIO_SEED, "seed"),
+)
+
+
+@dataclass
+class Site:
+    """Scenario metadata of /World (HumvScenarioAPI): frame 0's local ISO date-time with its UTC
+    offset, latitude / longitude [deg], elevation [m]."""
+
+    name: str
+    description: str
+    start_time: str
+    time_zone: str
+    latitude_deg: float
+    longitude_deg: float
+    elevation_m: float
+    seed: int
+
+
+# --- writers (the environment tool) --------------------------------------------------------------
+def write_site(stage: Usd.Stage, site: Site) -> None:
+    """Apply HumvScenarioAPI to /World and author the site."""
+    world = stage.GetPrimAtPath(WORLD)
+    world.ApplyAPI(S.SCENARIO_API)
+    for attr, key in SITE_ATTRS:
+        world.GetAttribute(attr).Set(getattr(site, key))
+
+
+def _set(attr, values, codes, sampled: bool, convert=float) -> None:
+    if sampled:
+        for code, v in zip(codes, values):
+            attr.Set(convert(v), float(code))
+    else:
+        attr.Set(convert(values[0]))
+
+
+def write_weather(prim: Usd.Prim, weather: Weather, codes) -> None:
+    """Author the weather at time codes ``codes`` (defaults when it does not vary)."""
+    for attr, key in WEATHER_ATTRS:
+        _set(prim.GetAttribute(attr), getattr(weather, key), codes, weather.varies)
+
+
+def write_sun(prim: Usd.Prim, sun: SunState, codes) -> None:
+    """Author the sun at time codes ``codes`` (defaults for a single sample)."""
+    sampled = len(codes) > 1
+    _set(
+        prim.GetAttribute(S.ENVIRONMENT_SUN_DIRECTION),
+        sun.direction,
+        codes,
+        sampled,
+        lambda d: Gf.Vec3f(*map(float, d)),
+    )
+    for attr, key in SUN_ATTRS:
+        _set(prim.GetAttribute(attr), getattr(sun, key), codes, sampled)
+
+
+# --- readers -------------------------------------------------------------------------------------
+def time_codes(stage: Usd.Stage, times_s) -> np.ndarray:
+    """Time codes of ``times_s`` seconds after frame 0 on ``stage`` (its timeCodesPerSecond)."""
+    return np.atleast_1d(np.asarray(times_s, dtype=float)) * float(stage.GetTimeCodesPerSecond())
+
+
+def _environment(stage: Usd.Stage) -> Usd.Prim:
+    prim = stage.GetPrimAtPath(ENVIRONMENT_PATH) if stage is not None else None
+    if not (prim and prim.IsValid()):
+        raise InputError(
+            bad_value(str(ENVIRONMENT_PATH), None, "expected the environment layer (HumvEnvironmentAPI)")
+        )
+    return prim
+
+
+def _values(prim: Usd.Prim, name: str, codes, lo: float, hi: float) -> np.ndarray:
+    attr = prim.GetAttribute(name)
+    out = np.array([_get(attr, c) for c in codes], dtype=float)
+    bad = ~(np.isfinite(out) & (out >= lo) & (out <= hi))
+    if bad.any():
+        v = out[np.flatnonzero(bad)[0]]
+        raise InputError(
+            bad_value(
+                f"{prim.GetPath()}.{name}", None if math.isnan(v) else float(v), f"expected {lo:g}..{hi:g}"
+            )
+        )
+    return out
+
+
+def _get(attr, code) -> float:
+    value = attr.Get(float(code)) if attr and attr.IsValid() else None
+    return math.nan if value is None else float(value)
+
+
+def read_site(stage: Usd.Stage) -> Site:
+    """The site and start time authored on /World (HumvScenarioAPI)."""
+    world = stage.GetPrimAtPath(WORLD)
+    values = {}
+    for attr, key in SITE_ATTRS:
+        a = world.GetAttribute(attr) if world else None
+        values[key] = a.Get() if a else None
+    if values["start_time"] is None or values["latitude_deg"] is None:
+        raise InputError(bad_value(str(WORLD), None, "expected the site and start time (HumvScenarioAPI)"))
+    return Site(
+        name=str(values["name"] or ""),
+        description=str(values["description"] or ""),
+        start_time=str(values["start_time"]),
+        time_zone=str(values["time_zone"] or ""),
+        latitude_deg=float(values["latitude_deg"]),
+        longitude_deg=float(values["longitude_deg"] or 0.0),
+        elevation_m=float(values["elevation_m"] or 0.0),
+        seed=int(values["seed"] or 0),
+    )
+
+
+def read_weather(stage: Usd.Stage, codes) -> Weather:
+    """The weather of /World/Environment at time codes ``codes`` (frames; may be negative in the
+    spin-up window), SI units. Raises :class:`InputError` when the layer is missing or a value
+    is outside the range of its ``[atmosphere]`` key."""
+    prim = _environment(stage)
+    codes = np.atleast_1d(np.asarray(codes, dtype=float))
+    return Weather(
+        **{
+            key: _values(prim, attr, codes, ATMOSPHERE.keys[key].lo, ATMOSPHERE.keys[key].hi)
+            for attr, key in WEATHER_ATTRS
+        }
+    )
+
+
+def read_sun(stage: Usd.Stage, codes) -> SunState:
+    """The sun of /World/Environment at time codes ``codes``: apparent zenith and compass
+    azimuth [deg], unit direction towards the sun (x east, y north, z up; renormalised after
+    USD's linear interpolation), broadband DNI, DHI, GHI [W m-2]; ``up`` where the zenith is
+    below 90 deg."""
+    prim = _environment(stage)
+    codes = np.atleast_1d(np.asarray(codes, dtype=float))
+    fields = {
+        "zenith_deg": _values(prim, S.ENVIRONMENT_SUN_ZENITH, codes, 0.0, 180.0),
+        "azimuth_deg": _values(prim, S.ENVIRONMENT_SUN_AZIMUTH, codes, 0.0, 360.0),
+        "dni_w_m2": _values(prim, S.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE, codes, 0.0, 2000.0),
+        "dhi_w_m2": _values(prim, S.ENVIRONMENT_DIFFUSE_HORIZONTAL_IRRADIANCE, codes, 0.0, 2000.0),
+        "ghi_w_m2": _values(prim, S.ENVIRONMENT_GLOBAL_HORIZONTAL_IRRADIANCE, codes, 0.0, 2000.0),
+    }
+    attr = prim.GetAttribute(S.ENVIRONMENT_SUN_DIRECTION)
+    direction = np.array([[math.nan] * 3 if (v := attr.Get(float(c))) is None else list(v) for c in codes])
+    norm = np.linalg.norm(direction, axis=1, keepdims=True)
+    if not np.all(np.isfinite(direction)) or np.any(norm < 0.5):
+        raise InputError(
+            bad_value(f"{prim.GetPath()}.{S.ENVIRONMENT_SUN_DIRECTION}", None, "expected unit 3-vectors")
+        )
+    fps = float(stage.GetTimeCodesPerSecond())
+    return SunState(
+        times_s=codes / fps,
+        direction=direction / norm,
+        up=fields["zenith_deg"] < 90.0,
+        **fields,
+    )
+
+
+def sun_direction(stage: Usd.Stage, time) -> np.ndarray | None:
+    """Unit vector toward the sun (stage coordinates) at time code ``time``, or None if not
+    authored (an EO-free or hand-made stage may have no sun)."""
+    prim = stage.GetPrimAtPath(ENVIRONMENT_PATH)
+    attr = prim.GetAttribute(S.ENVIRONMENT_SUN_DIRECTION) if prim and prim.IsValid() else None
+    value = attr.Get(time) if attr and attr.IsValid() else None
+    if value is None:
+        return None
+    d = np.asarray(value, dtype=float).ravel()
+    n = float(np.linalg.norm(d)) if d.size == 3 else 0.0
+    if not (np.all(np.isfinite(d)) and n > 0.5):
+        raise InputError(
+            bad_value(
+                f"{ENVIRONMENT_PATH}.{S.ENVIRONMENT_SUN_DIRECTION}",
+                _summary(d),
+                "expected a unit 3-vector toward the sun",
+            )
+        )
+    return d / n
+
+
+def direct_normal_irradiance(stage: Usd.Stage, time) -> float | None:
+    """Broadband direct normal irradiance [W m-2] at time code ``time``, or None if not authored."""
+    prim = stage.GetPrimAtPath(ENVIRONMENT_PATH)
+    attr = prim.GetAttribute(S.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE) if prim and prim.IsValid() else None
+    value = attr.Get(time) if attr and attr.IsValid() else None
+    if value is None:
+        return None
+    v = float(value)
+    if not (math.isfinite(v) and 0.0 <= v <= 2000.0):
+        raise InputError(
+            bad_value(
+                f"{ENVIRONMENT_PATH}.{S.ENVIRONMENT_DIRECT_NORMAL_IRRADIANCE}",
+                v,
+                "expected a direct normal irradiance in 0..2000 W m-2",
+            )
+        )
+    return v
+
+
+def _summary(values, limit=6) -> str:
+    a = np.asarray(values).ravel()
+    if a.size <= limit:
+        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
+    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
+    return f"[{head}, ...] ({a.size} values)"
