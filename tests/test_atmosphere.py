@@ -341,8 +341,10 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     falls and the sky radiance rises from frame 0 to the last frame; one LOWTRAN batch per
     weather node (frame 0, the CSV's middle hour, the last frame), a rerun from the cache."""
     from humv_usd.render.export import StageExport
+    from humv_usd.render.frame import path_table
     from humv_usd.sensors import layer as sensors_layer
     from humv_usd.thermal.sky import stage_longwave_table
+    from humv_usd.usd.atmosphere import atmosphere_spectra
 
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
     csv = tmp_path / "w.csv"
@@ -383,9 +385,9 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     # the render's reader gets the time samples
     reader = StageExport(stage)
     sensor = next(s for s in reader.sensors if s.name == "lwir640")
-    table0, table72 = reader.path_table(sensor, 0.0), reader.path_table(sensor, 72.0)
+    table0, table72 = path_table(stage, sensor, 0.0), path_table(stage, sensor, 72.0)
     assert not np.allclose(table0.transmittance, table72.transmittance)
-    spectra = reader.atmosphere_spectra(72.0)
+    spectra = atmosphere_spectra(stage, 72.0)
     np.testing.assert_allclose(
         spectra.sky_radiance.ravel(), a.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Get(72)
     )

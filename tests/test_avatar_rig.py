@@ -308,9 +308,9 @@ def test_render_export_rejects_broken_skinning(rig):
     body = stage.GetPrimAtPath("/World/Humans/p1/Body")
     UsdSkel.BindingAPI(body).GetJointIndicesPrimvar().Set(Vt.IntArray([99] * (4 * len(rig["mesh"].points))))
     exporter = StageExport(stage)
-    assert list(exporter._skinned) == ["/World/Humans/p1/Body"]
+    assert list(exporter.meshes.skinned) == ["/World/Humans/p1/Body"]
     with pytest.raises(InputError, match="/World/Humans/p1/Body.primvars:skel:jointIndices"):
-        exporter._points(body, "/World/Humans/p1/Body", Usd.TimeCode(1), UsdGeom.XformCache(1))
+        exporter.meshes.points(body, "/World/Humans/p1/Body", Usd.TimeCode(1), UsdGeom.XformCache(1))
 
 
 def test_without_motion_the_activity_moves_the_avatar(scenario):

@@ -14,8 +14,11 @@ from pxr import Usd
 
 from humv_usd.physics.planck import band_radiance, brightness_temperature
 from humv_usd.render.export import StageExport
+from humv_usd.render.frame import path_table
 from humv_usd.render.radiometry import SubBands
+from humv_usd.usd.atmosphere import atmosphere_spectra
 from humv_usd.usd.layers import open_stage
+from humv_usd.usd.sensor import read_camera_pose
 
 pytestmark = pytest.mark.slow
 
@@ -99,14 +102,15 @@ def test_radiometry(rendered):
         for dx in (-1, 0, 1):
             sky &= np.roll(np.roll(ids, dy, axis=0), dx, axis=1) == 0
     assert sky.sum() > 1000
-    exporter = StageExport(open_stage(out / "stage.usda"))
+    stage = open_stage(out / "stage.usda")
+    exporter = StageExport(stage)
     [cam] = [s for s in exporter.sensors if s.name == "atom1024_lwir"]
-    spectra = exporter.atmosphere_spectra(Usd.TimeCode(0))
+    spectra = atmosphere_spectra(stage, Usd.TimeCode(0))
     sub = SubBands(band, resp, len(manifest["sensors"][0]["subbands_um"]))
     if spectra.sky_radiance is None:
         np.testing.assert_allclose(ch["brightness_temperature"][sky], sky_k, atol=1e-3)
     else:  # the envmap sky: the table's sub-band radiance at each sky pixel's zenith angle
-        pose = exporter.camera_pose(cam, Usd.TimeCode(0))
+        pose = read_camera_pose(stage.GetPrimAtPath(cam.path), Usd.TimeCode(0))
         h, w = ids.shape
         right = np.cross(pose.forward, pose.up)
         tx = np.tan(np.radians(pose.fov_x_deg) / 2)
@@ -127,7 +131,7 @@ def test_radiometry(rendered):
     t_skin = np.median(ch["brightness_temperature"][shins])
     eps = 0.98
     surface = eps * band_radiance(306.15, band, resp) + (1 - eps) * band_radiance(sky_k, band, resp)
-    table = exporter.path_table(cam, Usd.TimeCode(0))
+    table = path_table(stage, cam, Usd.TimeCode(0))
     if table is not None:  # 15 m of air in front of the skin (band-effective transmittance)
         tau, path = table.reduce(SubBands(band, resp, 1)).at(15.0, 0)
         surface = tau * surface + path

@@ -17,7 +17,7 @@ from test_render_radiometry import H, W, atmosphere_tables, farr, material, new_
 
 from humv_usd.pipeline.render import render_stage
 from humv_usd.render.eo import EO_WAVELENGTHS_NM, reflectance_spectrum
-from humv_usd.render.export import Material
+from humv_usd.render.scene_export import Material
 
 
 def eo_camera(stage, name, eye, target, fov_x_deg=20.0, up=(0, 1, 0)):

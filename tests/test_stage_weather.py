@@ -22,7 +22,7 @@ from humv_usd.environment.weather import weather_at
 from humv_usd.materials import layer as materials_layer
 from humv_usd.physics.sky import hemispherical_irradiance
 from humv_usd.pipeline.compose import compose_in_memory
-from humv_usd.render.export import StageExport
+from humv_usd.render.frame import sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.scene import layer as scene_layer
 from humv_usd.sensors import layer as sensors_layer
@@ -129,10 +129,9 @@ def test_spin_up_samples_leave_frames_unchanged(humvvex_raw, tmp_path):
         assert_allclose(
             getattr(E.read_weather(with_spin, frames), key), getattr(E.read_weather(without, frames), key)
         )
-    ra, rb = StageExport(with_spin), StageExport(without)
-    for f in frames:
-        assert_allclose(ra.sun_direction(f), rb.sun_direction(f), atol=1e-7)
-        assert ra.direct_normal_irradiance(f) == rb.direct_normal_irradiance(f)
+    for f in frames:  # the render reads these through the same usd.environment readers
+        assert_allclose(E.sun_direction(with_spin, f), E.sun_direction(without, f), atol=1e-7)
+        assert E.direct_normal_irradiance(with_spin, f) == E.direct_normal_irradiance(without, f)
 
 
 def test_thermal_and_render_see_the_same_sky_hours_apart(hourly):
@@ -149,7 +148,6 @@ def test_thermal_and_render_see_the_same_sky_hours_apart(hourly):
     forcing = with_sky_table(
         forcing_at(upstream, np.r_[spin_t, np.asarray(samples) / FPS]), tables, spin_t.size
     )
-    render = StageExport(stage)
     irradiance = {}
     for k, frame in enumerate(samples):
         zen, rad = longwave_sky(stage, float(frame))  # the usd reader on the final stage
@@ -161,7 +159,7 @@ def test_thermal_and_render_see_the_same_sky_hours_apart(hourly):
         assert e == pytest.approx(hemispherical_irradiance(zen, rad), rel=1e-12)
         # the render's broadband sky at the same frame: same irradiance (the atmosphere's own
         # quadrature of the table differs from the exact one by ~0.2 %)
-        t_sky = render.sky_temperature(float(frame))
+        t_sky = sky_temperature(stage, float(frame))
         assert e == pytest.approx(STEFAN_BOLTZMANN * t_sky**4, rel=3e-3)
         irradiance[frame] = e
     assert irradiance[72] > irradiance[0] + 60.0  # 9 K warmer, wetter, 90 % clouds

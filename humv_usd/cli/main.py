@@ -264,6 +264,8 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
     from humv_usd.pipeline import render as R
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.scenario import load_scenario
+    from humv_usd.usd.atmosphere import atmosphere_spectra
+    from humv_usd.usd.environment import sun_direction
     from humv_usd.usd.sensor import check_subbands
 
     def ints(text, name):
@@ -284,15 +286,15 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
         run_compose(sc, out)
         stage = out / "stage.usda"
         spectra = path = sun_dir = None
-        ex = R.StageExport(R.open_stage(stage))
-        t0 = R.Usd.TimeCode(R.stage_frames(ex.stage)[0])
+        usd_stage = R.open_stage(stage)
+        first = R.stage_frames(usd_stage)[0]
         source = "stage"
-        if ex.atmosphere_spectra(t0).sky_radiance is None:
+        if atmosphere_spectra(usd_stage, float(first)).sky_radiance is None:
             from humv_usd.atmosphere.model import atmosphere_for
 
-            atm = atmosphere_for(sc, ex.stage)  # weather and sun of the stage's environment layer
+            atm = atmosphere_for(sc, usd_stage)  # weather and sun of the stage's environment layer
             spectra, path = R.spectra_from_atmosphere(atm, 0.0)
-            sun_dir = ex.sun_direction(0.0)
+            sun_dir = sun_direction(usd_stage, 0.0)
             source = f"atmosphere_for ({atm.source}; the stage has no spectral tables)"
         table = R.subband_error_table(stage, n_list, spectra=spectra, path_table=path, sun_direction=sun_dir)
         click.echo(
@@ -306,13 +308,11 @@ def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosp
             )
             click.echo(f"  {name:<16} {cells}")
         click.echo(
-            f"render of frame {R.stage_frames(ex.stage)[0]} at {spp} spp (split over the sub-bands, "
+            f"render of frame {first} at {spp} spp (split over the sub-bands, "
             f"at least min(spp, {R.MIN_SUBBAND_SPP}) each): seconds / mean per-pixel MC error [K]"
         )
         for n in t_list:
-            manifest = R.render_stage(
-                stage, Path(tmp) / f"render{n}", frames=[R.stage_frames(ex.stage)[0]], spp=spp, subbands=n
-            )
+            manifest = R.render_stage(stage, Path(tmp) / f"render{n}", frames=[first], spp=spp, subbands=n)
             cells = [
                 f"{s['name']} {s['timings_s']['render']:.2f} s / {s['monte_carlo_error']['temperature_stderr_mean_k']:.3f} K"
                 for s in manifest["sensors"]

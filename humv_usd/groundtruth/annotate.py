@@ -2,7 +2,7 @@
 
 ``GroundTruth(stage, annotators)`` is made once per render; :meth:`GroundTruth.annotate` takes the
 Mitsuba scene (for the exact pixel-centre ray cast, :meth:`humv_usd.render.ir.IRScene.hits`),
-the frame's :class:`~humv_usd.render.export.FrameState` and the sensor, and returns the label
+the frame's :class:`~humv_usd.render.frame.FrameState` and the sensor, and returns the label
 channels for the EXR plus the per-object annotations (also written next to the frame:
 ``<frame>.objects.json`` and the PNG masks); :meth:`GroundTruth.finish` writes ``coco.json`` and
 ``regions.json`` and returns the manifest's ``ground_truth`` section (what ran and what it cost).

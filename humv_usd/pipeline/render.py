@@ -24,7 +24,9 @@ from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.render import eo as eo_render
 from humv_usd.render import radiometry
-from humv_usd.render.export import AtmosphereSpectra, StageExport, stage_frames
+from humv_usd.render.export import StageExport
+from humv_usd.render.frame import path_table as read_path_table
+from humv_usd.render.frame import stage_frames
 from humv_usd.render.ir import (  # noqa: F401
     MIN_SUBBAND_SPP,
     IRScene,
@@ -33,6 +35,8 @@ from humv_usd.render.ir import (  # noqa: F401
     render_band,
     subband_spp,
 )
+from humv_usd.usd import environment as usd_environment
+from humv_usd.usd.atmosphere import AtmosphereSpectra, atmosphere_spectra
 from humv_usd.usd.layers import open_stage
 from humv_usd.usd.materials import band_emissivity, subband_emissivity, subband_transmittance
 from humv_usd.usd.sensor import check_subbands, read_sensor_model
@@ -331,18 +335,18 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
         s.name: radiometry.SubBands(s.wavelength_range_um, s.band_response, n_of[s.name]) for s in rendered
     }
     first_time = Usd.TimeCode(frame_list[0])
-    spectra0 = exporter.atmosphere_spectra(first_time)
-    sun0 = exporter.sun_direction(first_time)
+    spectra0 = atmosphere_spectra(stage, first_time)
+    sun0 = usd_environment.sun_direction(stage, first_time)
     use_sky_map = any(
         spectra0.sky_radiance is not None
         and radiometry.covers(spectra0.wavelengths_um, s.wavelength_range_um)
         for s in rendered
     )
-    dni0 = exporter.direct_normal_irradiance(first_time)
+    dni0 = usd_environment.direct_normal_irradiance(stage, first_time)
     # the sun: the solar table, else a blackbody scaled to the broadband DNI (radiometry.blackbody_sun)
     use_sun = sun0 is not None and (spectra0.solar_irradiance is not None or dni0 is not None)
     eo_run = eo_render.EORender(
-        exporter, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir, truth=truth
+        stage, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir, truth=truth
     )
     return _Plan(
         stage_path=os.fspath(stage_path),
@@ -396,8 +400,8 @@ class _FrameRenderer:
         if plan.rendered:  # the infrared scene (EO sensors have their own, in eo_run)
             self._update_scene(state)
         frame_time = Usd.TimeCode(frame)
-        spectra = exporter.atmosphere_spectra(frame_time)
-        sun_direction = exporter.sun_direction(frame_time)
+        spectra = atmosphere_spectra(plan.stage, frame_time)
+        sun_direction = usd_environment.sun_direction(plan.stage, frame_time)
         self.totals["load_export"] += time.perf_counter() - t
         for s in plan.rendered:
             self._render_sensor(s, state, frame, frame_time, spectra, sun_direction)
@@ -447,7 +451,7 @@ class _FrameRenderer:
 
     def _render_sensor(self, s: SensorModel, state, frame, frame_time, spectra, sun_direction) -> None:
         """One IR sensor at one frame: radiometry, render, labels, sensor chain, files, record."""
-        plan, exporter, scene = self.plan, self.plan.exporter, self.scene
+        plan, scene = self.plan, self.scene
         timings = self.per_sensor[s.name]["timings"]
         band, response = s.wavelength_range_um, s.band_response
         sensor_id = plan.sensor_ids[s.name]
@@ -458,8 +462,8 @@ class _FrameRenderer:
             state.sky_temperature_k,
             spectra,
             sun_direction,
-            exporter.path_table(s, frame_time),
-            dni_w_m2=exporter.direct_normal_irradiance(frame_time),
+            read_path_table(plan.stage, s, frame_time),
+            dni_w_m2=usd_environment.direct_normal_irradiance(plan.stage, frame_time),
         )
         t = self._tick(timings, "load_export", t)
 
@@ -748,8 +752,12 @@ def subband_error_table(
     ir = [s for s in exporter.sensors if s.rendered and s.kind != "EO"]
     state = exporter.frame_state(frame, ir)
     time_code = Usd.TimeCode(frame)
-    spectra = exporter.atmosphere_spectra(time_code) if spectra is None else spectra
-    sun_dir = exporter.sun_direction(time_code) if sun_direction is None else np.asarray(sun_direction, float)
+    spectra = atmosphere_spectra(stage, time_code) if spectra is None else spectra
+    sun_dir = (
+        usd_environment.sun_direction(stage, time_code)
+        if sun_direction is None
+        else np.asarray(sun_direction, float)
+    )
     temps = (
         np.concatenate([state.temperatures[m.path] for m in state.meshes])
         if state.meshes
@@ -790,7 +798,7 @@ def subband_error_table(
         ):
             sun = (wl, spectra.solar_irradiance, float(sun_dir[2]))
             notes["sun"] = f"cos(zenith) {sun_dir[2]:.3f}"
-        table = exporter.path_table(s, time_code) if path_table is None else path_table
+        table = read_path_table(stage, s, time_code) if path_table is None else path_table
         paths = [None]
         if table is not None and radiometry.covers(table.wavelengths_um, band):
             paths = []

@@ -56,8 +56,11 @@ from humv_usd import mode
 from humv_usd.physics.sensor import srgb_encode
 from humv_usd.render import radiometry
 from humv_usd.render.cie import XYZ_TO_SRGB
+from humv_usd.render.frame import path_table
 from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply  # noqa: F401
 from humv_usd.render.radiometry import hemisphere_mean
+from humv_usd.usd import environment as usd_environment
+from humv_usd.usd.atmosphere import atmosphere_spectra
 
 #: Wavelength grid of the Mitsuba spectra [nm] (Mitsuba's spectral variants sample 360-830 nm).
 EO_STEP_NM = 5.0
@@ -337,10 +340,10 @@ class EORender:
     or a rendered material has no ``humv:material:reflectance``.
     """
 
-    def __init__(self, exporter, sensors, spp: int, max_depth: int, seed: int, out_dir, truth=None):
+    def __init__(self, stage, sensors, spp: int, max_depth: int, seed: int, out_dir, truth=None):
         from pxr import Usd
 
-        self.exporter = exporter
+        self.stage = stage
         self.truth = truth  # humv_usd.groundtruth.GroundTruth: the same labels as the IR sensors
         self.spp, self.max_depth, self.seed, self.out_dir = int(spp), int(max_depth), int(seed), out_dir
         self.sensors = list(sensors)
@@ -354,14 +357,13 @@ class EORender:
         self.ids = {s.name: f"eo_{i}" for i, s in enumerate(self.sensors)}
         if not self.sensors:
             return
-        stage = exporter.stage
         frames = [int(round(stage.GetStartTimeCode()))]
         t0 = Usd.TimeCode(frames[0])
-        spectra = exporter.atmosphere_spectra(t0)
+        spectra = atmosphere_spectra(stage, t0)
         covered = _covers_visible(spectra.wavelengths_um)
-        self.has_sun = exporter.sun_direction(t0) is not None and (
+        self.has_sun = usd_environment.sun_direction(stage, t0) is not None and (
             (covered and spectra.solar_irradiance is not None)
-            or exporter.direct_normal_irradiance(t0) is not None
+            or usd_environment.direct_normal_irradiance(stage, t0) is not None
         )
         self.has_sky = covered and spectra.sky_radiance is not None
         self._paths: dict = {}  # sensor name -> (PathTable identity, XYZPath)
@@ -382,7 +384,7 @@ class EORender:
         """The sensor's path table reduced to X, Y, Z with the Koschmieder airlight of the horizon
         sky of ``spectra`` (:func:`radiometry.reduce_xyz`, :func:`radiometry.horizon_sky`), or
         None, and what ran."""
-        table = self.exporter.path_table(sensor, time_code)
+        table = path_table(self.stage, sensor, time_code)
         if table is None:
             return (
                 None,
@@ -464,11 +466,12 @@ class EORender:
         for s in self.sensors:
             scene.set_camera(self.ids[s.name], state.cameras[s.name])
         time_code = Usd.TimeCode(frame)
-        spectra = self.exporter.atmosphere_spectra(time_code)
+        spectra = atmosphere_spectra(self.stage, time_code)
+        sun_direction = usd_environment.sun_direction(self.stage, time_code)
         sun, sky, ran = illumination(
-            spectra, self.exporter.sun_direction(time_code), self.exporter.direct_normal_irradiance(time_code)
+            spectra, sun_direction, usd_environment.direct_normal_irradiance(self.stage, time_code)
         )
-        scene.set_illumination(self.exporter.sun_direction(time_code), sun, sky)
+        scene.set_illumination(sun_direction, sun, sky)
         scene.update()
         for s in self.sensors:
             rec = self.records[s.name]

@@ -37,8 +37,8 @@ import numpy as np
 
 from humv_usd import mode
 from humv_usd.geometry.camera import CameraPose
-from humv_usd.render.export import Part
 from humv_usd.render.radiometry import apply_path, range_weights, sky_latlong
+from humv_usd.render.scene_export import Part
 
 #: Near and far clip of the Mitsuba sensors [m]; USD clipping ranges are ignored (no clipping).
 NEAR_CLIP_M = 1e-3
@@ -491,7 +491,7 @@ def render_band(
         With the frame's vertices and camera already set.
     sensor_id : str
         Mitsuba id of the sensor.
-    state : export.FrameState
+    state : frame.FrameState
         The frame (face temperatures per mesh).
     sub : radiometry.SubBands
         The sensor's sub-bands.

@@ -1,6 +1,7 @@
 """The one sensor reader: a UsdGeom.Camera with HumvSensorAPI → :class:`SensorModel`
 (render, sensor chain, labels and atmosphere all read sensors through here), and its pose at a
-time → :class:`humv_usd.geometry.camera.CameraPose`.
+time → :class:`humv_usd.geometry.camera.CameraPose`. :func:`stage_sensors` lists a stage's
+sensor cameras.
 
 :func:`read_sensor` is what the render reads: :func:`read_sensor_model` after the checks the
 render needs (band range, resolution, response table, sub-band count; a camera that is not a
@@ -13,7 +14,7 @@ import math
 import warnings
 
 import numpy as np
-from pxr import Gf, UsdGeom
+from pxr import Gf, Usd, UsdGeom
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.camera import CameraPose
@@ -86,6 +87,40 @@ def read_sensor(prim) -> SensorModel:
     if subbands is not None:
         subbands = check_subbands(subbands, f"{path}.{S.SENSOR_SUBBANDS}")
     return dataclasses.replace(model, path=path, subbands=subbands, response_authored=response is not None)
+
+
+def _is_sensor(prim) -> bool:
+    """A camera with HumvSensorAPI applied or any ``humv:sensor:*`` attribute authored (the
+    render reads attributes by name, so an unregistered or unapplied schema still counts)."""
+    if not prim.IsA(UsdGeom.Camera):
+        return False
+    if S.SENSOR_API in prim.GetAppliedSchemas():
+        return True
+    return any(
+        a.GetName().startswith(S.SENSOR_NAMESPACE) and a.HasAuthoredValue() for a in prim.GetAttributes()
+    )
+
+
+def stage_sensors(stage) -> list[SensorModel]:
+    """Every sensor camera of ``stage`` (instance proxies included), in stage order, read by
+    :func:`read_sensor`. InputError when two sensors share a name (the camera prim name)."""
+    sensors: list[SensorModel] = []
+    names: dict[str, str] = {}
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        if not _is_sensor(prim):
+            continue
+        sensor = read_sensor(prim)
+        if sensor.name in names:
+            raise InputError(
+                bad_value(
+                    str(prim.GetPath()),
+                    sensor.name,
+                    f"sensor names (camera prim names) must be unique; {names[sensor.name]} has it too",
+                )
+            )
+        names[sensor.name] = str(prim.GetPath())
+        sensors.append(sensor)
+    return sensors
 
 
 def _check_response(prim, band):
