@@ -33,6 +33,10 @@ ASTRONOMICAL_UNIT_M = 1.495978707e11
 #: Angular radius of the Sun seen from 1 au [rad].
 SUN_ANGULAR_RADIUS = SUN_RADIUS_M / ASTRONOMICAL_UNIT_M
 
+#: Temperatures a stage may hold for surfaces and the sky [K] (checked by the readers, the
+#: render and ``humv-usd check``): a wide sanity range, not a physical limit.
+TEMPERATURE_RANGE_K = (1.0, 5000.0)
+
 #: Temperature of the blackbody that weights a spectral emissivity (or transmittance) into a
 #: band or sub-band value [K]: a scene near ambient temperature, where the weighting matters.
 EMISSIVITY_WEIGHTING_TEMPERATURE_K = 300.0

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.errors import InputError, bad_value
 from humv_usd.geometry.camera import CameraPose
 from humv_usd.physics.sensor import SensorModel
@@ -28,9 +29,6 @@ from humv_usd.render.radiometry import PathTable
 from humv_usd.render.scene_export import MeshInfo
 from humv_usd.usd import atmosphere as usd_atmosphere
 from humv_usd.usd import schemas as S
-
-#: Allowed temperatures [K] for surfaces and the sky.
-TEMPERATURE_RANGE_K = (1.0, 5000.0)
 
 
 @dataclass

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Usd
 
+from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics.sky import extended_sky_table
 from humv_usd.usd import schemas as S
@@ -23,8 +24,6 @@ from humv_usd.usd.layers import SCOPES
 
 ATMOSPHERE_PATH = SCOPES["atmosphere"]
 PATHS = ATMOSPHERE_PATH.AppendChild("Paths")
-#: brightness temperatures the readers accept [K]
-TEMPERATURE_RANGE_K = (1.0, 5000.0)
 
 DEFAULT = Usd.TimeCode.Default()
 

@@ -14,10 +14,9 @@ from pathlib import Path
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdValidation
 
+from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import open_stage
-
-TEMPERATURE_RANGE_K = (1.0, 5000.0)
 
 
 def usd_validators(stage: Usd.Stage) -> list[str]:
