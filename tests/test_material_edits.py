@@ -155,7 +155,7 @@ def test_thermal_and_render_use_one_band_emissivity(runs):
     for name in ("base", "edited"):
         stage, img, exporter = runs[name]
         [sensor] = [s for s in exporter.sensors if s.name == SENSOR]
-        assert tuple(sensor.wavelength_range_um) == LONGWAVE_BAND_UM and sensor.response is None
+        assert tuple(sensor.wavelength_range_um) == LONGWAVE_BAND_UM and sensor.band_response is None
         for path in (SHIRT, WALL, "/World/Humans/p1/Body", "/World/Scene/Ground"):
             prim = stage.GetPrimAtPath(path)
             thermal_eps = longwave_emissivity(mesh_material(prim))  # what the thermal solve uses
