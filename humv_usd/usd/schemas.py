@@ -130,8 +130,6 @@ TEMPERATURE_PRIMVAR = "primvars:humv:thermal:temperature"  # uniform interpolati
 THERMAL_MODEL = "humv:thermal:model"
 
 # --- HumvSensorAPI (Camera) -------------------------------------------------------------------
-#: Namespace of every HumvSensorAPI attribute (a camera with one authored is a sensor).
-SENSOR_NAMESPACE = "humv:sensor:"
 SENSOR_BAND = "humv:sensor:band"
 SENSOR_WAVELENGTH_RANGE = "humv:sensor:wavelengthRange"
 SENSOR_RESPONSE_WAVELENGTHS = "humv:sensor:responseWavelengths"

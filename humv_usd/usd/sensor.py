@@ -26,6 +26,8 @@ from humv_usd.usd import schemas as S
 EO_DEFAULT_RANGE_UM = (0.38, 0.78)
 #: Largest accepted sensor width or height [px].
 MAX_RESOLUTION = 16384
+#: Namespace of the HumvSensorAPI attributes: a camera with one of them authored is a sensor.
+SENSOR_NAMESPACE = S.SENSOR_BAND.rpartition(":")[0] + ":"
 
 
 def check_subbands(value, where: str = "subbands") -> int:
@@ -97,7 +99,7 @@ def _is_sensor(prim) -> bool:
     if S.SENSOR_API in prim.GetAppliedSchemas():
         return True
     return any(
-        a.GetName().startswith(S.SENSOR_NAMESPACE) and a.HasAuthoredValue() for a in prim.GetAttributes()
+        a.GetName().startswith(SENSOR_NAMESPACE) and a.HasAuthoredValue() for a in prim.GetAttributes()
     )
 
 
