@@ -284,6 +284,34 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     assert "sun" in env.customLayerData["humv:environment:ran"]
 
 
+def test_paths_layer_refuses_a_stage_whose_wavelengths_differ(humvvex_raw, monkeypatch, tmp_path):
+    """The render pairs each path table with the atmosphere layer's wavelength grid: a stage
+    whose grid is not the one the tables are computed on is an error naming the attribute."""
+    from pxr import Sdf, Usd, Vt
+
+    from humv_usd.errors import InputError
+    from humv_usd.scene import layer as scene_layer
+    from humv_usd.sensors import layer as sensors_layer
+
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "analytic"
+    sc = validate(raw)
+    sky, paths = atmosphere_layers_of(sc)
+    sky_stage = _stage(sky)
+    wl = np.array(sky_stage.GetPrimAtPath("/World/Atmosphere").GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())
+    edit = Sdf.Layer.CreateAnonymous(".usda")
+    edit_stage = Usd.Stage.Open(edit)
+    prim = edit_stage.OverridePrim("/World/Atmosphere")
+    prim.CreateAttribute(S.ATMOSPHERE_WAVELENGTHS, Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray([float(w) for w in wl[:-1]])
+    )
+    base = [environment_layer.build(sc), sensors_layer.build(sc), scene_layer.build(sc), sky]
+    assert layer_text(paths_layer.build(sc, _stage(*base))) == layer_text(paths)
+    with pytest.raises(InputError, match=S.ATMOSPHERE_WAVELENGTHS):
+        paths_layer.build(sc, _stage(*base, edit))
+
+
 def test_night_layer_has_no_solar_term(humvvex_raw, monkeypatch, tmp_path):
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
     raw = copy.deepcopy(humvvex_raw)

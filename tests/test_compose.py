@@ -181,6 +181,8 @@ def test_parts_the_scenario_lacks_get_no_layer(tmp_path, raw):
     assert layer_names(out) == {"environment", "materials", "scene", "avatar_p1", "clothing_p1"}
     assert set(report.removed) == {"atmosphere.usda", "atmosphere_paths.usda", "sensors.usda", "thermal.usda"}
     assert {part for part, _ in report.skipped} == {"atmosphere", "atmosphere_paths", "sensors", "thermal"}
+    skipped = json.loads((out / "compose.json").read_text())["skipped"]
+    assert {"part": "atmosphere_paths", "reason": "no [[sensor]]"} in skipped
     assert check_stage(out / "stage.usda") == []
 
 
