@@ -138,6 +138,22 @@ def test_paths_fall_with_range_and_obey_kirchhoff(humvvex_lowtran):
 
 
 @needs_lowtran
+def test_paths_without_the_sun_are_the_same_paths(humvvex_lowtran, lowtran_cache, monkeypatch):
+    """The paths tool asks for no sun (``solar=False``: no SPCTRL2, no LOWTRAN sun runs, no
+    pvlib): its tables and grid are those of the full atmosphere, from the same cache."""
+    sc, atm, _ = humvvex_lowtran
+    monkeypatch.setenv(M.CACHE_ENV, str(lowtran_cache))
+    before = lt.CALLS
+    dark = M.atmosphere_for(sc, upstream_of(sc), solar=False)
+    assert lt.CALLS == before
+    np.testing.assert_array_equal(dark.wavelengths_um, atm.wavelengths_um)
+    np.testing.assert_array_equal(dark.path_transmittance, atm.path_transmittance)
+    np.testing.assert_array_equal(dark.path_radiance, atm.path_radiance)
+    assert atm.solar.any() and not dark.solar.any() and not dark.diffuse_radiance.any()
+    assert dark.ran["sun"].startswith("skipped")
+
+
+@needs_lowtran
 def test_transmittance_falls_with_humidity():
     spec = lt.spectral_case(8.0, 14.0, 20.0)
     taus = []
