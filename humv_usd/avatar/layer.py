@@ -41,7 +41,7 @@ from humv_usd.human.skeleton import (
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.usd import schemas as S
+from humv_usd.usd.avatar import AvatarParameters, write_avatar, write_metabolic_rate
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, skeleton_path
@@ -144,12 +144,7 @@ def _motion_attributes(prim, motion) -> None:
     """Metabolic-rate schedule per frame and the clip's ground-contact report."""
     rate = getattr(motion, "metabolic_rate_w", None)
     if rate is not None:
-        attr = prim.GetAttribute(S.AVATAR_METABOLIC_RATE)
-        if len(rate) == 1 or np.allclose(rate, rate[0]):
-            attr.Set(float(rate[0]))
-        else:
-            for frame, value in enumerate(rate):
-                attr.Set(float(value), frame)
+        write_metabolic_rate(prim, rate)
     contact = getattr(motion, "contact", None) or {}
     report = {
         k: round(float(contact[k]), 5)
@@ -161,18 +156,17 @@ def _motion_attributes(prim, motion) -> None:
 
 
 def _avatar_attributes(prim, human: dict, body: Body) -> None:
-    prim.ApplyAPI(S.AVATAR_API)
-    for attr, value in (
-        (S.AVATAR_SEX, human["sex"]),
-        (S.AVATAR_AGE, human["age_yr"]),
-        (S.AVATAR_STATURE, human["stature_m"]),
-        (S.AVATAR_MASS, human["mass_kg"]),
-        (S.AVATAR_BUILD, float(body.build)),  # the muscle value: the clothing tool rebuilds the body
-        (S.AVATAR_FITNESS, human["fitness"]),
-        (S.AVATAR_ACTIVITY, human["activity"]),
-        (S.AVATAR_BODY_SURFACE_AREA, round(body.body_surface_area_m2, 4)),
-    ):
-        prim.GetAttribute(attr).Set(value)
+    person = AvatarParameters(
+        human_id=human["id"],
+        sex=human["sex"],
+        age_yr=human["age_yr"],
+        stature_m=human["stature_m"],
+        mass_kg=human["mass_kg"],
+        build=float(body.build),  # the muscle value: the clothing tool rebuilds the body
+        fitness=human["fitness"],
+        activity=human["activity"],
+    )
+    write_avatar(prim, person, round(body.body_surface_area_m2, 4))
     # how the request was met: measured values and the macro/scale fit (for reports and QA)
     prim.SetCustomDataByKey(
         "humv:fit",

@@ -28,6 +28,7 @@ from pxr import Usd, UsdGeom
 from humv_usd.errors import InputError, bad_value
 from humv_usd.human import labels as AL
 from humv_usd.usd import schemas as S
+from humv_usd.usd.avatar import is_garment
 
 #: Class ids (index = id): 0 background, then the HumvLabelAPI tokens in the schema's order.
 CLASSES: tuple[str, ...] = (
@@ -130,10 +131,7 @@ def mesh_labels(prim: Usd.Prim, face_count: int) -> MeshLabels:
     cls = class_of(prim)
     region = _face_ints(prim, AL.BODY_REGION_PRIMVAR, face_count, 0, len(AL.BODY_REGIONS))
     segment = _face_ints(prim, AL.JOS3_SEGMENT_PRIMVAR, face_count, 0, len(AL.JOS3_SEGMENTS) - 1)
-    garment = S.CLOTHING_API in prim.GetAppliedSchemas() or bool(
-        prim.GetAttribute(S.CLOTHING_GARMENT) and prim.GetAttribute(S.CLOTHING_GARMENT).HasAuthoredValue()
-    )
-    if garment:
+    if is_garment(prim):
         kind = "garment"
     elif region is not None:
         kind = "skin"
