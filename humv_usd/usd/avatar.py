@@ -255,6 +255,82 @@ def write_air_gap(prim: Usd.Prim, air_gap_m, time_sampled: bool) -> None:
         primvar.Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), Usd.TimeCode(frame))
 
 
+def _face_label(prim: Usd.Prim, primvar_name: str, values, names_attr: str, names, doc: str, tag: bool):
+    """One uniform int primvar per face with its documentation and the token table of its ids
+    (``tag``: the table also as the primvar's ``humv:names`` custom data)."""
+    pv = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+        primvar_name.removeprefix("primvars:"), Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
+    )
+    pv.Set(Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))
+    pv.GetAttr().SetDocumentation(doc)
+    if tag:
+        pv.GetAttr().SetCustomDataByKey("humv:names", Vt.StringArray(list(names)))
+    prim.CreateAttribute(names_attr, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
+        Vt.TokenArray(list(names))
+    )
+
+
+def write_body_labels(prim: Usd.Prim, regions, region_names, segments, segment_names) -> None:
+    """The Body's labels per face: body region id (index into ``region_names``; 0 = not the
+    body) and JOS-3 segment (0-based index into ``segment_names``), uniform int primvars with
+    their name tables."""
+    _face_label(
+        prim,
+        BODY_REGION_PRIMVAR,
+        regions,
+        BODY_REGION_NAMES_ATTR,
+        region_names,
+        "body region id per face (names in humv:label:bodyRegionNames, index = id; 0 = not the body)",
+        tag=True,
+    )
+    _face_label(
+        prim,
+        JOS3_SEGMENT_PRIMVAR,
+        segments,
+        JOS3_SEGMENT_NAMES_ATTR,
+        segment_names,
+        "JOS-3 segment per face: 0-based index into JOS-3's 17 segments (names in humv:label:jos3SegmentNames)",
+        tag=True,
+    )
+
+
+def write_garment_regions(prim: Usd.Prim, regions, region_names) -> None:
+    """The body region under each garment face (ids as the Body's), uniform int primvar with
+    the name table."""
+    _face_label(
+        prim,
+        BODY_REGION_PRIMVAR,
+        regions,
+        BODY_REGION_NAMES_ATTR,
+        region_names,
+        "body region under each garment face (ids as the Body's humv:label:bodyRegionNames)",
+        tag=False,
+    )
+
+
+def write_keypoints(prim: Usd.Prim, keypoints_m, names) -> None:
+    """COCO keypoints of the person (its SkelRoot ``prim``): ``keypoints_m`` (F, K, 3) in
+    skeleton space [m], a time sample per frame, and their names (K,)."""
+    attr = prim.CreateAttribute(COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray, custom=True)
+    for frame, points in enumerate(keypoints_m):
+        attr.Set(Vt.Vec3fArray.FromNumpy(np.asarray(points, dtype=np.float32)), frame)
+    prim.CreateAttribute(COCO_KEYPOINT_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
+        Vt.TokenArray(list(names))
+    )
+
+
+def has_keypoints(prim: Usd.Prim) -> bool:
+    """The prim carries COCO keypoints (``humv:label:cocoKeypoints`` with a value)."""
+    attr = prim.GetAttribute(COCO_KEYPOINTS_ATTR)
+    return bool(attr.IsValid() and attr.HasValue())
+
+
+def read_keypoints(prim: Usd.Prim, frame: int) -> np.ndarray | None:
+    """(K, 3) COCO keypoints [scene units, the prim's space] at ``frame``; None when absent."""
+    value = prim.GetAttribute(COCO_KEYPOINTS_ATTR).Get(Usd.TimeCode(frame))
+    return None if value is None else np.asarray(value, dtype=float).reshape(-1, 3)
+
+
 # ---------------------------------------------------------------------------- more readers
 
 
