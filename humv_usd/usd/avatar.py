@@ -221,7 +221,12 @@ def write_avatar(prim: Usd.Prim, person: AvatarParameters, body_surface_area_m2:
 
 def write_metabolic_rate(prim: Usd.Prim, rate_w) -> None:
     """The metabolic-rate schedule [W] per frame on the person's ``prim``: one default value
-    when it does not change over the frames, else a time sample per frame (time code = frame)."""
+    when it does not change over the frames, else a time sample per frame (time code = frame).
+    The prim has HumvAvatarAPI (:func:`write_avatar`)."""
+    if not prim.HasAPI(S.AVATAR_API):
+        raise InputError(
+            f"{prim.GetPath()}: has no {S.AVATAR_API} (write the avatar before its metabolic rate)"
+        )
     rate = np.asarray(rate_w, dtype=float)
     attr = prim.GetAttribute(S.AVATAR_METABOLIC_RATE)
     if len(rate) == 1 or np.allclose(rate, rate[0]):
