@@ -14,18 +14,24 @@ ROOT = Path(__file__).resolve().parents[1]
 HUMVVEX = ROOT / "examples" / "humvvex.toml"
 
 
-def upstream_of(scenario):
-    """The stage the atmosphere tool reads (its UPSTREAM: environment, sensors and, when the
-    scenario has one, scene layers), composed in memory."""
+def _upstream_layers(scenario) -> list:
+    """Environment, sensors and, when the scenario has one, scene layers (weakest first)."""
     from humv_usd.environment import layer as environment_layer
-    from humv_usd.pipeline.compose import compose_in_memory
     from humv_usd.scene import layer as scene_layer
     from humv_usd.sensors import layer as sensors_layer
 
     layers = [environment_layer.build(scenario), sensors_layer.build(scenario)]
     if scenario["scene"] is not None:
         layers.append(scene_layer.build(scenario))
-    return compose_in_memory(layers, scenario["general"]["fps"])
+    return layers
+
+
+def upstream_of(scenario):
+    """The stage the atmosphere tools read (environment, sensors and, when the scenario has
+    one, scene layers), composed in memory."""
+    from humv_usd.pipeline.compose import compose_in_memory
+
+    return compose_in_memory(_upstream_layers(scenario), scenario["general"]["fps"])
 
 
 def atmosphere_layer_of(scenario):
@@ -33,6 +39,19 @@ def atmosphere_layer_of(scenario):
     from humv_usd.atmosphere import layer as atmosphere_layer
 
     return atmosphere_layer.build(scenario, upstream_of(scenario))
+
+
+def atmosphere_layers_of(scenario):
+    """(atmosphere layer, atmosphere paths layer) of ``scenario``: the sky on
+    :func:`upstream_of`, the paths on that stage plus the sky."""
+    from humv_usd.atmosphere import layer as atmosphere_layer
+    from humv_usd.atmosphere import paths as paths_layer
+    from humv_usd.pipeline.compose import compose_in_memory
+
+    fps = scenario["general"]["fps"]
+    layers = _upstream_layers(scenario)
+    sky = atmosphere_layer.build(scenario, compose_in_memory(layers, fps))
+    return sky, paths_layer.build(scenario, compose_in_memory([*layers, sky], fps))
 
 
 @pytest.fixture(scope="session")

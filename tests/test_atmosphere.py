@@ -7,11 +7,11 @@ import datetime as dt
 
 import numpy as np
 import pytest
-from conftest import atmosphere_layer_of, upstream_of
+from conftest import atmosphere_layer_of, atmosphere_layers_of, upstream_of
 
-from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.atmosphere import lowtran as lt
 from humv_usd.atmosphere import model as M
+from humv_usd.atmosphere import paths as paths_layer
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment import layer as environment_layer
 from humv_usd.environment.sun import sun_at
@@ -19,6 +19,7 @@ from humv_usd.physics import planck
 from humv_usd.physics.sky import directional_sky_emissivity, effective_sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
+from humv_usd.usd.layers import layer_text
 
 
 def _atmosphere_for(sc):
@@ -137,6 +138,22 @@ def test_paths_fall_with_range_and_obey_kirchhoff(humvvex_lowtran):
 
 
 @needs_lowtran
+def test_paths_without_the_sun_are_the_same_paths(humvvex_lowtran, lowtran_cache, monkeypatch):
+    """The paths tool asks for no sun (``solar=False``: no SPCTRL2, no LOWTRAN sun runs, no
+    pvlib): its tables and grid are those of the full atmosphere, from the same cache."""
+    sc, atm, _ = humvvex_lowtran
+    monkeypatch.setenv(M.CACHE_ENV, str(lowtran_cache))
+    before = lt.CALLS
+    dark = M.atmosphere_for(sc, upstream_of(sc), solar=False)
+    assert lt.CALLS == before
+    np.testing.assert_array_equal(dark.wavelengths_um, atm.wavelengths_um)
+    np.testing.assert_array_equal(dark.path_transmittance, atm.path_transmittance)
+    np.testing.assert_array_equal(dark.path_radiance, atm.path_radiance)
+    assert atm.solar.any() and not dark.solar.any() and not dark.diffuse_radiance.any()
+    assert dark.ran["sun"].startswith("skipped")
+
+
+@needs_lowtran
 def test_transmittance_falls_with_humidity():
     spec = lt.spectral_case(8.0, 14.0, 20.0)
     taus = []
@@ -244,8 +261,9 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     # (the spin-up's negative time codes are tested in test_environment.py)
     raw["thermal"] = dict(raw.get("thermal") or {}, surface_spin_up_s=0.0)
     sc = validate(raw)
-    env, atm_layer = environment_layer.build(sc), atmosphere_layer_of(sc)
-    stage = _stage(env, atm_layer)
+    env, (atm_layer, paths) = environment_layer.build(sc), atmosphere_layers_of(sc)
+    assert not _stage(atm_layer).GetPrimAtPath(paths_layer.PATHS)  # the sky layer has no paths
+    stage = _stage(env, atm_layer, paths)
     e = stage.GetPrimAtPath("/World/Environment")
     sun = sun_at(sc, [0.0, 1 / 30, 2 / 30])
     for f in range(3):
@@ -264,7 +282,11 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     solar = np.array(a.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).Get(1))
     assert sky.size == zen.size * wl.size and solar.size == wl.size and zen[-1] <= 90
     assert a.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).GetNumTimeSamples() == 3
-    paths = stage.GetPrimAtPath(atmosphere_layer.PATHS).GetChildren()
+    paths_ran = paths.customLayerData["humv:atmospherePaths:ran"]
+    assert (
+        paths_ran["model"] == "analytic" and f"tables for {len(sc['sensor'])} sensors" in paths_ran["paths"]
+    )
+    paths = stage.GetPrimAtPath(paths_layer.PATHS).GetChildren()
     assert sorted(p.GetName() for p in paths) == sorted(s["id"] for s in sc["sensor"])
     for p in paths:
         assert p.HasAPI(S.ATMOSPHERE_PATH_API)
@@ -276,6 +298,34 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     ran = atm_layer.customLayerData["humv:atmosphere:ran"]
     assert ran["lowtran7"].startswith("skipped") and "sky" in ran
     assert "sun" in env.customLayerData["humv:environment:ran"]
+
+
+def test_paths_layer_refuses_a_stage_whose_wavelengths_differ(humvvex_raw, monkeypatch, tmp_path):
+    """The render pairs each path table with the atmosphere layer's wavelength grid: a stage
+    whose grid is not the one the tables are computed on is an error naming the attribute."""
+    from pxr import Sdf, Usd, Vt
+
+    from humv_usd.errors import InputError
+    from humv_usd.scene import layer as scene_layer
+    from humv_usd.sensors import layer as sensors_layer
+
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "analytic"
+    sc = validate(raw)
+    sky, paths = atmosphere_layers_of(sc)
+    sky_stage = _stage(sky)
+    wl = np.array(sky_stage.GetPrimAtPath("/World/Atmosphere").GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())
+    edit = Sdf.Layer.CreateAnonymous(".usda")
+    edit_stage = Usd.Stage.Open(edit)
+    prim = edit_stage.OverridePrim("/World/Atmosphere")
+    prim.CreateAttribute(S.ATMOSPHERE_WAVELENGTHS, Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray([float(w) for w in wl[:-1]])
+    )
+    base = [environment_layer.build(sc), sensors_layer.build(sc), scene_layer.build(sc), sky]
+    assert layer_text(paths_layer.build(sc, _stage(*base))) == layer_text(paths)
+    with pytest.raises(InputError, match=S.ATMOSPHERE_WAVELENGTHS):
+        paths_layer.build(sc, _stage(*base, edit))
 
 
 def test_night_layer_has_no_solar_term(humvvex_raw, monkeypatch, tmp_path):
@@ -321,8 +371,6 @@ def test_direct_mwir_sun_dims_with_haze(humvvex_raw, lowtran_cache, monkeypatch)
 def test_layer_text_does_not_depend_on_the_cache(humvvex_raw, monkeypatch, tmp_path):
     """A cold-cache and a warm-cache compose write the same atmosphere layer (an unchanged
     scenario rewrites nothing); the cache's hit/miss is not in the layer."""
-    from humv_usd.usd.layers import layer_text
-
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
     raw = copy.deepcopy(humvvex_raw)
     raw["atmosphere"]["model"] = "lowtran7"
@@ -359,9 +407,13 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     runs = lt.CALLS - before
     from humv_usd.pipeline.compose import compose_in_memory
 
-    stage = compose_in_memory([sensors_layer.build(sc), layer], 0.01)
+    before = lt.CALLS
+    sky, paths = atmosphere_layers_of(sc)
+    assert lt.CALLS == before  # the paths layer reads the LOWTRAN runs the sky layer cached
+    assert layer_text(sky) == layer_text(layer)
+    stage = compose_in_memory([sensors_layer.build(sc), sky, paths], 0.01)
     a = stage.GetPrimAtPath("/World/Atmosphere")
-    p = stage.GetPrimAtPath(atmosphere_layer.PATHS.AppendChild("lwir640"))
+    p = stage.GetPrimAtPath(paths_layer.PATHS.AppendChild("lwir640"))
     tau_attr = p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE)
     assert tau_attr.GetTimeSamples() == [0.0, 36.0, 72.0]  # the weather nodes' frames
     wl = np.array(a.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())

@@ -21,6 +21,7 @@ from humv_usd.usd.check import check_stage
 ALL_LAYERS = {
     "environment",
     "atmosphere",
+    "atmosphere_paths",
     "materials",
     "scene",
     "avatar_p1",
@@ -53,7 +54,11 @@ def test_one_layer_per_part_and_clean(composed):
     assert len(stage.GetRootLayer().rootPrims) == 0  # sublayers + metadata only
     assert stage.GetTimeCodesPerSecond() == 30
     ran = json.loads((out / "compose.json").read_text())["ran"]
-    assert set(ran) == {"environment", "atmosphere"}  # each tool says what it ran and skipped
+    assert set(ran) == {
+        "environment",
+        "atmosphere",
+        "atmosphere_paths",
+    }  # each tool says what it ran and skipped
     assert "sun up at 1 of 1" in ran["environment"]["sun"]
 
 
@@ -174,8 +179,10 @@ def test_parts_the_scenario_lacks_get_no_layer(tmp_path, raw):
     del raw["atmosphere"]
     report = compose(validate(raw), out)
     assert layer_names(out) == {"environment", "materials", "scene", "avatar_p1", "clothing_p1"}
-    assert set(report.removed) == {"atmosphere.usda", "sensors.usda", "thermal.usda"}
-    assert {part for part, _ in report.skipped} == {"atmosphere", "sensors", "thermal"}
+    assert set(report.removed) == {"atmosphere.usda", "atmosphere_paths.usda", "sensors.usda", "thermal.usda"}
+    assert {part for part, _ in report.skipped} == {"atmosphere", "atmosphere_paths", "sensors", "thermal"}
+    skipped = json.loads((out / "compose.json").read_text())["skipped"]
+    assert {"part": "atmosphere_paths", "reason": "no [[sensor]]"} in skipped
     assert check_stage(out / "stage.usda") == []
 
 

@@ -19,7 +19,17 @@ from humv_usd.pipeline.compose import compose, plan
 from humv_usd.scenario import validate
 from humv_usd.scenario.inputs import inputs_key, read_values
 
-ALL = ["environment", "atmosphere", "materials", "scene", "avatar_p1", "clothing_p1", "sensors", "thermal"]
+ALL = [
+    "environment",
+    "atmosphere",
+    "atmosphere_paths",
+    "materials",
+    "scene",
+    "avatar_p1",
+    "clothing_p1",
+    "sensors",
+    "thermal",
+]
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +56,9 @@ def test_build_order_respects_upstream(humvvex_raw):
     for name in order:
         assert all(order.index(u) < order.index(name) for u in nodes[name].upstream), name
     assert nodes["clothing_p1"].upstream == ("avatar_p1",)
+    # the sky reads only the weather and sun; the per-sensor paths read the cameras and scene too
+    assert nodes["atmosphere"].upstream == ("environment",)
+    assert set(nodes["atmosphere_paths"].upstream) == {"environment", "atmosphere", "scene", "sensors"}
     assert set(nodes["thermal"].upstream) == {
         "environment",
         "atmosphere",
@@ -62,6 +75,7 @@ def test_build_order_respects_upstream(humvvex_raw):
         "avatar_p1",
         "scene",
         "materials",
+        "atmosphere_paths",
         "atmosphere",
         "environment",
     ]
@@ -94,6 +108,7 @@ def test_every_tool_declares_what_it_reads(humvvex_raw):
     assert set(tools) == {
         "environment",
         "atmosphere",
+        "atmosphere_paths",
         "materials",
         "scene",
         "avatar_{id}",
@@ -145,8 +160,12 @@ def test_unchanged_rerun_builds_nothing(out, humvvex_raw, monkeypatch):
     assert {s.state for s in report.states.values()} == {"cached"}
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*.usda")} == mtimes
     doc = json.loads((out / "compose.json").read_text())
-    assert doc["summary"].startswith("8 layers: 8 cached")
-    assert set(doc["ran"]) == {"environment", "atmosphere"}  # carried over from the run that built them
+    assert doc["summary"].startswith("9 layers: 9 cached")
+    assert set(doc["ran"]) == {
+        "environment",
+        "atmosphere",
+        "atmosphere_paths",
+    }  # carried over from the run that built them
 
 
 def _edit(raw, key):
@@ -161,14 +180,14 @@ def _edit(raw, key):
     return raw
 
 
-# which layers a single-key edit of humvvex rebuilds. The atmosphere layer holds the sensors'
-# path tables and the thermal tool reads the atmosphere's sky, so a sensor move still rebuilds
-# thermal; splitting the paths into their own layer removes it from the first set.
+# which layers a single-key edit of humvvex rebuilds. The sensors' path tables are their own
+# layer (atmosphere_paths), so a sensor move leaves the sky and the thermal layer that reads it;
+# the clock and the weather change the sky, the paths and the temperatures.
 REBUILT = {
-    "sensor position": {"sensors", "atmosphere", "thermal"},
+    "sensor position": {"sensors", "atmosphere_paths"},
     "clothing": {"materials", "avatar_p1", "clothing_p1", "thermal"},
-    "start": {"environment", "atmosphere", "thermal"},
-    "weather": {"environment", "atmosphere", "thermal"},
+    "start": {"environment", "atmosphere", "atmosphere_paths", "thermal"},
+    "weather": {"environment", "atmosphere", "atmosphere_paths", "thermal"},
 }
 
 
@@ -186,8 +205,8 @@ def test_single_key_edit_rebuilds_exactly_what_reads_it(out, raw, key):
         )
     if key == "sensor position":
         assert doc["sensors"]["why"] == "inputs changed: sensor.0.position_m"
-        assert doc["thermal"]["why"] == "upstream changed: atmosphere"
-        assert doc["avatar_p1"]["why"] == "cached"
+        assert doc["atmosphere_paths"]["why"] == "upstream changed: sensors"
+        assert doc["atmosphere"]["why"] == doc["thermal"]["why"] == doc["avatar_p1"]["why"] == "cached"
     if key == "clothing":
         assert doc["clothing_p1"]["why"] == "inputs changed: human[p1].clothing; upstream changed: avatar_p1"
 
@@ -263,8 +282,8 @@ def test_user_sublayer_survives_reruns_and_wins(out, raw):
     report = compose(validate(raw), out)
     assert report.user_layers == ["./fix.usda"]
     # tools reading the stage see the user layer: its content enters their keys (the atmosphere
-    # reads weather, sun, cameras and scene off the stage)
-    assert set(report.rebuilt) == {"atmosphere", "clothing_p1", "thermal"}
+    # reads weather and sun off the stage, its paths the cameras and scene too)
+    assert set(report.rebuilt) == {"atmosphere", "atmosphere_paths", "clothing_p1", "thermal"}
     report = compose(validate(_edit(raw, "sensor position")), out)
     assert "sensors" in report.rebuilt
     text = (out / "stage.usda").read_text()
@@ -297,7 +316,7 @@ def test_cli_refuses_hand_edit_with_one_line_exit_2(out, tmp_path):
     assert r.returncode == 0, r.stderr
     assert (
         r.stdout.strip().splitlines()[-1].endswith("s)")
-        and "3 rebuilt (sensors, atmosphere, thermal), 5 cached" in r.stdout
+        and "2 rebuilt (sensors, atmosphere_paths), 7 cached" in r.stdout
     )
 
 

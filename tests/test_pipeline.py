@@ -128,9 +128,10 @@ def test_radiometry(rendered):
     eps = 0.98
     surface = eps * band_radiance(306.15, band, resp) + (1 - eps) * band_radiance(sky_k, band, resp)
     table = exporter.path_table(cam, Usd.TimeCode(0))
-    if table is not None:  # 15 m of air in front of the skin (band-effective transmittance)
-        tau, path = table.reduce(SubBands(band, resp, 1)).at(15.0, 0)
-        surface = tau * surface + path
+    assert table is not None  # compose's atmosphere_paths layer
+    # 15 m of air in front of the skin (band-effective transmittance)
+    tau, path = table.reduce(SubBands(band, resp, 1)).at(15.0, 0)
+    surface = tau * surface + path
     lower = brightness_temperature(surface, band, resp)
     assert lower - 0.3 < t_skin < 306.15
     # the image is radiance-consistent: T_b inverts L per pixel

@@ -149,12 +149,13 @@ def test_eo_only_scenario_composes_and_renders(raw, tmp_path):
     raw.pop("atmosphere", None)
     report = compose(validate(raw), tmp_path / "c")
     names = {p.stem for p in (tmp_path / "c" / "layers").glob("*.usda")}
-    assert "atmosphere" in names and "thermal" not in names
+    assert {"atmosphere", "atmosphere_paths"} <= names and "thermal" not in names
     manifest = render_stage(tmp_path / "c" / "stage.usda", tmp_path / "r", spp=4)
     [eo] = manifest["eo_sensors"]
     frame = eo["frames"][0]
     assert frame["illumination"]["sun"].startswith("directional, spectral irradiance")
     assert "skipped" not in frame["illumination"]["sky"]
+    assert frame["atmosphere"].startswith("per pixel by range")  # found the atmosphere_paths layer's table
     ch = read_exr(tmp_path / "r" / eo["name"] / "0000.exr")
     person = ch["instance_id"] == 1
     assert person.any() and np.isnan(ch["surface_temperature"][person]).all()

@@ -15,6 +15,7 @@ from pxr import Sdf, Usd
 from humv_usd.atmosphere import layer as atmosphere_layer
 from humv_usd.atmosphere import lowtran as lt
 from humv_usd.atmosphere import model as M
+from humv_usd.atmosphere import paths as paths_layer
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment import layer as environment_layer
 from humv_usd.environment.sun import sun_at
@@ -71,6 +72,7 @@ def _upstream(sc, *extra):
         sensors_layer.build(sc),
     ]
     layers.append(atmosphere_layer.build(sc, compose_in_memory(layers, FPS)))
+    layers.append(paths_layer.build(sc, compose_in_memory(layers, FPS)))
     return layers, compose_in_memory(layers, FPS)
 
 
@@ -219,7 +221,7 @@ def test_path_ranges_reach_a_hand_made_mesh_of_the_stage(humvvex_raw, tmp_path, 
     stronger layer (not in the scenario), stretches the sensor's table to 1.5 x its distance."""
     from pxr import UsdGeom
 
-    from humv_usd.atmosphere.layer import PATHS
+    from humv_usd.atmosphere.paths import PATHS
 
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
     sc = _scenario(humvvex_raw, tmp_path, csv=False)

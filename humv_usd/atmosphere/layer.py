@@ -1,23 +1,22 @@
-"""Atmosphere tool: sky, sun and slant paths → layers/atmosphere.usda.
+"""Atmosphere tool: sky and sun → layers/atmosphere.usda.
 
 Reads the upstream stage (:data:`UPSTREAM`): weather and sun from the environment layer
-(:mod:`humv_usd.usd.environment`), camera positions from the sensors layer
-(:func:`humv_usd.usd.sensor.camera_positions`) and the scene's extent from the scene layer
-(:func:`scene_points`); it computes none of them. Authors what
+(:mod:`humv_usd.usd.environment`); it computes neither. Authors what
 :func:`humv_usd.atmosphere.model.atmosphere_for` computed (only what the scenario needs, see
 there) with the frame-0 cloud cover mixed into the thermal sky
 (:func:`humv_usd.atmosphere.model.with_cloud_cover`, Crawford & Duchon 1999): on /World/Atmosphere
 the model that ran, the effective broadband sky (temperature, emissivity, and the longwave
 radiance against zenith that the thermal layer reads), the wavelength grid of the sensors'
 bands, the sky spectral radiance against zenith and, while the sun is up, the direct solar
-spectral irradiance per frame; under /World/Atmosphere/Paths one path table per sensor, with
-ranges from 1 m to beyond the scene. What ran and what was skipped is recorded in the layer's
-customLayerData ``humv:atmosphere:ran``.
+spectral irradiance per frame. The per-sensor slant-path tables under /World/Atmosphere/Paths
+are their own layer (:mod:`humv_usd.atmosphere.paths`), so that moving a sensor leaves this layer,
+and the thermal layer that reads it, as they are. What ran and what was skipped is recorded in
+the layer's customLayerData ``humv:atmosphere:ran``.
 
 When the weather varies (:func:`humv_usd.atmosphere.model.weather_varies`), the thermal sky
-(spectral and broadband, with each node's cloud cover) and the path tables get time samples at
+(spectral and broadband, with each node's cloud cover) gets time samples at
 the weather nodes' frames (:func:`humv_usd.atmosphere.model.weather_nodes`; USD interpolates
-float arrays linearly between them) and keep the frame-0 values as their defaults, which
+float arrays linearly between them) and keeps the frame-0 values as its defaults, which
 readers without a time get (the thermal tool and the render read the sample of their frame,
 :mod:`humv_usd.usd.atmosphere`). Constant
 weather authors single default values, as before.
@@ -28,61 +27,26 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom, Vt
 
-from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for, lerp_nodes, with_cloud_cover
+from humv_usd.atmosphere.model import atmosphere_for, lerp_nodes, with_cloud_cover
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
 from humv_usd.usd import schemas as S
 from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
-from humv_usd.usd.mesh import bound_corners
-from humv_usd.usd.paths import sensor_path
-from humv_usd.usd.sensor import camera_positions
 
 NAME = "atmosphere"
 READS = (
     *CLOCK,
     "atmosphere",  # model, profile, visibility; weather_csv: its hours are the weather nodes
-    "sensor.*.id",
-    "sensor.*.wavelength_um",
-    "sensor.*.look_at_m",
-    "placement.*.position_m",
-    "placement.*.waypoints_m",
+    "sensor.*.wavelength_um",  # the spectral grid: the union of the sensors' bands
 )
-#: layers read from the upstream stage: weather and sun (environment), camera positions
-#: (sensors) and the scene's extent for the path ranges (scene; a scenario may have none)
-UPSTREAM = ("environment", "sensors", "scene")
-VERSION = "2"
-PATHS = SCOPES["atmosphere"].AppendChild("Paths")
+#: layers read from the upstream stage: weather and sun (environment)
+UPSTREAM = ("environment",)
+VERSION = "3"
 
 
 def _floats(a) -> Vt.FloatArray:
     return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
-
-
-def scene_points(scenario: Scenario, upstream) -> np.ndarray:
-    """Points bounding what the sensors look at [m]: the corners of every scene mesh's bounding
-    box on the upstream stage (the scene layer: ground, objects, hand-made meshes), and the
-    people's placements and waypoints up to 2 m (from ``[[placement]]``: their skinned extents
-    over every frame would cost more than the range table needs)."""
-    pts = [bound_corners(upstream, SCOPES["scene"])]
-    for p in scenario["placement"]:
-        x, y, z = p["position_m"]
-        people = [(x, y, z), (x, y, z + 2.0)] + [(wx, wy, z) for wx, wy in p.get("waypoints_m") or []]
-        pts.append(np.asarray(people, dtype=float))
-    return np.vstack([np.zeros((0, 3))] + pts)
-
-
-def sensor_ranges(sensor: dict, cams: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Ranges [m] of a sensor's path table: the table's nodes up to the farthest scene point
-    (x 1.5, at least twice the look-at distance and 100 m), that range included; ``cams``
-    the camera positions per frame (n, 3) [m] of the sensors layer, ``points`` the
-    :func:`scene_points`."""
-
-    targets = np.vstack([points, np.asarray(sensor["look_at_m"], float)[None]])
-    far = max(float(np.max(np.linalg.norm(cams[:, None, :] - targets[None], axis=-1))), 1.0)
-    look = float(np.max(np.linalg.norm(cams - np.asarray(sensor["look_at_m"], float), axis=-1)))
-    r_max = min(max(1.5 * far, 2.0 * look, 100.0), float(PATH_RANGES_M[-1]))
-    return np.unique(np.append(PATH_RANGES_M[PATH_RANGES_M < r_max], r_max))
 
 
 def build(scenario: Scenario, upstream) -> Sdf.Layer:
@@ -99,7 +63,7 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
         node_codes = [float(c) for c in np.round(full.node_times_s * float(g["fps"]), 6)]
         atm = nodes[0]
     stage = new_layer_stage(
-        g["fps"], scenario.frame_count, f"HumV-USD atmosphere layer: {atm.source} sky, sun and sensor paths"
+        g["fps"], scenario.frame_count, f"HumV-USD atmosphere layer: {atm.source} sky and sun"
     )
     prim = UsdGeom.Scope.Define(stage, SCOPES["atmosphere"]).GetPrim()
     prim.ApplyAPI(S.ATMOSPHERE_API)
@@ -116,7 +80,12 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
             prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(n.sky_temperature_k), 4), code)
             prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(n.longwave_radiance), code)
     # the disk cache's hit/miss stays out of the layer: an unchanged scenario must give the same text
-    ran = {k: ("; ".join(v) if isinstance(v, list) else str(v)) for k, v in atm.ran.items() if k != "cache"}
+    # the paths are the atmosphere paths layer's (humv_usd.atmosphere.paths)
+    ran = {
+        k: ("; ".join(v) if isinstance(v, list) else str(v))
+        for k, v in atm.ran.items()
+        if k not in ("cache", "paths")
+    }
     ran["broadband sky"] = (
         f"emissivity {atm.sky_emissivity:.4f}, temperature {atm.sky_temperature_k:.2f} K ({atm.source})"
     )
@@ -159,23 +128,6 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
                 solar_attr.Set(_floats(atm.solar[0]))
         else:
             ran["solar spectrum"] = "skipped: sun below the horizon (or fully clouded)"
-        UsdGeom.Scope.Define(stage, PATHS)
-        points = scene_points(scenario, upstream)
-        for s in scenario["sensor"]:
-            path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
-            path.ApplyAPI(S.ATMOSPHERE_PATH_API)
-            cams = camera_positions(upstream, sensor_path(s["id"]), np.arange(max(scenario.frame_count, 1)))
-            ranges = sensor_ranges(s, cams, points)
-            tau, rad = atm.path(cams[0], ranges)
-            path.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path(s["id"])))
-            path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
-            path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)))
-            path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)))
-            for code, n in zip(node_codes if nodes is not None else [], nodes or []):
-                tau, rad = n.path(cams[0], ranges)
-                path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(tau, 0.0, 1.0)), code)
-                path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(rad, 0.0)), code)
-        ran["paths"] = ran.get("paths", "") + f"; tables for {len(scenario['sensor'])} sensors"
     else:
         ran["spectra"] = "skipped: no sensor"
     stage.GetRootLayer().customLayerData = {"humv:atmosphere:ran": ran}

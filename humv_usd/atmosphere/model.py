@@ -663,7 +663,7 @@ def _resample(grid, wl, values, default):
     return out
 
 
-def _analytic_parts(scenario, w0: dict, bands, sun: SunState):
+def _analytic_parts(scenario, w0: dict, bands, sun: SunState, sun_too: bool = True):
     a = scenario["atmosphere"]
     t_air, rh, p = w0["air_temperature_k"], w0["relative_humidity"], w0["pressure_pa"]
     grid = _grid(bands)
@@ -683,7 +683,7 @@ def _analytic_parts(scenario, w0: dict, bands, sun: SunState):
     longwave = eps_theta * lw_bb
     broadband = (longwave, float(eps_sky), float(eps_sky) ** 0.25 * t_air)
     solar = np.zeros((sun.times_s.size, grid.size))
-    if sun.up.any() and grid.size:
+    if sun.up.any() and grid.size and sun_too:
         import pvlib
 
         extra = np.asarray(
@@ -697,7 +697,7 @@ def _analytic_parts(scenario, w0: dict, bands, sun: SunState):
     return grid, sky, tau, rad, solar, broadband
 
 
-def atmosphere_for(scenario: Scenario, upstream, times_s=None) -> Atmosphere:
+def atmosphere_for(scenario: Scenario, upstream, times_s=None, solar: bool = True) -> Atmosphere:
     """The scenario's :class:`Atmosphere` (see the module doc for what runs when).
 
     Parameters
@@ -708,6 +708,10 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None) -> Atmosphere:
         nodes (:mod:`humv_usd.usd.environment`).
     times_s : array-like, optional
         Sample times of the sun terms [s after frame 0]; default :func:`frame_times`.
+    solar : bool
+        Compute the direct sun and the diffuse skylight (False: left zero, for a caller that
+        needs only the thermal sky and the paths; it skips SPCTRL2, the LOWTRAN sun runs and
+        the pvlib import).
 
     When the weather's temperature, humidity, pressure or cloud cover vary over the frames
     (:func:`weather_varies`), the sky and the paths are computed at :func:`weather_nodes` (one
@@ -746,7 +750,7 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None) -> Atmosphere:
     else:
         try:
             per_node = [
-                _lowtran_parts(scenario, w, bands, sun, weather, ran, sun_too=(k == 0))
+                _lowtran_parts(scenario, w, bands, sun, weather, ran, sun_too=(k == 0 and solar))
                 for k, w in enumerate(node_weather)
             ]
             source = "lowtran7"
@@ -756,11 +760,11 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None) -> Atmosphere:
             warnings.warn(msg, RuntimeWarning, stacklevel=2)
             ran["lowtran7"] = f"failed: {e}"
     if per_node is None:
-        per_node = [_analytic_parts(scenario, w, bands, sun) for w in node_weather]
+        per_node = [_analytic_parts(scenario, w, bands, sun, sun_too=solar) for w in node_weather]
         if bands:
             ran["sky"] = "analytic: Berdahl-Martin emissivity, Martin-Berdahl angular law, gray"
             ran["paths"] = "analytic: Roberts water continuum, Kruse aerosol, Rayleigh"
-    grid, _, _, _, solar, _ = per_node[0]
+    grid = per_node[0][0]
     skies, taus, rads, lws, epss, t_skies = [], [], [], [], [], []
     for w, (_, sky, tau_m, rad_m, _, (lw, eps, t_sky)) in zip(node_weather, per_node):
         if source == "lowtran7" and grid.size:
@@ -774,13 +778,17 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None) -> Atmosphere:
         lws.append(np.asarray(lw, float))
         epss.append(eps)
         t_skies.append(t_sky)
-    dni_s, dhi_s = _spectrl2(sun, weather, scenario, grid)
-    solar = solar + dni_s
+    if solar:
+        dni_s, dhi_s = _spectrl2(sun, weather, scenario, grid)
+        if not sun.up.any():
+            ran["sun"] = "skipped: sun below the horizon at every frame"
+        elif grid.size and (grid < SOLAR_SPLIT_UM).any():
+            ran["skylight"] = f"SPCTRL2 direct and isotropic diffuse < {SOLAR_SPLIT_UM} um"
+    else:
+        dni_s = dhi_s = np.zeros((sun.times_s.size, grid.size))
+        ran["sun"] = "skipped: not asked for (solar=False)"
+    direct = per_node[0][4] + dni_s
     diffuse = dhi_s / np.pi
-    if not sun.up.any():
-        ran["sun"] = "skipped: sun below the horizon at every frame"
-    elif grid.size and (grid < SOLAR_SPLIT_UM).any():
-        ran["skylight"] = f"SPCTRL2 direct and isotropic diffuse < {SOLAR_SPLIT_UM} um"
     node_fields = {}
     if nodes is not None:
         node_fields = dict(
@@ -804,7 +812,7 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None) -> Atmosphere:
         path_ranges_m=PATH_RANGES_M.copy(),
         path_transmittance=taus[0],
         path_radiance=rads[0],
-        solar=solar,
+        solar=direct,
         longwave_radiance=lws[0],
         sky_emissivity=epss[0],
         sky_temperature_k=t_skies[0],

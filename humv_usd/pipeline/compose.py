@@ -132,14 +132,23 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
     else:
         skipped.append(("avatar", "no [[human]]"))
     if scenario["sensor"]:
-        needed.append("sensors")
+        needed.extend(["sensors", "atmosphere_paths"])
     else:
-        skipped.append(("sensors", "no [[sensor]]"))
+        skipped.extend([("sensors", "no [[sensor]]"), ("atmosphere_paths", "no [[sensor]]")])
     if has_meshes and has_ir:
         needed.append("thermal")
     else:
         skipped.append(("thermal", "no infrared sensor" if has_meshes else "no meshes"))
-    ruled = {"environment", "atmosphere", "materials", "scene", "avatar_{id}", "clothing_{id}", "sensors"}
+    ruled = {
+        "environment",
+        "atmosphere",
+        "atmosphere_paths",
+        "materials",
+        "scene",
+        "avatar_{id}",
+        "clothing_{id}",
+        "sensors",
+    }
     for tool in discover_tools().values():  # tools the rules above do not know
         if tool.name in ruled | {"thermal"}:
             continue

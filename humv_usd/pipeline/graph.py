@@ -50,6 +50,7 @@ STRENGTH = (
     "avatar_*",
     "scene",
     "materials",
+    "atmosphere_paths",  # over /World/Atmosphere: its Paths only, next to the sky it goes with
     "atmosphere",
     "environment",
 )

@@ -6,6 +6,7 @@ code: the layer time-samples the sky and the paths when the weather varies (hour
 * :func:`longwave_sky`: broadband long-wave sky radiance against zenith (the thermal tool's sky);
 * :func:`sky_temperature`: effective broadband sky brightness temperature (the render's IR sky);
 * :func:`atmosphere_spectra`: sky spectral radiance against zenith, direct solar spectrum;
+* :func:`wavelengths`: the wavelength grid of the spectral tables and the path tables;
 * :func:`path_table`: one sensor's slant-path transmittance and radiance against range.
 """
 
@@ -160,6 +161,14 @@ def _wavelengths(prim, time):
         "expected positive, strictly ascending wavelengths [um]",
         ascending=True,
     )
+
+
+def wavelengths(stage, time=DEFAULT) -> np.ndarray | None:
+    """The wavelength grid ``humv:atmosphere:wavelengths`` [um] of /World/Atmosphere at
+    ``time`` (None when the stage has no atmosphere layer or no grid); InputError when it is
+    not positive and strictly ascending."""
+    prim = _atmosphere(stage)
+    return None if prim is None else _wavelengths(prim, time)
 
 
 def atmosphere_spectra(stage, time) -> AtmosphereSpectra:

@@ -1,0 +1,140 @@
+"""Atmosphere paths tool: one slant-path table per sensor → layers/atmosphere_paths.usda.
+
+Its own layer so that moving a sensor rebuilds the sensors layer and this one, not the sky
+(which the thermal tool reads) nor the thermal layer. Reads the upstream stage (:data:`UPSTREAM`):
+weather and sun from the environment layer (:mod:`humv_usd.usd.environment`), the wavelength grid
+from the atmosphere layer (the render pairs the tables with it, :func:`humv_usd.usd.atmosphere.path_table`),
+camera positions from the sensors layer (:func:`humv_usd.usd.sensor.camera_positions`) and the
+scene's extent from the scene layer (:func:`scene_points`; a scenario may have none).
+
+The tables come from :func:`humv_usd.atmosphere.model.atmosphere_for` (LOWTRAN7 homogeneous
+weather paths times the visibility's aerosol, or the analytic model, as the sky layer ran; the
+LOWTRAN runs come from the disk cache the sky layer filled), without the sun terms
+(``solar=False``: the paths do not depend on them, and a sensor move then costs ~0.04 s on a warm
+cache instead of ~0.5 s of importing pvlib). Under /World/Atmosphere/Paths one
+table per sensor, with ranges from 1 m to beyond the scene. When the weather varies
+(:func:`humv_usd.atmosphere.model.weather_varies`) the tables get time samples at the weather
+nodes' frames (USD interpolates them linearly) and keep the frame-0 values as their defaults.
+Clouds do not change the paths (:func:`humv_usd.atmosphere.model.with_cloud_cover`). What ran is
+recorded in the layer's customLayerData ``humv:atmospherePaths:ran``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, UsdGeom, Vt
+
+from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for
+from humv_usd.errors import InputError, bad_value
+from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import CLOCK
+from humv_usd.usd import schemas as S
+from humv_usd.usd.atmosphere import ATMOSPHERE_PATH, PATHS, summary, wavelengths
+from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.mesh import bound_corners
+from humv_usd.usd.paths import sensor_path
+from humv_usd.usd.sensor import camera_positions
+
+NAME = "atmosphere_paths"
+READS = (
+    *CLOCK,
+    "atmosphere",  # model, profile, visibility; weather_csv: its hours are the weather nodes
+    "sensor.*.id",
+    "sensor.*.wavelength_um",
+    "sensor.*.look_at_m",
+    "placement.*.position_m",
+    "placement.*.waypoints_m",
+)
+#: layers read from the upstream stage: weather and sun (environment), the wavelength grid
+#: (atmosphere), camera positions (sensors) and the scene's extent for the ranges (scene)
+UPSTREAM = ("environment", "atmosphere", "sensors", "scene")
+VERSION = "1"
+
+
+def _floats(a) -> Vt.FloatArray:
+    return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
+
+
+def scene_points(scenario: Scenario, upstream) -> np.ndarray:
+    """Points bounding what the sensors look at [m]: the corners of every scene mesh's bounding
+    box on the upstream stage (the scene layer: ground, objects, hand-made meshes), and the
+    people's placements and waypoints up to 2 m (from ``[[placement]]``: their skinned extents
+    over every frame would cost more than the range table needs)."""
+    pts = [bound_corners(upstream, SCOPES["scene"])]
+    for p in scenario["placement"]:
+        x, y, z = p["position_m"]
+        people = [(x, y, z), (x, y, z + 2.0)] + [(wx, wy, z) for wx, wy in p.get("waypoints_m") or []]
+        pts.append(np.asarray(people, dtype=float))
+    return np.vstack([np.zeros((0, 3))] + pts)
+
+
+def sensor_ranges(sensor: dict, cams: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Ranges [m] of a sensor's path table: the table's nodes up to the farthest scene point
+    (x 1.5, at least twice the look-at distance and 100 m), that range included; ``cams``
+    the camera positions per frame (n, 3) [m] of the sensors layer, ``points`` the
+    :func:`scene_points`."""
+
+    targets = np.vstack([points, np.asarray(sensor["look_at_m"], float)[None]])
+    far = max(float(np.max(np.linalg.norm(cams[:, None, :] - targets[None], axis=-1))), 1.0)
+    look = float(np.max(np.linalg.norm(cams - np.asarray(sensor["look_at_m"], float), axis=-1)))
+    r_max = min(max(1.5 * far, 2.0 * look, 100.0), float(PATH_RANGES_M[-1]))
+    return np.unique(np.append(PATH_RANGES_M[PATH_RANGES_M < r_max], r_max))
+
+
+def _check_grid(upstream, grid: np.ndarray) -> None:
+    """The tables are authored on the atmosphere layer's wavelengths (the render reads them
+    together): InputError when the stage's grid is not the one these tables are computed on."""
+    on_stage = wavelengths(upstream)
+    if on_stage is None or on_stage.size != grid.size or not np.allclose(on_stage, grid, rtol=1e-6):
+        raise InputError(
+            bad_value(
+                f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_WAVELENGTHS}",
+                None if on_stage is None else summary(on_stage),
+                f"expected the grid of the sensors' bands the path tables are computed on, {summary(grid)} "
+                "(rebuild the atmosphere layer, or edit it in a user layer without changing its wavelengths)",
+            )
+        )
+
+
+def build(scenario: Scenario, upstream) -> Sdf.Layer:
+    """The atmosphere paths layer; ``upstream``: a stage with the :data:`UPSTREAM` layers."""
+    g = scenario["general"]
+    full = atmosphere_for(scenario, upstream, solar=False)  # paths only: no sun, no pvlib
+    _check_grid(upstream, full.wavelengths_um)
+    sensors = scenario["sensor"]
+    stage = new_layer_stage(
+        g["fps"],
+        scenario.frame_count,
+        f"HumV-USD atmosphere paths layer: {full.source} slant paths of {len(sensors)} sensors",
+    )
+    stage.OverridePrim(SCOPES["atmosphere"])  # the atmosphere layer defines it
+    UsdGeom.Scope.Define(stage, PATHS)
+    nodes = [0] if full.node_times_s is None else range(full.node_times_s.size)
+    node_codes = [] if full.node_times_s is None else np.round(full.node_times_s * float(g["fps"]), 6)
+    points = scene_points(scenario, upstream)
+    for s in sensors:
+        path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
+        path.ApplyAPI(S.ATMOSPHERE_PATH_API)
+        cams = camera_positions(upstream, sensor_path(s["id"]), np.arange(max(scenario.frame_count, 1)))
+        ranges = sensor_ranges(s, cams, points)
+        path.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path(s["id"])))
+        path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
+        tau_attr = path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE)
+        rad_attr = path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE)
+        for k in nodes:  # defaults = frame 0 (node 0), plus samples at the weather nodes
+            tau, rad = full.at_node(k).path(cams[0], ranges)
+            tau, rad = _floats(np.clip(tau, 0.0, 1.0)), _floats(np.maximum(rad, 0.0))
+            if k == 0:
+                tau_attr.Set(tau)
+                rad_attr.Set(rad)
+            if len(node_codes):
+                tau_attr.Set(tau, float(node_codes[k]))
+                rad_attr.Set(rad, float(node_codes[k]))
+    ran = {
+        "model": full.source,
+        "paths": full.ran.get("paths", "no path model") + f"; tables for {len(sensors)} sensors",
+    }
+    if len(node_codes):
+        ran["paths"] += "; time samples at frames " + ", ".join(f"{c:g}" for c in node_codes)
+    stage.GetRootLayer().customLayerData = {"humv:atmospherePaths:ran": ran}
+    return finish(stage)
