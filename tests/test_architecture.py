@@ -218,6 +218,7 @@ HUMV_NAME = re.compile(r"^(primvars:)?humv:\w+:|^Humv\w*API$")
 #: must shrink to empty); module -> why it is left
 NAME_ACCESS_PENDING = {
     "humv_usd.atmosphere.layer": "atmosphere writers (h6 is changing the tool)",
+    "humv_usd.atmosphere.paths": "atmosphere path-table writers (h6 is changing the tool)",
     "humv_usd.render.export": "Mitsuba scene export reads by name (h7 is splitting it)",
 }
 
