@@ -1,6 +1,7 @@
 """Per-face label tables read from USD, and per-pixel label images from the render's ray cast.
 
-Per mesh (read once, by attribute name, instance proxies included):
+Per mesh (read once through the readers of :mod:`humv_usd.usd.labels` and :mod:`humv_usd.usd.avatar`,
+instance proxies included):
 
 - ``class``: ``humv:label:class`` of the mesh or its nearest ancestor that has one (authored,
   or the HumvLabelAPI fallback "other" where the API is applied); ids :data:`CLASSES`.
