@@ -193,3 +193,111 @@ def test_every_module_imports():
 
     for module, _, _ in _modules():
         importlib.import_module(module)
+
+
+# ---------------------------------------------------------------------------- attribute names
+#: methods that take a property or schema name (the first argument)
+NAMED_ACCESS = {
+    "GetAttribute",
+    "CreateAttribute",
+    "HasAttribute",
+    "ApplyAPI",
+    "RemoveAPI",
+    "HasAPI",
+    "GetPrimvar",
+    "CreatePrimvar",
+    "HasPrimvar",
+    "GetRelationship",
+    "CreateRelationship",
+}
+#: a HumV property name (``humv:<namespace>:<name>``, a primvar ``primvars:humv:...``, not a
+#: two-part custom-data key such as ``humv:annotators``) or API schema name
+HUMV_NAME = re.compile(r"^(primvars:)?humv:\w+:|^Humv\w*API$")
+
+#: modules outside humv_usd/usd/ that still read or write HumV attributes by name (issue 11:
+#: must shrink to empty); module -> why it is left
+NAME_ACCESS_PENDING = {
+    "humv_usd.atmosphere.layer": "atmosphere writers (h6 is changing the tool)",
+    "humv_usd.atmosphere.paths": "atmosphere path-table writers (h6 is changing the tool)",
+}
+
+
+@functools.cache
+def _humv_name_constants() -> frozenset[str]:
+    """Module-level constants in humv_usd/usd/ whose value is a HumV property or schema name."""
+    names = set()
+    for path in (ROOT / "usd").glob("*.py"):
+        for node in ast.parse(path.read_text()).body:
+            if (
+                isinstance(node, ast.Assign)
+                and isinstance(node.value, ast.Constant)
+                and isinstance(node.value.value, str)
+                and HUMV_NAME.match(node.value.value)
+            ):
+                names |= {t.id for t in node.targets if isinstance(t, ast.Name)}
+    return frozenset(names)
+
+
+def _names_a_humv_property(arg: ast.AST) -> bool:
+    """The argument is (or is built from) a HumV name: a constant of humv_usd/usd/ (``S.X``,
+    ``L.X``, ``X``), or a string literal starting with ``humv:`` / ``primvars:humv:`` / ``Humv``."""
+    constants = _humv_name_constants()
+    for node in ast.walk(arg):
+        if isinstance(node, ast.Attribute) and node.attr in constants:
+            return True
+        if isinstance(node, ast.Name) and node.id in constants:
+            return True
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and HUMV_NAME.match(node.value):
+            return True
+    return False
+
+
+def _in_fstrings(tree: ast.AST) -> set[int]:
+    """ids of the nodes inside f-strings (messages may name an attribute)."""
+    return {id(n) for f in ast.walk(tree) if isinstance(f, ast.JoinedStr) for n in ast.walk(f)}
+
+
+def _named_accesses():
+    """module -> lines where a module outside humv_usd/usd/ and cli/ knows a HumV property (or
+    API schema) name: a named access (``prim.GetAttribute(S.X)``, ``ApplyAPI("Humv...")``), any
+    use of a name constant of humv_usd/usd/ outside an f-string (a helper that takes the name,
+    ``S.X in prim.GetAppliedSchemas()``, a table of names), or a module-level constant of its own
+    built from a HumV name literal."""
+    constants = _humv_name_constants()
+    found: dict[str, set[int]] = {}
+    for module, _, tree in _modules():
+        if _package(module) in {"usd", "cli"}:
+            continue
+        messages = _in_fstrings(tree)
+        for node in ast.walk(tree):
+            access = (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Attribute)
+                and node.func.attr in NAMED_ACCESS
+                and node.args
+                and _names_a_humv_property(node.args[0])
+            )
+            constant = id(node) not in messages and (
+                (isinstance(node, ast.Attribute) and node.attr in constants)
+                or (isinstance(node, ast.Name) and node.id in constants and isinstance(node.ctx, ast.Load))
+            )
+            if access or constant:
+                found.setdefault(module, set()).add(node.lineno)
+        for node in tree.body:
+            if isinstance(node, ast.Assign) and any(
+                isinstance(n, ast.Constant) and isinstance(n.value, str) and HUMV_NAME.match(n.value)
+                for n in ast.walk(node.value)
+            ):
+                found.setdefault(module, set()).add(node.lineno)
+    return {m: sorted(lines) for m, lines in found.items()}
+
+
+def test_only_usd_knows_attribute_names():
+    """Typed readers and writers in humv_usd/usd/ are the only code that reads or writes a HumV
+    attribute (or applies a HumV API schema) by name; the command line may name them in messages.
+    NAME_ACCESS_PENDING lists what is left, and an entry that no longer applies must go."""
+    found = _named_accesses()
+    new = {m: lines for m, lines in found.items() if m not in NAME_ACCESS_PENDING}
+    assert not new, f"HumV attributes accessed by name outside humv_usd/usd/ (use a reader/writer): {new}"
+    stale = sorted(set(NAME_ACCESS_PENDING) - set(found))
+    assert not stale, f"remove from NAME_ACCESS_PENDING (no named access left): {stale}"

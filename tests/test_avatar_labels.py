@@ -28,6 +28,7 @@ from humv_usd.human.skeleton import (
     skinning_matrices,
 )
 from humv_usd.scenario import validate
+from humv_usd.usd import avatar as UA
 from humv_usd.usd.mesh import triangle_areas
 
 pytestmark = pytest.mark.skipif(
@@ -253,8 +254,8 @@ def test_layer_face_label_primvars(layer_stage):
     faces = len(UsdGeom.Mesh(body).GetFaceVertexCountsAttr().Get())
     api = UsdGeom.PrimvarsAPI(body)
     for primvar, names_attr, names in (
-        (L.BODY_REGION_PRIMVAR, L.BODY_REGION_NAMES_ATTR, L.BODY_REGION_NAMES),
-        (L.JOS3_SEGMENT_PRIMVAR, L.JOS3_SEGMENT_NAMES_ATTR, L.JOS3_SEGMENTS),
+        (UA.BODY_REGION_PRIMVAR, UA.BODY_REGION_NAMES_ATTR, L.BODY_REGION_NAMES),
+        (UA.JOS3_SEGMENT_PRIMVAR, UA.JOS3_SEGMENT_NAMES_ATTR, L.JOS3_SEGMENTS),
     ):
         pv = api.GetPrimvar(primvar.removeprefix("primvars:"))
         assert pv and pv.GetInterpolation() == UsdGeom.Tokens.uniform
@@ -268,9 +269,9 @@ def test_layer_face_label_primvars(layer_stage):
 def test_layer_keypoints_time_sampled(layer_stage):
     stage, body, skel, motion = layer_stage
     root = stage.GetPrimAtPath("/World/Humans/p1")
-    attr = root.GetAttribute(L.COCO_KEYPOINTS_ATTR)
+    attr = root.GetAttribute(UA.COCO_KEYPOINTS_ATTR)
     assert attr.GetTypeName() == "point3f[]" and attr.GetTimeSamples() == [0.0, 1.0]
-    assert list(root.GetAttribute(L.COCO_KEYPOINT_NAMES_ATTR).Get()) == list(L.COCO_KEYPOINTS)
+    assert list(root.GetAttribute(UA.COCO_KEYPOINT_NAMES_ATTR).Get()) == list(L.COCO_KEYPOINTS)
     mesh = body.body_mesh()
     idx, w = skin_weights(skel, mesh.vertex_ids)
     world = forward_kinematics(skel, motion.local_rotations, motion.root_translation)

@@ -19,6 +19,7 @@ from humv_usd.human.body import build_body
 from humv_usd.human.skeleton import skeleton_for, skin_weights
 from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.scenario.load import validate
+from humv_usd.usd import avatar as UA
 from humv_usd.usd import schemas as S
 from humv_usd.usd.avatar import read_avatar, read_body_mesh, read_joint_transforms, read_skeleton_rest
 
@@ -169,7 +170,7 @@ def test_garment_regions_follow_the_stage_labels(people):
     layer = clothing_layer.build_one(base, base["human"][0], stage, garments=GARMENTS)
     dressed = Usd.Stage.Open(layer)
     garment = dressed.GetPrimAtPath("/World/Humans/p1/Clothing/leggings")
-    regions = np.asarray(garment.GetAttribute(L.BODY_REGION_PRIMVAR).Get())
+    regions = np.asarray(garment.GetAttribute(UA.BODY_REGION_PRIMVAR).Get())
     assert len(regions) > 100 and set(regions.tolist()) == {thigh}
 
 

@@ -22,6 +22,7 @@ from humv_usd.groundtruth import keypoints as K
 from humv_usd.groundtruth import labels as GL
 from humv_usd.human import labels as AL
 from humv_usd.pipeline.render import render_stage
+from humv_usd.usd import avatar as UA
 
 W, H = 64, 48
 
@@ -142,7 +143,7 @@ def scene_render(tmp_path_factory):
     kps[AL.COCO_KEYPOINTS.index("left_knee")] = (-0.4, -0.40, -0.3)  # behind the wall
     kps[AL.COCO_KEYPOINTS.index("right_ankle")] = (30.0, 0.0, 0.0)  # outside the image
     kps[AL.COCO_KEYPOINTS.index("nose")] = (0.3, 0.55, 0.0)  # on the far side
-    kp_root.GetPrim().CreateAttribute(AL.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray).Set(
+    kp_root.GetPrim().CreateAttribute(UA.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray).Set(
         Vt.Vec3fArray.FromNumpy(kps.astype(np.float32)), 0
     )
     camera(stage, "cam", EYE, TARGET)

@@ -125,3 +125,23 @@ def test_face_temperatures_are_required_only_for_infrared_sensors():
     assert np.isnan(export.frame_state(0, []).temperatures["/World/Scene/P"]).all()
     with pytest.raises(InputError, match=r"/World/Scene/P\.primvars:humv:thermal:temperature"):
         export.frame_state(0, export.sensors)
+
+
+def test_sky_temperature_out_of_range_names_the_attribute():
+    stage = _stage()
+    stage.GetPrimAtPath("/World/Atmosphere").GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(6000.0)
+    _camera(stage, "/World/Sensors/lwir")
+    export = StageExport(stage)
+    assert np.isnan(export.frame_state(0, []).sky_temperature_k)  # EO only: not read
+    with pytest.raises(InputError, match=r"/World/Atmosphere\.humv:atmosphere:skyTemperature.*1-5000 K"):
+        export.frame_state(0, export.sensors)
+
+
+@pytest.mark.parametrize("bad", [-1, 2**24])
+def test_instance_id_out_of_range_names_the_prim_that_carries_it(bad):
+    stage = _stage()
+    group = UsdGeom.Xform.Define(stage, "/World/Scene/G").GetPrim()
+    group.CreateAttribute(S.LABEL_INSTANCE_ID, Sdf.ValueTypeNames.Int).Set(bad)
+    _plate(stage, "/World/Scene/G/P", SQUARE, [4], [0, 1, 2, 3], _material(stage, "a", 0.9))
+    with pytest.raises(InputError, match=r"/World/Scene/G\.humv:label:instanceId.*0\.\.16777215"):
+        StageExport(stage).frame_state(0, [])

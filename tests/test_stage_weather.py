@@ -23,7 +23,6 @@ from humv_usd.environment.weather import weather_at
 from humv_usd.materials import layer as materials_layer
 from humv_usd.physics.sky import hemispherical_irradiance
 from humv_usd.pipeline.compose import compose_in_memory
-from humv_usd.render.frame import sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.scene import layer as scene_layer
 from humv_usd.sensors import layer as sensors_layer
@@ -31,7 +30,7 @@ from humv_usd.thermal import layer as thermal_layer
 from humv_usd.thermal.surfaces import forcing_at, with_sky_table
 from humv_usd.usd import environment as E
 from humv_usd.usd import schemas as S
-from humv_usd.usd.atmosphere import longwave_sky
+from humv_usd.usd.atmosphere import longwave_sky, sky_temperature
 
 FPS = 0.01  # 100 s per frame
 SPIN_S = 3600.0

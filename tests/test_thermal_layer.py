@@ -12,6 +12,7 @@ from pxr import Sdf, Usd, UsdGeom
 from humv_usd.human import labels as L
 from humv_usd.pipeline.compose import compose
 from humv_usd.scenario import validate
+from humv_usd.usd import avatar as UA
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import check_stage
 
@@ -56,7 +57,7 @@ def test_jos3_skin_and_garments(jos3_stage):
     assert body.GetAttribute(S.THERMAL_MODEL).Get() == "jos3"
     skin = temperatures(stage, "/World/Humans/p1/Body")
     assert np.all((skin > air - 5.0) & (skin < 310.0))
-    seg = L.jos3_segments(np.asarray(body.GetAttribute(L.BODY_REGION_PRIMVAR).Get()))
+    seg = L.jos3_segments(np.asarray(body.GetAttribute(UA.BODY_REGION_PRIMVAR).Get()))
     names = list(L.JOS3_SEGMENTS)
     # a person standing in shorts at 16 degC: hands and feet colder than the chest and head
     by = {n: skin[seg == names.index(n)].mean() for n in ("Head", "Chest", "LHand", "RFoot")}

@@ -22,7 +22,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from pxr import Gf, Sdf, UsdGeom, Vt
+from pxr import Gf, Sdf, UsdGeom
 
 from humv_usd.human import labels as L
 from humv_usd.human import usdskel
@@ -41,7 +41,13 @@ from humv_usd.human.skeleton import (
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.usd import schemas as S
+from humv_usd.usd.avatar import (
+    AvatarParameters,
+    write_avatar,
+    write_body_labels,
+    write_keypoints,
+    write_metabolic_rate,
+)
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, skeleton_path
@@ -144,12 +150,7 @@ def _motion_attributes(prim, motion) -> None:
     """Metabolic-rate schedule per frame and the clip's ground-contact report."""
     rate = getattr(motion, "metabolic_rate_w", None)
     if rate is not None:
-        attr = prim.GetAttribute(S.AVATAR_METABOLIC_RATE)
-        if len(rate) == 1 or np.allclose(rate, rate[0]):
-            attr.Set(float(rate[0]))
-        else:
-            for frame, value in enumerate(rate):
-                attr.Set(float(value), frame)
+        write_metabolic_rate(prim, rate)
     contact = getattr(motion, "contact", None) or {}
     report = {
         k: round(float(contact[k]), 5)
@@ -161,18 +162,17 @@ def _motion_attributes(prim, motion) -> None:
 
 
 def _avatar_attributes(prim, human: dict, body: Body) -> None:
-    prim.ApplyAPI(S.AVATAR_API)
-    for attr, value in (
-        (S.AVATAR_SEX, human["sex"]),
-        (S.AVATAR_AGE, human["age_yr"]),
-        (S.AVATAR_STATURE, human["stature_m"]),
-        (S.AVATAR_MASS, human["mass_kg"]),
-        (S.AVATAR_BUILD, float(body.build)),  # the muscle value: the clothing tool rebuilds the body
-        (S.AVATAR_FITNESS, human["fitness"]),
-        (S.AVATAR_ACTIVITY, human["activity"]),
-        (S.AVATAR_BODY_SURFACE_AREA, round(body.body_surface_area_m2, 4)),
-    ):
-        prim.GetAttribute(attr).Set(value)
+    person = AvatarParameters(
+        human_id=human["id"],
+        sex=human["sex"],
+        age_yr=human["age_yr"],
+        stature_m=human["stature_m"],
+        mass_kg=human["mass_kg"],
+        build=float(body.build),  # the muscle value: the clothing tool rebuilds the body
+        fitness=human["fitness"],
+        activity=human["activity"],
+    )
+    write_avatar(prim, person, round(body.body_surface_area_m2, 4))
     # how the request was met: measured values and the macro/scale fit (for reports and QA)
     prim.SetCustomDataByKey(
         "humv:fit",
@@ -218,45 +218,15 @@ def author_rig(stage, human_id: str, body: Body, motion=None) -> None:
     surface = L.coco_surface_vertices()
     ids = np.array([surface[n] for n in L.COCO_SURFACE])
     sub = {n: k for k, n in enumerate(L.COCO_SURFACE)}
-    root = stage.GetPrimAtPath(human_path(human_id))
-    kp_attr = root.CreateAttribute(L.COCO_KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray, custom=True)
+    keypoints = np.empty((pose.frame_count, len(L.COCO_KEYPOINTS), 3), dtype=np.float32)
     for f in range(pose.frame_count):
         posed = linear_blend_skinning(mesh.points[ids], indices[ids], weights[ids], skin[f])
-        kp = L.coco_keypoints(skeleton, world[f], posed, vertex_ids=sub)
-        kp_attr.Set(Vt.Vec3fArray.FromNumpy(kp.astype(np.float32)), f)
-    root.CreateAttribute(L.COCO_KEYPOINT_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
-        Vt.TokenArray(list(L.COCO_KEYPOINTS))
-    )
+        keypoints[f] = L.coco_keypoints(skeleton, world[f], posed, vertex_ids=sub)
+    write_keypoints(stage.GetPrimAtPath(human_path(human_id)), keypoints, L.COCO_KEYPOINTS)
 
 
 def author_face_labels(mesh_prim, mesh, skeleton, indices, weights) -> None:
     """Body-region and JOS-3 segment per face (uniform int primvars) with their name tables."""
     regions = L.body_regions(mesh, skeleton, indices, weights)
     segments = L.jos3_segments(regions)
-    primvars = UsdGeom.PrimvarsAPI(mesh_prim)
-    for primvar_name, values, names_attr, names, doc in (
-        (
-            L.BODY_REGION_PRIMVAR,
-            regions,
-            L.BODY_REGION_NAMES_ATTR,
-            L.BODY_REGION_NAMES,
-            "body region id per face (names in humv:label:bodyRegionNames, index = id; 0 = not the body)",
-        ),
-        (
-            L.JOS3_SEGMENT_PRIMVAR,
-            segments,
-            L.JOS3_SEGMENT_NAMES_ATTR,
-            L.JOS3_SEGMENTS,
-            "JOS-3 segment per face: 0-based index into JOS-3's 17 segments "
-            "(names in humv:label:jos3SegmentNames)",
-        ),
-    ):
-        pv = primvars.CreatePrimvar(
-            primvar_name.removeprefix("primvars:"), Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
-        )
-        pv.Set(Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))
-        pv.GetAttr().SetDocumentation(doc)
-        pv.GetAttr().SetCustomDataByKey("humv:names", Vt.StringArray(list(names)))
-        mesh_prim.CreateAttribute(names_attr, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
-            Vt.TokenArray(list(names))
-        )
+    write_body_labels(mesh_prim, regions, L.BODY_REGION_NAMES, segments, L.JOS3_SEGMENTS)

@@ -30,7 +30,7 @@ from humv_usd.thermal.surfaces import (
     surface_temperatures,
     with_sky_table,
 )
-from humv_usd.usd import schemas as S
+from humv_usd.usd.avatar import read_garment
 from humv_usd.usd.paths import human_path
 
 
@@ -88,10 +88,7 @@ def avatar_case(scenario, stage_path: str | Path) -> dict:
     parts = [H._part(stage, f"{hp}/Body", None)]
     clothing = stage.GetPrimAtPath(f"{hp}/Clothing")
     if clothing:
-        parts += [
-            H._part(stage, str(c.GetPath()), c.GetAttribute(S.CLOTHING_GARMENT).Get())
-            for c in clothing.GetChildren()
-        ]
+        parts += [H._part(stage, str(c.GetPath()), read_garment(c)) for c in clothing.GetChildren()]
     pts = [skinned_points(stage, p.path, Usd.TimeCode(0), space="world") for p in parts]
     absorb = np.concatenate(
         [np.repeat(p.absorptivity()[:, None], len(p.triangles), axis=1) for p in parts], axis=1

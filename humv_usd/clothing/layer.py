@@ -67,10 +67,9 @@ from humv_usd.human.skeleton import Skeleton, skinning_matrices
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.usd import schemas as S
-from humv_usd.usd.avatar import read_joint_transforms
+from humv_usd.usd.avatar import read_joint_transforms, write_air_gap, write_garment, write_garment_regions
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
-from humv_usd.usd.mesh import define_mesh, label
+from humv_usd.usd.mesh import define_mesh, label, write_class
 from humv_usd.usd.paths import clothing_path, human_path, material_path, props_path, skeleton_path
 
 #: Scenario values read: frame count and fps, the person's own entry (its ``clothing`` list) and
@@ -188,35 +187,17 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
     # an open shell: seen through sleeves, collars and hems, its inside must render too
     mesh.GetDoubleSidedAttr().Set(True)
     prim = mesh.GetPrim()
-    prim.ApplyAPI(S.CLOTHING_API)
-    prim.GetAttribute(S.CLOTHING_GARMENT).Set(g.name)
-    prim.GetAttribute(S.CLOTHING_EASE).Set(float(g.ease))
-    prim.GetAttribute(S.CLOTHING_MINIMUM_GAP).Set(float(g.minimum_gap))
-    gap = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
-        S.AIR_GAP_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
-    )
-    points = mesh.GetPointsAttr()
-    if static:
-        gap.Set(Vt.FloatArray.FromNumpy(anim.air_gap[0].astype(np.float32)))
-    else:
+    write_garment(prim, g.name, g.ease, g.minimum_gap)
+    write_air_gap(prim, anim.air_gap[:1] if static else anim.air_gap[:frames], time_sampled=not static)
+    if not static:
+        points = mesh.GetPointsAttr()
         for f in range(frames):
-            time = Usd.TimeCode(f)
-            points.Set(Vt.Vec3fArray.FromNumpy(anim.rest[f].astype(np.float32)), time)
-            gap.Set(Vt.FloatArray.FromNumpy(anim.air_gap[f].astype(np.float32)), time)
+            points.Set(Vt.Vec3fArray.FromNumpy(anim.rest[f].astype(np.float32)), Usd.TimeCode(f))
         lo = anim.rest.min(axis=(0, 1))
         hi = anim.rest.max(axis=(0, 1))
         mesh.GetExtentAttr().Set(Vt.Vec3fArray.FromNumpy(np.array([lo, hi], dtype=np.float32)))
     usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
-    regions = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
-        L.BODY_REGION_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform
-    )
-    regions.Set(Vt.IntArray.FromNumpy(fitted.face_regions.astype(np.int32)))
-    regions.GetAttr().SetDocumentation(
-        "body region under each garment face (ids as the Body's humv:label:bodyRegionNames)"
-    )
-    prim.CreateAttribute(L.BODY_REGION_NAMES_ATTR, Sdf.ValueTypeNames.TokenArray, custom=True).Set(
-        Vt.TokenArray(list(L.BODY_REGION_NAMES))
-    )
+    write_garment_regions(prim, fitted.face_regions, L.BODY_REGION_NAMES)
     c = anim.counts
     prim.SetCustomDataByKey(
         "humv:clothing:fix",
@@ -261,7 +242,7 @@ def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None)
     prim = mesh.GetPrim()
     usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
     if instance_id is None:
-        prim.CreateAttribute(S.LABEL_CLASS, Sdf.ValueTypeNames.Token, custom=True).Set("prop")
+        write_class(prim, "prop")
     else:
         label(prim, instance_id, "prop")
     c = anim.counts

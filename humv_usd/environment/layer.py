@@ -17,7 +17,7 @@ render) see the same values as without these samples.
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, UsdGeom
+from pxr import Sdf
 
 from humv_usd.environment.sun import sun_at
 from humv_usd.environment.weather import weather_at
@@ -27,8 +27,7 @@ from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import frame_epoch_s, frame_times, local_start_iso, spin_up_times
 from humv_usd.scenario.weather_csv import read_weather_csv
 from humv_usd.usd import environment as E
-from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.layers import finish, new_layer_stage
 
 NAME = "environment"
 READS = (
@@ -72,8 +71,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             seed=g["seed"],
         ),
     )
-    env = UsdGeom.Scope.Define(stage, SCOPES["environment"]).GetPrim()
-    env.ApplyAPI(S.ENVIRONMENT_API)
+    env = E.define_environment(stage)
 
     frames_t = frame_times(scenario)
     spin_t = spin_up_times(scenario)

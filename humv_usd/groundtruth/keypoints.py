@@ -25,6 +25,7 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from humv_usd.human import labels as AL
+from humv_usd.usd.avatar import has_keypoints, read_keypoints
 
 _L, _R = "left", "right"
 
@@ -98,20 +99,14 @@ _TOL = np.array([KEYPOINT_TOLERANCE_M[k] for k in AL.COCO_KEYPOINTS])
 def find_keypoint_prims(stage: Usd.Stage) -> list[Usd.Prim]:
     """Prims carrying ``humv:label:cocoKeypoints`` (the persons' SkelRoots)."""
     pred = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
-    return [
-        p
-        for p in stage.Traverse(pred)
-        if p.GetAttribute(AL.COCO_KEYPOINTS_ATTR).IsValid()
-        and p.GetAttribute(AL.COCO_KEYPOINTS_ATTR).HasValue()
-    ]
+    return [p for p in stage.Traverse(pred) if has_keypoints(p)]
 
 
 def world_keypoints(prim: Usd.Prim, frame: int, cache: UsdGeom.XformCache) -> np.ndarray | None:
     """(17, 3) world keypoints [m] of a person at ``frame`` (None if not 17 finite points)."""
-    value = prim.GetAttribute(AL.COCO_KEYPOINTS_ATTR).Get(Usd.TimeCode(frame))
-    if value is None:
+    pts = read_keypoints(prim, frame)
+    if pts is None:
         return None
-    pts = np.asarray(value, dtype=float).reshape(-1, 3)
     if pts.shape[0] != len(AL.COCO_KEYPOINTS) or not np.all(np.isfinite(pts)):
         return None
     m = np.array(cache.GetLocalToWorldTransform(prim), dtype=float)  # row-vector convention

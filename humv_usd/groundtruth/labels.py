@@ -1,6 +1,7 @@
 """Per-face label tables read from USD, and per-pixel label images from the render's ray cast.
 
-Per mesh (read once, by attribute name, instance proxies included):
+Per mesh (read once through the readers of :mod:`humv_usd.usd.labels` and :mod:`humv_usd.usd.avatar`,
+instance proxies included):
 
 - ``class``: ``humv:label:class`` of the mesh or its nearest ancestor that has one (authored,
   or the HumvLabelAPI fallback "other" where the API is applied); ids :data:`CLASSES`.
@@ -23,11 +24,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Usd, UsdGeom
+from pxr import Usd
 
 from humv_usd.errors import InputError, bad_value
 from humv_usd.human import labels as AL
-from humv_usd.usd import schemas as S
+from humv_usd.usd.avatar import is_garment
+from humv_usd.usd.labels import class_attribute, nearest_class, nearest_instance_id, read_face_label
 
 #: Class ids (index = id): 0 background, then the HumvLabelAPI tokens in the schema's order.
 CLASSES: tuple[str, ...] = (
@@ -69,71 +71,32 @@ class ObjectInfo:
     class_name: str
 
 
-def _label_api(prim) -> bool:
-    return S.LABEL_API in prim.GetAppliedSchemas()
-
-
-def _nearest(prim: Usd.Prim, name: str, api_fallback: bool):
-    p = prim
-    while p and p.IsValid() and not p.IsPseudoRoot():
-        attr = p.GetAttribute(name)
-        if attr and (attr.HasAuthoredValue() or (api_fallback and _label_api(p) and attr.Get() is not None)):
-            return p, attr.Get()
-        p = p.GetParent()
-    return None, None
-
-
 def class_of(prim: Usd.Prim) -> str:
     """The class token of ``prim`` or its nearest ancestor with one ("other" when none)."""
-    where, value = _nearest(prim, S.LABEL_CLASS, api_fallback=True)
+    where, value = nearest_class(prim)
     if where is None:
         return "other"
-    value = str(value)
     if value not in CLASS_ID:
         raise InputError(
-            bad_value(
-                f"{where.GetPath()}.{S.LABEL_CLASS}", value, "expected one of " + ", ".join(CLASSES[1:])
-            )
+            bad_value(class_attribute(where), value, "expected one of " + ", ".join(CLASSES[1:]))
         )
     return value
 
 
 def object_info(prim: Usd.Prim) -> ObjectInfo:
     """The object (instance) a mesh belongs to: id, the prim carrying it, and its class."""
-    where, value = _nearest(prim, S.LABEL_INSTANCE_ID, api_fallback=False)
+    where, value = nearest_instance_id(prim)
     if where is None:
         return ObjectInfo(0, "", "background")
-    return ObjectInfo(int(value), str(where.GetPath()), class_of(where))
-
-
-def _face_ints(prim: Usd.Prim, name: str, faces: int, lo: int, hi: int) -> np.ndarray | None:
-    attr = prim.GetAttribute(name)
-    if not attr or not attr.HasValue():
-        return None
-    primvar = UsdGeom.Primvar(attr)
-    values = primvar.ComputeFlattened() if primvar else attr.Get()
-    a = np.asarray(values if values is not None else [], dtype=np.int64).ravel()
-    where = f"{prim.GetPath()}.{name}"
-    if a.size != faces:
-        raise InputError(
-            bad_value(
-                where, f"<{a.size} values>", f"expected {faces} values (one per authored face, uniform)"
-            )
-        )
-    if a.size and (a.min() < lo or a.max() > hi):
-        raise InputError(bad_value(where, f"<range {a.min()}..{a.max()}>", f"expected ids in {lo}..{hi}"))
-    return a.astype(np.int32)
+    return ObjectInfo(value, str(where.GetPath()), class_of(where))
 
 
 def mesh_labels(prim: Usd.Prim, face_count: int) -> MeshLabels:
     """Class, material kind, and per-face region and JOS-3 segment of one mesh (see module doc)."""
     cls = class_of(prim)
-    region = _face_ints(prim, AL.BODY_REGION_PRIMVAR, face_count, 0, len(AL.BODY_REGIONS))
-    segment = _face_ints(prim, AL.JOS3_SEGMENT_PRIMVAR, face_count, 0, len(AL.JOS3_SEGMENTS) - 1)
-    garment = S.CLOTHING_API in prim.GetAppliedSchemas() or bool(
-        prim.GetAttribute(S.CLOTHING_GARMENT) and prim.GetAttribute(S.CLOTHING_GARMENT).HasAuthoredValue()
-    )
-    if garment:
+    region = read_face_label(prim, "body_region", face_count, 0, len(AL.BODY_REGIONS))
+    segment = read_face_label(prim, "jos3_segment", face_count, 0, len(AL.JOS3_SEGMENTS) - 1)
+    if is_garment(prim):
         kind = "garment"
     elif region is not None:
         kind = "skin"

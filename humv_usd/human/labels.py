@@ -49,7 +49,6 @@ from humv_usd.assets import makehuman_dir
 from humv_usd.human.body import to_usd
 from humv_usd.human.macro import obj_data, parse_target
 from humv_usd.human.skeleton import Skeleton
-from humv_usd.usd import avatar as stage_names
 
 # ---------------------------------------------------------------------------- id tables
 #: Body region ids (1-based; 0 = not the body) and names (USD tokens).
@@ -196,14 +195,6 @@ COCO_JOINTS = {
     "right_ankle": "RightFoot",
 }
 COCO_SURFACE = ("nose", "left_eye", "right_eye", "left_ear", "right_ear")
-
-# --- attribute names (authored by humv_usd.avatar.layer; defined with the readers) -----------
-BODY_REGION_PRIMVAR = stage_names.BODY_REGION_PRIMVAR
-BODY_REGION_NAMES_ATTR = stage_names.BODY_REGION_NAMES_ATTR
-JOS3_SEGMENT_PRIMVAR = stage_names.JOS3_SEGMENT_PRIMVAR
-JOS3_SEGMENT_NAMES_ATTR = stage_names.JOS3_SEGMENT_NAMES_ATTR
-COCO_KEYPOINTS_ATTR = stage_names.COCO_KEYPOINTS_ATTR
-COCO_KEYPOINT_NAMES_ATTR = stage_names.COCO_KEYPOINT_NAMES_ATTR
 
 # joint name -> coarse class for the dominant-joint rule
 _TRUNK = {"Hips", "LHipJoint", "RHipJoint", "LowerBack", "Spine", "Spine1", "LeftShoulder", "RightShoulder"}

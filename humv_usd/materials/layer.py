@@ -4,15 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pxr import Gf, Sdf, UsdShade, Vt
+from pxr import Sdf, UsdShade
 
 from humv_usd.catalog.garments import fabrics
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import finish, library_layer_main, new_layer_stage
-from humv_usd.usd.materials import SUBSTRATE_RELATIONSHIP
+from humv_usd.usd.materials import write_material, write_substrate
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
@@ -49,35 +48,7 @@ def author_material(stage, name: str) -> UsdShade.Material:
     """Define /World/Materials/<name> from the library: HumvMaterialAPI spectra (the material's
     own wavelength grid; transmittance only for materials one can see through) and thermal data,
     plus a UsdPreviewSurface for DCC viewports."""
-    m = LIBRARY[name]
-    mat = UsdShade.Material.Define(stage, material_path(name))
-    prim = mat.GetPrim()
-    prim.ApplyAPI(S.MATERIAL_API)
-    prim.GetAttribute(S.MATERIAL_WAVELENGTHS).Set(Vt.FloatArray(m.spectrum_wavelengths))
-    prim.GetAttribute(S.MATERIAL_EMISSIVITY).Set(Vt.FloatArray(m.spectrum_emissivity))
-    prim.GetAttribute(S.MATERIAL_REFLECTANCE).Set(Vt.FloatArray(m.spectrum_reflectance))
-    if not m.opaque:
-        prim.GetAttribute(S.MATERIAL_TRANSMITTANCE).Set(Vt.FloatArray(m.spectrum_transmittance))
-    for attr, value in (
-        (S.MATERIAL_CONDUCTIVITY, m.conductivity),
-        (S.MATERIAL_DENSITY, m.density),
-        (S.MATERIAL_SPECIFIC_HEAT, m.specific_heat),
-        (S.MATERIAL_THICKNESS, m.thickness),
-        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.solar_absorptivity),
-        (S.MATERIAL_SOURCE, m.source),
-    ):
-        prim.GetAttribute(attr).Set(value)
-    # A UsdPreviewSurface so DCC tools (Blender, usdview) show a sensible colour.
-    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
-    shader.CreateIdAttr("UsdPreviewSurface")
-    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*m.display_color))
-    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.9)
-    if not m.opaque:  # glass: see-through in viewports
-        visible = float(m.at([0.45, 0.55, 0.65], "transmittance").mean())
-        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(round(1.0 - visible, 6))
-        shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.05)
-    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
-    return mat
+    return write_material(stage, material_path(name), LIBRARY[name])
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -91,9 +62,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         # the thermal tool's ground construction continues below the ground material with
         # this substrate, read from the stage like every other material property
         ground = stage.GetPrimAtPath(material_path(scenario["scene"]["ground"]["material"]))
-        ground.CreateRelationship(SUBSTRATE_RELATIONSHIP, custom=True).SetTargets(
-            [material_path(GROUND_SUBSTRATE)]
-        )
+        write_substrate(ground, material_path(GROUND_SUBSTRATE))
     return finish(stage)
 
 

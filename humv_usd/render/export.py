@@ -8,6 +8,13 @@ band starting below 3 um, or the token ``EO``, is an EO sensor, rendered by
 meshes visible at the frame with their world points and face temperatures, the sensors' camera
 poses (:func:`humv_usd.usd.sensor.read_camera_pose`) and the sky temperature.
 
+Per frame it reads: the meshes' visibility and world points (``SceneMeshes.world_points``), their
+face temperatures (:func:`humv_usd.usd.thermal.read_face_temperatures`: uniform or constant
+``primvars:humv:thermal:temperature``, checked by
+:func:`humv_usd.usd.thermal.check_temperatures`) and the sky brightness temperature
+(:func:`humv_usd.usd.atmosphere.sky_temperature`). Both temperatures are required only when an
+infrared sensor is rendered.
+
 Attributes are read by name (through :mod:`humv_usd.usd` readers and schema constants), so the
 render works whether or not the Humv API schemas are applied or registered. Atmosphere and
 environment data (spectral tables, sun, path tables) are read by the callers directly from
@@ -20,9 +27,11 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from humv_usd.physics.sensor import SensorModel
-from humv_usd.render.frame import FrameState, face_temperatures, has_temperatures, sky_temperature
+from humv_usd.render.frame import FrameState
 from humv_usd.render.scene_export import SceneMeshes
+from humv_usd.usd.atmosphere import sky_temperature
 from humv_usd.usd.sensor import read_camera_pose, stage_sensors
+from humv_usd.usd.thermal import has_face_temperatures, read_face_temperatures
 
 
 class StageExport:
@@ -54,8 +63,8 @@ class StageExport:
             state.meshes.append(info)
             state.points[info.path] = world
             state.flip[info.path] = flip
-            if infrared or has_temperatures(prim):
-                state.temperatures[info.path] = face_temperatures(prim, info, time)
+            if infrared or has_face_temperatures(prim):
+                state.temperatures[info.path] = read_face_temperatures(prim, info.face_count, time)
             else:
                 state.temperatures[info.path] = np.full(info.face_count, np.nan)
         for sensor in sensors:

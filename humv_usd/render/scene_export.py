@@ -11,7 +11,8 @@ What is read
   authored-face map, one :class:`Part` per bound material (``GeomSubset`` material bindings
   first, the rest on the mesh's own binding; materials through
   :func:`humv_usd.usd.materials.read_material`, the reader the thermal tool uses too),
-  ``humv:label:instanceId`` of the mesh or its nearest ancestor, ``orientation`` and
+  ``humv:label:instanceId`` of the mesh or its nearest ancestor
+  (:func:`humv_usd.usd.labels.instance_id`), ``orientation`` and
   ``doubleSided``;
 - per mesh and frame: world points [m] (``UsdGeom.XformCache``) and whether the winding flips
   (a mirroring transform or a leftHanded mesh). A doubleSided mesh (garments, open shells) gets
@@ -38,14 +39,12 @@ from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.mesh import fan_triangulate
-from humv_usd.usd import schemas as S
+from humv_usd.usd.labels import instance_id
 from humv_usd.usd.materials import StageMaterial, bound_material, read_material
 
 #: A material as the render reads it (:func:`humv_usd.usd.materials.read_material`).
 Material = StageMaterial
 
-#: Largest instance id (stored exactly in a float32 face attribute).
-MAX_INSTANCE_ID = 2**24 - 1
 #: Distance of the back-side copy of a doubleSided mesh behind its front [m]: far above float32
 #: resolution at scene scale (~2e-6 m at 20 m), far below garment air gaps (>= 2 mm).
 BACK_SIDE_OFFSET_M = 1e-4
@@ -92,27 +91,6 @@ def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
         np.add.at(n, triangles[:, k], face_n)
     length = np.linalg.norm(n, axis=1, keepdims=True)
     return n / np.where(length > 0, length, 1.0)
-
-
-def instance_id(prim: Usd.Prim) -> int:
-    """``humv:label:instanceId`` of ``prim`` or its nearest ancestor that has one authored
-    (0, the background, when none); InputError when it is not an integer in 0..MAX_INSTANCE_ID."""
-    p = prim
-    while p and p.IsValid() and not p.IsPseudoRoot():
-        attr = p.GetAttribute(S.LABEL_INSTANCE_ID)
-        if attr and attr.HasAuthoredValue():
-            value = attr.Get()
-            if value is None or not (0 <= int(value) <= MAX_INSTANCE_ID) or int(value) != value:
-                raise InputError(
-                    bad_value(
-                        f"{p.GetPath()}.{S.LABEL_INSTANCE_ID}",
-                        value,
-                        f"expected an integer in 0..{MAX_INSTANCE_ID}",
-                    )
-                )
-            return int(value)
-        p = p.GetParent()
-    return 0
 
 
 def _get(attr, time):

@@ -12,14 +12,14 @@ import datetime as _dt
 from pathlib import Path
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom
 
 from humv_usd.catalog.sensors import PRESETS, netd_for_f_number, orbit_positions, preset
 from humv_usd.scenario import Scenario, validate
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, look_at_matrix, new_layer_stage
 from humv_usd.usd.paths import sensor_path
+from humv_usd.usd.sensor import write_sensor
 
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
@@ -109,41 +109,32 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         cam.CreateVerticalApertureAttr(height * pitch_mm * _MM_TO_TENTHS_OF_M)
         cam.CreateFStopAttr(s["f_number"])
         cam.CreateClippingRangeAttr(Gf.Vec2f(0.05, 1.0e5))
-        prim = cam.GetPrim()
-        prim.ApplyAPI(S.SENSOR_API)
         netd, netd_note = netd_of(s)
-        values = [
-            (S.SENSOR_BAND, s["band"]),
-            (S.SENSOR_WAVELENGTH_RANGE, Gf.Vec2f(*s["wavelength_um"])),
-            (S.SENSOR_RESOLUTION, Gf.Vec2i(width, height)),
-            (S.SENSOR_PIXEL_PITCH, s["pixel_pitch_um"] * 1e-6),
-            (S.SENSOR_F_NUMBER, s["f_number"]),
-            (S.SENSOR_NETD, netd),
-            (S.SENSOR_BIT_DEPTH, s["bit_depth"]),
-            (S.SENSOR_OFFSET, s["offset"]),
-            (S.SENSOR_PRESET, s.get("preset") or ""),
-            (S.SENSOR_PLATFORM, s["platform"]),
-            (S.SENSOR_AGC, s["agc"]),
-            (S.SENSOR_AGC_PERCENTILES, Gf.Vec2f(*s["agc_percentiles"])),
-        ]
-        if s["gain"] is not None:  # EO presets: no gain = auto exposure
-            values.append((S.SENSOR_GAIN, s["gain"]))
-        if s["band"] != "EO":  # the render's sub-band count (--subbands overrides)
-            values.append((S.SENSOR_SUBBANDS, s["subbands"]))
-        if s["band"] == "EO":
-            values += [(S.SENSOR_FULL_WELL, s["full_well_e"]), (S.SENSOR_READ_NOISE, s["read_noise_e"])]
         wl, response, channels = _response(s)
-        if wl is not None:
-            values += [
-                (S.SENSOR_RESPONSE_WAVELENGTHS, Vt.FloatArray(wl.tolist())),
-                (S.SENSOR_RESPONSE, Vt.FloatArray(response.tolist())),
-            ]
-            if channels is not None:
-                values.append((S.SENSOR_CHANNEL_RESPONSE, Vt.FloatArray(channels.ravel().tolist())))
-        for attr, value in values:
-            prim.GetAttribute(attr).Set(value)
-        if netd_note:
-            prim.GetAttribute(S.SENSOR_NETD).SetCustomDataByKey("humv:netdScaling", netd_note)
+        eo = s["band"] == "EO"
+        write_sensor(
+            cam.GetPrim(),
+            band=s["band"],
+            wavelength_range_um=s["wavelength_um"],
+            resolution=(width, height),
+            pixel_pitch_m=s["pixel_pitch_um"] * 1e-6,
+            f_number=s["f_number"],
+            netd_k=netd,
+            netd_note=netd_note,
+            bit_depth=s["bit_depth"],
+            offset=s["offset"],
+            preset=s.get("preset") or "",
+            platform=s["platform"],
+            agc=s["agc"],
+            agc_percentiles=s["agc_percentiles"],
+            gain=s["gain"],  # EO presets: no gain = auto exposure
+            subbands=None if eo else s["subbands"],  # the render's sub-band count (--subbands overrides)
+            full_well_e=s["full_well_e"] if eo else None,
+            read_noise_e=s["read_noise_e"] if eo else None,
+            response_wavelengths_um=wl,
+            response=response,
+            channel_response=channels,
+        )
     return finish(stage)
 
 

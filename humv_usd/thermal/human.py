@@ -41,7 +41,7 @@ from humv_usd.thermal import qrad as Q
 from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
 from humv_usd.thermal.sky import ClearSky
-from humv_usd.usd import schemas as S
+from humv_usd.usd.avatar import read_air_gap, read_body_regions, read_garment, read_metabolic_rate
 from humv_usd.usd.materials import StageMaterial, band_emissivity, mesh_material
 
 #: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
@@ -108,7 +108,7 @@ def _part(stage: Usd.Stage, path: str, garment: str | None) -> _Part:
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
     tris, tri_face = fan_triangulate(counts, indices)
-    region = np.asarray(prim.GetAttribute(L.BODY_REGION_PRIMVAR).Get(), dtype=np.int64)
+    region = read_body_regions(prim)
     material = mesh_material(prim)
     return _Part(path, counts, indices, tris, tri_face, region, L.jos3_segments(region), material, garment)
 
@@ -228,8 +228,7 @@ def human_temperatures(
     clothing = stage.GetPrimAtPath(f"{human_path}/Clothing")
     if clothing:
         for child in clothing.GetChildren():
-            name = child.GetAttribute(S.CLOTHING_GARMENT).Get()
-            garments.append(_part(stage, str(child.GetPath()), name))
+            garments.append(_part(stage, str(child.GetPath()), read_garment(child)))
     parts = [body, *garments]
     diagnostics: dict = {}
     skin_guess = scenario["thermal"]["skin_temperature_k"]
@@ -306,9 +305,7 @@ def human_temperatures(
     mrt_frames = np.where(np.isnan(mrt[nearest]), air[:, None], mrt[nearest])
 
     # physiology over the frames
-    root = stage.GetPrimAtPath(human_path)
-    rate_attr = root.GetAttribute(S.AVATAR_METABOLIC_RATE)
-    rate = np.array([rate_attr.Get(Usd.TimeCode(f)) or 100.0 for f in range(frames)])
+    rate = read_metabolic_rate(stage.GetPrimAtPath(human_path), frames)
     times = np.arange(frames) / fps
     result = simulate_physiology(
         times,
@@ -339,11 +336,11 @@ def human_temperatures(
         }
         eps_f = longwave_emissivity(p.material)
         heat_capacity = areal_heat_capacity(fabric["density"], fabric["specific_heat"], fabric["thickness"])
-        gap_attr = stage.GetPrimAtPath(p.path).GetAttribute(S.AIR_GAP_PRIMVAR)
+        garment_prim = stage.GetPrimAtPath(p.path)
         starts = np.concatenate([[0], np.cumsum(p.counts)[:-1]])
         temps = np.zeros((frames, len(p.counts)))
         for f in range(frames):
-            gap_v = np.asarray(gap_attr.Get(Usd.TimeCode(f)), dtype=float)
+            gap_v = read_air_gap(garment_prim, f)
             gap = np.add.reduceat(gap_v[p.indices], starts) / p.counts
             h = convective_coefficient(wind[f], model=settings["convection_model"])
             args = (skin[f, p.segment], air[f], q_garment[p.path][nearest[f]], h, gap, fabric["thickness"])

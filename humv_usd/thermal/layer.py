@@ -25,7 +25,7 @@ in: without an atmosphere layer, and in the slab spin-up before frame 0 (scaled 
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, Vt
+from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.scenario import Scenario
@@ -42,11 +42,11 @@ from humv_usd.thermal.surfaces import (
     surface_temperatures,
     with_sky_table,
 )
-from humv_usd.usd import schemas as S
 from humv_usd.usd.atmosphere import longwave_sky, model_name
 from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import finish, new_layer_stage
 from humv_usd.usd.paths import body_path, human_path
+from humv_usd.usd.thermal import write_surface_temperature
 
 NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
@@ -158,26 +158,15 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         path = prim.GetPath()
         faces = len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get() or [])
         over = stage.OverridePrim(path)
-        over.ApplyAPI(S.THERMAL_API)
-        primvar = UsdGeom.PrimvarsAPI(over).CreatePrimvar(
-            S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"),
-            Sdf.ValueTypeNames.FloatArray,
-            UsdGeom.Tokens.uniform,
-        )
         series = solved.get(str(path))
         if series is None:
-            over.GetAttribute(S.THERMAL_MODEL).Set("fixed")
-            primvar.Set(Vt.FloatArray.FromNumpy(np.full(faces, fixed.get(path, air0), dtype=np.float32)))
+            write_surface_temperature(over, "fixed", np.full(faces, fixed.get(path, air0), dtype=np.float32))
             continue
         if str(path) in kinds:
-            over.GetAttribute(S.THERMAL_MODEL).Set(kinds[str(path)])
+            kind = kinds[str(path)]
         else:
-            over.GetAttribute(S.THERMAL_MODEL).Set(model if str(path).endswith("/Body") else "balance")
-        if len(series) == 1 or np.all(series == series[:1]):
-            primvar.Set(Vt.FloatArray.FromNumpy(series[0].astype(np.float32)))
-        else:
-            for frame, values in enumerate(series):
-                primvar.Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), frame)
+            kind = model if str(path).endswith("/Body") else "balance"
+        write_surface_temperature(over, kind, series)
     return finish(stage)
 
 

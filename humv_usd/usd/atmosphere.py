@@ -22,6 +22,7 @@ from humv_usd.errors import InputError, bad_value
 from humv_usd.physics.sky import extended_sky_table
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import SCOPES
+from humv_usd.usd.thermal import check_temperatures
 
 ATMOSPHERE_PATH = SCOPES["atmosphere"]
 PATHS = ATMOSPHERE_PATH.AppendChild("Paths")
@@ -142,7 +143,7 @@ def sky_temperature(stage, time) -> float:
                 f"expected the effective sky brightness temperature in {lo:g}-{hi:g} K (HumvAtmosphereAPI){what}",
             )
         )
-    return float(value)
+    return float(check_temperatures([value], where)[0])
 
 
 def model_name(stage, time=DEFAULT) -> str | None:

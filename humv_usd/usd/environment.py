@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Gf, Usd
+from pxr import Gf, Usd, UsdGeom
 
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics.sun import SunState
@@ -83,6 +83,14 @@ class Site:
 
 
 # --- writers (the environment tool) --------------------------------------------------------------
+def define_environment(stage: Usd.Stage) -> Usd.Prim:
+    """The environment scope (:data:`ENVIRONMENT_PATH`) with HumvEnvironmentAPI applied: the
+    prim :func:`write_weather` and :func:`write_sun` write to."""
+    prim = UsdGeom.Scope.Define(stage, ENVIRONMENT_PATH).GetPrim()
+    prim.ApplyAPI(S.ENVIRONMENT_API)
+    return prim
+
+
 def write_site(stage: Usd.Stage, site: Site) -> None:
     """Apply HumvScenarioAPI to /World and author the site."""
     world = stage.GetPrimAtPath(WORLD)

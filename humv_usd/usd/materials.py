@@ -1,4 +1,5 @@
-"""Materials on the stage: the one reader of ``HumvMaterialAPI`` (spectra and thermal data).
+"""Materials on the stage: the one reader and writer of ``HumvMaterialAPI`` (spectra and
+thermal data).
 
 Every tool that needs a material property (the thermal solve, the render, the labels) reads it
 here from the material bound to a mesh on the composed stage: the materials layer, or a
@@ -15,8 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Usd, UsdShade
+from pxr import Gf, Sdf, Usd, UsdShade, Vt
 
+from humv_usd.catalog.materials import Material
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value
 from humv_usd.physics import planck
@@ -78,6 +80,49 @@ class StageMaterial:
                 )
             )
         return value
+
+
+def write_material(stage: Usd.Stage, path, material: Material) -> UsdShade.Material:
+    """Define the material prim ``path`` from a catalogue :class:`Material`: HumvMaterialAPI
+    spectra on the material's own wavelength grid [um] (transmittance only for materials one
+    can see through), thermal data (conductivity [W m-1 K-1], density [kg m-3], specific heat
+    [J kg-1 K-1], thickness [m], solar absorptivity [0-1]) and its source, plus a
+    UsdPreviewSurface for DCC viewports (display colour; opacity for glass)."""
+    m = material
+    mat = UsdShade.Material.Define(stage, path)
+    prim = mat.GetPrim()
+    prim.ApplyAPI(S.MATERIAL_API)
+    prim.GetAttribute(S.MATERIAL_WAVELENGTHS).Set(Vt.FloatArray(m.spectrum_wavelengths))
+    prim.GetAttribute(S.MATERIAL_EMISSIVITY).Set(Vt.FloatArray(m.spectrum_emissivity))
+    prim.GetAttribute(S.MATERIAL_REFLECTANCE).Set(Vt.FloatArray(m.spectrum_reflectance))
+    if not m.opaque:
+        prim.GetAttribute(S.MATERIAL_TRANSMITTANCE).Set(Vt.FloatArray(m.spectrum_transmittance))
+    for attr, value in (
+        (S.MATERIAL_CONDUCTIVITY, m.conductivity),
+        (S.MATERIAL_DENSITY, m.density),
+        (S.MATERIAL_SPECIFIC_HEAT, m.specific_heat),
+        (S.MATERIAL_THICKNESS, m.thickness),
+        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.solar_absorptivity),
+        (S.MATERIAL_SOURCE, m.source),
+    ):
+        prim.GetAttribute(attr).Set(value)
+    # A UsdPreviewSurface so DCC tools (Blender, usdview) show a sensible colour.
+    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
+    shader.CreateIdAttr("UsdPreviewSurface")
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*m.display_color))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.9)
+    if not m.opaque:  # glass: see-through in viewports
+        visible = float(m.at([0.45, 0.55, 0.65], "transmittance").mean())
+        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(round(1.0 - visible, 6))
+        shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.05)
+    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return mat
+
+
+def write_substrate(material_prim: Usd.Prim, substrate_path) -> None:
+    """Point a ground material at the material under it (:data:`SUBSTRATE_RELATIONSHIP`: the
+    slab ground's substrate, read back by :func:`substrate`)."""
+    material_prim.CreateRelationship(SUBSTRATE_RELATIONSHIP, custom=True).SetTargets([substrate_path])
 
 
 def _summary(values, limit=6):

@@ -40,9 +40,16 @@ def bind_material(prim: Usd.Prim, material: Sdf.Path) -> None:
 
 
 def label(prim: Usd.Prim, instance_id: int, label_class: str) -> None:
+    """HumvLabelAPI on ``prim``: the object's instance id and class token."""
     prim.ApplyAPI(S.LABEL_API)
     prim.GetAttribute(S.LABEL_INSTANCE_ID).Set(int(instance_id))
     prim.GetAttribute(S.LABEL_CLASS).Set(label_class)
+
+
+def write_class(prim: Usd.Prim, label_class: str) -> None:
+    """The class token alone (``humv:label:class``, custom; no HumvLabelAPI): a part that takes
+    its instance id from an ancestor but has a class of its own (a carried prop)."""
+    prim.CreateAttribute(S.LABEL_CLASS, Sdf.ValueTypeNames.Token, custom=True).Set(label_class)
 
 
 def triangle_areas(points: np.ndarray, face_counts, face_indices) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The one sensor reader: a UsdGeom.Camera with HumvSensorAPI → :class:`SensorModel`
+"""The one sensor reader and writer: a UsdGeom.Camera with HumvSensorAPI → :class:`SensorModel`
 (render, sensor chain, labels and atmosphere all read sensors through here), and its pose at a
 time → :class:`humv_usd.geometry.camera.CameraPose`. :func:`stage_sensors` lists a stage's
 sensor cameras.
@@ -14,7 +14,7 @@ import math
 import warnings
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom
+from pxr import Gf, Usd, UsdGeom, Vt
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.camera import CameraPose
@@ -28,6 +28,74 @@ EO_DEFAULT_RANGE_UM = (0.38, 0.78)
 MAX_RESOLUTION = 16384
 #: Namespace of the HumvSensorAPI attributes: a camera with one of them authored is a sensor.
 SENSOR_NAMESPACE = S.SENSOR_BAND.rpartition(":")[0] + ":"
+
+
+def write_sensor(
+    prim,
+    *,
+    band: str,
+    wavelength_range_um: tuple[float, float],
+    resolution: tuple[int, int],
+    pixel_pitch_m: float,
+    f_number: float,
+    netd_k: float,
+    bit_depth: int,
+    offset: float,
+    preset: str,
+    platform: str,
+    agc: str,
+    agc_percentiles: tuple[float, float],
+    gain: float | None = None,
+    subbands: int | None = None,
+    full_well_e: float | None = None,
+    read_noise_e: float | None = None,
+    response_wavelengths_um=None,
+    response=None,
+    channel_response=None,
+    netd_note: str = "",
+) -> None:
+    """Apply HumvSensorAPI to a camera prim and author the sensor (what :func:`read_sensor_model`
+    reads back): band token, wavelength range [um], resolution [px], pixel pitch [m], f-number,
+    NETD [K] (with ``netd_note``, how it was scaled, as custom data), bit depth, offset [DN],
+    preset and platform tokens, AGC and its percentiles; gain [DN per unit signal] (None: auto
+    exposure), the IR sub-band count, an EO sensor's full well and read noise [e-] and the
+    relative response table (wavelengths [um], response, optional channel responses
+    (C, wavelengths)) only when given."""
+    prim.ApplyAPI(S.SENSOR_API)
+    values = [
+        (S.SENSOR_BAND, band),
+        (S.SENSOR_WAVELENGTH_RANGE, Gf.Vec2f(*wavelength_range_um)),
+        (S.SENSOR_RESOLUTION, Gf.Vec2i(*resolution)),
+        (S.SENSOR_PIXEL_PITCH, pixel_pitch_m),
+        (S.SENSOR_F_NUMBER, f_number),
+        (S.SENSOR_NETD, netd_k),
+        (S.SENSOR_BIT_DEPTH, bit_depth),
+        (S.SENSOR_OFFSET, offset),
+        (S.SENSOR_PRESET, preset),
+        (S.SENSOR_PLATFORM, platform),
+        (S.SENSOR_AGC, agc),
+        (S.SENSOR_AGC_PERCENTILES, Gf.Vec2f(*agc_percentiles)),
+    ]
+    optional = [
+        (S.SENSOR_GAIN, gain),
+        (S.SENSOR_SUBBANDS, subbands),
+        (S.SENSOR_FULL_WELL, full_well_e),
+        (S.SENSOR_READ_NOISE, read_noise_e),
+    ]
+    values += [(attr, value) for attr, value in optional if value is not None]
+    if response_wavelengths_um is not None:
+        values += [
+            (S.SENSOR_RESPONSE_WAVELENGTHS, Vt.FloatArray(np.asarray(response_wavelengths_um).tolist())),
+            (S.SENSOR_RESPONSE, Vt.FloatArray(np.asarray(response).tolist())),
+        ]
+        if channel_response is not None:
+            values.append(
+                (S.SENSOR_CHANNEL_RESPONSE, Vt.FloatArray(np.asarray(channel_response).ravel().tolist()))
+            )
+    for attr, value in values:
+        prim.GetAttribute(attr).Set(value)
+    if netd_note:
+        prim.GetAttribute(S.SENSOR_NETD).SetCustomDataByKey("humv:netdScaling", netd_note)
 
 
 def check_subbands(value, where: str = "subbands") -> int:

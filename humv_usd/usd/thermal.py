@@ -1,0 +1,98 @@
+"""The thermal layer's per-mesh result on the stage (HumvThermalAPI): the one writer of the
+per-face temperature primvar and the model token, and the reader the render uses.
+
+The render and ground truth read the temperatures back (``primvars:humv:thermal:temperature``,
+uniform, one value per authored face [K]; :func:`read_face_temperatures`); the model token says
+what produced them: "fixed" (held or air temperature), "slab" (the 1-D conduction slab),
+"balance" (a garment's energy balance), "jos3" / "twoNode" (the body's physiology model).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom, Vt
+
+from humv_usd.constants import TEMPERATURE_RANGE_K
+from humv_usd.errors import InputError, bad_value
+from humv_usd.usd import schemas as S
+
+
+def write_surface_temperature(prim: Usd.Prim, model: str, temperature_k) -> None:
+    """Apply HumvThermalAPI to ``prim`` (a mesh or an over of one) and author its per-face
+    temperature [K] and ``model`` token.
+
+    ``temperature_k``: (faces,) one value for every frame (the primvar's default), or (frames,
+    faces), written as the default when every frame is the same, else a time sample per frame
+    (time code = frame). Stored as float32.
+    """
+    prim.ApplyAPI(S.THERMAL_API)
+    primvar = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+        S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"),
+        Sdf.ValueTypeNames.FloatArray,
+        UsdGeom.Tokens.uniform,
+    )
+    prim.GetAttribute(S.THERMAL_MODEL).Set(model)
+    series = np.asarray(temperature_k)
+    if series.ndim == 1:
+        primvar.Set(Vt.FloatArray.FromNumpy(series.astype(np.float32)))
+    elif len(series) == 1 or np.all(series == series[:1]):
+        primvar.Set(Vt.FloatArray.FromNumpy(series[0].astype(np.float32)))
+    else:
+        for frame, values in enumerate(series):
+            primvar.Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), frame)
+
+
+def check_temperatures(values, where: str, expected: int | None = None) -> np.ndarray:
+    """Validate an array of temperatures [K] (finite, in TEMPERATURE_RANGE_K, right length)."""
+    lo, hi = TEMPERATURE_RANGE_K
+    a = np.asarray(values, dtype=float).ravel()
+    allowed = f"expected {'' if expected is None else f'{expected} '}finite temperatures in {lo:g}-{hi:g} K"
+    if expected is not None and a.size != expected:
+        raise InputError(bad_value(where, f"<{a.size} values>", allowed + " (one per authored face)"))
+    bad = ~np.isfinite(a) | (a < lo) | (a > hi)
+    if np.any(bad):
+        idx = np.flatnonzero(bad)
+        raise InputError(
+            bad_value(where, f"{a[idx[0]]!r} at index {idx[0]} ({idx.size} bad of {a.size})", allowed)
+        )
+    return a
+
+
+def has_face_temperatures(prim: Usd.Prim) -> bool:
+    """Whether the mesh has per-face temperatures (HumvThermalAPI) authored."""
+    attr = prim.GetAttribute(S.TEMPERATURE_PRIMVAR)
+    return bool(attr and attr.HasValue())
+
+
+def read_face_temperatures(prim: Usd.Prim, face_count: int, time) -> np.ndarray:
+    """One temperature [K] per authored face of a mesh at ``time`` (a constant primvar is
+    spread over the ``face_count`` faces); InputError when missing, of another interpolation
+    or out of range (:func:`check_temperatures`)."""
+    where = f"{prim.GetPath()}.{S.TEMPERATURE_PRIMVAR}"
+    attr = prim.GetAttribute(S.TEMPERATURE_PRIMVAR)
+    if not attr or not attr.HasValue():
+        raise InputError(
+            bad_value(
+                where,
+                None,
+                f"a rendered mesh needs one temperature per authored face "
+                f"({face_count} faces, uniform primvar, K, HumvThermalAPI)",
+            )
+        )
+    primvar = UsdGeom.Primvar(attr)
+    interpolation = primvar.GetInterpolation() if primvar else UsdGeom.Tokens.uniform
+    if interpolation not in (UsdGeom.Tokens.uniform, UsdGeom.Tokens.constant):
+        raise InputError(
+            bad_value(
+                f"{where} interpolation",
+                str(interpolation),
+                "expected uniform (one value per authored face) or constant",
+            )
+        )
+    values = primvar.ComputeFlattened(time) if primvar else attr.Get(time)
+    if values is None:
+        raise InputError(bad_value(where, None, f"no value at frame {time.GetValue():g}"))
+    values = np.asarray(values, dtype=float).ravel()
+    if primvar and primvar.GetInterpolation() == UsdGeom.Tokens.constant and values.size == 1:
+        values = np.full(face_count, values[0])
+    return check_temperatures(values, where, expected=face_count)
