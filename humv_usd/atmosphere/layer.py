@@ -11,7 +11,8 @@ bands, the sky spectral radiance against zenith and, while the sun is up, the di
 spectral irradiance per frame. The per-sensor slant-path tables under /World/Atmosphere/Paths
 are their own layer (:mod:`humv_usd.atmosphere.paths`), so that moving a sensor leaves this layer,
 and the thermal layer that reads it, as they are. What ran and what was skipped is recorded in
-the layer's customLayerData ``humv:atmosphere:ran``.
+the layer's customLayerData ``humv:atmosphere:ran``. Everything on the prim is authored through
+the typed writers of :mod:`humv_usd.usd.atmosphere` (this module names no attribute).
 
 When the weather varies (:func:`humv_usd.atmosphere.model.weather_varies`), the thermal sky
 (spectral and broadband, with each node's cloud cover) gets time samples at

@@ -16,7 +16,9 @@ table per sensor, with ranges from 1 m to beyond the scene. When the weather var
 (:func:`humv_usd.atmosphere.model.weather_varies`) the tables get time samples at the weather
 nodes' frames (USD interpolates them linearly) and keep the frame-0 values as their defaults.
 Clouds do not change the paths (:func:`humv_usd.atmosphere.model.with_cloud_cover`). What ran is
-recorded in the layer's customLayerData ``humv:atmospherePaths:ran``.
+recorded in the layer's customLayerData ``humv:atmospherePaths:ran``. The tables are authored
+through :func:`humv_usd.usd.atmosphere.define_path_table` and
+:func:`humv_usd.usd.atmosphere.write_path_spectra` (this module names no attribute).
 """
 
 from __future__ import annotations
