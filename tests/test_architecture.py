@@ -216,10 +216,7 @@ HUMV_NAME = re.compile(r"^(primvars:)?humv:\w+:|^Humv\w*API$")
 
 #: modules outside humv_usd/usd/ that still read or write HumV attributes by name (issue 11:
 #: must shrink to empty); module -> why it is left
-NAME_ACCESS_PENDING = {
-    "humv_usd.atmosphere.layer": "atmosphere writers (h6 is changing the tool)",
-    "humv_usd.atmosphere.paths": "atmosphere path-table writers (h6 is changing the tool)",
-}
+NAME_ACCESS_PENDING: dict[str, str] = {}
 
 
 @functools.cache

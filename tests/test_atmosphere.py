@@ -19,6 +19,7 @@ from humv_usd.physics import planck
 from humv_usd.physics.sky import directional_sky_emissivity, effective_sky_temperature
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
+from humv_usd.usd.atmosphere import PATHS
 from humv_usd.usd.layers import layer_text
 
 
@@ -262,7 +263,7 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     raw["thermal"] = dict(raw.get("thermal") or {}, surface_spin_up_s=0.0)
     sc = validate(raw)
     env, (atm_layer, paths) = environment_layer.build(sc), atmosphere_layers_of(sc)
-    assert not _stage(atm_layer).GetPrimAtPath(paths_layer.PATHS)  # the sky layer has no paths
+    assert not _stage(atm_layer).GetPrimAtPath(PATHS)  # the sky layer has no paths
     stage = _stage(env, atm_layer, paths)
     e = stage.GetPrimAtPath("/World/Environment")
     sun = sun_at(sc, [0.0, 1 / 30, 2 / 30])
@@ -286,7 +287,7 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     assert (
         paths_ran["model"] == "analytic" and f"tables for {len(sc['sensor'])} sensors" in paths_ran["paths"]
     )
-    paths = stage.GetPrimAtPath(paths_layer.PATHS).GetChildren()
+    paths = stage.GetPrimAtPath(PATHS).GetChildren()
     assert sorted(p.GetName() for p in paths) == sorted(s["id"] for s in sc["sensor"])
     for p in paths:
         assert p.HasAPI(S.ATMOSPHERE_PATH_API)
@@ -415,7 +416,7 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     assert layer_text(sky) == layer_text(layer)
     stage = compose_in_memory([sensors_layer.build(sc), sky, paths], 0.01)
     a = stage.GetPrimAtPath("/World/Atmosphere")
-    p = stage.GetPrimAtPath(paths_layer.PATHS.AppendChild("lwir640"))
+    p = stage.GetPrimAtPath(PATHS.AppendChild("lwir640"))
     tau_attr = p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE)
     assert tau_attr.GetTimeSamples() == [0.0, 36.0, 72.0]  # the weather nodes' frames
     wl = np.array(a.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())

@@ -218,7 +218,7 @@ def test_path_ranges_reach_a_hand_made_mesh_of_the_stage(humvvex_raw, tmp_path, 
     stronger layer (not in the scenario), stretches the sensor's table to 1.5 x its distance."""
     from pxr import UsdGeom
 
-    from humv_usd.atmosphere.paths import PATHS
+    from humv_usd.usd.atmosphere import PATHS
 
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
     sc = _scenario(humvvex_raw, tmp_path, csv=False)

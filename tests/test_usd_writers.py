@@ -10,6 +10,7 @@ from pxr import Usd, UsdGeom
 
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.errors import InputError
+from humv_usd.usd import atmosphere as UA_ATM
 from humv_usd.usd import avatar as UA
 from humv_usd.usd import schemas as S
 from humv_usd.usd.labels import nearest_class, nearest_instance_id, read_face_label
@@ -154,3 +155,94 @@ def test_face_labels_keypoints_and_classes(stage):
     assert nearest_instance_id(body) == (root, 7)
     assert nearest_class(body) == (body, "prop") and nearest_class(root) == (root, "person")
     assert nearest_class(stage.DefinePrim("/Z")) == (None, None)
+
+
+# --- atmosphere layers ---------------------------------------------------------------------------
+ZENITH = np.array([0.0, 30.0, 60.0, 89.0])
+WL = np.array([8.0, 10.0, 12.0])
+
+
+def _atmosphere(stage):
+    prim = UA_ATM.define_atmosphere(stage, "analytic", "midlatitudeWinter", 23000.0)
+    UA_ATM.write_broadband_sky(prim, 0.73414321, 267.5118234, [70.0, 80.0, 100.0, 120.0], ZENITH)
+    UA_ATM.write_spectral_grid(prim, WL, ZENITH)
+    return prim
+
+
+def test_atmosphere_round_trip_defaults(stage):
+    prim = _atmosphere(stage)
+    sky = np.arange(ZENITH.size * WL.size, dtype=float).reshape(ZENITH.size, WL.size) + 0.5
+    UA_ATM.write_spectral_sky(prim, sky)
+    UA_ATM.write_solar_spectrum(prim, [1.0, 2.0, 3.0])
+    assert prim.HasAPI(S.ATMOSPHERE_API) and UA_ATM.model_name(stage) == "analytic"
+    assert prim.GetAttribute(S.ATMOSPHERE_PROFILE).Get() == "midlatitudeWinter"
+    assert prim.GetAttribute(S.ATMOSPHERE_VISIBILITY).Get() == pytest.approx(23000.0)
+    # stored rounded: emissivity to 1e-6, temperature to 1e-4 K (float32)
+    assert prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Get() == pytest.approx(0.734143, abs=1e-7)
+    assert UA_ATM.sky_temperature(stage, UA_ATM.DEFAULT) == pytest.approx(267.5118, abs=2e-5)
+    zen, lw = UA_ATM.longwave_sky(stage)
+    np.testing.assert_array_equal(zen, ZENITH)
+    np.testing.assert_array_equal(lw, [70.0, 80.0, 100.0, 120.0])
+    spectra = UA_ATM.atmosphere_spectra(stage, UA_ATM.DEFAULT)
+    np.testing.assert_array_equal(spectra.wavelengths_um, WL)
+    np.testing.assert_array_equal(spectra.sky_zenith_deg, ZENITH)
+    np.testing.assert_array_equal(spectra.sky_radiance, sky)  # (Z, W) row-major back
+    np.testing.assert_array_equal(spectra.solar_irradiance, [1.0, 2.0, 3.0])
+    for name in (S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE, S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE):
+        assert prim.GetAttribute(name).GetTimeSamples() == []
+
+
+def test_atmosphere_time_samples_interpolate(stage):
+    prim = _atmosphere(stage)  # defaults: what a reader without a time gets
+    for code, scale in ((0.0, 1.0), (10.0, 2.0)):
+        UA_ATM.write_broadband_sky(prim, 0.7 * scale / 2, 260.0 + scale, np.full(4, 50.0 * scale), time=code)
+        UA_ATM.write_spectral_sky(prim, np.full((ZENITH.size, WL.size), scale), code)
+        UA_ATM.write_solar_spectrum(prim, np.full(WL.size, 10.0 * scale), code)
+    for name in (S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE, S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE):
+        assert prim.GetAttribute(name).GetTimeSamples() == [0.0, 10.0]
+    assert prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).GetTimeSamples() == []  # the grid holds
+    # USD interpolates linearly between the samples; the defaults stay
+    np.testing.assert_allclose(UA_ATM.longwave_sky(stage, 5.0)[1], 75.0)
+    assert UA_ATM.sky_temperature(stage, 5.0) == pytest.approx(261.5)
+    assert prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Get(10.0) == pytest.approx(0.7)
+    spectra = UA_ATM.atmosphere_spectra(stage, 2.5)
+    np.testing.assert_allclose(spectra.sky_radiance, 1.25)
+    np.testing.assert_allclose(spectra.solar_irradiance, 12.5)
+    np.testing.assert_array_equal(UA_ATM.longwave_sky(stage)[1], [70.0, 80.0, 100.0, 120.0])
+    assert UA_ATM.sky_temperature(stage, UA_ATM.DEFAULT) == pytest.approx(267.5118, abs=2e-5)
+
+
+def test_path_table_round_trip(stage):
+    _atmosphere(stage)
+    UA_ATM.define_paths(stage)
+    ranges = np.array([1.0, 10.0])
+    # named unlike the sensor: the reader finds it by its sensor attribute
+    table = UA_ATM.define_path_table(stage, "table0", "/World/Sensors/cam", ranges)
+    tau = np.array([[1.2, 0.9, 0.8], [0.5, -0.1, 0.3]])
+    rad = np.array([[0.0, 1.0, -2.0], [3.0, 4.0, 5.0]])
+    UA_ATM.write_path_spectra(table, tau, rad)
+    assert table.HasAPI(S.ATMOSPHERE_PATH_API)
+    assert str(table.GetPath()) == "/World/Atmosphere/Paths/table0"
+    got = UA_ATM.path_table(stage, "/World/Sensors/cam", "cam", UA_ATM.DEFAULT)
+    assert got.prim == "/World/Atmosphere/Paths/table0"
+    np.testing.assert_array_equal(got.ranges_m, ranges)
+    np.testing.assert_array_equal(got.wavelengths_um, WL)
+    np.testing.assert_allclose(got.transmittance, [[1.0, 0.9, 0.8], [0.5, 0.0, 0.3]], rtol=1e-6)
+    np.testing.assert_array_equal(got.radiance, [[0.0, 1.0, 0.0], [3.0, 4.0, 5.0]])
+    # time samples at two weather nodes: linear between them, the default as written
+    UA_ATM.write_path_spectra(table, np.full((2, 3), 0.8), np.full((2, 3), 2.0), 0.0)
+    UA_ATM.write_path_spectra(table, np.full((2, 3), 0.4), np.full((2, 3), 6.0), 20.0)
+    half = UA_ATM.path_table(stage, "/World/Sensors/cam", "cam", 10.0)
+    np.testing.assert_allclose(half.transmittance, 0.6, rtol=1e-6)
+    np.testing.assert_allclose(half.radiance, 4.0, rtol=1e-6)
+    assert table.GetAttribute(S.ATMOSPHERE_PATH_RANGES).GetTimeSamples() == []
+    assert UA_ATM.path_table(stage, "/World/Sensors/other", "other", 0.0) is None
+
+
+def test_require_wavelengths(stage):
+    with pytest.raises(InputError, match="wavelengths"):
+        UA_ATM.require_wavelengths(stage, WL)  # no atmosphere layer
+    _atmosphere(stage)
+    UA_ATM.require_wavelengths(stage, WL * (1 + 1e-8))
+    with pytest.raises(InputError, match="path tables are computed on"):
+        UA_ATM.require_wavelengths(stage, np.array([8.0, 10.0, 12.5]))

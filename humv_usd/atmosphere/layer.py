@@ -11,7 +11,8 @@ bands, the sky spectral radiance against zenith and, while the sun is up, the di
 spectral irradiance per frame. The per-sensor slant-path tables under /World/Atmosphere/Paths
 are their own layer (:mod:`humv_usd.atmosphere.paths`), so that moving a sensor leaves this layer,
 and the thermal layer that reads it, as they are. What ran and what was skipped is recorded in
-the layer's customLayerData ``humv:atmosphere:ran``.
+the layer's customLayerData ``humv:atmosphere:ran``. Everything on the prim is authored through
+the typed writers of :mod:`humv_usd.usd.atmosphere` (this module names no attribute).
 
 When the weather varies (:func:`humv_usd.atmosphere.model.weather_varies`), the thermal sky
 (spectral and broadband, with each node's cloud cover) gets time samples at
@@ -25,14 +26,14 @@ weather authors single default values, as before.
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, UsdGeom, Vt
+from pxr import Sdf
 
 from humv_usd.atmosphere.model import atmosphere_for, lerp_nodes, with_cloud_cover
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
-from humv_usd.usd import schemas as S
+from humv_usd.usd import atmosphere as A
 from humv_usd.usd.environment import read_weather
-from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.layers import finish, new_layer_stage
 
 NAME = "atmosphere"
 READS = (
@@ -43,10 +44,6 @@ READS = (
 #: layers read from the upstream stage: weather and sun (environment)
 UPSTREAM = ("environment",)
 VERSION = "3"
-
-
-def _floats(a) -> Vt.FloatArray:
-    return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
 
 
 def build(scenario: Scenario, upstream) -> Sdf.Layer:
@@ -65,20 +62,13 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, f"HumV-USD atmosphere layer: {atm.source} sky and sun"
     )
-    prim = UsdGeom.Scope.Define(stage, SCOPES["atmosphere"]).GetPrim()
-    prim.ApplyAPI(S.ATMOSPHERE_API)
-    prim.GetAttribute(S.ATMOSPHERE_MODEL).Set(atm.source)
-    prim.GetAttribute(S.ATMOSPHERE_PROFILE).Set(a["profile"])
-    prim.GetAttribute(S.ATMOSPHERE_VISIBILITY).Set(a["visibility_km"] * 1000.0)
-    prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(atm.sky_emissivity), 6))
-    prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(atm.sky_temperature_k), 4))
-    prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
-    prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(atm.longwave_radiance))
+    prim = A.define_atmosphere(stage, atm.source, a["profile"], a["visibility_km"] * 1000.0)
+    A.write_broadband_sky(
+        prim, atm.sky_emissivity, atm.sky_temperature_k, atm.longwave_radiance, atm.sky_zenith_deg
+    )
     if nodes is not None:  # defaults = frame 0 (above) plus samples at the weather nodes
         for code, n in zip(node_codes, nodes):
-            prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(n.sky_emissivity), 6), code)
-            prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(n.sky_temperature_k), 4), code)
-            prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(n.longwave_radiance), code)
+            A.write_broadband_sky(prim, n.sky_emissivity, n.sky_temperature_k, n.longwave_radiance, time=code)
     # the disk cache's hit/miss stays out of the layer: an unchanged scenario must give the same text
     # the paths are the atmosphere paths layer's (humv_usd.atmosphere.paths)
     ran = {
@@ -100,32 +90,29 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
     if w.size:
         codes = np.round(atm.times_s * float(g["fps"]), 6)
         sampled = scenario.frame_count > 1
-        prim.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Set(_floats(w))
-        prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(atm.sky_zenith_deg))
-        sky_attr = prim.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE)
+        A.write_spectral_grid(prim, w, atm.sky_zenith_deg)
         diffuse_varies = sampled and np.ptp(atm.diffuse_radiance, axis=0).max() > 0
         if nodes is not None:
             # thermal sky linear between the nodes, diffuse skylight at its own samples
             thermal = np.stack([n.sky_radiance for n in nodes])
             sky_codes = sorted(set(node_codes) | (set(float(c) for c in codes) if diffuse_varies else set()))
-            sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, atm.times_s[0])))
+            A.write_spectral_sky(prim, atm.sky_spectral_radiance(atm.sky_zenith_deg, atm.times_s[0]))
             for code in sky_codes:
                 t = code / float(g["fps"])
-                sky_attr.Set(
-                    _floats(lerp_nodes(full.node_times_s, thermal, t) + atm.diffuse_at(t)[None, :]), code
+                A.write_spectral_sky(
+                    prim, lerp_nodes(full.node_times_s, thermal, t) + atm.diffuse_at(t)[None, :], code
                 )
         elif diffuse_varies:
             for code, t in zip(codes, atm.times_s):
-                sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, t)), float(code))
+                A.write_spectral_sky(prim, atm.sky_spectral_radiance(atm.sky_zenith_deg, t), float(code))
         else:
-            sky_attr.Set(_floats(atm.sky_spectral_radiance(atm.sky_zenith_deg, atm.times_s[0])))
+            A.write_spectral_sky(prim, atm.sky_spectral_radiance(atm.sky_zenith_deg, atm.times_s[0]))
         if atm.solar.any():
-            solar_attr = prim.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE)
             if sampled:
                 for code, row in zip(codes, atm.solar):
-                    solar_attr.Set(_floats(row), float(code))
+                    A.write_solar_spectrum(prim, row, float(code))
             else:
-                solar_attr.Set(_floats(atm.solar[0]))
+                A.write_solar_spectrum(prim, atm.solar[0])
         else:
             ran["solar spectrum"] = "skipped: sun below the horizon (or fully clouded)"
     else:

@@ -16,20 +16,20 @@ table per sensor, with ranges from 1 m to beyond the scene. When the weather var
 (:func:`humv_usd.atmosphere.model.weather_varies`) the tables get time samples at the weather
 nodes' frames (USD interpolates them linearly) and keep the frame-0 values as their defaults.
 Clouds do not change the paths (:func:`humv_usd.atmosphere.model.with_cloud_cover`). What ran is
-recorded in the layer's customLayerData ``humv:atmospherePaths:ran``.
+recorded in the layer's customLayerData ``humv:atmospherePaths:ran``. The tables are authored
+through :func:`humv_usd.usd.atmosphere.define_path_table` and
+:func:`humv_usd.usd.atmosphere.write_path_spectra` (this module names no attribute).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, UsdGeom, Vt
+from pxr import Sdf
 
 from humv_usd.atmosphere.model import PATH_RANGES_M, atmosphere_for
-from humv_usd.errors import InputError, bad_value
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
-from humv_usd.usd import schemas as S
-from humv_usd.usd.atmosphere import ATMOSPHERE_PATH, PATHS, summary, wavelengths
+from humv_usd.usd.atmosphere import define_path_table, define_paths, require_wavelengths, write_path_spectra
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
 from humv_usd.usd.mesh import bound_corners
 from humv_usd.usd.paths import sensor_path
@@ -49,10 +49,6 @@ READS = (
 #: (atmosphere), camera positions (sensors) and the scene's extent for the ranges (scene)
 UPSTREAM = ("environment", "atmosphere", "sensors", "scene")
 VERSION = "1"
-
-
-def _floats(a) -> Vt.FloatArray:
-    return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
 
 
 def scene_points(scenario: Scenario, upstream) -> np.ndarray:
@@ -81,55 +77,31 @@ def sensor_ranges(sensor: dict, cams: np.ndarray, points: np.ndarray) -> np.ndar
     return np.unique(np.append(PATH_RANGES_M[PATH_RANGES_M < r_max], r_max))
 
 
-def _check_grid(upstream, grid: np.ndarray) -> None:
-    """The tables are authored on the atmosphere layer's wavelengths (the render reads them
-    together): InputError when the stage's grid is not the one these tables are computed on."""
-    on_stage = wavelengths(upstream)
-    if on_stage is None or on_stage.size != grid.size or not np.allclose(on_stage, grid, rtol=1e-6):
-        raise InputError(
-            bad_value(
-                f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_WAVELENGTHS}",
-                None if on_stage is None else summary(on_stage),
-                f"expected the grid of the sensors' bands the path tables are computed on, {summary(grid)} "
-                "(rebuild the atmosphere layer, or edit it in a user layer without changing its wavelengths)",
-            )
-        )
-
-
 def build(scenario: Scenario, upstream) -> Sdf.Layer:
     """The atmosphere paths layer; ``upstream``: a stage with the :data:`UPSTREAM` layers."""
     g = scenario["general"]
     full = atmosphere_for(scenario, upstream, solar=False)  # paths only: no sun, no pvlib
-    _check_grid(upstream, full.wavelengths_um)
+    require_wavelengths(upstream, full.wavelengths_um)
     sensors = scenario["sensor"]
     stage = new_layer_stage(
         g["fps"],
         scenario.frame_count,
         f"HumV-USD atmosphere paths layer: {full.source} slant paths of {len(sensors)} sensors",
     )
-    stage.OverridePrim(SCOPES["atmosphere"])  # the atmosphere layer defines it
-    UsdGeom.Scope.Define(stage, PATHS)
+    define_paths(stage)
     nodes = [0] if full.node_times_s is None else range(full.node_times_s.size)
     node_codes = [] if full.node_times_s is None else np.round(full.node_times_s * float(g["fps"]), 6)
     points = scene_points(scenario, upstream)
     for s in sensors:
-        path = UsdGeom.Scope.Define(stage, PATHS.AppendChild(s["id"])).GetPrim()
-        path.ApplyAPI(S.ATMOSPHERE_PATH_API)
         cams = camera_positions(upstream, sensor_path(s["id"]), np.arange(max(scenario.frame_count, 1)))
         ranges = sensor_ranges(s, cams, points)
-        path.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path(s["id"])))
-        path.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges))
-        tau_attr = path.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE)
-        rad_attr = path.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE)
+        table = define_path_table(stage, s["id"], sensor_path(s["id"]), ranges)
         for k in nodes:  # defaults = frame 0 (node 0), plus samples at the weather nodes
             tau, rad = full.at_node(k).path(cams[0], ranges)
-            tau, rad = _floats(np.clip(tau, 0.0, 1.0)), _floats(np.maximum(rad, 0.0))
             if k == 0:
-                tau_attr.Set(tau)
-                rad_attr.Set(rad)
+                write_path_spectra(table, tau, rad)
             if len(node_codes):
-                tau_attr.Set(tau, float(node_codes[k]))
-                rad_attr.Set(rad, float(node_codes[k]))
+                write_path_spectra(table, tau, rad, float(node_codes[k]))
     ran = {
         "model": full.source,
         "paths": full.ran.get("paths", "no path model") + f"; tables for {len(sensors)} sensors",

@@ -1,12 +1,28 @@
-"""Typed readers of the atmosphere layer (/World/Atmosphere: HumvAtmosphereAPI; its Paths:
-HumvAtmospherePathAPI): the only code that reads these attribute names. Every reader takes a time
-code: the layer time-samples the sky and the paths when the weather varies (hourly
-``weather_csv``), and the thermal tool and the render read the same sample at the same frame.
+"""Typed readers and writers of the atmosphere layers (/World/Atmosphere: HumvAtmosphereAPI; its
+Paths: HumvAtmospherePathAPI): the only code that knows these attribute names. Every reader and
+every writer of a time-varying value takes a time code: the layers time-sample the sky and the
+paths when the weather varies (hourly ``weather_csv``), and the thermal tool and the render read
+the same sample at the same frame. Without a time code a writer authors the default value (what
+readers without a time get).
+
+Writers (the atmosphere tool, :mod:`humv_usd.atmosphere.layer`):
+
+* :func:`define_atmosphere`: the scope with HumvAtmosphereAPI, the model, profile and visibility;
+* :func:`write_broadband_sky`: emissivity, temperature and long-wave radiance against zenith;
+* :func:`write_spectral_grid`, :func:`write_spectral_sky`, :func:`write_solar_spectrum`: the
+  wavelength grid, the sky spectral radiance against zenith, the direct solar spectrum.
+
+Writers (the atmosphere paths tool, :mod:`humv_usd.atmosphere.paths`): :func:`define_paths`,
+:func:`define_path_table` (HumvAtmospherePathAPI: sensor, ranges) and :func:`write_path_spectra`
+(transmittance, path radiance).
+
+Readers:
 
 * :func:`longwave_sky`: broadband long-wave sky radiance against zenith (the thermal tool's sky);
 * :func:`sky_temperature`: effective broadband sky brightness temperature (the render's IR sky);
 * :func:`atmosphere_spectra`: sky spectral radiance against zenith, direct solar spectrum;
-* :func:`wavelengths`: the wavelength grid of the spectral tables and the path tables;
+* :func:`wavelengths`: the wavelength grid of the spectral tables and the path tables
+  (:func:`require_wavelengths`: InputError unless it is a given grid);
 * :func:`path_table`: one sensor's slant-path transmittance and radiance against range.
 """
 
@@ -15,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Usd
+from pxr import Usd, UsdGeom, Vt
 
 from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.errors import InputError, bad_value
@@ -236,6 +252,21 @@ def atmosphere_spectra(stage, time) -> AtmosphereSpectra:
     return out
 
 
+def require_wavelengths(stage, grid) -> None:
+    """InputError unless the stage's wavelength grid is ``grid`` [um] (rtol 1e-6): the path
+    tables are authored on the atmosphere layer's wavelengths, and the render reads them together."""
+    on_stage = wavelengths(stage)
+    if on_stage is None or on_stage.size != grid.size or not np.allclose(on_stage, grid, rtol=1e-6):
+        raise InputError(
+            bad_value(
+                f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_WAVELENGTHS}",
+                None if on_stage is None else summary(on_stage),
+                f"expected the grid of the sensors' bands the path tables are computed on, {summary(grid)} "
+                "(rebuild the atmosphere layer, or edit it in a user layer without changing its wavelengths)",
+            )
+        )
+
+
 def _path_prim(stage, sensor_path: str, sensor_name: str):
     scope = stage.GetPrimAtPath(PATHS)
     if not (scope and scope.IsValid()):
@@ -313,3 +344,85 @@ def path_table(stage, sensor_path: str, sensor_name: str, time) -> PathArrays | 
         np.minimum(tau, 1.0).reshape(ranges.size, wl.size),
         rad.reshape(ranges.size, wl.size),
     )
+
+
+# --- writers (the atmosphere and atmosphere paths tools) ----------------------------------------
+def _floats(a) -> Vt.FloatArray:
+    """``a`` flattened row-major as float32 (how every table of these layers is stored)."""
+    return Vt.FloatArray.FromNumpy(np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel()))
+
+
+def define_atmosphere(stage: Usd.Stage, model: str, profile: str, visibility_m: float) -> Usd.Prim:
+    """The atmosphere scope (:data:`ATMOSPHERE_PATH`) with HumvAtmosphereAPI applied, and what
+    computed it: the ``model`` token (e.g. "lowtran7", "analytic"), the standard ``profile`` and
+    the meteorological ``visibility_m`` [m]; the prim the other atmosphere writers write to."""
+    prim = UsdGeom.Scope.Define(stage, ATMOSPHERE_PATH).GetPrim()
+    prim.ApplyAPI(S.ATMOSPHERE_API)
+    prim.GetAttribute(S.ATMOSPHERE_MODEL).Set(model)
+    prim.GetAttribute(S.ATMOSPHERE_PROFILE).Set(profile)
+    prim.GetAttribute(S.ATMOSPHERE_VISIBILITY).Set(visibility_m)
+    return prim
+
+
+def write_broadband_sky(
+    prim: Usd.Prim,
+    emissivity: float,
+    temperature_k: float,
+    longwave_radiance,
+    zenith_deg=None,
+    time=DEFAULT,
+) -> None:
+    """Author the effective broadband sky at time code ``time`` (default: the default value):
+    ``emissivity`` [-] (stored rounded to 1e-6), brightness ``temperature_k`` [K] (to 1e-4 K),
+    and ``longwave_radiance`` [W m-2 sr-1] against the zenith angles ``zenith_deg`` [deg]
+    (the angle grid does not vary: authored as a default value, when given)."""
+    prim.GetAttribute(S.ATMOSPHERE_SKY_EMISSIVITY).Set(round(float(emissivity), 6), time)
+    prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE).Set(round(float(temperature_k), 4), time)
+    if zenith_deg is not None:
+        prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(zenith_deg))
+    prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE).Set(_floats(longwave_radiance), time)
+
+
+def write_spectral_grid(prim: Usd.Prim, wavelengths_um, zenith_deg) -> None:
+    """Author the grid of the spectral tables: ``wavelengths_um`` (W,) [um] (also the path
+    tables' grid) and the sky's zenith angles (Z,) [deg] (shared with the broadband sky)."""
+    prim.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Set(_floats(wavelengths_um))
+    prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES).Set(_floats(zenith_deg))
+
+
+def write_spectral_sky(prim: Usd.Prim, radiance, time=DEFAULT) -> None:
+    """Author the sky spectral radiance (Z, W) [W m-2 sr-1 um-1] (zenith angles x wavelengths,
+    row-major) at time code ``time``."""
+    prim.GetAttribute(S.ATMOSPHERE_SKY_SPECTRAL_RADIANCE).Set(_floats(radiance), time)
+
+
+def write_solar_spectrum(prim: Usd.Prim, irradiance, time=DEFAULT) -> None:
+    """Author the direct solar spectral irradiance (W,) [W m-2 um-1] (beam, normal incidence)
+    at time code ``time``."""
+    prim.GetAttribute(S.ATMOSPHERE_SOLAR_SPECTRAL_IRRADIANCE).Set(_floats(irradiance), time)
+
+
+def define_paths(stage: Usd.Stage) -> None:
+    """The path tables' scope :data:`PATHS` in a layer of its own: an over of the atmosphere
+    scope (the atmosphere layer defines it) and the ``Paths`` scope."""
+    stage.OverridePrim(ATMOSPHERE_PATH)
+    UsdGeom.Scope.Define(stage, PATHS)
+
+
+def define_path_table(stage: Usd.Stage, name: str, sensor_path, ranges_m) -> Usd.Prim:
+    """The path table ``PATHS/name`` with HumvAtmospherePathAPI applied: the prim path of the
+    sensor it belongs to (``sensor_path``, how :func:`path_table` finds it) and its ranges (R,)
+    [m], ascending; :func:`write_path_spectra` writes its tables."""
+    prim = UsdGeom.Scope.Define(stage, PATHS.AppendChild(name)).GetPrim()
+    prim.ApplyAPI(S.ATMOSPHERE_PATH_API)
+    prim.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Set(str(sensor_path))
+    prim.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Set(_floats(ranges_m))
+    return prim
+
+
+def write_path_spectra(prim: Usd.Prim, transmittance, radiance, time=DEFAULT) -> None:
+    """Author a path table's ``transmittance`` [-] (clipped to 0-1) and path ``radiance``
+    [W m-2 sr-1 um-1] (clipped to >= 0), both (R, W) (ranges x wavelengths, row-major), at time
+    code ``time``."""
+    prim.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Set(_floats(np.clip(transmittance, 0.0, 1.0)), time)
+    prim.GetAttribute(S.ATMOSPHERE_PATH_RADIANCE).Set(_floats(np.maximum(radiance, 0.0)), time)
