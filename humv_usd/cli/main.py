@@ -56,7 +56,7 @@ def main(verbose: int = 0):
     "--out",
     "out_dir",
     required=True,
-    type=click.Path(file_okay=False, path_type=Path),
+    type=str,  # checked by check_output_dir: one error line, not click's usage block
     help="Output folder: stage.usda and layers/.",
 )
 @click.option(
@@ -66,12 +66,14 @@ def main(verbose: int = 0):
     "a sublayer you add to OUT/stage.usda, which compose keeps).",
 )
 @reports_errors
-def compose(scenario: Path, out_dir: Path, force: bool):
+def compose(scenario: Path, out_dir: str, force: bool):
     """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part; rebuilds only the
     layers whose inputs changed (OUT/compose.json says which and why)."""
+    from humv_usd.fileio import check_output_dir
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.scenario import load_scenario
 
+    out_dir = check_output_dir(out_dir)  # fail fast, before reading anything
     report = run_compose(load_scenario(scenario), out_dir, force=force)
     for name, wrote, seconds in report.layers:
         state = "written" if wrote else "unchanged"
@@ -91,7 +93,7 @@ def compose(scenario: Path, out_dir: Path, force: bool):
     "--out",
     "out_dir",
     required=True,
-    type=click.Path(file_okay=False, path_type=Path),
+    type=str,  # checked by check_output_dir: one error line, not click's usage block
     help="Output folder.",
 )
 @click.option(
@@ -118,10 +120,12 @@ def compose(scenario: Path, out_dir: Path, force: bool):
     help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 4; see `humv-usd bench render`).",
 )
 @reports_errors
-def render(stage: Path, out_dir: Path, frames, spp: int, seed: int, sensors, annotators, subbands):
+def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, annotators, subbands):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
+    from humv_usd.fileio import check_output_dir
     from humv_usd.pipeline.render import render_stage
 
+    out_dir = check_output_dir(out_dir)  # fail fast, before opening the stage
     manifest = render_stage(
         stage,
         out_dir,

@@ -33,7 +33,7 @@ from pxr import Sdf, Usd
 
 import humv_usd
 from humv_usd.errors import InputError
-from humv_usd.fileio import write_text_atomic
+from humv_usd.fileio import check_output_dir, write_text_atomic
 from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
@@ -298,7 +298,7 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False) -> Com
 
     ``force``: overwrite layers (and the root) edited by hand instead of stopping."""
     t0 = time.perf_counter()
-    out = Path(out_dir)
+    out = check_output_dir(out_dir)
     layer_dir = out / LAYER_DIR
     fps = scenario["general"]["fps"]
     needed, skipped = plan(scenario)

@@ -17,7 +17,7 @@ from humv_usd import images as writers
 from humv_usd import mode
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value
-from humv_usd.fileio import jsonable, write_json
+from humv_usd.fileio import check_output_dir, jsonable, write_json
 from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
 from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
@@ -248,7 +248,7 @@ def render_stage(
     """
     t_start = time.perf_counter()
     _check_settings(spp, seed, max_depth)
-    out_dir = os.path.abspath(os.fspath(out_dir))
+    out_dir = os.path.abspath(check_output_dir(out_dir))
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
 
     t = time.perf_counter()

@@ -36,6 +36,11 @@ from humv_usd.scenario.spec import (
 )
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+#: longest identifier (human, sensor, object id). An id becomes a prim name, part of layer file
+#: names (``avatar_<id>.usda``, ``clothing_<id>.usda``) and a render output folder; 64 keeps every
+#: such name far below the 255-byte file-name limit of common file systems with room for the
+#: prefixes and suffixes, and keeps prim paths and error lines readable.
+ID_MAX_CHARS = 64
 
 
 @dataclass(frozen=True)
@@ -213,7 +218,10 @@ def _check_ids(where: str, items: list[dict], problems: list[str]) -> set[str]:
         ident = item.get("id")
         if ident is None:
             continue
-        if not _IDENT.match(ident):
+        if len(ident) > ID_MAX_CHARS:
+            shown = f"{ident[:20]}...({len(ident)} characters)"
+            problems.append(bad_value(f"{where}[{i}].id", shown, f"at most {ID_MAX_CHARS} characters"))
+        elif not _IDENT.match(ident):
             problems.append(
                 bad_value(
                     f"{where}[{i}].id", ident, "expected letters, digits and _ (not starting with a digit)"

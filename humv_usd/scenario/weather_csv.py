@@ -44,10 +44,14 @@ def read_weather_csv(path: str | Path, scenario: Scenario) -> tuple[np.ndarray, 
     g = scenario["general"]
     tz = dt.timezone(dt.timedelta(hours=g["utc_offset_h"]))
     try:
-        with open(path, newline="") as f:
+        with open(path, newline="", encoding="utf-8-sig") as f:
             rows = list(csv.reader(f))
     except OSError as e:
         raise InputError(bad_value(where, str(path), f"cannot read ({e.strerror})")) from None
+    except UnicodeDecodeError as e:
+        raise InputError(
+            bad_value(where, str(path), f"expected UTF-8 text (byte {e.start} is not UTF-8: {e.reason})")
+        ) from None
     rows = [r for r in rows if r and any(c.strip() for c in r)]
     if len(rows) < 2:
         raise InputError(bad_value(where, str(path), "expected a header row and at least one data row"))

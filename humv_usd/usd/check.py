@@ -12,11 +12,15 @@ import math
 from pathlib import Path
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdValidation
+from pxr import Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, UsdValidation
 
 from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import open_stage
+from humv_usd.usd.layers import broken_sublayers, open_root_layer, usd_error_text
+from humv_usd.usd.paths import body_path
+
+#: the name of a person's body mesh under its SkelRoot (humv_usd.usd.paths.body_path)
+BODY_NAME = body_path("p").name
 
 
 def usd_validators(stage: Usd.Stage) -> list[str]:
@@ -54,10 +58,8 @@ def rule_root_layer(stage: Usd.Stage) -> list[str]:
         out.append("humv:defaultPrim: stage: no valid defaultPrim")
     tcps = root.timeCodesPerSecond
     for sub in root.subLayerPaths:
-        layer = Sdf.Layer.FindOrOpenRelativeToLayer(root, sub)
-        if layer is None:
-            out.append(f"humv:sublayer: {sub}: cannot be opened")
-        elif layer.timeCodesPerSecond != tcps:
+        layer = Sdf.Layer.FindOrOpenRelativeToLayer(root, sub)  # check_stage found them all loadable
+        if layer is not None and layer.timeCodesPerSecond != tcps:
             out.append(
                 f"humv:timeCodes: {sub}: timeCodesPerSecond {layer.timeCodesPerSecond} "
                 f"!= root {tcps} (USD would rescale its time samples)"
@@ -145,13 +147,44 @@ def rule_sensors_and_labels(stage: Usd.Stage) -> list[str]:
     return out
 
 
-RULES = (rule_root_layer, rule_meshes, rule_sensors_and_labels)
+def rule_people(stage: Usd.Stage) -> list[str]:
+    """Every person (a SkelRoot with HumvAvatarAPI) has its skinned Body mesh: without it the
+    render and the labels silently leave the person out."""
+    out = []
+    for prim in stage.Traverse():
+        if not (prim.IsA(UsdSkel.Root) and prim.HasAPI(S.AVATAR_API)):
+            continue
+        body = prim.GetChild(BODY_NAME)
+        if not (body and body.IsA(UsdGeom.Mesh)):
+            out.append(
+                f"humv:person: {prim.GetPath()}: no body mesh {prim.GetPath().AppendChild(BODY_NAME)} "
+                "(a UsdGeom.Mesh); render would leave the person out"
+            )
+    return out
+
+
+RULES = (rule_root_layer, rule_meshes, rule_sensors_and_labels, rule_people)
 
 
 def check_stage(path: str | Path) -> list[str]:
-    """All findings for the stage at ``path`` (empty when clean). Bad files raise InputError."""
-    stage = open_stage(path)
-    findings = usd_validators(stage)
+    """All findings for the stage at ``path`` (empty when clean).
+
+    A root file that is missing or not USD raises InputError (bad input, exit 2). A sublayer
+    that is missing or does not load is a finding naming its file (``humv:sublayer``); the other
+    rules are then not run, since the stage USD would compose without that layer is not the
+    stage compose wrote and its findings would mislead."""
+    root = open_root_layer(path)
+    broken = broken_sublayers(root)
+    if broken:
+        return [f"humv:sublayer: {line}" for line in broken]
+    try:
+        stage = Usd.Stage.Open(root)
+    except Tf.ErrorException as exc:
+        return [f"humv:stage: {path}: USD cannot compose the stage ({usd_error_text(exc)})"]
+    try:
+        findings = usd_validators(stage)
+    except Tf.ErrorException as exc:  # a validator that fails on this stage is a finding, not a crash
+        findings = [f"usd:validators: stage: failed ({usd_error_text(exc)})"]
     for rule in RULES:
         findings.extend(rule(stage))
     return findings

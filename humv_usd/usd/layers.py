@@ -101,22 +101,73 @@ def finish(stage: Usd.Stage) -> Sdf.Layer:
     return layer
 
 
-def _usd_error_text(exc: Exception) -> str:
+def usd_error_text(exc: Exception) -> str:
     """The first message of a Tf.ErrorException ("Error in 'f' at line n in file x : 'msg'")."""
     text = " ".join(str(exc).split())
     found = re.findall(r" : '(.*?)'(?: Error in|\)?$)", text)
-    return found[0] if found else (text or type(exc).__name__)
+    first = found[0] if found else (text or type(exc).__name__)
+    return re.sub(r"pxrInternal_\w+?__pxrReserved__::", "", first).strip()
 
 
-def open_stage(path) -> Usd.Stage:
-    """Open a USD stage, or raise InputError with one line naming the file and the reason."""
+def broken_sublayers(root: Sdf.Layer) -> list[str]:
+    """One line per sublayer, at any depth below ``root``, that is missing or does not load
+    (a truncated or corrupt file): ``<file>: sublayer of <layer> not found`` or ``... does not
+    load (<USD's reason>)``. USD itself only warns and composes the stage without such a layer,
+    which would render a scene with, e.g., the person missing."""
+    problems: list[str] = []
+    seen: set[str] = set()
+
+    def walk(layer: Sdf.Layer) -> None:
+        for sub in layer.subLayerPaths:
+            file = layer.ComputeAbsolutePath(sub)
+            if file in seen:
+                continue
+            seen.add(file)
+            where = f"{file}: sublayer of {layer.realPath or layer.identifier}"
+            if not Path(file).is_file():
+                problems.append(f"{where} not found")
+                continue
+            try:
+                child = Sdf.Layer.FindOrOpen(file)
+            except Exception as exc:  # pxr raises Tf.ErrorException
+                problems.append(f"{where} does not load ({usd_error_text(exc)})")
+                continue
+            if child is None:
+                problems.append(f"{where} does not load")
+                continue
+            walk(child)
+
+    walk(root)
+    return problems
+
+
+def open_root_layer(path) -> Sdf.Layer:
+    """The root layer of the stage file at ``path``, or InputError naming the file and the reason."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: stage file not found")
     try:
-        stage = Usd.Stage.Open(str(path))
+        layer = Sdf.Layer.FindOrOpen(str(path))
     except Exception as exc:  # pxr raises Tf.ErrorException
-        raise InputError(f"{path}: cannot open as a USD stage ({_usd_error_text(exc)})") from None
+        raise InputError(f"{path}: cannot open as a USD stage ({usd_error_text(exc)})") from None
+    if layer is None:
+        raise InputError(f"{path}: cannot open as a USD stage")
+    return layer
+
+
+def open_stage(path) -> Usd.Stage:
+    """Open a USD stage, or raise InputError with one line naming the file and the reason.
+
+    A sublayer that is missing or does not load is an error too (one line per such layer,
+    naming it): USD would open the stage without it."""
+    root = open_root_layer(path)
+    broken = broken_sublayers(root)
+    if broken:
+        raise InputError(broken[0], broken)
+    try:
+        stage = Usd.Stage.Open(root)
+    except Exception as exc:  # pxr raises Tf.ErrorException
+        raise InputError(f"{path}: cannot open as a USD stage ({usd_error_text(exc)})") from None
     if stage is None:
         raise InputError(f"{path}: cannot open as a USD stage")
     return stage
