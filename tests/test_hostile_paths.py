@@ -217,3 +217,22 @@ def test_person_without_body_is_a_check_error(stage_copy):
 
 def test_composed_stage_has_no_person_finding(composed):
     assert not [f for f in check_stage(composed / "stage.usda") if f.startswith("humv:person")]
+
+
+@pytest.mark.parametrize("command", ["check", "render"])
+def test_stage_argument_that_is_a_folder(command, composed, tmp_path):
+    args = [command, composed] + (["-o", tmp_path / "r"] if command == "render" else [])
+    result = run(args)
+    assert_one_error(result, str(composed), "is a folder", str(composed / "stage.usda"))
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize(
+    "content", [b"", b"#usda 1.0\n(\n", bytes(range(256)) * 8], ids=["empty", "truncated", "binary"]
+)
+def test_check_and_render_on_files_that_are_not_usd(content, tmp_path):
+    bad = tmp_path / "stage.usda"
+    bad.write_bytes(content)
+    assert_one_error(run(["check", bad]), str(bad), "cannot open as a USD stage")
+    assert_one_error(run(["render", bad, "-o", tmp_path / "r"]), str(bad), "cannot open as a USD stage")
+    assert not (tmp_path / "r").exists()

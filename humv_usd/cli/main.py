@@ -87,7 +87,7 @@ def compose(scenario: Path, out_dir: str, force: bool):
 
 
 @main.command()
-@click.argument("stage", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("stage", type=click.Path(path_type=Path))  # a folder: open_stage says what to pass
 @click.option(
     "-o",
     "--out",
@@ -151,7 +151,7 @@ def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, anno
 
 
 @main.command()
-@click.argument("stages", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("stages", nargs=-1, required=True, type=click.Path(path_type=Path))
 def check(stages):
     """Run USD's validators and HumV's layer rules on each STAGE."""
     from humv_usd.usd.check import check_stage

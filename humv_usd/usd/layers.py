@@ -144,6 +144,9 @@ def broken_sublayers(root: Sdf.Layer) -> list[str]:
 def open_root_layer(path) -> Sdf.Layer:
     """The root layer of the stage file at ``path``, or InputError naming the file and the reason."""
     path = Path(path)
+    if path.is_dir():
+        hint = f" (e.g. {path / 'stage.usda'})" if (path / "stage.usda").is_file() else ""
+        raise InputError(f"{path}: is a folder, expected a USD stage file{hint}")
     if not path.is_file():
         raise InputError(f"{path}: stage file not found")
     try:
