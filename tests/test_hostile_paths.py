@@ -236,3 +236,38 @@ def test_check_and_render_on_files_that_are_not_usd(content, tmp_path):
     assert_one_error(run(["check", bad]), str(bad), "cannot open as a USD stage")
     assert_one_error(run(["render", bad, "-o", tmp_path / "r"]), str(bad), "cannot open as a USD stage")
     assert not (tmp_path / "r").exists()
+
+
+# ------------------------------------------------------------------ broken layers in compose's folder
+def test_compose_refuses_a_truncated_layer_it_would_keep(stage_copy):
+    avatar = stage_copy / "layers" / "avatar_p1.usda"
+    truncate(avatar, 50000)  # the inputs key is in the header, so the key still matches
+    broken = avatar.read_bytes()
+    before = {p: p.stat().st_mtime_ns for p in stage_copy.rglob("*")}
+    assert_one_error(
+        run(["compose", HUMVVEX, "-o", stage_copy]), str(avatar), "does not load as USD", "--force"
+    )
+    assert {p: p.stat().st_mtime_ns for p in stage_copy.rglob("*")} == before  # nothing written
+    assert avatar.read_bytes() == broken
+    result = run(["compose", HUMVVEX, "-o", stage_copy, "--force"])
+    assert result.exit_code == 0, result.output
+    assert "avatar_p1      written" in result.stdout
+    assert check_stage(stage_copy / "stage.usda") == []
+
+
+def test_compose_on_a_layer_that_is_not_utf8(stage_copy):
+    scene = stage_copy / "layers" / "scene.usda"
+    scene.write_bytes(bytes(range(128, 256)) * 4)
+    assert_one_error(run(["compose", HUMVVEX, "-o", stage_copy]), str(scene), "edited by hand", "--force")
+    assert run(["compose", HUMVVEX, "-o", stage_copy, "--force"]).exit_code == 0
+    assert check_stage(stage_copy / "stage.usda") == []
+
+
+def test_compose_names_a_user_sublayer_that_does_not_load(stage_copy):
+    user = stage_copy / "mine.usda"
+    user.write_text("#usda 1.0\n(\n")
+    root = Sdf.Layer.FindOrOpen(str(stage_copy / "stage.usda"))
+    root.subLayerPaths.insert(0, "./mine.usda")
+    root.Save()
+    line = assert_one_error(run(["compose", HUMVVEX, "-o", stage_copy]), "user sublayer ./mine.usda")
+    assert "does not load as USD" in line

@@ -38,7 +38,7 @@ from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
-from humv_usd.usd.layers import layer_text, set_inputs_key, set_layer_metadata
+from humv_usd.usd.layers import layer_text, set_inputs_key, set_layer_metadata, usd_error_text
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
@@ -60,6 +60,7 @@ class LayerState:
     edited_sha256: str | None = None  # of the file, when edited by hand
     written: bool = False
     seconds: float = 0.0
+    loaded: Sdf.Layer | None = None  # the file on disk, opened when it is used as it is
 
     @property
     def rebuild(self) -> bool:
@@ -204,6 +205,15 @@ def _previous(out: Path) -> dict:
         return {}
 
 
+def _open_layer(path: Path) -> tuple[Sdf.Layer | None, str | None]:
+    """The layer file at ``path`` opened as an anonymous layer, or None and why it does not load."""
+    try:
+        layer = Sdf.Layer.OpenAsAnonymous(str(path))
+    except Exception as exc:  # noqa: BLE001 (USD raises Tf.ErrorException)
+        return None, f"does not load as USD ({usd_error_text(exc)})"
+    return (layer, None) if layer is not None else (None, "does not load as USD")
+
+
 def _owned(sub: str) -> bool:
     """Whether a sublayer path of the root is one of compose's layers."""
     prefix = f"./{LAYER_DIR}/"
@@ -237,7 +247,7 @@ def _decide(node: Node, state: LayerState, path: Path, prev: dict | None, force:
     if not path.is_file():
         state.state, state.why = "rebuilt", "new"
         return None
-    text = path.read_text()
+    text = path.read_bytes().decode("utf-8", errors="replace")  # not UTF-8: an edit, never a crash
     found = _KEY_TEXT.search(text)
     on_disk = found.group(1) if found else None
     file_sha = _sha(text)
@@ -245,6 +255,17 @@ def _decide(node: Node, state: LayerState, path: Path, prev: dict | None, force:
     edited = recorded is not None and recorded != file_sha
     state.sha256 = recorded or file_sha
     if on_disk == state.key:
+        # compose would use this file (kept, and read by downstream tools): it must load
+        state.loaded, problem = _open_layer(path)
+        if problem:
+            state.state, state.why = "rebuilt", f"the file {problem}"
+            if not force:
+                return (
+                    f"{path}: {problem}, so compose cannot use it; re-run with --force to rebuild it "
+                    "(an unfinished hand edit in it is then lost), or fix it"
+                )
+            state.why += "; rebuilt (--force)"
+            return None
         if edited:
             state.state, state.why, state.edited_sha256 = "kept hand edit", "kept hand edit", file_sha
         return None
@@ -279,6 +300,12 @@ def _user_layers(out: Path, prev: dict, root_sha: str, force: bool):
         file = (out / sub).resolve()
         if not file.is_file():
             errors.append(f"{root_path}: user sublayer {sub}: file not found ({file})")
+            continue
+        _, problem = _open_layer(file)
+        if problem:
+            errors.append(
+                f"{root_path}: user sublayer {sub}: {file} {problem}; fix it or remove it from the root"
+            )
             continue
         hashes[sub] = hashlib.sha256(file.read_bytes()).hexdigest()[:16]
     root.subLayerPaths = [s for s in root.subLayerPaths if _owned(s)]
@@ -345,7 +372,7 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False) -> Com
 
     def layer_of(name: str) -> Sdf.Layer:
         if name not in layers:
-            layers[name] = Sdf.Layer.OpenAsAnonymous(str(layer_dir / f"{name}.usda"))
+            layers[name] = states[name].loaded or Sdf.Layer.OpenAsAnonymous(str(layer_dir / f"{name}.usda"))
         return layers[name]
 
     for name in order:
