@@ -271,3 +271,24 @@ def test_compose_names_a_user_sublayer_that_does_not_load(stage_copy):
     root.Save()
     line = assert_one_error(run(["compose", HUMVVEX, "-o", stage_copy]), "user sublayer ./mine.usda")
     assert "does not load as USD" in line
+
+
+def test_render_refuses_a_truncated_avatar_layer_in_a_new_process(stage_copy, tmp_path):
+    """As a user runs it: USD's own diagnostics (written by C++ straight to stderr, which
+    CliRunner does not see) must not add lines either."""
+    import subprocess
+    import sys
+
+    avatar = stage_copy / "layers" / "avatar_p1.usda"
+    truncate(avatar, 50000)
+    out = tmp_path / "render"
+    r = subprocess.run(
+        [sys.executable, "-m", "humv_usd.cli.main", "render", str(stage_copy / "stage.usda"), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])},
+    )
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"humv-usd: error: {avatar}: sublayer of"), r.stderr
+    assert r.stdout == "" and not out.exists()
