@@ -11,6 +11,7 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
+from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import atomic_path
 
 #: EXR channels of the IR render, by logical name (the key the code uses), with units. The file
@@ -59,6 +60,8 @@ LOGICAL_NAMES = {v: k for k, v in EXR_NAMES.items()}
 UINT_CHANNELS = frozenset({"instance_id", "class_id", "material_kind", "body_region"})
 #: Display-only channels stored as half (the IR file's grey R,G,B preview).
 _UINT32_MAX = 4294967295.0
+#: Largest id a UINT channel stores exactly (:data:`humv_usd.usd.labels.MAX_INSTANCE_ID` is 2**24 - 1).
+UINT_EXACT_MAX = 2**24
 #: zlib level of the 16-bit counts PNGs (noisy data compress barely better at higher levels).
 PNG16_COMPRESSION_LEVEL = 1
 #: Percentiles of the brightness temperature mapped to 0 and 255 in the PNG preview.
@@ -128,7 +131,12 @@ def write_exr(
         oiio.UINT32 if n in UINT_CHANNELS else oiio.HALF if n in half else oiio.FLOAT for n in names
     )
     # OpenImageIO converts the one buffer type to each channel's type; to a UINT channel it scales
-    # by 2**32-1, so ids are passed as id / (2**32-1) in float64, which comes back exact.
+    # by 2**32-1 (through float32), so ids are passed as id / (2**32-1): exact up to 2**24.
+    for n in names:
+        if n in UINT_CHANNELS and np.size(channels[n]) and np.max(channels[n]) > UINT_EXACT_MAX:
+            raise InputError(
+                bad_value(n, int(np.max(channels[n])), f"ids 0..{UINT_EXACT_MAX} (exact in the EXR)")
+            )
     stack = np.stack(
         [
             np.asarray(channels[n], dtype=np.float64) / (_UINT32_MAX if n in UINT_CHANNELS else 1.0)
