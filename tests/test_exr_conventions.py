@@ -258,3 +258,18 @@ def test_ir_file_opens_as_a_grey_image(ir_render):
         "dtype": "uint32",
     }
     assert chans["depth"]["exr"] == "Z" and chans["R"]["dtype"] == "half"
+
+
+def test_camera_file_states_a_zoom_per_frame():
+    from humv_usd.geometry.camera import camera_file
+
+    pose = CameraPose(np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 40.0)
+    wide = Camera.from_pose(pose, 64, 48)
+    tele = Camera.from_pose(CameraPose(pose.origin, pose.forward, pose.up, 10.0), 64, 48)
+    doc = camera_file("cam", [(0, wide), (1, wide), (2, tele)])
+    assert "K" not in doc["frames"][0] and "K" not in doc["frames"][1]
+    fx = 32 / np.tan(np.radians(5.0))
+    assert_allclose(doc["frames"][2]["K"], [[fx, 0, 32], [0, fx, 24], [0, 0, 1]])
+    assert_allclose(np.array(doc["K_integer_centres"]) - doc["K"], [[0, 0, -0.5], [0, 0, -0.5], [0, 0, 0]])
+    # looking along +x with z up: OpenCV R rows are right (-y), down (-z), forward (+x)
+    assert_allclose(doc["frames"][0]["R"], [[0, -1, 0], [0, 0, -1], [1, 0, 0]], atol=1e-12)

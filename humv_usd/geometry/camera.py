@@ -158,12 +158,14 @@ CAMERA_FILE_CONVENTIONS = {
     "metres; projection [u v 1]^T ~ K X_cam",
     "world": "the stage's world: Z up, metres",
     "distortion": "OpenCV (k1, k2, p1, p2, k3); all zero: the render is an ideal pinhole",
+    "K": "intrinsics [px] of every frame, unless a frame gives its own K (a zoom)",
 }
 
 
 def camera_file(name: str, frames: list[tuple[int, Camera]]) -> dict:
-    """The camera file of one sensor (see :data:`CAMERA_FILE_CONVENTIONS`): intrinsics,
-    distortion, image size and the per-frame OpenCV extrinsics."""
+    """The camera file of one sensor (see :data:`CAMERA_FILE_CONVENTIONS`): intrinsics (of the
+    first frame; a frame whose field of view differs carries its own ``K``), distortion, image
+    size and the per-frame OpenCV extrinsics."""
     first = frames[0][1]
     k = first.intrinsics()
     k_int = k.copy()
@@ -171,9 +173,15 @@ def camera_file(name: str, frames: list[tuple[int, Camera]]) -> dict:
     rows = []
     for frame, cam in frames:
         rot, t = cam.opencv_extrinsics()
-        rows.append(
-            {"frame": int(frame), "R": rot.tolist(), "t": t.tolist(), "camera_origin_m": cam.origin.tolist()}
-        )
+        row = {
+            "frame": int(frame),
+            "R": rot.tolist(),
+            "t": t.tolist(),
+            "camera_origin_m": cam.origin.tolist(),
+        }
+        if not np.allclose(cam.intrinsics(), k, rtol=1e-9, atol=0.0):  # a zoom: this frame's own K
+            row["K"] = cam.intrinsics().tolist()
+        rows.append(row)
     return {
         "sensor": name,
         "conventions": CAMERA_FILE_CONVENTIONS,
