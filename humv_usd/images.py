@@ -167,16 +167,24 @@ def read_exr(path, with_spec: bool = False):
         raise OSError(f"{path}: cannot read the image ({oiio.geterror().strip() or 'unknown format'})")
     try:
         spec = inp.spec()
-        channels = {}
-        for i, name in enumerate(spec.channelnames):
-            fmt = spec.channelformat(i)
-            pixels = inp.read_image(0, 0, i, i + 1, fmt)
-            if pixels is None:
-                raise OSError(f"{path}: cannot read channel {name}: {inp.geterror()}")
-            values = np.asarray(pixels).reshape(spec.height, spec.width)
-            channels[logical_name(name)] = values.astype(np.float32) if values.dtype == np.float16 else values
+        # one decode: a file of one type in that type; mixed types as float64, where float and
+        # half are exact and UINT comes scaled by 1/(2**32-1) (exact in float64, undone below)
+        fmt = oiio.DOUBLE if spec.channelformats else spec.format
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, fmt)
+        if pixels is None:
+            raise OSError(f"{path}: cannot read the pixels: {inp.geterror()}")
     finally:
         inp.close()
+    pixels = np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
+    channels = {}
+    for i, name in enumerate(spec.channelnames):
+        kind = str(spec.channelformat(i))
+        values = pixels[..., i]
+        if kind == "uint" and values.dtype == np.float64:
+            values = np.rint(values * _UINT32_MAX).astype(np.uint32)
+        elif values.dtype in (np.float64, np.float16):
+            values = values.astype(np.float32)
+        channels[logical_name(name)] = values
     return (channels, spec) if with_spec else channels
 
 
