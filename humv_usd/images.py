@@ -6,20 +6,62 @@ Every file is written to a temporary name in the destination directory and moved
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import OpenImageIO as oiio
 
+from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import atomic_path
 
-#: EXR channels, in the order written, with units. OpenEXR stores channels sorted by name, so
-#: read them by name. All are float32; ``instance_id`` holds integers 0..2**24-1 exactly.
+#: EXR channels of the IR render, by logical name (the key the code uses), with units. The file
+#: stores them under :data:`EXR_NAMES`; OpenEXR sorts channels by name, so read them by name
+#: (:func:`read_exr` returns logical names).
 EXR_CHANNELS = {
     "radiance": "W m^-2 sr^-1 (band radiance, response-weighted)",
     "brightness_temperature": "K",
     "radiance_stderr": "W m^-2 sr^-1 (Monte Carlo standard error of the pixel mean)",
     "depth": "m (distance along the optical axis; inf for sky)",
-    "instance_id": "1 (integer stored as float32; 0 = sky/background)",
+    "instance_id": "1 (integer, stored as uint32; 0 = sky/background)",
+    "R": "1 (display only, half: brightness temperature stretched as the PNG preview, 0..1)",
+    "G": "as R",
+    "B": "as R",
 }
+#: Logical channel name -> EXR channel name, in the conventions OpenEXR tools, OpenImageIO, Blender
+#: and Nuke read: ``Z`` is depth only (OpenImageIO's ``z_channel``), colour is ``R,G,B``, everything
+#: else is ``layer.channel`` (CIE XYZ under ``CIE.``, labels under ``label.``). Names not listed
+#: are written as given.
+EXR_NAMES = {
+    "depth": "Z",
+    "X": "CIE.X",
+    "Y": "CIE.Y",
+    "Z": "CIE.Z",
+    "Y_stderr": "CIE.Y_stderr",
+    "radiance": "IR.radiance",
+    "brightness_temperature": "IR.brightness_temperature",
+    "radiance_stderr": "IR.radiance_stderr",
+    "instance_id": "label.instance_id",
+    "class_id": "label.class_id",
+    "material_kind": "label.material_kind",
+    "body_region": "label.body_region",
+    "jos3_segment": "label.jos3_segment",
+    "normal_x": "N.X",
+    "normal_y": "N.Y",
+    "normal_z": "N.Z",
+    "surface_temperature": "surface.temperature",
+    "emissivity": "surface.emissivity",
+    "counts": "counts.Y",
+    "counts_R": "counts.R",
+    "counts_G": "counts.G",
+    "counts_B": "counts.B",
+}
+LOGICAL_NAMES = {v: k for k, v in EXR_NAMES.items()}
+#: Label ids stored as OpenEXR UINT (exact integers). ``jos3_segment`` (-1 = none) stays float32.
+UINT_CHANNELS = frozenset({"instance_id", "class_id", "material_kind", "body_region"})
+#: Display-only channels stored as half (the IR file's grey R,G,B preview).
+_UINT32_MAX = 4294967295.0
+#: Largest id a UINT channel stores exactly (:data:`humv_usd.usd.labels.MAX_INSTANCE_ID` is 2**24 - 1).
+UINT_EXACT_MAX = 2**24
 #: zlib level of the 16-bit counts PNGs (noisy data compress barely better at higher levels).
 PNG16_COMPRESSION_LEVEL = 1
 #: Percentiles of the brightness temperature mapped to 0 and 255 in the PNG preview.
@@ -40,27 +82,110 @@ def _write_oiio(path, pixels: np.ndarray, spec: oiio.ImageSpec) -> None:
             out.close()
 
 
-def write_exr(path, channels: dict[str, np.ndarray], metadata: dict[str, str] | None = None) -> None:
-    """Write float32 channels of equal shape (H, W) to an EXR file atomically.
+def exr_name(name: str) -> str:
+    """The EXR channel name of a logical channel name (:data:`EXR_NAMES`)."""
+    return EXR_NAMES.get(name, name)
+
+
+def logical_name(exr_channel: str) -> str:
+    """The logical channel name of an EXR channel name (inverse of :func:`exr_name`)."""
+    return LOGICAL_NAMES.get(exr_channel, exr_channel)
+
+
+def channel_info(name: str, unit: str, half: tuple[str, ...] = ()) -> dict:
+    """The manifest entry of a logical channel: its EXR name, unit and stored type."""
+    dtype = "uint32" if name in UINT_CHANNELS else "half" if name in half else "float32"
+    return {"exr": exr_name(name), "unit": unit, "dtype": dtype}
+
+
+def _header_value(value):
+    """(TypeDesc, value) of a header attribute: 4x4 -> matrix (M44f), 3x3 -> matrix33, else string."""
+    arr = np.asarray(value) if not isinstance(value, str) else None
+    if arr is not None and arr.shape == (4, 4):
+        return oiio.TypeDesc("matrix"), tuple(float(x) for x in arr.ravel())
+    if arr is not None and arr.shape == (3, 3):
+        return oiio.TypeDesc("matrix33"), tuple(float(x) for x in arr.ravel())
+    return None, str(value)
+
+
+def write_exr(
+    path, channels: dict[str, np.ndarray], metadata: dict | None = None, half: tuple[str, ...] = ()
+) -> None:
+    """Write channels of equal shape (H, W) to an EXR file atomically.
 
     Parameters
     ----------
     path : path-like
         Destination ``.exr``.
     channels : dict of str to (H, W) array
-        Channel name to values; written in this order as float32.
-    metadata : dict of str to str, optional
-        Extra header attributes.
+        Logical channel name to values; stored under :func:`exr_name`, as uint32 for
+        :data:`UINT_CHANNELS` (exact integers), half for ``half``, else float32.
+    metadata : dict, optional
+        Extra header attributes: 4x4 arrays as matrices (e.g. OpenEXR's ``worldToCamera``,
+        ``worldToNDC``), 3x3 arrays as 3x3 matrices, anything else as a string.
+    half : tuple of str
+        Logical names stored as half (display-only channels).
     """
     names = list(channels)
-    stack = np.stack([np.asarray(channels[n], dtype=np.float32) for n in names], axis=-1)
+    formats = tuple(
+        oiio.UINT32 if n in UINT_CHANNELS else oiio.HALF if n in half else oiio.FLOAT for n in names
+    )
+    # OpenImageIO converts the one buffer type to each channel's type; to a UINT channel it scales
+    # by 2**32-1 (through float32), so ids are passed as id / (2**32-1): exact up to 2**24.
+    for n in names:
+        if n in UINT_CHANNELS and np.size(channels[n]) and np.max(channels[n]) > UINT_EXACT_MAX:
+            raise InputError(
+                bad_value(n, int(np.max(channels[n])), f"ids 0..{UINT_EXACT_MAX} (exact in the EXR)")
+            )
+    stack = np.stack(
+        [
+            np.asarray(channels[n], dtype=np.float64) / (_UINT32_MAX if n in UINT_CHANNELS else 1.0)
+            for n in names
+        ],
+        axis=-1,
+    )
     h, w, c = stack.shape
     spec = oiio.ImageSpec(w, h, c, "float")
-    spec.channelnames = tuple(names)
+    spec.channelnames = tuple(exr_name(n) for n in names)
+    spec.channelformats = formats
     spec.attribute("compression", "zip")
     for key, value in (metadata or {}).items():
-        spec.attribute(key, str(value))
+        kind, val = _header_value(value)
+        if kind is None:
+            spec.attribute(key, val)
+        else:
+            spec.attribute(key, kind, val)
     _write_oiio(path, np.ascontiguousarray(stack), spec)
+
+
+def read_exr(path, with_spec: bool = False):
+    """All channels of an image file by logical name (:func:`logical_name`), each in its stored
+    type (float32, uint32 ids, half as float32; integer PNGs keep their integers). ``with_spec``
+    also returns the OpenImageIO ImageSpec (header attributes)."""
+    inp = oiio.ImageInput.open(os.fspath(path))
+    if inp is None:
+        raise OSError(f"{path}: cannot read the image ({oiio.geterror().strip() or 'unknown format'})")
+    try:
+        spec = inp.spec()
+        # one decode: a file of one type in that type; mixed types as float64, where float and
+        # half are exact and UINT comes scaled by 1/(2**32-1) (exact in float64, undone below)
+        fmt = oiio.DOUBLE if spec.channelformats else spec.format
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, fmt)
+        if pixels is None:
+            raise OSError(f"{path}: cannot read the pixels: {inp.geterror()}")
+    finally:
+        inp.close()
+    pixels = np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
+    channels = {}
+    for i, name in enumerate(spec.channelnames):
+        kind = str(spec.channelformat(i))
+        values = pixels[..., i]
+        if kind == "uint" and values.dtype == np.float64:
+            values = np.rint(values * _UINT32_MAX).astype(np.uint32)
+        elif values.dtype in (np.float64, np.float16):
+            values = values.astype(np.float32)
+        channels[logical_name(name)] = values
+    return (channels, spec) if with_spec else channels
 
 
 def preview_levels(values: np.ndarray) -> tuple[float, float]:

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom, UsdSkel
 
+from humv_usd import images
 from humv_usd.assets import makehuman_dir
 from humv_usd.avatar import layer as avatar_layer
 from humv_usd.human import usdskel
@@ -258,7 +259,6 @@ def test_blender_imports_armature_and_action(rig, tmp_path):
 @pytest.mark.slow
 def test_render_poses_the_avatar_per_frame(humvvex_raw, tmp_path):
     """The person's instance-id pixels follow the animation (UsdSkel posing in render)."""
-    import OpenImageIO as oiio
 
     from humv_usd.pipeline.compose import compose
     from humv_usd.pipeline.render import render_stage
@@ -282,10 +282,7 @@ def test_render_poses_the_avatar_per_frame(humvvex_raw, tmp_path):
     render_stage(out / "stage.usda", tmp_path / "render", spp=4, sensors=["atom1024_lwir"])
     columns = []
     for frame in (0, 1):
-        inp = oiio.ImageInput.open(str(tmp_path / f"render/atom1024_lwir/{frame:04d}.exr"))
-        spec = inp.spec()
-        ids = inp.read_image("float")[..., spec.channelnames.index("instance_id")]
-        inp.close()
+        ids = images.read_exr(tmp_path / f"render/atom1024_lwir/{frame:04d}.exr")["instance_id"]
         person = ids == 1
         assert person.sum() > 20
         columns.append(np.nonzero(person)[1].mean())

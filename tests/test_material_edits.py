@@ -9,10 +9,10 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-import OpenImageIO as oiio
 import pytest
 from pxr import Sdf, Usd, Vt
 
+from humv_usd import images
 from humv_usd.pipeline.compose import LAYER_DIR, compose, compose_in_memory
 from humv_usd.pipeline.render import _band_emissivity, render_stage
 from humv_usd.render.export import StageExport
@@ -93,9 +93,8 @@ def _edited_stage(out, scenario) -> str:
 
 def _render(stage_path, out_dir) -> dict:
     render_stage(stage_path, out_dir, spp=4, sensors=[SENSOR])
-    buf = oiio.ImageBuf(str(out_dir / SENSOR / "0000.exr"))
-    pixels = buf.get_pixels(oiio.FLOAT)
-    return {n: pixels[..., i] for i, n in enumerate(buf.spec().channelnames)}
+    ch = images.read_exr(out_dir / SENSOR / "0000.exr")  # by logical name
+    return {n: np.asarray(v).astype(np.float32) for n, v in ch.items()}
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ import pytest
 from conftest import HUMVVEX, ROOT
 from pxr import Usd
 
+from humv_usd import images
 from humv_usd.physics.planck import band_radiance, brightness_temperature
 from humv_usd.render.export import StageExport
 from humv_usd.render.frame import path_table
@@ -46,10 +47,7 @@ def rendered(tmp_path_factory):
     )
     assert r.returncode == 0, r.stderr
     assert "Monte Carlo error per pixel" in r.stdout
-    buf = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.exr"))
-    names = list(buf.spec().channelnames)
-    pixels = buf.get_pixels(oiio.FLOAT)
-    channels = {n: pixels[..., i] for i, n in enumerate(names)}
+    channels = images.read_exr(out / "render" / "atom1024_lwir" / "0000.exr")  # by logical name
     manifest = json.loads((out / "render" / "manifest.json").read_text())
     return out, channels, manifest
 
@@ -62,6 +60,9 @@ def test_outputs_and_manifest(rendered):
         "radiance_stderr",
         "depth",
         "instance_id",
+        "R",  # display-only grey preview (issue 12)
+        "G",
+        "B",
     }
     assert ch["radiance"].shape == (768, 1024)
     png = oiio.ImageBuf(str(out / "render" / "atom1024_lwir" / "0000.png"))

@@ -18,6 +18,7 @@ import pytest
 from numpy.testing import assert_allclose
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
+from humv_usd import images as writers
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
 from humv_usd.pipeline.render import render_stage
@@ -167,12 +168,9 @@ def add_camera(
 
 
 def read_exr(path):
-    inp = oiio.ImageInput.open(str(path))
-    assert inp is not None, oiio.geterror()
-    spec = inp.spec()
-    pixels = inp.read_image("float")
-    inp.close()
-    return spec, {name: pixels[..., i] for i, name in enumerate(spec.channelnames)}
+    """(ImageSpec, channels by logical name as float32); uint32 ids come back exact."""
+    ch, spec = writers.read_exr(path, with_spec=True)
+    return spec, {name: np.asarray(v).astype(np.float32) for name, v in ch.items()}
 
 
 def within_noise(radiance, stderr, expected, k=5.0, rel=1e-4):
@@ -413,17 +411,24 @@ def test_outputs_manifest_and_reproducibility(tmp_path):
     spec, ch = read_exr(exr)
     labels = set(manifest["ground_truth"]["channels"])  # ground-truth channels: tests/test_groundtruth.py
     chain = {"counts"} if manifest["sensor_chain"].startswith("ran") else set()  # sensor chain raw counts
-    assert set(spec.channelnames) - labels - chain == {
+    assert set(ch) - labels - chain == {
         "radiance",
         "brightness_temperature",
         "radiance_stderr",
         "depth",
         "instance_id",
+        "R",  # display-only grey preview (issue 12)
+        "G",
+        "B",
     }
-    assert len(spec.channelnames) == 5 + len(labels) + len(chain)
-    assert str(spec.format) == "float" and all(
-        str(f) == "float" for f in (spec.channelformats or [spec.format])
-    )
+    assert len(spec.channelnames) == 8 + len(labels) + len(chain)
+    # stored types as the manifest states them: uint32 ids, half preview, float32 data (issue 12)
+    stored = {writers.logical_name(n): str(spec.channelformat(i)) for i, n in enumerate(spec.channelnames)}
+    dtypes = {"uint32": "uint", "half": "half", "float32": "float"}
+    assert stored == {
+        name: dtypes[manifest["channels"][name]["dtype"]] if name in manifest["channels"] else "float"
+        for name in stored
+    }
     assert (spec.width, spec.height) == (W, H)
     assert_allclose(
         ch["brightness_temperature"], planck.brightness_temperature(ch["radiance"], LWIR), atol=1e-3

@@ -92,3 +92,103 @@ class Camera:
             sx, sy = np.meshgrid(sx, sy)
         d = self.forward + sx[..., None] * self.right + sy[..., None] * self.up
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+    # --- the camera in other tools' conventions ----------------------------------------------
+    def intrinsics(self) -> np.ndarray:
+        """K (3x3) [px] of the projection above: u = fx x/z + cx, v = fy (-y)/z + cy with
+        fx = W / (2 tan(fov_x/2)), fy = H / (2 tan(fov_y/2)), (cx, cy) = (W/2, H/2); pixel
+        coordinates with the origin at the top-left corner of the image (pixel centres at
+        i + 0.5), as the 2D boxes and keypoints. OpenCV's integer-centre K is this one with
+        cx - 0.5, cy - 0.5."""
+        return np.array(
+            [
+                [0.5 * self.width / self.tan_x, 0.0, 0.5 * self.width],
+                [0.0, 0.5 * self.height / self.tan_y, 0.5 * self.height],
+                [0.0, 0.0, 1.0],
+            ]
+        )
+
+    def opencv_extrinsics(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R (3x3), t (3,) [m]) world -> camera in OpenCV's axes (x right, y down, z forward):
+        X_cam = R X_world + t."""
+        rot = np.stack([self.right, -self.up, self.forward])
+        return rot, -rot @ self.origin
+
+    def world_to_camera_exr(self) -> np.ndarray:
+        """OpenEXR ``worldToCamera`` (4x4, Imath row vectors: [x y z 1] M): camera space x right,
+        y up, z along the view direction (left-handed, RenderMan's), origin at the camera."""
+        rot = np.stack([self.right, self.up, self.forward])
+        m = np.eye(4)
+        m[:3, :3] = rot
+        m[:3, 3] = -rot @ self.origin
+        return m.T
+
+    def world_to_ndc_exr(self) -> np.ndarray:
+        """OpenEXR ``worldToNDC`` (4x4, row vectors, divide by w): NDC (0, 0) at the top-left and
+        (1, 1) at the bottom-right corner of the display window, x right, y down."""
+        proj = np.array(
+            [
+                [0.5 / self.tan_x, 0.0, 0.5, 0.0],
+                [0.0, -0.5 / self.tan_y, 0.5, 0.0],
+                [0.0, 0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0, 0.0],
+            ]
+        )
+        return (proj @ self.world_to_camera_exr().T).T
+
+    def exr_header(self) -> dict:
+        """The camera's EXR header attributes: OpenEXR's ``worldToCamera``, ``worldToNDC`` and
+        ``humv:K`` (intrinsics, pixel units, see :meth:`intrinsics`)."""
+        return {
+            "worldToCamera": self.world_to_camera_exr(),
+            "worldToNDC": self.world_to_ndc_exr(),
+            "humv:K": self.intrinsics(),
+        }
+
+
+#: The camera file of each sensor, relative to its output folder (``RENDER/<sensor>/camera.json``).
+CAMERA_FILE = "camera.json"
+
+#: The conventions stated in every camera file.
+CAMERA_FILE_CONVENTIONS = {
+    "pixels": "origin at the top-left corner of the image, u right, v down, pixel (i, j) centre at "
+    "(i + 0.5, j + 0.5): the convention of the 2D boxes and keypoints in objects.json and coco.json; "
+    "for OpenCV's integer pixel centres use K_integer_centres (cx, cy less 0.5)",
+    "extrinsics": "OpenCV: X_cam = R X_world + t, camera axes x right, y down, z forward (optical axis), "
+    "metres; projection [u v 1]^T ~ K X_cam",
+    "world": "the stage's world: Z up, metres",
+    "distortion": "OpenCV (k1, k2, p1, p2, k3); all zero: the render is an ideal pinhole",
+    "K": "intrinsics [px] of every frame, unless a frame gives its own K (a zoom)",
+}
+
+
+def camera_file(name: str, frames: list[tuple[int, Camera]]) -> dict:
+    """The camera file of one sensor (see :data:`CAMERA_FILE_CONVENTIONS`): intrinsics (of the
+    first frame; a frame whose field of view differs carries its own ``K``), distortion, image
+    size and the per-frame OpenCV extrinsics."""
+    first = frames[0][1]
+    k = first.intrinsics()
+    k_int = k.copy()
+    k_int[:2, 2] -= 0.5
+    rows = []
+    for frame, cam in frames:
+        rot, t = cam.opencv_extrinsics()
+        row = {
+            "frame": int(frame),
+            "R": rot.tolist(),
+            "t": t.tolist(),
+            "camera_origin_m": cam.origin.tolist(),
+        }
+        if not np.allclose(cam.intrinsics(), k, rtol=1e-9, atol=0.0):  # a zoom: this frame's own K
+            row["K"] = cam.intrinsics().tolist()
+        rows.append(row)
+    return {
+        "sensor": name,
+        "conventions": CAMERA_FILE_CONVENTIONS,
+        "width": first.width,
+        "height": first.height,
+        "K": k.tolist(),
+        "K_integer_centres": k_int.tolist(),
+        "distortion": [0.0] * 5,
+        "frames": rows,
+    }

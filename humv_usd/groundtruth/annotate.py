@@ -20,7 +20,7 @@ from pxr import Usd, UsdGeom
 from humv_usd import images as writers
 from humv_usd.errors import InputError
 from humv_usd.fileio import write_json
-from humv_usd.geometry.camera import Camera
+from humv_usd.geometry.camera import CAMERA_FILE, Camera
 from humv_usd.groundtruth import annotators as A
 from humv_usd.groundtruth import boxes as B
 from humv_usd.groundtruth import keypoints as K
@@ -30,11 +30,11 @@ from humv_usd.groundtruth.coco import CocoBuilder
 
 #: EXR channels this package adds, with units (depth and instance_id are the render's).
 CHANNELS = {
-    "class_id": "1 (integer; humv_usd.groundtruth.labels.CLASSES: 0 background, 1 person, 2 ground, "
+    "class_id": "1 (integer, uint32; humv_usd.groundtruth.labels.CLASSES: 0 background, 1 person, 2 ground, "
     "3 building, 4 prop, 5 panel, 6 vegetation, 7 vehicle, 8 other)",
-    "material_kind": "1 (integer; 0 background, 1 skin, 2 garment, 3 prop, 4 scene)",
-    "body_region": "1 (integer; humv_usd.human.labels.BODY_REGIONS ids, 0 = not the body)",
-    "jos3_segment": "1 (integer; 0-based JOS-3 segment, -1 = none)",
+    "material_kind": "1 (integer, uint32; 0 background, 1 skin, 2 garment, 3 prop, 4 scene)",
+    "body_region": "1 (integer, uint32; humv_usd.human.labels.BODY_REGIONS ids, 0 = not the body)",
+    "jos3_segment": "1 (integer as float32; 0-based JOS-3 segment, -1 = none)",
     "normal_x": "1 (world space, x east; unit geometric normal of the hit triangle, front side; 0 for sky)",
     "normal_y": "1 (world space, y north)",
     "normal_z": "1 (world space, z up)",
@@ -171,12 +171,25 @@ class GroundTruth:
         if want & {"boxes", "keypoints", "occlusion"}:
             write_json(
                 os.path.join(out_dir, rel + ".objects.json"),
-                {"sensor": sensor.name, "frame": state.frame, "width": w, "height": h, "objects": objects},
+                {
+                    "sensor": sensor.name,
+                    "frame": state.frame,
+                    "width": w,
+                    "height": h,
+                    "camera": os.path.join(os.path.dirname(rel), CAMERA_FILE),
+                    "objects": objects,
+                },
             )
         if self.coco is not None:
             t = time.perf_counter()
             image_id = self.coco.add_image(
-                rel + ".png", w, h, humv_sensor=sensor.name, humv_frame=state.frame, humv_exr=rel + ".exr"
+                rel + ".png",
+                w,
+                h,
+                humv_sensor=sensor.name,
+                humv_frame=state.frame,
+                humv_exr=rel + ".exr",
+                humv_camera=os.path.join(os.path.dirname(rel), CAMERA_FILE),
             )
             for obj in objects:
                 self.coco.add_object(image_id, hits.instance == obj["instance_id"], obj)
@@ -324,7 +337,7 @@ class GroundTruth:
 
     def channel_units(self) -> dict:
         return {
-            c: {"unit": CHANNELS[c], "dtype": "float32"}
+            c: writers.channel_info(c, CHANNELS[c])
             for name, chans in _CHANNELS_OF.items()
             if name in self.want
             for c in chans

@@ -33,8 +33,8 @@ import json
 import os
 
 import numpy as np
-import OpenImageIO as oiio
 
+from humv_usd import images
 from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import write_json
 from humv_usd.human import labels as AL
@@ -49,24 +49,17 @@ REGIONS_NAME = "regions.json"
 
 
 def read_image(path, with_format: bool = False):
-    """All channels of an image file as float64 (H, W) arrays, by channel name, holding the
-    values as stored: integer files (8/16-bit PNG counts, region ids) keep their integers
-    (OpenImageIO would otherwise rescale them to 0..1). ``with_format`` also returns the
-    pixel format name (e.g. "uint16", "float")."""
-    inp = oiio.ImageInput.open(os.fspath(path))
-    if inp is None:
-        raise InputError(f"{path}: cannot read the image ({oiio.geterror().strip() or 'unknown format'})")
+    """All channels of an image file as float64 (H, W) arrays, by logical channel name
+    (:func:`humv_usd.images.logical_name`: an EXR's ``label.body_region`` is ``body_region``),
+    holding the values as stored: integer files and channels (8/16-bit PNG counts, uint32 ids)
+    keep their integers (OpenImageIO would otherwise rescale them to 0..1). ``with_format`` also
+    returns the pixel format name (e.g. "uint16", "float")."""
     try:
-        spec = inp.spec()
-        fmt = str(spec.format)
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)  # the file's own type
-    finally:
-        inp.close()
-    if pixels is None:
-        raise InputError(f"{path}: cannot read the pixels")
-    pixels = np.asarray(pixels).astype(np.float64).reshape(spec.height, spec.width, spec.nchannels)
-    channels = {name: pixels[..., i] for i, name in enumerate(spec.channelnames)}
-    return (channels, fmt) if with_format else channels
+        channels, spec = images.read_exr(path, with_spec=True)
+    except OSError as e:
+        raise InputError(str(e)) from None
+    channels = {name: np.asarray(v).astype(np.float64) for name, v in channels.items()}
+    return (channels, str(spec.format)) if with_format else channels
 
 
 def _stats(values: np.ndarray) -> tuple[float | None, float | None]:

@@ -18,6 +18,7 @@ from humv_usd import mode
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import check_output_dir, jsonable, write_json
+from humv_usd.geometry.camera import CAMERA_FILE, Camera, camera_file
 from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
 from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
@@ -258,6 +259,8 @@ def render_stage(
     run = _FrameRenderer(plan, totals)
     for frame in plan.frames if (plan.rendered or plan.eo_run.sensors) else []:
         run.render_frame(frame)
+    run.write_cameras()
+    plan.eo_run.write_cameras()
 
     t = time.perf_counter()
     ground_truth = plan.truth.finish(out_dir, totals["render"])
@@ -382,7 +385,12 @@ class _FrameRenderer:
     def __init__(self, plan: _Plan, totals: dict):
         self.plan, self.totals = plan, totals
         self.per_sensor = {
-            s.name: {"timings": dict.fromkeys(TIMING_KEYS, 0.0), "frames": [], "errors": _Accumulator()}
+            s.name: {
+                "timings": dict.fromkeys(TIMING_KEYS, 0.0),
+                "frames": [],
+                "errors": _Accumulator(),
+                "cameras": [],
+            }
             for s in plan.rendered
         }
         self.overall = _Accumulator()
@@ -392,6 +400,14 @@ class _FrameRenderer:
         self.scene: IRScene | None = None
         self.scene_key = None
         self.scene_builds = 0
+
+    def write_cameras(self) -> None:
+        """``<sensor>/camera.json`` of every IR sensor rendered (intrinsics, per-frame pose)."""
+        for name, rec in self.per_sensor.items():
+            if rec["cameras"]:
+                write_json(
+                    os.path.join(self.plan.out_dir, name, CAMERA_FILE), camera_file(name, rec["cameras"])
+                )
 
     def render_frame(self, frame: int) -> None:
         plan, exporter = self.plan, self.plan.exporter
@@ -496,7 +512,13 @@ class _FrameRenderer:
         t = self._tick(timings, "labels", t)
 
         chained = self.chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
+        camera = Camera.from_pose(state.cameras[s.name], m1.shape[1], m1.shape[0])
+        self.per_sensor[s.name]["cameras"].append((frame, camera))
+        grey = _preview_grey(bt)
         channels = {
+            "R": grey,
+            "G": grey,
+            "B": grey,
             "radiance": m1,
             "brightness_temperature": bt,
             "radiance_stderr": stderr_l,
@@ -514,7 +536,12 @@ class _FrameRenderer:
                 "humv:band_um": f"{band[0]:g}-{band[1]:g}",
                 "humv:spp": str(plan.spp),
                 "humv:subbands": str(len(sub)),
+                "humv:preview": "R=G=B: brightness temperature stretched as the PNG (0 at the 1st, "
+                "1 at the 99th percentile); display only",
+                "humv:camera": os.path.join(s.name, CAMERA_FILE),
+                **camera.exr_header(),
             },
+            half=("R", "G", "B"),
         )
         plan.truth.image_written(rel, channels)
         levels = writers.write_preview_png(os.path.join(plan.out_dir, rel + ".png"), bt)
@@ -540,6 +567,14 @@ class _FrameRenderer:
         )
 
 
+def _preview_grey(bt: np.ndarray) -> np.ndarray:
+    """The IR file's display channels: brightness temperature stretched between the PNG
+    preview's levels to 0..1 (0 where not finite), so that viewers do not open it black."""
+    lo, hi = writers.preview_levels(bt)
+    grey = (bt - lo) / (hi - lo) if hi > lo else np.full(bt.shape, 0.5)
+    return np.where(np.isfinite(grey), np.clip(grey, 0.0, 1.0), 0.0)
+
+
 # ------------------------------------------------------------------------------- manifest
 def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
     """The manifest entry of one IR sensor."""
@@ -557,6 +592,7 @@ def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
         "subbands_requested": plan.n_of[s.name],
         "subbands_source": plan.n_source[s.name],
         "spp_per_subband": plan.spp_sub[s.name],
+        "camera": os.path.join(s.name, CAMERA_FILE) if rec["cameras"] else None,
         "frames": rec["frames"],
         "timings_s": {**rec["timings"], "total": sum(rec["timings"].values())},
         "monte_carlo_error": rec["errors"].stats(),
@@ -611,7 +647,10 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
             "divided by dL_band/dT at the pixel's brightness temperature",
         },
         "channels": {
-            **{name: {"unit": unit, "dtype": "float32"} for name, unit in writers.EXR_CHANNELS.items()},
+            **{
+                name: writers.channel_info(name, unit, half=("R", "G", "B"))
+                for name, unit in writers.EXR_CHANNELS.items()
+            },
             **plan.truth.channel_units(),
         },
         "ground_truth": ground_truth,

@@ -53,6 +53,8 @@ import numpy as np
 
 from humv_usd import images as writers
 from humv_usd import mode
+from humv_usd.fileio import write_json
+from humv_usd.geometry.camera import CAMERA_FILE, Camera, camera_file
 from humv_usd.physics.sensor import srgb_encode
 from humv_usd.render import radiometry
 from humv_usd.render.cie import XYZ_TO_SRGB
@@ -329,7 +331,7 @@ EO_EXR_CHANNELS = {
     "B": "as R",
     "Y_stderr": "Monte Carlo standard error of Y",
     "depth": "m (distance along the optical axis; inf for sky)",
-    "instance_id": "1 (integer stored as float32; 0 = sky/background)",
+    "instance_id": "1 (integer, stored as uint32; 0 = sky/background)",
 }
 
 
@@ -351,7 +353,7 @@ class EORender:
         self.scene: EOScene | None = None
         self.key = None
         self.records = {
-            s.name: {"frames": [], "timings_s": {"render": 0.0, "labels": 0.0, "write": 0.0}}
+            s.name: {"frames": [], "cameras": [], "timings_s": {"render": 0.0, "labels": 0.0, "write": 0.0}}
             for s in self.sensors
         }
         self.ids = {s.name: f"eo_{i}" for i, s in enumerate(self.sensors)}
@@ -505,6 +507,8 @@ class EORender:
             chained = chains.apply(
                 s, rgb, frame, eo_space="srgb"
             )  # sensor chain: the single call site for EO
+            camera = Camera.from_pose(state.cameras[s.name], xyz.shape[1], xyz.shape[0])
+            rec["cameras"].append((frame, camera))
             channels = {
                 "X": xyz[..., 0],
                 "Y": xyz[..., 1],
@@ -528,7 +532,9 @@ class EORender:
                     "humv:sensor": s.path,
                     "humv:frame": str(frame),
                     "humv:spp": str(self.spp),
-                    "humv:colour": "CIE 1931 XYZ and linear sRGB (D65)",
+                    "humv:colour": "CIE 1931 XYZ (CIE.X, CIE.Y, CIE.Z) and linear sRGB (D65) (R, G, B)",
+                    "humv:camera": os.path.join(s.name, CAMERA_FILE),
+                    **camera.exr_header(),
                 },
             )
             if self.truth is not None:
@@ -553,6 +559,13 @@ class EORender:
                 }
             )
 
+    def write_cameras(self) -> None:
+        """``<sensor>/camera.json`` of every EO sensor rendered (intrinsics, per-frame pose)."""
+        for s in self.sensors:
+            cams = self.records[s.name]["cameras"]
+            if cams:
+                write_json(os.path.join(self.out_dir, s.name, CAMERA_FILE), camera_file(s.name, cams))
+
     def manifest(self) -> list[dict]:
         return [
             {
@@ -562,7 +575,8 @@ class EORender:
                 "resolution": list(s.resolution),
                 "variant": mode.SPECTRAL_VARIANTS[mode.variant()],
                 "spp": self.spp,
-                "channels": EO_EXR_CHANNELS,
+                "channels": {k: writers.channel_info(k, v) for k, v in EO_EXR_CHANNELS.items()},
+                "camera": os.path.join(s.name, CAMERA_FILE) if self.records[s.name]["cameras"] else None,
                 "preview": f"PNG 8-bit sRGB; the {PREVIEW_PERCENTILE:g}th percentile of Y exposed to {PREVIEW_WHITE:g}",
                 "frames": self.records[s.name]["frames"],
                 "timings_s": {
