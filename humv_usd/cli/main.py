@@ -78,11 +78,11 @@ def compose(scenario: Path, out_dir: str, force: bool):
     for name, wrote, seconds in report.layers:
         state = "written" if wrote else "unchanged"
         why = report.states[name].why if name in report.states else ""
-        click.echo(f"  {name:<14} {state:<9} {seconds * 1000:7.1f} ms  {why}")
+        click.echo(f"  {name:<16} {state:<9} {seconds * 1000:7.1f} ms  {why}")
     for part, reason in report.skipped:
-        click.echo(f"  {part:<14} skipped   ({reason})")
+        click.echo(f"  {part:<16} skipped   ({reason})")
     for name in report.removed:
-        click.echo(f"  {name:<14} removed   (no longer in the scenario)")
+        click.echo(f"  {name:<16} removed   (no longer in the scenario)")
     click.echo(f"{report.stage_path}  ({report.summary()})")
 
 
