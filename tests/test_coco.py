@@ -93,10 +93,13 @@ def test_merge_renumbers_and_relinks(render_dir, tmp_path):
     assert len({i["id"] for i in doc["images"]}) == len(doc["images"])
     assert len({a["id"] for a in doc["annotations"]}) == len(doc["annotations"])
     for img in doc["images"]:
-        assert (out.parent / img["file_name"]).is_file()
+        for key in ("file_name", "humv_exr", "humv_camera"):  # relinked to the merged file's folder
+            assert (out.parent / img[key]).is_file(), (key, img[key])
     coco = COCO(str(out))
     a = coco.loadAnns(coco.getAnnIds(imgIds=[3]))[0]  # first image of the second render
-    ours = read_exr(second / coco.loadImgs([3])[0]["humv_exr"])["instance_id"] == a["humv_instance_id"]
+    exr = out.parent / coco.loadImgs([3])[0]["humv_exr"]
+    assert exr.is_relative_to(out.parent.parent) and "second" in exr.parts
+    ours = read_exr(exr)["instance_id"] == a["humv_instance_id"]
     assert np.array_equal(coco.annToMask(a).astype(bool), ours)
 
 

@@ -116,8 +116,13 @@ class CocoBuilder:
         write_json(path, self.document())
 
 
+#: image-entry keys holding a path relative to the COCO file's folder (relinked by :func:`merge`)
+RELATIVE_PATH_KEYS = ("file_name", "humv_exr", "humv_camera")
+
+
 def merge(paths, out_path) -> dict:
-    """Merge per-render COCO files into one (ids renumbered, file names relative to ``out_path``)."""
+    """Merge per-render COCO files into one (ids renumbered; the image, EXR and camera-file paths
+    relinked relative to ``out_path``)."""
     out_dir = os.path.dirname(os.path.abspath(os.fspath(out_path)))
     merged = {
         "info": {"description": "HumV-USD dataset", "sources": []},
@@ -143,7 +148,9 @@ def merge(paths, out_path) -> dict:
         image_ids = {}
         for img in doc["images"]:
             new = dict(img, id=len(merged["images"]) + 1)
-            new["file_name"] = os.path.relpath(os.path.join(base, img["file_name"]), out_dir)
+            for key in RELATIVE_PATH_KEYS:  # paths relative to the render folder -> to out_path's
+                if isinstance(img.get(key), str):
+                    new[key] = os.path.relpath(os.path.join(base, img[key]), out_dir)
             image_ids[img["id"]] = new["id"]
             merged["images"].append(new)
         for ann in doc["annotations"]:
