@@ -12,6 +12,18 @@ import humv_usd  # noqa: F401
 
 ROOT = Path(__file__).resolve().parents[1]
 HUMVVEX = ROOT / "examples" / "humvvex.toml"
+#: the layers compose writes for examples/humvvex.toml
+HUMVVEX_LAYERS = (
+    "environment",
+    "atmosphere",
+    "atmosphere_paths",
+    "materials",
+    "scene",
+    "avatar_p1",
+    "clothing_p1",
+    "sensors",
+    "thermal",
+)
 
 
 def _upstream_layers(scenario) -> list:

@@ -116,6 +116,13 @@ def test_imports_point_down_and_tools_are_independent():
     assert pending == PENDING, f"fixed, remove from PENDING: {sorted(PENDING - pending)}"
 
 
+def test_compose_discovers_the_tool_packages_of_this_graph():
+    """pipeline.graph looks for layer tools in the packages this graph calls tools."""
+    from humv_usd.pipeline.graph import TOOL_PACKAGES
+
+    assert set(TOOL_PACKAGES) == TOOLS
+
+
 def test_no_package_cycles():
     graph: dict[str, set[str]] = {}
     for _, src, _, dst, _, _ in _edges():

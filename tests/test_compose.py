@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import HUMVVEX_LAYERS, ROOT
 from pxr import Usd, UsdGeom, UsdShade
 
 from humv_usd.pipeline.compose import compose
@@ -18,17 +18,7 @@ from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import check_stage
 
-ALL_LAYERS = {
-    "environment",
-    "atmosphere",
-    "atmosphere_paths",
-    "materials",
-    "scene",
-    "avatar_p1",
-    "clothing_p1",
-    "sensors",
-    "thermal",
-}
+ALL_LAYERS = set(HUMVVEX_LAYERS)
 GARMENTS = ("tshirt_white", "shorts", "cap")
 
 

@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import ROOT
+from conftest import HUMVVEX_LAYERS, ROOT
 from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.errors import InputError
@@ -19,17 +19,7 @@ from humv_usd.pipeline.compose import compose, plan
 from humv_usd.scenario import validate
 from humv_usd.scenario.inputs import inputs_key, read_values
 
-ALL = [
-    "environment",
-    "atmosphere",
-    "atmosphere_paths",
-    "materials",
-    "scene",
-    "avatar_p1",
-    "clothing_p1",
-    "sensors",
-    "thermal",
-]
+ALL = list(HUMVVEX_LAYERS)
 
 
 @pytest.fixture(scope="module")
@@ -83,6 +73,18 @@ def test_build_order_respects_upstream(humvvex_raw):
 
 def _tool(name, upstream=()):
     return graph.Tool(name, (), tuple(upstream), "1", None)
+
+
+def test_plan_gives_an_unplanned_tool_its_layer_when_its_upstream_is_there(humvvex_raw, monkeypatch):
+    """A tool the plan has no rule for gets one layer per person when that person's upstream
+    layer is planned, and is skipped, with what it needs, when an upstream layer is not."""
+    tools = dict(graph.discover_tools())
+    tools["gait_{id}"] = _tool("gait_{id}", ["avatar_{id}"])
+    tools["lidar"] = _tool("lidar", ["sensors", "radar"])
+    monkeypatch.setattr("humv_usd.pipeline.compose.discover_tools", lambda: tools)
+    needed, skipped = plan(validate(humvvex_raw))
+    assert "gait_p1" in needed and "lidar" not in needed
+    assert ("lidar", "needs sensors, radar") in skipped
 
 
 def test_a_new_tool_slots_in_by_its_declarations():

@@ -102,6 +102,23 @@ class ComposeReport:
         return f"{len(self.states)} layers: {', '.join(parts)}{user}; {self.seconds:.2f} s"
 
 
+#: the tools :func:`plan` decides by its rules; any other tool gets its layer when its upstream
+#: layers are needed
+PLANNED = frozenset(
+    {
+        "environment",
+        "atmosphere",
+        "atmosphere_paths",
+        "materials",
+        "scene",
+        "avatar_{id}",
+        "clothing_{id}",
+        "sensors",
+        "thermal",
+    }
+)
+
+
 def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
     """Which layers this scenario needs and which parts are skipped, and why.
 
@@ -140,26 +157,16 @@ def plan(scenario: Scenario) -> tuple[list[str], list[tuple[str, str]]]:
         needed.append("thermal")
     else:
         skipped.append(("thermal", "no infrared sensor" if has_meshes else "no meshes"))
-    ruled = {
-        "environment",
-        "atmosphere",
-        "atmosphere_paths",
-        "materials",
-        "scene",
-        "avatar_{id}",
-        "clothing_{id}",
-        "sensors",
-    }
-    for tool in discover_tools().values():  # tools the rules above do not know
-        if tool.name in ruled | {"thermal"}:
+    for tool in discover_tools().values():  # a tool the rules above do not plan
+        if tool.name in PLANNED:
             continue
-        names = [tool.layer_name(h["id"]) for h in scenario["human"]] if tool.per_human else [tool.name]
-        for name in names:
-            wanted = [u.format(id=name.removeprefix(tool.name.split("{id}")[0])) for u in tool.upstream]
+        for human_id in [h["id"] for h in scenario["human"]] if tool.per_human else [None]:
+            name = tool.layer_name(human_id)
+            wanted = [u.format(id=human_id) for u in tool.upstream]
             if all(any(fnmatchcase(n, u) for n in needed) for u in wanted):
                 needed.append(name)
             else:
-                skipped.append((name, f"needs {', '.join(tool.upstream)}"))
+                skipped.append((name, f"needs {', '.join(wanted)}"))
     return needed, skipped
 
 

@@ -40,6 +40,7 @@ from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.usd.labels import instance_id
+from humv_usd.usd.layers import attribute_value
 from humv_usd.usd.materials import StageMaterial, bound_material, read_material
 
 #: A material as the render reads it (:func:`humv_usd.usd.materials.read_material`).
@@ -91,12 +92,6 @@ def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
         np.add.at(n, triangles[:, k], face_n)
     length = np.linalg.norm(n, axis=1, keepdims=True)
     return n / np.where(length > 0, length, 1.0)
-
-
-def _get(attr, time):
-    if not attr or not attr.IsValid():
-        return None
-    return attr.Get(time)
 
 
 def _traverse(stage: Usd.Stage):
@@ -158,7 +153,7 @@ class SceneMeshes:
     def points(self, prim: Usd.Prim, path: str, time, cache: UsdGeom.XformCache):
         """(local points, local-to-world row-vector matrix) of a mesh at ``time``; skinned meshes
         are posed by UsdSkel and come in skeleton space with the Skeleton's local-to-world."""
-        pts = _get(UsdGeom.Mesh(prim).GetPointsAttr(), time)
+        pts = attribute_value(UsdGeom.Mesh(prim).GetPointsAttr(), time)
         skinned = self.skinned.get(path)
         if skinned is None or pts is None:
             pts = np.asarray(pts if pts is not None else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
@@ -269,9 +264,9 @@ class SceneMeshes:
     @staticmethod
     def _topology(mesh: UsdGeom.Mesh, path: str, time) -> tuple[np.ndarray, np.ndarray, int]:
         """(faceVertexCounts, faceVertexIndices, point count), checked."""
-        counts = _get(mesh.GetFaceVertexCountsAttr(), time)
-        indices = _get(mesh.GetFaceVertexIndicesAttr(), time)
-        points = _get(mesh.GetPointsAttr(), time)
+        counts = attribute_value(mesh.GetFaceVertexCountsAttr(), time)
+        indices = attribute_value(mesh.GetFaceVertexIndicesAttr(), time)
+        points = attribute_value(mesh.GetPointsAttr(), time)
         counts = np.asarray(counts if counts is not None else [], dtype=np.int64)
         indices = np.asarray(indices if indices is not None else [], dtype=np.int64)
         npoints = 0 if points is None else len(points)
@@ -307,7 +302,7 @@ class SceneMeshes:
             return order[mat.path]
 
         for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
-            sub_indices = _get(subset.GetIndicesAttr(), time)
+            sub_indices = attribute_value(subset.GetIndicesAttr(), time)
             if sub_indices is None or len(sub_indices) == 0:
                 continue
             sub_indices = np.asarray(sub_indices, dtype=np.int64)

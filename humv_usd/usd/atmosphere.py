@@ -34,10 +34,10 @@ import numpy as np
 from pxr import Usd, UsdGeom, Vt
 
 from humv_usd.constants import TEMPERATURE_RANGE_K
-from humv_usd.errors import InputError, bad_value
+from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.physics.sky import extended_sky_table
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import SCOPES
+from humv_usd.usd.layers import SCOPES, attribute_value
 from humv_usd.usd.thermal import check_temperatures
 
 ATMOSPHERE_PATH = SCOPES["atmosphere"]
@@ -69,21 +69,6 @@ class PathArrays:
     radiance: np.ndarray
 
 
-def summary(values, limit=6) -> str:
-    """Short text of an array for error messages."""
-    a = np.asarray(values).ravel()
-    if a.size <= limit:
-        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
-    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
-    return f"[{head}, ...] ({a.size} values)"
-
-
-def _get(attr, time):
-    if not attr or not attr.IsValid():
-        return None
-    return attr.Get(time)
-
-
 def _atmosphere(stage) -> Usd.Prim | None:
     if stage is None:
         return None
@@ -94,7 +79,7 @@ def _atmosphere(stage) -> Usd.Prim | None:
 def float_array(prim, name, time, where_expected, positive=False, ascending=False) -> np.ndarray | None:
     """A float array attribute at ``time`` (None when unauthored or empty); InputError naming
     the attribute when it is not finite, negative (``positive``) or not ascending >= 0."""
-    value = _get(prim.GetAttribute(name), time)
+    value = attribute_value(prim.GetAttribute(name), time)
     if value is None or len(value) == 0:
         return None
     a = np.asarray(value, dtype=float).ravel()
@@ -118,8 +103,8 @@ def longwave_sky(stage, time=DEFAULT) -> tuple[np.ndarray, np.ndarray] | None:
     prim = _atmosphere(stage)
     if prim is None:
         return None
-    z = _get(prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES), time)
-    lw = _get(prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE), time)
+    z = attribute_value(prim.GetAttribute(S.ATMOSPHERE_SKY_ZENITH_ANGLES), time)
+    lw = attribute_value(prim.GetAttribute(S.ATMOSPHERE_SKY_LONGWAVE_RADIANCE), time)
     if z is None or lw is None:
         return None
     z, lw = np.asarray(z, dtype=float), np.asarray(lw, dtype=float)
@@ -148,7 +133,9 @@ def sky_temperature(stage, time) -> float:
     InputError when it is missing or outside :data:`TEMPERATURE_RANGE_K`."""
     prim = _atmosphere(stage)
     where = f"{ATMOSPHERE_PATH}.{S.ATMOSPHERE_SKY_TEMPERATURE}"
-    value = _get(prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE), time) if prim is not None else None
+    value = (
+        attribute_value(prim.GetAttribute(S.ATMOSPHERE_SKY_TEMPERATURE), time) if prim is not None else None
+    )
     lo, hi = TEMPERATURE_RANGE_K
     if value is None:
         what = "" if prim is not None else f" (no prim at {ATMOSPHERE_PATH})"
@@ -165,7 +152,7 @@ def sky_temperature(stage, time) -> float:
 def model_name(stage, time=DEFAULT) -> str | None:
     """The ``humv:atmosphere:model`` token (what computed the layer), or None."""
     prim = _atmosphere(stage)
-    value = _get(prim.GetAttribute(S.ATMOSPHERE_MODEL), time) if prim is not None else None
+    value = attribute_value(prim.GetAttribute(S.ATMOSPHERE_MODEL), time) if prim is not None else None
     return str(value) if value else None
 
 
@@ -272,7 +259,7 @@ def _path_prim(stage, sensor_path: str, sensor_name: str):
     if not (scope and scope.IsValid()):
         return None
     for child in scope.GetChildren():
-        target = _get(child.GetAttribute(S.ATMOSPHERE_PATH_SENSOR), DEFAULT)
+        target = attribute_value(child.GetAttribute(S.ATMOSPHERE_PATH_SENSOR), DEFAULT)
         if target and str(target) == sensor_path:
             return child
     child = scope.GetChild(sensor_name)

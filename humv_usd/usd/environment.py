@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Gf, Usd, UsdGeom
 
-from humv_usd.errors import InputError, bad_value
+from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.physics.sun import SunState
 from humv_usd.physics.weather import Weather
 from humv_usd.scenario.spec import ATMOSPHERE
@@ -240,7 +240,7 @@ def sun_direction(stage: Usd.Stage, time) -> np.ndarray | None:
         raise InputError(
             bad_value(
                 f"{ENVIRONMENT_PATH}.{S.ENVIRONMENT_SUN_DIRECTION}",
-                _summary(d),
+                summary(d),
                 "expected a unit 3-vector toward the sun",
             )
         )
@@ -264,11 +264,3 @@ def direct_normal_irradiance(stage: Usd.Stage, time) -> float | None:
             )
         )
     return v
-
-
-def _summary(values, limit=6) -> str:
-    a = np.asarray(values).ravel()
-    if a.size <= limit:
-        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
-    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
-    return f"[{head}, ...] ({a.size} values)"

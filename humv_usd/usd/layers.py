@@ -22,6 +22,13 @@ SCOPES = {
 }
 
 
+def attribute_value(attr, time):
+    """``attr`` at ``time``, or None when the attribute is missing or invalid."""
+    if not attr or not attr.IsValid():
+        return None
+    return attr.Get(time)
+
+
 def new_layer_stage(fps: float, frame_count: int, doc: str) -> Usd.Stage:
     """An in-memory stage whose root layer becomes one of our layers.
 

@@ -20,7 +20,7 @@ from pxr import Gf, Sdf, Usd, UsdShade, Vt
 
 from humv_usd.catalog.materials import Material
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
-from humv_usd.errors import InputError, bad_value
+from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.physics import planck
 from humv_usd.usd import schemas as S
 
@@ -125,14 +125,6 @@ def write_substrate(material_prim: Usd.Prim, substrate_path) -> None:
     material_prim.CreateRelationship(SUBSTRATE_RELATIONSHIP, custom=True).SetTargets([substrate_path])
 
 
-def _summary(values, limit=6):
-    a = np.asarray(values).ravel()
-    if a.size <= limit:
-        return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
-    head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
-    return f"[{head}, ...] ({a.size} values)"
-
-
 def _array(prim: Usd.Prim, name: str, time):
     attr = prim.GetAttribute(name)
     value = attr.Get(time) if attr else None
@@ -159,7 +151,7 @@ def _spectrum(prim, name, wl, mpath, lo_hi_text, time):
         raise InputError(
             bad_value(
                 f"{mpath}.{name}",
-                _summary(v),
+                summary(v),
                 f"expected {wl.size} {lo_hi_text} in 0-1 (one per wavelength in {S.MATERIAL_WAVELENGTHS})",
             )
         )
@@ -198,7 +190,7 @@ def read_material(material, mesh_path: str | None = None, time=None) -> StageMat
         raise InputError(
             bad_value(
                 f"{mpath}.{S.MATERIAL_WAVELENGTHS}",
-                _summary(wl),
+                summary(wl),
                 "expected positive, strictly ascending wavelengths [um]",
             )
         )
@@ -212,7 +204,7 @@ def read_material(material, mesh_path: str | None = None, time=None) -> StageMat
         )
     if not np.all(np.isfinite(eps)) or np.any(eps < 0) or np.any(eps > 1):
         raise InputError(
-            bad_value(f"{mpath}.{S.MATERIAL_EMISSIVITY}", _summary(eps), "expected emissivities in 0-1")
+            bad_value(f"{mpath}.{S.MATERIAL_EMISSIVITY}", summary(eps), "expected emissivities in 0-1")
         )
     rho = _spectrum(prim, S.MATERIAL_REFLECTANCE, wl, mpath, "reflectances", time)
     tau = _spectrum(prim, S.MATERIAL_TRANSMITTANCE, wl, mpath, "transmittances", time)
@@ -220,7 +212,7 @@ def read_material(material, mesh_path: str | None = None, time=None) -> StageMat
         raise InputError(
             bad_value(
                 f"{mpath}.{S.MATERIAL_TRANSMITTANCE}",
-                _summary(tau),
+                summary(tau),
                 f"expected {wl.size} transmittances in 0-1 with emissivity + transmittance <= 1 (one per wavelength)",
             )
         )
