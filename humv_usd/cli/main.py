@@ -65,8 +65,13 @@ def main(verbose: int = 0):
     help="Overwrite layers edited by hand (default: stop and say which; put edits in a user layer, "
     "a sublayer you add to OUT/stage.usda, which compose keeps).",
 )
+@click.option(
+    "--wait",
+    is_flag=True,
+    help="If another humv-usd process is writing OUT, wait for it (default: stop with one line naming it).",
+)
 @reports_errors
-def compose(scenario: Path, out_dir: str, force: bool):
+def compose(scenario: Path, out_dir: str, force: bool, wait: bool):
     """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part; rebuilds only the
     layers whose inputs changed (OUT/compose.json says which and why)."""
     from humv_usd.fileio import check_output_dir
@@ -74,7 +79,7 @@ def compose(scenario: Path, out_dir: str, force: bool):
     from humv_usd.scenario import load_scenario
 
     out_dir = check_output_dir(out_dir)  # fail fast, before reading anything
-    report = run_compose(load_scenario(scenario), out_dir, force=force)
+    report = run_compose(load_scenario(scenario), out_dir, force=force, wait=wait)
     for name, wrote, seconds in report.layers:
         state = "written" if wrote else "unchanged"
         why = report.states[name].why if name in report.states else ""
@@ -119,8 +124,13 @@ def compose(scenario: Path, out_dir: str, force: bool):
     type=int,
     help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 4; see `humv-usd bench render`).",
 )
+@click.option(
+    "--wait",
+    is_flag=True,
+    help="If another humv-usd process is writing OUT, wait for it (default: stop with one line naming it).",
+)
 @reports_errors
-def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, annotators, subbands):
+def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, annotators, subbands, wait: bool):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
     from humv_usd.fileio import check_output_dir
     from humv_usd.pipeline.render import render_stage
@@ -135,6 +145,7 @@ def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, anno
         seed=seed,
         annotators=None if annotators is None else annotators.split(","),
         subbands=subbands,
+        wait=wait,
     )
     err = manifest["monte_carlo_error"]
     rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))

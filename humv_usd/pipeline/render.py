@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
+import logging
 import os
 import tempfile
 import time
@@ -17,12 +19,13 @@ from humv_usd import images as writers
 from humv_usd import mode
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value
-from humv_usd.fileio import check_output_dir, jsonable, write_json
+from humv_usd.fileio import check_output_dir, folder_lock, jsonable, remove_stale_temps, write_json
 from humv_usd.geometry.camera import CAMERA_FILE, Camera, camera_file
 from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
 from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
+from humv_usd.pipeline import records as R
 from humv_usd.render import eo as eo_render
 from humv_usd.render import radiometry
 from humv_usd.render.export import StageExport
@@ -41,6 +44,8 @@ from humv_usd.usd.atmosphere import AtmosphereSpectra, atmosphere_spectra
 from humv_usd.usd.layers import open_stage
 from humv_usd.usd.materials import band_emissivity, subband_emissivity, subband_transmittance
 from humv_usd.usd.sensor import check_subbands, read_sensor_model
+
+log = logging.getLogger(__name__)
 
 MANIFEST_NAME = "manifest.json"
 TIMING_KEYS = ("load_export", "render", "labels", "write")
@@ -167,6 +172,8 @@ def render_stage(
     max_depth=-1,
     annotators=None,
     subbands=None,
+    force=False,
+    wait=False,
 ) -> dict:
     r"""Render the infrared sensors of a composed HumV-USD stage.
 
@@ -201,6 +208,11 @@ def render_stage(
         ``humv:sensor:subbands`` (scenario key ``subbands``), else
         :data:`humv_usd.render.radiometry.DEFAULT_SUBBANDS`. ``spp`` is split over them
         (:func:`humv_usd.render.ir.subband_spp`).
+    force : bool, default False
+        Render the requested frames again even when they are done, and re-render the frames in
+        the folder that were made with other settings (instead of refusing).
+    wait : bool, default False
+        Wait while another process writes ``out_dir`` (default: InputError naming it).
     annotators : list of str, optional
         Ground-truth annotators (:data:`humv_usd.groundtruth.ANNOTATORS`); default the stage's
         (scenario ``[annotations]``) or the default set. See :mod:`humv_usd.groundtruth`.
@@ -209,6 +221,14 @@ def render_stage(
     -------
     dict
         The manifest (also written to ``OUT/manifest.json``).
+
+    Resuming: every finished image has a record (:mod:`humv_usd.pipeline.records`); a call
+    renders only the requested frames whose images are not done with the same settings, refuses
+    (InputError, one line) when the folder holds images of the selected sensors made with other
+    settings unless ``force``, and rebuilds the manifest, coco.json, regions.json and the camera
+    files from all records of the selected sensors, so frames from separate calls (or a run
+    killed and started again) accumulate into the result of one uninterrupted run. The folder
+    is locked while the render runs (:func:`humv_usd.fileio.folder_lock`).
 
     Raises
     ------
@@ -250,25 +270,116 @@ def render_stage(
     t_start = time.perf_counter()
     _check_settings(spp, seed, max_depth)
     out_dir = os.path.abspath(check_output_dir(out_dir))
-    totals = dict.fromkeys(TIMING_KEYS, 0.0)
+    with folder_lock(out_dir, "humv-usd render", wait=wait):
+        args = (stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
+        return _render_locked(t_start, args, force)
 
+
+def _render_locked(t_start, args, force) -> dict:
+    out_dir = args[1]
+    totals = dict.fromkeys(TIMING_KEYS, 0.0)
     t = time.perf_counter()
-    plan = _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
+    plan = _plan(*args)
     totals["load_export"] += time.perf_counter() - t
+    todo = _frames_to_render(plan, force)
 
     run = _FrameRenderer(plan, totals)
-    for frame in plan.frames if (plan.rendered or plan.eo_run.sensors) else []:
+    for frame in todo if (plan.rendered or plan.eo_run.sensors) else []:
         run.render_frame(frame)
-    run.write_cameras()
-    plan.eo_run.write_cameras()
+        run.record_frame(frame)
+    done = _records_of_this_render(plan)
+    _write_cameras(out_dir, done)
 
     t = time.perf_counter()
-    ground_truth = plan.truth.finish(out_dir, totals["render"])
+    taken = [r["truth"] for r in done if r.get("truth")]
+    ground_truth = plan.truth.finish(out_dir, totals["render"], taken=taken)
     totals["labels"] += time.perf_counter() - t
     totals["total"] = time.perf_counter() - t_start
-    manifest = _manifest(plan, run, ground_truth, totals)
+    manifest = _manifest(plan, run, ground_truth, totals, done)
     write_json(os.path.join(out_dir, MANIFEST_NAME), manifest)
     return jsonable(manifest)
+
+
+# ------------------------------------------------------------------------------- resuming
+def stage_digest(stage: Usd.Stage) -> str:
+    """SHA-256 (16 hex digits) of the content of every layer file of the stage's layer stack:
+    an image rendered from another stage content is another image."""
+    h = hashlib.sha256()
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        path = layer.realPath
+        h.update((path and os.path.basename(path) or layer.identifier).encode())
+        h.update(
+            R.file_sha256(path).encode() if path and os.path.isfile(path) else layer.ExportToString().encode()
+        )
+    return h.hexdigest()[:16]
+
+
+def _selected(plan: _Plan) -> list[SensorModel]:
+    return list(plan.rendered) + list(plan.eo_run.sensors)
+
+
+def _frames_to_render(plan: _Plan, force: bool) -> list[int]:
+    """The requested frames not done with this call's settings (all with ``force``), plus with
+    ``force`` the frames of images made with other settings; refuse those without ``force``.
+    Removes what a killed render left: temp files and the files of images without a record."""
+    out_dir = plan.out_dir
+    names = [s.name for s in _selected(plan)]
+    for folder in [out_dir, *(os.path.join(out_dir, n) for n in names)]:
+        remove_stale_temps(folder)
+    for n in names:
+        remove_stale_temps(os.path.join(out_dir, R.RECORDS_DIR, n))
+    if os.path.isdir(os.path.join(out_dir, R.RECORDS_DIR)):
+        for sensor, frame in R.unrecorded_images(out_dir, names):
+            log.info("removing the partial image %s/%04d of an interrupted render", sensor, frame)
+            R.remove_image(out_dir, sensor, frame)
+    os.makedirs(os.path.join(out_dir, R.RECORDS_DIR), exist_ok=True)
+    records = R.read_records(out_dir)
+    other = sorted(
+        (key, rec)
+        for key, rec in records.items()
+        if key[0] in plan.wanted and rec.get("settings") != plan.wanted[key[0]]
+    )
+    if other and not force:
+        (sensor, frame), rec = other[0]
+        more = f" (and {len(other) - 1} more images)" if len(other) > 1 else ""
+        raise InputError(
+            f"{out_dir}: {sensor}/{frame:04d}{more} was rendered with other settings "
+            f"({R.difference(rec.get('settings') or {}, plan.wanted[sensor])}); render into another "
+            "folder, or pass --force to render them again with these settings"
+        )
+    todo = set(plan.frames) if force else set()
+    todo |= {frame for (_, frame), _ in other}
+    for f in plan.frames:
+        if any(not R.is_done(out_dir, records.get((n, f)), plan.wanted[n]) for n in names):
+            todo.add(f)
+    if force:
+        for sensor, frame in sorted({k for k, _ in other}):
+            R.remove_image(out_dir, sensor, frame)
+    log.info("rendering %d of %d requested frames", len(set(plan.frames) & todo), len(plan.frames))
+    return sorted(todo)
+
+
+def _records_of_this_render(plan: _Plan) -> list[dict]:
+    """The records of the selected sensors with this call's settings, in the order one
+    uninterrupted render writes them."""
+    order = {s.name: i for i, s in enumerate(_selected(plan))}
+    records = [
+        rec
+        for (sensor, _), rec in R.read_records(plan.out_dir).items()
+        if sensor in plan.wanted and rec.get("settings") == plan.wanted[sensor]
+    ]
+    return sorted(records, key=R.image_order(order))
+
+
+def _write_cameras(out_dir: str, done: list[dict]) -> None:
+    """``<sensor>/camera.json`` of every sensor rendered (intrinsics, per-frame pose)."""
+    by_sensor: dict[str, list[dict]] = defaultdict(list)
+    for rec in done:
+        by_sensor[rec["sensor"]].append(rec)
+    for name, recs in by_sensor.items():
+        cameras = R.merge_cameras(recs)
+        if cameras is not None:
+            write_json(os.path.join(out_dir, name, CAMERA_FILE), cameras)
 
 
 # ------------------------------------------------------------------------------- the plan
@@ -298,6 +409,7 @@ class _Plan:
     use_sky_map: bool
     use_sun: bool
     sensor_ids: dict[str, str] = field(default_factory=dict)
+    wanted: dict[str, dict] = field(default_factory=dict)  # per sensor: the settings of its images
 
 
 def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands) -> _Plan:
@@ -351,7 +463,13 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
     eo_run = eo_render.EORender(
         stage, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir, truth=truth
     )
+    digest = stage_digest(stage)
+    wanted = {
+        s.name: R.settings(digest, spp, seed, max_depth, truth.annotators, n_of.get(s.name))
+        for s in rendered + list(eo_run.sensors)
+    }
     return _Plan(
+        wanted=wanted,
         stage_path=os.fspath(stage_path),
         out_dir=out_dir,
         stage=stage,
@@ -400,16 +518,40 @@ class _FrameRenderer:
         self.scene: IRScene | None = None
         self.scene_key = None
         self.scene_builds = 0
+        self.frames_rendered: list[int] = []
 
-    def write_cameras(self) -> None:
-        """``<sensor>/camera.json`` of every IR sensor rendered (intrinsics, per-frame pose)."""
-        for name, rec in self.per_sensor.items():
-            if rec["cameras"]:
-                write_json(
-                    os.path.join(self.plan.out_dir, name, CAMERA_FILE), camera_file(name, rec["cameras"])
-                )
+    def record_frame(self, frame: int) -> None:
+        """Write the record of every image of ``frame`` (after all its files) and drop what this
+        object kept of it, so that memory does not grow with frames."""
+        plan = self.plan
+        items = [
+            (name, "ir", rec["frames"], rec["cameras"], rec.pop("frame_errors", None))
+            for name, rec in self.per_sensor.items()
+        ]
+        items += [
+            (name, "eo", rec["frames"], rec["cameras"], None) for name, rec in plan.eo_run.records.items()
+        ]
+        for name, kind, entries, cameras, errors in items:
+            if not entries or entries[-1]["frame"] != frame:
+                continue
+            entry, (_, camera) = entries.pop(), cameras.pop()
+            truth = plan.truth.take_image(os.path.splitext(entry["exr"])[0]) if plan.truth else None
+            R.write_record(
+                plan.out_dir,
+                name,
+                frame,
+                {
+                    "settings": plan.wanted[name],
+                    "kind": kind,
+                    "entry": entry,
+                    "camera": camera_file(name, [(frame, camera)]),
+                    "error_sums": errors,
+                    "truth": truth,
+                },
+            )
 
     def render_frame(self, frame: int) -> None:
+        self.frames_rendered.append(int(frame))
         plan, exporter = self.plan, self.plan.exporter
         t = time.perf_counter()
         state = exporter.frame_state(frame, plan.rendered + plan.eo_run.sensors)
@@ -550,6 +692,13 @@ class _FrameRenderer:
 
         self.per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
         self.overall.add(stderr_l, stderr_k)
+        frame_errors = _Accumulator()
+        frame_errors.add(stderr_l, stderr_k)
+        self.per_sensor[s.name]["frame_errors"] = {
+            "sums": dict(frame_errors.sums),
+            "counts": dict(frame_errors.counts),
+            "maxima": frame_errors.maxima,
+        }
         finite_bt = bt[np.isfinite(bt)]
         self.per_sensor[s.name]["frames"].append(
             {
@@ -576,9 +725,10 @@ def _preview_grey(bt: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------- manifest
-def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
-    """The manifest entry of one IR sensor."""
+def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel, done: list[dict]) -> dict:
+    """The manifest entry of one IR sensor (its frames from the records of all calls)."""
     rec = run.per_sensor[s.name]
+    mine = [r for r in done if r["sensor"] == s.name]
     return {
         "name": s.name,
         "prim": s.path,
@@ -592,10 +742,10 @@ def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
         "subbands_requested": plan.n_of[s.name],
         "subbands_source": plan.n_source[s.name],
         "spp_per_subband": plan.spp_sub[s.name],
-        "camera": os.path.join(s.name, CAMERA_FILE) if rec["cameras"] else None,
-        "frames": rec["frames"],
+        "camera": os.path.join(s.name, CAMERA_FILE) if mine else None,
+        "frames": [r["entry"] for r in mine],
         "timings_s": {**rec["timings"], "total": sum(rec["timings"].values())},
-        "monte_carlo_error": rec["errors"].stats(),
+        "monte_carlo_error": R.merge_errors(mine),
     }
 
 
@@ -623,8 +773,10 @@ def _radiometry_record(plan: _Plan) -> dict:
     }
 
 
-def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> dict:
-    """The run's manifest (``OUT/manifest.json``)."""
+def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict, done: list[dict]) -> dict:
+    """The render folder's manifest (``OUT/manifest.json``): this call's settings and timings,
+    the frames of all calls (from the records)."""
+    eo_frames = {s.name: [r["entry"] for r in done if r["sensor"] == s.name] for s in plan.eo_run.sensors}
     return {
         "stage": os.path.abspath(plan.stage_path),
         "output_dir": plan.out_dir,
@@ -634,7 +786,7 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
         "mitsuba_variant_reason": mode.variant_reason(),
         "settings": {
             "spp": int(plan.spp),
-            "frames": plan.frames,
+            "frames": sorted({r["frame"] for r in done}),
             "seed": int(plan.seed),
             "seed_per_frame": "seed + frame",
             "max_depth": int(plan.max_depth),
@@ -660,14 +812,15 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
             "stretch": "linear between the 1st and 99th percentile of each image "
             "(levels per frame in preview_levels_k); non-finite pixels black",
         },
-        "sensors": [_sensor_record(plan, run, s) for s in plan.rendered],
-        "eo_sensors": plan.eo_run.manifest(),
+        "sensors": [_sensor_record(plan, run, s, done) for s in plan.rendered],
+        "eo_sensors": plan.eo_run.manifest(eo_frames),
         "skipped_sensors": plan.skipped + plan.eo_run.skipped,
         "radiometry": _radiometry_record(plan),
         "sensor_chain": run.chains.status(),
         "scene_builds": run.scene_builds,
         "timings_s": totals,
-        "monte_carlo_error": run.overall.stats(),
+        "monte_carlo_error": R.merge_errors([r for r in done if r["kind"] == "ir"]),
+        "rendered_this_call": run.frames_rendered,
     }
 
 

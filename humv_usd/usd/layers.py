@@ -9,7 +9,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom
 
 import humv_usd  # noqa: F401  (registers the schemas before any stage exists)
 from humv_usd.errors import InputError
-from humv_usd.fileio import write_text_atomic
+from humv_usd.fileio import PENDING_NAME, write_text_atomic
 
 WORLD = Sdf.Path("/World")
 SCOPES = {
@@ -56,6 +56,11 @@ def set_layer_metadata(layer: Sdf.Layer, fps: float, frame_count: int, doc: str)
 #: a layer's cache key (customLayerData): hash of its tool's version, the scenario values it reads
 #: and the keys of the layers it reads (humv_usd.scenario.inputs.inputs_key)
 INPUTS_KEY = "humv:inputsKey"
+
+
+#: the root layer's record of its compose-written sublayers' keys (customLayerData):
+#: {layer file path relative to the root: humv:inputsKey}
+LAYER_KEYS = "humv:layerKeys"
 
 
 def set_inputs_key(layer: Sdf.Layer, key: str) -> None:
@@ -148,6 +153,33 @@ def broken_sublayers(root: Sdf.Layer) -> list[str]:
     return problems
 
 
+def unfinished_set(root: Sdf.Layer) -> list[str]:
+    """Lines naming why the root and its sublayers are not one consistent set as compose wrote
+    it: a write of several files that a kill interrupted (its journal is still beside the root),
+    or a sublayer whose ``humv:inputsKey`` is not the one the root recorded for it
+    (``humv:layerKeys``: the file comes from another compose, e.g. a new avatar beside the old
+    thermal layer; a file without a key was made by hand and is not flagged). Call after :func:`broken_sublayers` found every sublayer loadable. A root
+    without a record (older stages, hand-made roots) is not checked."""
+    folder = Path(root.realPath).parent if root.realPath else None
+    if folder is not None and (folder / PENDING_NAME).is_file():
+        return [
+            f"{folder}: a compose into this folder was interrupted while it moved its new files into "
+            f"place ({PENDING_NAME} is there); run humv-usd compose again, which finishes it"
+        ]
+    keys = dict(root.customLayerData).get(LAYER_KEYS) or {}
+    out = []
+    for sub, expected in dict(keys).items():
+        layer = Sdf.Layer.FindOrOpenRelativeToLayer(root, sub)
+        found = dict(layer.customLayerData).get(INPUTS_KEY) if layer is not None else None
+        if layer is not None and found is not None and found != expected:
+            out.append(
+                f"{layer.realPath}: {INPUTS_KEY} {found}, but {root.realPath or root.identifier} was "
+                f"composed with {expected}: the layer comes from another compose (an interrupted "
+                "write or a copied file); run humv-usd compose again"
+            )
+    return out
+
+
 def open_root_layer(path) -> Sdf.Layer:
     """The root layer of the stage file at ``path``, or InputError naming the file and the reason."""
     path = Path(path)
@@ -171,7 +203,7 @@ def open_stage(path) -> Usd.Stage:
     A sublayer that is missing or does not load is an error too (one line per such layer,
     naming it): USD would open the stage without it."""
     root = open_root_layer(path)
-    broken = broken_sublayers(root)
+    broken = broken_sublayers(root) or unfinished_set(root)
     if broken:
         raise InputError(broken[0], broken)
     try:
