@@ -129,6 +129,24 @@ def check_output_dir(out_dir, what: str = "output folder") -> Path:
     return path
 
 
+def check_output_file(path, what: str = "output file") -> Path:
+    """Check before any work that a file can be written at ``path``: not empty, not a folder,
+    a name of at most NAME_MAX bytes, and a parent folder that is (or can be made) writable
+    (:func:`check_output_dir`). Returns the path; raises InputError (one line) otherwise."""
+    text = os.fspath(path)
+    if not text.strip():
+        raise InputError(bad_value(what, text, "expected a file path (empty means nowhere)"))
+    target = Path(text)
+    if len(os.fsencode(target.name)) > NAME_MAX:
+        raise InputError(
+            f"{what} {text[:60]!r}...: a file name of {len(os.fsencode(target.name))} bytes; at most {NAME_MAX}"
+        )
+    if target.is_dir() or text.endswith(os.sep):
+        raise InputError(f"{what} {text!r}: is a folder, expected a file path")
+    check_output_dir(target.parent if str(target.parent) else ".", f"{what}'s folder")
+    return target
+
+
 # ------------------------------------------------------------------ several files as one write
 #: the journal of a write of several files (:func:`commit_files`), in the folder they live in
 PENDING_NAME = ".humv-pending.json"

@@ -293,3 +293,48 @@ def test_render_refuses_a_truncated_avatar_layer_in_a_new_process(stage_copy, tm
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"humv-usd: error: {avatar}: sublayer of"), r.stderr
     assert r.stdout == "" and not out.exists()
+
+
+# ------------------------------------------------------------------ the other commands' output paths
+def _bad_files(tmp_path: Path) -> dict[str, tuple[str, str]]:
+    """-o/--png value -> (a word the error line must hold, what the case is)."""
+    (tmp_path / "afile").write_text("not a folder\n")
+    (tmp_path / "adir").mkdir()
+    return {
+        "": ("expected a file path", "empty"),
+        str(tmp_path / "adir"): ("is a folder", "an existing folder"),
+        str(tmp_path / "afile" / "x.json"): ("is a file", "a file as parent"),
+        "/proc/x/y.json": ("cannot write in /proc", "/proc"),
+        str(tmp_path / ("a" * 300 + ".json")): ("at most 255", "300-character name"),
+    }
+
+
+@pytest.mark.parametrize("command", ["avatar", "coco-merge", "bench thermal"])
+def test_bad_output_files_fail_fast(command, tmp_path):
+    (tmp_path / "in.json").write_text('{"images": [], "annotations": [], "categories": []}\n')
+    work = tmp_path / "cwd"
+    work.mkdir()
+    for value, (word, case) in _bad_files(tmp_path).items():
+        before = files_under(tmp_path)
+        args = {
+            "avatar": ["avatar", "-o", value],
+            "coco-merge": ["coco-merge", tmp_path / "in.json", "-o", value],
+            "bench thermal": ["bench", "thermal", "--quick", "--png", value],
+        }[command]
+        result = run(args, cwd=work)
+        assert_one_error(result, word)
+        assert files_under(tmp_path) == before, case
+
+
+def test_regions_refuses_a_read_only_render_folder(tmp_path, monkeypatch):
+    ro = tmp_path / "render"
+    ro.mkdir()
+    real = tempfile.mkdtemp
+
+    def refuse(*args, dir=None, **kwargs):  # the kernel's answer in a read-only folder (also as root)
+        if dir is not None and Path(dir) == ro:
+            raise PermissionError(13, "Permission denied", str(dir))
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkdtemp", refuse)
+    assert_one_error(run(["regions", ro]), "render folder", "Permission denied")

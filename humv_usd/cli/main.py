@@ -129,8 +129,25 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool):
     is_flag=True,
     help="If another humv-usd process is writing OUT, wait for it (default: stop with one line naming it).",
 )
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Render the frames again even when done, and re-render images of OUT made with other "
+    "settings (default: render only what is missing; refuse other settings).",
+)
 @reports_errors
-def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, annotators, subbands, wait: bool):
+def render(
+    stage: Path,
+    out_dir: str,
+    frames,
+    spp: int,
+    seed: int,
+    sensors,
+    annotators,
+    subbands,
+    wait: bool,
+    force: bool,
+):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
     from humv_usd.fileio import check_output_dir
     from humv_usd.pipeline.render import render_stage
@@ -146,10 +163,14 @@ def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, anno
         annotators=None if annotators is None else annotators.split(","),
         subbands=subbands,
         wait=wait,
+        force=force,
     )
     err = manifest["monte_carlo_error"]
     rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))
-    click.echo(f"{out_dir}/manifest.json  {rendered} image(s), render {manifest['timings_s']['total']:.2f} s")
+    click.echo(
+        f"{out_dir}/manifest.json  {rendered} image(s) ({len(manifest['rendered_this_call'])} frame(s) "
+        f"rendered now), {manifest['timings_s']['total']:.2f} s"
+    )
     if manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
         click.echo(
             f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
@@ -470,7 +491,7 @@ def bench_avatar(repeat: int):
     "png",
     default="thermal_bench.png",
     show_default=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=str,  # checked by check_output_file: one error line, not click's usage block
     help="Error-vs-run-time plot.",
 )
 @click.option("--quick", is_flag=True, help="Skip the physiology time-step sweep (slow JOS-3).")
@@ -494,7 +515,7 @@ def bench_thermal(
     import numpy as np
 
     from humv_usd.bench.thermal import bench_qrad
-    from humv_usd.fileio import atomic_path
+    from humv_usd.fileio import atomic_path, check_output_file
     from humv_usd.physics.garment import bench_time_steps as garment_steps
     from humv_usd.physics.garment import extreme_grid_counts
     from humv_usd.thermal.physiology import bench_time_steps as skin_steps
@@ -506,6 +527,7 @@ def bench_thermal(
         except ValueError:
             raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
 
+    png = check_output_file(png, "--png")  # fail fast, before the (long) bench
     case, what = None, "capsule avatar"
     if scenario is not None:
         from humv_usd.bench.thermal import avatar_case
@@ -622,6 +644,9 @@ def _register_tools():
     )
 
     register_groundtruth(main, bench)
+    from humv_usd.cli.memory_cmd import bench_memory
+
+    bench.add_command(bench_memory)
 
 
 _register_tools()

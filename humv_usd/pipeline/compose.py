@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import re
 import time
 from dataclasses import dataclass, field
@@ -44,6 +45,7 @@ from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.scenario.warnings import suspicious
 from humv_usd.usd.layers import (
     LAYER_KEYS,
     layer_text,
@@ -51,6 +53,8 @@ from humv_usd.usd.layers import (
     set_layer_metadata,
     usd_error_text,
 )
+
+log = logging.getLogger(__name__)
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
@@ -367,6 +371,8 @@ def compose(
     as one change (:func:`humv_usd.fileio.commit_files`): a kill leaves the old set or the new
     one; a change a kill interrupted is finished first."""
     out = check_output_dir(out_dir)
+    for line in suspicious(scenario):  # valid but probably not meant: one line each
+        log.warning(line)
     with folder_lock(out, "humv-usd compose", wait=wait):
         finish_pending(out)  # a compose killed after its commit point: complete its write
         for folder in (out, out / LAYER_DIR):  # one killed before it: drop its temp files
