@@ -24,7 +24,7 @@ from humv_usd.catalog.sensors import (
     netd_for_f_number,  # another aperture than the preset's
     scenario_values,
 )
-from humv_usd.errors import InputError, bad_value
+from humv_usd.errors import InputError, bad_value, shown
 from humv_usd.scenario.spec import (
     BAND_DEFAULT_UM,
     SECTIONS,
@@ -75,6 +75,8 @@ class Scenario:
 
 
 def _suggest(name: str, known) -> str:
+    if len(name) > 100:  # nothing that long is a typo of a key (and difflib would be slow)
+        return ""
     close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
     return f" (did you mean '{close[0]}'?)" if close else ""
 
@@ -180,7 +182,7 @@ def _check_table(where: str, table: Any, section: Section, problems: list[str]) 
             continue
         if name not in section.keys:
             problems.append(
-                f"{where}.{name}: unknown key{_suggest(name, known)}; allowed keys: {', '.join(known)}"
+                f"{where}.{shown(name)}: unknown key{_suggest(name, known)}; allowed keys: {', '.join(known)}"
             )
             continue
         out[name] = _check_value(f"{where}.{name}", value, section.keys[name], problems)
@@ -390,7 +392,7 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
     for name in raw:
         if name not in SECTIONS:
             problems.append(
-                f"[{name}]: unknown section{_suggest(name, SECTIONS)}; "
+                f"[{shown(name)}]: unknown section{_suggest(name, SECTIONS)}; "
                 f"allowed sections: {', '.join(SECTIONS)}"
             )
     data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}

@@ -118,7 +118,9 @@ def usd_error_text(exc: Exception) -> str:
     text = " ".join(str(exc).split())
     found = re.findall(r" : '(.*?)'(?: Error in|\)?$)", text)
     first = found[0] if found else (text or type(exc).__name__)
-    return re.sub(r"pxrInternal_\w+?__pxrReserved__::", "", first).strip()
+    first = re.sub(r"pxrInternal_\w+?__pxrReserved__::", "", first).strip()
+    # USD quotes the text it failed on: a whole long string value would make a page-long line
+    return first if len(first) <= 300 else f"{first[:260]}... ({len(first)} characters)"
 
 
 def broken_sublayers(root: Sdf.Layer) -> list[str]:
