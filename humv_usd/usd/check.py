@@ -172,10 +172,11 @@ def check_stage(path: str | Path) -> list[str]:
     A root file that is missing or not USD raises InputError (bad input, exit 2). A sublayer
     that is missing or does not load is a finding naming its file (``humv:sublayer``); the other
     rules are then not run, since the stage USD would compose without that layer is not the
-    stage compose wrote and its findings would mislead. The same holds for a set that is not
-    one compose's (``humv:layerSet``, :func:`humv_usd.usd.layers.unfinished_set`)."""
+    stage compose wrote and its findings would mislead. A set of layers that is not one
+    compose's is a finding too (``humv:layerSet``, :func:`humv_usd.usd.layers.unfinished_set`)."""
     root = open_root_layer(path)
-    broken = broken_sublayers(root)
+    opened: list[Sdf.Layer] = []  # held: opening the stage does not parse them again
+    broken = broken_sublayers(root, opened)
     if broken:
         return [f"humv:sublayer: {line}" for line in broken]
     mixed = [f"humv:layerSet: {line}" for line in unfinished_set(root)]

@@ -123,7 +123,7 @@ def usd_error_text(exc: Exception) -> str:
     return first if len(first) <= 300 else f"{first[:260]}... ({len(first)} characters)"
 
 
-def broken_sublayers(root: Sdf.Layer) -> list[str]:
+def broken_sublayers(root: Sdf.Layer, keep: list | None = None) -> list[str]:
     """One line per sublayer, at any depth below ``root``, that is missing or does not load
     (a truncated or corrupt file): ``<file>: sublayer of <layer> not found`` or ``... does not
     load (<USD's reason>)``. USD itself only warns and composes the stage without such a layer,
@@ -149,10 +149,27 @@ def broken_sublayers(root: Sdf.Layer) -> list[str]:
             if child is None:
                 problems.append(f"{where} does not load")
                 continue
+            if keep is not None:  # held, so that opening the stage does not parse it again
+                keep.append(child)
             walk(child)
 
     walk(root)
     return problems
+
+
+_KEY_TEXT = re.compile(r'"humv:inputsKey"\s*=\s*"([0-9a-fA-F]+)"')
+
+
+def _inputs_key_of(path: Path) -> str | None:
+    """A layer file's ``humv:inputsKey``, read from the head of its text (compose writes the
+    customLayerData first) rather than by parsing the whole layer again."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16).decode("utf-8", errors="replace")
+    except OSError:
+        return None
+    found = _KEY_TEXT.search(head)
+    return found.group(1) if found else None
 
 
 def unfinished_set(root: Sdf.Layer) -> list[str]:
@@ -160,8 +177,9 @@ def unfinished_set(root: Sdf.Layer) -> list[str]:
     it: a write of several files that a kill interrupted (its journal is still beside the root),
     or a sublayer whose ``humv:inputsKey`` is not the one the root recorded for it
     (``humv:layerKeys``: the file comes from another compose, e.g. a new avatar beside the old
-    thermal layer; a file without a key was made by hand and is not flagged). Call after :func:`broken_sublayers` found every sublayer loadable. A root
-    without a record (older stages, hand-made roots) is not checked."""
+    thermal layer; a file without a key was made by hand and is not flagged). Call after
+    :func:`broken_sublayers` found every sublayer loadable. A root without a record (older
+    stages, hand-made roots) is not checked."""
     folder = Path(root.realPath).parent if root.realPath else None
     if folder is not None and (folder / PENDING_NAME).is_file():
         return [
@@ -171,11 +189,11 @@ def unfinished_set(root: Sdf.Layer) -> list[str]:
     keys = dict(root.customLayerData).get(LAYER_KEYS) or {}
     out = []
     for sub, expected in dict(keys).items():
-        layer = Sdf.Layer.FindOrOpenRelativeToLayer(root, sub)
-        found = dict(layer.customLayerData).get(INPUTS_KEY) if layer is not None else None
-        if layer is not None and found is not None and found != expected:
+        file = Path(root.ComputeAbsolutePath(sub))
+        found = _inputs_key_of(file)
+        if found is not None and found != expected:
             out.append(
-                f"{layer.realPath}: {INPUTS_KEY} {found}, but {root.realPath or root.identifier} was "
+                f"{file}: {INPUTS_KEY} {found}, but {root.realPath or root.identifier} was "
                 f"composed with {expected}: the layer comes from another compose (an interrupted "
                 "write or a copied file); run humv-usd compose again"
             )
@@ -205,7 +223,8 @@ def open_stage(path) -> Usd.Stage:
     A sublayer that is missing or does not load is an error too (one line per such layer,
     naming it): USD would open the stage without it."""
     root = open_root_layer(path)
-    broken = broken_sublayers(root) or unfinished_set(root)
+    opened: list[Sdf.Layer] = []
+    broken = broken_sublayers(root, opened) or unfinished_set(root)
     if broken:
         raise InputError(broken[0], broken)
     try:
