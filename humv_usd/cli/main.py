@@ -70,8 +70,14 @@ def main(verbose: int = 0):
     is_flag=True,
     help="If another humv-usd process is writing OUT, wait for it (default: stop with one line naming it).",
 )
+@click.option(
+    "--yes",
+    is_flag=True,
+    help="Go ahead even when the estimated memory or disk exceeds this machine's (default: stop "
+    "with the estimate and the key to change).",
+)
 @reports_errors
-def compose(scenario: Path, out_dir: str, force: bool, wait: bool):
+def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool):
     """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part; rebuilds only the
     layers whose inputs changed (OUT/compose.json says which and why)."""
     from humv_usd.fileio import check_output_dir
@@ -79,7 +85,7 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool):
     from humv_usd.scenario import load_scenario
 
     out_dir = check_output_dir(out_dir)  # fail fast, before reading anything
-    report = run_compose(load_scenario(scenario), out_dir, force=force, wait=wait)
+    report = run_compose(load_scenario(scenario), out_dir, force=force, wait=wait, yes=yes)
     for name, wrote, seconds in report.layers:
         state = "written" if wrote else "unchanged"
         why = report.states[name].why if name in report.states else ""
@@ -135,6 +141,12 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool):
     help="Render the frames again even when done, and re-render images of OUT made with other "
     "settings (default: render only what is missing; refuse other settings).",
 )
+@click.option(
+    "--yes",
+    is_flag=True,
+    help="Go ahead even when the estimated memory or disk exceeds this machine's (default: stop "
+    "with the estimate and the key to change).",
+)
 @reports_errors
 def render(
     stage: Path,
@@ -147,6 +159,7 @@ def render(
     subbands,
     wait: bool,
     force: bool,
+    yes: bool,
 ):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
     from humv_usd.fileio import check_output_dir
@@ -164,6 +177,7 @@ def render(
         subbands=subbands,
         wait=wait,
         force=force,
+        yes=yes,
     )
     err = manifest["monte_carlo_error"]
     rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))

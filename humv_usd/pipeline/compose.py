@@ -42,6 +42,7 @@ from humv_usd.fileio import (
     remove_stale_temps,
 )
 from humv_usd.groundtruth import annotators
+from humv_usd.pipeline.budget import compose_budget, require_fits
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
@@ -361,7 +362,7 @@ def _root_edit(out: Path, prev: dict, disk_sha: str | None, root_sha: str, force
 
 
 def compose(
-    scenario: Scenario, out_dir: str | Path, force: bool = False, wait: bool = False
+    scenario: Scenario, out_dir: str | Path, force: bool = False, wait: bool = False, yes: bool = False
 ) -> ComposeReport:
     """Write OUT/layers/*.usda and OUT/stage.usda for ``scenario``; see the module doc.
 
@@ -369,8 +370,10 @@ def compose(
     locked while compose runs (:func:`humv_usd.fileio.folder_lock`): another compose into it
     raises InputError naming that process, or with ``wait`` waits for it. All files are written
     as one change (:func:`humv_usd.fileio.commit_files`): a kill leaves the old set or the new
-    one; a change a kill interrupted is finished first."""
+    one; a change a kill interrupted is finished first. A scenario whose estimated memory or
+    disk (:mod:`humv_usd.pipeline.budget`) exceeds this machine's is refused unless ``yes``."""
     out = check_output_dir(out_dir)
+    require_fits(compose_budget(scenario), out, yes)
     for line in suspicious(scenario):  # valid but probably not meant: one line each
         log.warning(line)
     with folder_lock(out, "humv-usd compose", wait=wait):

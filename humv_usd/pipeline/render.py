@@ -26,6 +26,7 @@ from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline import records as R
+from humv_usd.pipeline.budget import render_budget, require_fits
 from humv_usd.render import eo as eo_render
 from humv_usd.render import radiometry
 from humv_usd.render.export import StageExport
@@ -174,6 +175,7 @@ def render_stage(
     subbands=None,
     force=False,
     wait=False,
+    yes=False,
 ) -> dict:
     r"""Render the infrared sensors of a composed HumV-USD stage.
 
@@ -213,6 +215,9 @@ def render_stage(
         the folder that were made with other settings (instead of refusing).
     wait : bool, default False
         Wait while another process writes ``out_dir`` (default: InputError naming it).
+    yes : bool, default False
+        Render even when the estimated memory or disk (:mod:`humv_usd.pipeline.budget`)
+        exceeds this machine's (default: InputError with the estimate).
     annotators : list of str, optional
         Ground-truth annotators (:data:`humv_usd.groundtruth.ANNOTATORS`); default the stage's
         (scenario ``[annotations]``) or the default set. See :mod:`humv_usd.groundtruth`.
@@ -272,15 +277,17 @@ def render_stage(
     out_dir = os.path.abspath(check_output_dir(out_dir))
     with folder_lock(out_dir, "humv-usd render", wait=wait):
         args = (stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
-        return _render_locked(t_start, args, force)
+        return _render_locked(t_start, args, force, yes)
 
 
-def _render_locked(t_start, args, force) -> dict:
+def _render_locked(t_start, args, force, yes=False) -> dict:
     out_dir = args[1]
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
     t = time.perf_counter()
     plan = _plan(*args)
     totals["load_export"] += time.perf_counter() - t
+    budget = render_budget([s.resolution for s in _selected(plan)], len(plan.frames), plan.spp)
+    require_fits(budget, out_dir, yes)  # before anything is written
     todo = _frames_to_render(plan, force)
 
     run = _FrameRenderer(plan, totals)
