@@ -12,7 +12,7 @@ A tool declares ``READS``, a tuple of read paths:
   order of people, objects and props.
 
 Values are JSON values (date-times as ISO text). A file the scenario names (``weather_csv``,
-``bvh``) is read by content: its value is ``"<path> sha256:<hash of the bytes>"``, so editing the
+``bvh``, ``scene.asset.*.file``, ``scene.layers``) is read by content: its value is ``"<path> sha256:<hash of the bytes>"``, so editing the
 file changes the key of every layer that reads it.
 """
 
@@ -46,8 +46,19 @@ CLOCK = (
     "general.seed",
 )
 DERIVED = {"@ids": instance_ids}
+
+
+def _file_keys(sections) -> frozenset[str]:
+    """Names of the keys whose values name files (``path``, ``pathlist``), subsections included."""
+    names: set[str] = set()
+    for s in sections:
+        names |= {name for name, key in s.keys.items() if key.kind in ("path", "pathlist")}
+        names |= _file_keys(s.subsections.values())
+    return frozenset(names)
+
+
 #: keys whose values name files (read by content)
-FILE_KEYS = frozenset(name for s in SECTIONS.values() for name, key in s.keys.items() if key.kind == "path")
+FILE_KEYS = _file_keys(SECTIONS.values())
 
 
 def read_values(scenario: Scenario, reads, human_id: str | None = None) -> dict[str, Any]:
@@ -90,7 +101,10 @@ def _flatten(where: str, value, rest: list[str], out: dict) -> None:
             _flatten(f"{where}.{i}", v, [], out)
     else:
         leaf = where.rsplit(".", 1)[-1]
-        out[where] = _file_value(value) if leaf in FILE_KEYS and value else _plain(value)
+        if leaf in FILE_KEYS and isinstance(value, list):  # a pathlist
+            out[where] = [_file_value(v) for v in value]
+        else:
+            out[where] = _file_value(value) if leaf in FILE_KEYS and value else _plain(value)
 
 
 def _plain(value):
