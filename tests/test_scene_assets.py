@@ -1,0 +1,336 @@
+"""Scene assets from 3D files ([[scene.asset]], [scene] layers) and `check` on what render rejects.
+
+Formats are read by the real readers (trimesh for glTF/PLY/STL, pxr for USD, bpy for FBX) and
+compared with the geometry that was written; the conversion to Z-up metres with closed forms.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdUtils
+
+from humv_usd.errors import InputError
+from humv_usd.pipeline.compose import compose
+from humv_usd.scenario import validate
+from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.inputs import read_values
+from humv_usd.scene.assets import read_asset
+from humv_usd.usd.check import check_stage
+
+ROOT = Path(__file__).resolve().parents[1]
+STREET = ROOT / "examples" / "street.toml"
+ASSETS = ROOT / "examples" / "assets"
+
+
+def street_raw(tmp_path: Path, humans: bool = False) -> dict:
+    """examples/street.toml with its assets copied next to a scenario file in tmp_path; without
+    people unless asked; small LWIR sensor only (the fast tests)."""
+    shutil.copytree(ASSETS, tmp_path / "assets")
+    raw = tomllib.loads(STREET.read_text())
+    if not humans:
+        raw.pop("human"), raw.pop("placement")
+    raw["sensor"] = [dict(raw["sensor"][0], resolution=[64, 48], pixel_pitch_um=17.0)]
+    raw["sensor"][0].pop("preset")
+    raw["sensor"][0].update(band="LWIR", focal_length_mm=25.0 / 16)
+    raw["general"]["duration_s"] = 0.0
+    raw["thermal"]["surface_spin_up_s"] = 3600.0
+    return raw
+
+
+def scenario_at(tmp_path: Path, raw: dict):
+    return validate(raw, tmp_path / "street.toml")
+
+
+# ------------------------------------------------------------------------------------ formats
+def test_gltf_y_up_becomes_z_up_metres():
+    """The car: trimesh's own read of the GLB (Y-up) against ours, (x, y, z) -> (x, -z, y)."""
+    asset = read_asset(str(ASSETS / "vehicle.glb"))
+    scene = trimesh.load(ASSETS / "vehicle.glb", force="scene")
+    ref = scene.to_geometry().vertices
+    ours = np.concatenate([m.points for m in asset.meshes])
+    np.testing.assert_allclose(
+        ours.min(axis=0), [ref[:, 0].min(), -ref[:, 2].max(), ref[:, 1].min()], atol=1e-6
+    )
+    np.testing.assert_allclose(
+        ours.max(axis=0), [ref[:, 0].max(), -ref[:, 2].min(), ref[:, 1].max()], atol=1e-6
+    )
+    assert ours[:, 2].min() == pytest.approx(0.0, abs=1e-6)  # wheels on the ground
+    assert {m.material for m in asset.meshes} == {"Paint", "Glass", "Tyre"}
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".stl", ".obj"])
+def test_mesh_formats_with_units_and_up_axis(tmp_path, suffix):
+    """A 2 x 4 x 6 box exported by trimesh, declared Y-up in cm: 0.02 x 0.06 x 0.04 m, Z-up."""
+    box = trimesh.creation.box(extents=[2.0, 4.0, 6.0])
+    box.apply_translation([1.0, 2.0, 3.0])  # corner at the origin
+    path = tmp_path / f"box{suffix}"
+    box.export(path)
+    asset = read_asset(str(path), units="cm", up_axis="Y")
+    pts = np.concatenate([m.points for m in asset.meshes])
+    np.testing.assert_allclose(pts.min(axis=0), [0.0, -0.06, 0.0], atol=1e-9)
+    np.testing.assert_allclose(pts.max(axis=0), [0.02, 0.0, 0.04], atol=1e-9)
+    faces = sum(len(m.face_counts) for m in asset.meshes)
+    assert faces == len(box.faces)
+
+
+def test_obj_objects_and_materials():
+    asset = read_asset(str(ASSETS / "bench.obj"))
+    assert [(m.name, m.material) for m in asset.meshes] == [
+        ("Seat", "Wood"),
+        ("Back", "Wood"),
+        ("LegLeft", "Metal"),
+        ("LegRight", "Metal"),
+    ]
+
+
+def test_usd_asset_units_read_from_the_file():
+    asset = read_asset(str(ASSETS / "building.usda"))
+    assert (asset.kind, asset.meters_per_unit, asset.up_axis, asset.root_prim) == (
+        "usd",
+        0.01,
+        "Y",
+        "/Building",
+    )
+    assert {m.material for m in asset.meshes} == {"Wall", "Glass", "Frame"}
+
+
+@pytest.mark.slow
+def test_fbx_through_blender(tmp_path):
+    """An FBX written by Blender (bpy) comes back with its object, material and size."""
+    bpy = pytest.importorskip("bpy")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(1.0, 2.0, 3.0))
+    cube = bpy.context.active_object
+    cube.name = "Crate"
+    cube.data.materials.append(bpy.data.materials.new("Planks"))
+    bpy.ops.export_scene.fbx(filepath=str(tmp_path / "crate.fbx"))
+    asset = read_asset(str(tmp_path / "crate.fbx"))
+    (m,) = asset.meshes
+    assert (m.name, m.material, len(m.face_counts)) == ("Crate", "Planks", 6)
+    np.testing.assert_allclose(m.points.min(axis=0), [0.0, 1.0, 2.0], atol=1e-5)
+    np.testing.assert_allclose(m.points.max(axis=0), [2.0, 3.0, 4.0], atol=1e-5)
+
+
+# ---------------------------------------------------------------------------------- compose
+@pytest.fixture
+def street(tmp_path):
+    raw = street_raw(tmp_path)
+    scenario = scenario_at(tmp_path, raw)
+    compose(scenario, tmp_path / "o")
+    return scenario, tmp_path / "o"
+
+
+def _meshes_under(stage, path):
+    return [p for p in Usd.PrimRange(stage.GetPrimAtPath(path)) if p.IsA(UsdGeom.Mesh)]
+
+
+def test_assets_composed_with_materials_labels_and_temperatures(street):
+    scenario, out = street
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    ids = instance_ids(scenario)
+    expect = {
+        "/World/Scene/car/Body": ("painted_metal", "vehicle", ids["asset:car"]),
+        "/World/Scene/car/Windscreen": ("glass", "vehicle", ids["asset:car"]),
+        "/World/Scene/car/Wheel0": ("soil", "vehicle", ids["asset:car"]),
+        "/World/Scene/building/Building/Walls": ("concrete", "building", ids["asset:building"]),
+        "/World/Scene/building/Building/WindowGlass3": ("glass", "building", ids["asset:building"]),
+        "/World/Scene/building/Building/Door": ("painted_metal", "other", ids["asset:building"]),
+        "/World/Scene/bench/LegLeft": ("painted_metal", "prop", ids["asset:bench"]),
+    }
+    from humv_usd.usd.labels import instance_id, nearest_class
+
+    for path, (material, cls, iid) in expect.items():
+        prim = stage.GetPrimAtPath(path)
+        assert prim.IsA(UsdGeom.Mesh), path
+        bound, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        assert bound.GetPath() == Sdf.Path(f"/World/Materials/{material}"), path
+        assert nearest_class(prim)[1] == cls, path
+        assert instance_id(prim) == iid, path
+    # the building (Y-up cm) stands on the ground, facade at y = 4 m facing the street
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_])
+    box = cache.ComputeWorldBound(stage.GetPrimAtPath("/World/Scene/building")).ComputeAlignedRange()
+    np.testing.assert_allclose(box.GetMin(), [-6.0, 3.94, 0.0], atol=1e-6)  # glass 6 cm proud
+    np.testing.assert_allclose(box.GetMax(), [6.0, 12.0, 6.0], atol=1e-6)
+    # every asset mesh has one temperature per face from the thermal tool: slabs, the bench held
+    thermal = json.loads((out / "compose.json").read_text())
+    assert any(e["name"] == "thermal" for e in thermal["layers"])
+    for prim in _meshes_under(stage, "/World/Scene"):
+        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature")
+        faces = len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get())
+        values = np.asarray(pv.Get(0))
+        assert len(values) == faces, prim.GetPath()
+        if str(prim.GetPath()).startswith("/World/Scene/bench"):
+            assert np.all(values == 295.0)
+        else:
+            assert np.all((values > 250.0) & (values < 340.0)), prim.GetPath()
+    assert check_stage(out / "stage.usda") == []
+
+
+def test_asset_file_content_is_in_the_cache_key(tmp_path):
+    raw = street_raw(tmp_path)
+    before = read_values(scenario_at(tmp_path, raw), ("scene",))
+    with open(tmp_path / "assets" / "bench.obj", "a") as f:
+        f.write("# edited\n")
+    after = read_values(scenario_at(tmp_path, raw), ("scene",))
+    changed = [k for k in before if before[k] != after[k]]
+    assert changed == ["scene.asset.2.file"]
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "what"),
+    [
+        ("broken.glb", b"glTF\x02\x00\x00\x00garbage", "cannot be read"),
+        ("broken.usda", b"#usda 1.0\ndef Mesh (", "does not open as USD"),
+        ("empty.obj", b"# nothing\n", "holds no triangle mesh"),
+        ("bad.obj", b"v 0 0 0\nf 1 2 3\n", "line 2"),
+    ],
+)
+def test_bad_asset_file_is_one_line_and_nothing_written(tmp_path, name, content, what):
+    raw = street_raw(tmp_path)
+    (tmp_path / name).write_bytes(content)
+    raw["scene"]["asset"][2]["file"] = name
+    with pytest.raises(InputError) as err:
+        compose(scenario_at(tmp_path, raw), tmp_path / "o")
+    assert len(err.value.problems) == 1
+    line = err.value.problems[0]
+    assert line.startswith(str(tmp_path / name)) and what in line
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def test_bad_scenario_keys(tmp_path):
+    raw = street_raw(tmp_path)
+    raw["scene"]["asset"][0]["materials"] = {"Glass": "glas"}
+    with pytest.raises(InputError) as err:
+        scenario_at(tmp_path, raw)
+    text = str(err.value)
+    assert "scene.asset[0].materials.Glass = 'glas'" in text and "did you mean 'glass'" in text
+    raw["scene"]["asset"][0]["materials"] = {"Glass": "glass"}
+    raw["scene"]["asset"][1]["file"] = "assets/building.max"
+    raw["scene"]["asset"][2]["transform"] = [[1, 0, 0, 0]]
+    with pytest.raises(InputError) as err:
+        scenario_at(tmp_path, raw)
+    text = str(err.value)
+    assert "scene.asset[1].file = 'assets/building.max': expected a file ending in" in text
+    assert "scene.asset[2].transform" in text
+
+
+def test_full_transform_equals_position_and_heading(tmp_path):
+    raw = street_raw(tmp_path)
+    a = raw["scene"]["asset"][0]
+    h = np.radians(30.0)
+    rows = [[np.cos(h), np.sin(h), 0, 0], [-np.sin(h), np.cos(h), 0, 0], [0, 0, 1, 0], [1.0, 2.0, 0.5, 1]]
+    a.update(position_m=[1.0, 2.0, 0.5], heading_deg=30.0)
+    compose(scenario_at(tmp_path, raw), tmp_path / "a")
+    del a["position_m"], a["heading_deg"]
+    a["transform"] = [[float(v) for v in r] for r in rows]
+    compose(scenario_at(tmp_path, raw), tmp_path / "b")
+    worlds = []
+    for o in ("a", "b"):
+        stage = Usd.Stage.Open(str(tmp_path / o / "stage.usda"))
+        prim = stage.GetPrimAtPath("/World/Scene/car/Body")
+        worlds.append(np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(0)))
+    np.testing.assert_allclose(worlds[0], worlds[1], atol=1e-9)
+
+
+def test_site_layer_sublayered_bound_and_labelled(tmp_path):
+    """A DCC layer (Z-up metres) with a shed under /World/Scene and no HumV material."""
+    site = tmp_path / "site.usda"
+    stage = Usd.Stage.CreateNew(str(site))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
+    UsdGeom.Xform.Define(stage, "/World/Scene")
+    UsdGeom.Xform.Define(stage, "/World/Scene/Shed")
+    cube = UsdGeom.Mesh.Define(stage, "/World/Scene/Shed/Walls")
+    cube.CreatePointsAttr(
+        [(8, 8, 0), (10, 8, 0), (10, 10, 0), (8, 10, 0), (8, 8, 2), (10, 8, 2), (10, 10, 2), (8, 10, 2)]
+    )
+    cube.CreateFaceVertexCountsAttr([4] * 6)
+    cube.CreateFaceVertexIndicesAttr([0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6, 3, 0, 4, 7])
+    stage.GetRootLayer().Save()
+    raw = street_raw(tmp_path)
+    raw["scene"].update(layers=["site.usda"], layer_material="wood", layer_class="building")
+    scenario = scenario_at(tmp_path, raw)
+    compose(scenario, tmp_path / "o")
+    composed = Usd.Stage.Open(str(tmp_path / "o" / "stage.usda"))
+    walls = composed.GetPrimAtPath("/World/Scene/Shed/Walls")
+    bound, _ = UsdShade.MaterialBindingAPI(walls).ComputeBoundMaterial()
+    assert bound.GetPath() == Sdf.Path("/World/Materials/wood")
+    from humv_usd.usd.labels import instance_id, nearest_class
+
+    assert instance_id(walls) == instance_ids(scenario)["layer:0:Shed"]
+    assert nearest_class(walls)[1] == "building"
+    temps = UsdGeom.PrimvarsAPI(walls).GetPrimvar("humv:thermal:temperature").Get(0)
+    assert len(temps) == 6
+    assert check_stage(tmp_path / "o" / "stage.usda") == []
+    # a Y-up site layer cannot be converted: one line naming it
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    stage.GetRootLayer().Save()
+    with pytest.raises(InputError, match=r"site.usda: upAxis Y"):
+        compose(scenario_at(tmp_path, raw), tmp_path / "o2")
+
+
+# ------------------------------------------------------------------------------------- check
+def _user_layer(out: Path, fn) -> None:
+    """A user layer (stronger than compose's) edited by ``fn(stage)``."""
+    layer = Sdf.Layer.CreateNew(str(out / "edit.usda"))
+    root = Sdf.Layer.FindOrOpen(str(out / "stage.usda"))
+    root.subLayerPaths.insert(0, "./edit.usda")
+    root.Save()
+    stage = Usd.Stage.Open(root)
+    stage.SetEditTarget(layer)
+    fn(stage)
+    layer.Save()
+
+
+def test_check_finds_unconverted_units_missing_files_and_bare_meshes(street):
+    _, out = street
+
+    def edit(stage):
+        raw = stage.DefinePrim("/World/Scene/raw_building")
+        raw.GetReferences().AddReference(str(ASSETS / "building.usda"))
+        gone = stage.DefinePrim("/World/Scene/gone")
+        gone.GetReferences().AddReference(str(out / "no_such_asset.usd"))
+        mesh = UsdGeom.Mesh.Define(stage, "/World/Scene/extra")
+        mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
+        mesh.CreateFaceVertexCountsAttr([3])
+        mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+
+    _user_layer(out, edit)
+    found = check_stage(out / "stage.usda")
+    assert any(
+        f.startswith("humv:assetUnits: /World/Scene/raw_building: references") and "fix:" in f for f in found
+    )
+    assert not any("/World/Scene/building" in f and "assetUnits" in f for f in found)  # converted
+    assert any(f.startswith("humv:asset: /World/Scene/gone:") and "no_such_asset.usd" in f for f in found)
+    assert any(f.startswith("humv:temperature: /World/Scene/extra: no per-face temperature") for f in found)
+    assert any(f.startswith("humv:material: /World/Scene/extra: no bound material") for f in found)
+
+
+def test_check_camera_without_sensor_attributes(street):
+    _, out = street
+
+    def edit(stage):
+        stage.OverridePrim("/World/Sensors").SetActive(False)
+        UsdGeom.Camera.Define(stage, "/World/Cam")
+
+    _user_layer(out, edit)
+    found = check_stage(out / "stage.usda")
+    assert any(f.startswith("humv:sensor: /World/Cam: a camera without HumvSensorAPI") for f in found)
+
+
+def test_flattened_stage_and_usdz_pass_check(street):
+    _, out = street
+    flat = out / "flat.usda"
+    Usd.Stage.Open(str(out / "stage.usda")).Export(str(flat))
+    assert check_stage(flat) == []
+    package = out / "stage.usdz"
+    assert UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(flat)), str(package))
+    assert check_stage(package) == []
