@@ -334,3 +334,94 @@ def test_flattened_stage_and_usdz_pass_check(street):
     package = out / "stage.usdz"
     assert UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(flat)), str(package))
     assert check_stage(package) == []
+
+
+# ------------------------------------------------------------------------------------- render
+#: resolution of the four HUMVVEX sensors in the render test (the field of view is the preset's)
+SMALL_WIDTH = 96
+
+
+def _static_scene(stage):
+    """World triangles and instance id per triangle of every mesh under /World/Scene, read with
+    plain UsdGeom (independent of the render's export)."""
+    from humv_usd.usd.labels import instance_id
+
+    tris, ids = [], []
+    for prim in _meshes_under(stage, "/World/Scene"):
+        mesh = UsdGeom.Mesh(prim)
+        pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=float)
+        xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(0))
+        pts = pts @ xf[:3, :3] + xf[3, :3]
+        counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+        idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get())
+        start = 0
+        for c in counts:
+            face = idx[start : start + c]
+            tris += [pts[[face[0], face[k], face[k + 1]]] for k in range(1, c - 1)]
+            ids += [instance_id(prim)] * (c - 2)
+            start += c
+    return np.asarray(tris), np.asarray(ids)
+
+
+@pytest.mark.slow
+def test_street_renders_in_four_bands_with_exact_asset_labels(tmp_path):
+    """examples/street.toml (people included) at a small size: every sensor renders; the asset
+    pixels' instance ids match an independent ray cast of the static scene (trimesh) wherever
+    the person is not in front, their class ids are the assets' classes, and COCO has them."""
+    from humv_usd.catalog.sensors import scenario_values
+    from humv_usd.groundtruth.labels import CLASS_ID
+    from humv_usd.images import read_exr
+    from humv_usd.pipeline.render import render_stage
+
+    shutil.copytree(ASSETS, tmp_path / "assets")
+    raw = tomllib.loads(STREET.read_text())
+    for s in raw["sensor"]:
+        p = scenario_values(s["preset"])
+        w, h = p["resolution"]
+        s.update(  # same field of view: focal length scaled with the image width
+            resolution=[SMALL_WIDTH, round(h * SMALL_WIDTH / w)],
+            focal_length_mm=p["focal_length_mm"] * SMALL_WIDTH / w,
+        )
+    raw["general"]["duration_s"] = 0.0
+    raw["thermal"]["surface_spin_up_s"] = 3600.0
+    scenario = validate(raw, tmp_path / "street.toml")
+    compose(scenario, tmp_path / "o")
+    manifest = render_stage(tmp_path / "o" / "stage.usda", tmp_path / "r", spp=2)
+    rendered = {s["name"] for s in manifest["sensors"]} | {s["name"] for s in manifest["eo_sensors"]}
+    assert rendered == {"atom1024_lwir", "lwir640", "mwir_insb", "eo_rgb"}
+    ids = instance_ids(scenario)
+    assets = {ids["asset:car"]: "vehicle", ids["asset:building"]: "building", ids["asset:bench"]: "prop"}
+    stage = Usd.Stage.Open(str(tmp_path / "o" / "stage.usda"))
+    tris, tri_ids = _static_scene(stage)
+    caster = trimesh.ray.ray_pyembree.RayMeshIntersector(  # embree, not the render's Mitsuba
+        trimesh.Trimesh(tris.reshape(-1, 3), np.arange(len(tris) * 3).reshape(-1, 3), process=False)
+    )
+    coco = json.loads((tmp_path / "r" / "coco.json").read_text())
+    for sensor in sorted(rendered):
+        exr = read_exr(tmp_path / "r" / sensor / "0000.exr")
+        inst, cls = exr["instance_id"].astype(int), exr["class_id"].astype(int)
+        cam = json.loads((tmp_path / "r" / sensor / "camera.json").read_text())
+        k, r, t = np.asarray(cam["K"]), np.asarray(cam["frames"][0]["R"]), np.asarray(cam["frames"][0]["t"])
+        v, u = np.mgrid[0 : cam["height"], 0 : cam["width"]]
+        pix = np.stack([u.ravel() + 0.5, v.ravel() + 0.5, np.ones(u.size)], axis=1)
+        dirs = (pix @ np.linalg.inv(k).T) @ r  # R^T d, row vectors
+        origin = -r.T @ t
+        first = caster.intersects_first(np.broadcast_to(origin, dirs.shape).copy(), dirs)
+        expected = np.where(first >= 0, tri_ids[first], 0).reshape(inst.shape)
+        person = inst == ids["human:p1"]
+        compare = ~person & np.isin(expected, list(assets))
+        assert compare.sum() > 50, sensor
+        agree = (inst[compare] == expected[compare]).mean()
+        assert agree >= 0.995, (sensor, agree)  # pixel centres on triangle edges may differ
+        for iid, name in assets.items():
+            on = inst == iid
+            if name == "building":  # the door carries its own class
+                assert set(np.unique(cls[on])) <= {CLASS_ID["building"], CLASS_ID["other"]}
+            else:
+                assert np.all(cls[on] == CLASS_ID[name]), (sensor, name)
+        image = next(i["id"] for i in coco["images"] if i["file_name"].startswith(f"{sensor}/"))
+        anns = {a["humv_instance_id"]: a for a in coco["annotations"] if a["image_id"] == image}
+        for iid, name in assets.items():
+            if (inst == iid).sum():
+                assert anns[iid]["category_id"] == CLASS_ID[name]
+                assert anns[iid]["area"] == (inst == iid).sum()
