@@ -173,6 +173,24 @@ def test_assets_composed_with_materials_labels_and_temperatures(street):
     assert check_stage(out / "stage.usda") == []
 
 
+def test_assets_shade_the_ground_slab(street):
+    """The building's meshes cast shadows in the thermal tool's slab model: ground faces under
+    its footprint (shaded all through the spin-up) are cooler than open ground."""
+    _, out = street
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    ground = stage.GetPrimAtPath("/World/Scene/Ground")
+    mesh = UsdGeom.Mesh(ground)
+    pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=float)
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+    idx = np.split(np.asarray(mesh.GetFaceVertexIndicesAttr().Get()), np.cumsum(counts)[:-1])
+    centres = np.array([pts[i].mean(axis=0) for i in idx])
+    temps = np.asarray(UsdGeom.PrimvarsAPI(ground).GetPrimvar("humv:thermal:temperature").Get(0))
+    under = (np.abs(centres[:, 0]) < 5.0) & (centres[:, 1] > 5.0) & (centres[:, 1] < 11.0)
+    far = np.hypot(centres[:, 0], centres[:, 1] - 8.0) > 25.0
+    assert under.sum() >= 1 and far.sum() > 10
+    assert temps[under].max() < np.median(temps[far]) - 1.0
+
+
 def test_asset_file_content_is_in_the_cache_key(tmp_path):
     raw = street_raw(tmp_path)
     before = read_values(scenario_at(tmp_path, raw), ("scene",))
@@ -425,3 +443,22 @@ def test_street_renders_in_four_bands_with_exact_asset_labels(tmp_path):
             if (inst == iid).sum():
                 assert anns[iid]["category_id"] == CLASS_ID[name]
                 assert anns[iid]["area"] == (inst == iid).sum()
+
+
+def test_usd_asset_dependencies_are_in_the_cache_key(tmp_path):
+    """A USD asset that references another file: editing the inner file changes the key."""
+    raw = street_raw(tmp_path)
+    inner = tmp_path / "assets" / "inner.usda"
+    shutil.move(tmp_path / "assets" / "building.usda", inner)
+    outer = Usd.Stage.CreateNew(str(tmp_path / "assets" / "building.usda"))
+    UsdGeom.SetStageUpAxis(outer, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(outer, 0.01)
+    root = outer.DefinePrim("/Building")
+    root.GetReferences().AddReference("./inner.usda")
+    outer.SetDefaultPrim(root)
+    outer.GetRootLayer().Save()
+    before = read_values(scenario_at(tmp_path, raw), ("scene",))
+    with open(inner, "a") as f:
+        f.write("\n")
+    after = read_values(scenario_at(tmp_path, raw), ("scene",))
+    assert [k for k in before if before[k] != after[k]] == ["scene.asset.1.file"]

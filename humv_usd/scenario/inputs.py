@@ -25,6 +25,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pxr import Sdf, UsdUtils
+
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.spec import SECTIONS
 
@@ -117,7 +119,38 @@ def _plain(value):
 def _file_value(path: str) -> str:
     p = Path(path)
     stat = p.stat()
-    return f"{path} sha256:{_file_hash(str(p), stat.st_size, stat.st_mtime_ns)}"
+    digest = _file_hash(str(p), stat.st_size, stat.st_mtime_ns)
+    if p.suffix.lower() in USD_SUFFIXES:
+        digest = _with_usd_dependencies(str(p), digest)
+    return f"{path} sha256:{digest}"
+
+
+#: file suffixes of USD files, whose layers, references, payloads and assets count too
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
+
+
+def _with_usd_dependencies(path: str, digest: str) -> str:
+    """``digest`` combined with the content hashes of every file a USD file pulls in (its
+    sublayers, references, payloads and asset paths, recursively; UsdUtils.ComputeAllDependencies),
+    so that editing a file an asset references changes the keys too. Unresolved ones are left to
+    ``humv-usd check``; a file without dependencies keeps its own digest."""
+    try:
+        layers, assets, _ = UsdUtils.ComputeAllDependencies(Sdf.AssetPath(path))
+    except Exception:  # noqa: BLE001 (pxr raises Tf.ErrorException; the scene tool names the file)
+        return digest
+    own = str(Path(path).resolve())
+    files = {lyr.realPath for lyr in layers if lyr.realPath} | {str(a) for a in assets}
+    files = sorted(f for f in files if f and "[" not in f and str(Path(f).resolve()) != own)
+    if not files:
+        return digest
+    parts = [digest]
+    for f in files:
+        try:
+            stat = Path(f).stat()
+        except OSError:
+            continue
+        parts.append(f"{f}:{_file_hash(f, stat.st_size, stat.st_mtime_ns)}")
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
 @functools.lru_cache(maxsize=64)
