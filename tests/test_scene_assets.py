@@ -288,6 +288,11 @@ def test_site_layer_sublayered_bound_and_labelled(tmp_path):
     temps = UsdGeom.PrimvarsAPI(walls).GetPrimvar("humv:thermal:temperature").Get(0)
     assert len(temps) == 6
     assert check_stage(tmp_path / "o" / "stage.usda") == []
+    # a site prim named like an asset: one line naming the file and the prim
+    raw["scene"]["asset"][0]["id"] = "Shed"
+    with pytest.raises(InputError, match=r"site.usda: /World/Scene/Shed is also a scene object"):
+        compose(scenario_at(tmp_path, raw), tmp_path / "o3")
+    raw["scene"]["asset"][0]["id"] = "car"
     # a Y-up site layer cannot be converted: one line naming it
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
     stage.GetRootLayer().Save()
@@ -462,3 +467,43 @@ def test_usd_asset_dependencies_are_in_the_cache_key(tmp_path):
         f.write("\n")
     after = read_values(scenario_at(tmp_path, raw), ("scene",))
     assert [k for k in before if before[k] != after[k]] == ["scene.asset.1.file"]
+
+
+def test_usdz_asset(tmp_path):
+    """A .usdz package (the building) is referenced like any USD file."""
+    raw = street_raw(tmp_path)
+    package = tmp_path / "assets" / "building.usdz"
+    assert UsdUtils.CreateNewUsdzPackage(
+        Sdf.AssetPath(str(tmp_path / "assets" / "building.usda")), str(package)
+    )
+    raw["scene"]["asset"][1]["file"] = "assets/building.usdz"
+    compose(scenario_at(tmp_path, raw), tmp_path / "o")
+    stage = Usd.Stage.Open(str(tmp_path / "o" / "stage.usda"))
+    glass = stage.GetPrimAtPath("/World/Scene/building/Building/WindowGlass3")
+    bound, _ = UsdShade.MaterialBindingAPI(glass).ComputeBoundMaterial()
+    assert bound.GetPath() == Sdf.Path("/World/Materials/glass")
+    assert check_stage(tmp_path / "o" / "stage.usda") == []
+
+
+@pytest.mark.slow
+def test_flattened_and_usdz_stages_render_like_the_composed_one(street, tmp_path):
+    """What check passes renders: the flattened stage and its usdz package give the composed
+    stage's labels and radiance."""
+    from humv_usd.images import read_exr
+    from humv_usd.pipeline.render import render_stage
+
+    _, out = street
+    flat = out / "flat.usda"
+    Usd.Stage.Open(str(out / "stage.usda")).Export(str(flat))
+    package = out / "flat.usdz"
+    assert UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(flat)), str(package))
+    images = {}
+    for name, path in (("composed", out / "stage.usda"), ("flat", flat), ("usdz", package)):
+        assert check_stage(path) == [], name
+        render_stage(path, tmp_path / name, spp=2)
+        (exr,) = sorted((tmp_path / name).glob("*/0000.exr"))
+        images[name] = read_exr(exr)
+    for name in ("flat", "usdz"):
+        np.testing.assert_array_equal(images[name]["instance_id"], images["composed"]["instance_id"])
+        np.testing.assert_array_equal(images[name]["class_id"], images["composed"]["class_id"])
+        np.testing.assert_allclose(images[name]["radiance"], images["composed"]["radiance"], rtol=1e-6)

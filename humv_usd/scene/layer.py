@@ -30,7 +30,7 @@ from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.errors import InputError
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.ids import SITE_SCOPE, instance_ids
+from humv_usd.scenario.ids import SITE_SCOPE, instance_ids, site_layer_prims
 from humv_usd.scenario.inputs import FRAMES
 from humv_usd.scene.assets import (
     AssetFile,
@@ -125,8 +125,15 @@ def _mapped_class(prim: Usd.Prim, a: dict, mesh) -> None:
 def add_site_layers(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
     """Sublayer the site layers; bind their meshes without a HumV material, label their top prims."""
     files = list(scene["layers"])
+    ours = {GROUND.name} | {o["id"] for o in scene["object"]} | {a["id"] for a in scene.get("asset") or ()}
     for file in files:
         _check_site_layer(file)
+        clash = sorted(ours & set(site_layer_prims(file)))
+        if clash:
+            raise InputError(
+                f"{file}: {SITE_SCOPE}/{clash[0]} is also a scene object, asset or the ground of the "
+                "scenario; rename one of them"
+            )
     stage.GetRootLayer().subLayerPaths = [str(Path(f).resolve()) for f in files]
     material = material_path(scene["layer_material"])
     for i, file in enumerate(files):
