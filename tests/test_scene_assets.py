@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from click.testing import CliRunner
 from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdUtils
 
 from humv_usd.errors import InputError
@@ -219,6 +220,25 @@ def test_bad_asset_file_is_one_line_and_nothing_written(tmp_path, name, content,
     assert len(err.value.problems) == 1
     line = err.value.problems[0]
     assert line.startswith(str(tmp_path / name)) and what in line
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def test_bad_asset_file_on_the_command_line(tmp_path):
+    """`humv-usd compose`: exit 2, one line naming the file, no output folder content."""
+    import tomlkit
+
+    from humv_usd.cli.main import main
+
+    raw = street_raw(tmp_path)
+    (tmp_path / "car.glb").write_bytes(b"not a glb")
+    raw["scene"]["asset"][0]["file"] = "car.glb"
+    (tmp_path / "street.toml").write_text(tomlkit.dumps(raw))
+    result = CliRunner().invoke(main, ["compose", str(tmp_path / "street.toml"), "-o", str(tmp_path / "o")])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        f"humv-usd: error: {tmp_path / 'car.glb'}: cannot be read"
+    ), lines
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
 
 
