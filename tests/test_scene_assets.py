@@ -527,3 +527,48 @@ def test_flattened_and_usdz_stages_render_like_the_composed_one(street, tmp_path
         np.testing.assert_array_equal(images[name]["instance_id"], images["composed"]["instance_id"])
         np.testing.assert_array_equal(images[name]["class_id"], images["composed"]["class_id"])
         np.testing.assert_allclose(images[name]["radiance"], images["composed"]["radiance"], rtol=1e-6)
+
+
+def test_usd_asset_with_material_subsets(tmp_path):
+    """A mesh with per-face materials as GeomSubsets (as DCCs export them): each subset is bound
+    to its mapped library material, so the render sees no foreign material."""
+    raw = street_raw(tmp_path)
+    path = tmp_path / "assets" / "kiosk.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    root = UsdGeom.Xform.Define(stage, "/Kiosk")
+    stage.SetDefaultPrim(root.GetPrim())
+    mesh = UsdGeom.Mesh.Define(stage, "/Kiosk/Box")
+    mesh.CreatePointsAttr(
+        [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+    )
+    mesh.CreateFaceVertexCountsAttr([4] * 6)
+    mesh.CreateFaceVertexIndicesAttr([0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6, 3, 0, 4, 7])
+    binding = UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim())
+    paint, glass = (UsdShade.Material.Define(stage, f"/Kiosk/Looks/{n}") for n in ("Paint", "Glass"))
+    binding.Bind(paint)
+    for name, faces, material in (("walls", [0, 1, 2, 3, 5], paint), ("window", [4], glass)):
+        subset = binding.CreateMaterialBindSubset(name, faces)
+        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(material)
+    stage.GetRootLayer().Save()
+    raw["scene"]["asset"].append(
+        {
+            "id": "kiosk",
+            "file": "assets/kiosk.usda",
+            "position_m": [6.0, 2.0, 0.0],
+            "material": "wood",
+            "materials": {"Glass": "glass"},
+        }
+    )
+    compose(scenario_at(tmp_path, raw), tmp_path / "o")
+    composed = Usd.Stage.Open(str(tmp_path / "o" / "stage.usda"))
+    for sub, material in (("Box/walls", "wood"), ("Box/window", "glass"), ("Box", "wood")):
+        prim = composed.GetPrimAtPath(f"/World/Scene/kiosk/Kiosk/{sub}")
+        bound, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        assert bound.GetPath() == Sdf.Path(f"/World/Materials/{material}"), sub
+    assert check_stage(tmp_path / "o" / "stage.usda") == []
+    from humv_usd.render.scene_export import SceneMeshes
+
+    info = SceneMeshes(composed).mesh_info(composed.GetPrimAtPath("/World/Scene/kiosk/Kiosk/Box"), 0)
+    assert sorted(p.material.path for p in info.parts) == ["/World/Materials/glass", "/World/Materials/wood"]

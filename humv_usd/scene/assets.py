@@ -40,7 +40,9 @@ class SourceMesh:
     ``path`` is the mesh's path below the asset's root (USD: the prim path relative to the root
     prim; other formats: the node name); ``material`` the source material's name ('' if none).
     Mesh formats carry ``points`` (Z-up metres, before the asset's scale and placement),
-    ``face_counts`` and ``face_indices``; USD meshes carry none (they stay in the file).
+    ``face_counts`` and ``face_indices``; USD meshes carry none (they stay in the file). A USD
+    mesh's GeomSubsets with material bindings are entries of their own (path ``<mesh>/<subset>``)
+    so that each gets its mapped material.
     """
 
     name: str
@@ -164,9 +166,14 @@ def _read_usd(file: str) -> AssetFile:
             instances.append(str(rel))
         if not prim.IsA(UsdGeom.Mesh):
             continue
-        material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        binding = UsdShade.MaterialBindingAPI(prim)
+        material, _ = binding.ComputeBoundMaterial()
         source = material.GetPrim().GetName() if material else ""
         meshes.append(SourceMesh(prim.GetName(), str(rel), source))
+        for subset in binding.GetMaterialBindSubsets():  # per-face materials (a DCC's export)
+            material, _ = UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()
+            name = material.GetPrim().GetName() if material else ""
+            meshes.append(SourceMesh(subset.GetPrim().GetName(), f"{rel}/{subset.GetPrim().GetName()}", name))
     if not meshes:
         raise fail(file, f"no UsdGeom.Mesh under its root prim {root.GetPath()}")
     up = str(UsdGeom.GetStageUpAxis(stage))
