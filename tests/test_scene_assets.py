@@ -589,3 +589,13 @@ def test_committed_assets_are_what_the_script_makes(tmp_path):
     for name in made:
         assert (tmp_path / name).read_bytes() == (ASSETS / name).read_bytes(), name
     assert sum((ASSETS / n).stat().st_size for n in made) < 1_000_000
+
+
+def test_check_finds_a_y_up_sublayer(street):
+    _, out = street
+    _user_layer(out, lambda stage: None)
+    edit = Sdf.Layer.FindOrOpen(str(out / "edit.usda"))
+    edit.pseudoRoot.SetInfo("upAxis", "Y")
+    edit.Save()
+    found = check_stage(out / "stage.usda")
+    assert any(f.startswith(f"humv:assetUnits: {out / 'edit.usda'}: a sublayer with upAxis Y") for f in found)
