@@ -57,7 +57,7 @@ from humv_usd.usd.labels import instance_id
 from humv_usd.usd.layers import SCOPES, WORLD, set_layer_metadata
 from humv_usd.usd.materials import write_material_properties
 from humv_usd.usd.mesh import label
-from humv_usd.usd.thermal import has_face_temperatures, write_surface_temperature
+from humv_usd.usd.thermal import check_temperatures, has_face_temperatures, write_surface_temperature
 
 log = logging.getLogger(__name__)
 
@@ -381,10 +381,24 @@ def _rendered_meshes(stage: Usd.Stage) -> list[Usd.Prim]:
     ]
 
 
+def label_classes() -> list[str]:
+    """The class tokens HumvLabelAPI allows (from the registered schema)."""
+    definition = Usd.SchemaRegistry().FindAppliedAPIPrimDefinition(S.LABEL_API)
+    return list(definition.GetSchemaAttributeSpec(S.LABEL_CLASS).allowedTokens)
+
+
+def _check_class(value, where: str) -> str:
+    allowed = label_classes()
+    if str(value) not in allowed:
+        raise InputError(bad_value(where, value, "expected one of " + ", ".join(allowed)))
+    return str(value)
+
+
 def adopt_new_meshes(
     stage: Usd.Stage, report: AdoptReport, temperature_k: float | None = None, label_class: str = "other"
 ) -> None:
     """Step 5: meshes without temperatures get a held one, meshes without an id a new label."""
+    _check_class(label_class, "--label-class")
     meshes = _rendered_meshes(stage)
     used = [instance_id(p) for p in stage.Traverse()]
     next_id = max(used, default=0) + 1
@@ -398,7 +412,9 @@ def adopt_new_meshes(
             if value is None:
                 air = _air_temperature(stage) if air is None else air
                 value = air
-            if value is None:
+            if value is not None:
+                check_temperatures([value], f"{prim.GetPath()}: temperature")
+            else:
                 raise InputError(
                     bad_value(
                         f"{prim.GetPath()}.{S.TEMPERATURE_PRIMVAR}",
@@ -411,7 +427,8 @@ def adopt_new_meshes(
             write_surface_temperature(prim, "fixed", np.full(faces, float(value)))
             entry["temperature_k"] = float(value)
         if instance_id(prim) == 0:
-            cls = str(_custom(prim, CUSTOM_CLASS) or label_class)
+            custom = _custom(prim, CUSTOM_CLASS)
+            cls = label_class if custom is None else _check_class(custom, f"{prim.GetPath()}.{CUSTOM_CLASS}")
             label(prim, next_id, cls)
             entry.update(instance_id=next_id, label_class=cls)
             next_id += 1
