@@ -59,10 +59,12 @@ def _param_columns(variants) -> dict[str, dict[str, object]]:
         for name, value in v.params.items():
             columns["param_" + name.replace(".", "_").replace("+", "")][v.id] = value
     for name, values in columns.items():
-        kinds = {type(x) for x in values.values()}
+        kinds = {type(x) for x in values.values() if x is not None}
         numeric = kinds <= {int, float} and kinds
         if not numeric and kinds != {str} and kinds != {bool}:
-            columns[name] = {k: json.dumps(x) if not isinstance(x, str) else x for k, x in values.items()}
+            columns[name] = {
+                k: json.dumps(x) if not isinstance(x, str) and x is not None else x for k, x in values.items()
+            }
     return columns
 
 

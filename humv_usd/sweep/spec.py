@@ -34,8 +34,10 @@ Keys are dotted paths into the scenario: ``section.key`` (``general.start``), ``
 for array sections (``human.0.clothing``, ``placement.0.heading_deg``, ``sensor.0.position_m``),
 ``scene.ground.key``, ``scene.object.N.key``; a trailing index selects a vector element
 (``sensor.0.position_m.2``); ``+`` appends to a list (``human.0.clothing+``) or an array section
-(``scene.object+``). Variant ``k`` is grid point ``k // count`` with draw ``k % count``; its
-draws use ``numpy.random.default_rng([seed, k])`` so a variant's values do not depend on the
+(``scene.object+``); ``-`` removes a key (``"sensor.0.position_m-" = true``, e.g. for an aerial
+platform). Variant ``k`` is grid point ``k // count`` with draw ``k % count``: the random draws are
+applied first, then the grid point's options (sets, then appends and removals); a drawn key an
+option removed is recorded as None. Its draws use ``numpy.random.default_rng([seed, k])`` so a variant's values do not depend on the
 others. ``normal`` draws are truncated to the key's allowed range (redrawn until inside).
 Every variant is validated as a scenario before anything runs: a bad axis is one line naming
 the axis (:func:`load_sweep` raises :class:`~humv_usd.errors.InputError`).
@@ -144,7 +146,7 @@ def resolve_key(path: str, base: dict) -> tuple[Key | Section | None, str | None
     Returns a :class:`Key` for a key (or a vector element, as a number key), the
     :class:`Section` for an appendable array section (``scene.object+``)."""
     append = path.endswith("+")
-    parts = path.removesuffix("+").split(".")
+    parts = path.removesuffix("+").removesuffix("-").split(".")
     if not parts or parts[0] not in SECTIONS:
         return (
             None,
@@ -156,8 +158,8 @@ def resolve_key(path: str, base: dict) -> tuple[Key | Section | None, str | None
     where = parts[0]
     while True:
         if section.array:
-            if i == len(parts):
-                return (section, None) if append else (None, f"{where}: give an index ({where}.0.key)")
+            if i == len(parts):  # the whole array: replaced, or with "+" extended
+                return section, None
             if not parts[i].isdigit():
                 return None, f"{where}: expected an index (0..), got {parts[i]!r}"
             n = len(node) if isinstance(node, list) else 0
@@ -173,7 +175,7 @@ def resolve_key(path: str, base: dict) -> tuple[Key | Section | None, str | None
             section, node = section.subsections[name], (node or {}).get(name)
             where += f".{name}"
             i += 1
-            if i == len(parts) and section.array and append:
+            if i == len(parts) and section.array:
                 return section, None
             continue
         if name not in section.keys:
@@ -192,7 +194,11 @@ def resolve_key(path: str, base: dict) -> tuple[Key | Section | None, str | None
 
 
 def apply(raw: dict, path: str, value: Any) -> None:
-    """Set (or with a trailing ``+`` extend) the value at a dotted path of a scenario document."""
+    """Set (with a trailing ``+`` extend, with a trailing ``-`` remove) the value at a dotted path
+    of a scenario document."""
+    if path.endswith("-"):
+        remove(raw, path.removesuffix("-"))
+        return
     append = path.endswith("+")
     parts = path.removesuffix("+").split(".")
     node: Any = raw
@@ -214,6 +220,16 @@ def apply(raw: dict, path: str, value: Any) -> None:
 def _is_array(parts: list[str], part: str) -> bool:
     i = parts.index(part)
     return i + 1 < len(parts) and parts[i + 1].isdigit()
+
+
+def _present(raw: dict, path: str) -> bool:
+    node: Any = raw
+    for part in path.split("."):
+        try:
+            node = node[int(part)] if isinstance(node, list) else node[part]
+        except (KeyError, IndexError, ValueError, TypeError):
+            return False
+    return True
 
 
 def remove(raw: dict, path: str) -> None:
@@ -558,22 +574,23 @@ def expand(sweep: Sweep) -> list[Variant]:
         for j in range(sweep.count):
             k = g * sweep.count + j
             raw = copy.deepcopy(sweep.base)
-            params: dict[str, Any] = {}
-            appends = []
-            for axis, (label, overrides) in zip(sweep.axes, point):
-                params[axis.name] = _label(label)
+            params: dict[str, Any] = {axis.name: _label(label) for axis, (label, _) in zip(sweep.axes, point)}
+            rng = np.random.default_rng([sweep.seed, k])
+            drawn = {}
+            for draw in sweep.draws:  # first: a grid option may set or remove a drawn key
+                drawn[draw.key] = draw_value(draw, keys[draw.key], rng)
+                apply(raw, draw.key, drawn[draw.key])
+            later = []
+            for _, overrides in point:
                 for key, value in overrides.items():
-                    if key.endswith("+"):
-                        appends.append((key, value))
+                    if key.endswith(("+", "-")):
+                        later.append((key, value))
                     else:
                         apply(raw, key, value)
-            for key, value in appends:  # appends after every set, so the order of axes does not matter
+            for key, value in later:  # appends and removals after every set: axis order does not matter
                 apply(raw, key, value)
-            rng = np.random.default_rng([sweep.seed, k])
-            for draw in sweep.draws:
-                value = draw_value(draw, keys[draw.key], rng)
-                apply(raw, draw.key, value)
-                params[draw.key] = _label(value)
+            for key, value in drawn.items():
+                params[key] = _label(value) if _present(raw, key) else None
             seed = (sweep.render["seed"] + 1_000_003 * k) % 2**31
             variants.append(Variant(k, f"v{k:0{width}d}", params, raw, render_seed=seed))
     return variants
