@@ -145,6 +145,8 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, qui
 
 
 @click.command("sweep")
+@click.argument("scenario", default="examples/walk.toml", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--variants", default=2, show_default=True, type=click.IntRange(1, 1000), help="Headings.")
 @click.option(
     "--frames", default=8, show_default=True, type=click.IntRange(1, 100_000), help="Frames per run."
 )
@@ -162,13 +164,23 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, qui
     "-o", "--out", "out_dir", default=None, help="Keep the bench datasets here (default: a temp folder)."
 )
 @reports_errors
-def bench_sweep(frames: int, spp: int, resolution: str, long_frames: int, out_dir):
-    """Labeled LWIR frames per hour for a walk-like sweep, speed-up of 2 workers over 1, memory
+def bench_sweep(
+    scenario: Path, variants: int, frames: int, spp: int, resolution: str, long_frames: int, out_dir
+):
+    """Labeled LWIR frames per hour for a walk-like sweep of SCENARIO, speed-up of 2 workers over 1, memory
     per worker over a long sweep, and the scheduler's cost per task."""
     from humv_usd.sweep.bench import run_bench
 
     w, h = (int(x) for x in resolution.lower().split("x"))
-    report = run_bench(frames=frames, spp=spp, resolution=(w, h), long_frames=long_frames, out_dir=out_dir)
+    report = run_bench(
+        scenario,
+        frames=frames,
+        spp=spp,
+        resolution=(w, h),
+        variants=variants,
+        long_frames=long_frames,
+        out_dir=out_dir,
+    )
     click.echo(json.dumps(report, indent=2))
 
 

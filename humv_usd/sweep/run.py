@@ -101,6 +101,8 @@ class _Dask:
         import distributed
 
         self._distributed = distributed
+        # Dask logs every worker start and stop at INFO: keep it at the command line's level or quieter
+        logging.getLogger("distributed").setLevel(max(logging.WARNING, logging.getLogger().level))
         self.cluster = None
         if scheduler:
             self.client = distributed.Client(scheduler, timeout="30s")
