@@ -198,3 +198,13 @@ def test_a_killed_render_resumes_to_the_uninterrupted_result(stage, reference, t
         assert set(manifest["rendered_this_call"]) == set(range(FRAMES)) - done_before
     assert_same(out, reference)  # nothing lost, duplicated or corrupt
     assert not [p for p in out.rglob(".*") if p.is_file()]  # no temp file, no lock left
+
+
+def test_flushing_the_kernel_cache_changes_no_pixel(stage, reference, tmp_path, monkeypatch):
+    """The render drops Dr.Jit's kernel cache every few frames (flat memory): the kernels
+    compiled again give the same images."""
+    from humv_usd.pipeline import render as render_module
+
+    monkeypatch.setattr(render_module, "KERNEL_CACHE_FRAMES", 1)
+    render_stage(stage, tmp_path / "out", spp=SPP, seed=3)
+    assert_same(tmp_path / "out", reference)

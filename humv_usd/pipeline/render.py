@@ -49,6 +49,9 @@ from humv_usd.usd.sensor import check_subbands, read_sensor_model
 log = logging.getLogger(__name__)
 
 MANIFEST_NAME = "manifest.json"
+#: frames between flushes of Dr.Jit's kernel cache (:func:`humv_usd.mode.release_kernel_cache`):
+#: keeps the memory of a long render flat at the cost of compiling kernels again
+KERNEL_CACHE_FRAMES = 10
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 
 
@@ -294,6 +297,8 @@ def _render_locked(t_start, args, force, yes=False) -> dict:
     for frame in todo if (plan.rendered or plan.eo_run.sensors) else []:
         run.render_frame(frame)
         run.record_frame(frame)
+        if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
+            mode.release_kernel_cache()
     done = _records_of_this_render(plan)
     _write_cameras(out_dir, done)
 
