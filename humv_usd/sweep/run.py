@@ -232,7 +232,10 @@ class _Loop:
         while self.running:
             for fut in self.executor.wait_any(list(self.running)):
                 kind, name, attempt, payload = self.running.pop(fut)
-                exc = fut.exception()
+                try:
+                    exc = fut.exception()
+                except Exception as cancelled:  # noqa: BLE001 (a cancelled future raises here)
+                    exc = cancelled
                 if exc is None:
                     self._finished(kind, name, fut.result(), payload)
                 elif attempt < self.retries:
