@@ -342,3 +342,45 @@ def test_without_the_original_the_export_rate_is_kept_with_a_warning(files, capl
     with pytest.raises(InputError, match="expected the name of a library material"):
         blender_export(files / "bad.usda", crate_material="unobtainium")
         adopt_blender_export(Sdf.Layer.FindOrOpen(str(files / "bad.usda")), None, temperature_k=290)
+
+
+def _reroot(src: Sdf.Layer, root: str) -> Sdf.Layer:
+    """The export as Blender writes it with ``root_prim_path=root`` ("" none, "/World")."""
+    out = Sdf.Layer.CreateAnonymous("reroot.usda")
+    out.timeCodesPerSecond = src.timeCodesPerSecond
+    base = Sdf.Path(root) if root else Sdf.Path.absoluteRootPath
+    if root:
+        Sdf.CreatePrimInLayer(out, base).typeName = "Xform"
+    for child in src.GetPrimAtPath("/root").nameChildren:
+        Sdf.CreatePrimInLayer(out, base.AppendChild(child.name))
+        Sdf.CopySpec(src, child.path, out, base.AppendChild(child.name))
+
+    def fix(path):
+        spec = out.GetObjectAtPath(path)
+        move = lambda p: p.ReplacePrefix("/root", base)  # noqa: E731
+        if isinstance(spec, Sdf.RelationshipSpec):
+            spec.targetPathList.ModifyItemEdits(move)
+        elif isinstance(spec, Sdf.AttributeSpec):
+            spec.connectionPathList.ModifyItemEdits(move)
+
+    out.Traverse(Sdf.Path.absoluteRootPath, fix)
+    out.defaultPrim = "World"
+    return out
+
+
+@pytest.mark.parametrize("root", ["", "/World"])
+def test_other_root_prim_paths(files, root):
+    """Blender's ``root_prim_path`` "" (World and _materials at the top) or "/World" (a World
+    root holding the exported World) map to the same stage."""
+    original = Usd.Stage.Open(str(files / "original.usda"))
+    layer, report = adopt_blender_export(
+        _reroot(Sdf.Layer.FindOrOpen(str(files / "export.usda")), root), original
+    )
+    stage = Usd.Stage.Open(layer)
+    assert not stage.GetPrimAtPath("/World/World")
+    box = stage.GetPrimAtPath("/World/Scene/box")
+    material, _ = UsdShade.MaterialBindingAPI(box).ComputeBoundMaterial()
+    assert material.GetPath() == "/World/Materials/concrete" and material.GetPrim().HasAPI(S.MATERIAL_API)
+    assert box.GetAttribute(S.LABEL_INSTANCE_ID).Get() == 7
+    assert stage.GetPrimAtPath("/World/Scene/crate").GetAttribute(S.LABEL_CLASS).Get() == "vehicle"
+    assert report.prims == 12

@@ -125,10 +125,12 @@ def _merged_name(obj: Sdf.PrimSpec, data: Sdf.PrimSpec) -> str:
     return data.name if _base_name(obj.name) == _base_name(data.name) else obj.name
 
 
-def _plan(src: Sdf.Layer, root: Sdf.PrimSpec) -> tuple[list[tuple[Sdf.Path, list[Sdf.PrimSpec]]], dict]:
+def _plan(
+    src: Sdf.Layer, root: Sdf.PrimSpec | None, tops: list
+) -> tuple[list[tuple[Sdf.Path, list[Sdf.PrimSpec]]], dict]:
     """[(target path, [source prim specs merged into it])], {source path: target path}."""
     plan: list[tuple[Sdf.Path, list[Sdf.PrimSpec]]] = []
-    paths: dict[Sdf.Path, Sdf.Path] = {root.path: WORLD}
+    paths: dict[Sdf.Path, Sdf.Path] = {} if root is None else {root.path: WORLD}
 
     def visit(spec: Sdf.PrimSpec, parent: Sdf.Path) -> None:
         data = _data_child(spec)
@@ -143,7 +145,7 @@ def _plan(src: Sdf.Layer, root: Sdf.PrimSpec) -> tuple[list[tuple[Sdf.Path, list
                 if data is None or child.path != data.path:
                     visit(child, target)
 
-    for child in root.nameChildren:
+    for child in tops:
         if child.name == WORLD.name:
             paths[child.path] = WORLD
             plan.append((WORLD, [child]))
@@ -226,19 +228,29 @@ def _rename_primvars(dst: Sdf.Layer) -> None:
         owner.RemoveProperty(owner.properties[name])
 
 
+def _blender_root(src: Sdf.Layer) -> tuple[Sdf.PrimSpec | None, list]:
+    """(Blender's root prim, the prims under it); with ``root_prim_path=""`` there is no root
+    prim: (None, the layer's root prims). A root named World (``root_prim_path="/World"``) is
+    Blender's when it holds the exported World or ``_materials``."""
+    name = src.defaultPrim or BLENDER_ROOT
+    root = src.GetPrimAtPath(Sdf.Path.absoluteRootPath.AppendChild(name))
+    if root is None and name != BLENDER_ROOT:
+        root = src.GetPrimAtPath(Sdf.Path.absoluteRootPath.AppendChild(BLENDER_ROOT))
+    if root is not None and (
+        root.name != WORLD.name or WORLD.name in root.nameChildren or BLENDER_MATERIALS in root.nameChildren
+    ):
+        return root, list(root.nameChildren)
+    return None, list(src.rootPrims)
+
+
 def convert_namespace(src: Sdf.Layer) -> tuple[Sdf.Layer, int]:
     """Steps 1-2 of the module doc: a new layer with Blender's prims at HumV paths and HumV
     primvar names, and the number of prims."""
-    root_name = src.defaultPrim or BLENDER_ROOT
-    root = src.GetPrimAtPath(Sdf.Path.absoluteRootPath.AppendChild(root_name))
-    if root is None:
-        raise InputError(
-            bad_value(
-                "defaultPrim", root_name, "expected a Blender export with its root prim (default /root)"
-            )
-        )
+    root, tops = _blender_root(src)
+    if not tops:
+        raise InputError(bad_value("BLENDER_EXPORT", src.identifier, "expected prims (a Blender USD export)"))
     dst = Sdf.Layer.CreateAnonymous("adopted.usda")
-    plan, paths = _plan(src, root)
+    plan, paths = _plan(src, root, tops)
     for target, sources in plan:
         _copy_prim(src, dst, target, sources)
     _remap_targets(dst, paths)
