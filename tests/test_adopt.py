@@ -234,6 +234,7 @@ def test_original_restores_what_blender_drops(files):
     assert (layer.timeCodesPerSecond, layer.framesPerSecond) == (15.0, 15.0)
     assert (layer.startTimeCode, layer.endTimeCode) == (0, 2)
     assert report.fps_source == "the original stage"
+    assert report.static_export  # the hand-written export has no time samples; the original moves
 
 
 def test_new_mesh_gets_library_material_label_and_held_temperature(files):

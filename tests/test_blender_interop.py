@@ -182,6 +182,7 @@ def _adopt(walk, export: str, out: str):
         main, ["adopt", str(walk / export), "-o", str(walk / out), "--from", str(walk / "out" / "stage.usda")]
     )
     assert result.exit_code == 0, result.output
+    assert "no animation" not in result.output  # exported with export_animation=True
     return result.output
 
 

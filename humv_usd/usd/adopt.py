@@ -95,6 +95,7 @@ class AdoptReport:
     kept_blender_values: list[str] = field(default_factory=list)  # topology changed
     fps: float | None = None
     fps_source: str = ""
+    static_export: bool = False  # no time samples in the export, though the original moves
 
 
 def _base_name(name: str) -> str:
@@ -476,6 +477,12 @@ def adopt_blender_export(
     end = export.endTimeCode if export.HasEndTimeCode() else start
     if original is not None:
         start, end = original.GetStartTimeCode(), original.GetEndTimeCode()
+        if end > start and not export.ListAllTimeSamples():
+            report.static_export = True
+            log.warning(
+                "the Blender export has no animation (wm.usd_export(export_animation=False)): "
+                "people and garments stay at the exported frame; export with Animation on"
+            )
     set_layer_metadata(
         layer, report.fps, int(end - start) + 1, "HumV-USD layer adopted from a Blender export"
     )
