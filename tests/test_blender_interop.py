@@ -232,6 +232,12 @@ def test_round_trip_with_edits(walk, blender):
     assert cube.sum() > 20
     assert set(np.unique(after["class_id"][cube]).tolist()) == {CLASS_ID["vehicle"]}
     assert_allclose(after["surface_temperature"][cube], CUBE_K, atol=1e-3)
+    # elsewhere (not the person before or after, not the cube) nothing changed
+    rest = ~(cube | (before["instance_id"] == 1) | (after["instance_id"] == 1))
+    agree = {k: float(np.mean(before[k][rest] == after[k][rest])) for k in ("instance_id", "class_id")}
+    diff = np.abs(before["radiance"] - after["radiance"])[rest]
+    print(f"edited, outside the edits: label agreement {agree}; radiance |diff| mean {diff.mean():.3g}")
+    assert min(agree.values()) > 0.99
 
 
 COMPOSITOR = """
