@@ -614,6 +614,9 @@ def _register_tools():
     )
 
     register_groundtruth(main, bench)
+    from humv_usd.cli.sweep_cmd import register as register_sweep  # sweep, bench sweep
+
+    register_sweep(main, bench)
 
 
 _register_tools()

@@ -255,6 +255,13 @@ def bound_material(prim: Usd.Prim) -> UsdShade.Material:
     return material
 
 
+def has_stage_material(prim: Usd.Prim) -> bool:
+    """Whether the material bound to ``prim`` (an ancestor's binding included) carries
+    HumvMaterialAPI (what the render and the thermal tool need)."""
+    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    return bool(material) and material.GetPrim().HasAPI(S.MATERIAL_API)
+
+
 def mesh_material(prim: Usd.Prim, time=None) -> StageMaterial:
     """:func:`read_material` of the material bound to a mesh (errors name the mesh)."""
     return read_material(bound_material(prim), str(prim.GetPath()), time)
