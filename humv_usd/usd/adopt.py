@@ -19,7 +19,9 @@ Blender 4.2-5.0 writes a stage a HumV render cannot use as it is:
    ``/World/Materials/<m>``, other objects under ``/root`` -> ``/World/Scene/<name>``; an
    object Xform and its one data prim merge into one prim named like the original prim (the
    data's name when the object's is the data's plus Blender's ``_001`` suffix), with the
-   object's transform; relationship targets and connections follow the new paths.
+   object's transform; relationship targets and connections follow the new paths. Exports
+   with ``root_prim_path=""`` (World and ``_materials`` at the top) or ``"/World"`` map the
+   same way.
 2. **Primvar names**: ``primvars:humv_thermal_temperature`` -> ``primvars:humv:thermal:temperature``
    (every HumV primvar: :data:`HUMV_PRIMVARS`).
 3. **From the original stage** (``original``, e.g. ``OUT/stage.usda``; optional): the prims
@@ -29,7 +31,8 @@ Blender 4.2-5.0 writes a stage a HumV render cannot use as it is:
    its face and point counts; else Blender's values stay and a warning says so); cameras get
    back their filmback (the sensor's pixel grid; Blender's own depends on its render size);
    materials the export lacks are copied; the root layer's HumV customLayerData and the frame
-   rate come from it.
+   rate come from it. An export without time samples (``export_animation=False``) of an
+   original that moves is adopted as it is, with a warning (people and garments stay put).
 4. **Materials**: a material without HumvMaterialAPI takes it from the original stage's
    material of the same name, else from the library (:data:`humv_usd.catalog.materials.LIBRARY`)
    by name (Blender's ``.001`` suffix ignored); any other material is an InputError.
