@@ -226,6 +226,15 @@ def test_round_trip_with_edits(walk, blender):
     expected = MOVE_M * FOCAL_M / (DISTANCE_M * PITCH_M)
     print(f"person moved {person[1] - person[0]:.2f} px (expected {expected:.2f})")
     assert person[1] - person[0] == pytest.approx(expected, abs=1.0)
+    # the restored keypoints (SkelRoot space) moved with the person
+    keypoints = []
+    for folder in ("render", "edited_render"):
+        objects = json.loads((walk / folder / "atom1024_lwir" / "0000.objects.json").read_text())["objects"]
+        keypoints.append(
+            np.array([o for o in objects if o["class"] == "person"][0]["keypoints"]).reshape(17, 3)
+        )
+    assert_allclose(keypoints[1][:, 0] - keypoints[0][:, 0], expected, atol=0.5)
+    assert_allclose(keypoints[1][:, 1], keypoints[0][:, 1], atol=1e-3)
     new_id = crate.GetAttribute(S.LABEL_INSTANCE_ID).Get()
     assert new_id > before["instance_id"].max()
     cube = after["instance_id"] == new_id
