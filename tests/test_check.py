@@ -99,3 +99,55 @@ def test_time_sampled_temperatures_are_checked_per_sample():
     assert len(found) == 2
     assert "/World/Tri at time 1.0: values nan..nan K outside 1..5000 K" in found[0]
     assert "/World/Tri at time 2.0: 2 values for 1 faces" in found[1]
+
+
+def _skinned_triangle(points_samples: dict[float, list]) -> Usd.Stage:
+    """A SkelRoot with a one-joint Skeleton and a skinned triangle whose points carry
+    ``points_samples`` (time -> points) besides their default."""
+    from pxr import Gf, UsdSkel
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdSkel.Root.Define(stage, "/Rig")
+    skel = UsdSkel.Skeleton.Define(stage, "/Rig/Skel")
+    skel.CreateJointsAttr(["root"])
+    skel.CreateBindTransformsAttr([Gf.Matrix4d(1)])
+    skel.CreateRestTransformsAttr([Gf.Matrix4d(1)])
+    mesh = UsdGeom.Mesh.Define(stage, "/Rig/Cloth")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    for time, points in points_samples.items():
+        mesh.GetPointsAttr().Set(points, time)
+    binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
+    binding.CreateJointIndicesPrimvar(True, 1).Set([0])
+    binding.CreateJointWeightsPrimvar(True, 1).Set([1.0])
+    return stage
+
+
+def test_skinned_mesh_with_time_sampled_points_is_a_finding():
+    """Skinning ignores a skinned mesh's point samples: one finding naming the prim and the fix;
+    a skinned mesh with rest points only, and the composed stage's garments (plain point caches),
+    are clean."""
+    from humv_usd.usd.check import rule_skinned_points
+
+    moving = {0.0: [(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1.0: [(0, 0, 0.1), (1, 0, 0.1), (0, 1, 0.1)]}
+    found = rule_skinned_points(_skinned_triangle(moving))
+    assert len(found) == 1
+    assert found[0].startswith("humv:skinnedPoints: /Rig/Cloth: skinned by /Rig/Skel")
+    assert "2 samples" in found[0] and "fix:" in found[0]
+    assert rule_skinned_points(_skinned_triangle({})) == []
+    # without joint influences the samples are the motion (nothing skins it)
+    stage = _skinned_triangle(moving)
+    from pxr import UsdSkel
+
+    UsdSkel.BindingAPI(stage.GetPrimAtPath("/Rig/Cloth")).GetJointIndicesPrimvar().GetAttr().Clear()
+    assert rule_skinned_points(stage) == []
+
+
+def test_composed_people_have_no_skinned_point_samples(out):
+    from humv_usd.usd.check import rule_skinned_points
+
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    assert any(p.GetName() == "Body" for p in stage.Traverse())  # people are there
+    assert rule_skinned_points(stage) == []
