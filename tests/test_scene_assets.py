@@ -277,9 +277,8 @@ def test_full_transform_equals_position_and_heading(tmp_path):
     np.testing.assert_allclose(worlds[0], worlds[1], atol=1e-9)
 
 
-def test_site_layer_sublayered_bound_and_labelled(tmp_path):
+def _shed_layer(site: Path) -> Usd.Stage:
     """A DCC layer (Z-up metres) with a shed under /World/Scene and no HumV material."""
-    site = tmp_path / "site.usda"
     stage = Usd.Stage.CreateNew(str(site))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
@@ -293,6 +292,12 @@ def test_site_layer_sublayered_bound_and_labelled(tmp_path):
     cube.CreateFaceVertexCountsAttr([4] * 6)
     cube.CreateFaceVertexIndicesAttr([0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6, 3, 0, 4, 7])
     stage.GetRootLayer().Save()
+    return stage
+
+
+def test_site_layer_sublayered_bound_and_labelled(tmp_path):
+    """A DCC layer (Z-up metres) with a shed under /World/Scene and no HumV material."""
+    stage = _shed_layer(tmp_path / "site.usda")
     raw = street_raw(tmp_path)
     raw["scene"].update(layers=["site.usda"], layer_material="wood", layer_class="building")
     scenario = scenario_at(tmp_path, raw)
@@ -599,3 +604,103 @@ def test_check_finds_a_y_up_sublayer(street):
     edit.Save()
     found = check_stage(out / "stage.usda")
     assert any(f.startswith(f"humv:assetUnits: {out / 'edit.usda'}: a sublayer with upAxis Y") for f in found)
+
+
+# ------------------------------------------------------------------------------ relocatable
+def _street_with_site_layer(folder: Path) -> tuple:
+    """The fast street scenario in ``folder`` (assets copied beside it) with the shed site
+    layer; composed into folder/o."""
+    folder.mkdir(parents=True)
+    _shed_layer(folder / "site.usda")
+    raw = street_raw(folder)
+    raw["scene"].update(layers=["site.usda"], layer_material="wood", layer_class="building")
+    scenario = scenario_at(folder, raw)
+    compose(scenario, folder / "o")
+    return raw, folder / "o"
+
+
+def _moved(tmp_path: Path) -> Path:
+    """Compose in tmp_path/a, copy the scenario folder (assets, site layer, output) to
+    tmp_path/b/moved keeping their relative placement, delete the original: the moved output."""
+    _, out = _street_with_site_layer(tmp_path / "a")
+    text = (out / "layers" / "scene.usda").read_text()
+    assert str(tmp_path) not in text  # nothing points back at where it was composed
+    assert "@../../assets/building.usda@" in text and "@../../site.usda@" in text
+    shutil.copytree(tmp_path / "a", tmp_path / "b" / "moved")
+    shutil.rmtree(tmp_path / "a")
+    return tmp_path / "b" / "moved" / "o"
+
+
+def test_output_moved_with_its_assets_still_composes_and_checks(tmp_path):
+    """Assets and site layers are written relative to the layer: a copy of the scenario folder
+    with its output elsewhere (a dataset on a share mounted at another path) composes, checks
+    clean, and a re-run of compose there still keys the layers by the assets' content."""
+    out = _moved(tmp_path)
+    assert check_stage(out / "stage.usda") == []
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    for path in ("/World/Scene/building/Building/WindowGlass3", "/World/Scene/Shed/Walls"):
+        prim = stage.GetPrimAtPath(path)
+        assert prim.IsA(UsdGeom.Mesh), path
+        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature")
+        assert len(pv.Get(0)) == len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get()), path
+    del stage, prim, pv  # an open stage keeps its layers registered, which would hide a failure
+    # compose again in the new place, then edit the USD asset: the scene layer is rebuilt
+    folder = out.parent
+    raw = street_raw(tmp_path / "c")  # the same scenario values, read against the moved folder
+    raw["scene"].update(layers=["site.usda"], layer_material="wood", layer_class="building")
+    compose(scenario_at(folder, raw), out)
+    # the thermal layer rebuilt on the cached scene layer (read back from its file: its
+    # relative paths are anchored there) still finds the assets
+    raw["thermal"]["surface_spin_up_s"] = 1800.0
+    report = compose(scenario_at(folder, raw), out)
+    assert "thermal" in report.rebuilt and "scene" not in report.rebuilt
+    assert check_stage(out / "stage.usda") == []
+    with open(folder / "assets" / "building.usda", "a") as f:
+        f.write("\n")
+    report = compose(scenario_at(folder, raw), out)
+    assert "scene" in report.rebuilt
+    assert check_stage(out / "stage.usda") == []
+
+
+def test_paths_outside_the_output_tree_stay_absolute(tmp_path):
+    """Only a file sharing a folder (other than /) with the layer's folder becomes relative."""
+    from humv_usd.usd.layers import anchored_asset_paths, relative_asset_paths
+
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    prim = Sdf.CreatePrimInLayer(layer, "/A")
+    prim.referenceList.Prepend(Sdf.Reference(str(tmp_path / "assets" / "car.usd")))
+    prim2 = Sdf.CreatePrimInLayer(layer, "/B")
+    prim2.referenceList.Prepend(Sdf.Reference("/opt/library/tree.usd"))
+    layer.subLayerPaths.append(str(tmp_path / "site.usda"))
+    rel = relative_asset_paths(layer, tmp_path / "o" / "layers")
+    refs = {p: [r.assetPath for r in rel.GetPrimAtPath(p).referenceList.prependedItems] for p in ("/A", "/B")}
+    assert refs == {"/A": ["../../assets/car.usd"], "/B": ["/opt/library/tree.usd"]}
+    assert list(rel.subLayerPaths) == ["../../site.usda"]
+    assert layer.GetPrimAtPath("/A").referenceList.prependedItems[0].assetPath == str(
+        tmp_path / "assets" / "car.usd"
+    )
+    back = anchored_asset_paths(rel, tmp_path / "o" / "layers")
+    assert back.GetPrimAtPath("/A").referenceList.prependedItems[0].assetPath == str(
+        tmp_path / "assets" / "car.usd"
+    )
+    assert list(back.subLayerPaths) == [str(tmp_path / "site.usda")]
+
+
+@pytest.mark.slow
+def test_moved_output_renders_like_the_original(tmp_path):
+    """A tiny LWIR render of the moved output equals the render made before the move."""
+    from humv_usd.images import read_exr
+    from humv_usd.pipeline.render import render_stage
+
+    _, out = _street_with_site_layer(tmp_path / "first")
+    render_stage(out / "stage.usda", tmp_path / "r0", spp=1)
+    shutil.copytree(tmp_path / "first", tmp_path / "elsewhere" / "copy")
+    shutil.rmtree(tmp_path / "first")
+    moved = tmp_path / "elsewhere" / "copy" / "o"
+    render_stage(moved / "stage.usda", tmp_path / "r1", spp=1)
+    (a,), (b,) = (sorted((tmp_path / r).glob("*/0000.exr")) for r in ("r0", "r1"))
+    a, b = read_exr(a), read_exr(b)
+    ids = {int(i) for i in np.unique(a["instance_id"])}
+    assert len(ids) >= 4  # ground, assets, the shed
+    np.testing.assert_array_equal(a["instance_id"], b["instance_id"])
+    np.testing.assert_allclose(a["radiance"], b["radiance"], rtol=1e-6)

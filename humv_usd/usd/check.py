@@ -194,8 +194,9 @@ def rule_assets(stage: Usd.Stage) -> list[str]:
             site = err.rootSite.path if err.rootSite else "stage"
             out.append(
                 f"humv:asset: {site}: {' '.join(str(err).split())}; fix: restore the file or correct "
-                "the path (compose references [[scene.asset]] files by absolute path: re-run compose "
-                "after moving them)"
+                "the path (compose writes [[scene.asset]] files and site layers relative to the layer "
+                "when they share a folder with the output, else absolute: move them together with the "
+                "output, or re-run compose after moving them)"
             )
     root = stage.GetRootLayer()
     for layer in stage.GetLayerStack(includeSessionLayers=False):

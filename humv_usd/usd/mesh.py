@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
@@ -91,9 +93,12 @@ ASSET_SOURCE = "humv:assetSource"
 
 
 def write_asset_source(prim: Usd.Prim, file: str, meters_per_unit: float, up_axis: str) -> None:
-    """Record on the prim that references ``file`` the units and up axis its transform corrects."""
+    """Record on the prim that references ``file`` the units and up axis its transform corrects
+    (and the file's name only: the reference holds its path, relative to the written layer, so
+    the output can move; an absolute path here would go stale)."""
     prim.SetCustomDataByKey(
-        ASSET_SOURCE, {"file": str(file), "metersPerUnit": float(meters_per_unit), "upAxis": str(up_axis)}
+        ASSET_SOURCE,
+        {"file": Path(file).name, "metersPerUnit": float(meters_per_unit), "upAxis": str(up_axis)},
     )
 
 
