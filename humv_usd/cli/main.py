@@ -606,6 +606,9 @@ def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
 
     main.add_command(avatar)
+    from humv_usd.cli.edit_cmd import edit
+
+    main.add_command(edit)
     from humv_usd.cli.groundtruth_cmd import (
         register as register_groundtruth,  # regions, coco-merge, bench labels
     )
