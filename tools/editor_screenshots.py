@@ -44,10 +44,12 @@ def free_port() -> int:
 
 
 @contextlib.contextmanager
-def editor_server(scenario: Path, out_dir: Path, extra=()):
-    """``humv-usd edit`` in a child process; yields (url, seconds until the page answered)."""
+def editor_server(scenario: Path, out_dir: Path, extra=(), check_url: bool = True):
+    """``humv-usd edit`` in a child process; yields (url, seconds until the page answered, the
+    process); ``check_url=False`` yields at once (the caller reads the address it prints)."""
     port = free_port()
     env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop("PYTEST_CURRENT_TEST", None)  # NiceGUI would take the server for its own test harness
     t0 = time.perf_counter()
     proc = subprocess.Popen(
         [
@@ -70,7 +72,7 @@ def editor_server(scenario: Path, out_dir: Path, extra=()):
     )
     url = f"http://127.0.0.1:{port}/"
     try:
-        while True:
+        while check_url:
             if proc.poll() is not None:
                 raise RuntimeError("humv-usd edit stopped:\n" + proc.stdout.read())
             try:
@@ -113,6 +115,7 @@ def chromium(width: int = 1400, height: int = 1000):
 def open_tab(driver, name: str) -> None:
     from selenium.webdriver.common.by import By
 
+    driver.execute_script("window.scrollTo(0, 0)")
     driver.find_element(By.CSS_SELECTOR, f'[data-testid="tab-{name}"]').click()
     time.sleep(0.4)
 

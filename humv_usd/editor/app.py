@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import tomlkit
 from fastapi import HTTPException, Request
 from fastapi.responses import FileResponse, PlainTextResponse
@@ -121,10 +122,13 @@ class Page:
         self.widgets: dict[str, ui.element] = {}
         self.section_boxes: dict[str, ui.element] = {}
         self.preview_started: float | None = None
-        self.preview_job = None
         self.shown_preview_job = None
         self.stage_job = None
         self.shown_stage_job = None
+        # a page opened again finds the server's jobs: show the latest preview when it ends
+        self.preview_job = editor.jobs.latest("preview")
+        if self.preview_job is not None:
+            self.preview_started = self.preview_job.started
         self.build()
 
     # -- layout ------------------------------------------------------------------------------
@@ -205,24 +209,26 @@ class Page:
     def field_widget(self, f: Field) -> None:
         value = self.doc.get(f.path)
         label = f"{f.name} [{f.unit}]" if f.unit else f.name
-        if f.key.kind == "choice":
-            w = ui.select(
-                list(f.key.choices),
-                value=value if value in f.key.choices else None,
-                label=label,
-                clearable=not f.key.required,
-                on_change=lambda e, f=f: self.changed(f, e.value or ""),
-            )
-        else:
-            w = ui.input(
-                label=label,
-                value=value_text(f.key, value),
-                placeholder=f.default_text,
-                on_change=lambda e, f=f: self.changed(f, e.value or ""),
-            )
-        w.props(f'data-field="{f.where}" hint="{_attr(f.allowed or f.default_text)}" bottom-slots')
-        w.classes("w-full")
-        w.tooltip(f.help)
+        with ui.element("div").classes("w-full").props(f'data-field="{f.where}"'):
+            if f.key.kind == "choice":
+                w = ui.select(
+                    list(f.key.choices),
+                    value=value if value in f.key.choices else None,
+                    label=label,
+                    clearable=not f.key.required,
+                    on_change=lambda e, f=f: self.changed(f, e.value or ""),
+                )
+            else:
+                w = ui.input(
+                    label=label,
+                    value=value_text(f.key, value),
+                    placeholder=f.default_text,
+                    on_change=lambda e, f=f: self.changed(f, e.value or ""),
+                )
+            w.without_auto_validation()  # the page sets the errors (NiceGUI would clear them after on_change)
+            w.props(f'hint="{_attr(f.allowed or f.default_text)}" bottom-slots')
+            w.classes("w-full")
+            w.tooltip(f.help)
         self.widgets[f.where] = w
 
     # -- document changes --------------------------------------------------------------------
@@ -246,7 +252,10 @@ class Page:
         fields = all_fields(self.doc.raw())
         at, other = ScenarioDocument.problems_by_field(problems, fields)
         for where, w in self.widgets.items():
-            w.error = "; ".join(at[where]) if where in at else None
+            message = "; ".join(at[where]) if where in at else None
+            if message != w.error:
+                w.error = message
+                w.update()
         self.other_problems.clear()
         with self.other_problems:
             for line in other:
@@ -403,17 +412,12 @@ class Page:
             self.scene.gltf(f"/files/out/.editor/stage.glb?t={time.time():.0f}")
             for cam in view.cameras:
                 self.camera_lines(cam)
-        lo, hi = view.bounds
-        centre = (lo + hi) / 2
-        eye = centre + [0.0, -max(hi[0] - lo[0], 20) * 0.45, max(hi[2] - lo[2], 10) * 1.5]
-        self.scene.move_camera(*eye, *centre, duration=0)
+        self.scene.move_camera(*_eye(view), duration=0)
         self.view_info.set_text(
             f"{view.meshes} meshes, {view.triangles} triangles, {len(view.cameras)} cameras"
         )
 
     def camera_lines(self, cam) -> None:
-        import numpy as np
-
         o, fwd, up = cam.origin, cam.forward, cam.up
         right = np.cross(fwd, up)
         t = math.tan(math.radians(cam.fov_x_deg) / 2) * 2.0
@@ -444,8 +448,10 @@ class Page:
             return
         steps = [humv_command(*args) for args in preview_commands(self.doc.path, self.editor.out_dir, sensor)]
         self.preview_started = time.time()
-        self.preview_job = self.start_job("preview", steps)
-        self.preview_job.sensor = sensor
+        job = self.start_job("preview", steps)
+        if job is not None:
+            job.sensor = sensor
+            self.preview_job = job
 
     def show_preview(self, job) -> None:
         try:
@@ -577,6 +583,18 @@ class Page:
             self.shown_stage_job = sj
             if sj.state == "done":
                 await self.show_stage()
+
+
+def _eye(view) -> list[float]:
+    """Where the 3D view starts: behind and above the first camera looking along it, else
+    south of the scene's centre looking at it."""
+    if view.cameras:
+        cam = view.cameras[0]
+        eye = cam.origin - 8.0 * cam.forward + np.array([0.0, 0.0, 4.0])
+        return [*eye.tolist(), *(cam.origin + 15.0 * cam.forward).tolist()]
+    lo, hi = view.bounds
+    centre = (lo + hi) / 2
+    return [centre[0], centre[1] - 30.0, centre[2] + 15.0, *centre.tolist()]
 
 
 def _attr(text: str) -> str:

@@ -43,6 +43,7 @@ class Job:
     ended: float | None = None
     process: subprocess.Popen | None = None
     on_done: list = field(default_factory=list)
+    sensor: str | None = None  # a preview's sensor
 
     @property
     def seconds(self) -> float:

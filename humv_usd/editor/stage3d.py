@@ -71,8 +71,18 @@ def stage_view(stage_path: Path, glb_path: Path, frame: int = 0) -> StageView:
             if flip:
                 tris = tris[:, ::-1]
             used, local = np.unique(tris.ravel(), return_inverse=True)
-            mesh = trimesh.Trimesh(world[used], local.reshape(-1, 3), process=False)
-            mesh.visual.face_colors = np.tile(_colour(part.material), (len(tris), 1))
+            material = trimesh.visual.material.PBRMaterial(
+                baseColorFactor=_colour(part.material),
+                metallicFactor=0.0,
+                roughnessFactor=1.0,
+                doubleSided=True,
+            )
+            mesh = trimesh.Trimesh(
+                world[used],
+                local.reshape(-1, 3),
+                process=False,
+                visual=trimesh.visual.TextureVisuals(material=material),
+            )
             scene.add_geometry(mesh, node_name=f"{info.path}:{part.key}")
             triangles += len(tris)
             lo, hi = np.minimum(lo, world[used].min(axis=0)), np.maximum(hi, world[used].max(axis=0))
