@@ -36,7 +36,8 @@ LEVELS = [
     },  # layer tools
     {"render", "groundtruth"},  # consumers of the stage
     {"pipeline", "bench"},  # graph, caching, benches
-    {"editor"},  # the web editor: reads the spec, runs jobs through the CLI, shows stages
+    {"sweep"},  # datasets: drives pipeline.compose/render per variant on Dask, merges ground truth
+    {"editor"},  # the web editor: forms from the spec, checks sweep files, runs humv-usd as processes
     {"cli"},
 ]
 LEVEL = {pkg: i for i, level in enumerate(LEVELS) for pkg in level}

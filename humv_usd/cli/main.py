@@ -606,6 +606,9 @@ def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
 
     main.add_command(avatar)
+    from humv_usd.cli.adopt_cmd import adopt
+
+    main.add_command(adopt)
     from humv_usd.cli.edit_cmd import edit
 
     main.add_command(edit)
@@ -614,6 +617,9 @@ def _register_tools():
     )
 
     register_groundtruth(main, bench)
+    from humv_usd.cli.sweep_cmd import register as register_sweep  # sweep, bench sweep
+
+    register_sweep(main, bench)
 
 
 _register_tools()

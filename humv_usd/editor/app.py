@@ -33,6 +33,7 @@ from humv_usd.environment.sun import sun_at
 from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
 from humv_usd.scenario.spec import SECTIONS
+from humv_usd.sweep.spec import load_sweep
 
 log = logging.getLogger(__name__)
 
@@ -314,18 +315,22 @@ class Page:
     # -- sweep -------------------------------------------------------------------------------
     def build_sweep(self) -> None:
         ui.label(
-            "A sweep file (TOML, in the scenario's folder) varies scenario keys: each top-level value "
-            "is edited as TOML here; `humv-usd sweep` runs it."
+            "A sweep file (TOML in the scenario's folder: [sweep] base and name, [set], [grid], [random], "
+            "[render]; see README 'Datasets') varies scenario keys. Each top-level table is edited as TOML "
+            "here; Check validates every variant as `humv-usd sweep` does."
         ).classes("text-caption")
         with ui.row().classes("items-center"):
             self.sweep_name = ui.input("sweep file", value=self.editor.sweep_file).props(
                 "data-testid=sweep-file"
             )
             ui.button("Open", on_click=self.open_sweep).props("outline")
-            ui.button("Save sweep", on_click=self.save_sweep).props("outline")
+            ui.button("Save and check", on_click=self.save_sweep).props("outline data-testid=sweep-save")
+            ui.button("Dry run", on_click=lambda: self.run_sweep(dry_run=True)).props("outline")
             ui.button("Run sweep", on_click=self.run_sweep).props("outline")
+        self.sweep_check = ui.column().classes("w-full").props("data-testid=sweep-check")
         self.sweep_box = ui.column().classes("w-full")
         self.sweep_doc = None
+        self.sweep_errors: dict[str, str] = {}
         self.open_sweep()
 
     def _sweep_path(self) -> Path | None:
@@ -338,9 +343,14 @@ class Page:
     def open_sweep(self) -> None:
         path = self._sweep_path()
         self.sweep_box.clear()
+        self.sweep_errors = {}
         if path is None:
             return
-        text = path.read_text(encoding="utf-8") if path.is_file() else f'scenario = "{self.doc.path.name}"\n'
+        self.editor.sweep_file = self.sweep_name.value
+        if path.is_file():
+            text = path.read_text(encoding="utf-8")
+        else:
+            text = f'[sweep]\nname = "{path.stem}"\nbase = "{self.doc.path.name}"\n\n[grid]\n"placement.0.heading_deg" = [0.0, 90.0]\n'
         try:
             self.sweep_doc = tomlkit.parse(text)
         except tomlkit.exceptions.TOMLKitError as exc:
@@ -349,38 +359,66 @@ class Page:
             return
         with self.sweep_box:
             for key in list(self.sweep_doc):
-                item = self.sweep_doc[key]
+                value = self.sweep_doc[key].unwrap()
+                text = (
+                    tomlkit.dumps({key: value})
+                    if isinstance(value, dict)
+                    else tomlkit.item(value).as_string()
+                )
                 ui.textarea(
-                    key,
-                    value=tomlkit.item(item.unwrap()).as_string()
-                    if not isinstance(item, str)
-                    else item.as_string(),
-                    on_change=lambda e, k=key: self.sweep_changed(k, e.sender, e.value),
-                ).classes("w-full").props("autogrow")
+                    key, value=text, on_change=lambda e, k=key: self.sweep_changed(k, e.sender, e.value)
+                ).classes("w-full").props("autogrow").without_auto_validation()
 
     def sweep_changed(self, key: str, widget, text: str) -> None:
         import tomllib
 
         try:
-            value = tomllib.loads(f"v = {text}")["v"]
+            parsed = tomllib.loads(text)
+            value = (
+                parsed.get(key, parsed)
+                if len(parsed) == 1 and key in parsed
+                else tomllib.loads(f"v = {text}")["v"]
+            )
         except tomllib.TOMLDecodeError as exc:
-            widget.error = f"{key} = {text!r}: not a TOML value ({exc})"
+            self.sweep_errors[key] = f"[{key}]: not TOML ({exc})"
+            widget.error = self.sweep_errors[key]
+            widget.update()
             return
+        self.sweep_errors.pop(key, None)
         widget.error = None
+        widget.update()
         self.sweep_doc[key] = value
 
-    def save_sweep(self) -> None:
+    async def save_sweep(self) -> None:
         path = self._sweep_path()
-        if path is not None and self.sweep_doc is not None:
-            write_text_atomic(path, tomlkit.dumps(self.sweep_doc))
-            ui.notify(f"saved {path.name}")
+        if path is None or self.sweep_doc is None:
+            return
+        if self.sweep_errors:
+            ui.notify("not saved: " + next(iter(self.sweep_errors.values())), type="negative")
+            return
+        write_text_atomic(path, tomlkit.dumps(self.sweep_doc))
+        self.sweep_check.clear()
+        try:
+            sweep = await run.io_bound(load_sweep, path)
+        except InputError as exc:
+            with self.sweep_check:
+                for line in exc.problems:
+                    ui.label(line).classes("text-negative text-body2")
+            return
+        with self.sweep_check:
+            ui.label(f"{path.name}: {len(sweep.variants)} variant(s), every one valid").classes(
+                "text-positive"
+            )
 
-    def run_sweep(self) -> None:
+    def run_sweep(self, dry_run: bool = False) -> None:
         path = self._sweep_path()
         if path is None or not path.is_file():
             ui.notify("save the sweep file first", type="warning")
             return
-        self.start_job("sweep", [humv_command("sweep", str(path), "-o", str(self.editor.out_dir / "sweep"))])
+        args = ["sweep", str(path), "-o", str(self.editor.out_dir / "sweep")] + (
+            ["--dry-run"] if dry_run else ["--quiet"]
+        )
+        self.start_job("sweep", [humv_command(*args)])
 
     # -- 3D ----------------------------------------------------------------------------------
     def build_3d(self) -> None:

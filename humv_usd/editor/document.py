@@ -12,12 +12,11 @@ from typing import Any
 import tomlkit
 from tomlkit.exceptions import TOMLKitError
 
-from humv_usd.editor.fields import Field, parse_text
+from humv_usd.editor.fields import Field, all_fields, parse_text
 from humv_usd.editor.safety import inside
 from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
 from humv_usd.scenario.load import load_scenario, validate
-from humv_usd.scenario.spec import SECTIONS
 
 log = logging.getLogger(__name__)
 
@@ -140,6 +139,10 @@ class ScenarioDocument:
             return
         if key in parent and parent[key].unwrap() == value:
             return
+        if isinstance(value, dict):  # a map key stays on its line: { "*glass*" = "glass" }
+            inline = tomlkit.inline_table()
+            inline.update(value)
+            value = inline
         parent[key] = value
         self.modified = True
 
@@ -182,22 +185,21 @@ class ScenarioDocument:
         return out
 
     def _path_keys_outside(self, raw: dict) -> list[str]:
+        """File keys (``path``, ``pathlist``) naming a file outside the scenario's folder."""
         out = []
-        for name, section in SECTIONS.items():
-            tables = raw.get(name)
-            tables = tables if section.array else [tables]
-            for i, table in enumerate(tables if isinstance(tables, list) else []):
-                if not isinstance(table, dict):
-                    continue
-                for key_name, key in section.keys.items():
-                    value = table.get(key_name)
-                    if key.kind != "path" or not isinstance(value, str):
-                        continue
-                    where = f"{name}[{i}].{key_name}" if section.array else f"{name}.{key_name}"
-                    try:
-                        inside(self.folder, value, where)
-                    except InputError as exc:
-                        out.append(str(exc))
+        for f in all_fields(raw):
+            value = self.get(f.path)
+            if f.key.kind == "path" and isinstance(value, str):
+                items = [(f.where, value)]
+            elif f.key.kind == "pathlist" and isinstance(value, list):
+                items = [(f"{f.where}[{i}]", v) for i, v in enumerate(value) if isinstance(v, str)]
+            else:
+                continue
+            for where, text in items:
+                try:
+                    inside(self.folder, text, where)
+                except InputError as exc:
+                    out.append(str(exc))
         return out
 
     @staticmethod

@@ -71,6 +71,10 @@ def value_text(key: Key, value: Any) -> str:
         return ""
     if key.kind in ("str", "path", "choice") and isinstance(value, str):
         return value
+    if isinstance(value, dict):
+        inline = tomlkit.inline_table()
+        inline.update(value)
+        return inline.as_string().strip()
     return tomlkit.item(value).as_string()
 
 
