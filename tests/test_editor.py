@@ -303,3 +303,31 @@ def test_preview_colours_span_the_levels():
     np.testing.assert_array_equal(rgb[0, 2], [0, 0, 0])
     np.testing.assert_array_equal(rgb[1, 0], rgb[0, 0])  # clipped below
     np.testing.assert_array_equal(rgb[1, 2], np.rint(np.array(cmap(0.5)[:3]) * 255))
+
+
+@pytest.mark.slow
+def test_stage_view_has_every_mesh_triangle_and_camera(humvvex, tmp_path):
+    """The GLB of the 3D view holds the composed stage's triangles (counted with pxr) and its cameras."""
+    import trimesh
+    from pxr import Usd, UsdGeom
+
+    from humv_usd.editor.stage3d import stage_view
+    from humv_usd.pipeline.compose import compose
+
+    out = tmp_path / "out"
+    compose(load_scenario(humvvex), out)
+    view = stage_view(out / "stage.usda", out / ".editor" / "stage.glb")
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    expected = 0
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Mesh):
+            mesh = UsdGeom.Mesh(prim)
+            n = int(np.sum(np.asarray(mesh.GetFaceVertexCountsAttr().Get()) - 2))
+            expected += n * (2 if mesh.GetDoubleSidedAttr().Get() else 1)
+    assert view.triangles == expected
+    loaded = trimesh.load(view.glb, force="scene")
+    assert sum(len(g.faces) for g in loaded.geometry.values()) == expected
+    assert [c.name for c in view.cameras] == [s["id"] for s in load_scenario(humvvex)["sensor"]]
+    np.testing.assert_allclose(view.cameras[0].origin, [0.0, -15.0, 1.6], atol=1e-6)
+    np.testing.assert_allclose(view.bounds[0][:2], [-60.0, -60.0])  # the 120 m ground
+    np.testing.assert_allclose(view.bounds[1][:2], [60.0, 60.0])

@@ -232,3 +232,25 @@ def test_other_interfaces_need_the_token(tmp_path):
         assert _status(base) == 403
         assert _status(base + "files/scenario/humvvex.toml") == 403
         assert _status(base + "?token=wrong") == 403
+
+
+def test_three_d_view_shows_the_composed_stage(session):
+    """After the preview composed the stage: the 3D tab loads its meshes and cameras."""
+    from selenium.webdriver.common.by import By
+
+    driver, _, _, out, _ = session
+    H.open_tab(driver, "view3d")
+    driver.find_element(By.CSS_SELECTOR, '[data-testid="show-3d"]').click()
+    _wait(lambda: "4 cameras" in driver.page_source, limit=240, what="the 3D view")
+    assert (out / ".editor" / "stage.glb").stat().st_size > 10_000
+    assert driver.find_elements(By.CSS_SELECTOR, '[data-testid="scene3d"] canvas')
+
+
+def test_sweep_tab_checks_every_variant(session):
+    from selenium.webdriver.common.by import By
+
+    driver, _, scenario, _, _ = session
+    H.open_tab(driver, "sweep")
+    driver.find_element(By.CSS_SELECTOR, '[data-testid="sweep-save"]').click()
+    _wait(lambda: "2 variant(s), every one valid" in driver.page_source, limit=60, what="sweep check")
+    assert 'base = "humvvex.toml"' in (scenario.parent / "sweep.toml").read_text()
