@@ -331,3 +331,36 @@ def test_stage_view_has_every_mesh_triangle_and_camera(humvvex, tmp_path):
     np.testing.assert_allclose(view.cameras[0].origin, [0.0, -15.0, 1.6], atol=1e-6)
     np.testing.assert_allclose(view.bounds[0][:2], [-60.0, -60.0])  # the 120 m ground
     np.testing.assert_allclose(view.bounds[1][:2], [60.0, 60.0])
+
+
+def test_preview_scenario_is_small_with_the_same_view(humvvex, tmp_path):
+    import tomlkit
+
+    from humv_usd.editor.preview import PREVIEW_WIDTH_PX, preview_scenario
+
+    (humvvex.parent / "weather.csv").write_text(
+        "time,air_temperature_k\n2018-10-24T13:00:00,290\n2018-10-24T15:00:00,291\n"
+    )
+    humvvex.write_text(
+        humvvex.read_text().replace("[atmosphere]\n", '[atmosphere]\nweather_csv = "weather.csv"\n')
+    )
+    doc = ScenarioDocument(humvvex)
+    scenario = load_scenario(humvvex)
+    raw = preview_scenario(doc.raw(), scenario, humvvex.parent, "lwir640")
+    copy_path = tmp_path / "elsewhere" / "preview.toml"
+    copy_path.parent.mkdir()
+    copy_path.write_text(tomlkit.dumps(raw))
+    small = load_scenario(copy_path)  # validates where it lies: file keys are absolute
+    assert [s["id"] for s in small["sensor"]] == ["lwir640"]
+    full = scenario["sensor"][1]
+    s = small["sensor"][0]
+    assert s["resolution"] == [320, 256] and s["resolution"][0] <= PREVIEW_WIDTH_PX
+    # field of view: w p / f unchanged (same focal length, binned pixels)
+    assert s["resolution"][0] * s["pixel_pitch_um"] == pytest.approx(
+        full["resolution"][0] * full["pixel_pitch_um"]
+    )
+    assert s["focal_length_mm"] == full["focal_length_mm"] and s["position_m"] == full["position_m"]
+    assert small["atmosphere"]["weather_csv"] == str((humvvex.parent / "weather.csv").resolve())
+    assert (
+        "lwir640" not in humvvex.read_text() or doc.raw()["sensor"][1].get("resolution") is None
+    )  # source untouched

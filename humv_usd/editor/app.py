@@ -26,7 +26,7 @@ from humv_usd.editor.document import SaveRefused, ScenarioDocument
 from humv_usd.editor.fields import Field, all_fields, section_groups, value_text
 from humv_usd.editor.jobs import JobManager, humv_command, outputs
 from humv_usd.editor.plan import plan_svg
-from humv_usd.editor.preview import make_preview, preview_commands
+from humv_usd.editor.preview import PREVIEW_WIDTH_PX, make_preview, preview_commands, preview_scenario
 from humv_usd.editor.safety import inside, upload_target
 from humv_usd.editor.stage3d import stage_view
 from humv_usd.environment.sun import sun_at
@@ -475,7 +475,9 @@ class Page:
                 ui.select([], label="sensor").props("data-testid=preview-sensor").classes("w-64")
             )
             ui.button("Preview", icon="photo_camera", on_click=self.preview).props("data-testid=preview")
-            self.preview_info = ui.label("frame 0, 2 samples per pixel, one sub-band").classes("text-caption")
+            self.preview_info = ui.label(
+                f"frame 0, at most {PREVIEW_WIDTH_PX} px wide, 2 samples per pixel, one sub-band"
+            ).classes("text-caption")
         with ui.row().classes("items-start"):
             self.preview_image = ui.image().classes("w-[800px]").props("data-testid=preview-image")
             self.colour_bar = ui.column().classes("items-center")
@@ -484,7 +486,10 @@ class Page:
         sensor = self.sensor_choice.value
         if not sensor or not self.ensure_saved():
             return
-        steps = [humv_command(*args) for args in preview_commands(self.doc.path, self.editor.out_dir, sensor)]
+        preview_file = self.editor.out_dir / ".editor" / "preview.toml"
+        raw = preview_scenario(self.doc.raw(), self.doc.scenario(), self.doc.folder, sensor)
+        write_text_atomic(preview_file, tomlkit.dumps(raw))
+        steps = [humv_command(*args) for args in preview_commands(preview_file, self.editor.out_dir, sensor)]
         self.preview_started = time.time()
         job = self.start_job("preview", steps)
         if job is not None:

@@ -1,7 +1,10 @@
 """The preview: one small, fast frame of one sensor, coloured by brightness temperature.
 
 The preview is a real ``humv-usd compose`` (cached layers) and ``humv-usd render`` of frame 0 for
-one sensor with few samples and one sub-band (:func:`preview_commands`); this module turns the
+one sensor with few samples and one sub-band (:func:`preview_commands`), on a copy of the scenario
+that keeps only that sensor, with at most :data:`PREVIEW_WIDTH_PX` columns (pixels binned: the
+pitch grows by the same factor, so the field of view stays; :func:`preview_scenario`); it is
+composed into ``OUT/.editor/preview`` so the real output's layers stay as they are. This module turns the
 render's EXR channel ``IR.brightness_temperature`` (logical name ``brightness_temperature``) into a colour image with a colour bar between
 the render's own preview levels (1st and 99th percentile, ``preview_levels_k`` in the manifest).
 EO sensors show their sRGB PNG as it is.
@@ -9,29 +12,76 @@ EO sensors show their sRGB PNG as it is.
 
 from __future__ import annotations
 
+import copy
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
 
+from humv_usd.editor.fields import all_fields
 from humv_usd.images import read_exr, write_png
+from humv_usd.scenario.load import Scenario
+from humv_usd.scenario.spec import SECTIONS
 
 #: colour map of the temperature preview (perceptually uniform, prints in grey)
 COLOUR_MAP = "inferno"
 #: render settings of a preview: samples per pixel, sub-bands, annotators (the cheapest one)
 PREVIEW_SPP, PREVIEW_SUBBANDS, PREVIEW_ANNOTATORS = 2, 1, "semantic"
+#: widest preview image [px]
+PREVIEW_WIDTH_PX = 320
 
 
-def preview_commands(scenario: Path, out_dir: Path, sensor: str) -> list[list[str]]:
-    """The ``humv-usd`` arguments of a preview (compose into ``out_dir``, render one frame of
-    ``sensor`` into ``out_dir/preview``)."""
+def preview_scenario(raw: dict, scenario: Scenario, folder: Path, sensor: str) -> dict:
+    """The scenario document of a preview of ``sensor``: only that sensor, binned to at most
+    :data:`PREVIEW_WIDTH_PX` columns (pitch × k, resolution // k: same field of view), file keys
+    made absolute (the copy lives in the output folder).
+
+    Parameters
+    ----------
+    raw : dict
+        The scenario as written (plain values).
+    scenario : Scenario
+        The same, validated (the sensor's preset values filled in).
+    folder : Path
+        The scenario's folder (relative file keys are relative to it).
+    """
+    out = copy.deepcopy(raw)
+    for f in all_fields(raw):
+        node = out
+        for part in f.path[:-1]:
+            node = node[part] if isinstance(node, (dict, list)) and (isinstance(node, list) or part in node) else None
+        value = node.get(f.path[-1]) if isinstance(node, dict) else None
+        if f.key.kind == "path" and isinstance(value, str):
+            node[f.path[-1]] = str((folder / value).resolve())
+        elif f.key.kind == "pathlist" and isinstance(value, list):
+            node[f.path[-1]] = [str((folder / v).resolve()) for v in value]
+    index = [s["id"] for s in scenario["sensor"]].index(sensor)
+    filled = scenario["sensor"][index]
+    table = out["sensor"][index]
+    width, height = filled["resolution"]
+    pitch = filled["pixel_pitch_um"]
+    k = max(1, math.ceil(width / PREVIEW_WIDTH_PX))
+    k = max(1, min(k, int(SECTIONS["sensor"].keys["pixel_pitch_um"].hi // pitch)))
+    if k > 1:
+        table["resolution"] = [max(1, width // k), max(1, height // k)]
+        table["pixel_pitch_um"] = pitch * k
+    out["sensor"] = [table]
+    return out
+
+
+def preview_commands(preview_file: Path, out_dir: Path, sensor: str) -> list[list[str]]:
+    """The ``humv-usd`` arguments of a preview: compose the preview scenario (written by the
+    caller to ``preview_file``) into ``out_dir/.editor/preview``, render frame 0 of ``sensor``
+    into ``out_dir/preview``."""
+    stage_dir = out_dir / ".editor" / "preview"
     return [
-        ["compose", str(scenario), "-o", str(out_dir)],
+        ["compose", str(preview_file), "-o", str(stage_dir)],
         [
             "render",
-            str(out_dir / "stage.usda"),
+            str(stage_dir / "stage.usda"),
             "-o",
             str(out_dir / "preview"),
             "--frames",
