@@ -86,6 +86,31 @@ def _type(driver, where: str, text: str) -> None:
     box.send_keys(text)
 
 
+def _click(driver, testid: str, limit: float = 15.0) -> None:
+    """Click the element with this data-testid once it can be clicked (tab panels animate in)."""
+    from selenium.common.exceptions import (
+        ElementClickInterceptedException,
+        ElementNotInteractableException,
+        NoSuchElementException,
+        StaleElementReferenceException,
+    )
+
+    t0 = time.time()
+    while True:
+        try:
+            driver.find_element("css selector", f'[data-testid="{testid}"]').click()
+            return
+        except (
+            ElementClickInterceptedException,
+            ElementNotInteractableException,
+            NoSuchElementException,
+            StaleElementReferenceException,
+        ):
+            if time.time() - t0 > limit:
+                raise
+            time.sleep(0.2)
+
+
 def _wait(predicate, limit: float = 20.0, what: str = ""):
     from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
 
@@ -120,13 +145,13 @@ def test_invalid_value_shows_the_message_then_fix_and_save(session):
         return driver.find_element("css selector", '[data-testid="status"]').text
 
     _wait(lambda: status().startswith("1 problem"), what="1 problem")
-    driver.find_element("css selector", '[data-testid="save"]').click()
+    _click(driver, "save")
     _wait(lambda: "not saved" in driver.page_source, what="the refusal")
     assert scenario.read_text() == original  # a valid file is not replaced by an invalid one
     _type(driver, "sensor[1].netd_k", "0.04")
     _wait(lambda: _field_messages(driver, "sensor[1].netd_k") in ("", "0.0..5.0"), what="message gone")
     _wait(lambda: status().startswith("valid"), what="valid")
-    driver.find_element("css selector", '[data-testid="save"]').click()
+    _click(driver, "save")
     expected = original.replace(
         "position_m = [0.8, -15.0, 1.6]\nlook_at_m = [0.0, 0.0, 1.2]\n",
         "position_m = [0.8, -15.0, 1.6]\nlook_at_m = [0.0, 0.0, 1.2]\nnetd_k = 0.04\n",
@@ -156,7 +181,7 @@ def test_preview_image_appears_after_the_page_reconnects(session):
     driver, url, _, out, timings = session
     H.open_tab(driver, "preview")
     t0 = time.perf_counter()
-    driver.find_element("css selector", '[data-testid="preview"]').click()
+    _click(driver, "preview")
     _wait(lambda: (out / "stage.usda").exists() or "preview" in driver.page_source, what="job started")
     driver.get(url)  # the page closes and opens again
     _wait(lambda: driver.find_elements("css selector", '[data-testid="tab-preview"]'), what="page again")
@@ -182,7 +207,7 @@ def test_preview_image_appears_after_the_page_reconnects(session):
     H.open_tab(driver, "preview")
     before = driver.find_element("css selector", '[data-testid="preview-image"] img').get_attribute("src")
     t1 = time.perf_counter()
-    driver.find_element("css selector", '[data-testid="preview"]').click()
+    _click(driver, "preview")
 
     def new_image():
         img = driver.find_element("css selector", '[data-testid="preview-image"] img')
@@ -240,17 +265,16 @@ def test_three_d_view_shows_the_composed_stage(session):
 
     driver, _, _, out, _ = session
     H.open_tab(driver, "view3d")
-    driver.find_element(By.CSS_SELECTOR, '[data-testid="show-3d"]').click()
+    _click(driver, "show-3d")
     _wait(lambda: "4 cameras" in driver.page_source, limit=240, what="the 3D view")
     assert (out / ".editor" / "stage.glb").stat().st_size > 10_000
     assert driver.find_elements(By.CSS_SELECTOR, '[data-testid="scene3d"] canvas')
 
 
 def test_sweep_tab_checks_every_variant(session):
-    from selenium.webdriver.common.by import By
 
     driver, _, scenario, _, _ = session
     H.open_tab(driver, "sweep")
-    driver.find_element(By.CSS_SELECTOR, '[data-testid="sweep-save"]').click()
+    _click(driver, "sweep-save")
     _wait(lambda: "2 variant(s), every one valid" in driver.page_source, limit=60, what="sweep check")
     assert 'base = "humvvex.toml"' in (scenario.parent / "sweep.toml").read_text()
