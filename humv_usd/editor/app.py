@@ -505,7 +505,7 @@ class Page:
         rel = p.png.relative_to(self.editor.out_dir)
         self.preview_image.set_source(f"/files/out/{rel}?t={time.time():.3f}")
         took = time.time() - (self.preview_started or time.time())
-        self.preview_info.set_text(f"{p.sensor}: frame 0 in {took:.1f} s (click to image)")
+        self.preview_info.set_text(f"{p.sensor}: frame 0: {took:.1f} s from the click to the image")
         self.colour_bar.clear()
         if p.levels_k:
             lo, hi = p.levels_k
