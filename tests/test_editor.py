@@ -364,3 +364,25 @@ def test_preview_scenario_is_small_with_the_same_view(humvvex, tmp_path):
     assert (
         "lwir640" not in humvvex.read_text() or doc.raw()["sensor"][1].get("resolution") is None
     )  # source untouched
+
+
+def test_a_file_that_is_not_toml_is_shown_and_never_replaced(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("[general\nname = 'x'\n")
+    doc = ScenarioDocument(path)
+    assert len(doc.problems()) == 1 and "not valid TOML" in doc.problems()[0]
+    with pytest.raises(SaveRefused):
+        doc.save()
+    assert path.read_text() == "[general\nname = 'x'\n"
+
+
+def test_edit_command_bad_output_folder_is_one_line(tmp_path):
+    from click.testing import CliRunner
+
+    from humv_usd.cli.main import main
+
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("x")
+    result = CliRunner().invoke(main, ["edit", str(tmp_path / "s.toml"), "-o", str(a_file), "--port", "1"])
+    assert result.exit_code == 2
+    assert result.output.strip().count("\n") == 0 and "output folder" in result.output

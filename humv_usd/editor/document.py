@@ -230,6 +230,8 @@ class ScenarioDocument:
             file on disk does, or when the file changed on disk since it was read (unless
             ``overwrite_disk_change``).
         """
+        if self.load_error:  # the editor shows nothing of a file it cannot parse: never replace it
+            raise SaveRefused(f"not saved: {self.load_error}; fix it in a text editor and reload")
         if self.parse_errors:
             raise SaveRefused("not saved: " + next(iter(self.parse_errors.values())))
         if self.disk_changed() and not overwrite_disk_change:

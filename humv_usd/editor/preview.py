@@ -52,7 +52,11 @@ def preview_scenario(raw: dict, scenario: Scenario, folder: Path, sensor: str) -
     for f in all_fields(raw):
         node = out
         for part in f.path[:-1]:
-            node = node[part] if isinstance(node, (dict, list)) and (isinstance(node, list) or part in node) else None
+            node = (
+                node[part]
+                if isinstance(node, (dict, list)) and (isinstance(node, list) or part in node)
+                else None
+            )
         value = node.get(f.path[-1]) if isinstance(node, dict) else None
         if f.key.kind == "path" and isinstance(value, str):
             node[f.path[-1]] = str((folder / value).resolve())
