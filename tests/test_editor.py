@@ -386,3 +386,39 @@ def test_edit_command_bad_output_folder_is_one_line(tmp_path):
     result = CliRunner().invoke(main, ["edit", str(tmp_path / "s.toml"), "-o", str(a_file), "--port", "1"])
     assert result.exit_code == 2
     assert result.output.strip().count("\n") == 0 and "output folder" in result.output
+
+
+def test_job_progress_counts_the_files_a_step_writes(tmp_path):
+    py = sys.executable
+    code = (
+        "import pathlib, time, sys; d = pathlib.Path(sys.argv[1]) / 'cam'; d.mkdir(parents=True);"
+        "[(d / f'{i:04d}.exr').write_text('x') for i in range(2)]; print('two', flush=True); time.sleep(60)"
+    )
+    jobs = JobManager()
+    job = jobs.start(
+        "render",
+        [[py, "-c", "print('compose')"], [py, "-c", code, str(tmp_path / "render")]],
+        tmp_path,
+        tmp_path,
+        watch=(1, tmp_path / "render", "*/[0-9][0-9][0-9][0-9].exr", 4),
+    )
+    t0 = time.time()
+    while "two" not in job.lines:
+        assert time.time() - t0 < 60
+        time.sleep(0.05)
+    assert job.files_done() == (2, 4) and job.progress == pytest.approx((1 + 0.5) / 2)
+    job.cancel()
+    _wait(job)
+    assert job.state == "cancelled"
+
+
+def test_every_change_counts_so_pages_follow(humvvex):
+    doc = ScenarioDocument(humvvex)
+    v0 = doc.version
+    doc.set_text(_field(doc, "general.seed"), "0")  # same value: no change
+    assert doc.version == v0
+    doc.set_text(_field(doc, "general.seed"), "5")
+    doc.add_table(("human",))
+    doc.remove_table(("human",), 1)
+    doc.reload()
+    assert doc.version == v0 + 4

@@ -171,6 +171,7 @@ class Page:
             with ui.tab_panel(tab["run"]):
                 self.build_run()
         self.refresh()
+        self.seen_version = self.doc.version
         ui.timer(0.5, self.poll)
 
     def fill_section(self, name: str) -> None:
@@ -235,15 +236,18 @@ class Page:
     # -- document changes --------------------------------------------------------------------
     def changed(self, f: Field, text: str) -> None:
         self.doc.set_text(f, text)
+        self.seen_version = self.doc.version
         self.refresh()
 
     def add_table(self, section: str, path: tuple) -> None:
         self.doc.add_table(path)
+        self.seen_version = self.doc.version
         self.fill_section(section)
         self.refresh()
 
     def remove_table(self, section: str, path: tuple, index: int) -> None:
         self.doc.remove_table(path, index)
+        self.seen_version = self.doc.version
         self.fill_section(section)
         self.refresh()
 
@@ -297,10 +301,15 @@ class Page:
     def reload(self) -> None:
         self.doc.reload()
         self.banner.clear()
+        self.follow()
+        ui.notify(f"reloaded {self.doc.path.name}")
+
+    def follow(self) -> None:
+        """Show the document as it is now (after a reload or an edit in another page)."""
         for name in SECTIONS:
             self.fill_section(name)
+        self.seen_version = self.doc.version
         self.refresh()
-        ui.notify(f"reloaded {self.doc.path.name}")
 
     def disk_banner(self) -> None:
         self.banner.clear()
@@ -548,12 +557,15 @@ class Page:
             return
         spp = str(int(self.spp.value or 16))
         out = self.editor.out_dir
+        scenario = self.doc.scenario()
+        images = scenario.frame_count * len(scenario["sensor"])  # one EXR per sensor and frame
         self.start_job(
             "render",
             [
                 humv_command("compose", str(self.doc.path), "-o", str(out)),
                 humv_command("render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", spp),
             ],
+            watch=(1, out / "render", "*/[0-9][0-9][0-9][0-9].exr", images),
         )
 
     def cancel(self) -> None:
@@ -562,12 +574,12 @@ class Page:
             job.cancel()
             ui.notify(f"job {job.id} cancelled")
 
-    def start_job(self, kind: str, steps: list[list[str]]):
+    def start_job(self, kind: str, steps: list[list[str]], watch=None):
         running = [j for j in self.editor.jobs.jobs.values() if not j.finished]
         if running:
             ui.notify(f"job {running[0].id} ({running[0].kind}) is still running", type="warning")
             return None
-        return self.editor.jobs.start(kind, steps, self.editor.out_dir, cwd=self.doc.folder)
+        return self.editor.jobs.start(kind, steps, self.editor.out_dir, cwd=self.doc.folder, watch=watch)
 
     def ensure_saved(self) -> bool:
         """Jobs run on the file: save edits first (refused while the scenario has problems)."""
@@ -591,6 +603,8 @@ class Page:
 
     # -- polling -----------------------------------------------------------------------------
     async def poll(self) -> None:
+        if self.doc.version != self.seen_version:
+            self.follow()
         if self.doc.disk_changed():
             if not self.doc.modified:
                 self.reload()
@@ -606,7 +620,12 @@ class Page:
         for line in job.lines[count:]:
             self.log.push(line)
         self.shown_lines = (job.id, len(job.lines))
-        self.job_label.set_text(f"job {job.id} {job.kind}: {job.state}, {job.seconds:.1f} s")
+        files = job.files_done()
+        images = f", images {files[0]}/{files[1]}" if files else ""
+        self.job_label.set_text(
+            f"job {job.id} {job.kind}: {job.state}, step {min(job.step + 1, len(job.steps))}/{len(job.steps)}"
+            f"{images}, {job.seconds:.1f} s"
+        )
         self.progress.set_value(job.progress if job.finished or job.progress > 0 else 0.05)
         if job.finished and getattr(self, "_links_for", None) != job.id:
             self._links_for = job.id

@@ -54,6 +54,7 @@ class ScenarioDocument:
         self.folder = self.path.parent
         self.parse_errors: dict[str, str] = {}
         self.modified = False
+        self.version = 0  # counts changes, so every open page can follow edits made in another
         self.reload()
 
     # -- reading -----------------------------------------------------------------------------
@@ -75,6 +76,7 @@ class ScenarioDocument:
         self.disk_digest = _digest(data) if self.exists else None
         self.parse_errors = {}
         self.modified = False
+        self.version = getattr(self, "version", 0) + 1
 
     @property
     def text(self) -> str:
@@ -136,6 +138,7 @@ class ScenarioDocument:
             if key in parent:
                 del parent[key]
                 self.modified = True
+                self.version += 1
             return
         if key in parent and parent[key].unwrap() == value:
             return
@@ -145,6 +148,7 @@ class ScenarioDocument:
             value = inline
         parent[key] = value
         self.modified = True
+        self.version += 1
 
     def add_table(self, path: tuple) -> int:
         """Append an empty table to the array of tables at ``path``; returns its index."""
@@ -154,6 +158,7 @@ class ScenarioDocument:
             parent[name] = tomlkit.aot()
         parent[name].append(tomlkit.table())
         self.modified = True
+        self.version += 1
         return len(parent[name]) - 1
 
     def remove_table(self, path: tuple, index: int) -> None:
@@ -167,6 +172,7 @@ class ScenarioDocument:
         where_prefix = ".".join(str(p) for p in path)
         self.parse_errors = {k: v for k, v in self.parse_errors.items() if not k.startswith(where_prefix)}
         self.modified = True
+        self.version += 1
 
     # -- checking ----------------------------------------------------------------------------
     def problems(self) -> list[str]:

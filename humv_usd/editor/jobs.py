@@ -44,6 +44,15 @@ class Job:
     process: subprocess.Popen | None = None
     on_done: list = field(default_factory=list)
     sensor: str | None = None  # a preview's sensor
+    #: progress inside a step: (step index, folder, glob, expected count) of the files it writes
+    watch: tuple[int, Path, str, int] | None = None
+
+    def files_done(self) -> tuple[int, int] | None:
+        """(files written, files expected) of the watched step, None without one."""
+        if self.watch is None:
+            return None
+        _, folder, pattern, expected = self.watch
+        return min(sum(1 for _ in folder.glob(pattern)), expected), expected
 
     @property
     def seconds(self) -> float:
@@ -51,8 +60,13 @@ class Job:
 
     @property
     def progress(self) -> float:
-        """Fraction of the steps finished (0..1)."""
-        done = len(self.steps) if self.state == "done" else self.step
+        """Fraction finished (0..1): steps done, and within the watched step its files written."""
+        if self.state == "done":
+            return 1.0
+        done = float(self.step)
+        files = self.files_done()
+        if files is not None and self.watch[0] == self.step and files[1] > 0:
+            done += files[0] / files[1]
         return done / max(len(self.steps), 1)
 
     @property
@@ -88,12 +102,15 @@ class JobManager:
         self._ids = itertools.count(1)
         self._lock = threading.Lock()
 
-    def start(self, kind: str, steps: list[list[str]], out_dir: Path, cwd: Path, on_done=None) -> Job:
+    def start(
+        self, kind: str, steps: list[list[str]], out_dir: Path, cwd: Path, on_done=None, watch=None
+    ) -> Job:
         """Run ``steps`` (argument lists; no shell) one after the other in ``cwd``, stopping at the
-        first that fails; ``on_done(job)`` runs when the job ends."""
+        first that fails; ``on_done(job)`` runs when the job ends; ``watch`` (step, folder, glob,
+        expected count) measures a step's progress by the files it has written."""
         if not steps or not all(isinstance(a, list) and all(isinstance(x, str) for x in a) for a in steps):
             raise TypeError("a job is a list of argument lists of strings")
-        job = Job(next(self._ids), kind, steps, Path(out_dir))
+        job = Job(next(self._ids), kind, steps, Path(out_dir), watch=watch)
         if on_done:
             job.on_done.append(on_done)
         job.state = "running"
