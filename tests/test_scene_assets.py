@@ -704,3 +704,80 @@ def test_moved_output_renders_like_the_original(tmp_path):
     assert len(ids) >= 4  # ground, assets, the shed
     np.testing.assert_array_equal(a["instance_id"], b["instance_id"])
     np.testing.assert_allclose(a["radiance"], b["radiance"], rtol=1e-6)
+
+
+# ------------------------------------------------------------------------ per-face materials
+_BOX_POINTS = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+_BOX_FACES = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
+_WINDOW = 4  # the +y side
+
+
+def _kiosk(path: Path, split: bool) -> None:
+    """A 1 m box, painted, with a glass +y side: one mesh with material GeomSubsets (as DCCs
+    export it), or (``split``) the same faces as two meshes of one material each."""
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/Kiosk").GetPrim())
+    paint, glass = (UsdShade.Material.Define(stage, f"/Kiosk/Looks/{n}") for n in ("Paint", "Glass"))
+
+    def mesh(name, faces):
+        m = UsdGeom.Mesh.Define(stage, f"/Kiosk/{name}")
+        m.CreatePointsAttr(_BOX_POINTS)
+        m.CreateFaceVertexCountsAttr([4] * len(faces))
+        m.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
+        return UsdShade.MaterialBindingAPI.Apply(m.GetPrim())
+
+    walls = [f for i, f in enumerate(_BOX_FACES) if i != _WINDOW]
+    if split:
+        mesh("Box", walls).Bind(paint)
+        mesh("Window", [_BOX_FACES[_WINDOW]]).Bind(glass)
+    else:
+        binding = mesh("Box", _BOX_FACES)
+        binding.Bind(paint)
+        for name, faces, material in (("walls", [0, 1, 2, 3, 5], paint), ("window", [_WINDOW], glass)):
+            subset = binding.CreateMaterialBindSubset(name, faces)
+            UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(material)
+    stage.GetRootLayer().Save()
+
+
+def _kiosk_temperatures(tmp_path: Path, name: str, split: bool, materials: dict) -> dict:
+    """{face centre (rounded): temperature at frame 0} of the kiosk composed alone on the ground."""
+    folder = tmp_path / name
+    folder.mkdir()
+    raw = street_raw(folder)
+    _kiosk(folder / "assets" / "kiosk.usda", split)
+    raw["scene"]["asset"] = [
+        {"id": "kiosk", "file": "assets/kiosk.usda", "position_m": [6.0, 2.0, 0.0], "material": "concrete"}
+        | ({"materials": materials} if materials else {})
+    ]
+    compose(scenario_at(folder, raw), folder / "o")
+    assert check_stage(folder / "o" / "stage.usda") == []
+    stage = Usd.Stage.Open(str(folder / "o" / "stage.usda"))
+    out = {}
+    for prim in _meshes_under(stage, "/World/Scene/kiosk"):
+        mesh = UsdGeom.Mesh(prim)
+        pts = np.asarray(mesh.GetPointsAttr().Get())
+        idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get()).reshape(-1, 4)
+        temps = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature").Get(0)
+        for face, t in zip(idx, temps):
+            out[tuple(np.round(pts[face].mean(axis=0), 3))] = float(t)
+    assert len(out) == 6
+    return out
+
+
+def test_material_subsets_get_the_slab_of_their_material(tmp_path):
+    """A face in a glass GeomSubset of a painted-concrete box is a glass slab: its temperature is
+    the one the same face gets as a separate glass mesh (the single-material path), and differs
+    from the box made all of concrete, whose other faces it shares exactly."""
+    mapping = {"Glass": "glass", "Paint": "concrete"}
+    subsets = _kiosk_temperatures(tmp_path, "subsets", False, mapping)
+    split = _kiosk_temperatures(tmp_path, "split", True, mapping)
+    concrete = _kiosk_temperatures(tmp_path, "concrete", False, {})
+    window = next(c for c in subsets if c[1] == 1.0)
+    assert subsets.keys() == split.keys() == concrete.keys()
+    for c in subsets:
+        assert subsets[c] == pytest.approx(split[c], abs=1e-3), c
+        if c != window:
+            assert subsets[c] == pytest.approx(concrete[c], abs=1e-3), c
+    assert abs(subsets[window] - concrete[window]) > 0.1, (subsets[window], concrete[window])

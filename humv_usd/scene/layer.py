@@ -9,8 +9,8 @@ with the asset's scale and placement and HumvLabelAPI (instance id ``asset:<id>`
   file's defaultPrim, else its first root prim); the asset's transform also converts the file's
   metersPerUnit and upAxis to Z-up metres (recorded in customData ``humv:assetSource`` for
   ``humv-usd check``); the layer adds ``over``s on its meshes and their material GeomSubsets:
-  material binding to the mapped library material (the render honours per-subset bindings; the
-  thermal slab of a mesh uses the mesh's own binding for all its faces), class where a ``classes`` pattern matches, ``instanceable = false`` on its
+  material binding to the mapped library material (the render and the thermal slabs honour
+  per-subset bindings: a subset's faces are slabs of its material), class where a ``classes`` pattern matches, ``instanceable = false`` on its
   instance roots (the thermal layer writes a temperature onto each mesh);
 * a mesh file (OBJ, glTF/GLB, PLY, STL, FBX) becomes UsdGeom.Mesh children written into this
   layer, converted to Z-up metres. Written inline rather than as a sidecar usdc next to the layer:

@@ -52,7 +52,7 @@ NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
 READS = (*CLOCK, "human", "scene", "thermal")
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*")
-VERSION = "2"
+VERSION = "3"  # 3: faces in material GeomSubsets are slabs of their material
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
@@ -212,11 +212,13 @@ def _scene_trimesh(meshes):
         offset += len(m.points)
         offsets.append(tri)
         tri += len(m.triangles)
-        eps.append(np.full(len(m.triangles), longwave_emissivity(m.material)))
+        eps.append(m.per_face(longwave_emissivity)[m.tri_face])
     mesh = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
     return mesh, np.concatenate(eps), offsets
 
 
 def _solar_reflectance(meshes):
     """Broadband short-wave reflectance 1 - solar absorptivity per triangle (bound materials)."""
-    return np.concatenate([np.full(len(m.triangles), 1.0 - m.solar_absorptivity) for m in meshes])
+    return np.concatenate(
+        [m.per_face(lambda x, m=m: 1.0 - x.require("solar_absorptivity", m.path))[m.tri_face] for m in meshes]
+    )

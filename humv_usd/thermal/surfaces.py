@@ -25,7 +25,8 @@ Weather and sun (spin-up included) are read from the environment layer on the st
 (:func:`forcing_at`, :mod:`humv_usd.usd.environment`).
 
 Constructions (every property from the bound material on the stage,
-:mod:`humv_usd.usd.materials`): the ground is its material's layer over its substrate (the
+:mod:`humv_usd.usd.materials`; per face: a face in a GeomSubset with its own material binding
+is a slab of that material, :func:`humv_usd.usd.materials.face_materials`, as the render reads it): the ground is its material's layer over its substrate (the
 material its ``humv:material:substrate`` points to, soil from the materials tool) down to 1 m,
 with the bottom held at the mean air temperature of the spin-up day; objects are their material's layer with an
 adiabatic back (insulated siding, a panel on a stand). Scene faces do not exchange radiation with
@@ -50,7 +51,7 @@ from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.layers import SCOPES
-from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, mesh_material, substrate
+from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
 from humv_usd.usd.paths import GROUND, object_path
 
 #: Depth of the ground construction (material layer + soil) [m]
@@ -72,10 +73,20 @@ class SceneMesh:
     held_k: float | None  # scenario temperature_k: held at it; None: slab
     is_ground: bool
     substrate: StageMaterial | None = None  # under a slab ground thinner than GROUND_DEPTH_M
+    #: per-face materials (GeomSubset bindings): the materials and the index of each face's;
+    #: None when every face has ``material``
+    face_materials: tuple[StageMaterial, ...] = ()
+    material_of_face: np.ndarray | None = None
 
     @property
     def solar_absorptivity(self) -> float:
         return self.material.require("solar_absorptivity", self.path)
+
+    def per_face(self, value) -> np.ndarray:
+        """(F,) ``value(material)`` of each face's material (its GeomSubset's, else the mesh's)."""
+        if self.material_of_face is None:
+            return np.full(self.n_faces, value(self.material), dtype=float)
+        return np.array([value(m) for m in self.face_materials], dtype=float)[self.material_of_face]
 
     def face_geometry(self):
         """(normals (F, 3), centroids (F, 3), areas (F,)) of the authored faces."""
@@ -105,8 +116,9 @@ def air_at_frame0(upstream: Usd.Stage, scenario) -> float:
 
 
 def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
-    """Every mesh of the composed stage outside /World/Humans, with its bound material
-    (:func:`humv_usd.usd.materials.mesh_material`) and held value.
+    """Every mesh of the composed stage outside /World/Humans, with its bound material(s)
+    (:func:`humv_usd.usd.materials.face_materials`: per face with material GeomSubsets) and
+    held value.
 
     A mesh the scenario does not hold (a slab, also one from a hand-made layer) needs the
     thermal properties of HumvMaterialAPI on its material, a slab ground thinner than
@@ -129,18 +141,23 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         pts = pts @ xf[:3, :3] + xf[3, :3]
         tris, tri_face = fan_triangulate(counts, np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
         path = str(prim.GetPath())
-        material = mesh_material(prim)
+        materials, of_face = face_materials(prim, len(counts))
+        # the mesh's material: that of most of its faces (all of them without material subsets)
+        material = materials[int(np.argmax(np.bincount(of_face, minlength=len(materials))))]
         h = _held(path, held)  # a mesh from a hand-made layer: a slab of its material
         is_ground = path == str(GROUND)
         under = None
         if h is None:
             for field in THERMAL_ATTRIBUTES:
-                material.require(field, path)
+                for m in materials:
+                    m.require(field, path)
             if is_ground and material.thickness < GROUND_DEPTH_M:
                 under = substrate(material, upstream, path)
                 for field in THERMAL_ATTRIBUTES:
                     under.require(field, path)
         out.append(SceneMesh(path, pts, tris, tri_face, len(counts), material, h, is_ground, under))
+        if len(materials) > 1:  # set by name: keep these two fields last in SceneMesh
+            out[-1].face_materials, out[-1].material_of_face = tuple(materials), of_face
     return out
 
 
@@ -331,6 +348,20 @@ def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, gr
     return mesh.solar_absorptivity * e_sw, lw, air, h
 
 
+def _solve_faces(mesh: SceneMesh, normals, lit, f, *args):
+    """:func:`_solve_mesh` per material of a mesh with per-face materials: a face in a material
+    GeomSubset is a slab of that material (construction, solar absorptivity, emissivity)."""
+    if mesh.material_of_face is None:
+        return _solve_mesh(mesh, normals, lit, f, *args)
+    out, res = np.empty((len(f.times_s), mesh.n_faces)), 0.0
+    for k, material in enumerate(mesh.face_materials):
+        sel = mesh.material_of_face == k
+        one = dataclasses.replace(mesh, material=material, face_materials=(), material_of_face=None)
+        t, r = _solve_mesh(one, normals[sel], lit[:, sel], f, *args)
+        out[:, sel], res = t, max(res, r)
+    return out, res
+
+
 def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k):
     """(M, F) surface temperatures of one mesh's slab faces, and the max residual."""
     a_s, lw, air, h = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo)
@@ -410,7 +441,7 @@ def surface_temperatures(
             kinds[m.path] = "held"
         else:
             lit = lit_all[:, starts[i] : starts[i + 1]]
-            t_all, res = _solve_mesh(m, normals, lit, f, ground_k, ground_eps, ground_albedo, deep)
+            t_all, res = _solve_faces(m, normals, lit, f, ground_k, ground_eps, ground_albedo, deep)
             max_res = max(max_res, res)
             kinds[m.path] = "slab"
         if m.is_ground:

@@ -255,6 +255,56 @@ def bound_material(prim: Usd.Prim) -> UsdShade.Material:
     return material
 
 
+def face_materials(prim: Usd.Prim, nfaces: int, read=None, time=None) -> tuple[list, np.ndarray]:
+    """(materials, material index (F,) of each authored face) of a mesh with per-face materials.
+
+    GeomSubsets with their own material binding (``UsdShade.MaterialBindingAPI
+    .GetMaterialBindSubsets``, as DCCs export a multi-material mesh) come first, a face in two
+    subsets keeping the first; the other faces take the mesh's own binding (an ancestor's
+    included). ``read(prim)`` turns a mesh or subset prim into the value listed (default: the
+    :class:`StageMaterial` of its bound material, :func:`read_material`); values are listed once
+    per material path (``.path``). The render and the thermal tool both read per-face materials
+    here. InputError naming the subset when its indices are not faces of the mesh, or naming the
+    mesh when a face has no material."""
+    mesh_path = str(prim.GetPath())
+    time = Usd.TimeCode.Default() if time is None else time
+    if read is None:
+
+        def read(p):
+            return read_material(bound_material(p), mesh_path, time)
+
+    material_of_face = np.full(nfaces, -1, dtype=np.int64)
+    materials: list = []
+    order: dict[str, int] = {}
+
+    def index_of(material) -> int:
+        if material.path not in order:
+            order[material.path] = len(materials)
+            materials.append(material)
+        return order[material.path]
+
+    for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
+        attr = subset.GetIndicesAttr()
+        indices = attr.Get(time) if attr else None
+        if indices is None or len(indices) == 0:
+            continue
+        indices = np.asarray(indices, dtype=np.int64)
+        if indices.min() < 0 or indices.max() >= nfaces:
+            raise InputError(
+                bad_value(
+                    f"{subset.GetPath()}.indices",
+                    summary(indices),
+                    f"expected face indices in 0..{nfaces - 1}",
+                )
+            )
+        k = index_of(read(subset.GetPrim()))
+        free = indices[material_of_face[indices] < 0]
+        material_of_face[free] = k
+    if np.any(material_of_face < 0):
+        material_of_face[material_of_face < 0] = index_of(read(prim))
+    return materials, material_of_face
+
+
 def has_stage_material(prim: Usd.Prim) -> bool:
     """Whether the material bound to ``prim`` (an ancestor's binding included) carries
     HumvMaterialAPI (what the render and the thermal tool need)."""
