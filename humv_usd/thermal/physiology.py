@@ -886,3 +886,84 @@ def bench_time_steps(
         err = float(np.max(np.abs(t - ref))) if np.all(np.isfinite(t)) else float("inf")
         rows.append({"model": model, "step_s": float(step), "max_error_k": err, "seconds": sec})
     return rows
+
+
+# ----------------------------------------------------------------------------- local skin
+def local_skin_temperature(
+    segment_skin_k,
+    skin_conductance_w_m2_k,
+    latent_w_m2,
+    segment_ids,
+    face_area_m2,
+    flux_w_m2,
+    flux_slope_w_m2_k,
+    linearisation_k,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Skin temperature per facet from each facet's own heat balance (issue 14, deliverable 2).
+
+    Parameters
+    ----------
+    segment_skin_k : array_like
+        (17,) skin temperature of each segment from the physiology [K].
+    skin_conductance_w_m2_k : array_like
+        (17,) core-to-skin conductance K_s of each segment [W m^-2 K^-1]
+        (``PhysiologyResult.segment_skin_conductance_w_m2_k``).
+    latent_w_m2 : array_like
+        (17,) latent (evaporative) loss E_s of each segment [W m^-2], spread evenly.
+    segment_ids : array_like of int
+        (F,) JOS-3 segment of each facet.
+    face_area_m2 : array_like
+        (F,) facet areas [m^2].
+    flux_w_m2, flux_slope_w_m2_k, linearisation_k : array_like
+        (F,) the facet's sensible loss to its surroundings q(T) [W m^-2] at the temperature
+        ``linearisation_k`` and its slope dq/dT [W m^-2 K^-1] there: bare skin
+        h (T - T_air) + eps sigma T^4 - q_abs (absorbed sun and long wave); under a garment the
+        garment balance's skin-side flux q_in(T) (:func:`humv_usd.physics.garment.steady_state`).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        (F,) facet skin temperature [K] and (F,) its sensible loss q(T_f) on the linearisation
+        [W m^-2].
+
+    Notes
+    -----
+    Each segment is Gagge's two-node shell (Gagge, Stolwijk & Nishi 1971): a conductance
+    K_s = 5.28 + 1.163 SKBF_s W m^-2 K^-1 (tissue plus skin blood flow) between an inner
+    temperature T_b,s and the skin surface. A facet f's surface balance is
+
+    .. math:: K_s (T_{b,s} - T_f) = q_f(T_f) + E_s,  q_f(T) \\approx q_f^0 + g_f (T - T_f^0),
+
+    so T_f = (K_s T_b,s + g_f T_f^0 - q_f^0 - E_s) / (K_s + g_f). T_b,s is chosen so that the
+    area-weighted mean of T_f over the segment equals the physiology's segment skin temperature
+    (closed form, the balance being linear in T_b,s); the segment's area-weighted heat flow
+    K_s (T_b,s - T_f) then equals its sensible loss plus E_s, which the body-clothing coupling
+    (:func:`humv_usd.thermal.human.human_temperatures`) makes equal to the physiology's own
+    sensible loss. A sunlit facet absorbs more, so it is warmer than a shaded one of the same
+    segment by Delta q_abs / (K_s + g_f). Not modelled: lateral conduction between facets and a
+    per-facet sweat distribution (E_s is even over the segment).
+    """
+    seg = np.asarray(segment_ids)
+    area = np.asarray(face_area_m2, dtype=float)
+    k = np.asarray(skin_conductance_w_m2_k, dtype=float)[seg]
+    e = np.asarray(latent_w_m2, dtype=float)[seg]
+    q0 = np.asarray(flux_w_m2, dtype=float)
+    g = np.maximum(np.asarray(flux_slope_w_m2_k, dtype=float), 0.0)
+    t0 = np.asarray(linearisation_k, dtype=float)
+    a = k / (k + g)  # dT_f / dT_b
+    b = (g * t0 - q0 - e) / (k + g)
+    n = N_SEGMENTS
+    w = np.bincount(seg, area, n)
+    mean_a = np.bincount(seg, area * a, n) / np.maximum(w, 1e-300)
+    mean_b = np.bincount(seg, area * b, n) / np.maximum(w, 1e-300)
+    t_inner = (np.asarray(segment_skin_k, dtype=float) - mean_b) / np.where(mean_a > 0, mean_a, 1.0)
+    t_face = a * t_inner[seg] + b
+    return t_face, q0 + g * (t_face - t0)
+
+
+def radiant_temperature_for_sensible_loss(skin_k, sensible_w_m2, air_k, hc, hr, dry_resistance):
+    """Mean radiant temperature [K] at which the physiology's sensible loss
+    (T_sk - T_o) / R_t, T_o = (h_c T_a + h_r T_r) / (h_c + h_r), equals ``sensible_w_m2`` at the
+    skin temperature ``skin_k`` (JOS-3's and Gagge's dry heat exchange; arrays broadcast)."""
+    to = np.asarray(skin_k, dtype=float) - np.asarray(sensible_w_m2, dtype=float) * dry_resistance
+    return (to * (hc + hr) - hc * np.asarray(air_k, dtype=float)) / hr
