@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import HUMVVEX_LAYERS, ROOT
+from conftest import HUMVVEX, HUMVVEX_LAYERS, ROOT
 from pxr import Usd, UsdGeom, UsdShade
 
 from humv_usd.pipeline.compose import compose
@@ -19,7 +19,7 @@ from humv_usd.usd import schemas as S
 from humv_usd.usd.check import check_stage
 
 ALL_LAYERS = set(HUMVVEX_LAYERS)
-GARMENTS = ("tshirt_white", "shorts", "cap")
+GARMENTS = ("tshirt_white", "shorts", "cap", "shoes")
 
 
 def layer_names(out):
@@ -185,7 +185,7 @@ def cli(*args, cwd=ROOT):
 @pytest.mark.slow
 def test_cli_bad_input_one_line_per_problem_exit_2_nothing_written(tmp_path):
     bad = tmp_path / "bad.toml"
-    text = (ROOT / "examples" / "humvvex.toml").read_text()
+    text = HUMVVEX.read_text()
     bad.write_text(
         text.replace("latitude_deg = 39.80", "latitude_deg = 139.8").replace(
             "bit_depth = 14", "bit_depth = 40"
@@ -204,7 +204,7 @@ def test_cli_bad_input_one_line_per_problem_exit_2_nothing_written(tmp_path):
 @pytest.mark.slow
 def test_cli_compose_then_check(tmp_path):
     out = tmp_path / "out"
-    r = cli("compose", "examples/humvvex.toml", "-o", str(out))
+    r = cli("compose", str(HUMVVEX), "-o", str(out))
     assert r.returncode == 0, r.stderr
     assert "thermal" in r.stdout and "written" in r.stdout
     r = cli("check", str(out / "stage.usda"))
@@ -222,7 +222,7 @@ def test_cli_compose_then_check(tmp_path):
 def test_usd_tools_see_schemas_without_humv(tmp_path):
     """A plain USD process loads the stage's schemas through PXR_PLUGINPATH_NAME."""
     out = tmp_path / "out"
-    compose(validate(__import__("tomllib").loads((ROOT / "examples/humvvex.toml").read_text())), out)
+    compose(validate(__import__("tomllib").loads(HUMVVEX.read_text())), out)
     code = (
         f"from pxr import Usd; s = Usd.Stage.Open({str(out / 'stage.usda')!r}); "
         "p = s.GetPrimAtPath('/World/Sensors/atom1024_lwir'); "

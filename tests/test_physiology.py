@@ -309,3 +309,34 @@ def test_two_node_rejects_non_physical_arguments(kw):
     args = dict(height_m=HEIGHT, mass_kg=MASS) | kw
     with pytest.raises(ValueError, match=next(iter(kw))):
         P.two_node(HOUR, MET_W, 300.0, 300.0, 0.5, 0.1, 0.5, **args)
+
+
+# ----------------------------------------------------------------------------- local skin
+def test_local_skin_temperature_closed_form():
+    """Two facets of one segment, one sunlit (absorbs 300 W m^-2 more): each facet's balance
+    K (T_b - T_f) = q(T_f) + E holds with one T_b, the area mean is the segment's skin
+    temperature and the sunlit facet is warmer by 300 / (K + g)."""
+    seg = np.array([2, 2, 5])
+    area = np.array([0.01, 0.03, 0.02])
+    t0 = np.array([306.0, 306.0, 305.0])
+    g = np.array([20.0, 20.0, 15.0])
+    q0 = np.array([100.0 - 300.0, 100.0, 80.0])  # sunlit facet: 300 W m^-2 more absorbed
+    k = np.full(17, 12.0)
+    latent = np.full(17, 10.0)
+    t_seg = np.full(17, 305.5)
+    t_f, q = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0)
+    assert_allclose(q, q0 + g * (t_f - t0))
+    for s in (2, 5):
+        m = seg == s
+        assert_allclose(np.average(t_f[m], weights=area[m]), 305.5, atol=1e-12)
+        t_inner = t_f[m] + (q[m] + latent[s]) / k[s]
+        assert_allclose(t_inner, t_inner[0], atol=1e-9)  # one inner temperature per segment
+    assert_allclose(t_f[0] - t_f[1], 300.0 / (12.0 + 20.0), rtol=1e-12)
+
+
+def test_radiant_temperature_for_sensible_loss_inverts_the_dry_exchange():
+    hc, hr, rt = np.array([4.0, 9.0]), np.array([4.7, 4.5]), np.array([0.12, 0.2])
+    t_sk, t_a, target = np.array([306.0, 303.0]), 289.0, np.array([35.0, -12.0])
+    tr = P.radiant_temperature_for_sensible_loss(t_sk, target, t_a, hc, hr, rt)
+    t_o = (hc * t_a + hr * tr) / (hc + hr)
+    assert_allclose((t_sk - t_o) / rt, target, rtol=1e-12)

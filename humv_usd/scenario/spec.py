@@ -405,13 +405,22 @@ THERMAL = Section(
         "model": Key(
             "choice",
             "Temperature model of people: fixed (uniform skin, garments at air "
-            "temperature) or jos3 / twoNode (radiation -> MRT -> physiology -> skin; garment "
-            "energy balance).",
+            "temperature: a closed form for tests, not a physical signature) or jos3 / "
+            "twoNode (radiation -> physiology -> skin per facet, garment energy balance, "
+            "coupled both ways).",
             default="fixed",
             choices=THERMAL_MODELS,
         ),
         "skin_temperature_k": Key(
             "float", "Uniform skin temperature [K] for the fixed model.", default=306.15, lo=273.15, hi=320.0
+        ),
+        "skin_detail": Key(
+            "choice",
+            "Skin of jos3 / twoNode: facet (each facet's own balance of absorbed radiation, "
+            "convection, emission or garment flux over the segment's core-skin conductance: "
+            "sunlit and shaded sides differ) or segment (one temperature per JOS-3 segment).",
+            default="facet",
+            choices=("facet", "segment"),
         ),
         "radiation_resolution": Key(
             "int",

@@ -10,12 +10,24 @@ The chain, per person:
    temperature of each JOS-3 segment, Eq. 1) and on the clothed body (for the garments' outer
    surfaces);
 3. physiology (JOS-3 or Gagge's two-node model, :mod:`humv_usd.thermal.physiology`) driven by
-   the avatar's metabolic-rate schedule, the weather, the segment MRTs and the clothing
-   insulation of each segment, with a spin-up; skin temperature per segment → skin facets;
-4. garment facets: the energy balance of Eq. 5-9 over the skin temperature of the segment
-   underneath, with the per-face air gap: steady state at frame 0
-   (:func:`humv_usd.physics.garment.steady_state`), then implicit steps with the fabric's heat
-   capacity along the frames (:func:`humv_usd.physics.garment.transient_step`).
+   the avatar's metabolic-rate schedule, the weather, an effective radiant temperature per
+   segment (first the segment MRT) and the garments' own insulation per segment
+   (:func:`garment_clo`: air gap + fabric of the faces over the segment), with a spin-up;
+4. skin per facet (``[thermal] skin_detail = "facet"``): each facet's balance over its
+   segment's core-skin conductance (:func:`humv_usd.thermal.physiology.local_skin_temperature`),
+   with its own absorbed radiation, convection and emission when bare, or the skin-side flux of
+   the garment face over it; the segment's area-weighted mean is the physiology's skin;
+5. garment facets: the energy balance of Eq. 5-9 over the skin facet underneath, with the
+   per-face air gap: steady state at frame 0 (:func:`humv_usd.physics.garment.steady_state`),
+   then implicit steps with the fabric's heat capacity along the frames
+   (:func:`humv_usd.physics.garment.transient_step`);
+6. two-way coupling: per segment the area-weighted skin-side flux (garment q_in or bare-skin
+   loss) is compared with the physiology's own sensible loss; the segment's effective radiant
+   temperature is set so that the physiology's dry exchange gives that flux
+   (:func:`humv_usd.thermal.physiology.radiant_temperature_for_sensible_loss`) and 3-5 are
+   repeated until they agree within :data:`COUPLING_TOLERANCE_W_M2` (the residual and the
+   iterations go to the layer's metadata). With the two-node model (one skin node) the
+   whole body's area-weighted flux is matched.
 
 The sky (weather and sun of the environment layer, :mod:`humv_usd.usd.environment`) and the
 scene surfaces (their temperatures from :mod:`humv_usd.thermal.surfaces`) are given per radiation sample by the
@@ -352,8 +364,8 @@ def human_temperatures(
         if t_lin is None:
             t_lin = skin[:, body.segment]
             q_lin, g_lin, _, _ = fluxes(t_lin)
-        t_face = np.empty_like(t_lin)
-        for f in range(frames):
+        t_face = skin[:, body.segment].copy()
+        for f in range(frames if settings.get("skin_detail", "facet") == "facet" else 0):
             t_face[f] = local_skin_temperature(
                 skin[f],
                 result.segment_skin_conductance_w_m2_k[f],

@@ -2,10 +2,12 @@
 
 People (``[thermal] model``):
 
-* ``fixed``: skin at the scenario's uniform skin temperature, garments at the air temperature;
+* ``fixed``: skin at the scenario's uniform skin temperature, garments at the air temperature
+  (a closed form that tests compare renders and labels against; not a physical signature);
 * ``jos3`` / ``twoNode``: per person, radiation environment (sky + sun + scene surfaces) →
-  segment MRT → physiology → skin facets, and the garment energy balance for garment facets, per
-  frame (:mod:`humv_usd.thermal.human`).
+  segment MRT → physiology → skin per facet (``skin_detail``), and the garment energy balance
+  for garment facets, coupled both ways until per segment the skin-side flux equals the
+  physiology's sensible loss, per frame (:mod:`humv_usd.thermal.human`).
 
 Scene surfaces (ground, objects, any other mesh outside /World/Humans), in every model: held at
 the scenario's ``temperature_k`` when it is given, else a 1-D slab of the material with sun,
@@ -52,7 +54,7 @@ NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
 READS = (*CLOCK, "human", "scene", "thermal")
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*")
-VERSION = "2"
+VERSION = "3"
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:

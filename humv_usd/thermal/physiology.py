@@ -670,10 +670,38 @@ def condensation_guard():
         module.threg = original
 
 
-def _jos3_state(model, bf_skin_l_h: np.ndarray) -> dict:
+#: Heat capacity of blood in JOS-3 [W h L^-1 K^-1] (Takahashi et al. 2021).
+JOS3_BLOOD_HEAT_CAPACITY = 1.067
+
+
+def jos3_tissue_conductance(model) -> np.ndarray:
+    """(17,) JOS-3's conductance [W K^-1] from each segment's core node to its skin node
+    through its tissue layers in series (core-muscle-fat-skin for head and pelvis, core-skin
+    elsewhere), from the model's own conductance matrix (Takahashi et al. 2021, after
+    Stolwijk 1971 and the 65MN model)."""
+    from pythermalcomfort.jos3_functions.matrix import IDICT
+
+    c = model._cdt
+    out = np.empty(N_SEGMENTS)
+    for i, name in enumerate(JOS3_PYTHERMALCOMFORT):
+        node = IDICT[name]
+        if node.get("muscle") is not None:
+            path = (
+                (node["core"], node["muscle"]),
+                (node["muscle"], node["fat"]),
+                (node["fat"], node["skin"]),
+            )
+            out[i] = 1.0 / sum(1.0 / c[a, b] for a, b in path)
+        else:
+            out[i] = c[node["core"], node["skin"]]
+    return out
+
+
+def _jos3_state(model, bf_skin_l_h: np.ndarray, tissue_w_k: np.ndarray) -> dict:
     """Per-segment fluxes [W m^-2] and coefficients of a JOS3 model at its current state, by
     JOS-3's own formulas (``JOS3._run``): sensible (T_sk - T_o) / R_t, latent E_sk (guarded),
-    h_c, h_r, R_t, and the core-skin conductance 5.28 + 1.163 BF_skin / A (Gagge et al. 1971)."""
+    h_c, h_r, R_t, and the core-skin conductance (tissue in series + blood heat capacity x skin
+    blood flow) / segment area."""
     from pythermalcomfort.models import jos3 as module
 
     threg = module.threg
@@ -701,7 +729,7 @@ def _jos3_state(model, bf_skin_l_h: np.ndarray) -> dict:
         "hc": np.asarray(hc, dtype=float) * np.ones(N_SEGMENTS),
         "hr": np.asarray(hr, dtype=float) * np.ones(N_SEGMENTS),
         "rt": np.asarray(r_t, dtype=float) * np.ones(N_SEGMENTS),
-        "conductance": _TwoNode.K_TISSUE + _TwoNode.C_BLOOD * bf_skin_l_h / area,
+        "conductance": (tissue_w_k + JOS3_BLOOD_HEAT_CAPACITY * bf_skin_l_h) / area,
         "wettedness": np.asarray(wet, dtype=float),
     }
 
@@ -752,6 +780,7 @@ def _jos3(
         advance(float(spin_up_s), 0)
     else:
         advance(1e-6, 0)  # an output record at the initial state
+    tissue = jos3_tissue_conductance(model)
     seg_skin = np.empty((n, N_SEGMENTS))
     state = {
         k: np.empty((n, N_SEGMENTS))
@@ -764,7 +793,7 @@ def _jos3(
         out = last["out"]
         seg_skin[i] = model.t_skin
         bf = np.array([getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT])
-        for k, value in _jos3_state(model, bf).items():
+        for k, value in _jos3_state(model, bf, tissue).items():
             state[k][i] = value
         core[i] = model.t_core[JOS3_CORE_SEGMENT]
         skbf[i] = sum(getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT) + 2.0 * (
@@ -928,9 +957,12 @@ def local_skin_temperature(
 
     Notes
     -----
-    Each segment is Gagge's two-node shell (Gagge, Stolwijk & Nishi 1971): a conductance
-    K_s = 5.28 + 1.163 SKBF_s W m^-2 K^-1 (tissue plus skin blood flow) between an inner
-    temperature T_b,s and the skin surface. A facet f's surface balance is
+    Each segment is a core-skin shell: a conductance K_s [W m^-2 K^-1] between an inner
+    temperature T_b,s and the skin surface, the tissue plus the skin blood flow's heat
+    transport: with JOS-3 its own tissue conductances in series (core-muscle-fat-skin) plus
+    1.067 Wh/(L K) x its skin blood flow, per segment area (Takahashi et al. 2021); with the
+    two-node model Gagge's 5.28 + 1.163 SKBF (Gagge, Stolwijk & Nishi 1971). A facet f's
+    surface balance is
 
     .. math:: K_s (T_{b,s} - T_f) = q_f(T_f) + E_s,  q_f(T) \\approx q_f^0 + g_f (T - T_f^0),
 
