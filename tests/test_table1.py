@@ -48,6 +48,7 @@ def _signature(stage) -> dict:
     body = "/World/Humans/p1/Body"
     skin, seg = _faces(stage, body), _segments(stage, body)
     sig = {"skin": skin.mean(), "torso_skin": skin[np.isin(seg, TORSO)].mean()}
+    sig["head_skin"] = skin[seg == SEGMENTS.index("Head")].mean()
     sig["legs_skin"] = skin[np.isin(seg, LEGS)].mean()
     outer = {"torso": [skin[np.isin(seg, TORSO)]], "legs": [skin[np.isin(seg, LEGS)]]}
     clothing = stage.GetPrimAtPath("/World/Humans/p1/Clothing")
@@ -150,3 +151,14 @@ def test_weapon_is_a_cool_prop_in_front_of_the_body(signature):
 def test_female_and_male_differ(signature):
     male, female = signature(), signature(sex="female", stature_m=1.65, mass_kg=60.0)
     assert abs(female["skin"] - male["skin"]) > 0.05
+
+
+def test_hair_insulates_the_scalp_and_shows_cooler(signature):
+    """Head hair (``hair_short`` in [[human]] clothing; its own fibre+air layer) keeps the scalp
+    warmer than bare and shows the camera a cooler surface than the skin under it; shoes
+    likewise over the feet."""
+    bald = signature(("tshirt_white", "shorts"))
+    hair = signature(("tshirt_white", "shorts", "hair_short", "shoes"))
+    assert hair["head_skin"] > bald["head_skin"]
+    assert hair["hair_short"] < hair["head_skin"]
+    assert hair["shoes"] < hair["skin"]
