@@ -376,7 +376,9 @@ def human_temperatures(
                 g_lin[f],
                 t_lin[f],
             )[0]
-        q_face, g_face, garment_temps, garment_residual = fluxes(t_face)
+        # the slope of the first linearisation is kept (a chord iteration: the fluxes
+        # themselves are exact at every iterate)
+        q_face, _, garment_temps, garment_residual = fluxes(t_face, slope=False)
         q_seg = np.stack([np.bincount(body.segment, area * q_face[f], N_SEGMENTS) for f in range(frames)])
         q_seg = q_seg / np.maximum(seg_area, 1e-12)
         sensible = np.asarray(result.segment_sensible_w_m2)
@@ -394,7 +396,7 @@ def human_temperatures(
             result.segment_hr_w_m2_k,
             result.segment_dry_resistance_m2_k_w,
         )
-        t_lin, q_lin, g_lin = t_face, q_face, g_face
+        t_lin, q_lin = t_face, q_face
     diagnostics["couplingMaxResidual_W_m2"] = float(residual)
     if garments:
         diagnostics["garmentMaxResidual_W_m2"] = float(garment_residual)

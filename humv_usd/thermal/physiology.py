@@ -212,8 +212,8 @@ class PhysiologyResult:
     sweat_rate_g_s: np.ndarray  # (T,) regulatory sweat rate [g/s]
     heart_rate_bpm: np.ndarray  # (T,) from the metabolic rate (heart_rate)
     cardiac_output_l_h: np.ndarray  # (T,) JOS-3's cardiac output [L/h]; NaN for two-node
-    #: (T, 17) per unit segment area, at each output time's state (two-node: the body's value
-    #: on every segment): sensible skin -> environment loss (T_sk - T_o) / R_t [W m^-2], the
+    #: (T, 17) per unit segment area, at each output time's state under that output's inputs
+    #: (those of the step that follows it; two-node: the body's value on every segment): sensible skin -> environment loss (T_sk - T_o) / R_t [W m^-2], the
     #: latent loss E_sk [W m^-2] (negative: condensation), the convective and linear radiative
     #: coefficients h_c, h_r and the dry resistance R_t skin -> environment (clothing included)
     #: [m^2 K W^-1] of that loss, and the core-to-skin conductance K + c_bl SKBF [W m^-2 K^-1]
@@ -478,7 +478,7 @@ def two_node(
             body.e_skin = probe.e_skin
         core[i], skin[i] = body.t_core, body.t_skin
         skbf[i], sweat[i] = body.skbf * area, body.sweat * area / 3600.0
-        j = max(i - 1, 0)  # the conditions the state was reached under
+        j = i  # this output's conditions (those of the next step)
         hc[i], hr[i], rt[i] = body.coefficients
         t_op = (hr[i] * tr[j] + hc[i] * tdb[j]) / (hr[i] + hc[i])
         sens[i] = (body.t_skin - t_op) / rt[i]
@@ -793,6 +793,9 @@ def _jos3(
         out = last["out"]
         seg_skin[i] = model.t_skin
         bf = np.array([getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT])
+        # fluxes at this output under this output's conditions (those of the next step): so
+        # that an input at step i sets the exchange reported at output i
+        model.tdb, model.tr, model.rh, model.v, model.clo = tdb[i], tr[i], rh[i], v[i], clo[i]
         for k, value in _jos3_state(model, bf, tissue).items():
             state[k][i] = value
         core[i] = model.t_core[JOS3_CORE_SEGMENT]
