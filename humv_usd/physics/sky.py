@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from humv_usd.constants import BOLTZMANN_CONSTANT
+from humv_usd.constants import BOLTZMANN_CONSTANT, STEFAN_BOLTZMANN
 
 # Magnus coefficients over water, Alduchov & Eskridge (1996): a [-], b [degC]
 _MAGNUS_A = 17.625
@@ -338,3 +338,129 @@ def aerosol_extinction(wavelength_um, visibility_km):
     q = 1.6 if v > 50.0 else 1.3 if v > 6.0 else 0.585 * v ** (1.0 / 3.0)
     beta550 = max(3.912 / v - 0.0116, 0.0) * 1e-3  # [m-1]
     return beta550 * (np.asarray(wavelength_um, dtype=float) / 0.55) ** (-q)
+
+
+def _vapour_hpa(air_temperature_k, relative_humidity):
+    return water_vapour_pressure(air_temperature_k, relative_humidity) / 100.0
+
+
+def brunt_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Brunt (1932): eps = 0.52 + 0.065 sqrt(e), e in [hPa].
+
+    Parameters
+    ----------
+    air_temperature_k : numeric
+        Screen-level air temperature [K].
+    relative_humidity : numeric
+        Relative humidity [0-1].
+
+    Returns
+    -------
+    numeric
+        Broadband hemispherical clear-sky emissivity [0-1] (downwelling long wave eps sigma T^4).
+
+    References
+    ----------
+    .. [1] Brunt, D. (1932). Notes on radiation in the atmosphere. Q. J. R. Meteorol. Soc. 58,
+       389-420 (coefficients as tabulated by Flerchinger et al. 2009, Water Resour. Res. 45,
+       W03423, Table 1).
+    """
+    return 0.52 + 0.065 * np.sqrt(_vapour_hpa(air_temperature_k, relative_humidity))
+
+
+def brutsaert_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Brutsaert (1975): eps = 1.24 (e / T)^(1/7), e [hPa], T [K].
+
+    References
+    ----------
+    .. [1] Brutsaert, W. (1975). On a derivable formula for long-wave radiation from clear
+       skies. Water Resour. Res. 11(5), 742-744.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 1.24 * (_vapour_hpa(t, relative_humidity) / t) ** (1.0 / 7.0)
+
+
+def swinbank_emissivity(air_temperature_k, relative_humidity=None):
+    """Clear-sky emissivity of Swinbank (1963): eps = 9.365e-6 T^2 (T [K]; humidity unused).
+
+    References
+    ----------
+    .. [1] Swinbank, W. C. (1963). Long-wave radiation from clear skies. Q. J. R. Meteorol.
+       Soc. 89, 339-348.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 9.365e-6 * t * t
+
+
+def idso_jackson_emissivity(air_temperature_k, relative_humidity=None):
+    """Clear-sky emissivity of Idso & Jackson (1969): eps = 1 - 0.261 exp(-7.77e-4 (273 - T)^2).
+
+    References
+    ----------
+    .. [1] Idso, S. B., Jackson, R. D. (1969). Thermal radiation from the atmosphere.
+       J. Geophys. Res. 74, 5397-5403.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 1.0 - 0.261 * np.exp(-7.77e-4 * (273.0 - t) ** 2)
+
+
+def idso_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Idso (1981): eps = 0.70 + 5.95e-5 e exp(1500 / T), e [hPa].
+
+    References
+    ----------
+    .. [1] Idso, S. B. (1981). A set of equations for full spectrum and 8- to 14-um and 10.5-
+       to 12.5-um thermal radiation from cloudless skies. Water Resour. Res. 17(2), 295-304.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 0.70 + 5.95e-5 * _vapour_hpa(t, relative_humidity) * np.exp(1500.0 / t)
+
+
+def prata_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Prata (1996): eps = 1 - (1 + w) exp(-sqrt(1.2 + 3 w)),
+    w = 46.5 e / T the precipitable water [cm] (e [hPa], T [K]).
+
+    References
+    ----------
+    .. [1] Prata, A. J. (1996). A new long-wave formula for estimating downward clear-sky
+       radiation at the surface. Q. J. R. Meteorol. Soc. 122, 1127-1151.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    w = 46.5 * _vapour_hpa(t, relative_humidity) / t
+    return 1.0 - (1.0 + w) * np.exp(-np.sqrt(1.2 + 3.0 * w))
+
+
+def dilley_obrien_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity from Dilley & O'Brien (1998):
+    L = 59.38 + 113.7 (T / 273.16)^6 + 96.96 sqrt(w / 25) [W m^-2], w = 4650 e / T the
+    precipitable water [kg m^-2] (e [kPa], T [K]); eps = L / (sigma T^4).
+
+    References
+    ----------
+    .. [1] Dilley, A. C., O'Brien, D. M. (1998). Estimating downward clear sky long-wave
+       irradiance at the surface from screen temperature and precipitable water. Q. J. R.
+       Meteorol. Soc. 124, 1391-1401.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    w = 4650.0 * _vapour_hpa(t, relative_humidity) / 10.0 / t
+    flux = 59.38 + 113.7 * (t / 273.16) ** 6 + 96.96 * np.sqrt(w / 25.0)
+    return flux / (STEFAN_BOLTZMANN * t**4)
+
+
+def empirical_sky_emissivities(air_temperature_k, relative_humidity) -> dict:
+    """The clear-sky emissivity of each empirical formula from screen-level air temperature
+    and humidity: Brunt (1932), Swinbank (1963), Idso & Jackson (1969), Brutsaert (1975),
+    Idso (1981), Berdahl & Martin (1984), Prata (1996), Dilley & O'Brien (1998). Their spread is the usual check of a
+    modelled downwelling long wave (Flerchinger et al. 2009, Water Resour. Res. 45, W03423:
+    the formulas scatter by +-5 % around clear-sky pyrgeometer data)."""
+    t, rh = air_temperature_k, relative_humidity
+    return {
+        "brunt": brunt_emissivity(t, rh),
+        "swinbank": swinbank_emissivity(t),
+        "idsoJackson": idso_jackson_emissivity(t),
+        "brutsaert": brutsaert_emissivity(t, rh),
+        "idso": idso_emissivity(t, rh),
+        "berdahlMartin": effective_sky_temperature(t, rh)[1],
+        "prata": prata_emissivity(t, rh),
+        "dilleyObrien": dilley_obrien_emissivity(t, rh),
+    }

@@ -485,7 +485,11 @@ ATMOSPHERE = Section(
             choices=ATMOSPHERE_MODELS,
         ),
         "profile": Key(
-            "choice", "Model atmosphere (for LOWTRAN7).", default="usStandard1976", choices=PROFILES
+            "choice",
+            "Model atmosphere above the weather layer (LOWTRAN7); auto: the standard profile "
+            "nearest the frame-0 weather in temperature and water vapour.",
+            default="auto",
+            choices=("auto", *PROFILES),
         ),
         "air_temperature_k": Key(
             "float", "Air temperature near the ground [K].", default=293.15, lo=223.15, hi=333.15
@@ -500,6 +504,16 @@ ATMOSPHERE = Section(
         ),
         "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
         "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05, hi=300.0),
+        "diurnal_range_k": Key(
+            "float",
+            "Daily maximum minus minimum air temperature [K] of the diurnal cycle the "
+            "scene-surface spin-up follows before the weather data start (Campbell & Norman "
+            "shape through frame 0's value or the series' first row; dew point held); 0: "
+            "constant. Default: a clear mid-latitude day.",
+            default=10.0,
+            lo=0.0,
+            hi=40.0,
+        ),
         "weather_csv": Key(
             "path",
             "Hourly (or any) weather series, CSV with a header: time (local "
