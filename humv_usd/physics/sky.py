@@ -464,3 +464,43 @@ def empirical_sky_emissivities(air_temperature_k, relative_humidity) -> dict:
         "prata": prata_emissivity(t, rh),
         "dilleyObrien": dilley_obrien_emissivity(t, rh),
     }
+
+
+def tilted_irradiance(zenith_deg, radiance, tilt_deg, n_zenith: int = 360, n_azimuth: int = 360):
+    """Irradiance from the sky on planes tilted from the horizontal [W m^-2].
+
+    Parameters
+    ----------
+    zenith_deg, radiance : array (Z,)
+        The sky against zenith [deg] (ascending within 0-90) and its radiance, azimuthally
+        uniform [W m^-2 sr^-1] (the atmosphere layer's ``skyLongwaveRadiance``), interpolated
+        as :func:`hemispherical_irradiance` does (np.interp, held beyond the nodes).
+    tilt_deg : numeric
+        Angle between each plane's normal and the zenith [deg], 0 (facing up) to 180.
+
+    Returns
+    -------
+    numpy.ndarray
+        E(beta) = int_sky L(theta) max(0, cos(beta) cos(theta) + sin(beta) sin(theta)
+        cos(phi)) dOmega over the sky hemisphere (theta < 90 deg) only; the ground's share
+        is the caller's. Midpoint rule on n_zenith x n_azimuth cells (exact up to
+        ~1e-5 relative; E(0) agrees with :func:`hemispherical_irradiance`).
+
+    Notes
+    -----
+    An isotropic sky gives E = E_h (1 + cos beta) / 2 (Duffie & Beckman 2013, Eq. 2.16.2);
+    the real clear sky is brighter towards the horizon (Martin & Berdahl 1984), so walls see
+    more than half of the horizontal sky irradiance.
+    """
+    th_nodes, val = extended_sky_table(zenith_deg, radiance)
+    dth, dph = (np.pi / 2) / n_zenith, 2 * np.pi / n_azimuth
+    th = (np.arange(n_zenith) + 0.5) * dth
+    ph = (np.arange(n_azimuth) + 0.5) * dph
+    lum = np.interp(th, th_nodes, val)
+    beta = np.radians(np.atleast_1d(np.asarray(tilt_deg, dtype=float)))
+    cos_inc = (
+        np.cos(beta)[:, None, None] * np.cos(th)[None, :, None]
+        + np.sin(beta)[:, None, None] * np.sin(th)[None, :, None] * np.cos(ph)[None, None, :]
+    )
+    w = (lum * np.sin(th))[None, :, None] * dth * dph
+    return (np.maximum(cos_inc, 0.0) * w).sum(axis=(1, 2))

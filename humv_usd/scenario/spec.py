@@ -194,6 +194,15 @@ PLACEMENT = Section(
             lo=-1.0e4,
             hi=1.0e4,
         ),
+        "standing_before_s": Key(
+            "float",
+            "How long the person has stood at the start position, in the frame-0 pose, "
+            "before frame 0 [s]: their shadow cools the ground under them in the scene-surface "
+            "spin-up (0: arrived at frame 0).",
+            default=0.0,
+            lo=0.0,
+            hi=7 * 86400.0,
+        ),
     },
 )
 
@@ -254,6 +263,15 @@ OBJECT = Section(
             default=None,
             lo=150.0,
             hi=1000.0,
+        ),
+        "interior_air_temperature_k": Key(
+            "float",
+            "Air temperature inside a building [K]: the back of its walls exchanges heat with "
+            "it (inside surface coefficient 7.7 W m-2 K-1, ISO 6946). Leave it out for an "
+            "insulated (adiabatic) back.",
+            default=None,
+            lo=230.0,
+            hi=330.0,
         ),
     },
 )
