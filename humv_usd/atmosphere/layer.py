@@ -43,7 +43,7 @@ READS = (
 )
 #: layers read from the upstream stage: weather and sun (environment)
 UPSTREAM = ("environment",)
-VERSION = "3"
+VERSION = "4"
 
 
 def build(scenario: Scenario, upstream) -> Sdf.Layer:

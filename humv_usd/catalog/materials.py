@@ -139,11 +139,8 @@ class Material:
         (:func:`humv_usd.physics.sun.solar_absorptivity`): the value the materials tool writes
         and the thermal solve uses. ``solar_absorptivity`` is the broadband literature value
         the spectrum was checked against (tests/test_material_consistency.py)."""
-        return round(
-            solar_absorptivity(
-                self.spectrum_wavelengths, self.spectrum_reflectance, self.spectrum_transmittance
-            ),
-            6,
+        return solar_absorptivity(
+            self.spectrum_wavelengths, self.spectrum_reflectance, self.spectrum_transmittance
         )
 
     @property

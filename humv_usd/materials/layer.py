@@ -17,7 +17,7 @@ from humv_usd.usd.paths import material_path
 NAME = "materials"
 READS = (*FRAMES, "human.*.clothing", "scene.ground.material", "scene.object.*.material")
 UPSTREAM = ()
-VERSION = "1"
+VERSION = "2"
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"

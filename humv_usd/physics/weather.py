@@ -55,7 +55,8 @@ def campbell_norman_shape(solar_hour):
     -------
     numeric
         Gamma(t) = 0.44 - 0.46 sin(omega t + 0.9) + 0.11 sin(2 omega t + 0.9), omega = pi/12
-        h^-1; about 0 near sunrise (05 h) and 1 at the afternoon maximum (14-15 h).
+        h^-1, rescaled to span exactly 0 (its minimum, near 05 h) to 1 (its maximum, near
+        14 h); the published form spans 0.03-1.00.
 
     Notes
     -----
@@ -70,7 +71,19 @@ def campbell_norman_shape(solar_hour):
        2nd ed., Springer, section 2.3, Eq. 2.2 and Table 2.1.
     """
     w = np.pi / 12.0 * np.asarray(solar_hour, dtype=float)
-    return 0.44 - 0.46 * np.sin(w + 0.9) + 0.11 * np.sin(2.0 * w + 0.9)
+    g = 0.44 - 0.46 * np.sin(w + 0.9) + 0.11 * np.sin(2.0 * w + 0.9)
+    return (g - _GAMMA_MIN) / (_GAMMA_MAX - _GAMMA_MIN)
+
+
+def _gamma_extremes():
+    w = np.pi / 12.0 * np.linspace(0.0, 24.0, 288001)
+    g = 0.44 - 0.46 * np.sin(w + 0.9) + 0.11 * np.sin(2.0 * w + 0.9)
+    return float(g.min()), float(g.max())
+
+
+#: extremes of the published Gamma (about 0.03 at 05 h and 1.00 at 14 h); the shape is rescaled
+#: to span exactly 0-1 so that the cycle's range is the given daily range
+_GAMMA_MIN, _GAMMA_MAX = _gamma_extremes()
 
 
 def diurnal_air_temperature(solar_hour, anchor_hour, anchor_temperature_k, diurnal_range_k):

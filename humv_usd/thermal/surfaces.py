@@ -244,6 +244,25 @@ def _person_mesh(stage: Usd.Stage, human_id: str, frame: float):
     return np.concatenate(pts), np.concatenate(tris)
 
 
+def presence_share(times_s, arrive_s: float = -np.inf, leave_s: float = np.inf) -> np.ndarray:
+    """(M,) share [0-1] of the slab step ending at each of ``times_s`` (it starts at the
+    previous sample; the first one is a spin-up step long) that lies within [arrive, leave]."""
+    t = np.asarray(times_s, dtype=float)
+    prev = np.r_[t[0] - SPIN_UP_STEP_S, t[:-1]] if t.size else t
+    inside = np.minimum(t, leave_s) - np.maximum(prev, arrive_s)
+    return np.clip(inside / np.maximum(t - prev, 1e-9), 0.0, 1.0)
+
+
+def standing_occluder(
+    points, triangles, times_s, arrive_s: float = -np.inf, leave_s: float = np.inf
+) -> Occluders:
+    """A fixed shadow caster (world ``points``, ``triangles``) present from ``arrive_s`` to
+    ``leave_s`` [s after frame 0]."""
+    share = presence_share(times_s, arrive_s, leave_s)
+    at = np.where(share > 0.0, 0, -1).astype(np.int64)
+    return Occluders([(np.asarray(points, float), np.asarray(triangles, np.int64))], at, share)
+
+
 def people_occluders(stage: Usd.Stage, scenario, times_s) -> Occluders:
     """The people as shadow casters on the scene at the forcing times ``times_s`` [s after
     frame 0].
@@ -264,17 +283,13 @@ def people_occluders(stage: Usd.Stage, scenario, times_s) -> Occluders:
     keys: dict = {}
     meshes, at = [], np.full(len(times), -1, dtype=np.int64)
     presence = np.zeros(len(times))
-    prev = np.r_[times[0] - SPIN_UP_STEP_S, times[:-1]]
+    shares = {h: presence_share(times, -stood.get(h, 0.0)) for h in humans}
     for i, t in enumerate(times):
         frame = float(max(0, round(t * fps)))
-        share = {
-            h: float(np.clip((t - max(prev[i], -stood.get(h, 0.0))) / max(t - prev[i], 1e-9), 0.0, 1.0))
-            for h in humans
-        }
-        present = tuple(h for h in humans if share[h] > 0.0)
+        present = tuple(h for h in humans if shares[h][i] > 0.0)
         if not present:
             continue
-        presence[i] = max(share[h] for h in present)
+        presence[i] = max(shares[h][i] for h in present)
         key = (frame, present)
         if key not in keys:
             parts = [m for m in (_person_mesh(stage, h, frame) for h in present) if m is not None]
