@@ -11,15 +11,27 @@ f_lit the sunlit fraction of the face (shadow rays against the scene from points
 
 * absorbed short wave  alpha_s [DNI max(n.s, 0) f_lit + DHI (1 + n_z)/2 + rho_g GHI (1 - n_z)/2]
   (isotropic diffuse sky and Lambertian ground of albedo rho_g, view factors (1 +- n_z)/2;
-  Duffie & Beckman 2013, section 2.15-2.16);
-* incident long wave  E_sky (1 + n_z)/2 + [eps_g sigma T_g^4 + (1 - eps_g) E_sky] (1 - n_z)/2,
-  E_sky = eps_sky sigma T_air^4 with the Berdahl & Martin (1984) clear-sky emissivity and the
-  cloud cover mixed in (Crawford & Duchon 1999); with an atmosphere layer, E_sky at each
-  sample from frame 0 on is the hemispherical irradiance of the layer's longwave sky table at
-  that time code (:func:`with_sky_table`), the sky the render and the people's radiance maps
-  see; during the spin-up before frame 0 (no layer value there) the analytic sky scaled to
-  frame 0's table;
+  Duffie & Beckman 2013, section 2.15-2.16), alpha_s the material spectrum's own under the
+  ASTM G173 sun (:func:`humv_usd.usd.materials.read_material`);
+* incident long wave  E_sky V(n) + [eps_g sigma T_g^4 + (1 - eps_g) E_sky] (1 - n_z)/2, with
+  V(n) = E_sky(tilt) / E_sky(horizontal) of the sky's angular distribution
+  (:func:`humv_usd.physics.sky.tilted_irradiance`: a wall sees the bright horizon sky, not an
+  isotropic half), E_sky = eps_sky sigma T_air^4 with the Berdahl & Martin (1984) clear-sky
+  emissivity and the cloud cover mixed in (Crawford & Duchon 1999); with an atmosphere layer,
+  E_sky at each sample from frame 0 on is the hemispherical irradiance of the layer's longwave
+  sky table at that time code and V its frame-0 table's (:func:`with_sky_table`), the sky the
+  render and the people's radiance maps see; during the spin-up before frame 0 (no layer value
+  there) the analytic sky scaled to frame 0's table;
 * convection  h = 2.8 + 3.0 V (Watmuff et al. 1977).
+
+Shadows: f_lit from shadow rays (4 points per triangle) against the scene meshes and the people
+(:func:`people_occluders`: posed at each frame from frame 0 on; before it, in the frame-0 pose
+for ``[[placement]] standing_before_s``, weighted by the share of each slab step they stood
+there), so a person leaves a cool patch that grows with the time stood and fades after they
+walk away. Tessellation adapts (:func:`refine_meshes`): faces where the recent direct sun
+varies across the face (shadow edges, building bases, object footprints, a person's shadow)
+are split into four down to :data:`MIN_CELL_M`; the thermal layer authors the new faces on the
+mesh (:func:`write_refined_topology`), so no face straddles sun and shade.
 
 Weather and sun (spin-up included) are read from the environment layer on the stage
 (:func:`forcing_at`, :mod:`humv_usd.usd.environment`).
@@ -28,8 +40,10 @@ Constructions (every property from the bound material on the stage,
 :mod:`humv_usd.usd.materials`): the ground is its material's layer over its substrate (the
 material its ``humv:material:substrate`` points to, soil from the materials tool) down to 1 m,
 with the bottom held at the mean air temperature of the spin-up day; objects are their material's layer with an
-adiabatic back (insulated siding, a panel on a stand). Scene faces do not exchange radiation with
-each other beyond the ground term, and people do not shade the scene.
+adiabatic back (insulated siding, a panel on a stand), or, with ``interior_air_temperature_k``,
+a back exchanging heat with the room air through ISO 6946's inside surface coefficient
+(7.7 W m^-2 K^-1). Scene faces do not exchange radiation with each other beyond the ground
+term; people shade the scene but do not warm it (no long-wave or contact exchange with it).
 """
 
 from __future__ import annotations
