@@ -36,6 +36,7 @@ LEVELS = [
     },  # layer tools
     {"render", "groundtruth"},  # consumers of the stage
     {"pipeline", "bench"},  # graph, caching, benches
+    {"sweep"},  # datasets: drives pipeline.compose/render per variant on Dask, merges ground truth
     {"cli"},
 ]
 LEVEL = {pkg: i for i, level in enumerate(LEVELS) for pkg in level}

@@ -606,11 +606,17 @@ def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
 
     main.add_command(avatar)
+    from humv_usd.cli.adopt_cmd import adopt
+
+    main.add_command(adopt)
     from humv_usd.cli.groundtruth_cmd import (
         register as register_groundtruth,  # regions, coco-merge, bench labels
     )
 
     register_groundtruth(main, bench)
+    from humv_usd.cli.sweep_cmd import register as register_sweep  # sweep, bench sweep
+
+    register_sweep(main, bench)
 
 
 _register_tools()

@@ -95,3 +95,26 @@ def override_topology(prim: Usd.Prim, points: np.ndarray, face_counts, face_indi
     mesh.CreateFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(np.asarray(face_indices, np.int32)))
     lo, hi = points.min(axis=0), points.max(axis=0)
     mesh.CreateExtentAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
+
+
+#: customData of an asset's referencing prim: the referenced file's units and up axis, which
+#: the asset's transform corrects (``humv-usd check`` accepts a non-Z-up / non-metre file there)
+ASSET_SOURCE = "humv:assetSource"
+
+
+def write_asset_source(prim: Usd.Prim, file: str, meters_per_unit: float, up_axis: str) -> None:
+    """Record on the prim that references ``file`` the units and up axis its transform corrects."""
+    prim.SetCustomDataByKey(
+        ASSET_SOURCE, {"file": str(file), "metersPerUnit": float(meters_per_unit), "upAxis": str(up_axis)}
+    )
+
+
+def read_asset_source(prim: Usd.Prim) -> dict | None:
+    """What :func:`write_asset_source` recorded on ``prim`` or its nearest ancestor, else None."""
+    p = prim
+    while p and p.IsValid() and not p.IsPseudoRoot():
+        value = p.GetCustomDataByKey(ASSET_SOURCE)
+        if value:
+            return dict(value)
+        p = p.GetParent()
+    return None
