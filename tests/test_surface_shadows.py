@@ -7,15 +7,20 @@ import numpy as np
 import pytest
 import trimesh
 from numpy.testing import assert_allclose
+from pxr import Usd, UsdGeom
 from scipy.optimize import brentq
 from test_thermal_surfaces import ISOTROPIC_SKY, stage_material
 
+from humv_usd.atmosphere import model as M
 from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.physics.slab import INTERIOR_SURFACE_COEFFICIENT
+from humv_usd.pipeline.compose import compose
+from humv_usd.scenario import validate
 from humv_usd.scene.geometry import box, ground_grid
 from humv_usd.thermal import surfaces as SF
 from humv_usd.thermal.human import longwave_emissivity
+from humv_usd.usd.mesh import triangle_areas
 
 #: afternoon sun from the south-south-west, 37 deg up (humvvex at 14:05)
 SUN = np.array(
@@ -202,3 +207,35 @@ def test_interior_air_warms_the_back_of_a_wall_as_the_closed_form_says():
     assert out["/World/Scene/w"][0, 0] == pytest.approx(brentq(balance, 200, 400, args=(293.0,)), abs=1e-3)
     assert out["/World/Scene/c"][0, 0] == pytest.approx(brentq(balance, 200, 400, args=(None,)), abs=1e-3)
     assert out["/World/Scene/w"][0, 0] > out["/World/Scene/c"][0, 0] + 0.1
+
+
+def _ground_faces(stage):
+    g = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Scene/Ground"))
+    counts = np.asarray(g.GetFaceVertexCountsAttr().Get())
+    indices = np.asarray(g.GetFaceVertexIndicesAttr().Get())
+    pts = np.asarray(g.GetPointsAttr().Get(), dtype=float)
+    temps = np.asarray(g.GetPrim().GetAttribute("primvars:humv:thermal:temperature").Get(0))
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    cen = np.array([pts[indices[s : s + c]].mean(axis=0) for s, c in zip(starts, counts)])
+    return cen, temps, triangle_areas(pts, counts, indices)
+
+
+@pytest.mark.slow
+def test_humvvex_person_shadow_patch_and_wall_foot(raw, tmp_path, monkeypatch):
+    """humvvex composed: the person (avatar and clothes posed by UsdSkel) stood 30 min: a cool
+    patch north-north-east of their feet; the pad at the warehouse's wall foot is open pad (the
+    old 7.5 m faces made a 2.5 m strip 9 K colder). The refined faces are on the stage."""
+    monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
+    raw["placement"][0]["standing_before_s"] = 1800.0
+    raw["sensor"] = [s for s in raw["sensor"] if s["id"] == "lwir640"]
+    compose(validate(raw), tmp_path / "out")
+    stage = Usd.Stage.Open(str(tmp_path / "out" / "stage.usda"))
+    cen, temps, area = _ground_faces(stage)
+    assert len(temps) > 1000  # re-tessellated from 16 x 16
+    pad = np.median(temps[(cen[:, 1] < -5.0) & (np.abs(cen[:, 0]) < 30.0)])
+    near = np.hypot(cen[:, 0], cen[:, 1]) < 3.0
+    cool = near & (temps < pad - 1.0)
+    assert area[cool].sum() > 0.3 and temps[near].min() < pad - 3.0
+    assert np.average(cen[cool, 1], weights=area[cool]) > 0.0  # in the shadow, away from the sun
+    foot = (np.abs(cen[:, 0]) < 15.0) & (cen[:, 1] > 7.5) & (cen[:, 1] < 10.0 - SF.MIN_CELL_M)
+    assert foot.sum() > 10 and np.all(np.abs(temps[foot] - pad) < 0.1)
