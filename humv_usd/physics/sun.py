@@ -8,7 +8,9 @@ Stage frame: x east, y north, z up; azimuth is a compass angle (0 = north, 90 = 
 from __future__ import annotations
 
 import functools
+import importlib.util
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -105,19 +107,21 @@ def reference_solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
     spectral irradiance [W m^-2 um^-1]).
 
     ASTM G173-03 global tilted spectrum (AM 1.5, 37 deg sun-facing tilt, 1000 W m^-2 total),
-    the standard terrestrial sun of solar-absorptance ratings (ASTM E903), as shipped by pvlib
-    (:func:`pvlib.spectrum.get_reference_spectra`).
+    the standard terrestrial sun of solar-absorptance ratings (ASTM E903): the table pvlib ships
+    (``pvlib/data/ASTMG173.csv``, what :func:`pvlib.spectrum.get_reference_spectra` reads), read
+    here with numpy so that reading a material does not import pvlib and pandas.
 
     References
     ----------
     .. [1] ASTM G173-03 (2020). Standard tables for reference solar spectral irradiances: direct
        normal and hemispherical on 37 deg tilted surface. ASTM International.
     """
-    from pvlib.spectrum import get_reference_spectra
-
-    ref = get_reference_spectra(standard="ASTM G173-03")
-    wl = np.asarray(ref.index, dtype=float) / 1000.0
-    return wl, np.asarray(ref["global"], dtype=float) * 1000.0
+    spec = importlib.util.find_spec("pvlib")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("pvlib (ASTM G173 reference spectrum) is not installed")
+    table = Path(list(spec.submodule_search_locations)[0]) / "data" / "ASTMG173.csv"
+    data = np.loadtxt(table, delimiter=",", skiprows=2, usecols=(0, 2))
+    return data[:, 0] / 1000.0, data[:, 1] * 1000.0
 
 
 def solar_absorptivity(wavelengths_um, reflectance, transmittance=None) -> float:

@@ -785,8 +785,11 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     """(M, F) surface temperatures of one mesh's slab faces, and the max residual."""
     a_s, lw, air, h = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo)
     # faces with the same forcing history (most of an unshaded ground) are solved once
-    stacked = np.concatenate([a_s, lw, air, h], axis=0).T  # (F, 4M)
-    uniq, inverse = np.unique(np.round(stacked, 9), axis=0, return_inverse=True)
+    stacked = np.ascontiguousarray(np.round(np.concatenate([a_s, lw, air, h], axis=0).T, 9))  # (F, 4M)
+    # rows compared as raw bytes (one void item per row): much faster than np.unique(axis=0)
+    rows = stacked.view(np.dtype((np.void, stacked.dtype.itemsize * stacked.shape[1]))).ravel()
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    uniq = stacked[first]
     inverse = np.asarray(inverse).ravel()
     m = len(f.times_s)
     cols = [uniq[:, k * m : (k + 1) * m].T for k in range(4)]  # (M, U) each
