@@ -572,3 +572,30 @@ def test_usd_asset_with_material_subsets(tmp_path):
 
     info = SceneMeshes(composed).mesh_info(composed.GetPrimAtPath("/World/Scene/kiosk/Kiosk/Box"), 0)
     assert sorted(p.material.path for p in info.parts) == ["/World/Materials/glass", "/World/Materials/wood"]
+
+
+def test_committed_assets_are_what_the_script_makes(tmp_path):
+    """examples/assets is tools/make_street_assets.py's output, byte for byte."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "make_street_assets", ROOT / "tools" / "make_street_assets.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main([str(tmp_path)]) == 0
+    made = sorted(p.name for p in tmp_path.iterdir())
+    assert made == sorted(p.name for p in ASSETS.iterdir())
+    for name in made:
+        assert (tmp_path / name).read_bytes() == (ASSETS / name).read_bytes(), name
+    assert sum((ASSETS / n).stat().st_size for n in made) < 1_000_000
+
+
+def test_check_finds_a_y_up_sublayer(street):
+    _, out = street
+    _user_layer(out, lambda stage: None)
+    edit = Sdf.Layer.FindOrOpen(str(out / "edit.usda"))
+    edit.pseudoRoot.SetInfo("upAxis", "Y")
+    edit.Save()
+    found = check_stage(out / "stage.usda")
+    assert any(f.startswith(f"humv:assetUnits: {out / 'edit.usda'}: a sublayer with upAxis Y") for f in found)

@@ -172,6 +172,19 @@ def rule_sensors(stage: Usd.Stage) -> list[str]:
     ]
 
 
+def _units(layer: Sdf.Layer) -> tuple[str | None, float | None]:
+    """(upAxis, metersPerUnit) a layer authors (None where it does not)."""
+    info = layer.pseudoRoot
+    up = info.GetInfo(UsdGeom.Tokens.upAxis) if info.HasInfo(UsdGeom.Tokens.upAxis) else None
+    mpu = info.GetInfo(UsdGeom.Tokens.metersPerUnit) if info.HasInfo(UsdGeom.Tokens.metersPerUnit) else None
+    return up, mpu
+
+
+def _z_up_metres(up, mpu) -> bool:
+    """Unauthored counts as fine: only what a file says is checked."""
+    return up in (None, UsdGeom.Tokens.z) and (mpu is None or math.isclose(mpu, 1.0))
+
+
 def rule_assets(stage: Usd.Stage) -> list[str]:
     """Referenced files exist and are Z-up metres, or the referencing prim converts them (the
     scene tool records what it converts in customData humv:assetSource)."""
@@ -184,6 +197,16 @@ def rule_assets(stage: Usd.Stage) -> list[str]:
                 "the path (compose references [[scene.asset]] files by absolute path: re-run compose "
                 "after moving them)"
             )
+    root = stage.GetRootLayer()
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        up, mpu = _units(layer)
+        if layer != root and not _z_up_metres(up, mpu):
+            out.append(
+                f"humv:assetUnits: {layer.realPath or layer.identifier}: a sublayer with upAxis {up}, "
+                f"metersPerUnit {mpu}; USD composes a sublayer's prims as they are (Z-up metres on this "
+                "stage); fix: re-export it Z-up in metres, or bring it in as a [[scene.asset]] "
+                "(units/up_axis)"
+            )
     for prim in stage.Traverse():
         if not (prim.HasAuthoredReferences() or prim.HasAuthoredPayloads()):
             continue
@@ -195,14 +218,8 @@ def rule_assets(stage: Usd.Stage) -> list[str]:
             ):
                 continue
             layer = arc.GetTargetNode().layerStack.layers[0]
-            info = layer.pseudoRoot
-            up = info.GetInfo(UsdGeom.Tokens.upAxis) if info.HasInfo(UsdGeom.Tokens.upAxis) else None
-            mpu = (
-                info.GetInfo(UsdGeom.Tokens.metersPerUnit)
-                if info.HasInfo(UsdGeom.Tokens.metersPerUnit)
-                else None
-            )
-            if (up in (None, UsdGeom.Tokens.z)) and (mpu is None or math.isclose(mpu, 1.0)):
+            up, mpu = _units(layer)
+            if _z_up_metres(up, mpu):
                 continue
             src = read_asset_source(prim) or {}
             corrected = src.get("upAxis") == (up or "Y") and math.isclose(
