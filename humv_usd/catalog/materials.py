@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd.physics.sun import solar_absorptivity
+
 #: Common coarse grid of the thermal tools (and of the fabric entries).
 WAVELENGTHS_UM = (0.4, 0.55, 0.7, 1.0, 2.5, 3.0, 5.0, 8.0, 11.0, 14.0)
 
@@ -89,7 +91,7 @@ class Material:
     density: float  # [kg m-3]
     specific_heat: float  # [J kg-1 K-1]
     thickness: float  # [m] of the slab or layer
-    solar_absorptivity: float  # [0-1]
+    solar_absorptivity: float  # [0-1] broadband literature value (see spectral_solar_absorptivity)
     source: str
     label_class: str = "other"
     spectrum_wavelengths: tuple[float, ...] = WAVELENGTHS_UM  # [µm], ascending
@@ -130,6 +132,16 @@ class Material:
     def emissivity(self) -> tuple[float, ...]:
         """Emissivity at the common grid WAVELENGTHS_UM."""
         return tuple(round(float(v), 6) for v in self.at(WAVELENGTHS_UM, "emissivity"))
+
+    @property
+    def spectral_solar_absorptivity(self) -> float:
+        """Solar absorptivity of this material's own spectrum under the reference sun
+        (:func:`humv_usd.physics.sun.solar_absorptivity`): the value the materials tool writes
+        and the thermal solve uses. ``solar_absorptivity`` is the broadband literature value
+        the spectrum was checked against (tests/test_material_consistency.py)."""
+        return solar_absorptivity(
+            self.spectrum_wavelengths, self.spectrum_reflectance, self.spectrum_transmittance
+        )
 
     @property
     def display_color(self) -> tuple[float, float, float]:
