@@ -13,6 +13,7 @@ thermal properties are None when the prim does not author them (a render-only ma
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +23,10 @@ from humv_usd.catalog.materials import Material
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.physics import planck
+from humv_usd.physics.sun import solar_absorptivity
 from humv_usd.usd import schemas as S
+
+log = logging.getLogger(__name__)
 
 #: Relationship of a ground material to the material under it (the ground slab's substrate,
 #: authored by the materials tool for a slab ground). A custom property, not part of
@@ -86,7 +90,8 @@ def write_material(stage: Usd.Stage, path, material: Material) -> UsdShade.Mater
     """Define the material prim ``path`` from a catalogue :class:`Material`: HumvMaterialAPI
     spectra on the material's own wavelength grid [um] (transmittance only for materials one
     can see through), thermal data (conductivity [W m-1 K-1], density [kg m-3], specific heat
-    [J kg-1 K-1], thickness [m], solar absorptivity [0-1]) and its source, plus a
+    [J kg-1 K-1], thickness [m], solar absorptivity [0-1] of its own spectrum under the reference
+    sun) and its source, plus a
     UsdPreviewSurface for DCC viewports (display colour; opacity for glass)."""
     m = material
     mat = UsdShade.Material.Define(stage, path)
@@ -119,7 +124,7 @@ def write_material_properties(prim: Usd.Prim, material: Material) -> None:
         (S.MATERIAL_DENSITY, m.density),
         (S.MATERIAL_SPECIFIC_HEAT, m.specific_heat),
         (S.MATERIAL_THICKNESS, m.thickness),
-        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.solar_absorptivity),
+        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.spectral_solar_absorptivity),
         (S.MATERIAL_SOURCE, m.source),
     ):
         prim.GetAttribute(attr).Set(value)
@@ -223,6 +228,21 @@ def read_material(material, mesh_path: str | None = None, time=None) -> StageMat
             )
         )
     source = prim.GetAttribute(S.MATERIAL_SOURCE)
+    alpha = _scalar(prim, S.MATERIAL_SOLAR_ABSORPTIVITY, mpath, 0.0, 1.0, time)
+    if rho is not None and wl[0] <= 0.5 and wl[-1] >= 2.5:
+        # one set of properties: the thermal solve absorbs the sun the render's spectrum
+        # reflects (the attribute is kept for DCCs; a hand edit of it alone is overruled)
+        spectral = solar_absorptivity(wl, rho, tau)
+        if alpha is not None and abs(alpha - spectral) > 0.01:
+            log.warning(
+                "%s.%s = %.3f disagrees with its reflectance spectrum (%.3f); the thermal solve uses "
+                "the spectrum",
+                mpath,
+                S.MATERIAL_SOLAR_ABSORPTIVITY,
+                alpha,
+                spectral,
+            )
+        alpha = spectral
     return StageMaterial(
         mpath,
         wl,
@@ -233,7 +253,7 @@ def read_material(material, mesh_path: str | None = None, time=None) -> StageMat
         density=_scalar(prim, S.MATERIAL_DENSITY, mpath, 1e-3, 1e5, time),
         specific_heat=_scalar(prim, S.MATERIAL_SPECIFIC_HEAT, mpath, 1.0, 1e5, time),
         thickness=_scalar(prim, S.MATERIAL_THICKNESS, mpath, 1e-6, 100.0, time),
-        solar_absorptivity=_scalar(prim, S.MATERIAL_SOLAR_ABSORPTIVITY, mpath, 0.0, 1.0, time),
+        solar_absorptivity=alpha,
         source=source.Get() if source and source.HasAuthoredValue() else None,
     )
 

@@ -87,6 +87,18 @@ def bound_corners(stage, root) -> np.ndarray:
     return np.asarray(corners, dtype=float).reshape(-1, 3)
 
 
+def override_topology(prim: Usd.Prim, points: np.ndarray, face_counts, face_indices) -> None:
+    """Author new polygons on a mesh (an ``over`` in a stronger layer: the thermal layer's
+    re-tessellated scene surfaces), points in the mesh's local space, with its extent."""
+    mesh = UsdGeom.Mesh(prim)
+    points = np.asarray(points, dtype=np.float32)
+    mesh.CreatePointsAttr().Set(Vt.Vec3fArray.FromNumpy(points))
+    mesh.CreateFaceVertexCountsAttr().Set(Vt.IntArray.FromNumpy(np.asarray(face_counts, np.int32)))
+    mesh.CreateFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(np.asarray(face_indices, np.int32)))
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    mesh.CreateExtentAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
+
+
 #: customData of an asset's referencing prim: the referenced file's units and up axis, which
 #: the asset's transform corrects (``humv-usd check`` accepts a non-Z-up / non-metre file there)
 ASSET_SOURCE = "humv:assetSource"
