@@ -24,7 +24,7 @@ from humv_usd.usd.check import check_stage
 from humv_usd.usd.layers import open_stage
 
 ROOT = Path(__file__).resolve().parents[1]
-HUMVVEX = ROOT / "examples" / "humvvex.toml"
+HUMVVEX = ROOT / "examples" / "humvvex_fixed.toml"  # the closed-form thermal model: fast
 PYTHON = sys.executable
 
 #: runs a Python call with ``os.<name>`` replaced by a hook that kills the process (SIGKILL,

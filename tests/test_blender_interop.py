@@ -182,6 +182,7 @@ def _adopt(walk, export: str, out: str):
         main, ["adopt", str(walk / export), "-o", str(walk / out), "--from", str(walk / "out" / "stage.usda")]
     )
     assert result.exit_code == 0, result.output
+    assert "no animation" not in result.output  # exported with export_animation=True
     return result.output
 
 
@@ -225,12 +226,27 @@ def test_round_trip_with_edits(walk, blender):
     expected = MOVE_M * FOCAL_M / (DISTANCE_M * PITCH_M)
     print(f"person moved {person[1] - person[0]:.2f} px (expected {expected:.2f})")
     assert person[1] - person[0] == pytest.approx(expected, abs=1.0)
+    # the restored keypoints (SkelRoot space) moved with the person
+    keypoints = []
+    for folder in ("render", "edited_render"):
+        objects = json.loads((walk / folder / "atom1024_lwir" / "0000.objects.json").read_text())["objects"]
+        keypoints.append(
+            np.array([o for o in objects if o["class"] == "person"][0]["keypoints"]).reshape(17, 3)
+        )
+    assert_allclose(keypoints[1][:, 0] - keypoints[0][:, 0], expected, atol=0.5)
+    assert_allclose(keypoints[1][:, 1], keypoints[0][:, 1], atol=1e-3)
     new_id = crate.GetAttribute(S.LABEL_INSTANCE_ID).Get()
     assert new_id > before["instance_id"].max()
     cube = after["instance_id"] == new_id
     assert cube.sum() > 20
     assert set(np.unique(after["class_id"][cube]).tolist()) == {CLASS_ID["vehicle"]}
     assert_allclose(after["surface_temperature"][cube], CUBE_K, atol=1e-3)
+    # elsewhere (not the person before or after, not the cube) nothing changed
+    rest = ~(cube | (before["instance_id"] == 1) | (after["instance_id"] == 1))
+    agree = {k: float(np.mean(before[k][rest] == after[k][rest])) for k in ("instance_id", "class_id")}
+    diff = np.abs(before["radiance"] - after["radiance"])[rest]
+    print(f"edited, outside the edits: label agreement {agree}; radiance |diff| mean {diff.mean():.3g}")
+    assert min(agree.values()) > 0.99
 
 
 COMPOSITOR = """

@@ -39,4 +39,4 @@ def test_every_thermal_model_single_and_multi_frame(model, frames, tmp_path):
         raw["thermal"]["model"] = model
         raw["general"]["duration_s"] = (frames - 1) / raw["general"]["fps"]
 
-    assert _compose_and_check(EXAMPLES / "humvvex.toml", tmp_path / "o", edit) == []
+    assert _compose_and_check(EXAMPLES / "humvvex_fixed.toml", tmp_path / "o", edit) == []

@@ -335,6 +335,7 @@ def test_bake_skinning_and_the_render_agree_on_garments(clothed_stage):
             pts, m = meshes.points(stage.GetPrimAtPath(path), path, Usd.TimeCode(f), UsdGeom.XformCache(f))
             render[path, f] = pts @ m[:3, :3] + m[3, :3]
     baked = Usd.Stage.Open(stage.Flatten())  # BakeSkinning writes into the edit target
+    worst = 0.0
     assert UsdSkel.BakeSkinning(baked.Traverse(), Gf.Interval(0, frames - 1))
     for path in paths:
         prim = baked.GetPrimAtPath(path)
@@ -345,7 +346,9 @@ def test_bake_skinning_and_the_render_agree_on_garments(clothed_stage):
             pts = np.asarray(UsdGeom.Mesh(prim).GetPointsAttr().Get(f), dtype=float)
             m = np.asarray(UsdGeom.XformCache(f).GetLocalToWorldTransform(prim))
             distance = np.linalg.norm(pts @ m[:3, :3] + m[3, :3] - render[path, f], axis=1)
-            assert distance.max() < 1e-3, (path, f, distance.max())
+            worst = max(worst, float(distance.max()))
+    print(f"BakeSkinning vs render: max {worst * 1e3:.4f} mm over {frames} frames")
+    assert worst < 1e-3
 
 
 def test_static_person_gets_one_value(humvvex_raw):

@@ -31,7 +31,7 @@ from humv_usd.scenario.spec import SECTIONS, Key, Section
 from humv_usd.scenario.warnings import suspicious
 
 ROOT = Path(__file__).resolve().parents[1]
-HUMVVEX = ROOT / "examples" / "humvvex.toml"
+HUMVVEX = ROOT / "examples" / "humvvex_fixed.toml"  # the closed-form thermal model: fast
 BASE = tomllib.loads(HUMVVEX.read_text())
 DATA = Path(__file__).resolve().parent / "data"
 #: longest problem line we accept: one line a person reads, whatever the input

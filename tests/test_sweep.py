@@ -439,3 +439,14 @@ def test_kill_9_at_random_moments_loses_nothing(reference, tmp_path):
         for name in a:
             np.testing.assert_array_equal(a[name], b[name], err_msg=f"{p}: {name}")
     print("kills (delay s, target, chunks done):", kills)
+
+
+@pytest.mark.slow
+def test_limit_runs_the_first_variants_and_a_later_run_adds_the_rest(tmp_path):
+    from humv_usd.sweep.run import run_sweep
+
+    sw = load_sweep(_write(tmp_path))
+    first = run_sweep(sw, tmp_path / "dataset", workers=0, limit=1)
+    assert first.ran == 2 and first.dataset_summary["variants_with_images"] == 1
+    rest = run_sweep(sw, tmp_path / "dataset", workers=0)
+    assert rest.already_done == 2 and rest.ran == 6 and rest.dataset_summary["images"] == 8

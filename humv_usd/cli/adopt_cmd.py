@@ -63,5 +63,7 @@ def adopt(blender_export: Path, out_dir: str, original, fps, temperature_k, labe
     for path, entry in report.new_meshes.items():
         parts = [f"{k} {v}" for k, v in entry.items()]
         click.echo(f"  new mesh {path}: {', '.join(parts)}")
+    if report.static_export:
+        click.echo("  no animation in the export: people and garments stay at the exported frame")
     for path in report.kept_blender_values:
         click.echo(f"  {path}: topology changed, Blender's per-face values kept")

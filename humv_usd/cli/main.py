@@ -656,6 +656,9 @@ def _register_tools():
     from humv_usd.cli.adopt_cmd import adopt
 
     main.add_command(adopt)
+    from humv_usd.cli.edit_cmd import edit
+
+    main.add_command(edit)
     from humv_usd.cli.groundtruth_cmd import (
         register as register_groundtruth,  # regions, coco-merge, bench labels
     )

@@ -97,9 +97,15 @@ class _Progress:
     type=click.IntRange(0, 4096),
     help="Local cluster size (default: one per core; 0: run in this process, one task at a time).",
 )
+@click.option(
+    "--limit",
+    default=None,
+    type=click.IntRange(1, None),
+    help="Run only the first N variants (a later run without it adds the others).",
+)
 @click.option("--quiet", is_flag=True, help="No progress display.")
 @reports_errors
-def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, quiet: bool):
+def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, limit, quiet: bool):
     """Expand SWEEP_FILE (a base scenario + grid and random axes) into variants, compose and render
     them as tasks on Dask (one per variant and frame chunk) and assemble one dataset in OUT.
     Re-running the same command resumes: only what is missing runs."""
@@ -130,7 +136,7 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, qui
     from humv_usd.sweep.run import run_sweep
 
     with _Progress(quiet) as progress:
-        result = run_sweep(sw, out_dir, scheduler=scheduler, workers=workers, on_event=progress)
+        result = run_sweep(sw, out_dir, scheduler=scheduler, workers=workers, on_event=progress, limit=limit)
     s = result.dataset_summary
     click.echo(
         f"{result.dataset}: {s['variants']} variants, {s['frames']} frames, {s['images']} images "

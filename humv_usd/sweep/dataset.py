@@ -331,7 +331,9 @@ def _write_card(dataset: Path, sweep, rows: list[dict], summary: dict, params: d
     for sensor, n in summary["images_per_sensor"].items():
         anns = ", ".join(f"{k} {v}" for k, v in summary["annotations_per_sensor"].get(sensor, {}).items())
         lines.append(f"| {sensor} | {n} | {anns or '-'} |")
-    lines += ["", "## Parameters", "", *_distribution_lines(params), ""]
+    present = {r["variant"] for r in rows}  # distributions over the variants with images
+    params = {name: {k: v for k, v in values.items() if k in present} for name, values in params.items()}
+    lines += ["", "## Parameters (variants with images)", "", *_distribution_lines(params), ""]
     if _param_plots(params, card / "params.png"):
         lines += ["![parameter distributions](card/params.png)", ""]
     lines += ["## Contact sheets", ""]

@@ -16,10 +16,12 @@ from humv_usd.sweep.spec import Sweep, Variant
 #: Monte Carlo throughput of one core here (RECIPES.md: about 4 Msamples/s on 2 cores, 640x512,
 #: path depth 3), the estimate's render rate per worker [samples/s]
 SAMPLES_PER_SECOND_PER_WORKER = 2.0e6
-#: fixed cost per rendered frame and sensor (export, labels, writes) [s], from `humv-usd bench sweep`
-SECONDS_PER_IMAGE = 0.5
-#: compose seconds of a layer that is built (not shared), by tool (measured on examples/walk.toml)
-COMPOSE_SECONDS = {"avatar": 8.0, "clothing": 25.0, "thermal": 2.0, "environment": 1.0}
+#: fixed cost per rendered image (stage export, ground truth, writes) [s]; `humv-usd bench sweep`
+#: measured 5-10 s at 320x240 on a 2-core machine with a load average of 12, about 1/5 of a core
+SECONDS_PER_IMAGE = 2.0
+#: compose seconds of a layer that is built (not shared): (fixed, per frame) by tool, from the
+#: compose.json of `humv-usd bench sweep` (examples/walk.toml; 6 and 100 frames), others 0.1 s
+COMPOSE_SECONDS = {"avatar": (2.0, 0.0), "clothing": (4.0, 1.1), "environment": (1.5, 0.0)}
 
 
 def layer_keys(scenario: Scenario) -> dict[str, str]:
@@ -98,9 +100,16 @@ def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dic
         n_sensors = sum(1 for s in sc["sensor"] if not sensors or s["id"] in sensors)
         samples += _sensor_samples(sc, sensors, spp) * len(t.frames)
         images += n_sensors * len(t.frames)
-    unique = {(n, k) for lk in keys.values() for n, k in lk.items()}
+    frames_of = {}
+    for v in sweep.variants:  # each unique layer once, with the frame count of its first variant
+        for n, k in keys[v.id].items():
+            frames_of.setdefault((n, k), v.scenario.frame_count)
     total_layers = sum(len(lk) for lk in keys.values())
-    compose_s = sum(COMPOSE_SECONDS.get(n.split("_")[0], 0.5) for n, _ in unique)
+    compose_s = 0.0
+    for (n, _), count in frames_of.items():
+        fixed, per_frame = COMPOSE_SECONDS.get(n.split("_")[0], (0.1, 0.0))
+        compose_s += fixed + per_frame * count
+    unique = frames_of
     render_s = samples / SAMPLES_PER_SECOND_PER_WORKER + images * SECONDS_PER_IMAGE
     wall = (compose_s + render_s) / max(1, workers)
     return {

@@ -153,15 +153,19 @@ def run_sweep(
     scheduler: str | None = None,
     workers: int | None = None,
     on_event: Callable[[dict], None] | None = None,
+    limit: int | None = None,
 ) -> SweepResult:
     """Run what is missing of ``sweep`` into ``dataset`` and assemble the dataset; see the module
-    doc. Raises InputError (nothing written) for a folder that cannot be written, a folder of
+    doc. ``limit``: run only the first ``limit`` variants (a later run without it adds the rest). Raises InputError (nothing written) for a folder that cannot be written, a folder of
     another sweep or one another live sweep is writing."""
     t0 = time.perf_counter()
     dataset = check_output_dir(dataset, "dataset folder").resolve()
     emit = on_event or (lambda event: None)
     keys = {v.id: layer_keys(v.scenario) for v in sweep.variants}
     tasks = render_tasks(sweep)
+    if limit is not None:
+        wanted = {v.id for v in sweep.variants[:limit]}
+        tasks = [t for t in tasks if t.variant in wanted]
     with store.dataset_lock(dataset):
         store.check_sweep_record(dataset, sweep.digest())
         write_variant_files(dataset, sweep)
@@ -228,7 +232,10 @@ class _Loop:
         while self.running:
             for fut in self.executor.wait_any(list(self.running)):
                 kind, name, attempt, payload = self.running.pop(fut)
-                exc = fut.exception()
+                try:
+                    exc = fut.exception()
+                except Exception as cancelled:  # noqa: BLE001 (a cancelled future raises here)
+                    exc = cancelled
                 if exc is None:
                     self._finished(kind, name, fut.result(), payload)
                 elif attempt < self.retries:

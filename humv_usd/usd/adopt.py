@@ -19,7 +19,9 @@ Blender 4.2-5.0 writes a stage a HumV render cannot use as it is:
    ``/World/Materials/<m>``, other objects under ``/root`` -> ``/World/Scene/<name>``; an
    object Xform and its one data prim merge into one prim named like the original prim (the
    data's name when the object's is the data's plus Blender's ``_001`` suffix), with the
-   object's transform; relationship targets and connections follow the new paths.
+   object's transform; relationship targets and connections follow the new paths. Exports
+   with ``root_prim_path=""`` (World and ``_materials`` at the top) or ``"/World"`` map the
+   same way.
 2. **Primvar names**: ``primvars:humv_thermal_temperature`` -> ``primvars:humv:thermal:temperature``
    (every HumV primvar: :data:`HUMV_PRIMVARS`).
 3. **From the original stage** (``original``, e.g. ``OUT/stage.usda``; optional): the prims
@@ -29,7 +31,8 @@ Blender 4.2-5.0 writes a stage a HumV render cannot use as it is:
    its face and point counts; else Blender's values stay and a warning says so); cameras get
    back their filmback (the sensor's pixel grid; Blender's own depends on its render size);
    materials the export lacks are copied; the root layer's HumV customLayerData and the frame
-   rate come from it.
+   rate come from it. An export without time samples (``export_animation=False``) of an
+   original that moves is adopted as it is, with a warning (people and garments stay put).
 4. **Materials**: a material without HumvMaterialAPI takes it from the original stage's
    material of the same name, else from the library (:data:`humv_usd.catalog.materials.LIBRARY`)
    by name (Blender's ``.001`` suffix ignored); any other material is an InputError.
@@ -95,6 +98,7 @@ class AdoptReport:
     kept_blender_values: list[str] = field(default_factory=list)  # topology changed
     fps: float | None = None
     fps_source: str = ""
+    static_export: bool = False  # no time samples in the export, though the original moves
 
 
 def _base_name(name: str) -> str:
@@ -125,10 +129,12 @@ def _merged_name(obj: Sdf.PrimSpec, data: Sdf.PrimSpec) -> str:
     return data.name if _base_name(obj.name) == _base_name(data.name) else obj.name
 
 
-def _plan(src: Sdf.Layer, root: Sdf.PrimSpec) -> tuple[list[tuple[Sdf.Path, list[Sdf.PrimSpec]]], dict]:
+def _plan(
+    src: Sdf.Layer, root: Sdf.PrimSpec | None, tops: list
+) -> tuple[list[tuple[Sdf.Path, list[Sdf.PrimSpec]]], dict]:
     """[(target path, [source prim specs merged into it])], {source path: target path}."""
     plan: list[tuple[Sdf.Path, list[Sdf.PrimSpec]]] = []
-    paths: dict[Sdf.Path, Sdf.Path] = {root.path: WORLD}
+    paths: dict[Sdf.Path, Sdf.Path] = {} if root is None else {root.path: WORLD}
 
     def visit(spec: Sdf.PrimSpec, parent: Sdf.Path) -> None:
         data = _data_child(spec)
@@ -143,7 +149,7 @@ def _plan(src: Sdf.Layer, root: Sdf.PrimSpec) -> tuple[list[tuple[Sdf.Path, list
                 if data is None or child.path != data.path:
                     visit(child, target)
 
-    for child in root.nameChildren:
+    for child in tops:
         if child.name == WORLD.name:
             paths[child.path] = WORLD
             plan.append((WORLD, [child]))
@@ -226,19 +232,29 @@ def _rename_primvars(dst: Sdf.Layer) -> None:
         owner.RemoveProperty(owner.properties[name])
 
 
+def _blender_root(src: Sdf.Layer) -> tuple[Sdf.PrimSpec | None, list]:
+    """(Blender's root prim, the prims under it); with ``root_prim_path=""`` there is no root
+    prim: (None, the layer's root prims). A root named World (``root_prim_path="/World"``) is
+    Blender's when it holds the exported World or ``_materials``."""
+    name = src.defaultPrim or BLENDER_ROOT
+    root = src.GetPrimAtPath(Sdf.Path.absoluteRootPath.AppendChild(name))
+    if root is None and name != BLENDER_ROOT:
+        root = src.GetPrimAtPath(Sdf.Path.absoluteRootPath.AppendChild(BLENDER_ROOT))
+    if root is not None and (
+        root.name != WORLD.name or WORLD.name in root.nameChildren or BLENDER_MATERIALS in root.nameChildren
+    ):
+        return root, list(root.nameChildren)
+    return None, list(src.rootPrims)
+
+
 def convert_namespace(src: Sdf.Layer) -> tuple[Sdf.Layer, int]:
     """Steps 1-2 of the module doc: a new layer with Blender's prims at HumV paths and HumV
     primvar names, and the number of prims."""
-    root_name = src.defaultPrim or BLENDER_ROOT
-    root = src.GetPrimAtPath(Sdf.Path.absoluteRootPath.AppendChild(root_name))
-    if root is None:
-        raise InputError(
-            bad_value(
-                "defaultPrim", root_name, "expected a Blender export with its root prim (default /root)"
-            )
-        )
+    root, tops = _blender_root(src)
+    if not tops:
+        raise InputError(bad_value("BLENDER_EXPORT", src.identifier, "expected prims (a Blender USD export)"))
     dst = Sdf.Layer.CreateAnonymous("adopted.usda")
-    plan, paths = _plan(src, root)
+    plan, paths = _plan(src, root, tops)
     for target, sources in plan:
         _copy_prim(src, dst, target, sources)
     _remap_targets(dst, paths)
@@ -464,6 +480,12 @@ def adopt_blender_export(
     end = export.endTimeCode if export.HasEndTimeCode() else start
     if original is not None:
         start, end = original.GetStartTimeCode(), original.GetEndTimeCode()
+        if end > start and not export.ListAllTimeSamples():
+            report.static_export = True
+            log.warning(
+                "the Blender export has no animation (wm.usd_export(export_animation=False)): "
+                "people and garments stay at the exported frame; export with Animation on"
+            )
     set_layer_metadata(
         layer, report.fps, int(end - start) + 1, "HumV-USD layer adopted from a Blender export"
     )
