@@ -270,7 +270,7 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                 bad_value(
                     f"placement[{i}].human",
                     h,
-                    "expected the id of a [[human]]: " + (", ".join(sorted(humans)) or "none defined"),
+                    "expected the id of a [[human]]: " + (shown(", ".join(sorted(humans))) or "none defined"),
                 )
                 + _suggest(h, humans)
             )
@@ -278,7 +278,7 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
             problems.append(bad_value(f"placement[{i}].human", h, "each human is placed once"))
         placed.add(h)
     for h in sorted(humans - placed):
-        problems.append(f"human id {h!r}: no [[placement]] places this human")
+        problems.append(f"human id {shown(repr(h))}: no [[placement]] places this human")
     for i, hum in enumerate(data["human"]):
         if hum.get("bvh") and hum.get("speed_m_s") is not None:
             problems.append(
