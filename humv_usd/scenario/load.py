@@ -417,9 +417,16 @@ def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:
     base = path.resolve().parent if path is not None else Path.cwd()
 
     def resolve(where: str, given: str) -> str:
-        resolved = (base / given).resolve()
-        if not resolved.is_file():
-            problems.append(bad_value(where, given, f"file not found ({resolved})"))
+        try:
+            resolved = (base / given).resolve()
+            found = resolved.is_file()
+        except (OSError, ValueError) as exc:  # a name too long, a NUL byte: not a file either
+            problems.append(
+                bad_value(where, given, f"not a usable file path ({getattr(exc, 'strerror', None) or exc})")
+            )
+            return given
+        if not found:
+            problems.append(bad_value(where, given, f"file not found ({shown(str(resolved))})"))
         return str(resolved)
 
     def walk(where: str, spec: Section, value) -> None:
