@@ -139,7 +139,12 @@ def render(stage: Path, out_dir: str, frames, spp: int, seed: int, sensors, anno
     err = manifest["monte_carlo_error"]
     rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))
     click.echo(f"{out_dir}/manifest.json  {rendered} image(s), render {manifest['timings_s']['total']:.2f} s")
-    if manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
+    if manifest["sensors"] and err["temperature_stderr_mean_k"] is None:
+        click.echo(
+            f"  Monte Carlo error: not estimable at spp {manifest['settings']['spp']} "
+            "(needs at least 2 samples per pixel; the manifest's error fields are null)"
+        )
+    elif manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
         click.echo(
             f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
             f"max {err['temperature_stderr_max_k']:.4f} K "

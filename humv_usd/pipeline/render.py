@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import logging
 import os
 import tempfile
 import time
@@ -24,7 +25,9 @@ from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.render import eo as eo_render
+from humv_usd.render import estimator as E
 from humv_usd.render import radiometry
+from humv_usd.render.estimator import render_band_fast
 from humv_usd.render.export import StageExport
 from humv_usd.render.frame import path_table as read_path_table
 from humv_usd.render.frame import stage_frames
@@ -43,6 +46,13 @@ from humv_usd.usd.materials import band_emissivity, subband_emissivity, subband_
 from humv_usd.usd.sensor import check_subbands, read_sensor_model
 
 MANIFEST_NAME = "manifest.json"
+log = logging.getLogger(__name__)
+#: Infrared estimators: "fast" (:func:`humv_usd.render.estimator.render_band_fast`: sub-bands on
+#: one path, emission evaluated, sky control variate, stratified, RQMC error) and "path" (the
+#: plain Mitsuba path tracer per sub-band, :func:`humv_usd.render.ir.render_band`: the reference,
+#: and what the scalar fallback variant runs).
+ESTIMATORS = ("fast", "path")
+DEFAULT_ESTIMATOR = "fast"
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 
 
@@ -167,6 +177,7 @@ def render_stage(
     max_depth=-1,
     annotators=None,
     subbands=None,
+    estimator=DEFAULT_ESTIMATOR,
 ) -> dict:
     r"""Render the infrared sensors of a composed HumV-USD stage.
 
@@ -253,7 +264,9 @@ def render_stage(
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
 
     t = time.perf_counter()
-    plan = _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
+    if estimator not in ESTIMATORS:
+        raise InputError(bad_value("estimator", estimator, f"expected one of {', '.join(ESTIMATORS)}"))
+    plan = _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands, estimator)
     totals["load_export"] += time.perf_counter() - t
 
     run = _FrameRenderer(plan, totals)
@@ -298,9 +311,22 @@ class _Plan:
     use_sky_map: bool
     use_sun: bool
     sensor_ids: dict[str, str] = field(default_factory=dict)
+    estimator: str = DEFAULT_ESTIMATOR
+    estimator_note: str = ""
 
 
-def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands) -> _Plan:
+def _plan(
+    stage_path,
+    out_dir,
+    frames,
+    spp,
+    sensors,
+    seed,
+    max_depth,
+    annotators,
+    subbands,
+    estimator=DEFAULT_ESTIMATOR,
+) -> _Plan:
     """Open the stage, select frames and sensors, and set up the radiometry (sub-bands per IR
     sensor; sky map and sun from the environment at the first frame) and the EO run."""
     stage = open_stage(stage_path)
@@ -321,6 +347,16 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
         if not s.rendered
     ]
     mi = mode.mitsuba()
+    est, note = estimator, f"requested: {estimator}"
+    if estimator == "fast" and not mode.is_vectorized():
+        est, note = (
+            "path",
+            f"fast estimator needs a vectorised variant; {mode.variant()} runs the path tracer",
+        )
+    elif estimator == "fast" and max_depth != -1:
+        est, note = "path", f"max_depth {max_depth} asks for a truncated path: the path tracer honours it"
+    if est != estimator:
+        log.warning("infrared estimator: %s", note)
     # sub-bands per sensor: the render option, else the sensor's humv:sensor:subbands, else the default
     override = None if subbands is None else check_subbands(subbands)
     n_of = {s.name: override or s.subbands or radiometry.DEFAULT_SUBBANDS for s in rendered}
@@ -369,11 +405,13 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
         n_of=n_of,
         n_source=n_source,
         sub_of=sub_of,
-        spp_sub={name: subband_spp(spp, len(sub)) for name, sub in sub_of.items()},
+        spp_sub={name: spp if est == "fast" else subband_spp(spp, len(sub)) for name, sub in sub_of.items()},
         spectra0=spectra0,
         use_sky_map=use_sky_map,
         use_sun=use_sun,
         sensor_ids={s.name: f"sensor_{i}" for i, s in enumerate(rendered)},
+        estimator=est,
+        estimator_note=note,
     )
 
 
@@ -483,7 +521,8 @@ class _FrameRenderer:
         )
         t = self._tick(timings, "load_export", t)
 
-        m1, stderr_l = render_band(
+        band_renderer = render_band_fast if plan.estimator == "fast" else render_band
+        m1, stderr_l = band_renderer(
             scene,
             sensor_id,
             state,
@@ -623,6 +662,41 @@ def _radiometry_record(plan: _Plan) -> dict:
     }
 
 
+def _estimator_settings(plan: _Plan) -> dict:
+    """What the infrared estimator was and how its error is estimated (manifest ``settings``)."""
+    if plan.estimator == "fast":
+        return {
+            "estimator": "fast",
+            "estimator_note": plan.estimator_note,
+            "integrator": "humv_usd.render.estimator.render_band_fast: sub-bands on one path, emission "
+            "evaluated, sun by next-event estimation, sky + ground control variate, "
+            f"{E.DEFAULT_SPLITS} stratified reflection directions per camera sample, Russian roulette "
+            f"from depth {E.RR_DEPTH}, reflected radiance averaged over a "
+            f"{2 * E.DEFAULT_FILTER_RADIUS + 1}^2 px window on the same surface",
+            "film": "box filter (each sample in its pixel), path per sample at its first hit's range",
+            "sampler": "Cranley-Patterson rotated Fibonacci lattices per pixel (pixel position, "
+            f"first reflection direction), {E.DEFAULT_REPLICAS} independent replicas",
+            "spp_meaning": "camera samples per pixel, shared by all sub-bands",
+            "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
+            "stderr": "standard error of the pixel mean from the spread of the replica means "
+            "(randomised quasi-Monte Carlo), c4-corrected, filtered part propagated as sum w^2 var; "
+            "NaN (not estimable) when spp < 2; in K: divided by dL_band/dT at the pixel's brightness "
+            "temperature",
+        }
+    return {
+        "estimator": "path",
+        "estimator_note": plan.estimator_note,
+        "integrator": "moment(path)",
+        "film": "hdrfilm luminance, box filter",
+        "sampler": "independent",
+        "spp_meaning": "samples per pixel split over the sub-bands (see spp_per_subband)",
+        "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
+        "stderr": "sqrt(max(m2 - m1^2, 4 * 2^-24 * m2) / (spp - 1)) per pixel from the moment "
+        "integrator (the floor is the float32 resolution of the moments; NaN for spp = 1); in K: "
+        "divided by dL_band/dT at the pixel's brightness temperature",
+    }
+
+
 def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> dict:
     """The run's manifest (``OUT/manifest.json``)."""
     return {
@@ -638,13 +712,7 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
             "seed": int(plan.seed),
             "seed_per_frame": "seed + frame",
             "max_depth": int(plan.max_depth),
-            "integrator": "moment(path)",
-            "film": "hdrfilm luminance, box filter",
-            "sampler": "independent",
-            "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
-            "stderr": "sqrt(max(m2 - m1^2, 4 * 2^-24 * m2) / (spp - 1)) per pixel from the moment "
-            "integrator (the floor is the float32 resolution of the moments; NaN for spp = 1); in K: "
-            "divided by dL_band/dT at the pixel's brightness temperature",
+            **_estimator_settings(plan),
         },
         "channels": {
             **{

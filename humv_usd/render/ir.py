@@ -226,6 +226,7 @@ class IRScene:
         self._m1 = channels.index("nested.Y")
         self._m2 = channels.index("m2_nested.Y")
         self._positions: dict[str, np.ndarray] = {p.key: np.asarray(v, dtype=np.float32) for p, v, _ in parts}
+        self._flips: dict[str, bool] = {p.key: bool(f) for p, _, f in parts}
 
     # --- updates -----------------------------------------------------------------------------
     def _set_array(self, key: str, values) -> None:
