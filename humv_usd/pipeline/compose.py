@@ -327,10 +327,11 @@ def _user_layers(out: Path, prev: dict, root_sha: str, force: bool):
     return user, hashes, edited, errors
 
 
-def compose(scenario: Scenario, out_dir: str | Path, force: bool = False) -> ComposeReport:
+def compose(scenario: Scenario, out_dir: str | Path, force: bool = False, progress=None) -> ComposeReport:
     """Write OUT/layers/*.usda and OUT/stage.usda for ``scenario``; see the module doc.
 
-    ``force``: overwrite layers (and the root) edited by hand instead of stopping."""
+    ``force``: overwrite layers (and the root) edited by hand instead of stopping.
+    ``progress(done, total, text)``: called before each layer build and after the last."""
     t0 = time.perf_counter()
     out = check_output_dir(out_dir)
     layer_dir = out / LAYER_DIR
@@ -382,10 +383,13 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False) -> Com
             layers[name] = states[name].loaded or Sdf.Layer.OpenAsAnonymous(str(layer_dir / f"{name}.usda"))
         return layers[name]
 
+    to_build = [name for name in order if states[name].rebuild]
     for name in order:
         node, state = nodes[name], states[name]
         if not state.rebuild:
             continue
+        if progress is not None:
+            progress(to_build.index(name), len(to_build), f"layer {name}")
         t = time.perf_counter()
         upstream = None
         if node.upstream:
@@ -396,6 +400,8 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False) -> Com
         layers[name], texts[name] = layer, layer_text(layer)
         state.sha256 = _sha(texts[name])
         state.seconds = time.perf_counter() - t
+    if progress is not None:
+        progress(len(to_build), len(to_build), "writing")
     root_text = layer_text(root_layer(scenario, strength, user))
 
     # 3. write: changed layers, then the root, then the report

@@ -58,6 +58,8 @@ RR_DEPTH = 3
 MAX_DEPTH = 64
 #: Independent randomisations per pixel for the standard error (replicas x lattice points = spp).
 DEFAULT_REPLICAS = 2
+#: Camera samples per pixel of the fast estimator when the user gives none.
+DEFAULT_SPP = 4
 #: Reflection directions per camera vertex (first bounce), stratified over the pixel's samples.
 DEFAULT_SPLITS = 2
 #: Half width [px] of the window over which the reflected radiance is averaged (0: off).
@@ -493,3 +495,35 @@ def filter_reflected(mean, var, hits, radius: int, radius_px=None):
         out_m = num / cnt
         out_v = np.where(np.isfinite(out_v), num_v / cnt**2, np.nan)
     return out_m, out_v
+
+
+def geometric_edges(hits) -> np.ndarray:
+    """Pixels whose 8-neighbourhood holds another part, the sky, or a depth more than 2 %
+    away: silhouettes and material borders, where the pixel footprint mixes surfaces."""
+    part = hits.part
+    depth = np.where(np.isfinite(hits.depth), hits.depth, 1e30)
+    edge = np.zeros(part.shape, dtype=bool)
+    h, w = part.shape
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dy == dx == 0:
+                continue
+            ys, yo = slice(max(0, -dy), h - max(0, dy)), slice(max(0, dy), h - max(0, -dy))
+            xs, xo = slice(max(0, -dx), w - max(0, dx)), slice(max(0, dx), w - max(0, -dx))
+            diff = (part[ys, xs] != part[yo, xo]) | (
+                np.abs(depth[ys, xs] - depth[yo, xo]) > 0.02 * np.minimum(depth[ys, xs], depth[yo, xo])
+            )
+            edge[ys, xs] |= diff
+    return edge
+
+
+def noise_stats(stderr_k: np.ndarray, edge: np.ndarray) -> dict:
+    """Mean and 99th percentile of the per-pixel error [K] away from edges, and the edge mean."""
+    inner = stderr_k[~edge & np.isfinite(stderr_k)]
+    outer = stderr_k[edge & np.isfinite(stderr_k)]
+    return {
+        "mean_k": float(inner.mean()) if inner.size else None,
+        "p99_k": float(np.percentile(inner, 99)) if inner.size else None,
+        "edge_mean_k": float(outer.mean()) if outer.size else None,
+        "edge_fraction": float(edge.mean()),
+    }
