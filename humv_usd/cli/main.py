@@ -231,7 +231,9 @@ def bench():
 
 @bench.command("pipeline")
 @click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
+@click.option(
+    "--spp", default=None, type=click.IntRange(1, 1 << 20), help="Samples per pixel (default: the render's)."
+)
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100))
 @reports_errors
 def bench_pipeline(scenario: Path, spp: int, repeat: int):
@@ -259,7 +261,8 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
                 ("compose cli", ["compose", str(scenario), "-o", str(out)]),
                 (
                     "render cli",
-                    ["render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", str(spp)],
+                    ["render", str(out / "stage.usda"), "-o", str(out / "render"), "-q"]
+                    + ([] if spp is None else ["--spp", str(spp)]),
                 ),
             ):
                 t = time.perf_counter()
@@ -274,7 +277,7 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
             manifest = render_stage(out / "stage.usda", out / "render", spp=spp, seed=i)
             times["render in-process"].append(time.perf_counter() - t)
             err_k.append(manifest["monte_carlo_error"]["temperature_stderr_mean_k"])
-    click.echo(f"scenario {scenario}, {spp} spp, {repeat} runs each (median, min..max)")
+    click.echo(f"scenario {scenario}, {spp or 'default'} spp, {repeat} runs each (median, min..max)")
     for name, values in times.items():
         click.echo(f"  {name:<19} {statistics.median(values):7.3f} s  ({min(values):.3f}..{max(values):.3f})")
     click.echo(

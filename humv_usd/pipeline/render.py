@@ -55,6 +55,8 @@ ESTIMATORS = ("fast", "path")
 DEFAULT_ESTIMATOR = "fast"
 #: Samples per pixel when the caller gives none, per estimator.
 DEFAULT_SPP = {"fast": E.DEFAULT_SPP, "path": 16}
+#: Samples per pixel of the visible (EO) render when the caller gives none.
+EO_DEFAULT_SPP = 16
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 
 
@@ -133,6 +135,35 @@ def _select_sensors(all_sensors: list[SensorModel], wanted) -> list[SensorModel]
         if by_key[w] not in out:
             out.append(by_key[w])
     return out
+
+
+#: Seed offset between the sample batches of one frame (auto quality).
+AUTO_SEED_STRIDE = 1_000_003
+#: Most camera samples per pixel the automatic quality spends on one frame.
+AUTO_MAX_SPP = 32
+#: The automatic quality's target: mean per-pixel error away from edges <= NETD / this.
+AUTO_NETD_FRACTION = 3.0
+
+
+def _needs_more_samples(plan, sensor, noise: dict, batches: int) -> bool:
+    """Automatic quality (no spp given, fast estimator): another batch of samples while the mean
+    error away from edges exceeds NETD / 3 and fewer than AUTO_MAX_SPP samples were spent."""
+    if not plan.spp_auto or noise.get("mean_k") is None:
+        return False
+    netd = getattr(sensor, "netd_k", None)
+    if not netd or netd <= 0:
+        return False
+    return noise["mean_k"] > netd / AUTO_NETD_FRACTION and plan.spp * (batches + 1) <= AUTO_MAX_SPP
+
+
+def _spp_rule(plan, sensor) -> str:
+    if not plan.spp_auto:
+        return f"given: {plan.spp} spp"
+    return (
+        f"automatic: batches of {plan.spp} spp until the mean error away from edges is <= NETD/"
+        f"{AUTO_NETD_FRACTION:g} ({getattr(sensor, 'netd_k', None)} K / {AUTO_NETD_FRACTION:g}) or "
+        f"{AUTO_MAX_SPP} spp"
+    )
 
 
 class _Accumulator:
@@ -268,6 +299,8 @@ def render_stage(
     cast; ``write`` the EXR/PNG files.
     """
     t_start = time.perf_counter()
+    eo_spp = EO_DEFAULT_SPP if spp is None else spp
+    spp_auto = spp is None and estimator == "fast"
     if spp is None:
         spp = DEFAULT_SPP.get(estimator, DEFAULT_SPP["path"])
     _check_settings(spp, seed, max_depth)
@@ -277,7 +310,10 @@ def render_stage(
     t = time.perf_counter()
     if estimator not in ESTIMATORS:
         raise InputError(bad_value("estimator", estimator, f"expected one of {', '.join(ESTIMATORS)}"))
-    plan = _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands, estimator)
+    plan = _plan(
+        stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands, estimator, eo_spp
+    )
+    plan.spp_auto = spp_auto and plan.estimator == "fast"
     totals["load_export"] += time.perf_counter() - t
 
     run = _FrameRenderer(plan, totals)
@@ -327,6 +363,7 @@ class _Plan:
     sensor_ids: dict[str, str] = field(default_factory=dict)
     estimator: str = DEFAULT_ESTIMATOR
     estimator_note: str = ""
+    spp_auto: bool = False
 
 
 def _plan(
@@ -340,6 +377,7 @@ def _plan(
     annotators,
     subbands,
     estimator=DEFAULT_ESTIMATOR,
+    eo_spp=None,
 ) -> _Plan:
     """Open the stage, select frames and sensors, and set up the radiometry (sub-bands per IR
     sensor; sky map and sun from the environment at the first frame) and the EO run."""
@@ -399,7 +437,13 @@ def _plan(
     # the sun: the solar table, else a blackbody scaled to the broadband DNI (radiometry.blackbody_sun)
     use_sun = sun0 is not None and (spectra0.solar_irradiance is not None or dni0 is not None)
     eo_run = eo_render.EORender(
-        stage, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir, truth=truth
+        stage,
+        eo_sensors,
+        spp=spp if eo_spp is None else eo_spp,
+        max_depth=max_depth,
+        seed=seed,
+        out_dir=out_dir,
+        truth=truth,
     )
     return _Plan(
         stage_path=os.fspath(stage_path),
@@ -547,22 +591,35 @@ class _FrameRenderer:
         t = self._tick(timings, "load_export", t)
 
         band_renderer = render_band_fast if plan.estimator == "fast" else render_band
-        m1, stderr_l = band_renderer(
-            scene,
-            sensor_id,
-            state,
-            sub,
-            lambda material: _subband_emissivity(self.sub_eps, material, s, sub),
-            frame_rad,
-            spp=plan.spp_sub[s.name],
-            seed=plan.seed + frame,
-            transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
-        )
-        bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
+        edges = E.geometric_edges(scene.hits(sensor_id)) if plan.estimator == "fast" else None
+        batches: list[tuple[np.ndarray, np.ndarray]] = []
+        while True:
+            batch = band_renderer(
+                scene,
+                sensor_id,
+                state,
+                sub,
+                lambda material: _subband_emissivity(self.sub_eps, material, s, sub),
+                frame_rad,
+                spp=plan.spp_sub[s.name],
+                seed=(plan.seed + frame + AUTO_SEED_STRIDE * len(batches)) % 2**32,
+                transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
+            )
+            batches.append(batch)
+            m1 = np.mean([b[0] for b in batches], axis=0)  # equal-spp batches: plain mean
+            stderr_l = np.sqrt(np.sum([b[1] ** 2 for b in batches], axis=0)) / len(batches)
+            bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
+            if edges is None:
+                edges = E.geometric_edges(scene.hits(sensor_id))
+            away_from_edges = E.noise_stats(stderr_k, edges)
+            if not _needs_more_samples(plan, s, away_from_edges, len(batches)):
+                break
+        spp_used = plan.spp_sub[s.name] * len(batches)
+        away_from_edges["spp_used"] = spp_used
+        away_from_edges["spp_rule"] = _spp_rule(plan, s)
         t = self._tick(timings, "render", t)
-        away_from_edges = E.noise_stats(stderr_k, E.geometric_edges(scene.hits(sensor_id)))
         self.per_sensor[s.name]["interior"].append(away_from_edges)
         t = self._tick(timings, "labels", t)  # the pixel-centre cast is the labels' (cached)
 
@@ -691,6 +748,8 @@ def _interior_summary(per_frame: list[dict]) -> dict:
         "definition": "per-pixel Monte Carlo standard error in K; mean and 99th percentile over pixels "
         "away from geometric edges (8-neighbours on the same part within 2 % depth), edge pixels apart",
         "not_estimable": None if mean else "spp < 2: one replica, no error estimate",
+        "spp_used": sorted({f["spp_used"] for f in per_frame if f.get("spp_used") is not None}),
+        "spp_rule": per_frame[-1].get("spp_rule") if per_frame else None,
     }
 
 
@@ -768,6 +827,12 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
             "seed": int(plan.seed),
             "seed_per_frame": "seed + frame",
             "max_depth": int(plan.max_depth),
+            "spp_auto": bool(plan.spp_auto),
+            "spp_auto_rule": f"fast estimator without a given spp: batches of {plan.spp} spp until the mean "
+            f"error away from edges is <= NETD/{AUTO_NETD_FRACTION:g} or {AUTO_MAX_SPP} spp (per sensor "
+            "and frame: monte_carlo_error_k.spp_used)"
+            if plan.spp_auto
+            else None,
             **_estimator_settings(plan),
         },
         "channels": {

@@ -59,7 +59,7 @@ MAX_DEPTH = 64
 #: Independent randomisations per pixel for the standard error (replicas x lattice points = spp).
 DEFAULT_REPLICAS = 2
 #: Camera samples per pixel of the fast estimator when the user gives none.
-DEFAULT_SPP = 4
+DEFAULT_SPP = 2
 #: Reflection directions per camera vertex (first bounce), stratified over the pixel's samples.
 DEFAULT_SPLITS = 2
 #: Half width [px] of the window over which the reflected radiance is averaged (0: off).
