@@ -72,7 +72,15 @@ def _scene(tmp_path):
         temperature_k=320.0,
         instance_id=3,
     )
-    add_camera(stage, "lwir", eye=(2.0, -8.0, 2.0), target=(0.0, 1.5, 0.8), fov_x_deg=60, resolution=(48, 36))
+    add_camera(
+        stage,
+        "lwir",
+        eye=(2.0, -8.0, 2.0),
+        target=(0.0, 1.5, 0.8),
+        fov_x_deg=60,
+        resolution=(48, 36),
+        netd=0.05,
+    )
     stage.Save()
     return tmp_path / "stage.usda"
 
@@ -115,3 +123,40 @@ def test_fast_estimator_error_estimate_is_honest(tmp_path):
     observed = np.sqrt(np.mean((ca["radiance"] - cb["radiance"]) ** 2) / 2)
     reported = np.sqrt(np.mean(ca["radiance_stderr"] ** 2))
     assert 0.5 < observed / reported < 2.0, (observed, reported)
+
+
+@pytest.mark.slow
+def test_automatic_quality_reaches_netd_over_three_or_the_cap(tmp_path):
+    stage = _scene(tmp_path)
+    m = render_stage(stage, tmp_path / "auto", spp=None)
+    assert m["settings"]["spp_auto"] and m["settings"]["spp"] == E.DEFAULT_SPP
+    away = m["sensors"][0]["monte_carlo_error_k"]
+    netd = 0.05  # the camera's humv:sensor:netd
+    used = away["spp_used"]
+    assert used and all(u % E.DEFAULT_SPP == 0 for u in used)
+    assert away["mean_k"] <= netd / 3 or max(used) >= 32 - E.DEFAULT_SPP
+    # a given spp is the one used
+    m = render_stage(stage, tmp_path / "given", spp=3)
+    assert not m["settings"]["spp_auto"]
+    assert m["sensors"][0]["monte_carlo_error_k"]["spp_used"] == [3]  # 3 replicas of 1 point
+
+
+@pytest.mark.slow
+def test_bench_render_sweeps_and_plots(tmp_path):
+    from humv_usd.bench.render import bench_render, plot_error_vs_time
+
+    stage = _scene(tmp_path)
+    result = bench_render(stage, [1, 2], [2], reference_spp=32, reference_subbands=2, default=(2, 2))
+    rec = result["sensors"]["lwir"]
+    assert rec["ray_cast_s"] > 0 and rec["reference"]["spp"] == 32
+    rows = {(r["estimator"], r["spp"], r["subbands"]): r for r in rec["rows"]}
+    assert set(rows) == {("fast", 1, 2), ("fast", 2, 2), ("path", 16, 4)}
+    assert rows[("fast", 1, 2)]["noise"]["mean_k"] is None  # one sample: not estimable
+    assert rows[("fast", 2, 2)]["default"] and rows[("fast", 2, 2)]["noise"]["mean_k"] > 0
+    assert {1, 2, 3} <= set(rows[("fast", 2, 2)]["bias_by_region"])
+    plot_error_vs_time(result, tmp_path / "curves.png")
+    assert (tmp_path / "curves.png").stat().st_size > 10_000
+
+
+def test_replica_count_uses_every_sample():
+    assert [E.replica_count(n) for n in (1, 2, 3, 4, 5, 9, 16)] == [1, 2, 3, 2, 5, 3, 2]

@@ -22,17 +22,22 @@ error against run time per sensor band go to a PNG (matplotlib), the default set
 from __future__ import annotations
 
 import os
+import tempfile
 import time
 
 import numpy as np
 from pxr import Usd
 
 from humv_usd.physics import planck
-from humv_usd.pipeline import render as pipeline_render
 from humv_usd.render import estimator as E
 from humv_usd.render import radiometry
-from humv_usd.render.ir import render_band
+from humv_usd.render.export import StageExport
+from humv_usd.render.frame import path_table, stage_frames
+from humv_usd.render.ir import IRScene, SensorSetup, render_band, subband_spp
 from humv_usd.usd import environment as usd_environment
+from humv_usd.usd.atmosphere import atmosphere_spectra
+from humv_usd.usd.layers import open_stage
+from humv_usd.usd.materials import subband_emissivity, subband_transmittance
 
 #: The former default of the path tracer (16 spp split over 4 sub-bands), for comparison.
 PATH_BASELINE = (16, 4)
@@ -55,53 +60,69 @@ def region_bias(bt, bt_ref, stderr_k, stderr_ref_k, regions) -> dict:
 
 
 class _Frame:
-    """One frame of a stage with its IR scene built, ready to render any sensor repeatedly."""
+    """One frame of a stage with its IR scene built once (as ``pipeline.render`` does), ready to
+    render any IR sensor repeatedly."""
 
     def __init__(self, stage_path, frame=None):
-        plan = pipeline_render._plan(stage_path, _scratch(), frame, 4, None, 0, -1, [], None, "fast")
-        self.plan = plan
-        self.run = pipeline_render._FrameRenderer(plan, dict.fromkeys(pipeline_render.TIMING_KEYS, 0.0))
-        self.frame = plan.frames[0]
-        self.state = plan.exporter.frame_state(self.frame, plan.rendered)
-        self.run._update_scene(self.state)
+        stage = open_stage(stage_path)
+        self.stage = stage
+        self.exporter = StageExport(stage)
+        self.rendered = [s for s in self.exporter.sensors if s.rendered and s.kind != "EO"]
+        self.frame = stage_frames(stage)[0] if frame is None else int(frame)
+        self.state = self.exporter.frame_state(self.frame, self.rendered)
         self.time = Usd.TimeCode(self.frame)
-        self.spectra = pipeline_render.atmosphere_spectra(plan.stage, self.time)
+        self.spectra = atmosphere_spectra(stage, self.time)
+        self.sensor_ids = {s.name: f"sensor_{i}" for i, s in enumerate(self.rendered)}
+        parts = [
+            (part, self.state.points[m.path][part.vertex_ids], self.state.flip[m.path])
+            for m in self.state.meshes
+            for part in m.parts
+        ]
+        setups = [
+            SensorSetup(self.sensor_ids[s.name], s.resolution[0], s.resolution[1], self.state.cameras[s.name])
+            for s in self.rendered
+        ]
+        use_sky_map = self.spectra.sky_radiance is not None
+        use_sun = usd_environment.sun_direction(stage, self.time) is not None
+        with tempfile.TemporaryDirectory(prefix="humv_bench_render_") as tmp:
+            self.scene = IRScene(
+                parts, setups, spp=4, max_depth=-1, workdir=tmp, sky_map=use_sky_map, sun=use_sun
+            )
+        self.scene.update()
 
     def setup(self, sensor, n: int):
-        plan = self.plan
         sub = radiometry.SubBands(sensor.wavelength_range_um, sensor.band_response, n)
         rad = radiometry.frame_radiometry(
             sub,
             self.state.sky_temperature_k,
             self.spectra,
-            usd_environment.sun_direction(plan.stage, self.time),
-            pipeline_render.read_path_table(plan.stage, sensor, self.time),
-            dni_w_m2=usd_environment.direct_normal_irradiance(plan.stage, self.time),
+            usd_environment.sun_direction(self.stage, self.time),
+            path_table(self.stage, sensor, self.time),
+            dni_w_m2=usd_environment.direct_normal_irradiance(self.stage, self.time),
         )
+        band = sensor.wavelength_range_um
         cache: dict = {}
-        return (
-            sub,
-            rad,
-            lambda m: pipeline_render._subband_emissivity(cache, m, sensor, sub),
-            lambda m: pipeline_render._subband_transmittance(cache, m, sensor, sub),
-        )
+
+        def eps(material):
+            if material.path not in cache:
+                cache[material.path] = subband_emissivity(material, band, sub.bands, sub.response)
+            return cache[material.path]
+
+        def trans(material):
+            return subband_transmittance(material, sub.bands, sub.response)
+
+        return sub, rad, eps, trans
 
     def ray_cast_seconds(self, sensor_id: str, repeat: int = 3) -> tuple[float, float]:
         """Median (wall, CPU) seconds of the pixel-centre ray cast (depth, ids, normals)."""
         walls, cpus = [], []
         for _ in range(repeat):
-            self.run.scene._hits = {}
+            self.scene._hits = {}
             t, c = time.perf_counter(), time.process_time()
-            self.run.scene.hits(sensor_id)
+            self.scene.hits(sensor_id)
             walls.append(time.perf_counter() - t)
             cpus.append(time.process_time() - c)
         return float(np.median(walls)), float(np.median(cpus))
-
-
-def _scratch() -> str:
-    import tempfile
-
-    return tempfile.mkdtemp(prefix="humv-bench-render-")
 
 
 def _timed(fn, *args, **kwargs):
@@ -116,7 +137,7 @@ def bench_render(
     subband_list=(4, 8, 16),
     reference_spp=256,
     reference_subbands=16,
-    default=(E.DEFAULT_SPP, pipeline_render.radiometry.DEFAULT_SUBBANDS),
+    default=(E.DEFAULT_SPP, radiometry.DEFAULT_SUBBANDS),
     frame=None,
     sensors=None,
     progress=None,
@@ -124,17 +145,16 @@ def bench_render(
     """Error against run time of the IR estimators on one frame of a composed stage (see the
     module docstring). ``progress(text)`` is called before each render."""
     fr = _Frame(stage_path, frame)
-    plan = fr.plan
     note = progress or (lambda text: None)
     out: dict = {"stage": os.fspath(stage_path), "frame": fr.frame, "default": list(default), "sensors": {}}
-    for s in plan.rendered:
+    for s in fr.rendered:
         if sensors and s.name not in sensors:
             continue
-        sid = plan.sensor_ids[s.name]
+        sid = fr.sensor_ids[s.name]
         band, response = s.wavelength_range_um, s.band_response
-        fr.run.scene._hits = {}
+        fr.scene._hits = {}
         cast_s, cast_cpu = fr.ray_cast_seconds(sid)
-        hits = fr.run.scene.hits(sid)
+        hits = fr.scene.hits(sid)
         edge = E.geometric_edges(hits)
 
         def to_k(radiance, stderr, band=band, response=response):
@@ -146,13 +166,13 @@ def bench_render(
         sub, rad, eps, tr = fr.setup(s, reference_subbands)
         (ref_l, ref_se), ref_wall, ref_cpu = _timed(
             render_band,
-            fr.run.scene,
+            fr.scene,
             sid,
             fr.state,
             sub,
             eps,
             rad,
-            pipeline_render.subband_spp(reference_spp, len(sub)),
+            subband_spp(reference_spp, len(sub)),
             991,
             tr,
         )
@@ -181,7 +201,7 @@ def bench_render(
             for spp in spp_list:
                 note(f"{s.name}: fast, {spp} spp, {n} sub-bands")
                 (radiance, stderr), wall, cpu = _timed(
-                    E.render_band_fast, fr.run.scene, sid, fr.state, sub, eps, rad, spp, 7 + spp, tr
+                    E.render_band_fast, fr.scene, sid, fr.state, sub, eps, rad, spp, 7 + spp, tr
                 )
                 record("fast", spp, n, radiance, stderr, wall, cpu)
         spp, n = PATH_BASELINE
@@ -189,13 +209,13 @@ def bench_render(
         sub, rad, eps, tr = fr.setup(s, n)
         (radiance, stderr), wall, cpu = _timed(
             render_band,
-            fr.run.scene,
+            fr.scene,
             sid,
             fr.state,
             sub,
             eps,
             rad,
-            pipeline_render.subband_spp(spp, n),
+            subband_spp(spp, n),
             5,
             tr,
         )
@@ -234,11 +254,17 @@ def plot_error_vs_time(result: dict, path) -> None:
         rec = result["sensors"][name]
         fast = [r for r in rec["rows"] if r["estimator"] == "fast"]
         for n in sorted({r["subbands"] for r in fast}):
-            pts = sorted((r["cpu_s"], r["noise"]["mean_k"], r["spp"]) for r in fast if r["subbands"] == n)
+            pts = sorted(
+                (r["cpu_s"], r["noise"]["mean_k"], r["spp"])
+                for r in fast
+                if r["subbands"] == n and r["noise"]["mean_k"] is not None  # spp 1: not estimable
+            )
             ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"fast, {n} sub-bands")
             for x, y, spp in pts:
                 ax.annotate(f"{spp}", (x, y), textcoords="offset points", xytext=(3, 3), fontsize=7)
         for r in rec["rows"]:
+            if r["noise"]["mean_k"] is None:
+                continue
             if r["estimator"] == "path":
                 ax.plot(
                     r["wall_s"],

@@ -790,7 +790,7 @@ def _estimator_settings(plan: _Plan) -> dict:
             f"{2 * E.DEFAULT_FILTER_RADIUS + 1}^2 px window on the same surface",
             "film": "box filter (each sample in its pixel), path per sample at its first hit's range",
             "sampler": "Cranley-Patterson rotated Fibonacci lattices per pixel (pixel position, "
-            f"first reflection direction), {E.DEFAULT_REPLICAS} independent replicas",
+            f"first reflection direction), independent replicas: the smallest divisor >= {E.DEFAULT_REPLICAS} of spp",
             "spp_meaning": "camera samples per pixel, shared by all sub-bands",
             "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
             "stderr": "standard error of the pixel mean from the spread of the replica means "

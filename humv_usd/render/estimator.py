@@ -171,6 +171,18 @@ def ground_radiance(scene, tables: FaceTables, g_up: np.ndarray, sun_cos: float,
     return num / den
 
 
+def replica_count(spp: int, wanted: int = DEFAULT_REPLICAS) -> int:
+    """Independent randomisations for ``spp`` samples: the smallest divisor of spp that is at
+    least ``wanted`` (spp itself when prime), so that exactly spp samples are taken; 1 for spp 1."""
+    spp = int(spp)
+    if spp <= 1:
+        return 1
+    for r in range(max(2, int(wanted)), spp + 1):
+        if spp % r == 0:
+            return r
+    return spp
+
+
 def c4(n: int) -> float:
     """Bias factor of the sample standard deviation of n normal values, E[s] = c4 sigma
     (:math:`\\sqrt{2/(n-1)}\\,\\Gamma(n/2)/\\Gamma((n-1)/2)`); dividing by it makes the mean of
@@ -232,9 +244,8 @@ def render_band_fast(
     t0 = time.perf_counter()
     spp = int(spp)
     splits = max(1, int(splits))
-    replicas = max(1, min(int(replicas), spp))
+    replicas = replica_count(spp, replicas)
     lattice_n = spp // replicas
-    spp = lattice_n * replicas
     n = len(sub)
     setup = scene.sensors[sensor_id]
     w, h = int(setup.width), int(setup.height)
