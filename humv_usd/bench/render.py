@@ -43,18 +43,24 @@ from humv_usd.usd.materials import subband_emissivity, subband_transmittance
 PATH_BASELINE = (16, 4)
 
 
-def region_bias(bt, bt_ref, stderr_k, stderr_ref_k, regions) -> dict:
-    """Mean brightness-temperature difference [K] per region id, with its 1-sigma uncertainty."""
+def region_bias(radiance, radiance_ref, stderr, stderr_ref, regions, band, response) -> dict:
+    """Per region id: the difference of the region's mean radiance from the reference's, in K
+    (divided by dL/dT at the reference region mean's brightness temperature, so that pixel noise
+    does not bias it through the non-linear brightness temperature), with its 1-sigma
+    uncertainty from both renders' per-pixel errors."""
     out = {}
     for r in np.unique(regions):
-        m = (regions == r) & np.isfinite(bt) & np.isfinite(bt_ref)
+        m = (regions == r) & np.isfinite(radiance) & np.isfinite(radiance_ref)
         if not m.any():
             continue
-        var = np.nan_to_num(stderr_k[m]) ** 2 + np.nan_to_num(stderr_ref_k[m]) ** 2
+        ref_mean = float(np.mean(radiance_ref[m]))
+        _, dl = planck.brightness_temperature_sensitivity(np.array([ref_mean]), band, response)
+        dl = float(dl[0])
+        var = np.nan_to_num(stderr[m]) ** 2 + np.nan_to_num(stderr_ref[m]) ** 2
         out[int(r)] = {
             "pixels": int(m.sum()),
-            "bias_k": float(np.mean(bt[m] - bt_ref[m])),
-            "sigma_k": float(np.sqrt(var.sum()) / m.sum()),
+            "bias_k": float((np.mean(radiance[m]) - ref_mean) / dl) if dl > 0 else None,
+            "sigma_k": float(np.sqrt(var.sum()) / m.sum() / dl) if dl > 0 else None,
         }
     return out
 
@@ -191,7 +197,9 @@ def bench_render(
                     "ratio_to_ray_cast": wall / cast_s if cast_s > 0 else None,
                     "cpu_ratio_to_ray_cast": cpu / cast_cpu if cast_cpu > 0 else None,
                     "noise": E.noise_stats(se_k, edge),
-                    "bias_by_region": region_bias(bt, ref_bt, se_k, ref_k, hits.instance),
+                    "bias_by_region": region_bias(
+                        radiance, ref_l, stderr, ref_se, hits.instance, band, response
+                    ),
                     "default": estimator == "fast" and (spp, n) == tuple(default),
                 }
             )

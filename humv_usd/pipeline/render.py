@@ -578,6 +578,8 @@ class _FrameRenderer:
         timings = self.per_sensor[s.name]["timings"]
         band, response = s.wavelength_range_um, s.band_response
         sensor_id = plan.sensor_ids[s.name]
+        before = dict(timings)
+        cpu0 = time.process_time()
         t = time.perf_counter()
         sub = plan.sub_of[s.name]
         frame_rad = radiometry.frame_radiometry(
@@ -696,6 +698,10 @@ class _FrameRenderer:
                 "monte_carlo_error_k": away_from_edges,
                 "radiometry": frame_rad.ran,
                 "sensor_chain": chain_record,
+                "timings_s": {
+                    **{k: timings[k] - before[k] for k in timings},
+                    "cpu": time.process_time() - cpu0,
+                },
             }
         )
 

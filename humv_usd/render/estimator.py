@@ -61,14 +61,14 @@ DEFAULT_REPLICAS = 2
 #: Camera samples per pixel of the fast estimator when the user gives none.
 DEFAULT_SPP = 2
 #: Reflection directions per camera vertex (first bounce), stratified over the pixel's samples.
-DEFAULT_SPLITS = 2
+DEFAULT_SPLITS = 8
 #: Half width [px] of the window over which the reflected radiance is averaged (0: off).
-DEFAULT_FILTER_RADIUS = 4
+DEFAULT_FILTER_RADIUS = 8
 #: Neighbours share a surface when their normals agree to this cosine and depths to this fraction.
 FILTER_NORMAL_COS = 0.95
 FILTER_DEPTH_REL = 0.02
 #: Largest half width [m] of that window on the surface (the irradiance is smooth on this scale).
-FILTER_HALF_WIDTH_M = 0.05
+FILTER_HALF_WIDTH_M = 0.1
 #: Ray origin offset along the normal, relative to the coordinates' magnitude (float32).
 RAY_OFFSET = 2e-5
 
