@@ -4,7 +4,7 @@ PY     := $(VENV)/bin/python
 OUT    ?= out/humvvex
 SPP    ?=
 
-.PHONY: setup demo test test-fast lint format bench schemas clean
+.PHONY: setup demo test test-fast lint format bench schemas screenshots clean
 
 setup:
 	@./tools/setup.sh
@@ -34,6 +34,10 @@ bench: setup
 
 schemas: setup
 	@$(PY) tools/gen_schemas.py
+
+# the editor's tabs on examples/humvvex.toml (headless chromium) -> docs/editor/<tab>.png
+screenshots: setup
+	@$(PY) tools/editor_screenshots.py docs/editor
 
 clean:
 	rm -rf out .pytest_cache

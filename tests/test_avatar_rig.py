@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 import pytest
-from pxr import Gf, Usd, UsdGeom, UsdSkel
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel
 
 from humv_usd import images
 from humv_usd.assets import makehuman_dir
@@ -263,6 +263,7 @@ def test_render_poses_the_avatar_per_frame(humvvex_raw, tmp_path):
     from humv_usd.pipeline.compose import compose
     from humv_usd.pipeline.render import render_stage
     from humv_usd.usd.check import check_stage
+    from humv_usd.usd.layers import set_inputs_key
 
     raw = copy.deepcopy(humvvex_raw)
     raw["general"]["duration_s"] = 1 / 30  # frames 0, 1
@@ -276,7 +277,14 @@ def test_render_poses_the_avatar_per_frame(humvvex_raw, tmp_path):
     motion = usdskel.rest_motion(skel, frames=2)
     shift_m = 0.8
     motion.root_translation[1, 0] += shift_m  # heading 180: avatar x = world x
-    avatar_layer.build_one(scenario, h, motion=motion).Export(str(out / "layers/avatar_p1.usda"))
+    # garments are a point cache built on the avatar layer: a hand edit of the avatar layer
+    # (same inputs key) is kept by compose, which rebuilds the clothing (and thermal) layers on it
+    avatar_file = str(out / "layers/avatar_p1.usda")
+    key = Sdf.Layer.OpenAsAnonymous(avatar_file).customLayerData["humv:inputsKey"]
+    edited = avatar_layer.build_one(scenario, h, motion=motion)
+    set_inputs_key(edited, key)
+    edited.Export(avatar_file)
+    compose(scenario, out)
     assert check_stage(out / "stage.usda") == []
 
     render_stage(out / "stage.usda", tmp_path / "render", spp=4, sensors=["atom1024_lwir"])

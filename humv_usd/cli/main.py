@@ -565,6 +565,12 @@ def _register_tools():
     from humv_usd.cli.avatar_cmd import avatar
 
     main.add_command(avatar)
+    from humv_usd.cli.adopt_cmd import adopt
+
+    main.add_command(adopt)
+    from humv_usd.cli.edit_cmd import edit
+
+    main.add_command(edit)
     from humv_usd.cli.groundtruth_cmd import (
         register as register_groundtruth,  # regions, coco-merge, bench labels
     )
@@ -573,6 +579,9 @@ def _register_tools():
     from humv_usd.cli.bench_render_cmd import bench_render
 
     bench.add_command(bench_render)
+    from humv_usd.cli.sweep_cmd import register as register_sweep  # sweep, bench sweep
+
+    register_sweep(main, bench)
 
 
 _register_tools()

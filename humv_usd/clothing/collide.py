@@ -56,9 +56,8 @@ steps 1 and 2 when :func:`simulate` gets the frame rate. Props get their clearan
 body per frame (:func:`humv_usd.human.carry.rifle_clearance`: the closed-form distance of the
 body's non-holding vertices to the rifle's boxes and cylinders).
 
-5. Rest points for UsdSkel: the fixed posed points mapped back through the vertex's blended
-   skinning transform (``rest' = rest + A^-1 (fixed - posed)``, exact for linear blend
-   skinning), so UsdSkel skinning of the time-sampled rest points reproduces the fixed shape.
+The fixed posed points are the garment's shape per frame; the clothing layer stores them as a
+time-sampled point cache (:mod:`humv_usd.clothing.layer`).
 """
 
 from __future__ import annotations
@@ -155,7 +154,6 @@ class GarmentAnimation:
 
     fitted: FittedGarment
     posed: np.ndarray  # (F, n, 3) fixed posed points (skeleton space) [m]
-    rest: np.ndarray  # (F, n, 3) rest points that UsdSkel skins to ``posed``
     air_gap: np.ndarray  # (F, n) [m]
     counts: list[FixCounts] = field(default_factory=list)
     #: props: per frame, the smallest distance [m] from the body (all but the holding hands
@@ -592,7 +590,6 @@ def simulate(
         GarmentAnimation(
             g,
             np.empty((frames, g.vertex_count, 3)),
-            np.empty((frames, g.vertex_count, 3)),
             np.empty((frames, g.vertex_count)),
         )
         for g in outfit.garments
@@ -704,14 +701,6 @@ def simulate(
             anim.air_gap[f] = air_gap(caster, fixed, g.triangles, dist)
             for drape in drapes[k]:
                 drape.settle(fixed[drape.vertices])
-            rest = g.points.copy()
-            moved = np.flatnonzero(np.any(fixed != skinned, axis=1))
-            if len(moved):
-                delta = np.linalg.solve(blended[moved, :3, :3], (fixed[moved] - skinned[moved])[:, :, None])[
-                    :, :, 0
-                ]
-                rest[moved] += delta
-            anim.rest[f] = rest
         frame_s[f] = time.perf_counter() - t0
         if progress is not None:
             progress(f)

@@ -8,7 +8,8 @@ For each garment of ``human["clothing"]`` (names of :data:`humv_usd.catalog.garm
             def Mesh <garment>                HumvClothingAPI (garment, ease, minimumGap,
                                               primvars:humv:clothing:airGap [m, vertex]),
                                               material:binding -> /World/Materials/<fabric>,
-                                              UsdSkel binding to ../../Skeleton (4 influences),
+                                              points: a time-sampled point cache (posed, in
+                                              the SkelRoot's space), no UsdSkel binding,
                                               primvars:humv:label:bodyRegion (uniform)
 
 Props (``rifle``)::
@@ -35,13 +36,20 @@ HumvAvatarAPI parameters, Body rest points, skin weights and region labels, Skel
 layer is dressed as it is; from the scenario only the person's ``clothing`` list, the props'
 instance ids and the frame rate and count (:data:`READS`).
 
-Skinning: the garment is bound to the avatar's Skeleton with weights transferred from the
-body (:mod:`humv_usd.clothing.fit`), so UsdSkel (and the render, and any DCC) poses it with
-the body. The per-frame intersection fix (:mod:`humv_usd.clothing.collide`) is baked into
-time-sampled ``points``: at frame i the rest points that UsdSkel's linear blend skinning takes
-exactly to the fixed posed shape (``rest + A^-1 delta``). ``airGap`` is time-sampled the same
-way. A person who does not move (one distinct pose) gets one value (the default, no samples);
-``points`` without a time sample is then the fixed shape.
+Garment motion is a plain point cache: the garment is fitted and skinned to the avatar's
+Skeleton with weights transferred from the body (:mod:`humv_usd.clothing.fit`), posed per frame
+by linear blend skinning, draped and fixed (:mod:`humv_usd.clothing.collide`), and the fixed
+posed points are written as time-sampled ``points`` (time code = frame) in the SkelRoot's space
+(= the Skeleton's space: the Skeleton and the Clothing scope carry no transform), without a
+UsdSkel binding. Every consumer then reads the same points: the render and the thermal tool
+(plain time-sampled reads), ``UsdSkel.BakeSkinning`` (leaves an unbound mesh alone) and Blender's
+USD import (a mesh-sequence cache). Before VERSION 2 the garments were skinned meshes with
+time-sampled *rest* points (``rest + A^-1 delta``); UsdSkel's own skinning read them, but
+``BakeSkinning`` and Blender skin the default rest points and ignore the samples (65 mm for the
+leggings and 80 mm for the T-shirt of examples/walk.toml). ``airGap`` is time-sampled the same
+way. A person who does not move (one distinct pose) gets one value (the default, no samples).
+A garment follows the avatar layer it was built on: compose rebuilds it when the avatar layer
+changes (UPSTREAM); a motion edited in a stronger user layer does not move the garments.
 
 The layer records how many garment vertices were inside the skin or closer than the minimum
 gap before and after the fix, per garment (customData ``humv:clothing:fix``: the max over the
@@ -78,7 +86,7 @@ from humv_usd.usd.paths import clothing_path, human_path, material_path, props_p
 NAME = "clothing_{id}"  # one layer per dressed [[human]]
 READS = (*FRAMES, "human[{id}]", "@ids")
 UPSTREAM = ("avatar_{id}",)
-VERSION = "1"
+VERSION = "2"  # 2: garments as a plain point cache (no skel binding)
 
 
 def layer_name(human_id: str) -> str:
@@ -173,13 +181,12 @@ def author(
 def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
     fitted = anim.fitted
     g = fitted.garment
-    frames = anim.rest.shape[0]
+    frames = anim.posed.shape[0]
     static = frames == 1
-    default_points = anim.rest[0] if static else fitted.points
     mesh = define_mesh(
         stage,
         garment_path(human_id, g.name),
-        default_points,
+        anim.posed[0],
         fitted.face_counts,
         fitted.face_indices,
         material=material_path(g.fabric),
@@ -189,14 +196,13 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
     prim = mesh.GetPrim()
     write_garment(prim, g.name, g.ease, g.minimum_gap)
     write_air_gap(prim, anim.air_gap[:1] if static else anim.air_gap[:frames], time_sampled=not static)
-    if not static:
+    if not static:  # the point cache: posed points per frame (the default is frame 0's)
         points = mesh.GetPointsAttr()
+        extent = mesh.GetExtentAttr()
         for f in range(frames):
-            points.Set(Vt.Vec3fArray.FromNumpy(anim.rest[f].astype(np.float32)), Usd.TimeCode(f))
-        lo = anim.rest.min(axis=(0, 1))
-        hi = anim.rest.max(axis=(0, 1))
-        mesh.GetExtentAttr().Set(Vt.Vec3fArray.FromNumpy(np.array([lo, hi], dtype=np.float32)))
-    usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)
+            posed = anim.posed[f].astype(np.float32)
+            points.Set(Vt.Vec3fArray.FromNumpy(posed), Usd.TimeCode(f))
+            extent.Set(Vt.Vec3fArray.FromNumpy(np.array([posed.min(0), posed.max(0)])), Usd.TimeCode(f))
     write_garment_regions(prim, fitted.face_regions, L.BODY_REGION_NAMES)
     c = anim.counts
     prim.SetCustomDataByKey(

@@ -159,20 +159,26 @@ def skinned_points(
     time=Usd.TimeCode.Default(),  # noqa: B008 (an immutable value)
     space: str = "skel",
 ) -> np.ndarray:
-    """Points of a skinned mesh posed by UsdSkel (``UsdSkel.Cache`` + ``SkinningQuery``).
+    """Points of a person's mesh as posed at ``time``: skinned meshes (the Body, props) posed by
+    UsdSkel (``UsdSkel.Cache`` + ``SkinningQuery``), meshes without joint influences (garments:
+    a time-sampled point cache) read at ``time``.
 
     ``space`` "skel": in the Skeleton's space (= the SkelRoot's local space for our layers);
-    "world": times the Skeleton's local-to-world at ``time``.
+    "world": times the Skeleton's local-to-world at ``time`` (unbound meshes: their own
+    local-to-world).
     """
     mesh_prim = stage.GetPrimAtPath(str(mesh_path))
+    points = UsdGeom.Mesh(mesh_prim).GetPointsAttr().Get(time)
     root = UsdSkel.Root.Find(mesh_prim)
     cache = UsdSkel.Cache()
-    cache.Populate(root, Usd.PrimDefaultPredicate)
-    query = cache.GetSkinningQuery(mesh_prim)
+    if root:
+        cache.Populate(root, Usd.PrimDefaultPredicate)
+    query = cache.GetSkinningQuery(mesh_prim) if root else None
     skel = UsdSkel.BindingAPI(mesh_prim).GetInheritedSkeleton()
+    if not (query and query.HasJointInfluences() and skel):
+        return _unbound_points(mesh_prim, points, time, root, space)
     skel_query = cache.GetSkelQuery(skel)
     xforms = skel_query.ComputeSkinningTransforms(time)
-    points = UsdGeom.Mesh(mesh_prim).GetPointsAttr().Get(time)
     if not query.ComputeSkinnedPoints(xforms, points, time):
         raise RuntimeError(f"UsdSkel could not skin {mesh_path}")
     out = np.asarray(points, dtype=np.float64)
@@ -180,3 +186,19 @@ def skinned_points(
         m = np.asarray(UsdGeom.Xformable(skel.GetPrim()).ComputeLocalToWorldTransform(time))
         out = out @ m[:3, :3] + m[3, :3]
     return out
+
+
+def _unbound_points(mesh_prim: Usd.Prim, points, time, root, space: str) -> np.ndarray:
+    """A mesh UsdSkel does not skin: its points at ``time`` in world space, or in the space of
+    its SkelRoot's Skeleton (else the SkelRoot's, else the mesh's own) for ``space`` "skel"."""
+    out = np.asarray(points if points is not None else [], dtype=np.float64).reshape(-1, 3)
+    m = np.asarray(UsdGeom.Xformable(mesh_prim).ComputeLocalToWorldTransform(time))
+    if space != "world":
+        frame = (
+            next((p for p in Usd.PrimRange(root.GetPrim()) if p.IsA(UsdSkel.Skeleton)), None)
+            if root
+            else None
+        )
+        frame = frame or (root.GetPrim() if root else mesh_prim)
+        m = m @ np.linalg.inv(np.asarray(UsdGeom.Xformable(frame).ComputeLocalToWorldTransform(time)))
+    return out @ m[:3, :3] + m[3, :3]

@@ -15,9 +15,18 @@ from humv_usd.usd.materials import write_material, write_substrate
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
-READS = (*FRAMES, "human.*.clothing", "scene.ground.material", "scene.object.*.material")
+READS = (
+    *FRAMES,
+    "human.*.clothing",
+    "scene.ground.material",
+    "scene.object.*.material",
+    "scene.asset.*.material",
+    "scene.asset.*.materials",
+    "scene.layers",
+    "scene.layer_material",
+)
 UPSTREAM = ()
-VERSION = "1"
+VERSION = "2"
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"
@@ -33,6 +42,11 @@ def used_materials(scenario: Scenario) -> list[str]:
     if scene:
         names.add(scene["ground"]["material"])
         names.update(o["material"] for o in scene["object"])
+        for a in scene.get("asset") or ():  # the default and every mapped material
+            names.add(a["material"])
+            names.update(value for _, value in a["materials"])
+        if scene.get("layers"):
+            names.add(scene["layer_material"])
         if _slab_ground(scenario):
             names.add(GROUND_SUBSTRATE)
     return sorted(names)

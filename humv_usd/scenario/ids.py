@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from pxr import Sdf
+
 from humv_usd.catalog.garments import garment
 
 if TYPE_CHECKING:
@@ -12,7 +14,8 @@ if TYPE_CHECKING:
 
 def instance_ids(scenario: Scenario) -> dict[str, int]:
     """Stable instance ids: humans 1..N in file order, then the ground, then scene objects,
-    then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
+    then scene assets (``asset:<id>``), then the top prims under /World/Scene of each
+    ``[scene] layers`` file (``layer:<index>:<prim name>``, in the file's order), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
     each one's props in the order of its ``clothing`` list). Props come last so that adding
     or dropping one never renumbers a person or a scene object."""
     ids: dict[str, int] = {}
@@ -22,9 +25,29 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
         ids["ground"] = len(ids) + 1
         for o in scenario["scene"]["object"]:
             ids[f"object:{o['id']}"] = len(ids) + 1
+        for a in scenario["scene"].get("asset") or ():
+            ids[f"asset:{a['id']}"] = len(ids) + 1
+        for i, file in enumerate(scenario["scene"].get("layers") or ()):
+            for name in site_layer_prims(file):
+                ids[f"layer:{i}:{name}"] = len(ids) + 1
     for h in scenario["human"]:
         for name in h.get("clothing") or ():
             g = garment(name)
             if g.is_prop:
                 ids[f"prop:{h['id']}:{g.name}"] = len(ids) + 1
     return ids
+
+
+#: where the prims of a ``[scene] layers`` file live
+SITE_SCOPE = Sdf.Path("/World/Scene")
+
+
+def site_layer_prims(file: str) -> list[str]:
+    """Names of the prims directly under /World/Scene in a site layer file (its own specs, in
+    order); empty when the file does not open (the scene tool reports why)."""
+    try:
+        layer = Sdf.Layer.FindOrOpen(file)
+    except Exception:  # noqa: BLE001 (pxr raises Tf.ErrorException; the scene tool names the file)
+        return []
+    spec = layer.GetPrimAtPath(SITE_SCOPE) if layer is not None else None
+    return [child.name for child in spec.nameChildren] if spec else []

@@ -12,7 +12,7 @@ A tool declares ``READS``, a tuple of read paths:
   order of people, objects and props.
 
 Values are JSON values (date-times as ISO text). A file the scenario names (``weather_csv``,
-``bvh``) is read by content: its value is ``"<path> sha256:<hash of the bytes>"``, so editing the
+``bvh``, ``scene.asset.*.file``, ``scene.layers``) is read by content: its value is ``"<path> sha256:<hash of the bytes>"``, so editing the
 file changes the key of every layer that reads it.
 """
 
@@ -24,6 +24,8 @@ import hashlib
 import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from pxr import Sdf, UsdUtils
 
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.spec import SECTIONS
@@ -46,8 +48,19 @@ CLOCK = (
     "general.seed",
 )
 DERIVED = {"@ids": instance_ids}
+
+
+def _file_keys(sections) -> frozenset[str]:
+    """Names of the keys whose values name files (``path``, ``pathlist``), subsections included."""
+    names: set[str] = set()
+    for s in sections:
+        names |= {name for name, key in s.keys.items() if key.kind in ("path", "pathlist")}
+        names |= _file_keys(s.subsections.values())
+    return frozenset(names)
+
+
 #: keys whose values name files (read by content)
-FILE_KEYS = frozenset(name for s in SECTIONS.values() for name, key in s.keys.items() if key.kind == "path")
+FILE_KEYS = _file_keys(SECTIONS.values())
 
 
 def read_values(scenario: Scenario, reads, human_id: str | None = None) -> dict[str, Any]:
@@ -90,7 +103,10 @@ def _flatten(where: str, value, rest: list[str], out: dict) -> None:
             _flatten(f"{where}.{i}", v, [], out)
     else:
         leaf = where.rsplit(".", 1)[-1]
-        out[where] = _file_value(value) if leaf in FILE_KEYS and value else _plain(value)
+        if leaf in FILE_KEYS and isinstance(value, list):  # a pathlist
+            out[where] = [_file_value(v) for v in value]
+        else:
+            out[where] = _file_value(value) if leaf in FILE_KEYS and value else _plain(value)
 
 
 def _plain(value):
@@ -103,7 +119,38 @@ def _plain(value):
 def _file_value(path: str) -> str:
     p = Path(path)
     stat = p.stat()
-    return f"{path} sha256:{_file_hash(str(p), stat.st_size, stat.st_mtime_ns)}"
+    digest = _file_hash(str(p), stat.st_size, stat.st_mtime_ns)
+    if p.suffix.lower() in USD_SUFFIXES:
+        digest = _with_usd_dependencies(str(p), digest)
+    return f"{path} sha256:{digest}"
+
+
+#: file suffixes of USD files, whose layers, references, payloads and assets count too
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
+
+
+def _with_usd_dependencies(path: str, digest: str) -> str:
+    """``digest`` combined with the content hashes of every file a USD file pulls in (its
+    sublayers, references, payloads and asset paths, recursively; UsdUtils.ComputeAllDependencies),
+    so that editing a file an asset references changes the keys too. Unresolved ones are left to
+    ``humv-usd check``; a file without dependencies keeps its own digest."""
+    try:
+        layers, assets, _ = UsdUtils.ComputeAllDependencies(Sdf.AssetPath(path))
+    except Exception:  # noqa: BLE001 (pxr raises Tf.ErrorException; the scene tool names the file)
+        return digest
+    own = str(Path(path).resolve())
+    files = {lyr.realPath for lyr in layers if lyr.realPath} | {str(a) for a in assets}
+    files = sorted(f for f in files if f and "[" not in f and str(Path(f).resolve()) != own)
+    if not files:
+        return digest
+    parts = [digest]
+    for f in files:
+        try:
+            stat = Path(f).stat()
+        except OSError:
+            continue
+        parts.append(f"{f}:{_file_hash(f, stat.st_size, stat.st_mtime_ns)}")
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
 @functools.lru_cache(maxsize=64)

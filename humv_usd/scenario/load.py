@@ -26,6 +26,7 @@ from humv_usd.catalog.sensors import (
 )
 from humv_usd.errors import InputError, bad_value
 from humv_usd.scenario.spec import (
+    ASSET_FORMATS,
     BAND_DEFAULT_UM,
     SECTIONS,
     SENSOR_FALLBACK,
@@ -151,6 +152,24 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
             problems.append(bad_value(where, value, "expected a file path"))
             return None
         return value
+    if key.kind == "pathlist":
+        if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+            problems.append(bad_value(where, value, "expected a list of file paths"))
+            return None
+        return list(value)
+    if key.kind == "map":
+        if not isinstance(value, dict):
+            problems.append(bad_value(where, value, "expected a table {pattern = value, ...}"))
+            return None
+        out, before = [], len(problems)
+        for pattern, v in value.items():
+            if v not in key.choices:
+                problems.append(
+                    bad_value(f"{where}.{pattern}", v, f"allowed: {', '.join(key.choices)}")
+                    + (_suggest(v, key.choices) if isinstance(v, str) else "")
+                )
+            out.append([pattern, v])
+        return out if len(problems) == before else None
     if key.kind == "strlist":
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             problems.append(bad_value(where, value, "expected a list of strings"))
@@ -238,6 +257,7 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
     _check_ids("sensor", data["sensor"], problems)
     if data["scene"]:
         _check_ids("scene.object", data["scene"]["object"], problems)
+        _check_assets(data["scene"], problems)
     placed: set[str] = set()
     for i, p in enumerate(data["placement"]):
         h = p.get("human")
@@ -337,6 +357,28 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                 )
 
 
+def _check_assets(scene: dict, problems: list[str]) -> None:
+    """Asset ids (prim names next to the objects and the ground), placement keys, formats."""
+    _check_ids("scene.asset", scene["asset"], problems)
+    taken = {o["id"] for o in scene["object"]} | {"Ground"}
+    for i, a in enumerate(scene["asset"]):
+        where = f"scene.asset[{i}]"
+        if a.get("id") in taken:
+            problems.append(bad_value(f"{where}.id", a["id"], "already names a scene object or the ground"))
+        suffix = Path(a.get("file") or "").suffix.lower()
+        if a.get("file") and suffix not in ASSET_FORMATS:
+            problems.append(
+                bad_value(f"{where}.file", a["file"], "expected a file ending in " + ", ".join(ASSET_FORMATS))
+            )
+        m = a.get("transform") or []
+        if m and len(m) != 4:
+            problems.append(bad_value(f"{where}.transform", m, "expected 4 rows of 4 numbers"))
+        if m and (a.get("position_m") is not None or a.get("heading_deg") is not None):
+            problems.append(
+                bad_value(f"{where}.transform", "...", "give transform or position_m/heading_deg, not both")
+            )
+
+
 def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
     """Sensor keys not given: from the preset, else SENSOR_FALLBACK (band edges by band)."""
     values = scenario_values(s["preset"]) if s.get("preset") else {}
@@ -371,17 +413,29 @@ def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
 def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:
     """File keys become absolute paths (relative ones are relative to the scenario file)."""
     base = path.resolve().parent if path is not None else Path.cwd()
-    for section, spec in SECTIONS.items():
-        tables = data[section] if spec.array else [data[section]] if data[section] else []
+
+    def resolve(where: str, given: str) -> str:
+        resolved = (base / given).resolve()
+        if not resolved.is_file():
+            problems.append(bad_value(where, given, f"file not found ({resolved})"))
+        return str(resolved)
+
+    def walk(where: str, spec: Section, value) -> None:
+        tables = value if spec.array else [value] if value else []
         for i, table in enumerate(tables):
+            at = f"{where}[{i}]" if spec.array else where
             for name, key in spec.keys.items():
-                if key.kind != "path" or table.get(name) is None:
+                if table.get(name) is None:
                     continue
-                resolved = (base / table[name]).resolve()
-                where = f"{section}[{i}].{name}" if spec.array else f"{section}.{name}"
-                if not resolved.is_file():
-                    problems.append(bad_value(where, table[name], f"file not found ({resolved})"))
-                table[name] = str(resolved)
+                if key.kind == "path":
+                    table[name] = resolve(f"{at}.{name}", table[name])
+                elif key.kind == "pathlist":
+                    table[name] = [resolve(f"{at}.{name}[{k}]", v) for k, v in enumerate(table[name])]
+            for name, sub in spec.subsections.items():
+                walk(f"{at}.{name}", sub, table.get(name))
+
+    for section, spec in SECTIONS.items():
+        walk(section, spec, data[section])
 
 
 def validate(raw: dict, path: Path | None = None) -> Scenario:

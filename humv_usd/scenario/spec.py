@@ -9,7 +9,7 @@ section        TOML form       seed editor tab
 general        ``[general]``   (i) General: name, site, date/time, frame rate, duration
 human          ``[[human]]``   (ii) Human/Clothing/Motion
 placement      ``[[placement]]`` (iii) Human Placement
-scene          ``[scene]`` with ``[scene.ground]`` and ``[[scene.object]]``  (iv) Scene
+scene          ``[scene]`` with ``[scene.ground]``, ``[[scene.object]]``, ``[[scene.asset]]``  (iv) Scene
 sensor         ``[[sensor]]``  (v) Sensor
 thermal        ``[thermal]``   (vi) Thermal
 atmosphere     ``[atmosphere]`` atmosphere model and weather
@@ -49,6 +49,22 @@ FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel")
 OBJECT_CLASSES = ("building", "prop", "panel", "vegetation", "vehicle", "other")
 THERMAL_MODELS = ("fixed", "jos3", "twoNode")
+#: file formats of ``[[scene.asset]]`` (by suffix): USD is referenced; the others are read with
+#: trimesh (FBX with bpy) and converted to UsdGeom.Mesh in the scene layer
+ASSET_FORMATS = {
+    ".usd": "usd",
+    ".usda": "usd",
+    ".usdc": "usd",
+    ".usdz": "usd",
+    ".obj": "mesh",
+    ".gltf": "mesh",
+    ".glb": "mesh",
+    ".ply": "mesh",
+    ".stl": "mesh",
+    ".fbx": "fbx",
+}
+#: source length units of an asset -> metres per unit ("auto": the file's own, see ASSET)
+ASSET_UNITS = {"auto": None, "m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048}
 ATMOSPHERE_MODELS = ("lowtran7", "analytic")
 PROFILES = (
     "tropical",
@@ -65,7 +81,9 @@ class Key:
     """One scenario key.
 
     kind: "float", "int", "str", "choice", "vec", "datetime", "strlist", "points" (a list of
-    vectors of length n, each element in lo..hi), "path" (a file path, relative to the scenario).
+    vectors of length n, each element in lo..hi), "path" (a file path, relative to the scenario),
+    "pathlist" (a list of such paths), "map" (a table of glob pattern -> one of ``choices``,
+    kept in file order as [[pattern, value], ...]: the first matching pattern wins).
     lo/hi: inclusive numeric range (per element for "vec"); n: vector length.
     """
 
@@ -258,12 +276,109 @@ OBJECT = Section(
     },
 )
 
+ASSET = Section(
+    array=True,
+    doc="scene assets from 3D files",
+    keys={
+        "id": Key("str", "Identifier of the asset (its prim /World/Scene/<id>).", required=True),
+        "file": Key(
+            "path",
+            "3D file, relative to the scenario: USD (.usd/.usda/.usdc/.usdz, referenced, not "
+            "copied), OBJ, glTF/GLB, PLY, STL (read with trimesh) or FBX (read with Blender's bpy "
+            "when installed); the mesh formats are converted to UsdGeom.Mesh in the scene layer.",
+            required=True,
+        ),
+        "position_m": Key(
+            "vec", "Where the asset's origin goes, [x, y, z] [m] (default origin).", n=3, lo=-1.0e5, hi=1.0e5
+        ),
+        "heading_deg": Key(
+            "float", "Rotation about z, counter-clockwise [deg] (default 0).", lo=-360.0, hi=360.0
+        ),
+        "transform": Key(
+            "points",
+            "Full placement instead of position_m/heading_deg: a 4x4 matrix, rows as USD writes "
+            "them (row vectors, translation in the last row) [m], applied after units/up_axis/scale.",
+            default=[],
+            n=4,
+            lo=-1.0e5,
+            hi=1.0e5,
+        ),
+        "scale": Key("float", "Uniform scale after the unit conversion.", default=1.0, lo=1.0e-6, hi=1.0e6),
+        "units": Key(
+            "choice",
+            "Length unit of the file: auto (USD: its metersPerUnit; glTF/GLB: m by its spec; "
+            "FBX: m after Blender's import; OBJ, PLY, STL: m) or m, cm, mm, in, ft.",
+            default="auto",
+            choices=tuple(ASSET_UNITS),
+        ),
+        "up_axis": Key(
+            "choice",
+            "Up axis of the file: auto (USD: its upAxis; glTF/GLB: Y by its spec; FBX: Z after "
+            "Blender's import; OBJ, PLY, STL: Z) or Y or Z; converted to Z-up.",
+            default="auto",
+            choices=("auto", "Y", "Z"),
+        ),
+        "material": Key(
+            "choice",
+            "Library material of every mesh no `materials` pattern matches.",
+            default="concrete",
+            choices=MATERIALS,
+        ),
+        "materials": Key(
+            "map",
+            "Library material per mesh: {pattern = material}, glob patterns (fnmatch) matched "
+            "against the mesh name, its path inside the asset and its source material's name; "
+            'the first match wins (e.g. {"*Glass*" = "glass", "Wheel*" = "soil"}).',
+            default=[],
+            choices=MATERIALS,
+        ),
+        "class": Key("choice", "Label class of the asset.", default="other", choices=OBJECT_CLASSES),
+        "classes": Key(
+            "map",
+            "Label class per mesh where it differs from `class`: {pattern = class}, matched as "
+            "`materials` (the mesh keeps the asset's instance id).",
+            default=[],
+            choices=OBJECT_CLASSES,
+        ),
+        "temperature_k": Key(
+            "float",
+            "Surface temperature of every mesh of the asset held fixed [K]. Leave it out to have "
+            "the thermal layer compute it (1-D slab of each mesh's material, as for objects).",
+            default=None,
+            lo=150.0,
+            hi=1000.0,
+        ),
+    },
+)
+
 SCENE = Section(
     doc="(iv) Scene",
     keys={
         "site": Key("str", "Name of the site (informative).", default=""),
+        "layers": Key(
+            "pathlist",
+            "Whole USD layers from a DCC (Z-up, metres, prims under /World/Scene), relative to the "
+            "scenario: sublayers of the scene layer, so they compose just below the scene tool's own "
+            "opinions (stronger than materials, atmosphere and environment; weaker than avatars, "
+            "clothing, sensors, thermal and user layers). Their meshes without a material carrying "
+            "HumvMaterialAPI get `layer_material`; each top prim under /World/Scene without a "
+            "label gets an instance id and `layer_class`.",
+            default=[],
+        ),
+        "layer_material": Key(
+            "choice",
+            "Library material of the meshes of `layers` that have no HumV material.",
+            default="concrete",
+            choices=MATERIALS,
+        ),
+        "layer_class": Key(
+            "choice",
+            "Label class of the unlabelled top prims of `layers`.",
+            default="building",
+            choices=OBJECT_CLASSES,
+        ),
     },
-    subsections={"ground": GROUND, "object": OBJECT},
+    subsections={"ground": GROUND, "object": OBJECT, "asset": ASSET},
 )
 
 SENSOR = Section(

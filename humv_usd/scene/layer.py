@@ -1,21 +1,57 @@
-"""Scene tool: ground and objects (buildings, props, panels) → layers/scene.usda."""
+"""Scene tool: ground, objects (buildings, props, panels), assets from 3D files and whole site
+layers → layers/scene.usda.
+
+Assets (``[[scene.asset]]``, :mod:`humv_usd.scene.assets`) live at /World/Scene/<id>, an Xform
+with the asset's scale and placement and HumvLabelAPI (instance id ``asset:<id>``, class):
+
+* a USD file is referenced, not copied, by the child /World/Scene/<id>/<root prim name> (the
+  file's defaultPrim, else its first root prim); the asset's transform also converts the file's
+  metersPerUnit and upAxis to Z-up metres (recorded in customData ``humv:assetSource`` for
+  ``humv-usd check``); the layer adds ``over``s on its meshes and their material GeomSubsets:
+  material binding to the mapped library material (the render honours per-subset bindings; the
+  thermal slab of a mesh uses the mesh's own binding for all its faces), class where a ``classes`` pattern matches, ``instanceable = false`` on its
+  instance roots (the thermal layer writes a temperature onto each mesh);
+* a mesh file (OBJ, glTF/GLB, PLY, STL, FBX) becomes UsdGeom.Mesh children written into this
+  layer, converted to Z-up metres. Written inline rather than as a sidecar usdc next to the layer:
+  compose builds every layer in memory and writes each file atomically once all succeeded,
+  recognises hand edits by the layer's text and keys caches by it; a sidecar would be a file
+  outside that bookkeeping. The price is a larger usda for big assets.
+
+Site layers (``[scene] layers``) are sublayers of this layer (absolute paths): they compose at the
+scene layer's strength, below its own opinions. Their meshes without a HumV material are bound to
+``layer_material``; each top prim under /World/Scene gets an instance id (``layer:<i>:<name>``).
+"""
 
 from __future__ import annotations
 
-from pxr import Sdf, UsdGeom
+import math
+from pathlib import Path
 
+from pxr import Sdf, Usd, UsdGeom
+
+from humv_usd.errors import InputError
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.ids import SITE_SCOPE, instance_ids, site_layer_prims
 from humv_usd.scenario.inputs import FRAMES
+from humv_usd.scene.assets import (
+    AssetFile,
+    first_match,
+    placement,
+    prim_name,
+    read_asset,
+    source_correction,
+)
 from humv_usd.scene.geometry import box, ground_grid
+from humv_usd.usd.labels import nearest_class
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
-from humv_usd.usd.mesh import define_mesh, label
+from humv_usd.usd.materials import has_stage_material
+from humv_usd.usd.mesh import bind_material, define_mesh, label, write_asset_source, write_class
 from humv_usd.usd.paths import GROUND, material_path, object_path
 
 NAME = "scene"
 READS = (*FRAMES, "scene", "@ids")
 UPSTREAM = ()
-VERSION = "1"
+VERSION = "2"
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -38,4 +74,108 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             material=material_path(o["material"]),
         )
         label(mesh.GetPrim(), ids[f"object:{o['id']}"], o["class"])
+    for a in scene.get("asset") or ():
+        author_asset(stage, a, read_asset(a["file"], a["units"], a["up_axis"]), ids[f"asset:{a['id']}"])
+    if scene.get("layers"):
+        add_site_layers(stage, scene, ids)
     return finish(stage)
+
+
+def author_asset(stage: Usd.Stage, a: dict, asset: AssetFile, instance_id: int) -> Usd.Prim:
+    """/World/Scene/<id>: placement, label and the asset's meshes (see the module doc)."""
+    root = UsdGeom.Xform.Define(stage, object_path(a["id"]))
+    matrix = placement(a)
+    if asset.kind == "usd":  # the file stays as it is: its units and up axis are corrected here
+        matrix = source_correction(asset.meters_per_unit, asset.up_axis) * matrix
+    root.AddTransformOp().Set(matrix)
+    label(root.GetPrim(), instance_id, a["class"])
+    if asset.kind == "usd":
+        _reference_usd(stage, root.GetPrim(), a, asset)
+        return root.GetPrim()
+    taken: set[str] = set()
+    for m in asset.meshes:
+        path = root.GetPath().AppendChild(prim_name(m.name, taken))
+        material = material_path(first_match(a["materials"], m, a["material"]))
+        mesh = define_mesh(stage, path, m.points, m.face_counts, m.face_indices, material)
+        _mapped_class(mesh.GetPrim(), a, m)
+    return root.GetPrim()
+
+
+def _reference_usd(stage: Usd.Stage, root: Usd.Prim, a: dict, asset: AssetFile) -> None:
+    """The child that references the file (typeless: it takes the type of the file's root),
+    with overs on its meshes."""
+    src = Sdf.Path(asset.root_prim)
+    prim = stage.DefinePrim(root.GetPath().AppendChild(src.name))
+    prim.GetReferences().AddReference(str(Path(asset.file).resolve()), src)
+    prim.SetInstanceable(False)
+    write_asset_source(prim, asset.file, asset.meters_per_unit, asset.up_axis)
+    for rel in asset.instances:
+        stage.OverridePrim(prim.GetPath().AppendPath(rel)).SetInstanceable(False)
+    for m in asset.meshes:
+        over = stage.OverridePrim(prim.GetPath().AppendPath(m.path)) if m.path != "." else prim
+        bind_material(over, material_path(first_match(a["materials"], m, a["material"])))
+        _mapped_class(over, a, m)
+
+
+def _mapped_class(prim: Usd.Prim, a: dict, mesh) -> None:
+    cls = first_match(a["classes"], mesh, None)
+    if cls is not None and cls != a["class"]:
+        write_class(prim, cls)
+
+
+def add_site_layers(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
+    """Sublayer the site layers; bind their meshes without a HumV material, label their top prims."""
+    files = list(scene["layers"])
+    ours = {GROUND.name} | {o["id"] for o in scene["object"]} | {a["id"] for a in scene.get("asset") or ()}
+    for file in files:
+        _check_site_layer(file)
+        clash = sorted(ours & set(site_layer_prims(file)))
+        if clash:
+            raise InputError(
+                f"{file}: {SITE_SCOPE}/{clash[0]} is also a scene object, asset or the ground of the "
+                "scenario; rename one of them"
+            )
+    stage.GetRootLayer().subLayerPaths = [str(Path(f).resolve()) for f in files]
+    material = material_path(scene["layer_material"])
+    for i, file in enumerate(files):
+        site = Usd.Stage.Open(file)
+        scope = site.GetPrimAtPath(SITE_SCOPE)
+        for prim in Usd.PrimRange(scope) if scope else ():
+            if prim.IsA(UsdGeom.Mesh) and not has_stage_material(prim):
+                bind_material(stage.OverridePrim(prim.GetPath()), material)
+        for key, iid in ids.items():
+            if not key.startswith(f"layer:{i}:"):
+                continue
+            path = SITE_SCOPE.AppendChild(key.split(":", 2)[2])
+            _, own = nearest_class(site.GetPrimAtPath(path))
+            label(stage.OverridePrim(path), iid, own or scene["layer_class"])
+
+
+def _check_site_layer(file: str) -> None:
+    """A site layer must open, be Z-up in metres (a sublayer cannot be converted) and hold
+    prims under /World/Scene."""
+    try:
+        layer = Sdf.Layer.FindOrOpen(file)
+    except Exception as exc:  # noqa: BLE001 (pxr raises Tf.ErrorException)
+        raise InputError(
+            f"{file}: does not open as a USD layer ({' '.join(str(exc).split())[:200]})"
+        ) from None
+    if layer is None:
+        raise InputError(f"{file}: does not open as a USD layer")
+    up = (
+        layer.pseudoRoot.GetInfo(UsdGeom.Tokens.upAxis)
+        if layer.pseudoRoot.HasInfo(UsdGeom.Tokens.upAxis)
+        else "Y"
+    )
+    mpu = (
+        layer.pseudoRoot.GetInfo(UsdGeom.Tokens.metersPerUnit)
+        if layer.pseudoRoot.HasInfo(UsdGeom.Tokens.metersPerUnit)
+        else 0.01
+    )
+    if up != UsdGeom.Tokens.z or not math.isclose(float(mpu), 1.0):
+        raise InputError(
+            f"{file}: upAxis {up}, metersPerUnit {mpu} (USD's fallbacks where unauthored); a site layer "
+            "must be Z-up in metres: re-export it so, or bring it in as a [[scene.asset]] with units/up_axis"
+        )
+    if not layer.GetPrimAtPath(SITE_SCOPE):
+        raise InputError(f"{file}: no prims under {SITE_SCOPE} (a site layer's prims live there)")

@@ -38,7 +38,7 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Usd, UsdGeom
+from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.mesh import fan_triangulate
@@ -116,6 +116,8 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         held[str(GROUND)] = scenario["scene"]["ground"].get("temperature_k")
         for o in scenario["scene"]["object"]:
             held[str(object_path(o["id"]))] = o.get("temperature_k")
+        for a in scenario["scene"].get("asset") or ():  # every mesh of the asset
+            held[str(object_path(a["id"]))] = a.get("temperature_k")
     out = []
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh) or str(prim.GetPath()).startswith(str(SCOPES["humans"])):
@@ -128,7 +130,7 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         tris, tri_face = fan_triangulate(counts, np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
         path = str(prim.GetPath())
         material = mesh_material(prim)
-        h = held.get(path)  # a mesh from a hand-made layer: a slab of its material
+        h = _held(path, held)  # a mesh from a hand-made layer: a slab of its material
         is_ground = path == str(GROUND)
         under = None
         if h is None:
@@ -140,6 +142,16 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
                     under.require(field, path)
         out.append(SceneMesh(path, pts, tris, tri_face, len(counts), material, h, is_ground, under))
     return out
+
+
+def _held(path: str, held: dict[str, float | None]) -> float | None:
+    """The held temperature of the mesh at ``path`` or of its nearest listed ancestor (an asset)."""
+    p = Sdf.Path(path)
+    while p != Sdf.Path.absoluteRootPath:
+        if str(p) in held:
+            return held[str(p)]
+        p = p.GetParentPath()
+    return None
 
 
 def ground_albedo(meshes: list[SceneMesh], default: float = 0.2) -> float:

@@ -12,12 +12,15 @@ import math
 from pathlib import Path
 
 import numpy as np
-from pxr import Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, UsdValidation
+from pxr import Pcp, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, UsdValidation
 
 from humv_usd.constants import TEMPERATURE_RANGE_K
+from humv_usd.errors import InputError
 from humv_usd.usd import schemas as S
 from humv_usd.usd.layers import broken_sublayers, open_root_layer, usd_error_text
+from humv_usd.usd.mesh import read_asset_source
 from humv_usd.usd.paths import body_path
+from humv_usd.usd.sensor import stage_sensors
 
 #: the name of a person's body mesh under its SkelRoot (humv_usd.usd.paths.body_path)
 BODY_NAME = body_path("p").name
@@ -42,7 +45,9 @@ def rule_root_layer(stage: Usd.Stage) -> list[str]:
     """The root layer holds sublayers and metadata only; conventions Z-up, metres, defaultPrim."""
     out = []
     root = stage.GetRootLayer()
-    if root.rootPrims:
+    # a flattened stage or a usdz package holds everything in its root layer: fine when it has
+    # no sublayers; with sublayers, prims there are edits outside the part layers
+    if root.rootPrims and root.subLayerPaths:
         names = ", ".join(p.name for p in root.rootPrims)
         out.append(
             f"humv:rootLayer: {root.identifier}: holds prims ({names}); the root layer "
@@ -74,16 +79,33 @@ def _times(attr: Usd.Attribute) -> list[Usd.TimeCode]:
     return [Usd.TimeCode(t) for t in samples] if samples else [Usd.TimeCode.Default()]
 
 
+def _infrared(stage: Usd.Stage) -> bool:
+    """Whether the stage has a sensor the render draws from emission (it then needs a
+    temperature on every mesh); False when the sensors do not read (rule_sensors says why)."""
+    try:
+        return any(s.rendered and s.kind != "EO" for s in stage_sensors(stage))
+    except InputError:
+        return False
+
+
 def rule_meshes(stage: Usd.Stage) -> list[str]:
-    """Per-face temperatures (uniform, one per face, finite, in range) and bound materials."""
+    """Per-face temperatures (uniform, one per face, finite, in range; present on every mesh when
+    an infrared sensor renders) and bound materials with HumvMaterialAPI."""
     out = []
     lo, hi = TEMPERATURE_RANGE_K
-    for prim in stage.Traverse():
+    infrared = _infrared(stage)
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
         if not prim.IsA(UsdGeom.Mesh):
             continue
         path = prim.GetPath()
         faces = len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get() or [])
         primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(S.TEMPERATURE_PRIMVAR.removeprefix("primvars:"))
+        if infrared and not (primvar and primvar.HasAuthoredValue()):
+            out.append(
+                f"humv:temperature: {path}: no per-face temperature ({S.TEMPERATURE_PRIMVAR}), which "
+                "an infrared render needs; fix: re-run compose so that the thermal tool writes one on "
+                "every mesh (a mesh added in a user layer after compose gets none), or author it"
+            )
         if primvar and primvar.HasAuthoredValue():
             if primvar.GetInterpolation() != UsdGeom.Tokens.uniform:
                 out.append(
@@ -104,11 +126,18 @@ def rule_meshes(stage: Usd.Stage) -> list[str]:
                     )
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
         if not material:
-            out.append(f"humv:material: {path}: no bound material")
+            out.append(
+                f"humv:material: {path}: no bound material; fix: bind a library material "
+                "(/World/Materials/<name>), e.g. with a [[scene.asset]] `materials` pattern"
+            )
             continue
         mprim = material.GetPrim()
         if not mprim.HasAPI(S.MATERIAL_API):
-            out.append(f"humv:material: {mprim.GetPath()}: bound to {path} but has no {S.MATERIAL_API}")
+            out.append(
+                f"humv:material: {mprim.GetPath()}: bound to {path} but has no {S.MATERIAL_API}; fix: "
+                "bind a library material (/World/Materials/<name>) instead, e.g. with a "
+                "[[scene.asset]] `materials` pattern"
+            )
             continue
         wl = np.asarray(mprim.GetAttribute(S.MATERIAL_WAVELENGTHS).Get() or [], dtype=float)
         eps = np.asarray(mprim.GetAttribute(S.MATERIAL_EMISSIVITY).Get() or [], dtype=float)
@@ -121,6 +150,87 @@ def rule_meshes(stage: Usd.Stage) -> list[str]:
             out.append(
                 f"humv:material: {mprim.GetPath()}: wavelengths must ascend and emissivity lie in 0..1"
             )
+    return out
+
+
+def rule_sensors(stage: Usd.Stage) -> list[str]:
+    """The render's read of every sensor camera succeeds; cameras that lost their sensor
+    attributes (e.g. in a DCC's export) while no camera has them are findings."""
+    try:
+        sensors = stage_sensors(stage)
+    except InputError as exc:
+        return [f"humv:sensor: {line}" for line in exc.problems]
+    if sensors:
+        return []
+    cameras = [p for p in stage.Traverse() if p.IsA(UsdGeom.Camera)]
+    fix = "fix: compose with a [[sensor]], or apply HumvSensorAPI (humv_usd.usd.sensor.write_sensor)"
+    # no camera at all: a stage without sensors (e.g. for another renderer) is fine
+    return [
+        f"humv:sensor: {p.GetPath()}: a camera without {S.SENSOR_API} attributes (band, resolution, "
+        f"response), which render ignores, and the stage has no other sensor; {fix}"
+        for p in cameras
+    ]
+
+
+def _units(layer: Sdf.Layer) -> tuple[str | None, float | None]:
+    """(upAxis, metersPerUnit) a layer authors (None where it does not)."""
+    info = layer.pseudoRoot
+    up = info.GetInfo(UsdGeom.Tokens.upAxis) if info.HasInfo(UsdGeom.Tokens.upAxis) else None
+    mpu = info.GetInfo(UsdGeom.Tokens.metersPerUnit) if info.HasInfo(UsdGeom.Tokens.metersPerUnit) else None
+    return up, mpu
+
+
+def _z_up_metres(up, mpu) -> bool:
+    """Unauthored counts as fine: only what a file says is checked."""
+    return up in (None, UsdGeom.Tokens.z) and (mpu is None or math.isclose(mpu, 1.0))
+
+
+def rule_assets(stage: Usd.Stage) -> list[str]:
+    """Referenced files exist and are Z-up metres, or the referencing prim converts them (the
+    scene tool records what it converts in customData humv:assetSource)."""
+    out = []
+    for err in stage.GetCompositionErrors():
+        if isinstance(err, Pcp.ErrorInvalidAssetPath):
+            site = err.rootSite.path if err.rootSite else "stage"
+            out.append(
+                f"humv:asset: {site}: {' '.join(str(err).split())}; fix: restore the file or correct "
+                "the path (compose references [[scene.asset]] files by absolute path: re-run compose "
+                "after moving them)"
+            )
+    root = stage.GetRootLayer()
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        up, mpu = _units(layer)
+        if layer != root and not _z_up_metres(up, mpu):
+            out.append(
+                f"humv:assetUnits: {layer.realPath or layer.identifier}: a sublayer with upAxis {up}, "
+                f"metersPerUnit {mpu}; USD composes a sublayer's prims as they are (Z-up metres on this "
+                "stage); fix: re-export it Z-up in metres, or bring it in as a [[scene.asset]] "
+                "(units/up_axis)"
+            )
+    for prim in stage.Traverse():
+        if not (prim.HasAuthoredReferences() or prim.HasAuthoredPayloads()):
+            continue
+        query = Usd.PrimCompositionQuery(prim)
+        for arc in query.GetCompositionArcs():
+            if (
+                arc.GetArcType() not in (Pcp.ArcTypeReference, Pcp.ArcTypePayload)
+                or arc.GetTargetNode().IsRootNode()
+            ):
+                continue
+            layer = arc.GetTargetNode().layerStack.layers[0]
+            up, mpu = _units(layer)
+            if _z_up_metres(up, mpu):
+                continue
+            src = read_asset_source(prim) or {}
+            corrected = src.get("upAxis") == (up or "Y") and math.isclose(
+                src.get("metersPerUnit", -1.0), mpu if mpu is not None else 0.01
+            )
+            if not corrected:
+                out.append(
+                    f"humv:assetUnits: {prim.GetPath()}: references {layer.realPath or layer.identifier} "
+                    f"(upAxis {up}, metersPerUnit {mpu}) without a conversion to Z-up metres; fix: bring "
+                    "it in as a [[scene.asset]] (units/up_axis), or re-export it Z-up in metres"
+                )
     return out
 
 
@@ -163,7 +273,7 @@ def rule_people(stage: Usd.Stage) -> list[str]:
     return out
 
 
-RULES = (rule_root_layer, rule_meshes, rule_sensors_and_labels, rule_people)
+RULES = (rule_root_layer, rule_meshes, rule_sensors, rule_assets, rule_sensors_and_labels, rule_people)
 
 
 def check_stage(path: str | Path) -> list[str]:

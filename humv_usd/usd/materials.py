@@ -90,7 +90,24 @@ def write_material(stage: Usd.Stage, path, material: Material) -> UsdShade.Mater
     UsdPreviewSurface for DCC viewports (display colour; opacity for glass)."""
     m = material
     mat = UsdShade.Material.Define(stage, path)
-    prim = mat.GetPrim()
+    write_material_properties(mat.GetPrim(), m)
+    # A UsdPreviewSurface so DCC tools (Blender, usdview) show a sensible colour.
+    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
+    shader.CreateIdAttr("UsdPreviewSurface")
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*m.display_color))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.9)
+    if not m.opaque:  # glass: see-through in viewports
+        visible = float(m.at([0.45, 0.55, 0.65], "transmittance").mean())
+        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(round(1.0 - visible, 6))
+        shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.05)
+    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return mat
+
+
+def write_material_properties(prim: Usd.Prim, material: Material) -> None:
+    """HumvMaterialAPI on an existing material prim (e.g. one a DCC wrote): the catalogue
+    :class:`Material`'s spectra and thermal data, as :func:`write_material` writes them."""
+    m = material
     prim.ApplyAPI(S.MATERIAL_API)
     prim.GetAttribute(S.MATERIAL_WAVELENGTHS).Set(Vt.FloatArray(m.spectrum_wavelengths))
     prim.GetAttribute(S.MATERIAL_EMISSIVITY).Set(Vt.FloatArray(m.spectrum_emissivity))
@@ -106,17 +123,6 @@ def write_material(stage: Usd.Stage, path, material: Material) -> UsdShade.Mater
         (S.MATERIAL_SOURCE, m.source),
     ):
         prim.GetAttribute(attr).Set(value)
-    # A UsdPreviewSurface so DCC tools (Blender, usdview) show a sensible colour.
-    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
-    shader.CreateIdAttr("UsdPreviewSurface")
-    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*m.display_color))
-    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.9)
-    if not m.opaque:  # glass: see-through in viewports
-        visible = float(m.at([0.45, 0.55, 0.65], "transmittance").mean())
-        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(round(1.0 - visible, 6))
-        shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.05)
-    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
-    return mat
 
 
 def write_substrate(material_prim: Usd.Prim, substrate_path) -> None:
@@ -247,6 +253,13 @@ def bound_material(prim: Usd.Prim) -> UsdShade.Material:
             )
         )
     return material
+
+
+def has_stage_material(prim: Usd.Prim) -> bool:
+    """Whether the material bound to ``prim`` (an ancestor's binding included) carries
+    HumvMaterialAPI (what the render and the thermal tool need)."""
+    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    return bool(material) and material.GetPrim().HasAPI(S.MATERIAL_API)
 
 
 def mesh_material(prim: Usd.Prim, time=None) -> StageMaterial:

@@ -83,3 +83,26 @@ def bound_corners(stage, root) -> np.ndarray:
             continue
         corners += [np.asarray(box.GetCorner(i), dtype=float) for i in range(8)]
     return np.asarray(corners, dtype=float).reshape(-1, 3)
+
+
+#: customData of an asset's referencing prim: the referenced file's units and up axis, which
+#: the asset's transform corrects (``humv-usd check`` accepts a non-Z-up / non-metre file there)
+ASSET_SOURCE = "humv:assetSource"
+
+
+def write_asset_source(prim: Usd.Prim, file: str, meters_per_unit: float, up_axis: str) -> None:
+    """Record on the prim that references ``file`` the units and up axis its transform corrects."""
+    prim.SetCustomDataByKey(
+        ASSET_SOURCE, {"file": str(file), "metersPerUnit": float(meters_per_unit), "upAxis": str(up_axis)}
+    )
+
+
+def read_asset_source(prim: Usd.Prim) -> dict | None:
+    """What :func:`write_asset_source` recorded on ``prim`` or its nearest ancestor, else None."""
+    p = prim
+    while p and p.IsValid() and not p.IsPseudoRoot():
+        value = p.GetCustomDataByKey(ASSET_SOURCE)
+        if value:
+            return dict(value)
+        p = p.GetParent()
+    return None

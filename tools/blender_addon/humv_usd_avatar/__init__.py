@@ -1,10 +1,18 @@
-"""HumV-USD Avatar: write a HumV-USD avatar layer from Blender and import it into the scene.
+"""HumV-USD Avatar: write a HumV-USD avatar layer from Blender and import it into the scene;
+import a whole composed stage and export the edited scene back as a HumV stage.
 
 The panel (3D Viewport > Sidebar (N) > HumV) holds one person's values, stored on the scene
 (``scene.humv_avatar``). "Build Avatar Layer" (operator ``humv.build_avatar_layer``) calls
 :func:`humv_usd.avatar.api.author_avatar` — the same code as ``humv-usd avatar`` and
 ``humv-usd compose`` — to write the ``.usda`` layer, then (option "Import Into Scene")
 imports that file with Blender's USD importer so the avatar appears in the viewport.
+
+"Import HumV Stage" (``humv.import_stage``) imports a composed ``OUT/stage.usda`` (scene, people
+with their skin and garment materials, cameras) with Blender's USD importer and sets the scene's
+frame range and rate from the stage (Blender's importer leaves the rate). "Export HumV Stage"
+(``humv.export_stage``) writes the scene with ``wm.usd_export`` (animation included) and adopts
+it with :func:`humv_usd.pipeline.adopt.adopt` (``humv-usd adopt --from`` the imported stage):
+one folder with a stage HumV renders (see ``humv-usd adopt --help``).
 
 The add-on needs the ``humv_usd`` package importable in Blender's Python: see README.md next to
 this folder. Values are checked by HumV-USD's scenario validator (``humv_usd/scenario/spec.py`` is
@@ -69,14 +77,16 @@ def _extra_paths() -> list[str]:
     return [bpy.path.abspath(p.strip()) for p in text.split(os.pathsep) if p.strip()]
 
 
-def humv_api():
-    """``humv_usd.avatar.api`` (after adding the preference's paths to sys.path), or raise
-    ImportError with the message the user sees."""
+def humv_api(module="humv_usd.avatar.api"):
+    """``humv_usd.avatar.api`` (or ``module``; after adding the preference's paths to sys.path),
+    or raise ImportError with the message the user sees."""
+    import importlib
+
     for path in reversed(_extra_paths()):
         if path not in sys.path:
             sys.path.insert(0, path)
     try:
-        from humv_usd.avatar import api
+        api = importlib.import_module(module)
     except ImportError as exc:
         message = IMPORT_HELP.format(reason=exc)
         _state["import_error"] = message
@@ -145,6 +155,12 @@ class HumvAvatarSettings(bpy.types.PropertyGroup):
     import_layer: BoolProperty(name="Import Into Scene", default=True,
                                description="Import the written layer with Blender's USD "
                                            "importer (sets the scene's frame range and rate)")
+    stage_path: StringProperty(name="Stage", subtype="FILE_PATH", default="",
+                               description="Composed HumV stage (OUT/stage.usda) to import; "
+                                           "the export restores what Blender drops from it")
+    export_dir: StringProperty(name="Export Folder", subtype="DIR_PATH", default="//humv_export",
+                               description="Folder for the adopted HumV stage (stage.usda, "
+                                           "layers/adopted.usda, blender_export.usda)")
 
 
 def resolve_output(path: str) -> str:
@@ -195,11 +211,86 @@ class HUMV_OT_build_avatar_layer(bpy.types.Operator):
                 why = ""
             if "FINISHED" not in result:
                 return self._fail([f"wrote {written}, but Blender's USD import failed{why}"])
-            # play at the layer's rate: Blender's rate is fps / fps_base
-            render = context.scene.render
-            render.fps = max(1, round(s.fps))
-            render.fps_base = render.fps / s.fps
+            set_frame_rate(context.scene, s.fps)  # play at the layer's rate
         self.report({"INFO"}, f"HumV-USD avatar layer written: {written}")
+        return {"FINISHED"}
+
+
+def stage_frame_rate(path: str):
+    """timeCodesPerSecond of a USD file's root layer (None when unreadable)."""
+    try:
+        from pxr import Sdf
+        layer = Sdf.Layer.FindOrOpen(path)
+    except Exception:  # noqa: BLE001 (no USD Python bindings, or not a USD file)
+        return None
+    return layer.timeCodesPerSecond if layer and layer.HasTimeCodesPerSecond() else None
+
+
+def set_frame_rate(scene, fps: float) -> None:
+    """Blender plays at fps / fps_base."""
+    scene.render.fps = max(1, round(fps))
+    scene.render.fps_base = scene.render.fps / fps
+
+
+class HUMV_OT_import_stage(bpy.types.Operator):
+    """Import a composed HumV stage (people, garments, scene, cameras) with its frame rate"""
+
+    bl_idname = "humv.import_stage"
+    bl_label = "Import HumV Stage"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        s = context.scene.humv_avatar
+        path = bpy.path.abspath(s.stage_path)
+        if not os.path.isfile(path):
+            self.report({"ERROR"}, f"Stage = {s.stage_path!r}: expected an existing USD file "
+                                   "(OUT/stage.usda of humv-usd compose)")
+            return {"CANCELLED"}
+        try:
+            result = bpy.ops.wm.usd_import(filepath=path, set_frame_range=True)
+        except RuntimeError as exc:
+            self.report({"ERROR"}, f"Blender's USD import failed: {exc}")
+            return {"CANCELLED"}
+        if "FINISHED" not in result:
+            self.report({"ERROR"}, "Blender's USD import failed")
+            return {"CANCELLED"}
+        fps = stage_frame_rate(path)
+        if fps:
+            set_frame_rate(context.scene, fps)
+        self.report({"INFO"}, f"HumV stage imported: {path}")
+        return {"FINISHED"}
+
+
+class HUMV_OT_export_stage(bpy.types.Operator):
+    """Export the scene (USD, with animation) and adopt it as a HumV stage"""
+
+    bl_idname = "humv.export_stage"
+    bl_label = "Export HumV Stage"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        s = context.scene.humv_avatar
+        try:
+            adopt = humv_api("humv_usd.pipeline.adopt")
+        except ImportError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        try:
+            out = resolve_output(s.export_dir)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc).replace("Output Path", "Export Folder"))
+            return {"CANCELLED"}
+        original = bpy.path.abspath(s.stage_path) if s.stage_path else None
+        os.makedirs(out, exist_ok=True)
+        export = os.path.join(out, "blender_export.usda")
+        bpy.ops.wm.usd_export(filepath=export, export_animation=True)
+        try:
+            stage, _ = adopt.adopt(export, out, original if original and os.path.isfile(original) else None)
+        except Exception as exc:  # InputError (one line per problem)
+            for line in getattr(exc, "problems", None) or [str(exc) or type(exc).__name__]:
+                self.report({"ERROR"}, line)
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"HumV stage written: {stage}")
         return {"FINISHED"}
 
 
@@ -227,10 +318,15 @@ class HUMV_PT_avatar(bpy.types.Panel):
         layout.prop(s, "output_path")
         layout.prop(s, "import_layer")
         layout.operator(HUMV_OT_build_avatar_layer.bl_idname, icon="ARMATURE_DATA")
+        layout.separator()
+        layout.prop(s, "stage_path")
+        layout.operator(HUMV_OT_import_stage.bl_idname, icon="IMPORT")
+        layout.prop(s, "export_dir")
+        layout.operator(HUMV_OT_export_stage.bl_idname, icon="EXPORT")
 
 
 CLASSES = (HumvAvatarPreferences, HumvAvatarSettings, HUMV_OT_build_avatar_layer,
-           HUMV_PT_avatar)
+           HUMV_OT_import_stage, HUMV_OT_export_stage, HUMV_PT_avatar)
 
 
 def register():

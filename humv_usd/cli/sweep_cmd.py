@@ -1,0 +1,195 @@
+"""``humv-usd sweep`` (a grid / random sweep into one dataset, on Dask) and ``humv-usd bench sweep``
+(registered on the ``humv-usd`` group by :func:`register`)."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+
+from humv_usd.cli.common import reports_errors
+
+
+class _Progress:
+    """A rich live display of the sweep's events: tasks and images done, rate, ETA, failures."""
+
+    def __init__(self, quiet: bool):
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self.console = Console(stderr=True)
+        self.progress = Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[info]}"),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+            console=self.console,
+            disable=quiet,
+        )
+        self.t0 = time.perf_counter()
+        self.images = 0
+        self.failures = 0
+        self.retries = 0
+        self.composed = 0
+
+    def __enter__(self):
+        self.progress.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.progress.__exit__(*exc)
+
+    def __call__(self, event: dict) -> None:
+        kind = event["type"]
+        p = self.progress
+        if kind == "start":
+            self.variants = p.add_task("variants composed", total=event["variants"], info="")
+            self.tasks = p.add_task("render tasks", total=event["tasks"], completed=event["done"], info="")
+            self.frames = p.add_task("frames", total=event["frames"], completed=event["frames_done"], info="")
+        elif kind == "compose":
+            self.composed += 1
+            p.update(self.variants, advance=1, info=f"{event['variant']} {event['seconds']:.1f} s")
+        elif kind == "render":
+            self.images += event["images"]
+            rate = self.images / (time.perf_counter() - self.t0) * 3600.0
+            p.update(self.tasks, advance=1, info=self._info())
+            p.update(self.frames, advance=event["frames"], info=f"{rate:,.0f} images/h")
+        elif kind == "retry":
+            self.retries += 1
+            p.console.print(f"retry {event['attempt']} of {event['task']}: {event['error']}")
+            p.update(self.tasks, info=self._info())
+        elif kind == "failed":
+            self.failures += 1
+            p.console.print(f"[red]failed[/red] {event['task']}: {event['error']}")
+            p.update(self.tasks, info=self._info())
+        elif kind == "assemble":
+            p.console.print("assembling the dataset (COCO per sensor, index, card, YOLO)")
+
+    def _info(self) -> str:
+        return f"failures {self.failures}, retries {self.retries}"
+
+
+@click.command()
+@click.argument("sweep_file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "-o", "--out", "out_dir", required=True, type=str, help="The dataset folder (new or to resume)."
+)
+@click.option("--dry-run", is_flag=True, help="Print the variants and the estimated cost; run nothing.")
+@click.option(
+    "--scheduler",
+    default=None,
+    help="Address of an existing Dask scheduler (tcp://HOST:PORT); default: a local cluster of processes.",
+)
+@click.option(
+    "--workers",
+    default=None,
+    type=click.IntRange(0, 4096),
+    help="Local cluster size (default: one per core; 0: run in this process, one task at a time).",
+)
+@click.option(
+    "--limit",
+    default=None,
+    type=click.IntRange(1, None),
+    help="Run only the first N variants (a later run without it adds the others).",
+)
+@click.option("--quiet", is_flag=True, help="No progress display.")
+@reports_errors
+def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, limit, quiet: bool):
+    """Expand SWEEP_FILE (a base scenario + grid and random axes) into variants, compose and render
+    them as tasks on Dask (one per variant and frame chunk) and assemble one dataset in OUT.
+    Re-running the same command resumes: only what is missing runs."""
+    import os
+
+    from humv_usd.fileio import check_output_dir
+    from humv_usd.sweep.plan import estimate, layer_keys
+    from humv_usd.sweep.spec import load_sweep
+
+    check_output_dir(out_dir, "dataset folder")  # fail fast, before reading anything
+    sw = load_sweep(sweep_file)  # every variant validated: InputError names the axis
+    if dry_run:
+        keys = {v.id: layer_keys(v.scenario) for v in sw.variants}
+        n_workers = workers if workers else (os.cpu_count() or 1)
+        for v in sw.variants:
+            click.echo(f"{v.id}  " + ", ".join(f"{k}={val}" for k, val in v.params.items()))
+        est = estimate(sw, keys, n_workers)
+        click.echo(
+            f"{est['variants']} variants, {est['render_tasks']} render tasks, {est['frames']} frames, "
+            f"{est['images']} images, {est['megasamples']} Msamples; {est['unique_layers']} of "
+            f"{est['layers']} layers to compose (the others shared)"
+        )
+        click.echo(
+            f"estimated cost: compose {est['compose_s']:.0f} s + render {est['render_s']:.0f} s of one worker; "
+            f"about {est['wall_h']:.2f} h on {n_workers} worker(s) ({est['frames_per_hour']:,} images/h)"
+        )
+        return
+    from humv_usd.sweep.run import run_sweep
+
+    with _Progress(quiet) as progress:
+        result = run_sweep(sw, out_dir, scheduler=scheduler, workers=workers, on_event=progress, limit=limit)
+    s = result.dataset_summary
+    click.echo(
+        f"{result.dataset}: {s['variants']} variants, {s['frames']} frames, {s['images']} images "
+        f"({result.already_done} of {result.tasks} tasks were done before; ran {result.ran}, "
+        f"composed {result.composed}, retries {result.retries}, failed {len(result.failures)}); "
+        f"{result.seconds:.1f} s on {result.workers} worker(s), {result.frames_per_hour:,.0f} images/h"
+    )
+    for f in result.failures:
+        click.echo(f"  failed: {f['task']}: {f['error']}", err=True)
+    if result.failures:
+        raise SystemExit(1)
+
+
+@click.command("sweep")
+@click.argument("scenario", default="examples/walk.toml", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--variants", default=2, show_default=True, type=click.IntRange(1, 1000), help="Headings.")
+@click.option(
+    "--frames", default=8, show_default=True, type=click.IntRange(1, 100_000), help="Frames per run."
+)
+@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
+@click.option("--resolution", default="320x240", show_default=True, help="LWIR image size WxH.")
+@click.option(
+    "--long",
+    "long_frames",
+    default=0,
+    show_default=True,
+    type=int,
+    help="Frames of the memory run (0: skip).",
+)
+@click.option(
+    "-o", "--out", "out_dir", default=None, help="Keep the bench datasets here (default: a temp folder)."
+)
+@reports_errors
+def bench_sweep(
+    scenario: Path, variants: int, frames: int, spp: int, resolution: str, long_frames: int, out_dir
+):
+    """Labeled LWIR frames per hour for a walk-like sweep of SCENARIO, speed-up of 2 workers over 1, memory
+    per worker over a long sweep, and the scheduler's cost per task."""
+    from humv_usd.sweep.bench import run_bench
+
+    w, h = (int(x) for x in resolution.lower().split("x"))
+    report = run_bench(
+        scenario,
+        frames=frames,
+        spp=spp,
+        resolution=(w, h),
+        variants=variants,
+        long_frames=long_frames,
+        out_dir=out_dir,
+    )
+    click.echo(json.dumps(report, indent=2))
+
+
+def register(main, bench) -> None:
+    main.add_command(sweep)
+    bench.add_command(bench_sweep)

@@ -1,0 +1,180 @@
+"""Compose, render and sweep jobs started from the page.
+
+A job is one or more ``humv-usd`` commands (steps, e.g. compose then render) run one after the
+other as child processes of the editor's server, each an argument list (never a shell, never a
+command line built from user text). Its output is kept in memory
+line by line, so a page that was closed and opened again shows the whole log; the job keeps
+running when no page is open. Cancel sends SIGTERM to the job's process group.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+#: lines kept per job (older ones are dropped, the count says how many)
+MAX_LINES = 5000
+
+
+@dataclass
+class Job:
+    """One command running (or finished) under the editor."""
+
+    id: int
+    kind: str  # compose, render, preview, sweep
+    steps: list[list[str]]
+    out_dir: Path
+    step: int = 0
+    lines: list[str] = field(default_factory=list)
+    dropped: int = 0
+    state: str = "starting"  # running, done, failed, cancelled
+    returncode: int | None = None
+    started: float = field(default_factory=time.time)
+    ended: float | None = None
+    process: subprocess.Popen | None = None
+    on_done: list = field(default_factory=list)
+    sensor: str | None = None  # a preview's sensor
+    #: progress inside a step: (step index, folder, glob, expected count) of the files it writes
+    watch: tuple[int, Path, str, int] | None = None
+
+    def files_done(self) -> tuple[int, int] | None:
+        """(files written, files expected) of the watched step, None without one."""
+        if self.watch is None:
+            return None
+        _, folder, pattern, expected = self.watch
+        return min(sum(1 for _ in folder.glob(pattern)), expected), expected
+
+    @property
+    def seconds(self) -> float:
+        return (self.ended or time.time()) - self.started
+
+    @property
+    def progress(self) -> float:
+        """Fraction finished (0..1): steps done, and within the watched step its files written."""
+        if self.state == "done":
+            return 1.0
+        done = float(self.step)
+        files = self.files_done()
+        if files is not None and self.watch[0] == self.step and files[1] > 0:
+            done += files[0] / files[1]
+        return done / max(len(self.steps), 1)
+
+    @property
+    def finished(self) -> bool:
+        return self.state in ("done", "failed", "cancelled")
+
+    def add(self, line: str) -> None:
+        self.lines.append(line.rstrip("\n"))
+        if len(self.lines) > MAX_LINES:
+            del self.lines[0]
+            self.dropped += 1
+
+    def cancel(self) -> None:
+        """Stop the job (its whole process group)."""
+        if self.process is not None and self.process.poll() is None:
+            self.state = "cancelled"
+            try:
+                os.killpg(self.process.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+
+
+def humv_command(*args: str) -> list[str]:
+    """The argument list running ``humv-usd ARGS`` with this interpreter (``-v``: progress lines)."""
+    return [sys.executable, "-m", "humv_usd.cli.main", "-v", *args]
+
+
+class JobManager:
+    """The jobs of one editor server (kept for its lifetime)."""
+
+    def __init__(self):
+        self.jobs: dict[int, Job] = {}
+        self._ids = itertools.count(1)
+        self._lock = threading.Lock()
+
+    def start(
+        self, kind: str, steps: list[list[str]], out_dir: Path, cwd: Path, on_done=None, watch=None
+    ) -> Job:
+        """Run ``steps`` (argument lists; no shell) one after the other in ``cwd``, stopping at the
+        first that fails; ``on_done(job)`` runs when the job ends; ``watch`` (step, folder, glob,
+        expected count) measures a step's progress by the files it has written."""
+        if not steps or not all(isinstance(a, list) and all(isinstance(x, str) for x in a) for a in steps):
+            raise TypeError("a job is a list of argument lists of strings")
+        job = Job(next(self._ids), kind, steps, Path(out_dir), watch=watch)
+        if on_done:
+            job.on_done.append(on_done)
+        job.state = "running"
+        with self._lock:
+            self.jobs[job.id] = job
+        threading.Thread(target=self._run, args=(job, Path(cwd)), daemon=True).start()
+        return job
+
+    def _run(self, job: Job, cwd: Path) -> None:
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        for step, argv in enumerate(job.steps):
+            job.step = step
+            if job.state == "cancelled":
+                break
+            job.add("$ humv-usd " + " ".join(argv[4:] if argv[:3] == humv_command()[:3] else argv))
+            job.process = subprocess.Popen(
+                argv,
+                cwd=cwd,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                text=True,
+                bufsize=1,
+                env=env,
+                start_new_session=True,  # its own process group: cancel stops its children too
+            )
+            assert job.process.stdout is not None
+            for line in job.process.stdout:
+                job.add(line)
+            job.returncode = job.process.wait()
+            if job.returncode != 0:
+                break
+        job.ended = time.time()
+        if job.state != "cancelled":
+            job.state = "done" if job.returncode == 0 else "failed"
+        job.add(f"[{job.state}: exit {job.returncode}, {job.seconds:.1f} s]")
+        for callback in job.on_done:
+            try:
+                callback(job)
+            except Exception:  # a page callback must not kill the follower thread
+                log.exception("job %d: callback failed", job.id)
+
+    def latest(self, kind: str | None = None) -> Job | None:
+        jobs = [j for j in self.jobs.values() if kind is None or j.kind == kind]
+        return jobs[-1] if jobs else None
+
+    def shutdown(self) -> None:
+        """Cancel every running job (server stop)."""
+        for job in self.jobs.values():
+            job.cancel()
+
+
+def outputs(out_dir: Path) -> list[Path]:
+    """The files worth a link in an output folder: stage, manifests, COCO, region tables, images
+    (PNG previews and EXRs), relative to ``out_dir``, at most 200."""
+    names = ("stage.usda", "compose.json", "manifest.json", "coco.json", "regions.json", "regions.csv")
+    found: list[Path] = []
+    if not out_dir.is_dir():
+        return found
+    for path in sorted(out_dir.rglob("*")):
+        if not path.is_file() or any(part.startswith(".") for part in path.relative_to(out_dir).parts):
+            continue
+        if path.name in names or path.name.endswith((".png", ".exr", ".objects.json", ".usda")):
+            found.append(path.relative_to(out_dir))
+        if len(found) >= 200:
+            break
+    return found

@@ -1,0 +1,129 @@
+"""What a sweep runs: each variant's layer cache keys (compose shares equal keys between
+variants), the tasks (one compose per variant, one render per variant and frame chunk) and an
+estimate of the cost."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from humv_usd.pipeline import compose as compose_mod
+from humv_usd.pipeline.graph import build_order, layer_graph
+from humv_usd.scenario import Scenario
+from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.sweep.spec import Sweep, Variant
+
+#: Monte Carlo throughput of one core here (RECIPES.md: about 4 Msamples/s on 2 cores, 640x512,
+#: path depth 3), the estimate's render rate per worker [samples/s]
+SAMPLES_PER_SECOND_PER_WORKER = 2.0e6
+#: fixed cost per rendered image (stage export, ground truth, writes) [s]; `humv-usd bench sweep`
+#: measured 5-10 s at 320x240 on a 2-core machine with a load average of 12, about 1/5 of a core
+SECONDS_PER_IMAGE = 2.0
+#: compose seconds of a layer that is built (not shared): (fixed, per frame) by tool, from the
+#: compose.json of `humv-usd bench sweep` (examples/walk.toml; 6 and 100 frames), others 0.1 s
+COMPOSE_SECONDS = {"avatar": (2.0, 0.0), "clothing": (4.0, 1.1), "environment": (1.5, 0.0)}
+
+
+def layer_keys(scenario: Scenario) -> dict[str, str]:
+    """Cache key of each layer compose would build for ``scenario`` (as compose computes it for
+    a fresh folder: no hand edits, no user layers), in build order."""
+    needed, _ = compose_mod.plan(scenario)
+    nodes = layer_graph(scenario, needed)
+    keys: dict[str, str] = {}
+    for name in build_order(nodes):
+        node = nodes[name]
+        upstream = {u: keys[u] for u in node.upstream}
+        values = read_values(scenario, node.tool.reads, node.human_id)
+        keys[name] = inputs_key(node.tool.version, values, upstream)
+    return keys
+
+
+@dataclass(frozen=True)
+class RenderTask:
+    variant: str
+    chunk: str  # folder name: f<first>-<last>
+    frames: tuple[int, ...]
+
+    @property
+    def name(self) -> str:
+        return f"{self.variant}/{self.chunk}"
+
+
+def variant_frames(variant: Variant, frames: list[int] | None) -> list[int]:
+    """The frames rendered of a variant: the sweep's list clipped to the variant's range."""
+    n = variant.scenario.frame_count
+    return list(range(n)) if frames is None else [f for f in frames if f < n]
+
+
+def render_tasks(sweep: Sweep) -> list[RenderTask]:
+    per = sweep.render["frames_per_task"]
+    out = []
+    for v in sweep.variants:
+        frames = variant_frames(v, sweep.render["frames"])
+        for i in range(0, len(frames), per):
+            chunk = tuple(frames[i : i + per])
+            out.append(RenderTask(v.id, f"f{chunk[0]:04d}-{chunk[-1]:04d}", chunk))
+    return out
+
+
+def compose_dependencies(keys: dict[str, dict[str, str]]) -> dict[str, list[str]]:
+    """For each variant, the earlier variants whose compose builds a layer it can reuse (the
+    first variant with each layer key): composing those first lets it take their layers."""
+    first: dict[tuple[str, str], str] = {}
+    deps: dict[str, list[str]] = {}
+    for vid, layer_key in keys.items():
+        deps[vid] = sorted({first[(n, k)] for n, k in layer_key.items() if (n, k) in first})
+        for n, k in layer_key.items():
+            first.setdefault((n, k), vid)
+    return deps
+
+
+def _sensor_samples(scenario: Scenario, sensors, spp: int) -> int:
+    total = 0
+    for s in scenario["sensor"]:
+        if sensors and s["id"] not in sensors:
+            continue
+        w, h = s["resolution"]
+        total += w * h * spp
+    return total
+
+
+def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dict:
+    """Counts and an estimated wall time (see the module constants for the rates)."""
+    tasks = render_tasks(sweep)
+    spp, sensors = sweep.render["spp"], sweep.render["sensors"]
+    frames = sum(len(t.frames) for t in tasks)
+    samples = images = 0
+    by_variant = {v.id: v for v in sweep.variants}
+    for t in tasks:
+        sc = by_variant[t.variant].scenario
+        n_sensors = sum(1 for s in sc["sensor"] if not sensors or s["id"] in sensors)
+        samples += _sensor_samples(sc, sensors, spp) * len(t.frames)
+        images += n_sensors * len(t.frames)
+    frames_of = {}
+    for v in sweep.variants:  # each unique layer once, with the frame count of its first variant
+        for n, k in keys[v.id].items():
+            frames_of.setdefault((n, k), v.scenario.frame_count)
+    total_layers = sum(len(lk) for lk in keys.values())
+    compose_s = 0.0
+    for (n, _), count in frames_of.items():
+        fixed, per_frame = COMPOSE_SECONDS.get(n.split("_")[0], (0.1, 0.0))
+        compose_s += fixed + per_frame * count
+    unique = frames_of
+    render_s = samples / SAMPLES_PER_SECOND_PER_WORKER + images * SECONDS_PER_IMAGE
+    wall = (compose_s + render_s) / max(1, workers)
+    return {
+        "variants": len(sweep.variants),
+        "render_tasks": len(tasks),
+        "frames": frames,
+        "images": images,
+        "megasamples": round(samples / 1e6, 1),
+        "layers": total_layers,
+        "unique_layers": len(unique),
+        "workers": workers,
+        "compose_s": round(compose_s, 1),
+        "render_s": round(render_s, 1),
+        "wall_s": round(wall, 1),
+        "wall_h": round(wall / 3600.0, 2),
+        "frames_per_hour": round(images / wall * 3600.0) if wall > 0 else math.inf,
+    }

@@ -1,0 +1,333 @@
+"""The sweep's client: validates, takes the dataset lock, submits the tasks that are not done
+yet to Dask (or runs them in this process), retries failed tasks a bounded number of times,
+reports progress through a callback and assembles the dataset at the end.
+
+Scheduling: variant ``v``'s compose task is submitted once the composes it shares layers with
+(:func:`humv_usd.sweep.plan.compose_dependencies`) have finished, so a shared layer is built
+once and copied from the store; its render tasks are submitted when its compose has finished.
+Render tasks take their inputs from the variant's composed stage only.
+
+Default executor: a local Dask cluster of worker processes (one single-threaded worker per
+core; each render uses Mitsuba's own threads). ``scheduler="tcp://HOST:PORT"`` uses an existing
+Dask cluster whose workers see the dataset folder at the same path. ``workers=0`` runs every task
+in this process, one at a time (tests, debugging).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import logging
+import os
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import tomlkit
+
+from humv_usd.fileio import check_output_dir, write_json, write_text_atomic
+from humv_usd.sweep import store
+from humv_usd.sweep.dataset import assemble
+from humv_usd.sweep.plan import RenderTask, compose_dependencies, layer_keys, render_tasks
+from humv_usd.sweep.spec import Sweep, _plain
+from humv_usd.sweep.tasks import compose_variant, error_text, render_chunk
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class SweepResult:
+    dataset: Path
+    variants: int
+    tasks: int
+    already_done: int
+    ran: int = 0
+    frames_rendered: int = 0
+    images_rendered: int = 0
+    composed: int = 0
+    retries: int = 0
+    failures: list[dict] = field(default_factory=list)
+    seconds: float = 0.0
+    workers: int = 0
+    dataset_summary: dict = field(default_factory=dict)
+
+    @property
+    def frames_per_hour(self) -> float:
+        return self.images_rendered / self.seconds * 3600.0 if self.seconds > 0 else 0.0
+
+    def as_dict(self) -> dict:
+        return {
+            "dataset": str(self.dataset),
+            "variants": self.variants,
+            "render_tasks": self.tasks,
+            "already_done": self.already_done,
+            "ran": self.ran,
+            "composed": self.composed,
+            "frames_rendered": self.frames_rendered,
+            "images_rendered": self.images_rendered,
+            "retries": self.retries,
+            "failures": self.failures,
+            "seconds": self.seconds,
+            "workers": self.workers,
+            "images_per_hour": self.frames_per_hour,
+        }
+
+
+class _InProcess:
+    """Runs each task at submit, in this process (``workers=0``)."""
+
+    workers = 0
+
+    def submit(self, fn, *args, key=None):
+        fut: cf.Future = cf.Future()
+        try:
+            fut.set_result(fn(*args))
+        except Exception as exc:  # noqa: BLE001 (reported as the task's failure)
+            fut.set_exception(exc)
+        return fut
+
+    def wait_any(self, futures):
+        return cf.wait(futures, return_when=cf.FIRST_COMPLETED).done
+
+    def close(self):
+        pass
+
+
+class _Dask:
+    """A dask.distributed client: on a new local cluster of processes, or an existing scheduler."""
+
+    def __init__(self, scheduler: str | None, workers: int | None):
+        import distributed
+
+        self._distributed = distributed
+        # Dask logs every worker start and stop at INFO: keep it at the command line's level or quieter
+        logging.getLogger("distributed").setLevel(max(logging.WARNING, logging.getLogger().level))
+        self.cluster = None
+        if scheduler:
+            self.client = distributed.Client(scheduler, timeout="30s")
+        else:
+            n = workers or os.cpu_count() or 1
+            self.cluster = distributed.LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            self.client = distributed.Client(self.cluster)
+        self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
+        self.run_id = uuid.uuid4().hex[:8]
+
+    def submit(self, fn, *args, key=None):
+        return self.client.submit(fn, *args, key=f"{key}-{self.run_id}", pure=False)
+
+    def wait_any(self, futures):
+        return self._distributed.wait(futures, return_when="FIRST_COMPLETED").done
+
+    def close(self):
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def write_variant_files(dataset: Path, sweep: Sweep) -> None:
+    """``.sweep/sweep.json`` and each variant's ``scenario.toml`` (what it composes)."""
+    doc = {
+        "name": sweep.name,
+        "digest": sweep.digest(),
+        "sweep_file": str(sweep.path.resolve()),
+        "base": str(sweep.base_path),
+        "render": sweep.render,
+        "variants": [{"id": v.id, "params": v.params, "render_seed": v.render_seed} for v in sweep.variants],
+    }
+    write_json(store.sweep_dir(dataset) / "sweep.json", doc)
+    for v in sweep.variants:
+        text = f"# variant {v.id} of sweep {sweep.name}: {_plain(v.params)}\n" + tomlkit.dumps(v.raw)
+        write_text_atomic(dataset / "variants" / v.id / "scenario.toml", text)
+
+
+def run_sweep(
+    sweep: Sweep,
+    dataset,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    on_event: Callable[[dict], None] | None = None,
+    limit: int | None = None,
+) -> SweepResult:
+    """Run what is missing of ``sweep`` into ``dataset`` and assemble the dataset; see the module
+    doc. ``limit``: run only the first ``limit`` variants (a later run without it adds the rest). Raises InputError (nothing written) for a folder that cannot be written, a folder of
+    another sweep or one another live sweep is writing."""
+    t0 = time.perf_counter()
+    dataset = check_output_dir(dataset, "dataset folder").resolve()
+    emit = on_event or (lambda event: None)
+    keys = {v.id: layer_keys(v.scenario) for v in sweep.variants}
+    tasks = render_tasks(sweep)
+    if limit is not None:
+        wanted = {v.id for v in sweep.variants[:limit]}
+        tasks = [t for t in tasks if t.variant in wanted]
+    with store.dataset_lock(dataset):
+        store.check_sweep_record(dataset, sweep.digest())
+        write_variant_files(dataset, sweep)
+        removed = store.clean_staging(dataset)
+        if removed:
+            log.info("removed %d unfinished staging folder(s)", removed)
+        store.clear_failures(dataset)
+        done = [t for t in tasks if store.task_done(dataset, t.variant, t.chunk)]
+        result = SweepResult(dataset, len(sweep.variants), len(tasks), already_done=len(done))
+        todo = [t for t in tasks if t not in set(done)]
+        emit(
+            {
+                "type": "start",
+                "variants": len(sweep.variants),
+                "tasks": len(tasks),
+                "done": len(done),
+                "frames": sum(len(t.frames) for t in tasks),
+                "frames_done": sum(len(t.frames) for t in done),
+            }
+        )
+        if todo:
+            executor = _InProcess() if workers == 0 and not scheduler else _Dask(scheduler, workers)
+            result.workers = executor.workers
+            try:
+                _Loop(sweep, dataset, keys, todo, executor, result, emit).run()
+            finally:
+                executor.close()
+        emit({"type": "assemble"})
+        result.dataset_summary = assemble(dataset, sweep, tasks)
+        store.clean_staging(dataset)
+    result.seconds = time.perf_counter() - t0
+    write_json(store.sweep_dir(dataset) / "last_run.json", result.as_dict())
+    emit({"type": "finished", **result.as_dict()})
+    return result
+
+
+class _Loop:
+    """Submits tasks as their inputs become ready, retries, and reports (see the module doc)."""
+
+    def __init__(self, sweep, dataset, keys, todo: list[RenderTask], executor, result, emit):
+        self.sweep, self.dataset, self.executor, self.result, self.emit = (
+            sweep,
+            dataset,
+            executor,
+            result,
+            emit,
+        )
+        self.by_id = {v.id: v for v in sweep.variants}
+        self.renders: dict[str, list[RenderTask]] = {}
+        for t in todo:
+            self.renders.setdefault(t.variant, []).append(t)
+        need = [vid for vid in self.renders if not store.compose_done(dataset, vid)]
+        all_deps = compose_dependencies({vid: keys[vid] for vid in need})
+        self.waiting = {vid: set(all_deps[vid]) for vid in need}
+        self.running: dict = {}
+        self.retries = sweep.render["retries"]
+        self.settings = {k: sweep.render[k] for k in ("spp", "sensors", "annotators", "subbands")}
+
+    def run(self) -> None:
+        for vid in self.renders:
+            if vid not in self.waiting:
+                self._submit_renders(vid)
+        self._submit_ready_composes()
+        while self.running:
+            for fut in self.executor.wait_any(list(self.running)):
+                kind, name, attempt, payload = self.running.pop(fut)
+                try:
+                    exc = fut.exception()
+                except Exception as cancelled:  # noqa: BLE001 (a cancelled future raises here)
+                    exc = cancelled
+                if exc is None:
+                    self._finished(kind, name, fut.result(), payload)
+                elif attempt < self.retries:
+                    self.result.retries += 1
+                    self.emit(
+                        {"type": "retry", "task": name, "attempt": attempt + 1, "error": error_text(exc)}
+                    )
+                    self._resubmit(kind, name, attempt + 1, payload)
+                else:
+                    self._failed(kind, name, exc, attempt + 1, payload)
+
+    def _submit_ready_composes(self) -> None:
+        for vid in [v for v, deps in self.waiting.items() if not deps]:
+            del self.waiting[vid]
+            self._resubmit("compose", vid, 0, None)
+
+    def _resubmit(self, kind, name, attempt, payload) -> None:
+        if kind == "compose":
+            v = self.by_id[name]
+            fut = self.executor.submit(
+                compose_variant,
+                str(self.dataset),
+                v.id,
+                v.raw,
+                str(self.sweep.base_path),
+                key=f"compose-{name}",
+            )
+        else:
+            t: RenderTask = payload
+            settings = dict(self.settings, seed=self.by_id[t.variant].render_seed)
+            fut = self.executor.submit(
+                render_chunk,
+                str(self.dataset),
+                t.variant,
+                t.chunk,
+                list(t.frames),
+                settings,
+                key=f"render-{name}",
+            )
+        self.running[fut] = (kind, name, attempt, payload)
+
+    def _submit_renders(self, vid: str) -> None:
+        for t in self.renders.get(vid, []):
+            self._resubmit("render", t.name, 0, t)
+
+    def _release(self, vid: str) -> None:
+        for deps in self.waiting.values():
+            deps.discard(vid)
+        self._submit_ready_composes()
+
+    def _finished(self, kind, name, record, payload) -> None:
+        if kind == "compose":
+            self.result.composed += 1
+            self.emit(
+                {
+                    "type": "compose",
+                    "variant": name,
+                    "seconds": record["seconds"],
+                    "rebuilt": record["rebuilt"],
+                }
+            )
+            self._submit_renders(name)
+            self._release(name)
+            return
+        self.result.ran += 1
+        n_sensors = max(1, _sensor_count(self.by_id[payload.variant], self.sweep.render["sensors"]))
+        self.result.frames_rendered += len(payload.frames)
+        self.result.images_rendered += len(payload.frames) * n_sensors
+        self.emit(
+            {
+                "type": "render",
+                "task": name,
+                "frames": len(payload.frames),
+                "images": len(payload.frames) * n_sensors,
+                "seconds": record["seconds"],
+                "peak_rss_mb": record.get("peak_rss_mb"),
+            }
+        )
+
+    def _failed(self, kind, name, exc, attempts, payload) -> None:
+        text = error_text(exc)
+        store.record_failure(self.dataset, f"{kind}-{name}", text, attempts)
+        self.result.failures.append({"task": f"{kind} {name}", "error": text, "attempts": attempts})
+        self.emit({"type": "failed", "task": f"{kind} {name}", "error": text})
+        if kind == "compose":  # its renders cannot run
+            for t in self.renders.get(name, []):
+                self.result.failures.append(
+                    {"task": f"render {t.name}", "error": f"compose {name} failed", "attempts": 0}
+                )
+                self.emit({"type": "failed", "task": f"render {t.name}", "error": f"compose {name} failed"})
+            self._release(name)
+
+
+def _sensor_count(variant, sensors) -> int:
+    return sum(1 for s in variant.scenario["sensor"] if not sensors or s["id"] in sensors)

@@ -1,0 +1,109 @@
+"""What a worker runs: stateless functions of plain arguments (picklable, so any Dask worker
+with the package and the dataset folder can run them).
+
+* :func:`compose_variant` composes one variant into ``variants/<id>/``, first taking every layer
+  whose cache key is already in the shared store (so equal layers are built once per sweep),
+  then publishing its own layers to the store.
+* :func:`render_chunk` renders a chunk of frames of a composed variant into a staging folder
+  and renames it into ``renders/<id>/<chunk>/`` when complete (:mod:`humv_usd.sweep.store`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import socket
+import time
+import traceback
+from pathlib import Path
+
+from humv_usd.fileio import write_json
+from humv_usd.pipeline.compose import compose
+from humv_usd.pipeline.render import render_stage
+from humv_usd.scenario.load import validate
+from humv_usd.sweep import store
+from humv_usd.sweep.plan import layer_keys
+
+
+def _rss_mb() -> tuple[float, float]:
+    """(current, peak) resident memory of this process [MB] (Linux /proc, getrusage)."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+        current = pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError):
+        current = float("nan")
+    return current, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> dict:
+    """Compose one variant (see the module doc); returns what was built and taken from the store."""
+    t0 = time.perf_counter()
+    dataset_dir = Path(dataset)
+    scenario = validate(raw, Path(base_path))
+    out = dataset_dir / "variants" / variant
+    keys = layer_keys(scenario)
+    taken = store.seed_layers(dataset_dir, keys, out)
+    report = compose(scenario, out)
+    store.publish_layers(dataset_dir, keys, out)
+    record = {
+        "variant": variant,
+        "seconds": time.perf_counter() - t0,
+        "rebuilt": report.rebuilt,
+        "from_store": taken,
+        "keys": keys,
+        "host": socket.gethostname(),
+        "pid": os.getpid(),
+    }
+    write_json(out / store.COMPOSE_RECORD, record)
+    return record
+
+
+def render_chunk(dataset: str, variant: str, chunk: str, frames: list[int], settings: dict) -> dict:
+    """Render ``frames`` of a composed variant; the outputs land in ``renders/<variant>/<chunk>``
+    in one rename, with ``task.json`` (frames, seconds, Monte Carlo error, memory)."""
+    dataset_dir = Path(dataset)
+    final = store.render_folder(dataset_dir, variant, chunk)
+    if (final / store.TASK_RECORD).is_file():  # landed by an earlier try
+        return json.loads((final / store.TASK_RECORD).read_text())
+    t0 = time.perf_counter()
+    staging = store.staging_folder(dataset_dir, f"{variant}/{chunk}")
+    try:
+        manifest = render_stage(
+            dataset_dir / "variants" / variant / "stage.usda",
+            staging,
+            frames=list(frames),
+            spp=settings["spp"],
+            sensors=settings.get("sensors"),
+            seed=settings["seed"],
+            annotators=settings.get("annotators"),
+            subbands=settings.get("subbands"),
+        )
+        rss, peak = _rss_mb()
+        record = {
+            "variant": variant,
+            "chunk": chunk,
+            "frames": list(frames),
+            "seconds": time.perf_counter() - t0,
+            "render_seconds": manifest["timings_s"].get("total"),
+            "monte_carlo_error": manifest.get("monte_carlo_error"),
+            "rss_mb": rss,
+            "peak_rss_mb": peak,
+            "host": socket.gethostname(),
+            "pid": os.getpid(),
+        }
+        write_json(staging / store.TASK_RECORD, record)
+        store.commit(staging, final)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return record
+
+
+def error_text(exc: BaseException) -> str:
+    """One line for a failed task (the exception) plus its last traceback line."""
+    tb = traceback.format_exception(type(exc), exc, exc.__traceback__)
+    where = tb[-2].strip().splitlines()[0] if len(tb) > 1 else ""
+    return f"{type(exc).__name__}: {exc}" + (f" [{where}]" if where else "")

@@ -1,0 +1,424 @@
+"""The HumV editor's parts without a browser: fields from the spec, validation messages equal
+to the command line's, tomlkit saving, disk changes, path safety, plan, jobs, preview colours."""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import shutil
+import sys
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from humv_usd.catalog.sensors import scenario_values
+from humv_usd.editor.document import SaveRefused, ScenarioDocument
+from humv_usd.editor.fields import Field, all_fields, section_groups, unit_of
+from humv_usd.editor.jobs import JobManager
+from humv_usd.editor.plan import plan_svg
+from humv_usd.editor.preview import COLOUR_MAP, colourise
+from humv_usd.editor.safety import MAX_UPLOAD_BYTES, inside, upload_target
+from humv_usd.errors import InputError
+from humv_usd.scenario import load_scenario
+from humv_usd.scenario.spec import SECTIONS, Key
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "humvvex.toml"
+
+
+@pytest.fixture
+def humvvex(tmp_path) -> Path:
+    path = tmp_path / "humvvex.toml"
+    shutil.copy(EXAMPLE, path)
+    return path
+
+
+def _field(doc: ScenarioDocument, where: str) -> Field:
+    return next(f for f in all_fields(doc.raw()) if f.where == where)
+
+
+def test_every_spec_key_is_a_field(humvvex):
+    doc = ScenarioDocument(humvvex)
+    wheres = {f.where for f in all_fields(doc.raw())}
+    for name, section in SECTIONS.items():
+        if section.array:
+            count = len(doc.raw().get(name, []))
+            expected = {f"{name}[{i}].{k}" for i in range(count) for k in section.keys}
+        else:
+            expected = {f"{name}.{k}" for k in section.keys}
+        assert expected <= wheres, sorted(expected - wheres)
+    n_objects = len(doc.raw()["scene"]["object"])
+    assert {
+        f"scene.object[{i}].{k}"
+        for i in range(n_objects)
+        for k in SECTIONS["scene"].subsections["object"].keys
+    } <= wheres
+    assert {f"scene.ground.{k}" for k in SECTIONS["scene"].subsections["ground"].keys} <= wheres
+
+
+def test_a_new_spec_key_appears_without_editor_code(humvvex, monkeypatch):
+    monkeypatch.setitem(
+        SECTIONS["thermal"].keys,
+        "wetness_k",
+        Key("float", "A key added to the spec [K].", default=1.5, lo=0.0, hi=9.0),
+    )
+    doc = ScenarioDocument(humvvex)
+    f = _field(doc, "thermal.wetness_k")
+    assert (f.unit, f.allowed, f.default_text) == ("K", "0.0..9.0", "1.5")
+    assert "A key added to the spec" in f.help
+    doc.set_text(f, "12")
+    assert "thermal.wetness_k = 12: allowed range 0.0..9.0" in doc.problems()
+
+
+def test_units_from_help_text_and_suffix():
+    assert unit_of("position_m", SECTIONS["placement"].keys["position_m"]) == "m"
+    assert unit_of("latitude_deg", SECTIONS["general"].keys["latitude_deg"]) == "deg north"
+    assert unit_of("speed_m_s", SECTIONS["human"].keys["speed_m_s"]) == "m/s"
+    assert unit_of("x_k", Key("float", "no bracket")) == "K"
+
+
+@pytest.mark.parametrize(
+    ("where", "text", "toml_line"),
+    [
+        ("sensor[1].netd_k", "9", "netd_k = 9"),
+        ("general.latitude_deg", "95.5", "latitude_deg = 95.5"),
+        ("sensor[0].resolution", "[0, 768]", "resolution = [0, 768]"),
+        ("human[0].build", "stocky", 'build = "stocky"'),
+    ],
+)
+def test_messages_are_the_command_lines(humvvex, tmp_path, where, text, toml_line):
+    """The page's problem equals the line load_scenario (humv-usd compose) prints for the same file."""
+    doc = ScenarioDocument(humvvex)
+    doc.set_text(_field(doc, where), text)
+    page = doc.problems()
+    cli_file = tmp_path / "cli.toml"
+    cli_file.write_text(doc.text)
+    with pytest.raises(InputError) as exc:
+        load_scenario(cli_file)
+    cli = [p.removeprefix(f"{cli_file}: ") for p in exc.value.problems]
+    assert page == cli and len(page) == 1
+    assert toml_line in doc.text
+    at, other = ScenarioDocument.problems_by_field(page, all_fields(doc.raw()))
+    assert list(at) == [where] and not other
+
+
+def test_text_that_is_not_a_value_is_named_and_not_saved(humvvex):
+    doc = ScenarioDocument(humvvex)
+    before = humvvex.read_bytes()
+    problem = doc.set_text(_field(doc, "sensor[0].position_m"), "[1, 2")
+    assert problem.startswith("sensor[0].position_m = '[1, 2': not a TOML value")
+    with pytest.raises(SaveRefused):
+        doc.save()
+    assert humvvex.read_bytes() == before
+
+
+def test_save_keeps_comments_and_order(humvvex):
+    doc = ScenarioDocument(humvvex)
+    original = humvvex.read_text().splitlines()
+    doc.set_text(_field(doc, "sensor[0].bit_depth"), "12")
+    doc.set_text(_field(doc, "thermal.spin_up_s"), "600.0")
+    assert doc.save() == []
+    saved = humvvex.read_text().splitlines()
+    diff = [line for line in difflib.ndiff(original, saved) if line[:1] in "+-"]
+    assert diff == [
+        "- bit_depth = 14                 # a table value wins over the preset's (here the same)",
+        "+ bit_depth = 12                 # a table value wins over the preset's (here the same)",
+        "+ spin_up_s = 600.0",
+    ]
+    thermal = saved.index("[thermal]                      # tab (vi)")
+    assert saved.index("spin_up_s = 600.0") == thermal + 3  # after the table's last key
+    assert load_scenario(humvvex)["thermal"]["spin_up_s"] == 600.0
+    assert not list(humvvex.parent.glob(".humvvex.*"))  # no temporary file left
+
+
+def test_invalid_scenario_cannot_replace_a_valid_file(humvvex):
+    doc = ScenarioDocument(humvvex)
+    before = humvvex.read_bytes()
+    doc.set_text(_field(doc, "general.fps"), "0")
+    with pytest.raises(SaveRefused, match="would replace a valid humvvex.toml"):
+        doc.save()
+    assert humvvex.read_bytes() == before
+    doc.set_text(_field(doc, "general.fps"), "25.0")
+    doc.save()
+    assert load_scenario(humvvex)["general"]["fps"] == 25.0
+
+
+def test_new_file_and_array_tables(tmp_path):
+    path = tmp_path / "new.toml"
+    doc = ScenarioDocument(path)
+    assert not path.exists() and doc.problems() == []
+    i = doc.add_table(("sensor",))
+    assert "sensor[0].id: missing required key" in " ".join(doc.problems())
+    fields = {f.where: f for f in all_fields(doc.raw())}
+    doc.set_text(fields["sensor[0].id"], "cam")
+    doc.set_text(fields["sensor[0].preset"], "lwir640_12um")
+    doc.set_text(fields["sensor[0].position_m"], "[0, -10, 1.5]")
+    doc.set_text(fields["sensor[0].look_at_m"], "[0, 0, 1]")
+    doc.add_table(("scene", "object"))
+    doc.remove_table(("scene", "object"), 0)
+    assert doc.problems() == [] and i == 0
+    doc.save()
+    assert load_scenario(path)["sensor"][0]["resolution"] == [640, 512]
+    groups, slots = section_groups(doc.raw(), "scene")
+    assert [g.where for g in groups] == ["scene", "scene.ground"]
+    expected = [f"scene.{n}" for n, sub in SECTIONS["scene"].subsections.items() if sub.array]
+    assert "scene.object" in expected and [s.where for s in slots] == expected
+
+
+def test_change_on_disk_is_detected(humvvex):
+    doc = ScenarioDocument(humvvex)
+    assert not doc.disk_changed()
+    humvvex.write_text(humvvex.read_text().replace('name = "humvvex"', 'name = "other"'))
+    assert doc.disk_changed()
+    doc.set_text(_field(doc, "general.seed"), "3")
+    with pytest.raises(SaveRefused, match="changed on disk"):
+        doc.save()
+    assert 'name = "other"' in humvvex.read_text()
+    doc.save(overwrite_disk_change=True)
+    assert load_scenario(humvvex)["general"]["seed"] == 3 and not doc.disk_changed()
+    doc.reload()
+    assert doc.raw()["general"]["name"] == "humvvex"
+
+
+def test_paths_outside_the_folders_are_refused(tmp_path):
+    root = tmp_path / "scenario"
+    (root / "sub").mkdir(parents=True)
+    (root / "sub" / "ok.bvh").write_text("x")
+    (tmp_path / "secret.txt").write_text("x")
+    os.symlink(tmp_path / "secret.txt", root / "link.txt")
+    assert inside(root, "sub/ok.bvh") == (root / "sub" / "ok.bvh").resolve()
+    for bad in ("../secret.txt", "sub/../../secret.txt", str(tmp_path / "secret.txt"), "link.txt", "a\x00b"):
+        with pytest.raises(InputError):
+            inside(root, bad)
+    with pytest.raises(InputError, match="at most"):
+        upload_target(root, "walk.bvh", MAX_UPLOAD_BYTES + 1)
+    for name in ("../walk.bvh", "x/walk.bvh", "run.sh", ".hidden.bvh"):
+        with pytest.raises(InputError):
+            upload_target(root, name, 10)
+    assert upload_target(root, "walk 1.bvh", 10) == (root / "walk 1.bvh").resolve()
+
+
+def test_file_keys_outside_the_scenario_folder_are_problems(humvvex, tmp_path):
+    outside = tmp_path.parent / "elsewhere.csv"
+    doc = ScenarioDocument(humvvex)
+    doc.set_text(_field(doc, "atmosphere.weather_csv"), f"../{outside.name}")
+    assert any(p.startswith("atmosphere.weather_csv = ") and "outside" in p for p in doc.problems())
+
+
+def _polygon(g) -> np.ndarray:
+    poly = g.find("{http://www.w3.org/2000/svg}polygon")
+    return np.array([[float(v) for v in p.split(",")] for p in poly.get("points").split()])
+
+
+def test_plan_shows_every_sensor_with_its_field_of_view(humvvex):
+    scenario = load_scenario(humvvex)
+    root = ET.fromstring(plan_svg(scenario, 193.8, 52.7))
+    ns = "{http://www.w3.org/2000/svg}"
+    sensors = {g.get("data-id"): g for g in root.iter(f"{ns}g") if g.get("class") == "sensor"}
+    assert list(sensors) == [s["id"] for s in scenario["sensor"]]
+    assert [g.get("data-id") for g in root.iter(f"{ns}g") if g.get("class") == "person"] == ["p1"]
+    assert [g.get("data-id") for g in root.iter(f"{ns}g") if g.get("class") == "object"] == ["warehouse"]
+    assert float(next(g for g in root.iter(f"{ns}g") if g.get("class") == "sun").get("data-azimuth")) == 193.8
+    # the frustum's opening angle is the preset's horizontal field of view: 2 atan(w p / 2 f)
+    preset = scenario_values("atom1024_lwir")
+    fov = 2 * math.atan(
+        preset["resolution"][0] * preset["pixel_pitch_um"] * 1e-3 / (2 * preset["focal_length_mm"])
+    )
+    apex, left, right = _polygon(sensors["atom1024_lwir"])
+    a, b = left - apex, right - apex
+    angle = math.acos(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+    assert angle == pytest.approx(fov, abs=2e-3)
+    # the camera looks north (up on the plan): the wedge opens towards smaller y
+    assert (left[1] + right[1]) / 2 < apex[1]
+
+
+def test_plan_aerial_orbit_and_walk_path(humvvex):
+    text = (
+        humvvex.read_text()
+        .replace(
+            "position_m = [-1.6, -15.0, 1.6]\nlook_at_m = [0.0, 0.0, 1.0]",
+            'platform = "aerial"\nlook_at_m = [0.0, 0.0, 0.0]\norbit_radius_m = 50.0',
+        )
+        .replace('activity = "stand"', 'activity = "walk"')
+        .replace(
+            "heading_deg = 180.0            # facing south, towards the camera",
+            "heading_deg = 90.0\nwaypoints_m = [[5.0, 0.0], [5.0, 5.0]]",
+        )
+    )
+    humvvex.write_text(text)
+    svg = plan_svg(load_scenario(humvvex))
+    root = ET.fromstring(svg)
+    ns = "{http://www.w3.org/2000/svg}"
+    orbit = next(c for c in root.iter(f"{ns}circle") if c.get("class") == "orbit")
+    walk = next(p for p in root.iter(f"{ns}polyline") if p.get("class") == "walk")
+    assert float(orbit.get("r")) > 0 and len(walk.get("points").split()) == 3
+
+
+def test_jobs_run_argument_lists_and_cancel(tmp_path):
+    jobs = JobManager()
+    with pytest.raises(TypeError):
+        jobs.start("compose", ["echo hi; rm -rf /"], tmp_path, tmp_path)  # a string, not argument lists
+    py = sys.executable
+    job = jobs.start(
+        "compose", [[py, "-c", "print('one')"], [py, "-c", "print('two; $(x)')"]], tmp_path, tmp_path
+    )
+    _wait(job)
+    assert job.state == "done" and "one" in job.lines and "two; $(x)" in job.lines and job.progress == 1.0
+    failed = jobs.start(
+        "render", [[py, "-c", "import sys; sys.exit(3)"], [py, "-c", "print('never')"]], tmp_path, tmp_path
+    )
+    _wait(failed)
+    assert failed.state == "failed" and failed.returncode == 3 and "never" not in failed.lines
+    slow = jobs.start(
+        "render", [[py, "-c", "import time; print('go', flush=True); time.sleep(60)"]], tmp_path, tmp_path
+    )
+    while "go" not in slow.lines:
+        time.sleep(0.05)
+    slow.cancel()
+    _wait(slow)
+    assert slow.state == "cancelled" and slow.seconds < 30
+    assert jobs.latest() is slow and jobs.latest("compose") is job
+
+
+def _wait(job, limit: float = 60.0) -> None:
+    t0 = time.time()
+    while not job.finished:
+        assert time.time() - t0 < limit
+        time.sleep(0.05)
+    time.sleep(0.05)  # the final line
+
+
+def test_preview_colours_span_the_levels():
+    from matplotlib import colormaps
+
+    t = np.array([[280.0, 300.0, np.nan], [250.0, 320.0, 290.0]])
+    rgb = colourise(t, 280.0, 300.0)
+    cmap = colormaps[COLOUR_MAP]
+    assert rgb.dtype == np.uint8 and rgb.shape == (2, 3, 3)
+    np.testing.assert_array_equal(rgb[0, 0], np.rint(np.array(cmap(0.0)[:3]) * 255))
+    np.testing.assert_array_equal(rgb[0, 1], np.rint(np.array(cmap(1.0)[:3]) * 255))
+    np.testing.assert_array_equal(rgb[0, 2], [0, 0, 0])
+    np.testing.assert_array_equal(rgb[1, 0], rgb[0, 0])  # clipped below
+    np.testing.assert_array_equal(rgb[1, 2], np.rint(np.array(cmap(0.5)[:3]) * 255))
+
+
+@pytest.mark.slow
+def test_stage_view_has_every_mesh_triangle_and_camera(humvvex, tmp_path):
+    """The GLB of the 3D view holds the composed stage's triangles (counted with pxr) and its cameras."""
+    import trimesh
+    from pxr import Usd, UsdGeom
+
+    from humv_usd.editor.stage3d import stage_view
+    from humv_usd.pipeline.compose import compose
+
+    out = tmp_path / "out"
+    compose(load_scenario(humvvex), out)
+    view = stage_view(out / "stage.usda", out / ".editor" / "stage.glb")
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    expected = 0
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Mesh):
+            mesh = UsdGeom.Mesh(prim)
+            n = int(np.sum(np.asarray(mesh.GetFaceVertexCountsAttr().Get()) - 2))
+            expected += n * (2 if mesh.GetDoubleSidedAttr().Get() else 1)
+    assert view.triangles == expected
+    loaded = trimesh.load(view.glb, force="scene")
+    assert sum(len(g.faces) for g in loaded.geometry.values()) == expected
+    assert [c.name for c in view.cameras] == [s["id"] for s in load_scenario(humvvex)["sensor"]]
+    np.testing.assert_allclose(view.cameras[0].origin, [0.0, -15.0, 1.6], atol=1e-6)
+    np.testing.assert_allclose(view.bounds[0][:2], [-60.0, -60.0])  # the 120 m ground
+    np.testing.assert_allclose(view.bounds[1][:2], [60.0, 60.0])
+
+
+def test_preview_scenario_is_small_with_the_same_view(humvvex, tmp_path):
+    import tomlkit
+
+    from humv_usd.editor.preview import PREVIEW_WIDTH_PX, preview_scenario
+
+    (humvvex.parent / "weather.csv").write_text(
+        "time,air_temperature_k\n2018-10-24T13:00:00,290\n2018-10-24T15:00:00,291\n"
+    )
+    humvvex.write_text(
+        humvvex.read_text().replace("[atmosphere]\n", '[atmosphere]\nweather_csv = "weather.csv"\n')
+    )
+    doc = ScenarioDocument(humvvex)
+    scenario = load_scenario(humvvex)
+    raw = preview_scenario(doc.raw(), scenario, humvvex.parent, "lwir640")
+    copy_path = tmp_path / "elsewhere" / "preview.toml"
+    copy_path.parent.mkdir()
+    copy_path.write_text(tomlkit.dumps(raw))
+    small = load_scenario(copy_path)  # validates where it lies: file keys are absolute
+    assert [s["id"] for s in small["sensor"]] == ["lwir640"]
+    full = scenario["sensor"][1]
+    s = small["sensor"][0]
+    assert s["resolution"] == [320, 256] and s["resolution"][0] <= PREVIEW_WIDTH_PX
+    # field of view: w p / f unchanged (same focal length, binned pixels)
+    assert s["resolution"][0] * s["pixel_pitch_um"] == pytest.approx(
+        full["resolution"][0] * full["pixel_pitch_um"]
+    )
+    assert s["focal_length_mm"] == full["focal_length_mm"] and s["position_m"] == full["position_m"]
+    assert small["atmosphere"]["weather_csv"] == str((humvvex.parent / "weather.csv").resolve())
+    assert (
+        "lwir640" not in humvvex.read_text() or doc.raw()["sensor"][1].get("resolution") is None
+    )  # source untouched
+
+
+def test_a_file_that_is_not_toml_is_shown_and_never_replaced(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("[general\nname = 'x'\n")
+    doc = ScenarioDocument(path)
+    assert len(doc.problems()) == 1 and "not valid TOML" in doc.problems()[0]
+    with pytest.raises(SaveRefused):
+        doc.save()
+    assert path.read_text() == "[general\nname = 'x'\n"
+
+
+def test_edit_command_bad_output_folder_is_one_line(tmp_path):
+    from click.testing import CliRunner
+
+    from humv_usd.cli.main import main
+
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("x")
+    result = CliRunner().invoke(main, ["edit", str(tmp_path / "s.toml"), "-o", str(a_file), "--port", "1"])
+    assert result.exit_code == 2
+    assert result.output.strip().count("\n") == 0 and "output folder" in result.output
+
+
+def test_job_progress_counts_the_files_a_step_writes(tmp_path):
+    py = sys.executable
+    code = (
+        "import pathlib, time, sys; d = pathlib.Path(sys.argv[1]) / 'cam'; d.mkdir(parents=True);"
+        "[(d / f'{i:04d}.exr').write_text('x') for i in range(2)]; print('two', flush=True); time.sleep(60)"
+    )
+    jobs = JobManager()
+    job = jobs.start(
+        "render",
+        [[py, "-c", "print('compose')"], [py, "-c", code, str(tmp_path / "render")]],
+        tmp_path,
+        tmp_path,
+        watch=(1, tmp_path / "render", "*/[0-9][0-9][0-9][0-9].exr", 4),
+    )
+    t0 = time.time()
+    while "two" not in job.lines:
+        assert time.time() - t0 < 60
+        time.sleep(0.05)
+    assert job.files_done() == (2, 4) and job.progress == pytest.approx((1 + 0.5) / 2)
+    job.cancel()
+    _wait(job)
+    assert job.state == "cancelled"
+
+
+def test_every_change_counts_so_pages_follow(humvvex):
+    doc = ScenarioDocument(humvvex)
+    v0 = doc.version
+    doc.set_text(_field(doc, "general.seed"), "0")  # same value: no change
+    assert doc.version == v0
+    doc.set_text(_field(doc, "general.seed"), "5")
+    doc.add_table(("human",))
+    doc.remove_table(("human",), 1)
+    doc.reload()
+    assert doc.version == v0 + 4

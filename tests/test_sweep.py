@@ -1,0 +1,452 @@
+"""humv-usd sweep: variants and their validation, the layer keys compose shares, the lock and
+staging records, the dataset (COCO per sensor read by pycocotools, parquet index read by
+Hugging Face datasets, YOLO), retries, and resuming after kill -9 at random moments."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from conftest import ROOT
+
+from humv_usd import images
+from humv_usd.cli.main import main
+from humv_usd.errors import InputError
+from humv_usd.sweep import store
+from humv_usd.sweep.plan import compose_dependencies, layer_keys, render_tasks
+from humv_usd.sweep.spec import load_sweep
+
+TINY = """
+[general]
+name = "tiny"
+start = 2018-10-24T14:05:00
+utc_offset_h = -4.0
+latitude_deg = 39.8
+longitude_deg = -84.03
+fps = 4.0
+duration_s = 0.25
+seed = 0
+
+[scene.ground]
+material = "concrete"
+size_m = [20.0, 20.0]
+temperature_k = 297.0
+
+[[scene.object]]
+id = "box"
+kind = "box"
+class = "building"
+material = "painted_metal"
+center_m = [0.0, 3.0, 0.0]
+size_m = [1.0, 0.5, 1.0]
+temperature_k = 310.0
+
+[[sensor]]
+id = "cam"
+band = "LWIR"
+resolution = [32, 24]
+focal_length_mm = 10.0
+position_m = [0.0, -8.0, 1.6]
+look_at_m = [0.0, 0.0, 1.0]
+
+[thermal]
+model = "fixed"
+
+[atmosphere]
+model = "analytic"
+"""
+
+SWEEP = """
+[sweep]
+name = "tiny"
+base = "tiny.toml"
+count = 2
+seed = 3
+
+[grid]
+"scene.object.0.temperature_k" = [300.0, 320.0]
+
+[random]
+"sensor.0.position_m.0" = { uniform = [-1.0, 1.0] }
+
+[render]
+spp = 2
+frames_per_task = 1
+"""
+
+
+def _write(tmp_path: Path, sweep: str = SWEEP, base: str = TINY) -> Path:
+    (tmp_path / "tiny.toml").write_text(base)
+    path = tmp_path / "sweep.toml"
+    path.write_text(sweep)
+    return path
+
+
+def _problems(tmp_path, text) -> list[str]:
+    with pytest.raises(InputError) as info:
+        load_sweep(_write(tmp_path, text))
+    return info.value.problems
+
+
+# ----------------------------------------------------------------------- variants
+def test_grid_times_count_with_reproducible_draws(tmp_path):
+    sw = load_sweep(_write(tmp_path))
+    assert [v.id for v in sw.variants] == ["v0000", "v0001", "v0002", "v0003"]
+    temps = [v.scenario["scene"]["object"][0]["temperature_k"] for v in sw.variants]
+    assert temps == [300.0, 300.0, 320.0, 320.0]
+    xs = [v.scenario["sensor"][0]["position_m"][0] for v in sw.variants]
+    assert all(-1.0 <= x <= 1.0 for x in xs) and len(set(xs)) == 4
+    assert [v.params["sensor.0.position_m.0"] for v in sw.variants] == xs
+    again = load_sweep(_write(tmp_path))
+    assert [v.raw for v in again.variants] == [v.raw for v in sw.variants]
+    assert sw.digest() == again.digest()
+    # the base's other values are untouched
+    assert all(v.scenario["sensor"][0]["position_m"][1:] == [-8.0, 1.6] for v in sw.variants)
+
+
+def test_named_options_append_after_sets_whatever_the_axis_order(tmp_path):
+    text = """
+[sweep]
+base = "tiny.toml"
+[grid.extra]
+none = {}
+panel = { "scene.object+" = [{ id = "panel", kind = "panel", class = "panel", material = "blackbody", center_m = [2.0, 3.0, 0.0], size_m = [1.0, 0.05, 1.0], temperature_k = 330.0 }] }
+[grid.objects]
+one = { "scene.object" = [{ id = "box2", material = "wood", center_m = [0.0, 4.0, 0.0], size_m = [1.0, 1.0, 1.0] }] }
+"""
+    sw = load_sweep(_write(tmp_path, text))
+    ids = [[o["id"] for o in v.scenario["scene"]["object"]] for v in sw.variants]
+    assert ids == [["box2"], ["box2", "panel"]]
+    assert [v.params["extra"] for v in sw.variants] == ["none", "panel"]
+
+
+def test_normal_draws_stay_in_the_allowed_range(tmp_path):
+    text = SWEEP.replace(
+        '"sensor.0.position_m.0" = { uniform = [-1.0, 1.0] }',
+        '"atmosphere.relative_humidity" = { normal = [0.95, 0.3] }\n'
+        '"general.start" = { uniform = [2018-10-24T06:00:00, 2018-10-24T18:00:00] }',
+    ).replace("count = 2", "count = 200")
+    sw = load_sweep(_write(tmp_path, text))
+    rh = np.array([v.scenario["atmosphere"]["relative_humidity"] for v in sw.variants])
+    assert rh.max() <= 1.0 and rh.min() >= 0.0 and (rh > 0.95).any() and (rh < 0.9).any()
+    hours = {v.scenario["general"]["start"].hour for v in sw.variants}
+    assert min(hours) >= 6 and max(hours) <= 18 and len(hours) > 6
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ('"scene.object.0.temperatur_k" = [300.0]', "grid axis 'scene.object.0.temperatur_k' key"),
+        ('"scene.object.3.temperature_k" = [300.0]', "the base scenario has 1 [[scene.object]]"),
+        (
+            '"scene.object.0.temperature_k" = [300.0, 5000.0]',
+            "grid axis 'scene.object.0.temperature_k' = 5000.0",
+        ),
+        ('"sensor.0.agc" = ["linear", "loud"]', "grid axis 'sensor.0.agc' = loud"),
+    ],
+)
+def test_a_bad_axis_is_one_line_naming_it(tmp_path, change, expected):
+    text = SWEEP.replace('"scene.object.0.temperature_k" = [300.0, 320.0]', change)
+    problems = _problems(tmp_path, text)
+    assert len(problems) == 1, problems
+    assert expected in problems[0]
+
+
+@pytest.mark.parametrize(
+    ("draw", "expected"),
+    [
+        ("{ uniform = [-10.0, 400.0] }", "outside the key's allowed range -360..360"),
+        ("{ normal = [500.0, 1.0] }", "normal mean"),
+        ("{ gauss = [0.0, 1.0] }", "expected one of"),
+    ],
+)
+def test_a_bad_random_range_is_checked_against_the_spec(tmp_path, draw, expected):
+    text = SWEEP.replace(
+        '"sensor.0.position_m.0" = { uniform = [-1.0, 1.0] }', f'"scene.object.0.heading_deg" = {draw}'
+    )
+    problems = _problems(tmp_path, text)
+    assert len(problems) == 1 and expected in problems[0] and "scene.object.0.heading_deg" in problems[0]
+
+
+def test_bad_axis_on_the_command_line_exit_2_nothing_written(tmp_path):
+    path = _write(tmp_path, SWEEP.replace('"scene.object.0.temperature_k"', '"scene.object.0.temperature"'))
+    out = tmp_path / "dataset"
+    r = CliRunner().invoke(main, ["sweep", str(path), "-o", str(out)])
+    assert r.exit_code == 2
+    lines = [x for x in r.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and "grid axis 'scene.object.0.temperature'" in lines[0]
+    assert not out.exists()
+
+
+def test_dry_run_prints_variants_and_cost(tmp_path):
+    out = tmp_path / "dataset"
+    r = CliRunner().invoke(
+        main, ["sweep", str(_write(tmp_path)), "-o", str(out), "--dry-run", "--workers", "2"]
+    )
+    assert r.exit_code == 0, r.output
+    assert r.output.count("\nv000") + r.output.startswith("v000") == 4
+    assert "4 variants, 8 render tasks, 8 frames, 8 images" in r.output
+    assert "estimated cost" in r.output and not out.exists()
+
+
+def test_layer_keys_are_compose_keys_and_shared_layers_are_found(tmp_path):
+    from humv_usd.pipeline.compose import compose
+
+    sw = load_sweep(_write(tmp_path))
+    v = sw.variants[0]
+    compose(v.scenario, tmp_path / "c")
+    report = json.loads((tmp_path / "c" / "compose.json").read_text())
+    assert layer_keys(v.scenario) == {e["name"]: e["key"] for e in report["layers"] if "key" in e}
+    keys = {x.id: layer_keys(x.scenario) for x in sw.variants}
+    # camera moves only: v0001 shares everything but sensors/atmosphere_paths with v0000
+    same = {n for n in keys["v0000"] if keys["v0000"][n] == keys["v0001"][n]}
+    assert same == {"environment", "atmosphere", "materials", "scene", "thermal"}
+    deps = compose_dependencies(keys)
+    assert deps["v0000"] == [] and deps["v0001"] == ["v0000"] and deps["v0003"] == ["v0000", "v0002"]
+    tasks = render_tasks(sw)
+    assert [t.name for t in tasks][:2] == ["v0000/f0000-0000", "v0000/f0001-0001"] and len(tasks) == 8
+
+
+def test_examples_table1_and_random(tmp_path):
+    t1 = load_sweep(ROOT / "examples" / "table1.toml")
+    assert len(t1.variants) >= 80
+    combos = {tuple(sorted(v.params.items())) for v in t1.variants}
+    assert len(combos) == len(t1.variants)
+    assert {v.scenario["human"][0]["activity"] for v in t1.variants} == {"standTurn", "walk", "postExercise"}
+    assert {v.scenario["human"][0]["sex"] for v in t1.variants} == {"male", "female"}
+    rnd = load_sweep(ROOT / "examples" / "random_sweep.toml")
+    assert len(rnd.variants) >= 10 and len({v.scenario["general"]["start"] for v in rnd.variants}) > 1
+
+
+# ----------------------------------------------------------------------- lock and records
+def test_a_live_sweep_holds_the_folder_a_dead_ones_lock_is_taken_over(tmp_path):
+    lock = tmp_path / store.SWEEP_DIR / store.LOCK_NAME
+    lock.parent.mkdir(parents=True)
+    import socket
+
+    lock.write_text(json.dumps({"pid": os.getppid(), "host": socket.gethostname()}))
+    with pytest.raises(InputError, match=f"another sweep \\(pid {os.getppid()}"):
+        with store.dataset_lock(tmp_path):
+            pass
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    lock.write_text(json.dumps({"pid": dead.pid, "host": socket.gethostname()}))
+    with store.dataset_lock(tmp_path):
+        assert json.loads(lock.read_text())["pid"] == os.getpid()
+    assert not lock.exists()
+
+
+def test_cli_refuses_a_folder_another_sweep_is_writing(tmp_path):
+    import socket
+
+    out = tmp_path / "dataset"
+    (out / store.SWEEP_DIR).mkdir(parents=True)
+    (out / store.SWEEP_DIR / store.LOCK_NAME).write_text(
+        json.dumps({"pid": os.getppid(), "host": socket.gethostname()})
+    )
+    r = CliRunner().invoke(
+        main, ["sweep", str(_write(tmp_path)), "-o", str(out), "--workers", "0", "--quiet"]
+    )
+    assert r.exit_code == 2 and "another sweep" in r.output
+    assert sorted(p.name for p in (out / store.SWEEP_DIR).iterdir()) == [store.LOCK_NAME]
+
+
+def test_a_chunk_lands_once(tmp_path):
+    final = store.render_folder(tmp_path, "v0", "f0000-0000")
+    for i in range(2):
+        staging = store.staging_folder(tmp_path, "v0/f0000-0000")
+        (staging / store.TASK_RECORD).write_text(json.dumps({"try": i}))
+        assert store.commit(staging, final) == (i == 0)
+        assert not staging.exists()
+    assert json.loads((final / store.TASK_RECORD).read_text()) == {"try": 0}
+
+
+# ----------------------------------------------------------------------- end to end
+def _files(dataset: Path, suffix: str) -> dict[str, bytes]:
+    return {
+        p.relative_to(dataset).as_posix(): p.read_bytes()
+        for p in sorted((dataset / "renders").rglob(f"*{suffix}"))
+    }
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The tiny sweep run uninterrupted, in this process."""
+    tmp = tmp_path_factory.mktemp("sweep_ref")
+    path = _write(tmp)
+    from humv_usd.sweep.run import run_sweep
+
+    result = run_sweep(load_sweep(path), tmp / "dataset", workers=0)
+    return tmp, path, tmp / "dataset", result
+
+
+@pytest.mark.slow
+def test_one_dataset_out(reference):
+    from pycocotools.coco import COCO
+
+    tmp, path, dataset, result = reference
+    assert result.failures == [] and result.ran == 8 and result.images_rendered == 8
+    coco = COCO(str(dataset / "coco" / "cam.json"))
+    ids = [img["id"] for img in coco.dataset["images"]]
+    assert ids == list(range(1, 9))
+    assert len({a["id"] for a in coco.dataset["annotations"]}) == len(coco.dataset["annotations"]) > 0
+    assert [img["humv_variant"] for img in coco.dataset["images"]] == [f"v000{i // 2}" for i in range(8)]
+    for img in coco.dataset["images"]:  # relinked paths resolve from coco/
+        assert (dataset / "coco" / img["file_name"]).is_file() and (
+            dataset / "coco" / img["humv_exr"]
+        ).is_file()
+    ann = coco.dataset["annotations"][0]
+    assert coco.annToMask(ann).sum() == ann["area"]
+
+    import datasets
+
+    ds = datasets.load_dataset(str(dataset), split="train")
+    assert ds.num_rows == 8
+    assert set(ds.column_names) >= {"variant", "frame", "sensor", "image", "exr", "mc_error_k", "seconds"}
+    assert sorted(ds["param_scene_object_0_temperature_k"]) == [300.0] * 4 + [320.0] * 4
+    for row in ds:
+        assert (dataset / row["image"]).is_file() and row["mc_error_k"] > 0
+    summary = json.loads((dataset / "dataset.json").read_text())
+    assert summary["images"] == 8 and summary["images_per_sensor"] == {"cam": 8}
+    card = (dataset / "README.md").read_text()
+    assert "| cam | 8 |" in card and (dataset / "card" / "contact_cam.png").is_file()
+    sheet = images.read_exr(dataset / "card" / "contact_cam.png")
+    assert sheet["R"].shape == (2 * 26, 4 * 34)
+    labels = sorted((dataset / "yolo" / "detect" / "cam" / "labels").glob("*.txt"))
+    assert len(labels) == 8
+    n_lines = sum(len(p.read_text().splitlines()) for p in labels)
+    assert n_lines == len(coco.dataset["annotations"])
+    x = np.array(
+        [[float(v) for v in line.split()[1:]] for p in labels for line in p.read_text().splitlines()]
+    )
+    assert (x >= 0).all() and (x <= 1).all()
+
+
+@pytest.mark.slow
+def test_rerun_does_nothing_and_changes_no_label(reference):
+    from humv_usd.sweep.run import run_sweep
+
+    tmp, path, dataset, _ = reference
+    before = (dataset / "coco" / "cam.json").read_bytes(), _files(dataset, ".json")
+    again = run_sweep(load_sweep(path), dataset, workers=0)
+    assert again.already_done == 8 and again.ran == 0 and again.composed == 0
+    assert (dataset / "coco" / "cam.json").read_bytes() == before[0]
+    assert _files(dataset, ".json") == before[1]
+
+
+@pytest.mark.slow
+def test_failed_tasks_are_retried_then_reported_without_stopping_the_others(tmp_path, monkeypatch):
+    from humv_usd.sweep import run as run_mod
+
+    real = run_mod.render_chunk
+    calls: dict[str, int] = {}
+
+    def flaky(dataset, variant, chunk, frames, settings):
+        calls[f"{variant}/{chunk}"] = calls.get(f"{variant}/{chunk}", 0) + 1
+        if variant == "v0001" and chunk == "f0000-0000" and calls[f"{variant}/{chunk}"] == 1:
+            raise RuntimeError("transient")
+        if variant == "v0002" and chunk == "f0001-0001":
+            raise RuntimeError("always broken")
+        return real(dataset, variant, chunk, frames, settings)
+
+    monkeypatch.setattr(run_mod, "render_chunk", flaky)
+    text = SWEEP.replace("frames_per_task = 1", "frames_per_task = 1\nretries = 1")
+    result = run_mod.run_sweep(load_sweep(_write(tmp_path, text)), tmp_path / "dataset", workers=0)
+    assert result.retries == 2 and calls["v0002/f0001-0001"] == 2 and calls["v0001/f0000-0000"] == 2
+    assert [f["task"] for f in result.failures] == ["render v0002/f0001-0001"]
+    assert "always broken" in result.failures[0]["error"]
+    assert result.ran == 7 and result.dataset_summary["images"] == 7
+    assert (tmp_path / "dataset" / ".sweep" / "failed" / "render-v0002_f0001-0001.json").is_file()
+
+
+def _workers(pid: int) -> list[int]:
+    """Dask worker processes the local cluster of client ``pid`` spawned."""
+    out = []
+    for p in Path("/proc").iterdir():
+        if p.name.isdigit():
+            try:
+                ppid = int((p / "stat").read_text().rsplit(")", 1)[1].split()[1])
+                cmdline = (p / "cmdline").read_bytes().decode(errors="replace")
+            except (OSError, IndexError, ValueError):
+                continue
+            if ppid == pid and "spawn_main" in cmdline:
+                out.append(int(p.name))
+    return out
+
+
+@pytest.mark.slow
+def test_kill_9_at_random_moments_loses_nothing(reference, tmp_path):
+    """Kill the sweep (client and its local cluster: the whole process group, as a crash would;
+    or one worker process) with SIGKILL at 5 random moments, re-run the same command each time,
+    and compare with the uninterrupted sweep: no frame lost, duplicated or different."""
+    _, _, ref, _ = reference
+    path = _write(tmp_path)
+    dataset = tmp_path / "dataset"
+    cmd = [sys.executable, "-m", "humv_usd.cli.main", "sweep", str(path), "-o", str(dataset), "--quiet"]
+    cmd += ["--workers", "2"]
+    rng = random.Random(16)
+    kills = []
+
+    def done() -> int:
+        return len(list((dataset / "renders").glob("*/*/task.json")))
+
+    for k in range(5):
+        proc = subprocess.Popen(
+            cmd, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        # a random moment: after 0-2 more chunks have landed, plus 0-1.5 s
+        target, t0 = min(7, done() + rng.randint(0, 2)), time.monotonic()
+        while done() < target and proc.poll() is None and time.monotonic() - t0 < 180:
+            time.sleep(0.1)
+        time.sleep(rng.uniform(0.0, 1.5))
+        target_kind = "group"
+        if proc.poll() is None:
+            workers = _workers(proc.pid) if k % 2 else []
+            if workers:  # a worker process (its nanny starts a new one; Dask reschedules the task)
+                target_kind = "worker"
+                os.kill(rng.choice(workers), signal.SIGKILL)
+                time.sleep(rng.uniform(1.0, 3.0))
+            os.killpg(proc.pid, signal.SIGKILL)  # then the client and its cluster, as a crash
+            proc.wait()
+        kills.append((round(time.monotonic() - t0, 1), target_kind, done()))
+    final = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert final.returncode == 0, final.stderr
+    assert not any((dataset / ".sweep" / "staging").iterdir())
+    assert not (dataset / ".sweep" / "lock").exists()
+    # every frame once: the index, the merged COCO and the per-frame labels equal the reference
+    idx = json.loads((dataset / "dataset.json").read_text())["index"]
+    keys = [(r["variant"], r["frame"], r["sensor"]) for r in idx]
+    assert len(keys) == len(set(keys)) == 8
+    assert (dataset / "coco" / "cam.json").read_bytes() == (ref / "coco" / "cam.json").read_bytes()
+    assert _files(dataset, ".objects.json") == _files(ref, ".objects.json")
+    # a chunk's own coco.json differs only in its info (the stage's absolute path)
+    strip = lambda files: {k: {**json.loads(v), "info": None} for k, v in files.items()}  # noqa: E731
+    assert strip(_files(dataset, "coco.json")) == strip(_files(ref, "coco.json"))
+    exrs = sorted((ref / "renders").rglob("*.exr"))
+    assert len(exrs) == 8
+    for p in exrs:
+        a, b = images.read_exr(p), images.read_exr(dataset / p.relative_to(ref))
+        assert a.keys() == b.keys()
+        for name in a:
+            np.testing.assert_array_equal(a[name], b[name], err_msg=f"{p}: {name}")
+    print("kills (delay s, target, chunks done):", kills)
+
+
+@pytest.mark.slow
+def test_limit_runs_the_first_variants_and_a_later_run_adds_the_rest(tmp_path):
+    from humv_usd.sweep.run import run_sweep
+
+    sw = load_sweep(_write(tmp_path))
+    first = run_sweep(sw, tmp_path / "dataset", workers=0, limit=1)
+    assert first.ran == 2 and first.dataset_summary["variants_with_images"] == 1
+    rest = run_sweep(sw, tmp_path / "dataset", workers=0)
+    assert rest.already_done == 2 and rest.ran == 6 and rest.dataset_summary["images"] == 8
