@@ -275,22 +275,29 @@ def render_band_fast(
     offset_lookup[keys] = offs
     offset_dr = mi.UInt32(offset_lookup)
 
-    def lerp_rows(table, k, x, size):
+    def lerp_at(x, size):
+        """(row index, weight) of a continuous row coordinate, shared by the sub-bands."""
         x = dr.clip(x, 0.0, size - 1.0)
         i = dr.minimum(mi.UInt32(dr.floor(x)), size - 2)
-        t = x - mi.Float(i)
+        return i, x - mi.Float(i)
+
+    def lerp_rows(table, k, at, size, active=True):
+        i, t = at
         base = k * size
-        return dr.gather(f32, table, base + i) * (1.0 - t) + dr.gather(f32, table, base + i + 1) * t
+        lo = dr.gather(f32, table, base + i, active)
+        return lo * (1.0 - t) + dr.gather(f32, table, base + i + 1, active) * t
 
-    def sky(k, dz):
-        theta = dr.acos(dr.clip(dz, -1.0, 1.0))
-        return lerp_rows(sky_tab, k, theta * ((SKY_MAP_HEIGHT - 1) / np.pi), SKY_MAP_HEIGHT)
+    def sky_at(dz):
+        return lerp_at(dr.acos(dr.clip(dz, -1.0, 1.0)) * ((SKY_MAP_HEIGHT - 1) / np.pi), SKY_MAP_HEIGHT)
 
-    def cv(k, dz):
-        return dr.select(dz >= 0.0, sky(k, dz), dr.gather(f32, ground_dr, k))
+    def sky(k, at, active=True):
+        return lerp_rows(sky_tab, k, at, SKY_MAP_HEIGHT, active)
 
-    def g_of(k, nz):
-        return lerp_rows(g_tab_dr, k, (nz + 1.0) * (0.5 * (CV_NODES - 1)), CV_NODES)
+    def g_at(nz):
+        return lerp_at((nz + 1.0) * (0.5 * (CV_NODES - 1)), CV_NODES)
+
+    def g_of(k, at):
+        return lerp_rows(g_tab_dr, k, at, CV_NODES)
 
     sun_vec = sun_arr = None
     if sun_dir is not None:
@@ -312,10 +319,11 @@ def render_band_fast(
             blocked = scene.scene.ray_test(si.spawn_ray(sun_vec), lit)
             sun_term = dr.select(lit & ~blocked, cos_s / np.pi, 0.0)
         surf, rho = [], []
+        g_where = g_at(si.n.z)
         for k in range(n):
             le = dr.gather(f32, emission, tri * n + k, front)
             r = dr.gather(f32, reflect, tri * n + k, front)
-            v = le + r * g_of(k, si.n.z)
+            v = le + r * g_of(k, g_where)
             if sun_term is not None:
                 v += r * dr.gather(f32, sun_arr, k) * sun_term
             surf.append(dr.select(front, v, 0.0))
@@ -338,7 +346,8 @@ def render_band_fast(
     si = scene.scene.ray_intersect(ray)
     hit, front, surf, rho = vertex(si, ray.d)
     first_t = dr.select(hit, si.t, dr.inf)
-    value = [dr.select(hit, surf[k], sky(k, ray.d.z)) for k in range(n)]
+    where = sky_at(ray.d.z)
+    value = [dr.select(hit, surf[k], sky(k, where)) for k in range(n)]
     dr.eval(value, first_t, rho, front, si.p, si.n)
     log.debug("camera vertices: %d samples, %.3f s", total, time.perf_counter() - t0)
 
@@ -386,8 +395,15 @@ def render_band_fast(
             hit, front, surf, rho = vertex(si, ray.d)
             dz = ray.d.z
             step = mi.Float(0.0)
+            where = sky_at(dz)
+            up = dz >= 0.0
+            needed = hit | ~up  # an escaping ray above the horizon adds sky - C = 0
             for k in range(n):
-                step += beta[k] * (dr.select(hit, surf[k], sky(k, dz)) - cv(k, dz))
+                # hit: surface - C; miss: sky - C (C = the sky above the horizon, L_g below)
+                sky_k = sky(k, where, needed)
+                seen = dr.select(hit, surf[k], dr.select(up, 0.0, sky_k))
+                control = dr.select(up, dr.select(hit, sky_k, 0.0), dr.gather(f32, ground_dr, k))
+                step += beta[k] * (seen - control)
             if lanes is None:
                 acc = step
             else:
