@@ -110,7 +110,7 @@ def compose(scenario: Path, out_dir: str, force: bool, quiet: bool, verbose: int
     "--spp",
     default=None,
     type=click.IntRange(1, 1 << 20),
-    help="Samples per pixel (fast estimator: camera samples shared by all sub-bands, default 4; "
+    help="Samples per pixel (fast estimator: camera samples shared by all sub-bands, default 2, more until NETD/3; "
     "path: split over the sub-bands, default 16). 1 renders but cannot estimate the error.",
 )
 @click.option(
@@ -135,7 +135,7 @@ def compose(scenario: Path, out_dir: str, force: bool, quiet: bool, verbose: int
     "--subbands",
     default=None,
     type=int,
-    help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 4; see `humv-usd bench render`).",
+    help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 16; see `humv-usd bench render`).",
 )
 @reports_errors
 def render(
