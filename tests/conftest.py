@@ -11,7 +11,10 @@ import pytest
 import humv_usd  # noqa: F401
 
 ROOT = Path(__file__).resolve().parents[1]
-HUMVVEX = ROOT / "examples" / "humvvex.toml"
+#: humvvex with the closed-form "fixed" thermal model: what the render, label and compose tests
+#: compare against (the demo, examples/humvvex.toml, runs the physiology: HUMVVEX_DEMO)
+HUMVVEX = ROOT / "examples" / "humvvex_fixed.toml"
+HUMVVEX_DEMO = ROOT / "examples" / "humvvex.toml"
 #: the layers compose writes for examples/humvvex.toml
 HUMVVEX_LAYERS = (
     "environment",

@@ -41,7 +41,10 @@ def test_wrong_temperature_count_and_range(out):
 
     edit_layer(out / "layers" / "thermal.usda", broken)
     found = check_stage(out / "stage.usda")
-    assert any("/World/Scene/Ground: 3 values for 256 faces" in f for f in found)
+    # the thermal layer re-tessellates the ground along shadows: its composed face count
+    thermal = Sdf.Layer.FindOrOpen(str(out / "layers" / "thermal.usda"))
+    faces = len(thermal.GetAttributeAtPath("/World/Scene/Ground.faceVertexCounts").default)
+    assert any(f"/World/Scene/Ground: 3 values for {faces} faces" in f for f in found)
     assert any("/World/Scene/warehouse: values" in f for f in found)
 
 
@@ -99,3 +102,47 @@ def test_time_sampled_temperatures_are_checked_per_sample():
     assert len(found) == 2
     assert "/World/Tri at time 1.0: values nan..nan K outside 1..5000 K" in found[0]
     assert "/World/Tri at time 2.0: 2 values for 1 faces" in found[1]
+
+
+def _skinned_triangle(points_samples: dict[float, list]) -> Usd.Stage:
+    """A SkelRoot with a one-joint Skeleton and a skinned triangle whose points carry
+    ``points_samples`` (time -> points) besides their default."""
+    from pxr import Gf, UsdSkel
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdSkel.Root.Define(stage, "/Rig")
+    skel = UsdSkel.Skeleton.Define(stage, "/Rig/Skel")
+    skel.CreateJointsAttr(["root"])
+    skel.CreateBindTransformsAttr([Gf.Matrix4d(1)])
+    skel.CreateRestTransformsAttr([Gf.Matrix4d(1)])
+    mesh = UsdGeom.Mesh.Define(stage, "/Rig/Cloth")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    for time, points in points_samples.items():
+        mesh.GetPointsAttr().Set(points, time)
+    binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
+    binding.CreateJointIndicesPrimvar(True, 1).Set([0])
+    binding.CreateJointWeightsPrimvar(True, 1).Set([1.0])
+    return stage
+
+
+def test_skinned_mesh_with_time_sampled_points_is_a_finding():
+    """Skinning ignores a skinned mesh's point samples: one finding naming the prim and the fix;
+    a skinned mesh with rest points only is clean (and so is a composed stage with people and
+    garments, plain point caches: test_clean)."""
+    from humv_usd.usd.check import rule_skinned_points
+
+    moving = {0.0: [(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1.0: [(0, 0, 0.1), (1, 0, 0.1), (0, 1, 0.1)]}
+    found = rule_skinned_points(_skinned_triangle(moving))
+    assert len(found) == 1
+    assert found[0].startswith("humv:skinnedPoints: /Rig/Cloth: skinned by /Rig/Skel")
+    assert "2 samples" in found[0] and "fix:" in found[0]
+    assert rule_skinned_points(_skinned_triangle({})) == []
+    # without joint influences the samples are the motion (nothing skins it)
+    stage = _skinned_triangle(moving)
+    from pxr import UsdSkel
+
+    UsdSkel.BindingAPI(stage.GetPrimAtPath("/Rig/Cloth")).GetJointIndicesPrimvar().GetAttr().Clear()
+    assert rule_skinned_points(stage) == []

@@ -10,16 +10,17 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import HUMVVEX_LAYERS, ROOT
+from conftest import HUMVVEX, HUMVVEX_LAYERS, ROOT
 from pxr import Usd, UsdGeom, UsdShade
 
 from humv_usd.pipeline.compose import compose
 from humv_usd.scenario import validate
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import check_stage
+from humv_usd.usd.mesh import triangle_areas
 
 ALL_LAYERS = set(HUMVVEX_LAYERS)
-GARMENTS = ("tshirt_white", "shorts", "cap")
+GARMENTS = ("tshirt_white", "shorts", "cap", "shoes")
 
 
 def layer_names(out):
@@ -60,6 +61,16 @@ def test_each_layer_stands_alone(composed):
         assert UsdGeom.GetStageUpAxis(layer_stage) == "Z"
 
 
+def _area_median(mesh, values):
+    """Median of per-face values weighted by face area."""
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get())
+    area = triangle_areas(np.asarray(mesh.GetPointsAttr().Get(), dtype=float), counts, indices)
+    order = np.argsort(values)
+    cum = np.cumsum(area[order])
+    return float(np.asarray(values)[order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+
 def test_every_mesh_has_material_and_one_temperature_per_face(composed):
     _, _, stage = composed
     meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
@@ -85,7 +96,9 @@ def test_every_mesh_has_material_and_one_temperature_per_face(composed):
         else:
             assert np.isfinite(temps).all() and (temps > 275.0).all() and (temps < 330.0).all()
         if path == "/World/Scene/Ground":
-            assert np.median(temps) > 289.0 + 3.0 and temps.min() < np.median(temps) - 3.0
+            # median by area: the thermal layer re-tessellates the ground finely along shadows
+            median = _area_median(UsdGeom.Mesh(prim), temps)
+            assert median > 289.0 + 3.0 and temps.min() < median - 3.0
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
         assert material.GetPrim().HasAPI(S.MATERIAL_API)
 
@@ -185,7 +198,7 @@ def cli(*args, cwd=ROOT):
 @pytest.mark.slow
 def test_cli_bad_input_one_line_per_problem_exit_2_nothing_written(tmp_path):
     bad = tmp_path / "bad.toml"
-    text = (ROOT / "examples" / "humvvex.toml").read_text()
+    text = HUMVVEX.read_text()
     bad.write_text(
         text.replace("latitude_deg = 39.80", "latitude_deg = 139.8").replace(
             "bit_depth = 14", "bit_depth = 40"
@@ -204,7 +217,7 @@ def test_cli_bad_input_one_line_per_problem_exit_2_nothing_written(tmp_path):
 @pytest.mark.slow
 def test_cli_compose_then_check(tmp_path):
     out = tmp_path / "out"
-    r = cli("compose", "examples/humvvex.toml", "-o", str(out))
+    r = cli("compose", str(HUMVVEX), "-o", str(out))
     assert r.returncode == 0, r.stderr
     assert "thermal" in r.stdout and "written" in r.stdout
     r = cli("check", str(out / "stage.usda"))
@@ -222,7 +235,7 @@ def test_cli_compose_then_check(tmp_path):
 def test_usd_tools_see_schemas_without_humv(tmp_path):
     """A plain USD process loads the stage's schemas through PXR_PLUGINPATH_NAME."""
     out = tmp_path / "out"
-    compose(validate(__import__("tomllib").loads((ROOT / "examples/humvvex.toml").read_text())), out)
+    compose(validate(__import__("tomllib").loads(HUMVVEX.read_text())), out)
     code = (
         f"from pxr import Usd; s = Usd.Stage.Open({str(out / 'stage.usda')!r}); "
         "p = s.GetPrimAtPath('/World/Sensors/atom1024_lwir'); "

@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import HUMVVEX_LAYERS, ROOT
+from conftest import HUMVVEX, HUMVVEX_LAYERS, ROOT
 from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.errors import InputError
@@ -133,7 +133,7 @@ def test_read_values_pick_exactly_what_is_read(raw):
     va, vb = read_values(a, reads, "p1"), read_values(b, reads, "p1")
     assert va["sensor.1.position_m"] == [0.8, -15.0, 1.6] and vb["sensor.1.position_m"] == [0.9, -15.0, 1.6]
     assert {k for k in va if va[k] != vb[k]} == {"sensor.1.position_m"}
-    assert va["human[p1].clothing"] == ["tshirt_white", "shorts", "cap"]
+    assert va["human[p1].clothing"] == ["tshirt_white", "shorts", "cap", "shoes"]
     assert va["placement[p1].heading_deg"] == 180.0
     assert va["@ids"] == {"human:p1": 1, "ground": 2, "object:warehouse": 3}
     assert inputs_key("1", va, {}) != inputs_key("1", vb, {})
@@ -309,7 +309,7 @@ def test_root_edited_by_hand_is_refused_when_it_would_change(out, raw):
 def test_cli_refuses_hand_edit_with_one_line_exit_2(out, tmp_path):
     _hand_edit(out / "layers" / "sensors.usda", "focalLength = ", "focalLength = 1")
     toml = tmp_path / "moved.toml"
-    text = (ROOT / "examples" / "humvvex.toml").read_text()
+    text = HUMVVEX.read_text()
     toml.write_text(text.replace("position_m = [0.0, -15.0, 1.6]", "position_m = [0.0, -14.0, 1.6]"))
     run = [sys.executable, "-m", "humv_usd.cli.main", "compose", str(toml), "-o", str(out)]
     r = subprocess.run(run, cwd=ROOT, capture_output=True, text=True)

@@ -61,3 +61,19 @@ def test_radiative_coefficient_linearizes_t4():
 def test_watmuff_flat_surface():
     # Duffie & Beckman (2013) Eq. 3.15.3: h = 2.8 + 3.0 V, no wind -> 2.8
     assert_allclose(watmuff([0.0, 1.0, 5.0, -1.0]), [2.8, 5.8, 17.8, 2.8])
+
+
+def test_coefficients_reject_nan():
+    import pytest
+
+    from humv_usd.physics.convection import convective_coefficient, radiative_coefficient
+
+    for model in ("mitchell", "iso7730", "siple_passel"):
+        with pytest.raises(ValueError, match="wind_speed"):
+            convective_coefficient([1.0, float("nan")], model=model)
+        with pytest.raises(ValueError, match="delta_t"):
+            convective_coefficient(1.0, float("inf"), model=model)
+    with pytest.raises(ValueError, match="emissivity"):
+        radiative_coefficient(1.5, 300.0)
+    with pytest.raises(ValueError, match="mean_temperature_k"):
+        radiative_coefficient(0.9, -1.0)

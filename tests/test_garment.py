@@ -184,3 +184,34 @@ def test_time_step_bench_converges_to_the_radau_reference():
         fine, coarse = [r for r in rows if r["case"] == case]
         assert fine["common_error_k"] < coarse["common_error_k"]
         assert fine["max_error_k"] < 0.5 and np.isfinite(coarse["max_error_k"])
+
+
+@pytest.mark.parametrize(
+    "name, index, value",
+    [
+        ("skin_temperature_k", 0, float("nan")),
+        ("air_temperature_k", 1, -5.0),
+        ("absorbed_radiation", 2, float("inf")),
+        ("h_forced", 3, -1.0),
+        ("air_gap_m", 4, float("nan")),
+        ("fabric_thickness_m", 5, -1e-3),
+    ],
+)
+def test_garment_balance_rejects_nan_and_non_physical_inputs(name, index, value):
+    args = [306.0, 290.0, 300.0, 6.0, 5e-3, 1e-3]
+    args[index] = np.array([args[index], value])
+    with pytest.raises(ValueError, match=name):
+        steady_state(*args)
+
+
+def test_garment_transient_rejects_bad_step_and_emissivity():
+    from humv_usd.physics.garment import transient_step
+
+    args = (306.0, 290.0, 300.0, 6.0, 5e-3, 1e-3)
+    with pytest.raises(ValueError, match="time_step_s"):
+        transient_step(300.0, float("nan"), 500.0, *args)
+    with pytest.raises(ValueError, match="time_step_s"):
+        transient_step(300.0, 0.0, 500.0, *args)
+    with pytest.raises(ValueError, match="fabric_emissivity"):
+        steady_state(*args, fabric_emissivity=1.2)
+    assert np.isfinite(transient_step(300.0, np.inf, 500.0, *args).outer_temperature_k)

@@ -20,7 +20,7 @@ from humv_usd.scenario import validate
 from humv_usd.scenario.load import ID_MAX_CHARS
 from humv_usd.usd.check import check_stage
 
-HUMVVEX = Path(__file__).resolve().parents[1] / "examples" / "humvvex.toml"
+HUMVVEX = Path(__file__).resolve().parents[1] / "examples" / "humvvex_fixed.toml"
 
 
 def files_under(folder: Path) -> set[str]:

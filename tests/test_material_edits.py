@@ -13,6 +13,7 @@ import pytest
 from pxr import Sdf, Usd, Vt
 
 from humv_usd import images
+from humv_usd.catalog.materials import LIBRARY
 from humv_usd.pipeline.compose import LAYER_DIR, compose, compose_in_memory
 from humv_usd.pipeline.render import _band_emissivity, render_stage
 from humv_usd.render.export import StageExport
@@ -65,9 +66,20 @@ def _user_layer(base: Usd.Stage, path) -> Sdf.Layer:
     eps = np.asarray(base.GetPrimAtPath(paint).GetAttribute(S.MATERIAL_EMISSIVITY).Get(), dtype=float)
     layer = Sdf.Layer.CreateNew(str(path))
     stage = Usd.Stage.Open(layer)
-    stage.OverridePrim(fabric).CreateAttribute(S.MATERIAL_SOLAR_ABSORPTIVITY, Sdf.ValueTypeNames.Float).Set(
-        SHIRT_ABSORPTIVITY
+    # a darker shirt is a darker spectrum (the thermal solve takes its solar absorptivity from
+    # the spectrum the render uses): reflectance 1 - 0.95 up to 5 um, Kirchhoff's emissivity
+    fab = base.GetPrimAtPath(fabric)
+    wl = np.asarray(fab.GetAttribute(S.MATERIAL_WAVELENGTHS).Get(), dtype=float)
+    rho = np.asarray(fab.GetAttribute(S.MATERIAL_REFLECTANCE).Get(), dtype=float)
+    rho = np.where(wl <= 5.0, 1.0 - SHIRT_ABSORPTIVITY, rho)
+    over = stage.OverridePrim(fabric)
+    over.CreateAttribute(S.MATERIAL_REFLECTANCE, Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray(rho.tolist())
     )
+    over.CreateAttribute(S.MATERIAL_EMISSIVITY, Sdf.ValueTypeNames.FloatArray).Set(
+        Vt.FloatArray((1.0 - rho).tolist())
+    )
+    over.CreateAttribute(S.MATERIAL_SOLAR_ABSORPTIVITY, Sdf.ValueTypeNames.Float).Set(SHIRT_ABSORPTIVITY)
     stage.OverridePrim(paint).CreateAttribute(S.MATERIAL_EMISSIVITY, Sdf.ValueTypeNames.FloatArray).Set(
         Vt.FloatArray((WALL_EMISSIVITY_SCALE * eps).tolist())
     )
@@ -118,7 +130,9 @@ def test_the_user_layer_reaches_the_thermal_tool_and_the_render(runs):
     (base, img0, _), (edited, img1, _) = runs["base"], runs["edited"]
     # what every tool reads: the override wins over the materials layer
     assert mesh_material(edited.GetPrimAtPath(SHIRT)).solar_absorptivity == pytest.approx(SHIRT_ABSORPTIVITY)
-    assert mesh_material(base.GetPrimAtPath(SHIRT)).solar_absorptivity == pytest.approx(0.3)
+    assert mesh_material(base.GetPrimAtPath(SHIRT)).solar_absorptivity == pytest.approx(
+        LIBRARY["cotton_white"].spectral_solar_absorptivity, abs=1e-6
+    )  # the white shirt's spectrum: 0.30
     eps0, eps1 = (longwave_emissivity(mesh_material(s.GetPrimAtPath(WALL))) for s in (base, edited))
     assert eps1 == pytest.approx(WALL_EMISSIVITY_SCALE * eps0, rel=1e-6)
     # thermal: the darker shirt warms in the afternoon sun; the shiny siding, which loses

@@ -232,3 +232,111 @@ def test_time_step_bench_two_node_first_order():
     rows = bench_time_steps("two_node", steps_s=(5.0, 20.0, 60.0), duration_s=1800.0)
     err = [r["max_error_k"] for r in rows]
     assert err[0] < err[1] < err[2] < 0.5  # explicit Euler: error grows with the step
+
+
+# ----------------------------------------------------------------------------- hot and humid
+@pytest.mark.slow
+@pytest.mark.parametrize("air_c, rh", [(40.0, 0.9), (60.0, 0.5)])
+def test_jos3_hot_humid_condensation_not_evaporative_cooling(air_c, rh):
+    """Air more humid than the skin: no negative wettedness, no evaporative cooling. Reference:
+    Gagge's two-node model with condensation (E = E_max < 0 while p_a > p_sk,s), which
+    pythermalcomfort 4.8.1's JOS-3 alone misses by 2-7 K (wettedness -1.7 to -3.4)."""
+    ref = run("two_node", air_c=air_c, rh=rh, v=0.5, clo=0.5, met=100.0 / MET_W, spin_up_s=0.0)
+    r = run("jos3", air_c=air_c, rh=rh, v=0.5, clo=0.5, met=100.0 / MET_W, spin_up_s=0.0)
+    assert r.wettedness.min() >= 0.06 - 1e-12 and r.wettedness.max() <= 1.0 + 1e-12
+    # closed form: while the ambient vapour pressure exceeds the skin's saturation pressure
+    # the latent flux is a heat gain (condensation), never a loss
+    p_a = rh * P._p_sat_kpa(air_c)
+    psk = np.vectorize(P._p_sat_kpa)(r.segment_skin_temperature_k - K)
+    humid = psk < p_a
+    assert humid.any() and np.all(r.segment_latent_w_m2[humid] <= 0.0)
+    assert_allclose(r.mean_skin_temperature_k[-1], ref.mean_skin_temperature_k[-1], atol=1.0)
+    assert_allclose(r.core_temperature_k[-1], ref.core_temperature_k[-1], atol=1.0)
+    # the body gains heat: core and skin rise over the hour
+    assert r.core_temperature_k[-1] > r.core_temperature_k[0] + 1.0
+
+
+@pytest.mark.slow
+def test_condensation_guard_restores_pythermalcomfort():
+    from pythermalcomfort.models import jos3 as module
+
+    before = module.threg
+    with P.condensation_guard():
+        assert module.threg is not before and module.threg.antoine is before.antoine
+    assert module.threg is before
+
+
+def test_guarded_evaporation_closed_form():
+    def upstream(**kw):  # the 4.8.1 formula with E_max of either sign
+        e_sweat, e_max = np.array([10.0, 10.0]), np.array([50.0, -20.0])
+        wet = np.minimum(0.06 + 0.94 * e_sweat / e_max, 1.0)
+        return wet, wet * e_max, e_max, (wet - 0.06) / 0.94 * e_max
+
+    wet, e_sk, e_max, e_sweat = P.guarded_evaporation(upstream)()
+    assert_allclose(wet, [0.06 + 0.94 * 0.2, 1.0])
+    assert_allclose(e_sk, [0.06 * 50.0 + 0.94 * 10.0, -20.0])  # condensation: a heat gain
+    assert_allclose(e_sweat, [10.0, 0.0])
+
+
+def test_two_node_huge_substep_is_stable():
+    """The substep argument cannot drive the explicit two-node model unstable: each substep is
+    capped by the nodes' C/G; a 1e6 s substep gives the same hour as 1 s substeps."""
+    for air_c, v, rh in ((10.0, 30.0, 0.5), (45.0, 30.0, 0.2), (29.0, 0.1, 0.5)):
+        ref = run("two_node", air_c=air_c, v=v, rh=rh, met=3.0, clo=0.0, spin_up_s=0.0, max_substep_s=1.0)
+        r = run("two_node", air_c=air_c, v=v, rh=rh, met=3.0, clo=0.0, spin_up_s=0.0, max_substep_s=1e6)
+        assert np.isfinite(r.mean_skin_temperature_k).all()
+        # stable (bounded, no oscillation) but first order: the fast first minutes err by ~1 K
+        assert_allclose(r.mean_skin_temperature_k, ref.mean_skin_temperature_k, atol=1.5)
+        assert_allclose(r.mean_skin_temperature_k[-10:], ref.mean_skin_temperature_k[-10:], atol=0.2)
+        assert_allclose(r.core_temperature_k, ref.core_temperature_k, atol=0.2)
+        ref_sign, sign = (
+            np.sign(np.diff(ref.mean_skin_temperature_k)),
+            np.sign(np.diff(r.mean_skin_temperature_k)),
+        )
+        assert np.count_nonzero(sign != ref_sign) <= 3
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        dict(max_substep_s=0.0),
+        dict(max_substep_s=float("nan")),
+        dict(height_m=float("nan")),
+        dict(mass_kg=-1.0),
+    ],
+)
+def test_two_node_rejects_non_physical_arguments(kw):
+    args = dict(height_m=HEIGHT, mass_kg=MASS) | kw
+    with pytest.raises(ValueError, match=next(iter(kw))):
+        P.two_node(HOUR, MET_W, 300.0, 300.0, 0.5, 0.1, 0.5, **args)
+
+
+# ----------------------------------------------------------------------------- local skin
+def test_local_skin_temperature_closed_form():
+    """Two facets of one segment, one sunlit (absorbs 300 W m^-2 more): each facet's balance
+    K (T_b - T_f) = q(T_f) + E holds with one T_b, the area mean is the segment's skin
+    temperature and the sunlit facet is warmer by 300 / (K + g)."""
+    seg = np.array([2, 2, 5])
+    area = np.array([0.01, 0.03, 0.02])
+    t0 = np.array([306.0, 306.0, 305.0])
+    g = np.array([20.0, 20.0, 15.0])
+    q0 = np.array([100.0 - 300.0, 100.0, 80.0])  # sunlit facet: 300 W m^-2 more absorbed
+    k = np.full(17, 12.0)
+    latent = np.full(17, 10.0)
+    t_seg = np.full(17, 305.5)
+    t_f, q = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0)
+    assert_allclose(q, q0 + g * (t_f - t0))
+    for s in (2, 5):
+        m = seg == s
+        assert_allclose(np.average(t_f[m], weights=area[m]), 305.5, atol=1e-12)
+        t_inner = t_f[m] + (q[m] + latent[s]) / k[s]
+        assert_allclose(t_inner, t_inner[0], atol=1e-9)  # one inner temperature per segment
+    assert_allclose(t_f[0] - t_f[1], 300.0 / (12.0 + 20.0), rtol=1e-12)
+
+
+def test_radiant_temperature_for_sensible_loss_inverts_the_dry_exchange():
+    hc, hr, rt = np.array([4.0, 9.0]), np.array([4.7, 4.5]), np.array([0.12, 0.2])
+    t_sk, t_a, target = np.array([306.0, 303.0]), 289.0, np.array([35.0, -12.0])
+    tr = P.radiant_temperature_for_sensible_loss(t_sk, target, t_a, hc, hr, rt)
+    t_o = (hc * t_a + hr * tr) / (hc + hr)
+    assert_allclose((t_sk - t_o) / rt, target, rtol=1e-12)

@@ -157,3 +157,16 @@ def test_annotator_names_checked_at_load(raw):
     assert line.endswith("(did you mean 'keypoints'?)")
     raw["annotations"] = {"annotators": ["boxes", "keypoints"]}
     assert validate(raw)["annotations"]["annotators"] == ["boxes", "keypoints"]
+
+
+def test_humvvex_fixed_is_humvvex_with_the_closed_form_thermal_model():
+    """examples/humvvex.toml (the demo: physiology) and humvvex_fixed.toml (the tests'
+    closed-form variant) differ only in [thermal]."""
+    import tomllib
+
+    from conftest import HUMVVEX_DEMO
+
+    demo, fixed = (tomllib.loads(p.read_text()) for p in (HUMVVEX_DEMO, HUMVVEX))
+    assert demo.pop("thermal")["model"] == "jos3" and fixed.pop("thermal")["model"] == "fixed"
+    assert demo == fixed
+    assert "shoes" in demo["human"][0]["clothing"]

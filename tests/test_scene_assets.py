@@ -277,9 +277,8 @@ def test_full_transform_equals_position_and_heading(tmp_path):
     np.testing.assert_allclose(worlds[0], worlds[1], atol=1e-9)
 
 
-def test_site_layer_sublayered_bound_and_labelled(tmp_path):
+def _shed_layer(site: Path) -> Usd.Stage:
     """A DCC layer (Z-up metres) with a shed under /World/Scene and no HumV material."""
-    site = tmp_path / "site.usda"
     stage = Usd.Stage.CreateNew(str(site))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
@@ -293,6 +292,12 @@ def test_site_layer_sublayered_bound_and_labelled(tmp_path):
     cube.CreateFaceVertexCountsAttr([4] * 6)
     cube.CreateFaceVertexIndicesAttr([0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6, 3, 0, 4, 7])
     stage.GetRootLayer().Save()
+    return stage
+
+
+def test_site_layer_sublayered_bound_and_labelled(tmp_path):
+    """A DCC layer (Z-up metres) with a shed under /World/Scene and no HumV material."""
+    stage = _shed_layer(tmp_path / "site.usda")
     raw = street_raw(tmp_path)
     raw["scene"].update(layers=["site.usda"], layer_material="wood", layer_class="building")
     scenario = scenario_at(tmp_path, raw)
@@ -599,3 +604,180 @@ def test_check_finds_a_y_up_sublayer(street):
     edit.Save()
     found = check_stage(out / "stage.usda")
     assert any(f.startswith(f"humv:assetUnits: {out / 'edit.usda'}: a sublayer with upAxis Y") for f in found)
+
+
+# ------------------------------------------------------------------------------ relocatable
+def _street_with_site_layer(folder: Path) -> tuple:
+    """The fast street scenario in ``folder`` (assets copied beside it) with the shed site
+    layer; composed into folder/o."""
+    folder.mkdir(parents=True)
+    _shed_layer(folder / "site.usda")
+    raw = street_raw(folder)
+    raw["scene"].update(layers=["site.usda"], layer_material="wood", layer_class="building")
+    scenario = scenario_at(folder, raw)
+    compose(scenario, folder / "o")
+    return raw, folder / "o"
+
+
+def _moved(tmp_path: Path) -> Path:
+    """Compose in tmp_path/a, copy the scenario folder (assets, site layer, output) to
+    tmp_path/b/moved keeping their relative placement, delete the original: the moved output."""
+    _, out = _street_with_site_layer(tmp_path / "a")
+    text = (out / "layers" / "scene.usda").read_text()
+    assert str(tmp_path) not in text  # nothing points back at where it was composed
+    assert "@../../assets/building.usda@" in text and "@../../site.usda@" in text
+    shutil.copytree(tmp_path / "a", tmp_path / "b" / "moved")
+    shutil.rmtree(tmp_path / "a")
+    return tmp_path / "b" / "moved" / "o"
+
+
+def test_output_moved_with_its_assets_still_composes_and_checks(tmp_path):
+    """Assets and site layers are written relative to the layer: a copy of the scenario folder
+    with its output elsewhere (a dataset on a share mounted at another path) composes, checks
+    clean, and a re-run of compose there still keys the layers by the assets' content."""
+    out = _moved(tmp_path)
+    assert check_stage(out / "stage.usda") == []
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    for path in ("/World/Scene/building/Building/WindowGlass3", "/World/Scene/Shed/Walls"):
+        prim = stage.GetPrimAtPath(path)
+        assert prim.IsA(UsdGeom.Mesh), path
+        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature")
+        assert len(pv.Get(0)) == len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get()), path
+    del stage, prim, pv  # an open stage keeps its layers registered, which would hide a failure
+    # compose again in the new place, then edit the USD asset: the scene layer is rebuilt
+    folder = out.parent
+    raw = street_raw(tmp_path / "c")  # the same scenario values, read against the moved folder
+    raw["scene"].update(layers=["site.usda"], layer_material="wood", layer_class="building")
+    compose(scenario_at(folder, raw), out)
+    # the thermal layer rebuilt on the cached scene layer (read back from its file: its
+    # relative paths are anchored there) still finds the assets
+    raw["thermal"]["surface_spin_up_s"] = 1800.0
+    report = compose(scenario_at(folder, raw), out)
+    assert "thermal" in report.rebuilt and "scene" not in report.rebuilt
+    assert check_stage(out / "stage.usda") == []
+    with open(folder / "assets" / "building.usda", "a") as f:
+        f.write("\n")
+    report = compose(scenario_at(folder, raw), out)
+    assert "scene" in report.rebuilt
+    assert check_stage(out / "stage.usda") == []
+
+
+def test_paths_outside_the_output_tree_stay_absolute(tmp_path):
+    """Only a file sharing a folder (other than /) with the layer's folder becomes relative."""
+    from humv_usd.usd.layers import anchored_asset_paths, relative_asset_paths
+
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    prim = Sdf.CreatePrimInLayer(layer, "/A")
+    prim.referenceList.Prepend(Sdf.Reference(str(tmp_path / "assets" / "car.usd")))
+    prim2 = Sdf.CreatePrimInLayer(layer, "/B")
+    prim2.referenceList.Prepend(Sdf.Reference("/opt/library/tree.usd"))
+    layer.subLayerPaths.append(str(tmp_path / "site.usda"))
+    rel = relative_asset_paths(layer, tmp_path / "o" / "layers")
+    refs = {p: [r.assetPath for r in rel.GetPrimAtPath(p).referenceList.prependedItems] for p in ("/A", "/B")}
+    assert refs == {"/A": ["../../assets/car.usd"], "/B": ["/opt/library/tree.usd"]}
+    assert list(rel.subLayerPaths) == ["../../site.usda"]
+    assert layer.GetPrimAtPath("/A").referenceList.prependedItems[0].assetPath == str(
+        tmp_path / "assets" / "car.usd"
+    )
+    back = anchored_asset_paths(rel, tmp_path / "o" / "layers")
+    assert back.GetPrimAtPath("/A").referenceList.prependedItems[0].assetPath == str(
+        tmp_path / "assets" / "car.usd"
+    )
+    assert list(back.subLayerPaths) == [str(tmp_path / "site.usda")]
+
+
+@pytest.mark.slow
+def test_moved_output_renders_like_the_original(tmp_path):
+    """A tiny LWIR render of the moved output equals the render made before the move."""
+    from humv_usd.images import read_exr
+    from humv_usd.pipeline.render import render_stage
+
+    _, out = _street_with_site_layer(tmp_path / "first")
+    render_stage(out / "stage.usda", tmp_path / "r0", spp=1)
+    shutil.copytree(tmp_path / "first", tmp_path / "elsewhere" / "copy")
+    shutil.rmtree(tmp_path / "first")
+    moved = tmp_path / "elsewhere" / "copy" / "o"
+    render_stage(moved / "stage.usda", tmp_path / "r1", spp=1)
+    (a,), (b,) = (sorted((tmp_path / r).glob("*/0000.exr")) for r in ("r0", "r1"))
+    a, b = read_exr(a), read_exr(b)
+    ids = {int(i) for i in np.unique(a["instance_id"])}
+    assert len(ids) >= 4  # ground, assets, the shed
+    np.testing.assert_array_equal(a["instance_id"], b["instance_id"])
+    np.testing.assert_allclose(a["radiance"], b["radiance"], rtol=1e-6)
+
+
+# ------------------------------------------------------------------------ per-face materials
+_BOX_POINTS = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+_BOX_FACES = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
+_WINDOW = 4  # the +y side
+
+
+def _kiosk(path: Path, split: bool) -> None:
+    """A 1 m box, painted, with a glass +y side: one mesh with material GeomSubsets (as DCCs
+    export it), or (``split``) the same faces as two meshes of one material each."""
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/Kiosk").GetPrim())
+    paint, glass = (UsdShade.Material.Define(stage, f"/Kiosk/Looks/{n}") for n in ("Paint", "Glass"))
+
+    def mesh(name, faces):
+        m = UsdGeom.Mesh.Define(stage, f"/Kiosk/{name}")
+        m.CreatePointsAttr(_BOX_POINTS)
+        m.CreateFaceVertexCountsAttr([4] * len(faces))
+        m.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
+        return UsdShade.MaterialBindingAPI.Apply(m.GetPrim())
+
+    walls = [f for i, f in enumerate(_BOX_FACES) if i != _WINDOW]
+    if split:
+        mesh("Box", walls).Bind(paint)
+        mesh("Window", [_BOX_FACES[_WINDOW]]).Bind(glass)
+    else:
+        binding = mesh("Box", _BOX_FACES)
+        binding.Bind(paint)
+        for name, faces, material in (("walls", [0, 1, 2, 3, 5], paint), ("window", [_WINDOW], glass)):
+            subset = binding.CreateMaterialBindSubset(name, faces)
+            UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(material)
+    stage.GetRootLayer().Save()
+
+
+def _kiosk_temperatures(tmp_path: Path, name: str, split: bool, materials: dict) -> dict:
+    """{face centre (rounded): temperature at frame 0} of the kiosk composed alone on the ground."""
+    folder = tmp_path / name
+    folder.mkdir()
+    raw = street_raw(folder)
+    _kiosk(folder / "assets" / "kiosk.usda", split)
+    raw["scene"]["asset"] = [
+        {"id": "kiosk", "file": "assets/kiosk.usda", "position_m": [6.0, 2.0, 0.0], "material": "concrete"}
+        | ({"materials": materials} if materials else {})
+    ]
+    compose(scenario_at(folder, raw), folder / "o")
+    assert check_stage(folder / "o" / "stage.usda") == []
+    stage = Usd.Stage.Open(str(folder / "o" / "stage.usda"))
+    out = {}
+    for prim in _meshes_under(stage, "/World/Scene/kiosk"):
+        mesh = UsdGeom.Mesh(prim)
+        pts = np.asarray(mesh.GetPointsAttr().Get())
+        idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get()).reshape(-1, 4)
+        temps = UsdGeom.PrimvarsAPI(prim).GetPrimvar("humv:thermal:temperature").Get(0)
+        for face, t in zip(idx, temps):
+            out[tuple(np.round(pts[face].mean(axis=0), 3))] = float(t)
+    assert len(out) == 6
+    return out
+
+
+def test_material_subsets_get_the_slab_of_their_material(tmp_path):
+    """A face in a glass GeomSubset of a painted-concrete box is a glass slab: its temperature is
+    the one the same face gets as a separate glass mesh (the single-material path), and differs
+    from the box made all of concrete, whose other faces it shares exactly."""
+    mapping = {"Glass": "glass", "Paint": "concrete"}
+    subsets = _kiosk_temperatures(tmp_path, "subsets", False, mapping)
+    split = _kiosk_temperatures(tmp_path, "split", True, mapping)
+    concrete = _kiosk_temperatures(tmp_path, "concrete", False, {})
+    window = next(c for c in subsets if c[1] == 1.0)
+    assert subsets.keys() == split.keys() == concrete.keys()
+    for c in subsets:
+        assert subsets[c] == pytest.approx(split[c], abs=1e-3), c
+        if c != window:
+            assert subsets[c] == pytest.approx(concrete[c], abs=1e-3), c
+    assert abs(subsets[window] - concrete[window]) > 0.1, (subsets[window], concrete[window])

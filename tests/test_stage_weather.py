@@ -55,6 +55,8 @@ def _scenario(humvvex_raw, tmp_path, csv: bool, spin_s: float = SPIN_S):
     raw["sensor"] = [s for s in raw["sensor"] if s["id"] == "lwir640"]
     raw["thermal"].update(model="fixed", surface_spin_up_s=spin_s, radiation_step_s=3600.0)
     raw["scene"]["ground"].pop("temperature_k", None)  # a slab: the weather matters
+    # the hour before the series holds its first row (the diurnal cycle: tests/test_diurnal.py)
+    raw["atmosphere"]["diurnal_range_k"] = 0.0
     if csv:
         path = tmp_path / "weather.csv"
         path.write_text(CSV)

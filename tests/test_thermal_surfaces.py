@@ -18,6 +18,10 @@ from humv_usd.usd.paths import material_path
 _LIBRARY = Usd.Stage.Open(str(LIBRARY_FILE))
 
 
+#: a sky of one radiance in every direction (SurfaceForcing.sky_shape)
+ISOTROPIC_SKY = (np.array([0.0, 90.0]), np.ones(2))
+
+
 def stage_material(name):
     return read_material(_LIBRARY.GetPrimAtPath(material_path(name)))
 
@@ -53,6 +57,8 @@ def _forcing(n, sun_dir, dni=800.0, dhi=100.0, ghi=500.0, air=290.0, rh=0.5, win
         dni * one,
         dhi * one,
         ghi * one,
+        # an isotropic sky: the closed forms below use the (1 + n_z) / 2 view factor
+        sky_shape=ISOTROPIC_SKY,
     )
 
 

@@ -43,7 +43,7 @@ READS = (
 )
 #: layers read from the upstream stage: weather and sun (environment)
 UPSTREAM = ("environment",)
-VERSION = "3"
+VERSION = "4"
 
 
 def build(scenario: Scenario, upstream) -> Sdf.Layer:
@@ -62,7 +62,7 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, f"HumV-USD atmosphere layer: {atm.source} sky and sun"
     )
-    prim = A.define_atmosphere(stage, atm.source, a["profile"], a["visibility_km"] * 1000.0)
+    prim = A.define_atmosphere(stage, atm.source, atm.profile, a["visibility_km"] * 1000.0)
     A.write_broadband_sky(
         prim, atm.sky_emissivity, atm.sky_temperature_k, atm.longwave_radiance, atm.sky_zenith_deg
     )

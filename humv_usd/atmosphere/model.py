@@ -504,20 +504,125 @@ def _mid_layer(t_air, p, rh, h_km):
     return (t_mid, rh, p_mid)
 
 
-def _profile_mid(profile: str, z0_km: float, h_km: float):
-    """(T, RH, P) of a standard profile at z0 + h/2 from its sea-level state: 6.5 K/km lapse
-    rate, hydrostatic pressure, water vapour density with a 2 km scale height."""
+def lowtran_sky(profile: str, z0_km: float, t_air, rh, p, lo_um: float = LONGWAVE_UM[0], ran=None):
+    """Thermal sky radiance against zenith (:data:`SKY_ZENITH_DEG`) from LOWTRAN7: the standard
+    ``profile`` with its lowest :data:`SKY_LAYER_KM` replaced by the weather (module doc).
 
+    Returns (wavelengths [um] (W,), radiance (Z, W) [W m-2 sr-1 um-1]) over ``lo_um`` to
+    ``LONGWAVE_UM[1]``.
+
+    The replacement is a first-order perturbation, L = L_profile + (L_w - L_p) + (tau_w - tau_p)
+    L_up, where w and p are homogeneous layers built by the same rule (:func:`_mid_layer`) from
+    the weather and from the profile's own state at the site (:func:`profile_state`): when the
+    weather equals the profile's state the correction vanishes and the sky is LOWTRAN's own
+    standard-profile sky (the identity test); it grows with the weather's departure from the
+    profile, which is why ``profile = "auto"`` picks the profile nearest the weather
+    (:func:`choose_profile`).
+    """
+    model = lt.PROFILE_MODEL[profile]
+    h = SKY_LAYER_KM
+    zen = SKY_ZENITH_DEG
+    sin_t = np.sin(np.radians(zen))
+    exit_zen = np.degrees(np.arcsin(EARTH_RADIUS_KM * sin_t / (EARTH_RADIUS_KM + z0_km + h)))
+    # slant length through the layer on a spherical earth [km]
+    r0 = EARTH_RADIUS_KM + z0_km
+    length_km = np.sqrt((r0 + h) ** 2 - (r0 * sin_t) ** 2) - r0 * np.cos(np.radians(zen))
+    weather_mid = _mid_layer(t_air, p, rh, h)
+    t_p, rh_p, p_p = profile_state(profile, z0_km)
+    profile_mid = _mid_layer(t_p, p_p, rh_p, h)
+    spec = lt.spectral_case(lo_um, LONGWAVE_UM[1], IR_STEP_CM)
+    same = np.allclose(weather_mid, profile_mid, rtol=1e-9, atol=0.0)
+    states = () if same else (weather_mid, profile_mid)
+    cases = (
+        [dict(spec, model=model, itype=3, iemsct=1, h1=z0_km, angle=float(t)) for t in zen]
+        + (
+            []
+            if same
+            else [dict(spec, model=model, itype=3, iemsct=1, h1=z0_km + h, angle=float(t)) for t in exit_zen]
+        )
+        + [
+            dict(
+                lt.layer_case(state[0], state[1], state[2], [z0_km + h / 2]),
+                **spec,
+                itype=1,
+                iemsct=1,
+                h1=z0_km + h / 2,
+                range_km=float(s),
+            )
+            for state in states
+            for s in length_km
+        ]
+    )
+    runs = run_cached(cases, ran, "sky")
+    n = zen.size
+    full = runs[:n]
+    sky_wl = full[0].wavelengths_um
+    if same:
+        return sky_wl, np.stack([f.radiance for f in full])
+    upper, low_w, low_p = runs[n : 2 * n], runs[2 * n : 3 * n], runs[3 * n :]
+    sky_ir = np.stack(
+        [
+            f.radiance + (w.radiance - q.radiance) + (w.transmittance - q.transmittance) * u.radiance
+            for f, u, w, q in zip(full, upper, low_w, low_p)
+        ]
+    )
+    return sky_wl, np.maximum(sky_ir, 0.0)
+
+
+def profile_state(profile: str, z0_km: float) -> tuple[float, float, float]:
+    """(air temperature [K], relative humidity [0-1], pressure [Pa]) of a standard profile at
+    the site's elevation z0: its sea-level state (:data:`humv_usd.atmosphere.lowtran.PROFILE_SURFACE`,
+    Anderson et al. 1986) with a 6.5 K/km lapse rate, hydrostatic pressure and water vapour
+    density falling with a 2 km scale height."""
     t0, p0, rho0 = lt.PROFILE_SURFACE[profile]
-    z = z0_km + h_km / 2
-    t = t0 - 6.5 * z
+    t = t0 - 6.5 * z0_km
     p = p0 * (t / t0) ** (9.80665 * 0.0289644 / (8.3144598 * 6.5e-3))
-    e = rho0 * np.exp(-z / 2.0) * 1e-3 * 461.5 * t  # [Pa]
-    return (t, float(min(e / water_vapour_pressure(t, 1.0), 1.0)), p)
+    e = rho0 * np.exp(-z0_km / 2.0) * 1e-3 * 461.5 * t  # [Pa]
+    return (float(t), float(min(e / water_vapour_pressure(t, 1.0), 1.0)), float(p))
+
+
+#: scales of the profile match [K], [g m-3]: a profile 10 K or 3 g m-3 of water vapour away
+#: from the weather counts as 1 (the sky's long wave depends on both about equally:
+#: Brutsaert 1975, eps ~ (e/T)^(1/7), d ln eps ~ 0.14 d ln e)
+PROFILE_MATCH_SCALES = (10.0, 3.0)
+
+
+def choose_profile(air_temperature_k, relative_humidity, pressure_pa=101325.0, z0_km: float = 0.0) -> str:
+    """The standard profile whose state at the site is nearest the weather.
+
+    Distance: sqrt((dT / 10 K)^2 + (d rho_v / 3 g m-3)^2) between the weather's air
+    temperature and water vapour density and the profile's (:func:`profile_state`), so the
+    weather layer's perturbation of the profile (:func:`lowtran_sky`) stays small. Ties go to
+    the first profile of :data:`humv_usd.atmosphere.lowtran.PROFILE_MODEL`.
+    """
+
+    def rho_v(t, rh):
+        return water_vapour_pressure(t, rh) / (461.5 * t) * 1e3  # [g m-3]
+
+    rho_w = rho_v(air_temperature_k, relative_humidity)
+    best, best_d = "", np.inf
+    for name in lt.PROFILE_MODEL:
+        t, rh, _ = profile_state(name, z0_km)
+        d = np.hypot(
+            (t - air_temperature_k) / PROFILE_MATCH_SCALES[0],
+            (rho_v(t, rh) - rho_w) / PROFILE_MATCH_SCALES[1],
+        )
+        if d < best_d:
+            best, best_d = name, d
+    return best
+
+
+def resolve_profile(
+    profile: str, air_temperature_k, relative_humidity, pressure_pa, z0_km: float = 0.0
+) -> str:
+    """``profile`` itself, or for "auto" the one :func:`choose_profile` picks."""
+    if profile != "auto":
+        return profile
+    return choose_profile(air_temperature_k, relative_humidity, pressure_pa, z0_km)
 
 
 def _lowtran_parts(
-    scenario, w0: dict, bands, sun: SunState, weather: Weather, ran: dict, sun_too: bool = True
+    scenario, w0: dict, bands, sun: SunState, weather: Weather, ran: dict, sun_too: bool = True, profile=None
 ):
     """Sky, path and solar tables from LOWTRAN7 (raises LowtranError).
 
@@ -528,16 +633,11 @@ def _lowtran_parts(
     g, a = scenario["general"], scenario["atmosphere"]
     z0 = float(g["elevation_m"]) / 1e3
     t_air, rh, p = w0["air_temperature_k"], w0["relative_humidity"], w0["pressure_pa"]
-    model = lt.PROFILE_MODEL[a["profile"]]
+    profile = profile or resolve_profile(a["profile"], t_air, rh, p, z0)
+    model = lt.PROFILE_MODEL[profile]
     h = SKY_LAYER_KM
     zen = SKY_ZENITH_DEG
-    sin_t = np.sin(np.radians(zen))
-    exit_zen = np.degrees(np.arcsin(EARTH_RADIUS_KM * sin_t / (EARTH_RADIUS_KM + z0 + h)))
-    # slant length through the layer on a spherical earth [km]
-    r0 = EARTH_RADIUS_KM + z0
-    length_km = np.sqrt((r0 + h) ** 2 - (r0 * sin_t) ** 2) - r0 * np.cos(np.radians(zen))
-    weather_mid = _mid_layer(t_air, p, rh, h)
-    profile_mid = _profile_mid(a["profile"], z0, h)
+    n = zen.size
 
     intervals = _intervals(bands)
     vis = [iv for iv in intervals if iv[2] == VIS_STEP_CM]
@@ -546,37 +646,11 @@ def _lowtran_parts(
 
     # --- sky: full profile + weather-layer perturbation (module doc) ---------------------------
     sky_lo = min(ir[0], LONGWAVE_UM[0])
-    spec = lt.spectral_case(sky_lo, LONGWAVE_UM[1], IR_STEP_CM)
-    cases = (
-        [dict(spec, model=model, itype=3, iemsct=1, h1=z0, angle=float(t)) for t in zen]
-        + [dict(spec, model=model, itype=3, iemsct=1, h1=z0 + h, angle=float(t)) for t in exit_zen]
-        + [
-            dict(
-                lt.layer_case(state[0], state[1], state[2], [z0 + h / 2]),
-                **spec,
-                itype=1,
-                iemsct=1,
-                h1=z0 + h / 2,
-                range_km=float(s),
-            )
-            for state in (weather_mid, profile_mid)
-            for s in length_km
-        ]
-    )
-    runs = run_cached(cases, ran, "sky")
-    n = zen.size
-    full, upper, low_w, low_p = runs[:n], runs[n : 2 * n], runs[2 * n : 3 * n], runs[3 * n :]
-    sky_wl = full[0].wavelengths_um
-    sky_ir = np.stack(
-        [
-            f.radiance + (w.radiance - q.radiance) + (w.transmittance - q.transmittance) * u.radiance
-            for f, u, w, q in zip(full, upper, low_w, low_p)
-        ]
-    )
-    sky_ir = np.maximum(sky_ir, 0.0)
+    sky_wl, sky_ir = lowtran_sky(profile, z0, t_air, rh, p, sky_lo, ran)
     ran["sky"] = (
-        f"LOWTRAN7 thermal sky, {n} zenith angles: profile {a['profile']} "
-        f"(MODEL {model}) with its lowest {h:g} km replaced by the weather (MODEL 7)"
+        f"LOWTRAN7 thermal sky, {n} zenith angles: profile {profile} "
+        f"(MODEL {model}{', chosen for the weather' if a['profile'] == 'auto' else ''}) "
+        f"with its lowest {h:g} km replaced by the weather (MODEL 7)"
     )
 
     # --- wavelength grid: visible samples + infrared samples inside the IR bands ----------------
@@ -739,6 +813,11 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None, solar: bool = Tru
     else:
         node_weather = [w0]
     has_ir = bool(scenario.infrared_sensors)
+    z0_km = float(scenario["general"]["elevation_m"]) / 1e3
+    # one profile for every weather node (chosen for frame 0's weather with "auto")
+    profile = resolve_profile(
+        a["profile"], w0["air_temperature_k"], w0["relative_humidity"], w0["pressure_pa"], z0_km
+    )
     source = "analytic"
     per_node = None
     if not bands:
@@ -750,7 +829,7 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None, solar: bool = Tru
     else:
         try:
             per_node = [
-                _lowtran_parts(scenario, w, bands, sun, weather, ran, sun_too=(k == 0 and solar))
+                _lowtran_parts(scenario, w, bands, sun, weather, ran, (k == 0 and solar), profile)
                 for k, w in enumerate(node_weather)
             ]
             source = "lowtran7"
@@ -817,7 +896,7 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None, solar: bool = Tru
         sky_emissivity=epss[0],
         sky_temperature_k=t_skies[0],
         air_temperature_k=float(w0["air_temperature_k"]),
-        profile=a["profile"],
+        profile=profile,
         ran=ran,
         **node_fields,
     )

@@ -256,6 +256,28 @@ def _catalogue() -> dict[str, Garment]:
             prop=RIFLE,
         ),
         Garment(
+            "shoes",
+            "black leather shoes: the feet up to the ankles (one shell over the foot, sole included)",
+            (Part("body", (Cover(("foot",)),), 0.004),),
+            "leather_black",
+            2,
+        ),
+        Garment(
+            "boots",
+            "black rubber boots: the feet and the lower shins",
+            (Part("body", (Cover(("foot",)), Cover(("lowerLeg",), "Leg", t_min=0.6)), 0.005),),
+            "rubber_black",
+            2,
+        ),
+        Garment(
+            "hair_short",
+            "short dark head hair: a 5 mm fibre layer over the skull above the brow and the "
+            "back of the head (under a cap)",
+            (Part("body", (Cover(("head",), "Head", t_min=0.45, tilt=0.5),), 0.001),),
+            "hair_dark",
+            0,
+        ),
+        Garment(
             "cap",
             "charcoal wool knit cap: the skull above the brow, ears free",
             (Part("body", (Cover(("head",), "Head", t_min=0.5, tilt=0.4),), 0.003),),

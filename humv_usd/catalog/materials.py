@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd.physics.sun import solar_absorptivity
+
 #: Common coarse grid of the thermal tools (and of the fabric entries).
 WAVELENGTHS_UM = (0.4, 0.55, 0.7, 1.0, 2.5, 3.0, 5.0, 8.0, 11.0, 14.0)
 
@@ -89,7 +91,7 @@ class Material:
     density: float  # [kg m-3]
     specific_heat: float  # [J kg-1 K-1]
     thickness: float  # [m] of the slab or layer
-    solar_absorptivity: float  # [0-1]
+    solar_absorptivity: float  # [0-1] broadband literature value (see spectral_solar_absorptivity)
     source: str
     label_class: str = "other"
     spectrum_wavelengths: tuple[float, ...] = WAVELENGTHS_UM  # [µm], ascending
@@ -130,6 +132,16 @@ class Material:
     def emissivity(self) -> tuple[float, ...]:
         """Emissivity at the common grid WAVELENGTHS_UM."""
         return tuple(round(float(v), 6) for v in self.at(WAVELENGTHS_UM, "emissivity"))
+
+    @property
+    def spectral_solar_absorptivity(self) -> float:
+        """Solar absorptivity of this material's own spectrum under the reference sun
+        (:func:`humv_usd.physics.sun.solar_absorptivity`): the value the materials tool writes
+        and the thermal solve uses. ``solar_absorptivity`` is the broadband literature value
+        the spectrum was checked against (tests/test_material_consistency.py)."""
+        return solar_absorptivity(
+            self.spectrum_wavelengths, self.spectrum_reflectance, self.spectrum_transmittance
+        )
 
     @property
     def display_color(self) -> tuple[float, float, float]:
@@ -839,6 +851,55 @@ EQUIPMENT: dict[str, Material] = {
             "emissivity tables (e.g. Optris / FLIR: plastic, black 0.95); carbon-black "
             "pigment keeps the visible and NIR reflectance at ~5 % (estimate); 3 mm wall",
             label_class="prop",
+        ),
+        Material(
+            "leather_black",
+            spectrum_reflectance=(0.05, 0.05, 0.06, 0.20, 0.20, 0.08, 0.10, 0.06, 0.06, 0.06),
+            conductivity=0.159,
+            density=998.0,
+            specific_heat=1500.0,
+            thickness=0.003,
+            solar_absorptivity=0.88,
+            source="black leather of shoe uppers and soles, modelled as one 3 mm layer: "
+            "conductivity 0.159 W/(m K) and density 998 kg/m3 of sole leather, Incropera et al. "
+            "(2007) Table A.3; specific heat ~1.5 J/(g K) (collagen, estimate); LWIR emissivity "
+            "0.94 (dark finished leather, thermographic emissivity tables give 0.75-0.95 for "
+            "leathers: a representative value, not a measurement); visible/NIR of a black "
+            "dye with its NIR rise as the black fabrics (estimate)",
+            label_class="person",
+        ),
+        Material(
+            "rubber_black",
+            spectrum_reflectance=(0.04, 0.04, 0.04, 0.05, 0.05, 0.05, 0.06, 0.06, 0.06, 0.06),
+            conductivity=0.16,
+            density=1190.0,
+            specific_heat=2010.0,
+            thickness=0.004,
+            solar_absorptivity=0.95,
+            source="black rubber of boots (4 mm): hard rubber k 0.160 W/(m K), 1190 kg/m3, "
+            "2010 J/(kg K), Incropera et al. (2007) Table A.3; LWIR emissivity 0.94 (rubber "
+            "0.86-0.95 in Incropera Table A.11 and thermographic tables; representative); "
+            "carbon-black filled rubber reflects ~4-6 % from the visible to the LWIR "
+            "(estimate)",
+            label_class="person",
+        ),
+        Material(
+            "hair_dark",
+            spectrum_reflectance=(0.04, 0.05, 0.07, 0.20, 0.15, 0.05, 0.08, 0.05, 0.05, 0.05),
+            conductivity=0.05,
+            density=100.0,
+            specific_heat=1500.0,
+            thickness=0.005,
+            solar_absorptivity=0.88,
+            source="short dark head hair as a 5 mm fibre+air layer: effective conductivity "
+            "0.05 W/(m K) of a fibre layer of ~8 % keratin by volume (as wool felts: Baxter "
+            "(1946) Proc. Phys. Soc. 58:105; fur insulation, Scholander et al. (1950) Biol. "
+            "Bull. 99:225), density = 8 % of keratin's ~1300 kg/m3; keratin specific heat "
+            "~1.5 J/(g K) (wool, Morton & Hearle 2008 Table 6.1); LWIR emissivity 0.95 "
+            "(keratin/skin-like, estimate); eumelanin-dark hair absorbs most visible light "
+            "(reflectance a few %, rising in the NIR; representative values, not a "
+            "measurement)",
+            label_class="person",
         ),
     )
 }

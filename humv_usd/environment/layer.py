@@ -9,8 +9,11 @@ between).
 
 The layer also holds the weather and the sun of the thermal tool's scene-surface spin-up, at
 negative time codes (``[thermal] surface_spin_up_s`` before frame 0 in 10-minute steps,
-:func:`humv_usd.scenario.times.spin_up_times`). An hourly series that starts after the spin-up
-does holds its first row there (the sun still follows the clock). Readers at frames >= 0 (the
+:func:`humv_usd.scenario.times.spin_up_times`). Before the weather data start (frame 0 for a
+constant weather, the first row of an hourly series) the spin-up's air temperature follows a
+diurnal cycle of range ``[atmosphere] diurnal_range_k`` through the first known value
+(Campbell & Norman 1998 shape, dew point held: :func:`humv_usd.environment.weather.with_diurnal_cycle`);
+wind, pressure and clouds hold the first known values; the sun follows the clock. Readers at frames >= 0 (the
 render) see the same values as without these samples.
 """
 
@@ -20,7 +23,7 @@ import numpy as np
 from pxr import Sdf
 
 from humv_usd.environment.sun import sun_at
-from humv_usd.environment.weather import weather_at
+from humv_usd.environment.weather import weather_at, with_diurnal_cycle
 from humv_usd.physics.weather import COLUMNS
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
@@ -36,10 +39,21 @@ READS = (
     *CLOCK,
     *(f"atmosphere.{k}" for k in COLUMNS),
     "atmosphere.weather_csv",
+    "atmosphere.diurnal_range_k",  # the spin-up's diurnal cycle before the data start
     "thermal.surface_spin_up_s",  # the spin-up window before frame 0 (negative time codes)
 )
 UPSTREAM = ()
-VERSION = "2"
+VERSION = "3"
+
+
+def _covered_from(scenario: Scenario) -> float:
+    """First time [s after frame 0] the scenario's weather data give: frame 0, or the first
+    row of an hourly series that starts before it."""
+    path = (scenario["atmosphere"] or {}).get("weather_csv")
+    if not path:
+        return 0.0
+    ts, _ = read_weather_csv(path, scenario)
+    return min(0.0, float(ts[0] - frame_epoch_s(scenario)))
 
 
 def _weather_times(scenario: Scenario, times_s: np.ndarray) -> np.ndarray:
@@ -78,6 +92,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     times = np.concatenate([spin_t, frames_t])
     codes = np.round(times * float(g["fps"]), 6)
     weather = weather_at(scenario, _weather_times(scenario, times))
+    covered = _covered_from(scenario)
+    weather = with_diurnal_cycle(scenario, times, weather, covered)
     E.write_weather(env, weather, codes)
     sun = sun_at(scenario, times, weather)
     if scenario.frame_count > 1 or spin_t.size:
@@ -102,5 +118,11 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             f"{spin_t.size} samples at negative time codes {codes[0]:g} .. {codes[spin_t.size - 1]:g} "
             f"(thermal.surface_spin_up_s = {-spin_t[0]:g} s, 600 s steps)"
         )
+        r = float(scenario["atmosphere"].get("diurnal_range_k", 0.0) or 0.0)
+        if r > 0 and spin_t[0] < covered - 1e-9:
+            ran["spinUpWeather"] = (
+                f"diurnal cycle of {r:g} K range (Campbell & Norman 1998) through the weather at "
+                f"{covered:g} s, dew point held"
+            )
     stage.GetRootLayer().customLayerData = {"humv:environment:ran": ran}
     return finish(stage)

@@ -15,7 +15,12 @@ import datetime as dt
 import numpy as np
 
 from humv_usd.errors import InputError, bad_value
-from humv_usd.physics.weather import COLUMNS, Weather
+from humv_usd.physics.weather import (
+    COLUMNS,
+    Weather,
+    diurnal_air_temperature,
+    relative_humidity_at_constant_vapour_pressure,
+)
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.spec import ATMOSPHERE
 from humv_usd.scenario.times import frame_epoch_s
@@ -62,4 +67,45 @@ def weather_at(scenario: Scenario, times_s) -> Weather:
                 out[k] = np.degrees(np.arctan2(e, n)) % 360.0
             else:
                 out[k] = np.interp(abs_t, ts, v)
+    return Weather(**out)
+
+
+def solar_hours(scenario: Scenario, times_s) -> np.ndarray:
+    """Local mean solar time [h, 0-24) at ``times_s`` seconds after frame 0: UTC plus
+    longitude / 15 deg h^-1 (the equation of time, under 17 min, is left out)."""
+    t = frame_epoch_s(scenario) + np.atleast_1d(np.asarray(times_s, dtype=float))
+    lon = float(scenario["general"]["longitude_deg"])
+    return ((t / 3600.0) + lon / 15.0) % 24.0
+
+
+def with_diurnal_cycle(scenario: Scenario, times_s, weather: Weather, covered_from_s: float) -> Weather:
+    """``weather`` with the air temperature and humidity of the times before ``covered_from_s``
+    (the first time the scenario's data give: frame 0, or the first row of a weather series)
+    following a diurnal cycle instead of holding that time's values.
+
+    Temperature: :func:`humv_usd.physics.weather.diurnal_air_temperature` (Campbell & Norman
+    1998 shape) of range ``[atmosphere] diurnal_range_k`` through the value at
+    ``covered_from_s``; humidity: that time's vapour pressure held (constant dew point), so
+    the relative humidity rises at night (capped at 1). Wind, pressure and clouds keep their
+    held values. The slabs' spin-up (negative time codes) is the only user: frames are
+    covered by the data.
+    """
+    r = float(
+        (scenario["atmosphere"] or {}).get("diurnal_range_k", ATMOSPHERE.keys["diurnal_range_k"].default)
+    )
+    t = np.atleast_1d(np.asarray(times_s, dtype=float))
+    before = t < covered_from_s - 1e-9
+    if r == 0.0 or not before.any():
+        return weather
+    anchor = int(np.argmin(np.abs(t - covered_from_s)))
+    t_anchor = float(weather.air_temperature_k[anchor])
+    rh_anchor = float(weather.relative_humidity[anchor])
+    hours = solar_hours(scenario, t[before])
+    anchor_hour = float(solar_hours(scenario, [covered_from_s])[0])
+    air = weather.air_temperature_k.copy()
+    rh = weather.relative_humidity.copy()
+    air[before] = diurnal_air_temperature(hours, anchor_hour, t_anchor, r)
+    rh[before] = relative_humidity_at_constant_vapour_pressure(air[before], t_anchor, rh_anchor)
+    out = {k: getattr(weather, k) for k in COLUMNS}
+    out.update(air_temperature_k=air, relative_humidity=rh)
     return Weather(**out)

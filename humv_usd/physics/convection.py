@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.physics.checks import require
 
 KCAL_PER_HOUR_TO_WATT = 1.163  # 1 kcal h^-1 = 1.163 W (international table calorie)
 
@@ -45,7 +46,7 @@ def siple_passel(wind_speed):
     .. [1] Siple, P. A., Passel, C. F. (1945). Measurements of dry atmospheric cooling in
        subfreezing temperatures. Proc. Am. Philos. Soc. 89(1), 177-199.
     """
-    v = np.clip(np.asarray(wind_speed, dtype=float), 0.0, _SIPLE_PASSEL_MAX_WIND)
+    v = np.clip(require("wind_speed", wind_speed), 0.0, _SIPLE_PASSEL_MAX_WIND)
     return KCAL_PER_HOUR_TO_WATT * (10.45 - v + 10.0 * np.sqrt(v))
 
 
@@ -75,7 +76,7 @@ def mitchell(wind_speed):
        from Animals and Man (Monteith, Mount, eds.), Butterworth, London, 59-76.
     .. [2] ASHRAE (2017). ASHRAE Handbook - Fundamentals, ch. 9, Table 6.
     """
-    v = np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
+    v = np.maximum(require("wind_speed", wind_speed), 0.0)
     return 8.3 * v**0.6
 
 
@@ -101,7 +102,7 @@ def natural_iso7730(delta_t):
     .. [1] ISO 7730:2005. Ergonomics of the thermal environment - Analytical determination and
        interpretation of thermal comfort using calculation of the PMV and PPD indices.
     """
-    return 2.38 * np.abs(np.asarray(delta_t, dtype=float)) ** 0.25
+    return 2.38 * np.abs(require("delta_t", delta_t)) ** 0.25
 
 
 def iso7730(wind_speed, delta_t=0.0):
@@ -127,7 +128,7 @@ def iso7730(wind_speed, delta_t=0.0):
     ----------
     .. [1] ISO 7730:2005, Annex D.
     """
-    v = np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
+    v = np.maximum(require("wind_speed", wind_speed), 0.0)
     return np.maximum(natural_iso7730(delta_t), 12.1 * np.sqrt(v))
 
 
@@ -157,7 +158,7 @@ def watmuff(wind_speed):
     .. [2] Duffie, J. A., Beckman, W. A. (2013). Solar Engineering of Thermal Processes, 4th ed.,
        section 3.15.
     """
-    return 2.8 + 3.0 * np.maximum(np.asarray(wind_speed, dtype=float), 0.0)
+    return 2.8 + 3.0 * np.maximum(require("wind_speed", wind_speed), 0.0)
 
 
 def convective_coefficient(wind_speed, delta_t=0.0, model="mitchell"):
@@ -188,7 +189,7 @@ def convective_coefficient(wind_speed, delta_t=0.0, model="mitchell"):
     if model == "iso7730":
         return iso7730(wind_speed, delta_t)
     if model == "siple_passel":
-        return siple_passel(wind_speed) + 0.0 * np.asarray(delta_t, dtype=float)
+        return siple_passel(wind_speed) + 0.0 * require("delta_t", delta_t)
     raise ValueError(f"invalid model selection {model}")
 
 
@@ -218,5 +219,5 @@ def radiative_coefficient(emissivity, mean_temperature_k):
     .. [1] Incropera, F. P., DeWitt, D. P. et al. (2007). Fundamentals of Heat and Mass Transfer,
        6th ed., Wiley, Eq. 1.9.
     """
-    t = np.asarray(mean_temperature_k, dtype=float)
-    return 4.0 * np.asarray(emissivity, dtype=float) * STEFAN_BOLTZMANN * t**3
+    t = require("mean_temperature_k", mean_temperature_k, 0.0, 1e4)
+    return 4.0 * require("emissivity", emissivity, 0.0, 1.0) * STEFAN_BOLTZMANN * t**3

@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.physics.checks import require
 from humv_usd.physics.convection import mitchell
 from humv_usd.physics.sky import effective_sky_temperature
 
@@ -319,9 +320,23 @@ def _parameters(
     gap_model,
     c_dt,
     t_prev,
+    check_previous=True,
 ):
     if gap_model not in ("hollands", "conduction"):
         raise ValueError(f"invalid model selection {gap_model}")
+    _check_inputs(
+        skin_temperature_k,
+        air_temperature_k,
+        absorbed_radiation,
+        h_forced,
+        air_gap_m,
+        fabric_thickness_m,
+        fabric_conductivity,
+        fabric_emissivity,
+        skin_emissivity,
+        inner_emissivity,
+        t_prev if check_previous else None,
+    )
     eps_f = np.asarray(fabric_emissivity, dtype=float)
     eps_in = eps_f if inner_emissivity is None else np.asarray(inner_emissivity, dtype=float)
     thick = np.asarray(fabric_thickness_m, dtype=float)
@@ -345,6 +360,22 @@ def _parameters(
     p["natural_floor"] = bool(natural_floor)
     p["gap_model"] = gap_model
     return p
+
+
+def _check_inputs(t_skin, t_air, q_rad, h, gap, thickness, k_f, eps_f, eps_s, eps_in, t_prev) -> None:
+    """ValueError for NaN, infinite or non-physical inputs of the garment balance."""
+    require("skin_temperature_k", t_skin, 1.0, 1e4)
+    require("air_temperature_k", t_air, 1.0, 1e4)
+    require("absorbed_radiation", q_rad, -1e5, 1e5)
+    require("h_forced", h, 0.0, 1e4)
+    require("air_gap_m", gap, 0.0, 10.0)
+    require("fabric_thickness_m", thickness, 0.0, 1.0)
+    require("fabric_conductivity", k_f, 0.0, 1e3)
+    for name, eps in (("fabric_emissivity", eps_f), ("skin_emissivity", eps_s), ("inner_emissivity", eps_in)):
+        if eps is not None:
+            require(name, eps, 0.0, 1.0)
+    if t_prev is not None:
+        require("previous_outer_temperature_k", t_prev, 1.0, 1e4)
 
 
 def _bracket(p):
@@ -537,7 +568,8 @@ inner_emissivity, natural_floor, gap_model, tol, max_iter
     .. [1] Hairer, E., Wanner, G. (1996). Solving Ordinary Differential Equations II: Stiff and
        Differential-Algebraic Problems, 2nd ed., Springer (backward Euler, L-stability).
     """
-    c_dt = np.asarray(heat_capacity, dtype=float) / np.asarray(time_step_s, dtype=float)
+    dt = require("time_step_s", time_step_s, 1e-9, np.inf, allow_inf=True)
+    c_dt = require("heat_capacity", heat_capacity, 0.0, 1e7) / dt
     p = _parameters(
         skin_temperature_k,
         air_temperature_k,
@@ -605,6 +637,7 @@ inner_emissivity, natural_floor, gap_model
         gap_model,
         0.0,
         outer_temperature_k,
+        check_previous=False,  # a diagnostic: any outer temperature may be evaluated
     )
     return _balance(np.broadcast_to(np.asarray(outer_temperature_k, dtype=float), p["t_air"].shape), p)[0]
 

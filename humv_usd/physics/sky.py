@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from humv_usd.constants import BOLTZMANN_CONSTANT
+from humv_usd.constants import BOLTZMANN_CONSTANT, STEFAN_BOLTZMANN
 
 # Magnus coefficients over water, Alduchov & Eskridge (1996): a [-], b [degC]
 _MAGNUS_A = 17.625
@@ -338,3 +338,175 @@ def aerosol_extinction(wavelength_um, visibility_km):
     q = 1.6 if v > 50.0 else 1.3 if v > 6.0 else 0.585 * v ** (1.0 / 3.0)
     beta550 = max(3.912 / v - 0.0116, 0.0) * 1e-3  # [m-1]
     return beta550 * (np.asarray(wavelength_um, dtype=float) / 0.55) ** (-q)
+
+
+def _vapour_hpa(air_temperature_k, relative_humidity):
+    return water_vapour_pressure(air_temperature_k, relative_humidity) / 100.0
+
+
+def brunt_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Brunt (1932): eps = 0.52 + 0.065 sqrt(e), e in [hPa].
+
+    Parameters
+    ----------
+    air_temperature_k : numeric
+        Screen-level air temperature [K].
+    relative_humidity : numeric
+        Relative humidity [0-1].
+
+    Returns
+    -------
+    numeric
+        Broadband hemispherical clear-sky emissivity [0-1] (downwelling long wave eps sigma T^4).
+
+    References
+    ----------
+    .. [1] Brunt, D. (1932). Notes on radiation in the atmosphere. Q. J. R. Meteorol. Soc. 58,
+       389-420 (coefficients as tabulated by Flerchinger et al. 2009, Water Resour. Res. 45,
+       W03423, Table 1).
+    """
+    return 0.52 + 0.065 * np.sqrt(_vapour_hpa(air_temperature_k, relative_humidity))
+
+
+def brutsaert_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Brutsaert (1975): eps = 1.24 (e / T)^(1/7), e [hPa], T [K].
+
+    References
+    ----------
+    .. [1] Brutsaert, W. (1975). On a derivable formula for long-wave radiation from clear
+       skies. Water Resour. Res. 11(5), 742-744.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 1.24 * (_vapour_hpa(t, relative_humidity) / t) ** (1.0 / 7.0)
+
+
+def swinbank_emissivity(air_temperature_k, relative_humidity=None):
+    """Clear-sky emissivity of Swinbank (1963): eps = 9.365e-6 T^2 (T [K]; humidity unused).
+
+    References
+    ----------
+    .. [1] Swinbank, W. C. (1963). Long-wave radiation from clear skies. Q. J. R. Meteorol.
+       Soc. 89, 339-348.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 9.365e-6 * t * t
+
+
+def idso_jackson_emissivity(air_temperature_k, relative_humidity=None):
+    """Clear-sky emissivity of Idso & Jackson (1969): eps = 1 - 0.261 exp(-7.77e-4 (273 - T)^2).
+
+    References
+    ----------
+    .. [1] Idso, S. B., Jackson, R. D. (1969). Thermal radiation from the atmosphere.
+       J. Geophys. Res. 74, 5397-5403.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 1.0 - 0.261 * np.exp(-7.77e-4 * (273.0 - t) ** 2)
+
+
+def idso_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Idso (1981): eps = 0.70 + 5.95e-5 e exp(1500 / T), e [hPa].
+
+    References
+    ----------
+    .. [1] Idso, S. B. (1981). A set of equations for full spectrum and 8- to 14-um and 10.5-
+       to 12.5-um thermal radiation from cloudless skies. Water Resour. Res. 17(2), 295-304.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    return 0.70 + 5.95e-5 * _vapour_hpa(t, relative_humidity) * np.exp(1500.0 / t)
+
+
+def prata_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity of Prata (1996): eps = 1 - (1 + w) exp(-sqrt(1.2 + 3 w)),
+    w = 46.5 e / T the precipitable water [cm] (e [hPa], T [K]).
+
+    References
+    ----------
+    .. [1] Prata, A. J. (1996). A new long-wave formula for estimating downward clear-sky
+       radiation at the surface. Q. J. R. Meteorol. Soc. 122, 1127-1151.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    w = 46.5 * _vapour_hpa(t, relative_humidity) / t
+    return 1.0 - (1.0 + w) * np.exp(-np.sqrt(1.2 + 3.0 * w))
+
+
+def dilley_obrien_emissivity(air_temperature_k, relative_humidity):
+    """Clear-sky emissivity from Dilley & O'Brien (1998):
+    L = 59.38 + 113.7 (T / 273.16)^6 + 96.96 sqrt(w / 25) [W m^-2], w = 4650 e / T the
+    precipitable water [kg m^-2] (e [kPa], T [K]); eps = L / (sigma T^4).
+
+    References
+    ----------
+    .. [1] Dilley, A. C., O'Brien, D. M. (1998). Estimating downward clear sky long-wave
+       irradiance at the surface from screen temperature and precipitable water. Q. J. R.
+       Meteorol. Soc. 124, 1391-1401.
+    """
+    t = np.asarray(air_temperature_k, dtype=float)
+    w = 4650.0 * _vapour_hpa(t, relative_humidity) / 10.0 / t
+    flux = 59.38 + 113.7 * (t / 273.16) ** 6 + 96.96 * np.sqrt(w / 25.0)
+    return flux / (STEFAN_BOLTZMANN * t**4)
+
+
+def empirical_sky_emissivities(air_temperature_k, relative_humidity) -> dict:
+    """The clear-sky emissivity of each empirical formula from screen-level air temperature
+    and humidity: Brunt (1932), Swinbank (1963), Idso & Jackson (1969), Brutsaert (1975),
+    Idso (1981), Berdahl & Martin (1984), Prata (1996), Dilley & O'Brien (1998). Their spread is the usual check of a
+    modelled downwelling long wave (Flerchinger et al. 2009, Water Resour. Res. 45, W03423:
+    the formulas scatter by +-5 % around clear-sky pyrgeometer data)."""
+    t, rh = air_temperature_k, relative_humidity
+    return {
+        "brunt": brunt_emissivity(t, rh),
+        "swinbank": swinbank_emissivity(t),
+        "idsoJackson": idso_jackson_emissivity(t),
+        "brutsaert": brutsaert_emissivity(t, rh),
+        "idso": idso_emissivity(t, rh),
+        "berdahlMartin": effective_sky_temperature(t, rh)[1],
+        "prata": prata_emissivity(t, rh),
+        "dilleyObrien": dilley_obrien_emissivity(t, rh),
+    }
+
+
+def tilted_irradiance(zenith_deg, radiance, tilt_deg):
+    """Irradiance from the sky on planes tilted from the horizontal [W m^-2].
+
+    Parameters
+    ----------
+    zenith_deg, radiance : array (Z,)
+        The sky against zenith [deg] (ascending within 0-90) and its radiance, azimuthally
+        uniform [W m^-2 sr^-1] (the atmosphere layer's ``skyLongwaveRadiance``), interpolated
+        as :func:`hemispherical_irradiance` does (np.interp, held beyond the nodes).
+    tilt_deg : numeric
+        Angle between each plane's normal and the zenith [deg], 0 (facing up) to 180.
+
+    Returns
+    -------
+    numpy.ndarray
+        E(beta) = int_sky L(theta) max(0, cos(beta) cos(theta) + sin(beta) sin(theta)
+        cos(phi)) dOmega over the sky hemisphere (theta < 90 deg) only; the ground's share
+        is the caller's.
+
+    Notes
+    -----
+    The azimuthal integral is closed: with a = cos(beta) cos(theta), b = sin(beta) sin(theta),
+    K = 2 pi a for a >= b, 0 for a <= -b, else 2 (a phi0 + b sin phi0), phi0 = arccos(-a/b).
+    The zenith integral of L(theta) sin(theta) K is Gauss-Legendre (24 points) on the pieces
+    between the table's nodes and the kink at theta = |90 deg - beta|, so it is exact to
+    rounding for the interpolated table. An isotropic sky gives E = E_h (1 + cos beta) / 2
+    (Duffie & Beckman 2013, Eq. 2.16.2); the real clear sky is brighter towards the horizon
+    (Martin & Berdahl 1984), so walls see more than half the horizontal sky irradiance.
+    """
+    th_nodes, val = extended_sky_table(zenith_deg, radiance)
+    x, w = np.polynomial.legendre.leggauss(24)
+    out = []
+    for beta in np.radians(np.atleast_1d(np.asarray(tilt_deg, dtype=float))):
+        kinks = [k for k in (np.pi / 2 - beta, beta - np.pi / 2) if 0.0 < k < np.pi / 2]
+        br = np.unique(np.r_[th_nodes, kinks])
+        lo, hi = br[:-1, None], br[1:, None]
+        th = (0.5 * (hi - lo) * x[None, :] + 0.5 * (hi + lo)).ravel()
+        wt = (0.5 * (hi - lo) * w[None, :]).ravel()
+        a, b = np.cos(beta) * np.cos(th), np.sin(beta) * np.sin(th)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            phi0 = np.arccos(np.clip(-a / np.where(b > 0, b, 1.0), -1.0, 1.0))
+        k = np.where(a >= b, 2 * np.pi * a, np.where(a <= -b, 0.0, 2.0 * (a * phi0 + b * np.sin(phi0))))
+        out.append(float(np.sum(wt * np.interp(th, th_nodes, val) * np.sin(th) * k)))
+    return np.asarray(out)

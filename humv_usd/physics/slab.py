@@ -15,6 +15,10 @@ from scipy.linalg import solve_banded
 
 from humv_usd.constants import STEFAN_BOLTZMANN
 
+#: combined inside surface coefficient of a wall, 1 / R_si with R_si = 0.13 m^2 K W^-1
+#: (ISO 6946:2017, Table 7, horizontal heat flow) [W m^-2 K^-1]
+INTERIOR_SURFACE_COEFFICIENT = 1.0 / 0.13
+
 
 def uniform_layers(total_thickness_m, n_layers):
     """Layer thicknesses of a uniformly divided slab.
@@ -346,6 +350,7 @@ def step_many(
     deep_temperature_k=None,
     tol=1e-9,
     max_iter=50,
+    back_h_w_m2k=INTERIOR_SURFACE_COEFFICIENT,
 ):
     """Backward-Euler step of many slabs of one construction at once (vectorized :func:`step`).
 
@@ -355,8 +360,14 @@ def step_many(
         Node temperatures of F slabs at the start of the step, surface first [K].
     time_step_s : float
         Time step [s]; ``np.inf`` gives the steady state.
-    layer_thickness_m, conductivity, volumetric_heat_capacity, bottom
+    layer_thickness_m, conductivity, volumetric_heat_capacity
         As in :func:`step` (one construction shared by the F slabs).
+    bottom : str
+        'adiabatic', 'fixed' (node N held at ``deep_temperature_k``) or 'interior': the back
+        exchanges heat with room air at ``deep_temperature_k`` through the combined inside
+        surface coefficient ``back_h_w_m2k`` (convection + radiation to the room,
+        q = h_i (T_room - T_N); ISO 6946:2017 R_si = 0.13 m^2 K W^-1 for horizontal heat flow,
+        h_i = 7.7 W m^-2 K^-1, :data:`INTERIOR_SURFACE_COEFFICIENT`).
     absorbed_solar, sky_longwave, air_temperature_k, h_conv, emissivity, deep_temperature_k :
         numeric or (F,)
         Forcing at the end of the step per slab, as in :func:`step`.
@@ -374,8 +385,10 @@ def step_many(
     emission is Newton-linearised and each Newton update solves F tridiagonal systems by the
     Thomas algorithm (Patankar 1980, section 4.2-5).
     """
-    if bottom not in ("adiabatic", "fixed"):
+    if bottom not in ("adiabatic", "fixed", "interior"):
         raise ValueError(f"invalid model selection {bottom}")
+    if bottom == "interior" and not (np.isfinite(back_h_w_m2k) and back_h_w_m2k >= 0.0):
+        raise ValueError(f"back_h_w_m2k must be finite and >= 0, got {back_h_w_m2k!r}")
     t_old = np.atleast_2d(np.asarray(temperatures_k, dtype=float))
     nf, n1 = t_old.shape
     g, cap = _operators(layer_thickness_m, conductivity, volumetric_heat_capacity)
@@ -409,6 +422,9 @@ def step_many(
         res[:, 0] -= surface_flux(t[:, 0], a_s, l_sky, t_air, h, eps)
         diag = diag0.copy()
         diag[:, 0] += 4.0 * eps * STEFAN_BOLTZMANN * t[:, 0] ** 3 + h
+        if bottom == "interior":
+            res[:, -1] -= back_h_w_m2k * (col(deep_temperature_k) - t[:, -1])
+            diag[:, -1] += back_h_w_m2k
         if bottom == "fixed":
             res[:, -1] = 0.0
             diag[:, -1] = 1.0
@@ -437,6 +453,7 @@ def simulate_many(
     bottom="adiabatic",
     deep_temperature_k=None,
     initial_temperature_k=None,
+    back_h_w_m2k=INTERIOR_SURFACE_COEFFICIENT,
 ):
     """Surface temperatures of F slabs of one construction along a forcing time series.
 
@@ -449,7 +466,7 @@ def simulate_many(
     absorbed_solar, sky_longwave, air_temperature_k, h_conv : array (M, F) or broadcastable
         Forcing per sample and slab, as in :func:`step`.
     layer_thickness_m, conductivity, volumetric_heat_capacity, emissivity, bottom, \
-deep_temperature_k
+deep_temperature_k, back_h_w_m2k
         As in :func:`step_many`.
     initial_temperature_k : numeric or (F, N + 1), optional
         Initial node temperatures instead of the mean-forcing steady state.
@@ -478,6 +495,7 @@ deep_temperature_k
         emissivity=emissivity,
         bottom=bottom,
         deep_temperature_k=deep_temperature_k,
+        back_h_w_m2k=back_h_w_m2k,
     )
     if initial_temperature_k is None:
         # steady state of the time-mean forcing; the emission term is nonlinear, so the mean of

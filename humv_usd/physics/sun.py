@@ -7,7 +7,10 @@ Stage frame: x east, y north, z up; azimuth is a compass angle (0 = north, 90 = 
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -96,3 +99,53 @@ def cloud_dni_factor(cloud_cover) -> np.ndarray:
     """
     n = np.clip(np.asarray(cloud_cover, dtype=float), 0.0, 1.0)
     return (1.0 - 0.75 * n**3.4) * (1.0 - n * n)
+
+
+@functools.lru_cache(maxsize=1)
+def reference_solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
+    """The reference sun of broadband solar absorptivities: (wavelengths [um] (0.28-4),
+    spectral irradiance [W m^-2 um^-1]).
+
+    ASTM G173-03 global tilted spectrum (AM 1.5, 37 deg sun-facing tilt, 1000 W m^-2 total),
+    the standard terrestrial sun of solar-absorptance ratings (ASTM E903): the table pvlib ships
+    (``pvlib/data/ASTMG173.csv``, what :func:`pvlib.spectrum.get_reference_spectra` reads), read
+    here with numpy so that reading a material does not import pvlib and pandas.
+
+    References
+    ----------
+    .. [1] ASTM G173-03 (2020). Standard tables for reference solar spectral irradiances: direct
+       normal and hemispherical on 37 deg tilted surface. ASTM International.
+    """
+    spec = importlib.util.find_spec("pvlib")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("pvlib (ASTM G173 reference spectrum) is not installed")
+    table = Path(list(spec.submodule_search_locations)[0]) / "data" / "ASTMG173.csv"
+    data = np.loadtxt(table, delimiter=",", skiprows=2, usecols=(0, 2))
+    return data[:, 0] / 1000.0, data[:, 1] * 1000.0
+
+
+def solar_absorptivity(wavelengths_um, reflectance, transmittance=None) -> float:
+    """Broadband solar absorptivity of a spectrum: 1 - (R + T) weighted by the reference sun.
+
+    Parameters
+    ----------
+    wavelengths_um : array (W,)
+        Ascending wavelengths of the tables [um]; they must reach 0.5 um and 2.5 um.
+    reflectance, transmittance : array (W,)
+        Directional-hemispherical reflectance and transmittance [0-1] (transmittance None:
+        opaque), interpolated linearly and held beyond the table's ends.
+
+    Returns
+    -------
+    float
+        alpha_s = int (1 - R - T) E dlambda / int E dlambda over 0.28-4 um, E the ASTM G173
+        global spectrum (:func:`reference_solar_spectrum`), trapezoid on its grid.
+    """
+    wl = np.asarray(wavelengths_um, dtype=float)
+    if wl.size < 2 or wl[0] > 0.5 or wl[-1] < 2.5:
+        raise ValueError("solar absorptivity needs a spectrum from 0.5 um (or less) to 2.5 um (or more)")
+    ref_wl, ref_e = reference_solar_spectrum()
+    lost = np.interp(ref_wl, wl, np.asarray(reflectance, dtype=float))
+    if transmittance is not None:
+        lost = lost + np.interp(ref_wl, wl, np.asarray(transmittance, dtype=float))
+    return float(1.0 - np.trapz(lost * ref_e, ref_wl) / np.trapz(ref_e, ref_wl))

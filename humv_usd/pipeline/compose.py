@@ -17,6 +17,12 @@ enters their keys).
 Every layer is built in memory first; only when all of them succeeded is anything written, each
 file atomically and only if its text changed (so an unchanged scenario rewrites nothing).
 Parts the scenario lacks get no layer; the report says what was skipped and why.
+
+Files a layer points at (a scene asset, a site layer) are written as paths relative to the
+layer's folder when they share a folder with it (:func:`humv_usd.usd.layers.relative_asset_paths`),
+so an output folder moved or copied together with the scenario's assets (same relative
+placement) still composes, checks and renders; in memory (and when compose reopens a written
+layer) they are absolute.
 """
 
 from __future__ import annotations
@@ -38,7 +44,14 @@ from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
-from humv_usd.usd.layers import layer_text, set_inputs_key, set_layer_metadata, usd_error_text
+from humv_usd.usd.layers import (
+    layer_text,
+    open_anonymous,
+    relative_asset_paths,
+    set_inputs_key,
+    set_layer_metadata,
+    usd_error_text,
+)
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
@@ -215,7 +228,7 @@ def _previous(out: Path) -> dict:
 def _open_layer(path: Path) -> tuple[Sdf.Layer | None, str | None]:
     """The layer file at ``path`` opened as an anonymous layer, or None and why it does not load."""
     try:
-        layer = Sdf.Layer.OpenAsAnonymous(str(path))
+        layer = open_anonymous(path)
     except Exception as exc:  # noqa: BLE001 (USD raises Tf.ErrorException)
         return None, f"does not load as USD ({usd_error_text(exc)})"
     return (layer, None) if layer is not None else (None, "does not load as USD")
@@ -376,11 +389,11 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False, progre
     # 2. build in dependency order; unchanged layers come from their files
     layers: dict[str, Sdf.Layer] = {}
     texts: dict[str, str] = {}
-    user_layers = [Sdf.Layer.OpenAsAnonymous(str((out / u).resolve())) for u in user]
+    user_layers = [open_anonymous((out / u).resolve()) for u in user]
 
     def layer_of(name: str) -> Sdf.Layer:
         if name not in layers:
-            layers[name] = states[name].loaded or Sdf.Layer.OpenAsAnonymous(str(layer_dir / f"{name}.usda"))
+            layers[name] = states[name].loaded or open_anonymous(layer_dir / f"{name}.usda")
         return layers[name]
 
     to_build = [name for name in order if states[name].rebuild]
@@ -397,7 +410,9 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False, progre
             upstream = compose_in_memory(below + list(reversed(user_layers)), fps)
         layer = node.tool.build(scenario, node.human, upstream)
         set_inputs_key(layer, state.key)
-        layers[name], texts[name] = layer, layer_text(layer)
+        # the file holds paths relative to its folder (a movable output), the layer in memory
+        # absolute ones (downstream tools compose it, anonymous, without an anchor)
+        layers[name], texts[name] = layer, layer_text(relative_asset_paths(layer, layer_dir))
         state.sha256 = _sha(texts[name])
         state.seconds = time.perf_counter() - t
     if progress is not None:

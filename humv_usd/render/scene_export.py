@@ -41,7 +41,7 @@ from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.usd.labels import instance_id
 from humv_usd.usd.layers import attribute_value
-from humv_usd.usd.materials import StageMaterial, bound_material, read_material
+from humv_usd.usd.materials import StageMaterial, bound_material, face_materials, read_material
 
 #: A material as the render reads it (:func:`humv_usd.usd.materials.read_material`).
 Material = StageMaterial
@@ -290,33 +290,6 @@ class SceneMeshes:
 
     def _face_materials(self, prim: Usd.Prim, path: str, nfaces: int, time):
         """(materials, material index of each authored face): GeomSubsets with their own
-        binding first (a face in two subsets keeps the first), the rest on the mesh's."""
-        material_of_face = np.full(nfaces, -1, dtype=np.int64)
-        materials: list[Material] = []
-        order: dict[str, int] = {}
-
-        def index_of(mat: Material) -> int:
-            if mat.path not in order:
-                order[mat.path] = len(materials)
-                materials.append(mat)
-            return order[mat.path]
-
-        for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
-            sub_indices = attribute_value(subset.GetIndicesAttr(), time)
-            if sub_indices is None or len(sub_indices) == 0:
-                continue
-            sub_indices = np.asarray(sub_indices, dtype=np.int64)
-            if sub_indices.min() < 0 or sub_indices.max() >= nfaces:
-                raise InputError(
-                    bad_value(
-                        f"{subset.GetPath()}.indices",
-                        summary(sub_indices),
-                        f"expected face indices in 0..{nfaces - 1}",
-                    )
-                )
-            m_index = index_of(self.bound_material(subset.GetPrim(), path, time))
-            free = sub_indices[material_of_face[sub_indices] < 0]
-            material_of_face[free] = m_index
-        if np.any(material_of_face < 0):
-            material_of_face[material_of_face < 0] = index_of(self.bound_material(prim, path, time))
-        return materials, material_of_face
+        binding first (a face in two subsets keeps the first), the rest on the mesh's
+        (:func:`humv_usd.usd.materials.face_materials`, which the thermal tool reads too)."""
+        return face_materials(prim, nfaces, lambda p: self.bound_material(p, path, time), time)

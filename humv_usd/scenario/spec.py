@@ -212,6 +212,15 @@ PLACEMENT = Section(
             lo=-1.0e4,
             hi=1.0e4,
         ),
+        "standing_before_s": Key(
+            "float",
+            "How long the person has stood at the start position, in the frame-0 pose, "
+            "before frame 0 [s]: their shadow cools the ground under them in the scene-surface "
+            "spin-up (0: arrived at frame 0).",
+            default=0.0,
+            lo=0.0,
+            hi=7 * 86400.0,
+        ),
     },
 )
 
@@ -272,6 +281,15 @@ OBJECT = Section(
             default=None,
             lo=150.0,
             hi=1000.0,
+        ),
+        "interior_air_temperature_k": Key(
+            "float",
+            "Air temperature inside a building [K]: the back of its walls exchanges heat with "
+            "it (inside surface coefficient 7.7 W m-2 K-1, ISO 6946). Leave it out for an "
+            "insulated (adiabatic) back.",
+            default=None,
+            lo=230.0,
+            hi=330.0,
         ),
     },
 )
@@ -520,13 +538,22 @@ THERMAL = Section(
         "model": Key(
             "choice",
             "Temperature model of people: fixed (uniform skin, garments at air "
-            "temperature) or jos3 / twoNode (radiation -> MRT -> physiology -> skin; garment "
-            "energy balance).",
+            "temperature: a closed form for tests, not a physical signature) or jos3 / "
+            "twoNode (radiation -> physiology -> skin per facet, garment energy balance, "
+            "coupled both ways).",
             default="fixed",
             choices=THERMAL_MODELS,
         ),
         "skin_temperature_k": Key(
             "float", "Uniform skin temperature [K] for the fixed model.", default=306.15, lo=273.15, hi=320.0
+        ),
+        "skin_detail": Key(
+            "choice",
+            "Skin of jos3 / twoNode: facet (each facet's own balance of absorbed radiation, "
+            "convection, emission or garment flux over the segment's core-skin conductance: "
+            "sunlit and shaded sides differ) or segment (one temperature per JOS-3 segment).",
+            default="facet",
+            choices=("facet", "segment"),
         ),
         "radiation_resolution": Key(
             "int",
@@ -600,7 +627,11 @@ ATMOSPHERE = Section(
             choices=ATMOSPHERE_MODELS,
         ),
         "profile": Key(
-            "choice", "Model atmosphere (for LOWTRAN7).", default="usStandard1976", choices=PROFILES
+            "choice",
+            "Model atmosphere above the weather layer (LOWTRAN7); auto: the standard profile "
+            "nearest the frame-0 weather in temperature and water vapour.",
+            default="auto",
+            choices=("auto", *PROFILES),
         ),
         "air_temperature_k": Key(
             "float", "Air temperature near the ground [K].", default=293.15, lo=223.15, hi=333.15
@@ -615,6 +646,16 @@ ATMOSPHERE = Section(
         ),
         "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
         "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05, hi=300.0),
+        "diurnal_range_k": Key(
+            "float",
+            "Daily maximum minus minimum air temperature [K] of the diurnal cycle the "
+            "scene-surface spin-up follows before the weather data start (Campbell & Norman "
+            "shape through frame 0's value or the series' first row; dew point held); 0: "
+            "constant. Default: a clear mid-latitude day.",
+            default=10.0,
+            lo=0.0,
+            hi=40.0,
+        ),
         "weather_csv": Key(
             "path",
             "Hourly (or any) weather series, CSV with a header: time (local "

@@ -4,12 +4,13 @@ layers → layers/scene.usda.
 Assets (``[[scene.asset]]``, :mod:`humv_usd.scene.assets`) live at /World/Scene/<id>, an Xform
 with the asset's scale and placement and HumvLabelAPI (instance id ``asset:<id>``, class):
 
-* a USD file is referenced, not copied, by the child /World/Scene/<id>/<root prim name> (the
+* a USD file is referenced, not copied (the written layer holds the path relative to its
+  folder when they share one, see :mod:`humv_usd.pipeline.compose`), by the child /World/Scene/<id>/<root prim name> (the
   file's defaultPrim, else its first root prim); the asset's transform also converts the file's
   metersPerUnit and upAxis to Z-up metres (recorded in customData ``humv:assetSource`` for
   ``humv-usd check``); the layer adds ``over``s on its meshes and their material GeomSubsets:
-  material binding to the mapped library material (the render honours per-subset bindings; the
-  thermal slab of a mesh uses the mesh's own binding for all its faces), class where a ``classes`` pattern matches, ``instanceable = false`` on its
+  material binding to the mapped library material (the render and the thermal slabs honour
+  per-subset bindings: a subset's faces are slabs of its material), class where a ``classes`` pattern matches, ``instanceable = false`` on its
   instance roots (the thermal layer writes a temperature onto each mesh);
 * a mesh file (OBJ, glTF/GLB, PLY, STL, FBX) becomes UsdGeom.Mesh children written into this
   layer, converted to Z-up metres. Written inline rather than as a sidecar usdc next to the layer:
@@ -17,7 +18,8 @@ with the asset's scale and placement and HumvLabelAPI (instance id ``asset:<id>`
   recognises hand edits by the layer's text and keys caches by it; a sidecar would be a file
   outside that bookkeeping. The price is a larger usda for big assets.
 
-Site layers (``[scene] layers``) are sublayers of this layer (absolute paths): they compose at the
+Site layers (``[scene] layers``) are sublayers of this layer (relative paths in the written
+file, as for assets): they compose at the
 scene layer's strength, below its own opinions. Their meshes without a HumV material are bound to
 ``layer_material``; each top prim under /World/Scene gets an instance id (``layer:<i>:<name>``).
 """
@@ -51,7 +53,7 @@ from humv_usd.usd.paths import GROUND, material_path, object_path
 NAME = "scene"
 READS = (*FRAMES, "scene", "@ids")
 UPSTREAM = ()
-VERSION = "2"
+VERSION = "3"  # 3: files written relative to the layer
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:

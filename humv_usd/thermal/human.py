@@ -10,12 +10,24 @@ The chain, per person:
    temperature of each JOS-3 segment, Eq. 1) and on the clothed body (for the garments' outer
    surfaces);
 3. physiology (JOS-3 or Gagge's two-node model, :mod:`humv_usd.thermal.physiology`) driven by
-   the avatar's metabolic-rate schedule, the weather, the segment MRTs and the clothing
-   insulation of each segment, with a spin-up; skin temperature per segment → skin facets;
-4. garment facets: the energy balance of Eq. 5-9 over the skin temperature of the segment
-   underneath, with the per-face air gap: steady state at frame 0
-   (:func:`humv_usd.physics.garment.steady_state`), then implicit steps with the fabric's heat
-   capacity along the frames (:func:`humv_usd.physics.garment.transient_step`).
+   the avatar's metabolic-rate schedule, the weather, an effective radiant temperature per
+   segment (first the segment MRT) and the garments' own insulation per segment
+   (:func:`garment_clo`: air gap + fabric of the faces over the segment), with a spin-up;
+4. skin per facet (``[thermal] skin_detail = "facet"``): each facet's balance over its
+   segment's core-skin conductance (:func:`humv_usd.thermal.physiology.local_skin_temperature`),
+   with its own absorbed radiation, convection and emission when bare, or the skin-side flux of
+   the garment face over it; the segment's area-weighted mean is the physiology's skin;
+5. garment facets: the energy balance of Eq. 5-9 over the skin facet underneath, with the
+   per-face air gap: steady state at frame 0 (:func:`humv_usd.physics.garment.steady_state`),
+   then implicit steps with the fabric's heat capacity along the frames
+   (:func:`humv_usd.physics.garment.transient_step`);
+6. two-way coupling: per segment the area-weighted skin-side flux (garment q_in or bare-skin
+   loss) is compared with the physiology's own sensible loss; the segment's effective radiant
+   temperature is set so that the physiology's dry exchange gives that flux
+   (:func:`humv_usd.thermal.physiology.radiant_temperature_for_sensible_loss`) and 3-5 are
+   repeated until they agree within :data:`COUPLING_TOLERANCE_W_M2` (the residual and the
+   iterations go to the layer's metadata). With the two-node model (one skin node) the
+   whole body's area-weighted flux is matched.
 
 The sky (weather and sun of the environment layer, :mod:`humv_usd.usd.environment`) and the
 scene surfaces (their temperatures from :mod:`humv_usd.thermal.surfaces`) are given per radiation sample by the
@@ -36,30 +48,24 @@ from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human import labels as L
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.physics.convection import convective_coefficient
-from humv_usd.physics.garment import areal_heat_capacity, steady_state, transient_step
+from humv_usd.physics.garment import (
+    air_conductivity,
+    areal_heat_capacity,
+    grey_plates_exchange_factor,
+    steady_state,
+    transient_step,
+)
 from humv_usd.thermal import qrad as Q
 from humv_usd.thermal import scene_radiance as SR
-from humv_usd.thermal.physiology import N_SEGMENTS, simulate_physiology
+from humv_usd.thermal.physiology import (
+    N_SEGMENTS,
+    local_skin_temperature,
+    radiant_temperature_for_sensible_loss,
+    simulate_physiology,
+)
 from humv_usd.thermal.sky import ClearSky
 from humv_usd.usd.avatar import read_air_gap, read_body_regions, read_garment, read_metabolic_rate
 from humv_usd.usd.materials import StageMaterial, band_emissivity, mesh_material
-
-#: Local insulation [clo] a garment adds to each JOS-3 segment it covers. Order-of-magnitude
-#: values for single layers (ISO 9920:2007 Annex A local insulation of light shirts/trousers
-#: 0.2-0.4 clo, jackets 0.4-0.6 clo); a garment not listed adds 0.3 clo.
-LOCAL_CLO = {
-    "cap": 0.2,
-    "leggings": 0.2,
-    "shorts": 0.25,
-    "tshirt_white": 0.3,
-    "tshirt_black": 0.3,
-    "longsleeve": 0.3,
-    "trousers": 0.3,
-    "uniform_trousers": 0.35,
-    "jacket": 0.55,
-    "robe": 0.45,
-    "vest": 0.4,
-}
 
 MODEL_NAMES = {"jos3": "jos3", "twoNode": "two_node"}
 
@@ -133,16 +139,6 @@ def _self_radiance(parts: list[_Part], skin_k: float, air_k: float) -> np.ndarra
         lw.append(np.full(len(p.triangles), eps * STEFAN_BOLTZMANN * t**4 / np.pi))
     lw = np.concatenate(lw)
     return np.stack([np.zeros_like(lw), lw])
-
-
-def segment_clo(garment_parts: list[_Part]) -> np.ndarray:
-    """(17,) clothing insulation per JOS-3 segment from the garments covering it."""
-    clo = np.zeros(N_SEGMENTS)
-    for part in garment_parts:
-        covered = np.zeros(N_SEGMENTS, dtype=bool)
-        covered[np.unique(part.segment)] = True
-        clo[covered] += LOCAL_CLO.get(part.garment, 0.3)
-    return clo
 
 
 def scenario_sky(
@@ -244,11 +240,15 @@ def human_temperatures(
     cache_clothed: dict = {}
     mrt = np.zeros((len(samples), N_SEGMENTS))
     q_garment = {p.path: np.zeros((len(samples), len(p.counts))) for p in garments}
+    q_skin = np.zeros((len(samples), len(body.counts)))  # absorbed by bare skin [W m^-2]
+    pts0: list = []
     for k, frame in enumerate(samples):
         t = Usd.TimeCode(frame)
         sky, scene = world.skies[k], world.scenes[k]
         air_k = float(air[frame])
         pts = [skinned_points(stage, p.path, t, space="world") for p in parts]
+        if k == 0:
+            pts0 = pts
         centre = pts[0].mean(axis=0)
         env = SR.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
@@ -274,6 +274,7 @@ def human_temperatures(
         if k == 0:
             diagnostics["absorbedShortwaveMean_W_m2"] = float(np.average(q[0], weights=areas))
         mrt[k] = Q.mean_radiant_temperature(q, areas, body.segment[body.tri_face], n_segments=N_SEGMENTS)
+        q_skin[k] = _face_mean(body, q.sum(axis=0), areas)
         if garments:
             clothed = _trimesh(pts, parts)
             absorb = np.concatenate(
@@ -293,6 +294,8 @@ def human_temperatures(
                 **qrad,
             ).sum(axis=0)
             start = len(body.triangles)
+            # bare skin among the garments: what it absorbs with the garments' shadows
+            q_skin[k] = _face_mean(body, qc[:start], clothed.area_faces[:start])
             for p in garments:
                 qt = qc[start : start + len(p.triangles)]
                 start += len(p.triangles)
@@ -302,56 +305,227 @@ def human_temperatures(
                     np.bincount(p.tri_face, area, len(p.counts)), 1e-12
                 )
     nearest = np.searchsorted(np.asarray(samples), np.arange(frames), side="right") - 1
-    mrt_frames = np.where(np.isnan(mrt[nearest]), air[:, None], mrt[nearest])
 
-    # physiology over the frames
+    # physiology over the frames, coupled both ways with the local skin and garment balances
     rate = read_metabolic_rate(stage.GetPrimAtPath(human_path), frames)
     times = np.arange(frames) / fps
-    result = simulate_physiology(
-        times,
-        rate,
-        air,
-        mrt_frames,
-        rh,
-        np.maximum(wind, 0.1),
-        segment_clo(garments),
-        model=MODEL_NAMES[model],
-        height_m=human["stature_m"],
-        mass_kg=human["mass_kg"],
-        age_years=human["age_yr"],
-        sex=human["sex"],
-        fitness=human["fitness"],
-        spin_up_s=settings["spin_up_s"],
+    area = _face_area(body, pts0[0])
+    cover = _coverage(body, garments, pts0, stage)
+    clothes = [_Garment(p, stage, frames, settings, fps) for p in garments]
+    clo = garment_clo(body, area, cover, clothes)
+    h_skin = np.array(
+        [convective_coefficient(wind[f], model=settings["convection_model"]) for f in range(frames)]
     )
-    skin = np.asarray(result.segment_skin_temperature_k)  # (frames, 17)
-    out = {body.path: skin[:, body.segment]}
-
+    eps_skin = longwave_emissivity(body.material)
     transient = settings.get("garment_transient", "transient") == "transient"
-    for p in garments:
-        # the fabric is the material bound to the garment mesh (the clothing layer binds the
-        # catalogue fabric; a stronger layer may bind or override another)
-        fabric = {
-            k: p.material.require(k, p.path)
+
+    def fluxes(t_faces, slope=True):
+        """Sensible loss of every skin facet [W m^-2] at skin ``t_faces`` (frames, F), its slope
+        dq/dT and the garments' outer temperatures and largest residual."""
+        sigma_eps = eps_skin * STEFAN_BOLTZMANN
+        q = h_skin[:, None] * (t_faces - air[:, None]) + sigma_eps * t_faces**4 - q_skin[nearest]
+        g = h_skin[:, None] + 4.0 * sigma_eps * t_faces**3
+        temps, worst = {}, 0.0
+        for gi, c in enumerate(clothes):
+            skin_g = t_faces[:, cover.under[gi]]
+            q_abs = q_garment[c.part.path][nearest]
+            t_out, q_in, res = c.series(skin_g, air, q_abs, wind, transient)
+            temps[c.part.path], worst = t_out, max(worst, res)
+            sel = cover.garment == gi
+            q[:, sel] = q_in[:, cover.face[sel]]
+            if slope:
+                q_in2 = c.series(skin_g + SLOPE_STEP_K, air, q_abs, wind, transient)[1]
+                g[:, sel] = ((q_in2 - q_in) / SLOPE_STEP_K)[:, cover.face[sel]]
+        return q, g, temps, worst
+
+    seg_area = np.bincount(body.segment, area, N_SEGMENTS)
+    two_node = MODEL_NAMES[model] == "two_node"
+    tr_eff = np.where(np.isnan(mrt[nearest]), air[:, None], mrt[nearest])
+    t_lin = None
+    for iteration in range(1, COUPLING_MAX_ITERATIONS + 1):
+        diagnostics["couplingIterations"] = iteration
+        result = simulate_physiology(
+            times,
+            rate,
+            air,
+            tr_eff.mean(axis=1) if two_node else tr_eff,
+            rh,
+            np.maximum(wind, 0.1),
+            _area_mean(clo, seg_area) if two_node else clo,
+            model=MODEL_NAMES[model],
+            height_m=human["stature_m"],
+            mass_kg=human["mass_kg"],
+            age_years=human["age_yr"],
+            sex=human["sex"],
+            fitness=human["fitness"],
+            spin_up_s=settings["spin_up_s"],
+        )
+        skin = np.asarray(result.segment_skin_temperature_k)  # (frames, 17)
+        if t_lin is None:
+            t_lin = skin[:, body.segment]
+            q_lin, g_lin, _, _ = fluxes(t_lin)
+        t_face = skin[:, body.segment].copy()
+        for f in range(frames if settings.get("skin_detail", "facet") == "facet" else 0):
+            t_face[f] = local_skin_temperature(
+                skin[f],
+                result.segment_skin_conductance_w_m2_k[f],
+                result.segment_latent_w_m2[f],
+                body.segment,
+                area,
+                q_lin[f],
+                g_lin[f],
+                t_lin[f],
+            )[0]
+        # the slope of the first linearisation is kept (a chord iteration: the fluxes
+        # themselves are exact at every iterate)
+        q_face, _, garment_temps, garment_residual = fluxes(t_face, slope=False)
+        q_seg = np.stack([np.bincount(body.segment, area * q_face[f], N_SEGMENTS) for f in range(frames)])
+        q_seg = q_seg / np.maximum(seg_area, 1e-12)
+        sensible = np.asarray(result.segment_sensible_w_m2)
+        if two_node:  # one skin node: the body's area-weighted flux is what the model can match
+            q_seg = np.repeat(_area_mean(q_seg, seg_area)[:, None], N_SEGMENTS, axis=1)
+        present = seg_area > 0
+        residual = np.abs(q_seg - sensible)[:, present].max()
+        if residual <= COUPLING_TOLERANCE_W_M2:
+            break
+        tr_eff = radiant_temperature_for_sensible_loss(
+            skin,
+            q_seg,
+            air[:, None],
+            result.segment_hc_w_m2_k,
+            result.segment_hr_w_m2_k,
+            result.segment_dry_resistance_m2_k_w,
+        )
+        t_lin, q_lin = t_face, q_face
+    diagnostics["couplingMaxResidual_W_m2"] = float(residual)
+    if garments:
+        diagnostics["garmentMaxResidual_W_m2"] = float(garment_residual)
+    out = {body.path: t_face, **garment_temps}
+    return out, diagnostics
+
+
+#: Largest |skin-side garment + bare-skin flux - physiology sensible loss| per segment [W m^-2]
+#: at which the body-clothing coupling stops (issue 14: within 1 W m^-2).
+COUPLING_TOLERANCE_W_M2 = 0.5
+COUPLING_MAX_ITERATIONS = 20
+#: Skin temperature step [K] of the finite-difference slope of the garments' skin-side flux.
+SLOPE_STEP_K = 0.25
+#: A body facet is under a garment when the nearest garment face centre is within that face's
+#: air gap + fabric thickness + this margin [m] (the centres of a fitted garment's faces and the
+#: body's are not aligned).
+COVER_MARGIN_M = 0.015
+
+
+def _face_mean(part: _Part, per_triangle: np.ndarray, tri_area: np.ndarray) -> np.ndarray:
+    """Area-weighted mean over the triangles of each authored face of ``part``."""
+    n = len(part.counts)
+    return np.bincount(part.tri_face, per_triangle * tri_area, n) / np.maximum(
+        np.bincount(part.tri_face, tri_area, n), 1e-12
+    )
+
+
+def _face_area(part: _Part, points: np.ndarray) -> np.ndarray:
+    """(F,) area [m^2] of each authored face at ``points``."""
+    a, b, c = (points[part.triangles[:, i]] for i in range(3))
+    tri = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    return np.bincount(part.tri_face, tri, len(part.counts))
+
+
+def _face_centres(part: _Part, points: np.ndarray) -> np.ndarray:
+    starts = np.concatenate([[0], np.cumsum(part.counts)[:-1]])
+    return np.add.reduceat(points[part.indices], starts, axis=0) / part.counts[:, None]
+
+
+def _area_mean(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Weighted mean over the last axis."""
+    return (values * weights).sum(axis=-1) / weights.sum()
+
+
+@dataclass
+class _Coverage:
+    garment: np.ndarray  # (F_body,) index into garments covering each body face, -1 bare
+    face: np.ndarray  # (F_body,) the covering garment face
+    under: list  # per garment: (F_g,) the body face under each garment face
+
+
+def _coverage(body: _Part, garments: list[_Part], points: list, stage: Usd.Stage) -> _Coverage:
+    """Which garment face covers each body face, and which body face lies under each garment
+    face, from the face centres at the first radiation sample (nearest neighbours; a body face
+    is covered when the garment face is within its air gap + thickness + COVER_MARGIN_M)."""
+    from scipy.spatial import cKDTree
+
+    centres = _face_centres(body, points[0])
+    tree = cKDTree(centres)
+    n = len(body.counts)
+    garment, face, best = np.full(n, -1), np.zeros(n, dtype=np.int64), np.full(n, np.inf)
+    under = []
+    for gi, p in enumerate(garments):
+        gc = _face_centres(p, points[gi + 1])
+        under.append(tree.query(gc)[1])
+        starts = np.concatenate([[0], np.cumsum(p.counts)[:-1]])
+        gap = np.add.reduceat(read_air_gap(stage.GetPrimAtPath(p.path), 0)[p.indices], starts) / p.counts
+        reach = gap + p.material.require("thickness", p.path) + COVER_MARGIN_M
+        d, j = cKDTree(gc).query(centres)
+        take = (d <= reach[j]) & (d < best)
+        garment[take], face[take], best[take] = gi, j[take], d[take]
+    return _Coverage(garment, face, under)
+
+
+class _Garment:
+    """One garment's fabric, air gaps per frame and its balance over a skin temperature series."""
+
+    def __init__(self, part: _Part, stage: Usd.Stage, frames: int, settings: dict, fps: float):
+        self.part = part
+        self.fabric = {
+            k: part.material.require(k, part.path)
             for k in ("conductivity", "density", "specific_heat", "thickness")
         }
-        eps_f = longwave_emissivity(p.material)
-        heat_capacity = areal_heat_capacity(fabric["density"], fabric["specific_heat"], fabric["thickness"])
-        garment_prim = stage.GetPrimAtPath(p.path)
-        starts = np.concatenate([[0], np.cumsum(p.counts)[:-1]])
-        temps = np.zeros((frames, len(p.counts)))
+        self.eps = longwave_emissivity(part.material)
+        self.heat_capacity = areal_heat_capacity(
+            self.fabric["density"], self.fabric["specific_heat"], self.fabric["thickness"]
+        )
+        prim = stage.GetPrimAtPath(part.path)
+        starts = np.concatenate([[0], np.cumsum(part.counts)[:-1]])
+        self.gap = np.stack(
+            [
+                np.add.reduceat(read_air_gap(prim, f)[part.indices], starts) / part.counts
+                for f in range(frames)
+            ]
+        )
+        self.convection = settings["convection_model"]
+        self.dt = 1.0 / float(fps)
+
+    def series(self, skin, air, q_abs, wind, transient: bool):
+        """(outer temperature, skin-side flux q_in, largest |residual|) per frame and face for
+        the skin temperature ``skin`` (frames, F_g): steady state at frame 0, then implicit steps
+        with the fabric's heat capacity (or steady at every frame)."""
+        frames = len(skin)
+        t_out, q_in, worst = np.zeros_like(skin), np.zeros_like(skin), 0.0
+        kw = dict(fabric_conductivity=self.fabric["conductivity"], fabric_emissivity=self.eps)
         for f in range(frames):
-            gap_v = read_air_gap(garment_prim, f)
-            gap = np.add.reduceat(gap_v[p.indices], starts) / p.counts
-            h = convective_coefficient(wind[f], model=settings["convection_model"])
-            args = (skin[f, p.segment], air[f], q_garment[p.path][nearest[f]], h, gap, fabric["thickness"])
-            kw = dict(fabric_conductivity=fabric["conductivity"], fabric_emissivity=eps_f)
+            h = convective_coefficient(wind[f], model=self.convection)
+            args = (skin[f], air[f], q_abs[f], h, self.gap[f], self.fabric["thickness"])
             if f == 0 or not transient:
-                balance = steady_state(*args, **kw)
+                b = steady_state(*args, **kw)
             else:
-                balance = transient_step(temps[f - 1], 1.0 / fps, heat_capacity, *args, **kw)
-            temps[f] = balance.outer_temperature_k
-            diagnostics["garmentMaxResidual_W_m2"] = max(
-                diagnostics.get("garmentMaxResidual_W_m2", 0.0), float(np.abs(balance.residual).max())
-            )
-        out[p.path] = temps
-    return out, diagnostics
+                b = transient_step(t_out[f - 1], self.dt, self.heat_capacity, *args, **kw)
+            t_out[f], q_in[f] = b.outer_temperature_k, b.q_in
+            worst = max(worst, float(np.abs(b.residual).max()))
+        return t_out, q_in, worst
+
+
+def garment_clo(body: _Part, area: np.ndarray, cover: _Coverage, clothes: list) -> np.ndarray:
+    """(17,) intrinsic clothing insulation per JOS-3 segment [clo] from the garments themselves:
+    per covered body face the air gap's and the fabric's resistance in series,
+    R = 1 / (k_air / d + 4 F sigma T^3) + l / k_f (still air, grey-plate radiation at 306 K, F
+    for skin 0.98 and the fabric's emissivity), averaged over the segment's area with bare faces
+    at 0 (the area-weighted local insulation of ISO 9920:2007 Annex A), 1 clo = 0.155 m^2 K W^-1."""
+    resistance = np.zeros(len(body.counts))
+    for gi, c in enumerate(clothes):
+        sel = cover.garment == gi
+        d = np.maximum(c.gap[0][cover.face[sel]], 1e-4)
+        f_rad = grey_plates_exchange_factor(0.98, c.eps)
+        h_gap = air_conductivity(306.0) / d + 4.0 * f_rad * STEFAN_BOLTZMANN * 306.0**3
+        resistance[sel] = 1.0 / h_gap + c.fabric["thickness"] / c.fabric["conductivity"]
+    seg_area = np.bincount(body.segment, area, N_SEGMENTS)
+    return np.bincount(body.segment, area * resistance, N_SEGMENTS) / np.maximum(seg_area, 1e-12) / 0.155

@@ -2,10 +2,12 @@
 
 People (``[thermal] model``):
 
-* ``fixed``: skin at the scenario's uniform skin temperature, garments at the air temperature;
+* ``fixed``: skin at the scenario's uniform skin temperature, garments at the air temperature
+  (a closed form that tests compare renders and labels against; not a physical signature);
 * ``jos3`` / ``twoNode``: per person, radiation environment (sky + sun + scene surfaces) →
-  segment MRT → physiology → skin facets, and the garment energy balance for garment facets, per
-  frame (:mod:`humv_usd.thermal.human`).
+  segment MRT → physiology → skin per facet (``skin_detail``), and the garment energy balance
+  for garment facets, coupled both ways until per segment the skin-side flux equals the
+  physiology's sensible loss, per frame (:mod:`humv_usd.thermal.human`).
 
 Scene surfaces (ground, objects, any other mesh outside /World/Humans), in every model: held at
 the scenario's ``temperature_k`` when it is given, else a 1-D slab of the material with sun,
@@ -38,9 +40,12 @@ from humv_usd.thermal.surfaces import (
     forcing_at,
     ground_albedo,
     longwave_emissivity,
+    people_occluders,
+    refine_meshes,
     scene_meshes,
     surface_temperatures,
     with_sky_table,
+    write_refined_topology,
 )
 from humv_usd.usd.atmosphere import longwave_sky, model_name
 from humv_usd.usd.environment import read_weather
@@ -50,9 +55,9 @@ from humv_usd.usd.thermal import write_surface_temperature
 
 NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
-READS = (*CLOCK, "human", "scene", "thermal")
+READS = (*CLOCK, "human", "scene", "thermal", "placement.*.standing_before_s")
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*")
-VERSION = "2"
+VERSION = "4"  # 4: faces in material GeomSubsets are slabs of their material
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
@@ -81,11 +86,14 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         tables = sky_tables(upstream, samples)
         forcing = with_sky_table(forcing_at(upstream, all_t), tables, len(spin_t))
         report["sky"] = _sky_report(forcing, tables, len(spin_t), upstream)
-        surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing)
+        shade = people_occluders(upstream, scenario, all_t)
+        meshes, refined = refine_meshes(meshes, forcing, shade)
+        surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing, shade)
         report["surfaces"] = {
             "model": "slab" if slabs else "held",
             "spinUp_s": spin,
             "slabMaxResidual_W_m2": round(sdiag["slabMaxResidual_W_m2"], 9),
+            "tessellation": refined,
         }
         ground_k = sdiag["groundMeanTemperature_k"]
     solved: dict[str, np.ndarray] = {}
@@ -152,12 +160,15 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     fixed = _fixed_people(scenario)
     air0 = air_at_frame0(upstream, scenario)
     kinds = {m.path: ("fixed" if m.held_k is not None else "slab") for m in meshes}
+    refined_meshes = {m.path: m for m in meshes if m.parent_face is not None}
     for prim in upstream.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
         path = prim.GetPath()
         faces = len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get() or [])
         over = stage.OverridePrim(path)
+        if str(path) in refined_meshes:
+            write_refined_topology(over, refined_meshes[str(path)])
         series = solved.get(str(path))
         if series is None:
             write_surface_temperature(over, "fixed", np.full(faces, fixed.get(path, air0), dtype=np.float32))
@@ -212,11 +223,13 @@ def _scene_trimesh(meshes):
         offset += len(m.points)
         offsets.append(tri)
         tri += len(m.triangles)
-        eps.append(np.full(len(m.triangles), longwave_emissivity(m.material)))
+        eps.append(m.per_face(longwave_emissivity)[m.tri_face])
     mesh = trimesh.Trimesh(np.concatenate(points), np.concatenate(faces), process=False)
     return mesh, np.concatenate(eps), offsets
 
 
 def _solar_reflectance(meshes):
     """Broadband short-wave reflectance 1 - solar absorptivity per triangle (bound materials)."""
-    return np.concatenate([np.full(len(m.triangles), 1.0 - m.solar_absorptivity) for m in meshes])
+    return np.concatenate(
+        [m.per_face(lambda x, m=m: 1.0 - x.require("solar_absorptivity", m.path))[m.tri_face] for m in meshes]
+    )

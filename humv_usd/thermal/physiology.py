@@ -48,6 +48,7 @@ References
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 
@@ -211,6 +212,19 @@ class PhysiologyResult:
     sweat_rate_g_s: np.ndarray  # (T,) regulatory sweat rate [g/s]
     heart_rate_bpm: np.ndarray  # (T,) from the metabolic rate (heart_rate)
     cardiac_output_l_h: np.ndarray  # (T,) JOS-3's cardiac output [L/h]; NaN for two-node
+    #: (T, 17) per unit segment area, at each output time's state under that output's inputs
+    #: (those of the step that follows it; two-node: the body's value on every segment): sensible skin -> environment loss (T_sk - T_o) / R_t [W m^-2], the
+    #: latent loss E_sk [W m^-2] (negative: condensation), the convective and linear radiative
+    #: coefficients h_c, h_r and the dry resistance R_t skin -> environment (clothing included)
+    #: [m^2 K W^-1] of that loss, and the core-to-skin conductance K + c_bl SKBF [W m^-2 K^-1]
+    #: (Gagge et al. 1971; JOS-3: its own skin blood flow per segment).
+    segment_sensible_w_m2: np.ndarray | None = None
+    segment_latent_w_m2: np.ndarray | None = None
+    segment_hc_w_m2_k: np.ndarray | None = None
+    segment_hr_w_m2_k: np.ndarray | None = None
+    segment_dry_resistance_m2_k_w: np.ndarray | None = None
+    segment_skin_conductance_w_m2_k: np.ndarray | None = None
+    wettedness: np.ndarray | None = None  # (T, 17) skin wettedness [0-1]
 
 
 # ----------------------------------------------------------------------------- two-node
@@ -248,9 +262,28 @@ class _TwoNode:
         self.sweat = 0.0  # regulatory sweat [g/(m^2 h)]
         self.e_skin = None  # evaporative heat loss [W/m^2]; set on the first step
         self.t_cl = None
+        self.wettedness = 0.06
+        self.coefficients = None  # (h_c, h_r, R_t) of the last substep
+
+    K_TISSUE = 5.28  # core-skin conductance without blood flow [W/(m^2 K)]
+    C_BLOOD = 1.163  # blood heat capacity [W h/(L K)]
 
     def step(self, dt: float, m_w_m2: float, tdb: float, tr: float, rh: float, v: float, clo: float) -> None:
-        """Advance ``dt`` [s] (explicit Euler; keep dt <= ~10 s) at constant conditions."""
+        """Advance ``dt`` [s] at constant conditions by explicit Euler substeps, each no longer
+        than the nodes' stability limit (:meth:`_euler`), so that no ``dt`` can drive the
+        model unstable."""
+        remaining = float(dt)
+        while remaining > 1e-9 * max(float(dt), 1.0):
+            remaining -= self._euler(remaining, m_w_m2, tdb, tr, rh, v, clo)
+
+    def _euler(
+        self, h_max: float, m_w_m2: float, tdb: float, tr: float, rh: float, v: float, clo: float
+    ) -> float:
+        """One explicit Euler substep of at most ``h_max`` [s]; returns the step taken.
+
+        The step is at most C/G for each node (C its heat capacity, G its total conductance
+        including the linearised sweating and evaporation feedbacks): half of explicit Euler's
+        stability bound 2 C/G, so the substep cannot oscillate however long ``h_max`` is."""
         m_act = max(m_w_m2, 0.0)
         met = m_act / MET_W_M2
         p_a = rh * _p_sat_kpa(tdb)  # ambient vapour pressure [kPa]
@@ -279,18 +312,31 @@ class _TwoNode:
             if done:
                 break
         self.t_cl = t_cl
+        r_ea = 1.0 / (lr * f_a_cl * h_cc)
+        r_ecl = r_clo / (lr * i_cl)
+        self.coefficients = (h_cc, h_r, r_a + r_clo)
         # respiration (ASHRAE): latent 0.0023 M (44 - p_a[mmHg]), sensible 0.0014 M (34 - tdb)
         m_total = m_act + 19.4 * self._colds() * self._ccold()  # + shivering [W/m^2]
         q_res = 0.0023 * m_total * (44.0 - p_a / 0.1333224)
         c_res = 0.0014 * m_total * (34.0 - tdb)
         q_sensible = (self.t_skin - t_op) / (r_a + r_clo)
-        hf_cs = (self.t_core - self.t_skin) * (5.28 + 1.163 * self.skbf)  # core → skin [W/m^2]
+        self.q_sensible = q_sensible
+        g_cs = self.K_TISSUE + self.C_BLOOD * self.skbf
+        hf_cs = (self.t_core - self.t_skin) * g_cs  # core → skin [W/m^2]
         s_core = m_total - hf_cs - q_res - c_res
         s_skin = hf_cs - q_sensible - self.e_skin
         c_sk = self.C_TISSUE * self.alpha * self.mass / self.area  # [J/(m^2 K)]
         c_cr = self.C_TISSUE * (1.0 - self.alpha) * self.mass / self.area
-        self.t_skin += s_skin * dt / c_sk
-        self.t_core += s_core * dt / c_cr
+        # stability: total conductances of the two nodes, feedbacks linearised
+        warm_sk0 = max(self.t_skin - self.T_SKIN_NEUTRAL, 0.0)
+        dpsat = _p_sat_kpa(self.t_skin) * 4030.183 / (self.t_skin + 235.0) ** 2 / 0.1333224  # [mmHg/K]
+        g_sweat = 0.68 * self.C_SW * math.exp(warm_sk0 / 10.7) * (1.0 + warm_sk0 / 10.7)
+        g_skin = g_cs + 1.0 / (r_a + r_clo) + max(w_max, 1.0) * dpsat / (r_ea + r_ecl) + g_sweat
+        g_core = g_cs + self.C_BLOOD * self.C_DIL * max(self.t_core - self.t_skin, 0.0) + g_sweat
+        limit = min(c_sk / g_skin, c_cr / g_core)
+        h = h_max if h_max <= limit else h_max / math.ceil(h_max / limit)
+        self.t_skin += s_skin * h / c_sk
+        self.t_core += s_core * h / c_cr
         # thermoregulation (signals from the new temperatures)
         t_body = self.alpha * self.t_skin + (1.0 - self.alpha) * self.t_core
         warm_sk = max(self.t_skin - self.T_SKIN_NEUTRAL, 0.0)
@@ -300,12 +346,13 @@ class _TwoNode:
         self.skbf = min(max(skbf, self.SKBF_MIN), self.SKBF_MAX)
         m_rsw = min(self.C_SW * warm_b * math.exp(warm_sk / 10.7), self.SWEAT_MAX)
         e_rsw = 0.68 * m_rsw  # [W/m^2]
-        r_ea = 1.0 / (lr * f_a_cl * h_cc)
-        r_ecl = r_clo / (lr * i_cl)
         e_max = (_p_sat_kpa(self.t_skin) - p_a) / 0.1333224 / (r_ea + r_ecl)
-        if e_max <= 0.0:  # air more humid than the skin: no evaporation
-            self.e_skin = 0.0
-            self.sweat = m_rsw  # dripping, not evaporating
+        if e_max <= 0.0:
+            # air more humid than the (wet) skin: no evaporation; vapour condenses on the
+            # skin and releases its latent heat, E = E_max < 0; sweat drips
+            self.e_skin = e_max
+            self.wettedness = 1.0
+            self.sweat = m_rsw
         else:
             w = 0.06 + 0.94 * e_rsw / e_max
             e_diff = w * e_max - e_rsw
@@ -313,9 +360,12 @@ class _TwoNode:
                 p_rsw = (w_max - 0.06) / 0.94
                 e_rsw = p_rsw * e_max
                 e_diff = 0.06 * (1.0 - p_rsw) * e_max
+                w = w_max
             self.e_skin = e_rsw + e_diff
+            self.wettedness = w
             self.sweat = m_rsw
         self.alpha = 0.0417737 + 0.7451833 / (self.skbf + 0.585417)
+        return h
 
     def _colds(self) -> float:
         return max(self.T_SKIN_NEUTRAL - self.t_skin, 0.0)
@@ -371,8 +421,11 @@ def two_node(
         Time [s] run at the first step's conditions before ``times_s[0]``, from the neutral
         state (core 36.8 °C, skin 33.7 °C); 0 starts at the neutral state.
     max_substep_s : float
-        Largest internal time step [s]: each output step is split into equal substeps no longer
-        than this (explicit Euler; the skin node's time constant can fall to ~20 s).
+        Largest internal time step [s], > 0: each output step is split into equal substeps no
+        longer than this (explicit Euler). Each substep is further limited to the nodes'
+        stability bound (their heat capacity over their total conductance; the skin node's can
+        fall to ~10 s in strong wind on wet skin), so any value is stable; smaller values are
+        more accurate.
 
     Returns
     -------
@@ -395,6 +448,7 @@ def two_node(
     """
     t = _times(times_s)
     n = len(t)
+    _check_body(height_m, mass_kg, spin_up_s, max_substep_s)
     met = _series(metabolic_rate_w, n, "metabolic_rate_w")
     tdb = _series(air_temperature_k, n, "air_temperature_k") - ZERO_C
     tr = _series(mean_radiant_temperature_k, n, "mean_radiant_temperature_k") - ZERO_C
@@ -413,12 +467,24 @@ def two_node(
 
     if spin_up_s > 0:
         advance(float(spin_up_s), 0)
-    core, skin, skbf, sweat = (np.empty(n) for _ in range(4))
+    core, skin, skbf, sweat, sens, lat, hc, hr, rt, cond, wet = (np.empty(n) for _ in range(11))
     for i in range(n):
         if i:
             advance(t[i] - t[i - 1], i - 1)
+        if body.coefficients is None:  # no step yet (spin_up_s = 0): coefficients at t[0]
+            probe = _TwoNode(mass_kg, area, pressure_pa, posture)
+            probe._euler(0.0, met[0] / area, tdb[0], tr[0], rh[0], v[0], clo[0])
+            body.coefficients = probe.coefficients
+            body.e_skin = probe.e_skin
         core[i], skin[i] = body.t_core, body.t_skin
         skbf[i], sweat[i] = body.skbf * area, body.sweat * area / 3600.0
+        j = i  # this output's conditions (those of the next step)
+        hc[i], hr[i], rt[i] = body.coefficients
+        t_op = (hr[i] * tr[j] + hc[i] * tdb[j]) / (hr[i] + hc[i])
+        sens[i] = (body.t_skin - t_op) / rt[i]
+        lat[i] = body.e_skin
+        cond[i] = body.K_TISSUE + body.C_BLOOD * body.skbf
+        wet[i] = body.wettedness
     return PhysiologyResult(
         model="two_node",
         times_s=t,
@@ -429,7 +495,32 @@ def two_node(
         sweat_rate_g_s=sweat,
         heart_rate_bpm=heart_rate(met, mass_kg, age_years, fitness, sex),
         cardiac_output_l_h=np.full(n, np.nan),
+        segment_sensible_w_m2=_per_segment(sens),
+        segment_latent_w_m2=_per_segment(lat),
+        segment_hc_w_m2_k=_per_segment(hc),
+        segment_hr_w_m2_k=_per_segment(hr),
+        segment_dry_resistance_m2_k_w=_per_segment(rt),
+        segment_skin_conductance_w_m2_k=_per_segment(cond),
+        wettedness=_per_segment(wet),
     )
+
+
+def _per_segment(a: np.ndarray) -> np.ndarray:
+    """(T,) body value → (T, 17), the same on every segment."""
+    return np.repeat(np.asarray(a, dtype=np.float64)[:, None], N_SEGMENTS, axis=1)
+
+
+def _check_body(height_m, mass_kg, spin_up_s, max_substep_s) -> None:
+    """ValueError naming the argument for non-finite or non-physical body and step values."""
+    for name, value, lo, hi in (
+        ("height_m", height_m, 0.3, 3.0),
+        ("mass_kg", mass_kg, 2.0, 500.0),
+        ("spin_up_s", spin_up_s, 0.0, 30 * 86400.0),
+        ("max_substep_s", max_substep_s, 1e-3, float("inf")),
+    ):
+        v = float(value)
+        if not (math.isfinite(v) or (name == "max_substep_s" and v == float("inf"))) or not lo <= v <= hi:
+            raise ValueError(f"{name} = {value!r}: expected a number in [{lo:g}, {hi:g}]")
 
 
 # ----------------------------------------------------------------------------- JOS-3
@@ -491,9 +582,178 @@ def jos3(
         ``core_temperature_k`` is the pelvis core (~ rectal), the mean skin temperature JOS-3's
         standard-area weighted mean, ``cardiac_output_l_h`` JOS-3's total blood flow.
     """
+    t = _times(times_s)
+    _check_body(height_m, mass_kg, spin_up_s, max_substep_s)
+    with condensation_guard():
+        return _jos3(
+            t,
+            metabolic_rate_w,
+            air_temperature_k,
+            mean_radiant_temperature_k,
+            relative_humidity,
+            air_speed_m_s,
+            clothing_clo,
+            height_m,
+            mass_kg,
+            age_years,
+            sex,
+            fitness,
+            body_fat_percent,
+            posture,
+            spin_up_s,
+            max_substep_s,
+        )
+
+
+#: pythermalcomfort's version whose JOS-3 evaporation :func:`condensation_guard` corrects
+#: (the guard checks the formula's behaviour, not the version: see :func:`guarded_evaporation`).
+PYTHERMALCOMFORT_CHECKED = "4.8.1"
+
+
+def guarded_evaporation(evaporation):
+    """JOS-3's evaporation (``pythermalcomfort.jos3_functions.thermoregulation.evaporation``)
+    with vapour condensing instead of sweat evaporating when the air is more humid than the skin.
+
+    Upstream (pythermalcomfort 4.8.1, and JOS-3's original code) computes the wettedness
+    w = 0.06 + 0.94 E_sweat / E_max and the skin's evaporative loss E_sk = w E_max with
+    E_max = (p_sk,s - p_a) / R_e,t. When the ambient vapour pressure p_a exceeds the saturation
+    pressure at the skin, E_max < 0, w turns negative (-1.5 to -45 at 40 degC / 90 % RH) and
+    E_sk = 0.06 E_max + 0.94 E_sweat keeps the regulatory sweat's evaporative *cooling*
+    although no water can evaporate into that air. Here, on those segments: no evaporation,
+    the skin is wet (w = 1) and vapour condenses on it, releasing its latent heat:
+    E_sk = E_max < 0 (a heat gain; the same as Gagge's two-node model in :func:`two_node`),
+    and the effective sweating E_sweat = 0 (the regulatory sweat drips). Elsewhere the upstream
+    values are returned unchanged. Returns (w, E_sk, E_max, E_sweat) as upstream [-, W, W, W].
+
+    References: Gagge, Stolwijk & Nishi (1971) (E_max, wettedness); ISO 7933:2023 (Predicted
+    Heat Strain), section on the maximum evaporation rate: a negative E_max means condensation.
+    """
+
+    def evaporation_with_condensation(*args, **kwargs):
+        wet, e_sk, e_max, e_sweat = evaporation(*args, **kwargs)
+        condensing = np.asarray(e_max) < 0.0
+        if not condensing.any():
+            return wet, e_sk, e_max, e_sweat
+        wet = np.where(condensing, 1.0, wet)
+        e_sk = np.where(condensing, e_max, e_sk)
+        e_sweat = np.where(condensing, 0.0, e_sweat)
+        return wet, e_sk, e_max, e_sweat
+
+    return evaporation_with_condensation
+
+
+class _GuardedThermoregulation:
+    """pythermalcomfort's thermoregulation module with :func:`guarded_evaporation`."""
+
+    def __init__(self, module):
+        self._module = module
+        self.evaporation = guarded_evaporation(module.evaporation)
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+
+@contextlib.contextmanager
+def condensation_guard():
+    """While the block runs, pythermalcomfort's JOS-3 uses :func:`guarded_evaporation` (its
+    module-level ``threg`` is swapped for a wrapper and restored afterwards)."""
+    from pythermalcomfort.models import jos3 as module
+
+    original = module.threg
+    if isinstance(original, _GuardedThermoregulation):  # nested
+        yield
+        return
+    module.threg = _GuardedThermoregulation(original)
+    try:
+        yield
+    finally:
+        module.threg = original
+
+
+#: Heat capacity of blood in JOS-3 [W h L^-1 K^-1] (Takahashi et al. 2021).
+JOS3_BLOOD_HEAT_CAPACITY = 1.067
+
+
+def jos3_tissue_conductance(model) -> np.ndarray:
+    """(17,) JOS-3's conductance [W K^-1] from each segment's core node to its skin node
+    through its tissue layers in series (core-muscle-fat-skin for head and pelvis, core-skin
+    elsewhere), from the model's own conductance matrix (Takahashi et al. 2021, after
+    Stolwijk 1971 and the 65MN model)."""
+    from pythermalcomfort.jos3_functions.matrix import IDICT
+
+    c = model._cdt
+    out = np.empty(N_SEGMENTS)
+    for i, name in enumerate(JOS3_PYTHERMALCOMFORT):
+        node = IDICT[name]
+        if node.get("muscle") is not None:
+            path = (
+                (node["core"], node["muscle"]),
+                (node["muscle"], node["fat"]),
+                (node["fat"], node["skin"]),
+            )
+            out[i] = 1.0 / sum(1.0 / c[a, b] for a, b in path)
+        else:
+            out[i] = c[node["core"], node["skin"]]
+    return out
+
+
+def _jos3_state(model, bf_skin_l_h: np.ndarray, tissue_w_k: np.ndarray) -> dict:
+    """Per-segment fluxes [W m^-2] and coefficients of a JOS3 model at its current state, by
+    JOS-3's own formulas (``JOS3._run``): sensible (T_sk - T_o) / R_t, latent E_sk (guarded),
+    h_c, h_r, R_t, and the core-skin conductance (tissue in series + blood heat capacity x skin
+    blood flow) / segment area."""
+    from pythermalcomfort.models import jos3 as module
+
+    threg = module.threg
+    tsk = np.asarray(model.t_skin, dtype=float)
+    hc = threg.fixed_hc(threg.conv_coef(model._posture, model._v, model._tdb, tsk), model._v)
+    hr = threg.fixed_hr(threg.rad_coef(model._posture))
+    to = threg.operative_temp(model._tdb, model._tr, hc, hr)
+    r_t = threg.dry_r(hc, hr, model._clo)
+    wet, e_sk, _, _ = threg.evaporation(
+        err_cr=model.t_core - model.cr_set_point,
+        err_sk=tsk - model.sk_set_point,
+        t_skin=tsk,
+        tdb=model._tdb,
+        rh=model._rh,
+        ret=model.r_et,
+        height=model._height,
+        weight=model._weight,
+        bsa_equation=model._bsa_equation,
+        age=model._age,
+    )
+    area = np.asarray(model._bsa, dtype=float)
+    return {
+        "sensible": (tsk - to) / r_t,
+        "latent": np.asarray(e_sk, dtype=float) / area,
+        "hc": np.asarray(hc, dtype=float) * np.ones(N_SEGMENTS),
+        "hr": np.asarray(hr, dtype=float) * np.ones(N_SEGMENTS),
+        "rt": np.asarray(r_t, dtype=float) * np.ones(N_SEGMENTS),
+        "conductance": (tissue_w_k + JOS3_BLOOD_HEAT_CAPACITY * bf_skin_l_h) / area,
+        "wettedness": np.asarray(wet, dtype=float),
+    }
+
+
+def _jos3(
+    t,
+    metabolic_rate_w,
+    air_temperature_k,
+    mean_radiant_temperature_k,
+    relative_humidity,
+    air_speed_m_s,
+    clothing_clo,
+    height_m,
+    mass_kg,
+    age_years,
+    sex,
+    fitness,
+    body_fat_percent,
+    posture,
+    spin_up_s,
+    max_substep_s,
+) -> PhysiologyResult:
     from pythermalcomfort.models import JOS3  # numba compiles on the first call (~10 s)
 
-    t = _times(times_s)
     n = len(t)
     met = _series(metabolic_rate_w, n, "metabolic_rate_w")
     tdb = _segment_series(air_temperature_k, n, "air_temperature_k") - ZERO_C
@@ -520,13 +780,24 @@ def jos3(
         advance(float(spin_up_s), 0)
     else:
         advance(1e-6, 0)  # an output record at the initial state
+    tissue = jos3_tissue_conductance(model)
     seg_skin = np.empty((n, N_SEGMENTS))
+    state = {
+        k: np.empty((n, N_SEGMENTS))
+        for k in ("sensible", "latent", "hc", "hr", "rt", "conductance", "wettedness")
+    }
     core, skbf, sweat, co = (np.empty(n) for _ in range(4))
     for i in range(n):
         if i:
             advance(t[i] - t[i - 1], i - 1)
         out = last["out"]
         seg_skin[i] = model.t_skin
+        bf = np.array([getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT])
+        # fluxes at this output under this output's conditions (those of the next step): so
+        # that an input at step i sets the exchange reported at output i
+        model.tdb, model.tr, model.rh, model.v, model.clo = tdb[i], tr[i], rh[i], v[i], clo[i]
+        for k, value in _jos3_state(model, bf, tissue).items():
+            state[k][i] = value
         core[i] = model.t_core[JOS3_CORE_SEGMENT]
         skbf[i] = sum(getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT) + 2.0 * (
             out.bf_ava_hand + out.bf_ava_foot
@@ -544,6 +815,13 @@ def jos3(
         sweat_rate_g_s=sweat,
         heart_rate_bpm=heart_rate(met, mass_kg, age_years, fitness, sex),
         cardiac_output_l_h=co,
+        segment_sensible_w_m2=state["sensible"],
+        segment_latent_w_m2=state["latent"],
+        segment_hc_w_m2_k=state["hc"],
+        segment_hr_w_m2_k=state["hr"],
+        segment_dry_resistance_m2_k_w=state["rt"],
+        segment_skin_conductance_w_m2_k=state["conductance"],
+        wettedness=state["wettedness"],
     )
 
 
@@ -640,3 +918,87 @@ def bench_time_steps(
         err = float(np.max(np.abs(t - ref))) if np.all(np.isfinite(t)) else float("inf")
         rows.append({"model": model, "step_s": float(step), "max_error_k": err, "seconds": sec})
     return rows
+
+
+# ----------------------------------------------------------------------------- local skin
+def local_skin_temperature(
+    segment_skin_k,
+    skin_conductance_w_m2_k,
+    latent_w_m2,
+    segment_ids,
+    face_area_m2,
+    flux_w_m2,
+    flux_slope_w_m2_k,
+    linearisation_k,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Skin temperature per facet from each facet's own heat balance (issue 14, deliverable 2).
+
+    Parameters
+    ----------
+    segment_skin_k : array_like
+        (17,) skin temperature of each segment from the physiology [K].
+    skin_conductance_w_m2_k : array_like
+        (17,) core-to-skin conductance K_s of each segment [W m^-2 K^-1]
+        (``PhysiologyResult.segment_skin_conductance_w_m2_k``).
+    latent_w_m2 : array_like
+        (17,) latent (evaporative) loss E_s of each segment [W m^-2], spread evenly.
+    segment_ids : array_like of int
+        (F,) JOS-3 segment of each facet.
+    face_area_m2 : array_like
+        (F,) facet areas [m^2].
+    flux_w_m2, flux_slope_w_m2_k, linearisation_k : array_like
+        (F,) the facet's sensible loss to its surroundings q(T) [W m^-2] at the temperature
+        ``linearisation_k`` and its slope dq/dT [W m^-2 K^-1] there: bare skin
+        h (T - T_air) + eps sigma T^4 - q_abs (absorbed sun and long wave); under a garment the
+        garment balance's skin-side flux q_in(T) (:func:`humv_usd.physics.garment.steady_state`).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        (F,) facet skin temperature [K] and (F,) its sensible loss q(T_f) on the linearisation
+        [W m^-2].
+
+    Notes
+    -----
+    Each segment is a core-skin shell: a conductance K_s [W m^-2 K^-1] between an inner
+    temperature T_b,s and the skin surface, the tissue plus the skin blood flow's heat
+    transport: with JOS-3 its own tissue conductances in series (core-muscle-fat-skin) plus
+    1.067 Wh/(L K) x its skin blood flow, per segment area (Takahashi et al. 2021); with the
+    two-node model Gagge's 5.28 + 1.163 SKBF (Gagge, Stolwijk & Nishi 1971). A facet f's
+    surface balance is
+
+    .. math:: K_s (T_{b,s} - T_f) = q_f(T_f) + E_s,  q_f(T) \\approx q_f^0 + g_f (T - T_f^0),
+
+    so T_f = (K_s T_b,s + g_f T_f^0 - q_f^0 - E_s) / (K_s + g_f). T_b,s is chosen so that the
+    area-weighted mean of T_f over the segment equals the physiology's segment skin temperature
+    (closed form, the balance being linear in T_b,s); the segment's area-weighted heat flow
+    K_s (T_b,s - T_f) then equals its sensible loss plus E_s, which the body-clothing coupling
+    (:func:`humv_usd.thermal.human.human_temperatures`) makes equal to the physiology's own
+    sensible loss. A sunlit facet absorbs more, so it is warmer than a shaded one of the same
+    segment by Delta q_abs / (K_s + g_f). Not modelled: lateral conduction between facets and a
+    per-facet sweat distribution (E_s is even over the segment).
+    """
+    seg = np.asarray(segment_ids)
+    area = np.asarray(face_area_m2, dtype=float)
+    k = np.asarray(skin_conductance_w_m2_k, dtype=float)[seg]
+    e = np.asarray(latent_w_m2, dtype=float)[seg]
+    q0 = np.asarray(flux_w_m2, dtype=float)
+    g = np.maximum(np.asarray(flux_slope_w_m2_k, dtype=float), 0.0)
+    t0 = np.asarray(linearisation_k, dtype=float)
+    a = k / (k + g)  # dT_f / dT_b
+    b = (g * t0 - q0 - e) / (k + g)
+    n = N_SEGMENTS
+    w = np.bincount(seg, area, n)
+    mean_a = np.bincount(seg, area * a, n) / np.maximum(w, 1e-300)
+    mean_b = np.bincount(seg, area * b, n) / np.maximum(w, 1e-300)
+    t_inner = (np.asarray(segment_skin_k, dtype=float) - mean_b) / np.where(mean_a > 0, mean_a, 1.0)
+    t_face = a * t_inner[seg] + b
+    return t_face, q0 + g * (t_face - t0)
+
+
+def radiant_temperature_for_sensible_loss(skin_k, sensible_w_m2, air_k, hc, hr, dry_resistance):
+    """Mean radiant temperature [K] at which the physiology's sensible loss
+    (T_sk - T_o) / R_t, T_o = (h_c T_a + h_r T_r) / (h_c + h_r), equals ``sensible_w_m2`` at the
+    skin temperature ``skin_k`` (JOS-3's and Gagge's dry heat exchange; arrays broadcast)."""
+    to = np.asarray(skin_k, dtype=float) - np.asarray(sensible_w_m2, dtype=float) * dry_resistance
+    return (to * (hc + hr) - hc * np.asarray(air_k, dtype=float)) / hr

@@ -194,8 +194,9 @@ def rule_assets(stage: Usd.Stage) -> list[str]:
             site = err.rootSite.path if err.rootSite else "stage"
             out.append(
                 f"humv:asset: {site}: {' '.join(str(err).split())}; fix: restore the file or correct "
-                "the path (compose references [[scene.asset]] files by absolute path: re-run compose "
-                "after moving them)"
+                "the path (compose writes [[scene.asset]] files and site layers relative to the layer "
+                "when they share a folder with the output, else absolute: move them together with the "
+                "output, or re-run compose after moving them)"
             )
     root = stage.GetRootLayer()
     for layer in stage.GetLayerStack(includeSessionLayers=False):
@@ -273,7 +274,42 @@ def rule_people(stage: Usd.Stage) -> list[str]:
     return out
 
 
-RULES = (rule_root_layer, rule_meshes, rule_sensors, rule_assets, rule_sensors_and_labels, rule_people)
+def rule_skinned_points(stage: Usd.Stage) -> list[str]:
+    """A skinned mesh (UsdSkel binding with joint influences) must not carry time-sampled
+    ``points``: standard skinning (``UsdSkel.BakeSkinning``, Blender's USD import, usdview)
+    deforms the rest points and ignores the samples, so those consumers would not see the motion
+    the samples hold (the clothing layer before its VERSION 2 wrote garments so)."""
+    out = []
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        if not prim.IsA(UsdGeom.Mesh):
+            continue
+        binding = UsdSkel.BindingAPI(prim)
+        skeleton = binding.GetInheritedSkeleton()
+        joints = binding.GetJointIndicesPrimvar()
+        if not (skeleton and joints and joints.HasAuthoredValue()):
+            continue
+        samples = UsdGeom.Mesh(prim).GetPointsAttr().GetNumTimeSamples()
+        if samples > 1:
+            out.append(
+                f"humv:skinnedPoints: {prim.GetPath()}: skinned by {skeleton.GetPath()} and its points "
+                f"are time-sampled ({samples} samples), which standard skinning (UsdSkel.BakeSkinning, "
+                "Blender, usdview) ignores: they deform the rest points; fix: re-run compose (garments "
+                "are plain point caches since clothing VERSION 2), or keep one of the two: remove the "
+                "skel binding (skel:skeleton, primvars:skel:jointIndices/jointWeights) so the samples "
+                "are the motion, or remove the points' time samples so the skeleton is"
+            )
+    return out
+
+
+RULES = (
+    rule_root_layer,
+    rule_meshes,
+    rule_sensors,
+    rule_assets,
+    rule_sensors_and_labels,
+    rule_people,
+    rule_skinned_points,
+)
 
 
 def check_stage(path: str | Path) -> list[str]:

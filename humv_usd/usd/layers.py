@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
-from pxr import Gf, Sdf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdUtils
 
 import humv_usd  # noqa: F401  (registers the schemas before any stage exists)
 from humv_usd.errors import InputError
@@ -65,6 +66,62 @@ def set_inputs_key(layer: Sdf.Layer, key: str) -> None:
 def layer_text(layer: Sdf.Layer) -> str:
     """The usda text of a layer, as it will be written."""
     return layer.ExportToString()
+
+
+def relative_asset_paths(layer: Sdf.Layer, folder: str | Path) -> Sdf.Layer:
+    """A copy of ``layer`` whose absolute file paths (sublayers, references, payloads, asset
+    values) are relative to ``folder``, the folder the layer will be written to, so that an
+    output folder can be moved or copied together with the files it points at.
+
+    USD resolves a relative path (``./`` or ``../``) against the layer that holds it. A path is
+    made relative only when it shares a folder other than the filesystem root with ``folder``
+    (a scenario's assets beside its output); one that does not (e.g. a library under /opt for
+    an output under /home) stays absolute. Package-internal paths (``a.usdz[b.usda]``) and
+    non-file paths are left as they are. The in-memory ``layer`` is not changed (compose builds
+    downstream layers on it, where relative paths would have no anchor).
+    """
+    base = os.path.abspath(folder)
+
+    def relative(path: str) -> str:
+        if not path or not os.path.isabs(path) or "[" in path:
+            return path
+        path = os.path.normpath(path)
+        try:
+            common = os.path.commonpath([path, base])
+        except ValueError:  # another drive
+            return path
+        if os.path.dirname(common) == common:  # only the filesystem root in common
+            return path
+        rel = os.path.relpath(path, base)
+        return rel if rel.startswith("..") else "./" + rel
+
+    copy = Sdf.Layer.CreateAnonymous(".usda")
+    copy.TransferContent(layer)
+    UsdUtils.ModifyAssetPaths(copy, relative)
+    return copy
+
+
+def anchored_asset_paths(layer: Sdf.Layer, folder: str | Path) -> Sdf.Layer:
+    """Resolve, in place, the file-relative paths (``./``, ``../``) of a layer opened as an
+    anonymous layer from a file in ``folder`` (such a layer has no anchor of its own): the
+    inverse of :func:`relative_asset_paths`. Returns ``layer``."""
+    base = os.path.abspath(folder)
+
+    def anchored(path: str) -> str:
+        if path.startswith(("./", "../")) and "[" not in path:
+            return os.path.normpath(os.path.join(base, path))
+        return path
+
+    UsdUtils.ModifyAssetPaths(layer, anchored)
+    return layer
+
+
+def open_anonymous(path: str | Path) -> Sdf.Layer | None:
+    """The layer file at ``path`` as an anonymous layer (edits stay in memory) with its
+    file-relative paths anchored at the file's folder (:func:`anchored_asset_paths`); None when
+    it does not load. USD errors propagate (Tf.ErrorException)."""
+    layer = Sdf.Layer.OpenAsAnonymous(str(path))
+    return anchored_asset_paths(layer, Path(path).resolve().parent) if layer is not None else None
 
 
 def look_at_matrix(position, target, up=(0.0, 0.0, 1.0)) -> Gf.Matrix4d:

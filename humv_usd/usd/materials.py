@@ -13,6 +13,7 @@ thermal properties are None when the prim does not author them (a render-only ma
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +23,10 @@ from humv_usd.catalog.materials import Material
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.physics import planck
+from humv_usd.physics.sun import solar_absorptivity
 from humv_usd.usd import schemas as S
+
+log = logging.getLogger(__name__)
 
 #: Relationship of a ground material to the material under it (the ground slab's substrate,
 #: authored by the materials tool for a slab ground). A custom property, not part of
@@ -86,7 +90,8 @@ def write_material(stage: Usd.Stage, path, material: Material) -> UsdShade.Mater
     """Define the material prim ``path`` from a catalogue :class:`Material`: HumvMaterialAPI
     spectra on the material's own wavelength grid [um] (transmittance only for materials one
     can see through), thermal data (conductivity [W m-1 K-1], density [kg m-3], specific heat
-    [J kg-1 K-1], thickness [m], solar absorptivity [0-1]) and its source, plus a
+    [J kg-1 K-1], thickness [m], solar absorptivity [0-1] of its own spectrum under the reference
+    sun) and its source, plus a
     UsdPreviewSurface for DCC viewports (display colour; opacity for glass)."""
     m = material
     mat = UsdShade.Material.Define(stage, path)
@@ -119,7 +124,7 @@ def write_material_properties(prim: Usd.Prim, material: Material) -> None:
         (S.MATERIAL_DENSITY, m.density),
         (S.MATERIAL_SPECIFIC_HEAT, m.specific_heat),
         (S.MATERIAL_THICKNESS, m.thickness),
-        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.solar_absorptivity),
+        (S.MATERIAL_SOLAR_ABSORPTIVITY, m.spectral_solar_absorptivity),
         (S.MATERIAL_SOURCE, m.source),
     ):
         prim.GetAttribute(attr).Set(value)
@@ -223,6 +228,21 @@ def read_material(material, mesh_path: str | None = None, time=None) -> StageMat
             )
         )
     source = prim.GetAttribute(S.MATERIAL_SOURCE)
+    alpha = _scalar(prim, S.MATERIAL_SOLAR_ABSORPTIVITY, mpath, 0.0, 1.0, time)
+    if rho is not None and wl[0] <= 0.5 and wl[-1] >= 2.5:
+        # one set of properties: the thermal solve absorbs the sun the render's spectrum
+        # reflects (the attribute is kept for DCCs; a hand edit of it alone is overruled)
+        spectral = solar_absorptivity(wl, rho, tau)
+        if alpha is not None and abs(alpha - spectral) > 0.01:
+            log.warning(
+                "%s.%s = %.3f disagrees with its reflectance spectrum (%.3f); the thermal solve uses "
+                "the spectrum",
+                mpath,
+                S.MATERIAL_SOLAR_ABSORPTIVITY,
+                alpha,
+                spectral,
+            )
+        alpha = spectral
     return StageMaterial(
         mpath,
         wl,
@@ -233,7 +253,7 @@ def read_material(material, mesh_path: str | None = None, time=None) -> StageMat
         density=_scalar(prim, S.MATERIAL_DENSITY, mpath, 1e-3, 1e5, time),
         specific_heat=_scalar(prim, S.MATERIAL_SPECIFIC_HEAT, mpath, 1.0, 1e5, time),
         thickness=_scalar(prim, S.MATERIAL_THICKNESS, mpath, 1e-6, 100.0, time),
-        solar_absorptivity=_scalar(prim, S.MATERIAL_SOLAR_ABSORPTIVITY, mpath, 0.0, 1.0, time),
+        solar_absorptivity=alpha,
         source=source.Get() if source and source.HasAuthoredValue() else None,
     )
 
@@ -253,6 +273,56 @@ def bound_material(prim: Usd.Prim) -> UsdShade.Material:
             )
         )
     return material
+
+
+def face_materials(prim: Usd.Prim, nfaces: int, read=None, time=None) -> tuple[list, np.ndarray]:
+    """(materials, material index (F,) of each authored face) of a mesh with per-face materials.
+
+    GeomSubsets with their own material binding (``UsdShade.MaterialBindingAPI
+    .GetMaterialBindSubsets``, as DCCs export a multi-material mesh) come first, a face in two
+    subsets keeping the first; the other faces take the mesh's own binding (an ancestor's
+    included). ``read(prim)`` turns a mesh or subset prim into the value listed (default: the
+    :class:`StageMaterial` of its bound material, :func:`read_material`); values are listed once
+    per material path (``.path``). The render and the thermal tool both read per-face materials
+    here. InputError naming the subset when its indices are not faces of the mesh, or naming the
+    mesh when a face has no material."""
+    mesh_path = str(prim.GetPath())
+    time = Usd.TimeCode.Default() if time is None else time
+    if read is None:
+
+        def read(p):
+            return read_material(bound_material(p), mesh_path, time)
+
+    material_of_face = np.full(nfaces, -1, dtype=np.int64)
+    materials: list = []
+    order: dict[str, int] = {}
+
+    def index_of(material) -> int:
+        if material.path not in order:
+            order[material.path] = len(materials)
+            materials.append(material)
+        return order[material.path]
+
+    for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
+        attr = subset.GetIndicesAttr()
+        indices = attr.Get(time) if attr else None
+        if indices is None or len(indices) == 0:
+            continue
+        indices = np.asarray(indices, dtype=np.int64)
+        if indices.min() < 0 or indices.max() >= nfaces:
+            raise InputError(
+                bad_value(
+                    f"{subset.GetPath()}.indices",
+                    summary(indices),
+                    f"expected face indices in 0..{nfaces - 1}",
+                )
+            )
+        k = index_of(read(subset.GetPrim()))
+        free = indices[material_of_face[indices] < 0]
+        material_of_face[free] = k
+    if np.any(material_of_face < 0):
+        material_of_face[material_of_face < 0] = index_of(read(prim))
+    return materials, material_of_face
 
 
 def has_stage_material(prim: Usd.Prim) -> bool:

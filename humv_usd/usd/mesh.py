@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
@@ -85,15 +87,30 @@ def bound_corners(stage, root) -> np.ndarray:
     return np.asarray(corners, dtype=float).reshape(-1, 3)
 
 
+def override_topology(prim: Usd.Prim, points: np.ndarray, face_counts, face_indices) -> None:
+    """Author new polygons on a mesh (an ``over`` in a stronger layer: the thermal layer's
+    re-tessellated scene surfaces), points in the mesh's local space, with its extent."""
+    mesh = UsdGeom.Mesh(prim)
+    points = np.asarray(points, dtype=np.float32)
+    mesh.CreatePointsAttr().Set(Vt.Vec3fArray.FromNumpy(points))
+    mesh.CreateFaceVertexCountsAttr().Set(Vt.IntArray.FromNumpy(np.asarray(face_counts, np.int32)))
+    mesh.CreateFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(np.asarray(face_indices, np.int32)))
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    mesh.CreateExtentAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
+
+
 #: customData of an asset's referencing prim: the referenced file's units and up axis, which
 #: the asset's transform corrects (``humv-usd check`` accepts a non-Z-up / non-metre file there)
 ASSET_SOURCE = "humv:assetSource"
 
 
 def write_asset_source(prim: Usd.Prim, file: str, meters_per_unit: float, up_axis: str) -> None:
-    """Record on the prim that references ``file`` the units and up axis its transform corrects."""
+    """Record on the prim that references ``file`` the units and up axis its transform corrects
+    (and the file's name only: the reference holds its path, relative to the written layer, so
+    the output can move; an absolute path here would go stale)."""
     prim.SetCustomDataByKey(
-        ASSET_SOURCE, {"file": str(file), "metersPerUnit": float(meters_per_unit), "upAxis": str(up_axis)}
+        ASSET_SOURCE,
+        {"file": Path(file).name, "metersPerUnit": float(meters_per_unit), "upAxis": str(up_axis)},
     )
 
 
