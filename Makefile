@@ -2,7 +2,7 @@
 VENV   := .venv
 PY     := $(VENV)/bin/python
 OUT    ?= out/humvvex
-SPP    ?= 16
+SPP    ?=
 
 .PHONY: setup demo test test-fast lint format bench schemas screenshots clean
 
@@ -11,7 +11,7 @@ setup:
 
 demo: setup
 	@$(VENV)/bin/humv-usd compose examples/humvvex.toml -o $(OUT)
-	@$(VENV)/bin/humv-usd render $(OUT)/stage.usda -o $(OUT)/render --spp $(SPP)
+	@$(VENV)/bin/humv-usd render $(OUT)/stage.usda -o $(OUT)/render $(if $(SPP),--spp $(SPP))
 	@echo "demo: stage at $(OUT)/stage.usda, images in $(OUT)/render (see manifest.json there)"
 
 test: setup
@@ -30,7 +30,7 @@ format: setup
 	@$(VENV)/bin/ruff format humv_usd tests tools
 
 bench: setup
-	@$(VENV)/bin/humv-usd bench pipeline examples/humvvex.toml --spp $(SPP)
+	@$(VENV)/bin/humv-usd bench pipeline examples/humvvex.toml $(if $(SPP),--spp $(SPP))
 
 schemas: setup
 	@$(PY) tools/gen_schemas.py

@@ -139,6 +139,52 @@ def test_a_manifest_lists_every_recorded_frame_after_rerendering_one(stage, refe
     assert_same(out, reference)
 
 
+def test_automatic_quality_resumes_and_the_estimator_is_a_setting(stage, tmp_path):
+    """spp not given (automatic quality): the same command resumes although the samples spent
+    vary per image, and the manifest rebuilt from records carries every frame's error in K;
+    another estimator is refused (one line) or rendered again with force."""
+    out = tmp_path / "out"
+    first = render_stage(stage, out, frames=[1], seed=3)
+    assert first["settings"]["spp_auto"] and first["rendered_this_call"] == [1]
+    again = render_stage(stage, out, frames=[0, 1], seed=3)
+    assert again["rendered_this_call"] == [0]
+    frames = again["sensors"][0]["frames"]
+    assert [f["frame"] for f in frames] == [0, 1]
+    per_frame = [f["monte_carlo_error_k"] for f in frames]
+    assert all(f["mean_k"] is not None and f["spp_used"] >= 2 for f in per_frame)
+    summary = again["sensors"][0]["monte_carlo_error_k"]
+    assert summary["spp_used"] == sorted({f["spp_used"] for f in per_frame})
+    assert summary["mean_k"] == pytest.approx(sum(f["mean_k"] for f in per_frame) / 2)
+    assert summary["p99_max_k"] == max(f["p99_k"] for f in per_frame)
+    assert summary["not_estimable"] is None and summary["spp_rule"].startswith("automatic")
+    assert render_stage(stage, out, seed=3, frames=[0, 1])["rendered_this_call"] == []
+    records = R.read_records(out)
+    assert {r["settings"]["estimator"].split()[0] for r in records.values()} == {"fast"}
+    before = result(out)
+    with pytest.raises(InputError) as err:
+        render_stage(stage, out, frames=[0], seed=3, estimator="path")
+    assert len(err.value.problems) == 1 and "\n" not in str(err.value)
+    assert "estimator 'fast" in str(err.value) and "-> 'path'" in str(err.value)
+    assert "spp_mode 'automatic" in str(err.value) and "--force" in str(err.value)
+    assert result(out) == before  # nothing touched
+    with pytest.raises(InputError, match="spp_mode 'automatic"):
+        render_stage(stage, out, frames=[0], spp=2, seed=3)  # same spp, but given: other images
+    forced = render_stage(stage, out, frames=[0], seed=3, estimator="path", force=True)
+    assert forced["rendered_this_call"] == [0, 1] and forced["settings"]["estimator"] == "path"
+    assert {r["settings"]["estimator"] for r in R.read_records(out).values()} == {"path"}
+    assert [f["frame"] for f in forced["sensors"][0]["frames"]] == [0, 1]
+
+
+def test_progress_counts_only_the_images_rendered_in_this_call(stage, reference, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(reference, out)
+    R.record_path(out, "lwir", 2).unlink()
+    seen = []
+    render_stage(stage, out, spp=SPP, seed=3, progress=lambda done, total, text: seen.append((done, total)))
+    assert seen == [(1, 1)]
+    assert_same(out, reference)
+
+
 # ------------------------------------------------------------------ killed renders
 #: render with os.replace hooked: on its n-th call (each file of each image is one replace)
 #: the process is killed with SIGKILL or SIGTERM, or Ctrl-C is simulated (KeyboardInterrupt)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import os
 import sys
 
 import click
@@ -36,3 +38,52 @@ def reports_errors(fn):
             )
 
     return wrapper
+
+
+def wants_progress(quiet: bool) -> bool:
+    """A progress display only for a person: stderr is a terminal, not CI, not --quiet."""
+    return not quiet and sys.stderr.isatty() and not os.environ.get("CI")
+
+
+@contextlib.contextmanager
+def progress_display(stage: str, quiet: bool = False):
+    """Yield ``callback(done, total, text)`` drawing a rich progress bar (stage, what, ETA) on
+    stderr, or None when :func:`wants_progress` says no (pipes, CI, --quiet)."""
+    if not wants_progress(quiet):
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    with Progress(
+        TextColumn(f"[bold]{stage}[/bold]"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    ) as bar:
+        task = bar.add_task("", total=None)
+
+        def callback(done: int, total: int, text: str) -> None:
+            bar.update(task, completed=done, total=total, description=text)
+
+        yield callback
+
+
+def set_verbosity(verbose: int) -> None:
+    """A command's own -v/-vv: info / debug log lines on stderr (the group's -v does the same)."""
+    import logging
+
+    if verbose:
+        logging.getLogger().setLevel(logging.INFO if verbose == 1 else logging.DEBUG)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import click
 
-from humv_usd.cli.common import PROG, reports_errors
+from humv_usd.cli.common import PROG, progress_display, reports_errors, set_verbosity
 from humv_usd.errors import InputError
 
 
@@ -76,21 +76,27 @@ def main(verbose: int = 0):
     help="Go ahead even when the estimated memory or disk exceeds this machine's (default: stop "
     "with the estimate and the key to change).",
 )
+@click.option("-q", "--quiet", is_flag=True, help="No progress display and no per-layer lines.")
+@click.option("-v", "--verbose", count=True, help="Log each step on stderr (-v info, -vv debug).")
 @reports_errors
-def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool):
+def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, quiet: bool, verbose: int):
     """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part; rebuilds only the
     layers whose inputs changed (OUT/compose.json says which and why)."""
     from humv_usd.fileio import check_output_dir
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.scenario import load_scenario
 
+    set_verbosity(verbose)
     out_dir = check_output_dir(out_dir)  # fail fast, before reading anything
-    report = run_compose(load_scenario(scenario), out_dir, force=force, wait=wait, yes=yes)
-    for name, wrote, seconds in report.layers:
+    with progress_display("compose", quiet) as progress:
+        report = run_compose(
+            load_scenario(scenario), out_dir, force=force, wait=wait, yes=yes, progress=progress
+        )
+    for name, wrote, seconds in [] if quiet else report.layers:
         state = "written" if wrote else "unchanged"
         why = report.states[name].why if name in report.states else ""
         click.echo(f"  {name:<16} {state:<9} {seconds * 1000:7.1f} ms  {why}")
-    for part, reason in report.skipped:
+    for part, reason in [] if quiet else report.skipped:
         click.echo(f"  {part:<16} skipped   ({reason})")
     for name in report.removed:
         click.echo(f"  {name:<16} removed   (no longer in the scenario)")
@@ -114,8 +120,22 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool):
     "one number (default: the stage's whole frame range).",
 )
 @click.option(
-    "--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20), help="Samples per pixel."
+    "--spp",
+    default=None,
+    type=click.IntRange(1, 1 << 20),
+    help="Samples per pixel (fast estimator: camera samples shared by all sub-bands, default 2, more until NETD/3; "
+    "path: split over the sub-bands, default 16). 1 renders but cannot estimate the error.",
 )
+@click.option(
+    "--estimator",
+    default="fast",
+    show_default=True,
+    type=click.Choice(["fast", "path"]),
+    help="Infrared estimator: fast (sub-bands on one path, control variate, stratified) or path "
+    "(Mitsuba's path tracer per sub-band: the reference). See `humv-usd bench render`.",
+)
+@click.option("-q", "--quiet", is_flag=True, help="No progress display; only the summary line.")
+@click.option("-v", "--verbose", count=True, help="Log each frame and sensor on stderr (-v info, -vv debug).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1))
 @click.option("--sensor", "sensors", multiple=True, help="Render only this sensor (repeatable).")
 @click.option(
@@ -128,7 +148,7 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool):
     "--subbands",
     default=None,
     type=int,
-    help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 4; see `humv-usd bench render`).",
+    help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 16; see `humv-usd bench render`).",
 )
 @click.option(
     "--wait",
@@ -152,7 +172,10 @@ def render(
     stage: Path,
     out_dir: str,
     frames,
-    spp: int,
+    spp,
+    estimator,
+    quiet,
+    verbose,
     seed: int,
     sensors,
     annotators,
@@ -165,33 +188,53 @@ def render(
     from humv_usd.fileio import check_output_dir
     from humv_usd.pipeline.render import render_stage
 
+    set_verbosity(verbose)
     out_dir = check_output_dir(out_dir)  # fail fast, before opening the stage
-    manifest = render_stage(
-        stage,
-        out_dir,
-        frames=parse_frames(frames),
-        spp=spp,
-        sensors=list(sensors) or None,
-        seed=seed,
-        annotators=None if annotators is None else annotators.split(","),
-        subbands=subbands,
-        wait=wait,
-        force=force,
-        yes=yes,
-    )
+    with progress_display("render", quiet) as progress:
+        manifest = render_stage(
+            stage,
+            out_dir,
+            frames=parse_frames(frames),
+            spp=spp,
+            sensors=list(sensors) or None,
+            seed=seed,
+            annotators=None if annotators is None else annotators.split(","),
+            subbands=subbands,
+            estimator=estimator,
+            progress=progress,
+            wait=wait,
+            force=force,
+            yes=yes,
+        )
+    settings = manifest["settings"]
+    if settings["estimator"] != estimator:
+        click.echo(f"  estimator: {settings['estimator']} ({settings['estimator_note']})", err=True)
     err = manifest["monte_carlo_error"]
     rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))
     click.echo(
         f"{out_dir}/manifest.json  {rendered} image(s) ({len(manifest['rendered_this_call'])} frame(s) "
         f"rendered now), {manifest['timings_s']['total']:.2f} s"
     )
-    if manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
+    if manifest["sensors"] and err["temperature_stderr_mean_k"] is None:
+        click.echo(
+            f"  Monte Carlo error: not estimable at spp {manifest['settings']['spp']} "
+            "(needs at least 2 samples per pixel; the manifest's error fields are null)"
+        )
+    elif manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
         click.echo(
             f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
             f"max {err['temperature_stderr_max_k']:.4f} K "
             f"({err['radiance_stderr_mean']:.4g} / {err['radiance_stderr_max']:.4g} "
             "W m-2 sr-1)"
         )
+    for sensor in manifest["sensors"]:
+        away = sensor.get("monte_carlo_error_k") or {}
+        if away.get("mean_k") is not None:
+            click.echo(
+                f"  {sensor['name']}: error away from edges mean {away['mean_k']:.4f} K, p99 "
+                f"{away['p99_max_k']:.4f} K; edge pixels {away['edge_mean_k']:.3f} K (footprint); "
+                f"{sensor['timings_s']['render'] / max(len(sensor['frames']), 1):.2f} s render per frame"
+            )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
 
@@ -227,7 +270,9 @@ def bench():
 
 @bench.command("pipeline")
 @click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
+@click.option(
+    "--spp", default=None, type=click.IntRange(1, 1 << 20), help="Samples per pixel (default: the render's)."
+)
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100))
 @reports_errors
 def bench_pipeline(scenario: Path, spp: int, repeat: int):
@@ -255,7 +300,8 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
                 ("compose cli", ["compose", str(scenario), "-o", str(out)]),
                 (
                     "render cli",
-                    ["render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", str(spp)],
+                    ["render", str(out / "stage.usda"), "-o", str(out / "render"), "-q"]
+                    + ([] if spp is None else ["--spp", str(spp)]),
                 ),
             ):
                 t = time.perf_counter()
@@ -270,107 +316,13 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
             manifest = render_stage(out / "stage.usda", out / "render", spp=spp, seed=i)
             times["render in-process"].append(time.perf_counter() - t)
             err_k.append(manifest["monte_carlo_error"]["temperature_stderr_mean_k"])
-    click.echo(f"scenario {scenario}, {spp} spp, {repeat} runs each (median, min..max)")
+    click.echo(f"scenario {scenario}, {spp or 'default'} spp, {repeat} runs each (median, min..max)")
     for name, values in times.items():
         click.echo(f"  {name:<19} {statistics.median(values):7.3f} s  ({min(values):.3f}..{max(values):.3f})")
     click.echo(
         f"  Monte Carlo error: mean per-pixel standard error "
         f"{statistics.median(err_k):.4f} K (median over runs)"
     )
-
-
-@bench.command("render")
-@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "--subbands",
-    "counts",
-    default="1,2,4,8,16",
-    show_default=True,
-    help="Sub-band counts to compare, comma-separated.",
-)
-@click.option(
-    "--time-subbands",
-    "time_counts",
-    default="1,4",
-    show_default=True,
-    help="Sub-band counts to render and time (all sensors, first frame).",
-)
-@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
-@click.option(
-    "--atmosphere-model",
-    default=None,
-    type=click.Choice(["lowtran7", "analytic"]),
-    help="Override [atmosphere] model for the spectral error (default: the scenario's).",
-)
-@reports_errors
-def bench_render(scenario: Path, counts: str, time_counts: str, spp: int, atmosphere_model):
-    """Spectral error against sub-band count, and render time and Monte Carlo error per sensor.
-
-    The error is the brightness-temperature difference of a facet (every material of the
-    stage, its face temperatures, sky, sun and slant path at 5-60 m) between n sub-bands and a
-    fine spectral quadrature; when the stage's atmosphere layer has no spectral tables they
-    come from humv_usd.atmosphere.model.atmosphere_for.
-    """
-    from humv_usd.pipeline import render as R
-    from humv_usd.pipeline.compose import compose as run_compose
-    from humv_usd.scenario import load_scenario
-    from humv_usd.usd.atmosphere import atmosphere_spectra
-    from humv_usd.usd.environment import sun_direction
-    from humv_usd.usd.sensor import check_subbands
-
-    def ints(text, name):
-        try:
-            values = [int(v) for v in text.split(",") if v.strip()]
-        except ValueError:
-            raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
-        for v in values:
-            check_subbands(v, f"--{name}")
-        return values
-
-    n_list, t_list = ints(counts, "subbands"), ints(time_counts, "time-subbands")
-    sc = load_scenario(scenario)
-    if atmosphere_model is not None:
-        sc["atmosphere"]["model"] = atmosphere_model
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "stage"
-        run_compose(sc, out)
-        stage = out / "stage.usda"
-        spectra = path = sun_dir = None
-        usd_stage = R.open_stage(stage)
-        first = R.stage_frames(usd_stage)[0]
-        source = "stage"
-        if atmosphere_spectra(usd_stage, float(first)).sky_radiance is None:
-            from humv_usd.atmosphere.model import atmosphere_for
-
-            atm = atmosphere_for(sc, usd_stage)  # weather and sun of the stage's environment layer
-            spectra, path = R.spectra_from_atmosphere(atm, 0.0)
-            sun_dir = sun_direction(usd_stage, 0.0)
-            source = f"atmosphere_for ({atm.source}; the stage has no spectral tables)"
-        table = R.subband_error_table(stage, n_list, spectra=spectra, path_table=path, sun_direction=sun_dir)
-        click.echo(
-            f"scenario {scenario}: spectral error of the sub-band model [K] (max / rms over "
-            f"{len(table['materials'])} materials, T = {', '.join(f'{t:.1f}' for t in table['temperatures_k'])} K; "
-            f"atmosphere from {source})"
-        )
-        for name, row in table["sensors"].items():
-            cells = "  ".join(
-                f"n={n}: {e['max_k']:.3f}/{e['rms_k']:.3f}" for n, e in row["error_by_subbands"].items()
-            )
-            click.echo(f"  {name:<16} {cells}")
-        click.echo(
-            f"render of frame {first} at {spp} spp (split over the sub-bands, "
-            f"at least min(spp, {R.MIN_SUBBAND_SPP}) each): seconds / mean per-pixel MC error [K]"
-        )
-        for n in t_list:
-            manifest = R.render_stage(stage, Path(tmp) / f"render{n}", frames=[first], spp=spp, subbands=n)
-            cells = [
-                f"{s['name']} {s['timings_s']['render']:.2f} s / {s['monte_carlo_error']['temperature_stderr_mean_k']:.3f} K"
-                for s in manifest["sensors"]
-            ]
-            cells += [
-                f"{s['name']} (EO) {s['timings_s']['render']:.2f} s" for s in manifest.get("eo_sensors", [])
-            ]
-            click.echo(f"  n={n}: " + ";  ".join(cells))
 
 
 @bench.command("clothing")
@@ -664,6 +616,9 @@ def _register_tools():
     )
 
     register_groundtruth(main, bench)
+    from humv_usd.cli.bench_render_cmd import bench_render
+
+    bench.add_command(bench_render)
     from humv_usd.cli.sweep_cmd import register as register_sweep  # sweep, bench sweep
 
     register_sweep(main, bench)

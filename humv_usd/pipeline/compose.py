@@ -370,7 +370,12 @@ def _root_edit(out: Path, prev: dict, disk_sha: str | None, root_sha: str, force
 
 
 def compose(
-    scenario: Scenario, out_dir: str | Path, force: bool = False, wait: bool = False, yes: bool = False
+    scenario: Scenario,
+    out_dir: str | Path,
+    force: bool = False,
+    wait: bool = False,
+    yes: bool = False,
+    progress=None,
 ) -> ComposeReport:
     """Write OUT/layers/*.usda and OUT/stage.usda for ``scenario``; see the module doc.
 
@@ -379,7 +384,8 @@ def compose(
     raises InputError naming that process, or with ``wait`` waits for it. All files are written
     as one change (:func:`humv_usd.fileio.commit_files`): a kill leaves the old set or the new
     one; a change a kill interrupted is finished first. A scenario whose estimated memory or
-    disk (:mod:`humv_usd.pipeline.budget`) exceeds this machine's is refused unless ``yes``."""
+    disk (:mod:`humv_usd.pipeline.budget`) exceeds this machine's is refused unless ``yes``.
+    ``progress(done, total, text)``: called before each layer build and after the last."""
     out = check_output_dir(out_dir)
     require_fits(compose_budget(scenario), out, yes)
     for line in suspicious(scenario):  # valid but probably not meant: one line each
@@ -388,10 +394,10 @@ def compose(
         finish_pending(out)  # a compose killed after its commit point: complete its write
         for folder in (out, out / LAYER_DIR):  # one killed before it: drop its temp files
             remove_stale_temps(folder)
-        return _compose_locked(scenario, out, force)
+        return _compose_locked(scenario, out, force, progress)
 
 
-def _compose_locked(scenario: Scenario, out: Path, force: bool) -> ComposeReport:
+def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -> ComposeReport:
     t0 = time.perf_counter()
     layer_dir = out / LAYER_DIR
     fps = scenario["general"]["fps"]
@@ -445,10 +451,13 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool) -> ComposeReport
             layers[name] = states[name].loaded or open_anonymous(layer_dir / f"{name}.usda")
         return layers[name]
 
+    to_build = [name for name in order if states[name].rebuild]
     for name in order:
         node, state = nodes[name], states[name]
         if not state.rebuild:
             continue
+        if progress is not None:
+            progress(to_build.index(name), len(to_build), f"layer {name}")
         t = time.perf_counter()
         upstream = None
         if node.upstream:
@@ -461,6 +470,8 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool) -> ComposeReport
         layers[name], texts[name] = layer, layer_text(relative_asset_paths(layer, layer_dir))
         state.sha256 = _sha(texts[name])
         state.seconds = time.perf_counter() - t
+    if progress is not None:
+        progress(len(to_build), len(to_build), "writing")
     root_text = layer_text(root_layer(scenario, strength, user, keys=keys))
 
     # 3. write changed layers, the root and the report as one change (a kill leaves old or new)

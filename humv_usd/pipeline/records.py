@@ -25,7 +25,7 @@ from pathlib import Path
 from humv_usd.fileio import write_json
 
 RECORDS_DIR = ".frames"
-RECORD_VERSION = 1
+RECORD_VERSION = 2  # 2: settings name the estimator and spp mode
 _FRAME_FILE = re.compile(r"^(\d{4,})[._]")
 
 
@@ -55,16 +55,30 @@ def file_sha256(path) -> str:
     return h.hexdigest()
 
 
-def settings(stage_digest: str, spp: int, seed: int, max_depth: int, annotators, subbands=None) -> dict:
+def settings(
+    stage_digest: str,
+    spp: int,
+    seed: int,
+    max_depth: int,
+    annotators,
+    subbands=None,
+    estimator: str | None = None,
+    spp_mode: str | None = None,
+) -> dict:
     """What makes an image: two images with equal settings (and frame, sensor) are the same
-    render (same seeds: identical pixels)."""
+    render (same seeds: identical pixels). ``estimator``: the infrared estimator and its
+    parameters (None for EO images); ``spp_mode``: "fixed" (every image ``spp`` samples), or the
+    automatic-quality rule (then ``spp`` is the batch size and the samples spent vary per image:
+    they are in its entry)."""
     return {
         "stage": stage_digest,
         "spp": int(spp),
+        "spp_mode": spp_mode,
         "seed": int(seed),
         "max_depth": int(max_depth),
         "annotators": list(annotators),
         "subbands": None if subbands is None else int(subbands),
+        "estimator": estimator,
     }
 
 

@@ -28,7 +28,9 @@ from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline import records as R
 from humv_usd.pipeline.budget import render_budget, require_fits
 from humv_usd.render import eo as eo_render
+from humv_usd.render import estimator as E
 from humv_usd.render import radiometry
+from humv_usd.render.estimator import render_band_fast
 from humv_usd.render.export import StageExport
 from humv_usd.render.frame import path_table as read_path_table
 from humv_usd.render.frame import stage_frames
@@ -52,6 +54,16 @@ MANIFEST_NAME = "manifest.json"
 #: frames between flushes of Dr.Jit's kernel cache (:func:`humv_usd.mode.release_kernel_cache`):
 #: keeps the memory of a long render flat at the cost of compiling kernels again
 KERNEL_CACHE_FRAMES = 10
+#: Infrared estimators: "fast" (:func:`humv_usd.render.estimator.render_band_fast`: sub-bands on
+#: one path, emission evaluated, sky control variate, stratified, RQMC error) and "path" (the
+#: plain Mitsuba path tracer per sub-band, :func:`humv_usd.render.ir.render_band`: the reference,
+#: and what the scalar fallback variant runs).
+ESTIMATORS = ("fast", "path")
+DEFAULT_ESTIMATOR = "fast"
+#: Samples per pixel when the caller gives none, per estimator.
+DEFAULT_SPP = {"fast": E.DEFAULT_SPP, "path": 16}
+#: Samples per pixel of the visible (EO) render when the caller gives none.
+EO_DEFAULT_SPP = 16
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 
 
@@ -132,6 +144,35 @@ def _select_sensors(all_sensors: list[SensorModel], wanted) -> list[SensorModel]
     return out
 
 
+#: Seed offset between the sample batches of one frame (auto quality).
+AUTO_SEED_STRIDE = 1_000_003
+#: Most camera samples per pixel the automatic quality spends on one frame.
+AUTO_MAX_SPP = 32
+#: The automatic quality's target: mean per-pixel error away from edges <= NETD / this.
+AUTO_NETD_FRACTION = 3.0
+
+
+def _needs_more_samples(plan, sensor, noise: dict, batches: int) -> bool:
+    """Automatic quality (no spp given, fast estimator): another batch of samples while the mean
+    error away from edges exceeds NETD / 3 and fewer than AUTO_MAX_SPP samples were spent."""
+    if not plan.spp_auto or noise.get("mean_k") is None:
+        return False
+    netd = getattr(sensor, "netd_k", None)
+    if not netd or netd <= 0:
+        return False
+    return noise["mean_k"] > netd / AUTO_NETD_FRACTION and plan.spp * (batches + 1) <= AUTO_MAX_SPP
+
+
+def _spp_rule(plan, sensor) -> str:
+    if not plan.spp_auto:
+        return f"given: {plan.spp} spp"
+    return (
+        f"automatic: batches of {plan.spp} spp until the mean error away from edges is <= NETD/"
+        f"{AUTO_NETD_FRACTION:g} ({getattr(sensor, 'netd_k', None)} K / {AUTO_NETD_FRACTION:g}) or "
+        f"{AUTO_MAX_SPP} spp"
+    )
+
+
 class _Accumulator:
     """Pixel-weighted mean and max of the Monte Carlo error over several images."""
 
@@ -170,12 +211,14 @@ def render_stage(
     stage_path,
     out_dir,
     frames=None,
-    spp=16,
+    spp=None,
     sensors=None,
     seed=0,
     max_depth=-1,
     annotators=None,
     subbands=None,
+    estimator=DEFAULT_ESTIMATOR,
+    progress=None,
     force=False,
     wait=False,
     yes=False,
@@ -200,8 +243,14 @@ def render_stage(
     frames : list of int, optional
         Frames (time codes) to render; default every integer frame from startTimeCode to
         endTimeCode. A frame outside that range is an InputError.
-    spp : int, default 16
-        Samples per pixel.
+    spp : int, optional
+        Samples per pixel: for the fast estimator, camera samples per pixel shared by all
+        sub-bands (default :data:`humv_usd.render.estimator.DEFAULT_SPP`); for the path tracer,
+        samples split over the sub-bands (default 16).
+    estimator : {"fast", "path"}
+        Infrared estimator (:data:`ESTIMATORS`).
+    progress : callable(done, total, text), optional
+        Called after each sensor of each frame is written (a progress display).
     sensors : list of str, optional
         SensorModel names (camera prim names) or prim paths; default all.
     seed : int, default 0
@@ -231,7 +280,9 @@ def render_stage(
         The manifest (also written to ``OUT/manifest.json``).
 
     Resuming: every finished image has a record (:mod:`humv_usd.pipeline.records`); a call
-    renders only the requested frames whose images are not done with the same settings, refuses
+    renders only the requested frames whose images are not done with the same settings (stage
+    content, spp and whether it is automatic, seed, depth, annotators, sub-bands, the infrared
+    estimator and its parameters: :func:`humv_usd.pipeline.records.settings`), refuses
     (InputError, one line) when the folder holds images of the selected sensors made with other
     settings unless ``force``, and rebuilds the manifest, coco.json, regions.json and the camera
     files from all records of the selected sensors, so frames from separate calls (or a run
@@ -276,25 +327,35 @@ def render_stage(
     cast; ``write`` the EXR/PNG files.
     """
     t_start = time.perf_counter()
+    eo_spp = EO_DEFAULT_SPP if spp is None else spp
+    spp_auto = spp is None and estimator == "fast"
+    if spp is None:
+        spp = DEFAULT_SPP.get(estimator, DEFAULT_SPP["path"])
     _check_settings(spp, seed, max_depth)
+    if estimator not in ESTIMATORS:
+        raise InputError(bad_value("estimator", estimator, f"expected one of {', '.join(ESTIMATORS)}"))
     out_dir = os.path.abspath(check_output_dir(out_dir))
     with folder_lock(out_dir, "humv-usd render", wait=wait):
         args = (stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
-        return _render_locked(t_start, args, force, yes)
+        return _render_locked(t_start, args, (estimator, eo_spp, spp_auto), force, yes, progress)
 
 
-def _render_locked(t_start, args, force, yes=False) -> dict:
+def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
+    """``args`` and ``how`` (estimator, EO spp, automatic spp) as :func:`_plan` takes them."""
     out_dir = args[1]
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
     t = time.perf_counter()
-    plan = _plan(*args)
+    plan = _plan(*args, *how)
     totals["load_export"] += time.perf_counter() - t
     budget = render_budget([s.resolution for s in _selected(plan)], len(plan.frames), plan.spp)
     require_fits(budget, out_dir, yes)  # before anything is written
     todo = _frames_to_render(plan, force)
 
     run = _FrameRenderer(plan, totals)
-    for frame in todo if (plan.rendered or plan.eo_run.sensors) else []:
+    frames_to_render = todo if (plan.rendered or plan.eo_run.sensors) else []
+    run.progress = progress  # counts the images rendered in this call only
+    run.units_total = len(frames_to_render) * (len(plan.rendered) + len(plan.eo_run.sensors))
+    for frame in frames_to_render:
         run.render_frame(frame)
         run.record_frame(frame)
         if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
@@ -422,9 +483,25 @@ class _Plan:
     use_sun: bool
     sensor_ids: dict[str, str] = field(default_factory=dict)
     wanted: dict[str, dict] = field(default_factory=dict)  # per sensor: the settings of its images
+    estimator: str = DEFAULT_ESTIMATOR
+    estimator_note: str = ""
+    spp_auto: bool = False
 
 
-def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands) -> _Plan:
+def _plan(
+    stage_path,
+    out_dir,
+    frames,
+    spp,
+    sensors,
+    seed,
+    max_depth,
+    annotators,
+    subbands,
+    estimator=DEFAULT_ESTIMATOR,
+    eo_spp=None,
+    spp_auto=False,
+) -> _Plan:
     """Open the stage, select frames and sensors, and set up the radiometry (sub-bands per IR
     sensor; sky map and sun from the environment at the first frame) and the EO run."""
     stage = open_stage(stage_path)
@@ -445,6 +522,16 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
         if not s.rendered
     ]
     mi = mode.mitsuba()
+    est, note = estimator, f"requested: {estimator}"
+    if estimator == "fast" and not mode.is_vectorized():
+        est, note = (
+            "path",
+            f"fast estimator needs a vectorised variant; {mode.variant()} runs the path tracer",
+        )
+    elif estimator == "fast" and max_depth != -1:
+        est, note = "path", f"max_depth {max_depth} asks for a truncated path: the path tracer honours it"
+    if est != estimator:
+        log.warning("infrared estimator: %s", note)
     # sub-bands per sensor: the render option, else the sensor's humv:sensor:subbands, else the default
     override = None if subbands is None else check_subbands(subbands)
     n_of = {s.name: override or s.subbands or radiometry.DEFAULT_SUBBANDS for s in rendered}
@@ -473,13 +560,24 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
     # the sun: the solar table, else a blackbody scaled to the broadband DNI (radiometry.blackbody_sun)
     use_sun = sun0 is not None and (spectra0.solar_irradiance is not None or dni0 is not None)
     eo_run = eo_render.EORender(
-        stage, eo_sensors, spp=spp, max_depth=max_depth, seed=seed, out_dir=out_dir, truth=truth
+        stage,
+        eo_sensors,
+        spp=spp if eo_spp is None else eo_spp,
+        max_depth=max_depth,
+        seed=seed,
+        out_dir=out_dir,
+        truth=truth,
     )
+    spp_auto = bool(spp_auto) and est == "fast"
     digest = stage_digest(stage)
+    ir_how = {"estimator": _estimator_key(est), "spp_mode": _spp_mode(spp_auto)}
     wanted = {
-        s.name: R.settings(digest, spp, seed, max_depth, truth.annotators, n_of.get(s.name))
-        for s in rendered + list(eo_run.sensors)
+        s.name: R.settings(digest, spp, seed, max_depth, truth.annotators, n_of[s.name], **ir_how)
+        for s in rendered
     }
+    eo_spp = spp if eo_spp is None else eo_spp
+    for s in eo_run.sensors:
+        wanted[s.name] = R.settings(digest, eo_spp, seed, max_depth, truth.annotators, spp_mode="fixed")
     return _Plan(
         wanted=wanted,
         stage_path=os.fspath(stage_path),
@@ -499,11 +597,35 @@ def _plan(stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators
         n_of=n_of,
         n_source=n_source,
         sub_of=sub_of,
-        spp_sub={name: subband_spp(spp, len(sub)) for name, sub in sub_of.items()},
+        spp_sub={name: spp if est == "fast" else subband_spp(spp, len(sub)) for name, sub in sub_of.items()},
         spectra0=spectra0,
         use_sky_map=use_sky_map,
         use_sun=use_sun,
         sensor_ids={s.name: f"sensor_{i}" for i, s in enumerate(rendered)},
+        estimator=est,
+        estimator_note=note,
+        spp_auto=spp_auto,
+    )
+
+
+def _estimator_key(estimator: str) -> str:
+    """The infrared estimator and the parameters its pixels depend on (part of an image's
+    record settings: images of another estimator are other images)."""
+    if estimator != "fast":
+        return estimator
+    return (
+        f"fast (splits {E.DEFAULT_SPLITS}, replicas {E.DEFAULT_REPLICAS}, roulette from depth "
+        f"{E.RR_DEPTH}, filter radius {E.DEFAULT_FILTER_RADIUS} px)"
+    )
+
+
+def _spp_mode(spp_auto: bool) -> str:
+    """How the samples per pixel were chosen (record settings): given, or the automatic rule."""
+    if not spp_auto:
+        return "fixed"
+    return (
+        f"automatic: batches until mean error away from edges <= NETD/{AUTO_NETD_FRACTION:g} "
+        f"or {AUTO_MAX_SPP} spp (batch seed stride {AUTO_SEED_STRIDE})"
     )
 
 
@@ -531,6 +653,9 @@ class _FrameRenderer:
         self.scene_key = None
         self.scene_builds = 0
         self.frames_rendered: list[int] = []
+        self.progress = None
+        self.units_done = 0
+        self.units_total = 0
 
     def record_frame(self, frame: int) -> None:
         """Write the record of every image of ``frame`` (after all its files) and drop what this
@@ -575,10 +700,17 @@ class _FrameRenderer:
         self.totals["load_export"] += time.perf_counter() - t
         for s in plan.rendered:
             self._render_sensor(s, state, frame, frame_time, spectra, sun_direction)
+            self._advance(1, f"frame {frame} {s.name}")
         if plan.eo_run.sensors:  # visible sensors: spectral render of the same frame (render.eo)
             t = time.perf_counter()
             plan.eo_run.frame(state, frame, self.chains)
             self.totals["eo"] = self.totals.get("eo", 0.0) + time.perf_counter() - t
+            self._advance(len(plan.eo_run.sensors), f"frame {frame} EO")
+
+    def _advance(self, units: int, text: str) -> None:
+        self.units_done += units
+        if self.progress is not None:
+            self.progress(self.units_done, self.units_total, text)
 
     def _update_scene(self, state) -> None:
         """Build the IR scene (first frame, or new visible meshes) or move its vertices; set
@@ -625,6 +757,8 @@ class _FrameRenderer:
         timings = self.per_sensor[s.name]["timings"]
         band, response = s.wavelength_range_um, s.band_response
         sensor_id = plan.sensor_ids[s.name]
+        before = dict(timings)
+        cpu0 = time.process_time()
         t = time.perf_counter()
         sub = plan.sub_of[s.name]
         frame_rad = radiometry.frame_radiometry(
@@ -637,21 +771,37 @@ class _FrameRenderer:
         )
         t = self._tick(timings, "load_export", t)
 
-        m1, stderr_l = render_band(
-            scene,
-            sensor_id,
-            state,
-            sub,
-            lambda material: _subband_emissivity(self.sub_eps, material, s, sub),
-            frame_rad,
-            spp=plan.spp_sub[s.name],
-            seed=plan.seed + frame,
-            transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
-        )
-        bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
+        band_renderer = render_band_fast if plan.estimator == "fast" else render_band
+        edges = E.geometric_edges(scene.hits(sensor_id)) if plan.estimator == "fast" else None
+        batches: list[tuple[np.ndarray, np.ndarray]] = []
+        while True:
+            batch = band_renderer(
+                scene,
+                sensor_id,
+                state,
+                sub,
+                lambda material: _subband_emissivity(self.sub_eps, material, s, sub),
+                frame_rad,
+                spp=plan.spp_sub[s.name],
+                seed=(plan.seed + frame + AUTO_SEED_STRIDE * len(batches)) % 2**32,
+                transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
+            )
+            batches.append(batch)
+            m1 = np.mean([b[0] for b in batches], axis=0)  # equal-spp batches: plain mean
+            stderr_l = np.sqrt(np.sum([b[1] ** 2 for b in batches], axis=0)) / len(batches)
+            bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
+            if edges is None:
+                edges = E.geometric_edges(scene.hits(sensor_id))
+            away_from_edges = E.noise_stats(stderr_k, edges)
+            if not _needs_more_samples(plan, s, away_from_edges, len(batches)):
+                break
+        spp_used = plan.spp_sub[s.name] * len(batches)
+        away_from_edges["spp_used"] = spp_used
+        away_from_edges["spp_rule"] = _spp_rule(plan, s)
         t = self._tick(timings, "render", t)
+        t = self._tick(timings, "labels", t)  # the pixel-centre cast is the labels' (cached)
 
         rel = os.path.join(s.name, f"{frame:04d}")
         labels = plan.truth.annotate(
@@ -688,7 +838,7 @@ class _FrameRenderer:
                 "humv:sensor": s.path,
                 "humv:frame": str(frame),
                 "humv:band_um": f"{band[0]:g}-{band[1]:g}",
-                "humv:spp": str(plan.spp),
+                "humv:spp": str(plan.spp * len(batches)),  # automatic quality: the samples spent
                 "humv:subbands": str(len(sub)),
                 "humv:preview": "R=G=B: brightness temperature stretched as the PNG (0 at the 1st, "
                 "1 at the 99th percentile); display only",
@@ -702,6 +852,14 @@ class _FrameRenderer:
         chain_record = self.chains.write(chained, plan.out_dir, rel)
         self._tick(timings, "write", t)
 
+        log.info(
+            "frame %d %s: render %.2f s, labels %.2f s, error %s K away from edges",
+            frame,
+            s.name,
+            timings["render"],
+            timings["labels"],
+            "n/a" if away_from_edges["mean_k"] is None else f"{away_from_edges['mean_k']:.4f}",
+        )
         self.per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
         self.overall.add(stderr_l, stderr_k)
         frame_errors = _Accumulator()
@@ -722,8 +880,13 @@ class _FrameRenderer:
                 "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
                 "sky_temperature_k": state.sky_temperature_k,
                 "monte_carlo_error": _error_stats(stderr_l, stderr_k),
+                "monte_carlo_error_k": away_from_edges,
                 "radiometry": frame_rad.ran,
                 "sensor_chain": chain_record,
+                "timings_s": {
+                    **{k: timings[k] - before[k] for k in timings},
+                    "cpu": time.process_time() - cpu0,
+                },
             }
         )
 
@@ -758,6 +921,27 @@ def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel, done: list[
         "frames": [r["entry"] for r in mine],
         "timings_s": {**rec["timings"], "total": sum(rec["timings"].values())},
         "monte_carlo_error": R.merge_errors(mine),
+        "monte_carlo_error_k": _interior_summary([r["entry"].get("monte_carlo_error_k") or {} for r in mine]),
+    }
+
+
+def _interior_summary(per_frame: list[dict]) -> dict:
+    """Per-sensor error in K away from geometric edges (mean over frames of the per-frame means,
+    worst per-frame 99th percentile) and on edges (pixel footprint: signal, reported apart)."""
+
+    def values(key):
+        return [f[key] for f in per_frame if f.get(key) is not None]
+
+    mean, p99, edge = values("mean_k"), values("p99_k"), values("edge_mean_k")
+    return {
+        "mean_k": float(np.mean(mean)) if mean else None,
+        "p99_max_k": float(np.max(p99)) if p99 else None,
+        "edge_mean_k": float(np.mean(edge)) if edge else None,
+        "definition": "per-pixel Monte Carlo standard error in K; mean and 99th percentile over pixels "
+        "away from geometric edges (8-neighbours on the same part within 2 % depth), edge pixels apart",
+        "not_estimable": None if mean else "spp < 2: one replica, no error estimate",
+        "spp_used": sorted({f["spp_used"] for f in per_frame if f.get("spp_used") is not None}),
+        "spp_rule": per_frame[-1].get("spp_rule") if per_frame else None,
     }
 
 
@@ -785,6 +969,41 @@ def _radiometry_record(plan: _Plan) -> dict:
     }
 
 
+def _estimator_settings(plan: _Plan) -> dict:
+    """What the infrared estimator was and how its error is estimated (manifest ``settings``)."""
+    if plan.estimator == "fast":
+        return {
+            "estimator": "fast",
+            "estimator_note": plan.estimator_note,
+            "integrator": "humv_usd.render.estimator.render_band_fast: sub-bands on one path, emission "
+            "evaluated, sun by next-event estimation, sky + ground control variate, "
+            f"{E.DEFAULT_SPLITS} stratified reflection directions per camera sample, Russian roulette "
+            f"from depth {E.RR_DEPTH}, reflected radiance averaged over a "
+            f"{2 * E.DEFAULT_FILTER_RADIUS + 1}^2 px window on the same surface",
+            "film": "box filter (each sample in its pixel), path per sample at its first hit's range",
+            "sampler": "Cranley-Patterson rotated Fibonacci lattices per pixel (pixel position, "
+            f"first reflection direction), independent replicas: the smallest divisor >= {E.DEFAULT_REPLICAS} of spp",
+            "spp_meaning": "camera samples per pixel, shared by all sub-bands",
+            "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
+            "stderr": "standard error of the pixel mean from the spread of the replica means "
+            "(randomised quasi-Monte Carlo), c4-corrected, filtered part propagated as sum w^2 var; "
+            "NaN (not estimable) when spp < 2; in K: divided by dL_band/dT at the pixel's brightness "
+            "temperature",
+        }
+    return {
+        "estimator": "path",
+        "estimator_note": plan.estimator_note,
+        "integrator": "moment(path)",
+        "film": "hdrfilm luminance, box filter",
+        "sampler": "independent",
+        "spp_meaning": "samples per pixel split over the sub-bands (see spp_per_subband)",
+        "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
+        "stderr": "sqrt(max(m2 - m1^2, 4 * 2^-24 * m2) / (spp - 1)) per pixel from the moment "
+        "integrator (the floor is the float32 resolution of the moments; NaN for spp = 1); in K: "
+        "divided by dL_band/dT at the pixel's brightness temperature",
+    }
+
+
 def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict, done: list[dict]) -> dict:
     """The render folder's manifest (``OUT/manifest.json``): this call's settings and timings,
     the frames of all calls (from the records)."""
@@ -802,13 +1021,13 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict, done
             "seed": int(plan.seed),
             "seed_per_frame": "seed + frame",
             "max_depth": int(plan.max_depth),
-            "integrator": "moment(path)",
-            "film": "hdrfilm luminance, box filter",
-            "sampler": "independent",
-            "emissivity_weighting_temperature_k": EMISSIVITY_WEIGHTING_TEMPERATURE_K,
-            "stderr": "sqrt(max(m2 - m1^2, 4 * 2^-24 * m2) / (spp - 1)) per pixel from the moment "
-            "integrator (the floor is the float32 resolution of the moments; NaN for spp = 1); in K: "
-            "divided by dL_band/dT at the pixel's brightness temperature",
+            "spp_auto": bool(plan.spp_auto),
+            "spp_auto_rule": f"fast estimator without a given spp: batches of {plan.spp} spp until the mean "
+            f"error away from edges is <= NETD/{AUTO_NETD_FRACTION:g} or {AUTO_MAX_SPP} spp (per sensor "
+            "and frame: monte_carlo_error_k.spp_used)"
+            if plan.spp_auto
+            else None,
+            **_estimator_settings(plan),
         },
         "channels": {
             **{

@@ -41,10 +41,10 @@ from humv_usd.scenario import spec as _spec
 from humv_usd.usd.materials import band_mean
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
-#: ``humv-usd bench render`` on humvvex with LOWTRAN7 paths and sky: the largest spectral error
-#: over its materials, temperatures and ranges 5-60 m is 0.03 K (atom1024 LWIR), 0.06 K
-#: (LWIR 640) and 0.07 K (MWIR) at 4 sub-bands, against 0.11, 0.10 and 1.3 K for one gray band;
-#: below the Monte Carlo error of a 16 spp render (~0.3 K per pixel).
+#: ``humv-usd bench render`` on humvvex (LOWTRAN7 sky and paths) against a 32-sub-band path-tracer
+#: reference: with 4 the region means are off by up to 0.04 K (LWIR 640) and 0.05 K (MWIR), the
+#: spectral error of the sub-band model; with 16 by at most 0.003 K (LWIR) and 0.017 K (MWIR).
+#: The fast estimator traces one path for all sub-bands, so 16 cost about 2.3x the CPU of 4.
 #: (The value lives in :mod:`humv_usd.scenario.spec`, the default of the sensor key ``subbands``.)
 DEFAULT_SUBBANDS = _spec.DEFAULT_SUBBANDS
 #: Largest accepted sub-band count.

@@ -43,7 +43,7 @@ PLATFORMS = ("tripod", "mast", "aerial")
 AGC_MODES = ("none", "linear", "histogram")
 #: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
 #: default is chosen there with ``humv-usd bench render``).
-DEFAULT_SUBBANDS, MAX_SUBBANDS = 4, 64
+DEFAULT_SUBBANDS, MAX_SUBBANDS = 16, 64
 ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel")

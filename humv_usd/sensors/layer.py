@@ -24,7 +24,7 @@ from humv_usd.usd.sensor import write_sensor
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
 UPSTREAM = ()
-VERSION = "1"
+VERSION = "2"
 
 # UsdGeom lens and filmback values are in tenths of a scene unit: on a metre stage 1 mm = 0.01.
 _MM_TO_TENTHS_OF_M = 0.01

@@ -1,0 +1,162 @@
+"""The fast infrared estimator (humv_usd.render.estimator) against closed forms and against the
+plain path tracer (the reference estimator) on a small scene."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from test_render import add_camera, add_material, add_mesh, box, new_stage, read_exr, rect_y, rect_z
+
+from humv_usd.physics import planck
+from humv_usd.pipeline.render import render_stage
+from humv_usd.render import estimator as E
+
+LWIR = (8.0, 14.0)
+
+
+def test_azimuthal_cosine_integral_matches_quadrature():
+    phi = (np.arange(20000) + 0.5) * 2 * np.pi / 20000
+    for nz in (-0.9, -0.3, 0.0, 0.4, 1.0):
+        for mu in (-0.95, -0.2, 0.0, 0.5, 0.99):
+            s = np.sqrt(1 - nz**2) * np.sqrt(1 - mu**2)
+            numeric = np.sum(np.maximum(0.0, s * np.cos(phi) + nz * mu)) * 2 * np.pi / 20000
+            assert_allclose(E.azimuthal_cosine_integral(nz, mu), numeric, atol=1e-6)
+
+
+def test_control_variate_table_closed_forms():
+    # uniform sky L and ground L: every normal sees L
+    rows = np.full(181, 7.0)
+    assert_allclose(E.control_variate_table(rows, 7.0), 7.0, rtol=1e-6)
+    # sky S above, ground g below: up sees S, down sees g, a vertical face half of each
+    g = E.control_variate_table(np.full(181, 3.0), 11.0)
+    assert_allclose([g[-1], g[0], g[E.CV_NODES // 2]], [3.0, 11.0, 7.0], rtol=1e-6)
+    # a tilted face (n_z = cos 60 deg) over a black ground under a uniform sky sees the view
+    # factor (1 + cos tilt) / 2 of the sky
+    g = E.control_variate_table(np.full(181, 1.0), 0.0, nodes=5)  # n_z = -1, -0.5, 0, 0.5, 1
+    assert_allclose(g, [0.0, 0.25, 0.5, 0.75, 1.0], atol=1e-6)
+
+
+def test_c4_corrects_the_standard_deviation_bias():
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(200000, 2))
+    assert_allclose(x.std(axis=1, ddof=1).mean() / E.c4(2), 1.0, rtol=0.01)
+
+
+def _scene(tmp_path):
+    """Ground, a warm wall and a hot box under a cold sky: reflections between all three."""
+    stage = new_stage(tmp_path / "stage.usda", sky_k=250.0)
+    concrete = add_material(stage, "concrete", [0.93, 0.88], wavelengths=(8.0, 14.0))
+    paint = add_material(stage, "paint", 0.8)
+    add_mesh(
+        stage,
+        "/World/Scene/ground",
+        *rect_z(-40, 40, -40, 40),
+        material=concrete,
+        temperature_k=297.0,
+        instance_id=1,
+    )
+    add_mesh(
+        stage,
+        "/World/Scene/wall",
+        *rect_y(-10, 10, 0, 6, 4.0),
+        material=paint,
+        temperature_k=290.0,
+        instance_id=2,
+    )
+    add_mesh(
+        stage,
+        "/World/Scene/box",
+        *box((0.0, 1.5, 0.6), 1.2),
+        material=paint,
+        temperature_k=320.0,
+        instance_id=3,
+    )
+    add_camera(
+        stage,
+        "lwir",
+        eye=(2.0, -8.0, 2.0),
+        target=(0.0, 1.5, 0.8),
+        fov_x_deg=60,
+        resolution=(48, 36),
+        netd=0.05,
+    )
+    stage.Save()
+    return tmp_path / "stage.usda"
+
+
+@pytest.mark.slow
+def test_fast_estimator_is_unbiased_against_the_path_tracer(tmp_path):
+    """Per labelled region, the fast estimator's mean agrees with the plain path tracer at
+    high spp within the combined Monte Carlo error (and within 0.02 K), at 2 sub-bands."""
+    stage = _scene(tmp_path)
+    render_stage(stage, tmp_path / "ref", spp=8192, subbands=2, estimator="path", seed=1)
+    render_stage(stage, tmp_path / "fast", spp=1024, subbands=2, estimator="fast", seed=2)
+    _, ref = read_exr(tmp_path / "ref" / "lwir" / "0000.exr")
+    _, fast = read_exr(tmp_path / "fast" / "lwir" / "0000.exr")
+    dl_dt = planck.band_radiance_derivative(300.0, LWIR)
+    assert {1, 2, 3} <= set(np.unique(ref["instance_id"]).astype(int).tolist())
+    for region in np.unique(ref["instance_id"]):
+        m = ref["instance_id"] == region
+        diff = fast["radiance"][m].mean() - ref["radiance"][m].mean()
+        sigma = (
+            np.sqrt(np.sum(fast["radiance_stderr"][m] ** 2) + np.sum(ref["radiance_stderr"][m] ** 2))
+            / m.sum()
+        )
+        assert abs(diff) <= 4 * sigma + 1e-5 * ref["radiance"][m].mean(), (region, diff, sigma)
+        if m.sum() > 100:  # the large regions pin the bias down to a few hundredths of a kelvin
+            assert 4 * sigma / dl_dt <= 0.05, (region, sigma / dl_dt)
+    # and the fast estimator is much less noisy per camera sample (here: reflectance 0.2 walls)
+    per_sample = np.nanmean(fast["radiance_stderr"]) * np.sqrt(1024)
+    assert per_sample < 0.5 * np.nanmean(ref["radiance_stderr"]) * np.sqrt(8192)
+
+
+@pytest.mark.slow
+def test_fast_estimator_error_estimate_is_honest(tmp_path):
+    """The reported per-pixel standard error matches the spread between independent renders."""
+    stage = _scene(tmp_path)
+    a = render_stage(stage, tmp_path / "a", spp=4, seed=1)
+    render_stage(stage, tmp_path / "b", spp=4, seed=2)
+    _, ca = read_exr(tmp_path / "a" / "lwir" / "0000.exr")
+    _, cb = read_exr(tmp_path / "b" / "lwir" / "0000.exr")
+    assert a["settings"]["estimator"] == "fast"
+    observed = np.sqrt(np.mean((ca["radiance"] - cb["radiance"]) ** 2) / 2)
+    reported = np.sqrt(np.mean(ca["radiance_stderr"] ** 2))
+    assert 0.5 < observed / reported < 2.0, (observed, reported)
+
+
+@pytest.mark.slow
+def test_automatic_quality_reaches_netd_over_three_or_the_cap(tmp_path):
+    stage = _scene(tmp_path)
+    m = render_stage(stage, tmp_path / "auto", spp=None)
+    assert m["settings"]["spp_auto"] and m["settings"]["spp"] == E.DEFAULT_SPP
+    away = m["sensors"][0]["monte_carlo_error_k"]
+    netd = 0.05  # the camera's humv:sensor:netd
+    used = away["spp_used"]
+    assert used and all(u % E.DEFAULT_SPP == 0 for u in used)
+    assert away["mean_k"] <= netd / 3 or max(used) >= 32 - E.DEFAULT_SPP
+    # a given spp is the one used
+    m = render_stage(stage, tmp_path / "given", spp=3)
+    assert not m["settings"]["spp_auto"]
+    assert m["sensors"][0]["monte_carlo_error_k"]["spp_used"] == [3]  # 3 replicas of 1 point
+
+
+@pytest.mark.slow
+def test_bench_render_sweeps_and_plots(tmp_path):
+    from humv_usd.bench.render import bench_render, plot_error_vs_time
+
+    stage = _scene(tmp_path)
+    result = bench_render(stage, [1, 2], [2], reference_spp=32, reference_subbands=2, default=(2, 2))
+    rec = result["sensors"]["lwir"]
+    assert rec["ray_cast_s"] > 0 and rec["reference"]["spp"] == 32
+    rows = {(r["estimator"], r["spp"], r["subbands"]): r for r in rec["rows"]}
+    assert set(rows) == {("fast", 1, 2), ("fast", 2, 2), ("path", 16, 4)}
+    assert rows[("fast", 1, 2)]["noise"]["mean_k"] is None  # one sample: not estimable
+    assert rows[("fast", 2, 2)]["default"] and rows[("fast", 2, 2)]["noise"]["mean_k"] > 0
+    assert {1, 2, 3} <= set(rows[("fast", 2, 2)]["bias_by_region"])
+    plot_error_vs_time(result, tmp_path / "curves.png")
+    assert (tmp_path / "curves.png").stat().st_size > 10_000
+
+
+def test_replica_count_uses_every_sample():
+    assert [E.replica_count(n) for n in (1, 2, 3, 4, 5, 9, 16)] == [1, 2, 3, 2, 5, 3, 2]
