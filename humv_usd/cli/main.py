@@ -227,13 +227,18 @@ def render(
             f"({err['radiance_stderr_mean']:.4g} / {err['radiance_stderr_max']:.4g} "
             "W m-2 sr-1)"
         )
+    rendered_now = len(manifest["rendered_this_call"])  # the timings are this call's
     for sensor in manifest["sensors"]:
         away = sensor.get("monte_carlo_error_k") or {}
         if away.get("mean_k") is not None:
+            per_frame = (
+                f"; {sensor['timings_s']['render'] / rendered_now:.2f} s render per frame"
+                if rendered_now
+                else ""
+            )
             click.echo(
                 f"  {sensor['name']}: error away from edges mean {away['mean_k']:.4f} K, p99 "
-                f"{away['p99_max_k']:.4f} K; edge pixels {away['edge_mean_k']:.3f} K (footprint); "
-                f"{sensor['timings_s']['render'] / max(len(sensor['frames']), 1):.2f} s render per frame"
+                f"{away['p99_max_k']:.4f} K; edge pixels {away['edge_mean_k']:.3f} K (footprint){per_frame}"
             )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")

@@ -624,8 +624,7 @@ def _spp_mode(spp_auto: bool) -> str:
     if not spp_auto:
         return "fixed"
     return (
-        f"automatic: batches until mean error away from edges <= NETD/{AUTO_NETD_FRACTION:g} "
-        f"or {AUTO_MAX_SPP} spp (batch seed stride {AUTO_SEED_STRIDE})"
+        f"automatic (to NETD/{AUTO_NETD_FRACTION:g}, <= {AUTO_MAX_SPP} spp, seed stride {AUTO_SEED_STRIDE})"
     )
 
 
