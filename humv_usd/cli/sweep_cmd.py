@@ -156,7 +156,12 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
 @click.option(
     "--frames", default=8, show_default=True, type=click.IntRange(1, 100_000), help="Frames per run."
 )
-@click.option("--spp", default=16, show_default=True, type=click.IntRange(1, 1 << 20))
+@click.option(
+    "--spp",
+    default=None,
+    type=click.IntRange(1, 1 << 20),
+    help="Samples per pixel (default: the render's automatic quality, infrared to NETD/3).",
+)
 @click.option("--resolution", default="320x240", show_default=True, help="LWIR image size WxH.")
 @click.option(
     "--long",

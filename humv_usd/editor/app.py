@@ -529,7 +529,12 @@ class Page:
     def build_run(self) -> None:
         with ui.row().classes("items-center"):
             ui.button("Compose", on_click=self.compose).props("data-testid=run-compose")
-            self.spp = ui.number("spp", value=16, min=1, max=4096, precision=0).classes("w-24")
+            # empty: the render's automatic quality (infrared until the error is NETD/3)
+            self.spp = (
+                ui.number("spp", value=None, min=1, max=4096, precision=0, placeholder="auto")
+                .props("clearable")
+                .classes("w-24")
+            )
             ui.button("Compose + render", on_click=self.render).props("data-testid=run-render")
             ui.button("Cancel", on_click=self.cancel, icon="stop").props("color=negative data-testid=cancel")
             ui.label(f"output folder: {self.editor.out_dir}").classes("text-caption")
@@ -555,7 +560,7 @@ class Page:
     def render(self) -> None:
         if not self.ensure_saved():
             return
-        spp = str(int(self.spp.value or 16))
+        spp = ["--spp", str(int(self.spp.value))] if self.spp.value else []
         out = self.editor.out_dir
         scenario = self.doc.scenario()
         images = scenario.frame_count * len(scenario["sensor"])  # one EXR per sensor and frame
@@ -563,7 +568,7 @@ class Page:
             "render",
             [
                 humv_command("compose", str(self.doc.path), "-o", str(out)),
-                humv_command("render", str(out / "stage.usda"), "-o", str(out / "render"), "--spp", spp),
+                humv_command("render", str(out / "stage.usda"), "-o", str(out / "render"), *spp),
             ],
             watch=(1, out / "render", "*/[0-9][0-9][0-9][0-9].exr", images),
         )

@@ -27,6 +27,7 @@ from pxr import Gf, Tf, Usd, UsdGeom, UsdShade
 
 from humv_usd.errors import InputError
 from humv_usd.scenario.spec import ASSET_FORMATS, ASSET_UNITS
+from humv_usd.usd.layers import usd_error_text
 
 #: (metres per unit, up axis) a mesh format means when the scenario says "auto"
 MESH_FORMAT_DEFAULTS = {".gltf": (1.0, "Y"), ".glb": (1.0, "Y"), ".fbx": (1.0, "Z")}
@@ -149,7 +150,7 @@ def _read_usd(file: str) -> AssetFile:
     try:
         stage = Usd.Stage.Open(file, Usd.Stage.LoadAll)
     except Exception as exc:  # noqa: BLE001 (pxr raises Tf.ErrorException)
-        raise fail(file, f"does not open as USD ({' '.join(str(exc).split())[:200]})") from None
+        raise fail(file, f"does not open as USD ({usd_error_text(exc)[:200]})") from None
     if stage is None:
         raise fail(file, "does not open as USD")
     root = stage.GetDefaultPrim()
@@ -205,6 +206,8 @@ def _read_obj(file: str) -> list[SourceMesh]:
             continue
         try:
             if parts[0] == "v":
+                if len(parts) < 4:
+                    raise ValueError("a vertex needs x, y and z")
                 vertices.append([float(v) for v in parts[1:4]])
             elif parts[0] in ("o", "g") and len(parts) > 1:
                 name = " ".join(parts[1:]) if parts[0] == "o" or name == Path(file).stem else name
@@ -216,8 +219,8 @@ def _read_obj(file: str) -> list[SourceMesh]:
                 if len(face) < 3 or min(face) < 0 or max(face) >= len(vertices):
                     raise ValueError("a face needs 3 or more valid vertex indices")
                 groups.setdefault((name, material), []).append(face)
-        except ValueError as exc:
-            raise fail(file, f"line {n}: {exc}") from None
+        except ValueError as exc:  # the reason, cut: a corrupt line can be megabytes long
+            raise fail(file, f"line {n}: {' '.join(str(exc).split())[:160]}") from None
     points = np.asarray(vertices, dtype=float).reshape(-1, 3)
     meshes = []
     for (obj, mat), faces in groups.items():

@@ -45,7 +45,7 @@ from humv_usd.scene.assets import (
 )
 from humv_usd.scene.geometry import box, ground_grid
 from humv_usd.usd.labels import nearest_class
-from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, usd_error_text
 from humv_usd.usd.materials import has_stage_material
 from humv_usd.usd.mesh import bind_material, define_mesh, label, write_asset_source, write_class
 from humv_usd.usd.paths import GROUND, material_path, object_path
@@ -159,9 +159,7 @@ def _check_site_layer(file: str) -> None:
     try:
         layer = Sdf.Layer.FindOrOpen(file)
     except Exception as exc:  # noqa: BLE001 (pxr raises Tf.ErrorException)
-        raise InputError(
-            f"{file}: does not open as a USD layer ({' '.join(str(exc).split())[:200]})"
-        ) from None
+        raise InputError(f"{file}: does not open as a USD layer ({usd_error_text(exc)[:200]})") from None
     if layer is None:
         raise InputError(f"{file}: does not open as a USD layer")
     up = (

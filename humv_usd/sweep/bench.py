@@ -46,12 +46,13 @@ base = "{base}"
 "placement.0.heading_deg" = {headings}
 
 [render]
-spp = {spp}
-frames_per_task = 1
+{spp}frames_per_task = 1
 """
 
 
-def _sweep_file(folder: Path, base: Path, tag: str, resolution, frames: int, spp: int, variants: int) -> Path:
+def _sweep_file(
+    folder: Path, base: Path, tag: str, resolution, frames: int, spp: int | None, variants: int
+) -> Path:
     fps = 15.0
     headings = [round(90.0 + 360.0 * i / max(1, variants), 3) for i in range(variants)]
     text = SWEEP_TEXT.format(
@@ -61,7 +62,7 @@ def _sweep_file(folder: Path, base: Path, tag: str, resolution, frames: int, spp
         h=resolution[1],
         duration=(frames - 1) / fps,
         headings=headings,
-        spp=spp,
+        spp="" if spp is None else f"spp = {spp}\n",  # None: the render's automatic quality
     )
     path = folder / f"{tag}.toml"
     path.write_text(text)
@@ -96,7 +97,7 @@ def scheduler_cost(n: int = 200) -> float:
 def run_bench(
     scenario="examples/walk.toml",
     frames: int = 8,
-    spp: int = 16,
+    spp: int | None = None,
     resolution=(320, 240),
     variants: int = 2,
     long_frames: int = 0,

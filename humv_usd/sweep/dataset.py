@@ -323,7 +323,7 @@ def _write_card(dataset: Path, sweep, rows: list[dict], summary: dict, params: d
         "",
         f"Made by `humv-usd sweep` from `{sweep.path.name}` (base scenario `{sweep.base_path.name}`): "
         f"{summary['variants']} variants ({summary['variants_with_images']} with images), "
-        f"{summary['frames']} frames, {summary['images']} images; render {sweep.render['spp']} spp.",
+        f"{summary['frames']} frames, {summary['images']} images; render {sweep.render['spp'] or 'automatic'} spp.",
         "",
         "| sensor | images | annotations |",
         "|---|---|---|",

@@ -78,6 +78,12 @@ def compose_dependencies(keys: dict[str, dict[str, str]]) -> dict[str, list[str]
     return deps
 
 
+#: samples per pixel to cost a task at when the sweep leaves spp to the render's automatic quality:
+#: the fast infrared estimator at its automatic 2-4 spp costs about what the path tracer does at 16
+#: (humv-usd bench render, issue 13)
+AUTO_SPP_COST = 16
+
+
 def _sensor_samples(scenario: Scenario, sensors, spp: int) -> int:
     total = 0
     for s in scenario["sensor"]:
@@ -91,7 +97,7 @@ def _sensor_samples(scenario: Scenario, sensors, spp: int) -> int:
 def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dict:
     """Counts and an estimated wall time (see the module constants for the rates)."""
     tasks = render_tasks(sweep)
-    spp, sensors = sweep.render["spp"], sweep.render["sensors"]
+    spp, sensors = sweep.render["spp"] or AUTO_SPP_COST, sweep.render["sensors"]
     frames = sum(len(t.frames) for t in tasks)
     samples = images = 0
     by_variant = {v.id: v for v in sweep.variants}

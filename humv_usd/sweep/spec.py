@@ -24,7 +24,7 @@
     "human.0.build" = { choice = ["slim", "average", "muscular"] }
 
     [render]                            # render settings of every task
-    spp = 16
+    spp = 16                            # omit for the render's automatic quality (IR: to NETD/3)
     frames = "0:30"                     # FIRST:LAST, a list, or omit for every frame
     frames_per_task = 4
     seed = 0
@@ -64,7 +64,7 @@ from humv_usd.scenario.spec import SECTIONS, Key, Section
 
 SWEEP_KEYS = ("name", "base", "unset", "count", "seed")
 RENDER_KEYS = {
-    "spp": 16,
+    "spp": None,  # the render's automatic quality (infrared: batches until the error is NETD/3)
     "frames": None,
     "frames_per_task": 4,
     "seed": 0,
@@ -293,7 +293,8 @@ def _render_settings(table, problems: list[str]) -> dict:
             )
             continue
         out[name] = value
-    out["spp"] = _check_int("render.spp", out["spp"], 1, 1 << 20, problems)
+    if out["spp"] is not None:
+        out["spp"] = _check_int("render.spp", out["spp"], 1, 1 << 20, problems)
     out["frames_per_task"] = _check_int(
         "render.frames_per_task", out["frames_per_task"], 1, 100_000, problems
     )

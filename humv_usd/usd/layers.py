@@ -171,8 +171,13 @@ def finish(stage: Usd.Stage) -> Sdf.Layer:
 
 
 def usd_error_text(exc: Exception) -> str:
-    """The first message of a Tf.ErrorException ("Error in 'f' at line n in file x : 'msg'")."""
-    text = " ".join(str(exc).split())
+    """The first message of a Tf.ErrorException ("Error in 'f' at line n in file x : 'msg'").
+    A message that quotes bytes which are not UTF-8 (a corrupt file) cannot even be turned into
+    text by pxr: then the reason says so."""
+    try:
+        text = " ".join(str(exc).split())
+    except UnicodeDecodeError:
+        return "it holds bytes that are not UTF-8 text where USD expects text"
     found = re.findall(r" : '(.*?)'(?: Error in|\)?$)", text)
     first = found[0] if found else (text or type(exc).__name__)
     first = re.sub(r"pxrInternal_\w+?__pxrReserved__::", "", first).strip()
