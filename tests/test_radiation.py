@@ -62,6 +62,22 @@ def test_uniform_full_sphere_closed_form(method):
     assert_allclose(q[1], 0.9 * np.pi * 100.0, rtol=1e-5)
 
 
+@pytest.mark.parametrize("method", ["brute", "fast", "adaptive"])
+def test_degenerate_facets_stay_finite(method):
+    """A facet folded flat (zero area: trimesh gives it a zero normal) must not turn the ray
+    directions into NaN (it did in frame ~200 of a 301-frame jos3 walk); the others keep the
+    closed form of a uniform sky."""
+    sphere = trimesh.creation.icosphere(2)
+    v = sphere.vertices
+    flat = [[len(v), len(v) + 1, len(v) + 2]]  # three collinear points
+    line = np.array([[3.0, 0.0, 0.0], [3.5, 0.0, 0.0], [4.0, 0.0, 0.0]])
+    mesh = trimesh.Trimesh(np.vstack([v, line]), np.vstack([sphere.faces, flat]), process=False)
+    env = SR.radiance_map([0, 0, 0], UniformSky((10.0, 100.0)), None, 36)
+    q = Q.absorbed_radiation(mesh, env, [0.6, 0.9], method=method, rays=16)
+    assert np.all(np.isfinite(q))
+    assert_allclose(q[1][: len(sphere.faces)], 0.9 * np.pi * 100.0, rtol=1e-5)
+
+
 @pytest.mark.parametrize("method,rtol", [("brute", 2e-3), ("fast", 5e-3), ("adaptive", 5e-3)])
 def test_wall_fills_half_the_hemisphere(method, rtol):
     # horizontal facets at the foot of a huge vertical wall x = 0.01 facing -x: F_wall = 1/2

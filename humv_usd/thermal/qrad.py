@@ -151,6 +151,18 @@ def _diffuse_brute(env, centroids, normals, occ, offset):
     return out
 
 
+def _usable_normals(mesh) -> np.ndarray:
+    """The facets' unit normals; a degenerate facet (zero area, e.g. a garment triangle folded flat
+    in one frame of a long walk) has none (trimesh gives a zero vector), which would turn every
+    direction built on it into NaN. It gets +z instead: it absorbs a finite flux and, having no
+    area, weighs nothing in the area-weighted sums (MRT, segment means)."""
+    normals = np.array(mesh.face_normals, dtype=float)
+    bad = ~(np.abs(np.linalg.norm(normals, axis=1) - 1.0) < 1e-3)
+    if np.any(bad):
+        normals[bad] = (0.0, 0.0, 1.0)
+    return normals
+
+
 def _tangent_frames(normals):
     helper = np.where(np.abs(normals[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
     t = np.cross(helper, normals)
@@ -586,7 +598,7 @@ def absorbed_radiation(
     """
     if method not in ("brute", "fast", "adaptive"):
         raise ValueError(f"invalid method selection {method}")
-    normals = np.asarray(mesh.face_normals, dtype=float)
+    normals = _usable_normals(mesh)
     centroids = np.asarray(mesh.triangles_center, dtype=float)
     occ = _Occluders(mesh, environment.n_bands, mesh_radiance, scene, backend)
     if offset is None:
