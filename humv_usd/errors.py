@@ -18,9 +18,21 @@ class InputError(ValueError):
         super().__init__("\n".join(self.problems) if problems else message)
 
 
+#: longest value or name shown in an error line; longer ones are cut and their length given
+SHOWN_MAX = 120
+
+
+def shown(text, limit: int = SHOWN_MAX) -> str:
+    """A value or name as an error line shows it: printable (``repr`` when it holds control
+    characters such as a newline, so the error stays one line) and at most ``limit``
+    characters plus its length (a 100,000-character key is not echoed)."""
+    text = text if isinstance(text, str) and text.isprintable() else repr(text)
+    return text if len(text) <= limit else f"{text[: limit - 40]}... ({len(text)} characters)"
+
+
 def bad_value(key: str, value, allowed: str) -> str:
-    """Format one problem line: ``key = value: allowed``."""
-    return f"{key} = {value!r}: {allowed}"
+    """Format one problem line: ``key = value: allowed`` (long keys and values shortened)."""
+    return f"{shown(key)} = {shown(repr(value))}: {allowed}"
 
 
 def summary(values, limit: int = 6) -> str:

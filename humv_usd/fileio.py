@@ -127,3 +127,191 @@ def check_output_dir(out_dir, what: str = "output folder") -> Path:
     except OSError as exc:
         fail(f"cannot write in {existing} ({exc.strerror or exc})")
     return path
+
+
+def check_output_file(path, what: str = "output file") -> Path:
+    """Check before any work that a file can be written at ``path``: not empty, not a folder,
+    a name of at most NAME_MAX bytes, and a parent folder that is (or can be made) writable
+    (:func:`check_output_dir`). Returns the path; raises InputError (one line) otherwise."""
+    text = os.fspath(path)
+    if not text.strip():
+        raise InputError(bad_value(what, text, "expected a file path (empty means nowhere)"))
+    target = Path(text)
+    if len(os.fsencode(target.name)) > NAME_MAX:
+        raise InputError(
+            f"{what} {text[:60]!r}...: a file name of {len(os.fsencode(target.name))} bytes; at most {NAME_MAX}"
+        )
+    if target.is_dir() or text.endswith(os.sep):
+        raise InputError(f"{what} {text!r}: is a folder, expected a file path")
+    check_output_dir(target.parent if str(target.parent) else ".", f"{what}'s folder")
+    return target
+
+
+# ------------------------------------------------------------------ several files as one write
+#: the journal of a write of several files (:func:`commit_files`), in the folder they live in
+PENDING_NAME = ".humv-pending.json"
+
+
+def _temp_beside(path: Path) -> Path:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    return Path(tmp)
+
+
+def commit_files(folder, texts: dict, remove=()) -> list[Path]:
+    """Write several text files under ``folder`` (and remove ``remove``) as one change.
+
+    A kill at any moment leaves the old files or, once the journal ``folder/PENDING_NAME`` is
+    written, the new ones: every new text goes to a temp file beside its target first; then
+    the journal (written atomically: the commit point) lists the renames and removals; then they
+    are done and the journal removed. :func:`finish_pending` completes a change that a kill
+    interrupted after the commit point (and removes the temp files of one interrupted before
+    it). Files whose text is already on disk are not rewritten. Returns the paths written.
+    """
+    folder = Path(folder)
+    replace, written = [], []
+    try:
+        for path, text in texts.items():
+            path = Path(path)
+            try:
+                if path.read_text(encoding="utf-8") == text:
+                    continue
+            except (FileNotFoundError, UnicodeDecodeError, IsADirectoryError):
+                pass
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = _temp_beside(path)
+            replace.append((tmp, path))
+            with open(tmp, "w", encoding="utf-8") as fh:
+                fh.write(text)
+            os.chmod(tmp, 0o666 & ~_umask())
+            written.append(path)
+        removals = [Path(p) for p in remove if Path(p).exists()]
+        if not replace and not removals:
+            return []
+        journal = {
+            "replace": [[os.path.relpath(t, folder), os.path.relpath(p, folder)] for t, p in replace],
+            "remove": [os.path.relpath(p, folder) for p in removals],
+        }
+        write_json(folder / PENDING_NAME, journal)  # the commit point
+    except BaseException:
+        for tmp, _ in replace:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(tmp)
+        raise
+    finish_pending(folder)
+    return written
+
+
+def finish_pending(folder) -> bool:
+    """Complete the change :func:`commit_files` journaled in ``folder`` (renames whose temp
+    file is still there, removals), then drop the journal. Returns whether there was one.
+    Call it while holding the folder's lock (:func:`folder_lock`)."""
+    folder = Path(folder)
+    journal_path = folder / PENDING_NAME
+    try:
+        journal = json.loads(journal_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return False
+    except (OSError, ValueError):  # written atomically, so never partial; unreadable: drop it
+        journal = {}
+    for tmp, final in journal.get("replace", []):
+        with contextlib.suppress(FileNotFoundError):  # already moved before the kill
+            os.replace(folder / tmp, folder / final)
+    for name in journal.get("remove", []):
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(folder / name)
+    os.remove(journal_path)
+    return True
+
+
+def remove_stale_temps(folder, patterns=(".*.tmp.*",)) -> list[Path]:
+    """Remove temp files a killed writer left in ``folder`` (:func:`atomic_path` names them
+    ``.<stem>.<random>.tmp<ext>``). Call it while holding the folder's lock."""
+    removed = []
+    folder = Path(folder)
+    if not folder.is_dir():
+        return removed
+    for pattern in patterns:
+        for p in folder.glob(pattern):
+            if p.is_file() and ".tmp" in p.name and p.name != PENDING_NAME:
+                with contextlib.suppress(FileNotFoundError):
+                    p.unlink()
+                    removed.append(p)
+    return removed
+
+
+# ------------------------------------------------------------------ one writer per folder
+#: the lock file of a folder being written (holds the writer's pid and command)
+LOCK_NAME = ".humv.lock"
+
+
+def _lock_holder(path: Path) -> str:
+    try:
+        info = json.loads(path.read_text(encoding="utf-8"))
+        return f"{info.get('command', 'humv-usd')} (pid {info.get('pid')}, started {info.get('started')})"
+    except (OSError, ValueError):
+        return "another process (pid unknown)"
+
+
+@contextlib.contextmanager
+def folder_lock(folder, command: str, wait: bool = False, poll_s: float = 0.2):
+    """Hold the write lock of ``folder`` (created if missing) while the block runs.
+
+    The lock is an ``fcntl.flock`` on ``folder/LOCK_NAME``, so the kernel drops it when its
+    holder dies (kill -9 included): a lock file left behind by a dead process is stale and
+    taken over (its pid is in the file, not in the lock). When another live process holds it,
+    raise InputError naming that process (pid, command, start), or with ``wait`` poll until it
+    is free. The lock file is removed on release, and a folder the lock created is removed
+    again when it is still empty.
+    """
+    import datetime as _dt
+    import fcntl
+    import time
+
+    folder = Path(folder)
+    created = not folder.exists()
+    path = folder / LOCK_NAME
+    while True:
+        folder.mkdir(parents=True, exist_ok=True)  # again: a writer we waited for may remove it
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+        except FileNotFoundError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            if not wait:
+                if created:
+                    with contextlib.suppress(OSError):
+                        folder.rmdir()
+                raise InputError(
+                    f"{folder}: being written by {_lock_holder(path)}; wait for it to finish, "
+                    "or pass --wait to wait here"
+                ) from None
+            time.sleep(poll_s)
+            continue
+        try:  # the file may have been removed (and made anew) by the holder we waited for
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        info = {
+            "pid": os.getpid(),
+            "command": command,
+            "started": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        }
+        os.ftruncate(fd, 0)
+        os.write(fd, (json.dumps(info) + "\n").encode())
+        yield folder
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(path)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+        if created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only when empty

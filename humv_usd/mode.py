@@ -147,3 +147,19 @@ def variant_reason() -> str:
 def is_vectorized() -> bool:
     """True for a JIT (LLVM) variant: whole arrays of rays per call."""
     return not variant().startswith("scalar")
+
+
+def release_kernel_cache() -> None:
+    """Drop Dr.Jit's cache of compiled kernels (they are compiled again when next needed).
+
+    The render traces new kernels as frames change, and Dr.Jit keeps every compiled kernel in
+    memory: over a long render the cache grows by about 0.7 MB per frame until the kernels
+    repeat (measured with ``humv-usd bench memory``: +50 MB between frames 30 and 100 of a walk,
+    flat with the cache flushed). The render calls this every few frames."""
+    if "mi" not in _state:
+        return  # Mitsuba not loaded: nothing to drop
+    import drjit
+
+    flush = getattr(drjit, "flush_kernel_cache", None)
+    if flush is not None:
+        flush()

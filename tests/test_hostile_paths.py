@@ -293,3 +293,84 @@ def test_render_refuses_a_truncated_avatar_layer_in_a_new_process(stage_copy, tm
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"humv-usd: error: {avatar}: sublayer of"), r.stderr
     assert r.stdout == "" and not out.exists()
+
+
+# ------------------------------------------------------------------ the other commands' output paths
+def _bad_files(tmp_path: Path) -> dict[str, tuple[str, str]]:
+    """-o/--png value -> (a word the error line must hold, what the case is)."""
+    (tmp_path / "afile").write_text("not a folder\n")
+    (tmp_path / "adir").mkdir()
+    return {
+        "": ("expected a file path", "empty"),
+        str(tmp_path / "adir"): ("is a folder", "an existing folder"),
+        str(tmp_path / "afile" / "x.json"): ("is a file", "a file as parent"),
+        "/proc/x/y.json": ("cannot write in /proc", "/proc"),
+        str(tmp_path / ("a" * 300 + ".json")): ("at most 255", "300-character name"),
+    }
+
+
+@pytest.mark.parametrize("command", ["avatar", "coco-merge", "bench thermal"])
+def test_bad_output_files_fail_fast(command, tmp_path):
+    (tmp_path / "in.json").write_text('{"images": [], "annotations": [], "categories": []}\n')
+    work = tmp_path / "cwd"
+    work.mkdir()
+    for value, (word, case) in _bad_files(tmp_path).items():
+        before = files_under(tmp_path)
+        args = {
+            "avatar": ["avatar", "-o", value],
+            "coco-merge": ["coco-merge", tmp_path / "in.json", "-o", value],
+            "bench thermal": ["bench", "thermal", "--quick", "--png", value],
+        }[command]
+        result = run(args, cwd=work)
+        assert_one_error(result, word)
+        assert files_under(tmp_path) == before, case
+
+
+def test_regions_refuses_a_read_only_render_folder(tmp_path, monkeypatch):
+    ro = tmp_path / "render"
+    ro.mkdir()
+    real = tempfile.mkdtemp
+
+    def refuse(*args, dir=None, **kwargs):  # the kernel's answer in a read-only folder (also as root)
+        if dir is not None and Path(dir) == ro:
+            raise PermissionError(13, "Permission denied", str(dir))
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkdtemp", refuse)
+    assert_one_error(run(["regions", ro]), "render folder", "Permission denied")
+
+
+# ------------------------------------------------------------------ runs that cannot fit this machine
+def test_compose_that_cannot_fit_is_refused_with_its_estimate(tmp_path):
+    scenario = tmp_path / "day.toml"
+    text = HUMVVEX.read_text().replace("fps = 30.0", "fps = 1000.0")
+    scenario.write_text(text.replace("duration_s = 0.0 ", "duration_s = 86400.0 "))
+    result = run(["compose", scenario, "-o", tmp_path / "o"])
+    line = assert_one_error(result, "86,400,001 frame(s)", "of memory", "general.duration_s", "--yes")
+    assert "TB" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_render_that_cannot_fit_is_refused_before_writing(tmp_path):
+    from test_render import add_camera, add_material, add_mesh, new_stage, rect_z
+
+    from humv_usd.pipeline.budget import render_budget, require_fits
+    from humv_usd.pipeline.render import render_stage
+
+    stage = new_stage(tmp_path / "stage.usda")
+    add_mesh(
+        stage,
+        "/World/Scene/ground",
+        *rect_z(-5, 5, -5, 5),
+        material=add_material(stage, "m", 0.9),
+        temperature_k=300.0,
+        instance_id=1,
+    )
+    add_camera(stage, "huge", eye=(0.0, -5.0, 2.0), target=(0.0, 0.0, 0.0), resolution=(16384, 16384))
+    stage.Save()
+    with pytest.raises(InputError) as err:
+        render_stage(tmp_path / "stage.usda", tmp_path / "r", spp=1)
+    assert "268,435,456 pixels" in str(err.value) and "sensor.resolution" in str(err.value)
+    assert "--yes" in str(err.value) and len(err.value.problems) == 1
+    assert not (tmp_path / "r").exists()
+    require_fits(render_budget([(16384, 16384)], 1, 1), tmp_path, yes=True)  # --yes goes ahead

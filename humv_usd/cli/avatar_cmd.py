@@ -57,7 +57,7 @@ def _choices(name: str) -> str:
     "--out",
     "out_path",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=str,  # checked by check_output_file: one error line, not click's usage block
     help="Avatar layer file to write (.usda).",
 )
 @click.option(
@@ -135,7 +135,9 @@ def avatar(
     import time
 
     from humv_usd.avatar.api import author_avatar
+    from humv_usd.fileio import check_output_file
 
+    out_path = check_output_file(out_path, "-o/--out")  # fail fast, before building anything
     start = time.perf_counter()
     try:
         path = author_avatar(

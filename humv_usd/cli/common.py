@@ -32,6 +32,10 @@ def reports_errors(fn):
             _fail(exc.problems, 2)
         except MissingAssetError as exc:
             _fail([str(exc)], 1)
+        except KeyboardInterrupt:  # Ctrl-C: finished files are kept; compose and render resume
+            _fail(
+                ["interrupted (Ctrl-C); what was finished is kept: run the same command again to resume"], 130
+            )
 
     return wrapper
 

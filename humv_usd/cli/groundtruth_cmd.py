@@ -39,8 +39,11 @@ from humv_usd.errors import InputError
 @reports_errors
 def regions(render_dir: Path, real, masks, quantity, sensor, frame):
     """Per-body-region statistics (the seed's Table 2) of a render: writes RENDER_DIR/regions.json."""
+    from humv_usd.fileio import check_output_dir
     from humv_usd.groundtruth import regions as R
 
+    if render_dir.is_dir():  # regions.json goes into it: fail fast when it is read-only
+        check_output_dir(render_dir, "render folder")
     if (real is None) != (masks is None):
         raise InputError("--real and --masks go together (a real image and its region-id mask PNG)")
     records = R.render_regions(render_dir, quantity)
@@ -71,14 +74,16 @@ def regions(render_dir: Path, real, masks, quantity, sensor, frame):
     "--out",
     "out",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=str,  # checked by check_output_file: one error line, not click's usage block
     help="The merged dataset JSON.",
 )
 @reports_errors
 def coco_merge(inputs, out: Path):
     """Merge per-render COCO files (coco.json, or render folders holding one) into one dataset."""
+    from humv_usd.fileio import check_output_file
     from humv_usd.groundtruth.coco import merge
 
+    out = check_output_file(out, "-o/--out")  # fail fast, before reading the inputs
     files = [p / "coco.json" if p.is_dir() else p for p in inputs]
     doc = merge(files, out)
     click.echo(f"{out}  {len(doc['images'])} image(s), {len(doc['annotations'])} annotation(s)")

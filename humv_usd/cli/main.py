@@ -65,10 +65,21 @@ def main(verbose: int = 0):
     help="Overwrite layers edited by hand (default: stop and say which; put edits in a user layer, "
     "a sublayer you add to OUT/stage.usda, which compose keeps).",
 )
+@click.option(
+    "--wait",
+    is_flag=True,
+    help="If another humv-usd process is writing OUT, wait for it (default: stop with one line naming it).",
+)
+@click.option(
+    "--yes",
+    is_flag=True,
+    help="Go ahead even when the estimated memory or disk exceeds this machine's (default: stop "
+    "with the estimate and the key to change).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress display and no per-layer lines.")
 @click.option("-v", "--verbose", count=True, help="Log each step on stderr (-v info, -vv debug).")
 @reports_errors
-def compose(scenario: Path, out_dir: str, force: bool, quiet: bool, verbose: int):
+def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, quiet: bool, verbose: int):
     """Compose SCENARIO (TOML) into OUT/stage.usda with one layer per part; rebuilds only the
     layers whose inputs changed (OUT/compose.json says which and why)."""
     from humv_usd.fileio import check_output_dir
@@ -78,7 +89,9 @@ def compose(scenario: Path, out_dir: str, force: bool, quiet: bool, verbose: int
     set_verbosity(verbose)
     out_dir = check_output_dir(out_dir)  # fail fast, before reading anything
     with progress_display("compose", quiet) as progress:
-        report = run_compose(load_scenario(scenario), out_dir, force=force, progress=progress)
+        report = run_compose(
+            load_scenario(scenario), out_dir, force=force, wait=wait, yes=yes, progress=progress
+        )
     for name, wrote, seconds in [] if quiet else report.layers:
         state = "written" if wrote else "unchanged"
         why = report.states[name].why if name in report.states else ""
@@ -137,6 +150,23 @@ def compose(scenario: Path, out_dir: str, force: bool, quiet: bool, verbose: int
     type=int,
     help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 16; see `humv-usd bench render`).",
 )
+@click.option(
+    "--wait",
+    is_flag=True,
+    help="If another humv-usd process is writing OUT, wait for it (default: stop with one line naming it).",
+)
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Render the frames again even when done, and re-render images of OUT made with other "
+    "settings (default: render only what is missing; refuse other settings).",
+)
+@click.option(
+    "--yes",
+    is_flag=True,
+    help="Go ahead even when the estimated memory or disk exceeds this machine's (default: stop "
+    "with the estimate and the key to change).",
+)
 @reports_errors
 def render(
     stage: Path,
@@ -150,6 +180,9 @@ def render(
     sensors,
     annotators,
     subbands,
+    wait: bool,
+    force: bool,
+    yes: bool,
 ):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
     from humv_usd.fileio import check_output_dir
@@ -169,13 +202,19 @@ def render(
             subbands=subbands,
             estimator=estimator,
             progress=progress,
+            wait=wait,
+            force=force,
+            yes=yes,
         )
     settings = manifest["settings"]
     if settings["estimator"] != estimator:
         click.echo(f"  estimator: {settings['estimator']} ({settings['estimator_note']})", err=True)
     err = manifest["monte_carlo_error"]
     rendered = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))
-    click.echo(f"{out_dir}/manifest.json  {rendered} image(s), render {manifest['timings_s']['total']:.2f} s")
+    click.echo(
+        f"{out_dir}/manifest.json  {rendered} image(s) ({len(manifest['rendered_this_call'])} frame(s) "
+        f"rendered now), {manifest['timings_s']['total']:.2f} s"
+    )
     if manifest["sensors"] and err["temperature_stderr_mean_k"] is None:
         click.echo(
             f"  Monte Carlo error: not estimable at spp {manifest['settings']['spp']} "
@@ -188,13 +227,18 @@ def render(
             f"({err['radiance_stderr_mean']:.4g} / {err['radiance_stderr_max']:.4g} "
             "W m-2 sr-1)"
         )
+    rendered_now = len(manifest["rendered_this_call"])  # the timings are this call's
     for sensor in manifest["sensors"]:
         away = sensor.get("monte_carlo_error_k") or {}
         if away.get("mean_k") is not None:
+            per_frame = (
+                f"; {sensor['timings_s']['render'] / rendered_now:.2f} s render per frame"
+                if rendered_now
+                else ""
+            )
             click.echo(
                 f"  {sensor['name']}: error away from edges mean {away['mean_k']:.4f} K, p99 "
-                f"{away['p99_max_k']:.4f} K; edge pixels {away['edge_mean_k']:.3f} K (footprint); "
-                f"{sensor['timings_s']['render'] / max(len(sensor['frames']), 1):.2f} s render per frame"
+                f"{away['p99_max_k']:.4f} K; edge pixels {away['edge_mean_k']:.3f} K (footprint){per_frame}"
             )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
@@ -418,7 +462,7 @@ def bench_avatar(repeat: int):
     "png",
     default="thermal_bench.png",
     show_default=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=str,  # checked by check_output_file: one error line, not click's usage block
     help="Error-vs-run-time plot.",
 )
 @click.option("--quick", is_flag=True, help="Skip the physiology time-step sweep (slow JOS-3).")
@@ -442,7 +486,7 @@ def bench_thermal(
     import numpy as np
 
     from humv_usd.bench.thermal import bench_qrad
-    from humv_usd.fileio import atomic_path
+    from humv_usd.fileio import atomic_path, check_output_file
     from humv_usd.physics.garment import bench_time_steps as garment_steps
     from humv_usd.physics.garment import extreme_grid_counts
     from humv_usd.thermal.physiology import bench_time_steps as skin_steps
@@ -454,6 +498,7 @@ def bench_thermal(
         except ValueError:
             raise InputError(f"--{name} = {text!r}: expected comma-separated integers") from None
 
+    png = check_output_file(png, "--png")  # fail fast, before the (long) bench
     case, what = None, "capsule avatar"
     if scenario is not None:
         from humv_usd.bench.thermal import avatar_case
@@ -582,6 +627,9 @@ def _register_tools():
     from humv_usd.cli.sweep_cmd import register as register_sweep  # sweep, bench sweep
 
     register_sweep(main, bench)
+    from humv_usd.cli.memory_cmd import bench_memory
+
+    bench.add_command(bench_memory)
 
 
 _register_tools()

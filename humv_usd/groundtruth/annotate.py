@@ -97,6 +97,7 @@ class GroundTruth:
         self.images: list[dict] = []
         self._region_records: list[dict] = []  # per image, from image_written (no re-read)
         self._regions_done: set[str] = set()  # EXRs whose region records are in memory
+        self._out_dir: str | None = None  # the render folder (annotate's out_dir)
 
     def _tick(self, name, t0):
         t = time.perf_counter()
@@ -125,6 +126,7 @@ class GroundTruth:
         ``emissivity_of(part)`` the band emissivity of a part's material for this sensor;
         ``rel`` the frame's output path without extension, relative to ``out_dir``.
         """
+        self._out_dir = out_dir
         t = time.perf_counter()
         hits = scene.hits(sensor_id)
         t = self._tick("ray_cast", t)
@@ -291,24 +293,61 @@ class GroundTruth:
             objects.append(obj)
         return objects
 
+    def take_image(self, rel: str) -> dict:
+        """The ground truth of the image ``rel`` (as given to :meth:`annotate`), taken out of
+        this object so that memory stays flat over frames: ``image`` (sensor, frame, exr),
+        ``coco_image`` and ``coco_annotations`` (ids local to the image: image 1, annotations
+        1..n), ``regions`` (its region records). The render keeps it in the frame's record file
+        and gives the records back to :meth:`finish`."""
+        exr = rel + ".exr"
+        image = next(i for i in self.images if i["exr"] == exr)
+        self.images.remove(image)
+        out: dict = {"image": image, "coco_image": None, "coco_annotations": [], "regions": None}
+        if self.coco is not None:
+            coco_image = next(i for i in self.coco.images if i.get("humv_exr") == exr)
+            anns = [a for a in self.coco.annotations if a["image_id"] == coco_image["id"]]
+            self.coco.images = [i for i in self.coco.images if i is not coco_image]
+            self.coco.annotations = [a for a in self.coco.annotations if a["image_id"] != coco_image["id"]]
+            out["coco_image"] = {**coco_image, "id": 1}
+            out["coco_annotations"] = [{**a, "id": k + 1, "image_id": 1} for k, a in enumerate(anns)]
+        if "regions" in self.want:
+            if exr not in self._regions_done:  # not reported through image_written: read it back
+                self._region_records += R.images_regions(self._out_dir or ".", [image])
+            out["regions"] = [r for r in self._region_records if r["exr"] == exr]
+            self._region_records = [r for r in self._region_records if r["exr"] != exr]
+            self._regions_done.discard(exr)
+        return out
+
     # --- end of render ----------------------------------------------------------------------
-    def finish(self, out_dir: str, render_seconds: float | None = None) -> dict:
-        """Write coco.json / regions.json; the manifest's ``ground_truth`` section."""
+    def finish(
+        self, out_dir: str, render_seconds: float | None = None, taken: list[dict] | None = None
+    ) -> dict:
+        """Write coco.json / regions.json; the manifest's ``ground_truth`` section.
+
+        ``taken``: the images' ground truth as :meth:`take_image` gave it (e.g. read back from
+        the render's frame records, also of earlier calls), in the order of the files; default
+        what this object still holds."""
         files = {}
+        if taken is None:
+            taken = [self.take_image(os.path.splitext(i["exr"])[0]) for i in list(self.images)]
         if self.coco is not None:
             t = time.perf_counter()
-            self.coco.info = {"stage": self.stage.GetRootLayer().realPath}
-            self.coco.write(os.path.join(out_dir, COCO_NAME))
+            coco = CocoBuilder({"stage": self.stage.GetRootLayer().realPath})
+            for item in taken:
+                if item.get("coco_image") is None:
+                    continue
+                image_id = len(coco.images) + 1
+                coco.images.append({**item["coco_image"], "id": image_id})
+                coco.annotations += [
+                    {**a, "id": len(coco.annotations) + k + 1, "image_id": image_id}
+                    for k, a in enumerate(item["coco_annotations"])
+                ]
+            coco.write(os.path.join(out_dir, COCO_NAME))
             files["coco"] = COCO_NAME
             self._tick("coco", t)
-        if "regions" in self.want and self.images:
+        if "regions" in self.want and taken:
             t = time.perf_counter()
-            # images the render reported through image_written are done; others are read back
-            unread = [i for i in self.images if i["exr"] not in self._regions_done]
-            records = self._region_records + (R.images_regions(out_dir, unread) if unread else [])
-            order = {i["exr"]: k for k, i in enumerate(self.images)}
-            records.sort(key=lambda r: order[r["exr"]])
-            R.write_regions(out_dir, records)
+            R.write_regions(out_dir, [r for item in taken for r in (item.get("regions") or [])])
             files["regions"] = R.REGIONS_NAME
             self._tick("regions", t)
         total = sum(self.timings.values())

@@ -34,6 +34,7 @@ line number and what was expected.
 
 from __future__ import annotations
 
+import logging
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,6 +48,8 @@ from humv_usd.human import contact as C
 from humv_usd.human.gait import align_matrix, fk_matrices, matrix_to_quat, quat_slerp
 from humv_usd.human.motion import Motion, _continuous, metabolic_rate
 from humv_usd.human.skeleton import Skeleton, quat_to_matrix
+
+log = logging.getLogger(__name__)
 
 POS_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROT_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
@@ -477,6 +480,17 @@ def build_retarget(
         raise InputError(
             f"{bvh.path}: no BVH joint maps onto the rig (BVH joints "
             f"{bvh.names[:6]}...; pass name_map={{bvh name: rig name}})"
+        )
+    used = set(source.values())
+    unmapped = [j.name for b, j in enumerate(bvh.joints) if b not in used]
+    if unmapped:
+        shown = ", ".join(unmapped[:8]) + (f" and {len(unmapped) - 8} more" if len(unmapped) > 8 else "")
+        log.warning(
+            "%s: %d BVH joint(s) not mapped onto the rig, their motion is dropped: %s "
+            "(pass name_map={bvh name: rig name})",
+            bvh.path,
+            len(unmapped),
+            shown,
         )
     rest_b, ends_b = bvh.rest_positions()
     rest_b = rest_b @ A.T

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import re
 import time
 from dataclasses import dataclass, field
@@ -39,12 +40,21 @@ from pxr import Sdf, Usd
 
 import humv_usd
 from humv_usd.errors import InputError
-from humv_usd.fileio import check_output_dir, write_text_atomic
+from humv_usd.fileio import (
+    check_output_dir,
+    commit_files,
+    finish_pending,
+    folder_lock,
+    remove_stale_temps,
+)
 from humv_usd.groundtruth import annotators
+from humv_usd.pipeline.budget import compose_budget, require_fits
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.scenario.warnings import suspicious
 from humv_usd.usd.layers import (
+    LAYER_KEYS,
     layer_text,
     open_anonymous,
     relative_asset_paths,
@@ -52,6 +62,8 @@ from humv_usd.usd.layers import (
     set_layer_metadata,
     usd_error_text,
 )
+
+log = logging.getLogger(__name__)
 
 LAYER_DIR = "layers"
 ROOT_NAME = "stage.usda"
@@ -193,8 +205,15 @@ def compose_in_memory(layers: list[Sdf.Layer], fps: float) -> Usd.Stage:
     return Usd.Stage.Open(root)
 
 
-def root_layer(scenario: Scenario, names: list[str], user: list[str] = ()) -> Sdf.Layer:
-    """The root layer: ``user`` sublayers (kept as given), then ``names`` (strongest first)."""
+def root_layer(
+    scenario: Scenario, names: list[str], user: list[str] = (), keys: dict[str, str] | None = None
+) -> Sdf.Layer:
+    """The root layer: ``user`` sublayers (kept as given), then ``names`` (strongest first).
+
+    ``keys`` (layer name -> the ``humv:inputsKey`` compose gave it) go into the root's
+    customLayerData as ``humv:layerKeys`` by file path relative to the root: check and render verify that every
+    layer file holds the key of this compose, so a set mixed by an interrupted write or a copy
+    is refused instead of rendered."""
     g = scenario["general"]
     root = Sdf.Layer.CreateAnonymous(".usda")
     set_layer_metadata(
@@ -210,6 +229,10 @@ def root_layer(scenario: Scenario, names: list[str], user: list[str] = ()) -> Sd
         "humv:version": humv_usd.__version__,
         **annotators.stage_metadata(scenario),  # [annotations] -> what the render computes
     }
+    if keys:
+        data = dict(root.customLayerData)
+        data[LAYER_KEYS] = {f"{LAYER_DIR}/{n}.usda": keys[n] for n in names if n in keys}
+        root.customLayerData = data
     return root
 
 
@@ -302,18 +325,18 @@ def _decide(node: Node, state: LayerState, path: Path, prev: dict | None, force:
     return None
 
 
-def _user_layers(out: Path, prev: dict, root_sha: str, force: bool):
-    """Sublayers of OUT/stage.usda compose did not write, the hashes of their files, whether the
-    root was edited otherwise, and an error line if compose would rewrite such an edit."""
+def _user_layers(out: Path):
+    """Sublayers of OUT/stage.usda compose did not write, the hashes of their files, the hash of
+    the root without them (None when there is no readable root) and error lines."""
     root_path = out / ROOT_NAME
     if not root_path.is_file():
-        return [], {}, False, []
+        return [], {}, None, []
     try:
         root = Sdf.Layer.OpenAsAnonymous(str(root_path))
     except Exception:  # noqa: BLE001 (USD raises Tf.ErrorException; unreadable roots are rewritten)
         root = None
     if root is None:
-        return [], {}, False, []
+        return [], {}, None, []
     user = [s for s in root.subLayerPaths if not _owned(s)]
     hashes, errors = {}, []
     for sub in user:
@@ -329,24 +352,53 @@ def _user_layers(out: Path, prev: dict, root_sha: str, force: bool):
             continue
         hashes[sub] = hashlib.sha256(file.read_bytes()).hexdigest()[:16]
     root.subLayerPaths = [s for s in root.subLayerPaths if _owned(s)]
+    return user, hashes, _sha(layer_text(root)), errors
+
+
+def _root_edit(out: Path, prev: dict, disk_sha: str | None, root_sha: str, force: bool):
+    """Whether the root was edited by hand (other than adding sublayers) and an error line if
+    compose would rewrite such an edit."""
     recorded = prev.get("stage", {}).get("sha256")
-    edited = bool(recorded) and _sha(layer_text(root)) != recorded and not force
+    edited = bool(recorded) and disk_sha is not None and disk_sha != recorded and not force
     if edited and root_sha != recorded:
-        errors.append(
-            f"{root_path}: edited by hand (other than adding sublayers) since compose wrote it, and "
-            "compose would rewrite it; re-run with --force to overwrite the edit, or put the edit in a "
-            "user layer (a sublayer you add to the root)"
-        )
-    return user, hashes, edited, errors
+        return edited, [
+            f"{out / ROOT_NAME}: edited by hand (other than adding sublayers) since compose wrote it, "
+            "and compose would rewrite it; re-run with --force to overwrite the edit, or put the edit "
+            "in a user layer (a sublayer you add to the root)"
+        ]
+    return edited, []
 
 
-def compose(scenario: Scenario, out_dir: str | Path, force: bool = False, progress=None) -> ComposeReport:
+def compose(
+    scenario: Scenario,
+    out_dir: str | Path,
+    force: bool = False,
+    wait: bool = False,
+    yes: bool = False,
+    progress=None,
+) -> ComposeReport:
     """Write OUT/layers/*.usda and OUT/stage.usda for ``scenario``; see the module doc.
 
-    ``force``: overwrite layers (and the root) edited by hand instead of stopping.
+    ``force``: overwrite layers (and the root) edited by hand instead of stopping. The folder is
+    locked while compose runs (:func:`humv_usd.fileio.folder_lock`): another compose into it
+    raises InputError naming that process, or with ``wait`` waits for it. All files are written
+    as one change (:func:`humv_usd.fileio.commit_files`): a kill leaves the old set or the new
+    one; a change a kill interrupted is finished first. A scenario whose estimated memory or
+    disk (:mod:`humv_usd.pipeline.budget`) exceeds this machine's is refused unless ``yes``.
     ``progress(done, total, text)``: called before each layer build and after the last."""
-    t0 = time.perf_counter()
     out = check_output_dir(out_dir)
+    require_fits(compose_budget(scenario), out, yes)
+    for line in suspicious(scenario):  # valid but probably not meant: one line each
+        log.warning(line)
+    with folder_lock(out, "humv-usd compose", wait=wait):
+        finish_pending(out)  # a compose killed after its commit point: complete its write
+        for folder in (out, out / LAYER_DIR):  # one killed before it: drop its temp files
+            remove_stale_temps(folder)
+        return _compose_locked(scenario, out, force, progress)
+
+
+def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -> ComposeReport:
+    t0 = time.perf_counter()
     layer_dir = out / LAYER_DIR
     fps = scenario["general"]["fps"]
     needed, skipped = plan(scenario)
@@ -355,8 +407,7 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False, progre
     strength = strength_order(nodes)
     prev_report = _previous(out)
     prev_layers = {e["name"]: e for e in prev_report.get("layers", []) if "key" in e}
-    root_sha = _sha(layer_text(root_layer(scenario, strength)))
-    user, user_hashes, root_edited, errors = _user_layers(out, prev_report, root_sha, force)
+    user, user_hashes, disk_root_sha, errors = _user_layers(out)
 
     # 1. decide what to rebuild, before building (or writing) anything
     states: dict[str, LayerState] = {}
@@ -370,6 +421,10 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False, progre
         states[name] = LayerState(name, key, values, upstream)
         error = _decide(node, states[name], layer_dir / f"{name}.usda", prev_layers.get(name), force)
         errors += [error] if error else []
+    keys = {name: st.key for name, st in states.items()}
+    root_sha = _sha(layer_text(root_layer(scenario, strength, keys=keys)))
+    root_edited, root_errors = _root_edit(out, prev_report, disk_root_sha, root_sha, force)
+    errors += root_errors
     stale = [
         p
         for t in discover_tools().values()
@@ -417,29 +472,33 @@ def compose(scenario: Scenario, out_dir: str | Path, force: bool = False, progre
         state.seconds = time.perf_counter() - t
     if progress is not None:
         progress(len(to_build), len(to_build), "writing")
-    root_text = layer_text(root_layer(scenario, strength, user))
+    root_text = layer_text(root_layer(scenario, strength, user, keys=keys))
 
-    # 3. write: changed layers, then the root, then the report
+    # 3. write changed layers, the root and the report as one change (a kill leaves old or new)
     report = ComposeReport(stage_path=out / ROOT_NAME, skipped=skipped, states=states, user_layers=user)
+    files = {layer_dir / f"{name}.usda": texts[name] for name in order if states[name].rebuild}
+    # a root edited by hand whose content compose would not change stays as it is
+    if not root_edited:
+        files[out / ROOT_NAME] = root_text
+    unchanged = {
+        p: p.is_file() and p.read_text(encoding="utf-8", errors="replace") == x for p, x in files.items()
+    }
     for name in order:
         state = states[name]
-        if state.rebuild:
-            t = time.perf_counter()
-            state.written = write_text_atomic(layer_dir / f"{name}.usda", texts[name])
-            state.seconds += time.perf_counter() - t
+        state.written = state.rebuild and not unchanged[layer_dir / f"{name}.usda"]
         report.layers.append((name, state.written, state.seconds))
-    for p in stale:
-        p.unlink()
-        report.removed.append(p.name)
-    # a root edited by hand whose content compose would not change stays as it is
-    wrote_root = not root_edited and write_text_atomic(out / ROOT_NAME, root_text)
+    report.removed = [p.name for p in stale]
+    wrote_root = not root_edited and not unchanged[out / ROOT_NAME]
     report.layers.append(("stage", wrote_root, 0.0))
     report.seconds = time.perf_counter() - t0
-    _write_report(out, scenario, report, prev_report, layers, nodes, order, strength, root_sha)
+    files[out / REPORT_NAME] = _report_text(
+        scenario, report, prev_report, layers, nodes, order, strength, root_sha
+    )
+    commit_files(out, files, remove=stale)
     return report
 
 
-def _write_report(out, scenario, report, prev_report, layers, nodes, order, strength, root_sha) -> None:
+def _report_text(scenario, report, prev_report, layers, nodes, order, strength, root_sha) -> str:
     """compose.json: the graph, what was rebuilt and why, run times, the hashes of what compose
     wrote (to recognise hand edits) and what each tool ran."""
     prev_ran = prev_report.get("ran", {})
@@ -486,4 +545,4 @@ def _write_report(out, scenario, report, prev_report, layers, nodes, order, stre
         "ran": ran,
         "removed": report.removed,
     }
-    write_text_atomic(out / REPORT_NAME, json.dumps(doc, indent=2) + "\n")
+    return json.dumps(doc, indent=2) + "\n"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import logging
 import os
 import tempfile
@@ -18,12 +19,14 @@ from humv_usd import images as writers
 from humv_usd import mode
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value
-from humv_usd.fileio import check_output_dir, jsonable, write_json
+from humv_usd.fileio import check_output_dir, folder_lock, jsonable, remove_stale_temps, write_json
 from humv_usd.geometry.camera import CAMERA_FILE, Camera, camera_file
 from humv_usd.groundtruth import GroundTruth  # here: groundtruth imports render.writers
 from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
+from humv_usd.pipeline import records as R
+from humv_usd.pipeline.budget import render_budget, require_fits
 from humv_usd.render import eo as eo_render
 from humv_usd.render import estimator as E
 from humv_usd.render import radiometry
@@ -45,8 +48,12 @@ from humv_usd.usd.layers import open_stage
 from humv_usd.usd.materials import band_emissivity, subband_emissivity, subband_transmittance
 from humv_usd.usd.sensor import check_subbands, read_sensor_model
 
-MANIFEST_NAME = "manifest.json"
 log = logging.getLogger(__name__)
+
+MANIFEST_NAME = "manifest.json"
+#: frames between flushes of Dr.Jit's kernel cache (:func:`humv_usd.mode.release_kernel_cache`):
+#: keeps the memory of a long render flat at the cost of compiling kernels again
+KERNEL_CACHE_FRAMES = 10
 #: Infrared estimators: "fast" (:func:`humv_usd.render.estimator.render_band_fast`: sub-bands on
 #: one path, emission evaluated, sky control variate, stratified, RQMC error) and "path" (the
 #: plain Mitsuba path tracer per sub-band, :func:`humv_usd.render.ir.render_band`: the reference,
@@ -212,6 +219,9 @@ def render_stage(
     subbands=None,
     estimator=DEFAULT_ESTIMATOR,
     progress=None,
+    force=False,
+    wait=False,
+    yes=False,
 ) -> dict:
     r"""Render the infrared sensors of a composed HumV-USD stage.
 
@@ -252,6 +262,14 @@ def render_stage(
         ``humv:sensor:subbands`` (scenario key ``subbands``), else
         :data:`humv_usd.render.radiometry.DEFAULT_SUBBANDS`. ``spp`` is split over them
         (:func:`humv_usd.render.ir.subband_spp`).
+    force : bool, default False
+        Render the requested frames again even when they are done, and re-render the frames in
+        the folder that were made with other settings (instead of refusing).
+    wait : bool, default False
+        Wait while another process writes ``out_dir`` (default: InputError naming it).
+    yes : bool, default False
+        Render even when the estimated memory or disk (:mod:`humv_usd.pipeline.budget`)
+        exceeds this machine's (default: InputError with the estimate).
     annotators : list of str, optional
         Ground-truth annotators (:data:`humv_usd.groundtruth.ANNOTATORS`); default the stage's
         (scenario ``[annotations]``) or the default set. See :mod:`humv_usd.groundtruth`.
@@ -260,6 +278,16 @@ def render_stage(
     -------
     dict
         The manifest (also written to ``OUT/manifest.json``).
+
+    Resuming: every finished image has a record (:mod:`humv_usd.pipeline.records`); a call
+    renders only the requested frames whose images are not done with the same settings (stage
+    content, spp and whether it is automatic, seed, depth, annotators, sub-bands, the infrared
+    estimator and its parameters: :func:`humv_usd.pipeline.records.settings`), refuses
+    (InputError, one line) when the folder holds images of the selected sensors made with other
+    settings unless ``force``, and rebuilds the manifest, coco.json, regions.json and the camera
+    files from all records of the selected sensors, so frames from separate calls (or a run
+    killed and started again) accumulate into the result of one uninterrupted run. The folder
+    is locked while the render runs (:func:`humv_usd.fileio.folder_lock`).
 
     Raises
     ------
@@ -304,34 +332,127 @@ def render_stage(
     if spp is None:
         spp = DEFAULT_SPP.get(estimator, DEFAULT_SPP["path"])
     _check_settings(spp, seed, max_depth)
-    out_dir = os.path.abspath(check_output_dir(out_dir))
-    totals = dict.fromkeys(TIMING_KEYS, 0.0)
-
-    t = time.perf_counter()
     if estimator not in ESTIMATORS:
         raise InputError(bad_value("estimator", estimator, f"expected one of {', '.join(ESTIMATORS)}"))
-    plan = _plan(
-        stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands, estimator, eo_spp
-    )
-    plan.spp_auto = spp_auto and plan.estimator == "fast"
+    out_dir = os.path.abspath(check_output_dir(out_dir))
+    with folder_lock(out_dir, "humv-usd render", wait=wait):
+        args = (stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
+        return _render_locked(t_start, args, (estimator, eo_spp, spp_auto), force, yes, progress)
+
+
+def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
+    """``args`` and ``how`` (estimator, EO spp, automatic spp) as :func:`_plan` takes them."""
+    out_dir = args[1]
+    totals = dict.fromkeys(TIMING_KEYS, 0.0)
+    t = time.perf_counter()
+    plan = _plan(*args, *how)
     totals["load_export"] += time.perf_counter() - t
+    budget = render_budget([s.resolution for s in _selected(plan)], len(plan.frames), plan.spp)
+    require_fits(budget, out_dir, yes)  # before anything is written
+    todo = _frames_to_render(plan, force)
 
     run = _FrameRenderer(plan, totals)
-    frames_to_render = plan.frames if (plan.rendered or plan.eo_run.sensors) else []
-    run.progress = progress
+    frames_to_render = todo if (plan.rendered or plan.eo_run.sensors) else []
+    run.progress = progress  # counts the images rendered in this call only
     run.units_total = len(frames_to_render) * (len(plan.rendered) + len(plan.eo_run.sensors))
     for frame in frames_to_render:
         run.render_frame(frame)
-    run.write_cameras()
-    plan.eo_run.write_cameras()
+        run.record_frame(frame)
+        if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
+            mode.release_kernel_cache()
+    done = _records_of_this_render(plan)
+    _write_cameras(out_dir, done)
 
     t = time.perf_counter()
-    ground_truth = plan.truth.finish(out_dir, totals["render"])
+    taken = [r["truth"] for r in done if r.get("truth")]
+    ground_truth = plan.truth.finish(out_dir, totals["render"], taken=taken)
     totals["labels"] += time.perf_counter() - t
     totals["total"] = time.perf_counter() - t_start
-    manifest = _manifest(plan, run, ground_truth, totals)
+    manifest = _manifest(plan, run, ground_truth, totals, done)
     write_json(os.path.join(out_dir, MANIFEST_NAME), manifest)
     return jsonable(manifest)
+
+
+# ------------------------------------------------------------------------------- resuming
+def stage_digest(stage: Usd.Stage) -> str:
+    """SHA-256 (16 hex digits) of the content of every layer file of the stage's layer stack:
+    an image rendered from another stage content is another image."""
+    h = hashlib.sha256()
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        path = layer.realPath
+        h.update((path and os.path.basename(path) or layer.identifier).encode())
+        h.update(
+            R.file_sha256(path).encode() if path and os.path.isfile(path) else layer.ExportToString().encode()
+        )
+    return h.hexdigest()[:16]
+
+
+def _selected(plan: _Plan) -> list[SensorModel]:
+    return list(plan.rendered) + list(plan.eo_run.sensors)
+
+
+def _frames_to_render(plan: _Plan, force: bool) -> list[int]:
+    """The requested frames not done with this call's settings (all with ``force``), plus with
+    ``force`` the frames of images made with other settings; refuse those without ``force``.
+    Removes what a killed render left: temp files and the files of images without a record."""
+    out_dir = plan.out_dir
+    names = [s.name for s in _selected(plan)]
+    for folder in [out_dir, *(os.path.join(out_dir, n) for n in names)]:
+        remove_stale_temps(folder)
+    for n in names:
+        remove_stale_temps(os.path.join(out_dir, R.RECORDS_DIR, n))
+    if os.path.isdir(os.path.join(out_dir, R.RECORDS_DIR)):
+        for sensor, frame in R.unrecorded_images(out_dir, names):
+            log.info("removing the partial image %s/%04d of an interrupted render", sensor, frame)
+            R.remove_image(out_dir, sensor, frame)
+    os.makedirs(os.path.join(out_dir, R.RECORDS_DIR), exist_ok=True)
+    records = R.read_records(out_dir)
+    other = sorted(
+        (key, rec)
+        for key, rec in records.items()
+        if key[0] in plan.wanted and rec.get("settings") != plan.wanted[key[0]]
+    )
+    if other and not force:
+        (sensor, frame), rec = other[0]
+        more = f" (and {len(other) - 1} more images)" if len(other) > 1 else ""
+        raise InputError(
+            f"{out_dir}: {sensor}/{frame:04d}{more} was rendered with other settings "
+            f"({R.difference(rec.get('settings') or {}, plan.wanted[sensor])}); render into another "
+            "folder, or pass --force to render them again with these settings"
+        )
+    todo = set(plan.frames) if force else set()
+    todo |= {frame for (_, frame), _ in other}
+    for f in plan.frames:
+        if any(not R.is_done(out_dir, records.get((n, f)), plan.wanted[n]) for n in names):
+            todo.add(f)
+    if force:
+        for sensor, frame in sorted({k for k, _ in other}):
+            R.remove_image(out_dir, sensor, frame)
+    log.info("rendering %d of %d requested frames", len(set(plan.frames) & todo), len(plan.frames))
+    return sorted(todo)
+
+
+def _records_of_this_render(plan: _Plan) -> list[dict]:
+    """The records of the selected sensors with this call's settings, in the order one
+    uninterrupted render writes them."""
+    order = {s.name: i for i, s in enumerate(_selected(plan))}
+    records = [
+        rec
+        for (sensor, _), rec in R.read_records(plan.out_dir).items()
+        if sensor in plan.wanted and rec.get("settings") == plan.wanted[sensor]
+    ]
+    return sorted(records, key=R.image_order(order))
+
+
+def _write_cameras(out_dir: str, done: list[dict]) -> None:
+    """``<sensor>/camera.json`` of every sensor rendered (intrinsics, per-frame pose)."""
+    by_sensor: dict[str, list[dict]] = defaultdict(list)
+    for rec in done:
+        by_sensor[rec["sensor"]].append(rec)
+    for name, recs in by_sensor.items():
+        cameras = R.merge_cameras(recs)
+        if cameras is not None:
+            write_json(os.path.join(out_dir, name, CAMERA_FILE), cameras)
 
 
 # ------------------------------------------------------------------------------- the plan
@@ -361,6 +482,7 @@ class _Plan:
     use_sky_map: bool
     use_sun: bool
     sensor_ids: dict[str, str] = field(default_factory=dict)
+    wanted: dict[str, dict] = field(default_factory=dict)  # per sensor: the settings of its images
     estimator: str = DEFAULT_ESTIMATOR
     estimator_note: str = ""
     spp_auto: bool = False
@@ -378,6 +500,7 @@ def _plan(
     subbands,
     estimator=DEFAULT_ESTIMATOR,
     eo_spp=None,
+    spp_auto=False,
 ) -> _Plan:
     """Open the stage, select frames and sensors, and set up the radiometry (sub-bands per IR
     sensor; sky map and sun from the environment at the first frame) and the EO run."""
@@ -445,7 +568,18 @@ def _plan(
         out_dir=out_dir,
         truth=truth,
     )
+    spp_auto = bool(spp_auto) and est == "fast"
+    digest = stage_digest(stage)
+    ir_how = {"estimator": _estimator_key(est), "spp_mode": _spp_mode(spp_auto)}
+    wanted = {
+        s.name: R.settings(digest, spp, seed, max_depth, truth.annotators, n_of[s.name], **ir_how)
+        for s in rendered
+    }
+    eo_spp = spp if eo_spp is None else eo_spp
+    for s in eo_run.sensors:
+        wanted[s.name] = R.settings(digest, eo_spp, seed, max_depth, truth.annotators, spp_mode="fixed")
     return _Plan(
+        wanted=wanted,
         stage_path=os.fspath(stage_path),
         out_dir=out_dir,
         stage=stage,
@@ -470,6 +604,27 @@ def _plan(
         sensor_ids={s.name: f"sensor_{i}" for i, s in enumerate(rendered)},
         estimator=est,
         estimator_note=note,
+        spp_auto=spp_auto,
+    )
+
+
+def _estimator_key(estimator: str) -> str:
+    """The infrared estimator and the parameters its pixels depend on (part of an image's
+    record settings: images of another estimator are other images)."""
+    if estimator != "fast":
+        return estimator
+    return (
+        f"fast (splits {E.DEFAULT_SPLITS}, replicas {E.DEFAULT_REPLICAS}, roulette from depth "
+        f"{E.RR_DEPTH}, filter radius {E.DEFAULT_FILTER_RADIUS} px)"
+    )
+
+
+def _spp_mode(spp_auto: bool) -> str:
+    """How the samples per pixel were chosen (record settings): given, or the automatic rule."""
+    if not spp_auto:
+        return "fixed"
+    return (
+        f"automatic (to NETD/{AUTO_NETD_FRACTION:g}, <= {AUTO_MAX_SPP} spp, seed stride {AUTO_SEED_STRIDE})"
     )
 
 
@@ -485,7 +640,6 @@ class _FrameRenderer:
                 "timings": dict.fromkeys(TIMING_KEYS, 0.0),
                 "frames": [],
                 "errors": _Accumulator(),
-                "interior": [],
                 "cameras": [],
             }
             for s in plan.rendered
@@ -497,19 +651,43 @@ class _FrameRenderer:
         self.scene: IRScene | None = None
         self.scene_key = None
         self.scene_builds = 0
+        self.frames_rendered: list[int] = []
         self.progress = None
         self.units_done = 0
         self.units_total = 0
 
-    def write_cameras(self) -> None:
-        """``<sensor>/camera.json`` of every IR sensor rendered (intrinsics, per-frame pose)."""
-        for name, rec in self.per_sensor.items():
-            if rec["cameras"]:
-                write_json(
-                    os.path.join(self.plan.out_dir, name, CAMERA_FILE), camera_file(name, rec["cameras"])
-                )
+    def record_frame(self, frame: int) -> None:
+        """Write the record of every image of ``frame`` (after all its files) and drop what this
+        object kept of it, so that memory does not grow with frames."""
+        plan = self.plan
+        items = [
+            (name, "ir", rec["frames"], rec["cameras"], rec.pop("frame_errors", None))
+            for name, rec in self.per_sensor.items()
+        ]
+        items += [
+            (name, "eo", rec["frames"], rec["cameras"], None) for name, rec in plan.eo_run.records.items()
+        ]
+        for name, kind, entries, cameras, errors in items:
+            if not entries or entries[-1]["frame"] != frame:
+                continue
+            entry, (_, camera) = entries.pop(), cameras.pop()
+            truth = plan.truth.take_image(os.path.splitext(entry["exr"])[0]) if plan.truth else None
+            R.write_record(
+                plan.out_dir,
+                name,
+                frame,
+                {
+                    "settings": plan.wanted[name],
+                    "kind": kind,
+                    "entry": entry,
+                    "camera": camera_file(name, [(frame, camera)]),
+                    "error_sums": errors,
+                    "truth": truth,
+                },
+            )
 
     def render_frame(self, frame: int) -> None:
+        self.frames_rendered.append(int(frame))
         plan, exporter = self.plan, self.plan.exporter
         t = time.perf_counter()
         state = exporter.frame_state(frame, plan.rendered + plan.eo_run.sensors)
@@ -622,7 +800,6 @@ class _FrameRenderer:
         away_from_edges["spp_used"] = spp_used
         away_from_edges["spp_rule"] = _spp_rule(plan, s)
         t = self._tick(timings, "render", t)
-        self.per_sensor[s.name]["interior"].append(away_from_edges)
         t = self._tick(timings, "labels", t)  # the pixel-centre cast is the labels' (cached)
 
         rel = os.path.join(s.name, f"{frame:04d}")
@@ -660,7 +837,7 @@ class _FrameRenderer:
                 "humv:sensor": s.path,
                 "humv:frame": str(frame),
                 "humv:band_um": f"{band[0]:g}-{band[1]:g}",
-                "humv:spp": str(plan.spp),
+                "humv:spp": str(plan.spp * len(batches)),  # automatic quality: the samples spent
                 "humv:subbands": str(len(sub)),
                 "humv:preview": "R=G=B: brightness temperature stretched as the PNG (0 at the 1st, "
                 "1 at the 99th percentile); display only",
@@ -684,6 +861,13 @@ class _FrameRenderer:
         )
         self.per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
         self.overall.add(stderr_l, stderr_k)
+        frame_errors = _Accumulator()
+        frame_errors.add(stderr_l, stderr_k)
+        self.per_sensor[s.name]["frame_errors"] = {
+            "sums": dict(frame_errors.sums),
+            "counts": dict(frame_errors.counts),
+            "maxima": frame_errors.maxima,
+        }
         finite_bt = bt[np.isfinite(bt)]
         self.per_sensor[s.name]["frames"].append(
             {
@@ -715,9 +899,10 @@ def _preview_grey(bt: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------- manifest
-def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
-    """The manifest entry of one IR sensor."""
+def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel, done: list[dict]) -> dict:
+    """The manifest entry of one IR sensor (its frames from the records of all calls)."""
     rec = run.per_sensor[s.name]
+    mine = [r for r in done if r["sensor"] == s.name]
     return {
         "name": s.name,
         "prim": s.path,
@@ -731,11 +916,11 @@ def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel) -> dict:
         "subbands_requested": plan.n_of[s.name],
         "subbands_source": plan.n_source[s.name],
         "spp_per_subband": plan.spp_sub[s.name],
-        "camera": os.path.join(s.name, CAMERA_FILE) if rec["cameras"] else None,
-        "frames": rec["frames"],
+        "camera": os.path.join(s.name, CAMERA_FILE) if mine else None,
+        "frames": [r["entry"] for r in mine],
         "timings_s": {**rec["timings"], "total": sum(rec["timings"].values())},
-        "monte_carlo_error": rec["errors"].stats(),
-        "monte_carlo_error_k": _interior_summary(rec["interior"]),
+        "monte_carlo_error": R.merge_errors(mine),
+        "monte_carlo_error_k": _interior_summary([r["entry"].get("monte_carlo_error_k") or {} for r in mine]),
     }
 
 
@@ -818,8 +1003,10 @@ def _estimator_settings(plan: _Plan) -> dict:
     }
 
 
-def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> dict:
-    """The run's manifest (``OUT/manifest.json``)."""
+def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict, done: list[dict]) -> dict:
+    """The render folder's manifest (``OUT/manifest.json``): this call's settings and timings,
+    the frames of all calls (from the records)."""
+    eo_frames = {s.name: [r["entry"] for r in done if r["sensor"] == s.name] for s in plan.eo_run.sensors}
     return {
         "stage": os.path.abspath(plan.stage_path),
         "output_dir": plan.out_dir,
@@ -829,7 +1016,7 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
         "mitsuba_variant_reason": mode.variant_reason(),
         "settings": {
             "spp": int(plan.spp),
-            "frames": plan.frames,
+            "frames": sorted({r["frame"] for r in done}),
             "seed": int(plan.seed),
             "seed_per_frame": "seed + frame",
             "max_depth": int(plan.max_depth),
@@ -855,14 +1042,15 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict) -> d
             "stretch": "linear between the 1st and 99th percentile of each image "
             "(levels per frame in preview_levels_k); non-finite pixels black",
         },
-        "sensors": [_sensor_record(plan, run, s) for s in plan.rendered],
-        "eo_sensors": plan.eo_run.manifest(),
+        "sensors": [_sensor_record(plan, run, s, done) for s in plan.rendered],
+        "eo_sensors": plan.eo_run.manifest(eo_frames),
         "skipped_sensors": plan.skipped + plan.eo_run.skipped,
         "radiometry": _radiometry_record(plan),
         "sensor_chain": run.chains.status(),
         "scene_builds": run.scene_builds,
         "timings_s": totals,
-        "monte_carlo_error": run.overall.stats(),
+        "monte_carlo_error": R.merge_errors([r for r in done if r["kind"] == "ir"]),
+        "rendered_this_call": run.frames_rendered,
     }
 
 

@@ -566,7 +566,10 @@ class EORender:
             if cams:
                 write_json(os.path.join(self.out_dir, s.name, CAMERA_FILE), camera_file(s.name, cams))
 
-    def manifest(self) -> list[dict]:
+    def manifest(self, frames_of: dict | None = None) -> list[dict]:
+        """The manifest entries of the EO sensors; ``frames_of``: their frame entries (default
+        the ones this object kept)."""
+        frames_of = frames_of or {s.name: self.records[s.name]["frames"] for s in self.sensors}
         return [
             {
                 "name": s.name,
@@ -576,9 +579,9 @@ class EORender:
                 "variant": mode.SPECTRAL_VARIANTS[mode.variant()],
                 "spp": self.spp,
                 "channels": {k: writers.channel_info(k, v) for k, v in EO_EXR_CHANNELS.items()},
-                "camera": os.path.join(s.name, CAMERA_FILE) if self.records[s.name]["cameras"] else None,
+                "camera": os.path.join(s.name, CAMERA_FILE) if frames_of.get(s.name) else None,
                 "preview": f"PNG 8-bit sRGB; the {PREVIEW_PERCENTILE:g}th percentile of Y exposed to {PREVIEW_WHITE:g}",
-                "frames": self.records[s.name]["frames"],
+                "frames": frames_of.get(s.name, []),
                 "timings_s": {
                     **self.records[s.name]["timings_s"],
                     "total": sum(self.records[s.name]["timings_s"].values()),

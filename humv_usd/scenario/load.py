@@ -24,7 +24,7 @@ from humv_usd.catalog.sensors import (
     netd_for_f_number,  # another aperture than the preset's
     scenario_values,
 )
-from humv_usd.errors import InputError, bad_value
+from humv_usd.errors import InputError, bad_value, shown
 from humv_usd.scenario.spec import (
     ASSET_FORMATS,
     BAND_DEFAULT_UM,
@@ -76,6 +76,8 @@ class Scenario:
 
 
 def _suggest(name: str, known) -> str:
+    if len(name) > 100:  # nothing that long is a typo of a key (and difflib would be slow)
+        return ""
     close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
     return f" (did you mean '{close[0]}'?)" if close else ""
 
@@ -199,7 +201,7 @@ def _check_table(where: str, table: Any, section: Section, problems: list[str]) 
             continue
         if name not in section.keys:
             problems.append(
-                f"{where}.{name}: unknown key{_suggest(name, known)}; allowed keys: {', '.join(known)}"
+                f"{where}.{shown(name)}: unknown key{_suggest(name, known)}; allowed keys: {', '.join(known)}"
             )
             continue
         out[name] = _check_value(f"{where}.{name}", value, section.keys[name], problems)
@@ -268,7 +270,7 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                 bad_value(
                     f"placement[{i}].human",
                     h,
-                    "expected the id of a [[human]]: " + (", ".join(sorted(humans)) or "none defined"),
+                    "expected the id of a [[human]]: " + (shown(", ".join(sorted(humans))) or "none defined"),
                 )
                 + _suggest(h, humans)
             )
@@ -276,7 +278,7 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
             problems.append(bad_value(f"placement[{i}].human", h, "each human is placed once"))
         placed.add(h)
     for h in sorted(humans - placed):
-        problems.append(f"human id {h!r}: no [[placement]] places this human")
+        problems.append(f"human id {shown(repr(h))}: no [[placement]] places this human")
     for i, hum in enumerate(data["human"]):
         if hum.get("bvh") and hum.get("speed_m_s") is not None:
             problems.append(
@@ -415,9 +417,16 @@ def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:
     base = path.resolve().parent if path is not None else Path.cwd()
 
     def resolve(where: str, given: str) -> str:
-        resolved = (base / given).resolve()
-        if not resolved.is_file():
-            problems.append(bad_value(where, given, f"file not found ({resolved})"))
+        try:
+            resolved = (base / given).resolve()
+            found = resolved.is_file()
+        except (OSError, ValueError) as exc:  # a name too long, a NUL byte: not a file either
+            problems.append(
+                bad_value(where, given, f"not a usable file path ({getattr(exc, 'strerror', None) or exc})")
+            )
+            return given
+        if not found:
+            problems.append(bad_value(where, given, f"file not found ({shown(str(resolved))})"))
         return str(resolved)
 
     def walk(where: str, spec: Section, value) -> None:
@@ -444,7 +453,7 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
     for name in raw:
         if name not in SECTIONS:
             problems.append(
-                f"[{name}]: unknown section{_suggest(name, SECTIONS)}; "
+                f"[{shown(name)}]: unknown section{_suggest(name, SECTIONS)}; "
                 f"allowed sections: {', '.join(SECTIONS)}"
             )
     data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}

@@ -17,7 +17,7 @@ from pxr import Pcp, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, UsdValidation
 from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.errors import InputError
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import broken_sublayers, open_root_layer, usd_error_text
+from humv_usd.usd.layers import broken_sublayers, open_root_layer, unfinished_set, usd_error_text
 from humv_usd.usd.mesh import read_asset_source
 from humv_usd.usd.paths import body_path
 from humv_usd.usd.sensor import stage_sensors
@@ -318,11 +318,14 @@ def check_stage(path: str | Path) -> list[str]:
     A root file that is missing or not USD raises InputError (bad input, exit 2). A sublayer
     that is missing or does not load is a finding naming its file (``humv:sublayer``); the other
     rules are then not run, since the stage USD would compose without that layer is not the
-    stage compose wrote and its findings would mislead."""
+    stage compose wrote and its findings would mislead. A set of layers that is not one
+    compose's is a finding too (``humv:layerSet``, :func:`humv_usd.usd.layers.unfinished_set`)."""
     root = open_root_layer(path)
-    broken = broken_sublayers(root)
+    opened: list[Sdf.Layer] = []  # held: opening the stage does not parse them again
+    broken = broken_sublayers(root, opened)
     if broken:
         return [f"humv:sublayer: {line}" for line in broken]
+    mixed = [f"humv:layerSet: {line}" for line in unfinished_set(root)]
     try:
         stage = Usd.Stage.Open(root)
     except Tf.ErrorException as exc:
@@ -331,6 +334,7 @@ def check_stage(path: str | Path) -> list[str]:
         findings = usd_validators(stage)
     except Tf.ErrorException as exc:  # a validator that fails on this stage is a finding, not a crash
         findings = [f"usd:validators: stage: failed ({usd_error_text(exc)})"]
+    findings = mixed + findings
     for rule in RULES:
         findings.extend(rule(stage))
     return findings

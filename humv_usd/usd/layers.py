@@ -10,7 +10,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdUtils
 
 import humv_usd  # noqa: F401  (registers the schemas before any stage exists)
 from humv_usd.errors import InputError
-from humv_usd.fileio import write_text_atomic
+from humv_usd.fileio import PENDING_NAME, write_text_atomic
 
 WORLD = Sdf.Path("/World")
 SCOPES = {
@@ -57,6 +57,11 @@ def set_layer_metadata(layer: Sdf.Layer, fps: float, frame_count: int, doc: str)
 #: a layer's cache key (customLayerData): hash of its tool's version, the scenario values it reads
 #: and the keys of the layers it reads (humv_usd.scenario.inputs.inputs_key)
 INPUTS_KEY = "humv:inputsKey"
+
+
+#: the root layer's record of its compose-written sublayers' keys (customLayerData):
+#: {layer file path relative to the root: humv:inputsKey}
+LAYER_KEYS = "humv:layerKeys"
 
 
 def set_inputs_key(layer: Sdf.Layer, key: str) -> None:
@@ -175,10 +180,12 @@ def usd_error_text(exc: Exception) -> str:
         return "it holds bytes that are not UTF-8 text where USD expects text"
     found = re.findall(r" : '(.*?)'(?: Error in|\)?$)", text)
     first = found[0] if found else (text or type(exc).__name__)
-    return re.sub(r"pxrInternal_\w+?__pxrReserved__::", "", first).strip()
+    first = re.sub(r"pxrInternal_\w+?__pxrReserved__::", "", first).strip()
+    # USD quotes the text it failed on: a whole long string value would make a page-long line
+    return first if len(first) <= 300 else f"{first[:260]}... ({len(first)} characters)"
 
 
-def broken_sublayers(root: Sdf.Layer) -> list[str]:
+def broken_sublayers(root: Sdf.Layer, keep: list | None = None) -> list[str]:
     """One line per sublayer, at any depth below ``root``, that is missing or does not load
     (a truncated or corrupt file): ``<file>: sublayer of <layer> not found`` or ``... does not
     load (<USD's reason>)``. USD itself only warns and composes the stage without such a layer,
@@ -204,10 +211,55 @@ def broken_sublayers(root: Sdf.Layer) -> list[str]:
             if child is None:
                 problems.append(f"{where} does not load")
                 continue
+            if keep is not None:  # held, so that opening the stage does not parse it again
+                keep.append(child)
             walk(child)
 
     walk(root)
     return problems
+
+
+_KEY_TEXT = re.compile(r'"humv:inputsKey"\s*=\s*"([0-9a-fA-F]+)"')
+
+
+def _inputs_key_of(path: Path) -> str | None:
+    """A layer file's ``humv:inputsKey``, read from the head of its text (compose writes the
+    customLayerData first) rather than by parsing the whole layer again."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16).decode("utf-8", errors="replace")
+    except OSError:
+        return None
+    found = _KEY_TEXT.search(head)
+    return found.group(1) if found else None
+
+
+def unfinished_set(root: Sdf.Layer) -> list[str]:
+    """Lines naming why the root and its sublayers are not one consistent set as compose wrote
+    it: a write of several files that a kill interrupted (its journal is still beside the root),
+    or a sublayer whose ``humv:inputsKey`` is not the one the root recorded for it
+    (``humv:layerKeys``: the file comes from another compose, e.g. a new avatar beside the old
+    thermal layer; a file without a key was made by hand and is not flagged). Call after
+    :func:`broken_sublayers` found every sublayer loadable. A root without a record (older
+    stages, hand-made roots) is not checked."""
+    folder = Path(root.realPath).parent if root.realPath else None
+    if folder is not None and (folder / PENDING_NAME).is_file():
+        return [
+            f"{folder}: a compose into this folder was interrupted while it moved its new files into "
+            f"place ({PENDING_NAME} is there); run humv-usd compose again, which finishes it"
+        ]
+    keys = dict(root.customLayerData).get(LAYER_KEYS) or {}
+    out = []
+    for sub, expected in dict(keys).items():
+        file = Path(root.ComputeAbsolutePath(sub))
+        found = _inputs_key_of(file)
+        if found is not None and found != expected:
+            out.append(
+                f"{file}: {INPUTS_KEY} {found}, but {root.realPath or root.identifier} was "
+                f"composed with {expected}: the layer comes from another compose (an interrupted "
+                "write or a copied file); run humv-usd compose again"
+            )
+    return out
 
 
 def open_root_layer(path) -> Sdf.Layer:
@@ -233,7 +285,8 @@ def open_stage(path) -> Usd.Stage:
     A sublayer that is missing or does not load is an error too (one line per such layer,
     naming it): USD would open the stage without it."""
     root = open_root_layer(path)
-    broken = broken_sublayers(root)
+    opened: list[Sdf.Layer] = []
+    broken = broken_sublayers(root, opened) or unfinished_set(root)
     if broken:
         raise InputError(broken[0], broken)
     try:
