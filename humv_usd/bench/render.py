@@ -168,20 +168,15 @@ def bench_render(
             with np.errstate(invalid="ignore", divide="ignore"):
                 return bt, np.where(dl > 0, stderr / dl, np.nan)
 
+        def path_tracer(spp, n, seed):
+            """Mitsuba's path tracer over ``n`` sub-bands: (radiance, stderr), wall, cpu."""
+            sub, rad, eps, tr = fr.setup(s, n)
+            return _timed(
+                render_band, fr.scene, sid, fr.state, sub, eps, rad, subband_spp(spp, len(sub)), seed, tr
+            )
+
         note(f"{s.name}: reference (path tracer, {reference_spp} spp, {reference_subbands} sub-bands)")
-        sub, rad, eps, tr = fr.setup(s, reference_subbands)
-        (ref_l, ref_se), ref_wall, ref_cpu = _timed(
-            render_band,
-            fr.scene,
-            sid,
-            fr.state,
-            sub,
-            eps,
-            rad,
-            subband_spp(reference_spp, len(sub)),
-            991,
-            tr,
-        )
+        (ref_l, ref_se), ref_wall, ref_cpu = path_tracer(reference_spp, reference_subbands, 991)
         ref_bt, ref_k = to_k(ref_l, ref_se)
         rows = []
 
@@ -214,19 +209,7 @@ def bench_render(
                 record("fast", spp, n, radiance, stderr, wall, cpu)
         spp, n = PATH_BASELINE
         note(f"{s.name}: path tracer, {spp} spp over {n} sub-bands (the former default)")
-        sub, rad, eps, tr = fr.setup(s, n)
-        (radiance, stderr), wall, cpu = _timed(
-            render_band,
-            fr.scene,
-            sid,
-            fr.state,
-            sub,
-            eps,
-            rad,
-            subband_spp(spp, n),
-            5,
-            tr,
-        )
+        (radiance, stderr), wall, cpu = path_tracer(spp, n, 5)
         record("path", spp, n, radiance, stderr, wall, cpu)
         out["sensors"][s.name] = {
             "band": s.band,
