@@ -239,16 +239,23 @@ def render_band_fast(
     replicas: int = DEFAULT_REPLICAS,
     splits: int = DEFAULT_SPLITS,
     filter_radius: int = DEFAULT_FILTER_RADIUS,
+    weights=None,
+    tables: FaceTables | None = None,
 ):
     """At-sensor band radiance and its Monte Carlo standard error of one IR sensor at one frame.
 
     Parameters are those of :func:`humv_usd.render.ir.render_band`; ``spp`` is the pixel's total
     sample count (shared by all sub-bands) and ``replicas`` the independent randomisations it is
     split into for the error estimate (spp = 1: one replica, error not estimable, NaN).
+    ``weights`` (c, n): c output channels :math:`\\sum_k W_{ck} L_k` of the n sub-band radiances
+    (None: the band radiance :math:`\\sum_k L_k`, one channel); every channel is estimated from
+    the same paths. ``tables``: precomputed :class:`FaceTables` (then ``state``,
+    ``emissivity_of`` and ``transmittance_of`` are not read), e.g. zero emission and per-bin
+    reflectance for a reflective band.
 
     Returns
     -------
-    radiance, stderr : (H, W) float64
+    radiance, stderr : (H, W) float64, or (c, H, W) when ``weights`` is given
         [W m^-2 sr^-1]; stderr from the spread of the replica means (RQMC), NaN when one replica.
     """
     mi = mode.mitsuba()
@@ -262,7 +269,10 @@ def render_band_fast(
     n = len(sub)
     setup = scene.sensors[sensor_id]
     w, h = int(setup.width), int(setup.height)
-    tables = face_tables(scene, state, sub, emissivity_of, transmittance_of)
+    if tables is None:
+        tables = face_tables(scene, state, sub, emissivity_of, transmittance_of)
+    wts = channel_weights(weights, n)
+    channels = wts.shape[0]
 
     # --- sky, control variate, sun, path as flat tables --------------------------------------
     rows = np.stack([sky_rows(radiometry, k) for k in range(n)])  # (n, H)
@@ -385,11 +395,9 @@ def render_band_fast(
 
         tau = [dr.select(hit, path_lerp(tau_tab, k), 1.0) for k in range(n)]
         value = [dr.select(hit, tau[k] * value[k] + path_lerp(lp_tab, k), value[k]) for k in range(n)]
-    sample_dr = value[0]
-    for v in value[1:]:
-        sample_dr += v
+    sample_dr = [_weighted_sum(value, wts[c]) for c in range(channels)]
     dr.eval(sample_dr, tau)
-    sample = np.asarray(sample_dr, dtype=np.float64)
+    sample = np.stack([np.asarray(v, dtype=np.float64) for v in sample_dr])  # (c, samples)
 
     reflected = np.zeros_like(sample)
     # --- reflection: `splits` stratified cosine directions per front-facing camera vertex ------
@@ -408,7 +416,7 @@ def render_band_fast(
             beta = [dr.gather(f32, rho[k], par) * (1.0 / splits) for k in range(n)]
         else:
             beta = [dr.gather(f32, rho[k] * tau[k], par) * (1.0 / splits) for k in range(n)]
-        acc = dr.zeros(f32, m * splits)
+        acc = [dr.zeros(f32, m * splits) for _ in range(channels)]
         lanes = None  # all bounce lanes, in order
         d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
         ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
@@ -416,7 +424,7 @@ def render_band_fast(
             si = scene.scene.ray_intersect(ray)
             hit, front, surf, rho = vertex(si, ray.d)
             dz = ray.d.z
-            step = mi.Float(0.0)
+            terms = []
             where = sky_at(dz)
             up = dz >= 0.0
             needed = hit | ~up  # an escaping ray above the horizon adds sky - C = 0
@@ -425,11 +433,13 @@ def render_band_fast(
                 sky_k = sky(k, where, needed)
                 seen = dr.select(hit, surf[k], dr.select(up, 0.0, sky_k))
                 control = dr.select(up, dr.select(hit, sky_k, 0.0), dr.gather(f32, ground_dr, k))
-                step += beta[k] * (seen - control)
-            if lanes is None:
-                acc = step
-            else:
-                dr.scatter_reduce(dr.ReduceOp.Add, acc, step, lanes)
+                terms.append(beta[k] * (seen - control))
+            for c in range(channels):
+                step = _weighted_sum(terms, wts[c])
+                if lanes is None:
+                    acc[c] = step
+                else:
+                    dr.scatter_reduce(dr.ReduceOp.Add, acc[c], step, lanes)
             beta = [beta[k] * rho[k] for k in range(n)]
             bmax = beta[0]
             for bk in beta[1:]:
@@ -461,20 +471,20 @@ def render_band_fast(
                 mi.Point2f(dr.gather(f32, u1, keep), dr.gather(f32, u2, keep))
             )
             ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), mi.Frame3f(n0).to_world(local))
-        reflected[np.asarray(parent, dtype=np.int64)] = (
-            np.asarray(acc, dtype=np.float64).reshape(m, splits).sum(axis=1)
-        )
+        parent_np = np.asarray(parent, dtype=np.int64)
+        for c in range(channels):
+            reflected[c, parent_np] = np.asarray(acc[c], dtype=np.float64).reshape(m, splits).sum(axis=1)
     log.debug("paths done, %.3f s", time.perf_counter() - t0)
 
     # --- per pixel means, RQMC errors, and the reflected part filtered over the surface --------
-    direct_r = sample.reshape(h, w, replicas, lattice_n).mean(axis=3)
-    reflect_r = reflected.reshape(h, w, replicas, lattice_n).mean(axis=3)
-    direct = direct_r.mean(axis=2)
-    reflect_mean = reflect_r.mean(axis=2)
+    direct_r = sample.reshape(channels, h, w, replicas, lattice_n).mean(axis=4)
+    reflect_r = reflected.reshape(channels, h, w, replicas, lattice_n).mean(axis=4)
+    direct = direct_r.mean(axis=3)
+    reflect_mean = reflect_r.mean(axis=3)
     if replicas > 1:
         scale = 1.0 / (replicas * (replicas - 1))  # variance of the replica mean
-        direct_var = direct_r.var(axis=2, ddof=0) * replicas * scale
-        reflect_var = reflect_r.var(axis=2, ddof=0) * replicas * scale
+        direct_var = direct_r.var(axis=3, ddof=0) * replicas * scale
+        reflect_var = reflect_r.var(axis=3, ddof=0) * replicas * scale
     else:
         direct_var = reflect_var = np.full(direct.shape, np.nan)
     if filter_radius > 0:
@@ -490,7 +500,30 @@ def render_band_fast(
     stderr = np.sqrt(direct_var + reflect_var)
     if replicas > 1:
         stderr = stderr / c4(replicas)
+    if weights is None:
+        return radiance[0], stderr[0]
     return radiance, stderr
+
+
+def channel_weights(weights, n: int) -> np.ndarray:
+    """The (c, n) channel weights of n sub-bands (None: one channel, all ones)."""
+    if weights is None:
+        return np.ones((1, n))
+    wts = np.asarray(weights, dtype=float)
+    if wts.ndim != 2 or wts.shape[1] != n or wts.shape[0] < 1 or not np.all(np.isfinite(wts)):
+        raise ValueError(f"weights: shape {wts.shape}, want (channels >= 1, {n}) finite values")
+    return wts
+
+
+def _weighted_sum(terms, row):
+    """sum_k row[k] terms[k] on the device, skipping zero weights and unit multiplications."""
+    out = None
+    for term, wk in zip(terms, row):
+        if wk == 0.0:
+            continue
+        v = term if wk == 1.0 else term * float(wk)
+        out = v if out is None else out + v
+    return out if out is not None else terms[0] * 0.0
 
 
 def _same_surface(hits, dy: int, dx: int):
@@ -525,21 +558,23 @@ def filter_reflected(mean, var, hits, radius: int, radius_px=None):
     irradiance times a constant, smooth on the scale of the window (a few cm on the examples'
     surfaces); what the averaging costs in bias is measured against the path tracer by
     ``humv-usd bench render`` (per labelled region). ``radius_px`` (H, W) caps the half width
-    per pixel (a pixel's own window, :data:`FILTER_HALF_WIDTH_M` in world units)."""
-    cap = np.full(np.shape(mean), float(radius)) if radius_px is None else np.asarray(radius_px, float)
+    per pixel (a pixel's own window, :data:`FILTER_HALF_WIDTH_M` in world units). ``mean`` and
+    ``var`` may carry leading channel axes (..., H, W): one window for every channel."""
     out_m, out_v = np.asarray(mean, float), np.asarray(var, float)
+    shape = out_m.shape[-2:]
+    cap = np.full(shape, float(radius)) if radius_px is None else np.asarray(radius_px, float)
     for axis in (1, 0):
         num = out_m.copy()
         num_v = np.nan_to_num(out_v).copy()
-        cnt = np.ones(out_m.shape)
+        cnt = np.ones(shape)
         for o in range(-radius, radius + 1):
             if o == 0:
                 continue
             dy, dx = (0, o) if axis == 1 else (o, 0)
             ok, (ys, xs), (yo, xo) = _same_surface(hits, dy, dx)
             okc = ok[ys, xs] & (abs(o) <= cap[ys, xs])
-            num[ys, xs] += np.where(okc, out_m[yo, xo], 0.0)
-            num_v[ys, xs] += np.where(okc, np.nan_to_num(out_v[yo, xo]), 0.0)
+            num[..., ys, xs] += np.where(okc, out_m[..., yo, xo], 0.0)
+            num_v[..., ys, xs] += np.where(okc, np.nan_to_num(out_v[..., yo, xo]), 0.0)
             cnt[ys, xs] += okc
         out_m = num / cnt
         out_v = np.where(np.isfinite(out_v), num_v / cnt**2, np.nan)
