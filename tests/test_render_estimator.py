@@ -192,5 +192,28 @@ def test_channel_weights_split_and_sum_the_sub_bands(tmp_path):
     tables = E.face_tables(fr.scene, fr.state, sub, eps, tr)
     half, _ = E.render_band_fast(*args, weights=0.5 * np.ones((1, n)), tables=tables)
     assert_allclose(half[0], 0.5 * one, rtol=1e-5)
+    # more pixel positions for the direct term: same mean within the errors, and still summing
+    more, more_se = E.render_band_fast(*args, weights=split, direct_points=3)
+    assert_allclose(more.sum(axis=0), E.render_band_fast(*args, direct_points=3)[0], rtol=1e-5)
+    sigma = np.hypot(more_se, two_se)
+    inner = ~E.geometric_edges(fr.scene.hits(sid)) & np.all(sigma > 0, axis=0)
+    z = (more - two)[:, inner] / sigma[:, inner]
+    assert abs(z.mean()) < 0.2 and z.std() < 1.5
     with pytest.raises(ValueError, match="weights"):
         E.render_band_fast(*args, weights=np.ones((1, n + 1)))
+
+
+def test_extra_direct_points_balance_variance_and_cost():
+    """D minimises cost x error^2: uniform V_d = 4, V_r = 1, camera samples 1, rays 4 ->
+    (D + 4)(4 / D + 1) is least at D = 4 (3 more); no direct variance -> none; edges ignored."""
+    shape = (1, 20, 30)
+    vd, vr = np.full(shape, 4.0), np.full(shape, 1.0)
+    edge = np.zeros(shape[1:], bool)
+    assert E.extra_direct_points(vd, vr, edge, 100, 400) == 3
+    assert E.extra_direct_points(0 * vd, vr, edge, 100, 400) == 0
+    assert E.extra_direct_points(vd, 0 * vr, edge, 100, 400) == E.MAX_DIRECT_FACTOR - 1
+    vd_edges = vd.copy()
+    vd_edges[0, :, :15] = 1e6  # huge variance only on edge pixels
+    edge[:, :15] = True
+    assert E.extra_direct_points(vd_edges, vr, edge, 100, 400) == 3
+    assert E.extra_direct_points(np.full(shape, np.nan), vr, edge, 100, 400) == 0
