@@ -429,8 +429,16 @@ def render_band_fast(
         u1, u2 = _rotated_lattice(mi, dr, lattice_n * splits, d_index, par_cell, seeds[1])
         p0 = dr.gather(mi.Point3f, si.p, par)
         n0 = mi.Vector3f(dr.gather(mi.Normal3f, si.n, par))
-        # each lane's term enters its cell's mean over lattice points and directions
-        beta = [dr.gather(f32, bk, par) * (1.0 / (splits * lattice_n)) for bk in beta0]
+        beta = None  # first bounce: read from the camera vertices' throughput when needed
+
+        def beta_at(lanes):
+            """Throughput per sub-band of the given lanes (at the first bounce each lane's term
+            enters its cell's mean over lattice points and directions)."""
+            if beta is not None:
+                return [dr.gather(f32, bk, lanes) for bk in beta]
+            src = dr.gather(mi.UInt32, parent, lanes // splits)
+            return [dr.gather(f32, bk, src) * (1.0 / (splits * lattice_n)) for bk in beta0]
+
         lane_id = b
         d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
         ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
@@ -447,6 +455,7 @@ def render_band_fast(
             dr.eval(hit, front, odd, tri, si.p, si.n, dz)
             lanes_odd = dr.compress(odd)
             if dr.width(lanes_odd):
+                beta_o = beta_at(lanes_odd)
                 dz_o = dr.gather(f32, dz, lanes_odd)
                 hit_o = dr.gather(mi.Bool, hit, lanes_odd)
                 up_o = dz_o >= 0.0
@@ -456,7 +465,7 @@ def render_band_fast(
                     sky_k = sky(k, where)
                     seen = dr.select(hit_o, 0.0, sky_k)
                     control = dr.select(up_o, sky_k, ground_k[k])
-                    terms.append(dr.gather(f32, beta[k], lanes_odd) * (seen - control))
+                    terms.append(beta_o[k] * (seen - control))
                 _scatter_channels(dr, acc, terms, wts, dr.gather(mi.UInt32, lane_id, lanes_odd))
             on = dr.compress(front)
             width = dr.width(on)
@@ -466,7 +475,7 @@ def render_band_fast(
             p = dr.gather(mi.Point3f, si.p, on)
             nrm = mi.Vector3f(dr.gather(mi.Normal3f, si.n, on))
             dz_f = dr.gather(f32, dz, on)
-            beta = [dr.gather(f32, bk, on) for bk in beta]
+            beta = beta_at(on)
             lane_id = dr.gather(mi.UInt32, lane_id, on)
             surf, rho = surface_terms(p, nrm, dr.gather(mi.UInt32, tri, on))
             up = dz_f >= 0.0
@@ -512,7 +521,9 @@ def render_band_fast(
         values = values.reshape(channels, h, w, replicas)
         if replicas == 1:
             return values[..., 0], np.full((channels, h, w), np.nan)
-        return values.mean(axis=3), values.var(axis=3, ddof=1) / replicas
+        mean = values.sum(axis=3) / replicas
+        dev = values - mean[..., None]
+        return mean, np.einsum("...r,...r->...", dev, dev) / (replicas * (replicas - 1))
 
     direct, direct_var = replica_stats(direct_r)
     reflect_mean, reflect_var = replica_stats(reflect_r)
@@ -697,10 +708,15 @@ def filter_reflected(mean, var, hits, radius: int, radius_px=None):
         else np.minimum(np.asarray(radius_px, float), radius)
     )
     known = np.isfinite(out_v)
+    both = np.concatenate([out_m.reshape((-1,) + shape), np.nan_to_num(out_v).reshape((-1,) + shape)])
+    half = both.shape[0] // 2
     for axis, (lo, hi) in zip((1, 0), _windows(hits, cap)):
-        out_m = _window_mean(out_m, lo, hi, axis, 1)
-        out_v = _window_mean(np.nan_to_num(out_v), lo, hi, axis, 2)
-    return out_m, np.where(known, out_v, np.nan)
+        both = _window_sum(both, lo, hi, axis)
+        count = (hi - lo + 1).astype(float)
+        both[:half] /= count
+        both[half:] /= count**2
+    out_m = both[:half].reshape(out_m.shape)
+    return out_m, np.where(known, both[half:].reshape(out_m.shape), np.nan)
 
 
 #: Windows of the last few (hits, cap) pairs: the automatic quality renders a frame in batches.
@@ -757,19 +773,19 @@ def _transposed(hits):
     )
 
 
-def _window_mean(values, lo, hi, axis: int, power: int):
-    """Mean over [lo, hi] along ``axis`` of (..., H, W) values (power 2: the sum / count^2, the
-    variance of the mean of independent values), by running sums."""
-    ax = values.ndim - 2 + axis
-    csum = np.cumsum(values, axis=ax)
-    pad = [(0, 0)] * values.ndim
-    pad[ax] = (1, 0)
-    csum = np.pad(csum, pad)
-    lo_b = np.broadcast_to(lo, values.shape)
-    hi_b = np.broadcast_to(hi + 1, values.shape)
-    total = np.take_along_axis(csum, hi_b, axis=ax) - np.take_along_axis(csum, lo_b, axis=ax)
-    count = (hi - lo + 1).astype(float)
-    return total / count**power
+def _window_sum(values, lo, hi, axis: int):
+    """Sum over [lo, hi] along ``axis`` (0: columns, 1: rows) of (k, H, W) values, by running
+    sums (read by flat indices)."""
+    k, h, w = values.shape
+    pad = [(0, 0), (1, 0), (0, 0)] if axis == 0 else [(0, 0), (0, 0), (1, 0)]
+    csum = np.pad(np.cumsum(values, axis=1 + axis), pad).reshape(k, -1)
+    if axis == 0:  # (k, H + 1, W): row index * W + column
+        col = np.arange(w)
+        first, last = lo * w + col, (hi + 1) * w + col
+    else:  # (k, H, W + 1): row * (W + 1) + column index
+        row = np.arange(h)[:, None] * (w + 1)
+        first, last = row + lo, row + hi + 1
+    return (csum[:, last.ravel()] - csum[:, first.ravel()]).reshape(k, h, w)
 
 
 def geometric_edges(hits) -> np.ndarray:
