@@ -62,7 +62,8 @@ ESTIMATORS = ("fast", "path")
 DEFAULT_ESTIMATOR = "fast"
 #: Samples per pixel when the caller gives none, per estimator.
 DEFAULT_SPP = {"fast": E.DEFAULT_SPP, "path": 16}
-#: Samples per pixel of the visible (EO) render when the caller gives none.
+#: Samples per pixel of the visible (EO) path tracer (`--estimator path`) when the caller gives
+#: none; the fast EO estimator then picks them (humv_usd.render.eo_fast: automatic quality).
 EO_DEFAULT_SPP = 16
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 
@@ -567,6 +568,8 @@ def _plan(
         seed=seed,
         out_dir=out_dir,
         truth=truth,
+        estimator=estimator,  # the fast EO estimator falls back to the path tracer as the IR one
+        spp_auto=spp_auto,
     )
     spp_auto = bool(spp_auto) and est == "fast"
     digest = stage_digest(stage)
@@ -575,9 +578,11 @@ def _plan(
         s.name: R.settings(digest, spp, seed, max_depth, truth.annotators, n_of[s.name], **ir_how)
         for s in rendered
     }
-    eo_spp = spp if eo_spp is None else eo_spp
+    eo_key, eo_mode = eo_run.settings_key
     for s in eo_run.sensors:
-        wanted[s.name] = R.settings(digest, eo_spp, seed, max_depth, truth.annotators, spp_mode="fixed")
+        wanted[s.name] = R.settings(
+            digest, eo_run.spp, seed, max_depth, truth.annotators, estimator=eo_key, spp_mode=eo_mode
+        )
     return _Plan(
         wanted=wanted,
         stage_path=os.fspath(stage_path),
