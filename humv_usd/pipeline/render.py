@@ -232,8 +232,9 @@ def render_stage(
     ``radiance`` [W m^-2 sr^-1], ``brightness_temperature`` [K], ``radiance_stderr``
     [W m^-2 sr^-1], ``depth`` [m], ``instance_id`` [integer stored as float32]), an 8-bit
     grayscale preview ``OUT/<sensor>/<frame:04d>.png`` (brightness temperature stretched between
-    its 1st and 99th percentile) and ``OUT/manifest.json``. EO sensors render in the spectral
-    variant (:mod:`humv_usd.render.eo`).
+    its 1st and 99th percentile) and ``OUT/manifest.json``. EO sensors render with the fast EO
+    estimator (:mod:`humv_usd.render.eo_fast`; ``estimator="path"``: Mitsuba's spectral path
+    tracer, :mod:`humv_usd.render.eo`).
 
     Parameters
     ----------
@@ -314,6 +315,8 @@ def render_stage(
     stage has its direction and spectral irradiance and it is above the horizon. Faces are
     one-sided (their back neither emits nor reflects). Next-event estimation samples the sky and
     sun only (see :data:`humv_usd.render.ir.AREA_EMITTER_SAMPLING_WEIGHT`). EO sensors render in
+    visible sub-bands with the fast estimator (:mod:`humv_usd.render.eo_fast`; without a given
+    spp, batches until the error of Y is <= 1 % of the mean Y), or with ``estimator="path"`` in
     Mitsuba's spectral variant (:mod:`humv_usd.render.eo`). After the render, the sensor chain
     (:mod:`humv_usd.physics.sensor`) writes raw counts and an 8-bit image per IR/EO frame.
 

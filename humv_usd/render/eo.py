@@ -1,4 +1,10 @@
-"""Visible (EO) rendering with Mitsuba's spectral variant: reflectance spectra, sun and sky.
+"""Visible (EO) rendering: reflectance spectra, sun and sky, to CIE XYZ and sRGB.
+
+Two estimators of the same model: the default, :mod:`humv_usd.render.eo_fast` (the infrared
+estimator on visible sub-bands, X, Y, Z as its weighted channels; automatic quality: batches
+until the mean error of Y away from edges is <= 1 % of the mean Y there), and the reference,
+Mitsuba's spectral path tracer on the 5-nm grid below (:class:`EOScene`, ``estimator="path"``,
+also used when the variant is not vectorised or ``max_depth`` is bounded).
 
 Radiometry (opaque Lambertian surfaces, no emission in the visible)
 -----------------------------------------------------------------

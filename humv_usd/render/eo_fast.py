@@ -33,8 +33,6 @@ X, Y, Z as for the path tracer (:func:`humv_usd.render.radiometry.apply_xyz_path
 
 from __future__ import annotations
 
-import inspect
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -163,57 +161,40 @@ class _NoEmission:
         return np.zeros(np.shape(temperature_k) + (self.n,))
 
 
-def _takes(name: str) -> bool:
-    return name in inspect.signature(E.render_band_fast).parameters
+def reflectance_tables(scene, reflectance_of, n: int) -> E.FaceTables:
+    """The estimator's per-triangle tables of the EO scene: no emission, each part's per-bin
+    reflectance (``reflectance_of(material)`` -> (n,)) on all its triangles."""
+    rho, offset = [], [0]
+    for part in scene.parts:
+        t = len(part.triangles)
+        rho.append(np.broadcast_to(np.asarray(reflectance_of(part.material), float).reshape(1, n), (t, n)))
+        offset.append(offset[-1] + t)
+    reflectance = np.concatenate(rho) if rho else np.zeros((0, n))
+    return E.FaceTables(np.zeros_like(reflectance), reflectance, np.asarray(offset[:-1]))
 
 
 def render_xyz_fast(
-    scene,
-    sensor_id,
-    state,
-    bins: VisibleBins,
-    reflectance_of,
-    light: FrameRadiometry,
-    spp,
-    seed,
-    splits=DEFAULT_EO_SPLITS,
+    scene, sensor_id, state, bins: VisibleBins, reflectance_of, light: FrameRadiometry, spp, seed, splits=None
 ):
     """CIE X, Y, Z (H, W, 3) [W m-2 sr-1 nm-1] and their standard errors (H, W, 3) of one EO
-    sensor (before the atmospheric path), with the infrared estimator on a mono scene
-    (:class:`humv_usd.render.ir.IRScene`) of the same parts.
-
-    ``reflectance_of(material)`` -> (n,) per-bin reflectance."""
+    sensor (before the atmospheric path): the infrared estimator on a mono scene
+    (:class:`humv_usd.render.ir.IRScene`) of the same parts, with the bins as sub-bands and the
+    CIE weights as its output channels. ``reflectance_of(material)`` -> (n,) per-bin reflectance."""
     n = len(bins)
-    sub = _NoEmission(n)
-
-    def eps(material):
-        return 1.0 - np.asarray(reflectance_of(material), float)
-
-    kw = {"splits": int(splits)}
-    if os.environ.get("EO_FILTER"):
-        kw["filter_radius"] = int(os.environ["EO_FILTER"])
-    if _takes("weights"):
-        rad, err = E.render_band_fast(
-            scene, sensor_id, state, sub, eps, light, spp=spp, seed=seed, weights=bins.weights, **kw
-        )
-        return np.moveaxis(np.asarray(rad), 0, -1), np.moveaxis(np.asarray(err), 0, -1)
-    # without a multi-channel estimator: one call per channel with the illumination scaled by the
-    # channel's weights (every radiance is linear in the illumination: no emission)
-    out, errs = [], []
-    for c in range(3):
-        w = bins.weights[c]
-        lit = FrameRadiometry(
-            light.sky_constant * w,
-            None,
-            light.sun_direction,
-            None if light.sun_irradiance is None else light.sun_irradiance * w,
-            None,
-            {},
-        )
-        r, e = E.render_band_fast(scene, sensor_id, state, sub, eps, lit, spp=spp, seed=seed, **kw)
-        out.append(r)
-        errs.append(e)
-    return np.stack(out, axis=-1), np.stack(errs, axis=-1)
+    rad, err = E.render_band_fast(
+        scene,
+        sensor_id,
+        state,
+        _NoEmission(n),
+        None,
+        light,
+        spp=spp,
+        seed=seed,
+        splits=DEFAULT_EO_SPLITS if splits is None else int(splits),
+        weights=bins.weights,
+        tables=reflectance_tables(scene, reflectance_of, n),
+    )
+    return np.moveaxis(np.asarray(rad), 0, -1), np.moveaxis(np.asarray(err), 0, -1)
 
 
 def relative_noise(y, y_stderr, edges) -> dict:
