@@ -227,6 +227,40 @@ def test_examples_table1_and_random(tmp_path):
     assert len(rnd.variants) >= 10 and len({v.scenario["general"]["start"] for v in rnd.variants}) > 1
 
 
+def _table1_variant(t1, **params):
+    return next(v for v in t1.variants if all(v.params[k] == x for k, x in params.items()))
+
+
+def test_outfits_share_one_avatar_layer_and_it_is_the_same_layer():
+    from humv_usd.avatar.layer import build_one
+    from humv_usd.usd.layers import layer_text
+
+    t1 = load_sweep(ROOT / "examples" / "table1.toml")
+    same = {"illumination": "full_sun", "human.0.activity": "walk", "weapon": "none", "gender": "male"}
+    shorts = _table1_variant(t1, clothing="bare_upper_body_shorts", **same)
+    robe = _table1_variant(t1, clothing="robe", **same)
+    a, b = layer_keys(shorts.scenario), layer_keys(robe.scenario)
+    assert a["avatar_p1"] == b["avatar_p1"] and a["clothing_p1"] != b["clothing_p1"]
+    # equal keys must mean equal layers: the avatar reads nothing else of the clothing
+    built = [layer_text(build_one(v.scenario, v.scenario["human"][0])) for v in (shorts, robe)]
+    assert built[0] == built[1]
+    # the rifle changes the arms' pose, so it changes the avatar; so do the sex and the activity
+    rifle = _table1_variant(t1, clothing="robe", **{**same, "weapon": "rifle"})
+    female = _table1_variant(t1, clothing="robe", **{**same, "gender": "female"})
+    stand = _table1_variant(t1, clothing="robe", **{**same, "human.0.activity": "standTurn"})
+    for other in (rifle, female, stand):
+        assert layer_keys(other.scenario)["avatar_p1"] != b["avatar_p1"]
+
+
+def test_table1_composes_one_avatar_per_body_motion_and_carry():
+    t1 = load_sweep(ROOT / "examples" / "table1.toml")
+    keys = {v.id: layer_keys(v.scenario) for v in t1.variants}
+    avatars = {k["avatar_p1"] for k in keys.values()}
+    assert len(avatars) == 2 * 3 * 2  # gender x activity x weapon (not x 7 outfits x 2 illuminations)
+    unique = {(n, k) for lk in keys.values() for n, k in lk.items()}
+    assert len(unique) == 387 and sum(len(lk) for lk in keys.values()) == 1512  # 543 before
+
+
 # ----------------------------------------------------------------------- lock and records
 def test_a_live_sweep_holds_the_folder_a_dead_ones_lock_is_taken_over(tmp_path):
     lock = tmp_path / store.SWEEP_DIR / store.LOCK_NAME
