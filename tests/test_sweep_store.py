@@ -178,5 +178,9 @@ def test_a_holder_whose_lock_was_taken_over_notices(tmp_path, cache, caplog):
             while not lease.lost and time.time() < deadline:
                 time.sleep(0.02)
             assert lease.lost
+            from humv_usd.sweep.run import _check_lease
+
+            with pytest.raises(InputError, match="another sweep took over this dataset's lock"):
+                _check_lease(lease, loc)  # the sweep's loop stops at its next step
     assert any("taken over by pid 7 on node-3" in r.getMessage() for r in caplog.records)
     assert json.loads(loc.read_text(store.LOCK_REL))["token"] == "new"  # not removed at the end

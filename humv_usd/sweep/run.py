@@ -170,7 +170,7 @@ def run_sweep(
     if limit is not None:
         wanted = {v.id for v in sweep.variants[:limit]}
         tasks = [t for t in tasks if t.variant in wanted]
-    with store.dataset_lock(loc):
+    with store.dataset_lock(loc) as lease:
         store.check_sweep_record(loc, sweep.digest())
         write_variant_files(loc, sweep)
         removed = store.clean_staging(local_cache(loc.url) if loc.remote else loc.path)
@@ -195,9 +195,10 @@ def run_sweep(
             executor = _InProcess() if workers == 0 and not scheduler else _Dask(scheduler, workers)
             result.workers = executor.workers
             try:
-                _Loop(sweep, loc, keys, todo, executor, result, emit).run()
+                _Loop(sweep, loc, keys, todo, executor, result, emit, lease).run()
             finally:
                 executor.close()
+        _check_lease(lease, loc)
         emit({"type": "assemble"})
         result.dataset_summary = assemble(loc, sweep, tasks)
         if not loc.remote:
@@ -221,10 +222,21 @@ def _location(dataset, scheduler, workers) -> Location:
     return loc
 
 
+def _check_lease(lease, loc: Location) -> None:
+    """Stop when another sweep took the lock over (this one looked dead to it)."""
+    if lease is not None and lease.lost:
+        raise InputError(
+            f"{loc}: another sweep took over this dataset's lock (this one missed its heartbeats); stopped"
+        )
+
+
 class _Loop:
     """Submits tasks as their inputs become ready, retries, and reports (see the module doc)."""
 
-    def __init__(self, sweep, loc: Location, keys, todo: list[RenderTask], executor, result, emit):
+    def __init__(
+        self, sweep, loc: Location, keys, todo: list[RenderTask], executor, result, emit, lease=None
+    ):
+        self.lease = lease
         self.sweep, self.loc, self.dataset, self.executor, self.result, self.emit = (
             sweep,
             loc,
@@ -250,6 +262,7 @@ class _Loop:
                 self._submit_renders(vid)
         self._submit_ready_composes()
         while self.running:
+            _check_lease(self.lease, self.loc)
             for fut in self.executor.wait_any(list(self.running)):
                 kind, name, attempt, payload = self.running.pop(fut)
                 try:
