@@ -16,7 +16,7 @@ through :class:`humv_usd.sweep.where.Location`):
   ``datasets.load_dataset("DATASET")`` loads the index;
 * ``yolo/detect/<sensor>/`` and ``yolo/pose/<sensor>/`` -- Ultralytics YOLO exports (images are
   hard links to the 8-bit sensor images, copies on an object store; labels normalised ``class cx cy w h`` and, for pose,
-  the 17 COCO keypoints ``x y v``; ``data.yaml``).
+  the 17 COCO keypoints ``x y v``; ``data.yaml`` without ``path``, so the root is its folder).
 """
 
 from __future__ import annotations
@@ -37,6 +37,10 @@ from humv_usd.sweep.where import Location
 #: COCO-17 keypoint order mirrored left/right (YOLO pose ``flip_idx``)
 COCO_FLIP = [0, 2, 1, 4, 3, 6, 5, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15]
 CONTACT_TILES = 16
+#: data.yaml has no ``path``: Ultralytics then takes the YAML's folder as the dataset root
+#: (``check_det_dataset``); a relative ``path: .`` would resolve against the working directory
+#: (or, in older releases, Ultralytics' ``datasets_dir``), not this folder
+YOLO_ROOT_NOTE = "# Ultralytics YOLO dataset: the root is this file's folder (no 'path' key)\n"
 
 
 def _chunks(loc: Location, tasks) -> list[tuple[object, str]]:
@@ -220,11 +224,13 @@ def _write_yolo(loc: Location, coco: dict, rows: list[dict]) -> None:
                 loc.copy(src, f"{base}/images/{stem}.png")
                 loc.write_text(f"{base}/labels/{stem}.txt", "".join(line + "\n" for line in lines))
             written = True
-        det_yaml = "path: .\ntrain: images\nval: images\nnames:\n" + "".join(
-            f"  {i}: {n}\n" for i, n in enumerate(names)
+        det_yaml = (
+            YOLO_ROOT_NOTE
+            + "train: images\nval: images\nnames:\n"
+            + "".join(f"  {i}: {n}\n" for i, n in enumerate(names))
         )
         pose_yaml = (
-            "path: .\ntrain: images\nval: images\nkpt_shape: [17, 3]\n"
+            YOLO_ROOT_NOTE + "train: images\nval: images\nkpt_shape: [17, 3]\n"
             f"flip_idx: {COCO_FLIP}\nnames:\n  0: person\n"
         )
         if written:
