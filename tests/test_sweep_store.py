@@ -57,17 +57,15 @@ def test_memory_dataset_equals_the_posix_one_and_a_cut_upload_is_redone(
     url = _memory_url()
     fs, root = fsspec.core.url_to_fs(url)
     cut = "renders/v0001/f0000-0000"
-    real_put = where.Location.put_file
-    uploads = {"n": 0}
+    real_put = where.Location._put_many
 
-    def flaky_put(self, src, rel):  # the connection drops after two files of one chunk
-        if rel.startswith(cut + "/"):
-            uploads["n"] += 1
-            if uploads["n"] > 2:
-                raise ConnectionError("connection reset by peer")
-        return real_put(self, src, rel)
+    def flaky_put(self, pairs):  # the connection drops after two files of one chunk
+        if pairs and pairs[0][1].startswith(cut + "/"):
+            real_put(self, pairs[:2])
+            raise ConnectionError("connection reset by peer")
+        return real_put(self, pairs)
 
-    monkeypatch.setattr(where.Location, "put_file", flaky_put)
+    monkeypatch.setattr(where.Location, "_put_many", flaky_put)
     first = run_sweep(load_sweep(path), url, workers=0)
     assert [f["task"] for f in first.failures] == [f"render {cut.removeprefix('renders/')}"]
     # the cut chunk has files but no done record, and the dataset lists the 7 complete ones
@@ -75,7 +73,7 @@ def test_memory_dataset_equals_the_posix_one_and_a_cut_upload_is_redone(
     assert first.dataset_summary["images"] == 7
     assert json.loads(fs.cat_file(f"{root}/coco/cam.json"))["images"].__len__() == 7
 
-    monkeypatch.setattr(where.Location, "put_file", real_put)
+    monkeypatch.setattr(where.Location, "_put_many", real_put)
     again = run_sweep(load_sweep(path), url, workers=0)
     assert again.already_done == 7 and again.ran == 1 and again.composed == 0 and again.failures == []
     # the same labels, byte for byte, as the uninterrupted POSIX run
@@ -91,6 +89,20 @@ def test_memory_dataset_equals_the_posix_one_and_a_cut_upload_is_redone(
     assert index.num_rows == 8
     assert fs.isfile(f"{root}/card/contact_cam.png") and fs.isfile(f"{root}/yolo/pose/cam/data.yaml")
     assert not fs.exists(f"{root}/.sweep/lock") and not list((cache).rglob("staging/*"))
+
+    # a fresh machine (empty cache) re-rendering one chunk downloads the composed variant first
+    import shutil
+
+    shutil.rmtree(cache)
+    fs.rm(f"{root}/renders/v0002/f0001-0001/task.json")
+    third = run_sweep(load_sweep(path), url, workers=0)
+    assert third.ran == 1 and third.composed == 0 and third.failures == []
+    local = next(cache.glob("*/variants/v0002"))
+    assert (local / "compose.done.json").read_bytes() == fs.cat_file(
+        f"{root}/variants/v0002/compose.done.json"
+    )
+    assert (local / "stage.usda").read_bytes() == fs.cat_file(f"{root}/variants/v0002/stage.usda")
+    assert fs.cat_file(f"{root}/coco/cam.json") == (posix / "coco" / "cam.json").read_bytes()
 
 
 @pytest.mark.slow

@@ -99,7 +99,7 @@ def _local_variant(loc: Location, variant: str) -> Path:
     remote_record = loc.read_text(rel)
     mine = local / store.COMPOSE_RECORD
     if not mine.is_file() or mine.read_text() != remote_record:
-        loc.get_folder(f"variants/{variant}", local)
+        loc.get_folder(f"variants/{variant}", local, last=store.COMPOSE_RECORD)
     return local
 
 

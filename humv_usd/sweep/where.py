@@ -122,12 +122,21 @@ class Location:
             self.fs.get_file(self.full(rel), str(dst))
             yield dst
 
-    def get_folder(self, rel: str, dst: Path) -> None:
-        """Download every file under ``rel`` into ``dst`` (same relative layout)."""
+    def get_folder(self, rel: str, dst: Path, last: str | None = None) -> None:
+        """Download every file under ``rel`` into ``dst`` (same relative layout), the file named
+        ``last`` (a done record) removed first and fetched after all the others (concurrently on
+        an asynchronous file system)."""
         prefix = self.full(rel).rstrip("/") + "/"
-        for path in self.fs.find(self.full(rel)):
-            target = dst / path.removeprefix(prefix)
-            target.parent.mkdir(parents=True, exist_ok=True)
+        pairs = [(path, dst / path.removeprefix(prefix)) for path in self.fs.find(self.full(rel))]
+        record = [(path, target) for path, target in pairs if last and target == dst / last]
+        rest = [pair for pair in pairs if pair not in record]
+        if last:
+            (dst / last).unlink(missing_ok=True)
+        for parent in sorted({target.parent for _, target in pairs}):
+            parent.mkdir(parents=True, exist_ok=True)
+        if rest:
+            self.fs.get([path for path, _ in rest], [str(target) for _, target in rest])
+        for path, target in record:
             with atomic_path(target) as tmp:
                 self.fs.get_file(path, tmp)
 
@@ -176,8 +185,24 @@ class Location:
         """Upload every file under ``src`` to ``rel``/..., the file named ``last`` (the done
         record) after all the others; returns the bytes uploaded."""
         files = sorted(p for p in Path(src).rglob("*") if p.is_file())
-        files.sort(key=lambda p: p.relative_to(src).as_posix() == last)
-        return sum(self.put_file(p, f"{rel}/{p.relative_to(src).as_posix()}") for p in files)
+        pairs = [(p, f"{rel}/{p.relative_to(src).as_posix()}") for p in files]
+        first = [(p, r) for p, r in pairs if p.relative_to(src).as_posix() != last]
+        self._put_many(first)  # then the record, once all of these are there
+        for p, r in pairs:
+            if p.relative_to(src).as_posix() == last:
+                self.put_file(p, r)
+        return sum(p.stat().st_size for p in files)
+
+    def _put_many(self, pairs: list[tuple[Path, str]]) -> None:
+        """Upload files (local path, relative path); concurrently on an asynchronous file system
+        (s3fs, gcsfs: one ``put`` of lists), one by one otherwise."""
+        if not self.remote or not pairs:
+            for p, r in pairs:
+                self.put_file(p, r)
+            return
+        for parent in sorted({self.full(r).rsplit("/", 1)[0] for _, r in pairs}):
+            self.fs.makedirs(parent, exist_ok=True)
+        self.fs.put([str(p) for p, _ in pairs], [self.full(r) for _, r in pairs])
 
     def copy(self, src_rel: str, dst_rel: str) -> None:
         """Copy a file within the dataset (a hard link locally when possible)."""
