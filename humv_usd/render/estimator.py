@@ -422,14 +422,20 @@ def render_band_fast(
         value = [dr.select(hit, dr.select(front, surf[k], 0.0), sky(k, where, ~hit)) for k in range(n)]
         rho = [dr.select(front, r, 0.0) for r in rho]
         # the atmospheric path per camera sample, at the range of its first hit (sky: none)
+        # (the path radiance enters each channel as one weighted sum, tabulated per channel)
         path = radiometry.path
-        if path is not None:
-            lerp = _path_interpolation(mi, dr, path, dr.select(hit, si.t, 0.0), n)
-            tau = [dr.select(hit, lerp(0, k), 1.0) for k in range(n)]
-            value = [dr.select(hit, tau[k] * value[k] + lerp(1, k), value[k]) for k in range(n)]
+        if path is None:
+            direct_dr = [_weighted_sum(value, wts[c]) for c in range(channels)]
+        else:
+            lerp = _path_interpolation(mi, dr, path, dr.select(hit, si.t, 0.0), n, wts)
+            tau = [lerp(0, k) for k in range(n)]
+            seen = [tau[k] * value[k] for k in range(n)]
+            direct_dr = [
+                dr.select(hit, _weighted_sum(seen, wts[c]) + lerp(2, c), _weighted_sum(value, wts[c]))
+                for c in range(channels)
+            ]
             rho = [rho[k] * tau[k] for k in range(n)]  # the reflected term's throughput
         # per (pixel, replica) cell: the mean of its lattice points, per channel
-        direct_dr = [_weighted_sum(value, wts[c]) for c in range(channels)]
         if points > 1:
             direct_dr = [dr.block_sum(v, points) * (1.0 / points) for v in direct_dr]
         if not reflect:
@@ -626,15 +632,16 @@ def _cached_edges(hits) -> np.ndarray:
     return edge
 
 
-def _path_interpolation(mi, dr, path, range_m, n: int):
+def _path_interpolation(mi, dr, path, range_m, n: int, wts):
     """``lerp(table, k)``: the path transmittance (table 0) or path radiance (table 1) of
-    sub-band k at ``range_m``, linear in the path table's ascending ranges and held beyond its
-    ends (as :func:`humv_usd.render.radiometry.range_weights`), on the device."""
+    sub-band k, or the path radiance of output channel k (table 2, weighted by ``wts`` (c, n)),
+    at ``range_m``, linear in the path table's ascending ranges and held beyond its ends (as
+    :func:`humv_usd.render.radiometry.range_weights`), on the device."""
     ranges = np.atleast_1d(np.asarray(path.ranges_m, dtype=np.float32))
-    tabs = [
-        mi.Float(np.ascontiguousarray(t, dtype=np.float32).ravel())
-        for t in (path.transmittance, path.radiance)
-    ]
+    radiance = np.asarray(path.radiance, dtype=float).reshape(-1, n)
+    tables = (path.transmittance, radiance, radiance @ np.asarray(wts, float).T)
+    tabs = [mi.Float(np.ascontiguousarray(t, dtype=np.float32).ravel()) for t in tables]
+    width = [n, n, len(wts)]
     if ranges.size == 1:
         return lambda table, k: dr.gather(mi.Float, tabs[table], mi.UInt32(k))
     x = mi.Float(ranges)
@@ -643,11 +650,11 @@ def _path_interpolation(mi, dr, path, range_m, n: int):
     i = j - 1
     lo_x, hi_x = dr.gather(mi.Float, x, i), dr.gather(mi.Float, x, j)
     t = dr.clip((range_m - lo_x) / (hi_x - lo_x), 0.0, 1.0)
-    i, j = i * n, j * n
 
     def lerp(table, k):
-        lo = dr.gather(mi.Float, tabs[table], i + k)
-        return lo + (dr.gather(mi.Float, tabs[table], j + k) - lo) * t
+        m = width[table]
+        lo = dr.gather(mi.Float, tabs[table], i * m + k)
+        return lo + (dr.gather(mi.Float, tabs[table], j * m + k) - lo) * t
 
     return lerp
 
