@@ -27,6 +27,7 @@ from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline import records as R
 from humv_usd.pipeline.budget import render_budget, require_fits
+from humv_usd.pipeline.writer import BackgroundWriter
 from humv_usd.render import eo as eo_render
 from humv_usd.render import estimator as E
 from humv_usd.render import radiometry
@@ -54,6 +55,9 @@ MANIFEST_NAME = "manifest.json"
 #: frames between flushes of Dr.Jit's kernel cache (:func:`humv_usd.mode.release_kernel_cache`):
 #: keeps the memory of a long render flat at the cost of compiling kernels again
 KERNEL_CACHE_FRAMES = 10
+#: Frames whose files may still be being written (by :class:`BackgroundWriter`) while the next
+#: frame renders; 1 bounds the memory to about two frames of images.
+WRITE_FRAMES_AHEAD = 1
 #: Infrared estimators: "fast" (:func:`humv_usd.render.estimator.render_band_fast`: sub-bands on
 #: one path, emission evaluated, sky control variate, stratified, RQMC error) and "path" (the
 #: plain Mitsuba path tracer per sub-band, :func:`humv_usd.render.ir.render_band`: the reference,
@@ -355,11 +359,22 @@ def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
     frames_to_render = todo if (plan.rendered or plan.eo_run.sensors) else []
     run.progress = progress  # counts the images rendered in this call only
     run.units_total = len(frames_to_render) * (len(plan.rendered) + len(plan.eo_run.sensors))
-    for frame in frames_to_render:
-        run.render_frame(frame)
-        run.record_frame(frame)
-        if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
-            mode.release_kernel_cache()
+    t_writes = time.perf_counter()
+    with BackgroundWriter(frames_ahead=WRITE_FRAMES_AHEAD) as writer:  # frame N is written while N+1 renders
+        run.writer = writer
+        for frame in frames_to_render:
+            run.render_frame(frame)
+            run.record_frame(frame)  # queued after the frame's files: a record follows complete files
+            t = time.perf_counter()
+            writer.end_frame()
+            totals["write"] += time.perf_counter() - t  # waiting for the writer (it was slower)
+            if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
+                mode.release_kernel_cache()
+        t = time.perf_counter()
+    totals["write"] += time.perf_counter() - t  # waiting for the last frame's files
+    totals["write_background"] = writer.seconds  # the writer thread's time, overlapped with renders
+    run.writer = None
+    log.debug("frames and their writes took %.2f s", time.perf_counter() - t_writes)
     done = _records_of_this_render(plan)
     _write_cameras(out_dir, done)
 
@@ -655,6 +670,15 @@ class _FrameRenderer:
         self.progress = None
         self.units_done = 0
         self.units_total = 0
+        self.writer: BackgroundWriter | None = None  # set by the render loop; None: write now
+
+    def write(self, what: str, fn, *args, **kwargs) -> None:
+        """Write a file of the current frame: on the background writer when there is one (in
+        order, errors raised at the next frame), else now."""
+        if self.writer is None:
+            fn(*args, **kwargs)
+        else:
+            self.writer.submit(what, fn, *args, **kwargs)
 
     def record_frame(self, frame: int) -> None:
         """Write the record of every image of ``frame`` (after all its files) and drop what this
@@ -672,7 +696,9 @@ class _FrameRenderer:
                 continue
             entry, (_, camera) = entries.pop(), cameras.pop()
             truth = plan.truth.take_image(os.path.splitext(entry["exr"])[0]) if plan.truth else None
-            R.write_record(
+            self.write(
+                f"the record of {name}/{frame:04d}",
+                R.write_record,
                 plan.out_dir,
                 name,
                 frame,
@@ -811,13 +837,15 @@ class _FrameRenderer:
             lambda part: _band_emissivity(self.band_eps, part.material, s),
             plan.out_dir,
             rel,
+            write=self.write,
         )
         t = self._tick(timings, "labels", t)
 
         chained = self.chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
         camera = Camera.from_pose(state.cameras[s.name], m1.shape[1], m1.shape[0])
         self.per_sensor[s.name]["cameras"].append((frame, camera))
-        grey = _preview_grey(bt)
+        levels = writers.preview_levels(bt)
+        grey = _preview_grey(bt, levels)
         channels = {
             "R": grey,
             "G": grey,
@@ -830,7 +858,9 @@ class _FrameRenderer:
             **labels.channels,
             **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
         }
-        writers.write_exr(
+        self.write(
+            rel + ".exr",
+            writers.write_exr,
             os.path.join(plan.out_dir, rel + ".exr"),
             channels,
             metadata={
@@ -847,9 +877,11 @@ class _FrameRenderer:
             half=("R", "G", "B"),
         )
         plan.truth.image_written(rel, channels)
-        levels = writers.write_preview_png(os.path.join(plan.out_dir, rel + ".png"), bt)
-        chain_record = self.chains.write(chained, plan.out_dir, rel)
-        self._tick(timings, "write", t)
+        self.write(
+            rel + ".png", writers.write_preview_png, os.path.join(plan.out_dir, rel + ".png"), bt, levels
+        )
+        chain_record = self.chains.write(chained, plan.out_dir, rel, write=self.write)
+        self._tick(timings, "write", t)  # in the foreground: queueing (the writer's time is write_background)
 
         log.info(
             "frame %d %s: render %.2f s, labels %.2f s, error %s K away from edges",
@@ -890,10 +922,11 @@ class _FrameRenderer:
         )
 
 
-def _preview_grey(bt: np.ndarray) -> np.ndarray:
+def _preview_grey(bt: np.ndarray, levels: tuple[float, float]) -> np.ndarray:
     """The IR file's display channels: brightness temperature stretched between the PNG
-    preview's levels to 0..1 (0 where not finite), so that viewers do not open it black."""
-    lo, hi = writers.preview_levels(bt)
+    preview's ``levels`` (:func:`humv_usd.images.preview_levels`) to 0..1 (0 where not finite),
+    so that viewers do not open it black."""
+    lo, hi = levels
     grey = (bt - lo) / (hi - lo) if hi > lo else np.full(bt.shape, 0.5)
     return np.where(np.isfinite(grey), np.clip(grey, 0.0, 1.0), 0.0)
 
@@ -1106,12 +1139,16 @@ class _SensorChains:
         self.ran[sensor.name] = "ran"
         return out
 
-    def write(self, out, out_dir, rel) -> dict | None:
-        """Write ``<rel>_counts.png`` (16-bit raw counts) and ``<rel>_image8.png`` (8-bit AGC)."""
+    def write(self, out, out_dir, rel, write=None) -> dict | None:
+        """Write ``<rel>_counts.png`` (16-bit raw counts) and ``<rel>_image8.png`` (8-bit AGC);
+        ``write(what, fn, *args)`` runs the writes (default: now)."""
         if out is None:
             return None
-        writers.write_png16(os.path.join(out_dir, rel + "_counts.png"), out.counts)
-        writers.write_png(os.path.join(out_dir, rel + "_image8.png"), out.image8)
+        write = write or (lambda _what, fn, *args: fn(*args))
+        write(
+            rel + "_counts.png", writers.write_png16, os.path.join(out_dir, rel + "_counts.png"), out.counts
+        )
+        write(rel + "_image8.png", writers.write_png, os.path.join(out_dir, rel + "_image8.png"), out.image8)
         return {
             "counts_png": rel + "_counts.png",
             "image8_png": rel + "_image8.png",
