@@ -45,6 +45,8 @@ TABLE2: dict[str, np.ndarray] = {
 }
 TEMPERATURE_CHANNELS = ("brightness_temperature", "apparent_temperature")
 QUANTITIES = ("counts", "radiance", "Y", "temperature")
+#: The channels :func:`image_regions` reads.
+REGION_INPUTS = frozenset({"body_region", "instance_id", "counts", "radiance", "Y", *TEMPERATURE_CHANNELS})
 REGIONS_NAME = "regions.json"
 
 
@@ -113,9 +115,17 @@ def image_regions(channels: dict[str, np.ndarray], quantity: str | None = None) 
                 + ", ".join(c for c in QUANTITIES if c in channels or c == "temperature"),
             )
         )
-    region = np.rint(channels["body_region"]).astype(np.int64)
-    instance = np.rint(channels.get("instance_id", np.zeros_like(region))).astype(np.int64)
-    people = sorted(set(np.unique(instance[region > 0]).tolist()))
+    region = np.asarray(channels["body_region"])
+    region = np.rint(region) if region.dtype.kind == "f" else region
+    # only pixels of a body region count anywhere: keep those (in order), then float64 as stored
+    keep = np.flatnonzero(region.ravel() > 0)
+    region = region.ravel()[keep].astype(np.int64)
+    instance = channels.get("instance_id")
+    instance = np.zeros_like(region) if instance is None else np.asarray(instance).ravel()[keep]
+    instance = (np.rint(instance) if instance.dtype.kind == "f" else instance).astype(np.int64)
+    value = np.asarray(value).ravel()[keep].astype(np.float64)
+    temperature = None if temperature is None else np.asarray(temperature).ravel()[keep].astype(np.float64)
+    people = sorted(set(np.unique(instance).tolist()))
     return [
         {
             "instance_id": int(i),

@@ -52,8 +52,10 @@ class BackgroundWriter:
             return fn(*args, **kwargs)
         except InputError as exc:
             self._fail(exc)
-        except BaseException as exc:  # noqa: BLE001 -- surfaced in the rendering thread
+        except Exception as exc:  # noqa: BLE001 -- surfaced in the rendering thread as one line
             self._fail(WriteError(f"writing {what} failed: {type(exc).__name__}: {exc}".replace("\n", " ")))
+        except BaseException as exc:  # KeyboardInterrupt, SystemExit: raised as they are
+            self._fail(exc)
         finally:
             with self._lock:
                 self.seconds += time.perf_counter() - t
