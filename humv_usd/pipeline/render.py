@@ -799,7 +799,9 @@ class _FrameRenderer:
         band_renderer = render_band_fast if plan.estimator == "fast" else render_band
         edges = E.geometric_edges(scene.hits(sensor_id)) if plan.estimator == "fast" else None
         batches: list[tuple[np.ndarray, np.ndarray]] = []
+        estimator_s = 0.0  # the estimator's share of "render" (the rest: conversions, edges, stats)
         while True:
+            t_est = time.perf_counter()
             batch = band_renderer(
                 scene,
                 sensor_id,
@@ -811,6 +813,7 @@ class _FrameRenderer:
                 seed=(plan.seed + frame + AUTO_SEED_STRIDE * len(batches)) % 2**32,
                 transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
             )
+            estimator_s += time.perf_counter() - t_est
             batches.append(batch)
             m1 = np.mean([b[0] for b in batches], axis=0)  # equal-spp batches: plain mean
             stderr_l = np.sqrt(np.sum([b[1] ** 2 for b in batches], axis=0)) / len(batches)
@@ -916,6 +919,7 @@ class _FrameRenderer:
                 "sensor_chain": chain_record,
                 "timings_s": {
                     **{k: timings[k] - before[k] for k in timings},
+                    "estimator": estimator_s,
                     "cpu": time.process_time() - cpu0,
                 },
             }
