@@ -45,6 +45,7 @@ TABLE2: dict[str, np.ndarray] = {
 }
 TEMPERATURE_CHANNELS = ("brightness_temperature", "apparent_temperature")
 QUANTITIES = ("counts", "radiance", "Y", "temperature")
+_TABLE2_TOP = int(max(ids.max() for ids in TABLE2.values()))
 #: The channels :func:`image_regions` reads.
 REGION_INPUTS = frozenset({"body_region", "instance_id", "counts", "radiance", "Y", *TEMPERATURE_CHANNELS})
 REGIONS_NAME = "regions.json"
@@ -80,8 +81,16 @@ def region_stats(
     """Per Table 2 region: pixel count, mean/std of ``value`` and of ``temperature`` [K]."""
     region = np.asarray(region)
     out = {}
+    # non-negative integer ids: membership by a lookup table (np.isin sorts every time)
+    lookup = region.dtype.kind in "iu" and region.size > 0 and region.min() >= 0
+    top = max(int(region.max()), _TABLE2_TOP) + 1 if lookup else 0
     for name, ids in TABLE2.items():
-        m = np.isin(region, ids)
+        if lookup:
+            member = np.zeros(top, dtype=bool)
+            member[ids] = True
+            m = member[region]
+        else:
+            m = np.isin(region, ids)
         if select is not None:
             m &= select
         mean, std = _stats(value[m])

@@ -608,28 +608,65 @@ def brightness_temperature_tabulated(radiance, band_um, response=None):
     resp = _check_response(response)
     radiance = np.asarray(radiance, dtype=float)
     flat = radiance.ravel()
-    t = np.full(flat.shape, np.nan)
-    d = np.full(flat.shape, np.nan)
-    t[flat <= 0] = 0.0
-    t[np.isposinf(flat)] = np.inf
-    ok = np.isfinite(flat) & (flat > 0)
-    if np.any(ok):
-        log_t, log_l, dlog = _table(_key(band, resp))
-        lo = flat[ok]
-        y = np.log(lo)
-        inside = (y >= log_l[0]) & (y <= log_l[-1])
-        ti, di = np.empty_like(lo), np.empty_like(lo)
-        yi = y[inside]
-        i = np.clip(np.searchsorted(log_l, yi) - 1, 0, log_l.size - 2)
-        h = log_l[i + 1] - log_l[i]
-        u = (yi - log_l[i]) / h
-        s = _hermite(u, log_t[i], log_t[i + 1], 1.0 / dlog[i], 1.0 / dlog[i + 1], h)
-        v = (s - log_t[i]) / (log_t[1] - log_t[0])  # position in the segment in log T
-        slope = dlog[i] + v * (dlog[i + 1] - dlog[i])
-        ti[inside] = np.exp(s)
-        di[inside] = lo[inside] * slope / ti[inside]
-        if not np.all(inside):
-            ti[~inside], di[~inside] = _invert(lo[~inside], band, resp)
-        t[ok], d[ok] = ti, di
+    table = _inverse_table(_key(band, resp))
+    y0, y1 = table.y_first, table.y_last
+    with np.errstate(divide="ignore", invalid="ignore"):
+        y = np.log(flat)
+    if flat.size and y.min() >= y0 and y.max() <= y1:  # a frame: every radiance in the table
+        t, d = _tabulated_inverse(y, flat, table)
+    else:
+        t = np.full(flat.shape, np.nan)
+        d = np.full(flat.shape, np.nan)
+        t[flat <= 0] = 0.0
+        t[np.isposinf(flat)] = np.inf
+        ok = np.isfinite(flat) & (flat > 0)
+        inside = ok & (y >= y0) & (y <= y1)
+        if np.any(inside):
+            t[inside], d[inside] = _tabulated_inverse(y[inside], flat[inside], table)
+        beyond = ok & ~inside
+        if np.any(beyond):  # below 0.5 K or above 20 000 K: the exact inversion
+            t[beyond], d[beyond] = _invert(flat[beyond], band, resp)
     t, d = t.reshape(radiance.shape), d.reshape(radiance.shape)
     return (t, d) if t.ndim else (float(t), float(d))
+
+
+class _InverseTable:
+    """Per-segment cubic coefficients of log T against log L, and a uniform index in log L."""
+
+    def __init__(self, log_t, log_l, dlog):
+        h = np.diff(log_l)
+        s0, s1 = log_t[:-1], log_t[1:]
+        m0, m1 = 1.0 / dlog[:-1], 1.0 / dlog[1:]  # d log T / d log L at the segment's ends
+        # Hermite in Horner form on u = (y - y_i) / h_i: s = c0 + u (c1 + u (c2 + u c3))
+        c1 = h * m0
+        c2 = 3.0 * (s1 - s0) - h * (2.0 * m0 + m1)
+        c3 = 2.0 * (s0 - s1) + h * (m0 + m1)
+        step = log_t[1] - log_t[0]
+        # columns: y_i, 1/h_i, c0..c3, d log L/d log T at the start, its change per unit of (s - s_i)/step
+        self.rows = np.stack([log_l[:-1], 1.0 / h, s0, c1, c2, c3, dlog[:-1], np.diff(dlog)], axis=1)
+        self.inv_step = 1.0 / step
+        self.y_first, self.y_last = float(log_l[0]), float(log_l[-1])
+        # index: bins narrower than every segment, so a bin holds at most one segment start
+        self.dy = 0.5 * float(h.min())
+        bins = int(np.ceil((self.y_last - self.y_first) / self.dy)) + 1
+        starts = self.y_first + self.dy * np.arange(bins)
+        self.first = np.clip(np.searchsorted(log_l, starts, side="right") - 1, 0, h.size - 1).astype(np.int32)
+        self.next_start = np.append(log_l[1:-1], np.inf)  # where segment i ends (the last: never)
+
+
+@functools.lru_cache(maxsize=32)
+def _inverse_table(key) -> _InverseTable:
+    return _InverseTable(*_table(key))
+
+
+def _tabulated_inverse(y, radiance, table: _InverseTable):
+    """(T [K], dL/dT) at log radiances ``y`` inside the table (:func:`brightness_temperature_tabulated`)."""
+    j = np.minimum(((y - table.y_first) * (1.0 / table.dy)).astype(np.intp), table.first.size - 1)
+    i = table.first[j].astype(np.intp)
+    i += y >= table.next_start[i]  # a bin starts in one segment and may end in the next
+    r = table.rows[i]
+    u = (y - r[:, 0]) * r[:, 1]
+    s = r[:, 2] + u * (r[:, 3] + u * (r[:, 4] + u * r[:, 5]))
+    slope = r[:, 6] + ((s - r[:, 2]) * table.inv_step) * r[:, 7]  # d log L / d log T, linear in log T
+    t = np.exp(s)
+    return t, radiance * slope / t
