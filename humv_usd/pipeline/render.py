@@ -193,6 +193,14 @@ class _Accumulator:
                 self.counts[name] += a.size
                 self.maxima[name] = max(self.maxima.get(name, 0.0), float(a.max()))
 
+    def merge(self, other: _Accumulator) -> None:
+        """Add what ``other`` summed (the same totals as adding its images again)."""
+        for name, total in other.sums.items():
+            self.sums[name] += total
+            self.counts[name] += other.counts[name]
+        for name, top in other.maxima.items():
+            self.maxima[name] = max(self.maxima.get(name, 0.0), top)
+
     def stats(self) -> dict:
         def mean(n):
             return self.sums[n] / self.counts[n] if self.counts[n] else None
@@ -203,12 +211,6 @@ class _Accumulator:
             "temperature_stderr_mean_k": mean("temperature_stderr"),
             "temperature_stderr_max_k": self.maxima.get("temperature_stderr"),
         }
-
-
-def _error_stats(stderr_l: np.ndarray, stderr_k: np.ndarray) -> dict:
-    acc = _Accumulator()
-    acc.add(stderr_l, stderr_k)
-    return acc.stats()
 
 
 def render_stage(
@@ -894,10 +896,10 @@ class _FrameRenderer:
             timings["labels"] - before["labels"],
             "n/a" if away_from_edges["mean_k"] is None else f"{away_from_edges['mean_k']:.4f}",
         )
-        self.per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
-        self.overall.add(stderr_l, stderr_k)
-        frame_errors = _Accumulator()
+        frame_errors = _Accumulator()  # summed once per image, merged into the totals
         frame_errors.add(stderr_l, stderr_k)
+        self.per_sensor[s.name]["errors"].merge(frame_errors)
+        self.overall.merge(frame_errors)
         self.per_sensor[s.name]["frame_errors"] = {
             "sums": dict(frame_errors.sums),
             "counts": dict(frame_errors.counts),
@@ -913,7 +915,7 @@ class _FrameRenderer:
                 "radiance_mean": float(np.mean(m1)),
                 "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
                 "sky_temperature_k": state.sky_temperature_k,
-                "monte_carlo_error": _error_stats(stderr_l, stderr_k),
+                "monte_carlo_error": frame_errors.stats(),
                 "monte_carlo_error_k": away_from_edges,
                 "radiometry": frame_rad.ran,
                 "sensor_chain": chain_record,
