@@ -227,6 +227,40 @@ def test_examples_table1_and_random(tmp_path):
     assert len(rnd.variants) >= 10 and len({v.scenario["general"]["start"] for v in rnd.variants}) > 1
 
 
+def _table1_variant(t1, **params):
+    return next(v for v in t1.variants if all(v.params[k] == x for k, x in params.items()))
+
+
+def test_outfits_share_one_avatar_layer_and_it_is_the_same_layer():
+    from humv_usd.avatar.layer import build_one
+    from humv_usd.usd.layers import layer_text
+
+    t1 = load_sweep(ROOT / "examples" / "table1.toml")
+    same = {"illumination": "full_sun", "human.0.activity": "walk", "weapon": "none", "gender": "male"}
+    shorts = _table1_variant(t1, clothing="bare_upper_body_shorts", **same)
+    robe = _table1_variant(t1, clothing="robe", **same)
+    a, b = layer_keys(shorts.scenario), layer_keys(robe.scenario)
+    assert a["avatar_p1"] == b["avatar_p1"] and a["clothing_p1"] != b["clothing_p1"]
+    # equal keys must mean equal layers: the avatar reads nothing else of the clothing
+    built = [layer_text(build_one(v.scenario, v.scenario["human"][0])) for v in (shorts, robe)]
+    assert built[0] == built[1]
+    # the rifle changes the arms' pose, so it changes the avatar; so do the sex and the activity
+    rifle = _table1_variant(t1, clothing="robe", **{**same, "weapon": "rifle"})
+    female = _table1_variant(t1, clothing="robe", **{**same, "gender": "female"})
+    stand = _table1_variant(t1, clothing="robe", **{**same, "human.0.activity": "standTurn"})
+    for other in (rifle, female, stand):
+        assert layer_keys(other.scenario)["avatar_p1"] != b["avatar_p1"]
+
+
+def test_table1_composes_one_avatar_per_body_motion_and_carry():
+    t1 = load_sweep(ROOT / "examples" / "table1.toml")
+    keys = {v.id: layer_keys(v.scenario) for v in t1.variants}
+    avatars = {k["avatar_p1"] for k in keys.values()}
+    assert len(avatars) == 2 * 3 * 2  # gender x activity x weapon (not x 7 outfits x 2 illuminations)
+    unique = {(n, k) for lk in keys.values() for n, k in lk.items()}
+    assert len(unique) == 387 and sum(len(lk) for lk in keys.values()) == 1512  # 543 before
+
+
 # ----------------------------------------------------------------------- lock and records
 def test_a_live_sweep_holds_the_folder_a_dead_ones_lock_is_taken_over(tmp_path):
     lock = tmp_path / store.SWEEP_DIR / store.LOCK_NAME
@@ -329,6 +363,112 @@ def test_one_dataset_out(reference):
         [[float(v) for v in line.split()[1:]] for p in labels for line in p.read_text().splitlines()]
     )
     assert (x >= 0).all() and (x <= 1).all()
+
+
+# Ultralytics' reading of a YOLO dataset (ultralytics/data/utils.py: check_det_dataset,
+# img2label_paths, verify_image_label; docs.ultralytics.com/datasets/detect and /pose),
+# re-implemented here because ultralytics needs torch:
+#  1. the YAML needs train, val and names (nc = len(names)); pose also kpt_shape [nkpt, ndim]
+#     (ndim 2 or 3) and flip_idx of nkpt entries (a left/right permutation: applied twice, the
+#     identity);
+#  2. the root is `path`, else the YAML's folder; a relative root that does not exist from the
+#     working directory is taken under Ultralytics' datasets_dir; train/val are under the root;
+#  3. an image's labels: the last /images/ of its path replaced by /labels/, suffix .txt;
+#  4. an image opens and verifies with PIL, both sides > 9 px, a known format;
+#  5. a label row has 5 columns (detect) or 5 + nkpt * ndim (pose); coordinates <= 1.01, every
+#     value >= -0.01, class < nc; duplicate rows are dropped (we want none).
+IMG_FORMATS = {"bmp", "dng", "jpeg", "jpg", "mpo", "png", "tif", "tiff", "webp", "pfm", "heic"}
+
+
+def _ultralytics_read(yaml_file: str, task: str, datasets_dir: Path) -> list[tuple[str, np.ndarray]]:
+    import yaml
+    from PIL import Image
+
+    data = yaml.safe_load(Path(yaml_file).read_text())
+    assert "train" in data and "val" in data and "names" in data
+    names = data["names"]
+    nc = len(names)
+    assert sorted(names) == list(range(nc)) if isinstance(names, dict) else True
+    nkpt, ndim = data["kpt_shape"] if task == "pose" else (0, 0)
+    if task == "pose":
+        flip = data["flip_idx"]
+        assert ndim in (2, 3) and len(flip) == nkpt and [flip[i] for i in flip] == list(range(nkpt))
+    root = Path(data.get("path") or Path(yaml_file).parent)
+    if not root.exists() and not root.is_absolute():
+        root = (datasets_dir / root).resolve()
+    out = []
+    for split in ("train", "val"):
+        folder = (root / data[split]).resolve()
+        files = sorted(str(p) for p in folder.rglob("*.*") if p.suffix[1:].lower() in IMG_FORMATS)
+        assert files, f"{split}: no images under {folder}"
+        for im_file in files:
+            sa, sb = f"{os.sep}images{os.sep}", f"{os.sep}labels{os.sep}"
+            lb_file = sb.join(im_file.rsplit(sa, 1)).rsplit(".", 1)[0] + ".txt"
+            im = Image.open(im_file)
+            im.verify()
+            assert min(im.size) > 9 and im.format.lower() in IMG_FORMATS
+            rows = [x.split() for x in Path(lb_file).read_text().strip().splitlines() if x]
+            cols = 5 + nkpt * ndim if task == "pose" else 5
+            lb = (
+                np.array(rows, dtype=np.float32) if rows else np.zeros((0, cols), np.float32)
+            )  # empty: no object
+            if len(lb):
+                assert lb.ndim == 2 and lb.shape[1] == cols
+                points = lb[:, 5:].reshape(-1, ndim)[:, :2] if task == "pose" else lb[:, 1:]
+                assert points.max() <= 1.01 and lb.min() >= -0.01 and lb[:, 0].max() < nc
+                assert len(np.unique(lb, axis=0)) == len(lb)
+            out.append((im_file, lb))
+    return out
+
+
+PERSON = """
+[[human]]
+id = "p1"
+activity = "walk"
+clothing = []
+
+[[placement]]
+human = "p1"
+position_m = [0.0, 0.0, 0.0]
+heading_deg = 90.0
+"""
+
+
+@pytest.fixture(scope="module")
+def person_dataset(tmp_path_factory):
+    """A tiny sweep with a walking person seen at 96x72 (keypoints for the pose export)."""
+    from humv_usd.sweep.run import run_sweep
+
+    tmp = tmp_path_factory.mktemp("sweep_person")
+    base = TINY.replace("resolution = [32, 24]", "resolution = [96, 72]") + PERSON
+    sweep = SWEEP.replace("count = 2", "count = 1").replace("[300.0, 320.0]", "[300.0]")
+    run_sweep(load_sweep(_write(tmp, sweep, base)), tmp / "dataset", workers=0)
+    return tmp / "dataset"
+
+
+@pytest.mark.slow
+def test_yolo_export_reads_as_ultralytics_reads_it_from_anywhere(person_dataset, tmp_path, monkeypatch):
+    dataset = person_dataset
+    coco = json.loads((dataset / "coco" / "cam.json").read_text())
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # neither the dataset nor its parent: the root must be the YAML's folder
+    for task in ("detect", "pose"):
+        yaml_file = os.path.relpath(dataset / "yolo" / task / "cam" / "data.yaml")
+        read = _ultralytics_read(yaml_file, task, datasets_dir=tmp_path / "ultralytics_datasets")
+        assert len(read) == 2 * len(coco["images"])  # train and val are the same images
+        rows = np.concatenate([lb for _, lb in read[: len(coco["images"])]])
+        people = [a for a in coco["annotations"] if a["category_id"] == 1]
+        assert people and len(people) < len(coco["annotations"])  # a person and the box
+        assert len(rows) == (len(people) if task == "pose" else len(coco["annotations"]))
+        if task == "pose":  # visible keypoints of the people, in pixels again, as in COCO
+            w, h = coco["images"][0]["width"], coco["images"][0]["height"]
+            kp = rows[:, 5:].reshape(-1, 17, 3)
+            ref = np.array([a["keypoints"] for a in people], float).reshape(-1, 17, 3)
+            assert ((kp[..., 2] > 0) == (ref[..., 2] > 0)).all()
+            seen = ref[..., 2] > 0
+            assert np.allclose(kp[seen][:, 0] * w, ref[seen][:, 0], atol=1e-3 * w)
+            assert np.allclose(kp[seen][:, 1] * h, ref[seen][:, 1], atol=1e-3 * h)
 
 
 @pytest.mark.slow

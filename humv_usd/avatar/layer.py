@@ -40,7 +40,7 @@ from humv_usd.human.skeleton import (
 )
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
-from humv_usd.scenario.inputs import FRAMES
+from humv_usd.scenario.inputs import FRAMES, RIFLE
 from humv_usd.usd.avatar import (
     AvatarParameters,
     write_avatar,
@@ -53,9 +53,38 @@ from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, skeleton_path
 
 NAME = "avatar_{id}"  # one layer per [[human]]
-READS = (*FRAMES, "general.seed", "human[{id}]", "placement[{id}]", "@ids")
+#: what changes the avatar, and nothing else: the body (sex, age, stature, mass, build), the
+#: fitness and activity it records, the motion (activity, speed, BVH file, the seed of the built-in
+#: motion, whether the arms carry the rifle), the placement (position, heading, waypoints) and the
+#: person's instance id; not the rest of the clothing, so scenarios that differ only in outfit
+#: share one avatar layer (a sweep composes it once)
+READS = (
+    *FRAMES,
+    "general.seed",
+    *(
+        f"human[{{id}}].{key}"
+        for key in (
+            "id",
+            "sex",
+            "age_yr",
+            "stature_m",
+            "mass_kg",
+            "build",
+            "fitness",
+            "activity",
+            "bvh",
+            "bvh_up_axis",
+            "speed_m_s",
+        )
+    ),
+    "placement[{id}].position_m",
+    "placement[{id}].heading_deg",
+    "placement[{id}].waypoints_m",
+    "@instanceId[{id}]",
+    "@carriesRifle[{id}]",
+)
 UPSTREAM = ()
-VERSION = "1"
+VERSION = "2"  # 2: reads only what changes the avatar (shared across outfits)
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -112,7 +141,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
-    carry = "rifle" in (human.get("clothing") or ())
+    carry = RIFLE in (human.get("clothing") or ())
     if human.get("bvh"):
         motion = motion_from_bvh(
             human["bvh"],

@@ -83,7 +83,12 @@ class _Progress:
 @click.command()
 @click.argument("sweep_file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
-    "-o", "--out", "out_dir", required=True, type=str, help="The dataset folder (new or to resume)."
+    "-o",
+    "--out",
+    "out_dir",
+    required=True,
+    type=str,
+    help="The dataset folder (new or to resume), or an fsspec URL (s3://bucket/prefix, gs://..., file://...).",
 )
 @click.option("--dry-run", is_flag=True, help="Print the variants and the estimated cost; run nothing.")
 @click.option(
@@ -114,8 +119,10 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
     from humv_usd.fileio import check_output_dir
     from humv_usd.sweep.plan import estimate, layer_keys
     from humv_usd.sweep.spec import load_sweep
+    from humv_usd.sweep.where import Location, is_url
 
-    check_output_dir(out_dir, "dataset folder")  # fail fast, before reading anything
+    # fail fast, before reading anything
+    Location(out_dir) if is_url(out_dir) else check_output_dir(out_dir, "dataset folder")
     sw = load_sweep(sweep_file)  # every variant validated: InputError names the axis
     if dry_run:
         keys = {v.id: layer_keys(v.scenario) for v in sw.variants}

@@ -9,7 +9,11 @@ A tool declares ``READS``, a tuple of read paths:
   built for (``{id}`` is that person's id; an entry matches on its ``id`` or, for placements,
   its ``human`` key);
 * ``"@ids"`` -- the instance ids (:func:`humv_usd.scenario.ids.instance_ids`), derived from the
-  order of people, objects and props.
+  order of people, objects and props;
+* ``"@instanceId[{id}]"`` -- that person's instance id alone; ``"@carriesRifle[{id}]"`` -- whether
+  that person's clothing holds the rifle (the avatar's arms take the carry pose): a per-person
+  layer that reads these instead of the whole entry is shared between scenarios that differ only
+  in what it does not read (e.g. avatars across outfits).
 
 Values are JSON values (date-times as ISO text). A file the scenario names (``weather_csv``,
 ``bvh``, ``scene.asset.*.file``, ``scene.layers``) is read by content: its value is ``"<path> sha256:<hash of the bytes>"``, so editing the
@@ -48,6 +52,21 @@ CLOCK = (
     "general.seed",
 )
 DERIVED = {"@ids": instance_ids}
+#: the garment that changes the avatar's pose (humv_usd.catalog.garments: carried in both hands)
+RIFLE = "rifle"
+
+
+def _instance_id(scenario: Scenario, human_id: str) -> int:
+    return instance_ids(scenario)[f"human:{human_id}"]
+
+
+def _carries_rifle(scenario: Scenario, human_id: str) -> bool:
+    human = next((h for h in scenario["human"] if h["id"] == human_id), None)
+    return human is not None and RIFLE in (human.get("clothing") or ())
+
+
+#: values derived for one person: ``"@name[{id}]"``
+DERIVED_PER_PERSON = {"@instanceId": _instance_id, "@carriesRifle": _carries_rifle}
 
 
 def _file_keys(sections) -> frozenset[str]:
@@ -70,6 +89,10 @@ def read_values(scenario: Scenario, reads, human_id: str | None = None) -> dict[
         path = read.format(id=human_id) if human_id is not None else read
         if path in DERIVED:
             out[path] = _plain(DERIVED[path](scenario))
+            continue
+        name, _, ident = path.partition("[")
+        if name in DERIVED_PER_PERSON:
+            out[path] = _plain(DERIVED_PER_PERSON[name](scenario, ident.rstrip("]")))
             continue
         head, *rest = path.split(".")
         _flatten(head, _select(scenario, head), rest, out)

@@ -1,7 +1,8 @@
 """One dataset out of a sweep's finished render tasks.
 
 Written into DATASET/ (rebuilt from ``renders/`` on every run, so it always lists exactly the
-finished tasks, in variant and frame order):
+finished tasks, in variant and frame order; a local folder or an fsspec URL, read and written
+through :class:`humv_usd.sweep.where.Location`):
 
 * ``coco/<sensor>.json`` -- one COCO file per sensor over every variant: image and annotation
   ids unique and sequential, ``file_name`` / ``humv_exr`` / ``humv_camera`` relative to
@@ -14,40 +15,41 @@ finished tasks, in variant and frame order):
   contact sheets (``card/contact_<sensor>.png``) and a Hugging Face ``datasets`` header, so
   ``datasets.load_dataset("DATASET")`` loads the index;
 * ``yolo/detect/<sensor>/`` and ``yolo/pose/<sensor>/`` -- Ultralytics YOLO exports (images are
-  hard links to the 8-bit sensor images; labels normalised ``class cx cy w h`` and, for pose,
-  the 17 COCO keypoints ``x y v``; ``data.yaml``).
+  hard links to the 8-bit sensor images, copies on an object store; labels normalised ``class cx cy w h`` and, for pose,
+  the 17 COCO keypoints ``x y v``; ``data.yaml`` without ``path``, so the root is its folder).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
+import posixpath
 from collections import Counter, defaultdict
-from pathlib import Path
 
 import numpy as np
 
 from humv_usd import images
-from humv_usd.fileio import atomic_path, jsonable, write_json, write_text_atomic
+from humv_usd.fileio import jsonable
 from humv_usd.groundtruth.coco import RELATIVE_PATH_KEYS, categories
 from humv_usd.groundtruth.labels import CLASSES
+from humv_usd.sweep.where import Location
 
 #: COCO-17 keypoint order mirrored left/right (YOLO pose ``flip_idx``)
 COCO_FLIP = [0, 2, 1, 4, 3, 6, 5, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15]
 CONTACT_TILES = 16
+#: data.yaml has no ``path``: Ultralytics then takes the YAML's folder as the dataset root
+#: (``check_det_dataset``); a relative ``path: .`` would resolve against the working directory
+#: (or, in older releases, Ultralytics' ``datasets_dir``), not this folder
+YOLO_ROOT_NOTE = "# Ultralytics YOLO dataset: the root is this file's folder (no 'path' key)\n"
 
 
-def _load(path: Path) -> dict:
-    return json.loads(path.read_text())
-
-
-def _chunks(dataset: Path, tasks) -> list[tuple[object, Path]]:
+def _chunks(loc: Location, tasks) -> list[tuple[object, str]]:
+    """The finished tasks (those with a done record), each with its folder relative to the root."""
+    done = set(loc.glob("renders/*/*/task.json"))
     out = []
     for t in tasks:
-        folder = dataset / "renders" / t.variant / t.chunk
-        if (folder / "task.json").is_file():
+        folder = f"renders/{t.variant}/{t.chunk}"
+        if f"{folder}/task.json" in done:
             out.append((t, folder))
     return out
 
@@ -68,21 +70,21 @@ def _param_columns(variants) -> dict[str, dict[str, object]]:
     return columns
 
 
-def assemble(dataset: Path, sweep, tasks) -> dict:
-    """Write the merged COCO files, index, card and YOLO exports; return the summary."""
-    dataset = Path(dataset)
+def assemble(dataset, sweep, tasks) -> dict:
+    """Write the merged COCO files, index, card and YOLO exports; return the summary.
+    ``dataset``: a folder, an fsspec URL or a :class:`~humv_usd.sweep.where.Location`."""
+    loc = dataset if isinstance(dataset, Location) else Location(dataset)
     by_id = {v.id: v for v in sweep.variants}
     params = _param_columns(sweep.variants)
     rows: list[dict] = []
     coco: dict[str, dict] = {}
-    for task, folder in _chunks(dataset, tasks):
-        manifest = _load(folder / "manifest.json")
-        record = _load(folder / "task.json")
-        doc = _load(folder / "coco.json") if (folder / "coco.json").is_file() else None
+    for task, rel in _chunks(loc, tasks):
+        manifest = loc.read_json(f"{rel}/manifest.json")
+        record = loc.read_json(f"{rel}/task.json")
+        doc = loc.read_json(f"{rel}/coco.json") if loc.is_file(f"{rel}/coco.json") else None
         images_in_task = sum(len(s["frames"]) for s in manifest["sensors"] + manifest.get("eo_sensors", []))
         per_image_s = record["seconds"] / max(1, images_in_task)
-        coco_ids = _merge_coco(coco, doc, folder, dataset, task.variant) if doc else {}
-        rel = folder.relative_to(dataset).as_posix()
+        coco_ids = _merge_coco(coco, doc, rel, task.variant) if doc else {}
         for s in manifest["sensors"] + manifest.get("eo_sensors", []):
             for fr in s["frames"]:
                 chain = fr.get("sensor_chain") or {}
@@ -109,20 +111,19 @@ def assemble(dataset: Path, sweep, tasks) -> dict:
                 }
                 row.update({name: values.get(task.variant) for name, values in params.items()})
                 rows.append(row)
-    coco_dir = dataset / "coco"
     for sensor, doc in coco.items():
-        write_json(coco_dir / f"{sensor}.json", doc)
-    _write_index(dataset, rows)
+        loc.write_json(f"coco/{sensor}.json", doc)
+    _write_index(loc, rows)
     summary = _summary(sweep, rows, coco)
-    write_json(dataset / "dataset.json", {**summary, "index": jsonable(rows)})
-    _write_yolo(dataset, coco, rows)
-    _write_card(dataset, sweep, rows, summary, params)
+    loc.write_json("dataset.json", {**summary, "index": jsonable(rows)})
+    _write_yolo(loc, coco, rows)
+    _write_card(loc, sweep, rows, summary, params)
     return summary
 
 
-def _merge_coco(coco: dict, doc: dict, folder: Path, dataset: Path, variant: str) -> dict:
-    """Add one chunk's COCO images/annotations to the per-sensor documents (ids renumbered)."""
-    out_dir = dataset / "coco"
+def _merge_coco(coco: dict, doc: dict, folder: str, variant: str) -> dict:
+    """Add one chunk's COCO images/annotations to the per-sensor documents (ids renumbered);
+    ``folder``: the chunk's folder relative to the dataset's root."""
     ids = {}
     new_id = {}
     for img in doc["images"]:
@@ -140,7 +141,7 @@ def _merge_coco(coco: dict, doc: dict, folder: Path, dataset: Path, variant: str
         entry = dict(img, id=len(merged["images"]) + 1, humv_variant=variant)
         for key in RELATIVE_PATH_KEYS:
             if isinstance(img.get(key), str):
-                entry[key] = os.path.relpath(folder / img[key], out_dir)
+                entry[key] = posixpath.relpath(f"{folder}/{img[key]}", "coco")
         merged["images"].append(entry)
         new_id[img["id"]] = (sensor, entry["id"])
         ids[(sensor, img.get("humv_frame"))] = entry["id"]
@@ -151,12 +152,12 @@ def _merge_coco(coco: dict, doc: dict, folder: Path, dataset: Path, variant: str
     return ids
 
 
-def _write_index(dataset: Path, rows: list[dict]) -> None:
+def _write_index(loc: Location, rows: list[dict]) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     table = pa.Table.from_pylist(jsonable(rows)) if rows else pa.table({"variant": pa.array([], pa.string())})
-    with atomic_path(dataset / "index.parquet") as tmp:
+    with loc.writing("index.parquet") as tmp:
         pq.write_table(table, tmp)
 
 
@@ -190,22 +191,14 @@ def _summary(sweep, rows: list[dict], coco: dict) -> dict:
 
 
 # ----------------------------------------------------------------------------- YOLO
-def _link(src: Path, dst: Path) -> None:
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copyfile(src, dst)
-
-
-def _write_yolo(dataset: Path, coco: dict, rows: list[dict]) -> None:
+def _write_yolo(loc: Location, coco: dict, rows: list[dict]) -> None:
     """Detection (every class) and pose (persons, COCO-17 keypoints) exports per sensor."""
-    root = dataset / "yolo"
-    shutil.rmtree(root, ignore_errors=True)
+    loc.remove("yolo")
     image_of = {(r["sensor"], r["coco_image_id"]): r["image"] for r in rows if r["coco_image_id"]}
     names = list(CLASSES[1:])
     for sensor, doc in coco.items():
         anns = defaultdict(list)
+        written = False
         for a in doc["annotations"]:
             anns[a["image_id"]].append(a)
         for img in doc["images"]:
@@ -227,30 +220,34 @@ def _write_yolo(dataset: Path, coco: dict, rows: list[dict]) -> None:
                     )
                     pose.append(f"0 {box} {pts}")
             for kind, lines in (("detect", det), ("pose", pose)):
-                base = root / kind / sensor
-                _link(dataset / src, base / "images" / f"{stem}.png")
-                write_text_atomic(base / "labels" / f"{stem}.txt", "".join(line + "\n" for line in lines))
-        det_yaml = "path: .\ntrain: images\nval: images\nnames:\n" + "".join(
-            f"  {i}: {n}\n" for i, n in enumerate(names)
+                base = f"yolo/{kind}/{sensor}"
+                loc.copy(src, f"{base}/images/{stem}.png")
+                loc.write_text(f"{base}/labels/{stem}.txt", "".join(line + "\n" for line in lines))
+            written = True
+        det_yaml = (
+            YOLO_ROOT_NOTE
+            + "train: images\nval: images\nnames:\n"
+            + "".join(f"  {i}: {n}\n" for i, n in enumerate(names))
         )
         pose_yaml = (
-            "path: .\ntrain: images\nval: images\nkpt_shape: [17, 3]\n"
+            YOLO_ROOT_NOTE + "train: images\nval: images\nkpt_shape: [17, 3]\n"
             f"flip_idx: {COCO_FLIP}\nnames:\n  0: person\n"
         )
-        if (root / "detect" / sensor).is_dir():
-            write_text_atomic(root / "detect" / sensor / "data.yaml", det_yaml)
-            write_text_atomic(root / "pose" / sensor / "data.yaml", pose_yaml)
+        if written:
+            loc.write_text(f"yolo/detect/{sensor}/data.yaml", det_yaml)
+            loc.write_text(f"yolo/pose/{sensor}/data.yaml", pose_yaml)
 
 
 # ----------------------------------------------------------------------------- card
-def _contact_sheet(dataset: Path, paths: list[str], out: Path) -> bool:
+def _contact_sheet(loc: Location, paths: list[str], out: str) -> bool:
     """A grid of up to CONTACT_TILES images (evenly spaced over ``paths``) as one PNG."""
     if not paths:
         return False
     step = max(1, len(paths) // CONTACT_TILES)
     tiles = []
     for p in paths[::step][:CONTACT_TILES]:
-        ch = images.read_exr(dataset / p)
+        with loc.local_copy(p) as local:
+            ch = images.read_exr(local)
         if {"R", "G", "B"} <= ch.keys():
             a = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1)
         else:
@@ -265,11 +262,12 @@ def _contact_sheet(dataset: Path, paths: list[str], out: Path) -> bool:
         xi = (np.arange(w) * t.shape[1] // w)[None, :]
         r, c = divmod(i, cols)
         sheet[r * (h + 2) : r * (h + 2) + h, c * (w + 2) : c * (w + 2) + w] = t[yi, xi]
-    images.write_png(out, sheet)
+    with loc.writing(out) as tmp:
+        images.write_png(tmp, sheet)
     return True
 
 
-def _param_plots(params: dict, out: Path) -> bool:
+def _param_plots(loc: Location, params: dict, out: str) -> bool:
     if not params:
         return False
     import matplotlib
@@ -289,7 +287,7 @@ def _param_plots(params: dict, out: Path) -> bool:
             ax.set_xticks(range(len(counts)), [k[:14] for k in counts], rotation=60, ha="right", fontsize=6)
         ax.set_title(name.removeprefix("param_"), fontsize=8)
     fig.tight_layout()
-    with atomic_path(out) as tmp:
+    with loc.writing(out) as tmp:
         fig.savefig(tmp, dpi=90, format="png")
     plt.close(fig)
     return True
@@ -308,8 +306,7 @@ def _distribution_lines(params: dict) -> list[str]:
     return lines
 
 
-def _write_card(dataset: Path, sweep, rows: list[dict], summary: dict, params: dict) -> None:
-    card = dataset / "card"
+def _write_card(loc: Location, sweep, rows: list[dict], summary: dict, params: dict) -> None:
     lines = [
         "---",
         "configs:",
@@ -334,12 +331,12 @@ def _write_card(dataset: Path, sweep, rows: list[dict], summary: dict, params: d
     present = {r["variant"] for r in rows}  # distributions over the variants with images
     params = {name: {k: v for k, v in values.items() if k in present} for name, values in params.items()}
     lines += ["", "## Parameters (variants with images)", "", *_distribution_lines(params), ""]
-    if _param_plots(params, card / "params.png"):
+    if _param_plots(loc, params, "card/params.png"):
         lines += ["![parameter distributions](card/params.png)", ""]
     lines += ["## Contact sheets", ""]
     for sensor in summary["images_per_sensor"]:
         paths = [r["image"] for r in rows if r["sensor"] == sensor]
-        if _contact_sheet(dataset, paths, card / f"contact_{sensor}.png"):
+        if _contact_sheet(loc, paths, f"card/contact_{sensor}.png"):
             lines += [f"![{sensor}](card/contact_{sensor}.png)", ""]
     lines += [
         "## Files",
@@ -355,4 +352,4 @@ def _write_card(dataset: Path, sweep, rows: list[dict], summary: dict, params: d
         'Load the index with Hugging Face `datasets`: `datasets.load_dataset("<this folder>")`.',
         "",
     ]
-    write_text_atomic(dataset / "README.md", "\n".join(lines))
+    loc.write_text("README.md", "\n".join(lines))

@@ -9,8 +9,9 @@ Render tasks take their inputs from the variant's composed stage only.
 
 Default executor: a local Dask cluster of worker processes (one single-threaded worker per
 core; each render uses Mitsuba's own threads). ``scheduler="tcp://HOST:PORT"`` uses an existing
-Dask cluster whose workers see the dataset folder at the same path. ``workers=0`` runs every task
-in this process, one at a time (tests, debugging).
+Dask cluster whose workers see the dataset folder at the same path, or reach the same fsspec URL
+(``s3://bucket/prefix``: :mod:`humv_usd.sweep.where`). ``workers=0`` runs every task in this
+process, one at a time (tests, debugging; the only choice for ``memory://``).
 """
 
 from __future__ import annotations
@@ -26,12 +27,14 @@ from pathlib import Path
 
 import tomlkit
 
-from humv_usd.fileio import check_output_dir, write_json, write_text_atomic
+from humv_usd.errors import InputError
+from humv_usd.fileio import check_output_dir
 from humv_usd.sweep import store
 from humv_usd.sweep.dataset import assemble
 from humv_usd.sweep.plan import RenderTask, compose_dependencies, layer_keys, render_tasks
 from humv_usd.sweep.spec import Sweep, _plain
 from humv_usd.sweep.tasks import compose_variant, error_text, render_chunk
+from humv_usd.sweep.where import Location, local_cache
 
 log = logging.getLogger(__name__)
 
@@ -131,7 +134,7 @@ class _Dask:
             self.cluster.close()
 
 
-def write_variant_files(dataset: Path, sweep: Sweep) -> None:
+def write_variant_files(loc: Location, sweep: Sweep) -> None:
     """``.sweep/sweep.json`` and each variant's ``scenario.toml`` (what it composes)."""
     doc = {
         "name": sweep.name,
@@ -141,10 +144,10 @@ def write_variant_files(dataset: Path, sweep: Sweep) -> None:
         "render": sweep.render,
         "variants": [{"id": v.id, "params": v.params, "render_seed": v.render_seed} for v in sweep.variants],
     }
-    write_json(store.sweep_dir(dataset) / "sweep.json", doc)
+    loc.write_json(f"{store.SWEEP_DIR}/sweep.json", doc)
     for v in sweep.variants:
         text = f"# variant {v.id} of sweep {sweep.name}: {_plain(v.params)}\n" + tomlkit.dumps(v.raw)
-        write_text_atomic(dataset / "variants" / v.id / "scenario.toml", text)
+        loc.write_text(f"variants/{v.id}/scenario.toml", text)
 
 
 def run_sweep(
@@ -159,21 +162,23 @@ def run_sweep(
     doc. ``limit``: run only the first ``limit`` variants (a later run without it adds the rest). Raises InputError (nothing written) for a folder that cannot be written, a folder of
     another sweep or one another live sweep is writing."""
     t0 = time.perf_counter()
-    dataset = check_output_dir(dataset, "dataset folder").resolve()
+    loc = _location(dataset, scheduler, workers)
+    dataset = loc.url if loc.remote else loc.path
     emit = on_event or (lambda event: None)
     keys = {v.id: layer_keys(v.scenario) for v in sweep.variants}
     tasks = render_tasks(sweep)
     if limit is not None:
         wanted = {v.id for v in sweep.variants[:limit]}
         tasks = [t for t in tasks if t.variant in wanted]
-    with store.dataset_lock(dataset):
-        store.check_sweep_record(dataset, sweep.digest())
-        write_variant_files(dataset, sweep)
-        removed = store.clean_staging(dataset)
+    with store.dataset_lock(loc) as lease:
+        store.check_sweep_record(loc, sweep.digest())
+        write_variant_files(loc, sweep)
+        removed = store.clean_staging(local_cache(loc.url) if loc.remote else loc.path)
         if removed:
             log.info("removed %d unfinished staging folder(s)", removed)
-        store.clear_failures(dataset)
-        done = [t for t in tasks if store.task_done(dataset, t.variant, t.chunk)]
+        store.clear_failures(loc)
+        finished = store.done_tasks(loc)
+        done = [t for t in tasks if (t.variant, t.chunk) in finished]
         result = SweepResult(dataset, len(sweep.variants), len(tasks), already_done=len(done))
         todo = [t for t in tasks if t not in set(done)]
         emit(
@@ -190,25 +195,52 @@ def run_sweep(
             executor = _InProcess() if workers == 0 and not scheduler else _Dask(scheduler, workers)
             result.workers = executor.workers
             try:
-                _Loop(sweep, dataset, keys, todo, executor, result, emit).run()
+                _Loop(sweep, loc, keys, todo, executor, result, emit, lease).run()
             finally:
                 executor.close()
+        _check_lease(lease, loc)
         emit({"type": "assemble"})
-        result.dataset_summary = assemble(dataset, sweep, tasks)
-        store.clean_staging(dataset)
+        result.dataset_summary = assemble(loc, sweep, tasks)
+        if not loc.remote:
+            store.clean_staging(loc.path)
     result.seconds = time.perf_counter() - t0
-    write_json(store.sweep_dir(dataset) / "last_run.json", result.as_dict())
+    loc.write_json(f"{store.SWEEP_DIR}/last_run.json", result.as_dict())
     emit({"type": "finished", **result.as_dict()})
     return result
+
+
+def _location(dataset, scheduler, workers) -> Location:
+    """The dataset's Location: a checked, absolute folder, or an fsspec URL (``memory://`` lives
+    in this process only: it needs ``workers=0``)."""
+    loc = Location(dataset)
+    if not loc.remote:
+        return Location(check_output_dir(dataset, "dataset folder").resolve())
+    if loc.url.startswith("memory://") and (workers != 0 or scheduler):
+        raise InputError(
+            f"dataset folder {loc.url!r}: memory:// lives in one process; run it with --workers 0"
+        )
+    return loc
+
+
+def _check_lease(lease, loc: Location) -> None:
+    """Stop when another sweep took the lock over (this one looked dead to it)."""
+    if lease is not None and lease.lost:
+        raise InputError(
+            f"{loc}: another sweep took over this dataset's lock (this one missed its heartbeats); stopped"
+        )
 
 
 class _Loop:
     """Submits tasks as their inputs become ready, retries, and reports (see the module doc)."""
 
-    def __init__(self, sweep, dataset, keys, todo: list[RenderTask], executor, result, emit):
-        self.sweep, self.dataset, self.executor, self.result, self.emit = (
+    def __init__(
+        self, sweep, loc: Location, keys, todo: list[RenderTask], executor, result, emit, lease=None
+    ):
+        self.lease = lease
+        self.sweep, self.loc, self.dataset, self.executor, self.result, self.emit = (
             sweep,
-            dataset,
+            loc,
+            loc.url,
             executor,
             result,
             emit,
@@ -217,7 +249,7 @@ class _Loop:
         self.renders: dict[str, list[RenderTask]] = {}
         for t in todo:
             self.renders.setdefault(t.variant, []).append(t)
-        need = [vid for vid in self.renders if not store.compose_done(dataset, vid)]
+        need = [vid for vid in self.renders if not store.compose_done(loc, vid)]
         all_deps = compose_dependencies({vid: keys[vid] for vid in need})
         self.waiting = {vid: set(all_deps[vid]) for vid in need}
         self.running: dict = {}
@@ -230,6 +262,7 @@ class _Loop:
                 self._submit_renders(vid)
         self._submit_ready_composes()
         while self.running:
+            _check_lease(self.lease, self.loc)
             for fut in self.executor.wait_any(list(self.running)):
                 kind, name, attempt, payload = self.running.pop(fut)
                 try:
@@ -317,7 +350,7 @@ class _Loop:
 
     def _failed(self, kind, name, exc, attempts, payload) -> None:
         text = error_text(exc)
-        store.record_failure(self.dataset, f"{kind}-{name}", text, attempts)
+        store.record_failure(self.loc, f"{kind}-{name}", text, attempts)
         self.result.failures.append({"task": f"{kind} {name}", "error": text, "attempts": attempts})
         self.emit({"type": "failed", "task": f"{kind} {name}", "error": text})
         if kind == "compose":  # its renders cannot run

@@ -2,7 +2,8 @@
 
 Layout (DATASET/)::
 
-    .sweep/lock                  pid and host of the sweep writing here (one at a time)
+    .sweep/lock                  the lease of the sweep writing here (one at a time): pid, host,
+                                 token, heartbeat (refreshed every HEARTBEAT_S seconds)
     .sweep/sweep.json            the sweep's digest, variants and settings
     .sweep/staging/<task>-<uid>/ a render task's outputs while it runs
     .sweep/layers/<layer>/<key>.usda  every composed layer by cache key (shared between variants)
@@ -15,6 +16,23 @@ complete (one ``rename``: atomic on a POSIX file system); the renamed folder is 
 record. A crash leaves at most a staging folder, removed by the next run. Two tasks finishing
 the same chunk (a retried task whose first try was still running) cannot both land: the second
 rename fails and its copy is removed.
+
+At an fsspec URL (:mod:`humv_usd.sweep.where`; an object store has no rename of folders) the
+done record is ``renders/<id>/<chunk>/task.json`` itself, uploaded after every other file of the
+task: one object is written whole or not at all, so a record means a complete chunk. A crash
+mid-upload leaves files without a record, which the next run renders again and overwrites
+(renders are deterministic for the same seeds); a retried task whose first try is still running
+uploads identical files.
+
+The lock is a lease: its holder rewrites the heartbeat every ``HEARTBEAT_S`` seconds; a lock
+whose heartbeat is older than ``STALE_AFTER`` heartbeats is stale whatever its host (a crashed
+client on another machine) and is taken over with one warning; on this host a lock of a dead
+process is taken over at once. The hosts' clocks must agree to well under
+``STALE_AFTER * HEARTBEAT_S`` (NTP). On a local file system the lock is created exclusively and
+a take-over renames the stale file away (only one taker can); an object store has neither, so
+there two sweeps starting in the same second could both believe they hold it: the lock is
+written, read back after ``SETTLE_S`` and kept only if it is still ours (last writer wins),
+which narrows that window but cannot close it.
 """
 
 from __future__ import annotations
@@ -25,14 +43,25 @@ import logging
 import os
 import shutil
 import socket
+import threading
+import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 
 from humv_usd.errors import InputError
-from humv_usd.fileio import atomic_path, write_json
+from humv_usd.fileio import atomic_path
+from humv_usd.sweep.where import Location
 
 SWEEP_DIR = ".sweep"
 LOCK_NAME = "lock"
+LOCK_REL = f"{SWEEP_DIR}/{LOCK_NAME}"
+#: how often the lock's holder refreshes its heartbeat [s]
+HEARTBEAT_S = 30.0
+#: a heartbeat older than this many HEARTBEAT_S is stale (its holder is gone)
+STALE_AFTER = 4
+#: object stores: wait this long after writing the lock before reading it back [s]
+SETTLE_S = 1.0
 TASK_RECORD = "task.json"
 COMPOSE_RECORD = "compose.done.json"
 log = logging.getLogger(__name__)
@@ -52,60 +81,182 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
-def _read_lock(path: Path) -> dict | None:
+def _as_location(dataset) -> Location:
+    return dataset if isinstance(dataset, Location) else Location(dataset)
+
+
+def _read_lock(loc: Location) -> dict | None:
     try:
-        return json.loads(path.read_text())
+        held = json.loads(loc.read_text(LOCK_REL))
     except (OSError, ValueError):
+        return None
+    return held if isinstance(held, dict) else None
+
+
+def _heartbeat(loc: Location, held: dict) -> float | None:
+    """When the holder last showed it is alive [s since the epoch]: its heartbeat, or for a lock
+    written before leases (pid and host only) the file's modification time."""
+    if isinstance(held.get("heartbeat"), (int, float)):
+        return float(held["heartbeat"])
+    try:
+        if not loc.remote:
+            return loc.local(LOCK_REL).stat().st_mtime
+        modified = loc.fs.modified(loc.full(LOCK_REL))
+        return modified.timestamp()
+    except (OSError, NotImplementedError, AttributeError, ValueError):
         return None
 
 
-@contextlib.contextmanager
-def dataset_lock(dataset: Path):
-    """Hold DATASET/.sweep/lock (pid, host) while a sweep writes; refuse when another live sweep
-    holds it. A lock left by a dead process on this host (a crash, kill -9) is taken over."""
-    path = sweep_dir(dataset) / LOCK_NAME
-    path.parent.mkdir(parents=True, exist_ok=True)
-    me = {"pid": os.getpid(), "host": socket.gethostname()}
-    for _ in range(3):
+def _stale_reason(loc: Location, held: dict, now: float, heartbeat_s: float) -> str | None:
+    """Why a lock someone else holds can be taken over, or None when it is live."""
+    if held.get("host") == socket.gethostname() and not _pid_alive(int(held.get("pid", -1))):
+        return f"pid {held.get('pid')} on this host is gone"
+    beat = _heartbeat(loc, held)
+    if beat is not None and now - beat > STALE_AFTER * heartbeat_s:
+        return f"no heartbeat for {now - beat:.0f} s (more than {STALE_AFTER} x {heartbeat_s:g} s)"
+    return None
+
+
+def _holder_text(loc: Location, held: dict, now: float) -> str:
+    beat = _heartbeat(loc, held)
+    age = f", heartbeat {now - beat:.0f} s ago" if beat is not None else ""
+    return f"pid {held.get('pid')} on {held.get('host')}{age}"
+
+
+def _create_lock(loc: Location, doc: dict) -> bool:
+    """Write the lock if there is none; False when one is there. Exclusive on a local file
+    system; on an object store best effort (see the module doc)."""
+    text = json.dumps(doc)
+    if not loc.remote:
+        path = loc.local(LOCK_REL)
+        path.parent.mkdir(parents=True, exist_ok=True)
         try:
             fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
         except FileExistsError:
-            held = _read_lock(path)
-            if held and held.get("host") == me["host"] and not _pid_alive(int(held.get("pid", -1))):
-                log.info("taking over the lock of dead sweep pid %s", held.get("pid"))
-                with contextlib.suppress(FileNotFoundError):
-                    path.unlink()
-                continue
-            if held is None:  # being written this instant by another sweep, or garbage
-                raise InputError(
-                    f"{dataset}: another sweep is starting in this folder ({path}); try again"
-                ) from None
-            raise InputError(
-                f"{dataset}: another sweep (pid {held.get('pid')} on {held.get('host')}) is writing this "
-                f"dataset; wait for it, or remove {path} if that process is gone"
-            ) from None
+            return False
         with os.fdopen(fd, "w") as f:
-            json.dump(me, f)
-        break
+            f.write(text)
+        return True
+    if loc.exists(LOCK_REL):
+        return False
+    loc.write_text(LOCK_REL, text)
+    time.sleep(SETTLE_S)
+    return (_read_lock(loc) or {}).get("token") == doc["token"]
+
+
+def _remove_stale(loc: Location, stale: dict) -> None:
+    """Remove the stale lock ``stale`` (and only it: a lock another taker wrote meanwhile stays)."""
+    if not loc.remote:
+        path = loc.local(LOCK_REL)
+        tomb = path.with_name(f"{LOCK_NAME}.stale-{uuid.uuid4().hex[:8]}")
+        try:
+            os.rename(path, tomb)  # only one taker moves this file
+        except FileNotFoundError:
+            return
+        try:
+            moved = json.loads(tomb.read_text())
+        except (OSError, ValueError):
+            moved = None
+        if moved != stale:  # a newer lock was moved: put it back
+            with contextlib.suppress(OSError):
+                os.link(tomb, path)
+        tomb.unlink(missing_ok=True)
+        return
+    if _read_lock(loc) == stale:
+        loc.remove(LOCK_REL)
+
+
+class _Lease:
+    """The heartbeat of a held lock: a daemon thread rewriting ``heartbeat`` every
+    ``heartbeat_s`` while the lock is still ours."""
+
+    def __init__(self, loc: Location, doc: dict, heartbeat_s: float, clock: Callable[[], float]):
+        self.loc, self.doc, self.heartbeat_s, self.clock = loc, doc, heartbeat_s, clock
+        self.stop = threading.Event()
+        self.lost = False
+        self.thread = threading.Thread(target=self._run, name="humv-sweep-lock", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        while not self.stop.wait(self.heartbeat_s):
+            held = _read_lock(self.loc)
+            if held is None or held.get("token") != self.doc["token"]:
+                self.lost = True
+                log.warning(
+                    "%s: the sweep lock was taken over by %s; this sweep no longer holds it",
+                    self.loc,
+                    "nobody" if held is None else f"pid {held.get('pid')} on {held.get('host')}",
+                )
+                return
+            self.doc["heartbeat"] = self.clock()
+            try:
+                if self.loc.remote:
+                    self.loc.write_text(LOCK_REL, json.dumps(self.doc))
+                else:
+                    with atomic_path(self.loc.local(LOCK_REL)) as tmp:
+                        Path(tmp).write_text(json.dumps(self.doc))
+            except OSError as exc:  # a full disk or a network error: try again at the next beat
+                log.warning("%s: cannot refresh the sweep lock (%s)", self.loc, exc)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
+
+
+@contextlib.contextmanager
+def dataset_lock(dataset, heartbeat_s: float = HEARTBEAT_S, clock: Callable[[], float] = time.time):
+    """Hold DATASET/.sweep/lock while a sweep writes (a lease, see the module doc): refuse when
+    another live sweep holds it (one line naming its pid, host and the age of its heartbeat);
+    take over a stale one with one warning. ``dataset``: a folder, an fsspec URL or a Location;
+    ``clock``: the time [s since the epoch] (tests)."""
+    loc = _as_location(dataset)
+    me = {
+        "pid": os.getpid(),
+        "host": socket.gethostname(),
+        "token": uuid.uuid4().hex,
+        "started": clock(),
+        "heartbeat": clock(),
+        "heartbeat_s": heartbeat_s,
+    }
+    for _ in range(3):
+        if _create_lock(loc, me):
+            break
+        held = _read_lock(loc)
+        if held is None:  # being written this instant by another sweep, or garbage
+            raise InputError(
+                f"{loc}: another sweep is starting in this folder ({loc.full(LOCK_REL)}); try again"
+            )
+        why = _stale_reason(loc, held, clock(), heartbeat_s)
+        if why is None:
+            raise InputError(
+                f"{loc}: another sweep ({_holder_text(loc, held, clock())}) is writing this dataset; "
+                f"wait for it, or remove {loc.full(LOCK_REL)} if that process is gone"
+            )
+        log.warning(
+            "%s: taking over the lock of sweep pid %s on %s: %s", loc, held.get("pid"), held.get("host"), why
+        )
+        _remove_stale(loc, held)
     else:
-        raise InputError(f"{dataset}: cannot take the lock {path}")
+        raise InputError(f"{loc}: cannot take the lock {loc.full(LOCK_REL)}")
+    lease = _Lease(loc, me, heartbeat_s, clock)
     try:
-        yield path
+        yield lease
     finally:
-        held = _read_lock(path)
-        if held and held.get("pid") == me["pid"]:
-            with contextlib.suppress(FileNotFoundError):
-                path.unlink()
+        lease.close()
+        held = _read_lock(loc)
+        if held and held.get("token") == me["token"]:
+            loc.remove(LOCK_REL)
 
 
 def check_sweep_record(dataset: Path, digest: str, force: bool = False) -> None:
     """A dataset folder belongs to one sweep: refuse a different one (same variants and render
     settings resume; anything else would mix two datasets)."""
-    path = sweep_dir(dataset) / "sweep.json"
-    if not path.is_file() or force:
+    loc = _as_location(dataset)
+    rel = f"{SWEEP_DIR}/sweep.json"
+    if force or not loc.is_file(rel):
         return
     try:
-        old = json.loads(path.read_text()).get("digest")
+        old = loc.read_json(rel).get("digest")
     except (OSError, ValueError):
         return
     if old != digest:
@@ -155,8 +306,13 @@ def task_done(dataset: Path, variant: str, chunk: str) -> bool:
     return (render_folder(dataset, variant, chunk) / TASK_RECORD).is_file()
 
 
-def compose_done(dataset: Path, variant: str) -> bool:
-    return (Path(dataset) / "variants" / variant / COMPOSE_RECORD).is_file()
+def done_tasks(dataset) -> set[tuple[str, str]]:
+    """(variant, chunk) of every finished render task: one listing of the done records."""
+    return {tuple(rel.split("/")[1:3]) for rel in _as_location(dataset).glob(f"renders/*/*/{TASK_RECORD}")}
+
+
+def compose_done(dataset, variant: str) -> bool:
+    return _as_location(dataset).is_file(f"variants/{variant}/{COMPOSE_RECORD}")
 
 
 # ---------------------------------------------------------------- the shared layer store
@@ -190,12 +346,38 @@ def publish_layers(dataset: Path, keys: dict[str, str], compose_dir: Path) -> No
             shutil.copyfile(src, tmp)
 
 
-def record_failure(dataset: Path, task: str, error: str, attempts: int) -> None:
-    write_json(
-        sweep_dir(dataset) / "failed" / f"{task.replace('/', '_')}.json",
+def store_rel(layer: str, key: str) -> str:
+    return f"{SWEEP_DIR}/layers/{layer}/{key}.usda"
+
+
+def seed_layers_remote(loc: Location, keys: dict[str, str], compose_dir: Path) -> list[str]:
+    """:func:`seed_layers` from the store of a dataset at an fsspec URL (downloads)."""
+    taken = []
+    for layer, key in keys.items():
+        dst = compose_dir / "layers" / f"{layer}.usda"
+        if dst.is_file() or not loc.is_file(store_rel(layer, key)):
+            continue
+        with loc.local_copy(store_rel(layer, key)) as src, atomic_path(dst) as tmp:
+            shutil.copyfile(src, tmp)
+        taken.append(layer)
+    return taken
+
+
+def publish_layers_remote(loc: Location, keys: dict[str, str], compose_dir: Path) -> None:
+    """:func:`publish_layers` to the store of a dataset at an fsspec URL (uploads; an equal key
+    means an equal layer, so two writers of one key write the same object)."""
+    for layer, key in keys.items():
+        src = compose_dir / "layers" / f"{layer}.usda"
+        if src.is_file() and not loc.is_file(store_rel(layer, key)):
+            loc.put_file(src, store_rel(layer, key))
+
+
+def record_failure(dataset, task: str, error: str, attempts: int) -> None:
+    _as_location(dataset).write_json(
+        f"{SWEEP_DIR}/failed/{task.replace('/', '_')}.json",
         {"task": task, "error": error, "attempts": attempts},
     )
 
 
-def clear_failures(dataset: Path) -> None:
-    shutil.rmtree(sweep_dir(dataset) / "failed", ignore_errors=True)
+def clear_failures(dataset) -> None:
+    _as_location(dataset).remove(f"{SWEEP_DIR}/failed")

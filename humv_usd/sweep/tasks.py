@@ -6,6 +6,12 @@ with the package and the dataset folder can run them).
   then publishing its own layers to the store.
 * :func:`render_chunk` renders a chunk of frames of a composed variant into a staging folder
   and renames it into ``renders/<id>/<chunk>/`` when complete (:mod:`humv_usd.sweep.store`).
+
+A dataset at an fsspec URL (:mod:`humv_usd.sweep.where`): the worker composes into its local
+cache (:func:`humv_usd.sweep.where.local_cache`) and uploads the variant's folder, its
+``compose.done.json`` last; a render downloads the composed variant once per machine (again
+when its record changed), renders into a local staging folder and uploads the outputs, then
+``task.json`` (the done record, with the upload's seconds and bytes) last.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from humv_usd.pipeline.render import render_stage
 from humv_usd.scenario.load import validate
 from humv_usd.sweep import store
 from humv_usd.sweep.plan import layer_keys
+from humv_usd.sweep.where import Location, local_cache
 
 
 def _rss_mb() -> tuple[float, float]:
@@ -40,6 +47,8 @@ def _rss_mb() -> tuple[float, float]:
 
 def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> dict:
     """Compose one variant (see the module doc); returns what was built and taken from the store."""
+    if Location(dataset).remote:
+        return _compose_variant_remote(Location(dataset), variant, raw, base_path)
     t0 = time.perf_counter()
     dataset_dir = Path(dataset)
     scenario = validate(raw, Path(base_path))
@@ -61,9 +70,44 @@ def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> di
     return record
 
 
+def _compose_variant_remote(loc: Location, variant: str, raw: dict, base_path: str) -> dict:
+    t0 = time.perf_counter()
+    scenario = validate(raw, Path(base_path))
+    out = local_cache(loc.url) / "variants" / variant
+    keys = layer_keys(scenario)
+    taken = store.seed_layers_remote(loc, keys, out)
+    report = compose(scenario, out)
+    store.publish_layers_remote(loc, keys, out)
+    record = {
+        "variant": variant,
+        "seconds": time.perf_counter() - t0,
+        "rebuilt": report.rebuilt,
+        "from_store": taken,
+        "keys": keys,
+        "host": socket.gethostname(),
+        "pid": os.getpid(),
+    }
+    write_json(out / store.COMPOSE_RECORD, record)
+    loc.put_folder(out, f"variants/{variant}", last=store.COMPOSE_RECORD)
+    return record
+
+
+def _local_variant(loc: Location, variant: str) -> Path:
+    """The composed variant in this machine's cache, downloaded when missing or out of date."""
+    local = local_cache(loc.url) / "variants" / variant
+    rel = f"variants/{variant}/{store.COMPOSE_RECORD}"
+    remote_record = loc.read_text(rel)
+    mine = local / store.COMPOSE_RECORD
+    if not mine.is_file() or mine.read_text() != remote_record:
+        loc.get_folder(f"variants/{variant}", local, last=store.COMPOSE_RECORD)
+    return local
+
+
 def render_chunk(dataset: str, variant: str, chunk: str, frames: list[int], settings: dict) -> dict:
     """Render ``frames`` of a composed variant; the outputs land in ``renders/<variant>/<chunk>``
     in one rename, with ``task.json`` (frames, seconds, Monte Carlo error, memory)."""
+    if Location(dataset).remote:
+        return _render_chunk_remote(Location(dataset), variant, chunk, frames, settings)
     dataset_dir = Path(dataset)
     final = store.render_folder(dataset_dir, variant, chunk)
     if (final / store.TASK_RECORD).is_file():  # landed by an earlier try
@@ -71,34 +115,61 @@ def render_chunk(dataset: str, variant: str, chunk: str, frames: list[int], sett
     t0 = time.perf_counter()
     staging = store.staging_folder(dataset_dir, f"{variant}/{chunk}")
     try:
-        manifest = render_stage(
-            dataset_dir / "variants" / variant / "stage.usda",
-            staging,
-            frames=list(frames),
-            spp=settings["spp"],
-            sensors=settings.get("sensors"),
-            seed=settings["seed"],
-            annotators=settings.get("annotators"),
-            subbands=settings.get("subbands"),
-        )
-        rss, peak = _rss_mb()
-        record = {
-            "variant": variant,
-            "chunk": chunk,
-            "frames": list(frames),
-            "seconds": time.perf_counter() - t0,
-            "render_seconds": manifest["timings_s"].get("total"),
-            "monte_carlo_error": manifest.get("monte_carlo_error"),
-            "rss_mb": rss,
-            "peak_rss_mb": peak,
-            "host": socket.gethostname(),
-            "pid": os.getpid(),
-        }
+        record = _render_into(dataset_dir / "variants" / variant, staging, variant, chunk, frames, settings)
+        record["seconds"] = time.perf_counter() - t0
         write_json(staging / store.TASK_RECORD, record)
         store.commit(staging, final)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+    return record
+
+
+def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, settings) -> dict:
+    """Render the frames of the composed variant in ``variant_dir`` into ``staging``; the record."""
+    t0 = time.perf_counter()
+    manifest = render_stage(
+        variant_dir / "stage.usda",
+        staging,
+        frames=list(frames),
+        spp=settings["spp"],
+        sensors=settings.get("sensors"),
+        seed=settings["seed"],
+        annotators=settings.get("annotators"),
+        subbands=settings.get("subbands"),
+    )
+    rss, peak = _rss_mb()
+    return {
+        "variant": variant,
+        "chunk": chunk,
+        "frames": list(frames),
+        "seconds": time.perf_counter() - t0,
+        "render_seconds": manifest["timings_s"].get("total"),
+        "monte_carlo_error": manifest.get("monte_carlo_error"),
+        "rss_mb": rss,
+        "peak_rss_mb": peak,
+        "host": socket.gethostname(),
+        "pid": os.getpid(),
+    }
+
+
+def _render_chunk_remote(loc: Location, variant: str, chunk: str, frames, settings) -> dict:
+    final = f"renders/{variant}/{chunk}"
+    if loc.is_file(f"{final}/{store.TASK_RECORD}"):  # landed by an earlier try
+        return loc.read_json(f"{final}/{store.TASK_RECORD}")
+    t0 = time.perf_counter()
+    local = _local_variant(loc, variant)
+    staging = store.staging_folder(local_cache(loc.url), f"{variant}/{chunk}")
+    try:
+        record = _render_into(local, staging, variant, chunk, frames, settings)
+        t_up = time.perf_counter()
+        record["upload_bytes"] = loc.put_folder(staging, final)  # every output, then the record
+        record["upload_seconds"] = time.perf_counter() - t_up
+        record["seconds"] = time.perf_counter() - t0
+        write_json(staging / store.TASK_RECORD, record)
+        loc.put_file(staging / store.TASK_RECORD, f"{final}/{store.TASK_RECORD}")
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
     return record
 
 
