@@ -63,7 +63,10 @@ def bench_frame(scenario: Path, sensor: str | None, frames: int, spp: int | None
     click.echo(f"    writes (foreground)   {_s(m.get('write'))} s")
     click.echo(f"    scene update, export  {_s(m.get('load_export'))} s")
     click.echo(f"  outside the estimator   {_s(out['outside_estimator_s'])} s")
-    click.echo(f"  writer thread           {_s(out['writer_s_per_frame'])} s per frame (overlapped)")
+    click.echo(
+        f"  writer thread           {_s(out['writer_s_per_frame'])} s per frame, "
+        f"CPU {_s(out['writer_cpu_s_per_frame'])} s (overlapped with the next frame)"
+    )
     click.echo("  frame   wall    cpu  estim  conv  labels  write")
     for r in out["per_frame"]:
         click.echo(

@@ -43,7 +43,7 @@ def bench_frames(path, sensor: str | None = None, frames: int = 8, spp: int | No
     Returns a dict: ``per_frame`` (one row per timed frame: wall, cpu, estimator, conversions,
     labels, write, load_export [s]), ``median`` of each, ``labels_fraction`` (median labels /
     median render), ``writer_s_per_frame`` (the background writer's wall time per frame),
-    ``sensor``, ``resolution``, ``frames_timed``, ``load_average``.
+    ``writer_cpu_s_per_frame`` (its CPU), ``sensor``, ``resolution``, ``frames_timed``, ``load_average``.
     """
     if frames < 1:
         raise InputError(f"--frames = {frames}: expected >= 1 timed frames (frame 0 is the warm-up)")
@@ -92,6 +92,7 @@ def bench_frames(path, sensor: str | None = None, frames: int = 8, spp: int | No
         "outside_estimator_s": median["wall"] - median["estimator"] if rows else None,
         "labels_fraction": median["labels"] / median["render"] if rows and median["render"] > 0 else None,
         "writer_s_per_frame": timings.get("write_background", 0.0) / max(1, len(entries)),
+        "writer_cpu_s_per_frame": timings.get("write_background_cpu", 0.0) / max(1, len(entries)),
         "load_average": list(os.getloadavg()),
         "spp_used": s["monte_carlo_error_k"].get("spp_used"),
     }

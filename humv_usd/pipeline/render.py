@@ -375,6 +375,7 @@ def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
         t = time.perf_counter()
     totals["write"] += time.perf_counter() - t  # waiting for the last frame's files
     totals["write_background"] = writer.seconds  # the writer thread's time, overlapped with renders
+    totals["write_background_cpu"] = writer.cpu_seconds
     run.writer = None
     log.debug("frames and their writes took %.2f s", time.perf_counter() - t_writes)
     done = _records_of_this_render(plan)

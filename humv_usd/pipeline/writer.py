@@ -38,6 +38,7 @@ class BackgroundWriter:
         self._failed: BaseException | None = None
         self._lock = threading.Lock()
         self.seconds = 0.0  # time spent in jobs (the writer thread's wall time)
+        self.cpu_seconds = 0.0  # the writer thread's CPU time in jobs
 
     def submit(self, what: str, fn, *args, **kwargs) -> None:
         """Queue ``fn(*args, **kwargs)``; ``what`` names it in an error (e.g. the file)."""
@@ -47,7 +48,7 @@ class BackgroundWriter:
     def _run(self, what, fn, args, kwargs):
         if self._failed is not None:
             return None  # a job before failed: nothing after it runs (no record after a missing file)
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.thread_time()
         try:
             return fn(*args, **kwargs)
         except InputError as exc:
@@ -59,6 +60,7 @@ class BackgroundWriter:
         finally:
             with self._lock:
                 self.seconds += time.perf_counter() - t
+                self.cpu_seconds += time.thread_time() - c
         return None
 
     def _fail(self, exc: BaseException) -> None:
