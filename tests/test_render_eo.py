@@ -49,8 +49,9 @@ def test_reflectance_spectrum_sampling():
     assert_allclose(rho[EO_WAVELENGTHS_NM == 800.0], 0.9)  # and above
 
 
+@pytest.mark.parametrize("estimator", ["fast", "path"])
 @pytest.mark.parametrize("zenith_deg", [0.0, 50.0])
-def test_white_plate_under_sun_closed_form(tmp_path, zenith_deg):
+def test_white_plate_under_sun_closed_form(tmp_path, zenith_deg, estimator):
     e_um = 1500.0  # W m-2 um-1, flat
     stage = new_stage(tmp_path / "s.usda")
     white = reflective(stage, "white", [0.3, 1.0], [1.0, 1.0])
@@ -60,7 +61,7 @@ def test_white_plate_under_sun_closed_form(tmp_path, zenith_deg):
     th = np.radians(zenith_deg)
     sun(stage, (np.sin(th), 0.0, np.cos(th)))
     stage.Save()
-    manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=32)
+    manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=32, estimator=estimator)
     ch = read_exr(tmp_path / "out" / "eo" / "0000.exr")
     expected = e_um / 1000.0 * np.cos(th) / np.pi  # W m-2 sr-1 nm-1
     sigma = np.sqrt(np.mean(ch["Y_stderr"] ** 2) / ch["Y"].size)
@@ -87,7 +88,8 @@ def test_white_plate_under_sun_closed_form(tmp_path, zenith_deg):
     png.close()
 
 
-def test_colour_follows_reflectance_and_sky(tmp_path):
+@pytest.mark.parametrize("estimator", ["fast", "path"])
+def test_colour_follows_reflectance_and_sky(tmp_path, estimator):
     """A red plate (reflective above 600 nm) lit by the sky only is red in sRGB; its Y is the
     closed form rho_Y * L_sky for a uniform sky over a Lambertian plate."""
     stage = new_stage(tmp_path / "s.usda")
@@ -100,7 +102,7 @@ def test_colour_follows_reflectance_and_sky(tmp_path):
     atmosphere_tables(stage, [0.3, 1.0], sky=sky, zenith=zen, solar=[1000.0, 1000.0])
     sun(stage, (0.0, 0.3, -1.0))  # the sun is below the horizon; the sky still lights
     stage.Save()
-    manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=32)
+    manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=32, estimator=estimator)
     ch = read_exr(tmp_path / "out" / "eo" / "0000.exr")
     assert ch["R"].mean() > 5 * ch["G"].mean() and ch["R"].mean() > 5 * ch["B"].mean()
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]

@@ -45,7 +45,29 @@ def _ints(text, name, check=None):
 )
 @click.option("--reference-spp", default=256, show_default=True, type=click.IntRange(2, 1 << 16))
 @click.option("--reference-subbands", default=16, show_default=True, type=click.IntRange(1, 64))
-@click.option("--sensor", "sensors", multiple=True, help="Only this IR sensor (repeatable).")
+@click.option("--sensor", "sensors", multiple=True, help="Only this IR or EO sensor (repeatable).")
+@click.option(
+    "--eo-spp",
+    "eo_spp_text",
+    default="2,4,8",
+    show_default=True,
+    help="EO: camera samples per pixel to sweep.",
+)
+@click.option(
+    "--eo-bins",
+    "eo_bins_text",
+    default="4,8,12,16",
+    show_default=True,
+    help="EO: visible sub-band counts to sweep.",
+)
+@click.option("--eo-reference-spp", default=64, show_default=True, type=click.IntRange(2, 1 << 16))
+@click.option(
+    "--eo-scale",
+    default=1.0,
+    show_default=True,
+    type=click.FloatRange(0.05, 1.0),
+    help="EO: render at this fraction of the sensors' resolution (quick looks).",
+)
 @click.option(
     "--atmosphere-model",
     default=None,
@@ -68,6 +90,10 @@ def bench_render(
     reference_spp,
     reference_subbands,
     sensors,
+    eo_spp_text,
+    eo_bins_text,
+    eo_reference_spp,
+    eo_scale,
     atmosphere_model,
     out_prefix,
 ):
@@ -77,10 +103,13 @@ def bench_render(
     sensor with the plain path tracer as the reference (--reference-spp, --reference-subbands) and
     with the fast estimator for every --spp x --subbands pair: wall time, ratio to the pixel-centre
     ray cast, mean / p99 per-pixel error in K away from edges (edges apart) and the bias per
-    labelled region against the reference.
+    labelled region against the reference. EO sensors likewise: the spectral path tracer at
+    --eo-reference-spp as the reference, the fast estimator for every --eo-spp x --eo-bins pair,
+    the error of Y relative to the mean Y and the relative bias of X, Y, Z per region.
     """
     from humv_usd.bench.render import bench_render as run_bench
     from humv_usd.bench.render import plot_error_vs_time
+    from humv_usd.bench.render_eo import bench_render_eo, plot_eo_error_vs_time
     from humv_usd.fileio import write_json
     from humv_usd.pipeline import render as R
     from humv_usd.pipeline.compose import compose as run_compose
@@ -88,6 +117,8 @@ def bench_render(
     from humv_usd.usd.sensor import check_subbands
 
     spp_list = _ints(spp_text, "spp")
+    eo_spp_list = _ints(eo_spp_text, "eo-spp")
+    eo_bins_list = _ints(eo_bins_text, "eo-bins", _check_bins)
     sub_list = _ints(sub_text, "subbands", check_subbands)
     sc = load_scenario(scenario)
     if atmosphere_model is not None:
@@ -114,7 +145,17 @@ def bench_render(
             sensors=list(sensors) or None,
             progress=lambda text: click.echo(f"  ... {text}", err=True),
         )
+        eo_result = bench_render_eo(
+            stage,
+            eo_spp_list,
+            eo_bins_list,
+            reference_spp=eo_reference_spp,
+            sensors=list(sensors) or None,
+            progress=lambda text: click.echo(f"  ... {text}", err=True),
+            scale=eo_scale,
+        )
     result["spectral_error"] = table
+    result["eo"] = eo_result
     for name, rec in result["sensors"].items():
         click.echo(
             f"{name} ({rec['band']}, NETD {rec['netd_k']} K): pixel-centre ray cast {rec['ray_cast_s']:.3f} s; "
@@ -135,6 +176,52 @@ def bench_render(
                 f"{r['ratio_to_ray_cast']:>7.1f} {_k(nz['mean_k'])}  {_k(nz['p99_k'])}  {_k(nz['edge_mean_k'], '{:.3f}')}  "
                 f"{abs(worst['bias_k']):.4f} ({regions}){mark}"
             )
+    _echo_eo(eo_result)
     write_json(f"{out_prefix}.json", result)
-    plot_error_vs_time(result, f"{out_prefix}.png")
-    click.echo(f"wrote {out_prefix}.json, {out_prefix}.png  (* = the default setting)")
+    wrote = f"{out_prefix}.json"
+    if result["sensors"]:
+        plot_error_vs_time(result, f"{out_prefix}.png")
+        wrote += f", {out_prefix}.png"
+    if eo_result["sensors"]:
+        plot_eo_error_vs_time(eo_result, f"{out_prefix}_eo.png")
+        wrote += f", {out_prefix}_eo.png"
+    click.echo(f"wrote {wrote}  (* = the default setting)")
+
+
+def _check_bins(v, name):
+    from humv_usd.render.eo_fast import GRID_NM
+
+    if not 1 <= v <= GRID_NM.size:
+        raise InputError(f"{name} = {v}: expected integers in 1..{GRID_NM.size}")
+
+
+def _pct(value) -> str:
+    return "n/a" if value is None else f"{100 * value:.3f}"
+
+
+def _echo_eo(eo_result: dict) -> None:
+    for name, rec in eo_result["sensors"].items():
+        ref = rec["reference"]
+        click.echo(
+            f"{name} (EO {rec['resolution'][0]}x{rec['resolution'][1]}): pixel-centre ray cast "
+            f"{rec['ray_cast_s']:.3f} s; reference spectral path {ref['spp']} spp {ref['wall_s']:.1f} s, "
+            f"its own error {_pct(ref['noise']['mean'])} % of mean Y"
+        )
+        click.echo(
+            "  estimator  spp bins  wall s  cpu s  x cast  mean %   p99 %  edge %  |bias| max % "
+            "(region: X, Y, Z bias % , sigma Y %)"
+        )
+        for r in rec["rows"]:
+            nz, bias = r["noise"], r["bias_by_region"]
+            worst = max(abs(v) for b in bias.values() for v in b["bias_rel_xyz"] if v is not None)
+            regions = ", ".join(
+                f"{k}: " + "/".join(_pct(v) for v in b["bias_rel_xyz"]) + f" +-{_pct(b['sigma_rel_y'])}"
+                for k, b in bias.items()
+            )
+            mark = " *" if r["default"] else ""
+            bins = "-" if r["bins"] is None else r["bins"]
+            click.echo(
+                f"  {r['estimator']:<9} {r['spp']:>4} {bins:>4} {r['wall_s']:>7.2f} {r['cpu_s']:>6.2f} "
+                f"{r['ratio_to_ray_cast']:>7.1f} {_pct(nz['mean'])}  {_pct(nz['p99'])}  {_pct(nz['edge_mean'])}  "
+                f"{100 * worst:.3f} ({regions}){mark}"
+            )

@@ -131,8 +131,9 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
     default="fast",
     show_default=True,
     type=click.Choice(["fast", "path"]),
-    help="Infrared estimator: fast (sub-bands on one path, control variate, stratified) or path "
-    "(Mitsuba's path tracer per sub-band: the reference). See `humv-usd bench render`.",
+    help="Estimator: fast (sub-bands on one path, control variate, stratified; EO: 12 visible "
+    "sub-bands, spp until 1 % of mean Y) or path (Mitsuba's path tracer per sub-band, EO spectral: "
+    "the reference). See `humv-usd bench render`.",
 )
 @click.option("-q", "--quiet", is_flag=True, help="No progress display; only the summary line.")
 @click.option("-v", "--verbose", count=True, help="Log each frame and sensor on stderr (-v info, -vv debug).")

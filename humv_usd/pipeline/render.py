@@ -66,7 +66,8 @@ ESTIMATORS = ("fast", "path")
 DEFAULT_ESTIMATOR = "fast"
 #: Samples per pixel when the caller gives none, per estimator.
 DEFAULT_SPP = {"fast": E.DEFAULT_SPP, "path": 16}
-#: Samples per pixel of the visible (EO) render when the caller gives none.
+#: Samples per pixel of the visible (EO) path tracer (`--estimator path`) when the caller gives
+#: none; the fast EO estimator then picks them (humv_usd.render.eo_fast: automatic quality).
 EO_DEFAULT_SPP = 16
 TIMING_KEYS = ("load_export", "render", "labels", "write")
 
@@ -237,8 +238,9 @@ def render_stage(
     ``radiance`` [W m^-2 sr^-1], ``brightness_temperature`` [K], ``radiance_stderr``
     [W m^-2 sr^-1], ``depth`` [m], ``instance_id`` [integer stored as float32]), an 8-bit
     grayscale preview ``OUT/<sensor>/<frame:04d>.png`` (brightness temperature stretched between
-    its 1st and 99th percentile) and ``OUT/manifest.json``. EO sensors render in the spectral
-    variant (:mod:`humv_usd.render.eo`).
+    its 1st and 99th percentile) and ``OUT/manifest.json``. EO sensors render with the fast EO
+    estimator (:mod:`humv_usd.render.eo_fast`; ``estimator="path"``: Mitsuba's spectral path
+    tracer, :mod:`humv_usd.render.eo`).
 
     Parameters
     ----------
@@ -319,6 +321,8 @@ def render_stage(
     stage has its direction and spectral irradiance and it is above the horizon. Faces are
     one-sided (their back neither emits nor reflects). Next-event estimation samples the sky and
     sun only (see :data:`humv_usd.render.ir.AREA_EMITTER_SAMPLING_WEIGHT`). EO sensors render in
+    visible sub-bands with the fast estimator (:mod:`humv_usd.render.eo_fast`; without a given
+    spp, batches until the error of Y is <= 1 % of the mean Y), or with ``estimator="path"`` in
     Mitsuba's spectral variant (:mod:`humv_usd.render.eo`). After the render, the sensor chain
     (:mod:`humv_usd.physics.sensor`) writes raw counts and an 8-bit image per IR/EO frame.
 
@@ -585,6 +589,8 @@ def _plan(
         seed=seed,
         out_dir=out_dir,
         truth=truth,
+        estimator=estimator,  # the fast EO estimator falls back to the path tracer as the IR one
+        spp_auto=spp_auto,
     )
     spp_auto = bool(spp_auto) and est == "fast"
     digest = stage_digest(stage)
@@ -593,9 +599,11 @@ def _plan(
         s.name: R.settings(digest, spp, seed, max_depth, truth.annotators, n_of[s.name], **ir_how)
         for s in rendered
     }
-    eo_spp = spp if eo_spp is None else eo_spp
+    eo_key, eo_mode = eo_run.settings_key
     for s in eo_run.sensors:
-        wanted[s.name] = R.settings(digest, eo_spp, seed, max_depth, truth.annotators, spp_mode="fixed")
+        wanted[s.name] = R.settings(
+            digest, eo_run.spp, seed, max_depth, truth.annotators, estimator=eo_key, spp_mode=eo_mode
+        )
     return _Plan(
         wanted=wanted,
         stage_path=os.fspath(stage_path),

@@ -1,4 +1,10 @@
-"""Visible (EO) rendering with Mitsuba's spectral variant: reflectance spectra, sun and sky.
+"""Visible (EO) rendering: reflectance spectra, sun and sky, to CIE XYZ and sRGB.
+
+Two estimators of the same model: the default, :mod:`humv_usd.render.eo_fast` (the infrared
+estimator on visible sub-bands, X, Y, Z as its weighted channels; automatic quality: batches
+until the mean error of Y away from edges is <= 1 % of the mean Y there), and the reference,
+Mitsuba's spectral path tracer on the 5-nm grid below (:class:`EOScene`, ``estimator="path"``,
+also used when the variant is not vectorised or ``max_depth`` is bounded).
 
 Radiometry (opaque Lambertian surfaces, no emission in the visible)
 -----------------------------------------------------------------
@@ -56,10 +62,11 @@ from humv_usd import mode
 from humv_usd.fileio import write_json
 from humv_usd.geometry.camera import CAMERA_FILE, Camera, camera_file
 from humv_usd.physics.sensor import srgb_encode
-from humv_usd.render import radiometry
+from humv_usd.render import eo_fast, radiometry
+from humv_usd.render import estimator as E
 from humv_usd.render.cie import XYZ_TO_SRGB
 from humv_usd.render.frame import path_table
-from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply  # noqa: F401
+from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply
 from humv_usd.render.radiometry import hemisphere_mean
 from humv_usd.usd import environment as usd_environment
 from humv_usd.usd.atmosphere import atmosphere_spectra
@@ -342,12 +349,28 @@ class EORender:
     or a rendered material has no ``humv:material:reflectance``.
     """
 
-    def __init__(self, stage, sensors, spp: int, max_depth: int, seed: int, out_dir, truth=None):
+    def __init__(
+        self,
+        stage,
+        sensors,
+        spp: int,
+        max_depth: int,
+        seed: int,
+        out_dir,
+        truth=None,
+        estimator: str = "fast",
+        spp_auto: bool = False,
+    ):
         from pxr import Usd
 
         self.stage = stage
         self.truth = truth  # humv_usd.groundtruth.GroundTruth: the same labels as the IR sensors
         self.spp, self.max_depth, self.seed, self.out_dir = int(spp), int(max_depth), int(seed), out_dir
+        self.estimator, self.estimator_note = _eo_estimator(estimator, max_depth)
+        # automatic quality (fast estimator, no spp given): batches of DEFAULT_EO_SPP
+        self.spp_auto = bool(spp_auto) and self.estimator == "fast"
+        if self.spp_auto:
+            self.spp = eo_fast.DEFAULT_EO_SPP
         self.sensors = list(sensors)
         self.skipped: list[dict] = []
         self.scene: EOScene | None = None
@@ -356,6 +379,7 @@ class EORender:
             s.name: {"frames": [], "cameras": [], "timings_s": {"render": 0.0, "labels": 0.0, "write": 0.0}}
             for s in self.sensors
         }
+        self.bins = eo_fast.visible_bins(eo_fast.DEFAULT_EO_BINS) if self.estimator == "fast" else None
         self.ids = {s.name: f"eo_{i}" for i, s in enumerate(self.sensors)}
         if not self.sensors:
             return
@@ -457,9 +481,12 @@ class EORender:
                 for s in self.sensors
             ]
             with tempfile.TemporaryDirectory(prefix="humv_eo_") as tmp:
-                self.scene = EOScene(
-                    parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun
-                )
+                if self.estimator == "fast":  # geometry only: the estimator lights it itself
+                    self.scene = IRScene(parts, setups, self.spp, self.max_depth, tmp)
+                else:
+                    self.scene = EOScene(
+                        parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun
+                    )
             self.key = state.topology_key
         else:
             for part, vertices, _ in parts:
@@ -473,12 +500,29 @@ class EORender:
         sun, sky, ran = illumination(
             spectra, sun_direction, usd_environment.direct_normal_irradiance(self.stage, time_code)
         )
-        scene.set_illumination(sun_direction, sun, sky)
+        if self.estimator == "fast":
+            light = eo_fast.bin_illumination(self.bins, sun, sky, sun_direction)
+            weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction)
+            rho = {}
+
+            def reflectance_of(material):
+                if material.path not in rho:
+                    rho[material.path] = self.bins.mean(reflectance_spectrum(material), weight)
+                return rho[material.path]
+        else:
+            scene.set_illumination(sun_direction, sun, sky)
         scene.update()
         for s in self.sensors:
             rec = self.records[s.name]
-            t = time.perf_counter()
-            xyz, y_err = scene.render_xyz(self.ids[s.name], self.spp, self.seed + frame)
+            t, cpu0 = time.perf_counter(), time.process_time()
+            before = dict(rec["timings_s"])
+            sid = self.ids[s.name]
+            if self.estimator == "fast":
+                xyz, y_err, noise = self._render_fast(scene, sid, state, reflectance_of, light, frame)
+            else:
+                xyz, y_err = scene.render_xyz(sid, self.spp, self.seed + frame)
+                noise = eo_fast.relative_noise(xyz[..., 1], y_err, E.geometric_edges(scene.hits(sid)))
+                noise.update(spp_used=self.spp, spp_rule=f"path tracer: {self.spp} spp")
             rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
             rel = os.path.join(s.name, f"{frame:04d}")
@@ -531,7 +575,8 @@ class EORender:
                 metadata={
                     "humv:sensor": s.path,
                     "humv:frame": str(frame),
-                    "humv:spp": str(self.spp),
+                    "humv:spp": str(noise["spp_used"]),
+                    "humv:estimator": self.estimator,
                     "humv:colour": "CIE 1931 XYZ (CIE.X, CIE.Y, CIE.Z) and linear sRGB (D65) (R, G, B)",
                     "humv:camera": os.path.join(s.name, CAMERA_FILE),
                     **camera.exr_header(),
@@ -552,12 +597,63 @@ class EORender:
                     "preview_exposure": exposure,
                     "Y_mean": float(np.mean(y)),
                     "luminance_mean_cd_m2": float(KM_LM_PER_W * CIE_Y_INTEGRAL_NM * np.mean(y)),
-                    "Y_stderr_mean": float(np.nanmean(y_err)),
+                    "Y_stderr_mean": float(np.nanmean(y_err)) if np.isfinite(y_err).any() else None,
+                    "monte_carlo_error_relative": noise,
                     "illumination": ran,
                     "atmosphere": path_ran,
                     "sensor_chain": chain_record,
+                    "timings_s": {
+                        **{k: rec["timings_s"][k] - before[k] for k in rec["timings_s"]},
+                        "cpu": time.process_time() - cpu0,
+                    },
                 }
             )
+
+    def _render_fast(self, scene, sid, state, reflectance_of, light, frame):
+        """X, Y, Z, the standard error of Y and its summary with the fast estimator: the given
+        spp, or (automatic quality) batches of :data:`eo_fast.DEFAULT_EO_SPP` until the mean error
+        of Y away from edges is <= :data:`eo_fast.EO_TARGET_RELATIVE` of the mean Y there, at
+        most :data:`eo_fast.EO_MAX_SPP`."""
+        edges = E.geometric_edges(scene.hits(sid))
+        batches = []
+        while True:
+            seed = (self.seed + frame + eo_fast.SEED_STRIDE * len(batches)) % 2**32
+            batches.append(
+                eo_fast.render_xyz_fast(scene, sid, state, self.bins, reflectance_of, light, self.spp, seed)
+            )
+            xyz = np.mean([b[0] for b in batches], axis=0)  # equal-spp batches
+            y_err = np.sqrt(np.sum([b[1][..., 1] ** 2 for b in batches], axis=0)) / len(batches)
+            noise = eo_fast.relative_noise(xyz[..., 1], y_err, edges)
+            more = (
+                self.spp_auto
+                and noise["mean"] is not None
+                and noise["mean"] > eo_fast.EO_TARGET_RELATIVE
+                and self.spp * (len(batches) + 1) <= eo_fast.EO_MAX_SPP
+            )
+            if not more:
+                break
+        noise.update(spp_used=self.spp * len(batches), spp_rule=self.spp_rule)
+        return xyz, y_err, noise
+
+    @property
+    def spp_rule(self) -> str:
+        if not self.spp_auto:
+            return f"given: {self.spp} spp"
+        return (
+            f"automatic: batches of {self.spp} spp until the mean error of Y away from edges is <= "
+            f"{eo_fast.EO_TARGET_RELATIVE:g} x mean Y, or {eo_fast.EO_MAX_SPP} spp"
+        )
+
+    @property
+    def settings_key(self) -> tuple[str, str]:
+        """(estimator with its parameters, spp mode) for the images' record settings."""
+        if self.estimator != "fast":
+            return "path (spectral)", "fixed"
+        key = (
+            f"fast EO (bins {eo_fast.DEFAULT_EO_BINS}, splits {eo_fast.DEFAULT_EO_SPLITS}, replicas "
+            f"{E.DEFAULT_REPLICAS}, filter radius {E.DEFAULT_FILTER_RADIUS} px)"
+        )
+        return key, (self.spp_rule if self.spp_auto else "fixed")
 
     def write_cameras(self) -> None:
         """``<sensor>/camera.json`` of every EO sensor rendered (intrinsics, per-frame pose)."""
@@ -576,8 +672,14 @@ class EORender:
                 "prim": s.path,
                 "band": s.band,
                 "resolution": list(s.resolution),
-                "variant": mode.SPECTRAL_VARIANTS[mode.variant()],
+                "variant": mode.variant()
+                if self.estimator == "fast"
+                else mode.SPECTRAL_VARIANTS[mode.variant()],
+                "estimator": self.estimator,
+                "estimator_note": self.estimator_note,
+                "spectral_bins_nm": None if self.bins is None else [float(v) for v in self.bins.edges_nm],
                 "spp": self.spp,
+                "spp_auto": self.spp_auto,
                 "channels": {k: writers.channel_info(k, v) for k, v in EO_EXR_CHANNELS.items()},
                 "camera": os.path.join(s.name, CAMERA_FILE) if frames_of.get(s.name) else None,
                 "preview": f"PNG 8-bit sRGB; the {PREVIEW_PERCENTILE:g}th percentile of Y exposed to {PREVIEW_WHITE:g}",
@@ -586,6 +688,21 @@ class EORender:
                     **self.records[s.name]["timings_s"],
                     "total": sum(self.records[s.name]["timings_s"].values()),
                 },
+                "monte_carlo_error_relative": eo_fast.relative_summary(
+                    [f.get("monte_carlo_error_relative") or {} for f in frames_of.get(s.name, [])]
+                ),
             }
             for s in self.sensors
         ]
+
+
+def _eo_estimator(requested: str, max_depth: int) -> tuple[str, str]:
+    """The EO estimator that runs and why: the fast one needs a vectorised variant and unbounded
+    paths (as in the infrared)."""
+    if requested != "fast":
+        return "path", f"requested: {requested} (Mitsuba's spectral path tracer)"
+    if not mode.is_vectorized():
+        return "path", f"fast estimator needs a vectorised variant; {mode.variant()} runs the path tracer"
+    if int(max_depth) != -1:
+        return "path", f"max_depth {max_depth} asks for a truncated path: the path tracer honours it"
+    return "fast", "requested: fast (humv_usd.render.eo_fast)"

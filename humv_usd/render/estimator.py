@@ -44,7 +44,7 @@ from math import exp, lgamma, sqrt
 import numpy as np
 
 from humv_usd import mode
-from humv_usd.render.radiometry import SKY_MAP_HEIGHT, range_weights
+from humv_usd.render.radiometry import SKY_MAP_HEIGHT
 
 log = logging.getLogger(__name__)
 
@@ -156,32 +156,57 @@ def face_tables(scene, state, sub, emissivity_of, transmittance_of=None) -> Face
     return FaceTables(np.concatenate(emission), np.concatenate(reflectance), np.asarray(offset[:-1]))
 
 
-def ground_radiance(scene, tables: FaceTables, g_up: np.ndarray, sun_cos: float, sun_e) -> np.ndarray:
-    """Radiance (n,) of the control variate below the horizon: area-weighted mean surface-leaving
-    radiance of the upward faces (n_z > 0.9) lit by the open sky and the unshadowed sun. Any value
-    keeps the estimator unbiased; this one makes it nearly zero-variance over a uniform ground."""
-    n = tables.emission.shape[1]
-    num, den = np.zeros(n), 0.0
-    for k, part in enumerate(scene.parts):
+def face_normals(scene) -> tuple[np.ndarray, np.ndarray]:
+    """Unit geometric normals (T, 3) and areas (T,) [m2] of every triangle of the scene in the
+    global order of :class:`FaceTables` (winding flips applied, as Mitsuba's ``si.n``)."""
+    normals, areas = [], []
+    for part in scene.parts:
         v = scene._positions[part.key].astype(float)
         tris = part.triangles[:, [0, 2, 1]] if scene._flips[part.key] else part.triangles
         a, b, c = (v[tris[:, i]] for i in range(3))
         cr = np.cross(b - a, c - a)
-        area = 0.5 * np.linalg.norm(cr, axis=1)
+        norm = np.linalg.norm(cr, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            nz = np.where(area > 0, cr[:, 2] / (2 * area), 0.0)
-        up = nz > 0.9
-        if not up.any():
-            continue
-        sl = slice(tables.offset[k], tables.offset[k] + len(tris))
-        leave = tables.emission[sl][up] + tables.reflectance[sl][up] * (
-            g_up[None, :] + (0.0 if sun_e is None else sun_e[None, :] * max(sun_cos, 0.0) / np.pi)
-        )
-        num += (area[up, None] * leave).sum(axis=0)
-        den += float(area[up].sum())
-    if den <= 0:
+            normals.append(np.where(norm[:, None] > 0, cr / norm[:, None], 0.0))
+        areas.append(0.5 * norm)
+    if not normals:
+        return np.zeros((0, 3)), np.zeros(0)
+    return np.concatenate(normals), np.concatenate(areas)
+
+
+def ground_radiance(
+    scene, tables: FaceTables, g_up: np.ndarray, sun_cos: float, sun_e, normals=None
+) -> np.ndarray:
+    """Radiance (n,) of the control variate below the horizon: area-weighted mean surface-leaving
+    radiance of the upward faces (n_z > 0.9) lit by the open sky and the unshadowed sun. Any value
+    keeps the estimator unbiased; this one makes it nearly zero-variance over a uniform ground."""
+    n = tables.emission.shape[1]
+    nrm, area = face_normals(scene) if normals is None else normals
+    up = nrm[:, 2] > 0.9
+    if not up.any() or area[up].sum() <= 0:
         return np.zeros(n)
-    return num / den
+    leave = tables.emission[up] + tables.reflectance[up] * (
+        g_up[None, :] + (0.0 if sun_e is None else sun_e[None, :] * max(sun_cos, 0.0) / np.pi)
+    )
+    return (area[up, None] * leave).sum(axis=0) / float(area[up].sum())
+
+
+def surface_table(scene, tables: FaceTables, g_tab: np.ndarray, sun_dir, sun_e, normals=None) -> np.ndarray:
+    """(T, 3, n) per triangle and sub-band: the surface term of a front-facing vertex in shadow,
+    emission + rho G(n_z) (G the control variate's hemispherical mean at the face's normal,
+    interpolated in :func:`control_variate_table`'s nodes); the same plus the sun's
+    rho E_sun max(0, n.s) / pi (a vertex that sees the sun); and rho. One table row holds all
+    that a vertex needs, so the estimator reads it with 2 gathers per sub-band."""
+    nrm = face_normals(scene)[0] if normals is None else normals[0]
+    nodes = np.linspace(-1.0, 1.0, g_tab.shape[1])
+    g = np.stack([np.interp(nrm[:, 2], nodes, row) for row in g_tab], axis=1)  # (T, n)
+    rho = tables.reflectance
+    dark = tables.emission + rho * g
+    lit = dark
+    if sun_dir is not None and sun_e is not None:
+        cos_s = np.maximum(nrm @ np.asarray(sun_dir, float), 0.0)
+        lit = dark + rho * (np.asarray(sun_e, float)[None, :] * cos_s[:, None] / np.pi)
+    return np.ascontiguousarray(np.stack([dark, lit, np.broadcast_to(rho, dark.shape)], axis=1))
 
 
 def replica_count(spp: int, wanted: int = DEFAULT_REPLICAS) -> int:
@@ -239,22 +264,37 @@ def render_band_fast(
     replicas: int = DEFAULT_REPLICAS,
     splits: int = DEFAULT_SPLITS,
     filter_radius: int = DEFAULT_FILTER_RADIUS,
+    weights=None,
+    tables: FaceTables | None = None,
 ):
     """At-sensor band radiance and its Monte Carlo standard error of one IR sensor at one frame.
 
     Parameters are those of :func:`humv_usd.render.ir.render_band`; ``spp`` is the pixel's total
     sample count (shared by all sub-bands) and ``replicas`` the independent randomisations it is
     split into for the error estimate (spp = 1: one replica, error not estimable, NaN).
+    ``weights`` (c, n): c output channels :math:`\\sum_k W_{ck} L_k` of the n sub-band radiances
+    (None: the band radiance :math:`\\sum_k L_k`, one channel); every channel is estimated from
+    the same paths. ``tables``: precomputed :class:`FaceTables` (then ``state``,
+    ``emissivity_of`` and ``transmittance_of`` are not read), e.g. zero emission and per-bin
+    reflectance for a reflective band.
 
     Returns
     -------
-    radiance, stderr : (H, W) float64
+    radiance, stderr : (H, W) float64, or (c, H, W) when ``weights`` is given
         [W m^-2 sr^-1]; stderr from the spread of the replica means (RQMC), NaN when one replica.
     """
     mi = mode.mitsuba()
     import drjit as dr
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
+
+    def note(msg: str, *args) -> None:
+        """A debug timing (kernels run asynchronously: wait for them, only when debugging)."""
+        if log.isEnabledFor(logging.DEBUG):
+            dr.sync_thread()
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            log.debug(msg + ", %.3f s wall, %.3f CPU-s", *args, wall, cpu)
+
     spp = int(spp)
     splits = max(1, int(splits))
     replicas = replica_count(spp, replicas)
@@ -262,22 +302,26 @@ def render_band_fast(
     n = len(sub)
     setup = scene.sensors[sensor_id]
     w, h = int(setup.width), int(setup.height)
-    tables = face_tables(scene, state, sub, emissivity_of, transmittance_of)
+    if tables is None:
+        tables = face_tables(scene, state, sub, emissivity_of, transmittance_of)
+    wts = channel_weights(weights, n)
+    channels = wts.shape[0]
 
     # --- sky, control variate, sun, path as flat tables --------------------------------------
     rows = np.stack([sky_rows(radiometry, k) for k in range(n)])  # (n, H)
     sun_e = radiometry.sun_irradiance if (scene_sun := radiometry.sun_direction) is not None else None
     sun_dir = None if scene_sun is None else np.asarray(scene_sun, float)
     g_up = control_variate_table(rows, rows[:, SKY_MAP_HEIGHT // 2], nodes=2)[:, -1]  # up-facing
-    ground = ground_radiance(scene, tables, g_up, 0.0 if sun_dir is None else sun_dir[2], sun_e)
+    normals = face_normals(scene)
+    ground = ground_radiance(scene, tables, g_up, 0.0 if sun_dir is None else sun_dir[2], sun_e, normals)
     g_tab = control_variate_table(rows, ground)  # (n, CV_NODES)
+    surface = surface_table(scene, tables, g_tab, sun_dir, sun_e, normals)  # (T, 3, n)
+    note("tables: %d triangles", len(surface))
 
     f32 = mi.Float
-    emission = f32(np.ascontiguousarray(tables.emission, dtype=np.float32).ravel())
-    reflect = f32(np.ascontiguousarray(tables.reflectance, dtype=np.float32).ravel())
-    sky_tab = f32(rows.astype(np.float32).ravel())
-    g_tab_dr = f32(g_tab.astype(np.float32).ravel())
-    ground_dr = f32(ground.astype(np.float32))
+    surf_dr = f32(surface.astype(np.float32).ravel())
+    sky_dr = f32(np.ascontiguousarray(rows.T, dtype=np.float32).ravel())  # (H, n)
+    ground_k = [dr.opaque(f32, float(g)) for g in ground]
     part_of_key = {p.key: i for i, p in enumerate(scene.parts)}
     keys, offs = [], []
     for shape in scene.scene.shapes():
@@ -286,61 +330,39 @@ def render_band_fast(
     offset_lookup = np.zeros(max(keys) + 1, dtype=np.uint32)
     offset_lookup[keys] = offs
     offset_dr = mi.UInt32(offset_lookup)
-
-    def lerp_at(x, size):
-        """(row index, weight) of a continuous row coordinate, shared by the sub-bands."""
-        x = dr.clip(x, 0.0, size - 1.0)
-        i = dr.minimum(mi.UInt32(dr.floor(x)), size - 2)
-        return i, x - mi.Float(i)
-
-    def lerp_rows(table, k, at, size, active=True):
-        i, t = at
-        base = k * size
-        lo = dr.gather(f32, table, base + i, active)
-        return lo * (1.0 - t) + dr.gather(f32, table, base + i + 1, active) * t
+    sun_vec = None
+    if sun_dir is not None:
+        sun_vec = mi.Vector3f(*(dr.opaque(f32, float(v)) for v in sun_dir))
 
     def sky_at(dz):
-        return lerp_at(dr.acos(dr.clip(dz, -1.0, 1.0)) * ((SKY_MAP_HEIGHT - 1) / np.pi), SKY_MAP_HEIGHT)
+        """(row index, weight) of a direction's zenith in the sky rows, shared by the sub-bands."""
+        x = dr.clip(
+            dr.acos(dr.clip(dz, -1.0, 1.0)) * ((SKY_MAP_HEIGHT - 1) / np.pi), 0.0, SKY_MAP_HEIGHT - 1.0
+        )
+        i = dr.minimum(mi.UInt32(dr.floor(x)), SKY_MAP_HEIGHT - 2)
+        return i * n, x - mi.Float(i)
 
     def sky(k, at, active=True):
-        return lerp_rows(sky_tab, k, at, SKY_MAP_HEIGHT, active)
+        base, t = at
+        lo = dr.gather(f32, sky_dr, base + k, active)
+        return lo + (dr.gather(f32, sky_dr, base + (n + k), active) - lo) * t
 
-    def g_at(nz):
-        return lerp_at((nz + 1.0) * (0.5 * (CV_NODES - 1)), CV_NODES)
+    def triangle(si, active):
+        """Global triangle index of a hit (face table row)."""
+        shape = dr.reinterpret_array(mi.UInt32, si.shape)
+        return dr.gather(mi.UInt32, offset_dr, shape, active) + si.prim_index
 
-    def g_of(k, at):
-        return lerp_rows(g_tab_dr, k, at, CV_NODES)
-
-    sun_vec = sun_arr = None
-    if sun_dir is not None:
-        sd = dr.opaque(mi.Float, 0.0, 3) + mi.Float(sun_dir.astype(np.float32))
-        sun_vec = mi.Vector3f(dr.gather(f32, sd, 0), dr.gather(f32, sd, 1), dr.gather(f32, sd, 2))
-        sun_arr = f32(np.asarray(sun_e, np.float32))
-
-    def vertex(si, d):
-        """(hit, front, surface term per sub-band = emission + rho (G + sun), rho per sub-band)."""
-        hit = si.is_valid()
-        front = hit & (dr.dot(si.n, d) < 0.0)
-        tri = (
-            dr.gather(mi.UInt32, offset_dr, dr.reinterpret_array(mi.UInt32, si.shape), front) + si.prim_index
-        )
-        sun_term = None
+    def surface_terms(p, nrm, tri, active=True):
+        """(surface-leaving radiance - the reflected sky/ground part sampled later, reflectance)
+        per sub-band at front-facing vertices: emission + rho (G + sun if the sun is seen)."""
+        base = tri * (3 * n)
         if sun_vec is not None:
-            cos_s = dr.dot(si.n, sun_vec)
-            lit = front & (cos_s > 0.0)
-            blocked = scene.scene.ray_test(si.spawn_ray(sun_vec), lit)
-            sun_term = dr.select(lit & ~blocked, cos_s / np.pi, 0.0)
-        surf, rho = [], []
-        g_where = g_at(si.n.z)
-        for k in range(n):
-            le = dr.gather(f32, emission, tri * n + k, front)
-            r = dr.gather(f32, reflect, tri * n + k, front)
-            v = le + r * g_of(k, g_where)
-            if sun_term is not None:
-                v += r * dr.gather(f32, sun_arr, k) * sun_term
-            surf.append(dr.select(front, v, 0.0))
-            rho.append(dr.select(front, r, 0.0))
-        return hit, front, surf, rho
+            lit = active & (dr.dot(nrm, sun_vec) > 0.0)
+            blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * _offset(dr, p), sun_vec), lit)
+            base = dr.select(lit & ~blocked, base + n, base)
+        surf = [dr.gather(f32, surf_dr, base + k, active) for k in range(n)]
+        rho = [dr.gather(f32, surf_dr, tri * (3 * n) + (2 * n + k), active) for k in range(n)]
+        return surf, rho
 
     # --- camera samples: pixel x replica x lattice point -------------------------------------
     total = w * h * spp
@@ -356,125 +378,127 @@ def render_band_fast(
     sensor = scene._sensor_objects[sensor_id]
     ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(fx, fy), mi.Point2f(0.5, 0.5))
     si = scene.scene.ray_intersect(ray)
-    hit, front, surf, rho = vertex(si, ray.d)
-    first_t = dr.select(hit, si.t, dr.inf)
+    hit = si.is_valid()
+    front = hit & (dr.dot(si.n, ray.d) < 0.0)
+    surf, rho = surface_terms(si.p, si.n, triangle(si, front), front)
     where = sky_at(ray.d.z)
-    value = [dr.select(hit, surf[k], sky(k, where)) for k in range(n)]
-    dr.eval(value, first_t, rho, front, si.p, si.n)
-    log.debug("camera vertices: %d samples, %.3f s", total, time.perf_counter() - t0)
-
-    # --- the atmospheric path per camera sample, at the range of its first hit ----------------
-    # (sub-band sum in float32 on the device: a 16 sub-band float64 (samples, n) table in numpy
-    # cost more than the first bounce)
+    value = [dr.select(hit, dr.select(front, surf[k], 0.0), sky(k, where, ~hit)) for k in range(n)]
+    rho = [dr.select(front, r, 0.0) for r in rho]
+    # the atmospheric path per camera sample, at the range of its first hit (sky: none)
     path = radiometry.path
-    tau = None
     if path is not None:
-        t_np = np.asarray(first_t, dtype=np.float64)
-        surface = np.isfinite(t_np)
-        r_i, r_t = range_weights(path.ranges_m, np.where(surface, t_np, 0.0))
-        r_n = len(np.atleast_1d(path.ranges_m))
-        r_i = mi.UInt32(np.asarray(r_i, dtype=np.uint32) if r_n > 1 else np.zeros(total, np.uint32))
-        r_t = f32(np.asarray(r_t, dtype=np.float32))
-        r_j = dr.minimum(r_i + 1, r_n - 1)
-        tau_tab = f32(np.ascontiguousarray(path.transmittance, dtype=np.float32).ravel())
-        lp_tab = f32(np.ascontiguousarray(path.radiance, dtype=np.float32).ravel())
-
-        def path_lerp(table, k):
-            lo = dr.gather(f32, table, r_i * n + k)
-            return lo + (dr.gather(f32, table, r_j * n + k) - lo) * r_t
-
-        tau = [dr.select(hit, path_lerp(tau_tab, k), 1.0) for k in range(n)]
-        value = [dr.select(hit, tau[k] * value[k] + path_lerp(lp_tab, k), value[k]) for k in range(n)]
-    sample_dr = value[0]
-    for v in value[1:]:
-        sample_dr += v
-    dr.eval(sample_dr, tau)
-    sample = np.asarray(sample_dr, dtype=np.float64)
-
-    reflected = np.zeros_like(sample)
-    # --- reflection: `splits` stratified cosine directions per front-facing camera vertex ------
+        lerp = _path_interpolation(mi, dr, path, dr.select(hit, si.t, 0.0), n)
+        tau = [dr.select(hit, lerp(0, k), 1.0) for k in range(n)]
+        value = [dr.select(hit, tau[k] * value[k] + lerp(1, k), value[k]) for k in range(n)]
+        rho = [rho[k] * tau[k] for k in range(n)]  # the reflected term's throughput
+    # per (pixel, replica) cell: the mean of its lattice points, per channel
+    direct_dr = [_weighted_sum(value, wts[c]) for c in range(channels)]
+    if lattice_n > 1:
+        direct_dr = [dr.block_sum(v, lattice_n) * (1.0 / lattice_n) for v in direct_dr]
+    beta0 = rho
+    dr.eval(direct_dr, beta0, front, si.p, si.n)
     parent = dr.compress(front)
     m = dr.width(parent)
+    direct_r = np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr])  # (c, cells)
+    note("camera vertices and path: %d samples", total)
+
+    # --- reflection: `splits` stratified cosine directions per front-facing camera vertex ------
+    # per lane sums (each scatter has distinct targets: the order of additions, and so the
+    # result, does not depend on the threads), reduced to cells in a fixed order at the end
+    acc = [dr.zeros(f32, m * splits) for _ in range(channels)]
     if m:
         b = dr.arange(mi.UInt32, m * splits)
         par = dr.gather(mi.UInt32, parent, b // splits)
         d_index = dr.gather(mi.UInt32, j, par) * splits + b % splits
-        u1, u2 = _rotated_lattice(
-            mi, dr, lattice_n * splits, d_index, dr.gather(mi.UInt32, cell, par), seeds[1]
-        )
+        par_cell = dr.gather(mi.UInt32, cell, par)
+        u1, u2 = _rotated_lattice(mi, dr, lattice_n * splits, d_index, par_cell, seeds[1])
         p0 = dr.gather(mi.Point3f, si.p, par)
         n0 = mi.Vector3f(dr.gather(mi.Normal3f, si.n, par))
-        if tau is None:
-            beta = [dr.gather(f32, rho[k], par) * (1.0 / splits) for k in range(n)]
-        else:
-            beta = [dr.gather(f32, rho[k] * tau[k], par) * (1.0 / splits) for k in range(n)]
-        acc = dr.zeros(f32, m * splits)
-        lanes = None  # all bounce lanes, in order
+        # each lane's term enters its cell's mean over lattice points and directions
+        beta = [dr.gather(f32, bk, par) * (1.0 / (splits * lattice_n)) for bk in beta0]
+        lane_id = b
         d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
         ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
         for depth in range(1, MAX_DEPTH):
             si = scene.scene.ray_intersect(ray)
-            hit, front, surf, rho = vertex(si, ray.d)
+            hit = si.is_valid()
+            front = hit & (dr.dot(si.n, ray.d) < 0.0)
             dz = ray.d.z
-            step = mi.Float(0.0)
-            where = sky_at(dz)
-            up = dz >= 0.0
-            needed = hit | ~up  # an escaping ray above the horizon adds sky - C = 0
+            # escaping above the horizon: sky - C = 0; no surface: sky - L_g below the horizon;
+            # a back face: 0 - C
+            odd = ~front & (hit | (dz < 0.0))
+            tri = triangle(si, front)
+            dr.eval(hit, front, odd, tri, si.p, si.n, dz)
+            lanes_odd = dr.compress(odd)
+            if dr.width(lanes_odd):
+                dz_o = dr.gather(f32, dz, lanes_odd)
+                hit_o = dr.gather(mi.Bool, hit, lanes_odd)
+                up_o = dz_o >= 0.0
+                where = sky_at(dz_o)
+                terms = []
+                for k in range(n):
+                    sky_k = sky(k, where)
+                    seen = dr.select(hit_o, 0.0, sky_k)
+                    control = dr.select(up_o, sky_k, ground_k[k])
+                    terms.append(dr.gather(f32, beta[k], lanes_odd) * (seen - control))
+                _scatter_channels(dr, acc, terms, wts, dr.gather(mi.UInt32, lane_id, lanes_odd))
+            on = dr.compress(front)
+            width = dr.width(on)
+            note("depth %d: %d lanes, %d front, %d other", depth, dr.width(front), width, dr.width(lanes_odd))
+            if width == 0:
+                break
+            p = dr.gather(mi.Point3f, si.p, on)
+            nrm = mi.Vector3f(dr.gather(mi.Normal3f, si.n, on))
+            dz_f = dr.gather(f32, dz, on)
+            beta = [dr.gather(f32, bk, on) for bk in beta]
+            lane_id = dr.gather(mi.UInt32, lane_id, on)
+            surf, rho = surface_terms(p, nrm, dr.gather(mi.UInt32, tri, on))
+            up = dz_f >= 0.0
+            where = sky_at(dz_f)
+            terms = []
             for k in range(n):
-                # hit: surface - C; miss: sky - C (C = the sky above the horizon, L_g below)
-                sky_k = sky(k, where, needed)
-                seen = dr.select(hit, surf[k], dr.select(up, 0.0, sky_k))
-                control = dr.select(up, dr.select(hit, sky_k, 0.0), dr.gather(f32, ground_dr, k))
-                step += beta[k] * (seen - control)
-            if lanes is None:
-                acc = step
-            else:
-                dr.scatter_reduce(dr.ReduceOp.Add, acc, step, lanes)
+                control = dr.select(up, sky(k, where, up), ground_k[k])
+                terms.append(beta[k] * (surf[k] - control))
+            _scatter_channels(dr, acc, terms, wts, lane_id)
             beta = [beta[k] * rho[k] for k in range(n)]
             bmax = beta[0]
             for bk in beta[1:]:
                 bmax = dr.maximum(bmax, bk)
-            alive = front & (bmax > 0.0)
-            width = dr.width(alive)
+            alive = bmax > 0.0
             rng = mi.PCG32(
-                size=width,
-                initstate=dr.opaque(mi.UInt64, seeds[2] + depth),
-                initseq=dr.arange(mi.UInt64, width) if lanes is None else mi.UInt64(lanes),
+                size=width, initstate=dr.opaque(mi.UInt64, seeds[2] + depth), initseq=mi.UInt64(lane_id)
             )
             if depth + 1 >= RR_DEPTH:
                 q = dr.clip(bmax, RR_MIN, RR_MAX)
                 alive &= rng.next_float32() < q
                 beta = [bk / q for bk in beta]
             u1, u2 = rng.next_float32(), rng.next_float32()
-            dr.eval(acc, beta, alive, si.p, si.n, u1, u2)
+            dr.eval(acc, beta, alive, u1, u2)
             keep = dr.compress(alive)
-            log.debug(
-                "depth %d: %d lanes, %d go on, %.3f s", depth, width, dr.width(keep), time.perf_counter() - t0
-            )
             if dr.width(keep) == 0:
                 break
-            lanes = keep if lanes is None else dr.gather(mi.UInt32, lanes, keep)
             beta = [dr.gather(f32, bk, keep) for bk in beta]
-            p0 = dr.gather(mi.Point3f, si.p, keep)
-            n0 = mi.Vector3f(dr.gather(mi.Normal3f, si.n, keep))
+            lane_id = dr.gather(mi.UInt32, lane_id, keep)
+            p0 = dr.gather(mi.Point3f, p, keep)
+            n0 = dr.gather(mi.Vector3f, nrm, keep)
             local = mi.warp.square_to_cosine_hemisphere(
                 mi.Point2f(dr.gather(f32, u1, keep), dr.gather(f32, u2, keep))
             )
             ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), mi.Frame3f(n0).to_world(local))
-        reflected[np.asarray(parent, dtype=np.int64)] = (
-            np.asarray(acc, dtype=np.float64).reshape(m, splits).sum(axis=1)
-        )
-    log.debug("paths done, %.3f s", time.perf_counter() - t0)
+    reflect_r = np.stack(
+        [np.asarray(_lanes_to_cells(mi, dr, a, parent, splits, total, lattice_n)) for a in acc]
+    )
+    note("paths done")
 
     # --- per pixel means, RQMC errors, and the reflected part filtered over the surface --------
-    direct_r = sample.reshape(h, w, replicas, lattice_n).mean(axis=3)
-    reflect_r = reflected.reshape(h, w, replicas, lattice_n).mean(axis=3)
-    direct = direct_r.mean(axis=2)
-    reflect_mean = reflect_r.mean(axis=2)
+    direct_r = direct_r.reshape(channels, h, w, replicas)
+    reflect_r = reflect_r.reshape(channels, h, w, replicas)
+    direct = direct_r.mean(axis=3)
+    reflect_mean = reflect_r.mean(axis=3)
     if replicas > 1:
         scale = 1.0 / (replicas * (replicas - 1))  # variance of the replica mean
-        direct_var = direct_r.var(axis=2, ddof=0) * replicas * scale
-        reflect_var = reflect_r.var(axis=2, ddof=0) * replicas * scale
+        direct_var = direct_r.var(axis=3, ddof=0) * replicas * scale
+        reflect_var = reflect_r.var(axis=3, ddof=0) * replicas * scale
     else:
         direct_var = reflect_var = np.full(direct.shape, np.nan)
     if filter_radius > 0:
@@ -490,7 +514,74 @@ def render_band_fast(
     stderr = np.sqrt(direct_var + reflect_var)
     if replicas > 1:
         stderr = stderr / c4(replicas)
+    note("filtered")
+    if weights is None:
+        return radiance[0], stderr[0]
     return radiance, stderr
+
+
+def _path_interpolation(mi, dr, path, range_m, n: int):
+    """``lerp(table, k)``: the path transmittance (table 0) or path radiance (table 1) of
+    sub-band k at ``range_m``, linear in the path table's ascending ranges and held beyond its
+    ends (as :func:`humv_usd.render.radiometry.range_weights`), on the device."""
+    ranges = np.atleast_1d(np.asarray(path.ranges_m, dtype=np.float32))
+    tabs = [
+        mi.Float(np.ascontiguousarray(t, dtype=np.float32).ravel())
+        for t in (path.transmittance, path.radiance)
+    ]
+    if ranges.size == 1:
+        return lambda table, k: dr.gather(mi.Float, tabs[table], mi.UInt32(k))
+    x = mi.Float(ranges)
+    last = ranges.size - 1
+    j = dr.binary_search(1, last, lambda i: dr.gather(mi.Float, x, i) <= range_m)
+    i = j - 1
+    lo_x, hi_x = dr.gather(mi.Float, x, i), dr.gather(mi.Float, x, j)
+    t = dr.clip((range_m - lo_x) / (hi_x - lo_x), 0.0, 1.0)
+    i, j = i * n, j * n
+
+    def lerp(table, k):
+        lo = dr.gather(mi.Float, tabs[table], i + k)
+        return lo + (dr.gather(mi.Float, tabs[table], j + k) - lo) * t
+
+    return lerp
+
+
+def _lanes_to_cells(mi, dr, lanes, parent, splits: int, total: int, lattice_n: int):
+    """Sum per-lane values (``splits`` consecutive lanes per parent camera sample) into the
+    camera samples ``parent`` and then into cells of ``lattice_n`` consecutive samples."""
+    per_parent = dr.block_sum(lanes, splits) if splits > 1 else lanes
+    per_sample = dr.zeros(mi.Float, total)
+    if dr.width(parent):
+        dr.scatter(per_sample, per_parent, parent)
+    out = dr.block_sum(per_sample, lattice_n) if lattice_n > 1 else per_sample
+    return np.asarray(out, dtype=np.float64)
+
+
+def _scatter_channels(dr, acc, terms, wts, target) -> None:
+    """Add each channel's weighted sum of the sub-band ``terms`` into ``acc[c]`` at ``target``."""
+    for c, row in enumerate(wts):
+        dr.scatter_reduce(dr.ReduceOp.Add, acc[c], _weighted_sum(terms, row), target)
+
+
+def channel_weights(weights, n: int) -> np.ndarray:
+    """The (c, n) channel weights of n sub-bands (None: one channel, all ones)."""
+    if weights is None:
+        return np.ones((1, n))
+    wts = np.asarray(weights, dtype=float)
+    if wts.ndim != 2 or wts.shape[1] != n or wts.shape[0] < 1 or not np.all(np.isfinite(wts)):
+        raise ValueError(f"weights: shape {wts.shape}, want (channels >= 1, {n}) finite values")
+    return wts
+
+
+def _weighted_sum(terms, row):
+    """sum_k row[k] terms[k] on the device, skipping zero weights and unit multiplications."""
+    out = None
+    for term, wk in zip(terms, row):
+        if wk == 0.0:
+            continue
+        v = term if wk == 1.0 else term * float(wk)
+        out = v if out is None else out + v
+    return out if out is not None else terms[0] * 0.0
 
 
 def _same_surface(hits, dy: int, dx: int):
@@ -518,32 +609,100 @@ def _same_surface(hits, dy: int, dx: int):
 
 def filter_reflected(mean, var, hits, radius: int, radius_px=None):
     r"""Average the per-pixel reflected radiance over a (2 radius + 1)^2 window (two separable
-    passes), using only pixels on the same part with a similar normal and depth as the centre
-    (cross-bilateral with binary weights); returns the filtered mean and its variance
+    passes, rows then columns), using only pixels on the same surface as the centre: the run of
+    neighbours linked pixel to pixel by the same part, normals agreeing to
+    :data:`FILTER_NORMAL_COS` and depths to :data:`FILTER_DEPTH_REL` (cross-bilateral with binary
+    weights), cut where the depth or the normal has drifted from the centre's by as much (from
+    the local gradients). Returns the filtered mean and its variance
     :math:`\sum_i w_i^2 \sigma_i^2` (pixels' estimates are independent; the second pass combines
-    rows built from disjoint pixels). The reflected radiance of a Lambertian surface is its
-    irradiance times a constant, smooth on the scale of the window (a few cm on the examples'
-    surfaces); what the averaging costs in bias is measured against the path tracer by
-    ``humv-usd bench render`` (per labelled region). ``radius_px`` (H, W) caps the half width
-    per pixel (a pixel's own window, :data:`FILTER_HALF_WIDTH_M` in world units)."""
-    cap = np.full(np.shape(mean), float(radius)) if radius_px is None else np.asarray(radius_px, float)
+    rows built from disjoint pixels). Running sums make its cost independent of the window.
+    The reflected radiance of a Lambertian surface is its irradiance times a constant, smooth on
+    the scale of the window (a few cm on the examples' surfaces); what the averaging costs in
+    bias is measured against the path tracer by ``humv-usd bench render`` (per labelled region).
+    ``radius_px`` (H, W) caps the half width per pixel (a pixel's own window,
+    :data:`FILTER_HALF_WIDTH_M` in world units). ``mean`` and ``var`` may carry leading channel
+    axes (..., H, W): one window for every channel."""
     out_m, out_v = np.asarray(mean, float), np.asarray(var, float)
-    for axis in (1, 0):
-        num = out_m.copy()
-        num_v = np.nan_to_num(out_v).copy()
-        cnt = np.ones(out_m.shape)
-        for o in range(-radius, radius + 1):
-            if o == 0:
-                continue
-            dy, dx = (0, o) if axis == 1 else (o, 0)
-            ok, (ys, xs), (yo, xo) = _same_surface(hits, dy, dx)
-            okc = ok[ys, xs] & (abs(o) <= cap[ys, xs])
-            num[ys, xs] += np.where(okc, out_m[yo, xo], 0.0)
-            num_v[ys, xs] += np.where(okc, np.nan_to_num(out_v[yo, xo]), 0.0)
-            cnt[ys, xs] += okc
-        out_m = num / cnt
-        out_v = np.where(np.isfinite(out_v), num_v / cnt**2, np.nan)
-    return out_m, out_v
+    shape = out_m.shape[-2:]
+    cap = (
+        np.full(shape, float(radius))
+        if radius_px is None
+        else np.minimum(np.asarray(radius_px, float), radius)
+    )
+    known = np.isfinite(out_v)
+    for axis, (lo, hi) in zip((1, 0), _windows(hits, cap)):
+        out_m = _window_mean(out_m, lo, hi, axis, 1)
+        out_v = _window_mean(np.nan_to_num(out_v), lo, hi, axis, 2)
+    return out_m, np.where(known, out_v, np.nan)
+
+
+#: Windows of the last few (hits, cap) pairs: the automatic quality renders a frame in batches.
+_WINDOWS: list = []
+
+
+def _windows(hits, cap):
+    """The row and column windows of :func:`filter_reflected` (cached per hits and cap)."""
+    for cached_hits, cached_cap, windows in _WINDOWS:
+        if cached_hits is hits and np.array_equal(cached_cap, cap):
+            return windows
+    windows = (_window(hits, cap, 1), _window(hits, cap, 0))
+    _WINDOWS.insert(0, (hits, cap, windows))
+    del _WINDOWS[3:]
+    return windows
+
+
+def _window(hits, cap, axis: int):
+    """First and last index (H, W) along ``axis`` of each pixel's same-surface window."""
+    if axis == 0:
+        lo, hi = _window(_transposed(hits), np.ascontiguousarray(cap.T), 1)
+        return np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
+    h, w = cap.shape
+    link = _same_surface(hits, 0, 1)[0][:, :-1]  # (H, W - 1): pixel x and x + 1 share a surface
+    depth = np.where(np.isfinite(hits.depth), hits.depth, 0.0)
+    # how far the depth and the normal drift per pixel (central differences within the run)
+    left = np.concatenate([np.zeros((h, 1), bool), link], axis=1)
+    right = np.concatenate([link, np.zeros((h, 1), bool)], axis=1)
+    d_l = np.where(left, depth - np.roll(depth, 1, axis=1), 0.0)
+    d_r = np.where(right, np.roll(depth, -1, axis=1) - depth, 0.0)
+    n_l = np.where(left, np.einsum("ijk,ijk->ij", hits.normal, np.roll(hits.normal, 1, axis=1)), 1.0)
+    n_r = np.where(right, np.einsum("ijk,ijk->ij", hits.normal, np.roll(hits.normal, -1, axis=1)), 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        depth_step = np.maximum(np.abs(d_l), np.abs(d_r)) / np.maximum(depth, 1e-30)
+        angle_step = np.arccos(np.clip(np.minimum(n_l, n_r), -1.0, 1.0))
+        reach = np.minimum(
+            np.where(depth_step > 0, np.floor(FILTER_DEPTH_REL / depth_step), np.inf),
+            np.where(angle_step > 0, np.floor(np.arccos(FILTER_NORMAL_COS) / angle_step), np.inf),
+        )
+    reach = np.minimum(cap, reach).astype(np.int64)
+    x = np.broadcast_to(np.arange(w), (h, w))
+    start = np.maximum.accumulate(np.where(~left, x, 0), axis=1)
+    end = np.minimum.accumulate(np.where(~right, x, w - 1)[:, ::-1], axis=1)[:, ::-1]
+    return np.maximum(x - reach, start), np.minimum(x + reach, end)
+
+
+def _transposed(hits):
+    """The pixel-centre hits with rows and columns swapped (for the column pass)."""
+    return type(hits)(
+        **{
+            f: np.ascontiguousarray(np.swapaxes(getattr(hits, f), 0, 1))
+            for f in ("depth", "instance", "part", "triangle", "position", "normal")
+        }
+    )
+
+
+def _window_mean(values, lo, hi, axis: int, power: int):
+    """Mean over [lo, hi] along ``axis`` of (..., H, W) values (power 2: the sum / count^2, the
+    variance of the mean of independent values), by running sums."""
+    ax = values.ndim - 2 + axis
+    csum = np.cumsum(values, axis=ax)
+    pad = [(0, 0)] * values.ndim
+    pad[ax] = (1, 0)
+    csum = np.pad(csum, pad)
+    lo_b = np.broadcast_to(lo, values.shape)
+    hi_b = np.broadcast_to(hi + 1, values.shape)
+    total = np.take_along_axis(csum, hi_b, axis=ax) - np.take_along_axis(csum, lo_b, axis=ax)
+    count = (hi - lo + 1).astype(float)
+    return total / count**power
 
 
 def geometric_edges(hits) -> np.ndarray:
