@@ -207,6 +207,13 @@ def render(
             force=force,
             yes=yes,
         )
+    echo_render_summary(manifest, out_dir, estimator)
+
+
+def echo_render_summary(manifest: dict, out_dir, estimator: str) -> None:
+    """The lines `humv-usd render` prints after a render: the manifest's path, image count and
+    time, the Monte Carlo error, per IR sensor the error away from edges ("n/a" where there is
+    nothing to estimate it on) and the render time per frame, and skipped sensors."""
     settings = manifest["settings"]
     if settings["estimator"] != estimator:
         click.echo(f"  estimator: {settings['estimator']} ({settings['estimator_note']})", err=True)
@@ -238,11 +245,18 @@ def render(
                 else ""
             )
             click.echo(
-                f"  {sensor['name']}: error away from edges mean {away['mean_k']:.4f} K, p99 "
-                f"{away['p99_max_k']:.4f} K; edge pixels {away['edge_mean_k']:.3f} K (footprint){per_frame}"
+                f"  {sensor['name']}: error away from edges mean {_kelvin(away['mean_k'], 4)}, p99 "
+                f"{_kelvin(away.get('p99_max_k'), 4)}; edge pixels {_kelvin(away.get('edge_mean_k'), 3)} "
+                f"(footprint){per_frame}"
             )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
+
+
+def _kelvin(value, digits: int) -> str:
+    """``value`` [K] with ``digits`` decimals, or "n/a" when it could not be estimated (e.g. no
+    pixel away from edges in a tiny image, or no edge pixel)."""
+    return "n/a" if value is None else f"{value:.{digits}f} K"
 
 
 @main.command()

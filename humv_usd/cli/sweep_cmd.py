@@ -179,11 +179,25 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
     help="Frames of the memory run (0: skip).",
 )
 @click.option(
+    "--frames-per-task",
+    default=4,
+    show_default=True,
+    type=click.IntRange(1, 100_000),
+    help="Frames per task of the throughput runs (a sweep's [render] frames_per_task).",
+)
+@click.option(
     "-o", "--out", "out_dir", default=None, help="Keep the bench datasets here (default: a temp folder)."
 )
 @reports_errors
 def bench_sweep(
-    scenario: Path, variants: int, frames: int, spp: int, resolution: str, long_frames: int, out_dir
+    scenario: Path,
+    variants: int,
+    frames: int,
+    spp: int,
+    resolution: str,
+    long_frames: int,
+    frames_per_task: int,
+    out_dir,
 ):
     """Labeled LWIR frames per hour for a walk-like sweep of SCENARIO, speed-up of 2 workers over 1, memory
     per worker over a long sweep, and the scheduler's cost per task."""
@@ -198,6 +212,7 @@ def bench_sweep(
         variants=variants,
         long_frames=long_frames,
         out_dir=out_dir,
+        frames_per_task=frames_per_task,
     )
     click.echo(json.dumps(report, indent=2))
 

@@ -4,7 +4,7 @@ Method (all on a local Dask cluster of processes, like a default ``humv-usd swee
 
 1. *Walk-like variants*: the scenario (default ``examples/walk.toml``, a walking person in front
    of the HUMVVEX LWIR camera) with its LWIR camera at ``resolution``, ``variants`` headings
-   (grid ``placement.0.heading_deg``), ``frames`` frames each, one frame per task.
+   (grid ``placement.0.heading_deg``), ``frames`` frames each, ``frames_per_task`` frames per task (the sweep's default, 4).
 2. *1 worker*: the sweep run into a fresh folder (compose + render). Its compose time is reported
    apart; the render part gives labeled LWIR frames per hour (every frame with ground truth:
    labels, boxes, keypoints, COCO).
@@ -12,7 +12,7 @@ Method (all on a local Dask cluster of processes, like a default ``humv-usd swee
    composed variants (so both runs render the same tasks; compose is not part of the speed-up).
 4. *Memory*: each task records its worker's resident memory at the end (``/proc/self/statm``)
    and the peak (``getrusage``); with ``long_frames`` > 0 a one-worker sweep of that many frames
-   (tiny 64 x 48 images, 1 spp, one frame per task) gives the RSS of the task at 5 % of the run
+   (tiny 64 x 48 images, 1 spp, ``long_frames_per_task`` = 10 frames per task) gives the RSS of the task at 5 % of the run
    against the last one.
 5. *Scheduler cost per task*: 200 no-op tasks on a 1-worker cluster, wall time / 200.
 
@@ -46,12 +46,19 @@ base = "{base}"
 "placement.0.heading_deg" = {headings}
 
 [render]
-{spp}frames_per_task = 1
+{spp}frames_per_task = {per_task}
 """
 
 
 def _sweep_file(
-    folder: Path, base: Path, tag: str, resolution, frames: int, spp: int | None, variants: int
+    folder: Path,
+    base: Path,
+    tag: str,
+    resolution,
+    frames: int,
+    spp: int | None,
+    variants: int,
+    per_task: int = 1,
 ) -> Path:
     fps = 15.0
     headings = [round(90.0 + 360.0 * i / max(1, variants), 3) for i in range(variants)]
@@ -63,6 +70,7 @@ def _sweep_file(
         duration=(frames - 1) / fps,
         headings=headings,
         spp="" if spp is None else f"spp = {spp}\n",  # None: the render's automatic quality
+        per_task=int(per_task),
     )
     path = folder / f"{tag}.toml"
     path.write_text(text)
@@ -71,6 +79,13 @@ def _sweep_file(
 
 def _task_records(dataset: Path) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted((dataset / "renders").glob(f"*/*/{store.TASK_RECORD}"))]
+
+
+#: Frames per task of the throughput runs: the sweep's own default (``[render] frames_per_task``).
+DEFAULT_FRAMES_PER_TASK = 4
+#: Frames per task of the memory run: a 1,000-frame variant's layers take seconds to open (its
+#: clothing and thermal layers hold every frame), which a task per frame would pay 1,000 times.
+LONG_FRAMES_PER_TASK = 10
 
 
 def _noop():
@@ -102,13 +117,15 @@ def run_bench(
     variants: int = 2,
     long_frames: int = 0,
     out_dir=None,
+    frames_per_task: int = DEFAULT_FRAMES_PER_TASK,
+    long_frames_per_task: int = LONG_FRAMES_PER_TASK,
 ) -> dict:
     """The numbers of the module doc, as a dict."""
     base = Path(scenario)
     root = Path(out_dir) if out_dir else Path(tempfile.mkdtemp(prefix="humv_bench_sweep_"))
     root.mkdir(parents=True, exist_ok=True)
     try:
-        sw = load_sweep(_sweep_file(root, base, "walk", resolution, frames, spp, variants))
+        sw = load_sweep(_sweep_file(root, base, "walk", resolution, frames, spp, variants, frames_per_task))
         one = run_sweep(sw, root / "one_worker", workers=1)
         compose_s = sum(
             r["seconds"]
@@ -133,6 +150,7 @@ def run_bench(
             "frames_per_variant": frames,
             "resolution": list(resolution),
             "spp": spp,
+            "frames_per_task": frames_per_task,
             "images": one.images_rendered,
             "compose_s_1_worker": compose_s,
             "one_worker_wall_s": one.seconds,
@@ -147,12 +165,16 @@ def run_bench(
             "peak_rss_mb_per_task_max": max(t["peak_rss_mb"] for t in tasks1),
         }
         if long_frames:
-            sw_long = load_sweep(_sweep_file(root, base, "long", (64, 48), long_frames, 1, 1))
+            sw_long = load_sweep(
+                _sweep_file(root, base, "long", (64, 48), long_frames, 1, 1, long_frames_per_task)
+            )
             run_sweep(sw_long, root / "long", workers=1)
             recs = sorted(_task_records(root / "long"), key=lambda r: r["frames"][0])
             early = recs[max(0, len(recs) // 20 - 1)]
             report["memory"] = {
-                "frames": len(recs),
+                "frames": sum(len(r["frames"]) for r in recs),
+                "tasks": len(recs),
+                "frames_per_task": long_frames_per_task,
                 "rss_mb_at_5_percent": early["rss_mb"],
                 "rss_mb_last": recs[-1]["rss_mb"],
                 "peak_rss_mb_at_5_percent": early["peak_rss_mb"],

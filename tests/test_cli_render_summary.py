@@ -1,0 +1,38 @@
+"""The render command's summary lines never fail on a quantity the render could not estimate."""
+
+from humv_usd.cli.main import echo_render_summary
+
+
+def _manifest(edge_mean, p99):
+    return {
+        "settings": {"estimator": "fast", "spp": 2},
+        "monte_carlo_error": {
+            "temperature_stderr_mean_k": 0.005,
+            "temperature_stderr_max_k": 0.008,
+            "radiance_stderr_mean": 0.0039,
+            "radiance_stderr_max": 0.0061,
+        },
+        "rendered_this_call": [5],
+        "timings_s": {"total": 7.5},
+        "sensors": [
+            {
+                "name": "lwir",
+                "frames": [5],
+                "timings_s": {"render": 0.95},
+                "monte_carlo_error_k": {"mean_k": 0.005, "p99_max_k": p99, "edge_mean_k": edge_mean},
+            }
+        ],
+    }
+
+
+def test_a_tiny_image_without_edge_pixels_says_n_a(capsys):
+    """64 x 48 walk frame: every pixel away from edges, no edge pixel: the edge mean is None."""
+    echo_render_summary(_manifest(None, 0.0071), "out", "fast")
+    line = [x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("lwir:")][0]
+    assert "p99 0.0071 K" in line and "edge pixels n/a" in line and "0.95 s render per frame" in line
+
+
+def test_all_numbers_print_in_kelvin(capsys):
+    echo_render_summary(_manifest(2.681, None), "out", "fast")
+    out = capsys.readouterr().out
+    assert "edge pixels 2.681 K" in out and "p99 n/a" in out and "mean 0.0050 K" in out
