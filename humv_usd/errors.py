@@ -43,3 +43,9 @@ def summary(values, limit: int = 6) -> str:
         return "[" + ", ".join(f"{v:g}" for v in a.tolist()) + "]"
     head = ", ".join(f"{v:g}" for v in a[:limit].tolist())
     return f"[{head}, ...] ({a.size} values)"
+
+
+class WriteError(OSError):
+    """An output file could not be written (disk full, permissions, an encoder error). The
+    command line reports it as one line and exit code 1 (not bad input: the same command may
+    succeed once the cause is fixed)."""

@@ -134,3 +134,30 @@ def test_band_emissivity():
 
     expected = quad(num, 8.0, 14.0, points=[9.0, 11.0], epsrel=1e-12)[0] / _quad_band(300.0, LWIR)
     assert_allclose(planck.band_emissivity(wl, eps, LWIR), expected, rtol=1e-10)
+
+
+@pytest.mark.parametrize(
+    "band,response",
+    [(LWIR, None), (MWIR, None), ((7.0, 15.0), RESPONSE), ((8.0, 8.375), None), ((3.0, 3.125), None)],
+)
+def test_tabulated_band_radiance_and_inverse_match_the_exact_quadrature(band, response):
+    # the whole table range (0.5 K to 20 000 K) where the band radiance is a normal float, and beyond
+    t = np.geomspace(0.5, 3e4, 4001)
+    exact = planck.band_radiance(t, band, response)
+    t, exact = t[exact > 1e-290], exact[exact > 1e-290]
+    assert_allclose(planck.band_radiance_tabulated(t, band, response), exact, rtol=1e-6, atol=0)
+    tb, slope = planck.brightness_temperature_tabulated(exact, band, response)
+    tb_exact, slope_exact = planck.brightness_temperature_sensitivity(exact, band, response)
+    assert np.max(np.abs(tb - tb_exact)) < 1e-4
+    assert_allclose(slope, slope_exact, rtol=1e-4, atol=0)
+    # the radiances of a frame (between the table's nodes), and the special values
+    t = np.random.default_rng(3).uniform(180.0, 420.0, 5000)
+    radiance = planck.band_radiance(t, band, response)
+    tb, slope = planck.brightness_temperature_tabulated(radiance, band, response)
+    assert np.max(np.abs(tb - t)) < 1e-4
+    assert_allclose(slope, planck.band_radiance_derivative(t, band, response), rtol=1e-4)
+    tb, slope = planck.brightness_temperature_tabulated(np.array([0.0, -1.0, np.nan, np.inf]), band, response)
+    assert (
+        tb[0] == 0.0 and tb[1] == 0.0 and np.isnan(tb[2]) and np.isposinf(tb[3]) and np.all(np.isnan(slope))
+    )
+    assert isinstance(planck.brightness_temperature_tabulated(1.0, band, response)[0], float)

@@ -182,3 +182,21 @@ def test_render_computes_regions_without_reading_its_images_back(render_dir, tmp
             assert got["regions"][name]["pixels"] == row["pixels"]
             if row["pixels"]:
                 assert_allclose(got["regions"][name]["mean"], row["mean"], rtol=1e-9)
+
+
+def test_region_lookup_and_colour_table_equal_the_set_operations():
+    from humv_usd.groundtruth import labels as GL
+    from humv_usd.groundtruth.regions import region_stats
+
+    rng = np.random.default_rng(5)
+    region = rng.integers(0, 21, (60, 80))
+    value = rng.normal(10.0, 2.0, region.shape)
+    select = rng.random(region.shape) > 0.3
+    by_lookup = region_stats(region, value, value + 280.0, select=select)
+    by_isin = region_stats(region.astype(float), value, value + 280.0, select=select)  # np.isin path
+    assert by_lookup == by_isin
+    inst = rng.integers(0, 7, (30, 40)) * 1000
+    ids, inverse = np.unique(inst, return_inverse=True)
+    assert np.array_equal(
+        GL.colour_instances(inst), GL.instance_colours(ids)[inverse].reshape(inst.shape + (3,))
+    )

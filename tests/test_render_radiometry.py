@@ -404,3 +404,17 @@ def test_blackbody_panel_reads_back_within_netd(tmp_path):
     assert 0.75 * expected_std < centre.std() < 1.25 * expected_std
     on_disk = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert on_disk["sensor_chain"].startswith("ran")
+
+
+@pytest.mark.parametrize(
+    "band,response",
+    [(LWIR, (np.array([7.5, 9.0, 12.0, 14.0]), np.array([0.2, 1.0, 0.8, 0.0]))), (MWIR, None)],
+)
+def test_subband_radiance_tables_match_the_exact_band_integral(band, response):
+    sub = SubBands(band, response, 16)
+    t = np.concatenate(
+        [np.geomspace(150.0, 2000.0, 401), [5772.0], np.random.default_rng(1).uniform(250, 330, 200)]
+    )
+    exact = np.stack([planck.band_radiance(t, b, response) for b in sub.bands], axis=-1)
+    assert_allclose(sub.radiance(t), exact, rtol=1e-6, atol=0)
+    assert sub.radiance(300.0).shape == (len(sub),)

@@ -254,3 +254,44 @@ def test_flushing_the_kernel_cache_changes_no_pixel(stage, reference, tmp_path, 
     monkeypatch.setattr(render_module, "KERNEL_CACHE_FRAMES", 1)
     render_stage(stage, tmp_path / "out", spp=SPP, seed=3)
     assert_same(tmp_path / "out", reference)
+
+
+#: the CLI with os.replace failing on its n-th call (a full disk): the write happens on the
+#: render's background writer thread
+FAILING_WRITE = textwrap.dedent(
+    """
+    import errno, os, sys
+    n = int(sys.argv[1])
+    real, calls = os.replace, [0]
+    def hook(*a, **k):
+        calls[0] += 1
+        if calls[0] == n:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(*a, **k)
+    os.replace = hook
+    sys.argv = ["humv-usd", "render", sys.argv[2], "-o", sys.argv[3], "--spp", sys.argv[4], "--seed", "3"]
+    from humv_usd.cli.main import main
+    main()
+    """
+)
+
+
+@pytest.mark.slow
+def test_a_failed_background_write_is_one_line_exit_1_and_resumes(stage, reference, tmp_path):
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-c", FAILING_WRITE, "9", str(stage), str(out), str(SPP)],
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    errors = [line for line in proc.stderr.splitlines() if "error" in line.lower()]
+    assert len(errors) == 1 and "No space left on device" in errors[0] and "Traceback" not in proc.stderr
+    records = R.read_records(out)
+    assert len(records) < FRAMES  # the image whose file failed has no record
+    assert all(R.is_done(out, rec, rec["settings"]) for rec in records.values())
+    render_stage(stage, out, spp=SPP, seed=3)
+    assert_same(out, reference)
+    assert not [p for p in out.rglob(".*") if p.is_file()]

@@ -10,7 +10,7 @@ import sys
 import click
 
 from humv_usd.assets import MissingAssetError
-from humv_usd.errors import InputError
+from humv_usd.errors import InputError, WriteError
 
 PROG = "humv-usd"
 
@@ -31,6 +31,8 @@ def reports_errors(fn):
         except InputError as exc:
             _fail(exc.problems, 2)
         except MissingAssetError as exc:
+            _fail([str(exc)], 1)
+        except WriteError as exc:  # an output file (e.g. in the background writer) could not be written
             _fail([str(exc)], 1)
         except KeyboardInterrupt:  # Ctrl-C: finished files are kept; compose and render resume
             _fail(

@@ -645,6 +645,9 @@ def _register_tools():
     from humv_usd.cli.memory_cmd import bench_memory
 
     bench.add_command(bench_memory)
+    from humv_usd.cli.bench_frame_cmd import bench_frame
+
+    bench.add_command(bench_frame)
 
 
 _register_tools()

@@ -10,6 +10,8 @@ channels for the EXR plus the per-object annotations (also written next to the f
 
 from __future__ import annotations
 
+import copy
+import hashlib
 import os
 import time
 from dataclasses import dataclass, field
@@ -93,6 +95,9 @@ class GroundTruth:
         self._mesh_labels: dict[str, L.MeshLabels] = {}
         self._objects: dict[str, L.ObjectInfo] = {}
         self._keypoint_prims = None
+        # per (sensor, instance id): the geometry digest of the last frame, its boxes and (once
+        # the object stood still for two frames) its whole-box unoccluded cast; one entry each
+        self._still: dict[tuple[str, int], dict] = {}
         self.coco = CocoBuilder() if "coco" in self.want else None
         self.images: list[dict] = []
         self._region_records: list[dict] = []  # per image, from image_written (no re-read)
@@ -117,15 +122,18 @@ class GroundTruth:
 
     # --- per sensor and frame ----------------------------------------------------------------
     def annotate(
-        self, scene, sensor_id: str, sensor, state, emissivity_of, out_dir: str, rel: str
+        self, scene, sensor_id: str, sensor, state, emissivity_of, out_dir: str, rel: str, write=None
     ) -> ImageTruth:
         """Labels of one sensor at one frame.
 
         ``scene`` is the render's :class:`~humv_usd.render.ir.IRScene`, ``sensor`` the
         :class:`~humv_usd.physics.sensor.SensorModel`, ``state`` the frame's FrameState,
         ``emissivity_of(part)`` the band emissivity of a part's material for this sensor;
-        ``rel`` the frame's output path without extension, relative to ``out_dir``.
+        ``rel`` the frame's output path without extension, relative to ``out_dir``;
+        ``write(what, fn, *args)`` writes the label files (the render's background writer;
+        default: now).
         """
+        write = write or (lambda _what, fn, *args: fn(*args))
         self._out_dir = out_dir
         t = time.perf_counter()
         hits = scene.hits(sensor_id)
@@ -158,20 +166,18 @@ class GroundTruth:
         h, w = hits.instance.shape
         camera = Camera.from_pose(state.cameras[sensor.name], w, h)
         if "masks" in want:
-            writers.write_png(os.path.join(out_dir, rel + ".instance.png"), L.colour_instances(hits.instance))
-            writers.write_png(
-                os.path.join(out_dir, rel + ".region.png"), L.colour_regions(images["body_region"])
-            )
-            writers.write_png(
-                os.path.join(out_dir, rel + ".region_ids.png"),
-                np.asarray(images["body_region"], dtype=np.uint8),
-            )
+            for suffix, pixels in (
+                (".instance.png", L.colour_instances(hits.instance)),
+                (".region.png", L.colour_regions(images["body_region"])),
+                (".region_ids.png", np.asarray(images["body_region"], dtype=np.uint8)),
+            ):
+                write(rel + suffix, writers.write_png, os.path.join(out_dir, rel + suffix), pixels)
             t = self._tick("masks", t)
         objects = []
         if want & {"boxes", "keypoints", "occlusion", "coco"}:
             objects = self._objects_of(scene, tables, parts, state, camera, hits, sensor)
         if want & {"boxes", "keypoints", "occlusion"}:
-            write_json(
+            write_json(  # now (4 ms): the objects are shared with COCO below
                 os.path.join(out_dir, rel + ".objects.json"),
                 {
                     "sensor": sensor.name,
@@ -208,10 +214,10 @@ class GroundTruth:
         t = time.perf_counter()
         exr = rel + ".exr"
         item = next(i for i in reversed(self.images) if i["exr"] == exr)
-        stored = {
-            k: np.asarray(v, dtype=np.float32).astype(np.float64)
+        stored = {  # as stored (float32); image_regions reads only these
+            k: np.asarray(v, dtype=np.float32)
             for k, v in channels.items()
-            if np.ndim(v) == 2
+            if np.ndim(v) == 2 and k in R.REGION_INPUTS
         }
         self._region_records += [{**item, **person} for person in R.image_regions(stored)]
         self._regions_done.add(exr)
@@ -263,15 +269,25 @@ class GroundTruth:
                     n += len(v)
                 verts = np.concatenate(verts)
                 tris = np.concatenate(tris)
-                box_full = B.full_box(camera, verts[tris])
+                still, geometry = self._still_object(sensor.name, ident, camera, verts, tris)
+                if not still:
+                    geometry["box_full"] = B.full_box(camera, verts[tris])
+                    geometry["box_3d"] = B.box_3d(verts)
+                    geometry["box_3d_oriented"] = B.box_3d_oriented(verts, camera)
+                box_full = geometry["box_full"]
                 if "boxes" in want or "coco" in want:
-                    obj["box_full"] = box_full
+                    obj["box_full"] = copy.deepcopy(box_full)
                     obj["box_visible"] = B.visible_box(mask)
-                    obj["box_3d"] = B.box_3d(verts)
-                    obj["box_3d_oriented"] = B.box_3d_oriented(verts, camera)
+                    obj["box_3d"] = copy.deepcopy(geometry["box_3d"])
+                    obj["box_3d_oriented"] = copy.deepcopy(geometry["box_3d_oriented"])
                 t = self._tick("boxes" if "boxes" in want else "coco", t)
                 if "occlusion" in want:
-                    unoccluded = B.unoccluded_mask(camera, verts, tris, box_full, visible=mask)
+                    if still:  # the object's own rays do not change: cast the whole box once
+                        if geometry.get("cast") is None:
+                            geometry["cast"] = B.unoccluded_mask(camera, verts, tris, box_full)
+                        unoccluded = geometry["cast"] | mask  # = the cast outside the visible mask
+                    else:
+                        unoccluded = B.unoccluded_mask(camera, verts, tris, box_full, visible=mask)
                     obj["unoccluded_pixels"] = int(unoccluded.sum())
                     obj["occlusion"] = B.occlusion_fraction(
                         int((mask & unoccluded).sum()), int(unoccluded.sum())
@@ -292,6 +308,22 @@ class GroundTruth:
                 t = self._tick("keypoints", t)
             objects.append(obj)
         return objects
+
+    def _still_object(self, sensor_name: str, ident: int, camera: Camera, verts, tris) -> tuple[bool, dict]:
+        """(whether the object and the camera are as in this sensor's last frame, the object's
+        cached geometry entry). Static scenery (ground, buildings) under a fixed camera keeps its
+        boxes and its unoccluded cast; anything that moved is computed again."""
+        h = hashlib.blake2b(digest_size=16)
+        for a in (camera.origin, camera.forward, camera.right, camera.up, verts, tris):
+            h.update(np.ascontiguousarray(a).tobytes())
+        h.update(repr((camera.tan_x, camera.tan_y, camera.width, camera.height, tris.shape)).encode())
+        digest = h.hexdigest()
+        entry = self._still.get((sensor_name, ident))
+        if entry is not None and entry["digest"] == digest:
+            return True, entry
+        entry = {"digest": digest}
+        self._still[(sensor_name, ident)] = entry
+        return False, entry
 
     def take_image(self, rel: str) -> dict:
         """The ground truth of the image ``rel`` (as given to :meth:`annotate`), taken out of

@@ -217,7 +217,13 @@ assert len(REGION_COLOURS) == len(AL.BODY_REGION_NAMES)
 
 def colour_instances(instance: np.ndarray) -> np.ndarray:
     """(H, W) instance ids -> (H, W, 3) uint8 colour-coded mask."""
-    ids, inverse = np.unique(np.asarray(instance, dtype=np.int64), return_inverse=True)
+    inst = np.asarray(instance, dtype=np.int64)
+    if inst.size and 0 <= inst.min() and inst.max() < 1 << 24:  # ids: a colour table indexed by id
+        ids = np.flatnonzero(np.bincount(inst.ravel()))
+        table = np.zeros((int(inst.max()) + 1, 3), dtype=np.uint8)
+        table[ids] = instance_colours(ids)
+        return table[inst]
+    ids, inverse = np.unique(inst, return_inverse=True)
     return instance_colours(ids)[inverse].reshape(np.shape(instance) + (3,))
 
 

@@ -45,6 +45,9 @@ TABLE2: dict[str, np.ndarray] = {
 }
 TEMPERATURE_CHANNELS = ("brightness_temperature", "apparent_temperature")
 QUANTITIES = ("counts", "radiance", "Y", "temperature")
+_TABLE2_TOP = int(max(ids.max() for ids in TABLE2.values()))
+#: The channels :func:`image_regions` reads.
+REGION_INPUTS = frozenset({"body_region", "instance_id", "counts", "radiance", "Y", *TEMPERATURE_CHANNELS})
 REGIONS_NAME = "regions.json"
 
 
@@ -78,8 +81,16 @@ def region_stats(
     """Per Table 2 region: pixel count, mean/std of ``value`` and of ``temperature`` [K]."""
     region = np.asarray(region)
     out = {}
+    # non-negative integer ids: membership by a lookup table (np.isin sorts every time)
+    lookup = region.dtype.kind in "iu" and region.size > 0 and region.min() >= 0
+    top = max(int(region.max()), _TABLE2_TOP) + 1 if lookup else 0
     for name, ids in TABLE2.items():
-        m = np.isin(region, ids)
+        if lookup:
+            member = np.zeros(top, dtype=bool)
+            member[ids] = True
+            m = member[region]
+        else:
+            m = np.isin(region, ids)
         if select is not None:
             m &= select
         mean, std = _stats(value[m])
@@ -113,9 +124,17 @@ def image_regions(channels: dict[str, np.ndarray], quantity: str | None = None) 
                 + ", ".join(c for c in QUANTITIES if c in channels or c == "temperature"),
             )
         )
-    region = np.rint(channels["body_region"]).astype(np.int64)
-    instance = np.rint(channels.get("instance_id", np.zeros_like(region))).astype(np.int64)
-    people = sorted(set(np.unique(instance[region > 0]).tolist()))
+    region = np.asarray(channels["body_region"])
+    region = np.rint(region) if region.dtype.kind == "f" else region
+    # only pixels of a body region count anywhere: keep those (in order), then float64 as stored
+    keep = np.flatnonzero(region.ravel() > 0)
+    region = region.ravel()[keep].astype(np.int64)
+    instance = channels.get("instance_id")
+    instance = np.zeros_like(region) if instance is None else np.asarray(instance).ravel()[keep]
+    instance = (np.rint(instance) if instance.dtype.kind == "f" else instance).astype(np.int64)
+    value = np.asarray(value).ravel()[keep].astype(np.float64)
+    temperature = None if temperature is None else np.asarray(temperature).ravel()[keep].astype(np.float64)
+    people = sorted(set(np.unique(instance).tolist()))
     return [
         {
             "instance_id": int(i),

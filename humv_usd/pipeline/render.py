@@ -27,6 +27,7 @@ from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline import records as R
 from humv_usd.pipeline.budget import render_budget, require_fits
+from humv_usd.pipeline.writer import BackgroundWriter
 from humv_usd.render import eo as eo_render
 from humv_usd.render import estimator as E
 from humv_usd.render import radiometry
@@ -54,6 +55,9 @@ MANIFEST_NAME = "manifest.json"
 #: frames between flushes of Dr.Jit's kernel cache (:func:`humv_usd.mode.release_kernel_cache`):
 #: keeps the memory of a long render flat at the cost of compiling kernels again
 KERNEL_CACHE_FRAMES = 10
+#: Frames whose files may still be being written (by :class:`BackgroundWriter`) while the next
+#: frame renders; 1 bounds the memory to about two frames of images.
+WRITE_FRAMES_AHEAD = 1
 #: Infrared estimators: "fast" (:func:`humv_usd.render.estimator.render_band_fast`: sub-bands on
 #: one path, emission evaluated, sky control variate, stratified, RQMC error) and "path" (the
 #: plain Mitsuba path tracer per sub-band, :func:`humv_usd.render.ir.render_band`: the reference,
@@ -190,6 +194,14 @@ class _Accumulator:
                 self.counts[name] += a.size
                 self.maxima[name] = max(self.maxima.get(name, 0.0), float(a.max()))
 
+    def merge(self, other: _Accumulator) -> None:
+        """Add what ``other`` summed (the same totals as adding its images again)."""
+        for name, total in other.sums.items():
+            self.sums[name] += total
+            self.counts[name] += other.counts[name]
+        for name, top in other.maxima.items():
+            self.maxima[name] = max(self.maxima.get(name, 0.0), top)
+
     def stats(self) -> dict:
         def mean(n):
             return self.sums[n] / self.counts[n] if self.counts[n] else None
@@ -200,12 +212,6 @@ class _Accumulator:
             "temperature_stderr_mean_k": mean("temperature_stderr"),
             "temperature_stderr_max_k": self.maxima.get("temperature_stderr"),
         }
-
-
-def _error_stats(stderr_l: np.ndarray, stderr_k: np.ndarray) -> dict:
-    acc = _Accumulator()
-    acc.add(stderr_l, stderr_k)
-    return acc.stats()
 
 
 def render_stage(
@@ -359,11 +365,23 @@ def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
     frames_to_render = todo if (plan.rendered or plan.eo_run.sensors) else []
     run.progress = progress  # counts the images rendered in this call only
     run.units_total = len(frames_to_render) * (len(plan.rendered) + len(plan.eo_run.sensors))
-    for frame in frames_to_render:
-        run.render_frame(frame)
-        run.record_frame(frame)
-        if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
-            mode.release_kernel_cache()
+    t_writes = time.perf_counter()
+    with BackgroundWriter(frames_ahead=WRITE_FRAMES_AHEAD) as writer:  # frame N is written while N+1 renders
+        run.writer = writer
+        for frame in frames_to_render:
+            run.render_frame(frame)
+            run.record_frame(frame)  # queued after the frame's files: a record follows complete files
+            t = time.perf_counter()
+            writer.end_frame()
+            totals["write"] += time.perf_counter() - t  # waiting for the writer (it was slower)
+            if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
+                mode.release_kernel_cache()
+        t = time.perf_counter()
+    totals["write"] += time.perf_counter() - t  # waiting for the last frame's files
+    totals["write_background"] = writer.seconds  # the writer thread's time, overlapped with renders
+    totals["write_background_cpu"] = writer.cpu_seconds
+    run.writer = None
+    log.debug("frames and their writes took %.2f s", time.perf_counter() - t_writes)
     done = _records_of_this_render(plan)
     _write_cameras(out_dir, done)
 
@@ -663,6 +681,15 @@ class _FrameRenderer:
         self.progress = None
         self.units_done = 0
         self.units_total = 0
+        self.writer: BackgroundWriter | None = None  # set by the render loop; None: write now
+
+    def write(self, what: str, fn, *args, **kwargs) -> None:
+        """Write a file of the current frame: on the background writer when there is one (in
+        order, errors raised at the next frame), else now."""
+        if self.writer is None:
+            fn(*args, **kwargs)
+        else:
+            self.writer.submit(what, fn, *args, **kwargs)
 
     def record_frame(self, frame: int) -> None:
         """Write the record of every image of ``frame`` (after all its files) and drop what this
@@ -680,7 +707,9 @@ class _FrameRenderer:
                 continue
             entry, (_, camera) = entries.pop(), cameras.pop()
             truth = plan.truth.take_image(os.path.splitext(entry["exr"])[0]) if plan.truth else None
-            R.write_record(
+            self.write(
+                f"the record of {name}/{frame:04d}",
+                R.write_record,
                 plan.out_dir,
                 name,
                 frame,
@@ -781,7 +810,9 @@ class _FrameRenderer:
         band_renderer = render_band_fast if plan.estimator == "fast" else render_band
         edges = E.geometric_edges(scene.hits(sensor_id)) if plan.estimator == "fast" else None
         batches: list[tuple[np.ndarray, np.ndarray]] = []
+        estimator_s = 0.0  # the estimator's share of "render" (the rest: conversions, edges, stats)
         while True:
+            t_est = time.perf_counter()
             batch = band_renderer(
                 scene,
                 sensor_id,
@@ -793,10 +824,11 @@ class _FrameRenderer:
                 seed=(plan.seed + frame + AUTO_SEED_STRIDE * len(batches)) % 2**32,
                 transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
             )
+            estimator_s += time.perf_counter() - t_est
             batches.append(batch)
             m1 = np.mean([b[0] for b in batches], axis=0)  # equal-spp batches: plain mean
             stderr_l = np.sqrt(np.sum([b[1] ** 2 for b in batches], axis=0)) / len(batches)
-            bt, dl_dt = planck.brightness_temperature_sensitivity(m1, band, response)
+            bt, dl_dt = planck.brightness_temperature_tabulated(m1, band, response)  # < 1e-4 K of exact
             with np.errstate(invalid="ignore", divide="ignore"):
                 stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
             if edges is None:
@@ -819,13 +851,15 @@ class _FrameRenderer:
             lambda part: _band_emissivity(self.band_eps, part.material, s),
             plan.out_dir,
             rel,
+            write=self.write,
         )
         t = self._tick(timings, "labels", t)
 
         chained = self.chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
         camera = Camera.from_pose(state.cameras[s.name], m1.shape[1], m1.shape[0])
         self.per_sensor[s.name]["cameras"].append((frame, camera))
-        grey = _preview_grey(bt)
+        levels = writers.preview_levels(bt)
+        grey = _preview_grey(bt, levels)
         channels = {
             "R": grey,
             "G": grey,
@@ -838,7 +872,9 @@ class _FrameRenderer:
             **labels.channels,
             **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
         }
-        writers.write_exr(
+        self.write(
+            rel + ".exr",
+            writers.write_exr,
             os.path.join(plan.out_dir, rel + ".exr"),
             channels,
             metadata={
@@ -855,22 +891,24 @@ class _FrameRenderer:
             half=("R", "G", "B"),
         )
         plan.truth.image_written(rel, channels)
-        levels = writers.write_preview_png(os.path.join(plan.out_dir, rel + ".png"), bt)
-        chain_record = self.chains.write(chained, plan.out_dir, rel)
-        self._tick(timings, "write", t)
+        self.write(
+            rel + ".png", writers.write_preview_png, os.path.join(plan.out_dir, rel + ".png"), bt, levels
+        )
+        chain_record = self.chains.write(chained, plan.out_dir, rel, write=self.write)
+        self._tick(timings, "write", t)  # in the foreground: queueing (the writer's time is write_background)
 
         log.info(
             "frame %d %s: render %.2f s, labels %.2f s, error %s K away from edges",
             frame,
             s.name,
-            timings["render"],
-            timings["labels"],
+            timings["render"] - before["render"],  # this frame's, not the running total
+            timings["labels"] - before["labels"],
             "n/a" if away_from_edges["mean_k"] is None else f"{away_from_edges['mean_k']:.4f}",
         )
-        self.per_sensor[s.name]["errors"].add(stderr_l, stderr_k)
-        self.overall.add(stderr_l, stderr_k)
-        frame_errors = _Accumulator()
+        frame_errors = _Accumulator()  # summed once per image, merged into the totals
         frame_errors.add(stderr_l, stderr_k)
+        self.per_sensor[s.name]["errors"].merge(frame_errors)
+        self.overall.merge(frame_errors)
         self.per_sensor[s.name]["frame_errors"] = {
             "sums": dict(frame_errors.sums),
             "counts": dict(frame_errors.counts),
@@ -886,22 +924,24 @@ class _FrameRenderer:
                 "radiance_mean": float(np.mean(m1)),
                 "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
                 "sky_temperature_k": state.sky_temperature_k,
-                "monte_carlo_error": _error_stats(stderr_l, stderr_k),
+                "monte_carlo_error": frame_errors.stats(),
                 "monte_carlo_error_k": away_from_edges,
                 "radiometry": frame_rad.ran,
                 "sensor_chain": chain_record,
                 "timings_s": {
                     **{k: timings[k] - before[k] for k in timings},
+                    "estimator": estimator_s,
                     "cpu": time.process_time() - cpu0,
                 },
             }
         )
 
 
-def _preview_grey(bt: np.ndarray) -> np.ndarray:
+def _preview_grey(bt: np.ndarray, levels: tuple[float, float]) -> np.ndarray:
     """The IR file's display channels: brightness temperature stretched between the PNG
-    preview's levels to 0..1 (0 where not finite), so that viewers do not open it black."""
-    lo, hi = writers.preview_levels(bt)
+    preview's ``levels`` (:func:`humv_usd.images.preview_levels`) to 0..1 (0 where not finite),
+    so that viewers do not open it black."""
+    lo, hi = levels
     grey = (bt - lo) / (hi - lo) if hi > lo else np.full(bt.shape, 0.5)
     return np.where(np.isfinite(grey), np.clip(grey, 0.0, 1.0), 0.0)
 
@@ -1114,12 +1154,16 @@ class _SensorChains:
         self.ran[sensor.name] = "ran"
         return out
 
-    def write(self, out, out_dir, rel) -> dict | None:
-        """Write ``<rel>_counts.png`` (16-bit raw counts) and ``<rel>_image8.png`` (8-bit AGC)."""
+    def write(self, out, out_dir, rel, write=None) -> dict | None:
+        """Write ``<rel>_counts.png`` (16-bit raw counts) and ``<rel>_image8.png`` (8-bit AGC);
+        ``write(what, fn, *args)`` runs the writes (default: now)."""
         if out is None:
             return None
-        writers.write_png16(os.path.join(out_dir, rel + "_counts.png"), out.counts)
-        writers.write_png(os.path.join(out_dir, rel + "_image8.png"), out.image8)
+        write = write or (lambda _what, fn, *args: fn(*args))
+        write(
+            rel + "_counts.png", writers.write_png16, os.path.join(out_dir, rel + "_counts.png"), out.counts
+        )
+        write(rel + "_image8.png", writers.write_png, os.path.join(out_dir, rel + "_image8.png"), out.image8)
         return {
             "counts_png": rel + "_counts.png",
             "image8_png": rel + "_image8.png",
