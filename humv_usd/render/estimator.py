@@ -62,6 +62,7 @@ import logging
 import time
 from dataclasses import dataclass
 from math import exp, lgamma, sqrt
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -555,9 +556,16 @@ def render_band_fast(
         values = values.reshape(channels, h, w, replicas)
         if replicas == 1:
             return values[..., 0], np.full((channels, h, w), np.nan)
-        mean = values.sum(axis=3) / replicas
-        dev = values - mean[..., None]
-        return mean, np.einsum("...r,...r->...", dev, dev) / (replicas * (replicas - 1))
+        # one replica at a time (strided views): no (c, H, W, replicas) temporaries
+        total = values[..., 0].copy()
+        for r in range(1, replicas):
+            total += values[..., r]
+        mean = total / replicas
+        var = np.zeros_like(mean)
+        for r in range(replicas):
+            dev = values[..., r] - mean
+            var += dev * dev
+        return mean, var / (replicas * (replicas - 1))
 
     direct, direct_var = replica_stats(direct_r)
     reflect_mean, reflect_var = replica_stats(reflect_r)
@@ -626,9 +634,10 @@ def _cached_edges(hits) -> np.ndarray:
     for cached_hits, edge in _EDGES:
         if cached_hits is hits:
             return edge
-    edge = geometric_edges(hits)
+    edge = _edges_of(hits)
+    edge.flags.writeable = False
     _EDGES.insert(0, (hits, edge))
-    del _EDGES[3:]
+    del _EDGES[4:]
     return edge
 
 
@@ -772,74 +781,103 @@ def _windows(hits, cap):
 def _window(hits, cap, axis: int):
     """First and last index (H, W) along ``axis`` of each pixel's same-surface window."""
     if axis == 0:
-        lo, hi = _window(_transposed(hits), np.ascontiguousarray(cap.T), 1)
+        lo, hi = _window(_transposed(hits), cap.T, 1)
         return np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
     h, w = cap.shape
-    link = _same_surface(hits, 0, 1)[0][:, :-1]  # (H, W - 1): pixel x and x + 1 share a surface
+    part, normal = hits.part, hits.normal
     depth = np.where(np.isfinite(hits.depth), hits.depth, 0.0)
-    # how far the depth and the normal drift per pixel (central differences within the run)
-    left = np.concatenate([np.zeros((h, 1), bool), link], axis=1)
-    right = np.concatenate([link, np.zeros((h, 1), bool)], axis=1)
-    d_l = np.where(left, depth - np.roll(depth, 1, axis=1), 0.0)
-    d_r = np.where(right, np.roll(depth, -1, axis=1) - depth, 0.0)
-    n_l = np.where(left, np.einsum("ijk,ijk->ij", hits.normal, np.roll(hits.normal, 1, axis=1)), 1.0)
-    n_r = np.where(right, np.einsum("ijk,ijk->ij", hits.normal, np.roll(hits.normal, -1, axis=1)), 1.0)
+    # neighbours x and x + 1: the cosine between their normals, their depth step, and whether
+    # they share a surface (as :func:`_same_surface`), each (H, W - 1)
+    cos = (
+        normal[:, :-1, 0] * normal[:, 1:, 0]
+        + normal[:, :-1, 1] * normal[:, 1:, 1]
+        + normal[:, :-1, 2] * normal[:, 1:, 2]
+    )
+    step = depth[:, 1:] - depth[:, :-1]
+    a_part = part[:, :-1]
+    link = (
+        (a_part == part[:, 1:])
+        & (a_part >= 0)
+        & (cos > FILTER_NORMAL_COS)
+        & (np.abs(step) <= FILTER_DEPTH_REL * depth[:, :-1])
+    )
+    # how far the depth and the normal drift per pixel (the larger of its two steps in the run)
+    step = np.abs(np.where(link, step, 0.0))
+    cos = np.where(link, cos, 1.0)
+    depth_step = np.empty((h, w))
+    depth_step[:, 0], depth_step[:, -1] = step[:, 0], step[:, -1]
+    np.maximum(step[:, 1:], step[:, :-1], out=depth_step[:, 1:-1])
+    min_cos = np.empty((h, w))
+    min_cos[:, 0], min_cos[:, -1] = cos[:, 0], cos[:, -1]
+    np.minimum(cos[:, 1:], cos[:, :-1], out=min_cos[:, 1:-1])
     with np.errstate(invalid="ignore", divide="ignore"):
-        depth_step = np.maximum(np.abs(d_l), np.abs(d_r)) / np.maximum(depth, 1e-30)
-        angle_step = np.arccos(np.clip(np.minimum(n_l, n_r), -1.0, 1.0))
+        depth_step /= np.maximum(depth, 1e-30)
+        angle_step = np.arccos(np.clip(min_cos, -1.0, 1.0))
         reach = np.minimum(
             np.where(depth_step > 0, np.floor(FILTER_DEPTH_REL / depth_step), np.inf),
             np.where(angle_step > 0, np.floor(np.arccos(FILTER_NORMAL_COS) / angle_step), np.inf),
         )
     reach = np.minimum(cap, reach).astype(np.int64)
     x = np.broadcast_to(np.arange(w), (h, w))
-    start = np.maximum.accumulate(np.where(~left, x, 0), axis=1)
-    end = np.minimum.accumulate(np.where(~right, x, w - 1)[:, ::-1], axis=1)[:, ::-1]
+    run_start = np.empty((h, w), dtype=np.int64)  # x where x - 1 is not linked to x, else 0
+    run_start[:, 0] = 0
+    run_start[:, 1:] = np.where(link, 0, x[:, 1:])
+    run_end = np.empty((h, w), dtype=np.int64)  # x where x + 1 is not linked to x, else w - 1
+    run_end[:, -1] = w - 1
+    run_end[:, :-1] = np.where(link, w - 1, x[:, :-1])
+    start = np.maximum.accumulate(run_start, axis=1)
+    end = np.minimum.accumulate(run_end[:, ::-1], axis=1)[:, ::-1]
     return np.maximum(x - reach, start), np.minimum(x + reach, end)
 
 
 def _transposed(hits):
-    """The pixel-centre hits with rows and columns swapped (for the column pass)."""
-    return type(hits)(
-        **{
-            f: np.ascontiguousarray(np.swapaxes(getattr(hits, f), 0, 1))
-            for f in ("depth", "instance", "part", "triangle", "position", "normal")
-        }
-    )
+    """The pixel-centre hits the column pass reads (part, depth, normal), rows and columns
+    swapped (views)."""
+    return SimpleNamespace(part=hits.part.T, depth=hits.depth.T, normal=np.swapaxes(hits.normal, 0, 1))
 
 
 def _window_sum(values, lo, hi, axis: int):
     """Sum over [lo, hi] along ``axis`` (0: columns, 1: rows) of (k, H, W) values, by running
     sums (read by flat indices)."""
     k, h, w = values.shape
-    pad = [(0, 0), (1, 0), (0, 0)] if axis == 0 else [(0, 0), (0, 0), (1, 0)]
-    csum = np.pad(np.cumsum(values, axis=1 + axis), pad).reshape(k, -1)
+    if axis == 0:
+        csum = np.zeros((k, h + 1, w))
+        np.cumsum(values, axis=1, out=csum[:, 1:, :])
+    else:
+        csum = np.zeros((k, h, w + 1))
+        np.cumsum(values, axis=2, out=csum[:, :, 1:])
+    csum = csum.reshape(k, -1)
     if axis == 0:  # (k, H + 1, W): row index * W + column
         col = np.arange(w)
         first, last = lo * w + col, (hi + 1) * w + col
     else:  # (k, H, W + 1): row * (W + 1) + column index
         row = np.arange(h)[:, None] * (w + 1)
         first, last = row + lo, row + hi + 1
-    return (csum[:, last.ravel()] - csum[:, first.ravel()]).reshape(k, h, w)
+    return (np.take(csum, last.ravel(), axis=1) - np.take(csum, first.ravel(), axis=1)).reshape(k, h, w)
 
 
 def geometric_edges(hits) -> np.ndarray:
     """Pixels whose 8-neighbourhood holds another part, the sky, or a depth more than 2 %
-    away: silhouettes and material borders, where the pixel footprint mixes surfaces."""
+    away: silhouettes and material borders, where the pixel footprint mixes surfaces.
+    Cached per hits object (the pipeline, the estimator and the statistics of one frame share
+    it); read-only."""
+    return _cached_edges(hits)
+
+
+def _edges_of(hits) -> np.ndarray:
+    """:func:`geometric_edges`, computed: each of the 4 neighbour directions is compared once
+    (the test is symmetric) and marks both pixels of a differing pair."""
     part = hits.part
     depth = np.where(np.isfinite(hits.depth), hits.depth, 1e30)
     edge = np.zeros(part.shape, dtype=bool)
     h, w = part.shape
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            if dy == dx == 0:
-                continue
-            ys, yo = slice(max(0, -dy), h - max(0, dy)), slice(max(0, dy), h - max(0, -dy))
-            xs, xo = slice(max(0, -dx), w - max(0, dx)), slice(max(0, dx), w - max(0, -dx))
-            diff = (part[ys, xs] != part[yo, xo]) | (
-                np.abs(depth[ys, xs] - depth[yo, xo]) > 0.02 * np.minimum(depth[ys, xs], depth[yo, xo])
-            )
-            edge[ys, xs] |= diff
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        ys, yo = slice(0, h - dy), slice(dy, h)
+        xs, xo = slice(max(0, -dx), w - max(0, dx)), slice(max(0, dx), w - max(0, -dx))
+        a, b = depth[ys, xs], depth[yo, xo]
+        diff = (part[ys, xs] != part[yo, xo]) | (np.abs(a - b) > 0.02 * np.minimum(a, b))
+        edge[ys, xs] |= diff
+        edge[yo, xo] |= diff
     return edge
 
 
