@@ -58,6 +58,7 @@ Neyman, "On the two different aspects of the representative method", J. R. Stat.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from dataclasses import dataclass
@@ -152,9 +153,20 @@ def control_variate_table(rows: np.ndarray, ground, nodes: int = CV_NODES) -> np
         ),
         grounds[..., None],
     )
+    return (c @ _cosine_weights(h, nodes).T) / np.pi
+
+
+@functools.lru_cache(maxsize=8)
+def _cosine_weights(h: int, nodes: int) -> np.ndarray:
+    """(nodes, zeniths) quadrature weights of :func:`control_variate_table` (read-only, cached:
+    they depend only on the sky's rows and the nodes)."""
+    per = 4 * (h - 1)
+    theta = (np.arange(2 * per) + 0.5) * np.pi / (2 * per)
     t = np.linspace(-1.0, 1.0, nodes)
-    w = azimuthal_cosine_integral(t[:, None], mu[None, :]) * np.sin(theta)[None, :] * (np.pi / (2 * per))
-    return (c @ w.T) / np.pi
+    w = azimuthal_cosine_integral(t[:, None], np.cos(theta)[None, :]) * np.sin(theta)[None, :]
+    w *= np.pi / (2 * per)
+    w.flags.writeable = False
+    return w
 
 
 @dataclass
@@ -229,8 +241,14 @@ def surface_table(scene, tables: FaceTables, g_tab: np.ndarray, sun_dir, sun_e, 
     rho E_sun max(0, n.s) / pi (a vertex that sees the sun); and rho. One table row holds all
     that a vertex needs, so the estimator reads it with 2 gathers per sub-band."""
     nrm = face_normals(scene)[0] if normals is None else normals[0]
-    nodes = np.linspace(-1.0, 1.0, g_tab.shape[1])
-    g = np.stack([np.interp(nrm[:, 2], nodes, row) for row in g_tab], axis=1)  # (T, n)
+    # G at each face's n_z, linear between the even nodes (one index and weight for all sub-bands)
+    last = g_tab.shape[1] - 1
+    x = (np.clip(nrm[:, 2], -1.0, 1.0) + 1.0) * (last / 2.0)
+    i = np.minimum(x.astype(np.int64), max(last - 1, 0))
+    t = (x - i)[:, None]
+    g_nodes = np.ascontiguousarray(g_tab.T)  # (nodes, n)
+    lo = g_nodes[i]
+    g = lo + (g_nodes[np.minimum(i + 1, last)] - lo) * t  # (T, n)
     rho = tables.reflectance
     dark = tables.emission + rho * g
     lit = dark
