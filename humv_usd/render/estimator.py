@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import threading
 import time
 from dataclasses import dataclass
 from math import exp, lgamma, sqrt
@@ -353,6 +354,10 @@ def render_band_fast(
     n = len(sub)
     setup = scene.sensors[sensor_id]
     w, h = int(setup.width), int(setup.height)
+    # the filter's windows and the edges depend only on the pixel-centre hits: built on a
+    # thread while the device traces the paths (numpy releases the GIL)
+    hits = scene.hits(sensor_id)
+    windows = _InBackground(_filter_windows, hits, setup.pose.fov_x_deg, filter_radius)
     if tables is None:
         tables = face_tables(scene, state, sub, emissivity_of, transmittance_of)
     wts = channel_weights(weights, n)
@@ -587,12 +592,8 @@ def render_band_fast(
 
     direct, direct_var = replica_stats(direct_r)
     reflect_mean, reflect_var = replica_stats(reflect_r)
-    hits = scene.hits(sensor_id)
+    radius_px = windows.result()
     if filter_radius > 0:
-        pixel_m = hits.depth * (2.0 * np.tan(np.radians(setup.pose.fov_x_deg) / 2.0) / w)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            radius_px = np.where(np.isfinite(pixel_m), np.floor(FILTER_HALF_WIDTH_M / pixel_m), 0.0)
-        radius_px = np.minimum(radius_px, filter_radius)
         reflect_mean, reflect_var = filter_reflected(
             reflect_mean, reflect_var, hits, filter_radius, radius_px
         )
@@ -618,6 +619,41 @@ def render_band_fast(
     if weights is None:
         return radiance[0], stderr[0]
     return radiance, stderr
+
+
+def _filter_windows(hits, fov_x_deg: float, filter_radius: int) -> np.ndarray:
+    """Each pixel's filter half width [px] (:data:`FILTER_HALF_WIDTH_M` on its surface, at most
+    ``filter_radius``), with its windows (:func:`_windows`) and the edges cached on the way."""
+    h, w = hits.depth.shape
+    pixel_m = hits.depth * (2.0 * np.tan(np.radians(fov_x_deg) / 2.0) / w)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        radius_px = np.where(np.isfinite(pixel_m), np.floor(FILTER_HALF_WIDTH_M / pixel_m), 0.0)
+    radius_px = np.minimum(radius_px, filter_radius)
+    if filter_radius > 0:
+        _windows(hits, np.minimum(radius_px, filter_radius))  # the cap of filter_reflected
+    _cached_edges(hits)
+    return radius_px
+
+
+class _InBackground(threading.Thread):
+    """``fn(*args)`` on a thread; :meth:`result` waits for it and returns it (or raises)."""
+
+    def __init__(self, fn, *args):
+        super().__init__(name="humv-estimator-prep", daemon=True)
+        self._fn, self._args, self._out, self._error = fn, args, None, None
+        self.start()
+
+    def run(self) -> None:
+        try:
+            self._out = self._fn(*self._args)
+        except BaseException as error:  # re-raised on the caller's thread
+            self._error = error
+
+    def result(self):
+        self.join()
+        if self._error is not None:
+            raise self._error
+        return self._out
 
 
 def extra_direct_points(direct_var, reflect_var, edge, camera_samples: int, reflection_rays: int) -> int:
