@@ -360,14 +360,17 @@ class IRScene:
             dr.eval(si.p, si.n, si.prim_index, valid, ident_dr, shape_index)  # one kernel
             valid_np = np.asarray(valid, dtype=bool)
             ident = np.where(valid_np, np.rint(np.asarray(ident_dr, dtype=np.float64)), 0).astype(np.uint32)
-            p = np.ascontiguousarray(np.asarray(si.p, dtype=np.float64).reshape(3, n).T)
-            normal = np.ascontiguousarray(np.asarray(si.n, dtype=np.float64).reshape(3, n).T)
+            p = np.asarray(si.p, dtype=np.float64).reshape(3, n).T
+            normal = np.asarray(si.n, dtype=np.float64).reshape(3, n).T
             triangle = np.where(valid_np, np.asarray(si.prim_index, dtype=np.int64), -1)
-            shape_np = np.where(valid_np, np.asarray(shape_index, dtype=np.int64), 0)
-            part = np.where(valid_np, self._part_of_shape_index()[shape_np], -1)
+            shape_np = np.asarray(shape_index, dtype=np.int64)
+            for shape in self.scene.shapes():
+                key = int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape)))[0])
+                on = (shape_np == key) & valid_np
+                if on.any():
+                    part[on] = part_of_key[shape.id()]
         valid_np = part >= 0
-        depth = np.full(n, np.inf)
-        depth[valid_np] = (p[valid_np] - origin[None, :]) @ forward
+        depth = np.where(valid_np, (np.nan_to_num(p) - origin[None, :]) @ forward, np.inf)
         normal[~valid_np] = 0.0
         return Hits(
             depth=depth.reshape(h, w),
