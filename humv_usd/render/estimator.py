@@ -593,6 +593,7 @@ def render_band_fast(
     direct, direct_var = replica_stats(direct_r)
     reflect_mean, reflect_var = replica_stats(reflect_r)
     radius_px = windows.result()
+    note("replica statistics (filter windows ready)")
     if filter_radius > 0:
         reflect_mean, reflect_var = filter_reflected(
             reflect_mean, reflect_var, hits, filter_radius, radius_px
