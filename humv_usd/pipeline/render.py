@@ -739,7 +739,7 @@ class _FrameRenderer:
             self._advance(1, f"frame {frame} {s.name}")
         if plan.eo_run.sensors:  # visible sensors: spectral render of the same frame (render.eo)
             t = time.perf_counter()
-            plan.eo_run.frame(state, frame, self.chains)
+            plan.eo_run.frame(state, frame, self.chains, write=self.write)
             self.totals["eo"] = self.totals.get("eo", 0.0) + time.perf_counter() - t
             self._advance(len(plan.eo_run.sensors), f"frame {frame} EO")
 
