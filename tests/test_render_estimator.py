@@ -217,3 +217,21 @@ def test_extra_direct_points_balance_variance_and_cost():
     edge[:, :15] = True
     assert E.extra_direct_points(vd_edges, vr, edge, 100, 400) == 3
     assert E.extra_direct_points(np.full(shape, np.nan), vr, edge, 100, 400) == 0
+
+
+def test_automatic_quality_stops_only_when_mean_and_p99_are_met():
+    """The automatic quality takes another batch while the mean error away from edges exceeds
+    NETD/3 or its 99th percentile exceeds 0.1 K (issue 13), never past the spp cap."""
+    from types import SimpleNamespace
+
+    from humv_usd.pipeline import render as P
+
+    plan = SimpleNamespace(spp_auto=True, spp=2)
+    mwir = SimpleNamespace(netd_k=0.02)  # NETD/3 = 6.7 mK
+    assert not P._needs_more_samples(plan, mwir, {"mean_k": 0.0066, "p99_k": 0.09}, 10)
+    assert P._needs_more_samples(plan, mwir, {"mean_k": 0.0066, "p99_k": 0.106}, 10)  # p99 alone
+    assert P._needs_more_samples(plan, mwir, {"mean_k": 0.0070, "p99_k": 0.05}, 10)  # mean alone
+    assert P._needs_more_samples(plan, mwir, {"mean_k": 0.0066, "p99_k": None}, 10) is False
+    cap = P.AUTO_MAX_SPP // plan.spp
+    assert not P._needs_more_samples(plan, mwir, {"mean_k": 0.05, "p99_k": 0.5}, cap)  # at the cap
+    assert not P._needs_more_samples(SimpleNamespace(spp_auto=False, spp=2), mwir, {"mean_k": 1.0}, 1)

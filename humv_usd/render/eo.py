@@ -453,8 +453,11 @@ class EORender:
             f"{table.ranges_m[0]:g}-{table.ranges_m[-1]:g} m); {air}"
         )
 
-    def frame(self, state, frame: int, chains) -> None:
-        """Render, label and write every EO sensor at ``frame``."""
+    def frame(self, state, frame: int, chains, write=None) -> None:
+        """Render, label and write every EO sensor at ``frame``; ``write(what, fn, *args,
+        **kwargs)`` runs the file writes (the pipeline's background writer: this frame's files are
+        written while the next one renders; default: now)."""
+        write = write or (lambda _what, fn, *args, **kwargs: fn(*args, **kwargs))
         import tempfile
         import time
 
@@ -528,7 +531,14 @@ class EORender:
             rel = os.path.join(s.name, f"{frame:04d}")
             if self.truth is not None:  # emissivity is a thermal-band quantity: NaN for EO
                 hits = self.truth.annotate(
-                    scene, self.ids[s.name], s, state, lambda part: float("nan"), self.out_dir, rel
+                    scene,
+                    self.ids[s.name],
+                    s,
+                    state,
+                    lambda part: float("nan"),
+                    self.out_dir,
+                    rel,
+                    write=write,
                 )
                 extra = hits.channels
             else:
@@ -569,7 +579,9 @@ class EORender:
                 channels.update(
                     {f"counts_{c}": chained.counts[..., i].astype(np.float32) for i, c in enumerate("RGB")}
                 )
-            writers.write_exr(
+            write(
+                rel + ".exr",
+                writers.write_exr,
                 os.path.join(self.out_dir, rel + ".exr"),
                 channels,
                 metadata={
@@ -585,8 +597,8 @@ class EORender:
             if self.truth is not None:
                 self.truth.image_written(rel, channels)
             png, exposure = srgb_preview(xyz)
-            writers.write_png(os.path.join(self.out_dir, rel + ".png"), png)
-            chain_record = chains.write(chained, self.out_dir, rel)
+            write(rel + ".png", writers.write_png, os.path.join(self.out_dir, rel + ".png"), png)
+            chain_record = chains.write(chained, self.out_dir, rel, write=write)
             rec["timings_s"]["write"] += time.perf_counter() - t
             y = xyz[..., 1]
             rec["frames"].append(
