@@ -235,3 +235,71 @@ def test_automatic_quality_stops_only_when_mean_and_p99_are_met():
     cap = P.AUTO_MAX_SPP // plan.spp
     assert not P._needs_more_samples(plan, mwir, {"mean_k": 0.05, "p99_k": 0.5}, cap)  # at the cap
     assert not P._needs_more_samples(SimpleNamespace(spp_auto=False, spp=2), mwir, {"mean_k": 1.0}, 1)
+
+
+def _reference_window(hits, cap, axis):
+    """The filter's windows by the direct definition (pairwise links, shifted copies)."""
+    if axis == 0:
+        t = E._transposed(hits)
+        lo, hi = _reference_window(t, np.ascontiguousarray(cap.T), 1)
+        return lo.T, hi.T
+    h, w = cap.shape
+    link = E._same_surface(hits, 0, 1)[0][:, :-1]
+    depth = np.where(np.isfinite(hits.depth), hits.depth, 0.0)
+    left = np.concatenate([np.zeros((h, 1), bool), link], axis=1)
+    right = np.concatenate([link, np.zeros((h, 1), bool)], axis=1)
+    d_l = np.where(left, depth - np.roll(depth, 1, axis=1), 0.0)
+    d_r = np.where(right, np.roll(depth, -1, axis=1) - depth, 0.0)
+    nrm = np.asarray(hits.normal)
+    n_l = np.where(left, np.sum(nrm * np.roll(nrm, 1, axis=1), axis=-1), 1.0)
+    n_r = np.where(right, np.sum(nrm * np.roll(nrm, -1, axis=1), axis=-1), 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        depth_step = np.maximum(np.abs(d_l), np.abs(d_r)) / np.maximum(depth, 1e-30)
+        angle_step = np.arccos(np.clip(np.minimum(n_l, n_r), -1.0, 1.0))
+        reach = np.minimum(
+            np.where(depth_step > 0, np.floor(E.FILTER_DEPTH_REL / depth_step), np.inf),
+            np.where(angle_step > 0, np.floor(np.arccos(E.FILTER_NORMAL_COS) / angle_step), np.inf),
+        )
+    reach = np.minimum(cap, reach).astype(np.int64)
+    x = np.broadcast_to(np.arange(w), (h, w))
+    start = np.maximum.accumulate(np.where(~left, x, 0), axis=1)
+    end = np.minimum.accumulate(np.where(~right, x, w - 1)[:, ::-1], axis=1)[:, ::-1]
+    return np.maximum(x - reach, start), np.minimum(x + reach, end)
+
+
+def test_filter_windows_and_edges_match_their_direct_definitions():
+    """The one-pass windows equal the pairwise definition (runs of same-surface neighbours, cut
+    where depth or normal drift), and the cached edges equal the 8-neighbour test, on a scene of
+    tilted planes, parts, depth steps, curved normals and sky."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(5)
+    h, w = 40, 56
+    y, x = np.mgrid[0:h, 0:w]
+    part = np.where(x < 20, 0, np.where(y < 25, 1, 2))
+    part[:5, 45:] = -1  # sky
+    depth = 5.0 + 0.01 * x + 0.03 * y + np.where(part == 2, 0.5 * (x % 7 == 0), 0.0)
+    depth = np.where(part < 0, np.inf, depth)
+    ang = 0.04 * x + 0.02 * y * (part == 1) + rng.normal(0, 0.01, (h, w))
+    normal = np.stack([np.sin(ang), np.zeros_like(ang), np.cos(ang)], axis=-1)
+    normal[part < 0] = 0.0
+    hits = SimpleNamespace(part=part, depth=depth, normal=normal)
+    cap = rng.integers(0, 9, (h, w)).astype(float)
+    for axis in (0, 1):
+        lo, hi = E._window(hits, cap, axis)
+        ref_lo, ref_hi = _reference_window(hits, cap, axis)
+        assert np.array_equal(lo, ref_lo) and np.array_equal(hi, ref_hi)
+        assert (lo < hi).any() and (lo == hi).any()  # the scene has both runs and cuts
+    edge = E.geometric_edges(hits)
+    ref = np.zeros((h, w), bool)
+    d = np.where(np.isfinite(depth), depth, 1e30)
+    for yy in range(h):
+        for xx in range(w):
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    v, u = yy + dy, xx + dx
+                    if (dy or dx) and 0 <= v < h and 0 <= u < w:
+                        step = abs(d[yy, xx] - d[v, u]) > 0.02 * min(d[yy, xx], d[v, u])
+                        ref[yy, xx] |= part[yy, xx] != part[v, u] or step
+    assert np.array_equal(edge, ref) and edge.any() and not edge.all()
+    assert E.geometric_edges(hits) is edge and not edge.flags.writeable  # cached, read-only
