@@ -11,7 +11,9 @@ setup:
 
 demo: setup
 	@$(VENV)/bin/humv-usd compose examples/humvvex.toml -o $(OUT)
-	@$(VENV)/bin/humv-usd render $(OUT)/stage.usda -o $(OUT)/render $(if $(SPP),--spp $(SPP))
+	@# --force: a re-run after an update or a scenario edit renders again (without it, images of
+	@# other settings or another stage are refused, as they should be for a user's own folders)
+	@$(VENV)/bin/humv-usd render $(OUT)/stage.usda -o $(OUT)/render --force $(if $(SPP),--spp $(SPP))
 	@echo "demo: stage at $(OUT)/stage.usda, images in $(OUT)/render (see manifest.json there)"
 
 test: setup
