@@ -273,13 +273,26 @@ def plot_error_vs_time(result: dict, path) -> None:
         ax.set_yscale("log")
         ax.set_xlabel("band render CPU time per frame [s] (all threads; load-independent)")
         ax.set_ylabel("mean per-pixel MC error away from edges [K]")
-        cast = rec["ray_cast_cpu_s"]
-        if cast > 0:
-            top = ax.secondary_xaxis("top", functions=(lambda x, c=cast: x / c, lambda r, c=cast: r * c))
-            top.set_xlabel("ratio to the pixel-centre ray cast (CPU)")
-        ax.set_title(f"{name} ({rec['band']})", fontsize=10)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        finish_error_axes(ax, rec["ray_cast_cpu_s"], f"{name} ({rec['band']})")
+    save_figure(fig, path)
+
+
+def finish_error_axes(ax, ray_cast_cpu_s: float, title: str) -> None:
+    """Top axis: the ratio of the render's CPU time to the pixel-centre ray cast's (the physical
+    lower bound); title, grid and legend of an error-against-run-time panel."""
+    if ray_cast_cpu_s > 0:
+        c = ray_cast_cpu_s
+        top = ax.secondary_xaxis("top", functions=(lambda x: x / c, lambda r: r * c))
+        top.set_xlabel("ratio to the pixel-centre ray cast (CPU)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+
+
+def save_figure(fig, path) -> None:
+    """Write a matplotlib figure to ``path`` atomically (a temporary file renamed) and close it."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     tmp = os.fspath(path) + ".tmp.png"
     fig.savefig(tmp, dpi=110)

@@ -22,6 +22,7 @@ import numpy as np
 from pxr import Usd
 
 from humv_usd import mode
+from humv_usd.bench.render import finish_error_axes, save_figure
 from humv_usd.render import eo, eo_fast
 from humv_usd.render import estimator as E
 from humv_usd.render.export import StageExport
@@ -180,7 +181,6 @@ def plot_eo_error_vs_time(result: dict, path) -> None:
     """Relative error of Y (mean away from edges) against CPU time per EO sensor: one curve per
     bin count of the fast estimator, the path tracer's former default as a cross, the default
     circled, the 1 % target dashed; the top axis is the ratio to the pixel-centre ray cast."""
-    import os
 
     import matplotlib
 
@@ -211,15 +211,7 @@ def plot_eo_error_vs_time(result: dict, path) -> None:
         ax.set_yscale("log")
         ax.set_xlabel("render CPU time per frame [s] (all threads; load-independent)")
         ax.set_ylabel("mean per-pixel MC error of Y / mean Y, away from edges")
-        cast = rec["ray_cast_cpu_s"]
-        if cast > 0:
-            top = ax.secondary_xaxis("top", functions=(lambda x, c=cast: x / c, lambda r, c=cast: r * c))
-            top.set_xlabel("ratio to the pixel-centre ray cast (CPU)")
-        ax.set_title(f"{name} (EO, {rec['resolution'][0]}x{rec['resolution'][1]})", fontsize=10)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    tmp = os.fspath(path) + ".tmp.png"
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+        finish_error_axes(
+            ax, rec["ray_cast_cpu_s"], f"{name} (EO, {rec['resolution'][0]}x{rec['resolution'][1]})"
+        )
+    save_figure(fig, path)

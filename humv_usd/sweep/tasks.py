@@ -46,17 +46,24 @@ def _rss_mb() -> tuple[float, float]:
 
 
 def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> dict:
-    """Compose one variant (see the module doc); returns what was built and taken from the store."""
-    if Location(dataset).remote:
-        return _compose_variant_remote(Location(dataset), variant, raw, base_path)
+    """Compose one variant (see the module doc); returns what was built and taken from the store.
+    At an fsspec URL the variant is composed in this worker's local cache and uploaded, its
+    record last."""
     t0 = time.perf_counter()
-    dataset_dir = Path(dataset)
+    loc = Location(dataset)
     scenario = validate(raw, Path(base_path))
-    out = dataset_dir / "variants" / variant
     keys = layer_keys(scenario)
-    taken = store.seed_layers(dataset_dir, keys, out)
+    if loc.remote:
+        out = local_cache(loc.url) / "variants" / variant
+        taken = store.seed_layers_remote(loc, keys, out)
+    else:
+        out = Path(dataset) / "variants" / variant
+        taken = store.seed_layers(Path(dataset), keys, out)
     report = compose(scenario, out)
-    store.publish_layers(dataset_dir, keys, out)
+    if loc.remote:
+        store.publish_layers_remote(loc, keys, out)
+    else:
+        store.publish_layers(Path(dataset), keys, out)
     record = {
         "variant": variant,
         "seconds": time.perf_counter() - t0,
@@ -67,28 +74,8 @@ def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> di
         "pid": os.getpid(),
     }
     write_json(out / store.COMPOSE_RECORD, record)
-    return record
-
-
-def _compose_variant_remote(loc: Location, variant: str, raw: dict, base_path: str) -> dict:
-    t0 = time.perf_counter()
-    scenario = validate(raw, Path(base_path))
-    out = local_cache(loc.url) / "variants" / variant
-    keys = layer_keys(scenario)
-    taken = store.seed_layers_remote(loc, keys, out)
-    report = compose(scenario, out)
-    store.publish_layers_remote(loc, keys, out)
-    record = {
-        "variant": variant,
-        "seconds": time.perf_counter() - t0,
-        "rebuilt": report.rebuilt,
-        "from_store": taken,
-        "keys": keys,
-        "host": socket.gethostname(),
-        "pid": os.getpid(),
-    }
-    write_json(out / store.COMPOSE_RECORD, record)
-    loc.put_folder(out, f"variants/{variant}", last=store.COMPOSE_RECORD)
+    if loc.remote:
+        loc.put_folder(out, f"variants/{variant}", last=store.COMPOSE_RECORD)
     return record
 
 
