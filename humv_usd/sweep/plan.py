@@ -13,12 +13,13 @@ from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
 from humv_usd.sweep.spec import Sweep, Variant
 
-#: Monte Carlo throughput of one core here (RECIPES.md: about 4 Msamples/s on 2 cores, 640x512,
-#: path depth 3), the estimate's render rate per worker [samples/s]
-SAMPLES_PER_SECOND_PER_WORKER = 2.0e6
-#: fixed cost per rendered image (stage export, ground truth, writes) [s]; `humv-usd bench sweep`
-#: measured 5-10 s at 320x240 on a 2-core machine with a load average of 12, about 1/5 of a core
-SECONDS_PER_IMAGE = 2.0
+#: camera samples per second of one worker with the fast infrared estimator (4 reflection
+#: directions per camera sample, 16 sub-bands): `humv-usd bench sweep examples/walk.toml --variants 2
+#: --frames 16 --resolution 1024x768` measured 4.1-5.2 s per 1024x768 image per worker with 2
+#: workers on this 2-core machine (2026-11-24), i.e. about (786,432 x 2) / 0.45e6 + 1 s
+SAMPLES_PER_SECOND_PER_WORKER = 0.45e6
+#: fixed cost per rendered image (stage export, ground truth, conversions, writes) [s]
+SECONDS_PER_IMAGE = 1.0
 #: compose seconds of a layer that is built (not shared): (fixed, per frame) by tool, from the
 #: compose.json of `humv-usd bench sweep` (examples/walk.toml; 6 and 100 frames), others 0.1 s
 COMPOSE_SECONDS = {"avatar": (2.0, 0.0), "clothing": (4.0, 1.1), "environment": (1.5, 0.0)}
@@ -79,9 +80,8 @@ def compose_dependencies(keys: dict[str, dict[str, str]]) -> dict[str, list[str]
 
 
 #: samples per pixel to cost a task at when the sweep leaves spp to the render's automatic quality:
-#: the fast infrared estimator at its automatic 2-4 spp costs about what the path tracer does at 16
-#: (humv-usd bench render, issue 13)
-AUTO_SPP_COST = 16
+#: the LWIR cameras reach NETD/3 at 2 spp (issue 13); an MWIR camera needs about 24
+AUTO_SPP_COST = 2
 
 
 def _sensor_samples(scenario: Scenario, sensors, spp: int) -> int:
