@@ -16,13 +16,12 @@ reference's, with the 1-sigma uncertainty of Y's from both renders' errors.
 from __future__ import annotations
 
 import tempfile
-import time
 
 import numpy as np
 from pxr import Usd
 
 from humv_usd import mode
-from humv_usd.bench.render import finish_error_axes, save_figure
+from humv_usd.bench.render import _timed, finish_error_axes, save_figure
 from humv_usd.render import eo, eo_fast
 from humv_usd.render import estimator as E
 from humv_usd.render.export import StageExport
@@ -50,12 +49,6 @@ def region_bias_xyz(xyz, xyz_ref, y_err, y_err_ref, regions) -> dict:
             "sigma_rel_y": float(np.sqrt(var.sum()) / m.sum() / ref[1]) if ref[1] > 0 else None,
         }
     return out
-
-
-def _timed(fn, *args, **kwargs):
-    t, c = time.perf_counter(), time.process_time()
-    out = fn(*args, **kwargs)
-    return out, time.perf_counter() - t, time.process_time() - c
 
 
 def bench_render_eo(
