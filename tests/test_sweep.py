@@ -590,3 +590,22 @@ def test_limit_runs_the_first_variants_and_a_later_run_adds_the_rest(tmp_path):
     assert first.ran == 2 and first.dataset_summary["variants_with_images"] == 1
     rest = run_sweep(sw, tmp_path / "dataset", workers=0)
     assert rest.already_done == 2 and rest.ran == 6 and rest.dataset_summary["images"] == 8
+
+
+def test_render_threads_share_the_cores_between_local_workers():
+    """A task's settings carry the Dr.Jit thread count of its worker's renders; set_render_threads
+    applies it (2 workers on 2 cores: 1 thread each rather than 2 each competing)."""
+    import drjit as dr
+
+    from humv_usd.sweep import run as sweep_run
+    from humv_usd.sweep.tasks import set_render_threads
+
+    assert sweep_run._InProcess.render_threads is None  # in-process: the render's own default
+    before = dr.thread_count()
+    try:
+        set_render_threads(1)
+        assert dr.thread_count() == 1
+        set_render_threads(before)
+        assert dr.thread_count() == before
+    finally:
+        dr.set_thread_count(before)

@@ -80,6 +80,8 @@ class SweepResult:
 class _InProcess:
     """Runs each task at submit, in this process (``workers=0``)."""
 
+    render_threads = None  # the render's own default (every core)
+
     workers = 0
 
     def submit(self, fn, *args, key=None):
@@ -120,6 +122,11 @@ class _Dask:
             )
             self.client = distributed.Client(self.cluster)
         self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
+        # Dr.Jit threads per render: this machine's cores shared by the local workers (2 workers
+        # on 2 cores: 1 each, not 2 each competing); an existing cluster keeps its own setting
+        self.render_threads = (
+            max(1, (os.cpu_count() or 1) // max(1, self.workers)) if self.cluster is not None else None
+        )
         self.run_id = uuid.uuid4().hex[:8]
 
     def submit(self, fn, *args, key=None):
@@ -255,6 +262,7 @@ class _Loop:
         self.running: dict = {}
         self.retries = sweep.render["retries"]
         self.settings = {k: sweep.render[k] for k in ("spp", "sensors", "annotators", "subbands")}
+        self.settings["render_threads"] = getattr(executor, "render_threads", None)
 
     def run(self) -> None:
         for vid in self.renders:

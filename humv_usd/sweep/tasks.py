@@ -25,6 +25,7 @@ import time
 import traceback
 from pathlib import Path
 
+from humv_usd import mode
 from humv_usd.fileio import write_json
 from humv_usd.pipeline.compose import compose
 from humv_usd.pipeline.render import render_stage
@@ -112,9 +113,21 @@ def render_chunk(dataset: str, variant: str, chunk: str, frames: list[int], sett
     return record
 
 
+def set_render_threads(count: int) -> None:
+    """Dr.Jit's worker threads in this process (the render's kernels run on them)."""
+    mode.mitsuba()
+    import drjit as dr
+
+    if dr.thread_count() != count:
+        dr.set_thread_count(count)
+
+
 def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, settings) -> dict:
-    """Render the frames of the composed variant in ``variant_dir`` into ``staging``; the record."""
+    """Render the frames of the composed variant in ``variant_dir`` into ``staging``; the record.
+    ``settings["render_threads"]`` (when set) is the Dr.Jit thread count of this worker's renders."""
     t0 = time.perf_counter()
+    if settings.get("render_threads"):
+        set_render_threads(int(settings["render_threads"]))
     manifest = render_stage(
         variant_dir / "stage.usda",
         staging,
