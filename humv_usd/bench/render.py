@@ -243,29 +243,14 @@ def plot_error_vs_time(result: dict, path) -> None:
     fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.2), squeeze=False)
     for ax, name in zip(axes[0], names):
         rec = result["sensors"][name]
-        fast = [r for r in rec["rows"] if r["estimator"] == "fast"]
-        for n in sorted({r["subbands"] for r in fast}):
-            pts = sorted(
-                (r["cpu_s"], r["noise"]["mean_k"], r["spp"])
-                for r in fast
-                if r["subbands"] == n and r["noise"]["mean_k"] is not None  # spp 1: not estimable
-            )
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"fast, {n} sub-bands")
-            for x, y, spp in pts:
-                ax.annotate(f"{spp}", (x, y), textcoords="offset points", xytext=(3, 3), fontsize=7)
-        for r in rec["rows"]:
-            if r["noise"]["mean_k"] is None:
-                continue
-            if r["estimator"] == "path":
-                ax.plot(
-                    r["wall_s"],
-                    r["noise"]["mean_k"],
-                    "kx",
-                    ms=9,
-                    label=f"path, {r['spp']} spp/{r['subbands']} sb",
-                )
-            if r["default"]:
-                ax.plot(r["cpu_s"], r["noise"]["mean_k"], "o", ms=14, mfc="none", mec="red", label="default")
+        plot_error_curves(
+            ax,
+            rec["rows"],
+            error=lambda r: r["noise"]["mean_k"],
+            group="subbands",
+            group_label="sub-bands",
+            path_label=lambda r: f"path, {r['spp']} spp/{r['subbands']} sb",
+        )
         netd = rec.get("netd_k")
         if netd:
             ax.axhline(netd / 3, color="grey", ls="--", lw=1, label="NETD / 3")
@@ -275,6 +260,24 @@ def plot_error_vs_time(result: dict, path) -> None:
         ax.set_ylabel("mean per-pixel MC error away from edges [K]")
         finish_error_axes(ax, rec["ray_cast_cpu_s"], f"{name} ({rec['band']})")
     save_figure(fig, path)
+
+
+def plot_error_curves(ax, rows, error, group: str, group_label: str, path_label) -> None:
+    """Error against CPU time on ``ax``: one curve per value of ``group`` for the fast estimator
+    (points labelled with their spp), the path tracer as crosses, the default circled. ``error(row)``
+    is the plotted error (None: not estimable, left out)."""
+    rows = [r for r in rows if error(r) is not None]  # spp 1: not estimable
+    fast = [r for r in rows if r["estimator"] == "fast"]
+    for n in sorted({r[group] for r in fast}):
+        pts = sorted((r["cpu_s"], error(r), r["spp"]) for r in fast if r[group] == n)
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"fast, {n} {group_label}")
+        for x, y, spp in pts:
+            ax.annotate(f"{spp}", (x, y), textcoords="offset points", xytext=(3, 3), fontsize=7)
+    for r in rows:
+        if r["estimator"] == "path":
+            ax.plot(r["cpu_s"], error(r), "kx", ms=9, label=path_label(r))
+        if r["default"]:
+            ax.plot(r["cpu_s"], error(r), "o", ms=14, mfc="none", mec="red", label="default")
 
 
 def finish_error_axes(ax, ray_cast_cpu_s: float, title: str) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 from pxr import Usd
 
 from humv_usd import mode
-from humv_usd.bench.render import _timed, finish_error_axes, save_figure
+from humv_usd.bench.render import _timed, finish_error_axes, plot_error_curves, save_figure
 from humv_usd.render import eo, eo_fast
 from humv_usd.render import estimator as E
 from humv_usd.render.export import StageExport
@@ -186,19 +186,14 @@ def plot_eo_error_vs_time(result: dict, path) -> None:
     fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.2), squeeze=False)
     for ax, name in zip(axes[0], names):
         rec = result["sensors"][name]
-        fast = [r for r in rec["rows"] if r["estimator"] == "fast" and r["noise"]["mean"] is not None]
-        for n in sorted({r["bins"] for r in fast}):
-            pts = sorted((r["cpu_s"], r["noise"]["mean"], r["spp"]) for r in fast if r["bins"] == n)
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"fast, {n} bins")
-            for x, y, spp in pts:
-                ax.annotate(f"{spp}", (x, y), textcoords="offset points", xytext=(3, 3), fontsize=7)
-        for r in rec["rows"]:
-            if r["noise"]["mean"] is None:
-                continue
-            if r["estimator"] == "path":
-                ax.plot(r["cpu_s"], r["noise"]["mean"], "kx", ms=9, label=f"path, {r['spp']} spp")
-            if r["default"]:
-                ax.plot(r["cpu_s"], r["noise"]["mean"], "o", ms=14, mfc="none", mec="red", label="default")
+        plot_error_curves(
+            ax,
+            rec["rows"],
+            error=lambda r: r["noise"]["mean"],
+            group="bins",
+            group_label="bins",
+            path_label=lambda r: f"path, {r['spp']} spp",
+        )
         ax.axhline(eo_fast.EO_TARGET_RELATIVE, color="grey", ls="--", lw=1, label="target (1 % of mean Y)")
         ax.set_xscale("log")
         ax.set_yscale("log")

@@ -29,6 +29,16 @@ leaves against the 5-nm spectral path tracer is measured per labelled region by
 
 The atmospheric path (Koschmieder airlight included) is applied afterwards per pixel by range on
 X, Y, Z as for the path tracer (:func:`humv_usd.render.radiometry.apply_xyz_path`).
+
+Units: spectral radiance and irradiance per nm on the grid [W m-2 sr-1 nm-1, W m-2 nm-1]; X, Y, Z
+in Mitsuba's normalisation [W m-2 sr-1 nm-1] (luminance = 683 lm/W x 106.857 nm x Y, see
+:mod:`humv_usd.render.eo`).
+
+References
+----------
+CIE 1931 2-degree standard observer, CIE 015:2018 *Colorimetry*, 4th ed. (the colour-matching
+functions, frozen in :mod:`humv_usd.render.cie`); W. Jakob et al., Mitsuba 3 (2022), film
+normalisation of Y by the integral of y-bar.
 """
 
 from __future__ import annotations
