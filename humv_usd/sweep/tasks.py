@@ -16,6 +16,8 @@ when its record changed), renders into a local staging folder and uploads the ou
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import json
 import os
 import resource
@@ -46,11 +48,48 @@ def _rss_mb() -> tuple[float, float]:
     return current, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+#: glibc ``mallopt`` parameters (malloc.h) and the values a worker sets: blocks below
+#: MMAP_THRESHOLD come from the heap (freed ones are reused), and up to TRIM_THRESHOLD of free
+#: memory at the heap's top is kept instead of returned to the system.
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+MALLOC_MMAP_THRESHOLD_BYTES = 32 * 2**20
+MALLOC_TRIM_THRESHOLD_BYTES = 128 * 2**20
+_malloc_tuned: bool | None = None
+
+
+def tune_malloc() -> bool:
+    """Let this worker's heap reuse the render's large temporaries (glibc only; once per process).
+
+    A Dask nanny starts its worker with ``MALLOC_TRIM_THRESHOLD_=65536`` (distributed's
+    ``distributed.nanny.pre-spawn-environ``, to hand memory back to the system). Setting any glibc
+    threshold turns off glibc's dynamic mmap threshold, so every numpy temporary over 128 kB of a
+    1024x768 frame (3-50 MB each, hundreds per frame) is a fresh ``mmap`` whose pages the kernel
+    zeroes again on first touch. Measured on this 2-core machine, a 4-frame walk LWIR task
+    (1024x768, one Dr.Jit thread): 12.3-12.5 s and 16.3 CPU-s with Dask's setting, 9.5 s and
+    12.8 CPU-s with the thresholds set here (or with glibc's defaults), for about 0.4 GB more
+    resident memory (2.0 against 1.6 GB). Done in the worker (``mallopt``) rather than in the
+    cluster's environment, so workers of an existing cluster (``--scheduler``) get it too.
+    Returns whether the thresholds are set."""
+    global _malloc_tuned
+    if _malloc_tuned is None:
+        _malloc_tuned = False
+        name = ctypes.util.find_library("c")
+        if name and os.uname().sysname == "Linux":
+            try:
+                libc = ctypes.CDLL(name)
+                ok = libc.mallopt(M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD_BYTES) == 1
+                _malloc_tuned = ok and libc.mallopt(M_TRIM_THRESHOLD, MALLOC_TRIM_THRESHOLD_BYTES) == 1
+            except (OSError, AttributeError):  # not glibc (musl, macOS): its own allocator's defaults
+                _malloc_tuned = False
+    return _malloc_tuned
+
+
 def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> dict:
     """Compose one variant (see the module doc); returns what was built and taken from the store.
     At an fsspec URL the variant is composed in this worker's local cache and uploaded, its
     record last."""
     t0 = time.perf_counter()
+    tune_malloc()
     loc = Location(dataset)
     scenario = validate(raw, Path(base_path))
     keys = layer_keys(scenario)
@@ -94,6 +133,7 @@ def _local_variant(loc: Location, variant: str) -> Path:
 def render_chunk(dataset: str, variant: str, chunk: str, frames: list[int], settings: dict) -> dict:
     """Render ``frames`` of a composed variant; the outputs land in ``renders/<variant>/<chunk>``
     in one rename, with ``task.json`` (frames, seconds, Monte Carlo error, memory)."""
+    tune_malloc()
     if Location(dataset).remote:
         return _render_chunk_remote(Location(dataset), variant, chunk, frames, settings)
     dataset_dir = Path(dataset)
