@@ -10,6 +10,12 @@ Method (all on a local Dask cluster of processes, like a default ``humv-usd swee
    labels, boxes, keypoints, COCO).
 3. *2 workers*: the same render tasks into a second folder that starts from the first one's
    composed variants (so both runs render the same tasks; compose is not part of the speed-up).
+   Its steady rate is workers x frames per task / the median task time (what a long sweep
+   approaches once the cluster's start, the first task's warm-up and the assembly are amortized).
+3b. *1 worker on 1 core*: the same render tasks again, on a 1-worker cluster bound to one core
+   (``run_sweep(cpus_per_worker=1)``). On a machine whose cores one worker already uses (its
+   Dr.Jit threads, its writer thread), 2 workers against 1 cannot approach 2x; against one worker
+   per core they show how the sweep scales as workers (cores, nodes) are added.
 4. *Memory*: each task records its worker's resident memory at the end (``/proc/self/statm``)
    and the peak (``getrusage``); with ``long_frames`` > 0 a one-worker sweep of that many frames
    (tiny 64 x 48 images, 1 spp, ``long_frames_per_task`` = 10 frames per task) gives the RSS of the task at 5 % of the run
@@ -141,6 +147,12 @@ def run_bench(
         t = time.perf_counter()
         two = run_sweep(sw, root / "two_workers", workers=2)
         two_wall = time.perf_counter() - t
+        tasks2 = _task_records(root / "two_workers")
+        shutil.copytree(root / "one_worker" / "variants", root / "one_core" / "variants")
+        shutil.copytree(root / "one_worker" / ".sweep" / "layers", root / "one_core" / ".sweep" / "layers")
+        t = time.perf_counter()
+        one_core = run_sweep(sw, root / "one_core", workers=1, cpus_per_worker=1)
+        one_core_wall = time.perf_counter() - t
         one_render_wall = one.seconds - compose_s
         report = {
             "cores": os.cpu_count(),
@@ -160,6 +172,15 @@ def run_bench(
             "two_workers_wall_s": two_wall,
             "labeled_lwir_frames_per_hour_2_workers": two.images_rendered / two_wall * 3600.0,
             "speedup_2_vs_1": one_render_wall / two_wall,
+            "task_seconds_median_2_workers": statistics.median(t["seconds"] for t in tasks2),
+            "steady_frames_per_hour_2_workers": two.workers
+            * frames_per_task
+            * 3600.0
+            / statistics.median(t["seconds"] for t in tasks2),
+            "one_worker_one_core_wall_s": one_core_wall,
+            "labeled_lwir_frames_per_hour_1_worker_1_core": one_core.images_rendered / one_core_wall * 3600.0,
+            "speedup_2_workers_vs_1_worker_on_1_core": one_core_wall / two_wall,
+            "cores_of_the_1_core_worker": max(t["cores"] for t in _task_records(root / "one_core")),
             "scheduler_and_startup_s_1_worker": one_render_wall - render1,
             "scheduler_cost_per_task_s": scheduler_cost(),
             "peak_rss_mb_per_task_max": max(t["peak_rss_mb"] for t in tasks1),

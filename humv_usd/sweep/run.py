@@ -99,10 +99,30 @@ class _InProcess:
         pass
 
 
-class _Dask:
-    """A dask.distributed client: on a new local cluster of processes, or an existing scheduler."""
+def _pin_worker(cpus_per_worker: int):
+    """A worker plugin that binds local worker ``i`` (its name) and every thread of its process to
+    its own ``cpus_per_worker`` cores, ``[i k, (i + 1) k)`` modulo the cores (Linux)."""
+    import distributed
 
-    def __init__(self, scheduler: str | None, workers: int | None):
+    class PinWorker(distributed.WorkerPlugin):
+        name = "humv-usd-pin-worker"
+
+        def setup(self, worker):
+            cores = sorted(os.sched_getaffinity(0))
+            first = int(worker.name) * cpus_per_worker
+            mine = {cores[(first + j) % len(cores)] for j in range(cpus_per_worker)}
+            for tid in os.listdir("/proc/self/task"):  # threads started later inherit it
+                os.sched_setaffinity(int(tid), mine)
+
+    return PinWorker()
+
+
+class _Dask:
+    """A dask.distributed client: on a new local cluster of processes, or an existing scheduler.
+    ``cpus_per_worker`` (local clusters, Linux): bind each worker to that many cores of its own
+    and give its renders as many Dr.Jit threads (the bench's one-core-per-worker scaling run)."""
+
+    def __init__(self, scheduler: str | None, workers: int | None, cpus_per_worker: int | None = None):
         import distributed
 
         self._distributed = distributed
@@ -127,6 +147,9 @@ class _Dask:
         self.render_threads = (
             max(1, (os.cpu_count() or 1) // max(1, self.workers)) if self.cluster is not None else None
         )
+        if cpus_per_worker and self.cluster is not None:
+            self.client.register_plugin(_pin_worker(cpus_per_worker))
+            self.render_threads = cpus_per_worker
         self.run_id = uuid.uuid4().hex[:8]
 
     def submit(self, fn, *args, key=None):
@@ -164,9 +187,11 @@ def run_sweep(
     workers: int | None = None,
     on_event: Callable[[dict], None] | None = None,
     limit: int | None = None,
+    cpus_per_worker: int | None = None,
 ) -> SweepResult:
     """Run what is missing of ``sweep`` into ``dataset`` and assemble the dataset; see the module
-    doc. ``limit``: run only the first ``limit`` variants (a later run without it adds the rest). Raises InputError (nothing written) for a folder that cannot be written, a folder of
+    doc. ``limit``: run only the first ``limit`` variants (a later run without it adds the rest).
+    ``cpus_per_worker``: bind each local worker to that many cores of its own (see :class:`_Dask`). Raises InputError (nothing written) for a folder that cannot be written, a folder of
     another sweep or one another live sweep is writing."""
     t0 = time.perf_counter()
     loc = _location(dataset, scheduler, workers)
@@ -199,7 +224,9 @@ def run_sweep(
             }
         )
         if todo:
-            executor = _InProcess() if workers == 0 and not scheduler else _Dask(scheduler, workers)
+            executor = (
+                _InProcess() if workers == 0 and not scheduler else _Dask(scheduler, workers, cpus_per_worker)
+            )
             result.workers = executor.workers
             try:
                 _Loop(sweep, loc, keys, todo, executor, result, emit, lease).run()

@@ -188,6 +188,7 @@ def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, setti
         "monte_carlo_error": manifest.get("monte_carlo_error"),
         "rss_mb": rss,
         "peak_rss_mb": peak,
+        "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
         "host": socket.gethostname(),
         "pid": os.getpid(),
     }
