@@ -38,7 +38,7 @@ if [ "$want" != "$have" ]; then
   # pip's notes about this machine's absent local mirrors are noise; real errors still fail.
   .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.lock 2> >(grep -v "^WARNING: Location" >&2)
   .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -e . 2> >(grep -v "^WARNING: Location" >&2)
-  .venv/bin/python -c "import numpy, pxr, mitsuba, OpenImageIO, bpy, pvlib, pycocotools.mask, dask.distributed, nicegui, pyarrow, humv_usd; assert numpy.__version__.startswith('1.26')" \
+  .venv/bin/python -c "import numpy, pxr, mitsuba, OpenImageIO, OpenEXR, bpy, pvlib, pycocotools.mask, dask.distributed, nicegui, pyarrow, humv_usd; assert numpy.__version__.startswith('1.26')" \
     || { echo "set-up: the installed packages do not import together" >&2; exit 1; }
   echo "$want" > .venv/.humv-stamp
 fi
