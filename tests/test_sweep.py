@@ -196,6 +196,24 @@ def test_dry_run_prints_variants_and_cost(tmp_path):
     assert r.output.count("\nv000") + r.output.startswith("v000") == 4
     assert "4 variants, 8 render tasks, 8 frames, 8 images" in r.output
     assert "estimated cost" in r.output and not out.exists()
+    assert "estimated disk: 0.0 GB (" in r.output and " GB free at " in r.output
+
+
+def test_dry_run_disk_estimate_and_warning_when_it_does_not_fit(tmp_path, monkeypatch):
+    import shutil as shutil_mod
+    from collections import namedtuple
+
+    from humv_usd.sweep.plan import DISK_BYTES_PER_PIXEL, DISK_BYTES_PER_VARIANT_FRAME, estimate, layer_keys
+
+    sw = load_sweep(_write(tmp_path))
+    est = estimate(sw, {v.id: layer_keys(v.scenario) for v in sw.variants}, 2)
+    # 8 images of 32 x 24 IR pixels, 4 variants of 2 frames
+    want = 8 * 32 * 24 * DISK_BYTES_PER_PIXEL["ir"] + 4 * 2 * DISK_BYTES_PER_VARIANT_FRAME
+    assert est["disk_bytes"] == pytest.approx(want) and est["disk_gb"] == round(want / 1e9, 1)
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil_mod, "disk_usage", lambda p: usage(1, 1, 1000))  # 1 kB free
+    r = CliRunner().invoke(main, ["sweep", str(_write(tmp_path)), "-o", str(tmp_path / "d"), "--dry-run"])
+    assert r.exit_code == 0 and "WARNING: more than is free" in r.output
 
 
 def test_layer_keys_are_compose_keys_and_shared_layers_are_found(tmp_path):

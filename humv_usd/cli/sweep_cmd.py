@@ -139,6 +139,7 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
             f"estimated cost: compose {est['compose_s']:.0f} s + render {est['render_s']:.0f} s of one worker; "
             f"about {est['wall_h']:.2f} h on {n_workers} worker(s) ({est['frames_per_hour']:,} images/h)"
         )
+        click.echo(f"estimated disk: {est['disk_gb']:.1f} GB{_free_text(out_dir, est['disk_bytes'])}")
         return
     from humv_usd.sweep.run import run_sweep
 
@@ -155,6 +156,23 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
         click.echo(f"  failed: {f['task']}: {f['error']}", err=True)
     if result.failures:
         raise SystemExit(1)
+
+
+def _free_text(out_dir: str, need_bytes: float) -> str:
+    """ ", X GB free at OUT" for a local folder (its nearest existing parent), with a warning when
+    the estimate does not fit; empty for a URL."""
+    import shutil
+
+    from humv_usd.sweep.where import is_url
+
+    if is_url(out_dir):
+        return ""
+    parent = Path(out_dir).resolve()
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    free = shutil.disk_usage(parent).free
+    warn = " - WARNING: more than is free; free space or write elsewhere" if need_bytes > free else ""
+    return f" ({free / 1e9:.1f} GB free at {parent}){warn}"
 
 
 @click.command("sweep")

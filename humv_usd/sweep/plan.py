@@ -14,15 +14,29 @@ from humv_usd.scenario.inputs import inputs_key, read_values
 from humv_usd.sweep.spec import Sweep, Variant
 
 #: camera samples per second of one worker with the fast infrared estimator (4 reflection
-#: directions per camera sample, 16 sub-bands): `humv-usd bench sweep examples/walk.toml --variants 2
-#: --frames 16 --resolution 1024x768` measured 4.1-5.2 s per 1024x768 image per worker with 2
-#: workers on this 2-core machine (2026-11-24), i.e. about (786,432 x 2) / 0.45e6 + 1 s
-SAMPLES_PER_SECOND_PER_WORKER = 0.45e6
+#: directions per camera sample, 16 sub-bands), with :data:`SECONDS_PER_IMAGE`: `humv-usd bench
+#: sweep examples/walk.toml --variants 4 --frames 16 --resolution 1024x768` measured a median task
+#: of 12.8 s for 4 images per worker with 2 workers on this 2-core machine (2026-11-24, idle),
+#: i.e. 3.19 s per 1024x768 image at 2 spp = (786,432 x 2) / 0.72e6 + 1 s
+SAMPLES_PER_SECOND_PER_WORKER = 0.72e6
 #: fixed cost per rendered image (stage export, ground truth, conversions, writes) [s]
 SECONDS_PER_IMAGE = 1.0
 #: compose seconds of a layer that is built (not shared): (fixed, per frame) by tool, from the
-#: compose.json of `humv-usd bench sweep` (examples/walk.toml; 6 and 100 frames), others 0.1 s
-COMPOSE_SECONDS = {"avatar": (2.0, 0.0), "clothing": (4.0, 1.1), "environment": (1.5, 0.0)}
+#: compose.json of `humv-usd bench sweep` (walk, 16 frames: clothing 5.9-7.3 s, thermal 5.7-7.0 s)
+#: and of examples/table1.toml's variants (31 frames, 2 workers: clothing 7.8-12.5 s, thermal
+#: 8.4-11.8 s); others 0.1 s
+COMPOSE_SECONDS = {
+    "avatar": (0.5, 0.0),
+    "clothing": (4.0, 0.15),
+    "thermal": (3.0, 0.22),
+    "environment": (0.7, 0.0),
+}
+#: bytes written per pixel of an image by the render (EXR with every label channel, zip; the PNG
+#: previews, masks and sensor-chain images): walk LWIR 1024x768 9.8 MB per image (the bench's
+#: 64 images: 627 MB), an EO camera's 21-channel EXR about 32 bytes per pixel
+DISK_BYTES_PER_PIXEL = {"ir": 12.5, "eo": 32.0}
+#: bytes of a variant's composed layers per frame (walk: 37 MB for 4 variants of 16 frames)
+DISK_BYTES_PER_VARIANT_FRAME = 0.6e6
 
 
 def layer_keys(scenario: Scenario) -> dict[str, str]:
@@ -94,18 +108,32 @@ def _sensor_samples(scenario: Scenario, sensors, spp: int) -> int:
     return total
 
 
+def _sensor_disk(scenario: Scenario, sensors) -> float:
+    """Bytes the render writes per frame for the selected sensors (:data:`DISK_BYTES_PER_PIXEL`)."""
+    total = 0.0
+    for s in scenario["sensor"]:
+        if sensors and s["id"] not in sensors:
+            continue
+        w, h = s["resolution"]
+        total += w * h * DISK_BYTES_PER_PIXEL["eo" if s.get("band") == "EO" else "ir"]
+    return total
+
+
 def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dict:
     """Counts and an estimated wall time (see the module constants for the rates)."""
     tasks = render_tasks(sweep)
     spp, sensors = sweep.render["spp"] or AUTO_SPP_COST, sweep.render["sensors"]
     frames = sum(len(t.frames) for t in tasks)
     samples = images = 0
+    disk = 0.0
     by_variant = {v.id: v for v in sweep.variants}
     for t in tasks:
         sc = by_variant[t.variant].scenario
         n_sensors = sum(1 for s in sc["sensor"] if not sensors or s["id"] in sensors)
         samples += _sensor_samples(sc, sensors, spp) * len(t.frames)
         images += n_sensors * len(t.frames)
+        disk += _sensor_disk(sc, sensors) * len(t.frames)
+    disk += sum(v.scenario.frame_count for v in sweep.variants) * DISK_BYTES_PER_VARIANT_FRAME
     frames_of = {}
     for v in sweep.variants:  # each unique layer once, with the frame count of its first variant
         for n, k in keys[v.id].items():
@@ -131,5 +159,7 @@ def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dic
         "render_s": round(render_s, 1),
         "wall_s": round(wall, 1),
         "wall_h": round(wall / 3600.0, 2),
+        "disk_bytes": disk,
+        "disk_gb": round(disk / 1e9, 1),
         "frames_per_hour": round(images / wall * 3600.0) if wall > 0 else math.inf,
     }
