@@ -627,3 +627,28 @@ def test_render_threads_share_the_cores_between_local_workers():
         assert dr.thread_count() == before
     finally:
         dr.set_thread_count(before)
+
+
+def test_progress_prints_status_lines_when_stderr_is_not_a_terminal(capsys, monkeypatch):
+    from humv_usd.cli import sweep_cmd
+
+    monkeypatch.setattr(sweep_cmd, "LOG_EVERY_S", 3600.0)
+    with sweep_cmd._Progress(quiet=False) as p:
+        assert p.lines  # pytest's stderr is not a terminal
+        p({"type": "start", "variants": 2, "tasks": 4, "done": 1, "frames": 8, "frames_done": 2})
+        p({"type": "compose", "variant": "v0000", "seconds": 1.0, "rebuilt": []})
+        p({"type": "render", "task": "v0000/f0000-0001", "frames": 2, "images": 2, "seconds": 1.0})
+        monkeypatch.setattr(sweep_cmd, "LOG_EVERY_S", 0.0)
+        p({"type": "render", "task": "v0001/f0000-0001", "frames": 2, "images": 2, "seconds": 1.0})
+        p({"type": "failed", "task": "render v0001/f0002-0003", "error": "OSError: disk full"})
+    err = capsys.readouterr().err
+    status = [line for line in err.splitlines() if " min: variants composed " in line]
+    # one at the start, none within the interval, one after it
+    assert len(status) == 2, err
+    assert "render tasks 1/4, frames 2/8" in status[0]
+    assert "variants composed 1 (this run), render tasks 3/4, frames 6/8" in status[1]
+    assert "images/h, ETA " in status[1] and "failures 0" in status[1]
+    assert "failed render v0001/f0002-0003: OSError: disk full" in err
+    with sweep_cmd._Progress(quiet=True) as p:  # --quiet: nothing
+        p({"type": "start", "variants": 1, "tasks": 1, "done": 0, "frames": 1, "frames_done": 0})
+    assert "min: variants composed" not in capsys.readouterr().err

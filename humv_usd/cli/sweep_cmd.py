@@ -12,8 +12,14 @@ import click
 from humv_usd.cli.common import reports_errors
 
 
+#: Seconds between the status lines printed when stderr is not a terminal (a batch job's log).
+LOG_EVERY_S = 60.0
+
+
 class _Progress:
-    """A rich live display of the sweep's events: tasks and images done, rate, ETA, failures."""
+    """A rich live display of the sweep's events: tasks and images done, rate, ETA, failures. When
+    stderr is not a terminal (nohup, SLURM, CI), where a live display shows nothing until the end,
+    a plain status line every :data:`LOG_EVERY_S` seconds instead."""
 
     def __init__(self, quiet: bool):
         from rich.console import Console
@@ -42,6 +48,9 @@ class _Progress:
         self.failures = 0
         self.retries = 0
         self.composed = 0
+        self.lines = not quiet and not self.console.is_terminal
+        self.last_line = -float("inf")
+        self.counts = {"variants": 0, "tasks": 0, "tasks_done": 0, "frames": 0, "frames_done": 0}
 
     def __enter__(self):
         self.progress.__enter__()
@@ -53,6 +62,7 @@ class _Progress:
     def __call__(self, event: dict) -> None:
         kind = event["type"]
         p = self.progress
+        self._count(event)
         if kind == "start":
             self.variants = p.add_task("variants composed", total=event["variants"], info="")
             self.tasks = p.add_task("render tasks", total=event["tasks"], completed=event["done"], info="")
@@ -75,6 +85,34 @@ class _Progress:
             p.update(self.tasks, info=self._info())
         elif kind == "assemble":
             p.console.print("assembling the dataset (COCO per sensor, index, card, YOLO)")
+        if (
+            self.lines
+            and kind in ("start", "compose", "render")
+            and (kind == "start" or time.perf_counter() - self.last_line >= LOG_EVERY_S)
+        ):
+            self.last_line = time.perf_counter()
+            self.console.print(self.status_line(), highlight=False, soft_wrap=True)
+
+    def _count(self, event: dict) -> None:
+        c, kind = self.counts, event["type"]
+        if kind == "start":
+            c.update(variants=event["variants"], tasks=event["tasks"], tasks_done=event["done"])
+            c.update(frames=event["frames"], frames_done=event["frames_done"])
+        elif kind == "render":
+            c["tasks_done"] += 1
+            c["frames_done"] += event["frames"]
+
+    def status_line(self) -> str:
+        """Elapsed time, variants composed, tasks and frames done, this run's rate, ETA, failures."""
+        c, elapsed = self.counts, time.perf_counter() - self.t0
+        rate = self.images / elapsed * 3600.0 if elapsed > 0 else 0.0
+        left = c["frames"] - c["frames_done"]
+        eta = f"{left / rate:.1f} h" if rate > 0 else "-"
+        return (
+            f"[{time.strftime('%H:%M:%S')}] {elapsed / 60.0:.1f} min: variants composed {self.composed} "
+            f"(this run), render tasks {c['tasks_done']}/{c['tasks']}, frames {c['frames_done']}/{c['frames']}, "
+            f"{rate:,.0f} images/h, ETA {eta}, failures {self.failures}, retries {self.retries}"
+        )
 
     def _info(self) -> str:
         return f"failures {self.failures}, retries {self.retries}"
