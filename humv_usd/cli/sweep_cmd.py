@@ -11,7 +11,6 @@ import click
 
 from humv_usd.cli.common import reports_errors
 
-
 #: Seconds between the status lines printed when stderr is not a terminal (a batch job's log).
 LOG_EVERY_S = 60.0
 
