@@ -95,13 +95,25 @@ def test_memory_dataset_equals_the_posix_one_and_a_cut_upload_is_redone(
 
     shutil.rmtree(cache)
     fs.rm(f"{root}/renders/v0002/f0001-0001/task.json")
+    from humv_usd.sweep import run as run_mod
+
+    seen = {}
+    real_drop = run_mod.drop_local_cache
+
+    def spy(url_):  # the local copy as the render used it, before the sweep's end removes it
+        local = next(cache.glob("*/variants/v0002"))
+        seen.update(
+            done=(local / "compose.done.json").read_bytes(), stage=(local / "stage.usda").read_bytes()
+        )
+        return real_drop(url_)
+
+    monkeypatch.setattr(run_mod, "drop_local_cache", spy)
     third = run_sweep(load_sweep(path), url, workers=0)
     assert third.ran == 1 and third.composed == 0 and third.failures == []
-    local = next(cache.glob("*/variants/v0002"))
-    assert (local / "compose.done.json").read_bytes() == fs.cat_file(
-        f"{root}/variants/v0002/compose.done.json"
-    )
-    assert (local / "stage.usda").read_bytes() == fs.cat_file(f"{root}/variants/v0002/stage.usda")
+    assert seen["done"] == fs.cat_file(f"{root}/variants/v0002/compose.done.json")
+    assert seen["stage"] == fs.cat_file(f"{root}/variants/v0002/stage.usda")
+    # the workers' local copies are removed when the sweep ends (the dataset keeps everything)
+    assert third.local_cache_freed > 1000 and not list(cache.glob("*/variants/*"))
     assert fs.cat_file(f"{root}/coco/cam.json") == (posix / "coco" / "cam.json").read_bytes()
 
 

@@ -33,7 +33,7 @@ from humv_usd.sweep import store
 from humv_usd.sweep.dataset import assemble
 from humv_usd.sweep.plan import RenderTask, compose_dependencies, layer_keys, render_tasks
 from humv_usd.sweep.spec import Sweep, _plain
-from humv_usd.sweep.tasks import compose_variant, error_text, render_chunk
+from humv_usd.sweep.tasks import compose_variant, drop_local_cache, error_text, render_chunk
 from humv_usd.sweep.where import Location, local_cache
 
 log = logging.getLogger(__name__)
@@ -53,6 +53,7 @@ class SweepResult:
     failures: list[dict] = field(default_factory=list)
     seconds: float = 0.0
     workers: int = 0
+    local_cache_freed: int = 0  # bytes of the workers' local copies removed at the end (URL datasets)
     dataset_summary: dict = field(default_factory=dict)
 
     @property
@@ -73,6 +74,7 @@ class SweepResult:
             "failures": self.failures,
             "seconds": self.seconds,
             "workers": self.workers,
+            "local_cache_freed_bytes": self.local_cache_freed,
             "images_per_hour": self.frames_per_hour,
         }
 
@@ -94,6 +96,9 @@ class _InProcess:
 
     def wait_any(self, futures):
         return cf.wait(futures, return_when=cf.FIRST_COMPLETED).done
+
+    def run_everywhere(self, fn, *args) -> list:
+        return [fn(*args)]
 
     def close(self):
         pass
@@ -157,6 +162,10 @@ class _Dask:
 
     def wait_any(self, futures):
         return self._distributed.wait(futures, return_when="FIRST_COMPLETED").done
+
+    def run_everywhere(self, fn, *args) -> list:
+        """``fn(*args)`` on every worker now connected (``Client.run``)."""
+        return list(self.client.run(fn, *args).values())
 
     def close(self):
         self.client.close()
@@ -230,6 +239,8 @@ def run_sweep(
             result.workers = executor.workers
             try:
                 _Loop(sweep, loc, keys, todo, executor, result, emit, lease).run()
+                if loc.remote:  # the workers' local copies: every task has ended
+                    result.local_cache_freed = sum(executor.run_everywhere(drop_local_cache, loc.url))
             finally:
                 executor.close()
         _check_lease(lease, loc)

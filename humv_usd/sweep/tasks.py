@@ -214,6 +214,19 @@ def _render_chunk_remote(loc: Location, variant: str, chunk: str, frames, settin
     return record
 
 
+def drop_local_cache(url: str) -> int:
+    """Remove this machine's working folder of the dataset at ``url`` (composed variants
+    downloaded or composed here, staging); run on every worker when a sweep ends, when none of its
+    tasks is running. The dataset itself keeps everything; a later run downloads what it needs.
+    Returns the bytes freed."""
+    folder = local_cache(url)
+    if not folder.is_dir():
+        return 0
+    freed = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
+    shutil.rmtree(folder, ignore_errors=True)
+    return freed
+
+
 def error_text(exc: BaseException) -> str:
     """One line for a failed task (the exception) plus its last traceback line."""
     tb = traceback.format_exception(type(exc), exc, exc.__traceback__)
