@@ -156,14 +156,18 @@ def write_exr(
     for n in names:
         dtype = np.uint32 if n in UINT_CHANNELS else np.float16 if n in half else np.float32
         values = np.asarray(channels[n])
-        if dtype is np.uint32:
-            values = np.rint(values) if values.dtype.kind == "f" else values
+        if dtype is np.uint32 and values.dtype.kind in "fi":  # ids as floats or signed: clamped as OIIO did
+            values = np.clip(np.nan_to_num(np.rint(values)), 0, UINT_EXACT_MAX)
         pixels[exr_name(n)] = np.ascontiguousarray(values, dtype=dtype)
     header = {"compression": _EXR_COMPRESSION[EXR_COMPRESSION], "type": OpenEXR.scanlineimage}
     for key, value in (metadata or {}).items():
         header[key] = _exr_header_value(value)
-    with atomic_path(path) as tmp, OpenEXR.File(header, pixels) as exr:
-        exr.write(os.fspath(tmp))
+    with atomic_path(path) as tmp:
+        try:
+            with OpenEXR.File(header, pixels) as exr:
+                exr.write(os.fspath(tmp))
+        except RuntimeError as exc:  # OpenEXR's errors (disk full, bad shapes): an OSError like the others
+            raise OSError(f"OpenEXR cannot write {path}: {exc}") from None
 
 
 def read_exr(path, with_spec: bool = False):
