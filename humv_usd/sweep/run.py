@@ -240,7 +240,10 @@ def run_sweep(
             try:
                 _Loop(sweep, loc, keys, todo, executor, result, emit, lease).run()
                 if loc.remote:  # the workers' local copies: every task has ended
-                    result.local_cache_freed = sum(executor.run_everywhere(drop_local_cache, loc.url))
+                    try:
+                        result.local_cache_freed = sum(executor.run_everywhere(drop_local_cache, loc.url))
+                    except Exception as exc:  # noqa: BLE001 (a worker gone: its copy stays, nothing lost)
+                        log.warning("could not remove the workers' local copies: %s", exc)
             finally:
                 executor.close()
         _check_lease(lease, loc)

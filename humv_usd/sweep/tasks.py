@@ -220,9 +220,13 @@ def drop_local_cache(url: str) -> int:
     tasks is running. The dataset itself keeps everything; a later run downloads what it needs.
     Returns the bytes freed."""
     folder = local_cache(url)
-    if not folder.is_dir():
-        return 0
-    freed = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
+    freed = 0
+    for dirpath, _, files in os.walk(folder):  # workers of one machine share the folder: races
+        for name in files:  # with another worker's removal are ignored
+            try:
+                freed += os.lstat(os.path.join(dirpath, name)).st_size
+            except OSError:
+                pass
     shutil.rmtree(folder, ignore_errors=True)
     return freed
 
