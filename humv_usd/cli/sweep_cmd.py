@@ -49,7 +49,9 @@ class _Progress:
         self.composed = 0
         self.lines = not quiet and not self.console.is_terminal
         self.last_line = -float("inf")
-        self.counts = {"variants": 0, "tasks": 0, "tasks_done": 0, "frames": 0, "frames_done": 0}
+        self.counts = dict.fromkeys(
+            ("variants", "tasks", "tasks_done", "frames", "frames_done", "frames_done_before"), 0
+        )
 
     def __enter__(self):
         self.progress.__enter__()
@@ -96,7 +98,11 @@ class _Progress:
         c, kind = self.counts, event["type"]
         if kind == "start":
             c.update(variants=event["variants"], tasks=event["tasks"], tasks_done=event["done"])
-            c.update(frames=event["frames"], frames_done=event["frames_done"])
+            c.update(
+                frames=event["frames"],
+                frames_done=event["frames_done"],
+                frames_done_before=event["frames_done"],
+            )
         elif kind == "render":
             c["tasks_done"] += 1
             c["frames_done"] += event["frames"]
@@ -105,8 +111,9 @@ class _Progress:
         """Elapsed time, variants composed, tasks and frames done, this run's rate, ETA, failures."""
         c, elapsed = self.counts, time.perf_counter() - self.t0
         rate = self.images / elapsed * 3600.0 if elapsed > 0 else 0.0
+        frames_rate = (c["frames_done"] - c["frames_done_before"]) / elapsed * 3600.0 if elapsed > 0 else 0.0
         left = c["frames"] - c["frames_done"]
-        eta = f"{left / rate:.1f} h" if rate > 0 else "-"
+        eta = f"{left / frames_rate:.1f} h" if frames_rate > 0 else "-"
         return (
             f"[{time.strftime('%H:%M:%S')}] {elapsed / 60.0:.1f} min: variants composed {self.composed} "
             f"(this run), render tasks {c['tasks_done']}/{c['tasks']}, frames {c['frames_done']}/{c['frames']}, "
