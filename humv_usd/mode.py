@@ -163,3 +163,46 @@ def release_kernel_cache() -> None:
     flush = getattr(drjit, "flush_kernel_cache", None)
     if flush is not None:
         flush()
+
+
+#: frames rendered in this process since Dr.Jit's kernel cache was last dropped (across render
+#: calls: a sweep worker renders 4 frames per call and would never reach the interval otherwise)
+_frames_since_flush = [0]
+
+
+def frame_rendered(every: int) -> bool:
+    """Count one rendered frame; drop the kernel cache (:func:`release_kernel_cache`) every
+    ``every`` frames of this process. Returns whether it was dropped."""
+    _frames_since_flush[0] += 1
+    if _frames_since_flush[0] < every:
+        return False
+    _frames_since_flush[0] = 0
+    release_kernel_cache()
+    return True
+
+
+def release_memory() -> None:
+    """Hand the memory caches of this process back to the system: Dr.Jit's kernels and its cache
+    of freed arrays (``flush_malloc_cache``), then glibc's free heap pages (``malloc_trim``).
+
+    Dr.Jit keeps every freed array for reuse by size. A worker that renders many variants collects
+    blocks of many sizes: measured on examples/table1.toml's variants, 2 frames of one variant
+    leave 1.79 GB resident, 1.43 GB after ``malloc_trim`` and 0.50 GB after flushing Dr.Jit's cache
+    too; over 600 frames of mixed variants a worker grew from 2.3 to 3.4 GB without it. Costs the
+    next render its first allocations (and kernels) again."""
+    import ctypes
+    import ctypes.util
+
+    if "mi" in _state:
+        import drjit
+
+        release_kernel_cache()
+        flush = getattr(drjit, "flush_malloc_cache", None)
+        if flush is not None:
+            flush()
+    name = ctypes.util.find_library("c")
+    if name and os.uname().sysname == "Linux":
+        try:
+            ctypes.CDLL(name).malloc_trim(0)
+        except (OSError, AttributeError):  # not glibc
+            pass

@@ -40,3 +40,53 @@ def test_tuned_worker_reuses_freed_temporaries_instead_of_faulting_new_pages():
     assert untuned > 40 * 100
     # tuned: the freed block is reused from the heap
     assert tuned < untuned / 20
+
+
+RELEASE_PROBE = """
+import drjit as dr
+from humv_usd import mode
+mode.mitsuba()
+def rss():
+    return int(open("/proc/self/statm").read().split()[1]) * 4096 / 2**20
+import numpy as np
+x = np.random.default_rng(0).random(50_000_000, dtype=np.float32)
+a = mode.mitsuba().Float(x)
+b = dr.sqrt(a) + a  # 200 MB arrays on the host (LLVM)
+dr.eval(b)
+del a, b, x
+before = rss()  # the freed arrays stay in Dr.Jit's cache
+mode.release_memory()
+print(before, rss())
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="/proc/self/statm")
+def test_release_memory_hands_dr_jits_cached_arrays_back():
+    out = subprocess.run([sys.executable, "-c", RELEASE_PROBE], capture_output=True, text=True, check=True)
+    before, after = (float(x) for x in out.stdout.split()[-2:])
+    assert before - after > 150.0, (before, after)
+
+
+def test_kernel_cache_dropped_every_n_frames_across_render_calls(monkeypatch):
+    from humv_usd import mode
+
+    drops = []
+    monkeypatch.setattr(mode, "release_kernel_cache", lambda: drops.append(1))
+    monkeypatch.setattr(mode, "_frames_since_flush", [0])
+    # a sweep worker: tasks of 4 frames, each its own render call; the interval is 10 frames
+    flags = [mode.frame_rendered(10) for _task in range(5) for _frame in range(4)]
+    assert len(drops) == 2 and [i for i, f in enumerate(flags) if f] == [9, 19]
+
+
+def test_worker_releases_memory_only_after_growing_past_its_first_render_task(monkeypatch):
+    from humv_usd import mode
+    from humv_usd.sweep import tasks
+
+    released = []
+    monkeypatch.setattr(mode, "release_memory", lambda: released.append(1))
+    monkeypatch.setattr(tasks, "_first_task_rss", [])
+    rss = iter([2000.0, 2090.0, 2200.0, 700.0])
+    monkeypatch.setattr(tasks, "_rss_mb", lambda: (next(rss), 0.0))
+    # first task sets the mark; +4.5 % keeps; +10 % releases; then below again
+    assert [tasks.release_memory_if_grown() for _ in range(4)] == [False, False, True, False]
+    assert released == [1]

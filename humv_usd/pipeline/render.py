@@ -386,8 +386,7 @@ def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
             t = time.perf_counter()
             writer.end_frame()
             totals["write"] += time.perf_counter() - t  # waiting for the writer (it was slower)
-            if len(run.frames_rendered) % KERNEL_CACHE_FRAMES == 0:
-                mode.release_kernel_cache()
+            mode.frame_rendered(KERNEL_CACHE_FRAMES)  # every KERNEL_CACHE_FRAMES of this process
         t = time.perf_counter()
     totals["write"] += time.perf_counter() - t  # waiting for the last frame's files
     totals["write_background"] = writer.seconds  # the writer thread's time, overlapped with renders

@@ -84,6 +84,27 @@ def tune_malloc() -> bool:
     return _malloc_tuned
 
 
+#: a worker hands its memory caches back (:func:`humv_usd.mode.release_memory`) after a render
+#: task that leaves it this much above its resident memory after its first render task
+RELEASE_GROWTH = 1.05
+_first_task_rss: list[float] = []
+
+
+def release_memory_if_grown() -> bool:
+    """After a render task: when this worker's resident memory exceeds its first render task's by
+    :data:`RELEASE_GROWTH`, release Dr.Jit's and glibc's caches (a worker rendering many variants
+    collects Dr.Jit blocks of many sizes; one rendering one variant stays below the mark and
+    never pays the release). Returns whether it released."""
+    rss, _ = _rss_mb()
+    if not _first_task_rss:
+        _first_task_rss.append(rss)
+        return False
+    if not rss > _first_task_rss[0] * RELEASE_GROWTH:
+        return False
+    mode.release_memory()
+    return True
+
+
 def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> dict:
     """Compose one variant (see the module doc); returns what was built and taken from the store.
     At an fsspec URL the variant is composed in this worker's local cache and uploaded, its
@@ -99,7 +120,10 @@ def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> di
     else:
         out = Path(dataset) / "variants" / variant
         taken = store.seed_layers(Path(dataset), keys, out)
-    report = compose(scenario, out)
+    try:
+        report = compose(scenario, out)
+    finally:
+        mode.release_memory()  # a compose's layers and arrays: not what the next task needs
     if loc.remote:
         store.publish_layers_remote(loc, keys, out)
     else:
@@ -178,6 +202,7 @@ def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, setti
         annotators=settings.get("annotators"),
         subbands=settings.get("subbands"),
     )
+    released = release_memory_if_grown()
     rss, peak = _rss_mb()
     return {
         "variant": variant,
@@ -186,8 +211,9 @@ def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, setti
         "seconds": time.perf_counter() - t0,
         "render_seconds": manifest["timings_s"].get("total"),
         "monte_carlo_error": manifest.get("monte_carlo_error"),
-        "rss_mb": rss,
+        "rss_mb": rss,  # after the task (and the release, when there was one)
         "peak_rss_mb": peak,
+        "memory_released": released,
         "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
         "host": socket.gethostname(),
         "pid": os.getpid(),
