@@ -157,7 +157,7 @@ def write_exr(
         dtype = np.uint32 if n in UINT_CHANNELS else np.float16 if n in half else np.float32
         values = np.asarray(channels[n])
         if dtype is np.uint32 and values.dtype.kind in "fi":  # ids as floats or signed: clamped as OIIO did
-            values = np.clip(np.nan_to_num(np.rint(values)), 0, UINT_EXACT_MAX)
+            values = np.maximum(np.nan_to_num(np.rint(values)), 0)  # the max is checked above
         pixels[exr_name(n)] = np.ascontiguousarray(values, dtype=dtype)
     header = {"compression": _EXR_COMPRESSION[EXR_COMPRESSION], "type": OpenEXR.scanlineimage}
     for key, value in (metadata or {}).items():

@@ -190,9 +190,6 @@ def release_memory() -> None:
     leave 1.79 GB resident, 1.43 GB after ``malloc_trim`` and 0.50 GB after flushing Dr.Jit's cache
     too; over 600 frames of mixed variants a worker grew from 2.3 to 3.4 GB without it. Costs the
     next render its first allocations (and kernels) again."""
-    import ctypes
-    import ctypes.util
-
     if "mi" in _state:
         import drjit
 
@@ -200,9 +197,22 @@ def release_memory() -> None:
         flush = getattr(drjit, "flush_malloc_cache", None)
         if flush is not None:
             flush()
+    c = glibc()
+    if c is not None:
+        c.malloc_trim(0)
+
+
+def glibc():
+    """This process's glibc (``ctypes.CDLL``) for its malloc controls (``mallopt``,
+    ``malloc_trim``), or None elsewhere (macOS, musl)."""
+    import ctypes
+    import ctypes.util
+
     name = ctypes.util.find_library("c")
-    if name and os.uname().sysname == "Linux":
-        try:
-            ctypes.CDLL(name).malloc_trim(0)
-        except (OSError, AttributeError):  # not glibc
-            pass
+    if not name or os.uname().sysname != "Linux":
+        return None
+    try:
+        c = ctypes.CDLL(name)
+        return c if hasattr(c, "mallopt") and hasattr(c, "malloc_trim") else None
+    except OSError:
+        return None

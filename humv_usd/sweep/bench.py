@@ -148,6 +148,7 @@ def run_bench(
         two = run_sweep(sw, root / "two_workers", workers=2)
         two_wall = time.perf_counter() - t
         tasks2 = _task_records(root / "two_workers")
+        task2_median = statistics.median(t["seconds"] for t in tasks2)
         shutil.copytree(root / "one_worker" / "variants", root / "one_core" / "variants")
         shutil.copytree(root / "one_worker" / ".sweep" / "layers", root / "one_core" / ".sweep" / "layers")
         t = time.perf_counter()
@@ -172,11 +173,8 @@ def run_bench(
             "two_workers_wall_s": two_wall,
             "labeled_lwir_frames_per_hour_2_workers": two.images_rendered / two_wall * 3600.0,
             "speedup_2_vs_1": one_render_wall / two_wall,
-            "task_seconds_median_2_workers": statistics.median(t["seconds"] for t in tasks2),
-            "steady_frames_per_hour_2_workers": two.workers
-            * frames_per_task
-            * 3600.0
-            / statistics.median(t["seconds"] for t in tasks2),
+            "task_seconds_median_2_workers": task2_median,
+            "steady_frames_per_hour_2_workers": two.workers * frames_per_task * 3600.0 / task2_median,
             "one_worker_one_core_wall_s": one_core_wall,
             "labeled_lwir_frames_per_hour_1_worker_1_core": one_core.images_rendered / one_core_wall * 3600.0,
             "speedup_2_workers_vs_1_worker_on_1_core": one_core_wall / two_wall,

@@ -98,25 +98,14 @@ def compose_dependencies(keys: dict[str, dict[str, str]]) -> dict[str, list[str]
 AUTO_SPP_COST = 2
 
 
-def _sensor_samples(scenario: Scenario, sensors, spp: int) -> int:
-    total = 0
-    for s in scenario["sensor"]:
-        if sensors and s["id"] not in sensors:
-            continue
-        w, h = s["resolution"]
-        total += w * h * spp
-    return total
+def _selected_sensors(scenario: Scenario, sensors) -> list[dict]:
+    """The scenario's sensors the sweep renders (``[render] sensors``; empty: all)."""
+    return [s for s in scenario["sensor"] if not sensors or s["id"] in sensors]
 
 
-def _sensor_disk(scenario: Scenario, sensors) -> float:
-    """Bytes the render writes per frame for the selected sensors (:data:`DISK_BYTES_PER_PIXEL`)."""
-    total = 0.0
-    for s in scenario["sensor"]:
-        if sensors and s["id"] not in sensors:
-            continue
-        w, h = s["resolution"]
-        total += w * h * DISK_BYTES_PER_PIXEL["eo" if s.get("band") == "EO" else "ir"]
-    return total
+def _pixel_bytes(sensor: dict) -> float:
+    """Bytes the render writes per pixel of this sensor (:data:`DISK_BYTES_PER_PIXEL`)."""
+    return DISK_BYTES_PER_PIXEL["eo" if sensor.get("band") == "EO" else "ir"]
 
 
 def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dict:
@@ -129,10 +118,11 @@ def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dic
     by_variant = {v.id: v for v in sweep.variants}
     for t in tasks:
         sc = by_variant[t.variant].scenario
-        n_sensors = sum(1 for s in sc["sensor"] if not sensors or s["id"] in sensors)
-        samples += _sensor_samples(sc, sensors, spp) * len(t.frames)
-        images += n_sensors * len(t.frames)
-        disk += _sensor_disk(sc, sensors) * len(t.frames)
+        for s in _selected_sensors(sc, sensors):
+            pixels = s["resolution"][0] * s["resolution"][1] * len(t.frames)
+            samples += pixels * spp
+            images += len(t.frames)
+            disk += pixels * _pixel_bytes(s)
     disk += sum(v.scenario.frame_count for v in sweep.variants) * DISK_BYTES_PER_VARIANT_FRAME
     frames_of = {}
     for v in sweep.variants:  # each unique layer once, with the frame count of its first variant

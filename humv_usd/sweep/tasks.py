@@ -16,8 +16,6 @@ when its record changed), renders into a local staging folder and uploads the ou
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import json
 import os
 import resource
@@ -72,15 +70,12 @@ def tune_malloc() -> bool:
     Returns whether the thresholds are set."""
     global _malloc_tuned
     if _malloc_tuned is None:
-        _malloc_tuned = False
-        name = ctypes.util.find_library("c")
-        if name and os.uname().sysname == "Linux":
-            try:
-                libc = ctypes.CDLL(name)
-                ok = libc.mallopt(M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD_BYTES) == 1
-                _malloc_tuned = ok and libc.mallopt(M_TRIM_THRESHOLD, MALLOC_TRIM_THRESHOLD_BYTES) == 1
-            except (OSError, AttributeError):  # not glibc (musl, macOS): its own allocator's defaults
-                _malloc_tuned = False
+        libc = mode.glibc()  # None: not glibc (musl, macOS), its own allocator's defaults
+        _malloc_tuned = (
+            libc is not None
+            and libc.mallopt(M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD_BYTES) == 1
+            and libc.mallopt(M_TRIM_THRESHOLD, MALLOC_TRIM_THRESHOLD_BYTES) == 1
+        )
     return _malloc_tuned
 
 
