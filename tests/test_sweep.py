@@ -195,8 +195,8 @@ def test_dry_run_prints_variants_and_cost(tmp_path):
     assert r.exit_code == 0, r.output
     assert r.output.count("\nv000") + r.output.startswith("v000") == 4
     assert "4 variants, 8 render tasks, 8 frames, 8 images" in r.output
-    assert "estimated cost" in r.output and not out.exists()
-    assert "estimated disk: 0.0 GB (" in r.output and " GB free at " in r.output
+    assert "estimated cost" in r.output and not out.exists() and "already in" not in r.output
+    assert "estimated disk: 0.0 GB (" in r.output and " free at " in r.output
 
 
 def test_dry_run_disk_estimate_and_warning_when_it_does_not_fit(tmp_path, monkeypatch):
@@ -210,10 +210,25 @@ def test_dry_run_disk_estimate_and_warning_when_it_does_not_fit(tmp_path, monkey
     # 8 images of 32 x 24 IR pixels, 4 variants of 2 frames
     want = 8 * 32 * 24 * DISK_BYTES_PER_PIXEL["ir"] + 4 * 2 * DISK_BYTES_PER_VARIANT_FRAME
     assert est["disk_bytes"] == pytest.approx(want) and est["disk_gb"] == round(want / 1e9, 1)
+    # what a dataset holds is not counted again: 2 tasks done (variant v0000), v0000 composed
+    v0 = {(t.variant, t.chunk) for t in render_tasks(sw) if t.variant == "v0000"}
+    left = estimate(sw, {v.id: layer_keys(v.scenario) for v in sw.variants}, 2, v0, {"v0000"})
+    want_left = 6 * 32 * 24 * DISK_BYTES_PER_PIXEL["ir"] + 3 * 2 * DISK_BYTES_PER_VARIANT_FRAME
+    assert left["disk_bytes"] == pytest.approx(want_left) and left["images_todo"] == 6
+    assert (left["tasks_done"], left["frames_done"], left["images"]) == (2, 2, 8)
+    assert left["render_s"] == pytest.approx(est["render_s"] * 6 / 8)
+    assert left["layers_to_build"] < est["layers_to_build"]
     usage = namedtuple("usage", "total used free")
     monkeypatch.setattr(shutil_mod, "disk_usage", lambda p: usage(1, 1, 1000))  # 1 kB free
     r = CliRunner().invoke(main, ["sweep", str(_write(tmp_path)), "-o", str(tmp_path / "d"), "--dry-run"])
     assert r.exit_code == 0 and "WARNING: more than is free" in r.output
+    # the run refuses it: one line, nothing written
+    r = CliRunner().invoke(
+        main, ["sweep", str(_write(tmp_path)), "-o", str(tmp_path / "d"), "--workers", "0"]
+    )
+    assert r.exit_code == 2 and "pass --yes" in r.output and len(r.output.strip().splitlines()) == 1
+    assert "4.88 MB left to write (8 images, 4 variants to compose), 1 kB free at " in r.output
+    assert not (tmp_path / "d").exists()
 
 
 def test_layer_keys_are_compose_keys_and_shared_layers_are_found(tmp_path):
@@ -361,16 +376,27 @@ def test_one_dataset_out(reference):
 
     import datasets
 
-    ds = datasets.load_dataset(str(dataset), split="train")
+    ds = datasets.load_dataset("parquet", data_files=str(dataset / "index.parquet"), split="train")
     assert ds.num_rows == 8
     assert set(ds.column_names) >= {"variant", "frame", "sensor", "image", "exr", "mc_error_k", "seconds"}
     assert sorted(ds["param_scene_object_0_temperature_k"]) == [300.0] * 4 + [320.0] * 4
     for row in ds:
         assert (dataset / row["image"]).is_file() and row["mc_error_k"] > 0
+        # the error column is the render's NETD/3 metric (away from edges), not the all-pixel mean
+        manifest = json.loads((dataset / Path(row["exr"]).parents[1] / "manifest.json").read_text())
+        (fr,) = [f for s in manifest["sensors"] for f in s["frames"] if f["frame"] == row["frame"]]
+        assert row["mc_error_k"] == fr["monte_carlo_error_k"]["mean_k"]
+        assert row["mc_error_p99_k"] == fr["monte_carlo_error_k"]["p99_k"] > 0
+        assert row["mc_error_relative"] is None
     summary = json.loads((dataset / "dataset.json").read_text())
     assert summary["images"] == 8 and summary["images_per_sensor"] == {"cam": 8}
     card = (dataset / "README.md").read_text()
-    assert "| cam | 8 |" in card and (dataset / "card" / "contact_cam.png").is_file()
+    median_mk = np.median(ds["mc_error_k"]) * 1e3
+    assert (
+        "| cam | 8 |" in card
+        and f"| {median_mk:.1f} mK" in card
+        and (dataset / "card" / "contact_cam.png").is_file()
+    )
     sheet = images.read_exr(dataset / "card" / "contact_cam.png")
     assert sheet["R"].shape == (2 * 26, 4 * 34)
     labels = sorted((dataset / "yolo" / "detect" / "cam" / "labels").glob("*.txt"))
@@ -606,8 +632,20 @@ def test_limit_runs_the_first_variants_and_a_later_run_adds_the_rest(tmp_path):
     sw = load_sweep(_write(tmp_path))
     first = run_sweep(sw, tmp_path / "dataset", workers=0, limit=1)
     assert first.ran == 2 and first.dataset_summary["variants_with_images"] == 1
+    # the dry run of the same sweep counts only what is left
+    r = CliRunner().invoke(main, ["sweep", str(sw.path), "-o", str(tmp_path / "dataset"), "--dry-run"])
+    assert r.exit_code == 0, r.output
+    assert "2 render tasks (2 frames), 1 variants composed; left: 6 images, 3 variants to compose" in r.output
+    import datasets
+
+    def rows():  # the documented load line re-reads the index the resumed sweep rewrote
+        index = str(tmp_path / "dataset" / "index.parquet")
+        return datasets.load_dataset("parquet", data_files=index, split="train").num_rows
+
+    assert rows() == 2
     rest = run_sweep(sw, tmp_path / "dataset", workers=0)
     assert rest.already_done == 2 and rest.ran == 6 and rest.dataset_summary["images"] == 8
+    assert rows() == 8
 
 
 def test_render_threads_share_the_cores_between_local_workers():

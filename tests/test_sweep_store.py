@@ -126,7 +126,7 @@ def test_cli_file_url_dataset_loads_with_hugging_face(tmp_path, cache):
     assert r.exit_code == 0, r.output
     import datasets
 
-    ds = datasets.load_dataset(str(out), split="train")
+    ds = datasets.load_dataset("parquet", data_files=str(out / "index.parquet"), split="train")
     assert ds.num_rows == 8 and all((out / row["image"]).is_file() for row in ds)
     assert len(list(out.glob("renders/*/*/task.json"))) == 8
     assert not (out / ".sweep" / "staging").exists() and not (out / ".sweep" / "lock").exists()

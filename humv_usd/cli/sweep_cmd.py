@@ -134,7 +134,12 @@ class _Progress:
     type=str,
     help="The dataset folder (new or to resume), or an fsspec URL (s3://bucket/prefix, gs://..., file://...).",
 )
-@click.option("--dry-run", is_flag=True, help="Print the variants and the estimated cost; run nothing.")
+@click.option(
+    "--dry-run",
+    is_flag=True,
+    help="Print the variants and the estimated cost of what is left to do (a dataset being resumed: "
+    "its done tasks apart); run nothing.",
+)
 @click.option(
     "--scheduler",
     default=None,
@@ -153,15 +158,14 @@ class _Progress:
     help="Run only the first N variants (a later run without it adds the others).",
 )
 @click.option("--quiet", is_flag=True, help="No progress display.")
+@click.option("--yes", is_flag=True, help="Run even when the estimated writes exceed the free disk.")
 @reports_errors
-def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, limit, quiet: bool):
+def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, limit, quiet: bool, yes: bool):
     """Expand SWEEP_FILE (a base scenario + grid and random axes) into variants, compose and render
     them as tasks on Dask (one per variant and frame chunk) and assemble one dataset in OUT.
     Re-running the same command resumes: only what is missing runs."""
-    import os
 
     from humv_usd.fileio import check_output_dir
-    from humv_usd.sweep.plan import estimate, layer_keys
     from humv_usd.sweep.spec import load_sweep
     from humv_usd.sweep.where import Location, is_url
 
@@ -169,26 +173,14 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
     Location(out_dir) if is_url(out_dir) else check_output_dir(out_dir, "dataset folder")
     sw = load_sweep(sweep_file)  # every variant validated: InputError names the axis
     if dry_run:
-        keys = {v.id: layer_keys(v.scenario) for v in sw.variants}
-        n_workers = workers if workers else (os.cpu_count() or 1)
-        for v in sw.variants:
-            click.echo(f"{v.id}  " + ", ".join(f"{k}={val}" for k, val in v.params.items()))
-        est = estimate(sw, keys, n_workers)
-        click.echo(
-            f"{est['variants']} variants, {est['render_tasks']} render tasks, {est['frames']} frames, "
-            f"{est['images']} images, {est['megasamples']} Msamples; {est['unique_layers']} of "
-            f"{est['layers']} layers to compose (the others shared)"
-        )
-        click.echo(
-            f"estimated cost: compose {est['compose_s']:.0f} s + render {est['render_s']:.0f} s of one worker; "
-            f"about {est['wall_h']:.2f} h on {n_workers} worker(s) ({est['frames_per_hour']:,} images/h)"
-        )
-        click.echo(f"estimated disk: {est['disk_gb']:.1f} GB{_free_text(out_dir, est['disk_bytes'])}")
+        _dry_run(sw, out_dir, workers, limit)
         return
     from humv_usd.sweep.run import run_sweep
 
     with _Progress(quiet) as progress:
-        result = run_sweep(sw, out_dir, scheduler=scheduler, workers=workers, on_event=progress, limit=limit)
+        result = run_sweep(
+            sw, out_dir, scheduler=scheduler, workers=workers, on_event=progress, limit=limit, yes=yes
+        )
     s = result.dataset_summary
     click.echo(
         f"{result.dataset}: {s['variants']} variants, {s['frames']} frames, {s['images']} images "
@@ -202,21 +194,50 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
         raise SystemExit(1)
 
 
-def _free_text(out_dir: str, need_bytes: float) -> str:
-    """ ", X GB free at OUT" for a local folder (its nearest existing parent), with a warning when
-    the estimate does not fit; empty for a URL."""
-    import shutil
+def _dry_run(sw, out_dir: str, workers, limit) -> None:
+    """The variants, then the counts and the estimated cost of what is left (a dataset folder of
+    this sweep: its done tasks and composed variants apart; another sweep's: refused as the run
+    would; ``limit``: the variants after the first ``limit`` apart)."""
+    import os
 
-    from humv_usd.sweep.where import is_url
+    from humv_usd.sweep import store
+    from humv_usd.sweep.plan import disk_text, estimate, layer_keys, render_tasks
+    from humv_usd.sweep.where import Location, is_url
 
-    if is_url(out_dir):
-        return ""
-    parent = Path(out_dir).resolve()
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    free = shutil.disk_usage(parent).free
-    warn = " - WARNING: more than is free; free space or write elsewhere" if need_bytes > free else ""
-    return f" ({free / 1e9:.1f} GB free at {parent}){warn}"
+    loc = Location(out_dir if is_url(out_dir) else Path(out_dir).resolve())
+    done, composed = set(), set()
+    if loc.remote or loc.path.is_dir():
+        store.check_sweep_record(loc, sw.digest())
+        done = store.done_tasks(loc)
+        composed = {v.id for v in sw.variants if store.compose_done(loc, v.id)}
+    if limit is not None:
+        wanted = {v.id for v in sw.variants[:limit]}
+        done |= {(t.variant, t.chunk) for t in render_tasks(sw) if t.variant not in wanted}
+    keys = {v.id: layer_keys(v.scenario) for v in sw.variants}
+    n_workers = workers if workers else (os.cpu_count() or 1)
+    for v in sw.variants:
+        click.echo(f"{v.id}  " + ", ".join(f"{k}={val}" for k, val in v.params.items()))
+    est = estimate(sw, keys, n_workers, done, composed)
+    click.echo(
+        f"{est['variants']} variants, {est['render_tasks']} render tasks, {est['frames']} frames, "
+        f"{est['images']} images"
+    )
+    if est["tasks_done"] or est["variants_composed"]:
+        click.echo(
+            f"already in {loc}: {est['tasks_done']} render tasks ({est['frames_done']} frames), "
+            f"{est['variants_composed']} variants composed; left: {est['images_todo']} images, "
+            f"{est['variants_to_compose']} variants to compose"
+        )
+    click.echo(
+        f"{est['megasamples']} Msamples to render; {est['layers_to_build']} of {est['layers']} layers "
+        "to compose (the others shared or already built)"
+    )
+    click.echo(
+        f"estimated cost: compose {est['compose_s']:.0f} s + render {est['render_s']:.0f} s of one worker; "
+        f"about {est['wall_h']:.2f} h on {n_workers} worker(s) ({est['frames_per_hour']:,} images/h)"
+    )
+    where = "" if loc.remote else f" ({disk_text(est, loc.path)})"
+    click.echo(f"estimated disk: {est['disk_gb']:.1f} GB{where}")
 
 
 @click.command("sweep")

@@ -55,12 +55,13 @@ class Budget:
 
     def text(self) -> str:
         return (
-            f"{self.what} of {self.basis}: about {_size(self.memory_bytes)} of memory, "
-            f"{_size(self.disk_bytes)} on disk, {_duration(self.seconds)}"
+            f"{self.what} of {self.basis}: about {size_text(self.memory_bytes)} of memory, "
+            f"{size_text(self.disk_bytes)} on disk, {_duration(self.seconds)}"
         )
 
 
-def _size(n: float) -> str:
+def size_text(n: float) -> str:
+    """A byte count in kB, MB, GB or TB, 3 significant digits."""
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
         if n >= scale:
             return f"{n / scale:.3g} {unit}"
@@ -132,9 +133,9 @@ def require_fits(budget: Budget, folder, yes: bool = False) -> None:
     memory, disk = available_memory() * MEMORY_SHARE, free_disk(folder)
     short = []
     if budget.memory_bytes > memory:
-        short.append(f"{_size(memory / MEMORY_SHARE)} of memory available")
+        short.append(f"{size_text(memory / MEMORY_SHARE)} of memory available")
     if budget.disk_bytes > disk:
-        short.append(f"{_size(disk)} free on disk at {os.fspath(folder)}")
+        short.append(f"{size_text(disk)} free on disk at {os.fspath(folder)}")
     if short and not yes:
         raise InputError(
             f"{budget.text()}; this machine has {' and '.join(short)}: change {budget.keys}, "

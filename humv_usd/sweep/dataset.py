@@ -10,10 +10,14 @@ through :class:`humv_usd.sweep.where.Location`):
   and an uninterrupted sweep);
 * ``index.parquet`` and ``dataset.json`` -- one row per variant, frame and sensor: the variant's
   parameters (``param_<axis>`` columns), frame, sensor, band, paths (relative to DATASET/),
-  run time per image [s], Monte Carlo error (IR: mean standard error in K; EO: of Y);
+  run time per image [s], Monte Carlo error (IR: mean and 99th percentile of the standard error
+  in K away from geometric edges, the render's NETD/3 criterion; EO: of Y relative to mean Y);
 * ``README.md`` -- the dataset card: counts, parameter distributions (``card/params.png``),
-  contact sheets (``card/contact_<sensor>.png``) and a Hugging Face ``datasets`` header, so
-  ``datasets.load_dataset("DATASET")`` loads the index;
+  contact sheets (``card/contact_<sensor>.png``) and a Hugging Face ``datasets`` header (the
+  index as the ``train`` split, for the Hub); locally ``datasets.load_dataset("parquet",
+  data_files="DATASET/index.parquet", split="train")`` loads the index (``load_dataset("DATASET")``
+  reads the header too, but datasets 4.0 caches a folder with a header by its name and header
+  only: a resumed sweep's new rows, or another folder of the same name, come back stale);
 * ``yolo/detect/<sensor>/`` and ``yolo/pose/<sensor>/`` -- Ultralytics YOLO exports (images are
   hard links to the 8-bit sensor images, copies on an object store; labels normalised ``class cx cy w h`` and, for pose,
   the 17 COCO keypoints ``x y v``; ``data.yaml`` without ``path``, so the root is its folder).
@@ -89,6 +93,8 @@ def assemble(dataset, sweep, tasks) -> dict:
             for fr in s["frames"]:
                 chain = fr.get("sensor_chain") or {}
                 err = fr.get("monte_carlo_error") or {}
+                err_k = fr.get("monte_carlo_error_k") or {}  # infrared, away from edges
+                err_rel = fr.get("monte_carlo_error_relative") or {}  # EO, away from edges
                 stem = fr["exr"].removesuffix(".exr")
                 row = {
                     "variant": task.variant,
@@ -105,7 +111,10 @@ def assemble(dataset, sweep, tasks) -> dict:
                     "coco_image_id": coco_ids.get((s["name"], fr["frame"])),
                     "render_seed": by_id[task.variant].render_seed,
                     "seconds": per_image_s,
-                    "mc_error_k": err.get("temperature_stderr_mean_k"),
+                    "mc_error_k": err_k.get("mean_k"),
+                    "mc_error_p99_k": err_k.get("p99_k"),
+                    "mc_error_edge_k": err_k.get("edge_mean_k"),
+                    "mc_error_relative": err_rel.get("mean"),
                     "mc_error": err.get("radiance_stderr_mean", fr.get("Y_stderr_mean")),
                     "peak_rss_mb": record.get("peak_rss_mb"),
                 }
@@ -168,6 +177,7 @@ def _summary(sweep, rows: list[dict], coco: dict) -> dict:
         for sensor, doc in coco.items()
     }
     errs = [r["mc_error_k"] for r in rows if r["mc_error_k"] is not None]
+    errs_rel = [r["mc_error_relative"] for r in rows if r["mc_error_relative"] is not None]
     secs = [r["seconds"] for r in rows]
     return {
         "name": sweep.name,
@@ -181,6 +191,7 @@ def _summary(sweep, rows: list[dict], coco: dict) -> dict:
         "render": sweep.render,
         "seconds_per_image_median": float(np.median(secs)) if secs else None,
         "mc_error_k_median": float(np.median(errs)) if errs else None,
+        "mc_error_relative_median": float(np.median(errs_rel)) if errs_rel else None,
         "files": {
             "index": "index.parquet",
             "coco": {s: f"coco/{s}.json" for s in coco},
@@ -306,6 +317,22 @@ def _distribution_lines(params: dict) -> list[str]:
     return lines
 
 
+def _error_text(rows: list[dict]) -> str:
+    """A sensor's median Monte Carlo error away from edges: mK (infrared) or % of mean Y (EO)."""
+    k = [r["mc_error_k"] for r in rows if r["mc_error_k"] is not None]
+    rel = [r["mc_error_relative"] for r in rows if r["mc_error_relative"] is not None]
+    if k:
+        p99 = [r["mc_error_p99_k"] for r in rows if r["mc_error_p99_k"] is not None]
+        return (
+            f"{np.median(k) * 1e3:.1f} mK (99th percentile {np.median(p99) * 1e3:.0f} mK)"
+            if p99
+            else f"{np.median(k) * 1e3:.1f} mK"
+        )
+    if rel:
+        return f"{np.median(rel) * 100:.2f} % of mean Y"
+    return "-"
+
+
 def _write_card(loc: Location, sweep, rows: list[dict], summary: dict, params: dict) -> None:
     lines = [
         "---",
@@ -322,12 +349,14 @@ def _write_card(loc: Location, sweep, rows: list[dict], summary: dict, params: d
         f"{summary['variants']} variants ({summary['variants_with_images']} with images), "
         f"{summary['frames']} frames, {summary['images']} images; render {sweep.render['spp'] or 'automatic'} spp.",
         "",
-        "| sensor | images | annotations |",
-        "|---|---|---|",
+        "| sensor | images | annotations | Monte Carlo error away from edges (median) |",
+        "|---|---|---|---|",
     ]
     for sensor, n in summary["images_per_sensor"].items():
         anns = ", ".join(f"{k} {v}" for k, v in summary["annotations_per_sensor"].get(sensor, {}).items())
-        lines.append(f"| {sensor} | {n} | {anns or '-'} |")
+        lines.append(
+            f"| {sensor} | {n} | {anns or '-'} | {_error_text([r for r in rows if r['sensor'] == sensor])} |"
+        )
     present = {r["variant"] for r in rows}  # distributions over the variants with images
     params = {name: {k: v for k, v in values.items() if k in present} for name, values in params.items()}
     lines += ["", "## Parameters (variants with images)", "", *_distribution_lines(params), ""]
@@ -342,14 +371,21 @@ def _write_card(loc: Location, sweep, rows: list[dict], summary: dict, params: d
         "## Files",
         "",
         "- `index.parquet` / `dataset.json`: one row per variant, frame and sensor (parameters as "
-        "`param_*` columns, paths relative to this folder, `seconds` per image, `mc_error_k` the mean "
-        "Monte Carlo standard error [K]).",
+        "`param_*` columns, paths relative to this folder, `seconds` per image; Monte Carlo error "
+        "of the image: infrared `mc_error_k` / `mc_error_p99_k` the mean / 99th percentile of the "
+        "per-pixel standard error [K] over pixels away from geometric edges (the render's NETD/3 "
+        "criterion), `mc_error_edge_k` the edge pixels' mean, EO `mc_error_relative` the mean error "
+        "of Y over the mean Y away from edges; `mc_error` the mean radiance (EO: Y) standard error "
+        "over all pixels).",
         "- `coco/<sensor>.json`: COCO with RLE masks, boxes, COCO-17 keypoints (ids unique over the dataset).",
         "- `yolo/detect/<sensor>`, `yolo/pose/<sensor>`: Ultralytics YOLO exports with `data.yaml`.",
         "- `renders/<variant>/<chunk>/`: the render outputs (EXR with labels, PNGs, `camera.json`, "
         "`<frame>.objects.json`, manifest); `variants/<variant>/`: each variant's scenario and stage.",
         "",
-        'Load the index with Hugging Face `datasets`: `datasets.load_dataset("<this folder>")`.',
+        "Load the index with Hugging Face `datasets`: "
+        '`datasets.load_dataset("parquet", data_files="<this folder>/index.parquet", split="train")` '
+        '(it re-reads a changed index; `load_dataset("<this folder>")` caches a local folder by its '
+        "name: after a resumed sweep it can return the old rows).",
         "",
     ]
     loc.write_text("README.md", "\n".join(lines))

@@ -7,7 +7,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from humv_usd.errors import InputError
 from humv_usd.pipeline import compose as compose_mod
+from humv_usd.pipeline.budget import free_disk, size_text
 from humv_usd.pipeline.graph import build_order, layer_graph
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
@@ -108,42 +110,61 @@ def _pixel_bytes(sensor: dict) -> float:
     return DISK_BYTES_PER_PIXEL["eo" if sensor.get("band") == "EO" else "ir"]
 
 
-def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dict:
-    """Counts and an estimated wall time (see the module constants for the rates)."""
-    tasks = render_tasks(sweep)
+def estimate(
+    sweep: Sweep,
+    keys: dict[str, dict[str, str]],
+    workers: int,
+    done: set[tuple[str, str]] = frozenset(),
+    composed: set[str] = frozenset(),
+) -> dict:
+    """Counts, and an estimated wall time and disk of what is left to do (see the module constants
+    for the rates): ``done`` the (variant, chunk) of the render tasks a dataset already holds,
+    ``composed`` its composed variants (both empty for a new dataset; their layers are in the
+    dataset's layer store)."""
+    all_tasks = render_tasks(sweep)
+    todo = [t for t in all_tasks if (t.variant, t.chunk) not in done]
     spp, sensors = sweep.render["spp"] or AUTO_SPP_COST, sweep.render["sensors"]
-    frames = sum(len(t.frames) for t in tasks)
-    samples = images = 0
-    disk = 0.0
     by_variant = {v.id: v for v in sweep.variants}
-    for t in tasks:
-        sc = by_variant[t.variant].scenario
-        for s in _selected_sensors(sc, sensors):
+
+    def n_images(t: RenderTask) -> int:
+        return len(t.frames) * len(_selected_sensors(by_variant[t.variant].scenario, sensors))
+
+    samples = 0
+    disk = 0.0
+    for t in todo:
+        for s in _selected_sensors(by_variant[t.variant].scenario, sensors):
             pixels = s["resolution"][0] * s["resolution"][1] * len(t.frames)
             samples += pixels * spp
-            images += len(t.frames)
             disk += pixels * _pixel_bytes(s)
-    disk += sum(v.scenario.frame_count for v in sweep.variants) * DISK_BYTES_PER_VARIANT_FRAME
-    frames_of = {}
-    for v in sweep.variants:  # each unique layer once, with the frame count of its first variant
+    images_todo = sum(n_images(t) for t in todo)
+    pending = {t.variant for t in todo}
+    to_compose = [v for v in sweep.variants if v.id in pending and v.id not in composed]
+    disk += sum(v.scenario.frame_count for v in to_compose) * DISK_BYTES_PER_VARIANT_FRAME
+    stored = {(n, k) for vid in composed for n, k in keys[vid].items()}
+    frames_of = {}  # each layer left to build once, with the frame count of its first variant
+    for v in to_compose:
         for n, k in keys[v.id].items():
-            frames_of.setdefault((n, k), v.scenario.frame_count)
-    total_layers = sum(len(lk) for lk in keys.values())
+            if (n, k) not in stored:
+                frames_of.setdefault((n, k), v.scenario.frame_count)
     compose_s = 0.0
     for (n, _), count in frames_of.items():
         fixed, per_frame = COMPOSE_SECONDS.get(n.split("_")[0], (0.1, 0.0))
         compose_s += fixed + per_frame * count
-    unique = frames_of
-    render_s = samples / SAMPLES_PER_SECOND_PER_WORKER + images * SECONDS_PER_IMAGE
+    render_s = samples / SAMPLES_PER_SECOND_PER_WORKER + images_todo * SECONDS_PER_IMAGE
     wall = (compose_s + render_s) / max(1, workers)
     return {
         "variants": len(sweep.variants),
-        "render_tasks": len(tasks),
-        "frames": frames,
-        "images": images,
+        "render_tasks": len(all_tasks),
+        "frames": sum(len(t.frames) for t in all_tasks),
+        "images": sum(n_images(t) for t in all_tasks),
+        "tasks_done": len(all_tasks) - len(todo),
+        "frames_done": sum(len(t.frames) for t in all_tasks) - sum(len(t.frames) for t in todo),
+        "variants_composed": len(composed),
+        "variants_to_compose": len(to_compose),
+        "images_todo": images_todo,
         "megasamples": round(samples / 1e6, 1),
-        "layers": total_layers,
-        "unique_layers": len(unique),
+        "layers": sum(len(lk) for lk in keys.values()),
+        "layers_to_build": len(frames_of),
         "workers": workers,
         "compose_s": round(compose_s, 1),
         "render_s": round(render_s, 1),
@@ -151,5 +172,25 @@ def estimate(sweep: Sweep, keys: dict[str, dict[str, str]], workers: int) -> dic
         "wall_h": round(wall / 3600.0, 2),
         "disk_bytes": disk,
         "disk_gb": round(disk / 1e9, 1),
-        "frames_per_hour": round(images / wall * 3600.0) if wall > 0 else math.inf,
+        "frames_per_hour": round(images_todo / wall * 3600.0) if wall > 0 else math.inf,
     }
+
+
+def disk_text(est: dict, folder) -> str:
+    """ "X GB free at FOLDER" (its nearest existing parent), with a warning when the estimate does
+    not fit."""
+    free = free_disk(folder)
+    warn = " - WARNING: more than is free; free space or write elsewhere" if est["disk_bytes"] > free else ""
+    return f"{size_text(free)} free at {folder}{warn}"
+
+
+def require_disk(est: dict, folder, yes: bool = False) -> None:
+    """Refuse (InputError, one line) a sweep whose estimated writes of what is left do not fit the
+    free disk at ``folder``, unless ``yes``: a sweep that fills the disk fails its tasks hours in."""
+    free = free_disk(folder)
+    if est["disk_bytes"] > free and not yes:
+        raise InputError(
+            f"sweep: about {size_text(est['disk_bytes'])} left to write ({est['images_todo']} images, "
+            f"{est['variants_to_compose']} variants to compose), {size_text(free)} free at "
+            f"{folder}: free space or write elsewhere, or pass --yes to go ahead anyway"
+        )

@@ -31,7 +31,14 @@ from humv_usd.errors import InputError
 from humv_usd.fileio import check_output_dir
 from humv_usd.sweep import store
 from humv_usd.sweep.dataset import assemble
-from humv_usd.sweep.plan import RenderTask, compose_dependencies, layer_keys, render_tasks
+from humv_usd.sweep.plan import (
+    RenderTask,
+    compose_dependencies,
+    estimate,
+    layer_keys,
+    render_tasks,
+    require_disk,
+)
 from humv_usd.sweep.spec import Sweep, _plain
 from humv_usd.sweep.tasks import compose_variant, drop_local_cache, error_text, render_chunk
 from humv_usd.sweep.where import Location, local_cache
@@ -197,11 +204,14 @@ def run_sweep(
     on_event: Callable[[dict], None] | None = None,
     limit: int | None = None,
     cpus_per_worker: int | None = None,
+    yes: bool = False,
 ) -> SweepResult:
     """Run what is missing of ``sweep`` into ``dataset`` and assemble the dataset; see the module
     doc. ``limit``: run only the first ``limit`` variants (a later run without it adds the rest).
-    ``cpus_per_worker``: bind each local worker to that many cores of its own (see :class:`_Dask`). Raises InputError (nothing written) for a folder that cannot be written, a folder of
-    another sweep or one another live sweep is writing."""
+    ``cpus_per_worker``: bind each local worker to that many cores of its own (see :class:`_Dask`).
+    Raises InputError (nothing written) for a folder that cannot be written, a folder of another
+    sweep or one another live sweep is writing, and (unless ``yes``) a local folder without the
+    free disk the estimate of what is left needs (:func:`plan.estimate`)."""
     t0 = time.perf_counter()
     loc = _location(dataset, scheduler, workers)
     dataset = loc.url if loc.remote else loc.path
@@ -211,6 +221,12 @@ def run_sweep(
     if limit is not None:
         wanted = {v.id for v in sweep.variants[:limit]}
         tasks = [t for t in tasks if t.variant in wanted]
+    if not loc.remote:  # before the lock: a refused new folder is not created
+        wanted_tasks = set(tasks)
+        skipped = {(t.variant, t.chunk) for t in render_tasks(sweep) if t not in wanted_tasks}
+        held = store.done_tasks(loc) if loc.path.is_dir() else set()
+        composed = {v.id for v in sweep.variants if store.compose_done(loc, v.id)}
+        require_disk(estimate(sweep, keys, 1, held | skipped, composed), loc.path, yes)
     with store.dataset_lock(loc) as lease:
         store.check_sweep_record(loc, sweep.digest())
         write_variant_files(loc, sweep)
