@@ -567,13 +567,25 @@ def _workers(pid: int) -> list[int]:
     return out
 
 
+#: the kill test's sweep: 4 variants x 4 frames, one frame per task (16 chunks long enough to be
+#: killed in: the tiny sweep's 8 chunks of 32 x 24 pixels land in bursts of 2-3 after a restart)
+KILL_BASE = TINY.replace("duration_s = 0.25", "duration_s = 0.75").replace("[32, 24]", "[96, 72]")
+
+
 @pytest.mark.slow
-def test_kill_9_at_random_moments_loses_nothing(reference, tmp_path):
+def test_kill_9_at_random_moments_loses_nothing(tmp_path):
     """Kill the sweep (client and its local cluster: the whole process group, as a crash would;
-    or one worker process) with SIGKILL at 5 random moments, re-run the same command each time,
-    and compare with the uninterrupted sweep: no frame lost, duplicated or different."""
-    _, _, ref, _ = reference
-    path = _write(tmp_path)
+    or one worker process) with SIGKILL at 5 random moments while chunks render, re-run the same
+    command each time, and compare with the uninterrupted sweep: no frame lost, duplicated or
+    different."""
+    from humv_usd.sweep.run import run_sweep
+
+    (tmp_path / "ref").mkdir()
+    ref = tmp_path / "ref" / "dataset"
+    run_sweep(load_sweep(_write(tmp_path / "ref", base=KILL_BASE)), ref, workers=0)
+    n_chunks = len(list((ref / "renders").glob("*/*/task.json")))
+    assert n_chunks == 16
+    path = _write(tmp_path, base=KILL_BASE)
     dataset = tmp_path / "dataset"
     cmd = [sys.executable, "-m", "humv_usd.cli.main", "sweep", str(path), "-o", str(dataset), "--quiet"]
     cmd += ["--workers", "2"]
@@ -587,21 +599,23 @@ def test_kill_9_at_random_moments_loses_nothing(reference, tmp_path):
         proc = subprocess.Popen(
             cmd, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
-        # a random moment: after 0-2 more chunks have landed, plus 0-1.5 s
-        target, t0 = min(7, done() + rng.randint(0, 2)), time.monotonic()
+        # a random moment while chunks are rendering: after the next chunk has landed, plus 0-0.5 s
+        target, t0 = min(n_chunks - 1, done() + 1), time.monotonic()
         while done() < target and proc.poll() is None and time.monotonic() - t0 < 180:
-            time.sleep(0.1)
-        time.sleep(rng.uniform(0.0, 1.5))
+            time.sleep(0.05)
+        time.sleep(rng.uniform(0.0, 0.5))
         target_kind = "group"
         if proc.poll() is None:
             workers = _workers(proc.pid) if k % 2 else []
             if workers:  # a worker process (its nanny starts a new one; Dask reschedules the task)
                 target_kind = "worker"
                 os.kill(rng.choice(workers), signal.SIGKILL)
-                time.sleep(rng.uniform(1.0, 3.0))
+                time.sleep(rng.uniform(0.5, 1.5))
             os.killpg(proc.pid, signal.SIGKILL)  # then the client and its cluster, as a crash
             proc.wait()
         kills.append((round(time.monotonic() - t0, 1), target_kind, done()))
+    print("kills (delay s, target, chunks done):", kills)
+    assert sum(n < n_chunks for *_, n in kills) >= 4  # mid-sweep, not after the last chunk
     final = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     assert final.returncode == 0, final.stderr
     assert not any((dataset / ".sweep" / "staging").iterdir())
@@ -609,20 +623,19 @@ def test_kill_9_at_random_moments_loses_nothing(reference, tmp_path):
     # every frame once: the index, the merged COCO and the per-frame labels equal the reference
     idx = json.loads((dataset / "dataset.json").read_text())["index"]
     keys = [(r["variant"], r["frame"], r["sensor"]) for r in idx]
-    assert len(keys) == len(set(keys)) == 8
+    assert len(keys) == len(set(keys)) == n_chunks
     assert (dataset / "coco" / "cam.json").read_bytes() == (ref / "coco" / "cam.json").read_bytes()
     assert _files(dataset, ".objects.json") == _files(ref, ".objects.json")
     # a chunk's own coco.json differs only in its info (the stage's absolute path)
     strip = lambda files: {k: {**json.loads(v), "info": None} for k, v in files.items()}  # noqa: E731
     assert strip(_files(dataset, "coco.json")) == strip(_files(ref, "coco.json"))
     exrs = sorted((ref / "renders").rglob("*.exr"))
-    assert len(exrs) == 8
+    assert len(exrs) == n_chunks
     for p in exrs:
         a, b = images.read_exr(p), images.read_exr(dataset / p.relative_to(ref))
         assert a.keys() == b.keys()
         for name in a:
             np.testing.assert_array_equal(a[name], b[name], err_msg=f"{p}: {name}")
-    print("kills (delay s, target, chunks done):", kills)
 
 
 @pytest.mark.slow
