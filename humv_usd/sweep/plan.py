@@ -177,8 +177,8 @@ def estimate(
 
 
 def disk_text(est: dict, folder) -> str:
-    """ "X GB free at FOLDER" (its nearest existing parent), with a warning when the estimate does
-    not fit."""
+    """ "X GB free at FOLDER" (the free space of its nearest existing parent), with a warning when
+    the estimate does not fit."""
     free = free_disk(folder)
     warn = " - WARNING: more than is free; free space or write elsewhere" if est["disk_bytes"] > free else ""
     return f"{size_text(free)} free at {folder}{warn}"
