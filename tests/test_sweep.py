@@ -703,3 +703,29 @@ def test_progress_prints_status_lines_when_stderr_is_not_a_terminal(capsys, monk
     with sweep_cmd._Progress(quiet=True) as p:  # --quiet: nothing
         p({"type": "start", "variants": 1, "tasks": 1, "done": 0, "frames": 1, "frames_done": 0})
     assert "min: variants composed" not in capsys.readouterr().err
+
+
+def test_a_local_cluster_does_not_fight_another_for_port_8787():
+    """Two sweeps (or a sweep and a bench) on one machine: the second's scheduler must not warn
+    that 8787 is taken (its HTTP server goes to a free port; no dashboard)."""
+    import socket
+    import warnings
+
+    from humv_usd.sweep.run import _Dask
+
+    holder = socket.socket()
+    try:
+        holder.bind(("127.0.0.1", 8787))  # taken by us, or already by another process: taken
+        holder.listen(1)
+    except OSError:
+        pass
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            ex = _Dask(None, 1)
+        try:
+            assert ex.workers == 1 and ex.client.submit(sum, [1, 2]).result() == 3
+        finally:
+            ex.close()
+    finally:
+        holder.close()

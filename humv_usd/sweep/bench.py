@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 
 from humv_usd.sweep import store
-from humv_usd.sweep.run import run_sweep
+from humv_usd.sweep.run import NO_DASHBOARD, run_sweep
 from humv_usd.sweep.spec import load_sweep
 
 SWEEP_TEXT = """
@@ -104,7 +104,7 @@ def scheduler_cost(n: int = 200) -> float:
 
     with (
         distributed.LocalCluster(
-            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=1, threads_per_worker=1, processes=True, **NO_DASHBOARD
         ) as cluster,
         distributed.Client(cluster) as client,
     ):

@@ -111,6 +111,12 @@ class _InProcess:
         pass
 
 
+#: LocalCluster options: no dashboard, and the scheduler's HTTP server (health, metrics) on a free
+#: port (with ``dashboard_address=None`` it still takes 8787 and, when another cluster on the
+#: machine has it, warns "Port 8787 is already in use")
+NO_DASHBOARD = {"dashboard_address": None, "scheduler_kwargs": {"dashboard_address": ":0"}}
+
+
 def _pin_worker(cpus_per_worker: int):
     """A worker plugin that binds local worker ``i`` (its name) and every thread of its process to
     its own ``cpus_per_worker`` cores, ``[i k, (i + 1) k)`` modulo the cores (Linux)."""
@@ -149,8 +155,8 @@ class _Dask:
                 n_workers=n,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
                 silence_logs=logging.ERROR,
+                **NO_DASHBOARD,
             )
             self.client = distributed.Client(self.cluster)
         self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
