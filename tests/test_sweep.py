@@ -388,6 +388,7 @@ def test_one_dataset_out(reference):
         assert row["mc_error_k"] == fr["monte_carlo_error_k"]["mean_k"]
         assert row["mc_error_p99_k"] == fr["monte_carlo_error_k"]["p99_k"] > 0
         assert row["mc_error_relative"] is None
+        assert 0 < row["task_peak_rss_mb"] <= row["peak_rss_mb"]  # the task's own, the worker's so far
     summary = json.loads((dataset / "dataset.json").read_text())
     assert summary["images"] == 8 and summary["images_per_sensor"] == {"cam": 8}
     card = (dataset / "README.md").read_text()

@@ -90,3 +90,28 @@ def test_worker_releases_memory_only_after_growing_past_its_first_render_task(mo
     # first task sets the mark; +4.5 % keeps; +10 % releases; then below again
     assert [tasks.release_memory_if_grown() for _ in range(4)] == [False, False, True, False]
     assert released == [1]
+
+
+TASK_PEAK_PROBE = """
+import numpy as np
+from humv_usd.sweep import tasks
+tasks.start_task_peak()
+a = np.ones(40_000_000)  # 320 MB, touched
+del a
+big = tasks.task_peak_mb()
+tasks.start_task_peak()  # the next task
+b = np.ones(5_000_000)  # 40 MB
+del b
+small = tasks.task_peak_mb()
+print(big, small, tasks._rss_mb()[1])
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="/proc/self/clear_refs")
+def test_a_tasks_own_peak_is_measured_and_the_workers_peak_kept():
+    """A worker's lifetime peak only says which task was the heaviest so far; each task records
+    its own peak (the kernel's high-water mark reset at its start) and the worker's is kept."""
+    out = subprocess.run([sys.executable, "-c", TASK_PEAK_PROBE], capture_output=True, text=True, check=True)
+    big, small, process = (float(x) for x in out.stdout.split()[-3:])
+    assert big - small > 250.0, (big, small)
+    assert process >= big

@@ -117,6 +117,7 @@ def assemble(dataset, sweep, tasks) -> dict:
                     "mc_error_relative": err_rel.get("mean"),
                     "mc_error": err.get("radiance_stderr_mean", fr.get("Y_stderr_mean")),
                     "peak_rss_mb": record.get("peak_rss_mb"),
+                    "task_peak_rss_mb": record.get("task_peak_rss_mb"),
                 }
                 row.update({name: values.get(task.variant) for name, values in params.items()})
                 rows.append(row)

@@ -36,14 +36,54 @@ from humv_usd.sweep.where import Location, local_cache
 
 
 def _rss_mb() -> tuple[float, float]:
-    """(current, peak) resident memory of this process [MB] (Linux /proc, getrusage)."""
+    """(current, peak) resident memory of this process [MB] (Linux /proc, getrusage; the peak over
+    the whole process, the per-task resets of :func:`start_task_peak` included)."""
     try:
         with open("/proc/self/statm") as f:
             pages = int(f.read().split()[1])
         current = pages * os.sysconf("SC_PAGE_SIZE") / 2**20
     except (OSError, ValueError):
         current = float("nan")
-    return current, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    # getrusage and /proc/self/status read the kernel's split RSS counters at different moments
+    return current, max(_process_peak_mb[0], _maxrss_mb(), task_peak_mb() or 0.0)
+
+
+def _maxrss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+#: this process's peak resident memory before the last reset [MB]
+_process_peak_mb = [0.0]
+_task_peak_started: list[bool] = [False]
+
+
+def start_task_peak() -> None:
+    """Start measuring this task's own peak resident memory: reset the kernel's high-water mark of
+    this process (Linux >= 4.0: writing 5 to ``/proc/self/clear_refs`` resets VmHWM, proc(5)). The
+    reset also resets getrusage's ``ru_maxrss``, so the process peak is carried over here first.
+    Without it (another OS) :func:`task_peak_mb` is None: a lifetime peak of a worker that renders
+    many variants only says which task was the heaviest so far."""
+    _process_peak_mb[0] = max(_process_peak_mb[0], _maxrss_mb())
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        _task_peak_started[0] = True
+    except OSError:
+        _task_peak_started[0] = False
+
+
+def task_peak_mb() -> float | None:
+    """This task's peak resident memory [MB] since :func:`start_task_peak` (VmHWM), or None."""
+    if not _task_peak_started[0]:
+        return None
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
 
 
 #: glibc ``mallopt`` parameters (malloc.h) and the values a worker sets: blocks below
@@ -106,6 +146,7 @@ def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> di
     record last."""
     t0 = time.perf_counter()
     tune_malloc()
+    start_task_peak()
     loc = Location(dataset)
     scenario = validate(raw, Path(base_path))
     keys = layer_keys(scenario)
@@ -126,6 +167,7 @@ def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> di
     record = {
         "variant": variant,
         "seconds": time.perf_counter() - t0,
+        "task_peak_rss_mb": task_peak_mb(),
         "rebuilt": report.rebuilt,
         "from_store": taken,
         "keys": keys,
@@ -153,6 +195,7 @@ def render_chunk(dataset: str, variant: str, chunk: str, frames: list[int], sett
     """Render ``frames`` of a composed variant; the outputs land in ``renders/<variant>/<chunk>``
     in one rename, with ``task.json`` (frames, seconds, Monte Carlo error, memory)."""
     tune_malloc()
+    start_task_peak()
     if Location(dataset).remote:
         return _render_chunk_remote(Location(dataset), variant, chunk, frames, settings)
     dataset_dir = Path(dataset)
@@ -197,6 +240,7 @@ def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, setti
         annotators=settings.get("annotators"),
         subbands=settings.get("subbands"),
     )
+    task_peak = task_peak_mb()  # before a release: what the task itself held
     released = release_memory_if_grown()
     rss, peak = _rss_mb()
     return {
@@ -207,7 +251,8 @@ def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, setti
         "render_seconds": manifest["timings_s"].get("total"),
         "monte_carlo_error": manifest.get("monte_carlo_error"),
         "rss_mb": rss,  # after the task (and the release, when there was one)
-        "peak_rss_mb": peak,
+        "peak_rss_mb": peak,  # of the worker process so far
+        "task_peak_rss_mb": task_peak,  # of this task alone (None where it cannot be measured)
         "memory_released": released,
         "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
         "host": socket.gethostname(),
