@@ -568,9 +568,10 @@ def _workers(pid: int) -> list[int]:
     return out
 
 
-#: the kill test's sweep: 4 variants x 4 frames, one frame per task (16 chunks long enough to be
-#: killed in: the tiny sweep's 8 chunks of 32 x 24 pixels land in bursts of 2-3 after a restart)
-KILL_BASE = TINY.replace("duration_s = 0.25", "duration_s = 0.75").replace("[32, 24]", "[96, 72]")
+#: the kill test's sweep: 4 variants x 6 frames, one frame per task (24 chunks of 160 x 120,
+#: long enough to be killed in: the tiny sweep's 8 chunks of 32 x 24 pixels land in bursts of
+#: 2-3 after a restart, and 16 chunks of 96 x 72 all landed within a second on the idle machine)
+KILL_BASE = TINY.replace("duration_s = 0.25", "duration_s = 1.25").replace("[32, 24]", "[160, 120]")
 
 
 @pytest.mark.slow
@@ -585,7 +586,7 @@ def test_kill_9_at_random_moments_loses_nothing(tmp_path):
     ref = tmp_path / "ref" / "dataset"
     run_sweep(load_sweep(_write(tmp_path / "ref", base=KILL_BASE)), ref, workers=0)
     n_chunks = len(list((ref / "renders").glob("*/*/task.json")))
-    assert n_chunks == 16
+    assert n_chunks == 24
     path = _write(tmp_path, base=KILL_BASE)
     dataset = tmp_path / "dataset"
     cmd = [sys.executable, "-m", "humv_usd.cli.main", "sweep", str(path), "-o", str(dataset), "--quiet"]
@@ -611,7 +612,7 @@ def test_kill_9_at_random_moments_loses_nothing(tmp_path):
             if workers:  # a worker process (its nanny starts a new one; Dask reschedules the task)
                 target_kind = "worker"
                 os.kill(rng.choice(workers), signal.SIGKILL)
-                time.sleep(rng.uniform(0.5, 1.5))
+                time.sleep(rng.uniform(0.2, 0.8))
             os.killpg(proc.pid, signal.SIGKILL)  # then the client and its cluster, as a crash
             proc.wait()
         kills.append((round(time.monotonic() - t0, 1), target_kind, done()))
