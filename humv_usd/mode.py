@@ -17,6 +17,7 @@ The visible (EO) render uses the spectral variant of the same backend (``llvm_ad
 
 from __future__ import annotations
 
+import functools
 import glob
 import os
 import sys
@@ -202,9 +203,11 @@ def release_memory() -> None:
         c.malloc_trim(0)
 
 
+@functools.cache
 def glibc():
     """This process's glibc (``ctypes.CDLL``) for its malloc controls (``mallopt``,
-    ``malloc_trim``), or None elsewhere (macOS, musl)."""
+    ``malloc_trim``), or None elsewhere (macOS, musl). Looked up once: ``find_library`` runs
+    ``ldconfig -p`` in a child process (2 ms here, more forked from a worker of some GB)."""
     import ctypes
     import ctypes.util
 

@@ -201,18 +201,12 @@ def _dry_run(sw, out_dir: str, workers, limit) -> None:
     import os
 
     from humv_usd.sweep import store
-    from humv_usd.sweep.plan import disk_text, estimate, layer_keys, render_tasks
+    from humv_usd.sweep.plan import disk_text, estimate, held_work, layer_keys
     from humv_usd.sweep.where import Location, is_url
 
     loc = Location(out_dir if is_url(out_dir) else Path(out_dir).resolve())
-    done, composed = set(), set()
-    if loc.remote or loc.path.is_dir():
-        store.check_sweep_record(loc, sw.digest())
-        done = store.done_tasks(loc)
-        composed = {v.id for v in sw.variants if store.compose_done(loc, v.id)}
-    if limit is not None:
-        wanted = {v.id for v in sw.variants[:limit]}
-        done |= {(t.variant, t.chunk) for t in render_tasks(sw) if t.variant not in wanted}
+    store.check_sweep_record(loc, sw.digest())
+    done, composed = held_work(sw, loc, limit)
     keys = {v.id: layer_keys(v.scenario) for v in sw.variants}
     n_workers = workers if workers else (os.cpu_count() or 1)
     for v in sw.variants:

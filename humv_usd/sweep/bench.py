@@ -17,8 +17,9 @@ Method (all on a local Dask cluster of processes, like a default ``humv-usd swee
    Dr.Jit threads, its writer thread), 2 workers against 1 cannot approach 2x; against one worker
    per core they show how the sweep scales as workers (cores, nodes) are added.
 4. *Memory*: each task records its worker's resident memory at the end (``/proc/self/statm``),
-   the worker's peak so far and the task's own peak (``tasks.start_task_peak``); with ``long_frames`` > 0 a one-worker sweep of that many frames
-   (tiny 64 x 48 images, 1 spp, ``long_frames_per_task`` = 10 frames per task) gives the RSS of the task at 5 % of the run
+   the worker's peak so far and the task's own peak (``tasks.start_task_peak``); with
+   ``long_frames`` > 0 a one-worker sweep of that many frames (tiny 64 x 48 images, 1 spp,
+   ``long_frames_per_task`` = 10 frames per task) gives the RSS of the task at 5 % of the run
    against the last one.
 5. *Scheduler cost per task*: 200 no-op tasks on a 1-worker cluster, wall time / 200.
 

@@ -177,8 +177,6 @@ def _summary(sweep, rows: list[dict], coco: dict) -> dict:
         sensor: dict(Counter(CLASSES[a["category_id"]] for a in doc["annotations"]))
         for sensor, doc in coco.items()
     }
-    errs = [r["mc_error_k"] for r in rows if r["mc_error_k"] is not None]
-    errs_rel = [r["mc_error_relative"] for r in rows if r["mc_error_relative"] is not None]
     secs = [r["seconds"] for r in rows]
     return {
         "name": sweep.name,
@@ -191,8 +189,8 @@ def _summary(sweep, rows: list[dict], coco: dict) -> dict:
         "annotations_per_sensor": anns,
         "render": sweep.render,
         "seconds_per_image_median": float(np.median(secs)) if secs else None,
-        "mc_error_k_median": float(np.median(errs)) if errs else None,
-        "mc_error_relative_median": float(np.median(errs_rel)) if errs_rel else None,
+        "mc_error_k_median": _median(rows, "mc_error_k"),
+        "mc_error_relative_median": _median(rows, "mc_error_relative"),
         "files": {
             "index": "index.parquet",
             "coco": {s: f"coco/{s}.json" for s in coco},
@@ -318,19 +316,19 @@ def _distribution_lines(params: dict) -> list[str]:
     return lines
 
 
+def _median(rows: list[dict], key: str) -> float | None:
+    """Median of a column over the rows that have it (None: none has)."""
+    values = [r[key] for r in rows if r[key] is not None]
+    return float(np.median(values)) if values else None
+
+
 def _error_text(rows: list[dict]) -> str:
     """A sensor's median Monte Carlo error away from edges: mK (infrared) or % of mean Y (EO)."""
-    k = [r["mc_error_k"] for r in rows if r["mc_error_k"] is not None]
-    rel = [r["mc_error_relative"] for r in rows if r["mc_error_relative"] is not None]
-    if k:
-        p99 = [r["mc_error_p99_k"] for r in rows if r["mc_error_p99_k"] is not None]
-        return (
-            f"{np.median(k) * 1e3:.1f} mK (99th percentile {np.median(p99) * 1e3:.0f} mK)"
-            if p99
-            else f"{np.median(k) * 1e3:.1f} mK"
-        )
-    if rel:
-        return f"{np.median(rel) * 100:.2f} % of mean Y"
+    k, p99, rel = (_median(rows, key) for key in ("mc_error_k", "mc_error_p99_k", "mc_error_relative"))
+    if k is not None:
+        return f"{k * 1e3:.1f} mK" + (f" (99th percentile {p99 * 1e3:.0f} mK)" if p99 is not None else "")
+    if rel is not None:
+        return f"{rel * 100:.2f} % of mean Y"
     return "-"
 
 

@@ -13,6 +13,7 @@ from humv_usd.pipeline.budget import free_disk, size_text
 from humv_usd.pipeline.graph import build_order, layer_graph
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.sweep import store
 from humv_usd.sweep.spec import Sweep, Variant
 
 #: camera samples per second of one worker with the fast infrared estimator (4 reflection
@@ -110,6 +111,20 @@ def _pixel_bytes(sensor: dict) -> float:
     return DISK_BYTES_PER_PIXEL["eo" if sensor.get("band") == "EO" else "ir"]
 
 
+def held_work(sweep: Sweep, loc, limit: int | None = None) -> tuple[set[tuple[str, str]], set[str]]:
+    """What :func:`estimate` leaves out for a dataset folder (a :class:`~humv_usd.sweep.where.Location`):
+    the (variant, chunk) of the render tasks it already holds, plus those of the variants after
+    the first ``limit``, and its composed variants (both empty for a folder not yet there)."""
+    done: set[tuple[str, str]] = set()
+    if loc.remote or loc.path.is_dir():
+        done = store.done_tasks(loc)
+    if limit is not None:
+        wanted = {v.id for v in sweep.variants[:limit]}
+        done |= {(t.variant, t.chunk) for t in render_tasks(sweep) if t.variant not in wanted}
+    composed = {v.id for v in sweep.variants if store.compose_done(loc, v.id)}
+    return done, composed
+
+
 def estimate(
     sweep: Sweep,
     keys: dict[str, dict[str, str]],
@@ -152,13 +167,14 @@ def estimate(
         compose_s += fixed + per_frame * count
     render_s = samples / SAMPLES_PER_SECOND_PER_WORKER + images_todo * SECONDS_PER_IMAGE
     wall = (compose_s + render_s) / max(1, workers)
+    frames = sum(len(t.frames) for t in all_tasks)
     return {
         "variants": len(sweep.variants),
         "render_tasks": len(all_tasks),
-        "frames": sum(len(t.frames) for t in all_tasks),
+        "frames": frames,
         "images": sum(n_images(t) for t in all_tasks),
         "tasks_done": len(all_tasks) - len(todo),
-        "frames_done": sum(len(t.frames) for t in all_tasks) - sum(len(t.frames) for t in todo),
+        "frames_done": frames - sum(len(t.frames) for t in todo),
         "variants_composed": len(composed),
         "variants_to_compose": len(to_compose),
         "images_todo": images_todo,

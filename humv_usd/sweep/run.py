@@ -35,6 +35,7 @@ from humv_usd.sweep.plan import (
     RenderTask,
     compose_dependencies,
     estimate,
+    held_work,
     layer_keys,
     render_tasks,
     require_disk,
@@ -228,11 +229,7 @@ def run_sweep(
         wanted = {v.id for v in sweep.variants[:limit]}
         tasks = [t for t in tasks if t.variant in wanted]
     if not loc.remote:  # before the lock: a refused new folder is not created
-        wanted_tasks = set(tasks)
-        skipped = {(t.variant, t.chunk) for t in render_tasks(sweep) if t not in wanted_tasks}
-        held = store.done_tasks(loc) if loc.path.is_dir() else set()
-        composed = {v.id for v in sweep.variants if store.compose_done(loc, v.id)}
-        require_disk(estimate(sweep, keys, 1, held | skipped, composed), loc.path, yes)
+        require_disk(estimate(sweep, keys, 1, *held_work(sweep, loc, limit)), loc.path, yes)
     with store.dataset_lock(loc) as lease:
         store.check_sweep_record(loc, sweep.digest())
         write_variant_files(loc, sweep)
