@@ -17,17 +17,18 @@ from pathlib import Path
 
 import numpy as np
 import tomlkit
-from fastapi import HTTPException, Request
-from fastapi.responses import FileResponse, PlainTextResponse
+from fastapi import HTTPException
+from fastapi.responses import FileResponse
 from nicegui import app, run, ui
 
 from humv_usd.catalog.garments import GARMENTS
 from humv_usd.editor.document import SaveRefused, ScenarioDocument
 from humv_usd.editor.fields import Field, all_fields, section_groups, value_text
+from humv_usd.editor.guard import LOOPBACK_NAMES, RequestGuard
 from humv_usd.editor.jobs import JobManager, humv_command, outputs
 from humv_usd.editor.plan import plan_svg
 from humv_usd.editor.preview import PREVIEW_WIDTH_PX, make_preview, preview_commands, preview_scenario
-from humv_usd.editor.safety import inside, upload_target
+from humv_usd.editor.safety import UploadExists, inside, store_upload, sweep_base, upload_target
 from humv_usd.editor.stage3d import stage_view
 from humv_usd.environment.sun import sun_at
 from humv_usd.errors import InputError
@@ -37,8 +38,7 @@ from humv_usd.sweep.spec import load_sweep
 
 log = logging.getLogger(__name__)
 
-LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
-TOKEN_COOKIE = "humv_editor_token"
+LOCAL_HOSTS = LOOPBACK_NAMES
 #: tab titles of the spec's sections (a section not listed is titled by its name)
 TAB_TITLES = {
     "general": "General",
@@ -98,20 +98,6 @@ def _install_routes(editor: Editor) -> None:
     @app.get("/files/scenario/{rel:path}")
     def scenario_file(rel: str):
         return _file_response(editor.doc.folder, rel)
-
-    if editor.token:
-
-        @app.middleware("http")
-        async def require_token(request: Request, call_next):
-            given = request.query_params.get("token") or request.cookies.get(TOKEN_COOKIE)
-            if not given or not secrets.compare_digest(given, editor.token):
-                return PlainTextResponse(
-                    "humv-usd edit: open the address with ?token=... printed at start", 403
-                )
-            response = await call_next(request)
-            if request.query_params.get("token"):
-                response.set_cookie(TOKEN_COOKIE, editor.token, httponly=True, samesite="strict")
-            return response
 
 
 class Page:
@@ -405,8 +391,15 @@ class Page:
         if self.sweep_errors:
             ui.notify("not saved: " + next(iter(self.sweep_errors.values())), type="negative")
             return
-        write_text_atomic(path, tomlkit.dumps(self.sweep_doc))
         self.sweep_check.clear()
+        try:
+            sweep_base(self.doc.folder, path, self.sweep_doc)
+        except InputError as exc:
+            ui.notify("not saved: " + str(exc), type="negative", multi_line=True)
+            with self.sweep_check:
+                ui.label(str(exc)).classes("text-negative text-body2")
+            return
+        write_text_atomic(path, tomlkit.dumps(self.sweep_doc))
         try:
             sweep = await run.io_bound(load_sweep, path)
         except InputError as exc:
@@ -423,6 +416,11 @@ class Page:
         path = self._sweep_path()
         if path is None or not path.is_file():
             ui.notify("save the sweep file first", type="warning")
+            return
+        try:
+            sweep_base(self.doc.folder, path, tomlkit.parse(path.read_text(encoding="utf-8")))
+        except (InputError, tomlkit.exceptions.TOMLKitError, UnicodeDecodeError) as exc:
+            ui.notify(str(exc), type="negative", multi_line=True)
             return
         args = ["sweep", str(path), "-o", str(self.editor.out_dir / "sweep")] + (
             ["--dry-run"] if dry_run else ["--quiet"]
@@ -597,14 +595,39 @@ class Page:
         return True
 
     async def upload(self, e) -> None:
+        name = e.file.name
         try:
-            target = upload_target(self.doc.folder, e.file.name, e.file.size())
+            upload_target(self.doc.folder, name, e.file.size())
+            data = await e.file.read()
+            self.store(name, data, replace=False)
+        except UploadExists as exc:
+            self.ask_replace(name, data, str(exc))
         except InputError as exc:
-            ui.notify(str(exc), type="negative")
-            return
-        write_bytes = await e.file.read()
-        target.write_bytes(write_bytes)
-        ui.notify(f"uploaded {target.name}")
+            ui.notify(str(exc), type="negative", multi_line=True)
+
+    def store(self, name: str, data: bytes, replace: bool) -> None:
+        """Write an upload atomically; the scenario being edited only by valid scenario bytes."""
+        target = store_upload(self.doc.folder, name, data, replace=replace, check=self.doc.check_replacement)
+        ui.notify(f"uploaded {target.name}" + (" (replaced)" if replace else ""))
+        if target == self.doc.path and not self.doc.modified:
+            self.reload()
+
+    def ask_replace(self, name: str, data: bytes, why: str) -> None:
+        """An upload named like an existing file replaces it only when the user says so."""
+        with ui.dialog() as dialog, ui.card():
+            ui.label(why)
+            with ui.row():
+
+                def replace() -> None:
+                    dialog.close()
+                    try:
+                        self.store(name, data, replace=True)
+                    except InputError as exc:
+                        ui.notify(str(exc), type="negative", multi_line=True)
+
+                ui.button(f"Replace {name}", on_click=replace).props("data-testid=upload-replace")
+                ui.button("Keep the file", on_click=dialog.close).props("outline")
+        dialog.open()
 
     # -- polling -----------------------------------------------------------------------------
     async def poll(self) -> None:
@@ -694,6 +717,8 @@ def serve(
         raise InputError(f"--host {host}: a server on another interface than 127.0.0.1 needs a token")
     EDITOR = Editor(ScenarioDocument(scenario), Path(out_dir).resolve(), token)
     _install_routes(EDITOR)
+    # Host, Origin and token on every request and websocket handshake (DNS rebinding, other sites)
+    app.add_middleware(RequestGuard, host=host, port=port, token=token)
 
     @ui.page("/")
     def index():

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -257,6 +258,28 @@ class ScenarioDocument:
         self.modified = False
         log.info("saved %s", self.path)
         return problems
+
+    def check_replacement(self, target: Path, data: bytes) -> None:
+        """Refuse ``data`` as the new content of this scenario file unless it is a valid scenario
+        (an upload named like the file being edited); other targets pass.
+
+        Raises
+        ------
+        SaveRefused
+            When ``target`` is this scenario and ``data`` is not UTF-8 TOML that validates.
+        """
+        if Path(target).resolve() != self.path:
+            return
+        try:
+            validate(tomllib.loads(data.decode("utf-8")), self.path)
+            return
+        except UnicodeDecodeError:
+            problem = "not UTF-8 text"
+        except tomllib.TOMLDecodeError as exc:
+            problem = f"not valid TOML ({exc})"
+        except InputError as exc:
+            problem = exc.problems[0] if exc.problems else str(exc)
+        raise SaveRefused(f"upload {self.path.name}: not a valid scenario, the file is kept: {problem}")
 
     def _disk_is_valid(self) -> bool:
         if not self.path.exists():
