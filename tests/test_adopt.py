@@ -385,3 +385,29 @@ def test_other_root_prim_paths(files, root):
     assert box.GetAttribute(S.LABEL_INSTANCE_ID).Get() == 7
     assert stage.GetPrimAtPath("/World/Scene/crate").GetAttribute(S.LABEL_CLASS).Get() == "vehicle"
     assert report.prims == 12
+
+
+def test_adopt_never_writes_over_from_or_the_export(files):
+    """Issue 26: ``-o`` the folder of ``--from`` overwrote the original stage."""
+    orig = files / "orig"
+    orig.mkdir()
+    (orig / "stage.usda").write_bytes((files / "original.usda").read_bytes())
+    before = {p: p.read_bytes() for p in files.rglob("*.usda")}
+    (orig / "alias").symlink_to(orig)
+    cases = [
+        (orig, orig / "stage.usda"),  # OUT = ORIGINAL's folder
+        (orig / "alias", orig / "stage.usda"),  # the same folder by another name
+        (orig / "sub" / "..", orig / "stage.usda"),
+        (files / "o2", files / "o2" / "stage.usda"),  # --from is the stage OUT would write
+    ]
+    for out, original in cases:
+        result = CliRunner().invoke(
+            main, ["adopt", str(files / "export.usda"), "-o", str(out), "--from", str(original)]
+        )
+        assert result.exit_code == 2, (out, result.output)
+        lines = result.output.strip().splitlines()
+        assert len(lines) == 1 and "--out" in lines[0] and "--from" in lines[0], result.output
+    result = CliRunner().invoke(main, ["adopt", str(orig / "stage.usda"), "-o", str(orig)])
+    assert result.exit_code == 2 and "BLENDER_EXPORT" in result.output
+    assert {p: p.read_bytes() for p in files.rglob("*.usda")} == before
+    assert not (orig / "layers").exists()

@@ -34,6 +34,31 @@ def _open_export(path: Path) -> Sdf.Layer:
     return stage.Flatten()
 
 
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
+    except OSError:  # a symlink loop: the output check reports it
+        return False
+
+
+def _refuse_writing_over_inputs(out: Path, export: Path, original_path) -> None:
+    written = (out / "stage.usda", out / ADOPTED_LAYER)
+    if original_path is not None:
+        original = Path(original_path)
+        if _same(out, original.parent) or any(_same(w, original) for w in written):
+            raise InputError(
+                bad_value(
+                    "--out",
+                    str(out),
+                    f"the folder of --from {original} (adopt writes OUT/stage.usda: choose another folder)",
+                )
+            )
+    if any(_same(w, export) for w in written):
+        raise InputError(
+            bad_value("--out", str(out), f"would write over BLENDER_EXPORT {export}: choose another folder")
+        )
+
+
 def adopt(
     export_path,
     out_dir,
@@ -43,7 +68,15 @@ def adopt(
     temperature_k: float | None = None,
     label_class: str = "other",
 ) -> tuple[Path, AdoptReport]:
-    """Adopt the Blender export ``export_path`` into ``out_dir``; returns (stage path, report)."""
+    """Adopt the Blender export ``export_path`` into ``out_dir``; returns (stage path, report).
+
+    Raises
+    ------
+    InputError
+        Besides bad inputs: when ``out_dir`` is the ``--from`` stage's folder or a file it would
+        write is the ``--from`` stage or the export (adopting must never write over its inputs).
+    """
+    _refuse_writing_over_inputs(Path(out_dir), Path(export_path), original_path)
     out = check_output_dir(out_dir)
     export = _open_export(Path(export_path))
     original = open_stage(original_path) if original_path is not None else None
