@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import io
 import json
 import logging
@@ -208,3 +209,83 @@ def test_a_holder_whose_lock_was_taken_over_notices(tmp_path, cache, caplog):
                 _check_lease(lease, loc)  # the sweep's loop stops at its next step
     assert any("taken over by pid 7 on node-3" in r.getMessage() for r in caplog.records)
     assert json.loads(loc.read_text(store.LOCK_REL))["token"] == "new"  # not removed at the end
+
+
+# ----------------------------------------------------------------------- hostile lock files (issue 26)
+def _plant_text(loc, text: str, age_s: float) -> None:
+    path = loc.local(store.LOCK_REL)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    t = time.time() - age_s
+    os.utime(path, (t, t))
+
+
+HOSTILE = {
+    "empty": "",
+    "garbage": "\x00\x01 not a lock",
+    "list": "[1, 2, 3]",
+    "pid string": json.dumps({"pid": "4242", "host": socket.gethostname()}),
+    "huge pid": json.dumps({"pid": 10**30, "host": socket.gethostname()}),
+    "pid -1": json.dumps({"pid": -1, "host": socket.gethostname()}),
+    "nan heartbeat": '{"pid": 4242, "host": "node-17", "heartbeat": NaN}',
+    "future heartbeat": json.dumps({"pid": 4242, "host": "node-17", "heartbeat": time.time() + 10 * 3.15e7}),
+}
+
+
+@pytest.mark.parametrize("kind", list(HOSTILE))
+def test_a_hostile_lock_goes_stale_and_is_taken_over(tmp_path, caplog, kind):
+    """Empty, garbage, list, bad-pid, NaN and future-heartbeat locks were refused for ever."""
+    loc = where.Location(tmp_path)
+    _plant_text(loc, HOSTILE[kind], age_s=store.STALE_AFTER * store.HEARTBEAT_S + 60.0)
+    with caplog.at_level(logging.WARNING, logger="humv_usd.sweep.store"):
+        with store.dataset_lock(loc):
+            assert json.loads(loc.read_text(store.LOCK_REL))["pid"] == os.getpid()
+    warnings = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(warnings) == 1 and "taking over" in warnings[0], warnings
+    if kind == "future heartbeat":
+        assert "in the future (clock skew?)" in warnings[0]
+    assert not loc.exists(store.LOCK_REL)
+    assert os.listdir(tmp_path / store.SWEEP_DIR) == []  # no tomb or temp file left
+
+
+@pytest.mark.parametrize("kind", list(HOSTILE))
+def test_a_fresh_hostile_lock_is_refused_in_one_line_and_kept(tmp_path, kind):
+    """Just written, it may belong to a sweep starting now: refused, naming when to try again
+    or the holder, never a traceback."""
+    loc = where.Location(tmp_path)
+    _plant_text(loc, HOSTILE[kind], age_s=1.0)
+    with pytest.raises(InputError) as info:
+        with store.dataset_lock(loc):
+            pass
+    (line,) = str(info.value).splitlines()
+    assert "try again" in line or "is writing this dataset" in line
+    assert loc.local(store.LOCK_REL).read_text() == HOSTILE[kind]
+
+
+def test_a_folder_where_the_lock_goes_is_one_line(tmp_path):
+    loc = where.Location(tmp_path)
+    loc.local(store.LOCK_REL).mkdir(parents=True)
+    with pytest.raises(InputError, match="is a folder, not a sweep lock"):
+        with store.dataset_lock(loc):
+            pass
+    assert loc.local(store.LOCK_REL).is_dir()
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EDQUOT])
+def test_a_full_disk_while_locking_leaves_no_lock(tmp_path, monkeypatch, code):
+    """ENOSPC while writing the lock left an empty lock that blocked every later run."""
+    loc = where.Location(tmp_path)
+
+    def full(fd, data):
+        raise OSError(code, os.strerror(code))
+
+    monkeypatch.setattr(store, "_write_all", full)
+    with pytest.raises(InputError) as info:
+        with store.dataset_lock(loc):
+            pass
+    (line,) = str(info.value).splitlines()
+    assert "cannot create the sweep lock" in line and os.strerror(code) in line
+    assert os.listdir(tmp_path / store.SWEEP_DIR) == []
+    monkeypatch.undo()
+    with store.dataset_lock(loc):  # the next run is not blocked
+        pass

@@ -40,6 +40,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import math
 import os
 import shutil
 import socket
@@ -62,6 +63,11 @@ HEARTBEAT_S = 30.0
 STALE_AFTER = 4
 #: object stores: wait this long after writing the lock before reading it back [s]
 SETTLE_S = 1.0
+#: a lock file that is not a lock (empty, not JSON, a list, no valid pid/heartbeat) and older than
+#: this is taken over; younger, it may be a lock being written this instant [s]
+UNREADABLE_GRACE_S = 10.0
+#: largest process id a lock may name (Linux's pid_max limit, 2^22); others are not pids
+MAX_PID = 4_194_304
 TASK_RECORD = "task.json"
 COMPOSE_RECORD = "compose.done.json"
 log = logging.getLogger(__name__)
@@ -69,6 +75,14 @@ log = logging.getLogger(__name__)
 
 def sweep_dir(dataset: Path) -> Path:
     return Path(dataset) / SWEEP_DIR
+
+
+def _valid_pid(value) -> int | None:
+    """A lock's ``pid`` when it is one (an integer in 1..MAX_PID), else None: ``os.kill`` with 0
+    or -1 would test a process group or every process, a huge one raises OverflowError."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_PID:
+        return None
+    return value
 
 
 def _pid_alive(pid: int) -> bool:
@@ -86,39 +100,89 @@ def _as_location(dataset) -> Location:
 
 
 def _read_lock(loc: Location) -> dict | None:
+    held, _ = _lock_state(loc)
+    return held
+
+
+def _lock_state(loc: Location) -> tuple[dict | None, str | None]:
+    """(the lock, None); (None, None) when there is none; (None, what is wrong) when the lock
+    file is there but is no lock (empty, not UTF-8 JSON, not an object, a folder)."""
     try:
-        held = json.loads(loc.read_text(LOCK_REL))
-    except (OSError, ValueError):
-        return None
-    return held if isinstance(held, dict) else None
+        text = loc.read_text(LOCK_REL)
+    except FileNotFoundError:
+        return None, None
+    except IsADirectoryError:
+        return None, "a folder"
+    except (OSError, UnicodeDecodeError) as exc:
+        if not loc.exists(LOCK_REL):
+            return None, None
+        if not loc.remote and loc.local(LOCK_REL).is_dir():
+            return None, "a folder"
+        return None, f"unreadable ({exc})"
+    if not text.strip():
+        return None, "empty"
+    try:
+        held = json.loads(text)
+    except ValueError:
+        return None, "not JSON"
+    if not isinstance(held, dict):
+        return None, f"a JSON {type(held).__name__}, not an object"
+    return held, None
 
 
-def _heartbeat(loc: Location, held: dict) -> float | None:
-    """When the holder last showed it is alive [s since the epoch]: its heartbeat, or for a lock
-    written before leases (pid and host only) the file's modification time."""
-    if isinstance(held.get("heartbeat"), (int, float)):
-        return float(held["heartbeat"])
+def _modified(loc: Location) -> float | None:
+    """The lock file's modification time [s since the epoch] (None where unknown)."""
     try:
         if not loc.remote:
             return loc.local(LOCK_REL).stat().st_mtime
-        modified = loc.fs.modified(loc.full(LOCK_REL))
-        return modified.timestamp()
-    except (OSError, NotImplementedError, AttributeError, ValueError):
+        return loc.fs.modified(loc.full(LOCK_REL)).timestamp()
+    except (OSError, NotImplementedError, AttributeError, ValueError, TypeError):
         return None
+
+
+def _given_heartbeat(held: dict) -> float | None:
+    beat = held.get("heartbeat")
+    if isinstance(beat, bool) or not isinstance(beat, (int, float)) or not math.isfinite(beat):
+        return None
+    return float(beat)
+
+
+def _heartbeat(loc: Location, held: dict, now: float | None = None, heartbeat_s: float = HEARTBEAT_S):
+    """When the holder last showed it is alive [s since the epoch]: its heartbeat, or the lock
+    file's modification time for a lock without a usable one (written before leases, NaN, not
+    a number) or whose heartbeat lies more than ``STALE_AFTER`` beats in the future of ``now``
+    (clock skew, or a hand-edited lock: it would never go stale)."""
+    beat = _given_heartbeat(held)
+    if beat is not None and (now is None or beat - now <= STALE_AFTER * heartbeat_s):
+        return beat
+    return _modified(loc)
 
 
 def _stale_reason(loc: Location, held: dict, now: float, heartbeat_s: float) -> str | None:
     """Why a lock someone else holds can be taken over, or None when it is live."""
-    if held.get("host") == socket.gethostname() and not _pid_alive(int(held.get("pid", -1))):
-        return f"pid {held.get('pid')} on this host is gone"
-    beat = _heartbeat(loc, held)
-    if beat is not None and now - beat > STALE_AFTER * heartbeat_s:
+    pid = _valid_pid(held.get("pid"))
+    if pid is not None and held.get("host") == socket.gethostname() and not _pid_alive(pid):
+        return f"pid {pid} on this host is gone"
+    given = _given_heartbeat(held)
+    limit = STALE_AFTER * heartbeat_s
+    if given is not None and given - now > limit:
+        skew = f"its heartbeat is {given - now:.0f} s in the future (clock skew?)"
+        modified = _modified(loc)
+        if modified is None or now - modified > limit or modified - now > limit:
+            return skew + (f" and the file is {now - modified:.0f} s old" if modified is not None else "")
+        return None
+    beat = _heartbeat(loc, held, now, heartbeat_s)
+    if beat is None:
+        return None
+    if beat - now > limit:  # the file's time is in the future too: no live holder wrote it
+        return f"its time is {beat - now:.0f} s in the future (clock skew?)"
+    if now - beat > limit:
         return f"no heartbeat for {now - beat:.0f} s (more than {STALE_AFTER} x {heartbeat_s:g} s)"
     return None
 
 
 def _holder_text(loc: Location, held: dict, now: float) -> str:
-    beat = _heartbeat(loc, held)
+    beat = _heartbeat(loc, held, now)
     age = f", heartbeat {now - beat:.0f} s ago" if beat is not None else ""
     return f"pid {held.get('pid')} on {held.get('host')}{age}"
 
@@ -128,15 +192,7 @@ def _create_lock(loc: Location, doc: dict) -> bool:
     system; on an object store best effort (see the module doc)."""
     text = json.dumps(doc)
     if not loc.remote:
-        path = loc.local(LOCK_REL)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            return False
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        return True
+        return _create_local(loc.local(LOCK_REL), text.encode("utf-8"), doc["token"])
     if loc.exists(LOCK_REL):
         return False
     loc.write_text(LOCK_REL, text)
@@ -144,8 +200,53 @@ def _create_lock(loc: Location, doc: dict) -> bool:
     return (_read_lock(loc) or {}).get("token") == doc["token"]
 
 
-def _remove_stale(loc: Location, stale: dict) -> None:
-    """Remove the stale lock ``stale`` (and only it: a lock another taker wrote meanwhile stays)."""
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def _create_local(path: Path, data: bytes, token: str) -> bool:
+    """Create ``path`` holding ``data`` only if it does not exist; False when it does. The lock
+    appears whole: written to a temp file first, then hard-linked into place (link fails when
+    the name exists), so no one ever reads an empty or half-written lock, and a write that
+    fails (ENOSPC, EDQUOT) leaves no lock. File systems without hard links: an exclusive create,
+    removed again if the write fails."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{token}.tmp")
+    fd = os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+    try:
+        try:
+            _write_all(fd, data)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        try:
+            os.link(tmp, path)
+            return True
+        except FileExistsError:
+            return False
+        except OSError:  # no hard links here (EPERM, ENOTSUP, EXDEV)
+            pass
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            return False
+        try:
+            _write_all(fd, data)
+        except BaseException:
+            os.close(fd)
+            path.unlink(missing_ok=True)
+            raise
+        os.close(fd)
+        return True
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _remove_stale(loc: Location, stale: dict | None) -> None:
+    """Remove the stale lock ``stale`` (and only it: a lock another taker wrote meanwhile stays);
+    ``stale`` None: a lock file that is no lock (see :func:`_lock_state`)."""
     if not loc.remote:
         path = loc.local(LOCK_REL)
         tomb = path.with_name(f"{LOCK_NAME}.stale-{uuid.uuid4().hex[:8]}")
@@ -157,12 +258,12 @@ def _remove_stale(loc: Location, stale: dict) -> None:
             moved = json.loads(tomb.read_text())
         except (OSError, ValueError):
             moved = None
-        if moved != stale:  # a newer lock was moved: put it back
+        if stale is not None and moved != stale:  # a newer lock was moved: put it back
             with contextlib.suppress(OSError):
                 os.link(tomb, path)
         tomb.unlink(missing_ok=True)
         return
-    if _read_lock(loc) == stale:
+    if _lock_state(loc)[0] == stale:
         loc.remove(LOCK_REL)
 
 
@@ -219,13 +320,30 @@ def dataset_lock(dataset, heartbeat_s: float = HEARTBEAT_S, clock: Callable[[], 
         "heartbeat_s": heartbeat_s,
     }
     for _ in range(3):
-        if _create_lock(loc, me):
-            break
-        held = _read_lock(loc)
-        if held is None:  # being written this instant by another sweep, or garbage
+        try:
+            if _create_lock(loc, me):
+                break
+        except OSError as exc:  # a full disk, a quota, a read-only folder: no lock is left behind
             raise InputError(
-                f"{loc}: another sweep is starting in this folder ({loc.full(LOCK_REL)}); try again"
+                f"{loc}: cannot create the sweep lock {loc.full(LOCK_REL)} ({exc.strerror or exc})"
+            ) from None
+        held, wrong = _lock_state(loc)
+        if held is None and wrong is None:  # removed meanwhile: try again
+            continue
+        if wrong == "a folder":
+            raise InputError(
+                f"{loc}: {loc.full(LOCK_REL)} is a folder, not a sweep lock; remove it if no sweep is running"
             )
+        if wrong is not None:
+            age = clock() - (_modified(loc) or clock())
+            if 0.0 <= age < UNREADABLE_GRACE_S:  # perhaps being written this instant
+                raise InputError(
+                    f"{loc}: the sweep lock {loc.full(LOCK_REL)} is {wrong} and {age:.0f} s old (another "
+                    f"sweep starting?); try again in {UNREADABLE_GRACE_S:g} s"
+                )
+            log.warning("%s: taking over the sweep lock, which is %s (written %.0f s ago)", loc, wrong, age)
+            _remove_stale(loc, None)
+            continue
         why = _stale_reason(loc, held, clock(), heartbeat_s)
         if why is None:
             raise InputError(
