@@ -19,23 +19,32 @@ import click
 from humv_usd.cli.common import PROG, progress_display, reports_errors, set_verbosity
 from humv_usd.errors import InputError
 
+#: most frames one ``--frames`` may name (checked before a list is built: ``0:99999999999``
+#: once built a list of 10^11 numbers and ended in MemoryError)
+MAX_FRAMES_PER_CALL = 1_000_000
+
 
 def parse_frames(text: str | None) -> list[int] | None:
-    """``"0:10"`` (inclusive), ``"0,5,9"`` or ``"3"`` → frame list; None → all frames."""
+    """``"0:10"`` (inclusive), ``"0,5,9"`` or ``"3"`` → frame list; None → all frames. A range of
+    more than :data:`MAX_FRAMES_PER_CALL` frames is refused before any list is built."""
     if text is None:
         return None
+    bad = f"--frames = {text!r}: expected FIRST:LAST, a comma list or one integer frame number"
     try:
-        if ":" in text:
-            a, b = text.split(":", 1)
-            first, last = int(a), int(b)
-            if last < first:
-                raise ValueError
-            return list(range(first, last + 1))
-        return [int(x) for x in text.split(",") if x.strip()]
+        if ":" not in text:
+            return [int(x) for x in text.split(",") if x.strip()]
+        a, b = text.split(":", 1)
+        first, last = int(a), int(b)
     except ValueError:
+        raise InputError(bad) from None
+    if last < first:
+        raise InputError(bad)
+    if last - first + 1 > MAX_FRAMES_PER_CALL:
         raise InputError(
-            f"--frames = {text!r}: expected FIRST:LAST, a comma list or one integer frame number"
-        ) from None
+            f"--frames = {text!r}: {last - first + 1:,} frames; at most {MAX_FRAMES_PER_CALL:,} "
+            "per call (render the stage's range in parts)"
+        )
+    return list(range(first, last + 1))
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -14,6 +14,7 @@ import hashlib
 import json
 import math
 import re
+import stat
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -466,14 +467,53 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
     return Scenario(data=data, path=path, given=frozenset(raw) & frozenset(SECTIONS))
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario TOML file."""
+#: largest text input read whole (a scenario or sweep TOML file) [bytes]: far above any real
+#: scenario (humvvex.toml is 6 kB), far below what would exhaust memory
+MAX_TEXT_INPUT_BYTES = 16 * 1024 * 1024
+
+
+def read_input_bytes(path: str | Path, what: str, limit: int = MAX_TEXT_INPUT_BYTES) -> bytes:
+    """The bytes of a user's input file, refused (one line) before reading when it is not a
+    regular file (a device such as /dev/zero, a FIFO, a socket, a folder) or over ``limit``.
+
+    Raises
+    ------
+    FileNotFoundError
+        When it does not exist (callers say what was not found).
+    InputError
+        Not a regular file, too large, or unreadable.
+    """
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8")
+        st = path.stat()
+    except FileNotFoundError:
+        raise
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a device, FIFO or socket"
+        raise InputError(f"{path}: the {what} is {kind}; expected a regular file")
+    if st.st_size > limit:
+        raise InputError(f"{path}: the {what} has {st.st_size} bytes; at most {limit} bytes are read")
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    if len(data) > limit:  # it grew while being read
+        raise InputError(f"{path}: the {what} has more than {limit} bytes; at most {limit} are read")
+    return data
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario TOML file (a regular file of at most
+    :data:`MAX_TEXT_INPUT_BYTES`)."""
+    path = Path(path)
+    try:
+        text = read_input_bytes(path, "scenario file").decode("utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: scenario file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
         raise InputError(f"{path}: cannot read scenario file ({exc})") from None
     try:
         raw = tomllib.loads(text)

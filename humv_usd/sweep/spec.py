@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 
 from humv_usd.errors import InputError, bad_value
-from humv_usd.scenario.load import Scenario, validate
+from humv_usd.scenario.load import Scenario, read_input_bytes, validate
 from humv_usd.scenario.spec import SECTIONS, Key, Section
 
 SWEEP_KEYS = ("name", "base", "unset", "count", "seed")
@@ -244,7 +244,7 @@ def remove(raw: dict, path: str) -> None:
 # ------------------------------------------------------------------ loading
 def _read_toml(path: Path, what: str) -> dict:
     try:
-        return tomllib.loads(path.read_bytes().decode("utf-8"))
+        return tomllib.loads(read_input_bytes(path, what).decode("utf-8"))
     except FileNotFoundError:
         raise InputError(f"{path}: {what} not found") from None
     except (OSError, UnicodeDecodeError) as exc:
