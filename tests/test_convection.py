@@ -77,3 +77,18 @@ def test_coefficients_reject_nan():
         radiative_coefficient(1.5, 300.0)
     with pytest.raises(ValueError, match="mean_temperature_k"):
         radiative_coefficient(0.9, -1.0)
+
+
+def test_relative_air_speed_closed_forms():
+    """Walking north at 1.4 m/s: calm air 1.4 m/s; a 3 m/s wind from the north (a head wind)
+    4.4 m/s; from the south (a tail wind) 1.6 m/s; from the east, across, sqrt(3^2 + 1.4^2)."""
+    from humv_usd.physics.convection import relative_air_speed
+
+    v = np.array([0.0, 1.4, 0.0])
+    assert relative_air_speed(v, 0.0, 0.0) == pytest.approx(1.4)
+    assert relative_air_speed(v, 3.0, 0.0) == pytest.approx(4.4)
+    assert relative_air_speed(v, 3.0, 180.0) == pytest.approx(1.6)
+    assert relative_air_speed(v, 3.0, 90.0) == pytest.approx(np.hypot(3.0, 1.4))
+    assert relative_air_speed(v, 3.0) == pytest.approx(np.hypot(3.0, 1.4))  # no direction
+    # standing: the wind alone, whatever its direction
+    assert_allclose(relative_air_speed(np.zeros((4, 3)), 2.5, [0, 90, 200, 315]), 2.5)

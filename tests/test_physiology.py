@@ -340,3 +340,98 @@ def test_radiant_temperature_for_sensible_loss_inverts_the_dry_exchange():
     tr = P.radiant_temperature_for_sensible_loss(t_sk, target, t_a, hc, hr, rt)
     t_o = (hc * t_a + hr * tr) / (hc + hr)
     assert_allclose((t_sk - t_o) / rt, target, rtol=1e-12)
+
+
+def _bare_segment_facets(rng, n=40):
+    """Facets of one bare segment: areas, and the linearised loss of bare skin
+    h (T - T_a) + eps sigma T^4 - q_abs around 305 K with a spread of absorbed flux."""
+    area = rng.uniform(1e-4, 1e-3, n)
+    t0 = np.full(n, 305.0)
+    g = rng.uniform(8.0, 30.0, n)
+    q0 = rng.uniform(-250.0, 400.0, n)
+    return area, t0, g, q0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_local_skin_never_above_the_segment_core(seed):
+    """Large losses on a weakly conducting segment (the bare head at -15 degC needed an inner
+    temperature of 56 degC): with the core bound no facet is above its segment's core, the area
+    mean is still the physiology's skin temperature, and the unbounded closed form did exceed
+    the core (so the bound is what is tested)."""
+    rng = np.random.default_rng(seed)
+    area, t0, g, q0 = _bare_segment_facets(rng)
+    seg = rng.integers(0, 3, len(area))
+    k = np.array([3.0, 6.0, 15.0] + [12.0] * 14)
+    latent = np.full(17, 8.0)
+    core = np.full(17, 310.0) - rng.uniform(0.0, 1.0, 17)
+    target = core - rng.uniform(1.0, 6.0, 17)
+    free, _ = P.local_skin_temperature(target, k, latent, seg, area, q0, g, t0)
+    t_f, q = P.local_skin_temperature(target, k, latent, seg, area, q0, g, t0, segment_core_k=core)
+    assert (free > core[seg] + 0.5).any()
+    assert (t_f <= core[seg] + 1e-9).all()
+    assert_allclose(q, q0 + g * (t_f - t0))
+    for s in np.unique(seg):
+        m = seg == s
+        assert_allclose(np.average(t_f[m], weights=area[m]), target[s], atol=1e-8)
+        # a core-skin shell: one inner temperature <= the core at the segment's conductance,
+        # or the inner node at the core with one raised conductance (vasodilation)
+        free_facets = m & (t_f < core[seg] - 1e-6)
+        heat = q[free_facets] + latent[s]
+        t_b = t_f[free_facets] + heat / k[s]
+        k_raised = heat / (core[s] - t_f[free_facets])
+        if np.ptp(t_b) < 1e-6:
+            assert t_b.max() <= core[s] + 1e-9
+        else:
+            assert_allclose(k_raised, k_raised[0], rtol=1e-6)
+            assert k_raised[0] >= k[s]
+
+
+def test_local_skin_bound_keeps_the_closed_form_where_it_holds():
+    """Facets all below the core and an inner temperature below it: the bounded model is the
+    closed form of issue 14 exactly (the JOS-3 conductance and one inner temperature)."""
+    seg = np.array([2, 2, 5])
+    area = np.array([0.01, 0.03, 0.02])
+    t0 = np.array([306.0, 306.0, 305.0])
+    g = np.array([20.0, 20.0, 15.0])
+    q0 = np.array([0.0, 100.0, 80.0])
+    k, latent, t_seg = np.full(17, 30.0), np.full(17, 10.0), np.full(17, 305.5)
+    free = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0)[0]
+    bounded = P.local_skin_temperature(
+        t_seg, k, latent, seg, area, q0, g, t0, segment_core_k=np.full(17, 310.0)
+    )[0]
+    q = q0 + g * (free - t0)
+    assert free.max() < 310.0 and (free + (q + 10.0) / 30.0).max() < 310.0  # facets and inner node
+    assert_allclose(bounded, free, rtol=0, atol=0)
+
+
+def test_local_skin_sunlit_facet_held_at_the_core():
+    """A facet that gains heat even at the core temperature (strong sun) stays at the core; the
+    others carry the segment's mean with one inner temperature <= the core."""
+    seg = np.array([0, 0, 0])
+    area = np.array([0.01, 0.01, 0.02])
+    t0 = np.full(3, 306.0)
+    g = np.full(3, 20.0)
+    q0 = np.array([-600.0, 60.0, 80.0])  # the first facet: 660 W m^-2 more absorbed
+    k, latent = np.full(17, 40.0), np.full(17, 10.0)
+    core, t_seg = np.full(17, 310.0), np.full(17, 307.0)
+    free = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0)[0]
+    t_f = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0, segment_core_k=core)[0]
+    assert free[0] > 310.0 and t_f[0] == pytest.approx(310.0, abs=1e-9)
+    assert np.average(t_f, weights=area) == pytest.approx(307.0, abs=1e-8)
+    # the two others share one inner temperature T_b = T_f + (q_f + E) / K, at most the core
+    q = q0 + g * (t_f - t0)
+    t_b = t_f[1:] + (q[1:] + 10.0) / 40.0
+    assert_allclose(t_b, t_b[0], atol=1e-7)
+    assert t_b[0] <= 310.0 + 1e-9
+
+
+def test_local_skin_hot_segment_left_unbounded():
+    """Skin at or above the core (air above body temperature: heat flows in): the closed form."""
+    seg = np.array([1, 1])
+    area = np.array([0.01, 0.01])
+    t0, g, q0 = np.full(2, 311.0), np.full(2, 20.0), np.array([-150.0, -50.0])
+    k, latent = np.full(17, 12.0), np.full(17, 60.0)
+    core, t_seg = np.full(17, 310.0), np.full(17, 310.5)
+    free = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0)[0]
+    t_f = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0, segment_core_k=core)[0]
+    assert_allclose(t_f, free, rtol=0, atol=0)

@@ -221,3 +221,37 @@ def radiative_coefficient(emissivity, mean_temperature_k):
     """
     t = require("mean_temperature_k", mean_temperature_k, 0.0, 1e4)
     return 4.0 * require("emissivity", emissivity, 0.0, 1.0) * STEFAN_BOLTZMANN * t**3
+
+
+def relative_air_speed(body_velocity_m_s, wind_speed_m_s, wind_direction_deg=None):
+    """Speed of the air relative to a moving body [m/s] (the speed that forced convection sees).
+
+    Parameters
+    ----------
+    body_velocity_m_s : array_like
+        (..., 2 or 3) velocity of the body over the ground [m/s], x east, y north (z ignored).
+    wind_speed_m_s : numeric
+        Wind speed over the ground [m/s].
+    wind_direction_deg : numeric, optional
+        Compass direction the wind blows FROM [deg]. Omitted, the body is taken to move across
+        the wind and the two speeds add in quadrature.
+
+    Returns
+    -------
+    numeric
+        |u_wind - u_body| [m/s] in the horizontal.
+
+    Notes
+    -----
+    A walker at 1.4 m/s in calm air meets 1.4 m/s of air; walking into a 3 m/s head wind, 4.4 m/s;
+    with it, 1.6 m/s. The wind blowing from compass direction theta moves the air along
+    -(sin theta, cos theta). Body-movement corrections of the same kind are ISO 9920:2007
+    Annex E's walking speed in the relative air velocity and ASHRAE Fundamentals (2021) ch. 9.
+    """
+    v = np.asarray(body_velocity_m_s, dtype=float)[..., :2]
+    w = np.asarray(wind_speed_m_s, dtype=float)
+    if wind_direction_deg is None:
+        return np.sqrt(w**2 + np.sum(v**2, axis=-1))
+    theta = np.radians(np.asarray(wind_direction_deg, dtype=float))
+    ux, uy = -w * np.sin(theta) - v[..., 0], -w * np.cos(theta) - v[..., 1]
+    return np.hypot(ux, uy)

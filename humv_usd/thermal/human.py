@@ -47,7 +47,7 @@ from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human import labels as L
 from humv_usd.human.usdskel import skinned_points
-from humv_usd.physics.convection import convective_coefficient
+from humv_usd.physics.convection import convective_coefficient, relative_air_speed
 from humv_usd.physics.garment import (
     air_conductivity,
     areal_heat_capacity,
@@ -202,6 +202,9 @@ class Surroundings:
     air_k: np.ndarray
     rh: np.ndarray
     wind: np.ndarray
+    #: (frames,) compass direction the wind blows from [deg]; None: the person's own motion
+    #: is taken as across the wind (speeds add in quadrature)
+    wind_direction_deg: np.ndarray | None = None
 
 
 def human_temperatures(
@@ -242,6 +245,7 @@ def human_temperatures(
     q_garment = {p.path: np.zeros((len(samples), len(p.counts))) for p in garments}
     q_skin = np.zeros((len(samples), len(body.counts)))  # absorbed by bare skin [W m^-2]
     pts0: list = []
+    centres = np.zeros((len(samples), 3))
     for k, frame in enumerate(samples):
         t = Usd.TimeCode(frame)
         sky, scene = world.skies[k], world.scenes[k]
@@ -249,7 +253,7 @@ def human_temperatures(
         pts = [skinned_points(stage, p.path, t, space="world") for p in parts]
         if k == 0:
             pts0 = pts
-        centre = pts[0].mean(axis=0)
+        centre = centres[k] = pts[0].mean(axis=0)
         env = SR.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
         self_bare = _self_radiance([body], skin_guess, air_k)
@@ -313,9 +317,12 @@ def human_temperatures(
     cover = _coverage(body, garments, pts0, stage)
     clothes = [_Garment(p, stage, frames, settings, fps) for p in garments]
     clo = garment_clo(body, area, cover, clothes)
-    h_skin = np.array(
-        [convective_coefficient(wind[f], model=settings["convection_model"]) for f in range(frames)]
+    # convection sees the air speed relative to the moving body (walking, running), not the wind
+    wind = relative_air_speed(
+        body_velocity(stage, body, samples, centres, frames, fps), wind, world.wind_direction_deg
     )
+    diagnostics["relativeAirSpeedMean_m_s"] = float(np.mean(wind))
+    convection = settings["convection_model"]
     eps_skin = longwave_emissivity(body.material)
     transient = settings.get("garment_transient", "transient") == "transient"
 
@@ -323,8 +330,11 @@ def human_temperatures(
         """Sensible loss of every skin facet [W m^-2] at skin ``t_faces`` (frames, F), its slope
         dq/dT and the garments' outer temperatures and largest residual."""
         sigma_eps = eps_skin * STEFAN_BOLTZMANN
-        q = h_skin[:, None] * (t_faces - air[:, None]) + sigma_eps * t_faces**4 - q_skin[nearest]
-        g = h_skin[:, None] + 4.0 * sigma_eps * t_faces**3
+        # forced convection, with ISO 7730's natural-convection floor 2.38 |T_sk - T_a|^0.25
+        # for bare skin in calm air (a 33 degC facet in still 16 degC air: h = 4.8 W m^-2 K^-1)
+        h_skin = convective_coefficient(wind[:, None], t_faces - air[:, None], model=convection)
+        q = h_skin * (t_faces - air[:, None]) + sigma_eps * t_faces**4 - q_skin[nearest]
+        g = h_skin + 4.0 * sigma_eps * t_faces**3
         temps, worst = {}, 0.0
         for gi, c in enumerate(clothes):
             skin_g = t_faces[:, cover.under[gi]]
@@ -375,6 +385,7 @@ def human_temperatures(
                 q_lin[f],
                 g_lin[f],
                 t_lin[f],
+                segment_core_k=result.segment_core_temperature_k[f],
             )[0]
         # the slope of the first linearisation is kept (a chord iteration: the fluxes
         # themselves are exact at every iterate)
@@ -398,6 +409,10 @@ def human_temperatures(
         )
         t_lin, q_lin = t_face, q_face
     diagnostics["couplingMaxResidual_W_m2"] = float(residual)
+    # the physiological bound (issue 25): the hottest skin facet against its segment's core
+    core = np.asarray(result.segment_core_temperature_k)[:, body.segment]
+    diagnostics["skinMax_K"] = float(t_face.max())
+    diagnostics["skinMinusSegmentCoreMax_K"] = float((t_face - core).max())
     if garments:
         diagnostics["garmentMaxResidual_W_m2"] = float(garment_residual)
     out = {body.path: t_face, **garment_temps}
@@ -414,6 +429,26 @@ SLOPE_STEP_K = 0.25
 #: air gap + fabric thickness + this margin [m] (the centres of a fitted garment's faces and the
 #: body's are not aligned).
 COVER_MARGIN_M = 0.015
+
+
+def body_velocity(
+    stage: Usd.Stage, body: _Part, samples: list, centres: np.ndarray, frames: int, fps: float
+) -> np.ndarray:
+    """(frames, 3) velocity of the body over the ground [m/s]: the displacement of the skinned
+    body's centroid between radiation samples (one frame apart when there is one sample and
+    more frames), linearly interpolated to every frame; zero for a one-frame scenario."""
+    if frames < 2:
+        return np.zeros((frames, 3))
+    times, points = list(samples), list(centres)
+    if len(times) < 2:
+        times.append(1)
+        points.append(skinned_points(stage, body.path, Usd.TimeCode(1), space="world").mean(axis=0))
+    t = np.asarray(times, dtype=float) / fps
+    c = np.asarray(points)
+    v = np.diff(c, axis=0) / np.diff(t)[:, None]
+    mid = 0.5 * (t[1:] + t[:-1])
+    f = np.arange(frames) / fps
+    return np.stack([np.interp(f, mid, v[:, i]) for i in range(3)], axis=1)
 
 
 def _face_mean(part: _Part, per_triangle: np.ndarray, tri_area: np.ndarray) -> np.ndarray:

@@ -138,7 +138,13 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
                 )
             )
         world = Surroundings(
-            samples, skies, scenes, w.air_temperature_k, w.relative_humidity, w.wind_speed_m_s
+            samples,
+            skies,
+            scenes,
+            w.air_temperature_k,
+            w.relative_humidity,
+            w.wind_speed_m_s,
+            w.wind_direction_deg,
         )
         report.update(
             {

@@ -225,6 +225,10 @@ class PhysiologyResult:
     segment_dry_resistance_m2_k_w: np.ndarray | None = None
     segment_skin_conductance_w_m2_k: np.ndarray | None = None
     wettedness: np.ndarray | None = None  # (T, 17) skin wettedness [0-1]
+    #: (T, 17) core temperature of each segment [K] (JOS-3's core node of the segment; two-node:
+    #: the body core on every segment): the upper bound of the segment's facet skin
+    #: (:func:`local_skin_temperature`).
+    segment_core_temperature_k: np.ndarray | None = None
 
 
 # ----------------------------------------------------------------------------- two-node
@@ -502,6 +506,7 @@ def two_node(
         segment_dry_resistance_m2_k_w=_per_segment(rt),
         segment_skin_conductance_w_m2_k=_per_segment(cond),
         wettedness=_per_segment(wet),
+        segment_core_temperature_k=_per_segment(core + ZERO_C),
     )
 
 
@@ -782,6 +787,7 @@ def _jos3(
         advance(1e-6, 0)  # an output record at the initial state
     tissue = jos3_tissue_conductance(model)
     seg_skin = np.empty((n, N_SEGMENTS))
+    seg_core = np.empty((n, N_SEGMENTS))
     state = {
         k: np.empty((n, N_SEGMENTS))
         for k in ("sensible", "latent", "hc", "hr", "rt", "conductance", "wettedness")
@@ -792,6 +798,7 @@ def _jos3(
             advance(t[i] - t[i - 1], i - 1)
         out = last["out"]
         seg_skin[i] = model.t_skin
+        seg_core[i] = model.t_core
         bf = np.array([getattr(out.bf_skin, s) for s in JOS3_PYTHERMALCOMFORT])
         # fluxes at this output under this output's conditions (those of the next step): so
         # that an input at step i sets the exchange reported at output i
@@ -822,6 +829,7 @@ def _jos3(
         segment_dry_resistance_m2_k_w=state["rt"],
         segment_skin_conductance_w_m2_k=state["conductance"],
         wettedness=state["wettedness"],
+        segment_core_temperature_k=seg_core + ZERO_C,
     )
 
 
@@ -930,8 +938,10 @@ def local_skin_temperature(
     flux_w_m2,
     flux_slope_w_m2_k,
     linearisation_k,
+    segment_core_k=None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Skin temperature per facet from each facet's own heat balance (issue 14, deliverable 2).
+    """Skin temperature per facet from each facet's own heat balance, bounded by the segment's
+    core temperature (issue 14, deliverable 2; issue 25, deliverable 1).
 
     Parameters
     ----------
@@ -951,6 +961,11 @@ def local_skin_temperature(
         ``linearisation_k`` and its slope dq/dT [W m^-2 K^-1] there: bare skin
         h (T - T_air) + eps sigma T^4 - q_abs (absorbed sun and long wave); under a garment the
         garment balance's skin-side flux q_in(T) (:func:`humv_usd.physics.garment.steady_state`).
+    segment_core_k : array_like, optional
+        (17,) core temperature of each segment [K] (``PhysiologyResult.segment_core_temperature_k``).
+        Given, no facet of a segment whose skin is below its core is warmer than that core, and
+        the inner temperature of the shell never exceeds it; omitted, the balance is unbounded
+        (the model of issue 14).
 
     Returns
     -------
@@ -975,8 +990,32 @@ def local_skin_temperature(
     K_s (T_b,s - T_f) then equals its sensible loss plus E_s, which the body-clothing coupling
     (:func:`humv_usd.thermal.human.human_temperatures`) makes equal to the physiology's own
     sensible loss. A sunlit facet absorbs more, so it is warmer than a shaded one of the same
-    segment by Delta q_abs / (K_s + g_f). Not modelled: lateral conduction between facets and a
-    per-facet sweat distribution (E_s is even over the segment).
+    segment by Delta q_abs / (K_s + g_f).
+
+    Physiological bound (issue 25). Heat reaches the skin from the core through the tissue and
+    the skin's blood, whose temperature is at most the arterial (core) temperature; so neither
+    the shell's inner temperature nor any facet can exceed the segment's core temperature T_c,s
+    while the segment loses heat (its skin below its core; Stolwijk 1971, Takahashi et al. 2021:
+    the skin node is fed by the core/artery node). The closed form above can break it when the
+    facets' losses are larger than the segment's conductance carries at the physiology's skin
+    temperature (a bare head at -15 degC needed T_b = 56 degC). With the bound:
+
+    1. T_b,s <= T_c,s and every facet min(T_f, T_c,s); T_b,s is found by bisection so that the
+       area mean of the clipped facets is the segment's skin temperature (a sunlit facet that
+       would gain heat at the core temperature stays at the core: its extra heat is carried
+       away by the skin's blood);
+    2. if that needs T_b,s > T_c,s, the inner node is held at T_c,s and the shell's conductance
+       is raised (K_s' >= K_s, by bisection in log K) until the clipped mean matches: the skin
+       blood flow that carries the segment's heat loss from a core at T_c,s (vasodilation).
+       The segment's heat flow to its facets stays the surface balance's, so the coupling with
+       the physiology's sensible loss is unchanged.
+
+    A segment whose physiological skin is at or above its core (air or radiant heat above about
+    36 degC: heat flows into the body) is left to the unbounded closed form: there the skin is
+    legitimately warmer than the core. Facet temperatures are then monotonic in the segment's
+    skin and core temperatures and in each facet's loss (a larger q_f lowers T_f). Not
+    modelled: lateral conduction between facets and a per-facet sweat distribution (E_s is even
+    over the segment).
     """
     seg = np.asarray(segment_ids)
     area = np.asarray(face_area_m2, dtype=float)
@@ -985,15 +1024,83 @@ def local_skin_temperature(
     q0 = np.asarray(flux_w_m2, dtype=float)
     g = np.maximum(np.asarray(flux_slope_w_m2_k, dtype=float), 0.0)
     t0 = np.asarray(linearisation_k, dtype=float)
+    target = np.asarray(segment_skin_k, dtype=float)
     a = k / (k + g)  # dT_f / dT_b
     b = (g * t0 - q0 - e) / (k + g)
     n = N_SEGMENTS
     w = np.bincount(seg, area, n)
-    mean_a = np.bincount(seg, area * a, n) / np.maximum(w, 1e-300)
-    mean_b = np.bincount(seg, area * b, n) / np.maximum(w, 1e-300)
-    t_inner = (np.asarray(segment_skin_k, dtype=float) - mean_b) / np.where(mean_a > 0, mean_a, 1.0)
+    w_safe = np.maximum(w, 1e-300)
+    mean_a = np.bincount(seg, area * a, n) / w_safe
+    mean_b = np.bincount(seg, area * b, n) / w_safe
+    t_inner = (target - mean_b) / np.where(mean_a > 0, mean_a, 1.0)
     t_face = a * t_inner[seg] + b
+    if segment_core_k is not None:
+        t_face = _bounded_skin(
+            t_face,
+            t_inner,
+            target,
+            np.asarray(segment_core_k, dtype=float),
+            seg,
+            area,
+            w_safe,
+            k,
+            g,
+            t0,
+            q0,
+            e,
+        )
     return t_face, q0 + g * (t_face - t0)
+
+
+#: Bisection steps of the bounded skin model (the brackets shrink by 2^-48: below 1e-12 K
+#: on a 100 K bracket, and 1e-13 of a decade in log K).
+_BISECTIONS = 48
+#: Largest factor on a segment's core-skin conductance in the bounded model (1e6 K_s puts
+#: every facet within about 1e-5 K of the core).
+_MAX_CONDUCTANCE_FACTOR = 1e6
+
+
+def _bounded_skin(t_face, t_inner, target, core, seg, area, w, k, g, t0, q0, e):
+    """The core bound of :func:`local_skin_temperature` on the segments that need it."""
+    n = N_SEGMENTS
+    cap = core[seg]
+    losing = target < core  # segments whose skin is below the core (heat leaves the body)
+    over = np.bincount(seg, (t_face > cap).astype(float), n) > 0
+    need = losing & ((t_inner > core) | over)
+    if not need.any():
+        return t_face
+    sel = need[seg]
+    s, ar, cf = seg[sel], area[sel], cap[sel]
+    a = k[sel] / (k[sel] + g[sel])
+    b = (g[sel] * t0[sel] - q0[sel] - e[sel]) / (k[sel] + g[sel])
+
+    def mean_clipped(values):
+        return np.bincount(s, ar * np.minimum(values, cf), n) / w
+
+    # 1. the inner node below the core: T_b in [T_b free, T_c] (the clipped mean rises with T_b)
+    inner_ok = need & (mean_clipped(a * core[s] + b) >= target)
+    lo, hi = np.minimum(t_inner, core), core.copy()
+    for _ in range(_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        high = mean_clipped(a * mid[s] + b) > target
+        hi, lo = np.where(high, mid, hi), np.where(high, lo, mid)
+    t_b = 0.5 * (lo + hi)
+    # 2. inner node at the core, conductance raised: K' = K 10^x, x in [0, 6]
+    lo, hi = np.zeros(n), np.full(n, np.log10(_MAX_CONDUCTANCE_FACTOR))
+    ks, gs, es = k[sel], g[sel], g[sel] * t0[sel] - q0[sel] - e[sel]
+
+    def at_factor(x):
+        kk = ks * 10.0 ** x[s]
+        return (kk * core[s] + es) / (kk + gs)
+
+    for _ in range(_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        high = mean_clipped(at_factor(mid)) > target
+        hi, lo = np.where(high, mid, hi), np.where(high, lo, mid)
+    raised = at_factor(hi)
+    out = t_face.copy()
+    out[sel] = np.minimum(np.where(inner_ok[s], a * t_b[s] + b, raised), cf)
+    return out
 
 
 def radiant_temperature_for_sensible_loss(skin_k, sensible_w_m2, air_k, hc, hr, dry_resistance):

@@ -1,0 +1,70 @@
+"""Issue 25, deliverable 1: skin facets within physiology over the extreme grid, through the
+whole thermal chain (radiation -> JOS-3 -> skin per facet -> garments, coupled both ways)."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd
+
+from humv_usd.pipeline.compose import compose
+from humv_usd.scenario import validate
+from humv_usd.usd import schemas as S
+
+pytestmark = pytest.mark.slow
+
+BODY = "/World/Humans/p1/Body"
+
+
+def _skin(humvvex_raw, out, air_k=289.0, wind=3.0, hour=14):
+    raw = copy.deepcopy(humvvex_raw)
+    raw["sensor"] = raw["sensor"][:1]
+    raw["thermal"] = {"model": "jos3"}  # humvvex.toml's full chain (the fixture is the fixed model)
+    raw["atmosphere"].update(model="analytic", air_temperature_k=air_k, wind_speed_m_s=wind)
+    raw["general"]["start"] = raw["general"]["start"].replace(hour=hour)
+    compose(validate(raw), out)
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    skin = np.asarray(stage.GetPrimAtPath(BODY).GetAttribute(S.TEMPERATURE_PRIMVAR).Get(0), dtype=float)
+    report = Sdf.Layer.FindOrOpen(str(out / "layers" / "thermal.usda")).customLayerData["humv:thermal"]["p1"]
+    return skin, report
+
+
+@pytest.fixture(scope="module")
+def grid(humvvex_raw, tmp_path_factory):
+    """Skin facets of the demo person (day, 3 m/s) at -30, -15, 0 and 16 degC air, at 0 degC
+    in 0, 3 and 12 m/s of wind, and on a -15 degC clear night."""
+    root = tmp_path_factory.mktemp("skin")
+    air = {k: _skin(humvvex_raw, root / f"air{k:.0f}", air_k=k) for k in (243.15, 258.15, 273.15, 289.0)}
+    wind = {v: _skin(humvvex_raw, root / f"wind{v:.0f}", air_k=273.15, wind=v) for v in (0.0, 12.0)}
+    wind[3.0] = air[273.15]
+    night = _skin(humvvex_raw, root / "night", air_k=258.15, hour=23)
+    return air, wind, night
+
+
+def test_no_skin_facet_above_its_segment_core(grid):
+    """The demo had a head facet at 40.9 degC under a 37 degC core; a -15 degC night an inner
+    shell temperature of 56 degC: now every facet of every case is at most its segment's core."""
+    air, wind, night = grid
+    for skin, report in [*air.values(), *wind.values(), night]:
+        assert np.isfinite(skin).all()
+        assert report["skinMinusSegmentCoreMax_K"] <= 1e-6
+        assert report["skinMax_K"] == pytest.approx(skin.max())
+        assert 250.0 < skin.min() and skin.max() < 311.0
+
+
+def test_skin_monotonic_in_air_temperature_and_wind(grid):
+    """Colder air never warms a facet (the hottest facet rose 314.0 -> 315.4 -> 317.3 K as the
+    air fell 289 -> 280 -> 270 K), and more wind never warms one in air below the skin.
+    Tolerance: the body-clothing coupling's flux tolerance (0.5 W m^-2) over a facet's
+    conductance, a few hundredths of a kelvin."""
+    air, wind, _ = grid
+    temps = [air[k][0] for k in sorted(air)]
+    for colder, warmer in zip(temps, temps[1:]):
+        assert (colder <= warmer + 0.05).all()
+        assert colder.max() <= warmer.max() + 1e-9 and colder.mean() < warmer.mean() - 0.5
+    speeds = [wind[v][0] for v in sorted(wind)]
+    for calm, windy in zip(speeds, speeds[1:]):
+        assert (windy <= calm + 0.05).all()
+        assert windy.mean() < calm.mean()
