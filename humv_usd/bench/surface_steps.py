@@ -1,0 +1,259 @@
+"""Temperature steps across a surface: between neighbouring faces of one mesh (the thermal
+layer) and between neighbouring pixels of one labelled region (the rendered images).
+
+A smooth surface under smooth forcing has small steps between neighbours; a faceted one
+(one temperature per flat face, each with its own sun cosine or shadow ray) has steps as large
+as the facet-to-facet spread of its forcing. These measures say how large, as the distribution
+(median, 90th percentile, largest) of the absolute differences, to compare with the render's
+stated per-pixel noise (issue 25, deliverable 2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def face_neighbours(counts, indices, points=None, tolerance_m: float = 1e-9) -> np.ndarray:
+    """(P, 2) pairs of polygons that share an edge, each pair once.
+
+    Parameters
+    ----------
+    counts : (F,) int
+        Vertices per face (USD faceVertexCounts).
+    indices : (sum(counts),) int
+        Face-vertex indices (USD faceVertexIndices).
+    points : (V, 3) array, optional
+        Vertex positions [m]: when given, vertices closer than ``tolerance_m`` count as one (a
+        seam split for UVs still joins its two sides).
+    tolerance_m : float
+        Position tolerance [m] for ``points``.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    idx = np.asarray(indices, dtype=np.int64)
+    if points is not None:
+        p = np.asarray(points, dtype=float)
+        _, vid = np.unique(np.round(p / tolerance_m), axis=0, return_inverse=True)
+        idx = vid.reshape(-1)[idx]
+    face = np.repeat(np.arange(len(counts)), counts)
+    start = np.repeat(np.cumsum(counts) - counts, counts)
+    nxt = start + (np.arange(len(idx)) - start + 1) % np.repeat(counts, counts)
+    a, b = idx, idx[nxt]
+    edges = np.c_[np.minimum(a, b), np.maximum(a, b)]
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    e, f = edges[order], face[order]
+    same = np.all(e[1:] == e[:-1], axis=1) & (f[1:] != f[:-1])
+    pairs = np.c_[f[:-1][same], f[1:][same]]
+    pairs = np.sort(pairs, axis=1)
+    return np.unique(pairs, axis=0) if len(pairs) else pairs.reshape(0, 2)
+
+
+def step_stats(steps) -> dict:
+    """Distribution of absolute steps: ``n``, ``p50``, ``p90``, ``p99``, ``max`` (NaN when
+    empty), in the steps' unit."""
+    s = np.abs(np.asarray(steps, dtype=float).ravel())
+    s = s[np.isfinite(s)]
+    if len(s) == 0:
+        return {"n": 0, "p50": np.nan, "p90": np.nan, "p99": np.nan, "max": np.nan}
+    p50, p90, p99 = np.percentile(s, [50, 90, 99])
+    return {"n": int(len(s)), "p50": float(p50), "p90": float(p90), "p99": float(p99), "max": float(s.max())}
+
+
+def face_steps(values, pairs) -> dict:
+    """:func:`step_stats` of |values[i] - values[j]| over neighbour ``pairs`` (face_neighbours)."""
+    v = np.asarray(values, dtype=float)
+    p = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    return step_stats(v[p[:, 0]] - v[p[:, 1]])
+
+
+def _erode(mask: np.ndarray, margin: int) -> np.ndarray:
+    """Pixels of ``mask`` whose (2 margin + 1)^2 neighbourhood lies inside it."""
+    out = mask.copy()
+    for _ in range(int(margin)):
+        m = out.copy()
+        m[1:] &= out[:-1]
+        m[:-1] &= out[1:]
+        m[:, 1:] &= out[:, :-1]
+        m[:, :-1] &= out[:, 1:]
+        m[1:, 1:] &= out[:-1, :-1]
+        m[:-1, :-1] &= out[1:, 1:]
+        m[1:, :-1] &= out[:-1, 1:]
+        m[:-1, 1:] &= out[1:, :-1]
+        out = m
+    return out
+
+
+def pixel_steps(image, mask, margin: int = 1, exclude=None) -> dict:
+    """:func:`step_stats` of the differences between horizontally and vertically neighbouring
+    pixels of ``image`` that both lie in ``mask`` at least ``margin`` pixels inside its edge
+    (the label's edge mixes in other surfaces) and outside ``exclude`` (e.g. pixels near a
+    sun-shadow boundary, where a real step belongs).
+
+    Parameters
+    ----------
+    image : (H, W) array
+        E.g. apparent temperature [K] or radiance.
+    mask : (H, W) bool
+        One region (a garment's pixels).
+    margin : int
+        Pixels eroded from the mask's edge.
+    exclude : (H, W) bool, optional
+        Pixels to leave out.
+    """
+    img = np.asarray(image, dtype=float)
+    ok = _erode(np.asarray(mask, dtype=bool), margin)
+    if exclude is not None:
+        ok &= ~np.asarray(exclude, dtype=bool)
+    dh = (img[:, 1:] - img[:, :-1])[ok[:, 1:] & ok[:, :-1]]
+    dv = (img[1:] - img[:-1])[ok[1:] & ok[:-1]]
+    return step_stats(np.r_[dh, dv])
+
+
+def noise_steps(sigma_a, sigma_b, seed: int = 0) -> dict:
+    """:func:`step_stats` of the steps that independent Gaussian pixel noise alone gives between
+    neighbours whose standard errors are ``sigma_a`` and ``sigma_b`` (one draw per pair,
+    N(0, sigma_a^2 + sigma_b^2)): what a perfectly smooth surface would show."""
+    s = np.sqrt(np.asarray(sigma_a, dtype=float) ** 2 + np.asarray(sigma_b, dtype=float) ** 2)
+    return step_stats(s * np.random.default_rng(seed).standard_normal(s.shape))
+
+
+def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    out = mask.copy()
+    for _ in range(int(radius)):
+        m = out.copy()
+        m[1:] |= out[:-1]
+        m[:-1] |= out[1:]
+        m[:, 1:] |= out[:, :-1]
+        m[:, :-1] |= out[:, 1:]
+        out = m
+    return out
+
+
+def _pairs(ok: np.ndarray):
+    """Flat index pairs of horizontally and vertically neighbouring pixels both in ``ok``."""
+    h, w = ok.shape
+    idx = np.arange(h * w).reshape(h, w)
+    ph = np.c_[idx[:, :-1][ok[:, :-1] & ok[:, 1:]], idx[:, 1:][ok[:, :-1] & ok[:, 1:]]]
+    pv = np.c_[idx[:-1][ok[:-1] & ok[1:]], idx[1:][ok[:-1] & ok[1:]]]
+    return np.r_[ph, pv]
+
+
+def garment_image_steps(
+    stage_path, render_dir, sensor: str, frame: int = 0, margin: int = 1, shadow_px: int = 2
+):
+    """Steps between neighbouring pixels of each garment of each person in a rendered IR image.
+
+    Which garment a pixel shows and whether that point is in the sun come from an independent
+    ray cast of the pixel centres (the camera of ``<sensor>/camera.json``) onto the people's
+    posed meshes, the sun shadow ray from that point against the same meshes; a pixel counts
+    when its ray hits the garment, the render labels it a garment (``label.material_kind`` 2),
+    it lies ``margin`` pixels inside the garment's mask and at least ``shadow_px`` pixels from a
+    lit / shadowed change.
+
+    Returns {garment prim path: {"image": step_stats of IR.brightness_temperature [K],
+    "surface": of surface.temperature (the layer's temperatures, noise-free) [K],
+    "noise": what the render's stated per-pixel error (IR.radiance_stderr through dT/dL)
+    alone would give (:func:`noise_steps`) [K], "pixels": pixels used}}.
+    """
+    import json
+    from pathlib import Path
+
+    import OpenImageIO as oiio
+    from pxr import Usd, UsdGeom
+
+    from humv_usd.geometry.mesh import fan_triangulate
+    from humv_usd.geometry.raycast import RayCaster, first_faces
+    from humv_usd.human.usdskel import skinned_points
+    from humv_usd.physics.planck import brightness_temperature_sensitivity
+    from humv_usd.usd.environment import sun_direction
+
+    render_dir = Path(render_dir)
+    buf = oiio.ImageBuf(str(render_dir / sensor / f"{frame:04d}.exr"))
+    spec = buf.spec()
+    names = list(spec.channelnames)
+    pix = buf.get_pixels(oiio.FLOAT)
+    chan = lambda n: pix[..., names.index(n)].astype(np.float64)  # noqa: E731
+    kind = np.rint(chan("label.material_kind") * 2.0**32).astype(np.int64)  # uint32 read as float
+    band = [float(x) for x in str(spec.get_string_attribute("humv:band_um")).split("-")]
+    radiance, stderr = chan("IR.radiance"), chan("IR.radiance_stderr")
+    _, slope = brightness_temperature_sensitivity(np.maximum(radiance, 1e-30), band)
+    sigma_k = stderr / np.where(slope > 0, slope, np.inf)
+    t_img, t_surf = chan("IR.brightness_temperature"), chan("surface.temperature")
+
+    cam = json.loads((render_dir / sensor / "camera.json").read_text())
+    fr = next(f for f in cam["frames"] if int(f["frame"]) == int(frame))
+    k = np.asarray(fr.get("K", cam["K"]), dtype=float)
+    r, t = np.asarray(fr["R"], dtype=float), np.asarray(fr["t"], dtype=float).ravel()
+    h, w = int(cam["height"]), int(cam["width"])
+    jj, ii = np.meshgrid(np.arange(h) + 0.5, np.arange(w) + 0.5, indexing="ij")
+    d_cam = np.stack([ii.ravel(), jj.ravel(), np.ones(h * w)], axis=1) @ np.linalg.inv(k).T
+    d = d_cam @ r  # R^T d_cam, row-wise
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    origin = -r.T @ t
+
+    stage = Usd.Stage.Open(str(stage_path))
+    time = Usd.TimeCode(frame)
+    pts, tris, owner, paths = [], [], [], []
+    off = 0
+    for prim in stage.Traverse():
+        path = str(prim.GetPath())
+        if not prim.IsA(UsdGeom.Mesh) or "/Humans/" not in path:
+            continue
+        m = UsdGeom.Mesh(prim)
+        tri, _ = fan_triangulate(
+            np.asarray(m.GetFaceVertexCountsAttr().Get(), dtype=np.int64),
+            np.asarray(m.GetFaceVertexIndicesAttr().Get(), dtype=np.int64),
+        )
+        p = skinned_points(stage, path, time, space="world")
+        pts.append(p)
+        tris.append(tri + off)
+        owner.append(np.full(len(tri), len(paths)))
+        paths.append(path)
+        off += len(p)
+    caster = RayCaster(np.concatenate(pts), np.concatenate(tris))
+    v, f = caster.points, caster.triangles
+    hit = first_faces(caster, np.broadcast_to(origin, d.shape).copy(), d)
+    part = np.where(hit >= 0, np.concatenate(owner)[np.maximum(hit, 0)], -1).reshape(h, w)
+    lit = np.zeros(h * w, dtype=bool)
+    s = sun_direction(stage, time)
+    if s is not None:
+        on = np.nonzero(hit >= 0)[0]
+        tri = v[f[hit[on]]]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        tt = np.einsum("ij,ij->i", tri[:, 0] - origin, n) / np.einsum("ij,ij->i", d[on], n)
+        x = origin + tt[:, None] * d[on]
+        n = np.where((np.einsum("ij,ij->i", n, d[on]) > 0)[:, None], -n, n)  # towards the camera
+        sun = np.asarray(s, dtype=float) / np.linalg.norm(s)
+        lit[on] = (n @ sun > 0) & (
+            first_faces(caster, x + 1e-4 * n, np.broadcast_to(sun, x.shape).copy()) < 0
+        )
+    lit = lit.reshape(h, w)
+    person = part >= 0
+    change = np.zeros((h, w), dtype=bool)
+    both = person[:, 1:] & person[:, :-1]
+    dh = both & (lit[:, 1:] != lit[:, :-1])
+    change[:, 1:] |= dh
+    change[:, :-1] |= dh
+    both = person[1:] & person[:-1]
+    dv = both & (lit[1:] != lit[:-1])
+    change[1:] |= dv
+    change[:-1] |= dv
+    near_shadow = _dilate(change, shadow_px)
+
+    out = {}
+    for gi, path in enumerate(paths):
+        if "/Clothing/" not in path:
+            continue
+        ok = _erode((part == gi) & (kind == 2), margin) & ~near_shadow
+        pr = _pairs(ok)
+        if len(pr) == 0:
+            continue
+        a, b = pr[:, 0], pr[:, 1]
+        ti, ts, sk = t_img.ravel(), t_surf.ravel(), sigma_k.ravel()
+        out[path] = {
+            "image": step_stats(ti[a] - ti[b]),
+            "surface": step_stats(ts[a] - ts[b]),
+            "noise": noise_steps(sk[a], sk[b]),
+            "pixels": int(ok.sum()),
+        }
+    return out
