@@ -435,3 +435,30 @@ def test_local_skin_hot_segment_left_unbounded():
     free = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0)[0]
     t_f = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0, segment_core_k=core)[0]
     assert_allclose(t_f, free, rtol=0, atol=0)
+
+
+def test_lagged_skin_relaxes_exponentially_and_keeps_the_segment_mean():
+    """A step in two facets' steady departures: each approaches its new steady value as
+    exp(-t / tau), tau = C / (K + g), exactly; the area mean stays the segment's skin."""
+    frames, dt = 40, 1.0 / 30.0
+    seg = np.array([3, 3])
+    area = np.array([0.02, 0.02])
+    mean = np.full((frames, 17), 305.0)
+    steady = np.tile([305.0, 305.0], (frames, 1))
+    steady[1:] = [306.0, 304.0]  # a sun edge crosses the segment at frame 1
+    cap = np.full(17, 6000.0)
+    cond = np.full((frames, 2), 30.0)
+    out = P.lagged_skin(steady, mean, cap, cond, dt, seg, area)
+    t = np.arange(frames) * dt
+    assert_allclose(out[:, 0], 306.0 - np.exp(-t * 30.0 / 6000.0), rtol=0, atol=1e-12)
+    assert_allclose(out.mean(axis=1), 305.0, atol=1e-12)
+    assert np.abs(np.diff(out, axis=0)).max() < 30.0 * dt / 6000.0 * 1.0 + 1e-12  # C dT/dt <= (K+g) dT
+
+
+def test_sample_interpolation_is_linear_between_samples():
+    from humv_usd.thermal.human import sample_interpolation
+
+    at = sample_interpolation([0, 10, 20], 25)
+    v = at(np.array([[0.0, 1.0], [10.0, 3.0], [40.0, 5.0]]))
+    assert_allclose(v[:, 0], np.r_[np.arange(11.0), 10.0 + 3.0 * np.arange(1.0, 11.0), np.full(4, 40.0)])
+    assert_allclose(v[5, 1], 2.0)

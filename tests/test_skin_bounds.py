@@ -68,3 +68,27 @@ def test_skin_monotonic_in_air_temperature_and_wind(grid):
     for calm, windy in zip(speeds, speeds[1:]):
         assert (windy <= calm + 0.05).all()
         assert windy.mean() < calm.mean()
+
+
+def test_walker_facets_change_within_the_skin_heat_capacity(humvvex_raw, tmp_path):
+    """A walker (10 fps, radiation every 0.5 s): per frame no skin facet changes by more than
+    a 1,500 W m^-2 imbalance (more than full sun plus the night sky) can drive through the
+    smallest skin heat capacity of JOS-3 (4.8 kJ m^-2 K^-1), twice over (the facet and its
+    segment's mean); the old steady facets jumped up to 7.1 K at the radiation samples.
+    Convection sees the walking speed relative to the 3 m/s wind."""
+    raw = copy.deepcopy(humvvex_raw)
+    raw["sensor"] = raw["sensor"][:1]
+    raw["thermal"] = {"model": "jos3", "radiation_step_s": 0.5, "radiation_rays": 16, "radiation_resolution": 32}
+    raw["atmosphere"]["model"] = "analytic"
+    raw["general"].update(duration_s=1.4, fps=10.0)
+    raw["human"][0].update(activity="walk")
+    compose(validate(raw), tmp_path)
+    stage = Usd.Stage.Open(str(tmp_path / "stage.usda"))
+    attr = stage.GetPrimAtPath(BODY).GetAttribute(S.TEMPERATURE_PRIMVAR)
+    skin = np.array([attr.Get(f) for f in range(15)], dtype=float)
+    step = np.abs(np.diff(skin, axis=0)).max()
+    assert step <= 2.0 * 0.1 * 1500.0 / 4800.0
+    report = Sdf.Layer.FindOrOpen(str(tmp_path / "layers" / "thermal.usda")).customLayerData["humv:thermal"]["p1"]
+    assert report["skinMinusSegmentCoreMax_K"] <= 1e-6
+    assert 3.0 - 1.4 - 0.3 < report["relativeAirSpeedMean_m_s"] < 3.0 + 1.4 + 0.3
+    assert abs(report["relativeAirSpeedMean_m_s"] - 3.0) > 0.1  # the walking speed counts

@@ -59,6 +59,7 @@ from humv_usd.thermal import qrad as Q
 from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.physiology import (
     N_SEGMENTS,
+    lagged_skin,
     local_skin_temperature,
     radiant_temperature_for_sensible_loss,
     simulate_physiology,
@@ -308,7 +309,11 @@ def human_temperatures(
                 q_garment[p.path][k] = np.bincount(p.tri_face, qt * area, len(p.counts)) / np.maximum(
                     np.bincount(p.tri_face, area, len(p.counts)), 1e-12
                 )
-    nearest = np.searchsorted(np.asarray(samples), np.arange(frames), side="right") - 1
+    # radiation at every frame, linear between the samples (held after the last): no jumps at
+    # the sample boundaries (issue 25: walkers' facets jumped up to 7 K once a second)
+    at_frames = sample_interpolation(samples, frames)
+    q_skin = at_frames(q_skin)
+    q_garment = {path: at_frames(q) for path, q in q_garment.items()}
 
     # physiology over the frames, coupled both ways with the local skin and garment balances
     rate = read_metabolic_rate(stage.GetPrimAtPath(human_path), frames)
@@ -333,12 +338,12 @@ def human_temperatures(
         # forced convection, with ISO 7730's natural-convection floor 2.38 |T_sk - T_a|^0.25
         # for bare skin in calm air (a 33 degC facet in still 16 degC air: h = 4.8 W m^-2 K^-1)
         h_skin = convective_coefficient(wind[:, None], t_faces - air[:, None], model=convection)
-        q = h_skin * (t_faces - air[:, None]) + sigma_eps * t_faces**4 - q_skin[nearest]
+        q = h_skin * (t_faces - air[:, None]) + sigma_eps * t_faces**4 - q_skin
         g = h_skin + 4.0 * sigma_eps * t_faces**3
         temps, worst = {}, 0.0
         for gi, c in enumerate(clothes):
             skin_g = t_faces[:, cover.under[gi]]
-            q_abs = q_garment[c.part.path][nearest]
+            q_abs = q_garment[c.part.path]
             t_out, q_in, res = c.series(skin_g, air, q_abs, wind, transient)
             temps[c.part.path], worst = t_out, max(worst, res)
             sel = cover.garment == gi
@@ -350,7 +355,8 @@ def human_temperatures(
 
     seg_area = np.bincount(body.segment, area, N_SEGMENTS)
     two_node = MODEL_NAMES[model] == "two_node"
-    tr_eff = np.where(np.isnan(mrt[nearest]), air[:, None], mrt[nearest])
+    mrt = at_frames(mrt)
+    tr_eff = np.where(np.isnan(mrt), air[:, None], mrt)
     t_lin = None
     for iteration in range(1, COUPLING_MAX_ITERATIONS + 1):
         diagnostics["couplingIterations"] = iteration
@@ -387,6 +393,17 @@ def human_temperatures(
                 t_lin[f],
                 segment_core_k=result.segment_core_temperature_k[f],
             )[0]
+        if frames > 1 and settings.get("skin_detail", "facet") == "facet":
+            t_face = lagged_skin(
+                t_face,
+                skin,
+                result.segment_skin_capacity_j_m2_k,
+                np.asarray(result.segment_skin_conductance_w_m2_k)[:, body.segment] + np.maximum(g_lin, 0.0),
+                1.0 / fps,
+                body.segment,
+                area,
+                result.segment_core_temperature_k,
+            )
         # the slope of the first linearisation is kept (a chord iteration: the fluxes
         # themselves are exact at every iterate)
         q_face, _, garment_temps, garment_residual = fluxes(t_face, slope=False)
@@ -429,6 +446,23 @@ SLOPE_STEP_K = 0.25
 #: air gap + fabric thickness + this margin [m] (the centres of a fitted garment's faces and the
 #: body's are not aligned).
 COVER_MARGIN_M = 0.015
+
+
+def sample_interpolation(samples: list, frames: int):
+    """A function taking (S, ...) values at the radiation sample frames to (frames, ...): linear
+    in time between samples, held after the last."""
+    s = np.asarray(samples, dtype=float)
+    f = np.arange(frames, dtype=float)
+    i0 = np.clip(np.searchsorted(s, f, side="right") - 1, 0, len(s) - 1)
+    i1 = np.minimum(i0 + 1, len(s) - 1)
+    w1 = np.where(i1 > i0, (f - s[i0]) / np.where(i1 > i0, s[i1] - s[i0], 1.0), 0.0)
+
+    def at_frames(values: np.ndarray) -> np.ndarray:
+        v = np.asarray(values, dtype=float)
+        w = w1.reshape((-1,) + (1,) * (v.ndim - 1))
+        return (1.0 - w) * v[i0] + w * v[i1]
+
+    return at_frames
 
 
 def body_velocity(

@@ -229,6 +229,11 @@ class PhysiologyResult:
     #: the body core on every segment): the upper bound of the segment's facet skin
     #: (:func:`local_skin_temperature`).
     segment_core_temperature_k: np.ndarray | None = None
+    #: (17,) heat capacity of each segment's skin per unit area [J m^-2 K^-1] (JOS-3's skin node
+    #: capacity / segment area, Takahashi et al. 2021; two-node: Gagge's 0.97 Wh/(kg K) x the
+    #: skin mass fraction alpha x mass / area at the end of the spin-up): the time constant of a
+    #: facet's departure from its segment's skin temperature.
+    segment_skin_capacity_j_m2_k: np.ndarray | None = None
 
 
 # ----------------------------------------------------------------------------- two-node
@@ -507,6 +512,7 @@ def two_node(
         segment_skin_conductance_w_m2_k=_per_segment(cond),
         wettedness=_per_segment(wet),
         segment_core_temperature_k=_per_segment(core + ZERO_C),
+        segment_skin_capacity_j_m2_k=np.full(N_SEGMENTS, body.C_TISSUE * body.alpha * mass_kg / area),
     )
 
 
@@ -702,6 +708,18 @@ def jos3_tissue_conductance(model) -> np.ndarray:
     return out
 
 
+def jos3_skin_capacity(model) -> np.ndarray:
+    """(17,) heat capacity of each JOS-3 segment's skin node per unit segment area
+    [J m^-2 K^-1], from the model's own capacities (Takahashi et al. 2021, Table 4, scaled to the
+    body; e.g. the standard head 0.1885 Wh/K over 0.110 m^2: 6.2 kJ m^-2 K^-1, about 1.7 mm of
+    tissue at 1,000 kg m^-3 and 3.6 kJ kg^-1 K^-1)."""
+    from pythermalcomfort.jos3_functions.matrix import IDICT
+
+    cap = np.asarray(model._cap, dtype=float)
+    area = np.asarray(model._bsa, dtype=float)
+    return np.array([cap[IDICT[name]["skin"]] for name in JOS3_PYTHERMALCOMFORT]) / area
+
+
 def _jos3_state(model, bf_skin_l_h: np.ndarray, tissue_w_k: np.ndarray) -> dict:
     """Per-segment fluxes [W m^-2] and coefficients of a JOS3 model at its current state, by
     JOS-3's own formulas (``JOS3._run``): sensible (T_sk - T_o) / R_t, latent E_sk (guarded),
@@ -786,6 +804,7 @@ def _jos3(
     else:
         advance(1e-6, 0)  # an output record at the initial state
     tissue = jos3_tissue_conductance(model)
+    skin_capacity = jos3_skin_capacity(model)
     seg_skin = np.empty((n, N_SEGMENTS))
     seg_core = np.empty((n, N_SEGMENTS))
     state = {
@@ -830,6 +849,7 @@ def _jos3(
         segment_skin_conductance_w_m2_k=state["conductance"],
         wettedness=state["wettedness"],
         segment_core_temperature_k=seg_core + ZERO_C,
+        segment_skin_capacity_j_m2_k=skin_capacity,
     )
 
 
@@ -1100,6 +1120,73 @@ def _bounded_skin(t_face, t_inner, target, core, seg, area, w, k, g, t0, q0, e):
     raised = at_factor(hi)
     out = t_face.copy()
     out[sel] = np.minimum(np.where(inner_ok[s], a * t_b[s] + b, raised), cf)
+    return out
+
+
+def lagged_skin(
+    steady_k,
+    segment_skin_k,
+    capacity_j_m2_k,
+    conductance_w_m2_k,
+    dt_s,
+    segment_ids,
+    face_area_m2,
+    segment_core_k=None,
+):
+    """Facet skin temperatures over frames with the skin's heat capacity (issue 25, deliverable 4).
+
+    Parameters
+    ----------
+    steady_k : array_like
+        (T, F) each frame's steady facet temperature (:func:`local_skin_temperature`) [K].
+    segment_skin_k : array_like
+        (T, 17) the physiology's segment skin temperature [K] (its own heat capacities already
+        make it evolve smoothly).
+    capacity_j_m2_k : array_like
+        (17,) skin heat capacity per unit area of each segment [J m^-2 K^-1].
+    conductance_w_m2_k : array_like
+        (T, F) a facet's total conductance K_s + dq/dT to its core and surroundings [W m^-2 K^-1].
+    dt_s : float
+        Time between frames [s].
+    segment_ids, face_area_m2 : array_like
+        (F,) JOS-3 segment and area [m^2] of each facet.
+    segment_core_k : array_like, optional
+        (T, 17) segment core temperatures [K]: the bound of :func:`local_skin_temperature`.
+
+    Returns
+    -------
+    numpy.ndarray
+        (T, F) facet temperatures [K]; frame 0 is the steady state (after the spin-up).
+
+    Notes
+    -----
+    A facet's departure d_f = T_f - T_sk,s from its segment's skin temperature relaxes to the
+    steady departure with the facet's own time constant tau_f = C_s / (K_s + g_f) (a lumped skin
+    layer of capacity C_s between the core conductance and the surroundings): exactly, for a
+    forcing held over the step, d_f(t + dt) = d_ss + (d_f(t) - d_ss) exp(-dt / tau_f). The
+    departures are re-centred to a zero area mean per segment, so the segment keeps the
+    physiology's skin temperature. With a skin capacity of 5-9 kJ m^-2 K^-1 (JOS-3) and
+    K + g of 15-40 W m^-2 K^-1, tau is 2-10 min: radiation that changes at the second
+    boundaries or air gaps that change each frame no longer make facets jump.
+    """
+    steady = np.asarray(steady_k, dtype=float)
+    mean = np.asarray(segment_skin_k, dtype=float)
+    seg = np.asarray(segment_ids)
+    area = np.asarray(face_area_m2, dtype=float)
+    w = np.maximum(np.bincount(seg, area, N_SEGMENTS), 1e-300)
+    cap = np.asarray(capacity_j_m2_k, dtype=float)[seg]
+    decay = np.exp(-float(dt_s) * np.asarray(conductance_w_m2_k, dtype=float) / cap)
+    d_ss = steady - mean[:, seg]
+    d = np.empty_like(d_ss)
+    d[0] = d_ss[0]
+    for n in range(1, len(d)):
+        d[n] = d_ss[n] + (d[n - 1] - d_ss[n]) * decay[n]
+        d[n] -= (np.bincount(seg, area * d[n], N_SEGMENTS) / w)[seg]
+    out = mean[:, seg] + d
+    if segment_core_k is not None:
+        core = np.asarray(segment_core_k, dtype=float)
+        losing = (mean < core)[:, seg]
+        out = np.where(losing, np.minimum(out, core[:, seg]), out)
     return out
 
 
