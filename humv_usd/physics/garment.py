@@ -12,6 +12,19 @@ The unknown is the outer fabric temperature T_out per facet; the inner temperatu
 from the fabric conduction, T_in = T_out + l_f / k_f q_out(T_out), so the balance is one
 strictly decreasing scalar function of T_out per facet, solved by a bracketed (safeguarded)
 Newton iteration that cannot leave its bracket. All functions are vectorized over facets.
+
+A wet fabric (sweat wicked into it) also loses latent heat from its outer surface,
+q_evap = w LR h (p_sat(T_out) - RH p_sat(T_air)) (Lewis relation, ASHRAE Fundamentals ch. 9),
+which keeps the residual strictly decreasing.
+
+Layered garments (:func:`stack_steady_state`, :func:`stack_transient_step`): layers 0 (on the
+skin) .. n-1 (outermost) in series; the outermost layer's outer surface meets the environment,
+each layer's inner surface exchanges with the next inner layer's outer surface across its own
+air gap (conduction, Hollands convection, grey-plate radiation), layer 0's with the skin. The
+unknown is still the outermost temperature: from it the flux is carried inward layer by layer
+(fabric conduction, storage, the gap inverted for the warm side by
+:func:`gap_temperature_for_flux`), and the residual is what the skin delivers minus what the
+stack needs, again strictly decreasing.
 """
 
 from __future__ import annotations
@@ -23,11 +36,14 @@ import numpy as np
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.physics.checks import require
 from humv_usd.physics.convection import mitchell
-from humv_usd.physics.sky import effective_sky_temperature
+from humv_usd.physics.sky import effective_sky_temperature, water_vapour_pressure
 
 GRAVITY = 9.80665  # [m s^-2]
 _HOLLANDS_RA_CRITICAL = 1708.0  # onset of Rayleigh-Benard convection, rigid plates
 _T_PROPERTY_MIN = 100.0  # [K], air properties are clamped below (outside any physical state)
+#: Lewis ratio h_e / h_c of the evaporative to the convective coefficient at sea level
+#: [K Pa^-1] (16.5 K kPa^-1, ASHRAE Handbook Fundamentals 2017, ch. 9 eq. 34).
+LEWIS_RATIO_K_PA = 16.5e-3
 
 
 def air_conductivity(temperature_k):
@@ -129,6 +145,76 @@ def _t4(t):
     # sign(T) T^4: identical to T^4 for T > 0 and monotonic everywhere, so the residual stays
     # monotonic even at bracket ends far outside the physical range
     return t * t * t * np.abs(t)
+
+
+def saturation_vapour_pressure(temperature_k):
+    """Saturation vapour pressure over water [Pa] (Magnus form, Alduchov & Eskridge 1996).
+
+    Parameters
+    ----------
+    temperature_k : numeric
+        Temperature [K]; clamped to -100..200 degC so that solver brackets far outside the
+        physical range stay finite and monotonic.
+
+    Returns
+    -------
+    numeric
+        e_s = 610.94 exp(17.625 t / (t + 243.04)) [Pa], t in degC.
+
+    References
+    ----------
+    .. [1] Alduchov, O. A., Eskridge, R. E. (1996). Improved Magnus form approximation of
+       saturation vapor pressure. J. Appl. Meteorol. 35, 601-609.
+    """
+    t = np.clip(np.asarray(temperature_k, dtype=float), 173.15, 473.15)
+    return water_vapour_pressure(t, 1.0)
+
+
+def fabric_evaporation(
+    outer_temperature_k, air_temperature_k, relative_humidity, h_convective, wetted_fraction
+):
+    """Latent heat flux from a wet fabric surface to the air [W m^-2] (Lewis relation).
+
+    Parameters
+    ----------
+    outer_temperature_k : numeric
+        Fabric outer-surface temperature [K].
+    air_temperature_k : numeric
+        Air temperature [K].
+    relative_humidity : numeric
+        Air relative humidity [0-1].
+    h_convective : numeric
+        Convective coefficient of the surface [W m^-2 K^-1].
+    wetted_fraction : numeric
+        Wetted fraction of the fabric's outer surface [0-1] (0: dry).
+
+    Returns
+    -------
+    numeric
+        q_evap = w LR h_c (p_sat(T_out) - RH p_sat(T_air)) [W m^-2] with LR = 16.5 K kPa^-1;
+        negative for condensation on a wet surface below the dew point.
+
+    Notes
+    -----
+    The evaporative coefficient follows from the convective one by the Lewis relation
+    h_e = LR h_c (ASHRAE Fundamentals 2017 ch. 9; Gagge & Nishi 1977). A fully wet surface
+    (w = 1) with no other heat source settles at the temperature T_w that solves
+    e_a = p_sat(T_w) - (T_a - T_w) / LR, the psychrometric wet-bulb temperature of a
+    psychrometer constant 1 / LR = 0.061 kPa K^-1 (the sea-level thermodynamic value is
+    0.066 kPa K^-1: about 0.3 K apart at 30 degC, 40 %).
+
+    References
+    ----------
+    .. [1] ASHRAE (2017). Handbook - Fundamentals, ch. 9 Thermal Comfort, eq. 34 (Lewis
+       relation) and ch. 1 Psychrometrics.
+    .. [2] Gagge, A. P., Nishi, Y. (1977). Heat exchange between human skin surface and thermal
+       environment. Handbook of Physiology, sect. 9, 69-92.
+    """
+    w = np.asarray(wetted_fraction, dtype=float)
+    dp = saturation_vapour_pressure(outer_temperature_k) - np.asarray(
+        relative_humidity, dtype=float
+    ) * saturation_vapour_pressure(air_temperature_k)
+    return w * LEWIS_RATIO_K_PA * np.asarray(h_convective, dtype=float) * dp
 
 
 def hollands_nusselt(rayleigh):
@@ -248,6 +334,7 @@ class GarmentBalance(NamedTuple):
     q_emit: np.ndarray  # emission eps sigma T^4 [W m^-2], seed Eq. 8
     q_storage: np.ndarray  # C (T - T_prev) / dt, 0 in steady state [W m^-2]
     iterations: int  # Newton/bisection iterations of the slowest facet
+    q_evap: np.ndarray | float = 0.0  # latent loss of a wet fabric [W m^-2] (Lewis relation)
 
 
 def _outer_coefficient(h_forced, delta_t, natural_floor):
@@ -259,9 +346,11 @@ def _outer_coefficient(h_forced, delta_t, natural_floor):
 def _balance(t_out, p):
     """Residual and flux terms at outer temperature t_out; p holds broadcast parameters."""
     dt_air = t_out - p["t_air"]
-    q_conv = _outer_coefficient(p["h"], dt_air, p["natural_floor"]) * dt_air
+    h_out = _outer_coefficient(p["h"], dt_air, p["natural_floor"])
+    q_conv = h_out * dt_air
     q_emit = p["eps_f"] * STEFAN_BOLTZMANN * _t4(t_out)
-    q_out = q_conv + q_emit - p["q_rad"]
+    q_evap = fabric_evaporation(t_out, p["t_air"], p["rh"], h_out, p["wet"])
+    q_out = q_conv + q_emit + q_evap - p["q_rad"]
     u_f = p["u_f"]
     insulated = u_f <= 0.0
     contact = (p["gap"] <= 0.0) & ~insulated
@@ -275,7 +364,7 @@ def _balance(t_out, p):
     q_in = q_cd + q_r
     q_store = p["c_dt"] * (t_out - p["t_prev"])
     residual = q_in - q_out - q_store
-    return residual, (t_in, q_in, q_cd, q_r, q_fabric, q_conv, q_emit, q_store)
+    return residual, (t_in, q_in, q_cd, q_r, q_fabric, q_conv, q_emit, q_store, q_evap)
 
 
 def _solve(p, lo, hi, tol, max_iter):
@@ -321,6 +410,8 @@ def _parameters(
     c_dt,
     t_prev,
     check_previous=True,
+    wetted_fraction=0.0,
+    relative_humidity=0.5,
 ):
     if gap_model not in ("hollands", "conduction"):
         raise ValueError(f"invalid model selection {gap_model}")
@@ -337,6 +428,8 @@ def _parameters(
         inner_emissivity,
         t_prev if check_previous else None,
     )
+    require("wetted_fraction", wetted_fraction, 0.0, 1.0)
+    require("relative_humidity", relative_humidity, 0.0, 1.0)
     eps_f = np.asarray(fabric_emissivity, dtype=float)
     eps_in = eps_f if inner_emissivity is None else np.asarray(inner_emissivity, dtype=float)
     thick = np.asarray(fabric_thickness_m, dtype=float)
@@ -354,6 +447,8 @@ def _parameters(
         eps_s=skin_emissivity,
         c_dt=c_dt,
         t_prev=t_prev,
+        wet=wetted_fraction,
+        rh=relative_humidity,
     )
     b = np.broadcast_arrays(*[np.asarray(v, dtype=float) for v in arrays.values()])
     p = {k: np.array(v) for k, v in zip(arrays, b)}
@@ -385,7 +480,12 @@ def _bracket(p):
         es = p["eps_f"] * STEFAN_BOLTZMANN
         t_rad = np.where(es > 0.0, (np.maximum(p["q_rad"], 0.0) / es) ** 0.25, np.inf)
         t_cnv = np.where(p["h"] > 0.0, p["t_air"] + np.maximum(p["q_rad"], 0.0) / p["h"], np.inf)
-    lo = np.minimum(np.minimum(p["t_skin"], p["t_air"]), t_rad)
+    # below the air, a wet surface's evaporation is at most w LR h (1 - RH) p_sat(T_air): below
+    # t_evap the convective gain outweighs it whatever h is
+    t_evap = p["t_air"] - p["wet"] * LEWIS_RATIO_K_PA * (1.0 - p["rh"]) * saturation_vapour_pressure(
+        p["t_air"]
+    )
+    lo = np.minimum(np.minimum(np.minimum(p["t_skin"], p["t_air"]), t_rad), t_evap)
     hi = np.maximum(np.maximum(p["t_skin"], p["t_air"]), np.minimum(t_rad, t_cnv))
     lo = np.minimum(lo, p["t_prev"])
     hi = np.maximum(hi, p["t_prev"])
@@ -395,9 +495,21 @@ def _bracket(p):
 
 
 def _result(t, p, iterations):
-    residual, (t_in, q_in, q_cd, q_r, q_fab, q_conv, q_emit, q_store) = _balance(t, p)
+    residual, (t_in, q_in, q_cd, q_r, q_fab, q_conv, q_emit, q_store, q_evap) = _balance(t, p)
     return GarmentBalance(
-        t, t_in, residual, q_in, q_cd, q_r, q_fab, p["q_rad"].copy(), q_conv, q_emit, q_store, iterations
+        t,
+        t_in,
+        residual,
+        q_in,
+        q_cd,
+        q_r,
+        q_fab,
+        p["q_rad"].copy(),
+        q_conv,
+        q_emit,
+        q_store,
+        iterations,
+        q_evap,
     )
 
 
@@ -416,6 +528,8 @@ def steady_state(
     gap_model="hollands",
     tol=1e-6,
     max_iter=100,
+    wetted_fraction=0.0,
+    relative_humidity=0.5,
 ):
     """Steady-state garment temperatures per facet (seed Eq. 5-9), bracketed Newton.
 
@@ -450,6 +564,11 @@ def steady_state(
         Residual tolerance [W m^-2].
     max_iter : int, default 100
         Iteration cap (the bracket halves at least every other iteration after 40).
+    wetted_fraction : numeric, default 0
+        Wetted fraction of the outer surface [0-1] (sweat wicked into the fabric); it
+        evaporates by :func:`fabric_evaporation`.
+    relative_humidity : numeric, default 0.5
+        Air relative humidity [0-1] (used only by the evaporation of a wet fabric).
 
     Returns
     -------
@@ -458,7 +577,8 @@ def steady_state(
 
     Notes
     -----
-    Solves q_in(T_in) + q_rad = h (T_out - T_air) + eps sigma T_out^4 (seed Eq. 5, 8, 9) with
+    Solves q_in(T_in) + q_rad = h (T_out - T_air) + eps sigma T_out^4 (+ q_evap of a wet
+    fabric) (seed Eq. 5, 8, 9) with
     T_in = T_out + (l_f / k_f) q_out (seed Eq. 6, R2 = l_f / k_f) and q_in from
     :py:func:`air_gap_flux` (seed Eq. 7, R1). The residual is strictly decreasing in T_out, and
     the bracket [min(T_skin, T_air, (q_rad / eps sigma)^(1/4)) - 1,
@@ -485,6 +605,8 @@ def steady_state(
         gap_model,
         0.0,
         air_temperature_k,
+        wetted_fraction=wetted_fraction,
+        relative_humidity=relative_humidity,
     )
     lo, hi = _bracket(p)
     t, it = _solve(p, lo, hi, tol, max_iter)
@@ -533,6 +655,8 @@ def transient_step(
     gap_model="hollands",
     tol=1e-6,
     max_iter=100,
+    wetted_fraction=0.0,
+    relative_humidity=0.5,
 ):
     """One implicit (backward Euler) step of the garment balance with fabric heat capacity.
 
@@ -546,7 +670,7 @@ def transient_step(
         Areal heat capacity of the fabric [J m^-2 K^-1], see :py:func:`areal_heat_capacity`.
     skin_temperature_k, air_temperature_k, absorbed_radiation, h_forced, air_gap_m, \
 fabric_thickness_m, fabric_conductivity, fabric_emissivity, skin_emissivity, \
-inner_emissivity, natural_floor, gap_model, tol, max_iter
+inner_emissivity, natural_floor, gap_model, tol, max_iter, wetted_fraction, relative_humidity
         As in :py:func:`steady_state`, at the end of the step.
 
     Returns
@@ -585,6 +709,8 @@ inner_emissivity, natural_floor, gap_model, tol, max_iter
         gap_model,
         c_dt,
         previous_outer_temperature_k,
+        wetted_fraction=wetted_fraction,
+        relative_humidity=relative_humidity,
     )
     lo, hi = _bracket(p)
     t, it = _solve(p, lo, hi, tol, max_iter)
@@ -605,6 +731,8 @@ def net_flux(
     inner_emissivity=None,
     natural_floor=True,
     gap_model="hollands",
+    wetted_fraction=0.0,
+    relative_humidity=0.5,
 ):
     """Net heat flux into the outer fabric surface, q_in + q_rad - q_conv - q_emit [W m^-2].
 
@@ -638,8 +766,420 @@ inner_emissivity, natural_floor, gap_model
         0.0,
         outer_temperature_k,
         check_previous=False,  # a diagnostic: any outer temperature may be evaluated
+        wetted_fraction=wetted_fraction,
+        relative_humidity=relative_humidity,
     )
     return _balance(np.broadcast_to(np.asarray(outer_temperature_k, dtype=float), p["t_air"].shape), p)[0]
+
+
+# ----------------------------------------------------------------------------- layered garments
+def gap_temperature_for_flux(
+    flux,
+    cold_temperature_k,
+    air_gap_m,
+    hot_emissivity=0.9,
+    cold_emissivity=0.9,
+    model="hollands",
+    tol=1e-9,
+    max_iter=80,
+):
+    """Warm-side temperature of an air gap that carries a given flux to its cold side.
+
+    Parameters
+    ----------
+    flux : numeric
+        Heat flux across the gap from the warm (inner) to the cold (outer) side [W m^-2];
+        negative when heat flows inward.
+    cold_temperature_k : numeric
+        Temperature of the gap's outer side [K].
+    air_gap_m : numeric
+        Gap thickness [m]; 0 is contact (the warm side equals the cold side).
+    hot_emissivity, cold_emissivity : numeric
+        Emissivities of the inner and outer surfaces [0-1].
+    model : str, default 'hollands'
+        As in :py:func:`air_gap_flux`.
+    tol : float, default 1e-9
+        Flux tolerance [W m^-2].
+    max_iter : int, default 80
+        Iteration cap.
+
+    Returns
+    -------
+    numeric
+        T_hot with q_cd + q_r of :py:func:`air_gap_flux` (T_hot, T_cold) = ``flux`` [K].
+
+    Notes
+    -----
+    The gap flux is strictly increasing in T_hot (conduction with k_air(T_m) > 0, Hollands'
+    Nusselt number non-decreasing in T_hot - T_cold, sign(T) T^4 radiation), so the root is
+    unique. Bracket: for q >= 0, T_cold <= T_hot <= T_cold + q d / k_air(T_cold) (conduction
+    alone, Nu >= 1, k_air(T_m) >= k_air(T_cold)); for q < 0 the layer is stable (Nu = 1),
+    T_cold + q d / k_air(100 K) <= T_hot <= T_cold. Safeguarded Newton (Numerical Recipes
+    rtsafe) inside the shrinking bracket.
+    """
+    q, t_c, d, e_h, e_c = (
+        np.array(v, dtype=float)
+        for v in np.broadcast_arrays(flux, cold_temperature_k, air_gap_m, hot_emissivity, cold_emissivity)
+    )
+    shape = q.shape
+    q, t_c, d, e_h, e_c = (v.ravel() for v in (q, t_c, d, e_h, e_c))
+    t = t_c.copy()  # contact: no gap, no difference
+    idx = np.flatnonzero(d > 0.0)  # facets still iterating
+    q, t_c, d, e_h, e_c = q[idx], t_c[idx], d[idx], e_h[idx], e_c[idx]
+    lo = np.where(q >= 0.0, t_c, t_c + q * d / air_conductivity(_T_PROPERTY_MIN)) - 1e-9 * np.abs(t_c)
+    hi = np.where(q >= 0.0, t_c + q * d / air_conductivity(t_c), t_c) + 1e-9 * np.abs(t_c)
+    f_rad = grey_plates_exchange_factor(e_h, e_c)
+    # start from the gap linearised at the cold side (exact for small differences)
+    h_lin = air_conductivity(t_c) / d + 4.0 * f_rad * STEFAN_BOLTZMANN * np.abs(t_c) ** 3
+    x = np.clip(t_c + q / h_lin, lo, hi)
+    step = 1e-5  # [K], finite-difference step of the slope (Nusselt and property terms included)
+    for it in range(max_iter):
+        if idx.size == 0:
+            break
+        q_cd, q_r = air_gap_flux(x, t_c, d, e_h, e_c, model)
+        f = q_cd + q_r - q
+        done = (np.abs(f) <= tol + 1e-12 * np.abs(q)) | ((hi - lo) <= 4.0 * np.finfo(float).eps * np.abs(x))
+        t[idx[done]] = x[done]
+        keep = ~done
+        idx, q, t_c, d, e_h, e_c, lo, hi, x, f = (v[keep] for v in (idx, q, t_c, d, e_h, e_c, lo, hi, x, f))
+        if idx.size == 0:
+            break
+        lo = np.where(f < 0.0, x, lo)
+        hi = np.where(f > 0.0, x, hi)
+        q_cd, q_r = air_gap_flux(x + step, t_c, d, e_h, e_c, model)
+        slope = (q_cd + q_r - q - f) / step
+        ok = slope > 0.0
+        x_newton = x - f / np.where(ok, slope, 1.0)
+        inside = ok & (x_newton > lo) & (x_newton < hi) & (it < 40)
+        x = np.where(inside, x_newton, 0.5 * (lo + hi))
+    t[idx] = x
+    return t.reshape(shape)
+
+
+class StackBalance(NamedTuple):
+    """Per-facet solution of a layered garment stack; layer axis first (0 = on the skin)."""
+
+    outer_temperature_k: np.ndarray  # (n, ...) outer surface of each layer [K]
+    inner_temperature_k: np.ndarray  # (n, ...) inner surface of each layer [K]
+    residual: np.ndarray  # (...) skin flux - what the stack needs [W m^-2]
+    q_in: np.ndarray  # (...) delivered from the skin into the stack [W m^-2]
+    q_gap: np.ndarray  # (n, ...) across the gap under each layer = its fabric conduction [W m^-2]
+    q_rad: np.ndarray  # (...) absorbed by the outermost surface [W m^-2]
+    q_conv: np.ndarray  # (...) convection from the outermost surface [W m^-2]
+    q_emit: np.ndarray  # (...) emission of the outermost surface [W m^-2]
+    q_evap: np.ndarray  # (...) evaporation from the outermost surface [W m^-2]
+    q_storage: np.ndarray  # (n, ...) C_i (T_i - T_i,prev) / dt [W m^-2]
+    iterations: int
+
+
+def _stack_balance(t_out, p):
+    """Residual of the stack at outermost temperature ``t_out``, carrying the flux inward."""
+    n = p["n"]
+    dt_air = t_out - p["t_air"]
+    h_out = _outer_coefficient(p["h"], dt_air, p["natural_floor"])
+    q_conv = h_out * dt_air
+    q_emit = p["eps"][-1] * STEFAN_BOLTZMANN * _t4(t_out)
+    q_evap = fabric_evaporation(t_out, p["t_air"], p["rh"], h_out, p["wet"])
+    q = q_conv + q_emit + q_evap - p["q_rad"]  # leaves layer n-1 outward
+    t_o = [None] * n
+    t_i = [None] * n
+    q_gap = [None] * n
+    q_store = [None] * n
+    t = t_out
+    for i in range(n - 1, -1, -1):
+        t_o[i] = t
+        # the layer's capacity sits at its outer surface: its fabric conducts what leaves
+        # outward plus what it stores, and the (massless) gap under it delivers the same
+        q_store[i] = p["c_dt"][i] * (t - p["t_prev"][i])
+        q = q + q_store[i]
+        t_i[i] = t + q / p["u"][i]
+        q_gap[i] = q
+        if i > 0:
+            t = gap_temperature_for_flux(q, t_i[i], p["gap"][i], p["eps"][i - 1], p["eps"][i], p["gap_model"])
+    contact = p["gap"][0] <= 0.0
+    q_cd, q_r = air_gap_flux(
+        p["t_skin"], t_i[0], np.where(contact, 1.0, p["gap"][0]), p["eps_s"], p["eps"][0], p["gap_model"]
+    )
+    # contact: the skin is layer 0's inner surface, the fabric conducts from the skin
+    q_in = np.where(contact, p["u"][0] * (p["t_skin"] - t_o[0]), q_cd + q_r)
+    residual = q_in - q_gap[0]
+    t_i[0] = np.where(contact, p["t_skin"], t_i[0])
+    extra = (np.stack(t_o), np.stack(t_i), q_in, np.stack(q_gap), q_conv, q_emit, q_evap, np.stack(q_store))
+    return residual, extra
+
+
+def _stack_parameters(
+    skin_temperature_k,
+    air_temperature_k,
+    absorbed_radiation,
+    h_forced,
+    air_gaps_m,
+    thicknesses_m,
+    conductivities,
+    emissivities,
+    skin_emissivity,
+    natural_floor,
+    gap_model,
+    wetted_fraction,
+    relative_humidity,
+    c_dt,
+    t_prev,
+):
+    if gap_model not in ("hollands", "conduction"):
+        raise ValueError(f"invalid model selection {gap_model}")
+    require("skin_temperature_k", skin_temperature_k, 1.0, 1e4)
+    require("air_temperature_k", air_temperature_k, 1.0, 1e4)
+    require("absorbed_radiation", absorbed_radiation, -1e5, 1e5)
+    require("h_forced", h_forced, 0.0, 1e4)
+    require("air_gaps_m", air_gaps_m, 0.0, 10.0)
+    require("thicknesses_m", thicknesses_m, 1e-9, 1.0)
+    require("conductivities", conductivities, 1e-6, 1e3)
+    require("emissivities", emissivities, 0.0, 1.0)
+    require("skin_emissivity", skin_emissivity, 0.0, 1.0)
+    require("wetted_fraction", wetted_fraction, 0.0, 1.0)
+    require("relative_humidity", relative_humidity, 0.0, 1.0)
+    require("previous_temperatures_k", t_prev, 1.0, 1e4)
+    gaps = np.asarray(air_gaps_m, dtype=float)
+    if gaps.ndim < 1 or gaps.shape[0] < 1:
+        raise ValueError("air_gaps_m: expected one gap per layer along the first axis")
+    n = gaps.shape[0]
+    per_layer = dict(
+        gap=gaps, thick=thicknesses_m, k=conductivities, eps=emissivities, c_dt=c_dt, t_prev=t_prev
+    )
+    per_layer = {k: np.asarray(v, dtype=float) for k, v in per_layer.items()}
+    for k, v in per_layer.items():
+        if v.ndim == 0:
+            per_layer[k] = np.broadcast_to(v, (n,))
+        elif v.shape[0] != n:
+            raise ValueError(f"{k}: expected {n} layers along the first axis, got shape {v.shape}")
+    facet = dict(
+        t_skin=skin_temperature_k,
+        t_air=air_temperature_k,
+        q_rad=absorbed_radiation,
+        h=h_forced,
+        eps_s=skin_emissivity,
+        wet=wetted_fraction,
+        rh=relative_humidity,
+    )
+    shape = np.broadcast_shapes(
+        *[np.shape(v) for v in facet.values()], *[v.shape[1:] for v in per_layer.values()]
+    )
+    p = {k: np.array(np.broadcast_to(np.asarray(v, dtype=float), shape)) for k, v in facet.items()}
+    for k, v in per_layer.items():
+        v = v.reshape(v.shape[:1] + (1,) * (len(shape) + 1 - v.ndim) + v.shape[1:])
+        p[k] = np.array(np.broadcast_to(v, (n,) + shape))
+    p["u"] = p.pop("k") / p.pop("thick")  # fabric conductance k / l per layer
+    p["n"] = n
+    p["natural_floor"] = bool(natural_floor)
+    p["gap_model"] = gap_model
+    return p
+
+
+def _stack_bracket(p):
+    """Bounds of the outermost temperature (as :func:`_bracket`, with every layer's previous
+    temperature): below the lower one all heat flows outward-in, above the upper one out."""
+    q = {
+        "t_skin": p["t_skin"],
+        "t_air": p["t_air"],
+        "q_rad": p["q_rad"],
+        "h": p["h"],
+        "eps_f": p["eps"][-1],
+        "wet": p["wet"],
+        "rh": p["rh"],
+        "t_prev": p["t_prev"].min(axis=0),
+    }
+    lo, _ = _bracket(q)
+    q["t_prev"] = p["t_prev"].max(axis=0)
+    _, hi = _bracket(q)
+    return lo, hi
+
+
+def _stack_solve(p, tol, max_iter):
+    lo, hi = _stack_bracket(p)
+    t = 0.5 * (lo + hi)
+    delta = 1e-4
+    iterations = 0
+    for iterations in range(1, max_iter + 1):
+        f, extra = _stack_balance(t, p)
+        # the nested gap solves carry round-off of the fluxes through them: a relative floor
+        active = np.abs(f) > tol + 1e-10 * np.abs(extra[3]).max(axis=0)
+        if not active.any():
+            break
+        lo = np.where(active & (f > 0.0), t, lo)
+        hi = np.where(active & (f < 0.0), t, hi)
+        dfdt = (_stack_balance(t + delta, p)[0] - _stack_balance(t - delta, p)[0]) / (2.0 * delta)
+        ok = dfdt < 0.0
+        t_newton = t - f / np.where(ok, dfdt, -1.0)
+        inside = ok & (t_newton > lo) & (t_newton < hi) & (iterations <= 40)
+        t_next = np.where(inside, t_newton, 0.5 * (lo + hi))
+        collapsed = (hi - lo) <= 4.0 * np.finfo(float).eps * np.abs(t)
+        t = np.where(active & ~collapsed, t_next, t)
+        if not (active & ~collapsed).any():
+            break
+    residual, (t_o, t_i, q_in, q_gap, q_conv, q_emit, q_evap, q_store) = _stack_balance(t, p)
+    return StackBalance(
+        t_o, t_i, residual, q_in, q_gap, p["q_rad"].copy(), q_conv, q_emit, q_evap, q_store, iterations
+    )
+
+
+def stack_steady_state(
+    skin_temperature_k,
+    air_temperature_k,
+    absorbed_radiation,
+    h_forced,
+    air_gaps_m,
+    thicknesses_m,
+    conductivities,
+    emissivities,
+    skin_emissivity=0.98,
+    natural_floor=True,
+    gap_model="hollands",
+    wetted_fraction=0.0,
+    relative_humidity=0.5,
+    tol=1e-6,
+    max_iter=100,
+):
+    """Steady state of layered garments in series over the skin, per facet.
+
+    Parameters
+    ----------
+    skin_temperature_k, air_temperature_k : numeric
+        Skin and air temperatures [K].
+    absorbed_radiation : numeric
+        Short + long wave absorbed by the outermost surface [W m^-2].
+    h_forced : numeric
+        Outer convective coefficient [W m^-2 K^-1].
+    air_gaps_m : array_like, (n, ...)
+        Air gap under each layer [m]: layer 0's to the skin, layer i's to the outer surface of
+        layer i - 1 (not to the skin); 0 is contact.
+    thicknesses_m, conductivities, emissivities : array_like, (n, ...) or (n,)
+        Fabric thickness [m] (> 0), conductivity [W m^-1 K^-1] (> 0) and long-wave emissivity
+        (both sides) [0-1] of each layer.
+    skin_emissivity : numeric, default 0.98
+    natural_floor, gap_model
+        As in :py:func:`steady_state`.
+    wetted_fraction, relative_humidity : numeric
+        Wetted fraction of the outermost surface [0-1] and air humidity [0-1]
+        (:func:`fabric_evaporation`).
+    tol, max_iter
+        As in :py:func:`steady_state`; the residual tolerance is tol + 1e-10 times the largest
+        gap flux (the nested gap solves carry round-off of the fluxes through them).
+
+    Returns
+    -------
+    StackBalance
+        Temperatures of every layer's surfaces, the skin flux, the residual and flux terms.
+
+    Notes
+    -----
+    In steady state one flux q crosses every element in series (seed Eq. 5-9 extended to
+    layers): q = q_gap,0(T_skin, T_in,0) = k_0/l_0 (T_in,0 - T_out,0) = q_gap,1(T_out,0, T_in,1)
+    = ... = k_{n-1}/l_{n-1} (T_in,n-1 - T_out,n-1) = h (T_out,n-1 - T_air) + eps sigma
+    T_out,n-1^4 + q_evap - q_rad. Each gap is :func:`air_gap_flux` at its own surfaces'
+    temperatures and emissivities. With radiation linearised as h_r = F sigma (T1^2 + T2^2)
+    (T1 + T2), q = (T_skin - T_env) / (sum of the series resistances 1 / (k/d + h_r) + l / k
+    + 1 / (h + h_r,out)), the textbook series-resistance form (Incropera et al. 2007, ch. 3.1).
+    The unknown is T_out,n-1; the residual (skin flux minus the flux the stack passes) is
+    strictly decreasing in it, solved by the bracketed Newton of :func:`steady_state`.
+
+    References
+    ----------
+    .. [1] Incropera, F. P. et al. (2007). Fundamentals of Heat and Mass Transfer, 6th ed.,
+       sec. 3.1 (composite walls) and 13.3 (radiation shields between parallel plates).
+    .. [2] The seed paper, section 2.2.3, Eq. 5-9.
+    """
+    gaps = np.asarray(air_gaps_m, dtype=float)
+    p = _stack_parameters(
+        skin_temperature_k,
+        air_temperature_k,
+        absorbed_radiation,
+        h_forced,
+        gaps,
+        thicknesses_m,
+        conductivities,
+        emissivities,
+        skin_emissivity,
+        natural_floor,
+        gap_model,
+        wetted_fraction,
+        relative_humidity,
+        0.0,
+        np.broadcast_to(
+            np.asarray(air_temperature_k, dtype=float), gaps.shape[:1] + np.shape(air_temperature_k)
+        ),
+    )
+    return _stack_solve(p, tol, max_iter)
+
+
+def stack_transient_step(
+    previous_temperatures_k,
+    time_step_s,
+    heat_capacities,
+    skin_temperature_k,
+    air_temperature_k,
+    absorbed_radiation,
+    h_forced,
+    air_gaps_m,
+    thicknesses_m,
+    conductivities,
+    emissivities,
+    skin_emissivity=0.98,
+    natural_floor=True,
+    gap_model="hollands",
+    wetted_fraction=0.0,
+    relative_humidity=0.5,
+    tol=1e-6,
+    max_iter=100,
+):
+    """One implicit (backward Euler) step of layered garments with each layer's heat capacity.
+
+    Parameters
+    ----------
+    previous_temperatures_k : array_like, (n, ...)
+        Outer-surface temperature of each layer at the start of the step [K].
+    time_step_s : numeric
+        Time step [s]; ``np.inf`` gives the steady state.
+    heat_capacities : array_like, (n, ...) or (n,)
+        Areal heat capacity of each layer [J m^-2 K^-1] (:func:`areal_heat_capacity`).
+    skin_temperature_k, ..., max_iter
+        As in :func:`stack_steady_state`, at the end of the step.
+
+    Returns
+    -------
+    StackBalance
+        State at the end of the step.
+
+    Notes
+    -----
+    Each layer's capacity C_i is lumped at its outer surface (a node network: skin - gap -
+    fabric conductance - capacity node - gap - ...):
+    C_i (T_i - T_i,prev) / dt = k_i / l_i (T_in,i - T_i) - q_leaving,i, where q_leaving is the
+    gap flux to the next layer or, outermost, h (T - T_air) + eps sigma T^4 + q_evap - q_rad.
+    (:func:`transient_step` places the single layer's storage at the gap instead; the two agree
+    in contact and differ by the fabric's Biot number otherwise.) The storage terms grow with
+    the outermost temperature, so the residual stays strictly decreasing and each step is
+    unconditionally stable (backward Euler, Hairer & Wanner 1996).
+    """
+    dt = require("time_step_s", time_step_s, 1e-9, np.inf, allow_inf=True)
+    c_dt = require("heat_capacities", heat_capacities, 0.0, 1e7) / dt
+    p = _stack_parameters(
+        skin_temperature_k,
+        air_temperature_k,
+        absorbed_radiation,
+        h_forced,
+        air_gaps_m,
+        thicknesses_m,
+        conductivities,
+        emissivities,
+        skin_emissivity,
+        natural_floor,
+        gap_model,
+        wetted_fraction,
+        relative_humidity,
+        c_dt,
+        previous_temperatures_k,
+    )
+    return _stack_solve(p, tol, max_iter)
 
 
 def extreme_grid_counts(skin_temperature_k=306.15, fabric_emissivity=0.9, solar_absorptance=0.7):
@@ -701,7 +1241,7 @@ def extreme_grid_counts(skin_temperature_k=306.15, fabric_emissivity=0.9, solar_
     max_res = 0.0
     max_it = 0
     for r in results:
-        fields = [np.asarray(x) for x in r[:-1]]
+        fields = [np.asarray(x) for name, x in zip(r._fields, r) if name != "iterations"]
         bad = np.zeros(r.outer_temperature_k.shape, dtype=bool)
         for x in fields:
             bad |= ~np.isfinite(x)

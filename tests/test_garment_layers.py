@@ -1,0 +1,285 @@
+"""Layered garments in series and wet fabric (issue 25, deliverable 5) against closed forms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy.optimize import brentq
+
+from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
+from humv_usd.physics.garment import (
+    LEWIS_RATIO_K_PA,
+    air_conductivity,
+    air_gap_flux,
+    fabric_evaporation,
+    gap_temperature_for_flux,
+    grey_plates_exchange_factor,
+    saturation_vapour_pressure,
+    stack_steady_state,
+    stack_transient_step,
+    steady_state,
+)
+from humv_usd.physics.sky import effective_sky_temperature
+
+T_SKIN = 306.15
+
+
+def _h_rad(f, t1, t2):
+    """Radiative coefficient with F sigma (T1^4 - T2^4) = h_r (T1 - T2), exactly."""
+    return f * SIGMA * (t1**2 + t2**2) * (t1 + t2)
+
+
+def test_gap_inversion_round_trip():
+    rng = np.random.default_rng(3)
+    n = 5000
+    t_cold = rng.uniform(233.0, 330.0, n)
+    gap = rng.choice([0.0, 1e-4, 2e-3, 1e-2, 5e-2], n)
+    q = rng.uniform(-400.0, 1500.0, n)
+    eps_h, eps_c = rng.uniform(0.0, 1.0, n), rng.uniform(0.0, 1.0, n)
+    t_hot = gap_temperature_for_flux(q, t_cold, gap, eps_h, eps_c)
+    q_cd, q_r = air_gap_flux(t_hot, t_cold, np.where(gap > 0, gap, 1.0), eps_h, eps_c)
+    open_gap = gap > 0
+    assert_allclose((q_cd + q_r)[open_gap], q[open_gap], rtol=1e-9, atol=1e-8)
+    assert np.all(t_hot[~open_gap] == t_cold[~open_gap])  # contact: no difference
+    assert np.all(
+        np.sign(t_hot - t_cold)[open_gap & (np.abs(q) > 1e-3)] == np.sign(q)[open_gap & (np.abs(q) > 1e-3)]
+    )
+
+
+@pytest.mark.parametrize("gap", [0.0, 2e-3, 2e-2])
+def test_one_layer_stack_is_the_single_garment(gap):
+    t_air = np.array([233.15, 263.15, 293.15, 318.15])
+    q_rad = np.array([180.0, 250.0, 700.0, 1100.0])
+    single = steady_state(T_SKIN, t_air, q_rad, 6.0, gap, 1e-3, 0.05, 0.9)
+    stack = stack_steady_state(T_SKIN, t_air, q_rad, 6.0, [gap], [1e-3], [0.05], [0.9])
+    assert_allclose(stack.outer_temperature_k[0], single.outer_temperature_k, rtol=0, atol=1e-7)
+    assert_allclose(stack.q_in, single.q_in, rtol=1e-7, atol=1e-6)
+
+
+@pytest.mark.parametrize("gap_model", ["conduction", "hollands"])
+def test_two_layer_flux_is_the_series_resistance_closed_form(gap_model):
+    # surroundings at the air temperature (q_rad = eps sigma T_air^4): skin -> gap 0 -> fabric 0
+    # -> gap 1 -> fabric 1 -> (convection + radiation to T_air), all in series
+    t_air, h, eps = 268.15, 8.0, np.array([0.88, 0.92])
+    gaps, thick, k_f = np.array([3e-3, 6e-3]), np.array([0.6e-3, 4e-3]), np.array([0.05, 0.035])
+    r = stack_steady_state(
+        T_SKIN,
+        t_air,
+        eps[1] * SIGMA * t_air**4,
+        h,
+        gaps,
+        thick,
+        k_f,
+        eps,
+        natural_floor=False,
+        gap_model=gap_model,
+    )
+    assert abs(r.residual) <= 1e-6
+    t_o, t_i = r.outer_temperature_k, r.inner_temperature_k
+    warm = (T_SKIN, t_o[0])  # warm side of gap 0 and gap 1
+    res = 0.0
+    for i in range(2):
+        f = grey_plates_exchange_factor(0.98 if i == 0 else eps[0], eps[i])
+        t_m = 0.5 * (warm[i] + t_i[i])
+        res += 1.0 / (air_conductivity(t_m) / gaps[i] + _h_rad(f, warm[i], t_i[i])) + thick[i] / k_f[i]
+    res += 1.0 / (h + _h_rad(eps[1], t_o[1], t_air))
+    q = (T_SKIN - t_air) / res
+    # the gaps stay below the convective onset (Ra < 1708), so both models are conduction
+    assert_allclose(r.q_in, q, rtol=1e-8)
+    assert_allclose(r.q_gap, [q, q], rtol=1e-8)
+    # and the same with radiation linearised once at the mean temperature, no solver at all
+    t_m = 0.5 * (T_SKIN + t_air)
+    lin = sum(
+        1.0
+        / (
+            air_conductivity(t_m) / gaps[i]
+            + 4 * grey_plates_exchange_factor((0.98, eps[0])[i], eps[i]) * SIGMA * t_m**3
+        )
+        + thick[i] / k_f[i]
+        for i in range(2)
+    ) + 1.0 / (h + 4 * eps[1] * SIGMA * t_m**3)
+    assert_allclose(r.q_in, (T_SKIN - t_air) / lin, rtol=0.03)
+
+
+def test_two_layers_are_colder_outside_than_one_on_a_clear_night():
+    # a NYCO jacket (0.45 mm, 10 mm gap) over a cotton shirt (0.6 mm, 8 mm gap), -5 degC, calm
+    t_air, h = 268.15, 3.0
+    t_sky, _ = effective_sky_temperature(t_air, 0.6)
+    eps = 0.88
+    q_rad = eps * SIGMA * (0.5 * t_sky**4 + 0.5 * t_air**4)  # half sky, half ground at air
+    two = stack_steady_state(
+        T_SKIN, t_air, q_rad, h, [8e-3, 10e-3], [0.6e-3, 0.45e-3], [0.05, 0.06], [eps, eps]
+    )
+    # the jacket alone at the same distance from the skin (how it was coupled before)
+    jacket = steady_state(T_SKIN, t_air, q_rad, h, 8e-3 + 0.6e-3 + 10e-3, 0.45e-3, 0.06, eps)
+    shirt = steady_state(T_SKIN, t_air, q_rad, h, 8e-3, 0.6e-3, 0.05, eps)
+    assert two.outer_temperature_k[1] < jacket.outer_temperature_k - 1.0
+    assert two.outer_temperature_k[1] < shirt.outer_temperature_k - 1.0
+    assert two.q_in < min(jacket.q_in, shirt.q_in)
+    # the shirt under the jacket is warmer than the jacket and than the shirt alone
+    assert shirt.outer_temperature_k < two.outer_temperature_k[0]
+    assert two.outer_temperature_k[1] < two.outer_temperature_k[0] < T_SKIN
+
+
+def test_stack_transient_is_the_linear_backward_euler_closed_form():
+    # contact gaps, no emission, fixed h: two capacity nodes, a 2x2 linear system per step
+    u0, u1, h, c0, c1 = 0.05 / 1e-3, 0.04 / 3e-3, 9.0, 400.0, 900.0
+    t_s, t_a, dt = T_SKIN, 275.0, 20.0
+    prev = np.array([300.0, 285.0])
+    for _ in range(5):
+        r = stack_transient_step(
+            prev,
+            dt,
+            [c0, c1],
+            t_s,
+            t_a,
+            0.0,
+            h,
+            [0.0, 0.0],
+            [1e-3, 3e-3],
+            [0.05, 0.04],
+            [0.0, 0.0],
+            natural_floor=False,
+        )
+        a = np.array([[c0 / dt + u0 + u1, -u1], [-u1, c1 / dt + u1 + h]])
+        b = np.array([c0 / dt * prev[0] + u0 * t_s, c1 / dt * prev[1] + h * t_a])
+        ref = np.linalg.solve(a, b)
+        assert_allclose(r.outer_temperature_k, ref, rtol=0, atol=1e-7)
+        prev = ref
+    # an infinite step is the steady state
+    inf = stack_transient_step(
+        prev, np.inf, [c0, c1], t_s, t_a, 0.0, h, [0.0, 0.0], [1e-3, 3e-3], [0.05, 0.04], [0.0, 0.0]
+    )
+    st = stack_steady_state(t_s, t_a, 0.0, h, [0.0, 0.0], [1e-3, 3e-3], [0.05, 0.04], [0.0, 0.0])
+    assert_allclose(inf.outer_temperature_k, st.outer_temperature_k, atol=1e-7)
+
+
+def test_stack_over_the_extreme_grid():
+    # DESIGN.md grid: -40..55 degC, wind-range h, sun 0-1200, gaps 0-50 mm, fabric 0.1-10 mm,
+    # steps 1 s - 10 min; two and three layers
+    ta, q, h, g, l = np.meshgrid(
+        273.15 + np.array([-40.0, -10.0, 10.0, 30.0, 55.0]),
+        np.array([0.0, 300.0, 1200.0]),
+        np.array([0.0, 2.0, 10.0, 60.0]),
+        np.array([0.0, 1e-3, 2e-2, 5e-2]),
+        np.array([1e-4, 1e-3, 1e-2]),
+        indexing="ij",
+    )
+    t_sky, _ = effective_sky_temperature(ta, 0.5)
+    q_rad = 0.7 * q + 0.9 * SIGMA * t_sky**4
+    for n in (2, 3):
+        gaps = np.stack([g] * n)
+        kw = dict(
+            air_gaps_m=gaps,
+            thicknesses_m=np.stack([l] * n),
+            conductivities=[0.04] * n,
+            emissivities=[0.9] * n,
+        )
+        st = stack_steady_state(T_SKIN, ta, q_rad, h, **kw)
+        assert np.all(np.isfinite(st.outer_temperature_k))
+        assert np.all(np.abs(st.residual) <= 1e-6 + 1e-9 * np.abs(st.q_gap).max(axis=0))
+        # warmer air never makes any layer colder
+        assert np.all(np.diff(st.outer_temperature_k, axis=1) >= -1e-6)
+        # between skin and the outermost surface (no layer beyond both ends)
+        lo = np.minimum(st.outer_temperature_k[-1], T_SKIN) - 1e-6
+        hi = np.maximum(st.outer_temperature_k[-1], T_SKIN) + 1e-6
+        assert np.all((st.outer_temperature_k >= lo) & (st.outer_temperature_k <= hi))
+        for dt in (1.0, 60.0, 600.0):
+            for offset in (-20.0, 20.0):
+                tr = stack_transient_step(
+                    np.stack([ta + offset] * n), dt, [300.0] * n, T_SKIN, ta, q_rad, h, **kw
+                )
+                assert np.all(np.isfinite(tr.outer_temperature_k))
+                # round-off: the outermost temperature's bracket collapses to 1 ulp, and three
+                # layers of 10 mm with 1 s steps amplify it to ~2e-6 W m^-2 at the skin
+                assert np.all(np.abs(tr.residual) <= 1e-5 + 1e-9 * np.abs(tr.q_gap).max(axis=0))
+
+
+def _wet_bulb_lewis(t_air, rh):
+    """Psychrometric wet bulb of the Lewis relation: e_a = p_sat(T_w) - (T_a - T_w) / LR."""
+    e_a = rh * saturation_vapour_pressure(t_air)
+    return brentq(
+        lambda t: saturation_vapour_pressure(t) - (t_air - t) / LEWIS_RATIO_K_PA - e_a, 150.0, t_air + 1e-9
+    )
+
+
+def _wet_bulb_stull(t_air, rh):
+    """Stull (2011) J. Appl. Meteorol. Climatol. 50:2267, eq. 1 (degC, RH in %), +-1 K."""
+    t, r = t_air - 273.15, rh * 100.0
+    return 273.15 + (
+        t * np.arctan(0.151977 * np.sqrt(r + 8.313659))
+        + np.arctan(t + r)
+        - np.arctan(r - 1.676331)
+        + 0.00391838 * r**1.5 * np.arctan(0.023101 * r)
+        - 4.686035
+    )
+
+
+@pytest.mark.parametrize("t_air,rh", [(303.15, 0.4), (313.15, 0.2), (293.15, 0.7), (283.15, 0.5)])
+def test_wet_fabric_adiabatic_limit_is_the_wet_bulb(t_air, rh):
+    # fully wet, no radiation, no heat from the skin: the surface sits at the wet bulb
+    r = steady_state(T_SKIN, t_air, 0.0, 10.0, 0.0, 1e-3, 0.0, 0.0, wetted_fraction=1.0, relative_humidity=rh)
+    assert_allclose(r.outer_temperature_k, _wet_bulb_lewis(t_air, rh), atol=1e-6)
+    # Stull's fit of the thermodynamic wet bulb is good to +-1 K; the Lewis ratio 16.5 K/kPa
+    # (h_e / h_c with Le^(2/3), ASHRAE) vs the sea-level psychrometer constant's 15.0 K/kPa puts
+    # the wet fabric up to ~0.5 K below it at 40 degC, 20 %
+    assert -1.5 < float(r.outer_temperature_k) - _wet_bulb_stull(t_air, rh) < 1.0
+
+
+def test_fabric_evaporation_closed_form():
+    assert_allclose(
+        fabric_evaporation(305.0, 300.0, 0.5, 10.0, 0.4),
+        0.4 * 16.5e-3 * 10.0 * (saturation_vapour_pressure(305.0) - 0.5 * saturation_vapour_pressure(300.0)),
+        rtol=1e-12,
+    )
+    # Magnus at 20 degC: 2338 Pa (WMO tables 2337 Pa)
+    assert_allclose(saturation_vapour_pressure(293.15), 2337.0, rtol=2e-3)
+
+
+def test_wet_shirt_is_cooler_than_dry_and_never_below_the_wet_bulb():
+    rng = np.random.default_rng(11)
+    n = 3000
+    t_air = rng.uniform(283.15, 318.15, n)
+    rh = rng.uniform(0.05, 1.0, n)
+    h = rng.uniform(2.0, 40.0, n)
+    w = rng.uniform(0.05, 1.0, n)
+    gap = rng.choice([0.0, 2e-3, 8e-3], n)
+    q_rad = 0.9 * SIGMA * t_air**4 + rng.uniform(0.0, 400.0, n)  # surroundings at air + sun
+    kw = dict(fabric_conductivity=0.05, fabric_emissivity=0.9, relative_humidity=rh)
+    dry = steady_state(T_SKIN, t_air, q_rad, h, gap, 0.6e-3, **kw)
+    wet = steady_state(T_SKIN, t_air, q_rad, h, gap, 0.6e-3, wetted_fraction=w, **kw)
+    assert np.max(np.abs(wet.residual)) <= 1e-6
+    # above the dew point the wet fabric evaporates and is cooler; in hot, humid air that is
+    # warmer than the skin it can sit below the dew point and condensation warms it instead
+    e_a = rh * saturation_vapour_pressure(t_air)
+    dew = np.array([brentq(lambda t, e=e: saturation_vapour_pressure(t) - e, 150.0, 400.0) for e in e_a])
+    evaporating = dry.outer_temperature_k > dew + 1e-6
+    assert evaporating.mean() > 0.9
+    assert np.all(wet.outer_temperature_k[evaporating] < dry.outer_temperature_k[evaporating])
+    assert np.all(wet.q_evap[evaporating] > 0.0)
+    assert np.all(wet.outer_temperature_k[~evaporating] >= dry.outer_temperature_k[~evaporating])
+    t_wb = np.array([_wet_bulb_lewis(a, b) for a, b in zip(t_air, rh)])
+    # with surroundings at air temperature (+ sun) nothing but the skin can take it below the
+    # wet bulb, and only where the skin itself is colder (air above 33 degC)
+    assert np.all(wet.outer_temperature_k >= np.minimum(t_wb, T_SKIN))
+    assert np.all(wet.outer_temperature_k[t_wb <= T_SKIN] >= t_wb[t_wb <= T_SKIN])
+    # the wetter, the closer to the wet bulb; the same in the stack's outer layer
+    wetter = steady_state(
+        T_SKIN, t_air, q_rad, h, gap, 0.6e-3, wetted_fraction=np.minimum(w + 0.2, 1.0), **kw
+    )
+    e = evaporating
+    assert np.all(wetter.outer_temperature_k[e] <= wet.outer_temperature_k[e] + 1e-9)
+    stack = stack_steady_state(
+        T_SKIN, t_air, q_rad, h, [gap], [0.6e-3], [0.05], [0.9], wetted_fraction=w, relative_humidity=rh
+    )
+    assert_allclose(stack.outer_temperature_k[0], wet.outer_temperature_k, atol=1e-6)
+
+
+def test_stack_rejects_bad_input():
+    with pytest.raises(ValueError, match="conductivities"):
+        stack_steady_state(T_SKIN, 280.0, 300.0, 5.0, [0.0, 1e-3], [1e-3, 1e-3], [0.05, 0.0], [0.9, 0.9])
+    with pytest.raises(ValueError, match="wetted_fraction"):
+        stack_steady_state(T_SKIN, 280.0, 300.0, 5.0, [1e-3], [1e-3], [0.05], [0.9], wetted_fraction=1.5)
+    with pytest.raises(ValueError, match="invalid model selection x"):
+        stack_steady_state(T_SKIN, 280.0, 300.0, 5.0, [1e-3], [1e-3], [0.05], [0.9], gap_model="x")
