@@ -80,3 +80,89 @@ def test_render_frames_huge_is_one_line(tmp_path):
         )
     )
     assert "--frames" in line and "1,000,000" in line
+
+
+# ------------------------------------------------------------------ the render's memory estimate
+#: peak RSS [bytes] of `/usr/bin/time -f %M humv-usd render STAGE -o R --spp N --subbands K
+#: --estimator E --yes` on walk.toml's LWIR camera (and the same camera as EO) at 64x48 and
+#: 256x192, 2026-11-27 (see humv_usd/pipeline/budget.py): (pixels, spp, K, estimator, EO?, peak)
+MEASURED_PEAKS = [
+    (64 * 48, 256, 1, "fast", False, 686096e3),
+    (64 * 48, 256, 4, "fast", False, 770520e3),
+    (64 * 48, 256, 16, "fast", False, 995396e3),
+    (64 * 48, 512, 16, "fast", False, 1548228e3),
+    (64 * 48, 1024, 16, "fast", False, 2698520e3),
+    (256 * 192, 64, 16, "fast", False, 2723584e3),
+    (256 * 192, 128, 16, "fast", False, 5044824e3),
+    (64 * 48, 1024, 16, "path", False, 355508e3),
+    (256 * 192, 64, 16, "path", False, 396124e3),
+    (64 * 48, 256, 16, "fast", True, 613820e3),
+    (64 * 48, 1024, 16, "fast", True, 1086456e3),
+]
+
+
+@pytest.mark.parametrize(("pixels", "spp", "subbands", "estimator", "eo", "peak"), MEASURED_PEAKS)
+def test_the_memory_estimate_covers_the_measured_peak(pixels, spp, subbands, estimator, eo, peak):
+    """Above the measured peak (the estimate must stop what cannot fit), within a factor 2.5."""
+    from humv_usd.pipeline.budget import render_budget
+
+    w, h = (64, 48) if pixels == 64 * 48 else (256, 192)
+    sensors = {"eo_resolutions": [(w, h)]} if eo else {}
+    budget = render_budget([] if eo else [(w, h)], 1, spp, estimator=estimator, subbands=subbands, **sensors)
+    assert peak * 1.024 <= budget.memory_bytes <= 2.5 * peak * 1.024  # kB of time -f %M are KiB
+
+
+def _tiny_stage(tmp_path, resolution=(64, 48)):
+    from test_render import add_camera, add_material, add_mesh, new_stage, rect_z
+
+    stage = new_stage(tmp_path / "stage.usda")
+    add_mesh(
+        stage,
+        "/World/Scene/ground",
+        *rect_z(-5, 5, -5, 5),
+        material=add_material(stage, "m", 0.9),
+        temperature_k=300.0,
+        instance_id=1,
+    )
+    add_camera(stage, "cam", eye=(0.0, -5.0, 2.0), target=(0.0, 0.0, 0.0), resolution=resolution)
+    stage.Save()
+    return tmp_path / "stage.usda"
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["--spp", "1048576"], "1048576 spp"),  # 64x48 at --spp 1048576 grew to 23.3 GB (OOM kill)
+        (["--spp", "65536", "--subbands", "64"], "64 sub-bands"),
+    ],
+)
+def test_every_render_knob_at_its_maximum_is_one_line_before_any_allocation(tmp_path, args, named):
+    stage = _tiny_stage(tmp_path)
+    out = tmp_path / "r"
+    line = _one_line(CliRunner().invoke(main, ["render", str(stage), "-o", str(out), *args]))
+    assert named in line and "B of memory" in line and "--spp" in line and "--yes" in line
+    assert not out.exists() or not any(out.rglob("*.exr"))
+
+
+def test_the_editors_spp_check_is_the_renders(tmp_path):
+    """The editor refuses a render whose spp the render would refuse, with the same line."""
+    import shutil
+
+    from humv_usd.pipeline.budget import MAX_SPP, render_budget, scenario_render_budget
+    from humv_usd.scenario import load_scenario
+
+    path = tmp_path / "humvvex.toml"
+    shutil.copy(ROOT / "examples" / "humvvex.toml", path)
+    scenario = load_scenario(path)
+    ir = [s for s in scenario["sensor"] if s["wavelength_um"][0] >= 3.0]
+    eo = [s for s in scenario["sensor"] if s["wavelength_um"][0] < 3.0]
+    got = scenario_render_budget(scenario, 32)
+    want = render_budget(
+        [s["resolution"] for s in ir],
+        scenario.frame_count,
+        32,
+        subbands=max(s.get("subbands") or 16 for s in ir),
+        eo_resolutions=[s["resolution"] for s in eo],
+    )
+    assert got == want
+    assert scenario_render_budget(scenario, MAX_SPP).memory_bytes > 1e13

@@ -18,6 +18,7 @@ import click
 
 from humv_usd.cli.common import PROG, progress_display, reports_errors, set_verbosity
 from humv_usd.errors import InputError
+from humv_usd.pipeline.budget import MAX_SPP
 
 #: most frames one ``--frames`` may name (checked before a list is built: ``0:99999999999``
 #: once built a list of 10^11 numbers and ended in MemoryError)
@@ -131,7 +132,7 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
 @click.option(
     "--spp",
     default=None,
-    type=click.IntRange(1, 1 << 20),
+    type=click.IntRange(1, MAX_SPP),
     help="Samples per pixel (fast estimator: camera samples shared by all sub-bands, default 2, more until NETD/3; "
     "path: split over the sub-bands, default 16). 1 renders but cannot estimate the error.",
 )

@@ -33,6 +33,7 @@ from humv_usd.editor.stage3d import stage_view
 from humv_usd.environment.sun import sun_at
 from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
+from humv_usd.pipeline.budget import MAX_SPP, require_fits, scenario_render_budget
 from humv_usd.scenario.spec import SECTIONS
 from humv_usd.sweep.spec import load_sweep
 
@@ -529,7 +530,7 @@ class Page:
             ui.button("Compose", on_click=self.compose).props("data-testid=run-compose")
             # empty: the render's automatic quality (infrared until the error is NETD/3)
             self.spp = (
-                ui.number("spp", value=None, min=1, max=4096, precision=0, placeholder="auto")
+                ui.number("spp", value=None, min=1, max=MAX_SPP, precision=0, placeholder="auto")
                 .props("clearable")
                 .classes("w-24")
             )
@@ -561,6 +562,12 @@ class Page:
         spp = ["--spp", str(int(self.spp.value))] if self.spp.value else []
         out = self.editor.out_dir
         scenario = self.doc.scenario()
+        if self.spp.value:  # the render's own memory check, before anything runs
+            try:
+                require_fits(scenario_render_budget(scenario, int(self.spp.value)), out)
+            except InputError as exc:
+                ui.notify(str(exc), type="negative", multi_line=True, timeout=10000)
+                return
         images = scenario.frame_count * len(scenario["sensor"])  # one EXR per sensor and frame
         self.start_job(
             "render",

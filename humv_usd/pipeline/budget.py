@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from humv_usd.errors import InputError
+from humv_usd.scenario.spec import DEFAULT_SUBBANDS
 
 log = logging.getLogger(__name__)
 
@@ -33,11 +34,31 @@ COMPOSE_PERSON_FRAME_S = 0.2
 IMAGE_DISK_PER_PIXEL = 40.0
 #: render: bytes of arrays per pixel of the image being rendered and labelled
 IMAGE_MEMORY_PER_PIXEL = 400.0
+#: render, fast estimator: bytes per lane (one camera sample of one pixel; all pixels x spp lanes
+#: of a batch live at once) and per lane and infrared sub-band. Measured peak RSS (``/usr/bin/time
+#: -f %M humv-usd render STAGE -o R --spp N --subbands K --yes``, one LWIR camera of walk.toml,
+#: usd-core 26.11, 2026-11-27) minus the run at spp 1: 64x48 px at spp 256: 384 B/lane (K 1), 494
+#: (K 4), 787 (K 16); spp 512, 1024: 753, 751 (K 16); 256x192 px at spp 64, 128: 742, 749 (K 16).
+#: Linear in pixels x spp (3.1 M lanes: 2.70 GB at 64x48 x 1024, 2.72 GB at 256x192 x 64; 6.3 M
+#: lanes: 5.04 GB), so 1024x768 at spp 32 (25 M lanes) needs about 19 GB; the path
+#: estimator stayed at 0.35-0.40 GB from spp 1 to 1024 (flat). Rounded up: 400 + 28 K.
+FAST_LANE_BYTES = 400.0
+FAST_LANE_BYTES_PER_SUBBAND = 28.0
+#: the EO fast estimator (12 visible sub-bands) per lane, measured as above on the same camera
+#: as EO: 314 B/lane at spp 256, 232 at spp 1024
+EO_FAST_LANE_BYTES = 320.0
+EO_SUBBANDS = 12
+#: fast estimator: lanes x sub-bands per second (the runs above: 3.1 M lanes x 16 sub-bands in
+#: 15-16 s on two shared cores)
+FAST_SUBBAND_LANES_PER_S = 3.2e6
 #: render: Monte Carlo samples per second (two cores) and fixed seconds per image
 SAMPLES_PER_S = 4e6
 IMAGE_OVERHEAD_S = 0.5
 #: render / compose: the base memory of the process (Python, USD, Mitsuba) [bytes]
 BASE_MEMORY = 600e6
+#: most samples per pixel ``humv-usd render --spp`` and the editor's spp field accept (the
+#: memory estimate then decides what fits this machine)
+MAX_SPP = 1 << 20
 #: share of the available memory a run may plan to use
 MEMORY_SHARE = 0.8
 
@@ -89,18 +110,70 @@ def compose_budget(scenario) -> Budget:
     )
 
 
-def render_budget(resolutions, frames: int, spp: int) -> Budget:
-    """``resolutions``: (width, height) of every sensor rendered; ``frames`` to render."""
-    pixels = [int(w) * int(h) for w, h in resolutions]
+def render_budget(
+    resolutions,
+    frames: int,
+    spp: int,
+    *,
+    estimator: str = "fast",
+    subbands: int = DEFAULT_SUBBANDS,
+    eo_resolutions=(),
+    eo_spp: int | None = None,
+) -> Budget:
+    """The estimate of a render.
+
+    Parameters
+    ----------
+    resolutions : list of (int, int)
+        (width, height) of every infrared sensor rendered.
+    frames : int
+        Frames to render.
+    spp : int
+        Samples per pixel of a batch (the fast estimator traces pixels x spp paths at once).
+    estimator : str
+        ``"fast"`` (memory grows with pixels x spp x sub-bands) or ``"path"`` (flat in spp).
+    subbands : int
+        Most sub-bands of an infrared sensor.
+    eo_resolutions : list of (int, int)
+        (width, height) of every EO sensor rendered.
+    eo_spp : int, optional
+        Samples per pixel of the EO sensors (default ``spp``).
+
+    Notes
+    -----
+    Sensors render one after another, so memory is the base plus the largest sensor's
+    :data:`IMAGE_MEMORY_PER_PIXEL` x pixels plus, for the fast estimator, pixels x spp lanes of
+    :data:`FAST_LANE_BYTES` + :data:`FAST_LANE_BYTES_PER_SUBBAND` x sub-bands each (EO:
+    :data:`EO_FAST_LANE_BYTES`); frames add disk and time, not memory (the render's memory is
+    flat over frames).
+    """
+    eo_spp = spp if eo_spp is None else eo_spp
+    fast = estimator == "fast"
+    ir = [(int(w) * int(h), "ir") for w, h in resolutions]
+    eo = [(int(w) * int(h), "eo") for w, h in eo_resolutions]
+    lane_bytes = {"ir": FAST_LANE_BYTES + FAST_LANE_BYTES_PER_SUBBAND * subbands, "eo": EO_FAST_LANE_BYTES}
+    sensor_spp = {"ir": spp, "eo": eo_spp}
+    memory = [
+        IMAGE_MEMORY_PER_PIXEL * p + (p * sensor_spp[k] * lane_bytes[k] if fast else 0.0) for p, k in ir + eo
+    ]
+    seconds = [
+        p * sensor_spp[k] * (subbands if k == "ir" else EO_SUBBANDS) / FAST_SUBBAND_LANES_PER_S
+        if fast
+        else p * sensor_spp[k] / SAMPLES_PER_S
+        for p, k in ir + eo
+    ]
+    pixels = [p for p, _ in ir + eo]
     images = frames * len(pixels)
     return Budget(
         "render",
-        BASE_MEMORY + IMAGE_MEMORY_PER_PIXEL * max(pixels, default=0),
+        BASE_MEMORY + max(memory, default=0.0),
         IMAGE_DISK_PER_PIXEL * frames * sum(pixels),
-        frames * sum(p * spp / SAMPLES_PER_S + IMAGE_OVERHEAD_S for p in pixels),
+        frames * sum(t + IMAGE_OVERHEAD_S for t in seconds),
         f"{images:,} image(s) ({frames:,} frame(s) x {len(pixels)} sensor(s), up to "
-        f"{max(pixels, default=0):,} pixels, {spp} spp)",
-        "sensor.resolution in the scenario, or --frames",
+        f"{max(pixels, default=0):,} pixels, {spp} spp"
+        + (f" (EO {eo_spp})" if eo and eo_spp != spp else "")
+        + (f", {subbands} sub-bands, {estimator} estimator)" if ir else f", {estimator} estimator)"),
+        "sensor.resolution in the scenario, --spp, --subbands or --frames",
     )
 
 
@@ -141,3 +214,19 @@ def require_fits(budget: Budget, folder, yes: bool = False) -> None:
             f"{budget.text()}; this machine has {' and '.join(short)}: change {budget.keys}, "
             "or pass --yes to go ahead anyway"
         )
+
+
+def scenario_render_budget(scenario, spp: int, estimator: str = "fast") -> Budget:
+    """:func:`render_budget` of rendering every frame of a validated scenario's sensors at
+    ``spp`` (what ``humv-usd render`` of its composed stage would estimate; the editor checks
+    its spp field with it before starting a render)."""
+    ir = [s for s in scenario["sensor"] if s["wavelength_um"][0] >= 3.0]
+    eo = [s for s in scenario["sensor"] if s["wavelength_um"][0] < 3.0]
+    return render_budget(
+        [s["resolution"] for s in ir],
+        scenario.frame_count,
+        spp,
+        estimator=estimator,
+        subbands=max((s.get("subbands") or DEFAULT_SUBBANDS for s in ir), default=1),
+        eo_resolutions=[s["resolution"] for s in eo],
+    )

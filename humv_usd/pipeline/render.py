@@ -369,7 +369,15 @@ def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
     t = time.perf_counter()
     plan = _plan(*args, *how)
     totals["load_export"] += time.perf_counter() - t
-    budget = render_budget([s.resolution for s in _selected(plan)], len(plan.frames), plan.spp)
+    budget = render_budget(  # every knob: pixels, spp, sub-bands, estimator, sensors, frames
+        [s.resolution for s in plan.rendered],
+        len(plan.frames),
+        plan.spp,
+        estimator=plan.estimator,
+        subbands=max(plan.n_of.values(), default=1),
+        eo_resolutions=[s.resolution for s in plan.eo_run.sensors],
+        eo_spp=plan.eo_run.spp,
+    )
     require_fits(budget, out_dir, yes)  # before anything is written
     todo = _frames_to_render(plan, force)
 
