@@ -254,3 +254,51 @@ def test_pixel_steps_of_pure_noise_follow_the_half_normal():
     excl = np.zeros_like(mask)
     excl[:, 5] = True
     assert SS.pixel_steps(step, mask, margin=1, exclude=excl)["max"] == 0.0
+
+
+def _ridge(fold_deg, concave=False):
+    """Two facets meeting at the y axis, each tilted by fold_deg / 2: a convex ridge (both
+    slope down away from the edge) or a concave valley."""
+    half = np.radians(fold_deg / 2)
+    z = np.sin(half) * (1.0 if concave else -1.0)
+    v = [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0], [-np.cos(half), 0.0, z], [np.cos(half), 0.0, z]]
+    return trimesh.Trimesh(v, [[0, 1, 2], [1, 0, 3]], process=False)
+
+
+def _below_facet_a(mesh, degrees, towards):
+    """The sun ``degrees`` below facet 0's plane, in the x-z plane, ``towards`` +1: the ridge
+    line, -1: away from it."""
+    n_a = mesh.face_normals[0]
+    t_a = np.cross([0.0, 1.0, 0.0], n_a)
+    t_a *= towards / np.linalg.norm(t_a)
+    tilt = np.radians(-degrees)
+    return np.cos(tilt) * t_a + np.sin(tilt) * n_a
+
+
+def test_a_lit_smooth_point_is_not_shadowed_by_its_own_flat_facet():
+    # a convex ridge of two facets 40 deg apart, the sun 3 deg below facet A's plane: A's flat
+    # normal faces away, but near the ridge its smooth normal faces the sun. Without the lift
+    # of the shadow ray's origin onto the smooth surface, those rays would cross A's own plane
+    # at once and be shadowed by A (the dark staircase along a terminator)
+    ridge = _ridge(40.0)
+    s = _below_facet_a(ridge, 3.0, +1.0)
+    b = Q.face_points(4)
+    n = np.einsum("pc,fcx->fpx", b, Q.corner_normals(ridge))
+    n /= np.linalg.norm(n, axis=2, keepdims=True)
+    expected = E_SUN * np.maximum(n @ s, 0.0).mean(axis=1)  # every such point lit
+    assert expected[0] > 0.01 * E_SUN and ridge.face_normals[0] @ s < 0
+    q = Q.absorbed_radiation(ridge, _sun_env(s), [1.0, 1.0], sun_points=16)[0]
+    assert_allclose(q, expected, rtol=1e-9)
+
+
+def test_a_concave_facet_facing_away_from_the_sun_stays_dark():
+    # a valley, the sun 3 deg below facet A's plane going up A's slope: near the valley line
+    # A's smooth normal faces the sun, but the surface rising beside the point (A itself)
+    # shadows it, as on a smooth valley
+    valley = _ridge(40.0, concave=True)
+    s = _below_facet_a(valley, 3.0, -1.0)
+    assert s[2] > 0 and valley.face_normals[0] @ s < 0
+    cn = Q.corner_normals(valley)
+    assert np.max(cn[0] @ s) > 0.05  # the smooth normals at the valley line do face the sun
+    q = Q.absorbed_radiation(valley, _sun_env(s), [1.0, 1.0], sun_points=16)[0]
+    assert q[0] == 0.0

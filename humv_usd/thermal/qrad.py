@@ -172,23 +172,22 @@ def _shadow_origins(tri, cn, bary):
     return p + lift
 
 
-def _sun_visible(occ, facet, origins, s, normals, vertices, offset):
-    """Whether rays from ``origins`` (n, 3) of facets ``facet`` towards the sun ``s`` escape.
-    The ray leaves along the facet's flat normal by ``offset``; a ray that hits its own facet
-    (the smooth normal faces the sun, the flat facet does not) restarts past the facet's plane:
-    the facet stands in for the curved surface through the point, which does not shadow
-    itself."""
+def _sun_visible(occ, facet, origins, s, normals, offset):
+    """Whether rays from ``origins`` (n, 3) of facets ``facet`` (n,) towards the sun ``s``
+    escape. The ray leaves along the facet's flat normal by ``offset``. A ray that hits its own
+    facet although the facet faces the sun (float32 precision of embree on large scenes) is
+    re-cast from farther out; one whose facet faces away from the sun (its smooth normal does
+    not) is shadowed by it: with the origin lifted onto the smooth surface
+    (:func:`_shadow_origins`) that happens only where the surface is concave, where the rising
+    surface around the point, which the facet stands for, does cast the shadow."""
     n = normals[facet]
     o = origins + n * offset
     hit = first_faces(occ.intersector, o, np.ascontiguousarray(np.broadcast_to(s, o.shape)))
-    for k in (1.0, 10.0, 100.0):
-        own = np.nonzero(hit == facet)[0]
+    for k in (10.0, 100.0, 1000.0):
+        own = np.nonzero((hit == facet) & (n @ s > 0))[0]
         if len(own) == 0:
             break
-        f = facet[own]
-        den = n[own] @ s
-        t = np.einsum("ij,ij->i", vertices[f] - o[own], n[own]) / np.where(np.abs(den) > 1e-12, den, -1e-12)
-        o2 = o[own] + (np.maximum(t, 0.0) + k * offset)[:, None] * s
+        o2 = o[own] + n[own] * (k * offset)
         hit[own] = first_faces(occ.intersector, o2, np.ascontiguousarray(np.broadcast_to(s, o2.shape)))
     return hit < 0
 
@@ -218,7 +217,7 @@ def _sun_factors(mesh, normals, s, occ, offset, facets, sun_normals, sun_points,
     if origins is None:
         origins = np.einsum("pc,ncx->npx", bary, tri)
     fk, pk = np.nonzero(cos[keep] > 0)
-    vis = _sun_visible(occ, facets[keep][fk], origins[fk, pk], s, normals, tri[fk, 0], offset)
+    vis = _sun_visible(occ, facets[keep][fk], origins[fk, pk], s, normals, offset)
     np.add.at(factor, keep[fk], cos[keep][fk, pk] * vis)
     return factor / len(bary)
 
