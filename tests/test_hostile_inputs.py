@@ -166,3 +166,22 @@ def test_the_editors_spp_check_is_the_renders(tmp_path):
     )
     assert got == want
     assert scenario_render_budget(scenario, MAX_SPP).memory_bytes > 1e13
+
+
+@pytest.mark.parametrize("resolution", [(1, 1), (1, 48), (64, 1)])
+@pytest.mark.parametrize("spp", [4, None])
+def test_one_pixel_wide_or_high_images_render(tmp_path, resolution, spp):
+    """Widths and heights of 1 are inside the allowed range (1..16384): they rendered an
+    IndexError in the estimator's reflection filter (its windows along a 1-pixel axis)."""
+    import numpy as np
+
+    from humv_usd.images import read_exr
+    from humv_usd.pipeline.render import render_stage
+
+    stage = _tiny_stage(tmp_path, resolution)
+    render_stage(stage, tmp_path / "r", spp=spp)
+    channels = read_exr(tmp_path / "r" / "cam" / "0000.exr")
+    for values in channels.values():
+        assert values.shape == (resolution[1], resolution[0])
+    # a 300 K ground of emissivity 0.9 under a 300 K sky: every pixel at 300 K
+    assert np.allclose(channels["brightness_temperature"], 300.0, atol=0.5)

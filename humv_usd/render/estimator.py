@@ -839,6 +839,9 @@ def _window(hits, cap, axis: int):
         lo, hi = _window(_transposed(hits), cap.T, 1)
         return np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
     h, w = cap.shape
+    if w < 2:  # one column (a 1-pixel-wide or -high image): each window is the pixel itself
+        zero = np.zeros((h, w), dtype=np.int64)
+        return zero, zero.copy()
     part, normal = hits.part, hits.normal
     depth = np.where(np.isfinite(hits.depth), hits.depth, 0.0)
     # neighbours x and x + 1: the cosine between their normals, their depth step, and whether
