@@ -93,8 +93,15 @@ def test_sunlit_and_shaded_panels_reach_the_closed_form_equilibrium():
         assert_allclose(m.face_geometry()[0][0], [0, -1, 0], atol=1e-12)  # faces south
     sun = np.array([0.0, -np.cos(np.radians(40)), np.sin(np.radians(40))])
     f = _forcing(30, sun)
+    # the closed form is the open-sky model (ground irradiance = GHI, sky (1 + n_z) / 2):
+    # exchange=False; the screen's long wave on panel b is tested in test_surface_views.py
     out, diag = SF.surface_temperatures(
-        None, [ground, lit_panel, shaded, screen], np.array([0.0]), spin_up_s=17400.0, forcing=f
+        None,
+        [ground, lit_panel, shaded, screen],
+        np.array([0.0]),
+        spin_up_s=17400.0,
+        forcing=f,
+        exchange=False,
     )
     assert diag["surfaceModels"] == {
         "/World/Scene/Ground": "held",

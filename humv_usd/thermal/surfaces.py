@@ -24,6 +24,16 @@ f_lit the sunlit fraction of the face (shadow rays against the scene from points
   there) the analytic sky scaled to frame 0's table;
 * convection  h = 2.8 + 3.0 V (Watmuff et al. 1977).
 
+Surroundings (issue 25; ``exchange=False`` turns them off): each face sees only part of the sky
+(:mod:`humv_usd.thermal.views`: sky view factor and view factors to the other scene faces by
+cosine-weighted rays from points over the face, with :mod:`humv_usd.geometry.raycast`). The sky
+terms above are scaled by the seen share of the sky (the long wave weighted by the sky's
+angular radiance: a canyon floor sees the darker zenith; the diffuse short wave isotropic), the
+ground term by the share of downward rays that leave the modelled ground, and the face receives
+the radiosity eps_k sigma T_k^4 + (1 - eps_k) L_k and the reflected short wave of every scene
+face k it sees (F_ik). The temperatures T_k are iterated over the whole time series
+(:func:`surface_temperatures`, fixed point, to :data:`EXCHANGE_TOLERANCE_K`).
+
 Shadows: f_lit from shadow rays (4 points per triangle) against the scene meshes and the people
 (:func:`people_occluders`: posed at each frame from frame 0 on; before it, in the frame-0 pose
 for ``[[placement]] standing_before_s``, weighted by the share of each slab step they stood
@@ -43,8 +53,8 @@ material its ``humv:material:substrate`` points to, soil from the materials tool
 with the bottom held at the mean air temperature of the spin-up day; objects are their material's layer with an
 adiabatic back (insulated siding, a panel on a stand), or, with ``interior_air_temperature_k``,
 a back exchanging heat with the room air through ISO 6946's inside surface coefficient
-(7.7 W m^-2 K^-1). Scene faces do not exchange radiation with each other beyond the ground
-term; people shade the scene but do not warm it (no long-wave or contact exchange with it).
+(7.7 W m^-2 K^-1). People shade the scene but do not warm it (no long-wave or contact
+exchange with it) and do not enter its view factors.
 """
 
 from __future__ import annotations
@@ -58,7 +68,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdSkel
 
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.mesh import fan_triangulate
-from humv_usd.geometry.raycast import ray_caster, unblocked
+from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.physics import slab
 from humv_usd.physics.convection import watmuff
@@ -71,6 +81,7 @@ from humv_usd.physics.sky import (
 )
 from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
+from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views
 from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
@@ -510,6 +521,26 @@ def _dose(cells, shadows: _Shadows, f: SurfaceForcing, weights) -> np.ndarray:
     return dose.reshape(pts.shape[:2])
 
 
+def _straddles_a_footprint(cells, shadows: _Shadows) -> np.ndarray:
+    """(C,) whether a cell lies partly inside a closed mesh standing on it (a building's
+    footprint): of 16 points over it, some see the back of a face straight above them and some
+    do not. A wall's foot on its shaded side is not found by the sun's dose (shade on both
+    sides), but the sky view (:mod:`humv_usd.thermal.views`) changes there."""
+    pts = _samples(cells)
+    nrm = np.repeat(_cell_normals(cells), pts.shape[1], axis=0)
+    o = pts.reshape(-1, 3) + shadows.eps * nrm
+    hit = first_faces(shadows.caster(-1), o, nrm)
+    inside = np.zeros(len(o), dtype=bool)
+    h = hit >= 0
+    if h.any():
+        tri = shadows.points[shadows.triangles[hit[h]]]
+        inside[h] = (
+            np.einsum("ij,ij->i", np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), nrm[h]) > 0.0
+        )
+    inside = inside.reshape(pts.shape[:2])
+    return inside.any(axis=1) & ~inside.all(axis=1)
+
+
 def _under_occluders(cells, occluders: Occluders, f: SurfaceForcing, weights) -> np.ndarray:
     """(C,) whether an occluder's shadow (its bounding box projected along the sun onto each
     cell's plane) overlaps the cell at a weighted time: a person is smaller than a coarse
@@ -630,6 +661,7 @@ def refine_meshes(
                     d = _dose(cells[big], shadows, forcing, weights)
                     split[big] = alpha * np.ptp(d, axis=1) > threshold_w_m2
                     split[big] |= _under_occluders(cells[big], occluders, forcing, weights)
+                    split[big] |= _straddles_a_footprint(cells[big], shadows)
                 if split.any() and total + 3 * int(split.sum()) > max_faces:
                     log.warning("%s: tessellation stopped at %d faces (MAX_REFINED_FACES)", m.path, total)
                     split[:] = False
@@ -692,18 +724,23 @@ class SurfaceForcing:
     #: the analytic sky at the first sample
     sky_shape: tuple | None = None
 
+    def sky_distribution(self) -> tuple[np.ndarray, np.ndarray]:
+        """The sky's angular distribution (zenith [deg] (Z,), radiance (Z,), any scale):
+        :attr:`sky_shape`, else the Martin & Berdahl (1984) law of the analytic sky at the
+        first sample."""
+        if self.sky_shape is not None:
+            return self.sky_shape
+        _, eps = effective_sky_temperature(self.air_temperature_k[0], self.relative_humidity[0])
+        if self.cloud_cover is not None:
+            eps = cloudy_sky_emissivity(eps, self.cloud_cover[0])
+        zen = np.linspace(0.0, 89.0, 90)
+        return zen, directional_sky_emissivity(zen, float(eps))
+
     def sky_view(self, normals) -> np.ndarray:
         """(F,) irradiance from the sky on each face over the horizontal sky irradiance:
         :func:`humv_usd.physics.sky.tilted_irradiance` of the sky's angular distribution
         (not isotropic: a wall sees the bright horizon sky), 1 facing up, 0 facing down."""
-        if self.sky_shape is None:
-            _, eps = effective_sky_temperature(self.air_temperature_k[0], self.relative_humidity[0])
-            if self.cloud_cover is not None:
-                eps = cloudy_sky_emissivity(eps, self.cloud_cover[0])
-            zen = np.linspace(0.0, 89.0, 90)
-            shape = (zen, directional_sky_emissivity(zen, float(eps)))
-        else:
-            shape = self.sky_shape
+        shape = self.sky_distribution()
         tilt = np.degrees(np.arccos(np.clip(np.asarray(normals)[:, 2], -1.0, 1.0)))
         uniq, inverse = np.unique(np.round(tilt, 2), return_inverse=True)
         e = tilted_irradiance(*shape, np.r_[0.0, uniq])
@@ -776,11 +813,49 @@ def forcing_at(stage, times_s) -> SurfaceForcing:
     )
 
 
-def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, ground_eps, ground_albedo):
-    """(absorbed solar, incident long wave, air, h), each (M, F)."""
+@dataclass
+class _Seen:
+    """What the faces of one solve see besides the open sky (:mod:`humv_usd.thermal.views`):
+    per face the seen share of the sky's long wave (radiance-weighted) and diffuse short wave
+    (isotropic) and of the ground beyond the model, each over its open value, and per sample
+    the short and long wave that reach the face from the scene faces it sees [W m^-2]."""
+
+    sky_lw: np.ndarray  # (F,)
+    sky_sw: np.ndarray  # (F,)
+    ground: np.ndarray  # (F,)
+    enclosed: np.ndarray  # (F,) share inside a closed mesh (a black body at the air temperature)
+    scene_sw: np.ndarray  # (M, F)
+    scene_lw: np.ndarray  # (M, F)
+
+    def take(self, sel) -> _Seen:
+        return _Seen(
+            self.sky_lw[sel],
+            self.sky_sw[sel],
+            self.ground[sel],
+            self.enclosed[sel],
+            self.scene_sw[:, sel],
+            self.scene_lw[:, sel],
+        )
+
+
+def _face_forcing(
+    mesh: SceneMesh,
+    normals,
+    lit,
+    f: SurfaceForcing,
+    ground_k,
+    ground_eps,
+    ground_albedo,
+    seen: _Seen | None = None,
+):
+    """(absorbed solar, incident long wave, air, h, incident short wave), each (M, F)."""
     nz = normals[:, 2][None, :]
     sky_view = f.sky_view(normals)[None, :]
     up, down = 0.5 * (1.0 + nz), 0.5 * (1.0 - nz)
+    if seen is not None:
+        sky_view = sky_view * seen.sky_lw[None, :]
+        up = up * seen.sky_sw[None, :]
+        down = down * seen.ground[None, :]
     cos = np.maximum(f.sun_direction @ normals.T, 0.0) * f.sun_up[:, None]
     e_sw = (
         f.dni_w_m2[:, None] * cos * lit
@@ -792,29 +867,48 @@ def _face_forcing(mesh: SceneMesh, normals, lit, f: SurfaceForcing, ground_k, gr
         ground_eps * STEFAN_BOLTZMANN * np.asarray(ground_k)[:, None] ** 4 + (1.0 - ground_eps) * e_sky
     )
     lw = e_sky * sky_view + ground_lw * down
+    if seen is not None:
+        e_sw = e_sw + seen.scene_sw
+        enclosure = seen.enclosed[None, :] * STEFAN_BOLTZMANN * f.air_temperature_k[:, None] ** 4
+        lw = lw + seen.scene_lw + enclosure
     shape = e_sw.shape
     air = np.broadcast_to(f.air_temperature_k[:, None], shape)
     h = np.broadcast_to(watmuff(f.wind_speed_m_s)[:, None], shape)
-    return mesh.solar_absorptivity * e_sw, lw, air, h
+    alpha = (
+        0.0
+        if mesh.held_k is not None
+        else mesh.per_face(lambda m: m.require("solar_absorptivity", mesh.path))
+    )
+    return alpha * e_sw, lw, air, h, e_sw
 
 
 def _solve_faces(mesh: SceneMesh, normals, lit, f, *args):
     """:func:`_solve_mesh` per material of a mesh with per-face materials: a face in a material
-    GeomSubset is a slab of that material (construction, solar absorptivity, emissivity)."""
+    GeomSubset is a slab of that material (construction, solar absorptivity, emissivity).
+    Returns ((M, F) surface temperature, max residual, (M, F) incident long wave)."""
     if mesh.material_of_face is None:
         return _solve_mesh(mesh, normals, lit, f, *args)
-    out, res = np.empty((len(f.times_s), mesh.n_faces)), 0.0
+    m = len(f.times_s)
+    out, lw, res = np.empty((m, mesh.n_faces)), np.empty((m, mesh.n_faces)), 0.0
+    seen = args[-1]
     for k, material in enumerate(mesh.face_materials):
         sel = mesh.material_of_face == k
-        one = dataclasses.replace(mesh, material=material, face_materials=(), material_of_face=None)
-        t, r = _solve_mesh(one, normals[sel], lit[:, sel], f, *args)
-        out[:, sel], res = t, max(res, r)
-    return out, res
+        if not sel.any():
+            continue
+        one = dataclasses.replace(
+            mesh, material=material, face_materials=(), material_of_face=None, n_faces=int(sel.sum())
+        )
+        t, r, e = _solve_mesh(
+            one, normals[sel], lit[:, sel], f, *args[:-1], None if seen is None else seen.take(sel)
+        )
+        out[:, sel], lw[:, sel], res = t, e, max(res, r)
+    return out, res, lw
 
 
-def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k):
-    """(M, F) surface temperatures of one mesh's slab faces, and the max residual."""
-    a_s, lw, air, h = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo)
+def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k, seen=None):
+    """(M, F) surface temperatures of one mesh's slab faces, the max residual and the (M, F)
+    incident long wave."""
+    a_s, lw, air, h, _ = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, seen)
     # faces with the same forcing history (most of an unshaded ground) are solved once
     stacked = np.ascontiguousarray(np.round(np.concatenate([a_s, lw, air, h], axis=0).T, 9))  # (F, 4M)
     # rows compared as raw bytes (one void item per row): much faster than np.unique(axis=0)
@@ -835,7 +929,40 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
         bottom="fixed" if mesh.is_ground else ("adiabatic" if mesh.interior_k is None else "interior"),
         deep_temperature_k=deep_k if mesh.interior_k is None else mesh.interior_k,
     )
-    return t_surf[:, inverse], res
+    return t_surf[:, inverse], res, lw
+
+
+#: the exchange between scene faces is iterated until no surface temperature changes by more
+#: than this between passes [K] ...
+EXCHANGE_TOLERANCE_K = 0.05
+#: ... or for this many passes (a warning says where it stopped)
+EXCHANGE_MAX_PASSES = 8
+#: lower bound of a surface's conductance to its surroundings, h + 4 eps sigma T^3 [W m^-2 K^-1]
+#: (Watmuff's h >= 2.8 in calm air, 4 eps sigma T^3 >= 3.5 for eps >= 0.8 above 240 K)
+MIN_SURFACE_CONDUCTANCE = 6.0
+#: short-wave inter-reflections between scene faces followed (bounces after the first)
+SHORTWAVE_BOUNCES = 3
+
+
+def _solar_reflectance(material: StageMaterial) -> float:
+    """Broadband short-wave reflectance 1 - alpha_s of an opaque material; 0 (black) where a
+    held face's material gives no absorptivity."""
+    alpha = material.solar_absorptivity
+    return 0.0 if alpha is None else 1.0 - float(alpha)
+
+
+def _views(meshes: list[SceneMesh], rays: int):
+    """:func:`humv_usd.thermal.views.face_views` of all scene meshes together (faces numbered
+    mesh by mesh)."""
+    offsets = np.cumsum([0] + [len(m.points) for m in meshes])
+    face0 = np.cumsum([0] + [m.n_faces for m in meshes])
+    return face_views(
+        np.concatenate([m.points for m in meshes]),
+        np.concatenate([m.triangles + o for m, o in zip(meshes, offsets)]),
+        np.concatenate([m.tri_face + o for m, o in zip(meshes, face0)]),
+        int(face0[-1]),
+        rays,
+    )
 
 
 def surface_temperatures(
@@ -845,6 +972,8 @@ def surface_temperatures(
     spin_up_s=86400.0,
     forcing: SurfaceForcing | None = None,
     occluders: Occluders | None = None,
+    exchange: bool = True,
+    view_rays: int = VIEW_RAYS,
 ):  # scenario: unused, kept for callers' signature
     """Per-face temperatures of the scene meshes at ``times_s`` (seconds after frame 0, >= 0).
 
@@ -862,13 +991,35 @@ def surface_temperatures(
         Weather and sun at the spin-up and output times (:func:`forcing_at` of the stage).
     occluders : Occluders, optional
         Shadow casters that are not solved (the people, :func:`people_occluders`).
+    exchange : bool, default True
+        Each face sees its surroundings (:mod:`humv_usd.thermal.views`): the sky only where
+        it is open (long wave weighted by the sky's angular radiance, diffuse short wave
+        isotropic), the scene faces it sees with their leaving long wave and reflected short
+        wave, the ground beyond the model where downward rays escape. False: every face sees
+        the open sky and the ground as if nothing stood around it (the model before issue 25).
+    view_rays : int
+        Rays per triangle for the view factors.
 
     Returns
     -------
     tuple
         ({mesh path: (n, faces) temperature [K]}, diagnostics: max |surface residual| of the
-        slabs [W m^-2], the ground's mean temperature (n,) [K] and what each mesh got
-        ('held' or 'slab')).
+        slabs [W m^-2], the ground's mean temperature (n,) [K], what each mesh got
+        ('held' or 'slab'), and with ``exchange`` the passes of the exchange iteration, its
+        last change [K], the rays cast and the area-weighted mean sky view factor per mesh).
+
+    Notes
+    -----
+    Long-wave exchange: face i receives E_sky V(n_i) S_i + sum_k F_ik J_k + G_i, with S_i the
+    seen share of the sky's radiance (1 in the open), F_ik the view factors, J_k = eps_k sigma
+    T_k^4 + (1 - eps_k) L_k the radiosity of face k (L_k its incident long wave) and G_i the
+    ground beyond the model. The T_k are those of the previous pass (fixed-point iteration of
+    the whole time series, Jacobi; first pass: every face at the air temperature and
+    L = E_sky); only faces that see other faces are solved again. Short wave: E_i = E0_i +
+    sum_k F_ik rho_k E_k (rho = 1 - alpha_s), iterated :data:`SHORTWAVE_BOUNCES` times from E0
+    (direct sun, seen diffuse sky, ground beyond). Radiosity method: Modest (2013), Radiative
+    Heat Transfer, 3rd ed., ch. 5; urban canyon energy balance with sky view factors: Oke
+    (1988), Johnson & Watson (1984).
     """
     times = np.asarray(times_s, dtype=float)
     spin = np.arange(-float(spin_up_s), 0.0, SPIN_UP_STEP_S) if spin_up_s > 0 else np.zeros(0)
@@ -889,31 +1040,116 @@ def surface_temperatures(
         if np.any(all_t <= 0.0)
         else float(f.air_temperature_k[0])
     )
-    out, kinds, max_res = {}, {}, 0.0
+    n_t, n_all = len(all_t), int(starts[-1])
+    views = _views(meshes, view_rays) if exchange and meshes else None
+    ground_eps, ground_alb = 0.95, ground_albedo(meshes)
     ground_k = f.air_temperature_k.copy()
-    ground_eps, ground_albedo = 0.95, 0.2
-    order = sorted(range(len(meshes)), key=lambda i: not meshes[i].is_ground)
-    for i in order:
-        m = meshes[i]
-        normals, _, area = geo[i]
-        if m.held_k is not None:
-            t_all = np.full((len(all_t), m.n_faces), float(m.held_k))
-            kinds[m.path] = "held"
-        else:
-            lit = lit_all[:, starts[i] : starts[i + 1]]
-            t_all, res = _solve_faces(m, normals, lit, f, ground_k, ground_eps, ground_albedo, deep)
-            max_res = max(max_res, res)
-            kinds[m.path] = "slab"
+    for m in meshes:
         if m.is_ground:
-            ground_k = (t_all * area).sum(axis=1) / max(area.sum(), 1e-30)
             ground_eps = longwave_emissivity(m.material)
-            ground_albedo = 1.0 - m.solar_absorptivity
-        out[m.path] = t_all[idx]
-    return out, {
+    seen_all = None
+    if views is not None:
+        zen, rad = f.sky_distribution()
+        centres = 0.5 * (ZENITH_BINS_DEG[1:] + ZENITH_BINS_DEG[:-1])
+        sky_lw = views.sky_ratio(np.interp(centres, zen, rad))
+        seen_all = _Seen(
+            sky_lw,
+            views.sky_ratio(),
+            views.ground_ratio,
+            views.enclosed,
+            np.zeros((n_t, n_all)),
+            np.zeros((n_t, n_all)),
+        )
+        eps_face = np.concatenate([m.per_face(longwave_emissivity) for m in meshes])
+        rho_face = np.concatenate([m.per_face(_solar_reflectance) for m in meshes])
+        # short wave: first arrival (sun, seen sky, ground beyond), then inter-reflections
+        e0 = np.empty((n_t, n_all))
+        for i, m in enumerate(meshes):
+            sl = slice(starts[i], starts[i + 1])
+            s0 = seen_all.take(sl)
+            e0[:, sl] = _face_forcing(m, geo[i][0], lit_all[:, sl], f, ground_k, ground_eps, ground_alb, s0)[
+                4
+            ]
+        e_sw = e0
+        for _ in range(SHORTWAVE_BOUNCES):
+            e_sw = e0 + (views.to_faces @ (rho_face[:, None] * e_sw.T)).T
+        scene_sw = e_sw - e0
+    t_now = np.broadcast_to(f.air_temperature_k[:, None], (n_t, n_all)).copy()
+    l_in = np.broadcast_to(f.sky_longwave[:, None], (n_t, n_all)).copy()
+    used_lw = np.zeros((n_t, n_all))
+    resolve_w_m2 = EXCHANGE_TOLERANCE_K * MIN_SURFACE_CONDUCTANCE
+    kinds, max_res, passes, change = {}, 0.0, 0, 0.0
+    order = sorted(range(len(meshes)), key=lambda i: not meshes[i].is_ground)
+    coupled = views.coupled if views is not None else np.zeros(n_all, dtype=bool)
+    for p in range(EXCHANGE_MAX_PASSES if views is not None else 1):
+        passes = p + 1
+        previous = t_now.copy()
+        if views is not None:
+            radiosity = eps_face * STEFAN_BOLTZMANN * t_now**4 + (1.0 - eps_face) * l_in
+            scene_lw = (views.to_faces @ radiosity.T).T
+            # a face is solved again only where what it sees changed enough to move it by the
+            # tolerance: dT <= dL / (h + 4 eps sigma T^3) <= dL / MIN_SURFACE_CONDUCTANCE
+            moved = coupled & (np.abs(scene_lw - used_lw).max(axis=0) > resolve_w_m2)
+        for i in order:
+            m = meshes[i]
+            sl = slice(starts[i], starts[i + 1])
+            normals, _, area = geo[i]
+            sel = np.ones(m.n_faces, dtype=bool) if p == 0 else moved[sl]
+            seen = None
+            if views is not None:
+                seen = dataclasses.replace(seen_all, scene_sw=scene_sw, scene_lw=scene_lw).take(
+                    np.arange(starts[i], starts[i + 1])[sel]
+                )
+            if m.held_k is not None:
+                t_now[:, sl] = float(m.held_k)
+                kinds[m.path] = "held"
+                if views is not None and sel.any():
+                    lw = _face_forcing(
+                        m, normals[sel], lit_all[:, sl][:, sel], f, ground_k, ground_eps, ground_alb, seen
+                    )[1]
+                    l_in[:, np.arange(starts[i], starts[i + 1])[sel]] = lw
+            elif sel.any():
+                sub = dataclasses.replace(
+                    m,
+                    n_faces=int(sel.sum()),
+                    material_of_face=None if m.material_of_face is None else m.material_of_face[sel],
+                )
+                t_sel, res, lw = _solve_faces(
+                    sub, normals[sel], lit_all[:, sl][:, sel], f, ground_k, ground_eps, ground_alb, deep, seen
+                )
+                cols = np.arange(starts[i], starts[i + 1])[sel]
+                t_now[:, cols], l_in[:, cols] = t_sel, lw
+                if views is not None:
+                    used_lw[:, cols] = scene_lw[:, cols]
+                max_res = max(max_res, res)
+                kinds[m.path] = "slab"
+            if m.is_ground:
+                ground_k = (t_now[:, sl] * area).sum(axis=1) / max(area.sum(), 1e-30)
+        change = float(np.max(np.abs(t_now - previous))) if p > 0 else np.inf
+        if views is None or not coupled.any() or change < EXCHANGE_TOLERANCE_K or (p > 0 and not moved.any()):
+            break
+    else:
+        log.warning("scene long-wave exchange: %d passes, last change %.3f K", passes, change)
+    out = {m.path: t_now[:, starts[i] : starts[i + 1]][idx] for i, m in enumerate(meshes)}
+    diag = {
         "slabMaxResidual_W_m2": max_res,
         "groundMeanTemperature_k": ground_k[idx],
         "surfaceModels": kinds,
     }
+    if views is not None:
+        svf = views.sky_view_factor
+        diag.update(
+            {
+                "exchangePasses": passes,
+                "exchangeLastChange_K": float(change) if np.isfinite(change) else 0.0,
+                "viewRays": views.rays,
+                "meanSkyViewFactor": {
+                    m.path: float(np.average(svf[starts[i] : starts[i + 1]], weights=geo[i][2] + 1e-300))
+                    for i, m in enumerate(meshes)
+                },
+            }
+        )
+    return out, diag
 
 
 def write_refined_topology(prim: Usd.Prim, mesh: SceneMesh) -> None:
