@@ -185,3 +185,52 @@ def test_one_pixel_wide_or_high_images_render(tmp_path, resolution, spp):
         assert values.shape == (resolution[1], resolution[0])
     # a 300 K ground of emissivity 0.9 under a 300 K sky: every pixel at 300 K
     assert np.allclose(channels["brightness_temperature"], 300.0, atol=0.5)
+
+
+# ------------------------------------------------------------------ fitness classes
+def test_every_fitness_the_spec_offers_has_a_heart_rate():
+    """``fitness = "athlete"`` was offered by the spec, avatar --help and the editor and crashed
+    compose in the thermal layer (both physiology models take it through heart_rate)."""
+    from humv_usd.scenario.spec import FITNESS
+    from humv_usd.thermal import physiology as P
+
+    assert set(FITNESS) == set(P.FITNESS)
+    rest = {f: float(P.heart_rate(0.0, 75.0, 30.0, f)) for f in FITNESS}
+    assert rest["athlete"] == P.FITNESS["athlete"]["resting_hr_bpm"] == 50.0
+    work = {f: float(P.heart_rate(600.0, 75.0, 30.0, f)) for f in FITNESS}  # ~ a brisk run
+    assert work["athlete"] < work["high"] < work["average"] < work["low"]
+
+
+# ------------------------------------------------------------------ band and wavelengths together
+@pytest.mark.parametrize(
+    ("band", "edges", "allowed"),
+    [
+        ("EO", [8.0, 14.0], "0.36..0.83"),  # rendered visible light
+        ("LWIR", [0.4, 0.7], "7..14"),  # crashed the render
+        ("MWIR", [2.0, 5.0], "3..5"),  # crashed the render
+        ("MWIR", [8.0, 14.0], "3..5"),
+    ],
+)
+def test_band_and_wavelengths_must_agree(humvvex_raw, tmp_path, band, edges, allowed):
+    import copy
+
+    import tomlkit
+
+    raw = copy.deepcopy(humvvex_raw)
+    raw["sensor"][0].update(band=band, wavelength_um=edges)
+    path = tmp_path / "s.toml"
+    path.write_text(tomlkit.dumps(raw))
+    line = _one_line(CliRunner().invoke(main, ["compose", str(path), "-o", str(tmp_path / "o")]))
+    assert f"sensor[0].wavelength_um = {edges}: allowed range for band {band}: {allowed} µm" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_band_ranges_hold_their_defaults_and_presets():
+    from humv_usd.catalog.sensors import PRESETS
+    from humv_usd.scenario.spec import BAND_DEFAULT_UM, BAND_RANGE_UM, band_range_problem
+
+    for band, edges in BAND_DEFAULT_UM.items():
+        assert band_range_problem("w", band, edges) is None
+    for p in PRESETS.values():
+        assert band_range_problem("w", p.band, p.wavelength_um) is None, p
+    assert set(BAND_RANGE_UM) == set(BAND_DEFAULT_UM)

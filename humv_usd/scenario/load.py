@@ -35,6 +35,7 @@ from humv_usd.scenario.spec import (
     SPEED_RANGE_M_S,
     Key,
     Section,
+    band_range_problem,
 )
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -321,6 +322,8 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
             problems.append(
                 bad_value(f"sensor[{i}].wavelength_um", [lo, hi], "expected [short, long] with short < long")
             )
+        elif problem := band_range_problem(f"sensor[{i}].wavelength_um", band, (lo, hi)):
+            problems.append(problem)
         p_lo, p_hi = s["agc_percentiles"]
         if p_lo >= p_hi:
             problems.append(

@@ -26,6 +26,8 @@ import datetime as _dt
 from dataclasses import dataclass, field
 from typing import Any
 
+from humv_usd.errors import bad_value
+
 MATERIALS = (
     "skin",
     "concrete",
@@ -708,5 +710,24 @@ SECTIONS: dict[str, Section] = {
 SPEED_RANGE_M_S = {"walk": (0.5, 2.0), "run": (2.0, 5.0)}
 
 BAND_DEFAULT_UM = {"EO": [0.4, 0.7], "MWIR": [3.0, 5.0], "LWIR": [8.0, 14.0]}
+#: the wavelengths [µm] each band can be rendered at: EO the render's visible bins (CIE 1931
+#: colour matching, 360-830 nm; humv_usd.render.eo_fast, Mitsuba's spectral variant), MWIR and
+#: LWIR the atmospheric windows rendered from emission (3-5 µm, 7-14 µm; a sensor at 3 µm or
+#: longer is infrared). A band's edges outside its range were rendered as another band (EO at
+#: 8-14 µm as visible light) or crashed the render (issue 26).
+BAND_RANGE_UM = {"EO": (0.36, 0.83), "MWIR": (3.0, 5.0), "LWIR": (7.0, 14.0)}
+
+
+def band_range_problem(where: str, band: str, edges) -> str | None:
+    """The one-line problem when the band edges ``edges`` [µm] lie outside ``band``'s
+    :data:`BAND_RANGE_UM` (None when they fit, or for a band without a range)."""
+    if band not in BAND_RANGE_UM:
+        return None
+    r_lo, r_hi = BAND_RANGE_UM[band]
+    lo, hi = edges
+    if r_lo <= lo and hi <= r_hi:
+        return None
+    return bad_value(where, [lo, hi], f"allowed range for band {band}: {r_lo:g}..{r_hi:g} µm")
+
 
 DATETIME_TYPES = (_dt.datetime,)

@@ -93,6 +93,10 @@ FITNESS = {
     "low": {"resting_hr_bpm": 75.0, "vo2max_ml_kg_min": 34.0},
     "average": {"resting_hr_bpm": 68.0, "vo2max_ml_kg_min": 40.0},
     "high": {"resting_hr_bpm": 58.0, "vo2max_ml_kg_min": 48.0},
+    # endurance-trained: VO2max below the 70-85 of elite distance runners (Bassett & Howley 2000,
+    # Med. Sci. Sports Exerc. 32:70-84), resting bradycardia of trained athletes (~50 bpm;
+    # D'Souza et al. 2014, Nat. Commun. 5:3775). Assumed typical values, as the classes above.
+    "athlete": {"resting_hr_bpm": 50.0, "vo2max_ml_kg_min": 60.0},
 }
 FEMALE_VO2MAX_FACTOR = 0.82  # women's VO2max relative to men's (ACSM norms, ~18 % lower)
 VO2MAX_DECLINE_PER_YEAR = 0.01  # ~1 %/year after 30 (Fleg et al. 2005, Circulation 112:674)
@@ -123,7 +127,7 @@ def heart_rate(
         Body mass [kg].
     age_years : float
         Age [years]; sets HRmax (Tanaka) and VO2max's decline with age.
-    fitness : {'low', 'average', 'high'}
+    fitness : {'low', 'average', 'high', 'athlete'}
         Fitness class (:data:`FITNESS`): resting heart rate and VO2max when not given.
     sex : {'male', 'female'}
         Scales the class VO2max (:data:`FEMALE_VO2MAX_FACTOR`).
