@@ -234,3 +234,45 @@ def test_band_ranges_hold_their_defaults_and_presets():
     for p in PRESETS.values():
         assert band_range_problem("w", p.band, p.wavelength_um) is None, p
     assert set(BAND_RANGE_UM) == set(BAND_DEFAULT_UM)
+
+
+# ------------------------------------------------------------------ sweep [render] frames
+def _sweep_with(tmp_path, render: str, grid: str = '"scene.object.0.temperature_k" = [300.0, 320.0]'):
+    from test_sweep import SWEEP, _write
+
+    text = SWEEP.replace('"scene.object.0.temperature_k" = [300.0, 320.0]', grid)
+    return _write(tmp_path, text.replace("frames_per_task = 1", f"frames_per_task = 1\n{render}"))
+
+
+def test_sweep_frames_beyond_every_variant_are_refused(tmp_path):
+    """``frames = [0, 500]`` on a two-frame base dropped frame 500 without a word, exit 0."""
+    from humv_usd.sweep.spec import load_sweep
+
+    with pytest.raises(InputError) as info:
+        load_sweep(_sweep_with(tmp_path, "frames = [0, 500]"))
+    (line,) = info.value.problems
+    assert "render.frames: [500] beyond the frames of every variant (0..1" in line
+    with pytest.raises(InputError, match="at most 1,000,000"):
+        load_sweep(_sweep_with(tmp_path, 'frames = "0:99999999999"'))
+    result = CliRunner().invoke(
+        main,
+        ["sweep", str(_sweep_with(tmp_path, "frames = [0, 500]")), "-o", str(tmp_path / "ds"), "--dry-run"],
+    )
+    assert "beyond the frames of every variant" in _one_line(result)
+
+
+def test_sweep_frames_some_variants_lack_are_a_warning(tmp_path, caplog):
+    import logging
+
+    from humv_usd.sweep.plan import render_tasks
+    from humv_usd.sweep.spec import load_sweep
+
+    path = _sweep_with(tmp_path, "frames = [0, 1]", grid='"general.duration_s" = [0.0, 0.25]')
+    with caplog.at_level(logging.WARNING, logger="humv_usd.sweep.spec"):
+        sweep = load_sweep(path)
+    (warning,) = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert "2 of 4 variant(s) have fewer frames (the shortest 0..0)" in warning
+    frames = {v.id: [] for v in sweep.variants}
+    for task in render_tasks(sweep):
+        frames[task.variant] += task.frames
+    assert sorted(len(f) for f in frames.values()) == [1, 1, 2, 2]

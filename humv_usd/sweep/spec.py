@@ -50,6 +50,7 @@ import datetime as dt
 import difflib
 import itertools
 import json
+import logging
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -58,11 +59,14 @@ from typing import Any
 
 import numpy as np
 
-from humv_usd.errors import InputError, bad_value
+from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.scenario.load import Scenario, read_input_bytes, validate
 from humv_usd.scenario.spec import SECTIONS, Key, Section
 
 SWEEP_KEYS = ("name", "base", "unset", "count", "seed")
+#: most frames ``[render] frames = "FIRST:LAST"`` may name (checked before a list is built)
+MAX_FRAMES = 1_000_000
+log = logging.getLogger(__name__)
 RENDER_KEYS = {
     "spp": None,  # the render's automatic quality (infrared: batches until the error is NETD/3)
     "frames": None,
@@ -269,6 +273,11 @@ def _parse_frames(value, problems: list[str]):
         try:
             if ":" in value:
                 a, b = (int(x) for x in value.split(":", 1))
+                if b - a + 1 > MAX_FRAMES:  # checked before a list is built
+                    problems.append(
+                        bad_value("render.frames", value, f"{b - a + 1:,} frames; at most {MAX_FRAMES:,}")
+                    )
+                    return None
                 if b >= a >= 0:
                     return list(range(a, b + 1))
             else:
@@ -503,9 +512,39 @@ def load_sweep(path: str | Path) -> Sweep:
         raise InputError("", [f"{path}: {p}" for p in problems])
     sweep.variants = expand(sweep)
     _validate_variants(sweep, problems)
+    if not problems:
+        _check_frames(sweep, problems)
     if problems:
         raise InputError("", [f"{path}: {p}" for p in problems])
     return sweep
+
+
+def _check_frames(sweep: Sweep, problems: list[str]) -> None:
+    """``[render] frames`` against the variants' frame ranges: a frame no variant has is an error
+    (``frames = [0, 500]`` on a one-frame base dropped frame 500 without a word); frames that
+    only some variants have (a duration axis) are rendered where they exist, with one warning."""
+    frames = sweep.render["frames"]
+    if not frames or not sweep.variants:
+        return
+    counts = [v.scenario.frame_count for v in sweep.variants]
+    longest, shortest = max(counts), min(counts)
+    beyond = [f for f in frames if f >= longest]
+    if beyond:
+        problems.append(
+            f"render.frames: {summary(beyond)} beyond the frames of every variant "
+            f"(0..{longest - 1}: general.duration_s x general.fps)"
+        )
+    elif max(frames) >= shortest:
+        short = sum(1 for n in counts if n <= max(frames))
+        log.warning(
+            "%s: render.frames up to %d: %d of %d variant(s) have fewer frames (the shortest 0..%d) "
+            "and render only the frames they have",
+            sweep.path,
+            max(frames),
+            short,
+            len(counts),
+            shortest - 1,
+        )
 
 
 def _validate(raw: dict, sweep: Sweep) -> tuple[Scenario | None, list[str]]:
