@@ -152,7 +152,10 @@ def garment_image_steps(
     Returns {garment prim path: {"image": step_stats of IR.brightness_temperature [K],
     "surface": of surface.temperature (the layer's temperatures, noise-free) [K],
     "noise": what the render's stated per-pixel error (IR.radiance_stderr through dT/dL)
-    alone would give (:func:`noise_steps`) [K], "pixels": pixels used}}.
+    alone would give (:func:`noise_steps`) [K], "vertex": the same surface temperatures
+    interpolated linearly over each triangle from vertex temperatures (the area-weighted mean of
+    the faces around each vertex), i.e. what a render that interpolates would show [K],
+    "pixels": pixels used}}.
     """
     import json
     from pathlib import Path
@@ -165,6 +168,7 @@ def garment_image_steps(
     from humv_usd.human.usdskel import skinned_points
     from humv_usd.physics.planck import brightness_temperature_sensitivity
     from humv_usd.usd.environment import sun_direction
+    from humv_usd.usd.thermal import has_face_temperatures, read_face_temperatures
 
     render_dir = Path(render_dir)
     buf = oiio.ImageBuf(str(render_dir / sensor / f"{frame:04d}.exr"))
@@ -192,18 +196,27 @@ def garment_image_steps(
 
     stage = Usd.Stage.Open(str(stage_path))
     time = Usd.TimeCode(frame)
-    pts, tris, owner, paths = [], [], [], []
+    pts, tris, owner, paths, t_vertex = [], [], [], [], []
     off = 0
     for prim in stage.Traverse():
         path = str(prim.GetPath())
         if not prim.IsA(UsdGeom.Mesh) or "/Humans/" not in path:
             continue
         m = UsdGeom.Mesh(prim)
-        tri, _ = fan_triangulate(
-            np.asarray(m.GetFaceVertexCountsAttr().Get(), dtype=np.int64),
-            np.asarray(m.GetFaceVertexIndicesAttr().Get(), dtype=np.int64),
+        counts = np.asarray(m.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
+        tri, tri_face = fan_triangulate(
+            counts, np.asarray(m.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
         )
         p = skinned_points(stage, path, time, space="world")
+        tv = np.full(len(p), np.nan)
+        if has_face_temperatures(prim):
+            area = 0.5 * np.linalg.norm(
+                np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]]), axis=1
+            )
+            tf = read_face_temperatures(prim, len(counts), time)[tri_face]
+            wsum = np.bincount(tri.ravel(), np.repeat(area, 3), len(p))
+            tv = np.bincount(tri.ravel(), np.repeat(area * tf, 3), len(p)) / np.where(wsum > 0, wsum, np.nan)
+        t_vertex.append(tv)
         pts.append(p)
         tris.append(tri + off)
         owner.append(np.full(len(tri), len(paths)))
@@ -213,6 +226,19 @@ def garment_image_steps(
     v, f = caster.points, caster.triangles
     hit = first_faces(caster, np.broadcast_to(origin, d.shape).copy(), d)
     part = np.where(hit >= 0, np.concatenate(owner)[np.maximum(hit, 0)], -1).reshape(h, w)
+    t_interp = np.full(h * w, np.nan)
+    on = np.nonzero(hit >= 0)[0]
+    if len(on):
+        tri = v[f[hit[on]]]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        tt = np.einsum("ij,ij->i", tri[:, 0] - origin, n) / np.einsum("ij,ij->i", d[on], n)
+        x = origin + tt[:, None] * d[on]
+        # barycentric coordinates of the hit point (areas of the sub-triangles)
+        nn = np.einsum("ij,ij->i", n, n)
+        b1 = np.einsum("ij,ij->i", np.cross(tri[:, 2] - tri[:, 1], x - tri[:, 1]), n) / nn
+        b2 = np.einsum("ij,ij->i", np.cross(tri[:, 0] - tri[:, 2], x - tri[:, 2]), n) / nn
+        tv = np.concatenate(t_vertex)[f[hit[on]]]
+        t_interp[on] = b1 * tv[:, 0] + b2 * tv[:, 1] + (1.0 - b1 - b2) * tv[:, 2]
     lit = np.zeros(h * w, dtype=bool)
     s = sun_direction(stage, time)
     if s is not None:
@@ -249,11 +275,12 @@ def garment_image_steps(
         if len(pr) == 0:
             continue
         a, b = pr[:, 0], pr[:, 1]
-        ti, ts, sk = t_img.ravel(), t_surf.ravel(), sigma_k.ravel()
+        ti, ts, sk, tv = t_img.ravel(), t_surf.ravel(), sigma_k.ravel(), t_interp
         out[path] = {
             "image": step_stats(ti[a] - ti[b]),
             "surface": step_stats(ts[a] - ts[b]),
             "noise": noise_steps(sk[a], sk[b]),
+            "vertex": step_stats(tv[a] - tv[b]),
             "pixels": int(ok.sum()),
         }
     return out

@@ -164,10 +164,10 @@ def _shadow_origins(tri, cn, bary):
     although its smooth normal faces the sun (a dark staircase along the terminator).
 
     Returns (n, P, 3) [m]."""
-    p = np.einsum("pc,ncx->npx", bary, tri)
+    p = np.matmul(bary, tri)
     lift = np.zeros_like(p)
     for c in range(3):
-        dist = np.einsum("npx,nx->np", p - tri[:, None, c], cn[:, c])
+        dist = np.matmul(p, cn[:, c, :, None])[..., 0] - np.einsum("nx,nx->n", tri[:, c], cn[:, c])[:, None]
         lift -= bary[None, :, c, None] * np.minimum(dist, 0.0)[..., None] * cn[:, None, c]
     return p + lift
 
@@ -195,13 +195,13 @@ def _sun_visible(occ, facet, origins, s, normals, offset):
 def _sun_factors(mesh, normals, s, occ, offset, facets, sun_normals, sun_points, crease_deg):
     """Mean over ``sun_points`` stratified points of each facet of max(n . s, 0) V, with n the
     interpolated smooth normal ('smooth') or the flat one ('flat') and V the point's sun
-    visibility; and the facets that need it (some n . s > 0). Returns (facets, factor)."""
+    visibility (0 where every n . s <= 0). Returns (len(facets),)."""
     m = int(round(np.sqrt(sun_points)))
     bary = face_points(m)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if sun_normals == "smooth":
         cn = corner_normals(mesh, crease_deg)[facets]
-        npnt = np.einsum("pc,ncx->npx", bary, cn)
+        npnt = np.matmul(bary, cn)
         npnt /= np.maximum(np.linalg.norm(npnt, axis=2, keepdims=True), 1e-300)
         cos = npnt @ s  # (n, P)
     else:
@@ -215,10 +215,10 @@ def _sun_factors(mesh, normals, s, occ, offset, facets, sun_normals, sun_points,
     tri = np.asarray(mesh.vertices, dtype=float)[faces[facets[keep]]]
     origins = _shadow_origins(tri, cn[keep], bary) if sun_normals == "smooth" else None
     if origins is None:
-        origins = np.einsum("pc,ncx->npx", bary, tri)
+        origins = np.matmul(bary, tri)
     fk, pk = np.nonzero(cos[keep] > 0)
     vis = _sun_visible(occ, facets[keep][fk], origins[fk, pk], s, normals, offset)
-    np.add.at(factor, keep[fk], cos[keep][fk, pk] * vis)
+    factor[keep] = np.bincount(fk, cos[keep][fk, pk] * vis, len(keep))
     return factor / len(bary)
 
 
