@@ -312,29 +312,6 @@ def held_temperature(set_temperature_k, n_steps):
     return np.broadcast_to(np.asarray(set_temperature_k, dtype=float), (int(n_steps),)).copy()
 
 
-def _thomas(lower, diag, upper, rhs):
-    """Solve tridiagonal systems batched over the leading axis (Thomas algorithm).
-
-    lower[:, i] multiplies x[:, i - 1] in row i (lower[:, 0] unused), upper[:, i] multiplies
-    x[:, i + 1] (upper[:, -1] unused); all arrays (F, n). Stable for the diagonally dominant
-    matrices of implicit conduction.
-    """
-    n = diag.shape[1]
-    c = np.empty_like(diag)
-    d = np.empty_like(rhs)
-    c[:, 0] = upper[:, 0] / diag[:, 0]
-    d[:, 0] = rhs[:, 0] / diag[:, 0]
-    for i in range(1, n):
-        m = diag[:, i] - lower[:, i] * c[:, i - 1]
-        c[:, i] = upper[:, i] / m
-        d[:, i] = (rhs[:, i] - lower[:, i] * d[:, i - 1]) / m
-    x = np.empty_like(rhs)
-    x[:, -1] = d[:, -1]
-    for i in range(n - 2, -1, -1):
-        x[:, i] = d[:, i] - c[:, i] * x[:, i + 1]
-    return x
-
-
 def step_many(
     temperatures_k,
     time_step_s,
@@ -381,9 +358,12 @@ def step_many(
 
     Notes
     -----
-    Same discretisation as :func:`step` with theta = 1 (backward Euler, L-stable): the surface
-    emission is Newton-linearised and each Newton update solves F tridiagonal systems by the
-    Thomas algorithm (Patankar 1980, section 4.2-5).
+    Same discretisation as :func:`step` with theta = 1 (backward Euler, L-stable). Only the
+    surface node is nonlinear, so the linear conduction rows are eliminated once per step from
+    the bottom up (the Thomas algorithm run from node N, Patankar 1980, section 4.2-5:
+    T_i = alpha_i T_{i-1} + beta_i, alpha shared by the F slabs of one construction), leaving
+    one scalar equation per slab, (C_0/dt + G_0 (1 - alpha_1)) T_0 - b = q_s(T_0), solved by
+    Newton (q_s concave in T_0); then back substitution. The result is the full system's.
     """
     if bottom not in ("adiabatic", "fixed", "interior"):
         raise ValueError(f"invalid model selection {bottom}")
@@ -401,41 +381,45 @@ def step_many(
     a_s, l_sky, t_air, h, eps = (
         col(v) for v in (absorbed_solar, sky_longwave, air_temperature_k, h_conv, emissivity)
     )
-    c_dt = np.broadcast_to(cap / time_step_s, (nf, n1))
-    lower = np.zeros((nf, n1))
-    upper = np.zeros((nf, n1))
-    lower[:, 1:] = -g
-    upper[:, :-1] = -g
-    diag0 = c_dt.copy()
-    diag0[:, :-1] += g
-    diag0[:, 1:] += g
-    t = t_old.copy()
+    c_dt = cap / time_step_s  # (n1,), shared by the F slabs
+    # the conduction rows are linear and shared: eliminate them from the bottom up,
+    # T_i = alpha_i T_{i-1} + beta_i (alpha shared, beta per slab), down to one scalar
+    # equation for the surface node
+    diag = c_dt.copy()
+    diag[:-1] += g
+    diag[1:] += g
+    rhs = c_dt[None, :] * t_old
+    n = n1 - 1
+    alpha = np.zeros(n1)
+    beta = np.empty((nf, n1))
     if bottom == "fixed":
-        t[:, -1] = col(deep_temperature_k)
-        lower[:, -1] = 0.0
+        alpha[n], beta[:, n] = 0.0, col(deep_temperature_k)
+    else:
+        d_n = diag[n] + (back_h_w_m2k if bottom == "interior" else 0.0)
+        r_n = rhs[:, n] + (back_h_w_m2k * col(deep_temperature_k) if bottom == "interior" else 0.0)
+        alpha[n], beta[:, n] = g[n - 1] / d_n, r_n / d_n
+    for i in range(n - 1, 0, -1):
+        piv = diag[i] - g[i] * alpha[i + 1]
+        alpha[i] = g[i - 1] / piv
+        beta[:, i] = (rhs[:, i] + g[i] * beta[:, i + 1]) / piv
+    # surface node: k T0 - b = q_s(T0), Newton (q_s concave in T0: monotone convergence)
+    k0 = c_dt[0] + g[0] * (1.0 - alpha[1])
+    b0 = rhs[:, 0] + g[0] * beta[:, 1]
+    t0 = t_old[:, 0].copy()
     for _ in range(max_iter):
-        cond = np.zeros_like(t)
-        f = g * (t[:, 1:] - t[:, :-1])
-        cond[:, :-1] += f
-        cond[:, 1:] -= f
-        res = c_dt * (t - t_old) - cond
-        res[:, 0] -= surface_flux(t[:, 0], a_s, l_sky, t_air, h, eps)
-        diag = diag0.copy()
-        diag[:, 0] += 4.0 * eps * STEFAN_BOLTZMANN * t[:, 0] ** 3 + h
-        if bottom == "interior":
-            res[:, -1] -= back_h_w_m2k * (col(deep_temperature_k) - t[:, -1])
-            diag[:, -1] += back_h_w_m2k
-        if bottom == "fixed":
-            res[:, -1] = 0.0
-            diag[:, -1] = 1.0
-        dt_nodes = _thomas(lower, diag, upper, -res)
-        t = t + dt_nodes
-        if np.max(np.abs(dt_nodes)) < tol:
+        f = k0 * t0 - b0 - surface_flux(t0, a_s, l_sky, t_air, h, eps)
+        d = f / (k0 + 4.0 * eps * STEFAN_BOLTZMANN * t0**3 + h)
+        t0 -= d
+        if np.max(np.abs(d)) < tol:
             break
+    t = np.empty((nf, n1))
+    t[:, 0] = t0
+    for i in range(1, n1):
+        t[:, i] = alpha[i] * t[:, i - 1] + beta[:, i]
     residual = (
         surface_flux(t[:, 0], a_s, l_sky, t_air, h, eps)
         + g[0] * (t[:, 1] - t[:, 0])
-        - c_dt[:, 0] * (t[:, 0] - t_old[:, 0])
+        - c_dt[0] * (t[:, 0] - t_old[:, 0])
     )
     return t, residual
 
