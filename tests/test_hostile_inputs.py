@@ -276,3 +276,49 @@ def test_sweep_frames_some_variants_lack_are_a_warning(tmp_path, caplog):
     for task in render_tasks(sweep):
         frames[task.variant] += task.frames
     assert sorted(len(f) for f in frames.values()) == [1, 1, 2, 2]
+
+
+# ------------------------------------------------------------------ what check flags, render refuses
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda s: s.SetMetadata("upAxis", "Y"), "upAxis = 'Y': expected Z"),
+        (lambda s: s.SetMetadata("metersPerUnit", 0.01), "metersPerUnit = 0.01: expected 1"),
+        (lambda s: s.GetRootLayer().pseudoRoot.ClearInfo("upAxis"), "upAxis = 'Y': expected Z"),
+        (
+            lambda s: (s.SetStartTimeCode(5), s.SetEndTimeCode(2)),
+            "endTimeCode = 2.0: expected >= startTimeCode (5)",
+        ),
+        (lambda s: s.SetEndTimeCode(1e11), "100,000,000,001 frames; at most 1,000,000"),
+    ],
+)
+def test_render_refuses_what_check_flags(tmp_path, edit, expected):
+    from pxr import Usd
+
+    from humv_usd.usd.check import check_stage
+
+    path = _tiny_stage(tmp_path)
+    stage = Usd.Stage.Open(str(path))
+    edit(stage)
+    stage.Save()
+    out = tmp_path / "r"
+    line = _one_line(CliRunner().invoke(main, ["render", str(path), "-o", str(out)]))
+    assert expected in line and str(path) in line
+    assert not out.exists() or not any(out.rglob("*.exr"))
+    rule = {"upAxis": "humv:upAxis", "metersPe": "humv:metersPerUnit"}.get(expected[:8])
+    if rule:  # check reports the same as an error
+        assert any(f.startswith(rule) for f in check_stage(path))
+
+
+def test_a_long_stage_renders_the_frames_asked_for(tmp_path):
+    from pxr import Usd
+
+    from humv_usd.pipeline.preflight import check_stage_for_render
+
+    path = _tiny_stage(tmp_path)
+    stage = Usd.Stage.Open(str(path))
+    stage.SetEndTimeCode(1e11)
+    stage.Save()
+    check_stage_for_render(path, frames_given=True)  # --frames 0:3 takes four of them
+    with pytest.raises(InputError, match="use --frames"):
+        check_stage_for_render(path)

@@ -137,6 +137,17 @@ def _pairs(ok: np.ndarray):
     return np.r_[ph, pv]
 
 
+def _triples(ok: np.ndarray):
+    """Flat index triples of three consecutive pixels in a row or a column, all in ``ok``."""
+    h, w = ok.shape
+    idx = np.arange(h * w).reshape(h, w)
+    mh = ok[:, :-2] & ok[:, 1:-1] & ok[:, 2:]
+    mv = ok[:-2] & ok[1:-1] & ok[2:]
+    th = np.c_[idx[:, :-2][mh], idx[:, 1:-1][mh], idx[:, 2:][mh]]
+    tv = np.c_[idx[:-2][mv], idx[1:-1][mv], idx[2:][mv]]
+    return np.r_[th, tv]
+
+
 def garment_image_steps(
     stage_path, render_dir, sensor: str, frame: int = 0, margin: int = 1, shadow_px: int = 2
 ):
@@ -155,7 +166,10 @@ def garment_image_steps(
     alone would give (:func:`noise_steps`) [K], "vertex": the same surface temperatures
     interpolated linearly over each triangle from vertex temperatures (the area-weighted mean of
     the faces around each vertex), i.e. what a render that interpolates would show [K],
-    "pixels": pixels used}}.
+    "pixels": pixels used; with the suffix "_d2" the same for second differences
+    |T_a - 2 T_b + T_c| of three consecutive pixels, which a smooth gradient (a curved surface
+    turning from the sun) leaves near 0 while a step between faces shows in full; noise_d2 from
+    N(0, s_a^2 + 4 s_b^2 + s_c^2)}}.
     """
     import json
     from pathlib import Path
@@ -283,4 +297,11 @@ def garment_image_steps(
             "vertex": step_stats(tv[a] - tv[b]),
             "pixels": int(ok.sum()),
         }
+        tr = _triples(ok)
+        if len(tr):
+            a, b, c = tr.T
+            for key, x in (("image", ti), ("surface", ts), ("vertex", tv)):
+                out[path][key + "_d2"] = step_stats(x[a] - 2.0 * x[b] + x[c])
+            sd = np.sqrt(sk[a] ** 2 + 4.0 * sk[b] ** 2 + sk[c] ** 2)
+            out[path]["noise_d2"] = step_stats(sd * np.random.default_rng(0).standard_normal(len(sd)))
     return out

@@ -18,11 +18,7 @@ import click
 
 from humv_usd.cli.common import PROG, progress_display, reports_errors, set_verbosity
 from humv_usd.errors import InputError
-from humv_usd.pipeline.budget import MAX_SPP
-
-#: most frames one ``--frames`` may name (checked before a list is built: ``0:99999999999``
-#: once built a list of 10^11 numbers and ended in MemoryError)
-MAX_FRAMES_PER_CALL = 1_000_000
+from humv_usd.pipeline.budget import MAX_FRAMES_PER_CALL, MAX_SPP
 
 
 def parse_frames(text: str | None) -> list[int] | None:

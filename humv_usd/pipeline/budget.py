@@ -56,6 +56,9 @@ SAMPLES_PER_S = 4e6
 IMAGE_OVERHEAD_S = 0.5
 #: render / compose: the base memory of the process (Python, USD, Mitsuba) [bytes]
 BASE_MEMORY = 600e6
+#: most frames one render may take (``--frames`` or the stage's whole range), checked before a
+#: list of them is built (``--frames 0:99999999999`` once ended in MemoryError)
+MAX_FRAMES_PER_CALL = 1_000_000
 #: most samples per pixel ``humv-usd render --spp`` and the editor's spp field accept (the
 #: memory estimate then decides what fits this machine)
 MAX_SPP = 1 << 20

@@ -27,6 +27,7 @@ from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline import records as R
 from humv_usd.pipeline.budget import render_budget, require_fits
+from humv_usd.pipeline.preflight import check_stage_for_render
 from humv_usd.pipeline.writer import BackgroundWriter
 from humv_usd.render import eo as eo_render
 from humv_usd.render import estimator as E
@@ -354,6 +355,7 @@ def render_stage(
     if spp is None:
         spp = DEFAULT_SPP.get(estimator, DEFAULT_SPP["path"])
     _check_settings(spp, seed, max_depth)
+    check_stage_for_render(stage_path, frames_given=frames is not None)  # what check flags as errors
     if estimator not in ESTIMATORS:
         raise InputError(bad_value("estimator", estimator, f"expected one of {', '.join(ESTIMATORS)}"))
     out_dir = os.path.abspath(check_output_dir(out_dir))
