@@ -171,7 +171,7 @@ def saturation_vapour_pressure(temperature_k):
 
 
 def fabric_evaporation(
-    outer_temperature_k, air_temperature_k, relative_humidity, h_convective, wetted_fraction
+    outer_temperature_k, air_temperature_k, relative_humidity, h_convective, wetted_fraction, limit=np.inf
 ):
     """Latent heat flux from a wet fabric surface to the air [W m^-2] (Lewis relation).
 
@@ -187,12 +187,15 @@ def fabric_evaporation(
         Convective coefficient of the surface [W m^-2 K^-1].
     wetted_fraction : numeric
         Wetted fraction of the fabric's outer surface [0-1] (0: dry).
+    limit : numeric, default inf
+        Largest evaporation [W m^-2]: the latent heat of the sweat that reaches the fabric
+        (a fabric cannot evaporate more water than the skin supplies).
 
     Returns
     -------
     numeric
-        q_evap = w LR h_c (p_sat(T_out) - RH p_sat(T_air)) [W m^-2] with LR = 16.5 K kPa^-1;
-        negative for condensation on a wet surface below the dew point.
+        q_evap = min(w LR h_c (p_sat(T_out) - RH p_sat(T_air)), limit) [W m^-2] with
+        LR = 16.5 K kPa^-1; negative for condensation on a wet surface below the dew point.
 
     Notes
     -----
@@ -214,7 +217,7 @@ def fabric_evaporation(
     dp = saturation_vapour_pressure(outer_temperature_k) - np.asarray(
         relative_humidity, dtype=float
     ) * saturation_vapour_pressure(air_temperature_k)
-    return w * LEWIS_RATIO_K_PA * np.asarray(h_convective, dtype=float) * dp
+    return np.minimum(w * LEWIS_RATIO_K_PA * np.asarray(h_convective, dtype=float) * dp, limit)
 
 
 def hollands_nusselt(rayleigh):
@@ -879,7 +882,7 @@ def _stack_balance(t_out, p):
     h_out = _outer_coefficient(p["h"], dt_air, p["natural_floor"])
     q_conv = h_out * dt_air
     q_emit = p["eps"][-1] * STEFAN_BOLTZMANN * _t4(t_out)
-    q_evap = fabric_evaporation(t_out, p["t_air"], p["rh"], h_out, p["wet"])
+    q_evap = fabric_evaporation(t_out, p["t_air"], p["rh"], h_out, p["wet"], p["evap_limit"])
     q = q_conv + q_emit + q_evap - p["q_rad"]  # leaves layer n-1 outward
     t_o = [None] * n
     t_i = [None] * n
@@ -924,6 +927,7 @@ def _stack_parameters(
     relative_humidity,
     c_dt,
     t_prev,
+    evaporation_limit=np.inf,
 ):
     if gap_model not in ("hollands", "conduction"):
         raise ValueError(f"invalid model selection {gap_model}")
@@ -938,6 +942,7 @@ def _stack_parameters(
     require("skin_emissivity", skin_emissivity, 0.0, 1.0)
     require("wetted_fraction", wetted_fraction, 0.0, 1.0)
     require("relative_humidity", relative_humidity, 0.0, 1.0)
+    require("evaporation_limit", evaporation_limit, 0.0, np.inf, allow_inf=True)
     require("previous_temperatures_k", t_prev, 1.0, 1e4)
     gaps = np.asarray(air_gaps_m, dtype=float)
     if gaps.ndim < 1 or gaps.shape[0] < 1:
@@ -960,6 +965,7 @@ def _stack_parameters(
         eps_s=skin_emissivity,
         wet=wetted_fraction,
         rh=relative_humidity,
+        evap_limit=evaporation_limit,
     )
     shape = np.broadcast_shapes(
         *[np.shape(v) for v in facet.values()], *[v.shape[1:] for v in per_layer.values()]
@@ -1038,6 +1044,7 @@ def stack_steady_state(
     relative_humidity=0.5,
     tol=1e-6,
     max_iter=100,
+    evaporation_limit=np.inf,
 ):
     """Steady state of layered garments in series over the skin, per facet.
 
@@ -1061,6 +1068,8 @@ def stack_steady_state(
     wetted_fraction, relative_humidity : numeric
         Wetted fraction of the outermost surface [0-1] and air humidity [0-1]
         (:func:`fabric_evaporation`).
+    evaporation_limit : numeric, default inf
+        Largest evaporation from the outermost surface [W m^-2] (the sweat supply).
     tol, max_iter
         As in :py:func:`steady_state`; the residual tolerance is tol + 1e-10 times the largest
         gap flux (the nested gap solves carry round-off of the fluxes through them).
@@ -1107,6 +1116,7 @@ def stack_steady_state(
         np.broadcast_to(
             np.asarray(air_temperature_k, dtype=float), gaps.shape[:1] + np.shape(air_temperature_k)
         ),
+        evaporation_limit,
     )
     return _stack_solve(p, tol, max_iter)
 
@@ -1130,6 +1140,7 @@ def stack_transient_step(
     relative_humidity=0.5,
     tol=1e-6,
     max_iter=100,
+    evaporation_limit=np.inf,
 ):
     """One implicit (backward Euler) step of layered garments with each layer's heat capacity.
 
@@ -1178,6 +1189,7 @@ def stack_transient_step(
         relative_humidity,
         c_dt,
         previous_temperatures_k,
+        evaporation_limit,
     )
     return _stack_solve(p, tol, max_iter)
 

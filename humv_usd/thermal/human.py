@@ -52,8 +52,8 @@ from humv_usd.physics.garment import (
     air_conductivity,
     areal_heat_capacity,
     grey_plates_exchange_factor,
-    steady_state,
-    transient_step,
+    stack_steady_state,
+    stack_transient_step,
 )
 from humv_usd.thermal import qrad as Q
 from humv_usd.thermal import scene_radiance as SR
@@ -320,8 +320,10 @@ def human_temperatures(
     times = np.arange(frames) / fps
     area = _face_area(body, pts0[0])
     cover = _coverage(body, garments, pts0, stage)
-    clothes = [_Garment(p, stage, frames, settings, fps) for p in garments]
-    clo = garment_clo(body, area, cover, clothes)
+    clothes = [_Garment(p, stage, frames) for p in garments]
+    wardrobe = _Wardrobe(clothes, cover.under, pts0, settings, fps) if garments else None
+    clo = garment_clo(body, area, cover, wardrobe)
+    q_garment_all = np.concatenate([q_garment[p.path] for p in garments], axis=1) if garments else None
     # convection sees the air speed relative to the moving body (walking, running), not the wind
     wind = relative_air_speed(
         body_velocity(stage, body, samples, centres, frames, fps), wind, world.wind_direction_deg
@@ -340,18 +342,24 @@ def human_temperatures(
         h_skin = convective_coefficient(wind[:, None], t_faces - air[:, None], model=convection)
         q = h_skin * (t_faces - air[:, None]) + sigma_eps * t_faces**4 - q_skin
         g = h_skin + 4.0 * sigma_eps * t_faces**3
-        temps, worst = {}, 0.0
-        for gi, c in enumerate(clothes):
-            skin_g = t_faces[:, cover.under[gi]]
-            q_abs = q_garment[c.part.path]
-            t_out, q_in, res = c.series(skin_g, air, q_abs, wind, transient)
-            temps[c.part.path], worst = t_out, max(worst, res)
-            sel = cover.garment == gi
-            q[:, sel] = q_in[:, cover.face[sel]]
-            if slope:
-                q_in2 = c.series(skin_g + SLOPE_STEP_K, air, q_abs, wind, transient)[1]
-                g[:, sel] = ((q_in2 - q_in) / SLOPE_STEP_K)[:, cover.face[sel]]
-        return q, g, temps, worst
+        if not garments:
+            return q, g, {}, 0.0
+        # sweat wicked into a garment worn on the skin: the segment's wettedness, at most its
+        # latent loss (the physiology of the current coupling iteration)
+        wet = limit = None
+        if result.wettedness is not None:
+            seg = body.segment[wardrobe.under]
+            wet = np.clip(np.asarray(result.wettedness)[:, seg], 0.0, 1.0)
+            limit = np.maximum(np.asarray(result.segment_latent_w_m2)[:, seg], 0.0)
+        args = (air, q_garment_all, wind, rh, transient, wet, limit)
+        t_out, q_in, worst = wardrobe.series(t_faces, *args)
+        covered = cover.garment >= 0
+        cover_face = wardrobe.offset[cover.garment[covered]] + cover.face[covered]
+        q[:, covered] = q_in[:, cover_face]
+        if slope:
+            q_in2 = wardrobe.series(t_faces + SLOPE_STEP_K, *args)[1]
+            g[:, covered] = ((q_in2 - q_in) / SLOPE_STEP_K)[:, cover_face]
+        return q, g, wardrobe.split(t_out), worst
 
     seg_area = np.bincount(body.segment, area, N_SEGMENTS)
     two_node = MODEL_NAMES[model] == "two_node"
@@ -541,9 +549,10 @@ def _coverage(body: _Part, garments: list[_Part], points: list, stage: Usd.Stage
 
 
 class _Garment:
-    """One garment's fabric, air gaps per frame and its balance over a skin temperature series."""
+    """One garment's fabric and air gaps per frame (the gap to the skin, as the clothing layer
+    writes it: for an outer garment it spans the layers under it)."""
 
-    def __init__(self, part: _Part, stage: Usd.Stage, frames: int, settings: dict, fps: float):
+    def __init__(self, part: _Part, stage: Usd.Stage, frames: int):
         self.part = part
         self.fabric = {
             k: part.material.require(k, part.path)
@@ -561,40 +570,188 @@ class _Garment:
                 for f in range(frames)
             ]
         )
+
+
+#: An outer garment face lies over an inner garment's face when the inner face's outer
+#: surface (its gap + thickness) is within the outer face's gap + this tolerance [m] (the
+#: clothing layer keeps the outer one at least the minimum gap beyond, at its vertices).
+LAYER_TOLERANCE_M = 0.001
+#: Residual tolerance of the garment stacks [W m^-2] (a tenth of the layer's reported bound, so
+#: that the round-off floor of deep stacks stays inside it).
+GARMENT_TOLERANCE_W_M2 = 1e-7
+#: Most garment layers in one stack (hair, shirt, sweater, coat; deeper stacks are cut).
+MAX_LAYERS = 4
+
+
+def _layer_links(clothes: list[_Garment], points: list) -> tuple[list, list]:
+    """(below, above): per garment (F_g, 2) int arrays of the (garment, face) directly under /
+    over each face, -1 where none; from the face centres at the first radiation sample and the
+    gaps at frame 0. A face of ``b`` is under a face of ``a`` when it is the nearest ``b`` face,
+    its outer surface is inside ``a``'s gap (+ LAYER_TOLERANCE_M) and the centres are no
+    farther apart than the gap between them + COVER_MARGIN_M; among several such garments the
+    one nearest (the highest under, the lowest over) is taken."""
+    from scipy.spatial import cKDTree
+
+    centres = [_face_centres(c.part, points[i + 1]) for i, c in enumerate(clothes)]
+    trees = [cKDTree(c) for c in centres]
+    top = [c.gap[0] + c.fabric["thickness"] for c in clothes]  # outer surface over the skin
+    below = [np.full((len(c), 2), -1) for c in centres]
+    above = [np.full((len(c), 2), -1) for c in centres]
+    best_below = [np.full(len(c), -np.inf) for c in centres]
+    best_above = [np.full(len(c), np.inf) for c in centres]
+    for a, ca in enumerate(clothes):
+        for b, cb in enumerate(clothes):
+            if a == b:
+                continue
+            # b under a, seen from a's faces
+            d, j = trees[b].query(centres[a])
+            ok = (top[b][j] <= ca.gap[0] + LAYER_TOLERANCE_M) & (
+                d <= ca.gap[0] - cb.gap[0][j] + COVER_MARGIN_M
+            )
+            take = ok & (top[b][j] > best_below[a])
+            below[a][take] = np.stack([np.full(take.sum(), b), j[take]], axis=1)
+            best_below[a][take] = top[b][j[take]]
+            # a over b, seen from b's faces
+            d, i = trees[a].query(centres[b])
+            ok = (top[b] <= ca.gap[0][i] + LAYER_TOLERANCE_M) & (
+                d <= ca.gap[0][i] - cb.gap[0] + COVER_MARGIN_M
+            )
+            take = ok & (ca.gap[0][i] < best_above[b])
+            above[b][take] = np.stack([np.full(take.sum(), a), i[take]], axis=1)
+            best_above[b][take] = ca.gap[0][i[take]]
+    return below, above
+
+
+class _Wardrobe:
+    """All garment faces of one person as stacks of layers in series over the skin
+    (:func:`humv_usd.physics.garment.stack_transient_step`): each garment face solves the stack
+    it belongs to (the faces directly under it down to the skin, the faces over it up to the
+    outermost), with each layer's air gap to the layer under it; faces are grouped by stack
+    depth and solved together, frame by frame."""
+
+    def __init__(self, clothes: list[_Garment], under: list, points: list, settings: dict, fps: float):
+        self.clothes = clothes
+        self.offset = np.concatenate([[0], np.cumsum([len(c.gap[0]) for c in clothes])])
+        n = int(self.offset[-1])
+        self.gap = np.concatenate([c.gap for c in clothes], axis=1)  # (frames, N) to the skin
+        per = lambda f: np.concatenate([np.full(len(c.gap[0]), f(c)) for c in clothes])  # noqa: E731
+        self.thickness = per(lambda c: c.fabric["thickness"])
+        self.conductivity = per(lambda c: c.fabric["conductivity"])
+        self.eps = per(lambda c: c.eps)
+        self.capacity = per(lambda c: c.heat_capacity)
+        self.under = np.concatenate(under)
+        below, above = _layer_links(clothes, points)
+        glob = lambda links: np.concatenate(  # noqa: E731
+            [np.where(lk[:, 0] >= 0, self.offset[np.maximum(lk[:, 0], 0)] + lk[:, 1], -1) for lk in links]
+        )
+        down, up = glob(below), glob(above)
+        chains = []
+        for face in range(n):
+            chain = [face]
+            while down[chain[0]] >= 0 and len(chain) < MAX_LAYERS and down[chain[0]] not in chain:
+                chain.insert(0, int(down[chain[0]]))
+            while up[chain[-1]] >= 0 and len(chain) < MAX_LAYERS and up[chain[-1]] not in chain:
+                chain.append(int(up[chain[-1]]))
+            chains.append(chain)
+        #: per depth: (member faces (m,), layer faces (depth, m), position of the member (m,))
+        self.groups = []
+        for depth in sorted({len(c) for c in chains}):
+            members = np.array([i for i, c in enumerate(chains) if len(c) == depth], dtype=np.int64)
+            layers = np.array([chains[i] for i in members], dtype=np.int64).T
+            position = np.array([chains[i].index(i) for i in members], dtype=np.int64)
+            self.groups.append((members, layers, position))
+        self.depth = np.zeros(n, dtype=np.int64)
+        for members, layers, _ in self.groups:
+            self.depth[members] = len(layers)
         self.convection = settings["convection_model"]
         self.dt = 1.0 / float(fps)
 
-    def series(self, skin, air, q_abs, wind, transient: bool):
-        """(outer temperature, skin-side flux q_in, largest |residual|) per frame and face for
-        the skin temperature ``skin`` (frames, F_g): steady state at frame 0, then implicit steps
-        with the fabric's heat capacity (or steady at every frame)."""
+    def layer_gaps(self, frame: int, layers: np.ndarray) -> np.ndarray:
+        """(depth, m) air gap of each layer to the outer surface of the layer under it (the
+        innermost: to the skin), >= 0."""
+        g = self.gap[frame][layers]
+        inner_top = np.concatenate([np.zeros((1, g.shape[1])), g[:-1] + self.thickness[layers[:-1]]])
+        return np.maximum(g - inner_top, 0.0)
+
+    def series(self, skin, air, q_abs, wind, rh, transient: bool, wet=None, evap_limit=None):
+        """(outer temperature, skin-side sensible flux, largest |residual|) per frame and
+        garment face (frames, N) for the skin temperatures ``skin`` (frames, F_body): steady at
+        frame 0, then implicit steps with every layer's heat capacity (or steady every frame).
+        ``q_abs`` (frames, N): absorbed by each face's outer surface (only the outermost layer
+        of a stack uses its own); ``wet``, ``evap_limit`` (frames, N): wetted fraction and
+        largest evaporation [W m^-2] of a face worn directly on the skin with nothing over it
+        (the sweat's latent heat at the fabric is the physiology's own latent loss, so it is
+        taken off the skin-side flux the physiology is matched to)."""
         frames = len(skin)
-        t_out, q_in, worst = np.zeros_like(skin), np.zeros_like(skin), 0.0
-        kw = dict(fabric_conductivity=self.fabric["conductivity"], fabric_emissivity=self.eps)
+        n = int(self.offset[-1])
+        t_out, q_side, worst = np.zeros((frames, n)), np.zeros((frames, n)), 0.0
+        prev = [None] * len(self.groups)
         for f in range(frames):
             h = convective_coefficient(wind[f], model=self.convection)
-            args = (skin[f], air[f], q_abs[f], h, self.gap[f], self.fabric["thickness"])
-            if f == 0 or not transient:
-                b = steady_state(*args, **kw)
-            else:
-                b = transient_step(t_out[f - 1], self.dt, self.heat_capacity, *args, **kw)
-            t_out[f], q_in[f] = b.outer_temperature_k, b.q_in
-            worst = max(worst, float(np.abs(b.residual).max()))
-        return t_out, q_in, worst
+            for k, (members, layers, position) in enumerate(self.groups):
+                inner, outer = layers[0], layers[-1]
+                kw = dict(
+                    skin_temperature_k=skin[f][self.under[inner]],
+                    air_temperature_k=air[f],
+                    absorbed_radiation=q_abs[f][outer],
+                    h_forced=h,
+                    air_gaps_m=self.layer_gaps(f, layers),
+                    thicknesses_m=self.thickness[layers],
+                    conductivities=self.conductivity[layers],
+                    emissivities=self.eps[layers],
+                    relative_humidity=float(np.clip(rh[f], 0.0, 1.0)),
+                    tol=GARMENT_TOLERANCE_W_M2,
+                )
+                if wet is not None and len(layers) == 1:
+                    kw.update(wetted_fraction=wet[f][outer], evaporation_limit=evap_limit[f][outer])
+                if f == 0 or not transient:
+                    b = stack_steady_state(**kw)
+                else:
+                    b = stack_transient_step(prev[k], self.dt, self.capacity[layers], **kw)
+                prev[k] = b.outer_temperature_k
+                cols = np.arange(len(members))
+                t_out[f, members] = b.outer_temperature_k[position, cols]
+                q_side[f, members] = b.q_in - np.maximum(b.q_evap, 0.0)
+                worst = max(worst, float(np.abs(b.residual).max()) if len(members) else 0.0)
+        return t_out, q_side, worst
+
+    def split(self, values: np.ndarray) -> dict:
+        """(frames, N) -> {garment path: (frames, F_g)}."""
+        return {
+            c.part.path: values[:, self.offset[i] : self.offset[i + 1]] for i, c in enumerate(self.clothes)
+        }
+
+    def stack_resistance(self, faces: np.ndarray) -> np.ndarray:
+        """(len(faces),) intrinsic insulation [m^2 K W^-1] of the stack each garment face
+        belongs to at frame 0: per layer its air gap (still air + grey-plate radiation at
+        306 K) and its fabric in series."""
+        out = np.zeros(len(faces))
+        index = {}
+        for members, layers, _ in self.groups:
+            for col, m in enumerate(members):
+                index[int(m)] = (layers, col)
+        for i, face in enumerate(faces):
+            layers, col = index[int(face)]
+            stack = layers[:, col : col + 1]
+            d = np.maximum(self.layer_gaps(0, stack)[:, 0], 1e-4)
+            eps_in = np.concatenate([[0.98], self.eps[stack[:-1, 0]]])
+            f_rad = grey_plates_exchange_factor(eps_in, self.eps[stack[:, 0]])
+            h_gap = air_conductivity(306.0) / d + 4.0 * f_rad * STEFAN_BOLTZMANN * 306.0**3
+            out[i] = np.sum(1.0 / h_gap + self.thickness[stack[:, 0]] / self.conductivity[stack[:, 0]])
+        return out
 
 
-def garment_clo(body: _Part, area: np.ndarray, cover: _Coverage, clothes: list) -> np.ndarray:
+def garment_clo(body: _Part, area: np.ndarray, cover: _Coverage, wardrobe: _Wardrobe | None) -> np.ndarray:
     """(17,) intrinsic clothing insulation per JOS-3 segment [clo] from the garments themselves:
-    per covered body face the air gap's and the fabric's resistance in series,
-    R = 1 / (k_air / d + 4 F sigma T^3) + l / k_f (still air, grey-plate radiation at 306 K, F
-    for skin 0.98 and the fabric's emissivity), averaged over the segment's area with bare faces
-    at 0 (the area-weighted local insulation of ISO 9920:2007 Annex A), 1 clo = 0.155 m^2 K W^-1."""
+    per covered body face the stack of layers over it, each layer's air gap and fabric in
+    series, R = sum_i 1 / (k_air / d_i + 4 F_i sigma T^3) + l_i / k_i (still air, grey-plate
+    radiation at 306 K between the facing surfaces' emissivities), averaged over the segment's
+    area with bare faces at 0 (the area-weighted local insulation of ISO 9920:2007 Annex A),
+    1 clo = 0.155 m^2 K W^-1."""
     resistance = np.zeros(len(body.counts))
-    for gi, c in enumerate(clothes):
-        sel = cover.garment == gi
-        d = np.maximum(c.gap[0][cover.face[sel]], 1e-4)
-        f_rad = grey_plates_exchange_factor(0.98, c.eps)
-        h_gap = air_conductivity(306.0) / d + 4.0 * f_rad * STEFAN_BOLTZMANN * 306.0**3
-        resistance[sel] = 1.0 / h_gap + c.fabric["thickness"] / c.fabric["conductivity"]
+    covered = cover.garment >= 0
+    if covered.any():
+        faces = wardrobe.offset[cover.garment[covered]] + cover.face[covered]
+        resistance[covered] = wardrobe.stack_resistance(faces)
     seg_area = np.bincount(body.segment, area, N_SEGMENTS)
     return np.bincount(body.segment, area * resistance, N_SEGMENTS) / np.maximum(seg_area, 1e-12) / 0.155
