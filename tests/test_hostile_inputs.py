@@ -322,3 +322,26 @@ def test_a_long_stage_renders_the_frames_asked_for(tmp_path):
     check_stage_for_render(path, frames_given=True)  # --frames 0:3 takes four of them
     with pytest.raises(InputError, match="use --frames"):
         check_stage_for_render(path)
+
+
+# ------------------------------------------------------------------ scenario values that crashed or were cut
+@pytest.mark.parametrize(
+    ("old", "new", "expected"),
+    [
+        (  # pandas' timestamps end in 2262: OutOfBoundsDatetime deep in the sun position
+            "start = 2018-10-24T14:05:00",
+            "start = 9999-12-31T23:59:59",
+            "general.start = '9999-12-31T23:59:59': allowed range 1900-01-01T00:00:00..2200-12-31T23:59:59",
+        ),
+        ('name = "humvvex"', 'name = "hum\\u0000vvex"', "general.name = 'hum\\x00vvex': contains a NUL"),
+        ("seed = 0", "seed = " + "[" * 3000 + "]" * 3000, "not valid TOML: nested too deeply"),
+    ],
+)
+def test_scenario_values_that_crashed_or_were_cut_are_one_line(tmp_path, old, new, expected):
+    text = (ROOT / "examples" / "humvvex.toml").read_text()
+    assert old in text
+    path = tmp_path / "s.toml"
+    path.write_text(text.replace(old, new, 1))
+    line = _one_line(CliRunner().invoke(main, ["compose", str(path), "-o", str(tmp_path / "o")]))
+    assert expected in line
+    assert not (tmp_path / "o").exists()

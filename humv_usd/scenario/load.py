@@ -33,6 +33,7 @@ from humv_usd.scenario.spec import (
     SENSOR_FALLBACK,
     SENSOR_PRESET_KEYS,
     SPEED_RANGE_M_S,
+    START_RANGE,
     Key,
     Section,
     band_range_problem,
@@ -113,6 +114,9 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
         if not isinstance(value, str):
             problems.append(bad_value(where, value, "expected a string"))
             return None
+        if "\x00" in value:  # USD's strings end at a NUL: the name would be cut there
+            problems.append(bad_value(where, value, "contains a NUL character (\\u0000)"))
+            return None
         return value
     if key.kind == "choice":
         if value not in key.choices:
@@ -137,6 +141,12 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
                     "expected a TOML local date-time such as "
                     "2018-10-24T14:05:00 (no offset; give utc_offset_h)",
                 )
+            )
+            return None
+        lo, hi = START_RANGE
+        if not lo <= value <= hi:
+            problems.append(
+                bad_value(where, value.isoformat(), f"allowed range {lo.isoformat()}..{hi.isoformat()}")
             )
             return None
         return value
@@ -522,4 +532,6 @@ def load_scenario(path: str | Path) -> Scenario:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:  # arrays or tables nested thousands deep
+        raise InputError(f"{path}: not valid TOML: nested too deeply") from None
     return validate(raw, path)

@@ -40,9 +40,20 @@ MATERIALS = (
     "blackbody",
 )  # humv_usd.catalog.materials
 BANDS = ("EO", "MWIR", "LWIR")
-SENSOR_PRESETS = ("atom1024_lwir", "lwir640_12um", "mwir_insb640", "rgb_imx273")  # sensors.presets
+SENSOR_PRESETS = (  # humv_usd.catalog.sensors.PRESETS
+    "atom1024_lwir",
+    "lwir640_12um",
+    "mwir_insb640",
+    "boson320",
+    "boson640",
+    "tau2_640",
+    "lepton35",
+    "h20t_thermal",
+    "rgb_imx273",
+)
 PLATFORMS = ("tripod", "mast", "aerial")
-AGC_MODES = ("none", "linear", "histogram")
+AGC_MODES = ("none", "linear", "histogram", "plateau")  # = humv_usd.physics.sensor.AGC_MODES
+VIGNETTING_MODES = ("none", "cos4")  # = humv_usd.physics.sensor.VIGNETTING_MODES
 #: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
 #: default is chosen there with ``humv-usd bench render``).
 DEFAULT_SUBBANDS, MAX_SUBBANDS = 16, 64
@@ -446,12 +457,74 @@ SENSOR = Section(
         "offset": Key("float", "Counts at zero radiance (default 0).", lo=-1.0e6, hi=1.0e6),
         "agc": Key(
             "choice",
-            "8-bit output: none (top 8 bits), linear (percentile stretch) or "
-            "histogram (equalisation) (default linear).",
+            "8-bit output: none (top 8 bits), linear (percentile stretch), histogram "
+            "(equalisation) or plateau (plateau equalisation as in FLIR cores: people stay "
+            "readable) (default plateau; EO presets linear).",
             choices=AGC_MODES,
         ),
         "agc_percentiles": Key(
             "vec", "Low and high percentiles of the linear AGC [%] (default [1, 99]).", n=2, lo=0.0, hi=100.0
+        ),
+        "agc_plateau": Key(
+            "float",
+            "Plateau AGC: most pixels per histogram bin, as a fraction of the frame's pixels "
+            "(default 250/(640x512), the Tau 2 plateau value).",
+            lo=0.0,
+            hi=1.0,
+        ),
+        "agc_max_gain": Key(
+            "float",
+            "Plateau AGC: largest slope [8-bit levels per count] (default 0 = unlimited).",
+            lo=0.0,
+            hi=1.0e4,
+        ),
+        "agc_midpoint": Key(
+            "float", "Plateau AGC: mean level of a span narrowed by max gain (default 127).", lo=0.0, hi=255.0
+        ),
+        "fpn_gain_sigma": Key(
+            "float",
+            "Infrared: residual per-pixel gain error after NUC, standard deviation (default 0 = off).",
+            lo=0.0,
+            hi=1.0,
+        ),
+        "fpn_offset_sigma_k": Key(
+            "float",
+            "Infrared: residual per-pixel offset after a flat-field correction [K] (default 0 = off).",
+            lo=0.0,
+            hi=100.0,
+        ),
+        "fpn_drift_k_per_s": Key(
+            "float",
+            "Infrared: per-pixel offset drift rate since the last flat-field correction, "
+            "standard deviation [K/s] (default 0 = off).",
+            lo=0.0,
+            hi=10.0,
+        ),
+        "ffc_interval_s": Key(
+            "float",
+            "Infrared: time between flat-field corrections [s] (default 0 = one at t = 0).",
+            lo=0.0,
+            hi=1.0e6,
+        ),
+        "fpn_seed": Key("int", "Seed of the fixed pattern (default 0).", lo=0, hi=2**31 - 1, integer=True),
+        "vignetting": Key(
+            "choice",
+            "Relative illumination: none or cos4 (cos^4 of the field angle) (default none).",
+            choices=VIGNETTING_MODES,
+        ),
+        "time_constant_s": Key(
+            "float",
+            "Infrared: bolometer time constant [s], applied across frames (default 0 = off; "
+            "uncooled VOx cores 0.007-0.014).",
+            lo=0.0,
+            hi=10.0,
+        ),
+        "jpeg_quality": Key(
+            "int",
+            "JPEG quality of the 8-bit image, 1-100 (default 0 = not compressed).",
+            lo=0,
+            hi=100,
+            integer=True,
         ),
         "full_well_e": Key("float", "EO: full-well capacity [electrons] (default 10500).", lo=1.0, hi=1.0e7),
         "read_noise_e": Key("float", "EO: read noise [electrons] (default 2.5).", lo=0.0, hi=1.0e4),
@@ -511,7 +584,7 @@ SENSOR_FALLBACK = {
     "bit_depth": 14,
     "gain": 100.0,
     "offset": 0.0,
-    "agc": "linear",
+    "agc": "plateau",
     "agc_percentiles": [1.0, 99.0],
     "full_well_e": 10500.0,
     "read_noise_e": 2.5,
@@ -731,3 +804,7 @@ def band_range_problem(where: str, band: str, edges) -> str | None:
 
 
 DATETIME_TYPES = (_dt.datetime,)
+#: allowed local start times: the sun and time code go through pandas (pvlib), whose timestamps
+#: end at 2262-04-11 (a start near 9999 ended in OutOfBoundsDatetime, issue 26); 1900..2200
+#: leaves room for the longest duration and spans any real-data comparison
+START_RANGE = (_dt.datetime(1900, 1, 1), _dt.datetime(2200, 12, 31, 23, 59, 59))

@@ -255,6 +255,8 @@ def _read_toml(path: Path, what: str) -> dict:
         raise InputError(f"{path}: cannot read the {what} ({exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{path}: not valid TOML: nested too deeply") from None
 
 
 def _check_int(where: str, value, lo: int, hi: int, problems: list[str]) -> int:
