@@ -283,3 +283,63 @@ def test_stack_rejects_bad_input():
         stack_steady_state(T_SKIN, 280.0, 300.0, 5.0, [1e-3], [1e-3], [0.05], [0.9], wetted_fraction=1.5)
     with pytest.raises(ValueError, match="invalid model selection x"):
         stack_steady_state(T_SKIN, 280.0, 300.0, 5.0, [1e-3], [1e-3], [0.05], [0.9], gap_model="x")
+
+
+# ---------------------------------------------------------------------------- thermal layer
+def _night_outfit(humvvex_raw, out, clothing, **atmosphere):
+    import copy
+
+    from pxr import Sdf, Usd
+
+    from humv_usd.pipeline.compose import compose
+    from humv_usd.scenario import validate
+    from humv_usd.usd import schemas as S
+
+    raw = copy.deepcopy(humvvex_raw)
+    raw["thermal"]["model"] = "jos3"
+    raw["thermal"]["skin_detail"] = "segment"
+    raw["thermal"]["radiation_rays"] = 16
+    raw["general"]["start"] = raw["general"]["start"].replace(hour=2)  # clear night, no sun
+    raw["atmosphere"].update(dict(air_temperature_k=268.15, cloud_cover=0.0, model="analytic"), **atmosphere)
+    raw["scene"]["ground"]["temperature_k"] = 265.0
+    raw["scene"]["object"][0]["temperature_k"] = 268.0
+    raw["sensor"] = raw["sensor"][:1]
+    raw["human"][0]["clothing"] = clothing
+    compose(validate(raw), out)
+    stage = Usd.Stage.Open(str(out / "stage.usda"))
+    temps = {
+        g: np.asarray(
+            stage.GetPrimAtPath(f"/World/Humans/p1/Clothing/{g}").GetAttribute(S.TEMPERATURE_PRIMVAR).Get(0),
+            dtype=float,
+        )
+        for g in clothing
+    }
+    report = Sdf.Layer.FindOrOpen(str(out / "layers" / "thermal.usda")).customLayerData
+    return temps, dict(report["humv:thermal"]["p1"])
+
+
+@pytest.mark.slow
+def test_a_jacket_over_a_shirt_is_colder_outside_than_the_jacket_alone(humvvex_raw, tmp_path):
+    """Clear night at -5 degC: the second layer insulates, so the jacket's outer surface cools
+    (the garments coupled straight to the skin made it 1.2 K warmer instead)."""
+    two, diag = _night_outfit(humvvex_raw, tmp_path / "two", ["tshirt_white", "jacket"])
+    one, _ = _night_outfit(humvvex_raw, tmp_path / "one", ["jacket"])
+    assert np.median(two["jacket"]) < np.median(one["jacket"]) - 0.5
+    # the shirt under the jacket sits between skin and jacket
+    assert np.median(two["tshirt_white"]) > np.median(two["jacket"]) + 5.0
+    assert diag["garmentMaxResidual_W_m2"] <= 1e-6
+
+
+@pytest.mark.slow
+def test_a_running_person_in_the_heat_wets_the_shirt(humvvex_raw, tmp_path):
+    """Hot and dry, running: the physiology sweats and the T-shirt evaporates some of it."""
+    import copy
+
+    raw = copy.deepcopy(humvvex_raw)
+    raw["human"][0]["activity"] = "run"
+    temps, diag = _night_outfit(
+        raw, tmp_path, ["tshirt_white", "shorts"], air_temperature_k=308.15, relative_humidity=0.3
+    )
+    assert diag["garmentEvaporationMax_W_m2"] > 5.0
+    # at night in 35 degC air, evaporation takes the wet shirt below the air somewhere
+    assert temps["tshirt_white"].min() < 308.15

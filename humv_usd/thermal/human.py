@@ -440,6 +440,8 @@ def human_temperatures(
     diagnostics["skinMinusSegmentCoreMax_K"] = float((t_face - core).max())
     if garments:
         diagnostics["garmentMaxResidual_W_m2"] = float(garment_residual)
+        # sweat evaporating from garments worn on the skin (issue 25: wet fabric)
+        diagnostics["garmentEvaporationMax_W_m2"] = float(wardrobe.evaporation_max)
     out = {body.path: t_face, **garment_temps}
     return out, diagnostics
 
@@ -685,6 +687,7 @@ class _Wardrobe:
         frames = len(skin)
         n = int(self.offset[-1])
         t_out, q_side, worst = np.zeros((frames, n)), np.zeros((frames, n)), 0.0
+        self.evaporation_max = 0.0
         prev = [None] * len(self.groups)
         for f in range(frames):
             h = convective_coefficient(wind[f], model=self.convection)
@@ -712,6 +715,8 @@ class _Wardrobe:
                 cols = np.arange(len(members))
                 t_out[f, members] = b.outer_temperature_k[position, cols]
                 q_side[f, members] = b.q_in - np.maximum(b.q_evap, 0.0)
+                if len(members):
+                    self.evaporation_max = max(self.evaporation_max, float(b.q_evap.max()))
                 worst = max(worst, float(np.abs(b.residual).max()) if len(members) else 0.0)
         return t_out, q_side, worst
 
