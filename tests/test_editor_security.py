@@ -211,3 +211,28 @@ def test_sweep_base_outside_the_folder_is_refused(tmp_path):
     ok = sweep_base(folder, folder / "sub" / "s.toml", tomlkit.parse('[sweep]\nbase = "../walk.toml"\n'))
     assert ok == (folder / "walk.toml").resolve()
     assert sweep_base(folder, sweep_file, tomlkit.parse("[sweep]\n")) is None
+
+
+def test_a_scenario_replaced_by_a_folder_or_fifo_is_one_problem_not_a_traceback(tmp_path):
+    """The page polls the file every 0.5 s: a folder there logged a traceback each time while
+    the page still said valid; a FIFO would hang the server."""
+    import os
+
+    scenario = tmp_path / "humvvex.toml"
+    shutil.copy(EXAMPLE, scenario)
+    doc = ScenarioDocument(scenario)
+    assert doc.problems() == []
+    scenario.unlink()
+    scenario.mkdir()
+    assert doc.disk_changed()  # no exception
+    doc.reload()
+    (problem,) = doc.problems()
+    assert "is a folder" in problem and not doc.disk_changed()
+    with pytest.raises(SaveRefused):
+        doc.save()
+    assert scenario.is_dir()
+    scenario.rmdir()
+    os.mkfifo(scenario)
+    doc.reload()  # returns at once
+    (problem,) = doc.problems()
+    assert "FIFO" in problem

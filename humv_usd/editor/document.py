@@ -17,7 +17,7 @@ from humv_usd.editor.fields import Field, all_fields, parse_text
 from humv_usd.editor.safety import inside
 from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
-from humv_usd.scenario.load import load_scenario, validate
+from humv_usd.scenario.load import load_scenario, read_input_bytes, validate
 
 log = logging.getLogger(__name__)
 
@@ -61,20 +61,25 @@ class ScenarioDocument:
     # -- reading -----------------------------------------------------------------------------
     def reload(self) -> None:
         """Read the file again (dropping unsaved edits)."""
+        unreadable = None
         try:
-            data = self.path.read_bytes()
+            data = read_input_bytes(self.path, "scenario file")
             text = data.decode("utf-8")
             self.exists = True
         except FileNotFoundError:
             data, self.exists = b"", False
             text = NEW_SCENARIO.format(name=self.path.stem)
+        except (InputError, UnicodeDecodeError) as exc:  # a folder, a FIFO, too large, not UTF-8
+            data, self.exists, text = b"", True, ""
+            unreadable = str(exc) if isinstance(exc, InputError) else f"{self.path}: not UTF-8 text ({exc})"
         try:
             self.doc = tomlkit.parse(text)
-            self.load_error = None
-        except TOMLKitError as exc:
+            self.load_error = unreadable
+        except (TOMLKitError, RecursionError) as exc:
             self.doc = tomlkit.document()
-            self.load_error = f"{self.path}: not valid TOML: {exc}"
-        self.disk_digest = _digest(data) if self.exists else None
+            why = "nested too deeply" if isinstance(exc, RecursionError) else exc
+            self.load_error = f"{self.path}: not valid TOML: {why}"
+        self.disk_digest = self._disk_digest() if self.exists else None
         self.parse_errors = {}
         self.modified = False
         self.version = getattr(self, "version", 0) + 1
@@ -98,11 +103,17 @@ class ScenarioDocument:
 
     def disk_changed(self) -> bool:
         """True when the file on disk is no longer what this document was read from or saved as."""
+        return self._disk_digest() != self.disk_digest
+
+    def _disk_digest(self) -> str | None:
+        """The file's digest; None when it is missing; a marker (never a digest) when it cannot be
+        read as a scenario (a folder, a FIFO: the page says so once instead of failing each poll)."""
         try:
-            now = _digest(self.path.read_bytes())
+            return _digest(read_input_bytes(self.path, "scenario file"))
         except FileNotFoundError:
-            now = None
-        return now != self.disk_digest
+            return None
+        except InputError as exc:
+            return f"unreadable: {exc}"
 
     # -- editing -----------------------------------------------------------------------------
     def _container(self, path: tuple, create: bool):
