@@ -29,6 +29,8 @@ from humv_usd.errors import InputError, bad_value, shown
 from humv_usd.scenario.spec import (
     ASSET_FORMATS,
     BAND_DEFAULT_UM,
+    BANDS,
+    BANDS_NOT_YET,
     SECTIONS,
     SENSOR_FALLBACK,
     SENSOR_PRESET_KEYS,
@@ -122,6 +124,8 @@ def _check_value(where: str, value: Any, key: Key, problems: list[str]) -> Any:
         if value not in key.choices:
             allowed = ", ".join(key.choices)
             hint = _suggest(str(value), key.choices) if isinstance(value, str) else ""
+            if key.choices is BANDS and isinstance(value, str) and value.upper() in BANDS_NOT_YET:
+                hint = f" ({value.upper()}, {BANDS_NOT_YET[value.upper()]}, is not rendered yet)"
             problems.append(bad_value(where, value, f"allowed values: {allowed}") + hint)
             return None
         return value

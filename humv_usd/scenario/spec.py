@@ -39,7 +39,12 @@ MATERIALS = (
     "glass",
     "blackbody",
 )  # humv_usd.catalog.materials
+#: ground materials: the library's materials but skin (offered for a ground, issue 26)
+GROUND_MATERIALS = tuple(m for m in MATERIALS if m != "skin")
 BANDS = ("EO", "MWIR", "LWIR")
+#: bands a user may ask for that are not rendered yet (the one-render-pass issue 24): named
+#: as such instead of a did-you-mean ("SWIR" was answered with "did you mean 'MWIR'?")
+BANDS_NOT_YET = {"SWIR": "0.9-1.7 µm", "NIR": "0.75-1.4 µm", "VNIR": "0.4-1.0 µm", "UV": "< 0.4 µm"}
 SENSOR_PRESETS = (  # humv_usd.catalog.sensors.PRESETS
     "atom1024_lwir",
     "lwir640_12um",
@@ -240,7 +245,7 @@ PLACEMENT = Section(
 GROUND = Section(
     doc="ground plane",
     keys={
-        "material": Key("choice", "Material of the ground.", default="concrete", choices=MATERIALS),
+        "material": Key("choice", "Material of the ground.", default="concrete", choices=GROUND_MATERIALS),
         "size_m": Key(
             "vec",
             "Extent [x, y] of the ground rectangle centred at the origin [m].",
