@@ -92,3 +92,21 @@ def test_relative_air_speed_closed_forms():
     assert relative_air_speed(v, 3.0) == pytest.approx(np.hypot(3.0, 1.4))  # no direction
     # standing: the wind alone, whatever its direction
     assert_allclose(relative_air_speed(np.zeros((4, 3)), 2.5, [0, 90, 200, 315]), 2.5)
+
+
+def test_windward_ratio_cylinder_shape():
+    """Mean 1 over the circumference; the stagnation line at Froessling's Nu_0 = 1.14 Re^0.5
+    Pr^0.4 over Churchill-Bernstein's mean (Incropera Eq. 7.51, 7.54); 0.5 at the sides."""
+    from humv_usd.physics.convection import AIR_PRANDTL, churchill_bernstein, windward_ratio
+
+    theta = np.linspace(0.0, np.pi, 20001)
+    for v in (0.5, 3.0, 10.0):
+        r = windward_ratio(np.cos(theta), v)
+        assert np.trapz(r, theta) / np.pi == pytest.approx(1.0, abs=1e-6)
+        re = v * 0.15 / 1.516e-5
+        assert r[0] == pytest.approx(1.14 * re**0.5 * AIR_PRANDTL**0.4 / churchill_bernstein(re))
+        assert r[10000] == pytest.approx(0.5)
+        assert (r >= 0).all()
+    # Churchill-Bernstein against Hilpert's table (Incropera Table 7.2) at Re = 1e4: 0.193 Re^0.618 Pr^(1/3)
+    hilpert = 0.193 * 1e4**0.618 * AIR_PRANDTL ** (1 / 3)
+    assert churchill_bernstein(1e4) == pytest.approx(hilpert, rel=0.1)

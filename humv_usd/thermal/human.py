@@ -47,7 +47,12 @@ from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human import labels as L
 from humv_usd.human.usdskel import skinned_points
-from humv_usd.physics.convection import convective_coefficient, relative_air_speed
+from humv_usd.physics.convection import (
+    convective_coefficient,
+    natural_iso7730,
+    relative_air_velocity,
+    windward_ratio,
+)
 from humv_usd.physics.garment import (
     air_conductivity,
     areal_heat_capacity,
@@ -247,6 +252,7 @@ def human_temperatures(
     q_skin = np.zeros((len(samples), len(body.counts)))  # absorbed by bare skin [W m^-2]
     pts0: list = []
     centres = np.zeros((len(samples), 3))
+    normals = np.zeros((len(samples), len(body.counts), 3))  # body face normals per sample
     for k, frame in enumerate(samples):
         t = Usd.TimeCode(frame)
         sky, scene = world.skies[k], world.scenes[k]
@@ -257,6 +263,7 @@ def human_temperatures(
         centre = centres[k] = pts[0].mean(axis=0)
         env = SR.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
+        normals[k] = _face_normals(body, bare)
         self_bare = _self_radiance([body], skin_guess, air_k)
         stats: dict = {}
         q = Q.absorbed_radiation(
@@ -325,11 +332,22 @@ def human_temperatures(
     clo = garment_clo(body, area, cover, wardrobe)
     q_garment_all = np.concatenate([q_garment[p.path] for p in garments], axis=1) if garments else None
     # convection sees the air speed relative to the moving body (walking, running), not the wind
-    wind = relative_air_speed(
+    air_velocity = relative_air_velocity(
         body_velocity(stage, body, samples, centres, frames, fps), wind, world.wind_direction_deg
     )
+    wind = np.linalg.norm(air_velocity, axis=-1)
     diagnostics["relativeAirSpeedMean_m_s"] = float(np.mean(wind))
     convection = settings["convection_model"]
+    # windward facets lose more by forced convection than the sides and the lee (per segment
+    # the mean coefficient is the correlation's)
+    windward = at_frames(
+        np.stack(
+            [
+                _windward_ratio(normals[k], air_velocity[frame], body.segment, area)
+                for k, frame in enumerate(samples)
+            ]
+        )
+    )
     eps_skin = longwave_emissivity(body.material)
     transient = settings.get("garment_transient", "transient") == "transient"
 
@@ -339,7 +357,8 @@ def human_temperatures(
         sigma_eps = eps_skin * STEFAN_BOLTZMANN
         # forced convection, with ISO 7730's natural-convection floor 2.38 |T_sk - T_a|^0.25
         # for bare skin in calm air (a 33 degC facet in still 16 degC air: h = 4.8 W m^-2 K^-1)
-        h_skin = convective_coefficient(wind[:, None], t_faces - air[:, None], model=convection)
+        forced = convective_coefficient(wind[:, None], 0.0, model=convection) * windward
+        h_skin = np.maximum(forced, natural_iso7730(t_faces - air[:, None]))
         q = h_skin * (t_faces - air[:, None]) + sigma_eps * t_faces**4 - q_skin
         g = h_skin + 4.0 * sigma_eps * t_faces**3
         if not garments:
@@ -456,6 +475,33 @@ SLOPE_STEP_K = 0.25
 #: air gap + fabric thickness + this margin [m] (the centres of a fitted garment's faces and the
 #: body's are not aligned).
 COVER_MARGIN_M = 0.015
+
+
+def _face_normals(part: _Part, mesh: trimesh.Trimesh) -> np.ndarray:
+    """(F, 3) unit normals of the authored faces of ``part`` (the first part of ``mesh``):
+    area-weighted means of their triangles' normals."""
+    n = len(part.counts)
+    tri = len(part.triangles)
+    weighted = mesh.face_normals[:tri] * mesh.area_faces[:tri, None]
+    out = np.stack([np.bincount(part.tri_face, weighted[:, i], n) for i in range(3)], axis=1)
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+
+
+def _windward_ratio(
+    normals: np.ndarray, air_velocity: np.ndarray, segment: np.ndarray, area: np.ndarray
+) -> np.ndarray:
+    """(F,) local over segment-mean forced convection of each body face for a horizontal air
+    velocity relative to the body (:func:`humv_usd.physics.convection.windward_ratio`),
+    renormalised to an area-weighted mean of 1 over each segment."""
+    speed = float(np.linalg.norm(air_velocity))
+    if speed < 1e-9:
+        return np.ones(len(normals))
+    toward = -np.array([air_velocity[0], air_velocity[1], 0.0]) / speed  # where the air comes from
+    r = windward_ratio(normals @ toward, speed)
+    mean = np.bincount(segment, area * r, N_SEGMENTS) / np.maximum(
+        np.bincount(segment, area, N_SEGMENTS), 1e-300
+    )
+    return r / np.where(mean > 0, mean, 1.0)[segment]
 
 
 def sample_interpolation(samples: list, frames: int):
