@@ -411,3 +411,39 @@ def test_adopt_never_writes_over_from_or_the_export(files):
     assert result.exit_code == 2 and "BLENDER_EXPORT" in result.output
     assert {p: p.read_bytes() for p in files.rglob("*.usda")} == before
     assert not (orig / "layers").exists()
+
+
+def test_a_humv_stage_as_the_export_is_one_line(files):
+    """Issue 26: adopting a composed HumV stage ended in a Tf.ErrorException traceback."""
+    stage = files / "humv" / "stage.usda"
+    stage.parent.mkdir()
+    stage.write_bytes((files / "original.usda").read_bytes())
+    layer = Sdf.Layer.FindOrOpen(str(stage))
+    layer.customLayerData = {"humv:layerKeys": {"layers/scene.usda": "0"}}
+    layer.Save()
+    result = CliRunner().invoke(main, ["adopt", str(stage), "-o", str(files / "out")])
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    (line,) = result.output.strip().splitlines()
+    assert "a HumV-USD stage" in line and not (files / "out").exists()
+
+
+def test_a_temperature_property_that_is_a_string_is_one_line(tmp_path):
+    _original(tmp_path / "original.usda")
+    blender_export(
+        tmp_path / "export.usda", crate_props='custom string userProperties:humv_temperature_k = "hot"'
+    )
+    result = CliRunner().invoke(
+        main,
+        [
+            "adopt",
+            str(tmp_path / "export.usda"),
+            "-o",
+            str(tmp_path / "out"),
+            "--from",
+            str(tmp_path / "original.usda"),
+        ],
+    )
+    assert result.exit_code == 2 and "Traceback" not in result.output, result.output
+    (line,) = result.output.strip().splitlines()
+    assert "humv_temperature_k" in line and "'hot'" in line
+    assert not (tmp_path / "out").exists()

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pxr import Sdf, Usd
+from pxr import Sdf, Tf, Usd
 
 from humv_usd.errors import InputError, bad_value
 from humv_usd.fileio import check_output_dir, write_text_atomic
@@ -31,6 +31,15 @@ def _open_export(path: Path) -> Sdf.Layer:
         stage = Usd.Stage.Open(str(path))
     except Exception as exc:  # pxr raises Tf.ErrorException on files it cannot read
         raise InputError(f"BLENDER_EXPORT {str(path)!r}: not a USD file ({usd_error_text(exc)})") from None
+    if any(str(k).startswith("humv:") for k in dict(stage.GetRootLayer().customLayerData)):
+        raise InputError(
+            bad_value(
+                "BLENDER_EXPORT",
+                str(path),
+                "a HumV-USD stage (composed or adopted), not a Blender export: render or check it "
+                "as it is, or export it from Blender and adopt that",
+            )
+        )
     return stage.Flatten()
 
 
@@ -80,9 +89,14 @@ def adopt(
     out = check_output_dir(out_dir)
     export = _open_export(Path(export_path))
     original = open_stage(original_path) if original_path is not None else None
-    layer, report = adopt_blender_export(
-        export, original, fps=fps, temperature_k=temperature_k, label_class=label_class
-    )
+    try:
+        layer, report = adopt_blender_export(
+            export, original, fps=fps, temperature_k=temperature_k, label_class=label_class
+        )
+    except Tf.ErrorException as exc:  # an export USD cannot edit as the mapping needs
+        raise InputError(
+            f"BLENDER_EXPORT {str(export_path)!r}: cannot adopt ({usd_error_text(exc)})"
+        ) from None
     root = Sdf.Layer.CreateAnonymous("stage.usda")
     frames = int(layer.endTimeCode - layer.startTimeCode) + 1
     set_layer_metadata(

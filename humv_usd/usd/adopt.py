@@ -423,6 +423,10 @@ def adopt_new_meshes(
         entry: dict = {}
         if not has_face_temperatures(prim):
             value = _custom(prim, CUSTOM_TEMPERATURE)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+                raise InputError(  # e.g. a string property: float() ended in a traceback
+                    bad_value(f"{prim.GetPath()}.{CUSTOM_TEMPERATURE}", value, "expected a number [K]")
+                )
             if value is None:
                 value = temperature_k
             if value is None:
