@@ -361,3 +361,14 @@ def test_swir_is_named_as_not_rendered_and_skin_is_no_ground(humvvex_raw):
     assert "SWIR, 0.9-1.7 µm, is not rendered yet" in band and "did you mean" not in band
     ground = next(p for p in info.value.problems if "ground.material" in p)
     assert "allowed values: concrete," in ground and "skin" not in ground.split("allowed values:")[1]
+
+
+@pytest.mark.slow
+def test_sweep_limit_summary_counts_what_ran(tmp_path):
+    """The summary line after ``--limit 1`` said "4 variants" for a dataset holding one."""
+    from test_sweep import _write
+
+    path = _write(tmp_path)
+    r = CliRunner().invoke(main, ["sweep", str(path), "-o", str(tmp_path / "ds"), "--limit", "1", "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert "ds: 1 of 4 variants (--limit 1), 2 frames, 2 images" in r.output.splitlines()[-1]

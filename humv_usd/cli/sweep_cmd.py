@@ -182,8 +182,11 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
             sw, out_dir, scheduler=scheduler, workers=workers, on_event=progress, limit=limit, yes=yes
         )
     s = result.dataset_summary
+    variants = f"{s['variants']} variants"
+    if limit is not None:  # the dataset holds only what ran so far: say so, not the sweep's count
+        variants = f"{s['variants_with_images']} of {s['variants']} variants (--limit {limit})"
     click.echo(
-        f"{result.dataset}: {s['variants']} variants, {s['frames']} frames, {s['images']} images "
+        f"{result.dataset}: {variants}, {s['frames']} frames, {s['images']} images "
         f"({result.already_done} of {result.tasks} tasks were done before; ran {result.ran}, "
         f"composed {result.composed}, retries {result.retries}, failed {len(result.failures)}); "
         f"{result.seconds:.1f} s on {result.workers} worker(s), {result.frames_per_hour:,.0f} images/h"
