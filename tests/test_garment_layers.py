@@ -343,3 +343,82 @@ def test_a_running_person_in_the_heat_wets_the_shirt(humvvex_raw, tmp_path):
     assert diag["garmentEvaporationMax_W_m2"] > 5.0
     # at night in 35 degC air, evaporation takes the wet shirt below the air somewhere
     assert temps["tshirt_white"].min() < 308.15
+
+
+# ---------------------------------------------------------------------------- catalogue clo
+#: The tights helper the fitted garments start from sits about 6 mm off the skin
+#: (humv_usd.catalog.garments); a garment's mean air gap is that plus its ease.
+HELPER_OFFSET_M = 0.006
+#: Coverage of each JOS-3 segment (head, neck, chest, back, pelvis, shoulder, arm, hand, thigh,
+#: leg, foot; both sides alike) by the catalogue cuts: the jacket cut ends below the hips with
+#: a collar, the long-sleeve cut at the hip joints, trousers at the ankles.
+_JACKET_CUT = dict(neck=0.6, chest=1.0, back=1.0, pelvis=0.6, shoulder=1.0, arm=0.95)
+_CUTS = {
+    "jeans": dict(pelvis=1.0, thigh=1.0, leg=0.96),
+    "sweater": dict(chest=1.0, back=1.0, pelvis=0.3, shoulder=1.0, arm=0.93),
+    "fleece_jacket": _JACKET_CUT,
+    "winter_coat": _JACKET_CUT,
+}
+#: ASHRAE 55-2020 Table 5.2.2.2B garment (pythermalcomfort's copy of the table) for each
+_ASHRAE = {
+    "jeans": "Thick trousers",  # 0.24 clo
+    "sweater": "Long sleeve shirt (thick)",  # 0.36: the table's long-sleeve thick sweater
+    "fleece_jacket": "Long-sleeve sweat shirt",  # 0.34
+    "winter_coat": "Double-breasted coat (thick)",  # 0.48: the table's heaviest jacket
+}
+
+
+def _covered_fraction(cut):
+    from pythermalcomfort.models import JOS3
+
+    bsa = JOS3(height=1.72, weight=74.43).bsa  # the standard body, 17 segments
+    names = ["head", "neck", "chest", "back", "pelvis"] + ["shoulder", "arm", "hand"] * 2
+    names += ["thigh", "leg", "foot"] * 2
+    return sum(a * cut.get(n, 0.0) for a, n in zip(bsa, names)) / bsa.sum()
+
+
+@pytest.mark.parametrize("name", list(_CUTS))
+def test_insulating_garments_clo_from_their_fabric_brackets_ashrae(name):
+    """A garment's clo from its fabric (thickness / conductivity) and fit (air gap = helper
+    offset + ease): the tabulated value lies between the parallel and the serial whole-body
+    estimates (Kuklane et al. 2007), the two limits of the manikin methods."""
+    from pythermalcomfort.utilities import clo_individual_garments
+
+    from humv_usd.catalog.garments import garment
+    from humv_usd.catalog.materials import LIBRARY
+    from humv_usd.physics.garment import garment_insulation, intrinsic_insulation
+
+    g = garment(name)
+    fabric = LIBRARY[g.fabric]
+    r = intrinsic_insulation(
+        HELPER_OFFSET_M + g.ease, fabric.thickness, fabric.conductivity, fabric.emissivity[-2]
+    )
+    f = _covered_fraction(_CUTS[name])
+    low = garment_insulation(f, r, "parallel") / 0.155
+    high = garment_insulation(f, r, "serial") / 0.155
+    table = clo_individual_garments[_ASHRAE[name]]
+    if name == "winter_coat":  # a down coat insulates more than any suit jacket of the table
+        assert low >= 0.7 * table and high > 1.5 * table
+    else:
+        assert low <= table <= high, (low, table, high)
+
+
+def test_coats_insulate_and_the_table_is_cited():
+    from humv_usd.catalog.garments import garment
+    from humv_usd.catalog.materials import INSULATION, LIBRARY
+    from humv_usd.physics.garment import intrinsic_insulation
+
+    def local(name):
+        g = garment(name)
+        m = LIBRARY[g.fabric]
+        return intrinsic_insulation(HELPER_OFFSET_M + g.ease, m.thickness, m.conductivity)
+
+    # the down coat holds ~3x the insulation of the uniform jacket where it covers, the
+    # fabric alone (12 mm / 0.038) is 0.32 m^2 K/W = 2 clo
+    assert local("winter_coat") > 2.5 * local("jacket")
+    assert local("fleece_jacket") > local("jacket") and local("sweater") > local("longsleeve")
+    for m in INSULATION.values():
+        assert len(m.source) > 200 and ("Bankvall" in m.source or "Baxter" in m.source)
+        assert 0.025 < m.conductivity < 0.08 and m.thickness <= 0.05  # schema range 0-0.05 m
+        assert np.all((np.array(m.emissivity)[-3:] >= 0.85) & (np.array(m.emissivity)[-3:] <= 0.92))
+        assert abs(m.spectral_solar_absorptivity - m.solar_absorptivity) < 0.05

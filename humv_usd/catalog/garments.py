@@ -270,6 +270,36 @@ def _catalogue() -> dict[str, Garment]:
             2,
         ),
         Garment(
+            "jeans",
+            "indigo denim jeans: waist to the ankles, close-fitting",
+            (Part("tights", trouser_cover, 0.002),),
+            "denim",
+            1,
+        ),
+        Garment(
+            "sweater",
+            "navy thick wool sweater: torso to the hip joints, sleeves to the wrists",
+            (Part("tights", longsleeve_cover, 0.004),),
+            "wool_knit_thick",
+            3,
+        ),
+        Garment(
+            "fleece_jacket",
+            "olive polyester fleece jacket (4 mm pile): torso to below the hips, stand-up "
+            "collar, sleeves to the wrists",
+            (Part("tights", jacket_cover, 0.006),),
+            "fleece",
+            3,
+        ),
+        Garment(
+            "winter_coat",
+            "black down-filled winter coat (12 mm loft): torso to below the hips, collar, "
+            "sleeves to the wrists; goes over a jacket, fleece or sweater",
+            (Part("tights", jacket_cover, 0.010),),
+            "down_fill",
+            4,
+        ),
+        Garment(
             "hair_short",
             "short dark head hair: a 5 mm fibre layer over the skull above the brow and the "
             "back of the head (under a cap)",

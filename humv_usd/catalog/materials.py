@@ -904,3 +904,85 @@ EQUIPMENT: dict[str, Material] = {
     )
 }
 LIBRARY.update(EQUIPMENT)
+
+
+# ---------------------------------------------------------------------------- insulating fabrics
+# Thicker, lofted fabrics of sweaters, fleeces, denim and winter coats (issue 25: coats and
+# jackets that insulate). Kept out of FABRICS (thin woven/knit shell fabrics); their insulation is
+# mostly the air their fibres hold still, so the effective conductivity is near still air's
+# (0.026 W/(m K)) plus fibre conduction and radiation through the batt. Common sources:
+_BATTS = (
+    "effective conductivity of fibrous batts and pile fabrics near still air, 0.03-0.05 W/(m K) "
+    "at 5-50 kg/m3, rising at low density as radiation passes between fibres: Bankvall (1973) "
+    "J. Testing Eval. 1(3):235-243; fabric thermal resistance set by thickness, not fibre: Rees "
+    "(1941) J. Textile Inst. 32:T149-T165"
+)
+
+INSULATION: dict[str, Material] = {
+    m.name: m
+    for m in (
+        Material(
+            "denim",
+            spectrum_reflectance=(0.12, 0.10, 0.08, 0.45, 0.30, 0.05, 0.16, 0.12, 0.12, 0.12),
+            conductivity=0.06,
+            density=560.0,
+            specific_heat=1300.0,
+            thickness=0.0008,
+            solar_absorptivity=0.78,
+            source=f"indigo cotton denim of jeans (14 oz/yd2 = 475 g/m2, 0.8-0.9 mm; density = "
+            f"areal mass / thickness); a dense twill conducts more than a knit: 0.06 W/(m K), "
+            f"within the 0.04-0.07 of woven cottons in {_K}; indigo absorbs in the red and is "
+            f"transparent in the NIR (reflectance rising to ~0.45 at 1 µm), representative "
+            f"values after {_KNITS}, not a measurement; {_LWIR_FABRICS} (cotton 0.88); {_CP} "
+            f"(cotton 1.3 J/(g K)); {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "wool_knit_thick",
+            spectrum_reflectance=(0.07, 0.08, 0.09, 0.35, 0.25, 0.05, 0.15, 0.10, 0.10, 0.10),
+            conductivity=0.04,
+            density=150.0,
+            specific_heat=1360.0,
+            thickness=0.003,
+            solar_absorptivity=0.82,
+            source=f"navy chunky wool knit of a thick sweater (450 g/m2 over 3 mm, density = areal "
+            f"mass / thickness); conductivity 0.04 W/(m K) of wool at 100-200 kg/m3: Baxter "
+            f"(1946) Proc. Phys. Soc. 58:105; {_BATTS}; LWIR emissivity 0.90 from the 6-14 % "
+            f"MIR reflection of {_KNITS}; {_CP} (wool 1.36 J/(g K)); {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "fleece",
+            spectrum_reflectance=(0.06, 0.08, 0.07, 0.40, 0.35, 0.12, 0.18, 0.12, 0.12, 0.12),
+            conductivity=0.038,
+            density=75.0,
+            specific_heat=1100.0,
+            thickness=0.004,
+            solar_absorptivity=0.81,
+            source=f"olive polyester fleece ('300-weight', 300 g/m2, about 4 mm of brushed pile; "
+            f"density = areal mass / thickness); conductivity 0.038 W/(m K) of a polyester pile "
+            f"at 75 kg/m3, {_BATTS}; specific heat of PET 1.03-1.17 J/(g K), {_CP}; "
+            f"{_LWIR_FABRICS} (polyester 0.88); dyed dark olive with the NIR rise of "
+            f"synthetic dyes, representative after {_KNITS}; {_MWIR}",
+            label_class="person",
+        ),
+        Material(
+            "down_fill",
+            spectrum_reflectance=(0.05, 0.05, 0.06, 0.35, 0.30, 0.10, 0.18, 0.13, 0.13, 0.13),
+            conductivity=0.038,
+            density=12.0,
+            specific_heat=1450.0,
+            thickness=0.012,
+            solar_absorptivity=0.85,
+            source=f"down-filled winter coat as one 12 mm layer: black nylon shell (2 x 40 g/m2) "
+            f"around 650 fill-power down (about 60 g/m2 lofted to ~12 mm in wear), 140 g/m2 "
+            f"over 12 mm = 12 kg/m3; down and feather batts at 5-20 kg/m3 conduct "
+            f"0.035-0.045 W/(m K) with radiation (as fibre batts of that density, {_BATTS}); "
+            f"specific heat mass mean of keratin (~1.5 J/(g K), wool in {_CP}) and nylon "
+            f"(1.46); the outer surface is the nylon shell: {_LWIR_FABRICS}; visible/NIR as "
+            f"the 'nylon' entry, {_KNITS}; {_MWIR}",
+            label_class="person",
+        ),
+    )
+}
+LIBRARY.update(INSULATION)
