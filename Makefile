@@ -4,7 +4,7 @@ PY     := $(VENV)/bin/python
 OUT    ?= out/humvvex
 SPP    ?=
 
-.PHONY: setup demo test test-fast lint format bench schemas screenshots clean
+.PHONY: setup demo test test-fast lint format bench schemas screenshots docs clean
 
 setup:
 	@./tools/setup.sh
@@ -40,6 +40,12 @@ schemas: setup
 # the editor's tabs on examples/humvvex.toml (headless chromium) -> docs/editor/<tab>.png
 screenshots: setup
 	@$(PY) tools/editor_screenshots.py docs/editor
+
+# the manual (docs/, Sphinx + MyST + furo): reference pages generated from the sources at build
+# time; warnings are errors, every cross-reference must resolve (-n), offline
+docs: setup
+	@$(PY) -m sphinx -W --keep-going -n -q -b html docs build/docs/html
+	@echo "docs: build/docs/html/index.html"
 
 clean:
 	rm -rf out .pytest_cache

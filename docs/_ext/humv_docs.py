@@ -1,0 +1,530 @@
+"""Reference pages of the manual, generated from the project's single sources at build time.
+
+Each ``*_rst`` function returns reStructuredText built from one source, so the manual cannot
+drift from the code:
+
+- :func:`scenario_rst`: every scenario key of ``humv_usd/scenario/spec.py`` (type, unit, range,
+  default, help and an example value from ``examples/*.toml`` when one sets it);
+- :func:`materials_rst`, :func:`garments_rst`, :func:`sensors_rst`: the catalogues of
+  ``humv_usd/catalog/`` as tables, with each entry's sources;
+- :func:`schemas_rst`: every attribute of the codeless USD schemas (``schemas/generatedSchema.usda``)
+  with its type, default, unit and range (taken from the ``Units: … Range: …`` end of its doc).
+
+The CLI reference is sphinx-click's ``click`` directive on ``humv_usd.cli.main:main``.
+As a Sphinx extension, the module adds the directive ``.. humv-reference:: NAME`` (NAME one of
+:data:`GENERATORS`) and the object types ``scenario-key`` / ``schema-attr`` (roles ``:key:`` and
+``:attr:``-like ``:usdattr:``), so a page can link ``:key:`human.clothing``` and a broken link
+fails the nitpicky build. ``tests/test_docs.py`` checks the generated text names every key,
+command and attribute.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: key name suffix -> unit, for keys whose help gives none in brackets
+SUFFIX_UNITS = {
+    "_m": "m",
+    "_mm": "mm",
+    "_um": "µm",
+    "_k": "K",
+    "_deg": "deg",
+    "_s": "s",
+    "_h": "h",
+    "_kg": "kg",
+    "_yr": "yr",
+    "_pa": "Pa",
+    "_km": "km",
+    "_m_s": "m/s",
+    "_e": "electrons",
+    "_k_per_s": "K/s",
+}
+
+
+# ---------------------------------------------------------------------------------------- text
+def _escape(text: str) -> str:
+    """Plain text -> reStructuredText: backslashes, ``*``, ``_``, ``|`` and ``<`` escaped."""
+    return re.sub(r"([\\*_|`<>])", r"\\\1", text)
+
+
+def inline(text: str) -> str:
+    """Help text with Markdown-style `code` spans -> reStructuredText (code as literals, the
+    rest escaped), on one line."""
+    text = " ".join(str(text).split())
+    parts = re.split(r"``?([^`]+?)``?", text)
+    out = []
+    for i, part in enumerate(parts):
+        if i % 2:
+            out.append(f"``{part.strip()}``" if part.strip() else "")
+        else:
+            out.append(_escape(part))
+    text = "".join(out)
+    # a leading "(i)" or "2." would start an enumerated list
+    return "\\" + text if re.match(r"\(?\w{1,4}[.)] ", text) else text
+
+
+def _literal(value) -> str:
+    text = str(value)
+    return f"``{text}``" if text.strip() else '``""``'
+
+
+def _heading(title: str, char: str) -> list[str]:
+    return [title, char * len(title), ""]
+
+
+def _table(header: list[str], rows: list[list[str]], widths: list[int] | None = None) -> list[str]:
+    """A ``list-table`` (cells already reStructuredText, one line each)."""
+    out = [".. list-table::", "   :header-rows: 1"]
+    if widths:
+        out.append(f"   :widths: {' '.join(str(w) for w in widths)}")
+    out.append("")
+    for row in [header, *rows]:
+        for j, cell in enumerate(row):
+            out.append(f"   {'*' if j == 0 else ' '} - {cell if str(cell).strip() else ' '}")
+    out.append("")
+    return out
+
+
+def _number(x) -> str:
+    if isinstance(x, float):
+        if x == int(x) and abs(x) < 1e7:
+            return str(int(x))
+        return f"{x:g}"
+    return str(x)
+
+
+# ------------------------------------------------------------------------------------ scenario
+def scenario_keys() -> dict[str, object]:
+    """Every scenario key by dotted path (``general.name``, ``scene.asset.scale``) -> its Key."""
+    from humv_usd.scenario.spec import SECTIONS
+
+    keys = {}
+
+    def walk(prefix, section):
+        for name, key in section.keys.items():
+            keys[f"{prefix}.{name}"] = key
+        for sub_name, sub in section.subsections.items():
+            walk(f"{prefix}.{sub_name}", sub)
+
+    for name, section in SECTIONS.items():
+        walk(name, section)
+    return keys
+
+
+def key_unit(name: str, key) -> str:
+    """The unit of a key: the last ``[...]`` of its help without a comma (not a ``[[table]]``),
+    else its name's suffix, else ''."""
+    groups = [g for g in re.findall(r"(?<!\[)\[([^\]\[]*)\](?!\])", key.doc) if "," not in g and g.strip()]
+    if groups:
+        unit = groups[-1].strip()
+        return "fraction" if re.fullmatch(r"0\s*-\s*1", unit) else unit
+    for suffix in sorted(SUFFIX_UNITS, key=len, reverse=True):
+        if name.endswith(suffix):
+            return SUFFIX_UNITS[suffix]
+    return ""
+
+
+def key_range(key) -> str:
+    if key.choices:
+        return ", ".join(_literal(c) for c in key.choices)
+    if key.lo is not None or key.hi is not None:
+        lo = "−∞" if key.lo is None else _number(key.lo)
+        hi = "∞" if key.hi is None else _number(key.hi)
+        each = " (each element)" if key.kind in ("vec", "points") else ""
+        return f"{lo} … {hi}{each}"
+    return ""
+
+
+def key_type(key) -> str:
+    kind = key.kind
+    if kind == "vec" and key.n:
+        return f"vector of {key.n}"
+    if kind == "points" and key.n:
+        return f"list of {key.n}-vectors"
+    return {
+        "strlist": "list of strings",
+        "pathlist": "list of paths",
+        "map": "table pattern → value",
+        "int": "integer",
+        "str": "string",
+        "datetime": "local date-time",
+    }.get(kind, kind)
+
+
+def key_default(key) -> str:
+    if key.required:
+        return "**required**"
+    if key.default is None:
+        return "(none)"
+    value = key.default
+    if isinstance(value, float):
+        return _literal(_number(value))
+    if isinstance(value, list):
+        return _literal(_toml_value(value))
+    return _literal(value)
+
+
+def example_values() -> dict[str, tuple[str, object]]:
+    """Dotted key -> (example file, value) for the keys the files in ``examples/`` set (the first
+    file in name order that sets a key gives its example)."""
+    found: dict[str, tuple[str, object]] = {}
+
+    def walk(prefix, table, file):
+        for name, value in table.items():
+            path = f"{prefix}.{name}" if prefix else name
+            if isinstance(value, dict):
+                walk(path, value, file)
+            elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+                for v in value:
+                    walk(path, v, file)
+            else:
+                found.setdefault(path, (file, value))
+
+    for path in sorted((ROOT / "examples").glob("*.toml")):
+        try:
+            data = tomllib.loads(path.read_text())
+        except (OSError, tomllib.TOMLDecodeError):
+            continue
+        walk("", data, path.name)
+    return found
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f'"{k}" = {_toml_value(v)}' for k, v in value.items()) + " }"
+    return str(value).replace(" ", "T") if hasattr(value, "isoformat") else str(value)
+
+
+def scenario_rst() -> str:
+    from humv_usd.scenario.spec import SECTIONS
+
+    examples = example_values()
+    out = [
+        "Every key of a scenario file, generated from ``humv_usd/scenario/spec.py`` (the same table "
+        "validates a scenario and builds the editor's forms). A key's *example* is the value the "
+        "first file of ``examples/`` that sets it gives it. Units are part of the key names; "
+        "a value outside its range is refused by ``humv-usd compose`` (one line naming the key, "
+        "the value and the range; exit code 2).",
+        "",
+    ]
+
+    def section(prefix, sec, title, level):
+        form = f"[[{prefix}]]" if sec.array else f"[{prefix}]"
+        out.extend(_heading(f"{form}", level))
+        what = []
+        if sec.doc:
+            what.append(inline(sec.doc.strip().rstrip(".")) + ".")
+        what.append("A list of tables (repeat the header per entry)." if sec.array else "One table.")
+        what.append("Required." if sec.required else "Optional.")
+        out.extend([" ".join(what), ""])
+        for name, key in sec.keys.items():
+            dotted = f"{prefix}.{name}"
+            out.append(f".. scenario-key:: {dotted}")
+            out.append("")
+            fields = [
+                ("type", key_type(key)),
+                ("unit", inline(key_unit(name, key))),
+                ("range", key_range(key)),
+                ("default", key_default(key)),
+            ]
+            if dotted in examples:
+                file, value = examples[dotted]
+                fields.append(("example", f"``{name} = {_toml_value(value)}`` ({file})"))
+            for label, value in fields:
+                if value:
+                    out.append(f"   :{label}: {value}")
+            out.extend(["", f"   {inline(key.doc)}", ""])
+        for sub_name, sub in sec.subsections.items():
+            section(f"{prefix}.{sub_name}", sub, sub_name, "^")
+
+    for name, sec in SECTIONS.items():
+        section(name, sec, name, "-")
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------------------------- catalogues
+def materials_rst() -> str:
+    from humv_usd.catalog import materials as m
+
+    out = [
+        "The material library of ``humv_usd/catalog/materials.py`` (written to "
+        "``layers/materials.usda`` by the materials tool). Emissivities are the spectra's values "
+        "(Kirchhoff: ε = 1 − R − T) at the wavelength shown; solar absorptivity is the library's "
+        "broadband value. Each entry's sources follow the table.",
+        "",
+    ]
+    groups = (
+        (
+            "Surfaces and skin",
+            {k: v for k, v in m.LIBRARY.items() if k not in m.FABRICS and k not in m.EQUIPMENT},
+        ),
+        ("Fabrics", m.FABRICS),
+        ("Equipment", m.EQUIPMENT),
+    )
+    for title, group in groups:
+        out.extend(_heading(title, "-"))
+        rows = []
+        for name, mat in group.items():
+            eps = mat.at([0.55, 4.0, 10.0], "emissivity")
+            rows.append(
+                [
+                    f"``{name}``",
+                    mat.label_class,
+                    f"{mat.conductivity:g}",
+                    f"{mat.density:g}",
+                    f"{mat.specific_heat:g}",
+                    f"{mat.thickness * 1000:g}",
+                    f"{mat.solar_absorptivity:.2f}",
+                    f"{eps[0]:.2f} / {eps[1]:.2f} / {eps[2]:.2f}",
+                    "opaque" if mat.opaque else "transmits",
+                ]
+            )
+        out.extend(
+            _table(
+                [
+                    "material",
+                    "label class",
+                    "k [W m⁻¹ K⁻¹]",
+                    "ρ [kg m⁻³]",
+                    "c [J kg⁻¹ K⁻¹]",
+                    "thickness [mm]",
+                    "solar abs.",
+                    "ε at 0.55 / 4 / 10 µm",
+                    "",
+                ],
+                rows,
+            )
+        )
+        out.extend(_heading(f"Sources: {title.lower()}", "^"))
+        for name, mat in group.items():
+            out.extend([f"``{name}``", f"   {inline(mat.source)}", ""])
+    return "\n".join(out)
+
+
+def garments_rst() -> str:
+    from humv_usd.catalog import garments as g
+    from humv_usd.catalog.materials import LIBRARY
+
+    out = [
+        "The garments and props of ``humv_usd/catalog/garments.py`` (the names "
+        ":key:`human.clothing` takes). Layer 0 is next to the skin; a higher layer goes over a "
+        "lower one. Fabrics are entries of the :doc:`material library <materials>`.",
+        "",
+    ]
+    rows = []
+    for name, gar in g.GARMENTS.items():
+        fabric = gar.fabric
+        rows.append(
+            [
+                f"``{name}``",
+                inline(gar.description),
+                f"``{fabric}``" if fabric in LIBRARY else inline(fabric),
+                str(gar.layer),
+                "prop" if gar.is_prop else f"{gar.ease * 1000:g}",
+                f"{gar.thickness * 1000:g}",
+            ]
+        )
+    out.extend(
+        _table(
+            ["garment", "description", "fabric", "layer", "ease [mm]", "thickness [mm]"],
+            rows,
+            [14, 46, 14, 6, 10, 10],
+        )
+    )
+    if g.ALIASES:
+        out.extend(_heading("Aliases", "-"))
+        out.extend(_table(["alias", "garment"], [[f"``{a}``", f"``{b}``"] for a, b in g.ALIASES.items()]))
+    out.extend(_heading("Outfits of the seed's Table 1", "-"))
+    out.extend(
+        _table(
+            ["outfit", "garments"],
+            [[f"``{k}``", ", ".join(f"``{x}``" for x in v)] for k, v in g.OUTFITS.items()],
+        )
+    )
+    return "\n".join(out)
+
+
+def sensors_rst() -> str:
+    from humv_usd.catalog import sensors as s
+
+    out = [
+        "The sensor presets of ``humv_usd/catalog/sensors.py``: a ``[[sensor]]`` table with "
+        ":key:`sensor.preset` takes every value below unless the table sets it. Values its source "
+        "calls *typical* represent the class of camera, not one product's data sheet.",
+        "",
+    ]
+    rows = []
+    for name, p in s.PRESETS.items():
+        hfov, vfov = p.fov_deg
+        rows.append(
+            [
+                f"``{name}``",
+                p.band,
+                f"{p.wavelength_um[0]:g}–{p.wavelength_um[1]:g}",
+                f"{p.resolution[0]}×{p.resolution[1]}",
+                f"{p.pixel_pitch_um:g}",
+                f"{p.focal_length_mm:g}",
+                f"{p.f_number:g}",
+                f"{hfov:.1f}×{vfov:.1f}",
+                f"{p.netd_k * 1000:g}" if p.netd_k else "–",
+                str(p.bit_depth),
+                p.agc,
+            ]
+        )
+    out.extend(
+        _table(
+            [
+                "preset",
+                "band",
+                "λ [µm]",
+                "pixels",
+                "pitch [µm]",
+                "focal [mm]",
+                "f/#",
+                "FOV [deg]",
+                "NETD [mK]",
+                "bits",
+                "AGC",
+            ],
+            rows,
+        )
+    )
+    out.extend(_heading("Descriptions and sources", "-"))
+    for name, p in s.PRESETS.items():
+        out.extend([f"``{name}``", f"   {inline(p.description)}. Source: {inline(p.source)}", ""])
+    out.extend(_heading("Platforms", "-"))
+    out.extend(
+        [
+            "Where a sensor stands (:key:`sensor.platform`): "
+            + ", ".join(f"``{x}``" for x in s.PLATFORMS)
+            + ".",
+            "",
+        ]
+    )
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------------------------- schemas
+_UNITS_RANGE = re.compile(r"Units:\s*(?P<unit>.+?)\.\s*Range:\s*(?P<range>.+?)\.?\s*$", re.S)
+
+
+def schema_classes() -> dict[str, dict]:
+    """Schema class -> {"doc", "attributes": {name: {"type", "default", "unit", "range", "doc"}}}
+    from ``schemas/generatedSchema.usda``."""
+    from pxr import Sdf
+
+    layer = Sdf.Layer.OpenAsAnonymous(str(ROOT / "schemas" / "generatedSchema.usda"))
+    classes = {}
+    for prim in layer.rootPrims:
+        attrs = {}
+        for prop in prim.properties:
+            doc = " ".join((prop.documentation or "").split())
+            m = _UNITS_RANGE.search(doc)
+            attrs[prop.name] = {
+                "type": str(getattr(prop, "typeName", "")),
+                "default": getattr(prop, "default", None),
+                "unit": m.group("unit") if m else "",
+                "range": m.group("range") if m else "",
+                "doc": doc[: m.start()].strip() if m else doc,
+                "tokens": list(prop.GetInfo("allowedTokens")) if prop.HasInfo("allowedTokens") else [],
+            }
+        classes[prim.name] = {"doc": " ".join((prim.documentation or "").split()), "attributes": attrs}
+    return classes
+
+
+def schemas_rst() -> str:
+    out = [
+        "Every attribute of the HumV codeless schemas, generated from "
+        "``schemas/generatedSchema.usda`` (made from ``schemas/schema.usda`` by ``make schemas``). "
+        "Units and ranges are the ones each attribute's documentation states. All are API schemas "
+        "(``prim.ApplyAPI``); :doc:`../user/usd-tools` shows how other USD tools load them.",
+        "",
+    ]
+    for cls, info in schema_classes().items():
+        out.extend(_heading(cls, "-"))
+        out.extend([inline(info["doc"]), ""])
+        for name, a in info["attributes"].items():
+            out.append(f".. schema-attr:: {name}")
+            out.append("")
+            out.append(f"   :type: ``{a['type']}``")
+            if a["default"] is not None:
+                out.append(f"   :default: {_literal(a['default'])}")
+            if a["unit"]:
+                out.append(f"   :unit: {inline(a['unit'])}")
+            if a["range"]:
+                out.append(f"   :range: {inline(a['range'])}")
+            out.extend(["", f"   {inline(a['doc'])}", ""])
+    return "\n".join(out)
+
+
+# --------------------------------------------------------------------------------- CLI (check)
+def cli_commands() -> list[str]:
+    """Every command path of ``humv-usd`` (``compose``, ``bench render``), for the test that the
+    sphinx-click page names each."""
+    import click
+
+    from humv_usd.cli.main import main
+
+    paths = []
+
+    def walk(cmd, prefix):
+        if isinstance(cmd, click.Group):
+            for name, sub in sorted(cmd.commands.items()):
+                paths.append(f"{prefix} {name}".strip())
+                walk(sub, f"{prefix} {name}")
+
+    walk(main, "")
+    return paths
+
+
+GENERATORS = {
+    "scenario": scenario_rst,
+    "materials": materials_rst,
+    "garments": garments_rst,
+    "sensors": sensors_rst,
+    "schemas": schemas_rst,
+}
+
+
+# ------------------------------------------------------------------------------ Sphinx glue
+def setup(app):
+    from docutils import nodes
+    from docutils.parsers.rst import Directive, directives
+    from docutils.statemachine import StringList
+    from sphinx.util.nodes import nested_parse_with_titles
+
+    class Reference(Directive):
+        required_arguments = 1
+        has_content = False
+
+        def run(self):
+            name = self.arguments[0]
+            if name not in GENERATORS:
+                raise self.error(f"humv-reference: unknown {name!r}; known: {', '.join(GENERATORS)}")
+            text = GENERATORS[name]()
+            source = f"<humv-reference {name}>"
+            lines = StringList(text.splitlines(), source=source)
+            node = nodes.container()
+            node.document = self.state.document
+            nested_parse_with_titles(self.state, lines, node)
+            return node.children
+
+    directives.register_directive("humv-reference", Reference)
+    app.add_object_type(
+        "scenario-key",
+        "key",
+        indextemplate="pair: %s; scenario key",
+        doc_field_types=[],
+    )
+    app.add_object_type("schema-attr", "usdattr", indextemplate="pair: %s; USD attribute")
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

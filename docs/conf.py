@@ -1,0 +1,51 @@
+"""Sphinx configuration of the HumV-USD manual (``make docs``; tests/test_docs.py builds it too).
+
+Sphinx reads the code's numpydoc docstrings (autodoc + napoleon) and the click commands
+(sphinx-click); MyST-Parser lets the pages be Markdown like the rest of the repository's prose;
+furo is the theme. Built offline with warnings as errors and nitpicky cross-references:
+``sphinx -W --keep-going -n``. Reference pages are generated from the single sources at build
+time by ``docs/_ext/humv_docs.py``.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE / "_ext"))
+sys.path.insert(0, str(HERE.parent))
+
+project = "HumV-USD"
+author = "the HumV-USD developers"
+copyright = "2026, the HumV-USD developers"
+
+extensions = [
+    "myst_parser",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.napoleon",
+    "sphinx.ext.mathjax",
+    "sphinx_click",
+    "humv_docs",
+]
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+root_doc = "index"
+exclude_patterns = ["_build", "_ext", "Thumbs.db", ".DS_Store"]
+
+myst_enable_extensions = ["colon_fence", "deflist", "dollarmath", "fieldlist"]
+myst_heading_anchors = 3
+
+# every cross-reference must resolve (-n); references to other libraries' objects are not
+# checked (the build is offline, no intersphinx inventories)
+nitpicky = True
+nitpick_ignore_regex = [(r"py:.*", r"(?!humv_usd\b).*")]
+
+autodoc_typehints = "description"
+autodoc_member_order = "bysource"
+napoleon_numpy_docstring = True
+napoleon_google_docstring = False
+
+html_theme = "furo"
+html_title = "HumV-USD manual"
+html_static_path: list[str] = []
+html_show_sourcelink = False
