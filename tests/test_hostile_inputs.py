@@ -372,3 +372,28 @@ def test_sweep_limit_summary_counts_what_ran(tmp_path):
     r = CliRunner().invoke(main, ["sweep", str(path), "-o", str(tmp_path / "ds"), "--limit", "1", "--quiet"])
     assert r.exit_code == 0, r.output
     assert "ds: 1 of 4 variants (--limit 1), 2 frames, 2 images" in r.output.splitlines()[-1]
+
+
+# ------------------------------------------------------------------ keys that do nothing
+def test_keys_that_do_nothing_in_their_context_are_warned(humvvex_raw):
+    import copy
+
+    from humv_usd.scenario.load import validate
+    from humv_usd.scenario.warnings import suspicious
+
+    raw = copy.deepcopy(humvvex_raw)
+    assert suspicious(validate(copy.deepcopy(raw))) == []
+    raw["sensor"][0]["altitude_m"] = 50.0  # a tripod camera
+    raw["thermal"] = {"model": "fixed", "radiation_rays": 256}
+    raw["human"].append(dict(raw["human"][0], id="p2"))
+    place = dict(raw["placement"][0], human="p2")
+    place["position_m"] = [place["position_m"][0] + 0.3, *place["position_m"][1:]]
+    raw["placement"].append(place)
+    lines = suspicious(validate(raw))
+    assert any(line.startswith("sensor[0].altitude_m: ignored on a tripod camera") for line in lines)
+    assert any(
+        line.startswith("thermal.radiation_rays: ignored with thermal.model = 'fixed'") for line in lines
+    )
+    assert any("stand 0.30 m apart" in line for line in lines), lines
+    del raw["scene"]
+    assert any(line.startswith("[scene]: not given") for line in suspicious(validate(raw)))

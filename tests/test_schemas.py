@@ -48,7 +48,8 @@ ALLOWED_TOKENS = {
     hs.THERMAL_MODEL: ["fixed", "twoNode", "jos3", "slab", "balance"],
     hs.SENSOR_BAND: ["EO", "MWIR", "LWIR"],
     hs.SENSOR_PLATFORM: ["tripod", "mast", "aerial"],
-    hs.SENSOR_AGC: ["none", "linear", "histogram"],
+    hs.SENSOR_AGC: ["none", "linear", "histogram", "plateau"],
+    hs.SENSOR_VIGNETTING: ["none", "cos4"],
     hs.LABEL_CLASS: ["person", "ground", "building", "prop", "panel", "vegetation", "vehicle", "other"],
 }
 # The table gives no token set for the garment: it names garments of the clothing library.

@@ -288,7 +288,7 @@ def test_apply_chain_records_settings_and_checks_shapes():
     img[5:10, 5:10] = planck.band_radiance(310.0, m.wavelength_range_um, m.response_pair)
     out = apply_chain(img, m, np.random.default_rng(0))
     s = out.settings
-    assert s["psf"]["kernel_px"] % 2 == 1 and s["agc"]["mode"] == "histogram"
+    assert s["psf"]["kernel_px"] % 2 == 1 and s["agc"]["mode"] == "plateau"
     assert s["gain"] == m.gain and s["offset"] == m.offset and s["saturated_fraction"] == 0
     assert out.counts.shape == img.shape and out.image8.dtype == np.uint8
     import json

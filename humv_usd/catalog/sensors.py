@@ -92,7 +92,7 @@ PRESETS: dict[str, SensorPreset] = {
             f_number=1.0,
             netd_k=0.05,
             bit_depth=14,
-            agc="linear",
+            agc="plateau",
             source="1024x768, 17 um pitch, 8-14 um, NETD < 50 mK at f/1: Lynred (ULIS) ATOM 1024 "
             "thermal camera core product brief (2018); 14-bit output, 25 mm f/1.0 lens "
             "(HFOV 38.4 deg) and the response shape (germanium optics + microbolometer "
@@ -112,7 +112,7 @@ PRESETS: dict[str, SensorPreset] = {
             f_number=1.0,
             netd_k=0.05,
             bit_depth=14,
-            agc="histogram",
+            agc="plateau",
             source="640x512, 12 um VOx, 7.5-13.5 um, NETD < 50 mK (industrial grade < 40 mK), "
             "18 mm f/1.0 lens HFOV 24 deg, 14-bit pre-AGC video and plateau-equalisation AGC: "
             "Teledyne FLIR Boson product datasheet (2019); response shape typical, not "
@@ -131,7 +131,7 @@ PRESETS: dict[str, SensorPreset] = {
             f_number=2.5,
             netd_k=0.02,
             bit_depth=14,
-            agc="linear",
+            agc="plateau",
             span_k=(253.15, 328.15),
             source="InSb 640x512, 15 um pitch, 3-5 um, NETD < 20 mK, 14-bit, f/2.5 cold stop, "
             "lowest calibrated range -20 to +55 degC (the counts span here): "

@@ -22,9 +22,15 @@ Input of :func:`apply_chain`:
   these curves). A linear sRGB image is accepted with ``eo_space="srgb"`` (no colour matrix).
 
 Chain order (per frame): PSF convolution (diffraction of the circular pupil, band-averaged,
-integrated over the pixel footprint) -> detector noise (IR: Gaussian with sigma set by the
-NETD; EO: photon shot noise + read noise in electrons) -> counts = clip(round(gain L + offset),
-0, 2^bits - 1) -> AGC to 8 bits (none, linear percentile stretch, histogram equalisation).
+integrated over the pixel footprint) -> vignetting (cos^4 of the field angle, off by default)
+-> IR: bolometer lag across frames (first order, off by default) -> IR: residual fixed-pattern
+noise and its drift since the last flat-field correction (off by default) -> detector noise (IR:
+Gaussian with sigma set by the NETD; EO: photon shot noise + read noise in electrons) -> counts =
+clip(round(gain L + offset), 0, 2^bits - 1) -> AGC to 8 bits (none, linear percentile stretch,
+histogram equalisation, plateau equalisation) -> JPEG compression of the 8-bit image (off by
+default). Every artefact stage acts on the chain's copy: the render's radiometric images and the
+labels never pass through it. EO rolling shutter is not modelled: it needs a render per row time
+(the render draws one instant per frame).
 """
 
 from __future__ import annotations
@@ -44,7 +50,17 @@ BANDS = ("EO", "MWIR", "LWIR")
 #: A sensor is infrared (rendered by the IR render) when its band starts at or above this
 #: wavelength [um]; below it, or with band "EO", it is rendered spectrally in the visible.
 INFRARED_MIN_UM = 3.0
-AGC_MODES = ("none", "linear", "histogram")
+AGC_MODES = ("none", "linear", "histogram", "plateau")
+VIGNETTING_MODES = ("none", "cos4")
+#: Plateau of the plateau-equalisation AGC as a fraction of the frame's pixels per histogram bin
+#: (1 count wide): 250 pixels per bin at 640 x 512, the plateau value FLIR quotes as the Tau 2
+#: default (Tau 2 product specification 102-PS242-40, "AGC" / "plateau equalization"). Measured
+#: here (tests/test_sensor_chain.py): it keeps a 17 degC face and a -1 degC jacket in 10 degC
+#: surroundings 100+ levels apart where the 1-99 % linear stretch clips both.
+DEFAULT_AGC_PLATEAU = 250.0 / (640 * 512)
+#: Mean 8-bit level of the plateau AGC output when max gain limits its span ("ITT midpoint",
+#: FLIR Tau 2 / Boson AGC parameters; 127 = mid grey).
+DEFAULT_AGC_MIDPOINT = 127.0
 EO_SPACES = ("camera", "srgb")
 #: Temperatures [K] spanned by the counts when no gain/offset is authored for an IR sensor
 #: (-40 degC to +100 degC, the usual "high gain" range of uncooled cores).
@@ -55,6 +71,28 @@ EO_AUTO_EXPOSURE_PERCENTILE = 99.5
 #: Encircled energy the truncated PSF kernel keeps before renormalisation.
 PSF_ENERGY = 0.99
 PSF_MAX_RADIUS_PX = 48
+
+
+def field_of_view_deg(extent_m, focal_length_m):
+    r"""Full field of view of a pinhole (distortion-free) camera [deg].
+
+    Parameters
+    ----------
+    extent_m : numeric
+        Width of the image on the detector [m]: pixels x pitch (or a USD camera's aperture in
+        the same unit as the focal length).
+    focal_length_m : numeric
+        Focal length [m] (same unit as ``extent_m``).
+
+    Notes
+    -----
+    :math:`\mathrm{FOV} = 2\arctan\left(\frac{n\,p}{2 f}\right)` (rectilinear projection;
+    e.g. Holst, Electro-Optical Imaging System Performance, 5th ed., 2008, ch. 2). The one
+    field-of-view formula of the code base: presets, the sensor model, the camera reader and the
+    editor's plan all call it.
+    """
+    out = np.degrees(2.0 * np.arctan(0.5 * np.asarray(extent_m, dtype=float) / focal_length_m))
+    return float(out) if out.ndim == 0 else out
 
 
 @dataclass(frozen=True)
@@ -109,6 +147,33 @@ class SensorModel:
         Why the render skips this camera (e.g. not a perspective projection); None: rendered.
     response_authored : bool
         Whether the stage gives a spectral response (else the flat band is assumed).
+    agc_plateau : float
+        Plateau AGC: most pixels one histogram bin (1 count) may contribute, as a fraction of the
+        frame's pixels [0-1] (:func:`plateau_equalisation`).
+    agc_max_gain : float
+        Plateau AGC: largest slope of the count -> 8-bit map [levels per count]; 0 = unlimited.
+    agc_midpoint : float
+        Plateau AGC: mean output level when max gain limits the span (ITT midpoint) [0-255].
+    fpn_gain_sigma : float
+        IR: standard deviation of the residual per-pixel gain error after the non-uniformity
+        correction [fraction] (:func:`fixed_pattern`); 0 = off.
+    fpn_offset_sigma_k : float
+        IR: standard deviation of the residual per-pixel offset just after a flat-field
+        correction, as an equivalent scene temperature [K]; 0 = off.
+    fpn_drift_k_per_s : float
+        IR: standard deviation of the per-pixel offset drift rate since the last flat-field
+        correction [K/s]; 0 = off.
+    ffc_interval_s : float
+        IR: time between flat-field corrections [s] (one at t = 0 and every interval); 0 = only
+        the one at t = 0.
+    fpn_seed : int
+        Seed of the fixed pattern (the same pattern in every frame of this sensor).
+    vignetting : str
+        "none" or "cos4" (relative illumination cos^4 of the field angle; :func:`vignetting`).
+    time_constant_s : float
+        IR: bolometer thermal time constant [s] (:func:`bolometer_lag`); 0 = off.
+    jpeg_quality : int
+        JPEG quality of the 8-bit image, 1-100 (Pillow/libjpeg scale); 0 = no compression.
     """
 
     name: str
@@ -136,6 +201,17 @@ class SensorModel:
     subbands: int | None = None
     skip_reason: str | None = None
     response_authored: bool = True
+    agc_plateau: float = DEFAULT_AGC_PLATEAU
+    agc_max_gain: float = 0.0
+    agc_midpoint: float = DEFAULT_AGC_MIDPOINT
+    fpn_gain_sigma: float = 0.0
+    fpn_offset_sigma_k: float = 0.0
+    fpn_drift_k_per_s: float = 0.0
+    ffc_interval_s: float = 0.0
+    fpn_seed: int = 0
+    vignetting: str = "none"
+    time_constant_s: float = 0.0
+    jpeg_quality: int = 0
 
     def __post_init__(self):
         if self.band not in BANDS:
@@ -154,6 +230,26 @@ class SensorModel:
         lo, hi = self.agc_percentiles
         if not 0 <= lo < hi <= 100:
             raise ValueError(f"agc_percentiles = {self.agc_percentiles!r}: expected 0 <= low < high <= 100")
+        if self.vignetting not in VIGNETTING_MODES:
+            raise ValueError(
+                f"vignetting = {self.vignetting!r}: allowed values: {', '.join(VIGNETTING_MODES)}"
+            )
+        ranges = {
+            "agc_plateau": (0.0, 1.0),
+            "agc_max_gain": (0.0, math.inf),
+            "agc_midpoint": (0.0, 255.0),
+            "fpn_gain_sigma": (0.0, 1.0),
+            "fpn_offset_sigma_k": (0.0, 100.0),
+            "fpn_drift_k_per_s": (0.0, 10.0),
+            "ffc_interval_s": (0.0, math.inf),
+            "time_constant_s": (0.0, 10.0),
+        }
+        for key, (a, b) in ranges.items():
+            v = float(getattr(self, key))
+            if not (math.isfinite(v) or b == math.inf) or not a <= v <= b:
+                raise ValueError(f"{key} = {getattr(self, key)!r}: allowed range {a:g}..{b:g}")
+        if not 0 <= int(self.jpeg_quality) <= 100:
+            raise ValueError(f"jpeg_quality = {self.jpeg_quality!r}: allowed range 0..100 (0 = off)")
 
     # --- derived -------------------------------------------------------------------------------
     @property
@@ -168,10 +264,9 @@ class SensorModel:
     def fov_deg(self) -> tuple[float, float]:
         """Full horizontal and vertical field of view [deg]."""
         w, h = self.resolution
-        f = self.focal_length_m
         return (
-            math.degrees(2 * math.atan(0.5 * w * self.pixel_pitch_m / f)),
-            math.degrees(2 * math.atan(0.5 * h * self.pixel_pitch_m / f)),
+            field_of_view_deg(w * self.pixel_pitch_m, self.focal_length_m),
+            field_of_view_deg(h * self.pixel_pitch_m, self.focal_length_m),
         )
 
     @property
@@ -550,7 +645,100 @@ def agc_levels(counts, mode: str, percentiles=(1.0, 99.0), bit_depth: int = 14) 
     return float(lo), float(hi)
 
 
-def agc(counts, mode: str = "linear", percentiles=(1.0, 99.0), bit_depth: int = 14):
+def plateau_equalisation(
+    counts,
+    bit_depth: int = 14,
+    plateau: float = DEFAULT_AGC_PLATEAU,
+    max_gain: float = 0.0,
+    midpoint: float = DEFAULT_AGC_MIDPOINT,
+):
+    r"""Plateau equalisation: the AGC of FLIR thermal cores (Tau 2, Boson, Lepton "HEQ").
+
+    Parameters
+    ----------
+    counts : integer ndarray
+        Raw counts, 0 .. 2^bit_depth - 1.
+    bit_depth : int
+        Bits of the counts (the histogram has one bin per count).
+    plateau : float
+        Largest number of pixels one bin may contribute, as a fraction of the frame's pixels
+        [0-1] (at least one pixel). 1 gives histogram equalisation; a tiny value gives each
+        occupied count the same share of the output (a "occupied-level" equalisation).
+    max_gain : float
+        Largest slope of the map [8-bit levels per count]: the output span is
+        min(255, max_gain x (highest - lowest occupied count)); 0 = unlimited.
+    midpoint : float
+        Mean output level of a span narrower than 255 (FLIR's "ITT midpoint") [0-255].
+
+    Returns
+    -------
+    image8 : uint8 ndarray
+    info : dict
+
+    Notes
+    -----
+    With :math:`h_k` the histogram of the counts and :math:`P` the plateau in pixels,
+
+    .. math::
+
+        h'_k = \min(h_k, P), \qquad
+        C_k = \sum_{j \le k} h'_j, \qquad
+        y_k = y_0 + S\,\frac{C_k - C_{k_{min}}}{C_{k_{max}} - C_{k_{min}}}
+
+    (Vickers 1996): bins holding more than :math:`P` pixels (the large uniform background) are
+    clipped, so a small warm or cool object keeps output levels in proportion to the counts it
+    occupies instead of its share of the pixels. :math:`S = 255` unless max gain limits it;
+    :math:`y_0 = \mathrm{clip}(m - S/2, 0, 255 - S)` centres a narrower span on the midpoint m.
+
+    References
+    ----------
+    .. [1] V. E. Vickers, "Plateau equalization algorithm for real-time display of high-quality
+       infrared imagery", Optical Engineering 35(7), 1921-1926, 1996.
+    .. [2] FLIR Tau 2 product specification (102-PS242-40) and Boson datasheet / software IDD
+       (102-2013-42): AGC modes plateau equalisation, linear; parameters plateau value, ITT
+       midpoint, max gain.
+    """
+    c = np.asarray(counts)
+    flat = c.ravel().astype(np.int64)
+    hist = np.bincount(flat, minlength=(1 << int(bit_depth)))
+    cap = max(float(plateau) * flat.size, 1.0)
+    clipped = np.minimum(hist.astype(float), cap)
+    cdf = np.cumsum(clipped)
+    occupied = np.nonzero(hist)[0]
+    k_lo, k_hi = (int(occupied[0]), int(occupied[-1])) if occupied.size else (0, 0)
+    c_lo = cdf[k_lo]
+    denom = cdf[k_hi] - c_lo
+    span = 255.0 if max_gain <= 0 else min(255.0, float(max_gain) * (k_hi - k_lo))
+    y0 = min(max(float(midpoint) - span / 2.0, 0.0), 255.0 - span)
+    if denom > 0:
+        level = np.clip((cdf - c_lo) / denom, 0.0, 1.0)
+    else:  # one occupied count: mid-grey
+        level = np.full(cdf.shape, 0.5)
+        y0, span = float(midpoint), 0.0
+    lut = np.clip(np.rint(y0 + span * level), 0, 255).astype(np.uint8)
+    info = {
+        "mode": "plateau",
+        "plateau_fraction": float(plateau),
+        "plateau_pixels": cap,
+        "clipped_bins": int(np.count_nonzero(hist > cap)),
+        "max_gain": float(max_gain),
+        "midpoint": float(midpoint),
+        "span_levels": span,
+        "levels": int(occupied.size),
+    }
+    return lut[flat].reshape(c.shape), info
+
+
+def agc(
+    counts,
+    mode: str = "linear",
+    percentiles=(1.0, 99.0),
+    bit_depth: int = 14,
+    *,
+    plateau: float = DEFAULT_AGC_PLATEAU,
+    max_gain: float = 0.0,
+    midpoint: float = DEFAULT_AGC_MIDPOINT,
+):
     """Automatic gain control: raw counts -> 8-bit display values.
 
     Modes
@@ -559,10 +747,15 @@ def agc(counts, mode: str = "linear", percentiles=(1.0, 99.0), bit_depth: int = 
         Fixed: the top 8 of ``bit_depth`` bits (counts x 255 / (2^bits - 1)).
     linear
         Linear stretch between the low and high percentiles of the frame (clipped), the usual
-        "linear AGC" of thermal cores.
+        "linear AGC" of thermal cores. A person under the low/high percentile's share of the
+        pixels saturates (a 17 degC face and the hottest background noise both 255).
     histogram
         Histogram equalisation: each count maps to 255 x its cumulative frequency
         (Gonzalez & Woods, Digital Image Processing, 4th ed., §3.3.1).
+    plateau
+        Plateau equalisation (:func:`plateau_equalisation`, Vickers 1996; FLIR cores' default):
+        histogram equalisation with each bin clipped at ``plateau`` x pixels, so that small
+        warm or cool regions (people) keep distinct grey levels.
 
     Returns
     -------
@@ -571,6 +764,8 @@ def agc(counts, mode: str = "linear", percentiles=(1.0, 99.0), bit_depth: int = 
         What was used (mode, black/white level), for the manifest.
     """
     c = np.asarray(counts)
+    if mode == "plateau":
+        return plateau_equalisation(c, bit_depth, plateau, max_gain, midpoint)
     if mode == "histogram":
         flat = c.ravel().astype(np.int64)
         hist = np.bincount(flat, minlength=(1 << int(bit_depth)))
@@ -588,6 +783,148 @@ def agc(counts, mode: str = "linear", percentiles=(1.0, 99.0), bit_depth: int = 
     if mode == "linear":
         info["percentiles"] = [float(p) for p in percentiles]
     return img, info
+
+
+# ============================================================================ artefacts
+def vignetting(resolution, pixel_pitch_m: float, focal_length_m: float) -> np.ndarray:
+    r"""Relative illumination of each pixel, :math:`\cos^4\theta` of its field angle, (H, W).
+
+    Notes
+    -----
+    :math:`\tan\theta = r / f` with :math:`r = p\sqrt{(i - c_x)^2 + (j - c_y)^2}` the pixel
+    centre's distance from the optical axis (the array centre, :math:`c = (n - 1)/2`). The
+    irradiance an aberration-free lens puts on the focal plane from a uniform (Lambertian)
+    scene falls as :math:`\cos^4\theta` (one cosine for the obliquity of the pupil, one for that
+    of the detector, two for the inverse square of the longer path; Slater 1980, Remote Sensing:
+    Optics and Optical Systems, §7.3; Smith 2008, Modern Optical Engineering, 4th ed., §9.10).
+    Real lenses deviate (pupil aberration, mechanical vignetting); radiometric thermal cores
+    largely remove it in their factory non-uniformity gain table, hence off by default.
+    """
+    w, h = int(resolution[0]), int(resolution[1])
+    x = (np.arange(w) - 0.5 * (w - 1)) * pixel_pitch_m
+    y = (np.arange(h) - 0.5 * (h - 1)) * pixel_pitch_m
+    r2 = x[None, :] ** 2 + y[:, None] ** 2
+    cos2 = focal_length_m**2 / (focal_length_m**2 + r2)
+    return cos2 * cos2
+
+
+def bolometer_lag(signal, previous_signal, previous_output, dt_s: float, time_constant_s: float):
+    r"""Output of a first-order (bolometer) detector after ``dt_s``, exact for an input that varies
+    linearly between two frames.
+
+    Parameters
+    ----------
+    signal, previous_signal : ndarray
+        Input (scene radiance at the detector) at this frame and the previous one.
+    previous_output : ndarray
+        Detector output at the previous frame.
+    dt_s : float
+        Time between the frames [s] (> 0).
+    time_constant_s : float
+        Thermal time constant :math:`\tau = C/G` [s] (> 0).
+
+    Notes
+    -----
+    :math:`\tau\,\dot y = x - y` (a microbolometer's thermal response; Kruse & Skatrud 1997,
+    Uncooled Infrared Imaging Arrays and Systems, ch. 2; Vollmer & Möllmann 2017 §2.5: 7-14 ms for
+    VOx cores). With :math:`x` linear over the step (slope :math:`s = (x_n - x_{n-1})/\Delta t`)
+    and :math:`a = e^{-\Delta t/\tau}`:
+
+    .. math::
+
+        y_n = x_n - s\tau + (y_{n-1} - x_{n-1} + s\tau)\,a
+
+    A render draws one instant per frame, so the lag acts only across frames (a target moving
+    during one frame's exposure is not smeared within it).
+    """
+    a = math.exp(-float(dt_s) / float(time_constant_s))
+    x = np.asarray(signal, dtype=float)
+    slope_tau = (x - np.asarray(previous_signal, dtype=float)) * (float(time_constant_s) / float(dt_s))
+    return (
+        x
+        - slope_tau
+        + (np.asarray(previous_output, dtype=float) - np.asarray(previous_signal) + slope_tau) * a
+    )
+
+
+def fixed_pattern(shape, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Three standard-normal per-pixel patterns (gain, offset, drift rate), the same for a given
+    seed and shape (a camera's fixed pattern: it does not change from frame to frame)."""
+    rng = np.random.default_rng([int(seed), 0x46504E])  # "FPN": apart from the temporal noise streams
+    z = rng.standard_normal((3, *shape))
+    return z[0], z[1], z[2]
+
+
+def time_since_ffc(time_s: float, ffc_interval_s: float) -> float:
+    """Time since the last flat-field correction [s]: one at t = 0 and every ``ffc_interval_s``
+    (0: only the one at t = 0)."""
+    t = max(float(time_s), 0.0)
+    return math.fmod(t, ffc_interval_s) if ffc_interval_s > 0 else t
+
+
+def apply_fixed_pattern(
+    radiance,
+    gain_z,
+    offset_z,
+    drift_z,
+    *,
+    reference_radiance: float,
+    radiance_per_k: float,
+    gain_sigma: float,
+    offset_sigma_k: float,
+    drift_k_per_s: float,
+    t_since_ffc_s: float,
+):
+    r"""Residual fixed-pattern noise of a microbolometer after non-uniformity correction.
+
+    Notes
+    -----
+    .. math::
+
+        L'_i = L_i + \sigma_g z^g_i\,(L_i - L_{ref})
+              + \frac{dL}{dT}\left(\sigma_o z^o_i + \sigma_r z^r_i\,t\right)
+
+    with :math:`z` the seeded standard-normal patterns (:func:`fixed_pattern`), :math:`L_{ref}`
+    the radiance of the flat-field shutter (taken at the sensor's reference temperature), so the
+    gain error vanishes on a scene at the shutter's temperature (a two-point correction's
+    residual grows away from its calibration points; Mooney et al. 1989, "Characterizing IR
+    FPA nonuniformity and IR camera spatial noise", Opt. Eng. 28(11); Scribner et al. 1991,
+    "Nonuniformity correction for staring IR focal plane arrays using scene-based techniques",
+    Proc. SPIE 1308), and the offset residual grows linearly with the time t since the last
+    flat-field correction as the focal-plane temperature drifts (Budzier & Gerlach 2011,
+    Thermal Infrared Sensors, §8.3: offset drift between shutter corrections; the Boson and Tau 2
+    correct it with an automatic FFC every few minutes or after an FPA temperature change).
+    """
+    x = np.asarray(radiance, dtype=float)
+    out = x + float(gain_sigma) * gain_z * (x - float(reference_radiance))
+    k = float(offset_sigma_k) * offset_z + float(drift_k_per_s) * drift_z * float(t_since_ffc_s)
+    return out + float(radiance_per_k) * k
+
+
+def jpeg_roundtrip(image8, quality: int) -> np.ndarray:
+    """Encode an 8-bit image (H, W) or (H, W, 3) as baseline JPEG at ``quality`` (1-100, the
+    libjpeg / IJG scale) with Pillow and decode it again (what a dataset stored as JPEG holds;
+    ITU-T T.81 / ISO 10918-1: 8 x 8 DCT, quantisation table scaled by quality, 4:2:0 chroma)."""
+    import io
+
+    from PIL import Image
+
+    img = np.ascontiguousarray(np.asarray(image8, dtype=np.uint8))
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="JPEG", quality=int(quality))
+    buf.seek(0)
+    with Image.open(buf) as decoded:
+        return np.asarray(decoded.convert("L" if img.ndim == 2 else "RGB"), dtype=np.uint8)
+
+
+@dataclass
+class ChainState:
+    """What the chain keeps from one frame of a sensor to the next (the bolometer's state):
+    the time [s], the input and the output of the lag stage at the last frame."""
+
+    time_s: float | None = None
+    signal: np.ndarray | None = None
+    output: np.ndarray | None = None
 
 
 # ============================================================================ EO colour
@@ -650,6 +987,8 @@ def apply_chain(
     noise: bool = True,
     eo_space: str = "camera",
     psf_wavelengths_um=None,
+    time_s: float | None = None,
+    state: ChainState | None = None,
 ) -> ChainOutput:
     r"""Run the sensor chain on one frame.
 
@@ -671,6 +1010,12 @@ def apply_chain(
         What an EO input holds (camera RGB gets the colour-correction matrix before display).
     psf_wavelengths_um : array-like, optional
         Wavelengths of the band-averaged PSF (default: 24 across the band).
+    time_s : float, optional
+        Time of the frame [s] (scenario time codes / fps): the fixed-pattern drift grows with the
+        time since the last flat-field correction; None = just after one.
+    state : ChainState, optional
+        This sensor's state from its previous frame (updated in place): the bolometer lag needs
+        it; without it (or after a step back in time) the detector starts settled (y = x).
 
     Returns
     -------
@@ -687,8 +1032,16 @@ def apply_chain(
        :func:`default_gain_offset` and EO auto exposure (the 99.5th percentile at 80 % of full
        well; gain = (2^bits-1)/L_sat).
     4. 8-bit: :func:`agc` on the counts. EO: black level = offset, white level from the AGC
-       (percentile of the brightest channel, or full scale for "none"; "histogram" equalises
-       the luminance and scales RGB with it), then the colour matrix and the sRGB encoding.
+       (percentile of the brightest channel, or full scale for "none"; "histogram" and
+       "plateau" equalise the luminance and scale RGB with it), then the colour matrix and the
+       sRGB encoding.
+
+    Artefact stages (each off unless its setting is authored; values in the manifest): after
+    the PSF :func:`vignetting` (``vignetting="cos4"``); IR: :func:`bolometer_lag`
+    (``time_constant_s`` > 0, across frames through ``state``), :func:`apply_fixed_pattern`
+    (``fpn_*``, drift since the last FFC from ``time_s``) before the temporal noise; after the
+    AGC :func:`jpeg_roundtrip` of the 8-bit image (``jpeg_quality`` > 0). The counts hold
+    everything up to the ADC; the JPEG changes only ``image8``.
     """
     if eo_space not in EO_SPACES:
         raise ValueError(f"eo_space = {eo_space!r}: allowed values: {', '.join(EO_SPACES)}")
@@ -731,6 +1084,21 @@ def apply_chain(
         }
     else:
         settings["psf"] = None
+
+    # optics: relative illumination
+    if model.vignetting == "cos4":
+        falloff = vignetting((x.shape[1], x.shape[0]), model.pixel_pitch_m, model.focal_length_m)
+        x = x * (falloff if x.ndim == 2 else falloff[..., None])
+        settings["vignetting"] = {"model": "cos^4 of the field angle", "corner": float(falloff[0, 0])}
+    else:
+        settings["vignetting"] = None
+
+    # detector: bolometer lag across frames, residual fixed pattern (IR)
+    if model.is_infrared:
+        settings["lag"] = _lag_stage(model, x, time_s, state)
+        if settings["lag"] and settings["lag"].get("applied"):
+            x = state.output.copy()
+        x, settings["fixed_pattern"] = _fixed_pattern_stage(model, x, time_s)
 
     # 2-3. noise, gain/offset, counts
     if reference_temperature_k is None:
@@ -791,13 +1159,86 @@ def apply_chain(
 
     # 4. AGC -> 8 bit
     if model.is_infrared:
-        image8, info = agc(counts, model.agc, model.agc_percentiles, model.bit_depth)
+        image8, info = agc(
+            counts,
+            model.agc,
+            model.agc_percentiles,
+            model.bit_depth,
+            plateau=model.agc_plateau,
+            max_gain=model.agc_max_gain,
+            midpoint=model.agc_midpoint,
+        )
     else:
         image8, info = _eo_display(counts, model, offset, eo_space)
     settings["agc"] = info
+
+    # 5. compression of the 8-bit image
+    if model.jpeg_quality > 0:
+        before = image8
+        image8 = jpeg_roundtrip(image8, model.jpeg_quality)
+        err = image8.astype(float) - before
+        settings["compression"] = {
+            "model": "JPEG baseline (Pillow/libjpeg)",
+            "quality": int(model.jpeg_quality),
+            "rms_error_levels": float(np.sqrt(np.mean(err * err))) if err.size else 0.0,
+        }
+    else:
+        settings["compression"] = None
     return ChainOutput(
         counts=counts, image8=image8, radiance=x, noise_sigma=float(noise_sigma), settings=settings
     )
+
+
+def _lag_stage(model: SensorModel, x, time_s, state) -> dict | None:
+    """Bolometer lag: update ``state`` with this frame; the settings record (None when off)."""
+    tau = float(model.time_constant_s)
+    if tau <= 0:
+        return None
+    if state is None or time_s is None:
+        return {"time_constant_s": tau, "applied": False, "why": "no previous frame (state/time)"}
+    dt = None if state.time_s is None else float(time_s) - state.time_s
+    usable = dt is not None and dt > 0 and state.signal is not None and state.signal.shape == x.shape
+    out = bolometer_lag(x, state.signal, state.output, dt, tau) if usable else x.copy()
+    state.time_s, state.signal, state.output = float(time_s), x.copy(), out
+    record = {"time_constant_s": tau, "applied": bool(usable)}
+    if usable:
+        record.update(dt_s=dt, carry_over=math.exp(-dt / tau))
+    else:
+        record["why"] = "first frame or a step back in time: detector settled"
+    return record
+
+
+def _fixed_pattern_stage(model: SensorModel, x, time_s):
+    """Residual FPN and its drift (IR): the new radiance and the settings record (None when off)."""
+    sg, so, sr = float(model.fpn_gain_sigma), float(model.fpn_offset_sigma_k), float(model.fpn_drift_k_per_s)
+    if sg == 0 and so == 0 and sr == 0:
+        return x, None
+    t_ffc = time_since_ffc(0.0 if time_s is None else time_s, model.ffc_interval_s)
+    t_ref = float(model.reference_temperature_k)
+    l_ref = planck.band_radiance(t_ref, model.wavelength_range_um, model.response_pair)
+    per_k = planck.band_radiance_derivative(t_ref, model.wavelength_range_um, model.response_pair)
+    zg, zo, zr = fixed_pattern(x.shape, model.fpn_seed)
+    out = apply_fixed_pattern(
+        x,
+        zg,
+        zo,
+        zr,
+        reference_radiance=float(l_ref),
+        radiance_per_k=float(per_k),
+        gain_sigma=sg,
+        offset_sigma_k=so,
+        drift_k_per_s=sr,
+        t_since_ffc_s=t_ffc,
+    )
+    return out, {
+        "model": "residual gain/offset after NUC + linear offset drift since the last FFC",
+        "gain_sigma": sg,
+        "offset_sigma_k": so,
+        "drift_k_per_s": sr,
+        "ffc_interval_s": float(model.ffc_interval_s),
+        "time_since_ffc_s": t_ffc,
+        "seed": int(model.fpn_seed),
+    }
 
 
 def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
@@ -811,7 +1252,7 @@ def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
         white = white if white > 0 else full
         info = {"mode": model.agc, "white_count": white + black, "percentile": model.agc_percentiles[1]}
     m = colour_correction_matrix(model) if eo_space == "camera" else np.eye(3)
-    if model.agc != "histogram" and np.array_equal(m, np.eye(3)):
+    if model.agc not in ("histogram", "plateau") and np.array_equal(m, np.eye(3)):
         # per-channel map of the integer counts: a lookup table gives the very same values
         levels = np.clip(np.arange(model.max_count + 1, dtype=float) - black, 0.0, None) / white
         lut = np.clip(np.rint(srgb_encode(levels) * 255.0), 0, 255).astype(np.uint8)
@@ -819,10 +1260,17 @@ def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
         return lut[np.minimum(counts, model.max_count)], info
     rgb = lin / white
     rgb = rgb @ m.T
-    if model.agc == "histogram":
+    if model.agc in ("histogram", "plateau"):
         lum = np.clip(rgb @ np.array([0.2126, 0.7152, 0.0722]), 0.0, None)
         q = np.clip(np.rint(lum / max(lum.max(), 1e-12) * 4095), 0, 4095).astype(np.uint16)
-        eq, _ = agc(q, "histogram", bit_depth=12)
+        eq, _ = agc(
+            q,
+            model.agc,
+            bit_depth=12,
+            plateau=model.agc_plateau,
+            max_gain=model.agc_max_gain,
+            midpoint=model.agc_midpoint,
+        )
         target = eq.astype(float) / 255.0
         scale = np.where(lum > 0, target / np.where(lum > 0, lum, 1.0), 0.0)
         rgb = rgb * scale[..., None]

@@ -1164,6 +1164,7 @@ class _SensorChains:
         self.ran: dict[str, str] = {}
         self.reason = None
         self.chain = chain
+        self.states: dict = {}
 
     def apply(self, sensor: SensorModel, radiance, frame: int, eo_space: str | None = None):
         """ChainOutput for one frame, or None when the chain is unavailable."""
@@ -1173,6 +1174,9 @@ class _SensorChains:
             self.models[sensor.path] = read_sensor_model(self.stage.GetPrimAtPath(sensor.path))
         rng = np.random.default_rng([self.seed, self.index.get(sensor.path, 0), int(frame)])
         extra = {} if eo_space is None else {"eo_space": eo_space}
+        # frame time and the sensor's state from its last frame (FPN drift since FFC, bolometer lag)
+        extra["time_s"] = int(frame) / (self.stage.GetTimeCodesPerSecond() or 1.0)
+        extra["state"] = self.states.setdefault(sensor.path, self.chain.ChainState())
         out = self.chain.apply_chain(radiance, self.models[sensor.path], rng, **extra)
         self.ran[sensor.name] = "ran"
         return out

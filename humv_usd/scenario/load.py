@@ -56,6 +56,9 @@ class Scenario:
     data: dict[str, Any]
     path: Path | None = None
     given: frozenset[str] = frozenset()  # sections present in the file
+    #: keys present in the file, as ``section.key`` / ``section[i].key`` (warnings about keys
+    #: that do nothing in their context name only what the user wrote, not defaults)
+    given_keys: frozenset[str] = frozenset()
 
     @property
     def infrared_sensors(self) -> list[dict]:
@@ -481,7 +484,19 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
     if problems:
         prefix = f"{path}: " if path else ""
         raise InputError("", [prefix + p for p in problems])
-    return Scenario(data=data, path=path, given=frozenset(raw) & frozenset(SECTIONS))
+    return Scenario(
+        data=data, path=path, given=frozenset(raw) & frozenset(SECTIONS), given_keys=_given_keys(raw)
+    )
+
+
+def _given_keys(raw: dict) -> frozenset[str]:
+    out = set()
+    for name, section in raw.items():
+        if isinstance(section, dict):
+            out |= {f"{name}.{k}" for k in section}
+        elif isinstance(section, list):
+            out |= {f"{name}[{i}].{k}" for i, t in enumerate(section) if isinstance(t, dict) for k in t}
+    return frozenset(out)
 
 
 #: largest text input read whole (a scenario or sweep TOML file) [bytes]: far above any real

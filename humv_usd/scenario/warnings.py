@@ -8,6 +8,7 @@ the activity ignores. These are warnings, not errors: compose goes on.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -18,6 +19,12 @@ GROUND_TOLERANCE_M = 0.05
 PERSON_RADIUS_M = 0.25
 #: the point [m] above the feet a camera must see (about the chest)
 PERSON_CENTRE_M = 1.0
+#: space [m] between two people's cylinders below which they overlap (none: they touch)
+PERSONAL_GAP_M = 0.0
+#: sensor keys only an aerial platform reads
+ORBIT_KEYS = ("altitude_m", "orbit_radius_m", "orbit_speed_m_s", "orbit_start_deg", "orbit_clockwise")
+#: thermal keys only the radiation balance (jos3, twoNode) reads
+RADIATION_KEYS = ("radiation_method", "radiation_rays", "radiation_step_s")
 
 
 def _inside_box(point, obj, margin: float = 0.0) -> bool:
@@ -50,6 +57,25 @@ def _sees(sensor: dict, point) -> bool:
     f_px = sensor["focal_length_mm"] * 1e-3 / (sensor["pixel_pitch_um"] * 1e-6)
     w, h = sensor["resolution"]
     return abs(d @ right) / depth * f_px <= w / 2 and abs(d @ cam_up) / depth * f_px <= h / 2
+
+
+def _keys_that_do_nothing(scenario, given: frozenset[str]) -> list[str]:
+    """Keys the user wrote that have no effect where they stand (issue 26)."""
+    out = []
+    for i, s in enumerate(scenario["sensor"]):
+        platform = s.get("platform", "tripod")
+        if platform != "aerial":
+            for key in ORBIT_KEYS:
+                if f"sensor[{i}].{key}" in given:
+                    out.append(f"sensor[{i}].{key}: ignored on a {platform} camera (for platform = 'aerial')")
+    thermal = scenario["thermal"] or {}
+    if thermal.get("model") == "fixed":
+        for key in RADIATION_KEYS:
+            if f"thermal.{key}" in given:
+                out.append(f"thermal.{key}: ignored with thermal.model = 'fixed' (no radiation balance)")
+    if scenario["scene"] is None and "scene" not in scenario.given:
+        out.append("[scene]: not given: no ground and no objects (the people stand in empty space)")
+    return out
 
 
 def suspicious(scenario) -> list[str]:
@@ -88,6 +114,15 @@ def suspicious(scenario) -> list[str]:
         for h in scenario["human"]
         if h["id"] in people
     ]
+    given = getattr(scenario, "given_keys", frozenset())
+    out += _keys_that_do_nothing(scenario, given)
+    for (a, ca), (b, cb) in itertools.combinations(centres, 2):
+        gap = float(np.hypot(*(ca - cb)[:2]))
+        if gap < 2 * PERSON_RADIUS_M + PERSONAL_GAP_M:
+            out.append(
+                f"human {a!r} and human {b!r} stand {gap:.2f} m apart (centre to centre): their bodies "
+                f"overlap below {2 * PERSON_RADIUS_M + PERSONAL_GAP_M:g} m (placement.position_m)"
+            )
     for i, s in enumerate(scenario["sensor"]):
         if s.get("platform", "tripod") != "tripod":
             continue  # a moving platform: its path, not position_m, places it

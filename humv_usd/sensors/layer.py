@@ -19,7 +19,7 @@ from humv_usd.scenario import Scenario, validate
 from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, look_at_matrix, new_layer_stage
 from humv_usd.usd.paths import sensor_path
-from humv_usd.usd.sensor import write_sensor
+from humv_usd.usd.sensor import CHAIN_ATTRIBUTES, write_sensor
 
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
@@ -134,6 +134,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             response_wavelengths_um=wl,
             response=response,
             channel_response=channels,
+            chain_settings={k: s.get(k) for k in CHAIN_ATTRIBUTES},
         )
     return finish(stage)
 

@@ -53,6 +53,7 @@ def write_sensor(
     response=None,
     channel_response=None,
     netd_note: str = "",
+    chain_settings: dict | None = None,
 ) -> None:
     """Apply HumvSensorAPI to a camera prim and author the sensor (what :func:`read_sensor_model`
     reads back): band token, wavelength range [um], resolution [px], pixel pitch [m], f-number,
@@ -60,7 +61,8 @@ def write_sensor(
     preset and platform tokens, AGC and its percentiles; gain [DN per unit signal] (None: auto
     exposure), the IR sub-band count, an EO sensor's full well and read noise [e-] and the
     relative response table (wavelengths [um], response, optional channel responses
-    (C, wavelengths)) only when given."""
+    (C, wavelengths)) only when given; ``chain_settings`` (keys of :data:`CHAIN_ATTRIBUTES`:
+    plateau AGC, fixed pattern, vignetting, lag, JPEG) authored when given and not None."""
     prim.ApplyAPI(S.SENSOR_API)
     values = [
         (S.SENSOR_BAND, band),
@@ -83,6 +85,10 @@ def write_sensor(
         (S.SENSOR_READ_NOISE, read_noise_e),
     ]
     values += [(attr, value) for attr, value in optional if value is not None]
+    for key, value in (chain_settings or {}).items():
+        if value is not None:
+            attr, kind = CHAIN_ATTRIBUTES[key]
+            values.append((attr, kind(value)))
     if response_wavelengths_um is not None:
         values += [
             (S.SENSOR_RESPONSE_WAVELENGTHS, Vt.FloatArray(np.asarray(response_wavelengths_um).tolist())),
@@ -96,6 +102,22 @@ def write_sensor(
         prim.GetAttribute(attr).Set(value)
     if netd_note:
         prim.GetAttribute(S.SENSOR_NETD).SetCustomDataByKey("humv:netdScaling", netd_note)
+
+
+#: Sensor-chain settings (scenario key / SensorModel field -> attribute, value type).
+CHAIN_ATTRIBUTES = {
+    "agc_plateau": (S.SENSOR_AGC_PLATEAU, float),
+    "agc_max_gain": (S.SENSOR_AGC_MAX_GAIN, float),
+    "agc_midpoint": (S.SENSOR_AGC_MIDPOINT, float),
+    "fpn_gain_sigma": (S.SENSOR_FPN_GAIN_SIGMA, float),
+    "fpn_offset_sigma_k": (S.SENSOR_FPN_OFFSET_SIGMA, float),
+    "fpn_drift_k_per_s": (S.SENSOR_FPN_DRIFT_RATE, float),
+    "ffc_interval_s": (S.SENSOR_FFC_INTERVAL, float),
+    "fpn_seed": (S.SENSOR_FPN_SEED, int),
+    "vignetting": (S.SENSOR_VIGNETTING, str),
+    "time_constant_s": (S.SENSOR_TIME_CONSTANT, float),
+    "jpeg_quality": (S.SENSOR_JPEG_QUALITY, int),
+}
 
 
 def check_subbands(value, where: str = "subbands") -> int:
@@ -288,6 +310,16 @@ def read_sensor_model(prim) -> SensorModel:
     focal_m = float(focal) * 0.1 * mpu if focal else 0.0
     gain = get(S.SENSOR_GAIN)
     pct = get(S.SENSOR_AGC_PERCENTILES, (1.0, 99.0))
+    agc_attr = prim.GetAttribute(S.SENSOR_AGC)
+    if agc_attr and agc_attr.HasAuthoredValue():
+        agc = str(agc_attr.Get())
+    else:  # IR previews keep people readable by default; EO keeps the percentile stretch
+        agc = "linear" if band == "EO" else "plateau"
+    chain = {}
+    for key, (attr, kind) in CHAIN_ATTRIBUTES.items():
+        value = get(attr)
+        if value is not None:
+            chain[key] = kind(value)
     try:
         return SensorModel(
             name=prim.GetName(),
@@ -304,7 +336,7 @@ def read_sensor_model(prim) -> SensorModel:
             bit_depth=int(get(S.SENSOR_BIT_DEPTH, 14)),
             gain=None if gain is None else float(gain),
             offset=float(get(S.SENSOR_OFFSET, 0.0)),
-            agc=str(get(S.SENSOR_AGC, "linear")),
+            agc=agc,
             agc_percentiles=(float(pct[0]), float(pct[1])),
             full_well_e=float(get(S.SENSOR_FULL_WELL, 10500.0)),
             read_noise_e=float(get(S.SENSOR_READ_NOISE, 2.5)),
@@ -313,6 +345,7 @@ def read_sensor_model(prim) -> SensorModel:
             netd_note=str(prim.GetAttribute(S.SENSOR_NETD).GetCustomDataByKey("humv:netdScaling") or "")
             if prim.GetAttribute(S.SENSOR_NETD)
             else "",
+            **chain,
         )
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None
