@@ -42,9 +42,10 @@ screenshots: setup
 	@$(PY) tools/editor_screenshots.py docs/editor
 
 # the manual (docs/, Sphinx + MyST + furo): reference pages generated from the sources at build
-# time; warnings are errors, every cross-reference must resolve (-n), offline
+# time (-E: read every page again, so code changes show); warnings are errors, every
+# cross-reference must resolve (-n); offline
 docs: setup
-	@$(PY) -m sphinx -W --keep-going -n -q -b html docs build/docs/html
+	@$(PY) -m sphinx -E -W --keep-going -n -q -b html docs build/docs/html
 	@echo "docs: build/docs/html/index.html"
 
 clean:

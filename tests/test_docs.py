@@ -72,9 +72,9 @@ def test_scenario_entries_state_range_and_default():
 
     text = humv_docs.scenario_rst()
     lat = text.split(".. scenario-key:: general.latitude_deg", 1)[1].split(".. scenario-key::", 1)[0]
-    assert ":unit: deg north" in lat and ":range: -90 … 90" in lat and "**required**" in lat
+    assert "**unit** deg north" in lat and "**range** -90 … 90" in lat and "**required**" in lat
     fps = text.split(".. scenario-key:: general.fps", 1)[1].split(".. scenario-key::", 1)[0]
-    assert f":default: ``{SECTIONS['general'].keys['fps'].default:g}``" in fps
+    assert f"**default** ``{SECTIONS['general'].keys['fps'].default:g}``" in fps
     # a choice lists every allowed value
     act = text.split(".. scenario-key:: human.activity", 1)[1].split(".. scenario-key::", 1)[0]
     for choice in SECTIONS["human"].keys["activity"].choices:
@@ -134,7 +134,7 @@ def test_every_schema_attribute_has_an_entry_with_unit_and_range():
         assert name in blocks, f"{cls}.{name} has no entry"
         # schema.usda's rule: every attribute doc ends with its Units and Range
         assert "Units:" in doc and "Range:" in doc, f"{cls}.{name}: doc without Units/Range"
-        assert ":unit:" in blocks[name] and ":range:" in blocks[name], f"{cls}.{name}"
+        assert "**unit**" in blocks[name] and "**range**" in blocks[name], f"{cls}.{name}"
 
 
 # ------------------------------------------------------------------------- the site (build)

@@ -89,6 +89,13 @@ def _table(header: list[str], rows: list[list[str]], widths: list[int] | None = 
     return out
 
 
+def facts(fields: list[tuple[str, str]]) -> str:
+    """``(label, value)`` pairs -> one line "**label** value · ..." (empty values left out; a
+    label without a value stands alone, e.g. **required**)."""
+    parts = [f"**{label}** {value}".strip() for label, value in fields if value or label == "required"]
+    return " · ".join(parts)
+
+
 def _number(x) -> str:
     if isinstance(x, float):
         if x == int(x) and abs(x) < 1e7:
@@ -157,7 +164,7 @@ def key_type(key) -> str:
 
 def key_default(key) -> str:
     if key.required:
-        return "**required**"
+        return "required"
     if key.default is None:
         return "(none)"
     value = key.default
@@ -235,15 +242,12 @@ def scenario_rst() -> str:
                 ("type", key_type(key)),
                 ("unit", inline(key_unit(name, key))),
                 ("range", key_range(key)),
-                ("default", key_default(key)),
+                ("default", key_default(key)) if not key.required else ("required", ""),
             ]
             if dotted in examples:
                 file, value = examples[dotted]
                 fields.append(("example", f"``{name} = {_toml_value(value)}`` ({file})"))
-            for label, value in fields:
-                if value:
-                    out.append(f"   :{label}: {value}")
-            out.extend(["", f"   {inline(key.doc)}", ""])
+            out.extend([f"   {facts(fields)}", "", f"   {inline(key.doc)}", ""])
         for sub_name, sub in sec.subsections.items():
             section(f"{prefix}.{sub_name}", sub, sub_name, "^")
 
@@ -263,13 +267,12 @@ def materials_rst() -> str:
         "broadband value. Each entry's sources follow the table.",
         "",
     ]
+    from humv_usd.catalog.garments import GARMENTS
+
+    worn = {g.fabric for g in GARMENTS.values()} | set(m.FABRICS) | set(m.EQUIPMENT)
     groups = (
-        (
-            "Surfaces and skin",
-            {k: v for k, v in m.LIBRARY.items() if k not in m.FABRICS and k not in m.EQUIPMENT},
-        ),
-        ("Fabrics", m.FABRICS),
-        ("Equipment", m.EQUIPMENT),
+        ("Skin and scene surfaces", {k: v for k, v in m.LIBRARY.items() if k not in worn}),
+        ("Fabrics and equipment", {k: v for k, v in m.LIBRARY.items() if k in worn}),
     )
     for title, group in groups:
         out.extend(_heading(title, "-"))
@@ -456,14 +459,13 @@ def schemas_rst() -> str:
         for name, a in info["attributes"].items():
             out.append(f".. schema-attr:: {name}")
             out.append("")
-            out.append(f"   :type: ``{a['type']}``")
-            if a["default"] is not None:
-                out.append(f"   :default: {_literal(a['default'])}")
-            if a["unit"]:
-                out.append(f"   :unit: {inline(a['unit'])}")
-            if a["range"]:
-                out.append(f"   :range: {inline(a['range'])}")
-            out.extend(["", f"   {inline(a['doc'])}", ""])
+            fields = [
+                ("type", f"``{a['type']}``"),
+                ("unit", inline(a["unit"])),
+                ("range", inline(a["range"])),
+                ("default", _literal(a["default"]) if a["default"] is not None else ""),
+            ]
+            out.extend([f"   {facts(fields)}", "", f"   {inline(a['doc'])}", ""])
     return "\n".join(out)
 
 
@@ -486,6 +488,15 @@ def cli_commands() -> list[str]:
     walk(main, "")
     return paths
 
+
+#: the files each generator reads (the page is rebuilt when one changes)
+SOURCES = {
+    "scenario": ["humv_usd/scenario/spec.py", "examples/*.toml"],
+    "materials": ["humv_usd/catalog/materials.py", "humv_usd/catalog/garments.py"],
+    "garments": ["humv_usd/catalog/garments.py", "humv_usd/catalog/materials.py"],
+    "sensors": ["humv_usd/catalog/sensors.py"],
+    "schemas": ["schemas/generatedSchema.usda"],
+}
 
 GENERATORS = {
     "scenario": scenario_rst,
@@ -511,6 +522,11 @@ def setup(app):
             name = self.arguments[0]
             if name not in GENERATORS:
                 raise self.error(f"humv-reference: unknown {name!r}; known: {', '.join(GENERATORS)}")
+            env = self.state.document.settings.env
+            env.note_dependency(__file__)
+            for pattern in SOURCES[name]:
+                for path in sorted(ROOT.glob(pattern)):
+                    env.note_dependency(str(path))
             text = GENERATORS[name]()
             source = f"<humv-reference {name}>"
             lines = StringList(text.splitlines(), source=source)
