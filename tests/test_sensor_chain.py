@@ -1,5 +1,6 @@
 """Sensor chain of real cores (issue 28): plateau AGC, artefact stages (vignetting, bolometer lag,
-fixed-pattern noise and its drift, quantisation, JPEG). Expectations are closed forms or hand-worked histograms."""
+fixed-pattern noise and its drift, quantisation, JPEG), the thermal-core presets and the one
+field-of-view formula. Expectations are closed forms or hand-worked histograms."""
 
 from __future__ import annotations
 
@@ -11,18 +12,19 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.catalog import sensors as presets
+from humv_usd.editor.plan import horizontal_fov_deg
 from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel, apply_chain
 from humv_usd.scenario import validate
 from humv_usd.sensors import layer as sensors_layer
-from humv_usd.usd.sensor import read_sensor_model, write_sensor
+from humv_usd.usd.sensor import read_camera_pose, read_sensor_model, write_sensor
 
 
 def lwir(**over) -> SensorModel:
-    """The 640 x 512 12 um LWIR preset as a model at 160 x 128 px (233-373 K on 14 bits)."""
-    p = presets.preset("lwir640_12um")
-    gain, offset = presets.calibration("lwir640_12um")
+    """The Boson 640 preset as a model at 160 x 128 px (its calibration: 233-373 K on 14 bits)."""
+    p = presets.preset("boson640")
+    gain, offset = presets.calibration("boson640")
     kw = dict(
         name="t",
         band="LWIR",
@@ -352,6 +354,55 @@ def test_bad_chain_settings_name_the_key():
         lwir(time_constant_s=-1)
     with pytest.raises(ValueError, match="jpeg_quality = 200"):
         lwir(jpeg_quality=200)
+
+
+# ============================================================================ 3. presets and FOV
+NEW_PRESETS = ("boson320", "boson640", "tau2_640", "lepton35", "h20t_thermal")
+
+
+@pytest.mark.parametrize("name", [n for n, p in presets.PRESETS.items() if p.stated_fov_deg is not None])
+def test_preset_field_of_view_matches_the_data_sheet_within_1_deg(name):
+    p = presets.preset(name)
+    w, h = p.resolution
+    n = w if p.stated_fov_axis == "horizontal" else math.hypot(w, h)
+    fov = math.degrees(2 * math.atan(n * p.pixel_pitch_um * 1e-3 / (2 * p.focal_length_mm)))
+    assert fov == pytest.approx(p.stated_fov_deg, abs=1.0)
+    got = p.fov_deg[0] if p.stated_fov_axis == "horizontal" else p.diagonal_fov_deg
+    assert got == pytest.approx(fov, rel=1e-12)
+
+
+def test_thermal_core_presets_carry_their_data_sheet_values():
+    assert set(NEW_PRESETS) <= set(presets.PRESETS)
+    tau2 = presets.preset("tau2_640")
+    assert (tau2.resolution, tau2.pixel_pitch_um) == ((640, 512), 17.0)
+    assert tau2.fov_deg == pytest.approx((45.0, 37.0), abs=0.5)  # FLIR ADAS: 45 x 37 deg
+    assert presets.preset("lepton35").resolution == (160, 120)
+    assert presets.preset("boson320").resolution == (320, 256)
+    h20t = presets.preset("h20t_thermal")
+    assert (h20t.resolution, h20t.pixel_pitch_um, h20t.focal_length_mm) == ((640, 512), 12.0, 13.5)
+    for name in NEW_PRESETS:
+        p = presets.preset(name)
+        assert p.band == "LWIR" and p.netd_k <= 0.05 and p.agc == "plateau" and p.frame_rate_hz > 0
+        assert p.stated_fov_deg is not None and len(p.source) > 150
+
+
+def test_every_field_of_view_reader_agrees(raw):
+    """Presets, the sensor model, the camera prim (aperture / focal length) and the editor's plan
+    all give 2 atan(n p / 2 f) for each preset."""
+    raw["sensor"] = [
+        {"id": name, "preset": name, "position_m": [0.0, -15.0, 1.6], "look_at_m": [0.0, 0.0, 1.0]}
+        for name in presets.PRESETS
+    ]
+    scenario = validate(raw)
+    stage = Usd.Stage.Open(sensors_layer.build(scenario))
+    for s in scenario["sensor"]:
+        p = presets.preset(s["preset"])
+        expected = math.degrees(2 * math.atan(p.resolution[0] * p.pixel_pitch_um / (2e3 * p.focal_length_mm)))
+        prim = stage.GetPrimAtPath(f"/World/Sensors/{s['id']}")
+        assert p.fov_deg[0] == pytest.approx(expected, rel=1e-9)
+        assert read_sensor_model(prim).fov_deg[0] == pytest.approx(expected, rel=1e-6)
+        assert read_camera_pose(prim, Usd.TimeCode.Default()).fov_x_deg == pytest.approx(expected, rel=1e-6)
+        assert horizontal_fov_deg(s) == pytest.approx(expected, rel=1e-9)
 
 
 def test_write_sensor_authors_chain_settings_only_when_given():

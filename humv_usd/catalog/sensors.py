@@ -1,4 +1,6 @@
-"""Sensor presets: the four imagers of the seed's HUMVVEX experiment (EO colour, MWIR, 2 x LWIR).
+"""Sensor presets: the four imagers of the seed's HUMVVEX experiment (EO colour, MWIR, 2 x LWIR)
+and common thermal cores and cameras (FLIR Boson 320 / 640, Tau 2 640 as on the FLIR ADAS car,
+Lepton 3.5, the DJI Zenmuse H20T's thermal camera).
 
 A ``[[sensor]]`` table with ``preset = "<name>"`` takes every value below unless the table gives
 it. Each preset names its sources; values marked *typical* are representative of the class of
@@ -16,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from humv_usd.physics.sensor import SensorModel, default_gain_offset
+from humv_usd.physics.sensor import SensorModel, default_gain_offset, field_of_view_deg
 
 PLATFORMS = ("tripod", "mast", "aerial")
 
@@ -44,13 +46,25 @@ class SensorPreset:
     gain: float | None = None  # None: IR calibration span / EO auto exposure
     offset: float | None = None
     span_k: tuple[float, float] = (233.15, 373.15)  # IR: blackbody range mapped to 0..full scale [K]
+    #: The field of view the source states [deg] and along which axis ("horizontal" or
+    #: "diagonal"); None where the lens is typical rather than a data-sheet one.
+    stated_fov_deg: float | None = None
+    stated_fov_axis: str = "horizontal"
+    frame_rate_hz: float | None = None  # the core's full frame rate (informative)
 
     @property
     def fov_deg(self) -> tuple[float, float]:
-        """Full horizontal and vertical field of view [deg] = 2 atan(n p / 2 f)."""
+        """Full horizontal and vertical field of view [deg] = 2 atan(n p / 2 f)
+        (:func:`humv_usd.physics.sensor.field_of_view_deg`)."""
         w, h = self.resolution
-        p, f = self.pixel_pitch_um * 1e-3, self.focal_length_mm
-        return (math.degrees(2 * math.atan(0.5 * w * p / f)), math.degrees(2 * math.atan(0.5 * h * p / f)))
+        p, f = self.pixel_pitch_um * 1e-6, self.focal_length_mm * 1e-3
+        return (field_of_view_deg(w * p, f), field_of_view_deg(h * p, f))
+
+    @property
+    def diagonal_fov_deg(self) -> float:
+        """Full diagonal field of view [deg]."""
+        w, h = self.resolution
+        return field_of_view_deg(math.hypot(w, h) * self.pixel_pitch_um * 1e-6, self.focal_length_mm * 1e-3)
 
 
 def _gauss_channel(wl, peak_um, sigma_um, cut_um=0.650, cut_width_um=0.010):
@@ -74,6 +88,9 @@ def _rgb_curves():
 
 
 _RGB_WL, _RGB_ENVELOPE, _RGB_CHANNELS = _rgb_curves()
+#: Relative response of FLIR's 7.5-13.5 um VOx cores (germanium window + absorber; typical shape)
+_BOSON_WL = (7.5, 8.0, 8.5, 9.0, 12.0, 12.5, 13.0, 13.5)
+_BOSON_RESPONSE = (0.5, 0.85, 0.97, 1.0, 1.0, 0.95, 0.8, 0.5)
 
 PRESETS: dict[str, SensorPreset] = {
     p.name: p
@@ -113,6 +130,8 @@ PRESETS: dict[str, SensorPreset] = {
             netd_k=0.05,
             bit_depth=14,
             agc="plateau",
+            stated_fov_deg=24.0,
+            frame_rate_hz=60.0,
             source="640x512, 12 um VOx, 7.5-13.5 um, NETD < 50 mK (industrial grade < 40 mK), "
             "18 mm f/1.0 lens HFOV 24 deg, 14-bit pre-AGC video and plateau-equalisation AGC: "
             "Teledyne FLIR Boson product datasheet (2019); response shape typical, not "
@@ -133,13 +152,124 @@ PRESETS: dict[str, SensorPreset] = {
             bit_depth=14,
             agc="plateau",
             span_k=(253.15, 328.15),
+            stated_fov_deg=11.0,
             source="InSb 640x512, 15 um pitch, 3-5 um, NETD < 20 mK, 14-bit, f/2.5 cold stop, "
             "lowest calibrated range -20 to +55 degC (the counts span here): "
             "Teledyne FLIR X6900sc / A6750sc MWIR data sheets (typical of cooled InSb "
             "science cameras); response = photon detector with flat quantum efficiency, "
             "relative per-watt response proportional to wavelength (Dereniak & Boreman 1996, "
             "Infrared Detectors and Systems, §4), band-limited by the cold filter (edges "
-            "typical); 50 mm lens (HFOV 11.0 deg) typical",
+            "typical); 50 mm lens: 11 x 8.8 deg field of view in the A6750sc lens table",
+        ),
+        SensorPreset(
+            name="boson320",
+            description="FLIR Boson 320: uncooled VOx LWIR core, 320x256, 12 um, 6.3 mm lens (34 deg HFOV)",
+            band="LWIR",
+            wavelength_um=(7.5, 13.5),
+            response_wavelengths_um=_BOSON_WL,
+            response=_BOSON_RESPONSE,
+            resolution=(320, 256),
+            pixel_pitch_um=12.0,
+            focal_length_mm=6.3,
+            f_number=1.0,
+            netd_k=0.05,
+            bit_depth=14,
+            agc="plateau",
+            stated_fov_deg=34.0,
+            frame_rate_hz=60.0,
+            source="320x256, 12 um uncooled VOx, 7.5-13.5 um, NETD < 50 mK (as low as < 40 mK) at "
+            "f/1.0, 60 Hz (8.6 Hz export), 14-bit pre-AGC video, plateau AGC, 6.3 mm lens "
+            "with 34 deg HFOV: Teledyne FLIR Boson datasheet 102-2013-40 (2021), lens table; "
+            "f/1.0 and the response shape typical",
+        ),
+        SensorPreset(
+            name="boson640",
+            description="FLIR Boson 640: uncooled VOx LWIR core, 640x512, 12 um, 18 mm lens (24 deg HFOV)",
+            band="LWIR",
+            wavelength_um=(7.5, 13.5),
+            response_wavelengths_um=_BOSON_WL,
+            response=_BOSON_RESPONSE,
+            resolution=(640, 512),
+            pixel_pitch_um=12.0,
+            focal_length_mm=18.0,
+            f_number=1.0,
+            netd_k=0.05,
+            bit_depth=14,
+            agc="plateau",
+            stated_fov_deg=24.0,
+            frame_rate_hz=60.0,
+            source="640x512, 12 um uncooled VOx, 7.5-13.5 um, NETD < 50 mK at f/1.0, 60 Hz "
+            "(8.6 Hz export), 14-bit pre-AGC video, plateau AGC, 18 mm lens with 24 deg "
+            "HFOV: Teledyne FLIR Boson datasheet 102-2013-40 (2021), lens table; response "
+            "shape typical",
+        ),
+        SensorPreset(
+            name="tau2_640",
+            description="FLIR Tau 2 640: uncooled VOx LWIR core, 640x512, 17 um, 13 mm f/1.0 lens "
+            "(45 x 37 deg; the FLIR ADAS dataset's camera)",
+            band="LWIR",
+            wavelength_um=(7.5, 13.5),
+            response_wavelengths_um=_BOSON_WL,
+            response=_BOSON_RESPONSE,
+            resolution=(640, 512),
+            pixel_pitch_um=17.0,
+            focal_length_mm=13.0,
+            f_number=1.0,
+            netd_k=0.05,
+            bit_depth=14,
+            agc="plateau",
+            stated_fov_deg=45.0,
+            frame_rate_hz=30.0,
+            source="640x512, 17 um uncooled VOx, 7.5-13.5 um, NETD < 50 mK at f/1.0, 30 Hz "
+            "(9 Hz export), 14-bit, plateau-equalisation AGC: FLIR Tau 2 product "
+            "specification 102-PS242-40; 13 mm f/1.0 lens, HFOV 45 deg x VFOV 37 deg: FLIR "
+            "ADAS thermal dataset description (Teledyne FLIR, 2018/2022); response shape "
+            "typical",
+        ),
+        SensorPreset(
+            name="lepton35",
+            description="FLIR Lepton 3.5: radiometric uncooled LWIR module, 160x120, 12 um, 57 deg HFOV",
+            band="LWIR",
+            wavelength_um=(8.0, 14.0),
+            response_wavelengths_um=(8.0, 8.5, 9.0, 11.0, 12.5, 13.0, 13.5, 14.0),
+            response=(0.85, 0.97, 1.0, 1.0, 0.97, 0.9, 0.75, 0.55),
+            resolution=(160, 120),
+            pixel_pitch_um=12.0,
+            focal_length_mm=1.77,
+            f_number=1.1,
+            netd_k=0.05,
+            bit_depth=14,
+            agc="plateau",
+            stated_fov_deg=57.0,
+            frame_rate_hz=8.7,
+            source="160x120, 12 um, 8-14 um, NETD < 50 mK, 57 deg HFOV, f/1.1 silicon doublet, "
+            "< 9 Hz, 14-bit (Raw14), histogram-equalisation AGC with clip limit: FLIR Lepton "
+            "Engineering Datasheet 500-0659-00-09; the data sheet states no focal length: "
+            "1.77 mm is the pinhole focal length giving 57 deg over 160 x 12 um (the real "
+            "lens has barrel distortion); response shape typical",
+        ),
+        SensorPreset(
+            name="h20t_thermal",
+            description="DJI Zenmuse H20T thermal camera: uncooled VOx, 640x512, 12 um, 13.5 mm f/1.0 "
+            "(40.6 deg diagonal)",
+            band="LWIR",
+            wavelength_um=(8.0, 14.0),
+            response_wavelengths_um=(8.0, 8.5, 9.0, 11.0, 12.5, 13.0, 13.5, 14.0),
+            response=(0.85, 0.97, 1.0, 1.0, 0.97, 0.9, 0.75, 0.55),
+            resolution=(640, 512),
+            pixel_pitch_um=12.0,
+            focal_length_mm=13.5,
+            f_number=1.0,
+            netd_k=0.05,
+            bit_depth=14,
+            agc="plateau",
+            stated_fov_deg=40.6,
+            stated_fov_axis="diagonal",
+            frame_rate_hz=30.0,
+            source="Uncooled VOx microbolometer 640x512, 12 um pitch, 8-14 um, NETD <= 50 mK at "
+            "f/1.0, 13.5 mm lens, DFOV 40.6 deg, 30 Hz: DJI Zenmuse H20 series specifications "
+            "(dji.com/zenmuse-h20-series/specs, 2020); 14-bit counts and the response shape "
+            "typical",
         ),
         SensorPreset(
             name="rgb_imx273",

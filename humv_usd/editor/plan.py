@@ -14,15 +14,17 @@ from html import escape
 import numpy as np
 
 from humv_usd.catalog.sensors import orbit_positions
+from humv_usd.physics.sensor import field_of_view_deg
 from humv_usd.scenario.load import Scenario
 
 _SENSOR_COLOURS = {"LWIR": "#d62728", "MWIR": "#ff7f0e", "EO": "#1f77b4"}
 
 
 def horizontal_fov_deg(sensor: dict) -> float:
-    """Full horizontal field of view of a pinhole camera [deg]: 2·atan(w·p / 2f)."""
+    """Full horizontal field of view of a pinhole camera [deg]: 2·atan(w·p / 2f)
+    (:func:`humv_usd.physics.sensor.field_of_view_deg`)."""
     width_m = sensor["resolution"][0] * sensor["pixel_pitch_um"] * 1e-6
-    return math.degrees(2.0 * math.atan(width_m / (2.0 * sensor["focal_length_mm"] * 1e-3)))
+    return field_of_view_deg(width_m, sensor["focal_length_mm"] * 1e-3)
 
 
 def sensor_position(sensor: dict) -> np.ndarray:

@@ -45,7 +45,17 @@ BANDS = ("EO", "MWIR", "LWIR")
 #: bands a user may ask for that are not rendered yet (the one-render-pass issue 24): named
 #: as such instead of a did-you-mean ("SWIR" was answered with "did you mean 'MWIR'?")
 BANDS_NOT_YET = {"SWIR": "0.9-1.7 µm", "NIR": "0.75-1.4 µm", "VNIR": "0.4-1.0 µm", "UV": "< 0.4 µm"}
-SENSOR_PRESETS = ("atom1024_lwir", "lwir640_12um", "mwir_insb640", "rgb_imx273")  # sensors.presets
+SENSOR_PRESETS = (  # humv_usd.catalog.sensors.PRESETS
+    "atom1024_lwir",
+    "lwir640_12um",
+    "mwir_insb640",
+    "boson320",
+    "boson640",
+    "tau2_640",
+    "lepton35",
+    "h20t_thermal",
+    "rgb_imx273",
+)
 PLATFORMS = ("tripod", "mast", "aerial")
 AGC_MODES = ("none", "linear", "histogram", "plateau")  # = humv_usd.physics.sensor.AGC_MODES
 VIGNETTING_MODES = ("none", "cos4")  # = humv_usd.physics.sensor.VIGNETTING_MODES

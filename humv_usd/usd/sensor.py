@@ -18,7 +18,7 @@ from pxr import Gf, Usd, UsdGeom, Vt
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.camera import CameraPose
-from humv_usd.physics.sensor import SensorModel
+from humv_usd.physics.sensor import SensorModel, field_of_view_deg
 from humv_usd.scenario.spec import MAX_SUBBANDS
 from humv_usd.usd import schemas as S
 
@@ -385,7 +385,7 @@ def read_camera_pose(prim, time) -> CameraPose:
         )
     if cam.horizontalApertureOffset or cam.verticalApertureOffset:
         warnings.warn(f"{path}: aperture offsets are ignored by the renderer", RuntimeWarning, stacklevel=2)
-    fov_x = math.degrees(2.0 * math.atan(0.5 * h_ap / focal))
+    fov_x = field_of_view_deg(h_ap, focal)  # aperture and focal length in the same unit
     if not 0 < fov_x < 179:
         raise InputError(
             bad_value(
