@@ -400,14 +400,12 @@ def test_one_dataset_out(reference):
     )
     sheet = images.read_exr(dataset / "card" / "contact_cam.png")
     assert sheet["R"].shape == (2 * 26, 4 * 34)
-    labels = sorted((dataset / "yolo" / "detect" / "cam" / "labels").glob("*.txt"))
+    labels = sorted((dataset / "yolo" / "detect" / "cam" / "labels").rglob("*.txt"))
     assert len(labels) == 8
     n_lines = sum(len(p.read_text().splitlines()) for p in labels)
-    assert n_lines == len(coco.dataset["annotations"])
-    x = np.array(
-        [[float(v) for v in line.split()[1:]] for p in labels for line in p.read_text().splitlines()]
-    )
-    assert (x >= 0).all() and (x <= 1).all()
+    # detection is of objects (person, prop, panel, vehicle, other): the tiny scene's ground and
+    # building box are stuff, in the masks only (they were 72 of 113 boxes, often image-wide)
+    assert n_lines == 0 and {a["category_id"] for a in coco.dataset["annotations"]} == {2, 3}
 
 
 # Ultralytics' reading of a YOLO dataset (ultralytics/data/utils.py: check_det_dataset,
@@ -501,11 +499,12 @@ def test_yolo_export_reads_as_ultralytics_reads_it_from_anywhere(person_dataset,
     for task in ("detect", "pose"):
         yaml_file = os.path.relpath(dataset / "yolo" / task / "cam" / "data.yaml")
         read = _ultralytics_read(yaml_file, task, datasets_dir=tmp_path / "ultralytics_datasets")
-        assert len(read) == 2 * len(coco["images"])  # train and val are the same images
+        # one variant: all in train, and val falls back to train (Ultralytics needs a val)
+        assert len(read) == 2 * len(coco["images"])
         rows = np.concatenate([lb for _, lb in read[: len(coco["images"])]])
         people = [a for a in coco["annotations"] if a["category_id"] == 1]
-        assert people and len(people) < len(coco["annotations"])  # a person and the box
-        assert len(rows) == (len(people) if task == "pose" else len(coco["annotations"]))
+        assert people and len(people) < len(coco["annotations"])  # a person, the box and ground
+        assert len(rows) == len(people)  # detect: objects only (the box is a building)
         if task == "pose":  # visible keypoints of the people, in pixels again, as in COCO
             w, h = coco["images"][0]["width"], coco["images"][0]["height"]
             kp = rows[:, 5:].reshape(-1, 17, 3)
@@ -731,3 +730,113 @@ def test_a_local_cluster_does_not_fight_another_for_port_8787():
             ex.close()
     finally:
         holder.close()
+
+
+@pytest.mark.slow
+def test_splits_by_variant_in_every_export(reference):
+    """One split per variant (train 2, val 1, test 1 of 4 variants), the same in the index, the
+    COCO split files and the YOLO folders; every export's image is the sensor chain's 8-bit
+    image; COCO file names stay under coco/ (FiftyOne joins them to an images folder)."""
+    from pycocotools.coco import COCO
+
+    _, _, dataset, _ = reference
+    index = json.loads((dataset / "dataset.json").read_text())["index"]
+    split_of = {r["variant"]: r["split"] for r in index}
+    assert sorted(split_of.values()) == ["test", "train", "train", "val"]
+    assert all(r["split"] == split_of[r["variant"]] for r in index)  # never by frame
+    assert all(r["image"].endswith("_image8.png") for r in index)
+    full = json.loads((dataset / "coco" / "cam.json").read_text())
+    for split in ("train", "val", "test"):
+        doc = COCO(str(dataset / "coco" / f"cam_{split}.json")).dataset
+        variants = {img["humv_variant"] for img in doc["images"]}
+        assert variants == {v for v, s in split_of.items() if s == split}
+        ids = {img["id"] for img in doc["images"]}
+        assert {a["image_id"] for a in doc["annotations"]} <= ids
+        assert len(doc["annotations"]) == sum(a["image_id"] in ids for a in full["annotations"])
+        yolo = {
+            p.stem.split("_")[0]
+            for p in (dataset / "yolo" / "detect" / "cam" / "images" / split).glob("*.png")
+        }
+        assert yolo == variants
+    for img in full["images"]:
+        assert ".." not in img["file_name"] and img["file_name"].startswith("images/cam/")
+        row = next(r for r in index if r["coco_image_id"] == img["id"])
+        assert (dataset / "coco" / img["file_name"]).read_bytes() == (dataset / row["image"]).read_bytes()
+    data = (dataset / "yolo" / "detect" / "cam" / "data.yaml").read_text()
+    assert "train: images/train\nval: images/val\ntest: images/test\n" in data
+
+
+@pytest.mark.slow
+def test_dataset_check_reads_it_as_the_consumers_do(reference, tmp_path, monkeypatch):
+    """pycocotools (keypoint and box COCOeval on the file), Hugging Face datasets from another
+    working directory, the YOLO layout rules: no problem; a broken copy is reported."""
+    import shutil
+
+    from humv_usd.sweep.check import check_dataset, load_index
+
+    _, _, dataset, _ = reference
+    monkeypatch.chdir(tmp_path)
+    assert check_dataset(dataset) == []
+    ds = load_index(os.path.relpath(dataset), split="train", images=True)
+    assert ds.num_rows == 4 and set(ds["split"]) == {"train"}
+    assert ds[0]["image"].size == (32, 24)  # decoded by datasets.Image() from another folder
+    result = CliRunner().invoke(main, ["dataset", "check", str(dataset)])
+    assert result.exit_code == 0, result.output
+    broken = tmp_path / "broken"
+    shutil.copytree(dataset, broken, symlinks=True)
+    doc = json.loads((broken / "coco" / "cam.json").read_text())
+    for a in doc["annotations"]:
+        a.pop("num_keypoints")
+    doc["images"][0]["file_name"] = "../renders/x.png"
+    (broken / "coco" / "cam.json").write_text(json.dumps(doc))
+    (broken / "yolo" / "detect" / "cam" / "data.yaml").write_text("names: {0: person}\n")
+    problems = check_dataset(broken)
+    assert any("leaves the COCO folder" in p for p in problems)
+    assert any("without num_keypoints" in p for p in problems)
+    assert any("data.yaml: no 'train'" in p for p in problems)
+    result = CliRunner().invoke(main, ["dataset", "check", str(broken)])
+    assert result.exit_code == 1
+
+
+@pytest.mark.slow
+def test_keypoint_evaluation_runs_on_the_exported_coco(person_dataset):
+    """COCOeval(..., 'keypoints') on the export (it raised KeyError: 'num_keypoints' on the
+    ground and building annotations): the people's own keypoints score OKS AP 1."""
+    import contextlib
+    import io
+
+    from pycocotools.coco import COCO
+    from pycocotools.cocoeval import COCOeval
+
+    gt = COCO(str(person_dataset / "coco" / "cam.json"))
+    people = [dict(a, score=1.0) for a in gt.dataset["annotations"] if a["category_id"] == 1]
+    assert people and all("num_keypoints" in a for a in gt.dataset["annotations"])
+    with contextlib.redirect_stdout(io.StringIO()):
+        ev = COCOeval(gt, gt.loadRes(people), "keypoints")
+        ev.evaluate()
+        ev.accumulate()
+        ev.summarize()
+    assert ev.stats[0] == pytest.approx(1.0)
+
+
+def test_dataset_section_is_checked(tmp_path):
+    bad = SWEEP + '\n[dataset]\nsplit = { train = 0.5, val = 0.6 }\nimage = "jpeg"\nstratify = ["nope"]\n'
+    problems = _problems(tmp_path, bad)
+    assert any("dataset.split" in p and "summing to 1" in p for p in problems)
+    assert any("dataset.image" in p and "image8" in p for p in problems)
+    good = SWEEP + '\n[dataset]\nsplit = { train = 0.5, val = 0.5 }\nimage = "counts16"\n'
+    sweep = load_sweep(_write(tmp_path, good))
+    assert sweep.dataset["split"] == {"train": 0.5, "val": 0.5, "test": 0.0}
+    assert sweep.dataset["image"] == "counts16"
+
+
+def test_vector_parameters_are_lists_in_the_index():
+    from types import SimpleNamespace
+
+    from humv_usd.sweep.dataset import _param_columns
+
+    variants = [
+        SimpleNamespace(id=f"v{i}", params={"sensor.0.position_m": [0.0, -8.0 + i, 1.6]}) for i in range(2)
+    ]
+    col = _param_columns(variants)["param_sensor_0_position_m"]
+    assert col == {"v0": [0.0, -8.0, 1.6], "v1": [0.0, -7.0, 1.6]}

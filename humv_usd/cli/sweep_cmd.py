@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
 import click
 
 from humv_usd.cli.common import reports_errors
+from humv_usd.errors import InputError
 
 #: Seconds between the status lines printed when stderr is not a terminal (a batch job's log).
 LOG_EVERY_S = 60.0
@@ -297,6 +299,33 @@ def bench_sweep(
     click.echo(json.dumps(report, indent=2))
 
 
+@click.group()
+def dataset():
+    """Sweep datasets: check one the way its consumers read it."""
+
+
+@dataset.command("check")
+@click.argument("dataset_dir", type=click.Path(file_okay=False, path_type=Path))
+@reports_errors
+def dataset_check(dataset_dir: Path):
+    """Read DATASET_DIR as pycocotools (load, COCOeval for boxes and keypoints), Hugging Face
+    datasets (the index, its split column and paths) and Ultralytics (the YOLO layout rules)
+    read it; print each problem, exit 1 when there are any (2: not a dataset)."""
+    from humv_usd.sweep.check import check_dataset
+
+    if not dataset_dir.is_dir():
+        raise InputError(f"dataset check: {dataset_dir}: not a folder")
+    problems = check_dataset(dataset_dir)
+    if problems and problems[0].endswith("not assembled yet)"):
+        raise InputError(problems[0])
+    for line in problems:
+        click.echo(f"{dataset_dir}: {line}", err=True)
+    if problems:
+        sys.exit(1)
+    click.echo(f"{dataset_dir}: ok (pycocotools, Hugging Face datasets and the YOLO layout rules read it)")
+
+
 def register(main, bench) -> None:
     main.add_command(sweep)
+    main.add_command(dataset)
     bench.add_command(bench_sweep)

@@ -4,7 +4,8 @@ One file per render (``RENDER_DIR/coco.json``): one COCO image per sensor and fr
 ``file_name`` is the frame's PNG preview, relative to the render folder), one annotation per
 object with visible pixels: ``segmentation`` (compressed RLE from ``pycocotools.mask.encode``),
 ``area`` (visible pixels), ``bbox`` [x, y, w, h] of the visible mask (COCO's convention),
-``iscrowd`` 0, and for persons ``keypoints`` / ``num_keypoints`` (COCO-17). HumV extras on each
+``iscrowd`` 0, for persons ``keypoints`` (COCO-17) and ``num_keypoints`` on every annotation
+(0 where there are none: pycocotools' keypoint evaluation reads it from all). HumV extras on each
 annotation: ``humv_instance_id``, ``humv_prim``, ``bbox_full`` [x, y, w, h] (projected geometry,
 occluded parts included), ``bbox_3d`` (world AABB [m]), ``bbox_3d_oriented`` (yaw-only oriented box: centre, size,
 yaw, corners in world and image, see :mod:`humv_usd.groundtruth.boxes`), ``occlusion``. Category ids are
@@ -101,6 +102,8 @@ class CocoBuilder:
             kp = obj["keypoints"]
             ann["keypoints"] = kp
             ann["num_keypoints"] = int(sum(1 for v in kp[2::3] if v > 0))
+        else:  # pycocotools' keypoint evaluation reads num_keypoints of every annotation
+            ann["num_keypoints"] = 0
         self.annotations.append(ann)
 
     def document(self) -> dict:

@@ -4,12 +4,20 @@ Written into DATASET/ (rebuilt from ``renders/`` on every run, so it always list
 finished tasks, in variant and frame order; a local folder or an fsspec URL, read and written
 through :class:`humv_usd.sweep.where.Location`):
 
-* ``coco/<sensor>.json`` -- one COCO file per sensor over every variant: image and annotation
-  ids unique and sequential, ``file_name`` / ``humv_exr`` / ``humv_camera`` relative to
-  ``coco/``, ``humv_variant`` on each image (labels only: byte-identical between an interrupted
-  and an uninterrupted sweep);
-* ``index.parquet`` and ``dataset.json`` -- one row per variant, frame and sensor: the variant's
-  parameters (``param_<axis>`` columns), frame, sensor, band, paths (relative to DATASET/),
+* splits by variant (``[dataset] split``, ``split_seed``, ``stratify``: :func:`assign_splits`;
+  a variant's frames are near-duplicates, so a split by frame would measure training-set
+  accuracy), the same in every export; one training image per record (``[dataset] image``:
+  the sensor chain's 8-bit image by default) used by COCO, YOLO and the index alike;
+* ``coco/<sensor>.json`` and ``coco/<sensor>_<split>.json`` -- COCO files per sensor over
+  every variant / per split: image and annotation ids unique and sequential (a split file keeps
+  the full file's ids), ``file_name`` = ``images/<sensor>/<variant>_<frame>.png`` under
+  ``coco/`` (hard links to the training images; COCO tools and FiftyOne join it to that
+  folder), ``humv_exr`` / ``humv_camera`` relative to ``coco/``, ``humv_variant`` and
+  ``humv_split`` on each image, ``num_keypoints`` on every annotation;
+* ``index.parquet`` (and ``index_<split>.parquet``) and ``dataset.json`` -- one row per
+  variant, frame and sensor: the variant's split and parameters (``param_<axis>`` columns;
+  vectors as lists), frame, sensor, band, paths (relative to DATASET/; :func:`humv_usd.sweep.check.load_index`
+  loads them absolute from anywhere),
   run time per image [s], Monte Carlo error (IR: mean and 99th percentile of the standard error
   in K away from geometric edges, the render's NETD/3 criterion; EO: of Y relative to mean Y);
 * ``README.md`` -- the dataset card: counts, parameter distributions (``card/params.png``),
@@ -19,8 +27,15 @@ through :class:`humv_usd.sweep.where.Location`):
   reads the header too, but datasets 4.0 caches a folder with a header by its name and header
   only: a resumed sweep's new rows, or another folder of the same name, come back stale);
 * ``yolo/detect/<sensor>/`` and ``yolo/pose/<sensor>/`` -- Ultralytics YOLO exports (images are
-  hard links to the 8-bit sensor images, copies on an object store; labels normalised ``class cx cy w h`` and, for pose,
-  the 17 COCO keypoints ``x y v``; ``data.yaml`` without ``path``, so the root is its folder).
+  hard links to the training images, copies on an object store, under ``images/<split>/``,
+  labels under ``labels/<split>/``; detect: the ``[dataset] detect_classes`` (objects: person,
+  prop, panel, vehicle, other by default; ground, building and vegetation are in the masks
+  only) numbered from 0 in that order, normalised ``class cx cy w h``; pose: persons with the
+  17 COCO keypoints ``x y v``; ``data.yaml`` names train/val/test and has no ``path``, so the
+  root is its folder).
+
+``humv-usd dataset check DATASET`` reads it as pycocotools, Hugging Face datasets and
+Ultralytics do (:mod:`humv_usd.sweep.check`).
 """
 
 from __future__ import annotations
@@ -36,6 +51,7 @@ from humv_usd import images
 from humv_usd.fileio import jsonable
 from humv_usd.groundtruth.coco import RELATIVE_PATH_KEYS, categories
 from humv_usd.groundtruth.labels import CLASSES
+from humv_usd.sweep.spec import SPLITS
 from humv_usd.sweep.where import Location
 
 #: COCO-17 keypoint order mirrored left/right (YOLO pose ``flip_idx``)
@@ -45,6 +61,47 @@ CONTACT_TILES = 16
 #: (``check_det_dataset``); a relative ``path: .`` would resolve against the working directory
 #: (or, in older releases, Ultralytics' ``datasets_dir``), not this folder
 YOLO_ROOT_NOTE = "# Ultralytics YOLO dataset: the root is this file's folder (no 'path' key)\n"
+
+
+def assign_splits(variants, fractions: dict, seed: int = 0, stratify=()) -> dict[str, str]:
+    """{variant id: split} for train/val/test fractions (issue 27: splits by variant, since a
+    variant's frames are near-duplicates).
+
+    The variants are shuffled (``numpy.random.default_rng(seed)``) and grouped by their options
+    on the ``stratify`` axes; walking the groups in turn, each variant goes to the split with
+    the largest deficit against its fraction so far (a Bresenham-like quota), so every stratum is
+    shared out in proportion and the totals are exact to one variant. Splits with a non-zero
+    fraction get at least one variant while there are variants to spare (train first, then
+    val, then test): Ultralytics needs a non-empty val."""
+    ids = [v.id for v in variants]
+    if not ids:
+        return {}
+    rng = np.random.default_rng(seed)
+    order = list(rng.permutation(len(ids)))
+    key = {v.id: tuple(str(v.params.get(a)) for a in stratify) for v in variants}
+    groups: dict[tuple, list[str]] = defaultdict(list)
+    for i in order:
+        groups[key[ids[i]]].append(ids[i])
+    names = [s for s in ("train", "val", "test") if fractions.get(s, 0.0) > 0]
+    count = dict.fromkeys(names, 0)
+    out: dict[str, str] = {}
+    n = 0
+    for group in sorted(groups, key=str):
+        for vid in groups[group]:
+            n += 1
+            best = max(names, key=lambda s: (fractions[s] * n - count[s], -names.index(s)))
+            out[vid] = best
+            count[best] += 1
+    for need in names:  # a split with a fraction but no variant takes one from the largest
+        if count[need] == 0:
+            donor = max(names, key=lambda s: count[s])
+            if count[donor] < 2:
+                break
+            vid = next(v for v in reversed(list(out)) if out[v] == donor)
+            out[vid] = need
+            count[donor] -= 1
+            count[need] += 1
+    return out
 
 
 def _chunks(loc: Location, tasks) -> list[tuple[object, str]]:
@@ -59,7 +116,8 @@ def _chunks(loc: Location, tasks) -> list[tuple[object, str]]:
 
 
 def _param_columns(variants) -> dict[str, dict[str, object]]:
-    """``param_<name>`` -> {variant id: value}; a column of mixed types becomes text."""
+    """``param_<name>`` -> {variant id: value}; vectors stay lists of numbers; a column of mixed
+    types becomes text."""
     columns: dict[str, dict[str, object]] = defaultdict(dict)
     for v in variants:
         for name, value in v.params.items():
@@ -67,11 +125,30 @@ def _param_columns(variants) -> dict[str, dict[str, object]]:
     for name, values in columns.items():
         kinds = {type(x) for x in values.values() if x is not None}
         numeric = kinds <= {int, float} and kinds
-        if not numeric and kinds != {str} and kinds != {bool}:
+        vectors = kinds == {list} and all(
+            all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+            for v in values.values()
+            if v is not None
+        )
+        if vectors:
+            columns[name] = {k: None if v is None else [float(x) for x in v] for k, v in values.items()}
+        elif not numeric and kinds != {str} and kinds != {bool}:
             columns[name] = {
                 k: json.dumps(x) if not isinstance(x, str) and x is not None else x for k, x in values.items()
             }
     return columns
+
+
+def _training_image(fr: dict, choice: str) -> str:
+    """The frame's image file (relative to its render folder) for ``[dataset] image``: the sensor
+    chain's 8-bit image, its 16-bit counts (infrared) or the render's preview; the preview where
+    the chosen one was not written (EO has no counts image)."""
+    chain = fr.get("sensor_chain") or {}
+    if choice == "counts16" and chain.get("counts_png"):
+        return chain["counts_png"]
+    if choice != "preview" and chain.get("image8_png"):
+        return chain["image8_png"]
+    return fr["png"]
 
 
 def assemble(dataset, sweep, tasks) -> dict:
@@ -80,8 +157,17 @@ def assemble(dataset, sweep, tasks) -> dict:
     loc = dataset if isinstance(dataset, Location) else Location(dataset)
     by_id = {v.id: v for v in sweep.variants}
     params = _param_columns(sweep.variants)
+    settings = getattr(sweep, "dataset", None) or {}
+    split_of = assign_splits(
+        sweep.variants,
+        settings.get("split", {"train": 0.8, "val": 0.1, "test": 0.1}),
+        settings.get("split_seed", 0),
+        settings.get("stratify", []),
+    )
+    choice = settings.get("image", "image8")
     rows: list[dict] = []
     coco: dict[str, dict] = {}
+    loc.remove("coco")
     for task, rel in _chunks(loc, tasks):
         manifest = loc.read_json(f"{rel}/manifest.json")
         record = loc.read_json(f"{rel}/task.json")
@@ -96,24 +182,34 @@ def assemble(dataset, sweep, tasks) -> dict:
                 err_k = fr.get("monte_carlo_error_k") or {}  # infrared, away from edges
                 err_rel = fr.get("monte_carlo_error_relative") or {}  # EO, away from edges
                 stem = fr["exr"].removesuffix(".exr")
+                image = f"{rel}/{_training_image(fr, choice)}"
+                coco_id = coco_ids.get((s["name"], fr["frame"]))
+                if coco_id:  # COCO's image: the training image, linked under coco/images/<sensor>/
+                    name = f"images/{s['name']}/{task.variant}_{int(fr['frame']):04d}.png"
+                    loc.copy(image, f"coco/{name}")
+                    entry = coco[s["name"]]["images"][coco_id - 1]
+                    entry.update(file_name=name, humv_split=split_of[task.variant])
                 row = {
                     "variant": task.variant,
                     "variant_index": by_id[task.variant].index,
+                    "split": split_of[task.variant],
                     "frame": fr["frame"],
                     "sensor": s["name"],
                     "band": s["band"],
-                    "image": f"{rel}/{chain.get('image8_png') or fr['png']}",
+                    "image": image,
                     "preview": f"{rel}/{fr['png']}",
                     "exr": f"{rel}/{fr['exr']}",
                     "counts": f"{rel}/{chain['counts_png']}" if chain.get("counts_png") else None,
                     "objects": f"{rel}/{stem}.objects.json",
                     "camera": f"{rel}/{s['camera']}" if s.get("camera") else None,
-                    "coco_image_id": coco_ids.get((s["name"], fr["frame"])),
+                    "coco_image_id": coco_id,
                     "render_seed": by_id[task.variant].render_seed,
                     "seconds": per_image_s,
                     "mc_error_k": err_k.get("mean_k"),
                     "mc_error_p99_k": err_k.get("p99_k"),
                     "mc_error_edge_k": err_k.get("edge_mean_k"),
+                    # the automatic quality's targets met on the image and every region (None: not judged)
+                    "quality_met": (fr.get("quality") or {}).get("met"),
                     "mc_error_relative": err_rel.get("mean"),
                     "mc_error": err.get("radiance_stderr_mean", fr.get("Y_stderr_mean")),
                     "peak_rss_mb": record.get("peak_rss_mb"),
@@ -123,12 +219,24 @@ def assemble(dataset, sweep, tasks) -> dict:
                 rows.append(row)
     for sensor, doc in coco.items():
         loc.write_json(f"coco/{sensor}.json", doc)
+        for split in SPLITS:
+            loc.write_json(f"coco/{sensor}_{split}.json", _coco_split(doc, split))
     _write_index(loc, rows)
     summary = _summary(sweep, rows, coco)
     loc.write_json("dataset.json", {**summary, "index": jsonable(rows)})
-    _write_yolo(loc, coco, rows)
+    _write_yolo(loc, coco, rows, settings.get("detect_classes") or list(CLASSES[1:]))
     _write_card(loc, sweep, rows, summary, params)
     return summary
+
+
+def _coco_split(doc: dict, split: str) -> dict:
+    """The images of one split and their annotations (ids kept: the same as in the full file)."""
+    images = [img for img in doc["images"] if img.get("humv_split") == split]
+    keep = {img["id"] for img in images}
+    info = dict(doc["info"], description=f"{doc['info'].get('description', '')}, {split} split")
+    return dict(
+        doc, info=info, images=images, annotations=[a for a in doc["annotations"] if a["image_id"] in keep]
+    )
 
 
 def _merge_coco(coco: dict, doc: dict, folder: str, variant: str) -> dict:
@@ -166,9 +274,14 @@ def _write_index(loc: Location, rows: list[dict]) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    table = pa.Table.from_pylist(jsonable(rows)) if rows else pa.table({"variant": pa.array([], pa.string())})
+    empty = pa.table({"variant": pa.array([], pa.string()), "split": pa.array([], pa.string())})
+    table = pa.Table.from_pylist(jsonable(rows)) if rows else empty
     with loc.writing("index.parquet") as tmp:
         pq.write_table(table, tmp)
+    for split in SPLITS:  # the Hub's splits (the card's configs header)
+        part = [r for r in rows if r["split"] == split]
+        with loc.writing(f"index_{split}.parquet") as tmp:
+            pq.write_table(pa.Table.from_pylist(jsonable(part), schema=table.schema) if part else empty, tmp)
 
 
 def _summary(sweep, rows: list[dict], coco: dict) -> dict:
@@ -201,27 +314,31 @@ def _summary(sweep, rows: list[dict], coco: dict) -> dict:
 
 
 # ----------------------------------------------------------------------------- YOLO
-def _write_yolo(loc: Location, coco: dict, rows: list[dict]) -> None:
-    """Detection (every class) and pose (persons, COCO-17 keypoints) exports per sensor."""
+def _write_yolo(loc: Location, coco: dict, rows: list[dict], detect_classes: list[str]) -> None:
+    """Detection (the ``detect_classes``, renumbered from 0 in that order) and pose (persons,
+    COCO-17 keypoints) exports per sensor, with images and labels under ``<split>/`` folders
+    and ``data.yaml`` naming each split (val falls back to train where no variant is in val)."""
     loc.remove("yolo")
     image_of = {(r["sensor"], r["coco_image_id"]): r["image"] for r in rows if r["coco_image_id"]}
-    names = list(CLASSES[1:])
+    det_id = {CLASSES.index(c): i for i, c in enumerate(detect_classes)}
     for sensor, doc in coco.items():
         anns = defaultdict(list)
-        written = False
+        splits: set[str] = set()
         for a in doc["annotations"]:
             anns[a["image_id"]].append(a)
         for img in doc["images"]:
             src = image_of.get((sensor, img["id"]))
             if src is None:
                 continue
+            split = img.get("humv_split", "train")
             stem = f"{img['humv_variant']}_{int(img.get('humv_frame', 0)):04d}"
             w, h = img["width"], img["height"]
             det, pose = [], []
             for a in anns[img["id"]]:
                 x, y, bw, bh = a["bbox"]
                 box = f"{(x + bw / 2) / w:.6f} {(y + bh / 2) / h:.6f} {bw / w:.6f} {bh / h:.6f}"
-                det.append(f"{a['category_id'] - 1} {box}")
+                if a["category_id"] in det_id:
+                    det.append(f"{det_id[a['category_id']]} {box}")
                 if a.get("keypoints"):
                     kp = a["keypoints"]
                     pts = " ".join(
@@ -231,21 +348,24 @@ def _write_yolo(loc: Location, coco: dict, rows: list[dict]) -> None:
                     pose.append(f"0 {box} {pts}")
             for kind, lines in (("detect", det), ("pose", pose)):
                 base = f"yolo/{kind}/{sensor}"
-                loc.copy(src, f"{base}/images/{stem}.png")
-                loc.write_text(f"{base}/labels/{stem}.txt", "".join(line + "\n" for line in lines))
-            written = True
+                loc.copy(src, f"{base}/images/{split}/{stem}.png")
+                loc.write_text(f"{base}/labels/{split}/{stem}.txt", "".join(line + "\n" for line in lines))
+            splits.add(split)
+        if not splits:
+            continue
+        lists = "train: images/train\n" + f"val: images/{'val' if 'val' in splits else 'train'}\n"
+        lists += "test: images/test\n" if "test" in splits else ""
         det_yaml = (
             YOLO_ROOT_NOTE
-            + "train: images\nval: images\nnames:\n"
-            + "".join(f"  {i}: {n}\n" for i, n in enumerate(names))
+            + lists
+            + "names:\n"
+            + "".join(f"  {i}: {n}\n" for i, n in enumerate(detect_classes))
         )
         pose_yaml = (
-            YOLO_ROOT_NOTE + "train: images\nval: images\nkpt_shape: [17, 3]\n"
-            f"flip_idx: {COCO_FLIP}\nnames:\n  0: person\n"
+            YOLO_ROOT_NOTE + lists + f"kpt_shape: [17, 3]\nflip_idx: {COCO_FLIP}\nnames:\n  0: person\n"
         )
-        if written:
-            loc.write_text(f"yolo/detect/{sensor}/data.yaml", det_yaml)
-            loc.write_text(f"yolo/pose/{sensor}/data.yaml", pose_yaml)
+        loc.write_text(f"yolo/detect/{sensor}/data.yaml", det_yaml)
+        loc.write_text(f"yolo/pose/{sensor}/data.yaml", pose_yaml)
 
 
 # ----------------------------------------------------------------------------- card
@@ -332,6 +452,12 @@ def _error_text(rows: list[dict]) -> str:
     return "-"
 
 
+def _split_text(rows: list[dict]) -> str:
+    variants = {r["variant"]: r["split"] for r in rows}
+    counts = Counter(variants.values())
+    return ", ".join(f"{s} {counts.get(s, 0)} variants" for s in SPLITS)
+
+
 def _write_card(loc: Location, sweep, rows: list[dict], summary: dict, params: dict) -> None:
     lines = [
         "---",
@@ -339,7 +465,11 @@ def _write_card(loc: Location, sweep, rows: list[dict], summary: dict, params: d
         "- config_name: default",
         "  data_files:",
         "  - split: train",
-        "    path: index.parquet",
+        "    path: index_train.parquet",
+        "  - split: validation",
+        "    path: index_val.parquet",
+        "  - split: test",
+        "    path: index_test.parquet",
         "---",
         "",
         f"# {sweep.name}: a HumV-USD sweep dataset",
@@ -375,9 +505,14 @@ def _write_card(loc: Location, sweep, rows: list[dict], summary: dict, params: d
         "per-pixel standard error [K] over pixels away from geometric edges (the render's NETD/3 "
         "criterion), `mc_error_edge_k` the edge pixels' mean, EO `mc_error_relative` the mean error "
         "of Y over the mean Y away from edges; `mc_error` the mean radiance (EO: Y) standard error "
-        "over all pixels).",
-        "- `coco/<sensor>.json`: COCO with RLE masks, boxes, COCO-17 keypoints (ids unique over the dataset).",
-        "- `yolo/detect/<sensor>`, `yolo/pose/<sensor>`: Ultralytics YOLO exports with `data.yaml`.",
+        "over all pixels; `quality_met` whether the render's automatic quality met its targets on the "
+        "image and on every labelled region class, people first: false where it stopped at the sample "
+        "cap, null where not judged).",
+        "- `coco/<sensor>.json`, `coco/<sensor>_<split>.json`: COCO with RLE masks, boxes, COCO-17 "
+        "keypoints (ids unique over the dataset; `file_name` under `coco/images/<sensor>/`).",
+        "- `yolo/detect/<sensor>`, `yolo/pose/<sensor>`: Ultralytics YOLO exports with `data.yaml` "
+        "(train/val/test folders; detect: the object classes).",
+        f"- Splits by variant: {_split_text(rows)}; `split` column in the index, `index_<split>.parquet` per split.",
         "- `renders/<variant>/<chunk>/`: the render outputs (EXR with labels, PNGs, `camera.json`, "
         "`<frame>.objects.json`, manifest); `variants/<variant>/`: each variant's scenario and stage.",
         "",

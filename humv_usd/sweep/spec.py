@@ -30,7 +30,17 @@
     seed = 0
     retries = 2
 
-Keys are dotted paths into the scenario: ``section.key`` (``general.start``), ``section.N.key``
+    [dataset]                           # how the dataset is assembled (no re-render when changed)
+    split = { train = 0.8, val = 0.1, test = 0.1 }   # fractions of the variants per split
+    split_seed = 0                      # seed of the split's shuffle
+    stratify = ["weapon"]               # grid axes whose options each split shares out evenly
+    image = "image8"                    # training image of every export: "image8" (the sensor
+                                        # chain's 8-bit image), "counts16" (16-bit radiometric
+                                        # counts, infrared) or "preview" (the render's PNG)
+    detect_classes = ["person", "prop", "panel", "vehicle", "other"]   # YOLO detect classes
+
+Splits are by variant (a variant's frames are near-duplicates: a split by frame measures
+training-set accuracy). Keys are dotted paths into the scenario: ``section.key`` (``general.start``), ``section.N.key``
 for array sections (``human.0.clothing``, ``placement.0.heading_deg``, ``sensor.0.position_m``),
 ``scene.ground.key``, ``scene.object.N.key``; a trailing index selects a vector element
 (``sensor.0.position_m.2``); ``+`` appends to a list (``human.0.clothing+``) or an array section
@@ -67,6 +77,16 @@ SWEEP_KEYS = ("name", "base", "unset", "count", "seed")
 #: most frames ``[render] frames = "FIRST:LAST"`` may name (checked before a list is built)
 MAX_FRAMES = 1_000_000
 log = logging.getLogger(__name__)
+#: ``[dataset]`` keys and defaults (issue 27): splits, the training image, detection classes.
+DATASET_KEYS = {
+    "split": {"train": 0.8, "val": 0.1, "test": 0.1},
+    "split_seed": 0,
+    "stratify": [],
+    "image": "image8",
+    "detect_classes": ["person", "prop", "panel", "vehicle", "other"],
+}
+SPLITS = ("train", "val", "test")
+IMAGE_CHOICES = ("image8", "counts16", "preview")
 RENDER_KEYS = {
     "spp": None,  # the render's automatic quality (infrared: batches until the error is NETD/3)
     "frames": None,
@@ -122,6 +142,9 @@ class Sweep:
     seed: int
     render: dict
     variants: list[Variant] = field(default_factory=list)
+    #: ``[dataset]`` settings (:data:`DATASET_KEYS`); not part of :meth:`digest`: a new split or
+    #: training image re-assembles the same renders
+    dataset: dict = field(default_factory=lambda: copy.deepcopy(DATASET_KEYS))
 
     def digest(self) -> str:
         """Hash of what the sweep produces (variants and render settings): a dataset folder
@@ -321,6 +344,57 @@ def _render_settings(table, problems: list[str]) -> dict:
     return out
 
 
+def _dataset_settings(table, problems: list[str]) -> dict:
+    """``[dataset]`` checked against :data:`DATASET_KEYS` (one line per problem)."""
+    from humv_usd.groundtruth.labels import CLASSES
+
+    out = copy.deepcopy(DATASET_KEYS)
+    if not isinstance(table, dict):
+        problems.append(bad_value("[dataset]", table, "expected a table"))
+        return out
+    for name, value in table.items():
+        if name not in DATASET_KEYS:
+            problems.append(
+                f"dataset.{name}: unknown key{_suggest(name, DATASET_KEYS)}; allowed: {', '.join(DATASET_KEYS)}"
+            )
+            continue
+        out[name] = value
+    split = out["split"]
+    if (
+        not isinstance(split, dict)
+        or not split
+        or not set(split) <= set(SPLITS)
+        or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and 0 <= v <= 1 for v in split.values()
+        )
+        or abs(sum(split.values()) - 1.0) > 1e-6
+        or not split.get("train")
+    ):
+        problems.append(
+            bad_value(
+                "dataset.split",
+                split,
+                "expected { train = F, val = F, test = F }: fractions in [0, 1] summing to 1, train > 0",
+            )
+        )
+        out["split"] = dict(DATASET_KEYS["split"])
+    else:
+        out["split"] = {k: float(split.get(k, 0.0)) for k in SPLITS}
+    out["split_seed"] = _check_int("dataset.split_seed", out["split_seed"], 0, 2**31 - 1, problems)
+    if not isinstance(out["stratify"], list) or not all(isinstance(a, str) for a in out["stratify"]):
+        problems.append(bad_value("dataset.stratify", out["stratify"], "expected a list of grid axis names"))
+        out["stratify"] = []
+    if out["image"] not in IMAGE_CHOICES:
+        problems.append(bad_value("dataset.image", out["image"], f"one of {', '.join(IMAGE_CHOICES)}"))
+        out["image"] = DATASET_KEYS["image"]
+    classes = out["detect_classes"]
+    objects = [c for c in CLASSES if c != "background"]
+    if not isinstance(classes, list) or not classes or not all(c in objects for c in classes):
+        problems.append(bad_value("dataset.detect_classes", classes, f"a list of {', '.join(objects)}"))
+        out["detect_classes"] = list(DATASET_KEYS["detect_classes"])
+    return out
+
+
 def _axes(grid, problems: list[str]) -> list[Axis]:
     axes = []
     if not isinstance(grid, dict):
@@ -465,10 +539,11 @@ def load_sweep(path: str | Path) -> Sweep:
     doc = _read_toml(path, "sweep file")
     problems: list[str] = []
     for section in doc:
-        if section not in ("sweep", "set", "grid", "random", "render"):
+        if section not in ("sweep", "set", "grid", "random", "render", "dataset"):
             problems.append(
-                f"[{section}]: unknown section{_suggest(section, ['sweep', 'set', 'grid', 'random', 'render'])}; "
-                "allowed: sweep, set, grid, random, render"
+                f"[{section}]: unknown section"
+                f"{_suggest(section, ['sweep', 'set', 'grid', 'random', 'render', 'dataset'])}; "
+                "allowed: sweep, set, grid, random, render, dataset"
             )
     head = doc.get("sweep", {})
     for name in head:
@@ -485,6 +560,7 @@ def load_sweep(path: str | Path) -> Sweep:
     count = _check_int("sweep.count", head.get("count", 1), 1, MAX_VARIANTS, problems)
     seed = _check_int("sweep.seed", head.get("seed", 0), 0, 2**31 - 1, problems)
     render = _render_settings(doc.get("render", {}), problems)
+    dataset = _dataset_settings(doc.get("dataset", {}), problems)
     unset = head.get("unset", [])
     if not isinstance(unset, list) or not all(isinstance(u, str) for u in unset):
         problems.append(bad_value("sweep.unset", unset, "expected a list of dotted keys"))
@@ -507,7 +583,13 @@ def load_sweep(path: str | Path) -> Sweep:
     if problems:
         raise InputError("", [f"{path}: {p}" for p in problems])
 
-    sweep = Sweep(name, path, base_path, base, axes, draws, count, seed, render)
+    sweep = Sweep(name, path, base_path, base, axes, draws, count, seed, render, dataset=dataset)
+    for axis in dataset["stratify"]:
+        if axis not in {a.name for a in axes}:
+            problems.append(
+                f"dataset.stratify: {axis!r} is not a grid axis"
+                f"{_suggest(axis, [a.name for a in axes])}; grid axes: {', '.join(a.name for a in axes) or 'none'}"
+            )
     _check_base(sweep)
     _check_axes(sweep, problems)
     if problems:
