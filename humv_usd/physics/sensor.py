@@ -53,10 +53,11 @@ INFRARED_MIN_UM = 3.0
 AGC_MODES = ("none", "linear", "histogram", "plateau")
 VIGNETTING_MODES = ("none", "cos4")
 #: Plateau of the plateau-equalisation AGC as a fraction of the frame's pixels per histogram bin
-#: (1 count wide): 250 pixels per bin at 640 x 512, the plateau value FLIR quotes as the Tau 2
-#: default (Tau 2 product specification 102-PS242-40, "AGC" / "plateau equalization"). Measured
-#: here (tests/test_sensor_chain.py): it keeps a 17 degC face and a -1 degC jacket in 10 degC
-#: surroundings 100+ levels apart where the 1-99 % linear stretch clips both.
+#: (1 count wide): 250 pixels per bin at 640 x 512, the value usually quoted as the Tau 2's
+#: default plateau (FLIR Tau 2 product specification 102-PS242-40, AGC section; the number was
+#: not checked against the document here). Measured here (tests/test_sensor_chain.py): it keeps
+#: a 17 degC face and a -1 degC jacket in 10 degC surroundings 150+ levels apart, each beyond
+#: 99 % of the background, where the 1-99 % linear stretch clips both.
 DEFAULT_AGC_PLATEAU = 250.0 / (640 * 512)
 #: Mean 8-bit level of the plateau AGC output when max gain limits its span ("ITT midpoint",
 #: FLIR Tau 2 / Boson AGC parameters; 127 = mid grey).

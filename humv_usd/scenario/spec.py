@@ -473,7 +473,7 @@ SENSOR = Section(
         "agc_plateau": Key(
             "float",
             "Plateau AGC: most pixels per histogram bin, as a fraction of the frame's pixels "
-            "(default 250/(640x512), the Tau 2 plateau value).",
+            "(default 250/(640x512)).",
             lo=0.0,
             hi=1.0,
         ),
