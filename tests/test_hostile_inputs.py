@@ -397,3 +397,28 @@ def test_keys_that_do_nothing_in_their_context_are_warned(humvvex_raw):
     assert any("stand 0.30 m apart" in line for line in lines), lines
     del raw["scene"]
     assert any(line.startswith("[scene]: not given") for line in suspicious(validate(raw)))
+
+
+@pytest.mark.parametrize(
+    ("rows", "expected"),
+    [
+        ([[0.0] * 4] * 4, "last column: expected [0, 0, 0, 1]"),
+        ([[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1]], "determinant of the 3x3 part"),
+        ([[1, 0, 0, 0.5], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], "last column: expected [0, 0, 0, 1]"),
+    ],
+)
+def test_a_zero_or_projective_asset_transform_is_refused(rows, expected):
+    """An all-zero or projective transform was accepted (the asset vanished or divided by w)."""
+    from humv_usd.scenario.load import validate
+
+    text = (ROOT / "examples" / "street.toml").read_text()
+    import tomllib
+
+    raw = tomllib.loads(text)
+    asset = raw["scene"]["asset"][0]
+    asset.pop("position_m", None)
+    asset.pop("heading_deg", None)
+    asset["transform"] = [[float(v) for v in r] for r in rows]
+    with pytest.raises(InputError) as info:
+        validate(raw, ROOT / "examples" / "street.toml")
+    assert any("scene.asset[0].transform" in p and expected in p for p in info.value.problems), info.value

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from humv_usd.catalog.garments import ALIASES, GARMENTS
 from humv_usd.catalog.sensors import (
     netd_for_f_number,  # another aperture than the preset's
@@ -396,10 +398,31 @@ def _check_assets(scene: dict, problems: list[str]) -> None:
         m = a.get("transform") or []
         if m and len(m) != 4:
             problems.append(bad_value(f"{where}.transform", m, "expected 4 rows of 4 numbers"))
+        elif m:
+            problems.extend(_placement_problems(f"{where}.transform", m))
         if m and (a.get("position_m") is not None or a.get("heading_deg") is not None):
             problems.append(
                 bad_value(f"{where}.transform", "...", "give transform or position_m/heading_deg, not both")
             )
+
+
+def _placement_problems(where: str, m) -> list[str]:
+    """A 4x4 placement matrix (USD row vectors, translation in the last row) must be affine (last
+    column 0, 0, 0, 1: a projective matrix divides the points by w) and invertible (a zero
+    determinant flattens the asset to a plane, line or point)."""
+    a = np.asarray(m, dtype=float)
+    if a.shape != (4, 4):
+        return [bad_value(where, m, "expected 4 rows of 4 numbers")]
+    if not np.allclose(a[:, 3], [0.0, 0.0, 0.0, 1.0]):
+        return [
+            bad_value(where, a[:, 3].tolist(), "last column: expected [0, 0, 0, 1] (an affine placement)")
+        ]
+    det = float(np.linalg.det(a[:3, :3]))
+    if not abs(det) > 1e-12:
+        return [
+            bad_value(where, det, "determinant of the 3x3 part: expected non-zero (it flattens the asset)")
+        ]
+    return []
 
 
 def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
