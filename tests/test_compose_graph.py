@@ -56,6 +56,7 @@ def test_build_order_respects_upstream(humvvex_raw):
         "scene",
         "avatar_p1",
         "clothing_p1",
+        "sensors",  # the ground's shadow edges follow the cameras' pixel footprint (issue 25)
     }
     # strength is its own order: strongest first, not the build order
     assert graph.strength_order(nodes) == [
@@ -183,10 +184,11 @@ def _edit(raw, key):
 
 
 # which layers a single-key edit of humvvex rebuilds. The sensors' path tables are their own
-# layer (atmosphere_paths), so a sensor move leaves the sky and the thermal layer that reads it;
+# layer (atmosphere_paths), so a sensor move leaves the sky; the thermal layer refines the
+# ground's shadow edges to the cameras' pixel footprint (issue 25), so it follows the cameras;
 # the clock and the weather change the sky, the paths and the temperatures.
 REBUILT = {
-    "sensor position": {"sensors", "atmosphere_paths"},
+    "sensor position": {"sensors", "atmosphere_paths", "thermal"},
     "clothing": {"materials", "clothing_p1", "thermal"},  # the avatar reads no garment but the rifle
     "start": {"environment", "atmosphere", "atmosphere_paths", "thermal"},
     "weather": {"environment", "atmosphere", "atmosphere_paths", "thermal"},
@@ -208,7 +210,8 @@ def test_single_key_edit_rebuilds_exactly_what_reads_it(out, raw, key):
     if key == "sensor position":
         assert doc["sensors"]["why"] == "inputs changed: sensor.0.position_m"
         assert doc["atmosphere_paths"]["why"] == "upstream changed: sensors"
-        assert doc["atmosphere"]["why"] == doc["thermal"]["why"] == doc["avatar_p1"]["why"] == "cached"
+        assert doc["atmosphere"]["why"] == doc["avatar_p1"]["why"] == "cached"
+        assert doc["thermal"]["why"] == "upstream changed: sensors"
     if key == "clothing":
         assert doc["clothing_p1"]["why"] == "inputs changed: human[p1].clothing"
 
@@ -319,7 +322,7 @@ def test_cli_refuses_hand_edit_with_one_line_exit_2(out, tmp_path):
     assert r.returncode == 0, r.stderr
     assert (
         r.stdout.strip().splitlines()[-1].endswith("s)")
-        and "2 rebuilt (sensors, atmosphere_paths), 7 cached" in r.stdout
+        and "3 rebuilt (sensors, atmosphere_paths, thermal), 6 cached" in r.stdout
     )
 
 

@@ -9,10 +9,12 @@ import trimesh
 from numpy.testing import assert_allclose
 from pxr import Usd, UsdGeom
 from scipy.optimize import brentq
+from scipy.spatial import ConvexHull
 from test_thermal_surfaces import ISOTROPIC_SKY, stage_material
 
 from humv_usd.atmosphere import model as M
 from humv_usd.constants import STEFAN_BOLTZMANN as SIGMA
+from humv_usd.geometry.camera import Camera, CameraPose
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.physics.slab import INTERIOR_SURFACE_COEFFICIENT
 from humv_usd.pipeline.compose import compose
@@ -245,3 +247,75 @@ def test_humvvex_person_shadow_patch_and_wall_foot(raw, tmp_path, monkeypatch):
     # the old defect was a cold strip; the foot now also sees the sunlit wall (its long wave and
     # reflected sun, issue 25), so it is open pad or warmer, never colder
     assert foot.sum() > 10 and np.all(temps[foot] > pad - 0.1)
+
+
+def _shadow_polygon(box_lo, box_hi, sun):
+    """(hull vertices (V, 2)) of a box's shadow on z = 0: the convex hull of its base corners and
+    its top corners projected along the sun (Duffie & Beckman 2013, section 1.9 shading)."""
+    xs, ys = (box_lo[0], box_hi[0]), (box_lo[1], box_hi[1])
+    base = np.array([[x, y] for x in xs for y in ys])
+    top = base - box_hi[2] / sun[2] * sun[:2]
+    pts = np.concatenate([base, top])
+    return pts[ConvexHull(pts).vertices]
+
+
+def _distance_to_boundary(points, poly):
+    """(n,) distance [m] of 2-D points to a closed polygon's edges."""
+    a, b = poly, np.roll(poly, -1, axis=0)
+    ab = b - a
+    t = np.clip(
+        np.einsum("nkx,kx->nk", points[:, None, :] - a[None], ab) / np.einsum("kx,kx->k", ab, ab), 0, 1
+    )
+    near = a[None] + t[..., None] * ab[None]
+    return np.linalg.norm(points[:, None, :] - near, axis=2).min(axis=1)
+
+
+def test_ground_shadow_edges_are_resolved_to_the_closest_cameras_pixel_footprint():
+    """A 2 x 2 x 3 m box on a 2.5 m ground grid in the afternoon sun, seen from its shadow side
+    by a 160 x 120 camera with a 40 deg field of view (a pixel spans 4.5 mrad, about 5 cm at
+    the shadow): every face the shadow edge crosses is no larger than the pixel footprint there,
+    and every face wholly lit or wholly shaded lies on its side of the analytic shadow polygon
+    or within one footprint of its edge: the edge is placed within one pixel. Without the
+    camera the edge stops at 7.8 cm cells (2.5 m / 2^5, the first size below MIN_CELL_M), larger
+    than the footprint."""
+    ground = _ground(20.0, 8)
+    lo, hi = np.array([-1.0, -1.0, 0.0]), np.array([1.0, 1.0, 3.0])
+    box_mesh = _mesh("/World/Scene/box", *box([0.0, 0.0, 0.0], [2.0, 2.0, 3.0]), "painted_metal")
+    # on the shadow side (the shadow runs north-north-east), looking down at the box's foot
+    origin = np.array([2.0, 9.0, 6.0])
+    forward = np.array([0.0, 1.8, 0.0]) - origin
+    pose = CameraPose(origin, forward / np.linalg.norm(forward), np.array([0.0, 0.0, 1.0]), 40.0)
+    cam = Camera.from_pose(pose, 160, 120)
+    ifov = 2.0 * np.tan(np.radians(20.0)) / 160  # pixel pitch / focal length [rad]
+    f = _forcing(np.array([-600.0, 0.0]))
+    plain, rep0 = SF.refine_meshes([ground, box_mesh], f)
+    meshes, rep = SF.refine_meshes([ground, box_mesh], f, cameras=[cam])
+    assert rep["/World/Scene/Ground"]["refinedFaces"] > rep0["/World/Scene/Ground"]["refinedFaces"]
+    poly = _shadow_polygon(lo, hi, SUN)
+    for m, finer in ((plain[0], False), (meshes[0], True)):
+        lit = _lit_samples(m, [m, box_mesh], SUN)
+        c = _centroids(m)
+        size = np.array([np.ptp(m.points[m.indices[4 * k : 4 * k + 4]][:, 0]) for k in range(m.n_faces)])
+        depth = (c - origin) @ (forward / np.linalg.norm(forward))
+        footprint = depth * ifov
+        uv, _ = cam.project(c)
+        seen = (uv[:, 0] > 0) & (uv[:, 0] < 160) & (uv[:, 1] > 0) & (uv[:, 1] < 120)
+        # faces under the box are inside the polygon too; leave out the box's own footprint
+        outside_box = ~np.all((c[:, :2] > lo[:2]) & (c[:, :2] < hi[:2]), axis=1)
+        edge = seen & outside_box & lit.any(axis=1) & ~lit.all(axis=1)
+        assert edge.sum() > 20
+        if finer:
+            assert np.all(size[edge] <= footprint[edge] * (1 + 1e-9))
+        else:
+            assert np.any(size[edge] > footprint[edge])  # the staircase a camera would see
+        # where a face is wholly lit or shaded, the analytic edge is at most a footprint away
+        # (plus half the face) or on the same side
+        d = _distance_to_boundary(c[:, :2], poly)
+        inside = np.array([np.all(np.cross(np.roll(poly, -1, 0) - poly, p - poly) >= 0) for p in c[:, :2]])
+        whole = seen & outside_box & (lit.all(axis=1) | ~lit.any(axis=1))
+        wrong_side = whole & (inside == lit.all(axis=1))
+        slack = footprint + 0.71 * size
+        if finer:
+            assert np.all(d[wrong_side] <= slack[wrong_side])
+            # the edge faces straddle the analytic edge: within a footprint of it
+            assert np.all(d[edge] <= footprint[edge] + 0.71 * size[edge])

@@ -37,6 +37,7 @@ from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
 from humv_usd.thermal.surfaces import (
     air_at_frame0,
+    camera_footprints,
     forcing_at,
     ground_albedo,
     longwave_emissivity,
@@ -56,8 +57,11 @@ from humv_usd.usd.thermal import write_surface_temperature
 NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
 READS = (*CLOCK, "human", "scene", "thermal", "placement.*.standing_before_s")
-UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*")
-VERSION = "4"  # 4: faces in material GeomSubsets are slabs of their material
+#: sensors: the ground's shadow edges are refined to the closest camera's pixel footprint
+UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*", "sensors")
+#: 4: faces in material GeomSubsets are slabs of their material; 5: scene surfaces see their
+#: surroundings (sky view, exchange), shadow edges to the cameras' pixel footprint
+VERSION = "5"
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
@@ -87,13 +91,18 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         forcing = with_sky_table(forcing_at(upstream, all_t), tables, len(spin_t))
         report["sky"] = _sky_report(forcing, tables, len(spin_t), upstream)
         shade = people_occluders(upstream, scenario, all_t)
-        meshes, refined = refine_meshes(meshes, forcing, shade)
+        meshes, refined = refine_meshes(meshes, forcing, shade, cameras=camera_footprints(upstream, samples))
         surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing, shade)
         report["surfaces"] = {
             "model": "slab" if slabs else "held",
             "spinUp_s": spin,
             "slabMaxResidual_W_m2": round(sdiag["slabMaxResidual_W_m2"], 9),
             "tessellation": refined,
+            **{
+                k: round(sdiag[k], 6)
+                for k in ("exchangePasses", "exchangeLastChange_K", "viewRays")
+                if k in sdiag
+            },
         }
         ground_k = sdiag["groundMeanTemperature_k"]
     solved: dict[str, np.ndarray] = {}

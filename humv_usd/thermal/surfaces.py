@@ -67,6 +67,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdSkel
 
 from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.geometry.camera import Camera
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked
 from humv_usd.human.usdskel import skinned_points
@@ -87,6 +88,7 @@ from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
 from humv_usd.usd.mesh import override_topology
 from humv_usd.usd.paths import GROUND, human_path, object_path
+from humv_usd.usd.sensor import read_camera_pose, stage_sensors
 
 log = logging.getLogger(__name__)
 
@@ -445,6 +447,76 @@ REFINE_MEMORY_S = 3600.0
 #: refinement stops (warning) when a mesh would exceed this many faces
 MAX_REFINED_FACES = 60000
 
+#: finest cell a camera's pixel footprint may ask for [m] (bounds the faces where a camera is close)
+MIN_FOOTPRINT_CELL_M = 0.005
+#: a camera's pose is read at up to this many frames (evenly spaced) for the footprints
+FOOTPRINT_FRAMES = 8
+
+
+def camera_footprints(stage: Usd.Stage, frames=(0,)) -> list[Camera]:
+    """The infrared sensor cameras of ``stage`` (:func:`humv_usd.usd.sensor.stage_sensors`, the
+    sensors layer; an EO image does not show the temperatures) as pinhole :class:`humv_usd.geometry.camera.Camera` s, one per camera and pose at up
+    to :data:`FOOTPRINT_FRAMES` of ``frames`` (a moving camera counts where it is at each).
+    Cameras the render skips (not perspective) are left out."""
+    frames = np.atleast_1d(np.asarray(frames, dtype=float))
+    if len(frames) > FOOTPRINT_FRAMES:
+        frames = frames[np.unique(np.linspace(0, len(frames) - 1, FOOTPRINT_FRAMES).round().astype(int))]
+    out = []
+    for sensor in stage_sensors(stage):
+        if sensor.skip_reason or sensor.kind == "EO":  # EO images do not show the temperatures
+            continue
+        prim = stage.GetPrimAtPath(sensor.path)
+        w, h = (int(v) for v in sensor.resolution)
+        poses = {}
+        for f in frames:
+            pose = read_camera_pose(prim, Usd.TimeCode(float(f)))
+            poses[tuple(np.round(np.r_[pose.origin, pose.forward, pose.up, pose.fov_x_deg], 9))] = pose
+        out += [Camera.from_pose(p, w, h) for p in poses.values()]
+    return out
+
+
+def pixel_footprint(camera: Camera, points) -> np.ndarray:
+    """(n,) size [m] one pixel of ``camera`` spans at each point, depth x 2 tan(fov_x/2) / W
+    (pixel pitch / focal length x depth along the optical axis; pinhole, square pixels); inf
+    for points outside the image (one pixel of margin) or behind the camera."""
+    uv, z = camera.project(np.asarray(points, dtype=float))
+    with np.errstate(invalid="ignore"):
+        inside = (
+            (z > 0.0)
+            & (uv[:, 0] >= -1.0)
+            & (uv[:, 0] <= camera.width + 1.0)
+            & (uv[:, 1] >= -1.0)
+            & (uv[:, 1] <= camera.height + 1.0)
+        )
+    return np.where(inside, z * 2.0 * camera.tan_x / camera.width, np.inf)
+
+
+def _footprint_cells(cells, cameras: list[Camera], shadows: _Shadows) -> np.ndarray:
+    """(C,) the finest pixel footprint [m] of the cameras that see each cell (its corners and
+    centre inside the image and not hidden behind the scene), inf where none does."""
+    out = np.full(len(cells), np.inf)
+    if not cameras or not len(cells):
+        return out
+    pts = np.concatenate([cells, cells.mean(axis=1, keepdims=True)], axis=1)  # (C, k + 1, 3)
+    nrm = np.repeat(_cell_normals(cells), pts.shape[1], axis=0)
+    flat = pts.reshape(-1, 3)
+    caster = shadows.caster(-1)
+    for cam in cameras:
+        fp = pixel_footprint(cam, flat)
+        look = np.isfinite(fp)
+        if not look.any():
+            continue
+        o = flat[look] + shadows.eps * nrm[look]
+        to_cam = cam.origin - o
+        dist = np.linalg.norm(to_cam, axis=1)
+        facing = np.einsum("ij,ij->i", to_cam, nrm[look]) > 0.0
+        seen = facing & (caster.hit_distance(o, to_cam / np.maximum(dist, 1e-12)[:, None]) >= dist)
+        fp_seen = np.full(len(flat), np.inf)
+        fp_seen[np.flatnonzero(look)[seen]] = fp[look][seen]
+        out = np.minimum(out, fp_seen.reshape(pts.shape[:2]).min(axis=1))
+    return out
+
+
 _QUAD_UV = np.array([((i + 0.5) / 4, (j + 0.5) / 4) for j in range(4) for i in range(4)])
 
 
@@ -615,6 +687,7 @@ def refine_meshes(
     threshold_w_m2: float = REFINE_THRESHOLD_W_M2,
     memory_s: float = REFINE_MEMORY_S,
     max_faces: int = MAX_REFINED_FACES,
+    cameras: list[Camera] | None = None,
 ) -> tuple[list[SceneMesh], dict]:
     """Split the slab faces that straddle a shadow or a footprint until no face does.
 
@@ -629,8 +702,16 @@ def refine_meshes(
     winding of the face they split; a split face's neighbours keep their edges (T-junctions on
     a plane, no gap).
 
+    Where a camera (``cameras``, :func:`camera_footprints`) sees a cell, the finest size is
+    its pixel footprint there (:func:`pixel_footprint`, not below
+    :data:`MIN_FOOTPRINT_CELL_M`) when that is finer than ``min_cell_m``, so a shadow edge in
+    the image lies within one pixel of where it falls; elsewhere ``min_cell_m``. The face
+    count is bounded by ``max_faces`` per mesh: before each level's cells are made, the count
+    they would give is checked, and past the bound only the cells coarsest against their
+    finest size are split (a warning says so).
+
     Returns the meshes (refined ones with :attr:`SceneMesh.parent_face`) and per refined mesh
-    path its face count before and after.
+    path its face count before and after and the smallest cell made [m].
     """
     occluders = occluders or Occluders.none(len(forcing.times_s))
     weights = _recent_weights(forcing, memory_s)
@@ -651,30 +732,54 @@ def refine_meshes(
             starts = np.concatenate([[0], np.cumsum(m.counts)[:-1]])
             idx = m.indices[starts[faces][:, None] + np.arange(n)[None, :]]
             active.append((m.points[idx], faces))
-        total = m.n_faces
+        total, capped, finest = m.n_faces, False, np.inf
         while active:
             nxt = []
             for cells, parent in active:
-                big = _cell_size(cells) > min_cell_m * (1.0 + 1e-9)
+                size = _cell_size(cells)
+                target = np.full(len(cells), float(min_cell_m))
+                if cameras:
+                    near = size > MIN_FOOTPRINT_CELL_M * (1.0 + 1e-9)
+                    fp = _footprint_cells(cells[near], cameras, shadows)
+                    target[near] = np.minimum(min_cell_m, np.maximum(fp, MIN_FOOTPRINT_CELL_M))
+                big = size > target * (1.0 + 1e-9)
                 split = np.zeros(len(cells), dtype=bool)
                 if big.any():
                     d = _dose(cells[big], shadows, forcing, weights)
                     split[big] = alpha * np.ptp(d, axis=1) > threshold_w_m2
-                    split[big] |= _under_occluders(cells[big], occluders, forcing, weights)
-                    split[big] |= _straddles_a_footprint(cells[big], shadows)
+                    # footprints and people's bounding boxes: down to min_cell_m (the sun's
+                    # dose finds the edges of a person's shadow below that)
+                    coarse = big & (size > min_cell_m * (1.0 + 1e-9))
+                    if coarse.any():
+                        split[coarse] |= _under_occluders(cells[coarse], occluders, forcing, weights)
+                        split[coarse] |= _straddles_a_footprint(cells[coarse], shadows)
                 if split.any() and total + 3 * int(split.sum()) > max_faces:
-                    log.warning("%s: tessellation stopped at %d faces (MAX_REFINED_FACES)", m.path, total)
+                    # the bound, checked before the children exist: split the cells coarsest
+                    # against their finest size first, as many as it allows
+                    budget = max((max_faces - total) // 3, 0)
+                    idx = np.flatnonzero(split)
+                    keep = idx[np.argsort(-(size[idx] / target[idx]), kind="stable")[:budget]]
                     split[:] = False
+                    split[keep] = True
+                    capped = True
                 final.append((cells[~split], parent[~split]))
+                if (~split).any():
+                    finest = min(finest, float(size[~split].min()))
                 if split.any():
                     total += 3 * int(split.sum())
                     nxt.append((_split(cells[split]), np.repeat(parent[split], 4)))
             active = nxt
+        if capped:
+            log.warning("%s: tessellation stopped at %d faces (max_faces)", m.path, total)
         if total == m.n_faces:
             out.append(m)
             continue
         refined = _assemble(m, final)
-        report[m.path] = {"faces": int(m.n_faces), "refinedFaces": int(refined.n_faces)}
+        report[m.path] = {
+            "faces": int(m.n_faces),
+            "refinedFaces": int(refined.n_faces),
+            "smallestCell_m": round(finest, 6),
+        }
         out.append(refined)
     return out, report
 
@@ -953,15 +1058,20 @@ def _solar_reflectance(material: StageMaterial) -> float:
 
 def _views(meshes: list[SceneMesh], rays: int):
     """:func:`humv_usd.thermal.views.face_views` of all scene meshes together (faces numbered
-    mesh by mesh)."""
+    mesh by mesh); ``rays`` per triangle of a face wider than :data:`MIN_CELL_M` (sqrt of its
+    area), a quarter of them for the small cells of a refined shadow edge (their neighbours
+    share the same ray pattern from nearly the same points, so their estimates move together)."""
     offsets = np.cumsum([0] + [len(m.points) for m in meshes])
     face0 = np.cumsum([0] + [m.n_faces for m in meshes])
+    tri_face = np.concatenate([m.tri_face + o for m, o in zip(meshes, face0)])
+    area = np.concatenate([m.face_geometry()[2] for m in meshes])
+    per_tri = np.where(np.sqrt(area) >= MIN_CELL_M, rays, max(rays // 4, 1))[tri_face]
     return face_views(
         np.concatenate([m.points for m in meshes]),
         np.concatenate([m.triangles + o for m, o in zip(meshes, offsets)]),
-        np.concatenate([m.tri_face + o for m, o in zip(meshes, face0)]),
+        tri_face,
         int(face0[-1]),
-        rays,
+        per_tri,
     )
 
 

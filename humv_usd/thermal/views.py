@@ -128,7 +128,7 @@ class FaceViews:
         return np.diff(self.to_faces.indptr) > 0
 
 
-def face_views(points, triangles, tri_face, n_faces: int, rays: int = VIEW_RAYS, eps: float | None = None):
+def face_views(points, triangles, tri_face, n_faces: int, rays=VIEW_RAYS, eps: float | None = None):
     """:class:`FaceViews` of the faces of one triangle soup (all scene meshes together).
 
     Parameters
@@ -138,7 +138,7 @@ def face_views(points, triangles, tri_face, n_faces: int, rays: int = VIEW_RAYS,
     tri_face : (T,)
         Face of each triangle (0 .. n_faces - 1).
     n_faces : int
-    rays : int
+    rays : int or (T,) ints
         Rays per triangle.
     eps : float, optional
         Offset of the ray origins along the normal [m] (default: 2e-5 of the scene's diagonal
@@ -153,10 +153,10 @@ def face_views(points, triangles, tri_face, n_faces: int, rays: int = VIEW_RAYS,
     keep = area > 0.0
     normal = cross / np.maximum(2.0 * area, 1e-300)[:, None]
     face_area = np.bincount(tri_face, area, n_faces)
-    weight = np.where(keep, area / np.maximum(face_area[tri_face], 1e-300), 0.0) / rays  # per ray
+    share = np.where(keep, area / np.maximum(face_area[tri_face], 1e-300), 0.0)  # of its face
+    n_rays = np.broadcast_to(np.asarray(rays, dtype=np.int64), (len(tris),))
     if eps is None:
         eps = 2e-5 * float(np.linalg.norm(np.ptp(pts, axis=0))) + 1e-4 if len(pts) else 1e-4
-    bary, local = ray_samples(rays)
     t_axis, b_axis = orthonormal_frames(normal)
     caster = ray_caster(pts, tris)
     nb = len(ZENITH_BINS_DEG) - 1
@@ -166,35 +166,39 @@ def face_views(points, triangles, tri_face, n_faces: int, rays: int = VIEW_RAYS,
     down = np.zeros(n_faces)
     inside = np.zeros(n_faces)
     rows, cols, vals = [], [], []
-    chunk = max(1, 1_000_000 // rays)
-    tri_ids = np.flatnonzero(keep)
-    for a in range(0, len(tri_ids), chunk):
-        ids = tri_ids[a : a + chunk]
-        d = (
-            local[None, :, 0:1] * t_axis[ids][:, None, :]
-            + local[None, :, 1:2] * b_axis[ids][:, None, :]
-            + local[None, :, 2:3] * normal[ids][:, None, :]
-        ).reshape(-1, 3)
-        o = (np.einsum("rk,tkx->trx", bary, v[ids]) + eps * normal[ids][:, None, :]).reshape(-1, 3)
-        hit = first_faces(caster, o, d)
-        face = np.repeat(tri_face[ids], rays)
-        w = np.repeat(weight[ids], rays)
-        up = d[:, 2] > 0.0
-        zen = np.degrees(np.arccos(np.clip(d[:, 2], 0.0, 1.0)))
-        zbin = np.clip(np.searchsorted(ZENITH_BINS_DEG, zen, side="right") - 1, 0, nb - 1)
-        key = face * nb + zbin
-        open_sky += np.bincount(key[up], w[up], n_faces * nb)
-        esc = hit < 0
-        sky += np.bincount(key[up & esc], w[up & esc], n_faces * nb)
-        down += np.bincount(face[~up], w[~up], n_faces)
-        beyond += np.bincount(face[~up & esc], w[~up & esc], n_faces)
-        back = np.zeros(len(hit), dtype=bool)
-        back[~esc] = np.einsum("ij,ij->i", d[~esc], normal[hit[~esc]]) > 0.0
-        inside += np.bincount(face[back], w[back], n_faces)
-        front = ~esc & ~back
-        rows.append(face[front])
-        cols.append(tri_face[hit[front]])
-        vals.append(w[front])
+    cast = 0
+    for n in np.unique(n_rays[keep]):
+        bary, local = ray_samples(int(n))
+        chunk = max(1, 1_000_000 // int(n))
+        tri_ids = np.flatnonzero(keep & (n_rays == n))
+        cast += len(tri_ids) * int(n)
+        for a in range(0, len(tri_ids), chunk):
+            ids = tri_ids[a : a + chunk]
+            d = (
+                local[None, :, 0:1] * t_axis[ids][:, None, :]
+                + local[None, :, 1:2] * b_axis[ids][:, None, :]
+                + local[None, :, 2:3] * normal[ids][:, None, :]
+            ).reshape(-1, 3)
+            o = (np.einsum("rk,tkx->trx", bary, v[ids]) + eps * normal[ids][:, None, :]).reshape(-1, 3)
+            hit = first_faces(caster, o, d)
+            face = np.repeat(tri_face[ids], n)
+            w = np.repeat(share[ids] / n, n)
+            up = d[:, 2] > 0.0
+            zen = np.degrees(np.arccos(np.clip(d[:, 2], 0.0, 1.0)))
+            zbin = np.clip(np.searchsorted(ZENITH_BINS_DEG, zen, side="right") - 1, 0, nb - 1)
+            key = face * nb + zbin
+            open_sky += np.bincount(key[up], w[up], n_faces * nb)
+            esc = hit < 0
+            sky += np.bincount(key[up & esc], w[up & esc], n_faces * nb)
+            down += np.bincount(face[~up], w[~up], n_faces)
+            beyond += np.bincount(face[~up & esc], w[~up & esc], n_faces)
+            back = np.zeros(len(hit), dtype=bool)
+            back[~esc] = np.einsum("ij,ij->i", d[~esc], normal[hit[~esc]]) > 0.0
+            inside += np.bincount(face[back], w[back], n_faces)
+            front = ~esc & ~back
+            rows.append(face[front])
+            cols.append(tri_face[hit[front]])
+            vals.append(w[front])
     to = sparse.csr_matrix(
         (
             np.concatenate(vals) if vals else np.zeros(0),
@@ -213,5 +217,5 @@ def face_views(points, triangles, tri_face, n_faces: int, rays: int = VIEW_RAYS,
         down,
         inside,
         to,
-        int(len(tri_ids) * rays),
+        int(cast),
     )
