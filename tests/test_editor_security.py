@@ -16,6 +16,7 @@ import pytest
 import tomlkit
 
 from humv_usd.editor.document import SaveRefused, ScenarioDocument
+from humv_usd.editor.fields import all_fields
 from humv_usd.editor.guard import split_host
 from humv_usd.editor.safety import UploadExists, store_upload, sweep_base
 from humv_usd.errors import InputError
@@ -236,3 +237,29 @@ def test_a_scenario_replaced_by_a_folder_or_fifo_is_one_problem_not_a_traceback(
     doc.reload()  # returns at once
     (problem,) = doc.problems()
     assert "FIFO" in problem
+
+
+def test_file_keys_may_name_a_library_folder_read_only(tmp_path):
+    """A studio's shared asset library: compose reads it, the editor refused it."""
+    folder = tmp_path / "scenarios"
+    folder.mkdir()
+    library = tmp_path / "library"
+    library.mkdir()
+    (library / "weather.csv").write_text("time,air_temperature_k\n")
+    scenario = folder / "humvvex.toml"
+    shutil.copy(EXAMPLE, scenario)
+    for libraries, allowed in (((), False), ((library,), True)):
+        doc = ScenarioDocument(scenario, libraries)
+        field = next(f for f in all_fields(doc.raw()) if f.where == "atmosphere.weather_csv")
+        for text in ("../library/weather.csv", str(library / "weather.csv")):
+            doc.set_text(field, text)
+            outside = [
+                p for p in doc.problems() if p.startswith("atmosphere.weather_csv") and "only there" in p
+            ]
+            outside += [p for p in doc.problems() if "expected a path relative to" in p]
+            assert (outside == []) == allowed, (libraries, text, outside)
+        doc.set_text(field, "../elsewhere/weather.csv")  # outside both
+        assert any("outside" in p for p in doc.problems())
+    # uploads still go only into the scenario's folder
+    with pytest.raises(InputError):
+        store_upload(folder, "../library/x.csv", b"x")

@@ -29,8 +29,16 @@ from humv_usd.cli.common import reports_errors
     help="Interface to listen on; another than 127.0.0.1 needs the token printed at start.",
 )
 @click.option("--open/--no-open", "show", default=False, help="Open a browser window.")
+@click.option(
+    "--library",
+    "libraries",
+    multiple=True,
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+    help="A folder of shared assets the scenario's file keys may name besides its own folder "
+    "(read-only; repeatable).",
+)
 @reports_errors
-def edit(scenario: Path, out_dir: str | None, port: int, host: str, show: bool):
+def edit(scenario: Path, out_dir: str | None, port: int, host: str, show: bool, libraries):
     """Edit SCENARIO (TOML; created on the first save) in the browser: tabs from the scenario
     spec with live validation, plan, 3D view, preview, compose/render/sweep jobs."""
     from humv_usd.editor.app import address, new_token, serve
@@ -43,4 +51,4 @@ def edit(scenario: Path, out_dir: str | None, port: int, host: str, show: bool):
         click.echo(
             "  the token in this address is required on every request (another interface than 127.0.0.1)"
         )
-    serve(scenario, out, host=host, port=port, token=token, show=show)
+    serve(scenario, out, host=host, port=port, token=token, show=show, libraries=libraries)

@@ -716,13 +716,14 @@ def serve(
     port: int = 8765,
     token: str | None = None,
     show: bool = False,
+    libraries=(),
 ) -> None:
     """Start the editor's server (blocks until stopped). ``token``: required on every request
     (``?token=`` once, then a cookie); must be given for a host other than the loopback."""
     global EDITOR
     if host not in LOCAL_HOSTS and not token:
         raise InputError(f"--host {host}: a server on another interface than 127.0.0.1 needs a token")
-    EDITOR = Editor(ScenarioDocument(scenario), Path(out_dir).resolve(), token)
+    EDITOR = Editor(ScenarioDocument(scenario, libraries), Path(out_dir).resolve(), token)
     _install_routes(EDITOR)
     # Host, Origin and token on every request and websocket handshake (DNS rebinding, other sites)
     app.add_middleware(RequestGuard, host=host, port=port, token=token)

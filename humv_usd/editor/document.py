@@ -50,9 +50,12 @@ class ScenarioDocument:
         The scenario file; created from :data:`NEW_SCENARIO` on the first save when missing.
     """
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, libraries=()):
         self.path = Path(path).resolve()
         self.folder = self.path.parent
+        #: asset library folders (``humv-usd edit --library``): file keys may name files there too
+        #: (read-only: uploads and saves stay in the scenario's folder)
+        self.libraries = tuple(Path(p).resolve() for p in libraries)
         self.parse_errors: dict[str, str] = {}
         self.modified = False
         self.version = 0  # counts changes, so every open page can follow edits made in another
@@ -217,8 +220,22 @@ class ScenarioDocument:
                 try:
                     inside(self.folder, text, where)
                 except InputError as exc:
-                    out.append(str(exc))
+                    if not self._in_a_library(text):
+                        out.append(str(exc) + self._library_hint())
         return out
+
+    def _in_a_library(self, text: str) -> bool:
+        """Whether the file key ``text`` (absolute, or relative to the scenario's folder as compose
+        reads it) resolves under one of the library folders."""
+        if "\x00" in text or not self.libraries:
+            return False
+        path = (self.folder / text).resolve()
+        return any(path == lib or lib in path.parents for lib in self.libraries)
+
+    def _library_hint(self) -> str:
+        if self.libraries:
+            return " or the library folders " + ", ".join(str(p) for p in self.libraries)
+        return " (a shared asset library: humv-usd edit --library DIR)"
 
     @staticmethod
     def problems_by_field(problems: list[str], fields: list[Field]) -> tuple[dict[str, list[str]], list[str]]:
