@@ -422,3 +422,19 @@ def test_a_zero_or_projective_asset_transform_is_refused(rows, expected):
     with pytest.raises(InputError) as info:
         validate(raw, ROOT / "examples" / "street.toml")
     assert any("scene.asset[0].transform" in p and expected in p for p in info.value.problems), info.value
+
+
+def test_an_unknown_garment_is_reported_with_the_other_problems(humvvex_raw):
+    """It was reported only in a second pass, after every other problem had been fixed."""
+    import copy
+
+    from humv_usd.scenario.load import validate
+
+    raw = copy.deepcopy(humvvex_raw)
+    raw["human"][0]["clothing"] = ["tshirt_blak"]
+    raw["general"]["latitude_deg"] = 95.0  # a first-pass problem
+    with pytest.raises(InputError) as info:
+        validate(raw)
+    problems = info.value.problems
+    assert any(p.startswith("general.latitude_deg = 95.0") for p in problems)
+    assert any(p.startswith("human[0].clothing[0] = 'tshirt_blak'") and "did you mean" in p for p in problems)

@@ -275,6 +275,27 @@ def _check_ids(where: str, items: list[dict], problems: list[str]) -> set[str]:
     return seen
 
 
+def _check_garments(data: dict, problems: list[str]) -> None:
+    """Garment names, checked with the first pass (an unknown garment was reported only after
+    every other problem had been fixed, issue 26)."""
+    for i, hum in enumerate(data["human"] or []):
+        if not isinstance(hum, dict):
+            continue
+        seen: set[str] = set()
+        for k, name in enumerate(hum.get("clothing") or []):
+            if not isinstance(name, str):
+                continue
+            canonical = ALIASES.get(name, name)
+            if canonical not in GARMENTS:
+                problems.append(
+                    bad_value(f"human[{i}].clothing[{k}]", name, "allowed garments: " + ", ".join(GARMENTS))
+                    + _suggest(name, GARMENTS)
+                )
+            elif canonical in seen:
+                problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "listed twice"))
+            seen.add(canonical)
+
+
 def _cross_checks(data: dict, problems: list[str]) -> None:
     humans = _check_ids("human", data["human"], problems)
     _check_ids("sensor", data["sensor"], problems)
@@ -320,17 +341,6 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                 problems.append(
                     bad_value(f"human[{i}].speed_m_s", speed, f"allowed range for {activity}: {lo}..{hi}")
                 )
-        seen: set[str] = set()
-        for k, name in enumerate(hum.get("clothing") or []):
-            canonical = ALIASES.get(name, name)
-            if canonical not in GARMENTS:
-                problems.append(
-                    bad_value(f"human[{i}].clothing[{k}]", name, "allowed garments: " + ", ".join(GARMENTS))
-                    + _suggest(name, GARMENTS)
-                )
-            elif canonical in seen:
-                problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "listed twice"))
-            seen.add(canonical)
     for i, s in enumerate(data["sensor"]):
         _fill_sensor(i, s, problems)
         band = s.get("band")
@@ -501,6 +511,7 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
                 f"allowed sections: {', '.join(SECTIONS)}"
             )
     data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}
+    _check_garments(data, problems)
     if not problems:
         _cross_checks(data, problems)
         _resolve_paths(data, path, problems)
