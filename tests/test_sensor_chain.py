@@ -427,3 +427,12 @@ def test_write_sensor_authors_chain_settings_only_when_given():
     assert prim.GetAttribute("humv:sensor:vignetting").HasAuthoredValue()
     assert not prim.GetAttribute("humv:sensor:jpegQuality").HasAuthoredValue()
     assert read_sensor_model(prim).vignetting == "cos4"
+
+
+def test_scenario_choices_match_the_chain():
+    """The spec's copies of the chain's token sets (scenario sits above physics but keeps its own
+    tuples for the docs) are the chain's."""
+    from humv_usd.scenario import spec
+
+    assert spec.AGC_MODES == chain.AGC_MODES and spec.VIGNETTING_MODES == chain.VIGNETTING_MODES
+    assert set(spec.SENSOR_PRESETS) == set(presets.PRESETS)
