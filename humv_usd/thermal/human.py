@@ -776,20 +776,14 @@ class _Wardrobe:
         """(len(faces),) intrinsic insulation [m^2 K W^-1] of the stack each garment face
         belongs to at frame 0: per layer its air gap (still air + grey-plate radiation at
         306 K) and its fabric in series."""
-        out = np.zeros(len(faces))
-        index = {}
+        total = np.zeros(int(self.offset[-1]))
         for members, layers, _ in self.groups:
-            for col, m in enumerate(members):
-                index[int(m)] = (layers, col)
-        for i, face in enumerate(faces):
-            layers, col = index[int(face)]
-            stack = layers[:, col : col + 1]
-            d = np.maximum(self.layer_gaps(0, stack)[:, 0], 1e-4)
-            eps_in = np.concatenate([[0.98], self.eps[stack[:-1, 0]]])
-            f_rad = grey_plates_exchange_factor(eps_in, self.eps[stack[:, 0]])
+            d = np.maximum(self.layer_gaps(0, layers), 1e-4)
+            eps_in = np.concatenate([np.full((1, layers.shape[1]), 0.98), self.eps[layers[:-1]]])
+            f_rad = grey_plates_exchange_factor(eps_in, self.eps[layers])
             h_gap = air_conductivity(306.0) / d + 4.0 * f_rad * STEFAN_BOLTZMANN * 306.0**3
-            out[i] = np.sum(1.0 / h_gap + self.thickness[stack[:, 0]] / self.conductivity[stack[:, 0]])
-        return out
+            total[members] = np.sum(1.0 / h_gap + self.thickness[layers] / self.conductivity[layers], axis=0)
+        return total[faces]
 
 
 def garment_clo(body: _Part, area: np.ndarray, cover: _Coverage, wardrobe: _Wardrobe | None) -> np.ndarray:
