@@ -933,13 +933,16 @@ class _Seen:
     scene_lw: np.ndarray  # (M, F)
 
     def take(self, sel) -> _Seen:
+        def cols(a):  # (M, F) or a scalar (nothing from the scene)
+            return a[:, sel] if np.ndim(a) == 2 else a
+
         return _Seen(
             self.sky_lw[sel],
             self.sky_sw[sel],
             self.ground[sel],
             self.enclosed[sel],
-            self.scene_sw[:, sel],
-            self.scene_lw[:, sel],
+            cols(self.scene_sw),
+            cols(self.scene_lw),
         )
 
 
@@ -1015,7 +1018,8 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     incident long wave."""
     a_s, lw, air, h, _ = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, seen)
     # faces with the same forcing history (most of an unshaded ground) are solved once
-    stacked = np.ascontiguousarray(np.round(np.concatenate([a_s, lw, air, h], axis=0).T, 9))  # (F, 4M)
+    stacked = np.ascontiguousarray(np.concatenate([a_s, lw, air, h], axis=0).T)  # (F, 4M)
+    np.round(stacked, 9, out=stacked)  # in place: the largest array of the solve
     # rows compared as raw bytes (one void item per row): much faster than np.unique(axis=0)
     rows = stacked.view(np.dtype((np.void, stacked.dtype.itemsize * stacked.shape[1]))).ravel()
     _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
@@ -1167,8 +1171,8 @@ def surface_temperatures(
             views.sky_ratio(),
             views.ground_ratio,
             views.enclosed,
-            np.zeros((n_t, n_all)),
-            np.zeros((n_t, n_all)),
+            0.0,
+            0.0,
         )
         eps_face = np.concatenate([m.per_face(longwave_emissivity) for m in meshes])
         rho_face = np.concatenate([m.per_face(_solar_reflectance) for m in meshes])
@@ -1184,6 +1188,7 @@ def surface_temperatures(
         for _ in range(SHORTWAVE_BOUNCES):
             e_sw = e0 + (views.to_faces @ (rho_face[:, None] * e_sw.T)).T
         scene_sw = e_sw - e0
+        del e0, e_sw
     t_now = np.broadcast_to(f.air_temperature_k[:, None], (n_t, n_all)).copy()
     l_in = np.broadcast_to(f.sky_longwave[:, None], (n_t, n_all)).copy()
     used_lw = np.zeros((n_t, n_all))

@@ -32,6 +32,8 @@ from humv_usd.geometry.raycast import first_faces, ray_caster
 
 #: rays per triangle of a face (a quad face gets twice this many) for the view factors
 VIEW_RAYS = 128
+#: rays cast per batch (bounds the memory of the ray arrays, about 0.2 kB per ray)
+CHUNK_RAYS = 262_144
 #: zenith bins of the escaping rays [deg] (the sky's angular radiance is weighted per bin)
 ZENITH_BINS_DEG = np.linspace(0.0, 90.0, 19)
 
@@ -169,7 +171,7 @@ def face_views(points, triangles, tri_face, n_faces: int, rays=VIEW_RAYS, eps: f
     cast = 0
     for n in np.unique(n_rays[keep]):
         bary, local = ray_samples(int(n))
-        chunk = max(1, 1_000_000 // int(n))
+        chunk = max(1, CHUNK_RAYS // int(n))
         tri_ids = np.flatnonzero(keep & (n_rays == n))
         cast += len(tri_ids) * int(n)
         for a in range(0, len(tri_ids), chunk):
