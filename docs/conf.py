@@ -49,3 +49,6 @@ html_theme = "furo"
 html_title = "HumV-USD manual"
 html_static_path: list[str] = []
 html_show_sourcelink = False
+
+# quotes and ellipses only: "--from" in command help must stay two hyphens, not an en dash
+smartquotes_action = "qe"

@@ -226,3 +226,43 @@ def test_first_scene_tutorial_runs(tmp_path):
     person, background = map(float, re.findall(r"([\d.]+) K", run.stdout))
     # the person (skin ~306 K under clothes at the 298 K air) differs from the held 310 K ground
     assert 280.0 < person < 315.0 and abs(background - person) > 0.5
+
+
+def test_every_physics_module_has_a_page():
+    """A model added to humv_usd/physics/ without a physics page fails here."""
+    pages = "\n".join(p.read_text() for p in (DOCS / "physics").glob("*.rst"))
+    listed = set(re.findall(r"humv_usd\.[\w.]+", pages))
+    modules = {
+        f"humv_usd.physics.{p.stem}"
+        for p in (ROOT / "humv_usd" / "physics").glob("*.py")
+        if p.stem not in ("__init__", "checks")  # argument checks, not a model
+    }
+    assert modules <= listed, sorted(modules - listed)
+
+
+def test_docstring_prose_survives_any_markup():
+    """Physics pages show docstrings as written: numpydoc sections become lists, a reference
+    ``.. [1]`` stays text, and nothing in them can make docutils report a problem."""
+    from docutils.core import publish_doctree
+
+    doc = """Summary with |pipes|, *stars* and trailing_ underscores.
+
+    - a bullet
+      continued
+    - (i) another
+
+    Parameters
+    ----------
+    x : float
+        The value [K].
+
+    References
+    ----------
+    .. [1] Author (2000), A book.
+    """
+    rst = humv_docs.prose_rst(doc)
+    tree = publish_doctree(rst, settings_overrides={"report_level": 1, "halt_level": 1})
+    text = tree.astext()
+    assert "|pipes|, *stars* and trailing_ underscores" in text
+    assert "[1] Author (2000), A book." in text and "x : float: The value [K]." in text
+    assert "a bullet continued" in text

@@ -63,8 +63,10 @@ def inline(text: str) -> str:
         else:
             out.append(_escape(part))
     text = "".join(out)
-    # a leading "(i)" or "2." would start an enumerated list
-    return "\\" + text if re.match(r"\(?\w{1,4}[.)] ", text) else text
+    # a leading "(i)", "2.", "- ", ".. [1]", ":field:", ">>>" or a rule of punctuation would start
+    # a list, an explicit markup block, a field list, a doctest or a transition
+    block_start = r"\(?\w{1,4}[.)] |[-+*] |#\. |\.\.|:|>>>|[=~^\-]{4,}$"
+    return "\\" + text if re.match(block_start, text) else text
 
 
 def _literal(value) -> str:
@@ -469,6 +471,137 @@ def schemas_rst() -> str:
     return "\n".join(out)
 
 
+# ------------------------------------------------------------------------------ physics pages
+_ROLE = re.compile(r":(?:py:)?(?:mod|func|class|data|meth|attr|math|obj|exc):`~?([^`]+)`")
+_BULLET = re.compile(r"^(?:[-*•]|\d+\.|\(\w{1,3}\))\s+")
+_NUMPYDOC = re.compile(r"^-{3,}$")
+#: numpydoc sections whose blocks are entries (a head line, its description indented)
+_ENTRY_SECTIONS = (
+    "Parameters",
+    "Other Parameters",
+    "Returns",
+    "Yields",
+    "Raises",
+    "Attributes",
+    "References",
+    "See Also",
+)
+
+
+def prose_rst(doc: str) -> str:
+    """A docstring as written (plain text with `code`, bullets, ``::`` blocks and numpydoc
+    section headers) -> safe reStructuredText: paragraphs and list items escaped (:func:`inline`),
+    indented blocks as literal blocks, section headers as bold lines. Nothing in the docstring can
+    break the build, whatever markup it uses."""
+    import inspect
+
+    maths: list[str] = []
+
+    def keep_math(m):
+        maths.append(" ".join(m.group(1).split()))
+        return f"\x00{len(maths) - 1}\x00"
+
+    def tex(line: str) -> str:  # placeholders back as plain TeX (literal and math blocks)
+        return re.sub("\x00(\\d+)\x00", lambda m: maths[int(m.group(1))], line)
+
+    # a TeX command in a non-raw docstring lost its backslash to an escape ("\\rceil" -> CR + "ceil")
+    doc = (doc or "").translate({0x07: "\\a", 0x08: "\\b", 0x0B: "\\v", 0x0C: "\\f", 0x0D: "\\r"})
+    text = re.sub(r":math:`([^`]+)`", keep_math, inspect.cleandoc(doc))
+    text = _ROLE.sub(lambda m: "`" + m.group(1) + "`", text)
+    out: list[str] = []
+    literal_next = math_next = False
+    section = ""
+    for block in re.split(r"\n\s*\n", text):
+        lines = [ln.rstrip() for ln in block.splitlines() if ln.strip()]
+        if not lines:
+            continue
+        if lines[0].strip().startswith(".. math::"):
+            first = lines[0].strip()[len(".. math::") :].strip()
+            body = ([first] if first else []) + [ln.strip() for ln in lines[1:]]
+            if body:
+                out.extend([".. math::", ""] + [f"   {tex(ln)}" for ln in body] + [""])
+            else:
+                math_next = True
+            continue
+        if math_next:
+            math_next = False
+            if all(ln.startswith((" ", "\t")) for ln in lines):
+                out.extend([".. math::", ""] + [f"   {tex(ln.strip())}" for ln in lines] + [""])
+                continue
+        if len(lines) >= 2 and _NUMPYDOC.match(lines[1].strip()):
+            section = lines[0].strip()
+            out.extend([f"**{inline(section)}**", ""])
+            lines = lines[2:]
+            if not lines:
+                continue
+        if section in _ENTRY_SECTIONS and not lines[0].startswith((" ", "\t")):
+            entries: list[list[str]] = []
+            for ln in lines:
+                if ln.startswith((" ", "\t")) and entries:
+                    entries[-1][1] += " " + ln.strip()
+                else:
+                    entries.append([ln.strip(), ""])
+            for head, desc in entries:
+                if section in ("References", "See Also"):
+                    ref = re.sub(r"^\.\.\s+", "", f"{head} {desc}").strip()
+                    out.append(f"- {inline(ref)}")
+                else:
+                    out.append(f"- ``{head}``" + (f": {inline(desc.strip())}" if desc.strip() else ""))
+            out.append("")
+            continue
+        if literal_next or all(ln.startswith((" ", "\t")) for ln in lines):
+            out.extend(["::", ""] + [f"    {tex(ln)}" for ln in lines] + [""])
+            literal_next = False
+            continue
+        if _BULLET.match(lines[0].lstrip()):
+            items: list[str] = []
+            for ln in lines:
+                if _BULLET.match(ln.lstrip()) and (not items or len(ln) - len(ln.lstrip()) <= 1):
+                    items.append(_BULLET.sub("", ln.lstrip()))
+                else:
+                    items[-1] += " " + ln.strip()
+            out.extend([f"- {inline(item)}" for item in items] + [""])
+            continue
+        para = " ".join(ln.strip() for ln in lines)
+        if para.endswith("::"):
+            para, literal_next = para[:-1], True
+        out.extend([inline(para), ""])
+    # inline maths back as roles; "\ " (escaped, removed whitespace) lets a role touch words
+    return re.sub("\x00(\\d+)\x00", lambda m: "\\ :math:`" + maths[int(m.group(1))] + "`\\ ", "\n".join(out))
+
+
+def _module_file(module: str) -> Path:
+    path = ROOT.joinpath(*module.split("."))
+    return path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
+
+
+def module_rst(*modules: str) -> str:
+    """Each module's docstring, then its public functions and classes (signature and docstring),
+    read from the source with ``ast`` (nothing imported)."""
+    import ast
+
+    out = []
+    for module in modules:
+        path = _module_file(module)
+        tree = ast.parse(path.read_text(), str(path))
+        out.extend(_heading(f"``{module}``", "-"))
+        out.extend([prose_rst(ast.get_docstring(tree, clean=False) or ""), ""])
+        for node in tree.body:
+            if not isinstance(node, (ast.FunctionDef, ast.ClassDef)) or node.name.startswith("_"):
+                continue
+            doc = ast.get_docstring(node, clean=False)
+            if not doc:
+                continue
+            if isinstance(node, ast.FunctionDef):
+                args = ast.unparse(node.args)
+                title = f"{node.name}({args})"
+            else:
+                title = f"class {node.name}"
+            out.extend([".. rubric:: " + node.name, "", f"``{' '.join(title.split())}``", ""])
+            out.extend([prose_rst(doc), ""])
+    return "\n".join(out)
+
+
 # --------------------------------------------------------------------------------- CLI (check)
 def cli_commands() -> list[str]:
     """Every command path of ``humv-usd`` (``compose``, ``bench render``), for the test that the
@@ -497,6 +630,8 @@ SOURCES = {
     "sensors": ["humv_usd/catalog/sensors.py"],
     "schemas": ["schemas/generatedSchema.usda"],
 }
+#: physics pages: the page's ``humv-reference:: module A B`` lists its modules (their files are
+#: the dependencies)
 
 GENERATORS = {
     "scenario": scenario_rst,
@@ -504,6 +639,7 @@ GENERATORS = {
     "garments": garments_rst,
     "sensors": sensors_rst,
     "schemas": schemas_rst,
+    "module": module_rst,
 }
 
 
@@ -516,6 +652,7 @@ def setup(app):
 
     class Reference(Directive):
         required_arguments = 1
+        optional_arguments = 20
         has_content = False
 
         def run(self):
@@ -524,10 +661,14 @@ def setup(app):
                 raise self.error(f"humv-reference: unknown {name!r}; known: {', '.join(GENERATORS)}")
             env = self.state.document.settings.env
             env.note_dependency(__file__)
-            for pattern in SOURCES[name]:
-                for path in sorted(ROOT.glob(pattern)):
-                    env.note_dependency(str(path))
-            text = GENERATORS[name]()
+            args = self.arguments[1:]
+            if name == "module":
+                paths = [_module_file(m) for m in args]
+            else:
+                paths = [p for pattern in SOURCES[name] for p in sorted(ROOT.glob(pattern))]
+            for path in paths:
+                env.note_dependency(str(path))
+            text = GENERATORS[name](*args)
             source = f"<humv-reference {name}>"
             lines = StringList(text.splitlines(), source=source)
             node = nodes.container()
