@@ -116,6 +116,8 @@ def check_output_dir(out_dir, what: str = "output folder") -> Path:
         fail("is a file, expected a folder (new or existing)")
     existing = path
     while not existing.exists():
+        if existing.is_symlink():  # mkdir would fail with FileExistsError (a traceback, issue 26)
+            fail(f"{existing} is a symbolic link to a missing target or a loop of links")
         parent = existing.parent
         if parent == existing:
             break

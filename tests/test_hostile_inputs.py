@@ -438,3 +438,15 @@ def test_an_unknown_garment_is_reported_with_the_other_problems(humvvex_raw):
     problems = info.value.problems
     assert any(p.startswith("general.latitude_deg = 95.0") for p in problems)
     assert any(p.startswith("human[0].clothing[0] = 'tshirt_blak'") and "did you mean" in p for p in problems)
+
+
+def test_an_output_that_is_a_dangling_symlink_or_a_loop_is_one_line(tmp_path):
+    (tmp_path / "dangling").symlink_to(tmp_path / "missing")
+    (tmp_path / "loop1").symlink_to(tmp_path / "loop2")
+    (tmp_path / "loop2").symlink_to(tmp_path / "loop1")
+    scenario = tmp_path / "s.toml"
+    scenario.write_text((ROOT / "examples" / "humvvex.toml").read_text())
+    for out in ("dangling", "loop1", "dangling/sub"):
+        line = _one_line(CliRunner().invoke(main, ["compose", str(scenario), "-o", str(tmp_path / out)]))
+        assert "symbolic link to a missing target or a loop" in line, line
+    assert not (tmp_path / "missing").exists()
