@@ -243,9 +243,10 @@ def test_every_physics_module_has_a_page():
 def test_docstring_prose_survives_any_markup():
     """Physics pages show docstrings as written: numpydoc sections become lists, a reference
     ``.. [1]`` stays text, and nothing in them can make docutils report a problem."""
+    from docutils import nodes
     from docutils.core import publish_doctree
 
-    doc = """Summary with |pipes|, *stars* and trailing_ underscores.
+    doc = r"""Summary with |pipes|, *stars* and trailing_ underscores; :math:`\sigma T^4`.
 
     - a bullet
       continued
@@ -263,6 +264,8 @@ def test_docstring_prose_survives_any_markup():
     rst = humv_docs.prose_rst(doc)
     tree = publish_doctree(rst, settings_overrides={"report_level": 1, "halt_level": 1})
     text = tree.astext()
-    assert "|pipes|, *stars* and trailing_ underscores" in text
+    assert "|pipes|, stars and trailing_ underscores" in text
+    assert [n.astext() for n in tree.findall(nodes.emphasis)] == ["stars"]
+    assert [n.astext() for n in tree.findall(nodes.math)] == [r"\sigma T^4"]
     assert "[1] Author (2000), A book." in text and "x : float: The value [K]." in text
     assert "a bullet continued" in text

@@ -475,6 +475,8 @@ def schemas_rst() -> str:
 _ROLE = re.compile(r":(?:py:)?(?:mod|func|class|data|meth|attr|math|obj|exc):`~?([^`]+)`")
 _BULLET = re.compile(r"^(?:[-*•]|\d+\.|\(\w{1,3}\))\s+")
 _NUMPYDOC = re.compile(r"^-{3,}$")
+#: *emphasis* as reStructuredText reads it: not inside a word, no space inside the asterisks
+_EMPHASIS = re.compile(r"(?<![\w*\\])\*([^*\s](?:[^*\n]*[^*\s])?)\*(?![\w*])")
 #: numpydoc sections whose blocks are entries (a head line, its description indented)
 _ENTRY_SECTIONS = (
     "Parameters",
@@ -501,12 +503,20 @@ def prose_rst(doc: str) -> str:
         maths.append(" ".join(m.group(1).split()))
         return f"\x00{len(maths) - 1}\x00"
 
-    def tex(line: str) -> str:  # placeholders back as plain TeX (literal and math blocks)
+    def tex(line: str) -> str:  # placeholders back as plain text (literal and math blocks)
+        line = re.sub("\x01(\\d+)\x01", lambda m: f"*{emphasis[int(m.group(1))]}*", line)
         return re.sub("\x00(\\d+)\x00", lambda m: maths[int(m.group(1))], line)
 
     # a TeX command in a non-raw docstring lost its backslash to an escape ("\\rceil" -> CR + "ceil")
     doc = (doc or "").translate({0x07: "\\a", 0x08: "\\b", 0x0B: "\\v", 0x0C: "\\f", 0x0D: "\\r"})
+    emphasis: list[str] = []
+
+    def keep_emphasis(m):
+        emphasis.append(m.group(1))
+        return f"\x01{len(emphasis) - 1}\x01"
+
     text = re.sub(r":math:`([^`]+)`", keep_math, inspect.cleandoc(doc))
+    text = _EMPHASIS.sub(keep_emphasis, text)
     text = _ROLE.sub(lambda m: "`" + m.group(1) + "`", text)
     out: list[str] = []
     literal_next = math_next = False
@@ -567,7 +577,11 @@ def prose_rst(doc: str) -> str:
             para, literal_next = para[:-1], True
         out.extend([inline(para), ""])
     # inline maths back as roles; "\ " (escaped, removed whitespace) lets a role touch words
-    return re.sub("\x00(\\d+)\x00", lambda m: "\\ :math:`" + maths[int(m.group(1))] + "`\\ ", "\n".join(out))
+    rst = "\n".join(out)
+    # inside a code span, emphasis is the asterisks as written
+    rst = re.sub(r"``.+?``", lambda m: tex(m.group(0)), rst)
+    rst = re.sub("\x01(\\d+)\x01", lambda m: "\\ *" + _escape(emphasis[int(m.group(1))]) + "*\\ ", rst)
+    return re.sub("\x00(\\d+)\x00", lambda m: "\\ :math:`" + maths[int(m.group(1))] + "`\\ ", rst)
 
 
 def _module_file(module: str) -> Path:
