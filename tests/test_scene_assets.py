@@ -779,5 +779,7 @@ def test_material_subsets_get_the_slab_of_their_material(tmp_path):
     for c in subsets:
         assert subsets[c] == pytest.approx(split[c], abs=1e-3), c
         if c != window:
-            assert subsets[c] == pytest.approx(concrete[c], abs=1e-3), c
+            # the other faces see the ground, which sees the window (scene long-wave exchange,
+            # issue 25): the same within a few mK, not to the last mK
+            assert subsets[c] == pytest.approx(concrete[c], abs=5e-3), c
     assert abs(subsets[window] - concrete[window]) > 0.1, (subsets[window], concrete[window])
