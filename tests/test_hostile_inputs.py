@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -450,3 +451,25 @@ def test_an_output_that_is_a_dangling_symlink_or_a_loop_is_one_line(tmp_path):
         line = _one_line(CliRunner().invoke(main, ["compose", str(scenario), "-o", str(tmp_path / out)]))
         assert "symbolic link to a missing target or a loop" in line, line
     assert not (tmp_path / "missing").exists()
+
+
+def test_a_z_up_bvh_gets_a_horizontal_facing_axis(humvvex_raw):
+    """The documented bvh_up_axis = "Z" could never work: the facing axis stayed Z (one line
+    naming neither key nor file)."""
+    import copy
+
+    from humv_usd.human.bvh import axis_matrix
+    from humv_usd.scenario.load import validate
+
+    raw = copy.deepcopy(humvvex_raw)
+    raw["human"][0]["bvh_up_axis"] = "Z"
+    human = validate(copy.deepcopy(raw))["human"][0]
+    assert human["bvh_forward_axis"] == "-Y"
+    a = axis_matrix(human["bvh_up_axis"], human["bvh_forward_axis"])
+    # Z-up, facing -Y is already our frame (up +Z, facing -Y): the identity
+    assert np.allclose(a, np.eye(3))
+    raw["human"][0]["bvh_forward_axis"] = "-Z"
+    with pytest.raises(InputError) as info:
+        validate(raw)
+    (line,) = [p for p in info.value.problems if "bvh_forward_axis" in p]
+    assert "human[0].bvh_forward_axis = '-Z': the same axis as human[0].bvh_up_axis = 'Z'" in line

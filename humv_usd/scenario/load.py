@@ -275,6 +275,10 @@ def _check_ids(where: str, items: list[dict], problems: list[str]) -> set[str]:
     return seen
 
 
+#: the facing direction of a BVH's rest pose by its up axis when bvh_forward_axis is not given
+BVH_DEFAULT_FORWARD = {"Y": "Z", "Z": "-Y"}
+
+
 def _check_garments(data: dict, problems: list[str]) -> None:
     """Garment names, checked with the first pass (an unknown garment was reported only after
     every other problem had been fixed, issue 26)."""
@@ -322,6 +326,19 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
     for h in sorted(humans - placed):
         problems.append(f"human id {shown(repr(h))}: no [[placement]] places this human")
     for i, hum in enumerate(data["human"]):
+        up = hum.get("bvh_up_axis") or "Y"
+        if hum.get("bvh_forward_axis") is None:  # bvh_up_axis = "Z" with the Y-up default Z never worked
+            hum["bvh_forward_axis"] = BVH_DEFAULT_FORWARD[up]
+        elif hum["bvh_forward_axis"].lstrip("-") == up:
+            problems.append(
+                bad_value(
+                    f"human[{i}].bvh_forward_axis",
+                    hum["bvh_forward_axis"],
+                    f"the same axis as human[{i}].bvh_up_axis = {up!r}"
+                    + (f" (BVH {hum['bvh']})" if hum.get("bvh") else "")
+                    + "; expected a horizontal axis",
+                )
+            )
         if hum.get("bvh") and hum.get("speed_m_s") is not None:
             problems.append(
                 bad_value(

@@ -185,6 +185,12 @@ HUMAN = Section(
             "instead of the built-in activity; path relative to the scenario file.",
         ),
         "bvh_up_axis": Key("choice", "Up axis of the BVH file.", default="Y", choices=("Y", "Z")),
+        "bvh_forward_axis": Key(
+            "choice",
+            "Direction the BVH's character faces in its rest pose (default Z with Y up, as CMU "
+            "files; -Y with Z up, as Blender's front view).",
+            choices=("X", "-X", "Y", "-Y", "Z", "-Z"),
+        ),
         "speed_m_s": Key(
             "float",
             "Walking (0.5-2) or running (2-5) speed [m/s]; default 1.4 / "
