@@ -74,6 +74,7 @@ READS = (
             "activity",
             "bvh",
             "bvh_up_axis",
+            "bvh_forward_axis",
             "speed_m_s",
         )
     ),
@@ -149,6 +150,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             g["fps"],
             frames,
             up_axis=human["bvh_up_axis"],
+            forward_axis=human["bvh_forward_axis"],
             mass_kg=human["mass_kg"],
             body_points=body.points,
         )
