@@ -288,10 +288,14 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
         paths_ran["model"] == "analytic" and f"tables for {len(sc['sensor'])} sensors" in paths_ran["paths"]
     )
     paths = stage.GetPrimAtPath(PATHS).GetChildren()
-    assert sorted(p.GetName() for p in paths) == sorted(s["id"] for s in sc["sensor"])
+    # named apart from the cameras (Blender renamed the cameras "<sensor>.001")
+    assert sorted(p.GetName() for p in paths) == sorted(f"{s['id']}_path" for s in sc["sensor"])
     for p in paths:
         assert p.HasAPI(S.ATMOSPHERE_PATH_API)
-        assert p.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Get() == f"/World/Sensors/{p.GetName()}"
+        assert (
+            p.GetAttribute(S.ATMOSPHERE_PATH_SENSOR).Get()
+            == f"/World/Sensors/{p.GetName().removesuffix('_path')}"
+        )
         r = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_RANGES).Get())
         tau = np.array(p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE).Get())
         assert r[0] <= 1.0 and r[-1] >= 30.0 and np.all(np.diff(r) > 0)  # beyond the 25 m scene
@@ -416,7 +420,7 @@ def test_sky_and_paths_follow_an_hourly_weather_series(humvvex_raw, monkeypatch,
     assert layer_text(sky) == layer_text(layer)
     stage = compose_in_memory([sensors_layer.build(sc), sky, paths], 0.01)
     a = stage.GetPrimAtPath("/World/Atmosphere")
-    p = stage.GetPrimAtPath(PATHS.AppendChild("lwir640"))
+    p = stage.GetPrimAtPath(PATHS.AppendChild("lwir640_path"))
     tau_attr = p.GetAttribute(S.ATMOSPHERE_PATH_TRANSMITTANCE)
     assert tau_attr.GetTimeSamples() == [0.0, 36.0, 72.0]  # the weather nodes' frames
     wl = np.array(a.GetAttribute(S.ATMOSPHERE_WAVELENGTHS).Get())

@@ -48,7 +48,7 @@ READS = (
 #: layers read from the upstream stage: weather and sun (environment), the wavelength grid
 #: (atmosphere), camera positions (sensors) and the scene's extent for the ranges (scene)
 UPSTREAM = ("environment", "atmosphere", "sensors", "scene")
-VERSION = "1"
+VERSION = "2"  # 2: tables named <sensor>_path
 
 
 def scene_points(scenario: Scenario, upstream) -> np.ndarray:
@@ -95,7 +95,9 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
     for s in sensors:
         cams = camera_positions(upstream, sensor_path(s["id"]), np.arange(max(scenario.frame_count, 1)))
         ranges = sensor_ranges(s, cams, points)
-        table = define_path_table(stage, s["id"], sensor_path(s["id"]), ranges)
+        # "<sensor>_path", not the sensor's own name: importers that flatten prim names (Blender)
+        # otherwise give the camera the table's name and rename the camera "<sensor>.001"
+        table = define_path_table(stage, f"{s['id']}_path", sensor_path(s["id"]), ranges)
         for k in nodes:  # defaults = frame 0 (node 0), plus samples at the weather nodes
             tau, rad = full.at_node(k).path(cams[0], ranges)
             if k == 0:

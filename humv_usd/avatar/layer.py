@@ -48,7 +48,7 @@ from humv_usd.usd.avatar import (
     write_keypoints,
     write_metabolic_rate,
 )
-from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
+from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, set_kind
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, skeleton_path
 
@@ -85,7 +85,7 @@ READS = (
     "@carriesRifle[{id}]",
 )
 UPSTREAM = ()
-VERSION = "2"  # 2: reads only what changes the avatar (shared across outfits)
+VERSION = "3"  # 3: model kinds and extents (2: reads only what changes the avatar)
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -103,8 +103,9 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, f"HumV-USD avatar layer for {human['id']} (UsdSkel, CMU rig)"
     )
-    UsdGeom.Scope.Define(stage, SCOPES["humans"])
+    set_kind(UsdGeom.Scope.Define(stage, SCOPES["humans"]).GetPrim(), "group")
     root = usdskel.define_skel_root(stage, human_path(human["id"]))
+    set_kind(root.GetPrim(), "component")
     root.AddTranslateOp().Set(Gf.Vec3d(*place["position_m"]))
     root.AddRotateZOp().Set(_avatar_rotation_deg(place))
     prim = root.GetPrim()
@@ -114,7 +115,29 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     _motion_attributes(prim, motion)
     label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
     author_rig(stage, human["id"], body, motion)
+    _author_extents(stage, human_path(human["id"]), scenario.frame_count)
     return finish(stage)
+
+
+def _author_extents(stage, path, frames: int) -> None:
+    """Per-frame ``extent`` of the SkelRoot (its skinned meshes) and of the Skeleton (its
+    joints), as UsdSkel computes them, widened by :data:`EXTENT_PADDING_M`: viewers frame and
+    cull the person by it (issue 27: no extent was authored)."""
+    from pxr import Usd
+
+    pad = Gf.Vec3f(EXTENT_PADDING_M)
+    for prim in (stage.GetPrimAtPath(path), stage.GetPrimAtPath(path.AppendChild("Skeleton"))):
+        boundable = UsdGeom.Boundable(prim)
+        attr = boundable.CreateExtentAttr()
+        for f in range(max(frames, 1)):
+            code = Usd.TimeCode(f) if frames > 1 else Usd.TimeCode.Default()
+            lo, hi = UsdGeom.Boundable.ComputeExtentFromPlugins(boundable, Usd.TimeCode(f))
+            attr.Set([lo - pad, hi + pad], code)
+
+
+#: Margin [m] on the person's extents: UsdSkel's skinned estimate fell 0.2 mm short of the top of
+#: the head, and the garments (the clothing layer, over the body) stand up to a few cm off it.
+EXTENT_PADDING_M = 0.05
 
 
 def _avatar_rotation_deg(place: dict) -> float:

@@ -43,7 +43,7 @@ READS = (
     "thermal.surface_spin_up_s",  # the spin-up window before frame 0 (negative time codes)
 )
 UPSTREAM = ()
-VERSION = "3"
+VERSION = "5"  # 5: the sun and sky as UsdLux lights
 
 
 def _covered_from(scenario: Scenario) -> float:
@@ -100,6 +100,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         E.write_sun(env, sun, codes)
     else:
         E.write_sun(env, sun, codes[:1])
+    # the same sun and sky as UsdLux lights for other USD tools (frames only, not the spin-up)
+    E.write_lights(stage, sun, codes, range(spin_t.size, codes.size))
     n_up = int(sun.up[spin_t.size :].sum())
     ran = {
         "weather": (

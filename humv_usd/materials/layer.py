@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pxr import Sdf, UsdShade
+from pxr import Sdf, UsdGeom, UsdShade
 
 from humv_usd.catalog.garments import fabrics
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.usd.layers import finish, library_layer_main, new_layer_stage
+from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
 from humv_usd.usd.materials import write_material, write_substrate
 from humv_usd.usd.paths import material_path
 
@@ -26,7 +26,7 @@ READS = (
     "scene.layer_material",
 )
 UPSTREAM = ()
-VERSION = "2"
+VERSION = "3"  # 3: /World/Materials a Scope
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"
@@ -70,6 +70,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, "HumV-USD materials layer: spectral and thermal material properties"
     )
+    UsdGeom.Scope.Define(stage, SCOPES["materials"])  # a typed scope, not a typeless def
     for name in used_materials(scenario):
         author_material(stage, name)
     if _slab_ground(scenario):

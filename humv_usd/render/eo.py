@@ -25,7 +25,7 @@ sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spe
 
 Atmospheric path: per pixel by range as in the infrared, on the film's X, Y, Z channels,
 :math:`XYZ_{sensor} = \\tau_{xyz}(r)\\,XYZ + P_{xyz}(r)` with the sensor's spectral path table
-``/World/Atmosphere/Paths/<sensor>`` reduced to the channels with the CIE colour-matching
+``/World/Atmosphere/Paths/<sensor>_path`` reduced to the channels with the CIE colour-matching
 functions (:func:`humv_usd.render.radiometry.reduce_xyz`: the transmittance weighted for a
 spectrally flat surface radiance, an approximation); r is the range of the pixel centre's first
 hit; sky pixels get no path term. Skipped (and listed) when there is no table or it does not

@@ -45,7 +45,7 @@ from humv_usd.scene.assets import (
 )
 from humv_usd.scene.geometry import box, ground_grid
 from humv_usd.usd.labels import nearest_class
-from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, usd_error_text
+from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, set_kind, usd_error_text
 from humv_usd.usd.materials import has_stage_material
 from humv_usd.usd.mesh import bind_material, define_mesh, label, write_asset_source, write_class
 from humv_usd.usd.paths import GROUND, material_path, object_path
@@ -53,7 +53,7 @@ from humv_usd.usd.paths import GROUND, material_path, object_path
 NAME = "scene"
 READS = (*FRAMES, "scene", "@ids")
 UPSTREAM = ()
-VERSION = "3"  # 3: files written relative to the layer
+VERSION = "4"  # 4: model kinds
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -62,7 +62,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, "HumV-USD scene layer: " + (scene["site"] or "ground and objects")
     )
-    UsdGeom.Xform.Define(stage, SCOPES["scene"])
+    set_kind(UsdGeom.Xform.Define(stage, SCOPES["scene"]).GetPrim(), "group")
     ground = scene["ground"]
     mesh = define_mesh(
         stage, GROUND, *ground_grid(ground["size_m"]), material=material_path(ground["material"])
@@ -76,8 +76,12 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             material=material_path(o["material"]),
         )
         label(mesh.GetPrim(), ids[f"object:{o['id']}"], o["class"])
+        set_kind(mesh.GetPrim(), "component")
     for a in scene.get("asset") or ():
-        author_asset(stage, a, read_asset(a["file"], a["units"], a["up_axis"]), ids[f"asset:{a['id']}"])
+        prim = author_asset(
+            stage, a, read_asset(a["file"], a["units"], a["up_axis"]), ids[f"asset:{a['id']}"]
+        )
+        set_kind(prim, "component")
     if scene.get("layers"):
         add_site_layers(stage, scene, ids)
     return finish(stage)

@@ -24,7 +24,7 @@ from humv_usd.usd.sensor import CHAIN_ATTRIBUTES, write_sensor
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
 UPSTREAM = ()
-VERSION = "2"
+VERSION = "3"  # 3: focusDistance at the look-at point
 
 # UsdGeom lens and filmback values are in tenths of a scene unit: on a metre stage 1 mm = 0.01.
 _MM_TO_TENTHS_OF_M = 0.01
@@ -96,11 +96,17 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         cam = UsdGeom.Camera.Define(stage, sensor_path(s["id"]))
         op = cam.AddTransformOp()
         positions = camera_positions(s, g["fps"], frames)
+        # focused where it looks (HumV renders a pinhole; a viewer honouring fStop without a
+        # focusDistance focuses at 0 m: Blender rendered a uniform blur)
+        focus = cam.CreateFocusDistanceAttr()
+        target = np.asarray(s["look_at_m"], dtype=float)
         if s["platform"] == "aerial":
             for frame, pos in enumerate(positions):
                 op.Set(look_at_matrix(pos.tolist(), s["look_at_m"]), Usd.TimeCode(frame))
+                focus.Set(float(np.linalg.norm(target - pos)), Usd.TimeCode(frame))
         else:
             op.Set(look_at_matrix(s["position_m"], s["look_at_m"]))
+            focus.Set(float(np.linalg.norm(target - np.asarray(s["position_m"], dtype=float))))
         width, height = s["resolution"]
         pitch_mm = s["pixel_pitch_um"] * 1e-3
         cam.CreateProjectionAttr(UsdGeom.Tokens.perspective)

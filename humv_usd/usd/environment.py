@@ -127,6 +127,64 @@ def write_sun(prim: Usd.Prim, sun: SunState, codes) -> None:
         _set(prim.GetAttribute(attr), getattr(sun, key), codes, sampled)
 
 
+#: Luminous efficacy of clear-sky direct sunlight and of diffuse skylight [lm W^-1] (Littlefair
+#: 1985, "The luminous efficacy of daylight: a review", Lighting Res. Technol. 17(4): beam about
+#: 90-105, diffuse 110-130 lm/W over the measured data sets; mid values): converts the
+#: environment's broadband irradiance to the photometric units UsdLux uses.
+BEAM_EFFICACY_LM_W = 95.0
+DIFFUSE_EFFICACY_LM_W = 120.0
+#: Angular diameter of the sun [deg] (UsdLux DistantLight's fallback).
+SUN_ANGLE_DEG = 0.53
+SUN_LIGHT_PATH = ENVIRONMENT_PATH.AppendChild("Sun")
+SKY_LIGHT_PATH = ENVIRONMENT_PATH.AppendChild("Sky")
+
+
+def _sun_orientation(direction) -> Gf.Matrix4d:
+    """A rotation whose -Z axis is the direction sunlight travels (a DistantLight shines along
+    its -Z): its +Z axis points at the sun."""
+    z = np.asarray(direction, dtype=float)
+    z = z / np.linalg.norm(z)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.99 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = x, y, z  # USD row vectors: rows are the transformed axes
+    return Gf.Matrix4d(m.tolist())
+
+
+def write_lights(stage: Usd.Stage, sun: SunState, codes, frame_samples) -> None:
+    """The sun and sky as UsdLux lights, so that viewers and renderers that read only UsdLux
+    (Blender, usdview, Omniverse) show the scene lit as HumV's render sees it (issue 27).
+
+    ``frame_samples``: indices into ``sun``/``codes`` of the frame time codes (the spin-up's
+    negative time codes are left out). Sun: a normalized DistantLight (intensity = illuminance
+    at normal incidence [lx], UsdLux) of the direct normal irradiance x
+    :data:`BEAM_EFFICACY_LM_W`, angle :data:`SUN_ANGLE_DEG`, oriented at the sun; zero below the
+    horizon. Sky: a uniform DomeLight of luminance E_d / pi [nit] (a uniform sky of luminance L
+    gives the horizontal illuminance pi L), E_d = diffuse horizontal irradiance x
+    :data:`DIFFUSE_EFFICACY_LM_W`. HumV's own render ignores both: it reads the environment
+    and atmosphere attributes."""
+    from pxr import UsdLux
+
+    idx = list(frame_samples)
+    sampled = len(idx) > 1
+    light = UsdLux.DistantLight.Define(stage, SUN_LIGHT_PATH)
+    light.CreateAngleAttr(SUN_ANGLE_DEG)
+    light.CreateNormalizeAttr(True)
+    op = light.AddTransformOp()
+    intensity = light.CreateIntensityAttr()
+    dome = UsdLux.DomeLight.Define(stage, SKY_LIGHT_PATH)
+    dome.CreateColorAttr(Gf.Vec3f(1.0, 1.0, 1.0))  # authored: Blender makes a world only from a colour or texture
+    dome_intensity = dome.CreateIntensityAttr()
+    for i in idx:
+        code = Usd.TimeCode(float(codes[i])) if sampled else Usd.TimeCode.Default()
+        up = bool(sun.up[i])
+        op.Set(_sun_orientation(sun.direction[i] if up else (0.0, 0.0, 1.0)), code)
+        intensity.Set(float(sun.dni_w_m2[i]) * BEAM_EFFICACY_LM_W if up else 0.0, code)
+        dome_intensity.Set(float(sun.dhi_w_m2[i]) * DIFFUSE_EFFICACY_LM_W / np.pi, code)
+
+
 # --- readers -------------------------------------------------------------------------------------
 def time_codes(stage: Usd.Stage, times_s) -> np.ndarray:
     """Time codes of ``times_s`` seconds after frame 0 on ``stage`` (its timeCodesPerSecond)."""

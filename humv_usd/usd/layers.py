@@ -38,8 +38,16 @@ def new_layer_stage(fps: float, frame_count: int, doc: str) -> Usd.Stage:
     """
     stage = Usd.Stage.CreateInMemory()
     set_layer_metadata(stage.GetRootLayer(), fps, frame_count, doc)
-    UsdGeom.Xform.Define(stage, WORLD)
+    set_kind(UsdGeom.Xform.Define(stage, WORLD).GetPrim(), "assembly")
     return stage
+
+
+def set_kind(prim: Usd.Prim, kind: str) -> None:
+    """The prim's model kind (assembly, group, component): the model hierarchy that USD tools
+    (usdview's pick modes, Omniverse, Blender's importer) use to find the assets in a scene. Ours:
+    /World an assembly, /World/Scene and /World/Humans groups, each scene object and person a
+    component."""
+    Usd.ModelAPI(prim).SetKind(kind)
 
 
 def set_layer_metadata(layer: Sdf.Layer, fps: float, frame_count: int, doc: str) -> None:
