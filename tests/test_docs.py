@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import click
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -244,6 +245,26 @@ def test_user_layer_tutorial_runs(first_scene):
     assert 0.9 < e0 < 0.99  # concrete, 8-14 µm (catalogue)
     assert abs(e1 - 0.5) < 0.005  # the user layer's flat spectrum
     assert t1 < t0 - 3.0 and t0 < 311.0
+
+
+@pytest.mark.slow
+def test_aerial_tutorial_runs(tmp_path):
+    """docs/user/aerial.md: the camera follows the orbit's closed form, p = c + (R sin psi,
+    R cos psi, h) with the compass azimuth psi falling by (v t / R) rad (counter-clockwise), and
+    the person is seen in every frame."""
+    (tmp_path / ".venv").symlink_to(Path(sys.executable).parents[1])
+    shutil.copy(DOCS / "user" / "aerial.toml", tmp_path / "aerial.toml")
+    printed = "".join(_run_page("aerial.md", tmp_path))
+    rows = re.findall(
+        r"frame (\d+): camera at \(([-\d.]+), ([-\d.]+), ([-\d.]+)\) m, .*, (\d+) px visible", printed
+    )
+    assert len(rows) == 3
+    for frame, x, y, z, visible in rows:
+        psi = np.pi - 5.0 * 0.5 * int(frame) / 25.0
+        assert np.allclose(
+            [float(x), float(y), float(z)], [25 * np.sin(psi), 25 * np.cos(psi), 30.0], atol=0.01
+        )
+        assert int(visible) > 50
 
 
 def test_every_physics_module_has_a_page():
