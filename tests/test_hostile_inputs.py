@@ -306,7 +306,9 @@ def test_render_refuses_what_check_flags(tmp_path, edit, expected):
     line = _one_line(CliRunner().invoke(main, ["render", str(path), "-o", str(out)]))
     assert expected in line and str(path) in line
     assert not out.exists() or not any(out.rglob("*.exr"))
-    rule = {"upAxis": "humv:upAxis", "metersPe": "humv:metersPerUnit"}.get(expected[:8])
+    rule = {"upAxis =": "humv:upAxis", "metersPe": "humv:metersPerUnit", "endTimeC": "humv:timeRange"}.get(
+        expected[:8]
+    )
     if rule:  # check reports the same as an error
         assert any(f.startswith(rule) for f in check_stage(path))
 

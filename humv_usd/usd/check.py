@@ -61,6 +61,10 @@ def rule_root_layer(stage: Usd.Stage) -> list[str]:
         )
     if not stage.GetDefaultPrim():
         out.append("humv:defaultPrim: stage: no valid defaultPrim")
+    if root.HasStartTimeCode() and root.HasEndTimeCode() and root.endTimeCode < root.startTimeCode:
+        out.append(  # the render refuses it too (pipeline.preflight)
+            f"humv:timeRange: stage: endTimeCode {root.endTimeCode:g} < startTimeCode {root.startTimeCode:g}"
+        )
     tcps = root.timeCodesPerSecond
     for sub in root.subLayerPaths:
         layer = Sdf.Layer.FindOrOpenRelativeToLayer(root, sub)  # check_stage found them all loadable
