@@ -82,7 +82,7 @@ from humv_usd.physics.sky import (
 )
 from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
-from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views
+from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views, orthonormal_frames, ray_samples
 from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
@@ -444,6 +444,10 @@ REFINE_THRESHOLD_W_M2 = 20.0
 #: memory of the weighting: a sample t s before frame 0 counts exp(t / memory) (the surface layer
 #: of concrete or soil forgets its forcing over about an hour; samples from frame 0 on count 1)
 REFINE_MEMORY_S = 3600.0
+#: a cell is split (down to ``min_cell_m``) while its sky view factor differs by more than this
+#: between its centre and corners: the long wave and reflected sun of the walls it sees change
+#: across it (near a sunlit wall about 7 K per unit of sky view, so about 0.3 K)
+VIEW_SPREAD = 0.04
 #: refinement stops (warning) when a mesh would exceed this many faces
 MAX_REFINED_FACES = 60000
 
@@ -593,6 +597,31 @@ def _dose(cells, shadows: _Shadows, f: SurfaceForcing, weights) -> np.ndarray:
     return dose.reshape(pts.shape[:2])
 
 
+def _sky_view_spread(cells, shadows: _Shadows, rays: int = 64) -> np.ndarray:
+    """(C,) largest difference of the sky view factor between a cell's centre and its corners
+    (pulled 2 % towards the centre): ``rays`` rays per point, cosine-weighted
+    (:func:`humv_usd.thermal.views.ray_samples`, the same directions at every point)."""
+    centre = cells.mean(axis=1, keepdims=True)
+    pts = np.concatenate([centre, centre + 0.98 * (cells - centre)], axis=1)  # (C, k + 1, 3)
+    nrm = _cell_normals(cells)
+    _, local = ray_samples(rays)
+    t_axis, b_axis = orthonormal_frames(nrm)
+    d = (
+        local[None, :, 0:1] * t_axis[:, None, :]
+        + local[None, :, 1:2] * b_axis[:, None, :]
+        + local[None, :, 2:3] * nrm[:, None, :]
+    )  # (C, R, 3)
+    k = pts.shape[1]
+    shape = (len(cells), k, rays, 3)
+    o = np.broadcast_to((pts + shadows.eps * nrm[:, None, :])[:, :, None, :], shape)
+    dirs = np.broadcast_to(d[:, None, :, :], shape)
+    free = unblocked(shadows.caster(-1), o.reshape(-1, 3), dirs.reshape(-1, 3)) & (
+        dirs.reshape(-1, 3)[:, 2] > 0.0
+    )
+    svf = free.reshape(len(cells), k, rays).mean(axis=2)
+    return np.ptp(svf, axis=1)
+
+
 def _straddles_a_footprint(cells, shadows: _Shadows) -> np.ndarray:
     """(C,) whether a cell lies partly inside a closed mesh standing on it (a building's
     footprint): of 16 points over it, some see the back of a face straight above them and some
@@ -688,6 +717,7 @@ def refine_meshes(
     memory_s: float = REFINE_MEMORY_S,
     max_faces: int = MAX_REFINED_FACES,
     cameras: list[Camera] | None = None,
+    view_spread: float = VIEW_SPREAD,
 ) -> tuple[list[SceneMesh], dict]:
     """Split the slab faces that straddle a shadow or a footprint until no face does.
 
@@ -701,6 +731,10 @@ def refine_meshes(
     get small faces, and open ground keeps its large ones. Faces stay planar and keep the
     winding of the face they split; a split face's neighbours keep their edges (T-junctions on
     a plane, no gap).
+
+    A cell is also split while its sky view factor varies by more than ``view_spread`` over
+    it (:func:`_sky_view_spread`; the ground near a wall: the exchange with the wall changes
+    across it; ``np.inf`` turns this off).
 
     Where a camera (``cameras``, :func:`camera_footprints`) sees a cell, the finest size is
     its pixel footprint there (:func:`pixel_footprint`, not below
@@ -753,6 +787,7 @@ def refine_meshes(
                     if coarse.any():
                         split[coarse] |= _under_occluders(cells[coarse], occluders, forcing, weights)
                         split[coarse] |= _straddles_a_footprint(cells[coarse], shadows)
+                        split[coarse] |= _sky_view_spread(cells[coarse], shadows) > view_spread
                 if split.any() and total + 3 * int(split.sum()) > max_faces:
                     # the bound, checked before the children exist: split the cells coarsest
                     # against their finest size first, as many as it allows
@@ -1062,14 +1097,14 @@ def _solar_reflectance(material: StageMaterial) -> float:
 
 def _views(meshes: list[SceneMesh], rays: int):
     """:func:`humv_usd.thermal.views.face_views` of all scene meshes together (faces numbered
-    mesh by mesh); ``rays`` per triangle of a face wider than :data:`MIN_CELL_M` (sqrt of its
-    area), a quarter of them for the small cells of a refined shadow edge (their neighbours
+    mesh by mesh); ``rays`` per triangle of a face wider than half :data:`MIN_CELL_M` (sqrt of
+    its area), a quarter of them for the camera-footprint cells of a shadow edge (their neighbours
     share the same ray pattern from nearly the same points, so their estimates move together)."""
     offsets = np.cumsum([0] + [len(m.points) for m in meshes])
     face0 = np.cumsum([0] + [m.n_faces for m in meshes])
     tri_face = np.concatenate([m.tri_face + o for m, o in zip(meshes, face0)])
     area = np.concatenate([m.face_geometry()[2] for m in meshes])
-    per_tri = np.where(np.sqrt(area) >= MIN_CELL_M, rays, max(rays // 4, 1))[tri_face]
+    per_tri = np.where(np.sqrt(area) >= 0.5 * MIN_CELL_M, rays, max(rays // 4, 1))[tri_face]
     return face_views(
         np.concatenate([m.points for m in meshes]),
         np.concatenate([m.triangles + o for m, o in zip(meshes, offsets)]),
