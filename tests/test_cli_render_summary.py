@@ -36,3 +36,15 @@ def test_all_numbers_print_in_kelvin(capsys):
     echo_render_summary(_manifest(2.681, None), "out", "fast")
     out = capsys.readouterr().out
     assert "edge pixels 2.681 K" in out and "p99 n/a" in out and "mean 0.0050 K" in out
+
+
+def test_a_frame_short_of_its_quality_target_says_so(capsys):
+    """Issue 25: a frame that stops at the spp cap without meeting its target says so, per region."""
+    manifest = _manifest(0.9, 0.05)
+    manifest["sensors"][0]["quality"] = {"met": False, "frames_not_met": [5], "regions_not_met": ["person"]}
+    echo_render_summary(manifest, "out", "fast")
+    line = [x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("lwir:")][0]
+    assert "quality target NOT met in 1 frame(s) at the spp cap (person)" in line
+    manifest["sensors"][0]["quality"] = {"met": True, "frames_not_met": [], "regions_not_met": []}
+    echo_render_summary(manifest, "out", "fast")
+    assert "quality target met" in capsys.readouterr().out

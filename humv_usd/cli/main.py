@@ -250,10 +250,19 @@ def echo_render_summary(manifest: dict, out_dir, estimator: str) -> None:
                 if rendered_now
                 else ""
             )
+            quality = sensor.get("quality") or {}
+            verdict = ""
+            if quality.get("met") is True:
+                verdict = "; quality target met"
+            elif quality.get("met") is False:  # issue 25: a frame at the spp cap short of its target says so
+                verdict = (
+                    f"; quality target NOT met in {len(quality['frames_not_met'])} frame(s) at the spp cap "
+                    f"({', '.join(quality['regions_not_met']) or 'image'})"
+                )
             click.echo(
                 f"  {sensor['name']}: error away from edges mean {_kelvin(away['mean_k'], 4)}, p99 "
                 f"{_kelvin(away.get('p99_max_k'), 4)}; edge pixels {_kelvin(away.get('edge_mean_k'), 3)} "
-                f"(footprint){per_frame}"
+                f"(footprint){per_frame}{verdict}"
             )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")

@@ -31,6 +31,7 @@ from humv_usd.pipeline.preflight import check_stage_for_render
 from humv_usd.pipeline.writer import BackgroundWriter
 from humv_usd.render import eo as eo_render
 from humv_usd.render import estimator as E
+from humv_usd.render import quality as Q
 from humv_usd.render import radiometry
 from humv_usd.render.estimator import render_band_fast
 from humv_usd.render.export import StageExport
@@ -45,9 +46,11 @@ from humv_usd.render.ir import (  # noqa: F401
     subband_spp,
 )
 from humv_usd.usd import environment as usd_environment
+from humv_usd.usd import thermal as usd_thermal
 from humv_usd.usd.atmosphere import AtmosphereSpectra, atmosphere_spectra
 from humv_usd.usd.layers import open_stage
 from humv_usd.usd.materials import band_emissivity, subband_emissivity, subband_transmittance
+from humv_usd.usd.paths import human_path
 from humv_usd.usd.sensor import check_subbands, read_sensor_model
 
 log = logging.getLogger(__name__)
@@ -150,29 +153,25 @@ def _select_sensors(all_sensors: list[SensorModel], wanted) -> list[SensorModel]
     return out
 
 
-#: Seed offset between the sample batches of one frame (auto quality).
-AUTO_SEED_STRIDE = 1_000_003
-#: Most camera samples per pixel the automatic quality spends on one frame.
-AUTO_MAX_SPP = 32
-#: The automatic quality's target: mean per-pixel error away from edges <= NETD / this.
-AUTO_NETD_FRACTION = 3.0
-#: ... and its 99th percentile away from edges <= this [K] (issue 13: a few noisy pixels, e.g. where
-#: one pixel spans facets of different temperature in the MWIR, are noise a camera does not have).
-AUTO_P99_K = 0.1
+# The automatic quality's rules, batching and error summaries: humv_usd.render.quality (one module)
+AUTO_SEED_STRIDE = Q.AUTO_SEED_STRIDE
+AUTO_MAX_SPP = Q.AUTO_MAX_SPP
+AUTO_NETD_FRACTION = Q.AUTO_NETD_FRACTION
+AUTO_P99_K = Q.AUTO_P99_K
 
 
-def _needs_more_samples(plan, sensor, noise: dict, batches: int) -> bool:
-    """Automatic quality (no spp given, fast estimator): another batch of samples while the mean
-    error away from edges exceeds NETD / 3 or its 99th percentile exceeds AUTO_P99_K, and fewer
-    than AUTO_MAX_SPP samples were spent."""
+def _needs_more_samples(plan, sensor, noise: dict, batches: int, regions: dict | None = None) -> bool:
+    """Automatic quality (no spp given, fast estimator): another batch while fewer than
+    :data:`humv_usd.render.quality.MIN_BATCHES` were taken, or the mean error away from edges
+    exceeds NETD / 3 or its 99th percentile exceeds AUTO_P99_K on the image (``noise``) or on a
+    labelled region (``regions``, :func:`humv_usd.render.quality.region_stats`), and fewer than
+    AUTO_MAX_SPP samples were spent."""
     if not plan.spp_auto or noise.get("mean_k") is None:
         return False
     netd = getattr(sensor, "netd_k", None)
     if not netd or netd <= 0:
         return False
-    p99 = noise.get("p99_k")
-    too_noisy = noise["mean_k"] > netd / AUTO_NETD_FRACTION or (p99 is not None and p99 > AUTO_P99_K)
-    return too_noisy and plan.spp * (batches + 1) <= AUTO_MAX_SPP
+    return Q.needs_more(True, Q.verdict(noise, regions or {}, netd), batches, plan.spp)
 
 
 def _netd_text(sensor) -> str:
@@ -182,13 +181,7 @@ def _netd_text(sensor) -> str:
 
 
 def _spp_rule(plan, sensor) -> str:
-    if not plan.spp_auto:
-        return f"given: {plan.spp} spp"
-    return (
-        f"automatic: batches of {plan.spp} spp until the mean error away from edges is <= NETD/"
-        f"{AUTO_NETD_FRACTION:g} ({_netd_text(sensor)} / {AUTO_NETD_FRACTION:g}) and its "
-        f"99th percentile <= {AUTO_P99_K:g} K, or {AUTO_MAX_SPP} spp"
-    )
+    return Q.rule_text(plan.spp_auto, plan.spp, _netd_text(sensor))
 
 
 class _Accumulator:
@@ -662,7 +655,7 @@ def _estimator_key(estimator: str) -> str:
         return estimator
     return (
         f"fast (splits {E.DEFAULT_SPLITS}, replicas {E.DEFAULT_REPLICAS}, roulette from depth "
-        f"{E.RR_DEPTH}, filter radius {E.DEFAULT_FILTER_RADIUS} px)"
+        f"{E.RR_DEPTH}, filter radius {E.DEFAULT_FILTER_RADIUS} px, back sides as cavities)"
     )
 
 
@@ -671,8 +664,9 @@ def _spp_mode(spp_auto: bool) -> str:
     if not spp_auto:
         return "fixed"
     return (
-        f"automatic (to NETD/{AUTO_NETD_FRACTION:g}, p99 <= {AUTO_P99_K:g} K, <= {AUTO_MAX_SPP} spp, "
-        f"seed stride {AUTO_SEED_STRIDE})"
+        f"automatic (to NETD/{AUTO_NETD_FRACTION:g}, p99 <= {AUTO_P99_K:g} K on the image and per region "
+        f"of >= {Q.MIN_REGION_PIXELS} px, >= {Q.MIN_BATCHES} batches, <= {AUTO_MAX_SPP} spp, "
+        f"seed stride {AUTO_SEED_STRIDE}, per-pixel direct positions <= {E.MAX_PIXEL_DIRECT_FACTOR})"
     )
 
 
@@ -803,6 +797,29 @@ class _FrameRenderer:
             self.scene.set_camera(plan.sensor_ids[s.name], state.cameras[s.name])
         self.scene.update()
 
+    def _thermal_noise(self, s: SensorModel, state, hits) -> np.ndarray | None:
+        """The thermal layer's own noise [K] per pixel (H, W): each person's RMS face-temperature
+        noise from its q_rad rays (:func:`humv_usd.usd.thermal.face_temperature_noise`), times
+        the band's emissivity-weighted share (a face's radiance error is eps dL/dT sigma_T, read
+        back in K through the pixel's dL/dT: about eps sigma_T), on the pixels whose pixel-centre
+        hit is that person's; 0 elsewhere. None when the layer states no noise."""
+        if not hasattr(self, "_person_noise"):
+            self._person_noise = usd_thermal.face_temperature_noise(self.plan.stage)
+            self._thermal_note = (
+                {person: noise for person, noise in self._person_noise.items()}
+                if self._person_noise
+                else None
+            )
+        if not self._person_noise:
+            return None
+        parts = self.scene.parts
+        per_part = np.zeros(len(parts) + 1)
+        for i, part in enumerate(parts):
+            for person, noise in self._person_noise.items():
+                if part.mesh_path.startswith(str(human_path(person)) + "/"):
+                    per_part[i] = _band_emissivity(self.band_eps, part.material, s) * noise
+        return per_part[np.where(hits.part >= 0, hits.part, len(parts))]
+
     def _tick(self, timings: dict, key: str, t: float) -> float:
         dt = time.perf_counter() - t
         timings[key] += dt
@@ -830,11 +847,31 @@ class _FrameRenderer:
         t = self._tick(timings, "load_export", t)
 
         band_renderer = render_band_fast if plan.estimator == "fast" else render_band
-        edges = E.geometric_edges(scene.hits(sensor_id)) if plan.estimator == "fast" else None
-        batches: list[tuple[np.ndarray, np.ndarray]] = []
+        hits = scene.hits(sensor_id)
+        edges = E.geometric_edges(hits) if plan.estimator == "fast" else None
+        regions, region_names = Q.region_map(hits.part, [p.label_class for p in scene.parts])
+        netd = getattr(s, "netd_k", None)
+        thermal_k = self._thermal_noise(s, state, hits)  # the thermal layer's own noise [K] per pixel
+        fast_auto = plan.estimator == "fast" and plan.spp_auto
+
+        boost_where = Q.first_boost(regions, region_names)  # people first
+
+        def direct_target(radiance):
+            """Per-pixel variance target of the estimator's boosts (automatic quality)."""
+            _, dl_dt = planck.brightness_temperature_tabulated(radiance[0], band, response)
+            return Q.pixel_target_var(netd, dl_dt, boost_where)
+
+        pooled = Q.Batches()
+        back_face = None
+        replicas = E.replica_count(plan.spp_sub[s.name]) if plan.estimator == "fast" else None
         estimator_s = 0.0  # the estimator's share of "render" (the rest: conversions, edges, stats)
         while True:
             t_est = time.perf_counter()
+            extra = {}
+            if plan.estimator == "fast":
+                extra["info"] = info = {}
+                if fast_auto and Q.targets(netd) is not None:
+                    extra["direct_target"] = direct_target
             batch = band_renderer(
                 scene,
                 sensor_id,
@@ -843,24 +880,56 @@ class _FrameRenderer:
                 lambda material: _subband_emissivity(self.sub_eps, material, s, sub),
                 frame_rad,
                 spp=plan.spp_sub[s.name],
-                seed=(plan.seed + frame + AUTO_SEED_STRIDE * len(batches)) % 2**32,
+                seed=(plan.seed + frame + AUTO_SEED_STRIDE * pooled.count) % 2**32,
                 transmittance_of=lambda material: _subband_transmittance(self.sub_eps, material, s, sub),
+                **extra,
             )
             estimator_s += time.perf_counter() - t_est
-            batches.append(batch)
-            m1 = np.mean([b[0] for b in batches], axis=0)  # equal-spp batches: plain mean
-            stderr_l = np.sqrt(np.sum([b[1] ** 2 for b in batches], axis=0)) / len(batches)
+            pooled.add(batch[0], batch[1], replicas or plan.spp_sub[s.name])
+            if plan.estimator == "fast":
+                fraction = info["back_face_fraction"]
+                back_face = fraction if back_face is None else back_face + fraction
+            m1 = pooled.mean()
+            # one batch: its estimator's error as it stands; more: replicas and batches pooled
+            stderr_l = batch[1] if pooled.count == 1 else pooled.stderr()
             bt, dl_dt = planck.brightness_temperature_tabulated(m1, band, response)  # < 1e-4 K of exact
             with np.errstate(invalid="ignore", divide="ignore"):
                 stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
+            if thermal_k is not None:
+                stderr_k = Q.combine_error(stderr_k, thermal_k)
             if edges is None:
-                edges = E.geometric_edges(scene.hits(sensor_id))
+                edges = E.geometric_edges(hits)
             away_from_edges = E.noise_stats(stderr_k, edges)
-            if not _needs_more_samples(plan, s, away_from_edges, len(batches)):
+            per_region = Q.region_stats(
+                stderr_k,
+                edges,
+                regions,
+                region_names,
+                None if back_face is None else back_face / pooled.count,
+            )
+            if not _needs_more_samples(plan, s, away_from_edges, pooled.count, per_region):
                 break
-        spp_used = plan.spp_sub[s.name] * len(batches)
+            boost_where = Q.next_boost(regions, region_names, Q.verdict(away_from_edges, per_region, netd))
+        if thermal_k is not None:  # the radiance error channel carries the same total
+            stderr_l = np.where(np.isfinite(dl_dt), stderr_k * dl_dt, stderr_l)
+        judged = Q.verdict(away_from_edges, per_region, netd if plan.spp_auto else None)
+        for name, rec in per_region.items():
+            rec["met"] = judged["regions"].get(name)
+        spp_used = plan.spp_sub[s.name] * pooled.count
         away_from_edges["spp_used"] = spp_used
         away_from_edges["spp_rule"] = _spp_rule(plan, s)
+        away_from_edges["quality_met"] = judged["met"]
+        quality = {
+            "met": judged["met"],
+            "image_met": judged["regions"].get("image"),
+            "targets_k": Q.targets(netd) if plan.spp_auto else None,
+            "regions": per_region,
+            "batches": pooled.count,
+            "replicas_per_pixel": pooled.count * (replicas or 1),
+            "error_dof": pooled.dof if replicas else None,
+            "thermal_noise_k": None if thermal_k is None else self._thermal_note,
+            "at_cap": bool(plan.spp_auto and judged["met"] is False),
+        }
         t = self._tick(timings, "render", t)
         t = self._tick(timings, "labels", t)  # the pixel-centre cast is the labels' (cached)
 
@@ -903,7 +972,8 @@ class _FrameRenderer:
                 "humv:sensor": s.path,
                 "humv:frame": str(frame),
                 "humv:band_um": f"{band[0]:g}-{band[1]:g}",
-                "humv:spp": str(plan.spp * len(batches)),  # automatic quality: the samples spent
+                "humv:spp": str(plan.spp * pooled.count),  # automatic quality: the samples spent
+                "humv:quality_met": str(judged["met"]),
                 "humv:subbands": str(len(sub)),
                 "humv:preview": "R=G=B: brightness temperature stretched as the PNG (0 at the 1st, "
                 "1 at the 99th percentile); display only",
@@ -927,6 +997,14 @@ class _FrameRenderer:
             timings["labels"] - before["labels"],
             "n/a" if away_from_edges["mean_k"] is None else f"{away_from_edges['mean_k']:.4f}",
         )
+        if quality["at_cap"]:
+            log.warning(
+                "frame %d %s: stopped at %d spp without meeting the quality target on %s",
+                frame,
+                s.name,
+                spp_used,
+                ", ".join(k for k, v in judged["regions"].items() if v is False),
+            )
         frame_errors = _Accumulator()  # summed once per image, merged into the totals
         frame_errors.add(stderr_l, stderr_k)
         self.per_sensor[s.name]["errors"].merge(frame_errors)
@@ -948,6 +1026,7 @@ class _FrameRenderer:
                 "sky_temperature_k": state.sky_temperature_k,
                 "monte_carlo_error": frame_errors.stats(),
                 "monte_carlo_error_k": away_from_edges,
+                "quality": quality,
                 "radiometry": frame_rad.ran,
                 "sensor_chain": chain_record,
                 "timings_s": {
@@ -991,6 +1070,28 @@ def _sensor_record(plan: _Plan, run: _FrameRenderer, s: SensorModel, done: list[
         "timings_s": {**rec["timings"], "total": sum(rec["timings"].values())},
         "monte_carlo_error": R.merge_errors(mine),
         "monte_carlo_error_k": _interior_summary([r["entry"].get("monte_carlo_error_k") or {} for r in mine]),
+        "quality": _quality_summary([r["entry"] for r in mine]),
+    }
+
+
+def _quality_summary(entries: list[dict]) -> dict:
+    """Per sensor: whether the automatic quality met its targets on every frame (False when a
+    frame stopped at the sample cap short of them, None when no frame was judged), the frames
+    that fell short and the regions that did."""
+    judged = [(e["frame"], e.get("quality") or {}) for e in entries]
+    short = [(f, q) for f, q in judged if q.get("met") is False]
+    verdicts = [q.get("met") for _, q in judged if q.get("met") is not None]
+    regions = sorted(
+        {name for _, q in short for name, rec in (q.get("regions") or {}).items() if rec.get("met") is False}
+        | {"image" for _, q in short if q.get("image_met") is False}
+    )
+    return {
+        "met": (all(verdicts) if verdicts else None),
+        "frames_not_met": [f for f, _ in short],
+        "regions_not_met": regions,
+        "definition": "automatic quality (humv_usd.render.quality): mean per-pixel error away from edges "
+        "<= NETD/3 and its p99 <= 0.1 K on the image and on every region class (label class of the "
+        "pixel-centre hit) with enough pixels; per frame in frames[].quality",
     }
 
 
@@ -1091,10 +1192,9 @@ def _manifest(plan: _Plan, run: _FrameRenderer, ground_truth, totals: dict, done
             "seed_per_frame": "seed + frame",
             "max_depth": int(plan.max_depth),
             "spp_auto": bool(plan.spp_auto),
-            "spp_auto_rule": f"fast estimator without a given spp: batches of {plan.spp} spp until the mean "
-            f"error away from edges is <= NETD/{AUTO_NETD_FRACTION:g} and its p99 <= {AUTO_P99_K:g} K, "
-            f"or {AUTO_MAX_SPP} spp (per sensor "
-            "and frame: monte_carlo_error_k.spp_used)"
+            "spp_auto_rule": "fast estimator without a given spp: "
+            + Q.rule_text(True, plan.spp, "the sensor's NETD")
+            + " (per sensor and frame: monte_carlo_error_k.spp_used, quality; humv_usd.render.quality)"
             if plan.spp_auto
             else None,
             **_estimator_settings(plan),

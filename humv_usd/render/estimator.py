@@ -106,6 +106,31 @@ FILTER_HALF_WIDTH_M = 0.2
 MAX_DIRECT_FACTOR = 16
 #: Ray origin offset along the normal, relative to the coordinates' magnitude (float32).
 RAY_OFFSET = 2e-5
+#: Most pixel positions of the direct term per camera sample in one pixel where its own error is
+#: above the caller's target (:func:`pixel_direct_points`; issue 25: a person's pixels span faces
+#: up to 17 K apart, whose sub-pixel mix the image-wide factor left 5-100x NETD/3).
+#: 1024: the direct term is cheap (a camera ray and a sun shadow ray per position) and a pixel
+#: over a step between two faces converges as N^-3/4 on the stratified lattice; at 64 the humvvex
+#: person kept 0.23 K mean per 2-spp batch (its reflected part 0.06 K).
+MAX_PIXEL_DIRECT_FACTOR = 1024
+#: Most more camera samples (with their reflections) per camera sample in one pixel whose
+#: reflected part is above half the caller's target (small surfaces, e.g. a person's garments,
+#: where the filter's window is small): 64 (the humvvex person's reflected part, 0.06 K mean per
+#: 2-spp batch, needed about 26 for NETD/3).
+MAX_PIXEL_REFLECT_FACTOR = 64
+#: Most more camera samples per camera sample of the image that either per-pixel boost spends in
+#: one call, as a multiple of the pixel count (the pixels furthest above target first): bounds
+#: the boosts to about the cost of the call's own samples, so a large region near its target
+#: (the humvvex ground: 199,000 pixels) does not take the samples a small one needs (the person).
+BOOST_BUDGET = 1.0
+#: The same for the direct term alone, whose positions cost a camera ray and a sun shadow ray
+#: each (a camera sample with its reflections about ten rays).
+DIRECT_BOOST_BUDGET = 16.0
+#: ... and at least this many (16 times it for the direct term) whatever the image size: a small
+#: image's boosts cost little in absolute terms (a 64 x 48 test scene's person needed 440,000).
+MIN_BOOST_BUDGET = 1 << 18
+#: Most lanes of one per-pixel direct pass (bounds its memory: a few hundred bytes per lane).
+MAX_DIRECT_LANES = 1 << 22
 
 
 def sky_rows(radiometry, k: int) -> np.ndarray:
@@ -259,6 +284,81 @@ def surface_table(scene, tables: FaceTables, g_tab: np.ndarray, sun_dir, sun_e, 
     return np.ascontiguousarray(np.stack([dark, lit, np.broadcast_to(rho, dark.shape)], axis=1))
 
 
+def cavity_table(tables: FaceTables) -> np.ndarray:
+    r"""(T, n) radiance of a triangle's back side seen from the camera: the blackbody radiance
+    :math:`B_k(T_{face}) = \varepsilon_k L_k(T) / \varepsilon_k` at the face's temperature.
+
+    A one-sided face is seen from behind only through a crack or an intersection into the
+    inside of a closed surface (a shoe's fold, a foot through its shoe). An isothermal cavity
+    radiates as a blackbody at its wall temperature whatever the walls' emissivity (Kirchhoff's
+    law; Siegel & Howell, *Thermal Radiation Heat Transfer*, 4th ed., 2002, sec. 1.3), so the
+    inside is rendered at the face's temperature; the former value, 0 (a black, cold back), made
+    camera samples of 0 K: in the humvvex demo 5-10 % of a shoe pixel's samples, pixels 50 K too
+    cold with an error of 58 K, and where every sample of a pixel hit a back side a pixel of
+    -110 degC with an error of 5e-5 K. Faces with no emissivity (a mirror, the EO bands) stay 0.
+    """
+    eps = np.clip(1.0 - tables.reflectance, 0.0, 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(eps > 1e-6, tables.emission / eps, 0.0)
+    return np.ascontiguousarray(out)
+
+
+def pixel_direct_points(direct_var, target_var, factor_cap: int = MAX_PIXEL_DIRECT_FACTOR) -> np.ndarray:
+    r"""More pixel positions per camera sample for the direct term, per pixel (H, W) int.
+
+        ``direct_var`` (c, H, W): the variance of each pixel's direct-term mean from its replicas;
+        ``target_var`` (H, W): the variance the caller wants the pixel's direct term under (NaN or
+        <= 0: no target). The direct term's variance falls as 1/N with N positions, so a pixel
+        needs :math:`D = \lceil V_d / V_t
+    ceil - 1` more positions per camera sample, capped at
+        ``factor_cap`` and rounded up to a power of two (few passes). A pixel whose replicas
+        disagree only by chance less than the target still gets none: the caller's next batch
+        measures it again."""
+    v = np.nansum(np.asarray(direct_var, float), axis=0)
+    t = np.asarray(target_var, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        need = np.where((t > 0) & np.isfinite(t) & np.isfinite(v), np.ceil(v / t) - 1.0, 0.0)
+    need = np.clip(need, 0, factor_cap)
+    out = np.zeros(need.shape, dtype=np.int64)
+    on = need > 0
+    out[on] = np.minimum(2 ** np.ceil(np.log2(need[on] + 1)).astype(np.int64) - 1, factor_cap)
+    return out
+
+
+def step_variance(direct, part, samples: int) -> np.ndarray:
+    r"""(H, W) a floor for the variance of a pixel's direct-term mean over ``samples`` pixel
+    positions, from the steps to its 4 neighbours on the same part: a footprint that straddles
+    a step :math:`\Delta L` between faces (a faceted garment: up to 17 K between neighbouring
+    faces) has a per-position variance :math:`f(1-f)\Delta L^2 \le \Delta L^2 / 4`. Two
+    replicas rarely see such a step when one face covers most of the pixel (both on it with
+    probability :math:`(1-f)^2`), so their spread alone misses most of these pixels (humvvex:
+    16 pooled batches showed 3.5x the error the single batches claimed)."""
+    d = np.nansum(np.asarray(direct, float).reshape((-1,) + np.shape(part)), axis=0)
+    part = np.asarray(part)
+    step = np.zeros(d.shape)
+    for axis in (0, 1):
+        a = [slice(None), slice(None)]
+        b = [slice(None), slice(None)]
+        a[axis], b[axis] = slice(None, -1), slice(1, None)
+        a, b = tuple(a), tuple(b)
+        same = (part[a] == part[b]) & (part[a] >= 0)
+        diff = np.where(same, np.abs(d[a] - d[b]), 0.0)
+        step[a] = np.maximum(step[a], diff)
+        step[b] = np.maximum(step[b], diff)
+    return step**2 / 4.0 / max(int(samples), 1)
+
+
+def within_budget(factor: np.ndarray, budget: float) -> np.ndarray:
+    """``factor`` (per pixel more samples, int) kept for the pixels that need the most, the
+    largest factors first, while their sum stays within ``budget``; 0 for the rest."""
+    flat = np.asarray(factor).ravel()
+    order = np.argsort(-flat, kind="stable")
+    keep = np.cumsum(flat[order]) <= budget
+    out = np.zeros_like(flat)
+    out[order[keep]] = flat[order[keep]]
+    return out.reshape(np.shape(factor))
+
+
 def replica_count(spp: int, wanted: int = DEFAULT_REPLICAS) -> int:
     """Independent randomisations for ``spp`` samples: the smallest divisor of spp that is at
     least ``wanted`` (spp itself when prime), so that exactly spp samples are taken; 1 for spp 1."""
@@ -317,6 +417,8 @@ def render_band_fast(
     weights=None,
     tables: FaceTables | None = None,
     direct_points: int | None = None,
+    direct_target=None,
+    info: dict | None = None,
 ):
     """At-sensor band radiance and its Monte Carlo standard error of one IR sensor at one frame.
 
@@ -329,6 +431,12 @@ def render_band_fast(
     ``emissivity_of`` and ``transmittance_of`` are not read), e.g. zero emission and per-bin
     reflectance for a reflective band. ``direct_points``: more pixel positions per camera
     sample for the direct term (None: chosen by :func:`extra_direct_points`).
+    ``direct_target``: ``fn(radiance (c, H, W)) -> (H, W)`` the variance [W2 m-4 sr-2] under
+    which the caller wants each pixel's direct term (e.g. a share of its error target in K times
+    dL/dT); pixels above it get more pixel positions (:func:`pixel_direct_points`, one pass per
+    factor over those pixels only). ``info``: a dict filled with ``back_face_fraction`` (H, W),
+    the share of a pixel's camera samples that saw a one-sided face from behind (rendered as the
+    cavity radiance, :func:`cavity_table`), and ``pixel_direct_points`` (H, W).
 
     Returns
     -------
@@ -376,6 +484,7 @@ def render_band_fast(
 
     f32 = mi.Float
     surf_dr = f32(surface.astype(np.float32).ravel())
+    cavity_dr = f32(cavity_table(tables).astype(np.float32).ravel())  # (T, n): back sides
     sky_dr = f32(np.ascontiguousarray(rows.T, dtype=np.float32).ravel())  # (H, n)
     ground_k = [dr.opaque(f32, float(g)) for g in ground]
     part_of_key = {p.key: i for i, p in enumerate(scene.parts)}
@@ -426,25 +535,45 @@ def render_band_fast(
     seeds = [int(v) for v in rng_np.integers(0, 2**62, size=4)]
     sensor = scene._sensor_objects[sensor_id]
 
-    def camera_pass(points: int, shift_seed: int, reflect: bool):
-        """Camera samples: ``points`` stratified pixel positions per (pixel, replica) cell;
-        returns the per-cell mean of the direct term (c, cells) and, if ``reflect``, what the
-        reflected term needs (lattice index, cell, first hit, its throughput per sub-band)."""
-        idx = dr.arange(mi.UInt32, w * h * replicas * points)
+    back_counts = []  # per pass: back-side camera samples per cell
+
+    def camera_pass(points: int, shift_seed: int, reflect: bool, pixels=None):
+        """Camera samples: ``points`` stratified pixel positions per (pixel, replica) cell
+        (``pixels``: only these flat pixel indices, cells in their order); returns the per-cell
+        mean of the direct term (c, cells) and, if ``reflect``, what the reflected term needs
+        (lattice index, cell, first hit, its throughput per sub-band)."""
+        count = w * h if pixels is None else len(pixels)
+        idx = dr.arange(mi.UInt32, count * replicas * points)
         j = idx % points
-        cell = idx // points  # pixel * replicas + replica
-        pixel = cell // replicas
-        px, py = _rotated_lattice(mi, dr, points, j, cell, shift_seed)
+        cell = idx // points  # pixel * replicas + replica (pixels: position in the list)
+        if pixels is None:
+            pixel = cell // replicas
+            rot_cell = cell
+        else:
+            pixel = dr.gather(mi.UInt32, mi.UInt32(np.asarray(pixels, dtype=np.uint32)), cell // replicas)
+            rot_cell = pixel * replicas + cell % replicas
+        px, py = _rotated_lattice(mi, dr, points, j, rot_cell, shift_seed)
         fx = (mi.Float(pixel % w) + px) / w
         fy = (mi.Float(pixel // w) + py) / h
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(fx, fy), mi.Point2f(0.5, 0.5))
         si = scene.scene.ray_intersect(ray)
         hit = si.is_valid()
         front = hit & (dr.dot(si.n, ray.d) < 0.0)
+        back = hit & ~front
         surf, rho = surface_terms(si.p, si.n, triangle(si, front), front)
+        back_base = triangle(si, back) * n
         where = sky_at(ray.d.z)
-        value = [dr.select(hit, dr.select(front, surf[k], 0.0), sky(k, where, ~hit)) for k in range(n)]
+        value = [
+            dr.select(
+                hit,
+                dr.select(front, surf[k], dr.gather(f32, cavity_dr, back_base + k, back)),
+                sky(k, where, ~hit),
+            )
+            for k in range(n)
+        ]
         rho = [dr.select(front, r, 0.0) for r in rho]
+        backs = dr.select(back, f32(1.0), f32(0.0))
+        back_counts.append(dr.block_sum(backs, points) if points > 1 else backs)
         # the atmospheric path per camera sample, at the range of its first hit (sky: none)
         # (the path radiance enters each channel as one weighted sum, tabulated per channel)
         path = radiometry.path
@@ -463,114 +592,129 @@ def render_band_fast(
         if points > 1:
             direct_dr = [dr.block_sum(v, points) * (1.0 / points) for v in direct_dr]
         if not reflect:
-            dr.eval(direct_dr)
+            dr.eval(direct_dr, back_counts[-1])
             return np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr]), None
-        dr.eval(direct_dr, rho, front, si.p, si.n)
+        dr.eval(direct_dr, rho, front, si.p, si.n, back_counts[-1])
         direct = np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr])  # (c, cells)
         return direct, (j, cell, front, si, rho)
 
-    direct_r, (j, cell, front, si, beta0) = camera_pass(lattice_n, seeds[0], True)
-    parent = dr.compress(front)
-    m = dr.width(parent)
-    note("camera vertices and path: %d samples", total)
     rays = 0  # reflection rays traced (the cost of the reflected term, in camera samples)
 
-    # --- reflection: `splits` stratified cosine directions per front-facing camera vertex ------
-    # per lane sums (each scatter has distinct targets: the order of additions, and so the
-    # result, does not depend on the threads), reduced to cells in a fixed order at the end
-    acc = [dr.zeros(f32, m * splits) for _ in range(channels)]
-    if m:
-        b = dr.arange(mi.UInt32, m * splits)
-        par = dr.gather(mi.UInt32, parent, b // splits)
-        d_index = dr.gather(mi.UInt32, j, par) * splits + b % splits
-        par_cell = dr.gather(mi.UInt32, cell, par)
-        u1, u2 = _rotated_lattice(mi, dr, lattice_n * splits, d_index, par_cell, seeds[1])
-        p0 = dr.gather(mi.Point3f, si.p, par)
-        n0 = mi.Vector3f(dr.gather(mi.Normal3f, si.n, par))
-        beta = None  # first bounce: read from the camera vertices' throughput when needed
+    def reflect_pass(j, cell, front, si, beta0, points: int, samples: int, dir_seed: int, rr_seed: int):
+        """The reflected term of a camera pass's front-facing vertices: per-cell means (c,
+        cells) of ``splits`` stratified cosine directions per vertex, continued by Russian
+        roulette; ``points`` lattice points per cell, ``samples`` camera samples in all."""
+        nonlocal rays
+        parent = dr.compress(front)
+        m = dr.width(parent)
 
-        def beta_at(lanes):
-            """Throughput per sub-band of the given lanes (at the first bounce each lane's term
-            enters its cell's mean over lattice points and directions)."""
-            if beta is not None:
-                return [dr.gather(f32, bk, lanes) for bk in beta]
-            src = dr.gather(mi.UInt32, parent, lanes // splits)
-            return [dr.gather(f32, bk, src) * (1.0 / (splits * lattice_n)) for bk in beta0]
+        # --- reflection: `splits` stratified cosine directions per front-facing camera vertex ------
+        # per lane sums (each scatter has distinct targets: the order of additions, and so the
+        # result, does not depend on the threads), reduced to cells in a fixed order at the end
+        acc = [dr.zeros(f32, m * splits) for _ in range(channels)]
+        if m:
+            b = dr.arange(mi.UInt32, m * splits)
+            par = dr.gather(mi.UInt32, parent, b // splits)
+            d_index = dr.gather(mi.UInt32, j, par) * splits + b % splits
+            par_cell = dr.gather(mi.UInt32, cell, par)
+            u1, u2 = _rotated_lattice(mi, dr, points * splits, d_index, par_cell, dir_seed)
+            p0 = dr.gather(mi.Point3f, si.p, par)
+            n0 = mi.Vector3f(dr.gather(mi.Normal3f, si.n, par))
+            beta = None  # first bounce: read from the camera vertices' throughput when needed
 
-        lane_id = b
-        d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
-        ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
-        for depth in range(1, MAX_DEPTH):
-            si = scene.scene.ray_intersect(ray)
-            rays += dr.width(ray.d.z)
-            hit = si.is_valid()
-            front = hit & (dr.dot(si.n, ray.d) < 0.0)
-            dz = ray.d.z
-            # escaping above the horizon: sky - C = 0; no surface: sky - L_g below the horizon;
-            # a back face: 0 - C
-            odd = ~front & (hit | (dz < 0.0))
-            tri = triangle(si, front)
-            dr.eval(hit, front, odd, tri, si.p, si.n, dz)
-            lanes_odd = dr.compress(odd)
-            if dr.width(lanes_odd):
-                beta_o = beta_at(lanes_odd)
-                dz_o = dr.gather(f32, dz, lanes_odd)
-                hit_o = dr.gather(mi.Bool, hit, lanes_odd)
-                up_o = dz_o >= 0.0
-                where = sky_at(dz_o)
+            def beta_at(lanes):
+                """Throughput per sub-band of the given lanes (at the first bounce each lane's term
+                enters its cell's mean over lattice points and directions)."""
+                if beta is not None:
+                    return [dr.gather(f32, bk, lanes) for bk in beta]
+                src = dr.gather(mi.UInt32, parent, lanes // splits)
+                return [dr.gather(f32, bk, src) * (1.0 / (splits * points)) for bk in beta0]
+
+            lane_id = b
+            d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
+            ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
+            for depth in range(1, MAX_DEPTH):
+                si = scene.scene.ray_intersect(ray)
+                rays += dr.width(ray.d.z)
+                hit = si.is_valid()
+                front = hit & (dr.dot(si.n, ray.d) < 0.0)
+                dz = ray.d.z
+                # escaping above the horizon: sky - C = 0; no surface: sky - L_g below the horizon;
+                # a back face: its cavity radiance - C (:func:`cavity_table`)
+                odd = ~front & (hit | (dz < 0.0))
+                tri = triangle(si, hit)
+                dr.eval(hit, front, odd, tri, si.p, si.n, dz)
+                lanes_odd = dr.compress(odd)
+                if dr.width(lanes_odd):
+                    beta_o = beta_at(lanes_odd)
+                    dz_o = dr.gather(f32, dz, lanes_odd)
+                    hit_o = dr.gather(mi.Bool, hit, lanes_odd)
+                    back_o = dr.gather(mi.UInt32, tri, lanes_odd, hit_o) * n
+                    up_o = dz_o >= 0.0
+                    where = sky_at(dz_o)
+                    terms = []
+                    for k in range(n):
+                        sky_k = sky(k, where)
+                        seen = dr.select(hit_o, dr.gather(f32, cavity_dr, back_o + k, hit_o), sky_k)
+                        control = dr.select(up_o, sky_k, ground_k[k])
+                        terms.append(beta_o[k] * (seen - control))
+                    _scatter_channels(dr, acc, terms, wts, dr.gather(mi.UInt32, lane_id, lanes_odd))
+                on = dr.compress(front)
+                width = dr.width(on)
+                note(
+                    "depth %d: %d lanes, %d front, %d other",
+                    depth,
+                    dr.width(front),
+                    width,
+                    dr.width(lanes_odd),
+                )
+                if width == 0:
+                    break
+                p = dr.gather(mi.Point3f, si.p, on)
+                nrm = mi.Vector3f(dr.gather(mi.Normal3f, si.n, on))
+                dz_f = dr.gather(f32, dz, on)
+                beta = beta_at(on)
+                lane_id = dr.gather(mi.UInt32, lane_id, on)
+                surf, rho = surface_terms(p, nrm, dr.gather(mi.UInt32, tri, on))
+                up = dz_f >= 0.0
+                where = sky_at(dz_f)
                 terms = []
                 for k in range(n):
-                    sky_k = sky(k, where)
-                    seen = dr.select(hit_o, 0.0, sky_k)
-                    control = dr.select(up_o, sky_k, ground_k[k])
-                    terms.append(beta_o[k] * (seen - control))
-                _scatter_channels(dr, acc, terms, wts, dr.gather(mi.UInt32, lane_id, lanes_odd))
-            on = dr.compress(front)
-            width = dr.width(on)
-            note("depth %d: %d lanes, %d front, %d other", depth, dr.width(front), width, dr.width(lanes_odd))
-            if width == 0:
-                break
-            p = dr.gather(mi.Point3f, si.p, on)
-            nrm = mi.Vector3f(dr.gather(mi.Normal3f, si.n, on))
-            dz_f = dr.gather(f32, dz, on)
-            beta = beta_at(on)
-            lane_id = dr.gather(mi.UInt32, lane_id, on)
-            surf, rho = surface_terms(p, nrm, dr.gather(mi.UInt32, tri, on))
-            up = dz_f >= 0.0
-            where = sky_at(dz_f)
-            terms = []
-            for k in range(n):
-                control = dr.select(up, sky(k, where, up), ground_k[k])
-                terms.append(beta[k] * (surf[k] - control))
-            _scatter_channels(dr, acc, terms, wts, lane_id)
-            beta = [beta[k] * rho[k] for k in range(n)]
-            bmax = beta[0]
-            for bk in beta[1:]:
-                bmax = dr.maximum(bmax, bk)
-            alive = bmax > 0.0
-            rng = mi.PCG32(
-                size=width, initstate=dr.opaque(mi.UInt64, seeds[2] + depth), initseq=mi.UInt64(lane_id)
-            )
-            if depth + 1 >= RR_DEPTH:
-                q = dr.clip(bmax, RR_MIN, RR_MAX)
-                alive &= rng.next_float32() < q
-                beta = [bk / q for bk in beta]
-            u1, u2 = rng.next_float32(), rng.next_float32()
-            dr.eval(acc, beta, alive, u1, u2)
-            keep = dr.compress(alive)
-            if dr.width(keep) == 0:
-                break
-            beta = [dr.gather(f32, bk, keep) for bk in beta]
-            lane_id = dr.gather(mi.UInt32, lane_id, keep)
-            p0 = dr.gather(mi.Point3f, p, keep)
-            n0 = dr.gather(mi.Vector3f, nrm, keep)
-            local = mi.warp.square_to_cosine_hemisphere(
-                mi.Point2f(dr.gather(f32, u1, keep), dr.gather(f32, u2, keep))
-            )
-            ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), mi.Frame3f(n0).to_world(local))
-    reflect_r = np.stack(
-        [np.asarray(_lanes_to_cells(mi, dr, a, parent, splits, total, lattice_n)) for a in acc]
-    )
+                    control = dr.select(up, sky(k, where, up), ground_k[k])
+                    terms.append(beta[k] * (surf[k] - control))
+                _scatter_channels(dr, acc, terms, wts, lane_id)
+                beta = [beta[k] * rho[k] for k in range(n)]
+                bmax = beta[0]
+                for bk in beta[1:]:
+                    bmax = dr.maximum(bmax, bk)
+                alive = bmax > 0.0
+                rng = mi.PCG32(
+                    size=width, initstate=dr.opaque(mi.UInt64, rr_seed + depth), initseq=mi.UInt64(lane_id)
+                )
+                if depth + 1 >= RR_DEPTH:
+                    q = dr.clip(bmax, RR_MIN, RR_MAX)
+                    alive &= rng.next_float32() < q
+                    beta = [bk / q for bk in beta]
+                u1, u2 = rng.next_float32(), rng.next_float32()
+                dr.eval(acc, beta, alive, u1, u2)
+                keep = dr.compress(alive)
+                if dr.width(keep) == 0:
+                    break
+                beta = [dr.gather(f32, bk, keep) for bk in beta]
+                lane_id = dr.gather(mi.UInt32, lane_id, keep)
+                p0 = dr.gather(mi.Point3f, p, keep)
+                n0 = dr.gather(mi.Vector3f, nrm, keep)
+                local = mi.warp.square_to_cosine_hemisphere(
+                    mi.Point2f(dr.gather(f32, u1, keep), dr.gather(f32, u2, keep))
+                )
+                ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), mi.Frame3f(n0).to_world(local))
+        return np.stack(
+            [np.asarray(_lanes_to_cells(mi, dr, a, parent, splits, samples, points)) for a in acc]
+        )
+
+    direct_r, (j, cell, front, si, beta0) = camera_pass(lattice_n, seeds[0], True)
+    note("camera vertices and path: %d samples", total)
+    reflect_r = reflect_pass(j, cell, front, si, beta0, lattice_n, total, seeds[1], seeds[2])
     note("paths done")
 
     # --- per pixel means, RQMC errors, and the reflected part filtered over the surface --------
@@ -603,10 +747,94 @@ def render_band_fast(
         extra = extra_direct_points(direct_var, reflect_var, _cached_edges(hits), total, rays)
     else:
         extra = max(0, int(direct_points))
+    back_seen = np.asarray(back_counts[0], dtype=np.float64).reshape(h * w, replicas).sum(axis=1)
+    samples_seen = np.full(h * w, float(spp))
     if extra:
         more, _ = camera_pass(lattice_n * extra, seeds[3], False)
-        direct, direct_var = replica_stats((direct_r + extra * more) / (1 + extra))
+        direct_r = (direct_r + extra * more) / (1 + extra)
+        direct, direct_var = replica_stats(direct_r)
+        back_seen += np.asarray(back_counts[-1], dtype=np.float64).reshape(h * w, replicas).sum(axis=1)
+        samples_seen += spp * extra
         note("direct term: %d more pixel positions per camera sample", extra)
+    # --- and per pixel, where the caller's target asks for it (sub-pixel temperature mixes,
+    # small surfaces whose reflected part the filter cannot average) ---------------------------
+    boost = np.zeros((h, w), dtype=np.int64)
+    boost_reflect = np.zeros((h, w), dtype=np.int64)
+    if direct_target is not None and replicas > 1:
+        target = np.asarray(direct_target(direct + reflect_mean), dtype=float)
+        scale = c4(replicas) ** -2  # the error as stated is divided by c4 (below)
+        positions = np.full(h * w, 1.0 + extra)  # direct positions per camera sample so far
+        d_cells = direct_r.reshape(channels, h * w, replicas)  # views: updated in place
+        r_cells = reflect_r.reshape(channels, h * w, replicas)
+        # 1. the reflected part above half the target: more camera samples with their reflections
+        boost_reflect = pixel_direct_points(scale * reflect_var, 0.5 * target, MAX_PIXEL_REFLECT_FACTOR)
+        boost_reflect = within_budget(boost_reflect, max(BOOST_BUDGET * h * w, MIN_BOOST_BUDGET))
+        for factor in np.unique(boost_reflect[boost_reflect > 0]):
+            chosen = np.flatnonzero(boost_reflect.ravel() == factor)
+            points = lattice_n * int(factor)
+            step = max(1, MAX_DIRECT_LANES // (replicas * points * splits))
+            for first in range(0, len(chosen), step):
+                pixels = chosen[first : first + step]
+                salt = int(factor) * 7919 + first
+                more_d, cam = camera_pass(points, seeds[0] + salt, True, pixels)
+                more_r = reflect_pass(
+                    *cam, points, len(pixels) * replicas * points, seeds[1] + salt, seeds[2] + (salt << 8)
+                )
+                shape = (channels, len(pixels), replicas)
+                r_cells[:, pixels, :] = (r_cells[:, pixels, :] + factor * more_r.reshape(shape)) / (
+                    1 + factor
+                )
+                d_cells[:, pixels, :] = (
+                    positions[pixels, None] * d_cells[:, pixels, :] + factor * more_d.reshape(shape)
+                ) / (positions[pixels, None] + factor)
+                positions[pixels] += factor
+                back_seen[pixels] += (
+                    np.asarray(back_counts.pop(), np.float64).reshape(-1, replicas).sum(axis=1)
+                )
+                samples_seen[pixels] += spp * int(factor)
+            note("reflected term: %d more camera samples in %d pixels", int(factor), len(chosen))
+        if boost_reflect.any():
+            direct, direct_var = replica_stats(direct_r)
+            reflect_mean, reflect_var = replica_stats(reflect_r)
+            if filter_radius > 0:
+                reflect_mean, reflect_var = filter_reflected(
+                    reflect_mean, reflect_var, hits, filter_radius, radius_px
+                )
+        # 2. the direct share of the target: what the reflected part leaves of it, at least
+        # half of it (the caller's further batches shrink the reflected part); in multiples of
+        # the positions the cells have
+        direct_goal = np.maximum(target - scale * np.nansum(reflect_var, axis=0), 0.5 * target)
+        floor = step_variance(direct, hits.part, replicas * lattice_n) / positions.reshape(h, w)
+        boost = pixel_direct_points(scale * np.maximum(direct_var.sum(axis=0), floor)[None], direct_goal)
+        boost = boost * positions.reshape(h, w)
+        boost = within_budget(
+            np.minimum(boost, MAX_PIXEL_DIRECT_FACTOR).astype(np.int64),
+            max(DIRECT_BOOST_BUDGET * h * w, 16 * MIN_BOOST_BUDGET),
+        )
+        for factor in np.unique(boost[boost > 0]):
+            chosen = np.flatnonzero(boost.ravel() == factor)
+            points = lattice_n * int(factor)
+            step = max(1, MAX_DIRECT_LANES // (replicas * points))
+            for first in range(0, len(chosen), step):
+                pixels = chosen[first : first + step]
+                more, _ = camera_pass(points, seeds[3] + int(factor) * 7919 + first, False, pixels)
+                more = more.reshape(channels, len(pixels), replicas)
+                d_cells[:, pixels, :] = (positions[pixels, None] * d_cells[:, pixels, :] + factor * more) / (
+                    positions[pixels, None] + factor
+                )
+                positions[pixels] += factor
+                back_seen[pixels] += (
+                    np.asarray(back_counts.pop(), np.float64).reshape(-1, replicas).sum(axis=1)
+                )
+                samples_seen[pixels] += spp * int(factor)
+            note("direct term: %d more positions per camera sample in %d pixels", int(factor), len(chosen))
+        if boost.any():
+            direct, direct_var = replica_stats(direct_r)
+    if info is not None:
+        info["back_face_fraction"] = (back_seen / samples_seen).reshape(h, w)
+        info["pixel_direct_points"] = boost
+        info["pixel_reflect_samples"] = boost_reflect
+        info["direct_points"] = extra
     radiance = direct + reflect_mean
     stderr = np.sqrt(direct_var + reflect_var)
     if log.isEnabledFor(logging.DEBUG):

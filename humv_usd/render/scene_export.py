@@ -39,7 +39,7 @@ from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.mesh import fan_triangulate
-from humv_usd.usd.labels import instance_id
+from humv_usd.usd.labels import instance_id, nearest_class, nearest_instance_id
 from humv_usd.usd.layers import attribute_value
 from humv_usd.usd.materials import StageMaterial, bound_material, face_materials, read_material
 
@@ -67,6 +67,10 @@ class Part:
     vertex_ids: np.ndarray
     triangles: np.ndarray
     triangle_face: np.ndarray
+    #: label class token of the object the mesh belongs to (``humv:label:class`` at the prim that
+    #: carries its instance id, as the ground truth's class; None: no instance id, background):
+    #: the automatic quality's regions (:mod:`humv_usd.render.quality`)
+    label_class: str | None = None
 
 
 @dataclass
@@ -233,6 +237,8 @@ class SceneMeshes:
             triangle_face = np.concatenate([triangle_face, triangle_face])
         materials, material_of_face = self._face_materials(prim, path, counts.size, time)
         mesh_id = instance_id(prim)
+        id_prim, _ = nearest_instance_id(prim)
+        label_class = None if id_prim is None else (nearest_class(id_prim)[1] or "other")
         parts = []
         for m_index, mat in enumerate(materials):
             sel = material_of_face[triangle_face] == m_index
@@ -248,6 +254,7 @@ class SceneMeshes:
                     vertex_ids=vertex_ids,
                     triangles=local.reshape(-1, 3).astype(np.int64),
                     triangle_face=triangle_face[sel],
+                    label_class=label_class,
                 )
             )
             self._part_count += 1

@@ -96,3 +96,23 @@ def read_face_temperatures(prim: Usd.Prim, face_count: int, time) -> np.ndarray:
     if primvar and primvar.GetInterpolation() == UsdGeom.Tokens.constant and values.size == 1:
         values = np.full(face_count, values[0])
     return check_temperatures(values, where, expected=face_count)
+
+
+#: Key of a person's face-temperature noise [K] (RMS over faces, from the q_rad method's ray
+#: noise) in the thermal layer's ``humv:thermal`` report (customLayerData, one dict per person).
+FACE_NOISE_KEY = "faceTemperatureNoiseRms_K"
+
+
+def face_temperature_noise(stage: Usd.Stage) -> dict[str, float]:
+    """{person id: RMS face-temperature noise [K]} from the thermal layer's report (the
+    ``humv:thermal`` customLayerData of the layer that has one); empty when none says it."""
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        report = (layer.customLayerData or {}).get("humv:thermal")
+        if not isinstance(report, dict):
+            continue
+        out = {}
+        for key, value in report.items():
+            if isinstance(value, dict) and value.get(FACE_NOISE_KEY) is not None:
+                out[str(key)] = float(value[FACE_NOISE_KEY])
+        return out
+    return {}

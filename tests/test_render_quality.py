@@ -1,0 +1,177 @@
+"""The automatic quality (humv_usd.render.quality, issue 25): pooled per-pixel errors against
+closed forms, the per-region stopping rule, the estimator's cavity radiance and boosts, and on
+a small scene with a faceted "person" the person's error target met and the two-seed difference
+consistent with the stated error."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from pxr import Sdf
+from scipy import stats
+from test_render import add_camera, add_material, add_mesh, new_stage, read_exr, rect_y, rect_z
+
+from humv_usd.physics import planck
+from humv_usd.pipeline.render import render_stage
+from humv_usd.render import estimator as E
+from humv_usd.render import quality as Q
+
+LWIR = (8.0, 14.0)
+
+
+def _batches(rng, k, r, pixels, sigma, mu=3.0):
+    """k batches of r replicas of N(mu, sigma^2) per pixel, each reported as the estimator does:
+    the replica mean and s / sqrt(r) / c4(r)."""
+    pooled = Q.Batches()
+    for _ in range(k):
+        x = rng.normal(mu, sigma, size=(r, pixels))
+        pooled.add(x.mean(axis=0), x.std(axis=0, ddof=1) / np.sqrt(r) / Q.c4(r), r)
+    return pooled
+
+
+def test_pooled_error_is_unbiased_with_k_r_minus_1_degrees_of_freedom():
+    """k batches of r replicas: E[stderr] = sigma / sqrt(k r) (c4-corrected), and the mean's
+    deviation over its stated error follows Student's t with k r - 1 degrees of freedom."""
+    rng = np.random.default_rng(7)
+    sigma, mu = 2.0, 3.0
+    for k, r in ((2, 2), (4, 2), (3, 4)):
+        pooled = _batches(rng, k, r, 200_000, sigma, mu)
+        assert pooled.dof == k * r - 1
+        err = pooled.stderr()
+        assert_allclose(err.mean(), sigma / np.sqrt(k * r), rtol=0.01)
+        t = (pooled.mean() - mu) / (err * Q.c4(k * r))  # the plain sample-deviation t statistic
+        beyond = np.mean(np.abs(t) > 4)
+        assert_allclose(beyond, 2 * stats.t.sf(4, k * r - 1), rtol=0.1, atol=2e-4)
+
+
+def test_one_batch_of_two_replicas_has_one_degree_of_freedom():
+    """The old rule's error: 1 degree of freedom, 7.8 % beyond 4 sigma (issue 25: 8-13 %)."""
+    assert_allclose(2 * stats.t.sf(4, 1), 0.156, atol=1e-3)  # |t_1| > 4 (c4-free statistic)
+    pooled = _batches(np.random.default_rng(1), 1, 2, 10, 1.0)
+    assert pooled.dof == 1
+
+
+def test_region_map_uses_the_parts_classes_and_background_for_the_sky():
+    part = np.array([[-1, 0, 1], [2, 2, 0]])
+    regions, names = Q.region_map(part, ["person", "ground", None])
+    assert names == ["background", "ground", "person"]
+    assert (regions == np.array([[0, 2, 1], [0, 0, 2]])).all()
+
+
+def test_verdict_and_stopping_rule_per_region():
+    """The image meets NETD/3 but the person does not: another batch until the cap; regions
+    with too few pixels are not judged; at least MIN_BATCHES batches."""
+    netd = 0.05
+    image = {"mean_k": 0.01, "p99_k": 0.05}
+    person = {"pixels": 4000, "mean_k": 0.35, "p99_k": 4.0}
+    ground = {"pixels": 290_000, "mean_k": 0.01, "p99_k": 0.05}
+    judged = Q.verdict(image, {"person": person, "ground": ground}, netd)
+    assert judged["met"] is False and judged["regions"] == {"image": True, "person": False, "ground": True}
+    assert Q.needs_more(True, judged, 5, 2)
+    assert not Q.needs_more(True, judged, Q.AUTO_MAX_SPP // 2, 2)  # the cap
+    assert not Q.needs_more(False, judged, 1, 2)  # a given spp
+    tiny = {"pixels": Q.MIN_REGION_PIXELS - 1, "mean_k": 1.0, "p99_k": 9.0}
+    judged = Q.verdict(image, {"person": tiny, "ground": ground}, netd)
+    assert judged["met"] is True and judged["regions"]["person"] is None
+    assert Q.needs_more(True, judged, 1, 2) and not Q.needs_more(True, judged, 2, 2)
+    assert Q.verdict(image, {"ground": ground}, None)["met"] is None  # no NETD: not judged
+
+
+def test_cavity_radiance_is_the_blackbody_at_the_face_temperature():
+    """eps B(T) emitted with reflectance 1 - eps: the back side radiates B(T) (Kirchhoff)."""
+    bands = [(8.0, 10.0), (10.0, 14.0)]
+    b = np.array([[planck.band_radiance(t, band) for band in bands] for t in (280.0, 310.0)])
+    eps = np.array([0.9, 0.6])
+    tables = E.FaceTables(eps * b, np.broadcast_to(1 - eps, b.shape), np.zeros(1, int))
+    assert_allclose(E.cavity_table(tables), b, rtol=1e-12)
+    mirror = E.FaceTables(np.zeros((1, 2)), np.ones((1, 2)), np.zeros(1, int))
+    assert_allclose(E.cavity_table(mirror), 0.0)
+
+
+def test_step_variance_of_a_pixel_over_a_step_between_faces():
+    """Two faces of one part, L = 1 and 5 across a vertical line: the pixels either side get
+    (5 - 1)^2 / 4 / samples; a step to another part (an edge) or within a face gets none."""
+    direct = np.ones((1, 4, 6))
+    direct[0, :, 3:] = 5.0
+    part = np.zeros((4, 6), int)
+    v = E.step_variance(direct, part, 8)
+    assert_allclose(v[:, 2:4], 16 / 4 / 8)
+    assert_allclose(v[:, [0, 1, 4, 5]], 0.0)
+    part[:, 3:] = 1
+    assert_allclose(E.step_variance(direct, part, 8), 0.0)
+
+
+def test_boosts_within_budget_serve_the_largest_needs_first():
+    need = np.array([[7, 0, 63], [1, 31, 3]])
+    assert (E.within_budget(need, 100) == np.array([[0, 0, 63], [0, 31, 0]])).all()  # 63 + 31 + 7 > 100
+    assert (E.within_budget(need, 1000) == need).all()
+    v = np.full((1, 2, 2), 4.0)
+    assert (E.pixel_direct_points(v, np.array([[4.0, 1.0], [0.5, np.nan]])) == [[0, 3], [7, 0]]).all()
+
+
+def _person_scene(tmp_path):
+    """Ground and a wall under a cold sky, and a "person": a 0.6 x 1.7 m panel of 5 cm faces at
+    random temperatures 300-316 K (faces about a pixel's 4.5 cm footprint, as the humvvex
+    garments' facets, 1-2 px, that differ by up to 17 K), labelled class person."""
+    stage = new_stage(tmp_path / "stage.usda", sky_k=250.0)
+    concrete = add_material(stage, "concrete", 0.93)
+    cloth = add_material(stage, "cloth", 0.9)
+    add_mesh(stage, "/World/Scene/ground", *rect_z(-40, 40, -40, 40), material=concrete, temperature_k=297.0)
+    add_mesh(stage, "/World/Scene/wall", *rect_y(-5, 5, 0, 4, 3.0), material=concrete, temperature_k=290.0)
+    nx, nz, cell = 12, 34, 0.05
+    xs, zs = np.arange(nx + 1) * cell - 0.3, np.arange(nz + 1) * cell + 0.05
+    points = [(x, 0.0, z) for z in zs for x in xs]
+    counts, indices = [], []
+    for j in range(nz):
+        for i in range(nx):
+            a = j * (nx + 1) + i
+            counts.append(4)
+            indices += [a, a + 1, a + nx + 2, a + nx + 1]
+    temps = np.random.default_rng(3).uniform(300.0, 316.0, nx * nz)
+    person = add_mesh(
+        stage,
+        "/World/Person/body",
+        points,
+        counts,
+        indices,
+        material=cloth,
+        temperature_k=temps,
+        instance_id=5,
+    )
+    person.GetPrim().CreateAttribute("humv:label:class", Sdf.ValueTypeNames.Token).Set("person")
+    add_camera(
+        stage,
+        "lwir",
+        eye=(0.0, -4.0, 1.0),
+        target=(0.0, 0.0, 0.9),
+        fov_x_deg=40,
+        resolution=(64, 48),
+        netd=0.05,
+    )
+    stage.Save()
+    return tmp_path / "stage.usda"
+
+
+@pytest.mark.slow
+def test_person_region_meets_the_target_and_two_seeds_agree_with_the_stated_error(tmp_path):
+    stage = _person_scene(tmp_path)
+    runs = [render_stage(stage, tmp_path / f"s{seed}", seed=seed, sensors=["lwir"]) for seed in (0, 1)]
+    for m in runs:
+        q = m["sensors"][0]["frames"][0]["quality"]
+        person = q["regions"]["person"]
+        assert person["pixels"] >= Q.MIN_REGION_PIXELS and person["met"] is True, q
+        assert person["mean_k"] <= 0.05 / 3 and person["p99_k"] <= Q.AUTO_P99_K
+        assert q["met"] is True and q["replicas_per_pixel"] >= 4 and q["batches"] >= Q.MIN_BATCHES
+    (_, a), (_, b) = (read_exr(tmp_path / f"s{seed}" / "lwir" / "0000.exr") for seed in (0, 1))
+    hits = SimpleNamespace(part=a["instance_id"].astype(int), depth=a["depth"])  # edges: objects, depth
+    inner = (a["class_id"] == 1) & ~E.geometric_edges(hits)
+    assert inner.sum() >= 200
+    dl_dt = planck.band_radiance_derivative(300.0, LWIR)
+    diff_k = (a["radiance"] - b["radiance"])[inner] / dl_dt
+    sigma_k = np.hypot(a["radiance_stderr"], b["radiance_stderr"])[inner] / dl_dt
+    z = diff_k / sigma_k
+    assert np.mean(np.abs(z) > 4) < 0.01, np.sort(np.abs(z))[-10:]
+    assert 0.6 < 1.4826 * np.median(np.abs(z)) < 1.4  # the stated error is neither far too small nor large
