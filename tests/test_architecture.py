@@ -170,7 +170,13 @@ def test_tool_reads_upstream_only_through_usd(tool):
 
 
 #: import name -> distribution name where they differ
-DISTRIBUTIONS = {"pxr": "usd-core", "colour": "colour-science", "bpy": "bpy", "PIL": "pillow"}
+DISTRIBUTIONS = {
+    "pxr": "usd-core",
+    "colour": "colour-science",
+    "bpy": "bpy",
+    "PIL": "pillow",
+    "yaml": "pyyaml",
+}
 
 
 def test_pyproject_declares_every_imported_package():

@@ -10,7 +10,19 @@ stated per-pixel noise (issue 25, deliverable 2).
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
+import OpenImageIO as oiio
+from pxr import Usd, UsdGeom
+
+from humv_usd.geometry.mesh import fan_triangulate
+from humv_usd.geometry.raycast import RayCaster, first_faces
+from humv_usd.human.usdskel import skinned_points
+from humv_usd.physics.planck import brightness_temperature_sensitivity
+from humv_usd.usd.environment import sun_direction
+from humv_usd.usd.thermal import has_face_temperatures, read_face_temperatures
 
 
 def face_neighbours(counts, indices, points=None, tolerance_m: float = 1e-9) -> np.ndarray:
@@ -171,19 +183,6 @@ def garment_image_steps(
     turning from the sun) leaves near 0 while a step between faces shows in full; noise_d2 from
     N(0, s_a^2 + 4 s_b^2 + s_c^2)}}.
     """
-    import json
-    from pathlib import Path
-
-    import OpenImageIO as oiio
-    from pxr import Usd, UsdGeom
-
-    from humv_usd.geometry.mesh import fan_triangulate
-    from humv_usd.geometry.raycast import RayCaster, first_faces
-    from humv_usd.human.usdskel import skinned_points
-    from humv_usd.physics.planck import brightness_temperature_sensitivity
-    from humv_usd.usd.environment import sun_direction
-    from humv_usd.usd.thermal import has_face_temperatures, read_face_temperatures
-
     render_dir = Path(render_dir)
     buf = oiio.ImageBuf(str(render_dir / sensor / f"{frame:04d}.exr"))
     spec = buf.spec()

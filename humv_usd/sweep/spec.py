@@ -70,6 +70,7 @@ from typing import Any
 import numpy as np
 
 from humv_usd.errors import InputError, bad_value, summary
+from humv_usd.groundtruth.labels import CLASSES
 from humv_usd.scenario.load import Scenario, read_input_bytes, validate
 from humv_usd.scenario.spec import SECTIONS, Key, Section
 
@@ -346,8 +347,6 @@ def _render_settings(table, problems: list[str]) -> dict:
 
 def _dataset_settings(table, problems: list[str]) -> dict:
     """``[dataset]`` checked against :data:`DATASET_KEYS` (one line per problem)."""
-    from humv_usd.groundtruth.labels import CLASSES
-
     out = copy.deepcopy(DATASET_KEYS)
     if not isinstance(table, dict):
         problems.append(bad_value("[dataset]", table, "expected a table"))
