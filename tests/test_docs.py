@@ -7,6 +7,7 @@ click objects, the schema file read with Sdf), never from the generator's output
 from __future__ import annotations
 
 import html
+import json
 import re
 import shutil
 import subprocess
@@ -265,6 +266,39 @@ def test_aerial_tutorial_runs(tmp_path):
             [float(x), float(y), float(z)], [25 * np.sin(psi), 25 * np.cos(psi), 30.0], atol=0.01
         )
         assert int(visible) > 50
+
+
+@pytest.mark.slow
+def test_dataset_tutorial_runs(tmp_path):
+    """docs/user/dataset-tutorial.md: 4 variants, each in one split, and every YOLO line is the
+    person's visible box of its objects.json, (x0 + x1) / 2W, (y0 + y1) / 2H, (x1 - x0) / W,
+    (y1 - y0) / H."""
+    (tmp_path / ".venv").symlink_to(Path(sys.executable).parents[1])
+    for name in ("first.toml", "shirts.toml"):
+        shutil.copy(DOCS / "user" / name, tmp_path / name)
+    index_out, yolo_out = _run_page("dataset-tutorial.md", tmp_path)
+    rows = re.findall(r"(v\d{4}) (train|val|test): shirt=(\w+) time=(\w+), person ([\d.]+) K", index_out)
+    assert sorted((r[2], r[3]) for r in rows) == sorted(
+        (s, t) for s in ("white", "black") for t in ("afternoon", "night")
+    )
+    assert {r[1] for r in rows} <= {"train", "val", "test"}
+    lines = re.findall(r"labels/(\w+)/(v\d{4})_(\d{4})\.txt (.+)", yolo_out)
+    assert len(lines) == 4
+    dataset = tmp_path / "out" / "shirts"
+    for split, variant, frame, line in lines:
+        assert split == dict((r[0], r[1]) for r in rows)[variant]
+        objects = json.loads(
+            next((dataset / "renders" / variant).glob(f"*/lwir/{frame}.objects.json")).read_text()
+        )
+        x0, y0, x1, y1 = next(o["box_visible"] for o in objects["objects"] if o["class"] == "person")
+        w, h = objects["width"], objects["height"]
+        cls, *box = line.split()
+        assert cls == "0"  # data.yaml: 0 person
+        assert np.allclose(
+            [float(v) for v in box],
+            [(x0 + x1) / 2 / w, (y0 + y1) / 2 / h, (x1 - x0) / w, (y1 - y0) / h],
+            atol=1e-6,
+        )
 
 
 def test_every_physics_module_has_a_page():
