@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import html
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -203,13 +204,13 @@ def test_generated_pages_link_to_existing_entries(site):
 
 
 # --------------------------------------------------------------------------- the tutorials
-def _run_page(page: str, cwd: Path) -> list[str]:
+def _run_page(page: str, cwd: Path, env: dict | None = None) -> list[str]:
     """Run a tutorial's ``sh`` and ``python`` blocks in order, as written, in ``cwd`` (which holds
     a link to the repository's ``.venv``); the stdout of each python block."""
     printed = []
     for lang, code in re.findall(r"```(sh|python)\n(.+?)\n```", (DOCS / "user" / page).read_text(), re.S):
         argv = ["bash", "-euo", "pipefail", "-c", code] if lang == "sh" else [sys.executable, "-c", code]
-        run = subprocess.run(argv, cwd=cwd, capture_output=True, text=True)
+        run = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, env=env)
         assert run.returncode == 0, f"{page}: {code}\n{run.stderr[-3000:]}"
         if lang == "python":
             printed.append(run.stdout)
@@ -299,6 +300,33 @@ def test_dataset_tutorial_runs(tmp_path):
             [(x0 + x1) / 2 / w, (y0 + y1) / 2 / h, (x1 - x0) / w, (y1 - y0) / h],
             atol=1e-6,
         )
+
+
+@pytest.mark.slow
+def test_asset_blender_tutorial_runs(tmp_path):
+    """docs/user/asset-blender.md: Blender moves the person 1 m east, seen from 12 m through a
+    6 mm lens on 12 um pixels: f / (d p) = 41.7 px; the new crate has its own id and 320 K."""
+    pytest.importorskip("bpy")
+    (tmp_path / ".venv").symlink_to(Path(sys.executable).parents[1])
+    (tmp_path / "examples").symlink_to(ROOT / "examples")
+    for name in ("bench_scene.toml", "edit_in_blender.py"):
+        shutil.copy(DOCS / "user" / name, tmp_path / name)
+    user = tmp_path / "blender_user"  # Blender's user folders, not the machine's
+    env = dict(
+        os.environ,
+        **{
+            f"BLENDER_USER_{v.upper()}": str(user / v)
+            for v in ("config", "scripts", "resources", "datafiles", "extensions")
+        },
+    )
+    printed = "".join(_run_page("asset-blender.md", tmp_path, env))
+    rows = re.findall(r"out/(\w+)/render: (\S+) centre x ([\d.]+) px, surface ([\d.]+) K", printed)
+    found = {(folder, prim): (float(x), float(t)) for folder, prim, x, t in rows}
+    shift = found["edited", "/World/Humans/p1"][0] - found["bench", "/World/Humans/p1"][0]
+    assert shift == pytest.approx(1.0 * 6e-3 / (12.0 * 12e-6), abs=1.0)
+    assert found["bench", "/World/Scene/bench"][1] == pytest.approx(300.0, abs=1e-3)
+    assert found["edited", "/World/Scene/crate"][1] == pytest.approx(320.0, abs=1e-3)
+    assert ("bench", "/World/Scene/crate") not in found
 
 
 def test_every_physics_module_has_a_page():
