@@ -802,7 +802,13 @@ class _FrameRenderer:
         noise from its q_rad rays (:func:`humv_usd.usd.thermal.face_temperature_noise`), times
         the band's emissivity-weighted share (a face's radiance error is eps dL/dT sigma_T, read
         back in K through the pixel's dL/dT: about eps sigma_T), on the pixels whose pixel-centre
-        hit is that person's; 0 elsewhere. None when the layer states no noise."""
+        hit is that person's; 0 elsewhere. None when the layer states no noise.
+
+        More samples do not reduce it, so the stopping rule does not see it: each region's
+        record states it and the total with the render's own error in quadrature
+        (:func:`humv_usd.render.quality.add_thermal_noise`); the EXR's ``radiance_stderr``
+        stays the render's Monte Carlo error (the layer's estimate is an upper bound: it
+        ignores the rays' stratification)."""
         if not hasattr(self, "_person_noise"):
             self._person_noise = usd_thermal.face_temperature_noise(self.plan.stage)
             self._thermal_note = (
@@ -895,8 +901,6 @@ class _FrameRenderer:
             bt, dl_dt = planck.brightness_temperature_tabulated(m1, band, response)  # < 1e-4 K of exact
             with np.errstate(invalid="ignore", divide="ignore"):
                 stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
-            if thermal_k is not None:
-                stderr_k = Q.combine_error(stderr_k, thermal_k)
             if edges is None:
                 edges = E.geometric_edges(hits)
             away_from_edges = E.noise_stats(stderr_k, edges)
@@ -910,8 +914,8 @@ class _FrameRenderer:
             if not _needs_more_samples(plan, s, away_from_edges, pooled.count, per_region):
                 break
             boost_where = Q.next_boost(regions, region_names, Q.verdict(away_from_edges, per_region, netd))
-        if thermal_k is not None:  # the radiance error channel carries the same total
-            stderr_l = np.where(np.isfinite(dl_dt), stderr_k * dl_dt, stderr_l)
+        if thermal_k is not None:  # the thermal layer's noise: not the render's to reduce; stated apart
+            Q.add_thermal_noise(per_region, stderr_k, thermal_k, edges, regions, region_names)
         judged = Q.verdict(away_from_edges, per_region, netd if plan.spp_auto else None)
         for name, rec in per_region.items():
             rec["met"] = judged["regions"].get(name)

@@ -106,6 +106,11 @@ FILTER_HALF_WIDTH_M = 0.2
 MAX_DIRECT_FACTOR = 16
 #: Ray origin offset along the normal, relative to the coordinates' magnitude (float32).
 RAY_OFFSET = 2e-5
+#: Label classes whose faces seen from behind render as the cavity (:func:`cavity_table`): a
+#: person's closed body, shoes and garments, where a back side is seen only through a crack or
+#: an intersection; elsewhere a one-sided face stays black from behind (an open plate, as
+#: Mitsuba's one-sided area lights and the path tracer).
+CAVITY_CLASSES = ("person",)
 #: Most pixel positions of the direct term per camera sample in one pixel where its own error is
 #: above the caller's target (:func:`pixel_direct_points`; issue 25: a person's pixels span faces
 #: up to 17 K apart, whose sub-pixel mix the image-wide factor left 5-100x NETD/3).
@@ -295,7 +300,8 @@ def cavity_table(tables: FaceTables) -> np.ndarray:
     inside is rendered at the face's temperature; the former value, 0 (a black, cold back), made
     camera samples of 0 K: in the humvvex demo 5-10 % of a shoe pixel's samples, pixels 50 K too
     cold with an error of 58 K, and where every sample of a pixel hit a back side a pixel of
-    -110 degC with an error of 5e-5 K. Faces with no emissivity (a mirror, the EO bands) stay 0.
+    -110 degC with an error of 5e-5 K. Faces with no emissivity (a mirror, the EO bands) stay 0;
+    the estimator applies it to the parts of :data:`CAVITY_CLASSES` only.
     """
     eps = np.clip(1.0 - tables.reflectance, 0.0, 1.0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -484,7 +490,12 @@ def render_band_fast(
 
     f32 = mi.Float
     surf_dr = f32(surface.astype(np.float32).ravel())
-    cavity_dr = f32(cavity_table(tables).astype(np.float32).ravel())  # (T, n): back sides
+    cavity = cavity_table(tables)  # (T, n): back sides, on the classes of CAVITY_CLASSES only
+    ends = list(tables.offset[1:]) + [len(cavity)]
+    for part, first, last in zip(scene.parts, tables.offset, ends):
+        if getattr(part, "label_class", None) not in CAVITY_CLASSES:
+            cavity[first:last] = 0.0
+    cavity_dr = f32(cavity.astype(np.float32).ravel())
     sky_dr = f32(np.ascontiguousarray(rows.T, dtype=np.float32).ravel())  # (H, n)
     ground_k = [dr.opaque(f32, float(g)) for g in ground]
     part_of_key = {p.key: i for i, p in enumerate(scene.parts)}

@@ -242,3 +242,20 @@ def rule_text(auto: bool, spp: int, netd_text: str) -> str:
 def combine_error(stderr_k, extra_k) -> np.ndarray:
     """Independent errors [K] added in quadrature (``extra_k`` broadcast; NaN where either is)."""
     return np.sqrt(np.asarray(stderr_k, float) ** 2 + np.asarray(extra_k, float) ** 2)
+
+
+def add_thermal_noise(per_region: dict, stderr_k, thermal_k, edge, regions, names) -> None:
+    """Add to each region's record (:func:`region_stats`) the thermal layer's own noise [K]
+    (``thermal_k`` (H, W), e.g. the q_rad rays' noise of a person's faces) away from edges,
+    ``thermal_noise_mean_k``, and the total stated error, the render's and the layer's in
+    quadrature (independent), ``total_error_mean_k`` / ``total_error_p99_k``."""
+    total = combine_error(stderr_k, thermal_k)
+    for rid, name in enumerate(names):
+        if name not in per_region:
+            continue
+        inner = (regions == rid) & ~edge & np.isfinite(total)
+        if not inner.any():
+            continue
+        per_region[name]["thermal_noise_mean_k"] = float(np.mean(np.asarray(thermal_k)[inner]))
+        per_region[name]["total_error_mean_k"] = float(total[inner].mean())
+        per_region[name]["total_error_p99_k"] = float(np.percentile(total[inner], 99))
