@@ -253,6 +253,7 @@ def human_temperatures(
     pts0: list = []
     centres = np.zeros((len(samples), 3))
     normals = np.zeros((len(samples), len(body.counts), 3))  # body face normals per sample
+    q_noise = None  # the q_rad rays' noise [W m^-2] (absolute, from the first sample)
     for k, frame in enumerate(samples):
         t = Usd.TimeCode(frame)
         sky, scene = world.skies[k], world.scenes[k]
@@ -283,6 +284,9 @@ def human_temperatures(
             # Monte Carlo error of the ray methods from the per-ray sample variance (an upper
             # estimate: stratification makes the true error smaller)
             diagnostics["qradRmsRelErrorEstimate"] = stats["rms_rel_error_estimate"]
+            q_noise = stats["rms_rel_error_estimate"] * float(
+                np.average(np.abs(q.sum(axis=0)), weights=areas)
+            )
         if k == 0:
             diagnostics["absorbedShortwaveMean_W_m2"] = float(np.average(q[0], weights=areas))
         mrt[k] = Q.mean_radiant_temperature(q, areas, body.segment[body.tri_face], n_segments=N_SEGMENTS)
@@ -453,6 +457,13 @@ def human_temperatures(
         )
         t_lin, q_lin = t_face, q_face
     diagnostics["couplingMaxResidual_W_m2"] = float(residual)
+    if q_noise is not None:
+        # the faces' temperature noise from the q_rad rays' noise (issue 25: the render adds it
+        # to its stated error): sigma_T = sigma_q / (dq/dT + the skin's conductance to the core),
+        # the facets' linear response at the first frame (RMS over the skin facets)
+        conductance = np.asarray(result.segment_skin_conductance_w_m2_k)[0][body.segment]
+        sigma_t = q_noise / np.maximum(g_lin[0] + conductance, 1e-6)
+        diagnostics["faceTemperatureNoiseRms_K"] = float(np.sqrt(np.average(sigma_t**2, weights=area)))
     # the physiological bound (issue 25): the hottest skin facet against its segment's core
     core = np.asarray(result.segment_core_temperature_k)[:, body.segment]
     diagnostics["skinMax_K"] = float(t_face.max())
