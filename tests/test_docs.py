@@ -11,6 +11,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -210,10 +211,25 @@ def _run_page(page: str, cwd: Path, env: dict | None = None) -> list[str]:
     printed = []
     for lang, code in re.findall(r"```(sh|python)\n(.+?)\n```", (DOCS / "user" / page).read_text(), re.S):
         argv = ["bash", "-euo", "pipefail", "-c", code] if lang == "sh" else [sys.executable, "-c", code]
-        run = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, env=env)
-        assert run.returncode == 0, f"{page}: {code}\n{run.stderr[-3000:]}"
+        # a session of its own: what the block left in the background (its process group) is
+        # stopped after it, pass or fail
+        proc = subprocess.Popen(
+            argv,
+            cwd=cwd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            start_new_session=True,
+        )
+        stdout, stderr = proc.communicate()
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+        assert proc.returncode == 0, f"{page}: {code}\n{stderr[-3000:]}"
         if lang == "python":
-            printed.append(run.stdout)
+            printed.append(stdout)
     return printed
 
 
@@ -269,15 +285,22 @@ def test_aerial_tutorial_runs(tmp_path):
         assert int(visible) > 50
 
 
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    """docs/user/dataset-tutorial.md run as written (~20 s)."""
+    cwd = tmp_path_factory.mktemp("dataset")
+    (cwd / ".venv").symlink_to(Path(sys.executable).parents[1])
+    for name in ("first.toml", "shirts.toml"):
+        shutil.copy(DOCS / "user" / name, cwd / name)
+    return cwd, _run_page("dataset-tutorial.md", cwd)
+
+
 @pytest.mark.slow
-def test_dataset_tutorial_runs(tmp_path):
+def test_dataset_tutorial_runs(dataset):
     """docs/user/dataset-tutorial.md: 4 variants, each in one split, and every YOLO line is the
     person's visible box of its objects.json, (x0 + x1) / 2W, (y0 + y1) / 2H, (x1 - x0) / W,
     (y1 - y0) / H."""
-    (tmp_path / ".venv").symlink_to(Path(sys.executable).parents[1])
-    for name in ("first.toml", "shirts.toml"):
-        shutil.copy(DOCS / "user" / name, tmp_path / name)
-    index_out, yolo_out = _run_page("dataset-tutorial.md", tmp_path)
+    tmp_path, (index_out, yolo_out) = dataset
     rows = re.findall(r"(v\d{4}) (train|val|test): shirt=(\w+) time=(\w+), person ([\d.]+) K", index_out)
     assert sorted((r[2], r[3]) for r in rows) == sorted(
         (s, t) for s in ("white", "black") for t in ("afternoon", "night")
@@ -327,6 +350,16 @@ def test_asset_blender_tutorial_runs(tmp_path):
     assert found["bench", "/World/Scene/bench"][1] == pytest.approx(300.0, abs=1e-3)
     assert found["edited", "/World/Scene/crate"][1] == pytest.approx(320.0, abs=1e-3)
     assert ("bench", "/World/Scene/crate") not in found
+
+
+@pytest.mark.slow
+def test_cluster_tutorial_runs(dataset):
+    """docs/user/cluster-tutorial.md: the sweep on a scheduler and 2 worker processes gives the
+    in-process dataset's images and labels byte for byte."""
+    cwd, _ = dataset
+    (printed,) = _run_page("cluster-tutorial.md", cwd)
+    same, total = map(int, re.search(r"(\d+) of (\d+) images and label files identical", printed).groups())
+    assert total >= 4 * 2 + 4 and same == total  # 4 EXRs, 4 objects.json, COCO, YOLO
 
 
 def test_every_physics_module_has_a_page():
