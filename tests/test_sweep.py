@@ -388,6 +388,7 @@ def test_one_dataset_out(reference):
         (fr,) = [f for s in manifest["sensors"] for f in s["frames"] if f["frame"] == row["frame"]]
         assert row["mc_error_k"] == fr["monte_carlo_error_k"]["mean_k"]
         assert row["mc_error_p99_k"] == fr["monte_carlo_error_k"]["p99_k"] > 0
+        assert row["quality_met"] == fr["quality"]["met"]  # issue 25: targets met, or stopped at the cap
         assert row["mc_error_relative"] is None
         assert 0 < row["task_peak_rss_mb"] <= row["peak_rss_mb"]  # the task's own, the worker's so far
     summary = json.loads((dataset / "dataset.json").read_text())
