@@ -4,7 +4,7 @@ PY     := $(VENV)/bin/python
 OUT    ?= out/humvvex
 SPP    ?=
 
-.PHONY: setup demo test test-fast lint format bench schemas screenshots docs clean
+.PHONY: setup demo test test-fast lint format bench schemas screenshots docs gallery clean
 
 setup:
 	@./tools/setup.sh
@@ -47,6 +47,11 @@ screenshots: setup
 docs: setup
 	@$(PY) -m sphinx -E -W --keep-going -n -q -b html docs build/docs/html
 	@echo "docs: build/docs/html/index.html"
+
+# the manual's gallery: every imager of the examples at 1/4 size, with label overlays
+# -> docs/gallery/ (commit the PNGs and gallery.json; make docs shows them)
+gallery: setup
+	@$(PY) docs/_ext/gallery.py
 
 clean:
 	rm -rf out .pytest_cache

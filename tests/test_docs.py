@@ -362,6 +362,20 @@ def test_cluster_tutorial_runs(dataset):
     assert total >= 4 * 2 + 4 and same == total  # 4 EXRs, 4 objects.json, COCO, YOLO
 
 
+def test_gallery_shows_every_image_it_lists(site):
+    """docs/gallery/gallery.json (make gallery) names files that exist, and the gallery page shows
+    each render and its label overlay."""
+    index = DOCS / "gallery" / "gallery.json"
+    if not index.is_file():
+        pytest.skip("no gallery rendered (make gallery)")
+    entries = json.loads(index.read_text())
+    page = (site / "gallery.html").read_text()
+    for e in entries:
+        for name in (e["image"], e["labels"]):
+            assert (DOCS / "gallery" / name).is_file(), name
+            assert (site / "_images" / name).is_file() and f"_images/{name}" in page, name
+
+
 def test_every_physics_module_has_a_page():
     """A model added to humv_usd/physics/ without a physics page fails here."""
     pages = "\n".join(p.read_text() for p in (DOCS / "physics").glob("*.rst"))

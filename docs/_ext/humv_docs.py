@@ -20,6 +20,7 @@ command and attribute.
 
 from __future__ import annotations
 
+import json
 import re
 import tomllib
 from pathlib import Path
@@ -616,6 +617,44 @@ def module_rst(*modules: str) -> str:
     return "\n".join(out)
 
 
+# ------------------------------------------------------------------------------------ gallery
+def gallery_rst() -> str:
+    """The images ``make gallery`` wrote (``docs/gallery/gallery.json``), per example and sensor:
+    the render's preview and its label overlay side by side."""
+    index = ROOT / "docs" / "gallery" / "gallery.json"
+    if not index.is_file():
+        return "No gallery yet: ``make gallery`` renders it.\n"
+    entries = json.loads(index.read_text())
+    out = []
+    for example in dict.fromkeys(e["example"] for e in entries):
+        out.extend(_heading(f"``examples/{example}.toml``", "-"))
+        for e in (e for e in entries if e["example"] == example):
+            w, h = e["resolution"]
+            what = f"{e['band']} · ``{e['sensor']}``" + (
+                f" (preset ``{e['preset']}``)" if e["preset"] else ""
+            )
+            out.extend([f".. rubric:: {what}", ""])
+            out.extend(
+                _table(
+                    ["render", "labels"],
+                    [[f"|{e['image']}|", f"|{e['labels']}|"]],
+                )
+            )
+            out.extend(
+                [
+                    f"{w}×{h} pixels, frame 0, the render's automatic quality.",
+                    "",
+                    f".. |{e['image']}| image:: /gallery/{e['image']}",
+                    f"   :alt: {e['band']} render of {example}, sensor {e['sensor']}",
+                    "",
+                    f".. |{e['labels']}| image:: /gallery/{e['labels']}",
+                    f"   :alt: labels of {example}, sensor {e['sensor']}",
+                    "",
+                ]
+            )
+    return "\n".join(out)
+
+
 # --------------------------------------------------------------------------------- CLI (check)
 def cli_commands() -> list[str]:
     """Every command path of ``humv-usd`` (``compose``, ``bench render``), for the test that the
@@ -643,6 +682,7 @@ SOURCES = {
     "garments": ["humv_usd/catalog/garments.py", "humv_usd/catalog/materials.py"],
     "sensors": ["humv_usd/catalog/sensors.py"],
     "schemas": ["schemas/generatedSchema.usda"],
+    "gallery": ["docs/gallery/gallery.json"],
 }
 #: physics pages: the page's ``humv-reference:: module A B`` lists its modules (their files are
 #: the dependencies)
@@ -654,6 +694,7 @@ GENERATORS = {
     "sensors": sensors_rst,
     "schemas": schemas_rst,
     "module": module_rst,
+    "gallery": gallery_rst,
 }
 
 
