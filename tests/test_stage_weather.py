@@ -235,7 +235,9 @@ def test_path_ranges_reach_a_hand_made_mesh_of_the_stage(humvvex_raw, tmp_path, 
     for name, layers in (("as built", ()), ("with mast", (extra,))):
         _, stage = _upstream(sc, *layers)
         ranges = (
-            stage.GetPrimAtPath(PATHS.AppendChild("lwir640_path")).GetAttribute(S.ATMOSPHERE_PATH_RANGES).Get()
+            stage.GetPrimAtPath(PATHS.AppendChild("lwir640_path"))
+            .GetAttribute(S.ATMOSPHERE_PATH_RANGES)
+            .Get()
         )
         far[name] = float(ranges[-1])
     cam = np.asarray(sc["sensor"][0]["position_m"], float)
