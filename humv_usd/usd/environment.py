@@ -175,9 +175,8 @@ def write_lights(stage: Usd.Stage, sun: SunState, codes, frame_samples) -> None:
     op = light.AddTransformOp()
     intensity = light.CreateIntensityAttr()
     dome = UsdLux.DomeLight.Define(stage, SKY_LIGHT_PATH)
-    dome.CreateColorAttr(
-        Gf.Vec3f(1.0, 1.0, 1.0)
-    )  # authored: Blender makes a world only from a colour or texture
+    # authored: Blender makes a world only from a dome's colour or texture
+    dome.CreateColorAttr(Gf.Vec3f(1.0, 1.0, 1.0))
     dome_intensity = dome.CreateIntensityAttr()
     for i in idx:
         code = Usd.TimeCode(float(codes[i])) if sampled else Usd.TimeCode.Default()
