@@ -20,7 +20,7 @@ from humv_usd.usd.check import check_stage
 from humv_usd.usd.mesh import triangle_areas
 
 ALL_LAYERS = set(HUMVVEX_LAYERS)
-GARMENTS = ("tshirt_white", "shorts", "cap", "shoes")
+GARMENTS = ("hair_short", "tshirt_white", "shorts", "cap", "shoes")  # humvvex: hair by default
 
 
 def layer_names(out):

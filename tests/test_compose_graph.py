@@ -134,7 +134,7 @@ def test_read_values_pick_exactly_what_is_read(raw):
     va, vb = read_values(a, reads, "p1"), read_values(b, reads, "p1")
     assert va["sensor.1.position_m"] == [0.8, -15.0, 1.6] and vb["sensor.1.position_m"] == [0.9, -15.0, 1.6]
     assert {k for k in va if va[k] != vb[k]} == {"sensor.1.position_m"}
-    assert va["human[p1].clothing"] == ["tshirt_white", "shorts", "cap", "shoes"]
+    assert va["human[p1].clothing"] == ["hair_short", "tshirt_white", "shorts", "cap", "shoes"]
     assert va["placement[p1].heading_deg"] == 180.0
     assert va["@ids"] == {"human:p1": 1, "ground": 2, "object:warehouse": 3}
     assert inputs_key("1", va, {}) != inputs_key("1", vb, {})
