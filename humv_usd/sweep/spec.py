@@ -316,18 +316,25 @@ def _parse_frames(value, problems: list[str]):
     return None
 
 
-def _render_settings(table, problems: list[str]) -> dict:
-    out = dict(RENDER_KEYS)
+def _section_table(section: str, table, defaults: dict, problems: list[str]) -> dict:
+    """A copy of ``defaults`` updated by ``table`` (a sweep file section), one problem line per
+    unknown key or a table that is not one."""
+    out = copy.deepcopy(defaults)
     if not isinstance(table, dict):
-        problems.append(bad_value("[render]", table, "expected a table"))
+        problems.append(bad_value(f"[{section}]", table, "expected a table"))
         return out
     for name, value in table.items():
-        if name not in RENDER_KEYS:
+        if name not in defaults:
             problems.append(
-                f"render.{name}: unknown key{_suggest(name, RENDER_KEYS)}; allowed: {', '.join(RENDER_KEYS)}"
+                f"{section}.{name}: unknown key{_suggest(name, defaults)}; allowed: {', '.join(defaults)}"
             )
             continue
         out[name] = value
+    return out
+
+
+def _render_settings(table, problems: list[str]) -> dict:
+    out = _section_table("render", table, RENDER_KEYS, problems)
     if out["spp"] is not None:
         out["spp"] = _check_int("render.spp", out["spp"], 1, 1 << 20, problems)
     out["frames_per_task"] = _check_int(
@@ -347,17 +354,7 @@ def _render_settings(table, problems: list[str]) -> dict:
 
 def _dataset_settings(table, problems: list[str]) -> dict:
     """``[dataset]`` checked against :data:`DATASET_KEYS` (one line per problem)."""
-    out = copy.deepcopy(DATASET_KEYS)
-    if not isinstance(table, dict):
-        problems.append(bad_value("[dataset]", table, "expected a table"))
-        return out
-    for name, value in table.items():
-        if name not in DATASET_KEYS:
-            problems.append(
-                f"dataset.{name}: unknown key{_suggest(name, DATASET_KEYS)}; allowed: {', '.join(DATASET_KEYS)}"
-            )
-            continue
-        out[name] = value
+    out = _section_table("dataset", table, DATASET_KEYS, problems)
     split = out["split"]
     if (
         not isinstance(split, dict)
