@@ -281,7 +281,12 @@ def _write_index(loc: Location, rows: list[dict]) -> None:
     for split in SPLITS:  # the Hub's splits (the card's configs header)
         part = [r for r in rows if r["split"] == split]
         with loc.writing(f"index_{split}.parquet") as tmp:
-            pq.write_table(pa.Table.from_pylist(jsonable(part), schema=table.schema) if part else empty, tmp)
+            pq.write_table(
+                pa.Table.from_pylist(jsonable(part), schema=table.schema)
+                if part
+                else table.schema.empty_table(),
+                tmp,
+            )
 
 
 def _summary(sweep, rows: list[dict], coco: dict) -> dict:
