@@ -766,6 +766,12 @@ def test_splits_by_variant_in_every_export(reference):
         assert (dataset / "coco" / img["file_name"]).read_bytes() == (dataset / row["image"]).read_bytes()
     data = (dataset / "yolo" / "detect" / "cam" / "data.yaml").read_text()
     assert "train: images/train\nval: images/val\ntest: images/test\n" in data
+    # the card's configs header as the Hub reads it: three splits of the index's rows
+    import datasets
+
+    hub = datasets.load_dataset(str(dataset))
+    assert {k: hub[k].num_rows for k in hub} == {"train": 4, "validation": 2, "test": 2}
+    assert set(hub["validation"]["split"]) == {"val"}
 
 
 @pytest.mark.slow
