@@ -1142,7 +1142,14 @@ def stack_steady_state(
     .. [2] The seed paper, section 2.2.3, Eq. 5-9.
     """
     gaps = np.asarray(air_gaps_m, dtype=float)
-    p = _stack_parameters(
+    # the steady state is the implicit step of infinite length (no storage; the previous
+    # temperatures, here the air's, then do not enter)
+    return stack_transient_step(
+        np.broadcast_to(
+            np.asarray(air_temperature_k, dtype=float), gaps.shape[:1] + np.shape(air_temperature_k)
+        ),
+        np.inf,
+        0.0,
         skin_temperature_k,
         air_temperature_k,
         absorbed_radiation,
@@ -1151,18 +1158,15 @@ def stack_steady_state(
         thicknesses_m,
         conductivities,
         emissivities,
-        skin_emissivity,
-        natural_floor,
-        gap_model,
-        wetted_fraction,
-        relative_humidity,
-        0.0,
-        np.broadcast_to(
-            np.asarray(air_temperature_k, dtype=float), gaps.shape[:1] + np.shape(air_temperature_k)
-        ),
-        evaporation_limit,
+        skin_emissivity=skin_emissivity,
+        natural_floor=natural_floor,
+        gap_model=gap_model,
+        wetted_fraction=wetted_fraction,
+        relative_humidity=relative_humidity,
+        tol=tol,
+        max_iter=max_iter,
+        evaporation_limit=evaporation_limit,
     )
-    return _stack_solve(p, tol, max_iter)
 
 
 def stack_transient_step(
