@@ -4,7 +4,7 @@ PY     := $(VENV)/bin/python
 OUT    ?= out/humvvex
 SPP    ?=
 
-.PHONY: setup demo test test-fast lint format bench schemas screenshots docs gallery clean
+.PHONY: setup demo test test-fast test-extended lint format bench schemas screenshots docs gallery clean
 
 setup:
 	@./tools/setup.sh
@@ -17,11 +17,15 @@ demo: setup
 	@echo "demo: stage at $(OUT)/stage.usda, images in $(OUT)/render (see manifest.json there)"
 
 test: setup
-	@$(PY) -m pytest -q
+	@$(PY) -m pytest -q -m "not extended"
+
+# the long end-to-end checks left out of `make test` (each has a cheaper check in the suite)
+test-extended: setup
+	@$(PY) -m pytest -q -m extended
 
 # everything but the tests marked slow (renders, end-to-end CLI runs, JOS-3, Blender)
 test-fast: setup
-	@$(PY) -m pytest -q -m "not slow"
+	@$(PY) -m pytest -q -m "not slow and not extended"
 
 lint: setup
 	@$(VENV)/bin/ruff check humv_usd tests tools
