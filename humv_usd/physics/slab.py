@@ -14,6 +14,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 from humv_usd.constants import STEFAN_BOLTZMANN
+from humv_usd.physics import evaporation as ev
 
 #: combined inside surface coefficient of a wall, 1 / R_si with R_si = 0.13 m^2 K W^-1
 #: (ISO 6946:2017, Table 7, horizontal heat flow) [W m^-2 K^-1]
@@ -328,6 +329,9 @@ def step_many(
     tol=1e-9,
     max_iter=50,
     back_h_w_m2k=INTERIOR_SURFACE_COEFFICIENT,
+    evaporation_beta=None,
+    vapour_pressure_pa=None,
+    pressure_pa=101325.0,
 ):
     """Backward-Euler step of many slabs of one construction at once (vectorized :func:`step`).
 
@@ -350,6 +354,14 @@ def step_many(
         Forcing at the end of the step per slab, as in :func:`step`.
     tol, max_iter
         Newton tolerance on the node update [K] and iteration cap.
+    evaporation_beta : numeric or (F,), optional
+        Share of a free water surface's latent flux the surface passes
+        (:func:`humv_usd.physics.evaporation.evaporation_efficiency`: stomatal resistance,
+        wet fraction) [0-1]; None (default): a dry surface, no latent flux.
+    vapour_pressure_pa : numeric or (F,), optional
+        Vapour pressure of the air [Pa] (needed with ``evaporation_beta``).
+    pressure_pa : numeric or (F,), default 101325
+        Air pressure [Pa] (psychrometric constant).
 
     Returns
     -------
@@ -362,8 +374,10 @@ def step_many(
     surface node is nonlinear, so the linear conduction rows are eliminated once per step from
     the bottom up (the Thomas algorithm run from node N, Patankar 1980, section 4.2-5:
     T_i = alpha_i T_{i-1} + beta_i, alpha shared by the F slabs of one construction), leaving
-    one scalar equation per slab, (C_0/dt + G_0 (1 - alpha_1)) T_0 - b = q_s(T_0), solved by
-    Newton (q_s concave in T_0); then back substitution. The result is the full system's.
+    one scalar equation per slab, (C_0/dt + G_0 (1 - alpha_1)) T_0 - b = q_s(T_0) - LE(T_0),
+    solved by Newton (q_s - LE concave in T_0: e_s is convex); then back substitution. The
+    result is the full system's. LE = beta h / gamma (e_s(T_0) - e_a): the latent flux in its
+    surface-temperature form (:func:`humv_usd.physics.evaporation.latent_flux`).
     """
     if bottom not in ("adiabatic", "fixed", "interior"):
         raise ValueError(f"invalid model selection {bottom}")
@@ -406,9 +420,19 @@ def step_many(
     k0 = c_dt[0] + g[0] * (1.0 - alpha[1])
     b0 = rhs[:, 0] + g[0] * beta[:, 1]
     t0 = t_old[:, 0].copy()
+    evaporating = evaporation_beta is not None
+
+    def latent(temp):
+        if not evaporating:
+            return 0.0, 0.0
+        return ev.latent_flux(
+            temp, col(vapour_pressure_pa), h, col(evaporation_beta), col(pressure_pa), t_air
+        )
+
     for _ in range(max_iter):
-        f = k0 * t0 - b0 - surface_flux(t0, a_s, l_sky, t_air, h, eps)
-        d = f / (k0 + 4.0 * eps * STEFAN_BOLTZMANN * t0**3 + h)
+        le, dle = latent(t0)
+        f = k0 * t0 - b0 - surface_flux(t0, a_s, l_sky, t_air, h, eps) + le
+        d = f / (k0 + 4.0 * eps * STEFAN_BOLTZMANN * t0**3 + h + dle)
         t0 -= d
         if np.max(np.abs(d)) < tol:
             break
@@ -418,6 +442,7 @@ def step_many(
         t[:, i] = alpha[i] * t[:, i - 1] + beta[:, i]
     residual = (
         surface_flux(t[:, 0], a_s, l_sky, t_air, h, eps)
+        - latent(t[:, 0])[0]
         + g[0] * (t[:, 1] - t[:, 0])
         - c_dt[0] * (t[:, 0] - t_old[:, 0])
     )
@@ -438,6 +463,12 @@ def simulate_many(
     deep_temperature_k=None,
     initial_temperature_k=None,
     back_h_w_m2k=INTERIOR_SURFACE_COEFFICIENT,
+    surface_resistance_s_m=None,
+    vapour_pressure_pa=None,
+    pressure_pa=101325.0,
+    rain_kg_m2_s=0.0,
+    water_capacity_kg_m2=0.0,
+    return_wet_fraction=False,
 ):
     """Surface temperatures of F slabs of one construction along a forcing time series.
 
@@ -454,11 +485,35 @@ deep_temperature_k, back_h_w_m2k
         As in :func:`step_many`.
     initial_temperature_k : numeric or (F, N + 1), optional
         Initial node temperatures instead of the mean-forcing steady state.
+    surface_resistance_s_m : array (M, F) or broadcastable, optional
+        Surface (stomatal) resistance of the dry surface [s m^-1] (``np.inf``: no evaporation
+        from the dry part); None (default): a dry surface without latent flux (the model before
+        issue 30), and no water film either.
+    vapour_pressure_pa, pressure_pa : array (M, F) or broadcastable
+        Vapour pressure of the air and air pressure [Pa] (with ``surface_resistance_s_m``).
+    rain_kg_m2_s : array (M, F) or broadcastable, default 0
+        Rain rate over the step ending at each sample [kg m^-2 s^-1] (1 mm h^-1 = 1/3600).
+    water_capacity_kg_m2 : numeric or (F,), default 0
+        Water the surface holds as a film or in puddles before it runs off [kg m^-2 = mm].
+    return_wet_fraction : bool, default False
+        Also return the wet fraction (M, F) [0-1].
 
     Returns
     -------
     tuple
-        (surface temperature (M, F) [K], max |surface residual| [W m^-2]).
+        (surface temperature (M, F) [K], max |surface residual| [W m^-2]) and with
+        ``return_wet_fraction`` the wet fraction (M, F).
+
+    Notes
+    -----
+    Water on the surface (rain, dew) is an interception reservoir W [kg m^-2] (Noilhan &
+    Planton 1989, eq. 30; Deardorff 1978): over each step dW/dt = P - E_wet, 0 <= W <=
+    W_max, with E_wet = delta h / gamma (e_s(T_0) - e_a) / lambda the free-water evaporation of
+    the wet share delta = (W / W_max)^(2/3) (negative: dew); the step's latent flux uses
+    beta = delta + (1 - delta) r_a / (r_a + r_s) with delta at the start of the step (the
+    reservoir is updated explicitly after the implicit temperature step). A surface dries
+    after rain at the rate its energy balance allows, and is near the wet-bulb temperature
+    while wet.
     """
     times = np.asarray(forcing_times_s, dtype=float)
     m = times.size
@@ -467,10 +522,29 @@ deep_temperature_k, back_h_w_m2k
         v = np.asarray(v, dtype=float)
         return v.reshape(-1, 1) if v.ndim == 1 else v
 
-    forcing = [as_2d(v) for v in (absorbed_solar, sky_longwave, air_temperature_k, h_conv)]
+    evaporating = surface_resistance_s_m is not None
+    more = (surface_resistance_s_m, vapour_pressure_pa, pressure_pa, rain_kg_m2_s) if evaporating else ()
+    forcing = [as_2d(v) for v in (absorbed_solar, sky_longwave, air_temperature_k, h_conv, *more)]
     shape = np.broadcast_shapes(*[f.shape for f in forcing], (m, 1))
     forcing = [np.broadcast_to(f, shape) for f in forcing]
     nf = shape[1]
+    capacity = np.broadcast_to(np.asarray(water_capacity_kg_m2, dtype=float), (nf,))
+    water = np.zeros(nf)
+    wet_out = np.zeros((m, nf))
+
+    def latent_kw(i, wet):
+        """step_many's latent arguments at sample i (a slice: the mean) with wet share ``wet``."""
+        if not evaporating:
+            return {}
+        rs, ea, p = (forcing[k][i] for k in (4, 5, 6))
+        if isinstance(i, slice):
+            rs, ea, p = (np.mean(v, axis=0) for v in (rs, ea, p))
+            air, hc = forcing[2][i].mean(axis=0), forcing[3][i].mean(axis=0)
+        else:
+            air, hc = forcing[2][i], forcing[3][i]
+        beta = ev.evaporation_efficiency(hc, rs, p, air, wet)
+        return {"evaporation_beta": beta, "vapour_pressure_pa": ea, "pressure_pa": p}
+
     n1 = np.asarray(layer_thickness_m).size + 1
     kw = dict(
         layer_thickness_m=layer_thickness_m,
@@ -494,6 +568,7 @@ deep_temperature_k, back_h_w_m2k
             air_temperature_k=mean[2],
             h_conv=mean[3],
             **kw,
+            **latent_kw(slice(None), 0.0),
         )
     else:
         t = np.broadcast_to(np.asarray(initial_temperature_k, dtype=float), (nf, n1)).copy()
@@ -501,15 +576,27 @@ deep_temperature_k, back_h_w_m2k
     out[0] = t[:, 0]
     max_res = 0.0
     for i in range(1, m):
+        dt = times[i] - times[i - 1]
+        wet = ev.wet_fraction(water, capacity)
         t, res = step_many(
             t,
-            times[i] - times[i - 1],
+            dt,
             absorbed_solar=forcing[0][i],
             sky_longwave=forcing[1][i],
             air_temperature_k=forcing[2][i],
             h_conv=forcing[3][i],
             **kw,
+            **latent_kw(i, wet),
         )
         out[i] = t[:, 0]
         max_res = max(max_res, float(np.max(np.abs(res))))
+        if evaporating and np.any(capacity > 0.0):
+            le_wet, _ = ev.latent_flux(
+                t[:, 0], forcing[5][i], forcing[3][i], wet, forcing[6][i], forcing[2][i]
+            )
+            evap = le_wet / ev.latent_heat_of_vaporization(t[:, 0])
+            water = np.clip(water + (forcing[7][i] - evap) * dt, 0.0, capacity)
+            wet_out[i] = ev.wet_fraction(water, capacity)
+    if return_wet_fraction:
+        return out, max_res, wet_out
     return out, max_res
