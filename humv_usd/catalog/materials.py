@@ -986,3 +986,55 @@ INSULATION: dict[str, Material] = {
     )
 }
 LIBRARY.update(INSULATION)
+
+
+@dataclass(frozen=True)
+class SurfaceWater:
+    """How a surface material evaporates (issue 30.2/30.4): transpiration through a surface
+    resistance (vegetation, moist soil) and the water film rain or dew leaves on it.
+
+    minimum_resistance_s_m : r_s,min = r_l / LAI of a well-watered canopy in full light
+        [s m^-1] (:func:`humv_usd.physics.evaporation.surface_resistance`); None: the dry
+        surface does not evaporate (paving, metal, glass).
+    leaf_area_index : LAI [m^2 m^-2] of the light response.
+    water_capacity_kg_m2 : water held on the surface before run-off [kg m^-2 = mm].
+    """
+
+    minimum_resistance_s_m: float | None
+    leaf_area_index: float
+    water_capacity_kg_m2: float
+    source: str
+
+
+_SUEWS = (
+    "storage capacities of the SUEWS urban water balance (Grimmond & Oke 1991, J. Appl. "
+    "Meteorol. 30:1141; Jarvi et al. 2011, J. Hydrol. 411:219, Table 1: paved 0.48 mm, "
+    "buildings 0.25 mm, grass 1.9 mm, trees 1.3 mm, bare soil 1.9 mm)"
+)
+#: surface water per material name; materials not listed: dry, with the 0.25 mm film of a
+#: building surface (:data:`DRY_SURFACE`)
+SURFACE_WATER: dict[str, SurfaceWater] = {
+    "grass": SurfaceWater(
+        35.0,
+        2.88,
+        1.9,
+        "r_s,min = 100 s/m (single leaf, FAO-56 eq. 5, Allen et al. 1998) / LAI 2.88 (FAO-56 "
+        f"reference grass), Noilhan & Planton (1989) light response; {_SUEWS}",
+    ),
+    "soil": SurfaceWater(
+        150.0,
+        2.88,
+        1.9,
+        "bare moist soil as a surface resistance of 150 s/m at field capacity (soil "
+        "evaporation resistances of 100-500 s/m of a drying top layer, van de Griend & Owe "
+        f"1994, Water Resour. Res. 30:181; order of magnitude); {_SUEWS}",
+    ),
+    "asphalt": SurfaceWater(None, 1.0, 0.48, f"impervious paving; {_SUEWS}"),
+    "concrete": SurfaceWater(None, 1.0, 0.48, f"impervious paving; {_SUEWS}"),
+}
+DRY_SURFACE = SurfaceWater(None, 1.0, 0.25, f"impervious surface (building); {_SUEWS}")
+
+
+def surface_water(name: str) -> SurfaceWater:
+    """:class:`SurfaceWater` of a material name (:data:`DRY_SURFACE` when not listed)."""
+    return SURFACE_WATER.get(name, DRY_SURFACE)

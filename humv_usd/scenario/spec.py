@@ -269,6 +269,16 @@ GROUND = Section(
             lo=150.0,
             hi=1000.0,
         ),
+        "soil_moisture": Key(
+            "float",
+            "Relative available soil water under grass, other vegetation and bare soil, "
+            "(theta - theta_wilt) / (theta_fc - theta_wilt) [0-1]: 1 a watered lawn at field "
+            "capacity, 0 the wilting point (stomata shut: the surface heats as a dry slab). "
+            "Sets their transpiration in the thermal layer (Noilhan & Planton 1989).",
+            default=0.75,
+            lo=0.0,
+            hi=1.0,
+        ),
     },
 )
 
@@ -732,6 +742,25 @@ ATMOSPHERE = Section(
         ),
         "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
         "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05, hi=300.0),
+        "rain_mm_h": Key(
+            "float",
+            "Rain rate [mm/h] of a shower that wets the scene surfaces (0: dry). Surfaces hold "
+            "water up to their capacity (paving 0.48 mm, grass 1.9 mm), evaporate it toward the "
+            "wet-bulb temperature and dry after it (thermal layer).",
+            default=0.0,
+            lo=0.0,
+            hi=200.0,
+        ),
+        "rain_end_h": Key(
+            "float",
+            "How long before frame 0 the rain stopped [h] (0: still raining at frame 0).",
+            default=0.0,
+            lo=0.0,
+            hi=240.0,
+        ),
+        "rain_duration_h": Key(
+            "float", "How long it rained [h] (ending rain_end_h before frame 0).", default=2.0, lo=0.0, hi=240.0
+        ),
         "diurnal_range_k": Key(
             "float",
             "Daily maximum minus minimum air temperature [K] of the diurnal cycle the "

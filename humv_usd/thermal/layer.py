@@ -46,6 +46,7 @@ from humv_usd.thermal.surfaces import (
     scene_meshes,
     surface_temperatures,
     with_sky_table,
+    with_water,
     write_refined_topology,
 )
 from humv_usd.usd.atmosphere import longwave_sky, model_name
@@ -56,12 +57,22 @@ from humv_usd.usd.thermal import write_surface_temperature
 
 NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
-READS = (*CLOCK, "human", "scene", "thermal", "placement.*.standing_before_s")
+READS = (
+    *CLOCK,
+    "human",
+    "scene",
+    "thermal",
+    "placement.*.standing_before_s",
+    "atmosphere.rain_mm_h",
+    "atmosphere.rain_end_h",
+    "atmosphere.rain_duration_h",
+)
 #: sensors: the ground's shadow edges are refined to the closest camera's pixel footprint
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*", "sensors")
 #: 4: faces in material GeomSubsets are slabs of their material; 5: scene surfaces see their
 #: surroundings (sky view, exchange), shadow edges to the cameras' pixel footprint
-VERSION = "5"
+#: 6: evapotranspiration of vegetation and soil, rain on the surfaces and their drying (issue 30)
+VERSION = "6"
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
@@ -88,7 +99,7 @@ def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         spin_t = spin_up_times(scenario) if slabs else np.zeros(0)
         all_t = np.concatenate([spin_t, sample_t])
         tables = sky_tables(upstream, samples)
-        forcing = with_sky_table(forcing_at(upstream, all_t), tables, len(spin_t))
+        forcing = with_water(with_sky_table(forcing_at(upstream, all_t), tables, len(spin_t)), scenario)
         report["sky"] = _sky_report(forcing, tables, len(spin_t), upstream)
         shade = people_occluders(upstream, scenario, all_t)
         meshes, refined = refine_meshes(meshes, forcing, shade, cameras=camera_footprints(upstream, samples))

@@ -66,12 +66,13 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdSkel
 
+from humv_usd.catalog.materials import surface_water
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.camera import Camera
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked
 from humv_usd.human.usdskel import skinned_points
-from humv_usd.physics import slab
+from humv_usd.physics import evaporation, slab
 from humv_usd.physics.convection import watmuff
 from humv_usd.physics.sky import (
     cloudy_sky_emissivity,
@@ -84,6 +85,7 @@ from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views, orthonormal_frames, ray_samples
 from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
+from humv_usd.usd.heat import read_held_temperature
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
 from humv_usd.usd.mesh import override_topology
@@ -191,6 +193,8 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         # the mesh's material: that of most of its faces (all of them without material subsets)
         material = materials[int(np.argmax(np.bincount(of_face, minlength=len(materials))))]
         h = _held(path, held)  # a mesh from a hand-made layer: a slab of its material
+        if h is None:  # a warm-clutter part with a heat source (humv_usd.scene.objects)
+            h = read_held_temperature(prim)
         is_ground = path == str(GROUND)
         under = None
         if h is None:
@@ -863,6 +867,12 @@ class SurfaceForcing:
     #: the atmosphere layer (:func:`with_sky_table`); None: the Martin & Berdahl (1984) law of
     #: the analytic sky at the first sample
     sky_shape: tuple | None = None
+    #: air pressure (M,) [Pa]; None: 101325
+    pressure_pa: np.ndarray | None = None
+    #: rain rate over the step ending at each sample (M,) [kg m^-2 s^-1]; None: no rain
+    rain_kg_m2_s: np.ndarray | None = None
+    #: relative available soil water under vegetation and bare soil [0-1] (1: field capacity)
+    soil_moisture: float = 1.0
 
     def sky_distribution(self) -> tuple[np.ndarray, np.ndarray]:
         """The sky's angular distribution (zenith [deg] (Z,), radiance (Z,), any scale):
@@ -931,6 +941,29 @@ def with_sky_table(forcing: SurfaceForcing, table, frame0: int) -> SurfaceForcin
     return dataclasses.replace(forcing, sky_longwave_factor=factor, sky_shape=tuple(tables[0]))
 
 
+def with_water(forcing: SurfaceForcing, scenario) -> SurfaceForcing:
+    """The forcing with the scenario's rain (``[atmosphere] rain_mm_h``, ``rain_end_h``,
+    ``rain_duration_h``: :func:`humv_usd.physics.evaporation.rain_schedule`) and soil moisture
+    (``[scene.ground] soil_moisture``)."""
+    atm = scenario["atmosphere"] or {}
+    ground = (scenario["scene"] or {}).get("ground") or {}
+    rate = float(atm.get("rain_mm_h") or 0.0)
+    rain = None
+    if rate > 0.0:
+        rain = evaporation.rain_schedule(
+            forcing.times_s,
+            rate,
+            3600.0 * float(atm.get("rain_end_h") or 0.0),
+            3600.0 * float(atm.get("rain_duration_h", 2.0)),
+        )
+    moisture = ground.get("soil_moisture")
+    return dataclasses.replace(
+        forcing,
+        rain_kg_m2_s=rain,
+        soil_moisture=forcing.soil_moisture if moisture is None else float(moisture),
+    )
+
+
 def forcing_at(stage, times_s) -> SurfaceForcing:
     """Weather and sun of the stage's environment layer (:mod:`humv_usd.usd.environment`) at
     ``times_s`` seconds after frame 0; the spin-up times (< 0) are the layer's negative time
@@ -950,6 +983,7 @@ def forcing_at(stage, times_s) -> SurfaceForcing:
         sun.dhi_w_m2,
         sun.ghi_w_m2,
         w.cloud_cover,
+        pressure_pa=w.pressure_pa,
     )
 
 
@@ -1051,9 +1085,11 @@ def _solve_faces(mesh: SceneMesh, normals, lit, f, *args):
 def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k, seen=None):
     """(M, F) surface temperatures of one mesh's slab faces, the max residual and the (M, F)
     incident long wave."""
-    a_s, lw, air, h, _ = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, seen)
+    a_s, lw, air, h, e_sw = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, seen)
+    latent = _latent_forcing(mesh, f, e_sw)
+    columns = [a_s, lw, air, h] + ([latent.pop("surface_resistance_s_m")] if latent else [])
     # faces with the same forcing history (most of an unshaded ground) are solved once
-    stacked = np.ascontiguousarray(np.concatenate([a_s, lw, air, h], axis=0).T)  # (F, 4M)
+    stacked = np.ascontiguousarray(np.concatenate(columns, axis=0).T)  # (F, 4M or 5M)
     np.round(stacked, 9, out=stacked)  # in place: the largest array of the solve
     # rows compared as raw bytes (one void item per row): much faster than np.unique(axis=0)
     rows = stacked.view(np.dtype((np.void, stacked.dtype.itemsize * stacked.shape[1]))).ravel()
@@ -1061,7 +1097,9 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     uniq = stacked[first]
     inverse = np.asarray(inverse).ravel()
     m = len(f.times_s)
-    cols = [uniq[:, k * m : (k + 1) * m].T for k in range(4)]  # (M, U) each
+    cols = [uniq[:, k * m : (k + 1) * m].T for k in range(len(columns))]  # (M, U) each
+    if latent:
+        latent["surface_resistance_s_m"] = cols.pop()
     dz, k, rc = _construction(mesh)
     t_surf, res = slab.simulate_many(
         f.times_s,
@@ -1072,8 +1110,37 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
         emissivity=longwave_emissivity(mesh.material),
         bottom="fixed" if mesh.is_ground else ("adiabatic" if mesh.interior_k is None else "interior"),
         deep_temperature_k=deep_k if mesh.interior_k is None else mesh.interior_k,
+        **latent,
     )
     return t_surf[:, inverse], res, lw
+
+
+def _latent_forcing(mesh: SceneMesh, f: SurfaceForcing, e_sw) -> dict:
+    """:func:`humv_usd.physics.slab.simulate_many`'s evaporation arguments for a mesh's faces
+    (issue 30): vegetation and bare soil transpire through the surface resistance of
+    :func:`humv_usd.physics.evaporation.surface_resistance` (light on the face, the forcing's
+    soil moisture; the material's :func:`humv_usd.catalog.materials.surface_water`), and any
+    surface holds the rain of ``f.rain_kg_m2_s`` up to its capacity and dries; {} for a dry
+    surface without rain (no latent flux, the model before issue 30)."""
+    water = surface_water(mesh.material.name)
+    raining = f.rain_kg_m2_s is not None and bool(np.any(f.rain_kg_m2_s > 0.0))
+    if water.minimum_resistance_s_m is None and not raining:
+        return {}
+    if water.minimum_resistance_s_m is None:
+        rs = np.full(e_sw.shape, np.inf)
+    else:
+        rs = evaporation.surface_resistance(
+            water.minimum_resistance_s_m, e_sw, f.soil_moisture, water.leaf_area_index
+        )
+    pressure = np.full(len(f.times_s), 101325.0) if f.pressure_pa is None else np.asarray(f.pressure_pa)
+    vapour = f.relative_humidity * evaporation.saturation_vapour_pressure(f.air_temperature_k)
+    return {
+        "surface_resistance_s_m": rs,
+        "vapour_pressure_pa": vapour[:, None],
+        "pressure_pa": pressure[:, None],
+        "rain_kg_m2_s": 0.0 if f.rain_kg_m2_s is None else np.asarray(f.rain_kg_m2_s)[:, None],
+        "water_capacity_kg_m2": water.water_capacity_kg_m2,
+    }
 
 
 #: the exchange between scene faces is iterated until no surface temperature changes by more
