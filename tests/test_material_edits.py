@@ -15,7 +15,8 @@ from pxr import Sdf, Usd, Vt
 from humv_usd import images
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.pipeline.compose import LAYER_DIR, compose, compose_in_memory
-from humv_usd.pipeline.render import _band_emissivity, render_stage
+from humv_usd.pipeline.render import render_stage
+from humv_usd.render.bands import band_emissivity as _band_emissivity
 from humv_usd.render.export import StageExport
 from humv_usd.scenario import validate
 from humv_usd.thermal import layer as thermal_layer

@@ -224,7 +224,7 @@ def test_automatic_quality_stops_only_when_mean_and_p99_are_met():
     NETD/3 or its 99th percentile exceeds 0.1 K (issue 13), never past the spp cap."""
     from types import SimpleNamespace
 
-    from humv_usd.pipeline import render as P
+    from humv_usd.pipeline import ir_pass as P
 
     plan = SimpleNamespace(spp_auto=True, spp=2)
     mwir = SimpleNamespace(netd_k=0.02)  # NETD/3 = 6.7 mK

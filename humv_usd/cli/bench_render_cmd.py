@@ -110,8 +110,8 @@ def bench_render(
     from humv_usd.bench.render import bench_render as run_bench
     from humv_usd.bench.render import plot_error_vs_time
     from humv_usd.bench.render_eo import bench_render_eo, plot_eo_error_vs_time
+    from humv_usd.bench.subbands import subband_error_table
     from humv_usd.fileio import write_json
-    from humv_usd.pipeline import render as R
     from humv_usd.pipeline.compose import compose as run_compose
     from humv_usd.scenario import load_scenario
     from humv_usd.usd.sensor import check_subbands
@@ -127,7 +127,7 @@ def bench_render(
         out = Path(tmp) / "stage"
         run_compose(sc, out)
         stage = out / "stage.usda"
-        table = R.subband_error_table(stage, sorted(set(sub_list) | {1, 2}))
+        table = subband_error_table(stage, sorted(set(sub_list) | {1, 2}))
         click.echo(
             f"scenario {scenario}: spectral error of the sub-band model [K] (max / rms over materials, temperatures, ranges)"
         )

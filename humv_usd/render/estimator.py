@@ -235,8 +235,8 @@ def face_normals(scene) -> tuple[np.ndarray, np.ndarray]:
     global order of :class:`FaceTables` (winding flips applied, as Mitsuba's ``si.n``)."""
     normals, areas = [], []
     for part in scene.parts:
-        v = scene._positions[part.key].astype(float)
-        tris = part.triangles[:, [0, 2, 1]] if scene._flips[part.key] else part.triangles
+        v = scene.vertices(part).astype(float)
+        tris = part.triangles[:, [0, 2, 1]] if scene.flipped(part) else part.triangles
         a, b, c = (v[tris[:, i]] for i in range(3))
         cr = np.cross(b - a, c - a)
         norm = np.linalg.norm(cr, axis=1)
@@ -544,7 +544,7 @@ def render_band_fast(
     total = w * h * spp
     rng_np = np.random.default_rng([int(seed) % 2**32, 0x13])
     seeds = [int(v) for v in rng_np.integers(0, 2**62, size=4)]
-    sensor = scene._sensor_objects[sensor_id]
+    sensor = scene.mitsuba_sensor(sensor_id)
 
     back_counts = []  # per pass: back-side camera samples per cell
 

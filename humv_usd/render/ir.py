@@ -228,6 +228,19 @@ class IRScene:
         self._positions: dict[str, np.ndarray] = {p.key: np.asarray(v, dtype=np.float32) for p, v, _ in parts}
         self._flips: dict[str, bool] = {p.key: bool(f) for p, _, f in parts}
 
+    # --- what the estimators read ------------------------------------------------------------
+    def vertices(self, part: Part) -> np.ndarray:
+        """World-space vertex positions (V, 3) [m, float32] of a part as last set (read-only)."""
+        return self._positions[part.key]
+
+    def flipped(self, part: Part) -> bool:
+        """Whether the part's winding is reversed in the scene (USD ``orientation``)."""
+        return self._flips[part.key]
+
+    def mitsuba_sensor(self, sensor_id: str):
+        """The Mitsuba sensor object of ``sensor_id`` (for ``mi.render`` and ``sample_ray``)."""
+        return self._sensor_objects[sensor_id]
+
     # --- updates -----------------------------------------------------------------------------
     def _set_array(self, key: str, values) -> None:
         # mi.Float in JIT variants, drjit.scalar.ArrayXf in scalar ones
@@ -295,7 +308,7 @@ class IRScene:
         """First and second moments of the pixel radiance, (H, W) float64 each."""
         self.mi = mode.mitsuba()
         img = self.mi.render(
-            self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp), seed=int(seed) % 2**32
+            self.scene, sensor=self.mitsuba_sensor(sensor_id), spp=int(spp), seed=int(seed) % 2**32
         )
         a = np.asarray(img, dtype=np.float64)
         return a[..., self._m1], a[..., self._m2]
@@ -324,7 +337,7 @@ class IRScene:
     def _cast_hits(self, sensor_id: str) -> Hits:
         mi = self.mi = mode.mitsuba(spectral=self.spectral)  # the other render may have switched it
         setup = self.sensors[sensor_id]
-        sensor = self._sensor_objects[sensor_id]
+        sensor = self.mitsuba_sensor(sensor_id)
         w, h = setup.width, setup.height
         n = w * h
         xs, ys = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)

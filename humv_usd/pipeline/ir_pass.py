@@ -1,0 +1,311 @@
+"""The infrared pass of one sensor at one frame: radiometry, render in batches (automatic
+quality), labels, sensor chain, files and the frame's record entry.
+
+Called by :class:`humv_usd.pipeline.render` 's frame loop (``run``: its frame renderer, which
+holds the frame's scene, the band caches, the sensor chains and the per-sensor records).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+
+import numpy as np
+
+from humv_usd import images as writers
+from humv_usd.geometry.camera import CAMERA_FILE, Camera
+from humv_usd.physics import planck
+from humv_usd.physics.sensor import SensorModel
+from humv_usd.pipeline.manifest import ErrorAccumulator
+from humv_usd.render import bands, radiometry
+from humv_usd.render import estimator as E
+from humv_usd.render import quality as Q
+from humv_usd.render.frame import path_table as read_path_table
+from humv_usd.render.light import FrameLight
+from humv_usd.render.renderer import band_renderer
+from humv_usd.usd import thermal as usd_thermal
+from humv_usd.usd.paths import human_path
+
+log = logging.getLogger(__name__)
+
+AUTO_SEED_STRIDE = Q.AUTO_SEED_STRIDE
+AUTO_MAX_SPP = Q.AUTO_MAX_SPP
+AUTO_NETD_FRACTION = Q.AUTO_NETD_FRACTION
+AUTO_P99_K = Q.AUTO_P99_K
+
+
+def _needs_more_samples(plan, sensor, noise: dict, batches: int, regions: dict | None = None) -> bool:
+    """Automatic quality (no spp given, fast estimator): another batch while fewer than
+    :data:`humv_usd.render.quality.MIN_BATCHES` were taken, or the mean error away from edges
+    exceeds NETD / 3 or its 99th percentile exceeds AUTO_P99_K on the image (``noise``) or on a
+    labelled region (``regions``, :func:`humv_usd.render.quality.region_stats`), and fewer than
+    AUTO_MAX_SPP samples were spent."""
+    if not plan.spp_auto or noise.get("mean_k") is None:
+        return False
+    netd = getattr(sensor, "netd_k", None)
+    if not netd or netd <= 0:
+        return False
+    return Q.needs_more(True, Q.verdict(noise, regions or {}, netd), batches, plan.spp)
+
+
+def _netd_text(sensor) -> str:
+    """The sensor's NETD for a sentence (float32 attributes print as 0.019999999552965164)."""
+    netd = getattr(sensor, "netd_k", None)
+    return "no NETD" if netd is None else f"{float(netd):.4g} K"
+
+
+def _spp_rule(plan, sensor) -> str:
+    return Q.rule_text(plan.spp_auto, plan.spp, _netd_text(sensor))
+
+
+def preview_grey(bt: np.ndarray, levels: tuple[float, float]) -> np.ndarray:
+    """The IR file's display channels: brightness temperature stretched between the PNG
+    preview's ``levels`` (:func:`humv_usd.images.preview_levels`) to 0..1 (0 where not finite),
+    so that viewers do not open it black."""
+    lo, hi = levels
+    grey = (bt - lo) / (hi - lo) if hi > lo else np.full(bt.shape, 0.5)
+    return np.where(np.isfinite(grey), np.clip(grey, 0.0, 1.0), 0.0)
+
+
+def thermal_noise(run, s: SensorModel, state, hits) -> np.ndarray | None:
+    """The thermal layer's own noise [K] per pixel (H, W): each person's RMS face-temperature
+    noise from its q_rad rays (:func:`humv_usd.usd.thermal.face_temperature_noise`), times
+    the band's emissivity-weighted share (a face's radiance error is eps dL/dT sigma_T, read
+    back in K through the pixel's dL/dT: about eps sigma_T), on the pixels whose pixel-centre
+    hit is that person's; 0 elsewhere. None when the layer states no noise.
+
+    More samples do not reduce it, so the stopping rule does not see it: each region's
+    record states it and the total with the render's own error in quadrature
+    (:func:`humv_usd.render.quality.add_thermal_noise`); the EXR's ``radiance_stderr``
+    stays the render's Monte Carlo error (the layer's estimate is an upper bound: it
+    ignores the rays' stratification)."""
+    if not hasattr(run, "_person_noise"):
+        run._person_noise = usd_thermal.face_temperature_noise(run.plan.stage)
+        run._thermal_note = (
+            {person: noise for person, noise in run._person_noise.items()} if run._person_noise else None
+        )
+    if not run._person_noise:
+        return None
+    parts = run.scene.parts
+    per_part = np.zeros(len(parts) + 1)
+    for i, part in enumerate(parts):
+        for person, noise in run._person_noise.items():
+            if part.mesh_path.startswith(str(human_path(person)) + "/"):
+                per_part[i] = bands.band_emissivity(run.band_eps, part.material, s) * noise
+    return per_part[np.where(hits.part >= 0, hits.part, len(parts))]
+
+
+def _tick(run, timings: dict, key: str, t: float) -> float:
+    dt = time.perf_counter() - t
+    timings[key] += dt
+    run.totals[key] += dt
+    return time.perf_counter()
+
+
+def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
+    """One IR sensor at one frame: radiometry, render, labels, sensor chain, files, record."""
+    plan, scene = run.plan, run.scene
+    timings = run.per_sensor[s.name]["timings"]
+    band, response = s.wavelength_range_um, s.band_response
+    sensor_id = plan.sensor_ids[s.name]
+    before = dict(timings)
+    cpu0 = time.process_time()
+    t = time.perf_counter()
+    sub = plan.sub_of[s.name]
+    frame_rad = radiometry.frame_radiometry(
+        sub,
+        state.sky_temperature_k,
+        light.spectra,
+        light.sun_direction,
+        read_path_table(plan.stage, s, light.time_code),
+        dni_w_m2=light.dni_w_m2,
+    )
+    t = _tick(run, timings, "load_export", t)
+
+    renderer = band_renderer(plan.estimator)
+    hits = scene.hits(sensor_id)
+    edges = E.geometric_edges(hits) if plan.estimator == "fast" else None
+    regions, region_names = Q.region_map(hits.part, [p.label_class for p in scene.parts])
+    netd = getattr(s, "netd_k", None)
+    thermal_k = thermal_noise(run, s, state, hits)  # the thermal layer's own noise [K] per pixel
+    fast_auto = plan.estimator == "fast" and plan.spp_auto
+
+    boost_where = Q.first_boost(regions, region_names)  # people first
+
+    def direct_target(radiance):
+        """Per-pixel variance target of the estimator's boosts (automatic quality)."""
+        _, dl_dt = planck.brightness_temperature_tabulated(radiance[0], band, response)
+        return Q.pixel_target_var(netd, dl_dt, boost_where)
+
+    pooled = Q.Batches()
+    back_face = None
+    replicas = E.replica_count(plan.spp_sub[s.name]) if plan.estimator == "fast" else None
+    estimator_s = 0.0  # the estimator's share of "render" (the rest: conversions, edges, stats)
+    while True:
+        t_est = time.perf_counter()
+        extra = {}
+        if plan.estimator == "fast":
+            extra["info"] = info = {}
+            if fast_auto and Q.targets(netd) is not None:
+                extra["direct_target"] = direct_target
+        batch = renderer.render(
+            scene,
+            sensor_id,
+            state,
+            sub,
+            lambda material: bands.subband_emissivity(run.sub_eps, material, s, sub),
+            frame_rad,
+            spp=plan.spp_sub[s.name],
+            seed=(plan.seed + frame + AUTO_SEED_STRIDE * pooled.count) % 2**32,
+            transmittance_of=lambda material: bands.subband_transmittance(run.sub_eps, material, s, sub),
+            **extra,
+        )
+        estimator_s += time.perf_counter() - t_est
+        pooled.add(batch[0], batch[1], replicas or plan.spp_sub[s.name])
+        if plan.estimator == "fast":
+            fraction = info["back_face_fraction"]
+            back_face = fraction if back_face is None else back_face + fraction
+        m1 = pooled.mean()
+        # one batch: its estimator's error as it stands; more: replicas and batches pooled
+        stderr_l = batch[1] if pooled.count == 1 else pooled.stderr()
+        bt, dl_dt = planck.brightness_temperature_tabulated(m1, band, response)  # < 1e-4 K of exact
+        with np.errstate(invalid="ignore", divide="ignore"):
+            stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
+        if edges is None:
+            edges = E.geometric_edges(hits)
+        away_from_edges = E.noise_stats(stderr_k, edges)
+        per_region = Q.region_stats(
+            stderr_k,
+            edges,
+            regions,
+            region_names,
+            None if back_face is None else back_face / pooled.count,
+        )
+        if not _needs_more_samples(plan, s, away_from_edges, pooled.count, per_region):
+            break
+        boost_where = Q.next_boost(regions, region_names, Q.verdict(away_from_edges, per_region, netd))
+    if thermal_k is not None:  # the thermal layer's noise: not the render's to reduce; stated apart
+        Q.add_thermal_noise(per_region, stderr_k, thermal_k, edges, regions, region_names)
+    judged = Q.verdict(away_from_edges, per_region, netd if plan.spp_auto else None)
+    for name, rec in per_region.items():
+        rec["met"] = judged["regions"].get(name)
+    spp_used = plan.spp_sub[s.name] * pooled.count
+    away_from_edges["spp_used"] = spp_used
+    away_from_edges["spp_rule"] = _spp_rule(plan, s)
+    away_from_edges["quality_met"] = judged["met"]
+    quality = {
+        "met": judged["met"],
+        "image_met": judged["regions"].get("image"),
+        "targets_k": Q.targets(netd) if plan.spp_auto else None,
+        "regions": per_region,
+        "batches": pooled.count,
+        "replicas_per_pixel": pooled.count * (replicas or 1),
+        "error_dof": pooled.dof if replicas else None,
+        "thermal_noise_k": None if thermal_k is None else run._thermal_note,
+        "at_cap": bool(plan.spp_auto and judged["met"] is False),
+    }
+    t = _tick(run, timings, "render", t)
+    t = _tick(run, timings, "labels", t)  # the pixel-centre cast is the labels' (cached)
+
+    rel = os.path.join(s.name, f"{frame:04d}")
+    labels = plan.truth.annotate(
+        scene,
+        sensor_id,
+        s,
+        state,
+        lambda part: bands.band_emissivity(run.band_eps, part.material, s),
+        plan.out_dir,
+        rel,
+        write=run.write,
+    )
+    t = _tick(run, timings, "labels", t)
+
+    chained = run.chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
+    camera = Camera.from_pose(state.cameras[s.name], m1.shape[1], m1.shape[0])
+    run.per_sensor[s.name]["cameras"].append((frame, camera))
+    levels = writers.preview_levels(bt)
+    grey = preview_grey(bt, levels)
+    channels = {
+        "R": grey,
+        "G": grey,
+        "B": grey,
+        "radiance": m1,
+        "brightness_temperature": bt,
+        "radiance_stderr": stderr_l,
+        "depth": labels.depth,
+        "instance_id": labels.instance.astype(np.float32),
+        **labels.channels,
+        **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
+    }
+    run.write(
+        rel + ".exr",
+        writers.write_exr,
+        os.path.join(plan.out_dir, rel + ".exr"),
+        channels,
+        metadata={
+            "humv:sensor": s.path,
+            "humv:frame": str(frame),
+            "humv:band_um": f"{band[0]:g}-{band[1]:g}",
+            "humv:spp": str(plan.spp * pooled.count),  # automatic quality: the samples spent
+            "humv:quality_met": str(judged["met"]),
+            "humv:subbands": str(len(sub)),
+            "humv:preview": "R=G=B: brightness temperature stretched as the PNG (0 at the 1st, "
+            "1 at the 99th percentile); display only",
+            "humv:camera": os.path.join(s.name, CAMERA_FILE),
+            **camera.exr_header(),
+        },
+        half=("R", "G", "B"),
+    )
+    plan.truth.image_written(rel, channels)
+    run.write(rel + ".png", writers.write_preview_png, os.path.join(plan.out_dir, rel + ".png"), bt, levels)
+    chain_record = run.chains.write(chained, plan.out_dir, rel, write=run.write)
+    _tick(run, timings, "write", t)  # in the foreground: queueing (the writer's time is write_background)
+
+    log.info(
+        "frame %d %s: render %.2f s, labels %.2f s, error %s K away from edges",
+        frame,
+        s.name,
+        timings["render"] - before["render"],  # this frame's, not the running total
+        timings["labels"] - before["labels"],
+        "n/a" if away_from_edges["mean_k"] is None else f"{away_from_edges['mean_k']:.4f}",
+    )
+    if quality["at_cap"]:
+        log.warning(
+            "frame %d %s: stopped at %d spp without meeting the quality target on %s",
+            frame,
+            s.name,
+            spp_used,
+            ", ".join(k for k, v in judged["regions"].items() if v is False),
+        )
+    frame_errors = ErrorAccumulator()  # summed once per image, merged into the totals
+    frame_errors.add(stderr_l, stderr_k)
+    run.per_sensor[s.name]["errors"].merge(frame_errors)
+    run.overall.merge(frame_errors)
+    run.per_sensor[s.name]["frame_errors"] = {
+        "sums": dict(frame_errors.sums),
+        "counts": dict(frame_errors.counts),
+        "maxima": frame_errors.maxima,
+    }
+    finite_bt = bt[np.isfinite(bt)]
+    run.per_sensor[s.name]["frames"].append(
+        {
+            "frame": frame,
+            "exr": rel + ".exr",
+            "png": rel + ".png",
+            "preview_levels_k": list(levels),
+            "radiance_mean": float(np.mean(m1)),
+            "brightness_temperature_mean_k": float(finite_bt.mean()) if finite_bt.size else None,
+            "sky_temperature_k": state.sky_temperature_k,
+            "monte_carlo_error": frame_errors.stats(),
+            "monte_carlo_error_k": away_from_edges,
+            "quality": quality,
+            "radiometry": frame_rad.ran,
+            "sensor_chain": chain_record,
+            "timings_s": {
+                **{k: timings[k] - before[k] for k in timings},
+                "estimator": estimator_s,
+                "cpu": time.process_time() - cpu0,
+            },
+        }
+    )

@@ -1,0 +1,130 @@
+"""The renderer interface: one implementation per estimator of a sensor's band radiance.
+
+Kubric's pattern (STYLE.md): the render pass talks to a small interface, and each estimator is
+one implementation behind it:
+
+- ``"fast"``: :func:`humv_usd.render.estimator.render_band_fast` (sub-bands on one path, emission
+  evaluated, sky control variate, stratified, error from independent replicas);
+- ``"path"``: Mitsuba's path tracer per sub-band, :func:`humv_usd.render.ir.render_band` (the
+  reference, and what a scalar variant or a bounded ``max_depth`` runs).
+
+Both take a scene built from the frame's meshes (:class:`humv_usd.render.ir.IRScene`), a sensor
+id in it, the frame state, the sensor's sub-bands and the frame's radiometry, and return the
+at-sensor radiance and its standard error per pixel. :func:`choose_estimator` is the one rule
+that decides which runs (infrared and visible alike).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from humv_usd import mode
+from humv_usd.render.estimator import render_band_fast
+from humv_usd.render.ir import render_band
+
+#: The estimators, in the order the CLI offers them.
+ESTIMATORS = ("fast", "path")
+
+
+def choose_estimator(requested: str, max_depth: int) -> tuple[str, str | None]:
+    """The estimator that runs for ``requested`` and why it differs (None when it does not).
+
+    The fast estimator needs a vectorised Mitsuba variant (:func:`humv_usd.mode.is_vectorized`)
+    and unbounded paths (Russian roulette); otherwise the path tracer runs, which honours both.
+    """
+    if requested != "fast":
+        return requested, None
+    if not mode.is_vectorized():
+        return "path", f"fast estimator needs a vectorised variant; {mode.variant()} runs the path tracer"
+    if int(max_depth) != -1:
+        return "path", f"max_depth {max_depth} asks for a truncated path: the path tracer honours it"
+    return "fast", None
+
+
+class BandRenderer(Protocol):
+    """What the render pass calls: ``render(...) -> (radiance, stderr)`` (H, W) [W m-2 sr-1]."""
+
+    name: str
+    #: True when ``spp`` is the camera samples per pixel shared by all sub-bands (False: split
+    #: over them, :func:`humv_usd.render.ir.subband_spp`).
+    shares_samples: bool
+
+    def render(
+        self,
+        scene,
+        sensor_id: str,
+        state,
+        sub,
+        emissivity_of,
+        radiometry,
+        spp: int,
+        seed: int,
+        transmittance_of=None,
+        **options,
+    ) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@dataclass(frozen=True)
+class FastRenderer:
+    """The fast estimator (:func:`humv_usd.render.estimator.render_band_fast`); ``options``:
+    ``info``, ``direct_target`` and the estimator's other keywords."""
+
+    name: str = "fast"
+    shares_samples: bool = True
+
+    def render(
+        self,
+        scene,
+        sensor_id,
+        state,
+        sub,
+        emissivity_of,
+        radiometry,
+        spp,
+        seed,
+        transmittance_of=None,
+        **options,
+    ):
+        return render_band_fast(
+            scene, sensor_id, state, sub, emissivity_of, radiometry, spp=spp, seed=seed,
+            transmittance_of=transmittance_of, **options,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PathRenderer:
+    """Mitsuba's path tracer per sub-band (:func:`humv_usd.render.ir.render_band`), the reference."""
+
+    name: str = "path"
+    shares_samples: bool = False
+
+    def render(
+        self,
+        scene,
+        sensor_id,
+        state,
+        sub,
+        emissivity_of,
+        radiometry,
+        spp,
+        seed,
+        transmittance_of=None,
+        **options,
+    ):
+        if options:
+            raise TypeError(f"the path tracer takes no options {sorted(options)}")
+        return render_band(
+            scene, sensor_id, state, sub, emissivity_of, radiometry, spp=spp, seed=seed,
+            transmittance_of=transmittance_of,
+        )  # fmt: skip
+
+
+RENDERERS: dict[str, BandRenderer] = {"fast": FastRenderer(), "path": PathRenderer()}
+
+
+def band_renderer(estimator: str) -> BandRenderer:
+    """The implementation of ``estimator`` (one of :data:`ESTIMATORS`)."""
+    return RENDERERS[estimator]
