@@ -44,6 +44,7 @@ import numpy as np
 from scipy import fft as sp_fft
 from scipy import special
 
+from humv_usd.constants import PLANCK_CONSTANT, SPEED_OF_LIGHT
 from humv_usd.physics import planck
 
 BANDS = ("EO", "MWIR", "LWIR")
@@ -69,9 +70,48 @@ DEFAULT_SPAN_K = (233.15, 373.15)
 #: Fraction of the full well reached by the 99.5th percentile of an EO image under auto exposure.
 EO_AUTO_EXPOSURE_FILL = 0.8
 EO_AUTO_EXPOSURE_PERCENTILE = 99.5
+#: Longest exposure the EO auto exposure may choose [s]: one frame time of 30 frame/s video.
+#: In low light the exposure stops here and the frame is as dark and noisy as its photoelectrons
+#: make it (:func:`photoelectrons_per_input`), instead of being stretched to full well.
+EO_MAX_EXPOSURE_S = 1.0 / 30.0
+#: Quantum efficiency of the detector where its relative response peaks [electrons per photon]:
+#: front/back-illuminated silicon CMOS 0.6-0.8 at 500-600 nm (Sony IMX273: ~0.7 at 525 nm,
+#: EMVA 1288 data of machine-vision cameras using it), 0.65 taken.
+QUANTUM_EFFICIENCY = 0.65
+#: Largest digital gain of the EO display: the AGC's white level is at least full scale / this
+#: (24 dB, the usual upper limit of a camera's automatic gain), so that a frame of read noise is
+#: shown dark, not stretched to full brightness.
+EO_MAX_DISPLAY_GAIN = 16.0
 #: Encircled energy the truncated PSF kernel keeps before renormalisation.
 PSF_ENERGY = 0.99
 PSF_MAX_RADIUS_PX = 48
+
+
+def photoelectrons_per_input(model: SensorModel, exposure_s: float) -> float:
+    r"""Photoelectrons per pixel per unit of the chain's EO input in an exposure [e per unit].
+
+    The EO input is linear RGB in the render's unit, the CIE-Y-normalised mean spectral radiance
+    [W m-2 sr-1 nm-1] (:mod:`humv_usd.render.eo`), so a channel value v stands for the band
+    radiance :math:`v\,\Delta\lambda` with :math:`\Delta\lambda` = 106.857 nm (the integral of
+    the CIE y-bar). The camera equation for an on-axis pixel (Holst, *Electro-Optical Imaging
+    System Performance*, 5th ed., 2008, eq. 12.6; unit optics transmittance, obliquity ignored):
+
+    .. math:: N_e = \frac{\pi L}{4 N^2}\,p^2\,t\,\eta\,\frac{\lambda}{h c}
+
+    with N the f-number, p the pixel pitch, t the exposure, :math:`\eta` =
+    :data:`QUANTUM_EFFICIENCY` and the photon energy at 0.555 um (the peak of y-bar).
+    """
+    band_per_unit = 106.856895  # [nm]: v [W m-2 sr-1 nm-1] -> v * 106.857 [W m-2 sr-1]
+    wavelength_m = 0.555e-6
+    focal_irradiance = math.pi / (4.0 * float(model.f_number) ** 2) * band_per_unit
+    photons_per_joule = wavelength_m / (PLANCK_CONSTANT * SPEED_OF_LIGHT)
+    return (
+        focal_irradiance
+        * float(model.pixel_pitch_m) ** 2
+        * float(exposure_s)
+        * QUANTUM_EFFICIENCY
+        * photons_per_joule
+    )
 
 
 def field_of_view_deg(extent_m, focal_length_m):
@@ -1124,10 +1164,13 @@ def apply_chain(
     else:
         if model.gain is None:
             level = float(np.percentile(x.max(axis=-1), EO_AUTO_EXPOSURE_PERCENTILE)) if x.size else 0.0
-            l_sat = level / EO_AUTO_EXPOSURE_FILL if level > 0 else 1.0
+            # the exposure cannot exceed EO_MAX_EXPOSURE_S: the input that fills the well then
+            l_floor = model.full_well_e / photoelectrons_per_input(model, EO_MAX_EXPOSURE_S)
+            l_sat = max(level / EO_AUTO_EXPOSURE_FILL, l_floor)
             gain_source = (
                 f"auto exposure: {EO_AUTO_EXPOSURE_PERCENTILE:g}th percentile at "
                 f"{EO_AUTO_EXPOSURE_FILL:.0%} of full well"
+                + (f", exposure capped at {EO_MAX_EXPOSURE_S:.4g} s (low light)" if l_sat == l_floor else "")
             )
             offset = model.offset
             gain = (model.max_count - offset) / l_sat
@@ -1250,7 +1293,8 @@ def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
         info = {"mode": "none", "white_count": float(full + black)}
     else:
         white = float(np.percentile(lin.max(axis=-1), model.agc_percentiles[1]))
-        white = white if white > 0 else full
+        # at most EO_MAX_DISPLAY_GAIN: a frame of read noise stays dark
+        white = max(white, full / EO_MAX_DISPLAY_GAIN) if white > 0 else full
         info = {"mode": model.agc, "white_count": white + black, "percentile": model.agc_percentiles[1]}
     m = colour_correction_matrix(model) if eo_space == "camera" else np.eye(3)
     if model.agc not in ("histogram", "plateau") and np.array_equal(m, np.eye(3)):

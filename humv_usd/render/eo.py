@@ -62,12 +62,16 @@ from humv_usd import mode
 from humv_usd.fileio import write_json
 from humv_usd.geometry.camera import CAMERA_FILE, Camera, camera_file
 from humv_usd.physics.sensor import srgb_encode
-from humv_usd.render import eo_fast, radiometry
+from humv_usd.render import elements as el
+from humv_usd.render import eo_fast, nightlight, radiometry
 from humv_usd.render import estimator as E
+from humv_usd.render import quality as Q
 from humv_usd.render.cie import XYZ_TO_SRGB
 from humv_usd.render.frame import path_table
-from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr, write_ply
+from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr
+from humv_usd.render.light import FrameLight, read_frame_light
 from humv_usd.render.radiometry import hemisphere_mean
+from humv_usd.render.renderer import choose_estimator
 from humv_usd.usd import environment as usd_environment
 from humv_usd.usd.atmosphere import atmosphere_spectra
 
@@ -163,6 +167,23 @@ def illumination(
     return sun, sky, ran
 
 
+def after_sunset(stage, time_code, sun_direction, sun_nm, sky_nm, ran: dict):
+    """With the sun below the horizon: the twilight, moonlit and natural night sky added to the
+    sky, and the moon in place of the sun (:func:`humv_usd.render.nightlight.night_light`), on
+    :data:`EO_WAVELENGTHS_NM` per nm. Returns (direction of the directional light or None, its
+    irradiance or None, sky); ``ran`` gets ``night``. Unchanged while the sun is up."""
+    night = nightlight.night_light(stage, time_code, sun_direction, EO_WAVELENGTHS_NM / 1000.0)
+    if night is None:
+        return sun_direction, sun_nm, sky_nm
+    sky_nm = night.sky / 1000.0 + (0.0 if sky_nm is None else sky_nm)
+    ran["night"] = night.ran
+    ran["sky"] = f"{ran.get('sky')}; plus the night sky (night.twilight, night.night_sky, night.moon)"
+    if night.moon_direction is None:
+        return sun_direction, None, sky_nm
+    ran["sun"] = f"{ran.get('sun')}; the moon takes the directional light (night.moon)"
+    return night.moon_direction, night.moon_irradiance / 1000.0, sky_nm
+
+
 class EOScene(IRScene):
     """The Mitsuba scene of the EO sensors (spectral variant), built once per mesh topology.
 
@@ -200,46 +221,18 @@ class EOScene(IRScene):
         self.sky_map = False
         self.has_sun = bool(sun)
         self.has_sky = bool(sky)
-        scene: dict = {
-            "type": "scene",
-            "integrator": {"type": "moment", "nested": {"type": "path", "max_depth": int(max_depth)}},
-        }
+        elements = []
         if self.has_sky:
-            scene["sky"] = {"type": "constant", "radiance": _spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY))}
+            elements.append(el.constant_sky(_spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY)), "values"))
         if self.has_sun:
-            scene["sun"] = {
-                "type": "directional",
-                "direction": [0.0, 0.0, -1.0],
-                "irradiance": _spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY)),
-            }
-        for s in sensors:
-            scene[s.id] = {
-                "type": "perspective",
-                "fov": float(s.pose.fov_x_deg),
-                "fov_axis": "x",
-                "near_clip": 1e-3,
-                "far_clip": 1e8,
-                "to_world": _look_at(mi, s.pose),
-                "film": {
-                    "type": "hdrfilm",
-                    "width": int(s.width),
-                    "height": int(s.height),
-                    "pixel_format": "xyz",
-                    "component_format": "float32",
-                    "rfilter": {"type": "box"},
-                },
-                "sampler": {"type": "independent", "sample_count": int(spp)},
-            }
+            elements.append(el.directional_sun(_spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY)), "values"))
+        elements += [el.perspective_sensor(mi, s, spp, "xyz") for s in sensors]
         for part, vertices, flip in parts:
-            tris = part.triangles[:, [0, 2, 1]] if flip else part.triangles
-            filename = os.path.join(str(workdir), f"eo_{part.key}.ply")
-            write_ply(filename, vertices, tris, {"instance_0": np.full(len(tris), float(part.instance_id))})
-            scene[part.key] = {
-                "type": "ply",
-                "filename": filename,
-                "face_normals": True,
-                "bsdf": {"type": "diffuse", "reflectance": _spectrum(reflectance_spectrum(part.material))},
-            }
+            bsdf = {"type": "diffuse", "reflectance": _spectrum(reflectance_spectrum(part.material))}
+            elements.append(el.mesh(part, vertices, flip, workdir, bsdf=bsdf, prefix="eo_"))
+        #: the scene's elements (Mitsuba dicts and the parameter keys each updates per frame)
+        self.elements = elements
+        scene = el.scene_dict(max_depth, elements)
         self.scene = mi.load_dict(scene, optimize=False)
         self.params = mi.traverse(self.scene)
         self._sensor_objects = {s.id(): s for s in self.scene.sensors()}
@@ -247,6 +240,7 @@ class EOScene(IRScene):
         self._m1 = [channels.index(f"nested.{c}") for c in "XYZ"]
         self._m2 = channels.index("m2_nested.Y")
         self._positions = {p.key: np.asarray(v, dtype=np.float32) for p, v, _ in parts}
+        self._flips = {p.key: bool(f) for p, _, f in parts}
 
     def _mi(self):
         self.mi = mode.mitsuba(spectral=True)
@@ -292,19 +286,11 @@ class EOScene(IRScene):
         """CIE XYZ (H, W, 3) [W m-2 sr-1 nm-1, see module notes] and the standard error of Y."""
         mi = self._mi()
         img = mi.render(
-            self.scene, sensor=self._sensor_objects[sensor_id], spp=int(spp), seed=int(seed) % 2**32
+            self.scene, sensor=self.mitsuba_sensor(sensor_id), spp=int(spp), seed=int(seed) % 2**32
         )
         a = np.asarray(img, dtype=np.float64)
         xyz = a[..., self._m1]
         return xyz, monte_carlo_stderr(xyz[..., 1], a[..., self._m2], spp)
-
-
-def _look_at(mi, pose):
-    return mi.ScalarTransform4f().look_at(
-        origin=[float(v) for v in pose.origin],
-        target=[float(v) for v in pose.origin + pose.forward],
-        up=[float(v) for v in pose.up],
-    )
 
 
 def xyz_to_linear_srgb(xyz) -> np.ndarray:
@@ -400,6 +386,13 @@ class EORender:
                 "humv:environment:directNormalIrradiance are absent"
             )
 
+    @property
+    def shares_scene(self) -> bool:
+        """Whether the EO sensors render from the frame's one scene (the fast estimator traces
+        geometry only, in the same Mitsuba variant as the infrared); the spectral path tracer
+        needs a scene of its own (spectral variant, reflectance spectra)."""
+        return self.estimator == "fast" and bool(self.sensors)
+
     def _skip_all(self, reason: str) -> None:
         self.skipped += [
             {"name": s.name, "prim": s.path, "band": s.band, "reason": reason} for s in self.sensors
@@ -453,10 +446,15 @@ class EORender:
             f"{table.ranges_m[0]:g}-{table.ranges_m[-1]:g} m); {air}"
         )
 
-    def frame(self, state, frame: int, chains, write=None) -> None:
+    def frame(
+        self, state, frame: int, chains, write=None, light: FrameLight | None = None, shared=None
+    ) -> None:
         """Render, label and write every EO sensor at ``frame``; ``write(what, fn, *args,
         **kwargs)`` runs the file writes (the pipeline's background writer: this frame's files are
-        written while the next one renders; default: now)."""
+        written while the next one renders; default: now). ``light``: the frame's light
+        (:func:`humv_usd.render.light.read_frame_light`; default: read here). ``shared``: the
+        frame's scene shared with the infrared sensors (:attr:`shares_scene`: built with these
+        sensors under :attr:`ids`, vertices and cameras set); default: this object builds its own."""
         write = write or (lambda _what, fn, *args, **kwargs: fn(*args, **kwargs))
         import tempfile
         import time
@@ -479,30 +477,33 @@ class EORender:
                     else f"material {bare[0]} has no humv:material:reflectance"
                 )
                 return
-            setups = [
-                SensorSetup(self.ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
-                for s in self.sensors
-            ]
-            with tempfile.TemporaryDirectory(prefix="humv_eo_") as tmp:
-                if self.estimator == "fast":  # geometry only: the estimator lights it itself
-                    self.scene = IRScene(parts, setups, self.spp, self.max_depth, tmp)
-                else:
-                    self.scene = EOScene(
-                        parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun
-                    )
+            if shared is None:
+                setups = [
+                    SensorSetup(self.ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
+                    for s in self.sensors
+                ]
+                with tempfile.TemporaryDirectory(prefix="humv_eo_") as tmp:
+                    if self.estimator == "fast":  # geometry only: the estimator lights it itself
+                        self.scene = IRScene(parts, setups, self.spp, self.max_depth, tmp)
+                    else:
+                        self.scene = EOScene(
+                            parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun
+                        )
             self.key = state.topology_key
-        else:
+        elif shared is None:
             for part, vertices, _ in parts:
                 self.scene.set_vertices(part, vertices)
+        if shared is not None:  # the frame's one scene: vertices and cameras set by the render
+            self.scene = shared
+        else:
+            for s in self.sensors:
+                self.scene.set_camera(self.ids[s.name], state.cameras[s.name])
         scene = self.scene
-        for s in self.sensors:
-            scene.set_camera(self.ids[s.name], state.cameras[s.name])
         time_code = Usd.TimeCode(frame)
-        spectra = atmosphere_spectra(self.stage, time_code)
-        sun_direction = usd_environment.sun_direction(self.stage, time_code)
-        sun, sky, ran = illumination(
-            spectra, sun_direction, usd_environment.direct_normal_irradiance(self.stage, time_code)
-        )
+        light = light or read_frame_light(self.stage, time_code)  # the render reads it once per frame
+        spectra, sun_direction = light.spectra, light.sun_direction
+        sun, sky, ran = illumination(spectra, sun_direction, light.dni_w_m2)
+        sun_direction, sun, sky = after_sunset(self.stage, time_code, sun_direction, sun, sky, ran)
         if self.estimator == "fast":
             light = eo_fast.bin_illumination(self.bins, sun, sky, sun_direction)
             weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction)
@@ -524,7 +525,7 @@ class EORender:
                 xyz, y_err, noise = self._render_fast(scene, sid, state, reflectance_of, light, frame)
             else:
                 xyz, y_err = scene.render_xyz(sid, self.spp, self.seed + frame)
-                noise = eo_fast.relative_noise(xyz[..., 1], y_err, E.geometric_edges(scene.hits(sid)))
+                noise = Q.relative_noise(xyz[..., 1], y_err, E.geometric_edges(scene.hits(sid)))
                 noise.update(spp_used=self.spp, spp_rule=f"path tracer: {self.spp} spp")
             rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
@@ -633,16 +634,10 @@ class EORender:
             batches.append(
                 eo_fast.render_xyz_fast(scene, sid, state, self.bins, reflectance_of, light, self.spp, seed)
             )
-            xyz = np.mean([b[0] for b in batches], axis=0)  # equal-spp batches
-            y_err = np.sqrt(np.sum([b[1][..., 1] ** 2 for b in batches], axis=0)) / len(batches)
-            noise = eo_fast.relative_noise(xyz[..., 1], y_err, edges)
-            more = (
-                self.spp_auto
-                and noise["mean"] is not None
-                and noise["mean"] > eo_fast.EO_TARGET_RELATIVE
-                and self.spp * (len(batches) + 1) <= eo_fast.EO_MAX_SPP
-            )
-            if not more:
+            xyz, err = Q.pool_equal_batches(batches)  # equal-spp batches
+            y_err = err[..., 1]
+            noise = Q.relative_noise(xyz[..., 1], y_err, edges)
+            if not Q.needs_more_relative(self.spp_auto, noise, self.spp, len(batches)):
                 break
         noise.update(spp_used=self.spp * len(batches), spp_rule=self.spp_rule)
         return xyz, y_err, noise
@@ -700,7 +695,7 @@ class EORender:
                     **self.records[s.name]["timings_s"],
                     "total": sum(self.records[s.name]["timings_s"].values()),
                 },
-                "monte_carlo_error_relative": eo_fast.relative_summary(
+                "monte_carlo_error_relative": Q.relative_summary(
                     [f.get("monte_carlo_error_relative") or {} for f in frames_of.get(s.name, [])]
                 ),
             }
@@ -713,8 +708,5 @@ def _eo_estimator(requested: str, max_depth: int) -> tuple[str, str]:
     paths (as in the infrared)."""
     if requested != "fast":
         return "path", f"requested: {requested} (Mitsuba's spectral path tracer)"
-    if not mode.is_vectorized():
-        return "path", f"fast estimator needs a vectorised variant; {mode.variant()} runs the path tracer"
-    if int(max_depth) != -1:
-        return "path", f"max_depth {max_depth} asks for a truncated path: the path tracer honours it"
-    return "fast", "requested: fast (humv_usd.render.eo_fast)"
+    est, why = choose_estimator(requested, max_depth)  # the infrared's rule
+    return est, why or "requested: fast (humv_usd.render.eo_fast)"

@@ -1,0 +1,119 @@
+"""Light after sunset for the reflective bands (EO, NIR, SWIR): twilight, moon, natural night sky.
+
+:func:`night_light` gives, for one frame of a stage whose sun is below the horizon, on any
+wavelength grid (0.36-2.5 um):
+
+- the sky: a uniform radiance, the sum of the twilight sky (sun 0 to -18 deg), the moonlit sky
+  and the natural night sky (starlight, zodiacal light, airglow);
+- the moon as a directional source (direction and beam-normal spectral irradiance) when it is
+  above the horizon.
+
+Models and sources: :mod:`humv_usd.physics.nightsky`; the moon's position and phase from
+:func:`humv_usd.environment.moon.moon_at` (PyEphem) at the stage's site and frame time (the
+scenario metadata on /World). The render adds these to the atmosphere layer's sky (in the visible
+and short-wave infrared its night value is thermal emission only, ~1e-24 W m-2 sr-1 nm-1 at
+0.55 um) and takes the moon in place of the sun. The photometric scale is the CIE 1931 y-bar
+(:mod:`humv_usd.render.cie`) with 683 lm W-1. Clear sky; cloud cover is not applied (noted).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from humv_usd.environment.moon import moon_at
+from humv_usd.errors import InputError
+from humv_usd.physics import nightsky
+from humv_usd.render.cie import CMF_WAVELENGTHS_NM, CMF_XYZ
+from humv_usd.usd import environment as usd_environment
+
+#: CIE photopic efficiency V = CIE 1931 y-bar on its 5-nm grid [um].
+PHOTOPIC = (CMF_WAVELENGTHS_NM / 1000.0, np.asarray(CMF_XYZ, float).reshape(-1, 3)[:, 1])
+#: Wavelengths [um] night light is defined over (short of the thermal sky's own range).
+NIGHT_RANGE_UM = (0.36, 2.5)
+
+
+@dataclass
+class NightLight:
+    """Night illumination of one frame on a grid: ``sky`` (W,) [W m-2 sr-1 um-1] uniform,
+    ``moon_direction`` (3,) toward the moon or None, ``moon_irradiance`` (W,) [W m-2 um-1]
+    beam-normal or None, and what was used (``ran``)."""
+
+    sky: np.ndarray
+    moon_direction: np.ndarray | None
+    moon_irradiance: np.ndarray | None
+    ran: dict = field(default_factory=dict)
+
+
+def frame_utc(stage, time_code) -> dt.datetime | None:
+    """UTC time of a stage time code from /World's start time and the stage's frames per second
+    (None when the stage has no scenario metadata)."""
+    try:
+        site = usd_environment.read_site(stage)
+        start = dt.datetime.fromisoformat(site.start_time)
+    except (InputError, ValueError):
+        return None
+    if start.tzinfo is None:
+        start = start.replace(tzinfo=dt.UTC)
+    code = float(getattr(time_code, "GetValue", lambda: time_code)())
+    fps = float(stage.GetTimeCodesPerSecond()) or 24.0
+    return (start + dt.timedelta(seconds=code / fps)).astimezone(dt.UTC)
+
+
+def night_light(stage, time_code, sun_direction, wavelengths_um) -> NightLight | None:
+    """Night illumination at ``time_code`` on ``wavelengths_um`` (None when the sun is up or not
+    authored: the day's sky and sun tables hold then)."""
+    if sun_direction is None or float(sun_direction[2]) > 0.0:
+        return None
+    wl = np.asarray(wavelengths_um, dtype=float)
+    ran: dict = {}
+    sun_el = float(np.degrees(np.arcsin(np.clip(sun_direction[2], -1.0, 1.0))))
+    e_tw = float(nightsky.twilight_illuminance_lux(sun_el))
+    sky = np.zeros(wl.size)
+    if e_tw > 0:
+        shape = nightsky.scattered_shape(wl, nightsky.solar_shape(wl))
+        sky += nightsky.scale_to_photometric(wl, shape, e_tw / np.pi, PHOTOPIC)
+        ran["twilight"] = (
+            f"uniform sky, sun at {sun_el:.2f} deg: horizontal illuminance {e_tw:.4g} lx (USNO "
+            "Circular 171), Rayleigh-scattered solar spectrum"
+        )
+    else:
+        ran["twilight"] = f"none: sun at {sun_el:.2f} deg (below -18 deg)"
+    night = nightsky.night_sky_radiance(wl)
+    sky += night
+    ran["night_sky"] = (
+        "natural moonless sky (starlight, zodiacal light, airglow) from dark-site sky brightness "
+        f"(humv_usd.physics.nightsky.NIGHT_SKY_MAG): {float(np.interp(0.55, wl, night)):.3g} "
+        "W m-2 sr-1 um-1 at 0.55 um"
+    )
+    moon_dir = moon_e = None
+    when = frame_utc(stage, time_code)
+    if when is None:
+        ran["moon"] = "skipped: no site and start time on /World (HumvScenarioAPI)"
+    else:
+        site = usd_environment.read_site(stage)
+        m = moon_at(site.latitude_deg, site.longitude_deg, site.elevation_m, [when])
+        el, alpha = float(m.elevation_deg[0]), float(m.phase_angle_deg[0])
+        e_moon = float(nightsky.moon_illuminance_lux(el, alpha, m.distance_km[0]))
+        what = (
+            f"PyEphem at {when.isoformat()}: altitude {el:.2f} deg, azimuth {m.azimuth_deg[0]:.1f} deg, "
+            f"phase angle {alpha:.1f} deg (illuminated {m.illuminated_fraction[0]:.2f})"
+        )
+        if el <= 0.0 or e_moon <= 0.0:
+            ran["moon"] = f"below the horizon: {what}"
+        else:
+            moon_dir = np.asarray(m.direction[0], float)
+            moon_e = nightsky.scale_to_photometric(wl, nightsky.moon_shape(wl), e_moon, PHOTOPIC)
+            e_h = e_moon * float(moon_dir[2])
+            sky_shape = nightsky.scattered_shape(wl, nightsky.moon_shape(wl))
+            sky += nightsky.scale_to_photometric(
+                wl, sky_shape, nightsky.MOONLIT_SKY_FRACTION * e_h / np.pi, PHOTOPIC
+            )
+            ran["moon"] = (
+                f"directional, {e_moon:.4g} lx normal to the beam (USNO Circular 171 x Allen's phase "
+                f"law), moonlit sky {nightsky.MOONLIT_SKY_FRACTION:g} of its horizontal illuminance; {what}"
+            )
+    ran["clouds"] = "clear sky assumed after sunset (cloud cover not applied)"
+    return NightLight(sky=sky, moon_direction=moon_dir, moon_irradiance=moon_e, ran=ran)
