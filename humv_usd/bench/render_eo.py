@@ -8,7 +8,7 @@ the fast estimator (:func:`humv_usd.render.eo_fast.render_xyz_fast`), which rend
 (spp, bins) pair of the sweep; the path tracer at its former default (16 spp) is timed too. Per
 setting: wall and CPU seconds of the render (before the atmospheric path, the same for both), the
 ratio to the pixel-centre ray cast, the mean / p99 per-pixel standard error of Y relative to the
-mean Y away from edges (:func:`humv_usd.render.eo_fast.relative_noise`), and the bias per labelled
+mean Y away from edges (:func:`humv_usd.render.quality.relative_noise`), and the bias per labelled
 region (instance id; 0 = sky): the relative difference of the region's mean X, Y, Z from the
 reference's, with the 1-sigma uncertainty of Y's from both renders' errors.
 """
@@ -24,6 +24,7 @@ from humv_usd import mode
 from humv_usd.bench.render import _timed, finish_error_axes, plot_error_curves, save_figure
 from humv_usd.render import eo, eo_fast
 from humv_usd.render import estimator as E
+from humv_usd.render import quality as Q
 from humv_usd.render.export import StageExport
 from humv_usd.render.frame import stage_frames
 from humv_usd.render.ir import IRScene, SensorSetup
@@ -125,7 +126,7 @@ def bench_render_eo(
                     "cpu_s": cpu,
                     "ratio_to_ray_cast": wall / cast_s if cast_s > 0 else None,
                     "cpu_ratio_to_ray_cast": cpu / cast_cpu if cast_cpu > 0 else None,
-                    "noise": eo_fast.relative_noise(xyz[..., 1], y_err, edge),
+                    "noise": Q.relative_noise(xyz[..., 1], y_err, edge),
                     "bias_by_region": region_bias_xyz(xyz, ref_xyz, y_err, ref_err, hits.instance),
                     "default": estimator == "fast" and (spp, bins) == tuple(default),
                 }
@@ -163,7 +164,7 @@ def bench_render_eo(
                 "spp": reference_spp,
                 "wall_s": ref_wall,
                 "cpu_s": ref_cpu,
-                "noise": eo_fast.relative_noise(ref_xyz[..., 1], ref_err, edge),
+                "noise": Q.relative_noise(ref_xyz[..., 1], ref_err, edge),
             },
             "rows": rows,
         }

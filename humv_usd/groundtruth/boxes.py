@@ -35,7 +35,7 @@ import numpy as np
 from humv_usd.geometry.camera import Camera
 from humv_usd.geometry.raycast import RayCaster
 
-#: Near plane for clipping [m] (the render's near clip, humv_usd.render.ir.NEAR_CLIP_M).
+#: Near plane for clipping [m] (the render's near clip, humv_usd.render.elements.NEAR_CLIP_M).
 NEAR_M = 1e-3
 
 

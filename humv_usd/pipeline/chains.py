@@ -1,4 +1,4 @@
-"""The sensor chain of a render: one model per sensor prim, applied after the render."""
+"""The sensor chain of a render: the render's sensor model applied after the render."""
 
 from __future__ import annotations
 
@@ -9,19 +9,18 @@ import numpy as np
 from humv_usd import images as writers
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
-from humv_usd.usd.sensor import read_sensor_model
 
 
 class SensorChains:
     """The sensor chain (:mod:`humv_usd.physics.sensor`): optics, noise, counts, AGC per sensor
-    and frame, after the render. One model per sensor prim; the noise generator is seeded from
+    and frame, after the render. The model is the render's one checked read of the sensor prim
+    (:func:`humv_usd.usd.sensor.read_sensor`, carried here; not read again); the noise generator is seeded from
     (seed, sensor index in the stage, frame), so outputs are reproducible."""
 
     def __init__(self, stage, seed: int, sensor_paths: list[str]):
         self.stage = stage
         self.seed = int(seed)
         self.index = {p: i for i, p in enumerate(sensor_paths)}
-        self.models: dict = {}
         self.ran: dict[str, str] = {}
         self.reason = None
         self.chain = chain
@@ -31,14 +30,12 @@ class SensorChains:
         """ChainOutput for one frame, or None when the chain is unavailable."""
         if self.chain is None:
             return None
-        if sensor.path not in self.models:
-            self.models[sensor.path] = read_sensor_model(self.stage.GetPrimAtPath(sensor.path))
         rng = np.random.default_rng([self.seed, self.index.get(sensor.path, 0), int(frame)])
         extra = {} if eo_space is None else {"eo_space": eo_space}
         # frame time and the sensor's state from its last frame (FPN drift since FFC, bolometer lag)
         extra["time_s"] = int(frame) / (self.stage.GetTimeCodesPerSecond() or 1.0)
         extra["state"] = self.states.setdefault(sensor.path, self.chain.ChainState())
-        out = self.chain.apply_chain(radiance, self.models[sensor.path], rng, **extra)
+        out = self.chain.apply_chain(radiance, sensor, rng, **extra)  # the render's checked read
         self.ran[sensor.name] = "ran"
         return out
 

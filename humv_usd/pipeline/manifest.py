@@ -146,20 +146,16 @@ def quality_summary(entries: list[dict]) -> dict:
 def interior_summary(per_frame: list[dict]) -> dict:
     """Per-sensor error in K away from geometric edges (mean over frames of the per-frame means,
     worst per-frame 99th percentile) and on edges (pixel footprint: signal, reported apart)."""
-
-    def values(key):
-        return [f[key] for f in per_frame if f.get(key) is not None]
-
-    mean, p99, edge = values("mean_k"), values("p99_k"), values("edge_mean_k")
+    s = Q.frames_summary(per_frame, "mean_k", "p99_k", "edge_mean_k")
     return {
-        "mean_k": float(np.mean(mean)) if mean else None,
-        "p99_max_k": float(np.max(p99)) if p99 else None,
-        "edge_mean_k": float(np.mean(edge)) if edge else None,
+        "mean_k": s["mean"],
+        "p99_max_k": s["p99_max"],
+        "edge_mean_k": s["edge_mean"],
         "definition": "per-pixel Monte Carlo standard error in K; mean and 99th percentile over pixels "
         "away from geometric edges (8-neighbours on the same part within 2 % depth), edge pixels apart",
-        "not_estimable": None if mean else "spp < 2: one replica, no error estimate",
-        "spp_used": sorted({f["spp_used"] for f in per_frame if f.get("spp_used") is not None}),
-        "spp_rule": per_frame[-1].get("spp_rule") if per_frame else None,
+        "not_estimable": None if s["mean"] is not None else "spp < 2: one replica, no error estimate",
+        "spp_used": s["spp_used"],
+        "spp_rule": s["spp_rule"],
     }
 
 

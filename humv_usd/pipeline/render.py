@@ -532,7 +532,8 @@ class _FrameRenderer:
         plan, exporter = self.plan, self.plan.exporter
         t = time.perf_counter()
         state = exporter.frame_state(frame, plan.rendered + plan.eo_run.sensors)
-        if plan.rendered:  # the infrared scene (EO sensors have their own, in eo_run)
+        shared = plan.eo_run.shares_scene  # one scene for every sensor (EO path tracer: its own)
+        if plan.rendered or shared:
             self._update_scene(state)
         light = read_frame_light(plan.stage, frame)  # once per frame, for every sensor pass
         self.totals["load_export"] += time.perf_counter() - t
@@ -541,7 +542,14 @@ class _FrameRenderer:
             self._advance(1, f"frame {frame} {s.name}")
         if plan.eo_run.sensors:  # visible sensors: spectral render of the same frame (render.eo)
             t = time.perf_counter()
-            plan.eo_run.frame(state, frame, self.chains, write=self.write, light=light)
+            plan.eo_run.frame(
+                state,
+                frame,
+                self.chains,
+                write=self.write,
+                light=light,
+                shared=self.scene if shared else None,
+            )
             self.totals["eo"] = self.totals.get("eo", 0.0) + time.perf_counter() - t
             self._advance(len(plan.eo_run.sensors), f"frame {frame} EO")
 
@@ -559,10 +567,10 @@ class _FrameRenderer:
             for m in state.meshes
             for part in m.parts
         ]
+        ids = self._scene_sensor_ids()
         if self.scene is None or state.topology_key != self.scene_key:
             setups = [
-                SensorSetup(plan.sensor_ids[s.name], s.resolution[0], s.resolution[1], state.cameras[s.name])
-                for s in plan.rendered
+                SensorSetup(sid, s.resolution[0], s.resolution[1], state.cameras[s.name]) for s, sid in ids
             ]
             with tempfile.TemporaryDirectory(prefix="humv_render_") as tmp:
                 self.scene = IRScene(
@@ -579,6 +587,15 @@ class _FrameRenderer:
         else:
             for part, vertices, _ in parts:
                 self.scene.set_vertices(part, vertices)
-        for s in plan.rendered:
-            self.scene.set_camera(plan.sensor_ids[s.name], state.cameras[s.name])
+        for s, sid in ids:
+            self.scene.set_camera(sid, state.cameras[s.name])
         self.scene.update()
+
+    def _scene_sensor_ids(self) -> list[tuple[SensorModel, str]]:
+        """The sensors of the frame's one scene with their ids in it: the infrared sensors and,
+        when they share it (:attr:`humv_usd.render.eo.EORender.shares_scene`), the EO sensors."""
+        plan = self.plan
+        ids = [(s, plan.sensor_ids[s.name]) for s in plan.rendered]
+        if plan.eo_run.shares_scene:
+            ids += [(s, plan.eo_run.ids[s.name]) for s in plan.eo_run.sensors]
+        return ids

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from humv_usd.render import estimator as E
+from humv_usd.render import quality as Q
 from humv_usd.render.cie import CMF_WAVELENGTHS_NM, CMF_XYZ
 from humv_usd.render.radiometry import FrameRadiometry
 
@@ -61,12 +62,12 @@ DEFAULT_EO_SPP = 2
 #: 8 bins, 2 spp: 1 split 0.29 % relative error in 8.9 CPU-s, 2 splits 0.22 % in 12.8, 4 splits
 #: 0.16 % in 19.2; the target is 1 %, and 2 spp is the fewest that estimate an error).
 DEFAULT_EO_SPLITS = 1
-#: Seed offset between the sample batches of one frame (automatic quality).
-SEED_STRIDE = 1_000_003
-#: Automatic quality: batches until the mean Y error away from edges is <= this fraction of mean Y.
-EO_TARGET_RELATIVE = 0.01
-#: Most camera samples per pixel the automatic EO quality spends on one frame.
-EO_MAX_SPP = 32
+#: Automatic quality (one module, :mod:`humv_usd.render.quality`): the seed offset between the
+#: batches of one frame, the target (mean Y error away from edges <= this fraction of mean Y)
+#: and the sample cap.
+SEED_STRIDE = Q.AUTO_SEED_STRIDE
+EO_TARGET_RELATIVE = Q.EO_TARGET_RELATIVE
+EO_MAX_SPP = Q.EO_MAX_SPP
 
 
 def _cmf() -> np.ndarray:
@@ -205,46 +206,3 @@ def render_xyz_fast(
         tables=reflectance_tables(scene, reflectance_of, n),
     )
     return np.moveaxis(np.asarray(rad), 0, -1), np.moveaxis(np.asarray(err), 0, -1)
-
-
-def relative_noise(y, y_stderr, edges) -> dict:
-    """The error of Y relative to the mean Y away from geometric edges (edge pixels apart: their
-    spread is the pixel footprint, signal): mean and 99th percentile of the per-pixel standard
-    error over those pixels, and the edge pixels' mean, each divided by the mean Y of the pixels
-    away from edges."""
-    y, err = np.asarray(y, float), np.asarray(y_stderr, float)
-    inner = ~np.asarray(edges, bool)
-    mean_y = float(np.mean(y[inner])) if inner.any() else float(np.mean(y))
-    e_in = err[inner & np.isfinite(err)]
-    e_out = err[~inner & np.isfinite(err)]
-    ok = mean_y > 0
-    return {
-        "mean": float(e_in.mean() / mean_y) if e_in.size and ok else None,
-        "p99": float(np.percentile(e_in, 99) / mean_y) if e_in.size and ok else None,
-        "edge_mean": float(e_out.mean() / mean_y) if e_out.size and ok else None,
-        "mean_y": mean_y,
-        "edge_fraction": float(np.mean(~inner)),
-    }
-
-
-def relative_summary(per_frame: list[dict]) -> dict:
-    """Per-sensor summary of :func:`relative_noise` over frames: mean of the frames' means, worst
-    99th percentile, mean edge value, the samples spent and the rule."""
-
-    def values(key):
-        return [f[key] for f in per_frame if f.get(key) is not None]
-
-    mean, p99, edge = values("mean"), values("p99"), values("edge_mean")
-    return {
-        "mean": float(np.mean(mean)) if mean else None,
-        "p99_max": float(np.max(p99)) if p99 else None,
-        "edge_mean": float(np.mean(edge)) if edge else None,
-        "target": EO_TARGET_RELATIVE,
-        "definition": "per-pixel Monte Carlo standard error of CIE Y divided by the mean Y, both over "
-        "pixels away from geometric edges (8-neighbours on the same part within 2 % depth); mean "
-        "and 99th percentile over those pixels, edge pixels apart (the EO counterpart of "
-        "monte_carlo_error_k)",
-        "not_estimable": None if mean else "spp < 2: one replica, the error is not estimable",
-        "spp_used": sorted({f["spp_used"] for f in per_frame if f.get("spp_used") is not None}),
-        "spp_rule": per_frame[-1].get("spp_rule") if per_frame else None,
-    }

@@ -30,23 +30,17 @@ second moment gives the per-pixel Monte Carlo standard error of the mean.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from humv_usd import mode
 from humv_usd.geometry.camera import CameraPose
+from humv_usd.render import elements as el
+from humv_usd.render.elements import SKY_ID, SUN_ID
 from humv_usd.render.radiometry import apply_path, range_weights, sky_latlong
 from humv_usd.render.scene_export import Part
 
-#: Near and far clip of the Mitsuba sensors [m]; USD clipping ranges are ignored (no clipping).
-NEAR_CLIP_M = 1e-3
-FAR_CLIP_M = 1e8
-#: Key of the sky emitter in the Mitsuba scene.
-SKY_ID = "sky"
-#: Key of the sun (directional emitter) in the Mitsuba scene.
-SUN_ID = "sun"
 #: Next-event estimation never picks the surfaces' area emitters. Mitsuba 3.9.1 samples an area
 #: emitter whose radiance is spatially varying (our per-face ``mesh_attribute``) through the
 #: texture's UV parameterization, which a UV-less mesh does not have: in ``llvm_ad_mono`` that
@@ -57,47 +51,6 @@ SUN_ID = "sun"
 AREA_EMITTER_SAMPLING_WEIGHT = 0.0
 
 
-def write_ply(path, vertices, triangles, face_attributes: dict[str, np.ndarray]) -> None:
-    """Write a binary little-endian PLY with per-face float properties.
-
-    Parameters
-    ----------
-    path : path-like
-        Output file.
-    vertices : (V, 3) float
-        Vertex positions [m].
-    triangles : (T, 3) int
-        Vertex indices per triangle (counter-clockwise = front).
-    face_attributes : dict of str to (T,) float
-        Per-face float properties, e.g. ``{'radiance_0': ...}``. Mitsuba turns a property
-        ``<name>_0`` into the mesh attribute ``face_<name>`` (a bare name is ignored).
-    """
-    vertices = np.ascontiguousarray(vertices, dtype="<f4").reshape(-1, 3)
-    triangles = np.asarray(triangles, dtype="<i4").reshape(-1, 3)
-    header = [
-        "ply",
-        "format binary_little_endian 1.0",
-        f"element vertex {len(vertices)}",
-        "property float x",
-        "property float y",
-        "property float z",
-        f"element face {len(triangles)}",
-        "property list uchar int vertex_indices",
-    ]
-    header += [f"property float {name}" for name in face_attributes]
-    header.append("end_header")
-    dtype = np.dtype([("n", "u1"), ("v", "<i4", 3)] + [(name, "<f4") for name in face_attributes])
-    faces = np.zeros(len(triangles), dtype=dtype)
-    faces["n"] = 3
-    faces["v"] = triangles
-    for name, values in face_attributes.items():
-        faces[name] = np.asarray(values, dtype=float).ravel()
-    with open(path, "wb") as f:
-        f.write(("\n".join(header) + "\n").encode("ascii"))
-        f.write(vertices.tobytes())
-        f.write(faces.tobytes())
-
-
 @dataclass
 class SensorSetup:
     """A sensor as the Mitsuba scene sees it."""
@@ -106,13 +59,6 @@ class SensorSetup:
     width: int
     height: int
     pose: CameraPose
-
-
-def _look_at(mi, pose: CameraPose, scalar: bool):
-    cls = mi.ScalarTransform4f if scalar else mi.Transform4f
-    origin = [float(v) for v in pose.origin]
-    target = [float(v) for v in pose.origin + pose.forward]
-    return cls().look_at(origin=origin, target=target, up=[float(v) for v in pose.up])
 
 
 class IRScene:
@@ -157,66 +103,33 @@ class IRScene:
         self.sensors = {s.id: s for s in sensors}
         self.sky_map = bool(sky_map)
         self.has_sun = bool(sun)
-        scene: dict = {
-            "type": "scene",
-            "integrator": {"type": "moment", "nested": {"type": "path", "max_depth": int(max_depth)}},
-            SKY_ID: {"type": "constant", "radiance": {"type": "uniform", "value": 0.0}},
-        }
+        elements = [el.constant_sky({"type": "uniform", "value": 0.0}, "value")]
         if self.sky_map:
-            # Mitsuba's envmap is Y-up in its local frame (row 0 of the bitmap = local +Y):
-            # rotating +90 deg about X takes local +Y to the stage's +Z (zenith).
-            scene[SKY_ID] = {
-                "type": "envmap",
-                "bitmap": mi.Bitmap(sky_latlong([0.0, 90.0], [1.0, 1.0])),
-                "to_world": mi.ScalarTransform4f().rotate([1.0, 0.0, 0.0], 90.0),
-            }
+            elements = [el.envmap_sky(mi, sky_latlong([0.0, 90.0], [1.0, 1.0]))]
         if self.has_sun:
-            scene[SUN_ID] = {
-                "type": "directional",
-                "direction": [0.0, 0.0, -1.0],
-                "irradiance": {"type": "uniform", "value": 0.0},
-            }
-        for s in sensors:
-            scene[s.id] = {
-                "type": "perspective",
-                "fov": float(s.pose.fov_x_deg),
-                "fov_axis": "x",
-                "near_clip": NEAR_CLIP_M,
-                "far_clip": FAR_CLIP_M,
-                "to_world": _look_at(mi, s.pose, scalar=True),
-                "film": {
-                    "type": "hdrfilm",
-                    "width": int(s.width),
-                    "height": int(s.height),
-                    "pixel_format": "luminance",
-                    "component_format": "float32",
-                    "rfilter": {"type": "box"},
-                },
-                "sampler": {"type": "independent", "sample_count": int(spp)},
-            }
+            elements.append(el.directional_sun({"type": "uniform", "value": 0.0}, "value"))
+        elements += [el.perspective_sensor(mi, s, spp, "luminance") for s in sensors]
         for part, vertices, flip in parts:
-            tris = part.triangles[:, [0, 2, 1]] if flip else part.triangles
-            filename = os.path.join(str(workdir), f"{part.key}.ply")
-            write_ply(
-                filename,
-                vertices,
-                tris,
-                {
-                    "radiance_0": np.zeros(len(tris)),
-                    "instance_0": np.full(len(tris), float(part.instance_id)),
-                },
+            n = len(part.triangles)
+            elements.append(
+                el.mesh(
+                    part,
+                    vertices,
+                    flip,
+                    workdir,
+                    bsdf={"type": "diffuse", "reflectance": {"type": "uniform", "value": 0.5}},
+                    updates=("face_radiance", "bsdf.reflectance.value"),
+                    emitter={
+                        "type": "area",
+                        "sampling_weight": AREA_EMITTER_SAMPLING_WEIGHT,
+                        "radiance": {"type": "mesh_attribute", "name": "face_radiance"},
+                    },
+                    face_attributes={"radiance_0": np.zeros(n)},
+                )
             )
-            scene[part.key] = {
-                "type": "ply",
-                "filename": filename,
-                "face_normals": True,
-                "bsdf": {"type": "diffuse", "reflectance": {"type": "uniform", "value": 0.5}},
-                "emitter": {
-                    "type": "area",
-                    "sampling_weight": AREA_EMITTER_SAMPLING_WEIGHT,
-                    "radiance": {"type": "mesh_attribute", "name": "face_radiance"},
-                },
-            }
+        #: the scene's elements (Mitsuba dicts and the parameter keys each updates per frame)
+        self.elements = elements
+        scene = el.scene_dict(max_depth, elements)
         # optimize=False: Mitsuba >= 3.6 otherwise merges equal nodes (e.g. two parts' BSDFs that
         # start with the same reflectance) and meshes, and per-part parameters would be shared.
         self.scene = mi.load_dict(scene, optimize=False)
@@ -296,7 +209,7 @@ class IRScene:
     def set_camera(self, sensor_id: str, pose: CameraPose) -> None:
         getattr(self, "_hits", {}).pop(sensor_id, None)
         self.sensors[sensor_id].pose = pose
-        self.params[f"{sensor_id}.to_world"] = _look_at(self.mi, pose, scalar=self.scalar)
+        self.params[f"{sensor_id}.to_world"] = el.look_at(self.mi, pose, scalar=self.scalar)
         self.params[f"{sensor_id}.x_fov"] = float(pose.fov_x_deg)
 
     def update(self) -> None:
