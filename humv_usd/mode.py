@@ -1,18 +1,25 @@
 """The one place that imports Mitsuba and chooses its variant.
 
 Everything else gets the configured module from :func:`mitsuba`. Infrared bands need a *mono*
-variant: the spectral variants sample only 360-830 nm. Preferred is ``llvm_ad_mono`` (vectorised,
-multi-threaded). Dr.Jit's LLVM backend loads ``libLLVM`` at run time; Debian's LLVM 15 crashes
+variant: the spectral variants sample only 360-830 nm. Preferred is ``cuda_ad_mono`` where a GPU
+works, else ``llvm_ad_mono`` (vectorised, multi-threaded). Dr.Jit's LLVM backend loads ``libLLVM`` at run time; Debian's LLVM 15 crashes
 its code generation on AVX-512 CPUs, so when ``DRJIT_LIBLLVM_PATH`` is unset this module points
 it at Debian's LLVM 19 before Mitsuba is imported. Without a usable LLVM 19 it warns once and
 falls back to ``scalar_rgb`` with gray (equal-channel) spectra, which keeps the radiometry right
 (the luminance weights sum to 1, and the ``moment`` AOVs' Y channels are then the gray values)
 but is much slower.
 
-``HUMV_USD_MITSUBA_VARIANT`` (``llvm_ad_mono`` or ``scalar_rgb``) overrides the choice.
+**Backends.** The same Dr.Jit code runs on the CPU (``llvm_ad_*``) or on an NVIDIA GPU
+(``cuda_ad_*``, ray tracing through the driver's OptiX). The GPU is chosen automatically when the
+CUDA driver library is present and a test kernel runs on it; otherwise the CPU. ``llvm_ad_mono``
+stays the tested default (CI has no GPU). The backend is forced with ``HUMV_USD_BACKEND``
+(``auto``, ``cuda``, ``llvm`` or ``scalar``; the CLI's ``--backend`` sets it), or a variant
+exactly with ``HUMV_USD_MITSUBA_VARIANT`` (one of :data:`SUPPORTED_VARIANTS`). A forced backend
+that does not work is an error, never a silent fallback. The manifest records the variant and
+why it was chosen.
 
-The visible (EO) render uses the spectral variant of the same backend (``llvm_ad_spectral`` or
-``scalar_spectral``): ``mitsuba(spectral=True)``.
+The visible (EO) render uses the spectral variant of the same backend (``cuda_ad_spectral``,
+``llvm_ad_spectral`` or ``scalar_spectral``): ``mitsuba(spectral=True)``.
 """
 
 from __future__ import annotations
@@ -25,9 +32,20 @@ import threading
 import warnings
 
 #: Variants the renderer knows how to drive, best first.
-SUPPORTED_VARIANTS = ("llvm_ad_mono", "scalar_rgb")
+SUPPORTED_VARIANTS = ("cuda_ad_mono", "llvm_ad_mono", "scalar_rgb")
 #: Environment variable that forces one of :data:`SUPPORTED_VARIANTS`.
 VARIANT_ENV = "HUMV_USD_MITSUBA_VARIANT"
+#: Environment variable that forces a backend (:data:`BACKENDS`); the CLI's ``--backend``.
+BACKEND_ENV = "HUMV_USD_BACKEND"
+#: Backend names and their infrared variant ("auto": the GPU if it works, else the CPU).
+BACKENDS = {"auto": None, "cuda": "cuda_ad_mono", "llvm": "llvm_ad_mono", "scalar": "scalar_rgb"}
+#: Globs for the CUDA driver library (the GPU backend loads it at run time).
+CUDA_GLOBS = (
+    "/usr/lib/*/libcuda.so*",
+    "/usr/lib64/libcuda.so*",
+    "/usr/local/nvidia/lib*/libcuda.so*",
+    "/usr/local/cuda/lib64/stubs/libcuda.so",
+)
 #: Globs for Debian's LLVM 19 shared library.
 LLVM19_GLOBS = ("/usr/lib/*/libLLVM.so.19*", "/usr/lib/*/libLLVM-19.so*", "/usr/lib/llvm-19/lib/libLLVM*.so*")
 
@@ -43,13 +61,60 @@ def _find_llvm19() -> str | None:
     return None
 
 
-def _choose_variant() -> tuple[str, str]:
-    """(variant, reason) decided before Mitsuba is imported."""
+def _cuda_driver() -> str | None:
+    """Path of the CUDA driver library, if one is installed (no GPU is touched)."""
+    for pattern in CUDA_GLOBS:
+        hits = [h for h in sorted(glob.glob(pattern)) if "/stubs/" not in h]
+        if hits:
+            return hits[0]
+    return None
+
+
+def forced_variant() -> str | None:
+    """The variant forced by :data:`VARIANT_ENV` or :data:`BACKEND_ENV` (None: choose)."""
     forced = os.environ.get(VARIANT_ENV, "").strip()
     if forced:
         if forced not in SUPPORTED_VARIANTS:
             raise ValueError(f"{VARIANT_ENV} = {forced!r}: expected one of {', '.join(SUPPORTED_VARIANTS)}")
-        return forced, f"forced by {VARIANT_ENV}"
+        return forced
+    backend = os.environ.get(BACKEND_ENV, "").strip().lower()
+    if backend:
+        if backend not in BACKENDS:
+            raise ValueError(f"{BACKEND_ENV} = {backend!r}: expected one of {', '.join(BACKENDS)}")
+        return BACKENDS[backend]
+    return None
+
+
+def set_backend(name: str) -> None:
+    """Force a backend (:data:`BACKENDS`) for this process; call before Mitsuba is first used."""
+    if name not in BACKENDS:
+        raise ValueError(f"backend = {name!r}: expected one of {', '.join(BACKENDS)}")
+    if "mi" in _state and BACKENDS[name] not in (None, _state["variant"]):
+        raise RuntimeError(f"backend {name!r} asked for after Mitsuba started with {_state['variant']}")
+    os.environ[BACKEND_ENV] = name
+
+
+def _choose_variant() -> tuple[str, str]:
+    """(variant, reason) decided before Mitsuba is imported; a GPU variant is only a candidate,
+    confirmed by a test kernel once Mitsuba is loaded (:func:`mitsuba`)."""
+    forced = forced_variant()
+    if forced is not None:
+        how = VARIANT_ENV if os.environ.get(VARIANT_ENV, "").strip() else BACKEND_ENV
+        if forced == "llvm_ad_mono" and not os.environ.get("DRJIT_LIBLLVM_PATH"):
+            path = _find_llvm19()
+            if path is not None and "drjit" not in sys.modules:
+                os.environ["DRJIT_LIBLLVM_PATH"] = path
+        return forced, f"forced by {how}"
+    # the CPU fallback needs its LLVM library chosen before Dr.Jit loads, GPU or not
+    llvm = _choose_llvm()
+    cuda = _cuda_driver()
+    if cuda is not None:
+        return "cuda_ad_mono", f"CUDA driver {cuda}; else {llvm[0]} ({llvm[1]})"
+    return llvm
+
+
+def _choose_llvm() -> tuple[str, str]:
+    """(variant, reason) of the CPU backend: ``llvm_ad_mono`` with LLVM 19, else ``scalar_rgb``."""
     if os.environ.get("DRJIT_LIBLLVM_PATH"):
         return "llvm_ad_mono", "DRJIT_LIBLLVM_PATH set by the user"
     if "drjit" in sys.modules:
@@ -66,10 +131,12 @@ def _choose_variant() -> tuple[str, str]:
     return "llvm_ad_mono", f"DRJIT_LIBLLVM_PATH={path}"
 
 
-def _llvm_works(mi) -> str | None:
-    """None if a tiny LLVM kernel runs, else the error text."""
+def _llvm_works(mi, variant: str = "llvm_ad_mono") -> str | None:
+    """None if a tiny kernel runs on ``variant``'s backend (LLVM or CUDA), else the error text."""
     try:
-        mi.set_variant("llvm_ad_mono")
+        if variant not in mi.variants():
+            return f"this Mitsuba build has no {variant}"
+        mi.set_variant(variant)
         import drjit as dr
 
         x = mi.Float([1.0, 2.0, 3.0]) * 2.0
@@ -82,7 +149,11 @@ def _llvm_works(mi) -> str | None:
 
 
 #: Spectral variant of the EO render for each infrared variant (same backend).
-SPECTRAL_VARIANTS = {"llvm_ad_mono": "llvm_ad_spectral", "scalar_rgb": "scalar_spectral"}
+SPECTRAL_VARIANTS = {
+    "cuda_ad_mono": "cuda_ad_spectral",
+    "llvm_ad_mono": "llvm_ad_spectral",
+    "scalar_rgb": "scalar_spectral",
+}
 
 
 def mitsuba(spectral: bool = False):
@@ -110,16 +181,24 @@ def mitsuba(spectral: bool = False):
                 mi.set_variant(want)  # someone else switched it, or EO <-> IR
             return mi
         variant, reason = _choose_variant()
+        forced = forced_variant() is not None
         import mitsuba as mi
 
+        if variant == "cuda_ad_mono":
+            error = _llvm_works(mi, "cuda_ad_mono")
+            if error is not None:
+                if forced:
+                    raise RuntimeError(f"Mitsuba variant cuda_ad_mono ({reason}) does not work: {error}")
+                reason = f"cuda_ad_mono unusable ({error}); {reason.split('; else ', 1)[-1]}"
+                variant = "llvm_ad_mono"
         if variant == "llvm_ad_mono":
             error = _llvm_works(mi)
             if error is not None:
-                if os.environ.get(VARIANT_ENV):
+                if forced:
                     raise RuntimeError(f"Mitsuba variant llvm_ad_mono ({reason}) does not work: {error}")
                 reason = f"llvm_ad_mono unusable ({error})"
                 variant = "scalar_rgb"
-        if variant == "scalar_rgb" and not os.environ.get(VARIANT_ENV):
+        if variant == "scalar_rgb" and not forced:
             warnings.warn(
                 f"humv_usd.render: falling back to Mitsuba scalar_rgb (slow): {reason}",
                 RuntimeWarning,
@@ -146,8 +225,13 @@ def variant_reason() -> str:
 
 
 def is_vectorized() -> bool:
-    """True for a JIT (LLVM) variant: whole arrays of rays per call."""
+    """True for a JIT (LLVM or CUDA) variant: whole arrays of rays per call."""
     return not variant().startswith("scalar")
+
+
+def backend() -> str:
+    """``cuda``, ``llvm`` or ``scalar``: where the configured variant runs."""
+    return variant().split("_", 1)[0]
 
 
 def release_kernel_cache() -> None:

@@ -141,6 +141,13 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
     "sub-bands, spp until 1 % of mean Y) or path (Mitsuba's path tracer per sub-band, EO spectral: "
     "the reference). See `humv-usd bench render`.",
 )
+@click.option(
+    "--backend",
+    default=None,
+    type=click.Choice(["auto", "cuda", "llvm", "scalar"]),
+    help="Where Dr.Jit runs: cuda (NVIDIA GPU), llvm (CPU), scalar (slow reference) or auto "
+    "(default: $HUMV_USD_BACKEND, else the GPU when one works, else the CPU). Recorded in the manifest.",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress display; only the summary line.")
 @click.option("-v", "--verbose", count=True, help="Log each frame and sensor on stderr (-v info, -vv debug).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1))
@@ -181,6 +188,7 @@ def render(
     frames,
     spp,
     estimator,
+    backend,
     quiet,
     verbose,
     seed: int,
@@ -192,9 +200,12 @@ def render(
     yes: bool,
 ):
     """Render every sensor of STAGE (IR in sub-bands, EO spectral) to EXR + PNG with a manifest."""
+    from humv_usd import mode
     from humv_usd.fileio import check_output_dir
     from humv_usd.pipeline.render import render_stage
 
+    if backend is not None:
+        mode.set_backend(backend)
     set_verbosity(verbose)
     out_dir = check_output_dir(out_dir)  # fail fast, before opening the stage
     with progress_display("render", quiet) as progress:
@@ -663,6 +674,9 @@ def _register_tools():
     from humv_usd.cli.bench_frame_cmd import bench_frame
 
     bench.add_command(bench_frame)
+    from humv_usd.cli.detector_cmd import bench_detector
+
+    bench.add_command(bench_detector)
 
 
 _register_tools()
