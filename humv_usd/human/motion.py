@@ -54,6 +54,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from humv_usd.errors import InputError, bad_value
 from humv_usd.human import contact as C
+from humv_usd.human import poses as PO
 from humv_usd.human.gait import (
     GaitParams,
     NominalGait,
@@ -70,7 +71,7 @@ from humv_usd.human.gait import (
 )
 from humv_usd.human.skeleton import Skeleton, quat_to_matrix
 
-ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
+ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise", *PO.POSE_ACTIVITIES)
 SPEED_RANGE = {"walk": (0.3, 2.2), "run": (1.8, 6.0)}
 DEFAULT_SPEED = {"walk": 1.4, "run": 3.5}
 MET_ML_KG_MIN = 3.5
@@ -623,6 +624,41 @@ def _standing(
     return quats, root, report, extra
 
 
+# ------------------------------------------------------------------------- poses
+def _pose_motion(activity, skeleton, fps, frames, path, ground, feet, mass_kg, body_points) -> Motion:
+    """A pose activity of :mod:`humv_usd.human.poses`, started at the path's first point and
+    facing its first segment (as the standing activities)."""
+    start = skeleton.rest_positions[0, :2].copy()
+    psi0 = 0.0
+    if path is not None:
+        w = np.asarray(path, dtype=np.float64)
+        start = w[0].copy()
+        if len(w) > 1:
+            d = w[1] - w[0]
+            psi0 = float(np.arctan2(d[0], -d[1]))
+    out = PO.make_pose_motion(
+        activity,
+        skeleton,
+        fps,
+        frames,
+        start_xy=start,
+        heading=psi0,
+        ground=ground,
+        feet=feet,
+        points=PO.body_points(skeleton, body_points),
+    )
+    quats = _continuous(matrix_to_quat(out["local"]))
+    info = {
+        "stance": {s.lower(): m for s, m in out["pinned"].items()},
+        "keys": out["keys"],
+        "transition_start_s": out["transition_start_s"],
+        "chair": out["chair"],
+        "source": "procedural key poses (humv_usd.human.poses)",
+    }
+    rate = met_to_watts(out["met"], mass_kg)
+    return Motion(float(fps), out["root"], quats, activity, rate, out["report"], info)
+
+
 # ------------------------------------------------------------------------- entry point
 def make_motion(
     activity: str,
@@ -677,6 +713,8 @@ def make_motion(
     )
     g = C.Ground(ground)
     times = np.arange(frames) / fps
+    if activity in PO.POSE_ACTIVITIES:
+        return _pose_motion(activity, skeleton, fps, frames, path, g, feet, mass_kg, body_points)
     if activity in ("walk", "run"):
         v = DEFAULT_SPEED[activity] if speed_m_s is None else float(speed_m_s)
         lo, hi = SPEED_RANGE[activity]
