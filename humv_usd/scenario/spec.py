@@ -62,7 +62,13 @@ VIGNETTING_MODES = ("none", "cos4")  # = humv_usd.physics.sensor.VIGNETTING_MODE
 #: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
 #: default is chosen there with ``humv-usd bench render``).
 DEFAULT_SUBBANDS, MAX_SUBBANDS = 16, 64
-ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise")
+ACTIVITIES = (
+    "stand",
+    "standTurn",
+    "walk",
+    "run",
+    "postExercise",
+    # procedural poses and transitions (humv_usd.human.poses.POSE_ACTIVITIES)
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel")
 OBJECT_CLASSES = ("building", "prop", "panel", "vegetation", "vehicle", "other")
