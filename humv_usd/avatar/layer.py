@@ -24,6 +24,7 @@ import dataclasses
 import numpy as np
 from pxr import Gf, Sdf, UsdGeom
 
+from humv_usd.catalog.skin import skin_material_name
 from humv_usd.human import labels as L
 from humv_usd.human import usdskel
 from humv_usd.human.basemesh import DEFAULT_FACING_DEG
@@ -70,6 +71,8 @@ READS = (
             "stature_m",
             "mass_kg",
             "build",
+            "proportions",
+            "skin_tone",
             "fitness",
             "activity",
             "bvh",
@@ -85,7 +88,8 @@ READS = (
     "@carriesRifle[{id}]",
 )
 UPSTREAM = ()
-VERSION = "3"  # 3: model kinds and extents (2: reads only what changes the avatar)
+#: 4: proportions and skin tone; 3: model kinds and extents (2: reads only what changes the avatar)
+VERSION = "4"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -99,7 +103,14 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     """
     g = scenario["general"]
     place = next(p for p in scenario["placement"] if p["human"] == human["id"])
-    body = build_body(human["sex"], human["age_yr"], human["stature_m"], human["mass_kg"], human["build"])
+    body = build_body(
+        human["sex"],
+        human["age_yr"],
+        human["stature_m"],
+        human["mass_kg"],
+        human["build"],
+        human.get("proportions", 0.5),
+    )
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, f"HumV-USD avatar layer for {human['id']} (UsdSkel, CMU rig)"
     )
@@ -114,7 +125,7 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
         motion = scenario_motion(scenario, human, place, body)
     _motion_attributes(prim, motion)
     label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
-    author_rig(stage, human["id"], body, motion)
+    author_rig(stage, human["id"], body, motion, skin_material_name(human.get("skin_tone")))
     _author_extents(stage, human_path(human["id"]), scenario.frame_count)
     return finish(stage)
 
@@ -243,9 +254,10 @@ def _avatar_attributes(prim, human: dict, body: Body) -> None:
     )
 
 
-def author_rig(stage, human_id: str, body: Body, motion=None) -> None:
+def author_rig(stage, human_id: str, body: Body, motion=None, skin_material: str = "skin") -> None:
     """Skeleton, Motion, skinned Body with labels and the COCO keypoints under the SkelRoot
-    ``human_path(human_id)`` (already defined)."""
+    ``human_path(human_id)`` (already defined); the Body is bound to the library material
+    ``skin_material`` (``skin`` or a tone ``skin_I`` ... ``skin_VI``)."""
     skeleton = skeleton_for(body.points, body.groups)
     mesh = body.body_mesh()
     indices, weights = skin_weights(skeleton, mesh.vertex_ids, usdskel.INFLUENCES)
@@ -261,7 +273,7 @@ def author_rig(stage, human_id: str, body: Body, motion=None) -> None:
         mesh.points,
         mesh.face_counts,
         mesh.face_indices,
-        material=material_path("skin"),
+        material=material_path(skin_material),
     )
     usdskel.bind_mesh(body_mesh.GetPrim(), skeleton_path(human_id), indices, weights)
     author_face_labels(body_mesh.GetPrim(), mesh, skeleton, indices, weights)

@@ -1038,3 +1038,10 @@ DRY_SURFACE = SurfaceWater(None, 1.0, 0.25, f"impervious surface (building); {_S
 def surface_water(name: str) -> SurfaceWater:
     """:class:`SurfaceWater` of a material name (:data:`DRY_SURFACE` when not listed)."""
     return SURFACE_WATER.get(name, DRY_SURFACE)
+
+# ------------------------------------------------------------------- skin tones (issue 29)
+# skin_I ... skin_VI: the measured skin spectrum scaled by the skin-optics model per
+# Fitzpatrick type (humv_usd.catalog.skin); IR and thermal data as "skin".
+from humv_usd.catalog.skin import tone_materials  # noqa: E402  (needs LIBRARY["skin"])
+
+LIBRARY.update(tone_materials(LIBRARY["skin"]))

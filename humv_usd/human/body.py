@@ -10,7 +10,10 @@ Inputs map to MakeHuman macro values (each in [0, 1]):
 * age [yr] -> age: 1 yr -> 0, 25 yr -> 0.5, 90 yr -> 1, piecewise linear (MakeHuman
   ``setAgeYears``), clamped outside 1..90 yr;
 * build -> muscle: "slim" 0.25, "average" 0.5, "muscular" 0.75, or a number in [0, 1];
-* race stays at MakeHuman's default (1/3 each), proportions at 0.5 (no proportions target).
+* proportions -> proportions: 0.5 leaves the shape alone (no target), towards 1 MakeHuman's
+  "ideal" proportions, towards 0 its "uncommon" ones (``proportions/*`` targets; not for
+  babies: MakeHuman has no baby proportions files, so below ~10 yr the effect fades out);
+* race stays at MakeHuman's default (1/3 each).
 
 Fit. The target volume is ``mass_kg / density``. The height macro sets the stature and the
 weight macro the volume (the two interact slightly, so they are solved alternately with
@@ -282,20 +285,30 @@ def to_usd(points_mh: np.ndarray) -> np.ndarray:
 
 
 def build_body(
-    sex: str, age_yr: float, stature_m: float, mass_kg: float, build: str | float = "average"
+    sex: str,
+    age_yr: float,
+    stature_m: float,
+    mass_kg: float,
+    build: str | float = "average",
+    proportions: float = 0.5,
 ) -> Body:
     """Fit MakeHuman's macro targets to a person; see the module docstring.
 
     sex 'male'/'female'; age_yr [yr]; stature_m [m] (soles to top of head, standing);
-    mass_kg [kg]; build 'slim'/'average'/'muscular' or a MakeHuman muscle value in [0, 1].
+    mass_kg [kg]; build 'slim'/'average'/'muscular' or a MakeHuman muscle value in [0, 1];
+    proportions: MakeHuman's proportions macro in [0, 1] (0.5: none).
     """
     sex = _sex(sex)
     if not (stature_m > 0 and mass_kg > 0):
         raise ValueError("stature_m and mass_kg must be positive")
+    if not 0.0 <= float(proportions) <= 1.0:
+        raise ValueError(f"proportions must be in [0, 1], not {proportions}")
     muscle = build_to_muscle(build)
     bf = body_fat_pct(sex, age_yr, mass_kg / stature_m**2)
     density = siri_density(bf)
-    start = MacroValues(gender=SEX_GENDER[sex], age=age_to_macro(age_yr), muscle=muscle)
+    start = MacroValues(
+        gender=SEX_GENDER[sex], age=age_to_macro(age_yr), muscle=muscle, proportions=float(proportions)
+    )
     macros, s, k = fit_macros(start, stature_m, mass_kg / density)
 
     p = to_usd(apply_macros(macros))
@@ -333,5 +346,6 @@ def build_body(
             "stature_m": float(stature_m),
             "mass_kg": float(mass_kg),
             "build": build,
+            "proportions": float(proportions),
         },
     )

@@ -8,6 +8,7 @@ from pxr import Sdf, UsdGeom, UsdShade
 
 from humv_usd.catalog.garments import fabrics
 from humv_usd.catalog.materials import LIBRARY
+from humv_usd.catalog.skin import skin_material_name
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
@@ -18,6 +19,7 @@ NAME = "materials"
 READS = (
     *FRAMES,
     "human.*.clothing",
+    "human.*.skin_tone",
     "scene.ground.material",
     "scene.object.*.material",
     "scene.asset.*.material",
@@ -36,7 +38,7 @@ def used_materials(scenario: Scenario) -> list[str]:
     """Materials the scenario needs, in a stable order (only these are written)."""
     names = set()
     if scenario["human"]:
-        names.add("skin")
+        names.update(skin_material_name(h.get("skin_tone")) for h in scenario["human"])
         names.update(fabrics(g for h in scenario["human"] for g in h["clothing"]))
     scene = scenario["scene"]
     if scene:

@@ -62,6 +62,8 @@ VIGNETTING_MODES = ("none", "cos4")  # = humv_usd.physics.sensor.VIGNETTING_MODE
 #: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
 #: default is chosen there with ``humv-usd bench render``).
 DEFAULT_SUBBANDS, MAX_SUBBANDS = 16, 64
+#: Fitzpatrick skin types (= humv_usd.physics.skin_optics.FITZPATRICK_MELANIN)
+SKIN_TONES = ("I", "II", "III", "IV", "V", "VI")
 ACTIVITIES = (
     "stand",
     "standTurn",
@@ -182,6 +184,21 @@ HUMAN = Section(
             "Body build (MakeHuman muscle macro).",
             default="average",
             choices=("slim", "average", "muscular"),
+        ),
+        "proportions": Key(
+            "float",
+            "Body proportions (MakeHuman proportions macro): 0.5 none, towards 1 'ideal', towards 0 "
+            "'uncommon' proportions (humv_usd.human.body).",
+            default=0.5,
+            lo=0.0,
+            hi=1.0,
+        ),
+        "skin_tone": Key(
+            "choice",
+            "Skin tone as a Fitzpatrick type: the skin's spectral reflectance from melanin, blood "
+            "and water (humv_usd.catalog.skin); unset: the measured light-skin spectrum (type II). "
+            "Infrared emissivity is the same for every tone.",
+            choices=SKIN_TONES,
         ),
         "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
         "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),

@@ -54,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd.human.body import body_fat_pct
 from humv_usd.human.labels import JOS3_PYTHERMALCOMFORT, JOS3_SEGMENTS
 
 N_SEGMENTS = len(JOS3_SEGMENTS)  # 17
@@ -557,7 +558,7 @@ def jos3(
     age_years: float = 30.0,
     sex: str = "male",
     fitness: str = "average",
-    body_fat_percent: float = 15.0,
+    body_fat_percent: float | None = 15.0,
     posture: str = "standing",
     spin_up_s: float = 3600.0,
     max_substep_s: float = 60.0,
@@ -583,7 +584,10 @@ def jos3(
         [clo], same shapes (per-segment insulation from the garments).
     height_m, mass_kg, age_years, sex, body_fat_percent : optional
         The body (JOS-3 parameters). ``age_years``, ``sex`` and ``fitness`` also go to
-        :func:`heart_rate`.
+        :func:`heart_rate`. ``body_fat_percent`` None: the body's own, from BMI, age and sex
+        (Deurenberg et al. 1991, :func:`humv_usd.human.body.body_fat_pct`, the value the avatar's
+        mesh density uses); the default 15 % is JOS-3's reference man. Outside JOS-3's validated
+        body (toddlers, > 200 kg) see :func:`jos3_body`.
     posture : {'standing', 'sitting', 'lying'}
     spin_up_s : float
         Time [s] run at the first step's conditions before ``times_s[0]`` (JOS-3 starts from
@@ -761,6 +765,46 @@ def _jos3_state(model, bf_skin_l_h: np.ndarray, tissue_w_k: np.ndarray) -> dict:
     }
 
 
+#: JOS-3's validated body (pythermalcomfort ``validate_body_parameters``): height [m], mass
+#: [kg], age [yr], body fat [%]
+JOS3_BODY_RANGE = {
+    "height_m": (0.5, 3.0),
+    "mass_kg": (20.0, 200.0),
+    "age_yr": (5, 100),
+    "fat_pct": (1.0, 90.0),
+}
+
+
+def jos3_body(
+    height_m, mass_kg, age_years, sex="male", body_fat_percent=None
+) -> tuple[float, float, int, float]:
+    """The body JOS-3 is run with: (height [m], mass [kg], age [whole yr], body fat [%]).
+
+    Body fat None: :func:`humv_usd.human.body.body_fat_pct` of the person (Deurenberg et al.
+    1991: adults 1.20 BMI + 0.23 age - 10.8 sex - 5.4, children 1.51 BMI - 0.70 age - 3.6 sex +
+    1.4). Each value is then clipped to :data:`JOS3_BODY_RANGE`, the range pythermalcomfort's
+    JOS-3 accepts.
+
+    How JOS-3 treats age (Takahashi et al. 2021): the basal metabolic rate (Harris-Benedict,
+    an adult regression, also used here for children) falls with age; from 60 yr the sweating,
+    vasodilation and vasoconstriction signals are reduced per segment (its "signal decrement by
+    aging"); the shivering limit depends on age and BMR. It has no child physiology: body size
+    enters through the surface area and heat capacity only. Below 5 yr or 20 kg (toddlers) and
+    above 200 kg the model is not defined: the body is run at the nearest valid age and mass (a
+    2-yr-old of 12 kg as a 5-yr-old of 20 kg with the toddler's stature and body fat), i.e. its
+    skin temperatures per segment are those of a small child, not a toddler's.
+    """
+    if body_fat_percent is None:
+        body_fat_percent = body_fat_pct(sex, float(age_years), float(mass_kg) / float(height_m) ** 2)
+    r = JOS3_BODY_RANGE
+    return (
+        float(np.clip(height_m, *r["height_m"])),
+        float(np.clip(mass_kg, *r["mass_kg"])),
+        int(np.clip(round(float(age_years)), *r["age_yr"])),
+        float(np.clip(body_fat_percent, *r["fat_pct"])),
+    )
+
+
 def _jos3(
     t,
     metabolic_rate_w,
@@ -788,7 +832,8 @@ def _jos3(
     rh = np.clip(_segment_series(relative_humidity, n, "relative_humidity"), 0.0, 1.0) * 100.0
     v = np.maximum(_segment_series(air_speed_m_s, n, "air_speed_m_s"), 0.0)
     clo = np.maximum(_segment_series(clothing_clo, n, "clothing_clo"), 0.0)
-    model = JOS3(height=height_m, weight=mass_kg, fat=body_fat_percent, age=int(round(age_years)), sex=sex)
+    height_m, mass_kg, age, fat = jos3_body(height_m, mass_kg, age_years, sex, body_fat_percent)
+    model = JOS3(height=height_m, weight=mass_kg, fat=fat, age=age, sex=sex)
     model.posture = posture
     bmr_w = model.bmr * float(np.sum(model.bsa))
     par = np.maximum(met / bmr_w, 1.0)
@@ -914,42 +959,6 @@ def skin_temperature_per_face(segment_ids, segment_skin_k) -> np.ndarray:
     if temps.shape[-1:] != (N_SEGMENTS,) or temps.ndim > 2:
         raise ValueError(f"segment_skin_k: expected (17,) or (T, 17), got {temps.shape}")
     return temps[..., ids]
-
-
-def bench_time_steps(
-    model: str = "jos3", steps_s=None, reference_step_s=None, duration_s: float = 3600.0
-) -> list[dict]:
-    """Mean-skin-temperature error against the internal time step (an exercise bout and rest).
-
-    The schedule: 100 W standing, 450 W from 10 to 30 min, 100 W after, at 20 degC, MRT 20 degC,
-    RH 50 %, 0.5 m/s, 0.6 clo; outputs every 5 min. Each run uses ``max_substep_s`` = step;
-    the error is the largest |mean skin - reference| over the outputs, the reference being the
-    same model at ``reference_step_s``.
-
-    Returns a list of dicts: model, step_s, max_error_k, seconds (run time).
-    """
-    import time as _time
-
-    if steps_s is None:
-        steps_s = (30.0, 60.0, 120.0, 300.0) if model == "jos3" else (5.0, 10.0, 30.0, 60.0)
-    if reference_step_s is None:
-        reference_step_s = 10.0 if model == "jos3" else 1.0
-    times = np.arange(0.0, duration_s + 1.0, 300.0)
-    rate = np.where((times >= 600.0) & (times < 1800.0), 450.0, 100.0)
-    args = (times, rate, 293.15, 293.15, 0.5, 0.5, 0.6)
-
-    def run(step):
-        t0 = _time.perf_counter()
-        r = simulate_physiology(*args, model=model, spin_up_s=0.0, max_substep_s=step)
-        return np.asarray(r.mean_skin_temperature_k, dtype=float), _time.perf_counter() - t0
-
-    ref, _ = run(reference_step_s)
-    rows = []
-    for step in steps_s:
-        t, sec = run(step)
-        err = float(np.max(np.abs(t - ref))) if np.all(np.isfinite(t)) else float("inf")
-        rows.append({"model": model, "step_s": float(step), "max_error_k": err, "seconds": sec})
-    return rows
 
 
 # ----------------------------------------------------------------------------- local skin
