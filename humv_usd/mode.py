@@ -31,6 +31,8 @@ import sys
 import threading
 import warnings
 
+from humv_usd.errors import InputError, bad_value
+
 #: Variants the renderer knows how to drive, best first.
 SUPPORTED_VARIANTS = ("cuda_ad_mono", "llvm_ad_mono", "scalar_rgb")
 #: Environment variable that forces one of :data:`SUPPORTED_VARIANTS`.
@@ -131,6 +133,13 @@ def _choose_llvm() -> tuple[str, str]:
     return "llvm_ad_mono", f"DRJIT_LIBLLVM_PATH={path}"
 
 
+def _forced_failed(variant: str, reason: str, error: str) -> str:
+    """One line for a forced backend that does not run here (names the key, value and options)."""
+    key = VARIANT_ENV if os.environ.get(VARIANT_ENV, "").strip() else "backend"
+    value = variant if key == VARIANT_ENV else variant.split("_", 1)[0]
+    return bad_value(key, value, f"{variant} does not work here ({error}; {reason}); use auto, llvm or scalar")
+
+
 def _llvm_works(mi, variant: str = "llvm_ad_mono") -> str | None:
     """None if a tiny kernel runs on ``variant``'s backend (LLVM or CUDA), else the error text."""
     try:
@@ -188,14 +197,14 @@ def mitsuba(spectral: bool = False):
             error = _llvm_works(mi, "cuda_ad_mono")
             if error is not None:
                 if forced:
-                    raise RuntimeError(f"Mitsuba variant cuda_ad_mono ({reason}) does not work: {error}")
+                    raise InputError(_forced_failed("cuda_ad_mono", reason, error))
                 reason = f"cuda_ad_mono unusable ({error}); {reason.split('; else ', 1)[-1]}"
                 variant = "llvm_ad_mono"
         if variant == "llvm_ad_mono":
             error = _llvm_works(mi)
             if error is not None:
                 if forced:
-                    raise RuntimeError(f"Mitsuba variant llvm_ad_mono ({reason}) does not work: {error}")
+                    raise InputError(_forced_failed("llvm_ad_mono", reason, error))
                 reason = f"llvm_ad_mono unusable ({error})"
                 variant = "scalar_rgb"
         if variant == "scalar_rgb" and not forced:
