@@ -177,7 +177,7 @@ def test_invalid_gap_model():
 
 
 def test_time_step_bench_converges_to_the_radau_reference():
-    from humv_usd.physics.garment import bench_time_steps
+    from humv_usd.bench.thermal_steps import garment_time_steps as bench_time_steps
 
     rows = bench_time_steps(steps_s=(60.0, 600.0), duration_s=1800.0)
     for case in {r["case"] for r in rows}:

@@ -227,7 +227,7 @@ def test_skin_temperature_per_face():
 
 
 def test_time_step_bench_two_node_first_order():
-    from humv_usd.thermal.physiology import bench_time_steps
+    from humv_usd.bench.thermal_steps import skin_time_steps as bench_time_steps
 
     rows = bench_time_steps("two_node", steps_s=(5.0, 20.0, 60.0), duration_s=1800.0)
     err = [r["max_error_k"] for r in rows]

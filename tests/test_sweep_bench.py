@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from humv_usd.sweep.bench import run_bench
+from humv_usd.bench.sweep import run_bench
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="binds workers to cores with sched_setaffinity")

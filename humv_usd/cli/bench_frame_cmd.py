@@ -1,5 +1,5 @@
 """``humv-usd bench frame``: median wall time per frame of a multi-frame render of one sensor,
-with its breakdown (:mod:`humv_usd.pipeline.frame_bench`)."""
+with its breakdown (:mod:`humv_usd.bench.frame`)."""
 
 from __future__ import annotations
 
@@ -44,8 +44,8 @@ def bench_frame(scenario: Path, sensor: str | None, frames: int, spp: int | None
     (brightness temperature, error in K, edges, statistics), labels, foreground writes, the
     background writer's time; labels as a fraction of the render; CPU per frame; load average.
     """
+    from humv_usd.bench.frame import bench_frames
     from humv_usd.fileio import write_json
-    from humv_usd.pipeline.frame_bench import bench_frames
 
     out = bench_frames(scenario, sensor=sensor, frames=frames, spp=spp)
     m = out["median"]

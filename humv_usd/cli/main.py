@@ -527,10 +527,10 @@ def bench_thermal(
     import numpy as np
 
     from humv_usd.bench.thermal import bench_qrad
+    from humv_usd.bench.thermal_steps import garment_time_steps as garment_steps
+    from humv_usd.bench.thermal_steps import skin_time_steps as skin_steps
     from humv_usd.fileio import atomic_path, check_output_file
-    from humv_usd.physics.garment import bench_time_steps as garment_steps
     from humv_usd.physics.garment import extreme_grid_counts
-    from humv_usd.thermal.physiology import bench_time_steps as skin_steps
     from humv_usd.thermal.physiology import simulate_physiology
 
     def ints(text, name):

@@ -283,7 +283,7 @@ def bench_sweep(
 ):
     """Labeled LWIR frames per hour for a walk-like sweep of SCENARIO, speed-up of 2 workers over 1, memory
     per worker over a long sweep, and the scheduler's cost per task."""
-    from humv_usd.sweep.bench import run_bench
+    from humv_usd.bench.sweep import run_bench
 
     w, h = (int(x) for x in resolution.lower().split("x"))
     report = run_bench(

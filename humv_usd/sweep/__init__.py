@@ -7,5 +7,5 @@ Modules: :mod:`~humv_usd.sweep.spec` (the sweep file, variants, validation),
 :mod:`~humv_usd.sweep.store` (lock, staging, done records, shared layer store),
 :mod:`~humv_usd.sweep.tasks` (what a worker runs), :mod:`~humv_usd.sweep.run` (the client loop:
 Dask, retries, progress events), :mod:`~humv_usd.sweep.dataset` (merged COCO, index, card, YOLO),
-:mod:`~humv_usd.sweep.bench` (throughput, scaling, memory, scheduler cost).
+:mod:`humv_usd.bench.sweep` (throughput, scaling, memory, scheduler cost).
 """
