@@ -20,7 +20,7 @@ import numpy as np
 
 from humv_usd.physics.sensor import SensorModel, default_gain_offset, field_of_view_deg
 
-PLATFORMS = ("tripod", "mast", "aerial")
+PLATFORMS = ("tripod", "mast", "aerial", "vehicle", "drone", "handheld")
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,9 @@ A layer tool is any module of a tool package that declares, at module level:
 * ``VERSION`` -- bumped whenever the tool's output for the same inputs changes (code, catalogue
   or data the tool ships);
 
+optionally ``upstream_for(scenario)`` -- the subset of ``UPSTREAM`` a given scenario makes it read
+(the sensors tool reads a person's avatar layer only for a camera that tracks them);
+
 and builds with ``build(scenario, upstream)`` (per person: ``build_one(scenario, human)``, with
 ``upstream=`` when it declares ``UPSTREAM``), ``upstream`` being the in-memory composition of
 exactly its upstream layers.
@@ -124,7 +127,10 @@ def layer_graph(scenario: Scenario, needed: list[str]) -> dict[str, Node]:
     nodes = {}
     for name in needed:
         tool, human = tool_of(name, tools, humans)
-        wanted = [u.format(id=human["id"]) if human else u for u in tool.upstream]
+        declared = tool.upstream
+        if hasattr(tool.module, "upstream_for"):  # narrowed to what this scenario makes it read
+            declared = tuple(tool.module.upstream_for(scenario))
+        wanted = [u.format(id=human["id"]) if human else u for u in declared]
         upstream = tuple(n for n in needed if n != name and any(fnmatchcase(n, u) for u in wanted))
         nodes[name] = Node(name, tool, human, upstream)
     return nodes

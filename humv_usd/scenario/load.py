@@ -28,6 +28,7 @@ from humv_usd.catalog.sensors import (
     scenario_values,
 )
 from humv_usd.errors import InputError, bad_value, shown
+from humv_usd.geometry.rig import HANDHELD_SHAKE_RMS_DEG
 from humv_usd.scenario.spec import (
     ASSET_FORMATS,
     BAND_DEFAULT_UM,
@@ -377,36 +378,76 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                     f"sensor[{i}].agc_percentiles", [p_lo, p_hi], "expected [low, high] with low < high"
                 )
             )
-        if s["platform"] == "aerial":
-            if s.get("position_m") is not None:
-                problems.append(
-                    bad_value(
-                        f"sensor[{i}].position_m",
-                        s["position_m"],
-                        "not with platform = 'aerial' (the orbit sets it: "
-                        "altitude_m, orbit_radius_m, orbit_speed_m_s)",
-                    )
-                )
-            continue
-        if s.get("position_m") is None:
+        _check_rig(i, s, placed, problems)
+
+
+def _check_rig(i: int, s: dict, placed: set[str], problems: list[str]) -> None:
+    """A sensor's platform and pointing keys (humv_usd.geometry.rig): where it is (position_m,
+    the orbit or path_m), what it looks at (look_at_m, a placed person, target_path_m or the
+    direction of travel), gimbal limits in order; a handheld camera shakes by default."""
+    platform, target = s["platform"], s.get("target") or "point"
+    if s.get("shake_rms_deg") is None:
+        s["shake_rms_deg"] = HANDHELD_SHAKE_RMS_DEG if platform == "handheld" else 0.0
+    for name in ("gimbal_pitch_range_deg", "gimbal_yaw_range_deg"):
+        lo, hi = s[name]
+        if lo >= hi:
             problems.append(
-                f"sensor[{i}].position_m: missing required key (camera position "
-                f"[x, y, z] [m] of a {s['platform']})"
+                bad_value(f"sensor[{i}].{name}", [lo, hi], "expected [low, high] with low < high")
             )
-        elif s["platform"] == "mast" and not 2.0 <= s["position_m"][2] <= 100.0:
+    if (target == "point" or platform == "aerial") and s.get("look_at_m") is None:
+        what = "the orbit centre" if platform == "aerial" else "the point the camera looks at"
+        problems.append(f"sensor[{i}].look_at_m: missing required key ({what} [x, y, z] [m])")
+    if target == "human" and s.get("target_human") not in placed:
+        problems.append(
+            bad_value(
+                f"sensor[{i}].target_human",
+                s.get("target_human"),
+                f"expected the id of a placed [[human]] ({', '.join(sorted(placed)) or 'none placed'})",
+            )
+        )
+    if target == "path" and not s.get("target_path_m"):
+        problems.append(f"sensor[{i}].target_path_m: missing required key (target = 'path')")
+    if platform in ("aerial", "vehicle", "drone"):
+        if s.get("position_m") is not None:
+            sets = (
+                "the orbit sets it: altitude_m, orbit_radius_m, orbit_speed_m_s"
+                if platform == "aerial"
+                else "path_m sets it"
+            )
             problems.append(
                 bad_value(
-                    f"sensor[{i}].position_m[2]",
-                    s["position_m"][2],
-                    "a mast camera's height above the ground: 2.0..100.0 m",
+                    f"sensor[{i}].position_m", s["position_m"], f"not with platform = '{platform}' ({sets})"
                 )
             )
-        if s.get("position_m") and s.get("look_at_m"):
-            d = [a - b for a, b in zip(s["look_at_m"], s["position_m"])]
-            if math.sqrt(sum(x * x for x in d)) < 1e-6:
+        if platform != "aerial":
+            pts = np.asarray(s.get("path_m") or [], dtype=float).reshape(-1, 3)
+            if len(pts) < 2 or not np.any(np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-9):
                 problems.append(
-                    bad_value(f"sensor[{i}].look_at_m", s["look_at_m"], "must differ from position_m")
+                    bad_value(
+                        f"sensor[{i}].path_m",
+                        s.get("path_m") or [],
+                        f"a {platform} needs at least two distinct points [[x, y, z], ...] [m]",
+                    )
                 )
+        return
+    if s.get("position_m") is None:
+        problems.append(
+            f"sensor[{i}].position_m: missing required key (camera position [x, y, z] [m] of a {platform})"
+        )
+    elif platform == "mast" and not 2.0 <= s["position_m"][2] <= 100.0:
+        problems.append(
+            bad_value(
+                f"sensor[{i}].position_m[2]",
+                s["position_m"][2],
+                "a mast camera's height above the ground: 2.0..100.0 m",
+            )
+        )
+    if target == "point" and s.get("position_m") and s.get("look_at_m"):
+        d = [a - b for a, b in zip(s["look_at_m"], s["position_m"])]
+        if math.sqrt(sum(x * x for x in d)) < 1e-6:
+            problems.append(
+                bad_value(f"sensor[{i}].look_at_m", s["look_at_m"], "must differ from position_m")
+            )
 
 
 def _check_assets(scene: dict, problems: list[str]) -> None:

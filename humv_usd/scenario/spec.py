@@ -56,7 +56,9 @@ SENSOR_PRESETS = (  # humv_usd.catalog.sensors.PRESETS
     "h20t_thermal",
     "rgb_imx273",
 )
-PLATFORMS = ("tripod", "mast", "aerial")
+PLATFORMS = ("tripod", "mast", "aerial", "vehicle", "drone", "handheld")  # = humv_usd.catalog.sensors
+#: what a sensor's optical axis follows (humv_usd.geometry.rig)
+TARGETS = ("point", "human", "path", "forward")
 AGC_MODES = ("none", "linear", "histogram", "plateau")  # = humv_usd.physics.sensor.AGC_MODES
 VIGNETTING_MODES = ("none", "cos4")  # = humv_usd.physics.sensor.VIGNETTING_MODES
 #: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
@@ -584,18 +586,113 @@ SENSOR = Section(
         "platform": Key(
             "choice",
             "Platform: tripod or mast (fixed camera at position_m; a mast's "
-            "height is position_m's z, 2-100 m) or aerial (orbit around look_at_m, per frame).",
+            "height is position_m's z, 2-100 m), aerial (orbit around look_at_m, per frame), "
+            "vehicle or drone (moves along path_m at speed_m_s) or handheld (at position_m "
+            "with hand shake, shake_rms_deg).",
             default="tripod",
             choices=PLATFORMS,
         ),
-        "position_m": Key("vec", "Camera position [x, y, z] [m] (tripod, mast).", n=3, lo=-1.0e5, hi=1.0e5),
+        "position_m": Key(
+            "vec", "Camera position [x, y, z] [m] (tripod, mast, handheld).", n=3, lo=-1.0e5, hi=1.0e5
+        ),
         "look_at_m": Key(
             "vec",
-            "Point the optical axis passes through [x, y, z] [m] (aerial: the orbit centre).",
-            required=True,
+            "Point the optical axis passes through [x, y, z] [m] (target = point; aerial: the "
+            "orbit centre; required for both).",
             n=3,
             lo=-1.0e5,
             hi=1.0e5,
+        ),
+        "target": Key(
+            "choice",
+            "What the camera points at: point (look_at_m), human (tracks target_human's body "
+            "centre every frame), path (a point moving along target_path_m at "
+            "target_speed_m_s) or forward (along the platform's travel, turned by "
+            "mount_yaw_deg and mount_pitch_deg: a dash camera).",
+            default="point",
+            choices=TARGETS,
+        ),
+        "target_human": Key("str", "target = human: id of the [[human]] the camera tracks."),
+        "target_path_m": Key(
+            "points",
+            "target = path: points [[x, y, z], ...] [m] the looked-at point moves along.",
+            default=[],
+            n=3,
+            lo=-1.0e5,
+            hi=1.0e5,
+        ),
+        "target_speed_m_s": Key(
+            "float", "target = path: speed of the looked-at point [m/s].", default=1.4, lo=0.0, hi=400.0
+        ),
+        "path_m": Key(
+            "points",
+            "vehicle, drone: camera positions [[x, y, z], ...] [m] the platform passes, in order "
+            "(z: the camera's height, e.g. 1.5-2 m on a car roof, 60-130 m for a survey drone).",
+            default=[],
+            n=3,
+            lo=-1.0e5,
+            hi=1.0e5,
+        ),
+        "speed_m_s": Key(
+            "float",
+            "vehicle, drone: speed along path_m [m/s] (stops at its last point).",
+            default=10.0,
+            lo=0.0,
+            hi=400.0,
+        ),
+        "mount_yaw_deg": Key(
+            "float",
+            "target = forward: camera azimuth relative to the direction of travel [deg] (90 = right).",
+            default=0.0,
+            lo=-180.0,
+            hi=180.0,
+        ),
+        "mount_pitch_deg": Key(
+            "float",
+            "target = forward: camera elevation [deg] (negative: looks down; -90: nadir).",
+            default=0.0,
+            lo=-90.0,
+            hi=90.0,
+        ),
+        "roll_deg": Key(
+            "float",
+            "Camera roll about the optical axis [deg] (positive: clockwise seen from behind).",
+            default=0.0,
+            lo=-180.0,
+            hi=180.0,
+        ),
+        "gimbal_pitch_range_deg": Key(
+            "vec",
+            "Gimbal tilt limits [lowest, highest] elevation [deg] (a drone gimbal: [-90, 30]).",
+            default=[-90.0, 90.0],
+            n=2,
+            lo=-90.0,
+            hi=90.0,
+        ),
+        "gimbal_yaw_range_deg": Key(
+            "vec",
+            "Gimbal pan limits relative to the platform's heading [left, right] [deg] (default unlimited).",
+            default=[-180.0, 180.0],
+            n=2,
+            lo=-180.0,
+            hi=180.0,
+        ),
+        "gimbal_rate_deg_s": Key(
+            "float",
+            "Gimbal slew-rate limit per axis [deg/s] (default 0 = unlimited; tracking lags a fast target).",
+            default=0.0,
+            lo=0.0,
+            hi=3600.0,
+        ),
+        "shake_rms_deg": Key(
+            "float",
+            "Hand shake: RMS angle per axis [deg] (humv_usd.geometry.rig.shake_angles; default 0, "
+            "handheld 0.2).",
+            lo=0.0,
+            hi=10.0,
+        ),
+        "shake_seed": Key(
+            "int", "Seed of the hand shake (default 0).", default=0, lo=0, hi=2**31 - 1, integer=True
         ),
         "altitude_m": Key(
             "float", "Aerial: flight height above the ground [m].", default=100.0, lo=1.0, hi=2.0e4

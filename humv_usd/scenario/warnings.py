@@ -23,6 +23,8 @@ PERSON_CENTRE_M = 1.0
 PERSONAL_GAP_M = 0.0
 #: sensor keys only an aerial platform reads
 ORBIT_KEYS = ("altitude_m", "orbit_radius_m", "orbit_speed_m_s", "orbit_start_deg", "orbit_clockwise")
+#: sensor keys only a vehicle or drone platform reads
+PATH_KEYS = ("path_m", "speed_m_s")
 #: thermal keys only the radiation balance (jos3, twoNode) reads
 RADIATION_KEYS = ("radiation_method", "radiation_rays", "radiation_step_s")
 
@@ -68,6 +70,10 @@ def _keys_that_do_nothing(scenario, given: frozenset[str]) -> list[str]:
             for key in ORBIT_KEYS:
                 if f"sensor[{i}].{key}" in given:
                     out.append(f"sensor[{i}].{key}: ignored on a {platform} camera (for platform = 'aerial')")
+        if platform not in ("vehicle", "drone"):
+            for key in PATH_KEYS:
+                if f"sensor[{i}].{key}" in given:
+                    out.append(f"sensor[{i}].{key}: ignored on a {platform} camera (for vehicle or drone)")
     thermal = scenario["thermal"] or {}
     if thermal.get("model") == "fixed":
         for key in RADIATION_KEYS:
@@ -124,8 +130,8 @@ def suspicious(scenario) -> list[str]:
                 f"overlap below {2 * PERSON_RADIUS_M + PERSONAL_GAP_M:g} m (placement.position_m)"
             )
     for i, s in enumerate(scenario["sensor"]):
-        if s.get("platform", "tripod") != "tripod":
-            continue  # a moving platform: its path, not position_m, places it
+        if s.get("platform", "tripod") != "tripod" or (s.get("target") or "point") != "point":
+            continue  # a moving platform or a tracking camera: its path or target, not position_m
         eye = np.asarray(s["position_m"], float)
         key = f"sensor[{i}].position_m = {list(s['position_m'])}"
         if ground is not None and eye[2] < 0:

@@ -1,9 +1,12 @@
 """Sensor tool: cameras with HumvSensorAPI → layers/sensors.usda.
 
 One UsdGeom.Camera per ``[[sensor]]`` with the radiometric model (HumvSensorAPI) from the table
-and its preset (:mod:`humv_usd.catalog.sensors`). Tripod and mast cameras have one transform;
-an aerial camera's transform is time-sampled at every frame (orbit looking at its centre), so
-all sensors share the frame times (synchronised, multi-view).
+and its preset (:mod:`humv_usd.catalog.sensors`). Where the camera is and where it points comes
+from its rig (:mod:`humv_usd.geometry.rig`): the platform (tripod, mast, aerial orbit, vehicle or
+drone along ``path_m``, handheld with shake), the target (a point, a person tracked through the
+avatar layer's keypoints, a moving point on a path, or the direction of travel) and the gimbal
+limits. A camera whose pose changes gets a transform time sample at every frame (all sensors
+share the frame times: synchronised, multi-view); a still one gets one transform.
 """
 
 from __future__ import annotations
@@ -15,35 +18,142 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom
 
 from humv_usd.catalog.sensors import PRESETS, netd_for_f_number, orbit_positions, preset
+from humv_usd.errors import InputError, bad_value
+from humv_usd.geometry.rig import (
+    Gimbal,
+    RigPoses,
+    camera_matrix,
+    direction_angles,
+    polyline_track,
+    rig_poses,
+    shake_angles,
+)
 from humv_usd.scenario import Scenario, validate
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.usd.layers import SCOPES, finish, library_layer_main, look_at_matrix, new_layer_stage
-from humv_usd.usd.paths import sensor_path
+from humv_usd.usd.avatar import read_keypoints
+from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
+from humv_usd.usd.paths import human_path, sensor_path
 from humv_usd.usd.sensor import CHAIN_ATTRIBUTES, write_sensor
 
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
-UPSTREAM = ()
-VERSION = "3"  # 3: focusDistance at the look-at point
+UPSTREAM = ("avatar_*",)  # a camera tracking a person reads the person's keypoints (upstream_for)
+VERSION = "4"  # 3: focusDistance at the look-at point; 4: rigs (vehicle, drone, handheld, tracking, gimbal)
+
+
+def upstream_for(scenario: Scenario) -> tuple[str, ...]:
+    """The avatar layers this scenario's sensors read: those of the people a camera tracks
+    (``target = "human"``); none otherwise, so an avatar edit leaves a still camera cached."""
+    ids = sorted({s["target_human"] for s in scenario["sensor"] if (s.get("target") or "point") == "human"})
+    return tuple(f"avatar_{i}" for i in ids)
+
 
 # UsdGeom lens and filmback values are in tenths of a scene unit: on a metre stage 1 mm = 0.01.
 _MM_TO_TENTHS_OF_M = 0.01
 
 
 def camera_positions(s: dict, fps: float, frame_count: int) -> np.ndarray:
-    """Camera position [m] per frame, (frame_count, 3): constant unless the platform is aerial."""
-    if s["platform"] != "aerial":
-        return np.tile(np.asarray(s["position_m"], dtype=float), (max(frame_count, 1), 1))
+    """Platform position [m] per frame, (frame_count, 3): the orbit (aerial), the path
+    (vehicle, drone) or position_m (tripod, mast, handheld)."""
+    return _platform(s, fps, frame_count)[0]
+
+
+def _platform(s: dict, fps: float, frame_count: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """(positions (T, 3) [m], compass heading of travel (T,) [deg] or None for a still one)."""
     times = np.arange(max(frame_count, 1)) / fps
-    return orbit_positions(
-        s["look_at_m"],
-        s["altitude_m"],
-        s["orbit_radius_m"],
-        s["orbit_speed_m_s"],
-        times,
-        start_deg=s["orbit_start_deg"],
-        clockwise=s["orbit_clockwise"] == "yes",
+    if s["platform"] == "aerial":
+        orbit = dict(start_deg=s["orbit_start_deg"], clockwise=s["orbit_clockwise"] == "yes")
+        args = (s["look_at_m"], s["altitude_m"], s["orbit_radius_m"], s["orbit_speed_m_s"])
+        pos = orbit_positions(*args, times, **orbit)
+        ahead = orbit_positions(*args, times + 1e-3, **orbit)  # the tangent: direction of travel
+        moving = np.linalg.norm(ahead - pos, axis=1) > 0
+        return pos, direction_angles(ahead - pos)[0] if moving.all() else None
+    if s["platform"] in ("vehicle", "drone"):
+        pos, direction = polyline_track(s["path_m"], s["speed_m_s"], times)
+        return pos, direction_angles(direction)[0]
+    return np.tile(np.asarray(s["position_m"], dtype=float), (times.size, 1)), None
+
+
+#: COCO keypoints whose mean is a tracked person's body centre: shoulders and hips
+_TORSO_KEYPOINTS = (5, 6, 11, 12)
+
+
+def person_centres(stage, human_id: str, frame_count: int) -> np.ndarray:
+    """(T, 3) world centre [m] of a person's torso (mean of the COCO shoulders and hips of the
+    avatar layer's keypoints) at each frame; InputError when the stage has no keypoints for them."""
+    prim = stage.GetPrimAtPath(human_path(human_id)) if stage is not None else None
+    where = f"{human_path(human_id)}.humv:label:cocoKeypoints"
+    out = np.empty((max(frame_count, 1), 3))
+    mpu = float(UsdGeom.GetStageMetersPerUnit(stage)) if stage is not None else 1.0
+    for f in range(len(out)):
+        pts = read_keypoints(prim, f) if prim and prim.IsValid() else None
+        if pts is None or len(pts) < 17:
+            raise InputError(
+                bad_value(where, None, "a tracked person needs the avatar layer's 17 COCO keypoints")
+            )
+        m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode(f)), dtype=float)
+        centre = pts[list(_TORSO_KEYPOINTS)].mean(axis=0)
+        out[f] = (centre @ m[:3, :3] + m[3, :3]) * mpu
+    return out
+
+
+def camera_rig(s: dict, fps: float, frame_count: int, upstream=None) -> RigPoses:
+    """The camera poses of sensor table ``s`` at each frame (:func:`humv_usd.geometry.rig.rig_poses`):
+    platform (:func:`camera_positions`), target (look_at_m, a person's torso centre read from
+    ``upstream``'s avatar layer, a point moving along target_path_m, or none: along the direction
+    of travel turned by the mount angles), gimbal limits, roll and hand shake."""
+    n = max(frame_count, 1)
+    times = np.arange(n) / fps
+    origins, heading = _platform(s, fps, frame_count)
+    targets = (
+        None if (s.get("target") or "point") == "forward" else _target_points(s, fps, frame_count, upstream)
     )
+    if heading is None:  # a still platform faces its first target (forward: north)
+        heading = np.full(n, direction_angles(targets[0] - origins[0])[0] if targets is not None else 0.0)
+    gimbal = Gimbal(
+        yaw_range_deg=tuple(s["gimbal_yaw_range_deg"]),
+        pitch_range_deg=tuple(s["gimbal_pitch_range_deg"]),
+        rate_deg_s=float(s["gimbal_rate_deg_s"]),
+    )
+    rms = float(s.get("shake_rms_deg") or 0.0)
+    try:
+        return rig_poses(
+            origins,
+            heading,
+            times,
+            targets=targets,
+            mount_deg=(s["mount_yaw_deg"], s["mount_pitch_deg"]),
+            gimbal=gimbal,
+            roll_deg=s["roll_deg"],
+            shake_deg=shake_angles(times, rms, s["shake_seed"]) if rms > 0 else None,
+        )
+    except ValueError as exc:
+        raise InputError(f"sensor {s['id']}: {exc}") from None
+
+
+def _target_points(s: dict, fps: float, frame_count: int, upstream) -> np.ndarray:
+    """(T, 3) the points :func:`camera_rig` aims at (target point, person or path)."""
+    n = max(frame_count, 1)
+    target = s.get("target") or "point"
+    if target == "human":
+        return person_centres(upstream, s["target_human"], n)
+    if target == "path":
+        pts = np.asarray(s["target_path_m"], dtype=float).reshape(-1, 3)
+        if len(pts) == 1:
+            return np.tile(pts[0], (n, 1))
+        return polyline_track(pts, s["target_speed_m_s"], np.arange(n) / fps)[0]
+    return np.tile(np.asarray(s["look_at_m"], dtype=float), (n, 1))
+
+
+def focus_distances(poses: RigPoses, targets_or_none) -> np.ndarray:
+    """(T,) focus distance [m]: to the target, else to where the axis meets the ground z = 0
+    (looking down), else 100 m."""
+    if targets_or_none is not None:
+        return np.linalg.norm(np.asarray(targets_or_none) - poses.origin, axis=1)
+    down = -poses.forward[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.where(down > 1e-3, poses.origin[:, 2] / down, 100.0)
+    return np.clip(d, 0.05, 1.0e5)
 
 
 def _response(s: dict):
@@ -95,18 +205,28 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     for s in scenario["sensor"]:
         cam = UsdGeom.Camera.Define(stage, sensor_path(s["id"]))
         op = cam.AddTransformOp()
-        positions = camera_positions(s, g["fps"], frames)
+        poses = camera_rig(s, g["fps"], frames, upstream)
+        target = (
+            None
+            if (s.get("target") or "point") == "forward"
+            else _target_points(s, g["fps"], frames, upstream)
+        )
         # focused where it looks (HumV renders a pinhole; a viewer honouring fStop without a
         # focusDistance focuses at 0 m: Blender rendered a uniform blur)
         focus = cam.CreateFocusDistanceAttr()
-        target = np.asarray(s["look_at_m"], dtype=float)
-        if s["platform"] == "aerial":
-            for frame, pos in enumerate(positions):
-                op.Set(look_at_matrix(pos.tolist(), s["look_at_m"]), Usd.TimeCode(frame))
-                focus.Set(float(np.linalg.norm(target - pos)), Usd.TimeCode(frame))
+        dist = focus_distances(poses, target)
+        mats = [
+            Gf.Matrix4d(camera_matrix(o, f, u).tolist())
+            for o, f, u in zip(poses.origin, poses.forward, poses.up)
+        ]
+        still = all(m == mats[0] for m in mats) and np.ptp(dist) == 0
+        if still:
+            op.Set(mats[0])
+            focus.Set(float(dist[0]))
         else:
-            op.Set(look_at_matrix(s["position_m"], s["look_at_m"]))
-            focus.Set(float(np.linalg.norm(target - np.asarray(s["position_m"], dtype=float))))
+            for frame, (m, d) in enumerate(zip(mats, dist)):
+                op.Set(m, Usd.TimeCode(frame))
+                focus.Set(float(d), Usd.TimeCode(frame))
         width, height = s["resolution"]
         pitch_mm = s["pixel_pitch_um"] * 1e-3
         cam.CreateProjectionAttr(UsdGeom.Tokens.perspective)
@@ -135,8 +255,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             agc_percentiles=s["agc_percentiles"],
             gain=s["gain"],  # EO presets: no gain = auto exposure
             subbands=None if eo else s["subbands"],  # the render's sub-band count (--subbands overrides)
-            full_well_e=s["full_well_e"] if eo else None,
-            read_noise_e=s["read_noise_e"] if eo else None,
+            full_well_e=s["full_well_e"] if eo or s["band"] in ("NIR", "SWIR") else None,
+            read_noise_e=s["read_noise_e"] if eo or s["band"] in ("NIR", "SWIR") else None,
             response_wavelengths_um=wl,
             response=response,
             channel_response=channels,

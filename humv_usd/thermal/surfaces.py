@@ -457,29 +457,50 @@ MAX_REFINED_FACES = 60000
 
 #: finest cell a camera's pixel footprint may ask for [m] (bounds the faces where a camera is close)
 MIN_FOOTPRINT_CELL_M = 0.005
-#: a camera's pose is read at up to this many frames (evenly spaced) for the footprints
-FOOTPRINT_FRAMES = 8
+#: a moving camera's poses are kept at most this many per camera for the footprints (beyond
+#: that they are thinned evenly and the closest-pose bound below no longer holds)
+FOOTPRINT_FRAMES = 48
+#: a moving camera's next pose is kept once it has moved this fraction of its height above the
+#: ground (z = 0) or turned by FOOTPRINT_TURN_DEG: a cell's closest pose over the clip is then
+#: at most about sqrt(1 + 0.25^2) = 3 % farther than the kept one nearest to it
+FOOTPRINT_MOVE = 0.5
+FOOTPRINT_TURN_DEG = 5.0
+
+
+def _footprint_poses(poses: list) -> list:
+    """The poses of one camera over the clip the footprints use: the first, then each that has
+    moved :data:`FOOTPRINT_MOVE` x its height or turned :data:`FOOTPRINT_TURN_DEG` since the last
+    kept one (a vehicle or drone passing close to the ground keeps its closest poses); at most
+    :data:`FOOTPRINT_FRAMES`, thinned evenly beyond that."""
+    kept = [poses[0]]
+    for pose in poses[1:]:
+        last = kept[-1]
+        moved = float(np.linalg.norm(pose.origin - last.origin))
+        turned = float(np.degrees(np.arccos(min(1.0, float(np.dot(pose.forward, last.forward))))))
+        if moved > FOOTPRINT_MOVE * max(abs(float(pose.origin[2])), 0.1) or turned > FOOTPRINT_TURN_DEG:
+            kept.append(pose)
+    if len(kept) > FOOTPRINT_FRAMES:
+        pick = np.unique(np.linspace(0, len(kept) - 1, FOOTPRINT_FRAMES).round().astype(int))
+        kept = [kept[i] for i in pick]
+    return kept
 
 
 def camera_footprints(stage: Usd.Stage, frames=(0,)) -> list[Camera]:
     """The infrared sensor cameras of ``stage`` (:func:`humv_usd.usd.sensor.stage_sensors`, the
-    sensors layer; an EO image does not show the temperatures) as pinhole :class:`humv_usd.geometry.camera.Camera` s, one per camera and pose at up
-    to :data:`FOOTPRINT_FRAMES` of ``frames`` (a moving camera counts where it is at each).
+    sensors layer; an EO image does not show the temperatures) as pinhole :class:`humv_usd.geometry.camera.Camera` s, one per camera and pose over
+    ``frames`` (a moving camera counts where it is, :func:`_footprint_poses`: the finest
+    footprint of a cell is that of the camera's closest pose over the clip).
     Cameras the render skips (not perspective) are left out."""
     frames = np.atleast_1d(np.asarray(frames, dtype=float))
-    if len(frames) > FOOTPRINT_FRAMES:
-        frames = frames[np.unique(np.linspace(0, len(frames) - 1, FOOTPRINT_FRAMES).round().astype(int))]
     out = []
     for sensor in stage_sensors(stage):
         if sensor.skip_reason or sensor.kind == "EO":  # EO images do not show the temperatures
             continue
         prim = stage.GetPrimAtPath(sensor.path)
         w, h = (int(v) for v in sensor.resolution)
-        poses = {}
-        for f in frames:
-            pose = read_camera_pose(prim, Usd.TimeCode(float(f)))
-            poses[tuple(np.round(np.r_[pose.origin, pose.forward, pose.up, pose.fov_x_deg], 9))] = pose
-        out += [Camera.from_pose(p, w, h) for p in poses.values()]
+        still = not UsdGeom.Xformable(prim).TransformMightBeTimeVarying()
+        poses = [read_camera_pose(prim, Usd.TimeCode(float(f))) for f in (frames[:1] if still else frames)]
+        out += [Camera.from_pose(p, w, h) for p in _footprint_poses(poses)]
     return out
 
 
