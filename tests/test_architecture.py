@@ -35,8 +35,9 @@ LEVELS = [
         "thermal",
     },  # layer tools
     {"render", "groundtruth"},  # consumers of the stage
-    {"pipeline", "bench"},  # graph, caching, benches
+    {"pipeline"},  # graph, caching, the render's orchestration
     {"sweep"},  # datasets: drives pipeline.compose/render per variant on Dask, merges ground truth
+    {"bench"},  # benches: time and error of any of the above (issue 24: every bench here)
     {"editor"},  # the web editor: forms from the spec, checks sweep files, runs humv-usd as processes
     {"cli"},
 ]
@@ -176,16 +177,21 @@ DISTRIBUTIONS = {
     "bpy": "bpy",
     "PIL": "pillow",
     "yaml": "pyyaml",
+    "sklearn": "scikit-learn",
+    "skimage": "scikit-image",
 }
 
 
 def test_pyproject_declares_every_imported_package():
     """Every third-party package the library imports (at the top or lazily) is a declared
-    dependency (bpy as the ``blender`` extra), and every declared dependency is imported."""
+    dependency (bpy as the ``blender`` extra, scikit-learn and scikit-image as the ``detector``
+    extra), and every declared dependency is imported."""
     project = tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["project"]
     declared = {
         re.split(r"[<>=!~ \[]", d, maxsplit=1)[0].lower()
-        for d in project["dependencies"] + project["optional-dependencies"]["blender"]
+        for d in project["dependencies"]
+        + project["optional-dependencies"]["blender"]
+        + project["optional-dependencies"]["detector"]
     }
     imported = set()
     for _, _, tree in _modules():
