@@ -40,8 +40,17 @@ from humv_usd.cli.common import reports_errors
     show_default=True,
     help="Class of new meshes without a humv_class custom property.",
 )
+@click.option(
+    "--scenario",
+    "scenario_file",
+    default=None,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The scenario the --from stage was composed from: the thermal tool recomputes the "
+    "temperatures of the adopted stage (shadows follow moved people and objects, new objects "
+    "cast theirs) into OUT/layers/thermal.usda.",
+)
 @reports_errors
-def adopt(blender_export: Path, out_dir: str, original, fps, temperature_k, label_class):
+def adopt(blender_export: Path, out_dir: str, original, fps, temperature_k, label_class, scenario_file):
     """Adopt BLENDER_EXPORT (Blender's wm.usd_export) as a HumV stage in OUT.
 
     Maps Blender's conventions back: /root -> /World, object/data prim pairs -> one prim,
@@ -49,10 +58,23 @@ def adopt(blender_export: Path, out_dir: str, original, fps, temperature_k, labe
     library material of the same name), primvars:humv_thermal_temperature ->
     primvars:humv:thermal:temperature; new meshes get a held temperature and a new label.
     """
+    from humv_usd.errors import InputError
     from humv_usd.pipeline.adopt import adopt as run
+    from humv_usd.scenario import load_scenario
 
+    scenario = None
+    if scenario_file is not None:
+        if original is None:
+            raise InputError("--scenario needs --from (the stage composed from that scenario)")
+        scenario = load_scenario(scenario_file)
     stage, report = run(
-        blender_export, out_dir, original, fps=fps, temperature_k=temperature_k, label_class=label_class
+        blender_export,
+        out_dir,
+        original,
+        fps=fps,
+        temperature_k=temperature_k,
+        label_class=label_class,
+        scenario=scenario,
     )
     library = sorted(k for k, v in report.materials.items() if v == "library")
     click.echo(
@@ -65,5 +87,7 @@ def adopt(blender_export: Path, out_dir: str, original, fps, temperature_k, labe
         click.echo(f"  new mesh {path}: {', '.join(parts)}")
     if report.static_export:
         click.echo("  no animation in the export: people and garments stay at the exported frame")
+    if scenario is not None:
+        click.echo("  temperatures recomputed for the adopted stage: layers/thermal.usda")
     for path in report.kept_blender_values:
         click.echo(f"  {path}: topology changed, Blender's per-face values kept")

@@ -8,20 +8,39 @@ checks the output folder before any work, and writes the two layers atomically, 
 the whole adoption succeeded. The root layer holds only sublayers and stage metadata (the
 ``humv-usd check`` rule) plus the original root layer's HumV customLayerData (annotators) and
 ``humv:adoptedFrom``.
+
+Temperatures after an edit (issue 27 deliverable 5): the restored per-face temperatures are the
+original scene's, so a person or object moved in Blender would keep its old shadow on the ground
+and a new object would cast none. Given the scenario the original was composed from
+(``scenario``, checked against the original's ``humv:scenarioDigest``), adopt runs the thermal
+tool on the adopted stage and writes ``layers/thermal.usda`` (stronger than ``adopted.usda``):
+shadows follow the moved people and objects, new objects cast theirs. A new mesh keeps the held
+temperature adopt gave it (its custom property, ``--temperature-k`` or the air). Without a
+scenario, a warning names the meshes that moved or are new.
 """
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
-from pxr import Sdf, Tf, Usd
+import numpy as np
+from pxr import Sdf, Tf, Usd, UsdGeom
 
 from humv_usd.errors import InputError, bad_value
-from humv_usd.fileio import check_output_dir, write_text_atomic
-from humv_usd.usd.adopt import AdoptReport, adopt_blender_export
-from humv_usd.usd.layers import open_stage, set_layer_metadata, usd_error_text
+from humv_usd.fileio import check_output_dir, commit_files
+from humv_usd.pipeline.compose import compose_in_memory
+from humv_usd.scenario import Scenario
+from humv_usd.thermal import layer as thermal_tool
+from humv_usd.usd.adopt import AdoptReport, adopt_blender_export, without_temperatures
+from humv_usd.usd.layers import SCOPES, layer_text, open_stage, set_layer_metadata, usd_error_text
+
+log = logging.getLogger(__name__)
 
 ADOPTED_LAYER = "layers/adopted.usda"
+THERMAL_LAYER = "layers/thermal.usda"
+#: a mesh whose world bounds moved more than this [m] has moved (shadows are stale)
+MOVED_M = 1e-3
 
 
 def _open_export(path: Path) -> Sdf.Layer:
@@ -68,6 +87,60 @@ def _refuse_writing_over_inputs(out: Path, export: Path, original_path) -> None:
         )
 
 
+def _bounds(stage: Usd.Stage, time) -> dict[str, np.ndarray]:
+    """World-space bounds (min, max) of every mesh outside the people, by path."""
+    cache = UsdGeom.BBoxCache(time, [UsdGeom.Tokens.default_], useExtentsHint=False)
+    out = {}
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Mesh) and not str(prim.GetPath()).startswith(str(SCOPES["humans"])):
+            r = cache.ComputeWorldBound(prim).ComputeAlignedRange()
+            out[str(prim.GetPath())] = np.array([r.GetMin(), r.GetMax()], float)
+    return out
+
+
+def moved_meshes(adopted: Usd.Stage, original: Usd.Stage) -> list[str]:
+    """Meshes of ``adopted`` that are new or whose world bounds differ from ``original``'s at
+    the first frame (people: their SkelRoot's transform), by more than :data:`MOVED_M`."""
+    t = Usd.TimeCode(adopted.GetStartTimeCode())
+    new, old = _bounds(adopted, t), _bounds(original, t)
+    moved = [p for p, b in new.items() if p not in old or np.abs(b - old[p]).max() > MOVED_M]
+    humans = adopted.GetPrimAtPath(SCOPES["humans"])
+    if humans:
+        for person in humans.GetChildren():
+            before = original.GetPrimAtPath(person.GetPath())
+            a = UsdGeom.Xformable(person).ComputeLocalToWorldTransform(t)
+            b = UsdGeom.Xformable(before).ComputeLocalToWorldTransform(t) if before else None
+            if b is None or np.abs(np.asarray(a) - np.asarray(b)).max() > MOVED_M:
+                moved.append(str(person.GetPath()))
+    return moved
+
+
+def _thermal_layer(scenario: Scenario, adopted: Sdf.Layer, original, report: AdoptReport) -> Sdf.Layer:
+    """The thermal tool's layer for the adopted stage (see the module doc)."""
+    recorded = dict(original.GetRootLayer().customLayerData).get("humv:scenarioDigest") if original else None
+    if recorded is not None and recorded != scenario.digest():
+        where = scenario.path or "the scenario"
+        raise InputError(
+            bad_value(
+                "--scenario",
+                str(where),
+                f"not the scenario --from was composed from (digest {scenario.digest()}, the stage "
+                f"records {recorded}): give that scenario file",
+            )
+        )
+    # the tool's input is the geometry, not the temperatures of the original scene: without
+    # them its rule "no per-face data" lets it re-tessellate the ground at the new shadow edges
+    upstream = compose_in_memory([without_temperatures(adopted)], scenario["general"]["fps"])
+    try:
+        layer = thermal_tool.build(scenario, upstream)
+    except Tf.ErrorException as exc:
+        raise InputError(
+            f"--scenario: the thermal tool cannot read the adopted stage ({usd_error_text(exc)})"
+        ) from None
+    # new meshes keep the held temperature adopt gave them (the weaker adopted layer's)
+    return without_temperatures(layer, report.new_meshes)
+
+
 def adopt(
     export_path,
     out_dir,
@@ -76,8 +149,11 @@ def adopt(
     fps: float | None = None,
     temperature_k: float | None = None,
     label_class: str = "other",
+    scenario: Scenario | None = None,
 ) -> tuple[Path, AdoptReport]:
     """Adopt the Blender export ``export_path`` into ``out_dir``; returns (stage path, report).
+    ``scenario``: the scenario the ``original_path`` stage was composed from; the thermal tool
+    then recomputes the temperatures of the adopted stage (``layers/thermal.usda``).
 
     Raises
     ------
@@ -97,6 +173,17 @@ def adopt(
         raise InputError(
             f"BLENDER_EXPORT {str(export_path)!r}: cannot adopt ({usd_error_text(exc)})"
         ) from None
+    thermal = _thermal_layer(scenario, layer, original, report) if scenario is not None else None
+    if scenario is None and original is not None:
+        moved = moved_meshes(Usd.Stage.Open(layer), original)
+        if moved:
+            shown = ", ".join(moved[:4]) + (f" and {len(moved) - 4} more" if len(moved) > 4 else "")
+            log.warning(
+                "moved or new since --from: %s; their shadows and the temperatures of the surfaces "
+                "around them are the original scene's: pass --scenario (the scenario --from was "
+                "composed from) to recompute them",
+                shown,
+            )
     root = Sdf.Layer.CreateAnonymous("stage.usda")
     frames = int(layer.endTimeCode - layer.startTimeCode) + 1
     set_layer_metadata(
@@ -110,8 +197,12 @@ def adopt(
         }
     data["humv:adoptedFrom"] = str(export_path)
     root.customLayerData = data
+    files = {out / ADOPTED_LAYER: layer.ExportToString()}
+    if thermal is not None:
+        root.subLayerPaths.append("./" + THERMAL_LAYER)
+        files[out / THERMAL_LAYER] = layer_text(thermal)
     root.subLayerPaths.append("./" + ADOPTED_LAYER)
+    files[out / "stage.usda"] = root.ExportToString()
     (out / "layers").mkdir(parents=True, exist_ok=True)
-    write_text_atomic(out / ADOPTED_LAYER, layer.ExportToString())
-    write_text_atomic(out / "stage.usda", root.ExportToString())
+    commit_files(out, files)
     return out / "stage.usda", report

@@ -51,7 +51,7 @@ from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.budget import compose_budget, require_fits
 from humv_usd.pipeline.graph import Node, build_order, discover_tools, layer_graph, strength_order
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.scenario.inputs import file_digest, inputs_key, read_values
 from humv_usd.scenario.warnings import suspicious
 from humv_usd.usd.layers import (
     LAYER_KEYS,
@@ -350,7 +350,7 @@ def _user_layers(out: Path):
                 f"{root_path}: user sublayer {sub}: {file} {problem}; fix it or remove it from the root"
             )
             continue
-        hashes[sub] = hashlib.sha256(file.read_bytes()).hexdigest()[:16]
+        hashes[sub] = file_digest(file)  # with the files it references: a referenced edit counts
     root.subLayerPaths = [s for s in root.subLayerPaths if _owned(s)]
     return user, hashes, _sha(layer_text(root)), errors
 

@@ -65,8 +65,28 @@ def _carries_rifle(scenario: Scenario, human_id: str) -> bool:
     return human is not None and RIFLE in (human.get("clothing") or ())
 
 
+def _crowd(scenario: Scenario, human_id: str) -> list | None:
+    """Where everybody starts and goes, for a person who avoids the others (placement
+    ``avoidance``; None when they do not): their avoided path depends on all of these."""
+    place = next((p for p in scenario["placement"] if p["human"] == human_id), None)
+    if place is None or place.get("avoidance", "none") == "none":
+        return None
+    moves = {h["id"]: (h["activity"], h.get("speed_m_s")) for h in scenario["human"]}
+    return [
+        {
+            "human": p["human"],
+            "position_m": list(p["position_m"][:2]),
+            "heading_deg": p["heading_deg"],
+            "waypoints_m": [list(w) for w in p["waypoints_m"]],
+            "activity": moves.get(p["human"], ("stand", None))[0],
+            "speed_m_s": moves.get(p["human"], ("stand", None))[1],
+        }
+        for p in scenario["placement"]
+    ]
+
+
 #: values derived for one person: ``"@name[{id}]"``
-DERIVED_PER_PERSON = {"@instanceId": _instance_id, "@carriesRifle": _carries_rifle}
+DERIVED_PER_PERSON = {"@instanceId": _instance_id, "@carriesRifle": _carries_rifle, "@crowd": _crowd}
 
 
 def _file_keys(sections) -> frozenset[str]:
@@ -140,12 +160,20 @@ def _plain(value):
 
 
 def _file_value(path: str) -> str:
+    return f"{path} sha256:{file_digest(path)}"
+
+
+def file_digest(path) -> str:
+    """Content hash of a file; of a USD file together with every file it pulls in (sublayers,
+    references, payloads, asset paths: :func:`_with_usd_dependencies`). Compose keys the user
+    layers of a stage by it, so an edit of a file a user layer references rebuilds the layers
+    that read the composed stage (the thermal layer's shadows follow a moved or new object)."""
     p = Path(path)
     stat = p.stat()
     digest = _file_hash(str(p), stat.st_size, stat.st_mtime_ns)
     if p.suffix.lower() in USD_SUFFIXES:
         digest = _with_usd_dependencies(str(p), digest)
-    return f"{path} sha256:{digest}"
+    return digest
 
 
 #: file suffixes of USD files, whose layers, references, payloads and assets count too

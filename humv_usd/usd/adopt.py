@@ -457,6 +457,25 @@ def adopt_new_meshes(
 
 
 # ------------------------------------------------------------------------------ all steps
+def without_temperatures(layer: Sdf.Layer, prims=None) -> Sdf.Layer:
+    """A copy of ``layer`` without per-face temperature primvars (on the prims at ``prims``
+    only, when given): the thermal tool's output, stale once geometry moved (issue 27)."""
+    out = Sdf.Layer.CreateAnonymous(".usda")
+    out.TransferContent(layer)
+    wanted = None if prims is None else {Sdf.Path(str(p)) for p in prims}
+    found = []
+
+    def visit(path: Sdf.Path) -> None:
+        if path.IsPropertyPath() and path.name == S.TEMPERATURE_PRIMVAR:
+            if wanted is None or path.GetPrimPath() in wanted:
+                found.append(path)
+
+    out.Traverse(Sdf.Path.absoluteRootPath, visit)
+    for path in found:
+        out.GetPrimAtPath(path.GetPrimPath()).RemoveProperty(out.GetPropertyAtPath(path))
+    return out
+
+
 def adopt_blender_export(
     export: Sdf.Layer,
     original: Usd.Stage | None = None,
