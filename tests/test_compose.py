@@ -245,3 +245,19 @@ def test_usd_tools_see_schemas_without_humv(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     has_api, netd = r.stdout.split()
     assert has_api == "True" and float(netd) == pytest.approx(0.05), r.stderr
+
+
+def test_solved_meshes_are_the_drawn_meshes(composed, humvvex_raw):
+    """The thermal tool solves the scene meshes the render draws (one reader,
+    humv_usd.usd.mesh.scene_mesh_prims), and every drawn mesh has face temperatures."""
+    from humv_usd.render.scene_export import SceneMeshes
+    from humv_usd.thermal.surfaces import scene_meshes
+    from humv_usd.usd.layers import SCOPES
+    from humv_usd.usd.thermal import has_face_temperatures
+
+    _, _, stage = composed
+    drawn = [p for p in SceneMeshes(stage).prims]
+    humans = str(SCOPES["humans"])
+    solved = {m.path for m in scene_meshes(stage, validate(humvvex_raw))}
+    assert solved == {str(p.GetPath()) for p in drawn if not str(p.GetPath()).startswith(humans)}
+    assert all(has_face_temperatures(p) for p in drawn)

@@ -6,7 +6,8 @@ triangulated as fans (:func:`humv_usd.geometry.mesh.fan_triangulate`).
 
 What is read
 ------------
-- every ``UsdGeom.Mesh`` with purpose default/render (instance proxies included);
+- every ``UsdGeom.Mesh`` with purpose default/render (instance proxies included):
+  :func:`humv_usd.usd.mesh.scene_mesh_prims`, the rule the thermal tool solves by too;
 - per mesh, once (topology must not change over time): fan triangles with a triangle ->
   authored-face map, one :class:`Part` per bound material (``GeomSubset`` material bindings
   first, the rest on the mesh's own binding; materials through
@@ -42,6 +43,7 @@ from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.usd.labels import instance_id, nearest_class, nearest_instance_id
 from humv_usd.usd.layers import attribute_value
 from humv_usd.usd.materials import StageMaterial, bound_material, face_materials, read_material
+from humv_usd.usd.mesh import TRAVERSAL, scene_mesh_prims
 
 #: A material as the render reads it (:func:`humv_usd.usd.materials.read_material`).
 Material = StageMaterial
@@ -99,18 +101,7 @@ def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 
 def _traverse(stage: Usd.Stage):
-    return stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate))
-
-
-def _rendered_meshes(stage: Usd.Stage) -> list[Usd.Prim]:
-    out = []
-    for prim in _traverse(stage):
-        if not prim.IsA(UsdGeom.Mesh):
-            continue
-        purpose = UsdGeom.Imageable(prim).ComputePurpose()
-        if purpose in (UsdGeom.Tokens.default_, UsdGeom.Tokens.render):
-            out.append(prim)
-    return out
+    return stage.Traverse(TRAVERSAL)
 
 
 class SceneMeshes:
@@ -120,7 +111,7 @@ class SceneMeshes:
     def __init__(self, stage: Usd.Stage):
         self.stage = stage
         self.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
-        self.prims = _rendered_meshes(stage)
+        self.prims = scene_mesh_prims(stage)  # the thermal tool solves the same meshes
         self.skinned = self._find_skinned()
         self._mesh_cache: dict[str, MeshInfo] = {}
         self._materials: dict[str, Material] = {}
@@ -133,9 +124,8 @@ class SceneMeshes:
         if not roots:
             return {}
         self._skel_cache = UsdSkel.Cache()
-        predicate = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
         for root in roots:
-            self._skel_cache.Populate(UsdSkel.Root(root), predicate)
+            self._skel_cache.Populate(UsdSkel.Root(root), TRAVERSAL)
         out = {}
         for prim in self.prims:
             query = self._skel_cache.GetSkinningQuery(prim)

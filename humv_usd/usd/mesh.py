@@ -123,3 +123,25 @@ def read_asset_source(prim: Usd.Prim) -> dict | None:
             return dict(value)
         p = p.GetParent()
     return None
+
+
+#: The one traversal rule for scene geometry, shared by the render
+#: (:class:`humv_usd.render.scene_export.SceneMeshes`), the thermal tool
+#: (:func:`humv_usd.thermal.surfaces.scene_meshes` and the layer it writes) and the editor's view:
+#: active, loaded, defined, non-abstract prims, through instance proxies.
+TRAVERSAL = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+#: Mesh purposes that are drawn, and so solved: ``guide`` and ``proxy`` meshes are neither.
+DRAWN_PURPOSES = (UsdGeom.Tokens.default_, UsdGeom.Tokens.render)
+
+
+def is_drawn_mesh(prim: Usd.Prim) -> bool:
+    """Whether ``prim`` is a ``UsdGeom.Mesh`` the render draws (purpose default or render)."""
+    return prim.IsA(UsdGeom.Mesh) and UsdGeom.Imageable(prim).ComputePurpose() in DRAWN_PURPOSES
+
+
+def scene_mesh_prims(stage: Usd.Stage, root: Usd.Prim | None = None) -> list[Usd.Prim]:
+    """Every drawn mesh of ``stage`` (or of the subtree at ``root``) in traversal order, by
+    :data:`TRAVERSAL` and :func:`is_drawn_mesh`: what the render draws is what the thermal tool
+    solves."""
+    prims = stage.Traverse(TRAVERSAL) if root is None else Usd.PrimRange(root, TRAVERSAL)
+    return [p for p in prims if is_drawn_mesh(p)]
