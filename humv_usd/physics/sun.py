@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from humv_usd.compat import trapezoid
+
 
 @dataclass
 class SunState:
@@ -148,4 +150,4 @@ def solar_absorptivity(wavelengths_um, reflectance, transmittance=None) -> float
     lost = np.interp(ref_wl, wl, np.asarray(reflectance, dtype=float))
     if transmittance is not None:
         lost = lost + np.interp(ref_wl, wl, np.asarray(transmittance, dtype=float))
-    return float(1.0 - np.trapz(lost * ref_e, ref_wl) / np.trapz(ref_e, ref_wl))
+    return float(1.0 - trapezoid(lost * ref_e, ref_wl) / trapezoid(ref_e, ref_wl))
