@@ -350,18 +350,18 @@ def test_scenario_values_that_crashed_or_were_cut_are_one_line(tmp_path, old, ne
     assert not (tmp_path / "o").exists()
 
 
-def test_swir_is_named_as_not_rendered_and_skin_is_no_ground(humvvex_raw):
+def test_vnir_is_named_as_not_rendered_and_skin_is_no_ground(humvvex_raw):
     import copy
 
     from humv_usd.scenario.load import validate
 
     raw = copy.deepcopy(humvvex_raw)
-    raw["sensor"][0]["band"] = "SWIR"
+    raw["sensor"][0]["band"] = "VNIR"  # SWIR and NIR are rendered (issue 24.3)
     raw["scene"]["ground"]["material"] = "skin"
     with pytest.raises(InputError) as info:
         validate(raw)
     band = next(p for p in info.value.problems if "band" in p)
-    assert "SWIR, 0.9-1.7 µm, is not rendered yet" in band and "did you mean" not in band
+    assert "VNIR, 0.4-1.0 µm, is not rendered yet" in band and "did you mean" not in band
     ground = next(p for p in info.value.problems if "ground.material" in p)
     assert "allowed values: concrete," in ground and "skin" not in ground.split("allowed values:")[1]
 

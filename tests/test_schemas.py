@@ -46,7 +46,7 @@ ALLOWED_TOKENS = {
     hs.AVATAR_FITNESS: ["low", "average", "high", "athlete"],
     hs.AVATAR_ACTIVITY: ["stand", "standTurn", "walk", "run", "postExercise"],
     hs.THERMAL_MODEL: ["fixed", "twoNode", "jos3", "slab", "balance"],
-    hs.SENSOR_BAND: ["EO", "MWIR", "LWIR"],
+    hs.SENSOR_BAND: ["EO", "NIR", "SWIR", "MWIR", "LWIR"],
     hs.SENSOR_PLATFORM: ["tripod", "mast", "aerial", "vehicle", "drone", "handheld"],
     hs.SENSOR_AGC: ["none", "linear", "histogram", "plateau"],
     hs.SENSOR_VIGNETTING: ["none", "cos4"],

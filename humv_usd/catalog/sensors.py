@@ -299,6 +299,57 @@ PRESETS: dict[str, SensorPreset] = {
             "response plot of Sony colour Pregius data sheets, typical not measured; 12 mm "
             "f/2.8 lens (HFOV 23.3 deg) typical",
         ),
+        SensorPreset(
+            name="swir_ingaas640",
+            description="InGaAs SWIR camera, 640x512, 15 um, 0.9-1.7 um, 25 mm f/1.4",
+            band="SWIR",
+            wavelength_um=(0.9, 1.7),
+            response_wavelengths_um=(0.9, 0.95, 1.0, 1.1, 1.3, 1.5, 1.6, 1.65, 1.7),
+            response=(0.25, 0.65, 0.82, 0.92, 1.0, 1.0, 0.93, 0.65, 0.15),
+            resolution=(640, 512),
+            pixel_pitch_um=15.0,
+            focal_length_mm=25.0,
+            f_number=1.4,
+            netd_k=0.0,
+            bit_depth=14,
+            agc="linear",
+            agc_percentiles=(0.5, 99.5),
+            full_well_e=170000.0,
+            read_noise_e=50.0,
+            offset=0.0,
+            source="640x512 InGaAs focal plane, 15 um pitch, 0.9-1.7 um, 14-bit: typical of "
+            "uncooled/TE-stabilised SWIR cameras (e.g. Collins Aerospace / Sensors Unlimited "
+            "GA640, Xenics Bobcat-640); response: InGaAs quantum efficiency, cut on by the InP "
+            "substrate near 0.9 um, flat 1.1-1.6 um, cut off by the In0.53Ga0.47As band gap at "
+            "1.7 um (Rogalski, Infrared Detectors, 2nd ed., 2011, ch. 15; shape typical); full "
+            "well 170 ke- and read noise 50 e- typical of the high-gain CTIA mode of such "
+            "read-out circuits, not one product's data; 25 mm f/1.4 SWIR lens typical",
+        ),
+        SensorPreset(
+            name="nir_imx273",
+            description="Monochrome global-shutter CMOS (Sony IMX273) behind a 750 nm long-pass "
+            "filter: NIR 0.75-1.0 um, 1440x1080, 3.45 um, 12 mm f/2.8",
+            band="NIR",
+            wavelength_um=(0.75, 1.0),
+            response_wavelengths_um=(0.75, 0.8, 0.85, 0.9, 0.95, 1.0),
+            response=(1.0, 0.82, 0.62, 0.42, 0.24, 0.1),
+            resolution=(1440, 1080),
+            pixel_pitch_um=3.45,
+            focal_length_mm=12.0,
+            f_number=2.8,
+            netd_k=0.0,
+            bit_depth=12,
+            agc="linear",
+            agc_percentiles=(0.0, 99.5),
+            full_well_e=10500.0,
+            read_noise_e=2.4,
+            offset=0.0,
+            source="Sony IMX273 (mono) 1440x1080, 3.45 um, 12-bit, saturation ~10.5 ke-, dark "
+            "noise ~2.4 e-: as rgb_imx273 (FLIR Blackfly S EMVA 1288 reports); response: "
+            "silicon quantum efficiency falling from 750 nm to the 1.1 um band gap (relative "
+            "values read from the Pregius mono QE curve, typical) behind a 750 nm long-pass "
+            "filter; 12 mm f/2.8 lens typical",
+        ),
     )
 }
 
@@ -319,7 +370,7 @@ def calibration(name: str) -> tuple[float | None, float]:
     no gain (auto exposure).
     """
     p = preset(name)
-    if p.band == "EO":
+    if p.band in ("EO", "NIR", "SWIR"):  # reflected light: auto exposure (physics.sensor)
         return p.gain, p.offset or 0.0
     model = SensorModel(
         name=p.name,

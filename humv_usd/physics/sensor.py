@@ -15,6 +15,9 @@ Input of :func:`apply_chain`:
   the sensor's relative spectral response (``humv:sensor:response``) exactly as
   :func:`humv_usd.physics.planck.band_radiance` does with that response (peak-normalised,
   not area-normalised).
+* **NIR, SWIR** (reflected light, :data:`REFLECTIVE_BANDS`): band radiance ``(H, W)`` as for IR;
+  the noise is photon shot noise + read noise of the photoelectrons an auto exposure capped at
+  :data:`EO_MAX_EXPOSURE_S` collects (:func:`photoelectrons_per_input`), not a NETD.
 * **EO**: linear *camera RGB*, ``(H, W, 3)``: per-channel radiance integrated over the
   channel responses ``humv:sensor:channelResponse`` (R, G, B) [W m^-2 sr^-1] or any quantity
   proportional to it (the exposure is automatic unless ``gain`` is authored). Use
@@ -44,10 +47,14 @@ import numpy as np
 from scipy import fft as sp_fft
 from scipy import special
 
+from humv_usd.compat import trapezoid
 from humv_usd.constants import PLANCK_CONSTANT, SPEED_OF_LIGHT
 from humv_usd.physics import planck
 
-BANDS = ("EO", "MWIR", "LWIR")
+BANDS = ("EO", "NIR", "SWIR", "MWIR", "LWIR")
+#: Bands rendered by the sub-band pass whose signal is reflected light: the chain counts their
+#: photoelectrons (shot + read noise, exposure) instead of a NETD; their output is radiance.
+REFLECTIVE_BANDS = ("NIR", "SWIR")
 #: A sensor is infrared (rendered by the IR render) when its band starts at or above this
 #: wavelength [um]; below it, or with band "EO", it is rendered spectrally in the visible.
 INFRARED_MIN_UM = 3.0
@@ -78,6 +85,10 @@ EO_MAX_EXPOSURE_S = 1.0 / 30.0
 #: front/back-illuminated silicon CMOS 0.6-0.8 at 500-600 nm (Sony IMX273: ~0.7 at 525 nm,
 #: EMVA 1288 data of machine-vision cameras using it), 0.65 taken.
 QUANTUM_EFFICIENCY = 0.65
+#: The same for the reflective infrared bands: silicon at 0.75-1.0 um 0.2-0.5 (falling to the
+#: 1.1 um band gap; NIR-enhanced CMOS data sheets), 0.35 taken; InGaAs 0.7-0.85 over 1.0-1.6 um
+#: (Hamamatsu G12242, Sensors Unlimited GA1280J data sheets), 0.75 taken.
+QUANTUM_EFFICIENCY_BY_BAND = {"EO": QUANTUM_EFFICIENCY, "NIR": 0.35, "SWIR": 0.75}
 #: Largest digital gain of the EO display: the AGC's white level is at least full scale / this
 #: (24 dB, the usual upper limit of a camera's automatic gain), so that a frame of read noise is
 #: shown dark, not stretched to full brightness.
@@ -99,17 +110,24 @@ def photoelectrons_per_input(model: SensorModel, exposure_s: float) -> float:
     .. math:: N_e = \frac{\pi L}{4 N^2}\,p^2\,t\,\eta\,\frac{\lambda}{h c}
 
     with N the f-number, p the pixel pitch, t the exposure, :math:`\eta` =
-    :data:`QUANTUM_EFFICIENCY` and the photon energy at 0.555 um (the peak of y-bar).
+    :data:`QUANTUM_EFFICIENCY` and the photon energy at 0.555 um (the peak of y-bar). For NIR and
+    SWIR the input is the band radiance L itself (the render's response-weighted radiance),
+    :math:`\eta` from :data:`QUANTUM_EFFICIENCY_BY_BAND` and the photon energy at the band's
+    centre.
     """
-    band_per_unit = 106.856895  # [nm]: v [W m-2 sr-1 nm-1] -> v * 106.857 [W m-2 sr-1]
-    wavelength_m = 0.555e-6
+    if model.band == "EO":
+        band_per_unit = 106.856895  # [nm]: v [W m-2 sr-1 nm-1] -> v * 106.857 [W m-2 sr-1]
+        wavelength_m = 0.555e-6
+    else:  # NIR, SWIR: the input is the response-weighted band radiance [W m-2 sr-1]
+        band_per_unit = 1.0
+        wavelength_m = 0.5e-6 * (model.wavelength_range_um[0] + model.wavelength_range_um[1])
     focal_irradiance = math.pi / (4.0 * float(model.f_number) ** 2) * band_per_unit
     photons_per_joule = wavelength_m / (PLANCK_CONSTANT * SPEED_OF_LIGHT)
     return (
         focal_irradiance
         * float(model.pixel_pitch_m) ** 2
         * float(exposure_s)
-        * QUANTUM_EFFICIENCY
+        * QUANTUM_EFFICIENCY_BY_BAND.get(model.band, QUANTUM_EFFICIENCY)
         * photons_per_joule
     )
 
@@ -317,8 +335,15 @@ class SensorModel:
 
     @property
     def kind(self) -> str:
-        """ "EO" (spectral render in the visible) or "IR" (sub-band render)."""
-        return "EO" if (self.band == "EO" or self.wavelength_range_um[0] < INFRARED_MIN_UM) else "IR"
+        """ "EO" (spectral render in the visible, band "EO") or "IR" (sub-band render: MWIR,
+        LWIR and the reflective NIR and SWIR). A band's range is checked against the band where
+        the sensor is read (:func:`humv_usd.usd.sensor.read_sensor`), never reinterpreted."""
+        return "EO" if self.band == "EO" else "IR"
+
+    @property
+    def is_reflective(self) -> bool:
+        """NIR or SWIR: a sub-band render whose output is radiance and photoelectrons."""
+        return self.band in REFLECTIVE_BANDS
 
     @property
     def rendered(self) -> bool:
@@ -624,7 +649,7 @@ def integrate_response(wavelengths_um, spectral_radiance, model: SensorModel) ->
         else model.response[None, :]
     )
     r = np.stack([np.interp(wl, model.response_wavelengths_um, c, left=0.0, right=0.0) for c in curves])
-    out = np.stack([np.trapz(spec * rc, wl, axis=-1) for rc in r], axis=-1)
+    out = np.stack([trapezoid(spec * rc, wl, axis=-1) for rc in r], axis=-1)
     return out[..., 0] if model.is_infrared else out
 
 
@@ -1144,7 +1169,9 @@ def apply_chain(
     # 2-3. noise, gain/offset, counts
     if reference_temperature_k is None:
         reference_temperature_k = float(model.reference_temperature_k)
-    if model.is_infrared:
+    if model.is_reflective:  # NIR, SWIR: photoelectrons of a capped auto exposure
+        x, gain, offset, gain_source, noise_sigma, settings["noise"] = _photon_stage(model, x, rng, noise)
+    elif model.is_infrared:
         sigma = noise_sigma_radiance(model, reference_temperature_k) if noise else 0.0
         if sigma > 0:
             x = x + rng.normal(0.0, sigma, size=x.shape)
@@ -1230,6 +1257,49 @@ def apply_chain(
         settings["compression"] = None
     return ChainOutput(
         counts=counts, image8=image8, radiance=x, noise_sigma=float(noise_sigma), settings=settings
+    )
+
+
+def _photon_stage(model: SensorModel, x, rng, noise: bool):
+    """Reflective infrared (NIR, SWIR) detector: auto exposure (the 99.5th percentile at 80 % of
+    the full well, exposure at most :data:`EO_MAX_EXPOSURE_S`) or the authored gain, Poisson
+    shot noise on the photoelectrons :func:`photoelectrons_per_input` plus Gaussian read noise
+    (EMVA 1288), as the EO chain on one channel. Returns (radiance with noise, gain [counts per
+    W m-2 sr-1], offset, gain source, noise sigma at half full well [W m-2 sr-1], settings)."""
+    if model.gain is None:
+        level = float(np.percentile(x, EO_AUTO_EXPOSURE_PERCENTILE)) if x.size else 0.0
+        l_floor = model.full_well_e / photoelectrons_per_input(model, EO_MAX_EXPOSURE_S)
+        l_sat = max(level / EO_AUTO_EXPOSURE_FILL, l_floor)
+        source = (
+            f"auto exposure: {EO_AUTO_EXPOSURE_PERCENTILE:g}th percentile at {EO_AUTO_EXPOSURE_FILL:.0%} "
+            "of full well"
+            + (f", exposure capped at {EO_MAX_EXPOSURE_S:.4g} s (low light)" if l_sat == l_floor else "")
+        )
+        offset = model.offset
+        gain = (model.max_count - offset) / l_sat
+    else:
+        gain, offset, source = model.gain, model.offset, "authored"
+        l_sat = (model.max_count - offset) / gain
+    e_per_unit = model.full_well_e / l_sat
+    if noise:
+        electrons = rng.poisson(np.clip(x, 0.0, None) * e_per_unit).astype(float)
+        x = (electrons + rng.normal(0.0, model.read_noise_e, size=x.shape)) / e_per_unit
+    sigma = math.sqrt(0.5 * model.full_well_e + model.read_noise_e**2) / e_per_unit if noise else 0.0
+    exposure_s = model.full_well_e / (l_sat * photoelectrons_per_input(model, 1.0))
+    return (
+        x,
+        gain,
+        offset,
+        source,
+        sigma,
+        {
+            "model": "shot (Poisson) + read (Gaussian), EMVA 1288",
+            "full_well_e": model.full_well_e,
+            "read_noise_e": model.read_noise_e,
+            "quantum_efficiency": QUANTUM_EFFICIENCY_BY_BAND[model.band],
+            "exposure_s": exposure_s,
+            "saturation_input": l_sat,
+        },
     )
 
 

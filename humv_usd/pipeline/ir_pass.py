@@ -18,7 +18,7 @@ from humv_usd.geometry.camera import CAMERA_FILE, Camera
 from humv_usd.physics import planck
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline.manifest import ErrorAccumulator
-from humv_usd.render import bands, radiometry
+from humv_usd.render import bands, nightlight, radiometry
 from humv_usd.render import estimator as E
 from humv_usd.render import quality as Q
 from humv_usd.render.frame import path_table as read_path_table
@@ -33,6 +33,8 @@ AUTO_SEED_STRIDE = Q.AUTO_SEED_STRIDE
 AUTO_MAX_SPP = Q.AUTO_MAX_SPP
 AUTO_NETD_FRACTION = Q.AUTO_NETD_FRACTION
 AUTO_P99_K = Q.AUTO_P99_K
+#: Grid [um] of the night light added to NIR/SWIR sensors (render.nightlight: 5 nm, 0.36-2.5 um).
+_NIGHT_WL = np.arange(0.36, 2.5 + 1e-9, 0.005)
 
 
 def _needs_more_samples(plan, sensor, noise: dict, batches: int, regions: dict | None = None) -> bool:
@@ -121,6 +123,10 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         read_path_table(plan.stage, s, light.time_code),
         dni_w_m2=light.dni_w_m2,
     )
+    if s.is_reflective and (
+        night := nightlight.night_light(plan.stage, light.time_code, light.sun_direction, _NIGHT_WL)
+    ):
+        nightlight.add_to_subbands(frame_rad, night, sub, _NIGHT_WL)  # twilight, moon, airglow
     t = _tick(run, timings, "load_export", t)
 
     renderer = band_renderer(plan.estimator)
@@ -224,8 +230,12 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
     chained = run.chains.apply(s, m1, frame)  # sensor chain: the single call site for IR
     camera = Camera.from_pose(state.cameras[s.name], m1.shape[1], m1.shape[0])
     run.per_sensor[s.name]["cameras"].append((frame, camera))
-    levels = writers.preview_levels(bt)
-    grey = preview_grey(bt, levels)
+    # NIR/SWIR (reflected light): the output is radiance; a brightness temperature means nothing
+    shown = m1 if s.is_reflective else bt
+    if s.is_reflective:
+        bt = np.full(bt.shape, np.nan)
+    levels = writers.preview_levels(shown)
+    grey = preview_grey(shown, levels)
     channels = {
         "R": grey,
         "G": grey,
@@ -238,6 +248,8 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         **labels.channels,
         **({} if chained is None else {"counts": chained.counts.astype(np.float32)}),
     }
+    if s.is_reflective:
+        del channels["brightness_temperature"]
     run.write(
         rel + ".exr",
         writers.write_exr,
@@ -250,15 +262,17 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             "humv:spp": str(plan.spp * pooled.count),  # automatic quality: the samples spent
             "humv:quality_met": str(judged["met"]),
             "humv:subbands": str(len(sub)),
-            "humv:preview": "R=G=B: brightness temperature stretched as the PNG (0 at the 1st, "
-            "1 at the 99th percentile); display only",
+            "humv:preview": f"R=G=B: {'radiance' if s.is_reflective else 'brightness temperature'} "
+            "stretched as the PNG (0 at the 1st, 1 at the 99th percentile); display only",
             "humv:camera": os.path.join(s.name, CAMERA_FILE),
             **camera.exr_header(),
         },
         half=("R", "G", "B"),
     )
     plan.truth.image_written(rel, channels)
-    run.write(rel + ".png", writers.write_preview_png, os.path.join(plan.out_dir, rel + ".png"), bt, levels)
+    run.write(
+        rel + ".png", writers.write_preview_png, os.path.join(plan.out_dir, rel + ".png"), shown, levels
+    )
     chain_record = run.chains.write(chained, plan.out_dir, rel, write=run.write)
     _tick(run, timings, "write", t)  # in the foreground: queueing (the writer's time is write_background)
 

@@ -53,7 +53,8 @@ class StageExport:
         time = Usd.TimeCode(frame)
         cache = UsdGeom.XformCache(time)
         state = FrameState(frame=frame, meshes=[])
-        infrared = any(s.kind != "EO" for s in sensors)
+        # emission needs temperatures; NIR/SWIR read them where the thermal layer has them
+        infrared = any(s.kind != "EO" and not s.is_reflective for s in sensors)
         state.sky_temperature_k = sky_temperature(self.stage, time) if infrared else float("nan")
         for prim in self.meshes.prims:
             if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:

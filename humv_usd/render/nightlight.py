@@ -117,3 +117,25 @@ def night_light(stage, time_code, sun_direction, wavelengths_um) -> NightLight |
             )
     ran["clouds"] = "clear sky assumed after sunset (cloud cover not applied)"
     return NightLight(sky=sky, moon_direction=moon_dir, moon_irradiance=moon_e, ran=ran)
+
+
+def add_to_subbands(frame_rad, night: NightLight, sub, wavelengths_um) -> None:
+    """Add a frame's night light to an infrared sensor's sub-band radiometry (NIR, SWIR) in place:
+    the uniform night sky integrated per sub-band with the response (:meth:`SubBands.integrate`)
+    onto the sky (constant or every row of the envmaps) and, when the sun is down and the moon up,
+    the moon as the directional source. ``frame_rad``: a
+    :class:`humv_usd.render.radiometry.FrameRadiometry`; ``ran`` gets ``night``."""
+    wl = np.asarray(wavelengths_um, dtype=float)
+    per_k = sub.integrate(wl, night.sky)  # (n,) [W m-2 sr-1]
+    if frame_rad.sky_maps is not None:
+        frame_rad.sky_maps = [np.asarray(m, float) + per_k[k] for k, m in enumerate(frame_rad.sky_maps)]
+    else:
+        base = np.zeros(len(sub)) if frame_rad.sky_constant is None else np.nan_to_num(frame_rad.sky_constant)
+        frame_rad.sky_constant = base + per_k
+    frame_rad.ran["night"] = night.ran
+    if night.moon_direction is not None and frame_rad.sun_direction is None:
+        frame_rad.sun_direction = np.asarray(night.moon_direction, float)
+        frame_rad.sun_irradiance = sub.integrate(wl, night.moon_irradiance)
+        frame_rad.ran["sun"] = (
+            f"{frame_rad.ran.get('sun')}; the moon takes the directional light (night.moon)"
+        )

@@ -49,6 +49,11 @@ from humv_usd.usd.materials import band_mean
 DEFAULT_SUBBANDS = _spec.DEFAULT_SUBBANDS
 #: Largest accepted sub-band count.
 MAX_SUBBANDS = _spec.MAX_SUBBANDS
+#: Bands ending at or below this wavelength [um] are rendered from reflected light first (NIR,
+#: SWIR): a face or sky without a temperature (no thermal layer; the scenario asks for none
+#: without a MWIR/LWIR sensor) emits nothing there instead of NaN. At 2.5 um a 310 K surface
+#: emits 0.3 % of the radiance of a white one under a 1000 W m-2 sun.
+REFLECTIVE_LIMIT_UM = 2.5
 #: Uniform quadrature nodes per sub-band (table and response wavelengths are added).
 NODES_PER_SUBBAND = 65
 
@@ -145,7 +150,10 @@ class SubBands:
         (:func:`planck.band_radiance_tabulated`: the exact quadrature of :func:`planck.band_radiance`
         to about 1e-9 relative, tested to 1e-6), so per-frame face tables cost an interpolation."""
         t = np.asarray(temperature_k, dtype=float)
-        return np.stack([planck.band_radiance_tabulated(t, b, self.response) for b in self.bands], axis=-1)
+        out = np.stack([planck.band_radiance_tabulated(t, b, self.response) for b in self.bands], axis=-1)
+        if self.band[1] <= REFLECTIVE_LIMIT_UM:  # NIR/SWIR without a thermal layer: no emission
+            out = np.nan_to_num(out, nan=0.0)
+        return out
 
     def emissivity(self, wavelengths_um, emissivity) -> np.ndarray:
         """Sub-band emissivity (n,): Planck (EMISSIVITY_WEIGHTING_TEMPERATURE_K) and response weighted

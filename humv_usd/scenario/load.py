@@ -512,8 +512,8 @@ def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
         and s["f_number"] != values.get("f_number")
     ):
         s["netd_k"] = netd_for_f_number(values["netd_k"], values["f_number"], s["f_number"])
-    if s.get("band") == "EO" and not values and not gain_given:
-        s["gain"] = None  # EO without a gain: auto exposure
+    if s.get("band") in ("EO", "NIR", "SWIR") and not gain_given and values.get("band") != s["band"]:
+        s["gain"] = None  # reflected light without a gain: auto exposure
     if s.get("wavelength_um") is None and s.get("band") is not None:
         s["wavelength_um"] = list(BAND_DEFAULT_UM[s["band"]])
     for name in ("resolution", "focal_length_mm"):

@@ -41,10 +41,10 @@ MATERIALS = (
 )  # humv_usd.catalog.materials
 #: ground materials: the library's materials but skin (offered for a ground, issue 26)
 GROUND_MATERIALS = tuple(m for m in MATERIALS if m != "skin")
-BANDS = ("EO", "MWIR", "LWIR")
+BANDS = ("EO", "NIR", "SWIR", "MWIR", "LWIR")
 #: bands a user may ask for that are not rendered yet (the one-render-pass issue 24): named
 #: as such instead of a did-you-mean ("SWIR" was answered with "did you mean 'MWIR'?")
-BANDS_NOT_YET = {"SWIR": "0.9-1.7 µm", "NIR": "0.75-1.4 µm", "VNIR": "0.4-1.0 µm", "UV": "< 0.4 µm"}
+BANDS_NOT_YET = {"VNIR": "0.4-1.0 µm", "UV": "< 0.4 µm"}
 SENSOR_PRESETS = (  # humv_usd.catalog.sensors.PRESETS
     "atom1024_lwir",
     "lwir640_12um",
@@ -55,6 +55,8 @@ SENSOR_PRESETS = (  # humv_usd.catalog.sensors.PRESETS
     "lepton35",
     "h20t_thermal",
     "rgb_imx273",
+    "swir_ingaas640",
+    "nir_imx273",
 )
 PLATFORMS = ("tripod", "mast", "aerial", "vehicle", "drone", "handheld")  # = humv_usd.catalog.sensors
 #: what a sensor's optical axis follows (humv_usd.geometry.rig)
@@ -942,13 +944,21 @@ SECTIONS: dict[str, Section] = {
 #: speed range of each moving activity [m/s] (walk: 0.5-2, run: 2-5, as the motion model's data)
 SPEED_RANGE_M_S = {"walk": (0.5, 2.0), "run": (2.0, 5.0)}
 
-BAND_DEFAULT_UM = {"EO": [0.4, 0.7], "MWIR": [3.0, 5.0], "LWIR": [8.0, 14.0]}
+BAND_DEFAULT_UM = {
+    "EO": [0.4, 0.7],
+    "NIR": [0.75, 1.0],
+    "SWIR": [0.9, 1.7],
+    "MWIR": [3.0, 5.0],
+    "LWIR": [8.0, 14.0],
+}
 #: the wavelengths [µm] each band can be rendered at: EO the render's visible bins (CIE 1931
 #: colour matching, 360-830 nm; humv_usd.render.eo_fast, Mitsuba's spectral variant), MWIR and
 #: LWIR the atmospheric windows rendered from emission (3-5 µm, 7-14 µm; a sensor at 3 µm or
 #: longer is infrared). A band's edges outside its range were rendered as another band (EO at
-#: 8-14 µm as visible light) or crashed the render (issue 26).
-BAND_RANGE_UM = {"EO": (0.36, 0.83), "MWIR": (3.0, 5.0), "LWIR": (7.0, 14.0)}
+#: 8-14 µm as visible light) or crashed the render (issue 26). NIR (silicon beyond a long-pass
+#: filter, up to its 1.1 µm cut-off) and SWIR (InGaAs 0.9-1.7 µm, extended InGaAs to 2.5 µm)
+#: are rendered by the sub-band pass, reflection and emission, with radiance as output (issue 24).
+BAND_RANGE_UM = {"EO": (0.36, 0.83), "NIR": (0.7, 1.1), "SWIR": (0.9, 2.5), "MWIR": (3.0, 5.0), "LWIR": (7.0, 14.0)}
 
 
 def band_range_problem(where: str, band: str, edges) -> str | None:

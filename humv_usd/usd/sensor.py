@@ -19,7 +19,7 @@ from pxr import Gf, Usd, UsdGeom, Vt
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.camera import CameraPose
 from humv_usd.physics.sensor import SensorModel, field_of_view_deg
-from humv_usd.scenario.spec import MAX_SUBBANDS
+from humv_usd.scenario.spec import BAND_RANGE_UM, MAX_SUBBANDS, band_range_problem
 from humv_usd.usd import schemas as S
 
 #: Band of an EO sensor whose ``humv:sensor:wavelengthRange`` is not authored [um].
@@ -153,6 +153,15 @@ def read_sensor(prim) -> SensorModel:
     lo, hi = float(rng[0]), float(rng[1])
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi <= 1000):
         raise InputError(bad_value(where, (lo, hi), "expected 0 < lower < upper [um]"))
+    # a band the render cannot do at these wavelengths is refused, never rendered as another
+    # (band "EO" at 0.9-1.7 um was rendered as visible light)
+    # (an unauthored band token, the schema's fallback, is the band whose range holds the edges)
+    lo, hi = round(lo, 6), round(hi, 6)  # float32 edges: 0.9 reads 0.89999998
+    attr = prim.GetAttribute(S.SENSOR_BAND)
+    if not (attr and attr.HasAuthoredValue()):
+        band = next((b for b, (a, z) in BAND_RANGE_UM.items() if a <= lo and hi <= z), band)
+    if problem := band_range_problem(where, band, (lo, hi)):
+        raise InputError(problem)
     projection = UsdGeom.Camera(prim).GetProjectionAttr().Get()
     if projection and projection != UsdGeom.Tokens.perspective:
         return dataclasses.replace(
@@ -172,6 +181,8 @@ def read_sensor(prim) -> SensorModel:
             bad_value(where, [w, h], f"expected two integers in 1..{MAX_RESOLUTION} (width, height) [px]")
         )
     model = read_sensor_model(prim)
+    if band and model.band != band:
+        model = dataclasses.replace(model, band=band)
     if model.kind == "EO":  # colour comes from the CIE observer (render.eo), not a band response
         return dataclasses.replace(model, path=path, response_authored=False)
     response = _check_response(prim, (lo, hi))

@@ -1,0 +1,127 @@
+"""Any band (issue 24.3): NIR and SWIR through the sub-band pass (reflection and emission,
+radiance out), a band the render cannot do refused in one line, the reflective sensor chain.
+
+Closed forms: a white Lambertian plate under a sun beam of spectral irradiance E at zenith angle
+theta has radiance int_band E d(lambda) cos(theta) / pi; under a uniform sky of radiance L it has
+radiance L (for SWIR at night: the airglow integrated over the band); Poisson photoelectrons.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_render import add_camera
+from test_render_eo import reflective
+from test_render_radiometry import atmosphere_tables, new_stage, plate, read_exr, sun
+
+from humv_usd.catalog import sensors as catalog
+from humv_usd.errors import InputError
+from humv_usd.physics import nightsky
+from humv_usd.physics import sensor as chain
+from humv_usd.pipeline.render import render_stage
+
+SWIR = (0.9, 1.7)
+
+
+def _stage(tmp_path, band, token, toward_sun, solar_um=1500.0):
+    stage = new_stage(tmp_path / "s.usda")
+    white = reflective(stage, "white", [0.3, 3.0], [1.0, 1.0])
+    plate(stage, "/World/p", 1e4, 0.0, white, 280.0)
+    add_camera(stage, "cam", (0, 0, 10), (0, 0, 0), fov_x_deg=10.0, band=band, band_token=token, up=(0, 1, 0))
+    wl = [0.3, 0.9, 4.0]
+    atmosphere_tables(
+        stage, wl, sky=np.zeros((2, 3)), zenith=np.array([0.0, 90.0]), solar=[solar_um, solar_um, solar_um]
+    )
+    sun(stage, toward_sun)
+    stage.Save()
+
+
+def test_a_band_the_render_cannot_do_is_refused(tmp_path):
+    """band EO at 0.9-1.7 um was rendered as visible light: now one line naming the attribute,
+    the value and the allowed range."""
+    _stage(tmp_path, SWIR, "EO", (0.0, 0.0, 1.0))
+    with pytest.raises(InputError) as err:
+        render_stage(tmp_path / "s.usda", tmp_path / "out", spp=2)
+    msg = str(err.value)
+    assert "\n" not in msg and "humv:sensor:wavelengthRange" in msg
+    assert "[0.9, 1.7]" in msg and "band EO: 0.36..0.83" in msg
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").rglob("*.exr"))
+
+
+@pytest.mark.parametrize("zenith_deg", [0.0, 60.0])
+def test_swir_white_plate_under_sun_closed_form(tmp_path, zenith_deg):
+    th = math.radians(zenith_deg)
+    _stage(tmp_path, SWIR, "SWIR", (math.sin(th), 0.0, math.cos(th)))
+    manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=4)
+    ch = read_exr(tmp_path / "out" / "cam" / "0000.exr")
+    expected = 1500.0 * (SWIR[1] - SWIR[0]) * math.cos(th) / math.pi  # W m-2 sr-1 (flat response)
+    assert ch["radiance"].mean() == pytest.approx(expected, rel=2e-3)
+    assert "brightness_temperature" not in ch  # reflected light: radiance, no temperature
+    [rec] = manifest["sensors"]
+    assert rec["band"] == "SWIR" and rec["frames"][0]["brightness_temperature_mean_k"] is None
+
+
+def test_swir_moonless_night_is_the_airglow(tmp_path):
+    """Sun 40 deg below the horizon, no site (no moon): the white plate has the radiance of the
+    natural night sky integrated over 0.9-1.7 um, the OH airglow that lets SWIR see at night:
+    about 50 times the visible band's (0.4-0.7 um) for the same plate."""
+    h = math.radians(-40.0)
+    _stage(tmp_path, SWIR, "SWIR", (math.cos(h), 0.0, math.sin(h)))
+    manifest = render_stage(tmp_path / "s.usda", tmp_path / "out", spp=4)
+    x = np.linspace(*SWIR, 4001)
+    expected = float(np.trapz(nightsky.night_sky_radiance(x), x))
+    ch = read_exr(tmp_path / "out" / "cam" / "0000.exr")
+    assert ch["radiance"].mean() == pytest.approx(expected, rel=0.01)
+    v = np.linspace(0.4, 0.7, 301)
+    assert expected > 20 * float(np.trapz(nightsky.night_sky_radiance(v), v))
+    frame = manifest["sensors"][0]["frames"][0]
+    assert "night_sky" in frame["radiometry"]["night"]
+    assert "exposure capped" in frame["sensor_chain"]["settings"]["gain_source"]
+
+
+def test_reflective_chain_counts_photoelectrons():
+    """SWIR preset: N_e = pi L / (4 N^2) p^2 t eta lambda_c / (h c) at the capped exposure; the
+    counts' mean and spread are Poisson + read noise of N_e."""
+    p = catalog.preset("swir_ingaas640")
+    m = chain.SensorModel(
+        name="s",
+        band="SWIR",
+        wavelength_range_um=p.wavelength_um,
+        response_wavelengths_um=np.asarray(p.response_wavelengths_um),
+        response=np.asarray(p.response),
+        resolution=(64, 48),
+        pixel_pitch_m=15e-6,
+        f_number=1.4,
+        focal_length_m=0.025,
+        bit_depth=14,
+        agc="linear",
+        full_well_e=p.full_well_e,
+        read_noise_e=p.read_noise_e,
+    )
+    per_unit = (
+        math.pi
+        / (4 * 1.4**2)
+        * (15e-6) ** 2
+        * chain.EO_MAX_EXPOSURE_S
+        * 0.75
+        * 1.3e-6
+        / (6.62607015e-34 * 299792458.0)
+    )
+    n_e = 2000.0
+    out = chain.apply_chain(np.full((48, 64), n_e / per_unit), m, np.random.default_rng(0), psf=False)
+    k = m.max_count / m.full_well_e
+    assert out.counts.mean() == pytest.approx(n_e * k, rel=0.02)
+    assert out.counts.std() == pytest.approx(math.sqrt(n_e + m.read_noise_e**2) * k, rel=0.1)
+    assert out.settings["noise"]["exposure_s"] == pytest.approx(chain.EO_MAX_EXPOSURE_S)
+
+
+def test_reflective_presets_fit_their_bands():
+    from humv_usd.scenario.spec import BAND_RANGE_UM, SENSOR_PRESETS
+
+    for name in ("swir_ingaas640", "nir_imx273"):
+        p = catalog.preset(name)
+        lo, hi = BAND_RANGE_UM[p.band]
+        assert lo <= p.wavelength_um[0] < p.wavelength_um[1] <= hi and name in SENSOR_PRESETS
+        assert catalog.calibration(name)[0] is None  # auto exposure
