@@ -263,6 +263,14 @@ PLACEMENT = Section(
             lo=-1.0e4,
             hi=1.0e4,
         ),
+        "avoidance": Key(
+            "choice",
+            "Collision avoidance on the way (walk/run): none, or socialForce (the social force "
+            "model of Helbing & Molnar 1995: the person steers around the other people, "
+            "keeping their speed; people who do not walk are obstacles).",
+            default="none",
+            choices=("none", "socialForce"),
+        ),
         "standing_before_s": Key(
             "float",
             "How long the person has stood at the start position, in the frame-0 pose, "
