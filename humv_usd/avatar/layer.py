@@ -25,13 +25,13 @@ import numpy as np
 from pxr import Gf, Sdf, UsdGeom
 
 from humv_usd.catalog.skin import skin_material_name
+from humv_usd.human import crowd, usdskel
 from humv_usd.human import labels as L
-from humv_usd.human import usdskel
 from humv_usd.human.basemesh import DEFAULT_FACING_DEG
 from humv_usd.human.body import Body, build_body
 from humv_usd.human.bvh import motion_from_bvh
 from humv_usd.human.carry import apply_rifle_carry
-from humv_usd.human.motion import make_motion
+from humv_usd.human.motion import DEFAULT_SPEED, make_motion
 from humv_usd.human.skeleton import (
     forward_kinematics,
     linear_blend_skinning,
@@ -41,7 +41,7 @@ from humv_usd.human.skeleton import (
 )
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
-from humv_usd.scenario.inputs import FRAMES, RIFLE
+from humv_usd.scenario.inputs import DERIVED_PER_PERSON, FRAMES, RIFLE
 from humv_usd.usd.avatar import (
     AvatarParameters,
     write_avatar,
@@ -86,6 +86,7 @@ READS = (
     "placement[{id}].waypoints_m",
     "@instanceId[{id}]",
     "@carriesRifle[{id}]",
+    "@crowd[{id}]",
 )
 UPSTREAM = ()
 #: 4: proportions and skin tone; 3: model kinds and extents (2: reads only what changes the avatar)
@@ -189,6 +190,8 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             body_points=body.points,
         )
         return apply_rifle_carry(motion, skeleton, body) if carry else motion
+    if human["activity"] in ("walk", "run") and place.get("avoidance", "none") != "none":
+        place = dict(place, waypoints_m=avoided_waypoints(scenario, human["id"]))
     # the motion model needs two frames at least; a one-frame scenario keeps the first
     motion = make_motion(
         human["activity"],
@@ -209,6 +212,28 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             metabolic_rate_w=motion.metabolic_rate_w[:frames],
         )
     return apply_rifle_carry(motion, skeleton, body) if carry else motion
+
+
+def avoided_waypoints(scenario: Scenario, human_id: str) -> list:
+    """The person's ground track (world [x, y] points) steered around everybody else by the
+    social force model (:func:`humv_usd.human.crowd.avoid`) over the clip plus 2 s."""
+    people = DERIVED_PER_PERSON["@crowd"](scenario, human_id)
+    starts = np.array([p["position_m"] for p in people], dtype=float)
+    speeds = np.array(
+        [
+            (p["speed_m_s"] or DEFAULT_SPEED[p["activity"]]) if p["activity"] in ("walk", "run") else 0.0
+            for p in people
+        ]
+    )
+    tracks = crowd.avoid(
+        starts,
+        [np.asarray(p["waypoints_m"], dtype=float).reshape(-1, 2) for p in people],
+        speeds,
+        scenario.frame_count / scenario["general"]["fps"] + 2.0,
+        headings=np.radians([p["heading_deg"] for p in people]),
+    )
+    me = [p["human"] for p in people].index(human_id)
+    return crowd.track_waypoints(tracks[me]).tolist()
 
 
 def _motion_attributes(prim, motion) -> None:
