@@ -16,9 +16,9 @@ from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.geometry.camera import CAMERA_FILE
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline import records as R
+from humv_usd.render import bands, radiometry
 from humv_usd.render import estimator as E
 from humv_usd.render import quality as Q
-from humv_usd.render import radiometry
 
 MANIFEST_NAME = "manifest.json"
 
@@ -183,6 +183,20 @@ def radiometry_record(plan) -> dict:
     }
 
 
+def closure_record(run) -> dict:
+    """The manifest's Kirchhoff closure: per material and sensor band the largest
+    |eps + rho + tau - 1| at the table's nodes and the table taken as given there."""
+    recs = list(run.closure_records.values())
+    return {
+        "rule": "eps + rho + tau = 1 (Kirchhoff); thermal bands take the emissivity as given (the render "
+        "reflects 1 - eps - tau), reflective bands the reflectance (humv_usd.render.bands.authority)",
+        "tolerance": bands.CLOSURE_TOLERANCE,
+        "max_error": max((r["max_error"] for r in recs), default=None),
+        "not_met": [r for r in recs if not r["ok"]],
+        "checked": len(recs),
+    }
+
+
 def estimator_settings(plan) -> dict:
     """What the infrared estimator was and how its error is estimated (manifest ``settings``)."""
     if plan.estimator == "fast":
@@ -261,6 +275,7 @@ def build(plan, run, ground_truth, totals: dict, done: list[dict]) -> dict:
         "eo_sensors": plan.eo_run.manifest(eo_frames),
         "skipped_sensors": plan.skipped + plan.eo_run.skipped,
         "radiometry": radiometry_record(plan),
+        "kirchhoff_closure": closure_record(run),
         "sensor_chain": run.chains.status(),
         "scene_builds": run.scene_builds,
         "timings_s": totals,

@@ -25,9 +25,9 @@ from humv_usd.pipeline.chains import SensorChains
 from humv_usd.pipeline.manifest import MANIFEST_NAME, ErrorAccumulator
 from humv_usd.pipeline.preflight import check_stage_for_render
 from humv_usd.pipeline.writer import BackgroundWriter
+from humv_usd.render import bands, radiometry
 from humv_usd.render import eo as eo_render
 from humv_usd.render import estimator as E
-from humv_usd.render import radiometry
 from humv_usd.render.export import StageExport
 from humv_usd.render.frame import stage_frames
 from humv_usd.render.ir import IRScene, SensorSetup, subband_spp
@@ -478,6 +478,9 @@ class _FrameRenderer:
         self.chains = SensorChains(plan.stage, plan.seed, [s.path for s in plan.exporter.sensors])
         self.band_eps: dict[tuple[str, str], float] = {}
         self.sub_eps: dict[tuple[str, str], np.ndarray] = {}
+        self.closure: dict = {}  # Kirchhoff closure per (material, sensor), render.bands.check_closure
+        self.closure_records: dict[tuple[str, str], dict] = {}
+        self.closure_key = None
         self.scene: IRScene | None = None
         self.scene_key = None
         self.scene_builds = 0
@@ -532,6 +535,8 @@ class _FrameRenderer:
         plan, exporter = self.plan, self.plan.exporter
         t = time.perf_counter()
         state = exporter.frame_state(frame, plan.rendered + plan.eo_run.sensors)
+        if state.topology_key != self.closure_key:  # new meshes: their materials against Kirchhoff
+            self._check_closure(state)
         shared = plan.eo_run.shares_scene  # one scene for every sensor (EO path tracer: its own)
         if plan.rendered or shared:
             self._update_scene(state)
@@ -552,6 +557,18 @@ class _FrameRenderer:
             )
             self.totals["eo"] = self.totals.get("eo", 0.0) + time.perf_counter() - t
             self._advance(len(plan.eo_run.sensors), f"frame {frame} EO")
+
+    def _check_closure(self, state) -> None:
+        """Each material of the frame's meshes in each sensor's band: eps + rho + tau = 1 with one
+        table taken as given per band (:func:`humv_usd.render.bands.check_closure`)."""
+        plan = self.plan
+        for s in plan.rendered + plan.eo_run.sensors:
+            for m in state.meshes:
+                for part in m.parts:
+                    rec = bands.check_closure(self.closure, part.material, s)
+                    if rec is not None:
+                        self.closure_records[(part.material.path, s.name)] = rec
+        self.closure_key = state.topology_key
 
     def _advance(self, units: int, text: str) -> None:
         self.units_done += units
