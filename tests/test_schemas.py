@@ -50,7 +50,20 @@ ALLOWED_TOKENS = {
     hs.SENSOR_PLATFORM: ["tripod", "mast", "aerial", "vehicle", "drone", "handheld"],
     hs.SENSOR_AGC: ["none", "linear", "histogram", "plateau"],
     hs.SENSOR_VIGNETTING: ["none", "cos4"],
-    hs.LABEL_CLASS: ["person", "ground", "building", "prop", "panel", "vegetation", "vehicle", "other"],
+    hs.LABEL_CLASS: [
+        "person",
+        "ground",
+        "building",
+        "prop",
+        "panel",
+        "vegetation",
+        "vehicle",
+        "other",
+        "animal",
+        "lamp",
+        "hvac",
+        "fire",
+    ],
 }
 # The table gives no token set for the garment: it names garments of the clothing library.
 OPEN_TOKENS = {hs.CLOTHING_GARMENT}

@@ -987,6 +987,44 @@ INSULATION: dict[str, Material] = {
 }
 LIBRARY.update(INSULATION)
 
+# ------------------------------------------------------------------- warm clutter (issue 30)
+# Tyres and animal coats of humv_usd.scene.objects. Coarse grid WAVELENGTHS_UM.
+CLUTTER = {
+    m.name: m
+    for m in (
+        Material(
+            "rubber",
+            spectrum_reflectance=(0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.06, 0.06, 0.06),
+            conductivity=0.13,
+            density=1190.0,
+            specific_heat=2010.0,
+            thickness=0.01,
+            solar_absorptivity=0.95,
+            source="carbon-black filled tyre rubber: black in the visible and NIR (reflectance "
+            "~5 %), long-wave emissivity 0.94 (rubber 0.86-0.95: "
+            f"{_INCROPERA}, Table A.11); k, rho, c: {_INCROPERA}, Table A.3 (rubber, hard)",
+            label_class="vehicle",
+        ),
+        Material(
+            "fur",
+            spectrum_reflectance=(0.08, 0.14, 0.24, 0.34, 0.28, 0.05, 0.04, 0.02, 0.02, 0.02),
+            conductivity=0.055,
+            density=100.0,
+            specific_heat=1700.0,
+            thickness=0.01,
+            solar_absorptivity=0.78,
+            source="brown mammal coat (dog, cattle): visible/NIR reflectance rising from ~8 % "
+            "(blue) to ~34 % (1 µm), keratin/water absorption from 2.8 µm, long-wave "
+            "emissivity 0.98 (hair, Campbell & Norman (1998) Table 11.3); solar absorptivity "
+            "0.78 (brown coats 0.7-0.85, Campbell & Norman ch. 12); effective conductivity of "
+            "fur 0.055 W m-1 K-1 (Davis & Birkebak (1974) Biophys. J. 14:249: 0.04-0.07); "
+            "bulk density and heat capacity of a hair coat, order of magnitude",
+            label_class="animal",
+        ),
+    )
+}
+LIBRARY.update(CLUTTER)
+
 
 @dataclass(frozen=True)
 class SurfaceWater:

@@ -33,7 +33,8 @@ from humv_usd.groundtruth.coco import CocoBuilder
 #: EXR channels this package adds, with units (depth and instance_id are the render's).
 CHANNELS = {
     "class_id": "1 (integer, uint32; humv_usd.groundtruth.labels.CLASSES: 0 background, 1 person, 2 ground, "
-    "3 building, 4 prop, 5 panel, 6 vegetation, 7 vehicle, 8 other)",
+    "3 building, 4 prop, 5 panel, 6 vegetation, 7 vehicle, 8 other, 9 animal, 10 lamp, 11 hvac, "
+    "12 fire)",
     "material_kind": "1 (integer, uint32; 0 background, 1 skin, 2 garment, 3 prop, 4 scene)",
     "body_region": "1 (integer, uint32; humv_usd.human.labels.BODY_REGIONS ids, 0 = not the body)",
     "jos3_segment": "1 (integer as float32; 0-based JOS-3 segment, -1 = none)",

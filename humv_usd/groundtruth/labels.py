@@ -42,6 +42,10 @@ CLASSES: tuple[str, ...] = (
     "vegetation",
     "vehicle",
     "other",
+    "animal",
+    "lamp",
+    "hvac",
+    "fire",
 )
 CLASS_ID = {name: i for i, name in enumerate(CLASSES)}
 #: Material kinds (index = id).

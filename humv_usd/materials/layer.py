@@ -13,6 +13,7 @@ from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
 from humv_usd.usd.materials import write_material, write_substrate
+from humv_usd.scenario.places import scene_materials
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
@@ -26,9 +27,11 @@ READS = (
     "scene.asset.*.materials",
     "scene.layers",
     "scene.layer_material",
+    "scene.clutter",
+    "scene.place",
 )
 UPSTREAM = ()
-VERSION = "3"  # 3: /World/Materials a Scope
+VERSION = "4"  # 3: /World/Materials a Scope; 4: warm clutter and generated places
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"
@@ -49,6 +52,7 @@ def used_materials(scenario: Scenario) -> list[str]:
             names.update(value for _, value in a["materials"])
         if scene.get("layers"):
             names.add(scene["layer_material"])
+        names.update(scene_materials(scene))  # generated places and warm clutter
         if _slab_ground(scenario):
             names.add(GROUND_SUBSTRATE)
     return sorted(names)

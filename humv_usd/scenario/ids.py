@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from pxr import Sdf
 
 from humv_usd.catalog.garments import garment
+from humv_usd.scenario.places import generated_objects, scene_clutter
 
 if TYPE_CHECKING:
     from humv_usd.scenario.load import Scenario
@@ -15,7 +16,9 @@ if TYPE_CHECKING:
 def instance_ids(scenario: Scenario) -> dict[str, int]:
     """Stable instance ids: humans 1..N in file order, then the ground, then scene objects,
     then scene assets (``asset:<id>``), then the top prims under /World/Scene of each
-    ``[scene] layers`` file (``layer:<index>:<prim name>``, in the file's order), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
+    ``[scene] layers`` file (``layer:<index>:<prim name>``, in the file's order), then the boxes
+    of a generated place (``object:place_*``) and the warm clutter (``clutter:<id>``, the
+    scenario's then the place's, :mod:`humv_usd.scenario.places`), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
     each one's props in the order of its ``clothing`` list). Props come last so that adding
     or dropping one never renumbers a person or a scene object."""
     ids: dict[str, int] = {}
@@ -30,6 +33,10 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
         for i, file in enumerate(scenario["scene"].get("layers") or ()):
             for name in site_layer_prims(file):
                 ids[f"layer:{i}:{name}"] = len(ids) + 1
+        for o in generated_objects(scenario["scene"]):  # generated boxes and panels
+            ids[f"object:{o['id']}"] = len(ids) + 1
+        for c in scene_clutter(scenario["scene"]):  # warm clutter, own then generated
+            ids[f"clutter:{c['id']}"] = len(ids) + 1
     for h in scenario["human"]:
         for name in h.get("clothing") or ():
             g = garment(name)

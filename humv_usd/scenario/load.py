@@ -307,6 +307,7 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
     if data["scene"]:
         _check_ids("scene.object", data["scene"]["object"], problems)
         _check_assets(data["scene"], problems)
+        _check_clutter(data["scene"], problems)
     placed: set[str] = set()
     for i, p in enumerate(data["placement"]):
         h = p.get("human")
@@ -471,6 +472,23 @@ def _check_assets(scene: dict, problems: list[str]) -> None:
         if m and (a.get("position_m") is not None or a.get("heading_deg") is not None):
             problems.append(
                 bad_value(f"{where}.transform", "...", "give transform or position_m/heading_deg, not both")
+            )
+
+
+def _check_clutter(scene: dict, problems: list[str]) -> None:
+    """Clutter ids: unique, and no object's, asset's or the ground's name; generated place
+    prims are named ``place_*`` (reserved)."""
+    _check_ids("scene.clutter", scene["clutter"], problems)
+    taken = {o["id"] for o in scene["object"]} | {a["id"] for a in scene["asset"]} | {"Ground"}
+    for i, c in enumerate(scene["clutter"]):
+        ident = c.get("id") or ""
+        if ident in taken or ident.startswith("place_"):
+            problems.append(
+                bad_value(
+                    f"scene.clutter[{i}].id",
+                    ident,
+                    "already names a scene object, asset or the ground (or starts with place_)",
+                )
             )
 
 

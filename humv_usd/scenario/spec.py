@@ -38,9 +38,11 @@ MATERIALS = (
     "soil",
     "glass",
     "blackbody",
+    "rubber",
+    "fur",
 )  # humv_usd.catalog.materials
-#: ground materials: the library's materials but skin (offered for a ground, issue 26)
-GROUND_MATERIALS = tuple(m for m in MATERIALS if m != "skin")
+#: ground materials: the library's materials but skin, tyre rubber and fur (issue 26)
+GROUND_MATERIALS = tuple(m for m in MATERIALS if m not in ("skin", "rubber", "fur"))
 BANDS = ("EO", "NIR", "SWIR", "MWIR", "LWIR")
 #: bands a user may ask for that are not rendered yet (the one-render-pass issue 24): named
 #: as such instead of a did-you-mean ("SWIR" was answered with "did you mean 'MWIR'?")
@@ -77,7 +79,31 @@ ACTIVITIES = (
     # procedural poses and transitions (humv_usd.human.poses.POSE_ACTIVITIES)
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel")
-OBJECT_CLASSES = ("building", "prop", "panel", "vegetation", "vehicle", "other")
+OBJECT_CLASSES = (
+    "building",
+    "prop",
+    "panel",
+    "vegetation",
+    "vehicle",
+    "other",
+    "animal",
+    "lamp",
+    "hvac",
+    "fire",
+)
+#: warm clutter kinds (``[[scene.clutter]]``, humv_usd.scene.objects) and the class each is labelled
+CLUTTER_CLASSES = {
+    "vehicle": "vehicle",
+    "dog": "animal",
+    "cattle": "animal",
+    "street_lamp": "lamp",
+    "window": "building",
+    "hvac": "hvac",
+    "barbecue": "fire",
+    "fire": "fire",
+}
+#: generated places (``[scene.place]``, humv_usd.scenario.places)
+PLACE_KINDS = ("none", "street", "rural_road", "parking_lot", "open_field")
 THERMAL_MODELS = ("fixed", "jos3", "twoNode")
 #: file formats of ``[[scene.asset]]`` (by suffix): USD is referenced; the others are read with
 #: trimesh (FBX with bpy) and converted to UsdGeom.Mesh in the scene layer
@@ -438,6 +464,143 @@ ASSET = Section(
     },
 )
 
+CLUTTER = Section(
+    array=True,
+    doc="warm clutter: procedural vehicles, animals, lamps, lit windows, HVAC units, fires",
+    keys={
+        "id": Key("str", "Identifier (its prim /World/Scene/<id>).", required=True),
+        "kind": Key(
+            "choice",
+            "What it is: vehicle (a car: body, hood, grille, glass, wheels, exhaust), dog, cattle, "
+            "street_lamp, window (a lit window pane on a facade), hvac (outdoor condenser unit), "
+            "barbecue (kettle grill) or fire (ember bed); labelled vehicle, animal, lamp, "
+            "building, hvac or fire.",
+            required=True,
+            choices=tuple(CLUTTER_CLASSES),
+        ),
+        "position_m": Key(
+            "vec",
+            "Where it stands, [x, y, z] [m] (base centre).",
+            default=[0.0, 0.0, 0.0],
+            n=3,
+            lo=-1.0e5,
+            hi=1.0e5,
+        ),
+        "heading_deg": Key(
+            "float",
+            "Rotation about z, counter-clockwise [deg]: 0 = its front (a car's nose, an animal's "
+            "head, a window's outer face) to +x.",
+            default=0.0,
+            lo=-360.0,
+            hi=360.0,
+        ),
+        "run_s": Key(
+            "float",
+            "How long its heat source has run before frame 0 [s]: a vehicle's engine, a lamp or "
+            "window lit, an HVAC unit or fire on (0: never; animals ignore it).",
+            default=1800.0,
+            lo=0.0,
+            hi=7 * 86400.0,
+        ),
+        "off_s": Key(
+            "float",
+            "How long ago the heat source stopped [s] (0: still running at frame 0; a parked "
+            "car that arrived 20 min ago: run_s = 1800, off_s = 1200).",
+            default=0.0,
+            lo=0.0,
+            hi=7 * 86400.0,
+        ),
+        "lit": Key(
+            "choice",
+            "street_lamp, window: auto (lit while the sun is below -3 deg at frame 0, as a "
+            "photocell), on or off (then run_s/off_s say for how long).",
+            default="auto",
+            choices=("auto", "on", "off"),
+        ),
+        "speed_m_s": Key(
+            "float",
+            "vehicle: driving speed [m/s] along `path_m` (0: idling or parked).",
+            default=0.0,
+            lo=0.0,
+            hi=40.0,
+        ),
+        "path_m": Key(
+            "points",
+            "vehicle: ground points [[x, y], ...] [m] it drives through after position_m, in "
+            "order, at speed_m_s (heading follows the path).",
+            default=[],
+            n=2,
+            lo=-1.0e5,
+            hi=1.0e5,
+        ),
+        "material": Key(
+            "choice",
+            "Body material of a vehicle, lamp or HVAC unit.",
+            default="painted_metal",
+            choices=MATERIALS,
+        ),
+        "scale": Key("float", "Uniform size factor.", default=1.0, lo=0.2, hi=5.0),
+    },
+)
+
+PLACE = Section(
+    doc="a generated place (street, rural road, parking lot, open field) from a seed",
+    keys={
+        "kind": Key(
+            "choice",
+            "none, street (road, pavements, facades with windows, parked cars, lamps), "
+            "rural_road (road through a field, verges, trees where the vegetation tool provides "
+            "them, animals), parking_lot (asphalt with rows of cars, lamps), open_field (soil "
+            "or sand, scattered warm objects).",
+            default="none",
+            choices=PLACE_KINDS,
+        ),
+        "seed": Key(
+            "int", "Random seed of the place (same seed, same place).", default=0, lo=0, hi=2**31 - 1
+        ),
+        "length_m": Key("float", "Length of the place along x [m].", default=60.0, lo=10.0, hi=1000.0),
+        "road_width_m": Key("float", "Carriageway width [m].", default=7.0, lo=3.0, hi=30.0),
+        "vehicles": Key("int", "Number of vehicles.", default=4, lo=0, hi=200),
+        "vehicle_spacing_m": Key(
+            "float", "Least spacing between vehicle centres along a row [m].", default=6.0, lo=4.5, hi=100.0
+        ),
+        "driving": Key(
+            "float",
+            "Share of the vehicles driving along the road (street, rural_road) [0-1].",
+            default=0.25,
+            lo=0.0,
+            hi=1.0,
+        ),
+        "lamps": Key("int", "Number of street lamps.", default=4, lo=0, hi=100),
+        "animals": Key(
+            "int", "Number of animals (dogs on a street, cattle elsewhere).", default=0, lo=0, hi=100
+        ),
+        "buildings": Key("int", "Number of facades per side (street).", default=4, lo=0, hi=50),
+        "window_lit_share": Key(
+            "float", "Share of windows lit at night (street) [0-1].", default=0.4, lo=0.0, hi=1.0
+        ),
+        "warm_objects": Key(
+            "int", "Number of HVAC units, barbecues and fires scattered about.", default=1, lo=0, hi=100
+        ),
+        "vegetation_density": Key(
+            "float",
+            "Trees per 100 m2 of verge/field (rural_road, open_field; placed through the "
+            "vegetation tool when it is installed, else none).",
+            default=0.5,
+            lo=0.0,
+            hi=20.0,
+        ),
+        "road_material": Key("choice", "Road surface.", default="asphalt", choices=GROUND_MATERIALS),
+        "pavement_material": Key(
+            "choice", "Pavements, verges.", default="concrete", choices=GROUND_MATERIALS
+        ),
+        "facade_material": Key("choice", "Facades.", default="concrete", choices=GROUND_MATERIALS),
+        "field_material": Key(
+            "choice", "Field (rural_road, open_field).", default="grass", choices=GROUND_MATERIALS
+        ),
+    },
+)
+
 SCENE = Section(
     doc="(iv) Scene",
     keys={
@@ -465,7 +628,7 @@ SCENE = Section(
             choices=OBJECT_CLASSES,
         ),
     },
-    subsections={"ground": GROUND, "object": OBJECT, "asset": ASSET},
+    subsections={"ground": GROUND, "object": OBJECT, "asset": ASSET, "clutter": CLUTTER, "place": PLACE},
 )
 
 SENSOR = Section(

@@ -34,7 +34,9 @@ from pxr import Sdf, Usd, UsdGeom
 from humv_usd.errors import InputError
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import SITE_SCOPE, instance_ids, site_layer_prims
-from humv_usd.scenario.inputs import FRAMES
+from humv_usd.scenario.inputs import CLOCK
+from humv_usd.scenario.places import scene_clutter, scene_objects
+from humv_usd.scenario.times import utc_times
 from humv_usd.scene.assets import (
     AssetFile,
     first_match,
@@ -44,6 +46,7 @@ from humv_usd.scene.assets import (
     source_correction,
 )
 from humv_usd.scene.geometry import box, ground_grid
+from humv_usd.scene.objects import author_clutter
 from humv_usd.usd.labels import nearest_class
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, set_kind, usd_error_text
 from humv_usd.usd.materials import has_stage_material
@@ -51,9 +54,17 @@ from humv_usd.usd.mesh import bind_material, define_mesh, label, write_asset_sou
 from humv_usd.usd.paths import GROUND, material_path, object_path
 
 NAME = "scene"
-READS = (*FRAMES, "scene", "@ids")
+#: the clock and the air: warm clutter's held temperatures (engines, coats, lit lamps at night)
+READS = (
+    *CLOCK,
+    "scene",
+    "@ids",
+    "atmosphere.air_temperature_k",
+    "atmosphere.wind_speed_m_s",
+    "atmosphere.cloud_cover",
+)
 UPSTREAM = ()
-VERSION = "4"  # 4: model kinds
+VERSION = "5"  # 4: model kinds; 5: warm clutter and generated places
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -68,7 +79,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         stage, GROUND, *ground_grid(ground["size_m"]), material=material_path(ground["material"])
     )
     label(mesh.GetPrim(), ids["ground"], "ground")
-    for o in scene["object"]:
+    for o in scene_objects(scene):  # the scenario's, then a generated place's
         mesh = define_mesh(
             stage,
             object_path(o["id"]),
@@ -84,7 +95,36 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         set_kind(prim, "component")
     if scene.get("layers"):
         add_site_layers(stage, scene, ids)
+    clutter = scene_clutter(scene)
+    if clutter:
+        atm = scenario["atmosphere"] or {}
+        air_k = float(atm.get("air_temperature_k", 293.15))
+        elevation = sun_elevation_deg(scenario)
+        for c in clutter:
+            author_clutter(
+                stage,
+                c,
+                ids[f"clutter:{c['id']}"],
+                air_k,
+                float(atm.get("wind_speed_m_s", 1.0)),
+                elevation,
+                float(atm.get("cloud_cover", 0.0)),
+                g["fps"],
+                scenario.frame_count,
+            )
     return finish(stage)
+
+
+def sun_elevation_deg(scenario: Scenario) -> float:
+    """Apparent sun elevation at frame 0 [deg] (NREL SPA through pvlib): lamps' photocells and
+    the parked cars' solar cabin heating."""
+    import pvlib
+
+    g = scenario["general"]
+    pos = pvlib.solarposition.get_solarposition(
+        utc_times(scenario, [0.0]), g["latitude_deg"], g["longitude_deg"], g["elevation_m"]
+    )
+    return float(pos["apparent_elevation"].iloc[0])
 
 
 def author_asset(stage: Usd.Stage, a: dict, asset: AssetFile, instance_id: int) -> Usd.Prim:

@@ -29,7 +29,7 @@ through :class:`humv_usd.sweep.where.Location`):
 * ``yolo/detect/<sensor>/`` and ``yolo/pose/<sensor>/`` -- Ultralytics YOLO exports (images are
   hard links to the training images, copies on an object store, under ``images/<split>/``,
   labels under ``labels/<split>/``; detect: the ``[dataset] detect_classes`` (objects: person,
-  prop, panel, vehicle, other by default; ground, building and vegetation are in the masks
+  prop, panel, vehicle, other, animal, lamp, hvac, fire by default; ground, building and vegetation are in the masks
   only) numbered from 0 in that order, normalised ``class cx cy w h``; pose: persons with the
   17 COCO keypoints ``x y v``; ``data.yaml`` names train/val/test and has no ``path``, so the
   root is its folder).

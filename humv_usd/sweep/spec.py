@@ -37,7 +37,7 @@
     image = "image8"                    # training image of every export: "image8" (the sensor
                                         # chain's 8-bit image), "counts16" (16-bit radiometric
                                         # counts, infrared) or "preview" (the render's PNG)
-    detect_classes = ["person", "prop", "panel", "vehicle", "other"]   # YOLO detect classes
+    detect_classes = ["person", "prop", "panel", "vehicle", "other", "animal", "lamp", "hvac", "fire"]
 
 Splits are by variant (a variant's frames are near-duplicates: a split by frame measures
 training-set accuracy). Keys are dotted paths into the scenario: ``section.key`` (``general.start``), ``section.N.key``
@@ -73,8 +73,11 @@ from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.groundtruth.labels import CLASSES
 from humv_usd.scenario.load import Scenario, read_input_bytes, validate
 from humv_usd.scenario.spec import SECTIONS, Key, Section
+from humv_usd.sweep.cameras import CameraSampler, apply_view, parse_camera, sample_view, with_sensor_keys
 
 SWEEP_KEYS = ("name", "base", "unset", "count", "seed")
+#: what a ``[camera]`` sampler records per variant (``camera.<name>`` in its parameters)
+CAMERA_PARAMS = ("distance_m", "height_m", "azimuth_deg", "pitch_deg", "roll_deg", "person_height_px")
 #: most frames ``[render] frames = "FIRST:LAST"`` may name (checked before a list is built)
 MAX_FRAMES = 1_000_000
 log = logging.getLogger(__name__)
@@ -84,7 +87,8 @@ DATASET_KEYS = {
     "split_seed": 0,
     "stratify": [],
     "image": "image8",
-    "detect_classes": ["person", "prop", "panel", "vehicle", "other"],
+    # objects (hard negatives included: warm clutter, issue 30); ground, building, vegetation: stuff
+    "detect_classes": ["person", "prop", "panel", "vehicle", "other", "animal", "lamp", "hvac", "fire"],
 }
 SPLITS = ("train", "val", "test")
 IMAGE_CHOICES = ("image8", "counts16", "preview")
@@ -146,6 +150,8 @@ class Sweep:
     #: ``[dataset]`` settings (:data:`DATASET_KEYS`); not part of :meth:`digest`: a new split or
     #: training image re-assembles the same renders
     dataset: dict = field(default_factory=lambda: copy.deepcopy(DATASET_KEYS))
+    #: ``[camera]``: a sensor pose drawn per variant (:mod:`humv_usd.sweep.cameras`), or None
+    camera: CameraSampler | None = None
 
     def digest(self) -> str:
         """Hash of what the sweep produces (variants and render settings): a dataset folder
@@ -535,11 +541,11 @@ def load_sweep(path: str | Path) -> Sweep:
     doc = _read_toml(path, "sweep file")
     problems: list[str] = []
     for section in doc:
-        if section not in ("sweep", "set", "grid", "random", "render", "dataset"):
+        if section not in ("sweep", "set", "grid", "random", "render", "dataset", "camera"):
             problems.append(
                 f"[{section}]: unknown section"
-                f"{_suggest(section, ['sweep', 'set', 'grid', 'random', 'render', 'dataset'])}; "
-                "allowed: sweep, set, grid, random, render, dataset"
+                f"{_suggest(section, ['sweep', 'set', 'grid', 'random', 'render', 'dataset', 'camera'])}; "
+                "allowed: sweep, set, grid, random, render, dataset, camera"
             )
     head = doc.get("sweep", {})
     for name in head:
@@ -576,10 +582,13 @@ def load_sweep(path: str | Path) -> Sweep:
             apply(base, key, value)
     axes = _axes(doc.get("grid", {}), problems)
     draws = _draws(doc.get("random", {}), problems)
+    camera = parse_camera(doc["camera"], problems) if "camera" in doc else None
+    if camera is not None and not 0 <= camera.sensor < len(base.get("sensor", [])):
+        problems.append(bad_value("camera.sensor", camera.sensor, f"expected a [[sensor]] index 0..{len(base.get('sensor', [])) - 1}"))
     if problems:
         raise InputError("", [f"{path}: {p}" for p in problems])
 
-    sweep = Sweep(name, path, base_path, base, axes, draws, count, seed, render, dataset=dataset)
+    sweep = Sweep(name, path, base_path, base, axes, draws, count, seed, render, dataset=dataset, camera=camera)
     for axis in dataset["stratify"]:
         if axis not in {a.name for a in axes}:
             problems.append(
@@ -711,9 +720,28 @@ def expand(sweep: Sweep) -> list[Variant]:
                 apply(raw, key, value)
             for key, value in drawn.items():
                 params[key] = _label(value) if _present(raw, key) else None
+            if sweep.camera is not None:  # last: the pose fits the variant's person and sensor
+                raw = _sample_camera(sweep, raw, k, params)
             seed = (sweep.render["seed"] + 1_000_003 * k) % 2**31
             variants.append(Variant(k, f"v{k:0{width}d}", params, raw, render_seed=seed))
     return variants
+
+
+def _sample_camera(sweep: Sweep, raw: dict, k: int, params: dict) -> dict:
+    """The variant ``raw`` with the ``[camera]`` pose drawn (``default_rng([seed, k, 28])``); its
+    values go into ``params`` as ``camera.<name>``. A variant that is not a valid scenario is left
+    for :func:`_validate_variants` to report."""
+    raw = with_sensor_keys(raw, sweep.camera)
+    scenario, found = _validate(raw, sweep)
+    if found:
+        return raw
+    try:
+        view = sample_view(sweep.camera, scenario, np.random.default_rng([sweep.seed, k, 28]))
+    except InputError as exc:
+        raise InputError(f"{sweep.path}: variant {k}: {exc}") from None
+    apply_view(raw, sweep.camera, view)
+    params.update({f"camera.{name}": view[name] for name in CAMERA_PARAMS})
+    return raw
 
 
 def _validate_variants(sweep: Sweep, problems: list[str], limit: int = 20) -> None:

@@ -86,6 +86,7 @@ from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views, orthonormal_frames, ray_samples
 from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.heat import read_held_temperature
+from humv_usd.usd.heat import read_held_temperature
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
 from humv_usd.usd.mesh import override_topology
@@ -193,6 +194,8 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         # the mesh's material: that of most of its faces (all of them without material subsets)
         material = materials[int(np.argmax(np.bincount(of_face, minlength=len(materials))))]
         h = _held(path, held)  # a mesh from a hand-made layer: a slab of its material
+        if h is None:  # a warm-clutter part with a heat source (humv_usd.scene.objects)
+            h = read_held_temperature(prim)
         if h is None:  # a warm-clutter part with a heat source (humv_usd.scene.objects)
             h = read_held_temperature(prim)
         is_ground = path == str(GROUND)
