@@ -13,10 +13,13 @@ from pxr import Usd, UsdGeom
 
 from humv_usd.errors import InputError
 from humv_usd.geometry import rig
-from humv_usd.geometry.camera import Camera
+from humv_usd.geometry.camera import Camera, CameraPose
+from humv_usd.pipeline import graph
+from humv_usd.pipeline.compose import compose_in_memory, plan
 from humv_usd.render.export import StageExport
 from humv_usd.scenario import validate
 from humv_usd.sensors import layer as sensors_layer
+from humv_usd.thermal.surfaces import FOOTPRINT_FRAMES, _footprint_poses
 from humv_usd.usd.avatar import write_keypoints
 from humv_usd.usd.paths import human_path
 from humv_usd.usd.sensor import read_camera_pose
@@ -146,9 +149,10 @@ def test_tripod_camera_tracks_a_person_from_the_avatar_keypoints(raw):
     raw = _rig_raw(raw, position_m=[0.0, -15.0, 1.6], target="human", target_human=raw["human"][0]["id"])
     scenario = validate(raw)
     hid = raw["human"][0]["id"]
-    up = Usd.Stage.CreateInMemory()
-    UsdGeom.SetStageMetersPerUnit(up, 1.0)
-    root = UsdGeom.Xform.Define(up, human_path(hid))
+    avatar = Usd.Stage.CreateInMemory()  # the avatar layer: metres, a walker's keypoints
+    UsdGeom.SetStageMetersPerUnit(avatar, 1.0)
+    avatar.SetTimeCodesPerSecond(scenario["general"]["fps"])
+    root = UsdGeom.Xform.Define(avatar, human_path(hid))
     op = root.AddTranslateOp()
     kp = np.zeros((5, 17, 3))
     kp[:, [5, 6], 2], kp[:, [11, 12], 2] = 1.4, 0.9  # shoulders, hips
@@ -156,6 +160,8 @@ def test_tripod_camera_tracks_a_person_from_the_avatar_keypoints(raw):
     write_keypoints(root.GetPrim(), kp, [f"k{i}" for i in range(17)])
     for f in range(5):
         op.Set((2.0 * f, 3.0, 0.0), Usd.TimeCode(f))  # walks east 2 m per frame
+    # as compose hands it over: an in-memory root over the layer (no metersPerUnit of its own)
+    up = compose_in_memory([avatar.GetRootLayer()], scenario["general"]["fps"])
     stage = Usd.Stage.Open(sensors_layer.build(scenario, up))
     for f, pose in enumerate(_poses(stage, "/World/Sensors/" + raw["sensor"][0]["id"], range(5))):
         centre = np.array([2.0 * f, 3.0, 1.15])
@@ -205,9 +211,6 @@ def test_bad_rig_keys_are_named(raw, sensor, message):
 
 
 def test_sensors_layer_reads_an_avatar_only_for_a_tracked_person(raw):
-    from humv_usd.pipeline import graph
-    from humv_usd.pipeline.compose import plan
-
     still = validate(copy.deepcopy(raw))
     assert graph.layer_graph(still, plan(still)[0])["sensors"].upstream == ()
     hid = raw["human"][0]["id"]
@@ -222,9 +225,6 @@ def test_sensors_layer_reads_an_avatar_only_for_a_tracked_person(raw):
 def test_ground_refinement_keeps_a_passing_cameras_closest_pose():
     """thermal.surfaces: a car camera 1.8 m up passing a ground point at 0.5 m: the kept poses
     come within the documented 3 % of the closest distance over the clip (every pose read)."""
-    from humv_usd.geometry.camera import CameraPose
-    from humv_usd.thermal.surfaces import FOOTPRINT_FRAMES, _footprint_poses
-
     xs = np.linspace(-15.0, 15.0, 301)  # 0.1 m per frame
     poses = [
         CameraPose(np.array([x, 0.0, 1.8]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 45.0)

@@ -39,7 +39,27 @@ def sensor_position(sensor: dict) -> np.ndarray:
             start_deg=sensor["orbit_start_deg"],
             clockwise=sensor["orbit_clockwise"] == "yes",
         )[0]
+    if sensor["platform"] in ("vehicle", "drone"):  # the start of its path
+        return np.asarray(sensor["path_m"][0], dtype=float)
     return np.asarray(sensor["position_m"], dtype=float)
+
+
+def sensor_look_point(sensor: dict, placements: list[dict]) -> np.ndarray:
+    """Where the camera looks at frame 0 [m]: look_at_m, else its tracked person's placement,
+    the start of its target path, or 10 m along its first path segment (a forward camera)."""
+    if sensor.get("look_at_m") is not None:
+        return np.asarray(sensor["look_at_m"], dtype=float)
+    pos = sensor_position(sensor)
+    target = sensor.get("target")
+    if target == "human":
+        for p in placements:
+            if p["human"] == sensor.get("target_human"):
+                return np.asarray(p["position_m"], dtype=float)
+    if target == "path" and sensor.get("target_path_m"):
+        return np.asarray(sensor["target_path_m"][0], dtype=float)
+    path = np.asarray(sensor.get("path_m") or [], dtype=float).reshape(-1, 3)
+    step = path[1] - path[0] if len(path) > 1 else np.array([0.0, 1.0, 0.0])
+    return pos + 10.0 * step / max(float(np.linalg.norm(step)), 1e-9)
 
 
 def _heading_vector(compass_deg: float) -> np.ndarray:
@@ -90,6 +110,7 @@ def plan_svg(
     pts += [xy for _, xy in _assets(scene)]
     sensors = []
     for s in d["sensor"]:
+        s = dict(s, look_at_m=sensor_look_point(s, d.get("placement") or []))  # noqa: PLW2901
         pos = sensor_position(s)
         sensors.append((s, pos))
         pts.append(pos[:2])

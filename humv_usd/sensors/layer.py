@@ -38,7 +38,7 @@ from humv_usd.usd.sensor import CHAIN_ATTRIBUTES, write_sensor
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
 UPSTREAM = ("avatar_*",)  # a camera tracking a person reads the person's keypoints (upstream_for)
-VERSION = "4"  # 3: focusDistance at the look-at point; 4: rigs (vehicle, drone, handheld, tracking, gimbal)
+VERSION = "5"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres
 
 
 def upstream_for(scenario: Scenario) -> tuple[str, ...]:
@@ -84,7 +84,10 @@ def person_centres(stage, human_id: str, frame_count: int) -> np.ndarray:
     prim = stage.GetPrimAtPath(human_path(human_id)) if stage is not None else None
     where = f"{human_path(human_id)}.humv:label:cocoKeypoints"
     out = np.empty((max(frame_count, 1), 3))
-    mpu = float(UsdGeom.GetStageMetersPerUnit(stage)) if stage is not None else 1.0
+    # compose's in-memory upstream root authors no metersPerUnit (USD's fallback is centimetres);
+    # the layers are in metres
+    authored = stage is not None and UsdGeom.StageHasAuthoredMetersPerUnit(stage)
+    mpu = float(UsdGeom.GetStageMetersPerUnit(stage)) if authored else 1.0
     for f in range(len(out)):
         pts = read_keypoints(prim, f) if prim and prim.IsValid() else None
         if pts is None or len(pts) < 17:
