@@ -74,7 +74,9 @@ def sensor_ranges(sensor: dict, cams: np.ndarray, points: np.ndarray) -> np.ndar
     look_at = sensor.get("look_at_m")
     targets = points if look_at is None else np.vstack([points, np.asarray(look_at, float)[None]])
     far = max(float(np.max(np.linalg.norm(cams[:, None, :] - targets[None], axis=-1))), 1.0)
-    look = 0.0 if look_at is None else float(np.max(np.linalg.norm(cams - np.asarray(look_at, float), axis=-1)))
+    look = (
+        0.0 if look_at is None else float(np.max(np.linalg.norm(cams - np.asarray(look_at, float), axis=-1)))
+    )
     r_max = min(max(1.5 * far, 2.0 * look, 100.0), float(PATH_RANGES_M[-1]))
     return np.unique(np.append(PATH_RANGES_M[PATH_RANGES_M < r_max], r_max))
 
