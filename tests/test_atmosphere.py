@@ -14,7 +14,7 @@ from humv_usd.atmosphere import model as M
 from humv_usd.atmosphere import paths as paths_layer
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment import layer as environment_layer
-from humv_usd.environment.sun import sun_at
+from humv_usd.environment.sun import scenario_sun
 from humv_usd.physics import planck
 from humv_usd.physics.sky import directional_sky_emissivity, effective_sky_temperature
 from humv_usd.scenario import validate
@@ -180,7 +180,7 @@ def test_direct_sun_in_mwir(humvvex_lowtran):
     band = np.trapz(e[mw], wl[mw])
     assert 3.0 < band < 25.0  # ~10.6 W m-2 at humvvex
     eo = (wl >= 0.4) & (wl <= 0.7)
-    sun = sun_at(sc, [0.0])
+    sun = scenario_sun(sc, [0.0])
     assert 0.15 * sun.dni_w_m2[0] < np.trapz(e[eo], wl[eo]) < 0.6 * sun.dni_w_m2[0]
 
 
@@ -266,7 +266,7 @@ def test_layers_author_the_contract(humvvex_raw, monkeypatch, tmp_path):
     assert not _stage(atm_layer).GetPrimAtPath(PATHS)  # the sky layer has no paths
     stage = _stage(env, atm_layer, paths)
     e = stage.GetPrimAtPath("/World/Environment")
-    sun = sun_at(sc, [0.0, 1 / 30, 2 / 30])
+    sun = scenario_sun(sc, [0.0, 1 / 30, 2 / 30])
     for f in range(3):
         d = np.array(e.GetAttribute(S.ENVIRONMENT_SUN_DIRECTION).Get(f))
         np.testing.assert_allclose(d, sun.direction[f], atol=1e-6)
@@ -362,7 +362,7 @@ def test_direct_mwir_sun_dims_with_haze(humvvex_raw, lowtran_cache, monkeypatch)
         out[vis] = (atm.wavelengths_um, atm.solar_spectral_irradiance([0.0])[0])
     wl, clear = out[23.0]
     _, hazy = out[5.0]
-    zen = sun_at(validate(humvvex_raw), [0.0]).zenith_deg[0]
+    zen = scenario_sun(validate(humvvex_raw), [0.0]).zenith_deg[0]
     m = float(pvlib.atmosphere.get_relative_airmass(zen, model="kasten1966"))
     at = np.argmin(np.abs(wl - 3.8))
     expected = np.exp(

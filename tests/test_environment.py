@@ -9,8 +9,8 @@ import pandas as pd
 import pvlib
 import pytest
 
-from humv_usd.environment.sun import cloud_reduction, sun_at, sun_direction
-from humv_usd.environment.weather import weather_at
+from humv_usd.environment.sun import Site, cloud_reduction, scenario_sun, sun_at, sun_direction
+from humv_usd.environment.weather import scenario_weather, weather_at
 from humv_usd.errors import InputError
 from humv_usd.scenario import validate
 
@@ -32,7 +32,7 @@ def test_sun_matches_spa_reference_case(raw):
         longitude_deg=-105.1786,
         elevation_m=1830.14,
     )
-    s = sun_at(sc, [0.0])
+    s = scenario_sun(sc, [0.0])
     assert abs(s.zenith_deg[0] - 50.11162) < 0.01
     assert abs(s.azimuth_deg[0] - 194.34024) < 0.01
 
@@ -40,7 +40,7 @@ def test_sun_matches_spa_reference_case(raw):
 def test_sun_matches_pvlib_spa_over_a_day(raw):
     sc = validate(raw)  # humvvex: Fairborn OH, 2018-10-24 14:05 EDT
     t = np.arange(0.0, 86400.0, 3 * 3600.0)
-    s = sun_at(sc, t)
+    s = scenario_sun(sc, t)
     g, a = sc["general"], sc["atmosphere"]
     idx = pd.Timestamp("2018-10-24T18:05:00Z") + pd.to_timedelta(t, unit="s")
     ref = pvlib.solarposition.get_solarposition(
@@ -67,7 +67,7 @@ def test_sun_matches_pvlib_spa_over_a_day(raw):
 def test_night_has_no_sun(raw):
     sc = validate(raw)
     night = 9 * 3600.0  # 23:05 EDT
-    s = sun_at(sc, [0.0, night])
+    s = scenario_sun(sc, [0.0, night])
     assert s.up.tolist() == [True, False]
     assert s.dni_w_m2[1] == s.dhi_w_m2[1] == s.ghi_w_m2[1] == 0.0
     assert s.zenith_deg[1] > 90.0
@@ -75,7 +75,7 @@ def test_night_has_no_sun(raw):
 
 def test_clear_sky_irradiance_matches_pvlib_ineichen(raw):
     sc = validate(raw)
-    s = sun_at(sc, [0.0])
+    s = scenario_sun(sc, [0.0])
     g = sc["general"]
     loc = pvlib.location.Location(g["latitude_deg"], g["longitude_deg"], altitude=g["elevation_m"])
     ref = loc.get_clearsky(pd.DatetimeIndex([pd.Timestamp("2018-10-24T18:05:00Z")]), model="ineichen")
@@ -98,12 +98,12 @@ def test_cloud_reduction_kasten_czeplak():
 
 def test_cloud_cover_reduces_scenario_sun(raw):
     raw["atmosphere"]["cloud_cover"] = 1.0
-    s = sun_at(validate(raw), [0.0])
+    s = scenario_sun(validate(raw), [0.0])
     assert s.dni_w_m2[0] == pytest.approx(0.0, abs=1e-6) and s.ghi_w_m2[0] > 0
 
 
 def test_weather_constant(raw):
-    w = weather_at(validate(raw), [0.0, 10.0])
+    w = scenario_weather(validate(raw), [0.0, 10.0])
     assert w.air_temperature_k.tolist() == [289.0, 289.0]
     assert w.wind_direction_deg.tolist() == [225.0, 225.0] and not w.varies
 
@@ -118,14 +118,14 @@ def test_weather_csv_interpolates(raw, tmp_path):
     )  # 16:00 EDT
     raw["atmosphere"]["weather_csv"] = str(csv)
     sc = validate(raw)
-    w = weather_at(sc, [0.0, 1500.0, 3300.0 + 1800.0])  # 14:05, 14:30, 15:30
+    w = scenario_weather(sc, [0.0, 1500.0, 3300.0 + 1800.0])  # 14:05, 14:30, 15:30
     np.testing.assert_allclose(w.air_temperature_k, [288.0 + 2 * 5 / 60, 289.0, 291.0])
     dwind = (w.wind_direction_deg[1] + 180.0) % 360.0 - 180.0
     assert abs(dwind) < 1e-9  # 350 and 10 meet at north, not south
     assert w.relative_humidity.tolist() == [0.45] * 3  # column absent: [atmosphere] value
     assert w.varies
     with pytest.raises(InputError, match="atmosphere.weather_csv"):
-        weather_at(sc, [3 * 3600.0])  # 17:05, past the series
+        scenario_weather(sc, [3 * 3600.0])  # 17:05, past the series
 
 
 @pytest.mark.parametrize(
@@ -142,7 +142,7 @@ def test_weather_csv_bad_input(raw, tmp_path, text, msg):
     csv.write_text(text)
     raw["atmosphere"]["weather_csv"] = str(csv)
     with pytest.raises(InputError, match=msg):
-        weather_at(validate(raw), [0.0])
+        scenario_weather(validate(raw), [0.0])
 
 
 def test_cloud_dni_factor_is_the_ratio_of_cloud_reduction():
@@ -157,3 +157,48 @@ def test_cloud_dni_factor_is_the_ratio_of_cloud_reduction():
         _, _, cloudy = cloud_reduction(ghi_c, kd * ghi_c, zen, n)
         np.testing.assert_allclose(cloud_dni_factor(n), cloudy / clear, rtol=1e-12, atol=1e-15)
     assert cloud_dni_factor(1.0) == 0.0 and cloud_dni_factor(0.0) == 1.0
+
+
+def test_weather_at_takes_times_and_a_series_not_the_scenario():
+    """weather_at(epoch, times, constants, series): constants where the series has no column,
+    linear in time, wind direction through its components (350 and 10 deg average to 0)."""
+    from humv_usd.physics.weather import COLUMNS
+
+    const = {k: 1.0 for k in COLUMNS}
+    series = (
+        np.array([1000.0, 2000.0]),
+        {"air_temperature_k": np.array([280.0, 290.0]), "wind_direction_deg": np.array([350.0, 10.0])},
+    )
+    w = weather_at(1000.0, [0.0, 500.0, 1000.0], const, series)
+    np.testing.assert_allclose(w.air_temperature_k, [280.0, 285.0, 290.0])
+    assert abs((w.wind_direction_deg[1] + 180.0) % 360.0 - 180.0) < 1e-9
+    np.testing.assert_allclose(w.relative_humidity, 1.0)
+    with pytest.raises(InputError, match="atmosphere.weather_csv"):
+        weather_at(1000.0, [1500.0], const, series, source="w.csv")
+
+
+def test_sun_at_takes_a_site_and_times():
+    """sun_at(site, epoch, times, weather) against pvlib's SPA at the same site and instant."""
+    import pandas as pd
+    import pvlib
+
+    from humv_usd.physics.weather import COLUMNS
+
+    site = Site(39.80, -84.03, 250.0)
+    epoch = pd.Timestamp("2018-10-24T18:05:00Z").timestamp()
+    const = {k: 1.0 for k in COLUMNS} | {
+        "pressure_pa": 98500.0,
+        "air_temperature_k": 289.0,
+        "cloud_cover": 0.0,
+    }
+    w = weather_at(epoch, [0.0, 3600.0], const)
+    s = sun_at(site, epoch, [0.0, 3600.0], w)
+    ref = pvlib.solarposition.spa_python(
+        pd.to_datetime([epoch, epoch + 3600.0], unit="s", utc=True),
+        39.80,
+        -84.03,
+        altitude=250.0,
+        pressure=98500.0,
+        temperature=289.0 - 273.15,
+    )
+    np.testing.assert_allclose(s.zenith_deg, ref["apparent_zenith"].to_numpy(), atol=1e-9)

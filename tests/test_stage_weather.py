@@ -18,8 +18,8 @@ from humv_usd.atmosphere import model as M
 from humv_usd.atmosphere import paths as paths_layer
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment import layer as environment_layer
-from humv_usd.environment.sun import sun_at
-from humv_usd.environment.weather import weather_at
+from humv_usd.environment.sun import scenario_sun
+from humv_usd.environment.weather import scenario_weather
 from humv_usd.materials import layer as materials_layer
 from humv_usd.physics.sky import hemispherical_irradiance
 from humv_usd.pipeline.compose import compose_in_memory
@@ -103,7 +103,7 @@ def test_environment_layer_holds_the_spin_up_at_negative_time_codes(hourly):
     assert_allclose(w.air_temperature_k, 285.0)
     assert_allclose(w.cloud_cover, 0.0)
     sun = E.read_sun(upstream, codes)
-    ref = sun_at(sc, spin_t, weather_at(sc, np.zeros_like(spin_t)))
+    ref = scenario_sun(sc, spin_t, scenario_weather(sc, np.zeros_like(spin_t)))
     assert_allclose(sun.zenith_deg, ref.zenith_deg, atol=1e-4)
     assert_allclose(sun.dni_w_m2, ref.dni_w_m2, rtol=1e-5, atol=1e-3)
     # at the frames, the layer's weather is the series (USD: linear between the frame samples)

@@ -30,7 +30,7 @@ from humv_usd.editor.plan import plan_svg
 from humv_usd.editor.preview import PREVIEW_WIDTH_PX, make_preview, preview_commands, preview_scenario
 from humv_usd.editor.safety import UploadExists, inside, store_upload, sweep_base, upload_target
 from humv_usd.editor.stage3d import stage_view
-from humv_usd.environment.sun import sun_at
+from humv_usd.environment.sun import scenario_sun
 from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
 from humv_usd.pipeline.budget import MAX_SPP, require_fits, scenario_render_budget
@@ -70,7 +70,7 @@ class Editor:
         key = repr((scenario["general"], scenario["atmosphere"]))
         if key not in self._sun:
             try:
-                state = sun_at(scenario, [0.0])
+                state = scenario_sun(scenario, [0.0])
                 self._sun[key] = (float(state.azimuth_deg[0]), float(state.zenith_deg[0]))
             except (InputError, ValueError) as exc:
                 log.warning("sun position: %s", exc)

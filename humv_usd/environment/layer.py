@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf
 
-from humv_usd.environment.sun import sun_at
-from humv_usd.environment.weather import weather_at, with_diurnal_cycle
+from humv_usd.environment.sun import scenario_sun
+from humv_usd.environment.weather import scenario_weather, with_diurnal_cycle
 from humv_usd.physics.weather import COLUMNS
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
@@ -91,11 +91,11 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     spin_t = spin_up_times(scenario)
     times = np.concatenate([spin_t, frames_t])
     codes = np.round(times * float(g["fps"]), 6)
-    weather = weather_at(scenario, _weather_times(scenario, times))
+    weather = scenario_weather(scenario, _weather_times(scenario, times))
     covered = _covered_from(scenario)
     weather = with_diurnal_cycle(scenario, times, weather, covered)
     E.write_weather(env, weather, codes)
-    sun = sun_at(scenario, times, weather)
+    sun = scenario_sun(scenario, times, weather)
     if scenario.frame_count > 1 or spin_t.size:
         E.write_sun(env, sun, codes)
     else:

@@ -10,27 +10,55 @@ Stage frame: x east, y north, z up; azimuth is a compass angle (0 = north, 90 = 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from humv_usd.environment.weather import weather_at
+from humv_usd.environment.weather import scenario_weather
 from humv_usd.physics.sun import SunState, cloud_reduction, sun_direction
 from humv_usd.physics.weather import Weather
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.times import utc_times
+from humv_usd.scenario.times import frame_epoch_s
 
 
-def sun_at(scenario: Scenario, times_s, weather: Weather | None = None) -> SunState:
-    """Solar position and irradiance at ``times_s`` seconds after frame 0.
+@dataclass(frozen=True)
+class Site:
+    """Where the scene is: latitude and longitude [deg] (north and east positive) and
+    elevation above sea level [m]."""
+
+    latitude_deg: float
+    longitude_deg: float
+    elevation_m: float
+
+
+def site_of(scenario: Scenario) -> Site:
+    """The scenario's site (``[general]`` latitude_deg, longitude_deg, elevation_m)."""
+    g = scenario["general"]
+    return Site(float(g["latitude_deg"]), float(g["longitude_deg"]), float(g["elevation_m"]))
+
+
+def scenario_sun(scenario: Scenario, times_s, weather: Weather | None = None) -> SunState:
+    """:func:`sun_at` for a scenario (the tools' thin build step): its site, frame 0 from
+    ``[general]`` (local start and UTC offset), and its weather (:func:`humv_usd.environment.
+    weather.scenario_weather`) when ``weather`` is not given."""
+    t = np.atleast_1d(np.asarray(times_s, dtype=float))
+    w = weather if weather is not None else scenario_weather(scenario, t)
+    return sun_at(site_of(scenario), frame_epoch_s(scenario), t, w)
+
+
+def sun_at(site: Site, epoch_s: float, times_s, weather: Weather) -> SunState:
+    """Solar position and irradiance at a site and times.
 
     Parameters
     ----------
-    scenario : Scenario
-        Site (latitude, longitude, elevation), local start time and UTC offset from
-        ``[general]``; weather from ``[atmosphere]`` (see :func:`weather_at`).
+    site : Site
+        Latitude, longitude [deg] and elevation [m].
+    epoch_s : float
+        UTC POSIX time of frame 0 [s].
     times_s : array-like (n,)
         Seconds after frame 0.
-    weather : Weather, optional
-        Weather at the same times (computed when not given).
+    weather : Weather
+        Weather at the same times (pressure, air temperature, cloud cover).
 
     Returns
     -------
@@ -52,13 +80,13 @@ def sun_at(scenario: Scenario, times_s, weather: Weather | None = None) -> SunSt
     .. [4] Kasten, F., Young, A. T. (1989). Revised optical air mass tables and approximation
        formula. Applied Optics 28(22), 4735-4738.
     """
+    import pandas as pd
     import pvlib
 
-    g = scenario["general"]
     t = np.atleast_1d(np.asarray(times_s, dtype=float))
-    w = weather if weather is not None else weather_at(scenario, t)
-    idx = utc_times(scenario, t)
-    lat, lon, elev = g["latitude_deg"], g["longitude_deg"], g["elevation_m"]
+    w = weather
+    idx = pd.to_datetime(float(epoch_s) + t, unit="s", utc=True)
+    lat, lon, elev = site.latitude_deg, site.longitude_deg, site.elevation_m
     sp = pvlib.solarposition.spa_python(
         idx, lat, lon, altitude=elev, pressure=w.pressure_pa, temperature=w.air_temperature_k - 273.15
     )

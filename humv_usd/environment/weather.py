@@ -27,40 +27,56 @@ from humv_usd.scenario.times import frame_epoch_s
 from humv_usd.scenario.weather_csv import read_weather_csv
 
 
-def weather_at(scenario: Scenario, times_s) -> Weather:
-    """Weather at ``times_s`` seconds after frame 0.
+def scenario_weather(scenario: Scenario, times_s) -> Weather:
+    """:func:`weather_at` for a scenario (the tools' thin build step): ``[atmosphere]``'s
+    constants and ``weather_csv`` series (read with the scenario's UTC offset), frame 0 from
+    ``[general]``, at ``times_s`` seconds after frame 0."""
+    a = scenario["atmosphere"] or {}
+    const = {k: float(a.get(k, ATMOSPHERE.keys[k].default)) for k in COLUMNS}
+    path = a.get("weather_csv")
+    series = read_weather_csv(path, scenario) if path else None
+    return weather_at(frame_epoch_s(scenario), times_s, const, series, source=str(path) if path else None)
+
+
+def weather_at(epoch_s: float, times_s, constants: dict, series=None, source: str | None = None) -> Weather:
+    """Weather at times: constants, or a time series where it has a column.
 
     Parameters
     ----------
-    scenario : Scenario
-        Reads ``[atmosphere]`` (constants and ``weather_csv``) and ``[general]`` (start, offset).
+    epoch_s : float
+        UTC POSIX time of frame 0 [s].
     times_s : array-like (n,)
         Seconds after frame 0.
+    constants : dict
+        A value per :data:`humv_usd.physics.weather.COLUMNS` name (the ``[atmosphere]`` keys,
+        same units).
+    series : (times [UTC POSIX s] (m,), {column: (m,) values}), optional
+        A measured series (:func:`humv_usd.scenario.weather_csv.read_weather_csv`); its columns
+        replace the constants. Times outside it are an InputError naming ``source``.
+    source : str, optional
+        Where the series comes from, for the error message.
 
     Returns
     -------
     Weather
         (n,) arrays. Linear interpolation in time; wind direction via its components.
     """
-    a = scenario["atmosphere"] or {}
     t = np.atleast_1d(np.asarray(times_s, dtype=float))
-    const = {k: float(a.get(k, ATMOSPHERE.keys[k].default)) for k in COLUMNS}
-    out = {k: np.full(t.shape, v) for k, v in const.items()}
-    path = a.get("weather_csv")
-    if path:
-        ts, series = read_weather_csv(path, scenario)
-        abs_t = frame_epoch_s(scenario) + t
+    out = {k: np.full(t.shape, float(constants[k])) for k in COLUMNS}
+    if series is not None:
+        ts, columns = series
+        abs_t = float(epoch_s) + t
         if len(t) and (abs_t.min() < ts[0] - 1e-6 or abs_t.max() > ts[-1] + 1e-6):
             first = dt.datetime.fromtimestamp(ts[0], dt.UTC).isoformat()
             last = dt.datetime.fromtimestamp(ts[-1], dt.UTC).isoformat()
             raise InputError(
                 bad_value(
                     "atmosphere.weather_csv",
-                    str(path),
+                    source,
                     f"series covers {first} .. {last} UTC, not every frame",
                 )
             )
-        for k, v in series.items():
+        for k, v in columns.items():
             if k == "wind_direction_deg":
                 rad = np.radians(v)
                 e, n = np.interp(abs_t, ts, np.sin(rad)), np.interp(abs_t, ts, np.cos(rad))
