@@ -9,6 +9,7 @@ real ~30k-facet clothed avatar instead of the capsule stand-in.
 
 from __future__ import annotations
 
+import statistics
 import time
 from pathlib import Path
 
@@ -16,10 +17,12 @@ import numpy as np
 import trimesh
 from pxr import Usd
 
+from humv_usd.fileio import atomic_path
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import human as H
 from humv_usd.thermal import layer as TL
+from humv_usd.thermal.physiology import simulate_physiology
 from humv_usd.thermal.qrad import absorbed_radiation
 from humv_usd.thermal.scene_radiance import SceneSurfaces, radiance_map, scene_surface_radiance
 from humv_usd.thermal.sky import ClearSky
@@ -270,3 +273,60 @@ def bench_qrad(
                 }
             )
     return rows
+
+
+def plot_thermal_bench(rows: list[dict], g_rows: list[dict], s_rows: list[dict], what: str, png) -> None:
+    """``humv-usd bench thermal``'s PNG: q_rad RMS relative error against CPU time per method and
+    map resolution (left), garment and skin temperature error against the time step (right)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    for method, marker in (("brute", "s"), ("fast", "o"), ("adaptive", "^")):
+        for res in sorted({r["resolution"] for r in rows}):
+            pts = [
+                (r["cpu_seconds"], r["rms_rel_error"])
+                for r in rows
+                if r["method"] == method and r["resolution"] == res and not r["reference"]
+            ]
+            if pts:
+                ax.loglog(*zip(*sorted(pts)), marker + "-", label=f"{method} {res}²")
+    ax.axvline(1.0, color="0.6", lw=0.8)
+    ax.axhline(0.01, color="0.6", lw=0.8)
+    ax.set_xlabel("q_rad run time [cpu s]")
+    ax.set_ylabel("RMS relative error vs brute reference")
+    ax.set_title(f"absorbed radiation, {rows[0]['facets']} facets ({what})")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    for key, group, rws in (("case", "garment", g_rows), ("model", "skin", s_rows)):
+        for name in dict.fromkeys(r[key] for r in rws):
+            pts = [(r["step_s"], max(r["max_error_k"], 1e-12)) for r in rws if r[key] == name]
+            ax2.loglog(*zip(*pts), "o-", label=f"{group}: {name}")
+    ax2.set_xlabel("time step [s]")
+    ax2.set_ylabel("max temperature error [K]")
+    ax2.set_title("temperature error vs time step")
+    ax2.grid(True, which="both", alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.tight_layout()
+    with atomic_path(png) as tmp_png:
+        fig.savefig(tmp_png, dpi=120, format="png")
+    plt.close(fig)
+
+
+def physiology_run_times(models=("two_node", "jos3")) -> dict[str, float]:
+    """Median wall time [s] of 1 h of physiology at 60 s steps per model (after a warm-up)."""
+    times = np.arange(0, 3601, 60.0)
+    out = {}
+    for model in models:
+        simulate_physiology(
+            times[:3], 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model, spin_up_s=0.0
+        )  # compile / warm up
+        runs = []
+        for _ in range(3):
+            t = time.perf_counter()
+            simulate_physiology(times, 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model, spin_up_s=0.0)
+            runs.append(time.perf_counter() - t)
+        out[model] = statistics.median(runs)
+    return out

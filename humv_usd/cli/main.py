@@ -8,10 +8,11 @@ traceback and nothing written).
 from __future__ import annotations
 
 import logging
+import signal
 import statistics
 import sys
+import threading
 import tempfile
-import time
 from pathlib import Path
 
 import click
@@ -42,6 +43,16 @@ def parse_frames(text: str | None) -> list[int] | None:
             "per call (render the stage's range in parts)"
         )
     return list(range(first, last + 1))
+
+
+def parse_resolution(text: str | None) -> tuple[int, int] | None:
+    """``"160x128"`` -> (160, 128); None -> None; anything else one InputError line."""
+    if text is None:
+        return None
+    w, sep, h = text.lower().partition("x")
+    if not (sep and w.strip().isdigit() and h.strip().isdigit()) or int(w) < 1 or int(h) < 1:
+        raise InputError(f"--resolution = {text!r}: expected WIDTHxHEIGHT in pixels, e.g. 160x128")
+    return int(w), int(h)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -165,6 +176,13 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
     help="Sub-bands per infrared band for every sensor (1-64; default: each sensor's `subbands`, else 16; see `humv-usd bench render`).",
 )
 @click.option(
+    "--resolution",
+    default=None,
+    metavar="WxH",
+    help="Render every sensor at this pixel count at its own field of view (the pixel pitch scales; "
+    "e.g. 160x128 for a quick look at a 640x512 camera).",
+)
+@click.option(
     "--wait",
     is_flag=True,
     help="If another humv-usd process is writing OUT, wait for it (default: stop with one line naming it).",
@@ -195,6 +213,7 @@ def render(
     sensors,
     annotators,
     subbands,
+    resolution,
     wait: bool,
     force: bool,
     yes: bool,
@@ -223,6 +242,7 @@ def render(
             wait=wait,
             force=force,
             yes=yes,
+            resolution=parse_resolution(resolution),
         )
     echo_render_summary(manifest, out_dir, estimator)
 
@@ -327,47 +347,15 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
     "cli" runs the commands as a user does (a new process each: imports, asset loading and
     Mitsuba's JIT included); "in-process" repeats the calls in one process (warm caches).
     """
-    import subprocess
+    from humv_usd.bench.pipeline import bench_pipeline as run_bench
 
-    from humv_usd.pipeline.compose import compose as run_compose
-    from humv_usd.pipeline.render import render_stage
-    from humv_usd.scenario import load_scenario
-
-    load_scenario(scenario)  # bad input: one line, exit 2, before any timing
-    cli = [sys.executable, "-m", "humv_usd.cli.main"]
-    times: dict[str, list[float]] = {
-        k: [] for k in ("compose cli", "render cli", "compose in-process", "render in-process")
-    }
-    err_k = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for i in range(repeat):
-            out = Path(tmp) / f"cli{i}"
-            for name, args in (
-                ("compose cli", ["compose", str(scenario), "-o", str(out)]),
-                (
-                    "render cli",
-                    ["render", str(out / "stage.usda"), "-o", str(out / "render"), "-q"]
-                    + ([] if spp is None else ["--spp", str(spp)]),
-                ),
-            ):
-                t = time.perf_counter()
-                subprocess.run(cli + args, check=True, capture_output=True)
-                times[name].append(time.perf_counter() - t)
-        for i in range(repeat):
-            out = Path(tmp) / f"run{i}"
-            t = time.perf_counter()
-            run_compose(load_scenario(scenario), out)
-            times["compose in-process"].append(time.perf_counter() - t)
-            t = time.perf_counter()
-            manifest = render_stage(out / "stage.usda", out / "render", spp=spp, seed=i)
-            times["render in-process"].append(time.perf_counter() - t)
-            err_k.append(manifest["monte_carlo_error"]["temperature_stderr_mean_k"])
+    result = run_bench(scenario, spp, repeat)
     click.echo(f"scenario {scenario}, {spp or 'default'} spp, {repeat} runs each (median, min..max)")
-    for name, values in times.items():
+    for name, values in result["times"].items():
         click.echo(f"  {name:<19} {statistics.median(values):7.3f} s  ({min(values):.3f}..{max(values):.3f})")
     click.echo(
         f"  Monte Carlo error: mean per-pixel standard error "
-        f"{statistics.median(err_k):.4f} K (median over runs)"
+        f"{statistics.median(result['error_k']):.4f} K (median over runs)"
     )
 
 
@@ -402,67 +390,19 @@ def bench_clothing(garments: str, activity: str, frames: int):
 def bench_avatar(repeat: int):
     """Body fit errors over a grid, contact figures for walk/run on flat and 5-degree ground,
     and the median time to author a 10 s, 30 fps walk (the `humv-usd avatar` command)."""
-    import math
-    import subprocess
-
-    from humv_usd.human.body import build_body
-    from humv_usd.human.motion import make_motion
-    from humv_usd.human.skeleton import skeleton_for
+    from humv_usd.bench.avatar import author_times, body_fit_errors, contact_figures
 
     click.echo("body fit, age 30, average build: |error| of stature and of mesh mass [%]")
-    for sex in ("female", "male"):
-        worst_h = worst_m = 0.0
-        for stature in (1.5, 1.75, 2.0):
-            for mass in (50.0, 80.0, 110.0):
-                b = build_body(sex, 30, stature, mass)
-                worst_h = max(worst_h, abs(b.stature_m / stature - 1) * 100)
-                worst_m = max(worst_m, abs(b.mass_kg / mass - 1) * 100)
+    for sex, (worst_h, worst_m) in body_fit_errors().items():
         click.echo(f"  {sex:<6} stature 1.5-2.0 m x mass 50-110 kg: max {worst_h:.2e} % / {worst_m:.2e} %")
-    body = build_body("male", 30, 1.78, 80.0)
-    skel = skeleton_for(body.points, body.groups)
-    slope = math.tan(math.radians(5.0))
     click.echo("ground contact, 10 s at 30 fps, male 1.78 m / 80 kg (sole vertices) [cm]:")
-    for activity, speed in (("walk", 1.4), ("run", 3.5)):
-        for name, ground in (("flat", None), ("5 deg", lambda x, y: -slope * y)):
-            m = make_motion(
-                activity,
-                skel,
-                30.0,
-                300,
-                speed_m_s=speed,
-                mass_kg=80.0,
-                body_points=body.points,
-                ground=ground,
-            )
-            c = m.contact
-            click.echo(
-                f"  {activity:<4} {speed} m/s {name:<6} gap {100 * c['max_gap_m']:.2f}  "
-                f"penetration {100 * c['max_penetration_m']:.2f}  "
-                f"stance slip {100 * c['max_slip_m']:.2f}"
-            )
-    with tempfile.TemporaryDirectory() as tmp:
-        times = []
-        for i in range(repeat):
-            t = time.perf_counter()
-            subprocess.run(
-                [
-                    sys.executable,
-                    "-m",
-                    "humv_usd.cli.main",
-                    "avatar",
-                    "--activity",
-                    "walk",
-                    "--duration",
-                    "10",
-                    "--fps",
-                    "30",
-                    "-o",
-                    str(Path(tmp) / f"a{i}.usda"),
-                ],
-                check=True,
-                capture_output=True,
-            )
-            times.append(time.perf_counter() - t)
+    for c in contact_figures():
+        click.echo(
+            f"  {c['activity']:<4} {c['speed_m_s']} m/s {c['ground']:<6} gap {100 * c['max_gap_m']:.2f}  "
+            f"penetration {100 * c['max_penetration_m']:.2f}  "
+            f"stance slip {100 * c['max_slip_m']:.2f}"
+        )
+    times = author_times(repeat)
     click.echo(
         f"author a 10 s, 30 fps walk (humv-usd avatar, new process): median "
         f"{statistics.median(times):.2f} s ({min(times):.2f}..{max(times):.2f})"
@@ -520,18 +460,11 @@ def bench_thermal(
     """q_rad error against run time (methods x map resolutions), skin and garment temperature
     error against the time step, the garment balance's extreme-grid counts, and the run time of
     1 h of physiology (two-node, JOS-3)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    from humv_usd.bench.thermal import bench_qrad
+    from humv_usd.bench.thermal import bench_qrad, physiology_run_times, plot_thermal_bench
     from humv_usd.bench.thermal_steps import garment_time_steps as garment_steps
     from humv_usd.bench.thermal_steps import skin_time_steps as skin_steps
-    from humv_usd.fileio import atomic_path, check_output_file
+    from humv_usd.fileio import check_output_file
     from humv_usd.physics.garment import extreme_grid_counts
-    from humv_usd.thermal.physiology import simulate_physiology
 
     def ints(text, name):
         try:
@@ -600,51 +533,13 @@ def bench_thermal(
             f"  ({r['seconds']:.3f} s)"
         )
 
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4))
-    for method, marker in (("brute", "s"), ("fast", "o"), ("adaptive", "^")):
-        for res in sorted({r["resolution"] for r in rows}):
-            pts = [
-                (r["cpu_seconds"], r["rms_rel_error"])
-                for r in rows
-                if r["method"] == method and r["resolution"] == res and not r["reference"]
-            ]
-            if pts:
-                ax.loglog(*zip(*sorted(pts)), marker + "-", label=f"{method} {res}²")
-    ax.axvline(1.0, color="0.6", lw=0.8)
-    ax.axhline(0.01, color="0.6", lw=0.8)
-    ax.set_xlabel("q_rad run time [cpu s]")
-    ax.set_ylabel("RMS relative error vs brute reference")
-    ax.set_title(f"absorbed radiation, {rows[0]['facets']} facets ({what})")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    for key, group, rws in (("case", "garment", g_rows), ("model", "skin", s_rows)):
-        for name in dict.fromkeys(r[key] for r in rws):
-            pts = [(r["step_s"], max(r["max_error_k"], 1e-12)) for r in rws if r[key] == name]
-            ax2.loglog(*zip(*pts), "o-", label=f"{group}: {name}")
-    ax2.set_xlabel("time step [s]")
-    ax2.set_ylabel("max temperature error [K]")
-    ax2.set_title("temperature error vs time step")
-    ax2.grid(True, which="both", alpha=0.3)
-    ax2.legend(fontsize=7)
-    fig.tight_layout()
-    with atomic_path(png) as tmp_png:
-        fig.savefig(tmp_png, dpi=120, format="png")
-    plt.close(fig)
+    plot_thermal_bench(rows, g_rows, s_rows, what, png)
     click.echo(f"  plot: {png}")
 
     counts = extreme_grid_counts()
     click.echo("garment balance extreme grid: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
-    times = np.arange(0, 3601, 60.0)
-    for model in ("two_node", "jos3"):
-        simulate_physiology(
-            times[:3], 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model, spin_up_s=0.0
-        )  # compile / warm up
-        runs = []
-        for _ in range(3):
-            t = time.perf_counter()
-            simulate_physiology(times, 100.0, 293.0, 293.0, 0.5, 0.1, 0.5, model=model, spin_up_s=0.0)
-            runs.append(time.perf_counter() - t)
-        click.echo(f"1 h of {model} physiology at 60 s steps: median {statistics.median(runs):.3f} s")
+    for model, median_s in physiology_run_times().items():
+        click.echo(f"1 h of {model} physiology at 60 s steps: median {median_s:.3f} s")
 
 
 def _register_tools():
@@ -677,9 +572,18 @@ def _register_tools():
     from humv_usd.cli.detector_cmd import bench_detector
 
     bench.add_command(bench_detector)
+    from humv_usd.cli.bench_places_cmd import bench_places
+
+    bench.add_command(bench_places)
 
 
 _register_tools()
+# loaded: Ctrl-C raises KeyboardInterrupt again, which each command reports as one line
+# (humv_usd/__init__.py quietened it while the imports ran)
+if signal.getsignal(signal.SIGINT) is not signal.default_int_handler and (
+    threading.current_thread() is threading.main_thread()
+):
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 if __name__ == "__main__":
     main()
