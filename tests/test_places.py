@@ -23,6 +23,7 @@ from humv_usd.scenario.places import CAR_LENGTH_M, KIND_MATERIALS, place_items, 
 from humv_usd.scenario.spec import CLUTTER, CLUTTER_CLASSES, PLACE, PLACE_KINDS
 from humv_usd.scene import layer as scene_layer
 from humv_usd.scene.objects import part_temperatures, parts_of, path_poses
+from humv_usd.sweep.spec import load_sweep
 from humv_usd.thermal.surfaces import scene_meshes
 from humv_usd.usd import schemas as S
 from humv_usd.usd.heat import read_lights
@@ -204,3 +205,27 @@ def test_bad_keys_are_one_line_errors(edit, needle):
 def test_place_examples_validate(path):
     scenario = validate(tomllib.loads(path.read_text()), path)
     assert scenario["scene"]["place"]["kind"] == path.stem
+
+
+def test_random_places_sweep_spans_kinds_times_and_seeds():
+    sweep = load_sweep(EXAMPLES / "random_places.toml")
+    kinds = [v.scenario["scene"]["place"]["kind"] for v in sweep.variants]
+    assert sorted(set(kinds)) == sorted(PLACE_KINDS[1:]) and len(kinds) == 24
+    hours = [v.scenario["general"]["start"].hour for v in sweep.variants]
+    assert min(hours) < 6 and max(hours) >= 19  # night and day
+    assert len({v.scenario["scene"]["place"]["seed"] for v in sweep.variants}) == 24
+
+
+def test_bench_scales_the_place_and_refuses_bad_factors():
+    from click.testing import CliRunner
+
+    from humv_usd.bench.places import scaled_place
+    from humv_usd.cli.main import main
+
+    raw = tomllib.loads((EXAMPLES / "places" / "street.toml").read_text())
+    big = scaled_place(raw, 2.0)
+    assert big["scene"]["place"]["vehicles"] == 2 * raw["scene"]["place"]["vehicles"]
+    assert big["scene"]["place"]["length_m"] == 2 * raw["scene"]["place"]["length_m"] and "human" not in big
+    validate(big, EXAMPLES / "places" / "street.toml")
+    result = CliRunner().invoke(main, ["bench", "places", "--factors", "0,x"])
+    assert result.exit_code == 2 and "--factors" in result.output

@@ -575,6 +575,9 @@ def _register_tools():
     from humv_usd.cli.bench_places_cmd import bench_places
 
     bench.add_command(bench_places)
+    from humv_usd.cli.bench_places_cmd import bench_places
+
+    bench.add_command(bench_places)
 
 
 _register_tools()
