@@ -63,7 +63,7 @@ from humv_usd.fileio import write_json
 from humv_usd.geometry.camera import CAMERA_FILE, Camera, camera_file
 from humv_usd.physics.sensor import srgb_encode
 from humv_usd.render import elements as el
-from humv_usd.render import eo_fast, nightlight, radiometry
+from humv_usd.render import eo_fast, lights, nightlight, radiometry
 from humv_usd.render import estimator as E
 from humv_usd.render import quality as Q
 from humv_usd.render.cie import XYZ_TO_SRGB
@@ -73,6 +73,7 @@ from humv_usd.render.light import FrameLight, read_frame_light
 from humv_usd.render.radiometry import hemisphere_mean
 from humv_usd.render.renderer import choose_estimator
 from humv_usd.usd import environment as usd_environment
+from humv_usd.usd import lights as usd_lights
 from humv_usd.usd.atmosphere import atmosphere_spectra
 
 #: Wavelength grid of the Mitsuba spectra [nm] (Mitsuba's spectral variants sample 360-830 nm).
@@ -212,6 +213,7 @@ class EOScene(IRScene):
         workdir,
         sky: bool = True,
         sun: bool = True,
+        lamps=(),
     ):
         mi = mode.mitsuba(spectral=True)
         self.mi = mi
@@ -227,6 +229,7 @@ class EOScene(IRScene):
         if self.has_sun:
             elements.append(el.directional_sun(_spectrum(np.full(EO_WAVELENGTHS_NM.size, TINY)), "values"))
         elements += [el.perspective_sensor(mi, s, spp, "xyz") for s in sensors]
+        elements += lights.lamp_elements(mi, list(lamps), EO_WAVELENGTHS_NM)  # street lamps, windows
         for part, vertices, flip in parts:
             bsdf = {"type": "diffuse", "reflectance": _spectrum(reflectance_spectrum(part.material))}
             elements.append(el.mesh(part, vertices, flip, workdir, bsdf=bsdf, prefix="eo_"))
@@ -353,6 +356,15 @@ class EORender:
         self.truth = truth  # humv_usd.groundtruth.GroundTruth: the same labels as the IR sensors
         self.spp, self.max_depth, self.seed, self.out_dir = int(spp), int(max_depth), int(seed), out_dir
         self.estimator, self.estimator_note = _eo_estimator(estimator, max_depth)
+        # artificial lights (UsdLux lamps with a HumV spectrum): the spectral path tracer renders them
+        self.has_lamps = bool(usd_lights.read_lamps(stage, Usd.TimeCode(stage.GetStartTimeCode())))
+        if self.has_lamps and self.estimator == "fast":
+            self.estimator, self.estimator_note = (
+                "path",
+                "lamps on the stage (humv:light:*): the fast estimator has no point or area lights, "
+                "Mitsuba's spectral path tracer renders them",
+            )
+        self.lamps_key = None
         # automatic quality (fast estimator, no spp given): batches of DEFAULT_EO_SPP
         self.spp_auto = bool(spp_auto) and self.estimator == "fast"
         if self.spp_auto:
@@ -379,7 +391,7 @@ class EORender:
         )
         self.has_sky = covered and spectra.sky_radiance is not None
         self._paths: dict = {}  # sensor name -> (PathTable identity, XYZPath)
-        if not (self.has_sun or self.has_sky):
+        if not (self.has_sun or self.has_sky or self.has_lamps):
             self._skip_all(
                 "no visible illumination in the stage: humv:atmosphere:solarSpectralIrradiance / "
                 "skySpectralRadiance covering 0.40-0.70 um (atmosphere layer) and "
@@ -468,7 +480,10 @@ class EORender:
             for m in state.meshes
             for part in m.parts
         ]
-        if self.scene is None or state.topology_key != self.key:
+        lamps = usd_lights.read_lamps(self.stage, Usd.TimeCode(frame)) if self.has_lamps else []
+        lamps_key = repr([(a.path, a.to_world.tobytes(), a.luminous_flux_lm, a.luminance) for a in lamps])
+        if self.scene is None or state.topology_key != self.key or lamps_key != self.lamps_key:
+            self.lamps_key = lamps_key
             bare = sorted({p.material.path for p, _, _ in parts if p.material.reflectance is None})
             if bare:
                 self._skip_all(
@@ -487,7 +502,14 @@ class EORender:
                         self.scene = IRScene(parts, setups, self.spp, self.max_depth, tmp)
                     else:
                         self.scene = EOScene(
-                            parts, setups, self.spp, self.max_depth, tmp, sky=self.has_sky, sun=self.has_sun
+                            parts,
+                            setups,
+                            self.spp,
+                            self.max_depth,
+                            tmp,
+                            sky=self.has_sky,
+                            sun=self.has_sun,
+                            lamps=lamps,
                         )
             self.key = state.topology_key
         elif shared is None:
@@ -504,6 +526,8 @@ class EORender:
         spectra, sun_direction = light.spectra, light.sun_direction
         sun, sky, ran = illumination(spectra, sun_direction, light.dni_w_m2)
         sun_direction, sun, sky = after_sunset(self.stage, time_code, sun_direction, sun, sky, ran)
+        if self.has_lamps:
+            ran["lamps"] = lights.describe(lamps)
         if self.estimator == "fast":
             light = eo_fast.bin_illumination(self.bins, sun, sky, sun_direction)
             weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction)

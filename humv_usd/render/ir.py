@@ -293,8 +293,8 @@ class IRScene:
             for shape in self.scene.shapes():
                 key = int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape)))[0])
                 on = (shape_np == key) & valid_np
-                if on.any():
-                    part[on] = part_of_key[shape.id()]
+                if on.any():  # an emitter shape (a lit window, render.lights) is no part: background
+                    part[on] = part_of_key.get(shape.id(), -1)
         valid_np = part >= 0
         depth = np.where(valid_np, (np.nan_to_num(p) - origin[None, :]) @ forward, np.inf)
         normal[~valid_np] = 0.0
