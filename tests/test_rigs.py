@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
 
+from humv_usd.cli.main import parse_resolution
 from humv_usd.errors import InputError
 from humv_usd.geometry import rig
 from humv_usd.geometry.camera import Camera, CameraPose
@@ -22,7 +23,7 @@ from humv_usd.sensors import layer as sensors_layer
 from humv_usd.thermal.surfaces import FOOTPRINT_FRAMES, _footprint_poses
 from humv_usd.usd.avatar import write_keypoints
 from humv_usd.usd.paths import human_path
-from humv_usd.usd.sensor import read_camera_pose
+from humv_usd.usd.sensor import override_resolution, read_camera_pose, read_sensor_model
 
 
 def _poses(stage, prim_path, frames):
@@ -236,3 +237,33 @@ def test_ground_refinement_keeps_a_passing_cameras_closest_pose():
         cell = np.array([x, 0.5, 0.0])
         closest = min(np.linalg.norm(p.origin - cell) for p in poses)
         assert min(np.linalg.norm(p.origin - cell) for p in kept) <= 1.03 * closest
+
+
+def test_render_resolution_keeps_the_field_of_view(raw):
+    """sensor.render_resolution and render --resolution: another pixel count, the same view: a
+    world point lands at the same fraction of the image width and height."""
+    raw["sensor"] = raw["sensor"][:1]  # atom1024_lwir: 1024x768, 17 um
+    full = Usd.Stage.Open(sensors_layer.build(validate(copy.deepcopy(raw))))
+    cli = Usd.Stage.Open(sensors_layer.build(validate(copy.deepcopy(raw))))
+    assert override_resolution(cli, (128, 96)) == ["atom1024_lwir: 1024x768 -> 128x96, pitch 17 -> 136 um"]
+    assert "136" not in cli.GetRootLayer().ExportToString()  # the session layer only
+    raw["sensor"][0]["render_resolution"] = [256, 192]
+    small = Usd.Stage.Open(sensors_layer.build(validate(raw)))
+    path = "/World/Sensors/" + raw["sensor"][0]["id"]
+    point = np.array([1.3, 0.4, 2.1])
+    frac = []
+    for stage, (w, h), pitch in (
+        (full, (1024, 768), 17e-6),
+        (small, (256, 192), 68e-6),
+        (cli, (128, 96), 136e-6),
+    ):
+        prim = stage.GetPrimAtPath(path)
+        model = read_sensor_model(prim)
+        assert model.resolution == (w, h) and model.pixel_pitch_m == pytest.approx(pitch)
+        uv, _ = Camera.from_pose(read_camera_pose(prim, Usd.TimeCode(0)), w, h).project(point)
+        frac.append(uv / [w, h])
+    np.testing.assert_allclose(frac[1], frac[0], atol=1e-12)
+    np.testing.assert_allclose(frac[2], frac[0], atol=1e-12)
+    assert parse_resolution("160x128") == (160, 128)
+    with pytest.raises(InputError, match="WIDTHxHEIGHT"):
+        parse_resolution("160")

@@ -35,7 +35,7 @@ from humv_usd.render.light import read_frame_light
 from humv_usd.render.renderer import ESTIMATORS, choose_estimator
 from humv_usd.usd.atmosphere import AtmosphereSpectra
 from humv_usd.usd.layers import open_stage
-from humv_usd.usd.sensor import check_subbands
+from humv_usd.usd.sensor import check_subbands, override_resolution
 
 log = logging.getLogger(__name__)
 
@@ -135,8 +135,13 @@ def render_stage(
     force=False,
     wait=False,
     yes=False,
+    resolution=None,
 ) -> dict:
     r"""Render the infrared sensors of a composed HumV-USD stage.
+
+    ``resolution`` (W, H): every sensor at this pixel count and its own field of view
+    (:func:`humv_usd.usd.sensor.override_resolution`, in the stage's session layer; part of the
+    images' settings).
 
     For every camera with HumvSensorAPI attributes whose band starts at or above 3 um, and every
     requested frame, renders band radiance with Mitsuba 3 (mono variant, see
@@ -254,11 +259,12 @@ def render_stage(
     out_dir = os.path.abspath(check_output_dir(out_dir))
     with folder_lock(out_dir, "humv-usd render", wait=wait):
         args = (stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
-        return _render_locked(t_start, args, (estimator, eo_spp, spp_auto), force, yes, progress)
+        how = (estimator, eo_spp, spp_auto, resolution)
+        return _render_locked(t_start, args, how, force, yes, progress)
 
 
 def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
-    """``args`` and ``how`` (estimator, EO spp, automatic spp) as :func:`_plan` takes them."""
+    """``args`` and ``how`` (estimator, EO spp, automatic spp, resolution) as :func:`_plan` takes them."""
     out_dir = args[1]
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
     t = time.perf_counter()
@@ -355,10 +361,14 @@ def _plan(
     estimator=DEFAULT_ESTIMATOR,
     eo_spp=None,
     spp_auto=False,
+    resolution=None,
 ) -> _Plan:
     """Open the stage, select frames and sensors, and set up the radiometry (sub-bands per IR
     sensor; sky map and sun from the environment at the first frame) and the EO run."""
     stage = open_stage(stage_path)
+    if resolution is not None:  # the same cameras at another pixel count (session layer)
+        for line in override_resolution(stage, resolution):
+            log.info("resolution: %s", line)
     exporter = StageExport(stage)
     truth = GroundTruth(stage, annotators)
     if not exporter.sensors:
@@ -418,6 +428,8 @@ def _plan(
     )
     spp_auto = bool(spp_auto) and est == "fast"
     digest = resume.stage_digest(stage)
+    if resolution is not None:  # the session layer is not in the digest
+        digest += f"@{int(resolution[0])}x{int(resolution[1])}"
     ir_how = {"estimator": manifest.estimator_key(est), "spp_mode": manifest.spp_mode(spp_auto)}
     wanted = {
         s.name: R.settings(digest, spp, seed, max_depth, truth.annotators, n_of[s.name], **ir_how)

@@ -658,6 +658,16 @@ SENSOR = Section(
             integer=True,
         ),
         "pixel_pitch_um": Key("float", "Detector pixel pitch [µm] (default 17).", lo=0.5, hi=100.0),
+        "render_resolution": Key(
+            "vec",
+            "Render at this pixel count [width, height] [px] at the field of view of resolution and "
+            "pixel_pitch_um (the pitch scales by resolution[0] / render_resolution[0]; a quick look "
+            "or a sweep axis over image size that keeps the view).",
+            n=2,
+            lo=1,
+            hi=16384,
+            integer=True,
+        ),
         "focal_length_mm": Key(
             "float", "Lens focal length [mm] (required without a preset).", lo=0.5, hi=5000.0
         ),

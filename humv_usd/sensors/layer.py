@@ -38,7 +38,7 @@ from humv_usd.usd.sensor import CHAIN_ATTRIBUTES, write_sensor
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
 UPSTREAM = ("avatar_*",)  # a camera tracking a person reads the person's keypoints (upstream_for)
-VERSION = "5"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres
+VERSION = "5"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres, render_resolution
 
 
 def upstream_for(scenario: Scenario) -> tuple[str, ...]:
@@ -159,6 +159,17 @@ def focus_distances(poses: RigPoses, targets_or_none) -> np.ndarray:
     return np.clip(d, 0.05, 1.0e5)
 
 
+def render_geometry(s: dict) -> tuple[int, int, float]:
+    """(width, height [px], pixel pitch [um]) the camera is authored with: ``resolution`` and
+    ``pixel_pitch_um``, or with ``render_resolution`` that pixel count at the same horizontal
+    field of view (pitch x resolution[0] / render_resolution[0]; square pixels)."""
+    w0, h0 = (int(v) for v in s["resolution"])
+    if not s.get("render_resolution"):
+        return w0, h0, float(s["pixel_pitch_um"])
+    w, h = (int(v) for v in s["render_resolution"])
+    return w, h, float(s["pixel_pitch_um"]) * w0 / w
+
+
 def _response(s: dict):
     """Response curve and EO channel responses authored for the sensor: the preset's when the
     band is the preset's, clipped to the sensor's band edges; none (flat) otherwise."""
@@ -230,8 +241,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             for frame, (m, d) in enumerate(zip(mats, dist)):
                 op.Set(m, Usd.TimeCode(frame))
                 focus.Set(float(d), Usd.TimeCode(frame))
-        width, height = s["resolution"]
-        pitch_mm = s["pixel_pitch_um"] * 1e-3
+        width, height, pitch_um = render_geometry(s)
+        pitch_mm = pitch_um * 1e-3
         cam.CreateProjectionAttr(UsdGeom.Tokens.perspective)
         cam.CreateFocalLengthAttr(s["focal_length_mm"] * _MM_TO_TENTHS_OF_M)
         cam.CreateHorizontalApertureAttr(width * pitch_mm * _MM_TO_TENTHS_OF_M)
@@ -246,7 +257,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             band=s["band"],
             wavelength_range_um=s["wavelength_um"],
             resolution=(width, height),
-            pixel_pitch_m=s["pixel_pitch_um"] * 1e-6,
+            pixel_pitch_m=pitch_um * 1e-6,
             f_number=s["f_number"],
             netd_k=netd,
             netd_note=netd_note,

@@ -427,3 +427,38 @@ def camera_positions(stage, path, frames) -> np.ndarray:
         codes = codes[:1]
     pos = np.array([np.asarray(xf.ComputeLocalToWorldTransform(c).ExtractTranslation()) for c in codes])
     return np.broadcast_to(pos, (len(np.atleast_1d(frames)), 3)).copy() if len(codes) == 1 else pos
+
+
+def override_resolution(stage, resolution) -> list[str]:
+    """Give every sensor camera of ``stage`` the pixel count ``resolution`` = (W, H) at its field
+    of view, in the stage's session layer (the files stay as they are): the pixel pitch becomes
+    pitch x W0 / W, the horizontal aperture (W x pitch) and the focal length stay, so the
+    horizontal field of view is kept; the vertical one follows from H (square pixels). Returns one
+    line per camera (``name: W0xH0 -> WxH, pitch p0 -> p um``); InputError for a size outside
+    1..MAX_RESOLUTION."""
+    w, h = (int(v) for v in resolution)
+    if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
+        raise InputError(
+            bad_value("resolution", [w, h], f"expected WIDTHxHEIGHT, each 1..{MAX_RESOLUTION} [px]")
+        )
+    lines = []
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+            if not _is_sensor(prim):
+                continue
+            res = _value(prim, S.SENSOR_RESOLUTION)
+            pitch = _value(prim, S.SENSOR_PIXEL_PITCH)
+            if res is None or pitch is None:
+                continue
+            w0, h0 = int(res[0]), int(res[1])
+            new_pitch = float(pitch) * w0 / w
+            cam = UsdGeom.Camera(prim)
+            h_ap = cam.GetHorizontalApertureAttr().Get()
+            prim.GetAttribute(S.SENSOR_RESOLUTION).Set(Gf.Vec2i(w, h))
+            prim.GetAttribute(S.SENSOR_PIXEL_PITCH).Set(new_pitch)
+            if h_ap:  # vertical aperture: H pixels of the new pitch, in the aperture's unit
+                cam.GetVerticalApertureAttr().Set(float(h_ap) * h / w)
+            lines.append(
+                f"{prim.GetName()}: {w0}x{h0} -> {w}x{h}, pitch {pitch * 1e6:g} -> {new_pitch * 1e6:g} um"
+            )
+    return lines
