@@ -234,28 +234,17 @@ def plot_error_vs_time(result: dict, path) -> None:
     """Error (mean per-pixel standard error away from edges, K) against CPU time per sensor:
     one curve per sub-band count of the fast estimator, the path tracer's former default as a
     cross, the default setting circled; the top axis is the ratio to the pixel-centre ray cast."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = list(result["sensors"])
-    fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.2), squeeze=False)
-    for ax, name in zip(axes[0], names):
-        rec = result["sensors"][name]
-        plot_error_curves(
-            ax,
-            rec["rows"],
-            error=lambda r: r["noise"]["mean_k"],
-            group="subbands",
-            group_label="sub-bands",
-            path_label=lambda r: f"path, {r['spp']} spp/{r['subbands']} sb",
-        )
+    fig, panels = error_panels(
+        result,
+        error=lambda r: r["noise"]["mean_k"],
+        group="subbands",
+        group_label="sub-bands",
+        path_label=lambda r: f"path, {r['spp']} spp/{r['subbands']} sb",
+    )
+    for ax, name, rec in panels:
         netd = rec.get("netd_k")
         if netd:
             ax.axhline(netd / 3, color="grey", ls="--", lw=1, label="NETD / 3")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
         ax.set_xlabel("band render CPU time per frame [s] (all threads; load-independent)")
         ax.set_ylabel("mean per-pixel MC error away from edges [K]")
         finish_error_axes(ax, rec["ray_cast_cpu_s"], f"{name} ({rec['band']})")
@@ -290,6 +279,31 @@ def finish_error_axes(ax, ray_cast_cpu_s: float, title: str) -> None:
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
+
+
+def error_panels(result: dict, error, group: str, group_label: str, path_label):
+    """A figure with one panel per sensor of ``result`` (log-log), each with its error curves
+    (:func:`plot_error_curves`); returns (figure or None without sensors, [(axes, name,
+    record)])."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(result["sensors"])
+    if not names:
+        return None, []
+    fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.2), squeeze=False)
+    panels = []
+    for ax, name in zip(axes[0], names):
+        rec = result["sensors"][name]
+        plot_error_curves(
+            ax, rec["rows"], error=error, group=group, group_label=group_label, path_label=path_label
+        )
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        panels.append((ax, name, rec))
+    return fig, panels
 
 
 def save_figure(fig, path) -> None:

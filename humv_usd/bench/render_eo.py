@@ -21,7 +21,7 @@ import numpy as np
 from pxr import Usd
 
 from humv_usd import mode
-from humv_usd.bench.render import _timed, finish_error_axes, plot_error_curves, save_figure
+from humv_usd.bench.render import _timed, error_panels, finish_error_axes, save_figure
 from humv_usd.render import eo, eo_fast
 from humv_usd.render import estimator as E
 from humv_usd.render import quality as Q
@@ -176,28 +176,17 @@ def plot_eo_error_vs_time(result: dict, path) -> None:
     bin count of the fast estimator, the path tracer's former default as a cross, the default
     circled, the 1 % target dashed; the top axis is the ratio to the pixel-centre ray cast."""
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = list(result["sensors"])
-    if not names:
+    fig, panels = error_panels(
+        result,
+        error=lambda r: r["noise"]["mean"],
+        group="bins",
+        group_label="bins",
+        path_label=lambda r: f"path, {r['spp']} spp",
+    )
+    if fig is None:
         return
-    fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.2), squeeze=False)
-    for ax, name in zip(axes[0], names):
-        rec = result["sensors"][name]
-        plot_error_curves(
-            ax,
-            rec["rows"],
-            error=lambda r: r["noise"]["mean"],
-            group="bins",
-            group_label="bins",
-            path_label=lambda r: f"path, {r['spp']} spp",
-        )
+    for ax, name, rec in panels:
         ax.axhline(eo_fast.EO_TARGET_RELATIVE, color="grey", ls="--", lw=1, label="target (1 % of mean Y)")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
         ax.set_xlabel("render CPU time per frame [s] (all threads; load-independent)")
         ax.set_ylabel("mean per-pixel MC error of Y / mean Y, away from edges")
         finish_error_axes(

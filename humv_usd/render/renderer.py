@@ -16,10 +16,8 @@ that decides which runs (infrared and visible alike).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
-
-import numpy as np
 
 from humv_usd import mode
 from humv_usd.render.estimator import render_band_fast
@@ -44,85 +42,26 @@ def choose_estimator(requested: str, max_depth: int) -> tuple[str, str | None]:
     return "fast", None
 
 
-class BandRenderer(Protocol):
-    """What the render pass calls: ``render(...) -> (radiance, stderr)`` (H, W) [W m-2 sr-1]."""
+@dataclass(frozen=True)
+class BandRenderer:
+    """One estimator behind the interface the render pass calls:
+    ``render(scene, sensor_id, state, sub, emissivity_of, radiometry, spp=, seed=,
+    transmittance_of=None, **options) -> (radiance, stderr)``, each (H, W) [W m-2 sr-1]
+    (the parameters of :func:`humv_usd.render.ir.render_band`; ``options`` only for the fast
+    estimator: ``info``, ``direct_target`` and its other keywords)."""
 
     name: str
     #: True when ``spp`` is the camera samples per pixel shared by all sub-bands (False: split
     #: over them, :func:`humv_usd.render.ir.subband_spp`).
     shares_samples: bool
-
-    def render(
-        self,
-        scene,
-        sensor_id: str,
-        state,
-        sub,
-        emissivity_of,
-        radiometry,
-        spp: int,
-        seed: int,
-        transmittance_of=None,
-        **options,
-    ) -> tuple[np.ndarray, np.ndarray]: ...
+    render: Callable
 
 
-@dataclass(frozen=True)
-class FastRenderer:
-    """The fast estimator (:func:`humv_usd.render.estimator.render_band_fast`); ``options``:
-    ``info``, ``direct_target`` and the estimator's other keywords."""
-
-    name: str = "fast"
-    shares_samples: bool = True
-
-    def render(
-        self,
-        scene,
-        sensor_id,
-        state,
-        sub,
-        emissivity_of,
-        radiometry,
-        spp,
-        seed,
-        transmittance_of=None,
-        **options,
-    ):
-        return render_band_fast(
-            scene, sensor_id, state, sub, emissivity_of, radiometry, spp=spp, seed=seed,
-            transmittance_of=transmittance_of, **options,
-        )  # fmt: skip
-
-
-@dataclass(frozen=True)
-class PathRenderer:
-    """Mitsuba's path tracer per sub-band (:func:`humv_usd.render.ir.render_band`), the reference."""
-
-    name: str = "path"
-    shares_samples: bool = False
-
-    def render(
-        self,
-        scene,
-        sensor_id,
-        state,
-        sub,
-        emissivity_of,
-        radiometry,
-        spp,
-        seed,
-        transmittance_of=None,
-        **options,
-    ):
-        if options:
-            raise TypeError(f"the path tracer takes no options {sorted(options)}")
-        return render_band(
-            scene, sensor_id, state, sub, emissivity_of, radiometry, spp=spp, seed=seed,
-            transmittance_of=transmittance_of,
-        )  # fmt: skip
-
-
-RENDERERS: dict[str, BandRenderer] = {"fast": FastRenderer(), "path": PathRenderer()}
+#: The implementations: the fast estimator and Mitsuba's path tracer per sub-band (the reference).
+RENDERERS: dict[str, BandRenderer] = {
+    "fast": BandRenderer("fast", True, render_band_fast),
+    "path": BandRenderer("path", False, render_band),
+}
 
 
 def band_renderer(estimator: str) -> BandRenderer:
