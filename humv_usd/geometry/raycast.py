@@ -49,7 +49,9 @@ class _Frame:
         v = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         self.points = v
         self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-        self._origin = v.min(axis=0) if len(v) else np.zeros(3)
+        # the frame's origin at the centre of the bounds: float32 keeps its precision where a
+        # scene is (a ground reaching the horizon spans kilometres around it, issue 30)
+        self._origin = 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
         if normalize:
             diag = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 1.0
             self._scale = FRAME_DIAGONAL / max(diag, 1e-12)

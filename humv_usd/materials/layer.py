@@ -27,6 +27,7 @@ READS = (
     "scene.asset.*.materials",
     "scene.layers",
     "scene.layer_material",
+    "scene.terrain.zone",
     "scene.clutter",
     "scene.place",
 )
@@ -45,7 +46,7 @@ def used_materials(scenario: Scenario) -> list[str]:
         names.update(fabrics(g for h in scenario["human"] for g in h["clothing"]))
     scene = scenario["scene"]
     if scene:
-        names.add(scene["ground"]["material"])
+        names.update(ground_materials(scenario))
         names.update(o["material"] for o in scene["object"])
         for a in scene.get("asset") or ():  # the default and every mapped material
             names.add(a["material"])
@@ -56,6 +57,13 @@ def used_materials(scenario: Scenario) -> list[str]:
         if _slab_ground(scenario):
             names.add(GROUND_SUBSTRATE)
     return sorted(names)
+
+
+def ground_materials(scenario: Scenario) -> list[str]:
+    """The ground's material and those of its terrain zones (``[[scene.terrain.zone]]``)."""
+    scene = scenario["scene"]
+    zones = (scene.get("terrain") or {}).get("zone") or ()
+    return list(dict.fromkeys([scene["ground"]["material"], *(z["material"] for z in zones)]))
 
 
 def _slab_ground(scenario: Scenario) -> bool:
@@ -82,8 +90,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     if _slab_ground(scenario):
         # the thermal tool's ground construction continues below the ground material with
         # this substrate, read from the stage like every other material property
-        ground = stage.GetPrimAtPath(material_path(scenario["scene"]["ground"]["material"]))
-        write_substrate(ground, material_path(GROUND_SUBSTRATE))
+        for name in ground_materials(scenario):
+            write_substrate(stage.GetPrimAtPath(material_path(name)), material_path(GROUND_SUBSTRATE))
     return finish(stage)
 
 

@@ -340,7 +340,103 @@ GROUND = Section(
             lo=0.0,
             hi=1.0,
         ),
+        "horizon_m": Key(
+            "float",
+            "The ground goes on beyond size_m in coarser and coarser rings out to this "
+            "distance from the origin [m] (same material; on the terrain's plane), so that "
+            "cameras see ground up to the horizon (a flat disc of radius sqrt(2 R h) shows the "
+            "horizon's true dip for a camera h above the ground: 20 km for h = 30 m); 0: the "
+            "ground ends at size_m.",
+            default=20000.0,
+            lo=0.0,
+            hi=2.0e5,
+        ),
     },
+)
+
+TERRAIN_CUT = Section(
+    array=True,
+    doc="a ditch or an embankment along a polyline (raised-cosine cross-section)",
+    keys={
+        "kind": Key("choice", "ditch (down) or embankment (up).", required=True, choices=("ditch", "embankment")),
+        "path_m": Key(
+            "points", "Its centre line [[x, y], ...] [m].", required=True, n=2, lo=-1.0e5, hi=1.0e5
+        ),
+        "width_m": Key("float", "Width at the top [m].", default=4.0, lo=0.1, hi=1000.0),
+        "depth_m": Key("float", "Depth of the ditch or height of the embankment [m].", default=1.0, lo=0.0, hi=100.0),
+    },
+)
+
+TERRAIN_ZONE = Section(
+    array=True,
+    doc="a material zone of the ground (road, verge, field): a strip along a polyline or a mask image",
+    keys={
+        "material": Key("choice", "Material of the zone.", required=True, choices=GROUND_MATERIALS),
+        "path_m": Key(
+            "points",
+            "Centre line of a strip [[x, y], ...] [m] (with width_m).",
+            default=[],
+            n=2,
+            lo=-1.0e5,
+            hi=1.0e5,
+        ),
+        "width_m": Key("float", "Width of the strip [m].", default=6.0, lo=0.1, hi=1.0e4),
+        "mask_file": Key(
+            "path",
+            "Instead of a strip: a grey image (PNG), white where the zone is, north up, "
+            "spanning size_m centred at the origin.",
+        ),
+        "size_m": Key(
+            "vec", "Extent [x, y] of the mask image [m] (default: the ground's size_m).", n=2, lo=0.1, hi=1.0e5
+        ),
+    },
+)
+
+TERRAIN = Section(
+    doc="terrain: the ground's relief and material zones (humv_usd.geometry.terrain)",
+    keys={
+        "slope_deg": Key(
+            "vec",
+            "Tilt of the whole ground [along x, along y] [deg] (the ground beyond size_m follows it).",
+            default=[0.0, 0.0],
+            n=2,
+            lo=-45.0,
+            hi=45.0,
+        ),
+        "hills_m": Key(
+            "float",
+            "Rms height of procedural hills inside size_m [m] (a sum of cosine waves from seed).",
+            default=0.0,
+            lo=0.0,
+            hi=500.0,
+        ),
+        "hill_size_m": Key("float", "Typical wavelength of the hills [m].", default=30.0, lo=1.0, hi=1.0e5),
+        "seed": Key("int", "Random seed of the hills (same seed, same hills).", default=0, lo=0, hi=2**31 - 1),
+        "dem_file": Key(
+            "path",
+            "Digital elevation model: a grey PNG (8/16 bit, scaled to dem_height_m) or a float "
+            "TIFF/GeoTIFF in metres (georeference not read), north up.",
+        ),
+        "dem_size_m": Key(
+            "vec", "Extent [x, y] of the DEM centred at the origin [m] (default: size_m).", n=2, lo=0.1, hi=1.0e6
+        ),
+        "dem_height_m": Key(
+            "vec",
+            "Heights [m] of black and white in an integer DEM image.",
+            default=[0.0, 10.0],
+            n=2,
+            lo=-1.0e4,
+            hi=1.0e4,
+        ),
+        "cell_m": Key(
+            "float",
+            "Mesh cell of the ground inside size_m where there is relief or a zone [m].",
+            default=2.0,
+            lo=0.1,
+            hi=100.0,
+        ),
+    },
+    subsections={"cut": TERRAIN_CUT, "zone": TERRAIN_ZONE},
 )
 
 OBJECT = Section(
@@ -356,7 +452,15 @@ OBJECT = Section(
         ),
         "class": Key("choice", "Label class.", default="building", choices=OBJECT_CLASSES),
         "material": Key("choice", "Material.", required=True, choices=MATERIALS),
-        "center_m": Key("vec", "Centre of the base, [x, y, z] [m].", required=True, n=3, lo=-1.0e4, hi=1.0e4),
+        "center_m": Key(
+            "vec",
+            "Centre of the base, [x, y, z] [m]; z above the lowest ground under its footprint "
+            "(on a terrain).",
+            required=True,
+            n=3,
+            lo=-1.0e4,
+            hi=1.0e4,
+        ),
         "size_m": Key(
             "vec",
             "Size [width x, depth y, height z] before rotation [m].",
@@ -628,7 +732,7 @@ SCENE = Section(
             choices=OBJECT_CLASSES,
         ),
     },
-    subsections={"ground": GROUND, "object": OBJECT, "asset": ASSET, "clutter": CLUTTER, "place": PLACE},
+    subsections={"ground": GROUND, "terrain": TERRAIN, "object": OBJECT, "asset": ASSET, "clutter": CLUTTER, "place": PLACE},
 )
 
 SENSOR = Section(

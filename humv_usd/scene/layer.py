@@ -45,7 +45,8 @@ from humv_usd.scene.assets import (
     read_asset,
     source_correction,
 )
-from humv_usd.scene.geometry import box, ground_grid
+from humv_usd.scene.geometry import box
+from humv_usd.scene.ground import author_ground, footprint_base, scene_terrain
 from humv_usd.scene.objects import author_clutter
 from humv_usd.usd.labels import nearest_class
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, set_kind, usd_error_text
@@ -64,7 +65,7 @@ READS = (
     "atmosphere.cloud_cover",
 )
 UPSTREAM = ()
-VERSION = "5"  # 4: model kinds; 5: warm clutter and generated places
+VERSION = "6"  # 4: model kinds; 5: warm clutter and generated places; 6: terrain, ground to the horizon
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -74,16 +75,13 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         g["fps"], scenario.frame_count, "HumV-USD scene layer: " + (scene["site"] or "ground and objects")
     )
     set_kind(UsdGeom.Xform.Define(stage, SCOPES["scene"]).GetPrim(), "group")
-    ground = scene["ground"]
-    mesh = define_mesh(
-        stage, GROUND, *ground_grid(ground["size_m"]), material=material_path(ground["material"])
-    )
-    label(mesh.GetPrim(), ids["ground"], "ground")
+    author_ground(stage, scene, ids["ground"])  # terrain, zones, out to the horizon
+    terrain = scene_terrain(scene)
     for o in scene_objects(scene):  # the scenario's, then a generated place's
         mesh = define_mesh(
             stage,
             object_path(o["id"]),
-            *box(o["center_m"], o["size_m"], o["heading_deg"]),
+            *box(_on_terrain(terrain, o), o["size_m"], o["heading_deg"]),
             material=material_path(o["material"]),
         )
         label(mesh.GetPrim(), ids[f"object:{o['id']}"], o["class"])
@@ -125,6 +123,13 @@ def sun_elevation_deg(scenario: Scenario) -> float:
         utc_times(scenario, [0.0]), g["latitude_deg"], g["longitude_deg"], g["elevation_m"]
     )
     return float(pos["apparent_elevation"].iloc[0])
+
+
+def _on_terrain(terrain, o: dict) -> list[float]:
+    """An object's base centre with its z taken above the terrain under its footprint
+    (:func:`humv_usd.scene.ground.footprint_base`; unchanged on flat ground)."""
+    x, y, z = o["center_m"]
+    return [x, y, z + footprint_base(terrain, (x, y), o["size_m"][:2], o["heading_deg"])]
 
 
 def author_asset(stage: Usd.Stage, a: dict, asset: AssetFile, instance_id: int) -> Usd.Prim:

@@ -86,10 +86,9 @@ from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views, orthonormal_frames, ray_samples
 from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.heat import read_held_temperature
-from humv_usd.usd.heat import read_held_temperature
 from humv_usd.usd.layers import SCOPES
 from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
-from humv_usd.usd.mesh import override_topology
+from humv_usd.usd.mesh import override_topology, scene_mesh_prims
 from humv_usd.usd.paths import GROUND, human_path, object_path
 from humv_usd.usd.sensor import read_camera_pose, stage_sensors
 
@@ -180,8 +179,8 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         for a in scenario["scene"].get("asset") or ():  # every mesh of the asset
             held[str(object_path(a["id"]))] = a.get("temperature_k")
     out = []
-    for prim in upstream.Traverse():
-        if not prim.IsA(UsdGeom.Mesh) or str(prim.GetPath()).startswith(str(SCOPES["humans"])):
+    for prim in scene_mesh_prims(upstream):  # the render's rule: what is drawn is solved
+        if str(prim.GetPath()).startswith(str(SCOPES["humans"])):
             continue
         mesh = UsdGeom.Mesh(prim)
         counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
@@ -196,9 +195,8 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         h = _held(path, held)  # a mesh from a hand-made layer: a slab of its material
         if h is None:  # a warm-clutter part with a heat source (humv_usd.scene.objects)
             h = read_held_temperature(prim)
-        if h is None:  # a warm-clutter part with a heat source (humv_usd.scene.objects)
-            h = read_held_temperature(prim)
-        is_ground = path == str(GROUND)
+        # the ground and its terrain zones (humv_usd.scene.ground: customData humv:groundZone)
+        is_ground = path == str(GROUND) or bool(prim.GetCustomDataByKey("humv:groundZone"))
         under = None
         if h is None:
             for field in THERMAL_ATTRIBUTES:
@@ -292,9 +290,7 @@ def _person_mesh(stage: Usd.Stage, human_id: str, frame: float):
     """(points, triangles) of every mesh of a person (body, garments, props) at a frame."""
     root = stage.GetPrimAtPath(str(human_path(human_id)))
     pts, tris, offset = [], [], 0
-    for prim in Usd.PrimRange(root) if root else []:
-        if not prim.IsA(UsdGeom.Mesh):
-            continue
+    for prim in scene_mesh_prims(stage, root) if root else []:
         mesh = UsdGeom.Mesh(prim)
         counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
         t, _ = fan_triangulate(counts, np.asarray(mesh.GetFaceVertexIndicesAttr().Get()))
@@ -384,7 +380,9 @@ class _Shadows:
         )
         self.occluders = occluders
         ext = np.ptp(self.points, axis=0) if len(self.points) else np.ones(3)
-        self.eps = 2e-5 * float(np.linalg.norm(ext)) + 1e-4
+        # offset of the shadow rays' origins: relative to the scene's size, but not to a ground
+        # that reaches the horizon (kilometres away: only the modelled rectangle's size counts)
+        self.eps = 2e-5 * min(float(np.linalg.norm(ext)), EPS_SCENE_SIZE_CAP_M) + 1e-4
         self._casters: dict = {}
 
     def caster(self, k: int):
@@ -440,6 +438,10 @@ def _sunlit_fraction(meshes, sun_dirs, up, occluders: Occluders | None = None):
         frac_t = shadows.lit(pts, nrm, s, i).reshape(-1, 4).mean(axis=1)
         out[i] = np.bincount(face_of_tri, frac_t * tri_area, n_faces) / np.maximum(face_area, 1e-30)
     return out
+
+
+#: scene size above which the ray offsets stop growing [m] (a ground to the horizon, issue 30)
+EPS_SCENE_SIZE_CAP_M = 500.0
 
 
 # --- adaptive tessellation ---------------------------------------------------------------------
@@ -625,10 +627,12 @@ def _dose(cells, shadows: _Shadows, f: SurfaceForcing, weights) -> np.ndarray:
     return dose.reshape(pts.shape[:2])
 
 
-def _sky_view_spread(cells, shadows: _Shadows, rays: int = 64) -> np.ndarray:
+def _sky_view_spread(cells, shadows: _Shadows | None, rays: int = 64) -> np.ndarray:
     """(C,) largest difference of the sky view factor between a cell's centre and its corners
     (pulled 2 % towards the centre): ``rays`` rays per point, cosine-weighted
     (:func:`humv_usd.thermal.views.ray_samples`, the same directions at every point)."""
+    if shadows is None or not len(shadows.triangles):  # nothing to see but the sky
+        return np.zeros(len(cells))
     centre = cells.mean(axis=1, keepdims=True)
     pts = np.concatenate([centre, centre + 0.98 * (cells - centre)], axis=1)  # (C, k + 1, 3)
     nrm = _cell_normals(cells)
@@ -780,6 +784,11 @@ def refine_meshes(
     if not weights.any() or not any(m.refinable for m in meshes):
         return meshes, {}
     shadows = _Shadows(meshes, occluders)
+    # the ground's sky view changes near the objects standing on it; its own relief (terrain,
+    # issue 30) is left out: a ditch's grass walls are near the floor's temperature, and
+    # resolving every hollow to MIN_CELL_M would cost tens of thousands of faces
+    objects = [x for x in meshes if not x.is_ground]
+    view_casters = {False: shadows, True: _Shadows(objects, occluders) if objects else None}
     out, report = [], {}
     for m in meshes:
         if not m.refinable:
@@ -815,7 +824,7 @@ def refine_meshes(
                     if coarse.any():
                         split[coarse] |= _under_occluders(cells[coarse], occluders, forcing, weights)
                         split[coarse] |= _straddles_a_footprint(cells[coarse], shadows)
-                        split[coarse] |= _sky_view_spread(cells[coarse], shadows) > view_spread
+                        split[coarse] |= _sky_view_spread(cells[coarse], view_casters[m.is_ground]) > view_spread
                 if split.any() and total + 3 * int(split.sum()) > max_faces:
                     # the bound, checked before the children exist: split the cells coarsest
                     # against their finest size first, as many as it allows
@@ -1322,6 +1331,8 @@ def surface_temperatures(
     kinds, max_res, passes, change = {}, 0.0, 0, 0.0
     order = sorted(range(len(meshes)), key=lambda i: not meshes[i].is_ground)
     coupled = views.coupled if views is not None else np.zeros(n_all, dtype=bool)
+    ground_sum: dict[int, np.ndarray] = {}
+    ground_area: dict[int, float] = {}
     for p in range(EXCHANGE_MAX_PASSES if views is not None else 1):
         passes = p + 1
         previous = t_now.copy()
@@ -1364,8 +1375,10 @@ def surface_temperatures(
                     used_lw[:, cols] = scene_lw[:, cols]
                 max_res = max(max_res, res)
                 kinds[m.path] = "slab"
-            if m.is_ground:
-                ground_k = (t_now[:, sl] * area).sum(axis=1) / max(area.sum(), 1e-30)
+            if m.is_ground:  # area-weighted over the ground and its zones
+                ground_sum[i] = (t_now[:, sl] * area).sum(axis=1)
+                ground_area[i] = area.sum()
+                ground_k = sum(ground_sum.values()) / max(sum(ground_area.values()), 1e-30)
         change = float(np.max(np.abs(t_now - previous))) if p > 0 else np.inf
         if views is None or not coupled.any() or change < EXCHANGE_TOLERANCE_K or (p > 0 and not moved.any()):
             break

@@ -1,0 +1,104 @@
+"""The ground of the scene layer: the rectangle ``[scene.ground] size_m`` on the terrain
+(:mod:`humv_usd.geometry.terrain`), its material zones, and the ground beyond it out to
+``horizon_m`` (issue 30.1).
+
+Meshes:
+
+* /World/Scene/Ground: the ground material: the rectangle's faces outside every zone
+  (triangles where there is relief or a zone, :func:`humv_usd.scene.geometry.terrain_grid`), then the
+  rings beyond it (:func:`humv_usd.scene.geometry.horizon_rings`, on the terrain's plane);
+  a flat ground without zones keeps the 16 x 16 quads it always had;
+* /World/Scene/GroundZone<i>: the faces of zone i (their centre inside the strip or mask), bound
+  to the zone's material, with customData ``humv:groundZone`` = True (the thermal tool solves
+  them as ground: material over soil, bottom held).
+
+Every piece is a plain triangle/quad mesh (refinable by the thermal tool at shadow edges), labelled with
+the ground's instance id and class ``ground``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Usd
+
+from humv_usd.geometry.terrain import Terrain, terrain_from_section
+from humv_usd.scene.geometry import ground_grid, horizon_rings, terrain_grid
+from humv_usd.usd.mesh import define_mesh, label
+from humv_usd.usd.paths import GROUND, material_path
+
+#: customData key that marks a ground zone mesh
+GROUND_ZONE_KEY = "humv:groundZone"
+#: cells per axis of a flat ground without zones (the mesh before issue 30)
+FLAT_CELLS = 16
+
+
+def zone_path(i: int):
+    """Prim path of ground zone ``i``."""
+    return GROUND.GetParentPath().AppendChild(f"GroundZone{i}")
+
+
+def scene_terrain(scene: dict) -> Terrain:
+    """The :class:`~humv_usd.geometry.terrain.Terrain` of a ``[scene]`` section."""
+    return terrain_from_section(scene.get("terrain"), scene["ground"]["size_m"])
+
+
+def _compact(points, faces):
+    """(points, counts, indices) of the vertices that ``faces`` (F, 3 or 4) use."""
+    used, inverse = np.unique(faces.ravel(), return_inverse=True)
+    return points[used], np.full(len(faces), faces.shape[1]), np.asarray(inverse).ravel()
+
+
+def ground_pieces(scene: dict, terrain: Terrain | None = None):
+    """[(path, material name, points, counts, indices)] of the ground meshes (module doc)."""
+    ground = scene["ground"]
+    size = ground["size_m"]
+    t = terrain or scene_terrain(scene)
+    section = scene.get("terrain") or {}
+    if t.has_relief or t.zones:
+        points, counts, idx, centroids = terrain_grid(t, size, float(section.get("cell_m") or 2.0))
+        zone = t.zone_at(centroids[:, 0], centroids[:, 1])
+    else:
+        points, counts, idx = ground_grid(size, FLAT_CELLS)
+        points[:, 2] = t.plane(points[:, 0], points[:, 1])
+        zone = np.full(len(counts), -1)
+    quads = idx.reshape(len(counts), -1)
+    pts, counts, indices = _compact(points, quads[zone < 0])
+    far_p, far_c, far_i = horizon_rings(t, size, float(ground.get("horizon_m") or 0.0))
+    pieces = [
+        (
+            GROUND,
+            ground["material"],
+            np.concatenate([pts, far_p]),
+            np.concatenate([counts, far_c]),
+            np.concatenate([indices, far_i + len(pts)]),
+        )
+    ]
+    for i, z in enumerate(t.zones):
+        sel = zone == i
+        if sel.any():
+            pieces.append((zone_path(i), z.material, *_compact(points, quads[sel])))
+    return pieces
+
+
+def author_ground(stage: Usd.Stage, scene: dict, instance_id: int) -> None:
+    """Define the ground meshes of :func:`ground_pieces` on ``stage``."""
+    for path, material, points, counts, indices in ground_pieces(scene):
+        mesh = define_mesh(stage, path, points, counts, indices, material=material_path(material))
+        label(mesh.GetPrim(), instance_id, "ground")
+        if path != GROUND:
+            mesh.GetPrim().SetCustomDataByKey(GROUND_ZONE_KEY, True)
+
+
+def footprint_base(terrain: Terrain, center_xy, size_xy, heading_deg: float = 0.0) -> float:
+    """Lowest ground height [m] under a rectangular footprint (corners, edge midpoints and
+    centre of ``size_xy`` at ``center_xy`` turned by ``heading_deg``): the z an object's base
+    sits at so that it stands on the terrain without floating (it sinks into a slope's upper
+    side instead, as a building's foundation does). 0 on flat ground."""
+    if not terrain.has_relief and not any(terrain.slope_deg):
+        return 0.0
+    u = np.array([-0.5, 0.0, 0.5])
+    gx, gy = np.meshgrid(u * size_xy[0], u * size_xy[1])
+    h = np.radians(heading_deg)
+    x = center_xy[0] + np.cos(h) * gx - np.sin(h) * gy
+    y = center_xy[1] + np.sin(h) * gx + np.cos(h) * gy
+    return float(np.min(terrain.height(x, y)))
