@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd.compat import trapezoid
 from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K, STEFAN_BOLTZMANN, SUN_TEMPERATURE_K
 from humv_usd.physics import planck
 from humv_usd.render import cie
 from humv_usd.scenario import spec as _spec
-from humv_usd.usd.materials import band_mean
 
 #: Sub-bands per IR band when the render option does not say otherwise; chosen from
 #: ``humv-usd bench render`` on humvvex (LOWTRAN7 sky and paths) against a 32-sub-band path-tracer
@@ -150,20 +150,23 @@ class SubBands:
         (:func:`planck.band_radiance_tabulated`: the exact quadrature of :func:`planck.band_radiance`
         to about 1e-9 relative, tested to 1e-6), so per-frame face tables cost an interpolation."""
         t = np.asarray(temperature_k, dtype=float)
-        out = np.stack([planck.band_radiance_tabulated(t, b, self.response) for b in self.bands], axis=-1)
-        if self.band[1] <= REFLECTIVE_LIMIT_UM:  # NIR/SWIR without a thermal layer: no emission
-            out = np.nan_to_num(out, nan=0.0)
-        return out
+        if self.band[1] <= REFLECTIVE_LIMIT_UM and not np.all(np.isfinite(t)):
+            out = np.zeros(t.shape + (len(self),))  # NIR/SWIR without a thermal layer: no emission
+            known = np.isfinite(t)
+            if known.any():
+                out[known] = self.radiance(t[known])
+            return out
+        return np.stack([planck.band_radiance_tabulated(t, b, self.response) for b in self.bands], axis=-1)
 
     def emissivity(self, wavelengths_um, emissivity) -> np.ndarray:
         """Sub-band emissivity (n,): Planck (EMISSIVITY_WEIGHTING_TEMPERATURE_K) and response weighted
         mean of each sub-band, the band mean every tool uses
-        (:func:`humv_usd.usd.materials.band_mean`)."""
+        (:func:`humv_usd.physics.planck.band_emissivity`)."""
         wl = np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
         eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
         if wl.size == 1:
             return np.full(len(self), float(eps[0]))
-        return np.array([band_mean(wl, eps, b, self.response) for b in self.bands])
+        return np.array([planck.band_emissivity(wl, eps, b, self.response) for b in self.bands])
 
 
 def _interp_last(x, wl, v):
@@ -288,7 +291,7 @@ def hemisphere_mean(zenith_deg, radiance) -> float:
     uniform sky giving the same irradiance on a horizontal surface)."""
     th = np.radians(np.linspace(0.0, 90.0, 721))
     v = np.interp(np.degrees(th), np.asarray(zenith_deg, float), np.asarray(radiance, float))
-    return float(np.trapz(2.0 * v * np.cos(th) * np.sin(th), th))
+    return float(trapezoid(2.0 * v * np.cos(th) * np.sin(th), th))
 
 
 # --- spectral error of the sub-band approximation -----------------------------------------------

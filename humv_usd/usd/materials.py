@@ -20,7 +20,6 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdShade, Vt
 
 from humv_usd.catalog.materials import Material
-from humv_usd.constants import EMISSIVITY_WEIGHTING_TEMPERATURE_K
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.physics import planck
 from humv_usd.physics.sun import solar_absorptivity
@@ -367,37 +366,35 @@ def _check_reach(material: StageMaterial, band_um) -> None:
         )
 
 
-def band_mean(wavelengths_um, values, band_um, response=None) -> float:
-    """Planck-weighted mean [0-1] of a spectral table over a band: the weighting blackbody at
-    :data:`humv_usd.constants.EMISSIVITY_WEIGHTING_TEMPERATURE_K`, the response ``(wavelengths_um,
-    values)`` (None: flat) folded in (:func:`humv_usd.physics.planck.band_emissivity`). The one
-    definition of a band emissivity (or transmittance) that every tool uses."""
-    return planck.band_emissivity(
-        wavelengths_um, values, band_um, response, temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K
-    )
-
-
 def band_emissivity(material: StageMaterial, band_um, response=None) -> float:
     """Band emissivity [0-1] of a material over ``band_um`` (lower, upper) [um] with an optional
-    relative response (:func:`band_mean`). The thermal solve (its long-wave band) and the render
+    relative response: :func:`humv_usd.physics.planck.band_emissivity`, the one Planck-weighted
+    band mean (weighting blackbody at :data:`humv_usd.constants.EMISSIVITY_WEIGHTING_TEMPERATURE_K`),
+    on the material's table. The thermal solve (its long-wave band) and the render
     (each sensor band and sub-band) both call this, so a surface emits in the render what it
     loses in the thermal balance (Kirchhoff). InputError when the material's table does not
     reach into the band."""
     _check_reach(material, band_um)
-    return band_mean(material.wavelengths_um, material.emissivity, band_um, response)
+    return planck.band_emissivity(material.wavelengths_um, material.emissivity, band_um, response)
 
 
 def subband_emissivity(material: StageMaterial, band_um, subbands, response=None) -> np.ndarray:
     """(n,) :func:`band_emissivity` of each sub-band (lower, upper) [um] of ``band_um``."""
     _check_reach(material, band_um)
-    return np.array([band_mean(material.wavelengths_um, material.emissivity, b, response) for b in subbands])
+    return np.array(
+        [planck.band_emissivity(material.wavelengths_um, material.emissivity, b, response) for b in subbands]
+    )
 
 
 def subband_transmittance(material: StageMaterial, subbands, response=None) -> np.ndarray | None:
-    """(n,) band transmittance (:func:`band_mean`) of each sub-band of a see-through material;
+    """(n,) band transmittance (the Planck-weighted band mean,
+    :func:`humv_usd.physics.planck.band_emissivity`) of each sub-band of a see-through material;
     None when it is opaque."""
     if material.transmittance is None:
         return None
     return np.array(
-        [band_mean(material.wavelengths_um, material.transmittance, b, response) for b in subbands]
+        [
+            planck.band_emissivity(material.wavelengths_um, material.transmittance, b, response)
+            for b in subbands
+        ]
     )
