@@ -29,6 +29,21 @@ BODIES = {
     "male_190_105": ("male", 1.90, 105.0),
 }
 TOL = 1e-6  # [m] float round-off allowance in distance checks
+#: garments added by issue 29, fitted on varied bodies in tests/test_wardrobe.py (one by one on
+#: these three bodies in the extended tier: test_issue29_garments_fit_three_bodies)
+ISSUE29 = (
+    "hair_long",
+    "hair_tied",
+    "beard",
+    "dress",
+    "skirt",
+    "hoodie",
+    "gloves",
+    "scarf",
+    "beanie",
+    "helmet",
+    "socks",
+)
 
 
 @pytest.fixture(scope="module")
@@ -135,8 +150,8 @@ def test_every_garment_fits_three_bodies(rigs):
         caster = RayCaster(rig.mesh.points, rig.triangles)
         skin = _pose(rig.skeleton, {}, frames=0)
         for name in GARMENTS:
-            if GARMENTS[name].is_prop:
-                continue  # props are placed for the carry pose: tests/test_carry.py
+            if GARMENTS[name].is_prop or name in ISSUE29:
+                continue  # props: tests/test_carry.py; the issue-29 wardrobe: tests/test_wardrobe.py
             sim = simulate(dress(rig, [name]), skin)
             anim = sim.garments[0]
             c = anim.counts[0]
@@ -164,6 +179,21 @@ def test_every_garment_fits_three_bodies(rigs):
     print("\n(before fix: inside + closer than the gap, min / median air gap [mm])")
     for (key, name), (before, lo, med) in report.items():
         print(f"{key:14s} {name:16s} {before:4d}  {lo * 1e3:5.2f} / {med * 1e3:5.1f}")
+
+
+@pytest.mark.extended
+@pytest.mark.parametrize("name", ISSUE29)
+def test_issue29_garments_fit_three_bodies(rigs, name):
+    """As test_every_garment_fits_three_bodies, for each issue-29 garment alone."""
+    for key, rig in rigs.items():
+        caster = RayCaster(rig.mesh.points, rig.triangles)
+        sim = simulate(dress(rig, [name]), _pose(rig.skeleton, {}, frames=0))
+        anim = sim.garments[0]
+        c, gap = anim.counts[0], anim.fitted.garment.minimum_gap
+        assert c.inside_after == 0 and c.close_after == 0, (key, name, c)
+        assert not caster.inside(anim.posed[0]).any(), (key, name)
+        assert rig.surface.closest(anim.posed[0]).signed.min() >= gap - TOL, (key, name)
+        assert anim.air_gap.min() >= gap - TOL, (key, name)
 
 
 def test_coverage_follows_the_catalogue(rigs):

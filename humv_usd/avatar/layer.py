@@ -24,6 +24,7 @@ import dataclasses
 import numpy as np
 from pxr import Gf, Sdf, UsdGeom
 
+from humv_usd.catalog.garments import LONG_GUNS, garment
 from humv_usd.catalog.skin import skin_material_name
 from humv_usd.human import crowd, usdskel
 from humv_usd.human import labels as L
@@ -41,7 +42,7 @@ from humv_usd.human.skeleton import (
 )
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import instance_ids
-from humv_usd.scenario.inputs import DERIVED_PER_PERSON, FRAMES, RIFLE
+from humv_usd.scenario.inputs import DERIVED_PER_PERSON, FRAMES
 from humv_usd.usd.avatar import (
     AvatarParameters,
     write_avatar,
@@ -173,11 +174,16 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     """The human's motion over the scenario's frames: the BVH file if given, else the built-in
     activity (walk/run along the heading or the waypoints) on flat ground; with the arms in the
     rifle carry (:func:`humv_usd.human.carry.apply_rifle_carry`, kept clear of the body) if
-    the human wears the rifle."""
+    the human wears a long gun (:data:`humv_usd.catalog.garments.LONG_GUNS`: the rifle or
+    the shotgun; the first one listed is carried)."""
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
-    carry = RIFLE in (human.get("clothing") or ())
+    gun = next((g for g in human.get("clothing") or () if g in LONG_GUNS), None)
+
+    def carry(motion):
+        return apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop) if gun else motion
+
     if human.get("bvh"):
         motion = motion_from_bvh(
             human["bvh"],
@@ -189,7 +195,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             mass_kg=human["mass_kg"],
             body_points=body.points,
         )
-        return apply_rifle_carry(motion, skeleton, body) if carry else motion
+        return carry(motion)
     if human["activity"] in ("walk", "run") and place.get("avoidance", "none") != "none":
         place = dict(place, waypoints_m=avoided_waypoints(scenario, human["id"]))
     # the motion model needs two frames at least; a one-frame scenario keeps the first
@@ -211,7 +217,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             local_rotations=motion.local_rotations[:frames],
             metabolic_rate_w=motion.metabolic_rate_w[:frames],
         )
-    return apply_rifle_carry(motion, skeleton, body) if carry else motion
+    return carry(motion)
 
 
 def avoided_waypoints(scenario: Scenario, human_id: str) -> list:

@@ -158,6 +158,56 @@ RIFLE = Prop(
 )
 _TROUSER_TOP = (Cover(("pelvis",)),)
 
+#: A second long gun: a pump shotgun (wooden stock and forend, 1.0 m), held like the rifle:
+#: same frame (x to the muzzle, origin at the grip's top), the grip and the forend where the
+#: rifle carry puts the hands (:mod:`humv_usd.human.carry`: grip at the origin, the left hand
+#: on the x axis 0.2-0.4 m ahead), so the carry fits it as it fits the rifle.
+SHOTGUN = Prop(
+    (
+        Shape("stock", (-0.20, 0.0, -0.03), (0.34, 0.038, 0.11)),
+        Shape("grip", (0.0, 0.0, -0.05), (0.06, 0.030, 0.08)),
+        Shape("receiver", (0.10, 0.0, 0.005), (0.18, 0.036, 0.06)),
+        Shape("forend", (0.32, 0.0, 0.0), (0.22, 0.0, 0.0), radius=0.022),
+        Shape("magazine_tube", (0.43, 0.0, -0.012), (0.28, 0.0, 0.0), radius=0.011),
+        Shape("barrel", (0.52, 0.0, 0.016), (0.66, 0.0, 0.0), radius=0.0105),
+    ),
+    joint="RightHand",
+    placement="between_hands",
+)
+#: A daypack (30 l): body against the upper back, rigid on Spine1. Frame: origin at the centre
+#: of the face that touches the back, +y away from the back, z up (placement "on_back").
+BACKPACK = Prop(
+    (
+        Shape("pack", (0.0, 0.09, 0.0), (0.30, 0.18, 0.45)),
+        Shape("front_pocket", (0.0, 0.20, -0.08), (0.24, 0.04, 0.20)),
+    ),
+    joint="Spine1",
+    placement="on_back",
+)
+#: A shoulder bag at the left hip, rigid on the Hips. Frame: origin at the centre of the face
+#: that touches the hip, +x away from it (placement "at_left_hip").
+BAG = Prop((Shape("bag", (0.045, 0.0, 0.0), (0.09, 0.28, 0.22)),), joint="Hips", placement="at_left_hip")
+#: A smartphone (147 x 72 x 8 mm) in the right hand, rigid on the RightHand (placement
+#: "in_right_hand": its centre 2 cm in front of the grasp point).
+PHONE = Prop(
+    (Shape("phone", (0.0, 0.0, 0.0), (0.008, 0.072, 0.147)),), joint="RightHand", placement="in_right_hand"
+)
+#: Glasses: two lenses, a bridge and two temples, rigid on the Head (placement "on_face":
+#: the lenses 12 mm in front of the eyes, the temples along the sides of the head). Frame:
+#: origin between the eyes, x to the person's left, -y forward, z up; the temples' x and
+#: length are set per head by the placement.
+GLASSES = Prop(
+    (
+        Shape("left_lens", (0.032, 0.0, 0.0), (0.050, 0.003, 0.036)),
+        Shape("right_lens", (-0.032, 0.0, 0.0), (0.050, 0.003, 0.036)),
+        Shape("bridge", (0.0, 0.0, 0.008), (0.016, 0.003, 0.004)),
+        Shape("left_temple", (0.062, 0.05, 0.008), (0.003, 0.10, 0.004)),
+        Shape("right_temple", (-0.062, 0.05, 0.008), (0.003, 0.10, 0.004)),
+    ),
+    joint="Head",
+    placement="on_face",
+)
+
 
 def _catalogue() -> dict[str, Garment]:
     tshirt_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(0.45)
@@ -314,11 +364,156 @@ def _catalogue() -> dict[str, Garment]:
             "wool",
             1,
         ),
+        # ---- issue 29: hair styles (MakeHuman's CC0 helper-hair proxy and the body's scalp,
+        # face and neck) with the thermal hair layer of hair_short
+        Garment(
+            "hair_long",
+            "long dark hair: MakeHuman's long-hair proxy (helper-hair: over the skull and down "
+            "the back to the shoulder blades), a 5 mm fibre layer",
+            (Part("hair", (), 0.004),),
+            "hair_dark",
+            0,
+        ),
+        Garment(
+            "hair_tied",
+            "dark hair tied back: the short scalp layer plus a tail down the nape and upper back "
+            "(the neck and back part of the long-hair proxy)",
+            (
+                Part("body", (Cover(("head",), "Head", t_min=0.45, tilt=0.5),), 0.001),
+                Part("hair", (Cover(("neck", "back")),), 0.006),
+            ),
+            "hair_dark",
+            0,
+        ),
+        Garment(
+            "beard",
+            "full dark beard: chin, jaw, cheeks below the mouth corners and the upper throat, a 5 mm "
+            "fibre layer",
+            (
+                Part(
+                    "body",
+                    (Cover(("face",), "Head", t_max=-0.1), Cover(("neck",), "Neck", t_min=0.6, tilt=-1.0)),
+                    0.001,
+                ),
+            ),
+            "hair_dark",
+            0,
+        ),
+        # ---- issue 29: the wardrobe
+        Garment(
+            "dress",
+            "grey polyester dress: fitted top with short sleeves over a skirt from the waist to the shins",
+            (Part("tights", (Cover(_TOP),) + _arms(0.35), 0.006), Part("skirt", (), 0.006, loose=True)),
+            "polyester",
+            2,
+        ),
+        Garment(
+            "skirt",
+            "indigo denim skirt: waist to the shins, loose (swings with the thighs)",
+            (Part("skirt", (), 0.008, loose=True),),
+            "denim",
+            2,
+        ),
+        Garment(
+            "hoodie",
+            "black cotton hooded sweatshirt: torso to below the hips, sleeves to the wrists, "
+            "hood up over the back and top of the head",
+            (
+                Part(
+                    "tights",
+                    (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_JACKET_HEM)) + _arms(None, 0.95),
+                    0.010,
+                ),
+                Part("body", (Cover(("head",), "Head", t_min=0.1, tilt=0.8),), 0.022),
+            ),
+            "cotton_black",
+            3,
+        ),
+        Garment(
+            "gloves",
+            "black leather gloves: the hands and wrists",
+            (Part("body", (Cover(("hand",)), Cover(("lowerArm",), "ForeArm", t_min=0.9)), 0.002),),
+            "leather_black",
+            2,
+        ),
+        Garment(
+            "scarf",
+            "charcoal wool scarf wound round the neck (12 mm off the skin, over a collar)",
+            (Part("body", (Cover(("neck",)),), 0.024),),
+            "wool",
+            5,
+        ),
+        Garment(
+            "beanie",
+            "navy thick-knit beanie: the skull down over the ears",
+            (Part("body", (Cover(("head",), "Head", t_min=0.35, tilt=0.4),), 0.004),),
+            "wool_knit_thick",
+            2,
+        ),
+        Garment(
+            "helmet",
+            "combat helmet (aramid composite shell, ACH-like, 8 mm) standing 2 cm off the "
+            "skull above the brow and ears",
+            (Part("body", (Cover(("head",), "Head", t_min=0.4, tilt=0.4),), 0.02),),
+            "kevlar_vest",
+            3,
+        ),
+        Garment(
+            "socks",
+            "white cotton socks: the feet and the ankles (under shoes or boots)",
+            (Part("body", (Cover(("foot",)), Cover(("lowerLeg",), "Leg", t_min=0.75)), 0.0015),),
+            "cotton_white",
+            1,
+        ),
+        Garment(
+            "shotgun",
+            "pump shotgun prop (wooden stock and forend, 1.0 m) held across the body like the rifle",
+            (),
+            "wood",
+            PROP_LAYER,
+            prop=SHOTGUN,
+        ),
+        Garment(
+            "backpack",
+            "black nylon daypack (30 l, 30 x 18 x 45 cm) on the upper back",
+            (),
+            "nylon",
+            PROP_LAYER,
+            prop=BACKPACK,
+        ),
+        Garment(
+            "bag",
+            "black leather shoulder bag (28 x 9 x 22 cm) at the left hip",
+            (),
+            "leather_black",
+            PROP_LAYER,
+            prop=BAG,
+        ),
+        Garment(
+            "phone",
+            "smartphone (147 x 72 x 8 mm, black polymer) held in the right hand",
+            (),
+            "polymer_black",
+            PROP_LAYER,
+            prop=PHONE,
+        ),
+        Garment(
+            "glasses",
+            "glasses with black polymer frames (lenses as frame material: glass is opaque in the "
+            "thermal infrared)",
+            (),
+            "polymer_black",
+            PROP_LAYER,
+            prop=GLASSES,
+        ),
     )
     return {g.name: g for g in garments}
 
 
 GARMENTS: dict[str, Garment] = _catalogue()
+#: Props carried in both hands in the rifle carry (humv_usd.human.carry): the arms' pose
+#: changes when one is worn.
+LONG_GUNS = ("rifle", "shotgun")
 #: Convenience aliases accepted by :func:`garment`.
 ALIASES = {"tshirt": "tshirt_white", "t-shirt": "tshirt_white"}
 #: The seed's Table 1 clothing options (HumV paper, sec. 4.1) as garment lists.

@@ -28,6 +28,9 @@ layer applies to the motion of whoever wears the rifle): its grip at the right h
 point and its handguard through the left one in the carry pose (standing, frame 0), that
 placement expressed in the RightHand joint's rest frame (so in the rest pose the rifle hangs
 off the right hand wherever the carry's hand rotation puts it).
+Worn props (issue 29: backpack ``on_back`` on Spine1, bag ``at_left_hip`` on the Hips, phone
+``in_right_hand``, glasses ``on_face`` on the Head, their temples fitted to the head's width)
+are placed from the body's own rest geometry (:func:`_rest_transform`).
 Every vertex is bound 100 % to the prop's joint, so it moves rigidly with that joint.
 
 Labels. Every garment face gets the body region (``primvars:humv:label:bodyRegion`` ids) of
@@ -440,20 +443,122 @@ def prop_mesh(prop: Prop) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.concatenate(pts), np.array(counts), np.array(indices)
 
 
+#: Clearance [m] of props worn on the body (backpack, bag) from the skin: clears the thickest
+#: outer garment (the down coat stands ~22 mm off the skin) with a few mm to spare.
+WORN_PROP_CLEARANCE = 0.035
+#: Glasses: the frame's back at least this far [m] in front of the face (nose bridge, brows).
+GLASSES_CLEARANCE = 0.004
+
+
+def _near_band(points: np.ndarray, z: float, half: float, max_abs_x: float = np.inf) -> np.ndarray:
+    """``points`` within ``half`` of height ``z`` and ``max_abs_x`` of the mid-plane."""
+    sel = (np.abs(points[:, 2] - z) <= half) & (np.abs(points[:, 0]) <= max_abs_x)
+    if not sel.any():
+        raise ValueError(f"no body points near height {z:.3f} m")
+    return points[sel]
+
+
+#: Body regions a worn prop rests against (the arms, which hang beside the hips in the rest
+#: pose and swing past, are left out).
+TRUNK_REGIONS = ("chest", "abdomen", "back", "pelvis", "leftUpperLeg", "rightUpperLeg")
+
+
+def _trunk_points(rig: BodyRig) -> np.ndarray:
+    faces = np.isin(rig.face_regions, [L.REGION_ID[r] for r in TRUNK_REGIONS])
+    return rig.mesh.points[np.unique(rig.triangles[faces[rig.triangle_face]])]
+
+
+def _rest_transform(rig: BodyRig, prop: Prop) -> np.ndarray:
+    """4x4 transform prop frame -> rest pose (skeleton space) for ``prop.placement``:
+
+    * ``between_hands``: the rifle carry of :mod:`humv_usd.human.carry` (right-hand props);
+    * ``on_back``: its origin (the centre of the face towards the back) at the middle of the Spine1 bone less 12 cm, :data:`WORN_PROP_CLEARANCE` behind the
+      rearmost body point of the torso within the prop's height;
+    * ``at_left_hip``: its origin (inner face) at the left hip joint's height,
+      :data:`WORN_PROP_CLEARANCE` outside the outermost trunk point within its height,
+      3 cm behind the hip joint;
+    * ``in_right_hand``: its centre 2 cm in front of the right hand's grasp point (the hand
+      bone's tail);
+    * ``on_face``: its origin level with the eyes' centres (MakeHuman's eye helpers), midway
+      between them, the frame 12 mm in front of the corneas or :data:`GLASSES_CLEARANCE` in
+      front of the face behind it (nose bridge, brows), whichever is further forward.
+    """
+    sk, body_pts = rig.skeleton, rig.mesh.points
+    m = np.eye(4)
+    if prop.placement == "between_hands":
+        if prop.joint != "RightHand":
+            raise ValueError(f"the carry holds props in the right hand, not {prop.joint!r}")
+        return carry_rest_transform(sk)
+    if prop.placement == "on_back":
+        j = sk.index("Spine1")
+        z = 0.5 * (sk.rest_positions[j, 2] + sk.tail_positions[j, 2]) - 0.12
+        height = max(s.centre[2] + s.size[2] / 2 for s in prop.shapes) - min(
+            s.centre[2] - s.size[2] / 2 for s in prop.shapes
+        )
+        torso = _near_band(_trunk_points(rig), z, height / 2 + WORN_PROP_CLEARANCE)
+        m[:3, 3] = (0.0, torso[:, 1].max() + WORN_PROP_CLEARANCE, z)
+        return m
+    if prop.placement == "at_left_hip":
+        hip = sk.rest_positions[sk.index("LeftUpLeg")]
+        half = max(s.size[2] for s in prop.shapes) / 2
+        side = _near_band(_trunk_points(rig), hip[2], half + WORN_PROP_CLEARANCE)
+        m[:3, 3] = (side[:, 0].max() + WORN_PROP_CLEARANCE, hip[1] + 0.03, hip[2])
+        return m
+    if prop.placement == "in_right_hand":
+        grasp = sk.tail_positions[sk.index("RightHand")]
+        m[:3, 3] = grasp + (0.0, -0.02, 0.0)
+        return m
+    if prop.placement == "on_face":
+        eyes = [rig.body.helper(f"{s}-eye").points for s in ("l", "r")]
+        centre = 0.5 * (eyes[0].mean(axis=0) + eyes[1].mean(axis=0))
+        lenses = [s for s in prop.shapes if s.name.endswith("_lens")]
+        half_w = max(abs(s.centre[0]) + s.size[0] / 2 for s in lenses)
+        half_h = max(s.size[2] for s in lenses) / 2
+        # in front of the corneas and of whatever else of the face is behind the frame (the
+        # bridge of the nose, brows, cheeks)
+        face = body_pts[
+            (np.abs(body_pts[:, 0] - centre[0]) <= half_w + 0.005)
+            & (np.abs(body_pts[:, 2] - centre[2]) <= half_h + 0.005)
+            & (body_pts[:, 1] < centre[1] + 0.03)
+        ]
+        front = min(min(e[:, 1].min() for e in eyes) - 0.012, face[:, 1].min() - GLASSES_CLEARANCE)
+        depth = max(s.size[1] / 2 - s.centre[1] for s in prop.shapes if not s.name.endswith("_temple"))
+        m[:3, 3] = (centre[0], front - depth, centre[2])
+        return m
+    raise ValueError(f"unknown prop placement {prop.placement!r}")
+
+
+def fitted_prop(rig: BodyRig, prop: Prop) -> Prop:
+    """``prop`` adapted to the body: the glasses' temples run along this head's sides (4 mm off
+    the skin at eye height) back to the ears; other props are returned unchanged."""
+    if prop.placement != "on_face":
+        return prop
+    origin = _rest_transform(rig, prop)[:3, 3]
+    head = _near_band(rig.mesh.points, origin[2], 0.01, 0.12)
+    head = head[(head[:, 1] > origin[1]) & (head[:, 1] < origin[1] + 0.14)]
+    half_width = np.abs(head[:, 0] - origin[0]).max() + 0.004
+    length = 0.6 * (head[:, 1].max() - origin[1])  # to the ears, ~3/5 of the head's depth
+    shapes = []
+    for s in prop.shapes:
+        if s.name.endswith("_temple"):
+            x = np.sign(s.centre[0]) * half_width
+            s = Shape(s.name, (float(x), length / 2, s.centre[2]), (s.size[0], float(length), s.size[2]))
+        shapes.append(s)
+    return Prop(tuple(shapes), prop.joint, prop.placement)
+
+
 def place_prop(rig: BodyRig, prop: Prop, points: np.ndarray) -> np.ndarray:
-    """The prop's points (own frame) placed on the body in the rest pose (see module doc)."""
-    if prop.placement != "between_hands":
-        raise ValueError(f"unknown prop placement {prop.placement!r}")
-    if prop.joint != "RightHand":
-        raise ValueError(f"the carry holds props in the right hand, not {prop.joint!r}")
-    m = carry_rest_transform(rig.skeleton)
+    """The prop's points (own frame) placed on the body in the rest pose (see module doc and
+    :func:`_rest_transform`)."""
+    m = _rest_transform(rig, prop)
     return points @ m[:3, :3].T + m[:3, 3]
 
 
 def fit_prop(rig: BodyRig, g: Garment) -> FittedGarment:
     """A rigid prop on the body of ``rig``: placed, bound 100 % to its joint."""
-    local, counts, indices = prop_mesh(g.prop)
-    points = place_prop(rig, g.prop, local)
+    prop = fitted_prop(rig, g.prop)
+    local, counts, indices = prop_mesh(prop)
+    points = place_prop(rig, prop, local)
     n = len(points)
     idx = np.zeros((n, INFLUENCES), dtype=np.int32)
     idx[:, 0] = rig.skeleton.index(g.prop.joint)

@@ -179,7 +179,13 @@ def _solve_arms(motion, skeleton: Skeleton, offsets: np.ndarray | None = None) -
 
 
 def apply_rifle_carry(
-    motion, skeleton: Skeleton, body=None, *, clearance: float | None = None, report: dict | None = None
+    motion,
+    skeleton: Skeleton,
+    body=None,
+    *,
+    clearance: float | None = None,
+    report: dict | None = None,
+    prop=None,
 ):
     """``motion`` with both arms in the rifle carry in every frame (see module doc).
 
@@ -187,13 +193,13 @@ def apply_rifle_carry(
     the carry is then moved per frame until the rifle clears the body by ``clearance`` [m]
     (default :data:`CLEARANCE`; :func:`clear_rifle`); ``report`` (a dict) receives the
     clearance before/after per frame. Without ``body`` the carry is fixed in the Hips' frame
-    (no collision check).
+    (no collision check). ``prop``: the long gun (default the rifle; see :func:`clear_rifle`).
     """
     if body is None:
         q = _solve_arms(motion, skeleton)
     else:
         cb = body if isinstance(body, CarryBody) else carry_body(body, skeleton)
-        q, rep = clear_rifle(motion, skeleton, cb, CLEARANCE if clearance is None else clearance)
+        q, rep = clear_rifle(motion, skeleton, cb, CLEARANCE if clearance is None else clearance, prop)
         if report is not None:
             report.update(rep)
     return dataclasses.replace(motion, local_rotations=q)
@@ -375,16 +381,18 @@ def prop_distance_gradient(p: np.ndarray, prop=None, eps: float = 1e-4) -> np.nd
     return np.where(n > 0, g / np.maximum(n, 1e-12), [0.0, 1.0, 0.0])
 
 
-def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray, clearance: float) -> np.ndarray:
+def _best_shift(
+    local: np.ndarray, to_local: np.ndarray, worst: np.ndarray, clearance: float, prop=None
+) -> np.ndarray:
     """The shortest Hips-frame shift of the rifle (:data:`SHIFT_STEPS` along the distance
     gradient at the closest body vertex or any of :data:`_SHIFT_DIRECTIONS`) after which
     every body point ``local`` (rifle frame) is ``clearance`` off the solid (of the shifts of
     that length that do, the one leaving the most room); if none clears, the one that leaves
     the largest clearance. A shift of length s can only bring points nearer than
     s + clearance to the rifle's bounding box into play: only those are checked."""
-    grad_local = prop_distance_gradient(worst[None])[0]  # body -> out, rifle frame
+    grad_local = prop_distance_gradient(worst[None], prop)[0]  # body -> out, rifle frame
     dirs = np.vstack([-(to_local.T @ grad_local), _SHIFT_DIRECTIONS])
-    lo, hi = _prop_box(None)
+    lo, hi = _prop_box(prop)
     q = np.abs(local - (lo + hi) / 2) - (hi - lo) / 2
     box = np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0)
     best, best_d = dirs[0] * SHIFT_STEPS[-1], -np.inf
@@ -394,7 +402,7 @@ def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray, clea
         if not len(near):
             return shifts[0]
         moved = near[None] - (shifts @ to_local.T)[:, None, :]
-        d = _union_distance(moved, None).min(axis=1)
+        d = _union_distance(moved, prop).min(axis=1)
         k = int(np.argmax(d))
         if d[k] >= clearance + 1e-3:
             return shifts[k]
@@ -404,7 +412,7 @@ def _best_shift(local: np.ndarray, to_local: np.ndarray, worst: np.ndarray, clea
 
 
 def clear_rifle(
-    motion, skeleton: Skeleton, cb: CarryBody, clearance: float = CLEARANCE
+    motion, skeleton: Skeleton, cb: CarryBody, clearance: float = CLEARANCE, prop=None
 ) -> tuple[np.ndarray, dict]:
     """Arms in the carry with the rifle at least ``clearance`` off the body in every frame.
 
@@ -419,7 +427,9 @@ def clear_rifle(
     of a contact instead of popping. Limits: translation only (no re-orientation of the
     rifle); a frame that still fails (e.g. out of the arms' reach: ``graspErrorMax_m``) is
     reported, not hidden. Returns (local rotations, report: per-frame min distance and
-    vertices inside before/after, offset length, the hands' worst grasp error).
+    vertices inside before/after, offset length, the hands' worst grasp error). ``prop``: the
+    long gun carried (default the rifle; any :class:`~humv_usd.catalog.garments.Prop` in the
+    rifle's frame, e.g. the shotgun).
     """
     frames = len(motion.local_rotations)
     fps = float(getattr(motion, "fps", 30.0))
@@ -428,7 +438,7 @@ def clear_rifle(
     def solve(off):
         q = _solve_arms(motion, skeleton, off)
         world = forward_kinematics(skeleton, q, motion.root_translation)
-        return q, world, rifle_clearance(cb, skeleton, skinning_matrices(skeleton, world))
+        return q, world, rifle_clearance(cb, skeleton, skinning_matrices(skeleton, world), prop)
 
     def push(off, q, world, check):
         for _ in range(CLEAR_PASSES):
@@ -443,7 +453,7 @@ def clear_rifle(
             # to_local @ delta in its own frame
             to_local = np.swapaxes(rifle[:, :3, :3], 1, 2) @ world[bad, 0, :3, :3]
             for k, f in enumerate(bad):
-                off[f] += _best_shift(local[k], to_local[k], check[2][f], clearance)
+                off[f] += _best_shift(local[k], to_local[k], check[2][f], clearance, prop)
             q, world, check = solve(off)
         return off, q, world, check
 

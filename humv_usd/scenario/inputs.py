@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 from pxr import Sdf, UsdUtils
 
+from humv_usd.catalog.garments import LONG_GUNS
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.spec import SECTIONS
 
@@ -61,8 +62,9 @@ def _instance_id(scenario: Scenario, human_id: str) -> int:
 
 
 def _carries_rifle(scenario: Scenario, human_id: str) -> bool:
+    """Whether the person carries a long gun (the rifle or the shotgun: the arms' carry pose)."""
     human = next((h for h in scenario["human"] if h["id"] == human_id), None)
-    return human is not None and RIFLE in (human.get("clothing") or ())
+    return human is not None and any(g in LONG_GUNS for g in human.get("clothing") or ())
 
 
 def _crowd(scenario: Scenario, human_id: str) -> list | None:
