@@ -59,6 +59,11 @@ def test_driving_cools_the_hood_warms_the_tyres_and_stopping_cools_everything():
         values = [t[key] for t in later]
         assert values == sorted(values, reverse=True), key
     assert later[-1]["engine"] - air < 0.05  # a 12 h soak is a cold start
+    # a car parked 10 min ago arrived driving: its tyres are still warm, cooling with tau 30 min
+    parked = later[1]["tyre"] - air
+    assert parked == pytest.approx(
+        W.TYRE_EXCESS_K["drive"] * (1 - np.exp(-1800 / 1200)) * np.exp(-600 / 1800)
+    )
 
 
 def test_parked_cabin_follows_mclaren_2005():

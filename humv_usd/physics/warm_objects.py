@@ -185,7 +185,14 @@ class VehicleState:
 
     @property
     def mode(self) -> str:
-        return "drive" if self.speed_m_s > 0.5 else "idle"
+        """How the engine ran: 'drive' when driving now or stopped (a parked car arrived
+        driving), 'idle' when running at standstill."""
+        return "drive" if self.speed_m_s > 0.5 or self.off_s > 0.0 else "idle"
+
+    @property
+    def bay_mode(self) -> str:
+        """Engine-bay ventilation now: ram air only while driving."""
+        return "drive" if self.speed_m_s > 0.5 and self.off_s <= 0.0 else "idle"
 
 
 def vehicle_part_temperatures(air_k, state: VehicleState, wind_m_s=1.0, global_w_m2=0.0) -> dict:
@@ -207,7 +214,7 @@ def vehicle_part_temperatures(air_k, state: VehicleState, wind_m_s=1.0, global_w
     mode = state.mode
     running = state.off_s <= 0.0
     engine = float(engine_temperature(air, state.run_s, state.off_s, mode))
-    bay = air + BAY_AIR_SHARE[mode] * (engine - air)
+    bay = air + BAY_AIR_SHARE[state.bay_mode] * (engine - air)
     speed = max(wind_m_s, 0.0) + (state.speed_m_s if running else 0.0)
     hood = float(sheet_temperature(bay, air, HOOD_INNER_W_M2K, watmuff(speed)))
     exhaust = air + float(lumped_response(state.run_s, state.off_s, EXHAUST_EXCESS_K[mode], *EXHAUST_TAU_S))
