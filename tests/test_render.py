@@ -680,8 +680,10 @@ def test_variant_choice_without_llvm19(monkeypatch):
 
     monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
     monkeypatch.delenv(mode.VARIANT_ENV, raising=False)
+    monkeypatch.delenv(mode.BACKEND_ENV, raising=False)
     monkeypatch.delitem(sys.modules, "drjit", raising=False)
     monkeypatch.setattr(mode, "LLVM19_GLOBS", ("/nonexistent/libLLVM.so.19*",))
+    monkeypatch.setattr(mode, "CUDA_GLOBS", ("/nonexistent/libcuda.so*",))
     variant, reason = mode._choose_variant()
     assert variant == "scalar_rgb" and "LLVM 19" in reason
     assert "DRJIT_LIBLLVM_PATH" not in os.environ
@@ -694,8 +696,10 @@ def test_variant_choice_points_drjit_at_llvm19(monkeypatch, tmp_path):
     fake.write_bytes(b"")
     monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
     monkeypatch.delenv(mode.VARIANT_ENV, raising=False)
+    monkeypatch.delenv(mode.BACKEND_ENV, raising=False)
     monkeypatch.delitem(sys.modules, "drjit", raising=False)
     monkeypatch.setattr(mode, "LLVM19_GLOBS", (str(tmp_path / "libLLVM.so.19*"),))
+    monkeypatch.setattr(mode, "CUDA_GLOBS", ("/nonexistent/libcuda.so*",))
     variant, _ = mode._choose_variant()
     assert variant == "llvm_ad_mono" and os.environ["DRJIT_LIBLLVM_PATH"] == str(fake)
     monkeypatch.setenv(mode.VARIANT_ENV, "cuda_ad_rgb")
