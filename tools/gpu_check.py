@@ -1,0 +1,317 @@
+"""Check the render on a GPU: time per frame and agreement with the CPU render.
+
+Run on a machine with an NVIDIA GPU and humv-usd installed (the CPU backend needs Debian's
+libllvm19, as everywhere)::
+
+    python tools/gpu_check.py STAGE --out DIR [--sensor NAME] [--frames 0:7] [--backends cuda,llvm]
+
+It renders STAGE's frames once per backend, each in a fresh process (Mitsuba has one variant per
+process), with the same seed and the default automatic quality, into ``DIR/<backend>/`` with
+``humv_usd.pipeline.render.render_stage`` (the code ``humv-usd render --backend`` runs), then
+prints per backend the time per frame (median over the frames after the first, which also
+compiles the kernels; the first separately) split into the render's stages from the manifest,
+and per pair of backends the agreement of each frame:
+
+- **radiance**: z = (L_a - L_b) / sqrt(s_a^2 + s_b^2) per pixel from each render's own Monte Carlo
+  standard error, over all pixels and over the labelled people. Two unbiased renders agree when
+  z has mean ~0 and standard deviation ~1 (a bit less: the stated error is an upper estimate
+  where the render filters, and a bit more at geometric edges); the fraction of |z| > 4 is
+  printed with what a normal distribution gives (6e-5);
+- **labels**: the share of pixels whose instance id differs (the label ray cast runs on the same
+  backend as the render: edge pixels may flip at float rounding) and the largest depth
+  difference.
+
+A GPU machine without the full set-up can split the work: ``render`` on the GPU machine with
+``--export DIR`` (compact ``.npz`` per frame: radiance, its error, instance id, depth), then
+``compare`` on any machine against a CPU render of the same stage and frames.
+
+Subcommands: ``check`` (default: render every backend, compare), ``render`` (one backend),
+``compare A B`` (two render folders or exports). Writes ``DIR/gpu_check.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Stages of a frame in the manifest's per-frame ``timings_s`` (render includes the estimator).
+STAGES = ("load_export", "render", "estimator", "labels", "write", "cpu")
+#: The fraction of |z| > 4 for a standard normal variable (two-sided).
+NORMAL_TAIL_4 = 6.33e-5
+
+
+def _parse_frames(text: str | None) -> list[int] | None:
+    """``A:B`` (inclusive), ``a,b,c`` or one number."""
+    if not text:
+        return None
+    if ":" in text:
+        lo, hi = (int(v) for v in text.split(":"))
+        return list(range(lo, hi + 1))
+    return [int(v) for v in text.split(",")]
+
+
+def _render(stage: str, out: str, backend: str, frames: str | None, sensor: str | None, seed: int) -> dict:
+    """Render in this process with ``backend`` forced; returns the timing summary."""
+    sys.path.insert(0, str(ROOT))
+    from humv_usd import mode
+    from humv_usd.pipeline.render import render_stage
+
+    mode.set_backend(backend)
+    t0 = time.perf_counter()
+    mi = mode.mitsuba()
+    start_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    manifest = render_stage(
+        stage,
+        out,
+        frames=_parse_frames(frames),
+        sensors=[sensor] if sensor else None,
+        seed=seed,
+        force=True,
+        yes=True,
+    )
+    wall = time.perf_counter() - t0
+    summary = {
+        "backend": backend,
+        "variant": mode.variant(),
+        "variant_reason": mode.variant_reason(),
+        "mitsuba": mi.__version__,
+        "mitsuba_start_s": start_s,
+        "wall_s": wall,
+        "sensors": {},
+    }
+    for s in manifest["sensors"] + manifest.get("eo_sensors", []):
+        frames_ = s.get("frames", [])
+        per = {k: [f["timings_s"].get(k, 0.0) for f in frames_] for k in STAGES}
+        rest = {k: v[1:] for k, v in per.items()} if len(frames_) > 1 else per
+        summary["sensors"][s.get("name", s.get("id", "?"))] = {
+            "frames": [f["frame"] for f in frames_],
+            "first_frame_s": {k: v[0] for k, v in per.items() if v},
+            "median_frame_s": {k: statistics.median(v) for k, v in rest.items() if v},
+            "spp": [f.get("quality", {}).get("spp") for f in frames_],
+            "exr": [f["exr"] for f in frames_],
+        }
+    return summary
+
+
+def _export(render_dir: str, summary: dict, export_dir: str, frames=None) -> list[str]:
+    """Compact per-frame arrays of a render for :func:`compare` elsewhere (``frames``: only
+    these)."""
+    sys.path.insert(0, str(ROOT))
+    from humv_usd.images import read_exr
+
+    os.makedirs(export_dir, exist_ok=True)
+    written = []
+    for name, s in summary["sensors"].items():
+        for frame, rel in zip(s["frames"], s["exr"]):
+            if frames is not None and frame not in frames:
+                continue
+            ch = read_exr(os.path.join(render_dir, rel))
+            path = os.path.join(export_dir, f"{summary['backend']}_{name}_{frame:04d}.npz")
+            np.savez_compressed(
+                path,
+                radiance=ch["radiance"].astype(np.float32),
+                radiance_stderr=ch["radiance_stderr"].astype(np.float32),
+                instance_id=ch["instance_id"].astype(
+                    np.int16 if ch["instance_id"].max() < 2**15 else np.int32
+                ),
+                depth=ch["depth"].astype(np.float32),
+            )
+            written.append(path)
+    with open(os.path.join(export_dir, f"{summary['backend']}_summary.json"), "w") as f:
+        json.dump(summary, f, indent=1)
+    return written
+
+
+def _frames_of(where: str) -> dict[tuple[str, int], dict]:
+    """(sensor, frame) -> arrays, from a render folder (manifest.json) or an export folder."""
+    out = {}
+    manifest = os.path.join(where, "manifest.json")
+    if os.path.exists(manifest):
+        sys.path.insert(0, str(ROOT))
+        from humv_usd.images import read_exr
+
+        with open(manifest) as f:
+            m = json.load(f)
+        for s in m["sensors"]:
+            for fr in s["frames"]:
+                ch = read_exr(os.path.join(where, fr["exr"]))
+                out[(s["name"], fr["frame"])] = {
+                    k: ch[k] for k in ("radiance", "radiance_stderr", "instance_id", "depth")
+                }
+        return out
+    for p in sorted(Path(where).glob("*_*_[0-9][0-9][0-9][0-9].npz")):
+        _, rest = p.stem.split("_", 1)
+        name, frame = rest.rsplit("_", 1)
+        with np.load(p) as z:
+            out[(name, int(frame))] = {k: z[k] for k in z.files}
+    return out
+
+
+def _z_stats(z: np.ndarray) -> dict:
+    z = z[np.isfinite(z)]
+    if z.size == 0:
+        return {"pixels": 0}
+    return {
+        "pixels": int(z.size),
+        "mean": float(z.mean()),
+        "std": float(z.std()),
+        "beyond_4": float(np.mean(np.abs(z) > 4.0)),
+    }
+
+
+def compare(a: str, b: str) -> dict:
+    """Agreement of two renders of the same stage, frames and sensors (see the module text)."""
+    fa, fb = _frames_of(a), _frames_of(b)
+    common = sorted(set(fa) & set(fb))
+    if not common:
+        raise SystemExit(
+            f"compare: no (sensor, frame) in both {a} ({sorted(fa)[:3]}) and {b} ({sorted(fb)[:3]})"
+        )
+    result = {"frames": []}
+    for key in common:
+        x, y = fa[key], fb[key]
+        s2 = x["radiance_stderr"].astype(float) ** 2 + y["radiance_stderr"].astype(float) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = (x["radiance"].astype(float) - y["radiance"].astype(float)) / np.sqrt(s2)
+        z[~(s2 > 0)] = np.nan
+        people = (x["instance_id"] > 0) & (y["instance_id"] > 0)
+        same_id = x["instance_id"].astype(np.int64) == y["instance_id"].astype(np.int64)
+        finite = np.isfinite(x["depth"]) & np.isfinite(y["depth"])
+        depth = float(np.max(np.abs(x["depth"][finite] - y["depth"][finite]))) if finite.any() else 0.0
+        result["frames"].append(
+            {
+                "sensor": key[0],
+                "frame": key[1],
+                "all": _z_stats(z),
+                "people": _z_stats(z[people]),
+                "relative_mean_difference": float(
+                    (x["radiance"].mean() - y["radiance"].mean()) / max(abs(y["radiance"].mean()), 1e-30)
+                ),
+                "label_pixels_differing": float(1.0 - same_id.mean()),
+                "depth_max_difference_m": depth,
+            }
+        )
+    return result
+
+
+def _print_compare(name: str, res: dict) -> None:
+    print(
+        f"agreement {name} (z = difference / combined Monte Carlo error; normal: std 1, |z|>4 {NORMAL_TAIL_4:.0e})"
+    )
+    for f in res["frames"]:
+        al, pe = f["all"], f["people"]
+        print(
+            f"  {f['sensor']} frame {f['frame']:>3}: all z mean {al.get('mean', float('nan')):+.3f} std "
+            f"{al.get('std', float('nan')):.3f} |z|>4 {al.get('beyond_4', float('nan')):.1e}; people "
+            f"({pe.get('pixels', 0)} px) mean {pe.get('mean', float('nan')):+.3f} std {pe.get('std', float('nan')):.3f} "
+            f"|z|>4 {pe.get('beyond_4', float('nan')):.1e}; mean radiance {f['relative_mean_difference']:+.1e}; "
+            f"labels differ {f['label_pixels_differing']:.1e}, depth {f['depth_max_difference_m']:.1e} m"
+        )
+
+
+def _print_summary(s: dict) -> None:
+    print(
+        f"{s['backend']}: {s['variant']} ({s['variant_reason']}); Mitsuba start {s['mitsuba_start_s']:.2f} s, render {s['wall_s']:.1f} s"
+    )
+    for name, v in s["sensors"].items():
+        n = len(v["frames"])
+        med = v["median_frame_s"]
+        first = v["first_frame_s"]
+        parts = ", ".join(f"{k} {med[k]:.3f}" for k in STAGES if k in med)
+        fps = 1.0 / med["render"] if med.get("render") else float("nan")
+        print(
+            f"  {name}: {n} frames, spp {v['spp']}; median s/frame: {parts} (render only: {fps:.2f} frames/s)"
+        )
+        print(
+            f"  {name}: first frame (compiles kernels): "
+            + ", ".join(f"{k} {first[k]:.3f}" for k in STAGES if k in first)
+        )
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="cmd")
+    for name in ("check", "render"):
+        p = sub.add_parser(name)
+        p.add_argument("stage")
+        p.add_argument("--out", required=True)
+        p.add_argument("--frames", default="0:7")
+        p.add_argument("--sensor", default=None)
+        p.add_argument("--seed", type=int, default=0)
+        if name == "check":
+            p.add_argument("--backends", default="cuda,llvm")
+        else:
+            p.add_argument("--backend", default="cuda")
+            p.add_argument("--export", default=None, help="write compact per-frame .npz here")
+            p.add_argument("--export-frames", default=None, help="only these frames (default: all)")
+            p.add_argument(
+                "--log", default=None, help="debug log of the render (estimator timings) to this file"
+            )
+    p = sub.add_parser("compare")
+    p.add_argument("a")
+    p.add_argument("b")
+    args = ap.parse_args(argv)
+
+    if args.cmd == "render":
+        if args.log:
+            import logging
+
+            logging.basicConfig(
+                filename=args.log, level=logging.INFO, format="%(relativeCreated)9.0f %(name)s %(message)s"
+            )
+            logging.getLogger("humv_usd.render").setLevel(logging.DEBUG)
+        out = os.path.join(args.out, args.backend)
+        summary = _render(args.stage, out, args.backend, args.frames, args.sensor, args.seed)
+        with open(os.path.join(args.out, f"{args.backend}_summary.json"), "w") as f:
+            json.dump(summary, f, indent=1)
+        _print_summary(summary)
+        if args.export:
+            for path in _export(out, summary, args.export, _parse_frames(args.export_frames)):
+                print(f"  exported {path}")
+        return 0
+    if args.cmd == "compare":
+        res = compare(args.a, args.b)
+        _print_compare(f"{args.a} vs {args.b}", res)
+        return 0
+    if args.cmd != "check":
+        ap.print_help()
+        return 2
+    backends = [b for b in args.backends.split(",") if b]
+    report = {"backends": {}, "agreement": {}}
+    for backend in backends:
+        cmd = [sys.executable, __file__, "render", args.stage, "--out", args.out, "--backend", backend]
+        cmd += ["--frames", args.frames, "--seed", str(args.seed)] + (
+            ["--sensor", args.sensor] if args.sensor else []
+        )
+        run = subprocess.run(cmd, text=True, capture_output=True)
+        sys.stdout.write(run.stdout)
+        if run.returncode != 0:
+            print(
+                f"{backend}: failed ({run.stderr.strip().splitlines()[-1] if run.stderr.strip() else run.returncode})"
+            )
+            continue
+        with open(os.path.join(args.out, f"{backend}_summary.json")) as f:
+            report["backends"][backend] = json.load(f)
+    done = list(report["backends"])
+    for i, a in enumerate(done):
+        for b in done[i + 1 :]:
+            res = compare(os.path.join(args.out, a), os.path.join(args.out, b))
+            report["agreement"][f"{a}-{b}"] = res
+            _print_compare(f"{a} vs {b}", res)
+    with open(os.path.join(args.out, "gpu_check.json"), "w") as f:
+        json.dump(report, f, indent=1)
+    return 0 if done else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
