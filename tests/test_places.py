@@ -22,6 +22,7 @@ from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.places import CAR_LENGTH_M, KIND_MATERIALS, place_items, scene_clutter
 from humv_usd.scenario.spec import CLUTTER, CLUTTER_CLASSES, PLACE, PLACE_KINDS
 from humv_usd.scene import layer as scene_layer
+from humv_usd.scene.ground import scene_terrain
 from humv_usd.scene.objects import part_temperatures, parts_of, path_poses
 from humv_usd.sweep.spec import load_sweep
 from humv_usd.thermal.surfaces import scene_meshes
@@ -229,3 +230,17 @@ def test_bench_scales_the_place_and_refuses_bad_factors():
     validate(big, EXAMPLES / "places" / "street.toml")
     result = CliRunner().invoke(main, ["bench", "places", "--factors", "0,x"])
     assert result.exit_code == 2 and "--factors" in result.output
+
+
+def test_clutter_stands_on_the_terrain():
+    raw = tomllib.loads(SCENARIO)
+    raw["scene"]["terrain"] = {"slope_deg": [0.0, 5.0]}
+    raw["scene"]["place"]["kind"] = "none"
+    scenario = validate(raw)
+    stage = compose_in_memory([scene_layer.build(scenario)], 5.0)
+    terrain = scene_terrain(scenario["scene"])
+    xf = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Scene/rex"))
+    z = np.asarray(xf.ComputeLocalToWorldTransform(Usd.TimeCode(0)))[3, 2]
+    assert abs(float(terrain.height(1.0, 2.0))) > 0.05 and z == pytest.approx(
+        float(terrain.height(1.0, 2.0)), abs=1e-5
+    )

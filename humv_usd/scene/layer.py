@@ -109,6 +109,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
                 float(atm.get("cloud_cover", 0.0)),
                 g["fps"],
                 scenario.frame_count,
+                terrain.height,  # standing on the terrain (and following it while driving)
             )
     return finish(stage)
 

@@ -307,12 +307,16 @@ def author_clutter(
     cloud_cover: float,
     fps: float,
     frames: int,
+    ground_height=None,
 ) -> Usd.Prim:
-    """/World/Scene/<id>: placement (time-sampled when driving), label, one mesh per part."""
+    """/World/Scene/<id>: placement (time-sampled when driving), label, one mesh per part.
+    ``ground_height(x, y)``: the terrain's height [m], added to the placement's z (None: flat)."""
     root = UsdGeom.Xform.Define(stage, object_path(entry["id"]))
     op = root.AddTransformOp()
     scale = float(entry["scale"])
     pos, head = path_poses(entry, np.arange(frames) / fps)
+    if ground_height is not None:
+        pos[:, 2] += np.asarray(ground_height(pos[:, 0], pos[:, 1]), dtype=float)
     op.Set(_matrix(pos[0], head[0], scale))
     if entry["kind"] == "vehicle" and entry["path_m"] and entry["speed_m_s"] > 0:
         for f in range(frames):
