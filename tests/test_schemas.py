@@ -12,6 +12,7 @@ from pxr import Sdf, Usd
 
 # Registration must happen before any stage exists: import the package first.
 import humv_usd  # noqa: F401  (registers the schemas)
+from humv_usd.scenario.spec import ACTIVITIES
 from humv_usd.usd import schemas as hs
 
 REPO = Path(__file__).resolve().parents[1]
@@ -44,7 +45,7 @@ ALLOWED_TOKENS = {
     ],
     hs.AVATAR_SEX: ["male", "female"],
     hs.AVATAR_FITNESS: ["low", "average", "high", "athlete"],
-    hs.AVATAR_ACTIVITY: ["stand", "standTurn", "walk", "run", "postExercise"],
+    hs.AVATAR_ACTIVITY: list(ACTIVITIES),
     hs.THERMAL_MODEL: ["fixed", "twoNode", "jos3", "slab", "balance"],
     hs.SENSOR_BAND: ["EO", "NIR", "SWIR", "MWIR", "LWIR"],
     hs.SENSOR_PLATFORM: ["tripod", "mast", "aerial", "vehicle", "drone", "handheld"],
