@@ -125,3 +125,17 @@ def test_reflective_presets_fit_their_bands():
         lo, hi = BAND_RANGE_UM[p.band]
         assert lo <= p.wavelength_um[0] < p.wavelength_um[1] <= hi and name in SENSOR_PRESETS
         assert catalog.calibration(name)[0] is None  # auto exposure
+
+
+def test_reflective_band_faces_without_temperature_emit_nothing():
+    """Without a thermal layer (no MWIR/LWIR sensor asks for one) a face's temperature is NaN:
+    below 2.5 um it emits nothing; a thermal band still refuses it."""
+    from humv_usd.physics import planck
+    from humv_usd.render.radiometry import SubBands
+
+    sub = SubBands(SWIR, None, 4)
+    out = sub.radiance(np.array([np.nan, 300.0]))
+    assert np.all(out[0] == 0.0)
+    np.testing.assert_allclose(out[1].sum(), planck.band_radiance(300.0, SWIR), rtol=1e-6)
+    with pytest.raises(ValueError):
+        SubBands((8.0, 14.0), None, 4).radiance(np.array([np.nan]))
