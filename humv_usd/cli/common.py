@@ -6,6 +6,7 @@ import contextlib
 import functools
 import os
 import sys
+import time
 
 import click
 
@@ -47,12 +48,38 @@ def wants_progress(quiet: bool) -> bool:
     return not quiet and sys.stderr.isatty() and not os.environ.get("CI")
 
 
+#: plain progress lines (stderr not a terminal: a log file, nohup, a batch job) start after this
+#: many seconds, so that quick runs and their one-line errors stay as they are, and come at
+#: most every PLAIN_EVERY_S
+PLAIN_AFTER_S = 5.0
+PLAIN_EVERY_S = 2.0
+
+
+def _plain_lines(stage: str):
+    """``callback(done, total, text)`` printing ``humv-usd compose: [3/7] layer thermal, 12.4 s``
+    lines on stderr (issue 26: compose printed nothing for 97 s into a log)."""
+    t0 = time.monotonic()
+    last = [-float("inf")]
+
+    def callback(done: int, total: int, text: str) -> None:
+        now = time.monotonic()
+        if now - t0 < PLAIN_AFTER_S or now - last[0] < PLAIN_EVERY_S:
+            return
+        last[0] = now
+        sys.stderr.write(f"{PROG} {stage}: [{done}/{total}] {text}, {now - t0:.1f} s\n")
+        sys.stderr.flush()
+
+    return callback
+
+
 @contextlib.contextmanager
 def progress_display(stage: str, quiet: bool = False):
     """Yield ``callback(done, total, text)`` drawing a rich progress bar (stage, what, ETA) on
-    stderr, or None when :func:`wants_progress` says no (pipes, CI, --quiet)."""
+    stderr when :func:`wants_progress` says so; plain lines (:func:`_plain_lines`) when stderr
+    is the process's own and not a terminal (a log; not --quiet); else None."""
     if not wants_progress(quiet):
-        yield None
+        own = sys.stderr is sys.__stderr__  # not a test runner's capture
+        yield _plain_lines(stage) if not quiet and own and not sys.stderr.isatty() else None
         return
     from rich.console import Console
     from rich.progress import (

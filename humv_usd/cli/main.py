@@ -8,11 +8,12 @@ traceback and nothing written).
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import statistics
 import sys
-import threading
 import tempfile
+import threading
 from pathlib import Path
 
 import click
@@ -105,10 +106,22 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
 
     set_verbosity(verbose)
     out_dir = check_output_dir(out_dir)  # fail fast, before reading anything
+    _require_replaceable(out_dir)
     with progress_display("compose", quiet) as progress:
-        report = run_compose(
-            load_scenario(scenario), out_dir, force=force, wait=wait, yes=yes, progress=progress
-        )
+        try:
+            report = run_compose(
+                load_scenario(scenario), out_dir, force=force, wait=wait, yes=yes, progress=progress
+            )
+        except OSError as exc:  # a full disk, a quota, a file system gone read-only mid-run
+            from humv_usd.errors import WriteError
+            from humv_usd.fileio import PENDING_NAME
+
+            done = (
+                "the change is journaled: the next compose completes it"
+                if (out_dir / PENDING_NAME).exists()
+                else "nothing was changed"
+            )
+            raise WriteError(f"{exc.filename or out_dir}: {exc.strerror or exc}; {done}") from None
     for name, wrote, seconds in [] if quiet else report.layers:
         state = "written" if wrote else "unchanged"
         why = report.states[name].why if name in report.states else ""
@@ -118,6 +131,18 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
     for name in report.removed:
         click.echo(f"  {name:<16} removed   (no longer in the scenario)")
     click.echo(f"{report.stage_path}  ({report.summary()})")
+
+
+def _require_replaceable(out_dir: Path) -> None:
+    """The files a compose into ``out_dir`` replaces can be replaced: one line before any work
+    for an immutable or read-only one (issue 26: compose renamed the layers into place, then
+    failed on an immutable stage.usda, half-written)."""
+    for path in [out_dir / "stage.usda", out_dir / "compose.json", *sorted(out_dir.glob("layers/*.usda"))]:
+        if path.exists() and not os.access(path, os.W_OK):
+            raise InputError(
+                f"{path}: read-only or immutable, and compose replaces it; make it writable "
+                "(chmod u+w, chattr -i) or compose into another folder"
+            )
 
 
 @main.command()
@@ -572,9 +597,6 @@ def _register_tools():
     from humv_usd.cli.detector_cmd import bench_detector
 
     bench.add_command(bench_detector)
-    from humv_usd.cli.bench_places_cmd import bench_places
-
-    bench.add_command(bench_places)
     from humv_usd.cli.bench_places_cmd import bench_places
 
     bench.add_command(bench_places)

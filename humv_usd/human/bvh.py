@@ -172,7 +172,14 @@ class _Lines:
         return v
 
 
-def _parse_joint(s: _Lines, joints: list[BVHJoint], parent: int, name: str, n_ch: list[int]):
+#: deepest joint hierarchy read (a human rig is about 10 deep; a deeper file would exhaust
+#: Python's recursion in the parser, issue 26)
+MAX_DEPTH = 256
+
+
+def _parse_joint(s: _Lines, joints: list[BVHJoint], parent: int, name: str, n_ch: list[int], depth: int = 1):
+    if depth > MAX_DEPTH:
+        raise s.fail(s.peek()[1], f"a joint hierarchy at most {MAX_DEPTH} joints deep", f"JOINT {name}")
     s.expect("{")
     tok, line = s.next("'OFFSET'")
     if tok != "OFFSET":
@@ -210,7 +217,7 @@ def _parse_joint(s: _Lines, joints: list[BVHJoint], parent: int, name: str, n_ch
             return
         if tok == "JOINT":
             child, _ = s.next("a joint name")
-            _parse_joint(s, joints, me, child, n_ch)
+            _parse_joint(s, joints, me, child, n_ch, depth + 1)
         elif tok == "End":
             s.expect("Site")
             s.expect("{")

@@ -44,6 +44,10 @@ def stage_problems(stage_path) -> list[str]:
             + bad_value("metersPerUnit", mpu_used, "expected 1 (humv-usd check: humv:metersPerUnit)")
             + ("" if mpu is not None else " (not authored: USD's fallback)")
         )
+    for name in ("timeCodesPerSecond", "framesPerSecond"):  # 0 divides frame times by zero
+        value = float(getattr(root, name))
+        if not (math.isfinite(value) and value > 0):
+            out.append(f"{where}: " + bad_value(name, value, "expected > 0 (humv-usd check: humv:timeCodes)"))
     if root.HasStartTimeCode() and root.HasEndTimeCode():
         start, end = float(root.startTimeCode), float(root.endTimeCode)
         if not (math.isfinite(start) and math.isfinite(end)):

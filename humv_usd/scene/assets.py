@@ -258,12 +258,23 @@ def _read_trimesh(file: str) -> list[SourceMesh]:
     return _checked(file, meshes)
 
 
+#: largest coordinate a USD point (float) holds
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 def _checked(file: str, meshes: list[SourceMesh]) -> list[SourceMesh]:
     if not meshes:
         raise fail(file, "holds no triangle mesh")
     for m in meshes:
         if not np.all(np.isfinite(m.points)):
             raise fail(file, f"mesh {m.path!r} has non-finite vertex coordinates")
+        big = float(np.abs(m.points).max()) if m.points.size else 0.0
+        if big > FLOAT32_MAX:  # USD stores points as float: they would become inf (issue 26)
+            raise fail(
+                file,
+                f"mesh {m.path!r} has a vertex coordinate of {big:.3g}: allowed range "
+                f"-{FLOAT32_MAX:.3g}..{FLOAT32_MAX:.3g} (USD's float points)",
+            )
     extent = np.ptp(np.concatenate([m.points for m in meshes]), axis=0)
     if not math.isfinite(float(extent.max())) or extent.max() <= 0.0:
         raise fail(file, "all vertices coincide")

@@ -21,6 +21,7 @@ from humv_usd.usd.layers import broken_sublayers, open_root_layer, unfinished_se
 from humv_usd.usd.mesh import read_asset_source
 from humv_usd.usd.paths import body_path
 from humv_usd.usd.sensor import stage_sensors
+from humv_usd.usd.thermal import temperature_type_problem
 
 #: the name of a person's body mesh under its SkelRoot (humv_usd.usd.paths.body_path)
 BODY_NAME = body_path("p").name
@@ -66,6 +67,9 @@ def rule_root_layer(stage: Usd.Stage) -> list[str]:
             f"humv:timeRange: stage: endTimeCode {root.endTimeCode:g} < startTimeCode {root.startTimeCode:g}"
         )
     tcps = root.timeCodesPerSecond
+    for name, value in (("timeCodesPerSecond", tcps), ("framesPerSecond", root.framesPerSecond)):
+        if not (math.isfinite(value) and value > 0):  # the render refuses it too (pipeline.preflight)
+            out.append(f"humv:timeCodes: stage: {name} = {value:g}, expected > 0")
     for sub in root.subLayerPaths:
         layer = Sdf.Layer.FindOrOpenRelativeToLayer(root, sub)  # check_stage found them all loadable
         if layer is not None and layer.timeCodesPerSecond != tcps:
@@ -110,7 +114,10 @@ def rule_meshes(stage: Usd.Stage) -> list[str]:
                 "an infrared render needs; fix: re-run compose so that the thermal tool writes one on "
                 "every mesh (a mesh added in a user layer after compose gets none), or author it"
             )
-        if primvar and primvar.HasAuthoredValue():
+        problem = temperature_type_problem(primvar.GetAttr()) if primvar else None
+        if problem:
+            out.append(f"humv:temperature: {path}: {problem}")
+        elif primvar and primvar.HasAuthoredValue():
             if primvar.GetInterpolation() != UsdGeom.Tokens.uniform:
                 out.append(
                     f"humv:temperature: {path}: interpolation "

@@ -79,6 +79,9 @@ def read_face_temperatures(prim: Usd.Prim, face_count: int, time) -> np.ndarray:
                 f"({face_count} faces, uniform primvar, K, HumvThermalAPI)",
             )
         )
+    problem = temperature_type_problem(attr)
+    if problem:  # e.g. string[] from a hand edit (issue 26)
+        raise InputError(f"{where}: {problem}")
     primvar = UsdGeom.Primvar(attr)
     interpolation = primvar.GetInterpolation() if primvar else UsdGeom.Tokens.uniform
     if interpolation not in (UsdGeom.Tokens.uniform, UsdGeom.Tokens.constant):
@@ -96,6 +99,22 @@ def read_face_temperatures(prim: Usd.Prim, face_count: int, time) -> np.ndarray:
     if primvar and primvar.GetInterpolation() == UsdGeom.Tokens.constant and values.size == 1:
         values = np.full(face_count, values[0])
     return check_temperatures(values, where, expected=face_count)
+
+
+#: value types a temperature primvar may have (float[] as the thermal tool writes it)
+NUMBER_TYPES = (Sdf.ValueTypeNames.Float, Sdf.ValueTypeNames.Double, Sdf.ValueTypeNames.Half)
+
+
+def temperature_type_problem(attr: Usd.Attribute) -> str | None:
+    """Why a temperature attribute's values are not numbers, or None: a layer that declares it
+    with another type (``string[]``). USD takes an attribute's type from its weakest
+    declaration but its value from the strongest opinion, so the composed type name can say
+    float[] while the value is a string array."""
+    for spec in attr.GetPropertyStack(Usd.TimeCode.Default()):
+        type_name = getattr(spec, "typeName", None)
+        if type_name is not None and type_name.scalarType not in NUMBER_TYPES:
+            return f"declared {type_name} in {spec.layer.identifier}; expected float[] (kelvin per face)"
+    return None
 
 
 #: Key of a person's face-temperature noise [K] (RMS over faces, from the q_rad method's ray
