@@ -27,7 +27,7 @@ from humv_usd.scene.objects import part_temperatures, parts_of, path_poses
 from humv_usd.sweep.spec import load_sweep
 from humv_usd.thermal.surfaces import scene_meshes
 from humv_usd.usd import schemas as S
-from humv_usd.usd.heat import read_lights
+from humv_usd.usd.lights import read_lamps
 from humv_usd.usd.mesh import signed_volume
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -169,8 +169,14 @@ def test_held_parts_reach_the_thermal_tool_and_lit_lamps_are_lights(composed):
     assert meshes["/World/Scene/rex/Trunk"].held_k == pytest.approx(coat, abs=1e-3)
     assert meshes["/World/Scene/grill/Lid"].held_k > 400.0
     assert meshes["/World/Scene/grill/Leg0"].held_k is None  # a slab of its material
-    lights = read_lights(stage)  # 21:00 in October: the sun is down, lamps and windows lit
-    assert any(kind == "street_lamp" for _, kind, _ in lights)
+    lamps = read_lamps(stage, Usd.TimeCode(0))  # 21:00 in October: the sun is down, lamps lit
+    lamp = next(c["id"] for c in scene_clutter(scenario["scene"]) if c["kind"] == "street_lamp")
+    light = next(x for x in lamps if x.path == f"/World/Scene/{lamp}/Light")
+    assert light.kind == "sphere" and light.direction[2] == pytest.approx(-1.0)  # shines down
+    windows = [x for x in lamps if x.kind == "rect"]
+    assert windows  # lit windows shine out of their facade, towards the road (y = 0)
+    for w in windows:
+        assert w.direction[1] == pytest.approx(-np.sign(w.position[1])) and abs(w.direction[2]) < 1e-9
 
 
 def test_a_driving_car_moves_on_the_stage(composed):

@@ -18,8 +18,8 @@ Kinds and parts (local frame: x forward, z up, metres at scale 1):
 * hvac: Casing (slab), Fan (discharge grille, held).
 * barbecue: Bowl, Lid (held hot), Leg0-2 (slabs); fire: Embers (held), Log0-2 (held).
 
-Lit lamps and windows also carry ``humv:light:*`` (:mod:`humv_usd.usd.heat`): the hook through
-which the render's light elements (issue 24) make them shine at night.
+Lit lamps and windows, and a running vehicle's low beams at night, get the render's lights
+(UsdLux through :mod:`humv_usd.usd.lights`, issue 24.4): /World/Scene/<id>/Light, Headlight*.
 """
 
 from __future__ import annotations
@@ -33,8 +33,9 @@ from humv_usd.physics import warm_objects as W
 from humv_usd.physics.convection import watmuff
 from humv_usd.scenario.spec import CLUTTER_CLASSES
 from humv_usd.scene.geometry import box
-from humv_usd.usd.heat import write_held_temperature, write_light
+from humv_usd.usd.heat import write_held_temperature
 from humv_usd.usd.layers import set_kind
+from humv_usd.usd.lights import write_lamp, write_window
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import material_path, object_path
 
@@ -45,8 +46,12 @@ PHOTOCELL_SUN_ELEVATION_DEG = -3.0
 WINDOW_OUTER_W_M2K, WINDOW_U_W_M2K = 25.0, 2.8
 #: room air behind a lit window [K]
 ROOM_AIR_K = 294.15
-#: electrical power of a street lamp [W] (LED luminaire) and of a lit room's lighting [W]
-LAMP_POWER_W, WINDOW_POWER_W = 100.0, 60.0
+#: lights (humv_usd.catalog.lights spectra): an LED street luminaire (3000-8000 lm, cone ~70 deg
+#: half-angle), a lit window's luminance [cd m-2] (10-100), a halogen low beam per lamp (~1000 lm,
+#: ~30 deg, aimed slightly down)
+LAMP_SPECTRUM, LAMP_FLUX_LM, LAMP_CONE_DEG = "led_4000k", 6000.0, 70.0
+WINDOW_SPECTRUM, WINDOW_LUMINANCE = "led_3000k", 30.0
+HEADLIGHT_SPECTRUM, HEADLIGHT_FLUX_LM, HEADLIGHT_CONE_DEG = "halogen", 1000.0, 30.0
 
 
 # ----------------------------------------------------------------------------- primitives
@@ -328,8 +333,44 @@ def author_clutter(
         m = define_mesh(stage, root.GetPath().AppendChild(name), *mesh, material=material_path(material))
         if heat is not None and heat in held:
             write_held_temperature(m.GetPrim(), held[heat])
-    if entry["kind"] == "street_lamp" and "lamp" in held:
-        write_light(stage.GetPrimAtPath(root.GetPath().AppendChild("Head")), "street_lamp", LAMP_POWER_W)
-    if entry["kind"] == "window" and "window" in held:
-        write_light(stage.GetPrimAtPath(root.GetPath().AppendChild("Pane")), "window", WINDOW_POWER_W)
+    _author_lights(stage, root.GetPath(), entry, held, sun_elevation_deg)
     return root.GetPrim()
+
+
+def _author_lights(stage: Usd.Stage, root, entry: dict, held: dict, sun_elevation_deg: float) -> None:
+    """The render's lights (UsdLux through :mod:`humv_usd.usd.lights`, issue 24.4): a lit
+    lamp's LED under its head, a lit window's pane, a running vehicle's low beams at night."""
+    kind = entry["kind"]
+    if kind == "street_lamp" and "lamp" in held:
+        write_lamp(
+            stage,
+            str(root.AppendChild("Light")),
+            LAMP_SPECTRUM,
+            LAMP_FLUX_LM,
+            (1.55, 0.0, 5.80),
+            None,
+            LAMP_CONE_DEG,
+        )
+    elif kind == "window" and "window" in held:
+        light = write_window(
+            stage, str(root.AppendChild("Light")), WINDOW_SPECTRUM, WINDOW_LUMINANCE, 1.2, 1.4
+        )
+        # rows x, y, z of the light's frame: width along the facade (y), emitting along -Z = +x
+        frame = Gf.Matrix4d(0, 1, 0, 0, 0, 0, -1, 0, -1, 0, 0, 0, 0.025, 0, 0.7, 1)
+        UsdGeom.Xformable(light).AddTransformOp().Set(frame)
+    elif (
+        kind == "vehicle"
+        and entry["off_s"] <= 0.0
+        and entry["run_s"] > 0.0
+        and is_lit(entry, sun_elevation_deg)
+    ):
+        for side, y in (("Left", 0.6), ("Right", -0.6)):
+            write_lamp(
+                stage,
+                str(root.AppendChild(f"Headlight{side}")),
+                HEADLIGHT_SPECTRUM,
+                HEADLIGHT_FLUX_LM,
+                (2.25, y, 0.65),
+                (15.0, y, 0.0),
+                HEADLIGHT_CONE_DEG,
+            )
