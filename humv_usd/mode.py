@@ -137,7 +137,9 @@ def _forced_failed(variant: str, reason: str, error: str) -> str:
     """One line for a forced backend that does not run here (names the key, value and options)."""
     key = VARIANT_ENV if os.environ.get(VARIANT_ENV, "").strip() else "backend"
     value = variant if key == VARIANT_ENV else variant.split("_", 1)[0]
-    return bad_value(key, value, f"{variant} does not work here ({error}; {reason}); use auto, llvm or scalar")
+    return bad_value(
+        key, value, f"{variant} does not work here ({error}; {reason}); use auto, llvm or scalar"
+    )
 
 
 def _llvm_works(mi, variant: str = "llvm_ad_mono") -> str | None:
@@ -241,6 +243,11 @@ def is_vectorized() -> bool:
 def backend() -> str:
     """``cuda``, ``llvm`` or ``scalar``: where the configured variant runs."""
     return variant().split("_", 1)[0]
+
+
+def loaded_backend() -> str | None:
+    """:func:`backend` if Mitsuba is configured in this process, else None (loads nothing)."""
+    return _state["variant"].split("_", 1)[0] if "variant" in _state else None
 
 
 def release_kernel_cache() -> None:

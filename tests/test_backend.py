@@ -72,3 +72,18 @@ def test_forced_gpu_without_a_gpu_is_an_error_not_a_fallback():
     auto = _render_variant({})
     assert auto.returncode == 0, auto.stderr
     assert auto.stdout.split() in (["llvm_ad_mono", "llvm"], ["scalar_rgb", "scalar"])
+
+
+def test_label_ray_casts_follow_the_render_to_the_gpu(monkeypatch):
+    """Labels' casts go to Mitsuba (OptiX on the GPU) when the render runs on CUDA or when
+    embreex is missing; Embree otherwise."""
+    from humv_usd.geometry import raycast
+
+    monkeypatch.setattr(raycast, "loaded_backend", lambda: "llvm")
+    assert raycast.default_backend() == "embree"
+    monkeypatch.setattr(raycast, "loaded_backend", lambda: "cuda")
+    assert raycast.default_backend() == "mitsuba"
+    monkeypatch.setattr(raycast, "loaded_backend", lambda: None)
+    real = raycast.importlib.util.find_spec
+    monkeypatch.setattr(raycast.importlib.util, "find_spec", lambda n: None if n == "embreex" else real(n))
+    assert raycast.default_backend() == "mitsuba"

@@ -20,9 +20,11 @@ Face indices are those of the ``triangles`` array; -1 is a miss. Directions are 
 
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 
-from humv_usd.mode import mitsuba
+from humv_usd.mode import loaded_backend, mitsuba
 
 #: Ray-casting backends of :func:`ray_caster`.
 RAY_BACKENDS = ("embree", "mitsuba")
@@ -189,9 +191,19 @@ class MitsubaRayCaster(_Frame):
         return self.intersects_first(origins, directions) >= 0
 
 
-def ray_caster(points, triangles, backend: str = "embree"):
+def default_backend() -> str:
+    """``'mitsuba'`` where the render already runs Dr.Jit on a GPU (the casts then run on the
+    same device, through OptiX) or where embreex is not installed; else ``'embree'``."""
+    if loaded_backend() == "cuda" or importlib.util.find_spec("embreex") is None:
+        return "mitsuba"
+    return "embree"
+
+
+def ray_caster(points, triangles, backend: str | None = None):
     """A :class:`RayCaster` (``'embree'``) or :class:`MitsubaRayCaster` (``'mitsuba'``) on the
-    triangles; ValueError for another backend."""
+    triangles (None: :func:`default_backend`); ValueError for another backend."""
+    if backend is None:
+        backend = default_backend()
     if backend == "mitsuba":
         return MitsubaRayCaster(points, triangles)
     if backend != "embree":

@@ -24,7 +24,7 @@
   frame; ``corners_image`` (8, 2) [px] projected with :class:`Camera` (None for a corner at or
   behind the camera plane, flagged in ``behind_camera``).
 - Occlusion fraction: 1 - visible / unoccluded pixels, where "unoccluded" casts the pixel-centre
-  rays inside the full box against the object's own triangles only (embree, :mod:`humv_usd.geometry.raycast`).
+  rays inside the full box against the object's own triangles only (:func:`humv_usd.geometry.raycast.ray_caster`: Embree, or OptiX when the render runs on a GPU).
   Pixels outside the image do not count (truncation is not occlusion).
 """
 
@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from humv_usd.geometry.camera import Camera
-from humv_usd.geometry.raycast import RayCaster
+from humv_usd.geometry.raycast import ray_caster
 
 #: Near plane for clipping [m] (the render's near clip, humv_usd.render.elements.NEAR_CLIP_M).
 NEAR_M = 1e-3
@@ -229,7 +229,7 @@ def unoccluded_mask(
         return out
     dirs = camera.pixel_rays(cols.ravel(), rows.ravel())
     origins = np.broadcast_to(camera.origin, dirs.shape)
-    hit = RayCaster(vertices, triangles).intersects_any(origins, dirs)
+    hit = ray_caster(vertices, triangles).intersects_any(origins, dirs)
     out[rows.ravel()[hit], cols.ravel()[hit]] = True
     return out
 
