@@ -1036,12 +1036,17 @@ class SurfaceWater:
         surface does not evaporate (paving, metal, glass).
     leaf_area_index : LAI [m^2 m^-2] of the light response.
     water_capacity_kg_m2 : water held on the surface before run-off [kg m^-2 = mm].
+    leaf_dimension_m : see the field.
     """
 
     minimum_resistance_s_m: float | None
     leaf_area_index: float
     water_capacity_kg_m2: float
     source: str
+    #: foliage: characteristic leaf dimension [m]; its faces exchange heat as leaves (both
+    #: sides, :func:`humv_usd.physics.vegetation.leaf_heat_transfer_coefficient`); None: a
+    #: flat surface (Watmuff)
+    leaf_dimension_m: float | None = None
 
 
 _SUEWS = (
@@ -1083,3 +1088,79 @@ def surface_water(name: str) -> SurfaceWater:
 from humv_usd.catalog.skin import tone_materials  # noqa: E402  (needs LIBRARY["skin"])
 
 LIBRARY.update(tone_materials(LIBRARY["skin"]))
+
+
+#: foliage, snow and water (issue 30.2/30.4)
+NATURE: dict[str, Material] = {
+    m.name: m
+    for m in (
+        Material(
+            "leaf",
+            spectrum_wavelengths=LIBRARY["grass"].spectrum_wavelengths,
+            spectrum_reflectance=LIBRARY["grass"].spectrum_reflectance,
+            conductivity=0.5,
+            density=700.0,
+            specific_heat=3500.0,
+            thickness=0.0003,
+            solar_absorptivity=0.8,
+            source=f"green broadleaf foliage as a crown's outer surface: the green-vegetation "
+            f"spectrum of the grass entry (after {_ECOSTRESS}; leaves and lawn share the "
+            f"chlorophyll well, red edge, NIR plateau 0.45-0.5 and water bands); 8-14 µm "
+            f"emissivity 0.97-0.98 ({_SD92}, green foliage); a 0.3 mm leaf of about 70 % water "
+            f"(rho 700 kg/m3, c 3.5 kJ/(kg K), Jones 2014, Plants and Microclimate, ch. 9): its "
+            f"heat capacity is negligible against its exchange, so it follows its energy balance; "
+            f"broadband absorptivity of a crown 0.8-0.85 (deciduous canopy albedo 0.15-0.20, Oke "
+            f"1987, Boundary Layer Climates, Table 1.1; one leaf alone absorbs about 0.5)",
+            label_class="vegetation",
+        ),
+        Material(
+            "snow",
+            spectrum_reflectance=(0.96, 0.97, 0.95, 0.80, 0.05, 0.01, 0.02, 0.02, 0.012, 0.03),
+            conductivity=0.09,
+            density=250.0,
+            specific_heat=2090.0,
+            thickness=0.1,
+            solar_absorptivity=0.2,
+            source="settled seasonal snow, 10 cm: visible reflectance 0.95-0.97 falling through "
+            "the NIR (0.8 at 1 µm) to near 0 beyond 2.5 µm (ice absorption; Warren 1982, Rev. "
+            "Geophys. 20:67; Wiscombe & Warren 1980, J. Atmos. Sci. 37:2712), broadband albedo "
+            "0.8; 8-14 µm emissivity 0.98-0.99 (Dozier & Warren 1982, Water Resour. Res. 18:1424; "
+            f"{_SD92}); effective conductivity 0.09 W/(m K) at 250 kg/m3 (Sturm et al. 1997, J. "
+            "Glaciol. 43:26, k = 0.138 - 1.01 rho + 3.233 rho^2, rho in g/cm3); c of ice "
+            "2.09 kJ/(kg K). Melting is not modelled: the surface is not held at 0 degC",
+            label_class="ground",
+        ),
+        Material(
+            "water",
+            spectrum_reflectance=(0.02, 0.02, 0.02, 0.02, 0.03, 0.02, 0.02, 0.02, 0.01, 0.03),
+            conductivity=0.6,
+            density=1000.0,
+            specific_heat=4186.0,
+            thickness=0.02,
+            solar_absorptivity=0.95,
+            source="a 2 cm puddle on dark paving: Fresnel reflectance about 0.02 at normal "
+            "incidence across the spectrum, 8-14 µm emissivity 0.98-0.99 (Masuda, Takashima & "
+            "Takayama 1988, Remote Sens. Environ. 24:313); the sun it transmits is absorbed by "
+            f"the water and the dark bottom (absorptivity 0.95); k, rho, c: {_INCROPERA}, "
+            "Table A.6 (water at 300 K). Rendered diffuse: the render has no specular water yet",
+            label_class="ground",
+        ),
+    )
+}
+LIBRARY.update(NATURE)
+SURFACE_WATER.update(
+    {
+        "leaf": SurfaceWater(
+            100.0,
+            1.0,
+            0.3,
+            "stomatal resistance of a sunlit broad leaf r_l = 100 s/m (FAO-56 eq. 5, Allen et al. "
+            "1998; Jones 2014, ch. 6: 50-200 s/m for open stomata), light response of Noilhan & "
+            "Planton (1989) per unit leaf area; interception 0.3 mm per unit crown surface "
+            f"(deciduous trees 0.3-0.8 mm, {_SUEWS})",
+            leaf_dimension_m=0.05,
+        ),
+        "snow": SurfaceWater(None, 1.0, 0.0, "snow: sublimation and melt not modelled"),
+        "water": SurfaceWater(0.0, 1.0, 20.0, "free water: no surface resistance; a 2 cm puddle holds 20 kg/m2"),
+    }
+)

@@ -23,6 +23,7 @@ READS = (
     "human.*.skin_tone",
     "scene.ground.material",
     "scene.object.*.material",
+    "scene.object.*.kind",
     "scene.asset.*.material",
     "scene.asset.*.materials",
     "scene.layers",
@@ -48,6 +49,8 @@ def used_materials(scenario: Scenario) -> list[str]:
     if scene:
         names.update(ground_materials(scenario))
         names.update(o["material"] for o in scene["object"])
+        if any(o.get("kind") == "tree" for o in scene["object"]):
+            names.add("wood")  # trunks (humv_usd.scene.vegetation.TRUNK_MATERIAL)
         for a in scene.get("asset") or ():  # the default and every mapped material
             names.add(a["material"])
             names.update(value for _, value in a["materials"])

@@ -40,6 +40,9 @@ MATERIALS = (
     "blackbody",
     "rubber",
     "fur",
+    "leaf",
+    "snow",
+    "water",
 )  # humv_usd.catalog.materials
 #: ground materials: the library's materials but skin, tyre rubber and fur (issue 26)
 GROUND_MATERIALS = tuple(m for m in MATERIALS if m not in ("skin", "rubber", "fur"))
@@ -78,7 +81,7 @@ ACTIVITIES = (
     "postExercise",
     # procedural poses and transitions (humv_usd.human.poses.POSE_ACTIVITIES)
 FITNESS = ("low", "average", "high", "athlete")
-OBJECT_KINDS = ("box", "panel")
+OBJECT_KINDS = ("box", "panel", "tree", "bush", "hedge")
 OBJECT_CLASSES = (
     "building",
     "prop",
@@ -446,7 +449,10 @@ OBJECT = Section(
         "id": Key("str", "Identifier of the object.", required=True),
         "kind": Key(
             "choice",
-            "Geometry: box (closed, e.g. a building) or panel (a thin box, e.g. a blackbody).",
+            "Geometry: box (closed, e.g. a building), panel (a thin box, e.g. a blackbody), or "
+            "a plant generated from the object's id (humv_usd.scene.vegetation): tree (trunk of "
+            "wood and a crown of the material, e.g. leaf), bush (a crown on the ground), hedge "
+            "(a rounded block); size_m is then the crown's [x, y] extent and the total height.",
             default="box",
             choices=OBJECT_KINDS,
         ),

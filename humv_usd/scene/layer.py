@@ -48,6 +48,7 @@ from humv_usd.scene.assets import (
 from humv_usd.scene.geometry import box
 from humv_usd.scene.ground import author_ground, footprint_base, scene_terrain
 from humv_usd.scene.objects import author_clutter
+from humv_usd.scene.vegetation import PLANT_KINDS, author_plant
 from humv_usd.usd.labels import nearest_class
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, set_kind, usd_error_text
 from humv_usd.usd.materials import has_stage_material
@@ -65,7 +66,8 @@ READS = (
     "atmosphere.cloud_cover",
 )
 UPSTREAM = ()
-VERSION = "6"  # 4: model kinds; 5: warm clutter and generated places; 6: terrain, ground to the horizon
+#: 4: model kinds; 5: warm clutter and generated places; 6: terrain, ground to the horizon; 7: plants
+VERSION = "7"
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -78,6 +80,11 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     author_ground(stage, scene, ids["ground"])  # terrain, zones, out to the horizon
     terrain = scene_terrain(scene)
     for o in scene_objects(scene):  # the scenario's, then a generated place's
+        if o["kind"] in PLANT_KINDS:  # trees, bushes, hedges (issue 30.2)
+            x, y, _ = o["center_m"]
+            base = footprint_base(terrain, (x, y), (0.5, 0.5)) - 0.05  # the trunk a little into the ground
+            set_kind(author_plant(stage, o, base, ids[f"object:{o['id']}"]), "component")
+            continue
         mesh = define_mesh(
             stage,
             object_path(o["id"]),

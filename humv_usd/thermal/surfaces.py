@@ -72,7 +72,7 @@ from humv_usd.geometry.camera import Camera
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked
 from humv_usd.human.usdskel import skinned_points
-from humv_usd.physics import evaporation, slab
+from humv_usd.physics import evaporation, slab, vegetation
 from humv_usd.physics.convection import watmuff
 from humv_usd.physics.sky import (
     cloudy_sky_emissivity,
@@ -824,7 +824,9 @@ def refine_meshes(
                     if coarse.any():
                         split[coarse] |= _under_occluders(cells[coarse], occluders, forcing, weights)
                         split[coarse] |= _straddles_a_footprint(cells[coarse], shadows)
-                        split[coarse] |= _sky_view_spread(cells[coarse], view_casters[m.is_ground]) > view_spread
+                        split[coarse] |= (
+                            _sky_view_spread(cells[coarse], view_casters[m.is_ground]) > view_spread
+                        )
                 if split.any() and total + 3 * int(split.sum()) > max_faces:
                     # the bound, checked before the children exist: split the cells coarsest
                     # against their finest size first, as many as it allows
@@ -1119,6 +1121,15 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     """(M, F) surface temperatures of one mesh's slab faces, the max residual and the (M, F)
     incident long wave."""
     a_s, lw, air, h, e_sw = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, seen)
+    leaf = surface_water(mesh.material.name).leaf_dimension_m
+    if leaf is not None:  # foliage: both sides of its leaves exchange heat (physics.vegetation)
+        pressure = 101325.0 if f.pressure_pa is None else np.asarray(f.pressure_pa)[:, None]
+        h = np.broadcast_to(
+            vegetation.leaf_heat_transfer_coefficient(
+                f.wind_speed_m_s[:, None], leaf, 2, pressure, f.air_temperature_k[:, None]
+            ),
+            h.shape,
+        )
     latent = _latent_forcing(mesh, f, e_sw)
     columns = [a_s, lw, air, h] + ([latent.pop("surface_resistance_s_m")] if latent else [])
     # faces with the same forcing history (most of an unshaded ground) are solved once
