@@ -51,6 +51,7 @@ ALLOWED_TOKENS = {
     hs.SENSOR_PLATFORM: ["tripod", "mast", "aerial", "vehicle", "drone", "handheld"],
     hs.SENSOR_AGC: ["none", "linear", "histogram", "plateau"],
     hs.SENSOR_VIGNETTING: ["none", "cos4"],
+    hs.SENSOR_MOTION_BLUR: ["none", "camera"],
     hs.LABEL_CLASS: [
         "person",
         "ground",

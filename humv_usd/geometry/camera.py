@@ -146,6 +146,37 @@ class Camera:
         }
 
 
+def image_velocity(
+    camera: Camera, before: Camera, dt_s: float, depth=None, ground_z: float = 0.0
+) -> np.ndarray:
+    """(H, W, 2) image velocity [px/s] (du/dt, dv/dt) of a static scene at each pixel of
+    ``camera`` seen from ``before``, its pose ``dt_s`` earlier: the scene point at pixel p now
+    was at the projection q of the same point in ``before``; v = (p - q) / dt.
+
+    ``depth`` (H, W): the distance along the optical axis of each pixel's point [m] (the EXR
+    ``depth`` channel; inf: at infinity). Without it the pixel's ray meets the ground plane
+    z = ``ground_z`` when it points down, else lies at infinity (exact for a camera that only
+    turns; for one that moves, exact on flat ground and off where an object stands above it:
+    the error is the parallax of its height, measured in ``humv_usd.bench``-style checks of
+    docs/physics/sensor-chain)."""
+    rays = camera.pixel_rays()
+    h, w = camera.height, camera.width
+    if depth is None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (ground_z - camera.origin[2]) / rays[..., 2]
+        dist = np.where((rays[..., 2] < -1e-9) & (t > 0), t, np.inf)
+    else:
+        dist = np.asarray(depth, dtype=float) / (rays @ camera.forward)
+    far = ~np.isfinite(dist)
+    points = camera.origin + rays * np.where(far, 1.0, dist)[..., None]
+    points[far] = before.origin + rays[far]  # a direction: its image does not depend on position
+    uv, z = before.project(points)
+    cols, rows = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    vel = np.stack([cols - uv[..., 0], rows - uv[..., 1]], axis=-1) / float(dt_s)
+    vel[~np.isfinite(vel) | (z[..., None] <= 0)] = 0.0
+    return vel
+
+
 #: The camera file of each sensor, relative to its output folder (``RENDER/<sensor>/camera.json``).
 CAMERA_FILE = "camera.json"
 

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 from scipy import fft as sp_fft
-from scipy import special
+from scipy import ndimage, special
 
 from humv_usd.compat import trapezoid
 from humv_usd.constants import PLANCK_CONSTANT, SPEED_OF_LIGHT
@@ -60,6 +60,9 @@ REFLECTIVE_BANDS = ("NIR", "SWIR")
 INFRARED_MIN_UM = 3.0
 AGC_MODES = ("none", "linear", "histogram", "plateau")
 VIGNETTING_MODES = ("none", "cos4")
+#: what ``motion_blur`` may be: none, or camera (the platform's motion during the integration
+#: window, from the camera's pose over time; the scene is taken as static)
+MOTION_BLUR_MODES = ("none", "camera")
 #: Plateau of the plateau-equalisation AGC as a fraction of the frame's pixels per histogram bin
 #: (1 count wide): 250 pixels per bin at 640 x 512, the value usually quoted as the Tau 2's
 #: default plateau (FLIR Tau 2 product specification 102-PS242-40, AGC section; the number was
@@ -233,6 +236,17 @@ class SensorModel:
         IR: bolometer thermal time constant [s] (:func:`bolometer_lag`); 0 = off.
     jpeg_quality : int
         JPEG quality of the 8-bit image, 1-100 (Pillow/libjpeg scale); 0 = no compression.
+    motion_blur : str
+        "none" or "camera": the camera's motion during the integration window
+        (:func:`motion_blur`: EO exposure, IR bolometer time constant), given the image velocity.
+    rolling_shutter_s : float
+        EO: readout time of a rolling shutter, first to last row [s] (:func:`rolling_shutter`);
+        0 = global shutter.
+    turbulence_cn2 : float
+        Refractive-index structure constant of a horizontal path [m^-2/3]
+        (:func:`apply_turbulence`); 0 = off.
+    turbulence_path_m : float
+        Length of that path [m] (e.g. the range to the people).
     """
 
     name: str
@@ -271,6 +285,10 @@ class SensorModel:
     vignetting: str = "none"
     time_constant_s: float = 0.0
     jpeg_quality: int = 0
+    motion_blur: str = "none"
+    rolling_shutter_s: float = 0.0
+    turbulence_cn2: float = 0.0
+    turbulence_path_m: float = 0.0
 
     def __post_init__(self):
         if self.band not in BANDS:
@@ -302,7 +320,14 @@ class SensorModel:
             "fpn_drift_k_per_s": (0.0, 10.0),
             "ffc_interval_s": (0.0, math.inf),
             "time_constant_s": (0.0, 10.0),
+            "rolling_shutter_s": (0.0, 1.0),
+            "turbulence_cn2": (0.0, 1.0e-10),
+            "turbulence_path_m": (0.0, 1.0e6),
         }
+        if self.motion_blur not in MOTION_BLUR_MODES:
+            raise ValueError(
+                f"motion_blur = {self.motion_blur!r}: allowed values: {', '.join(MOTION_BLUR_MODES)}"
+            )
         for key, (a, b) in ranges.items():
             v = float(getattr(self, key))
             if not (math.isfinite(v) or b == math.inf) or not a <= v <= b:
@@ -967,6 +992,136 @@ def apply_fixed_pattern(
     return out + float(radiance_per_k) * k
 
 
+# ---------------------------------------------------------------------------- motion, turbulence
+#: sub-frame samples of :func:`motion_blur`
+MOTION_BLUR_SAMPLES = 16
+
+
+def _sample_shifted(image, coords_u, coords_v):
+    """Bilinear samples of (H, W) or (H, W, C) ``image`` at continuous pixel-centre coordinates
+    (column u, row v; pixel centres at integers), edges clamped."""
+    img = np.asarray(image, dtype=float)
+    coords = np.stack([coords_v, coords_u])
+    if img.ndim == 2:
+        return ndimage.map_coordinates(img, coords, order=1, mode="nearest")
+    return np.stack(
+        [ndimage.map_coordinates(img[..., c], coords, order=1, mode="nearest") for c in range(img.shape[2])],
+        axis=-1,
+    )
+
+
+def motion_blur(image, velocity_px_s, window_s: float, kind: str = "box", samples: int = MOTION_BLUR_SAMPLES):
+    r"""The image a detector integrates while the scene moves across it.
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, C)
+        The scene at the end of the integration (the render's instant).
+    velocity_px_s : ndarray (H, W, 2)
+        Image velocity of the content at each pixel, (du/dt, dv/dt) [px/s] (columns right, rows
+        down): content at pixel p was at p - v s a time s earlier.
+    window_s : float
+        Exposure [s] (``kind="box"``) or the bolometer's time constant [s] (``"exponential"``).
+    kind : {"box", "exponential"}
+    samples : int
+        Sub-frame samples.
+
+    Notes
+    -----
+    With the scene static in the world and the motion the camera's, the pixel p saw at time
+    t - s what it sees at p + v s now, so the integrated signal is
+
+    .. math:: y(p) = \int_0^\infty w(s)\, x(p + v(p)\,s)\, ds
+
+    with :math:`w = 1/T` on [0, T] (an exposure, box) or :math:`w = e^{-s/	au}/	au` (a
+    microbolometer's first-order response, the impulse response of :func:`bolometer_lag`). The
+    integral is taken at ``samples`` equal-weight nodes: the midpoints of [0, T] (box) or the
+    quantiles :math:`s_k = -	au \ln(1 - (k + 1/2)/n)` (exponential); each sample is bilinear.
+    The velocity is the one of the current pixel along the whole window (first order in the
+    motion); subject motion (a person walking) is not included.
+    """
+    if kind not in ("box", "exponential"):
+        raise ValueError(f"invalid kind {kind!r}: box or exponential")
+    img = np.asarray(image, dtype=float)
+    vel = np.asarray(velocity_px_s, dtype=float)
+    h, w = img.shape[:2]
+    if vel.shape != (h, w, 2):
+        raise ValueError(f"velocity_px_s shape {vel.shape}: expected {(h, w, 2)}")
+    if window_s <= 0 or not np.any(vel):
+        return img.copy()
+    u_k = (np.arange(samples) + 0.5) / samples
+    s_k = u_k * window_s if kind == "box" else -window_s * np.log1p(-u_k)
+    rows, cols = np.mgrid[0:h, 0:w].astype(float)
+    out = np.zeros_like(img)
+    for s in s_k:
+        out += _sample_shifted(img, cols + vel[..., 0] * s, rows + vel[..., 1] * s)
+    return out / samples
+
+
+def rolling_shutter(image, velocity_px_s, readout_s: float):
+    r"""A rolling-shutter image from the global-shutter ``image`` (the last row's instant).
+
+    Row r of H is read :math:`\Delta_r = (H - 1 - r)/(H - 1)\, t_{readout}` before the last row,
+    so it shows what is now at :math:`p + v\,\Delta_r` (``velocity_px_s`` (H, W, 2) [px/s] as in
+    :func:`motion_blur`): a pan skews vertical edges by :math:`v_u t_{readout}` pixels over the
+    frame (Liang, Chang & Chen 2008, IEEE TIP 17(8), "Analysis and compensation of rolling
+    shutter effect"). Bilinear sampling, edges clamped."""
+    img = np.asarray(image, dtype=float)
+    vel = np.asarray(velocity_px_s, dtype=float)
+    h, w = img.shape[:2]
+    if readout_s <= 0 or h < 2 or not np.any(vel):
+        return img.copy()
+    rows, cols = np.mgrid[0:h, 0:w].astype(float)
+    delta = (h - 1 - rows) / (h - 1) * readout_s
+    return _sample_shifted(img, cols + vel[..., 0] * delta, rows + vel[..., 1] * delta)
+
+
+def fried_parameter(wavelength_m, cn2_m23: float, path_m: float, wave: str = "spherical"):
+    r"""Fried's coherence diameter :math:`r_0` [m] of a horizontal path of uniform
+        :math:`C_n^2` [m^-2/3] and length ``path_m`` at ``wavelength_m``.
+
+        .. math:: r_0 = \left(0.423\, k^2 C_n^2 L\, \gamma
+    ight)^{-3/5},\quad k = 2\pi/\lambda
+
+        with :math:`\gamma = 1` for a plane wave and 3/8 for a spherical wave (a point source seen
+        by the camera: the usual case for imaging along the ground). Fried 1966, J. Opt. Soc. Am.
+        56(10):1372; Andrews & Phillips 2005, Laser Beam Propagation through Random Media, 2nd ed.,
+        SPIE, ch. 6. Valid for weak to moderate turbulence (Rytov variance below about 1) and
+        inner/outer scales outside the imaged band. Typical :math:`C_n^2` near the ground:
+        1e-15 (night, weak) to 1e-13 (sunny afternoon over hot ground, strong)."""
+    gamma = {"spherical": 3.0 / 8.0, "plane": 1.0}[wave]
+    k = 2.0 * np.pi / np.asarray(wavelength_m, dtype=float)
+    return (0.423 * k**2 * float(cn2_m23) * float(path_m) * gamma) ** (-3.0 / 5.0)
+
+
+def turbulence_mtf(frequency_cyc_per_rad, wavelength_m: float, r0_m: float):
+    r"""Long-exposure atmospheric MTF (Fried 1966):
+    :math:`\exp[-3.44\, (\lambda f / r_0)^{5/3}]` at angular frequency f [cycles/rad]."""
+    f = np.abs(np.asarray(frequency_cyc_per_rad, dtype=float))
+    return np.exp(-3.44 * (float(wavelength_m) * f / float(r0_m)) ** (5.0 / 3.0))
+
+
+def apply_turbulence(image, model: SensorModel, cn2_m23: float, path_m: float):
+    """``image`` (H, W) or (H, W, C) blurred by the long-exposure turbulence MTF of the path at
+    the band centre (:func:`fried_parameter`, spherical wave; :func:`turbulence_mtf`), pixel
+    frequencies turned into angle by the IFOV (pitch / focal length), FFT with reflected edges.
+    Returns (image, r0 [m], seeing FWHM [px] ~ 0.98 lambda / r0 / IFOV). The band centre is close
+    enough: lambda / r0 varies as lambda^(-1/5)."""
+    img = np.asarray(image, dtype=float)
+    lam = 0.5e-6 * (model.wavelength_range_um[0] + model.wavelength_range_um[1])
+    r0 = float(fried_parameter(lam, cn2_m23, path_m))
+    ifov = model.pixel_pitch_m / model.focal_length_m
+    h, w = img.shape[:2]
+    pad = np.pad(img, [(h // 2, h // 2), (w // 2, w // 2)] + [(0, 0)] * (img.ndim - 2), mode="reflect")
+    fy = np.fft.fftfreq(pad.shape[0])[:, None] / ifov
+    fx = np.fft.fftfreq(pad.shape[1])[None, :] / ifov
+    mtf = turbulence_mtf(np.hypot(fx, fy), lam, r0)
+    if pad.ndim == 3:
+        mtf = mtf[..., None]
+    out = np.real(np.fft.ifft2(np.fft.fft2(pad, axes=(0, 1)) * mtf, axes=(0, 1)))
+    return out[h // 2 : h // 2 + h, w // 2 : w // 2 + w], r0, 0.98 * lam / r0 / ifov
+
+
 def jpeg_roundtrip(image8, quality: int) -> np.ndarray:
     """Encode an 8-bit image (H, W) or (H, W, 3) as baseline JPEG at ``quality`` (1-100, the
     libjpeg / IJG scale) with Pillow and decode it again (what a dataset stored as JPEG holds;
@@ -1043,6 +1198,23 @@ def colour_correction_matrix(model: SensorModel) -> np.ndarray:
 
 
 # ============================================================================ chain
+def eo_exposure_s(model: SensorModel, x) -> float:
+    """The exposure [s] of an EO frame: the auto exposure's (the 99.5th percentile of the
+    brightest channel at 80 % of full well, at most :data:`EO_MAX_EXPOSURE_S`) or the one an
+    authored gain implies (full scale at full well)."""
+    if model.gain is None:
+        level = (
+            float(np.percentile(np.asarray(x).max(axis=-1), EO_AUTO_EXPOSURE_PERCENTILE))
+            if np.size(x)
+            else 0.0
+        )
+        l_floor = model.full_well_e / photoelectrons_per_input(model, EO_MAX_EXPOSURE_S)
+        l_sat = max(level / EO_AUTO_EXPOSURE_FILL, l_floor)
+    else:
+        l_sat = (model.max_count - model.offset) / model.gain
+    return float(model.full_well_e / (l_sat * photoelectrons_per_input(model, 1.0)))
+
+
 def apply_chain(
     radiance,
     model: SensorModel,
@@ -1055,6 +1227,7 @@ def apply_chain(
     psf_wavelengths_um=None,
     time_s: float | None = None,
     state: ChainState | None = None,
+    velocity_px_s=None,
 ) -> ChainOutput:
     r"""Run the sensor chain on one frame.
 
@@ -1082,6 +1255,10 @@ def apply_chain(
     state : ChainState, optional
         This sensor's state from its previous frame (updated in place): the bolometer lag needs
         it; without it (or after a step back in time) the detector starts settled (y = x).
+    velocity_px_s : ndarray (H, W, 2), optional
+        Image velocity of the scene from the camera's motion [px/s]
+        (:func:`humv_usd.geometry.camera.image_velocity`): the motion blur (``motion_blur =
+        "camera"``) and the EO rolling shutter need it; without it they are off.
 
     Returns
     -------
@@ -1126,6 +1303,31 @@ def apply_chain(
         "nonfinite_inputs_zeroed": int(bad.sum()),
     }
 
+    # 0. the camera's motion during the integration window (IR: replaces the lag across frames)
+    settings["motion_blur"] = None
+    settings["rolling_shutter"] = None
+    blurred_in_frame = False
+    if velocity_px_s is not None and model.motion_blur == "camera":
+        tau = float(model.time_constant_s)
+        if model.is_infrared and tau > 0:
+            x = motion_blur(x, velocity_px_s, tau, "exponential")
+            settings["motion_blur"] = {"kind": "exponential (bolometer)", "window_s": tau}
+            blurred_in_frame = True
+        elif not model.is_infrared:
+            t_exp = eo_exposure_s(model, x)
+            x = motion_blur(x, velocity_px_s, t_exp, "box")
+            settings["motion_blur"] = {"kind": "box (exposure)", "window_s": t_exp}
+        if settings["motion_blur"] is not None:
+            speed = np.hypot(velocity_px_s[..., 0], velocity_px_s[..., 1])
+            settings["motion_blur"].update(
+                samples=MOTION_BLUR_SAMPLES,
+                max_speed_px_s=float(speed.max()),
+                max_streak_px=float(speed.max() * settings["motion_blur"]["window_s"]),
+            )
+    if velocity_px_s is not None and not model.is_infrared and model.rolling_shutter_s > 0:
+        x = rolling_shutter(x, velocity_px_s, float(model.rolling_shutter_s))
+        settings["rolling_shutter"] = {"readout_s": float(model.rolling_shutter_s), "instant": "last row"}
+
     # 1. optics and pixel footprint
     if psf:
         if model.is_infrared:
@@ -1159,9 +1361,28 @@ def apply_chain(
     else:
         settings["vignetting"] = None
 
+    # atmosphere: turbulence blur of a long horizontal path
+    settings["turbulence"] = None
+    if model.turbulence_cn2 > 0 and model.turbulence_path_m > 0:
+        x, r0, seeing_px = apply_turbulence(x, model, model.turbulence_cn2, model.turbulence_path_m)
+        settings["turbulence"] = {
+            "model": "long-exposure MTF, spherical-wave Fried parameter (Fried 1966)",
+            "cn2_m-2/3": float(model.turbulence_cn2),
+            "path_m": float(model.turbulence_path_m),
+            "r0_m": r0,
+            "seeing_fwhm_px": seeing_px,
+        }
+
     # detector: bolometer lag across frames, residual fixed pattern (IR)
     if model.is_infrared:
-        settings["lag"] = _lag_stage(model, x, time_s, state)
+        if blurred_in_frame:  # the exponential window of the motion blur is the lag
+            settings["lag"] = {
+                "time_constant_s": float(model.time_constant_s),
+                "applied": False,
+                "why": "in the motion blur's exponential window",
+            }
+        else:
+            settings["lag"] = _lag_stage(model, x, time_s, state)
         if settings["lag"] and settings["lag"].get("applied"):
             x = state.output.copy()
         x, settings["fixed_pattern"] = _fixed_pattern_stage(model, x, time_s)

@@ -5,10 +5,17 @@ from __future__ import annotations
 import os
 
 import numpy as np
+from pxr import Usd, UsdGeom
 
 from humv_usd import images as writers
+from humv_usd.geometry.camera import Camera, image_velocity
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
+from humv_usd.usd.sensor import read_camera_pose
+
+#: half-width [frames] of the central difference of the camera's pose that gives the image
+#: velocity of the motion blur and rolling shutter (USD interpolates the transform between frames)
+VELOCITY_STEP_FRAMES = 0.1
 
 
 class SensorChains:
@@ -35,9 +42,29 @@ class SensorChains:
         # frame time and the sensor's state from its last frame (FPN drift since FFC, bolometer lag)
         extra["time_s"] = int(frame) / (self.stage.GetTimeCodesPerSecond() or 1.0)
         extra["state"] = self.states.setdefault(sensor.path, self.chain.ChainState())
+        if sensor.motion_blur == "camera" or (sensor.kind == "EO" and sensor.rolling_shutter_s > 0):
+            extra["velocity_px_s"] = self.velocity(sensor, frame)
         out = self.chain.apply_chain(radiance, sensor, rng, **extra)  # the render's checked read
         self.ran[sensor.name] = "ran"
         return out
+
+    def velocity(self, sensor: SensorModel, frame: int) -> np.ndarray | None:
+        """(H, W, 2) image velocity [px/s] of the static scene from the camera's own motion at
+        ``frame`` (:func:`humv_usd.geometry.camera.image_velocity`, flat ground at z = 0, central
+        difference of the pose over +-:data:`VELOCITY_STEP_FRAMES`); None for a still camera."""
+        prim = self.stage.GetPrimAtPath(sensor.path)
+        xf = UsdGeom.Xformable(prim)
+        samples = xf.GetTimeSamples() if xf.TransformMightBeTimeVarying() else []
+        if len(samples) < 2:
+            return None
+        lo = max(frame - VELOCITY_STEP_FRAMES, samples[0])
+        hi = min(frame + VELOCITY_STEP_FRAMES, samples[-1])
+        if hi <= lo:
+            return None
+        w, h = (int(v) for v in sensor.resolution)
+        before = Camera.from_pose(read_camera_pose(prim, Usd.TimeCode(lo)), w, h)
+        after = Camera.from_pose(read_camera_pose(prim, Usd.TimeCode(hi)), w, h)
+        return image_velocity(after, before, (hi - lo) / (self.stage.GetTimeCodesPerSecond() or 1.0))
 
     def write(self, out, out_dir, rel, write=None) -> dict | None:
         """Write ``<rel>_counts.png`` (16-bit raw counts) and ``<rel>_image8.png`` (8-bit AGC);

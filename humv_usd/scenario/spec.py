@@ -68,6 +68,7 @@ PLATFORMS = ("tripod", "mast", "aerial", "vehicle", "drone", "handheld")  # = hu
 TARGETS = ("point", "human", "path", "forward")
 AGC_MODES = ("none", "linear", "histogram", "plateau")  # = humv_usd.physics.sensor.AGC_MODES
 VIGNETTING_MODES = ("none", "cos4")  # = humv_usd.physics.sensor.VIGNETTING_MODES
+MOTION_BLUR_MODES = ("none", "camera")  # = humv_usd.physics.sensor.MOTION_BLUR_MODES
 #: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
 #: default is chosen there with ``humv-usd bench render``).
 DEFAULT_SUBBANDS, MAX_SUBBANDS = 16, 64
@@ -864,6 +865,33 @@ SENSOR = Section(
             lo=0,
             hi=100,
             integer=True,
+        ),
+        "motion_blur": Key(
+            "choice",
+            "Motion blur from the camera's motion (a moving platform, a pan, hand shake) during the "
+            "integration window: none or camera (EO: the exposure; infrared: the bolometer time "
+            "constant, time_constant_s) (default none).",
+            choices=MOTION_BLUR_MODES,
+        ),
+        "rolling_shutter_s": Key(
+            "float",
+            "EO: rolling-shutter readout time, first to last row [s] (default 0 = global shutter; "
+            "CMOS video 0.005-0.03).",
+            lo=0.0,
+            hi=1.0,
+        ),
+        "turbulence_cn2": Key(
+            "float",
+            "Turbulence blur: refractive-index structure constant of the horizontal path [m^-2/3] "
+            "(default 0 = off; near the ground 1e-15 at night to 1e-13 on a sunny afternoon).",
+            lo=0.0,
+            hi=1.0e-10,
+        ),
+        "turbulence_path_m": Key(
+            "float",
+            "Turbulence blur: length of the path [m] (e.g. the range to the people).",
+            lo=0.0,
+            hi=1.0e6,
         ),
         "full_well_e": Key("float", "EO: full-well capacity [electrons] (default 10500).", lo=1.0, hi=1.0e7),
         "read_noise_e": Key("float", "EO: read noise [electrons] (default 2.5).", lo=0.0, hi=1.0e4),

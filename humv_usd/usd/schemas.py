@@ -161,6 +161,10 @@ SENSOR_FPN_SEED = "humv:sensor:fpnSeed"
 SENSOR_VIGNETTING = "humv:sensor:vignetting"
 SENSOR_TIME_CONSTANT = "humv:sensor:timeConstant"
 SENSOR_JPEG_QUALITY = "humv:sensor:jpegQuality"
+SENSOR_MOTION_BLUR = "humv:sensor:motionBlur"
+SENSOR_ROLLING_SHUTTER = "humv:sensor:rollingShutter"
+SENSOR_TURBULENCE_CN2 = "humv:sensor:turbulenceCn2"
+SENSOR_TURBULENCE_PATH = "humv:sensor:turbulencePath"
 
 # --- HumvLabelAPI (Xform, Scope, Mesh, SkelRoot) ----------------------------------------------
 LABEL_INSTANCE_ID = "humv:label:instanceId"

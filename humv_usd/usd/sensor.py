@@ -117,6 +117,10 @@ CHAIN_ATTRIBUTES = {
     "vignetting": (S.SENSOR_VIGNETTING, str),
     "time_constant_s": (S.SENSOR_TIME_CONSTANT, float),
     "jpeg_quality": (S.SENSOR_JPEG_QUALITY, int),
+    "motion_blur": (S.SENSOR_MOTION_BLUR, str),
+    "rolling_shutter_s": (S.SENSOR_ROLLING_SHUTTER, float),
+    "turbulence_cn2": (S.SENSOR_TURBULENCE_CN2, float),
+    "turbulence_path_m": (S.SENSOR_TURBULENCE_PATH, float),
 }
 
 
