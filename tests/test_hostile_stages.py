@@ -189,3 +189,80 @@ def test_a_full_disk_during_compose_is_one_line(tmp_path, monkeypatch):
     assert result.exit_code == 1 and "Traceback" not in result.output
     (line,) = result.output.strip().splitlines()
     assert line.endswith("x.usda: No space left on device; nothing was changed")
+
+
+TWO_BODIES = """#usda 1.0
+(
+    defaultPrim = "root"
+    endTimeCode = 0
+    metersPerUnit = 1
+    startTimeCode = 0
+    upAxis = "Z"
+)
+
+def Xform "root"
+{
+    def Xform "World"
+    {
+        def Xform "Humans"
+        {
+            def Xform "p1"
+            {
+                def Xform "Body"
+                {
+                    custom string userProperties:blender:object_name = "Body"
+                    def Mesh "Body"
+                    {
+                        int[] faceVertexCounts = [4]
+                        int[] faceVertexIndices = [0, 1, 2, 3]
+                        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)]
+                        custom string userProperties:blender:data_name = "Body"
+                    }
+                }
+            }
+            def Xform "p2"
+            {
+                def Xform "Body_001"
+                {
+                    custom string userProperties:blender:object_name = "Body.001"
+                    def Mesh "Body_001"
+                    {
+                        int[] faceVertexCounts = [4]
+                        int[] faceVertexIndices = [0, 1, 2, 3]
+                        point3f[] points = [(2, 0, 0), (3, 0, 0), (3, 0, 1), (2, 0, 1)]
+                        custom string userProperties:blender:data_name = "Body.001"
+                    }
+                }
+            }
+        }
+    }
+}
+"""
+
+
+def test_blenders_body_001_of_a_second_person_gets_its_name_and_labels_back(tmp_path):
+    """Blender keeps names unique over the file: the second person's Body came back as Body_001,
+    was not matched to the original, and lost its label (1,164 of 1,918 person pixels with the
+    wrong material kind in the issue's render)."""
+    from humv_usd.usd.adopt import adopt_blender_export
+    from humv_usd.usd.layers import new_layer_stage
+    from humv_usd.usd.mesh import define_mesh, label
+
+    original = new_layer_stage(1.0, 1, "two people")
+    for k, pid in enumerate(("p1", "p2"), start=1):
+        quad = np.array([(2 * k - 2, 0, 0), (2 * k - 1, 0, 0), (2 * k - 1, 0, 1), (2 * k - 2, 0, 1)], float)
+        label(
+            define_mesh(original, f"/World/Humans/{pid}/Body", quad, [4], [0, 1, 2, 3]).GetPrim(),
+            10 + k,
+            "person",
+        )
+    export = Sdf.Layer.CreateAnonymous(".usda")
+    export.ImportFromString(TWO_BODIES)
+    layer, report = adopt_blender_export(export, original, fps=1.0, temperature_k=300.0)
+    stage = Usd.Stage.Open(layer)
+    assert not stage.GetPrimAtPath("/World/Humans/p2/Body_001")
+    for k, pid in enumerate(("p1", "p2"), start=1):
+        body = stage.GetPrimAtPath(f"/World/Humans/{pid}/Body")
+        assert body and body.GetAttribute("humv:label:instanceId").Get() == 10 + k
+        assert body.GetAttribute("humv:label:class").Get() == "person"
+    assert report.restored == ["/World/Humans/p1/Body", "/World/Humans/p2/Body"]  # both matched

@@ -129,39 +129,67 @@ def _merged_name(obj: Sdf.PrimSpec, data: Sdf.PrimSpec) -> str:
     return data.name if _base_name(obj.name) == _base_name(data.name) else obj.name
 
 
+def _names(children: list, parent: Sdf.Path, original: frozenset | None) -> dict:
+    """{child spec path: its prim name under ``parent``}. Blender keeps object and data names
+    unique over the whole file, so a second person's ``Body`` comes back as ``Body_001``: a
+    suffixed name becomes its base name again when the original stage has that prim at that
+    place (and not the suffixed one) and no sibling takes it (issue 26: the second body lost
+    its labels and material kinds)."""
+    names = {}
+    for c in children:
+        data = _data_child(c)
+        names[c.path] = _merged_name(c, data) if data is not None else c.name
+    if original:
+        taken = set(names.values())
+        for c in children:
+            name = names[c.path]
+            base = _base_name(name)
+            if (
+                base != name
+                and base not in taken
+                and parent.AppendChild(name) not in original
+                and parent.AppendChild(base) in original
+            ):
+                names[c.path] = base
+                taken.add(base)
+    return names
+
+
 def _plan(
-    src: Sdf.Layer, root: Sdf.PrimSpec | None, tops: list
+    src: Sdf.Layer, root: Sdf.PrimSpec | None, tops: list, original: frozenset | None = None
 ) -> tuple[list[tuple[Sdf.Path, list[Sdf.PrimSpec]]], dict]:
-    """[(target path, [source prim specs merged into it])], {source path: target path}."""
+    """[(target path, [source prim specs merged into it])], {source path: target path}.
+    ``original``: the prim paths of the original stage (Blender's renames undone)."""
     plan: list[tuple[Sdf.Path, list[Sdf.PrimSpec]]] = []
     paths: dict[Sdf.Path, Sdf.Path] = {} if root is None else {root.path: WORLD}
 
-    def visit(spec: Sdf.PrimSpec, parent: Sdf.Path) -> None:
+    def visit(spec: Sdf.PrimSpec, parent: Sdf.Path, name: str) -> None:
         data = _data_child(spec)
-        name = _merged_name(spec, data) if data is not None else spec.name
         target = parent.AppendChild(name)
         sources = [spec] if data is None else [spec, data]
         plan.append((target, sources))
         for s in sources:
             paths[s.path] = target
-        for s in sources:
-            for child in s.nameChildren:
-                if data is None or child.path != data.path:
-                    visit(child, target)
+        children = [
+            child for s in sources for child in s.nameChildren if data is None or child.path != data.path
+        ]
+        names = _names(children, target, original)
+        for child in children:
+            visit(child, target, names[child.path])
 
+    scene_objects = [c for c in tops if c.name not in (WORLD.name, BLENDER_MATERIALS)]
+    scene_names = _names(scene_objects, SCOPES["scene"], original)
     for child in tops:
-        if child.name == WORLD.name:
-            paths[child.path] = WORLD
-            plan.append((WORLD, [child]))
-            for grand in child.nameChildren:
-                visit(grand, WORLD)
-        elif child.name == BLENDER_MATERIALS:
-            paths[child.path] = SCOPES["materials"]
-            plan.append((SCOPES["materials"], [child]))
-            for grand in child.nameChildren:
-                visit(grand, SCOPES["materials"])
+        if child.name in (WORLD.name, BLENDER_MATERIALS):
+            target = WORLD if child.name == WORLD.name else SCOPES["materials"]
+            paths[child.path] = target
+            plan.append((target, [child]))
+            grands = list(child.nameChildren)
+            names = _names(grands, target, original)
+            for grand in grands:
+                visit(grand, target, names[grand.path])
         else:  # a top-level Blender object: a scene object
-            visit(child, SCOPES["scene"])
+            visit(child, SCOPES["scene"], scene_names[child.path])
     return plan, paths
 
 
@@ -247,14 +275,18 @@ def _blender_root(src: Sdf.Layer) -> tuple[Sdf.PrimSpec | None, list]:
     return None, list(src.rootPrims)
 
 
-def convert_namespace(src: Sdf.Layer) -> tuple[Sdf.Layer, int]:
+def convert_namespace(src: Sdf.Layer, original: Usd.Stage | None = None) -> tuple[Sdf.Layer, int]:
     """Steps 1-2 of the module doc: a new layer with Blender's prims at HumV paths and HumV
-    primvar names, and the number of prims."""
+    primvar names, and the number of prims. With the ``original`` stage, names Blender made
+    unique with a suffix (``Body_001``) go back to the original's (:func:`_names`)."""
     root, tops = _blender_root(src)
     if not tops:
         raise InputError(bad_value("BLENDER_EXPORT", src.identifier, "expected prims (a Blender USD export)"))
     dst = Sdf.Layer.CreateAnonymous("adopted.usda")
-    plan, paths = _plan(src, root, tops)
+    known = None
+    if original is not None:
+        known = frozenset(p.GetPath() for p in original.Traverse(Usd.TraverseInstanceProxies()))
+    plan, paths = _plan(src, root, tops, known)
     for target, sources in plan:
         _copy_prim(src, dst, target, sources)
     _remap_targets(dst, paths)
@@ -489,7 +521,7 @@ def adopt_blender_export(
     drops); ``fps``: frames per second (default: the original's, else the export's);
     ``temperature_k``, ``label_class``: for new meshes."""
     report = AdoptReport()
-    layer, report.prims = convert_namespace(export)
+    layer, report.prims = convert_namespace(export, original)
     if original is not None:
         restore_from_original(layer, original, report)
     if fps is not None:
