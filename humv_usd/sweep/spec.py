@@ -22,6 +22,9 @@
     "placement.0.heading_deg" = { uniform = [0.0, 360.0] }
     "atmosphere.air_temperature_k" = { normal = [293.0, 5.0] }
     "human.0.build" = { choice = ["slim", "average", "muscular"] }
+    "human.1" = { population = { age_yr = [2, 90] } }   # a whole person: sex, age, stature,
+                                        # mass, build, proportions, skin tone, hair (ANSUR II /
+                                        # CDC growth charts: humv_usd.human.population)
 
     [render]                            # render settings of every task
     spp = 16                            # omit for the render's automatic quality (IR: to NETD/3)
@@ -71,6 +74,7 @@ import numpy as np
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.groundtruth.labels import CLASSES
+from humv_usd.human.population import sample_person
 from humv_usd.scenario.load import Scenario, read_input_bytes, validate
 from humv_usd.scenario.spec import SECTIONS, Key, Section
 from humv_usd.sweep.cameras import CameraSampler, apply_view, parse_camera, sample_view, with_sensor_keys
@@ -102,7 +106,11 @@ RENDER_KEYS = {
     "annotators": None,
     "subbands": None,
 }
-DISTRIBUTIONS = ("uniform", "normal", "choice")
+DISTRIBUTIONS = ("uniform", "normal", "choice", "population")
+#: options of a ``population`` draw (humv_usd.human.population.sample_person)
+POPULATION_OPTIONS = ("age_yr", "p_male", "skin_tones")
+#: hair and beard entries a population draw replaces in the person's clothing
+_HAIR = ("hair_short", "hair_long", "hair_tied", "beard")
 MAX_VARIANTS = 100_000
 
 
@@ -439,12 +447,42 @@ def _draws(table, problems: list[str]) -> list[Draw]:
         if not isinstance(value, dict) or len(value) != 1 or next(iter(value)) not in DISTRIBUTIONS:
             problems.append(
                 f"random '{key}' = {value!r}: expected one of {{ uniform = [low, high] }}, "
-                "{ normal = [mean, sd] }, { choice = [values...] }"
+                "{ normal = [mean, sd] }, { choice = [values...] }, { population = { age_yr = [lo, hi], "
+                "p_male = 0.5, skin_tones = [...] } }"
             )
             continue
         kind, args = next(iter(value.items()))
+        if kind == "population":
+            _check_population(key, args, problems)
         out.append(Draw(key, kind, args))
     return out
+
+
+def _check_population(key: str, args, problems: list[str]) -> None:
+    """A ``population`` draw: on a person (``human.N``) with known options that the sampler takes."""
+    where = f"random '{key}' population"
+    parts = key.split(".")
+    if len(parts) != 2 or parts[0] != "human" or not parts[1].isdigit():
+        problems.append(f"{where}: draws a whole person; name one, e.g. 'human.0'")
+        return
+    if not isinstance(args, dict) or set(args) - set(POPULATION_OPTIONS):
+        problems.append(bad_value(where, args, f"expected a table of {', '.join(POPULATION_OPTIONS)}"))
+        return
+    try:
+        sample_person(np.random.default_rng(0), **args)
+    except (TypeError, ValueError) as exc:
+        problems.append(f"{where}: {exc}")
+
+
+def population_values(draw: Draw, raw: dict, rng: np.random.Generator) -> dict[str, Any]:
+    """Dotted keys -> values of one person drawn from the population
+    (:func:`humv_usd.human.population.sample_person`; the sampled hair replaces any hair or
+    beard of the base person's clothing, the rest of the clothing is kept)."""
+    person = sample_person(rng, **(draw.args or {}))
+    i = int(draw.key.split(".")[1])
+    base = (raw.get("human") or [{}])[i].get("clothing") or []
+    person["clothing"] = person["clothing"] + [g for g in base if g not in _HAIR]
+    return {f"{draw.key}.{k}": v for k, v in person.items()}
 
 
 def _check_draw(draw: Draw, key: Key, problems: list[str]) -> None:
@@ -671,6 +709,11 @@ def _check_axes(sweep: Sweep, problems: list[str]) -> None:
             _, found = _validate(raw, sweep)
             problems.extend(f"grid axis '{axis.name}' = {_label(label)!s}: {p}" for p in found)
     for draw in sweep.draws:
+        if draw.kind == "population":
+            n = len(sweep.base.get("human") or [])
+            if int(draw.key.split(".")[1]) >= n:
+                problems.append(f"random '{draw.key}': the base scenario has {n} [[human]]")
+            continue
         spec, why = resolve_key(draw.key, sweep.base)
         if spec is None or not isinstance(spec, Key):
             problems.append(f"random '{draw.key}': {why or 'expected a key'}")
@@ -695,7 +738,7 @@ def expand(sweep: Sweep) -> list[Variant]:
         raise InputError(
             f"{sweep.path}: {total} variants (grid {grid_size(sweep)} x count {sweep.count}); at most {MAX_VARIANTS}"
         )
-    keys = {d.key: resolve_key(d.key, sweep.base)[0] for d in sweep.draws}
+    keys = {d.key: resolve_key(d.key, sweep.base)[0] for d in sweep.draws if d.kind != "population"}
     width = max(4, len(str(total - 1)))
     variants = []
     points = itertools.product(*[a.options for a in sweep.axes]) if sweep.axes else [()]
@@ -707,8 +750,14 @@ def expand(sweep: Sweep) -> list[Variant]:
             rng = np.random.default_rng([sweep.seed, k])
             drawn = {}
             for draw in sweep.draws:  # first: a grid option may set or remove a drawn key
-                drawn[draw.key] = draw_value(draw, keys[draw.key], rng)
-                apply(raw, draw.key, drawn[draw.key])
+                values = (
+                    population_values(draw, raw, rng)
+                    if draw.kind == "population"
+                    else {draw.key: draw_value(draw, keys[draw.key], rng)}
+                )
+                for key, value in values.items():
+                    drawn[key] = value
+                    apply(raw, key, value)
             later = []
             for _, overrides in point:
                 for key, value in overrides.items():
