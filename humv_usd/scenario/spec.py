@@ -80,6 +80,7 @@ ACTIVITIES = (
     "walk",
     "run",
     "postExercise",
+    "carry",  # walking with a box in both hands (humv_usd.human.carry.apply_box_carry)
     # procedural poses and transitions (humv_usd.human.poses.POSE_ACTIVITIES)
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel", "tree", "bush", "hedge")
