@@ -157,3 +157,28 @@ def test_keypoints_stay_on_the_posed_body(rig, clips, activity):
         d, _ = cKDTree(posed[verts]).query(kp[k])
         assert d < 0.06, (activity, name, d)
     assert (kp[:, 2] > -0.005).all()  # no keypoint under the ground
+
+
+def test_carry_holds_a_box_while_walking(rig):
+    """carry = the walk with both palms on the sides of a 0.36 m box in front of the navel."""
+    from humv_usd.human.carry import BOX_WIDTH_M
+    from humv_usd.human.motion import make_motion
+
+    body, skel = rig
+    m = make_motion("carry", skel, FPS, 20, mass_kg=80, body_points=body.points)
+    walk = make_motion("walk", skel, FPS, 20, 1.2, mass_kg=80, body_points=body.points)
+    assert m.activity == "carry"
+    np.testing.assert_allclose(m.root_translation, walk.root_translation)
+    assert m.contact == walk.contact  # the legs and feet are the walk's
+    rot, pos = m.world(skel)
+    grasp = {}
+    for side in ("Left", "Right"):
+        j = skel.index(f"{side}Hand")
+        tail = skel.tail_positions[j] - skel.rest_positions[j]
+        grasp[side] = pos[:, j] + np.einsum("fij,j->fi", rot[:, j], tail)
+    span = np.linalg.norm(grasp["Left"] - grasp["Right"], axis=1)
+    np.testing.assert_allclose(span, BOX_WIDTH_M, atol=0.01)
+    # in front of the body (-Y is forward at heading 0) and at about navel height
+    mid = 0.5 * (grasp["Left"] + grasp["Right"])
+    assert (mid[:, 1] < pos[:, 0, 1] - 0.2).all()
+    assert (np.abs(mid[:, 2] - (pos[:, 0, 2] + 0.17)) < 0.08).all()

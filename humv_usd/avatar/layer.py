@@ -196,7 +196,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             body_points=body.points,
         )
         return carry(motion)
-    if human["activity"] in ("walk", "run") and place.get("avoidance", "none") != "none":
+    if human["activity"] in WALKING and place.get("avoidance", "none") != "none":
         place = dict(place, waypoints_m=avoided_waypoints(scenario, human["id"]))
     # the motion model needs two frames at least; a one-frame scenario keeps the first
     motion = make_motion(
@@ -220,6 +220,10 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     return carry(motion)
 
 
+#: activities that walk a path (the others stand, sit or lie where they are placed)
+WALKING = ("walk", "run", "carry")
+
+
 def avoided_waypoints(scenario: Scenario, human_id: str) -> list:
     """The person's ground track (world [x, y] points) steered around everybody else by the
     social force model (:func:`humv_usd.human.crowd.avoid`) over the clip plus 2 s."""
@@ -227,7 +231,7 @@ def avoided_waypoints(scenario: Scenario, human_id: str) -> list:
     starts = np.array([p["position_m"] for p in people], dtype=float)
     speeds = np.array(
         [
-            (p["speed_m_s"] or DEFAULT_SPEED[p["activity"]]) if p["activity"] in ("walk", "run") else 0.0
+            (p["speed_m_s"] or DEFAULT_SPEED[p["activity"]]) if p["activity"] in WALKING else 0.0
             for p in people
         ]
     )

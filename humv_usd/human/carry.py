@@ -144,19 +144,29 @@ def _two_bone(s, t, l1, l2, pole):
     return s + a[:, None] * u + h[:, None] * v
 
 
-def _solve_arms(motion, skeleton: Skeleton, offsets: np.ndarray | None = None) -> np.ndarray:
+def _solve_arms(
+    motion,
+    skeleton: Skeleton,
+    offsets: np.ndarray | None = None,
+    targets: dict | None = None,
+    hand_dirs: dict | None = None,
+    poles: dict | None = None,
+) -> np.ndarray:
     """(F, J, 4) local rotations: ``motion``'s with both arms in the carry; ``offsets``
-    (F, 3) translate the rifle (and so both grasp points) per frame in the Hips' frame."""
+    (F, 3) translate the rifle (and so both grasp points) per frame in the Hips' frame.
+    ``targets``/``hand_dirs``/``poles``: grasp points, hand directions and elbow poles per
+    side in the Hips' frame (default: the rifle's)."""
     q = np.array(motion.local_rotations, dtype=float, copy=True)
     names = skeleton.names
     for name in ARM_JOINTS:  # clavicles at rest, the rest solved below
         q[:, names.index(name)] = (1.0, 0.0, 0.0, 0.0)
     world = forward_kinematics(skeleton, q, motion.root_translation)
     hips_r, hips_p = world[:, 0, :3, :3], world[:, 0, :3, 3]
-    targets = grasp_targets(skeleton)
+    targets = grasp_targets(skeleton) if targets is None else targets
     offsets = np.zeros((len(q), 3)) if offsets is None else np.asarray(offsets, float)
     grasp_offset = grasp_offsets(skeleton)
-    hand_dirs = {"Right": _RIGHT_HAND_DIR, "Left": _LEFT_HAND_DIR}
+    hand_dirs = {"Right": _RIGHT_HAND_DIR, "Left": _LEFT_HAND_DIR} if hand_dirs is None else hand_dirs
+    poles = _POLES if poles is None else poles
     rest = skeleton.rest_positions
     for side in ("Right", "Left"):
         arm, fore, hand = (names.index(f"{side}{j}") for j in ("Arm", "ForeArm", "Hand"))
@@ -166,9 +176,7 @@ def _solve_arms(motion, skeleton: Skeleton, offsets: np.ndarray | None = None) -
         wrist = grasp - hand_world @ grasp_offset[side]
         shoulder = world[:, arm, :3, 3]
         upper, lower = rest[fore] - rest[arm], rest[hand] - rest[fore]
-        elbow = _two_bone(
-            shoulder, wrist, np.linalg.norm(upper), np.linalg.norm(lower), hips_r @ _POLES[side]
-        )
+        elbow = _two_bone(shoulder, wrist, np.linalg.norm(upper), np.linalg.norm(lower), hips_r @ poles[side])
         parent = world[:, skeleton.parents[arm], :3, :3]
         arm_world = _min_rotation(upper, elbow - shoulder)
         fore_world = _min_rotation(arm_world @ lower, wrist - elbow) @ arm_world
@@ -202,6 +210,37 @@ def apply_rifle_carry(
         q, rep = clear_rifle(motion, skeleton, cb, CLEARANCE if clearance is None else clearance, prop)
         if report is not None:
             report.update(rep)
+    return dataclasses.replace(motion, local_rotations=q)
+
+
+# ---------------------------------------------------------------------------- a box in both hands
+#: A box carried in front with both hands (the ``carry`` activity): its centre in the Hips'
+#: frame as fractions of the hip height (ahead, at the navel), its default width [m]; the palms
+#: press on its sides, fingers forward, elbows bent down and a little out.
+BOX_CENTRE = np.array([0.0, -0.33, 0.17]) / 0.957
+BOX_WIDTH_M = 0.36
+_BOX_HAND_DIRS = {"Right": np.array([0.25, -1.0, 0.0]), "Left": np.array([-0.25, -1.0, 0.0])}
+_BOX_POLES = {"Right": np.array([-0.4, 0.5, -1.0]), "Left": np.array([0.4, 0.5, -1.0])}
+
+
+def box_grasp_targets(skeleton: Skeleton, width_m: float = BOX_WIDTH_M) -> dict[str, np.ndarray]:
+    """The palms' grasp points (Hips' frame) on the two sides of the carried box."""
+    centre = BOX_CENTRE * skeleton.rest_positions[0, 2]
+    half = np.array([width_m / 2, 0.0, 0.0])
+    return {"Right": centre - half, "Left": centre + half}
+
+
+def apply_box_carry(motion, skeleton: Skeleton, width_m: float = BOX_WIDTH_M):
+    """``motion`` with both arms holding a box of ``width_m`` in front of the body in every
+    frame (two-bone arm IK to grasp points fixed in the Hips' frame, as the rifle carry; no
+    prop is authored and no clearance is checked)."""
+    q = _solve_arms(
+        motion,
+        skeleton,
+        targets=box_grasp_targets(skeleton, width_m),
+        hand_dirs=_BOX_HAND_DIRS,
+        poles=_BOX_POLES,
+    )
     return dataclasses.replace(motion, local_rotations=q)
 
 

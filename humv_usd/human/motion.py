@@ -47,7 +47,7 @@ the fast VO2 off-transient (tau ~ 30-40 s for moderate exercise, Ozyener et al. 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -55,6 +55,7 @@ from scipy.ndimage import gaussian_filter1d
 from humv_usd.errors import InputError, bad_value
 from humv_usd.human import contact as C
 from humv_usd.human import poses as PO
+from humv_usd.human.carry import apply_box_carry
 from humv_usd.human.gait import (
     GaitParams,
     NominalGait,
@@ -71,9 +72,9 @@ from humv_usd.human.gait import (
 )
 from humv_usd.human.skeleton import Skeleton, quat_to_matrix
 
-ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise", *PO.POSE_ACTIVITIES)
-SPEED_RANGE = {"walk": (0.3, 2.2), "run": (1.8, 6.0)}
-DEFAULT_SPEED = {"walk": 1.4, "run": 3.5}
+ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise", "carry", *PO.POSE_ACTIVITIES)
+SPEED_RANGE = {"walk": (0.3, 2.2), "run": (1.8, 6.0), "carry": (0.3, 2.2)}
+DEFAULT_SPEED = {"walk": 1.4, "run": 3.5, "carry": 1.2}
 MET_ML_KG_MIN = 3.5
 J_PER_ML_O2 = 20.1
 MET_STAND = 1.3
@@ -284,8 +285,6 @@ def calibrated_params(
 ) -> GaitParams:
     """Gait parameters whose hip amplitude makes the locked stance progression match the
     requested speed (secant iteration on ``hip_scale``)."""
-    from dataclasses import replace
-
     p = gait_params(mode, speed, skeleton)
     k0, v0 = 1.0, _stance_speed(skeleton, p, feet, fps, start_phase)
     k1 = float(np.clip(k0 * speed / v0, 0.3, 2.0))
@@ -701,6 +700,21 @@ def make_motion(
     """
     if activity not in ACTIVITIES:
         raise InputError(bad_value("activity", activity, f"expected one of {list(ACTIVITIES)}"))
+    if activity == "carry":  # walking with a box held in front in both hands
+        walk = make_motion(
+            "walk",
+            skeleton,
+            fps,
+            frame_count,
+            DEFAULT_SPEED["carry"] if speed_m_s is None else speed_m_s,
+            path,
+            ground,
+            mass_kg,
+            body_points=body_points,
+            start_phase=start_phase,
+            seed=seed,
+        )
+        return replace(apply_box_carry(walk, skeleton), activity="carry")
     frames = int(frame_count)
     if frames < 2 or not fps > 0:
         raise InputError(
