@@ -139,3 +139,21 @@ def test_reflective_band_faces_without_temperature_emit_nothing():
     np.testing.assert_allclose(out[1].sum(), planck.band_radiance(300.0, SWIR), rtol=1e-6)
     with pytest.raises(ValueError):
         SubBands((8.0, 14.0), None, 4).radiance(np.array([np.nan]))
+
+
+def test_fabrics_show_their_swir_absorption_bands():
+    """Fabrics on the coarse grid went straight from 1.0 to 2.5 um; now cotton dips at the
+    1.94 um water/O-H combination band and polyester at its 1.66 um C-H overtone below their
+    neighbours (Workman & Weyer 2008), the coarse nodes unchanged, still opaque (R + eps = 1)."""
+    from humv_usd.catalog.materials import LIBRARY, WAVELENGTHS_UM
+
+    cotton, pet = LIBRARY["cotton_white"], LIBRARY["polyester"]
+    r = cotton.at([1.73, 1.94, 2.1])
+    straight = np.interp(1.94, [1.0, 2.5], cotton.at([1.0, 2.5]))  # the coarse table's line
+    assert r[1] < min(r[0], r[2]) and r[1] < 0.8 * straight
+    p = pet.at([1.45, 1.65, 1.94])
+    assert p[1] < min(p[0], p[2])
+    for m in (cotton, pet, LIBRARY["wool"], LIBRARY["hair_dark"]):
+        np.testing.assert_allclose(np.asarray(m.reflectance), np.asarray(m.at(WAVELENGTHS_UM)), atol=1e-6)
+        np.testing.assert_allclose(np.add(m.spectrum_reflectance, m.spectrum_emissivity), 1.0, atol=1e-6)
+        assert sum(1.0 < w < 2.5 for w in m.spectrum_wavelengths) >= 7

@@ -26,6 +26,7 @@ Common sources:
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -1082,6 +1083,7 @@ def surface_water(name: str) -> SurfaceWater:
     """:class:`SurfaceWater` of a material name (:data:`DRY_SURFACE` when not listed)."""
     return SURFACE_WATER.get(name, DRY_SURFACE)
 
+
 # ------------------------------------------------------------------- skin tones (issue 29)
 # skin_I ... skin_VI: the measured skin spectrum scaled by the skin-optics model per
 # Fitzpatrick type (humv_usd.catalog.skin); IR and thermal data as "skin".
@@ -1161,6 +1163,82 @@ SURFACE_WATER.update(
             leaf_dimension_m=0.05,
         ),
         "snow": SurfaceWater(None, 1.0, 0.0, "snow: sublimation and melt not modelled"),
-        "water": SurfaceWater(0.0, 1.0, 20.0, "free water: no surface resistance; a 2 cm puddle holds 20 kg/m2"),
+        "water": SurfaceWater(
+            0.0, 1.0, 20.0, "free water: no surface resistance; a 2 cm puddle holds 20 kg/m2"
+        ),
     }
 )
+
+# ------------------------------------------------------ short-wave infrared detail (issue 24.3)
+# The fabrics, hair, fur and leather above are tabulated on the coarse grid WAVELENGTHS_UM,
+# which goes straight from 1.0 to 2.5 µm: a SWIR (0.9-2.5 µm) camera would see them without
+# their molecular absorption bands. Nodes are added in 1.0-2.5 µm at the overtone and combination
+# bands of each fibre's chemistry, the value there being the coarse table's (linear between 1.0
+# and 2.5 µm) times a relative depth; the coarse nodes are unchanged. Band positions: Workman &
+# Weyer (2008) Practical Guide to Interpretive Near-Infrared Spectroscopy, CRC Press, ch. 2-9
+# (O-H first overtone 1.40-1.50 µm and O-H/water combination 1.90-1.94 µm; C-H second overtone
+# 1.13-1.21 µm, first overtone 1.65-1.76 µm, combinations 2.10-2.35 µm; N-H first overtone
+# 1.46-1.53 µm and N-H combination 2.05-2.06 µm). The depths (reflectance at the band over the
+# continuum) are estimates representative of diffuse-reflectance spectra of dry fibres under
+# ambient humidity (cellulose and keratin hold 8-15 % water by mass, polyester < 1 %), not
+# measurements.
+SWIR_DETAIL_UM = (1.2, 1.45, 1.65, 1.73, 1.94, 2.1, 2.3)
+#: relative depth at SWIR_DETAIL_UM by fibre chemistry
+SWIR_DEPTH = {
+    "cellulose": (1.0, 0.85, 0.97, 0.97, 0.65, 0.85, 0.85),  # cotton: water/O-H, cellulose 2.1
+    "polyester": (0.96, 0.97, 0.88, 0.94, 0.95, 0.9, 0.85),  # PET: C-H 1.13, 1.66, 2.13/2.25
+    "polyamide": (0.97, 0.9, 0.92, 0.88, 0.85, 0.85, 0.82),  # nylon, aramid: N-H 1.5/2.05, C-H 1.73/2.3
+    "keratin": (1.0, 0.85, 0.97, 0.9, 0.7, 0.8, 0.85),  # wool, hair, fur; collagen (leather) alike
+}
+#: fibre chemistry of the coarse-grid materials that get SWIR detail (carbon-black rubber and
+#: plastics stay flat: the pigment absorbs the bands' contrast away; camouflage_nyco stays coarse:
+#: its spectrum's solar absorptivity is already 0.066 above the literature value it was checked
+#: against, and its NIR-specified dyes are not modelled)
+SWIR_FIBRE = {
+    "cotton_white": "cellulose",
+    "cotton_black": "cellulose",
+    "denim": "cellulose",
+    "nylon": "polyamide",
+    "kevlar_vest": "polyamide",
+    "down_fill": "polyamide",  # the nylon shell is the surface
+    "polyester": "polyester",
+    "fleece": "polyester",
+    "wool": "keratin",
+    "wool_knit_thick": "keratin",
+    "hair_dark": "keratin",
+    "fur": "keratin",
+    "leather_black": "keratin",
+}
+
+
+def with_swir_detail(material: Material, fibre: str) -> Material:
+    """``material`` with nodes at :data:`SWIR_DETAIL_UM` whose reflectance is its own table's
+    (linear) times the fibre's :data:`SWIR_DEPTH`; the other nodes and the source text stay,
+    the source gains one sentence."""
+    wl = np.asarray(material.spectrum_wavelengths, float)
+    rho = np.asarray(material.spectrum_reflectance, float)
+    add = np.asarray(SWIR_DETAIL_UM, float)
+    added = np.interp(add, wl, rho) * np.asarray(SWIR_DEPTH[fibre], float)
+    keep = ~np.isin(np.round(wl, 6), np.round(add, 6))
+    grid = np.concatenate([wl[keep], add])
+    values = np.concatenate([rho[keep], added])
+    order = np.argsort(grid)
+    tau = material.spectrum_transmittance
+    if tau is not None:
+        t = np.asarray(tau, float)
+        tau = tuple(round(float(v), 6) for v in np.concatenate([t[keep], np.interp(add, wl, t)])[order])
+    return dataclasses.replace(
+        material,
+        spectrum_wavelengths=tuple(round(float(v), 6) for v in grid[order]),
+        spectrum_reflectance=tuple(round(float(v), 6) for v in values[order]),
+        spectrum_transmittance=tau,
+        source=f"{material.source}; SWIR {fibre} absorption bands at {', '.join(f'{v:g}' for v in add)} µm "
+        "(positions Workman & Weyer 2008, depths estimated, see catalog.materials.SWIR_DEPTH)",
+    )
+
+
+for _name, _fibre in SWIR_FIBRE.items():
+    LIBRARY[_name] = with_swir_detail(LIBRARY[_name], _fibre)
+    for _table in (FABRICS, EQUIPMENT, CLUTTER):
+        if _name in _table:
+            _table[_name] = LIBRARY[_name]

@@ -33,7 +33,7 @@ READS = (
     "scene.place",
 )
 UPSTREAM = ()
-VERSION = "4"  # 3: /World/Materials a Scope; 4: warm clutter and generated places
+VERSION = "5"  # 3: /World/Materials a Scope; 4: warm clutter and generated places; 5: SWIR bands of fabrics
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"
