@@ -369,18 +369,19 @@ def _catalogue() -> dict[str, Garment]:
         Garment(
             "hair_long",
             "long dark hair: MakeHuman's long-hair proxy (helper-hair: over the skull and down "
-            "the back to the shoulder blades), a 5 mm fibre layer",
+            "the back to the shoulder blades), a 5 mm fibre layer over the clothing (layer 4: "
+            "under a coat, a beanie or a helmet; over a cap or a hood)",
             (Part("hair", (), 0.004),),
             "hair_dark",
-            0,
+            4,
         ),
         Garment(
             "hair_tied",
-            "dark hair tied back: the short scalp layer plus a tail down the nape and upper back "
-            "(the neck and back part of the long-hair proxy)",
+            "dark hair tied back: the short scalp layer plus a tail down the nape (the neck part "
+            "of the long-hair proxy)",
             (
                 Part("body", (Cover(("head",), "Head", t_min=0.45, tilt=0.5),), 0.001),
-                Part("hair", (Cover(("neck", "back")),), 0.006),
+                Part("hair", (Cover(("neck",)),), 0.006),
             ),
             "hair_dark",
             0,
@@ -448,7 +449,7 @@ def _catalogue() -> dict[str, Garment]:
             "navy thick-knit beanie: the skull down over the ears",
             (Part("body", (Cover(("head",), "Head", t_min=0.35, tilt=0.4),), 0.004),),
             "wool_knit_thick",
-            2,
+            6,
         ),
         Garment(
             "helmet",
@@ -456,7 +457,7 @@ def _catalogue() -> dict[str, Garment]:
             "skull above the brow and ears",
             (Part("body", (Cover(("head",), "Head", t_min=0.4, tilt=0.4),), 0.02),),
             "kevlar_vest",
-            3,
+            6,
         ),
         Garment(
             "socks",
