@@ -315,9 +315,9 @@ class IRScene:
             mi = self.mi
             part_of_key = {p.key: k for k, p in enumerate(self.parts)}
             keys = {
-                int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape)))[0]): part_of_key[
-                    shape.id()
-                ]
+                int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape)))[0]): part_of_key.get(
+                    shape.id(), -1
+                )  # an emitter shape (a lit window, render.lights) is no part
                 for shape in self.scene.shapes()
             }
             table = np.full(max(keys) + 1, -1, dtype=np.int64)
