@@ -133,12 +133,12 @@ def test_reflective_band_faces_without_temperature_emit_nothing():
     from humv_usd.physics import planck
     from humv_usd.render.radiometry import SubBands
 
-    sub = SubBands(SWIR, None, 4)
+    sub = SubBands(SWIR, None, 1)
     out = sub.radiance(np.array([np.nan, 300.0]))
     assert np.all(out[0] == 0.0)
     np.testing.assert_allclose(out[1].sum(), planck.band_radiance(300.0, SWIR), rtol=1e-6)
     with pytest.raises(ValueError):
-        SubBands((8.0, 14.0), None, 4).radiance(np.array([np.nan]))
+        SubBands((8.0, 14.0), None, 1).radiance(np.array([np.nan]))
 
 
 def test_fabrics_show_their_swir_absorption_bands():
