@@ -185,13 +185,14 @@ DISTRIBUTIONS = {
 def test_pyproject_declares_every_imported_package():
     """Every third-party package the library imports (at the top or lazily) is a declared
     dependency (bpy as the ``blender`` extra, scikit-learn and scikit-image as the ``detector``
-    extra), and every declared dependency is imported."""
+    extra, PyAV as the ``video`` extra), and every declared dependency is imported."""
     project = tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["project"]
     declared = {
         re.split(r"[<>=!~ \[]", d, maxsplit=1)[0].lower()
         for d in project["dependencies"]
         + project["optional-dependencies"]["blender"]
         + project["optional-dependencies"]["detector"]
+        + project["optional-dependencies"]["video"]
     }
     imported = set()
     for _, _, tree in _modules():

@@ -175,3 +175,42 @@ def test_the_render_chain_reads_the_velocity_of_a_drone_from_its_pose(raw):
         vel = chains.velocity(model, frame)
         np.testing.assert_allclose(vel[..., 1], 10.0 * f_px / 50.0, rtol=1e-6)
         np.testing.assert_allclose(vel[..., 0], 0.0, atol=1e-6 * f_px)
+
+
+def test_h264_clip_predicts_frames_and_leaves_the_counts_alone():
+    pytest.importorskip("av")
+    rng = np.random.default_rng(0)
+    scene = rng.uniform(60, 200, (64, 96)).round()
+    scene = (scene + np.roll(scene, 1, 1) + np.roll(scene, 1, 0)) / 3  # some texture
+    flat = np.full((48, 64), 117, np.uint8)
+    err = {}
+    for crf in (10, 40):
+        stream = chain.H264Stream(crf, flat.shape)
+        assert np.abs(stream.roundtrip(flat).astype(int) - 117).max() <= 1  # flat: nearly exact
+        stream = chain.H264Stream(crf, scene.shape)
+        errs = [
+            np.sqrt(np.mean((stream.roundtrip(np.roll(scene, k, 1).astype(np.uint8)) - np.roll(scene, k, 1)) ** 2))
+            for k in range(3)
+        ]
+        assert stream.bytes[2] < stream.bytes[0]  # frames after the first are predicted (P-frames)
+        err[crf] = np.mean(errs)
+    assert err[10] < err[40]
+    model = SensorModel(
+        name="t",
+        band="LWIR",
+        wavelength_range_um=(8.0, 14.0),
+        response_wavelengths_um=np.array([8.0, 14.0]),
+        response=np.array([1.0, 1.0]),
+        resolution=(96, 64),
+        pixel_pitch_m=17e-6,
+        f_number=1.0,
+        focal_length_m=0.013,
+        h264_crf=30,
+    )
+    x = 35.0 + scene / 10.0  # 8-14 um band radiance around 280-320 K [W m-2 sr-1]
+    state = chain.ChainState()
+    out = chain.apply_chain(x, model, np.random.default_rng(1), state=state, noise=False)
+    ref = chain.apply_chain(x, dataclasses.replace(model, h264_crf=0), np.random.default_rng(1), noise=False)
+    np.testing.assert_array_equal(out.counts, ref.counts)
+    assert out.settings["compression"]["crf"] == 30 and out.settings["compression"]["rms_error_levels"] > 0
+    assert not np.array_equal(out.image8, ref.image8)

@@ -247,6 +247,8 @@ class SensorModel:
         (:func:`apply_turbulence`); 0 = off.
     turbulence_path_m : float
         Length of that path [m] (e.g. the range to the people).
+    h264_crf : int
+        H.264 constant rate factor of the 8-bit clip, 1-51 (:class:`H264Stream`); 0 = off.
     """
 
     name: str
@@ -289,6 +291,7 @@ class SensorModel:
     rolling_shutter_s: float = 0.0
     turbulence_cn2: float = 0.0
     turbulence_path_m: float = 0.0
+    h264_crf: int = 0
 
     def __post_init__(self):
         if self.band not in BANDS:
@@ -332,6 +335,8 @@ class SensorModel:
             v = float(getattr(self, key))
             if not (math.isfinite(v) or b == math.inf) or not a <= v <= b:
                 raise ValueError(f"{key} = {getattr(self, key)!r}: allowed range {a:g}..{b:g}")
+        if not 0 <= int(self.h264_crf) <= 51:
+            raise ValueError(f"h264_crf = {self.h264_crf!r}: allowed range 0..51 (0 = off)")
         if not 0 <= int(self.jpeg_quality) <= 100:
             raise ValueError(f"jpeg_quality = {self.jpeg_quality!r}: allowed range 0..100 (0 = off)")
 
@@ -1146,6 +1151,50 @@ class ChainState:
     time_s: float | None = None
     signal: np.ndarray | None = None
     output: np.ndarray | None = None
+    video: Any = None  # the H.264 encoder and decoder of the sensor's clip (:class:`H264Stream`)
+
+
+class H264Stream:
+    r"""An H.264 encoder and decoder (libx264 and FFmpeg's decoder through PyAV, the optional
+    ``video`` extra) kept over a sensor's frames: each 8-bit frame is encoded at constant rate
+    factor ``crf`` (x264's scale, 0-51: 0 lossless, 23 the default, 51 the worst), without
+    B-frames and with zero-latency tuning, and decoded at once, so frame n after the first is a
+    P-frame predicted from frame n-1 (ITU-T H.264 / ISO 14496-10; what a recorded clip's frames
+    hold). Frames are padded to even sizes (4:2:0 chroma) and cropped back; RGB goes through
+    YUV 4:2:0, grey as the luma plane."""
+
+    def __init__(self, crf: int, shape):
+        import av  # noqa: PLC0415  (optional: pip install humv-usd[video])
+
+        self.crf, self.shape = int(crf), tuple(shape)
+        h, w = shape[:2]
+        self.size = (w + w % 2, h + h % 2)
+        self.enc = av.CodecContext.create("libx264", "w")
+        self.enc.width, self.enc.height = self.size
+        self.enc.pix_fmt = "yuv420p"
+        self.enc.options = {"crf": str(self.crf), "tune": "zerolatency", "preset": "veryfast", "bf": "0"}
+        self.dec = av.CodecContext.create("h264", "r")
+        self.frames = 0
+        self.bytes: list[int] = []
+        self._av = av
+
+    def roundtrip(self, image8) -> np.ndarray:
+        img = np.asarray(image8, dtype=np.uint8)
+        h, w = img.shape[:2]
+        pad = [(0, self.size[1] - h), (0, self.size[0] - w)] + [(0, 0)] * (img.ndim - 2)
+        padded = np.ascontiguousarray(np.pad(img, pad, mode="edge"))
+        fmt = "gray" if img.ndim == 2 else "rgb24"
+        frame = self._av.VideoFrame.from_ndarray(padded, format=fmt).reformat(format="yuv420p")
+        frame.pts = self.frames
+        self.frames += 1
+        out = None
+        for packet in self.enc.encode(frame):
+            self.bytes.append(packet.size)
+            for decoded in self.dec.decode(packet):
+                out = decoded.to_ndarray(format=fmt)
+        if out is None:  # not expected with zero latency; keep the frame rather than drop it
+            return img.copy()
+        return np.ascontiguousarray(out[:h, :w])
 
 
 # ============================================================================ EO colour
@@ -1476,6 +1525,22 @@ def apply_chain(
         }
     else:
         settings["compression"] = None
+    if model.h264_crf > 0:
+        if state is None:
+            state = ChainState()
+        if state.video is None or state.video.shape != image8.shape or state.video.crf != model.h264_crf:
+            state.video = H264Stream(model.h264_crf, image8.shape)
+        before = image8
+        image8 = state.video.roundtrip(image8)
+        err = image8.astype(float) - before
+        settings["compression"] = {
+            "model": "H.264 (libx264 via PyAV), no B-frames, zero latency"
+            + (" after JPEG" if settings["compression"] else ""),
+            "crf": int(model.h264_crf),
+            "frame_in_stream": state.video.frames - 1,
+            "frame_bytes": state.video.bytes[-1] if state.video.bytes else None,
+            "rms_error_levels": float(np.sqrt(np.mean(err * err))) if err.size else 0.0,
+        }
     return ChainOutput(
         counts=counts, image8=image8, radiance=x, noise_sigma=float(noise_sigma), settings=settings
     )

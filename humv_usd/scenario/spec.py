@@ -894,6 +894,14 @@ SENSOR = Section(
             lo=0.0,
             hi=1.0e6,
         ),
+        "h264_crf": Key(
+            "int",
+            "H.264 compression of the 8-bit clip: x264 constant rate factor 1-51 (23 its default; "
+            "default 0 = not compressed; needs the optional PyAV package: pip install humv-usd[video]).",
+            lo=0,
+            hi=51,
+            integer=True,
+        ),
         "full_well_e": Key("float", "EO: full-well capacity [electrons] (default 10500).", lo=1.0, hi=1.0e7),
         "read_noise_e": Key("float", "EO: read noise [electrons] (default 2.5).", lo=0.0, hi=1.0e4),
         "subbands": Key(

@@ -165,6 +165,7 @@ SENSOR_MOTION_BLUR = "humv:sensor:motionBlur"
 SENSOR_ROLLING_SHUTTER = "humv:sensor:rollingShutter"
 SENSOR_TURBULENCE_CN2 = "humv:sensor:turbulenceCn2"
 SENSOR_TURBULENCE_PATH = "humv:sensor:turbulencePath"
+SENSOR_H264_CRF = "humv:sensor:h264Crf"
 
 # --- HumvLabelAPI (Xform, Scope, Mesh, SkelRoot) ----------------------------------------------
 LABEL_INSTANCE_ID = "humv:label:instanceId"

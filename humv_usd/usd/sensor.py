@@ -121,6 +121,7 @@ CHAIN_ATTRIBUTES = {
     "rolling_shutter_s": (S.SENSOR_ROLLING_SHUTTER, float),
     "turbulence_cn2": (S.SENSOR_TURBULENCE_CN2, float),
     "turbulence_path_m": (S.SENSOR_TURBULENCE_PATH, float),
+    "h264_crf": (S.SENSOR_H264_CRF, int),
 }
 
 
