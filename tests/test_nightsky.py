@@ -201,3 +201,20 @@ def test_moonlit_night_is_the_moon_on_a_white_plate(tmp_path):
     assert 0.05 < expected < 0.1  # white paper under a full moon (~0.25 lx): ~0.08 cd m-2
     assert ch["Y"].mean() * Y_TO_CD == pytest.approx(expected, rel=0.02)
     assert "exposure capped" in frame["sensor_chain"]["settings"]["gain_source"]
+
+
+def test_clouds_dim_the_night_and_hide_the_moon(tmp_path):
+    """Kasten & Czeplak (1980) as for the sun: overcast (N = 1) leaves 1 - 0.75 = 25 % of each
+    source's global light, all of it diffuse (no moon beam); N = 0 is the clear sky."""
+    from humv_usd.render.nightlight import night_light
+
+    stage = _night_stage(tmp_path, (0.0, 0.3, -0.95), start="2026-11-24T23:00:00+01:00")
+    down = np.array([0.0, 0.3, -0.95]) / np.linalg.norm([0.0, 0.3, -0.95])
+    wl = np.linspace(0.38, 0.78, 81)
+    clear = night_light(stage, 0.0, down, wl, cloud_cover=0.0)
+    overcast = night_light(stage, 0.0, down, wl, cloud_cover=1.0)
+    assert clear.moon_direction is not None and overcast.moon_direction is None
+    e_h = luminance(wl, clear.moon_irradiance) * clear.moon_direction[2]
+    clear_global = math.pi * luminance(wl, clear.sky) + e_h
+    assert math.pi * luminance(wl, overcast.sky) == pytest.approx(0.25 * clear_global, rel=0.01)
+    assert night_light(stage, 0.0, down, wl).ran["clouds"].startswith("clear")  # no weather on the stage

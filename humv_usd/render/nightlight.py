@@ -26,6 +26,7 @@ import numpy as np
 from humv_usd.environment.moon import moon_at
 from humv_usd.errors import InputError
 from humv_usd.physics import nightsky
+from humv_usd.physics.sun import cloud_reduction
 from humv_usd.render.cie import CMF_WAVELENGTHS_NM, CMF_XYZ
 from humv_usd.usd import environment as usd_environment
 
@@ -62,13 +63,31 @@ def frame_utc(stage, time_code) -> dt.datetime | None:
     return (start + dt.timedelta(seconds=code / fps)).astimezone(dt.UTC)
 
 
-def night_light(stage, time_code, sun_direction, wavelengths_um) -> NightLight | None:
+def cloud_cover_at(stage, time_code) -> float | None:
+    """The environment layer's cloud cover [0-1] at ``time_code`` (None without a weather)."""
+    code = float(getattr(time_code, "GetValue", lambda: time_code)())
+    try:
+        return float(usd_environment.read_weather(stage, [code]).cloud_cover[0])
+    except (InputError, AttributeError):
+        return None
+
+
+def night_light(stage, time_code, sun_direction, wavelengths_um, cloud_cover=None) -> NightLight | None:
     """Night illumination at ``time_code`` on ``wavelengths_um`` (None when the sun is up or not
-    authored: the day's sky and sun tables hold then)."""
+    authored: the day's sky and sun tables hold then).
+
+    Clouds (``cloud_cover`` N in 0-1, default the environment layer's, clear without one): Kasten
+    & Czeplak (1980) as for the sun (:func:`humv_usd.physics.sun.cloud_reduction`): the global
+    illuminance of each source falls as 1 - 0.75 N^3.4 and its diffuse share rises as
+    kd + (1 - kd) N^2 (kd the clear-sky share: 1 for the twilight and night skies, the moonlit
+    sky's for the moon), so an overcast sky has no moon beam and a quarter of the clear light,
+    uniform; the clouds' own reflection of city light is not modelled."""
     if sun_direction is None or float(sun_direction[2]) > 0.0:
         return None
     wl = np.asarray(wavelengths_um, dtype=float)
     ran: dict = {}
+    n = cloud_cover_at(stage, time_code) if cloud_cover is None else float(cloud_cover)
+    global_factor = 1.0 if n is None else float(1.0 - 0.75 * np.clip(n, 0.0, 1.0) ** 3.4)
     sun_el = float(np.degrees(np.arcsin(np.clip(sun_direction[2], -1.0, 1.0))))
     e_tw = float(nightsky.twilight_illuminance_lux(sun_el))
     sky = np.zeros(wl.size)
@@ -82,7 +101,7 @@ def night_light(stage, time_code, sun_direction, wavelengths_um) -> NightLight |
     else:
         ran["twilight"] = f"none: sun at {sun_el:.2f} deg (below -18 deg)"
     night = nightsky.night_sky_radiance(wl)
-    sky += night
+    sky = (sky + night) * global_factor
     ran["night_sky"] = (
         "natural moonless sky (starlight, zodiacal light, airglow) from dark-site sky brightness "
         f"(humv_usd.physics.nightsky.NIGHT_SKY_MAG): {float(np.interp(0.55, wl, night)):.3g} "
@@ -105,17 +124,26 @@ def night_light(stage, time_code, sun_direction, wavelengths_um) -> NightLight |
             ran["moon"] = f"below the horizon: {what}"
         else:
             moon_dir = np.asarray(m.direction[0], float)
-            moon_e = nightsky.scale_to_photometric(wl, nightsky.moon_shape(wl), e_moon, PHOTOPIC)
             e_h = e_moon * float(moon_dir[2])
+            f = nightsky.MOONLIT_SKY_FRACTION
+            _, dhi, dni = cloud_reduction(e_h * (1 + f), f * e_h, 90.0 - el, 0.0 if n is None else n)
+            e_moon, e_diffuse = float(dni), float(dhi)  # beam-normal and diffuse-horizontal [lx]
+            moon_e = nightsky.scale_to_photometric(wl, nightsky.moon_shape(wl), e_moon, PHOTOPIC)
             sky_shape = nightsky.scattered_shape(wl, nightsky.moon_shape(wl))
-            sky += nightsky.scale_to_photometric(
-                wl, sky_shape, nightsky.MOONLIT_SKY_FRACTION * e_h / np.pi, PHOTOPIC
-            )
+            sky += nightsky.scale_to_photometric(wl, sky_shape, e_diffuse / np.pi, PHOTOPIC)
+            if e_moon <= 0.0:
+                moon_dir = moon_e = None
             ran["moon"] = (
                 f"directional, {e_moon:.4g} lx normal to the beam (USNO Circular 171 x Allen's phase "
-                f"law), moonlit sky {nightsky.MOONLIT_SKY_FRACTION:g} of its horizontal illuminance; {what}"
+                f"law), moonlit sky {e_diffuse:.4g} lx diffuse on the ground; {what}"
+                if moon_dir is not None
+                else f"behind the clouds: moonlit sky {e_diffuse:.4g} lx diffuse on the ground; {what}"
             )
-    ran["clouds"] = "clear sky assumed after sunset (cloud cover not applied)"
+    ran["clouds"] = (
+        "clear: no cloud cover on the stage"
+        if n is None
+        else f"cloud cover {n:g}: global x {global_factor:.3g}, diffuse share raised (Kasten & Czeplak 1980)"
+    )
     return NightLight(sky=sky, moon_direction=moon_dir, moon_irradiance=moon_e, ran=ran)
 
 
