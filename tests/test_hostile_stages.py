@@ -266,3 +266,36 @@ def test_blenders_body_001_of_a_second_person_gets_its_name_and_labels_back(tmp_
         assert body and body.GetAttribute("humv:label:instanceId").Get() == 10 + k
         assert body.GetAttribute("humv:label:class").Get() == "person"
     assert report.restored == ["/World/Humans/p1/Body", "/World/Humans/p2/Body"]  # both matched
+
+
+def _cube(stage, path, centre, size):
+    """A closed cube mesh (6 quads)."""
+    from humv_usd.usd.mesh import define_mesh
+
+    c, h = np.asarray(centre, float), size / 2.0
+    corners = np.array([[x, y, z] for z in (-h, h) for y in (-h, h) for x in (-h, h)]) + c
+    quads = [0, 2, 3, 1, 4, 5, 7, 6, 0, 1, 5, 4, 2, 6, 7, 3, 0, 4, 6, 2, 1, 3, 7, 5]
+    define_mesh(stage, path, corners, [4] * 6, quads)
+
+
+def test_a_camera_or_person_inside_an_asset_is_a_warning():
+    """Boxes were warned about from the scenario; an asset enclosing camera and person was not."""
+    from pxr import UsdGeom
+
+    from humv_usd.usd.check import enclosed_in_scene_objects
+    from humv_usd.usd.layers import new_layer_stage
+
+    stage = new_layer_stage(1.0, 1, "enclosed")
+    _cube(stage, "/World/Scene/hall/shell", (0.0, 0.0, 2.0), 10.0)  # an asset: a closed hall
+    _cube(stage, "/World/Scene/crate/crate", (0.0, 0.0, 1.0), 3.0)  # a box: the scenario warns
+    _cube(stage, "/World/Scene/kiosk/kiosk", (20.0, 0.0, 1.0), 2.0)  # encloses nothing
+    UsdGeom.Xform.Define(stage, "/World/Humans/p1").AddTranslateOp().Set((1.0, 2.0, 0.0))
+    cam = UsdGeom.Camera.Define(stage, "/World/Sensors/cam")
+    cam.AddTranslateOp().Set((3.0, -4.0, 1.6))
+    lines = enclosed_in_scene_objects(stage, skip={"crate"})
+    assert [line.split(" is inside ")[0] for line in lines] == ["camera /World/Sensors/cam", "person p1"]
+    assert all("scene object 'hall'" in line for line in lines)
+    cam.GetPrim().GetAttribute("xformOp:translate").Set((3.0, -12.0, 1.6))  # outside the hall
+    assert [line.split(" is inside ")[0] for line in enclosed_in_scene_objects(stage, skip={"crate"})] == [
+        "person p1"
+    ]

@@ -109,9 +109,8 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
     _require_replaceable(out_dir)
     with progress_display("compose", quiet) as progress:
         try:
-            report = run_compose(
-                load_scenario(scenario), out_dir, force=force, wait=wait, yes=yes, progress=progress
-            )
+            loaded = load_scenario(scenario)
+            report = run_compose(loaded, out_dir, force=force, wait=wait, yes=yes, progress=progress)
         except OSError as exc:  # a full disk, a quota, a file system gone read-only mid-run
             from humv_usd.errors import WriteError
             from humv_usd.fileio import PENDING_NAME
@@ -122,6 +121,7 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
                 else "nothing was changed"
             )
             raise WriteError(f"{exc.filename or out_dir}: {exc.strerror or exc}; {done}") from None
+    _warn_enclosed(loaded, report.stage_path)
     for name, wrote, seconds in [] if quiet else report.layers:
         state = "written" if wrote else "unchanged"
         why = report.states[name].why if name in report.states else ""
@@ -131,6 +131,18 @@ def compose(scenario: Path, out_dir: str, force: bool, wait: bool, yes: bool, qu
     for name in report.removed:
         click.echo(f"  {name:<16} removed   (no longer in the scenario)")
     click.echo(f"{report.stage_path}  ({report.summary()})")
+
+
+def _warn_enclosed(scenario, stage_path: Path) -> None:
+    """A camera or person inside an asset (or any scene object but a box, which the scenario's
+    warnings cover): one warning line each (issue 26)."""
+    from pxr import Usd
+
+    from humv_usd.usd.check import enclosed_in_scene_objects
+
+    boxes = {o["id"] for o in scenario["scene"]["object"]} if scenario["scene"] else set()
+    for line in enclosed_in_scene_objects(Usd.Stage.Open(str(stage_path)), skip=boxes):
+        logging.getLogger("humv_usd").warning(line)
 
 
 def _require_replaceable(out_dir: Path) -> None:

@@ -16,10 +16,12 @@ from pxr import Pcp, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, UsdValidation
 
 from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.errors import InputError
+from humv_usd.geometry.mesh import fan_triangulate
+from humv_usd.geometry.raycast import first_faces, ray_caster
 from humv_usd.usd import schemas as S
-from humv_usd.usd.layers import broken_sublayers, open_root_layer, unfinished_set, usd_error_text
+from humv_usd.usd.layers import SCOPES, broken_sublayers, open_root_layer, unfinished_set, usd_error_text
 from humv_usd.usd.mesh import read_asset_source
-from humv_usd.usd.paths import body_path
+from humv_usd.usd.paths import GROUND, body_path
 from humv_usd.usd.sensor import stage_sensors
 from humv_usd.usd.thermal import temperature_type_problem
 
@@ -309,6 +311,64 @@ def rule_skinned_points(stage: Usd.Stage) -> list[str]:
                 "skel binding (skel:skeleton, primvars:skel:jointIndices/jointWeights) so the samples "
                 "are the motion, or remove the points' time samples so the skeleton is"
             )
+    return out
+
+
+#: height [m] above a person's origin (the feet) tested for enclosure: about the chest
+CHEST_M = 1.0
+#: axis directions of the enclosure test's rays
+_AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+
+
+def enclosed_in_scene_objects(stage: Usd.Stage, skip=()) -> list[str]:
+    """Warning lines (not check findings: an indoor camera may be meant): a sensor camera, or a
+    person's chest, that a scene object's meshes enclose (rays in all six axis directions hit
+    that object) at the first frame; the render then shows the object's inside. Objects whose
+    id is in ``skip`` (boxes, which the scenario's warnings cover) and the ground are left out
+    (issue 26: an asset enclosing the camera and the person gave no warning, a box did)."""
+    t = Usd.TimeCode(stage.GetStartTimeCode())
+    points = {}
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        if prim.IsA(UsdGeom.Camera):
+            xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t))
+            points[f"camera {prim.GetPath()}"] = xf[3, :3]
+    humans = stage.GetPrimAtPath(SCOPES["humans"])
+    for person in humans.GetChildren() if humans else ():
+        xf = np.asarray(UsdGeom.Xformable(person).ComputeLocalToWorldTransform(t))
+        points[f"person {person.GetName()}"] = xf[3, :3] + [0.0, 0.0, CHEST_M]
+    scene = stage.GetPrimAtPath(SCOPES["scene"])
+    if not points or not scene:
+        return []
+    origins = np.repeat(np.array(list(points.values()), float), len(_AXES), axis=0)
+    directions = np.tile(_AXES, (len(points), 1))
+    out = []
+    for obj in scene.GetChildren():
+        if obj.GetPath() == GROUND or obj.GetName() in skip:
+            continue
+        pts, tris, n = [], [], 0
+        for prim in Usd.PrimRange(obj, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+            if not prim.IsA(UsdGeom.Mesh):
+                continue
+            mesh = UsdGeom.Mesh(prim)
+            p = np.asarray(mesh.GetPointsAttr().Get(t) or [], float).reshape(-1, 3)
+            counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(t) or [], np.int64)
+            if not len(p) or not len(counts):
+                continue
+            xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t))
+            tri, _ = fan_triangulate(counts, np.asarray(mesh.GetFaceVertexIndicesAttr().Get(t), np.int64))
+            pts.append(p @ xf[:3, :3] + xf[3, :3])
+            tris.append(tri + n)
+            n += len(p)
+        if not pts:
+            continue
+        caster = ray_caster(np.concatenate(pts), np.concatenate(tris))
+        hit = (first_faces(caster, origins, directions) >= 0).reshape(len(points), len(_AXES)).all(axis=1)
+        out += [
+            f"{what} is inside scene object {obj.GetName()!r} (its meshes surround it): the render "
+            "shows the object's inside; move it out, or ignore this for an indoor view"
+            for what, inside in zip(points, hit)
+            if inside
+        ]
     return out
 
 
