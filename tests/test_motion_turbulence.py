@@ -101,8 +101,8 @@ def test_image_velocity_of_a_pan_and_of_a_drone_over_flat_ground():
     np.testing.assert_allclose(image_velocity(d1, d0, 0.1, depth=depth), vel, atol=1e-9)
 
 
-def test_chain_records_the_stages_and_leaves_the_input_alone():
-    model = SensorModel(
+def _lwir(**kw) -> SensorModel:
+    return SensorModel(
         name="t",
         band="LWIR",
         wavelength_range_um=(8.0, 14.0),
@@ -112,6 +112,12 @@ def test_chain_records_the_stages_and_leaves_the_input_alone():
         pixel_pitch_m=17e-6,
         f_number=1.0,
         focal_length_m=0.013,
+        **kw,
+    )
+
+
+def test_chain_records_the_stages_and_leaves_the_input_alone():
+    model = _lwir(
         time_constant_s=0.01,
         motion_blur="camera",
         turbulence_cn2=1e-14,
@@ -189,7 +195,9 @@ def test_h264_clip_predicts_frames_and_leaves_the_counts_alone():
         assert np.abs(stream.roundtrip(flat).astype(int) - 117).max() <= 1  # flat: nearly exact
         stream = chain.H264Stream(crf, scene.shape)
         errs = [
-            np.sqrt(np.mean((stream.roundtrip(np.roll(scene, k, 1).astype(np.uint8)) - np.roll(scene, k, 1)) ** 2))
+            np.sqrt(
+                np.mean((stream.roundtrip(np.roll(scene, k, 1).astype(np.uint8)) - np.roll(scene, k, 1)) ** 2)
+            )
             for k in range(3)
         ]
         assert stream.bytes[2] < stream.bytes[0]  # frames after the first are predicted (P-frames)
@@ -214,3 +222,24 @@ def test_h264_clip_predicts_frames_and_leaves_the_counts_alone():
     np.testing.assert_array_equal(out.counts, ref.counts)
     assert out.settings["compression"]["crf"] == 30 and out.settings["compression"]["rms_error_levels"] > 0
     assert not np.array_equal(out.image8, ref.image8)
+
+
+def test_a_tracked_person_keeps_its_own_image_motion():
+    """pipeline.chains: labelled objects move at their mask centroid's velocity between
+    frames, not with the background (a tracked person stays sharp)."""
+    from pxr import Usd, UsdGeom
+
+    from humv_usd.pipeline.chains import SensorChains
+
+    stage = Usd.Stage.CreateInMemory()
+    stage.SetTimeCodesPerSecond(10.0)
+    UsdGeom.Camera.Define(stage, "/c")
+    model = dataclasses.replace(_lwir(), path="/c", motion_blur="camera")
+    chains = SensorChains(stage, 0, ["/c"])
+    inst = np.zeros((48, 64), int)
+    inst[10:20, 30:34] = 7
+    assert chains.velocity(model, 0, instance=inst) is None  # a still camera, the first frame
+    inst2 = np.roll(inst, 2, axis=1)  # moved 2 px right in one frame (0.1 s)
+    vel = chains.velocity(model, 1, instance=inst2)
+    np.testing.assert_allclose(vel[inst2 == 7], [[20.0, 0.0]] * int((inst2 == 7).sum()))
+    assert not np.any(vel[inst2 == 0])

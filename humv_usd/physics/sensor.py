@@ -998,8 +998,16 @@ def apply_fixed_pattern(
 
 
 # ---------------------------------------------------------------------------- motion, turbulence
-#: sub-frame samples of :func:`motion_blur`
+#: sub-frame samples of :func:`motion_blur`: at least this many, and two per pixel of the
+#: longest streak (box: v T; exponential: v 3 tau), at most MOTION_BLUR_MAX_SAMPLES
 MOTION_BLUR_SAMPLES = 16
+MOTION_BLUR_MAX_SAMPLES = 256
+
+
+def motion_blur_samples(max_speed_px_s: float, window_s: float, kind: str = "box") -> int:
+    """Sub-frame samples of :func:`motion_blur` for the fastest pixel (see :data:`MOTION_BLUR_SAMPLES`)."""
+    streak = float(max_speed_px_s) * float(window_s) * (1.0 if kind == "box" else 3.0)
+    return int(min(MOTION_BLUR_MAX_SAMPLES, max(MOTION_BLUR_SAMPLES, math.ceil(2.0 * streak))))
 
 
 def _sample_shifted(image, coords_u, coords_v):
@@ -1015,7 +1023,7 @@ def _sample_shifted(image, coords_u, coords_v):
     )
 
 
-def motion_blur(image, velocity_px_s, window_s: float, kind: str = "box", samples: int = MOTION_BLUR_SAMPLES):
+def motion_blur(image, velocity_px_s, window_s: float, kind: str = "box", samples: int | None = None):
     r"""The image a detector integrates while the scene moves across it.
 
     Parameters
@@ -1028,8 +1036,9 @@ def motion_blur(image, velocity_px_s, window_s: float, kind: str = "box", sample
     window_s : float
         Exposure [s] (``kind="box"``) or the bolometer's time constant [s] (``"exponential"``).
     kind : {"box", "exponential"}
-    samples : int
-        Sub-frame samples.
+    samples : int, optional
+        Sub-frame samples (default :func:`motion_blur_samples` of the fastest pixel: no gaps
+        between the copies of a long streak).
 
     Notes
     -----
@@ -1054,6 +1063,8 @@ def motion_blur(image, velocity_px_s, window_s: float, kind: str = "box", sample
         raise ValueError(f"velocity_px_s shape {vel.shape}: expected {(h, w, 2)}")
     if window_s <= 0 or not np.any(vel):
         return img.copy()
+    if samples is None:
+        samples = motion_blur_samples(float(np.hypot(vel[..., 0], vel[..., 1]).max()), window_s, kind)
     u_k = (np.arange(samples) + 0.5) / samples
     s_k = u_k * window_s if kind == "box" else -window_s * np.log1p(-u_k)
     rows, cols = np.mgrid[0:h, 0:w].astype(float)
@@ -1368,8 +1379,9 @@ def apply_chain(
             settings["motion_blur"] = {"kind": "box (exposure)", "window_s": t_exp}
         if settings["motion_blur"] is not None:
             speed = np.hypot(velocity_px_s[..., 0], velocity_px_s[..., 1])
+            kind = "box" if settings["motion_blur"]["kind"].startswith("box") else "exponential"
             settings["motion_blur"].update(
-                samples=MOTION_BLUR_SAMPLES,
+                samples=motion_blur_samples(float(speed.max()), settings["motion_blur"]["window_s"], kind),
                 max_speed_px_s=float(speed.max()),
                 max_streak_px=float(speed.max() * settings["motion_blur"]["window_s"]),
             )

@@ -32,9 +32,20 @@ class SensorChains:
         self.reason = None
         self.chain = chain
         self.states: dict = {}
+        self.objects: dict = {}  # sensor path -> (frame, {instance id: mask centroid (u, v) [px]})
 
-    def apply(self, sensor: SensorModel, radiance, frame: int, eo_space: str | None = None):
-        """ChainOutput for one frame, or None when the chain is unavailable."""
+    def apply(
+        self,
+        sensor: SensorModel,
+        radiance,
+        frame: int,
+        eo_space: str | None = None,
+        depth=None,
+        instance=None,
+    ):
+        """ChainOutput for one frame, or None when the chain is unavailable. ``depth`` and
+        ``instance`` (the labels' depth and instance-id images) make the image velocity of the
+        motion blur exact for the static scene and give labelled objects their own motion."""
         if self.chain is None:
             return None
         rng = np.random.default_rng([self.seed, self.index.get(sensor.path, 0), int(frame)])
@@ -43,28 +54,50 @@ class SensorChains:
         extra["time_s"] = int(frame) / (self.stage.GetTimeCodesPerSecond() or 1.0)
         extra["state"] = self.states.setdefault(sensor.path, self.chain.ChainState())
         if sensor.motion_blur == "camera" or (sensor.kind == "EO" and sensor.rolling_shutter_s > 0):
-            extra["velocity_px_s"] = self.velocity(sensor, frame)
+            extra["velocity_px_s"] = self.velocity(sensor, frame, depth, instance)
         out = self.chain.apply_chain(radiance, sensor, rng, **extra)  # the render's checked read
         self.ran[sensor.name] = "ran"
         return out
 
-    def velocity(self, sensor: SensorModel, frame: int) -> np.ndarray | None:
-        """(H, W, 2) image velocity [px/s] of the static scene from the camera's own motion at
-        ``frame`` (:func:`humv_usd.geometry.camera.image_velocity`, flat ground at z = 0, central
-        difference of the pose over +-:data:`VELOCITY_STEP_FRAMES`); None for a still camera."""
+    def velocity(self, sensor: SensorModel, frame: int, depth=None, instance=None) -> np.ndarray | None:
+        """(H, W, 2) image velocity [px/s] at ``frame``: the static scene's from the camera's own
+        motion (:func:`humv_usd.geometry.camera.image_velocity` with ``depth``, else flat ground
+        at z = 0; central difference of the pose over +-:data:`VELOCITY_STEP_FRAMES`), and, with
+        ``instance``, each labelled object's own: the motion of its mask's centroid since the
+        previous frame (a person a camera tracks stays sharp; zero on an object's first frame).
+        None when nothing moves."""
         prim = self.stage.GetPrimAtPath(sensor.path)
         xf = UsdGeom.Xformable(prim)
         samples = xf.GetTimeSamples() if xf.TransformMightBeTimeVarying() else []
-        if len(samples) < 2:
-            return None
-        lo = max(frame - VELOCITY_STEP_FRAMES, samples[0])
-        hi = min(frame + VELOCITY_STEP_FRAMES, samples[-1])
-        if hi <= lo:
-            return None
         w, h = (int(v) for v in sensor.resolution)
-        before = Camera.from_pose(read_camera_pose(prim, Usd.TimeCode(lo)), w, h)
-        after = Camera.from_pose(read_camera_pose(prim, Usd.TimeCode(hi)), w, h)
-        return image_velocity(after, before, (hi - lo) / (self.stage.GetTimeCodesPerSecond() or 1.0))
+        fps = self.stage.GetTimeCodesPerSecond() or 1.0
+        vel = np.zeros((h, w, 2))
+        lo = max(frame - VELOCITY_STEP_FRAMES, samples[0]) if len(samples) > 1 else frame
+        hi = min(frame + VELOCITY_STEP_FRAMES, samples[-1]) if len(samples) > 1 else frame
+        if hi > lo:
+            before = Camera.from_pose(read_camera_pose(prim, Usd.TimeCode(lo)), w, h)
+            after = Camera.from_pose(read_camera_pose(prim, Usd.TimeCode(hi)), w, h)
+            z = None if depth is None else np.where(np.isfinite(depth) & (depth > 0), depth, np.inf)
+            vel = image_velocity(after, before, (hi - lo) / fps, depth=z)
+        if instance is not None and np.shape(instance) == (h, w):
+            self._object_velocity(sensor.path, frame, vel, np.asarray(instance), fps)
+        return vel if np.any(vel) else None
+
+    def _object_velocity(self, path: str, frame: int, vel, instance, fps: float) -> None:
+        """Overwrite ``vel`` on each labelled object's pixels with its mask centroid's image
+        velocity since the previous frame of this sensor (zero without one)."""
+        ids = [int(i) for i in np.unique(instance) if i > 0]
+        rows, cols = np.nonzero(instance > 0)
+        labels = instance[rows, cols]
+        cents = {i: np.array([cols[labels == i].mean() + 0.5, rows[labels == i].mean() + 0.5]) for i in ids}
+        prev_frame, prev = self.objects.get(path, (None, {}))
+        self.objects[path] = (frame, cents)
+        for i in ids:
+            mask = instance == i
+            if prev_frame == frame - 1 and i in prev:
+                vel[mask] = (cents[i] - prev[i]) * fps
+            else:
+                vel[mask] = 0.0
 
     def write(self, out, out_dir, rel, write=None) -> dict | None:
         """Write ``<rel>_counts.png`` (16-bit raw counts) and ``<rel>_image8.png`` (8-bit AGC);

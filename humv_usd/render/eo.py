@@ -583,9 +583,8 @@ class EORender:
             rgb = xyz_to_linear_srgb(xyz)
             rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
-            chained = chains.apply(
-                s, rgb, frame, eo_space="srgb"
-            )  # sensor chain: the single call site for EO
+            # sensor chain: the single call site for EO (depth and instances: the motion blur's velocity)
+            chained = chains.apply(s, rgb, frame, eo_space="srgb", depth=hits.depth, instance=hits.instance)
             camera = Camera.from_pose(state.cameras[s.name], xyz.shape[1], xyz.shape[0])
             rec["cameras"].append((frame, camera))
             channels = {
