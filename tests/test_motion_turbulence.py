@@ -243,3 +243,13 @@ def test_a_tracked_person_keeps_its_own_image_motion():
     vel = chains.velocity(model, 1, instance=inst2)
     np.testing.assert_allclose(vel[inst2 == 7], [[20.0, 0.0]] * int((inst2 == 7).sum()))
     assert not np.any(vel[inst2 == 0])
+
+
+def test_only_moving_classes_get_their_own_motion():
+    from humv_usd.groundtruth.labels import CLASS_ID
+    from humv_usd.pipeline.chains import SensorChains
+
+    cls = np.array([[CLASS_ID["person"], CLASS_ID["ground"], CLASS_ID["building"], CLASS_ID["vehicle"]]])
+    inst = np.array([[4, 2, 3, 9]])
+    np.testing.assert_array_equal(SensorChains.movers(cls, inst), [[4, 0, 0, 9]])
+    assert SensorChains.movers(None, inst) is None

@@ -9,6 +9,7 @@ from pxr import Usd, UsdGeom
 
 from humv_usd import images as writers
 from humv_usd.geometry.camera import Camera, image_velocity
+from humv_usd.groundtruth.labels import CLASS_ID
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.usd.sensor import read_camera_pose
@@ -16,6 +17,9 @@ from humv_usd.usd.sensor import read_camera_pose
 #: half-width [frames] of the central difference of the camera's pose that gives the image
 #: velocity of the motion blur and rolling shutter (USD interpolates the transform between frames)
 VELOCITY_STEP_FRAMES = 0.1
+#: label classes whose objects move on their own (their image motion is their mask's, not the
+#: static scene's)
+MOVING_CLASSES = ("person", "vehicle", "animal")
 
 
 class SensorChains:
@@ -43,9 +47,10 @@ class SensorChains:
         depth=None,
         instance=None,
     ):
-        """ChainOutput for one frame, or None when the chain is unavailable. ``depth`` and
-        ``instance`` (the labels' depth and instance-id images) make the image velocity of the
-        motion blur exact for the static scene and give labelled objects their own motion."""
+        """ChainOutput for one frame, or None when the chain is unavailable. ``depth`` (the
+        labels' depth image) makes the motion blur's image velocity exact for the static scene;
+        ``instance`` (instance ids, 0 elsewhere) gives those objects their own motion: pass the
+        moving objects' only (:meth:`movers`)."""
         if self.chain is None:
             return None
         rng = np.random.default_rng([self.seed, self.index.get(sensor.path, 0), int(frame)])
@@ -58,6 +63,15 @@ class SensorChains:
         out = self.chain.apply_chain(radiance, sensor, rng, **extra)  # the render's checked read
         self.ran[sensor.name] = "ran"
         return out
+
+    @staticmethod
+    def movers(class_id, instance) -> np.ndarray | None:
+        """``instance`` where the labels' ``class_id`` image is a :data:`MOVING_CLASSES` class, 0
+        elsewhere (what :meth:`apply` takes as ``instance``); None without both images."""
+        if class_id is None or instance is None:
+            return None
+        moving = np.isin(np.asarray(class_id).astype(int), [CLASS_ID[c] for c in MOVING_CLASSES])
+        return np.where(moving, np.asarray(instance), 0)
 
     def velocity(self, sensor: SensorModel, frame: int, depth=None, instance=None) -> np.ndarray | None:
         """(H, W, 2) image velocity [px/s] at ``frame``: the static scene's from the camera's own

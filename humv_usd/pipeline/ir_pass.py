@@ -228,7 +228,8 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
     t = _tick(run, timings, "labels", t)
 
     # sensor chain: the single call site for IR (depth and instances: the motion blur's velocity)
-    chained = run.chains.apply(s, m1, frame, depth=labels.depth, instance=labels.instance)
+    movers = run.chains.movers(labels.channels.get("class_id"), labels.instance)
+    chained = run.chains.apply(s, m1, frame, depth=labels.depth, instance=movers)
     camera = Camera.from_pose(state.cameras[s.name], m1.shape[1], m1.shape[0])
     run.per_sensor[s.name]["cameras"].append((frame, camera))
     # NIR/SWIR (reflected light): the output is radiance; a brightness temperature means nothing

@@ -584,7 +584,8 @@ class EORender:
             rec["timings_s"]["render"] += time.perf_counter() - t
             t = time.perf_counter()
             # sensor chain: the single call site for EO (depth and instances: the motion blur's velocity)
-            chained = chains.apply(s, rgb, frame, eo_space="srgb", depth=hits.depth, instance=hits.instance)
+            movers = chains.movers(extra.get("class_id"), hits.instance)
+            chained = chains.apply(s, rgb, frame, eo_space="srgb", depth=hits.depth, instance=movers)
             camera = Camera.from_pose(state.cameras[s.name], xyz.shape[1], xyz.shape[0])
             rec["cameras"].append((frame, camera))
             channels = {
