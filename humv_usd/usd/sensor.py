@@ -18,8 +18,8 @@ from pxr import Gf, Usd, UsdGeom, Vt
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.geometry.camera import CameraPose
-from humv_usd.physics.sensor import SensorModel, field_of_view_deg
-from humv_usd.scenario.spec import BAND_RANGE_UM, MAX_SUBBANDS, band_range_problem
+from humv_usd.physics.sensor import INFRARED_MIN_UM, SensorModel, field_of_view_deg
+from humv_usd.scenario.spec import BAND_RANGE_UM, MAX_SUBBANDS
 from humv_usd.usd import schemas as S
 
 #: Band of an EO sensor whose ``humv:sensor:wavelengthRange`` is not authored [um].
@@ -136,6 +136,17 @@ def check_subbands(value, where: str = "subbands") -> int:
     return int(value)
 
 
+#: Wavelengths [um] the render can do per band token: the reflective bands as the scenario's
+#: BAND_RANGE_UM (EO: Mitsuba's spectral range; NIR/SWIR: the night light and the material
+#: detail), MWIR/LWIR anything from 3 um (rendered from emission; the scenario keeps them to the
+#: atmospheric windows, a hand-made stage may go wider).
+RENDERABLE_UM = {
+    **{b: BAND_RANGE_UM[b] for b in ("EO", "NIR", "SWIR")},
+    "MWIR": (INFRARED_MIN_UM, 1000.0),
+    "LWIR": (INFRARED_MIN_UM, 1000.0),
+}
+
+
 def _value(prim, name):
     attr = prim.GetAttribute(name)
     return attr.Get() if attr and attr.IsValid() else None
@@ -165,8 +176,10 @@ def read_sensor(prim) -> SensorModel:
     attr = prim.GetAttribute(S.SENSOR_BAND)
     if not (attr and attr.HasAuthoredValue()):
         band = next((b for b, (a, z) in BAND_RANGE_UM.items() if a <= lo and hi <= z), band)
-    if problem := band_range_problem(where, band, (lo, hi)):
-        raise InputError(problem)
+    if band in RENDERABLE_UM:
+        a, z = RENDERABLE_UM[band]
+        if not (a <= lo and hi <= z):
+            raise InputError(bad_value(where, [lo, hi], f"allowed range for band {band}: {a:g}..{z:g} µm"))
     projection = UsdGeom.Camera(prim).GetProjectionAttr().Get()
     if projection and projection != UsdGeom.Tokens.perspective:
         return dataclasses.replace(
