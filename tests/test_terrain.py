@@ -155,3 +155,25 @@ def test_terrain_ground_splits_into_zone_meshes_on_the_surface():
     assert np.all(np.abs(road[:, 1]) <= 3.0 + 2.0 + 1e-9)  # the strip, to a cell
     for _, _, points, _, _ in pieces:  # every vertex on the terrain
         assert_allclose(points[:, 2], t.height(points[:, 0], points[:, 1]), atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("path", "expect"),
+    [([[-50, 0], [50, 0]], 6.0 * 100.0), ([[-30, -30], [30, 30]], 6.0 * 60 * 2**0.5 + np.pi * 3.0**2)],
+)
+def test_zone_edges_run_along_triangle_edges(path, expect):
+    # a 6 m road on a 2 m grid: its edges (y = +-3, mid-cell) become straight mesh edges
+    section = {
+        "hills_m": 0.5,
+        "cell_m": 2.0,
+        "zone": [{"material": "asphalt", "path_m": path, "width_m": 6.0}],
+    }
+    t = terrain_from_section(section, (100, 100))
+    _, _, points, counts, indices = ground_pieces(_scene(section, horizon=0.0))[1]
+    v = points[indices.reshape(-1, 3)]
+    area = 0.5 * np.abs(np.cross(v[:, 1, :2] - v[:, 0, :2], v[:, 2, :2] - v[:, 0, :2])).sum()
+    d = polyline_distance(points[:, 0], points[:, 1], np.asarray(path, float))
+    assert np.all(d <= 3.0 + 1e-6)  # no vertex outside the strip
+    # the strip's area: width x length, plus its two round caps where it ends inside the ground
+    assert area == pytest.approx(expect, rel=0.01)
+    assert_allclose(points[:, 2], t.height(points[:, 0], points[:, 1]), atol=1e-5)

@@ -110,3 +110,49 @@ def horizon_rings(terrain, size_xy, radius_m: float):
             quads.append([a + k, b + k, b + k1, a + k1])  # counter-clockwise seen from +z
     quads = np.asarray(quads, dtype=np.int64)
     return points, np.full(len(quads), 4), quads.ravel()
+
+
+def snap_to_edges(points, triangles, signed_distance, locked=None):
+    """Move grid vertices onto a zone's boundary so that it runs along triangle edges.
+
+    ``signed_distance(x, y)`` is negative inside the zone, positive outside (its zero set is
+    the boundary). For every triangle edge whose ends lie on both sides, the end nearer to the
+    boundary moves to where the edge crosses it (found by bisection along the edge), each
+    vertex once, nearest first; vertices in ``locked`` (another zone's boundary) stay. A
+    vertex moves less than half its edge, so no triangle of the grid turns over.
+    Returns (points (P, 3) with x, y moved, z untouched, locked (P,) bool)."""
+    pts = np.asarray(points, dtype=float).copy()
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    locked = np.zeros(len(pts), dtype=bool) if locked is None else locked.copy()
+    edges = np.unique(
+        np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1), axis=0
+    )
+    f = signed_distance(pts[:, 0], pts[:, 1])
+    cross = edges[(f[edges[:, 0]] < 0.0) != (f[edges[:, 1]] < 0.0)]
+    if not len(cross):
+        return pts, locked
+    a, b = pts[cross[:, 0], :2], pts[cross[:, 1], :2]
+    lo, hi = np.zeros(len(cross)), np.ones(len(cross))
+    inside_a = f[cross[:, 0]] < 0.0
+    for _ in range(30):  # bisection on the edge's parameter
+        mid = 0.5 * (lo + hi)
+        m = a + mid[:, None] * (b - a)
+        same = (signed_distance(m[:, 0], m[:, 1]) < 0.0) == inside_a
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    t = 0.5 * (lo + hi)
+    near = np.where(t < 0.5, cross[:, 0], cross[:, 1])
+    target = a + t[:, None] * (b - a)
+    for k in np.argsort(np.minimum(t, 1.0 - t), kind="stable"):
+        v = near[k]
+        if not locked[v]:
+            pts[v, :2] = target[k]
+            locked[v] = True
+    return pts, locked
+
+
+def drop_degenerate(points, triangles):
+    """Triangles (T', 3) of ``triangles`` with an area in the x-y plane (snapping may leave
+    three ends of one on a boundary)."""
+    v = np.asarray(points)[np.asarray(triangles)]
+    area = 0.5 * np.abs(np.cross(v[:, 1, :2] - v[:, 0, :2], v[:, 2, :2] - v[:, 0, :2]))
+    return np.asarray(triangles)[area > 1e-9 * max(float(area.max()), 1e-12)]

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from pxr import Usd
 
-from humv_usd.geometry.terrain import Terrain, terrain_from_section
-from humv_usd.scene.geometry import ground_grid, horizon_rings, terrain_grid
+from humv_usd.geometry.terrain import Terrain, polyline_distance, terrain_from_section
+from humv_usd.scene.geometry import drop_degenerate, ground_grid, horizon_rings, snap_to_edges, terrain_grid
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import GROUND, material_path
 
@@ -48,6 +48,25 @@ def _compact(points, faces):
     return points[used], np.full(len(faces), faces.shape[1]), np.asarray(inverse).ravel()
 
 
+def _snapped(t: Terrain, points, tris):
+    """The terrain grid with its vertices snapped onto the edges of the strip zones
+    (:func:`humv_usd.scene.geometry.snap_to_edges`: a road's edge runs along triangle edges
+    instead of zigzagging across them), heights taken again at the moved vertices."""
+    locked = None
+    for z in t.zones:
+        if z.path_m is None:  # a mask image: its pixels' staircase stays
+            continue
+
+        def signed(x, y, z=z):
+            return polyline_distance(x, y, z.path_m) - z.width_m / 2
+
+        points, locked = snap_to_edges(points, tris, signed, locked)
+    if locked is None:
+        return points, tris
+    points[:, 2] = t.height(points[:, 0], points[:, 1])
+    return points, drop_degenerate(points, tris)
+
+
 def ground_pieces(scene: dict, terrain: Terrain | None = None):
     """[(path, material name, points, counts, indices)] of the ground meshes (module doc)."""
     ground = scene["ground"]
@@ -55,7 +74,10 @@ def ground_pieces(scene: dict, terrain: Terrain | None = None):
     t = terrain or scene_terrain(scene)
     section = scene.get("terrain") or {}
     if t.has_relief or t.zones:
-        points, counts, idx, centroids = terrain_grid(t, size, float(section.get("cell_m") or 2.0))
+        points, counts, idx, _ = terrain_grid(t, size, float(section.get("cell_m") or 2.0))
+        points, tris = _snapped(t, points, idx.reshape(-1, 3))
+        counts, idx = np.full(len(tris), 3), tris.ravel()
+        centroids = points[tris][:, :, :2].mean(axis=1)
         zone = t.zone_at(centroids[:, 0], centroids[:, 1])
     else:
         points, counts, idx = ground_grid(size, FLAT_CELLS)
