@@ -82,6 +82,17 @@ ACTIVITIES = (
     "postExercise",
     "carry",  # walking with a box in both hands (humv_usd.human.carry.apply_box_carry)
     # procedural poses and transitions (humv_usd.human.poses.POSE_ACTIVITIES)
+    "sit",
+    "sitChair",
+    "crouch",
+    "kneel",
+    "lieProne",
+    "lieSupine",
+    "lieSide",
+    "wave",
+    "fall",
+    "getUp",
+)
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel", "tree", "bush", "hedge")
 OBJECT_CLASSES = (
@@ -363,12 +374,16 @@ TERRAIN_CUT = Section(
     array=True,
     doc="a ditch or an embankment along a polyline (raised-cosine cross-section)",
     keys={
-        "kind": Key("choice", "ditch (down) or embankment (up).", required=True, choices=("ditch", "embankment")),
+        "kind": Key(
+            "choice", "ditch (down) or embankment (up).", required=True, choices=("ditch", "embankment")
+        ),
         "path_m": Key(
             "points", "Its centre line [[x, y], ...] [m].", required=True, n=2, lo=-1.0e5, hi=1.0e5
         ),
         "width_m": Key("float", "Width at the top [m].", default=4.0, lo=0.1, hi=1000.0),
-        "depth_m": Key("float", "Depth of the ditch or height of the embankment [m].", default=1.0, lo=0.0, hi=100.0),
+        "depth_m": Key(
+            "float", "Depth of the ditch or height of the embankment [m].", default=1.0, lo=0.0, hi=100.0
+        ),
     },
 )
 
@@ -392,7 +407,11 @@ TERRAIN_ZONE = Section(
             "spanning size_m centred at the origin.",
         ),
         "size_m": Key(
-            "vec", "Extent [x, y] of the mask image [m] (default: the ground's size_m).", n=2, lo=0.1, hi=1.0e5
+            "vec",
+            "Extent [x, y] of the mask image [m] (default: the ground's size_m).",
+            n=2,
+            lo=0.1,
+            hi=1.0e5,
         ),
     },
 )
@@ -416,14 +435,20 @@ TERRAIN = Section(
             hi=500.0,
         ),
         "hill_size_m": Key("float", "Typical wavelength of the hills [m].", default=30.0, lo=1.0, hi=1.0e5),
-        "seed": Key("int", "Random seed of the hills (same seed, same hills).", default=0, lo=0, hi=2**31 - 1),
+        "seed": Key(
+            "int", "Random seed of the hills (same seed, same hills).", default=0, lo=0, hi=2**31 - 1
+        ),
         "dem_file": Key(
             "path",
             "Digital elevation model: a grey PNG (8/16 bit, scaled to dem_height_m) or a float "
             "TIFF/GeoTIFF in metres (georeference not read), north up.",
         ),
         "dem_size_m": Key(
-            "vec", "Extent [x, y] of the DEM centred at the origin [m] (default: size_m).", n=2, lo=0.1, hi=1.0e6
+            "vec",
+            "Extent [x, y] of the DEM centred at the origin [m] (default: size_m).",
+            n=2,
+            lo=0.1,
+            hi=1.0e6,
         ),
         "dem_height_m": Key(
             "vec",
@@ -740,7 +765,14 @@ SCENE = Section(
             choices=OBJECT_CLASSES,
         ),
     },
-    subsections={"ground": GROUND, "terrain": TERRAIN, "object": OBJECT, "asset": ASSET, "clutter": CLUTTER, "place": PLACE},
+    subsections={
+        "ground": GROUND,
+        "terrain": TERRAIN,
+        "object": OBJECT,
+        "asset": ASSET,
+        "clutter": CLUTTER,
+        "place": PLACE,
+    },
 )
 
 SENSOR = Section(
@@ -1209,7 +1241,11 @@ ATMOSPHERE = Section(
             hi=240.0,
         ),
         "rain_duration_h": Key(
-            "float", "How long it rained [h] (ending rain_end_h before frame 0).", default=2.0, lo=0.0, hi=240.0
+            "float",
+            "How long it rained [h] (ending rain_end_h before frame 0).",
+            default=2.0,
+            lo=0.0,
+            hi=240.0,
         ),
         "diurnal_range_k": Key(
             "float",
