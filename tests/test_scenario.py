@@ -68,7 +68,7 @@ def test_every_problem_reported_once(raw):
     assert len(found) == 4
     assert any(p.startswith("general.fps = 0") for p in found)
     assert any(p.startswith("sensor[0].resolution = [1024]: expected 2 integers") for p in found)
-    assert any("sensor[0].band = 'lwir': allowed values: EO, MWIR, LWIR" in p for p in found)
+    assert any("sensor[0].band = 'lwir': allowed values: EO, NIR, SWIR, MWIR, LWIR" in p for p in found)
     assert any(p.startswith("atmosphere.relative_humidity = 1.5") for p in found)
 
 
