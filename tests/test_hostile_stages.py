@@ -299,3 +299,34 @@ def test_a_camera_or_person_inside_an_asset_is_a_warning():
     assert [line.split(" is inside ")[0] for line in enclosed_in_scene_objects(stage, skip={"crate"})] == [
         "person p1"
     ]
+
+
+def test_a_scene_scope_blender_merged_away_comes_back():
+    """Blender's importer merges an Xform with one child into that child's object: a scene whose
+    only object is the ground came back as /World/Ground, and a crate added at the top of the
+    outliner sat under an undefined /World/Scene (seen in a real bpy 5.0.1 round trip)."""
+    from humv_usd.usd.adopt import adopt_blender_export
+    from humv_usd.usd.layers import new_layer_stage
+    from humv_usd.usd.mesh import define_mesh, label
+
+    quad = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], float)
+    original = new_layer_stage(1.0, 1, "ground only")
+    label(define_mesh(original, "/World/Scene/Ground", quad, [4], [0, 1, 2, 3]).GetPrim(), 1, "ground")
+    mesh = (
+        "int[] faceVertexCounts = [4]\n int[] faceVertexIndices = [0, 1, 2, 3]\n"
+        " point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]"
+    )
+    export = Sdf.Layer.CreateAnonymous(".usda")
+    export.ImportFromString(
+        '#usda 1.0\n(\n    defaultPrim = "root"\n)\ndef Xform "root"\n{\n'
+        '    def Xform "crate"\n    {\n        def Mesh "Cube"\n        {\n' + mesh + "\n"
+        '            custom string userProperties:blender:data_name = "Cube"\n        }\n    }\n'
+        '    def Xform "World"\n    {\n        def Xform "Ground"\n        {\n'
+        '            def Mesh "Ground"\n            {\n' + mesh + "\n            }\n        }\n    }\n}\n"
+    )
+    layer, report = adopt_blender_export(export, original, fps=1.0, temperature_k=300.0)
+    stage = Usd.Stage.Open(layer)
+    meshes = sorted(str(p.GetPath()) for p in stage.Traverse() if p.GetTypeName() == "Mesh")
+    assert meshes == ["/World/Scene/Ground", "/World/Scene/crate"]
+    assert stage.GetPrimAtPath("/World/Scene/Ground").GetAttribute("humv:label:class").Get() == "ground"
+    assert "/World/Scene/Ground" in report.restored and "/World/Scene/crate" in report.new_meshes

@@ -129,30 +129,51 @@ def _merged_name(obj: Sdf.PrimSpec, data: Sdf.PrimSpec) -> str:
     return data.name if _base_name(obj.name) == _base_name(data.name) else obj.name
 
 
-def _names(children: list, parent: Sdf.Path, original: frozenset | None) -> dict:
-    """{child spec path: its prim name under ``parent``}. Blender keeps object and data names
-    unique over the whole file, so a second person's ``Body`` comes back as ``Body_001``: a
-    suffixed name becomes its base name again when the original stage has that prim at that
-    place (and not the suffixed one) and no sibling takes it (issue 26: the second body lost
-    its labels and material kinds)."""
+def _targets(children: list, parent: Sdf.Path, original: frozenset | None) -> dict:
+    """{child spec path: its target path under ``parent``}, Blender's renames undone where the
+    ``original`` stage's prim paths tell (issue 26):
+
+    * Blender keeps object and data names unique over the whole file, so a second person's
+      ``Body`` comes back as ``Body_001``: a suffixed name becomes its base name again when the
+      original has that prim at that place (and not the suffixed one) and no sibling takes it;
+    * Blender's importer merges an Xform that has one child into that child's object, so
+      ``/World/Scene/Ground`` (a scene with no other object) comes back as ``/World/Ground``: a
+      prim the original lacks goes one level down when the original has it there under the
+      only child of ``parent`` that the export lacks."""
     names = {}
     for c in children:
         data = _data_child(c)
         names[c.path] = _merged_name(c, data) if data is not None else c.name
-    if original:
-        taken = set(names.values())
-        for c in children:
-            name = names[c.path]
-            base = _base_name(name)
-            if (
-                base != name
-                and base not in taken
-                and parent.AppendChild(name) not in original
-                and parent.AppendChild(base) in original
-            ):
-                names[c.path] = base
-                taken.add(base)
-    return names
+    targets = {k: parent.AppendChild(v) for k, v in names.items()}
+    if not original:
+        return targets
+    taken = set(names.values())
+    for c in children:
+        name = names[c.path]
+        base = _base_name(name)
+        if (
+            base != name
+            and base not in taken
+            and parent.AppendChild(name) not in original
+            and parent.AppendChild(base) in original
+        ):
+            names[c.path] = base
+            taken.add(base)
+            targets[c.path] = parent.AppendChild(base)
+    for c in children:
+        here = targets[c.path]
+        if here in original:
+            continue
+        below = [
+            p
+            for p in original
+            if p.GetParentPath().GetParentPath() == parent
+            and p.name == here.name
+            and p.GetParentPath().name not in taken
+        ]
+        if len(below) == 1:
+            targets[c.path] = below[0]
+    return targets
 
 
 def _plan(
@@ -163,9 +184,8 @@ def _plan(
     plan: list[tuple[Sdf.Path, list[Sdf.PrimSpec]]] = []
     paths: dict[Sdf.Path, Sdf.Path] = {} if root is None else {root.path: WORLD}
 
-    def visit(spec: Sdf.PrimSpec, parent: Sdf.Path, name: str) -> None:
+    def visit(spec: Sdf.PrimSpec, target: Sdf.Path) -> None:
         data = _data_child(spec)
-        target = parent.AppendChild(name)
         sources = [spec] if data is None else [spec, data]
         plan.append((target, sources))
         for s in sources:
@@ -173,24 +193,48 @@ def _plan(
         children = [
             child for s in sources for child in s.nameChildren if data is None or child.path != data.path
         ]
-        names = _names(children, target, original)
+        targets = _targets(children, target, original)
         for child in children:
-            visit(child, target, names[child.path])
+            visit(child, targets[child.path])
 
     scene_objects = [c for c in tops if c.name not in (WORLD.name, BLENDER_MATERIALS)]
-    scene_names = _names(scene_objects, SCOPES["scene"], original)
+    scene_targets = _targets(scene_objects, SCOPES["scene"], original)
     for child in tops:
         if child.name in (WORLD.name, BLENDER_MATERIALS):
             target = WORLD if child.name == WORLD.name else SCOPES["materials"]
             paths[child.path] = target
             plan.append((target, [child]))
             grands = list(child.nameChildren)
-            names = _names(grands, target, original)
+            targets = _targets(grands, target, original)
             for grand in grands:
-                visit(grand, target, names[grand.path])
+                visit(grand, targets[grand.path])
         else:  # a top-level Blender object: a scene object
-            visit(child, SCOPES["scene"], scene_names[child.path])
+            visit(child, scene_targets[child.path])
     return plan, paths
+
+
+def _define_parents(dst: Sdf.Layer, original: Usd.Stage | None) -> None:
+    """A prim the plan put under a parent the export lacks (the scene scope Blender merged
+    away, a top-level object's /World/Scene) would sit under an ``over`` and not exist: define
+    such parents, with the original's type (else Xform)."""
+    overs = []
+
+    def visit(path: Sdf.Path) -> None:
+        spec = dst.GetPrimAtPath(path) if path.IsPrimPath() else None
+        if spec is not None and spec.specifier == Sdf.SpecifierOver:
+            overs.append(spec)
+
+    dst.Traverse(Sdf.Path.absoluteRootPath, visit)
+
+    def holds_a_def(spec: Sdf.PrimSpec) -> bool:
+        return any(c.specifier == Sdf.SpecifierDef or holds_a_def(c) for c in spec.nameChildren)
+
+    for spec in overs:
+        if not holds_a_def(spec):
+            continue
+        spec.specifier = Sdf.SpecifierDef
+        prim = original.GetPrimAtPath(spec.path) if original is not None else None
+        spec.typeName = (prim.GetTypeName() if prim else "") or "Xform"
 
 
 def _map_path(path: Sdf.Path, paths: dict) -> Sdf.Path:
@@ -278,7 +322,8 @@ def _blender_root(src: Sdf.Layer) -> tuple[Sdf.PrimSpec | None, list]:
 def convert_namespace(src: Sdf.Layer, original: Usd.Stage | None = None) -> tuple[Sdf.Layer, int]:
     """Steps 1-2 of the module doc: a new layer with Blender's prims at HumV paths and HumV
     primvar names, and the number of prims. With the ``original`` stage, names Blender made
-    unique with a suffix (``Body_001``) go back to the original's (:func:`_names`)."""
+    unique with a suffix (``Body_001``) or merged into a parent go back to the original's
+    (:func:`_targets`)."""
     root, tops = _blender_root(src)
     if not tops:
         raise InputError(bad_value("BLENDER_EXPORT", src.identifier, "expected prims (a Blender USD export)"))
@@ -289,6 +334,7 @@ def convert_namespace(src: Sdf.Layer, original: Usd.Stage | None = None) -> tupl
     plan, paths = _plan(src, root, tops, known)
     for target, sources in plan:
         _copy_prim(src, dst, target, sources)
+    _define_parents(dst, original)
     _remap_targets(dst, paths)
     _rename_primvars(dst)
     dst.defaultPrim = WORLD.name
