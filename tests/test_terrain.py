@@ -3,15 +3,20 @@ forms, the scene tool's ground meshes, and the thermal tool treating zones as gr
 
 from __future__ import annotations
 
+import tomllib
+
 import numpy as np
 import OpenImageIO as oiio
 import pytest
 from numpy.testing import assert_allclose
+from pxr import Usd, UsdGeom
 
 from humv_usd.errors import InputError
 from humv_usd.geometry.terrain import TAPER_SHARE, polyline_distance, terrain_from_section
+from humv_usd.scenario import validate
 from humv_usd.scene.geometry import ground_grid, horizon_rings, terrain_grid
 from humv_usd.scene.ground import FLAT_CELLS, ground_pieces, zone_path
+from humv_usd.scene.layer import build
 from humv_usd.usd.paths import GROUND
 
 
@@ -177,3 +182,65 @@ def test_zone_edges_run_along_triangle_edges(path, expect):
     # the strip's area: width x length, plus its two round caps where it ends inside the ground
     assert area == pytest.approx(expect, rel=0.01)
     assert_allclose(points[:, 2], t.height(points[:, 0], points[:, 1]), atol=1e-5)
+
+
+def test_scene_layer_puts_objects_and_plants_on_the_terrain(tmp_path):
+    raw = tomllib.loads(
+        """
+[general]
+name = "t"
+start = 2024-06-21T13:00:00
+utc_offset_h = 2.0
+latitude_deg = 48.1
+longitude_deg = 11.6
+fps = 1.0
+duration_s = 0.0
+[scene.ground]
+material = "grass"
+size_m = [40.0, 40.0]
+horizon_m = 500.0
+[scene.terrain]
+slope_deg = [0.0, 5.0]
+hills_m = 0.5
+cell_m = 4.0
+[[scene.terrain.zone]]
+material = "asphalt"
+path_m = [[-20.0, 0.0], [20.0, 0.0]]
+width_m = 5.0
+[[scene.object]]
+id = "hut"
+material = "wood"
+center_m = [5.0, 10.0, 0.0]
+size_m = [3.0, 3.0, 2.5]
+[[scene.object]]
+id = "oak"
+kind = "tree"
+class = "vegetation"
+material = "leaf"
+center_m = [-6.0, 8.0, 0.0]
+size_m = [4.0, 4.0, 7.0]
+"""
+    )
+    scenario = validate(raw, tmp_path / "t.toml")
+    stage = Usd.Stage.Open(build(scenario))
+    t = terrain_from_section(scenario["scene"]["terrain"], (40.0, 40.0))
+
+    def world(path):
+        prim = stage.GetPrimAtPath(path)
+        pts = np.asarray(UsdGeom.Mesh(prim).GetPointsAttr().Get(), dtype=float)
+        return pts
+
+    hut = world("/World/Scene/hut")
+    base = hut[:, 2].min()
+    corners = hut[np.isclose(hut[:, 2], base)]
+    ground = t.height(corners[:, 0], corners[:, 1])
+    assert np.all(ground >= base - 1e-4) and np.min(ground - base) < 1e-4  # on its lowest corner
+    trunk = world("/World/Scene/oak/Trunk")
+    assert trunk[:, 2].min() < t.height(-6.0, 8.0) < trunk[:, 2].min() + 0.2  # rooted
+    ids = {
+        p.GetPath().name: p.GetAttribute("humv:label:instanceId").Get()
+        for p in stage.Traverse()
+        if p.HasAttribute("humv:label:instanceId")
+    }
+    assert len(set(ids.values())) == len(ids)  # the zone has its own id
+    assert stage.GetPrimAtPath("/World/Scene/GroundZone0").GetCustomDataByKey("humv:groundZone")

@@ -18,7 +18,8 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
     then scene assets (``asset:<id>``), then the top prims under /World/Scene of each
     ``[scene] layers`` file (``layer:<index>:<prim name>``, in the file's order), then the boxes
     of a generated place (``object:place_*``) and the warm clutter (``clutter:<id>``, the
-    scenario's then the place's, :mod:`humv_usd.scenario.places`), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
+    scenario's then the place's, :mod:`humv_usd.scenario.places`), then the ground's terrain
+    zones (``ground_zone:<index>``, :mod:`humv_usd.scene.ground`), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
     each one's props in the order of its ``clothing`` list). Props come last so that adding
     or dropping one never renumbers a person or a scene object."""
     ids: dict[str, int] = {}
@@ -37,6 +38,8 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
             ids[f"object:{o['id']}"] = len(ids) + 1
         for c in scene_clutter(scenario["scene"]):  # warm clutter, own then generated
             ids[f"clutter:{c['id']}"] = len(ids) + 1
+        for i, _ in enumerate((scenario["scene"].get("terrain") or {}).get("zone") or ()):
+            ids[f"ground_zone:{i}"] = len(ids) + 1  # the ground's material zones (their own meshes)
     for h in scenario["human"]:
         for name in h.get("clothing") or ():
             g = garment(name)

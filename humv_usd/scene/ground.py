@@ -13,7 +13,7 @@ Meshes:
   them as ground: material over soil, bottom held).
 
 Every piece is a plain triangle/quad mesh (refinable by the thermal tool at shadow edges), labelled with
-the ground's instance id and class ``ground``.
+class ``ground`` (the zones with their own instance ids).
 """
 
 from __future__ import annotations
@@ -102,11 +102,15 @@ def ground_pieces(scene: dict, terrain: Terrain | None = None):
     return pieces
 
 
-def author_ground(stage: Usd.Stage, scene: dict, instance_id: int) -> None:
-    """Define the ground meshes of :func:`ground_pieces` on ``stage``."""
+def author_ground(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
+    """Define the ground meshes of :func:`ground_pieces` on ``stage``, labelled ``ground``
+    with the ground's instance id, zone i with ``ground_zone:<i>``'s
+    (:func:`humv_usd.scenario.ids.instance_ids`)."""
+    zones = {zone_path(i): i for i in range(len((scene.get("terrain") or {}).get("zone") or ()))}
     for path, material, points, counts, indices in ground_pieces(scene):
         mesh = define_mesh(stage, path, points, counts, indices, material=material_path(material))
-        label(mesh.GetPrim(), instance_id, "ground")
+        iid = ids["ground"] if path == GROUND else ids.get(f"ground_zone:{zones[path]}", ids["ground"])
+        label(mesh.GetPrim(), iid, "ground")
         if path != GROUND:
             mesh.GetPrim().SetCustomDataByKey(GROUND_ZONE_KEY, True)
 

@@ -77,7 +77,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         g["fps"], scenario.frame_count, "HumV-USD scene layer: " + (scene["site"] or "ground and objects")
     )
     set_kind(UsdGeom.Xform.Define(stage, SCOPES["scene"]).GetPrim(), "group")
-    author_ground(stage, scene, ids["ground"])  # terrain, zones, out to the horizon
+    author_ground(stage, scene, ids)  # terrain, zones, out to the horizon
     terrain = scene_terrain(scene)
     for o in scene_objects(scene):  # the scenario's, then a generated place's
         if o["kind"] in PLANT_KINDS:  # trees, bushes, hedges (issue 30.2)
