@@ -97,7 +97,8 @@ def _render(stage: str, out: str, backend: str, frames: str | None, sensor: str 
             "frames": [f["frame"] for f in frames_],
             "first_frame_s": {k: v[0] for k, v in per.items() if v},
             "median_frame_s": {k: statistics.median(v) for k, v in rest.items() if v},
-            "spp": [f.get("quality", {}).get("spp") for f in frames_],
+            "batches": [f.get("quality", {}).get("batches") for f in frames_],
+            "quality_met": [f.get("quality", {}).get("met") for f in frames_],
             "exr": [f["exr"] for f in frames_],
         }
     return summary
@@ -230,7 +231,7 @@ def _print_summary(s: dict) -> None:
         parts = ", ".join(f"{k} {med[k]:.3f}" for k in STAGES if k in med)
         fps = 1.0 / med["render"] if med.get("render") else float("nan")
         print(
-            f"  {name}: {n} frames, spp {v['spp']}; median s/frame: {parts} (render only: {fps:.2f} frames/s)"
+            f"  {name}: {n} frames, sample batches {v['batches']}, quality met {v['quality_met']}; median s/frame: {parts} (render only: {fps:.2f} frames/s)"
         )
         print(
             f"  {name}: first frame (compiles kernels): "
