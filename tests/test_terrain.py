@@ -17,6 +17,7 @@ from humv_usd.scenario import validate
 from humv_usd.scene.geometry import ground_grid, horizon_rings, terrain_grid
 from humv_usd.scene.ground import FLAT_CELLS, ground_pieces, zone_path
 from humv_usd.scene.layer import build
+from humv_usd.thermal.surfaces import _refinable
 from humv_usd.usd.paths import GROUND
 
 
@@ -244,3 +245,12 @@ size_m = [4.0, 4.0, 7.0]
     }
     assert len(set(ids.values())) == len(ids)  # the zone has its own id
     assert stage.GetPrimAtPath("/World/Scene/GroundZone0").GetCustomDataByKey("humv:groundZone")
+    # the thermal tool refines the ground and boxes, not a plant's faces
+    for path, refinable in (
+        ("/World/Scene/oak/Trunk", False),
+        ("/World/Scene/oak/Crown", False),
+        ("/World/Scene/hut", True),
+    ):
+        prim = stage.GetPrimAtPath(path)
+        counts = np.asarray(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get())
+        assert _refinable(prim, counts) is refinable

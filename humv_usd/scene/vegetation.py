@@ -13,7 +13,8 @@ big-leaf surface whose faces the thermal tool solves with leaf convection and tr
 * bush: crown radii (size / 2) centred at half its height, sunk 5 % into the ground;
 * hedge: superellipsoid of the object's size (length along the object's x before rotation).
 
-All faces are triangles, counter-clockwise seen from outside (outward normals).
+All faces are triangles, counter-clockwise seen from outside (outward normals); customData
+``humv:refine`` = False keeps the thermal tool from re-tessellating them.
 """
 
 from __future__ import annotations
@@ -145,7 +146,7 @@ def author_plant(stage: Usd.Stage, o: dict, base_z: float, instance_id: int) -> 
     x, y, z = o["center_m"]
     for name, (points, tris) in plant_parts(o["kind"], o["size_m"], plant_seed(o["id"])).items():
         material = TRUNK_MATERIAL if name == "Trunk" else o["material"]
-        define_mesh(
+        mesh = define_mesh(
             stage,
             root.GetPath().AppendChild(name),
             placed(points, (x, y, z + base_z), o["heading_deg"]),
@@ -153,4 +154,7 @@ def author_plant(stage: Usd.Stage, o: dict, base_z: float, instance_id: int) -> 
             tris.ravel(),
             material=material_path(material),
         )
+        # the thermal tool keeps a plant's faces as they are: a trunk in the moving shade of its
+        # crown would otherwise split into 10^4 faces (a crown's faces are leaves, not a slab)
+        mesh.GetPrim().SetCustomDataByKey("humv:refine", False)
     return root.GetPrim()

@@ -236,6 +236,8 @@ def _refinable(prim: Usd.Prim, counts: np.ndarray) -> bool:
     per-vertex values would not follow the new faces)."""
     if prim.IsInstanceProxy() or len(counts) == 0 or not np.all((counts == 3) | (counts == 4)):
         return False
+    if prim.GetCustomDataByKey("humv:refine") is False:  # e.g. plants (humv_usd.scene.vegetation)
+        return False
     if UsdGeom.Subset.GetAllGeomSubsets(UsdGeom.Imageable(prim)):
         return False
     return not UsdGeom.PrimvarsAPI(prim).GetPrimvarsWithValues()
