@@ -12,6 +12,7 @@ import pytest
 from pxr import Usd, UsdGeom
 
 from humv_usd.cli.main import parse_resolution
+from humv_usd.editor.plan import plan_svg, sensor_look_point, sensor_position
 from humv_usd.errors import InputError
 from humv_usd.geometry import rig
 from humv_usd.geometry.camera import Camera, CameraPose
@@ -267,3 +268,43 @@ def test_render_resolution_keeps_the_field_of_view(raw):
     assert parse_resolution("160x128") == (160, 128)
     with pytest.raises(InputError, match="WIDTHxHEIGHT"):
         parse_resolution("160")
+
+
+def test_the_editor_plan_draws_moving_and_tracking_cameras(raw):
+    """editor.plan: a drone on a path, a car looking ahead and a tracker without look_at_m are
+    drawn from their first pose toward what they look at."""
+    hid = raw["human"][0]["id"]
+    base = {k: v for k, v in raw["sensor"][0].items() if k not in ("position_m", "look_at_m")}
+    raw["sensor"] = [
+        {
+            **base,
+            "id": "drone",
+            "platform": "drone",
+            "path_m": [[0, -40, 60], [30, -40, 60]],
+            "target": "human",
+            "target_human": hid,
+        },
+        {
+            **base,
+            "id": "car",
+            "platform": "vehicle",
+            "path_m": [[-4, -30, 1.6], [-4, 30, 1.6]],
+            "target": "forward",
+        },
+        {
+            **base,
+            "id": "mast",
+            "platform": "mast",
+            "position_m": [6, -12, 4],
+            "target": "human",
+            "target_human": hid,
+        },
+    ]
+    scenario = validate(raw)
+    svg = plan_svg(scenario)
+    assert all(f'data-id="{i}"' in svg for i in ("drone", "car", "mast"))
+    drone, car, _ = scenario["sensor"]
+    np.testing.assert_allclose(sensor_position(drone), [0, -40, 60])
+    np.testing.assert_allclose(sensor_look_point(car, []), [-4, -20, 1.6])  # 10 m ahead
+    place = scenario["placement"][0]
+    np.testing.assert_allclose(sensor_look_point(drone, scenario["placement"]), place["position_m"])
