@@ -63,6 +63,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
+from humv_usd.catalog.dyes import garment_material
 from humv_usd.catalog.garments import garment
 from humv_usd.clothing.collide import Simulation, dress, simulate
 from humv_usd.clothing.fit import prepare
@@ -148,13 +149,20 @@ def build_for_human(
     sim = simulate(outfit, skinning_matrices(skeleton, world), fps=fps)
     if simulation_out is not None:
         simulation_out.append(sim)
-    return author(human["id"], sim, fps, frame_count, prop_ids)
+    return author(human["id"], sim, fps, frame_count, prop_ids, human.get("clothing_colors"))
 
 
 def author(
-    human_id: str, sim: Simulation, fps: float, frame_count: int, prop_ids: dict[str, int] | None = None
+    human_id: str,
+    sim: Simulation,
+    fps: float,
+    frame_count: int,
+    prop_ids: dict[str, int] | None = None,
+    colours=None,
 ) -> Sdf.Layer:
-    """Write a :class:`Simulation` of one person's garments as a layer (see module doc)."""
+    """Write a :class:`Simulation` of one person's garments as a layer (see module doc);
+    ``colours``: ``human.clothing_colors`` (garments bound to their fabric dyed that colour,
+    :func:`humv_usd.catalog.dyes.garment_material`)."""
     names = ", ".join(a.name for a in sim.garments)
     stage = new_layer_stage(
         fps, frame_count, f"HumV-USD clothing layer for {human_id}: {names or 'no garments'}"
@@ -166,11 +174,11 @@ def author(
     if garments or not props:
         UsdGeom.Scope.Define(stage, clothing_path(human_id))
     for anim in garments:
-        _author_garment(stage, human_id, anim)
+        _author_garment(stage, human_id, anim, colours)
     if props:
         UsdGeom.Scope.Define(stage, props_path(human_id))
     for anim in props:
-        _author_prop(stage, human_id, anim, (prop_ids or {}).get(anim.name))
+        _author_prop(stage, human_id, anim, (prop_ids or {}).get(anim.name), colours)
     layer = finish(stage)
     # DefinePrim made the ancestors "def"; they belong to the avatar layer: only "over" here
     for path in (SCOPES["humans"], human_path(human_id)):
@@ -178,7 +186,7 @@ def author(
     return layer
 
 
-def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
+def _author_garment(stage: Usd.Stage, human_id: str, anim, colours=None) -> None:
     fitted = anim.fitted
     g = fitted.garment
     frames = anim.posed.shape[0]
@@ -189,7 +197,7 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
         anim.posed[0],
         fitted.face_counts,
         fitted.face_indices,
-        material=material_path(g.fabric),
+        material=material_path(garment_material(g.name, colours)),
     )
     # an open shell: seen through sleeves, collars and hems, its inside must render too
     mesh.GetDoubleSidedAttr().Set(True)
@@ -234,7 +242,7 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim) -> None:
     )
 
 
-def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None) -> None:
+def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None, colours=None) -> None:
     fitted = anim.fitted
     g = fitted.garment
     mesh = define_mesh(
@@ -243,7 +251,7 @@ def _author_prop(stage: Usd.Stage, human_id: str, anim, instance_id: int | None)
         fitted.points,
         fitted.face_counts,
         fitted.face_indices,
-        material=material_path(g.fabric),
+        material=material_path(garment_material(g.name, colours)),
     )
     prim = mesh.GetPrim()
     usdskel.bind_mesh(prim, skeleton_path(human_id), fitted.joint_indices, fitted.joint_weights)

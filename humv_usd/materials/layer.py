@@ -6,7 +6,8 @@ from pathlib import Path
 
 from pxr import Sdf, UsdGeom, UsdShade
 
-from humv_usd.catalog.garments import fabrics
+from humv_usd.catalog.dyes import garment_material
+from humv_usd.catalog.dyes import material as library_material
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.catalog.skin import skin_material_name
 from humv_usd.scenario import Scenario
@@ -21,6 +22,7 @@ READS = (
     *FRAMES,
     "human.*.clothing",
     "human.*.skin_tone",
+    "human.*.clothing_colors",
     "scene.ground.material",
     "scene.object.*.material",
     "scene.object.*.kind",
@@ -44,7 +46,9 @@ def used_materials(scenario: Scenario) -> list[str]:
     names = set()
     if scenario["human"]:
         names.update(skin_material_name(h.get("skin_tone")) for h in scenario["human"])
-        names.update(fabrics(g for h in scenario["human"] for g in h["clothing"]))
+        names.update(
+            garment_material(g, h.get("clothing_colors")) for h in scenario["human"] for g in h["clothing"]
+        )
     scene = scenario["scene"]
     if scene:
         names.update(ground_materials(scenario))
@@ -79,7 +83,7 @@ def author_material(stage, name: str) -> UsdShade.Material:
     """Define /World/Materials/<name> from the library: HumvMaterialAPI spectra (the material's
     own wavelength grid; transmittance only for materials one can see through) and thermal data,
     plus a UsdPreviewSurface for DCC viewports."""
-    return write_material(stage, material_path(name), LIBRARY[name])
+    return write_material(stage, material_path(name), library_material(name))
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:

@@ -72,6 +72,11 @@ MOTION_BLUR_MODES = ("none", "camera")  # = humv_usd.physics.sensor.MOTION_BLUR_
 #: Sub-bands per infrared band of the render (humv_usd.render.radiometry re-exports both; the
 #: default is chosen there with ``humv-usd bench render``).
 DEFAULT_SUBBANDS, MAX_SUBBANDS = 16, 64
+#: garment colours (= humv_usd.catalog.dyes.COLOURS)
+GARMENT_COLOURS = (
+    "white", "black", "grey", "red", "orange", "yellow", "green", "olive", "khaki", "brown", "blue",
+    "navy", "pink", "purple",
+)  # fmt: skip
 #: Fitzpatrick skin types (= humv_usd.physics.skin_optics.FITZPATRICK_MELANIN)
 SKIN_TONES = ("I", "II", "III", "IV", "V", "VI")
 ACTIVITIES = (
@@ -245,6 +250,15 @@ HUMAN = Section(
             "and water (humv_usd.catalog.skin); unset: the measured light-skin spectrum (type II). "
             "Infrared emissivity is the same for every tone.",
             choices=SKIN_TONES,
+        ),
+        "clothing_colors": Key(
+            "map",
+            "Garment colours: {pattern = colour}, glob patterns (fnmatch) matched against the "
+            "garment names of clothing, the first match wins (e.g. {\"tshirt*\" = \"red\", "
+            "\"jeans\" = \"black\"}): the fabric dyed that colour in the visible, unchanged in the "
+            "infrared (humv_usd.catalog.dyes).",
+            default=[],
+            choices=GARMENT_COLOURS,
         ),
         "fitness": Key("choice", "Fitness class.", default="average", choices=FITNESS),
         "activity": Key("choice", "Activity.", default="stand", choices=ACTIVITIES),
