@@ -38,7 +38,7 @@ from humv_usd.usd.sensor import CHAIN_ATTRIBUTES, write_sensor
 NAME = "sensors"
 READS = (*FRAMES, "sensor")
 UPSTREAM = ("avatar_*",)  # a camera tracking a person reads the person's keypoints (upstream_for)
-VERSION = "5"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres, render_resolution
+VERSION = "5"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres
 
 
 def upstream_for(scenario: Scenario) -> tuple[str, ...]:
