@@ -14,13 +14,14 @@ import time
 import numpy as np
 
 from humv_usd import images as writers
-from humv_usd.geometry.camera import CAMERA_FILE, Camera
+from humv_usd.geometry.camera import Camera
 from humv_usd.physics import planck
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline.manifest import ErrorAccumulator
 from humv_usd.render import bands, nightlight, radiometry
 from humv_usd.render import estimator as E
 from humv_usd.render import quality as Q
+from humv_usd.render.frame import exr_metadata
 from humv_usd.render.frame import path_table as read_path_table
 from humv_usd.render.light import FrameLight
 from humv_usd.render.renderer import band_renderer
@@ -257,18 +258,17 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         writers.write_exr,
         os.path.join(plan.out_dir, rel + ".exr"),
         channels,
-        metadata={
-            "humv:sensor": s.path,
-            "humv:frame": str(frame),
-            "humv:band_um": f"{band[0]:g}-{band[1]:g}",
-            "humv:spp": str(plan.spp * pooled.count),  # automatic quality: the samples spent
-            "humv:quality_met": str(judged["met"]),
-            "humv:subbands": str(len(sub)),
-            "humv:preview": f"R=G=B: {'radiance' if s.is_reflective else 'brightness temperature'} "
+        metadata=exr_metadata(
+            s,
+            frame,
+            plan.spp * pooled.count,  # automatic quality: the samples spent
+            camera,
+            band_um=f"{band[0]:g}-{band[1]:g}",
+            quality_met=judged["met"],
+            subbands=len(sub),
+            preview=f"R=G=B: {'radiance' if s.is_reflective else 'brightness temperature'} "
             "stretched as the PNG (0 at the 1st, 1 at the 99th percentile); display only",
-            "humv:camera": os.path.join(s.name, CAMERA_FILE),
-            **camera.exr_header(),
-        },
+        ),
         half=("R", "G", "B"),
     )
     plan.truth.image_written(rel, channels)

@@ -67,7 +67,7 @@ from humv_usd.render import eo_fast, lights, nightlight, radiometry
 from humv_usd.render import estimator as E
 from humv_usd.render import quality as Q
 from humv_usd.render.cie import XYZ_TO_SRGB
-from humv_usd.render.frame import path_table
+from humv_usd.render.frame import exr_metadata, path_table
 from humv_usd.render.ir import IRScene, SensorSetup, monte_carlo_stderr
 from humv_usd.render.light import FrameLight, read_frame_light
 from humv_usd.render.radiometry import hemisphere_mean
@@ -609,15 +609,14 @@ class EORender:
                 writers.write_exr,
                 os.path.join(self.out_dir, rel + ".exr"),
                 channels,
-                metadata={
-                    "humv:sensor": s.path,
-                    "humv:frame": str(frame),
-                    "humv:spp": str(noise["spp_used"]),
-                    "humv:estimator": self.estimator,
-                    "humv:colour": "CIE 1931 XYZ (CIE.X, CIE.Y, CIE.Z) and linear sRGB (D65) (R, G, B)",
-                    "humv:camera": os.path.join(s.name, CAMERA_FILE),
-                    **camera.exr_header(),
-                },
+                metadata=exr_metadata(
+                    s,
+                    frame,
+                    noise["spp_used"],
+                    camera,
+                    estimator=self.estimator,
+                    colour="CIE 1931 XYZ (CIE.X, CIE.Y, CIE.Z) and linear sRGB (D65) (R, G, B)",
+                ),
             )
             if self.truth is not None:
                 self.truth.image_written(rel, channels)

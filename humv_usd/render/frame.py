@@ -5,18 +5,20 @@ a frame:
 
 - :func:`stage_frames`: the integer frames of the stage's time range;
 - :func:`path_table`: a sensor's slant-path table at a frame
-  (:func:`humv_usd.usd.atmosphere.path_table`) as a :class:`humv_usd.render.radiometry.PathTable`.
+  (:func:`humv_usd.usd.atmosphere.path_table`) as a :class:`humv_usd.render.radiometry.PathTable`;
+- :func:`exr_metadata`: the EXR header of a sensor's frame, for every pass.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import Usd
 
-from humv_usd.geometry.camera import CameraPose
+from humv_usd.geometry.camera import CAMERA_FILE, Camera, CameraPose
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.render.radiometry import PathTable
 from humv_usd.render.scene_export import MeshInfo
@@ -57,3 +59,18 @@ def path_table(stage: Usd.Stage, sensor: SensorModel, time) -> PathTable | None:
     if t is None:
         return None
     return PathTable(t.prim, t.ranges_m, t.wavelengths_um, t.transmittance, t.radiance)
+
+
+def exr_metadata(sensor: SensorModel, frame: int, spp: int, camera: Camera, **extra) -> dict[str, str]:
+    """The EXR header of one sensor's frame, the same for every pass: ``humv:sensor`` (prim
+    path), ``humv:frame``, ``humv:spp`` (the samples per pixel spent), ``humv:<key>`` for each
+    of ``extra`` (as text), ``humv:camera`` (the sensor's camera file) and the camera's
+    intrinsics and pose (:meth:`humv_usd.geometry.camera.Camera.exr_header`)."""
+    return {
+        "humv:sensor": sensor.path,
+        "humv:frame": str(frame),
+        "humv:spp": str(spp),
+        **{f"humv:{key}": str(value) for key, value in extra.items()},
+        "humv:camera": os.path.join(sensor.name, CAMERA_FILE),
+        **camera.exr_header(),
+    }
