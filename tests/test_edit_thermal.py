@@ -9,8 +9,10 @@ translated by the same vector, and an equal cube casts an equal shadow."""
 from __future__ import annotations
 
 import logging
+import os
 import shutil
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -229,3 +231,113 @@ def test_adopt_refuses_a_scenario_the_original_was_not_composed_from(composed):
     with pytest.raises(InputError, match=r"^--scenario = .*not the scenario --from was composed from"):
         adopt(tmp / "export2.usda", tmp / "wrong", tmp / "orig" / "stage.usda", scenario=other)
     assert not (tmp / "wrong" / "stage.usda").exists()
+
+
+BLENDER_EDIT = """
+import sys, bpy
+stage, edited = sys.argv[1:3]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.wm.usd_import(filepath=stage)
+bpy.data.objects["p1"].location.x += 1.0
+bpy.ops.mesh.primitive_cube_add(size=1.0, location=(-4.0, 0.0, 0.5))
+cube = bpy.context.active_object
+cube.name = "crate"
+cube.data.materials.append(bpy.data.materials.new("wood"))
+cube["humv_class"] = "prop"
+cube["humv_temperature_k"] = 300.0
+bpy.ops.wm.usd_export(filepath=edited, export_animation=True)
+"""
+
+
+def _patches(stage_path, cuts=(-3.0, 0.8)) -> dict:
+    """{crate, p1, p2: (area [m2], centroid x, y) of the ground's faces more than 2 K below the
+    lit ground's median, split at x = cuts}."""
+    stage = Usd.Stage.Open(str(stage_path))
+    g = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Scene/Ground"))
+    p = np.asarray(g.GetPointsAttr().Get(0), float)
+    counts = np.asarray(g.GetFaceVertexCountsAttr().Get(0))
+    idx = np.asarray(g.GetFaceVertexIndicesAttr().Get(0))
+    t = np.asarray(g.GetPrim().GetAttribute("primvars:humv:thermal:temperature").Get(0), float)
+    polys = [p[idx[s : s + n]] for s, n in zip(np.r_[0, np.cumsum(counts)[:-1]], counts)]
+    centroid = np.array([q.mean(0) for q in polys])
+    area = np.array(
+        [
+            0.5 * abs(np.dot(q[:, 0], np.roll(q[:, 1], -1)) - np.dot(q[:, 1], np.roll(q[:, 0], -1)))
+            for q in polys
+        ]
+    )
+    cool = t < np.median(t) - 2.0
+    x = centroid[:, 0]
+    out = {}
+    for name, side in (("crate", x < cuts[0]), ("p1", (x >= cuts[0]) & (x < cuts[1])), ("p2", x >= cuts[1])):
+        sel = cool & side
+        out[name] = (
+            (float(area[sel].sum()), *np.average(centroid[sel, :2], axis=0, weights=area[sel]))
+            if sel.any()
+            else None
+        )
+    return out
+
+
+@pytest.mark.extended
+def test_a_real_blender_edit_of_two_people_adopted_with_the_scenario(tmp_path):
+    """The issue's edit in bpy 5.0.1 (examples/walk.toml's site with two people standing 30 min,
+    a slab ground, p1 moved 1 m east, a 1 m crate added): adopted with --scenario, p1's cool
+    patch moves 1 m, p2's stays, the crate casts one; Blender's renames (Body.001, the merged
+    scene scope) come back."""
+    import copy
+    import subprocess
+    import sys
+
+    pytest.importorskip("bpy")
+    import tomlkit
+
+    root = Path(__file__).resolve().parents[1]
+    raw = tomllib.loads((root / "examples" / "walk.toml").read_text())
+    raw["general"].update(duration_s=0.0, start=raw["general"]["start"].replace(hour=12, minute=30))
+    raw["thermal"] = {"model": "fixed", "surface_spin_up_s": 3600.0}
+    raw["atmosphere"] = {"model": "analytic"}
+    raw["scene"]["ground"].pop("temperature_k")
+    raw["scene"]["ground"]["size_m"] = [12.0, 12.0]
+    raw["scene"]["object"] = []
+    raw["sensor"][0]["resolution"] = [64, 48]
+    p2 = copy.deepcopy(raw["human"][0])
+    p2.update(id="p2", sex="female")
+    raw["human"].append(p2)
+    raw["placement"][0].update(position_m=[-1.5, 0.0, 0.0], standing_before_s=1800.0)
+    raw["placement"].append(
+        {"human": "p2", "position_m": [2.0, 1.0, 0.0], "heading_deg": 270.0, "standing_before_s": 1800.0}
+    )
+    (tmp_path / "two.toml").write_text(tomlkit.dumps(raw))
+    scenario = validate(raw, tmp_path / "two.toml")
+    compose(scenario, tmp_path / "out")
+    env = dict(os.environ, BLENDER_USER_CONFIG=str(tmp_path / "bu"))
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            BLENDER_EDIT,
+            str(tmp_path / "out" / "stage.usda"),
+            str(tmp_path / "edited.usda"),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    stage, report = adopt(
+        tmp_path / "edited.usda", tmp_path / "adopted", tmp_path / "out" / "stage.usda", scenario=scenario
+    )
+    before, after = _patches(tmp_path / "out" / "stage.usda"), _patches(stage)
+    print("before", before, "after", after)
+    assert before["crate"] is None and after["crate"] is not None and after["crate"][0] > 1.0
+    assert after["p1"][1] - before["p1"][1] == pytest.approx(1.0, abs=0.1)
+    assert after["p1"][2] == pytest.approx(before["p1"][2], abs=0.1)
+    assert after["p2"][1:] == pytest.approx(before["p2"][1:], abs=0.02)
+    assert after["p1"][0] == pytest.approx(before["p1"][0], rel=0.15)
+    adopted = Usd.Stage.Open(str(stage))
+    assert adopted.GetPrimAtPath("/World/Humans/p2/Body") and not adopted.GetPrimAtPath(
+        "/World/Humans/p2/Body_001"
+    )
+    assert adopted.GetPrimAtPath("/World/Scene/Ground") and "/World/Scene/crate" in report.new_meshes
