@@ -9,7 +9,8 @@ dress, sometimes an outer layer, a hat and accessories), fits and layers the out
 clothing tool) and renders all of them side by side with Mitsuba (orthographic, front view):
 
 * EO: each mesh a diffuse surface of its library material's display colour (reflectance at
-  0.65 / 0.55 / 0.45 µm) under a sun and a uniform sky;
+  0.65 / 0.55 / 0.45 µm; half of the tops, bottoms and bags dyed a random colour,
+  :mod:`humv_usd.catalog.dyes`) under a sun and a uniform sky;
 * LWIR (illustration, not the thermal tool): each mesh emits eps(10 µm) B(10 µm, T) with skin at
   306 K, each garment at the temperature of a series resistance model (skin -> fabrics and air
   gaps under it -> 0.11 m2 K/W to the 293 K air), props at the air temperature.
@@ -27,6 +28,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from humv_usd.catalog.dyes import COLOURS, garment_material  # noqa: E402
+from humv_usd.catalog.dyes import material as library_material  # noqa: E402
 from humv_usd.catalog.materials import LIBRARY  # noqa: E402
 from humv_usd.catalog.skin import skin_material_name  # noqa: E402
 from humv_usd.clothing.collide import dress, simulate  # noqa: E402
@@ -46,6 +49,7 @@ AIR_K = 0.026  # W m-1 K-1, still air in the gaps (capped at 8 mm of still air p
 
 
 def outfit(rng, person) -> list[str]:
+    """A random outfit for ``person`` (sets ``person["clothing_colors"]`` too)."""
     wear = list(person["clothing"])  # hair from the sampler
     if person["sex"] == "female" and rng.random() < 0.2:
         wear.append("dress")
@@ -63,6 +67,13 @@ def outfit(rng, person) -> list[str]:
     for name, p in EXTRAS.items():
         if rng.random() < p:
             wear.append(name)
+    # half of the tops, bottoms, dresses and bags in another colour (human.clothing_colors)
+    names = list(COLOURS)
+    person["clothing_colors"] = {
+        g: names[int(rng.integers(len(names)))]
+        for g in wear
+        if g in (*TOPS, *BOTTOMS, "dress", "backpack", "bag", "beanie") and rng.random() < 0.5
+    }
     return wear
 
 
@@ -102,7 +113,7 @@ def people_meshes(people, rng):
         done = []
         for anim in sim.garments:
             g = anim.fitted.garment
-            m = LIBRARY[g.fabric]
+            m = library_material(garment_material(g.name, person["clothing_colors"]))
             t = garment_temperature(g, [d for d in done if not d.is_prop])
             eps = float(m.at(10.0, "emissivity"))
             meshes.append(
@@ -131,7 +142,10 @@ def render(all_meshes, people, kind: str, path: Path, columns: int = 10, px_per_
     cell_w, cell_h = 1.15, 2.05
     rows = (len(all_meshes) + columns - 1) // columns
     width, height = columns * cell_w, rows * cell_h
-    scene = {"type": "scene", "integrator": {"type": "direct"} if kind == "eo" else {"type": "path", "max_depth": 1}}
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "direct"} if kind == "eo" else {"type": "path", "max_depth": 1},
+    }
     for k, meshes in enumerate(all_meshes):
         dx = (k % columns + 0.5) * cell_w - width / 2
         dz = (rows - 1 - k // columns) * cell_h
