@@ -93,7 +93,7 @@ def _infrared(stage: Usd.Stage) -> bool:
     """Whether the stage has a sensor the render draws from emission (it then needs a
     temperature on every mesh); False when the sensors do not read (rule_sensors says why)."""
     try:
-        return any(s.rendered and s.kind != "EO" for s in stage_sensors(stage))
+        return any(s.rendered and s.kind != "EO" and not s.is_reflective for s in stage_sensors(stage))
     except InputError:
         return False
 
@@ -339,7 +339,8 @@ def enclosed_in_scene_objects(stage: Usd.Stage, skip=()) -> list[str]:
     scene = stage.GetPrimAtPath(SCOPES["scene"])
     if not points or not scene:
         return []
-    origins = np.repeat(np.array(list(points.values()), float), len(_AXES), axis=0)
+    centres = np.array(list(points.values()), float)
+    origins = np.repeat(centres, len(_AXES), axis=0)
     directions = np.tile(_AXES, (len(points), 1))
     out = []
     for obj in scene.GetChildren():
@@ -361,12 +362,16 @@ def enclosed_in_scene_objects(stage: Usd.Stage, skip=()) -> list[str]:
             n += len(p)
         if not pts:
             continue
-        caster = ray_caster(np.concatenate(pts), np.concatenate(tris))
+        world = np.concatenate(pts)
+        near = np.all((centres >= world.min(axis=0)) & (centres <= world.max(axis=0)), axis=1)
+        if not near.any():  # outside its bounding box (most objects): no rays
+            continue
+        caster = ray_caster(world, np.concatenate(tris))
         hit = (first_faces(caster, origins, directions) >= 0).reshape(len(points), len(_AXES)).all(axis=1)
         out += [
             f"{what} is inside scene object {obj.GetName()!r} (its meshes surround it): the render "
             "shows the object's inside; move it out, or ignore this for an indoor view"
-            for what, inside in zip(points, hit)
+            for what, inside in zip(points, hit & near)
             if inside
         ]
     return out
