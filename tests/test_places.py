@@ -250,3 +250,15 @@ def test_clutter_stands_on_the_terrain():
     assert abs(float(terrain.height(1.0, 2.0))) > 0.05 and z == pytest.approx(
         float(terrain.height(1.0, 2.0)), abs=1e-5
     )
+
+
+@pytest.mark.extended
+@pytest.mark.parametrize("path", PLACES, ids=[p.stem for p in PLACES])
+def test_place_examples_compose_to_clean_stages(path, tmp_path):
+    """End to end (1.5-12 min each on 2 busy cores: the thermal tool refines and solves every
+    generated surface): compose, then ``humv-usd check`` finds nothing."""
+    from humv_usd.pipeline.compose import compose
+    from humv_usd.usd.check import check_stage
+
+    compose(validate(tomllib.loads(path.read_text()), path), tmp_path / "o")
+    assert check_stage(tmp_path / "o" / "stage.usda") == []
