@@ -1,9 +1,10 @@
 """Sensor chain: optics PSF, detector noise, quantization to counts, gain/offset and AGC.
 
-Pure numpy (scipy for the FFT convolution and the Bessel function); no USD except in
-:func:`humv_usd.usd.sensor.read_sensor_model`. The render calls it once per sensor and frame::
+Pure numpy (scipy for the FFT convolution and the Bessel function); no USD (the model comes
+from :func:`humv_usd.usd.sensor.read_sensor`, the render's one checked read of the sensor prim,
+carried to the chain by :class:`humv_usd.pipeline.chains.SensorChains`). Per sensor and frame::
 
-    model = read_sensor_model(camera_prim)          # once per sensor
+    model = read_sensor(camera_prim)                # once per sensor and render
     out = apply_chain(radiance, model, rng)             # per frame
     out.counts   # uint16 raw counts (bit_depth bits): the 14/16-bit output
     out.image8   # uint8 after AGC: the 8-bit output
