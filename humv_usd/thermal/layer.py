@@ -71,8 +71,9 @@ READS = (
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*", "sensors")
 #: 4: faces in material GeomSubsets are slabs of their material; 5: scene surfaces see their
 #: surroundings (sky view, exchange), shadow edges to the cameras' pixel footprint
-#: 6: evapotranspiration of vegetation and soil, rain on the surfaces and their drying (issue 30)
-VERSION = "6"
+#: 6: evapotranspiration of vegetation and soil, rain on the surfaces and their drying (issue 30);
+#: 7: terrain zones as ground, leaves' convection, plants not refined, ground sky view vs objects only
+VERSION = "7"
 
 
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
