@@ -218,3 +218,53 @@ def test_clouds_dim_the_night_and_hide_the_moon(tmp_path):
     clear_global = math.pi * luminance(wl, clear.sky) + e_h
     assert math.pi * luminance(wl, overcast.sky) == pytest.approx(0.25 * clear_global, rel=0.01)
     assert night_light(stage, 0.0, down, wl).ran["clouds"].startswith("clear")  # no weather on the stage
+
+
+def test_amsterdam_dusk_scenario_is_not_red(tmp_path):
+    """The reported case end to end: an EO camera at Amsterdam on 2026-11-10 at 17:30 CET (sun
+    -5.6 deg, clear) wrote a saturated pure-red frame (mean RGB 250, 0, 0: the thermal sky's
+    1e-24 red tail under an unbounded auto exposure). Now the twilight sky lights the scene:
+    the camera's frame is dim (far from saturated), bluish like the twilight sky, and says so."""
+    from PIL import Image
+
+    from humv_usd.pipeline.compose import compose
+    from humv_usd.scenario import validate
+
+    raw = {
+        "general": {
+            "name": "dusk",
+            "start": dt.datetime(2026, 11, 10, 17, 30),
+            "utc_offset_h": 1.0,
+            "latitude_deg": 52.37,
+            "longitude_deg": 4.90,
+            "fps": 1.0,
+        },
+        "scene": {
+            "ground": {"material": "concrete", "size_m": [40.0, 40.0]},
+            "object": [
+                {
+                    "id": "wall",
+                    "material": "painted_metal",
+                    "center_m": [0.0, 6.0, 0.0],
+                    "size_m": [8.0, 0.5, 4.0],
+                }
+            ],
+        },
+        "sensor": [
+            {
+                "id": "eo",
+                "preset": "rgb_imx273",
+                "position_m": [0.0, -8.0, 1.6],
+                "look_at_m": [0.0, 6.0, 1.0],
+                "resolution": [32, 24],
+                "focal_length_mm": 0.5,
+            }
+        ],
+    }
+    compose(validate(raw), tmp_path / "c")
+    manifest = render_stage(tmp_path / "c" / "stage.usda", tmp_path / "r", spp=2)
+    frame = manifest["eo_sensors"][0]["frames"][0]
+    assert "sun at -5.6" in frame["illumination"]["night"]["twilight"]
+    img = np.asarray(Image.open(tmp_path / "r" / "eo" / "0000_image8.png"), float).reshape(-1, 3).mean(axis=0)
+    assert img.max() < 250 and img[2] > img[0] and img[1] > 0.5 * img[0]  # not red: the twilight sky's blue
+    assert frame["sensor_chain"]["settings"]["saturated_fraction"] == 0.0
