@@ -157,3 +157,28 @@ def test_fabrics_show_their_swir_absorption_bands():
         np.testing.assert_allclose(np.asarray(m.reflectance), np.asarray(m.at(WAVELENGTHS_UM)), atol=1e-6)
         np.testing.assert_allclose(np.add(m.spectrum_reflectance, m.spectrum_emissivity), 1.0, atol=1e-6)
         assert sum(1.0 < w < 2.5 for w in m.spectrum_wavelengths) >= 7
+
+
+def test_reflective_display_keeps_a_dark_frame_dark():
+    """A SWIR frame of a few hundred photoelectrons (170 ke- well) is shown dark: the display
+    gain is capped at 24 dB as the EO display's, not stretched to full range."""
+    p = catalog.preset("swir_ingaas640")
+    m = chain.SensorModel(
+        name="s",
+        band="SWIR",
+        wavelength_range_um=p.wavelength_um,
+        response_wavelengths_um=np.asarray(p.response_wavelengths_um),
+        response=np.asarray(p.response),
+        resolution=(64, 48),
+        pixel_pitch_m=15e-6,
+        f_number=1.4,
+        focal_length_m=0.025,
+        bit_depth=14,
+        agc="linear",
+        full_well_e=p.full_well_e,
+        read_noise_e=p.read_noise_e,
+    )
+    per_unit = chain.photoelectrons_per_input(m, chain.EO_MAX_EXPOSURE_S)
+    out = chain.apply_chain(np.full((48, 64), 600.0 / per_unit), m, np.random.default_rng(0), psf=False)
+    # 600 e- of 170 ke- x 16 = 5.6 % of the display range
+    assert out.image8.mean() == pytest.approx(255 * 600 / 170000 * chain.EO_MAX_DISPLAY_GAIN, rel=0.05)

@@ -1512,7 +1512,9 @@ def apply_chain(
     )
 
     # 4. AGC -> 8 bit
-    if model.is_infrared:
+    if model.is_reflective and model.agc in ("none", "linear"):
+        image8, info = _reflective_display(counts, model, offset)
+    elif model.is_infrared:
         image8, info = agc(
             counts,
             model.agc,
@@ -1652,6 +1654,20 @@ def _fixed_pattern_stage(model: SensorModel, x, time_s):
         "time_since_ffc_s": t_ffc,
         "seed": int(model.fpn_seed),
     }
+
+
+def _reflective_display(counts, model: SensorModel, black: float):
+    """NIR/SWIR 8-bit image: black at the offset, white at the AGC's high percentile of the
+    counts above it (full scale for "none"), at most :data:`EO_MAX_DISPLAY_GAIN` of display gain
+    (as the EO display), linear grey: a frame of read noise stays dark."""
+    lin = np.clip(counts.astype(float) - black, 0.0, None)
+    full = model.max_count - black
+    white = full
+    if model.agc == "linear":
+        top = float(np.percentile(lin, model.agc_percentiles[1])) if lin.size else 0.0
+        white = max(top, full / EO_MAX_DISPLAY_GAIN) if top > 0 else full
+    image8 = np.clip(np.rint(lin / white * 255.0), 0, 255).astype(np.uint8)
+    return image8, {"mode": model.agc, "black_count": float(black), "white_count": float(white + black)}
 
 
 def _eo_display(counts, model: SensorModel, black: float, eo_space: str):
