@@ -7,12 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import quat_x
+from pxr import Usd
 
 from humv_usd.avatar.api import avatar_scenario_dict
 from humv_usd.catalog.garments import GARMENTS, garment
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.clothing.collide import apply, blend_transforms, dress, simulate
 from humv_usd.clothing.fit import WORN_PROP_CLEARANCE, prepare
+from humv_usd.clothing.person import FIT_DATA, fit_proportions
 from humv_usd.geometry.mesh import Surface, fan_triangulate
 from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human import labels as L
@@ -22,6 +24,7 @@ from humv_usd.human.motion import make_motion
 from humv_usd.human.skeleton import forward_kinematics, skeleton_for, skinning_matrices
 from humv_usd.scenario.inputs import DERIVED_PER_PERSON
 from humv_usd.scenario.load import validate
+from humv_usd.usd.paths import human_path
 
 NEW = (
     "hair_long", "hair_tied", "beard", "dress", "skirt", "hoodie", "gloves", "scarf", "beanie",
@@ -116,3 +119,14 @@ def test_the_shotgun_is_carried_like_the_rifle_and_clears_the_body():
     raw = avatar_scenario_dict()
     raw["human"][0]["clothing"] = ["shotgun"]
     assert DERIVED_PER_PERSON["@carriesRifle"](validate(raw), "p1")
+
+
+def test_the_clothing_tool_rebuilds_the_proportions_the_avatar_used():
+    stage = Usd.Stage.CreateInMemory()
+    prim = stage.DefinePrim(human_path("p1"))
+    assert fit_proportions(stage, "p1") == 0.5  # not recorded: none
+    prim.SetCustomDataByKey(FIT_DATA, {"macros": {"proportions": 0.8, "weight": 0.4}})
+    assert fit_proportions(stage, "p1") == 0.8
+    prim.SetCustomDataByKey(FIT_DATA, {"macros": {"proportions": "x"}})
+    assert fit_proportions(stage, "p1") == 0.5
+    assert fit_proportions(stage, "nobody") == 0.5

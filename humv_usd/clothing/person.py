@@ -46,7 +46,7 @@ from humv_usd.usd.avatar import (
     read_body_mesh,
     read_skeleton_rest,
 )
-from humv_usd.usd.paths import skeleton_path
+from humv_usd.usd.paths import human_path, skeleton_path
 
 log = logging.getLogger(__name__)
 
@@ -68,10 +68,30 @@ class Person:
     body_deviation_m: float  # max distance of the stage's Body from the rebuilt body
 
 
-def rebuild_body(parameters: AvatarParameters) -> Body:
-    """The MakeHuman body of HumvAvatarAPI's parameters (as the avatar tool builds it)."""
+def rebuild_body(parameters: AvatarParameters, proportions: float = 0.5) -> Body:
+    """The MakeHuman body of HumvAvatarAPI's parameters (as the avatar tool builds it), with
+    MakeHuman's ``proportions`` macro (``human.proportions``; see :func:`fit_proportions`)."""
     p = parameters
-    return build_body(p.sex, p.age_yr, p.stature_m, p.mass_kg, p.build)
+    return build_body(p.sex, p.age_yr, p.stature_m, p.mass_kg, p.build, proportions)
+
+
+#: customData of the avatar's SkelRoot that records its MakeHuman fit (avatar tool)
+FIT_DATA = "humv:fit"
+
+
+def fit_proportions(stage: Usd.Stage, human_id: str) -> float:
+    """The proportions macro the avatar tool used: its fit record's ``macros.proportions``
+    (customData ``humv:fit`` on the person's SkelRoot), 0.5 (none) when not recorded. HumvAvatarAPI
+    has no proportions attribute; without this the body rebuilt from the parameters would differ
+    from the stage's by ~1-2 cm and the garments would go through :func:`transfer_to_body`."""
+    prim = stage.GetPrimAtPath(human_path(human_id))
+    fit = prim.GetCustomDataByKey(FIT_DATA) if prim else None
+    value = ((fit or {}).get("macros") or {}).get("proportions", 0.5)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return 0.5
+    return value if 0.0 <= value <= 1.0 else 0.5
 
 
 def transfer_to_body(template: Body, body_points: np.ndarray) -> Body:
@@ -137,7 +157,7 @@ def read_person(stage: Usd.Stage, human_id: str) -> Person:
     """The person ``human_id`` from the avatar layer on ``stage`` (see the module doc)."""
     parameters = read_avatar(stage, human_id)
     stage_mesh = read_body_mesh(stage, human_id)
-    body, deviation = body_on_stage(rebuild_body(parameters), stage_mesh)
+    body, deviation = body_on_stage(rebuild_body(parameters, fit_proportions(stage, human_id)), stage_mesh)
     rest = read_skeleton_rest(stage, human_id)
     skeleton = skeleton_on_stage(body, rest, str(skeleton_path(human_id)))
     if stage_mesh.joint_indices.shape[1] != 4 or stage_mesh.joint_indices.max() >= len(rest.joints):
