@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from pxr import Usd
 from scipy.optimize import brentq
 
@@ -113,3 +114,28 @@ def test_paving_wet_by_rain_sits_near_the_wet_bulb():
         None, [_ground("concrete")], t, 0.0, forcing=dataclasses.replace(f, rain_kg_m2_s=None), exchange=False
     )
     assert abs(float(dry[GROUND][-1, 0]) - air) < 0.5  # dry under an air-temperature sky: the air
+
+
+def test_snow_melts_at_zero_under_the_sun_and_cools_below_it_at_night():
+    f, _, _ = _summer_day()
+    t_noon, _, _ = _noon("snow")
+    assert t_noon == pytest.approx(273.15, abs=1e-9)  # the surplus melts it: held at 0 degC
+    # a clear winter night at -5 degC air: radiative cooling below the air, not held
+    n = 144
+    t = np.arange(n) * 600.0 - (n - 1) * 600.0
+    one = np.ones(n)
+    night = SF.SurfaceForcing(
+        t,
+        268.15 * one,
+        0.7 * one,
+        1.0 * one,
+        np.tile([0.0, 0.0, -1.0], (n, 1)),
+        np.zeros(n, bool),
+        0 * one,
+        0 * one,
+        0 * one,
+    )
+    out, diag = SF.surface_temperatures(None, [_ground("snow")], t, 0.0, forcing=night, exchange=False)
+    cold = float(out[GROUND][-1, 0])
+    assert cold < 268.15 - 2.0  # snow under a clear sky: several K below the air
+    assert diag["slabMaxResidual_W_m2"] < 1e-5

@@ -1048,6 +1048,8 @@ class SurfaceWater:
     #: sides, :func:`humv_usd.physics.vegetation.leaf_heat_transfer_coefficient`); None: a
     #: flat surface (Watmuff)
     leaf_dimension_m: float | None = None
+    #: the surface cannot warm above this (snow melts) [K]; None: no limit
+    melts_at_k: float | None = None
 
 
 _SUEWS = (
@@ -1129,7 +1131,8 @@ NATURE: dict[str, Material] = {
             "0.8; 8-14 µm emissivity 0.98-0.99 (Dozier & Warren 1982, Water Resour. Res. 18:1424; "
             f"{_SD92}); effective conductivity 0.09 W/(m K) at 250 kg/m3 (Sturm et al. 1997, J. "
             "Glaciol. 43:26, k = 0.138 - 1.01 rho + 3.233 rho^2, rho in g/cm3); c of ice "
-            "2.09 kJ/(kg K). Melting is not modelled: the surface is not held at 0 degC",
+            "2.09 kJ/(kg K). It melts at 0 degC (the surface is held there while the sun would "
+            "warm it; its depth is not tracked)",
             label_class="ground",
         ),
         Material(
@@ -1162,7 +1165,13 @@ SURFACE_WATER.update(
             f"(deciduous trees 0.3-0.8 mm, {_SUEWS})",
             leaf_dimension_m=0.05,
         ),
-        "snow": SurfaceWater(None, 1.0, 0.0, "snow: sublimation and melt not modelled"),
+        "snow": SurfaceWater(
+            None,
+            1.0,
+            0.0,
+            "snow: sublimation not modelled; the surface melts at 0 degC (its depth not tracked)",
+            melts_at_k=273.15,
+        ),
         "water": SurfaceWater(
             0.0, 1.0, 20.0, "free water: no surface resistance; a 2 cm puddle holds 20 kg/m2"
         ),

@@ -332,6 +332,7 @@ def step_many(
     evaporation_beta=None,
     vapour_pressure_pa=None,
     pressure_pa=101325.0,
+    melt_temperature_k=None,
 ):
     """Backward-Euler step of many slabs of one construction at once (vectorized :func:`step`).
 
@@ -362,11 +363,15 @@ def step_many(
         Vapour pressure of the air [Pa] (needed with ``evaporation_beta``).
     pressure_pa : numeric or (F,), default 101325
         Air pressure [Pa] (psychrometric constant).
+    melt_temperature_k : float, optional
+        The surface cannot rise above this (melting snow or ice: the surplus of the surface
+        balance melts it, latent heat of fusion, the store of snow not tracked); None: no limit.
 
     Returns
     -------
     tuple
-        (node temperatures (F, N + 1) [K], surface energy residual (F,) [W m^-2]).
+        (node temperatures (F, N + 1) [K], surface energy residual (F,) [W m^-2]; 0 where
+        the surface melts).
 
     Notes
     -----
@@ -436,6 +441,10 @@ def step_many(
         t0 -= d
         if np.max(np.abs(d)) < tol:
             break
+    melting = np.zeros(nf, dtype=bool)
+    if melt_temperature_k is not None:
+        melting = t0 > melt_temperature_k
+        t0 = np.minimum(t0, melt_temperature_k)
     t = np.empty((nf, n1))
     t[:, 0] = t0
     for i in range(1, n1):
@@ -446,7 +455,7 @@ def step_many(
         + g[0] * (t[:, 1] - t[:, 0])
         - c_dt[0] * (t[:, 0] - t_old[:, 0])
     )
-    return t, residual
+    return t, np.where(melting, 0.0, residual)
 
 
 def simulate_many(
@@ -469,6 +478,7 @@ def simulate_many(
     rain_kg_m2_s=0.0,
     water_capacity_kg_m2=0.0,
     return_wet_fraction=False,
+    melt_temperature_k=None,
 ):
     """Surface temperatures of F slabs of one construction along a forcing time series.
 
@@ -497,6 +507,8 @@ deep_temperature_k, back_h_w_m2k
         Water the surface holds as a film or in puddles before it runs off [kg m^-2 = mm].
     return_wet_fraction : bool, default False
         Also return the wet fraction (M, F) [0-1].
+    melt_temperature_k : float, optional
+        As in :func:`step_many` (snow: 273.15).
 
     Returns
     -------
@@ -554,6 +566,7 @@ deep_temperature_k, back_h_w_m2k
         bottom=bottom,
         deep_temperature_k=deep_temperature_k,
         back_h_w_m2k=back_h_w_m2k,
+        melt_temperature_k=melt_temperature_k,
     )
     if initial_temperature_k is None:
         # steady state of the time-mean forcing; the emission term is nonlinear, so the mean of

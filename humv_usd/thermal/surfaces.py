@@ -1156,6 +1156,7 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
         emissivity=longwave_emissivity(mesh.material),
         bottom="fixed" if mesh.is_ground else ("adiabatic" if mesh.interior_k is None else "interior"),
         deep_temperature_k=deep_k if mesh.interior_k is None else mesh.interior_k,
+        melt_temperature_k=surface_water(mesh.material.name).melts_at_k,
         **latent,
     )
     return t_surf[:, inverse], res, lw
