@@ -12,9 +12,9 @@ from humv_usd.catalog.materials import LIBRARY
 from humv_usd.catalog.skin import skin_material_name
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
+from humv_usd.scenario.places import scene_materials
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
 from humv_usd.usd.materials import write_material, write_substrate
-from humv_usd.scenario.places import scene_materials
 from humv_usd.usd.paths import material_path
 
 NAME = "materials"
