@@ -11,6 +11,7 @@ import pytest
 from numpy.testing import assert_allclose
 from pxr import Usd, UsdGeom
 
+from humv_usd.avatar.layer import _avatar_rotation_deg, avatar_ground
 from humv_usd.errors import InputError
 from humv_usd.geometry.terrain import TAPER_SHARE, polyline_distance, terrain_from_section
 from humv_usd.scenario import validate
@@ -254,3 +255,17 @@ size_m = [4.0, 4.0, 7.0]
         prim = stage.GetPrimAtPath(path)
         counts = np.asarray(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get())
         assert _refinable(prim, counts) is refinable
+
+
+def test_avatar_ground_is_the_terrain_in_the_avatar_frame(tmp_path):
+    section = {"slope_deg": [3.0, 8.0], "hills_m": 0.4, "cell_m": 4.0}
+    scenario = {"scene": {"ground": {"size_m": [40.0, 40.0]}, "terrain": section}}
+    place = {"position_m": [2.0, -3.0, 0.25], "heading_deg": 60.0}
+    h = avatar_ground(scenario, place)
+    t = terrain_from_section(section, (40.0, 40.0))
+    phi = np.radians(_avatar_rotation_deg(place))
+    local = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, -2.0]])
+    world = local @ np.array([[np.cos(phi), np.sin(phi)], [-np.sin(phi), np.cos(phi)]]) + [2.0, -3.0]
+    assert_allclose(h(local[:, 0], local[:, 1]), t.height(world[:, 0], world[:, 1]) - 0.25, atol=1e-12)
+    flat = {"scene": {"ground": {"size_m": [40.0, 40.0]}, "terrain": None}}
+    assert avatar_ground(flat, place) is None  # flat: the motion model's own z = 0

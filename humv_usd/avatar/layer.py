@@ -26,6 +26,7 @@ from pxr import Gf, Sdf, UsdGeom
 
 from humv_usd.catalog.garments import LONG_GUNS, garment
 from humv_usd.catalog.skin import skin_material_name
+from humv_usd.geometry.terrain import terrain_from_section
 from humv_usd.human import crowd, usdskel
 from humv_usd.human import labels as L
 from humv_usd.human.basemesh import DEFAULT_FACING_DEG
@@ -88,10 +89,13 @@ READS = (
     "@instanceId[{id}]",
     "@carriesRifle[{id}]",
     "@crowd[{id}]",
+    "scene.terrain",
+    "scene.ground.size_m",
 )
 UPSTREAM = ()
-#: 4: proportions and skin tone; 3: model kinds and extents (2: reads only what changes the avatar)
-VERSION = "4"
+#: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
+#: (2: reads only what changes the avatar)
+VERSION = "5"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -172,7 +176,7 @@ def waypoints_in_avatar_frame(place: dict, start_xy) -> np.ndarray | None:
 
 def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     """The human's motion over the scenario's frames: the BVH file if given, else the built-in
-    activity (walk/run along the heading or the waypoints) on flat ground; with the arms in the
+    activity (walk/run along the heading or the waypoints) on the terrain (:func:`avatar_ground`); with the arms in the
     rifle carry (:func:`humv_usd.human.carry.apply_rifle_carry`, kept clear of the body) if
     the human wears a long gun (:data:`humv_usd.catalog.garments.LONG_GUNS`: the rifle or
     the shotgun; the first one listed is carried)."""
@@ -209,6 +213,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
         mass_kg=human["mass_kg"],
         body_points=body.points,
         seed=g["seed"],
+        ground=avatar_ground(scenario, place),
     )
     if frames < 2:
         motion = dataclasses.replace(
@@ -218,6 +223,27 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             metabolic_rate_w=motion.metabolic_rate_w[:frames],
         )
     return carry(motion)
+
+
+def avatar_ground(scenario: Scenario, place: dict):
+    """The terrain's height in the person's avatar frame (translate to the placement, then
+    rotateZ), as :func:`humv_usd.human.motion.make_motion` takes it, so that the feet stand and
+    walk on the terrain (:mod:`humv_usd.geometry.terrain`); None on flat ground (z = 0 there)."""
+    scene = scenario["scene"]
+    if not scene:
+        return None
+    terrain = terrain_from_section(scene.get("terrain"), scene["ground"]["size_m"])
+    if not terrain.has_relief and not any(terrain.slope_deg):
+        return None
+    phi = np.radians(_avatar_rotation_deg(place))
+    c, s = np.cos(phi), np.sin(phi)
+    x0, y0, z0 = (float(v) for v in place["position_m"])
+
+    def height(x, y):
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        return terrain.height(x0 + c * x - s * y, y0 + s * x + c * y) - z0
+
+    return height
 
 
 #: activities that walk a path (the others stand, sit or lie where they are placed)
