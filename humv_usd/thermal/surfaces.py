@@ -443,7 +443,7 @@ def _sunlit_fraction(meshes, sun_dirs, up, occluders: Occluders | None = None):
 
 
 #: scene size above which the ray offsets stop growing [m] (a ground to the horizon, issue 30)
-EPS_SCENE_SIZE_CAP_M = 500.0
+EPS_SCENE_SIZE_CAP_M = 150.0
 
 
 # --- adaptive tessellation ---------------------------------------------------------------------

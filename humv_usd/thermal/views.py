@@ -159,7 +159,7 @@ def face_views(points, triangles, tri_face, n_faces: int, rays=VIEW_RAYS, eps: f
     n_rays = np.broadcast_to(np.asarray(rays, dtype=np.int64), (len(tris),))
     if eps is None:
         # relative to the scene's size, capped for a ground that reaches the horizon (issue 30)
-        eps = 2e-5 * min(float(np.linalg.norm(np.ptp(pts, axis=0))), 500.0) + 1e-4 if len(pts) else 1e-4
+        eps = 2e-5 * min(float(np.linalg.norm(np.ptp(pts, axis=0))), 150.0) + 1e-4 if len(pts) else 1e-4
     t_axis, b_axis = orthonormal_frames(normal)
     caster = ray_caster(pts, tris)
     nb = len(ZENITH_BINS_DEG) - 1
