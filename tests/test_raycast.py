@@ -12,6 +12,7 @@ from humv_usd.geometry.raycast import (
     first_faces,
     ray_caster,
     unblocked,
+    unblocked_local,
 )
 
 
@@ -71,6 +72,9 @@ def test_any_hit_and_chunks_agree_with_first_hit():
     assert_array_equal(unblocked(caster, o, d, chunk=7), first < 0)
     local = caster.local(o)
     assert_array_equal(caster.first_hit_local(local, np.ascontiguousarray(d, dtype=np.float32)), first)
+    # origins converted once to the caster's frame (the thermal shadow rays): the same answer
+    assert_array_equal(unblocked_local(caster, local, d.astype(np.float32), chunk=7), first < 0)
+    assert_array_equal(ray_caster(p, t).any_hit_local(local, d.astype(np.float32)), first >= 0)
 
 
 def test_inside_by_parity():
@@ -87,8 +91,10 @@ def test_mitsuba_backend_finds_the_same_faces():
     p, t, lo, hi = box()
     o, d = random_rays(2000, seed=3)
     ref = slab_distance(o, d, lo, hi)
-    first = ray_caster(p, t, backend="mitsuba").intersects_first(o, d)
+    mi = ray_caster(p, t, backend="mitsuba")
+    first = mi.intersects_first(o, d)
     assert_array_equal(first >= 0, np.isfinite(ref))
+    assert_array_equal(unblocked_local(mi, mi.local(o), d.astype(np.float32)), ~np.isfinite(ref))
     # same face as embree except for rays through a shared edge
     assert np.mean(first == ray_caster(p, t).intersects_first(o, d)) > 0.99
 

@@ -612,6 +612,9 @@ def _register_tools():
     from humv_usd.cli.bench_places_cmd import bench_places
 
     bench.add_command(bench_places)
+    from humv_usd.cli.bench_compose_cmd import bench_compose
+
+    bench.add_command(bench_compose)
 
 
 _register_tools()

@@ -126,6 +126,11 @@ class RayCaster(_Frame):
         """Whether each ray hits anything (occlusion query), (n,) bool."""
         return self._run(origins, directions, "OCCLUDED") >= 0
 
+    def any_hit_local(self, origins32, directions32) -> np.ndarray:
+        """:meth:`intersects_any` of rays with origins already in the :meth:`local` frame;
+        float32 contiguous (n, 3) arrays."""
+        return self._scene.run(origins32, directions32, query="OCCLUDED") >= 0
+
     def hit_distance(self, origins, directions) -> np.ndarray:
         """Distance along each unit direction to the first hit [m]; inf where none."""
         out = self._run(origins, directions, output=True)
@@ -190,6 +195,12 @@ class MitsubaRayCaster(_Frame):
         """Whether each ray hits anything, (n,) bool."""
         return self.intersects_first(origins, directions) >= 0
 
+    def any_hit_local(self, origins32, directions32) -> np.ndarray:
+        """:meth:`intersects_any` of rays with origins already in the :meth:`local` frame."""
+        mi, o, d = self._mi, origins32, directions32
+        ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+        return np.array(self._scene.ray_intersect_preliminary(ray).is_valid(), dtype=bool)
+
 
 def default_backend() -> str:
     """``'mitsuba'`` where the render already runs Dr.Jit on a GPU (the casts then run on the
@@ -216,6 +227,17 @@ def first_faces(caster, origins, directions, chunk: int = CHUNK_RAYS) -> np.ndar
     out = np.empty(len(origins), dtype=np.int64)
     for a in range(0, len(origins), chunk):
         out[a : a + chunk] = caster.intersects_first(origins[a : a + chunk], directions[a : a + chunk])
+    return out
+
+
+def unblocked_local(caster, origins32, directions32, chunk: int = CHUNK_RAYS) -> np.ndarray:
+    """:func:`unblocked` of rays with origins in the caster's :meth:`~RayCaster.local` frame
+    (float32 (n, 3) arrays; many rays from the same points convert them once), (n,) bool."""
+    out = np.empty(len(origins32), dtype=bool)
+    for a in range(0, len(origins32), chunk):
+        o = np.ascontiguousarray(origins32[a : a + chunk], dtype=np.float32)
+        d = np.ascontiguousarray(directions32[a : a + chunk], dtype=np.float32)
+        out[a : a + chunk] = ~caster.any_hit_local(o, d)
     return out
 
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom
+from threadpoolctl import threadpool_limits
 
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.scenario import Scenario
@@ -76,8 +77,19 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 VERSION = "7"
 
 
+#: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85
+#: matrix per minute of simulated time); OpenBLAS's threads cost 20x the CPU of one thread on
+#: such matrices, and far more wall time on a busy machine (they spin waiting for a core)
+BLAS_THREADS = 1
+
+
 def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     """Read the meshes of the composed ``upstream`` stage; write one temperature per face."""
+    with threadpool_limits(BLAS_THREADS, user_api="blas"):
+        return _build(scenario, upstream)
+
+
+def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     g = scenario["general"]
     th = scenario["thermal"]
     model = th["model"]

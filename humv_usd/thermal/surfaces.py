@@ -70,7 +70,7 @@ from humv_usd.catalog.materials import surface_water
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.camera import Camera
 from humv_usd.geometry.mesh import fan_triangulate
-from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked
+from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked, unblocked_local
 from humv_usd.human.usdskel import skinned_points
 from humv_usd.physics import evaporation, slab, vegetation
 from humv_usd.physics.convection import watmuff
@@ -386,6 +386,7 @@ class _Shadows:
         # that reaches the horizon (kilometres away: only the modelled rectangle's size counts)
         self.eps = 2e-5 * min(float(np.linalg.norm(ext)), EPS_SCENE_SIZE_CAP_M) + 1e-4
         self._casters: dict = {}
+        self._origins: tuple = ()  # (caster key, points, normals, float32 local origins)
 
     def caster(self, k: int):
         if k not in self._casters:
@@ -398,19 +399,30 @@ class _Shadows:
                 )
         return self._casters[k]
 
+    def _local_origins(self, k: int, points, normals) -> np.ndarray:
+        """The offset ray origins of ``points`` in caster ``k``'s float32 frame, converted once
+        for the many sun directions cast from the same points (the arrays are held, so the
+        identity check cannot see a recycled id)."""
+        held = self._origins
+        if not held or held[0] != k or held[1] is not points or held[2] is not normals:
+            self._origins = held = (k, points, normals, self.caster(k).local(points + self.eps * normals))
+        return held[3]
+
     def lit(self, points, normals, sun, time_index: int) -> np.ndarray:
         """(n,) sunlit share of each point (offset along its normal) over the step ending at a
         time: 0 or 1, or in between where an occluder stood there for part of the step."""
         facing = normals @ sun > 0.0
         out = np.zeros(len(points))
         if facing.any():
-            o = points[facing] + self.eps * normals[facing]
-            d = np.broadcast_to(sun, o.shape).copy()
+            n = int(facing.sum())
+            d = np.broadcast_to(np.asarray(sun, dtype=np.float32), (n, 3))
             k = int(self.occluders.at_time[time_index]) if len(self.occluders.at_time) else -1
-            free = unblocked(self.caster(-1), o, d).astype(float)
+            o = self._local_origins(-1, points, normals)[facing]
+            free = unblocked_local(self.caster(-1), o, d).astype(float)
             if k >= 0:
                 w = float(self.occluders.presence[time_index])
-                free = (1.0 - w) * free + w * unblocked(self.caster(k), o, d)
+                o = self.caster(k).local(points[facing] + self.eps * normals[facing])
+                free = (1.0 - w) * free + w * unblocked_local(self.caster(k), o, d)
             out[facing] = free
         return out
 

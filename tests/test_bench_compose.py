@@ -1,0 +1,44 @@
+"""`humv-usd bench compose` (issue 31.2): the growth fit and the option checks (the composes
+themselves are the bench's, not the suite's)."""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from humv_usd.bench.compose_cost import growth
+from humv_usd.cli.main import main
+
+
+def _row(people, frames, thermal_s, cpu_s):
+    return {
+        "people": people,
+        "frames": frames,
+        "cpu_s": cpu_s,
+        "wall_s": cpu_s,
+        "layer_s": {"thermal": thermal_s},
+    }
+
+
+def test_growth_recovers_a_linear_cost():
+    # thermal = 2 + 3 (N - 1) + 0.5 (frames - 1); cpu = 5 + 1 (frames - 1), no person term
+    rows = [_row(n, f, 2 + 3 * (n - 1) + 0.5 * (f - 1), 5 + (f - 1)) for n in (1, 2, 4) for f in (1, 5)]
+    g = growth(rows)
+    assert g["thermal"] == {"base": 2.0, "per_person": 3.0, "per_frame": 0.5, "rms_residual": 0.0}
+    assert g["cpu_s"]["per_person"] == pytest.approx(0.0, abs=1e-9)
+    assert g["cpu_s"]["per_frame"] == pytest.approx(1.0)
+
+
+def test_growth_leaves_out_a_term_the_grid_does_not_vary():
+    g = growth([_row(1, 1, 2.0, 1.0), _row(1, 9, 6.0, 1.0)])
+    assert g["thermal"]["per_person"] is None
+    assert g["thermal"]["per_frame"] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [(["--people", "0"], "each in 1..50"), (["--frames", "2,x"], "expected integers")],
+)
+def test_bad_counts_are_refused(args, message):
+    r = CliRunner().invoke(main, ["bench", "compose", *args])
+    assert r.exit_code == 2 and message in r.output
