@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import contextlib
+import filecmp
 import json
 import math
 import os
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -160,6 +162,48 @@ def _temp_beside(path: Path) -> Path:
     return Path(tmp)
 
 
+@dataclass(frozen=True)
+class StagedText:
+    """A text already written to a temp file beside its target (:func:`stage_text`), for
+    :func:`commit_files`: a writer that makes many large files can write each as soon as it
+    is made and drop it from memory, and still commit them all as one change."""
+
+    tmp: Path
+
+    def read(self) -> str:
+        return self.tmp.read_text(encoding="utf-8")
+
+    def same_as(self, path: Path) -> bool:
+        try:
+            return filecmp.cmp(self.tmp, path, shallow=False)
+        except (FileNotFoundError, IsADirectoryError):
+            return False
+
+
+def stage_text(path, text: str) -> StagedText:
+    """Write ``text`` to a temp file beside ``path`` (named as :func:`remove_stale_temps`
+    removes it after a kill) and return it for :func:`commit_files`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temp_beside(path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(tmp)
+        raise
+    return StagedText(tmp)
+
+
+def discard_staged(texts) -> None:
+    """Remove the temp files of the :class:`StagedText` values of ``texts`` (a failed change)."""
+    for text in texts:
+        if isinstance(text, StagedText):
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(text.tmp)
+
+
 def commit_files(folder, texts: dict, remove=()) -> list[Path]:
     """Write several text files under ``folder`` (and remove ``remove``) as one change.
 
@@ -175,6 +219,14 @@ def commit_files(folder, texts: dict, remove=()) -> list[Path]:
     try:
         for path, text in texts.items():
             path = Path(path)
+            if isinstance(text, StagedText):  # written already: keep it only if it changes the file
+                if text.same_as(path):
+                    os.remove(text.tmp)
+                    continue
+                os.chmod(text.tmp, 0o666 & ~_umask())
+                replace.append((text.tmp, path))
+                written.append(path)
+                continue
             try:
                 if path.read_text(encoding="utf-8") == text:
                     continue
@@ -199,6 +251,7 @@ def commit_files(folder, texts: dict, remove=()) -> list[Path]:
         for tmp, _ in replace:
             with contextlib.suppress(FileNotFoundError):
                 os.remove(tmp)
+        discard_staged(texts.values())
         raise
     finish_pending(folder)
     return written

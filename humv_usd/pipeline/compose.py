@@ -41,11 +41,14 @@ from pxr import Sdf, Usd
 import humv_usd
 from humv_usd.errors import InputError
 from humv_usd.fileio import (
+    StagedText,
     check_output_dir,
     commit_files,
+    discard_staged,
     finish_pending,
     folder_lock,
     remove_stale_temps,
+    stage_text,
 )
 from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.budget import compose_budget, require_fits
@@ -86,6 +89,7 @@ class LayerState:
     written: bool = False
     seconds: float = 0.0
     loaded: Sdf.Layer | None = None  # the file on disk, opened when it is used as it is
+    ran: dict = field(default_factory=dict)  # the rebuilt layer's "humv:<tool>:ran" entries
 
     @property
     def rebuild(self) -> bool:
@@ -441,10 +445,15 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
     if errors:
         raise InputError("", errors)
 
-    # 2. build in dependency order; unchanged layers come from their files
+    # 2. build in dependency order; unchanged layers come from their files. Streaming: each
+    # rebuilt layer's text goes to a temp file beside its target as soon as it is built (the
+    # change is committed at the end, as one), and a layer is dropped from memory after the
+    # last layer that reads it is built, so compose holds the layers a build needs, not the
+    # texts of all of them (a crowd's avatar and clothing layers: issue 29)
     layers: dict[str, Sdf.Layer] = {}
-    texts: dict[str, str] = {}
+    staged: dict[str, StagedText] = {}
     user_layers = [open_anonymous((out / u).resolve()) for u in user]
+    last_use = {u: i for i, name in enumerate(order) for u in nodes[name].upstream}
 
     def layer_of(name: str) -> Sdf.Layer:
         if name not in layers:
@@ -452,36 +461,55 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
         return layers[name]
 
     to_build = [name for name in order if states[name].rebuild]
-    for name in order:
-        node, state = nodes[name], states[name]
-        if not state.rebuild:
-            continue
-        if progress is not None:
-            progress(to_build.index(name), len(to_build), f"layer {name}")
-        t = time.perf_counter()
-        upstream = None
-        if node.upstream:
-            below = [layer_of(u) for u in reversed(strength) if u in node.upstream]
-            upstream = compose_in_memory(below + list(reversed(user_layers)), fps)
-        layer = node.tool.build(scenario, node.human, upstream)
-        set_inputs_key(layer, state.key)
-        # the file holds paths relative to its folder (a movable output), the layer in memory
-        # absolute ones (downstream tools compose it, anonymous, without an anchor)
-        layers[name], texts[name] = layer, layer_text(relative_asset_paths(layer, layer_dir))
-        state.sha256 = _sha(texts[name])
-        state.seconds = time.perf_counter() - t
+    try:
+        for i, name in enumerate(order):
+            node, state = nodes[name], states[name]
+            if not state.rebuild:
+                continue
+            if progress is not None:
+                progress(to_build.index(name), len(to_build), f"layer {name}")
+            t = time.perf_counter()
+            upstream = None
+            if node.upstream:
+                below = [layer_of(u) for u in reversed(strength) if u in node.upstream]
+                upstream = compose_in_memory(below + list(reversed(user_layers)), fps)
+            layer = node.tool.build(scenario, node.human, upstream)
+            del upstream
+            set_inputs_key(layer, state.key)
+            # the file holds paths relative to its folder (a movable output), the layer in memory
+            # absolute ones (downstream tools compose it, anonymous, without an anchor)
+            text = layer_text(relative_asset_paths(layer, layer_dir))
+            state.sha256 = _sha(text)
+            staged[name] = stage_text(layer_dir / f"{name}.usda", text)
+            del text
+            state.ran = {k: dict(v) for k, v in dict(layer.customLayerData).items() if k.endswith(":ran")}
+            if last_use.get(name, -1) > i:
+                layers[name] = layer
+            del layer
+            for u in node.upstream:  # no later layer reads it: drop it
+                if last_use.get(u) == i:
+                    layers.pop(u, None)
+                    states[u].loaded = None
+            state.seconds = time.perf_counter() - t
+    except BaseException:
+        discard_staged(staged.values())
+        raise
+    layers.clear()
     if progress is not None:
         progress(len(to_build), len(to_build), "writing")
     root_text = layer_text(root_layer(scenario, strength, user, keys=keys))
 
     # 3. write changed layers, the root and the report as one change (a kill leaves old or new)
     report = ComposeReport(stage_path=out / ROOT_NAME, skipped=skipped, states=states, user_layers=user)
-    files = {layer_dir / f"{name}.usda": texts[name] for name in order if states[name].rebuild}
+    files: dict = {layer_dir / f"{name}.usda": staged[name] for name in order if states[name].rebuild}
     # a root edited by hand whose content compose would not change stays as it is
     if not root_edited:
         files[out / ROOT_NAME] = root_text
     unchanged = {
-        p: p.is_file() and p.read_text(encoding="utf-8", errors="replace") == x for p, x in files.items()
+        p: x.same_as(p)
+        if isinstance(x, StagedText)
+        else p.is_file() and p.read_text(encoding="utf-8", errors="replace") == x
+        for p, x in files.items()
     }
     for name in order:
         state = states[name]
@@ -491,14 +519,18 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
     wrote_root = not root_edited and not unchanged[out / ROOT_NAME]
     report.layers.append(("stage", wrote_root, 0.0))
     report.seconds = time.perf_counter() - t0
-    files[out / REPORT_NAME] = _report_text(
-        scenario, report, prev_report, layers, nodes, order, strength, root_sha
-    )
+    try:
+        files[out / REPORT_NAME] = _report_text(
+            scenario, report, prev_report, nodes, order, strength, root_sha
+        )
+    except BaseException:
+        discard_staged(files.values())
+        raise
     commit_files(out, files, remove=stale)
     return report
 
 
-def _report_text(scenario, report, prev_report, layers, nodes, order, strength, root_sha) -> str:
+def _report_text(scenario, report, prev_report, nodes, order, strength, root_sha) -> str:
     """compose.json: the graph, what was rebuilt and why, run times, the hashes of what compose
     wrote (to recognise hand edits) and what each tool ran."""
     prev_ran = prev_report.get("ran", {})
@@ -508,9 +540,8 @@ def _report_text(scenario, report, prev_report, layers, nodes, order, strength, 
             if name in prev_ran:
                 ran[name] = prev_ran[name]
             continue
-        for k, v in dict(layers[name].customLayerData).items():
-            if k.endswith(":ran"):
-                ran[name] = dict(v)
+        for v in report.states[name].ran.values():
+            ran[name] = v
     entries = []
     for name in order:
         s, node = report.states[name], nodes[name]
