@@ -22,12 +22,30 @@ from humv_usd.scenario.spec import DEFAULT_SUBBANDS
 
 log = logging.getLogger(__name__)
 
-#: compose: layer text per frame and clothed person [bytes] (avatar motion + garment points)
-PERSON_FRAME_BYTES = 160e3
-#: compose: layer text per frame for the rest (sun, weather samples, per-face temperatures)
+#: compose: layer text per frame and clothed person [bytes] (avatar motion + garment points).
+#: Measured (issue 29, ``python -m humv_usd.bench.crowd``, 2026-11-27): 10 walkers in a
+#: T-shirt, leggings and shoes wrote 62 MB of layers at 16 frames and 142 MB at 46 frames,
+#: 265 kB per person and frame (clothing 257 kB, avatar 8 kB).
+PERSON_FRAME_BYTES = 270e3
+#: compose: per-face temperature text per frame and person of a thermal model that solves per
+#: frame (jos3, twoNode; "fixed" writes no per-frame samples): ~30 k body and garment faces at
+#: ~8 characters each (an estimate, not measured)
+THERMAL_PERSON_FRAME_BYTES = 250e3
+#: compose: layer text per frame for the rest (sun, weather samples)
 SCENE_FRAME_BYTES = 2e3
-#: compose: memory held per byte of layer text (USD layers, Python arrays, the text itself)
-COMPOSE_MEMORY_PER_BYTE = 8.0
+#: compose streams layer texts to disk as it builds them (``fileio.stage_text``) and drops a
+#: layer once the last layer reading it is built. What it then holds grows per frame by: the
+#: working set of the one clothing layer being built (all of its person's frames) and the
+#: avatar/clothing layers the thermal tool will read (every person's). Measured with the bench
+#: above (peak RSS of the compose process, thermal "fixed"): 10 people 478 MB at 16 frames, 506
+#: MB at 46 (0.94 MB per frame); 2 people 715 MB at 301 frames (0.85 MB per frame; the code
+#: before streaming: 737 MB) -> ~0.85 MB per frame for the build, ~10 kB per person and frame
+#: held. Rounded up: 1 MB per frame, 50 kB per person and frame.
+COMPOSE_BUILD_FRAME_BYTES = 1.0e6
+COMPOSE_HELD_PERSON_FRAME_BYTES = 50e3
+#: a per-frame thermal layer is built in memory whole: its samples (float32 per face) and, when
+#: written, its text: ~2 x its text (an estimate, not measured)
+COMPOSE_THERMAL_MEMORY_PER_BYTE = 2.0
 #: compose: seconds per frame and person (skinning, garments, thermal) and per frame
 COMPOSE_PERSON_FRAME_S = 0.2
 #: render: bytes written per pixel of an image (EXR with labels, previews, masks)
@@ -100,12 +118,22 @@ def _duration(s: float) -> str:
 
 
 def compose_budget(scenario) -> Budget:
+    """The estimate of a compose (see the constants above): disk = the layer texts; memory = the
+    base + per frame the one clothing build's working set, the people's layers held for the
+    thermal tool and, for a per-frame thermal model, that layer whole (samples and text)."""
     frames = scenario.frame_count
     people = len(scenario["human"])
-    text = frames * (people * PERSON_FRAME_BYTES + SCENE_FRAME_BYTES)
+    per_frame_thermal = (scenario.get("thermal") or {}).get("model", "fixed") != "fixed"
+    thermal_text = frames * people * THERMAL_PERSON_FRAME_BYTES if per_frame_thermal else 0.0
+    text = frames * (people * PERSON_FRAME_BYTES + SCENE_FRAME_BYTES) + thermal_text
+    memory = (
+        BASE_MEMORY
+        + frames * (COMPOSE_BUILD_FRAME_BYTES * min(people, 1) + people * COMPOSE_HELD_PERSON_FRAME_BYTES)
+        + COMPOSE_THERMAL_MEMORY_PER_BYTE * thermal_text
+    )
     return Budget(
         "compose",
-        BASE_MEMORY + COMPOSE_MEMORY_PER_BYTE * text,
+        memory,
         text,
         frames * (people * COMPOSE_PERSON_FRAME_S + 0.01) + 2.0,
         f"{frames:,} frame(s) x {people} person(s)",
