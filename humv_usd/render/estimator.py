@@ -395,7 +395,8 @@ def _rotated_lattice(mi, dr, count: int, index, cell, seed: int):
     lat = _fibonacci_lattice(count).astype(np.float32)
     x = dr.gather(mi.Float, mi.Float(lat[:, 0]), index)
     y = dr.gather(mi.Float, mi.Float(lat[:, 1]), index)
-    shift = mi.PCG32(size=dr.width(index), initstate=seed, initseq=cell)
+    # the seed as a kernel parameter, not a literal: one compiled kernel for every seed
+    shift = mi.PCG32(size=dr.width(index), initstate=dr.opaque(mi.UInt64, seed), initseq=cell)
     x = x + shift.next_float32()
     y = y + shift.next_float32()
     return x - dr.floor(x), y - dr.floor(y)
@@ -555,8 +556,9 @@ def render_band_fast(
         (lattice index, cell, first hit, its throughput per sub-band)."""
         count = w * h if pixels is None else len(pixels)
         idx = dr.arange(mi.UInt32, count * replicas * points)
-        j = idx % points
-        cell = idx // points  # pixel * replicas + replica (pixels: position in the list)
+        per_cell = dr.opaque(mi.UInt32, points)  # a parameter: kernels are reused across counts
+        j = idx % per_cell
+        cell = idx // per_cell  # pixel * replicas + replica (pixels: position in the list)
         if pixels is None:
             pixel = cell // replicas
             rot_cell = cell
@@ -601,7 +603,8 @@ def render_band_fast(
             rho = [rho[k] * tau[k] for k in range(n)]  # the reflected term's throughput
         # per (pixel, replica) cell: the mean of its lattice points, per channel
         if points > 1:
-            direct_dr = [dr.block_sum(v, points) * (1.0 / points) for v in direct_dr]
+            inv_points = dr.opaque(f32, 1.0 / points)
+            direct_dr = [dr.block_sum(v, points) * inv_points for v in direct_dr]
         if not reflect:
             dr.eval(direct_dr, back_counts[-1])
             return np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr]), None
@@ -632,6 +635,7 @@ def render_band_fast(
             p0 = dr.gather(mi.Point3f, si.p, par)
             n0 = mi.Vector3f(dr.gather(mi.Normal3f, si.n, par))
             beta = None  # first bounce: read from the camera vertices' throughput when needed
+            inv_lanes = dr.opaque(f32, 1.0 / (splits * points))
 
             def beta_at(lanes):
                 """Throughput per sub-band of the given lanes (at the first bounce each lane's term
@@ -639,7 +643,7 @@ def render_band_fast(
                 if beta is not None:
                     return [dr.gather(f32, bk, lanes) for bk in beta]
                 src = dr.gather(mi.UInt32, parent, lanes // splits)
-                return [dr.gather(f32, bk, src) * (1.0 / (splits * points)) for bk in beta0]
+                return [dr.gather(f32, bk, src) * inv_lanes for bk in beta0]
 
             lane_id = b
             d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
