@@ -339,7 +339,11 @@ def test_depth_and_instance_labels(tmp_path):
     sky = same & (ident == 0)
     assert np.isposinf(ch["depth"][sky]).all()
     hit = same & (ident > 0)
-    assert_allclose(ch["depth"][hit], depth[hit], rtol=2e-5)
+    # OptiX (the CUDA backend) reports hit distances to 2.85e-5 relative (measured on an H100),
+    # Embree to 2e-5
+    from humv_usd import mode
+
+    assert_allclose(ch["depth"][hit], depth[hit], rtol=5e-5 if mode.backend() == "cuda" else 2e-5)
     # the wall is in the right half of the image, the sky at the top
     cols = np.nonzero(ch["instance_id"] == 42)[1]
     assert cols.min() >= W // 2
@@ -443,7 +447,7 @@ def test_outputs_manifest_and_reproducibility(tmp_path):
     on_disk = json.loads((out / "manifest.json").read_text())
     assert on_disk == json.loads(json.dumps(manifest))
     assert set(on_disk["versions"]) == {"humv_usd", "mitsuba", "drjit", "usd", "numpy", "OpenImageIO"}
-    assert on_disk["mitsuba_variant"] in ("llvm_ad_mono", "scalar_rgb")
+    assert on_disk["mitsuba_variant"] in ("cuda_ad_mono", "llvm_ad_mono", "scalar_rgb")
     assert on_disk["settings"]["spp"] == 8 and on_disk["settings"]["seed"] == 7
     assert on_disk["settings"]["frames"] == [0, 1] and on_disk["settings"]["max_depth"] == -1
     for key in ("load_export", "render", "labels", "write", "total"):
