@@ -45,6 +45,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 #: Stages of a frame in the manifest's per-frame ``timings_s`` (render includes the estimator).
 STAGES = ("load_export", "render", "estimator", "labels", "write", "cpu")
+#: class_id of people in the label channels (humv_usd.groundtruth.labels.CLASSES)
+PERSON_CLASS = 1
 #: The fraction of |z| > 4 for a standard normal variable (two-sided).
 NORMAL_TAIL_4 = 6.33e-5
 
@@ -147,7 +149,7 @@ def _frames_of(where: str) -> dict[tuple[str, int], dict]:
             for fr in s["frames"]:
                 ch = read_exr(os.path.join(where, fr["exr"]))
                 out[(s["name"], fr["frame"])] = {
-                    k: ch[k] for k in ("radiance", "radiance_stderr", "instance_id", "depth")
+                    k: ch[k] for k in ("radiance", "radiance_stderr", "instance_id", "class_id", "depth")
                 }
         return out
     for p in sorted(Path(where).glob("*_*_[0-9][0-9][0-9][0-9].npz")):
@@ -185,7 +187,8 @@ def compare(a: str, b: str) -> dict:
         with np.errstate(divide="ignore", invalid="ignore"):
             z = (x["radiance"].astype(float) - y["radiance"].astype(float)) / np.sqrt(s2)
         z[~(s2 > 0)] = np.nan
-        people = (x["instance_id"] > 0) & (y["instance_id"] > 0)
+        cls = x["class_id"] if "class_id" in x else y.get("class_id")
+        people = np.zeros(z.shape, bool) if cls is None else np.asarray(cls) == PERSON_CLASS
         same_id = x["instance_id"].astype(np.int64) == y["instance_id"].astype(np.int64)
         finite = np.isfinite(x["depth"]) & np.isfinite(y["depth"])
         depth = float(np.max(np.abs(x["depth"][finite] - y["depth"][finite]))) if finite.any() else 0.0
