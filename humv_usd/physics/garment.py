@@ -295,6 +295,13 @@ def air_gap_flux(
     """
     if model not in ("hollands", "conduction"):
         raise ValueError(f"invalid model selection {model}")
+    f_rad = grey_plates_exchange_factor(skin_emissivity, fabric_emissivity)
+    return _air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, f_rad, model)
+
+
+def _air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, f_rad, model):
+    """:func:`air_gap_flux` with the grey plates' exchange factor ``f_rad`` given (the gap
+    solve evaluates the flux many times for the same surfaces)."""
     t_s = np.asarray(skin_temperature_k, dtype=float)
     t_i = np.asarray(inner_temperature_k, dtype=float)
     d = np.asarray(air_gap_m, dtype=float)
@@ -314,11 +321,7 @@ def air_gap_flux(
         nu = 1.0
     d_safe = np.where(d > 0.0, d, 1.0)
     q_cd = np.where(d > 0.0, nu * k / d_safe * dt, 0.0)
-    q_r = (
-        grey_plates_exchange_factor(skin_emissivity, fabric_emissivity)
-        * STEFAN_BOLTZMANN
-        * (_t4(t_s) - _t4(t_i))
-    )
+    q_r = f_rad * STEFAN_BOLTZMANN * (_t4(t_s) - _t4(t_i))
     return q_cd, q_r
 
 
@@ -820,6 +823,8 @@ def gap_temperature_for_flux(
     T_cold + q d / k_air(100 K) <= T_hot <= T_cold. Safeguarded Newton (Numerical Recipes
     rtsafe) inside the shrinking bracket.
     """
+    if model not in ("hollands", "conduction"):
+        raise ValueError(f"invalid model selection {model}")
     q, t_c, d, e_h, e_c = (
         np.array(v, dtype=float)
         for v in np.broadcast_arrays(flux, cold_temperature_k, air_gap_m, hot_emissivity, cold_emissivity)
@@ -839,17 +844,17 @@ def gap_temperature_for_flux(
     for it in range(max_iter):
         if idx.size == 0:
             break
-        q_cd, q_r = air_gap_flux(x, t_c, d, e_h, e_c, model)
+        q_cd, q_r = _air_gap_flux(x, t_c, d, f_rad, model)
         f = q_cd + q_r - q
         done = (np.abs(f) <= tol + 1e-12 * np.abs(q)) | ((hi - lo) <= 4.0 * np.finfo(float).eps * np.abs(x))
         t[idx[done]] = x[done]
         keep = ~done
-        idx, q, t_c, d, e_h, e_c, lo, hi, x, f = (v[keep] for v in (idx, q, t_c, d, e_h, e_c, lo, hi, x, f))
+        idx, q, t_c, d, f_rad, lo, hi, x, f = (v[keep] for v in (idx, q, t_c, d, f_rad, lo, hi, x, f))
         if idx.size == 0:
             break
         lo = np.where(f < 0.0, x, lo)
         hi = np.where(f > 0.0, x, hi)
-        q_cd, q_r = air_gap_flux(x + step, t_c, d, e_h, e_c, model)
+        q_cd, q_r = _air_gap_flux(x + step, t_c, d, f_rad, model)
         slope = (q_cd + q_r - q - f) / step
         ok = slope > 0.0
         x_newton = x - f / np.where(ok, slope, 1.0)
