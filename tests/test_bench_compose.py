@@ -29,6 +29,28 @@ def test_growth_recovers_a_linear_cost():
     assert g["cpu_s"]["per_frame"] == pytest.approx(1.0)
 
 
+def test_per_person_layers_are_summed_per_tool():
+    rows = [
+        {
+            "people": 1,
+            "frames": 1,
+            "cpu_s": 1.0,
+            "wall_s": 1.0,
+            "layer_s": {"avatar_p0": 1.0, "atmosphere_paths": 0.5},
+        },
+        {
+            "people": 3,
+            "frames": 1,
+            "cpu_s": 1.0,
+            "wall_s": 1.0,
+            "layer_s": {f"avatar_p{i}": 1.0 for i in range(3)},
+        },
+    ]
+    g = growth(rows)
+    assert g["avatar_*"]["per_person"] == pytest.approx(1.0) and "avatar_p0" not in g
+    assert g["atmosphere_paths"]["base"] == pytest.approx(0.5)
+
+
 def test_growth_leaves_out_a_term_the_grid_does_not_vary():
     g = growth([_row(1, 1, 2.0, 1.0), _row(1, 9, 6.0, 1.0)])
     assert g["thermal"]["per_person"] is None

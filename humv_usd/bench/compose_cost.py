@@ -59,8 +59,20 @@ def compose_point(folder: Path, people: int, frames: int, thermal: str) -> dict:
     }
 
 
+def _per_tool(layer_s: dict) -> dict:
+    """Seconds per tool: the per-person layers (``avatar_p0``, ``avatar_p1``, ...) summed as
+    ``avatar_*``."""
+    out: dict = {}
+    for name, sec in layer_s.items():
+        head, _, tail = name.rpartition("_")
+        key = f"{head}_*" if head and tail[:1] == "p" and tail[1:].isdigit() else name
+        out[key] = out.get(key, 0.0) + sec
+    return out
+
+
 def growth(rows: list[dict]) -> dict:
-    """Per layer (and ``cpu_s``, ``wall_s`` of the whole compose): the least-squares
+    """Per tool (per-person layers summed, :func:`_per_tool`; and ``cpu_s``, ``wall_s`` of the
+    whole compose): the least-squares
     ``base``, ``per_person`` and ``per_frame`` seconds and the RMS residual [s]. A term the
     grid does not vary is left out (None)."""
     people = np.array([r["people"] for r in rows], dtype=float) - 1.0
@@ -72,8 +84,9 @@ def growth(rows: list[dict]) -> dict:
             cols.append(x)
             names.append(name)
     a = np.stack(cols, axis=1)
-    layers = sorted({k for r in rows for k in r["layer_s"]})
-    series = {k: [r["layer_s"].get(k, 0.0) for r in rows] for k in layers}
+    per_tool = [_per_tool(r["layer_s"]) for r in rows]
+    layers = sorted({k for t in per_tool for k in t})
+    series = {k: [t.get(k, 0.0) for t in per_tool] for k in layers}
     series["cpu_s"] = [r["cpu_s"] for r in rows]
     series["wall_s"] = [r["wall_s"] for r in rows]
     out = {}
