@@ -16,8 +16,11 @@ demo: setup
 	@$(VENV)/bin/humv-usd render $(OUT)/stage.usda -o $(OUT)/render --force $(if $(SPP),--spp $(SPP))
 	@echo "demo: stage at $(OUT)/stage.usda, images in $(OUT)/render (see manifest.json there)"
 
+# two worker processes (pytest-xdist, whole files per worker: module fixtures built once), one
+# BLAS thread each (two workers on two cores: OpenBLAS's own threads only contend)
+TEST_WORKERS ?= 2
 test: setup
-	@$(PY) -m pytest -q -m "not extended"
+	@OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -m "not extended" -n $(TEST_WORKERS) --dist loadfile
 
 # the long end-to-end checks left out of `make test` (each has a cheaper check in the suite)
 test-extended: setup
