@@ -64,6 +64,7 @@ from pathlib import Path
 import numpy as np
 
 from humv_usd.atmosphere import lowtran as lt
+from humv_usd.compat import trapezoid
 from humv_usd.constants import STEFAN_BOLTZMANN, SUN_ANGULAR_RADIUS, SUN_TEMPERATURE_K
 from humv_usd.fileio import atomic_path
 from humv_usd.physics import planck
@@ -459,7 +460,7 @@ def _spectrl2(sun: SunState, weather: Weather, scenario: Scenario, grid_um: np.n
     for key, target, out in (("dni", sun.dni_w_m2, dni), ("dhi", sun.dhi_w_m2, dhi)):
         s = np.nan_to_num(np.asarray(spec[key], dtype=float)) * 1e3  # [W m-2 um-1]
         s = s.reshape(wl.size, -1)
-        total = np.trapz(s, wl, axis=0)
+        total = trapezoid(s, wl, axis=0)
         scale = np.where(total > 0, target[up] / np.where(total > 0, total, 1.0), 0.0)
         for j, i in enumerate(up):
             out[i, sel] = np.interp(grid_um[sel], wl, s[:, j]) * scale[j]
@@ -484,7 +485,7 @@ def _broadband(zenith_deg, lw_spectral, wl_um, t_air) -> tuple[np.ndarray, float
     """Broadband sky radiance (Z,), hemispherical emissivity and effective temperature from a
     spectral longwave sky on LONGWAVE_UM, with a blackbody at T_air outside it (opaque
     far infrared; the thermal sky below 4 um is negligible at terrestrial temperatures)."""
-    inside = np.trapz(lw_spectral, wl_um, axis=-1)
+    inside = trapezoid(lw_spectral, wl_um, axis=-1)
     total_bb = STEFAN_BOLTZMANN * t_air**4 / np.pi
     bb_inside = float(planck.band_radiance(t_air, [wl_um[0], wl_um[-1]]))
     lw = inside + (total_bb - bb_inside)
@@ -492,7 +493,7 @@ def _broadband(zenith_deg, lw_spectral, wl_um, t_air) -> tuple[np.ndarray, float
     # hemispherical flux 2 pi int L mu dmu, trapezoid in mu with L(mu=0) = L(89 deg)
     mus = np.append(mu, 0.0)
     ls = np.append(lw, lw[-1])
-    flux = 2.0 * np.pi * abs(np.trapz(ls * mus, mus))
+    flux = 2.0 * np.pi * abs(trapezoid(ls * mus, mus))
     eps = flux / (STEFAN_BOLTZMANN * t_air**4)
     return lw, float(eps), float((flux / STEFAN_BOLTZMANN) ** 0.25)
 
