@@ -254,8 +254,8 @@ HUMAN = Section(
         "clothing_colors": Key(
             "map",
             "Garment colours: {pattern = colour}, glob patterns (fnmatch) matched against the "
-            "garment names of clothing, the first match wins (e.g. {\"tshirt*\" = \"red\", "
-            "\"jeans\" = \"black\"}): the fabric dyed that colour in the visible, unchanged in the "
+            'garment names of clothing, the first match wins (e.g. {"tshirt*" = "red", '
+            '"jeans" = "black"}): the fabric dyed that colour in the visible, unchanged in the '
             "infrared (humv_usd.catalog.dyes).",
             default=[],
             choices=GARMENT_COLOURS,
@@ -1336,7 +1336,13 @@ BAND_DEFAULT_UM = {
 #: 8-14 µm as visible light) or crashed the render (issue 26). NIR (silicon beyond a long-pass
 #: filter, up to its 1.1 µm cut-off) and SWIR (InGaAs 0.9-1.7 µm, extended InGaAs to 2.5 µm)
 #: are rendered by the sub-band pass, reflection and emission, with radiance as output (issue 24).
-BAND_RANGE_UM = {"EO": (0.36, 0.83), "NIR": (0.7, 1.1), "SWIR": (0.9, 2.5), "MWIR": (3.0, 5.0), "LWIR": (7.0, 14.0)}
+BAND_RANGE_UM = {
+    "EO": (0.36, 0.83),
+    "NIR": (0.7, 1.1),
+    "SWIR": (0.9, 2.5),
+    "MWIR": (3.0, 5.0),
+    "LWIR": (7.0, 14.0),
+}
 
 
 def band_range_problem(where: str, band: str, edges) -> str | None:

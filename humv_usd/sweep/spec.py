@@ -622,11 +622,19 @@ def load_sweep(path: str | Path) -> Sweep:
     draws = _draws(doc.get("random", {}), problems)
     camera = parse_camera(doc["camera"], problems) if "camera" in doc else None
     if camera is not None and not 0 <= camera.sensor < len(base.get("sensor", [])):
-        problems.append(bad_value("camera.sensor", camera.sensor, f"expected a [[sensor]] index 0..{len(base.get('sensor', [])) - 1}"))
+        problems.append(
+            bad_value(
+                "camera.sensor",
+                camera.sensor,
+                f"expected a [[sensor]] index 0..{len(base.get('sensor', [])) - 1}",
+            )
+        )
     if problems:
         raise InputError("", [f"{path}: {p}" for p in problems])
 
-    sweep = Sweep(name, path, base_path, base, axes, draws, count, seed, render, dataset=dataset, camera=camera)
+    sweep = Sweep(
+        name, path, base_path, base, axes, draws, count, seed, render, dataset=dataset, camera=camera
+    )
     for axis in dataset["stratify"]:
         if axis not in {a.name for a in axes}:
             problems.append(
