@@ -55,6 +55,8 @@ def _fileio():
     ``humv_usd`` package would load USD, which zipping does not need."""
     spec = importlib.util.spec_from_file_location("_humv_usd_fileio", ROOT / "humv_usd" / "fileio.py")
     module = importlib.util.module_from_spec(spec)
+    # registered before it runs: its dataclasses look their module up in sys.modules
+    sys.modules[spec.name] = module
     spec.loader.exec_module(module)
     return module
 
