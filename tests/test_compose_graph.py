@@ -4,6 +4,7 @@ user sublayers kept and stronger."""
 
 from __future__ import annotations
 
+import copy
 import json
 import shutil
 import subprocess
@@ -18,6 +19,7 @@ from humv_usd.pipeline import graph
 from humv_usd.pipeline.compose import compose, plan
 from humv_usd.scenario import validate
 from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.scene import layer as scene_layer
 
 ALL = list(HUMVVEX_LAYERS)
 
@@ -214,6 +216,25 @@ def test_single_key_edit_rebuilds_exactly_what_reads_it(out, raw, key):
         assert doc["thermal"]["why"] == "upstream changed: sensors"
     if key == "clothing":
         assert doc["clothing_p1"]["why"] == "inputs changed: human[p1].clothing"
+
+
+def test_scene_reads_the_clock_and_air_only_for_warm_clutter(raw):
+    """The scene layer's key follows the start time and the air only when there is clutter (its
+    held temperatures); humvvex has none, so its scene stays cached (REBUILT above)."""
+
+    def key(edit, clutter):
+        r = copy.deepcopy(raw)
+        if clutter:
+            r["scene"]["clutter"] = [{"id": "rex", "kind": "dog", "position_m": [1.0, 2.0, 0.0]}]
+        if edit == "weather":
+            r["atmosphere"]["air_temperature_k"] = 290.0
+        elif edit == "start":
+            r["general"]["start"] = r["general"]["start"].replace(hour=15)
+        return inputs_key(scene_layer.VERSION, read_values(validate(r), scene_layer.READS), {})
+
+    for edit in ("weather", "start"):
+        assert key(edit, clutter=False) == key(None, clutter=False)
+        assert key(edit, clutter=True) != key(None, clutter=True)
 
 
 def test_key_records_upstream_and_reads(out):

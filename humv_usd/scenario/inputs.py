@@ -10,6 +10,9 @@ A tool declares ``READS``, a tuple of read paths:
   its ``human`` key);
 * ``"@ids"`` -- the instance ids (:func:`humv_usd.scenario.ids.instance_ids`), derived from the
   order of people, objects and props;
+* ``"@clutterAir"`` -- the clock and the air that warm clutter's held temperatures follow
+  (:data:`CLUTTER_AIR`), or None when the scene has no clutter: the scene layer reads them only
+  then, so a scene without clutter is not rebuilt for a new start time or weather;
 * ``"@instanceId[{id}]"`` -- that person's instance id alone; ``"@carriesRifle[{id}]"`` -- whether
   that person's clothing holds the rifle (the avatar's arms take the carry pose): a per-person
   layer that reads these instead of the whole entry is shared between scenarios that differ only
@@ -33,6 +36,7 @@ from pxr import Sdf, UsdUtils
 
 from humv_usd.catalog.garments import LONG_GUNS
 from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.places import scene_clutter
 from humv_usd.scenario.spec import SECTIONS
 
 if TYPE_CHECKING:
@@ -52,7 +56,25 @@ CLOCK = (
     "general.elevation_m",
     "general.seed",
 )
-DERIVED = {"@ids": instance_ids}
+#: what warm clutter's held temperatures follow (humv_usd.scene.objects.author_clutter): the
+#: clock (the sun's elevation at frame 0, the frames) and the held air
+CLUTTER_AIR = (
+    *CLOCK,
+    "atmosphere.air_temperature_k",
+    "atmosphere.wind_speed_m_s",
+    "atmosphere.cloud_cover",
+)
+
+
+def _clutter_air(scenario: Scenario) -> dict[str, Any] | None:
+    """The values of :data:`CLUTTER_AIR` when the scene has warm clutter (its own or a place's),
+    else None."""
+    if not scene_clutter(scenario["scene"]):
+        return None
+    return read_values(scenario, CLUTTER_AIR)
+
+
+DERIVED = {"@ids": instance_ids, "@clutterAir": _clutter_air}
 #: the garment that changes the avatar's pose (humv_usd.catalog.garments: carried in both hands)
 RIFLE = "rifle"
 

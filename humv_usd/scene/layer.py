@@ -34,7 +34,7 @@ from pxr import Sdf, Usd, UsdGeom
 from humv_usd.errors import InputError
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.ids import SITE_SCOPE, instance_ids, site_layer_prims
-from humv_usd.scenario.inputs import CLOCK
+from humv_usd.scenario.inputs import FRAMES
 from humv_usd.scenario.places import scene_clutter, scene_objects
 from humv_usd.scenario.times import utc_times
 from humv_usd.scene.assets import (
@@ -56,15 +56,10 @@ from humv_usd.usd.mesh import bind_material, define_mesh, label, write_asset_sou
 from humv_usd.usd.paths import GROUND, material_path, object_path
 
 NAME = "scene"
-#: the clock and the air: warm clutter's held temperatures (engines, coats, lit lamps at night)
-READS = (
-    *CLOCK,
-    "scene",
-    "@ids",
-    "atmosphere.air_temperature_k",
-    "atmosphere.wind_speed_m_s",
-    "atmosphere.cloud_cover",
-)
+#: ``@clutterAir``: the clock and the air, read only when there is warm clutter (its held
+#: temperatures: engines, coats, lit lamps at night); a scene without clutter keeps its layer
+#: across start times and weather
+READS = (*FRAMES, "scene", "@ids", "@clutterAir")
 UPSTREAM = ()
 #: 4: model kinds; 5: warm clutter and generated places; 6: terrain, ground to the horizon; 7: plants
 VERSION = "7"
