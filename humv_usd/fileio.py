@@ -156,6 +156,28 @@ def check_output_file(path, what: str = "output file") -> Path:
 PENDING_NAME = ".humv-pending.json"
 
 
+def _make_parents(path: Path) -> tuple[Path, ...]:
+    """Create the missing folders above ``path``; return those it created, outermost first
+    (for :func:`_remove_made`, so that a failed write leaves no folder it made)."""
+    missing = []
+    parent = path.parent
+    while not parent.exists():
+        missing.append(parent)
+        if parent.parent == parent:
+            break
+        parent = parent.parent
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return tuple(reversed(missing))
+
+
+def _remove_made(folders) -> None:
+    """Remove the folders a failed write created (:func:`_make_parents`), innermost first,
+    where they are still empty (another writer's or the user's files keep them)."""
+    for folder in sorted(set(folders), key=lambda f: len(f.parts), reverse=True):
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
 def _temp_beside(path: Path) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
     os.close(fd)
@@ -169,6 +191,8 @@ class StagedText:
     is made and drop it from memory, and still commit them all as one change."""
 
     tmp: Path
+    #: the folders :func:`stage_text` created for it (removed again by :func:`discard_staged`)
+    made: tuple[Path, ...] = ()
 
     def read(self) -> str:
         return self.tmp.read_text(encoding="utf-8")
@@ -184,24 +208,30 @@ def stage_text(path, text: str) -> StagedText:
     """Write ``text`` to a temp file beside ``path`` (named as :func:`remove_stale_temps`
     removes it after a kill) and return it for :func:`commit_files`."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temp_beside(path)
+    made = _make_parents(path)
     try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        tmp = _temp_beside(path)
+        try:
+            with open(tmp, "w", encoding="utf-8") as fh:
+                fh.write(text)
+        except BaseException:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(tmp)
+            raise
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(tmp)
+        _remove_made(made)
         raise
-    return StagedText(tmp)
+    return StagedText(tmp, made)
 
 
 def discard_staged(texts) -> None:
-    """Remove the temp files of the :class:`StagedText` values of ``texts`` (a failed change)."""
-    for text in texts:
-        if isinstance(text, StagedText):
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(text.tmp)
+    """Remove the temp files of the :class:`StagedText` values of ``texts`` (a failed change),
+    and the folders staging them created, where nothing else is in them."""
+    staged = [text for text in texts if isinstance(text, StagedText)]
+    for text in staged:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(text.tmp)
+    _remove_made(f for text in staged for f in text.made)
 
 
 def commit_files(folder, texts: dict, remove=()) -> list[Path]:
@@ -215,7 +245,7 @@ def commit_files(folder, texts: dict, remove=()) -> list[Path]:
     it). Files whose text is already on disk are not rewritten. Returns the paths written.
     """
     folder = Path(folder)
-    replace, written = [], []
+    replace, written, made = [], [], []
     try:
         for path, text in texts.items():
             path = Path(path)
@@ -232,7 +262,7 @@ def commit_files(folder, texts: dict, remove=()) -> list[Path]:
                     continue
             except (FileNotFoundError, UnicodeDecodeError, IsADirectoryError):
                 pass
-            path.parent.mkdir(parents=True, exist_ok=True)
+            made += _make_parents(path)
             tmp = _temp_beside(path)
             replace.append((tmp, path))
             with open(tmp, "w", encoding="utf-8") as fh:
@@ -252,6 +282,7 @@ def commit_files(folder, texts: dict, remove=()) -> list[Path]:
             with contextlib.suppress(FileNotFoundError):
                 os.remove(tmp)
         discard_staged(texts.values())
+        _remove_made(made)
         raise
     finish_pending(folder)
     return written

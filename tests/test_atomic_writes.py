@@ -17,7 +17,15 @@ from click.testing import CliRunner
 
 from humv_usd.cli.main import main
 from humv_usd.errors import InputError
-from humv_usd.fileio import LOCK_NAME, PENDING_NAME, commit_files, finish_pending, folder_lock
+from humv_usd.fileio import (
+    LOCK_NAME,
+    PENDING_NAME,
+    commit_files,
+    discard_staged,
+    finish_pending,
+    folder_lock,
+    stage_text,
+)
 from humv_usd.pipeline.compose import compose
 from humv_usd.scenario import load_scenario
 from humv_usd.usd.check import check_stage
@@ -239,3 +247,22 @@ def test_wait_waits_for_the_other_writer(tmp_path):
         proc.kill()
         proc.wait()
     assert time.perf_counter() - t > 0.5  # it waited for the holder's second
+
+
+def test_discarded_staging_leaves_no_folder_it_made(tmp_path):
+    """A failed compose left an empty layers/ folder (stage_text made it): discarding the staged
+    texts removes the folders staging created, and keeps those that were there or hold files."""
+    (tmp_path / "kept").mkdir()
+    staged = [
+        stage_text(tmp_path / "new" / "deeper" / "a.usda", "a"),
+        stage_text(tmp_path / "new" / "deeper" / "b.usda", "b"),
+        stage_text(tmp_path / "kept" / "c.usda", "c"),
+        stage_text(tmp_path / "busy" / "d.usda", "d"),
+    ]
+    (tmp_path / "busy" / "user.txt").write_text("not ours")
+    discard_staged(staged)
+    assert sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*")) == [
+        "busy",
+        "busy/user.txt",
+        "kept",
+    ]

@@ -93,6 +93,22 @@ def _suggest(name: str, known) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
+#: an allowed-names list longer than this is cut to the closest matches (one readable line)
+_LIST_MAX = 240
+
+
+def _allowed(name: str, known, what: str = "keys") -> str:
+    """The allowed names for an unknown ``name``: all of them while they fit on a readable
+    line; otherwise the count, the closest ones (difflib) and where the full list is."""
+    known = list(known)
+    listing = ", ".join(known)
+    if len(listing) <= _LIST_MAX:
+        return f"allowed {what}: {listing}"
+    close = difflib.get_close_matches(name, known, n=5, cutoff=0.3) if len(name) <= 100 else []
+    nearest = f"; the closest: {', '.join(close)}" if close else ""
+    return f"{len(known)} allowed {what}{nearest} (all in docs/reference/scenario.rst)"
+
+
 def _range_text(key: Key) -> str:
     lo = int(key.lo) if key.integer else key.lo
     hi = int(key.hi) if key.integer else key.hi
@@ -223,7 +239,7 @@ def _check_table(where: str, table: Any, section: Section, problems: list[str]) 
             continue
         if name not in section.keys:
             problems.append(
-                f"{where}.{shown(name)}: unknown key{_suggest(name, known)}; allowed keys: {', '.join(known)}"
+                f"{where}.{shown(name)}: unknown key{_suggest(name, known)}; {_allowed(name, known)}"
             )
             continue
         out[name] = _check_value(f"{where}.{name}", value, section.keys[name], problems)
@@ -584,7 +600,7 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
         if name not in SECTIONS:
             problems.append(
                 f"[{shown(name)}]: unknown section{_suggest(name, SECTIONS)}; "
-                f"allowed sections: {', '.join(SECTIONS)}"
+                f"{_allowed(name, SECTIONS, 'sections')}"
             )
     data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}
     _check_garments(data, problems)
