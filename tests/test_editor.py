@@ -331,8 +331,14 @@ def test_stage_view_has_every_mesh_triangle_and_camera(humvvex, tmp_path):
     assert sum(len(g.faces) for g in loaded.geometry.values()) == expected
     assert [c.name for c in view.cameras] == [s["id"] for s in load_scenario(humvvex)["sensor"]]
     np.testing.assert_allclose(view.cameras[0].origin, [0.0, -15.0, 1.6], atol=1e-6)
-    np.testing.assert_allclose(view.bounds[0][:2], [-60.0, -60.0])  # the 120 m ground
-    np.testing.assert_allclose(view.bounds[1][:2], [60.0, 60.0])
+    # the view shows every rendered mesh, the ground's horizon rings included: its bounds are the
+    # GLB's, out to [scene.ground] horizon_m (20 km by default, square rings) around the 120 m
+    # ground (the view starts at the first camera, not at the bounds)
+    np.testing.assert_allclose(np.asarray(view.bounds), loaded.bounds, atol=1e-3)
+    horizon = load_scenario(humvvex)["scene"]["ground"]["horizon_m"]
+    assert horizon == 20000.0
+    np.testing.assert_allclose(view.bounds[0][:2], [-horizon, -horizon])
+    np.testing.assert_allclose(view.bounds[1][:2], [horizon, horizon])
 
 
 def test_preview_scenario_is_small_with_the_same_view(humvvex, tmp_path):

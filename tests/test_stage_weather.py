@@ -216,14 +216,17 @@ def test_hand_edited_cloud_cover_changes_the_atmosphere_layer(humvvex_raw, tmp_p
 
 
 def test_path_ranges_reach_a_hand_made_mesh_of_the_stage(humvvex_raw, tmp_path, monkeypatch):
-    """The path table's ranges come from the scene on the stage: a mast 3 km away, added by a
-    stronger layer (not in the scenario), stretches the sensor's table to 1.5 x its distance."""
+    """The path table's ranges come from the scene on the stage: they reach the farthest ground
+    the camera sees (the horizon rings' corners, [scene.ground] horizon_m: square rings, so
+    sqrt(2) horizon_m from the origin), and, on a ground that ends at size_m (horizon_m = 0), a
+    mast 3 km away added by a stronger layer (not in the scenario) stretches the sensor's table
+    to 1.5 x its distance."""
     from pxr import UsdGeom
 
+    from humv_usd.atmosphere.model import PATH_RANGES_M
     from humv_usd.usd.atmosphere import PATHS
 
     monkeypatch.setenv(M.CACHE_ENV, str(tmp_path / "cache"))
-    sc = _scenario(humvvex_raw, tmp_path, csv=False)
     extra = Sdf.Layer.CreateAnonymous(".usda")
     edit = Usd.Stage.Open(extra)
     mast = UsdGeom.Mesh.Define(edit, "/World/Scene/far_mast")
@@ -231,8 +234,16 @@ def test_path_ranges_reach_a_hand_made_mesh_of_the_stage(humvvex_raw, tmp_path, 
     mast.CreateFaceVertexCountsAttr([3])
     mast.CreateFaceVertexIndicesAttr([0, 1, 2])
     mast.CreateExtentAttr([(3000.0, 0.0, 0.0), (3001.0, 0.0, 20.0)])
-    far = {}
-    for name, layers in (("as built", ()), ("with mast", (extra,))):
+    far, scenarios = {}, {}
+    for name, horizon_m, layers in (
+        ("horizon", None, ()),
+        ("as built", 0.0, ()),
+        ("with mast", 0.0, (extra,)),
+    ):
+        raw = copy.deepcopy(humvvex_raw)
+        if horizon_m is not None:
+            raw["scene"]["ground"]["horizon_m"] = horizon_m
+        sc = scenarios[name] = _scenario(raw, tmp_path, csv=False)
         _, stage = _upstream(sc, *layers)
         ranges = (
             stage.GetPrimAtPath(PATHS.AppendChild("lwir640_path"))
@@ -240,7 +251,12 @@ def test_path_ranges_reach_a_hand_made_mesh_of_the_stage(humvvex_raw, tmp_path, 
             .Get()
         )
         far[name] = float(ranges[-1])
-    cam = np.asarray(sc["sensor"][0]["position_m"], float)
+    cam = np.asarray(scenarios["horizon"]["sensor"][0]["position_m"], float)
+    h = scenarios["horizon"]["scene"]["ground"]["horizon_m"]
+    assert h == 20000.0  # the default: the ground reaches the horizon
+    ground_corners = np.array([(sx * h, sy * h, 0.0) for sx in (-1, 1) for sy in (-1, 1)])
+    farthest = float(np.max(np.linalg.norm(ground_corners - cam, axis=1)))
+    assert farthest <= far["horizon"] <= float(PATH_RANGES_M[-1])
     corner = np.array([3001.0, 0.0, 20.0])
     assert far["as built"] < 1000.0
     assert far["with mast"] == pytest.approx(1.5 * np.linalg.norm(corner - cam), rel=1e-5)
