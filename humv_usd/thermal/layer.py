@@ -73,8 +73,9 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 4: faces in material GeomSubsets are slabs of their material; 5: scene surfaces see their
 #: surroundings (sky view, exchange), shadow edges to the cameras' pixel footprint
 #: 6: evapotranspiration of vegetation and soil, rain on the surfaces and their drying (issue 30);
-#: 7: terrain zones as ground, leaves' convection, plants not refined, ground sky view vs objects only
-VERSION = "7"
+#: 7: terrain zones as ground, leaves' convection, plants not refined, ground sky view vs objects only;
+#: 8: people's ray offset no longer grows with a ground to the horizon (qrad.OFFSET_SCENE_SIZE_CAP_M)
+VERSION = "8"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85

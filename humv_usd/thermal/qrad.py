@@ -105,6 +105,12 @@ def _absorptivity(absorptivity, n_bands, n_faces):
 
 SUN_NORMALS = ("smooth", "flat")
 
+#: scene size [m] above which the default ray offset stops growing: a ground to the horizon
+#: (issue 30, 40 km across) made it 5.7 cm, so a person's facets escaped the shadows of their
+#: own nearby parts (shoes 3.5 K warmer in the sun); 150 m keeps the 0.15 mm a 100 m ground gave
+#: (as thermal.surfaces.EPS_SCENE_SIZE_CAP_M for the scene's own rays)
+OFFSET_SCENE_SIZE_CAP_M = 150.0
+
 
 def corner_normals(mesh, crease_deg: float = 60.0) -> np.ndarray:
     """(F, 3, 3) unit shading normal at each corner of each face: the mean of the normals of the
@@ -686,7 +692,8 @@ def absorbed_radiation(
         Irradiance table rows over the normal's zenith (columns: the map's).
     offset : float, optional
         Ray origin offset along the normal [m]; default the larger of 1e-5 x the mesh's and
-        1e-6 x the mesh-plus-scene bounding diagonal (embree works in float32).
+        1e-6 x the mesh-plus-scene bounding diagonal, the latter capped at
+        :data:`OFFSET_SCENE_SIZE_CAP_M` (embree works in float32).
     pilot : int
         'adaptive': first-stage rays per facet (a power of two keeps the Hammersley set a
         (0, m, 2)-net).
@@ -740,7 +747,8 @@ def absorbed_radiation(
     centroids = np.asarray(mesh.triangles_center, dtype=float)
     occ = _Occluders(mesh, environment.n_bands, mesh_radiance, scene, backend)
     if offset is None:
-        offset = max(ray_offset(mesh), 1e-6 * float(np.linalg.norm(occ.extents)))
+        scene_size = min(float(np.linalg.norm(occ.extents)), OFFSET_SCENE_SIZE_CAP_M)
+        offset = max(ray_offset(mesh), 1e-6 * scene_size)
     if method == "brute":
         e = _diffuse_brute(environment, centroids, normals, occ, offset)
         var, counts, replayed = np.zeros(len(normals)), None, False
