@@ -77,12 +77,14 @@ def forced_variant() -> str | None:
     forced = os.environ.get(VARIANT_ENV, "").strip()
     if forced:
         if forced not in SUPPORTED_VARIANTS:
-            raise ValueError(f"{VARIANT_ENV} = {forced!r}: expected one of {', '.join(SUPPORTED_VARIANTS)}")
+            raise InputError(
+                bad_value(VARIANT_ENV, forced, f"expected one of {', '.join(SUPPORTED_VARIANTS)}")
+            )
         return forced
     backend = os.environ.get(BACKEND_ENV, "").strip().lower()
     if backend:
         if backend not in BACKENDS:
-            raise ValueError(f"{BACKEND_ENV} = {backend!r}: expected one of {', '.join(BACKENDS)}")
+            raise InputError(bad_value(BACKEND_ENV, backend, f"expected one of {', '.join(BACKENDS)}"))
         return BACKENDS[backend]
     return None
 
@@ -90,7 +92,7 @@ def forced_variant() -> str | None:
 def set_backend(name: str) -> None:
     """Force a backend (:data:`BACKENDS`) for this process; call before Mitsuba is first used."""
     if name not in BACKENDS:
-        raise ValueError(f"backend = {name!r}: expected one of {', '.join(BACKENDS)}")
+        raise InputError(bad_value("backend", name, f"expected one of {', '.join(BACKENDS)}"))
     if "mi" in _state and BACKENDS[name] not in (None, _state["variant"]):
         raise RuntimeError(f"backend {name!r} asked for after Mitsuba started with {_state['variant']}")
     os.environ[BACKEND_ENV] = name
