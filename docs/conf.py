@@ -25,6 +25,10 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
+    # MathJax 3.2.2 shipped in the wheel and copied to _static/mathjax: the maths shows offline
+    # (Sphinx's default loads MathJax from a CDN); tests/test_docs.py checks no page loads a
+    # script from the network
+    "sphinx-mathjax-offline",
     "sphinx_click",
     "humv_docs",
 ]

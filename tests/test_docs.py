@@ -178,6 +178,32 @@ def test_site_builds_every_page(site):
     assert len(sources) >= 15
 
 
+def test_site_loads_nothing_from_the_network(site):
+    """The manual reads offline: no page loads a script, style, image or frame from another host
+    (Sphinx's default MathJax is a CDN script; sphinx-mathjax-offline ships MathJax in the build),
+    every local script a page loads is in the build, and the pages with maths load MathJax."""
+    remote = re.compile(
+        r"""<(?:script|img|iframe|source|video|audio|embed)\b[^>]*\bsrc=["']((?:https?:)?//[^"']+)"""
+    )
+    remote_css = re.compile(r"""<link\b[^>]*\bhref=["']((?:https?:)?//[^"']+)""")
+    local = re.compile(r"""<script\b[^>]*\bsrc=["'](?!(?:https?:)?//)([^"'?#]+)""")
+    found, missing, maths = [], [], 0
+    for page in site.rglob("*.html"):
+        text = page.read_text()
+        found += [(page.name, u) for u in remote.findall(text) + remote_css.findall(text)]
+        for src in local.findall(text):
+            if not (page.parent / src).is_file():
+                missing.append((page.name, src))
+        if 'class="math' in text:
+            maths += 1
+            assert "_static/mathjax/tex-chtml.js" in text, page
+    assert not found, found[:5]
+    assert not missing, missing[:5]
+    assert maths >= 3  # the physics pages' formulas
+    for css in (site / "_static").rglob("*.css"):
+        assert not re.search(r"url\(\s*[\"']?(?:https?:)?//", css.read_text()), css.name
+
+
 def test_cli_reference_has_every_command_and_option(site):
     page = (site / "reference" / "cli.html").read_text()
     ids = set(re.findall(r'id="([^"]+)"', page))
