@@ -50,6 +50,7 @@ from humv_usd.thermal.surfaces import (
     with_water,
     write_refined_topology,
 )
+from humv_usd.thermal.wet import author_wet_surfaces
 from humv_usd.usd.atmosphere import longwave_sky, model_name
 from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import finish, new_layer_stage
@@ -75,7 +76,8 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 6: evapotranspiration of vegetation and soil, rain on the surfaces and their drying (issue 30);
 #: 7: terrain zones as ground, leaves' convection, plants not refined, ground sky view vs objects only;
 #: 8: people's ray offset no longer grows with a ground to the horizon (qrad.OFFSET_SCENE_SIZE_CAP_M)
-VERSION = "8"
+#: 9: faces wet after rain bound to wet variants of their materials (thermal.wet)
+VERSION = "9"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85
@@ -107,6 +109,7 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     slabs = any(m.held_k is None for m in meshes)
     report: dict = {"model": model}
     surf: dict[str, np.ndarray] = {}
+    sdiag: dict = {}
     forcing = None
     if slabs or people:
         spin = th["surface_spin_up_s"] if slabs else 0.0
@@ -194,6 +197,11 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
             )
             solved.update(temps_h)
             report[h["id"]] = {k: round(v, 9) for k, v in diag.items()}
+    wet = sdiag.get("wetFraction") if slabs else None
+    if wet:  # issue 30.4: faces wet after rain render with a wet variant of their material
+        report["wetSurfaces"] = author_wet_surfaces(
+            stage, upstream, meshes, {p: w[0] for p, w in wet.items()}
+        )
     # error estimates (deterministic for fixed seeds) travel with the layer; run times go
     # to compose's report, so an unchanged scenario still rewrites nothing
     stage.GetRootLayer().customLayerData = {"humv:thermal": report}

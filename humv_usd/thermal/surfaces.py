@@ -1116,6 +1116,7 @@ def _solve_faces(mesh: SceneMesh, normals, lit, f, *args):
         return _solve_mesh(mesh, normals, lit, f, *args)
     m = len(f.times_s)
     out, lw, res = np.empty((m, mesh.n_faces)), np.empty((m, mesh.n_faces)), 0.0
+    wet = None
     seen = args[-1]
     for k, material in enumerate(mesh.face_materials):
         sel = mesh.material_of_face == k
@@ -1124,16 +1125,19 @@ def _solve_faces(mesh: SceneMesh, normals, lit, f, *args):
         one = dataclasses.replace(
             mesh, material=material, face_materials=(), material_of_face=None, n_faces=int(sel.sum())
         )
-        t, r, e = _solve_mesh(
+        t, r, e, w = _solve_mesh(
             one, normals[sel], lit[:, sel], f, *args[:-1], None if seen is None else seen.take(sel)
         )
         out[:, sel], lw[:, sel], res = t, e, max(res, r)
-    return out, res, lw
+        if w is not None:
+            wet = np.zeros((m, mesh.n_faces)) if wet is None else wet
+            wet[:, sel] = w
+    return out, res, lw, wet
 
 
 def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k, seen=None):
-    """(M, F) surface temperatures of one mesh's slab faces, the max residual and the (M, F)
-    incident long wave."""
+    """(M, F) surface temperatures of one mesh's slab faces, the max residual, the (M, F)
+    incident long wave and the (M, F) wet fraction (None: no water on it)."""
     a_s, lw, air, h, e_sw = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, seen)
     leaf = surface_water(mesh.material.name).leaf_dimension_m
     if leaf is not None:  # foliage: both sides of its leaves exchange heat (physics.vegetation)
@@ -1159,7 +1163,8 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     if latent:
         latent["surface_resistance_s_m"] = cols.pop()
     dz, k, rc = _construction(mesh)
-    t_surf, res = slab.simulate_many(
+    wet = latent.get("rain_kg_m2_s") is not None and np.any(latent["rain_kg_m2_s"] > 0.0)
+    solved = slab.simulate_many(
         f.times_s,
         *cols,
         dz,
@@ -1169,9 +1174,11 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
         bottom="fixed" if mesh.is_ground else ("adiabatic" if mesh.interior_k is None else "interior"),
         deep_temperature_k=deep_k if mesh.interior_k is None else mesh.interior_k,
         melt_temperature_k=surface_water(mesh.material.name).melts_at_k,
+        return_wet_fraction=bool(wet),
         **latent,
     )
-    return t_surf[:, inverse], res, lw
+    t_surf, res = solved[:2]
+    return t_surf[:, inverse], res, lw, (solved[2][:, inverse] if wet else None)
 
 
 def _latent_forcing(mesh: SceneMesh, f: SurfaceForcing, e_sw) -> dict:
@@ -1281,7 +1288,8 @@ def surface_temperatures(
         ({mesh path: (n, faces) temperature [K]}, diagnostics: max |surface residual| of the
         slabs [W m^-2], the ground's mean temperature (n,) [K], what each mesh got
         ('held' or 'slab'), and with ``exchange`` the passes of the exchange iteration, its
-        last change [K], the rays cast and the area-weighted mean sky view factor per mesh).
+        last change [K], the rays cast and the area-weighted mean sky view factor per mesh;
+        after rain ``wetFraction``: {mesh path: (n, faces) wet share [0-1]}).
 
     Notes
     -----
@@ -1355,6 +1363,7 @@ def surface_temperatures(
     used_lw = np.zeros((n_t, n_all))
     resolve_w_m2 = EXCHANGE_TOLERANCE_K * MIN_SURFACE_CONDUCTANCE
     kinds, max_res, passes, change = {}, 0.0, 0, 0.0
+    wet_now = None  # (n_t, n_all) wet fraction of the faces that hold rain water
     order = sorted(range(len(meshes)), key=lambda i: not meshes[i].is_ground)
     coupled = views.coupled if views is not None else np.zeros(n_all, dtype=bool)
     ground_sum: dict[int, np.ndarray] = {}
@@ -1392,11 +1401,14 @@ def surface_temperatures(
                     n_faces=int(sel.sum()),
                     material_of_face=None if m.material_of_face is None else m.material_of_face[sel],
                 )
-                t_sel, res, lw = _solve_faces(
+                t_sel, res, lw, wet_sel = _solve_faces(
                     sub, normals[sel], lit_all[:, sl][:, sel], f, ground_k, ground_eps, ground_alb, deep, seen
                 )
                 cols = np.arange(starts[i], starts[i + 1])[sel]
                 t_now[:, cols], l_in[:, cols] = t_sel, lw
+                if wet_sel is not None:
+                    wet_now = np.zeros((n_t, n_all)) if wet_now is None else wet_now
+                    wet_now[:, cols] = wet_sel
                 if views is not None:
                     used_lw[:, cols] = scene_lw[:, cols]
                 max_res = max(max_res, res)
@@ -1416,6 +1428,10 @@ def surface_temperatures(
         "groundMeanTemperature_k": ground_k[idx],
         "surfaceModels": kinds,
     }
+    if wet_now is not None:
+        diag["wetFraction"] = {
+            m.path: wet_now[:, starts[i] : starts[i + 1]][idx] for i, m in enumerate(meshes)
+        }
     if views is not None:
         svf = views.sky_view_factor
         diag.update(

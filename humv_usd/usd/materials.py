@@ -129,6 +129,36 @@ def write_material_properties(prim: Usd.Prim, material: Material) -> None:
         prim.GetAttribute(attr).Set(value)
 
 
+def write_stage_material(stage: Usd.Stage, material: StageMaterial) -> UsdShade.Material:
+    """Define the material prim ``material.path`` from a :class:`StageMaterial` (a material
+    derived on the stage, e.g. a wet variant of a bound one): HumvMaterialAPI spectra, the
+    thermal data it has, its source, and a UsdPreviewSurface of its visible reflectance."""
+    m = material
+    mat = UsdShade.Material.Define(stage, m.path)
+    prim = mat.GetPrim()
+    prim.ApplyAPI(S.MATERIAL_API)
+    prim.GetAttribute(S.MATERIAL_WAVELENGTHS).Set(Vt.FloatArray([float(v) for v in m.wavelengths_um]))
+    prim.GetAttribute(S.MATERIAL_EMISSIVITY).Set(Vt.FloatArray([float(v) for v in m.emissivity]))
+    if m.reflectance is not None:
+        prim.GetAttribute(S.MATERIAL_REFLECTANCE).Set(Vt.FloatArray([float(v) for v in m.reflectance]))
+    if m.transmittance is not None:
+        prim.GetAttribute(S.MATERIAL_TRANSMITTANCE).Set(Vt.FloatArray([float(v) for v in m.transmittance]))
+    for attr, field in THERMAL_ATTRIBUTES.items():
+        value = getattr(m, attr)
+        if value is not None:
+            prim.GetAttribute(field).Set(float(value))
+    if m.source:
+        prim.GetAttribute(S.MATERIAL_SOURCE).Set(m.source)
+    shader = UsdShade.Shader.Define(stage, mat.GetPath().AppendChild("PreviewSurface"))
+    shader.CreateIdAttr("UsdPreviewSurface")
+    if m.reflectance is not None:
+        rgb = np.interp([0.65, 0.55, 0.45], m.wavelengths_um, m.reflectance)
+        shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*(float(v) for v in rgb)))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.9)
+    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return mat
+
+
 def write_substrate(material_prim: Usd.Prim, substrate_path) -> None:
     """Point a ground material at the material under it (:data:`SUBSTRATE_RELATIONSHIP`: the
     slab ground's substrate, read back by :func:`substrate`)."""
