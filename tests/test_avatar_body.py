@@ -16,6 +16,7 @@ try:
 except MissingAssetError as exc:  # pragma: no cover - data fetched by `make setup`
     pytest.skip(str(exc), allow_module_level=True)
 
+from humv_usd.human import fat as F  # noqa: E402
 from humv_usd.human import macro as M  # noqa: E402
 from humv_usd.human.body import body_fat_pct, build_body, build_to_muscle, dubois_bsa, siri_density, to_usd  # noqa: E402
 
@@ -93,13 +94,15 @@ def test_grid_stature_and_mass(grid, sex):
             assert abs(b.stature_m / h - 1) < 0.01, (sex, h, m, b.stature_m)
             assert abs(b.mass_kg / m - 1) < 0.05, (sex, h, m, b.mass_kg)
             assert b.mass_kg == pytest.approx(b.volume_m3 * b.density_kg_m3)
-            # the macros do what they can before a final scale is used
-            w = b.macros.weight
-            assert b.lateral_scale == 1.0 or w in (0.0, 1.0)
-            assert (b.lateral_scale > 1) == (w == 1.0 and b.lateral_scale != 1.0)
+            # the weight macro, then the fat axis, do what they can before a final scale is used
+            w, f = b.macros.weight, b.fat
+            assert f == 0.0 or (f > 0 and w == 1.0) or (f < 0 and w == 0.0)
+            assert b.lateral_scale == 1.0 or abs(f) == pytest.approx(
+                F.max_f(b.macros.gender, "incr" if f > 0 else "decr")
+            )
             assert b.uniform_scale == 1.0  # 1.5-2.0 m is inside the height macro's range
     heavy, light = grid[sex, 1.75, 110.0], grid[sex, 1.75, 50.0]
-    assert heavy.macros.weight > light.macros.weight or heavy.lateral_scale > 1
+    assert heavy.macros.weight + heavy.fat > light.macros.weight + light.fat
     assert grid[sex, 2.0, 80.0].macros.height > grid[sex, 1.5, 80.0].macros.height
 
 
@@ -107,7 +110,8 @@ def test_points_are_makehuman_model(grid):
     """The fitted points are exactly apply_macros(macros), moved and scaled as reported."""
     for key in (("female", 1.5, 110.0), ("male", 2.0, 80.0), ("male", 1.75, 80.0)):
         b = grid[key]
-        p = to_usd(M.apply_macros(b.macros))
+        fat = F.fat_delta(b.macros.gender, "incr" if b.fat > 0 else "decr")
+        p = to_usd(M.apply_macros(b.macros) + abs(b.fat) * fat)
         body = b.body_mesh().vertex_ids
         lo, hi = p[body].min(axis=0), p[body].max(axis=0)
         p -= [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]

@@ -93,9 +93,10 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "5"
+VERSION = "6"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -308,6 +309,7 @@ def _avatar_attributes(prim, human: dict, body: Body) -> None:
             "volume_m3": round(body.volume_m3, 6),
             "density_kg_m3": round(body.density_kg_m3, 2),
             "bodyFat_pct": round(body.body_fat_pct, 2),
+            "fatAxis": round(body.fat, 6),
             "uniformScale": round(body.uniform_scale, 6),
             "lateralScale": round(body.lateral_scale, 6),
             "macros": {k: round(float(v), 6) for k, v in vars(body.macros).items()},

@@ -21,14 +21,21 @@ weight macro the volume (the two interact slightly, so they are solved alternate
 30-yr-old the height macro spans a stature of ~1.22-2.31 m (female) / ~1.36-2.45 m (male), but
 the weight macro only about BMI 16.5-22 (female) / 20-24 (male) at the default height (its
 targets move the skin by <= 3 cm), and the tall end of the height macro is heavier still.
-Beyond those ranges two final scales are applied and reported (1 = not needed):
+Beyond the weight macro the volume follows the *fat axis* f of :mod:`humv_usd.human.fat`: a
+blend of MakeHuman's regional CC0 targets (per-limb fat, girth, belly, buttocks, double chin)
+whose mix is calibrated so that the girths grow with BMI as in ANSUR II (waist faster than
+thigh, thigh faster than calf, the wrist hardly at all). The weight macro and the fat axis form
+one monotone volume axis u (u in [0, 1]: the weight macro; u > 1: weight 1 and f = u - 1; u < 0:
+weight 0 and f = u, with the ``-decr`` targets), solved with ``brentq`` like the others. The
+targets stop at twice their slider's end (``fat.MAX_WEIGHT``: beyond it the arms start to
+enter the trunk in the rest pose); two final scales are applied and reported (1 = not needed):
 
 * ``uniform_scale`` -- all three axes, when the stature is outside the height macro's range
   (volume follows as the cube, so the weight solve targets ``volume / uniform_scale**3``);
 * ``lateral_scale`` -- x and y only, about the body's vertical axis, when the volume is
-  outside the weight macro's range; it keeps the stature and scales the volume by its square.
-  This widens (or narrows) the whole body evenly, head and hands included: a crude stand-in for
-  fat distribution, but it keeps the mesh valid for any BMI.
+  outside the fat axis's range (about BMI 40 and above: 1.12 for a BMI-45 man, 1.14 for a
+  BMI-45 woman; it was 1.48 before the fat axis); it keeps the stature and scales the volume
+  by its square, head and hands included.
 
 So the measured stature and mesh mass match the request to the solver tolerance (~1e-6 %).
 
@@ -60,6 +67,8 @@ from scipy.optimize import brentq
 
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human.basemesh import _MH_TO_USD
+from humv_usd.human.fat import DIRECTIONS as FAT_DIRECTIONS
+from humv_usd.human.fat import fat_delta, max_f
 from humv_usd.human.macro import MacroValues, age_to_macro, apply_macros, obj_data
 from humv_usd.usd.mesh import signed_volume, triangle_areas
 
@@ -146,6 +155,7 @@ class Body:
     mass_kg: float  # volume_m3 * density_kg_m3
     body_surface_area_m2: float  # mesh area of the body group
     macros: MacroValues
+    fat: float  # the fat axis f beyond the weight macro (humv_usd.human.fat); 0 inside it
     uniform_scale: float  # 1 unless the stature was outside the height macro's range
     lateral_scale: float  # 1 unless the mass was outside the weight macro's range
     requested: dict = field(default_factory=dict)
@@ -185,7 +195,7 @@ class _Basis:
     where T[c, k] is the whole mesh at the pure weight level c and height level k.
     """
 
-    def __init__(self, m: MacroValues, vertices: np.ndarray):
+    def __init__(self, m: MacroValues, vertices: np.ndarray, fat: bool = True):
         levels = (0.0, 0.5, 1.0)
         T = np.array(
             [[apply_macros(_with(m, weight=wc, height=hk))[vertices] for hk in levels] for wc in levels]
@@ -193,6 +203,16 @@ class _Basis:
         self.avg = T[:, 1]
         self.dlo = T[:, 0] - T[:, 1]
         self.dhi = T[:, 2] - T[:, 1]
+        self.fat = {d: fat_delta(m.gender, d)[vertices] for d in FAT_DIRECTIONS} if fat else {}
+
+    def points_u(self, u: float, height: float, cols=slice(None)) -> np.ndarray:
+        """Points on the volume axis u: the weight macro for u in [0, 1], then the fat axis
+        (f = u - 1 above, f = u below; :mod:`humv_usd.human.fat`)."""
+        weight, f = float(np.clip(u, 0.0, 1.0)), u - float(np.clip(u, 0.0, 1.0))
+        p = self.points(weight, height, cols)
+        if f:
+            p = p + abs(f) * self.fat["incr" if f > 0 else "decr"][:, cols]
+        return p
 
     def points(self, weight: float, height: float, cols=slice(None)) -> np.ndarray:
         lo, hi = max(0.0, 1.0 - 2.0 * weight), max(0.0, 2.0 * weight - 1.0)
@@ -231,15 +251,15 @@ def _volume_mh(p: np.ndarray, tris: np.ndarray) -> float:
     return float(np.einsum("ij,ij->", a, np.cross(b, c))) / 6.0
 
 
-def _solve(f, target: float) -> tuple[float, float]:
-    """x in [0, 1] with f(x) = target for increasing f; if out of range, the end and the
+def _solve(f, target: float, a: float = 0.0, b: float = 1.0) -> tuple[float, float]:
+    """x in [a, b] with f(x) = target for increasing f; if out of range, the end and the
     ratio target / f(end)."""
-    lo, hi = f(0.0), f(1.0)
+    lo, hi = f(a), f(b)
     if target <= lo:
-        return 0.0, target / lo
+        return a, target / lo
     if target >= hi:
-        return 1.0, target / hi
-    return brentq(lambda x: f(x) - target, 0.0, 1.0, xtol=_XTOL, rtol=1e-12), 1.0
+        return b, target / hi
+    return brentq(lambda x: f(x) - target, a, b, xtol=_XTOL, rtol=1e-12), 1.0
 
 
 _MH_LEN = 0.1  # metres per MakeHuman unit
@@ -247,36 +267,42 @@ _UP = 1  # MakeHuman's vertical axis (Y)
 
 
 def fit_macros(
-    m: MacroValues, stature_m: float, volume_m3: float, iterations: int = 12
-) -> tuple[MacroValues, float, float]:
+    m: MacroValues, stature_m: float, volume_m3: float, iterations: int = 12, fat: bool = True
+) -> tuple[MacroValues, float, float] | tuple[MacroValues, float, float, float]:
     """Weight and height macros (others from ``m``) for a stature and closed-mesh volume.
 
-    Returns (macros, uniform_scale, lateral_scale); see the module docstring.
+    Returns (macros, uniform_scale, lateral_scale) with ``fat=False`` (the macros alone), else
+    (macros, fat_f, uniform_scale, lateral_scale); see the module docstring.
     """
     used, tris = _body_topology()
-    basis = _Basis(m, used)
+    basis = _Basis(m, used, fat)
+    u_lo, u_hi = (-max_f(m.gender, "decr"), 1.0 + max_f(m.gender, "incr")) if fat else (0.0, 1.0)
 
-    def stature(w, h):
-        z = basis.points(w, h, cols=_UP)
+    def stature(u, h):
+        z = basis.points_u(u, h, cols=_UP)
         return (z.max() - z.min()) * _MH_LEN
 
-    def volume(w, h):
-        return _volume_mh(basis.points(w, h), tris) * _MH_LEN**3
+    def volume(u, h):
+        return _volume_mh(basis.points_u(u, h), tris) * _MH_LEN**3
 
-    w, h = m.weight, m.height
+    u, h = m.weight, m.height
     for _ in range(iterations):
-        h_new, s = _solve(lambda x: stature(w, x), stature_m)
-        w_new, _ = _solve(lambda x: volume(x, h_new), volume_m3 / s**3)
-        done = abs(h_new - h) < 1e-7 and abs(w_new - w) < 1e-7
-        w, h = w_new, h_new
+        h_new, s = _solve(lambda x: stature(u, x), stature_m)
+        u_new, _ = _solve(lambda x: volume(x, h_new), volume_m3 / s**3, u_lo, u_hi)
+        done = abs(h_new - h) < 1e-7 and abs(u_new - u) < 1e-7
+        u, h = u_new, h_new
         if done:
             break
-    s = stature_m / stature(w, h)  # exact after the last weight step
-    r = volume_m3 / (volume(w, h) * s**3)
+    s = stature_m / stature(u, h)  # exact after the last weight step
+    r = volume_m3 / (volume(u, h) * s**3)
     # snap to 1 what is solver noise (brentq xtol 1e-9 on the macros -> ~1e-8 relative)
     k = 1.0 if abs(r - 1.0) < 1e-6 else float(np.sqrt(r))
     s = 1.0 if abs(s - 1.0) < 1e-6 else float(s)
-    return _with(m, weight=w, height=h), s, k
+    w = float(np.clip(u, 0.0, 1.0))
+    macros = _with(m, weight=w, height=h)
+    if not fat:
+        return macros, s, k
+    return macros, float(u - w), s, k
 
 
 def to_usd(points_mh: np.ndarray) -> np.ndarray:
@@ -309,9 +335,9 @@ def build_body(
     start = MacroValues(
         gender=SEX_GENDER[sex], age=age_to_macro(age_yr), muscle=muscle, proportions=float(proportions)
     )
-    macros, s, k = fit_macros(start, stature_m, mass_kg / density)
+    macros, fat, s, k = fit_macros(start, stature_m, mass_kg / density)
 
-    p = to_usd(apply_macros(macros))
+    p = to_usd(apply_macros(macros) + abs(fat) * fat_delta(macros.gender, "incr" if fat > 0 else "decr"))
     _, groups = obj_data()
     body_faces = groups["body"]
     used = np.unique(body_faces)
@@ -338,6 +364,7 @@ def build_body(
         mass_kg=volume * density,
         body_surface_area_m2=float(triangle_areas(p, counts, flat).sum()),
         macros=macros,
+        fat=fat,
         uniform_scale=s,
         lateral_scale=k,
         requested={
