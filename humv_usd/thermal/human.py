@@ -406,6 +406,9 @@ def human_temperatures(
             sex=human["sex"],
             fitness=human["fitness"],
             spin_up_s=settings["spin_up_s"],
+            # JOS-3 gets the person's own body fat (Deurenberg et al. 1991 from BMI, age and sex:
+            # the avatar's density model), not its 15 % reference man (thermal VERSION 10)
+            **({} if two_node else {"body_fat_percent": None}),
         )
         skin = np.asarray(result.segment_skin_temperature_k)  # (frames, 17)
         if t_lin is None:

@@ -77,7 +77,8 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 7: terrain zones as ground, leaves' convection, plants not refined, ground sky view vs objects only;
 #: 8: people's ray offset no longer grows with a ground to the horizon (qrad.OFFSET_SCENE_SIZE_CAP_M)
 #: 9: faces wet after rain bound to wet variants of their materials (thermal.wet)
-VERSION = "9"
+#: 10: JOS-3 runs with the person's own body fat (Deurenberg 1991), not 15 %
+VERSION = "10"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85

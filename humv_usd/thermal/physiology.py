@@ -586,8 +586,13 @@ def jos3(
         The body (JOS-3 parameters). ``age_years``, ``sex`` and ``fitness`` also go to
         :func:`heart_rate`. ``body_fat_percent`` None: the body's own, from BMI, age and sex
         (Deurenberg et al. 1991, :func:`humv_usd.human.body.body_fat_pct`, the value the avatar's
-        mesh density uses); the default 15 % is JOS-3's reference man. Outside JOS-3's validated
-        body (toddlers, > 200 kg) see :func:`jos3_body`.
+        mesh density uses; the thermal tool passes None); the default 15 % is JOS-3's reference
+        man (Kobayashi & Tanabe 2013). JOS-3 uses body fat only to pick one of five tables of
+        core-to-skin tissue conductance per segment (fat < 12.5, < 17.5, < 22.5, < 27.5,
+        >= 27.5 %; pythermalcomfort ``jos3_functions.construction.conductance``): more fat, less
+        conductance, so a warmer core and cooler skin in the cold; heat capacities and the basal
+        rate do not depend on it. Outside JOS-3's validated body (toddlers, > 200 kg) see
+        :func:`jos3_body`.
     posture : {'standing', 'sitting', 'lying'}
     spin_up_s : float
         Time [s] run at the first step's conditions before ``times_s[0]`` (JOS-3 starts from
