@@ -4,7 +4,7 @@ PY     := $(VENV)/bin/python
 OUT    ?= out/humvvex
 SPP    ?=
 
-.PHONY: setup demo test test-fast test-extended lint format bench schemas screenshots docs gallery clean
+.PHONY: setup demo test test-fast test-extended lint format bench schemas screenshots docs docs-data gallery clean
 
 setup:
 	@./tools/setup.sh
@@ -54,6 +54,11 @@ screenshots: setup
 docs: setup
 	@$(PY) -m sphinx -E -W --keep-going -n -q -b html docs build/docs/html
 	@echo "docs: build/docs/html/index.html"
+
+# the physics pages' bench data: error against run time from the project's benches (render, q_rad,
+# time steps; a few minutes, niced) -> docs/physics/data/*.csv (commit them; make docs plots them)
+docs-data: setup
+	@nice -n 10 $(PY) docs/_ext/bench_data.py
 
 # the manual's gallery: every imager of the examples at 1/4 size, with label overlays
 # -> docs/gallery/ (commit the PNGs and gallery.json; make docs shows them)

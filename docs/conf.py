@@ -31,6 +31,7 @@ extensions = [
     "sphinx-mathjax-offline",
     "sphinx_click",
     "humv_docs",
+    "humv_figures",  # the physics pages' bench figures, drawn from docs/physics/data/*.csv
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
@@ -51,7 +52,8 @@ napoleon_google_docstring = False
 
 html_theme = "furo"
 html_title = "HumV-USD manual"
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_css_files = ["humv.css"]  # the physics pages' agreement tables
 html_show_sourcelink = False
 
 # quotes and ellipses only: "--from" in command help must stay two hyphens, not an en dash

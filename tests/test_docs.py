@@ -414,6 +414,47 @@ def test_every_physics_module_has_a_page():
     assert modules <= listed, sorted(modules - listed)
 
 
+def test_every_test_a_page_names_exists():
+    """The physics pages' measured agreements name the tests that assert them: a renamed or
+    removed test fails here, so no page cites a check that no longer runs."""
+    import ast
+
+    cited = set()
+    for page in DOCS.rglob("*"):
+        if page.suffix in (".md", ".rst"):
+            cited |= set(re.findall(r"tests/(test_\w+\.py)::(test_\w+)", page.read_text()))
+    assert len(cited) >= 60
+    missing = []
+    for file, name in sorted(cited):
+        path = ROOT / "tests" / file
+        defined = (
+            {n.name for n in ast.parse(path.read_text()).body if isinstance(n, ast.FunctionDef)}
+            if path.is_file()
+            else set()
+        )
+        if name not in defined:
+            missing.append(f"tests/{file}::{name}")
+    assert not missing, missing
+    physics = [p for p in (DOCS / "physics").glob("*.rst")]
+    without = [p.name for p in physics if "Measured agreement" not in p.read_text()]
+    assert not without, without
+
+
+def test_physics_figures_are_drawn_from_their_csvs(site):
+    """Every figure of the physics pages is drawn from committed bench CSVs that say which
+    command, commit and date made them, and is in the built site."""
+    import humv_figures
+
+    for name, (csvs, _, _) in humv_figures.FIGURE_SPECS.items():
+        for csv_name in csvs:
+            header, rows = humv_figures.read_csv(humv_figures.DATA / csv_name)
+            assert rows and any("commit" in h for h in header), csv_name
+        assert (site / "_images" / f"{name}.svg").is_file(), name
+    pages = "".join((site / "physics" / f"{p}.html").read_text() for p in ("render", "physiology", "garment"))
+    for name in humv_figures.FIGURE_SPECS:
+        assert f"_images/{name}.svg" in pages, name
+
+
 def test_docstring_prose_survives_any_markup():
     """Physics pages show docstrings as written: numpydoc sections become lists, a reference
     ``.. [1]`` stays text, and nothing in them can make docutils report a problem."""

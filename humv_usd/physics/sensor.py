@@ -33,8 +33,9 @@ Gaussian with sigma set by the NETD; EO: photon shot noise + read noise in elect
 clip(round(gain L + offset), 0, 2^bits - 1) -> AGC to 8 bits (none, linear percentile stretch,
 histogram equalisation, plateau equalisation) -> JPEG compression of the 8-bit image (off by
 default). Every artefact stage acts on the chain's copy: the render's radiometric images and the
-labels never pass through it. EO rolling shutter is not modelled: it needs a render per row time
-(the render draws one instant per frame).
+labels never pass through it. EO rolling shutter (``rolling_shutter_s``) is an image warp of
+the one instant the render draws per frame, by the pixels' motion (:func:`rolling_shutter`), not
+a render per row time.
 """
 
 from __future__ import annotations
@@ -1095,17 +1096,16 @@ def rolling_shutter(image, velocity_px_s, readout_s: float):
 
 def fried_parameter(wavelength_m, cn2_m23: float, path_m: float, wave: str = "spherical"):
     r"""Fried's coherence diameter :math:`r_0` [m] of a horizontal path of uniform
-        :math:`C_n^2` [m^-2/3] and length ``path_m`` at ``wavelength_m``.
+    :math:`C_n^2` [m^-2/3] and length ``path_m`` at ``wavelength_m``.
 
-        .. math:: r_0 = \left(0.423\, k^2 C_n^2 L\, \gamma
-    ight)^{-3/5},\quad k = 2\pi/\lambda
+    .. math:: r_0 = \left(0.423\, k^2 C_n^2 L\, \gamma\right)^{-3/5},\quad k = 2\pi/\lambda
 
-        with :math:`\gamma = 1` for a plane wave and 3/8 for a spherical wave (a point source seen
-        by the camera: the usual case for imaging along the ground). Fried 1966, J. Opt. Soc. Am.
-        56(10):1372; Andrews & Phillips 2005, Laser Beam Propagation through Random Media, 2nd ed.,
-        SPIE, ch. 6. Valid for weak to moderate turbulence (Rytov variance below about 1) and
-        inner/outer scales outside the imaged band. Typical :math:`C_n^2` near the ground:
-        1e-15 (night, weak) to 1e-13 (sunny afternoon over hot ground, strong)."""
+    with :math:`\gamma = 1` for a plane wave and 3/8 for a spherical wave (a point source seen
+    by the camera: the usual case for imaging along the ground). Fried 1966, J. Opt. Soc. Am.
+    56(10):1372; Andrews & Phillips 2005, Laser Beam Propagation through Random Media, 2nd ed.,
+    SPIE, ch. 6. Valid for weak to moderate turbulence (Rytov variance below about 1) and
+    inner/outer scales outside the imaged band. Typical :math:`C_n^2` near the ground:
+    1e-15 (night, weak) to 1e-13 (sunny afternoon over hot ground, strong)."""
     gamma = {"spherical": 3.0 / 8.0, "plane": 1.0}[wave]
     k = 2.0 * np.pi / np.asarray(wavelength_m, dtype=float)
     return (0.423 * k**2 * float(cn2_m23) * float(path_m) * gamma) ** (-3.0 / 5.0)
