@@ -220,6 +220,19 @@ def test_cli_reference_has_every_command_and_option(site):
     assert not missing, missing
 
 
+def test_built_reference_has_an_anchor_for_every_key_and_attribute(site):
+    """Not only the generated text: the built pages have a linkable entry for every scenario key
+    of the spec and every attribute of schemas/generatedSchema.usda."""
+    scenario = set(
+        re.findall(r'id="scenario-key-([^"]+)"', (site / "reference" / "scenario.html").read_text())
+    )
+    missing = [k for k in _spec_keys() if html.escape(k) not in scenario]
+    schemas = set(re.findall(r'id="schema-attr-([^"]+)"', (site / "reference" / "schemas.html").read_text()))
+    names = {name for _, name in _schema_attributes()}
+    missing += [n for n in sorted(names) if n.replace(":", "-") not in schemas]
+    assert not missing, missing[:10]
+
+
 def test_generated_pages_link_to_existing_entries(site):
     """The tutorial's links to keys land on the scenario reference's entries."""
     page = (site / "user" / "first-scene.html").read_text()
