@@ -9,11 +9,14 @@ import http.client
 import importlib.util
 import shutil
 import socket
+import sys
 import time
 from pathlib import Path
 
 import pytest
 import tomlkit
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
 
 from humv_usd.editor.document import SaveRefused, ScenarioDocument
 from humv_usd.editor.fields import all_fields
@@ -22,6 +25,9 @@ from humv_usd.editor.safety import UploadExists, store_upload, sweep_base
 from humv_usd.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import test_fuzz_surface as fz  # noqa: E402  (its strategies of hosts, origins, paths)
+
 EXAMPLE = ROOT / "examples" / "humvvex.toml"
 
 
@@ -263,3 +269,56 @@ def test_file_keys_may_name_a_library_folder_read_only(tmp_path):
     # uploads still go only into the scenario's folder
     with pytest.raises(InputError):
         store_upload(folder, "../library/x.csv", b"x")
+
+
+@settings(
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(
+    fz.methods,
+    fz.paths,
+    st.sampled_from(["own", "localhost", "foreign", "none"]),
+    fz.origins,
+    fz.tokens,
+    st.binary(max_size=64),
+    st.booleans(),
+)
+@example("GET", "/", "own", "http://[::1", None, b"", False)  # a 500 before (urlsplit ValueError)
+@example("GET", WS, "own", "http://[::1", None, b"", True)
+def test_random_requests_and_handshakes_never_get_a_500(
+    server, method, path, host_kind, origin, token, body, ws
+):
+    """Issue 26 deliverable 5: random methods, paths, Host, Origin, cookies, bodies and websocket
+    upgrades against the real server get the documented answers, never a 5xx."""
+    port, _ = server
+    host = {
+        "own": f"127.0.0.1:{port}",
+        "localhost": f"localhost:{port}",
+        "foreign": "evil.example",
+        "none": None,
+    }[host_kind]
+    headers = [("Host", host)] if host is not None else []
+    if origin is not None:
+        origin = origin.replace(str(fz.PORT), str(port))
+        headers.append(("Origin", origin))
+    if token is not None:
+        headers.append(("Cookie", f"{fz.TOKEN_COOKIE}={token}"))
+    if ws:
+        method, body = "GET", b""
+        headers += [
+            ("Connection", "Upgrade"),
+            ("Upgrade", "websocket"),
+            ("Sec-WebSocket-Version", "13"),
+            ("Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="),
+        ]
+    headers = [(k, v) for k, v in headers if not any(c in v for c in "\r\n\x00")]
+    status = fz.raw_request(port, method, path.replace("\r", "").replace("\n", ""), headers, body)
+    assert status > 0 and not 500 <= status < 600, (method, path, headers, status)
+    if host_kind in ("foreign", "none"):
+        assert status in (400, 403, 421), status  # h11 answers a missing Host with 400
+    elif origin is not None and status not in (400, 421):
+        if origin.lower().rstrip("/") != f"http://{host}".lower():
+            assert status == 403, (origin, status)

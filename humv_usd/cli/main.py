@@ -51,7 +51,9 @@ def parse_resolution(text: str | None) -> tuple[int, int] | None:
     if text is None:
         return None
     w, sep, h = text.lower().partition("x")
-    if not (sep and w.strip().isdigit() and h.strip().isdigit()) or int(w) < 1 or int(h) < 1:
+    # ASCII digits only: str.isdigit() also takes '²', which int() refuses (a traceback, fuzzing)
+    digits = all(part.strip().isascii() and part.strip().isdigit() for part in (w, h))
+    if not (sep and digits) or int(w) < 1 or int(h) < 1:
         raise InputError(f"--resolution = {text!r}: expected WIDTHxHEIGHT in pixels, e.g. 160x128")
     return int(w), int(h)
 

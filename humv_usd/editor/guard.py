@@ -98,8 +98,8 @@ class RequestGuard:
             return 403, "humv-usd edit: more than one Origin header"
         if origins:
             origin = origins[0].decode("latin-1")
-            parts = urlsplit(origin)
-            try:
+            try:  # urlsplit raises on a broken IPv6 literal ("http://[::1": a 500 before, fuzzing)
+                parts = urlsplit(origin)
                 same = (
                     parts.scheme == "http" and not parts.path.strip("/") and split_host(parts.netloc) == host
                 )
@@ -107,7 +107,9 @@ class RequestGuard:
                 same = False
             if not same:
                 return 403, f"humv-usd edit: cross-origin request from {origin!r} refused"
-        if self.token and not secrets.compare_digest(self._given_token(scope) or "", self.token):
+        # bytes: compare_digest refuses str with non-ASCII characters (?token=%80 was a 500, fuzzing)
+        given = (self._given_token(scope) or "").encode("utf-8", "surrogateescape")
+        if self.token and not secrets.compare_digest(given, self.token.encode("utf-8")):
             return 403, "humv-usd edit: open the address with ?token=... printed at start"
         return None
 

@@ -52,12 +52,13 @@ def write_sensor(
     response_wavelengths_um=None,
     response=None,
     channel_response=None,
-    netd_note: str = "",
+    netd_origin: str = "",
     chain_settings: dict | None = None,
 ) -> None:
     """Apply HumvSensorAPI to a camera prim and author the sensor (what :func:`read_sensor_model`
     reads back): band token, wavelength range [um], resolution [px], pixel pitch [m], f-number,
-    NETD [K] (with ``netd_note``, how it was scaled, as custom data), bit depth, offset [DN],
+    NETD [K] (with ``netd_origin``, where it came from, as the attribute's custom data
+    :data:`NETD_ORIGIN_KEY`; :func:`netd_origin` reads it back), bit depth, offset [DN],
     preset and platform tokens, AGC and its percentiles; gain [DN per unit signal] (None: auto
     exposure), the IR sub-band count, an EO sensor's full well and read noise [e-] and the
     relative response table (wavelengths [um], response, optional channel responses
@@ -100,8 +101,34 @@ def write_sensor(
             )
     for attr, value in values:
         prim.GetAttribute(attr).Set(value)
-    if netd_note:
-        prim.GetAttribute(S.SENSOR_NETD).SetCustomDataByKey("humv:netdScaling", netd_note)
+    if netd_origin:
+        prim.GetAttribute(S.SENSOR_NETD).SetCustomDataByKey(NETD_ORIGIN_KEY, netd_origin)
+
+
+#: NETD [K] the reader assumes where a sensor prim authors none
+NETD_FALLBACK_K = 0.05
+#: customData key of ``humv:sensor:netd`` saying where the value came from (the scenario load's
+#: :attr:`humv_usd.scenario.Scenario.netd_origin`); stages composed before it was recorded have
+#: ``humv:netdScaling`` on scaled values only
+NETD_ORIGIN_KEY = "humv:netdOrigin"
+LEGACY_NETD_KEY = "humv:netdScaling"
+
+
+def netd_origin(attr, fallback_k: float) -> str:
+    """Where a sensor's NETD comes from, as the render reads it: the origin recorded with the
+    strongest authored value (:data:`NETD_ORIGIN_KEY` on the same spec, so a user layer that
+    overrides the value without saying why is named, not hidden behind the sensors layer's
+    note), else that layer's name, else the reader's ``fallback_k`` when nothing is authored."""
+    stack = attr.GetPropertyStack(Usd.TimeCode.Default()) if attr and attr.IsValid() else []
+    strongest = next((spec for spec in stack if spec.HasDefaultValue() or spec.layer.ListTimeSamplesForPath(spec.path)), None)
+    if strongest is None:
+        return f"reader default: {fallback_k:g} K ({S.SENSOR_NETD} not authored)"
+    data = strongest.customData
+    origin = data.get(NETD_ORIGIN_KEY) or data.get(LEGACY_NETD_KEY)
+    if origin:
+        return str(origin)
+    where = strongest.layer.identifier if not strongest.layer.anonymous else "an anonymous layer"
+    return f"authored in {where} (no {NETD_ORIGIN_KEY} recorded there)"
 
 
 #: Sensor-chain settings (scenario key / SensorModel field -> attribute, value type).
@@ -361,7 +388,7 @@ def read_sensor_model(prim) -> SensorModel:
             pixel_pitch_m=float(get(S.SENSOR_PIXEL_PITCH, 12e-6)),
             f_number=float(get(S.SENSOR_F_NUMBER, 1.0)),
             focal_length_m=focal_m,
-            netd_k=float(get(S.SENSOR_NETD, 0.05)),
+            netd_k=float(get(S.SENSOR_NETD, NETD_FALLBACK_K)),
             bit_depth=int(get(S.SENSOR_BIT_DEPTH, 14)),
             gain=None if gain is None else float(gain),
             offset=float(get(S.SENSOR_OFFSET, 0.0)),
@@ -371,9 +398,7 @@ def read_sensor_model(prim) -> SensorModel:
             read_noise_e=float(get(S.SENSOR_READ_NOISE, 2.5)),
             reference_temperature_k=float(get(S.SENSOR_REFERENCE_TEMPERATURE, 300.0)),
             preset=str(get(S.SENSOR_PRESET, "")),
-            netd_note=str(prim.GetAttribute(S.SENSOR_NETD).GetCustomDataByKey("humv:netdScaling") or "")
-            if prim.GetAttribute(S.SENSOR_NETD)
-            else "",
+            netd_note=netd_origin(prim.GetAttribute(S.SENSOR_NETD), NETD_FALLBACK_K),
             **chain,
         )
     except ValueError as exc:
@@ -465,17 +490,22 @@ def override_resolution(stage, resolution) -> list[str]:
             if not _is_sensor(prim):
                 continue
             res = _value(prim, S.SENSOR_RESOLUTION)
-            pitch = _value(prim, S.SENSOR_PIXEL_PITCH)
-            if res is None or pitch is None:
+            if res is None:  # read_sensor refuses it with its own line
                 continue
+            pitch = _value(prim, S.SENSOR_PIXEL_PITCH)
             w0, h0 = int(res[0]), int(res[1])
-            new_pitch = float(pitch) * w0 / w
             cam = UsdGeom.Camera(prim)
             h_ap = cam.GetHorizontalApertureAttr().Get()
             prim.GetAttribute(S.SENSOR_RESOLUTION).Set(Gf.Vec2i(w, h))
-            prim.GetAttribute(S.SENSOR_PIXEL_PITCH).Set(new_pitch)
             if h_ap:  # vertical aperture: H pixels of the new pitch, in the aperture's unit
                 cam.GetVerticalApertureAttr().Set(float(h_ap) * h / w)
+            # a camera without an authored pitch (a hand-made stage) gets the pixel count too: it
+            # was skipped, and --resolution 16384x16384 rendered the stage's 16x12 (fuzzing, 2026-11-27)
+            if pitch is None:
+                lines.append(f"{prim.GetName()}: {w0}x{h0} -> {w}x{h} (no pixel pitch authored)")
+                continue
+            new_pitch = float(pitch) * w0 / w
+            prim.GetAttribute(S.SENSOR_PIXEL_PITCH).Set(new_pitch)
             lines.append(
                 f"{prim.GetName()}: {w0}x{h0} -> {w}x{h}, pitch {pitch * 1e6:g} -> {new_pitch * 1e6:g} um"
             )
