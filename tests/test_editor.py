@@ -341,37 +341,31 @@ def test_stage_view_has_every_mesh_triangle_and_camera(humvvex, tmp_path):
     np.testing.assert_allclose(view.bounds[1][:2], [horizon, horizon])
 
 
-def test_preview_scenario_is_small_with_the_same_view(humvvex, tmp_path):
-    import tomlkit
+def test_preview_is_the_real_compose_and_a_small_forced_render(humvvex, tmp_path):
+    """The preview composes the scenario file itself into the output folder (one layer cache with
+    Compose and the 3D view) and renders frame 0 of one sensor, binned to at most
+    PREVIEW_WIDTH_PX columns, with --force (before: a one-sensor binned copy composed apart, whose
+    thermal layer was built again, and every preview after an edit failed: the render refused a
+    folder rendered from another stage)."""
+    from humv_usd.editor.preview import PREVIEW_WIDTH_PX, preview_commands, preview_resolution
 
-    from humv_usd.editor.preview import PREVIEW_WIDTH_PX, preview_scenario
-
-    (humvvex.parent / "weather.csv").write_text(
-        "time,air_temperature_k\n2018-10-24T13:00:00,290\n2018-10-24T15:00:00,291\n"
-    )
-    humvvex.write_text(
-        humvvex.read_text().replace("[atmosphere]\n", '[atmosphere]\nweather_csv = "weather.csv"\n')
-    )
-    doc = ScenarioDocument(humvvex)
     scenario = load_scenario(humvvex)
-    raw = preview_scenario(doc.raw(), scenario, humvvex.parent, "lwir640")
-    copy_path = tmp_path / "elsewhere" / "preview.toml"
-    copy_path.parent.mkdir()
-    copy_path.write_text(tomlkit.dumps(raw))
-    small = load_scenario(copy_path)  # validates where it lies: file keys are absolute
-    assert [s["id"] for s in small["sensor"]] == ["lwir640"]
-    full = scenario["sensor"][1]
-    s = small["sensor"][0]
-    assert s["resolution"] == [320, 256] and s["resolution"][0] <= PREVIEW_WIDTH_PX
-    # field of view: w p / f unchanged (same focal length, binned pixels)
-    assert s["resolution"][0] * s["pixel_pitch_um"] == pytest.approx(
-        full["resolution"][0] * full["pixel_pitch_um"]
-    )
-    assert s["focal_length_mm"] == full["focal_length_mm"] and s["position_m"] == full["position_m"]
-    assert small["atmosphere"]["weather_csv"] == str((humvvex.parent / "weather.csv").resolve())
-    assert (
-        "lwir640" not in humvvex.read_text() or doc.raw()["sensor"][1].get("resolution") is None
-    )  # source untouched
+    # lwir640: 640x512 at 12 um -> k = 2: 320x256 (24 um pitch, the same field of view)
+    assert preview_resolution(scenario, "lwir640") == (320, 256)
+    # atom1024: 1024x768 -> k = ceil(1024 / 320) = 4: 256x192
+    assert preview_resolution(scenario, "atom1024_lwir") == (256, 192)
+    # the EO camera 1440x1080 at 3.45 um -> k = 5: 288x216
+    assert preview_resolution(scenario, "eo_rgb") == (288, 216)
+    for s in scenario["sensor"]:
+        w, h = preview_resolution(scenario, s["id"])
+        assert w <= PREVIEW_WIDTH_PX and abs(w / h - s["resolution"][0] / s["resolution"][1]) < 0.02
+    out = tmp_path / "out"
+    compose, render = preview_commands(humvvex, out, "lwir640", (320, 256))
+    assert compose == ["compose", str(humvvex), "-o", str(out)]
+    assert render[:3] == ["render", str(out / "stage.usda"), "-o"] and render[3] == str(out / "preview")
+    opts = dict(zip(render[4::2], render[5::2]))
+    assert opts["--resolution"] == "320x256" and opts["--sensor"] == "lwir640" and opts["--frames"] == "0"
+    assert "--force" in render
 
 
 def test_a_file_that_is_not_toml_is_shown_and_never_replaced(tmp_path):

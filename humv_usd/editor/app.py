@@ -27,7 +27,7 @@ from humv_usd.editor.fields import Field, all_fields, section_groups, value_text
 from humv_usd.editor.guard import LOOPBACK_NAMES, RequestGuard
 from humv_usd.editor.jobs import JobManager, humv_command, outputs
 from humv_usd.editor.plan import plan_svg
-from humv_usd.editor.preview import PREVIEW_WIDTH_PX, make_preview, preview_commands, preview_scenario
+from humv_usd.editor.preview import PREVIEW_WIDTH_PX, make_preview, preview_commands, preview_resolution
 from humv_usd.editor.safety import UploadExists, inside, store_upload, sweep_base, upload_target
 from humv_usd.editor.stage3d import stage_view
 from humv_usd.environment.sun import scenario_sun
@@ -494,10 +494,10 @@ class Page:
         sensor = self.sensor_choice.value
         if not sensor or not self.ensure_saved():
             return
-        preview_file = self.editor.out_dir / ".editor" / "preview.toml"
-        raw = preview_scenario(self.doc.raw(), self.doc.scenario(), self.doc.folder, sensor)
-        write_text_atomic(preview_file, tomlkit.dumps(raw))
-        steps = [humv_command(*args) for args in preview_commands(preview_file, self.editor.out_dir, sensor)]
+        size = preview_resolution(self.doc.scenario(), sensor)
+        steps = [
+            humv_command(*args) for args in preview_commands(self.doc.path, self.editor.out_dir, sensor, size)
+        ]
         self.preview_started = time.time()
         job = self.start_job("preview", steps)
         if job is not None:

@@ -1,18 +1,23 @@
 """The preview: one small, fast frame of one sensor, coloured by brightness temperature.
 
-The preview is a real ``humv-usd compose`` (cached layers) and ``humv-usd render`` of frame 0 for
-one sensor with few samples and one sub-band (:func:`preview_commands`), on a copy of the scenario
-that keeps only that sensor, with at most :data:`PREVIEW_WIDTH_PX` columns (pixels binned: the
-pitch grows by the same factor, so the field of view stays; :func:`preview_scenario`); it is
-composed into ``OUT/.editor/preview`` so the real output's layers stay as they are. This module turns the
-render's EXR channel ``IR.brightness_temperature`` (logical name ``brightness_temperature``) into a colour image with a colour bar between
-the render's own preview levels (1st and 99th percentile, ``preview_levels_k`` in the manifest).
-EO sensors show their sRGB PNG as it is.
+The preview is the real ``humv-usd compose`` of the scenario into the editor's output folder
+(the same command as the Run tab's Compose and the 3D tab's view: one layer cache, so a preview
+after a compose, a 3D view after a preview, and a preview after an edit rebuild only the layers
+the edit invalidates) and a ``humv-usd render`` of frame 0 for one sensor with few samples, one
+sub-band and at most :data:`PREVIEW_WIDTH_PX` columns (``--resolution``: pixels binned, the
+pitch grows by the same factor, so the field of view stays; :func:`preview_resolution`) into
+``OUT/preview`` (:func:`preview_commands`). Until 2026-11-27 the preview composed a binned
+one-sensor copy of the scenario into a folder of its own: its sensors layer differed from the
+real one, so the thermal layer (which refines the ground's shadow edges to the cameras' pixel
+footprints) was built twice, and every preview after an edit failed (the render refused a
+folder rendered from another stage without ``--force``). This module turns the render's EXR
+channel ``IR.brightness_temperature`` (logical name ``brightness_temperature``) into a colour
+image with a colour bar between the render's own preview levels (1st and 99th percentile,
+``preview_levels_k`` in the manifest). EO sensors show their sRGB PNG as it is.
 """
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 from dataclasses import dataclass
@@ -21,7 +26,6 @@ from pathlib import Path
 import numpy as np
 from matplotlib import colormaps
 
-from humv_usd.editor.fields import all_fields
 from humv_usd.images import read_exr, write_png
 from humv_usd.scenario.load import Scenario
 from humv_usd.scenario.spec import SECTIONS
@@ -34,70 +38,53 @@ PREVIEW_SPP, PREVIEW_SUBBANDS, PREVIEW_ANNOTATORS = 2, 1, "semantic"
 PREVIEW_WIDTH_PX = 320
 
 
-def preview_scenario(raw: dict, scenario: Scenario, folder: Path, sensor: str) -> dict:
-    """The scenario document of a preview of ``sensor``: only that sensor, binned to at most
-    :data:`PREVIEW_WIDTH_PX` columns (pitch × k, resolution // k: same field of view), file keys
-    made absolute (the copy lives in the output folder).
+def preview_resolution(scenario: Scenario, sensor: str) -> tuple[int, int]:
+    """The preview's pixel count of ``sensor``: its resolution binned by the smallest integer k
+    that brings the width to at most :data:`PREVIEW_WIDTH_PX` (k also bounded so that the binned
+    pitch stays inside the spec's ``pixel_pitch_um`` range). ``render --resolution`` keeps the
+    field of view (the pitch grows by the same factor).
 
     Parameters
     ----------
-    raw : dict
-        The scenario as written (plain values).
     scenario : Scenario
-        The same, validated (the sensor's preset values filled in).
-    folder : Path
-        The scenario's folder (relative file keys are relative to it).
+        The validated scenario (the sensor's preset values filled in).
+    sensor : str
+        The sensor's ``id``.
     """
-    out = copy.deepcopy(raw)
-    for f in all_fields(raw):
-        node = out
-        for part in f.path[:-1]:
-            node = (
-                node[part]
-                if isinstance(node, (dict, list)) and (isinstance(node, list) or part in node)
-                else None
-            )
-        value = node.get(f.path[-1]) if isinstance(node, dict) else None
-        if f.key.kind == "path" and isinstance(value, str):
-            node[f.path[-1]] = str((folder / value).resolve())
-        elif f.key.kind == "pathlist" and isinstance(value, list):
-            node[f.path[-1]] = [str((folder / v).resolve()) for v in value]
-    index = [s["id"] for s in scenario["sensor"]].index(sensor)
-    filled = scenario["sensor"][index]
-    table = out["sensor"][index]
+    filled = next(s for s in scenario["sensor"] if s["id"] == sensor)
     width, height = filled["resolution"]
-    pitch = filled["pixel_pitch_um"]
     k = max(1, math.ceil(width / PREVIEW_WIDTH_PX))
-    k = max(1, min(k, int(SECTIONS["sensor"].keys["pixel_pitch_um"].hi // pitch)))
-    if k > 1:
-        table["resolution"] = [max(1, width // k), max(1, height // k)]
-        table["pixel_pitch_um"] = pitch * k
-    out["sensor"] = [table]
-    return out
+    k = max(1, min(k, int(SECTIONS["sensor"].keys["pixel_pitch_um"].hi // filled["pixel_pitch_um"])))
+    return max(1, width // k), max(1, height // k)
 
 
-def preview_commands(preview_file: Path, out_dir: Path, sensor: str) -> list[list[str]]:
-    """The ``humv-usd`` arguments of a preview: compose the preview scenario (written by the
-    caller to ``preview_file``) into ``out_dir/.editor/preview``, render frame 0 of ``sensor``
-    into ``out_dir/preview``."""
-    stage_dir = out_dir / ".editor" / "preview"
+def preview_commands(
+    scenario_file: Path, out_dir: Path, sensor: str, resolution: tuple[int, int]
+) -> list[list[str]]:
+    """The ``humv-usd`` arguments of a preview: compose the scenario into ``out_dir`` (as the
+    Run tab's Compose does: the layer cache is shared), render frame 0 of ``sensor`` at
+    ``resolution`` into ``out_dir/preview`` (``--force``: the folder holds the previous
+    preview, rendered from the stage before the edit)."""
     return [
-        ["compose", str(preview_file), "-o", str(stage_dir)],
+        ["compose", str(scenario_file), "-o", str(out_dir)],
         [
             "render",
-            str(stage_dir / "stage.usda"),
+            str(out_dir / "stage.usda"),
             "-o",
             str(out_dir / "preview"),
             "--frames",
             "0",
             "--sensor",
             sensor,
+            "--resolution",
+            f"{int(resolution[0])}x{int(resolution[1])}",
             "--spp",
             str(PREVIEW_SPP),
             "--subbands",
             str(PREVIEW_SUBBANDS),
             "--annotators",
             PREVIEW_ANNOTATORS,
+            "--force",
         ],
     ]
 
