@@ -1237,6 +1237,17 @@ ATMOSPHERE = Section(
             "float", "Air pressure at the site [Pa].", default=101325.0, lo=30000.0, hi=110000.0
         ),
         "cloud_cover": Key("float", "Cloud cover fraction [0-1].", default=0.0, lo=0.0, hi=1.0),
+        "cloud_size_m": Key(
+            "float",
+            "Size of broken clouds [m] whose shadows the wind carries across the scene "
+            "(humv_usd.physics.clouds: a field from general.seed covering cloud_cover of the "
+            "ground, moving at the cloud-level wind from wind_direction_deg); the thermal "
+            "tool's surfaces cool under them with their own thermal inertia. 0: the cover is "
+            "uniform (no cloud shadows).",
+            default=0.0,
+            lo=0.0,
+            hi=20000.0,
+        ),
         "visibility_km": Key("float", "Meteorological visibility [km].", default=23.0, lo=0.05, hi=300.0),
         "rain_mm_h": Key(
             "float",

@@ -46,6 +46,7 @@ from humv_usd.thermal.surfaces import (
     refine_meshes,
     scene_meshes,
     surface_temperatures,
+    with_cloud_shadows,
     with_sky_table,
     with_water,
     write_refined_topology,
@@ -68,6 +69,8 @@ READS = (
     "atmosphere.rain_mm_h",
     "atmosphere.rain_end_h",
     "atmosphere.rain_duration_h",
+    "atmosphere.cloud_size_m",
+    "atmosphere.wind_direction_deg",
 )
 #: sensors: the ground's shadow edges are refined to the closest camera's pixel footprint
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*", "sensors")
@@ -78,7 +81,8 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 8: people's ray offset no longer grows with a ground to the horizon (qrad.OFFSET_SCENE_SIZE_CAP_M)
 #: 9: faces wet after rain bound to wet variants of their materials (thermal.wet)
 #: 10: JOS-3 runs with the person's own body fat (Deurenberg 1991), not 15 %
-VERSION = "10"
+#: 11: moving cloud shadows on the scene surfaces ([atmosphere] cloud_size_m)
+VERSION = "11"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85
@@ -118,6 +122,7 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         all_t = np.concatenate([spin_t, sample_t])
         tables = sky_tables(upstream, samples)
         forcing = with_water(with_sky_table(forcing_at(upstream, all_t), tables, len(spin_t)), scenario)
+        forcing = with_cloud_shadows(forcing, scenario)
         report["sky"] = _sky_report(forcing, tables, len(spin_t), upstream)
         shade = people_occluders(upstream, scenario, all_t)
         meshes, refined = refine_meshes(meshes, forcing, shade, cameras=camera_footprints(upstream, samples))

@@ -72,7 +72,7 @@ from humv_usd.geometry.camera import Camera
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked, unblocked_local
 from humv_usd.human.usdskel import skinned_points
-from humv_usd.physics import evaporation, slab, vegetation
+from humv_usd.physics import clouds, evaporation, slab, vegetation
 from humv_usd.physics.convection import watmuff
 from humv_usd.physics.sky import (
     cloudy_sky_emissivity,
@@ -81,6 +81,7 @@ from humv_usd.physics.sky import (
     hemispherical_irradiance,
     tilted_irradiance,
 )
+from humv_usd.physics.sun import cloud_dni_factor
 from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views, orthonormal_frames, ray_samples
@@ -922,6 +923,9 @@ class SurfaceForcing:
     rain_kg_m2_s: np.ndarray | None = None
     #: relative available soil water under vegetation and bare soil [0-1] (1: field capacity)
     soil_moisture: float = 1.0
+    #: broken cloud: ``beam_gate(x, y)`` (P,) [m] -> (M, P) factor on the direct beam at each
+    #: sample (0 under a cloud's shadow; :func:`with_cloud_shadows`); None: uniform cover
+    beam_gate: object = None
 
     def sky_distribution(self) -> tuple[np.ndarray, np.ndarray]:
         """The sky's angular distribution (zenith [deg] (Z,), radiance (Z,), any scale):
@@ -1011,6 +1015,39 @@ def with_water(forcing: SurfaceForcing, scenario) -> SurfaceForcing:
         rain_kg_m2_s=rain,
         soil_moisture=forcing.soil_moisture if moisture is None else float(moisture),
     )
+
+
+#: below this DNI / DNI_clear (Kasten & Czeplak, cover above ~0.97) the sky is overcast: no
+#: cloud gaps, the beam stays the layer's uniform value
+OVERCAST_DNI_FACTOR = 0.05
+
+
+def with_cloud_shadows(forcing: SurfaceForcing, scenario) -> SurfaceForcing:
+    """The forcing with moving cloud shadows (``[atmosphere] cloud_size_m`` > 0, issue 30.4):
+    :mod:`humv_usd.physics.clouds` fields of the scenario's ``general.seed``, thresholded to the
+    forcing's cloud cover and carried by the cloud-level wind from ``wind_direction_deg``.
+    Under a cloud the direct beam is 0; between clouds it is the clear-sky beam, the layer's
+    DNI over Kasten & Czeplak's DNI / DNI_clear (:func:`humv_usd.physics.sun.cloud_dni_factor`).
+    Unchanged without clouds or with ``cloud_size_m`` 0."""
+    atm = scenario["atmosphere"] or {}
+    size = float(atm.get("cloud_size_m") or 0.0)
+    cover = forcing.cloud_cover
+    if size <= 0.0 or cover is None or not np.any(np.asarray(cover) > 0.0):
+        return forcing
+    field = clouds.cloud_field(int(scenario["general"].get("seed") or 0), size)
+    toward = (float(atm.get("wind_direction_deg") or 0.0) + 180.0) % 360.0
+    shift = clouds.cloud_displacement(
+        forcing.times_s, clouds.cloud_level_wind(forcing.wind_speed_m_s), toward
+    )
+    factor = np.broadcast_to(cloud_dni_factor(cover), forcing.times_s.shape)
+    overcast = factor < OVERCAST_DNI_FACTOR
+    clear = 1.0 / np.maximum(factor, OVERCAST_DNI_FACTOR)
+
+    def gate(x, y):
+        sun = clouds.cloud_shadow(field, x, y, shift, cover)
+        return np.where(overcast[:, None], 1.0, sun * clear[:, None])
+
+    return dataclasses.replace(forcing, beam_gate=gate)
 
 
 def forcing_at(stage, times_s) -> SurfaceForcing:
@@ -1317,6 +1354,9 @@ def surface_temperatures(
     idx = np.searchsorted(all_t, times)
     geo = [m.face_geometry() for m in meshes]
     lit_all = _sunlit_fraction(meshes, f.sun_direction, f.sun_up, occluders) if meshes else None
+    if f.beam_gate is not None and meshes:  # moving cloud shadows at each face's centroid
+        centres = np.concatenate([g[1] for g in geo])
+        lit_all = lit_all * f.beam_gate(centres[:, 0], centres[:, 1])
     starts = np.cumsum([0] + [m.n_faces for m in meshes])
     deep = (
         float(np.mean(f.air_temperature_k[all_t <= 0.0]))
