@@ -74,6 +74,7 @@ READS = (
             "mass_kg",
             "build",
             "proportions",
+            "sitting_height_ratio",
             "skin_tone",
             "fitness",
             "activity",
@@ -93,10 +94,11 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 7: human.sitting_height_ratio (leg axis, human/proportions.py);
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "6"
+VERSION = "7"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -117,6 +119,7 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
         human["mass_kg"],
         human["build"],
         human.get("proportions", 0.5),
+        human.get("sitting_height_ratio"),
     )
     stage = new_layer_stage(
         g["fps"], scenario.frame_count, f"HumV-USD avatar layer for {human['id']} (UsdSkel, CMU rig)"
@@ -301,15 +304,20 @@ def _avatar_attributes(prim, human: dict, body: Body) -> None:
     )
     write_avatar(prim, person, round(body.body_surface_area_m2, 4))
     # how the request was met: measured values and the macro/scale fit (for reports and QA)
+    requested = body.requested.get("sitting_height_ratio")
     prim.SetCustomDataByKey(
         "humv:fit",
         {
+            # the clothing tool rebuilds the body with it (absent: MakeHuman's own legs)
+            **({} if requested is None else {"sittingHeightRatioRequested": float(requested)}),
             "statureMeasured_m": round(body.stature_m, 5),
             "massFromVolume_kg": round(body.mass_kg, 4),
             "volume_m3": round(body.volume_m3, 6),
             "density_kg_m3": round(body.density_kg_m3, 2),
             "bodyFat_pct": round(body.body_fat_pct, 2),
             "fatAxis": round(body.fat, 6),
+            "legAxis": round(body.legs, 6),
+            "sittingHeightRatio": round(body.sitting_height_ratio, 6),
             "uniformScale": round(body.uniform_scale, 6),
             "lateralScale": round(body.lateral_scale, 6),
             "macros": {k: round(float(v), 6) for k, v in vars(body.macros).items()},

@@ -37,6 +37,7 @@ from pxr import Usd
 from humv_usd.errors import InputError
 from humv_usd.geometry.mesh import Surface, fan_triangulate
 from humv_usd.human.body import Body, build_body
+from humv_usd.human.proportions import check_sitting_height_ratio
 from humv_usd.human.skeleton import Skeleton, skeleton_for
 from humv_usd.usd.avatar import (
     AvatarParameters,
@@ -68,11 +69,14 @@ class Person:
     body_deviation_m: float  # max distance of the stage's Body from the rebuilt body
 
 
-def rebuild_body(parameters: AvatarParameters, proportions: float = 0.5) -> Body:
+def rebuild_body(
+    parameters: AvatarParameters, proportions: float = 0.5, sitting_height_ratio: float | None = None
+) -> Body:
     """The MakeHuman body of HumvAvatarAPI's parameters (as the avatar tool builds it), with
-    MakeHuman's ``proportions`` macro (``human.proportions``; see :func:`fit_proportions`)."""
+    MakeHuman's ``proportions`` macro (``human.proportions``; see :func:`fit_proportions`) and
+    the requested ``human.sitting_height_ratio`` (:func:`fit_sitting_height_ratio`)."""
     p = parameters
-    return build_body(p.sex, p.age_yr, p.stature_m, p.mass_kg, p.build, proportions)
+    return build_body(p.sex, p.age_yr, p.stature_m, p.mass_kg, p.build, proportions, sitting_height_ratio)
 
 
 #: customData of the avatar's SkelRoot that records its MakeHuman fit (avatar tool)
@@ -92,6 +96,18 @@ def fit_proportions(stage: Usd.Stage, human_id: str) -> float:
     except (TypeError, ValueError):
         return 0.5
     return value if 0.0 <= value <= 1.0 else 0.5
+
+
+def fit_sitting_height_ratio(stage: Usd.Stage, human_id: str) -> float | None:
+    """The sitting-height ratio the avatar tool was asked for (its fit record's
+    ``sittingHeightRatioRequested``), None when not recorded (MakeHuman's own legs) or invalid."""
+    prim = stage.GetPrimAtPath(human_path(human_id))
+    fit = prim.GetCustomDataByKey(FIT_DATA) if prim else None
+    value = (fit or {}).get("sittingHeightRatioRequested")
+    try:
+        return check_sitting_height_ratio(value) if value is not None else None
+    except (TypeError, ValueError):
+        return None
 
 
 def transfer_to_body(template: Body, body_points: np.ndarray) -> Body:
@@ -157,7 +173,10 @@ def read_person(stage: Usd.Stage, human_id: str) -> Person:
     """The person ``human_id`` from the avatar layer on ``stage`` (see the module doc)."""
     parameters = read_avatar(stage, human_id)
     stage_mesh = read_body_mesh(stage, human_id)
-    body, deviation = body_on_stage(rebuild_body(parameters, fit_proportions(stage, human_id)), stage_mesh)
+    rebuilt = rebuild_body(
+        parameters, fit_proportions(stage, human_id), fit_sitting_height_ratio(stage, human_id)
+    )
+    body, deviation = body_on_stage(rebuilt, stage_mesh)
     rest = read_skeleton_rest(stage, human_id)
     skeleton = skeleton_on_stage(body, rest, str(skeleton_path(human_id)))
     if stage_mesh.joint_indices.shape[1] != 4 or stage_mesh.joint_indices.max() >= len(rest.joints):

@@ -70,6 +70,14 @@ from humv_usd.human.basemesh import _MH_TO_USD
 from humv_usd.human.fat import DIRECTIONS as FAT_DIRECTIONS
 from humv_usd.human.fat import fat_delta, max_f
 from humv_usd.human.macro import MacroValues, age_to_macro, apply_macros, obj_data
+from humv_usd.human.proportions import (
+    MAX_LEG,
+    SITTING_MINUS_UPPER_BODY_M,
+    check_sitting_height_ratio,
+    crotch_candidates,
+    leg_delta,
+    sitting_height_m,
+)
 from humv_usd.usd.mesh import signed_volume, triangle_areas
 
 BUILD_MUSCLE = {"slim": 0.25, "average": 0.5, "muscular": 0.75}
@@ -156,9 +164,15 @@ class Body:
     body_surface_area_m2: float  # mesh area of the body group
     macros: MacroValues
     fat: float  # the fat axis f beyond the weight macro (humv_usd.human.fat); 0 inside it
+    legs: float  # the leg axis L (humv_usd.human.proportions); 0 = MakeHuman's own legs
+    sitting_height_m: float  # measured: stature - crotch height + ANSUR II's offset
     uniform_scale: float  # 1 unless the stature was outside the height macro's range
     lateral_scale: float  # 1 unless the mass was outside the weight macro's range
     requested: dict = field(default_factory=dict)
+
+    @property
+    def sitting_height_ratio(self) -> float:
+        return self.sitting_height_m / self.stature_m
 
     @property
     def bmi(self) -> float:
@@ -204,14 +218,18 @@ class _Basis:
         self.dlo = T[:, 0] - T[:, 1]
         self.dhi = T[:, 2] - T[:, 1]
         self.fat = {d: fat_delta(m.gender, d)[vertices] for d in FAT_DIRECTIONS} if fat else {}
+        self.legs = {d: leg_delta(d)[vertices] for d in FAT_DIRECTIONS} if fat else {}
 
-    def points_u(self, u: float, height: float, cols=slice(None)) -> np.ndarray:
+    def points_u(self, u: float, height: float, cols=slice(None), legs: float = 0.0) -> np.ndarray:
         """Points on the volume axis u: the weight macro for u in [0, 1], then the fat axis
-        (f = u - 1 above, f = u below; :mod:`humv_usd.human.fat`)."""
+        (f = u - 1 above, f = u below; :mod:`humv_usd.human.fat`); plus the leg axis
+        (:mod:`humv_usd.human.proportions`)."""
         weight, f = float(np.clip(u, 0.0, 1.0)), u - float(np.clip(u, 0.0, 1.0))
         p = self.points(weight, height, cols)
         if f:
             p = p + abs(f) * self.fat["incr" if f > 0 else "decr"][:, cols]
+        if legs:
+            p = p + abs(legs) * self.legs["incr" if legs > 0 else "decr"][:, cols]
         return p
 
     def points(self, weight: float, height: float, cols=slice(None)) -> np.ndarray:
@@ -267,34 +285,48 @@ _UP = 1  # MakeHuman's vertical axis (Y)
 
 
 def fit_macros(
-    m: MacroValues, stature_m: float, volume_m3: float, iterations: int = 12, fat: bool = True
-) -> tuple[MacroValues, float, float] | tuple[MacroValues, float, float, float]:
-    """Weight and height macros (others from ``m``) for a stature and closed-mesh volume.
+    m: MacroValues,
+    stature_m: float,
+    volume_m3: float,
+    iterations: int = 12,
+    fat: bool = True,
+    crotch_ratio: float | None = None,
+) -> tuple[MacroValues, float, float] | tuple[MacroValues, float, float, float, float]:
+    """Weight and height macros (others from ``m``) for a stature and closed-mesh volume, and
+    with ``crotch_ratio`` (crotch height / stature) the leg axis.
 
     Returns (macros, uniform_scale, lateral_scale) with ``fat=False`` (the macros alone), else
-    (macros, fat_f, uniform_scale, lateral_scale); see the module docstring.
+    (macros, fat_f, legs, uniform_scale, lateral_scale); see the module docstring.
     """
     used, tris = _body_topology()
     basis = _Basis(m, used, fat)
     u_lo, u_hi = (-max_f(m.gender, "decr"), 1.0 + max_f(m.gender, "incr")) if fat else (0.0, 1.0)
+    crotch = np.searchsorted(used, crotch_candidates())
 
-    def stature(u, h):
-        z = basis.points_u(u, h, cols=_UP)
+    def stature(u, h, legs=0.0):
+        z = basis.points_u(u, h, cols=_UP, legs=legs)
         return (z.max() - z.min()) * _MH_LEN
 
-    def volume(u, h):
-        return _volume_mh(basis.points_u(u, h), tris) * _MH_LEN**3
+    def volume(u, h, legs=0.0):
+        return _volume_mh(basis.points_u(u, h, legs=legs), tris) * _MH_LEN**3
 
-    u, h = m.weight, m.height
+    def crotch_of(u, h, legs):
+        z = basis.points_u(u, h, cols=_UP, legs=legs)
+        return (z[crotch].min() - z.min()) / (z.max() - z.min())
+
+    u, h, g = m.weight, m.height, 0.0
     for _ in range(iterations):
-        h_new, s = _solve(lambda x: stature(u, x), stature_m)
-        u_new, _ = _solve(lambda x: volume(x, h_new), volume_m3 / s**3, u_lo, u_hi)
-        done = abs(h_new - h) < 1e-7 and abs(u_new - u) < 1e-7
-        u, h = u_new, h_new
+        h_new, s = _solve(lambda x: stature(u, x, g), stature_m)
+        u_new, _ = _solve(lambda x: volume(x, h_new, g), volume_m3 / s**3, u_lo, u_hi)
+        g_new = g
+        if crotch_ratio is not None:
+            g_new, _ = _solve(lambda x: crotch_of(u_new, h_new, x), crotch_ratio, -MAX_LEG, MAX_LEG)
+        done = abs(h_new - h) < 1e-7 and abs(u_new - u) < 1e-7 and abs(g_new - g) < 1e-7
+        u, h, g = u_new, h_new, g_new
         if done:
             break
-    s = stature_m / stature(u, h)  # exact after the last weight step
-    r = volume_m3 / (volume(u, h) * s**3)
+    s = stature_m / stature(u, h, g)  # exact after the last weight step
+    r = volume_m3 / (volume(u, h, g) * s**3)
     # snap to 1 what is solver noise (brentq xtol 1e-9 on the macros -> ~1e-8 relative)
     k = 1.0 if abs(r - 1.0) < 1e-6 else float(np.sqrt(r))
     s = 1.0 if abs(s - 1.0) < 1e-6 else float(s)
@@ -302,7 +334,7 @@ def fit_macros(
     macros = _with(m, weight=w, height=h)
     if not fat:
         return macros, s, k
-    return macros, float(u - w), s, k
+    return macros, float(u - w), float(g), s, k
 
 
 def to_usd(points_mh: np.ndarray) -> np.ndarray:
@@ -317,12 +349,15 @@ def build_body(
     mass_kg: float,
     build: str | float = "average",
     proportions: float = 0.5,
+    sitting_height_ratio: float | None = None,
 ) -> Body:
     """Fit MakeHuman's macro targets to a person; see the module docstring.
 
     sex 'male'/'female'; age_yr [yr]; stature_m [m] (soles to top of head, standing);
     mass_kg [kg]; build 'slim'/'average'/'muscular' or a MakeHuman muscle value in [0, 1];
-    proportions: MakeHuman's proportions macro in [0, 1] (0.5: none).
+    proportions: MakeHuman's proportions macro in [0, 1] (0.5: none); sitting_height_ratio:
+    sitting height / stature in [0.45, 0.60] reached with the leg axis of
+    :mod:`humv_usd.human.proportions` (None: MakeHuman's own for the sex and age).
     """
     sex = _sex(sex)
     if not (stature_m > 0 and mass_kg > 0):
@@ -335,9 +370,14 @@ def build_body(
     start = MacroValues(
         gender=SEX_GENDER[sex], age=age_to_macro(age_yr), muscle=muscle, proportions=float(proportions)
     )
-    macros, fat, s, k = fit_macros(start, stature_m, mass_kg / density)
+    crotch_ratio = None
+    if sitting_height_ratio is not None:
+        ratio = check_sitting_height_ratio(sitting_height_ratio)
+        crotch_ratio = 1.0 - ratio + SITTING_MINUS_UPPER_BODY_M[sex] / stature_m
+    macros, fat, legs, s, k = fit_macros(start, stature_m, mass_kg / density, crotch_ratio=crotch_ratio)
 
-    p = to_usd(apply_macros(macros) + abs(fat) * fat_delta(macros.gender, "incr" if fat > 0 else "decr"))
+    shape = apply_macros(macros) + abs(fat) * fat_delta(macros.gender, "incr" if fat > 0 else "decr")
+    p = to_usd(shape + abs(legs) * leg_delta("incr" if legs > 0 else "decr"))
     _, groups = obj_data()
     body_faces = groups["body"]
     used = np.unique(body_faces)
@@ -365,6 +405,8 @@ def build_body(
         body_surface_area_m2=float(triangle_areas(p, counts, flat).sum()),
         macros=macros,
         fat=fat,
+        legs=legs,
+        sitting_height_m=sitting_height_m(p, used, sex),
         uniform_scale=s,
         lateral_scale=k,
         requested={
@@ -374,5 +416,6 @@ def build_body(
             "mass_kg": float(mass_kg),
             "build": build,
             "proportions": float(proportions),
+            "sitting_height_ratio": sitting_height_ratio,
         },
     )

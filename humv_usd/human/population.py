@@ -34,6 +34,22 @@ ANSUR II is a military population: fitter and younger than the general one (no o
 People older than 58 are drawn from the same distributions (no age trend of stature or BMI
 is applied: none is in the source). BMI is clipped to [BMI_MIN, BMI_MAX] = [15, 45].
 
+Leg length (adults): the sitting-height ratio (sitting height / stature) from ANSUR II's public
+data files, a least-squares line on stature plus a normal residual (taller people have
+relatively longer legs: r = -0.34 men, -0.37 women; independent of BMI: |r| < 0.07):
+
+===========  ==================================  ==========
+             ratio = a + b * stature [m]          residual SD
+===========  ==================================  ==========
+men          0.6402 - 0.0667 * stature            0.0127
+women        0.6588 - 0.0814 * stature            0.0131
+===========  ==================================  ==========
+
+(mean ratio 0.5231 +- 0.0135 men, 0.5262 +- 0.0141 women.) Drawn for ages >= 20 yr only (children's
+ratio falls with age, from ~0.57 at 2 yr, and no table of it is at hand); the key is left out for
+children, whose legs stay MakeHuman's for their age. Drawn after the other traits, so adding it
+left every earlier draw of a seed unchanged.
+
 Other traits (no population statistic at hand; stated as design choices, not data):
 
 * sex: male with probability ``p_male`` (default 0.5);
@@ -62,6 +78,9 @@ ANSUR2 = {
     "male": (1.7562, 0.0686, 3.3103, 0.1458),
     "female": (1.6285, 0.0642, 3.2293, 0.1354),
 }
+
+#: ANSUR II sitting height / stature against stature (module doc): sex -> (a, b [1/m], residual SD)
+ANSUR2_SITTING_HEIGHT_RATIO = {"male": (0.6402, -0.0667, 0.0127), "female": (0.6588, -0.0814, 0.0131)}
 
 #: CDC 2000 growth charts at whole years: age [months] of the rows used
 CDC_AGE_MONTHS = (
@@ -224,7 +243,7 @@ def sample_person(
     clothing = [hair]
     if sex == "male" and age > 16.0 and rng.random() < 0.25:
         clothing.append("beard")
-    return {
+    person = {
         "sex": sex,
         "age_yr": round(age, 2),
         "stature_m": round(stature, 4),
@@ -234,6 +253,11 @@ def sample_person(
         "skin_tone": tone,
         "clothing": clothing,
     }
+    if age >= ADULT_AGE:
+        a, b, sd = ANSUR2_SITTING_HEIGHT_RATIO[sex]
+        ratio = a + b * stature + sd * rng.standard_normal()
+        person["sitting_height_ratio"] = round(float(np.clip(ratio, 0.45, 0.60)), 4)
+    return person
 
 
 def sample_people(

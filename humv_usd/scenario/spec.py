@@ -244,6 +244,14 @@ HUMAN = Section(
             lo=0.0,
             hi=1.0,
         ),
+        "sitting_height_ratio": Key(
+            "float",
+            "Sitting height / stature (leg length against the trunk; ANSUR II adults 0.52 +- "
+            "0.014), reached with MakeHuman's leg-height targets at the same stature "
+            "(humv_usd.human.proportions); unset: MakeHuman's own for the sex and age.",
+            lo=0.45,
+            hi=0.60,
+        ),
         "skin_tone": Key(
             "choice",
             "Skin tone as a Fitzpatrick type: the skin's spectral reflectance from melanin, blood "
