@@ -207,13 +207,24 @@ class StagedText:
 def stage_text(path, text: str) -> StagedText:
     """Write ``text`` to a temp file beside ``path`` (named as :func:`remove_stale_temps`
     removes it after a kill) and return it for :func:`commit_files`."""
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    return stage_file(path, write)
+
+
+def stage_file(path, write) -> StagedText:
+    """Call ``write(tmp)`` on a temp file beside ``path`` (same suffix, e.g. ``.tmp.exr``, so
+    that image writers pick the format from it) and return it for :func:`commit_files`, which
+    moves it into place with the other files of its change (any file, text or binary)."""
     path = Path(path)
     made = _make_parents(path)
     try:
         tmp = _temp_beside(path)
         try:
-            with open(tmp, "w", encoding="utf-8") as fh:
-                fh.write(text)
+            write(tmp)
         except BaseException:
             with contextlib.suppress(FileNotFoundError):
                 os.remove(tmp)

@@ -80,6 +80,9 @@ def test_sun_and_sky_lights_follow_the_environment(stage_dir, humvvex_raw, tmp_p
     assert 5e4 < sun.GetIntensityAttr().Get(0) < 1.2e5  # clear afternoon sun: 50-120 klx
     dome = UsdLux.DomeLight(stage.GetPrimAtPath("/World/Environment/Sky"))
     assert dome.GetIntensityAttr().Get(0) == pytest.approx(dhi * E.DIFFUSE_EFFICACY_LM_W / np.pi, rel=1e-6)
+    texture = dome.GetTextureFileAttr().Get()  # the sky's colour (tests/test_sky_texture.py)
+    assert texture.path.startswith("./") and (stage_dir / "layers" / texture.path[2:]).is_file()
+    assert texture.resolvedPath == str(stage_dir / "layers" / texture.path[2:])
     night = copy.deepcopy(humvvex_raw)
     night["general"]["start"] = night["general"]["start"].replace(hour=23)
     compose(validate(night), tmp_path)
@@ -129,6 +132,9 @@ BLENDER = """
         "cameras": sorted(o.name for o in bpy.data.objects if o.type == "CAMERA"),
         "suns": [o.data.energy for o in bpy.data.objects if o.type == "LIGHT" and o.data.type == "SUN"],
         "world_strength": bg[0].inputs["Strength"].default_value if bg else None,
+        "world_images": [
+            n.image.filepath for n in scene.world.node_tree.nodes if n.type == "TEX_ENVIRONMENT" and n.image
+        ],
         "focus": cam.data.dof.focus_distance,
     }
     scene.camera = cam
@@ -158,5 +164,7 @@ def test_blender_imports_the_stage_lit_focused_and_named(stage_dir, humvvex_raw,
         np.linalg.norm(np.subtract(eo["look_at_m"], eo["position_m"])), rel=1e-4
     )
     assert len(result["suns"]) == 1 and result["suns"][0] > 0 and result["world_strength"] > 0
+    # the sky's colour: the dome's lat-long texture from the atmosphere layer (issue 27.4)
+    assert [p.replace("\\", "/").rsplit("/", 1)[-1] for p in result["world_images"]] == ["atmosphere_sky.exr"]
     rgb = oiio.ImageBuf(str(tmp_path / "eo.exr")).get_pixels(oiio.FLOAT)[..., :3]
     assert np.isfinite(rgb).all() and rgb.mean() > 1.0  # lit (it was black without UsdLux)

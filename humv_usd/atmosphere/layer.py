@@ -26,13 +26,15 @@ weather authors single default values, as before.
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf
+from pxr import Sdf, Usd
 
 from humv_usd.atmosphere.model import atmosphere_for, lerp_nodes, with_cloud_cover
+from humv_usd.atmosphere.texture import sky_texture
+from humv_usd.images import write_exr
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
 from humv_usd.usd import atmosphere as A
-from humv_usd.usd.environment import read_weather
+from humv_usd.usd.environment import read_weather, write_sky_texture
 from humv_usd.usd.layers import finish, new_layer_stage
 
 NAME = "atmosphere"
@@ -43,7 +45,10 @@ READS = (
 )
 #: layers read from the upstream stage: weather and sun (environment)
 UPSTREAM = ("environment",)
-VERSION = "4"
+VERSION = "5"
+#: The dome light's sky texture, written beside the layer (:func:`side_files`; compose commits it
+#: with the layers) and referenced from it by this relative path.
+SKY_TEXTURE = "atmosphere_sky.exr"
 
 
 def build(scenario: Scenario, upstream) -> Sdf.Layer:
@@ -117,5 +122,21 @@ def build(scenario: Scenario, upstream) -> Sdf.Layer:
             ran["solar spectrum"] = "skipped: sun below the horizon (or fully clouded)"
     else:
         ran["spectra"] = "skipped: no sensor"
+    write_sky_texture(stage, f"./{SKY_TEXTURE}")
+    ran["sky texture"] = f"{SKY_TEXTURE}: " + _texture(stage)[1]
     stage.GetRootLayer().customLayerData = {"humv:atmosphere:ran": ran}
     return finish(stage)
+
+
+def _texture(stage) -> tuple[np.ndarray, str]:
+    """The sky texture of the atmosphere layer's frame-0 sky table (:mod:`humv_usd.atmosphere.texture`)."""
+    spectra = A.atmosphere_spectra(stage, 0.0)
+    return sky_texture(spectra.sky_zenith_deg, spectra.wavelengths_um, spectra.sky_radiance)
+
+
+def side_files(layer: Sdf.Layer) -> dict:
+    """The files beside the layer, for compose: {:data:`SKY_TEXTURE`: a writer of the dome
+    light's lat-long sky texture (OpenEXR, float R, G, B) computed from ``layer``'s sky table}."""
+    pixels = _texture(Usd.Stage.Open(layer))[0]
+    channels = {c: pixels[:, :, i] for i, c in enumerate("RGB")}
+    return {SKY_TEXTURE: lambda path: write_exr(path, channels)}

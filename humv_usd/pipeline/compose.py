@@ -48,6 +48,7 @@ from humv_usd.fileio import (
     finish_pending,
     folder_lock,
     remove_stale_temps,
+    stage_file,
     stage_text,
 )
 from humv_usd.groundtruth import annotators
@@ -452,6 +453,7 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
     # texts of all of them (a crowd's avatar and clothing layers: issue 29)
     layers: dict[str, Sdf.Layer] = {}
     staged: dict[str, StagedText] = {}
+    side: dict[Path, StagedText] = {}
     user_layers = [open_anonymous((out / u).resolve()) for u in user]
     last_use = {u: i for i, name in enumerate(order) for u in nodes[name].upstream}
 
@@ -482,6 +484,10 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
             state.sha256 = _sha(text)
             staged[name] = stage_text(layer_dir / f"{name}.usda", text)
             del text
+            # files a tool writes beside its layer (the sky texture the atmosphere layer's dome
+            # points at): staged now, committed with the layers as one change
+            for file_name, write in getattr(node.tool.module, "side_files", lambda _: {})(layer).items():
+                side[layer_dir / file_name] = stage_file(layer_dir / file_name, write)
             state.ran = {k: dict(v) for k, v in dict(layer.customLayerData).items() if k.endswith(":ran")}
             if last_use.get(name, -1) > i:
                 layers[name] = layer
@@ -492,7 +498,7 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
                     states[u].loaded = None
             state.seconds = time.perf_counter() - t
     except BaseException:
-        discard_staged(staged.values())
+        discard_staged([*staged.values(), *side.values()])
         raise
     layers.clear()
     if progress is not None:
@@ -502,6 +508,7 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
     # 3. write changed layers, the root and the report as one change (a kill leaves old or new)
     report = ComposeReport(stage_path=out / ROOT_NAME, skipped=skipped, states=states, user_layers=user)
     files: dict = {layer_dir / f"{name}.usda": staged[name] for name in order if states[name].rebuild}
+    files.update(side)
     # a root edited by hand whose content compose would not change stays as it is
     if not root_edited:
         files[out / ROOT_NAME] = root_text

@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom
 
 from humv_usd.errors import InputError, bad_value, summary
 from humv_usd.physics.sun import SunState
@@ -184,6 +184,24 @@ def write_lights(stage: Usd.Stage, sun: SunState, codes, frame_samples) -> None:
         op.Set(_sun_orientation(sun.direction[i] if up else (0.0, 0.0, 1.0)), code)
         intensity.Set(float(sun.dni_w_m2[i]) * BEAM_EFFICACY_LM_W if up else 0.0, code)
         dome_intensity.Set(float(sun.dhi_w_m2[i]) * DIFFUSE_EFFICACY_LM_W / np.pi, code)
+
+
+def write_sky_texture(stage: Usd.Stage, asset_path: str) -> None:
+    """Point the sky's DomeLight (:data:`SKY_LIGHT_PATH`) at a lat-long texture ``asset_path``
+    (relative to the layer being written), from a layer other than the environment layer (the
+    atmosphere tool, which has the sky's spectrum: an ``over`` of the dome). The texture is
+    relative (its cosine-weighted mean luminance is 1, :mod:`humv_usd.atmosphere.texture`), so
+    the dome's photometric scale stays :func:`write_lights`'s intensity. A DomeLight's pole is
+    its +Y axis (UsdLux, OpenEXR's lat-long layout); on this Z-up stage the over adds UsdLux's
+    ``xformOp:rotateX:orientToStageUpAxis`` = 90 deg (what ``UsdLuxDomeLight.OrientToStageUpAxis``
+    authors), which turns +Y to +Z, so the texture's top row is the zenith."""
+    from pxr import UsdLux
+
+    prim = stage.OverridePrim(SKY_LIGHT_PATH)
+    dome = UsdLux.DomeLight(prim)
+    dome.CreateTextureFileAttr(Sdf.AssetPath(asset_path))
+    dome.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
+    UsdGeom.Xformable(prim).AddRotateXOp(opSuffix="orientToStageUpAxis").Set(90.0)
 
 
 # --- readers -------------------------------------------------------------------------------------
