@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from pxr import Usd, UsdGeom
+from pxr import Sdf, Usd, UsdGeom
 
 from humv_usd.catalog import sensors as presets
 from humv_usd.errors import InputError
@@ -15,6 +15,7 @@ from humv_usd.physics import planck
 from humv_usd.physics import sensor as chain
 from humv_usd.physics.sensor import SensorModel, apply_chain, psf_kernel
 from humv_usd.scenario import validate
+from humv_usd.scenario.inputs import read_values
 from humv_usd.scenario.spec import DEFAULT_SUBBANDS, SENSOR_PRESETS
 from humv_usd.sensors import layer as sensors_layer
 from humv_usd.usd import schemas as S
@@ -441,11 +442,12 @@ def test_netd_scales_with_f_number_when_not_given(raw):
         return stage.GetPrimAtPath(f"/World/Sensors/{name}").GetAttribute(S.SENSOR_NETD)
 
     assert netd("atom1024_lwir").Get() == pytest.approx(0.05 * (4 * 1.4**2 + 1) / 5.0, rel=1e-6)
-    assert "x (4N^2+1)/(4N0^2+1)" in netd("atom1024_lwir").GetCustomDataByKey("humv:netdScaling")
+    assert "x (4N^2+1)/(4N0^2+1)" in netd("atom1024_lwir").GetCustomDataByKey("humv:netdOrigin")
     assert netd("lwir640").Get() == pytest.approx(0.03, rel=1e-6)
     assert netd("mwir_insb").Get() == pytest.approx(0.02, rel=1e-6)
-    for name in ("lwir640", "mwir_insb"):
-        assert netd(name).GetCustomDataByKey("humv:netdScaling") is None
+    lwir640 = [i for i, s in enumerate(raw["sensor"]) if s["id"] == "lwir640"][0]
+    assert netd("lwir640").GetCustomDataByKey("humv:netdOrigin") == f"given: sensor[{lwir640}].netd_k"
+    assert netd("mwir_insb").GetCustomDataByKey("humv:netdOrigin") == "preset mwir_insb640"
     # the chain's noise follows: sigma_L = NETD dL/dT
     m = read_sensor_model(stage.GetPrimAtPath("/World/Sensors/atom1024_lwir"))
     assert m.netd_k == pytest.approx(0.0884, rel=1e-5)
@@ -456,7 +458,70 @@ def test_netd_scales_with_f_number_when_not_given(raw):
     by_id["atom1024_lwir"]["netd_k"] = 0.05
     stage = Usd.Stage.Open(sensors_layer.build(validate(raw)))
     assert netd("atom1024_lwir").Get() == pytest.approx(0.05, rel=1e-6)
-    assert netd("atom1024_lwir").GetCustomDataByKey("humv:netdScaling") is None
+    assert netd("atom1024_lwir").GetCustomDataByKey("humv:netdOrigin").startswith("given: sensor[")
+
+
+def test_netd_origin_is_recorded_at_load_and_read_back(raw, tmp_path):
+    """Issue 24.2: where a sensor's NETD comes from is recorded when the scenario fills the
+    table (not re-derived later by comparing floats), authored with the value, and read back
+    by the render's sensor read; a user layer's override without a note is named as such."""
+    raw["sensor"] = [
+        {"id": "p", "preset": "lwir640_12um", "position_m": [0, -5, 2], "look_at_m": [0, 0, 1]},
+        {
+            "id": "g",
+            "preset": "lwir640_12um",
+            "netd_k": 0.05,
+            "position_m": [0, -5, 2],
+            "look_at_m": [0, 0, 1],
+        },
+        {
+            "id": "s",
+            "preset": "lwir640_12um",
+            "f_number": 2.0,
+            "position_m": [0, -5, 2],
+            "look_at_m": [0, 0, 1],
+        },
+        {
+            "id": "d",
+            "band": "LWIR",
+            "resolution": [64, 48],
+            "focal_length_mm": 10.0,
+            "position_m": [0, -5, 2],
+            "look_at_m": [0, 0, 1],
+        },
+    ]
+    scenario = validate(raw)
+    assert scenario.netd_origin[:2] == ("preset lwir640_12um", "given: sensor[1].netd_k")
+    assert scenario.netd_origin[2].startswith("scaled from preset lwir640_12um NETD 0.05 K at f/1 to f/2")
+    assert scenario.netd_origin[3].startswith("default: 0.05 K")
+    # the origin is an input of the sensors layer's cache key (the same value, another note)
+    assert read_values(scenario, sensors_layer.READS)["@netdOrigin"] == list(scenario.netd_origin)
+    layer = sensors_layer.build(scenario)
+    path = tmp_path / "sensors.usda"
+    layer.Export(str(path))
+    stage = Usd.Stage.Open(str(path))
+    models = {n: read_sensor_model(stage.GetPrimAtPath(f"/World/Sensors/{n}")) for n in "pgsd"}
+    assert [models[n].netd_note for n in "pgsd"] == list(scenario.netd_origin)
+    assert models["s"].netd_k == pytest.approx(0.05 * 17.0 / 5.0, rel=1e-6)  # (4N^2+1)/(4N0^2+1)
+    # a user layer that overrides the value: its own file, not the sensors layer's note
+    edit = tmp_path / "edit.usda"
+    root = Sdf.Layer.CreateNew(str(edit))
+    root.subLayerPaths = [str(path)]
+    user = Usd.Stage.Open(root)
+    user.SetEditTarget(root)
+    user.GetPrimAtPath("/World/Sensors/p").GetAttribute(S.SENSOR_NETD).Set(0.08)
+    m = read_sensor_model(user.GetPrimAtPath("/World/Sensors/p"))
+    assert m.netd_k == pytest.approx(0.08) and m.netd_note.startswith(f"authored in {edit}")
+    # nothing authored: the reader's own default, said so
+    bare = Usd.Stage.CreateInMemory()
+    cam = UsdGeom.Camera.Define(bare, "/c")
+    cam.GetPrim().ApplyAPI(S.SENSOR_API)
+    assert read_sensor_model(cam.GetPrim()).netd_note.startswith("reader default: 0.05 K")
+    # the sensor chain's manifest record carries it
+    noise = apply_chain(np.full((8, 8), 40.0), models["g"], np.random.default_rng(0), psf=False).settings[
+        "noise"
+    ]
+    assert noise["netd_source"] == "given: sensor[1].netd_k"
 
 
 def test_subbands_key_is_authored_for_infrared_sensors(raw):

@@ -417,6 +417,16 @@ def netd_for_f_number(netd_k: float, preset_f_number: float, f_number: float) ->
     return float(netd_k) * (4.0 * n * n + 1.0) / (4.0 * n0 * n0 + 1.0)
 
 
+def netd_scaling_origin(name: str, f_number: float) -> str:
+    """Where the NETD of preset ``name`` used at ``f_number`` comes from, when it is scaled
+    (:func:`netd_for_f_number`): the text the scenario load records and the manifest reports."""
+    p = preset(name)
+    return (
+        f"scaled from preset {p.name} NETD {p.netd_k:g} K at f/{p.f_number:g} to f/{float(f_number):g}: "
+        f"x (4N^2+1)/(4N0^2+1) (detector-limited; humv_usd.catalog.sensors.netd_for_f_number)"
+    )
+
+
 def scenario_values(name: str) -> dict:
     """The preset as [[sensor]] key values (what a table with only ``preset`` gets)."""
     p = preset(name)

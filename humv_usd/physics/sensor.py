@@ -201,8 +201,9 @@ class SensorModel:
     reference_temperature_k : float
         Scene temperature at which the NETD is specified [K].
     netd_note : str
-        How the NETD was derived, when it was (e.g. scaled to an overridden f-number by the
-        sensors layer; the ``humv:netdScaling`` customData of ``humv:sensor:netd``); else "".
+        Where the NETD comes from (given, a preset, a preset scaled to another f-number, a
+        default), as recorded at the scenario load and read back from the ``humv:netdOrigin``
+        customData of ``humv:sensor:netd`` (:func:`humv_usd.usd.sensor.netd_origin`); else "".
     path : str
         The camera prim's path ("" for a model not read from a stage).
     subbands : int or None

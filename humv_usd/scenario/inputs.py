@@ -74,7 +74,13 @@ def _clutter_air(scenario: Scenario) -> dict[str, Any] | None:
     return read_values(scenario, CLUTTER_AIR)
 
 
-DERIVED = {"@ids": instance_ids, "@clutterAir": _clutter_air}
+def _netd_origin(scenario: Scenario) -> list[str]:
+    """Where each sensor's NETD came from (:attr:`Scenario.netd_origin`): the sensors layer
+    authors it, so equal values of another origin (given vs the preset's) are another layer."""
+    return list(scenario.netd_origin)
+
+
+DERIVED = {"@ids": instance_ids, "@clutterAir": _clutter_air, "@netdOrigin": _netd_origin}
 #: the garment that changes the avatar's pose (humv_usd.catalog.garments: carried in both hands)
 RIFLE = "rifle"
 

@@ -25,6 +25,7 @@ import numpy as np
 from humv_usd.catalog.garments import ALIASES, GARMENTS
 from humv_usd.catalog.sensors import (
     netd_for_f_number,  # another aperture than the preset's
+    netd_scaling_origin,
     scenario_values,
 )
 from humv_usd.errors import InputError, bad_value, shown
@@ -62,6 +63,10 @@ class Scenario:
     #: keys present in the file, as ``section.key`` / ``section[i].key`` (warnings about keys
     #: that do nothing in their context name only what the user wrote, not defaults)
     given_keys: frozenset[str] = frozenset()
+    #: per sensor, where its ``netd_k`` came from, recorded when the table was filled
+    #: (``_fill_sensor``): given, the preset's, the preset's scaled to another f-number, or the
+    #: fallback; the sensors tool authors it with the NETD, the render reports it (issue 24)
+    netd_origin: tuple[str, ...] = ()
 
     @property
     def infrared_sensors(self) -> list[dict]:
@@ -317,7 +322,7 @@ def _check_garments(data: dict, problems: list[str]) -> None:
             seen.add(canonical)
 
 
-def _cross_checks(data: dict, problems: list[str]) -> None:
+def _cross_checks(data: dict, problems: list[str], netd_origin: list[str] | None = None) -> None:
     humans = _check_ids("human", data["human"], problems)
     _check_ids("sensor", data["sensor"], problems)
     if data["scene"]:
@@ -377,7 +382,9 @@ def _cross_checks(data: dict, problems: list[str]) -> None:
                     bad_value(f"human[{i}].speed_m_s", speed, f"allowed range for {activity}: {lo}..{hi}")
                 )
     for i, s in enumerate(data["sensor"]):
-        _fill_sensor(i, s, problems)
+        origin = _fill_sensor(i, s, problems)
+        if netd_origin is not None:
+            netd_origin.append(origin)
         band = s.get("band")
         if band is None:
             continue
@@ -527,8 +534,9 @@ def _placement_problems(where: str, m) -> list[str]:
     return []
 
 
-def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
-    """Sensor keys not given: from the preset, else SENSOR_FALLBACK (band edges by band)."""
+def _fill_sensor(i: int, s: dict, problems: list[str]) -> str:
+    """Sensor keys not given: from the preset, else SENSOR_FALLBACK (band edges by band).
+    Returns where the NETD came from (:attr:`Scenario.netd_origin`)."""
     values = scenario_values(s["preset"]) if s.get("preset") else {}
     if s.get("band") is not None and values and s["band"] != values["band"]:
         for name in ("wavelength_um", "gain", "offset"):  # another band than the preset's:
@@ -538,6 +546,12 @@ def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
     for name in SENSOR_PRESET_KEYS:
         if s.get(name) is None:
             s[name] = copy.deepcopy(values.get(name, SENSOR_FALLBACK.get(name)))
+    if netd_given:
+        netd_origin = f"given: sensor[{i}].netd_k"
+    elif "netd_k" in values:
+        netd_origin = f"preset {s['preset']}"
+    else:
+        netd_origin = f"default: {SENSOR_FALLBACK['netd_k']:g} K (no netd_k and no preset)"
     if (
         values
         and not netd_given
@@ -546,6 +560,7 @@ def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
         and s["f_number"] != values.get("f_number")
     ):
         s["netd_k"] = netd_for_f_number(values["netd_k"], values["f_number"], s["f_number"])
+        netd_origin = netd_scaling_origin(s["preset"], s["f_number"])
     if s.get("band") in ("EO", "NIR", "SWIR") and not gain_given and values.get("band") != s["band"]:
         s["gain"] = None  # reflected light without a gain: auto exposure
     if s.get("wavelength_um") is None and s.get("band") is not None:
@@ -556,6 +571,7 @@ def _fill_sensor(i: int, s: dict, problems: list[str]) -> None:
                 f"sensor[{i}].{name}: missing required key (no preset gives it: "
                 f"{SECTIONS['sensor'].keys[name].doc})"
             )
+    return netd_origin
 
 
 def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:
@@ -604,14 +620,19 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
             )
     data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}
     _check_garments(data, problems)
+    netd_origin: list[str] = []
     if not problems:
-        _cross_checks(data, problems)
+        _cross_checks(data, problems, netd_origin)
         _resolve_paths(data, path, problems)
     if problems:
         prefix = f"{path}: " if path else ""
         raise InputError("", [prefix + p for p in problems])
     return Scenario(
-        data=data, path=path, given=frozenset(raw) & frozenset(SECTIONS), given_keys=_given_keys(raw)
+        data=data,
+        path=path,
+        given=frozenset(raw) & frozenset(SECTIONS),
+        given_keys=_given_keys(raw),
+        netd_origin=tuple(netd_origin),
     )
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom
 
-from humv_usd.catalog.sensors import PRESETS, netd_for_f_number, orbit_positions, preset
+from humv_usd.catalog.sensors import PRESETS, orbit_positions, preset
 from humv_usd.errors import InputError, bad_value
 from humv_usd.geometry.rig import (
     Gimbal,
@@ -36,9 +36,9 @@ from humv_usd.usd.paths import human_path, sensor_path
 from humv_usd.usd.sensor import CHAIN_ATTRIBUTES, write_sensor
 
 NAME = "sensors"
-READS = (*FRAMES, "sensor")
+READS = (*FRAMES, "sensor", "@netdOrigin")
 UPSTREAM = ("avatar_*",)  # a camera tracking a person reads the person's keypoints (upstream_for)
-VERSION = "5"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres
+VERSION = "6"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres; 6: NETD origin
 
 
 def upstream_for(scenario: Scenario) -> tuple[str, ...]:
@@ -186,37 +186,12 @@ def _response(s: dict):
     return wl, np.asarray(p.response, dtype=float), channels
 
 
-def netd_of(s: dict) -> tuple[float, str | None]:
-    """The NETD [K] to author for a sensor table, and a note when it was derived.
-
-    An infrared sensor with a preset whose ``f_number`` differs from the preset's and whose
-    table does not give ``netd_k`` gets, at scenario load (``_fill_sensor``), the preset's NETD
-    scaled to the new f-number with the detector-limited law
-    :func:`humv_usd.catalog.sensors.netd_for_f_number`; this says so in a note. A given
-    ``netd_k`` is used as is (None note).
-    """
-    netd = float(s["netd_k"])
-    if s["band"] == "EO" or not s.get("preset"):
-        return netd, None
-    p = preset(s["preset"])
-    if p.band != s["band"] or float(s["f_number"]) == float(p.f_number):
-        return netd, None
-    scaled = netd_for_f_number(p.netd_k, p.f_number, s["f_number"])
-    if netd != scaled:
-        return netd, None
-    note = (
-        f"scaled from preset {p.name} NETD {p.netd_k:g} K at f/{p.f_number:g} to f/{float(s['f_number']):g}: "
-        f"x (4N^2+1)/(4N0^2+1) (detector-limited; humv_usd.catalog.sensors.netd_for_f_number)"
-    )
-    return scaled, note
-
-
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     g = scenario["general"]
     frames = scenario.frame_count
     stage = new_layer_stage(g["fps"], frames, "HumV-USD sensors layer")
     UsdGeom.Scope.Define(stage, SCOPES["sensors"])
-    for s in scenario["sensor"]:
+    for i, s in enumerate(scenario["sensor"]):
         cam = UsdGeom.Camera.Define(stage, sensor_path(s["id"]))
         op = cam.AddTransformOp()
         poses = camera_rig(s, g["fps"], frames, upstream)
@@ -249,7 +224,6 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         cam.CreateVerticalApertureAttr(height * pitch_mm * _MM_TO_TENTHS_OF_M)
         cam.CreateFStopAttr(s["f_number"])
         cam.CreateClippingRangeAttr(Gf.Vec2f(0.05, 1.0e5))
-        netd, netd_note = netd_of(s)
         wl, response, channels = _response(s)
         eo = s["band"] == "EO"
         write_sensor(
@@ -259,8 +233,8 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             resolution=(width, height),
             pixel_pitch_m=pitch_um * 1e-6,
             f_number=s["f_number"],
-            netd_k=netd,
-            netd_note=netd_note,
+            netd_k=s["netd_k"],
+            netd_origin=scenario.netd_origin[i] if i < len(scenario.netd_origin) else "",
             bit_depth=s["bit_depth"],
             offset=s["offset"],
             preset=s.get("preset") or "",

@@ -114,17 +114,26 @@ NETD_ORIGIN_KEY = "humv:netdOrigin"
 LEGACY_NETD_KEY = "humv:netdScaling"
 
 
+def _nested(data: dict, key: str):
+    """The value of a customData key path ``a:b`` (USD stores it as nested dictionaries)."""
+    for part in key.split(":"):
+        if not isinstance(data, dict) or part not in data:
+            return None
+        data = data[part]
+    return data
+
+
 def netd_origin(attr, fallback_k: float) -> str:
     """Where a sensor's NETD comes from, as the render reads it: the origin recorded with the
     strongest authored value (:data:`NETD_ORIGIN_KEY` on the same spec, so a user layer that
     overrides the value without saying why is named, not hidden behind the sensors layer's
     note), else that layer's name, else the reader's ``fallback_k`` when nothing is authored."""
     stack = attr.GetPropertyStack(Usd.TimeCode.Default()) if attr and attr.IsValid() else []
-    strongest = next((spec for spec in stack if spec.HasDefaultValue() or spec.layer.ListTimeSamplesForPath(spec.path)), None)
+    strongest = next((spec for spec in stack if spec.HasDefaultValue() or spec.HasInfo("timeSamples")), None)
     if strongest is None:
         return f"reader default: {fallback_k:g} K ({S.SENSOR_NETD} not authored)"
-    data = strongest.customData
-    origin = data.get(NETD_ORIGIN_KEY) or data.get(LEGACY_NETD_KEY)
+    data = dict(strongest.customData)  # a key "a:b" is stored nested, {"a": {"b": ...}}
+    origin = next((v for v in (_nested(data, NETD_ORIGIN_KEY), _nested(data, LEGACY_NETD_KEY)) if v), None)
     if origin:
         return str(origin)
     where = strongest.layer.identifier if not strongest.layer.anonymous else "an anonymous layer"
