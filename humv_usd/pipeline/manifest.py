@@ -109,6 +109,8 @@ def sensor_record(plan, run, s: SensorModel, done: list[dict]) -> dict:
         if s.band_response is None
         else {"wavelengths_um": s.band_response[0], "values": s.band_response[1]},
         "resolution": list(s.resolution),
+        "netd_k": s.netd_k,
+        "netd_origin": s.netd_note,
         "subbands_um": [list(b) for b in plan.sub_of[s.name].bands],
         "subbands_requested": plan.n_of[s.name],
         "subbands_source": plan.n_source[s.name],
