@@ -27,6 +27,7 @@ import fnmatch
 import numpy as np
 
 from humv_usd.catalog.garments import garment
+from humv_usd.catalog.hair import hair_material_name
 from humv_usd.catalog.materials import LIBRARY, Material
 from humv_usd.catalog.wet import split_wet_name, wet_material
 
@@ -48,6 +49,8 @@ COLOURS = {
     "purple": (0.25, 0.08, 0.35),
 }
 SEPARATOR = "__"
+#: the fabric of the hair garments (hair_short, hair_long, hair_tied, beard)
+HAIR_FABRIC = "hair_dark"
 #: visible nodes [µm] and where the blend into the fabric's spectrum ends
 _BLEND_START, _BLEND_END = 0.70, 0.80
 
@@ -113,9 +116,12 @@ def garment_colour(garment_name: str, colours) -> str | None:
     return None
 
 
-def garment_material(garment_name: str, colours=None) -> str:
+def garment_material(garment_name: str, colours=None, hair_color: str | None = None) -> str:
     """Library material name a garment is bound to: its fabric, or the fabric dyed the colour
-    ``colours`` gives it."""
+    ``colours`` gives it; a hair garment (fabric ``hair_dark``) not dyed by ``colours`` takes the
+    person's ``hair_color`` (``human.hair_color``, :mod:`humv_usd.catalog.hair`)."""
     fabric = garment(garment_name).fabric
     colour = garment_colour(garment_name, colours)
+    if colour is None and hair_color is not None and fabric == HAIR_FABRIC:
+        return hair_material_name(hair_color)
     return fabric if colour is None else dyed_name(fabric, colour)

@@ -1251,3 +1251,11 @@ for _name, _fibre in SWIR_FIBRE.items():
     for _table in (FABRICS, EQUIPMENT, CLUTTER):
         if _name in _table:
             _table[_name] = LIBRARY[_name]
+
+
+# ------------------------------------------------------------------- hair colours (issue 29)
+# hair_black ... hair_grey: hair_dark (with its SWIR bands) recomputed by the melanin model of
+# humv_usd.physics.hair_optics per colour (humv_usd.catalog.hair); IR and thermal data as hair_dark.
+from humv_usd.catalog.hair import hair_materials  # noqa: E402  (needs LIBRARY["hair_dark"])
+
+LIBRARY.update(hair_materials(LIBRARY["hair_dark"]))

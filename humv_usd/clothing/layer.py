@@ -149,7 +149,9 @@ def build_for_human(
     sim = simulate(outfit, skinning_matrices(skeleton, world), fps=fps)
     if simulation_out is not None:
         simulation_out.append(sim)
-    return author(human["id"], sim, fps, frame_count, prop_ids, human.get("clothing_colors"))
+    return author(
+        human["id"], sim, fps, frame_count, prop_ids, human.get("clothing_colors"), human.get("hair_color")
+    )
 
 
 def author(
@@ -159,10 +161,11 @@ def author(
     frame_count: int,
     prop_ids: dict[str, int] | None = None,
     colours=None,
+    hair_color: str | None = None,
 ) -> Sdf.Layer:
     """Write a :class:`Simulation` of one person's garments as a layer (see module doc);
     ``colours``: ``human.clothing_colors`` (garments bound to their fabric dyed that colour,
-    :func:`humv_usd.catalog.dyes.garment_material`)."""
+    :func:`humv_usd.catalog.dyes.garment_material`); ``hair_color``: ``human.hair_color``."""
     names = ", ".join(a.name for a in sim.garments)
     stage = new_layer_stage(
         fps, frame_count, f"HumV-USD clothing layer for {human_id}: {names or 'no garments'}"
@@ -174,7 +177,7 @@ def author(
     if garments or not props:
         UsdGeom.Scope.Define(stage, clothing_path(human_id))
     for anim in garments:
-        _author_garment(stage, human_id, anim, colours)
+        _author_garment(stage, human_id, anim, colours, hair_color)
     if props:
         UsdGeom.Scope.Define(stage, props_path(human_id))
     for anim in props:
@@ -186,7 +189,7 @@ def author(
     return layer
 
 
-def _author_garment(stage: Usd.Stage, human_id: str, anim, colours=None) -> None:
+def _author_garment(stage: Usd.Stage, human_id: str, anim, colours=None, hair_color=None) -> None:
     fitted = anim.fitted
     g = fitted.garment
     frames = anim.posed.shape[0]
@@ -197,7 +200,7 @@ def _author_garment(stage: Usd.Stage, human_id: str, anim, colours=None) -> None
         anim.posed[0],
         fitted.face_counts,
         fitted.face_indices,
-        material=material_path(garment_material(g.name, colours)),
+        material=material_path(garment_material(g.name, colours, hair_color)),
     )
     # an open shell: seen through sleeves, collars and hems, its inside must render too
     mesh.GetDoubleSidedAttr().Set(True)

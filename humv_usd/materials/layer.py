@@ -23,6 +23,7 @@ READS = (
     "human.*.clothing",
     "human.*.skin_tone",
     "human.*.clothing_colors",
+    "human.*.hair_color",
     "scene.ground.material",
     "scene.object.*.material",
     "scene.object.*.kind",
@@ -47,7 +48,9 @@ def used_materials(scenario: Scenario) -> list[str]:
     if scenario["human"]:
         names.update(skin_material_name(h.get("skin_tone")) for h in scenario["human"])
         names.update(
-            garment_material(g, h.get("clothing_colors")) for h in scenario["human"] for g in h["clothing"]
+            garment_material(g, h.get("clothing_colors"), h.get("hair_color"))
+            for h in scenario["human"]
+            for g in h["clothing"]
         )
     scene = scenario["scene"]
     if scene:

@@ -79,6 +79,8 @@ GARMENT_COLOURS = (
 )  # fmt: skip
 #: Fitzpatrick skin types (= humv_usd.physics.skin_optics.FITZPATRICK_MELANIN)
 SKIN_TONES = ("I", "II", "III", "IV", "V", "VI")
+#: hair colours (= humv_usd.physics.hair_optics.HAIR_COLOURS)
+HAIR_COLOURS = ("black", "dark_brown", "brown", "blond", "red", "grey")
 ACTIVITIES = (
     "stand",
     "standTurn",
@@ -258,6 +260,14 @@ HUMAN = Section(
             "and water (humv_usd.catalog.skin); unset: the measured light-skin spectrum (type II). "
             "Infrared emissivity is the same for every tone.",
             choices=SKIN_TONES,
+        ),
+        "hair_color": Key(
+            "choice",
+            "Colour of the hair garments (hair_short, hair_long, hair_tied, beard): their "
+            "spectrum from the eumelanin and pheomelanin of that colour (humv_usd.catalog.hair, "
+            "humv_usd.physics.hair_optics); unset: hair_dark. A clothing_colors pattern that "
+            "matches a hair garment wins.",
+            choices=HAIR_COLOURS,
         ),
         "clothing_colors": Key(
             "map",
