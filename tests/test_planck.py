@@ -136,6 +136,25 @@ def test_band_emissivity():
     assert_allclose(planck.band_emissivity(wl, eps, LWIR), expected, rtol=1e-10)
 
 
+def test_band_weighted_mean_of_several_tables():
+    """The one Planck weighting (issue 24.3): tables (..., W) at once, each row against adaptive
+    quadrature (a path transmittance per range); a row equals band_emissivity of that row."""
+    wl = np.array([5.0, 9.0, 11.0, 15.0])
+    rows = np.array([[0.5, 0.95, 0.7, 0.9], [1.0, 0.2, 0.6, 0.1], [0.3, 0.3, 0.3, 0.3]])
+    got = planck.band_weighted_mean(wl, rows.reshape(3, 1, 4), LWIR, temperature_k=260.0)
+    assert got.shape == (3, 1)
+    for row, value in zip(rows, got[:, 0]):
+        expected = quad(
+            lambda lam, row=row: np.interp(lam, wl, row) * planck.spectral_radiance(lam, 260.0),
+            8.0,
+            14.0,
+            points=[9.0, 11.0],
+            epsrel=1e-12,
+        )[0] / _quad_band(260.0, LWIR)
+        assert_allclose(value, expected, rtol=1e-10)
+        assert value == pytest.approx(planck.band_emissivity(wl, row, LWIR, temperature_k=260.0), rel=1e-14)
+
+
 @pytest.mark.parametrize(
     "band,response",
     [(LWIR, None), (MWIR, None), ((7.0, 15.0), RESPONSE), ((8.0, 8.375), None), ((3.0, 3.125), None)],

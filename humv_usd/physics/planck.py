@@ -322,23 +322,63 @@ def band_emissivity(
     ----------
     .. [1] M. Planck, Annalen der Physik 309(3), 553-563, 1901.
     """
+    eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
+    if eps.ndim != 1:
+        raise ValueError(f"emissivity must be one spectrum, got shape {eps.shape}")
+    return float(band_weighted_mean(wavelengths_um, eps, band_um, response, temperature_k))
+
+
+def band_weighted_mean(
+    wavelengths_um, values, band_um, response=None, temperature_k=EMISSIVITY_WEIGHTING_TEMPERATURE_K
+):
+    r"""Planck- and response-weighted band mean of spectral tables (an emissivity, a path
+    transmittance): :math:`\int f R L_\lambda(T)\,d\lambda / \int R L_\lambda(T)\,d\lambda`
+    (:func:`band_emissivity` for one spectrum).
+
+    Parameters
+    ----------
+    wavelengths_um : array-like (W,)
+        Wavelengths of the tables [um], ascending.
+    values : array-like (..., W)
+        Tables on those wavelengths (linear in between, held constant beyond the ends; W = 1 is
+        a constant).
+    band_um, response, temperature_k
+        As :func:`band_emissivity`.
+
+    Returns
+    -------
+    ndarray (...)
+        The band means.
+
+    Notes
+    -----
+    The quadrature of :func:`band_radiance` (Gauss-Legendre panels in 1/lambda) with a panel
+    edge at every table wavelength inside the band, so a piecewise-linear table is integrated
+    without a kink inside a panel.
+    """
     band = _check_band(band_um)
     resp = _check_response(response)
     wl = np.atleast_1d(np.asarray(wavelengths_um, dtype=float))
-    eps = np.atleast_1d(np.asarray(emissivity, dtype=float))
-    if wl.size != eps.size or wl.size == 0:
+    v = np.asarray(values, dtype=float)
+    if v.ndim == 0:
+        v = v[None]
+    if wl.size != v.shape[-1] or wl.size == 0:
         raise ValueError(
-            f"wavelengths_um and emissivity must have the same length >= 1, got {wl.size} and {eps.size}"
+            f"wavelengths_um and the tables' last axis must have the same length >= 1, "
+            f"got {wl.size} and {v.shape[-1]}"
         )
     if wl.size > 1 and np.any(np.diff(wl) <= 0):
         raise ValueError("wavelengths_um must be strictly ascending")
     x, w = _nodes(band, resp, float(temperature_k), extra_breaks=wl if wl.size > 1 else ())
     lam = spectral_radiance(x, float(temperature_k)) * w
-    e = np.interp(x, wl, eps) if wl.size > 1 else np.full_like(x, eps[0])
     denominator = lam.sum()
     if not denominator > 0:
         raise ValueError(f"band {band} has no response: cannot weight the emissivity")
-    return float((e * lam).sum() / denominator)
+    if wl.size == 1:
+        return v[..., 0].copy()
+    flat = v.reshape(-1, wl.size)
+    at_x = np.stack([np.interp(x, wl, row) for row in flat])
+    return ((at_x @ lam) / denominator).reshape(v.shape[:-1])
 
 
 # --- inverse --------------------------------------------------------------------------------

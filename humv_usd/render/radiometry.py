@@ -134,15 +134,16 @@ class SubBands:
     def weighted_mean(
         self, wavelengths_um, values, temperature_k: float = EMISSIVITY_WEIGHTING_TEMPERATURE_K
     ) -> np.ndarray:
-        """Mean of a table over each sub-band weighted by :math:`R\\,B(\\lambda, T)`; (..., n)."""
-        wl = np.asarray(wavelengths_um, dtype=float)
-        v = np.asarray(values, dtype=float)
-        out = np.empty(v.shape[:-1] + (len(self),))
-        for k in range(len(self)):
-            x, w = self._nodes_for(k, wl)
-            w = w * planck.spectral_radiance(x, temperature_k)
-            out[..., k] = (_interp_last(x, wl, v) @ w) / w.sum()
-        return out
+        """Mean of a table over each sub-band weighted by :math:`R\\,B(\\lambda, T)`; (..., n):
+        the band mean of :func:`humv_usd.physics.planck.band_weighted_mean` (the one Planck
+        weighting, also the materials' band emissivity) per sub-band."""
+        return np.stack(
+            [
+                planck.band_weighted_mean(wavelengths_um, values, b, self.response, temperature_k)
+                for b in self.bands
+            ],
+            axis=-1,
+        )
 
     def radiance(self, temperature_k) -> np.ndarray:
         """Planck radiance per sub-band :math:`\\int_k R\\,B(\\lambda,T)\\,d\\lambda` [W m-2 sr-1];
