@@ -41,7 +41,8 @@ CHANNELS = {
     "normal_x": "1 (world space, x east; unit geometric normal of the hit triangle, front side; 0 for sky)",
     "normal_y": "1 (world space, y north)",
     "normal_z": "1 (world space, z up)",
-    "surface_temperature": "K (kinetic temperature of the hit face; NaN for sky)",
+    "surface_temperature": "K (kinetic temperature at the pixel-centre hit, the faces' temperatures "
+    "interpolated as the render shades them; NaN for sky)",
     "emissivity": "1 (band emissivity of the hit material for this sensor; NaN for sky)",
 }
 _CHANNELS_OF = {
@@ -154,6 +155,10 @@ class GroundTruth:
             )
             tables = L.PartTables(parts, labels, state.temperatures, eps)
             images = tables.images(hits.part, hits.triangle)
+            if "surface" in want and hasattr(scene, "corner_blend"):  # the field the render shades
+                images["surface_temperature"] = tables.smooth_temperature(
+                    scene, hits.part, hits.triangle, hits.position
+                )
             t = self._tick("label_tables", t)
         for name, chans in _CHANNELS_OF.items():
             if name not in want:

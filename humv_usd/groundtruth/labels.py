@@ -27,6 +27,7 @@ import numpy as np
 from pxr import Usd
 
 from humv_usd.errors import InputError, bad_value
+from humv_usd.geometry import shading
 from humv_usd.human import labels as AL
 from humv_usd.usd.avatar import is_garment
 from humv_usd.usd.labels import class_attribute, nearest_class, nearest_instance_id, read_face_label
@@ -150,6 +151,27 @@ class PartTables:
             return np.zeros(part.shape, dtype=np.int32)
         g = self.offset[np.where(hit, part, 0)] + np.where(hit, triangle, 0)
         return np.where(hit, self.region[g], 0)
+
+    def smooth_temperature(self, scene, part: np.ndarray, triangle: np.ndarray, position) -> np.ndarray:
+        """Surface temperature [K] at the hits (NaN for sky) on the field the render shades:
+        the faces' temperatures blended to the corners and interpolated at the hit point
+        (:meth:`humv_usd.render.ir.IRScene.corner_blend`, Gouraud), not one value per flat
+        face. ``scene`` gives ``corner_blend()``, ``vertices(part)``, ``face_corners(part)``."""
+        part, triangle = np.asarray(part), np.asarray(triangle)
+        out = np.full(part.shape, np.nan)
+        hit = part >= 0
+        if not self.temperature.size or not hit.any():
+            return out
+        corners = np.asarray(scene.corner_blend() @ self.temperature).reshape(-1, 3)
+        p, t = part[hit], triangle[hit]
+        tri = np.empty((len(p), 3, 3))
+        for i in np.unique(p):
+            sel = p == i
+            prt = scene.parts[i]
+            tri[sel] = np.asarray(scene.vertices(prt), float)[scene.face_corners(prt)[t[sel]]]
+        b = shading.barycentric(tri, np.asarray(position)[hit])
+        out[hit] = np.einsum("ij,ij->i", np.clip(b, 0.0, 1.0), corners[self.offset[p] + t])
+        return out
 
     def images(self, part: np.ndarray, triangle: np.ndarray) -> dict[str, np.ndarray]:
         """Per-pixel label images from the ray cast's part and triangle indices (-1 = sky)."""

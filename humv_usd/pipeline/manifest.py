@@ -81,7 +81,8 @@ def estimator_key(estimator: str) -> str:
         return estimator
     return (
         f"fast (splits {E.DEFAULT_SPLITS}, replicas {E.DEFAULT_REPLICAS}, roulette from depth "
-        f"{E.RR_DEPTH}, filter radius {E.DEFAULT_FILTER_RADIUS} px, back sides as cavities)"
+        f"{E.RR_DEPTH}, filter radius {E.DEFAULT_FILTER_RADIUS} px, back sides as cavities, "
+        f"smooth shading (crease {E.SMOOTH_CREASE_DEG:g} deg))"
     )
 
 
@@ -210,6 +211,10 @@ def estimator_settings(plan) -> dict:
             f"{E.DEFAULT_SPLITS} stratified reflection directions per camera sample, Russian roulette "
             f"from depth {E.RR_DEPTH}, reflected radiance averaged over a "
             f"{2 * E.DEFAULT_FILTER_RADIUS + 1}^2 px window on the same surface",
+            "shading": "smooth: each face's surface terms (emission at its layer temperature, "
+            "reflected G and sun) blended at shared vertices over faces within "
+            f"{E.SMOOTH_CREASE_DEG:g} deg of each other (area-weighted) and interpolated at the hit "
+            "(Gouraud); the path tracer shades one value per flat face",
             "film": "box filter (each sample in its pixel), path per sample at its first hit's range",
             "sampler": "Cranley-Patterson rotated Fibonacci lattices per pixel (pixel position, "
             f"first reflection direction), independent replicas: the smallest divisor >= {E.DEFAULT_REPLICAS} of spp",

@@ -69,6 +69,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from humv_usd import mode
+from humv_usd.geometry import shading
 from humv_usd.render.radiometry import SKY_MAP_HEIGHT
 
 log = logging.getLogger(__name__)
@@ -136,6 +137,9 @@ DIRECT_BOOST_BUDGET = 16.0
 MIN_BOOST_BUDGET = 1 << 18
 #: Most lanes of one per-pixel direct pass (bounds its memory: a few hundred bytes per lane).
 MAX_DIRECT_LANES = 1 << 22
+#: Largest angle [deg] between faces whose surface terms blend at a shared vertex
+#: (:data:`humv_usd.geometry.shading.SMOOTH_CREASE_DEG`).
+SMOOTH_CREASE_DEG = shading.SMOOTH_CREASE_DEG
 
 
 def sky_rows(radiometry, k: int) -> np.ndarray:
@@ -309,6 +313,37 @@ def cavity_table(tables: FaceTables) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
+def corner_blend(scene, crease_deg: float = SMOOTH_CREASE_DEG):
+    """:func:`humv_usd.geometry.shading.corner_blend` of the scene's parts, corners in the
+    order of the Mitsuba meshes' faces (winding flips applied), so a hit's barycentric
+    coordinates (``si.uv``) weight the right corners."""
+    flip = [scene.flipped(p) for p in scene.parts]
+    meshes = [
+        (scene.vertices(p), p.triangles[:, [0, 2, 1]] if f else p.triangles)
+        for p, f in zip(scene.parts, flip)
+    ]
+    return shading.corner_blend(meshes, crease_deg)
+
+
+def corner_table(surface: np.ndarray, blend) -> np.ndarray:
+    """(T, 7 n) the estimator's per-triangle rows: per corner the surface term in shadow and in
+    the sun (:func:`surface_table`'s ``dark`` and ``lit``) blended by ``blend``
+    (:func:`corner_blend`; None: flat, every corner its face's value), then rho."""
+    t, _, n = surface.shape
+    if blend is None:
+        corners = np.repeat(surface[:, None, :2, :], 3, axis=1)  # (T, 3, 2, n)
+    else:
+        corners = np.asarray(blend @ surface[:, :2, :].reshape(t, 2 * n)).reshape(t, 3, 2, n)
+    return np.ascontiguousarray(np.concatenate([corners.reshape(t, 6 * n), surface[:, 2, :]], axis=1))
+
+
+def _smooth_blend(scene):
+    """The scene's :func:`corner_blend` (cached by the scene against its geometry:
+    :meth:`humv_usd.render.ir.IRScene.corner_blend`)."""
+    cached = getattr(scene, "corner_blend", None)
+    return cached() if cached is not None else corner_blend(scene)
+
+
 def pixel_direct_points(direct_var, target_var, factor_cap: int = MAX_PIXEL_DIRECT_FACTOR) -> np.ndarray:
     r"""More pixel positions per camera sample for the direct term, per pixel (H, W) int.
 
@@ -426,6 +461,7 @@ def render_band_fast(
     direct_points: int | None = None,
     direct_target=None,
     info: dict | None = None,
+    smooth: bool = True,
 ):
     """At-sensor band radiance and its Monte Carlo standard error of one IR sensor at one frame.
 
@@ -444,6 +480,9 @@ def render_band_fast(
     factor over those pixels only). ``info``: a dict filled with ``back_face_fraction`` (H, W),
     the share of a pixel's camera samples that saw a one-sided face from behind (rendered as the
     cavity radiance, :func:`cavity_table`), and ``pixel_direct_points`` (H, W).
+    ``smooth``: shade each hit with its faces' surface terms blended to the corners and
+    interpolated at the hit (:func:`corner_blend`, Gouraud); False: one value per flat face,
+    as the path tracer (:func:`humv_usd.render.ir.render_band`) shades.
 
     Returns
     -------
@@ -487,10 +526,11 @@ def render_band_fast(
     ground = ground_radiance(scene, tables, g_up, 0.0 if sun_dir is None else sun_dir[2], sun_e, normals)
     g_tab = control_variate_table(rows, ground)  # (n, CV_NODES)
     surface = surface_table(scene, tables, g_tab, sun_dir, sun_e, normals)  # (T, 3, n)
+    rows_7n = corner_table(surface, _smooth_blend(scene) if smooth else None)  # (T, 7n)
     note("tables: %d triangles", len(surface))
 
     f32 = mi.Float
-    surf_dr = f32(surface.astype(np.float32).ravel())
+    surf_dr = f32(rows_7n.astype(np.float32).ravel())
     cavity = cavity_table(tables)  # (T, n): back sides, on the classes of CAVITY_CLASSES only
     ends = list(tables.offset[1:]) + [len(cavity)]
     for part, first, last in zip(scene.parts, tables.offset, ends):
@@ -529,16 +569,25 @@ def render_band_fast(
         shape = dr.reinterpret_array(mi.UInt32, si.shape)
         return dr.gather(mi.UInt32, offset_dr, shape, active) + si.prim_index
 
-    def surface_terms(p, nrm, tri, active=True):
+    def surface_terms(p, nrm, tri, uv, active=True):
         """(surface-leaving radiance - the reflected sky/ground part sampled later, reflectance)
-        per sub-band at front-facing vertices: emission + rho (G + sun if the sun is seen)."""
-        base = tri * (3 * n)
+        per sub-band at front-facing vertices: emission + rho (G + sun if the sun is seen),
+        interpolated between the triangle's corners at the hit's barycentric coordinates
+        ``uv`` (Mitsuba's ``si.uv`` of a mesh without texture coordinates: b1, b2)."""
+        row = tri * (7 * n)
+        base = row
         if sun_vec is not None:
             lit = active & (dr.dot(nrm, sun_vec) > 0.0)
             blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * _offset(dr, p), sun_vec), lit)
             base = dr.select(lit & ~blocked, base + n, base)
-        surf = [dr.gather(f32, surf_dr, base + k, active) for k in range(n)]
-        rho = [dr.gather(f32, surf_dr, tri * (3 * n) + (2 * n + k), active) for k in range(n)]
+        b1, b2 = uv.x, uv.y
+        surf = []
+        for k in range(n):  # v0 + (v1 - v0) b1 + (v2 - v0) b2: exactly v0 on a uniform face
+            v0 = dr.gather(f32, surf_dr, base + k, active)
+            v1 = dr.gather(f32, surf_dr, base + (2 * n + k), active)
+            v2 = dr.gather(f32, surf_dr, base + (4 * n + k), active)
+            surf.append(v0 + (v1 - v0) * b1 + (v2 - v0) * b2)
+        rho = [dr.gather(f32, surf_dr, row + (6 * n + k), active) for k in range(n)]
         return surf, rho
 
     # --- camera samples: pixel x replica x lattice point -------------------------------------
@@ -573,7 +622,7 @@ def render_band_fast(
         hit = si.is_valid()
         front = hit & (dr.dot(si.n, ray.d) < 0.0)
         back = hit & ~front
-        surf, rho = surface_terms(si.p, si.n, triangle(si, front), front)
+        surf, rho = surface_terms(si.p, si.n, triangle(si, front), si.uv, front)
         back_base = triangle(si, back) * n
         where = sky_at(ray.d.z)
         value = [
@@ -659,7 +708,7 @@ def render_band_fast(
                 # a back face: its cavity radiance - C (:func:`cavity_table`)
                 odd = ~front & (hit | (dz < 0.0))
                 tri = triangle(si, hit)
-                dr.eval(hit, front, odd, tri, si.p, si.n, dz)
+                dr.eval(hit, front, odd, tri, si.p, si.n, si.uv, dz)
                 lanes_odd = dr.compress(odd)
                 if dr.width(lanes_odd):
                     beta_o = beta_at(lanes_odd)
@@ -692,7 +741,9 @@ def render_band_fast(
                 beta = beta_at(on)
                 lane_id = dr.gather(mi.UInt32, lane_id, on)
                 origin = dr.gather(mi.UInt32, tri, on)
-                surf, rho = surface_terms(p, nrm, dr.gather(mi.UInt32, tri, on))
+                surf, rho = surface_terms(
+                    p, nrm, dr.gather(mi.UInt32, tri, on), dr.gather(mi.Point2f, si.uv, on)
+                )
                 up = dz_f >= 0.0
                 where = sky_at(dz_f)
                 terms = []

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from humv_usd import mode
+from humv_usd.geometry import shading
 from humv_usd.geometry.camera import CameraPose
 from humv_usd.render import elements as el
 from humv_usd.render.elements import SKY_ID, SUN_ID
@@ -140,6 +141,9 @@ class IRScene:
         self._m2 = channels.index("m2_nested.Y")
         self._positions: dict[str, np.ndarray] = {p.key: np.asarray(v, dtype=np.float32) for p, v, _ in parts}
         self._flips: dict[str, bool] = {p.key: bool(f) for p, _, f in parts}
+        #: counts vertex updates: what is derived from the geometry (the estimator's smooth-
+        #: shading blend) is cached against it
+        self.geometry_version = 0
 
     # --- what the estimators read ------------------------------------------------------------
     def vertices(self, part: Part) -> np.ndarray:
@@ -149,6 +153,25 @@ class IRScene:
     def flipped(self, part: Part) -> bool:
         """Whether the part's winding is reversed in the scene (USD ``orientation``)."""
         return self._flips[part.key]
+
+    def corner_blend(self):
+        """(3T, T) sparse matrix from per-triangle values (the global order of the parts'
+        triangles) to per-corner values, corners in the order of the Mitsuba meshes' faces
+        (winding flips applied, as ``si.uv``'s barycentric coordinates):
+        :func:`humv_usd.geometry.shading.corner_blend` of the current geometry, computed once
+        per geometry (the fast estimator's smooth shading and the ground truth's surface
+        temperature share it)."""
+        cached = getattr(self, "_blend", None)
+        if cached is not None and cached[0] == self.geometry_version:
+            return cached[1]
+        meshes = [(self.vertices(p), self.face_corners(p)) for p in self.parts]
+        blend = shading.corner_blend(meshes)
+        self._blend = (self.geometry_version, blend)
+        return blend
+
+    def face_corners(self, part: Part) -> np.ndarray:
+        """(t, 3) vertex indices of a part's triangles in the scene's winding (flips applied)."""
+        return part.triangles[:, [0, 2, 1]] if self.flipped(part) else part.triangles
 
     def mitsuba_sensor(self, sensor_id: str):
         """The Mitsuba sensor object of ``sensor_id`` (for ``mi.render`` and ``sample_ray``)."""
@@ -165,6 +188,7 @@ class IRScene:
         if np.array_equal(v, self._positions[part.key]):
             return
         self._positions[part.key] = v
+        self.geometry_version += 1
         self._set_array(f"{part.key}.vertex_positions", v.ravel())
         self._hits = {}  # the geometry changed
 
