@@ -10,6 +10,9 @@ that say which bench made it, with which command, on which commit and when.
   path-traced reference): Monte Carlo error and largest region bias against wall and CPU time.
 - ``subband_error.csv``: the same run's spectral error of the sub-band model against the
   sub-band count.
+- ``eo_error_time.csv``: the same run's EO camera (at half its 720x540): the fast EO estimator at
+  2-8 spp and 4 or 16 visible bins and the spectral path tracer's former default, against a
+  64-spp spectral path-traced reference: Y's error relative to the mean Y against time.
 - ``qrad_error_time.csv``: ``humv_usd.bench.thermal.bench_qrad`` (what ``humv-usd bench
   thermal`` runs) on the capsule avatar: the absorbed radiation's relative error against the
   brute-force reference by method, map size and rays, against CPU time.
@@ -30,7 +33,19 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "docs" / "physics" / "data"
-RENDER_ARGS = ["docs/physics/data/render_bench.toml", "--spp", "1,2,4,8", "--subbands", "4,16"]
+RENDER_ARGS = [
+    "docs/physics/data/render_bench.toml",
+    "--spp",
+    "1,2,4,8",
+    "--subbands",
+    "4,16",
+    "--eo-spp",
+    "2,4,8",
+    "--eo-bins",
+    "4,16",
+    "--eo-scale",
+    "0.5",
+]
 QRAD = dict(facets=10000, resolutions=(45, 90, 180), fast_rays=(16, 64, 256), adaptive_rays=(32, 64, 128))
 
 
@@ -132,6 +147,56 @@ def render_data() -> None:
         for n, e in rec["error_by_subbands"].items():
             spectral.append({"sensor": sensor, "subbands": int(n), "max_k": e["max_k"], "rms_k": e["rms_k"]})
     _write("subband_error.csv", header, ["sensor", "subbands", "max_k", "rms_k"], spectral)
+    eo_rows = []
+    for sensor, rec in result["eo"]["sensors"].items():
+        ref = rec["reference"]
+        eo_rows.append(
+            {
+                "sensor": sensor,
+                "estimator": "reference",
+                "spp": ref["spp"],
+                "wall_s": ref["wall_s"],
+                "cpu_s": ref["cpu_s"],
+                "rel_error_mean": ref["noise"]["mean"],
+                "rel_error_p99": ref["noise"]["p99"],
+            }
+        )
+        for r in rec["rows"]:
+            biases = [b for b in r["bias_by_region"].values() if b["bias_rel_xyz"][1] is not None]
+            worst = max(biases, key=lambda b: abs(b["bias_rel_xyz"][1])) if biases else None
+            eo_rows.append(
+                {
+                    "sensor": sensor,
+                    "estimator": r["estimator"],
+                    "spp": r["spp"],
+                    "bins": r["bins"],
+                    "wall_s": r["wall_s"],
+                    "cpu_s": r["cpu_s"],
+                    "rel_error_mean": r["noise"]["mean"],
+                    "rel_error_p99": r["noise"]["p99"],
+                    "max_abs_bias_rel_y": None if worst is None else abs(worst["bias_rel_xyz"][1]),
+                    "bias_sigma_rel_y": None if worst is None else worst["sigma_rel_y"],
+                    "default": int(bool(r["default"])),
+                }
+            )
+    _write(
+        "eo_error_time.csv",
+        header,
+        [
+            "sensor",
+            "estimator",
+            "spp",
+            "bins",
+            "wall_s",
+            "cpu_s",
+            "rel_error_mean",
+            "rel_error_p99",
+            "max_abs_bias_rel_y",
+            "bias_sigma_rel_y",
+            "default",
+        ],
+        eo_rows,
+    )
 
 
 def thermal_data() -> None:

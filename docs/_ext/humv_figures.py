@@ -79,6 +79,33 @@ def render_error_time(ax_pair, rows, spectral):
     ax2.grid(True, which="both", lw=0.3)
 
 
+def eo_error_time(ax, rows):
+    """The EO render's error of Y relative to the mean Y (away from edges) against CPU time."""
+    fast = [r for r in rows if r["estimator"] == "fast"]
+    for n in sorted({int(r["bins"]) for r in fast}):
+        pts = sorted(
+            (_f(r, "cpu_s"), _f(r, "rel_error_mean"), int(r["spp"])) for r in fast if int(r["bins"]) == n
+        )
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"fast EO estimator, {n} bins")
+        for x, y, spp in pts:
+            ax.annotate(f"{spp} spp", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    for r in rows:
+        if r["estimator"] in ("path", "reference"):
+            what = "spectral path tracer" if r["estimator"] == "path" else "reference, spectral path tracer"
+            ax.plot(
+                _f(r, "cpu_s"),
+                _f(r, "rel_error_mean"),
+                "s" if r["estimator"] == "path" else "D",
+                label=f"{what} {r['spp']} spp",
+            )
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("CPU time of the render [s]")
+    ax.set_ylabel("error of Y / mean Y, away from edges")
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
+    ax.grid(True, which="both", lw=0.3)
+
+
 def qrad_error_time(ax, rows):
     """The absorbed radiation's rms relative error against CPU time by method and map size."""
     groups: dict[tuple[str, str], list] = {}
@@ -159,6 +186,7 @@ def _draw(name: str, csvs: list[str], plot, panels: int, out: Path) -> None:
 #: figure name -> (its CSVs, the plot function, panels)
 FIGURE_SPECS = {
     "render_error_time": (["render_error_time.csv", "subband_error.csv"], render_error_time, 2),
+    "eo_error_time": (["eo_error_time.csv"], eo_error_time, 1),
     "qrad_error_time": (["qrad_error_time.csv"], qrad_error_time, 1),
     "thermal_time_steps": (["garment_time_steps.csv", "skin_time_steps.csv"], time_steps, 2),
 }
