@@ -333,12 +333,17 @@ def test_stage_view_has_every_mesh_triangle_and_camera(humvvex, tmp_path):
     np.testing.assert_allclose(view.cameras[0].origin, [0.0, -15.0, 1.6], atol=1e-6)
     # the view shows every rendered mesh, the ground's horizon rings included: its bounds are the
     # GLB's, out to [scene.ground] horizon_m (20 km by default, square rings) around the 120 m
-    # ground (the view starts at the first camera, not at the bounds)
+    # ground
     np.testing.assert_allclose(np.asarray(view.bounds), loaded.bounds, atol=1e-3)
     horizon = load_scenario(humvvex)["scene"]["ground"]["horizon_m"]
     assert horizon == 20000.0
     np.testing.assert_allclose(view.bounds[0][:2], [-horizon, -horizon])
     np.testing.assert_allclose(view.bounds[1][:2], [horizon, horizon])
+    # the view is framed on view.focus: the person (about 1.78 m tall at the origin) and the four
+    # cameras 15 m south, never the horizon
+    lo, hi = view.focus
+    assert np.all(hi - lo < 30.0) and lo[1] == pytest.approx(-15.0) and 1.6 < hi[2] < 2.1
+    assert lo[2] == pytest.approx(0.0, abs=0.05) and hi[0] == pytest.approx(0.8, abs=0.5)
 
 
 def test_preview_is_the_real_compose_and_a_small_forced_render(humvvex, tmp_path):
@@ -424,3 +429,85 @@ def test_every_change_counts_so_pages_follow(humvvex):
     doc.remove_table(("human",), 1)
     doc.reload()
     assert doc.version == v0 + 4
+
+
+def test_sensor_fields_say_whether_a_value_is_the_presets_or_the_users(humvvex):
+    """Issue 26 (7): the Sensor tab showed preset values as blank fields. A key the table leaves
+    out shows the preset's value as such (values from the catalogue, not from the page); a key the
+    table gives is the user's, with the preset's beside it; a value neither (NETD at another
+    f-number) is 'computed'."""
+    from humv_usd.editor.fields import value_source
+
+    doc = ScenarioDocument(humvvex)
+
+    def source(where):
+        return value_source(doc.raw(), doc.scenario(), _field(doc, where))
+
+    atom = scenario_values("atom1024_lwir")
+    res = source("sensor[0].resolution")
+    assert (res.kind, res.preset) == ("preset", "atom1024_lwir")
+    assert res.text == "[1024, 768]" and atom["resolution"] == [1024, 768]
+    assert "preset atom1024_lwir" in res.note and "1024" in res.note
+    bits = source("sensor[0].bit_depth")  # humvvex gives bit_depth = 14 in the table
+    assert (bits.kind, bits.text, bits.preset_text) == ("user", "14", str(atom["bit_depth"]))
+    assert bits.note == f"your value (preset atom1024_lwir: {atom['bit_depth']})"
+    assert source("sensor[0].position_m") is None  # no preset gives a position
+    assert source("general.name") is None
+    # another f-number: the NETD is scaled, (4 N^2 + 1) / (4 N0^2 + 1) (catalog.sensors)
+    doc.set_text(_field(doc, "sensor[1].f_number"), "2.0")
+    lwir640 = scenario_values("lwir640_12um")
+    netd = source("sensor[1].netd_k")
+    expected = lwir640["netd_k"] * (4 * 2.0**2 + 1) / (4 * lwir640["f_number"] ** 2 + 1)
+    assert netd.kind == "computed" and float(netd.text) == pytest.approx(expected)
+    assert source("sensor[1].f_number").kind == "user"
+    # another preset: every left-out key follows it
+    doc.set_text(_field(doc, "sensor[0].preset"), "lwir640_12um")
+    assert source("sensor[0].resolution").text == "[640, 512]"
+    assert source("sensor[0].pixel_pitch_um").text == str(lwir640["pixel_pitch_um"])
+    # while the scenario has problems, the preset's own values are shown
+    doc.set_text(_field(doc, "general.fps"), "-1")
+    assert doc.scenario() is None
+    assert source("sensor[0].resolution").kind == "preset"
+
+
+def _ndc(eye, target, points, fov_y_deg, aspect):
+    """Normalised device coordinates of points seen by a look-at perspective camera (Z up)."""
+    f = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(f, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, f)
+    v = np.asarray(points, dtype=float) - eye
+    depth = v @ f
+    ty = math.tan(math.radians(fov_y_deg) / 2)
+    return np.stack([(v @ right) / (depth * aspect * ty), (v @ up) / (depth * ty)], axis=1), depth
+
+
+def test_the_3d_view_is_framed_on_the_people_and_sensors_not_the_horizon():
+    """Issue 26 (7): the view framed the whole ground (now rings to 20 km) and showed a dot.
+    humvvex's layout: a person at the origin, four cameras 15 m south; the ground's bounds 40 km."""
+    from humv_usd.editor.stage3d import VIEW_ASPECT, VIEW_FOV_Y_DEG, StageCamera, StageView, framing
+
+    person = (np.array([-0.3, -0.2, 0.0]), np.array([0.3, 0.2, 1.8]))
+    cams = [
+        StageCamera(
+            f"c{i}", np.array([x, -15.0, 1.6]), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0, 1]), 30.0
+        )
+        for i, x in enumerate((0.0, 0.8, -0.8, -1.6))
+    ]
+    points = [c.origin for c in cams] + list(person)
+    focus = (np.min(points, axis=0), np.max(points, axis=0))
+    ground = (np.array([-20000.0, -20000.0, 0.0]), np.array([20000.0, 20000.0, 8.0]))
+    view = StageView(Path("x.glb"), 7, 100, cams, ground, focus)
+    eye, target = framing(view)
+    corners = [
+        [x, y, z] for x in (focus[0][0], focus[1][0]) for y in (focus[0][1], focus[1][1]) for z in (0, 1.8)
+    ]
+    ndc, depth = _ndc(eye, target, corners + [c.origin for c in cams], VIEW_FOV_Y_DEG, VIEW_ASPECT)
+    assert np.all(depth > 0) and np.all(np.abs(ndc) <= 1.0), ndc  # everyone and every camera in view
+    assert np.ptp(ndc, axis=0).max() > 0.5  # and they fill the view, not a corner of it
+    top, feet = _ndc(eye, target, [[0, 0, 1.8], [0, 0, 0]], VIEW_FOV_Y_DEG, VIEW_ASPECT)[0]
+    assert top[1] - feet[1] > 0.1  # the person is > 5 % of the view's height (a 40 km frame: 0.01 %)
+    assert eye[1] < -15.0 and eye[2] > 1.6  # behind and above the cameras, looking along them
+    # without people or cameras: the bounds
+    eye2, target2 = framing(StageView(Path("x.glb"), 1, 2, [], ground, None))
+    np.testing.assert_allclose(target2, [0.0, 0.0, 4.0])

@@ -278,3 +278,18 @@ def test_sweep_tab_checks_every_variant(session):
     _click(driver, "sweep-save")
     _wait(lambda: "2 variant(s), every one valid" in driver.page_source, limit=60, what="sweep check")
     assert 'base = "humvvex.toml"' in (scenario.parent / "sweep.toml").read_text()
+
+
+def test_sensor_tab_marks_preset_values_and_the_users(session):
+    """Issue 26 (7): preset values were blank fields. A key the table leaves out shows the
+    preset's value (grey, as the placeholder) and says so; a key the table gives says it is
+    the user's, with the preset's value beside it."""
+    driver = session[0]
+    H.open_tab(driver, "sensor")
+    _wait(
+        lambda: _input(driver, "sensor[0].resolution").get_attribute("placeholder") == "[1024, 768]",
+        what="the preset's resolution as the placeholder",
+    )
+    assert _input(driver, "sensor[0].resolution").get_attribute("value") == ""  # not written into the file
+    assert "from preset atom1024_lwir" in _field_messages(driver, "sensor[0].resolution")
+    assert "your value (preset atom1024_lwir: 14)" in _field_messages(driver, "sensor[0].bit_depth")

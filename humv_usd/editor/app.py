@@ -23,13 +23,13 @@ from nicegui import app, run, ui
 
 from humv_usd.catalog.garments import GARMENTS
 from humv_usd.editor.document import SaveRefused, ScenarioDocument
-from humv_usd.editor.fields import Field, all_fields, section_groups, value_text
+from humv_usd.editor.fields import Field, ValueSource, all_fields, section_groups, value_source, value_text
 from humv_usd.editor.guard import LOOPBACK_NAMES, RequestGuard
 from humv_usd.editor.jobs import JobManager, humv_command, outputs
 from humv_usd.editor.plan import plan_svg
 from humv_usd.editor.preview import PREVIEW_WIDTH_PX, make_preview, preview_commands, preview_resolution
 from humv_usd.editor.safety import UploadExists, inside, store_upload, sweep_base, upload_target
-from humv_usd.editor.stage3d import stage_view
+from humv_usd.editor.stage3d import framing, stage_view
 from humv_usd.environment.sun import scenario_sun
 from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
@@ -108,6 +108,8 @@ class Page:
         self.editor = editor
         self.doc = editor.doc
         self.widgets: dict[str, ui.element] = {}
+        self.fields: dict[str, Field] = {}
+        self.sources: dict[str, ValueSource] = {}  # what each sensor field now says of its value
         self.section_boxes: dict[str, ui.element] = {}
         self.preview_started: float | None = None
         self.shown_preview_job = None
@@ -166,6 +168,8 @@ class Page:
         box.clear()
         for where in [w for w in self.widgets if w == name or w.startswith((name + ".", name + "["))]:
             del self.widgets[where]
+            self.fields.pop(where, None)
+            self.sources.pop(where, None)
         groups, slots = section_groups(self.doc.raw(), name)
         with box:
             ui.label(SECTIONS[name].doc).classes("text-caption text-grey-7")
@@ -219,6 +223,27 @@ class Page:
             w.classes("w-full")
             w.tooltip(f.help)
         self.widgets[f.where] = w
+        self.fields[f.where] = f
+
+    def show_sources(self, scenario=None) -> None:
+        """Mark every sensor field a preset fills as the preset's, computed or the user's."""
+        raw = self.doc.raw()
+        scenario = self.doc.scenario() if scenario is None else scenario
+        for where, f in self.fields.items():  # a preset or band edit changes what the others show
+            if where.startswith("sensor["):
+                self.show_source(f, value_source(raw, scenario, f))
+
+    def show_source(self, f: Field, src: ValueSource | None) -> None:
+        """A sensor key a preset fills: whose value it is, under the field (and, left out, the
+        preset's or the computed value as the empty field's placeholder, shown in grey)."""
+        w = self.widgets[f.where]
+        if src is None or self.sources.get(f.where) == src:
+            return
+        self.sources[f.where] = src
+        w.props(f'hint="{_attr(src.note)}" data-source={src.kind}')
+        if isinstance(w, ui.input):
+            w.props(f'placeholder="{_attr(src.text if src.kind != "user" else f.default_text)}" stack-label')
+        w.update()
 
     # -- document changes --------------------------------------------------------------------
     def changed(self, f: Field, text: str) -> None:
@@ -255,6 +280,7 @@ class Page:
         state = "valid" if not problems else f"{len(problems)} problem(s)"
         self.status.set_text(state + (" · unsaved" if self.doc.modified else ""))
         scenario = self.doc.scenario()
+        self.show_sources(scenario)
         if scenario is not None:
             self.editor.last_valid = scenario
         shown = scenario or self.editor.last_valid
@@ -683,15 +709,9 @@ class Page:
 
 
 def _eye(view) -> list[float]:
-    """Where the 3D view starts: behind and above the first camera looking along it, else
-    south of the scene's centre looking at it."""
-    if view.cameras:
-        cam = view.cameras[0]
-        eye = cam.origin - 8.0 * cam.forward + np.array([0.0, 0.0, 4.0])
-        return [*eye.tolist(), *(cam.origin + 15.0 * cam.forward).tolist()]
-    lo, hi = view.bounds
-    centre = (lo + hi) / 2
-    return [centre[0], centre[1] - 30.0, centre[2] + 15.0, *centre.tolist()]
+    """Where the 3D view starts: framed on the people and the sensors (:func:`framing`)."""
+    eye, target = framing(view)
+    return [*eye.tolist(), *target.tolist()]
 
 
 def _attr(text: str) -> str:

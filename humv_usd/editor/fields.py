@@ -14,8 +14,9 @@ from typing import Any
 
 import tomlkit
 
+from humv_usd.catalog.sensors import PRESETS, scenario_values
 from humv_usd.errors import bad_value
-from humv_usd.scenario.spec import SECTIONS, Key, Section
+from humv_usd.scenario.spec import SECTIONS, SENSOR_PRESET_KEYS, Key, Section
 
 #: unit by key-name suffix, for keys whose help text has no bracketed unit
 _SUFFIX_UNITS = (
@@ -193,3 +194,69 @@ def section_groups(raw: dict, name: str) -> tuple[list[Group], list[ArraySlot]]:
 def all_fields(raw: dict) -> list[Field]:
     """Every field of the document, in spec order."""
     return [f for name in SECTIONS for g in section_groups(raw, name)[0] for f in g.fields]
+
+
+@dataclass(frozen=True)
+class ValueSource:
+    """Where the value a sensor field stands for comes from, as the Sensor tab shows it.
+
+    ``kind``: ``"user"`` (the table gives it), ``"preset"`` (the table leaves it out and the
+    preset's value is used), ``"computed"`` (left out and not the preset's: the band's edges for
+    another band than the preset's, the NETD scaled to another f-number, the fallback).
+    """
+
+    kind: str
+    text: str  # the value the run uses, as the field would show it ('' when not known)
+    preset: str | None  # the table's preset, if any
+    preset_text: str | None  # the preset's value of this key, if it has one
+
+    @property
+    def note(self) -> str:
+        """One line under the field: whose value it is."""
+        if self.kind == "user":
+            if self.preset_text is None:
+                return "your value"
+            return f"your value (preset {self.preset}: {self.preset_text})"
+        if self.kind == "preset":
+            return f"from preset {self.preset}: {self.text}"
+        return f"computed: {self.text}" + (
+            f" (preset {self.preset}: {self.preset_text})" if self.preset_text else ""
+        )
+
+
+def value_source(raw: dict, filled, f: Field) -> ValueSource | None:
+    """The source of a ``[[sensor]]`` key a preset can fill (``SENSOR_PRESET_KEYS``), None for
+    any other field or a table without a (known) preset.
+
+    Parameters
+    ----------
+    raw : dict
+        The document as written.
+    filled : Scenario or None
+        The same, validated (the values the run uses), or None while it has problems (then the
+        preset's own values are shown).
+    f : Field
+        The field.
+    """
+    if len(f.path) != 3 or f.path[0] != "sensor" or f.name not in SENSOR_PRESET_KEYS:
+        return None
+    tables = raw.get("sensor")
+    i = f.path[1]
+    if not isinstance(tables, list) or not isinstance(i, int) or i >= len(tables):
+        return None
+    table = tables[i] if isinstance(tables[i], dict) else {}
+    preset = table.get("preset")
+    if not isinstance(preset, str) or preset not in PRESETS:
+        return None
+    preset_value = scenario_values(preset).get(f.name)
+    preset_text = None if preset_value is None else value_text(f.key, preset_value)
+    given = table.get(f.name)
+    if given is not None:
+        return ValueSource("user", value_text(f.key, given), preset, preset_text)
+    used = preset_value
+    sensors = filled["sensor"] if filled is not None else None
+    if sensors is not None and i < len(sensors):
+        used = sensors[i].get(f.name)
+    if used == preset_value and used is not None:
+        return ValueSource("preset", preset_text, preset, preset_text)
+    return ValueSource("computed", value_text(f.key, used), preset, preset_text)
