@@ -130,7 +130,7 @@ BLENDER = """
     bg = [n for n in scene.world.node_tree.nodes if n.type == "BACKGROUND"]
     result = {
         "cameras": sorted(o.name for o in bpy.data.objects if o.type == "CAMERA"),
-        "suns": [o.data.energy for o in bpy.data.objects if o.type == "LIGHT" and o.data.type == "SUN"],
+        "suns": {o.name: o.data.energy for o in bpy.data.objects if o.type == "LIGHT" and o.data.type == "SUN"},
         "world_strength": bg[0].inputs["Strength"].default_value if bg else None,
         "world_images": [
             n.image.filepath for n in scene.world.node_tree.nodes if n.type == "TEX_ENVIRONMENT" and n.image
@@ -163,7 +163,10 @@ def test_blender_imports_the_stage_lit_focused_and_named(stage_dir, humvvex_raw,
     assert result["focus"] == pytest.approx(
         np.linalg.norm(np.subtract(eo["look_at_m"], eo["position_m"])), rel=1e-4
     )
-    assert len(result["suns"]) == 1 and result["suns"][0] > 0 and result["world_strength"] > 0
+    # the sun and the moon (issue 24.4: below the horizon on this afternoon, intensity 0)
+    assert (
+        set(result["suns"]) == {"Sun", "Moon"} and result["suns"]["Sun"] > 0 and result["world_strength"] > 0
+    )
     # the sky's colour: the dome's lat-long texture from the atmosphere layer (issue 27.4)
     assert [p.replace("\\", "/").rsplit("/", 1)[-1] for p in result["world_images"]] == ["atmosphere_sky.exr"]
     rgb = oiio.ImageBuf(str(tmp_path / "eo.exr")).get_pixels(oiio.FLOAT)[..., :3]

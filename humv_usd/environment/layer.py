@@ -1,4 +1,4 @@
-"""Environment tool: scenario/site metadata, weather and the sun → layers/environment.usda.
+"""Environment tool: scenario/site metadata, weather, the sun and the moon → layers/environment.usda.
 
 The one place that computes the weather (:func:`humv_usd.environment.weather.weather_at`) and
 the sun (:func:`humv_usd.environment.sun.sun_at`); every other tool and the render read them back
@@ -15,15 +15,24 @@ diurnal cycle of range ``[atmosphere] diurnal_range_k`` through the first known 
 (Campbell & Norman 1998 shape, dew point held: :func:`humv_usd.environment.weather.with_diurnal_cycle`);
 wind, pressure and clouds hold the first known values; the sun follows the clock. Readers at frames >= 0 (the
 render) see the same values as without these samples.
+
+The sun and the sky are also UsdLux lights (a DistantLight and a DomeLight) for other USD tools;
+the moon is a DistantLight /World/Environment/Moon (beam-normal illuminance [lx], PyEphem position
+and phase per frame as ``humv:moon:*`` attributes, :func:`humv_usd.usd.environment.write_moon`),
+which the render's night light reads (:mod:`humv_usd.render.nightlight`).
 """
 
 from __future__ import annotations
 
+import datetime as dt
+
 import numpy as np
 from pxr import Sdf
 
+from humv_usd.environment.moon import MoonState, moon_at
 from humv_usd.environment.sun import scenario_sun
 from humv_usd.environment.weather import scenario_weather, with_diurnal_cycle
+from humv_usd.physics import nightsky
 from humv_usd.physics.weather import COLUMNS
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
@@ -43,7 +52,7 @@ READS = (
     "thermal.surface_spin_up_s",  # the spin-up window before frame 0 (negative time codes)
 )
 UPSTREAM = ()
-VERSION = "5"  # 5: the sun and sky as UsdLux lights
+VERSION = "6"  # 5: the sun and sky as UsdLux lights; 6: the moon (UsdLux + humv:moon:*)
 
 
 def _covered_from(scenario: Scenario) -> float:
@@ -65,6 +74,19 @@ def _weather_times(scenario: Scenario, times_s: np.ndarray) -> np.ndarray:
     ts, _ = read_weather_csv(path, scenario)
     t0 = frame_epoch_s(scenario)
     return np.where(times_s < 0.0, np.clip(times_s, ts[0] - t0, ts[-1] - t0), times_s)
+
+
+def frame_moon(general: dict, frames_t: np.ndarray) -> tuple[MoonState, np.ndarray]:
+    """The moon at the frame times ``frames_t`` [s after frame 0] and its clear-sky beam-normal
+    illuminance [lx] (:func:`humv_usd.physics.nightsky.moon_illuminance_lux`). The UTC times
+    are frame 0's local ISO time plus each offset, as the render's clock reads them from the
+    stage (:func:`humv_usd.render.nightlight.frame_utc`); the refraction of the apparent
+    altitude is PyEphem's standard atmosphere (1013.25 hPa, 15 degC)."""
+    start = dt.datetime.fromisoformat(local_start_iso(general))
+    utc = [(start + dt.timedelta(seconds=float(t))).astimezone(dt.UTC) for t in frames_t]
+    moon = moon_at(general["latitude_deg"], general["longitude_deg"], general["elevation_m"], utc)
+    lux = nightsky.moon_illuminance_lux(moon.elevation_deg, moon.phase_angle_deg, moon.distance_km)
+    return moon, np.asarray(lux, dtype=float)
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -102,6 +124,9 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         E.write_sun(env, sun, codes[:1])
     # the same sun and sky as UsdLux lights for other USD tools (frames only, not the spin-up)
     E.write_lights(stage, sun, codes, range(spin_t.size, codes.size))
+    # the moon at the frames (the render's night light reads it; not the spin-up)
+    moon, moon_lux = frame_moon(g, frames_t)
+    E.write_moon(stage, moon, moon_lux, codes[spin_t.size :])
     n_up = int(sun.up[spin_t.size :].sum())
     ran = {
         "weather": (
@@ -114,6 +139,11 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
             f"sun up at {n_up} of {frames_t.size} samples"
         ),
         "samples": f"{frames_t.size} of {scenario.frame_count} frames",
+        "moon": (
+            "PyEphem (ELP 2000-82 as in Meeus 1998), illuminance USNO Circular 171 x Allen's phase "
+            f"law x inverse square; above the horizon at {int((moon.elevation_deg > 0).sum())} of "
+            f"{frames_t.size} samples, phase angle {float(moon.phase_angle_deg[0]):.1f} deg at frame 0"
+        ),
     }
     if spin_t.size:
         ran["spinUp"] = (

@@ -8,9 +8,10 @@ wavelength grid (0.36-2.5 um):
 - the moon as a directional source (direction and beam-normal spectral irradiance) when it is
   above the horizon.
 
-Models and sources: :mod:`humv_usd.physics.nightsky`; the moon's position and phase from
-:func:`humv_usd.environment.moon.moon_at` (PyEphem) at the stage's site and frame time (the
-scenario metadata on /World). The render adds these to the atmosphere layer's sky (in the visible
+Models and sources: :mod:`humv_usd.physics.nightsky`; the moon's position, phase and clear-sky
+illuminance from the environment layer (/World/Environment/Moon, computed at compose by
+:func:`humv_usd.environment.moon.moon_at`, PyEphem; :func:`frame_moon`), or for a stage without it
+from PyEphem at the stage's site and frame time (the scenario metadata on /World). The render adds these to the atmosphere layer's sky (in the visible
 and short-wave infrared its night value is thermal emission only, ~1e-24 W m-2 sr-1 nm-1 at
 0.55 um) and takes the moon in place of the sun. The photometric scale is the CIE 1931 y-bar
 (:mod:`humv_usd.render.cie`) with 683 lm W-1. Clear sky; cloud cover is not applied (noted).
@@ -63,6 +64,33 @@ def frame_utc(stage, time_code) -> dt.datetime | None:
     return (start + dt.timedelta(seconds=code / fps)).astimezone(dt.UTC)
 
 
+def frame_moon(stage, time_code) -> tuple[usd_environment.MoonSample | None, str]:
+    """The moon at ``time_code`` and where it came from: the environment layer's
+    (:func:`humv_usd.usd.environment.read_moon`, computed at compose), else, for a stage without
+    it (composed before the moon was authored there, or made elsewhere), PyEphem at the frame's
+    UTC time from /World's site (:func:`humv_usd.environment.moon.moon_at`, as the environment
+    tool computes it); (None, why) without either."""
+    code = float(getattr(time_code, "GetValue", lambda: time_code)())
+    sample = usd_environment.read_moon(stage, code)
+    if sample is not None:
+        return sample, f"{usd_environment.MOON_LIGHT_PATH} at time code {code:g} (environment layer)"
+    when = frame_utc(stage, time_code)
+    if when is None:
+        return None, "no moon on the stage, and no site and start time on /World (HumvScenarioAPI)"
+    site = usd_environment.read_site(stage)
+    m = moon_at(site.latitude_deg, site.longitude_deg, site.elevation_m, [when])
+    el, alpha, dist = float(m.elevation_deg[0]), float(m.phase_angle_deg[0]), float(m.distance_km[0])
+    return usd_environment.MoonSample(
+        direction=np.asarray(m.direction[0], float),
+        elevation_deg=el,
+        azimuth_deg=float(m.azimuth_deg[0]),
+        phase_angle_deg=alpha,
+        illuminated_fraction=float(m.illuminated_fraction[0]),
+        distance_km=dist,
+        illuminance_lux=float(nightsky.moon_illuminance_lux(el, alpha, dist)),
+    ), f"PyEphem at {when.isoformat()} (no {usd_environment.MOON_LIGHT_PATH} on the stage)"
+
+
 def cloud_cover_at(stage, time_code) -> float | None:
     """The environment layer's cloud cover [0-1] at ``time_code`` (None without a weather)."""
     code = float(getattr(time_code, "GetValue", lambda: time_code)())
@@ -108,22 +136,19 @@ def night_light(stage, time_code, sun_direction, wavelengths_um, cloud_cover=Non
         "W m-2 sr-1 um-1 at 0.55 um"
     )
     moon_dir = moon_e = None
-    when = frame_utc(stage, time_code)
-    if when is None:
-        ran["moon"] = "skipped: no site and start time on /World (HumvScenarioAPI)"
+    m, source = frame_moon(stage, time_code)
+    if m is None:
+        ran["moon"] = f"skipped: {source}"
     else:
-        site = usd_environment.read_site(stage)
-        m = moon_at(site.latitude_deg, site.longitude_deg, site.elevation_m, [when])
-        el, alpha = float(m.elevation_deg[0]), float(m.phase_angle_deg[0])
-        e_moon = float(nightsky.moon_illuminance_lux(el, alpha, m.distance_km[0]))
+        el, alpha, e_moon = m.elevation_deg, m.phase_angle_deg, m.illuminance_lux
         what = (
-            f"PyEphem at {when.isoformat()}: altitude {el:.2f} deg, azimuth {m.azimuth_deg[0]:.1f} deg, "
-            f"phase angle {alpha:.1f} deg (illuminated {m.illuminated_fraction[0]:.2f})"
+            f"{source}: altitude {el:.2f} deg, azimuth {m.azimuth_deg:.1f} deg, "
+            f"phase angle {alpha:.1f} deg (illuminated {m.illuminated_fraction:.2f})"
         )
         if el <= 0.0 or e_moon <= 0.0:
             ran["moon"] = f"below the horizon: {what}"
         else:
-            moon_dir = np.asarray(m.direction[0], float)
+            moon_dir = np.asarray(m.direction, float)
             e_h = e_moon * float(moon_dir[2])
             f = nightsky.MOONLIT_SKY_FRACTION
             _, dhi, dni = cloud_reduction(e_h * (1 + f), f * e_h, 90.0 - el, 0.0 if n is None else n)

@@ -204,6 +204,102 @@ def write_sky_texture(stage: Usd.Stage, asset_path: str) -> None:
     UsdGeom.Xformable(prim).AddRotateXOp(opSuffix="orientToStageUpAxis").Set(90.0)
 
 
+#: The moon (issue 24.4): a UsdLux DistantLight at /World/Environment/Moon whose intensity is the
+#: moon's beam-normal illuminance [lx] (as the sun's), with custom attributes for what the render
+#: needs (double precision, time-sampled per frame like the sun): unit direction toward the moon
+#: (x east, y north, z up), apparent elevation and compass azimuth [deg], phase angle [deg]
+#: (Sun-Moon-Earth, 0 = full), illuminated fraction [0-1], Earth-Moon distance [km] and the
+#: clear-sky beam-normal illuminance [lx] (:func:`humv_usd.physics.nightsky.moon_illuminance_lux`).
+MOON_LIGHT_PATH = ENVIRONMENT_PATH.AppendChild("Moon")
+MOON_DIRECTION = "humv:moon:direction"
+MOON_ELEVATION = "humv:moon:elevation"
+MOON_AZIMUTH = "humv:moon:azimuth"
+MOON_PHASE_ANGLE = "humv:moon:phaseAngle"
+MOON_ILLUMINATED_FRACTION = "humv:moon:illuminatedFraction"
+MOON_DISTANCE = "humv:moon:distance"
+MOON_ILLUMINANCE = "humv:moon:illuminance"
+#: Angular diameter of the moon [deg] (mean, 31 arc-minutes; Meeus 1998 ch. 55).
+MOON_ANGLE_DEG = 0.52
+#: (attribute, MoonState field) of the scalar moon quantities
+MOON_ATTRS = (
+    (MOON_ELEVATION, "elevation_deg"),
+    (MOON_AZIMUTH, "azimuth_deg"),
+    (MOON_PHASE_ANGLE, "phase_angle_deg"),
+    (MOON_ILLUMINATED_FRACTION, "illuminated_fraction"),
+    (MOON_DISTANCE, "distance_km"),
+)
+
+
+def write_moon(stage: Usd.Stage, moon, illuminance_lux, codes) -> None:
+    """Author the moon (:data:`MOON_LIGHT_PATH`) at time codes ``codes`` (defaults for a single
+    sample): ``moon`` a :class:`humv_usd.environment.moon.MoonState`, ``illuminance_lux`` its
+    clear-sky beam-normal illuminance per sample. The DistantLight's intensity is that
+    illuminance while the moon is above the horizon, else 0, oriented at the moon (UsdLux,
+    normalized, so viewers light the scene with it as HumV's night render does)."""
+    from pxr import UsdLux
+
+    light = UsdLux.DistantLight.Define(stage, MOON_LIGHT_PATH)
+    light.CreateAngleAttr(MOON_ANGLE_DEG)
+    light.CreateNormalizeAttr(True)
+    op = light.AddTransformOp()
+    intensity = light.CreateIntensityAttr()
+    prim = light.GetPrim()
+    direction = prim.CreateAttribute(MOON_DIRECTION, Sdf.ValueTypeNames.Double3, custom=True)
+    scalars = [
+        (prim.CreateAttribute(name, Sdf.ValueTypeNames.Double, custom=True), np.asarray(getattr(moon, key)))
+        for name, key in MOON_ATTRS
+    ]
+    lux = prim.CreateAttribute(MOON_ILLUMINANCE, Sdf.ValueTypeNames.Double, custom=True)
+    sampled = len(codes) > 1
+    for i, c in enumerate(codes):
+        code = Usd.TimeCode(float(c)) if sampled else Usd.TimeCode.Default()
+        d = np.asarray(moon.direction[i], dtype=float)
+        up = float(moon.elevation_deg[i]) > 0.0
+        direction.Set(Gf.Vec3d(*map(float, d)), code)
+        for attr, values in scalars:
+            attr.Set(float(values[i]), code)
+        lux.Set(float(illuminance_lux[i]), code)
+        op.Set(_sun_orientation(d if up else (0.0, 0.0, 1.0)), code)
+        intensity.Set(float(illuminance_lux[i]) if up else 0.0, code)
+
+
+@dataclass
+class MoonSample:
+    """The moon of the environment layer at one time code (:func:`read_moon`)."""
+
+    direction: np.ndarray  # (3,) unit, toward the moon
+    elevation_deg: float
+    azimuth_deg: float
+    phase_angle_deg: float
+    illuminated_fraction: float
+    distance_km: float
+    illuminance_lux: float  # clear-sky, beam-normal
+
+
+def read_moon(stage: Usd.Stage, code) -> MoonSample | None:
+    """The moon authored at :data:`MOON_LIGHT_PATH` at time code ``code`` (USD interpolates
+    between frame samples; the direction is renormalised), or None when the stage has none
+    (a stage composed before the moon was authored, or made elsewhere)."""
+    prim = stage.GetPrimAtPath(MOON_LIGHT_PATH) if stage is not None else None
+    if not (prim and prim.IsValid()):
+        return None
+    t = Usd.TimeCode(float(code))
+    raw = prim.GetAttribute(MOON_DIRECTION).Get(t) if prim.GetAttribute(MOON_DIRECTION) else None
+    values = {key: _get(prim.GetAttribute(name), float(code)) for name, key in MOON_ATTRS}
+    lux = _get(prim.GetAttribute(MOON_ILLUMINANCE), float(code))
+    d = None if raw is None else np.array(raw, dtype=float)
+    if d is None or not np.all(np.isfinite(d)) or not np.linalg.norm(d) > 0 or not math.isfinite(lux):
+        raise InputError(
+            bad_value(
+                f"{MOON_LIGHT_PATH}", None, f"expected {MOON_DIRECTION} and {MOON_ILLUMINANCE} at {code:g}"
+            )
+        )
+    if any(math.isnan(v) for v in values.values()):
+        missing = next(name for name, key in MOON_ATTRS if math.isnan(values[key]))
+        raise InputError(bad_value(f"{MOON_LIGHT_PATH}.{missing}", None, f"expected a value at {code:g}"))
+    return MoonSample(direction=d / np.linalg.norm(d), illuminance_lux=lux, **values)
+
+
 # --- readers -------------------------------------------------------------------------------------
 def time_codes(stage: Usd.Stage, times_s) -> np.ndarray:
     """Time codes of ``times_s`` seconds after frame 0 on ``stage`` (its timeCodesPerSecond)."""
