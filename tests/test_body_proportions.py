@@ -15,7 +15,8 @@ except MissingAssetError as exc:  # pragma: no cover - data fetched by `make set
 
 from humv_usd.clothing.person import FIT_DATA, fit_sitting_height_ratio  # noqa: E402
 from humv_usd.human.body import build_body  # noqa: E402
-from humv_usd.human.population import ANSUR2_SITTING_HEIGHT_RATIO, sample_people  # noqa: E402
+from humv_usd.human.population import ANSUR2_SITTING_HEIGHT_RATIO, PIGMENTED_HAIR, sample_people  # noqa: E402
+from humv_usd.physics.hair_optics import HAIR_COLOURS  # noqa: E402
 from humv_usd.usd.paths import human_path  # noqa: E402
 
 #: ANSUR II public data files: mean sitting height - (stature - crotch height) [m]
@@ -66,6 +67,16 @@ def test_population_draws_ansur_ratios():
         assert a + b * 1.7 == pytest.approx(mean, abs=0.01)
     children = sample_people(20, seed=7, age_yr=(2.0, 15.0))
     assert not any("sitting_height_ratio" in p for p in children)
+
+
+def test_population_hair_colours_grey_with_age():
+    young = sample_people(400, seed=3, age_yr=(20.0, 35.0))
+    old = sample_people(400, seed=3, age_yr=(75.0, 90.0))
+    assert not any(p["hair_color"] == "grey" for p in young)
+    assert {p["hair_color"] for p in young} == set(PIGMENTED_HAIR)
+    grey = np.mean([p["hair_color"] == "grey" for p in old])
+    assert 0.7 < grey < 0.9  # min(0.8, (age - 40) / 40) = 0.8 from 72 yr on
+    assert set(PIGMENTED_HAIR) | {"grey"} == set(HAIR_COLOURS)
 
 
 def test_clothing_reads_the_requested_ratio():

@@ -113,7 +113,9 @@ def people_meshes(people, rng):
         done = []
         for anim in sim.garments:
             g = anim.fitted.garment
-            m = library_material(garment_material(g.name, person["clothing_colors"]))
+            m = library_material(
+                garment_material(g.name, person["clothing_colors"], person.get("hair_color"))
+            )
             t = garment_temperature(g, [d for d in done if not d.is_prop])
             eps = float(m.at(10.0, "emissivity"))
             meshes.append(

@@ -58,7 +58,12 @@ Other traits (no population statistic at hand; stated as design choices, not dat
 * proportions (MakeHuman proportions macro): uniform in [0.25, 0.75];
 * skin tone: Fitzpatrick type uniform over I-VI unless ``skin_tones`` is given;
 * hair: long or tied hair with probability 0.6 for women and 0.1 for men, else short; men
-  above 16 yr get a beard with probability 0.25.
+  above 16 yr get a beard with probability 0.25;
+* hair colour (``hair_color``, :mod:`humv_usd.physics.hair_optics`): grey with probability
+  min(0.8, (age - 40 yr) / 40 yr) from 40 yr on (Panhard, Lozano & Loussouarn (2012) Br J
+  Dermatol 167:865 found some grey hair in 74 % of people aged 45-65; the ramp is a design
+  choice shaped by that figure, not a fit), else uniform over black, dark brown, brown, blond
+  and red. Drawn last, so adding it left every earlier draw of a seed unchanged.
 """
 
 from __future__ import annotations
@@ -71,6 +76,8 @@ AGE_MIN, AGE_MAX = 2.0, 90.0
 ADULT_AGE = 20.0
 SKIN_TONES = ("I", "II", "III", "IV", "V", "VI")
 BUILDS = ("slim", "average", "muscular")
+#: hair colours drawn below the greying age (= humv_usd.physics.hair_optics.HAIR_COLOURS less grey)
+PIGMENTED_HAIR = ("black", "dark_brown", "brown", "blond", "red")
 
 #: ANSUR II (Gordon et al. 2014), computed from the public data files (see the module doc):
 #: sex -> (stature mean [m], stature SD [m], ln BMI mean, ln BMI SD)
@@ -257,6 +264,10 @@ def sample_person(
         a, b, sd = ANSUR2_SITTING_HEIGHT_RATIO[sex]
         ratio = a + b * stature + sd * rng.standard_normal()
         person["sitting_height_ratio"] = round(float(np.clip(ratio, 0.45, 0.60)), 4)
+    if rng.random() < min(0.8, max(0.0, (age - 40.0) / 40.0)):
+        person["hair_color"] = "grey"
+    else:
+        person["hair_color"] = PIGMENTED_HAIR[int(rng.integers(len(PIGMENTED_HAIR)))]
     return person
 
 
