@@ -97,3 +97,54 @@ def test_the_caller_error_wins_and_queued_frames_finish(tmp_path):
             w.submit("a", lambda: (time.sleep(0.05), ran.append("a")))
             raise KeyError("render failed")
     assert ran == ["a"]
+
+
+def test_a_pool_writes_files_side_by_side_and_the_record_waits_for_all_of_them(tmp_path):
+    """Three writer threads: a frame's files run at once (each waits for the others to start, so
+    one thread alone would time out), and the record queued after them starts only when every
+    one has finished."""
+    started = threading.Barrier(3, timeout=5)
+    finished, seen_by_record, threads = [], [], set()
+
+    def file_job(i):
+        started.wait()  # all three at once: needs three threads
+        time.sleep(0.05 * (i == 0))  # the first queued finishes last
+        threads.add(threading.get_ident())
+        finished.append(i)
+
+    with BackgroundWriter(frames_ahead=1, threads=3) as w:
+        for i in range(3):
+            w.submit(f"file {i}", file_job, i)
+        w.submit_after("record", lambda: seen_by_record.append(sorted(finished)))
+        w.end_frame()
+    assert seen_by_record == [[0, 1, 2]]
+    assert len(threads) == 3
+
+
+def test_a_pool_runs_no_record_after_a_failed_file():
+    ran = []
+
+    def boom():
+        time.sleep(0.05)  # fails after the record is queued and a sibling file has run
+        raise OSError(28, "No space left on device")
+
+    w = BackgroundWriter(threads=4)
+    w.submit("s/0000.exr", boom)
+    w.submit("s/0000.png", ran.append, "png")
+    w.submit_after("the record of s/0000", ran.append, "record")
+    with pytest.raises(WriteError, match="s/0000.exr"):
+        w.close()
+    assert ran == ["png"]  # the sibling file ran; the record did not
+
+
+@pytest.mark.parametrize("value", ["0", "65", "two"])
+def test_the_pool_size_knob_is_checked(monkeypatch, value):
+    from humv_usd.pipeline import writer
+
+    monkeypatch.setenv(writer.THREADS_ENV, "3")
+    assert writer.pool_size() == 3
+    monkeypatch.delenv(writer.THREADS_ENV)
+    assert writer.pool_size() == writer.DEFAULT_THREADS
+    monkeypatch.setenv(writer.THREADS_ENV, value)
+    with pytest.raises(InputError, match=f"{writer.THREADS_ENV} = '{value}': expected an integer 1..64"):
+        writer.pool_size()

@@ -151,7 +151,17 @@ class _Progress:
     "--workers",
     default=None,
     type=click.IntRange(0, 4096),
-    help="Local cluster size (default: one per core; 0: run in this process, one task at a time).",
+    help="Local cluster size (default: one per core; 0: run in this process, one task at a time); "
+    "with --gpus: the CPU workers (default: cores - GPUs, at least 1).",
+)
+@click.option(
+    "--gpus",
+    default=0,
+    type=click.IntRange(0, 64),
+    help="Start a local cluster with one render worker per GPU (Dask resource GPU=1, CUDA backend) "
+    "beside --workers CPU workers for the composes; with --dry-run: estimate with the measured GPU "
+    "rate on that many GPUs. On an existing cluster (--scheduler) give GPU workers "
+    "`--resources GPU=1` instead (docs/user/gpu.md).",
 )
 @click.option(
     "--limit",
@@ -162,7 +172,9 @@ class _Progress:
 @click.option("--quiet", is_flag=True, help="No progress display.")
 @click.option("--yes", is_flag=True, help="Run even when the estimated writes exceed the free disk.")
 @reports_errors
-def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, limit, quiet: bool, yes: bool):
+def sweep(
+    sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, gpus, limit, quiet: bool, yes: bool
+):
     """Expand SWEEP_FILE (a base scenario + grid and random axes) into variants, compose and render
     them as tasks on Dask (one per variant and frame chunk) and assemble one dataset in OUT.
     Re-running the same command resumes: only what is missing runs."""
@@ -175,13 +187,20 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
     Location(out_dir) if is_url(out_dir) else check_output_dir(out_dir, "dataset folder")
     sw = load_sweep(sweep_file)  # every variant validated: InputError names the axis
     if dry_run:
-        _dry_run(sw, out_dir, workers, limit)
+        _dry_run(sw, out_dir, workers, limit, gpus)
         return
     from humv_usd.sweep.run import run_sweep
 
     with _Progress(quiet) as progress:
         result = run_sweep(
-            sw, out_dir, scheduler=scheduler, workers=workers, on_event=progress, limit=limit, yes=yes
+            sw,
+            out_dir,
+            scheduler=scheduler,
+            workers=workers,
+            on_event=progress,
+            limit=limit,
+            yes=yes,
+            gpus=gpus,
         )
     s = result.dataset_summary
     variants = f"{s['variants']} variants"
@@ -191,7 +210,9 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
         f"{result.dataset}: {variants}, {s['frames']} frames, {s['images']} images "
         f"({result.already_done} of {result.tasks} tasks were done before; ran {result.ran}, "
         f"composed {result.composed}, retries {result.retries}, failed {len(result.failures)}); "
-        f"{result.seconds:.1f} s on {result.workers} worker(s), {result.frames_per_hour:,.0f} images/h"
+        f"{result.seconds:.1f} s on {result.workers} worker(s)"
+        + (f" ({result.gpu_workers} with a GPU)" if result.gpu_workers else "")
+        + f", {result.frames_per_hour:,.0f} images/h"
     )
     for f in result.failures:
         click.echo(f"  failed: {f['task']}: {f['error']}", err=True)
@@ -199,14 +220,14 @@ def sweep(sweep_file: Path, out_dir: str, dry_run: bool, scheduler, workers, lim
         raise SystemExit(1)
 
 
-def _dry_run(sw, out_dir: str, workers, limit) -> None:
+def _dry_run(sw, out_dir: str, workers, limit, gpus: int = 0) -> None:
     """The variants, then the counts and the estimated cost of what is left (a dataset folder of
     this sweep: its done tasks and composed variants apart; another sweep's: refused as the run
     would; ``limit``: the variants after the first ``limit`` apart)."""
     import os
 
     from humv_usd.sweep import store
-    from humv_usd.sweep.plan import disk_text, estimate, held_work, layer_keys
+    from humv_usd.sweep.plan import GPU_FRAMES_PER_TASK, disk_text, estimate, held_work, layer_keys
     from humv_usd.sweep.where import Location, is_url
 
     loc = Location(out_dir if is_url(out_dir) else Path(out_dir).resolve())
@@ -214,9 +235,11 @@ def _dry_run(sw, out_dir: str, workers, limit) -> None:
     done, composed = held_work(sw, loc, limit)
     keys = {v.id: layer_keys(v.scenario) for v in sw.variants}
     n_workers = workers if workers else (os.cpu_count() or 1)
+    if gpus and not workers:  # the CPU workers beside the GPU workers, as run_sweep starts them
+        n_workers = max(1, (os.cpu_count() or 1) - gpus)
     for v in sw.variants:
         click.echo(f"{v.id}  " + ", ".join(f"{k}={val}" for k, val in v.params.items()))
-    est = estimate(sw, keys, n_workers, done, composed)
+    est = estimate(sw, keys, n_workers, done, composed, gpus=gpus)
     click.echo(
         f"{est['variants']} variants, {est['render_tasks']} render tasks, {est['frames']} frames, "
         f"{est['images']} images"
@@ -231,10 +254,23 @@ def _dry_run(sw, out_dir: str, workers, limit) -> None:
         f"{est['megasamples']} Msamples to render; {est['layers_to_build']} of {est['layers']} layers "
         "to compose (the others shared or already built)"
     )
-    click.echo(
-        f"estimated cost: compose {est['compose_s']:.0f} s + render {est['render_s']:.0f} s of one worker; "
-        f"about {est['wall_h']:.2f} h on {n_workers} worker(s) ({est['frames_per_hour']:,} images/h)"
-    )
+    if gpus:
+        click.echo(
+            f"estimated cost: compose {est['compose_s']:.0f} s of one CPU worker, render {est['render_s']:.0f} s "
+            f"of one GPU ({est['frames_per_task']} frames per task); about {est['wall_h']:.2f} h on {gpus} "
+            f"GPU(s) and {n_workers} CPU worker(s) ({est['frames_per_hour']:,} images/h)"
+        )
+        if est["frames_per_task"] < GPU_FRAMES_PER_TASK:
+            click.echo(
+                f"hint: [render] frames_per_task = {GPU_FRAMES_PER_TASK} keeps a GPU task's first-frame "
+                f"cost under 10 % (now {est['frames_per_task']})"
+            )
+    else:
+        click.echo(
+            f"estimated cost: compose {est['compose_s']:.0f} s + render {est['render_s']:.0f} s of one worker; "
+            f"about {est['wall_h']:.2f} h on {n_workers} worker(s) ({est['frames_per_hour']:,} images/h)"
+        )
+    click.echo(f"rates: {est['rates']}")
     where = "" if loc.remote else f" ({disk_text(est, loc.path)})"
     click.echo(f"estimated disk: {est['disk_gb']:.1f} GB{where}")
 

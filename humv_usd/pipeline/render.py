@@ -24,7 +24,7 @@ from humv_usd.pipeline.budget import render_budget, require_fits
 from humv_usd.pipeline.chains import SensorChains
 from humv_usd.pipeline.manifest import MANIFEST_NAME, ErrorAccumulator
 from humv_usd.pipeline.preflight import check_stage_for_render
-from humv_usd.pipeline.writer import BackgroundWriter
+from humv_usd.pipeline.writer import BackgroundWriter, pool_size
 from humv_usd.render import bands, radiometry
 from humv_usd.render import eo as eo_render
 from humv_usd.render import estimator as E
@@ -253,6 +253,7 @@ def render_stage(
     if spp is None:
         spp = DEFAULT_SPP.get(estimator, DEFAULT_SPP["path"])
     _check_settings(spp, seed, max_depth)
+    pool_size()  # HUMV_USD_WRITER_THREADS checked before anything is written
     check_stage_for_render(stage_path, frames_given=frames is not None)  # what check flags as errors
     if estimator not in ESTIMATORS:
         raise InputError(bad_value("estimator", estimator, f"expected one of {', '.join(ESTIMATORS)}"))
@@ -287,7 +288,8 @@ def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
     run.progress = progress  # counts the images rendered in this call only
     run.units_total = len(frames_to_render) * (len(plan.rendered) + len(plan.eo_run.sensors))
     t_writes = time.perf_counter()
-    with BackgroundWriter(frames_ahead=WRITE_FRAMES_AHEAD) as writer:  # frame N is written while N+1 renders
+    # frame N is written while N+1 renders, on a pool of writer threads (HUMV_USD_WRITER_THREADS)
+    with BackgroundWriter(frames_ahead=WRITE_FRAMES_AHEAD, threads=pool_size()) as writer:
         run.writer = writer
         for frame in frames_to_render:
             run.render_frame(frame)
@@ -510,6 +512,13 @@ class _FrameRenderer:
         else:
             self.writer.submit(what, fn, *args, **kwargs)
 
+    def write_after(self, what: str, fn, *args, **kwargs) -> None:
+        """:meth:`write`, started only after every file queued before it is written (a record)."""
+        if self.writer is None:
+            fn(*args, **kwargs)
+        else:
+            self.writer.submit_after(what, fn, *args, **kwargs)
+
     def record_frame(self, frame: int) -> None:
         """Write the record of every image of ``frame`` (after all its files) and drop what this
         object kept of it, so that memory does not grow with frames."""
@@ -526,7 +535,7 @@ class _FrameRenderer:
                 continue
             entry, (_, camera) = entries.pop(), cameras.pop()
             truth = plan.truth.take_image(os.path.splitext(entry["exr"])[0]) if plan.truth else None
-            self.write(
+            self.write_after(
                 f"the record of {name}/{frame:04d}",
                 R.write_record,
                 plan.out_dir,

@@ -34,6 +34,29 @@ COMPOSE_SECONDS = {
     "thermal": (3.0, 0.22),
     "environment": (0.7, 0.0),
 }
+#: seconds per 1024x768 infrared image of one GPU worker, render only (estimator, labels, queued
+#: writes): `python tools/gpu_check.py render out/walk/stage.usda --frames 0:3 --backend cuda` on one
+#: NVIDIA H100 with `cuda_ad_mono`, the walk's LWIR camera (atom1024_lwir) at automatic quality,
+#: measured 2026-11-27 (issue 31; estimator 2.30 s, labels 0.09 s, writes queued 0.07 s). The only
+#: GPU rate measured: other sizes are scaled by their pixel count and a given spp by spp /
+#: :data:`AUTO_SPP_COST`, visible (EO) sensors are costed at the same rate (never measured on a GPU)
+GPU_SECONDS_PER_IMAGE = 2.59
+#: pixels of that image
+GPU_RATE_PIXELS = 1024 * 768
+#: extra seconds of a GPU render task's first frame (scene build and kernel compilation: 6.2 s
+#: against 2.59 s in the same run); a worker's later tasks may reuse compiled kernels (not measured)
+GPU_SECONDS_PER_TASK = 3.6
+#: ``[render] frames_per_task`` the dry run suggests for GPU workers: the first-frame cost above
+#: stays under 10 % of a task (3.6 / (16 x 2.59 + 3.6) = 8 %)
+GPU_FRAMES_PER_TASK = 16
+#: where each rate of :func:`estimate` comes from (the dry run prints it)
+RATE_SOURCES = {
+    "cpu": "CPU worker: 0.72 Msamples/s + 1 s per image (humv-usd bench sweep examples/walk.toml "
+    "--variants 4 --frames 16 --resolution 1024x768, 2 workers on a 2-core machine, 2026-11-24)",
+    "gpu": f"GPU worker: {GPU_SECONDS_PER_IMAGE} s per 1024x768 LWIR image + {GPU_SECONDS_PER_TASK} s per "
+    "task (one H100, cuda_ad_mono, walk at automatic quality, render only, tools/gpu_check.py, "
+    "2026-11-27; scaled by pixels, EO at the same rate: not measured)",
+}
 #: bytes written per pixel of an image by the render (EXR with every label channel, zip; the PNG
 #: previews, masks and sensor-chain images): walk LWIR 1024x768 9.8 MB per image (the bench's
 #: 64 images: 627 MB), an EO camera's 21-channel EXR about 32 bytes per pixel
@@ -131,11 +154,17 @@ def estimate(
     workers: int,
     done: set[tuple[str, str]] = frozenset(),
     composed: set[str] = frozenset(),
+    gpus: int = 0,
 ) -> dict:
     """Counts, and an estimated wall time and disk of what is left to do (see the module constants
     for the rates): ``done`` the (variant, chunk) of the render tasks a dataset already holds,
     ``composed`` its composed variants (both empty for a new dataset; their layers are in the
-    dataset's layer store)."""
+    dataset's layer store).
+
+    ``gpus`` = 0: ``workers`` CPU workers compose and render, wall = (compose + render) / workers.
+    ``gpus`` > 0: the renders run on the GPUs (:data:`GPU_SECONDS_PER_IMAGE` scaled by pixels and
+    spp, plus :data:`GPU_SECONDS_PER_TASK` per task) while ``workers`` CPU workers compose, and the
+    slower side sets the wall time: max(render / gpus, compose / workers)."""
     all_tasks = render_tasks(sweep)
     todo = [t for t in all_tasks if (t.variant, t.chunk) not in done]
     spp, sensors = sweep.render["spp"] or AUTO_SPP_COST, sweep.render["sensors"]
@@ -146,11 +175,13 @@ def estimate(
 
     samples = 0
     disk = 0.0
+    gpu_s = GPU_SECONDS_PER_TASK * len(todo)
     for t in todo:
         for s in _selected_sensors(by_variant[t.variant].scenario, sensors):
             pixels = s["resolution"][0] * s["resolution"][1] * len(t.frames)
             samples += pixels * spp
             disk += pixels * _pixel_bytes(s)
+            gpu_s += GPU_SECONDS_PER_IMAGE * pixels / GPU_RATE_PIXELS * spp / AUTO_SPP_COST
     images_todo = sum(n_images(t) for t in todo)
     pending = {t.variant for t in todo}
     to_compose = [v for v in sweep.variants if v.id in pending and v.id not in composed]
@@ -165,8 +196,12 @@ def estimate(
     for (n, _), count in frames_of.items():
         fixed, per_frame = COMPOSE_SECONDS.get(n.split("_")[0], (0.1, 0.0))
         compose_s += fixed + per_frame * count
-    render_s = samples / SAMPLES_PER_SECOND_PER_WORKER + images_todo * SECONDS_PER_IMAGE
-    wall = (compose_s + render_s) / max(1, workers)
+    if gpus > 0:
+        render_s = gpu_s
+        wall = max(render_s / gpus, compose_s / max(1, workers))
+    else:
+        render_s = samples / SAMPLES_PER_SECOND_PER_WORKER + images_todo * SECONDS_PER_IMAGE
+        wall = (compose_s + render_s) / max(1, workers)
     frames = sum(len(t.frames) for t in all_tasks)
     return {
         "variants": len(sweep.variants),
@@ -182,6 +217,10 @@ def estimate(
         "layers": sum(len(lk) for lk in keys.values()),
         "layers_to_build": len(frames_of),
         "workers": workers,
+        "gpus": gpus,
+        "render_on": "gpu" if gpus > 0 else "cpu",
+        "frames_per_task": sweep.render["frames_per_task"],
+        "rates": RATE_SOURCES["gpu" if gpus > 0 else "cpu"],
         "compose_s": round(compose_s, 1),
         "render_s": round(render_s, 1),
         "wall_s": round(wall, 1),

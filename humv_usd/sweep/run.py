@@ -12,6 +12,11 @@ core; each render uses Mitsuba's own threads). ``scheduler="tcp://HOST:PORT"`` u
 Dask cluster whose workers see the dataset folder at the same path, or reach the same fsspec URL
 (``s3://bucket/prefix``: :mod:`humv_usd.sweep.where`). ``workers=0`` runs every task in this
 process, one at a time (tests, debugging; the only choice for ``memory://``).
+
+GPUs (:mod:`humv_usd.sweep.cluster`): ``gpus=N`` starts a local cluster of N GPU workers (one per
+GPU, Dask resource ``GPU=1``) and CPU workers (``CPU=1``); on any cluster whose workers declare
+these resources, render tasks ask for a GPU when the renders run on CUDA and composes stay on the
+CPU workers. ``last_run.json`` records the workers of each kind and what each task kind asked for.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ import tomlkit
 
 from humv_usd.errors import InputError
 from humv_usd.fileio import check_output_dir
-from humv_usd.sweep import store
+from humv_usd.sweep import cluster, store
 from humv_usd.sweep.dataset import assemble
 from humv_usd.sweep.plan import (
     RenderTask,
@@ -62,6 +67,8 @@ class SweepResult:
     seconds: float = 0.0
     workers: int = 0
     local_cache_freed: int = 0  # bytes of the workers' local copies removed at the end (URL datasets)
+    gpu_workers: int = 0  # workers declaring the GPU resource
+    resources: dict = field(default_factory=dict)  # task kind -> the Dask resources it asked for
     dataset_summary: dict = field(default_factory=dict)
 
     @property
@@ -82,6 +89,8 @@ class SweepResult:
             "failures": self.failures,
             "seconds": self.seconds,
             "workers": self.workers,
+            "gpu_workers": self.gpu_workers,
+            "task_resources": self.resources,
             "local_cache_freed_bytes": self.local_cache_freed,
             "images_per_hour": self.frames_per_hour,
         }
@@ -93,8 +102,9 @@ class _InProcess:
     render_threads = None  # the render's own default (every core)
 
     workers = 0
+    gpu_workers = cpu_workers = 0
 
-    def submit(self, fn, *args, key=None):
+    def submit(self, fn, *args, key=None, resources=None):
         fut: cf.Future = cf.Future()
         try:
             fut.set_result(fn(*args))
@@ -141,7 +151,9 @@ class _Dask:
     ``cpus_per_worker`` (local clusters, Linux): bind each worker to that many cores of its own
     and give its renders as many Dr.Jit threads (the bench's one-core-per-worker scaling run)."""
 
-    def __init__(self, scheduler: str | None, workers: int | None, cpus_per_worker: int | None = None):
+    def __init__(
+        self, scheduler: str | None, workers: int | None, cpus_per_worker: int | None = None, gpus: int = 0
+    ):
         import distributed
 
         self._distributed = distributed
@@ -150,6 +162,11 @@ class _Dask:
         self.cluster = None
         if scheduler:
             self.client = distributed.Client(scheduler, timeout="30s")
+        elif gpus:  # one worker per GPU and CPU workers for the composes (sweep.cluster)
+            cpu = workers or max(1, (os.cpu_count() or 1) - gpus)
+            self.cluster = cluster.local_cluster(gpus, cpu)
+            self.client = distributed.Client(self.cluster)
+            self.client.wait_for_workers(gpus + cpu, timeout=120)
         else:
             n = workers or os.cpu_count() or 1
             self.cluster = distributed.LocalCluster(
@@ -160,19 +177,21 @@ class _Dask:
                 **NO_DASHBOARD,
             )
             self.client = distributed.Client(self.cluster)
-        self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
+        table = self.client.scheduler_info(n_workers=-1)["workers"]
+        self.workers = len(table)
+        self.gpu_workers, self.cpu_workers = cluster.worker_kinds(table)
         # Dr.Jit threads per render: this machine's cores shared by the local workers (2 workers
         # on 2 cores: 1 each, not 2 each competing); an existing cluster keeps its own setting
         self.render_threads = (
             max(1, (os.cpu_count() or 1) // max(1, self.workers)) if self.cluster is not None else None
         )
-        if cpus_per_worker and self.cluster is not None:
+        if cpus_per_worker and self.cluster is not None and not gpus:
             self.client.register_plugin(_pin_worker(cpus_per_worker))
             self.render_threads = cpus_per_worker
         self.run_id = uuid.uuid4().hex[:8]
 
-    def submit(self, fn, *args, key=None):
-        return self.client.submit(fn, *args, key=f"{key}-{self.run_id}", pure=False)
+    def submit(self, fn, *args, key=None, resources=None):
+        return self.client.submit(fn, *args, key=f"{key}-{self.run_id}", pure=False, resources=resources)
 
     def wait_any(self, futures):
         return self._distributed.wait(futures, return_when="FIRST_COMPLETED").done
@@ -212,14 +231,23 @@ def run_sweep(
     limit: int | None = None,
     cpus_per_worker: int | None = None,
     yes: bool = False,
+    gpus: int = 0,
 ) -> SweepResult:
     """Run what is missing of ``sweep`` into ``dataset`` and assemble the dataset; see the module
     doc. ``limit``: run only the first ``limit`` variants (a later run without it adds the rest).
     ``cpus_per_worker``: bind each local worker to that many cores of its own (see :class:`_Dask`).
+    ``gpus``: a local cluster of that many GPU workers plus ``workers`` CPU workers
+    (:mod:`humv_usd.sweep.cluster`).
     Raises InputError (nothing written) for a folder that cannot be written, a folder of another
     sweep or one another live sweep is writing, and (unless ``yes``) a local folder without the
     free disk the estimate of what is left needs (:func:`plan.estimate`)."""
     t0 = time.perf_counter()
+    if gpus and (scheduler or workers == 0):
+        how = "--scheduler" if scheduler else "--workers 0"
+        raise InputError(
+            f"--gpus {gpus} starts a local cluster; with {how} it cannot: start GPU workers with "
+            f"`dask worker SCHEDULER --nthreads 1 --resources {cluster.GPU_RESOURCE}=1` (docs/user/gpu.md)"
+        )
     loc = _location(dataset, scheduler, workers)
     dataset = loc.url if loc.remote else loc.path
     emit = on_event or (lambda event: None)
@@ -253,10 +281,17 @@ def run_sweep(
         )
         if todo:
             executor = (
-                _InProcess() if workers == 0 and not scheduler else _Dask(scheduler, workers, cpus_per_worker)
+                _InProcess()
+                if workers == 0 and not scheduler
+                else _Dask(scheduler, workers, cpus_per_worker, gpus)
             )
-            result.workers = executor.workers
+            result.workers, result.gpu_workers = executor.workers, executor.gpu_workers
             try:
+                on_gpu = cluster.renders_on_gpu(executor.gpu_workers)
+                result.resources = {
+                    kind: cluster.task_resources(kind, executor.gpu_workers, executor.cpu_workers, on_gpu)
+                    for kind in ("compose", "render")
+                }
                 _Loop(sweep, loc, keys, todo, executor, result, emit, lease).run()
                 if loc.remote:  # the workers' local copies: every task has ended
                     try:
@@ -363,6 +398,7 @@ class _Loop:
                 v.raw,
                 str(self.sweep.base_path),
                 key=f"compose-{name}",
+                resources=self.result.resources.get("compose"),
             )
         else:
             t: RenderTask = payload
@@ -375,6 +411,7 @@ class _Loop:
                 list(t.frames),
                 settings,
                 key=f"render-{name}",
+                resources=self.result.resources.get("render"),
             )
         self.running[fut] = (kind, name, attempt, payload)
 

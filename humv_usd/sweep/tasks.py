@@ -140,6 +140,17 @@ def release_memory_if_grown() -> bool:
     return True
 
 
+def worker_name() -> str | None:
+    """The name of the Dask worker running this task (``gpu0``, ``cpu1`` on a cluster of
+    :func:`humv_usd.sweep.cluster.local_cluster`), or None outside a worker."""
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().name)
+    except (ImportError, ValueError):
+        return None
+
+
 def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> dict:
     """Compose one variant (see the module doc); returns what was built and taken from the store.
     At an fsspec URL the variant is composed in this worker's local cache and uploaded, its
@@ -173,6 +184,7 @@ def compose_variant(dataset: str, variant: str, raw: dict, base_path: str) -> di
         "keys": keys,
         "host": socket.gethostname(),
         "pid": os.getpid(),
+        "worker": worker_name(),
     }
     write_json(out / store.COMPOSE_RECORD, record)
     if loc.remote:
@@ -257,6 +269,9 @@ def _render_into(variant_dir: Path, staging: Path, variant, chunk, frames, setti
         "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
         "host": socket.gethostname(),
         "pid": os.getpid(),
+        "worker": worker_name(),
+        "backend": mode.loaded_backend(),  # cuda, llvm or scalar: where this task rendered
+        "frames_per_task": len(frames),
     }
 
 
