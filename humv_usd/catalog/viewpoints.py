@@ -160,8 +160,9 @@ VIEWPOINTS: dict[str, ViewpointPreset] = {
             "60-130 m, estimated). The camera: a Tau 2 640 core (DJI Zenmuse XT2, from memory, not "
             "re-checked); the paper states no lens: 25 mm (HFOV 25 deg, the XT2's longest option) is "
             "chosen because it reproduces the published median box height (20 px; 13 mm gave 8 px, "
-            "total variation distance 0.89 -> 0.13, python -m humv_usd.bench.viewpoints). The ground "
-            "distance follows from the pitch (the person must be in view)",
+            "total variation distance 0.89 -> 0.13-0.16 over 300-1,000 draws, python -m "
+            "humv_usd.bench.viewpoints). The ground distance follows from the pitch (the person must be "
+            "in view)",
         ),
     )
 }
