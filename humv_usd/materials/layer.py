@@ -25,6 +25,8 @@ READS = (
     "human.*.clothing_colors",
     "human.*.hair_color",
     "scene.ground.material",
+    "scene.ground.puddles",
+    "atmosphere.rain_mm_h",
     "scene.object.*.material",
     "scene.object.*.kind",
     "scene.asset.*.material",
@@ -36,7 +38,11 @@ READS = (
     "scene.place",
 )
 UPSTREAM = ()
-VERSION = "5"  # 3: /World/Materials a Scope; 4: warm clutter and generated places; 5: SWIR bands of fabrics
+#: 3: /World/Materials a Scope; 4: warm clutter and generated places; 5: SWIR bands of fabrics;
+#: 6: water for puddles after rain
+VERSION = "6"
+#: material of the scene layer's puddles (humv_usd.scene.puddles.MATERIAL; tests/test_puddles.py)
+PUDDLE_MATERIAL = "water"
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"
@@ -73,7 +79,13 @@ def ground_materials(scenario: Scenario) -> list[str]:
     """The ground's material and those of its terrain zones (``[[scene.terrain.zone]]``)."""
     scene = scenario["scene"]
     zones = (scene.get("terrain") or {}).get("zone") or ()
-    return list(dict.fromkeys([scene["ground"]["material"], *(z["material"] for z in zones)]))
+    names = [scene["ground"]["material"], *(z["material"] for z in zones)]
+    if (
+        float(scene["ground"].get("puddles") or 0.0) > 0.0
+        and float((scenario["atmosphere"] or {}).get("rain_mm_h") or 0.0) > 0.0
+    ):
+        names.append(PUDDLE_MATERIAL)  # humv_usd.scene.puddles
+    return list(dict.fromkeys(names))
 
 
 def _slab_ground(scenario: Scenario) -> bool:

@@ -19,7 +19,8 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
     ``[scene] layers`` file (``layer:<index>:<prim name>``, in the file's order), then the boxes
     of a generated place (``object:place_*``) and the warm clutter (``clutter:<id>``, the
     scenario's then the place's, :mod:`humv_usd.scenario.places`), then the ground's terrain
-    zones (``ground_zone:<index>``, :mod:`humv_usd.scene.ground`), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
+    zones (``ground_zone:<index>``, :mod:`humv_usd.scene.ground`) and the puddles
+    (``ground_puddles``, :mod:`humv_usd.scene.puddles`), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
     each one's props in the order of its ``clothing`` list). Props come last so that adding
     or dropping one never renumbers a person or a scene object."""
     ids: dict[str, int] = {}
@@ -40,6 +41,8 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
             ids[f"clutter:{c['id']}"] = len(ids) + 1
         for i, _ in enumerate((scenario["scene"].get("terrain") or {}).get("zone") or ()):
             ids[f"ground_zone:{i}"] = len(ids) + 1  # the ground's material zones (their own meshes)
+        if float(scenario["scene"]["ground"].get("puddles") or 0.0) > 0.0:
+            ids["ground_puddles"] = len(ids) + 1  # the puddles' mesh (humv_usd.scene.puddles)
     for h in scenario["human"]:
         for name in h.get("clothing") or ():
             g = garment(name)

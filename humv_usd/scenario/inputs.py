@@ -13,6 +13,7 @@ A tool declares ``READS``, a tuple of read paths:
 * ``"@clutterAir"`` -- the clock and the air that warm clutter's held temperatures follow
   (:data:`CLUTTER_AIR`), or None when the scene has no clutter: the scene layer reads them only
   then, so a scene without clutter is not rebuilt for a new start time or weather;
+* ``"@puddles"`` -- the seed and whether it rained, when the ground has puddles (else None);
 * ``"@instanceId[{id}]"`` -- that person's instance id alone; ``"@carriesRifle[{id}]"`` -- whether
   that person's clothing holds the rifle (the avatar's arms take the carry pose): a per-person
   layer that reads these instead of the whole entry is shared between scenarios that differ only
@@ -74,13 +75,29 @@ def _clutter_air(scenario: Scenario) -> dict[str, Any] | None:
     return read_values(scenario, CLUTTER_AIR)
 
 
+def _puddles(scenario: Scenario) -> dict[str, Any] | None:
+    """What the scene layer's puddles follow (:mod:`humv_usd.scene.puddles`): the seed and
+    whether it rained, only when ``[scene.ground] puddles`` > 0 (else None: a scene without
+    puddles keeps its layer across weather)."""
+    scene = scenario["scene"] or {}
+    if not float((scene.get("ground") or {}).get("puddles") or 0.0) > 0.0:
+        return None
+    rain = float((scenario["atmosphere"] or {}).get("rain_mm_h") or 0.0)
+    return {"seed": scenario["general"].get("seed"), "rained": rain > 0.0}
+
+
 def _netd_origin(scenario: Scenario) -> list[str]:
     """Where each sensor's NETD came from (:attr:`Scenario.netd_origin`): the sensors layer
     authors it, so equal values of another origin (given vs the preset's) are another layer."""
     return list(scenario.netd_origin)
 
 
-DERIVED = {"@ids": instance_ids, "@clutterAir": _clutter_air, "@netdOrigin": _netd_origin}
+DERIVED = {
+    "@ids": instance_ids,
+    "@clutterAir": _clutter_air,
+    "@netdOrigin": _netd_origin,
+    "@puddles": _puddles,
+}
 #: the garment that changes the avatar's pose (humv_usd.catalog.garments: carried in both hands)
 RIFLE = "rifle"
 

@@ -12,7 +12,9 @@ generated ones: the one list every tool (instance ids, scene layer) reads.
 
 Layout: the road runs along x, centred on y = 0, over ``length_m`` centred on x = 0; the
 generated place lies on z = 0 (the flat ground; terrain heights come with the terrain tool).
-Trees are positions only (:attr:`PlaceItems.trees`) for the vegetation tool; none is built here.
+Trees (rural_road, open_field, ``vegetation_density``) are generated ``[[scene.object]]`` entries
+of kind tree (:mod:`humv_usd.scene.vegetation` builds, labels and the thermal tool solves them
+as hand-made plants); their positions and heights are also in :attr:`PlaceItems.trees`.
 """
 
 from __future__ import annotations
@@ -32,6 +34,14 @@ ROAD_THICKNESS_M = 0.01
 FLOOR_HEIGHT_M = 3.0
 WINDOW_SIZE_M = (1.2, 1.4)  # width, height
 PARKING_BAY_M = 2.7
+#: crown diameter over tree height of the generated trees: open-grown broadleaves reach crown
+#: diameters of 0.4-0.8 times their height (Pretzsch et al. 2015, Urban For. Urban Green.
+#: 14:466, crown allometry of common European species); the middle of that range
+CROWN_WIDTH_PER_HEIGHT = 0.6
+#: least distance [m] from a generated tree's trunk to a warm object's position
+TREE_CLEARANCE_M = 4.0
+#: material of a tree's trunk (humv_usd.scene.vegetation.TRUNK_MATERIAL; tests/test_places.py)
+TRUNK_MATERIAL = "wood"
 
 
 #: library materials of each clutter kind's parts besides its ``material`` key
@@ -130,10 +140,24 @@ def _lamps(rng, items: PlaceItems, n: int, length: float, ys) -> None:
 
 
 def _trees(rng, items: PlaceItems, density: float, xr, yr) -> None:
+    """Trees 4-12 m high, uniform over the area at ``density`` per 100 m2, each also a
+    ``[[scene.object]]`` of kind tree (humv_usd.scene.vegetation: leaf crown, wood trunk) with
+    a crown :data:`CROWN_WIDTH_PER_HEIGHT` times its height across; a tree whose trunk would
+    stand within :data:`TREE_CLEARANCE_M` of a warm object (a parked car, an animal, a fire)
+    keeps its position in :attr:`PlaceItems.trees` but is not built."""
     area = (xr[1] - xr[0]) * (yr[1] - yr[0])
     n = int(rng.poisson(density * area / 100.0))
+    taken = np.array([c["position_m"][:2] for c in items.clutter], dtype=float).reshape(-1, 2)
     for _ in range(min(n, 500)):
-        items.trees.append((float(rng.uniform(*xr)), float(rng.uniform(*yr)), float(rng.uniform(4.0, 12.0))))
+        x, y, h = float(rng.uniform(*xr)), float(rng.uniform(*yr)), float(rng.uniform(4.0, 12.0))
+        items.trees.append((x, y, h))
+        if len(taken) and np.min(np.hypot(taken[:, 0] - x, taken[:, 1] - y)) < TREE_CLEARANCE_M:
+            continue
+        width = CROWN_WIDTH_PER_HEIGHT * h
+        k = sum(o["kind"] == "tree" for o in items.objects)
+        items.objects.append(
+            _object(f"place_tree_{k}", "leaf", [x, y, 0.0], [width, width, h], "vegetation", kind="tree")
+        )
 
 
 def street(p: dict, rng) -> PlaceItems:
@@ -419,6 +443,8 @@ def scene_trees(scene: dict | None) -> list[tuple[float, float, float]]:
 def scene_materials(scene: dict | None) -> set[str]:
     """Library materials the generated objects and every clutter entry's parts use."""
     names = {o["material"] for o in generated_objects(scene)}
+    if any(o["kind"] == "tree" for o in generated_objects(scene)):
+        names.add(TRUNK_MATERIAL)
     for c in scene_clutter(scene):
         names.update(KIND_MATERIALS[c["kind"]])
         if c["kind"] in ("vehicle", "street_lamp", "hvac"):

@@ -361,6 +361,16 @@ GROUND = Section(
     doc="ground plane",
     keys={
         "material": Key("choice", "Material of the ground.", default="concrete", choices=GROUND_MATERIALS),
+        "puddles": Key(
+            "float",
+            "Share of the ground rectangle under puddles after rain [0-0.5]: flat water patches "
+            "0.3-1.5 m in radius from general.seed, clear of objects (humv_usd.scene.puddles; "
+            "only when [atmosphere] rain_mm_h > 0). They render as water surfaces, not yet as "
+            "mirrors.",
+            default=0.0,
+            lo=0.0,
+            hi=0.5,
+        ),
         "size_m": Key(
             "vec",
             "Extent [x, y] of the ground rectangle centred at the origin [m].",
@@ -718,9 +728,8 @@ PLACE = Section(
         "kind": Key(
             "choice",
             "none, street (road, pavements, facades with windows, parked cars, lamps), "
-            "rural_road (road through a field, verges, trees where the vegetation tool provides "
-            "them, animals), parking_lot (asphalt with rows of cars, lamps), open_field (soil "
-            "or sand, scattered warm objects).",
+            "rural_road (road through a field, verges, trees, animals), parking_lot (asphalt "
+            "with rows of cars, lamps), open_field (soil or sand, scattered warm objects, trees).",
             default="none",
             choices=PLACE_KINDS,
         ),
@@ -753,8 +762,9 @@ PLACE = Section(
         ),
         "vegetation_density": Key(
             "float",
-            "Trees per 100 m2 of verge/field (rural_road, open_field; placed through the "
-            "vegetation tool when it is installed, else none).",
+            "Trees per 100 m2 of verge/field (rural_road, open_field): generated trees "
+            "(humv_usd.scene.vegetation, 4-12 m high, leaf crowns and wood trunks) that render, "
+            "cast shade in the thermal solve and are labelled vegetation.",
             default=0.5,
             lo=0.0,
             hi=20.0,

@@ -48,6 +48,7 @@ from humv_usd.scene.assets import (
 from humv_usd.scene.geometry import box
 from humv_usd.scene.ground import author_ground, footprint_base, scene_terrain
 from humv_usd.scene.objects import author_clutter
+from humv_usd.scene.puddles import author_puddles, puddle_discs
 from humv_usd.scene.vegetation import PLANT_KINDS, author_plant
 from humv_usd.usd.labels import nearest_class
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, set_kind, usd_error_text
@@ -59,10 +60,11 @@ NAME = "scene"
 #: ``@clutterAir``: the clock and the air, read only when there is warm clutter (its held
 #: temperatures: engines, coats, lit lamps at night); a scene without clutter keeps its layer
 #: across start times and weather
-READS = (*FRAMES, "scene", "@ids", "@clutterAir")
+READS = (*FRAMES, "scene", "@ids", "@clutterAir", "@puddles")
 UPSTREAM = ()
 #: 4: model kinds; 5: warm clutter and generated places; 6: terrain, ground to the horizon; 7: plants
-VERSION = "7"
+#: 8: puddles after rain
+VERSION = "8"
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -113,7 +115,27 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
                 scenario.frame_count,
                 terrain.height,  # standing on the terrain (and following it while driving)
             )
+    share = float(scene["ground"].get("puddles") or 0.0)
+    if share > 0.0 and float((scenario["atmosphere"] or {}).get("rain_mm_h") or 0.0) > 0.0:
+        seed = int(g.get("seed") or 0)
+        discs = puddle_discs(seed, share, scene["ground"]["size_m"], _keep_out(scene))
+        author_puddles(stage, discs, terrain, ids["ground_puddles"], seed)
     return finish(stage)
+
+
+def _keep_out(scene: dict) -> list[tuple[float, float, float]]:
+    """(x, y, radius) [m] circles around what stands on the ground (objects, plants, assets,
+    warm clutter), where no puddle lies (:mod:`humv_usd.scene.puddles`)."""
+    out = []
+    for o in scene_objects(scene):
+        x, y, _ = o["center_m"]
+        out.append((x, y, 0.5 * math.hypot(o["size_m"][0], o["size_m"][1])))
+    for a in scene.get("asset") or ():
+        if a.get("position_m") is not None:
+            out.append((a["position_m"][0], a["position_m"][1], 3.0))
+    for c in scene_clutter(scene):
+        out.append((c["position_m"][0], c["position_m"][1], 3.0 * float(c.get("scale") or 1.0)))
+    return out
 
 
 def sun_elevation_deg(scenario: Scenario) -> float:

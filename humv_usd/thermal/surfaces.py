@@ -1231,6 +1231,8 @@ def _latent_forcing(mesh: SceneMesh, f: SurfaceForcing, e_sw) -> dict:
         return {}
     if water.minimum_resistance_s_m is None:
         rs = np.full(e_sw.shape, np.inf)
+    elif water.minimum_resistance_s_m == 0.0:  # free water (a puddle): no stomata, no soil
+        rs = np.zeros(e_sw.shape)
     else:
         rs = evaporation.surface_resistance(
             water.minimum_resistance_s_m, e_sw, f.soil_moisture, water.leaf_area_index

@@ -23,6 +23,9 @@ from humv_usd.catalog.materials import surface_water
 from humv_usd.catalog.wet import wet_level, wet_name, wet_spectrum
 from humv_usd.usd.materials import StageMaterial, write_stage_material
 
+#: materials that are water already (puddles, humv_usd.scene.puddles): no film over them
+FREE_WATER = ("water",)
+
 
 def wet_variant(dry: StageMaterial, level: int) -> StageMaterial:
     """``dry`` with ``level`` percent of its surface under water, at ``<dry path>__wet<level>``."""
@@ -71,7 +74,7 @@ def author_wet_surfaces(layer: Usd.Stage, upstream: Usd.Stage, meshes, wet_share
     written: set[str] = set()
     for m in meshes:
         share = wet_share.get(m.path)
-        if share is None or m.held_k is not None:
+        if share is None or m.held_k is not None or m.material.name in FREE_WATER:
             continue
         levels = wet_level(share)
         if not np.any(levels > 0):
