@@ -45,8 +45,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 #: Stages of a frame in the manifest's per-frame ``timings_s`` (render includes the estimator).
 STAGES = ("load_export", "render", "estimator", "labels", "write", "cpu")
-#: class_id of people in the label channels (humv_usd.groundtruth.labels.CLASSES)
-PERSON_CLASS = 1
+#: label class of people (its class_id: the index in humv_usd.groundtruth.labels.CLASSES, read
+#: where the labels are compared, so that this tool imports the package only when it needs it)
+PERSON_LABEL = "person"
 #: The fraction of |z| > 4 for a standard normal variable (two-sided).
 NORMAL_TAIL_4 = 6.33e-5
 
@@ -180,6 +181,10 @@ def compare(a: str, b: str) -> dict:
         raise SystemExit(
             f"compare: no (sensor, frame) in both {a} ({sorted(fa)[:3]}) and {b} ({sorted(fb)[:3]})"
         )
+    sys.path.insert(0, str(ROOT))
+    from humv_usd.groundtruth.labels import CLASSES
+
+    person_class = CLASSES.index(PERSON_LABEL)
     result = {"frames": []}
     for key in common:
         x, y = fa[key], fb[key]
@@ -188,7 +193,7 @@ def compare(a: str, b: str) -> dict:
             z = (x["radiance"].astype(float) - y["radiance"].astype(float)) / np.sqrt(s2)
         z[~(s2 > 0)] = np.nan
         cls = x["class_id"] if "class_id" in x else y.get("class_id")
-        people = np.zeros(z.shape, bool) if cls is None else np.asarray(cls) == PERSON_CLASS
+        people = np.zeros(z.shape, bool) if cls is None else np.asarray(cls) == person_class
         same_id = x["instance_id"].astype(np.int64) == y["instance_id"].astype(np.int64)
         finite = np.isfinite(x["depth"]) & np.isfinite(y["depth"])
         depth = float(np.max(np.abs(x["depth"][finite] - y["depth"][finite]))) if finite.any() else 0.0
