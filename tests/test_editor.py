@@ -504,10 +504,10 @@ def test_the_3d_view_is_framed_on_the_people_and_sensors_not_the_horizon():
     ]
     ndc, depth = _ndc(eye, target, corners + [c.origin for c in cams], VIEW_FOV_Y_DEG, VIEW_ASPECT)
     assert np.all(depth > 0) and np.all(np.abs(ndc) <= 1.0), ndc  # everyone and every camera in view
-    assert np.ptp(ndc, axis=0).max() > 0.5  # and they fill the view, not a corner of it
+    assert np.abs(ndc).max() > 0.8  # and fill it, not a corner of it
     top, feet = _ndc(eye, target, [[0, 0, 1.8], [0, 0, 0]], VIEW_FOV_Y_DEG, VIEW_ASPECT)[0]
-    assert top[1] - feet[1] > 0.1  # the person is > 5 % of the view's height (a 40 km frame: 0.01 %)
-    assert eye[1] < -15.0 and eye[2] > 1.6  # behind and above the cameras, looking along them
+    assert top[1] - feet[1] > 0.2  # the person is > 10 % of the view's height (a 40 km frame: 0.01 %)
+    assert eye[2] > 1.8 and abs(eye[0]) > 5.0  # above, from the side of the cameras' line of sight
     # without people or cameras: the bounds
     eye2, target2 = framing(StageView(Path("x.glb"), 1, 2, [], ground, None))
     np.testing.assert_allclose(target2, [0.0, 0.0, 4.0])

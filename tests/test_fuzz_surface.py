@@ -438,3 +438,46 @@ def raw_request(port: int, method: str, path: str, headers: list[tuple[str, str]
 
 
 # the same strategies against a real server: tests/test_editor_security.py (its server)
+
+
+@pytest.mark.extended
+@settings(
+    max_examples=20,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(
+    st.sampled_from([*BANDS, "VNIR", "XX"]),
+    st.one_of(st.tuples(edge, edge), st.sampled_from([(8.0, 14.0), (3.0, 5.0), (0.4, 0.7), (0.75, 1.0)])),
+    st.sampled_from(["1x1", "4x3", "8x1"]),
+    st.sampled_from(["1", "2", "3"]),
+)
+@example("LWIR", (8.0, 14.0), "4x3", "2")
+@example("MWIR", (3.0, 5.0), "1x1", "1")
+@example("NIR", (0.75, 1.0), "4x3", "1")
+@example("EO", (8.0, 14.0), "4x3", "1")  # issue 26: rendered visible light
+def test_band_wavelengths_resolution_and_spp_through_the_render(tmp_path_factory, band, wl, res, spp):
+    """End to end on a hand-made stage: rendered as authored (the manifest's band and edges, the
+    image's size) or refused with one line, exit 2, nothing written."""
+    import json
+
+    folder = tmp_path_factory.mktemp("band")
+    stage = new_stage(folder / "stage.usda")
+    m = add_material(stage, "m", 0.95, wavelengths=(0.3, 20.0))
+    add_mesh(stage, "/World/Scene/ground", *rect_z(-20, 20, -5, 40), material=m, temperature_k=290.0)
+    add_camera(stage, "cam", (0, -5, 1.5), (0, 5, 1.0), band=wl, band_token=band)
+    stage.GetRootLayer().Save()
+    out = folder / "render"
+    args = ["render", str(folder / "stage.usda"), "-o", str(out), "-q", "--resolution", res, "--spp", spp]
+    result = CliRunner().invoke(main, args)
+    if result.exit_code != 0:
+        _assert_refused(result, out)
+        return
+    manifest = json.loads((out / "manifest.json").read_text())
+    (sensor,) = manifest["sensors"] + manifest["eo_sensors"] + manifest["skipped_sensors"]
+    assert sensor["band"] == band
+    if "reason" in sensor:  # skipped, and said so (an EO camera on this stage has no sun or sky)
+        assert sensor["reason"] and "cam" in result.stdout
+    else:
+        assert sensor["wavelength_range_um"] == pytest.approx(list(wl), rel=1e-6)

@@ -52,6 +52,14 @@ TAB_TITLES = {
     "annotations": "Annotations",
 }
 
+#: a value the sensor preset gives (blue, italic) or one computed from others (grey, italic),
+#: shown in the empty field; the user's own values are plain black
+SOURCE_CSS = """
+.humv-from-preset input::placeholder, .humv-from-preset .q-field__native span { color: #1565c0; font-style: italic; opacity: 1; }
+.humv-from-preset .q-field__bottom { color: #1565c0; }
+.humv-computed input::placeholder { color: #616161; font-style: italic; opacity: 1; }
+"""
+
 
 @dataclass
 class Editor:
@@ -124,6 +132,7 @@ class Page:
     # -- layout ------------------------------------------------------------------------------
     def build(self) -> None:
         doc = self.doc
+        ui.add_css(SOURCE_CSS)
         with ui.header().classes("items-center bg-blue-grey-9 q-py-xs"):
             ui.label("HumV editor").classes("text-h6")
             ui.label(str(doc.path)).classes("text-caption")
@@ -241,6 +250,9 @@ class Page:
             return
         self.sources[f.where] = src
         w.props(f'hint="{_attr(src.note)}" data-source={src.kind}')
+        w.classes(remove="humv-from-preset humv-computed")
+        if src.kind != "user":
+            w.classes("humv-from-preset" if src.kind == "preset" else "humv-computed")
         if isinstance(w, ui.input):
             w.props(f'placeholder="{_attr(src.text if src.kind != "user" else f.default_text)}" stack-label')
         w.update()

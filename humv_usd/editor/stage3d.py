@@ -120,31 +120,59 @@ def stage_view(stage_path: Path, glb_path: Path, frame: int = 0) -> StageView:
 #: [deg]) and the scene element's width / height [px]
 VIEW_FOV_Y_DEG = 75.0
 VIEW_ASPECT = 1000 / 620
-#: the framed box's bounding sphere fills this share of the view's smaller field of view
+#: the framed points span at most this share of the view (normalised device coordinates)
 FILL = 0.85
-#: the least radius framed [m] (one person alone)
-MIN_RADIUS_M = 2.0
+#: the least half-size framed [m] (one person alone)
+MIN_HALF_SIZE_M = 1.0
+#: the view looks down at the layout by this angle [deg]
+ELEVATION_DEG = 25.0
+
+
+def _extent(eye, target, points, fov_y_deg: float, aspect: float) -> float:
+    """The largest |normalised device coordinate| of ``points`` seen from ``eye`` looking at
+    ``target`` (Z up, perspective, vertical field of view ``fov_y_deg``); inf when a point is
+    not in front of the eye."""
+    f = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(f, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, f)
+    v = points - eye
+    depth = v @ f
+    if np.any(depth <= 1e-6):
+        return math.inf
+    ty = math.tan(math.radians(fov_y_deg) / 2)
+    return float(
+        max(np.max(np.abs(v @ right) / (depth * aspect * ty)), np.max(np.abs(v @ up) / (depth * ty)))
+    )
 
 
 def framing(view: StageView, fov_y_deg: float = VIEW_FOV_Y_DEG, aspect: float = VIEW_ASPECT):
-    """(eye, target) [m] of the 3D view: looking at the centre of :attr:`StageView.focus` (the
-    people and the cameras; the whole bounds only without either) from behind the first camera
-    (along its horizontal heading, else from the south) and 30° above, at the distance where the
-    box's bounding sphere fills :data:`FILL` of the smaller field of view:
-    ``d = r / (FILL sin(min(fov_y, fov_x) / 2))``, ``tan(fov_x / 2) = aspect tan(fov_y / 2)``.
+    """(eye, target) [m] of the 3D view, framed on :attr:`StageView.focus` (the people and the
+    cameras; the whole bounds only without either): looking at its centre from the side of the
+    first camera's line of sight (so the cameras-to-people line runs across the wider, horizontal
+    field of view; from the east without cameras) and :data:`ELEVATION_DEG` above, at the least
+    distance (bisection) where every corner of the box lies within :data:`FILL` of the view.
     """
     lo, hi = view.focus if view.focus is not None else view.bounds
     lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
     target = (lo + hi) / 2
-    radius = max(float(np.linalg.norm(hi - lo)) / 2, MIN_RADIUS_M)
-    half_y = math.radians(fov_y_deg) / 2
-    half = min(half_y, math.atan(aspect * math.tan(half_y)))
-    distance = radius / (FILL * math.sin(half))
+    half = np.maximum((hi - lo) / 2, MIN_HALF_SIZE_M)
+    corners = np.array(
+        [target + half * np.array([sx, sy, sz]) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    )
     heading = np.array([0.0, 1.0, 0.0])  # looking north
     if view.cameras:
         forward = np.asarray(view.cameras[0].forward, dtype=float)
         if np.hypot(forward[0], forward[1]) > 1e-6:
             heading = np.array([forward[0], forward[1], 0.0]) / np.hypot(forward[0], forward[1])
-    elevation = math.radians(30.0)
-    back = -heading * math.cos(elevation) + np.array([0.0, 0.0, math.sin(elevation)])
-    return target + distance * back, target
+    side = np.array([heading[1], -heading[0], 0.0])  # the line of sight's right-hand side
+    elevation = math.radians(ELEVATION_DEG)
+    direction = side * math.cos(elevation) + np.array([0.0, 0.0, math.sin(elevation)])
+    near, far = 1e-3, 1e3 + 10.0 * float(np.linalg.norm(half))
+    for _ in range(60):  # the extent falls as the eye moves back along ``direction``
+        mid = (near + far) / 2
+        if _extent(target + mid * direction, target, corners, fov_y_deg, aspect) <= FILL:
+            far = mid
+        else:
+            near = mid
+    return target + far * direction, target
