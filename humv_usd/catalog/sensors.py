@@ -91,47 +91,67 @@ _RGB_WL, _RGB_ENVELOPE, _RGB_CHANNELS = _rgb_curves()
 #: Relative response of FLIR's 7.5-13.5 um VOx cores (germanium window + absorber; typical shape)
 _BOSON_WL = (7.5, 8.0, 8.5, 9.0, 12.0, 12.5, 13.0, 13.5)
 _BOSON_RESPONSE = (0.5, 0.85, 0.97, 1.0, 1.0, 0.95, 0.8, 0.5)
+#: The band of FLIR's VOx cores with that response
+_FLIR_VOX_BAND = {
+    "wavelength_um": (7.5, 13.5),
+    "response_wavelengths_um": _BOSON_WL,
+    "response": _BOSON_RESPONSE,
+}
+#: The Boson 640 with its 18 mm lens (Teledyne FLIR Boson datasheet; the lwir640_12um and boson640
+#: presets)
+_BOSON640_CORE = {
+    "resolution": (640, 512),
+    "pixel_pitch_um": 12.0,
+    "focal_length_mm": 18.0,
+    "stated_fov_deg": 24.0,
+    "frame_rate_hz": 60.0,
+}
+#: An 8-14 um microbolometer band: germanium optics + absorber, flat 9-12.5 um, falling past 13 um
+#: (typical shape, not one product's data)
+_LWIR_8_14_BAND = {
+    "wavelength_um": (8.0, 14.0),
+    "response_wavelengths_um": (8.0, 8.5, 9.0, 11.0, 12.5, 13.0, 13.5, 14.0),
+    "response": (0.85, 0.97, 1.0, 1.0, 0.97, 0.9, 0.75, 0.55),
+}
+
+
+def _uncooled_lwir(**values) -> SensorPreset:
+    """An uncooled microbolometer LWIR preset: 14-bit, plateau-equalisation AGC and NETD 50 mK at
+    f/1.0 (the data-sheet values of every uncooled core here, each preset's ``source`` says
+    where) unless ``values`` give others."""
+    return SensorPreset(
+        **{"band": "LWIR", "f_number": 1.0, "netd_k": 0.05, "bit_depth": 14, "agc": "plateau", **values}
+    )
+
+
+def _reflective(**values) -> SensorPreset:
+    """A reflected-light (EO, NIR, SWIR) preset: no NETD (photon noise instead), a linear stretch
+    and offset 0 unless ``values`` give others."""
+    return SensorPreset(**{"netd_k": 0.0, "agc": "linear", "offset": 0.0, **values})
+
 
 PRESETS: dict[str, SensorPreset] = {
     p.name: p
     for p in (
-        SensorPreset(
+        _uncooled_lwir(
             name="atom1024_lwir",
             description="Uncooled LWIR microbolometer core, 1024x768, 17 um (Lynred ATOM 1024-like), "
             "25 mm f/1.0 lens",
-            band="LWIR",
-            wavelength_um=(8.0, 14.0),
-            response_wavelengths_um=(8.0, 8.5, 9.0, 11.0, 12.5, 13.0, 13.5, 14.0),
-            response=(0.85, 0.97, 1.0, 1.0, 0.97, 0.9, 0.75, 0.55),
+            **_LWIR_8_14_BAND,
             resolution=(1024, 768),
             pixel_pitch_um=17.0,
             focal_length_mm=25.0,
-            f_number=1.0,
-            netd_k=0.05,
-            bit_depth=14,
-            agc="plateau",
             source="1024x768, 17 um pitch, 8-14 um, NETD < 50 mK at f/1: Lynred (ULIS) ATOM 1024 "
             "thermal camera core product brief (2018); 14-bit output, 25 mm f/1.0 lens "
             "(HFOV 38.4 deg) and the response shape (germanium optics + microbolometer "
             "absorber, flat 9-12.5 um, falling past 13 um) are typical values of uncooled "
             "cores, not ATOM data",
         ),
-        SensorPreset(
+        _uncooled_lwir(
             name="lwir640_12um",
             description="Uncooled VOx LWIR core, 640x512, 12 um (FLIR Boson 640-like), 18 mm f/1.0",
-            band="LWIR",
-            wavelength_um=(7.5, 13.5),
-            response_wavelengths_um=(7.5, 8.0, 8.5, 9.0, 12.0, 12.5, 13.0, 13.5),
-            response=(0.5, 0.85, 0.97, 1.0, 1.0, 0.95, 0.8, 0.5),
-            resolution=(640, 512),
-            pixel_pitch_um=12.0,
-            focal_length_mm=18.0,
-            f_number=1.0,
-            netd_k=0.05,
-            bit_depth=14,
-            agc="plateau",
-            stated_fov_deg=24.0,
-            frame_rate_hz=60.0,
+            **_FLIR_VOX_BAND,
+            **_BOSON640_CORE,
             source="640x512, 12 um VOx, 7.5-13.5 um, NETD < 50 mK (industrial grade < 40 mK), "
             "18 mm f/1.0 lens HFOV 24 deg, 14-bit pre-AGC video and plateau-equalisation AGC: "
             "Teledyne FLIR Boson product datasheet (2019); response shape typical, not "
@@ -161,20 +181,13 @@ PRESETS: dict[str, SensorPreset] = {
             "Infrared Detectors and Systems, §4), band-limited by the cold filter (edges "
             "typical); 50 mm lens: 11 x 8.8 deg field of view in the A6750sc lens table",
         ),
-        SensorPreset(
+        _uncooled_lwir(
             name="boson320",
             description="FLIR Boson 320: uncooled VOx LWIR core, 320x256, 12 um, 6.3 mm lens (34 deg HFOV)",
-            band="LWIR",
-            wavelength_um=(7.5, 13.5),
-            response_wavelengths_um=_BOSON_WL,
-            response=_BOSON_RESPONSE,
+            **_FLIR_VOX_BAND,
             resolution=(320, 256),
             pixel_pitch_um=12.0,
             focal_length_mm=6.3,
-            f_number=1.0,
-            netd_k=0.05,
-            bit_depth=14,
-            agc="plateau",
             stated_fov_deg=34.0,
             frame_rate_hz=60.0,
             source="320x256, 12 um uncooled VOx, 7.5-13.5 um, NETD < 50 mK (as low as < 40 mK) at "
@@ -182,42 +195,24 @@ PRESETS: dict[str, SensorPreset] = {
             "with 34 deg HFOV: Teledyne FLIR Boson datasheet 102-2013-40 (2021), lens table; "
             "f/1.0 and the response shape typical",
         ),
-        SensorPreset(
+        _uncooled_lwir(
             name="boson640",
             description="FLIR Boson 640: uncooled VOx LWIR core, 640x512, 12 um, 18 mm lens (24 deg HFOV)",
-            band="LWIR",
-            wavelength_um=(7.5, 13.5),
-            response_wavelengths_um=_BOSON_WL,
-            response=_BOSON_RESPONSE,
-            resolution=(640, 512),
-            pixel_pitch_um=12.0,
-            focal_length_mm=18.0,
-            f_number=1.0,
-            netd_k=0.05,
-            bit_depth=14,
-            agc="plateau",
-            stated_fov_deg=24.0,
-            frame_rate_hz=60.0,
+            **_FLIR_VOX_BAND,
+            **_BOSON640_CORE,
             source="640x512, 12 um uncooled VOx, 7.5-13.5 um, NETD < 50 mK at f/1.0, 60 Hz "
             "(8.6 Hz export), 14-bit pre-AGC video, plateau AGC, 18 mm lens with 24 deg "
             "HFOV: Teledyne FLIR Boson datasheet 102-2013-40 (2021), lens table; response "
             "shape typical",
         ),
-        SensorPreset(
+        _uncooled_lwir(
             name="tau2_640",
             description="FLIR Tau 2 640: uncooled VOx LWIR core, 640x512, 17 um, 13 mm f/1.0 lens "
             "(45 x 37 deg; the FLIR ADAS dataset's camera)",
-            band="LWIR",
-            wavelength_um=(7.5, 13.5),
-            response_wavelengths_um=_BOSON_WL,
-            response=_BOSON_RESPONSE,
+            **_FLIR_VOX_BAND,
             resolution=(640, 512),
             pixel_pitch_um=17.0,
             focal_length_mm=13.0,
-            f_number=1.0,
-            netd_k=0.05,
-            bit_depth=14,
-            agc="plateau",
             stated_fov_deg=45.0,
             frame_rate_hz=30.0,
             source="640x512, 17 um uncooled VOx, 7.5-13.5 um, NETD < 50 mK at f/1.0, 30 Hz "
@@ -226,20 +221,14 @@ PRESETS: dict[str, SensorPreset] = {
             "ADAS thermal dataset description (Teledyne FLIR, 2018/2022); response shape "
             "typical",
         ),
-        SensorPreset(
+        _uncooled_lwir(
             name="lepton35",
             description="FLIR Lepton 3.5: radiometric uncooled LWIR module, 160x120, 12 um, 57 deg HFOV",
-            band="LWIR",
-            wavelength_um=(8.0, 14.0),
-            response_wavelengths_um=(8.0, 8.5, 9.0, 11.0, 12.5, 13.0, 13.5, 14.0),
-            response=(0.85, 0.97, 1.0, 1.0, 0.97, 0.9, 0.75, 0.55),
+            **_LWIR_8_14_BAND,
             resolution=(160, 120),
             pixel_pitch_um=12.0,
             focal_length_mm=1.77,
             f_number=1.1,
-            netd_k=0.05,
-            bit_depth=14,
-            agc="plateau",
             stated_fov_deg=57.0,
             frame_rate_hz=8.7,
             source="160x120, 12 um, 8-14 um, NETD < 50 mK, 57 deg HFOV, f/1.1 silicon doublet, "
@@ -248,21 +237,14 @@ PRESETS: dict[str, SensorPreset] = {
             "1.77 mm is the pinhole focal length giving 57 deg over 160 x 12 um (the real "
             "lens has barrel distortion); response shape typical",
         ),
-        SensorPreset(
+        _uncooled_lwir(
             name="h20t_thermal",
             description="DJI Zenmuse H20T thermal camera: uncooled VOx, 640x512, 12 um, 13.5 mm f/1.0 "
             "(40.6 deg diagonal)",
-            band="LWIR",
-            wavelength_um=(8.0, 14.0),
-            response_wavelengths_um=(8.0, 8.5, 9.0, 11.0, 12.5, 13.0, 13.5, 14.0),
-            response=(0.85, 0.97, 1.0, 1.0, 0.97, 0.9, 0.75, 0.55),
+            **_LWIR_8_14_BAND,
             resolution=(640, 512),
             pixel_pitch_um=12.0,
             focal_length_mm=13.5,
-            f_number=1.0,
-            netd_k=0.05,
-            bit_depth=14,
-            agc="plateau",
             stated_fov_deg=40.6,
             stated_fov_axis="diagonal",
             frame_rate_hz=30.0,
@@ -271,7 +253,7 @@ PRESETS: dict[str, SensorPreset] = {
             "(dji.com/zenmuse-h20-series/specs, 2020); 14-bit counts and the response shape "
             "typical",
         ),
-        SensorPreset(
+        _reflective(
             name="rgb_imx273",
             description="Global-shutter colour CMOS, 1440x1080, 3.45 um (Sony IMX273, e.g. FLIR "
             "Blackfly S BFS-U3-16S2C), 12 mm f/2.8",
@@ -284,13 +266,10 @@ PRESETS: dict[str, SensorPreset] = {
             pixel_pitch_um=3.45,
             focal_length_mm=12.0,
             f_number=2.8,
-            netd_k=0.0,
             bit_depth=12,
-            agc="linear",
             agc_percentiles=(0.0, 99.5),
             full_well_e=10500.0,
             read_noise_e=2.4,
-            offset=0.0,
             source="Sony IMX273 1440x1080, 3.45 um pixels, 12-bit ADC (8-bit mode too): Sony "
             "IMX273LQR product brief; saturation capacity ~10.5 ke- and temporal dark noise "
             "~2.4 e- of 3.45 um Pregius sensors: FLIR Blackfly S EMVA 1288 imaging "
@@ -299,7 +278,7 @@ PRESETS: dict[str, SensorPreset] = {
             "response plot of Sony colour Pregius data sheets, typical not measured; 12 mm "
             "f/2.8 lens (HFOV 23.3 deg) typical",
         ),
-        SensorPreset(
+        _reflective(
             name="swir_ingaas640",
             description="InGaAs SWIR camera, 640x512, 15 um, 0.9-1.7 um, 25 mm f/1.4",
             band="SWIR",
@@ -310,13 +289,10 @@ PRESETS: dict[str, SensorPreset] = {
             pixel_pitch_um=15.0,
             focal_length_mm=25.0,
             f_number=1.4,
-            netd_k=0.0,
             bit_depth=14,
-            agc="linear",
             agc_percentiles=(0.5, 99.5),
             full_well_e=170000.0,
             read_noise_e=50.0,
-            offset=0.0,
             source="640x512 InGaAs focal plane, 15 um pitch, 0.9-1.7 um, 14-bit: typical of "
             "uncooled/TE-stabilised SWIR cameras (e.g. Collins Aerospace / Sensors Unlimited "
             "GA640, Xenics Bobcat-640); response: InGaAs quantum efficiency, cut on by the InP "
@@ -325,7 +301,7 @@ PRESETS: dict[str, SensorPreset] = {
             "well 170 ke- and read noise 50 e- typical of the high-gain CTIA mode of such "
             "read-out circuits, not one product's data; 25 mm f/1.4 SWIR lens typical",
         ),
-        SensorPreset(
+        _reflective(
             name="nir_imx273",
             description="Monochrome global-shutter CMOS (Sony IMX273) behind a 750 nm long-pass "
             "filter: NIR 0.75-1.0 um, 1440x1080, 3.45 um, 12 mm f/2.8",
@@ -337,13 +313,10 @@ PRESETS: dict[str, SensorPreset] = {
             pixel_pitch_um=3.45,
             focal_length_mm=12.0,
             f_number=2.8,
-            netd_k=0.0,
             bit_depth=12,
-            agc="linear",
             agc_percentiles=(0.0, 99.5),
             full_well_e=10500.0,
             read_noise_e=2.4,
-            offset=0.0,
             source="Sony IMX273 (mono) 1440x1080, 3.45 um, 12-bit, saturation ~10.5 ke-, dark "
             "noise ~2.4 e-: as rgb_imx273 (FLIR Blackfly S EMVA 1288 reports); response: "
             "silicon quantum efficiency falling from 750 nm to the 1.1 um band gap (relative "
