@@ -16,8 +16,9 @@ that say which bench made it, with which command, on which commit and when.
 - ``qrad_error_time.csv``: ``humv_usd.bench.thermal.bench_qrad`` (what ``humv-usd bench
   thermal`` runs) on the capsule avatar: the absorbed radiation's relative error against the
   brute-force reference by method, map size and rays, against CPU time.
-- ``garment_time_steps.csv`` and ``skin_time_steps.csv``: the same bench's garment and
-  two-node skin temperature error against the time step (Radau / fine-step references).
+- ``garment_time_steps.csv`` and ``skin_time_steps.csv``: the same bench's garment and mean
+  skin temperature (two-node and JOS-3) error against the time step (Radau / fine-step
+  references).
 """
 
 from __future__ import annotations
@@ -226,10 +227,12 @@ def thermal_data() -> None:
         ["case", "step_s", "max_error_k", "common_error_k", "seconds"],
         g,
     )
-    s = skin_time_steps("two_node")
+    s = skin_time_steps("two_node") + skin_time_steps("jos3")
     _write(
         "skin_time_steps.csv",
-        _header("humv_usd.bench.thermal_steps.skin_time_steps('two_node') (humv-usd bench thermal --quick)"),
+        _header(
+            "humv_usd.bench.thermal_steps.skin_time_steps('two_node' and 'jos3') (humv-usd bench thermal)"
+        ),
         ["model", "step_s", "max_error_k", "seconds"],
         s,
     )
