@@ -140,6 +140,8 @@ MAX_DIRECT_LANES = 1 << 22
 #: Largest angle [deg] between faces whose surface terms blend at a shared vertex
 #: (:data:`humv_usd.geometry.shading.SMOOTH_CREASE_DEG`).
 SMOOTH_CREASE_DEG = shading.SMOOTH_CREASE_DEG
+#: Shade smooth when the caller does not say (issue 25; False: one value per flat face).
+SMOOTH_SHADING = True
 
 
 def sky_rows(radiometry, k: int) -> np.ndarray:
@@ -461,7 +463,7 @@ def render_band_fast(
     direct_points: int | None = None,
     direct_target=None,
     info: dict | None = None,
-    smooth: bool = True,
+    smooth: bool | None = None,
 ):
     """At-sensor band radiance and its Monte Carlo standard error of one IR sensor at one frame.
 
@@ -482,7 +484,8 @@ def render_band_fast(
     cavity radiance, :func:`cavity_table`), and ``pixel_direct_points`` (H, W).
     ``smooth``: shade each hit with its faces' surface terms blended to the corners and
     interpolated at the hit (:func:`corner_blend`, Gouraud); False: one value per flat face,
-    as the path tracer (:func:`humv_usd.render.ir.render_band`) shades.
+    as the path tracer (:func:`humv_usd.render.ir.render_band`) shades; None:
+    :data:`SMOOTH_SHADING`.
 
     Returns
     -------
@@ -526,6 +529,7 @@ def render_band_fast(
     ground = ground_radiance(scene, tables, g_up, 0.0 if sun_dir is None else sun_dir[2], sun_e, normals)
     g_tab = control_variate_table(rows, ground)  # (n, CV_NODES)
     surface = surface_table(scene, tables, g_tab, sun_dir, sun_e, normals)  # (T, 3, n)
+    smooth = SMOOTH_SHADING if smooth is None else bool(smooth)
     rows_7n = corner_table(surface, _smooth_blend(scene) if smooth else None)  # (T, 7n)
     note("tables: %d triangles", len(surface))
 
