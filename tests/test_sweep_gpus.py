@@ -112,7 +112,9 @@ def test_task_resources_follow_the_workers_and_the_backend(monkeypatch):
     assert not cluster.renders_on_gpu(2)
     assert cluster.task_resources("render", 2, 1, False) == {"CPU": 1}
     lines = cluster.worker_commands("tcp://head:8786", 2, 6)
-    assert lines[1].startswith("CUDA_VISIBLE_DEVICES=1 HUMV_USD_BACKEND=cuda dask worker tcp://head:8786")
+    assert lines[1].startswith(
+        "CUDA_VISIBLE_DEVICES=1 HUMV_USD_BACKEND=cuda HUMV_USD_WRITER_THREADS=4 dask worker tcp://head:8786"
+    )
     assert "--resources GPU=1" in lines[0] and "--nworkers 6 --nthreads 1 --resources CPU=1" in lines[2]
 
 

@@ -19,8 +19,9 @@ writes run on the render's writer threads (:mod:`humv_usd.pipeline.writer`) on t
 host cores.
 
 :func:`local_cluster` starts such a cluster on this machine (``humv-usd sweep --gpus N``): one
-single-threaded worker per GPU, ``CUDA_VISIBLE_DEVICES`` its index and the CUDA backend forced (a
-GPU that does not work is then an error, never a silent CPU render), plus CPU workers with no
+single-threaded worker per GPU, ``CUDA_VISIBLE_DEVICES`` its index, the CUDA backend forced (a
+GPU that does not work is then an error, never a silent CPU render) and
+:data:`GPU_WRITER_THREADS` writer threads, plus CPU workers with no
 device visible and the LLVM backend. :func:`worker_commands` writes the ``dask worker`` command
 lines of the same set-up for a cluster started by hand.
 """
@@ -32,6 +33,7 @@ import os
 
 from humv_usd import mode
 from humv_usd.errors import InputError
+from humv_usd.pipeline.writer import THREADS_ENV
 
 #: Dask resource a GPU worker declares (one per GPU) and a render task asks for
 GPU_RESOURCE = "GPU"
@@ -41,6 +43,11 @@ CPU_RESOURCE = "CPU"
 GPU_WORKER_BACKEND = "cuda"
 #: backend of its CPU workers
 CPU_WORKER_BACKEND = "llvm"
+#: writer threads of a GPU worker's renders (:data:`humv_usd.pipeline.writer.THREADS_ENV`): a
+#: labelled 1024x768 LWIR frame's files cost 0.35 CPU-s on one core (EXR zip 0.23 of it; measured
+#: on this project's 2-core machine, 2026-11-27), so 4 threads keep up with about 11 frames/s; the
+#: H100 renders about 0.4 frames/s today (2.59 s per frame)
+GPU_WRITER_THREADS = 4
 
 
 def worker_kinds(workers: dict) -> tuple[int, int]:
@@ -80,7 +87,11 @@ def worker_specs(gpus: int, cpu_workers: int, devices: list[str] | None = None) 
             "options": {
                 "nthreads": 1,
                 "resources": {GPU_RESOURCE: 1},
-                "env": {"CUDA_VISIBLE_DEVICES": devices[i], mode.BACKEND_ENV: GPU_WORKER_BACKEND},
+                "env": {
+                    "CUDA_VISIBLE_DEVICES": devices[i],
+                    mode.BACKEND_ENV: GPU_WORKER_BACKEND,
+                    THREADS_ENV: str(GPU_WRITER_THREADS),
+                },
             },
         }
     for i in range(cpu_workers):
@@ -121,7 +132,8 @@ def worker_commands(scheduler: str, gpus: int, cpu_workers: int) -> list[str]:
     """The ``dask worker`` command lines of :func:`local_cluster`'s set-up on one machine of a
     cluster whose scheduler is at ``scheduler`` (run each in its own shell or service)."""
     lines = [
-        f"CUDA_VISIBLE_DEVICES={i} {mode.BACKEND_ENV}={GPU_WORKER_BACKEND} dask worker {scheduler} "
+        f"CUDA_VISIBLE_DEVICES={i} {mode.BACKEND_ENV}={GPU_WORKER_BACKEND} {THREADS_ENV}={GPU_WRITER_THREADS} "
+        f"dask worker {scheduler} "
         f"--nworkers 1 --nthreads 1 --resources {GPU_RESOURCE}=1 --name $(hostname)-gpu{i}"
         for i in range(gpus)
     ]
