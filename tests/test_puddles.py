@@ -121,3 +121,14 @@ def test_a_puddle_at_night_is_free_water_near_the_wet_bulb():
     temp = out[str(PUDDLES)][:, 0]
     assert np.all(np.isfinite(temp))
     assert float(ev.wet_bulb_temperature(air, rh)) - 0.3 < temp[-1] < air - 1.0
+
+
+def test_weather_examples_validate():
+    """examples/weather/*.toml (composed by hand, see weather.md: minutes) validate."""
+    from pathlib import Path
+
+    examples = sorted((Path(__file__).resolve().parents[1] / "examples" / "weather").glob("*.toml"))
+    assert examples
+    for path in examples:
+        scenario = validate(tomllib.loads(path.read_text()), path)
+        assert scenario["atmosphere"]["rain_mm_h"] > 0 and scenario["scene"]["ground"]["puddles"] > 0

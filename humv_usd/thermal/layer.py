@@ -11,7 +11,10 @@ People (``[thermal] model``):
 
 Scene surfaces (ground, objects, any other mesh outside /World/Humans), in every model: held at
 the scenario's ``temperature_k`` when it is given, else a 1-D slab of the material with sun,
-sky, wind and a diurnal spin-up ending at frame 0 (:mod:`humv_usd.thermal.surfaces`).
+sky, wind and a diurnal spin-up ending at frame 0 (:mod:`humv_usd.thermal.surfaces`); with
+``[atmosphere] cloud_size_m`` moving cloud shadows take the sun off the faces under them; after
+rain, faces still wet at frame 0 are bound to wet variants of their materials, which this layer
+defines (:mod:`humv_usd.thermal.wet`).
 Weather and sun are read from the upstream stage's environment layer
 (:mod:`humv_usd.usd.environment`, at each frame / radiation sample / spin-up step's time code).
 The long-wave sky is read from the upstream stage's /World/Atmosphere (``skyLongwaveRadiance``
