@@ -163,3 +163,25 @@ def test_no_shadows_without_size_or_clouds():
     assert (
         SF.with_cloud_shadows(clear, {"atmosphere": {"cloud_size_m": 500.0}, "general": {"seed": 0}}) is clear
     )
+
+
+def test_people_get_the_cloud_shadow_where_they_stand():
+    """The people's sun is gated by the cloud shadow at their placements' centroid: the same
+    factor as a ground face there; ones without shadows or without people."""
+    t = np.arange(0.0, 3600.0, 60.0)
+    n, one = len(t), np.ones(len(t))
+    f = SF.SurfaceForcing(
+        t, 293.15 * one, 0.5 * one, 2.0 * one, np.tile([0.0, 0.0, 1.0], (n, 1)), np.ones(n, bool),
+        600 * one, 100 * one, 700 * one, 0.5 * one,
+    )  # fmt: skip
+    scenario = {
+        "atmosphere": {"cloud_size_m": 300.0, "wind_direction_deg": 0.0},
+        "general": {"seed": 1},
+        "placement": [{"position_m": [10.0, 0.0, 0.0]}, {"position_m": [30.0, 20.0, 0.0]}],
+    }
+    shaded = SF.with_cloud_shadows(f, scenario)
+    gate = SF.people_beam_gate(shaded, scenario)
+    assert_allclose(gate, shaded.beam_gate(np.array([20.0]), np.array([10.0]))[:, 0])
+    assert np.any(gate == 0.0) and np.any(gate > 1.0)  # shadows pass over them
+    assert np.all(SF.people_beam_gate(f, scenario) == 1.0)
+    assert np.all(SF.people_beam_gate(shaded, {**scenario, "placement": []}) == 1.0)

@@ -45,6 +45,7 @@ from humv_usd.thermal.surfaces import (
     forcing_at,
     ground_albedo,
     longwave_emissivity,
+    people_beam_gate,
     people_occluders,
     refine_meshes,
     scene_meshes,
@@ -74,6 +75,7 @@ READS = (
     "atmosphere.rain_duration_h",
     "atmosphere.cloud_size_m",
     "atmosphere.wind_direction_deg",
+    "placement.*.position_m",
 )
 #: sensors: the ground's shadow edges are refined to the closest camera's pixel footprint
 UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clothing_*", "sensors")
@@ -84,8 +86,8 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 8: people's ray offset no longer grows with a ground to the horizon (qrad.OFFSET_SCENE_SIZE_CAP_M)
 #: 9: faces wet after rain bound to wet variants of their materials (thermal.wet)
 #: 10: JOS-3 runs with the person's own body fat (Deurenberg 1991), not 15 %
-#: 11: moving cloud shadows on the scene surfaces ([atmosphere] cloud_size_m)
-VERSION = "11"
+#: 11: moving cloud shadows on the scene surfaces ([atmosphere] cloud_size_m); 12: and on the people
+VERSION = "12"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85
@@ -150,10 +152,11 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         n_spin = len(forcing.times_s) - len(samples)
         skies, scenes = [], []
         mesh, eps_tri, tri_offsets = _scene_trimesh(meshes)
+        beam = people_beam_gate(forcing, scenario)  # cloud shadows where the people are
         for k in range(len(samples)):
             i = n_spin + k
             sun = (
-                (forcing.sun_direction[i], forcing.dni_w_m2[i], forcing.dhi_w_m2[i])
+                (forcing.sun_direction[i], forcing.dni_w_m2[i] * beam[i], forcing.dhi_w_m2[i])
                 if forcing.sun_up[i]
                 else None
             )

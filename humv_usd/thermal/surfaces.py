@@ -1050,6 +1050,18 @@ def with_cloud_shadows(forcing: SurfaceForcing, scenario) -> SurfaceForcing:
     return dataclasses.replace(forcing, beam_gate=gate)
 
 
+def people_beam_gate(forcing: SurfaceForcing, scenario) -> np.ndarray:
+    """(M,) factor on the direct beam that reaches the people at each sample: the cloud
+    shadow (:func:`with_cloud_shadows`) at the centroid of their ``[[placement]]`` positions
+    (a clip's walk is metres, a cloud hundreds of metres); ones without cloud shadows."""
+    n = len(forcing.times_s)
+    spots = [p["position_m"][:2] for p in (scenario["placement"] or ()) if p.get("position_m") is not None]
+    if forcing.beam_gate is None or not spots:
+        return np.ones(n)
+    x, y = np.mean(np.asarray(spots, dtype=float), axis=0)
+    return np.asarray(forcing.beam_gate(np.array([x]), np.array([y])), dtype=float)[:, 0]
+
+
 def forcing_at(stage, times_s) -> SurfaceForcing:
     """Weather and sun of the stage's environment layer (:mod:`humv_usd.usd.environment`) at
     ``times_s`` seconds after frame 0; the spin-up times (< 0) are the layer's negative time
