@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import copy
 import math
+import shutil
 import socket
 import sys
 import tomllib
@@ -481,3 +482,72 @@ def test_band_wavelengths_resolution_and_spp_through_the_render(tmp_path_factory
         assert sensor["reason"] and "cam" in result.stdout
     else:
         assert sensor["wavelength_range_um"] == pytest.approx(list(wl), rel=1e-6)
+
+
+# ------------------------------------------------------------------ (c') the editor's form fields
+#: what a person (or a page script) may type into a field: values, TOML fragments, junk
+typed_text = st.one_of(
+    st.sampled_from(
+        ["", " ", "1", "-1", "0", "1e400", "nan", "inf", "[1, 2]", "[1, 2, 3]", "[]", "[[0, 0], [1, 2]]"]
+        + ['"x"', "true", "{a = 1}", "[1, [2]]", "2018-10-24T14:05:00", "1979-05-27", "0x10", "1_000"]
+        + ["LWIR", "atom1024_lwir", "nope", "a = 1\nb = 2", "[", "]]", "'''", "\x00", "é", "1" * 400]
+    ),
+    st.text(max_size=30),
+)
+
+
+@settings(
+    max_examples=40,  # ~0.2 s each (validation, the save and its read-back); 400 under extended
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(st.data())
+def test_any_text_in_any_field_is_a_problem_line_or_a_value(tmp_path_factory, data):
+    _form_case(tmp_path_factory, data)
+
+
+@pytest.mark.extended
+@settings(
+    max_examples=400,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(st.data())
+def test_any_text_in_any_field_more_cases(tmp_path_factory, data):
+    _form_case(tmp_path_factory, data)
+
+
+def _form_case(tmp_path_factory, data) -> None:
+    """The editor's form (what its websocket events carry): any text typed into one to three
+    fields of humvvex never raises; every problem is one line; the Sensor tab's sources are
+    computed for any state; a valid document saves and reads back the same."""
+    from humv_usd.editor.document import SaveRefused, ScenarioDocument
+    from humv_usd.editor.fields import all_fields, value_source
+
+    folder = tmp_path_factory.mktemp("form")
+    path = folder / "humvvex.toml"
+    shutil.copy(ROOT / "examples" / "humvvex_fixed.toml", path)
+    doc = ScenarioDocument(path)
+    for _ in range(data.draw(st.integers(1, 3))):
+        fields = all_fields(doc.raw())
+        field = data.draw(st.sampled_from(fields))
+        problem = doc.set_text(field, data.draw(typed_text))
+        assert problem is None or ("\n" not in problem and len(problem) <= MAX_LINE), problem
+    problems = doc.problems()
+    for line in problems:
+        assert isinstance(line, str) and "\n" not in line and len(line) <= MAX_LINE, line[:300]
+    scenario = doc.scenario()
+    for f in [f for f in all_fields(doc.raw()) if f.path[0] == "sensor"]:
+        source = value_source(doc.raw(), scenario, f)
+        assert source is None or source.kind in ("user", "preset", "computed")
+    if not problems:
+        assert scenario is not None
+        doc.save()
+        assert ScenarioDocument(path).raw() == doc.raw()
+    else:
+        try:
+            doc.save()
+        except SaveRefused as exc:
+            assert str(exc).strip()  # a reason, not an empty refusal
