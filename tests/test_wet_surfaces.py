@@ -194,3 +194,77 @@ def test_slab_reports_the_wet_share_while_it_rains_and_as_it_dries():
     )
     assert "wetFraction" not in diag_dry
     assert out["/World/Scene/Ground"][6, 0] < dry["/World/Scene/Ground"][6, 0] - 5.0  # wet: cooler
+
+
+WET_SCENARIO = """
+[general]
+name = "wet_tiny"
+start = 2018-07-14T13:00:00
+utc_offset_h = -4.0
+time_zone = "America/New_York"
+latitude_deg = 39.80
+longitude_deg = -84.03
+fps = 5.0
+duration_s = 0.0
+
+[scene.ground]
+material = "asphalt"
+size_m = [30.0, 30.0]
+horizon_m = 0.0
+puddles = 0.05
+
+[[scene.object]]
+id = "wall"
+material = "concrete"
+center_m = [0.0, 4.0, 0.0]
+size_m = [6.0, 1.0, 3.0]
+
+[[sensor]]
+id = "lwir"
+preset = "boson640"
+resolution = [64, 48]
+pixel_pitch_um = 96.0
+position_m = [0.0, -12.0, 3.0]
+look_at_m = [0.0, 2.0, 0.5]
+
+[thermal]
+model = "fixed"
+
+[atmosphere]
+model = "analytic"
+air_temperature_k = 293.0
+relative_humidity = 0.6
+wind_speed_m_s = 2.0
+cloud_cover = 0.3
+rain_mm_h = 4.0
+rain_end_h = 0.5
+rain_duration_h = 1.0
+"""
+
+
+@pytest.mark.extended
+def test_composed_stage_after_rain_is_wet_and_checks_clean(tmp_path):
+    """End to end (about a minute): compose a tiny scene half an hour after a shower: the ground
+    and the wall are bound to wet variants, the puddles are free water and stay dry-bound, the
+    stage checks clean; without rain nothing is wet."""
+    import tomllib
+
+    from humv_usd.pipeline.compose import compose
+    from humv_usd.scenario import validate
+    from humv_usd.usd.check import check_stage
+
+    compose(validate(tomllib.loads(WET_SCENARIO)), tmp_path / "wet")
+    stage = Usd.Stage.Open(str(tmp_path / "wet" / "stage.usda"))
+    assert check_stage(tmp_path / "wet" / "stage.usda") == []
+    ground = stage.GetPrimAtPath("/World/Scene/Ground")
+    n = len(UsdGeom.Mesh(ground).GetFaceVertexCountsAttr().Get())
+    mats, index = face_materials(ground, n)
+    assert any(split_wet_name(m.name) for m in mats)
+    puddles = stage.GetPrimAtPath("/World/Scene/Puddles")
+    assert mesh_material(puddles).name == "water"
+    dry = tomllib.loads(WET_SCENARIO)
+    dry["atmosphere"]["rain_mm_h"] = 0.0
+    compose(validate(dry), tmp_path / "dry")
+    stage = Usd.Stage.Open(str(tmp_path / "dry" / "stage.usda"))
+    assert mesh_material(stage.GetPrimAtPath("/World/Scene/Ground")).name == "asphalt"
+    assert not stage.GetPrimAtPath("/World/Scene/Puddles")
