@@ -182,6 +182,9 @@ def _edit(raw, key):
         raw["general"]["start"] = raw["general"]["start"].replace(hour=15)
     elif key == "weather":
         raw["atmosphere"]["air_temperature_k"] = 290.0
+    elif key == "sensor netd and agc":
+        raw["sensor"][0]["netd_k"] = 0.04
+        raw["sensor"][1]["agc"] = "linear"
     return raw
 
 
@@ -194,6 +197,9 @@ REBUILT = {
     "clothing": {"materials", "clothing_p1", "thermal"},  # the avatar reads no garment but the rifle
     "start": {"environment", "atmosphere", "atmosphere_paths", "thermal"},
     "weather": {"environment", "atmosphere", "atmosphere_paths", "thermal"},
+    # the image chain is read by the render alone (sensors.layer.RENDER_ONLY): the layers built on
+    # the sensors layer see its key without it (issue 26: the editor's preview rebuilt thermal)
+    "sensor netd and agc": {"sensors"},
 }
 
 
@@ -216,6 +222,9 @@ def test_single_key_edit_rebuilds_exactly_what_reads_it(out, raw, key):
         assert doc["thermal"]["why"] == "upstream changed: sensors"
     if key == "clothing":
         assert doc["clothing_p1"]["why"] == "inputs changed: human[p1].clothing"
+    if key == "sensor netd and agc":
+        assert doc["sensors"]["why"] == "inputs changed: @netdOrigin, sensor.0.netd_k, sensor.1.agc"
+        assert doc["thermal"]["why"] == doc["atmosphere_paths"]["why"] == "cached"
 
 
 def test_scene_reads_the_clock_and_air_only_for_warm_clutter(raw):

@@ -91,6 +91,8 @@ class LayerState:
     seconds: float = 0.0
     loaded: Sdf.Layer | None = None  # the file on disk, opened when it is used as it is
     ran: dict = field(default_factory=dict)  # the rebuilt layer's "humv:<tool>:ran" entries
+    #: the key without the inputs only the render reads (the tool's ``RENDER_ONLY`` read paths)
+    downstream_key: str | None = None
 
     @property
     def rebuild(self) -> bool:
@@ -98,8 +100,11 @@ class LayerState:
 
     @property
     def passed_key(self) -> str:
-        """The key downstream layers see: a hand edit counts as a change of this layer."""
-        return self.key if self.edited_sha256 is None else _sha(self.key + self.edited_sha256)
+        """The key downstream layers see: the layer's key without its render-only inputs (a
+        sensor's NETD changes the sensors layer, not the thermal layer built on it); a hand edit
+        counts as a change of this layer."""
+        key = self.downstream_key or self.key
+        return key if self.edited_sha256 is None else _sha(key + self.edited_sha256)
 
 
 @dataclass
@@ -424,6 +429,10 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
         values = read_values(scenario, node.tool.reads, node.human_id)
         key = inputs_key(node.tool.version, values, upstream)
         states[name] = LayerState(name, key, values, upstream)
+        render_only = getattr(node.tool.module, "RENDER_ONLY", ())
+        if render_only:
+            kept = {k: v for k, v in values.items() if not any(fnmatchcase(k, p) for p in render_only)}
+            states[name].downstream_key = inputs_key(node.tool.version, kept, upstream)
         error = _decide(node, states[name], layer_dir / f"{name}.usda", prev_layers.get(name), force)
         errors += [error] if error else []
     keys = {name: st.key for name, st in states.items()}

@@ -12,7 +12,10 @@ A layer tool is any module of a tool package that declares, at module level:
   or data the tool ships);
 
 optionally ``upstream_for(scenario)`` -- the subset of ``UPSTREAM`` a given scenario makes it read
-(the sensors tool reads a person's avatar layer only for a camera that tracks them);
+(the sensors tool reads a person's avatar layer only for a camera that tracks them), and
+``RENDER_ONLY`` -- read paths (``fnmatch`` patterns over the ``READS`` values) that only the
+render reads: the key the layers built on this one see leaves them out (compose's
+``LayerState.passed_key``; the sensors tool's image chain);
 
 and builds with ``build(scenario, upstream)`` (per person: ``build_one(scenario, human)``, with
 ``upstream=`` when it declares ``UPSTREAM``), ``upstream`` being the in-memory composition of

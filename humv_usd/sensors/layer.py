@@ -39,6 +39,41 @@ NAME = "sensors"
 READS = (*FRAMES, "sensor", "@netdOrigin")
 UPSTREAM = ("avatar_*",)  # a camera tracking a person reads the person's keypoints (upstream_for)
 VERSION = "6"  # 3: focusDistance at the look-at point; 4: rigs; 5: a tracked person in metres; 6: NETD origin
+#: inputs only the render reads (the image chain after the optics: noise, counts, AGC, FPN, lens
+#: stop, codecs): the key the layers built on this one see ignores them (compose's
+#: ``LayerState.passed_key``), so a NETD or AGC edit rebuilds this layer and not the thermal layer
+#: (which reads the cameras' poses and pixel footprints) or the path tables (positions). Issue 26:
+#: an edit of netd_k cost the editor's preview a 25-60 s thermal rebuild.
+RENDER_ONLY = (
+    "@netdOrigin",
+    *(
+        f"sensor.*.{k}"
+        for k in (
+            "f_number",
+            "netd_k",
+            "bit_depth",
+            "gain",
+            "offset",
+            "agc",
+            "agc_percentiles",
+            "agc_plateau",
+            "agc_max_gain",
+            "agc_midpoint",
+            "fpn_gain_sigma",
+            "fpn_offset_sigma_k",
+            "fpn_drift_k_per_s",
+            "ffc_interval_s",
+            "fpn_seed",
+            "vignetting",
+            "time_constant_s",
+            "jpeg_quality",
+            "h264_crf",
+            "full_well_e",
+            "read_noise_e",
+            "subbands",
+        )
+    ),
+)
 
 
 def upstream_for(scenario: Scenario) -> tuple[str, ...]:
