@@ -309,6 +309,16 @@ def cavity_table(tables: FaceTables) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
+def variance_ratio(var, target_var) -> np.ndarray:
+    """(H, W) how far each pixel's variance (c, H, W, summed over c) is above its target
+    (H, W): their ratio, 0 where there is no target or no finite variance (the order of
+    :func:`within_budget`)."""
+    v = np.nansum(np.asarray(var, float), axis=0)
+    t = np.asarray(target_var, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where((t > 0) & np.isfinite(t) & np.isfinite(v), v / t, 0.0)
+
+
 def pixel_direct_points(direct_var, target_var, factor_cap: int = MAX_PIXEL_DIRECT_FACTOR) -> np.ndarray:
     r"""More pixel positions per camera sample for the direct term, per pixel (H, W) int.
 
@@ -354,11 +364,20 @@ def step_variance(direct, part, samples: int) -> np.ndarray:
     return step**2 / 4.0 / max(int(samples), 1)
 
 
-def within_budget(factor: np.ndarray, budget: float) -> np.ndarray:
+def within_budget(factor: np.ndarray, budget: float, need=None) -> np.ndarray:
     """``factor`` (per pixel more samples, int) kept for the pixels that need the most, the
-    largest factors first, while their sum stays within ``budget``; 0 for the rest."""
+    largest factors first, while their sum stays within ``budget``; 0 for the rest. ``need``
+    (same shape): the order instead, largest first (ties: the larger factor, then raster
+    order), e.g. the uncapped ratio of a pixel's variance to its target: the factors are capped,
+    and among the pixels at the cap raster order decided, so that on the humvvex LWIR view the
+    ground above a person's shoes took the budget from shoe pixels 100x further above target
+    (2 more batches of the automatic quality)."""
     flat = np.asarray(factor).ravel()
-    order = np.argsort(-flat, kind="stable")
+    if need is None:
+        order = np.argsort(-flat, kind="stable")
+    else:
+        key = np.nan_to_num(np.asarray(need, dtype=float).ravel(), nan=0.0, posinf=np.finfo(float).max)
+        order = np.lexsort((-flat, -key))
     keep = np.cumsum(flat[order]) <= budget
     out = np.zeros_like(flat)
     out[order[keep]] = flat[order[keep]]
@@ -899,7 +918,11 @@ def render_band_fast(
         r_cells = reflect_r.reshape(channels, h * w, replicas)
         # 1. the reflected part above half the target: more camera samples with their reflections
         boost_reflect = pixel_direct_points(scale * reflect_var, 0.5 * target, MAX_PIXEL_REFLECT_FACTOR)
-        boost_reflect = within_budget(boost_reflect, max(BOOST_BUDGET * h * w, MIN_BOOST_BUDGET))
+        boost_reflect = within_budget(
+            boost_reflect,
+            max(BOOST_BUDGET * h * w, MIN_BOOST_BUDGET),
+            variance_ratio(scale * reflect_var, 0.5 * target),
+        )
         # one pass for all the chosen pixels, each with its own count (PixelLayout), in chunks
         # of at most MAX_DIRECT_LANES reflection lanes; seeds apart from the batch's own passes
         chosen = np.flatnonzero(boost_reflect.ravel() > 0)
@@ -936,11 +959,13 @@ def render_band_fast(
         # the positions the cells have
         direct_goal = np.maximum(target - scale * np.nansum(reflect_var, axis=0), 0.5 * target)
         floor = step_variance(direct, hits.part, replicas * lattice_n) / positions.reshape(h, w)
-        boost = pixel_direct_points(scale * np.maximum(direct_var.sum(axis=0), floor)[None], direct_goal)
+        direct_need = scale * np.maximum(direct_var.sum(axis=0), floor)[None]
+        boost = pixel_direct_points(direct_need, direct_goal)
         boost = boost * positions.reshape(h, w)
         boost = within_budget(
             np.minimum(boost, MAX_PIXEL_DIRECT_FACTOR).astype(np.int64),
             max(DIRECT_BOOST_BUDGET * h * w, 16 * MIN_BOOST_BUDGET),
+            variance_ratio(direct_need, direct_goal),
         )
         chosen = np.flatnonzero(boost.ravel() > 0)
         factors = boost.ravel()[chosen].astype(np.int64)
