@@ -309,16 +309,6 @@ def cavity_table(tables: FaceTables) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def variance_ratio(var, target_var) -> np.ndarray:
-    """(H, W) how far each pixel's variance (c, H, W, summed over c) is above its target
-    (H, W): their ratio, 0 where there is no target or no finite variance (the order of
-    :func:`within_budget`)."""
-    v = np.nansum(np.asarray(var, float), axis=0)
-    t = np.asarray(target_var, float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where((t > 0) & np.isfinite(t) & np.isfinite(v), v / t, 0.0)
-
-
 def pixel_direct_points(direct_var, target_var, factor_cap: int = MAX_PIXEL_DIRECT_FACTOR) -> np.ndarray:
     r"""More pixel positions per camera sample for the direct term, per pixel (H, W) int.
 
@@ -382,6 +372,16 @@ def within_budget(factor: np.ndarray, budget: float, need=None) -> np.ndarray:
     out = np.zeros_like(flat)
     out[order[keep]] = flat[order[keep]]
     return out.reshape(np.shape(factor))
+
+
+def variance_ratio(var, target_var) -> np.ndarray:
+    """(H, W) how far each pixel's variance (c, H, W, summed over c) is above its target
+    (H, W): their ratio, 0 where there is no target or no finite variance (the order of
+    :func:`within_budget`)."""
+    v = np.nansum(np.asarray(var, float), axis=0)
+    t = np.asarray(target_var, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where((t > 0) & np.isfinite(t) & np.isfinite(v), v / t, 0.0)
 
 
 def replica_count(spp: int, wanted: int = DEFAULT_REPLICAS) -> int:
