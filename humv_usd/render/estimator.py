@@ -476,6 +476,7 @@ class PixelLayout:
         np.cumsum(cell_size[:-1], out=self.cell_start[1:])
         if self.lanes >= 2**32:
             raise ValueError(f"PixelLayout: {self.lanes} lanes, at most 2^32 - 1")
+        self.count_dr = None  # set by the camera pass: the lattice size per camera lane (device)
 
     def lanes_on_device(self, mi, dr):
         """(k, replica, lattice index, count) per lane, UInt32 on the device."""
