@@ -110,6 +110,13 @@ def test_boosts_within_budget_serve_the_largest_needs_first():
     assert (E.within_budget(need, 1000) == need).all()
     v = np.full((1, 2, 2), 4.0)
     assert (E.pixel_direct_points(v, np.array([[4.0, 1.0], [0.5, np.nan]])) == [[0, 3], [7, 0]]).all()
+    # at the cap, the pixels furthest above their target first, not the first in raster order
+    # (the humvvex LWIR view: ground above the shoes took the budget from shoe pixels)
+    capped = np.array([[1024, 1024], [1024, 1024]])
+    ratio = E.variance_ratio(np.array([[[2e3, 5e4], [3e3, 1e5]]]), np.ones((2, 2)))
+    assert (E.within_budget(capped, 2048, ratio) == [[0, 1024], [0, 1024]]).all()
+    assert (E.within_budget(capped, 2048) == [[1024, 1024], [0, 0]]).all()
+    assert (E.variance_ratio(np.ones((1, 1, 3)), np.array([[2.0, np.nan, 0.0]])) == [[0.5, 0.0, 0.0]]).all()
 
 
 def _person_scene(tmp_path):

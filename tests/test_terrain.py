@@ -133,6 +133,22 @@ def test_horizon_rings_cover_the_annulus_with_planar_ccw_faces():
     assert horizon_rings(t, (100, 60), 40.0)[0].shape == (0, 3)
 
 
+def test_horizon_is_capped_at_what_the_path_tables_cover(tmp_path):
+    """The farthest ground, the rings' corners at sqrt(2) horizon_m, stays within the slant-path
+    tables' last range; a horizon beyond is refused in one line naming the key and the range."""
+    from humv_usd.atmosphere.model import PATH_RANGES_M
+    from humv_usd.scenario.spec import GROUND
+
+    hi = GROUND.keys["horizon_m"].hi
+    assert np.sqrt(2.0) * hi <= PATH_RANGES_M[-1]
+    raw = {
+        "general": {"name": "t", "start": "2024-06-21T13:00:00", "latitude_deg": 48.1, "longitude_deg": 11.6},
+        "scene": {"ground": {"material": "grass", "size_m": [40.0, 40.0], "horizon_m": 50000.0}},
+    }
+    with pytest.raises(InputError, match=r"horizon_m = 50000.0: allowed range 0.0..21000.0"):
+        validate(raw, tmp_path / "t.toml")
+
+
 def test_flat_ground_keeps_its_grid_and_adds_the_rings():
     pieces = ground_pieces(_scene())
     assert len(pieces) == 1

@@ -3,7 +3,7 @@
 Run on a machine with an NVIDIA GPU and humv-usd installed (the CPU backend needs Debian's
 libllvm19, as everywhere)::
 
-    python tools/gpu_check.py STAGE --out DIR [--sensor NAME] [--frames 0:7] [--backends cuda,llvm]
+    python tools/gpu_check.py STAGE --out DIR [--sensor NAME] [--frames 0:7] [--backends cuda,llvm] [--resolution WxH]
 
 It renders STAGE's frames once per backend, each in a fresh process (Mitsuba has one variant per
 process), with the same seed and the default automatic quality, into ``DIR/<backend>/`` with
@@ -62,8 +62,11 @@ def _parse_frames(text: str | None) -> list[int] | None:
     return [int(v) for v in text.split(",")]
 
 
-def _render(stage: str, out: str, backend: str, frames: str | None, sensor: str | None, seed: int) -> dict:
-    """Render in this process with ``backend`` forced; returns the timing summary."""
+def _render(
+    stage: str, out: str, backend: str, frames: str | None, sensor: str | None, seed: int, resolution=None
+) -> dict:
+    """Render in this process with ``backend`` forced (``resolution``: "WxH", every sensor at
+    that pixel count, as ``render --resolution``); returns the timing summary."""
     sys.path.insert(0, str(ROOT))
     from humv_usd import mode
     from humv_usd.pipeline.render import render_stage
@@ -81,6 +84,7 @@ def _render(stage: str, out: str, backend: str, frames: str | None, sensor: str 
         seed=seed,
         force=True,
         yes=True,
+        resolution=tuple(int(v) for v in resolution.lower().split("x")) if resolution else None,
     )
     wall = time.perf_counter() - t0
     summary = {
@@ -257,6 +261,7 @@ def main(argv=None) -> int:
         p.add_argument("--frames", default="0:7")
         p.add_argument("--sensor", default=None)
         p.add_argument("--seed", type=int, default=0)
+        p.add_argument("--resolution", default=None, help="WxH: every sensor at this pixel count")
         if name == "check":
             p.add_argument("--backends", default="cuda,llvm")
         else:
@@ -280,7 +285,7 @@ def main(argv=None) -> int:
             )
             logging.getLogger("humv_usd.render").setLevel(logging.DEBUG)
         out = os.path.join(args.out, args.backend)
-        summary = _render(args.stage, out, args.backend, args.frames, args.sensor, args.seed)
+        summary = _render(args.stage, out, args.backend, args.frames, args.sensor, args.seed, args.resolution)
         with open(os.path.join(args.out, f"{args.backend}_summary.json"), "w") as f:
             json.dump(summary, f, indent=1)
         _print_summary(summary)
@@ -302,6 +307,7 @@ def main(argv=None) -> int:
         cmd += ["--frames", args.frames, "--seed", str(args.seed)] + (
             ["--sensor", args.sensor] if args.sensor else []
         )
+        cmd += ["--resolution", args.resolution] if args.resolution else []
         run = subprocess.run(cmd, text=True, capture_output=True)
         sys.stdout.write(run.stdout)
         if run.returncode != 0:

@@ -391,15 +391,34 @@ def step_variance(direct, part, samples: int) -> np.ndarray:
     return step**2 / 4.0 / max(int(samples), 1)
 
 
-def within_budget(factor: np.ndarray, budget: float) -> np.ndarray:
+def within_budget(factor: np.ndarray, budget: float, need=None) -> np.ndarray:
     """``factor`` (per pixel more samples, int) kept for the pixels that need the most, the
-    largest factors first, while their sum stays within ``budget``; 0 for the rest."""
+    largest factors first, while their sum stays within ``budget``; 0 for the rest. ``need``
+    (same shape): the order instead, largest first (ties: the larger factor, then raster
+    order), e.g. the uncapped ratio of a pixel's variance to its target: the factors are capped,
+    and among the pixels at the cap raster order decided, so that on the humvvex LWIR view the
+    ground above a person's shoes took the budget from shoe pixels 100x further above target
+    (2 more batches of the automatic quality)."""
     flat = np.asarray(factor).ravel()
-    order = np.argsort(-flat, kind="stable")
+    if need is None:
+        order = np.argsort(-flat, kind="stable")
+    else:
+        key = np.nan_to_num(np.asarray(need, dtype=float).ravel(), nan=0.0, posinf=np.finfo(float).max)
+        order = np.lexsort((-flat, -key))
     keep = np.cumsum(flat[order]) <= budget
     out = np.zeros_like(flat)
     out[order[keep]] = flat[order[keep]]
     return out.reshape(np.shape(factor))
+
+
+def variance_ratio(var, target_var) -> np.ndarray:
+    """(H, W) how far each pixel's variance (c, H, W, summed over c) is above its target
+    (H, W): their ratio, 0 where there is no target or no finite variance (the order of
+    :func:`within_budget`)."""
+    v = np.nansum(np.asarray(var, float), axis=0)
+    t = np.asarray(target_var, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where((t > 0) & np.isfinite(t) & np.isfinite(v), v / t, 0.0)
 
 
 def replica_count(spp: int, wanted: int = DEFAULT_REPLICAS) -> int:
@@ -445,6 +464,95 @@ def _fibonacci_lattice(m: int) -> np.ndarray:
     return np.stack([(i + 0.5) / m, np.mod(i * 0.6180339887498949, 1.0)], axis=1)
 
 
+def _rotated_lattice_sized(mi, dr, count, index, cell, seed: int, largest: int):
+    """:func:`_rotated_lattice` with a lattice size per lane (``count``, UInt32, at most
+    ``largest``): point ``index`` of a ``count``-point Fibonacci lattice, x = (i + 1/2) / count
+    and y = frac(i phi) (the y column of :func:`_fibonacci_lattice` does not depend on the size:
+    one table up to the largest index), shifted modulo 1 by the random vector of ``cell``."""
+    n = 1 << max(int(largest) - 1, 1).bit_length()  # a power of two >= largest: few tables
+    x = (mi.Float(index) + 0.5) / mi.Float(count)
+    y = dr.gather(mi.Float, mi.Float(_golden_column(n)), index)
+    shift = mi.PCG32(size=dr.width(index), initstate=dr.opaque(mi.UInt64, seed), initseq=cell)
+    x = x + shift.next_float32()
+    y = y + shift.next_float32()
+    return x - dr.floor(x), y - dr.floor(y)
+
+
+@functools.lru_cache(maxsize=4)
+def _golden_column(n: int) -> np.ndarray:
+    """The y column of :func:`_fibonacci_lattice` for indices 0..n-1, float32 (read-only)."""
+    out = np.ascontiguousarray(_fibonacci_lattice(n)[:, 1], dtype=np.float32)
+    out.flags.writeable = False
+    return out
+
+
+class PixelLayout:
+    r"""The lanes of one camera pass that gives each pixel its own sample count (prefix-sum
+    layout): pixel k of ``pixels`` (flat indices) has ``replicas`` cells of ``points[k]``
+    consecutive lanes each, lattice indices 0..points[k]-1; the pixels follow one another in
+    the list's order. Lane :math:`\ell` belongs to the pixel k whose start
+    :math:`s_k = \sum_{i<k} r\,P_i` is the last at or before it (found on the device by a
+    prefix sum of start marks), its replica is :math:`\lfloor(\ell - s_k)/P_k\rfloor` and
+    its lattice index the remainder. Replaces one pass per distinct count (about 50 per batch of
+    the automatic quality, each traced and launched from Python) with one pass (issue 31.1);
+    every cell keeps its own stratified lattice of its full size and its own random shift, so
+    each pixel's estimate is the one a pass of that count alone gives."""
+
+    def __init__(self, pixels, points, replicas: int):
+        self.pixels = np.asarray(pixels, dtype=np.int64).ravel()
+        self.points = np.asarray(points, dtype=np.int64).ravel()
+        self.replicas = int(replicas)
+        if self.pixels.shape != self.points.shape or (self.points < 1).any():
+            raise ValueError("PixelLayout: one count >= 1 per pixel")
+        per_pixel = self.points * self.replicas
+        self.pixel_start = np.zeros(len(per_pixel), dtype=np.int64)
+        np.cumsum(per_pixel[:-1], out=self.pixel_start[1:])
+        self.lanes = int(per_pixel.sum())
+        cell_size = np.repeat(self.points, self.replicas)
+        self.cell_start = np.zeros(len(cell_size), dtype=np.int64)
+        np.cumsum(cell_size[:-1], out=self.cell_start[1:])
+        if self.lanes >= 2**32:
+            raise ValueError(f"PixelLayout: {self.lanes} lanes, at most 2^32 - 1")
+        self.count_dr = None  # set by the camera pass: the lattice size per camera lane (device)
+
+    def lanes_on_device(self, mi, dr):
+        """(k, replica, lattice index, count) per lane, UInt32 on the device."""
+        marks = dr.zeros(mi.UInt32, self.lanes)
+        if len(self.pixels) > 1:
+            dr.scatter(marks, mi.UInt32(1), mi.UInt32(self.pixel_start[1:].astype(np.uint32)))
+        k = dr.cumsum(marks)  # inclusive: the pixel position of each lane
+        start = dr.gather(mi.UInt32, mi.UInt32(self.pixel_start.astype(np.uint32)), k)
+        count = dr.gather(mi.UInt32, mi.UInt32(self.points.astype(np.uint32)), k)
+        offset = dr.arange(mi.UInt32, self.lanes) - start
+        # (at least 1: the LLVM backend divides a vector's padding lanes too, and x86 traps on 0)
+        replica = offset // dr.maximum(count, 1)
+        return k, replica, offset - replica * count, count
+
+    def cell_sums(self, values) -> np.ndarray:
+        """Per-lane values (..., lanes) summed per cell (..., pixels x replicas), float64, in a
+        fixed order (deterministic whatever the thread count)."""
+        return np.add.reduceat(np.asarray(values, dtype=np.float64), self.cell_start, axis=-1)
+
+    def cell_points(self) -> np.ndarray:
+        """Lattice points of each cell (pixels x replicas,)."""
+        return np.repeat(self.points, self.replicas)
+
+
+def merged_chunks(lanes_per_pixel, max_lanes: int) -> list[slice]:
+    """Consecutive runs of pixels whose lanes stay within ``max_lanes`` (a pixel above it alone):
+    the merged passes' memory bound (:data:`MAX_DIRECT_LANES`)."""
+    lanes = np.asarray(lanes_per_pixel, dtype=np.int64)
+    out, first, total = [], 0, 0
+    for i, n in enumerate(lanes):
+        if total and total + n > max_lanes:
+            out.append(slice(first, i))
+            first, total = i, 0
+        total += int(n)
+    if len(lanes):
+        out.append(slice(first, len(lanes)))
+    return out
+
+
 def render_band_fast(
     scene,
     sensor_id: str,
@@ -478,8 +586,8 @@ def render_band_fast(
     sample for the direct term (None: chosen by :func:`extra_direct_points`).
     ``direct_target``: ``fn(radiance (c, H, W)) -> (H, W)`` the variance [W2 m-4 sr-2] under
     which the caller wants each pixel's direct term (e.g. a share of its error target in K times
-    dL/dT); pixels above it get more pixel positions (:func:`pixel_direct_points`, one pass per
-    factor over those pixels only). ``info``: a dict filled with ``back_face_fraction`` (H, W),
+    dL/dT); pixels above it get more pixel positions (:func:`pixel_direct_points`, one pass
+    over those pixels only, each with its own count: :class:`PixelLayout`). ``info``: a dict filled with ``back_face_fraction`` (H, W),
     the share of a pixel's camera samples that saw a one-sided face from behind (rendered as the
     cavity radiance, :func:`cavity_table`), and ``pixel_direct_points`` (H, W).
     ``smooth``: shade each hit with its faces' surface terms blended to the corners and
@@ -602,23 +710,26 @@ def render_band_fast(
 
     back_counts = []  # per pass: back-side camera samples per cell
 
-    def camera_pass(points: int, shift_seed: int, reflect: bool, pixels=None):
-        """Camera samples: ``points`` stratified pixel positions per (pixel, replica) cell
-        (``pixels``: only these flat pixel indices, cells in their order); returns the per-cell
-        mean of the direct term (c, cells) and, if ``reflect``, what the reflected term needs
-        (lattice index, cell, first hit, its throughput per sub-band)."""
-        count = w * h if pixels is None else len(pixels)
-        idx = dr.arange(mi.UInt32, count * replicas * points)
-        per_cell = dr.opaque(mi.UInt32, points)  # a parameter: kernels are reused across counts
-        j = idx % per_cell
-        cell = idx // per_cell  # pixel * replicas + replica (pixels: position in the list)
-        if pixels is None:
-            pixel = cell // replicas
-            rot_cell = cell
+    def camera_pass(points, shift_seed: int, reflect: bool):
+        """Camera samples: ``points`` stratified pixel positions per (pixel, replica) cell of
+        every pixel, or a :class:`PixelLayout` (its pixels only, each with its own count, cells
+        in its order); returns the per-cell mean of the direct term (c, cells) and, if
+        ``reflect``, what the reflected term needs (lattice index, cell, first hit, its
+        throughput per sub-band)."""
+        layout = points if isinstance(points, PixelLayout) else None
+        if layout is not None:  # a count per pixel, one pass (PixelLayout)
+            k, replica, j, per_cell = layout.lanes_on_device(mi, dr)
+            pixel = dr.gather(mi.UInt32, mi.UInt32(layout.pixels.astype(np.uint32)), k)
+            rot_cell = cell = pixel * replicas + replica
+            largest = int(layout.points.max())
+            px, py = _rotated_lattice_sized(mi, dr, per_cell, j, rot_cell, shift_seed, largest)
         else:
-            pixel = dr.gather(mi.UInt32, mi.UInt32(np.asarray(pixels, dtype=np.uint32)), cell // replicas)
-            rot_cell = pixel * replicas + cell % replicas
-        px, py = _rotated_lattice(mi, dr, points, j, rot_cell, shift_seed)
+            idx = dr.arange(mi.UInt32, w * h * replicas * points)
+            per_cell = dr.opaque(mi.UInt32, points)  # a parameter: kernels are reused across counts
+            j = idx % per_cell
+            rot_cell = cell = idx // per_cell  # pixel * replicas + replica
+            pixel = cell // replicas
+            px, py = _rotated_lattice(mi, dr, points, j, rot_cell, shift_seed)
         fx = (mi.Float(pixel % w) + px) / w
         fy = (mi.Float(pixel // w) + py) / h
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(fx, fy), mi.Point2f(0.5, 0.5))
@@ -639,7 +750,10 @@ def render_band_fast(
         ]
         rho = [dr.select(front, r, 0.0) for r in rho]
         backs = dr.select(back, f32(1.0), f32(0.0))
-        back_counts.append(dr.block_sum(backs, points) if points > 1 else backs)
+        if layout is not None:
+            back_counts.append(backs)  # per lane: summed per cell below
+        else:
+            back_counts.append(dr.block_sum(backs, points) if points > 1 else backs)
         # the atmospheric path per camera sample, at the range of its first hit (sky: none)
         # (the path radiance enters each channel as one weighted sum, tabulated per channel)
         path = radiometry.path
@@ -654,6 +768,14 @@ def render_band_fast(
                 for c in range(channels)
             ]
             rho = [rho[k] * tau[k] for k in range(n)]  # the reflected term's throughput
+        if layout is not None:  # per cell, on the host in a fixed order: sums / points
+            dr.eval(direct_dr, back_counts[-1], *([rho, front, si.p, si.n, per_cell] if reflect else []))
+            back_counts[-1] = layout.cell_sums(back_counts[-1])
+            direct = layout.cell_sums(np.stack([np.asarray(v) for v in direct_dr])) / layout.cell_points()
+            if not reflect:
+                return direct, None
+            layout.count_dr = per_cell  # the reflected term's lattice sizes, per camera lane
+            return direct, (j, cell, front, si, rho)
         # per (pixel, replica) cell: the mean of its lattice points, per channel
         if points > 1:
             inv_points = dr.opaque(f32, 1.0 / points)
@@ -684,11 +806,17 @@ def render_band_fast(
             par = dr.gather(mi.UInt32, parent, b // splits)
             d_index = dr.gather(mi.UInt32, j, par) * splits + b % splits
             par_cell = dr.gather(mi.UInt32, cell, par)
-            u1, u2 = _rotated_lattice(mi, dr, points * splits, d_index, par_cell, dir_seed)
+            if isinstance(points, PixelLayout):  # a lattice size per cell (count per camera lane)
+                sized = dr.gather(mi.UInt32, points.count_dr, par) * splits
+                largest = int(points.points.max()) * splits
+                u1, u2 = _rotated_lattice_sized(mi, dr, sized, d_index, par_cell, dir_seed, largest)
+                inv_lanes = 1.0 / f32(points.count_dr * splits)  # per camera lane
+            else:
+                u1, u2 = _rotated_lattice(mi, dr, points * splits, d_index, par_cell, dir_seed)
+                inv_lanes = dr.opaque(f32, 1.0 / (splits * points))
             p0 = dr.gather(mi.Point3f, si.p, par)
             n0 = mi.Vector3f(dr.gather(mi.Normal3f, si.n, par))
             beta = None  # first bounce: read from the camera vertices' throughput when needed
-            inv_lanes = dr.opaque(f32, 1.0 / (splits * points))
 
             def beta_at(lanes):
                 """Throughput per sub-band of the given lanes (at the first bounce each lane's term
@@ -696,7 +824,8 @@ def render_band_fast(
                 if beta is not None:
                     return [dr.gather(f32, bk, lanes) for bk in beta]
                 src = dr.gather(mi.UInt32, parent, lanes // splits)
-                return [dr.gather(f32, bk, src) * inv_lanes for bk in beta0]
+                inv = inv_lanes if dr.width(inv_lanes) == 1 else dr.gather(f32, inv_lanes, src)
+                return [dr.gather(f32, bk, src) * inv for bk in beta0]
 
             lane_id = b
             origin = dr.gather(mi.UInt32, triangle(si, front), par)  # the face each ray leaves
@@ -781,6 +910,10 @@ def render_band_fast(
                     mi.Point2f(dr.gather(f32, u1, keep), dr.gather(f32, u2, keep))
                 )
                 ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), mi.Frame3f(n0).to_world(local))
+        if isinstance(points, PixelLayout):  # lanes -> camera samples -> cells (host, fixed order)
+            return points.cell_sums(
+                np.stack([_lanes_to_cells(mi, dr, a, parent, splits, samples, 1) for a in acc])
+            )
         return np.stack(
             [np.asarray(_lanes_to_cells(mi, dr, a, parent, splits, samples, points)) for a in acc]
         )
@@ -841,31 +974,35 @@ def render_band_fast(
         r_cells = reflect_r.reshape(channels, h * w, replicas)
         # 1. the reflected part above half the target: more camera samples with their reflections
         boost_reflect = pixel_direct_points(scale * reflect_var, 0.5 * target, MAX_PIXEL_REFLECT_FACTOR)
-        boost_reflect = within_budget(boost_reflect, max(BOOST_BUDGET * h * w, MIN_BOOST_BUDGET))
-        for factor in np.unique(boost_reflect[boost_reflect > 0]):
-            chosen = np.flatnonzero(boost_reflect.ravel() == factor)
-            points = lattice_n * int(factor)
-            step = max(1, MAX_DIRECT_LANES // (replicas * points * splits))
-            for first in range(0, len(chosen), step):
-                pixels = chosen[first : first + step]
-                salt = int(factor) * 7919 + first
-                more_d, cam = camera_pass(points, seeds[0] + salt, True, pixels)
-                more_r = reflect_pass(
-                    *cam, points, len(pixels) * replicas * points, seeds[1] + salt, seeds[2] + (salt << 8)
-                )
-                shape = (channels, len(pixels), replicas)
-                r_cells[:, pixels, :] = (r_cells[:, pixels, :] + factor * more_r.reshape(shape)) / (
-                    1 + factor
-                )
-                d_cells[:, pixels, :] = (
-                    positions[pixels, None] * d_cells[:, pixels, :] + factor * more_d.reshape(shape)
-                ) / (positions[pixels, None] + factor)
-                positions[pixels] += factor
-                back_seen[pixels] += (
-                    np.asarray(back_counts.pop(), np.float64).reshape(-1, replicas).sum(axis=1)
-                )
-                samples_seen[pixels] += spp * int(factor)
-            note("reflected term: %d more camera samples in %d pixels", int(factor), len(chosen))
+        boost_reflect = within_budget(
+            boost_reflect,
+            max(BOOST_BUDGET * h * w, MIN_BOOST_BUDGET),
+            variance_ratio(scale * reflect_var, 0.5 * target),
+        )
+        # one pass for all the chosen pixels, each with its own count (PixelLayout), in chunks
+        # of at most MAX_DIRECT_LANES reflection lanes; seeds apart from the batch's own passes
+        chosen = np.flatnonzero(boost_reflect.ravel() > 0)
+        factors = boost_reflect.ravel()[chosen].astype(np.int64)
+        lanes = replicas * lattice_n * factors * splits
+        for c, part in enumerate(merged_chunks(lanes, MAX_DIRECT_LANES)):
+            pixels, factor = chosen[part], factors[part]
+            layout = PixelLayout(pixels, lattice_n * factor, replicas)
+            more_d, cam = camera_pass(layout, seeds[0] + 1, True)
+            more_r = reflect_pass(*cam, layout, layout.lanes, seeds[1] + 1, seeds[2] + ((c + 1) << 8))
+            shape = (channels, len(pixels), replicas)
+            f = factor[None, :, None].astype(float)
+            r_cells[:, pixels, :] = (r_cells[:, pixels, :] + f * more_r.reshape(shape)) / (1 + f)
+            d_cells[:, pixels, :] = (
+                positions[pixels][None, :, None] * d_cells[:, pixels, :] + f * more_d.reshape(shape)
+            ) / (positions[pixels][None, :, None] + f)
+            positions[pixels] += factor
+            back_seen[pixels] += np.asarray(back_counts.pop(), np.float64).reshape(-1, replicas).sum(axis=1)
+            samples_seen[pixels] += spp * factor
+            note(
+                "reflected term: %d more reflection lanes in %d pixels (one pass)",
+                int(lanes[part].sum()),
+                len(pixels),
+            )
         if boost_reflect.any():
             direct, direct_var = replica_stats(direct_r)
             reflect_mean, reflect_var = replica_stats(reflect_r)
@@ -878,29 +1015,33 @@ def render_band_fast(
         # the positions the cells have
         direct_goal = np.maximum(target - scale * np.nansum(reflect_var, axis=0), 0.5 * target)
         floor = step_variance(direct, hits.part, replicas * lattice_n) / positions.reshape(h, w)
-        boost = pixel_direct_points(scale * np.maximum(direct_var.sum(axis=0), floor)[None], direct_goal)
+        direct_need = scale * np.maximum(direct_var.sum(axis=0), floor)[None]
+        boost = pixel_direct_points(direct_need, direct_goal)
         boost = boost * positions.reshape(h, w)
         boost = within_budget(
             np.minimum(boost, MAX_PIXEL_DIRECT_FACTOR).astype(np.int64),
             max(DIRECT_BOOST_BUDGET * h * w, 16 * MIN_BOOST_BUDGET),
+            variance_ratio(direct_need, direct_goal),
         )
-        for factor in np.unique(boost[boost > 0]):
-            chosen = np.flatnonzero(boost.ravel() == factor)
-            points = lattice_n * int(factor)
-            step = max(1, MAX_DIRECT_LANES // (replicas * points))
-            for first in range(0, len(chosen), step):
-                pixels = chosen[first : first + step]
-                more, _ = camera_pass(points, seeds[3] + int(factor) * 7919 + first, False, pixels)
-                more = more.reshape(channels, len(pixels), replicas)
-                d_cells[:, pixels, :] = (positions[pixels, None] * d_cells[:, pixels, :] + factor * more) / (
-                    positions[pixels, None] + factor
-                )
-                positions[pixels] += factor
-                back_seen[pixels] += (
-                    np.asarray(back_counts.pop(), np.float64).reshape(-1, replicas).sum(axis=1)
-                )
-                samples_seen[pixels] += spp * int(factor)
-            note("direct term: %d more positions per camera sample in %d pixels", int(factor), len(chosen))
+        chosen = np.flatnonzero(boost.ravel() > 0)
+        factors = boost.ravel()[chosen].astype(np.int64)
+        lanes = replicas * lattice_n * factors
+        for part in merged_chunks(lanes, MAX_DIRECT_LANES):
+            pixels, factor = chosen[part], factors[part]
+            more, _ = camera_pass(PixelLayout(pixels, lattice_n * factor, replicas), seeds[3] + 1, False)
+            more = more.reshape(channels, len(pixels), replicas)
+            f = factor[None, :, None].astype(float)
+            d_cells[:, pixels, :] = (positions[pixels][None, :, None] * d_cells[:, pixels, :] + f * more) / (
+                positions[pixels][None, :, None] + f
+            )
+            positions[pixels] += factor
+            back_seen[pixels] += np.asarray(back_counts.pop(), np.float64).reshape(-1, replicas).sum(axis=1)
+            samples_seen[pixels] += spp * factor
+            note(
+                "direct term: %d more pixel positions in %d pixels (one pass)",
+                int(lanes[part].sum()),
+                len(pixels),
+            )
         if boost.any():
             direct, direct_var = replica_stats(direct_r)
     if info is not None:

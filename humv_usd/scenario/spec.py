@@ -404,10 +404,11 @@ GROUND = Section(
             "distance from the origin [m] (same material; on the terrain's plane), so that "
             "cameras see ground up to the horizon (a flat disc of radius sqrt(2 R h) shows the "
             "horizon's true dip for a camera h above the ground: 20 km for h = 30 m); 0: the "
-            "ground ends at size_m.",
+            "ground ends at size_m. At most 21 km: the rings' corners (sqrt(2) x 21 km = "
+            "29.7 km) stay within the atmosphere's slant-path tables (30 km).",
             default=20000.0,
             lo=0.0,
-            hi=2.0e5,
+            hi=21000.0,
         ),
     },
 )
