@@ -225,6 +225,9 @@ def test_single_key_edit_rebuilds_exactly_what_reads_it(out, raw, key):
     if key == "sensor netd and agc":
         assert doc["sensors"]["why"] == "inputs changed: @netdOrigin, sensor.0.netd_k, sensor.1.agc"
         assert doc["thermal"]["why"] == doc["atmosphere_paths"]["why"] == "cached"
+        from humv_usd.sweep.plan import layer_keys  # the sweep predicts the same keys
+
+        assert layer_keys(validate(raw)) == {n: doc[n]["key"] for n in ALL}
 
 
 def test_scene_reads_the_clock_and_air_only_for_warm_clutter(raw):

@@ -407,6 +407,17 @@ def compose(
         return _compose_locked(scenario, out, force, progress)
 
 
+def downstream_key(tool, values: dict, upstream: dict) -> str | None:
+    """The key the layers built on ``tool``'s layer see: its inputs key without the values of
+    the tool's ``RENDER_ONLY`` read paths (inputs only the render reads); None when it declares
+    none (then they see its key). The sweep's ``layer_keys`` predicts keys with it too."""
+    patterns = getattr(tool.module, "RENDER_ONLY", ())
+    if not patterns:
+        return None
+    kept = {k: v for k, v in values.items() if not any(fnmatchcase(k, p) for p in patterns)}
+    return inputs_key(tool.version, kept, upstream)
+
+
 def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -> ComposeReport:
     t0 = time.perf_counter()
     layer_dir = out / LAYER_DIR
@@ -429,10 +440,7 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
         values = read_values(scenario, node.tool.reads, node.human_id)
         key = inputs_key(node.tool.version, values, upstream)
         states[name] = LayerState(name, key, values, upstream)
-        render_only = getattr(node.tool.module, "RENDER_ONLY", ())
-        if render_only:
-            kept = {k: v for k, v in values.items() if not any(fnmatchcase(k, p) for p in render_only)}
-            states[name].downstream_key = inputs_key(node.tool.version, kept, upstream)
+        states[name].downstream_key = downstream_key(node.tool, values, upstream)
         error = _decide(node, states[name], layer_dir / f"{name}.usda", prev_layers.get(name), force)
         errors += [error] if error else []
     keys = {name: st.key for name, st in states.items()}

@@ -71,11 +71,13 @@ def layer_keys(scenario: Scenario) -> dict[str, str]:
     needed, _ = compose_mod.plan(scenario)
     nodes = layer_graph(scenario, needed)
     keys: dict[str, str] = {}
+    passed: dict[str, str] = {}  # the key downstream layers see (without render-only inputs)
     for name in build_order(nodes):
         node = nodes[name]
-        upstream = {u: keys[u] for u in node.upstream}
+        upstream = {u: passed[u] for u in node.upstream}
         values = read_values(scenario, node.tool.reads, node.human_id)
         keys[name] = inputs_key(node.tool.version, values, upstream)
+        passed[name] = compose_mod.downstream_key(node.tool, values, upstream) or keys[name]
     return keys
 
 
