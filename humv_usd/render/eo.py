@@ -244,6 +244,7 @@ class EOScene(IRScene):
         self._m2 = channels.index("m2_nested.Y")
         self._positions = {p.key: np.asarray(v, dtype=np.float32) for p, v, _ in parts}
         self._flips = {p.key: bool(f) for p, _, f in parts}
+        self.geometry_version = 0  # as IRScene: the smooth-shading blend is cached against it
 
     def _mi(self):
         self.mi = mode.mitsuba(spectral=True)
