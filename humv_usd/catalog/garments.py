@@ -13,7 +13,9 @@ face nearest to its centre, and its position along a bone: ``t`` = projection of
 centre on the bone's axis, 0 at the joint (head), 1 at the bone's tail (the child joint), in the
 rest pose. A :class:`Cover` keeps faces of its regions with ``t_min <= t + tilt * y' <= t_max``
 (``y'`` = depth behind the bone's head in bone lengths, + = towards the back; it tilts the cut,
-e.g. a cap lower at the back than at the forehead). Region names without a side
+e.g. a cap lower at the back than at the forehead); ``level`` covers measure ``t`` by height
+instead (a level hem). Garments are cut along smooth curves, not along the source's quads
+(:func:`humv_usd.clothing.fit.cut_fields`). Region names without a side
 (``upperArm``, ``lowerLeg``...) and bone names without a side (``Arm``, ``UpLeg``...) apply to
 both sides.
 
@@ -60,6 +62,9 @@ class Cover:
     t_min: float = float("-inf")
     t_max: float = float("inf")
     tilt: float = 0.0
+    #: measure the position by height instead: t = (z - z_head) / (z_tail - z_head) in the rest
+    #: pose, so the cut is level (a hem), not square to a tilted bone
+    level: bool = False
 
 
 @dataclass(frozen=True)
@@ -139,6 +144,16 @@ _JACKET_HEM = -0.9  # the crotch is at -1.15 (men) .. -1.45 (women)
 
 _VEST_HEM = 0.5  # carrier ends half way between the hip joints and the waist
 _TOP = TORSO
+
+
+def _hem(t_min: float) -> Cover:
+    """The trunk above a level hem at height ``t_min`` of the Hips bone: one cut across every
+    region (torso, pelvis and the tops of the thighs at the groin and the hip sides). The Hips
+    bone leans back ~20 deg, so a cut square to it was 7 cm higher at the front than at the back;
+    cut on the pelvis alone, it met the thighs' region border at the groin and left notches."""
+    return Cover(_TOP + ("pelvis", "upperLeg"), "Hips", t_min=t_min, level=True)
+
+
 #: Layer of props: after every garment (they are never under one).
 PROP_LAYER = 9
 
@@ -210,11 +225,10 @@ GLASSES = Prop(
 
 
 def _catalogue() -> dict[str, Garment]:
-    tshirt_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(0.45)
-    longsleeve_cover = (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_TSHIRT_HEM)) + _arms(None, 0.93)
+    tshirt_cover = (_hem(_TSHIRT_HEM),) + _arms(0.45)
+    longsleeve_cover = (_hem(_TSHIRT_HEM),) + _arms(None, 0.93)
     jacket_cover = (
-        Cover(_TOP),
-        Cover(("pelvis",), "Hips", t_min=_JACKET_HEM),
+        _hem(_JACKET_HEM),
         Cover(("neck",), "Neck", t_max=0.6),
     ) + _arms(None, 0.95)
     shorts_cover = _TROUSER_TOP + (Cover(("upperLeg",), "UpLeg", t_max=0.5),)
@@ -290,7 +304,7 @@ def _catalogue() -> dict[str, Garment]:
             "soft body armour carrier worn under the clothing: close-fitting, "
             "no sleeves, torso from above the hips to the neckline (part of the body for "
             "the garments over it)",
-            (Part("tights", (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_VEST_HEM)), 0.004),),
+            (Part("tights", (_hem(_VEST_HEM),), 0.004),),
             "kevlar_vest",
             1,
             body_like=True,
@@ -308,14 +322,14 @@ def _catalogue() -> dict[str, Garment]:
         Garment(
             "shoes",
             "black leather shoes: the feet up to the ankles (one shell over the foot, sole included)",
-            (Part("body", (Cover(("foot",)),), 0.004),),
+            (Part("tights", (Cover(("foot",)),), 0.0),),
             "leather_black",
             2,
         ),
         Garment(
             "boots",
             "black rubber boots: the feet and the lower shins",
-            (Part("body", (Cover(("foot",)), Cover(("lowerLeg",), "Leg", t_min=0.6)), 0.005),),
+            (Part("tights", (Cover(("foot",)), Cover(("lowerLeg",), "Leg", t_min=0.6)), 0.001),),
             "rubber_black",
             2,
         ),
@@ -422,7 +436,7 @@ def _catalogue() -> dict[str, Garment]:
             (
                 Part(
                     "tights",
-                    (Cover(_TOP), Cover(("pelvis",), "Hips", t_min=_JACKET_HEM)) + _arms(None, 0.95),
+                    (_hem(_JACKET_HEM),) + _arms(None, 0.95),
                     0.010,
                 ),
                 Part("body", (Cover(("head",), "Head", t_min=0.1, tilt=0.8),), 0.022),
@@ -462,7 +476,7 @@ def _catalogue() -> dict[str, Garment]:
         Garment(
             "socks",
             "white cotton socks: the feet and the ankles (under shoes or boots)",
-            (Part("body", (Cover(("foot",)), Cover(("lowerLeg",), "Leg", t_min=0.75)), 0.0015),),
+            (Part("tights", (Cover(("foot",)), Cover(("lowerLeg",), "Leg", t_min=0.75)), 0.0),),
             "cotton_white",
             1,
         ),

@@ -205,8 +205,8 @@ def dress(rig: BodyRig, names, refined: bool = True) -> Outfit:
                 continue
             dist, _ = cKDTree(np.concatenate(others)).query(anchors[k])
             near = dist < LAYER_RADIUS
-            quads = np.asarray(g.face_indices).reshape(-1, 4)
-            fitted[k] = refine(g, joints, near[quads].any(axis=1))
+            starts = np.concatenate([[0], np.cumsum(g.face_counts)[:-1]])
+            fitted[k] = refine(g, joints, np.logical_or.reduceat(near[g.face_indices], starts))
         anchors = [rig.surface.closest(g.points).point for g in fitted]
     under: list[list] = []
     for o, outer in enumerate(fitted):
@@ -645,14 +645,34 @@ def simulate(
                 fixed = posed
             else:
                 fixed, dist, counts = push_out(surface, posed, required, gap)
-                for shell, flat, thickness in shells:
-                    fixed, was, left = push_off_shell(shell, flat, fixed, thickness + gap)
-                    counts.layered_before += was
-                    counts.layered_after += left
-                if shells:  # the shell pass moved some: skin re-check
+                for round_ in range(PROP_ROUNDS if shells else 0):  # off the shells, skin re-check
+                    left_all = 0
+                    for shell, flat, thickness in shells:
+                        fixed, was, left = push_off_shell(shell, flat, fixed, thickness + gap)
+                        if round_ == 0:
+                            counts.layered_before += was
+                        left_all += left
                     fixed, dist, again = push_out(surface, fixed, required, gap)
                     counts.inside_after, counts.close_after = again.inside_after, again.close_after
                     counts.min_distance_m = again.min_distance_m
+                    # a skin push can put a vertex back into a shell (beside a vest's armhole)
+                    left_all = sum(
+                        push_off_shell(shell, flat, fixed, thickness + gap)[1]
+                        for shell, flat, thickness in shells
+                    )
+                    if not left_all:
+                        break
+                if shells and left_all:  # where the two disagree (beside an armhole) the shell wins
+                    for shell, flat, thickness in shells:
+                        fixed, _, left = push_off_shell(shell, flat, fixed, thickness + gap)
+                    dist, again = measure(surface, fixed, gap)
+                    counts.inside_after, counts.close_after = again.inside_after, again.close_after
+                    counts.min_distance_m = again.min_distance_m
+                    left_all = sum(
+                        push_off_shell(shell, flat, fixed, thickness + gap)[1]
+                        for shell, flat, thickness in shells
+                    )
+                counts.layered_after += left_all if shells else 0
                 if samples[k] is not None:  # between the vertices (body, inner garments)
                     fixed, dist, was, left = push_between(
                         surface, fixed, dist, samples[k], gap, required, worn

@@ -1,7 +1,12 @@
 """Fit catalogue garments to a fitted MakeHuman body and skin them to its skeleton.
 
-Rest shape. The garment keeps the faces of its source mesh that its :class:`Cover` rules
-select (see :mod:`humv_usd.catalog.garments`) and moves every vertex by the part's ease along
+Rest shape. The garment keeps the part of its source mesh that its :class:`Cover` rules
+select (see :mod:`humv_usd.catalog.garments`), cut along smooth curves rather than along the
+source's quads (:func:`cut_fields`, :func:`clip_faces`: two per-vertex fields, the smoothed
+indicator of the covered regions and the signed distance inside the covers' bone intervals; the
+quads crossing their zero levels are clipped there, so hems are planes and necklines smooth
+curves, not 2 cm staircases; a cover only a face or two wide keeps its faces whole), and moves
+every vertex by the part's ease along
 the source surface's outward vertex normal: ``rest = helper + ease * n``. The helpers already
 follow the body (MakeHuman's targets deform them with it), so this fits any body from
 :func:`humv_usd.human.body.build_body`. The helper's own normal is used rather than the body's
@@ -42,6 +47,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from humv_usd.catalog.garments import SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part, Prop, Shape, garment
 from humv_usd.geometry.mesh import Surface, fan_triangulate, vertex_normals
@@ -174,11 +181,15 @@ def _expand(cover: Cover) -> list[tuple[set[int], str | None]]:
     return [(ids, cover.bone)]
 
 
-def _bone_position(skeleton: Skeleton, joint: str, p: np.ndarray, tilt: float) -> np.ndarray:
+def _bone_position(
+    skeleton: Skeleton, joint: str, p: np.ndarray, tilt: float, level: bool = False
+) -> np.ndarray:
     """Position of points along a bone (0 head, 1 tail) plus ``tilt`` x depth behind the head
-    in bone lengths."""
+    in bone lengths; ``level``: by height, (z - z_head) / (z_tail - z_head)."""
     j = skeleton.index(joint)
     head, tail = skeleton.rest_positions[j], skeleton.tail_positions[j]
+    if level:
+        return (p[:, 2] - head[2]) / (tail[2] - head[2])
     axis = tail - head
     length2 = float(axis @ axis)
     t = (p - head) @ axis / length2
@@ -199,7 +210,7 @@ def select_faces(rig: BodyRig, part: MeshPart, covers: tuple[Cover, ...]) -> tup
         for ids, joint in _expand(cover):
             sel = np.isin(region, sorted(ids))
             if joint is not None:
-                t = _bone_position(rig.skeleton, joint, centres, cover.tilt)
+                t = _bone_position(rig.skeleton, joint, centres, cover.tilt, cover.level)
                 sel &= (t >= cover.t_min) & (t <= cover.t_max)
             keep |= sel
     return keep, region
@@ -259,16 +270,220 @@ def _loose_weights(rig: BodyRig, points: np.ndarray, faces: np.ndarray) -> np.nd
     return w
 
 
+# ---------------------------------------------------------------------------- cutting
+#: Laplacian smoothing steps of a part's covered-region indicator before it is cut at 1/2
+#: (the cut then runs as a smooth curve across the quads, not along their staircase).
+CUT_SMOOTHING = 8
+#: A vertex whose cut value is within this fraction of its largest change along an edge is
+#: put on the cut (no sliver faces where the cut passes next to a vertex).
+CUT_SNAP = 0.1
+#: Smallest |value| of the region field at a vertex whose faces are all (none) covered.
+CUT_MARGIN = 0.05
+#: Cap [m] of the bone-position term of the cut (regions without a bone limit: +this).
+CUT_REACH = 0.1
+
+
+def _vertex_edges(faces: list[list[int]] | np.ndarray) -> np.ndarray:
+    """Unique undirected edges (e, 2) of polygon faces."""
+    e = [(f[k], f[(k + 1) % len(f)]) for f in faces for k in range(len(f))]
+    return np.unique(np.sort(np.asarray(e, dtype=np.int64), axis=1), axis=0)
+
+
+def _smooth(values: np.ndarray, edges: np.ndarray, steps: int) -> np.ndarray:
+    """``steps`` of uniform Laplacian smoothing (lambda 1/2) of per-vertex ``values``."""
+    degree = np.bincount(edges.ravel(), minlength=len(values)).astype(np.float64)
+    v = values.astype(np.float64)
+    for _ in range(steps):
+        s = np.bincount(edges[:, 0], weights=v[edges[:, 1]], minlength=len(v))
+        s += np.bincount(edges[:, 1], weights=v[edges[:, 0]], minlength=len(v))
+        v = np.where(degree > 0, 0.5 * v + 0.5 * s / np.maximum(degree, 1.0), v)
+    return v
+
+
+def cut_fields(rig: BodyRig, points: np.ndarray, quads: np.ndarray, region: np.ndarray, covers) -> tuple:
+    """Per-vertex fields whose common positive set is what ``covers`` keep of a quad mesh.
+
+    ``(regions, bone)``: ``regions`` = the indicator of the covered faces (their region in a
+    cover's regions), averaged to the vertices and smoothed (:data:`CUT_SMOOTHING` steps), minus
+    1/2 (held at >= :data:`CUT_MARGIN` where all of a vertex's faces are covered, <= -that where
+    none is): its zero level runs along the border of the covered regions as a smooth curve. ``bone``
+    = the distance [m] inside a cover's bone interval (``min(t - t_min, t_max - t)`` x bone
+    length, capped at :data:`CUT_REACH`), per vertex the largest over the covers whose regions
+    the vertex touches (a vertex outside all of them: those its neighbours touch; +:data:`CUT_REACH`
+    far from them, where the region field cuts): its zero level is the plane t = t_min (t_max) of :func:`_bone_position`, a straight
+    hem, cuff or brim.
+    """
+    n = len(points)
+    corners = quads.ravel()
+    face_of = np.repeat(np.arange(len(quads)), 4)
+    valence = np.bincount(corners, minlength=n).astype(np.float64)
+    edges = _vertex_edges(quads)
+    covered = np.zeros(len(quads), dtype=bool)
+    for cover in covers:
+        for ids, _ in _expand(cover):
+            covered |= np.isin(region, sorted(ids))
+    outside = np.bincount(corners, weights=covered[face_of], minlength=n) == 0
+    bone = np.full(n, -np.inf)
+    touched = np.zeros(n, dtype=bool)
+    for cover in covers:
+        for ids, joint in _expand(cover):
+            mine = np.isin(region, sorted(ids))
+            touch = np.bincount(corners, weights=mine[face_of], minlength=n) > 0
+            # vertices outside every cover take the terms of their neighbours' covers: the
+            # term is then continuous across the edges the cut crosses
+            near = np.zeros(n, dtype=bool)
+            near[edges[:, 0]] |= touch[edges[:, 1]]
+            near[edges[:, 1]] |= touch[edges[:, 0]]
+            touch |= near & outside
+            if joint is None:
+                inside = np.full(n, CUT_REACH)
+            else:
+                j = rig.skeleton.index(joint)
+                axis = rig.skeleton.tail_positions[j] - rig.skeleton.rest_positions[j]
+                length = float(abs(axis[2]) if cover.level else np.linalg.norm(axis))
+                t = _bone_position(rig.skeleton, joint, points, cover.tilt, cover.level)
+                inside = np.minimum(t - cover.t_min, cover.t_max - t) * length
+            bone = np.where(touch, np.maximum(bone, np.minimum(inside, CUT_REACH)), bone)
+            touched |= touch
+    bone[~touched] = CUT_REACH
+    share = np.bincount(corners, weights=covered[face_of], minlength=n) / np.maximum(valence, 1.0)
+    regions = _smooth(share, edges, CUT_SMOOTHING) - 0.5
+    # the smoothing moves the cut only among the border's vertices (those touching covered and
+    # uncovered faces): a vertex with all its faces covered stays in, none covered out (no holes
+    # where a covered strip is narrow, no islands)
+    regions = np.where(share >= 1.0, np.maximum(regions, CUT_MARGIN), regions)
+    regions = np.where(share <= 0.0, np.minimum(regions, -CUT_MARGIN), regions)
+    return regions, bone
+
+
+def _snap(field: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """``field`` with values near zero (see :data:`CUT_SNAP`) set to zero."""
+    change = np.zeros(len(field))
+    step = np.abs(field[edges[:, 0]] - field[edges[:, 1]])
+    np.maximum.at(change, edges[:, 0], step)
+    np.maximum.at(change, edges[:, 1], step)
+    out = field.copy()
+    out[np.abs(field) < CUT_SNAP * change] = 0.0
+    return out
+
+
+def clip_faces(faces: list[list[int]], fields: list[np.ndarray]):
+    """Clip polygon ``faces`` to where every per-vertex field in ``fields`` is >= 0.
+
+    Each field is linear along an edge: a polygon crossing its zero level keeps its part on the
+    positive side (Sutherland-Hodgman against the level, one field after the other), with a new
+    vertex where the level crosses an edge, shared by the two polygons on that edge (no crack).
+    Values are first snapped to 0 near a vertex (:func:`_snap`). Returns (faces, parent face of
+    each, new vertices as (a, b, s): the point a + s (b - a) of existing vertices a, b; new
+    vertices of a later field may lie on edges of earlier new ones).
+    """
+    parent = list(range(len(faces)))
+    n = max((max(f) for f in faces), default=-1) + 1
+    new: list[tuple[int, int, float]] = []
+    fields = [np.asarray(f, dtype=np.float64) for f in fields]
+    for k in range(len(fields)):
+        f = _snap(fields[k], _vertex_edges(faces)) if faces else fields[k]
+        fields[k] = f
+        made: dict[tuple[int, int], int] = {}
+        out, out_parent = [], []
+        for face, par in zip(faces, parent):
+            values = f[face]
+            if np.all(values >= 0):
+                out.append(face)
+                out_parent.append(par)
+                continue
+            if np.all(values <= 0):
+                continue
+            ring = []
+            for i, a in enumerate(face):
+                b = face[(i + 1) % len(face)]
+                fa, fb = f[a], f[b]
+                if fa >= 0:
+                    ring.append(a)
+                if (fa > 0 > fb) or (fb > 0 > fa):
+                    key = (min(a, b), max(a, b))
+                    if key not in made:
+                        lo, hi = key
+                        made[key] = n + len(new)
+                        new.append((lo, hi, f[lo] / (f[lo] - f[hi])))
+                    ring.append(made[key])
+            if len(ring) >= 3:
+                out.append(ring)
+                out_parent.append(par)
+        # the new vertices' values in the fields still to come (linear along their edge)
+        if made:
+            ids = np.array(sorted(made.values()))
+            a, b, s = (np.array(x) for x in zip(*(new[i - n] for i in ids)))
+            for j in range(len(fields)):
+                g = fields[j]
+                grown = np.concatenate([g, np.zeros(n + len(new) - len(g))])
+                grown[ids] = g[a] + s * (g[b] - g[a]) if j > k else 0.0
+                fields[j] = grown
+        faces, parent = out, out_parent
+    return faces, parent, new
+
+
+def _openings(faces) -> int:
+    """Number of connected pieces of the border (edges of one face only) of polygon ``faces``."""
+    e = np.array([(f[k], f[(k + 1) % len(f)]) for f in faces for k in range(len(f))], dtype=np.int64)
+    if not len(e):
+        return 0
+    key, count = np.unique(np.sort(e, axis=1), axis=0, return_counts=True)
+    border = key[count == 1]
+    if not len(border):
+        return 0
+    ids, local = np.unique(border, return_inverse=True)
+    local = local.reshape(-1, 2)
+    graph = coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])), shape=(len(ids), len(ids)))
+    return int(connected_components(graph, directed=False)[0])
+
+
+def _cut(points: np.ndarray, normals: np.ndarray, faces, fields):
+    """Clip (:func:`clip_faces`), then the kept vertices' (points, normals), the faces renumbered
+    over them and each face's parent."""
+    faces, parent, new = clip_faces([list(map(int, f)) for f in faces], fields)
+    if not faces:
+        return points[:0], normals[:0], [], np.zeros(0, dtype=int)
+    n = len(points)
+    p = np.concatenate([np.asarray(points, dtype=np.float64), np.zeros((len(new), 3))])
+    nrm = np.concatenate([np.asarray(normals, dtype=np.float64), np.zeros((len(new), 3))])
+    for i, (a, b, s) in enumerate(new):  # in order: a later one may lie on an earlier one's edge
+        p[n + i] = p[a] + s * (p[b] - p[a])
+        m = nrm[a] + s * (nrm[b] - nrm[a])
+        nrm[n + i] = m / max(float(np.linalg.norm(m)), 1e-12)
+    used = np.unique(np.concatenate(faces))
+    remap = np.full(len(p), -1)
+    remap[used] = np.arange(len(used))
+    return p[used], nrm[used], [remap[f] for f in faces], np.asarray(parent)
+
+
 # ---------------------------------------------------------------------------- fitting
 def _fit_part(rig: BodyRig, part: Part):
+    """(rest points, faces as vertex lists, joint indices, weights, region per face) of one
+    Part: the source faces its covers keep, cut along smooth curves (:func:`cut_fields`,
+    :func:`clip_faces`), offset by the ease."""
     source, normals = _source(rig, part.source)
     quads = np.asarray(source.face_indices).reshape(-1, 4)  # all sources are quads
     keep, region = select_faces(rig, source, part.cover)
-    faces = quads[keep]
-    used, remap = np.unique(faces.ravel(), return_inverse=True)
-    faces = remap.reshape(-1, 4)
-    p = source.points[used]
-    n = normals[used]
+    cut = None
+    if part.cover and not part.loose:
+        fields = cut_fields(rig, source.points, quads, region, part.cover)
+        cut = _cut(source.points, normals, quads, fields)
+        if len(cut[2]) < 0.5 * keep.sum():  # a strip a face or two wide (a hair tail): faces
+            cut = None
+        elif _openings(cut[2]) > _openings(quads[keep]):
+            # the cut tore the part (regions interleaved where a hanging hand's tights face is
+            # labelled as the hip beside it, e.g. a jacket's cuff on a short woman): the faces
+            cut = None
+    if cut is not None:
+        p, n, faces, parent = cut
+        region = region[parent]
+    else:
+        faces = quads[keep]
+        used, remap = np.unique(faces.ravel(), return_inverse=True)
+        faces = remap.reshape(-1, 4)
+        p, n = source.points[used], normals[used]
+        region = region[keep]
     body_n = rig.surface.closest(p).normal
     n = np.where(np.einsum("ij,ij->i", n, body_n)[:, None] < 0, -n, n)
     rest = p + part.ease * n
@@ -277,7 +492,7 @@ def _fit_part(rig: BodyRig, part: Part):
         idx, w = _top_k(dense, INFLUENCES)
     else:
         idx, w = transfer_weights(rig, rest)
-    return rest, faces, idx, w, region[keep]
+    return rest, [list(map(int, f)) for f in faces], idx, w, region
 
 
 def fit_garment(rig: BodyRig, name: str, refined: bool = False) -> FittedGarment:
@@ -294,15 +509,14 @@ def fit_garment(rig: BodyRig, name: str, refined: bool = False) -> FittedGarment
         if not len(f):
             raise ValueError(f"garment {g.name!r}: part {k} ({part.source}) selects no faces")
         pts.append(rest)
-        faces.append(f + offset)
+        faces += [[v + offset for v in face] for face in f]
         idx.append(i)
         wts.append(w)
         regions.append(r)
         part_of.append(np.full(len(rest), k))
         offset += len(rest)
-    faces = np.concatenate(faces)
-    counts = np.full(len(faces), 4)
-    flat = faces.ravel()
+    counts = np.array([len(f) for f in faces])
+    flat = np.array([v for f in faces for v in f])
     fitted = FittedGarment(
         g,
         np.concatenate(pts),
@@ -326,7 +540,8 @@ REFINE_REGIONS = ("neck", "pelvis")
 
 def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None) -> FittedGarment:
     """One midpoint subdivision of the quads over :data:`REFINE_REGIONS` (not of loose
-    parts, which stay quads for the drape): each such quad becomes four (edge midpoints and
+    parts, which stay quads for the drape; polygons cut at a hem stay whole): each such quad
+    becomes four (edge midpoints and
     the face centre are new vertices); a neighbouring face that shares a split edge gets the
     midpoint inserted into its boundary (a 5..8-gon, no T-junction crack; its fan
     triangulation starts at an inserted midpoint, so no triangle is degenerate). New
@@ -334,16 +549,19 @@ def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None) 
     kept, renormalized), the part of their first parent; child faces keep their parent's
     region. ``faces``: a bool mask restricting the split further (e.g. to where another
     garment overlaps, :func:`humv_usd.clothing.collide.dress`)."""
-    quads = np.asarray(fitted.face_indices).reshape(-1, 4)
+    counts = np.asarray(fitted.face_counts)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    flat = np.asarray(fitted.face_indices)
+    rings = [flat[s : s + c] for s, c in zip(starts, counts)]
     ids = [L.REGION_ID[r] for r in REFINE_REGIONS]
     loose = [k for k, part in enumerate(fitted.garment.parts) if part.loose]
-    split = np.isin(fitted.face_regions, ids) & ~np.isin(fitted.part_of[quads[:, 0]], loose)
+    split = np.isin(fitted.face_regions, ids) & ~np.isin(fitted.part_of[flat[starts]], loose) & (counts == 4)
     if faces is not None:
         split &= faces
     if not split.any():
         return fitted
     n = len(fitted.points)
-    sq = quads[split]
+    sq = np.stack([rings[f] for f in np.flatnonzero(split)])
     edges = np.stack([sq, np.roll(sq, -1, axis=1)], -1).reshape(-1, 2)  # (4s, 2)
     keys, inverse = np.unique(np.sort(edges, axis=1), axis=0, return_inverse=True)
     mid = n + inverse.reshape(-1, 4)  # midpoint id of edge (k, k+1) of each quad
@@ -363,13 +581,14 @@ def refine(fitted: FittedGarment, joints: int, faces: np.ndarray | None = None) 
     polys, regions = [], []
     for f in np.flatnonzero(~split):  # neighbours: insert the split edges' midpoints
         ring = []
-        for k in range(4):
-            u, v = int(quads[f, k]), int(quads[f, (k + 1) % 4])
+        face = rings[f]
+        for k in range(len(face)):
+            u, v = int(face[k]), int(face[(k + 1) % len(face)])
             ring.append(u)
             m = lookup.get((min(u, v), max(u, v)))
             if m is not None:
                 ring.append(m)
-        if len(ring) > 4:  # start the fan at an inserted midpoint
+        if len(ring) > len(face):  # start the fan at an inserted midpoint
             first = next(i for i, x in enumerate(ring) if x >= n)
             ring = ring[first:] + ring[:first]
         polys.append(ring)
