@@ -329,22 +329,26 @@ def corner_blend(scene, crease_deg: float = SMOOTH_CREASE_DEG):
 
 def corner_table(surface: np.ndarray, blend) -> np.ndarray:
     """(T, 7 n) the estimator's per-triangle rows: per corner the surface term in shadow
-    (:func:`surface_table`'s ``dark``: emission + rho G) blended by ``blend``
-    (:func:`corner_blend`; None: flat, every corner its face's value) and the same plus the
-    face's own sun term (``lit - dark``, not blended), then rho.
+    (:func:`surface_table`'s ``dark``: emission + rho G) and in the sun (``lit``), blended by
+    ``blend`` (:func:`corner_blend`; None: flat, every corner its face's value), then rho.
 
-    The sun's reflection stays one value per face: blended, a sunlit face's corners took in the
-    zero sun term of neighbours turned from the sun while the faces turned away, shaded
-    dark after their shadow ray, gained nothing: the terminator darkened (the visible person's
-    Y 1.3-1.4 % low against the spectral path tracer, measured on the render bench). The
-    faceting the issue was about is in the emission (one temperature per face), which blends."""
+    The sun's reflection (``lit - dark``) is blended over the faces that face the sun only: a
+    sunlit face's corners that took in the zero sun term of neighbours turned away from it
+    darkened the terminator, while those neighbours, shaded dark (their shadow ray is not
+    cast), gained nothing (the visible person's Y 1.3-1.4 % low against the spectral path
+    tracer on the render bench); per face, the reflected sun faceted MWIR garments."""
     t, _, n = surface.shape
     if blend is None:
         corners = np.repeat(surface[:, None, :2, :], 3, axis=1)  # (T, 3, 2, n)
     else:
         dark = np.asarray(blend @ surface[:, 0, :]).reshape(t, 3, n)
-        sun = (surface[:, 1, :] - surface[:, 0, :])[:, None, :]
-        corners = np.stack([dark, dark + sun], axis=2)  # (T, 3, 2, n)
+        sun = surface[:, 1, :] - surface[:, 0, :]
+        facing = (sun.sum(axis=1) > 0.0).astype(float)
+        weight = np.asarray(blend @ facing).reshape(t, 3)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lit_sun = np.asarray(blend @ (sun * facing[:, None])).reshape(t, 3, n) / weight[..., None]
+        lit_sun = np.where(weight[..., None] > 0.0, lit_sun, sun[:, None, :])
+        corners = np.stack([dark, dark + lit_sun], axis=2)  # (T, 3, 2, n)
     return np.ascontiguousarray(np.concatenate([corners.reshape(t, 6 * n), surface[:, 2, :]], axis=1))
 
 
