@@ -51,7 +51,7 @@ def test_sensor_round_trip(stage):
         pixel_pitch_m=17e-6,
         f_number=1.2,
         netd_k=0.04,
-        netd_note="scaled from f/1.0",
+        netd_origin="scaled from f/1.0",
         bit_depth=14,
         offset=100.0,
         preset="x",
