@@ -130,7 +130,9 @@ def test_garments_fit_a_body_sculpted_in_a_stronger_layer(people, base_garment, 
     assert [r.getMessage().split(":")[0] for r in caplog.records] == [BODY]
     for axis in (0, 1):  # the bounding box widens with the body
         assert np.ptp(wide[:, axis]) / np.ptp(base_garment[:, axis]) == pytest.approx(1.1, abs=0.01)
-    assert np.ptp(wide[:, 2]) == pytest.approx(np.ptp(base_garment[:, 2]), abs=2e-3)
+    # the ankle cuff is cut square to the tilted shin bone (clothing v5: smooth cuts, not whole
+    # faces): the 10 % wider leg tilts and widens it, its lowest point drops ~2.3 mm
+    assert np.ptp(wide[:, 2]) == pytest.approx(np.ptp(base_garment[:, 2]), abs=3e-3)
 
 
 def test_avatar_without_avatar_api_is_one_clear_error(people):
