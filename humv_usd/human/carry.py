@@ -502,9 +502,10 @@ def clear_rifle(
     if np.any(offsets) and frames > 2:
         from scipy.ndimage import gaussian_filter1d
 
-        offsets = gaussian_filter1d(offsets, max(SMOOTH_S * fps, 1e-3), axis=0, mode="nearest")
-        q, world, check = solve(offsets)
-        offsets, q, world, check = push(offsets, q, world, check)
+        for _ in range(2):  # a push after smoothing can leave a step where the smoothed dip was
+            offsets = gaussian_filter1d(offsets, max(SMOOTH_S * fps, 1e-3), axis=0, mode="nearest")
+            q, world, check = solve(offsets)
+            offsets, q, world, check = push(offsets, q, world, check)
     # how well the hands still reach their grasp points (an out-of-reach push shows here)
     targets = grasp_targets(skeleton)
     reach = {}
