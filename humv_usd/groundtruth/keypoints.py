@@ -16,6 +16,9 @@ Visibility (COCO: v = 0 not labelled, 1 labelled but occluded, 2 visible):
   in front of the keypoint's depth (joint keypoints lie inside the limb, so the visible skin is
   in front of them by up to the limb's half-thickness plus clothing; nose, eyes and ears are
   surface points);
+- v = 2 also for a surface point (nose, eyes, ears) whose ray misses the person and hits only
+  what lies beyond it (on the silhouette, e.g. the nose tip in profile, the grazing ray can
+  miss the mesh; nothing is in front of it);
 - v = 1 otherwise (another object, another body part, or the person's own far side is in front).
 """
 
@@ -94,6 +97,7 @@ COCO_SKELETON = [
 
 _ALLOWED = [np.array([AL.REGION_ID[r] for r in KEYPOINT_REGIONS[k]]) for k in AL.COCO_KEYPOINTS]
 _TOL = np.array([KEYPOINT_TOLERANCE_M[k] for k in AL.COCO_KEYPOINTS])
+_SURFACE = np.array([AL.COCO_KEYPOINTS.index(k) for k in AL.COCO_SURFACE])
 
 
 def find_keypoint_prims(stage: Usd.Stage) -> list[Usd.Prim]:
@@ -138,6 +142,10 @@ def keypoint_visibility(camera, keypoints_world: np.ndarray, instance_id: int, f
         idx = np.flatnonzero(inside)
         on_region = np.array([region[j] in _ALLOWED[k] for j, k in enumerate(idx)])
         seen = (np.asarray(inst) == instance_id) & on_region & (np.asarray(depth) >= z[inside] - _TOL[inside])
+        # a surface keypoint on the silhouette (the nose tip in profile): its grazing ray can
+        # miss the person and hit only what lies beyond; nothing hides it
+        grazing = np.isin(idx, _SURFACE) & (np.asarray(inst) != instance_id)
+        seen |= grazing & (np.asarray(depth) > z[inside] + _TOL[inside])
         v[inside] = np.where(seen, 2, 1)
     flat = []
     for k in range(len(v)):
