@@ -26,6 +26,7 @@ READS = (
     "human.*.hair_color",
     "scene.ground.material",
     "scene.ground.puddles",
+    "scene.ground.snow_depth_m",
     "atmosphere.rain_mm_h",
     "scene.object.*.material",
     "scene.object.*.kind",
@@ -39,10 +40,13 @@ READS = (
 )
 UPSTREAM = ()
 #: 3: /World/Materials a Scope; 4: warm clutter and generated places; 5: SWIR bands of fabrics;
-#: 6: water for puddles after rain
-VERSION = "6"
+#: 6: water for puddles after rain; 7: snow on the ground (and the library snow's spectrum)
+VERSION = "7"
 #: material of the scene layer's puddles (humv_usd.scene.puddles.MATERIAL; tests/test_puddles.py)
 PUDDLE_MATERIAL = "water"
+
+#: material of a ground under snow (humv_usd.scene.ground.SNOW_MATERIAL; tests/test_snow.py)
+SNOW_MATERIAL = "snow"
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"
@@ -85,6 +89,8 @@ def ground_materials(scenario: Scenario) -> list[str]:
         and float((scenario["atmosphere"] or {}).get("rain_mm_h") or 0.0) > 0.0
     ):
         names.append(PUDDLE_MATERIAL)  # humv_usd.scene.puddles
+    if float(scene["ground"].get("snow_depth_m") or 0.0) > 0.0:
+        names.append(SNOW_MATERIAL)  # humv_usd.scene.ground: the ground under snow
     return list(dict.fromkeys(names))
 
 

@@ -388,6 +388,27 @@ GROUND = Section(
             lo=150.0,
             hi=1000.0,
         ),
+        "snow_depth_m": Key(
+            "float",
+            "Snow lying on the ground and its terrain zones [m] when the thermal tool's surface "
+            "history starts (thermal.surface_spin_up_s before frame 0, a day by default): the "
+            "ground renders as snow (library material snow) and its slab carries a snow layer "
+            "that melts where its surface balance has a surplus (sun, warm air, warm objects "
+            "nearby; humv_usd.physics.snow); faces melted bare by frame 0 show the ground's "
+            "material. 0: no snow.",
+            default=0.0,
+            lo=0.0,
+            hi=2.0,
+        ),
+        "snow_density_kg_m3": Key(
+            "float",
+            "Density of the snow cover [kg/m3]: fresh 50-150, settled 200-350, old wind-packed "
+            "or wet 350-550; sets its conductivity (Sturm et al. 1997), heat capacity and "
+            "water equivalent (how long it takes to melt).",
+            default=250.0,
+            lo=50.0,
+            hi=550.0,
+        ),
         "soil_moisture": Key(
             "float",
             "Relative available soil water under grass, other vegetation and bare soil, "

@@ -12,6 +12,10 @@ Meshes:
   to the zone's material, with customData ``humv:groundZone`` = True (the thermal tool solves
   them as ground: material over soil, bottom held).
 
+Under snow (``[scene.ground] snow_depth_m`` > 0) every piece is bound to the library material
+``snow`` and records the snow and its own material (:mod:`humv_usd.usd.snow`); the thermal tool
+melts the snow and binds the faces bare by frame 0 to that material.
+
 Every piece is a plain triangle/quad mesh (refinable by the thermal tool at shadow edges), labelled with
 class ``ground`` (the zones with their own instance ids).
 """
@@ -25,9 +29,12 @@ from humv_usd.geometry.terrain import Terrain, polyline_distance, terrain_from_s
 from humv_usd.scene.geometry import drop_degenerate, ground_grid, horizon_rings, snap_to_edges, terrain_grid
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import GROUND, material_path
+from humv_usd.usd.snow import SnowCover, write_snow_cover
 
 #: customData key that marks a ground zone mesh
 GROUND_ZONE_KEY = "humv:groundZone"
+#: library material of a ground under snow (``[scene.ground] snow_depth_m`` > 0)
+SNOW_MATERIAL = "snow"
 #: cells per axis of a flat ground without zones (the mesh before issue 30)
 FLAT_CELLS = 16
 
@@ -107,8 +114,16 @@ def author_ground(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
     with the ground's instance id, zone i with ``ground_zone:<i>``'s
     (:func:`humv_usd.scenario.ids.instance_ids`)."""
     zones = {zone_path(i): i for i in range(len((scene.get("terrain") or {}).get("zone") or ()))}
+    ground = scene["ground"]
+    snow = float(ground.get("snow_depth_m") or 0.0)
     for path, material, points, counts, indices in ground_pieces(scene):
-        mesh = define_mesh(stage, path, points, counts, indices, material=material_path(material))
+        shown = SNOW_MATERIAL if snow > 0.0 else material
+        mesh = define_mesh(stage, path, points, counts, indices, material=material_path(shown))
+        if snow > 0.0:  # the thermal tool melts it and binds the faces bare by frame 0 to material
+            cover = SnowCover(
+                snow, float(ground.get("snow_density_kg_m3") or 250.0), str(material_path(material))
+            )
+            write_snow_cover(mesh.GetPrim(), cover)
         iid = ids["ground"] if path == GROUND else ids.get(f"ground_zone:{zones[path]}", ids["ground"])
         label(mesh.GetPrim(), iid, "ground")
         if path != GROUND:

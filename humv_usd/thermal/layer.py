@@ -39,6 +39,7 @@ from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
+from humv_usd.thermal.snow import author_snow_cover
 from humv_usd.thermal.surfaces import (
     air_at_frame0,
     camera_footprints,
@@ -87,7 +88,8 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 9: faces wet after rain bound to wet variants of their materials (thermal.wet)
 #: 10: JOS-3 runs with the person's own body fat (Deurenberg 1991), not 15 %
 #: 11: moving cloud shadows on the scene surfaces ([atmosphere] cloud_size_m); 12: and on the people
-VERSION = "12"
+#: 13: snow on the ground melts (physics.snow); faces bare at frame 0 bound to the ground's material
+VERSION = "13"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85
@@ -213,6 +215,11 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
     if wet:  # issue 30.4: faces wet after rain render with a wet variant of their material
         report["wetSurfaces"] = author_wet_surfaces(
             stage, upstream, meshes, {p: w[0] for p, w in wet.items()}
+        )
+    snow_water = sdiag.get("snowWater") if slabs else None
+    if snow_water:  # issue 30.4: faces melted bare by frame 0 show the ground's own material
+        report["snowCover"] = author_snow_cover(
+            stage, upstream, meshes, {p: w[0] for p, w in snow_water.items()}
         )
     # error estimates (deterministic for fixed seeds) travel with the layer; run times go
     # to compose's report, so an unchanged scenario still rewrites nothing

@@ -1,0 +1,71 @@
+"""Snow cover in the render (issue 30.4): the thermal tool binds the faces of a snow-covered
+ground that its slabs melted bare by frame 0 to the bare ground's material.
+
+The scene tool binds a ground under snow to the library material ``snow`` and records the
+material under it (:mod:`humv_usd.usd.snow`); the thermal tool's snow layer
+(:func:`humv_usd.physics.snow.simulate_cover`) gives each face its snow water equivalent at
+frame 0. Faces with none left get a GeomSubset ``SnowFree`` (family ``materialBind``,
+nonOverlapping) bound to the bare material (the materials layer defines it: it is a ground
+material); a mesh melted bare everywhere is bound whole. The cover is frame 0's for the whole
+clip (snow melts over hours, a clip lasts seconds).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom, UsdShade
+
+
+def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water: dict) -> dict:
+    """Bind the faces of ``meshes`` (:class:`humv_usd.thermal.surfaces.SceneMesh`) without snow
+    at frame 0 to their bare material in the thermal ``layer`` stage.
+
+    Parameters
+    ----------
+    layer : Usd.Stage
+        The thermal layer being written (overs).
+    upstream : Usd.Stage
+        The composed stage (the bare material is defined there).
+    meshes : list of SceneMesh
+    snow_water : dict
+        {mesh path: (F,) snow water equivalent at frame 0 [kg m^-2]}.
+
+    Returns
+    -------
+    dict
+        {mesh path: {"faces", "snowFree", "meanWater_kg_m2", "meanDepth_m"}}.
+    """
+    report: dict = {}
+    for m in meshes:
+        water = snow_water.get(m.path)
+        if water is None or m.snow is None:
+            continue
+        water = np.asarray(water, dtype=float)
+        bare = water <= 0.0
+        area = m.face_geometry()[2]
+        report[m.path] = {
+            "faces": int(m.n_faces),
+            "snowFree": int(bare.sum()),
+            "meanWater_kg_m2": round(float(np.average(water, weights=area + 1e-300)), 3),
+            "meanDepth_m": round(float(np.average(water, weights=area + 1e-300)) / m.snow.density_kg_m3, 4),
+        }
+        if not bare.any():
+            continue
+        material = UsdShade.Material(upstream.GetPrimAtPath(m.snow.bare_material))
+        over = layer.OverridePrim(m.path)
+        if bare.all():
+            _bind(over, material)
+            continue
+        UsdShade.MaterialBindingAPI.Apply(over).SetMaterialBindSubsetsFamilyType(
+            UsdGeom.Tokens.nonOverlapping
+        )
+        subset = UsdGeom.Subset.Define(layer, Sdf.Path(m.path).AppendChild("SnowFree"))
+        subset.CreateElementTypeAttr(UsdGeom.Tokens.face)
+        subset.CreateFamilyNameAttr(UsdShade.Tokens.materialBind)
+        subset.CreateIndicesAttr([int(i) for i in np.flatnonzero(bare)])
+        _bind(subset.GetPrim(), material)
+    return report
+
+
+def _bind(prim: Usd.Prim, material: UsdShade.Material) -> None:
+    UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
