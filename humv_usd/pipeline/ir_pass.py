@@ -18,7 +18,7 @@ from humv_usd.geometry.camera import Camera
 from humv_usd.physics import planck
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline.manifest import ErrorAccumulator
-from humv_usd.render import bands, nightlight, radiometry
+from humv_usd.render import bands, lights, nightlight, radiometry
 from humv_usd.render import estimator as E
 from humv_usd.render import quality as Q
 from humv_usd.render.frame import exr_metadata
@@ -128,6 +128,13 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         night := nightlight.night_light(plan.stage, light.time_code, light.sun_direction, _NIGHT_WL)
     ):
         nightlight.add_to_subbands(frame_rad, night, sub, _NIGHT_WL)  # twilight, moon, airglow
+    if s.is_reflective and light.lamps:  # street lamps, headlights, lit windows (render.lights)
+        frame_rad.lamps = lights.lamp_table(
+            list(light.lamps), _NIGHT_WL * 1000.0, lambda per_nm: sub.integrate(_NIGHT_WL, per_nm * 1000.0)
+        )
+        frame_rad.ran["lamps"] = lights.describe(list(light.lamps)) + (
+            "" if plan.estimator == "fast" else " (not rendered: only the fast estimator has lamps)"
+        )
     t = _tick(run, timings, "load_export", t)
 
     renderer = band_renderer(plan.estimator)

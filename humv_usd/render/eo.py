@@ -357,14 +357,9 @@ class EORender:
         self.truth = truth  # humv_usd.groundtruth.GroundTruth: the same labels as the IR sensors
         self.spp, self.max_depth, self.seed, self.out_dir = int(spp), int(max_depth), int(seed), out_dir
         self.estimator, self.estimator_note = _eo_estimator(estimator, max_depth)
-        # artificial lights (UsdLux lamps with a HumV spectrum): the spectral path tracer renders them
+        # artificial lights (UsdLux lamps with a HumV spectrum): emitters of the spectral path
+        # tracer's scene, next-event estimation in the fast estimator (render.lights.lamp_table)
         self.has_lamps = bool(usd_lights.read_lamps(stage, Usd.TimeCode(stage.GetStartTimeCode())))
-        if self.has_lamps and self.estimator == "fast":
-            self.estimator, self.estimator_note = (
-                "path",
-                "lamps on the stage (humv:light:*): the fast estimator has no point or area lights, "
-                "Mitsuba's spectral path tracer renders them",
-            )
         self.lamps_key = None
         # automatic quality (fast estimator, no spp given): batches of DEFAULT_EO_SPP
         self.spp_auto = bool(spp_auto) and self.estimator == "fast"
@@ -481,8 +476,15 @@ class EORender:
             for m in state.meshes
             for part in m.parts
         ]
-        lamps = usd_lights.read_lamps(self.stage, Usd.TimeCode(frame)) if self.has_lamps else []
-        lamps_key = repr([(a.path, a.to_world.tobytes(), a.luminous_flux_lm, a.luminance) for a in lamps])
+        time_code = Usd.TimeCode(frame)
+        light = light or read_frame_light(self.stage, time_code)  # the render reads it once per frame
+        lamps = list(light.lamps) if self.has_lamps else []
+        # the path tracer's scene holds the lamps as emitters: rebuilt when they change
+        lamps_key = (
+            repr([(a.path, a.to_world.tobytes(), a.luminous_flux_lm, a.luminance) for a in lamps])
+            if self.estimator != "fast"
+            else None
+        )
         if self.scene is None or state.topology_key != self.key or lamps_key != self.lamps_key:
             self.lamps_key = lamps_key
             bare = sorted({p.material.path for p, _, _ in parts if p.material.reflectance is None})
@@ -522,8 +524,6 @@ class EORender:
             for s in self.sensors:
                 self.scene.set_camera(self.ids[s.name], state.cameras[s.name])
         scene = self.scene
-        time_code = Usd.TimeCode(frame)
-        light = light or read_frame_light(self.stage, time_code)  # the render reads it once per frame
         spectra, sun_direction = light.spectra, light.sun_direction
         sun, sky, ran = illumination(spectra, sun_direction, light.dni_w_m2)
         sun_direction, sun, sky = after_sunset(self.stage, time_code, sun_direction, sun, sky, ran)
@@ -531,7 +531,8 @@ class EORender:
             ran["lamps"] = lights.describe(lamps)
         if self.estimator == "fast":
             light = eo_fast.bin_illumination(self.bins, sun, sky, sun_direction)
-            weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction)
+            light.lamps = lights.lamp_table(lamps, eo_fast.GRID_NM, self.bins.channel_preserving_mean)
+            weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction, lamps)
             rho = {}
 
             def reflectance_of(material):

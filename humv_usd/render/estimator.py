@@ -675,6 +675,8 @@ def render_band_fast(
     sun_vec = None
     if sun_dir is not None:
         sun_vec = mi.Vector3f(*(dr.opaque(f32, float(v)) for v in sun_dir))
+    lamps = _lamps_on_device(mi, dr, getattr(radiometry, "lamps", None), n)
+    lamp_calls = [0]  # a window's sample points: a new random sequence per call
 
     def sky_at(dz):
         """(row index, weight) of a direction's zenith in the sky rows, shared by the sub-bands."""
@@ -713,6 +715,10 @@ def render_band_fast(
             v2 = dr.gather(f32, surf_dr, base + (4 * n + k), active)
             surf.append(v0 + (v1 - v0) * b1 + (v2 - v0) * b2)
         rho = [dr.gather(f32, surf_dr, row + (6 * n + k), active) for k in range(n)]
+        if lamps is not None:  # the lamps' direct light (next-event estimation)
+            lamp_calls[0] += 1
+            e = _lamp_irradiance(mi, dr, scene.scene, lamps, p, nrm, active, seeds[2] + 7919 * lamp_calls[0])
+            surf = [surf[k] + rho[k] * e[k] for k in range(n)]
         return surf, rho
 
     # --- camera samples: pixel x replica x lattice point -------------------------------------
@@ -762,6 +768,13 @@ def render_band_fast(
             for k in range(n)
         ]
         rho = [dr.select(front, r, 0.0) for r in rho]
+        if lamps is not None and lamps.rects:  # a lit window in front of the first hit
+            seen, t_window, window = _windows_seen(mi, dr, lamps, ray, dr.select(hit, si.t, dr.inf))
+            value = [dr.select(seen, window[k], value[k]) for k in range(n)]
+            rho = [dr.select(seen, 0.0, r) for r in rho]
+            front, back = front & ~seen, back & ~seen
+            si.t = dr.select(seen, t_window, si.t)
+            hit = hit | seen
         backs = dr.select(back, f32(1.0), f32(0.0))
         if layout is not None:
             back_counts.append(backs)  # per lane: summed per cell below
@@ -1075,6 +1088,144 @@ def render_band_fast(
     if weights is None:
         return radiance[0], stderr[0]
     return radiance, stderr
+
+
+@dataclass
+class _DeviceLamps:
+    """A :class:`humv_usd.render.lights.LampTable` as kernel parameters (opaque scalars, so the
+    kernels are reused when the lamps move or change)."""
+
+    points: list
+    rects: list
+
+
+def _lamps_on_device(mi, dr, table, n: int):
+    """The lamps of ``table`` (a :class:`humv_usd.render.lights.LampTable` or None) on the
+    device, those with no light left out; None when none is left."""
+    if table is None or len(table) == 0:
+        return None
+
+    def scalar(v):
+        return dr.opaque(mi.Float, float(v))
+
+    def vector(v):
+        return mi.Vector3f(*(scalar(x) for x in v))
+
+    points, rects = [], []
+    for i in range(len(table.position)):
+        intensity = np.asarray(table.intensity[i], float).reshape(n)
+        if not np.any(intensity > 0):
+            continue
+        cut, beam = float(table.cutoff_rad[i]), float(table.beam_rad[i])
+        points.append(
+            SimpleNamespace(
+                position=vector(table.position[i]),
+                axis=vector(table.axis[i]) if cut < np.pi else None,
+                cutoff=scalar(cut),
+                beam=scalar(beam),
+                inv_transition=scalar(1.0 / max(cut - beam, 1e-12)),
+                value=[scalar(v) for v in intensity],
+            )
+        )
+    for i in range(len(table.rect_centre)):
+        radiance = np.asarray(table.rect_radiance[i], float).reshape(n)
+        u, v = np.asarray(table.rect_u[i], float), np.asarray(table.rect_v[i], float)
+        area = 4.0 * float(np.linalg.norm(np.cross(u, v)))
+        if not np.any(radiance > 0) or area <= 0:
+            continue
+        rects.append(
+            SimpleNamespace(
+                centre=vector(table.rect_centre[i]),
+                u=vector(u),
+                v=vector(v),
+                u_inv=vector(u / float(u @ u)),
+                v_inv=vector(v / float(v @ v)),
+                normal=vector(table.rect_normal[i]),
+                area=scalar(area),
+                value=[scalar(x) for x in radiance],
+            )
+        )
+    return _DeviceLamps(points, rects) if points or rects else None
+
+
+def _lamp_irradiance(mi, dr, scene, lamps: _DeviceLamps, p, nrm, active, seed: int) -> list:
+    r"""Per sub-band :math:`E_k / \pi` of the lamps' direct light at points ``p`` with normals
+    ``nrm`` (a Lambertian surface of reflectance :math:`\rho_k` reflects :math:`\rho_k E_k/\pi`),
+    by next-event estimation with one shadow ray per lamp:
+
+    - a point lamp or spot of axial intensity :math:`I_k` at distance d along the unit vector
+      :math:`\omega` (surface to lamp): :math:`E_k = I_k f(\theta)\,(n\cdot\omega)/d^2` if
+      nothing lies between (the inverse-square and cosine laws; Kajiya 1986's rendering equation
+      for a delta light), f the spot's falloff at :math:`\theta` off its axis (1 inside the
+      beam angle, linear in angle to 0 at the cutoff: Mitsuba 3's ``spot``,
+      :func:`humv_usd.render.lights.spot_falloff`);
+    - a window (a rectangle of area A and radiance :math:`L_k` emitting along N): one point y
+      uniform on it, :math:`E_k = L_k A (n\cdot\omega)(-N\cdot\omega)/d^2` if visible
+      (area sampling of the rendering equation's irradiance integral, unbiased; Pharr, Jakob &
+      Humphreys, *Physically Based Rendering*, 4th ed., 2023, sec. 12.5)."""
+    width = dr.width(p)
+    out = [dr.zeros(mi.Float, width) for _ in lamps.points[0].value] if lamps.points else None
+    if out is None:
+        out = [dr.zeros(mi.Float, width) for _ in lamps.rects[0].value]
+    o = p + nrm * _offset(dr, p)
+
+    def towards(target, on):
+        v = target - o
+        d2 = dr.squared_norm(v)
+        dist = dr.sqrt(d2)
+        w = v / dist
+        cos_s = dr.dot(nrm, w)
+        on = on & (cos_s > 0.0)
+        return w, d2, dist, cos_s, on
+
+    def add(weight, values):
+        for k, value in enumerate(values):
+            out[k] += weight * value
+
+    for lamp in lamps.points:
+        w, d2, dist, cos_s, on = towards(lamp.position, active)
+        fall = 1.0
+        if lamp.axis is not None:  # a spot: Mitsuba's falloff, linear in angle
+            theta = dr.acos(dr.clip(-dr.dot(w, lamp.axis), -1.0, 1.0))
+            fall = dr.select(
+                theta <= lamp.beam, 1.0, dr.clip((lamp.cutoff - theta) * lamp.inv_transition, 0.0, 1.0)
+            )
+            on &= theta < lamp.cutoff
+        blocked = scene.ray_test(mi.Ray3f(mi.Ray3f(o, w), dist * (1.0 - 1e-4)), on)
+        add(dr.select(on & ~blocked, fall * cos_s / (d2 * np.pi), 0.0), lamp.value)
+    if lamps.rects:
+        rng = mi.PCG32(
+            size=width, initstate=dr.opaque(mi.UInt64, int(seed) % 2**62), initseq=dr.arange(mi.UInt64, width)
+        )
+        for rect in lamps.rects:
+            a, b = 2.0 * rng.next_float32() - 1.0, 2.0 * rng.next_float32() - 1.0
+            w, d2, dist, cos_s, on = towards(rect.centre + rect.u * a + rect.v * b, active)
+            cos_l = -dr.dot(w, rect.normal)
+            on &= cos_l > 0.0
+            blocked = scene.ray_test(mi.Ray3f(mi.Ray3f(o, w), dist * (1.0 - 1e-4)), on)
+            add(dr.select(on & ~blocked, rect.area * cos_s * cos_l / (d2 * np.pi), 0.0), rect.value)
+    return out
+
+
+def _windows_seen(mi, dr, lamps: _DeviceLamps, ray, t_max):
+    """Camera rays that see a window's lit side before ``t_max`` (their first hit): (mask,
+    distance, radiance per sub-band of the nearest window). A window is not in the scene's
+    geometry (it lies just in front of its pane), so it neither occludes nor is met by
+    reflected rays: its light reaches surfaces by :func:`_lamp_irradiance` only."""
+    seen = dr.zeros(mi.Bool, dr.width(ray.d.z))
+    t_best = mi.Float(t_max)
+    value = [dr.zeros(mi.Float, dr.width(ray.d.z)) for _ in lamps.rects[0].value]
+    for rect in lamps.rects:
+        denom = dr.dot(ray.d, rect.normal)
+        facing = denom < 0.0
+        t = dr.dot(rect.centre - ray.o, rect.normal) / dr.select(facing, denom, -1.0)
+        q = ray.o + ray.d * t - rect.centre
+        inside = (dr.abs(dr.dot(q, rect.u_inv)) <= 1.0) & (dr.abs(dr.dot(q, rect.v_inv)) <= 1.0)
+        on = facing & inside & (t > 0.0) & (t < t_best)
+        seen |= on
+        t_best = dr.select(on, t, t_best)
+        value = [dr.select(on, rect.value[k], value[k]) for k in range(len(value))]
+    return seen, t_best, value
 
 
 def _intersect_leaving(mi, dr, scene, ray, origin, triangle):

@@ -8,7 +8,7 @@ reads them once per frame (:func:`read_frame_light`) and hands the same object t
 
 A new light source (the night sky, the moon, artificial lights) plugs in by adding a field here
 and reading it in :func:`read_frame_light`; each pass turns the fields into its own spectral
-quantities.
+quantities (the lamps: :func:`humv_usd.render.lights.lamp_table` per sub-band).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import numpy as np
 from pxr import Usd
 
 from humv_usd.usd import environment as usd_environment
+from humv_usd.usd import lights as usd_lights
 from humv_usd.usd.atmosphere import AtmosphereSpectra, atmosphere_spectra
 
 
@@ -33,6 +34,8 @@ class FrameLight:
     sun_direction: np.ndarray | None
     #: broadband direct normal irradiance [W m-2], None when not authored
     dni_w_m2: float | None
+    #: the stage's lamps and lit windows at the frame (:func:`humv_usd.usd.lights.read_lamps`)
+    lamps: tuple = ()
 
 
 def read_frame_light(stage: Usd.Stage, time_code) -> FrameLight:
@@ -43,4 +46,5 @@ def read_frame_light(stage: Usd.Stage, time_code) -> FrameLight:
         spectra=atmosphere_spectra(stage, t),
         sun_direction=usd_environment.sun_direction(stage, t),
         dni_w_m2=usd_environment.direct_normal_irradiance(stage, t),
+        lamps=tuple(usd_lights.read_lamps(stage, t)),
     )

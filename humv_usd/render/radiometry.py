@@ -401,6 +401,8 @@ class FrameRadiometry:
     sun_irradiance: np.ndarray | None  # (n,) [W m-2] normal to the beam
     path: SubBandPath | None
     ran: dict
+    #: the frame's lamps per sub-band (:class:`humv_usd.render.lights.LampTable`), None: none
+    lamps: object | None = None
 
 
 # --- sun without a solar spectral table --------------------------------------------------------
