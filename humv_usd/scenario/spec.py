@@ -1239,6 +1239,16 @@ THERMAL = Section(
             lo=0.0,
             hi=7 * 86400.0,
         ),
+        "surface_cell_m": Key(
+            "float",
+            "Smallest cell of the scene surfaces' shadow-edge refinement [m]. 0: the cameras' "
+            "pixel footprint where they see a surface (at least 5 mm), 0.12 m elsewhere. A larger "
+            "value: fewer faces, a faster thermal layer, shadow edges blurred over that size (the "
+            "editor's fast preview uses 0.5).",
+            default=0.0,
+            lo=0.0,
+            hi=10.0,
+        ),
         "garment_transient": Key(
             "choice",
             "Garment balance along the frames: transient (fabric "

@@ -132,7 +132,10 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         forcing = with_cloud_shadows(forcing, scenario)
         report["sky"] = _sky_report(forcing, tables, len(spin_t), upstream)
         shade = people_occluders(upstream, scenario, all_t)
-        meshes, refined = refine_meshes(meshes, forcing, shade, cameras=camera_footprints(upstream, samples))
+        # [thermal] surface_cell_m > 0: that smallest cell, no camera footprint (the editor's preview)
+        cell = float(th.get("surface_cell_m") or 0.0)
+        fine = {"min_cell_m": cell} if cell > 0 else {"cameras": camera_footprints(upstream, samples)}
+        meshes, refined = refine_meshes(meshes, forcing, shade, **fine)
         surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing, shade)
         report["surfaces"] = {
             "model": "slab" if slabs else "held",
