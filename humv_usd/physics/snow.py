@@ -54,6 +54,7 @@ from __future__ import annotations
 import numpy as np
 
 from humv_usd.physics import slab
+from humv_usd.physics.checks import require
 
 #: melting point of ice at 1 atm [K]
 MELT_TEMPERATURE_K = 273.15
@@ -225,9 +226,9 @@ def simulate_cover(
         Incident long wave [W m^-2], air temperature [K], convective coefficient
         [W m^-2 K^-1] (as :func:`humv_usd.physics.slab.step_many`).
     snow_depth_m : float
-        Snow depth at the first sample [m].
+        Snow depth at the first sample [m], 0.001-10 (ValueError outside).
     snow_density_kg_m3 : float
-        Snow density [kg m^-3]: conductivity :func:`effective_conductivity`, heat capacity
+        Snow density [kg m^-3], 30-916.7 (ValueError outside): conductivity :func:`effective_conductivity`, heat capacity
         rho c_ice, water equivalent rho x depth.
     ground_thickness_m, ground_conductivity, ground_volumetric_heat_capacity : array (N,)
         The bare ground's slab layers (:func:`humv_usd.physics.slab.step_many`).
@@ -251,6 +252,8 @@ def simulate_cover(
     equivalent W (Anderson 1976's melt term in an implicit column). A face whose W reaches 0
     continues as the bare ground slab from its ground nodes' temperatures.
     """
+    require("snow_depth_m", snow_depth_m, 1e-3, 10.0)
+    require("snow_density_kg_m3", snow_density_kg_m3, 30.0, ICE_DENSITY)
     times = np.asarray(forcing_times_s, dtype=float)
     m = times.size
 
