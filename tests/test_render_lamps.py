@@ -191,7 +191,7 @@ def _street(tmp_path):
     return tmp_path / "s.usda"
 
 
-@pytest.mark.extended
+@pytest.mark.slow
 def test_fast_lamps_agree_with_the_spectral_path_tracer(tmp_path):
     """Per labelled region (and the window's pixels) and channel, the fast estimator's X, Y, Z of
     the lamp-lit street agree with Mitsuba's 5-nm spectral path tracer within 4 combined

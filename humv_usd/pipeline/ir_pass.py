@@ -135,6 +135,12 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         frame_rad.ran["lamps"] = lights.describe(list(light.lamps)) + (
             "" if plan.estimator == "fast" else " (not rendered: only the fast estimator has lamps)"
         )
+    if light.clouds is not None and frame_rad.sun_irradiance is not None and light.sun_direction is not None:
+        if light.sun_direction[2] > 0.0:  # broken clouds' shadows on the sun (render.light)
+            frame_rad.clouds = light.clouds
+            frame_rad.ran["cloud_shadows"] = light.clouds.describe() + (
+                "" if plan.estimator == "fast" else " (not rendered: only the fast estimator has them)"
+            )
     t = _tick(run, timings, "load_export", t)
 
     renderer = band_renderer(plan.estimator)

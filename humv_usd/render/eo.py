@@ -21,7 +21,9 @@ sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spe
   atmospheric extinction); none when the sun is below the horizon;
 - the sky: a ``constant`` environment with, per wavelength, the cosine-weighted hemispherical
   mean of ``humv:atmosphere:skySpectralRadiance`` against zenith (the uniform sky that gives the
-  same irradiance on a horizontal surface; its angular structure is not kept in the visible).
+  same irradiance on a horizontal surface; its angular structure is not kept in the visible);
+- lamps and lit windows (:mod:`humv_usd.render.lights`): Mitsuba point, spot and area emitters
+  in the path tracer; next-event estimation per bin in the fast estimator.
 
 Atmospheric path: per pixel by range as in the infrared, on the film's X, Y, Z channels,
 :math:`XYZ_{sensor} = \\tau_{xyz}(r)\\,XYZ + P_{xyz}(r)` with the sensor's spectral path table
@@ -529,8 +531,15 @@ class EORender:
         sun_direction, sun, sky = after_sunset(self.stage, time_code, sun_direction, sun, sky, ran)
         if self.has_lamps:
             ran["lamps"] = lights.describe(lamps)
+        sun_up = light.sun_direction is not None and light.sun_direction[2] > 0  # (not the moon)
+        cloud = light.clouds if sun is not None and sun_up else None
+        if cloud is not None:
+            ran["cloud_shadows"] = cloud.describe() + (
+                "" if self.estimator == "fast" else " (not rendered: the path tracer's sun is uniform)"
+            )
         if self.estimator == "fast":
             light = eo_fast.bin_illumination(self.bins, sun, sky, sun_direction)
+            light.clouds = cloud
             light.lamps = lights.lamp_table(lamps, eo_fast.GRID_NM, self.bins.channel_preserving_mean)
             weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction, lamps)
             rho = {}

@@ -9,7 +9,10 @@ Monte Carlo noise for the same rays:
 - **One geometric path for all sub-bands.** Directions do not depend on the sub-band; each
   vertex carries the n sub-band throughputs, so the sub-band count costs no rays.
 - **Emission at a hit is evaluated, not sampled** (:math:`\\varepsilon_k L_k(T)` of the face).
-- **Sun by next-event estimation** (one shadow ray per vertex facing the sun).
+- **Sun by next-event estimation** (one shadow ray per vertex facing the sun); **lamps** too
+  (``radiometry.lamps``, a :class:`humv_usd.render.lights.LampTable`: a shadow ray per point
+  lamp or spot per vertex, one sampled point per lit window, :func:`_lamp_irradiance`; camera
+  rays see a window's radiance, :func:`_windows_seen`).
 - **Control variate for the reflected sky.** The reflected radiance of a Lambertian vertex with
   normal :math:`n` is :math:`\\rho_k \\int L_{in}(\\omega) (n\\cdot\\omega)/\\pi\\,d\\omega`. With
   :math:`C_k(\\omega)` = the sky radiance above the horizon and a ground radiance :math:`L_g`
@@ -649,6 +652,9 @@ def render_band_fast(
     normals = face_normals(scene)
     ground = ground_radiance(scene, tables, g_up, 0.0 if sun_dir is None else sun_dir[2], sun_e, normals)
     g_tab = control_variate_table(rows, ground)  # (n, CV_NODES)
+    cloud = getattr(radiometry, "clouds", None) if sun_e is not None else None
+    if cloud is not None:  # broken clouds: the clear-sky beam between them, none under them
+        sun_e = np.asarray(sun_e, float) * cloud.clear_factor
     surface = surface_table(scene, tables, g_tab, sun_dir, sun_e, normals)  # (T, 3, n)
     smooth = SMOOTH_SHADING if smooth is None else bool(smooth)
     rows_7n = corner_table(surface, _smooth_blend(scene) if smooth else None)  # (T, 7n)
@@ -676,6 +682,7 @@ def render_band_fast(
     if sun_dir is not None:
         sun_vec = mi.Vector3f(*(dr.opaque(f32, float(v)) for v in sun_dir))
     lamps = _lamps_on_device(mi, dr, getattr(radiometry, "lamps", None), n)
+    cloud_dev = None if cloud is None or sun_vec is None else _clouds_on_device(mi, dr, cloud)
     lamp_calls = [0]  # a window's sample points: a new random sequence per call
 
     def sky_at(dz):
@@ -705,6 +712,8 @@ def render_band_fast(
         base = row
         if sun_vec is not None:
             lit = active & (dr.dot(nrm, sun_vec) > 0.0)
+            if cloud_dev is not None:  # no sun under a cloud (the thermal tool's field)
+                lit &= _between_clouds(mi, dr, cloud_dev, p, lit)
             blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * _offset(dr, p), sun_vec), lit)
             base = dr.select(lit & ~blocked, base + n, base)
         b1, b2 = uv.x, uv.y
@@ -1226,6 +1235,48 @@ def _windows_seen(mi, dr, lamps: _DeviceLamps, ray, t_max):
         t_best = dr.select(on, t, t_best)
         value = [dr.select(on, rect.value[k], value[k]) for k in range(len(value))]
     return seen, t_best, value
+
+
+def _clouds_on_device(mi, dr, cloud):
+    """A :class:`humv_usd.render.light.CloudShadows` as device arrays: per wave its vector,
+    amplitude and phase with the displacement folded in (k . (p - d) + phi)."""
+    f = cloud.field
+    phase = f.phases - f.wavevectors @ np.asarray(cloud.displacement, float)
+    table = np.stack([f.wavevectors[:, 0], f.wavevectors[:, 1], f.amplitudes, phase], axis=1)
+    return SimpleNamespace(
+        waves=mi.Float(np.ascontiguousarray(table, dtype=np.float32).ravel()),
+        count=len(table),
+        threshold=dr.opaque(mi.Float, float(cloud.threshold)),
+    )
+
+
+def _between_clouds(mi, dr, clouds, p, active):
+    r"""Whether the points ``p`` see the sun between the clouds: the cloud field
+    (:func:`humv_usd.physics.clouds.moving_values`, :math:`f = \sum_j a_j \cos(k_j\cdot(x - d) +
+    \varphi_j)`) at the point's ground position (x, y) is at most the threshold, as the thermal
+    tool gates the sun on a face at its centroid (the shadow is cast vertically: a cloud base
+    at 1 km shifts it by 1 km tan(zenith), which the thermal tool's field leaves out too).
+    A loop over the waves on the device (one small kernel, not one cosine per wave inlined in
+    every pass's kernel: 96 of them cost seconds of compilation per pass)."""
+    x = dr.select(active, p.x, 0.0)
+    y = dr.select(active, p.y, 0.0)
+    waves = clouds.waves
+
+    def body(j, f):
+        base = j * 4
+        kx = dr.gather(mi.Float, waves, base, active)
+        ky = dr.gather(mi.Float, waves, base + 1, active)
+        a = dr.gather(mi.Float, waves, base + 2, active)
+        ph = dr.gather(mi.Float, waves, base + 3, active)
+        return j + 1, f + a * dr.cos(kx * x + ky * y + ph)
+
+    count = dr.opaque(mi.UInt32, clouds.count)
+    _, f = dr.while_loop(
+        (dr.zeros(mi.UInt32, dr.width(x)), dr.zeros(mi.Float, dr.width(x))),
+        lambda j, f: j < count,
+        body,
+    )
+    return f <= clouds.threshold
 
 
 def _intersect_leaving(mi, dr, scene, ray, origin, triangle):

@@ -403,6 +403,8 @@ class FrameRadiometry:
     ran: dict
     #: the frame's lamps per sub-band (:class:`humv_usd.render.lights.LampTable`), None: none
     lamps: object | None = None
+    #: the frame's cloud shadows on the sun (:class:`humv_usd.render.light.CloudShadows`), None: none
+    clouds: object | None = None
 
 
 # --- sun without a solar spectral table --------------------------------------------------------
