@@ -390,12 +390,13 @@ GROUND = Section(
         ),
         "snow_depth_m": Key(
             "float",
-            "Snow lying on the ground and its terrain zones [m] when the thermal tool's surface "
+            "Snow lying on the ground, its terrain zones and the flat roofs of box objects [m] "
+            "when the thermal tool's surface "
             "history starts (thermal.surface_spin_up_s before frame 0, a day by default): the "
             "ground renders as snow (library material snow) and its slab carries a snow layer "
             "that melts where its surface balance has a surplus (sun, warm air, warm objects "
-            "nearby; humv_usd.physics.snow); faces melted bare by frame 0 show the ground's "
-            "material. 0: no snow.",
+            "nearby, a heated room under a roof; humv_usd.physics.snow); faces melted bare by "
+            "frame 0 show their own material. 0: no snow.",
             default=0.0,
             lo=0.0,
             hi=2.0,

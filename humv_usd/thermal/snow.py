@@ -6,14 +6,18 @@ material under it (:mod:`humv_usd.usd.snow`); the thermal tool's snow layer
 (:func:`humv_usd.physics.snow.simulate_cover`) gives each face its snow water equivalent at
 frame 0. Faces with none left get a GeomSubset ``SnowFree`` (family ``materialBind``,
 nonOverlapping) bound to the bare material (the materials layer defines it: it is a ground
-material); a mesh melted bare everywhere is bound whole. The cover is frame 0's for the whole
-clip (snow melts over hours, a clip lasts seconds).
+material); a mesh melted bare everywhere is bound whole. On a box object's roof (the scene's
+GeomSubset :data:`humv_usd.usd.snow.ROOF_SUBSET` bound to snow) the melted faces are dropped
+from that subset, so they take the object's own binding again. The cover is frame 0's for the
+whole clip (snow melts over hours, a clip lasts seconds).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade
+
+from humv_usd.usd.snow import ROOF_SUBSET
 
 
 def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water: dict) -> dict:
@@ -28,7 +32,8 @@ def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water:
         The composed stage (the bare material is defined there).
     meshes : list of SceneMesh
     snow_water : dict
-        {mesh path: (F,) snow water equivalent at frame 0 [kg m^-2]}.
+        {mesh path: (F,) snow water equivalent at frame 0 [kg m^-2]; NaN on faces never under
+        snow (a roof's walls)}.
 
     Returns
     -------
@@ -41,15 +46,26 @@ def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water:
         if water is None or m.snow is None:
             continue
         water = np.asarray(water, dtype=float)
-        bare = water <= 0.0
-        area = m.face_geometry()[2]
+        snowy = ~np.isnan(water)
+        bare = snowy & (water <= 0.0)
+        area = m.face_geometry()[2][snowy] + 1e-300
+        mean = float(np.average(water[snowy], weights=area))
         report[m.path] = {
-            "faces": int(m.n_faces),
+            "faces": int(snowy.sum()),
             "snowFree": int(bare.sum()),
-            "meanWater_kg_m2": round(float(np.average(water, weights=area + 1e-300)), 3),
-            "meanDepth_m": round(float(np.average(water, weights=area + 1e-300)) / m.snow.density_kg_m3, 4),
+            "meanWater_kg_m2": round(mean, 3),
+            "meanDepth_m": round(mean / m.snow.density_kg_m3, 4),
         }
         if not bare.any():
+            continue
+        roof = upstream.GetPrimAtPath(Sdf.Path(m.path).AppendChild(ROOF_SUBSET))
+        if roof:  # a roof: its snow subset keeps the faces still under snow
+            kept = [int(i) for i in np.flatnonzero(snowy & ~bare)]
+            over = layer.OverridePrim(roof.GetPath())
+            if kept:
+                UsdGeom.Subset(over).CreateIndicesAttr().Set(kept)
+            else:  # all melted: no subset (an empty materialBind family is invalid)
+                over.SetActive(False)
             continue
         material = UsdShade.Material(upstream.GetPrimAtPath(m.snow.bare_material))
         over = layer.OverridePrim(m.path)

@@ -233,8 +233,8 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         )
         if len(materials) > 1:  # set by name: keep these two fields last in SceneMesh
             out[-1].face_materials, out[-1].material_of_face = tuple(materials), of_face
-        cover = read_snow_cover(prim) if is_ground and h is None else None
-        if cover is not None:  # snow over the ground's own material (humv_usd.physics.snow)
+        cover = read_snow_cover(prim) if h is None else None
+        if cover is not None:  # snow over the ground's (a roof's) own material (physics.snow)
             bare = read_material(upstream.GetPrimAtPath(cover.bare_material), path)
             for field in THERMAL_ATTRIBUTES:
                 bare.require(field, path)
@@ -1176,23 +1176,33 @@ def _solve_faces(mesh: SceneMesh, normals, lit, f, *args):
         return _solve_mesh(mesh, normals, lit, f, *args)
     m = len(f.times_s)
     out, lw, res = np.empty((m, mesh.n_faces)), np.empty((m, mesh.n_faces)), 0.0
-    wet = None
+    wet = swe = None
     seen = args[-1]
     for k, material in enumerate(mesh.face_materials):
         sel = mesh.material_of_face == k
         if not sel.any():
             continue
+        # the faces of a roof's snow subset are snow over the mesh's material (scene.ground.cover_roof)
+        snowy = mesh.snow is not None and material.path != mesh.snow.bare_material
         one = dataclasses.replace(
-            mesh, material=material, face_materials=(), material_of_face=None, n_faces=int(sel.sum())
+            mesh,
+            material=material,
+            face_materials=(),
+            material_of_face=None,
+            n_faces=int(sel.sum()),
+            snow=mesh.snow if snowy else None,
         )
-        t, r, e, w, _ = _solve_mesh(
+        t, r, e, w, water = _solve_mesh(
             one, normals[sel], lit[:, sel], f, *args[:-1], None if seen is None else seen.take(sel)
         )
         out[:, sel], lw[:, sel], res = t, e, max(res, r)
+        if water is not None:  # NaN: a face not under snow
+            swe = np.full((m, mesh.n_faces), np.nan) if swe is None else swe
+            swe[:, sel] = water
         if w is not None:
             wet = np.zeros((m, mesh.n_faces)) if wet is None else wet
             wet[:, sel] = w
-    return out, res, lw, wet, None
+    return out, res, lw, wet, swe
 
 
 def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k, seen=None):
@@ -1246,10 +1256,11 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
 
 
 def _solve_snow(mesh: SceneMesh, times_s, absorbed, lw, air, h, deep_k):
-    """:func:`humv_usd.physics.snow.simulate_cover` of a snow-covered ground mesh's faces:
-    the snow layer over the bare material's construction; ``absorbed`` the snow's absorbed
-    short wave (the bare ground's scales by the ratio of their absorptivities). Rain and
-    evaporation are not modelled on snow."""
+    """:func:`humv_usd.physics.snow.simulate_cover` of a snow-covered ground's (or roof's)
+    faces: the snow layer over the bare material's construction, its back as the mesh's (the
+    ground's bottom held, a heated building's room air, else adiabatic); ``absorbed`` the
+    snow's absorbed short wave (the bare surface's scales by the ratio of their
+    absorptivities). Rain and evaporation are not modelled on snow."""
     bare = dataclasses.replace(mesh, material=mesh.bare, snow=None, bare=None)
     dz, k, rc = _construction(bare)
     ratio = mesh.bare.require("solar_absorptivity", mesh.path) / mesh.solar_absorptivity
@@ -1267,8 +1278,8 @@ def _solve_snow(mesh: SceneMesh, times_s, absorbed, lw, air, h, deep_k):
         rc,
         emissivity_snow=longwave_emissivity(mesh.material),
         emissivity_bare=longwave_emissivity(mesh.bare),
-        bottom="fixed",
-        deep_temperature_k=deep_k,
+        bottom="fixed" if mesh.is_ground else ("adiabatic" if mesh.interior_k is None else "interior"),
+        deep_temperature_k=deep_k if mesh.interior_k is None else mesh.interior_k,
     )
 
 
@@ -1383,7 +1394,8 @@ def surface_temperatures(
         ('held' or 'slab'), and with ``exchange`` the passes of the exchange iteration, its
         last change [K], the rays cast and the area-weighted mean sky view factor per mesh;
         after rain ``wetFraction``: {mesh path: (n, faces) wet share [0-1]}; under snow
-        ``snowWater``: {mesh path: (n, faces) snow water equivalent [kg m^-2], 0 melted out}).
+        ``snowWater``: {mesh path: (n, faces) snow water equivalent [kg m^-2], 0 melted out,
+        NaN on faces that never had snow (a roof's walls)}).
 
     Notes
     -----
@@ -1508,7 +1520,7 @@ def surface_temperatures(
                     wet_now = np.zeros((n_t, n_all)) if wet_now is None else wet_now
                     wet_now[:, cols] = wet_sel
                 if swe_sel is not None:
-                    swe_now = np.zeros((n_t, n_all)) if swe_now is None else swe_now
+                    swe_now = np.full((n_t, n_all), np.nan) if swe_now is None else swe_now
                     swe_now[:, cols] = swe_sel
                 if views is not None:
                     used_lw[:, cols] = scene_lw[:, cols]

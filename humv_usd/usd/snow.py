@@ -1,8 +1,8 @@
 """Snow cover on a ground mesh (issue 30.4): what the scene tool records and the thermal tool
 reads.
 
-The scene tool binds a snow-covered ground mesh to the library material ``snow`` and records
-on the mesh (customData ``humv:snowCover``) the snow's depth and density and the material of
+The scene tool binds a snow-covered ground mesh to the library material ``snow`` (a box
+object's roof faces: its GeomSubset :data:`ROOF_SUBSET`) and records on the mesh (customData ``humv:snowCover``) the snow's depth and density and the material of
 the bare ground under it; the thermal tool solves the snow layer on that ground
 (:func:`humv_usd.physics.snow.simulate_cover`) and binds the faces melted bare by frame 0 to
 the bare material.
@@ -16,6 +16,9 @@ from pxr import Usd
 
 #: customData key on a ground mesh under snow
 SNOW_COVER_KEY = "humv:snowCover"
+#: GeomSubset (family materialBind) of a box object's roof faces under snow; a ground under
+#: snow is bound to snow whole
+ROOF_SUBSET = "Snow"
 
 
 @dataclass(frozen=True)
