@@ -21,6 +21,7 @@ from test_render_radiometry import atmosphere_tables, new_stage, plate, read_exr
 
 from humv_usd.physics import nightsky
 from humv_usd.pipeline.render import render_stage
+from humv_usd.render import estimator as E
 from humv_usd.render import lights
 from humv_usd.usd import lights as usd_lights
 
@@ -224,3 +225,75 @@ def _compare_regions(ref, fast, allowance=1e-2):
             allow = 2 * allowance if c == "Z" else allowance
             assert abs(f - r) <= 4 * s + allow * r, (region, c, f / r - 1, s / r)
     return out
+
+
+def test_many_lamps_and_windows_by_one_sampled_light_per_hit(tmp_path):
+    """Nine bare lamps on a 1 m ring 1 m over a grey plate (more than MAX_LAMP_RAYS: one lamp per
+    hit, chosen by its unoccluded irradiance) and a 2 x 2 m lit window over another plate split
+    into four 1 x 1 m windows (one window per hit): the image means are the closed forms (the
+    sum of nine inverse-square terms; pi L F with the four corner view factors) within 4
+    standard errors plus 0.3 % / 2 %."""
+    assert 9 > E.MAX_LAMP_RAYS
+    stage = new_stage(tmp_path / "s.usda")
+    grey = reflective(stage, "grey", [0.3, 3.0], [0.5, 0.5])
+    plate(stage, "/World/p", 1e3, 0.0, grey, 280.0)
+    add_camera(
+        stage,
+        "cam",
+        (0, 0, 3),
+        (0, 0, 0),
+        fov_x_deg=60.0,
+        resolution=(W, H),
+        band=(0.4, 0.7),
+        band_token="EO",
+        up=(0, 1, 0),
+    )
+    _night(stage)
+    ring = [(math.cos(a), math.sin(a), 1.0) for a in np.linspace(0, 2 * math.pi, 9, endpoint=False)]
+    for i, pos in enumerate(ring):
+        usd_lights.write_lamp(stage, f"/World/Scene/lamp{i}", "led_4000k", 200.0 * (1 + i % 3), pos)
+    stage.Save()
+    render_stage(tmp_path / "s.usda", tmp_path / "out", spp=16)
+    ch = read_exr(tmp_path / "out" / "cam" / "0000.exr")
+
+    def lit(x, y):
+        return sum(
+            0.5 * 200.0 * (1 + i % 3) / (4 * math.pi) / ((x - px) ** 2 + (y - py) ** 2 + 1.0) ** 1.5 / math.pi
+            for i, (px, py, _) in enumerate(ring)
+        )
+
+    expected = _footprint_mean(lit, 3.0, 60.0)
+    got, err = ch["Y"] * Y_TO_CD, ch["Y_stderr"] * Y_TO_CD
+    sigma = np.sqrt(np.sum(err**2)) / got.size
+    assert abs(got.mean() - expected.mean()) <= 4 * sigma + 3e-3 * expected.mean(), (
+        got.mean() / expected.mean() - 1,
+        sigma / expected.mean(),
+    )
+
+    # four windows making one 2 x 2 m window of 100 cd m-2, 1 m over a white plate
+    stage = new_stage(tmp_path / "w.usda")
+    white = reflective(stage, "white", [0.3, 3.0], [1.0, 1.0])
+    plate(stage, "/World/p", 1e3, 0.0, white, 280.0)
+    _night(stage)
+    for i, (x, y) in enumerate([(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]):
+        window = usd_lights.write_window(stage, f"/World/Scene/window{i}", "incandescent", 100.0, 1.0, 1.0)
+        UsdGeom.Xformable(window).AddTranslateOp().Set(Gf.Vec3d(x, y, 1.0))
+    add_camera(
+        stage,
+        "cam",
+        (0.0, -2.5, 0.9),
+        (0.0, 0.0, 0.0),
+        fov_x_deg=1.5,
+        resolution=(8, 6),
+        band=(0.4, 0.7),
+        band_token="EO",
+        up=(0, 0, 1),
+    )
+    stage.Save()
+    render_stage(tmp_path / "w.usda", tmp_path / "wout", spp=64)
+    ch = read_exr(tmp_path / "wout" / "cam" / "0000.exr")
+    a = 1.0 / math.sqrt(2.0)
+    f = 4 * (2 * a * math.atan(a)) / (2 * math.pi)  # four 1 x 1 m corner rectangles at 1 m
+    got = ch["Y"] * Y_TO_CD
+    sigma = np.sqrt(np.sum((ch["Y_stderr"] * Y_TO_CD) ** 2)) / got.size
+    assert abs(got.mean() - 100.0 * f) <= 4 * sigma + 0.02 * 100.0 * f, (got.mean() / (100.0 * f) - 1, sigma)

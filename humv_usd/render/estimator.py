@@ -145,6 +145,9 @@ MAX_DIRECT_LANES = 1 << 22
 SMOOTH_CREASE_DEG = shading.SMOOTH_CREASE_DEG
 #: Shade smooth when the caller does not say (issue 25; False: one value per flat face).
 SMOOTH_SHADING = True
+#: Point lamps and spots traced each (a shadow ray per lamp per hit); with more, one lamp per hit
+#: is chosen by its unoccluded irradiance (:func:`_lamp_irradiance`; windows always so).
+MAX_LAMP_RAYS = 8
 
 
 def sky_rows(radiometry, k: int) -> np.ndarray:
@@ -1134,6 +1137,7 @@ def _lamps_on_device(mi, dr, table, n: int):
                 beam=scalar(beam),
                 inv_transition=scalar(1.0 / max(cut - beam, 1e-12)),
                 value=[scalar(v) for v in intensity],
+                total=float(intensity.sum()),
             )
         )
     for i in range(len(table.rect_centre)):
@@ -1152,6 +1156,7 @@ def _lamps_on_device(mi, dr, table, n: int):
                 normal=vector(table.rect_normal[i]),
                 area=scalar(area),
                 value=[scalar(x) for x in radiance],
+                total=float(radiance.sum()),
             )
         )
     return _DeviceLamps(points, rects) if points or rects else None
@@ -1160,23 +1165,33 @@ def _lamps_on_device(mi, dr, table, n: int):
 def _lamp_irradiance(mi, dr, scene, lamps: _DeviceLamps, p, nrm, active, seed: int) -> list:
     r"""Per sub-band :math:`E_k / \pi` of the lamps' direct light at points ``p`` with normals
     ``nrm`` (a Lambertian surface of reflectance :math:`\rho_k` reflects :math:`\rho_k E_k/\pi`),
-    by next-event estimation with one shadow ray per lamp:
+    by next-event estimation:
 
     - a point lamp or spot of axial intensity :math:`I_k` at distance d along the unit vector
       :math:`\omega` (surface to lamp): :math:`E_k = I_k f(\theta)\,(n\cdot\omega)/d^2` if
       nothing lies between (the inverse-square and cosine laws; Kajiya 1986's rendering equation
       for a delta light), f the spot's falloff at :math:`\theta` off its axis (1 inside the
       beam angle, linear in angle to 0 at the cutoff: Mitsuba 3's ``spot``,
-      :func:`humv_usd.render.lights.spot_falloff`);
+      :func:`humv_usd.render.lights.spot_falloff`); one shadow ray per lamp, up to
+      :data:`MAX_LAMP_RAYS` lamps;
     - a window (a rectangle of area A and radiance :math:`L_k` emitting along N): one point y
       uniform on it, :math:`E_k = L_k A (n\cdot\omega)(-N\cdot\omega)/d^2` if visible
       (area sampling of the rendering equation's irradiance integral, unbiased; Pharr, Jakob &
-      Humphreys, *Physically Based Rendering*, 4th ed., 2023, sec. 12.5)."""
+      Humphreys, *Physically Based Rendering*, 4th ed., 2023, sec. 12.5).
+
+    Many lights (the windows, and point lamps beyond :data:`MAX_LAMP_RAYS`): one of them per
+    point, chosen with probability :math:`p_i` proportional to its unoccluded irradiance there
+    (at a window's centre) plus a floor of 1e-3 of the mean (every light that can reach the
+    point has :math:`p_i > 0`), its contribution divided by :math:`p_i`: one shadow ray instead
+    of one per light, unbiased (light selection by estimated contribution, PBRT 4th ed.
+    sec. 12.6)."""
     width = dr.width(p)
-    out = [dr.zeros(mi.Float, width) for _ in lamps.points[0].value] if lamps.points else None
-    if out is None:
-        out = [dr.zeros(mi.Float, width) for _ in lamps.rects[0].value]
+    n = len((lamps.points or lamps.rects)[0].value)
+    out = [dr.zeros(mi.Float, width) for _ in range(n)]
     o = p + nrm * _offset(dr, p)
+    rng = mi.PCG32(
+        size=width, initstate=dr.opaque(mi.UInt64, int(seed) % 2**62), initseq=dr.arange(mi.UInt64, width)
+    )
 
     def towards(target, on):
         v = target - o
@@ -1191,28 +1206,87 @@ def _lamp_irradiance(mi, dr, scene, lamps: _DeviceLamps, p, nrm, active, seed: i
         for k, value in enumerate(values):
             out[k] += weight * value
 
-    for lamp in lamps.points:
-        w, d2, dist, cos_s, on = towards(lamp.position, active)
+    def point_geometry(position, axis, beam, cutoff, inv_transition):
+        w, d2, dist, cos_s, on = towards(position, active)
         fall = 1.0
-        if lamp.axis is not None:  # a spot: Mitsuba's falloff, linear in angle
-            theta = dr.acos(dr.clip(-dr.dot(w, lamp.axis), -1.0, 1.0))
-            fall = dr.select(
-                theta <= lamp.beam, 1.0, dr.clip((lamp.cutoff - theta) * lamp.inv_transition, 0.0, 1.0)
-            )
-            on &= theta < lamp.cutoff
+        if axis is not None:  # a spot: Mitsuba's falloff, linear in angle
+            theta = dr.acos(dr.clip(-dr.dot(w, axis), -1.0, 1.0))
+            fall = dr.select(theta <= beam, 1.0, dr.clip((cutoff - theta) * inv_transition, 0.0, 1.0))
+            on &= theta < cutoff
+        return w, dist, dr.select(on, fall * cos_s / (d2 * np.pi), 0.0), on
+
+    def trace(w, dist, weight, on, values):
         blocked = scene.ray_test(mi.Ray3f(mi.Ray3f(o, w), dist * (1.0 - 1e-4)), on)
-        add(dr.select(on & ~blocked, fall * cos_s / (d2 * np.pi), 0.0), lamp.value)
-    if lamps.rects:
-        rng = mi.PCG32(
-            size=width, initstate=dr.opaque(mi.UInt64, int(seed) % 2**62), initseq=dr.arange(mi.UInt64, width)
-        )
-        for rect in lamps.rects:
-            a, b = 2.0 * rng.next_float32() - 1.0, 2.0 * rng.next_float32() - 1.0
-            w, d2, dist, cos_s, on = towards(rect.centre + rect.u * a + rect.v * b, active)
-            cos_l = -dr.dot(w, rect.normal)
-            on &= cos_l > 0.0
-            blocked = scene.ray_test(mi.Ray3f(mi.Ray3f(o, w), dist * (1.0 - 1e-4)), on)
-            add(dr.select(on & ~blocked, rect.area * cos_s * cos_l / (d2 * np.pi), 0.0), rect.value)
+        add(dr.select(on & ~blocked, weight, 0.0), values)
+
+    def choose(estimates):
+        """(index, probability) of one light per lane, p_i ~ estimate_i + floor."""
+        total = estimates[0]
+        for e in estimates[1:]:
+            total = total + e
+        floor = 1e-3 * total / len(estimates) + 1e-30
+        total = total + floor * len(estimates)
+        target = rng.next_float32() * total
+        index = dr.full(mi.UInt32, len(estimates) - 1, width)
+        chosen = estimates[-1] + floor
+        acc = dr.zeros(mi.Float, width)
+        found = dr.zeros(mi.Bool, width)
+        for i, e in enumerate(estimates):
+            acc = acc + e + floor
+            take = ~found & (target < acc)
+            index = dr.select(take, i, index)
+            chosen = dr.select(take, e + floor, chosen)
+            found |= take
+        return index, chosen / total
+
+    def pick(index, values):
+        """values[index] per lane (a list of per-light device values or vectors)."""
+        out_v = values[0]
+        for i, v in enumerate(values[1:], start=1):
+            out_v = dr.select(index == i, v, out_v)
+        return out_v
+
+    if len(lamps.points) <= MAX_LAMP_RAYS:
+        for lamp in lamps.points:
+            w, dist, weight, on = point_geometry(
+                lamp.position, lamp.axis, lamp.beam, lamp.cutoff, lamp.inv_transition
+            )
+            trace(w, dist, weight, on, lamp.value)
+    else:  # one lamp per point, by its unoccluded irradiance
+        geo = [
+            point_geometry(lamp.position, lamp.axis, lamp.beam, lamp.cutoff, lamp.inv_transition)
+            for lamp in lamps.points
+        ]
+        index, prob = choose([g[2] * lamp.total for g, lamp in zip(geo, lamps.points)])
+        w = pick(index, [g[0] for g in geo])
+        dist = pick(index, [g[1] for g in geo])
+        weight = pick(index, [g[2] for g in geo]) / prob
+        on = pick(index, [g[3] for g in geo])
+        trace(w, dist, weight, on, [pick(index, [lamp.value[k] for lamp in lamps.points]) for k in range(n)])
+    if lamps.rects:  # one window per point, by its unoccluded irradiance at its centre
+        rects = lamps.rects
+        if len(rects) == 1:
+            rect, prob = rects[0], 1.0
+            centre, u, v, normal, area = rect.centre, rect.u, rect.v, rect.normal, rect.area
+            values = rect.value
+        else:
+            estimates = []
+            for r in rects:
+                w_c, d2_c, _, cos_c, on_c = towards(r.centre, active)
+                cos_lc = dr.maximum(-dr.dot(w_c, r.normal), 0.0)
+                estimates.append(dr.select(on_c, r.total * r.area * cos_c * cos_lc / d2_c, 0.0))
+            index, prob = choose(estimates)
+            centre = pick(index, [r.centre for r in rects])
+            u = pick(index, [r.u for r in rects])
+            v = pick(index, [r.v for r in rects])
+            normal = pick(index, [r.normal for r in rects])
+            area = pick(index, [r.area for r in rects])
+            values = [pick(index, [r.value[k] for r in rects]) for k in range(n)]
+        a, b = 2.0 * rng.next_float32() - 1.0, 2.0 * rng.next_float32() - 1.0
+        w, d2, dist, cos_s, on = towards(centre + u * a + v * b, active)
+        cos_l = -dr.dot(w, normal)
+        on &= cos_l > 0.0
+        trace(w, dist, area * cos_s * cos_l / (d2 * np.pi) / prob, on, values)
     return out
 
 
