@@ -89,7 +89,7 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 10: JOS-3 runs with the person's own body fat (Deurenberg 1991), not 15 %
 #: 11: moving cloud shadows on the scene surfaces ([atmosphere] cloud_size_m); 12: and on the people
 #: 13: snow on the ground melts (physics.snow); faces bare at frame 0 bound to the ground's material
-#: 14: and on the flat roofs of box objects (from below too, over a heated room)
+#: 14: the people's face-temperature noise measured by replicates, per mesh (report only)
 VERSION = "14"
 
 
@@ -214,7 +214,7 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
                 upstream, h, str(human_path(h["id"])), scenario, world, model, th
             )
             solved.update(temps_h)
-            report[h["id"]] = {k: round(v, 9) for k, v in diag.items()}
+            report[h["id"]] = _rounded(diag)
     wet = sdiag.get("wetFraction") if slabs else None
     if wet:  # issue 30.4: faces wet after rain render with a wet variant of their material
         report["wetSurfaces"] = author_wet_surfaces(
@@ -273,6 +273,11 @@ def _sky_report(forcing, tables, i0, upstream) -> dict:
             float(forcing.sky_longwave[i0] / (STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
         ),
     }
+
+
+def _rounded(values: dict) -> dict:
+    """A report dict with its numbers rounded to 9 digits (nested dicts too)."""
+    return {k: _rounded(v) if isinstance(v, dict) else round(v, 9) for k, v in values.items()}
 
 
 def _fixed_people(scenario: Scenario) -> dict[Sdf.Path, float]:
