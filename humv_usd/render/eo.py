@@ -8,7 +8,8 @@ also used when the variant is not vectorised or ``max_depth`` is bounded).
 
 Radiometry (opaque Lambertian surfaces, no emission in the visible)
 -----------------------------------------------------------------
-Each part reflects diffusely with its material's spectral reflectance
+Each part (but calm water, a Fresnel mirror in the fast estimator: :mod:`humv_usd.render.estimator`)
+reflects diffusely with its material's spectral reflectance
 ``humv:material:reflectance`` on ``humv:material:wavelengths`` (linear, held beyond the ends),
 sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spectrum. Illumination:
 

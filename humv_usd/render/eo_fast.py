@@ -196,10 +196,24 @@ def horizontal_irradiance(sun_nm, sky_nm, sun_direction, lamps=()) -> np.ndarray
 
 
 class _NoEmission:
-    """The sub-band model of a reflective-only band: n bins, zero emitted radiance."""
+    """The sub-band model of a reflective-only band: n bins, zero emitted radiance; with the
+    ``bins``, their means of a spectral table (:meth:`weighted_mean`, e.g. water's Fresnel
+    reflectance for the puddles' mirrors)."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, bins: VisibleBins | None = None):
         self.n = int(n)
+        self.bins = bins
+
+    def weighted_mean(self, wavelengths_um, values) -> np.ndarray:
+        """Per-bin means (..., n) of a table (..., W) on ``wavelengths_um`` (linear on the 5-nm
+        grid, held beyond its ends), weighted as :meth:`VisibleBins.mean`; None without bins."""
+        if self.bins is None:
+            return None
+        v = np.asarray(values, float)
+        flat = v.reshape(-1, v.shape[-1])
+        grid = GRID_NM / 1000.0
+        rows = [self.bins.mean(np.interp(grid, wavelengths_um, row)) for row in flat]
+        return np.asarray(rows).reshape(v.shape[:-1] + (self.n,))
 
     def __len__(self) -> int:
         return self.n
@@ -232,7 +246,7 @@ def render_xyz_fast(
         scene,
         sensor_id,
         state,
-        _NoEmission(n),
+        _NoEmission(n, bins),
         None,
         light,
         spp=spp,

@@ -13,6 +13,9 @@ Monte Carlo noise for the same rays:
   (``radiometry.lamps``, a :class:`humv_usd.render.lights.LampTable`: a shadow ray per point
   lamp or spot per vertex, one sampled point per lit window, :func:`_lamp_irradiance`; camera
   rays see a window's radiance, :func:`_windows_seen`).
+- **Calm water is a mirror** for camera rays (the puddles: :func:`_mirror_tables`): emission
+  :math:`(1 - R(\\mu)) B(T)` and one mirror ray of throughput :math:`R(\\mu)` (Fresnel) with no
+  control variate, in place of the Lambertian terms; its reflected part is not filtered.
 - **Control variate for the reflected sky.** The reflected radiance of a Lambertian vertex with
   normal :math:`n` is :math:`\\rho_k \\int L_{in}(\\omega) (n\\cdot\\omega)/\\pi\\,d\\omega`. With
   :math:`C_k(\\omega)` = the sky radiance above the horizon and a ground radiance :math:`L_g`
@@ -73,7 +76,9 @@ import numpy as np
 
 from humv_usd import mode
 from humv_usd.geometry import shading
+from humv_usd.physics import water_film
 from humv_usd.render.radiometry import SKY_MAP_HEIGHT
+from humv_usd.scene.puddles import MATERIAL as PUDDLE_MATERIAL
 
 log = logging.getLogger(__name__)
 
@@ -671,6 +676,7 @@ def render_band_fast(
         if getattr(part, "label_class", None) not in CAVITY_CLASSES:
             cavity[first:last] = 0.0
     cavity_dr = f32(cavity.astype(np.float32).ravel())
+    mirrors = _mirror_tables(mi, scene, tables, sub)  # calm water (puddles): Fresnel mirrors
     sky_dr = f32(np.ascontiguousarray(rows.T, dtype=np.float32).ravel())  # (H, n)
     ground_k = [dr.opaque(f32, float(g)) for g in ground]
     part_of_key = {p.key: i for i, p in enumerate(scene.parts)}
@@ -780,11 +786,23 @@ def render_band_fast(
             for k in range(n)
         ]
         rho = [dr.select(front, r, 0.0) for r in rho]
+        mirror = None
+        if mirrors is not None:  # a mirror: (1 - R) B(T) emitted, R times the mirror ray's radiance
+            tri_f = triangle(si, front)
+            mirror = front & (dr.gather(f32, mirrors.flag, tri_f, front) > 0.5)
+            mu = dr.clip(-dr.dot(ray.d, si.n), 0.0, 1.0)
+            fresnel = _fresnel(mi, dr, mirrors, mu, n, mirror)
+            for k in range(n):
+                body = dr.gather(f32, mirrors.blackbody, tri_f * n + k, mirror)
+                value[k] = dr.select(mirror, (1.0 - fresnel[k]) * body, value[k])
+                rho[k] = dr.select(mirror, fresnel[k], rho[k])
         if lamps is not None and lamps.rects:  # a lit window in front of the first hit
             seen, t_window, window = _windows_seen(mi, dr, lamps, ray, dr.select(hit, si.t, dr.inf))
             value = [dr.select(seen, window[k], value[k]) for k in range(n)]
             rho = [dr.select(seen, 0.0, r) for r in rho]
             front, back = front & ~seen, back & ~seen
+            if mirror is not None:
+                mirror = mirror & ~seen
             si.t = dr.select(seen, t_window, si.t)
             hit = hit | seen
         backs = dr.select(back, f32(1.0), f32(0.0))
@@ -807,13 +825,21 @@ def render_band_fast(
             ]
             rho = [rho[k] * tau[k] for k in range(n)]  # the reflected term's throughput
         if layout is not None:  # per cell, on the host in a fixed order: sums / points
-            dr.eval(direct_dr, back_counts[-1], *([rho, front, si.p, si.n, per_cell] if reflect else []))
+            dr.eval(
+                direct_dr,
+                back_counts[-1],
+                *(
+                    [rho, front, si.p, si.n, per_cell, ray.d] + ([mirror] if mirror is not None else [])
+                    if reflect
+                    else []
+                ),
+            )
             back_counts[-1] = layout.cell_sums(back_counts[-1])
             direct = layout.cell_sums(np.stack([np.asarray(v) for v in direct_dr])) / layout.cell_points()
             if not reflect:
                 return direct, None
             layout.count_dr = per_cell  # the reflected term's lattice sizes, per camera lane
-            return direct, (j, cell, front, si, rho)
+            return direct, (j, cell, front, si, rho, mirror, ray.d)
         # per (pixel, replica) cell: the mean of its lattice points, per channel
         if points > 1:
             inv_points = dr.opaque(f32, 1.0 / points)
@@ -821,13 +847,24 @@ def render_band_fast(
         if not reflect:
             dr.eval(direct_dr, back_counts[-1])
             return np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr]), None
-        dr.eval(direct_dr, rho, front, si.p, si.n, back_counts[-1])
+        dr.eval(
+            direct_dr,
+            rho,
+            front,
+            si.p,
+            si.n,
+            back_counts[-1],
+            ray.d,
+            *([mirror] if mirror is not None else []),
+        )
         direct = np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr])  # (c, cells)
-        return direct, (j, cell, front, si, rho)
+        return direct, (j, cell, front, si, rho, mirror, ray.d)
 
     rays = 0  # reflection rays traced (the cost of the reflected term, in camera samples)
 
-    def reflect_pass(j, cell, front, si, beta0, points: int, samples: int, dir_seed: int, rr_seed: int):
+    def reflect_pass(
+        j, cell, front, si, beta0, mirror, ray_d, points: int, samples: int, dir_seed: int, rr_seed: int
+    ):
         """The reflected term of a camera pass's front-facing vertices: per-cell means (c,
         cells) of ``splits`` stratified cosine directions per vertex, continued by Russian
         roulette; ``points`` lattice points per cell, ``samples`` camera samples in all."""
@@ -868,6 +905,11 @@ def render_band_fast(
             lane_id = b
             origin = dr.gather(mi.UInt32, triangle(si, front), par)  # the face each ray leaves
             d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
+            mirror_lane = None
+            if mirror is not None:  # a mirror's lanes follow its mirror direction, no control variate
+                mirror_lane = dr.gather(mi.Bool, mirror, par)
+                incident = dr.gather(mi.Vector3f, ray_d, par)
+                d = dr.select(mirror_lane, incident - n0 * (2.0 * dr.dot(incident, n0)), d)
             ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
             for depth in range(1, MAX_DEPTH):
                 si = _intersect_leaving(mi, dr, scene.scene, ray, origin, triangle)
@@ -878,6 +920,9 @@ def render_band_fast(
                 # escaping above the horizon: sky - C = 0; no surface: sky - L_g below the horizon;
                 # a back face: its cavity radiance - C (:func:`cavity_table`)
                 odd = ~front & (hit | (dz < 0.0))
+                first_mirror = mirror_lane if depth == 1 else None
+                if first_mirror is not None:  # a mirror ray escaping to the sky: its radiance - 0
+                    odd |= first_mirror & ~hit
                 tri = triangle(si, hit)
                 dr.eval(hit, front, odd, tri, si.p, si.n, si.uv, dz)
                 lanes_odd = dr.compress(odd)
@@ -893,6 +938,8 @@ def render_band_fast(
                         sky_k = sky(k, where)
                         seen = dr.select(hit_o, dr.gather(f32, cavity_dr, back_o + k, hit_o), sky_k)
                         control = dr.select(up_o, sky_k, ground_k[k])
+                        if first_mirror is not None:
+                            control = dr.select(dr.gather(mi.Bool, first_mirror, lanes_odd), 0.0, control)
                         terms.append(beta_o[k] * (seen - control))
                     _scatter_channels(dr, acc, terms, wts, dr.gather(mi.UInt32, lane_id, lanes_odd))
                 on = dr.compress(front)
@@ -918,8 +965,11 @@ def render_band_fast(
                 up = dz_f >= 0.0
                 where = sky_at(dz_f)
                 terms = []
+                mirror_on = None if first_mirror is None else dr.gather(mi.Bool, first_mirror, on)
                 for k in range(n):
                     control = dr.select(up, sky(k, where, up), ground_k[k])
+                    if mirror_on is not None:
+                        control = dr.select(mirror_on, 0.0, control)
                     terms.append(beta[k] * (surf[k] - control))
                 _scatter_channels(dr, acc, terms, wts, lane_id)
                 beta = [beta[k] * rho[k] for k in range(n)]
@@ -956,9 +1006,9 @@ def render_band_fast(
             [np.asarray(_lanes_to_cells(mi, dr, a, parent, splits, samples, points)) for a in acc]
         )
 
-    direct_r, (j, cell, front, si, beta0) = camera_pass(lattice_n, seeds[0], True)
+    direct_r, (j, cell, front, si, beta0, mirror0, ray_d0) = camera_pass(lattice_n, seeds[0], True)
     note("camera vertices and path: %d samples", total)
-    reflect_r = reflect_pass(j, cell, front, si, beta0, lattice_n, total, seeds[1], seeds[2])
+    reflect_r = reflect_pass(j, cell, front, si, beta0, mirror0, ray_d0, lattice_n, total, seeds[1], seeds[2])
     note("paths done")
 
     # --- per pixel means, RQMC errors, and the reflected part filtered over the surface --------
@@ -983,8 +1033,8 @@ def render_band_fast(
     radius_px = windows.result()
     note("replica statistics (filter windows ready)")
     if filter_radius > 0:
-        reflect_mean, reflect_var = filter_reflected(
-            reflect_mean, reflect_var, hits, filter_radius, radius_px
+        reflect_mean, reflect_var = _filtered(
+            reflect_mean, reflect_var, hits, filter_radius, radius_px, mirrors
         )
     # --- more pixel positions for the direct term where it dominates the error ----------------
     if direct_points is None:
@@ -1045,8 +1095,8 @@ def render_band_fast(
             direct, direct_var = replica_stats(direct_r)
             reflect_mean, reflect_var = replica_stats(reflect_r)
             if filter_radius > 0:
-                reflect_mean, reflect_var = filter_reflected(
-                    reflect_mean, reflect_var, hits, filter_radius, radius_px
+                reflect_mean, reflect_var = _filtered(
+                    reflect_mean, reflect_var, hits, filter_radius, radius_px, mirrors
                 )
         # 2. the direct share of the target: what the reflected part leaves of it, at least
         # half of it (the caller's further batches shrink the reflected part); in multiples of
@@ -1309,6 +1359,78 @@ def _windows_seen(mi, dr, lamps: _DeviceLamps, ray, t_max):
         t_best = dr.select(on, t, t_best)
         value = [dr.select(on, rect.value[k], value[k]) for k in range(len(value))]
     return seen, t_best, value
+
+
+def _filtered(mean, var, hits, radius: int, radius_px, mirrors):
+    """:func:`filter_reflected`, but a mirror's pixels (calm water) keep their own reflected
+    radiance: a mirror image is not smooth over the surface, as a Lambertian surface's
+    irradiance is."""
+    out_m, out_v = filter_reflected(mean, var, hits, radius, radius_px)
+    if mirrors is None:
+        return out_m, out_v
+    own = np.isin(hits.part, mirrors.parts)
+    if own.any():
+        out_m = np.where(own, mean, out_m)
+        out_v = np.where(own, var, out_v)
+    return out_m, out_v
+
+
+#: Incidence-cosine nodes of a mirror's Fresnel table (:func:`_mirror_tables`).
+FRESNEL_NODES = 65
+
+
+def _mirror_tables(mi, scene, tables: FaceTables, sub):
+    r"""The scene's mirrors (None without): the parts of calm water (material
+    :data:`humv_usd.scene.puddles.MATERIAL`, the puddles), each triangle's flag and blackbody
+    radiance :math:`B_k(T) = \varepsilon_k L_k(T)/\varepsilon_k` (:func:`cavity_table`), and
+    per sub-band the unpolarized Fresnel reflectance of water against the incidence cosine,
+    :math:`R_k(\mu)` (Hale & Querry's index, :func:`humv_usd.physics.water_film.fresnel_reflectance`),
+    averaged over the sub-band with ``sub.weighted_mean`` (Planck and response weighted;
+    the EO bins' sensitivity). A camera ray on such a face sees
+    :math:`(1 - R_k(\mu)) B_k(T) + R_k(\mu) L_k(\omega_r)`: Kirchhoff's law for an opaque
+    specular interface (emissivity 1 - R) and the radiance along the mirror direction; the
+    light scattered back from under the water (a puddle's bottom) is left out."""
+    parts = [
+        i for i, p in enumerate(scene.parts) if str(p.material.path).rsplit("/", 1)[-1] == PUDDLE_MATERIAL
+    ]
+    band_mean = getattr(sub, "weighted_mean", None)
+    if not parts or band_mean is None:
+        return None
+    n = tables.emission.shape[1]
+    flag = np.zeros(len(tables.emission), dtype=np.float32)
+    ends = list(tables.offset[1:]) + [len(flag)]
+    for i in parts:
+        flag[tables.offset[i] : ends[i]] = 1.0
+    wl = np.geomspace(0.35, 15.0, 1200)
+    mu = np.linspace(0.0, 1.0, FRESNEL_NODES)
+    spectral = water_film.fresnel_reflectance(
+        mu[:, None], water_film.water_refractive_index(np.clip(wl, 0.4, 14.0))[None, :]
+    )
+    fresnel = band_mean(wl, spectral)
+    if fresnel is None:
+        return None
+    fresnel = np.clip(np.asarray(fresnel, float).reshape(FRESNEL_NODES, n), 0.0, 1.0)
+    blackbody = cavity_table(tables) * flag[:, None]
+    return SimpleNamespace(
+        parts=np.asarray(parts),
+        flag=mi.Float(flag),
+        blackbody=mi.Float(blackbody.astype(np.float32).ravel()),
+        fresnel=mi.Float(np.ascontiguousarray(fresnel.T, dtype=np.float32).ravel()),  # (n, nodes)
+        table=fresnel,
+    )
+
+
+def _fresnel(mi, dr, mirrors, mu, n: int, active) -> list:
+    """R_k(mu) per sub-band, linear between the table's nodes."""
+    x = dr.clip(mu, 0.0, 1.0) * (FRESNEL_NODES - 1)
+    i = dr.minimum(mi.UInt32(dr.floor(x)), FRESNEL_NODES - 2)
+    t = x - mi.Float(i)
+    out = []
+    for k in range(n):
+        lo = dr.gather(mi.Float, mirrors.fresnel, k * FRESNEL_NODES + i, active)
+        hi = dr.gather(mi.Float, mirrors.fresnel, k * FRESNEL_NODES + i + 1, active)
+        out.append(lo + (hi - lo) * t)
+    return out
 
 
 def _clouds_on_device(mi, dr, cloud):
