@@ -375,7 +375,7 @@ def test_full_preview_is_the_real_compose_and_a_small_forced_render(humvvex, tmp
 
 def test_fast_preview_is_a_cheaper_copy_in_its_own_folder(humvvex, tmp_path):
     """Issue 26 (7): the fast preview composes a preview-quality copy of the scenario into a
-    folder of its own (never the real layers): only the previewed sensor at its preview size
+    folder of its own (never the real layers): every sensor at its preview size
     (render_resolution: same field of view), frame 0 only, the thermal layer's knobs lowered but
     never raised, file keys absolute, and it says so."""
     import tomllib
@@ -395,11 +395,17 @@ def test_fast_preview_is_a_cheaper_copy_in_its_own_folder(humvvex, tmp_path):
     raw["human"][0]["bvh"] = "motion/walk.bvh"  # a relative file key
     before = tomllib.loads(humvvex.read_text())
     scenario = validate({**raw, "human": before["human"]}, humvvex)
-    pv = preview_scenario(raw, scenario, humvvex.parent, "lwir640")
+    pv = preview_scenario(raw, scenario, humvvex.parent)
     assert raw["thermal"] == {"model": "jos3", "radiation_resolution": 16} and len(raw["sensor"]) == 4
-    [sensor] = pv["sensor"]
-    assert sensor["id"] == "lwir640" and sensor["render_resolution"] == [320, 256]
-    assert pv["general"]["duration_s"] == 0.0 and "editor preview of lwir640" in pv["general"]["description"]
+    # every sensor at its preview size (the copy is the same whichever sensor is previewed)
+    sizes = {s["id"]: s["render_resolution"] for s in pv["sensor"]}
+    assert sizes == {
+        "atom1024_lwir": [256, 192],
+        "lwir640": [320, 256],
+        "mwir_insb": [320, 256],
+        "eo_rgb": [288, 216],
+    }
+    assert pv["general"]["duration_s"] == 0.0 and "editor preview (fast" in pv["general"]["description"]
     assert pv["thermal"] == {
         "model": "jos3",
         "radiation_resolution": 16,
@@ -409,7 +415,7 @@ def test_fast_preview_is_a_cheaper_copy_in_its_own_folder(humvvex, tmp_path):
     assert pv["human"][0]["bvh"] == str((humvvex.parent / "motion" / "walk.bvh").resolve())
     pv["human"][0].pop("bvh")
     checked = validate(pv, tmp_path / "elsewhere" / "preview.toml")  # valid wherever it lives
-    assert checked.frame_count == 1 and list(checked["sensor"][0]["render_resolution"]) == [320, 256]
+    assert checked.frame_count == 1 and list(checked["sensor"][1]["render_resolution"]) == [320, 256]
     notes = preview_notes(scenario)
     assert (
         "thermal.radiation_rays 8 (scenario: 64)" in notes and "frame 0 only (scenario: 61 frames)" in notes
@@ -418,7 +424,7 @@ def test_fast_preview_is_a_cheaper_copy_in_its_own_folder(humvvex, tmp_path):
     # the fixed model has no radiation balance: only the scene's cells are coarser
     raw["thermal"] = {"model": "fixed", "surface_cell_m": 2.0}
     fixed = validate({**raw, "human": before["human"]}, humvvex)
-    assert preview_scenario(raw, fixed, humvvex.parent, "lwir640")["thermal"] == raw["thermal"]
+    assert preview_scenario(raw, fixed, humvvex.parent)["thermal"] == raw["thermal"]
     out = tmp_path / "out"
     compose, render = preview_commands(out / PREVIEW_SCENARIO, out, "lwir640", (320, 256))
     stage_dir = out / PREVIEW_STAGE_DIR

@@ -482,22 +482,34 @@ class Page:
             ui.button("Compose and show", icon="view_in_ar", on_click=self.compose_3d).props(
                 "data-testid=show-3d"
             )
-            self.view_info = ui.label("the composed stage (meshes at frame 0, cameras)").classes(
-                "text-caption"
-            )
+            self.view_info = ui.label(
+                f"the fast preview's stage (OUT/{PREVIEW_STAGE_DIR}: meshes at frame 0, cameras)"
+            ).classes("text-caption")
         self.scene = ui.scene(width=1000, height=620, grid=(200, 100)).props("data-testid=scene3d")
 
+    def write_fast_copy(self) -> Path:
+        """Write the fast preview's scenario copy (editor.preview.preview_scenario) into the
+        output folder; returns its path."""
+        path = self.editor.out_dir / PREVIEW_SCENARIO
+        raw = preview_scenario(self.doc.raw(), self.doc.scenario(), self.doc.folder)
+        write_text_atomic(path, tomlkit.dumps(raw))
+        return path
+
     def compose_3d(self) -> None:
+        """Compose the fast preview's copy (the geometry and every camera as the scenario has
+        them; one layer cache with the fast preview) and show it."""
         if not self.ensure_saved():
             return
+        source, stage_dir = self.write_fast_copy(), self.editor.out_dir / PREVIEW_STAGE_DIR
         self.stage_job = self.start_job(
-            "compose", [humv_command("compose", str(self.doc.path), "-o", str(self.editor.out_dir))]
+            "compose", [humv_command("compose", str(source), "-o", str(stage_dir))]
         )
 
     async def show_stage(self) -> None:
         glb = self.editor.out_dir / ".editor" / "stage.glb"
+        stage = self.editor.out_dir / PREVIEW_STAGE_DIR / "stage.usda"
         try:
-            view = await run.io_bound(stage_view, self.editor.out_dir / "stage.usda", glb)
+            view = await run.io_bound(stage_view, stage, glb)
         except InputError as exc:
             ui.notify(str(exc), type="negative")
             return
@@ -555,9 +567,7 @@ class Page:
         quality = self.preview_quality.value or QUALITIES[0]
         source = self.doc.path
         if quality == "fast":  # its own scenario copy and folder: never the real layers
-            source = out / PREVIEW_SCENARIO
-            raw = preview_scenario(self.doc.raw(), scenario, self.doc.folder, sensor)
-            write_text_atomic(source, tomlkit.dumps(raw))
+            source = self.write_fast_copy()
         size = preview_resolution(scenario, sensor)
         steps = [humv_command(*args) for args in preview_commands(source, out, sensor, size, quality)]
         self.preview_started = time.time()

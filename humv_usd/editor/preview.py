@@ -4,13 +4,15 @@ Two qualities (:func:`preview_commands`), both rendered into ``OUT/preview`` (``
 folder holds the previous preview):
 
 * ``fast`` (the default): a preview-quality copy of the scenario (:func:`preview_scenario`:
-  only the previewed sensor at at most :data:`PREVIEW_WIDTH_PX` columns through its
-  ``render_resolution``, frame 0 only, and the thermal layer's costliest knobs lowered to
-  :data:`PREVIEW_THERMAL`) written to ``OUT/.editor/preview.toml`` and composed into
-  ``OUT/.editor/preview``: its own folder and its own layer cache, never the real layers. After
-  an edit that rebuilds the thermal layer (a person, a pose, the clock, the weather) this costs
-  seconds instead of the full layer's 15-30 s (``humv-usd bench preview`` measures it per
-  edit). The page says that it is a preview and what it lowered (:func:`preview_notes`).
+  every sensor at at most :data:`PREVIEW_WIDTH_PX` columns through its ``render_resolution``,
+  frame 0 only, and the thermal layer's costliest knobs lowered to :data:`PREVIEW_THERMAL`)
+  written to ``OUT/.editor/preview.toml`` and composed into ``OUT/.editor/preview``: its own
+  folder and its own layer cache, never the real layers. The copy does not depend on the
+  previewed sensor, so a preview of another sensor and the 3D tab's view reuse its layers.
+  After an edit that rebuilds the thermal layer (a person, a pose, the clock, the weather) it
+  costs about 40 % less CPU than the real compose, and the image differs from the full-quality
+  preview by < 0.1 K on the person (``humv-usd bench preview`` measures it per edit). The page
+  says that it is a preview and what it lowered (:func:`preview_notes`).
 * ``full``: the real ``humv-usd compose`` of the scenario into the editor's output folder (the
   same command as the Run tab's Compose and the 3D tab's view: one layer cache), then the
   render of frame 0 binned with ``--resolution`` (:func:`preview_resolution`; the field of view
@@ -106,36 +108,31 @@ def _absolute_paths(raw: dict, folder: Path) -> None:
             node[f.path[-1]] = [str((folder / v).resolve()) if isinstance(v, str) else v for v in value]
 
 
-def preview_scenario(raw: dict, scenario: Scenario, folder: Path, sensor: str) -> dict:
-    """The scenario document of a fast preview of ``sensor`` (see the module doc).
+def preview_scenario(raw: dict, scenario: Scenario, folder: Path) -> dict:
+    """The scenario document of a fast preview (see the module doc).
 
-    Only that sensor, rendered at :func:`preview_resolution` (its ``render_resolution``: the
+    Every sensor rendered at its :func:`preview_resolution` (its ``render_resolution``: the
     field of view, pitch and lens stay those of the scenario); frame 0 only
     (``general.duration_s = 0``); the thermal knobs of :data:`PREVIEW_THERMAL` lowered; file
-    keys absolute; the description says it is a preview. Everything else as written.
+    keys absolute; the description says it is a preview. Everything else as written. Nothing
+    in it depends on which sensor is previewed (one layer cache for all of them and the 3D tab).
 
     Parameters
     ----------
     raw : dict
         The scenario as written (plain values; not changed).
     scenario : Scenario
-        The same, validated (the sensor's preset values filled in).
+        The same, validated (the sensors' preset values filled in).
     folder : Path
         The scenario's folder (relative file keys are relative to it).
-    sensor : str
-        The previewed sensor's ``id``.
     """
     out = copy.deepcopy(raw)
     _absolute_paths(out, folder)
-    index, _ = _sensor_table(scenario, sensor)
-    table = out["sensor"][index]
-    table["render_resolution"] = list(preview_resolution(scenario, sensor))
-    out["sensor"] = [table]
+    for table, filled in zip(out.get("sensor", []), scenario["sensor"]):
+        table["render_resolution"] = list(preview_resolution(scenario, filled["id"]))
     general = out.setdefault("general", {})
     general["duration_s"] = 0.0
-    general["description"] = (
-        f"editor preview of {sensor} (fast quality: {'; '.join(preview_notes(scenario))})"
-    )
+    general["description"] = f"editor preview (fast quality: {'; '.join(preview_notes(scenario))})"
     thermal = out.setdefault("thermal", {})
     for key, own, lowered in _thermal_knobs(scenario):
         if lowered != own:

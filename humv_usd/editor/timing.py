@@ -129,7 +129,7 @@ def run_preview(doc: ScenarioDocument, out: Path, sensor: str, quality: str) -> 
     source = doc.path
     if quality == "fast":
         source = out / PREVIEW_SCENARIO
-        write_text_atomic(source, tomlkit.dumps(preview_scenario(doc.raw(), scenario, doc.folder, sensor)))
+        write_text_atomic(source, tomlkit.dumps(preview_scenario(doc.raw(), scenario, doc.folder)))
     steps = []
     for args in preview_commands(source, out, sensor, preview_resolution(scenario, sensor), quality):
         t, c = time.perf_counter(), _children_cpu()
