@@ -14,6 +14,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdShade
 from scipy.optimize import brentq
 
 from humv_usd.catalog.dyes import material
+from humv_usd.catalog.snow import cover_name
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.materials.layer import used_materials
 from humv_usd.physics import planck, sky, slab
@@ -64,6 +65,48 @@ def test_spherical_albedo_weak_absorption_limit():
     gamma = 4 * np.pi * 2.289e-9 / 0.55e-6  # Warren & Brandt k at 0.55 um
     expect = 1.0 - np.sqrt(16 * 1.6 * gamma * d / (9 * (1 - 0.845)))
     assert_allclose(S.spherical_albedo(wl, d), expect, atol=1e-4)
+
+
+@pytest.mark.parametrize(
+    "r_inf, k_e, depth, r_g", [(0.98, 5.0, 0.05, 0.1), (0.9, 30.0, 0.02, 0.5), (0.66, 120.0, 0.005, 0.05)]
+)
+def test_layer_albedo_solves_the_two_flux_equations(r_inf, k_e, depth, r_g):
+    """Kubelka's closed form against the two-flux equations dI/dz = -(K+S) I + S J, dJ/dz =
+    (K+S) J - S I solved by scipy's solve_bvp (I(0) = 1, J(h) = R_g I(h)), with K/S =
+    (1 - R_inf)^2 / (2 R_inf) and k_e = sqrt(K (K + 2 S)); and its limits R_g at h = 0, R_inf
+    deep."""
+    from scipy.integrate import solve_bvp
+
+    ks = (1.0 - r_inf) ** 2 / (2.0 * r_inf)
+    sc = k_e / np.sqrt(ks * (ks + 2.0))
+    k = ks * sc
+    z = np.linspace(0.0, depth, 200)
+
+    def rhs(_, y):
+        return np.vstack([-(k + sc) * y[0] + sc * y[1], (k + sc) * y[1] - sc * y[0]])
+
+    sol = solve_bvp(
+        rhs, lambda a, b: np.array([a[0] - 1.0, b[1] - r_g * b[0]]), z, np.ones((2, z.size)), tol=1e-8
+    )
+    assert sol.success
+    assert_allclose(S.layer_albedo(r_inf, k_e, depth, r_g), sol.sol(0.0)[1], atol=1e-5)
+    assert_allclose(S.layer_albedo(r_inf, k_e, 1e-9, r_g), r_g, atol=1e-6)
+    assert_allclose(S.layer_albedo(r_inf, k_e, 50.0 / k_e, r_g), r_inf, atol=1e-9)
+
+
+def test_shallow_snow_shows_the_ground_in_the_visible_only():
+    """<material>__snow<mm>: over soil the visible albedo rises with depth from the soil's
+    towards deep snow's (1 cm: ~0.75, 5 cm: ~0.93 at 0.55 um; Wiscombe & Warren 1980: snow is
+    not semi-infinite in the visible below a few cm of water); at 1.5 um and in the thermal
+    infrared any depth is the snow's (ice opaque within a millimetre)."""
+    soil, deep = material("soil"), material("snow")
+    vis = [material(f"soil__snow{mm}").at(0.55) for mm in (5, 10, 20, 50, 100, 200)]
+    assert soil.at(0.55) < vis[0] and np.all(np.diff(vis) > 0) and vis[-1] < deep.at(0.55) + 1e-9
+    assert 0.7 < vis[1] < 0.8 and 0.9 < vis[3] < 0.96
+    for mm in (5, 50):
+        m = material(f"soil__snow{mm}")
+        assert_allclose(m.at([1.5, 4.0, 10.0, 12.0]), deep.at([1.5, 4.0, 10.0, 12.0]), atol=0.01)
+    assert cover_name("soil", 0.06) == "soil__snow50" and cover_name("soil", 0.5) == "snow"
 
 
 def test_library_snow_broadband_albedo_and_thermal_emissivity():
@@ -227,13 +270,13 @@ def test_scene_tool_binds_snow_and_records_the_bare_ground():
     author_ground(stage, scenario["scene"], {"ground": 1})
     prim = stage.GetPrimAtPath("/World/Scene/Ground")
     rel = UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().GetTargets()
-    assert [str(p) for p in rel] == ["/World/Materials/snow"]
+    assert [str(p) for p in rel] == ["/World/Materials/soil__snow50"]  # 5 cm: shallow snow over soil
     assert read_snow_cover(prim) == SnowCover(0.05, 250.0, "/World/Materials/soil")
-    assert {"snow", "soil"} <= set(used_materials(scenario))
+    assert {"soil__snow50", "soil"} <= set(used_materials(scenario))
     bare = tomllib.loads(SNOW_SCENARIO)
     del bare["scene"]["ground"]["snow_depth_m"]
     bare = validate(bare)
-    assert "snow" not in used_materials(bare)
+    assert not [n for n in used_materials(bare) if "snow" in n]
     stage = Usd.Stage.CreateInMemory()
     author_ground(stage, bare["scene"], {"ground": 1})
     assert read_snow_cover(stage.GetPrimAtPath("/World/Scene/Ground")) is None
@@ -241,14 +284,14 @@ def test_scene_tool_binds_snow_and_records_the_bare_ground():
 
 def _snow_ground():
     stage = Usd.Stage.CreateInMemory()
-    for name in ("snow", "soil"):
+    for name in ("soil__snow50", "soil"):
         write_material(stage, f"/World/Materials/{name}", material(name))
     mesh = UsdGeom.Mesh.Define(stage, "/World/Scene/Ground")
     mesh.CreatePointsAttr([(x, y, 0) for y in range(3) for x in range(3)])
     mesh.CreateFaceVertexCountsAttr([4, 4, 4, 4])
     mesh.CreateFaceVertexIndicesAttr([0, 1, 4, 3, 1, 2, 5, 4, 3, 4, 7, 6, 4, 5, 8, 7])
     UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(
-        UsdShade.Material(stage.GetPrimAtPath("/World/Materials/snow"))
+        UsdShade.Material(stage.GetPrimAtPath("/World/Materials/soil__snow50"))
     )
     soil = read_material(stage.GetPrimAtPath("/World/Materials/soil"))
     pts = np.array([(x, y, 0) for y in range(3) for x in range(3)], float)
@@ -289,17 +332,18 @@ def test_thermal_solve_reports_snow_water_and_holds_melting_snow_at_0c():
 def test_thermal_layer_binds_melted_faces_to_the_bare_ground():
     upstream, ground = _snow_ground()
     layer = Usd.Stage.CreateInMemory()
-    report = author_snow_cover(
-        layer, upstream, [ground], {"/World/Scene/Ground": np.array([0.0, 3.0, 0.0, 10.0])}
-    )
+    water = np.array([0.0, 3.0, 0.0, 12.5])  # kg/m2 at 250 kg/m3: bare, 12 mm, bare, 50 mm
+    report = author_snow_cover(layer, upstream, [ground], {"/World/Scene/Ground": water})
     assert report["/World/Scene/Ground"]["snowFree"] == 2
     root = Sdf.Layer.CreateAnonymous(".usda")
     root.subLayerPaths = [layer.GetRootLayer().identifier, upstream.GetRootLayer().identifier]
     stage = Usd.Stage.Open(root)
     mats, index = face_materials(stage.GetPrimAtPath("/World/Scene/Ground"), 4)
-    assert [mats[i].name for i in index] == ["soil", "snow", "soil", "snow"]
-    layer = Usd.Stage.CreateInMemory()  # snow everywhere: no opinion at all
-    author_snow_cover(layer, upstream, [ground], {"/World/Scene/Ground": np.full(4, 5.0)})
+    assert [mats[i].name for i in index] == ["soil", "soil__snow10", "soil", "soil__snow50"]
+    # the level the scene did not author is this layer's, from the catalogue
+    assert_allclose(mats[index[1]].reflectance, material("soil__snow10").spectrum_reflectance, atol=1e-5)
+    layer = Usd.Stage.CreateInMemory()  # all snow still at the scene's level: no opinion at all
+    author_snow_cover(layer, upstream, [ground], {"/World/Scene/Ground": np.full(4, 12.5)})
     assert "over " not in layer.GetRootLayer().ExportToString()
     gone = dataclasses.replace(ground)
     layer = Usd.Stage.CreateInMemory()  # melted everywhere: the mesh is bound whole
@@ -338,7 +382,9 @@ def test_composed_snowy_yard_melts_around_a_barbecue_and_checks_clean(tmp_path):
     r = np.hypot(centre[:, 0], centre[:, 1])
     assert bare[r < 0.5].all() and not bare[r > 1.5].any()
     temp = np.asarray(prim.GetAttribute("primvars:humv:thermal:temperature").Get(0))
-    assert np.all(temp[~bare] <= 273.15 + 1e-6) and np.all(temp[bare] > 273.15)
+    # bare soil is above 0 degC (at 0 degC where it melted out in the last step)
+    assert np.all(temp[~bare] <= 273.15 + 1e-6) and np.all(temp[bare] >= 273.15 - 1e-6)
+    assert np.median(temp[bare]) > 283.15
 
 
 @pytest.mark.parametrize("depth, density", [(0.01, 60.0), (0.3, 250.0), (2.0, 500.0)])
@@ -377,7 +423,7 @@ def test_roof_snow_is_a_subset_that_the_thermal_layer_melts_away():
     that face only and, where the roof melted bare, takes the face out of the subset."""
     scenario = validate(tomllib.loads(SNOW_SCENARIO))
     stage = Usd.Stage.CreateInMemory()
-    for name in ("snow", "concrete"):
+    for name in ("concrete__snow50", "concrete"):
         write_material(stage, f"/World/Materials/{name}", material(name))
     mesh = define_mesh(
         stage,
@@ -387,18 +433,11 @@ def test_roof_snow_is_a_subset_that_the_thermal_layer_melts_away():
     )
     cover_roof(stage, mesh, scenario["scene"], "concrete")
     mats, index = face_materials(mesh.GetPrim(), 6)
-    assert [mats[i].name for i in index] == [
-        "concrete",
-        "snow",
-        "concrete",
-        "concrete",
-        "concrete",
-        "concrete",
-    ]
+    assert [mats[i].name for i in index] == ["concrete", "concrete__snow50", *["concrete"] * 4]
     (house,) = SF.scene_meshes(stage, {"scene": None})
     assert house.snow == SnowCover(0.05, 250.0, "/World/Materials/concrete") and house.bare.name == "concrete"
     water = np.full(6, np.nan)
-    for left, names in ((5.0, "snow"), (0.0, "concrete")):
+    for left, names in ((5.0, "concrete__snow50"), (0.0, "concrete")):
         water[1] = left
         layer = Usd.Stage.CreateInMemory()
         report = author_snow_cover(layer, stage, [house], {"/World/Scene/house": water})

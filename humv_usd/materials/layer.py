@@ -10,9 +10,10 @@ from humv_usd.catalog.dyes import garment_material
 from humv_usd.catalog.dyes import material as library_material
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.catalog.skin import skin_material_name
+from humv_usd.catalog.snow import cover_name
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.scenario.places import scene_materials
+from humv_usd.scenario.places import scene_materials, scene_objects
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
 from humv_usd.usd.materials import write_material, write_substrate
 from humv_usd.usd.paths import material_path
@@ -40,13 +41,11 @@ READS = (
 )
 UPSTREAM = ()
 #: 3: /World/Materials a Scope; 4: warm clutter and generated places; 5: SWIR bands of fabrics;
-#: 6: water for puddles after rain; 7: snow on the ground (and the library snow's spectrum)
-VERSION = "7"
+#: 6: water for puddles after rain; 7: snow on the ground (and the library snow's spectrum);
+#: 8: shallow snow over the ground's and the roofs' materials (<material>__snow<mm>)
+VERSION = "8"
 #: material of the scene layer's puddles (humv_usd.scene.puddles.MATERIAL; tests/test_puddles.py)
 PUDDLE_MATERIAL = "water"
-
-#: material of a ground under snow (humv_usd.scene.ground.SNOW_MATERIAL; tests/test_snow.py)
-SNOW_MATERIAL = "snow"
 
 #: Library material under a slab ground (the thermal tool's ground construction reaches 1 m).
 GROUND_SUBSTRATE = "soil"
@@ -74,6 +73,10 @@ def used_materials(scenario: Scenario) -> list[str]:
         if scene.get("layers"):
             names.add(scene["layer_material"])
         names.update(scene_materials(scene))  # generated places and warm clutter
+        depth = float(scene["ground"].get("snow_depth_m") or 0.0)
+        if depth > 0.0:  # snow on the objects' flat roofs (humv_usd.scene.ground.cover_roof)
+            roofs = {o["material"] for o in scene_objects(scene)}
+            names.update(cover_name(n, depth) for n in roofs)
         if _slab_ground(scenario):
             names.add(GROUND_SUBSTRATE)
     return sorted(names)
@@ -89,8 +92,9 @@ def ground_materials(scenario: Scenario) -> list[str]:
         and float((scenario["atmosphere"] or {}).get("rain_mm_h") or 0.0) > 0.0
     ):
         names.append(PUDDLE_MATERIAL)  # humv_usd.scene.puddles
-    if float(scene["ground"].get("snow_depth_m") or 0.0) > 0.0:
-        names.append(SNOW_MATERIAL)  # humv_usd.scene.ground: the ground under snow
+    depth = float(scene["ground"].get("snow_depth_m") or 0.0)
+    if depth > 0.0:  # humv_usd.scene.ground: the ground under snow (deep, or over its material)
+        names += [cover_name(n, depth) for n in names]
     return list(dict.fromkeys(names))
 
 

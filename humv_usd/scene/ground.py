@@ -12,8 +12,9 @@ Meshes:
   to the zone's material, with customData ``humv:groundZone`` = True (the thermal tool solves
   them as ground: material over soil, bottom held).
 
-Under snow (``[scene.ground] snow_depth_m`` > 0) every piece is bound to the library material
-``snow`` and records the snow and its own material (:mod:`humv_usd.usd.snow`); the thermal tool
+Under snow (``[scene.ground] snow_depth_m`` > 0) every piece is bound to snow over its material
+(:func:`humv_usd.catalog.snow.cover_name`: ``<material>__snow<mm>``, deep snow ``snow``) and
+records the snow and its own material (:mod:`humv_usd.usd.snow`); the thermal tool
 melts the snow and binds the faces bare by frame 0 to that material. The flat roofs of box
 objects carry the same snow (:func:`cover_roof`).
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Usd, UsdGeom, UsdShade
 
+from humv_usd.catalog.snow import cover_name
 from humv_usd.geometry.terrain import Terrain, polyline_distance, terrain_from_section
 from humv_usd.scene.geometry import drop_degenerate, ground_grid, horizon_rings, snap_to_edges, terrain_grid
 from humv_usd.usd.mesh import bind_material, define_mesh, label
@@ -34,8 +36,6 @@ from humv_usd.usd.snow import ROOF_SUBSET, SnowCover, write_snow_cover
 
 #: customData key that marks a ground zone mesh
 GROUND_ZONE_KEY = "humv:groundZone"
-#: library material of a ground under snow (``[scene.ground] snow_depth_m`` > 0)
-SNOW_MATERIAL = "snow"
 #: cells per axis of a flat ground without zones (the mesh before issue 30)
 FLAT_CELLS = 16
 
@@ -118,7 +118,7 @@ def author_ground(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
     ground = scene["ground"]
     snow = float(ground.get("snow_depth_m") or 0.0)
     for path, material, points, counts, indices in ground_pieces(scene):
-        shown = SNOW_MATERIAL if snow > 0.0 else material
+        shown = cover_name(material, snow) if snow > 0.0 else material
         mesh = define_mesh(stage, path, points, counts, indices, material=material_path(shown))
         if snow > 0.0:  # the thermal tool melts it and binds the faces bare by frame 0 to material
             cover = SnowCover(
@@ -133,8 +133,8 @@ def author_ground(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
 
 def cover_roof(stage: Usd.Stage, mesh: UsdGeom.Mesh, scene: dict, material: str) -> None:
     """Snow on the flat roof of a box object (``[scene.ground] snow_depth_m`` > 0): its upward
-    faces (normal z > 0.9) in a GeomSubset ``Snow`` bound to the library material ``snow``,
-    the rest keeping ``material``; the mesh records the cover like the ground
+    faces (normal z > 0.9) in a GeomSubset ``Snow`` bound to snow over ``material``
+    (:func:`humv_usd.catalog.snow.cover_name`), the rest keeping ``material``; the mesh records the cover like the ground
     (:mod:`humv_usd.usd.snow`), so the thermal tool melts it (from below too, on a heated
     building) and drops the faces melted bare by frame 0 from the subset."""
     ground = scene["ground"]
@@ -159,7 +159,7 @@ def cover_roof(stage: Usd.Stage, mesh: UsdGeom.Mesh, scene: dict, material: str)
     subset.CreateElementTypeAttr(UsdGeom.Tokens.face)
     subset.CreateFamilyNameAttr(UsdShade.Tokens.materialBind)
     subset.CreateIndicesAttr(up)
-    bind_material(subset.GetPrim(), material_path(SNOW_MATERIAL))
+    bind_material(subset.GetPrim(), material_path(cover_name(material, depth)))
     density = float(ground.get("snow_density_kg_m3") or 250.0)
     write_snow_cover(prim, SnowCover(depth, density, str(material_path(material))))
 

@@ -63,8 +63,9 @@ NAME = "scene"
 READS = (*FRAMES, "scene", "@ids", "@clutterAir", "@puddles")
 UPSTREAM = ()
 #: 4: model kinds; 5: warm clutter and generated places; 6: terrain, ground to the horizon; 7: plants
-#: 8: puddles after rain; 9: snow cover on the ground ([scene.ground] snow_depth_m); 10: and roofs
-VERSION = "10"
+#: 8: puddles after rain; 9: snow cover on the ground ([scene.ground] snow_depth_m); 10: and roofs;
+#: 11: shallow snow bound as <material>__snow<mm>
+VERSION = "11"
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:

@@ -89,8 +89,10 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 10: JOS-3 runs with the person's own body fat (Deurenberg 1991), not 15 %
 #: 11: moving cloud shadows on the scene surfaces ([atmosphere] cloud_size_m); 12: and on the people
 #: 13: snow on the ground melts (physics.snow); faces bare at frame 0 bound to the ground's material
-#: 14: the people's face-temperature noise measured by replicates, per mesh (report only)
-VERSION = "14"
+#: 14: the people's face-temperature noise measured by replicates, per mesh (report only); and
+#: snow on the flat roofs of box objects (98492fa); 15: shallow snow bound by depth level
+#: (<material>__snow<mm>, thermal.snow)
+VERSION = "15"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85

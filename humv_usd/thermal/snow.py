@@ -1,12 +1,15 @@
 """Snow cover in the render (issue 30.4): the thermal tool binds the faces of a snow-covered
 ground that its slabs melted bare by frame 0 to the bare ground's material.
 
-The scene tool binds a ground under snow to the library material ``snow`` and records the
-material under it (:mod:`humv_usd.usd.snow`); the thermal tool's snow layer
+The scene tool binds a ground under snow to snow over its material (``<material>__snow<mm>``,
+deep: ``snow``; :mod:`humv_usd.catalog.snow`) and records the material under it
+(:mod:`humv_usd.usd.snow`); the thermal tool's snow layer
 (:func:`humv_usd.physics.snow.simulate_cover`) gives each face its snow water equivalent at
-frame 0. Faces with none left get a GeomSubset ``SnowFree`` (family ``materialBind``,
-nonOverlapping) bound to the bare material (the materials layer defines it: it is a ground
-material); a mesh melted bare everywhere is bound whole. On a box object's roof (the scene's
+frame 0, so its depth. Faces with none left get a GeomSubset ``SnowFree`` (family
+``materialBind``, nonOverlapping) bound to the bare material (the materials layer defines it: it
+is a ground material); faces whose depth rounds to a shallower level than the mesh's get a
+GeomSubset ``Snow<mm>`` bound to that level, which this layer defines when the stage lacks it;
+a mesh whose faces all moved to one material is bound whole. On a box object's roof (the scene's
 GeomSubset :data:`humv_usd.usd.snow.ROOF_SUBSET` bound to snow) the melted faces are dropped
 from that subset, so they take the object's own binding again. The cover is frame 0's for the
 whole clip (snow melts over hours, a clip lasts seconds).
@@ -17,6 +20,10 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
+from humv_usd.catalog.dyes import material as library_material
+from humv_usd.catalog.snow import cover_name, split_snow_name
+from humv_usd.usd.materials import write_material
+from humv_usd.usd.mesh import bind_material
 from humv_usd.usd.snow import ROOF_SUBSET
 
 
@@ -38,9 +45,11 @@ def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water:
     Returns
     -------
     dict
-        {mesh path: {"faces", "snowFree", "meanWater_kg_m2", "meanDepth_m"}}.
+        {mesh path: {"faces", "snowFree", "meanWater_kg_m2", "meanDepth_m"} and, where faces
+        changed material, "levels": {material name: faces}}.
     """
     report: dict = {}
+    written: set = set()
     for m in meshes:
         water = snow_water.get(m.path)
         if water is None or m.snow is None:
@@ -56,32 +65,54 @@ def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water:
             "meanWater_kg_m2": round(mean, 3),
             "meanDepth_m": round(mean / m.snow.density_kg_m3, 4),
         }
-        if not bare.any():
-            continue
         roof = upstream.GetPrimAtPath(Sdf.Path(m.path).AppendChild(ROOF_SUBSET))
         if roof:  # a roof: its snow subset keeps the faces still under snow
-            kept = [int(i) for i in np.flatnonzero(snowy & ~bare)]
-            over = layer.OverridePrim(roof.GetPath())
-            if kept:
-                UsdGeom.Subset(over).CreateIndicesAttr().Set(kept)
-            else:  # all melted: no subset (an empty materialBind family is invalid)
-                over.SetActive(False)
+            if bare.any():
+                kept = [int(i) for i in np.flatnonzero(snowy & ~bare)]
+                over = layer.OverridePrim(roof.GetPath())
+                if kept:
+                    UsdGeom.Subset(over).CreateIndicesAttr().Set(kept)
+                else:  # all melted: no subset (an empty materialBind family is invalid)
+                    over.SetActive(False)
             continue
-        material = UsdShade.Material(upstream.GetPrimAtPath(m.snow.bare_material))
+        base = Sdf.Path(m.snow.bare_material)
+        depth = np.nan_to_num(water) / m.snow.density_kg_m3
+        names = np.array(
+            [
+                "" if not ok else base.name if w <= 0.0 else cover_name(base.name, d)
+                for w, d, ok in zip(np.nan_to_num(water), depth, snowy)
+            ]
+        )
+        moved = snowy & (names != m.material.name)
+        if not moved.any():
+            continue
+        found = sorted(set(names[moved]))
+        for name in found:
+            _define(layer, upstream, base.GetParentPath().AppendChild(name), written)
+        report[m.path]["levels"] = {str(n): int(np.sum(names[moved] == n)) for n in found}
         over = layer.OverridePrim(m.path)
-        if bare.all():
-            _bind(over, material)
+        if moved.all() and len(found) == 1:
+            bind_material(over, base.GetParentPath().AppendChild(found[0]))
             continue
         UsdShade.MaterialBindingAPI.Apply(over).SetMaterialBindSubsetsFamilyType(
             UsdGeom.Tokens.nonOverlapping
         )
-        subset = UsdGeom.Subset.Define(layer, Sdf.Path(m.path).AppendChild("SnowFree"))
-        subset.CreateElementTypeAttr(UsdGeom.Tokens.face)
-        subset.CreateFamilyNameAttr(UsdShade.Tokens.materialBind)
-        subset.CreateIndicesAttr([int(i) for i in np.flatnonzero(bare)])
-        _bind(subset.GetPrim(), material)
+        for name in found:
+            level = split_snow_name(name)
+            child = "SnowFree" if level is None else f"Snow{level[1]}"
+            subset = UsdGeom.Subset.Define(layer, Sdf.Path(m.path).AppendChild(child))
+            subset.CreateElementTypeAttr(UsdGeom.Tokens.face)
+            subset.CreateFamilyNameAttr(UsdShade.Tokens.materialBind)
+            subset.CreateIndicesAttr([int(i) for i in np.flatnonzero(moved & (names == name))])
+            bind_material(subset.GetPrim(), base.GetParentPath().AppendChild(name))
     return report
 
 
-def _bind(prim: Usd.Prim, material: UsdShade.Material) -> None:
-    UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
+def _define(layer: Usd.Stage, upstream: Usd.Stage, path: Sdf.Path, written: set) -> None:
+    """Define the library material at ``path`` in ``layer`` unless the stage has it (a shallower
+    snow level than the scene bound)."""
+    if upstream.GetPrimAtPath(path) or path in written:
+        return
+    layer.OverridePrim(path.GetParentPath())
+    write_material(layer, path, library_material(path.name))
+    written.add(path)
