@@ -236,6 +236,13 @@ def test_adaptive_rays_go_to_partly_occluded_facets():
     _, var, counts = Q._diffuse_adaptive(env, centroids, normals, occ, 1e-6, 64, 0, table, 16, alpha, 1024)
     assert np.all(counts[50:] == 16) and np.all(var[50:] == 0.0)  # open: pilot only, exact
     assert counts[:50].mean() > 100 and counts.sum() <= 64 * 100 * 1.3
+    # facets whose flux nobody uses (importance 0) keep their pilot rays; the budget goes to
+    # the others, which get more than without the weights
+    importance = np.r_[np.ones(25), np.zeros(25), np.ones(50)]
+    _, _, counts_w = Q._diffuse_adaptive(
+        env, centroids, normals, occ, 1e-6, 64, 0, table, 16, alpha, 1024, importance=importance
+    )
+    assert np.all(counts_w[25:50] == 16) and counts_w[:25].sum() > counts[:25].sum()
     stats = {}
     Q.absorbed_radiation(facets, env, [1.0, 1.0], scene=scene, method="adaptive", rays=64, stats=stats)
     assert 0.0 < stats["rms_rel_error_estimate"] < 0.05 and stats["rays"] == counts.sum()

@@ -1217,8 +1217,10 @@ THERMAL = Section(
         ),
         "radiation_rays": Key(
             "int",
-            "Rays per facet (mean, for adaptive) of the absorbed-radiation method.",
-            default=64,
+            "Rays per facet (mean, for adaptive) of the absorbed-radiation method. Their "
+            "noise on a person's face temperatures is measured and stated (demo: ~40-60 mK "
+            "at 128, ~55-90 mK at 64, ~30-60 mK at 256).",
+            default=128,
             lo=1,
             hi=4096,
             integer=True,

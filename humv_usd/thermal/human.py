@@ -309,6 +309,11 @@ def human_temperatures(
                 mesh_radiance=_self_radiance(parts, skin_guess, air_k),
                 stats=stats_c if k == 0 and method != "brute" else None,
                 replicate_facets=_replicate_facets(parts, seen, g["seed"]) if k == 0 else 0,
+                # the rays go where the flux is used: bare skin and the outer garment layers
+                # (skin under a garment and inner layers take the stacks' balance instead)
+                importance=np.concatenate([seen_i[p.tri_face] for seen_i, p in zip(seen, parts)]).astype(
+                    float
+                ),
                 cache=cache_clothed,
                 cache_tolerance_m=VISIBILITY_REUSE_M,
                 **qrad,

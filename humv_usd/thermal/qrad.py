@@ -615,6 +615,7 @@ def _diffuse_adaptive(
     record=None,
     neighbours=None,
     replicate=None,
+    importance=None,
 ):
     """Control variate with two-stage (Neyman) allocation of the correction rays.
 
@@ -624,7 +625,9 @@ def _diffuse_adaptive(
     minimises sum_i Var(q_i) / q_i^2 for a fixed ray count (Neyman 1934; Cochran 1977,
     Sampling Techniques, section 5.5). Facets whose pilot rays all agree (typically: nothing in
     the way, or one uniform occluder everywhere) and whose neighbours' pilot rays agree too get
-    no more rays.
+    no more rays. ``importance`` (F,) >= 0 weighs each facet's term of that sum (the optimum
+    is then K_i ~ sqrt(w_i) s_i / q_i): 0 for a facet whose flux nobody uses (skin under a
+    garment, whose temperature the garment's balance sets) leaves it its pilot rays.
 
     Returns (per-band flux (bands, F), variance of the ``weight``-summed flux (F,), rays per
     facet (F,)).
@@ -650,6 +653,8 @@ def _diffuse_adaptive(
 
         _, nb = cKDTree(centroids).query(centroids, min(8, n_f))
         score = np.maximum(score, score[nb].mean(axis=1))
+    if importance is not None:
+        score = score * np.sqrt(np.clip(np.asarray(importance, dtype=float), 0.0, None))
     budget = max(0, int(rays) - pilot) * n_f
     extra = np.zeros(n_f, dtype=np.int64)
     if budget > 0 and score.sum() > 0:
@@ -728,6 +733,7 @@ def absorbed_radiation(
     sun_points: int = 16,
     crease_deg: float = 60.0,
     replicate_facets: int | np.ndarray = REPLICATE_FACETS,
+    importance: np.ndarray | None = None,
 ) -> np.ndarray:
     """Absorbed radiation per facet and band, with occlusion (seed Eq. 3-4).
 
@@ -807,6 +813,10 @@ def absorbed_radiation(
     crease_deg : float
         'smooth': faces around a vertex whose normals differ by more than this [deg] are not
         averaged (an edge that is meant to be sharp).
+    importance : array (faces,), optional
+        'adaptive': the weight of each facet's error when the second-stage rays are spread
+        (default 1 everywhere); 0 keeps a facet at its ``pilot`` rays (a face whose flux no
+        one uses), so the budget of ``rays`` x facets goes to the others.
     replicate_facets : int or array of int
         Facets re-estimated with independent rays to measure the error (only with ``stats``): a
         count drawn at random, or the facets' indices.
@@ -837,7 +847,15 @@ def absorbed_radiation(
         key = (
             None
             if cache is None
-            else _geometry_key(mesh, scene, method, int(rays), int(pilot), int(max_rays))
+            else _geometry_key(
+                mesh,
+                scene,
+                method,
+                int(rays),
+                int(pilot),
+                int(max_rays),
+                None if importance is None else hash(np.asarray(importance, dtype=float).tobytes()),
+            )
         )
         replayed = _cache_valid(cache, key, mesh, cache_tolerance_m)
         neighbours = _neighbour_matrix(mesh)
@@ -866,6 +884,7 @@ def absorbed_radiation(
                     record,
                     neighbours,
                     replicate,
+                    importance,
                 )
             else:
                 e, var = _diffuse_fast(
