@@ -420,7 +420,8 @@ def test_snow_layer_is_stable_over_an_extreme_grid(depth, density):
 def test_roof_snow_is_a_subset_that_the_thermal_layer_melts_away():
     """A box object under snow: the scene tool binds its roof face (normal up) to snow in the
     GeomSubset Snow and records the cover; the thermal tool reads it as snow over concrete on
-    that face only and, where the roof melted bare, takes the face out of the subset."""
+    that face only; a roof still at the scene's 50 mm keeps it, one melted to 20 mm is bound to
+    that level, one melted bare takes the object's concrete again."""
     scenario = validate(tomllib.loads(SNOW_SCENARIO))
     stage = Usd.Stage.CreateInMemory()
     for name in ("concrete__snow50", "concrete"):
@@ -437,7 +438,7 @@ def test_roof_snow_is_a_subset_that_the_thermal_layer_melts_away():
     (house,) = SF.scene_meshes(stage, {"scene": None})
     assert house.snow == SnowCover(0.05, 250.0, "/World/Materials/concrete") and house.bare.name == "concrete"
     water = np.full(6, np.nan)
-    for left, names in ((5.0, "concrete__snow50"), (0.0, "concrete")):
+    for left, names in ((12.5, "concrete__snow50"), (5.0, "concrete__snow20"), (0.0, "concrete")):
         water[1] = left
         layer = Usd.Stage.CreateInMemory()
         report = author_snow_cover(layer, stage, [house], {"/World/Scene/house": water})

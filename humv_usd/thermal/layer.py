@@ -91,8 +91,8 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 13: snow on the ground melts (physics.snow); faces bare at frame 0 bound to the ground's material
 #: 14: the people's face-temperature noise measured by replicates, per mesh (report only); and
 #: snow on the flat roofs of box objects (98492fa); 15: shallow snow bound by depth level
-#: (<material>__snow<mm>, thermal.snow)
-VERSION = "15"
+#: (<material>__snow<mm>, thermal.snow); 16: and on roofs
+VERSION = "16"
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85

@@ -10,8 +10,9 @@ frame 0, so its depth. Faces with none left get a GeomSubset ``SnowFree`` (famil
 is a ground material); faces whose depth rounds to a shallower level than the mesh's get a
 GeomSubset ``Snow<mm>`` bound to that level, which this layer defines when the stage lacks it;
 a mesh whose faces all moved to one material is bound whole. On a box object's roof (the scene's
-GeomSubset :data:`humv_usd.usd.snow.ROOF_SUBSET` bound to snow) the melted faces are dropped
-from that subset, so they take the object's own binding again. The cover is frame 0's for the
+GeomSubset :data:`humv_usd.usd.snow.ROOF_SUBSET` bound to snow) faces off the scene's level
+leave that subset: melted ones take the object's own binding again, shallower ones a
+``Snow<mm>`` subset. The cover is frame 0's for the
 whole clip (snow melts over hours, a clip lasts seconds).
 """
 
@@ -65,16 +66,6 @@ def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water:
             "meanWater_kg_m2": round(mean, 3),
             "meanDepth_m": round(mean / m.snow.density_kg_m3, 4),
         }
-        roof = upstream.GetPrimAtPath(Sdf.Path(m.path).AppendChild(ROOF_SUBSET))
-        if roof:  # a roof: its snow subset keeps the faces still under snow
-            if bare.any():
-                kept = [int(i) for i in np.flatnonzero(snowy & ~bare)]
-                over = layer.OverridePrim(roof.GetPath())
-                if kept:
-                    UsdGeom.Subset(over).CreateIndicesAttr().Set(kept)
-                else:  # all melted: no subset (an empty materialBind family is invalid)
-                    over.SetActive(False)
-            continue
         base = Sdf.Path(m.snow.bare_material)
         depth = np.nan_to_num(water) / m.snow.density_kg_m3
         names = np.array(
@@ -83,20 +74,30 @@ def author_snow_cover(layer: Usd.Stage, upstream: Usd.Stage, meshes, snow_water:
                 for w, d, ok in zip(np.nan_to_num(water), depth, snowy)
             ]
         )
-        moved = snowy & (names != m.material.name)
+        moved = snowy & (names != cover_name(base.name, m.snow.depth_m))  # off the scene's level
         if not moved.any():
             continue
         found = sorted(set(names[moved]))
         for name in found:
             _define(layer, upstream, base.GetParentPath().AppendChild(name), written)
         report[m.path]["levels"] = {str(n): int(np.sum(names[moved] == n)) for n in found}
-        over = layer.OverridePrim(m.path)
-        if moved.all() and len(found) == 1:
-            bind_material(over, base.GetParentPath().AppendChild(found[0]))
-            continue
-        UsdShade.MaterialBindingAPI.Apply(over).SetMaterialBindSubsetsFamilyType(
-            UsdGeom.Tokens.nonOverlapping
-        )
+        roof = upstream.GetPrimAtPath(Sdf.Path(m.path).AppendChild(ROOF_SUBSET))
+        if roof:  # a roof: its snow subset keeps the faces still at the scene's level
+            kept = [int(i) for i in np.flatnonzero(snowy & ~moved)]
+            over = layer.OverridePrim(roof.GetPath())
+            if kept:
+                UsdGeom.Subset(over).CreateIndicesAttr().Set(kept)
+            else:  # an empty materialBind subset is invalid: drop it
+                over.SetActive(False)
+            found = [n for n in found if n != base.name]  # bare: the mesh's own binding again
+        else:
+            over = layer.OverridePrim(m.path)
+            if moved.all() and len(found) == 1:
+                bind_material(over, base.GetParentPath().AppendChild(found[0]))
+                continue
+            UsdShade.MaterialBindingAPI.Apply(over).SetMaterialBindSubsetsFamilyType(
+                UsdGeom.Tokens.nonOverlapping
+            )
         for name in found:
             level = split_snow_name(name)
             child = "SnowFree" if level is None else f"Snow{level[1]}"
