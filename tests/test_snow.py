@@ -282,6 +282,40 @@ def test_scene_tool_binds_snow_and_records_the_bare_ground():
     assert read_snow_cover(stage.GetPrimAtPath("/World/Scene/Ground")) is None
 
 
+def test_a_plowed_road_zone_has_no_snow():
+    """[[scene.terrain.zone]] snow_depth_m = 0: the road zone keeps its asphalt and records no
+    snow; a drift zone gets its own depth; the ground keeps the ground's."""
+    raw = tomllib.loads(SNOW_SCENARIO)
+    raw["scene"]["terrain"] = {
+        "zone": [
+            {
+                "material": "asphalt",
+                "path_m": [[-10.0, 0.0], [10.0, 0.0]],
+                "width_m": 4.0,
+                "snow_depth_m": 0.0,
+            },
+            {"material": "grass", "path_m": [[-10.0, 6.0], [10.0, 6.0]], "width_m": 2.0, "snow_depth_m": 0.4},
+        ]
+    }
+    scenario = validate(raw)
+    stage = Usd.Stage.CreateInMemory()
+    author_ground(stage, scenario["scene"], {"ground": 1})
+
+    def bound(path):
+        return [
+            str(p)
+            for p in UsdShade.MaterialBindingAPI(stage.GetPrimAtPath(path)).GetDirectBindingRel().GetTargets()
+        ]
+
+    assert bound("/World/Scene/GroundZone0") == ["/World/Materials/asphalt"]
+    assert read_snow_cover(stage.GetPrimAtPath("/World/Scene/GroundZone0")) is None
+    assert bound("/World/Scene/GroundZone1") == ["/World/Materials/snow"]  # 40 cm: deep
+    assert read_snow_cover(stage.GetPrimAtPath("/World/Scene/GroundZone1")).depth_m == 0.4
+    assert bound("/World/Scene/Ground") == ["/World/Materials/soil__snow50"]
+    assert {"asphalt", "snow", "soil__snow50"} <= set(used_materials(scenario))
+    assert "asphalt__snow50" not in used_materials(scenario)
+
+
 def _snow_ground():
     stage = Usd.Stage.CreateInMemory()
     for name in ("soil__snow50", "soil"):

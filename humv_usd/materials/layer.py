@@ -17,6 +17,7 @@ from humv_usd.scenario.places import scene_materials, scene_objects
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
 from humv_usd.usd.materials import write_material, write_substrate
 from humv_usd.usd.paths import material_path
+from humv_usd.usd.snow import snow_depths
 
 NAME = "materials"
 READS = (
@@ -87,15 +88,14 @@ def ground_materials(scenario: Scenario) -> list[str]:
     scene = scenario["scene"]
     zones = (scene.get("terrain") or {}).get("zone") or ()
     names = [scene["ground"]["material"], *(z["material"] for z in zones)]
+    on_ground, on_zone = snow_depths(scene)  # humv_usd.scene.ground: snow over each piece
+    covers = [cover_name(n, d) for n, d in zip(names, [on_ground, *on_zone]) if d > 0.0]
     if (
         float(scene["ground"].get("puddles") or 0.0) > 0.0
         and float((scenario["atmosphere"] or {}).get("rain_mm_h") or 0.0) > 0.0
     ):
         names.append(PUDDLE_MATERIAL)  # humv_usd.scene.puddles
-    depth = float(scene["ground"].get("snow_depth_m") or 0.0)
-    if depth > 0.0:  # humv_usd.scene.ground: the ground under snow (deep, or over its material)
-        names += [cover_name(n, depth) for n in names]
-    return list(dict.fromkeys(names))
+    return list(dict.fromkeys(names + covers))
 
 
 def _slab_ground(scenario: Scenario) -> bool:

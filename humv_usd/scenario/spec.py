@@ -466,6 +466,14 @@ TERRAIN_ZONE = Section(
             hi=1.0e5,
         ),
         "width_m": Key("float", "Width of the strip [m].", default=6.0, lo=0.1, hi=1.0e4),
+        "snow_depth_m": Key(
+            "float",
+            "Snow on this zone [m] (default: [scene.ground] snow_depth_m; 0: no snow, e.g. a "
+            "plowed or heated road; more: a drift).",
+            default=None,
+            lo=0.0,
+            hi=2.0,
+        ),
         "mask_file": Key(
             "path",
             "Instead of a strip: a grey image (PNG), white where the zone is, north up, "

@@ -32,7 +32,7 @@ from humv_usd.geometry.terrain import Terrain, polyline_distance, terrain_from_s
 from humv_usd.scene.geometry import drop_degenerate, ground_grid, horizon_rings, snap_to_edges, terrain_grid
 from humv_usd.usd.mesh import bind_material, define_mesh, label
 from humv_usd.usd.paths import GROUND, material_path
-from humv_usd.usd.snow import ROOF_SUBSET, SnowCover, write_snow_cover
+from humv_usd.usd.snow import ROOF_SUBSET, SnowCover, snow_depths, write_snow_cover
 
 #: customData key that marks a ground zone mesh
 GROUND_ZONE_KEY = "humv:groundZone"
@@ -116,8 +116,9 @@ def author_ground(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
     (:func:`humv_usd.scenario.ids.instance_ids`)."""
     zones = {zone_path(i): i for i in range(len((scene.get("terrain") or {}).get("zone") or ()))}
     ground = scene["ground"]
-    snow = float(ground.get("snow_depth_m") or 0.0)
+    on_ground, on_zone = snow_depths(scene)
     for path, material, points, counts, indices in ground_pieces(scene):
+        snow = on_ground if path == GROUND else on_zone[zones[path]]
         shown = cover_name(material, snow) if snow > 0.0 else material
         mesh = define_mesh(stage, path, points, counts, indices, material=material_path(shown))
         if snow > 0.0:  # the thermal tool melts it and binds the faces bare by frame 0 to material

@@ -28,6 +28,14 @@ class SnowCover:
     bare_material: str  # path of the bare ground's material
 
 
+def snow_depths(scene: dict) -> tuple[float, list[float]]:
+    """Snow depth [m] on the ground (``[scene.ground] snow_depth_m``, also the flat roofs') and
+    on each terrain zone (its own ``snow_depth_m``, else the ground's; 0: a plowed road)."""
+    ground = float(scene["ground"].get("snow_depth_m") or 0.0)
+    zones = (scene.get("terrain") or {}).get("zone") or ()
+    return ground, [ground if z.get("snow_depth_m") is None else float(z["snow_depth_m"]) for z in zones]
+
+
 def write_snow_cover(prim: Usd.Prim, cover: SnowCover) -> None:
     """Record ``cover`` on a ground mesh prim (the scene tool)."""
     prim.SetCustomDataByKey(
