@@ -9,6 +9,7 @@ import tomllib
 
 import numpy as np
 import pytest
+from conftest import general_toml, place_keys, scene_stage
 from numpy.testing import assert_allclose
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 from scipy.optimize import brentq
@@ -488,8 +489,6 @@ def test_every_material_a_snowy_street_binds_is_authored():
     """A generated street (facades, parked cars, lamps) under 6 cm of snow: the scene binds its
     ground and its box roofs to snow over their materials, and the materials tool writes every
     material the scene binds (mesh or GeomSubset), so ``check`` finds none missing."""
-    from conftest import general_toml, place_keys, scene_stage
-
     raw = tomllib.loads(general_toml("snowy_street", seed=3))
     raw["scene"] = {"ground": {"material": "asphalt", "size_m": [60.0, 60.0], "snow_depth_m": 0.06}}
     raw["scene"]["place"] = place_keys("street")
