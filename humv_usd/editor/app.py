@@ -502,7 +502,7 @@ class Page:
             return
         source, stage_dir = self.write_fast_copy(), self.editor.out_dir / PREVIEW_STAGE_DIR
         self.stage_job = self.start_job(
-            "compose", [humv_command("compose", str(source), "-o", str(stage_dir))]
+            "compose", [humv_command("compose", str(source), "-o", str(stage_dir))], warm=True
         )
 
     async def show_stage(self) -> None:
@@ -571,7 +571,7 @@ class Page:
         size = preview_resolution(scenario, sensor)
         steps = [humv_command(*args) for args in preview_commands(source, out, sensor, size, quality)]
         self.preview_started = time.time()
-        job = self.start_job("preview", steps)
+        job = self.start_job("preview", steps, warm=True)
         if job is not None:
             job.sensor = sensor
             job.quality = quality
@@ -664,12 +664,16 @@ class Page:
             job.cancel()
             ui.notify(f"job {job.id} cancelled")
 
-    def start_job(self, kind: str, steps: list[list[str]], watch=None):
+    def start_job(self, kind: str, steps: list[list[str]], watch=None, warm: bool = False):
+        """``warm``: in the warm worker (cli.warm: imports and JOS-3's compile paid once; the
+        preview and the 3D view, short commands run again and again)."""
         running = [j for j in self.editor.jobs.jobs.values() if not j.finished]
         if running:
             ui.notify(f"job {running[0].id} ({running[0].kind}) is still running", type="warning")
             return None
-        return self.editor.jobs.start(kind, steps, self.editor.out_dir, cwd=self.doc.folder, watch=watch)
+        return self.editor.jobs.start(
+            kind, steps, self.editor.out_dir, cwd=self.doc.folder, watch=watch, warm=warm
+        )
 
     def ensure_saved(self) -> bool:
         """Jobs run on the file: save edits first (refused while the scenario has problems)."""
