@@ -161,7 +161,7 @@ class Page:
             "preview": "Preview",
             "run": "Run",
         }
-        with ui.tabs().classes("w-full").props("dense align=left") as tabs:
+        with ui.tabs(on_change=self.tab_opened).classes("w-full").props("dense align=left") as tabs:
             tab = {n: ui.tab(n, titles.get(n, n.capitalize())).props(f"data-testid=tab-{n}") for n in names}
         with ui.tab_panels(tabs, value=tab["general"]).classes("w-full"):
             for name in SECTIONS:
@@ -475,6 +475,12 @@ class Page:
             ["--dry-run"] if dry_run else ["--quiet"]
         )
         self.start_job("sweep", [humv_command(*args)])
+
+    def tab_opened(self, e) -> None:
+        """The Preview or 3D tab: start the warm worker now, so that its imports overlap the
+        user's reading and the first preview does not wait for them."""
+        if e.value in ("preview", "view3d"):
+            self.editor.jobs.warm_up(self.doc.folder)
 
     # -- 3D ----------------------------------------------------------------------------------
     def build_3d(self) -> None:
