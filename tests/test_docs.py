@@ -128,6 +128,25 @@ def test_every_catalogue_entry_has_a_row_and_its_source():
         assert humv_docs.inline(preset.source) in sensors, name
 
 
+def test_every_viewpoint_and_activity_has_a_row():
+    """Dataset viewpoints (with their sources) on the sensors page; every activity the scenario
+    accepts on the activities page, with a metabolic rate and a source cell."""
+    from humv_usd.catalog.viewpoints import VIEWPOINTS
+    from humv_usd.scenario.spec import ACTIVITIES
+
+    sensors, activities = humv_docs.sensors_rst(), humv_docs.activities_rst()
+    for name, vp in VIEWPOINTS.items():
+        assert f"* - ``{name}``" in sensors, name
+        assert humv_docs.inline(vp.source) in sensors, name
+    rows = activities.split("   * - ")[1:]
+    assert [r.split("\n")[0] for r in rows[1:]] == [f"``{a}``" for a in ACTIVITIES]
+    for row in rows[1:]:
+        cells = [c.strip() for c in row.split("\n     - ")]
+        assert len(cells) == 5 and all(cells), row
+        assert re.search(r"MET|ACSM|walk", cells[3]), row  # a rate
+        assert re.search(r"(19|20)\d\d", cells[4]), row  # a dated source
+
+
 def test_every_schema_attribute_has_an_entry_with_unit_and_range():
     attributes = _schema_attributes()
     assert len(attributes) > 50
