@@ -455,6 +455,38 @@ def test_gallery_shows_every_image_it_lists(site):
             assert (site / "_images" / name).is_file() and f"_images/{name}" in page, name
 
 
+@pytest.mark.parametrize("example", ["humvvex", "street"])
+def test_gallery_adds_nir_and_swir_cameras_with_the_presets_field_of_view(example):
+    """The gallery (docs/_ext/gallery.py) renders the reflective bands the examples lack: a NIR and a
+    SWIR camera beside the EO camera, looking where it looks, each with its preset's field of view
+    (sensor width = pixels x pitch kept through the binning and the 1/SCALE), in a scenario the
+    loader accepts."""
+    import tomllib
+
+    import gallery
+
+    from humv_usd.catalog.sensors import PRESETS
+    from humv_usd.scenario.load import validate
+
+    source = ROOT / "examples" / f"{example}.toml"
+    raw = tomllib.loads(source.read_text())
+    gallery._absolute_paths(raw, source.parent)
+    gallery._reflective_cameras(raw)
+    gallery._smaller_cameras(raw)
+    sensors = {s["id"]: s for s in raw["sensor"]}
+    eo = sensors["eo_rgb"]
+    for sid, band in (("nir", "NIR"), ("swir", "SWIR")):
+        s = sensors[sid]
+        preset = PRESETS[s["preset"]]
+        assert preset.band == band
+        for axis in (0, 1):
+            got = s["resolution"][axis] * s["pixel_pitch_um"]
+            assert got == pytest.approx(preset.resolution[axis] * preset.pixel_pitch_um)
+        assert s["look_at_m"] == eo["look_at_m"] and s["position_m"] != eo["position_m"]
+    scenario = validate(raw, source)
+    assert {"nir", "swir"} <= {s["id"] for s in scenario.data["sensor"]}
+
+
 def test_every_physics_module_has_a_page():
     """A model added to humv_usd/physics/ without a physics page fails here."""
     pages = "\n".join(p.read_text() for p in (DOCS / "physics").glob("*.rst"))
