@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -77,3 +78,21 @@ def test_bad_population_draw_is_one_line_naming_it(tmp_path, draw, expected):
     with pytest.raises(InputError) as exc:
         load_sweep(_sweep(tmp_path, draw))
     assert any(expected in p for p in exc.value.problems), exc.value.problems
+
+
+def test_drawn_person_keeps_their_hair_under_a_drawn_or_grid_outfit(tmp_path):
+    outfits = '[["hoodie", "skirt", "shoes"], ["hair_long", "winter_coat", "boots"]]'
+    path = _sweep(
+        tmp_path, f'"human.0" = {{ population = {{}} }}\n"human.0.clothing" = {{ choice = {outfits} }}', 8
+    )
+    path.write_text(
+        path.read_text() + '\n[grid.coat]\nnone = {}\ncoat = { "human.0.clothing" = ["jacket", "jeans"] }\n'
+    )
+    variants = expand(load_sweep(path))
+    assert len(variants) == 16
+    for v in variants:
+        sampled = [g for g in v.raw["human"][0]["clothing"] if g.startswith("hair_") or g == "beard"]
+        assert 1 <= len(sampled) <= 2 and "hair_long" not in v.raw["human"][0]["clothing"][len(sampled) :]
+        rest = v.raw["human"][0]["clothing"][len(sampled) :]
+        assert rest in (["hoodie", "skirt", "shoes"], ["winter_coat", "boots"], ["jacket", "jeans"])
+        assert json.loads(v.params["human.0.clothing"]) == v.raw["human"][0]["clothing"]
