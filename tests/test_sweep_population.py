@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
 from humv_usd.errors import InputError
 from humv_usd.human.population import BMI_MAX, BMI_MIN
@@ -96,3 +97,20 @@ def test_drawn_person_keeps_their_hair_under_a_drawn_or_grid_outfit(tmp_path):
         rest = v.raw["human"][0]["clothing"][len(sampled) :]
         assert rest in (["hoodie", "skirt", "shoes"], ["winter_coat", "boots"], ["jacket", "jeans"])
         assert json.loads(v.params["human.0.clothing"]) == v.raw["human"][0]["clothing"]
+
+
+def test_people_sweep_example_draws_valid_people_in_every_motion():
+    variants = expand(load_sweep(ROOT / "examples" / "people_sweep.toml"))
+    humans = [validate(v.raw)["human"][0] for v in variants]
+    assert {h["activity"] for h in humans} == {
+        "walk",
+        "carry",
+        "wave",
+        "sit",
+        "crouch",
+        "kneel",
+        "lieSide",
+        "fall",
+    }
+    assert all(h["clothing"][0] in ("hair_short", "hair_long", "hair_tied") for h in humans)
+    assert min(h["age_yr"] for h in humans) < 20.0 < max(h["age_yr"] for h in humans)
