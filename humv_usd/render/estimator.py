@@ -452,15 +452,16 @@ def within_budget(factor: np.ndarray, budget: float, need=None, first=None) -> n
             out += want
             left -= want.sum()
             continue
-        s = np.where(group & (want > 0), shape, 0.0)
-        lo, hi = 0.0, float(want.max()) / max(float(s[s > 0].min()) if (s > 0).any() else 1.0, 1e-300)
+        at = np.flatnonzero((want > 0) & (shape > 0))  # the pixels that share it
+        w, s = want[at], shape[at]
+        lo, hi = 0.0, float((w / s).max()) if at.size else 0.0  # at hi every pixel has its want
         for _ in range(64):  # the largest lambda whose sum fits (monotone in lambda)
             mid = 0.5 * (lo + hi)
-            if np.minimum(want, np.floor(mid * s)).sum() <= left:
+            if np.minimum(w, np.floor(mid * s)).sum() <= left:
                 lo = mid
             else:
                 hi = mid
-        out += np.minimum(want, np.floor(lo * s)).astype(np.int64)
+        out[at] += np.minimum(w, np.floor(lo * s)).astype(np.int64)
         left = 0.0  # spent
     return out.reshape(np.shape(factor))
 
