@@ -14,7 +14,10 @@ Layout: the road runs along x, centred on y = 0, over ``length_m`` centred on x 
 generated place lies on z = 0 (the flat ground; terrain heights come with the terrain tool).
 Trees (rural_road, open_field, ``vegetation_density``) are generated ``[[scene.object]]`` entries
 of kind tree (:mod:`humv_usd.scene.vegetation` builds, labels and the thermal tool solves them
-as hand-made plants); their positions and heights are also in :attr:`PlaceItems.trees`.
+as hand-made plants); their positions and heights are also in :attr:`PlaceItems.trees`. A rural road with ``crop``
+(maize, wheat) grows a crop object (kind crop, :data:`humv_usd.scenario.spec.CROPS`) over its
+south field, on soil; trees and cattle keep out of it (same draws, so the rest of the place is
+the place without the crop).
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from humv_usd.scenario.spec import CLUTTER, OBJECT
+from humv_usd.scenario.spec import CLUTTER, CROPS, OBJECT
 
 #: a car's footprint [m] (length, width) at scale 1 (humv_usd.scene.objects.vehicle_parts)
 CAR_LENGTH_M, CAR_WIDTH_M = 4.4, 1.8
@@ -315,7 +318,37 @@ def rural_road(p: dict, rng) -> PlaceItems:
     for s in (-1, 1):
         lo, hi = sorted((s * (W / 2 + 2.5), s * (W / 2 + 2.0 + field_depth)))
         _trees(rng, items, p["vegetation_density"], (-L / 2, L / 2), (lo, hi))
+    if p.get("crop", "none") != "none":
+        _crop_field(items, p["crop"], L, W, field_depth)
     return items
+
+
+#: margin [m] between a crop field's rows and its field's edges
+CROP_MARGIN_M = 0.5
+
+
+def _crop_field(items: PlaceItems, crop: str, L: float, W: float, depth: float) -> None:
+    """The south field of a rural road as a crop field (after every random draw, so the rest of
+    the place is unchanged): its panel becomes soil, a crop object of ``crop`` covers it, the
+    trees standing in it are not built (they stay in :attr:`PlaceItems.trees`) and its cattle
+    graze the north field instead (mirrored across the road)."""
+    spacing, height = CROPS[crop]
+    y0, y1 = -(W / 2 + 2.0 + depth) + CROP_MARGIN_M, -(W / 2 + 2.0) - CROP_MARGIN_M
+    for o in items.objects:
+        if o["id"] == "place_field_s":
+            o["material"] = "soil"
+    items.objects[:] = [
+        o for o in items.objects if not (o["kind"] == "tree" and y0 - 1.0 <= o["center_m"][1] <= y1 + 1.0)
+    ]
+    for c in items.clutter:
+        if c["kind"] == "cattle" and c["position_m"][1] < 0:
+            c["position_m"][1] = -c["position_m"][1]
+    crop_obj = _object(
+        "place_crop_s", "leaf", [0.0, (y0 + y1) / 2, 0.0], [L - 2 * CROP_MARGIN_M, y1 - y0, height], "vegetation",
+        kind="crop",
+    )  # fmt: skip
+    crop_obj["row_spacing_m"] = spacing
+    items.objects.append(crop_obj)
 
 
 def parking_lot(p: dict, rng) -> PlaceItems:

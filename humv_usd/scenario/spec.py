@@ -101,7 +101,7 @@ ACTIVITIES = (
     "getUp",
 )
 FITNESS = ("low", "average", "high", "athlete")
-OBJECT_KINDS = ("box", "panel", "tree", "bush", "hedge")
+OBJECT_KINDS = ("box", "panel", "tree", "bush", "hedge", "crop")
 OBJECT_CLASSES = (
     "building",
     "prop",
@@ -127,6 +127,15 @@ CLUTTER_CLASSES = {
 }
 #: generated places (``[scene.place]``, humv_usd.scenario.places)
 PLACE_KINDS = ("none", "street", "rural_road", "parking_lot", "open_field")
+#: row crops at maturity: (row spacing [m], canopy height [m]). Heights: FAO-56 (Allen et al.
+#: 1998, FAO Irrigation and Drainage Paper 56, Table 12, maximum crop height): maize (field,
+#: grain) 2 m, wheat 1 m. Row spacings: maize 0.76 m (30 in), the conventional row of the US Corn
+#: Belt (Widdicombe & Thelen 2002, Agron. J. 94:1020); wheat 0.19 m (7.5 in), the conventional
+#: grain-drill row (Ohio State University Agronomic Crops Team, "Wheat planting",
+#: agcrops.osu.edu: 15 in rows yield 1-11 % less than 7.5 in rows)
+CROPS = {"maize": (0.76, 2.0), "wheat": (0.19, 1.0)}
+#: crop fields of ``[scene.place] crop`` (humv_usd.scene.vegetation builds them)
+PLACE_CROPS = ("none", *CROPS)
 THERMAL_MODELS = ("fixed", "jos3", "twoNode")
 #: file formats of ``[[scene.asset]]`` (by suffix): USD is referenced; the others are read with
 #: trimesh (FBX with bpy) and converted to UsdGeom.Mesh in the scene layer
@@ -552,7 +561,8 @@ OBJECT = Section(
             "Geometry: box (closed, e.g. a building), panel (a thin box, e.g. a blackbody), or "
             "a plant generated from the object's id (humv_usd.scene.vegetation): tree (trunk of "
             "wood and a crown of the material, e.g. leaf), bush (a crown on the ground), hedge "
-            "(a rounded block); size_m is then the crown's [x, y] extent and the total height.",
+            "(a rounded block), crop (a field of row crops: rows along x, row_spacing_m apart "
+            "across y); size_m is then the crown's (field's) [x, y] extent and the total height.",
             default="box",
             choices=OBJECT_KINDS,
         ),
@@ -586,6 +596,13 @@ OBJECT = Section(
             default=None,
             lo=150.0,
             hi=1000.0,
+        ),
+        "row_spacing_m": Key(
+            "float",
+            "Row spacing of a crop [m] (kind crop; leave it out for maize's 0.76 m; wheat 0.19 m).",
+            default=None,
+            lo=0.05,
+            hi=5.0,
         ),
         "interior_air_temperature_k": Key(
             "float",
@@ -799,6 +816,14 @@ PLACE = Section(
             default=0.5,
             lo=0.0,
             hi=20.0,
+        ),
+        "crop": Key(
+            "choice",
+            "A crop field beside the road (rural_road: the south field): none, maize (rows "
+            "0.76 m apart, 2 m tall) or wheat (0.19 m, 1 m), a crop object of leaf labelled "
+            "vegetation (humv_usd.scenario.spec.CROPS, FAO-56 heights).",
+            default="none",
+            choices=PLACE_CROPS,
         ),
         "road_material": Key("choice", "Road surface.", default="asphalt", choices=GROUND_MATERIALS),
         "pavement_material": Key(

@@ -1,6 +1,7 @@
-"""Procedural plants (issue 30.2): trees, bushes and hedges as our own generated meshes.
+"""Procedural plants (issue 30.2): trees, bushes, hedges and crop fields as our own generated
+meshes.
 
-A plant is an ``[[scene.object]]`` of kind tree, bush or hedge: an Xform /World/Scene/<id>
+A plant is an ``[[scene.object]]`` of kind tree, bush, hedge or crop: an Xform /World/Scene/<id>
 (the object's label) with a closed crown mesh ``Crown`` of the object's material (``leaf``: a
 big-leaf surface whose faces the thermal tool solves with leaf convection and transpiration,
 :mod:`humv_usd.physics.vegetation`) and, for a tree, a closed trunk ``Trunk`` of wood. Shapes:
@@ -11,7 +12,11 @@ big-leaf surface whose faces the thermal tool solves with leaf convection and tr
 * tree: crown radii (size x / 2, size y / 2, 0.35 height) centred 0.35 height below the top;
   trunk an octagonal prism of radius 0.035 height (0.06-0.4 m) from the ground into the crown;
 * bush: crown radii (size / 2) centred at half its height, sunk 5 % into the ground;
-* hedge: superellipsoid of the object's size (length along the object's x before rotation).
+* hedge: superellipsoid of the object's size (length along the object's x before rotation);
+* crop: a field of row crops over the object's size: rows along the object's x, ``row_spacing_m``
+  apart across y (:data:`humv_usd.scenario.spec.CROPS`: maize and wheat), each row a closed
+  prism of a rounded canopy profile :data:`CROP_ROW_FILL` times the spacing wide and the object's
+  height tall (``Crown``: the leaf balance solves every face, as for a hedge).
 
 All faces are triangles, counter-clockwise seen from outside (outward normals); customData
 ``humv:refine`` = False keeps the thermal tool from re-tessellating them.
@@ -24,17 +29,29 @@ import zlib
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from humv_usd.scenario.spec import CROPS
 from humv_usd.usd.mesh import define_mesh, label
 from humv_usd.usd.paths import material_path, object_path
 
 #: material of a tree's trunk (bark as the library's dry wood)
 TRUNK_MATERIAL = "wood"
 #: the plant kinds of ``[[scene.object]] kind``
-PLANT_KINDS = ("tree", "bush", "hedge")
+PLANT_KINDS = ("tree", "bush", "hedge", "crop")
 #: crown subdivisions of the icosahedron (tree, bush: 320 triangles; hedge: 1280)
 CROWN_SUBDIVISIONS = {"tree": 2, "bush": 2, "hedge": 3}
 #: relative amplitude of the crown's random lobes
 CROWN_ROUGHNESS = 0.12
+#: row spacing [m] of a crop object without ``row_spacing_m`` (maize)
+CROP_ROW_SPACING_M = CROPS["maize"][0]
+#: canopy width of a row over the row spacing (gaps between rows stay visible from above)
+CROP_ROW_FILL = 0.8
+#: canopy profile of a row across y (x width, z height), counter-clockwise from +x: upright
+#: sides to 0.6 height, a rounded top half as wide
+_ROW_PROFILE = np.array([[-0.5, 0.0], [0.5, 0.0], [0.5, 0.6], [0.25, 1.0], [-0.25, 1.0], [-0.5, 0.6]])
+#: at most this many triangles in a crop object: longer row segments beyond it
+CROP_MAX_TRIANGLES = 20000
+#: length [m] of a row segment (the thermal solve's face length along the row) when within budget
+CROP_SEGMENT_M = 2.0
 
 
 def icosphere(subdivisions: int):
@@ -105,17 +122,55 @@ def prism(radius: float, z0: float, z1: float, sides: int = 8):
     return pts, np.array(tris, dtype=np.int64)
 
 
+def crop_rows(size_m, row_spacing_m: float = CROP_ROW_SPACING_M):
+    """(points, triangles) of a crop field centred on the origin (base at z = 0): rows along x
+    over the size's x, ``row_spacing_m`` apart across its y (as many as fit, centred), each a
+    closed prism of :data:`_ROW_PROFILE` (:data:`CROP_ROW_FILL` x spacing wide, the size's z
+    tall) in segments of :data:`CROP_SEGMENT_M` (longer when :data:`CROP_MAX_TRIANGLES` would be
+    exceeded)."""
+    sx, sy, h = (float(v) for v in size_m)
+    s = float(row_spacing_m)
+    n_rows = max(1, int(np.floor(sy / s + 1e-9)))
+    ys = (np.arange(n_rows) - (n_rows - 1) / 2.0) * s
+    m = len(_ROW_PROFILE)
+    per_seg = 2 * m
+    segs = int(np.ceil(sx / CROP_SEGMENT_M))
+    segs = max(1, min(segs, (CROP_MAX_TRIANGLES // n_rows - 2 * (m - 2)) // per_seg))
+    xs = np.linspace(-sx / 2, sx / 2, segs + 1)
+    prof = _ROW_PROFILE * [CROP_ROW_FILL * min(s, sy), h]
+    pts, tris = [], []
+    for yc in ys:
+        o = sum(len(p) for p in pts)
+        ring = np.column_stack([np.zeros(m), prof[:, 0] + yc, prof[:, 1]])
+        row = np.concatenate([ring + [x, 0.0, 0.0] for x in xs])
+        t = []
+        for j in range(segs):
+            a, b = j * m, (j + 1) * m
+            for k in range(m):
+                k1 = (k + 1) % m
+                t += [(a + k, a + k1, b + k1), (a + k, b + k1, b + k)]
+        last = segs * m
+        for k in range(1, m - 1):  # convex end caps: fans, facing -x and +x
+            t += [(0, k + 1, k), (last, last + k, last + k + 1)]
+        pts.append(row)
+        tris.append(np.array(t, dtype=np.int64) + o)
+    return np.vstack(pts), np.vstack(tris)
+
+
 def plant_seed(object_id: str) -> int:
     """A stable seed from an object's id (the same id, the same plant)."""
     return zlib.crc32(object_id.encode())
 
 
-def plant_parts(kind: str, size_m, seed: int = 0):
+def plant_parts(kind: str, size_m, seed: int = 0, row_spacing_m: float | None = None):
     """{part name: (points (P, 3), triangles (T, 3))} of a plant in its own frame (base centre
-    at the origin, before the object's heading): ``Crown`` and, for a tree, ``Trunk``."""
+    at the origin, before the object's heading): ``Crown`` and, for a tree, ``Trunk``; a crop's
+    rows are ``row_spacing_m`` apart (default :data:`CROP_ROW_SPACING_M`)."""
     sx, sy, h = (float(v) for v in size_m)
     if kind not in PLANT_KINDS:
         raise ValueError(f"invalid model selection {kind}")
+    if kind == "crop":
+        return {"Crown": crop_rows(size_m, row_spacing_m or CROP_ROW_SPACING_M)}
     if kind == "tree":
         rz = 0.35 * h
         p, t = crown((sx / 2, sy / 2, rz), CROWN_SUBDIVISIONS[kind], seed)
@@ -144,7 +199,8 @@ def author_plant(stage: Usd.Stage, o: dict, base_z: float, instance_id: int) -> 
     root = UsdGeom.Xform.Define(stage, object_path(o["id"]))
     label(root.GetPrim(), instance_id, o["class"])
     x, y, z = o["center_m"]
-    for name, (points, tris) in plant_parts(o["kind"], o["size_m"], plant_seed(o["id"])).items():
+    parts = plant_parts(o["kind"], o["size_m"], plant_seed(o["id"]), o.get("row_spacing_m"))
+    for name, (points, tris) in parts.items():
         material = TRUNK_MATERIAL if name == "Trunk" else o["material"]
         mesh = define_mesh(
             stage,
