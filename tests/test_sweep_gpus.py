@@ -66,7 +66,10 @@ def test_gpu_estimate_is_the_measured_rate_scaled_by_the_knobs(tmp_path):
     # compose-bound: 2 thermal layers of 3 frames on 1 CPU worker, against renders on 8 GPUs
     fixed, per_frame = plan.COMPOSE_SECONDS["thermal"]
     composing = est(gpus=8, keys={"v0000": {"thermal": "a"}, "v0001": {"thermal": "b"}})
-    assert composing["wall_s"] == pytest.approx(round(2 * (fixed + 3 * per_frame), 1), abs=0.051)
+    sc = load_sweep(tmp_path / "1_2_2" / "sweep.toml").variants[0].scenario  # plus the scene's term
+    scene_s = plan.scene_thermal_seconds(plan.scene_meshes(sc), sc["thermal"].get("surface_cell_m") or 0.0)
+    assert scene_s > 0.0
+    assert composing["wall_s"] == pytest.approx(round(2 * (fixed + 3 * per_frame + scene_s), 1), abs=0.051)
     cpu = est(gpus=0)  # the CPU estimate is unchanged: (compose + render) / workers
     assert cpu["render_on"] == "cpu" and cpu["render_s"] == pytest.approx(
         round(6 * pixels * 2 / plan.SAMPLES_PER_SECOND_PER_WORKER + 6 * plan.SECONDS_PER_IMAGE, 1), abs=0.051

@@ -7,12 +7,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pxr import Usd, UsdGeom
+
 from humv_usd.errors import InputError
 from humv_usd.pipeline import compose as compose_mod
 from humv_usd.pipeline.budget import free_disk, size_text
 from humv_usd.pipeline.graph import build_order, layer_graph
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.scene import layer as scene_layer
 from humv_usd.sweep import store
 from humv_usd.sweep.spec import Sweep, Variant
 
@@ -34,6 +37,45 @@ COMPOSE_SECONDS = {
     "thermal": (3.0, 0.22),
     "environment": (0.7, 0.0),
 }
+#: thermal seconds of a scene's surfaces (slab balance, refinement at shadow edges, the exchange
+#: between faces), added to the thermal layer's people terms above: a * M**b with M the meshes of
+#: the scene layer (ground, horizon rings, objects, each clutter part, plants, puddles), counted
+#: from the scene layer built in memory (0.05-0.4 s; :func:`scene_meshes`). Least-squares fit of
+#: log(thermal s - 3.2 s of the one person) on log M over 11 composes with ``[thermal]
+#: surface_cell_m = 0.5`` (2026-11-27 audit of issue 30, /work/notes/s5/audit-30/cost_table.json,
+#: wall s on a 2-core machine at load 11-15): (M, thermal s) open field (33, 11.2 / 10.4), rural
+#: road (61, 60.3 / 14.5), parking lot (92, 71.9 / 118.2), street (94, 149.3 / 117.4), street after
+#: rain (95, 233.8), the audit sweep's parking lot (42, 63.4) and open field after rain (50, 121.8):
+#: a = 0.00577, b = 2.20; measured / fitted 0.23 (rural road at night) .. 3.75 (the open field
+#: after rain with moving cloud shadows), the day/night mean of each place within 0.5-1.5. The
+#: mesh count is a proxy for the refined faces the cost follows (3,206 .. 70,456 drawn triangles
+#: here; thermal s ~ triangles**0.93 fits those rows within 0.41-2.13, but the refinement needs
+#: the sun and the shadows, i.e. the thermal layer itself)
+SCENE_THERMAL = (0.00577, 2.20)
+#: factor on :data:`SCENE_THERMAL` when ``surface_cell_m`` is 0 (the default: cells down to the
+#: cameras' pixel footprints, many more faces): `humv-usd bench places --kind street --factors
+#: 0.25,0.5` (no person, the same machine and day): 43 meshes 110.4 s (58,116 triangles), 76
+#: meshes 450.7 s (127,438): geometric mean of measured / fitted 5.25 (the rows 0.93 and 1.08 of it)
+FOOTPRINT_THERMAL_FACTOR = 5.25
+
+
+def scene_meshes(scenario: Scenario) -> int:
+    """Meshes of ``scenario``'s scene layer (0 without a scene), built in memory: the size
+    :func:`scene_thermal_seconds` costs."""
+    if not scenario["scene"]:
+        return 0
+    stage = Usd.Stage.Open(scene_layer.build(scenario))
+    return sum(1 for prim in stage.Traverse() if prim.IsA(UsdGeom.Mesh))
+
+
+def scene_thermal_seconds(meshes: int, surface_cell_m: float) -> float:
+    """Estimated thermal-layer seconds of a scene of ``meshes`` meshes (:data:`SCENE_THERMAL`,
+    times :data:`FOOTPRINT_THERMAL_FACTOR` when ``surface_cell_m`` is 0: camera footprints)."""
+    a, b = SCENE_THERMAL
+    factor = 1.0 if surface_cell_m > 0 else FOOTPRINT_THERMAL_FACTOR
+    return factor * a * meshes**b if meshes > 0 else 0.0
+
+
 #: seconds per 1024x768 infrared image of one GPU worker, render only (estimator, labels, queued
 #: writes): `python tools/gpu_check.py render out/walk/stage.usda --frames 0:3 --backend cuda` on one
 #: NVIDIA H100 with `cuda_ad_mono`, the walk's LWIR camera (atom1024_lwir) at automatic quality,
@@ -189,15 +231,23 @@ def estimate(
     to_compose = [v for v in sweep.variants if v.id in pending and v.id not in composed]
     disk += sum(v.scenario.frame_count for v in to_compose) * DISK_BYTES_PER_VARIANT_FRAME
     stored = {(n, k) for vid in composed for n, k in keys[vid].items()}
-    frames_of = {}  # each layer left to build once, with the frame count of its first variant
+    first_of = {}  # each layer left to build once, with its first variant
     for v in to_compose:
         for n, k in keys[v.id].items():
             if (n, k) not in stored:
-                frames_of.setdefault((n, k), v.scenario.frame_count)
+                first_of.setdefault((n, k), v)
     compose_s = 0.0
-    for (n, _), count in frames_of.items():
-        fixed, per_frame = COMPOSE_SECONDS.get(n.split("_")[0], (0.1, 0.0))
-        compose_s += fixed + per_frame * count
+    meshes_of: dict[str, int] = {}  # scene meshes by scene layer key (variants share scenes)
+    for (n, _), v in first_of.items():
+        tool = n.split("_")[0]
+        fixed, per_frame = COMPOSE_SECONDS.get(tool, (0.1, 0.0))
+        compose_s += fixed + per_frame * v.scenario.frame_count
+        if tool == "thermal":
+            scene_key = keys[v.id].get("scene", v.id)
+            if scene_key not in meshes_of:
+                meshes_of[scene_key] = scene_meshes(v.scenario)
+            cell = float((v.scenario["thermal"] or {}).get("surface_cell_m") or 0.0)
+            compose_s += scene_thermal_seconds(meshes_of[scene_key], cell)
     if gpus > 0:
         render_s = gpu_s
         wall = max(render_s / gpus, compose_s / max(1, workers))
@@ -217,7 +267,7 @@ def estimate(
         "images_todo": images_todo,
         "megasamples": round(samples / 1e6, 1),
         "layers": sum(len(lk) for lk in keys.values()),
-        "layers_to_build": len(frames_of),
+        "layers_to_build": len(first_of),
         "workers": workers,
         "gpus": gpus,
         "render_on": "gpu" if gpus > 0 else "cpu",
