@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 from conftest import general_toml, place_keys, scene_stage
 
+from humv_usd.errors import InputError
 from humv_usd.scenario import validate
 from humv_usd.scenario.ids import instance_ids
-from humv_usd.scenario.places import place_items
+from humv_usd.scenario.places import place_items, scene_materials
 from humv_usd.scenario.spec import CROPS
 from humv_usd.scene.vegetation import CROP_ROW_FILL, PLANT_KINDS, plant_parts
 from humv_usd.thermal import surfaces as SF
@@ -71,18 +72,28 @@ def test_a_crop_object_composes_labelled_and_its_faces_are_leaves_near_the_air()
     # 5 rows of 0.76 m in 4 m, each profile at 4 distinct y (half-width and quarter-width sides)
     assert len(np.unique(np.round(crown.points[:, 1], 4))) == 5 * 4
     # noon sun on the rows: every face a transpiring leaf within a few K of the air (as
-    # tests/test_vegetation.py bounds a sunlit leaf in a 2 m/s breeze, Jones 2014 ch. 9)
-    n, air = 12, 300.15
+    # tests/test_vegetation.py bounds a sunlit leaf in a 2 m/s breeze, Jones 2014 ch. 9); a clear
+    # night: every face below the air (radiative cooling), by less than 4 K
+    for sw, air in ((900.0, 300.15), (0.0, 288.15)):
+        temps = _crop_faces(crown, sw, air)
+        if sw:
+            assert np.all(np.abs(temps - air) < 4.0)
+            assert np.ptp(temps) > 0.1  # sunlit tops and shaded ends differ
+        else:
+            assert np.all((temps - air > -4.0) & (temps - air < 0.0))
+
+
+def _crop_faces(crown, sw, air, n=12):
+    """The crop's face temperatures [K] after 2 h of held weather: the sun at 72 deg elevation
+    (direct 8/9 of ``sw``), RH 0.4, wind 2 m/s, an isotropic clear sky, no exchange."""
     t = np.arange(n) * 600.0 - (n - 1) * 600.0
     one = np.ones(n)
     f = SF.SurfaceForcing(
-        t, air * one, 0.4 * one, 2.0 * one, np.tile([0.3, 0.0, 0.95], (n, 1)), np.full(n, True),
-        800.0 * one, 100.0 * one, 860.0 * one, sky_shape=(np.array([0.0, 90.0]), np.ones(2)),
+        t, air * one, 0.4 * one, 2.0 * one, np.tile([0.3, 0.0, 0.95], (n, 1)), np.full(n, sw > 0),
+        sw * 8 / 9 * one, sw / 9 * one, 0.95 * sw * one, sky_shape=(np.array([0.0, 90.0]), np.ones(2)),
     )  # fmt: skip
     out, _ = SF.surface_temperatures(None, [crown], f.times_s, 0.0, forcing=f, exchange=False)
-    temps = out[crown.path][-1]
-    assert np.all(np.abs(temps - air) < 4.0)
-    assert np.ptp(temps) > 0.1  # sunlit tops and shaded ends differ
+    return out[crown.path][-1]
 
 
 def test_rural_road_grows_a_crop_field_and_is_otherwise_unchanged():
@@ -103,3 +114,12 @@ def test_rural_road_grows_a_crop_field_and_is_otherwise_unchanged():
     assert [k["id"] for k in items.clutter] == [k["id"] for k in plain.clutter]
     assert [o for o in plain.objects if o["kind"] == "crop"] == []
     assert place_keys("rural_road")["crop"] == "none"
+    assert {"leaf", "soil"} <= scene_materials({"place": p})
+
+
+def test_an_unknown_crop_is_a_one_line_error():
+    raw = {**copy.deepcopy(SCENARIO), "scene": {"ground": {"material": "soil", "size_m": [60.0, 60.0]}}}
+    raw["scene"]["place"] = {"kind": "rural_road", "crop": "rice"}
+    with pytest.raises(InputError) as e:
+        validate(raw)
+    assert str(e.value) == "scene.place.crop = 'rice': allowed values: none, maize, wheat"
