@@ -27,14 +27,17 @@ from humv_usd.sweep.spec import Sweep, Variant
 SAMPLES_PER_SECOND_PER_WORKER = 0.72e6
 #: fixed cost per rendered image (stage export, ground truth, conversions, writes) [s]
 SECONDS_PER_IMAGE = 1.0
-#: compose seconds of a layer that is built (not shared): (fixed, per frame) by tool, from the
-#: compose.json of `humv-usd bench sweep` (walk, 16 frames: clothing 5.9-7.3 s, thermal 5.7-7.0 s)
-#: and of examples/table1.toml's variants (31 frames, 2 workers: clothing 7.8-12.5 s, thermal
-#: 8.4-11.8 s); others 0.1 s
+#: compose seconds of a layer that is built (not shared): (fixed, per frame) by tool, for the people
+#: (the scene's own thermal term: :data:`SCENE_THERMAL`). Per frame from the compose.json of
+#: `humv-usd bench sweep` (walk, 16 frames) and examples/table1.toml's variants (31 frames); the fixed
+#: parts raised 2026-11-27 to today's whole composes (`humv-usd bench compose --scenario ...`, CPU-s
+#: of a fresh child, after the garment-stack speed-up 08d73d8, /work/notes/s5/compose-speed.md): walk
+#: (31 frames) 27.9, Table 1 v0025 22.9, v0066 35.1, the one-frame demo 19.1, against which these
+#: constants give 27.3, 27.3, 27.3 and 16.2 (the rest: the child's start and imports); others 0.1 s
 COMPOSE_SECONDS = {
     "avatar": (0.5, 0.0),
-    "clothing": (4.0, 0.15),
-    "thermal": (3.0, 0.22),
+    "clothing": (7.0, 0.15),
+    "thermal": (7.0, 0.22),
     "environment": (0.7, 0.0),
 }
 #: thermal seconds of a scene's surfaces (slab balance, refinement at shadow edges, the exchange
@@ -46,8 +49,10 @@ COMPOSE_SECONDS = {
 #: wall s on a 2-core machine at load 11-15): (M, thermal s) open field (33, 11.2 / 10.4), rural
 #: road (61, 60.3 / 14.5), parking lot (92, 71.9 / 118.2), street (94, 149.3 / 117.4), street after
 #: rain (95, 233.8), the audit sweep's parking lot (42, 63.4) and open field after rain (50, 121.8):
-#: a = 0.00577, b = 2.20; measured / fitted 0.23 (rural road at night) .. 3.75 (the open field
-#: after rain with moving cloud shadows), the day/night mean of each place within 0.5-1.5. The
+#: a = 0.00577, b = 2.20. With the people terms above (7.2 s for one frame) measured / estimated is
+#: 0.26 (rural road at night) .. 3.1 (the open field after rain with moving cloud shadows), the
+#: day/night geometric mean of each audit place 0.53-1.0. (Fitting after subtracting the new
+#: 7.2 s gives b = 2.72, too steep from the 4 s left of the open field's 11 s: kept 2.20.) The
 #: mesh count is a proxy for the refined faces the cost follows (3,206 .. 70,456 drawn triangles
 #: here; thermal s ~ triangles**0.93 fits those rows within 0.41-2.13, but the refinement needs
 #: the sun and the shadows, i.e. the thermal layer itself)
