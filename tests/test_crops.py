@@ -96,24 +96,30 @@ def _crop_faces(crown, sw, air, n=12):
     return out[crown.path][-1]
 
 
-def test_rural_road_grows_a_crop_field_and_is_otherwise_unchanged():
-    plain = place_items(place_keys("rural_road", seed=5, vegetation_density=0.3, animals=4))
-    p = place_keys("rural_road", seed=5, vegetation_density=0.3, animals=4, crop="wheat")
+@pytest.mark.parametrize(("kind", "clear"), [("rural_road", 1.0), ("open_field", 3.0)])
+def test_places_grow_a_crop_field_clear_of_trees_and_clutter_and_are_otherwise_unchanged(kind, clear):
+    keys = dict(seed=5, vegetation_density=0.3, animals=6, vehicles=4, warm_objects=3)
+    plain = place_items(place_keys(kind, **keys))
+    p = place_keys(kind, crop="wheat", **keys)
     items = place_items(p)
-    crop = [o for o in items.objects if o["kind"] == "crop"]
-    assert len(crop) == 1
-    (c,) = crop
+    (c,) = [o for o in items.objects if o["kind"] == "crop"]
     assert (c["material"], c["class"], c["row_spacing_m"]) == ("leaf", "vegetation", CROPS["wheat"][0])
     assert c["size_m"][2] == CROPS["wheat"][1]
     y0, y1 = c["center_m"][1] - c["size_m"][1] / 2, c["center_m"][1] + c["size_m"][1] / 2
-    assert y1 < -p["road_width_m"] / 2 - 2.0  # beside the road, in the south field
+    if kind == "rural_road":
+        assert y1 < -p["road_width_m"] / 2 - 2.0  # beside the road, in the south field
+    else:
+        assert y0 >= 3.0 and y1 <= p["length_m"] / 2
     for o in items.objects:  # no tree stands in it
-        assert o["kind"] != "tree" or not (y0 - 1 <= o["center_m"][1] <= y1 + 1)
-    assert all(k["position_m"][1] > 0 for k in items.clutter if k["kind"] == "cattle")
+        assert o["kind"] != "tree" or not (y0 - clear <= o["center_m"][1] <= y1 + clear)
+    for k in items.clutter:  # nor a warm object
+        assert not (y0 - clear <= k["position_m"][1] <= y1 + clear)
+    moved = sum(a["position_m"] != b["position_m"] for a, b in zip(items.clutter, plain.clutter))
+    assert moved > 0  # some animals or cars had to move out of the field
     assert items.trees == plain.trees  # the same draws
     assert [k["id"] for k in items.clutter] == [k["id"] for k in plain.clutter]
     assert [o for o in plain.objects if o["kind"] == "crop"] == []
-    assert place_keys("rural_road")["crop"] == "none"
+    assert place_keys(kind)["crop"] == "none"
     assert {"leaf", "soil"} <= scene_materials({"place": p})
 
 

@@ -14,10 +14,11 @@ Layout: the road runs along x, centred on y = 0, over ``length_m`` centred on x 
 generated place lies on z = 0 (the flat ground; terrain heights come with the terrain tool).
 Trees (rural_road, open_field, ``vegetation_density``) are generated ``[[scene.object]]`` entries
 of kind tree (:mod:`humv_usd.scene.vegetation` builds, labels and the thermal tool solves them
-as hand-made plants); their positions and heights are also in :attr:`PlaceItems.trees`. A rural road with ``crop``
-(maize, wheat) grows a crop object (kind crop, :data:`humv_usd.scenario.spec.CROPS`) over its
-south field, on soil; trees and cattle keep out of it (same draws, so the rest of the place is
-the place without the crop).
+as hand-made plants); their positions and heights are also in :attr:`PlaceItems.trees`. With
+``crop`` (maize, wheat) a rural road grows a crop object (kind crop,
+:data:`humv_usd.scenario.spec.CROPS`) over its south field, on soil, and an open field over its
+north half; trees and warm clutter keep out of it (same draws, so the rest of the place is the
+place without the crop).
 """
 
 from __future__ import annotations
@@ -318,8 +319,10 @@ def rural_road(p: dict, rng) -> PlaceItems:
     for s in (-1, 1):
         lo, hi = sorted((s * (W / 2 + 2.5), s * (W / 2 + 2.0 + field_depth)))
         _trees(rng, items, p["vegetation_density"], (-L / 2, L / 2), (lo, hi))
-    if p.get("crop", "none") != "none":
-        _crop_field(items, p["crop"], L, W, field_depth)
+    if p.get("crop", "none") != "none":  # the south field
+        _crop_field(
+            items, p["crop"], L, -(W / 2 + 2.0 + field_depth), -(W / 2 + 2.0), "place_crop_s", "place_field_s"
+        )
     return items
 
 
@@ -327,24 +330,37 @@ def rural_road(p: dict, rng) -> PlaceItems:
 CROP_MARGIN_M = 0.5
 
 
-def _crop_field(items: PlaceItems, crop: str, L: float, W: float, depth: float) -> None:
-    """The south field of a rural road as a crop field (after every random draw, so the rest of
-    the place is unchanged): its panel becomes soil, a crop object of ``crop`` covers it, the
-    trees standing in it are not built (they stay in :attr:`PlaceItems.trees`) and its cattle
-    graze the north field instead (mirrored across the road)."""
+def _crop_field(
+    items: PlaceItems,
+    crop: str,
+    length: float,
+    y0: float,
+    y1: float,
+    ident: str,
+    soil_panel: str | None = None,
+    clear_m: float = 1.0,
+) -> None:
+    """A crop field of ``crop`` over x in +-``length`` / 2 and y in [``y0``, ``y1``] (less
+    :data:`CROP_MARGIN_M`), added after every random draw so the rest of the place is the place
+    without it: ``soil_panel`` (a field panel's id) becomes soil, the trees standing in it are not
+    built (they stay in :attr:`PlaceItems.trees`) and warm clutter in it (cattle, cars, fires)
+    moves across y = 0 (mirrored); "in it" is within ``clear_m`` of its rows (the field must lie
+    farther than that from y = 0)."""
     spacing, height = CROPS[crop]
-    y0, y1 = -(W / 2 + 2.0 + depth) + CROP_MARGIN_M, -(W / 2 + 2.0) - CROP_MARGIN_M
+    y0, y1 = y0 + CROP_MARGIN_M, y1 - CROP_MARGIN_M
     for o in items.objects:
-        if o["id"] == "place_field_s":
+        if o["id"] == soil_panel:
             o["material"] = "soil"
     items.objects[:] = [
-        o for o in items.objects if not (o["kind"] == "tree" and y0 - 1.0 <= o["center_m"][1] <= y1 + 1.0)
+        o
+        for o in items.objects
+        if not (o["kind"] == "tree" and y0 - clear_m <= o["center_m"][1] <= y1 + clear_m)
     ]
     for c in items.clutter:
-        if c["kind"] == "cattle" and c["position_m"][1] < 0:
+        if y0 - clear_m <= c["position_m"][1] <= y1 + clear_m:
             c["position_m"][1] = -c["position_m"][1]
     crop_obj = _object(
-        "place_crop_s", "leaf", [0.0, (y0 + y1) / 2, 0.0], [L - 2 * CROP_MARGIN_M, y1 - y0, height], "vegetation",
+        ident, "leaf", [0.0, (y0 + y1) / 2, 0.0], [length - 2 * CROP_MARGIN_M, y1 - y0, height], "vegetation",
         kind="crop",
     )  # fmt: skip
     crop_obj["row_spacing_m"] = spacing
@@ -416,6 +432,8 @@ def open_field(p: dict, rng) -> PlaceItems:
         kind = ("fire", "barbecue")[k % 2]
         items.clutter.append(_clutter(f"place_{kind}_{k}", kind, spot()))
     _trees(rng, items, p["vegetation_density"], (-L / 2, L / 2), (-L / 2, L / 2))
+    if p.get("crop", "none") != "none":  # the north half, 3 m off the middle
+        _crop_field(items, p["crop"], L, 3.0, L / 2, "place_crop_n", clear_m=3.0)
     return items
 
 

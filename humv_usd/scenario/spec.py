@@ -819,7 +819,7 @@ PLACE = Section(
         ),
         "crop": Key(
             "choice",
-            "A crop field beside the road (rural_road: the south field): none, maize (rows "
+            "A crop field (rural_road: the south field; open_field: the north half): none, maize (rows "
             "0.76 m apart, 2 m tall) or wheat (0.19 m, 1 m), a crop object of leaf labelled "
             "vegetation (humv_usd.scenario.spec.CROPS, FAO-56 heights).",
             default="none",
