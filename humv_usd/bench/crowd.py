@@ -3,6 +3,7 @@ others (placement ``avoidance = "socialForce"``), composed (:func:`humv_usd.pipe
 what ``humv-usd compose`` runs) in a child process whose peak resident set it reads from /proc.
 
     python -m humv_usd.bench.crowd --people 10 --duration 1.5 --fps 30 --thermal fixed OUT
+    python -m humv_usd.bench.crowd OUT --people 2 --fps 10 --durations 3 6 12 24
 
 The scenario is examples/walk.toml's site and weather with its camera cut to 64x48 pixels; the
 people start on a 3 m x 9 m block west of the origin and walk east, every second one on a
