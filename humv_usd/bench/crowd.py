@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -82,8 +83,10 @@ def bench_crowd(out: Path, people: int, duration_s: float, fps: float, thermal: 
     scenario.write_text(crowd_scenario(people, duration_s, fps, thermal), encoding="utf-8")
     t = time.perf_counter()
     cmd = [sys.executable, "-m", "humv_usd.bench.crowd", "--child", str(scenario), str(out / "stage")]
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run(cmd, capture_output=True, text=True)
     seconds = time.perf_counter() - t
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr[-2000:])
     peaks = json.loads((out / "layer_peaks.json").read_text())
@@ -96,6 +99,8 @@ def bench_crowd(out: Path, people: int, duration_s: float, fps: float, thermal: 
         "thermal": thermal,
         "peak_rss_mb": peaks["peak_mb"],
         "wall_s": round(seconds, 1),
+        # CPU seconds of the child (user + system): less sensitive than wall time to a shared machine
+        "cpu_s": round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 1),
         "layer_text_mb": round(sum(p.stat().st_size for p in layers.glob("*.usda")) / 1e6, 1),
         "layer_seconds": {e["name"]: e["seconds"] for e in report["layers"] if "seconds" in e},
         "layer_peak_rss_mb": peaks["layers"],
