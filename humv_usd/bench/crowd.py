@@ -39,8 +39,15 @@ from humv_usd.scenario import load_scenario
 WALK_TOML = Path(__file__).resolve().parents[2] / "examples" / "walk.toml"
 
 
-def crowd_scenario(people: int, duration_s: float, fps: float, thermal: str = "fixed") -> str:
-    """The scenario text (see the module doc)."""
+#: the outfit every walker wears unless told otherwise
+OUTFIT = ("tshirt_black", "leggings", "shoes")
+
+
+def crowd_scenario(
+    people: int, duration_s: float, fps: float, thermal: str = "fixed", clothing=OUTFIT
+) -> str:
+    """The scenario text (see the module doc); ``clothing``: every walker's garments (None:
+    no ``clothing`` key, the scenario's default)."""
     src = WALK_TOML.read_text(encoding="utf-8")
     head = src[: src.index("[[human]]")]
     tail = src[src.index("[scene]") :]
@@ -63,7 +70,7 @@ stature_m = {1.60 + 0.025 * (i % 9):.3f}
 mass_kg = {58 + 3 * i}.0
 activity = "walk"
 speed_m_s = {1.1 + 0.05 * (i % 5):.2f}
-clothing = ["tshirt_black", "leggings", "shoes"]
+{"" if clothing is None else "clothing = " + json.dumps(list(clothing))}
 
 [[placement]]
 human = "p{i}"
@@ -76,11 +83,13 @@ avoidance = "socialForce"
     return head + "".join(out) + "\n" + tail
 
 
-def bench_crowd(out: Path, people: int, duration_s: float, fps: float, thermal: str = "fixed") -> dict:
+def bench_crowd(
+    out: Path, people: int, duration_s: float, fps: float, thermal: str = "fixed", clothing=OUTFIT
+) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scenario = out / "crowd.toml"
-    scenario.write_text(crowd_scenario(people, duration_s, fps, thermal), encoding="utf-8")
+    scenario.write_text(crowd_scenario(people, duration_s, fps, thermal, clothing), encoding="utf-8")
     t = time.perf_counter()
     cmd = [sys.executable, "-m", "humv_usd.bench.crowd", "--child", str(scenario), str(out / "stage")]
     cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -97,6 +106,7 @@ def bench_crowd(out: Path, people: int, duration_s: float, fps: float, thermal: 
         "frames": int(round(duration_s * fps)) + 1,
         "fps": fps,
         "thermal": thermal,
+        "clothing": None if clothing is None else list(clothing),
         "peak_rss_mb": peaks["peak_mb"],
         "wall_s": round(seconds, 1),
         # CPU seconds of the child (user + system): less sensitive than wall time to a shared machine
@@ -147,10 +157,12 @@ def child_compose(scenario: Path, out: Path) -> None:
     (Path(out).parent / "layer_peaks.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
 
 
-def bench_durations(out: Path, people: int, durations, fps: float, thermal: str = "fixed") -> dict:
+def bench_durations(
+    out: Path, people: int, durations, fps: float, thermal: str = "fixed", clothing=OUTFIT
+) -> dict:
     """:func:`bench_crowd` at each duration (one child each) and the line peak RSS = a + b x
     frames through them: ``peak_mb_per_frame`` (b) and ``peak_mb_at_0`` (a)."""
-    runs = [bench_crowd(Path(out) / f"{d:g}s", people, d, fps, thermal) for d in durations]
+    runs = [bench_crowd(Path(out) / f"{d:g}s", people, d, fps, thermal, clothing) for d in durations]
     frames = np.array([r["frames"] for r in runs], dtype=float)
     peak = np.array([r["peak_rss_mb"] for r in runs])
     slope, at0 = np.polyfit(frames, peak, 1) if len(runs) > 1 else (float("nan"), float(peak[0]))
@@ -168,16 +180,22 @@ def main(argv=None) -> None:
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--durations", type=float, nargs="+", help="several durations [s]: memory against frames")
     ap.add_argument("--child", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument(
+        "--clothing",
+        default=",".join(OUTFIT),
+        help="comma-separated garments of every walker; 'none': no clothing key (the default outfit)",
+    )
     ap.add_argument("--fps", type=float, default=30.0)
     ap.add_argument("--thermal", default="fixed", choices=("fixed", "twoNode", "jos3"))
     a = ap.parse_args(argv)
     if a.child is not None:  # the composing child (see the module doc)
         child_compose(a.child, a.out)
         return
+    clothing = None if a.clothing == "none" else [c for c in a.clothing.split(",") if c]
     if a.durations:
-        result = bench_durations(a.out, a.people, a.durations, a.fps, a.thermal)
+        result = bench_durations(a.out, a.people, a.durations, a.fps, a.thermal, clothing)
     else:
-        result = bench_crowd(a.out, a.people, a.duration, a.fps, a.thermal)
+        result = bench_crowd(a.out, a.people, a.duration, a.fps, a.thermal, clothing)
     sys.stdout.write(json.dumps(result, indent=2) + "\n")
 
 
