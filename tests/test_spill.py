@@ -11,7 +11,7 @@ from pxr import Sdf, Usd, UsdGeom, Vt
 
 from humv_usd.pipeline.compose import _sha, stage_layer
 from humv_usd.usd import spill as SP
-from humv_usd.usd.layers import finish, layer_text, new_layer_stage
+from humv_usd.usd.layers import finish, layer_text, new_layer_stage, relative_asset_paths
 from humv_usd.usd.thermal import spill_temperatures, write_surface_temperature
 
 FRAMES = SP.CHUNK_FRAMES + 7  # crosses a chunk boundary
@@ -127,3 +127,13 @@ def test_the_peak_of_a_chunked_spill_does_not_grow_with_frames(tmp_path):
     whole = 16 * SP.CHUNK_FRAMES * 2000 * 4  # the long series as one float32 array
     assert long < 1.25 * short
     assert long < 0.5 * whole
+
+
+def test_a_layer_without_paths_to_change_is_written_without_a_copy(tmp_path):
+    # compose writes relative_asset_paths(layer): a crowd's clothing layer has no asset paths,
+    # and copying it held a second copy of its point cache while it was written
+    layer = thermal_like_layer(series_set(np.random.default_rng(2)))
+    Sdf.CreatePrimInLayer(layer, "/B").referenceList.Prepend(Sdf.Reference("/opt/library/tree.usd"))
+    before = layer.ExportToString()
+    same = relative_asset_paths(layer, tmp_path / "o" / "layers")
+    assert same.identifier == layer.identifier and layer.ExportToString() == before
