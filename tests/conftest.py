@@ -69,6 +69,44 @@ def atmosphere_layers_of(scenario):
     return sky, paths_layer.build(scenario, compose_in_memory([*layers, sky], fps))
 
 
+def general_toml(name: str, start: str = "2018-07-14T13:00:00", duration_s: float = 0.0, **extra) -> str:
+    """The ``[general]`` table (TOML text) of the small scene tests' scenarios: Dayton, Ohio
+    (39.8° N, 84.0° W, UTC-4), 5 fps; ``extra`` adds keys with number values (``seed=2``)."""
+    lines = [
+        "[general]",
+        f'name = "{name}"',
+        f"start = {start}",
+        "utc_offset_h = -4.0",
+        'time_zone = "America/New_York"',
+        "latitude_deg = 39.8",
+        "longitude_deg = -84.0",
+        "fps = 5.0",
+        f"duration_s = {duration_s}",
+        *(f"{key} = {value}" for key, value in extra.items()),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def place_keys(kind: str, **keys) -> dict:
+    """A ``[scene.place]`` table: the spec's defaults, then ``kind`` and ``keys``."""
+    from humv_usd.scenario.spec import PLACE
+
+    place = {k: copy.deepcopy(v.default) for k, v in PLACE.keys.items()}
+    place.update(kind=kind, **keys)
+    return place
+
+
+def scene_stage(scenario):
+    """The scene and materials layers of a validated scenario composed in memory (no slab
+    solve, no render)."""
+    from humv_usd.materials import layer as materials_layer
+    from humv_usd.pipeline.compose import compose_in_memory
+    from humv_usd.scene import layer as scene_layer
+
+    layers = [scene_layer.build(scenario), materials_layer.build(scenario)]
+    return compose_in_memory(layers, scenario["general"]["fps"])
+
+
 @pytest.fixture(scope="session")
 def humvvex_raw() -> dict:
     return tomllib.loads(HUMVVEX.read_text())

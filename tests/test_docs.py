@@ -326,7 +326,7 @@ def test_aerial_tutorial_runs(tmp_path):
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    """docs/user/dataset-tutorial.md run as written (~20 s)."""
+    """docs/user/dataset-tutorial.md run as written (~30 s: the sweep, then the detector)."""
     cwd = tmp_path_factory.mktemp("dataset")
     (cwd / ".venv").symlink_to(Path(sys.executable).parents[1])
     for name in ("first.toml", "shirts.toml"):
@@ -339,7 +339,7 @@ def test_dataset_tutorial_runs(dataset):
     """docs/user/dataset-tutorial.md: 4 variants, each in one split, and every YOLO line is the
     person's visible box of its objects.json, (x0 + x1) / 2W, (y0 + y1) / 2H, (x1 - x0) / W,
     (y1 - y0) / H."""
-    tmp_path, (index_out, yolo_out) = dataset
+    tmp_path, (index_out, yolo_out, _) = dataset
     rows = re.findall(r"(v\d{4}) (train|val|test): shirt=(\w+) time=(\w+), person ([\d.]+) K", index_out)
     assert sorted((r[2], r[3]) for r in rows) == sorted(
         (s, t) for s in ("white", "black") for t in ("afternoon", "night")
@@ -362,6 +362,27 @@ def test_dataset_tutorial_runs(dataset):
             [(x0 + x1) / 2 / w, (y0 + y1) / 2 / h, (x1 - x0) / w, (y1 - y0) / h],
             atol=1e-6,
         )
+
+
+@pytest.mark.slow
+def test_dataset_tutorial_trains_a_detector(dataset):
+    """Step 5 (``humv-usd bench detector`` on the tutorial's dataset): trained on the train split's
+    person windows, each person as (1 + JITTER) jittered windows and their mirror images, and
+    scored on every split with the variants the index gives it; the held-out images (the same
+    person and pose in another shirt or hour) are found."""
+    import pandas as pd
+
+    from humv_usd.bench.detector import JITTER
+
+    tmp_path, (_, _, detector_out) = dataset
+    index = pd.read_parquet(tmp_path / "out" / "shirts" / "index.parquet")
+    by_split = {s: sorted(set(index.variant[index.split == s])) for s in set(index.split)}
+    rows = re.findall(r"(\w+): (\d+) image\(s\) of ([v\d, ]+), AP50 ([\d.]+)", detector_out)
+    assert {name: sorted(v.split(", ")) for name, _, v, _ in rows} == by_split
+    assert all(int(n) == len(by_split[name]) for name, n, _, _ in rows)  # one frame per variant
+    (positives,) = re.findall(r"trained on (\d+) person windows", detector_out)
+    assert int(positives) == 2 * (1 + JITTER) * len(by_split["train"])  # one person per image
+    assert all(float(ap50) > 0.5 for name, _, _, ap50 in rows if name != "train"), rows
 
 
 @pytest.mark.slow

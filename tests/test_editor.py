@@ -346,11 +346,11 @@ def test_stage_view_has_every_mesh_triangle_and_camera(humvvex, tmp_path):
     assert lo[2] == pytest.approx(0.0, abs=0.05) and hi[0] == pytest.approx(0.8, abs=0.5)
 
 
-def test_preview_is_the_real_compose_and_a_small_forced_render(humvvex, tmp_path):
-    """The preview composes the scenario file itself into the output folder (one layer cache with
-    Compose and the 3D view) and renders frame 0 of one sensor, binned to at most
-    PREVIEW_WIDTH_PX columns, with --force (before: a one-sensor binned copy composed apart, whose
-    thermal layer was built again, and every preview after an edit failed: the render refused a
+def test_full_preview_is_the_real_compose_and_a_small_forced_render(humvvex, tmp_path):
+    """The full-quality preview composes the scenario file itself into the output folder (one
+    layer cache with Compose and the 3D view) and renders frame 0 of one sensor, binned to at
+    most PREVIEW_WIDTH_PX columns, with --force (before 2026-11-27: a one-sensor binned copy
+    composed apart at full cost, and every preview after an edit failed: the render refused a
     folder rendered from another stage)."""
     from humv_usd.editor.preview import PREVIEW_WIDTH_PX, preview_commands, preview_resolution
 
@@ -365,12 +365,75 @@ def test_preview_is_the_real_compose_and_a_small_forced_render(humvvex, tmp_path
         w, h = preview_resolution(scenario, s["id"])
         assert w <= PREVIEW_WIDTH_PX and abs(w / h - s["resolution"][0] / s["resolution"][1]) < 0.02
     out = tmp_path / "out"
-    compose, render = preview_commands(humvvex, out, "lwir640", (320, 256))
+    compose, render = preview_commands(humvvex, out, "lwir640", (320, 256), "full")
     assert compose == ["compose", str(humvvex), "-o", str(out)]
     assert render[:3] == ["render", str(out / "stage.usda"), "-o"] and render[3] == str(out / "preview")
     opts = dict(zip(render[4::2], render[5::2]))
     assert opts["--resolution"] == "320x256" and opts["--sensor"] == "lwir640" and opts["--frames"] == "0"
     assert "--force" in render
+
+
+def test_fast_preview_is_a_cheaper_copy_in_its_own_folder(humvvex, tmp_path):
+    """Issue 26 (7): the fast preview composes a preview-quality copy of the scenario into a
+    folder of its own (never the real layers): every sensor at its preview size
+    (render_resolution: same field of view), frame 0 only, the thermal layer's knobs lowered but
+    never raised, file keys absolute, and it says so."""
+    import tomllib
+
+    from humv_usd.editor.preview import (
+        PREVIEW_SCENARIO,
+        PREVIEW_STAGE_DIR,
+        preview_commands,
+        preview_notes,
+        preview_scenario,
+    )
+    from humv_usd.scenario.load import validate
+
+    raw = tomllib.loads(humvvex.read_text())
+    raw["general"]["duration_s"] = 2.0
+    raw["thermal"]["radiation_resolution"] = 16  # already cheaper than the preview's 24: kept
+    raw["human"][0]["bvh"] = "motion/walk.bvh"  # a relative file key
+    before = tomllib.loads(humvvex.read_text())
+    scenario = validate({**raw, "human": before["human"]}, humvvex)
+    pv = preview_scenario(raw, scenario, humvvex.parent)
+    assert raw["thermal"] == {"model": "jos3", "radiation_resolution": 16} and len(raw["sensor"]) == 4
+    # every sensor at its preview size (the copy is the same whichever sensor is previewed)
+    sizes = {s["id"]: s["render_resolution"] for s in pv["sensor"]}
+    assert sizes == {
+        "atom1024_lwir": [256, 192],
+        "lwir640": [320, 256],
+        "mwir_insb": [320, 256],
+        "eo_rgb": [288, 216],
+    }
+    assert pv["general"]["duration_s"] == 0.0 and "editor preview (fast" in pv["general"]["description"]
+    assert pv["thermal"] == {
+        "model": "jos3",
+        "radiation_resolution": 16,
+        "radiation_rays": 8,
+        "surface_cell_m": 0.5,
+    }
+    assert pv["human"][0]["bvh"] == str((humvvex.parent / "motion" / "walk.bvh").resolve())
+    pv["human"][0].pop("bvh")
+    checked = validate(pv, tmp_path / "elsewhere" / "preview.toml")  # valid wherever it lives
+    assert checked.frame_count == 1 and list(checked["sensor"][1]["render_resolution"]) == [320, 256]
+    notes = preview_notes(scenario)
+    assert (
+        "thermal.radiation_rays 8 (scenario: 64)" in notes and "frame 0 only (scenario: 61 frames)" in notes
+    )
+    assert not any("radiation_resolution" in n for n in notes)
+    # the fixed model has no radiation balance: only the scene's cells are coarser
+    raw["thermal"] = {"model": "fixed", "surface_cell_m": 2.0}
+    fixed = validate({**raw, "human": before["human"]}, humvvex)
+    assert preview_scenario(raw, fixed, humvvex.parent)["thermal"] == raw["thermal"]
+    out = tmp_path / "out"
+    compose, render = preview_commands(out / PREVIEW_SCENARIO, out, "lwir640", (320, 256))
+    stage_dir = out / PREVIEW_STAGE_DIR
+    assert compose == ["compose", str(out / PREVIEW_SCENARIO), "-o", str(stage_dir)]
+    assert stage_dir != out and out not in [Path(x) for x in compose]  # never the real layers
+    assert render[:4] == ["render", str(stage_dir / "stage.usda"), "-o", str(out / "preview")]
+    assert "--resolution" not in render and "--force" in render
+    with pytest.raises(ValueError, match="quality"):
+        preview_commands(humvvex, out, "lwir640", (320, 256), "best")
 
 
 def test_a_file_that_is_not_toml_is_shown_and_never_replaced(tmp_path):
@@ -511,3 +574,37 @@ def test_the_3d_view_is_framed_on_the_people_and_sensors_not_the_horizon():
     # without people or cameras: the bounds
     eye2, target2 = framing(StageView(Path("x.glb"), 1, 2, [], ground, None))
     np.testing.assert_allclose(target2, [0.0, 0.0, 4.0])
+
+
+def test_preview_bench_edits_are_valid_and_its_folder_is_its_own(humvvex, tmp_path):
+    """``humv-usd bench preview``: each edit changes what it names and leaves a valid scenario;
+    the bench never empties a folder it did not make, and names unknown edits (exit 2)."""
+    from click.testing import CliRunner
+
+    from humv_usd.cli.main import main
+    from humv_usd.editor.timing import EDITS
+
+    doc = ScenarioDocument(humvvex)
+    first = doc.scenario()
+    for name, _, edit in EDITS:
+        if edit is not None:
+            edit(doc)
+            assert not doc.problems(), (name, doc.problems())
+    last = doc.scenario()
+    assert last["placement"][0]["heading_deg"] == pytest.approx(
+        (first["placement"][0]["heading_deg"] + 10) % 360
+    )
+    assert last["human"][0]["activity"] != first["human"][0]["activity"]
+    assert (last["general"]["start"] - first["general"]["start"]).total_seconds() == 3600.0
+    assert last["atmosphere"]["air_temperature_k"] == pytest.approx(
+        first["atmosphere"]["air_temperature_k"] + 2
+    )
+    assert last["sensor"][0]["netd_k"] == pytest.approx(0.8 * first["sensor"][0]["netd_k"])
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "keep.txt").write_text("x")
+    result = CliRunner().invoke(main, ["bench", "preview", str(humvvex), "-o", str(mine)])
+    assert result.exit_code == 2 and "not a folder of this bench" in result.output
+    assert (mine / "keep.txt").read_text() == "x"
+    result = CliRunner().invoke(main, ["bench", "preview", str(humvvex), "--edits", "cold,spin"])
+    assert result.exit_code == 2 and "unknown spin" in result.output

@@ -52,12 +52,19 @@ from test_render import add_camera, add_material, add_mesh, new_stage, rect_y, r
 BASE = tomllib.loads((ROOT / "examples" / "humvvex_fixed.toml").read_text())
 MAX_LINE = 600
 
-QUICK = settings(
-    max_examples=150,
-    deadline=None,
-    derandomize=True,  # the same cases every run (CI stays reproducible)
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
-)
+
+def cases(n: int) -> settings:
+    """Hypothesis settings for ``n`` cases, the same cases every run (CI stays reproducible), no
+    deadline, function-scoped fixtures allowed (they are the same for every case)."""
+    return settings(
+        max_examples=n,
+        deadline=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+    )
+
+
+QUICK = cases(150)
 
 
 def assert_clean(exc: InputError) -> None:
@@ -228,12 +235,7 @@ def _assert_refused(result, out: Path) -> None:
     assert not out.exists() or not any(out.iterdir()), sorted(p.name for p in out.iterdir())
 
 
-@settings(
-    max_examples=60,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
-)
+@cases(60)
 @given(refused_knobs())
 @example(["--spp", str(MAX_SPP)])  # 2.7 TB; issue 26: the OOM killer ended it; now the estimate refuses
 @example(["--frames", "0:99999999999"])  # issue 26: MemoryError building the frame list
@@ -284,12 +286,7 @@ def any_knobs(draw) -> list[str]:
 
 
 @pytest.mark.extended
-@settings(
-    max_examples=40,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
-)
+@cases(40)
 @given(any_knobs())
 def test_render_knobs_render_completely_or_refuse_cleanly(tiny_stage, tmp_path_factory, args):
     """Valid knobs render (a manifest and one EXR per frame and sensor); refused ones as above."""
@@ -442,12 +439,7 @@ def raw_request(port: int, method: str, path: str, headers: list[tuple[str, str]
 
 
 @pytest.mark.extended
-@settings(
-    max_examples=20,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
-)
+@cases(20)
 @given(
     st.sampled_from([*BANDS, "VNIR", "XX"]),
     st.one_of(st.tuples(edge, edge), st.sampled_from([(8.0, 14.0), (3.0, 5.0), (0.4, 0.7), (0.75, 1.0)])),
@@ -496,24 +488,14 @@ typed_text = st.one_of(
 )
 
 
-@settings(
-    max_examples=40,  # ~0.2 s each (validation, the save and its read-back); 400 under extended
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
-)
+@cases(40)  # ~0.2 s each (validation, the save and its read-back); 400 under extended
 @given(st.data())
 def test_any_text_in_any_field_is_a_problem_line_or_a_value(tmp_path_factory, data):
     _form_case(tmp_path_factory, data)
 
 
 @pytest.mark.extended
-@settings(
-    max_examples=400,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
-)
+@cases(400)
 @given(st.data())
 def test_any_text_in_any_field_more_cases(tmp_path_factory, data):
     _form_case(tmp_path_factory, data)

@@ -155,6 +155,42 @@ def test_stack_transient_is_the_linear_backward_euler_closed_form():
     assert_allclose(inf.outer_temperature_k, st.outer_temperature_k, atol=1e-7)
 
 
+def test_a_stiff_stack_stops_at_its_round_off_floor():
+    # a walk's T-shirt over leggings at 15 fps (measured case): the outer layer's storage
+    # C / dt = 67,000 W m^-2 K^-1 carried inward through the gaps makes the residual's slope
+    # ~3e7 W m^-2 K^-1 in the outermost temperature, so one ulp of it (6e-14 K) moves the residual
+    # by ~2e-6 W m^-2, above the 1e-7 tolerance: the solver stops when its Newton step is below
+    # 4 ulps instead of bisecting the bracket down ulp by ulp (30+ iterations)
+    dt = 1.0 / 15.0
+    cap = np.array([324.1, 4491.0])
+    thick, cond, eps = [6e-4, 1e-3], [0.05, 0.053], [0.9, 0.9]
+    t_skin, t_air, h = 307.6, 289.0, 8.0
+    q_rad = np.array([380.0, 420.0, 520.0])
+    gaps = np.array([[7.1e-3, 7.2e-3, 7.0e-3], [3.1e-3, 2.3e-3, 3.9e-3]])
+    prev = np.array([[302.2, 305.2, 304.0], [298.0, 303.7, 300.9]])
+    r = stack_transient_step(prev, dt, cap, t_skin, t_air, q_rad, h, gaps, thick, cond, eps, tol=1e-7)
+    assert r.iterations <= 12
+
+    def residual(t_out, j):
+        # the stack's balance from the public pieces: outer surface, storage, fabric, gap
+        t_o = t_out
+        q = h * (t_o - t_air) + 0.9 * SIGMA * t_o**4 - q_rad[j]  # h above the ISO 7730 floor here
+        for i in (1, 0):
+            q += cap[i] / dt * (t_o - prev[i, j])
+            t_in = t_o + q * thick[i] / cond[i]
+            if i == 1:
+                t_o = float(gap_temperature_for_flux(q, t_in, gaps[1, j], eps[0], eps[1]))
+        q_cd, q_r = air_gap_flux(t_skin, t_in, gaps[0, j], 0.98, eps[0])
+        return float(q_cd + q_r) - q
+
+    for j in range(3):
+        ref = brentq(residual, 280.0, 320.0, args=(j,), xtol=1e-12, rtol=4 * np.finfo(float).eps)
+        assert abs(r.outer_temperature_k[1, j] - ref) < 1e-9
+        # the residual at the root is the slope times a few ulps, not more
+        slope = (residual(ref + 1e-4, j) - residual(ref - 1e-4, j)) / 2e-4
+        assert abs(r.residual[j]) <= 8 * np.finfo(float).eps * ref * abs(slope) + 1e-7
+
+
 def test_stack_over_the_extreme_grid():
     # DESIGN.md grid: -40..55 degC, wind-range h, sun 0-1200, gaps 0-50 mm, fabric 0.1-10 mm,
     # steps 1 s - 10 min; two and three layers

@@ -9,9 +9,8 @@ import tomllib
 
 import numpy as np
 import pytest
+from conftest import general_toml, place_keys, scene_stage
 
-from humv_usd.materials import layer as materials_layer
-from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.scenario import validate
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.places import (
@@ -21,22 +20,14 @@ from humv_usd.scenario.places import (
     place_items,
     scene_materials,
 )
-from humv_usd.scenario.spec import PLACE
-from humv_usd.scene import layer as scene_layer
 from humv_usd.scene.vegetation import TRUNK_MATERIAL as VEGETATION_TRUNK
 from humv_usd.thermal.surfaces import scene_meshes
 from humv_usd.usd import schemas as S
 
 
-def _place(kind: str, **kw) -> dict:
-    p = {k: copy.deepcopy(v.default) for k, v in PLACE.keys.items()}
-    p.update(kind=kind, **kw)
-    return p
-
-
 @pytest.mark.parametrize("kind", ["rural_road", "open_field"])
 def test_places_build_their_trees_clear_of_the_warm_objects(kind):
-    p = _place(kind, seed=5, vegetation_density=1.0, animals=4, vehicles=6, warm_objects=3)
+    p = place_keys(kind, seed=5, vegetation_density=1.0, animals=4, vehicles=6, warm_objects=3)
     items = place_items(p)
     trees = [o for o in items.objects if o["kind"] == "tree"]
     assert len(trees) >= 5 and len(trees) <= len(items.trees)
@@ -53,47 +44,37 @@ def test_places_build_their_trees_clear_of_the_warm_objects(kind):
     assert {"leaf", TRUNK_MATERIAL} <= scene_materials({"place": p})
     assert TRUNK_MATERIAL == VEGETATION_TRUNK
     assert not any(
-        o["kind"] == "tree" for o in place_items(_place(kind, seed=5, vegetation_density=0.0)).objects
+        o["kind"] == "tree" for o in place_items(place_keys(kind, seed=5, vegetation_density=0.0)).objects
     )
 
 
-SCENARIO = """
-[general]
-name = "trees"
-start = 2018-07-14T13:00:00
-utc_offset_h = -4.0
-time_zone = "America/New_York"
-latitude_deg = 39.8
-longitude_deg = -84.0
-fps = 5.0
-duration_s = 0.0
-
-[scene.ground]
-material = "soil"
-size_m = [60.0, 60.0]
-
-[scene.place]
-kind = "open_field"
-seed = 3
-length_m = 30.0
-vehicles = 1
-animals = 0
-warm_objects = 0
-lamps = 0
-vegetation_density = 0.6
-"""
+#: an open field at noon in July: one car, no animals, lamps or warm objects
+SCENARIO = {
+    **tomllib.loads(general_toml("trees")),
+    "scene": {
+        "ground": {"material": "soil", "size_m": [60.0, 60.0]},
+        "place": {
+            "kind": "open_field",
+            "seed": 3,
+            "length_m": 30.0,
+            "vehicles": 1,
+            "animals": 0,
+            "warm_objects": 0,
+            "lamps": 0,
+            "vegetation_density": 0.6,
+        },
+    },
+}
 
 
 def test_generated_trees_are_plants_on_the_stage():
     """Each built tree is the vegetation tool's plant: an Xform labelled vegetation with its
     instance id, a leaf Crown and a wood Trunk whose materials the materials layer authors,
     and meshes the thermal tool solves (crown as leaves) and does not re-tessellate."""
-    scenario = validate(tomllib.loads(SCENARIO))
+    scenario = validate(copy.deepcopy(SCENARIO))
     trees = [o for o in place_items(scenario["scene"]["place"]).objects if o["kind"] == "tree"]
     assert trees
-    stage = compose_in_memory(
-        [scene_layer.build(scenario), materials_layer.build(scenario)], scenario["general"]["fps"]
-    )
+    stage = scene_stage(scenario)
     ids = instance_ids(scenario)
     meshes = {m.path: m for m in scene_meshes(stage, scenario)}
     for o in trees:

@@ -10,17 +10,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import general_toml, place_keys, scene_stage
 from pxr import Usd, UsdGeom
 
 from humv_usd.errors import InputError
 from humv_usd.groundtruth.labels import CLASSES
-from humv_usd.materials import layer as materials_layer
 from humv_usd.physics import warm_objects as W
 from humv_usd.pipeline.compose import compose_in_memory
 from humv_usd.scenario import validate
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.places import CAR_LENGTH_M, KIND_MATERIALS, place_items, scene_clutter
-from humv_usd.scenario.spec import CLUTTER, CLUTTER_CLASSES, PLACE, PLACE_KINDS
+from humv_usd.scenario.spec import CLUTTER, CLUTTER_CLASSES, PLACE_KINDS
 from humv_usd.scene import layer as scene_layer
 from humv_usd.scene.ground import scene_terrain
 from humv_usd.scene.objects import part_temperatures, parts_of, path_poses
@@ -34,12 +34,6 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 PLACES = sorted((EXAMPLES / "places").glob("*.toml"))
 
 
-def _place(kind: str, **kw) -> dict:
-    p = {k: copy.deepcopy(v.default) for k, v in PLACE.keys.items()}
-    p.update(kind=kind, **kw)
-    return p
-
-
 def _entry(kind: str, **kw) -> dict:
     e = {k: copy.deepcopy(v.default) for k, v in CLUTTER.keys.items()}
     e.update(id="x", kind=kind, **kw)
@@ -48,18 +42,18 @@ def _entry(kind: str, **kw) -> dict:
 
 @pytest.mark.parametrize("kind", PLACE_KINDS[1:])
 def test_a_seed_gives_the_same_place_and_another_seed_another(kind):
-    a, b, c = (place_items(_place(kind, seed=s, vehicles=8, animals=3)) for s in (1, 1, 2))
+    a, b, c = (place_items(place_keys(kind, seed=s, vehicles=8, animals=3)) for s in (1, 1, 2))
     assert a == b
     assert a.clutter != c.clutter
     ids = [o["id"] for o in a.objects] + [x["id"] for x in a.clutter]
     assert len(ids) == len(set(ids)) and all(i.startswith("place_") for i in ids)
-    half = _place(kind)["length_m"] / 2
+    half = place_keys(kind)["length_m"] / 2
     for x in a.clutter:  # inside the place along the road
         assert -half - 1e-6 <= x["position_m"][0] <= half + 1e-6
 
 
 def test_street_parks_cars_apart_and_counts_add_up():
-    p = _place("street", seed=4, vehicles=9, driving=1 / 3, lamps=5, animals=2, warm_objects=2)
+    p = place_keys("street", seed=4, vehicles=9, driving=1 / 3, lamps=5, animals=2, warm_objects=2)
     items = place_items(p)
     kinds = [c["kind"] for c in items.clutter]
     assert kinds.count("vehicle") == 9 and kinds.count("street_lamp") == 5 and kinds.count("dog") == 2
@@ -101,16 +95,9 @@ def test_lamps_light_by_the_sun_and_parts_take_their_models():
     assert car == {k: ref[k] for k in ("hood", "grille", "glass", "exhaust", "tyre")}
 
 
-SCENARIO = """
-[general]
-name = "t"
-start = 2018-10-24T21:00:00
-utc_offset_h = -4.0
-latitude_deg = 39.8
-longitude_deg = -84.0
-fps = 5.0
-duration_s = 0.4
-
+SCENARIO = (
+    general_toml("t", "2018-10-24T21:00:00", 0.4)
+    + """
 [scene.ground]
 material = "asphalt"
 size_m = [40.0, 40.0]
@@ -140,17 +127,17 @@ position_m = [3.0, 2.0, 0.0]
 air_temperature_k = 284.0
 wind_speed_m_s = 2.0
 """
+)
 
 
 @pytest.fixture(scope="module")
 def composed():
     scenario = validate(tomllib.loads(SCENARIO))
-    layers = [scene_layer.build(scenario), materials_layer.build(scenario)]
-    return scenario, compose_in_memory(layers, scenario["general"]["fps"]), layers
+    return scenario, scene_stage(scenario)
 
 
 def test_every_clutter_object_is_labelled_with_its_class_and_id(composed):
-    scenario, stage, _ = composed
+    scenario, stage = composed
     ids = instance_ids(scenario)
     clutter = scene_clutter(scenario["scene"])
     assert {c["id"] for c in clutter} >= {"rex", "grill"} and len(clutter) > 2
@@ -163,7 +150,7 @@ def test_every_clutter_object_is_labelled_with_its_class_and_id(composed):
 
 
 def test_held_parts_reach_the_thermal_tool_and_lit_lamps_are_lights(composed):
-    scenario, stage, _ = composed
+    scenario, stage = composed
     meshes = {m.path: m for m in scene_meshes(stage, scenario)}
     coat = W.coat_surface_temperature(308.15, 284.0, 0.012, 0.28, 2.0)
     assert meshes["/World/Scene/rex/Trunk"].held_k == pytest.approx(coat, abs=1e-3)
@@ -180,7 +167,7 @@ def test_held_parts_reach_the_thermal_tool_and_lit_lamps_are_lights(composed):
 
 
 def test_a_driving_car_moves_on_the_stage(composed):
-    scenario, stage, _ = composed
+    scenario, stage = composed
     c = next(c for c in scene_clutter(scenario["scene"]) if c["speed_m_s"] > 0)
     xf = UsdGeom.Xformable(stage.GetPrimAtPath(f"/World/Scene/{c['id']}"))
     p0 = np.asarray(xf.ComputeLocalToWorldTransform(Usd.TimeCode(0)))[3, :2]

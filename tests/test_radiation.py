@@ -236,6 +236,13 @@ def test_adaptive_rays_go_to_partly_occluded_facets():
     _, var, counts = Q._diffuse_adaptive(env, centroids, normals, occ, 1e-6, 64, 0, table, 16, alpha, 1024)
     assert np.all(counts[50:] == 16) and np.all(var[50:] == 0.0)  # open: pilot only, exact
     assert counts[:50].mean() > 100 and counts.sum() <= 64 * 100 * 1.3
+    # facets whose flux nobody uses (importance 0) keep their pilot rays; the budget goes to
+    # the others, which get more than without the weights
+    importance = np.r_[np.ones(25), np.zeros(25), np.ones(50)]
+    _, _, counts_w = Q._diffuse_adaptive(
+        env, centroids, normals, occ, 1e-6, 64, 0, table, 16, alpha, 1024, importance=importance
+    )
+    assert np.all(counts_w[25:50] == 16) and counts_w[:25].sum() > counts[:25].sum()
     stats = {}
     Q.absorbed_radiation(facets, env, [1.0, 1.0], scene=scene, method="adaptive", rays=64, stats=stats)
     assert 0.0 < stats["rms_rel_error_estimate"] < 0.05 and stats["rays"] == counts.sum()
@@ -252,6 +259,44 @@ def test_error_estimate_bounds_the_actual_error():
         q = Q.absorbed_radiation(sphere, env, alpha, scene=scene, method=method, rays=16, stats=stats)
         actual = BT.relative_errors(q, q_ref)["nrmse"]
         assert 0.5 * actual < stats["nrmse_estimate"] < 10.0 * actual, (method, stats, actual)
+
+
+def test_replicates_measure_the_error_that_seeds_show():
+    """The stated error is measured by independent replicates on random facets: its RMS
+    matches the spread of the estimate over seeds, where the per-ray sample variance (which
+    ignores the rays' stratification) overstates it."""
+    _, scene, sky, alpha, _ = BT.bench_scene(2000)
+    sphere = trimesh.creation.icosphere(2, radius=0.4)
+    sphere.apply_translation([0.0, 0.0, 0.6])
+    env = SR.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
+    runs, stated, per_ray = [], [], []
+    for seed in range(8):
+        stats = {}
+        q = Q.absorbed_radiation(
+            sphere,
+            env,
+            alpha,
+            scene=scene,
+            method="fast",
+            rays=64,
+            seed=seed,
+            stats=stats,
+            replicate_facets=160,
+        )
+        runs.append(q.sum(axis=0))
+        stated.append(np.mean(stats["variance"]))
+        per_ray.append(np.mean(stats["per_ray_variance"]))
+        assert len(stats["replicate_facets"]) == 160 and stats["stratification_ratio"] > 0.0
+    seeds = np.mean(np.var(np.array(runs), axis=0, ddof=1))  # mean over facets of the variance
+    stated_ratio, per_ray_ratio = np.sqrt(np.mean(stated) / seeds), np.sqrt(np.mean(per_ray) / seeds)
+    assert 0.8 < stated_ratio < 1.25, (stated_ratio, per_ray_ratio)
+    assert per_ray_ratio > 1.1 and abs(np.log(stated_ratio)) < abs(np.log(per_ray_ratio))
+    # without replicates the per-ray variance is what is stated; the estimate is the same
+    stats = {}
+    q = Q.absorbed_radiation(
+        sphere, env, alpha, scene=scene, method="fast", rays=64, seed=7, stats=stats, replicate_facets=0
+    )
+    assert "replicate_facets" not in stats and np.array_equal(q.sum(axis=0), runs[7])
 
 
 def test_mitsuba_ray_backend_matches_embree():

@@ -96,6 +96,14 @@ def test_jos3_skin_and_garments(jos3_stage):
     diag = report["humv:thermal"]["p1"]
     assert 0.0 < diag["qradRmsRelErrorEstimate"] < 0.1
     assert diag["garmentMaxResidual_W_m2"] <= 1e-6
+    # the rays' face-temperature noise per mesh (visible faces): bare skin and each garment;
+    # the person's is their area-weighted mean, so it lies between the meshes'
+    by_mesh = diag["faceTemperatureNoiseRmsByMesh_K"]
+    assert set(by_mesh) == {"/World/Humans/p1/Body"} | {
+        f"/World/Humans/p1/Clothing/{g}" for g in ("tshirt_white", "shorts", "cap")
+    }
+    assert all(0.0 < v < 0.5 for v in by_mesh.values())
+    assert min(by_mesh.values()) <= diag["faceTemperatureNoiseRms_K"] <= max(by_mesh.values())
     timings = json.loads((out / "compose.json").read_text())
     assert {x["name"] for x in timings["layers"]} >= {"thermal", "clothing_p1"}
 

@@ -14,15 +14,15 @@ return at once.
 
 from __future__ import annotations
 
-import hashlib
 import shutil
-import subprocess
 import sys
 import tarfile
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from pinned_fetch import FetchError, download_pinned, is_current, staged  # noqa: E402
+
 from humv_usd.assets import PYBULLET_SDIST_SHA256, PYBULLET_VERSION, mocap_dir  # noqa: E402
 
 #: the clips converted (= humv_usd.human.deepmimic.CLIPS; imported after the stamp check, so a
@@ -52,74 +52,54 @@ PROVENANCE = """# DeepMimic humanoid clips (fetched by tools/fetch_mocap.py)
 
 def main() -> int:
     dest = mocap_dir()
-    stamp = dest / ".humv-stamp"
     want = f"{PYBULLET_SDIST_SHA256} {CONVERTER}"
-    if stamp.is_file() and stamp.read_text().strip() == want:
+    if is_current(dest, want):
         return 0
     from humv_usd.human import deepmimic
     from humv_usd.human.bvh import write_bvh
 
     assert deepmimic.CLIPS == CLIPS
     print(f"set-up: fetching DeepMimic motion clips (pybullet {PYBULLET_VERSION} sdist) into {dest}")
+    wanted = {
+        ROOT + "LICENSE.txt": "pybullet-LICENSE.txt",
+        DATA + "humanoid/humanoid.urdf": "humanoid.urdf",
+    }
+    wanted |= {DATA + f"data/motions/humanoid3d_{c}.txt": f"humanoid3d_{c}.txt" for c in CLIPS}
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pip",
-                "download",
-                "-q",
-                "--no-deps",
-                "--no-binary",
-                ":all:",
-                "--disable-pip-version-check",
-                f"pybullet=={PYBULLET_VERSION}",
-                "-d",
-                tmp,
-            ],
-            check=True,
-            stderr=subprocess.DEVNULL,
-        )
-        sdists = list(Path(tmp).glob("pybullet-*.tar.gz"))
-        if len(sdists) != 1:
-            print("set-up: pip did not download the pybullet sdist", file=sys.stderr)
+        try:
+            sdist = download_pinned(
+                "pybullet", PYBULLET_VERSION, PYBULLET_SDIST_SHA256, Path(tmp), sdist=True
+            )
+            with staged(dest, want, ".mocap-") as staging:
+                with tarfile.open(sdist) as tf:
+                    for member in tf.getmembers():
+                        if member.name in wanted and member.isfile():
+                            with (
+                                tf.extractfile(member) as src,
+                                open(staging / wanted[member.name], "wb") as out,
+                            ):
+                                shutil.copyfileobj(src, out)
+                missing = [v for v in wanted.values() if not (staging / v).is_file()]
+                if missing:
+                    raise FetchError(f"pybullet sdist lacks {missing}")
+                files = []
+                for clip in CLIPS:
+                    src = staging / f"humanoid3d_{clip}.txt"
+                    frames, wraps = deepmimic.parse_clip(src.read_text(), str(src))
+                    bvh = deepmimic.clip_to_bvh(frames, wraps, CYCLES.get(clip, 1) if wraps else 1, str(src))
+                    write_bvh(staging / f"deepmimic_{clip}.bvh", bvh)
+                    files.append(f"deepmimic_{clip}.bvh ({bvh.frame_count} frames at {bvh.fps:.0f} fps)")
+                (staging / "PROVENANCE.md").write_text(
+                    PROVENANCE.format(
+                        version=PYBULLET_VERSION,
+                        sha=PYBULLET_SDIST_SHA256,
+                        conv=CONVERTER,
+                        files=", ".join(files),
+                    )
+                )
+        except FetchError as exc:
+            print(f"set-up: {exc}", file=sys.stderr)
             return 1
-        digest = hashlib.sha256(sdists[0].read_bytes()).hexdigest()
-        if digest != PYBULLET_SDIST_SHA256:
-            print(f"set-up: pybullet sdist hash {digest} != pinned {PYBULLET_SDIST_SHA256}", file=sys.stderr)
-            return 1
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(dir=dest.parent, prefix=".mocap-"))
-        wanted = {
-            ROOT + "LICENSE.txt": "pybullet-LICENSE.txt",
-            DATA + "humanoid/humanoid.urdf": "humanoid.urdf",
-        }
-        wanted |= {DATA + f"data/motions/humanoid3d_{c}.txt": f"humanoid3d_{c}.txt" for c in CLIPS}
-        with tarfile.open(sdists[0]) as tf:
-            for member in tf.getmembers():
-                if member.name in wanted and member.isfile():
-                    with tf.extractfile(member) as src, open(staging / wanted[member.name], "wb") as out:
-                        shutil.copyfileobj(src, out)
-        missing = [v for v in wanted.values() if not (staging / v).is_file()]
-        if missing:
-            shutil.rmtree(staging, ignore_errors=True)
-            print(f"set-up: pybullet sdist lacks {missing}", file=sys.stderr)
-            return 1
-        files = []
-        for clip in CLIPS:
-            src = staging / f"humanoid3d_{clip}.txt"
-            frames, wraps = deepmimic.parse_clip(src.read_text(), str(src))
-            bvh = deepmimic.clip_to_bvh(frames, wraps, CYCLES.get(clip, 1) if wraps else 1, str(src))
-            write_bvh(staging / f"deepmimic_{clip}.bvh", bvh)
-            files.append(f"deepmimic_{clip}.bvh ({bvh.frame_count} frames at {bvh.fps:.0f} fps)")
-        (staging / "PROVENANCE.md").write_text(
-            PROVENANCE.format(version=PYBULLET_VERSION, sha=digest, conv=CONVERTER, files=", ".join(files))
-        )
-        stamp_file = staging / ".humv-stamp"
-        stamp_file.write_text(want + "\n")
-        if dest.exists():
-            shutil.rmtree(dest)
-        staging.rename(dest)  # atomic: the folder is either complete or absent
     return 0
 
 

@@ -38,6 +38,24 @@ def _footer(fig, header: list[str]) -> None:
     fig.text(0.01, 0.005, text, fontsize=6, color="0.4", va="bottom")
 
 
+def _log_axes(ax, xlabel: str, ylabel: str, *, xbase: int = 10, legend_right: bool = False) -> None:
+    """Log-log axes with their labels, a small legend (right of the plot with ``legend_right``)
+    and a light grid: the look of every bench figure."""
+    ax.set_xscale("log", base=xbase)
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.legend(fontsize=7, **({"loc": "center left", "bbox_to_anchor": (1.02, 0.5)} if legend_right else {}))
+    ax.grid(True, which="both", lw=0.3)
+
+
+def _spp_curve(ax, pts, label: str) -> None:
+    """A cost-error curve of (CPU s, error, spp) points, each point marked with its spp."""
+    ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=label)
+    for x, y, spp in pts:
+        ax.annotate(f"{spp} spp", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+
+
 def render_error_time(ax_pair, rows, spectral):
     """Left: Monte Carlo error away from edges against CPU time; right: the sub-band model's
     spectral error against the sub-band count."""
@@ -48,9 +66,7 @@ def render_error_time(ax_pair, rows, spectral):
             (_f(r, "cpu_s"), _f(r, "mc_error_mean_k"), int(r["spp"])) for r in fast if int(r["subbands"]) == n
         )
         pts = [p for p in pts if p[1] == p[1]]  # 1 spp states no error of its own
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"fast estimator, {n} sub-bands")
-        for x, y, spp in pts:
-            ax.annotate(f"{spp} spp", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+        _spp_curve(ax, pts, f"fast estimator, {n} sub-bands")
     for r in rows:
         if r["estimator"] == "path":
             ax.plot(
@@ -59,24 +75,14 @@ def render_error_time(ax_pair, rows, spectral):
         if r["estimator"] == "reference":
             netd = _f(r, "netd_k")
             ax.axhline(netd / 3, color="0.5", ls="--", lw=0.8, label=f"NETD/3 = {1000 * netd / 3:.1f} mK")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("CPU time of the band render [s]")
-    ax.set_ylabel("MC error, mean away from edges [K]")
-    ax.legend(fontsize=7)
-    ax.grid(True, which="both", lw=0.3)
+    _log_axes(ax, "CPU time of the band render [s]", "MC error, mean away from edges [K]")
     for sensor in sorted({r["sensor"] for r in spectral}):
         pts = sorted(
             (int(r["subbands"]), _f(r, "max_k"), _f(r, "rms_k")) for r in spectral if r["sensor"] == sensor
         )
         ax2.plot([p[0] for p in pts], [max(p[1], 1e-5) for p in pts], "o-", label=f"{sensor} max")
         ax2.plot([p[0] for p in pts], [max(p[2], 1e-5) for p in pts], "o--", label=f"{sensor} rms")
-    ax2.set_xscale("log", base=2)
-    ax2.set_yscale("log")
-    ax2.set_xlabel("sub-bands")
-    ax2.set_ylabel("spectral error of the sub-band model [K]")
-    ax2.legend(fontsize=7)
-    ax2.grid(True, which="both", lw=0.3)
+    _log_axes(ax2, "sub-bands", "spectral error of the sub-band model [K]", xbase=2)
 
 
 def eo_error_time(ax, rows):
@@ -86,9 +92,7 @@ def eo_error_time(ax, rows):
         pts = sorted(
             (_f(r, "cpu_s"), _f(r, "rel_error_mean"), int(r["spp"])) for r in fast if int(r["bins"]) == n
         )
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"fast EO estimator, {n} bins")
-        for x, y, spp in pts:
-            ax.annotate(f"{spp} spp", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+        _spp_curve(ax, pts, f"fast EO estimator, {n} bins")
     for r in rows:
         if r["estimator"] in ("path", "reference"):
             what = "spectral path tracer" if r["estimator"] == "path" else "reference, spectral path tracer"
@@ -98,12 +102,7 @@ def eo_error_time(ax, rows):
                 "s" if r["estimator"] == "path" else "D",
                 label=f"{what} {r['spp']} spp",
             )
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("CPU time of the render [s]")
-    ax.set_ylabel("error of Y / mean Y, away from edges")
-    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
-    ax.grid(True, which="both", lw=0.3)
+    _log_axes(ax, "CPU time of the render [s]", "error of Y / mean Y, away from edges", legend_right=True)
 
 
 def qrad_error_time(ax, rows):
@@ -120,12 +119,7 @@ def qrad_error_time(ax, rows):
         pts = sorted((_f(r, "cpu_seconds"), max(_f(r, "rms_rel_error"), 1e-6)) for r in rs)
         ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"{method}, map {res}²")
     ax.axhline(0.01, color="0.5", ls="--", lw=0.8, label="1 % rms")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("CPU time [s]")
-    ax.set_ylabel("rms relative error of q_rad")
-    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
-    ax.grid(True, which="both", lw=0.3)
+    _log_axes(ax, "CPU time [s]", "rms relative error of q_rad", legend_right=True)
 
 
 def time_steps(ax_pair, garment, skin):
@@ -137,32 +131,16 @@ def time_steps(ax_pair, garment, skin):
             for r in garment
             if r["case"] == case
         )
-        ax.plot(
-            [p[0] for p in pts],
-            [max(p[1], 1e-9) for p in pts],
-            "o-",
-            color=f"C{i}",
-            label=f"{case}, over the step ends",
-        )
-        ax.plot(
-            [p[0] for p in pts],
-            [max(p[2], 1e-9) for p in pts],
-            "s--",
-            color=f"C{i}",
-            label=f"{case}, every 1800 s",
-        )
+        for k, style, when in ((1, "o-", "over the step ends"), (2, "s--", "every 1800 s")):
+            steps, errors = [p[0] for p in pts], [max(p[k], 1e-9) for p in pts]
+            ax.plot(steps, errors, style, color=f"C{i}", label=f"{case}, {when}")
     ax.set_title("garment (implicit step vs Radau)", fontsize=8)
     for model in sorted({r["model"] for r in skin}):
         pts = sorted((_f(r, "step_s"), _f(r, "max_error_k")) for r in skin if r["model"] == model)
         ax2.plot([p[0] for p in pts], [max(p[1], 1e-9) for p in pts], "o-", label=model)
     ax2.set_title("mean skin (vs the finest step)", fontsize=8)
     for a in (ax, ax2):
-        a.set_xscale("log")
-        a.set_yscale("log")
-        a.set_xlabel("time step [s]")
-        a.set_ylabel("largest temperature error [K]")
-        a.legend(fontsize=7)
-        a.grid(True, which="both", lw=0.3)
+        _log_axes(a, "time step [s]", "largest temperature error [K]")
 
 
 def _draw(name: str, csvs: list[str], plot, panels: int, out: Path) -> None:

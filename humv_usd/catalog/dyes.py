@@ -29,6 +29,7 @@ import numpy as np
 from humv_usd.catalog.garments import garment
 from humv_usd.catalog.hair import hair_material_name
 from humv_usd.catalog.materials import LIBRARY, Material
+from humv_usd.catalog.snow import snow_over, split_snow_name
 from humv_usd.catalog.wet import split_wet_name, wet_material
 
 #: colour -> reflectance at (0.65, 0.55, 0.45) µm (red, green, blue)
@@ -85,13 +86,17 @@ def dyed_spectrum(base: Material, colour: str) -> dict:
 
 
 def material(name: str) -> Material:
-    """A library material by name, a dyed one ``<fabric>__<colour>`` made from its fabric, or a
-    wet one ``<material>__wet<percent>`` (:mod:`humv_usd.catalog.wet`)."""
+    """A library material by name, a dyed one ``<fabric>__<colour>`` made from its fabric, a
+    wet one ``<material>__wet<percent>`` (:mod:`humv_usd.catalog.wet`) or one under shallow
+    snow ``<material>__snow<mm>`` (:mod:`humv_usd.catalog.snow`)."""
     if name in LIBRARY:
         return LIBRARY[name]
     wet = split_wet_name(name)
     if wet is not None:
         return wet_material(material(wet[0]), wet[1])
+    snowy = split_snow_name(name)
+    if snowy is not None:
+        return snow_over(material(snowy[0]), snowy[1])
     base, sep, colour = name.rpartition(SEPARATOR)
     if not sep or base not in LIBRARY or colour not in COLOURS:
         raise KeyError(name)

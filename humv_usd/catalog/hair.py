@@ -20,10 +20,9 @@ that the colour (``display_color`` at 0.45 / 0.55 / 0.65 µm) is resolved.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
+from humv_usd.catalog.variants import spectral_variant, variant_name
 from humv_usd.physics.hair_optics import HAIR_COLOURS, colour_reflectance, other_absorption
 
 #: the colour ``hair_dark`` is taken as
@@ -34,11 +33,7 @@ MODEL_UP_TO_UM = 2.5
 
 def hair_material_name(colour: str | None) -> str:
     """Library material of a hair colour; None: ``hair_dark`` (the default)."""
-    if colour is None:
-        return "hair_dark"
-    if colour not in HAIR_COLOURS:
-        raise ValueError(f"hair_color = {colour!r}: expected one of {list(HAIR_COLOURS)}")
-    return f"hair_{colour}"
+    return variant_name("hair", "hair_color", colour, HAIR_COLOURS, "hair_dark")
 
 
 def colour_spectrum(hair, colour: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -64,15 +59,14 @@ def hair_materials(hair) -> dict:
     for colour, (eu, ph, white) in HAIR_COLOURS.items():
         name = hair_material_name(colour)
         wavelengths, reflectance = colour_spectrum(hair, colour)
-        made = dataclasses.replace(
-            hair, name=name, spectrum_wavelengths=wavelengths, spectrum_reflectance=reflectance
-        )
-        out[name] = dataclasses.replace(
-            made,
-            solar_absorptivity=round(made.spectral_solar_absorptivity, 4),
-            source=f"{colour} hair (eumelanin {eu:g}, pheomelanin {ph:g}, white fibres {white:g}): "
+        out[name] = spectral_variant(
+            hair,
+            name,
+            f"{colour} hair (eumelanin {eu:g}, pheomelanin {ph:g}, white fibres {white:g}): "
             "hair_dark's spectrum recomputed by the melanin model of humv_usd.physics.hair_optics "
             "(Donner & Jensen 2006 melanin spectra, Chiang et al. 2016 concentrations, Hapke 1981 "
-            "layer); thermal data and emissivity as hair_dark. " + hair.source,
+            "layer); thermal data and emissivity as hair_dark. ",
+            spectrum_wavelengths=wavelengths,
+            spectrum_reflectance=reflectance,
         )
     return out

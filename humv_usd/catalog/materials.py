@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from humv_usd.physics import snow as snow_optics
 from humv_usd.physics.sun import solar_absorptivity
 
 #: Common coarse grid of the thermal tools (and of the fabric entries).
@@ -1094,6 +1095,98 @@ from humv_usd.catalog.skin import tone_materials  # noqa: E402  (needs LIBRARY["
 LIBRARY.update(tone_materials(LIBRARY["skin"]))
 
 
+#: specific surface area of the library's snow [m^2 kg^-1]: settled seasonal snow a few days
+#: old (fresh snow 40-150, aged 10-30; Domine et al. 2007, J. Geophys. Res. 112:F02031)
+SNOW_SPECIFIC_SURFACE_AREA = 20.0
+#: density of the library's snow [kg m^-3] (settled seasonal snow 200-350, Sturm et al. 1997)
+SNOW_DENSITY = 250.0
+#: the library snow's solar nodes [µm]: the ice bands (1.03, 1.27, 1.5, 2.0 µm) and the
+#: windows between them (1.1, 1.8, 2.25 µm) on top of the visible every 50 nm
+SNOW_SOLAR_UM = (
+    0.40,
+    0.45,
+    0.50,
+    0.55,
+    0.60,
+    0.65,
+    0.70,
+    0.75,
+    0.80,
+    0.85,
+    0.90,
+    0.95,
+    1.00,
+    1.03,
+    1.10,
+    1.20,
+    1.27,
+    1.35,
+    1.45,
+    1.50,
+    1.65,
+    1.80,
+    1.94,
+    2.00,
+    2.10,
+    2.25,
+    2.40,
+    2.50,
+)
+#: reflectance of snow beyond 2.5 µm, where ice is opaque (imaginary index >= 1e-3, Warren &
+#: Brandt 2008) and the grains reflect at their surfaces only: 8-14 µm emissivity 0.985-0.99,
+#: falling to about 0.97 at 13-14 µm for coarser grains (Dozier & Warren 1982, Water Resour.
+#: Res. 18:1424; Hori et al. 2006, Remote Sens. Environ. 100:486); 3-5 µm: a few percent, higher
+#: at 3.5-4 µm where ice absorbs least (estimates from the ice's k, no measured snow spectrum
+#: at hand)
+SNOW_INFRARED = {
+    2.8: 0.01,
+    3.0: 0.01,
+    3.5: 0.03,
+    4.0: 0.03,
+    4.5: 0.02,
+    5.0: 0.02,
+    6.0: 0.015,
+    7.0: 0.015,
+    8.0: 0.015,
+    9.0: 0.01,
+    10.0: 0.01,
+    11.0: 0.01,
+    12.0: 0.015,
+    13.0: 0.025,
+    14.0: 0.03,
+}
+
+
+def _snow_material() -> Material:
+    """Clean settled snow: solar spectrum from the grain size and ice's optical constants
+    (:func:`humv_usd.physics.snow.spherical_albedo`), infrared from :data:`SNOW_INFRARED`."""
+    d = snow_optics.optical_diameter_m(SNOW_SPECIFIC_SURFACE_AREA)
+    solar = snow_optics.spherical_albedo(np.asarray(SNOW_SOLAR_UM), d)
+    return Material(
+        "snow",
+        spectrum_wavelengths=SNOW_SOLAR_UM + tuple(SNOW_INFRARED),
+        spectrum_reflectance=tuple(round(float(v), 4) for v in solar) + tuple(SNOW_INFRARED.values()),
+        conductivity=round(float(snow_optics.effective_conductivity(SNOW_DENSITY)), 4),
+        density=SNOW_DENSITY,
+        specific_heat=snow_optics.ICE_SPECIFIC_HEAT,
+        thickness=0.1,
+        solar_absorptivity=0.2,
+        source=f"clean settled seasonal snow, 10 cm, specific surface area {SNOW_SPECIFIC_SURFACE_AREA:g} "
+        f"m2/kg (optical grain diameter {d * 1e3:.2f} mm): 0.4-2.5 µm the spherical albedo of the "
+        "asymptotic radiative transfer theory (Kokhanovsky & Zege 2004, Appl. Opt. 43:1589; B 1.6, "
+        "g 0.845 after Libois et al. 2013) with the ice's optical constants of Warren & Brandt "
+        "(2008, J. Geophys. Res. 113:D14220): visible 0.98-0.99, falling through the NIR with "
+        "the ice bands at 1.03, 1.27, 1.5 and 2.0 µm, near 0 at 1.5 and 2.0 µm (Wiscombe & Warren "
+        "1980, J. Atmos. Sci. 37:2712; Warren 1982, Rev. Geophys. 20:67); broadband albedo 0.8 "
+        "(Warren 1982); 8-14 µm emissivity 0.97-0.99 (Dozier & Warren 1982, Water Resour. Res. "
+        "18:1424; Hori et al. 2006, Remote Sens. Environ. 100:486), 3-5 µm estimates; effective "
+        f"conductivity at {SNOW_DENSITY:g} kg/m3 (Sturm et al. 1997, J. Glaciol. 43:26, eq. 4); "
+        "c of ice at 0 degC (Feistel & Wagner 2006). It melts at 0 degC "
+        "(humv_usd.physics.snow: the surface is held there while its balance has a surplus)",
+        label_class="ground",
+    )
+
+
 #: foliage, snow and water (issue 30.2/30.4)
 NATURE: dict[str, Material] = {
     m.name: m
@@ -1117,24 +1210,7 @@ NATURE: dict[str, Material] = {
             f"1987, Boundary Layer Climates, Table 1.1; one leaf alone absorbs about 0.5)",
             label_class="vegetation",
         ),
-        Material(
-            "snow",
-            spectrum_reflectance=(0.96, 0.97, 0.95, 0.80, 0.05, 0.01, 0.02, 0.02, 0.012, 0.03),
-            conductivity=0.09,
-            density=250.0,
-            specific_heat=2090.0,
-            thickness=0.1,
-            solar_absorptivity=0.2,
-            source="settled seasonal snow, 10 cm: visible reflectance 0.95-0.97 falling through "
-            "the NIR (0.8 at 1 µm) to near 0 beyond 2.5 µm (ice absorption; Warren 1982, Rev. "
-            "Geophys. 20:67; Wiscombe & Warren 1980, J. Atmos. Sci. 37:2712), broadband albedo "
-            "0.8; 8-14 µm emissivity 0.98-0.99 (Dozier & Warren 1982, Water Resour. Res. 18:1424; "
-            f"{_SD92}); effective conductivity 0.09 W/(m K) at 250 kg/m3 (Sturm et al. 1997, J. "
-            "Glaciol. 43:26, k = 0.138 - 1.01 rho + 3.233 rho^2, rho in g/cm3); c of ice "
-            "2.09 kJ/(kg K). It melts at 0 degC (the surface is held there while the sun would "
-            "warm it; its depth is not tracked)",
-            label_class="ground",
-        ),
+        _snow_material(),
         Material(
             "water",
             spectrum_reflectance=(0.02, 0.02, 0.02, 0.02, 0.03, 0.02, 0.02, 0.02, 0.01, 0.03),

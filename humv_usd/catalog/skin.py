@@ -17,10 +17,9 @@ Steketee 1973). Thermal data are those of ``skin``.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
+from humv_usd.catalog.variants import spectral_variant, variant_name
 from humv_usd.physics.skin_optics import (
     FITZPATRICK_MELANIN,
     SURFACE_REFLECTANCE,
@@ -35,11 +34,7 @@ SKIN_TONES = tuple(FITZPATRICK_MELANIN)
 
 def skin_material_name(tone: str | None) -> str:
     """Library material of a skin tone ('I'..'VI'); None: the measured ``skin``."""
-    if tone is None:
-        return "skin"
-    if tone not in FITZPATRICK_MELANIN:
-        raise ValueError(f"skin_tone = {tone!r}: expected one of {list(FITZPATRICK_MELANIN)}")
-    return f"skin_{tone}"
+    return variant_name("skin", "skin_tone", tone, FITZPATRICK_MELANIN, "skin")
 
 
 def tone_spectrum(skin, tone: str) -> tuple[float, ...]:
@@ -65,16 +60,14 @@ def tone_materials(skin) -> dict:
     out = {}
     for tone, f in FITZPATRICK_MELANIN.items():
         name = skin_material_name(tone)
-        spectrum = tone_spectrum(skin, tone)
-        tone_skin = dataclasses.replace(skin, name=name, spectrum_reflectance=spectrum)
-        out[name] = dataclasses.replace(
-            tone_skin,
-            # the broadband value is this spectrum's (no per-type literature value at hand)
-            solar_absorptivity=round(tone_skin.spectral_solar_absorptivity, 4),
-            source=f"Fitzpatrick type {tone} skin (epidermal melanin volume fraction {f:g}): "
+        out[name] = spectral_variant(
+            skin,
+            name,
+            f"Fitzpatrick type {tone} skin (epidermal melanin volume fraction {f:g}): "
             "the measured light-skin spectrum 'skin' scaled by the melanin/blood/water skin "
             "model of humv_usd.physics.skin_optics relative to type II (Jacques 2013 Phys. Med. "
             "Biol. 58:R37; Farrell et al. 1992 Med. Phys. 19:879; Prahl 1999 haemoglobin; Hale & "
-            "Querry 1973 water); IR from 2.5 µm and thermal data as 'skin'. " + skin.source,
+            "Querry 1973 water); IR from 2.5 µm and thermal data as 'skin'. ",
+            spectrum_reflectance=tone_spectrum(skin, tone),
         )
     return out

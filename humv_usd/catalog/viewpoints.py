@@ -35,6 +35,8 @@ class ViewpointPreset:
     min_height_px: float  # smallest person height kept [px]
     published_height_px: str  # what the dataset publishes about person heights
     published_bins_px: tuple = ()  # (edges [px], fractions) when the dataset gives a histogram
+    #: (edges [px^2], fractions) of the person boxes' area when the dataset bins areas instead
+    published_area_bins_px2: tuple = ()
     source: str = ""
 
 
@@ -123,13 +125,24 @@ VIEWPOINTS: dict[str, ViewpointPreset] = {
             yaw_offset_deg=("uniform", -25.0, 25.0),
             roll_deg=("fixed", 0.0),
             min_height_px=4.0,
-            published_height_px="no histogram published; people 5-60 px tall in the 288-row "
-            "frames, most under 30 px (estimated from the example images)",
+            published_height_px="no height histogram published; box areas of the 5,841,139 human "
+            "boxes (all 1,689 clips): 96.96 % small (< 1,024 px^2), 0.01 % medium, 3.03 % large "
+            "(> 9,696 px^2)",
+            published_area_bins_px2=((0.0, 1024.0, 9696.0, 1.0e9), (0.9696, 0.0001, 0.0303)),
             source="Nikolov et al. 2021, 'Seasons in Drift: a long-term thermal imaging dataset for "
             "studying concept drift', NeurIPS Datasets and Benchmarks: AXIS Q1921 thermal camera, "
             "384x288, one fixed view of a harbour front over 8 months (from memory, not re-checked "
             "here); mount height 4-8 m, a fixed view (azimuth within +-30 deg), pitch -10..-20 deg, "
-            "distances 10-60 m, the 45 deg field: estimated",
+            "distances 10-60 m, the 45 deg field: estimated. Box areas: the dataset statistics of the "
+            "ChaLearn LAP 2022 Seasons in Drift challenge (ECCV 2022 workshops; LTD extended to 1,689 "
+            "2-minute clips at 1 fps, 14 May 2020 - 30 April 2021, subset 'Full-All'), size groups "
+            "small < 1,024, medium 1,025-9,695, large > 9,696 px^2: human 5,663,804 / 454 / 176,881 of "
+            "5,841,139 boxes, as reproduced in github.com/phlong3105/mon docs/challenges/chalearn/"
+            "chalearn22_ltd.md (commit 307cb75; the challenge page's own copy not re-checked here). "
+            "The near-empty medium group beside a 3 % large one is as published (a gap no camera "
+            "geometry gives: likely the grouping or a few very large boxes; not modelled). The preset "
+            "was not fitted to it: 200-1,000 draws give 89-95 % small, 5-11 % medium, 0 % large, "
+            "total variation distance 0.05-0.11 (python -m humv_usd.bench.viewpoints)",
         ),
         ViewpointPreset(
             name="hit_uav",

@@ -282,6 +282,7 @@ def render(
             force=force,
             yes=yes,
             resolution=parse_resolution(resolution),
+            require_images=True,  # every sensor skipped: one line each and exit 2, nothing written
         )
     echo_render_summary(manifest, out_dir, estimator)
 
@@ -396,6 +397,48 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
         f"  Monte Carlo error: mean per-pixel standard error "
         f"{statistics.median(result['error_k']):.4f} K (median over runs)"
     )
+
+
+@bench.command("preview")
+@click.argument("scenario", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--sensor", default=None, help="The previewed sensor's id (default: the first infrared one).")
+@click.option(
+    "--quality",
+    default="fast",
+    show_default=True,
+    type=click.Choice(["fast", "full"]),
+    help="The editor's preview quality (fast: its own preview-quality stage; full: the real compose).",
+)
+@click.option(
+    "--edits",
+    default=None,
+    help="Comma-separated subset of: cold, unchanged, heading, pose, clock, weather, netd (default: all).",
+)
+@click.option(
+    "-o",
+    "--out",
+    "work_dir",
+    default="out/bench_preview",
+    show_default=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Work folder (new, or one this bench made: emptied first): the scenario's copy and the editor's output folder.",
+)
+@reports_errors
+def bench_preview(scenario: Path, sensor: str | None, quality: str, edits: str | None, work_dir: Path):
+    """The editor's preview of SCENARIO after each kind of edit, as the page runs it: wall and
+    CPU seconds per step and the layers compose rebuilt (issue 26, 7)."""
+    from humv_usd.editor.timing import EDITS
+    from humv_usd.editor.timing import bench_preview as run_bench
+
+    names = [e.strip() for e in edits.split(",")] if edits else None
+    unknown = sorted(set(names or []) - {e[0] for e in EDITS})
+    if unknown:
+        raise InputError(
+            f"--edits = {edits!r}: unknown {', '.join(unknown)}; allowed: {', '.join(e[0] for e in EDITS)}"
+        )
+    click.echo(f"editor preview of {scenario} ({quality} quality), work folder {work_dir}")
+    for timing in run_bench(scenario, work_dir, sensor, quality, names):
+        click.echo(timing.line())
 
 
 @bench.command("clothing")

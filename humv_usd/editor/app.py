@@ -27,7 +27,17 @@ from humv_usd.editor.fields import Field, ValueSource, all_fields, section_group
 from humv_usd.editor.guard import LOOPBACK_NAMES, RequestGuard
 from humv_usd.editor.jobs import JobManager, humv_command, outputs
 from humv_usd.editor.plan import plan_svg
-from humv_usd.editor.preview import PREVIEW_WIDTH_PX, make_preview, preview_commands, preview_resolution
+from humv_usd.editor.preview import (
+    PREVIEW_SCENARIO,
+    PREVIEW_STAGE_DIR,
+    PREVIEW_WIDTH_PX,
+    QUALITIES,
+    make_preview,
+    preview_commands,
+    preview_notes,
+    preview_resolution,
+    preview_scenario,
+)
 from humv_usd.editor.safety import UploadExists, inside, store_upload, sweep_base, upload_target
 from humv_usd.editor.stage3d import framing, stage_view
 from humv_usd.environment.sun import scenario_sun
@@ -472,22 +482,34 @@ class Page:
             ui.button("Compose and show", icon="view_in_ar", on_click=self.compose_3d).props(
                 "data-testid=show-3d"
             )
-            self.view_info = ui.label("the composed stage (meshes at frame 0, cameras)").classes(
-                "text-caption"
-            )
+            self.view_info = ui.label(
+                f"the fast preview's stage (OUT/{PREVIEW_STAGE_DIR}: meshes at frame 0, cameras)"
+            ).classes("text-caption")
         self.scene = ui.scene(width=1000, height=620, grid=(200, 100)).props("data-testid=scene3d")
 
+    def write_fast_copy(self) -> Path:
+        """Write the fast preview's scenario copy (editor.preview.preview_scenario) into the
+        output folder; returns its path."""
+        path = self.editor.out_dir / PREVIEW_SCENARIO
+        raw = preview_scenario(self.doc.raw(), self.doc.scenario(), self.doc.folder)
+        write_text_atomic(path, tomlkit.dumps(raw))
+        return path
+
     def compose_3d(self) -> None:
+        """Compose the fast preview's copy (the geometry and every camera as the scenario has
+        them; one layer cache with the fast preview) and show it."""
         if not self.ensure_saved():
             return
+        source, stage_dir = self.write_fast_copy(), self.editor.out_dir / PREVIEW_STAGE_DIR
         self.stage_job = self.start_job(
-            "compose", [humv_command("compose", str(self.doc.path), "-o", str(self.editor.out_dir))]
+            "compose", [humv_command("compose", str(source), "-o", str(stage_dir))]
         )
 
     async def show_stage(self) -> None:
         glb = self.editor.out_dir / ".editor" / "stage.glb"
+        stage = self.editor.out_dir / PREVIEW_STAGE_DIR / "stage.usda"
         try:
-            view = await run.io_bound(stage_view, self.editor.out_dir / "stage.usda", glb)
+            view = await run.io_bound(stage_view, stage, glb)
         except InputError as exc:
             ui.notify(str(exc), type="negative")
             return
@@ -520,10 +542,19 @@ class Page:
             self.sensor_choice = (
                 ui.select([], label="sensor").props("data-testid=preview-sensor").classes("w-64")
             )
+            self.preview_quality = (
+                ui.select(list(QUALITIES), value=QUALITIES[0], label="quality")
+                .props("data-testid=preview-quality")
+                .classes("w-32")
+            )
             ui.button("Preview", icon="photo_camera", on_click=self.preview).props("data-testid=preview")
             self.preview_info = ui.label(
                 f"frame 0, at most {PREVIEW_WIDTH_PX} px wide, 2 samples per pixel, one sub-band"
             ).classes("text-caption")
+        # the fast preview is not the scenario's signature: say so, and what it lowered
+        self.preview_mark = (
+            ui.label("").classes("text-caption text-orange-9").props("data-testid=preview-mark")
+        )
         with ui.row().classes("items-start"):
             self.preview_image = ui.image().classes("w-[800px]").props("data-testid=preview-image")
             self.colour_bar = ui.column().classes("items-center")
@@ -532,14 +563,19 @@ class Page:
         sensor = self.sensor_choice.value
         if not sensor or not self.ensure_saved():
             return
-        size = preview_resolution(self.doc.scenario(), sensor)
-        steps = [
-            humv_command(*args) for args in preview_commands(self.doc.path, self.editor.out_dir, sensor, size)
-        ]
+        scenario, out = self.doc.scenario(), self.editor.out_dir
+        quality = self.preview_quality.value or QUALITIES[0]
+        source = self.doc.path
+        if quality == "fast":  # its own scenario copy and folder: never the real layers
+            source = self.write_fast_copy()
+        size = preview_resolution(scenario, sensor)
+        steps = [humv_command(*args) for args in preview_commands(source, out, sensor, size, quality)]
         self.preview_started = time.time()
         job = self.start_job("preview", steps)
         if job is not None:
             job.sensor = sensor
+            job.quality = quality
+            job.notes = preview_notes(scenario) if quality == "fast" else []
             self.preview_job = job
 
     def show_preview(self, job) -> None:
@@ -552,6 +588,12 @@ class Page:
         self.preview_image.set_source(f"/files/out/{rel}?t={time.time():.3f}")
         took = time.time() - (self.preview_started or time.time())
         self.preview_info.set_text(f"{p.sensor}: frame 0: {took:.1f} s from the click to the image")
+        self.preview_mark.set_text(
+            f"FAST PREVIEW, not the scenario's quality (its own stage in OUT/{PREVIEW_STAGE_DIR}): "
+            + "; ".join(job.notes)
+            if job.quality == "fast"
+            else "full quality: the scenario's own layers (OUT/stage.usda)"
+        )
         self.colour_bar.clear()
         if p.levels_k:
             lo, hi = p.levels_k

@@ -44,6 +44,8 @@ class Job:
     process: subprocess.Popen | None = None
     on_done: list = field(default_factory=list)
     sensor: str | None = None  # a preview's sensor
+    quality: str | None = None  # a preview's quality (editor.preview.QUALITIES)
+    notes: list[str] = field(default_factory=list)  # what a fast preview lowered
     #: progress inside a step: (step index, folder, glob, expected count) of the files it writes
     watch: tuple[int, Path, str, int] | None = None
 

@@ -49,10 +49,11 @@ READS = (
     *(f"atmosphere.{k}" for k in COLUMNS),
     "atmosphere.weather_csv",
     "atmosphere.diurnal_range_k",  # the spin-up's diurnal cycle before the data start
+    "atmosphere.cloud_size_m",  # broken clouds: the render's cloud shadows read it here
     "thermal.surface_spin_up_s",  # the spin-up window before frame 0 (negative time codes)
 )
 UPSTREAM = ()
-VERSION = "6"  # 5: the sun and sky as UsdLux lights; 6: the moon (UsdLux + humv:moon:*)
+VERSION = "7"  # 5: the sun and sky as UsdLux lights; 6: the moon (UsdLux + humv:moon:*); 7: cloudSize
 
 
 def _covered_from(scenario: Scenario) -> float:
@@ -117,6 +118,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
     covered = _covered_from(scenario)
     weather = with_diurnal_cycle(scenario, times, weather, covered)
     E.write_weather(env, weather, codes)
+    E.write_cloud_size(env, float(scenario["atmosphere"].get("cloud_size_m") or 0.0))
     sun = scenario_sun(scenario, times, weather)
     if scenario.frame_count > 1 or spin_t.size:
         E.write_sun(env, sun, codes)

@@ -10,12 +10,14 @@ from humv_usd.catalog.dyes import garment_material
 from humv_usd.catalog.dyes import material as library_material
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.catalog.skin import skin_material_name
+from humv_usd.catalog.snow import cover_name
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import FRAMES
-from humv_usd.scenario.places import scene_materials
+from humv_usd.scenario.places import scene_materials, scene_objects
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
 from humv_usd.usd.materials import write_material, write_substrate
 from humv_usd.usd.paths import material_path
+from humv_usd.usd.snow import snow_depths
 
 NAME = "materials"
 READS = (
@@ -26,6 +28,7 @@ READS = (
     "human.*.hair_color",
     "scene.ground.material",
     "scene.ground.puddles",
+    "scene.ground.snow_depth_m",
     "atmosphere.rain_mm_h",
     "scene.object.*.material",
     "scene.object.*.kind",
@@ -39,8 +42,9 @@ READS = (
 )
 UPSTREAM = ()
 #: 3: /World/Materials a Scope; 4: warm clutter and generated places; 5: SWIR bands of fabrics;
-#: 6: water for puddles after rain
-VERSION = "6"
+#: 6: water for puddles after rain; 7: snow on the ground (and the library snow's spectrum);
+#: 8: shallow snow over the ground's and the roofs' materials (<material>__snow<mm>)
+VERSION = "8"
 #: material of the scene layer's puddles (humv_usd.scene.puddles.MATERIAL; tests/test_puddles.py)
 PUDDLE_MATERIAL = "water"
 
@@ -70,6 +74,10 @@ def used_materials(scenario: Scenario) -> list[str]:
         if scene.get("layers"):
             names.add(scene["layer_material"])
         names.update(scene_materials(scene))  # generated places and warm clutter
+        depth = float(scene["ground"].get("snow_depth_m") or 0.0)
+        if depth > 0.0:  # snow on the objects' flat roofs (humv_usd.scene.ground.cover_roof)
+            roofs = {o["material"] for o in scene_objects(scene)}
+            names.update(cover_name(n, depth) for n in roofs)
         if _slab_ground(scenario):
             names.add(GROUND_SUBSTRATE)
     return sorted(names)
@@ -80,12 +88,14 @@ def ground_materials(scenario: Scenario) -> list[str]:
     scene = scenario["scene"]
     zones = (scene.get("terrain") or {}).get("zone") or ()
     names = [scene["ground"]["material"], *(z["material"] for z in zones)]
+    on_ground, on_zone = snow_depths(scene)  # humv_usd.scene.ground: snow over each piece
+    covers = [cover_name(n, d) for n, d in zip(names, [on_ground, *on_zone]) if d > 0.0]
     if (
         float(scene["ground"].get("puddles") or 0.0) > 0.0
         and float((scenario["atmosphere"] or {}).get("rain_mm_h") or 0.0) > 0.0
     ):
         names.append(PUDDLE_MATERIAL)  # humv_usd.scene.puddles
-    return list(dict.fromkeys(names))
+    return list(dict.fromkeys(names + covers))
 
 
 def _slab_ground(scenario: Scenario) -> bool:

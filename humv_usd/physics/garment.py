@@ -44,6 +44,7 @@ _T_PROPERTY_MIN = 100.0  # [K], air properties are clamped below (outside any ph
 #: Lewis ratio h_e / h_c of the evaporative to the convective coefficient at sea level
 #: [K Pa^-1] (16.5 K kPa^-1, ASHRAE Handbook Fundamentals 2017, ch. 9 eq. 34).
 LEWIS_RATIO_K_PA = 16.5e-3
+_EPS = float(np.finfo(float).eps)  # unit round-off of float64 [-]
 
 
 def air_conductivity(temperature_k):
@@ -299,23 +300,24 @@ def air_gap_flux(
     return _air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, f_rad, model)
 
 
-def _air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, f_rad, model):
+def _air_gap_flux(skin_temperature_k, inner_temperature_k, air_gap_m, f_rad, model, gap_cubed=None):
     """:func:`air_gap_flux` with the grey plates' exchange factor ``f_rad`` given (the gap
-    solve evaluates the flux many times for the same surfaces)."""
+    solve evaluates the flux many times for the same surfaces), and optionally ``gap_cubed``
+    = ``air_gap_m ** 3``. The air properties are those of :func:`air_conductivity`,
+    :func:`air_kinematic_viscosity` and :func:`air_thermal_diffusivity` at the same clamped
+    mean temperature (the same arithmetic, the ratio T / 300 K formed once)."""
     t_s = np.asarray(skin_temperature_k, dtype=float)
     t_i = np.asarray(inner_temperature_k, dtype=float)
     d = np.asarray(air_gap_m, dtype=float)
     t_m = 0.5 * (t_s + t_i)
     dt = t_s - t_i
-    k = air_conductivity(t_m)
+    ratio = np.maximum(t_m, _T_PROPERTY_MIN) / 300.0
+    k = 0.0263 * ratio**0.87  # air_conductivity(t_m)
     if model == "hollands":
         t_mc = np.maximum(t_m, _T_PROPERTY_MIN)
-        ra = (
-            GRAVITY
-            * np.maximum(dt, 0.0)
-            * d**3
-            / (t_mc * air_kinematic_viscosity(t_mc) * air_thermal_diffusivity(t_mc))
-        )
+        d3 = d**3 if gap_cubed is None else gap_cubed
+        # nu alpha of air_kinematic_viscosity and air_thermal_diffusivity at t_mc
+        ra = GRAVITY * np.maximum(dt, 0.0) * d3 / (t_mc * (15.89e-6 * ratio**1.79) * (22.5e-6 * ratio**1.87))
         nu = hollands_nusselt(ra)
     else:
         nu = 1.0
@@ -841,21 +843,29 @@ def gap_temperature_for_flux(
     h_lin = air_conductivity(t_c) / d + 4.0 * f_rad * STEFAN_BOLTZMANN * np.abs(t_c) ** 3
     x = np.clip(t_c + q / h_lin, lo, hi)
     step = 1e-5  # [K], finite-difference step of the slope (Nusselt and property terms included)
+    # the flux at x and at x + step in one evaluation of 2 m gaps (the slope of a gap that
+    # converges now goes unused): each gap's arithmetic as in two evaluations, in half the calls
+    t_c2, d2, f_rad2 = (np.concatenate([v, v]) for v in (t_c, d, f_rad))
+    d3 = d2**3
     for it in range(max_iter):
         if idx.size == 0:
             break
-        q_cd, q_r = _air_gap_flux(x, t_c, d, f_rad, model)
-        f = q_cd + q_r - q
+        m = idx.size
+        q_cd, q_r = _air_gap_flux(np.concatenate([x, x + step]), t_c2, d2, f_rad2, model, d3)
+        g = q_cd + q_r
+        f = g[:m] - q
         done = (np.abs(f) <= tol + 1e-12 * np.abs(q)) | ((hi - lo) <= 4.0 * np.finfo(float).eps * np.abs(x))
         t[idx[done]] = x[done]
         keep = ~done
-        idx, q, t_c, d, f_rad, lo, hi, x, f = (v[keep] for v in (idx, q, t_c, d, f_rad, lo, hi, x, f))
+        g_step = g[m:][keep]
+        idx, q, lo, hi, x, f = (v[keep] for v in (idx, q, lo, hi, x, f))
         if idx.size == 0:
             break
+        keep2 = np.concatenate([keep, keep])
+        t_c2, d2, f_rad2, d3 = t_c2[keep2], d2[keep2], f_rad2[keep2], d3[keep2]
         lo = np.where(f < 0.0, x, lo)
         hi = np.where(f > 0.0, x, hi)
-        q_cd, q_r = _air_gap_flux(x + step, t_c, d, f_rad, model)
-        slope = (q_cd + q_r - q - f) / step
+        slope = (g_step - q - f) / step
         ok = slope > 0.0
         x_newton = x - f / np.where(ok, slope, 1.0)
         inside = ok & (x_newton > lo) & (x_newton < hi) & (it < 40)
@@ -887,7 +897,10 @@ def _stack_balance(t_out, p):
     h_out = _outer_coefficient(p["h"], dt_air, p["natural_floor"])
     q_conv = h_out * dt_air
     q_emit = p["eps"][-1] * STEFAN_BOLTZMANN * _t4(t_out)
-    q_evap = fabric_evaporation(t_out, p["t_air"], p["rh"], h_out, p["wet"], p["evap_limit"])
+    if p["wet"].any():
+        q_evap = fabric_evaporation(t_out, p["t_air"], p["rh"], h_out, p["wet"], p["evap_limit"])
+    else:  # dry: what fabric_evaporation gives (0 W m^-2), without its two vapour pressures
+        q_evap = np.zeros_like(t_out)
     q = q_conv + q_emit + q_evap - p["q_rad"]  # leaves layer n-1 outward
     t_o = [None] * n
     t_i = [None] * n
@@ -1039,23 +1052,33 @@ def _stack_solve(p, tol, max_iter):
     delta = 1e-4
     iterations = 0
     for iterations in range(1, max_iter + 1):
-        sub = _stack_take(flat, idx)
+        m = idx.size
         x = t[idx]
-        f, extra = _stack_balance(x, sub)
-        # the nested gap solves carry round-off of the fluxes through them: a relative floor
-        active = np.abs(f) > tol + 1e-10 * np.abs(extra[3]).max(axis=0)
+        # the residual and its central-difference slope in one stack evaluation of 3 m facets
+        # (x, x + delta, x - delta; the slope of a facet that converges now goes unused): each
+        # facet's arithmetic is the same as in three evaluations, in a third of the calls
+        f3, extra = _stack_balance(
+            np.concatenate([x, x + delta, x - delta]), _stack_take(flat, np.tile(idx, 3))
+        )
+        f = f3[:m]
+        dfdt = (f3[m : 2 * m] - f3[2 * m :]) / (2.0 * delta)
+        # the nested gap solves carry round-off of the fluxes through them: a relative floor;
+        # and a facet whose Newton step |f / f'| is below the collapsed bracket's width
+        # (4 ulps of x, below) is solved to round-off: a stiff stack (a heavy outer layer's
+        # storage carried through the gaps, f' ~ 1e7 W m^-2 K^-1) has a residual floor of
+        # about 1e-6 W m^-2 at the root, which bisection only closed in on, ulp by ulp
+        floor = np.maximum(tol + 1e-10 * np.abs(extra[3][:, :m]).max(axis=0), 4.0 * _EPS * np.abs(x * dfdt))
+        active = np.abs(f) > floor
         if not active.any():
             break
-        idx, x, f = idx[active], x[active], f[active]
-        sub = _stack_take(flat, idx)
+        idx, x, f, dfdt = idx[active], x[active], f[active], dfdt[active]
         lo[idx] = np.where(f > 0.0, x, lo[idx])
         hi[idx] = np.where(f < 0.0, x, hi[idx])
-        dfdt = (_stack_balance(x + delta, sub)[0] - _stack_balance(x - delta, sub)[0]) / (2.0 * delta)
         ok = dfdt < 0.0
         t_newton = x - f / np.where(ok, dfdt, -1.0)
         inside = ok & (t_newton > lo[idx]) & (t_newton < hi[idx]) & (iterations <= 40)
         t_next = np.where(inside, t_newton, 0.5 * (lo[idx] + hi[idx]))
-        moving = (hi[idx] - lo[idx]) > 4.0 * np.finfo(float).eps * np.abs(x)
+        moving = (hi[idx] - lo[idx]) > 4.0 * _EPS * np.abs(x)
         t[idx] = np.where(moving, t_next, x)
         idx = idx[moving]
         if idx.size == 0:
@@ -1121,7 +1144,9 @@ def stack_steady_state(
         Largest evaporation from the outermost surface [W m^-2] (the sweat supply).
     tol, max_iter
         As in :py:func:`steady_state`; the residual tolerance is tol + 1e-10 times the largest
-        gap flux (the nested gap solves carry round-off of the fluxes through them).
+        gap flux (the nested gap solves carry round-off of the fluxes through them), or, for a
+        stiff stack, the residual's change over 4 ulps of the outermost temperature (its
+        Newton step below the float resolution: the root to round-off).
 
     Returns
     -------

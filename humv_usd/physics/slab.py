@@ -333,6 +333,7 @@ def step_many(
     vapour_pressure_pa=None,
     pressure_pa=101325.0,
     melt_temperature_k=None,
+    return_melt_flux=False,
 ):
     """Backward-Euler step of many slabs of one construction at once (vectorized :func:`step`).
 
@@ -366,12 +367,15 @@ def step_many(
     melt_temperature_k : float, optional
         The surface cannot rise above this (melting snow or ice: the surplus of the surface
         balance melts it, latent heat of fusion, the store of snow not tracked); None: no limit.
+    return_melt_flux : bool, default False
+        Also return the surplus the capped surface passes to melting [W m^-2] (0 where not
+        melting; :func:`humv_usd.physics.snow.simulate_cover` tracks the snow with it).
 
     Returns
     -------
     tuple
         (node temperatures (F, N + 1) [K], surface energy residual (F,) [W m^-2]; 0 where
-        the surface melts).
+        the surface melts) and with ``return_melt_flux`` the melt flux (F,) [W m^-2].
 
     Notes
     -----
@@ -455,6 +459,8 @@ def step_many(
         + g[0] * (t[:, 1] - t[:, 0])
         - c_dt[0] * (t[:, 0] - t_old[:, 0])
     )
+    if return_melt_flux:
+        return t, np.where(melting, 0.0, residual), np.where(melting, residual, 0.0)
     return t, np.where(melting, 0.0, residual)
 
 

@@ -136,6 +136,7 @@ def render_stage(
     wait=False,
     yes=False,
     resolution=None,
+    require_images=False,
 ) -> dict:
     r"""Render the infrared sensors of a composed HumV-USD stage.
 
@@ -192,6 +193,10 @@ def render_stage(
     annotators : list of str, optional
         Ground-truth annotators (:data:`humv_usd.groundtruth.ANNOTATORS`); default the stage's
         (scenario ``[annotations]``) or the default set. See :mod:`humv_usd.groundtruth`.
+    require_images : bool, default False
+        When every selected sensor is skipped (e.g. an EO camera on a stage without sun or sky),
+        raise InputError (one line per sensor with the reason) before anything is written,
+        instead of writing a manifest of zero images (``humv-usd render``: exit 2).
 
     Returns
     -------
@@ -261,16 +266,25 @@ def render_stage(
     with folder_lock(out_dir, "humv-usd render", wait=wait):
         args = (stage_path, out_dir, frames, spp, sensors, seed, max_depth, annotators, subbands)
         how = (estimator, eo_spp, spp_auto, resolution)
-        return _render_locked(t_start, args, how, force, yes, progress)
+        return _render_locked(t_start, args, how, force, yes, progress, require_images)
 
 
-def _render_locked(t_start, args, how, force, yes=False, progress=None) -> dict:
+def _render_locked(t_start, args, how, force, yes=False, progress=None, require_images=False) -> dict:
     """``args`` and ``how`` (estimator, EO spp, automatic spp, resolution) as :func:`_plan` takes them."""
     out_dir = args[1]
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
     t = time.perf_counter()
     plan = _plan(*args, *how)
     totals["load_export"] += time.perf_counter() - t
+    skipped = plan.skipped + plan.eo_run.skipped
+    if require_images and skipped and not (plan.rendered or plan.eo_run.sensors):
+        raise InputError(
+            "",
+            [
+                f"nothing to render: sensor {s['name']} ({s['band']}) is skipped: {s['reason']}"
+                for s in skipped
+            ],
+        )
     budget = render_budget(  # every knob: pixels, spp, sub-bands, estimator, sensors, frames
         [s.resolution for s in plan.rendered],
         len(plan.frames),

@@ -8,7 +8,8 @@ also used when the variant is not vectorised or ``max_depth`` is bounded).
 
 Radiometry (opaque Lambertian surfaces, no emission in the visible)
 -----------------------------------------------------------------
-Each part reflects diffusely with its material's spectral reflectance
+Each part (but calm water, a Fresnel mirror in the fast estimator: :mod:`humv_usd.render.estimator`)
+reflects diffusely with its material's spectral reflectance
 ``humv:material:reflectance`` on ``humv:material:wavelengths`` (linear, held beyond the ends),
 sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spectrum. Illumination:
 
@@ -21,7 +22,9 @@ sampled every :data:`EO_STEP_NM` nm over 360-830 nm as a Mitsuba ``regular`` spe
   atmospheric extinction); none when the sun is below the horizon;
 - the sky: a ``constant`` environment with, per wavelength, the cosine-weighted hemispherical
   mean of ``humv:atmosphere:skySpectralRadiance`` against zenith (the uniform sky that gives the
-  same irradiance on a horizontal surface; its angular structure is not kept in the visible).
+  same irradiance on a horizontal surface; its angular structure is not kept in the visible);
+- lamps and lit windows (:mod:`humv_usd.render.lights`): Mitsuba point, spot and area emitters
+  in the path tracer; next-event estimation per bin in the fast estimator.
 
 Atmospheric path: per pixel by range as in the infrared, on the film's X, Y, Z channels,
 :math:`XYZ_{sensor} = \\tau_{xyz}(r)\\,XYZ + P_{xyz}(r)` with the sensor's spectral path table
@@ -357,14 +360,9 @@ class EORender:
         self.truth = truth  # humv_usd.groundtruth.GroundTruth: the same labels as the IR sensors
         self.spp, self.max_depth, self.seed, self.out_dir = int(spp), int(max_depth), int(seed), out_dir
         self.estimator, self.estimator_note = _eo_estimator(estimator, max_depth)
-        # artificial lights (UsdLux lamps with a HumV spectrum): the spectral path tracer renders them
+        # artificial lights (UsdLux lamps with a HumV spectrum): emitters of the spectral path
+        # tracer's scene, next-event estimation in the fast estimator (render.lights.lamp_table)
         self.has_lamps = bool(usd_lights.read_lamps(stage, Usd.TimeCode(stage.GetStartTimeCode())))
-        if self.has_lamps and self.estimator == "fast":
-            self.estimator, self.estimator_note = (
-                "path",
-                "lamps on the stage (humv:light:*): the fast estimator has no point or area lights, "
-                "Mitsuba's spectral path tracer renders them",
-            )
         self.lamps_key = None
         # automatic quality (fast estimator, no spp given): batches of DEFAULT_EO_SPP
         self.spp_auto = bool(spp_auto) and self.estimator == "fast"
@@ -481,8 +479,15 @@ class EORender:
             for m in state.meshes
             for part in m.parts
         ]
-        lamps = usd_lights.read_lamps(self.stage, Usd.TimeCode(frame)) if self.has_lamps else []
-        lamps_key = repr([(a.path, a.to_world.tobytes(), a.luminous_flux_lm, a.luminance) for a in lamps])
+        time_code = Usd.TimeCode(frame)
+        light = light or read_frame_light(self.stage, time_code)  # the render reads it once per frame
+        lamps = list(light.lamps) if self.has_lamps else []
+        # the path tracer's scene holds the lamps as emitters: rebuilt when they change
+        lamps_key = (
+            repr([(a.path, a.to_world.tobytes(), a.luminous_flux_lm, a.luminance) for a in lamps])
+            if self.estimator != "fast"
+            else None
+        )
         if self.scene is None or state.topology_key != self.key or lamps_key != self.lamps_key:
             self.lamps_key = lamps_key
             bare = sorted({p.material.path for p, _, _ in parts if p.material.reflectance is None})
@@ -522,16 +527,22 @@ class EORender:
             for s in self.sensors:
                 self.scene.set_camera(self.ids[s.name], state.cameras[s.name])
         scene = self.scene
-        time_code = Usd.TimeCode(frame)
-        light = light or read_frame_light(self.stage, time_code)  # the render reads it once per frame
         spectra, sun_direction = light.spectra, light.sun_direction
         sun, sky, ran = illumination(spectra, sun_direction, light.dni_w_m2)
         sun_direction, sun, sky = after_sunset(self.stage, time_code, sun_direction, sun, sky, ran)
         if self.has_lamps:
             ran["lamps"] = lights.describe(lamps)
+        sun_up = light.sun_direction is not None and light.sun_direction[2] > 0  # (not the moon)
+        cloud = light.clouds if sun is not None and sun_up else None
+        if cloud is not None:
+            ran["cloud_shadows"] = cloud.describe() + (
+                "" if self.estimator == "fast" else " (not rendered: the path tracer's sun is uniform)"
+            )
         if self.estimator == "fast":
             light = eo_fast.bin_illumination(self.bins, sun, sky, sun_direction)
-            weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction)
+            light.clouds = cloud
+            light.lamps = lights.lamp_table(lamps, eo_fast.GRID_NM, self.bins.channel_preserving_mean)
+            weight = eo_fast.horizontal_irradiance(sun, sky, sun_direction, lamps)
             rho = {}
 
             def reflectance_of(material):

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from humv_usd.render import estimator as E
+from humv_usd.render import lights
 from humv_usd.render import quality as Q
 from humv_usd.render.cie import CMF_WAVELENGTHS_NM, CMF_XYZ
 from humv_usd.render.radiometry import FrameRadiometry
@@ -68,6 +69,9 @@ DEFAULT_EO_SPLITS = 1
 SEED_STRIDE = Q.AUTO_SEED_STRIDE
 EO_TARGET_RELATIVE = Q.EO_TARGET_RELATIVE
 EO_MAX_SPP = Q.EO_MAX_SPP
+#: Distance [m] at which a lamp's irradiance weights the bins' reflectance means (a street
+#: lamp's mounting height, EN 13201 residential roads: 4-8 m).
+LAMP_WEIGHT_DISTANCE_M = 5.0
 
 
 def _cmf() -> np.ndarray:
@@ -105,6 +109,29 @@ class VisibleBins:
         )
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(den > 0, num / np.where(den > 0, den, 1.0), plain)
+
+    def channel_preserving_mean(self, values) -> np.ndarray:
+        r"""Per-bin values (n,) of a spectrum on the grid that give its exact X, Y, Z:
+        :meth:`mean` plus the smallest relative change :math:`\delta` (least squares in
+        :math:`\delta_k / v_k`) with :math:`\sum_k W_{ck}(v_k + \delta_k) = \sum_i q_i \bar c_i
+        s_i / \sum_i q_i \bar y_i` for c = x, y, z (:math:`\delta = D W^T (W D W^T)^+ (t - W v)`,
+        :math:`D = \mathrm{diag}(v_k^2)`, the minimum-norm solution of the three constraints).
+
+        For a lamp's line spectrum (a sodium lamp: its self-reversed D line, narrow lines) the
+        plain bin mean gives the wrong colour where a colour-matching function changes within a
+        bin: Z of an HPS lamp 23 % high, of white LEDs 0.5-1 % (X, Y within 0.3 %); with the
+        correction a spectrally flat surface under the lamp (or the lamp seen directly, a window)
+        has its exact X, Y, Z and a coloured one the error of its reflectance's variation
+        within a bin only."""
+        v = self.mean(values)
+        cmf, q = _cmf(), _trapezoid()
+        target = (q[:, None] * cmf * np.asarray(values, float)[:, None]).sum(axis=0) / float(
+            np.sum(q * cmf[:, 1])
+        )
+        d = np.diag(v**2)
+        w = self.weights
+        delta = d @ w.T @ np.linalg.pinv(w @ d @ w.T) @ (target - w @ v)
+        return np.maximum(v + delta, 0.0)
 
 
 def visible_bins(n: int) -> VisibleBins:
@@ -146,24 +173,47 @@ def bin_illumination(bins: VisibleBins, sun_nm, sky_nm, sun_direction) -> FrameR
     )
 
 
-def horizontal_irradiance(sun_nm, sky_nm, sun_direction) -> np.ndarray:
+def horizontal_irradiance(sun_nm, sky_nm, sun_direction, lamps=()) -> np.ndarray:
     """Spectral irradiance on a horizontal surface [W m-2 nm-1]: sun x cos(zenith) + pi x sky
-    (the weight of a material's reflectance within a bin)."""
+    (the weight of a material's reflectance within a bin), plus each lamp's
+    (:class:`humv_usd.usd.lights.Lamp`) at :data:`LAMP_WEIGHT_DISTANCE_M` on its axis (a window:
+    pi x its radiance), so that a lamp-lit surface's bin reflectance is weighted by the lamps'
+    spectra (an HPS lamp's lines) rather than the night sky's."""
     out = np.zeros(GRID_NM.size)
     if sun_nm is not None and sun_direction is not None:
         out = out + np.asarray(sun_nm, float) * max(float(sun_direction[2]), 0.0)
     if sky_nm is not None:
         out = out + np.pi * np.asarray(sky_nm, float)
+    for lamp in lamps:
+        if lamp.kind == "rect":
+            out = out + np.pi * lights.spectral_per_nm(lamp, lamp.luminance, GRID_NM)
+        else:
+            i_nm = lights.spectral_per_nm(lamp, lights.luminous_intensity_cd(lamp), GRID_NM)
+            out = out + i_nm / LAMP_WEIGHT_DISTANCE_M**2
     if not np.any(out > 0):
         out = np.ones(GRID_NM.size)
     return out
 
 
 class _NoEmission:
-    """The sub-band model of a reflective-only band: n bins, zero emitted radiance."""
+    """The sub-band model of a reflective-only band: n bins, zero emitted radiance; with the
+    ``bins``, their means of a spectral table (:meth:`weighted_mean`, e.g. water's Fresnel
+    reflectance for the puddles' mirrors)."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, bins: VisibleBins | None = None):
         self.n = int(n)
+        self.bins = bins
+
+    def weighted_mean(self, wavelengths_um, values) -> np.ndarray:
+        """Per-bin means (..., n) of a table (..., W) on ``wavelengths_um`` (linear on the 5-nm
+        grid, held beyond its ends), weighted as :meth:`VisibleBins.mean`; None without bins."""
+        if self.bins is None:
+            return None
+        v = np.asarray(values, float)
+        flat = v.reshape(-1, v.shape[-1])
+        grid = GRID_NM / 1000.0
+        rows = [self.bins.mean(np.interp(grid, wavelengths_um, row)) for row in flat]
+        return np.asarray(rows).reshape(v.shape[:-1] + (self.n,))
 
     def __len__(self) -> int:
         return self.n
@@ -196,7 +246,7 @@ def render_xyz_fast(
         scene,
         sensor_id,
         state,
-        _NoEmission(n),
+        _NoEmission(n, bins),
         None,
         light,
         spp=spp,

@@ -9,7 +9,13 @@ Monte Carlo noise for the same rays:
 - **One geometric path for all sub-bands.** Directions do not depend on the sub-band; each
   vertex carries the n sub-band throughputs, so the sub-band count costs no rays.
 - **Emission at a hit is evaluated, not sampled** (:math:`\\varepsilon_k L_k(T)` of the face).
-- **Sun by next-event estimation** (one shadow ray per vertex facing the sun).
+- **Sun by next-event estimation** (one shadow ray per vertex facing the sun); **lamps** too
+  (``radiometry.lamps``, a :class:`humv_usd.render.lights.LampTable`: a shadow ray per point
+  lamp or spot per vertex, one sampled point per lit window, :func:`_lamp_irradiance`; camera
+  rays see a window's radiance, :func:`_windows_seen`).
+- **Calm water is a mirror** for camera rays (the puddles: :func:`_mirror_tables`): emission
+  :math:`(1 - R(\\mu)) B(T)` and one mirror ray of throughput :math:`R(\\mu)` (Fresnel) with no
+  control variate, in place of the Lambertian terms; its reflected part is not filtered.
 - **Control variate for the reflected sky.** The reflected radiance of a Lambertian vertex with
   normal :math:`n` is :math:`\\rho_k \\int L_{in}(\\omega) (n\\cdot\\omega)/\\pi\\,d\\omega`. With
   :math:`C_k(\\omega)` = the sky radiance above the horizon and a ground radiance :math:`L_g`
@@ -70,7 +76,9 @@ import numpy as np
 
 from humv_usd import mode
 from humv_usd.geometry import shading
+from humv_usd.physics import water_film
 from humv_usd.render.radiometry import SKY_MAP_HEIGHT
+from humv_usd.scene.puddles import MATERIAL as PUDDLE_MATERIAL
 
 log = logging.getLogger(__name__)
 
@@ -142,6 +150,9 @@ MAX_DIRECT_LANES = 1 << 22
 SMOOTH_CREASE_DEG = shading.SMOOTH_CREASE_DEG
 #: Shade smooth when the caller does not say (issue 25; False: one value per flat face).
 SMOOTH_SHADING = True
+#: Point lamps and spots traced each (a shadow ray per lamp per hit); with more, one lamp per hit
+#: is chosen by its unoccluded irradiance (:func:`_lamp_irradiance`; windows always so).
+MAX_LAMP_RAYS = 8
 
 
 def sky_rows(radiometry, k: int) -> np.ndarray:
@@ -649,6 +660,9 @@ def render_band_fast(
     normals = face_normals(scene)
     ground = ground_radiance(scene, tables, g_up, 0.0 if sun_dir is None else sun_dir[2], sun_e, normals)
     g_tab = control_variate_table(rows, ground)  # (n, CV_NODES)
+    cloud = getattr(radiometry, "clouds", None) if sun_e is not None else None
+    if cloud is not None:  # broken clouds: the clear-sky beam between them, none under them
+        sun_e = np.asarray(sun_e, float) * cloud.clear_factor
     surface = surface_table(scene, tables, g_tab, sun_dir, sun_e, normals)  # (T, 3, n)
     smooth = SMOOTH_SHADING if smooth is None else bool(smooth)
     rows_7n = corner_table(surface, _smooth_blend(scene) if smooth else None)  # (T, 7n)
@@ -662,6 +676,7 @@ def render_band_fast(
         if getattr(part, "label_class", None) not in CAVITY_CLASSES:
             cavity[first:last] = 0.0
     cavity_dr = f32(cavity.astype(np.float32).ravel())
+    mirrors = _mirror_tables(mi, scene, tables, sub)  # calm water (puddles): Fresnel mirrors
     sky_dr = f32(np.ascontiguousarray(rows.T, dtype=np.float32).ravel())  # (H, n)
     ground_k = [dr.opaque(f32, float(g)) for g in ground]
     part_of_key = {p.key: i for i, p in enumerate(scene.parts)}
@@ -675,6 +690,9 @@ def render_band_fast(
     sun_vec = None
     if sun_dir is not None:
         sun_vec = mi.Vector3f(*(dr.opaque(f32, float(v)) for v in sun_dir))
+    lamps = _lamps_on_device(mi, dr, getattr(radiometry, "lamps", None), n)
+    cloud_dev = None if cloud is None or sun_vec is None else _clouds_on_device(mi, dr, cloud)
+    lamp_calls = [0]  # a window's sample points: a new random sequence per call
 
     def sky_at(dz):
         """(row index, weight) of a direction's zenith in the sky rows, shared by the sub-bands."""
@@ -703,6 +721,8 @@ def render_band_fast(
         base = row
         if sun_vec is not None:
             lit = active & (dr.dot(nrm, sun_vec) > 0.0)
+            if cloud_dev is not None:  # no sun under a cloud (the thermal tool's field)
+                lit &= _between_clouds(mi, dr, cloud_dev, p, lit)
             blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * _offset(dr, p), sun_vec), lit)
             base = dr.select(lit & ~blocked, base + n, base)
         b1, b2 = uv.x, uv.y
@@ -713,6 +733,10 @@ def render_band_fast(
             v2 = dr.gather(f32, surf_dr, base + (4 * n + k), active)
             surf.append(v0 + (v1 - v0) * b1 + (v2 - v0) * b2)
         rho = [dr.gather(f32, surf_dr, row + (6 * n + k), active) for k in range(n)]
+        if lamps is not None:  # the lamps' direct light (next-event estimation)
+            lamp_calls[0] += 1
+            e = _lamp_irradiance(mi, dr, scene.scene, lamps, p, nrm, active, seeds[2] + 7919 * lamp_calls[0])
+            surf = [surf[k] + rho[k] * e[k] for k in range(n)]
         return surf, rho
 
     # --- camera samples: pixel x replica x lattice point -------------------------------------
@@ -762,6 +786,25 @@ def render_band_fast(
             for k in range(n)
         ]
         rho = [dr.select(front, r, 0.0) for r in rho]
+        mirror = None
+        if mirrors is not None:  # a mirror: (1 - R) B(T) emitted, R times the mirror ray's radiance
+            tri_f = triangle(si, front)
+            mirror = front & (dr.gather(f32, mirrors.flag, tri_f, front) > 0.5)
+            mu = dr.clip(-dr.dot(ray.d, si.n), 0.0, 1.0)
+            fresnel = _fresnel(mi, dr, mirrors, mu, n, mirror)
+            for k in range(n):
+                body = dr.gather(f32, mirrors.blackbody, tri_f * n + k, mirror)
+                value[k] = dr.select(mirror, (1.0 - fresnel[k]) * body, value[k])
+                rho[k] = dr.select(mirror, fresnel[k], rho[k])
+        if lamps is not None and lamps.rects:  # a lit window in front of the first hit
+            seen, t_window, window = _windows_seen(mi, dr, lamps, ray, dr.select(hit, si.t, dr.inf))
+            value = [dr.select(seen, window[k], value[k]) for k in range(n)]
+            rho = [dr.select(seen, 0.0, r) for r in rho]
+            front, back = front & ~seen, back & ~seen
+            if mirror is not None:
+                mirror = mirror & ~seen
+            si.t = dr.select(seen, t_window, si.t)
+            hit = hit | seen
         backs = dr.select(back, f32(1.0), f32(0.0))
         if layout is not None:
             back_counts.append(backs)  # per lane: summed per cell below
@@ -782,13 +825,21 @@ def render_band_fast(
             ]
             rho = [rho[k] * tau[k] for k in range(n)]  # the reflected term's throughput
         if layout is not None:  # per cell, on the host in a fixed order: sums / points
-            dr.eval(direct_dr, back_counts[-1], *([rho, front, si.p, si.n, per_cell] if reflect else []))
+            dr.eval(
+                direct_dr,
+                back_counts[-1],
+                *(
+                    [rho, front, si.p, si.n, per_cell, ray.d] + ([mirror] if mirror is not None else [])
+                    if reflect
+                    else []
+                ),
+            )
             back_counts[-1] = layout.cell_sums(back_counts[-1])
             direct = layout.cell_sums(np.stack([np.asarray(v) for v in direct_dr])) / layout.cell_points()
             if not reflect:
                 return direct, None
             layout.count_dr = per_cell  # the reflected term's lattice sizes, per camera lane
-            return direct, (j, cell, front, si, rho)
+            return direct, (j, cell, front, si, rho, mirror, ray.d)
         # per (pixel, replica) cell: the mean of its lattice points, per channel
         if points > 1:
             inv_points = dr.opaque(f32, 1.0 / points)
@@ -796,13 +847,24 @@ def render_band_fast(
         if not reflect:
             dr.eval(direct_dr, back_counts[-1])
             return np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr]), None
-        dr.eval(direct_dr, rho, front, si.p, si.n, back_counts[-1])
+        dr.eval(
+            direct_dr,
+            rho,
+            front,
+            si.p,
+            si.n,
+            back_counts[-1],
+            ray.d,
+            *([mirror] if mirror is not None else []),
+        )
         direct = np.stack([np.asarray(v, dtype=np.float64) for v in direct_dr])  # (c, cells)
-        return direct, (j, cell, front, si, rho)
+        return direct, (j, cell, front, si, rho, mirror, ray.d)
 
     rays = 0  # reflection rays traced (the cost of the reflected term, in camera samples)
 
-    def reflect_pass(j, cell, front, si, beta0, points: int, samples: int, dir_seed: int, rr_seed: int):
+    def reflect_pass(
+        j, cell, front, si, beta0, mirror, ray_d, points: int, samples: int, dir_seed: int, rr_seed: int
+    ):
         """The reflected term of a camera pass's front-facing vertices: per-cell means (c,
         cells) of ``splits`` stratified cosine directions per vertex, continued by Russian
         roulette; ``points`` lattice points per cell, ``samples`` camera samples in all."""
@@ -843,6 +905,11 @@ def render_band_fast(
             lane_id = b
             origin = dr.gather(mi.UInt32, triangle(si, front), par)  # the face each ray leaves
             d = mi.Frame3f(n0).to_world(mi.warp.square_to_cosine_hemisphere(mi.Point2f(u1, u2)))
+            mirror_lane = None
+            if mirror is not None:  # a mirror's lanes follow its mirror direction, no control variate
+                mirror_lane = dr.gather(mi.Bool, mirror, par)
+                incident = dr.gather(mi.Vector3f, ray_d, par)
+                d = dr.select(mirror_lane, incident - n0 * (2.0 * dr.dot(incident, n0)), d)
             ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
             for depth in range(1, MAX_DEPTH):
                 si = _intersect_leaving(mi, dr, scene.scene, ray, origin, triangle)
@@ -853,6 +920,9 @@ def render_band_fast(
                 # escaping above the horizon: sky - C = 0; no surface: sky - L_g below the horizon;
                 # a back face: its cavity radiance - C (:func:`cavity_table`)
                 odd = ~front & (hit | (dz < 0.0))
+                first_mirror = mirror_lane if depth == 1 else None
+                if first_mirror is not None:  # a mirror ray escaping to the sky: its radiance - 0
+                    odd |= first_mirror & ~hit
                 tri = triangle(si, hit)
                 dr.eval(hit, front, odd, tri, si.p, si.n, si.uv, dz)
                 lanes_odd = dr.compress(odd)
@@ -868,6 +938,8 @@ def render_band_fast(
                         sky_k = sky(k, where)
                         seen = dr.select(hit_o, dr.gather(f32, cavity_dr, back_o + k, hit_o), sky_k)
                         control = dr.select(up_o, sky_k, ground_k[k])
+                        if first_mirror is not None:
+                            control = dr.select(dr.gather(mi.Bool, first_mirror, lanes_odd), 0.0, control)
                         terms.append(beta_o[k] * (seen - control))
                     _scatter_channels(dr, acc, terms, wts, dr.gather(mi.UInt32, lane_id, lanes_odd))
                 on = dr.compress(front)
@@ -893,8 +965,11 @@ def render_band_fast(
                 up = dz_f >= 0.0
                 where = sky_at(dz_f)
                 terms = []
+                mirror_on = None if first_mirror is None else dr.gather(mi.Bool, first_mirror, on)
                 for k in range(n):
                     control = dr.select(up, sky(k, where, up), ground_k[k])
+                    if mirror_on is not None:
+                        control = dr.select(mirror_on, 0.0, control)
                     terms.append(beta[k] * (surf[k] - control))
                 _scatter_channels(dr, acc, terms, wts, lane_id)
                 beta = [beta[k] * rho[k] for k in range(n)]
@@ -931,9 +1006,9 @@ def render_band_fast(
             [np.asarray(_lanes_to_cells(mi, dr, a, parent, splits, samples, points)) for a in acc]
         )
 
-    direct_r, (j, cell, front, si, beta0) = camera_pass(lattice_n, seeds[0], True)
+    direct_r, (j, cell, front, si, beta0, mirror0, ray_d0) = camera_pass(lattice_n, seeds[0], True)
     note("camera vertices and path: %d samples", total)
-    reflect_r = reflect_pass(j, cell, front, si, beta0, lattice_n, total, seeds[1], seeds[2])
+    reflect_r = reflect_pass(j, cell, front, si, beta0, mirror0, ray_d0, lattice_n, total, seeds[1], seeds[2])
     note("paths done")
 
     # --- per pixel means, RQMC errors, and the reflected part filtered over the surface --------
@@ -958,8 +1033,8 @@ def render_band_fast(
     radius_px = windows.result()
     note("replica statistics (filter windows ready)")
     if filter_radius > 0:
-        reflect_mean, reflect_var = filter_reflected(
-            reflect_mean, reflect_var, hits, filter_radius, radius_px
+        reflect_mean, reflect_var = _filtered(
+            reflect_mean, reflect_var, hits, filter_radius, radius_px, mirrors
         )
     # --- more pixel positions for the direct term where it dominates the error ----------------
     if direct_points is None:
@@ -1020,8 +1095,8 @@ def render_band_fast(
             direct, direct_var = replica_stats(direct_r)
             reflect_mean, reflect_var = replica_stats(reflect_r)
             if filter_radius > 0:
-                reflect_mean, reflect_var = filter_reflected(
-                    reflect_mean, reflect_var, hits, filter_radius, radius_px
+                reflect_mean, reflect_var = _filtered(
+                    reflect_mean, reflect_var, hits, filter_radius, radius_px, mirrors
                 )
         # 2. the direct share of the target: what the reflected part leaves of it, at least
         # half of it (the caller's further batches shrink the reflected part); in multiples of
@@ -1075,6 +1150,329 @@ def render_band_fast(
     if weights is None:
         return radiance[0], stderr[0]
     return radiance, stderr
+
+
+@dataclass
+class _DeviceLamps:
+    """A :class:`humv_usd.render.lights.LampTable` as kernel parameters (opaque scalars, so the
+    kernels are reused when the lamps move or change)."""
+
+    points: list
+    rects: list
+
+
+def _lamps_on_device(mi, dr, table, n: int):
+    """The lamps of ``table`` (a :class:`humv_usd.render.lights.LampTable` or None) on the
+    device, those with no light left out; None when none is left."""
+    if table is None or len(table) == 0:
+        return None
+
+    def scalar(v):
+        return dr.opaque(mi.Float, float(v))
+
+    def vector(v):
+        return mi.Vector3f(*(scalar(x) for x in v))
+
+    points, rects = [], []
+    for i in range(len(table.position)):
+        intensity = np.asarray(table.intensity[i], float).reshape(n)
+        if not np.any(intensity > 0):
+            continue
+        cut, beam = float(table.cutoff_rad[i]), float(table.beam_rad[i])
+        points.append(
+            SimpleNamespace(
+                position=vector(table.position[i]),
+                axis=vector(table.axis[i]) if cut < np.pi else None,
+                cutoff=scalar(cut),
+                beam=scalar(beam),
+                inv_transition=scalar(1.0 / max(cut - beam, 1e-12)),
+                value=[scalar(v) for v in intensity],
+                total=float(intensity.sum()),
+            )
+        )
+    for i in range(len(table.rect_centre)):
+        radiance = np.asarray(table.rect_radiance[i], float).reshape(n)
+        u, v = np.asarray(table.rect_u[i], float), np.asarray(table.rect_v[i], float)
+        area = 4.0 * float(np.linalg.norm(np.cross(u, v)))
+        if not np.any(radiance > 0) or area <= 0:
+            continue
+        rects.append(
+            SimpleNamespace(
+                centre=vector(table.rect_centre[i]),
+                u=vector(u),
+                v=vector(v),
+                u_inv=vector(u / float(u @ u)),
+                v_inv=vector(v / float(v @ v)),
+                normal=vector(table.rect_normal[i]),
+                area=scalar(area),
+                value=[scalar(x) for x in radiance],
+                total=float(radiance.sum()),
+            )
+        )
+    return _DeviceLamps(points, rects) if points or rects else None
+
+
+def _lamp_irradiance(mi, dr, scene, lamps: _DeviceLamps, p, nrm, active, seed: int) -> list:
+    r"""Per sub-band :math:`E_k / \pi` of the lamps' direct light at points ``p`` with normals
+    ``nrm`` (a Lambertian surface of reflectance :math:`\rho_k` reflects :math:`\rho_k E_k/\pi`),
+    by next-event estimation:
+
+    - a point lamp or spot of axial intensity :math:`I_k` at distance d along the unit vector
+      :math:`\omega` (surface to lamp): :math:`E_k = I_k f(\theta)\,(n\cdot\omega)/d^2` if
+      nothing lies between (the inverse-square and cosine laws; Kajiya 1986's rendering equation
+      for a delta light), f the spot's falloff at :math:`\theta` off its axis (1 inside the
+      beam angle, linear in angle to 0 at the cutoff: Mitsuba 3's ``spot``,
+      :func:`humv_usd.render.lights.spot_falloff`); one shadow ray per lamp, up to
+      :data:`MAX_LAMP_RAYS` lamps;
+    - a window (a rectangle of area A and radiance :math:`L_k` emitting along N): one point y
+      uniform on it, :math:`E_k = L_k A (n\cdot\omega)(-N\cdot\omega)/d^2` if visible
+      (area sampling of the rendering equation's irradiance integral, unbiased; Pharr, Jakob &
+      Humphreys, *Physically Based Rendering*, 4th ed., 2023, sec. 12.5).
+
+    Many lights (the windows, and point lamps beyond :data:`MAX_LAMP_RAYS`): one of them per
+    point, chosen with probability :math:`p_i` proportional to its unoccluded irradiance there
+    (at a window's centre) plus a floor of 1e-3 of the mean (every light that can reach the
+    point has :math:`p_i > 0`), its contribution divided by :math:`p_i`: one shadow ray instead
+    of one per light, unbiased (light selection by estimated contribution, PBRT 4th ed.
+    sec. 12.6)."""
+    width = dr.width(p)
+    n = len((lamps.points or lamps.rects)[0].value)
+    out = [dr.zeros(mi.Float, width) for _ in range(n)]
+    o = p + nrm * _offset(dr, p)
+    rng = mi.PCG32(
+        size=width, initstate=dr.opaque(mi.UInt64, int(seed) % 2**62), initseq=dr.arange(mi.UInt64, width)
+    )
+
+    def towards(target, on):
+        v = target - o
+        d2 = dr.squared_norm(v)
+        dist = dr.sqrt(d2)
+        w = v / dist
+        cos_s = dr.dot(nrm, w)
+        on = on & (cos_s > 0.0)
+        return w, d2, dist, cos_s, on
+
+    def add(weight, values):
+        for k, value in enumerate(values):
+            out[k] += weight * value
+
+    def point_geometry(position, axis, beam, cutoff, inv_transition):
+        w, d2, dist, cos_s, on = towards(position, active)
+        fall = 1.0
+        if axis is not None:  # a spot: Mitsuba's falloff, linear in angle
+            theta = dr.acos(dr.clip(-dr.dot(w, axis), -1.0, 1.0))
+            fall = dr.select(theta <= beam, 1.0, dr.clip((cutoff - theta) * inv_transition, 0.0, 1.0))
+            on &= theta < cutoff
+        return w, dist, dr.select(on, fall * cos_s / (d2 * np.pi), 0.0), on
+
+    def trace(w, dist, weight, on, values):
+        blocked = scene.ray_test(mi.Ray3f(mi.Ray3f(o, w), dist * (1.0 - 1e-4)), on)
+        add(dr.select(on & ~blocked, weight, 0.0), values)
+
+    def choose(estimates):
+        """(index, probability) of one light per lane, p_i ~ estimate_i + floor."""
+        total = estimates[0]
+        for e in estimates[1:]:
+            total = total + e
+        floor = 1e-3 * total / len(estimates) + 1e-30
+        total = total + floor * len(estimates)
+        target = rng.next_float32() * total
+        index = dr.full(mi.UInt32, len(estimates) - 1, width)
+        chosen = estimates[-1] + floor
+        acc = dr.zeros(mi.Float, width)
+        found = dr.zeros(mi.Bool, width)
+        for i, e in enumerate(estimates):
+            acc = acc + e + floor
+            take = ~found & (target < acc)
+            index = dr.select(take, i, index)
+            chosen = dr.select(take, e + floor, chosen)
+            found |= take
+        return index, chosen / total
+
+    def pick(index, values):
+        """values[index] per lane (a list of per-light device values or vectors)."""
+        out_v = values[0]
+        for i, v in enumerate(values[1:], start=1):
+            out_v = dr.select(index == i, v, out_v)
+        return out_v
+
+    if len(lamps.points) <= MAX_LAMP_RAYS:
+        for lamp in lamps.points:
+            w, dist, weight, on = point_geometry(
+                lamp.position, lamp.axis, lamp.beam, lamp.cutoff, lamp.inv_transition
+            )
+            trace(w, dist, weight, on, lamp.value)
+    else:  # one lamp per point, by its unoccluded irradiance
+        geo = [
+            point_geometry(lamp.position, lamp.axis, lamp.beam, lamp.cutoff, lamp.inv_transition)
+            for lamp in lamps.points
+        ]
+        index, prob = choose([g[2] * lamp.total for g, lamp in zip(geo, lamps.points)])
+        w = pick(index, [g[0] for g in geo])
+        dist = pick(index, [g[1] for g in geo])
+        weight = pick(index, [g[2] for g in geo]) / prob
+        on = pick(index, [g[3] for g in geo])
+        trace(w, dist, weight, on, [pick(index, [lamp.value[k] for lamp in lamps.points]) for k in range(n)])
+    if lamps.rects:  # one window per point, by its unoccluded irradiance at its centre
+        rects = lamps.rects
+        if len(rects) == 1:
+            rect, prob = rects[0], 1.0
+            centre, u, v, normal, area = rect.centre, rect.u, rect.v, rect.normal, rect.area
+            values = rect.value
+        else:
+            estimates = []
+            for r in rects:
+                w_c, d2_c, _, cos_c, on_c = towards(r.centre, active)
+                cos_lc = dr.maximum(-dr.dot(w_c, r.normal), 0.0)
+                estimates.append(dr.select(on_c, r.total * r.area * cos_c * cos_lc / d2_c, 0.0))
+            index, prob = choose(estimates)
+            centre = pick(index, [r.centre for r in rects])
+            u = pick(index, [r.u for r in rects])
+            v = pick(index, [r.v for r in rects])
+            normal = pick(index, [r.normal for r in rects])
+            area = pick(index, [r.area for r in rects])
+            values = [pick(index, [r.value[k] for r in rects]) for k in range(n)]
+        a, b = 2.0 * rng.next_float32() - 1.0, 2.0 * rng.next_float32() - 1.0
+        w, d2, dist, cos_s, on = towards(centre + u * a + v * b, active)
+        cos_l = -dr.dot(w, normal)
+        on &= cos_l > 0.0
+        trace(w, dist, area * cos_s * cos_l / (d2 * np.pi) / prob, on, values)
+    return out
+
+
+def _windows_seen(mi, dr, lamps: _DeviceLamps, ray, t_max):
+    """Camera rays that see a window's lit side before ``t_max`` (their first hit): (mask,
+    distance, radiance per sub-band of the nearest window). A window is not in the scene's
+    geometry (it lies just in front of its pane), so it neither occludes nor is met by
+    reflected rays: its light reaches surfaces by :func:`_lamp_irradiance` only."""
+    seen = dr.zeros(mi.Bool, dr.width(ray.d.z))
+    t_best = mi.Float(t_max)
+    value = [dr.zeros(mi.Float, dr.width(ray.d.z)) for _ in lamps.rects[0].value]
+    for rect in lamps.rects:
+        denom = dr.dot(ray.d, rect.normal)
+        facing = denom < 0.0
+        t = dr.dot(rect.centre - ray.o, rect.normal) / dr.select(facing, denom, -1.0)
+        q = ray.o + ray.d * t - rect.centre
+        inside = (dr.abs(dr.dot(q, rect.u_inv)) <= 1.0) & (dr.abs(dr.dot(q, rect.v_inv)) <= 1.0)
+        on = facing & inside & (t > 0.0) & (t < t_best)
+        seen |= on
+        t_best = dr.select(on, t, t_best)
+        value = [dr.select(on, rect.value[k], value[k]) for k in range(len(value))]
+    return seen, t_best, value
+
+
+def _filtered(mean, var, hits, radius: int, radius_px, mirrors):
+    """:func:`filter_reflected`, but a mirror's pixels (calm water) keep their own reflected
+    radiance: a mirror image is not smooth over the surface, as a Lambertian surface's
+    irradiance is."""
+    out_m, out_v = filter_reflected(mean, var, hits, radius, radius_px)
+    if mirrors is None:
+        return out_m, out_v
+    own = np.isin(hits.part, mirrors.parts)
+    if own.any():
+        out_m = np.where(own, mean, out_m)
+        out_v = np.where(own, var, out_v)
+    return out_m, out_v
+
+
+#: Incidence-cosine nodes of a mirror's Fresnel table (:func:`_mirror_tables`).
+FRESNEL_NODES = 65
+
+
+def _mirror_tables(mi, scene, tables: FaceTables, sub):
+    r"""The scene's mirrors (None without): the parts of calm water (material
+    :data:`humv_usd.scene.puddles.MATERIAL`, the puddles), each triangle's flag and blackbody
+    radiance :math:`B_k(T) = \varepsilon_k L_k(T)/\varepsilon_k` (:func:`cavity_table`), and
+    per sub-band the unpolarized Fresnel reflectance of water against the incidence cosine,
+    :math:`R_k(\mu)` (Hale & Querry's index, :func:`humv_usd.physics.water_film.fresnel_reflectance`),
+    averaged over the sub-band with ``sub.weighted_mean`` (Planck and response weighted;
+    the EO bins' sensitivity). A camera ray on such a face sees
+    :math:`(1 - R_k(\mu)) B_k(T) + R_k(\mu) L_k(\omega_r)`: Kirchhoff's law for an opaque
+    specular interface (emissivity 1 - R) and the radiance along the mirror direction; the
+    light scattered back from under the water (a puddle's bottom) is left out."""
+    parts = [
+        i for i, p in enumerate(scene.parts) if str(p.material.path).rsplit("/", 1)[-1] == PUDDLE_MATERIAL
+    ]
+    band_mean = getattr(sub, "weighted_mean", None)
+    if not parts or band_mean is None:
+        return None
+    n = tables.emission.shape[1]
+    flag = np.zeros(len(tables.emission), dtype=np.float32)
+    ends = list(tables.offset[1:]) + [len(flag)]
+    for i in parts:
+        flag[tables.offset[i] : ends[i]] = 1.0
+    wl = np.geomspace(0.35, 15.0, 1200)
+    mu = np.linspace(0.0, 1.0, FRESNEL_NODES)
+    spectral = water_film.fresnel_reflectance(
+        mu[:, None], water_film.water_refractive_index(np.clip(wl, 0.4, 14.0))[None, :]
+    )
+    fresnel = band_mean(wl, spectral)
+    if fresnel is None:
+        return None
+    fresnel = np.clip(np.asarray(fresnel, float).reshape(FRESNEL_NODES, n), 0.0, 1.0)
+    blackbody = cavity_table(tables) * flag[:, None]
+    return SimpleNamespace(
+        parts=np.asarray(parts),
+        flag=mi.Float(flag),
+        blackbody=mi.Float(blackbody.astype(np.float32).ravel()),
+        fresnel=mi.Float(np.ascontiguousarray(fresnel.T, dtype=np.float32).ravel()),  # (n, nodes)
+        table=fresnel,
+    )
+
+
+def _fresnel(mi, dr, mirrors, mu, n: int, active) -> list:
+    """R_k(mu) per sub-band, linear between the table's nodes."""
+    x = dr.clip(mu, 0.0, 1.0) * (FRESNEL_NODES - 1)
+    i = dr.minimum(mi.UInt32(dr.floor(x)), FRESNEL_NODES - 2)
+    t = x - mi.Float(i)
+    out = []
+    for k in range(n):
+        lo = dr.gather(mi.Float, mirrors.fresnel, k * FRESNEL_NODES + i, active)
+        hi = dr.gather(mi.Float, mirrors.fresnel, k * FRESNEL_NODES + i + 1, active)
+        out.append(lo + (hi - lo) * t)
+    return out
+
+
+def _clouds_on_device(mi, dr, cloud):
+    """A :class:`humv_usd.render.light.CloudShadows` as device arrays: per wave its vector,
+    amplitude and phase with the displacement folded in (k . (p - d) + phi)."""
+    f = cloud.field
+    phase = f.phases - f.wavevectors @ np.asarray(cloud.displacement, float)
+    table = np.stack([f.wavevectors[:, 0], f.wavevectors[:, 1], f.amplitudes, phase], axis=1)
+    return SimpleNamespace(
+        waves=mi.Float(np.ascontiguousarray(table, dtype=np.float32).ravel()),
+        count=len(table),
+        threshold=dr.opaque(mi.Float, float(cloud.threshold)),
+    )
+
+
+def _between_clouds(mi, dr, clouds, p, active):
+    r"""Whether the points ``p`` see the sun between the clouds: the cloud field
+    (:func:`humv_usd.physics.clouds.moving_values`, :math:`f = \sum_j a_j \cos(k_j\cdot(x - d) +
+    \varphi_j)`) at the point's ground position (x, y) is at most the threshold, as the thermal
+    tool gates the sun on a face at its centroid (the shadow is cast vertically: a cloud base
+    at 1 km shifts it by 1 km tan(zenith), which the thermal tool's field leaves out too).
+    A loop over the waves on the device (one small kernel, not one cosine per wave inlined in
+    every pass's kernel: 96 of them cost seconds of compilation per pass)."""
+    x = dr.select(active, p.x, 0.0)
+    y = dr.select(active, p.y, 0.0)
+    waves = clouds.waves
+
+    def body(j, f):
+        base = j * 4
+        kx = dr.gather(mi.Float, waves, base, active)
+        ky = dr.gather(mi.Float, waves, base + 1, active)
+        a = dr.gather(mi.Float, waves, base + 2, active)
+        ph = dr.gather(mi.Float, waves, base + 3, active)
+        return j + 1, f + a * dr.cos(kx * x + ky * y + ph)
+
+    count = dr.opaque(mi.UInt32, clouds.count)
+    _, f = dr.while_loop(
+        (dr.zeros(mi.UInt32, dr.width(x)), dr.zeros(mi.Float, dr.width(x))),
+        lambda j, f: j < count,
+        body,
+    )
+    return f <= clouds.threshold
 
 
 def _intersect_leaving(mi, dr, scene, ray, origin, triangle):

@@ -401,6 +401,10 @@ class FrameRadiometry:
     sun_irradiance: np.ndarray | None  # (n,) [W m-2] normal to the beam
     path: SubBandPath | None
     ran: dict
+    #: the frame's lamps per sub-band (:class:`humv_usd.render.lights.LampTable`), None: none
+    lamps: object | None = None
+    #: the frame's cloud shadows on the sun (:class:`humv_usd.render.light.CloudShadows`), None: none
+    clouds: object | None = None
 
 
 # --- sun without a solar spectral table --------------------------------------------------------

@@ -388,6 +388,28 @@ GROUND = Section(
             lo=150.0,
             hi=1000.0,
         ),
+        "snow_depth_m": Key(
+            "float",
+            "Snow lying on the ground, its terrain zones and the flat roofs of box objects [m] "
+            "when the thermal tool's surface "
+            "history starts (thermal.surface_spin_up_s before frame 0, a day by default): the "
+            "ground renders as snow (library material snow) and its slab carries a snow layer "
+            "that melts where its surface balance has a surplus (sun, warm air, warm objects "
+            "nearby, a heated room under a roof; humv_usd.physics.snow); faces melted bare by "
+            "frame 0 show their own material. 0: no snow.",
+            default=0.0,
+            lo=0.0,
+            hi=2.0,
+        ),
+        "snow_density_kg_m3": Key(
+            "float",
+            "Density of the snow cover [kg/m3]: fresh 50-150, settled 200-350, old wind-packed "
+            "or wet 350-550; sets its conductivity (Sturm et al. 1997), heat capacity and "
+            "water equivalent (how long it takes to melt).",
+            default=250.0,
+            lo=50.0,
+            hi=550.0,
+        ),
         "soil_moisture": Key(
             "float",
             "Relative available soil water under grass, other vegetation and bare soil, "
@@ -444,6 +466,14 @@ TERRAIN_ZONE = Section(
             hi=1.0e5,
         ),
         "width_m": Key("float", "Width of the strip [m].", default=6.0, lo=0.1, hi=1.0e4),
+        "snow_depth_m": Key(
+            "float",
+            "Snow on this zone [m] (default: [scene.ground] snow_depth_m; 0: no snow, e.g. a "
+            "plowed or heated road; more: a drift).",
+            default=None,
+            lo=0.0,
+            hi=2.0,
+        ),
         "mask_file": Key(
             "path",
             "Instead of a strip: a grey image (PNG), white where the zone is, north up, "
@@ -1195,8 +1225,10 @@ THERMAL = Section(
         ),
         "radiation_rays": Key(
             "int",
-            "Rays per facet (mean, for adaptive) of the absorbed-radiation method.",
-            default=64,
+            "Rays per facet (mean, for adaptive) of the absorbed-radiation method. Their "
+            "noise on a person's face temperatures is measured and stated (demo: ~40-60 mK "
+            "at 128, ~55-90 mK at 64, ~30-60 mK at 256).",
+            default=128,
             lo=1,
             hi=4096,
             integer=True,
@@ -1217,6 +1249,16 @@ THERMAL = Section(
             default=86400.0,
             lo=0.0,
             hi=7 * 86400.0,
+        ),
+        "surface_cell_m": Key(
+            "float",
+            "Smallest cell of the scene surfaces' shadow-edge refinement [m]. 0: the cameras' "
+            "pixel footprint where they see a surface (at least 5 mm), 0.12 m elsewhere. A larger "
+            "value: fewer faces, a faster thermal layer, shadow edges blurred over that size (the "
+            "editor's fast preview uses 0.5).",
+            default=0.0,
+            lo=0.0,
+            hi=10.0,
         ),
         "garment_transient": Key(
             "choice",

@@ -12,6 +12,12 @@ Meshes:
   to the zone's material, with customData ``humv:groundZone`` = True (the thermal tool solves
   them as ground: material over soil, bottom held).
 
+Under snow (``[scene.ground] snow_depth_m`` > 0) every piece is bound to snow over its material
+(:func:`humv_usd.catalog.snow.cover_name`: ``<material>__snow<mm>``, deep snow ``snow``) and
+records the snow and its own material (:mod:`humv_usd.usd.snow`); the thermal tool
+melts the snow and binds the faces bare by frame 0 to that material. The flat roofs of box
+objects carry the same snow (:func:`cover_roof`).
+
 Every piece is a plain triangle/quad mesh (refinable by the thermal tool at shadow edges), labelled with
 class ``ground`` (the zones with their own instance ids).
 """
@@ -19,12 +25,14 @@ class ``ground`` (the zones with their own instance ids).
 from __future__ import annotations
 
 import numpy as np
-from pxr import Usd
+from pxr import Usd, UsdGeom, UsdShade
 
+from humv_usd.catalog.snow import cover_name
 from humv_usd.geometry.terrain import Terrain, polyline_distance, terrain_from_section
 from humv_usd.scene.geometry import drop_degenerate, ground_grid, horizon_rings, snap_to_edges, terrain_grid
-from humv_usd.usd.mesh import define_mesh, label
+from humv_usd.usd.mesh import bind_material, define_mesh, label
 from humv_usd.usd.paths import GROUND, material_path
+from humv_usd.usd.snow import ROOF_SUBSET, SnowCover, snow_depths, write_snow_cover
 
 #: customData key that marks a ground zone mesh
 GROUND_ZONE_KEY = "humv:groundZone"
@@ -107,12 +115,54 @@ def author_ground(stage: Usd.Stage, scene: dict, ids: dict[str, int]) -> None:
     with the ground's instance id, zone i with ``ground_zone:<i>``'s
     (:func:`humv_usd.scenario.ids.instance_ids`)."""
     zones = {zone_path(i): i for i in range(len((scene.get("terrain") or {}).get("zone") or ()))}
+    ground = scene["ground"]
+    on_ground, on_zone = snow_depths(scene)
     for path, material, points, counts, indices in ground_pieces(scene):
-        mesh = define_mesh(stage, path, points, counts, indices, material=material_path(material))
+        snow = on_ground if path == GROUND else on_zone[zones[path]]
+        shown = cover_name(material, snow) if snow > 0.0 else material
+        mesh = define_mesh(stage, path, points, counts, indices, material=material_path(shown))
+        if snow > 0.0:  # the thermal tool melts it and binds the faces bare by frame 0 to material
+            cover = SnowCover(
+                snow, float(ground.get("snow_density_kg_m3") or 250.0), str(material_path(material))
+            )
+            write_snow_cover(mesh.GetPrim(), cover)
         iid = ids["ground"] if path == GROUND else ids.get(f"ground_zone:{zones[path]}", ids["ground"])
         label(mesh.GetPrim(), iid, "ground")
         if path != GROUND:
             mesh.GetPrim().SetCustomDataByKey(GROUND_ZONE_KEY, True)
+
+
+def cover_roof(stage: Usd.Stage, mesh: UsdGeom.Mesh, scene: dict, material: str) -> None:
+    """Snow on the flat roof of a box object (``[scene.ground] snow_depth_m`` > 0): its upward
+    faces (normal z > 0.9) in a GeomSubset ``Snow`` bound to snow over ``material``
+    (:func:`humv_usd.catalog.snow.cover_name`), the rest keeping ``material``; the mesh records the cover like the ground
+    (:mod:`humv_usd.usd.snow`), so the thermal tool melts it (from below too, on a heated
+    building) and drops the faces melted bare by frame 0 from the subset."""
+    ground = scene["ground"]
+    depth = float(ground.get("snow_depth_m") or 0.0)
+    if depth <= 0.0:
+        return
+    pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=float)
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+    idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get())
+    first = np.r_[0, np.cumsum(counts)[:-1]]
+    up = []
+    for f, (s, c) in enumerate(zip(first, counts)):
+        v = pts[idx[s : s + c]]
+        n = np.cross(v[1] - v[0], v[2] - v[0])
+        if n[2] > 0.9 * np.linalg.norm(n):
+            up.append(f)
+    if not up:
+        return
+    prim = mesh.GetPrim()
+    UsdShade.MaterialBindingAPI.Apply(prim).SetMaterialBindSubsetsFamilyType(UsdGeom.Tokens.nonOverlapping)
+    subset = UsdGeom.Subset.Define(stage, prim.GetPath().AppendChild(ROOF_SUBSET))
+    subset.CreateElementTypeAttr(UsdGeom.Tokens.face)
+    subset.CreateFamilyNameAttr(UsdShade.Tokens.materialBind)
+    subset.CreateIndicesAttr(up)
+    bind_material(subset.GetPrim(), material_path(cover_name(material, depth)))
+    density = float(ground.get("snow_density_kg_m3") or 250.0)
+    write_snow_cover(prim, SnowCover(depth, density, str(material_path(material))))
 
 
 def footprint_base(terrain: Terrain, center_xy, size_xy, heading_deg: float = 0.0) -> float:

@@ -46,7 +46,7 @@ from humv_usd.scene.assets import (
     source_correction,
 )
 from humv_usd.scene.geometry import box
-from humv_usd.scene.ground import author_ground, footprint_base, scene_terrain
+from humv_usd.scene.ground import author_ground, cover_roof, footprint_base, scene_terrain
 from humv_usd.scene.objects import author_clutter
 from humv_usd.scene.puddles import author_puddles, puddle_discs
 from humv_usd.scene.vegetation import PLANT_KINDS, author_plant
@@ -63,8 +63,9 @@ NAME = "scene"
 READS = (*FRAMES, "scene", "@ids", "@clutterAir", "@puddles")
 UPSTREAM = ()
 #: 4: model kinds; 5: warm clutter and generated places; 6: terrain, ground to the horizon; 7: plants
-#: 8: puddles after rain
-VERSION = "8"
+#: 8: puddles after rain; 9: snow cover on the ground ([scene.ground] snow_depth_m); 10: and roofs;
+#: 11: shallow snow bound as <material>__snow<mm>
+VERSION = "11"
 
 
 def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
@@ -90,6 +91,7 @@ def build(scenario: Scenario, upstream=None) -> Sdf.Layer:
         )
         label(mesh.GetPrim(), ids[f"object:{o['id']}"], o["class"])
         set_kind(mesh.GetPrim(), "component")
+        cover_roof(stage, mesh, scene, o["material"])  # snow on its roof (issue 30.4)
     for a in scene.get("asset") or ():
         prim = author_asset(
             stage, a, read_asset(a["file"], a["units"], a["up_axis"]), ids[f"asset:{a['id']}"]

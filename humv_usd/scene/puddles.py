@@ -8,8 +8,8 @@ uniformly over the ground rectangle until they cover the asked share of it, each
 asset or warm clutter (ground only). Material ``water`` (a 2 cm puddle over the soil:
 :data:`humv_usd.catalog.materials.SURFACE_WATER` lets it evaporate freely), labelled ``ground``
 with its own instance id (``ground_puddles``), customData ``humv:groundZone`` (the thermal tool solves it as
-ground: water over the substrate) and ``humv:refine`` False. The render draws them as every
-surface, opaque and Lambertian (not yet the mirror a calm puddle is).
+ground: water over the substrate) and ``humv:refine`` False. The render's fast estimator draws
+them as calm mirrors (Fresnel reflection, emissivity 1 - R: :mod:`humv_usd.render.estimator`).
 
 Puddle sizes: urban puddles after rain are decimetres to a few metres across (a log-uniform
 0.3-1.5 m radius is an assumption of this model, not a measured distribution).

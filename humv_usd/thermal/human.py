@@ -217,8 +217,9 @@ def human_temperatures(
     stage: Usd.Stage, human: dict, human_path: str, scenario, world: Surroundings, model: str, settings: dict
 ) -> tuple[dict[str, np.ndarray], dict]:
     """({mesh path: (frames, faces) temperature [K]}, diagnostics) for the body and garments of
-    one person; diagnostics: the q_rad method's relative RMS error estimate (per-ray sample
-    variance, bare body, first sample), the mean absorbed short wave on the skin at the first
+    one person; diagnostics: the q_rad method's relative RMS error (measured by replicates,
+    bare body, first sample), the faces' temperature noise from it (per person and per mesh,
+    :func:`_face_temperature_noise`), the mean absorbed short wave on the skin at the first
     sample [W m^-2] and the garment balance's largest residual [W m^-2].
 
     ``stage``: the composed upstream stage (avatar and clothing layers); ``world``: sky, scene
@@ -253,7 +254,7 @@ def human_temperatures(
     pts0: list = []
     centres = np.zeros((len(samples), 3))
     normals = np.zeros((len(samples), len(body.counts), 3))  # body face normals per sample
-    q_noise = None  # the q_rad rays' noise [W m^-2] (absolute, from the first sample)
+    q_var = None  # the q_rad rays' variance per triangle [W^2 m^-4] (body, then garments; sample 0)
     for k, frame in enumerate(samples):
         t = Usd.TimeCode(frame)
         sky, scene = world.skies[k], world.scenes[k]
@@ -261,6 +262,7 @@ def human_temperatures(
         pts = [skinned_points(stage, p.path, t, space="world") for p in parts]
         if k == 0:
             pts0 = pts
+            seen = _visible_faces(body, garments, pts0, stage)
         centre = centres[k] = pts[0].mean(axis=0)
         env = SR.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
@@ -271,6 +273,7 @@ def human_temperatures(
             bare,
             env,
             absorb_body,
+            replicate_facets=_replicate_facets(parts[:1], seen[:1], g["seed"]) if k == 0 else 0,
             scene=scene,
             seed=g["seed"] + frame,
             mesh_radiance=self_bare,
@@ -281,12 +284,10 @@ def human_temperatures(
         )
         areas = bare.area_faces
         if k == 0 and method != "brute":
-            # Monte Carlo error of the ray methods from the per-ray sample variance (an upper
-            # estimate: stratification makes the true error smaller)
+            # Monte Carlo error of the ray methods, measured by independent replicates on
+            # random facets (qrad.absorbed_radiation's stats)
             diagnostics["qradRmsRelErrorEstimate"] = stats["rms_rel_error_estimate"]
-            q_noise = stats["rms_rel_error_estimate"] * float(
-                np.average(np.abs(q.sum(axis=0)), weights=areas)
-            )
+            q_var = _part_variance(stats, parts[:1])
         if k == 0:
             diagnostics["absorbedShortwaveMean_W_m2"] = float(np.average(q[0], weights=areas))
         mrt[k] = Q.mean_radiant_temperature(q, areas, body.segment[body.tri_face], n_segments=N_SEGMENTS)
@@ -298,6 +299,7 @@ def human_temperatures(
                 + [np.repeat(p.absorptivity()[:, None], len(p.triangles), axis=1) for p in garments],
                 axis=1,
             )
+            stats_c: dict = {}
             qc = Q.absorbed_radiation(
                 clothed,
                 env,
@@ -305,10 +307,19 @@ def human_temperatures(
                 scene=scene,
                 seed=g["seed"] + frame,
                 mesh_radiance=_self_radiance(parts, skin_guess, air_k),
+                stats=stats_c if k == 0 and method != "brute" else None,
+                replicate_facets=_replicate_facets(parts, seen, g["seed"]) if k == 0 else 0,
+                # the rays go where the flux is used: bare skin and the outer garment layers
+                # (skin under a garment and inner layers take the stacks' balance instead)
+                importance=np.concatenate([seen_i[p.tri_face] for seen_i, p in zip(seen, parts)]).astype(
+                    float
+                ),
                 cache=cache_clothed,
                 cache_tolerance_m=VISIBILITY_REUSE_M,
                 **qrad,
             ).sum(axis=0)
+            if k == 0 and method != "brute":
+                q_var = _part_variance(stats_c, parts)  # the skin and garments among the garments
             start = len(body.triangles)
             # bare skin among the garments: what it absorbs with the garments' shadows
             q_skin[k] = _face_mean(body, qc[:start], clothed.area_faces[:start])
@@ -460,13 +471,21 @@ def human_temperatures(
         )
         t_lin, q_lin = t_face, q_face
     diagnostics["couplingMaxResidual_W_m2"] = float(residual)
-    if q_noise is not None:
-        # the faces' temperature noise from the q_rad rays' noise (issue 25: the render adds it
-        # to its stated error): sigma_T = sigma_q / (dq/dT + the skin's conductance to the core),
-        # the facets' linear response at the first frame (RMS over the skin facets)
-        conductance = np.asarray(result.segment_skin_conductance_w_m2_k)[0][body.segment]
-        sigma_t = q_noise / np.maximum(g_lin[0] + conductance, 1e-6)
-        diagnostics["faceTemperatureNoiseRms_K"] = float(np.sqrt(np.average(sigma_t**2, weights=area)))
+    if q_var is not None:
+        noise = _face_temperature_noise(
+            q_var,
+            [body, *garments],
+            pts0,
+            np.asarray(result.segment_skin_conductance_w_m2_k)[0][body.segment] + g_lin[0],
+            seen,
+            wardrobe,
+            garment_response=None
+            if not garments
+            else lambda: _garment_response(
+                wardrobe, t_face[:1], air[:1], q_garment_all[:1], wind[:1], rh[:1], transient
+            ),
+        )
+        diagnostics.update(noise)
     # the physiological bound (issue 25): the hottest skin facet against its segment's core
     core = np.asarray(result.segment_core_temperature_k)[:, body.segment]
     diagnostics["skinMax_K"] = float(t_face.max())
@@ -477,6 +496,114 @@ def human_temperatures(
         diagnostics["garmentEvaporationMax_W_m2"] = float(wardrobe.evaporation_max)
     out = {body.path: t_face, **garment_temps}
     return out, diagnostics
+
+
+#: triangles per part (body, each garment) whose q_rad is estimated a second time with
+#: independent rays, to measure the rays' real error (qrad's replicates)
+REPLICATES_PER_PART = 256
+
+
+def _visible_faces(body: _Part, garments: list[_Part], points: list, stage: Usd.Stage) -> list:
+    """Per part (body, then garments) the faces a camera can see, at the first radiation
+    sample: bare skin (no garment face over it, :func:`_coverage`) and the outermost layer of
+    each garment stack (:func:`_layer_links`)."""
+    out = [_coverage(body, garments, points, stage).garment < 0]
+    if garments:
+        _, above = _layer_links([_Garment(p, stage, 1) for p in garments], points)
+        out += [a[:, 0] < 0 for a in above]
+    return out
+
+
+def _replicate_facets(parts, visible, seed) -> np.ndarray:
+    """Triangle indices (into the parts' concatenated triangles) drawn per part for qrad's
+    replicate error estimate: up to REPLICATES_PER_PART of each part's visible faces
+    (``visible``: per part, per face), so that small garments get their own measured error
+    and hidden faces (skin under a shirt, a shirt under a jacket), whose rays stratify
+    differently, do not set it."""
+    rng = np.random.default_rng([int(seed), 25])
+    out, start = [], 0
+    for part, seen in zip(parts, visible):
+        pool = np.flatnonzero(seen[part.tri_face])
+        if len(pool) == 0:
+            pool = np.arange(len(part.triangles))
+        out.append(start + rng.choice(pool, size=min(len(pool), REPLICATES_PER_PART), replace=False))
+        start += len(part.triangles)
+    return np.sort(np.concatenate(out))
+
+
+def _part_variance(stats: dict, parts) -> np.ndarray:
+    """Per triangle q_rad variance [W^2 m^-4]: the per-ray sample variance scaled, part by part,
+    by the ratio of the variance measured by the replicates to the per-ray one on that part's
+    replicated triangles (stratification gains differ between the open body and a garment
+    folded over it); the whole mesh's ratio where a part has no replicate."""
+    if "replicate_facets" not in stats:
+        return np.asarray(stats["variance"], dtype=float)
+    per_ray = stats["per_ray_variance"]
+    facets, measured = stats["replicate_facets"], stats["replicate_variance"]
+    out = np.array(stats["variance"], dtype=float)
+    start = 0
+    for part in parts:
+        stop = start + len(part.triangles)
+        inside = (facets >= start) & (facets < stop)
+        denominator = float(per_ray[facets[inside]].sum())
+        if np.any(inside) and denominator > 0:
+            out[start:stop] = per_ray[start:stop] * float(measured[inside].sum()) / denominator
+        start = stop
+    return out
+
+
+#: absorbed-flux step [W m^-2] of the garments' finite-difference temperature response
+RESPONSE_STEP_W_M2 = 1.0
+
+
+def _garment_response(wardrobe, skin, air, q_abs, wind, rh, transient) -> np.ndarray:
+    """(N,) d T_outer / d q_abs [K m^2 W^-1] of every garment face at the first frame (steady
+    there), by a finite difference of the stacks' balance; 0 for a face under another layer
+    (only the outermost layer of a stack absorbs its own flux)."""
+    evaporation_max = wardrobe.evaporation_max  # series() records it: keep the real run's
+    t0 = wardrobe.series(skin, air, q_abs, wind, rh, transient)[0][0]
+    t1 = wardrobe.series(skin, air, q_abs + RESPONSE_STEP_W_M2, wind, rh, transient)[0][0]
+    wardrobe.evaporation_max = evaporation_max
+    return (t1 - t0) / RESPONSE_STEP_W_M2
+
+
+def _face_temperature_noise(q_var, parts, points, skin_g, visible, wardrobe, garment_response=None) -> dict:
+    """The faces' temperature noise from the q_rad rays' noise (issue 25: the render adds it to
+    its stated error), at the first frame: per authored face the variance of its triangles'
+    area-weighted mean flux, then sigma_T = sigma_q / (dq/dT + the skin's conductance to the
+    core) on bare skin (``skin_g``: that sum per body face) and sigma_T = sigma_q |dT/dq| on a
+    garment's outer faces (``garment_response``: a callable giving the stacks' response).
+    Only the ``visible`` faces (per part) count: skin under a garment and a garment under
+    another are not seen.
+
+    Returns {faceTemperatureNoiseRms_K: area-weighted RMS over the visible faces of the
+    person, faceTemperatureNoiseRmsByMesh_K: {mesh path: RMS over its visible faces}}."""
+    by_mesh: dict[str, float] = {}
+    sq, weights = [], []
+    start = 0
+    response = garment_response() if garment_response is not None else None
+    for i, part in enumerate(parts):
+        tri = trimesh.Trimesh(points[i], part.triangles, process=False).area_faces
+        n_t = len(part.triangles)
+        var_t = np.asarray(q_var[start : start + n_t], dtype=float)
+        start += n_t
+        n_f = len(part.counts)
+        a_face = np.bincount(part.tri_face, tri, n_f)
+        var_face = np.bincount(part.tri_face, tri**2 * var_t, n_f) / np.maximum(a_face, 1e-300) ** 2
+        if i == 0:
+            sigma = np.sqrt(var_face) / np.maximum(skin_g, 1e-6)
+        else:
+            sigma = np.sqrt(var_face) * np.abs(response[wardrobe.offset[i - 1] : wardrobe.offset[i]])
+        seen = visible[i]
+        if not np.any(seen) or a_face[seen].sum() <= 0:
+            continue
+        by_mesh[part.path] = float(np.sqrt(np.average(sigma[seen] ** 2, weights=a_face[seen])))
+        sq.append(sigma[seen] ** 2)
+        weights.append(a_face[seen])
+    if not sq:
+        return {}
+    total = float(np.sqrt(np.average(np.concatenate(sq), weights=np.concatenate(weights))))
+    return {"faceTemperatureNoiseRms_K": total, "faceTemperatureNoiseRmsByMesh_K": by_mesh}
 
 
 #: Largest |skin-side garment + bare-skin flux - physiology sensible loss| per segment [W m^-2]

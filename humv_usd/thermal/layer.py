@@ -39,6 +39,7 @@ from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import scene_radiance as SR
 from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
+from humv_usd.thermal.snow import author_snow_cover
 from humv_usd.thermal.surfaces import (
     air_at_frame0,
     camera_footprints,
@@ -88,8 +89,13 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 9: faces wet after rain bound to wet variants of their materials (thermal.wet)
 #: 10: JOS-3 runs with the person's own body fat (Deurenberg 1991), not 15 %
 #: 11: moving cloud shadows on the scene surfaces ([atmosphere] cloud_size_m); 12: and on the people
-VERSION = "12"
-#: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk)
+#: 13: snow on the ground melts (physics.snow); faces bare at frame 0 bound to the ground's material
+#: 14: the people's face-temperature noise measured by replicates, per mesh (report only); and
+#: snow on the flat roofs of box objects (98492fa); 15: shallow snow bound by depth level
+#: (<material>__snow<mm>, thermal.snow); 16: and on roofs
+VERSION = "16"
+#: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
+#: the layer's text is unchanged, so no VERSION bump)
 SPILLS = True
 
 
@@ -138,7 +144,10 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
         forcing = with_cloud_shadows(forcing, scenario)
         report["sky"] = _sky_report(forcing, tables, len(spin_t), upstream)
         shade = people_occluders(upstream, scenario, all_t)
-        meshes, refined = refine_meshes(meshes, forcing, shade, cameras=camera_footprints(upstream, samples))
+        # [thermal] surface_cell_m > 0: that smallest cell, no camera footprint (the editor's preview)
+        cell = float(th.get("surface_cell_m") or 0.0)
+        fine = {"min_cell_m": cell} if cell > 0 else {"cameras": camera_footprints(upstream, samples)}
+        meshes, refined = refine_meshes(meshes, forcing, shade, **fine)
         surf, sdiag = surface_temperatures(scenario, meshes, sample_t, spin, forcing, shade)
         report["surfaces"] = {
             "model": "slab" if slabs else "held",
@@ -224,11 +233,16 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
                 temps_h = {p: spill_temperatures(spill, v) for p, v in temps_h.items()}
             solved.update(temps_h)
             del temps_h
-            report[h["id"]] = {k: round(v, 9) for k, v in diag.items()}
+            report[h["id"]] = _rounded(diag)
     wet = sdiag.get("wetFraction") if slabs else None
     if wet:  # issue 30.4: faces wet after rain render with a wet variant of their material
         report["wetSurfaces"] = author_wet_surfaces(
             stage, upstream, meshes, {p: w[0] for p, w in wet.items()}
+        )
+    snow_water = sdiag.get("snowWater") if slabs else None
+    if snow_water:  # issue 30.4: faces melted bare by frame 0 show the ground's own material
+        report["snowCover"] = author_snow_cover(
+            stage, upstream, meshes, {p: w[0] for p, w in snow_water.items()}
         )
     # error estimates (deterministic for fixed seeds) travel with the layer; run times go
     # to compose's report, so an unchanged scenario still rewrites nothing
@@ -278,6 +292,11 @@ def _sky_report(forcing, tables, i0, upstream) -> dict:
             float(forcing.sky_longwave[i0] / (STEFAN_BOLTZMANN * forcing.air_temperature_k[i0] ** 4)), 6
         ),
     }
+
+
+def _rounded(values: dict) -> dict:
+    """A report dict with its numbers rounded to 9 digits (nested dicts too)."""
+    return {k: _rounded(v) if isinstance(v, dict) else round(v, 9) for k, v in values.items()}
 
 
 def _fixed_people(scenario: Scenario) -> dict[Sdf.Path, float]:

@@ -72,7 +72,7 @@ from humv_usd.geometry.camera import Camera
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.raycast import first_faces, ray_caster, unblocked, unblocked_local
 from humv_usd.human.usdskel import skinned_points
-from humv_usd.physics import clouds, evaporation, slab, vegetation
+from humv_usd.physics import clouds, evaporation, slab, snow, vegetation
 from humv_usd.physics.convection import watmuff
 from humv_usd.physics.sky import (
     cloudy_sky_emissivity,
@@ -88,10 +88,11 @@ from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views, ortho
 from humv_usd.usd.environment import ENVIRONMENT_PATH, read_sun, read_weather, time_codes
 from humv_usd.usd.heat import read_held_temperature
 from humv_usd.usd.layers import SCOPES
-from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, substrate
+from humv_usd.usd.materials import THERMAL_ATTRIBUTES, StageMaterial, face_materials, read_material, substrate
 from humv_usd.usd.mesh import override_topology, scene_mesh_prims
 from humv_usd.usd.paths import GROUND, human_path, object_path
 from humv_usd.usd.sensor import read_camera_pose, stage_sensors
+from humv_usd.usd.snow import SnowCover, read_snow_cover
 
 log = logging.getLogger(__name__)
 
@@ -124,6 +125,10 @@ class SceneMesh:
     #: None when every face has ``material``
     face_materials: tuple[StageMaterial, ...] = ()
     material_of_face: np.ndarray | None = None
+    #: snow on a slab ground (issue 30.4, :mod:`humv_usd.usd.snow`) and the bare ground's
+    #: material under it; ``material`` is then the snow's
+    snow: SnowCover | None = None
+    bare: StageMaterial | None = None
 
     @property
     def solar_absorptivity(self) -> float:
@@ -228,6 +233,12 @@ def scene_meshes(upstream: Usd.Stage, scenario) -> list[SceneMesh]:
         )
         if len(materials) > 1:  # set by name: keep these two fields last in SceneMesh
             out[-1].face_materials, out[-1].material_of_face = tuple(materials), of_face
+        cover = read_snow_cover(prim) if h is None else None
+        if cover is not None:  # snow over the ground's (a roof's) own material (physics.snow)
+            bare = read_material(upstream.GetPrimAtPath(cover.bare_material), path)
+            for field in THERMAL_ATTRIBUTES:
+                bare.require(field, path)
+            out[-1].snow, out[-1].bare = cover, bare
     return out
 
 
@@ -1165,28 +1176,39 @@ def _solve_faces(mesh: SceneMesh, normals, lit, f, *args):
         return _solve_mesh(mesh, normals, lit, f, *args)
     m = len(f.times_s)
     out, lw, res = np.empty((m, mesh.n_faces)), np.empty((m, mesh.n_faces)), 0.0
-    wet = None
+    wet = swe = None
     seen = args[-1]
     for k, material in enumerate(mesh.face_materials):
         sel = mesh.material_of_face == k
         if not sel.any():
             continue
+        # the faces of a roof's snow subset are snow over the mesh's material (scene.ground.cover_roof)
+        snowy = mesh.snow is not None and material.path != mesh.snow.bare_material
         one = dataclasses.replace(
-            mesh, material=material, face_materials=(), material_of_face=None, n_faces=int(sel.sum())
+            mesh,
+            material=material,
+            face_materials=(),
+            material_of_face=None,
+            n_faces=int(sel.sum()),
+            snow=mesh.snow if snowy else None,
         )
-        t, r, e, w = _solve_mesh(
+        t, r, e, w, water = _solve_mesh(
             one, normals[sel], lit[:, sel], f, *args[:-1], None if seen is None else seen.take(sel)
         )
         out[:, sel], lw[:, sel], res = t, e, max(res, r)
+        if water is not None:  # NaN: a face not under snow
+            swe = np.full((m, mesh.n_faces), np.nan) if swe is None else swe
+            swe[:, sel] = water
         if w is not None:
             wet = np.zeros((m, mesh.n_faces)) if wet is None else wet
             wet[:, sel] = w
-    return out, res, lw, wet
+    return out, res, lw, wet, swe
 
 
 def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep_k, seen=None):
     """(M, F) surface temperatures of one mesh's slab faces, the max residual, the (M, F)
-    incident long wave and the (M, F) wet fraction (None: no water on it)."""
+    incident long wave, the (M, F) wet fraction (None: no water on it) and the (M, F) snow
+    water equivalent [kg m^-2] (None: no snow on it)."""
     a_s, lw, air, h, e_sw = _face_forcing(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, seen)
     leaf = surface_water(mesh.material.name).leaf_dimension_m
     if leaf is not None:  # foliage: both sides of its leaves exchange heat (physics.vegetation)
@@ -1211,6 +1233,9 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
     cols = [uniq[:, k * m : (k + 1) * m].T for k in range(len(columns))]  # (M, U) each
     if latent:
         latent["surface_resistance_s_m"] = cols.pop()
+    if mesh.snow is not None:  # snow over the bare ground, melting (issue 30.4)
+        t_surf, res, swe = _solve_snow(mesh, f.times_s, cols[0], *cols[1:4], deep_k)
+        return t_surf[:, inverse], res, lw, None, swe[:, inverse]
     dz, k, rc = _construction(mesh)
     wet = latent.get("rain_kg_m2_s") is not None and np.any(latent["rain_kg_m2_s"] > 0.0)
     solved = slab.simulate_many(
@@ -1227,7 +1252,35 @@ def _solve_mesh(mesh, normals, lit, f, ground_k, ground_eps, ground_albedo, deep
         **latent,
     )
     t_surf, res = solved[:2]
-    return t_surf[:, inverse], res, lw, (solved[2][:, inverse] if wet else None)
+    return t_surf[:, inverse], res, lw, (solved[2][:, inverse] if wet else None), None
+
+
+def _solve_snow(mesh: SceneMesh, times_s, absorbed, lw, air, h, deep_k):
+    """:func:`humv_usd.physics.snow.simulate_cover` of a snow-covered ground's (or roof's)
+    faces: the snow layer over the bare material's construction, its back as the mesh's (the
+    ground's bottom held, a heated building's room air, else adiabatic); ``absorbed`` the
+    snow's absorbed short wave (the bare surface's scales by the ratio of their
+    absorptivities). Rain and evaporation are not modelled on snow."""
+    bare = dataclasses.replace(mesh, material=mesh.bare, snow=None, bare=None)
+    dz, k, rc = _construction(bare)
+    ratio = mesh.bare.require("solar_absorptivity", mesh.path) / mesh.solar_absorptivity
+    return snow.simulate_cover(
+        times_s,
+        absorbed,
+        absorbed * ratio,
+        lw,
+        air,
+        h,
+        mesh.snow.depth_m,
+        mesh.snow.density_kg_m3,
+        dz,
+        k,
+        rc,
+        emissivity_snow=longwave_emissivity(mesh.material),
+        emissivity_bare=longwave_emissivity(mesh.bare),
+        bottom="fixed" if mesh.is_ground else ("adiabatic" if mesh.interior_k is None else "interior"),
+        deep_temperature_k=deep_k if mesh.interior_k is None else mesh.interior_k,
+    )
 
 
 def _latent_forcing(mesh: SceneMesh, f: SurfaceForcing, e_sw) -> dict:
@@ -1340,7 +1393,9 @@ def surface_temperatures(
         slabs [W m^-2], the ground's mean temperature (n,) [K], what each mesh got
         ('held' or 'slab'), and with ``exchange`` the passes of the exchange iteration, its
         last change [K], the rays cast and the area-weighted mean sky view factor per mesh;
-        after rain ``wetFraction``: {mesh path: (n, faces) wet share [0-1]}).
+        after rain ``wetFraction``: {mesh path: (n, faces) wet share [0-1]}; under snow
+        ``snowWater``: {mesh path: (n, faces) snow water equivalent [kg m^-2], 0 melted out,
+        NaN on faces that never had snow (a roof's walls)}).
 
     Notes
     -----
@@ -1418,6 +1473,7 @@ def surface_temperatures(
     resolve_w_m2 = EXCHANGE_TOLERANCE_K * MIN_SURFACE_CONDUCTANCE
     kinds, max_res, passes, change = {}, 0.0, 0, 0.0
     wet_now = None  # (n_t, n_all) wet fraction of the faces that hold rain water
+    swe_now = None  # (n_t, n_all) snow water equivalent [kg m^-2] of snow-covered faces
     order = sorted(range(len(meshes)), key=lambda i: not meshes[i].is_ground)
     coupled = views.coupled if views is not None else np.zeros(n_all, dtype=bool)
     ground_sum: dict[int, np.ndarray] = {}
@@ -1455,7 +1511,7 @@ def surface_temperatures(
                     n_faces=int(sel.sum()),
                     material_of_face=None if m.material_of_face is None else m.material_of_face[sel],
                 )
-                t_sel, res, lw, wet_sel = _solve_faces(
+                t_sel, res, lw, wet_sel, swe_sel = _solve_faces(
                     sub, normals[sel], lit_all[:, sl][:, sel], f, ground_k, ground_eps, ground_alb, deep, seen
                 )
                 cols = np.arange(starts[i], starts[i + 1])[sel]
@@ -1463,6 +1519,9 @@ def surface_temperatures(
                 if wet_sel is not None:
                     wet_now = np.zeros((n_t, n_all)) if wet_now is None else wet_now
                     wet_now[:, cols] = wet_sel
+                if swe_sel is not None:
+                    swe_now = np.full((n_t, n_all), np.nan) if swe_now is None else swe_now
+                    swe_now[:, cols] = swe_sel
                 if views is not None:
                     used_lw[:, cols] = scene_lw[:, cols]
                 max_res = max(max_res, res)
@@ -1485,6 +1544,12 @@ def surface_temperatures(
     if wet_now is not None:
         diag["wetFraction"] = {
             m.path: wet_now[:, starts[i] : starts[i + 1]][idx] for i, m in enumerate(meshes)
+        }
+    if swe_now is not None:
+        diag["snowWater"] = {
+            m.path: swe_now[:, starts[i] : starts[i + 1]][idx]
+            for i, m in enumerate(meshes)
+            if m.snow is not None
         }
     if views is not None:
         svf = views.sky_view_factor

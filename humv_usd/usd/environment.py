@@ -113,6 +113,30 @@ def write_weather(prim: Usd.Prim, weather: Weather, codes) -> None:
         _set(prim.GetAttribute(attr), getattr(weather, key), codes, weather.varies)
 
 
+def write_cloud_size(prim: Usd.Prim, cloud_size_m: float) -> None:
+    """Author the size [m] of the broken clouds whose shadows move over the scene
+    (``[atmosphere] cloud_size_m``; 0: a uniform cover)."""
+    prim.GetAttribute(S.ENVIRONMENT_CLOUD_SIZE).Set(float(cloud_size_m))
+
+
+def cloud_size_m(stage: Usd.Stage) -> float:
+    """The size [m] of the broken clouds (:func:`write_cloud_size`); 0 (a uniform cover) when
+    the stage has no environment or does not say. InputError outside the key's range."""
+    prim = stage.GetPrimAtPath(ENVIRONMENT_PATH)
+    attr = prim.GetAttribute(S.ENVIRONMENT_CLOUD_SIZE) if prim else None
+    value = attr.Get() if attr else None
+    if value is None:
+        return 0.0
+    key = ATMOSPHERE.keys["cloud_size_m"]
+    if not (math.isfinite(float(value)) and key.lo <= float(value) <= key.hi):
+        raise InputError(
+            bad_value(
+                f"{ENVIRONMENT_PATH}.{S.ENVIRONMENT_CLOUD_SIZE}", value, f"expected {key.lo:g}..{key.hi:g}"
+            )
+        )
+    return float(value)
+
+
 def write_sun(prim: Usd.Prim, sun: SunState, codes) -> None:
     """Author the sun at time codes ``codes`` (defaults for a single sample)."""
     sampled = len(codes) > 1

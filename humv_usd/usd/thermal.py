@@ -155,6 +155,26 @@ def temperature_type_problem(attr: Usd.Attribute) -> str | None:
 FACE_NOISE_KEY = "faceTemperatureNoiseRms_K"
 
 
+#: Key of the same noise per mesh ({mesh path: RMS over its visible faces [K]}), per person.
+FACE_NOISE_BY_MESH_KEY = "faceTemperatureNoiseRmsByMesh_K"
+
+
+def face_temperature_noise_by_mesh(stage: Usd.Stage) -> dict[str, float]:
+    """{mesh path: RMS face-temperature noise [K] over its visible faces} (the body's bare
+    skin, each garment's outermost faces) from the thermal layer's report; empty when none says
+    it (a layer written before the per-mesh estimate: use :func:`face_temperature_noise`)."""
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        report = (layer.customLayerData or {}).get("humv:thermal")
+        if not isinstance(report, dict):
+            continue
+        out = {}
+        for value in report.values():
+            if isinstance(value, dict) and isinstance(value.get(FACE_NOISE_BY_MESH_KEY), dict):
+                out.update({str(k): float(v) for k, v in value[FACE_NOISE_BY_MESH_KEY].items()})
+        return out
+    return {}
+
+
 def face_temperature_noise(stage: Usd.Stage) -> dict[str, float]:
     """{person id: RMS face-temperature noise [K]} from the thermal layer's report (the
     ``humv:thermal`` customLayerData of the layer that has one); empty when none says it."""
