@@ -48,12 +48,19 @@ SCENE_FRAME_BYTES = 2e3
 #: 12 24``, each layer build's own peak, 2026-11-27 s5, under load): see /work/notes/s5/crowds.md
 COMPOSE_BUILD_FRAME_BYTES = 1.0e6
 COMPOSE_HELD_PERSON_FRAME_BYTES = 50e3
-#: per-frame thermal model: the one person's solve, fixed part and per frame (measured: 2 walkers,
-#: jos3, thermal build peak 840 MB at 31 frames over 440 MB held)
+#: per-frame thermal model: the one person's solve, fixed part and per frame. Measured (2 walkers,
+#: jos3, ``--durations 3 6`` at 10 fps): peak 840 MB at 31 frames (the thermal build over 421 MB
+#: held), 882 MB at 61: 1.37 MB per frame for the solve and both people's held layers (the code
+#: before the spill: 850 and 934 MB, 2.78 MB per frame). Rounded up.
 COMPOSE_THERMAL_SOLVE_BYTES = 450e6
-COMPOSE_THERMAL_SOLVE_FRAME_BYTES = 3.0e6
-#: compose: seconds per frame and person (skinning, garments, thermal) and per frame
+COMPOSE_THERMAL_SOLVE_FRAME_BYTES = 1.5e6
+#: compose: seconds per frame and person (skinning, garments, thermal) and per frame (measured
+#: 2026-11-27 s5, bench above, "fixed": 14.6 / 24.9 / 46.4 CPU-s at 31 / 61 / 121 frames of 2
+#: walkers, 0.18 s per person and frame)
 COMPOSE_PERSON_FRAME_S = 0.2
+#: compose: seconds per frame and person of a per-frame thermal model (jos3: 79 / 178 CPU-s at
+#: 31 / 61 frames of 2 walkers, 1.65 s per person and frame; under load, so rounded up)
+COMPOSE_THERMAL_PERSON_FRAME_S = 1.7
 #: render: bytes written per pixel of an image (EXR with labels, previews, masks)
 IMAGE_DISK_PER_PIXEL = 40.0
 #: render: bytes of arrays per pixel of the image being rendered and labelled
@@ -147,7 +154,9 @@ def compose_budget(scenario) -> Budget:
         "compose",
         memory,
         text + thermal_text,
-        frames * (people * COMPOSE_PERSON_FRAME_S + 0.01) + 2.0,
+        frames
+        * (people * (COMPOSE_PERSON_FRAME_S + COMPOSE_THERMAL_PERSON_FRAME_S * per_frame_thermal) + 0.01)
+        + 2.0,
         f"{frames:,} frame(s) x {people} person(s)",
         "general.duration_s or general.fps",
     )
