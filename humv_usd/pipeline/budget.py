@@ -45,7 +45,12 @@ SCENE_FRAME_BYTES = 2e3
 #: person's physiology and garment balance over the whole clip (``THERMAL_SOLVE``: (frames, faces)
 #: float64 arrays of the coupled solve, :func:`humv_usd.thermal.human.human_temperatures`).
 #: Measured peak RSS (``python -m humv_usd.bench.crowd OUT --people 2 --fps 10 --durations 3 6
-#: 12 24``, each layer build's own peak, 2026-11-27 s5, under load): see /work/notes/s5/crowds.md
+#: 12 24``, each layer build's own peak, 2026-11-27 s5, under load; /work/notes/s5/crowds.md):
+#: 2 walkers, "fixed", 440 / 444 / 489 / 508 MB at 31 / 61 / 121 / 241 frames (the clothing build
+#: over the avatar phase: +29 / +34 / +43 / +65 MB, ~0.15 MB per frame); 10 walkers for 2 min at
+#: 1 fps (121 frames, ``--people 10 --fps 1 --duration 120``): 556 MB, the clothing phases
+#: growing from 502 (first person) to 556 MB (tenth): 50 kB per person and frame held.
+#: Rounded up: 1 MB per frame for the build, 50 kB per person and frame held.
 COMPOSE_BUILD_FRAME_BYTES = 1.0e6
 COMPOSE_HELD_PERSON_FRAME_BYTES = 50e3
 #: per-frame thermal model: the one person's solve, fixed part and per frame. Measured (2 walkers,
