@@ -50,6 +50,14 @@ def test_speed_range_depends_on_activity(walk_raw):
     raw["human"][0]["speed_m_s"] = 3.0
     with pytest.raises(InputError, match=r"human\[0\].speed_m_s = 3.0: allowed range for walk"):
         validate(raw)
+    raw["human"][0]["activity"] = "carry"  # carrying walks a path at its own speed
+    with pytest.raises(InputError, match=r"human\[0\].speed_m_s = 3.0: allowed range for carry"):
+        validate(raw)
+    raw["human"][0]["speed_m_s"] = 1.0
+    assert validate(raw)["human"][0]["speed_m_s"] == 1.0
+    raw["human"][0]["activity"] = "sit"
+    with pytest.raises(InputError, match=r"speed_m_s = 1.0: only for walk, run or carry"):
+        validate(raw)
 
 
 def test_bvh_motion_from_scenario(walk_raw, tmp_path):

@@ -3,11 +3,15 @@ themselves are the bench's, not the suite's)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from click.testing import CliRunner
 
 from humv_usd.bench.compose_cost import growth
 from humv_usd.cli.main import main
+
+TABLE1 = Path(__file__).resolve().parents[1] / "examples" / "table1.toml"
 
 
 def _row(people, frames, thermal_s, cpu_s):
@@ -62,5 +66,37 @@ def test_growth_leaves_out_a_term_the_grid_does_not_vary():
     [(["--people", "0"], "each in 1..50"), (["--frames", "2,x"], "expected integers")],
 )
 def test_bad_counts_are_refused(args, message):
+    r = CliRunner().invoke(main, ["bench", "compose", *args])
+    assert r.exit_code == 2 and message in r.output
+
+
+def test_stage_cpu_seconds_finds_the_garment_stacks(tmp_path):
+    import cProfile
+    import time
+
+    from humv_usd.bench.compose_cost import stage_cpu_seconds
+    from humv_usd.physics.garment import stack_steady_state
+
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
+    stack_steady_state(
+        306.0, 290.0, 300.0, 5.0, [[2e-3] * 200, [1e-3] * 200], [1e-3, 1e-3], [0.05, 0.05], [0.9, 0.9]
+    )
+    prof.disable()
+    prof.dump_stats(str(tmp_path / "p.prof"))
+    s = stage_cpu_seconds(tmp_path / "p.prof")
+    assert 0.0 < s["thermal.garment_stacks"] <= s["total"]
+    # every layer tool has its row (none of them ran here)
+    assert s["thermal"] == 0.0 and s["avatar_*"] == 0.0 and s["environment"] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--variant", "3"], "only with --scenario"),
+        (["--scenario", str(TABLE1), "--variant", "100000"], "has variants 0..167"),
+    ],
+)
+def test_bad_scenario_options_are_refused(args, message):
     r = CliRunner().invoke(main, ["bench", "compose", *args])
     assert r.exit_code == 2 and message in r.output

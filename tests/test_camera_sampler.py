@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import copy
 import math
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -116,3 +118,32 @@ def test_a_sweep_draws_one_reproducible_pose_per_variant(tmp_path):
         assert v.params["camera.person_height_px"] >= 10.0
         assert 150.0 <= v.params["camera.azimuth_deg"] <= 210.0
     assert copy.deepcopy(a.variants[0].params) == b.variants[0].params
+
+
+def test_the_sweep_files_documented_example_loads_and_keeps_the_view(tmp_path):
+    """The sweep-file example in ``humv_usd.sweep.spec``'s docstring loads, and its ``[set]``
+    pixel count keeps the camera's field of view (issue 28: ``sensor.0.resolution`` there cropped
+    38.4 deg to 12.4 deg): every variant's sensor keeps the base's sensor width (pixels x pitch)."""
+    from humv_usd.sweep import spec as sweep_spec
+
+    block = sweep_spec.__doc__.split("::\n", 1)[1]
+    lines = []
+    for line in block.splitlines()[1:]:
+        if line and not line.startswith("    "):
+            break
+        lines.append(line[4:])
+    walk = Path(__file__).resolve().parents[1] / "examples" / "walk.toml"
+    # walk.toml has one person: the example's draw of a second one ("human.1") is left out
+    lines = [line for line in lines if not line.startswith('"human.1"')]
+    text = "\n".join(lines).replace('base = "walk.toml"', f'base = "{walk.as_posix()}"')
+    assert f'base = "{walk.as_posix()}"' in text
+    (tmp_path / "example.toml").write_text(text)
+    sweep = sweep_spec.load_sweep(tmp_path / "example.toml")
+    base = validate(tomllib.loads(walk.read_text()))["sensor"][0]
+    assert sweep.variants
+    for v in sweep.variants:
+        s = v.scenario["sensor"][0]
+        assert s["render_resolution"] == [256, 192]
+        assert s["resolution"][0] * s["pixel_pitch_um"] == pytest.approx(
+            base["resolution"][0] * base["pixel_pitch_um"]
+        )

@@ -128,6 +128,25 @@ def test_every_catalogue_entry_has_a_row_and_its_source():
         assert humv_docs.inline(preset.source) in sensors, name
 
 
+def test_every_viewpoint_and_activity_has_a_row():
+    """Dataset viewpoints (with their sources) on the sensors page; every activity the scenario
+    accepts on the activities page, with a metabolic rate and a source cell."""
+    from humv_usd.catalog.viewpoints import VIEWPOINTS
+    from humv_usd.scenario.spec import ACTIVITIES
+
+    sensors, activities = humv_docs.sensors_rst(), humv_docs.activities_rst()
+    for name, vp in VIEWPOINTS.items():
+        assert f"* - ``{name}``" in sensors, name
+        assert humv_docs.inline(vp.source) in sensors, name
+    rows = activities.split("   * - ")[1:]
+    assert [r.split("\n")[0] for r in rows[1:]] == [f"``{a}``" for a in ACTIVITIES]
+    for row in rows[1:]:
+        cells = [c.strip() for c in row.split("\n     - ")]
+        assert len(cells) == 5 and all(cells), row
+        assert re.search(r"MET|ACSM|walk", cells[3]), row  # a rate
+        assert re.search(r"(19|20)\d\d", cells[4]), row  # a dated source
+
+
 def test_every_schema_attribute_has_an_entry_with_unit_and_range():
     attributes = _schema_attributes()
     assert len(attributes) > 50
@@ -434,6 +453,38 @@ def test_gallery_shows_every_image_it_lists(site):
         for name in (e["image"], e["labels"]):
             assert (DOCS / "gallery" / name).is_file(), name
             assert (site / "_images" / name).is_file() and f"_images/{name}" in page, name
+
+
+@pytest.mark.parametrize("example", ["humvvex", "street"])
+def test_gallery_adds_nir_and_swir_cameras_with_the_presets_field_of_view(example):
+    """The gallery (docs/_ext/gallery.py) renders the reflective bands the examples lack: a NIR and a
+    SWIR camera beside the EO camera, looking where it looks, each with its preset's field of view
+    (sensor width = pixels x pitch kept through the binning and the 1/SCALE), in a scenario the
+    loader accepts."""
+    import tomllib
+
+    import gallery
+
+    from humv_usd.catalog.sensors import PRESETS
+    from humv_usd.scenario.load import validate
+
+    source = ROOT / "examples" / f"{example}.toml"
+    raw = tomllib.loads(source.read_text())
+    gallery._absolute_paths(raw, source.parent)
+    gallery._reflective_cameras(raw)
+    gallery._smaller_cameras(raw)
+    sensors = {s["id"]: s for s in raw["sensor"]}
+    eo = sensors["eo_rgb"]
+    for sid, band in (("nir", "NIR"), ("swir", "SWIR")):
+        s = sensors[sid]
+        preset = PRESETS[s["preset"]]
+        assert preset.band == band
+        for axis in (0, 1):
+            got = s["resolution"][axis] * s["pixel_pitch_um"]
+            assert got == pytest.approx(preset.resolution[axis] * preset.pixel_pitch_um)
+        assert s["look_at_m"] == eo["look_at_m"] and s["position_m"] != eo["position_m"]
+    scenario = validate(raw, source)
+    assert {"nir", "swir"} <= {s["id"] for s in scenario.data["sensor"]}
 
 
 def test_every_physics_module_has_a_page():

@@ -285,6 +285,72 @@ def test_jobs_run_argument_lists_and_cancel(tmp_path):
     assert jobs.latest() is slow and jobs.latest("compose") is job
 
 
+def test_warm_jobs_run_humv_usd_in_one_process_with_its_exit_codes(tmp_path):
+    """Preview jobs run their humv-usd steps in the warm worker (cli.warm): the same output and
+    exit codes as the command line, one process for every step, a failing step stops the job,
+    cancel ends the worker and the next step starts a new one."""
+    from humv_usd.editor.jobs import humv_command
+
+    jobs = JobManager()
+    try:
+        missing = str(tmp_path / "missing.toml")
+        job = jobs.start(
+            "preview",
+            [humv_command("--version"), humv_command("compose", missing, "-o", str(tmp_path / "o"))],
+            tmp_path,
+            tmp_path,
+            warm=True,
+        )
+        _wait(job)
+        assert any("version" in line for line in job.lines)
+        errors = [line for line in job.lines if line.startswith("humv-usd: error:")]
+        assert (
+            job.state == "failed" and job.returncode == 2 and len(errors) == 1 and "missing.toml" in errors[0]
+        )
+        worker = jobs._warm
+        again = jobs.start("preview", [humv_command("--version")], tmp_path, tmp_path, warm=True)
+        _wait(again)
+        assert again.state == "done" and jobs._warm is worker  # the same process, still warm
+        again.cancel()  # a finished job: nothing to stop
+        assert worker.poll() is None
+    finally:
+        jobs.shutdown()
+    assert worker.poll() is not None  # the server's shutdown ends the worker
+
+
+def test_warm_worker_reads_layers_changed_on_disk(tmp_path):
+    """A stage a reference cycle keeps alive keeps its layers in USD's registry, and
+    Usd.Stage.Open then reuses them: the warm worker's render after a NETD edit read the
+    sensors layer from before the edit. fresh_layers() makes the next command read the file."""
+    import gc
+
+    from pxr import Usd
+
+    from humv_usd.cli.warm import fresh_layers
+
+    path = tmp_path / "s.usda"
+    path.write_text('#usda 1.0\ndef "A" {\n    float netd = 0.05\n}\n')
+
+    class Holder:  # a cycle, as some object graph in a command may leave behind
+        pass
+
+    holder = Holder()
+    holder.me, holder.stage = holder, Usd.Stage.Open(str(path))
+    del holder
+    gc.disable()
+    try:
+        path.write_text('#usda 1.0\ndef "A" {\n    float netd = 0.04\n}\n')
+        stage = Usd.Stage.Open(str(path))
+        stale = stage.GetPrimAtPath("/A").GetAttribute("netd").Get()
+        del stage
+        fresh_layers()
+        stage = Usd.Stage.Open(str(path))
+        now = stage.GetPrimAtPath("/A").GetAttribute("netd").Get()
+    finally:
+        gc.enable()
+    assert stale == pytest.approx(0.05) and now == pytest.approx(0.04)
+
+
 def _wait(job, limit: float = 60.0) -> None:
     t0 = time.time()
     while not job.finished:
@@ -417,8 +483,10 @@ def test_fast_preview_is_a_cheaper_copy_in_its_own_folder(humvvex, tmp_path):
     checked = validate(pv, tmp_path / "elsewhere" / "preview.toml")  # valid wherever it lives
     assert checked.frame_count == 1 and list(checked["sensor"][1]["render_resolution"]) == [320, 256]
     notes = preview_notes(scenario)
+    rays = SECTIONS["thermal"].keys["radiation_rays"].default
     assert (
-        "thermal.radiation_rays 8 (scenario: 64)" in notes and "frame 0 only (scenario: 61 frames)" in notes
+        f"thermal.radiation_rays 8 (scenario: {rays})" in notes
+        and "frame 0 only (scenario: 61 frames)" in notes
     )
     assert not any("radiation_resolution" in n for n in notes)
     # the fixed model has no radiation balance: only the scene's cells are coarser

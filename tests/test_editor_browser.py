@@ -182,7 +182,7 @@ def test_preview_image_appears_after_the_page_reconnects(session):
     H.open_tab(driver, "preview")
     t0 = time.perf_counter()
     _click(driver, "preview")
-    _wait(lambda: (out / "stage.usda").exists() or "preview" in driver.page_source, what="job started")
+    _wait(lambda: (out / ".editor").exists() or "preview" in driver.page_source, what="job started")
     driver.get(url)  # the page closes and opens again
     _wait(lambda: driver.find_elements("css selector", '[data-testid="tab-preview"]'), what="page again")
     H.open_tab(driver, "preview")
@@ -201,6 +201,10 @@ def test_preview_image_appears_after_the_page_reconnects(session):
     lo, hi = manifest["sensors"][0]["frames"][0]["preview_levels_k"]
     assert driver.find_element("css selector", '[data-testid="bar-high"]').text == f"{hi:.1f} K"
     assert driver.find_element("css selector", '[data-testid="bar-low"]').text == f"{lo:.1f} K"
+    # the fast preview (the default) says so, and composed its own copy, not the real layers
+    mark = driver.find_element("css selector", '[data-testid="preview-mark"]').text
+    assert mark.startswith("FAST PREVIEW") and "thermal.radiation_rays 8 (scenario: " in mark
+    assert (out / ".editor" / "preview" / "stage.usda").is_file() and not (out / "stage.usda").exists()
     H.open_tab(driver, "run")
     assert "preview: done" in driver.find_element("css selector", '[data-testid="job-state"]').text
     # a second preview: the layers are cached

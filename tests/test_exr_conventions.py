@@ -273,3 +273,19 @@ def test_camera_file_states_a_zoom_per_frame():
     assert_allclose(np.array(doc["K_integer_centres"]) - doc["K"], [[0, 0, -0.5], [0, 0, -0.5], [0, 0, 0]])
     # looking along +x with z up: OpenCV R rows are right (-y), down (-z), forward (+x)
     assert_allclose(doc["frames"][0]["R"], [[0, -1, 0], [0, 0, -1], [1, 0, 0]], atol=1e-12)
+
+
+def test_preview_stretch_keeps_a_small_person_readable():
+    """A warm person on 1 % of the pixels: the plain 1-99 % stretch saturates most of them; with
+    the person's own percentiles kept (what the IR pass gives) at most 2 % sit at a level."""
+    rng = np.random.default_rng(3)
+    bt = 290.0 + 0.5 * rng.standard_normal((100, 100))
+    person = np.zeros(bt.shape, dtype=bool)
+    person[40:50, 45:55] = True
+    bt[person] = 305.0 + 2.0 * rng.standard_normal(int(person.sum()))
+    lo, hi = images.preview_levels(bt)
+    assert np.mean(bt[person] >= hi) > 0.5  # saturated white
+    lo, hi = images.preview_levels(bt, keep=person)
+    clipped = (bt[person] >= hi) | (bt[person] <= lo)
+    assert np.mean(clipped) <= 0.02 and lo <= np.percentile(bt, 1.0)
+    assert images.preview_levels(bt, keep=np.zeros(bt.shape, dtype=bool)) == images.preview_levels(bt)

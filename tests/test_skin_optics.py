@@ -76,3 +76,19 @@ def test_tone_materials():
     # solar absorptivity grows with pigmentation
     alphas = [LIBRARY[skin_material_name(t)].solar_absorptivity for t in SKIN_TONES]
     assert np.all(np.diff(alphas) > 0)
+
+
+def test_absorption_tables_match_their_sources():
+    """Blood at Prahl's (1999, omlc.org/spectra/hemoglobin/summary.html) tabulated molar
+    extinction (mu_a = 2.303 e 150 g/L / 64 500 g/mol, plus 80 % water), and water at 4 pi k /
+    lambda from Hale & Querry's k as tabulated independently in physics.water_film."""
+    from humv_usd.physics.water_film import WATER_OPTICAL_CONSTANTS
+
+    prahl = {0.5: (20932.8, 20862.0), 0.576: (55540.0, 40092.0), 0.8: (816.0, 761.72), 1.0: (1024.0, 206.784)}
+    for w, (hbo2, hb) in prahl.items():
+        water = 0.8 * S.water_absorption(w)
+        for sat, eps in ((1.0, hbo2), (0.0, hb)):
+            expected = 2.303 * eps * 150.0 / 64500.0 + water
+            assert S.blood_absorption(w, oxygen_saturation=sat) == pytest.approx(expected, rel=1e-6)
+    w, _, k = WATER_OPTICAL_CONSTANTS[WATER_OPTICAL_CONSTANTS[:, 0] <= 2.5].T
+    np.testing.assert_allclose(S.water_absorption(w), 4.0 * np.pi * k / (w * 1e-4), rtol=0.06)

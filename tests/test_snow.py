@@ -9,6 +9,7 @@ import tomllib
 
 import numpy as np
 import pytest
+from conftest import general_toml, place_keys, scene_stage
 from numpy.testing import assert_allclose
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 from scipy.optimize import brentq
@@ -482,3 +483,22 @@ def test_roof_snow_is_a_subset_that_the_thermal_layer_melts_away():
         composed = Usd.Stage.Open(root)  # held: a prim does not keep its stage alive
         mats, index = face_materials(composed.GetPrimAtPath("/World/Scene/house"), 6)
         assert mats[index[1]].name == names
+
+
+def test_every_material_a_snowy_street_binds_is_authored():
+    """A generated street (facades, parked cars, lamps) under 6 cm of snow: the scene binds its
+    ground and its box roofs to snow over their materials, and the materials tool writes every
+    material the scene binds (mesh or GeomSubset), so ``check`` finds none missing."""
+    raw = tomllib.loads(general_toml("snowy_street", seed=3))
+    raw["scene"] = {"ground": {"material": "asphalt", "size_m": [60.0, 60.0], "snow_depth_m": 0.06}}
+    raw["scene"]["place"] = place_keys("street")
+    stage = scene_stage(validate(raw))
+    bound, roofs = set(), 0
+    for prim in stage.Traverse():
+        rel = prim.GetRelationship("material:binding")
+        if rel and rel.GetTargets():
+            bound.add(str(rel.GetTargets()[0]))
+        roofs += prim.GetName() == "Snow" and prim.IsA(UsdGeom.Subset)
+    assert "/World/Materials/asphalt__snow50" in bound and roofs > 0
+    missing = [p for p in bound if not stage.GetPrimAtPath(p)]
+    assert not missing, missing

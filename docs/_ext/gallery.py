@@ -8,7 +8,9 @@ preview: brightness temperature for IR, sRGB for EO), ``<example>_<sensor>_label
 preview with each labelled class tinted and each object's visible 2D box drawn, from the EXR's
 ``class_id`` and ``<frame>.objects.json``) and ``gallery.json`` (what each image is and how it was
 made), which the gallery page lists. The scenes are the examples as committed, so the gallery
-shows what ``make demo`` renders, smaller.
+shows what ``make demo`` renders, smaller, plus the reflective bands the examples lack
+(:data:`REFLECTIVE`): a NIR (``nir_imx273``) and a SWIR (``swir_ingaas640``) camera beside each
+example's EO camera, looking where it looks.
 """
 
 from __future__ import annotations
@@ -29,6 +31,14 @@ OUT = ROOT / "out" / "gallery"
 GALLERY = ROOT / "docs" / "gallery"
 EXAMPLES = ("humvvex", "street")
 SCALE = 4
+#: reflective-band cameras the examples lack, added beside the EO camera (``eo_rgb``): id, preset,
+#: the full-size resolution and pixel pitch [um] before :data:`SCALE` (the NIR camera 2x2 binned,
+#: as the IMX273 can, so its gallery image stays small; the field of view is the preset's), and
+#: the offset along x [m] from the EO camera (the examples space their cameras 0.6-0.8 m apart)
+REFLECTIVE = (
+    ("nir", "nir_imx273", (720, 540), 6.9, -0.8),
+    ("swir", "swir_ingaas640", (640, 512), 15.0, -1.6),
+)
 #: label tint per class name (RGB), drawn at 45 % over the preview; classes without one are left
 TINT = {
     "person": (230, 40, 40),
@@ -59,6 +69,28 @@ def _absolute_paths(raw: dict, folder: Path) -> None:
     for name, section in SECTIONS.items():
         for table in raw.get(name, []) if section.array else [raw.get(name, {})]:
             walk(table, section)
+
+
+def _reflective_cameras(raw: dict) -> None:
+    """Add the :data:`REFLECTIVE` cameras beside the example's EO camera (none without one)."""
+    eo = next((s for s in raw.get("sensor", []) if s.get("id") == "eo_rgb"), None)
+    if eo is None:
+        return
+    taken = {s.get("id") for s in raw["sensor"]}
+    for sid, name, resolution, pitch, dx in REFLECTIVE:
+        if sid in taken:
+            continue
+        x, y, z = eo["position_m"]
+        raw["sensor"].append(
+            {
+                "id": sid,
+                "preset": name,
+                "resolution": list(resolution),
+                "pixel_pitch_um": pitch,
+                "position_m": [x + dx, y, z],
+                "look_at_m": list(eo["look_at_m"]),
+            }
+        )
 
 
 def _smaller_cameras(raw: dict) -> None:
@@ -102,6 +134,7 @@ def make(examples=EXAMPLES) -> list[dict]:
         source = ROOT / "examples" / f"{example}.toml"
         raw = tomllib.loads(source.read_text())
         _absolute_paths(raw, source.parent)
+        _reflective_cameras(raw)
         _smaller_cameras(raw)
         folder = OUT / example
         folder.mkdir(parents=True, exist_ok=True)

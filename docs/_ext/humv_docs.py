@@ -5,8 +5,9 @@ drift from the code:
 
 - :func:`scenario_rst`: every scenario key of ``humv_usd/scenario/spec.py`` (type, unit, range,
   default, help and an example value from ``examples/*.toml`` when one sets it);
-- :func:`materials_rst`, :func:`garments_rst`, :func:`sensors_rst`: the catalogues of
-  ``humv_usd/catalog/`` as tables, with each entry's sources;
+- :func:`materials_rst`, :func:`garments_rst`, :func:`sensors_rst` (with the dataset viewpoints):
+  the catalogues of ``humv_usd/catalog/`` as tables, with each entry's sources;
+- :func:`activities_rst`: every activity with its motion, speeds, metabolic rate and source;
 - :func:`schemas_rst`: every attribute of the codeless USD schemas (``schemas/generatedSchema.usda``)
   with its type, default, unit and range (taken from the ``Units: … Range: …`` end of its doc).
 
@@ -20,6 +21,7 @@ command and attribute.
 
 from __future__ import annotations
 
+import inspect
 import json
 import re
 import tomllib
@@ -408,6 +410,7 @@ def sensors_rst() -> str:
     out.extend(_heading("Descriptions and sources", "-"))
     for name, p in s.PRESETS.items():
         out.extend([f"``{name}``", f"   {inline(p.description)}. Source: {inline(p.source)}", ""])
+    out.extend(viewpoints_rst())
     out.extend(_heading("Platforms", "-"))
     out.extend(
         [
@@ -416,6 +419,129 @@ def sensors_rst() -> str:
             + ".",
             "",
         ]
+    )
+    return "\n".join(out)
+
+
+def _draw(d) -> str:
+    """A viewpoint distribution ``("uniform", lo, hi)`` / ``("normal", mean, sd[, (lo, hi)])`` /
+    ``("fixed", v)`` / None as text."""
+    if d is None:
+        return "aimed at the person"
+    kind, *a = d
+    if kind == "uniform":
+        return f"uniform [{_number(a[0])}, {_number(a[1])}]"
+    if kind == "normal":
+        cut = f" in [{_number(a[2][0])}, {_number(a[2][1])}]" if len(a) > 2 else ""
+        return f"normal({_number(a[0])}, sd {_number(a[1])}){cut}"
+    return " ".join(_number(x) if isinstance(x, (int, float)) else str(x) for x in a)
+
+
+def viewpoints_rst() -> list[str]:
+    """The dataset viewpoint presets of ``humv_usd/catalog/viewpoints.py`` (a sweep's
+    ``[camera] preset``): the geometry each draws, the camera preset it uses, and what the
+    dataset publishes about its people's sizes, with the sources."""
+    from humv_usd.catalog.viewpoints import VIEWPOINTS
+
+    out = _heading("Dataset viewpoints", "-")
+    out.extend(
+        [
+            "The camera poses a sweep file's ``[camera]`` table draws with ``preset = NAME`` "
+            "(``humv_usd/catalog/viewpoints.py``; see :doc:`../user/cameras`). Distances and "
+            "heights in m, angles in deg; ``python -m humv_usd.bench.viewpoints`` compares the "
+            "drawn person sizes with the published ones.",
+            "",
+        ]
+    )
+    rows = []
+    for name, v in VIEWPOINTS.items():
+        rows.append(
+            [
+                f"``{name}``",
+                ", ".join(
+                    f"``{val}``"
+                    if key == "preset"
+                    else f"{key} {_number(val) if not isinstance(val, list) else '×'.join(map(str, val))}"
+                    for key, val in v.sensor.items()
+                ),
+                _draw(v.distance_m) if v.distance_m else "from the pitch",
+                _draw(v.height_m),
+                _draw(v.pitch_deg),
+                _draw(v.azimuth_deg),
+                _number(v.min_height_px),
+            ]
+        )
+    out.extend(
+        _table(["viewpoint", "camera", "distance", "height", "pitch", "azimuth", "min. person [px]"], rows)
+    )
+    for name, v in VIEWPOINTS.items():
+        out.extend(
+            [
+                f"``{name}``",
+                f"   {inline(v.description)}. Published person sizes: {inline(v.published_height_px)}. "
+                f"Source: {inline(v.source)}",
+                "",
+            ]
+        )
+    return out
+
+
+# ------------------------------------------------------------------------------------ activities
+def activities_rst() -> str:
+    """Every :key:`human.activity` (``humv_usd/human/motion.py`` ``ACTIVITIES``) with its motion
+    model, speeds and metabolic rate, the numbers read from ``motion.py`` and ``poses.py``."""
+    from humv_usd.human import motion as M
+    from humv_usd.human import poses as P
+
+    compendium = "Ainsworth et al. 2011, Compendium of Physical Activities, Med Sci Sports Exerc 43:1575-1581"
+    acsm = "ACSM's Guidelines for Exercise Testing and Prescription, 10th ed., 2018, ch. 6"
+    out = [
+        "The activities of :key:`human.activity`, generated from ``humv_usd/human/motion.py`` "
+        "(``ACTIVITIES``, speeds, rates) and ``humv_usd/human/poses.py`` (key-pose sequences and "
+        "their MET). The models and their sources are on :doc:`../physics/motion`; the metabolic "
+        "rate drives the thermal model (1 MET = "
+        f"{_number(M.MET_ML_KG_MIN)} mL O2/kg/min).",
+        "",
+    ]
+    rows = []
+    for a in M.ACTIVITIES:
+        speed = ""
+        if a in M.SPEED_RANGE:
+            lo, hi = M.SPEED_RANGE[a]
+            speed = f"{_number(M.DEFAULT_SPEED[a])} ({_number(lo)}–{_number(hi)})"
+        if a in ("walk", "run"):
+            motion, rate, src = (
+                "gait cycle, feet planted on the ground",
+                "ACSM VO2 equation of the speed and grade",
+                acsm,
+            )
+        elif a == "carry":
+            motion, rate, src = "the walk, both hands holding a box in front", "the walk's", acsm
+        elif a == "stand":
+            motion, rate, src = "feet planted, sway and breathing", f"{_number(M.MET_STAND)} MET", compendium
+        elif a == "standTurn":
+            motion = "standing, stepping round a turn"
+            rate, src = (
+                f"{_number(M.MET_STAND)} MET, {_number(M.MET_STEPPING)} MET while stepping",
+                compendium,
+            )
+        elif a == "postExercise":
+            met = inspect.signature(M.make_motion).parameters["exercise_met"].default
+            motion = f"standing after exercise at {_number(met)} MET"
+            taus = ", ".join(f"{_number(f)} × e^(−t/{_number(tau)} s)" for f, tau in M.EPOC)
+            rate = f"decays to {_number(M.MET_STAND)} MET: excess × ({taus})"
+            src = "Ozyener et al. 2001, J Physiol 533:891-902; Borsheim & Bahr 2003, Sports Med 33:1037-1060"
+        else:
+            keys = P.SEQUENCES[a]
+            motion = "key poses: " + " → ".join(
+                f"{k.name} ({_number(d)} s)" if d else k.name for k, d in keys
+            )
+            held = P.MET_POSE.get(keys[-1][0].name, P.MET_TRANSITION)
+            rate = f"{_number(held)} MET held, {_number(P.MET_TRANSITION)} MET in transitions"
+            src = compendium
+        rows.append([f"``{a}``", motion, speed or "–", rate, src])  # plain text written here
+    out.extend(
+        _table(["activity", "motion", "speed [m/s] default (range)", "metabolic rate", "source"], rows)
     )
     return "\n".join(out)
 
@@ -680,7 +806,8 @@ SOURCES = {
     "scenario": ["humv_usd/scenario/spec.py", "examples/*.toml"],
     "materials": ["humv_usd/catalog/materials.py", "humv_usd/catalog/garments.py"],
     "garments": ["humv_usd/catalog/garments.py", "humv_usd/catalog/materials.py"],
-    "sensors": ["humv_usd/catalog/sensors.py"],
+    "sensors": ["humv_usd/catalog/sensors.py", "humv_usd/catalog/viewpoints.py"],
+    "activities": ["humv_usd/human/motion.py", "humv_usd/human/poses.py"],
     "schemas": ["schemas/generatedSchema.usda"],
     "gallery": ["docs/gallery/gallery.json"],
 }
@@ -692,6 +819,7 @@ GENERATORS = {
     "materials": materials_rst,
     "garments": garments_rst,
     "sensors": sensors_rst,
+    "activities": activities_rst,
     "schemas": schemas_rst,
     "module": module_rst,
     "gallery": gallery_rst,

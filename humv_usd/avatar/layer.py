@@ -94,12 +94,14 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 10: motions below 30 fps sampled from a 30 fps (or faster) simulation (a 2 fps walk sat on the ground);
+#: 9: standing arms 18 deg from the vertical, not 8 (the upper arm was inside the torso);
 #: 8: the rifle carry smooths and re-pushes its offsets twice (no step > 6 cm after the push);
 #: 7: human.sitting_height_ratio (leg axis, human/proportions.py);
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "8"
+VERSION = "10"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:

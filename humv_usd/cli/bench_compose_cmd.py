@@ -33,13 +33,35 @@ def _counts(text: str, option: str, top: int) -> list[int]:
     help="[thermal] model of the bench scenarios.",
 )
 @click.option("--keep", default=None, type=str, help="Keep the composed stages in this folder.")
+@click.option(
+    "--scenario",
+    default=None,
+    type=click.Path(exists=True, dir_okay=False),
+    help="Instead of the crowd grid: compose this scenario (or a sweep file's --variant) once "
+    "and print its CPU seconds.",
+)
+@click.option(
+    "--variant", default=None, type=click.IntRange(0), help="With a sweep file: the variant's index."
+)
+@click.option(
+    "--stages",
+    is_flag=True,
+    help="With --scenario: profile the compose (cProfile, CPU clock) and add CPU seconds by stage.",
+)
 @reports_errors
-def bench_compose(people: str, frames: str, thermal: str, keep):
+def bench_compose(people: str, frames: str, thermal: str, keep, scenario, variant, stages):
     """Compose the crowd scenario (walk.toml's site, N people walking, a 64x48 camera) for every
     people x frames point from scratch, print one JSON row per point (seconds per layer, CPU
-    seconds) and then how each layer's cost grows: base + per person + per frame [s]."""
+    seconds) and then how each layer's cost grows: base + per person + per frame [s].
+    With --scenario: one compose of that scenario, its CPU seconds (by stage with --stages)."""
     from humv_usd.bench.compose_cost import bench_compose as run
+    from humv_usd.bench.compose_cost import scenario_point
 
+    if scenario is not None:
+        click.echo(json.dumps(scenario_point(scenario, variant, keep, stages)))
+        return
+    if variant is not None or stages:
+        raise click.BadParameter("only with --scenario", param_hint="--variant/--stages")
     result = run(
         _counts(people, "--people", 50),
         _counts(frames, "--frames", 600),

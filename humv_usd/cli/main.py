@@ -415,6 +415,12 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
     help="Comma-separated subset of: cold, unchanged, heading, pose, clock, weather, netd (default: all).",
 )
 @click.option(
+    "--warm/--no-warm",
+    default=True,
+    show_default=True,
+    help="Run the commands in the editor's warm worker (as the page does), or each as a new process.",
+)
+@click.option(
     "-o",
     "--out",
     "work_dir",
@@ -424,7 +430,9 @@ def bench_pipeline(scenario: Path, spp: int, repeat: int):
     help="Work folder (new, or one this bench made: emptied first): the scenario's copy and the editor's output folder.",
 )
 @reports_errors
-def bench_preview(scenario: Path, sensor: str | None, quality: str, edits: str | None, work_dir: Path):
+def bench_preview(
+    scenario: Path, sensor: str | None, quality: str, edits: str | None, warm: bool, work_dir: Path
+):
     """The editor's preview of SCENARIO after each kind of edit, as the page runs it: wall and
     CPU seconds per step and the layers compose rebuilt (issue 26, 7)."""
     from humv_usd.editor.timing import EDITS
@@ -436,8 +444,9 @@ def bench_preview(scenario: Path, sensor: str | None, quality: str, edits: str |
         raise InputError(
             f"--edits = {edits!r}: unknown {', '.join(unknown)}; allowed: {', '.join(e[0] for e in EDITS)}"
         )
-    click.echo(f"editor preview of {scenario} ({quality} quality), work folder {work_dir}")
-    for timing in run_bench(scenario, work_dir, sensor, quality, names):
+    how = "the warm worker" if warm else "a process per command"
+    click.echo(f"editor preview of {scenario} ({quality} quality, {how}), work folder {work_dir}")
+    for timing in run_bench(scenario, work_dir, sensor, quality, names, warm):
         click.echo(timing.line())
 
 

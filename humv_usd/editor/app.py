@@ -161,7 +161,7 @@ class Page:
             "preview": "Preview",
             "run": "Run",
         }
-        with ui.tabs().classes("w-full").props("dense align=left") as tabs:
+        with ui.tabs(on_change=self.tab_opened).classes("w-full").props("dense align=left") as tabs:
             tab = {n: ui.tab(n, titles.get(n, n.capitalize())).props(f"data-testid=tab-{n}") for n in names}
         with ui.tab_panels(tabs, value=tab["general"]).classes("w-full"):
             for name in SECTIONS:
@@ -476,6 +476,12 @@ class Page:
         )
         self.start_job("sweep", [humv_command(*args)])
 
+    def tab_opened(self, e) -> None:
+        """The Preview or 3D tab: start the warm worker now, so that its imports overlap the
+        user's reading and the first preview does not wait for them."""
+        if e.value in ("preview", "view3d"):
+            self.editor.jobs.warm_up(self.doc.folder)
+
     # -- 3D ----------------------------------------------------------------------------------
     def build_3d(self) -> None:
         with ui.row().classes("items-center"):
@@ -502,7 +508,7 @@ class Page:
             return
         source, stage_dir = self.write_fast_copy(), self.editor.out_dir / PREVIEW_STAGE_DIR
         self.stage_job = self.start_job(
-            "compose", [humv_command("compose", str(source), "-o", str(stage_dir))]
+            "compose", [humv_command("compose", str(source), "-o", str(stage_dir))], warm=True
         )
 
     async def show_stage(self) -> None:
@@ -571,7 +577,7 @@ class Page:
         size = preview_resolution(scenario, sensor)
         steps = [humv_command(*args) for args in preview_commands(source, out, sensor, size, quality)]
         self.preview_started = time.time()
-        job = self.start_job("preview", steps)
+        job = self.start_job("preview", steps, warm=True)
         if job is not None:
             job.sensor = sensor
             job.quality = quality
@@ -664,12 +670,16 @@ class Page:
             job.cancel()
             ui.notify(f"job {job.id} cancelled")
 
-    def start_job(self, kind: str, steps: list[list[str]], watch=None):
+    def start_job(self, kind: str, steps: list[list[str]], watch=None, warm: bool = False):
+        """``warm``: in the warm worker (cli.warm: imports and JOS-3's compile paid once; the
+        preview and the 3D view, short commands run again and again)."""
         running = [j for j in self.editor.jobs.jobs.values() if not j.finished]
         if running:
             ui.notify(f"job {running[0].id} ({running[0].kind}) is still running", type="warning")
             return None
-        return self.editor.jobs.start(kind, steps, self.editor.out_dir, cwd=self.doc.folder, watch=watch)
+        return self.editor.jobs.start(
+            kind, steps, self.editor.out_dir, cwd=self.doc.folder, watch=watch, warm=warm
+        )
 
     def ensure_saved(self) -> bool:
         """Jobs run on the file: save edits first (refused while the scenario has problems)."""

@@ -10,9 +10,11 @@ folder holds the previous preview):
   folder and its own layer cache, never the real layers. The copy does not depend on the
   previewed sensor, so a preview of another sensor and the 3D tab's view reuse its layers.
   After an edit that rebuilds the thermal layer (a person, a pose, the clock, the weather) it
-  costs about 40 % less CPU than the real compose, and the image differs from the full-quality
-  preview by < 0.1 K on the person (``humv-usd bench preview`` measures it per edit). The page
-  says that it is a preview and what it lowered (:func:`preview_notes`).
+  costs about 40 % less CPU than the real compose (with the page's warm worker,
+  :mod:`humv_usd.editor.jobs`, about 70 % less: 5-7 against 19-21 CPU-s on humvvex), and the
+  image differs from the full-quality preview by < 0.1 K on the person (``humv-usd bench
+  preview`` measures it per edit). The page says that it is a preview and what it lowered
+  (:func:`preview_notes`).
 * ``full``: the real ``humv-usd compose`` of the scenario into the editor's output folder (the
   same command as the Run tab's Compose and the 3D tab's view: one layer cache), then the
   render of frame 0 binned with ``--resolution`` (:func:`preview_resolution`; the field of view

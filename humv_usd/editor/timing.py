@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import os
 import resource
 import shutil
-import subprocess
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,7 +28,7 @@ from pathlib import Path
 import tomlkit
 
 from humv_usd.editor.document import ScenarioDocument
-from humv_usd.editor.jobs import humv_command
+from humv_usd.editor.jobs import JobManager, humv_command
 from humv_usd.editor.preview import (
     PREVIEW_SCENARIO,
     PREVIEW_STAGE_DIR,
@@ -123,23 +123,47 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def run_preview(doc: ScenarioDocument, out: Path, sensor: str, quality: str) -> tuple[list[Step], str]:
-    """One preview as the page runs it; returns its steps and an error line ('' when shown)."""
+def _process_cpu(pid: int | None) -> float:
+    """CPU seconds of a running process so far (Linux /proc; 0 elsewhere or when it is gone)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, TypeError):
+        return 0.0
+
+
+def _warm_pid(jobs: JobManager) -> int | None:
+    warm = jobs._warm  # noqa: SLF001 (the bench reads the manager's worker to time it)
+    return warm.pid if warm is not None and warm.poll() is None else None
+
+
+def run_preview(
+    doc: ScenarioDocument, out: Path, sensor: str, quality: str, jobs: JobManager | None = None
+) -> tuple[list[Step], str]:
+    """One preview as the page runs it (each command a job of ``jobs``; with a JobManager the
+    page's warm worker, without one a process per command); returns its steps and an error
+    line ('' when the image was made)."""
     scenario = doc.scenario()
     source = doc.path
     if quality == "fast":
         source = out / PREVIEW_SCENARIO
         write_text_atomic(source, tomlkit.dumps(preview_scenario(doc.raw(), scenario, doc.folder)))
     steps = []
+    manager = jobs or JobManager()
     for args in preview_commands(source, out, sensor, preview_resolution(scenario, sensor), quality):
         t, c = time.perf_counter(), _children_cpu()
-        done = subprocess.run(humv_command(*args), cwd=doc.folder, capture_output=True, text=True)
-        lines = [x for x in (done.stdout + done.stderr).splitlines() if x.strip()]
-        steps.append(
-            Step(args[0], time.perf_counter() - t, _children_cpu() - c, done.returncode, (lines or [""])[-1])
-        )
-        if done.returncode:
-            return steps, f"{args[0]} exit {done.returncode}: {(lines or [''])[-1]}"
+        pid = _warm_pid(manager) if jobs is not None else None
+        w0 = _process_cpu(pid)
+        job = manager.start("preview", [humv_command(*args)], out, cwd=doc.folder, warm=jobs is not None)
+        while not job.finished:
+            time.sleep(0.02)
+        if jobs is not None and pid is None:  # started by this step: all its CPU is the step's
+            pid, w0 = _warm_pid(manager), 0.0
+        cpu = _children_cpu() - c + (_process_cpu(pid) - w0 if pid is not None else 0.0)
+        lines = [x for x in job.lines if x.strip() and not x.startswith(("$ ", "["))]
+        steps.append(Step(args[0], time.perf_counter() - t, cpu, job.returncode or 0, (lines or [""])[-1]))
+        if job.returncode:
+            return steps, f"{args[0]} exit {job.returncode}: {(lines or [''])[-1]}"
     try:
         make_preview(out / "preview", sensor)
     except (FileNotFoundError, KeyError, OSError) as exc:
@@ -148,11 +172,17 @@ def run_preview(doc: ScenarioDocument, out: Path, sensor: str, quality: str) -> 
 
 
 def bench_preview(
-    scenario_file: Path, work_dir: Path, sensor: str | None = None, quality: str = "fast", edits=None
+    scenario_file: Path,
+    work_dir: Path,
+    sensor: str | None = None,
+    quality: str = "fast",
+    edits=None,
+    warm: bool = True,
 ) -> list[PreviewTiming]:
-    """Copy ``scenario_file`` into ``work_dir`` (new, empty, or emptied when this bench made it), then preview ``sensor`` (default:
-    the first infrared one, else the first) after each edit of :data:`EDITS` (or those named in
-    ``edits``) at ``quality``; see the module doc."""
+    """Copy ``scenario_file`` into ``work_dir`` (new, empty, or emptied when this bench made
+    it), then preview ``sensor`` (default: the first infrared one, else the first) after each edit of :data:`EDITS` (or those named in
+    ``edits``) at ``quality``; ``warm``: in the page's warm worker (:mod:`humv_usd.cli.warm`),
+    else a process per command; see the module doc."""
     work_dir = Path(work_dir)
     if work_dir.exists() and any(work_dir.iterdir()):
         if not (work_dir / MARKER).is_file():  # never empty a folder this bench did not make
@@ -172,6 +202,17 @@ def bench_preview(
     out = work_dir / "out"
     stage_dir = out / PREVIEW_STAGE_DIR if quality == "fast" else out
     results = []
+    jobs = JobManager() if warm else None
+    try:
+        results = _previews(doc, out, sensor, quality, stage_dir, edits, jobs)
+    finally:
+        if jobs is not None:
+            jobs.shutdown()
+    return results
+
+
+def _previews(doc, out, sensor, quality, stage_dir, edits, jobs) -> list[PreviewTiming]:
+    results = []
     for name, what, edit in EDITS:
         if edits and name not in edits:
             continue
@@ -179,7 +220,7 @@ def bench_preview(
             edit(doc)
             doc.save()
         t = time.perf_counter()
-        steps, error = run_preview(doc, out, sensor, quality)
+        steps, error = run_preview(doc, out, sensor, quality, jobs)
         timing = PreviewTiming(name, what, time.perf_counter() - t, steps, error=error)
         try:
             report = json.loads((stage_dir / "compose.json").read_text())

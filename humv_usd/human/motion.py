@@ -26,6 +26,12 @@ Pipeline (walk/run):
    are blended between plants and follow the terrain with clearance, the root drops where a
    stance leg still could not reach, and two-bone IK poses the legs.
 
+These steps work per frame (stance runs, finite differences of the stance pivots, flight
+between stance frames), which needs several frames per step: below ``SIM_FPS_MIN`` (30 fps)
+the walk, run, carry and standing activities are simulated at the smallest integer multiple
+of the frame rate at or above it and every k-th frame is kept, so that a clip at 1, 2, 3, 5,
+6, 10 or 15 fps is the 30 fps clip at its times.
+
 Standing activities keep both feet planted (``standTurn`` steps them round a turn) and move
 the pelvis: quiet-standing sway (Winter 1995, *Gait & Posture* 3:193-214: CoM/CoP sway of a few
 mm to ~1 cm, mostly 0.1-0.5 Hz) and breathing (12-16 breaths/min at rest; faster and deeper
@@ -458,6 +464,14 @@ def _sway(t: np.ndarray, rng: np.random.Generator, rms: float) -> np.ndarray:
     return rms * x / norm
 
 
+#: The standing arms' angle from the vertical in the frontal plane [rad]. 8 deg put the upper
+#: arm into the torso with linear-blend skinning (demo body: 90 of 758 armpit vertices inside
+#: the body, 40 T-shirt triangle centres inside it); at 18 deg 14 and 4 (13 deg: 46 and 29).
+#: A relaxed arm hangs clear of the latissimus, about 10-20 deg at the humerus; the walking
+#: gait uses 9-12 deg (gait_params).
+STAND_ARM_ABDUCTION = np.radians(18.0)
+
+
 def _standing(
     activity,
     skeleton,
@@ -607,7 +621,7 @@ def _standing(
     for side in C.SIDES:
         sign = 1.0 if side == "Left" else -1.0
         local[:, ix[f"{side}Shoulder"]] = rot_y(-sign * np.radians(0.8) * breath)
-        add = info.arm_rest_abd[side] - np.radians(8.0)
+        add = info.arm_rest_abd[side] - STAND_ARM_ABDUCTION
         local[:, ix[f"{side}Arm"]] = rot_x(-np.radians(2.0) * breath) @ rot_y(sign * add)
         local[:, ix[f"{side}ForeArm"]] = axis_angle_matrix(
             info.elbow_axis[side], np.radians(15.0) - info.elbow_rest[side]
@@ -656,6 +670,35 @@ def _pose_motion(activity, skeleton, fps, frames, path, ground, feet, mass_kg, b
     }
     rate = met_to_watts(out["met"], mass_kg)
     return Motion(float(fps), out["root"], quats, activity, rate, out["report"], info)
+
+
+# ------------------------------------------------------------------------- resampling
+#: Lowest simulation rate [frames/s] of the walk, run, carry and standing activities. The
+#: simulation works per frame (stance runs of consecutive frames, finite differences of the
+#: stance pivots, flight parabolas between stance frames, reach smoothing over frames): at
+#: 2 fps a walking swing (~0.4 s) falls between two frames, two stances of a foot merge into
+#: one planted for more than a stride, and the pelvis is lowered ~0.8 m to reach it. Below
+#: this rate a clip is simulated at the smallest integer multiple of its rate >= this one and
+#: every k-th frame kept: at 1, 2, 3, 5, 6, 10 and 15 fps that is the 30 fps (default) motion.
+SIM_FPS_MIN = 30.0
+
+
+def _decimate(skeleton, ground, feet, k: int, quats, root, info, frames) -> tuple:
+    """Every ``k``-th frame of a simulated clip (``frames`` of them), its gait info arrays
+    likewise; the contact report measured on the kept frames."""
+    n = len(root)
+    keep = slice(0, (frames - 1) * k + 1, k)
+    out = {}
+    for key, val in info.items():
+        if isinstance(val, dict):
+            out[key] = {s: v[keep] if np.ndim(v) and len(v) == n else v for s, v in val.items()}
+        else:
+            out[key] = val[keep] if np.ndim(val) and len(val) == n else val
+    q, root = quats[keep], root[keep]
+    rot = quat_to_matrix(q)
+    rot, pos = fk_matrices(skeleton, rot, rot[:, 0], root)
+    report = C.contact_report(ground, feet, rot, pos, {s: out["stance"][s.lower()] for s in C.SIDES})
+    return _continuous(q), root, report, out
 
 
 # ------------------------------------------------------------------------- entry point
@@ -729,6 +772,9 @@ def make_motion(
     times = np.arange(frames) / fps
     if activity in PO.POSE_ACTIVITIES:
         return _pose_motion(activity, skeleton, fps, frames, path, g, feet, mass_kg, body_points)
+    # below SIM_FPS_MIN: simulated at k * fps >= SIM_FPS_MIN, every k-th frame kept
+    k = max(int(np.ceil(SIM_FPS_MIN / fps - 1e-9)), 1)
+    sim_fps, sim_frames = k * float(fps), (frames - 1) * k + 1
     if activity in ("walk", "run"):
         v = DEFAULT_SPEED[activity] if speed_m_s is None else float(speed_m_s)
         lo, hi = SPEED_RANGE[activity]
@@ -736,15 +782,17 @@ def make_motion(
             raise InputError(bad_value("speed_m_s", v, f"{activity} speed must be in {lo}..{hi} m/s"))
         start = skeleton.rest_positions[0, :2]
         quats, root, report, info = _locomotion(
-            activity, skeleton, fps, frames, v, Path(path, start), g, feet, start_phase
+            activity, skeleton, sim_fps, sim_frames, v, Path(path, start), g, feet, start_phase
         )
+        if k > 1:
+            quats, root, report, info = _decimate(skeleton, g, feet, k, quats, root, info, frames)
         rate = metabolic_rate(activity, mass_kg, times, v, info["grade"])
     else:
         quats, root, report, info = _standing(
             activity,
             skeleton,
-            fps,
-            frames,
+            sim_fps,
+            sim_frames,
             path,
             g,
             feet,
@@ -754,6 +802,8 @@ def make_motion(
             exercise_met,
             time_since_exercise_s,
         )
+        if k > 1:
+            quats, root, report, info = _decimate(skeleton, g, feet, k, quats, root, info, frames)
         rate = metabolic_rate(
             activity,
             mass_kg,

@@ -1049,19 +1049,21 @@ def _stack_solve(p, tol, max_iter):
     # steady state from the middle of the bracket
     t = np.where(flat["c_dt"][-1] > 0.0, np.clip(flat["t_prev"][-1], lo, hi), 0.5 * (lo + hi))
     idx = np.arange(t.size)
-    delta = 1e-4
+    # [K] central-difference step of the slope, per facet: 1e-4 K, then the last step's size
+    # (at least 1e-9 K, 1e4 ulps): a stack of three heavy layers is so curved within 1e-4 K of
+    # its root (f' changes 2x) that a 1e-4 K chord slope made Newton converge only linearly
+    delta = np.full(t.size, 1e-4)
     iterations = 0
     for iterations in range(1, max_iter + 1):
         m = idx.size
         x = t[idx]
+        dx = delta[idx]
         # the residual and its central-difference slope in one stack evaluation of 3 m facets
-        # (x, x + delta, x - delta; the slope of a facet that converges now goes unused): each
+        # (x, x + dx, x - dx; the slope of a facet that converges now goes unused): each
         # facet's arithmetic is the same as in three evaluations, in a third of the calls
-        f3, extra = _stack_balance(
-            np.concatenate([x, x + delta, x - delta]), _stack_take(flat, np.tile(idx, 3))
-        )
+        f3, extra = _stack_balance(np.concatenate([x, x + dx, x - dx]), _stack_take(flat, np.tile(idx, 3)))
         f = f3[:m]
-        dfdt = (f3[m : 2 * m] - f3[2 * m :]) / (2.0 * delta)
+        dfdt = (f3[m : 2 * m] - f3[2 * m :]) / (2.0 * dx)
         # the nested gap solves carry round-off of the fluxes through them: a relative floor;
         # and a facet whose Newton step |f / f'| is below the collapsed bracket's width
         # (4 ulps of x, below) is solved to round-off: a stiff stack (a heavy outer layer's
@@ -1080,6 +1082,7 @@ def _stack_solve(p, tol, max_iter):
         t_next = np.where(inside, t_newton, 0.5 * (lo[idx] + hi[idx]))
         moving = (hi[idx] - lo[idx]) > 4.0 * _EPS * np.abs(x)
         t[idx] = np.where(moving, t_next, x)
+        delta[idx] = np.clip(np.abs(t_next - x), 1e-9, 1e-4)
         idx = idx[moving]
         if idx.size == 0:
             break

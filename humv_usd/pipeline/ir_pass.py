@@ -15,6 +15,7 @@ import numpy as np
 
 from humv_usd import images as writers
 from humv_usd.geometry.camera import Camera
+from humv_usd.groundtruth.labels import CLASS_ID
 from humv_usd.physics import planck
 from humv_usd.physics.sensor import SensorModel
 from humv_usd.pipeline.manifest import ErrorAccumulator
@@ -256,7 +257,9 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
     shown = m1 if s.is_reflective else bt
     if s.is_reflective:
         bt = np.full(bt.shape, np.nan)
-    levels = writers.preview_levels(shown)
+    class_id = labels.channels.get("class_id")
+    people = None if class_id is None else np.asarray(class_id).astype(int) == CLASS_ID["person"]
+    levels = writers.preview_levels(shown, keep=people)  # people stay readable in the PNG
     grey = preview_grey(shown, levels)
     channels = {
         "R": grey,

@@ -374,7 +374,9 @@ def _cross_checks(data: dict, problems: list[str], netd_origin: list[str] | None
             if lo is None:
                 problems.append(
                     bad_value(
-                        f"human[{i}].speed_m_s", speed, f"only for walk or run (activity is {activity!r})"
+                        f"human[{i}].speed_m_s",
+                        speed,
+                        f"only for walk, run or carry (activity is {activity!r})",
                     )
                 )
             elif not lo <= speed <= hi:

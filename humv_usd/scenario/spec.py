@@ -294,8 +294,8 @@ HUMAN = Section(
         ),
         "speed_m_s": Key(
             "float",
-            "Walking (0.5-2) or running (2-5) speed [m/s]; default 1.4 / "
-            "3.5. The person moves along the direction they face.",
+            "Walking or carrying (0.5-2) or running (2-5) speed [m/s]; default 1.4 / "
+            "3.5 / 1.2 (carry). The person moves along the direction they face.",
             lo=0.0,
             hi=6.0,
         ),
@@ -1402,7 +1402,7 @@ SECTIONS: dict[str, Section] = {
 }
 
 #: speed range of each moving activity [m/s] (walk: 0.5-2, run: 2-5, as the motion model's data)
-SPEED_RANGE_M_S = {"walk": (0.5, 2.0), "run": (2.0, 5.0)}
+SPEED_RANGE_M_S = {"walk": (0.5, 2.0), "run": (2.0, 5.0), "carry": (0.5, 2.0)}
 
 BAND_DEFAULT_UM = {
     "EO": [0.4, 0.7],

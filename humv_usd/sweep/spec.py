@@ -10,7 +10,8 @@
     seed = 0                            # seed of the random draws
 
     [set]                               # overrides of every variant (dotted keys)
-    "sensor.0.resolution" = [256, 192]
+    "sensor.0.render_resolution" = [256, 192]   # fewer pixels, the same view (the pitch scales;
+                                        # "sensor.0.resolution" would crop the field of view)
 
     [grid]                              # the grid: every combination is a variant
     "human.0.sex" = ["male", "female"]  # a list of values for one key
