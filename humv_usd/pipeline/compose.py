@@ -514,7 +514,8 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
             if node.upstream:
                 below = [layer_of(u) for u in reversed(strength) if u in node.upstream]
                 upstream = compose_in_memory(below + list(reversed(user_layers)), fps)
-            spill = SampleSpill(layer_dir, name) if node.tool.spills else None
+            # a spilled layer holds placeholders, not samples: only for a layer no later build reads
+            spill = SampleSpill(layer_dir, name) if node.tool.spills and last_use.get(name, -1) <= i else None
             try:
                 layer = node.tool.build(scenario, node.human, upstream, spill)
                 del upstream

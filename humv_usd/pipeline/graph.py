@@ -87,7 +87,8 @@ class Tool:
     @property
     def spills(self) -> bool:
         """Whether the tool takes a :class:`~humv_usd.usd.spill.SampleSpill` (``SPILLS``): its
-        per-frame samples go to disk as they are made (issue 29.5)."""
+        per-frame samples go to disk as they are made (issue 29.5). Compose passes one only when
+        no later layer of the build reads this one (the layer in memory holds placeholders)."""
         return bool(getattr(self.module, "SPILLS", False))
 
     def build(
