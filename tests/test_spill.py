@@ -137,3 +137,21 @@ def test_a_layer_without_paths_to_change_is_written_without_a_copy(tmp_path):
     before = layer.ExportToString()
     same = relative_asset_paths(layer, tmp_path / "o" / "layers")
     assert same.identifier == layer.identifier and layer.ExportToString() == before
+
+
+def test_a_layer_usd_cannot_write_is_an_oserror(tmp_path, monkeypatch):
+    # the CLI reports an OSError (a full disk) as one line; USD's writer raises Tf errors
+    from pxr import Tf
+
+    def fail(self, path, *args):
+        raise Tf.ErrorException("Failed to write layer")
+
+    layer = thermal_like_layer(series_set(np.random.default_rng(4)))
+    monkeypatch.setattr(Sdf.Layer, "Export", fail, raising=False)
+    try:
+        stage_layer(tmp_path / "thermal.usda", layer)
+    except OSError as exc:
+        assert exc.filename == str(tmp_path / "thermal.usda")
+    else:
+        raise AssertionError("no OSError")
+    assert list(tmp_path.iterdir()) == []  # the temp file is removed

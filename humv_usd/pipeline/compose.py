@@ -27,6 +27,7 @@ layer) they are absolute.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import logging
@@ -36,7 +37,7 @@ from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
 from pathlib import Path
 
-from pxr import Sdf, Usd
+from pxr import Sdf, Tf, Usd
 
 import humv_usd
 from humv_usd.errors import InputError
@@ -257,11 +258,15 @@ def stage_layer(path: Path, layer: Sdf.Layer, spill: SampleSpill | None = None) 
     digest: list[str] = []
 
     def write(tmp: Path) -> None:
-        if spill is not None:
-            digest.append(spill.export(layer, tmp))
-            return
-        if not layer.Export(str(tmp)):
-            raise OSError(f"{tmp}: USD could not write the layer")
+        try:
+            if spill is not None:
+                digest.append(spill.export(layer, tmp))
+                return
+            ok = layer.Export(str(tmp))
+        except Tf.ErrorException as exc:  # USD's writer failed (a full disk): an OSError, one line
+            raise OSError(errno.EIO, usd_error_text(exc), str(path)) from None
+        if not ok:
+            raise OSError(errno.EIO, "USD could not write the layer", str(path))
         h = hashlib.sha256()
         with open(tmp, "rb") as fh:
             for block in iter(lambda: fh.read(1 << 20), b""):
