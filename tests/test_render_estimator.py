@@ -245,7 +245,7 @@ def test_per_pixel_boosts_are_deterministic_and_agree_with_more_samples(tmp_path
     sub, rad, eps, tr = fr.setup(s, 4)
     pattern = 2.0 ** -(np.arange(36 * 48).reshape(36, 48) % 7)  # targets 1 to 1/64: many counts
 
-    def target(radiance):
+    def target(radiance, variance):
         return (1e-3 * radiance[0]) ** 2 * pattern
 
     args = (fr.scene, sid, fr.state, sub, eps, rad, 2, 5, tr)

@@ -106,7 +106,9 @@ def test_step_variance_of_a_pixel_over_a_step_between_faces():
 
 def test_boosts_within_budget_serve_the_largest_needs_first():
     need = np.array([[7, 0, 63], [1, 31, 3]])
-    assert (E.within_budget(need, 100) == np.array([[0, 0, 63], [0, 31, 0]])).all()  # 63 + 31 + 7 > 100
+    # 105 > 100: f = min(F, floor(lambda F^(1/3))); all but the 63 fit whole, which gets the
+    # remaining 100 - 42 = 58 (lambda = 58 / cbrt(63) ~ 14.6: cbrt(31) x 14.6 = 45 > 31)
+    assert (E.within_budget(need, 100) == np.array([[7, 0, 58], [1, 31, 3]])).all()
     assert (E.within_budget(need, 1000) == need).all()
     v = np.full((1, 2, 2), 4.0)
     assert (E.pixel_direct_points(v, np.array([[4.0, 1.0], [0.5, np.nan]])) == [[0, 3], [7, 0]]).all()
@@ -114,9 +116,44 @@ def test_boosts_within_budget_serve_the_largest_needs_first():
     # (the humvvex LWIR view: ground above the shoes took the budget from shoe pixels)
     capped = np.array([[1024, 1024], [1024, 1024]])
     ratio = E.variance_ratio(np.array([[[2e3, 5e4], [3e3, 1e5]]]), np.ones((2, 2)))
-    assert (E.within_budget(capped, 2048, ratio) == [[0, 1024], [0, 1024]]).all()
-    assert (E.within_budget(capped, 2048) == [[1024, 1024], [0, 0]]).all()
+    got = E.within_budget(capped, 2048, ratio)
+    # shares as the cube roots of the ratios (the mean error's optimum), the whole budget spent
+    # to within one sample per pixel
+    assert_allclose(got / got.sum(), np.cbrt(ratio) / np.cbrt(ratio).sum(), atol=2e-3)
+    assert 2048 - 4 <= got.sum() <= 2048
+    assert (E.within_budget(capped, 2048) == 512).all()
     assert (E.variance_ratio(np.ones((1, 1, 3)), np.array([[2.0, np.nan, 0.0]])) == [[0.5, 0.0, 0.0]]).all()
+
+
+def test_boosts_give_the_first_pixels_a_budget_of_their_own():
+    # the person's pixels (bottom row) and the ground's (top row), each a budget of 1024 + 8:
+    # the person gets its whole want whatever the ground's needs, the ground shares its own
+    # budget as the cube roots of its needs (the mean error's optimum)
+    factor = np.array([[1024, 1024], [1024, 8]])
+    need = np.array([[900.0, 800.0], [50.0, 2.0]])
+    first = np.array([[False, False], [True, True]])
+    got = E.within_budget(factor, 1032, need, first)
+    assert (got[1] == [1024, 8]).all()
+    assert 1032 - 2 <= got[0].sum() <= 1032
+    assert abs(got[0, 0] / got[0, 1] - np.cbrt(900 / 800)) < 0.01
+    assert E.within_budget(factor, 1032, need)[1, 0] < 1024  # one budget: shared with the ground
+    # the first pixels over their budget share it; the others keep theirs
+    got = E.within_budget(factor, 520, need, first)
+    assert 518 <= got[1].sum() <= 520 and got[1, 1] == 8
+    assert 518 <= got[0].sum() <= 520
+
+
+def test_first_batch_boosts_the_regions_that_would_miss_their_targets_unboosted():
+    # NETD 20 mK: target 6.67 mK mean, 0.1 K p99; two batches pool to error / sqrt(2)
+    regions = np.repeat(np.array([[1, 2, 3]]), 100, axis=0)  # 100 px each of three regions
+    names = ["background", "ground", "wall", "road"]
+    err = np.where(regions == 1, 0.0120, 0.0080)  # 8.5 mK vs 5.7 mK after two batches
+    err[:3, 2] = 0.2  # road: a few pixels 0.14 K after two: its p99 misses
+    edge = np.zeros(regions.shape, bool)
+    miss = Q.likely_to_miss(err, edge, regions, names, 0.020)
+    assert (miss == ((regions == 1) | (regions == 3))).all()
+    assert not Q.likely_to_miss(err, edge, regions, names, 0.020, batches=9).any()  # 4 mK, 67 mK
+    assert not Q.likely_to_miss(err, edge, regions, names, None).any()  # no NETD: no target
 
 
 def _person_scene(tmp_path):

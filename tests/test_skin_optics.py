@@ -7,6 +7,7 @@ import pytest
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.catalog.skin import SKIN_TONES, skin_material_name
 from humv_usd.physics import skin_optics as S
+from humv_usd.physics.water_film import WATER_OPTICAL_CONSTANTS
 
 VIS_NIR = np.array([0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0])
 
@@ -82,8 +83,6 @@ def test_absorption_tables_match_their_sources():
     """Blood at Prahl's (1999, omlc.org/spectra/hemoglobin/summary.html) tabulated molar
     extinction (mu_a = 2.303 e 150 g/L / 64 500 g/mol, plus 80 % water), and water at 4 pi k /
     lambda from Hale & Querry's k as tabulated independently in physics.water_film."""
-    from humv_usd.physics.water_film import WATER_OPTICAL_CONSTANTS
-
     prahl = {0.5: (20932.8, 20862.0), 0.576: (55540.0, 40092.0), 0.8: (816.0, 761.72), 1.0: (1024.0, 206.784)}
     for w, (hbo2, hb) in prahl.items():
         water = 0.8 * S.water_absorption(w)

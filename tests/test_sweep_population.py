@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
 from humv_usd.errors import InputError
 from humv_usd.human.population import BMI_MAX, BMI_MIN
@@ -77,3 +79,38 @@ def test_bad_population_draw_is_one_line_naming_it(tmp_path, draw, expected):
     with pytest.raises(InputError) as exc:
         load_sweep(_sweep(tmp_path, draw))
     assert any(expected in p for p in exc.value.problems), exc.value.problems
+
+
+def test_drawn_person_keeps_their_hair_under_a_drawn_or_grid_outfit(tmp_path):
+    outfits = '[["hoodie", "skirt", "shoes"], ["hair_long", "winter_coat", "boots"]]'
+    path = _sweep(
+        tmp_path, f'"human.0" = {{ population = {{}} }}\n"human.0.clothing" = {{ choice = {outfits} }}', 8
+    )
+    path.write_text(
+        path.read_text() + '\n[grid.coat]\nnone = {}\ncoat = { "human.0.clothing" = ["jacket", "jeans"] }\n'
+    )
+    variants = expand(load_sweep(path))
+    assert len(variants) == 16
+    for v in variants:
+        sampled = [g for g in v.raw["human"][0]["clothing"] if g.startswith("hair_") or g == "beard"]
+        assert 1 <= len(sampled) <= 2 and "hair_long" not in v.raw["human"][0]["clothing"][len(sampled) :]
+        rest = v.raw["human"][0]["clothing"][len(sampled) :]
+        assert rest in (["hoodie", "skirt", "shoes"], ["winter_coat", "boots"], ["jacket", "jeans"])
+        assert json.loads(v.params["human.0.clothing"]) == v.raw["human"][0]["clothing"]
+
+
+def test_people_sweep_example_draws_valid_people_in_every_motion():
+    variants = expand(load_sweep(ROOT / "examples" / "people_sweep.toml"))
+    humans = [validate(v.raw)["human"][0] for v in variants]
+    assert {h["activity"] for h in humans} == {
+        "walk",
+        "carry",
+        "wave",
+        "sit",
+        "crouch",
+        "kneel",
+        "lieSide",
+        "fall",
+    }
+    assert all(h["clothing"][0] in ("hair_short", "hair_long", "hair_tied") for h in humans)
+    assert min(h["age_yr"] for h in humans) < 20.0 < max(h["age_yr"] for h in humans)

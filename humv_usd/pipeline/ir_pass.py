@@ -158,12 +158,20 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
     thermal_k = thermal_noise(run, s, state, hits)  # the thermal layer's own noise [K] per pixel
     fast_auto = plan.estimator == "fast" and plan.spp_auto
 
-    boost_where = Q.first_boost(regions, region_names)  # people first
+    first_served = Q.first_boost(regions, region_names)  # people: a boost budget of their own
+    boost_where = first_served
 
-    def direct_target(radiance):
-        """Per-pixel variance target of the estimator's boosts (automatic quality)."""
+    def direct_target(radiance, variance):
+        """Per-pixel variance target of the estimator's boosts (automatic quality): the people's
+        pixels and those of the failing regions; in the first batch, of the regions that would
+        miss their targets unboosted (``variance``: the batch's own, before boosts)."""
         _, dl_dt = planck.brightness_temperature_tabulated(radiance[0], band, response)
-        return Q.pixel_target_var(netd, dl_dt, boost_where)
+        where = boost_where
+        if pooled.count == 0:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                err_k = np.where(dl_dt > 0, np.sqrt(np.nansum(variance, axis=0)) / dl_dt, np.nan)
+            where = where | Q.likely_to_miss(err_k, edges, regions, region_names, netd)
+        return Q.pixel_target_var(netd, dl_dt, where)
 
     pooled = Q.Batches()
     back_face = None
@@ -176,6 +184,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             extra["info"] = info = {}
             if fast_auto and Q.targets(netd) is not None:
                 extra["direct_target"] = direct_target
+                extra["boost_first"] = first_served
         batch = renderer.render(
             scene,
             sensor_id,

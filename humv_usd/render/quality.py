@@ -206,6 +206,27 @@ def first_boost(regions, names) -> np.ndarray:
     return mask if mask.any() else np.asarray(regions) > 0
 
 
+def likely_to_miss(stderr_k, edge, regions, names, netd_k, batches: int = MIN_BATCHES) -> np.ndarray:
+    """(H, W) bool: the pixels of the regions that would miss their targets after ``batches``
+    batches like this one without boosts (its per-pixel error ``stderr_k`` [K] over the square
+    root of ``batches``: :class:`Batches` pools equal batches), so the first batch boosts them
+    too: the humvvex MWIR ground (28 mK per unboosted batch, target 6.7) boosted from the second
+    batch on only needed 5 batches (the unboosted first one weighs as much as the others), from
+    the first 3; the LWIR grounds, within their targets unboosted, spend nothing."""
+    err = np.asarray(stderr_k, dtype=np.float64) / sqrt(max(int(batches), 1))
+    per_region = region_stats(err, edge, regions, names)
+    judged = verdict(noise_summary(err, edge), per_region, netd_k)
+    missing = [i for i, name in enumerate(names) if judged["regions"].get(name) is False]
+    return np.isin(regions, missing)
+
+
+def noise_summary(stderr_k, edge) -> dict:
+    """Mean and 99th percentile of the per-pixel error [K] away from edges (the image's record
+    of :func:`verdict`)."""
+    err = np.asarray(stderr_k, dtype=np.float64)
+    return _summary(err[~np.asarray(edge, bool) & np.isfinite(err)])
+
+
 def next_boost(regions, names, judged: dict) -> np.ndarray:
     """(H, W) bool: the pixels of the regions that have not met their targets yet (a later
     batch's boosts serve them; none when only the image as a whole falls short), and always

@@ -365,8 +365,8 @@ GROUND = Section(
             "float",
             "Share of the ground rectangle under puddles after rain [0-0.5]: flat water patches "
             "0.3-1.5 m in radius from general.seed, clear of objects (humv_usd.scene.puddles; "
-            "only when [atmosphere] rain_mm_h > 0). They render as water surfaces, not yet as "
-            "mirrors.",
+            "only when [atmosphere] rain_mm_h > 0). They render as calm water: a Fresnel "
+            "mirror of the scene and sky in the fast estimator (no ripples).",
             default=0.0,
             lo=0.0,
             hi=0.5,

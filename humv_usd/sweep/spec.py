@@ -478,7 +478,8 @@ def _check_population(key: str, args, problems: list[str]) -> None:
 def population_values(draw: Draw, raw: dict, rng: np.random.Generator) -> dict[str, Any]:
     """Dotted keys -> values of one person drawn from the population
     (:func:`humv_usd.human.population.sample_person`; the sampled hair replaces any hair or
-    beard of the base person's clothing, the rest of the clothing is kept)."""
+    beard of the base person's clothing, the rest of the clothing is kept; :func:`expand` puts the
+    same hair back into an outfit that a later draw or a grid option sets)."""
     person = sample_person(rng, **(draw.args or {}))
     i = int(draw.key.split(".")[1])
     base = (raw.get("human") or [{}])[i].get("clothing") or []
@@ -757,13 +758,15 @@ def expand(sweep: Sweep) -> list[Variant]:
             raw = copy.deepcopy(sweep.base)
             params: dict[str, Any] = {axis.name: _label(label) for axis, (label, _) in zip(sweep.axes, point)}
             rng = np.random.default_rng([sweep.seed, k])
-            drawn = {}
+            drawn, hair_of = {}, {}
             for draw in sweep.draws:  # first: a grid option may set or remove a drawn key
                 values = (
                     population_values(draw, raw, rng)
                     if draw.kind == "population"
                     else {draw.key: draw_value(draw, keys[draw.key], rng)}
                 )
+                if draw.kind == "population":
+                    hair_of[draw.key] = [g for g in values[f"{draw.key}.clothing"] if g in _HAIR]
                 for key, value in values.items():
                     drawn[key] = value
                     apply(raw, key, value)
@@ -776,6 +779,11 @@ def expand(sweep: Sweep) -> list[Variant]:
                         apply(raw, key, value)
             for key, value in later:  # appends and removals after every set: axis order does not matter
                 apply(raw, key, value)
+            for key, hair in hair_of.items():  # a drawn person keeps their hair under any outfit
+                person = raw["human"][int(key.split(".")[1])]
+                if person.get("clothing") is not None:
+                    person["clothing"] = hair + [g for g in person["clothing"] if g not in _HAIR]
+                    drawn[f"{key}.clothing"] = person["clothing"]
             for key, value in drawn.items():
                 params[key] = _label(value) if _present(raw, key) else None
             if sweep.camera is not None:  # last: the pose fits the variant's person and sensor
