@@ -1,14 +1,23 @@
 """Compose memory and time of a crowd (issue 29.5): N people walking, each steering round the
-others (placement ``avoidance = "socialForce"``), composed by ``humv-usd compose`` in a child
-process whose peak resident set size is read from ``getrusage(RUSAGE_CHILDREN)``.
+others (placement ``avoidance = "socialForce"``), composed (:func:`humv_usd.pipeline.compose.compose`,
+what ``humv-usd compose`` runs) in a child process whose peak resident set it reads from /proc.
 
     python -m humv_usd.bench.crowd --people 10 --duration 1.5 --fps 30 --thermal fixed OUT
+    python -m humv_usd.bench.crowd OUT --people 2 --fps 10 --durations 3 6 12 24
 
 The scenario is examples/walk.toml's site and weather with its camera cut to 64x48 pixels; the
 people start on a 3 m x 9 m block west of the origin and walk east, every second one on a
 diagonal, so their paths cross; outfits: T-shirt, leggings, shoes. The result (JSON on stdout
 and in OUT/bench_crowd.json): frames, people, peak RSS [MB], wall time [s], the layer texts
-written [MB] and compose.json's seconds per layer.
+written [MB], compose.json's seconds per layer and each layer build's own peak RSS [MB].
+
+The child composes with a progress hook that, before each layer build, reads the process's
+peak resident set (``VmHWM`` of /proc/self/status) and resets it (``5`` to
+/proc/self/clear_refs, Linux >= 4.0): the peak of each build on its own. Where the reset is not
+allowed the per-layer peaks are left out.
+
+Memory against clip length (issue 29.5): ``--durations 2 4 8`` composes the same crowd at each
+duration and adds the peak's growth per frame (a least-squares line through the runs).
 """
 
 from __future__ import annotations
@@ -22,11 +31,23 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
+from humv_usd.pipeline.compose import compose
+from humv_usd.scenario import load_scenario
+
 WALK_TOML = Path(__file__).resolve().parents[2] / "examples" / "walk.toml"
 
 
-def crowd_scenario(people: int, duration_s: float, fps: float, thermal: str = "fixed") -> str:
-    """The scenario text (see the module doc)."""
+#: the outfit every walker wears unless told otherwise
+OUTFIT = ("tshirt_black", "leggings", "shoes")
+
+
+def crowd_scenario(
+    people: int, duration_s: float, fps: float, thermal: str = "fixed", clothing=OUTFIT
+) -> str:
+    """The scenario text (see the module doc); ``clothing``: every walker's garments (None:
+    no ``clothing`` key, the scenario's default)."""
     src = WALK_TOML.read_text(encoding="utf-8")
     head = src[: src.index("[[human]]")]
     tail = src[src.index("[scene]") :]
@@ -49,7 +70,7 @@ stature_m = {1.60 + 0.025 * (i % 9):.3f}
 mass_kg = {58 + 3 * i}.0
 activity = "walk"
 speed_m_s = {1.1 + 0.05 * (i % 5):.2f}
-clothing = ["tshirt_black", "leggings", "shoes"]
+{"" if clothing is None else "clothing = " + json.dumps(list(clothing))}
 
 [[placement]]
 human = "p{i}"
@@ -62,27 +83,22 @@ avoidance = "socialForce"
     return head + "".join(out) + "\n" + tail
 
 
-def bench_crowd(out: Path, people: int, duration_s: float, fps: float, thermal: str = "fixed") -> dict:
+def bench_crowd(
+    out: Path, people: int, duration_s: float, fps: float, thermal: str = "fixed", clothing=OUTFIT
+) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scenario = out / "crowd.toml"
-    scenario.write_text(crowd_scenario(people, duration_s, fps, thermal), encoding="utf-8")
+    scenario.write_text(crowd_scenario(people, duration_s, fps, thermal, clothing), encoding="utf-8")
     t = time.perf_counter()
-    cmd = [
-        sys.executable,
-        "-m",
-        "humv_usd.cli.main",
-        "compose",
-        str(scenario),
-        "-o",
-        str(out / "stage"),
-        "--yes",
-    ]
+    cmd = [sys.executable, "-m", "humv_usd.bench.crowd", "--child", str(scenario), str(out / "stage")]
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run(cmd, capture_output=True, text=True)
     seconds = time.perf_counter() - t
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr[-2000:])
-    peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    peaks = json.loads((out / "layer_peaks.json").read_text())
     layers = out / "stage" / "layers"
     report = json.loads((out / "stage" / "compose.json").read_text())
     result = {
@@ -90,13 +106,70 @@ def bench_crowd(out: Path, people: int, duration_s: float, fps: float, thermal: 
         "frames": int(round(duration_s * fps)) + 1,
         "fps": fps,
         "thermal": thermal,
-        "peak_rss_mb": round(peak_kb / 1024.0, 1),
+        "clothing": None if clothing is None else list(clothing),
+        "peak_rss_mb": peaks["peak_mb"],
         "wall_s": round(seconds, 1),
+        # CPU seconds of the child (user + system): less sensitive than wall time to a shared machine
+        "cpu_s": round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 1),
         "layer_text_mb": round(sum(p.stat().st_size for p in layers.glob("*.usda")) / 1e6, 1),
         "layer_seconds": {e["name"]: e["seconds"] for e in report["layers"] if "seconds" in e},
+        "layer_peak_rss_mb": peaks["layers"],
         "cpus": os.cpu_count(),
     }
     (out / "bench_crowd.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    return result
+
+
+def _status_kb(key: str) -> float:
+    with open("/proc/self/status", encoding="ascii") as fh:
+        for line in fh:
+            if line.startswith(key + ":"):
+                return float(line.split()[1])
+    return float("nan")
+
+
+def child_compose(scenario: Path, out: Path) -> None:
+    """Compose ``scenario`` into ``out`` recording each layer build's peak RSS [MB] to
+    ``out/../layer_peaks.json`` (see the module doc)."""
+    peaks: dict[str, float] = {}
+    current = ["load"]
+
+    def reset() -> bool:
+        try:
+            with open("/proc/self/clear_refs", "w", encoding="ascii") as fh:
+                fh.write("5")
+            return True
+        except OSError:
+            return False
+
+    resettable = reset()
+
+    def progress(done: int, total: int, text: str) -> None:
+        peaks[current[0]] = round(_status_kb("VmHWM") / 1024.0, 1)
+        current[0] = text.removeprefix("layer ")
+        reset()
+
+    compose(load_scenario(scenario), out, yes=True, progress=progress)
+    peaks[current[0]] = round(_status_kb("VmHWM") / 1024.0, 1)
+    # the phases (load, each layer, writing) cover the run: the largest is the run's peak; without
+    # resets VmHWM is the run's peak already
+    result = {"peak_mb": max(peaks.values()), "layers": peaks if resettable else {}}
+    (Path(out).parent / "layer_peaks.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+
+
+def bench_durations(
+    out: Path, people: int, durations, fps: float, thermal: str = "fixed", clothing=OUTFIT
+) -> dict:
+    """:func:`bench_crowd` at each duration (one child each) and the line peak RSS = a + b x
+    frames through them: ``peak_mb_per_frame`` (b) and ``peak_mb_at_0`` (a)."""
+    runs = [bench_crowd(Path(out) / f"{d:g}s", people, d, fps, thermal, clothing) for d in durations]
+    frames = np.array([r["frames"] for r in runs], dtype=float)
+    peak = np.array([r["peak_rss_mb"] for r in runs])
+    slope, at0 = np.polyfit(frames, peak, 1) if len(runs) > 1 else (float("nan"), float(peak[0]))
+    result = {"runs": runs, "peak_mb_per_frame": round(float(slope), 3), "peak_mb_at_0": round(float(at0), 1)}
+    (Path(out) / "bench_crowd_durations.json").write_text(
+        json.dumps(result, indent=2) + "\n", encoding="utf-8"
+    )
     return result
 
 
@@ -105,10 +178,25 @@ def main(argv=None) -> None:
     ap.add_argument("out", type=Path)
     ap.add_argument("--people", type=int, default=10)
     ap.add_argument("--duration", type=float, default=1.0)
+    ap.add_argument("--durations", type=float, nargs="+", help="several durations [s]: memory against frames")
+    ap.add_argument("--child", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument(
+        "--clothing",
+        default=",".join(OUTFIT),
+        help="comma-separated garments of every walker; 'none': no clothing key (the default outfit)",
+    )
     ap.add_argument("--fps", type=float, default=30.0)
     ap.add_argument("--thermal", default="fixed", choices=("fixed", "twoNode", "jos3"))
     a = ap.parse_args(argv)
-    sys.stdout.write(json.dumps(bench_crowd(a.out, a.people, a.duration, a.fps, a.thermal), indent=2) + "\n")
+    if a.child is not None:  # the composing child (see the module doc)
+        child_compose(a.child, a.out)
+        return
+    clothing = None if a.clothing == "none" else [c for c in a.clothing.split(",") if c]
+    if a.durations:
+        result = bench_durations(a.out, a.people, a.durations, a.fps, a.thermal, clothing)
+    else:
+        result = bench_crowd(a.out, a.people, a.duration, a.fps, a.thermal, clothing)
+    sys.stdout.write(json.dumps(result, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -28,26 +28,44 @@ log = logging.getLogger(__name__)
 #: 265 kB per person and frame (clothing 257 kB, avatar 8 kB).
 PERSON_FRAME_BYTES = 270e3
 #: compose: per-face temperature text per frame and person of a thermal model that solves per
-#: frame (jos3, twoNode; "fixed" writes no per-frame samples): ~30 k body and garment faces at
-#: ~8 characters each (an estimate, not measured)
-THERMAL_PERSON_FRAME_BYTES = 250e3
+#: frame (jos3, twoNode; "fixed" writes no per-frame samples). Measured (``python -m
+#: humv_usd.bench.crowd``, 2026-11-27, s5): 2 walkers, 31 frames, jos3 25.1 MB of layers against
+#: 14.4 MB with "fixed": 173 kB per person and frame (16.5 k body and garment faces)
+THERMAL_PERSON_FRAME_BYTES = 180e3
 #: compose: layer text per frame for the rest (sun, weather samples)
 SCENE_FRAME_BYTES = 2e3
-#: compose streams layer texts to disk as it builds them (``fileio.stage_text``) and drops a
-#: layer once the last layer reading it is built. What it then holds grows per frame by: the
-#: working set of the one clothing layer being built (all of its person's frames) and the
-#: avatar/clothing layers the thermal tool will read (every person's). Measured with the bench
-#: above (peak RSS of the compose process, thermal "fixed"): 10 people 478 MB at 16 frames, 506
-#: MB at 46 (0.94 MB per frame); 2 people 715 MB at 301 frames (0.85 MB per frame; the code
-#: before streaming: 737 MB) -> ~0.85 MB per frame for the build, ~10 kB per person and frame
-#: held. Rounded up: 1 MB per frame, 50 kB per person and frame.
+#: What compose holds (issue 29.5). Every layer's text goes to disk by USD's streaming writer as
+#: soon as the layer is built (``compose.stage_layer``; before s5 the text was one string, then
+#: encoded: ~2 x the text on top), and a layer is dropped once the last layer reading it is
+#: built. The thermal tool spills each mesh's per-frame temperatures to disk as soon as they are
+#: solved (``usd.spill``), so its layer and the people's results are no longer held (before: all
+#: people's float64 results + the float32 layer + 2 x its text). What still grows per frame: the
+#: avatar/clothing layers the thermal tool reads (every person's, ``HELD``), the working set of
+#: the one clothing layer being built (``BUILD``) and, for a per-frame thermal model, the one
+#: person's physiology and garment balance over the whole clip (``THERMAL_SOLVE``: (frames, faces)
+#: float64 arrays of the coupled solve, :func:`humv_usd.thermal.human.human_temperatures`).
+#: Measured peak RSS (``python -m humv_usd.bench.crowd OUT --people 2 --fps 10 --durations 3 6
+#: 12 24``, each layer build's own peak, 2026-11-27 s5, under load; /work/notes/s5/crowds.md):
+#: 2 walkers, "fixed", 440 / 444 / 489 / 508 MB at 31 / 61 / 121 / 241 frames (the clothing build
+#: over the avatar phase: +29 / +34 / +43 / +65 MB, ~0.15 MB per frame); 10 walkers for 2 min at
+#: 1 fps (121 frames, ``--people 10 --fps 1 --duration 120``): 556 MB, the clothing phases
+#: growing from 502 (first person) to 556 MB (tenth): 50 kB per person and frame held.
+#: Rounded up: 1 MB per frame for the build, 50 kB per person and frame held.
 COMPOSE_BUILD_FRAME_BYTES = 1.0e6
 COMPOSE_HELD_PERSON_FRAME_BYTES = 50e3
-#: a per-frame thermal layer is built in memory whole: its samples (float32 per face) and, when
-#: written, its text: ~2 x its text (an estimate, not measured)
-COMPOSE_THERMAL_MEMORY_PER_BYTE = 2.0
-#: compose: seconds per frame and person (skinning, garments, thermal) and per frame
+#: per-frame thermal model: the one person's solve, fixed part and per frame. Measured (2 walkers,
+#: jos3, ``--durations 3 6`` at 10 fps): peak 840 MB at 31 frames (the thermal build over 421 MB
+#: held), 882 MB at 61: 1.37 MB per frame for the solve and both people's held layers (the code
+#: before the spill: 850 and 934 MB, 2.78 MB per frame). Rounded up.
+COMPOSE_THERMAL_SOLVE_BYTES = 450e6
+COMPOSE_THERMAL_SOLVE_FRAME_BYTES = 1.5e6
+#: compose: seconds per frame and person (skinning, garments, thermal) and per frame (measured
+#: 2026-11-27 s5, bench above, "fixed": 14.6 / 24.9 / 46.4 CPU-s at 31 / 61 / 121 frames of 2
+#: walkers, 0.18 s per person and frame)
 COMPOSE_PERSON_FRAME_S = 0.2
+#: compose: seconds per frame and person of a per-frame thermal model (jos3: 79 / 178 CPU-s at
+#: 31 / 61 frames of 2 walkers, 1.65 s per person and frame; under load, so rounded up)
+COMPOSE_THERMAL_PERSON_FRAME_S = 1.7
 #: render: bytes written per pixel of an image (EXR with labels, previews, masks)
 IMAGE_DISK_PER_PIXEL = 40.0
 #: render: bytes of arrays per pixel of the image being rendered and labelled
@@ -118,24 +136,32 @@ def _duration(s: float) -> str:
 
 
 def compose_budget(scenario) -> Budget:
-    """The estimate of a compose (see the constants above): disk = the layer texts; memory = the
-    base + per frame the one clothing build's working set, the people's layers held for the
-    thermal tool and, for a per-frame thermal model, that layer whole (samples and text)."""
+    """The estimate of a compose (see the constants above): disk = the layer texts and, while
+    the thermal layer is written, its spilled samples once more; memory = the base + per frame
+    the one clothing build's working set and the people's layers held for the thermal tool + for
+    a per-frame thermal model one person's solve (its layer goes to disk as it is made)."""
     frames = scenario.frame_count
     people = len(scenario["human"])
     per_frame_thermal = (scenario.get("thermal") or {}).get("model", "fixed") != "fixed"
     thermal_text = frames * people * THERMAL_PERSON_FRAME_BYTES if per_frame_thermal else 0.0
     text = frames * (people * PERSON_FRAME_BYTES + SCENE_FRAME_BYTES) + thermal_text
+    solve = (
+        COMPOSE_THERMAL_SOLVE_BYTES + frames * COMPOSE_THERMAL_SOLVE_FRAME_BYTES
+        if per_frame_thermal and people
+        else 0.0
+    )
     memory = (
         BASE_MEMORY
         + frames * (COMPOSE_BUILD_FRAME_BYTES * min(people, 1) + people * COMPOSE_HELD_PERSON_FRAME_BYTES)
-        + COMPOSE_THERMAL_MEMORY_PER_BYTE * thermal_text
+        + solve
     )
     return Budget(
         "compose",
         memory,
-        text,
-        frames * (people * COMPOSE_PERSON_FRAME_S + 0.01) + 2.0,
+        text + thermal_text,
+        frames
+        * (people * (COMPOSE_PERSON_FRAME_S + COMPOSE_THERMAL_PERSON_FRAME_S * per_frame_thermal) + 0.01)
+        + 2.0,
         f"{frames:,} frame(s) x {people} person(s)",
         "general.duration_s or general.fps",
     )

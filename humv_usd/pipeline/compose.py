@@ -27,6 +27,7 @@ layer) they are absolute.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import logging
@@ -36,7 +37,7 @@ from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
 from pathlib import Path
 
-from pxr import Sdf, Usd
+from pxr import Sdf, Tf, Usd
 
 import humv_usd
 from humv_usd.errors import InputError
@@ -49,7 +50,6 @@ from humv_usd.fileio import (
     folder_lock,
     remove_stale_temps,
     stage_file,
-    stage_text,
 )
 from humv_usd.groundtruth import annotators
 from humv_usd.pipeline.budget import compose_budget, require_fits
@@ -66,6 +66,7 @@ from humv_usd.usd.layers import (
     set_layer_metadata,
     usd_error_text,
 )
+from humv_usd.usd.spill import SampleSpill
 
 log = logging.getLogger(__name__)
 
@@ -248,6 +249,32 @@ def root_layer(
 
 def _sha(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def stage_layer(path: Path, layer: Sdf.Layer, spill: SampleSpill | None = None) -> tuple[StagedText, str]:
+    """Stage ``layer``'s usda text for ``path`` (:func:`humv_usd.fileio.stage_file`) through
+    USD's streaming writer, with the samples of ``spill`` spliced in at their placeholders;
+    returns (the staged file, its :func:`_sha`). The same bytes as ``layer_text(layer)``."""
+    digest: list[str] = []
+
+    def write(tmp: Path) -> None:
+        try:
+            if spill is not None:
+                digest.append(spill.export(layer, tmp))
+                return
+            ok = layer.Export(str(tmp))
+        except Tf.ErrorException as exc:  # USD's writer failed (a full disk): an OSError, one line
+            raise OSError(errno.EIO, usd_error_text(exc), str(path)) from None
+        if not ok:
+            raise OSError(errno.EIO, "USD could not write the layer", str(path))
+        h = hashlib.sha256()
+        with open(tmp, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+        digest.append(h.hexdigest())
+
+    staged = stage_file(path, write)
+    return staged, digest[0][:16]
 
 
 def _previous(out: Path) -> dict:
@@ -492,15 +519,22 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
             if node.upstream:
                 below = [layer_of(u) for u in reversed(strength) if u in node.upstream]
                 upstream = compose_in_memory(below + list(reversed(user_layers)), fps)
-            layer = node.tool.build(scenario, node.human, upstream)
-            del upstream
-            set_inputs_key(layer, state.key)
-            # the file holds paths relative to its folder (a movable output), the layer in memory
-            # absolute ones (downstream tools compose it, anonymous, without an anchor)
-            text = layer_text(relative_asset_paths(layer, layer_dir))
-            state.sha256 = _sha(text)
-            staged[name] = stage_text(layer_dir / f"{name}.usda", text)
-            del text
+            # a spilled layer holds placeholders, not samples: only for a layer no later build reads
+            spill = SampleSpill(layer_dir, name) if node.tool.spills and last_use.get(name, -1) <= i else None
+            try:
+                layer = node.tool.build(scenario, node.human, upstream, spill)
+                del upstream
+                set_inputs_key(layer, state.key)
+                # the file holds paths relative to its folder (a movable output), the layer in
+                # memory absolute ones (downstream tools compose it, anonymous, without an anchor).
+                # Written by USD's streaming writer (with a spill's samples spliced in), never
+                # held as one string: a crowd's layer texts are GBs (issue 29.5)
+                staged[name], state.sha256 = stage_layer(
+                    layer_dir / f"{name}.usda", relative_asset_paths(layer, layer_dir), spill
+                )
+            finally:
+                if spill is not None:
+                    spill.close()
             # files a tool writes beside its layer (the sky texture the atmosphere layer's dome
             # points at): staged now, committed with the layers as one change
             for file_name, write in getattr(node.tool.module, "side_files", lambda _: {})(layer).items():

@@ -84,7 +84,18 @@ class Tool:
         """Glob of the file names of its layers (compose owns these inside OUT/layers)."""
         return self.name.replace("{id}", "*") + ".usda"
 
-    def build(self, scenario: Scenario, human: dict | None, upstream: Usd.Stage | None) -> Sdf.Layer:
+    @property
+    def spills(self) -> bool:
+        """Whether the tool takes a :class:`~humv_usd.usd.spill.SampleSpill` (``SPILLS``): its
+        per-frame samples go to disk as they are made (issue 29.5). Compose passes one only when
+        no later layer of the build reads this one (the layer in memory holds placeholders)."""
+        return bool(getattr(self.module, "SPILLS", False))
+
+    def build(
+        self, scenario: Scenario, human: dict | None, upstream: Usd.Stage | None, spill=None
+    ) -> Sdf.Layer:
+        if spill is not None and not self.per_human:
+            return self.module.build(scenario, upstream, spill=spill)
         if not self.per_human:
             return self.module.build(scenario, upstream)
         if self.upstream:

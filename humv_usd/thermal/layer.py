@@ -61,7 +61,8 @@ from humv_usd.usd.atmosphere import longwave_sky, model_name
 from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import finish, new_layer_stage
 from humv_usd.usd.paths import body_path, human_path
-from humv_usd.usd.thermal import write_surface_temperature
+from humv_usd.usd.spill import SampleSpill
+from humv_usd.usd.thermal import spill_temperatures, write_surface_temperature
 
 NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
@@ -95,6 +96,9 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 17: the garment stacks' solver stops stiff stacks at round-off (e308df6, 08d73d8): a few faces of
 #: stiff stacks move by < 1e-6 K (Table 1 v0066: 4 of 540,062 values by one float32 ulp)
 VERSION = "17"
+#: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
+#: the layer's text is unchanged, so no VERSION bump)
+SPILLS = True
 
 
 #: BLAS threads while the layer builds: its linear algebra is small (JOS-3 inverts an 85 x 85
@@ -103,13 +107,18 @@ VERSION = "17"
 BLAS_THREADS = 1
 
 
-def build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
-    """Read the meshes of the composed ``upstream`` stage; write one temperature per face."""
+def build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = None) -> Sdf.Layer:
+    """Read the meshes of the composed ``upstream`` stage; write one temperature per face.
+
+    ``spill`` (compose passes one): each mesh's per-frame temperatures go to it as soon as they
+    are solved (a person at a time, a scene mesh a chunk of frames at a time), so the layer and
+    the tool hold no whole clip; the layer then has placeholders that ``spill.export`` replaces
+    by the samples (:mod:`humv_usd.usd.spill`; the same text as without a spill)."""
     with threadpool_limits(BLAS_THREADS, user_api="blas"):
-        return _build(scenario, upstream)
+        return _build(scenario, upstream, spill)
 
 
-def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
+def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = None) -> Sdf.Layer:
     g = scenario["general"]
     th = scenario["thermal"]
     model = th["model"]
@@ -156,7 +165,12 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
         ground_k = sdiag["groundMeanTemperature_k"]
     solved: dict[str, np.ndarray] = {}
     for m in meshes:
-        solved[m.path] = surf[m.path][nearest] if m.path in surf else np.full((1, m.n_faces), float(m.held_k))
+        if m.path not in surf:
+            solved[m.path] = np.full((1, m.n_faces), float(m.held_k))
+        elif spill is not None:  # frames expanded from the samples a chunk at a time, to disk
+            solved[m.path] = spill_temperatures(spill, surf[m.path], nearest)
+        else:
+            solved[m.path] = surf[m.path][nearest]
     if people:
         w = read_weather(upstream, np.arange(frames, dtype=float))
         n_spin = len(forcing.times_s) - len(samples)
@@ -217,7 +231,10 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
             temps_h, diag = human_temperatures(
                 upstream, h, str(human_path(h["id"])), scenario, world, model, th
             )
+            if spill is not None:  # to disk now: the layer holds one person's arrays at a time
+                temps_h = {p: spill_temperatures(spill, v) for p, v in temps_h.items()}
             solved.update(temps_h)
+            del temps_h
             report[h["id"]] = _rounded(diag)
     wet = sdiag.get("wetFraction") if slabs else None
     if wet:  # issue 30.4: faces wet after rain render with a wet variant of their material
@@ -252,7 +269,7 @@ def _build(scenario: Scenario, upstream: Usd.Stage) -> Sdf.Layer:
             kind = kinds[str(path)]
         else:
             kind = model if str(path).endswith("/Body") else "balance"
-        write_surface_temperature(over, kind, series)
+        write_surface_temperature(over, kind, series, spill)
     return finish(stage)
 
 

@@ -91,7 +91,8 @@ def relative_asset_paths(layer: Sdf.Layer, folder: str | Path) -> Sdf.Layer:
     (a scenario's assets beside its output); one that does not (e.g. a library under /opt for
     an output under /home) stays absolute. Package-internal paths (``a.usdz[b.usda]``) and
     non-file paths are left as they are. The in-memory ``layer`` is not changed (compose builds
-    downstream layers on it, where relative paths would have no anchor).
+    downstream layers on it, where relative paths would have no anchor); where no path changes,
+    ``layer`` itself is returned.
     """
     base = os.path.abspath(folder)
 
@@ -108,6 +109,16 @@ def relative_asset_paths(layer: Sdf.Layer, folder: str | Path) -> Sdf.Layer:
         rel = os.path.relpath(path, base)
         return rel if rel.startswith("..") else "./" + rel
 
+    changed: list[str] = []
+
+    def probe(path: str) -> str:  # leaves every path as it is; notes those that would change
+        if relative(path) != path:
+            changed.append(path)
+        return path
+
+    UsdUtils.ModifyAssetPaths(layer, probe)
+    if not changed:  # nothing to change: no copy (a crowd's clothing layer is 100s of MB)
+        return layer
     copy = Sdf.Layer.CreateAnonymous(".usda")
     copy.TransferContent(layer)
     UsdUtils.ModifyAssetPaths(copy, relative)

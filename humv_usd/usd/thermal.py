@@ -15,15 +15,20 @@ from pxr import Sdf, Usd, UsdGeom, Vt
 from humv_usd.constants import TEMPERATURE_RANGE_K
 from humv_usd.errors import InputError, bad_value
 from humv_usd.usd import schemas as S
+from humv_usd.usd.spill import CHUNK_FRAMES, SampleSpill, Spilled
 
 
-def write_surface_temperature(prim: Usd.Prim, model: str, temperature_k) -> None:
+def write_surface_temperature(
+    prim: Usd.Prim, model: str, temperature_k, spill: SampleSpill | None = None
+) -> None:
     """Apply HumvThermalAPI to ``prim`` (a mesh or an over of one) and author its per-face
     temperature [K] and ``model`` token.
 
     ``temperature_k``: (faces,) one value for every frame (the primvar's default), or (frames,
     faces), written as the default when every frame is the same, else a time sample per frame
-    (time code = frame). Stored as float32.
+    (time code = frame), or a series already on disk (:func:`spill_temperatures`). Stored as
+    float32. With ``spill`` a time-sampled array goes to it (:mod:`humv_usd.usd.spill`): the
+    layer gets a placeholder that the spill's export replaces by the samples.
     """
     prim.ApplyAPI(S.THERMAL_API)
     primvar = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
@@ -32,7 +37,16 @@ def write_surface_temperature(prim: Usd.Prim, model: str, temperature_k) -> None
         UsdGeom.Tokens.uniform,
     )
     prim.GetAttribute(S.THERMAL_MODEL).Set(model)
+    if isinstance(temperature_k, Spilled):
+        SampleSpill.bind(primvar.GetAttr(), temperature_k)
+        return
     series = np.asarray(temperature_k)
+    if spill is not None and series.ndim == 2:
+        temperature_k = spill_temperatures(spill, series)
+        if isinstance(temperature_k, Spilled):
+            SampleSpill.bind(primvar.GetAttr(), temperature_k)
+            return
+        series = temperature_k
     if series.ndim == 1:
         primvar.Set(Vt.FloatArray.FromNumpy(series.astype(np.float32)))
     elif len(series) == 1 or np.all(series == series[:1]):
@@ -40,6 +54,25 @@ def write_surface_temperature(prim: Usd.Prim, model: str, temperature_k) -> None
     else:
         for frame, values in enumerate(series):
             primvar.Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), frame)
+
+
+def spill_temperatures(spill: SampleSpill, series, nearest=None):
+    """A (frames, faces) temperature series as :func:`write_surface_temperature` writes it,
+    with the frames on disk: (1, faces) when every frame is the same (written as the default),
+    else the :class:`~humv_usd.usd.spill.Spilled` handle of its float32 samples.
+
+    ``nearest``: frame i holds row ``nearest[i]`` of ``series`` (samples held between radiation
+    steps), expanded a chunk at a time, never whole.
+    """
+    series = np.asarray(series)
+    rows = series if nearest is None else series[np.unique(nearest)]
+    if len(rows) == 1 or np.all(rows == rows[:1]):
+        return rows[:1]
+    if nearest is None:
+        return spill.add_array(series)
+    nearest = np.asarray(nearest)
+    step = CHUNK_FRAMES
+    return spill.add((a, series[nearest[a : a + step]]) for a in range(0, len(nearest), step))
 
 
 def check_temperatures(values, where: str, expected: int | None = None) -> np.ndarray:
