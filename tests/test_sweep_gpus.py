@@ -63,11 +63,11 @@ def test_gpu_estimate_is_the_measured_rate_scaled_by_the_knobs(tmp_path):
     assert batched["render_s"] == pytest.approx(round(6 * per_image + 2 * 3.6, 1), abs=0.051)
     assert est(spp=8)["render_s"] == pytest.approx(round(4 * 6 * per_image + 6 * 3.6, 1), abs=0.051)
     assert one["render_on"] == "gpu" and "H100" in one["rates"] and "2026-11-27" in one["rates"]
-    # compose-bound: 2 thermal layers of 3 frames on 1 CPU worker, against renders on 8 GPUs
-    fixed, per_frame = plan.COMPOSE_SECONDS["thermal"]
-    composing = est(gpus=8, keys={"v0000": {"thermal": "a"}, "v0001": {"thermal": "b"}})
+    # compose-bound: 2 thermal layers of 3 frames on 1 CPU worker, against renders on 64 GPUs
+    fixed, per_frame = plan.FIXED_SKIN_THERMAL_SECONDS  # the tiny scenario's model = "fixed"
+    composing = est(gpus=64, keys={"v0000": {"thermal": "a"}, "v0001": {"thermal": "b"}})
     sc = load_sweep(tmp_path / "1_2_2" / "sweep.toml").variants[0].scenario  # plus the scene's term
-    scene_s = plan.scene_thermal_seconds(plan.scene_meshes(sc), sc["thermal"].get("surface_cell_m") or 0.0)
+    scene_s = plan.scene_thermal_seconds(plan.scene_meshes(sc), plan.sun_in_memory(sc))
     assert scene_s > 0.0
     assert composing["wall_s"] == pytest.approx(round(2 * (fixed + 3 * per_frame + scene_s), 1), abs=0.051)
     cpu = est(gpus=0)  # the CPU estimate is unchanged: (compose + render) / workers

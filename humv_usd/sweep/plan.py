@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+import pvlib
 from pxr import Usd, UsdGeom
 
 from humv_usd.errors import InputError
@@ -15,6 +17,7 @@ from humv_usd.pipeline.budget import free_disk, size_text
 from humv_usd.pipeline.graph import build_order, layer_graph
 from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import inputs_key, read_values
+from humv_usd.scenario.times import utc_times
 from humv_usd.scene import layer as scene_layer
 from humv_usd.sweep import store
 from humv_usd.sweep.spec import Sweep, Variant
@@ -44,24 +47,39 @@ COMPOSE_SECONDS = {
 #: between faces), added to the thermal layer's people terms above: a * M**b with M the meshes of
 #: the scene layer (ground, horizon rings, objects, each clutter part, plants, puddles), counted
 #: from the scene layer built in memory (0.05-0.4 s; :func:`scene_meshes`). Least-squares fit of
-#: log(thermal s - 3.2 s of the one person) on log M over 11 composes with ``[thermal]
-#: surface_cell_m = 0.5`` (2026-11-27 audit of issue 30, /work/notes/s5/audit-30/cost_table.json,
-#: wall s on a 2-core machine at load 11-15): (M, thermal s) open field (33, 11.2 / 10.4), rural
-#: road (61, 60.3 / 14.5), parking lot (92, 71.9 / 118.2), street (94, 149.3 / 117.4), street after
-#: rain (95, 233.8), the audit sweep's parking lot (42, 63.4) and open field after rain (50, 121.8):
-#: a = 0.00577, b = 2.20. With the people terms above (7.2 s for one frame) measured / estimated is
-#: 0.26 (rural road at night) .. 3.1 (the open field after rain with moving cloud shadows), the
-#: day/night geometric mean of each audit place 0.53-1.0. (Fitting after subtracting the new
-#: 7.2 s gives b = 2.72, too steep from the 4 s left of the open field's 11 s: kept 2.20.) The
-#: mesh count is a proxy for the refined faces the cost follows (3,206 .. 70,456 drawn triangles
-#: here; thermal s ~ triangles**0.93 fits those rows within 0.41-2.13, but the refinement needs
-#: the sun and the shadows, i.e. the thermal layer itself)
-SCENE_THERMAL = (0.00577, 2.20)
-#: factor on :data:`SCENE_THERMAL` when ``surface_cell_m`` is 0 (the default: cells down to the
-#: cameras' pixel footprints, many more faces): `humv-usd bench places --kind street --factors
-#: 0.25,0.5` (no person, the same machine and day): 43 meshes 110.4 s (58,116 triangles), 76
-#: meshes 450.7 s (127,438): geometric mean of measured / fitted 5.25 (the rows 0.93 and 1.08 of it)
-FOOTPRINT_THERMAL_FACTOR = 5.25
+#: log(thermal s) on log M over six composes of examples/random_places.toml's daytime variants
+#: (default cells: down to the cameras' pixel footprints; one person, ``model = "fixed"``;
+#: 2026-11-27, the shared 2-core machine at load 2-4, wall s of compose.json), (M, thermal s):
+#: parking lot v0014 (23, 8.1), v0015 (33, 23.6), rural road v0010 (83, 119.7), v0008 (128,
+#: 175.4), open field v0018 (93, 89.7), v0019 (120, 28.9): a = 0.190, b = 1.31; measured /
+#: estimated 0.70, 1.28, 1.93, 1.61, 1.25 and 0.29 (the open field's many animal and vehicle meshes
+#: are cheap at 15:44 in October). The mesh count is a proxy for the refined faces the cost follows
+#: (the refinement needs the sun and the shadows, i.e. the thermal layer itself); the drawn
+#: triangles do no better (v0018 126 k -> 89.7 s, v0019 129 k -> 28.9 s). The issue-30 audit's
+#: composes (surface_cell_m 0.5, load 11-15, /work/notes/s5/audit-30/cost_table.json) run 0.35-3.8
+#: x this (the loaded machine), `humv-usd bench places --kind street` 4.2 and 8.2 x
+SCENE_THERMAL = (0.190, 1.31)
+#: factor on the scene term when the sun is down from :data:`SUN_MEMORY_S` before frame 0 to the
+#: last frame: the thermal tool then refines no face (its sun dose weights are all 0,
+#: :func:`humv_usd.thermal.surfaces.refine_meshes`), so only the coarse faces' balance is left:
+#: examples/random_places.toml's v0013 (parking lot at 00:10 in October, 37 meshes, the same run)
+#: took 2.8 s of thermal layer where the day term gives 21.5 s (one row)
+NIGHT_THERMAL_FACTOR = 0.13
+#: how long before frame 0 the thermal tool's refinement still counts the sun: weights exp(t / 1 h)
+#: below 0.01 are dropped (:data:`humv_usd.thermal.surfaces.REFINE_MEMORY_S`, ``_recent_weights``)
+SUN_MEMORY_S = 3600.0 * math.log(100.0)
+
+
+def sun_in_memory(scenario: Scenario) -> bool:
+    """Whether the sun is above the horizon at some time from :data:`SUN_MEMORY_S` before frame 0
+    to the last frame (15 min steps; NREL SPA through pvlib, as the scene layer)."""
+    g = scenario["general"]
+    end = float(g["duration_s"])
+    times = np.append(np.arange(-SUN_MEMORY_S, end, 900.0), end)
+    pos = pvlib.solarposition.get_solarposition(
+        utc_times(scenario, times), g["latitude_deg"], g["longitude_deg"], g["elevation_m"]
+    )
+    return bool((pos["apparent_elevation"].to_numpy() > 0.0).any())
 
 
 def scene_meshes(scenario: Scenario) -> int:
@@ -73,14 +91,17 @@ def scene_meshes(scenario: Scenario) -> int:
     return sum(1 for prim in stage.Traverse() if prim.IsA(UsdGeom.Mesh))
 
 
-def scene_thermal_seconds(meshes: int, surface_cell_m: float) -> float:
-    """Estimated thermal-layer seconds of a scene of ``meshes`` meshes (:data:`SCENE_THERMAL`,
-    times :data:`FOOTPRINT_THERMAL_FACTOR` when ``surface_cell_m`` is 0: camera footprints)."""
+def scene_thermal_seconds(meshes: int, sun: bool = True) -> float:
+    """Estimated thermal-layer seconds of a scene of ``meshes`` meshes (:data:`SCENE_THERMAL`, times
+    :data:`NIGHT_THERMAL_FACTOR` without ``sun`` in the refinement's memory: :func:`sun_in_memory`)."""
     a, b = SCENE_THERMAL
-    factor = 1.0 if surface_cell_m > 0 else FOOTPRINT_THERMAL_FACTOR
-    return factor * a * meshes**b if meshes > 0 else 0.0
+    return (1.0 if sun else NIGHT_THERMAL_FACTOR) * a * meshes**b if meshes > 0 else 0.0
 
 
+#: the thermal layer's people terms (fixed, per frame) with ``[thermal] model = "fixed"`` (the skin
+#: at one temperature: no JOS-3, no garment stacks; the thermal tool solves no person): 0, the
+#: scene term's fit (:data:`SCENE_THERMAL`) was measured with such people and holds their cost
+FIXED_SKIN_THERMAL_SECONDS = (0.0, 0.0)
 #: seconds per 1024x768 infrared image of one GPU worker, render only (estimator, labels, queued
 #: writes): `python tools/gpu_check.py render out/walk/stage.usda --frames 0:3 --backend cuda` on one
 #: NVIDIA H100 with `cuda_ad_mono`, the walk's LWIR camera (atom1024_lwir) at automatic quality,
@@ -246,13 +267,15 @@ def estimate(
     for (n, _), v in first_of.items():
         tool = n.split("_")[0]
         fixed, per_frame = COMPOSE_SECONDS.get(tool, (0.1, 0.0))
+        if tool == "thermal" and (v.scenario["thermal"] or {}).get("model") == "fixed":
+            fixed, per_frame = FIXED_SKIN_THERMAL_SECONDS  # no physiology, no garment stacks
         compose_s += fixed + per_frame * v.scenario.frame_count
         if tool == "thermal":
             scene_key = keys[v.id].get("scene", v.id)
             if scene_key not in meshes_of:
                 meshes_of[scene_key] = scene_meshes(v.scenario)
-            cell = float((v.scenario["thermal"] or {}).get("surface_cell_m") or 0.0)
-            compose_s += scene_thermal_seconds(meshes_of[scene_key], cell)
+            sun = meshes_of[scene_key] > 0 and sun_in_memory(v.scenario)
+            compose_s += scene_thermal_seconds(meshes_of[scene_key], sun)
     if gpus > 0:
         render_s = gpu_s
         wall = max(render_s / gpus, compose_s / max(1, workers))
