@@ -8,6 +8,7 @@ radiance L (for SWIR at night: the airglow integrated over the band); Poisson ph
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -182,3 +183,25 @@ def test_reflective_display_keeps_a_dark_frame_dark():
     out = chain.apply_chain(np.full((48, 64), 600.0 / per_unit), m, np.random.default_rng(0), psf=False)
     # 600 e- of 170 ke- x 16 = 5.6 % of the display range
     assert out.image8.mean() == pytest.approx(255 * 600 / 170000 * chain.EO_MAX_DISPLAY_GAIN, rel=0.05)
+
+
+def test_swir_automatic_quality_is_relative_to_the_radiance(tmp_path):
+    """A NIR/SWIR camera has no NETD: its automatic quality and its reported error are relative
+    to the mean radiance (as the EO camera's), never a brightness temperature of reflected light
+    read "in K"."""
+    from click.testing import CliRunner
+
+    from humv_usd.cli.main import main
+
+    _stage(tmp_path, SWIR, "SWIR", (0.3, 0.0, 0.95))
+    result = CliRunner().invoke(main, ["render", str(tmp_path / "s.usda"), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    [rec] = manifest["sensors"]
+    err = rec["monte_carlo_error_k"]
+    assert err["unit"].startswith("relative to the mean radiance") and "relative" in err["definition"]
+    assert 0.0 <= err["mean_k"] <= 0.01 and rec["quality"]["met"] is True
+    frame = rec["frames"][0]["quality"]
+    assert frame["targets_k"]["mean_k"] == pytest.approx(0.01) and frame["batches"] >= 2
+    assert "% of the mean radiance" in err["spp_rule"]
+    assert "% of the mean radiance" in result.output and " K, p99" not in result.output.split("cam:")[-1]

@@ -330,13 +330,20 @@ def echo_render_summary(manifest: dict, out_dir, estimator: str) -> None:
                     f"; quality target NOT met in {len(quality['frames_not_met'])} frame(s) at the spp cap "
                     f"({', '.join(quality['regions_not_met']) or 'image'})"
                 )
+            # NIR/SWIR (reflected light, no NETD): relative to the mean radiance, not in K
+            unit = _percent if away.get("unit") else _kelvin
             click.echo(
-                f"  {sensor['name']}: error away from edges mean {_kelvin(away['mean_k'], 4)}, p99 "
-                f"{_kelvin(away.get('p99_max_k'), 4)}; edge pixels {_kelvin(away.get('edge_mean_k'), 3)} "
+                f"  {sensor['name']}: error away from edges mean {unit(away['mean_k'], 4)}, p99 "
+                f"{unit(away.get('p99_max_k'), 4)}; edge pixels {unit(away.get('edge_mean_k'), 3)} "
                 f"(footprint){per_frame}{verdict}"
             )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
+
+
+def _percent(value, digits: int) -> str:
+    """A relative error as a percentage of the mean radiance, or "n/a" (see :func:`_kelvin`)."""
+    return "n/a" if value is None else f"{100.0 * value:.{max(digits - 2, 1)}f} % of the mean radiance"
 
 
 def _kelvin(value, digits: int) -> str:

@@ -47,10 +47,22 @@ def _needs_more_samples(plan, sensor, noise: dict, batches: int, regions: dict |
     AUTO_MAX_SPP samples were spent."""
     if not plan.spp_auto or noise.get("mean_k") is None:
         return False
+    if getattr(sensor, "is_reflective", False):  # NIR/SWIR: the error relative to the radiance
+        return Q.needs_more(True, Q.verdict(noise, regions or {}, REFLECTIVE_PSEUDO_NETD), batches, plan.spp)
     netd = getattr(sensor, "netd_k", None)
     if not netd or netd <= 0:
         return False
     return Q.needs_more(True, Q.verdict(noise, regions or {}, netd), batches, plan.spp)
+
+
+#: NIR/SWIR cameras (reflected light, radiance out) have no NETD: their automatic quality holds
+#: the per-pixel error relative to the mean radiance away from edges to the EO camera's target
+#: (mean <= :data:`humv_usd.render.quality.EO_TARGET_RELATIVE`) through the infrared rule with
+#: this "NETD" in relative units (mean <= it / AUTO_NETD_FRACTION; p99 <= AUTO_P99_K, i.e. 10 %)
+REFLECTIVE_PSEUDO_NETD = Q.EO_TARGET_RELATIVE * Q.AUTO_NETD_FRACTION
+#: how the errors of a NIR/SWIR camera are expressed (the manifest's monte_carlo_error_k and
+#: quality regions hold these dimensionless numbers for such a camera)
+RELATIVE_UNIT = "relative to the mean radiance away from edges (no NETD: reflected light)"
 
 
 def _netd_text(sensor) -> str:
@@ -60,6 +72,15 @@ def _netd_text(sensor) -> str:
 
 
 def _spp_rule(plan, sensor) -> str:
+    if getattr(sensor, "is_reflective", False):
+        if not plan.spp_auto:
+            return Q.rule_text(False, plan.spp, "")
+        return (
+            f"automatic: at least {Q.MIN_BATCHES} batches of {plan.spp} spp, more until the mean error "
+            f"away from edges is <= {Q.EO_TARGET_RELATIVE:.0%} of the mean radiance there and its 99th "
+            f"percentile <= {Q.AUTO_P99_K:.0%} of it, on the image and on every labelled region class, "
+            f"or {Q.AUTO_MAX_SPP} spp"
+        )
     return Q.rule_text(plan.spp_auto, plan.spp, _netd_text(sensor))
 
 
@@ -155,7 +176,8 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
     edges = E.geometric_edges(hits) if plan.estimator == "fast" else None
     regions, region_names = Q.region_map(hits.part, [p.label_class for p in scene.parts])
     netd = getattr(s, "netd_k", None)
-    thermal_k = thermal_noise(run, s, state, hits)  # the thermal layer's own noise [K] per pixel
+    # the thermal layer's own noise [K] per pixel (NIR/SWIR: reflected light, not the layer's)
+    thermal_k = None if s.is_reflective else thermal_noise(run, s, state, hits)
     fast_auto = plan.estimator == "fast" and plan.spp_auto
 
     first_served = Q.first_boost(regions, region_names)  # people: a boost budget of their own
@@ -210,6 +232,10 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             stderr_k = np.where(dl_dt > 0, stderr_l / dl_dt, np.nan)
         if edges is None:
             edges = E.geometric_edges(hits)
+        if s.is_reflective:  # no temperature: the error relative to the mean radiance (as EO's)
+            inner = ~edges & np.isfinite(m1)
+            mean_l = float(np.mean(m1[inner])) if inner.any() else float(np.nanmean(m1))
+            stderr_k = stderr_l / mean_l if mean_l > 0 else np.full(m1.shape, np.nan)
         away_from_edges = E.noise_stats(stderr_k, edges)
         per_region = Q.region_stats(
             stderr_k,
@@ -223,17 +249,21 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         boost_where = Q.next_boost(regions, region_names, Q.verdict(away_from_edges, per_region, netd))
     if thermal_k is not None:  # the thermal layer's noise: not the render's to reduce; stated apart
         Q.add_thermal_noise(per_region, stderr_k, thermal_k, edges, regions, region_names)
-    judged = Q.verdict(away_from_edges, per_region, netd if plan.spp_auto else None)
+    judge_netd = REFLECTIVE_PSEUDO_NETD if s.is_reflective else netd
+    judged = Q.verdict(away_from_edges, per_region, judge_netd if plan.spp_auto else None)
     for name, rec in per_region.items():
         rec["met"] = judged["regions"].get(name)
     spp_used = plan.spp_sub[s.name] * pooled.count
     away_from_edges["spp_used"] = spp_used
     away_from_edges["spp_rule"] = _spp_rule(plan, s)
     away_from_edges["quality_met"] = judged["met"]
+    if s.is_reflective:
+        away_from_edges["unit"] = RELATIVE_UNIT
     quality = {
         "met": judged["met"],
         "image_met": judged["regions"].get("image"),
-        "targets_k": Q.targets(netd) if plan.spp_auto else None,
+        "targets_k": Q.targets(judge_netd) if plan.spp_auto else None,
+        **({"unit": RELATIVE_UNIT} if s.is_reflective else {}),
         "regions": per_region,
         "batches": pooled.count,
         "replicas_per_pixel": pooled.count * (replicas or 1),

@@ -150,12 +150,15 @@ def interior_summary(per_frame: list[dict]) -> dict:
     """Per-sensor error in K away from geometric edges (mean over frames of the per-frame means,
     worst per-frame 99th percentile) and on edges (pixel footprint: signal, reported apart)."""
     s = Q.frames_summary(per_frame, "mean_k", "p99_k", "edge_mean_k")
+    unit = next((f["unit"] for f in per_frame if f.get("unit")), None)  # NIR/SWIR: relative
     return {
         "mean_k": s["mean"],
         "p99_max_k": s["p99_max"],
         "edge_mean_k": s["edge_mean"],
-        "definition": "per-pixel Monte Carlo standard error in K; mean and 99th percentile over pixels "
-        "away from geometric edges (8-neighbours on the same part within 2 % depth), edge pixels apart",
+        **({"unit": unit} if unit else {}),
+        "definition": f"per-pixel Monte Carlo standard error {'in K' if unit is None else unit}; mean and "
+        "99th percentile over pixels away from geometric edges (8-neighbours on the same part within 2 % "
+        "depth), edge pixels apart",
         "not_estimable": None if s["mean"] is not None else "spp < 2: one replica, no error estimate",
         "spp_used": s["spp_used"],
         "spp_rule": s["spp_rule"],
