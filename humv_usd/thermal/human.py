@@ -262,7 +262,8 @@ def human_temperatures(
         pts = [skinned_points(stage, p.path, t, space="world") for p in parts]
         if k == 0:
             pts0 = pts
-            seen = _visible_faces(body, garments, pts0, stage)
+            cover = _coverage(body, garments, pts0, stage)  # once: the balance below uses it too
+            seen = _visible_faces(cover, garments, pts0, stage)
         centre = centres[k] = pts[0].mean(axis=0)
         env = SR.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
@@ -341,7 +342,6 @@ def human_temperatures(
     rate = read_metabolic_rate(stage.GetPrimAtPath(human_path), frames)
     times = np.arange(frames) / fps
     area = _face_area(body, pts0[0])
-    cover = _coverage(body, garments, pts0, stage)
     clothes = [_Garment(p, stage, frames) for p in garments]
     wardrobe = _Wardrobe(clothes, cover.under, pts0, settings, fps) if garments else None
     clo = garment_clo(body, area, cover, wardrobe)
@@ -503,11 +503,11 @@ def human_temperatures(
 REPLICATES_PER_PART = 256
 
 
-def _visible_faces(body: _Part, garments: list[_Part], points: list, stage: Usd.Stage) -> list:
+def _visible_faces(cover: _Coverage, garments: list[_Part], points: list, stage: Usd.Stage) -> list:
     """Per part (body, then garments) the faces a camera can see, at the first radiation
-    sample: bare skin (no garment face over it, :func:`_coverage`) and the outermost layer of
-    each garment stack (:func:`_layer_links`)."""
-    out = [_coverage(body, garments, points, stage).garment < 0]
+    sample: bare skin (no garment face over it in ``cover``, :func:`_coverage`) and the
+    outermost layer of each garment stack (:func:`_layer_links`)."""
+    out = [cover.garment < 0]
     if garments:
         _, above = _layer_links([_Garment(p, stage, 1) for p in garments], points)
         out += [a[:, 0] < 0 for a in above]
