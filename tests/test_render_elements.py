@@ -77,3 +77,21 @@ def test_one_rule_picks_the_estimator():
     assert band_renderer("fast").shares_samples and not band_renderer("path").shares_samples
     with pytest.raises(TypeError):
         band_renderer("path").render(None, "cam", None, None, None, None, 1, 0, info={})
+
+
+def test_mitsuba_faces_the_estimators_corners_and_normals_share_one_winding(tmp_path):
+    """A mirrored part (USD leftHanded) is drawn with its winding reversed: the faces Mitsuba
+    loaded are the corners the fast estimator's smooth shading weights (``si.uv`` order) and
+    its geometric normals point the way the reversed winding gives (down for this plate)."""
+    from humv_usd.render import estimator as E
+
+    [(part, vertices, _)], sensors = _plate()
+    scene = IRScene([(part, vertices, True)], sensors, spp=1, max_depth=2, workdir=tmp_path)
+    faces = np.asarray(scene.params["plate.faces"]).reshape(-1, 3)
+    assert faces.tolist() == [[0, 2, 1], [0, 3, 2]]
+    assert np.array_equal(scene.face_corners(part), faces)
+    normals, areas = E.face_normals(scene)
+    np.testing.assert_allclose(normals, [[0, 0, -1], [0, 0, -1]], atol=1e-7)
+    np.testing.assert_allclose(areas, [2.0, 2.0])
+    # the scene's cached blend is the estimator's blend of the same parts
+    assert (scene.corner_blend() != E.corner_blend(scene)).nnz == 0

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from humv_usd.geometry.camera import CameraPose
+from humv_usd.render.scene_export import face_corners
 
 #: Near and far clip of the Mitsuba sensors [m]; USD clipping ranges are ignored (no clipping).
 NEAR_CLIP_M = 1e-3
@@ -161,7 +162,7 @@ def mesh(
     ``instance`` id as the face attribute ``face_instance`` (labels), ``bsdf`` and an optional
     area ``emitter``; ``flip`` reverses the winding. Per frame: its vertex positions and the
     ``updates`` keys (under the part's key) the caller names."""
-    tris = part.triangles[:, [0, 2, 1]] if flip else part.triangles
+    tris = face_corners(part.triangles, flip)
     filename = os.path.join(str(workdir), f"{prefix}{part.key}.ply")
     attributes = dict(face_attributes or {})
     attributes["instance_0"] = np.full(len(tris), float(part.instance_id))

@@ -77,7 +77,9 @@ import numpy as np
 from humv_usd import mode
 from humv_usd.geometry import shading
 from humv_usd.physics import water_film
+from humv_usd.render.ir import corner_blend
 from humv_usd.render.radiometry import SKY_MAP_HEIGHT
+from humv_usd.render.scene_export import face_corners
 from humv_usd.scene.puddles import MATERIAL as PUDDLE_MATERIAL
 
 log = logging.getLogger(__name__)
@@ -254,7 +256,7 @@ def face_normals(scene) -> tuple[np.ndarray, np.ndarray]:
     normals, areas = [], []
     for part in scene.parts:
         v = scene.vertices(part).astype(float)
-        tris = part.triangles[:, [0, 2, 1]] if scene.flipped(part) else part.triangles
+        tris = face_corners(part.triangles, scene.flipped(part))
         a, b, c = (v[tris[:, i]] for i in range(3))
         cr = np.cross(b - a, c - a)
         norm = np.linalg.norm(cr, axis=1)
@@ -325,18 +327,6 @@ def cavity_table(tables: FaceTables) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(eps > 1e-6, tables.emission / eps, 0.0)
     return np.ascontiguousarray(out)
-
-
-def corner_blend(scene, crease_deg: float = SMOOTH_CREASE_DEG):
-    """:func:`humv_usd.geometry.shading.corner_blend` of the scene's parts, corners in the
-    order of the Mitsuba meshes' faces (winding flips applied), so a hit's barycentric
-    coordinates (``si.uv``) weight the right corners."""
-    flip = [scene.flipped(p) for p in scene.parts]
-    meshes = [
-        (scene.vertices(p), p.triangles[:, [0, 2, 1]] if f else p.triangles)
-        for p, f in zip(scene.parts, flip)
-    ]
-    return shading.corner_blend(meshes, crease_deg)
 
 
 def corner_table(surface: np.ndarray, blend) -> np.ndarray:

@@ -40,7 +40,7 @@ from humv_usd.geometry.camera import CameraPose
 from humv_usd.render import elements as el
 from humv_usd.render.elements import SKY_ID, SUN_ID
 from humv_usd.render.radiometry import apply_path, range_weights, sky_latlong
-from humv_usd.render.scene_export import Part
+from humv_usd.render.scene_export import Part, face_corners
 
 #: Next-event estimation never picks the surfaces' area emitters. Mitsuba 3.9.1 samples an area
 #: emitter whose radiance is spatially varying (our per-face ``mesh_attribute``) through the
@@ -60,6 +60,17 @@ class SensorSetup:
     width: int
     height: int
     pose: CameraPose
+
+
+def corner_blend(scene, crease_deg: float = shading.SMOOTH_CREASE_DEG):
+    """(3T, T) sparse matrix from per-triangle values (the global order of the scene's parts'
+    triangles) to per-corner values: :func:`humv_usd.geometry.shading.corner_blend` of the
+    parts' current vertices, corners in the order of the Mitsuba meshes' faces
+    (:func:`~humv_usd.render.scene_export.face_corners`, winding flips applied), so a hit's
+    barycentric coordinates (``si.uv``) weight the right corners. ``scene`` gives ``parts``,
+    ``vertices(part)`` and ``flipped(part)`` (an :class:`IRScene` or a stand-in)."""
+    meshes = [(scene.vertices(p), face_corners(p.triangles, scene.flipped(p))) for p in scene.parts]
+    return shading.corner_blend(meshes, crease_deg)
 
 
 class IRScene:
@@ -164,14 +175,13 @@ class IRScene:
         cached = getattr(self, "_blend", None)
         if cached is not None and cached[0] == self.geometry_version:
             return cached[1]
-        meshes = [(self.vertices(p), self.face_corners(p)) for p in self.parts]
-        blend = shading.corner_blend(meshes)
+        blend = corner_blend(self)
         self._blend = (self.geometry_version, blend)
         return blend
 
     def face_corners(self, part: Part) -> np.ndarray:
         """(t, 3) vertex indices of a part's triangles in the scene's winding (flips applied)."""
-        return part.triangles[:, [0, 2, 1]] if self.flipped(part) else part.triangles
+        return face_corners(part.triangles, self.flipped(part))
 
     def mitsuba_sensor(self, sensor_id: str):
         """The Mitsuba sensor object of ``sensor_id`` (for ``mi.render`` and ``sample_ray``)."""

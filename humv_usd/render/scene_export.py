@@ -89,6 +89,15 @@ class MeshInfo:
     front_triangles: np.ndarray | None = None
 
 
+def face_corners(triangles: np.ndarray, flipped: bool) -> np.ndarray:
+    """(t, 3) vertex indices of triangles in the winding the scene draws them: ``flipped``
+    (USD ``orientation = "leftHanded"``, a mirrored transform) reverses it (corners 0, 2, 1).
+    The one rule for the Mitsuba mesh (:func:`humv_usd.render.elements.mesh`), its geometric
+    normals and the corner order of a hit's barycentric coordinates (``si.uv``) that the fast
+    estimator's smooth shading weights."""
+    return triangles[:, [0, 2, 1]] if flipped else triangles
+
+
 def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals of a triangle mesh (counter-clockwise front)."""
     a, b, c = (points[triangles[:, k]] for k in range(3))
