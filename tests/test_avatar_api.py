@@ -69,7 +69,7 @@ def test_api_rewrite_keeps_an_unchanged_file(tmp_path):
 @pytest.mark.parametrize(
     "kwargs, line",
     [
-        (dict(stature_m=3.0), "human[0].stature_m = 3.0: allowed range 0.8..2.3"),
+        (dict(stature_m=3.0), "human[0].stature_m = 3.0: allowed range 0.7..2.3"),
         (dict(sex="mail"), "human[0].sex = 'mail': allowed values: male, female (did you mean 'male'?)"),
         (
             dict(position_m=(0, 0)),
@@ -91,7 +91,7 @@ def test_api_bad_output_path(tmp_path):
         author_avatar(tmp_path / "p1.txt", mass_kg=500)
     assert info.value.problems == [
         f"out_path = '{tmp_path / 'p1.txt'}': expected a USD text layer file ending in .usda or .usd",
-        "human[0].mass_kg = 500: allowed range 10.0..250.0",
+        "human[0].mass_kg = 500: allowed range 7.0..250.0",
     ]
     with pytest.raises(InputError, match=r"^out_path = .*: is a folder"):
         author_avatar(tmp_path)
@@ -134,7 +134,7 @@ def test_cli_bad_value_is_one_line_naming_the_option_exit_2(tmp_path):
     out = tmp_path / "p1.usda"
     result = CliRunner().invoke(avatar, ["-o", str(out), "--stature", "3"])
     assert result.exit_code == 2
-    assert result.stderr.splitlines() == ["humv-usd: error: --stature = 3.0: allowed range 0.8..2.3"]
+    assert result.stderr.splitlines() == ["humv-usd: error: --stature = 3.0: allowed range 0.7..2.3"]
     assert "Traceback" not in result.output
     assert not out.exists()
 

@@ -116,7 +116,7 @@ def test_addon_installs_builds_and_imports_the_avatar(tmp_path):
     assert status == ["ERROR"] and "cannot import humv_usd" in message
     status, message = result["bad"]
     assert status == ["ERROR"]
-    assert "Stature = 3.0: allowed range 0.8..2.3" in message
+    assert "Stature = 3.0: allowed range 0.7..2.3" in message
     assert "Output Path = " in message and "ending in .usda" in message
     assert not bad.exists()
 

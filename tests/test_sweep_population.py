@@ -9,7 +9,7 @@ import pytest
 from conftest import ROOT
 
 from humv_usd.errors import InputError
-from humv_usd.human.population import BMI_MAX, BMI_MIN
+from humv_usd.human.population import bmi_range
 from humv_usd.scenario.load import validate
 from humv_usd.sweep.spec import expand, load_sweep
 
@@ -57,7 +57,8 @@ def test_population_draws_valid_people(tmp_path):
     assert len({h["stature_m"] for h in humans}) == len(humans)
     for h in humans:
         assert 2.0 <= h["age_yr"] <= 90.0 and h["skin_tone"] in ("IV", "V")
-        assert BMI_MIN - 0.01 <= h["mass_kg"] / h["stature_m"] ** 2 <= BMI_MAX + 0.01
+        lo, hi = bmi_range(h["age_yr"])
+        assert lo - 0.01 <= h["mass_kg"] / h["stature_m"] ** 2 <= hi + 0.01
         # the sampled hair replaces the base's, the rest of the outfit is kept
         assert h["clothing"][0].startswith("hair_") and "hair_short" not in h["clothing"][1:]
         assert h["clothing"][-3:] == ["tshirt_white", "jeans", "shoes"]

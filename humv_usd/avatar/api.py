@@ -8,7 +8,7 @@
 :func:`author_avatar` builds the smallest scenario that holds one ``[[human]]`` and its
 ``[[placement]]``, validates it with :func:`humv_usd.scenario.validate` (so a bad value gets the
 same one-line message as in a scenario file, naming the key, e.g.
-``human[0].stature_m = 3.0: allowed range 0.8..2.3``) and writes what
+``human[0].stature_m = 3.0: allowed range 0.7..2.3``) and writes what
 :func:`humv_usd.avatar.layer.build_one` builds for that person, atomically. The command
 ``humv-usd avatar`` and the Blender add-on (``tools/blender_addon/humv_usd_avatar``) call it.
 

@@ -2,7 +2,7 @@
 
 Registered on the command group in :mod:`humv_usd.cli.main` (``main.add_command(avatar)``).
 The options mirror :func:`humv_usd.avatar.api.author_avatar`; a bad value is reported as one
-line naming the option (``--stature = 3.0: allowed range 0.8..2.3``), exit code 2, and nothing
+line naming the option (``--stature = 3.0: allowed range 0.7..2.3``), exit code 2, and nothing
 is written.
 """
 
@@ -71,10 +71,10 @@ def _choices(name: str) -> str:
     default=1.75,
     show_default=True,
     type=float,
-    help="Standing height [m], 0.8..2.3.",
+    help="Standing height [m], 0.7..2.3.",
 )
 @click.option(
-    "--mass", "mass_kg", default=75.0, show_default=True, type=float, help="Body mass [kg], 10..250."
+    "--mass", "mass_kg", default=75.0, show_default=True, type=float, help="Body mass [kg], 7..250."
 )
 @click.option("--build", default="average", show_default=True, help=f"One of: {_choices('build')}.")
 @click.option("--fitness", default="average", show_default=True, help=f"One of: {', '.join(FITNESS)}.")

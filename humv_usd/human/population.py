@@ -31,8 +31,40 @@ women        1628.5, 64.2 mm       3.2293, 0.1354        0.056
 
 (mass mean 85.52 +- 14.22 kg men, 67.76 +- 10.98 kg women; BMI 27.7 +- 4.0 and 25.5 +- 3.5.)
 ANSUR II is a military population: fitter and younger than the general one (no one over 58).
-People older than 58 are drawn from the same distributions (no age trend of stature or BMI
-is applied: none is in the source). BMI is clipped to [BMI_MIN, BMI_MAX] = [15, 45].
+
+Older adults (age > 58 yr): the U.S. National Health and Nutrition Examination Survey, August
+2021-August 2023 (Fryar CD, Gu Q, Afful J, Carroll MD, Ogden CL (2025) "Anthropometric reference
+data for children and adults: United States, August 2021-August 2023", Vital Health Stat 3(50),
+Table 7 standing height [cm] and Table 10 BMI [kg m-2]; public domain). Per age group the mean
+stature and the 10th / 50th / 90th percentiles are typed in :data:`NHANES_STATURE_CM` and
+:data:`NHANES_BMI`; stature is drawn normal with the group's mean and SD = (P90 - P10) / (2 *
+1.2816), ln BMI normal with ln P50 and SD = ln(P90 / P10) / (2 * 1.2816) (P10/P90 because the
+80+ group has no 95th percentile of stature). The groups are placed at their mid-ages 64.5,
+74.5 and 85 yr (80+: an assumption), and each parameter is linear in age from ANSUR II's value
+at 58 yr to the 60-69 group's at 64.5 yr and on, constant beyond 85 yr. The survey is
+cross-sectional: the old are shorter both because stature declines with age and because they
+were born earlier (secular trend); both are what a population seen today shows.
+
+=========  ==============================  ==============================
+           men: stature mean, SD; BMI P50   women: stature mean, SD; BMI P50
+=========  ==============================  ==============================
+60-69 yr   174.7, 7.37 cm; 28.3             160.5, 6.94 cm; 28.8
+70-79 yr   172.4, 7.41 cm; 28.8             158.3, 6.05 cm; 28.0
+80+ yr     170.5, 7.49 cm; 27.2             156.8, 7.65 cm; 26.9
+=========  ==============================  ==============================
+
+ANSUR II's women (BMI median 25.3) are leaner than NHANES's 60-69 yr women (28.8): the draw
+moves from one to the other between 58 and 64.5 yr.
+
+BMI is clipped to [BMI_MIN, BMI_MAX] = [15, 45] for adults. Children's BMI has no lower clip
+inside the growth charts (only a floor, CHILD_BMI_MIN = 11, below CDC's z = -3 at every age: a
+clip at 15 had put ~40 % of 4-8-year-olds at BMI 15 exactly), and children's z-scores are
+limited to +-3 (the charts' published range is the 3rd-97th percentile). Above the 97th
+percentile the CDC 2000 BMI-for-age LMS curves are not to be used (their L is strongly negative,
+so the curve rises without bound: z = 3 gives BMI 131 for a 10-yr-old boy; the reason for the
+CDC's 2022 extended BMI-for-age charts, Hales CM et al. (2022) NCHS Vital Health Stat 2(197));
+the draw continues the curve linearly in z beyond z97 = 1.881 with its slope there (a design
+choice: the extended charts' parameters were not at hand), e.g. BMI 32 at z = 3 for that boy.
 
 Leg length (adults): the sitting-height ratio (sitting height / stature) from ANSUR II's public
 data files, a least-squares line on stature plus a normal residual (taller people have
@@ -70,8 +102,14 @@ from __future__ import annotations
 
 import numpy as np
 
-#: BMI range of drawn people [kg m-2] (the issue's 16-45, with ANSUR II's 1st percentile).
+#: BMI range of drawn adults [kg m-2] (the issue's 16-45, with ANSUR II's 1st percentile).
 BMI_MIN, BMI_MAX = 15.0, 45.0
+#: children's BMI floor [kg m-2]: below the CDC 2000 BMI-for-age at z = -3 at every age 2-20 yr
+CHILD_BMI_MIN = 11.0
+#: children's z-scores are limited to +-CHILD_Z_MAX (the growth charts' published range)
+CHILD_Z_MAX = 3.0
+#: the 97th percentile's z: above it children's BMI-for-age continues linearly (module doc)
+Z97 = 1.8807936081512509
 AGE_MIN, AGE_MAX = 2.0, 90.0
 ADULT_AGE = 20.0
 SKIN_TONES = ("I", "II", "III", "IV", "V", "VI")
@@ -88,6 +126,42 @@ ANSUR2 = {
 
 #: ANSUR II sitting height / stature against stature (module doc): sex -> (a, b [1/m], residual SD)
 ANSUR2_SITTING_HEIGHT_RATIO = {"male": (0.6402, -0.0667, 0.0127), "female": (0.6588, -0.0814, 0.0131)}
+
+#: NHANES August 2021-August 2023 (Fryar et al. 2025, Vital Health Stat 3(50)), age groups of
+#: older adults: (first age, last age, mid-age used [yr])
+NHANES_AGE_GROUPS = ((60, 69, 64.5), (70, 79, 74.5), (80, None, 85.0))
+#: Table 7, standing height [cm]: sex -> per age group (mean, P10, P50, P90)
+NHANES_STATURE_CM = {
+    "male": ((174.7, 165.2, 175.0, 184.1), (172.4, 162.6, 172.7, 181.6), (170.5, 160.1, 169.9, 179.3)),
+    "female": ((160.5, 151.6, 160.4, 169.4), (158.3, 150.7, 157.9, 166.2), (156.8, 145.9, 156.9, 165.5)),
+}
+#: Table 10, BMI [kg m-2]: sex -> per age group (mean, P10, P50, P90)
+NHANES_BMI = {
+    "male": ((29.2, 22.7, 28.3, 36.0), (29.4, 22.9, 28.8, 36.5), (27.8, 22.8, 27.2, 32.6)),
+    "female": ((30.1, 22.0, 28.8, 40.0), (29.5, 22.0, 28.0, 38.3), (27.7, 21.1, 26.9, 34.7)),
+}
+#: the ANSUR II population's oldest age [yr]: the NHANES trend starts here
+ANSUR2_AGE_MAX = 58.0
+_Z90 = 1.2815515655446004  # standard normal 90th percentile
+
+
+def adult_stature_bmi_params(sex: str, age_yr: float) -> tuple[float, float, float, float]:
+    """(stature mean [m], stature SD [m], ln BMI mean, ln BMI SD) of adults at an age: ANSUR II up
+    to 58 yr, then linear in age to the NHANES 2021-2023 groups at 64.5, 74.5 and 85 yr (module doc)."""
+    ages = [ANSUR2_AGE_MAX] + [g[2] for g in NHANES_AGE_GROUPS]
+    rows = [ANSUR2[sex]]
+    for (h_mean, h10, _h50, h90), (_b_mean, b10, b50, b90) in zip(NHANES_STATURE_CM[sex], NHANES_BMI[sex]):
+        rows.append(
+            (
+                h_mean / 100.0,
+                (h90 - h10) / (200.0 * _Z90),
+                float(np.log(b50)),
+                float(np.log(b90 / b10)) / (2 * _Z90),
+            )
+        )
+    rows = np.asarray(rows)
+    return tuple(float(np.interp(float(age_yr), ages, rows[:, k])) for k in range(4))
+
 
 #: CDC 2000 growth charts at whole years: age [months] of the rows used
 CDC_AGE_MONTHS = (
@@ -207,14 +281,24 @@ def lms_at(table: dict, sex: str, age_yr: float) -> tuple[float, float, float]:
 
 
 def stature_bmi(sex: str, age_yr: float, z_stature: float, z_bmi: float) -> tuple[float, float]:
-    """Stature [m] and BMI [kg m-2] of a person at the given z-scores (children: CDC 2000;
-    adults: ANSUR II), before the BMI clip."""
+    """Stature [m] and BMI [kg m-2] of a person at the given z-scores (children: CDC 2000, z
+    limited to +-CHILD_Z_MAX; adults: ANSUR II, older adults the NHANES trend), before the BMI clip."""
     if age_yr < ADULT_AGE:
+        z_stature, z_bmi = (float(np.clip(z, -CHILD_Z_MAX, CHILD_Z_MAX)) for z in (z_stature, z_bmi))
         stature = float(lms_value(*lms_at(CDC_STATURE, sex, age_yr), z_stature)) / 100.0
-        bmi = float(lms_value(*lms_at(CDC_BMI, sex, age_yr), z_bmi))
-        return stature, bmi
-    mu_h, sd_h, mu_b, sd_b = ANSUR2[sex]
+        lms = lms_at(CDC_BMI, sex, age_yr)
+        if z_bmi <= Z97:
+            return stature, float(lms_value(*lms, z_bmi))
+        top = float(lms_value(*lms, Z97))
+        slope = (top - float(lms_value(*lms, Z97 - 0.05))) / 0.05
+        return stature, top + slope * (z_bmi - Z97)
+    mu_h, sd_h, mu_b, sd_b = adult_stature_bmi_params(sex, age_yr)
     return mu_h + sd_h * z_stature, float(np.exp(mu_b + sd_b * z_bmi))
+
+
+def bmi_range(age_yr: float) -> tuple[float, float]:
+    """The clip of a drawn BMI [kg m-2]: adults [BMI_MIN, BMI_MAX], children [CHILD_BMI_MIN, BMI_MAX]."""
+    return (CHILD_BMI_MIN if age_yr < ADULT_AGE else BMI_MIN), BMI_MAX
 
 
 def _check_range(name: str, value, lo: float, hi: float) -> tuple[float, float]:
@@ -240,7 +324,7 @@ def sample_person(
     age = float(rng.uniform(lo, hi))
     z_h, z_b = rng.standard_normal(2)
     stature, bmi = stature_bmi(sex, age, z_h, z_b)
-    bmi = float(np.clip(bmi, BMI_MIN, BMI_MAX))
+    bmi = float(np.clip(bmi, *bmi_range(age)))
     build = BUILDS[int(rng.integers(len(BUILDS)))]
     proportions = float(rng.uniform(0.25, 0.75))
     tone = skin_tones[int(rng.integers(len(skin_tones)))]

@@ -239,8 +239,8 @@ HUMAN = Section(
         "id": Key("str", "Identifier of the person (letters, digits, _).", required=True),
         "sex": Key("choice", "Sex of the body model.", default="male", choices=("male", "female")),
         "age_yr": Key("float", "Age [years].", default=30.0, lo=1.0, hi=100.0),
-        "stature_m": Key("float", "Standing height [m].", default=1.75, lo=0.8, hi=2.3),
-        "mass_kg": Key("float", "Body mass [kg].", default=75.0, lo=10.0, hi=250.0),
+        "stature_m": Key("float", "Standing height [m].", default=1.75, lo=0.7, hi=2.3),
+        "mass_kg": Key("float", "Body mass [kg].", default=75.0, lo=7.0, hi=250.0),
         "build": Key(
             "choice",
             "Body build (MakeHuman muscle macro).",

@@ -127,9 +127,9 @@ class HumvAvatarSettings(bpy.types.PropertyGroup):
                              description="Id of the person: prim /World/Humans/<id>")
     sex: EnumProperty(name="Sex", items=_items("male", "female"), default="male")
     age_yr: FloatProperty(name="Age [yr]", default=30.0, soft_min=1.0, soft_max=100.0)
-    stature_m: FloatProperty(name="Stature [m]", default=1.75, soft_min=0.8, soft_max=2.3,
+    stature_m: FloatProperty(name="Stature [m]", default=1.75, soft_min=0.7, soft_max=2.3,
                              precision=3, step=1, description="Standing height [m]")
-    mass_kg: FloatProperty(name="Mass [kg]", default=75.0, soft_min=10.0, soft_max=250.0,
+    mass_kg: FloatProperty(name="Mass [kg]", default=75.0, soft_min=7.0, soft_max=250.0,
                            description="Body mass [kg]")
     build: EnumProperty(name="Build", items=_items("slim", "average", "muscular"),
                         default="average")
