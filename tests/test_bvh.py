@@ -173,7 +173,9 @@ def test_round_trip(tmp_path, skel, order, up, forward, scale):
     b = motion_to_bvh(skel, m.local_rotations, m.root_translation, 30, order, up, forward, scale)
     path = tmp_path / "rt.bvh"
     write_bvh(path, b)
-    back = motion_from_bvh(path, skel, 30, up_axis=up, forward_axis=forward, recenter=False, settle=False)
+    back = motion_from_bvh(
+        path, skel, 30, up_axis=up, forward_axis=forward, recenter=False, settle=False, lock_feet=False
+    )
     assert back.frame_count == 45
     assert abs(back.gait["scale_m_per_unit"] - scale) < 1e-6 * scale  # from hip heights
     assert quat_angle_deg(back.local_rotations, m.local_rotations).max() < 1e-3
@@ -185,7 +187,12 @@ def test_name_map_drives_mapped_joints_only(skel):
     from humv_usd.human.bvh import motion_from_bvh
 
     m = motion_from_bvh(
-        DATA / "chain2.bvh", skel, 10, settle=False, name_map={"Thigh": "LeftUpLeg", "Shin": "LeftLeg"}
+        DATA / "chain2.bvh",
+        skel,
+        10,
+        settle=False,
+        name_map={"Thigh": "LeftUpLeg", "Shin": "LeftLeg"},
+        lock_feet=False,  # the retargeted angles as they are (the lock is tested below)
     )
     assert set(m.gait["mapped"]) == {"LeftUpLeg", "LeftLeg"}
     rot, pos = m.world(skel)
@@ -219,7 +226,7 @@ def test_cmu_knee_bend_retargets_from_t_pose(skel):
     src = read_bvh(DATA / "knee_bend_cmu.bvh")
     assert src.joints[src.names.index("LeftArm")].channels[0] == "Xrotation"
     assert src.joints[src.names.index("LeftLeg")].channels[0] == "Zrotation"
-    m = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 120)
+    m = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 120, lock_feet=False)
     assert m.frame_count == 121
     rot, pos = m.world(skel)
     a = sagittal_angles(skel, rot, pos)
@@ -252,16 +259,16 @@ def test_resampling_120_to_30_fps(skel):
     from humv_usd.human.bvh import motion_from_bvh
     from humv_usd.human.gait import quat_slerp
 
-    full = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 120, settle=False)
-    m30 = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 30, settle=False)
+    full = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 120, settle=False, lock_feet=False)
+    m30 = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 30, settle=False, lock_feet=False)
     assert m30.frame_count == 31 and m30.fps == 30.0
     assert quat_angle_deg(m30.local_rotations, full.local_rotations[::4]).max() < 1e-4
     assert np.allclose(m30.root_translation, full.root_translation[::4])
     # off-grid: 24 fps frame 1 (t = 1/24 s = 5 source frames) and frame 3 (15 frames)
-    m24 = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 24, frame_count=30, settle=False)
+    m24 = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 24, frame_count=30, settle=False, lock_feet=False)
     assert quat_angle_deg(m24.local_rotations[3], full.local_rotations[15]).max() < 1e-4
     # 25 fps frame 1: t = 0.04 s = 4.8 source frames -> slerp between frames 4 and 5
-    m25 = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 25, settle=False)
+    m25 = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 25, settle=False, lock_feet=False)
     want = quat_slerp(full.local_rotations[4], full.local_rotations[5], np.full(31, 0.8))
     assert quat_angle_deg(m25.local_rotations[1], want).max() < 1e-4
     assert np.allclose(
@@ -269,5 +276,71 @@ def test_resampling_120_to_30_fps(skel):
     )
     assert m30.frame_count == 31 and m24.frame_count == 30
     # beyond the clip the last frame is held
-    long = motion_from_bvh(DATA / "knee_bend_cmu.bvh", skel, 30, frame_count=40, settle=False)
+    long = motion_from_bvh(
+        DATA / "knee_bend_cmu.bvh", skel, 30, frame_count=40, settle=False, lock_feet=False
+    )
     assert np.allclose(long.local_rotations[35], full.local_rotations[-1])
+
+
+# ------------------------------------------------------------------------- foot locking
+def test_clean_stance_fills_flicker_and_drops_blips():
+    from humv_usd.human.contact import clean_stance
+
+    m = np.zeros(30, bool)
+    m[2:10] = True
+    m[11:20] = True  # a one-frame gap (33 ms at 30 fps): filled
+    m[25:27] = True  # a two-frame blip (67 ms): dropped
+    got = clean_stance(m, 30.0)
+    want = np.zeros(30, bool)
+    want[2:20] = True
+    assert np.array_equal(got, want)
+
+
+def _standing_slide(skel, slide_m: float, frames: int = 60):
+    """The rest pose, both feet down, the whole body carried ``slide_m`` along +X between
+    frames 10 and 40 (as a retargeted clip whose feet skate)."""
+    from humv_usd.human.gait import fk_matrices
+
+    local = np.tile(np.eye(3), (frames, len(skel.names), 1, 1))
+    root = np.tile(skel.rest_positions[0], (frames, 1))
+    root[:, 0] += slide_m * np.clip((np.arange(frames) - 10) / 30.0, 0.0, 1.0)
+    return local, root, fk_matrices
+
+
+@needs_rig
+def test_lock_feet_plants_a_skating_foot(skel):
+    """Feet that skate 3 cm with the body (0.03 m/s, detected as planted) stay where they
+    touched down: slip < 0.5 mm, none under the ground, the legs reach them (the root drops
+    at most MAX_LOCK_DROP_M)."""
+    from humv_usd.human import contact as C
+
+    local, root, fk = _standing_slide(skel, 0.03)
+    feet = C.foot_points_from_joints(skel)
+    ground = C.Ground(None)
+    stance = {s: np.ones(len(root), bool) for s in C.SIDES}
+    wr, wp = fk(skel, local, local[:, 0], root)
+    before = C.contact_report(ground, feet, wr, wp, stance)
+    assert before["max_slip_m"] > 0.029  # the feet move with the body
+    out, r2, kept = C.lock_feet(skel, ground, feet, local, local[:, 0], root, stance, 30.0)
+    wr, wp = fk(skel, out, out[:, 0], r2)
+    after = C.contact_report(ground, feet, wr, wp, kept)
+    assert all(m.all() for m in kept.values())
+    assert after["max_slip_m"] < 5e-4 and after["max_penetration_m"] < 5e-4
+    assert np.abs(r2 - root).max() <= C.MAX_LOCK_DROP_M + 1e-9
+    # the ankles stay at their first-frame positions (closed form: nothing moves)
+    for s in C.SIDES:
+        a = wp[:, skel.index(f"{s}Foot")]
+        assert np.abs(a - a[0]).max() < 5e-4
+
+
+@needs_rig
+def test_lock_feet_releases_a_dragged_foot(skel):
+    """A 40 cm skate cannot be planted (the legs would not reach): released, legs untouched."""
+    from humv_usd.human import contact as C
+
+    local, root, _ = _standing_slide(skel, 0.40)
+    feet = C.foot_points_from_joints(skel)
+    stance = {s: np.ones(len(root), bool) for s in C.SIDES}
+    out, r2, kept = C.lock_feet(skel, C.Ground(None), feet, local, local[:, 0], root, stance, 30.0)
+    assert not any(m.any() for m in kept.values())
+    assert np.allclose(out, local, atol=1e-9) and np.allclose(r2, root)

@@ -31,7 +31,7 @@ avatar frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
@@ -40,6 +40,7 @@ from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.gait import (
     align_matrix,
     axis_angle_matrix,
+    fk_matrices,
     matrix_to_quat,
     quat_slerp,
     rot_x,
@@ -613,3 +614,195 @@ def contact_report(
         "contact_tolerance_m": contact_tol,
         "ground": ground.kind,
     }
+
+
+# ------------------------------------------------------------------------- foot locking
+#: shortest planted run kept and longest gap bridged by :func:`clean_stance` [s]
+MIN_STANCE_S = 0.1
+MAX_STANCE_GAP_S = 0.07
+#: how far [m] the root may drop for a leg to reach its locked foot (:func:`lock_feet`)
+MAX_LOCK_DROP_M = 0.01
+#: a foot is locked where its lowest point is within this height [m] of the ground
+LOCK_NEAR_M = 0.02
+
+
+def clean_stance(mask: np.ndarray, fps: float) -> np.ndarray:
+    """A planted mask with gaps up to :data:`MAX_STANCE_GAP_S` filled and runs shorter than
+    :data:`MIN_STANCE_S` dropped (a detector's flicker at touch-down and lift-off)."""
+    m = np.asarray(mask, bool).copy()
+    gap = int(round(MAX_STANCE_GAP_S * fps))
+    runs = intervals(m)
+    for (_, b), (a2, _) in zip(runs[:-1], runs[1:]):
+        if a2 - b <= gap:
+            m[b:a2] = True
+    shortest = max(int(round(MIN_STANCE_S * fps)), 2)
+    for a, b in intervals(m):
+        if b - a < shortest:
+            m[a:b] = False
+    return m
+
+
+def _foot_yaw(fp: FootPoints, foot_rot: np.ndarray) -> np.ndarray:
+    """Heading [rad] of the foot's rest ankle-to-toe direction, unwrapped over frames."""
+    d = fp.toe_offset * [1.0, 1.0, 0.0]
+    fwd = np.einsum("fij,j->fi", foot_rot, d / np.linalg.norm(d))
+    return np.unwrap(np.arctan2(fwd[:, 1], fwd[:, 0]))
+
+
+def _bridge(values: np.ndarray, mask: np.ndarray, fade: int, longest: int) -> np.ndarray:
+    """Fill the frames outside ``mask`` by minimum-jerk blends: across a gap of at most
+    ``longest`` frames from the value at the end of the run before to the value at the start
+    of the run after; before the first run, after the last and across longer gaps from or to
+    zero over ``fade`` frames (zero beyond). ``values`` (F, ...) is read on the masked frames."""
+
+    def ease(n):
+        u = np.arange(1, n + 1) / (n + 1.0)
+        return (u**3 * (10 - 15 * u + 6 * u * u)).reshape((-1,) + (1,) * (values.ndim - 1))
+
+    out = np.zeros_like(values)
+    runs = intervals(mask)
+    for a, b in runs:
+        out[a:b] = values[a:b]
+    for i, (a, b) in enumerate(runs):
+        nxt = runs[i + 1][0] if i + 1 < len(runs) else None
+        if nxt is not None and nxt - b <= longest:
+            s = ease(nxt - b)
+            out[b:nxt] = (1 - s) * values[b - 1] + s * values[nxt]
+            continue
+        n = min(fade, (nxt if nxt is not None else len(values)) - b)
+        out[b : b + n] = (1 - ease(fade)[:n]) * values[b - 1]
+        prev = runs[i - 1][1] if i > 0 else None
+        if i == 0 or a - prev > longest:
+            n = min(fade, a - (prev or 0))
+            out[a - n : a] = ease(fade)[fade - n :] * values[a]
+    return out
+
+
+def lock_feet(
+    skeleton: Skeleton,
+    ground: Ground,
+    feet: dict[str, FootPoints],
+    local: np.ndarray,
+    root_rot: np.ndarray,
+    root_pos: np.ndarray,
+    stance: dict[str, np.ndarray],
+    fps: float,
+    margin: float = 0.002,
+) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Planted feet of a given motion (e.g. retargeted motion capture) that do not slide and
+    stand on the ground; returns new local rotations (F, J, 3, 3), root positions (F, 3) and
+    the planted masks kept (a run the leg cannot reach within :data:`MAX_LOCK_DROP_M` is
+    dragged rather than planted and left as it is).
+
+    In each planted run of ``stance`` (per side, (F,) bool) the foot's heading is frozen at
+    its first frame (turned about the vertical through the ankle), the foot *rolls without
+    slipping*: from frame to frame its lowest contact point (the pivot) keeps its horizontal
+    position, as :func:`plant_stance` does for the designed gait, and the foot is moved up or down so that its lowest point over the run touches the
+    ground. Between runs these corrections (offset,
+    height, heading) are blended by minimum jerk, a swing foot is lifted where a point would
+    dip below ``margin`` over the ground, and the legs are posed on the corrected ankle
+    targets by :func:`leg_ik` (the hip keeps the clip's swivel; the root drops where a leg
+    cannot reach, smoothed)."""
+    stance = {side: np.asarray(stance[side], bool).copy() for side in feet}
+    wrot, wpos = fk_matrices(skeleton, local, root_rot, root_pos)
+
+    def extra_drop(side, target):  # beyond what the clip's own (e.g. straight) leg needs
+        chain = leg_chain(skeleton, side)
+        own = reach_drop(chain, root_pos, root_rot, wpos[:, feet[side].foot])
+        return np.maximum(reach_drop(chain, root_pos, root_rot, target) - own, 0.0)
+
+    targets = _locked_targets(skeleton, ground, feet, local, root_rot, root_pos, stance, margin, fps)
+    # a run whose locked foot the leg cannot reach is dragged, not planted (a crawl's toes, a
+    # knee-walk): released, so that the lock never pulls the body down to it
+    for side in feet:
+        need = extra_drop(side, targets[side].ankle)
+        for a, b in intervals(stance[side]):
+            if need[a:b].max() > MAX_LOCK_DROP_M:
+                stance[side][a:b] = False
+    targets = _locked_targets(skeleton, ground, feet, local, root_rot, root_pos, stance, margin, fps)
+    need = np.zeros(len(root_pos))
+    for side in feet:
+        need = np.maximum(need, extra_drop(side, targets[side].ankle))
+    root_pos0, root_pos = root_pos, root_pos.copy()
+    root_pos[:, 2] -= smooth_drop(need, 1.0)
+    # the legs moved by what the IK changes between the clip's own ankles and the locked ones
+    # (zero where nothing is corrected: the IK's knee is a hinge with at least 1 deg of
+    # flexion, a clip's knee need not be, so the IK alone would change legs that need no change)
+    # (the change is exact to first order: two passes aim at the ankle the first one missed)
+    out = local.copy()
+    T = np.swapaxes
+    for side, fp in feet.items():
+        chain = leg_chain(skeleton, side)
+        own = FootTargets(wpos[:, fp.foot], wrot[:, fp.foot], wrot[:, fp.toe], np.zeros(len(root_pos)))
+        h0, k0, _, _ = leg_ik(chain, root_pos0, root_rot, local[:, chain.hip], own)
+        aim = targets[side].ankle
+        for _ in range(2):
+            h1, k1, _, _ = leg_ik(
+                chain, root_pos, root_rot, local[:, chain.hip], replace(targets[side], ankle=aim)
+            )
+            hip = h1 @ T(h0, -1, -2) @ local[:, chain.hip]
+            knee = local[:, chain.knee] @ T(k0, -1, -2) @ k1
+            thigh = wrot[:, skeleton.parents[chain.hip]] @ hip
+            shank = thigh @ knee
+            got = (
+                hip_positions(chain, root_pos, root_rot)
+                + np.einsum("fij,j->fi", thigh, chain.u)
+                + np.einsum("fij,j->fi", shank, chain.w)
+            )
+            aim = aim + (targets[side].ankle - got)
+        out[:, chain.hip], out[:, chain.knee] = hip, knee
+        out[:, chain.ankle] = T(shank, -1, -2) @ targets[side].foot_rot
+        out[:, chain.toe] = T(targets[side].foot_rot, -1, -2) @ targets[side].toe_rot
+    return out, root_pos, stance
+
+
+#: frames over which a lock correction fades in or out, and the longest gap between two planted
+#: runs of a foot that is bridged (longer gaps fade out and in) [s]
+LOCK_FADE_S = 0.25
+LOCK_BRIDGE_S = 1.0
+
+
+def _fade_frames(fps: float) -> tuple[int, int]:
+    return max(int(round(LOCK_FADE_S * fps)), 2), int(round(LOCK_BRIDGE_S * fps))
+
+
+def _locked_targets(skeleton, ground, feet, local, root_rot, root_pos, stance, margin, fps) -> dict:
+    frames = len(root_pos)
+    fade, longest = _fade_frames(fps)
+    wrot, wpos = fk_matrices(skeleton, local, root_rot, root_pos)
+    targets = {}
+    for side, fp in feet.items():
+        m = stance[side]
+        ankle = wpos[:, fp.foot].copy()
+        frot, trot = wrot[:, fp.foot], wrot[:, fp.toe]
+        yaw = _foot_yaw(fp, frot)
+        dpsi = np.zeros(frames)
+        off = np.zeros((frames, 3))
+        for a, b in intervals(m):
+            dpsi[a:b] = yaw[a] - yaw[a:b]
+        dpsi = _bridge(dpsi, m, fade, longest)
+        turn = rot_z(dpsi)
+        frot, trot = turn @ frot, turn @ trot
+        rel = fp.relative(frot, trot)  # (F, n, 3) about the ankle
+        pts = ankle[:, None, :] + rel
+        h = pts[..., 2] - ground.height(pts[..., :2])
+        for a, b in intervals(m):
+            lowest = h[a:b].min(axis=1)
+            for f in range(a + 1, b):
+                k = int(np.argmin(h[f]))  # the pivot stays where it was in the frame before
+                off[f, :2] = off[f - 1, :2] - (pts[f, k, :2] - pts[f - 1, k, :2])
+            # the run's lowest moment on the ground (not every frame: a foot lifting off at the
+            # end of its run is not pulled back down)
+            off[a:b, 2] = -lowest.min()
+        off = _bridge(off, m, fade, longest)
+        target = ankle + off
+
+        # swing: no lower than the clip's own foot where that is near the ground (the bridged
+        # height may pass under a toe)
+        def dip(p):
+            return np.max(ground.height(p[..., :2]) + margin - p[..., 2], axis=1)
+
+        lift = np.maximum(dip(target[:, None, :] + rel) - np.maximum(dip(pts), 0.0), 0.0)
+        target[:, 2] += np.where(m, 0.0, lift)
+        targets[side] = FootTargets(target, frot, trot, np.zeros(frames))
+    return targets
