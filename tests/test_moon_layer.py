@@ -91,3 +91,28 @@ def test_a_moon_below_the_horizon_gives_no_light(stage):
     m = E.read_moon(day, 0)
     assert m.elevation_deg < 0.0
     assert UsdLux.DistantLight(day.GetPrimAtPath(str(E.MOON_LIGHT_PATH))).GetIntensityAttr().Get(0) == 0.0
+
+
+def test_the_frames_light_read_carries_the_night_sources_once(stage):
+    """The render reads the moon and the cloud cover once per frame with the rest of the light
+    (render.light.FrameLight.night); every reflective pass derives its night light from that read
+    (nightlight.frame_night_light), not from the stage again; by day nothing is read."""
+    from humv_usd.render.light import read_frame_light
+    from humv_usd.render.nightlight import frame_night_light
+
+    copy = Sdf.Layer.CreateAnonymous(".usda")
+    copy.TransferContent(stage.GetRootLayer())
+    night = Usd.Stage.Open(copy)
+    light = read_frame_light(night, 1)
+    assert light.night.moon.elevation_deg == pytest.approx(E.read_moon(stage, 1).elevation_deg, abs=1e-9)
+    expected = night_light(stage, 1, light.sun_direction, WL)
+    # the stage changes after the frame's read (the moon's illuminance halved): the frame keeps its moon
+    attr = night.GetPrimAtPath(E.MOON_LIGHT_PATH).GetAttribute(E.MOON_ILLUMINANCE)
+    attr.Set(0.5 * light.night.moon.illuminance_lux, 1.0)
+    assert E.read_moon(night, 1).illuminance_lux == pytest.approx(0.5 * light.night.moon.illuminance_lux)
+    got = frame_night_light(light, WL)
+    assert_allclose(got.moon_irradiance, expected.moon_irradiance, rtol=1e-12)
+    assert_allclose(got.sky, expected.sky, rtol=1e-12)
+    raw = {**RAW, "general": {**RAW["general"], "start": dt.datetime(2018, 10, 24, 13, 0)}}
+    day = read_frame_light(Usd.Stage.Open(environment_layer.build(validate(raw))), 0)
+    assert day.sun_direction[2] > 0.0 and day.night is None and frame_night_light(day, WL) is None

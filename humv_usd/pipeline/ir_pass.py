@@ -152,9 +152,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         read_path_table(plan.stage, s, light.time_code),
         dni_w_m2=light.dni_w_m2,
     )
-    if s.is_reflective and (
-        night := nightlight.night_light(plan.stage, light.time_code, light.sun_direction, _NIGHT_WL)
-    ):
+    if s.is_reflective and (night := nightlight.frame_night_light(light, _NIGHT_WL)):
         nightlight.add_to_subbands(frame_rad, night, sub, _NIGHT_WL)  # twilight, moon, airglow
     if s.is_reflective and light.lamps:  # street lamps, headlights, lit windows (render.lights)
         frame_rad.lamps = lights.lamp_table(

@@ -171,12 +171,13 @@ def illumination(
     return sun, sky, ran
 
 
-def after_sunset(stage, time_code, sun_direction, sun_nm, sky_nm, ran: dict):
+def after_sunset(light, sun_direction, sun_nm, sky_nm, ran: dict):
     """With the sun below the horizon: the twilight, moonlit and natural night sky added to the
-    sky, and the moon in place of the sun (:func:`humv_usd.render.nightlight.night_light`), on
-    :data:`EO_WAVELENGTHS_NM` per nm. Returns (direction of the directional light or None, its
-    irradiance or None, sky); ``ran`` gets ``night``. Unchanged while the sun is up."""
-    night = nightlight.night_light(stage, time_code, sun_direction, EO_WAVELENGTHS_NM / 1000.0)
+    sky, and the moon in place of the sun (:func:`humv_usd.render.nightlight.frame_night_light`
+    of the frame's ``light``), on :data:`EO_WAVELENGTHS_NM` per nm. Returns (direction of the
+    directional light or None, its irradiance or None, sky); ``ran`` gets ``night``. Unchanged
+    while the sun is up."""
+    night = nightlight.frame_night_light(light, EO_WAVELENGTHS_NM / 1000.0)
     if night is None:
         return sun_direction, sun_nm, sky_nm
     sky_nm = night.sky / 1000.0 + (0.0 if sky_nm is None else sky_nm)
@@ -529,7 +530,7 @@ class EORender:
         scene = self.scene
         spectra, sun_direction = light.spectra, light.sun_direction
         sun, sky, ran = illumination(spectra, sun_direction, light.dni_w_m2)
-        sun_direction, sun, sky = after_sunset(self.stage, time_code, sun_direction, sun, sky, ran)
+        sun_direction, sun, sky = after_sunset(light, sun_direction, sun, sky, ran)
         if self.has_lamps:
             ran["lamps"] = lights.describe(lamps)
         sun_up = light.sun_direction is not None and light.sun_direction[2] > 0  # (not the moon)

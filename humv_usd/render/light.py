@@ -6,9 +6,11 @@ values of the frame: the atmosphere's spectral tables (sky radiance against zeni
 irradiance), the direction toward the sun and the broadband direct normal irradiance. The render
 reads them once per frame (:func:`read_frame_light`) and hands the same object to each pass.
 
-A new light source (the night sky, the moon, artificial lights) plugs in by adding a field here
-and reading it in :func:`read_frame_light`; each pass turns the fields into its own spectral
-quantities (the lamps: :func:`humv_usd.render.lights.lamp_table` per sub-band).
+A new light source plugs in by adding a field here and reading it in :func:`read_frame_light`
+(so are the lamps, the clouds' shadows and, after sunset, the moon and the cloud cover); each
+pass turns the fields into its own spectral quantities (the lamps:
+:func:`humv_usd.render.lights.lamp_table` per sub-band; the night sky and the moon:
+:func:`humv_usd.render.nightlight.frame_night_light` on its wavelength grid).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pxr import Usd
 
 from humv_usd.physics import clouds
 from humv_usd.physics.sun import cloud_dni_factor
+from humv_usd.render.nightlight import NightSources, read_night_sources
 from humv_usd.thermal.surfaces import OVERCAST_DNI_FACTOR
 from humv_usd.usd import environment as usd_environment
 from humv_usd.usd import lights as usd_lights
@@ -41,6 +44,10 @@ class FrameLight:
     lamps: tuple = ()
     #: broken clouds' shadows on the sun at the frame (:func:`cloud_shadows`), None: none
     clouds: CloudShadows | None = None
+    #: after sunset (the sun authored and below the horizon): the moon and the cloud cover
+    #: (:func:`humv_usd.render.nightlight.read_night_sources`), for every reflective pass's night
+    #: light (:func:`humv_usd.render.nightlight.frame_night_light`); None while the sun is up
+    night: NightSources | None = None
 
 
 @dataclass(frozen=True)
@@ -108,11 +115,14 @@ def cloud_shadows(stage: Usd.Stage, time_code) -> CloudShadows | None:
 def read_frame_light(stage: Usd.Stage, time_code) -> FrameLight:
     """The frame's light (:class:`FrameLight`) at ``time_code`` (a frame number or time code)."""
     t = time_code if isinstance(time_code, Usd.TimeCode) else Usd.TimeCode(time_code)
+    sun_direction = usd_environment.sun_direction(stage, t)
+    after_sunset = sun_direction is not None and float(sun_direction[2]) <= 0.0
     return FrameLight(
         time_code=t,
         spectra=atmosphere_spectra(stage, t),
-        sun_direction=usd_environment.sun_direction(stage, t),
+        sun_direction=sun_direction,
         dni_w_m2=usd_environment.direct_normal_irradiance(stage, t),
         lamps=tuple(usd_lights.read_lamps(stage, t)),
         clouds=cloud_shadows(stage, t),
+        night=read_night_sources(stage, t) if after_sunset else None,
     )

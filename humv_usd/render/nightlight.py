@@ -100,11 +100,49 @@ def cloud_cover_at(stage, time_code) -> float | None:
         return None
 
 
-def night_light(stage, time_code, sun_direction, wavelengths_um, cloud_cover=None) -> NightLight | None:
-    """Night illumination at ``time_code`` on ``wavelengths_um`` (None when the sun is up or not
-    authored: the day's sky and sun tables hold then).
+@dataclass(frozen=True)
+class NightSources:
+    """What lights one frame after sunset, as the stage states it (nothing derived; read once
+    per frame with the rest of the frame's light, :class:`humv_usd.render.light.FrameLight`):
+    the moon (:func:`frame_moon`: None and why without one) and the cloud cover [0-1]
+    (:func:`cloud_cover_at`: None without a weather)."""
 
-    Clouds (``cloud_cover`` N in 0-1, default the environment layer's, clear without one): Kasten
+    moon: usd_environment.MoonSample | None
+    moon_source: str
+    cloud_cover: float | None
+
+
+def read_night_sources(stage, time_code) -> NightSources:
+    """The frame's :class:`NightSources` from the stage."""
+    moon, source = frame_moon(stage, time_code)
+    return NightSources(moon, source, cloud_cover_at(stage, time_code))
+
+
+def frame_night_light(light, wavelengths_um) -> NightLight | None:
+    """Night illumination of a frame's light (:class:`humv_usd.render.light.FrameLight`, its
+    ``night`` read with it) on ``wavelengths_um``: :func:`night_spectra`; None while the sun is
+    up or not authored."""
+    if light.night is None:
+        return None
+    return night_spectra(light.night, light.sun_direction, wavelengths_um)
+
+
+def night_light(stage, time_code, sun_direction, wavelengths_um, cloud_cover=None) -> NightLight | None:
+    """Night illumination at ``time_code`` on ``wavelengths_um`` read from the stage
+    (:func:`read_night_sources`, :func:`night_spectra`; ``cloud_cover`` overrides the layer's).
+    None when the sun is up or not authored: the day's sky and sun tables hold then."""
+    if sun_direction is None or float(sun_direction[2]) > 0.0:
+        return None
+    return night_spectra(read_night_sources(stage, time_code), sun_direction, wavelengths_um, cloud_cover)
+
+
+def night_spectra(
+    sources: NightSources, sun_direction, wavelengths_um, cloud_cover=None
+) -> NightLight | None:
+    """Night illumination on ``wavelengths_um`` from the frame's :class:`NightSources` and the
+    direction toward the sun (None when the sun is up or not authored).
+
+    Clouds (``cloud_cover`` N in 0-1, default the sources', clear without one): Kasten
     & Czeplak (1980) as for the sun (:func:`humv_usd.physics.sun.cloud_reduction`): the global
     illuminance of each source falls as 1 - 0.75 N^3.4 and its diffuse share rises as
     kd + (1 - kd) N^2 (kd the clear-sky share: 1 for the twilight and night skies, the moonlit
@@ -114,7 +152,7 @@ def night_light(stage, time_code, sun_direction, wavelengths_um, cloud_cover=Non
         return None
     wl = np.asarray(wavelengths_um, dtype=float)
     ran: dict = {}
-    n = cloud_cover_at(stage, time_code) if cloud_cover is None else float(cloud_cover)
+    n = sources.cloud_cover if cloud_cover is None else float(cloud_cover)
     global_factor = 1.0 if n is None else float(1.0 - 0.75 * np.clip(n, 0.0, 1.0) ** 3.4)
     sun_el = float(np.degrees(np.arcsin(np.clip(sun_direction[2], -1.0, 1.0))))
     e_tw = float(nightsky.twilight_illuminance_lux(sun_el))
@@ -136,7 +174,7 @@ def night_light(stage, time_code, sun_direction, wavelengths_um, cloud_cover=Non
         "W m-2 sr-1 um-1 at 0.55 um"
     )
     moon_dir = moon_e = None
-    m, source = frame_moon(stage, time_code)
+    m, source = sources.moon, sources.moon_source
     if m is None:
         ran["moon"] = f"skipped: {source}"
     else:
