@@ -205,3 +205,8 @@ def test_swir_automatic_quality_is_relative_to_the_radiance(tmp_path):
     assert frame["targets_k"]["mean_k"] == pytest.approx(0.01) and frame["batches"] >= 2
     assert "% of the mean radiance" in err["spp_rule"]
     assert "% of the mean radiance" in result.output and " K, p99" not in result.output.split("cam:")[-1]
+    # no temperature error of reflected light anywhere (the summary's K line is the thermal cameras')
+    assert manifest["monte_carlo_error"]["temperature_stderr_mean_k"] is None
+    assert rec["frames"][0]["monte_carlo_error"]["temperature_stderr_mean_k"] is None
+    assert manifest["monte_carlo_error"]["radiance_stderr_mean"] is not None  # the radiance error stays
+    assert "Monte Carlo error per pixel" not in result.output and "not estimable" not in result.output

@@ -300,12 +300,16 @@ def echo_render_summary(manifest: dict, out_dir, estimator: str) -> None:
         f"{out_dir}/manifest.json  {rendered} image(s) ({len(manifest['rendered_this_call'])} frame(s) "
         f"rendered now), {manifest['timings_s']['total']:.2f} s"
     )
-    if manifest["sensors"] and err["temperature_stderr_mean_k"] is None:
+    from humv_usd.physics.sensor import REFLECTIVE_BANDS
+
+    # thermal cameras (NIR/SWIR errors are relative, EO's per sensor in the manifest)
+    thermal = [s for s in manifest["sensors"] if s.get("band") not in REFLECTIVE_BANDS]
+    if thermal and err["temperature_stderr_mean_k"] is None:
         click.echo(
             f"  Monte Carlo error: not estimable at spp {manifest['settings']['spp']} "
             "(needs at least 2 samples per pixel; the manifest's error fields are null)"
         )
-    elif manifest["sensors"]:  # infrared (EO errors are per sensor in the manifest)
+    elif thermal:
         click.echo(
             f"  Monte Carlo error per pixel: mean {err['temperature_stderr_mean_k']:.4f} K, "
             f"max {err['temperature_stderr_max_k']:.4f} K "

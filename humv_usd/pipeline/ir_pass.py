@@ -354,7 +354,8 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             ", ".join(k for k, v in judged["regions"].items() if v is False),
         )
     frame_errors = ErrorAccumulator()  # summed once per image, merged into the totals
-    frame_errors.add(stderr_l, stderr_k)
+    # NIR/SWIR: reflected light has no brightness temperature, so no temperature error either
+    frame_errors.add(stderr_l, np.full(stderr_k.shape, np.nan) if s.is_reflective else stderr_k)
     run.per_sensor[s.name]["errors"].merge(frame_errors)
     run.overall.merge(frame_errors)
     run.per_sensor[s.name]["frame_errors"] = {
