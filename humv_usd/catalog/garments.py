@@ -100,6 +100,12 @@ class Prop:
     shapes: tuple[Shape, ...]
     joint: str
     placement: str
+    #: a prop held in the hand: (contact point, outward surface normal there, the direction the
+    #: fingers run along it), in the prop's frame: the palm lies on the prop at the contact point
+    #: (:func:`humv_usd.human.carry.held_rest_transform`)
+    grip: tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]] | None = (
+        None
+    )
 
 
 @dataclass(frozen=True)
@@ -202,10 +208,31 @@ BACKPACK = Prop(
 #: A shoulder bag at the left hip, rigid on the Hips. Frame: origin at the centre of the face
 #: that touches the hip, +x away from it (placement "at_left_hip").
 BAG = Prop((Shape("bag", (0.045, 0.0, 0.0), (0.09, 0.28, 0.22)),), joint="Hips", placement="at_left_hip")
-#: A smartphone (147 x 72 x 8 mm) in the right hand, rigid on the RightHand (placement
-#: "in_right_hand": its centre 2 cm in front of the grasp point).
-PHONE = Prop(
-    (Shape("phone", (0.0, 0.0, 0.0), (0.008, 0.072, 0.147)),), joint="RightHand", placement="in_right_hand"
+#: A smartphone (147 x 72 x 8 mm) held in the right hand, rigid on the RightHand: its back (-x
+#: face) on the palm, the fingers along its length towards the top (+z), the palm's grasp point
+#: 5 cm below its centre. Placement "held_front": read in front of the chest
+#: (:func:`humv_usd.human.carry.apply_hold` poses the right arm); "held_ear" (``phone_call``):
+#: at the right ear, screen against the cheek.
+_PHONE_SHAPES = (Shape("phone", (0.0, 0.0, 0.0), (0.008, 0.072, 0.147)),)
+_PHONE_GRIP = ((-0.004, 0.0, -0.05), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+PHONE = Prop(_PHONE_SHAPES, joint="RightHand", placement="held_front", grip=_PHONE_GRIP)
+PHONE_CALL = Prop(_PHONE_SHAPES, joint="RightHand", placement="held_ear", grip=_PHONE_GRIP)
+#: A handbag carried by its handle in the right hand, arm hanging (placement "by_handle"):
+#: frame origin at the handle's centre, x along the handle, z up. The handle (a flat leather
+#: strap 14 cm x 20 mm x 8 mm) lies across the palm at the grasp point (its -y face on the
+#: palm); two straps run from its ends, beside the hand, down to the bag (34 x 12 x 28 cm),
+#: whose top is 20 cm below the handle, below the fingertips of an adult hand.
+HANDBAG_DROP = 0.20
+HANDBAG = Prop(
+    (
+        Shape("handle", (0.0, 0.0, 0.0), (0.14, 0.008, 0.020)),
+        Shape("strap_front", (-0.074, 0.0, -HANDBAG_DROP / 2), (0.008, 0.008, HANDBAG_DROP + 0.02)),
+        Shape("strap_back", (0.074, 0.0, -HANDBAG_DROP / 2), (0.008, 0.008, HANDBAG_DROP + 0.02)),
+        Shape("bag", (0.0, 0.0, -HANDBAG_DROP - 0.14), (0.34, 0.12, 0.28)),
+    ),
+    joint="RightHand",
+    placement="by_handle",
+    grip=((0.0, -0.004, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0)),
 )
 #: Glasses: two lenses, a bridge and two temples, rigid on the Head (placement "on_face":
 #: the lenses 12 mm in front of the eyes, the temples along the sides of the head). Frame:
@@ -506,11 +533,27 @@ def _catalogue() -> dict[str, Garment]:
         ),
         Garment(
             "phone",
-            "smartphone (147 x 72 x 8 mm, black polymer) held in the right hand",
+            "smartphone (147 x 72 x 8 mm, black polymer) read in the right hand in front of the chest",
             (),
             "polymer_black",
             PROP_LAYER,
             prop=PHONE,
+        ),
+        Garment(
+            "phone_call",
+            "smartphone (147 x 72 x 8 mm, black polymer) held at the right ear in the right hand",
+            (),
+            "polymer_black",
+            PROP_LAYER,
+            prop=PHONE_CALL,
+        ),
+        Garment(
+            "handbag",
+            "black leather handbag (34 x 12 x 28 cm) carried by its handle in the right hand",
+            (),
+            "leather_black",
+            PROP_LAYER,
+            prop=HANDBAG,
         ),
         Garment(
             "glasses",
@@ -529,6 +572,9 @@ GARMENTS: dict[str, Garment] = _catalogue()
 #: Props carried in both hands in the rifle carry (humv_usd.human.carry): the arms' pose
 #: changes when one is worn.
 LONG_GUNS = ("rifle", "shotgun")
+#: Props held in the right hand that pose the right arm (humv_usd.human.carry.apply_hold); a
+#: person holds at most one of these or a long gun.
+HELD_PROPS = ("phone", "phone_call", "handbag")
 #: Convenience aliases accepted by :func:`garment`.
 ALIASES = {"tshirt": "tshirt_white", "t-shirt": "tshirt_white"}
 #: The seed's Table 1 clothing options (HumV paper, sec. 4.1) as garment lists.

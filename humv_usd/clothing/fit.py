@@ -33,8 +33,9 @@ layer applies to the motion of whoever wears the rifle): its grip at the right h
 point and its handguard through the left one in the carry pose (standing, frame 0), that
 placement expressed in the RightHand joint's rest frame (so in the rest pose the rifle hangs
 off the right hand wherever the carry's hand rotation puts it).
-Worn props (issue 29: backpack ``on_back`` on Spine1, bag ``at_left_hip`` on the Hips, phone
-``in_right_hand``, glasses ``on_face`` on the Head, their temples fitted to the head's width)
+Worn props (issue 29: backpack ``on_back`` on Spine1, bag ``at_left_hip`` on the Hips, phone,
+phone_call and handbag held in the right hand, glasses ``on_face`` on the Head, their temples
+fitted to the head's width)
 are placed from the body's own rest geometry (:func:`_rest_transform`).
 Every vertex is bound 100 % to the prop's joint, so it moves rigidly with that joint.
 
@@ -54,7 +55,7 @@ from humv_usd.catalog.garments import SIDED_BONES, SIDED_REGIONS, Cover, Garment
 from humv_usd.geometry.mesh import Surface, fan_triangulate, vertex_normals
 from humv_usd.human import labels as L
 from humv_usd.human.body import Body, MeshPart
-from humv_usd.human.carry import carry_rest_transform
+from humv_usd.human.carry import HELD_PLACEMENTS, carry_rest_transform, hand_points, held_rest_transform
 from humv_usd.human.skeleton import Skeleton, skeleton_for, skin_weights
 
 INFLUENCES = 4
@@ -696,8 +697,8 @@ def _rest_transform(rig: BodyRig, prop: Prop) -> np.ndarray:
     * ``at_left_hip``: its origin (inner face) at the left hip joint's height,
       :data:`WORN_PROP_CLEARANCE` outside the outermost trunk point within its height,
       3 cm behind the hip joint;
-    * ``in_right_hand``: its centre 2 cm in front of the right hand's grasp point (the hand
-      bone's tail);
+    * ``held_front``, ``held_ear``, ``by_handle``: held in the right hand, the palm on its grip
+      (:func:`humv_usd.human.carry.held_rest_transform`; the arm's pose: ``carry.apply_hold``);
     * ``on_face``: its origin level with the eyes' centres (MakeHuman's eye helpers), midway
       between them, the frame 12 mm in front of the corneas or :data:`GLASSES_CLEARANCE` in
       front of the face behind it (nose bridge, brows), whichever is further forward.
@@ -723,10 +724,11 @@ def _rest_transform(rig: BodyRig, prop: Prop) -> np.ndarray:
         side = _near_band(_trunk_points(rig), hip[2], half + WORN_PROP_CLEARANCE)
         m[:3, 3] = (side[:, 0].max() + WORN_PROP_CLEARANCE, hip[1] + 0.03, hip[2])
         return m
-    if prop.placement == "in_right_hand":
-        grasp = sk.tail_positions[sk.index("RightHand")]
-        m[:3, 3] = grasp + (0.0, -0.02, 0.0)
-        return m
+    if prop.placement in HELD_PLACEMENTS:  # held in the right hand, the palm on it
+        mesh = rig.mesh
+        return held_rest_transform(
+            sk, hand_points(mesh.points, mesh.face_counts, mesh.face_indices, rig.face_regions), prop
+        )
     if prop.placement == "on_face":
         eyes = [rig.body.helper(f"{s}-eye").points for s in ("l", "r")]
         centre = 0.5 * (eyes[0].mean(axis=0) + eyes[1].mean(axis=0))

@@ -151,26 +151,33 @@ def _solve_arms(
     targets: dict | None = None,
     hand_dirs: dict | None = None,
     poles: dict | None = None,
+    sides: tuple[str, ...] = ("Right", "Left"),
+    frame_joint: str = "Hips",
 ) -> np.ndarray:
     """(F, J, 4) local rotations: ``motion``'s with both arms in the carry; ``offsets``
     (F, 3) translate the rifle (and so both grasp points) per frame in the Hips' frame.
-    ``targets``/``hand_dirs``/``poles``: grasp points, hand directions and elbow poles per
-    side in the Hips' frame (default: the rifle's)."""
+    ``targets``/``hand_dirs``/``poles``: grasp points, hand directions (or full 3x3 hand
+    rotations) and elbow poles per side in the Hips' frame (default: the rifle's); ``sides``:
+    the arms solved (the others keep the motion's rotations); ``frame_joint``: the joint whose
+    frame (origin at the joint, rest-aligned axes) the targets are given in, instead of the Hips."""
     q = np.array(motion.local_rotations, dtype=float, copy=True)
     names = skeleton.names
     for name in ARM_JOINTS:  # clavicles at rest, the rest solved below
-        q[:, names.index(name)] = (1.0, 0.0, 0.0, 0.0)
+        if name.startswith(sides):
+            q[:, names.index(name)] = (1.0, 0.0, 0.0, 0.0)
     world = forward_kinematics(skeleton, q, motion.root_translation)
-    hips_r, hips_p = world[:, 0, :3, :3], world[:, 0, :3, 3]
+    f = names.index(frame_joint)
+    hips_r, hips_p = world[:, f, :3, :3], world[:, f, :3, 3]
     targets = grasp_targets(skeleton) if targets is None else targets
     offsets = np.zeros((len(q), 3)) if offsets is None else np.asarray(offsets, float)
     grasp_offset = grasp_offsets(skeleton)
     hand_dirs = {"Right": _RIGHT_HAND_DIR, "Left": _LEFT_HAND_DIR} if hand_dirs is None else hand_dirs
     poles = _POLES if poles is None else poles
     rest = skeleton.rest_positions
-    for side in ("Right", "Left"):
+    for side in sides:
         arm, fore, hand = (names.index(f"{side}{j}") for j in ("Arm", "ForeArm", "Hand"))
-        hand_local = _hand_rotation(skeleton, side, hand_dirs[side])  # in Hips' frame
+        hand_dir = np.asarray(hand_dirs[side], float)
+        hand_local = hand_dir if hand_dir.shape == (3, 3) else _hand_rotation(skeleton, side, hand_dir)
         hand_world = hips_r @ hand_local  # (F, 3, 3)
         grasp = hips_p + np.einsum("fij,fj->fi", hips_r, targets[side] + offsets)
         wrist = grasp - hand_world @ grasp_offset[side]
@@ -526,3 +533,215 @@ def clear_rifle(
         "graspErrorMax_m": reach,
     }
     return q, report
+
+
+# ---------------------------------------------------------------------------- props held in one hand
+#: Placements of props held in the right hand (:data:`humv_usd.catalog.garments.HELD_PROPS`):
+#: ``held_front`` a phone read in front of the chest, ``held_ear`` a phone at the right ear,
+#: ``by_handle`` a bag carried by its handle with the arm hanging.
+HELD_PLACEMENTS = ("held_front", "held_ear", "by_handle")
+#: Gap [m] between the hand's skin and a held prop: the prop is moved along the palm's normal
+#: until its closest hand vertex is this far off it (contact, no penetration).
+PALM_GAP = 0.002
+#: Gap [m] between the phone at the ear and the head (no vertex of the head closer).
+EAR_GAP = 0.003
+#: Clearance [m] of a bag carried by its handle from the thigh and hip beside it.
+BAG_CLEARANCE = 0.04
+#: The phone at the ear: its length axis tilted this far [deg] from vertical, the bottom forward
+#: (towards the mouth); the ear 1/3 of the way down the phone's length from its top.
+EAR_TILT_DEG = 35.0
+#: The phone read in front of the chest: its screen tilted this far [deg] from vertical towards
+#: the eyes; its centre ahead of the right shoulder (x: towards the mid-line, y: forward, z: up),
+#: as fractions of the arm's length (shoulder to wrist).
+READ_TILT_DEG = 40.0
+_READ_CENTRE = np.array([0.10, -0.62, -0.30])
+#: Elbow poles per hold (in the frame the hold is given in).
+_HOLD_POLES = {
+    "held_front": np.array([-0.7, 0.3, -1.0]),
+    "held_ear": np.array([-0.6, -0.4, -1.0]),
+    "by_handle": np.array([-0.3, 0.3, -1.0]),
+}
+_HOLD_FRAME = {"held_front": "Hips", "held_ear": "Head", "by_handle": "Hips"}
+#: The ear's height above the Head joint, as a fraction of the head's height above it.
+EAR_HEIGHT = 0.30
+#: The bag's hand hangs this far below the shoulder, as a fraction of the arm's length.
+HANG_DROP = 0.92
+
+
+def hand_points(points, face_counts, face_indices, face_regions, side: str = "right") -> np.ndarray:
+    """Rest points of the body faces labelled ``{side}Hand`` (``face_regions`` per face)."""
+    counts = np.asarray(face_counts)
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    faces = np.asarray(face_regions) == L.REGION_ID[f"{side}Hand"]
+    return np.asarray(points)[np.unique(np.asarray(face_indices)[faces[face_of]])]
+
+
+def body_regions_of(body, skeleton: Skeleton):
+    """(body mesh, per-face region ids) as the avatar tool labels them."""
+    mesh = body.body_mesh()
+    idx, w = skin_weights(skeleton, mesh.vertex_ids, 4)
+    return mesh, L.body_regions(mesh, skeleton, idx, w)
+
+
+@dataclasses.dataclass(frozen=True)
+class Palm:
+    """The right palm in the rest pose: the grasp point (the hand bone's tail), the palm's
+    normal (out of the palm), the fingers' direction (in the palm's plane) and across (normal x
+    fingers)."""
+
+    grasp: np.ndarray
+    normal: np.ndarray
+    fingers: np.ndarray
+    across: np.ndarray
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """Columns (normal, fingers, across): palm frame -> rest."""
+        return np.stack([self.normal, self.fingers, self.across], 1)
+
+
+def palm_frame(skeleton: Skeleton, hand_pts: np.ndarray) -> Palm:
+    """:class:`Palm` of the right hand: the normal is the least-variance axis of the hand's
+    points within 6 cm of the grasp point, signed towards the fingertips' curl (the fingers of
+    MakeHuman's rest hand flex a little towards the palm)."""
+    j = skeleton.index("RightHand")
+    head, tail = skeleton.rest_positions[j], skeleton.tail_positions[j]
+    near = hand_pts[np.linalg.norm(hand_pts - tail, axis=1) < 0.06]
+    n = np.linalg.svd(near - near.mean(axis=0))[2][2]
+    f = _unit((tail - head) - n * ((tail - head) @ n))
+    d = hand_pts - tail
+    along = d @ f
+    tips = d[along >= np.percentile(along, 97)]
+    if (tips @ n).mean() < 0:
+        n = -n
+    return Palm(tail, n, f, np.cross(n, f))
+
+
+def _grip_rotation(grip) -> np.ndarray:
+    """Rotation prop frame -> palm frame (normal, fingers, across) of a prop's grip."""
+    _, normal, fingers = (np.asarray(v, float) for v in grip)
+    into = -_unit(normal)  # from the palm into the prop, in the prop's frame
+    along = _unit(fingers - into * (fingers @ into))
+    prop_axes = np.stack([into, along, np.cross(into, along)], 1)  # palm frame -> prop frame
+    return prop_axes.T
+
+
+def held_rest_transform(skeleton: Skeleton, hand_pts: np.ndarray, prop) -> np.ndarray:
+    """4x4 transform prop frame -> rest pose of a prop held in the right hand (``prop.grip``):
+    the prop's contact point over the grasp point, its outward normal there against the palm's
+    normal, its finger direction along the fingers; then moved along the palm's normal until the
+    hand's closest vertex is :data:`PALM_GAP` off the prop (exact box distances, so the hand is
+    not inside it; the bisection ends within 1e-10 m of it)."""
+    palm = palm_frame(skeleton, hand_pts)
+    rot = palm.rotation @ _grip_rotation(prop.grip)  # prop -> rest
+    contact = np.asarray(prop.grip[0], float)
+    m = np.eye(4)
+    m[:3, :3] = rot
+
+    def gap(h: float) -> float:
+        local = (hand_pts - (palm.grasp + palm.normal * h - rot @ contact)) @ rot
+        return float(prop_signed_distance(local, prop).min()) - PALM_GAP
+
+    # the hand is thicker than the palm over the grasp point (thenar, hypothenar, the thumb): the
+    # prop rests on the highest of them; bisection on the offset along the palm's normal
+    lo, hi = -0.02, 0.12
+    if gap(lo) >= 0 or gap(hi) < 0:
+        raise ValueError(f"{prop.placement}: no contact offset for the palm in [{lo}, {hi}] m")
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if gap(mid) < 0 else (lo, mid)
+    m[:3, 3] = palm.grasp + palm.normal * hi - rot @ contact
+    return m
+
+
+def _hold_pose(
+    skeleton: Skeleton, body_pts: np.ndarray, prop, rest_m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The held prop's wanted pose (rotation prop -> rest, translation) in rest coordinates for
+    its placement; ``body_pts``: the rest body's points less the right arm and hand."""
+    sh = skeleton.rest_positions[skeleton.index("RightArm")]
+    fore, hand = skeleton.index("RightForeArm"), skeleton.index("RightHand")
+    arm_len = float(
+        np.linalg.norm(skeleton.rest_positions[fore] - sh)
+        + np.linalg.norm(skeleton.rest_positions[hand] - skeleton.rest_positions[fore])
+    )
+    if prop.placement == "held_front":
+        a = np.radians(READ_TILT_DEG)
+        screen = np.array([0.0, np.sin(a), np.cos(a)])  # the phone's +x: up and back, to the eyes
+        top = np.array([0.0, -np.cos(a), np.sin(a)])  # its +z: forward and up
+        return np.stack([screen, np.cross(top, screen), top], 1), sh + _READ_CENTRE * arm_len
+    if prop.placement == "held_ear":
+        a = np.radians(EAR_TILT_DEG)
+        screen = np.array([1.0, 0.0, 0.0])  # towards the head
+        top = np.array([0.0, np.sin(a), np.cos(a)])  # up and back: the bottom towards the mouth
+        rot = np.stack([screen, np.cross(top, screen), top], 1)
+        head_z = skeleton.rest_positions[skeleton.index("Head")][2]
+        head = body_pts[body_pts[:, 2] > head_z]
+        band = head[np.abs(head[:, 2] - (head_z + EAR_HEIGHT * (head[:, 2].max() - head_z))) < 0.01]
+        ear = band[np.argmin(band[:, 0])]  # the head's outermost point on the right
+        half = max(sh_.size[2] for sh_ in prop.shapes) / 2
+        t = ear - top * (half / 3)  # the ear a third of the way down from the phone's top
+        t[0] = ear[0] - 0.004 - EAR_GAP
+        for _ in range(6):  # the screen EAR_GAP off the head
+            gap = float(prop_signed_distance((head - t) @ rot, prop).min())
+            if abs(gap - EAR_GAP) < 1e-5:
+                break
+            t[0] -= EAR_GAP - gap
+        return rot, t
+    if prop.placement == "by_handle":
+        # handle along -y (front to back), the palm's side of it (+y) towards the body, z up
+        rot = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+        grasp = rest_m[:3, :3].T @ (skeleton.tail_positions[hand] - rest_m[:3, 3])  # prop frame
+        t = sh + np.array([0.0, 0.0, -HANG_DROP * arm_len]) - rot @ grasp  # the grasp below the shoulder
+        lo, hi = _prop_box(prop)
+        side = body_pts[
+            (body_pts[:, 2] > t[2] + lo[2]) & (body_pts[:, 2] < t[2] + hi[2]) & (body_pts[:, 0] < 0)
+        ]
+        t[0] = side[:, 0].min() - BAG_CLEARANCE - hi[1]  # the bag's inner face clear of hip and thigh
+        return rot, t
+    raise ValueError(f"not a held placement: {prop.placement!r}")
+
+
+def hold_targets(skeleton: Skeleton, body_pts: np.ndarray, hand_pts: np.ndarray, prop):
+    """(frame joint, grasp point, hand rotation, elbow pole) in that joint's frame (origin at the
+    joint, rest-aligned axes) that put the right hand, and the prop rigid on it at
+    :func:`held_rest_transform`, at the prop's wanted pose (:func:`_hold_pose`)."""
+    rest_m = held_rest_transform(skeleton, hand_pts, prop)
+    rot_d, t_d = _hold_pose(skeleton, body_pts, prop, rest_m)
+    r_h = rot_d @ rest_m[:3, :3].T  # hand rotation (rest -> wanted)
+    j = skeleton.index("RightHand")
+    head, tail = skeleton.rest_positions[j], skeleton.tail_positions[j]
+    wrist = t_d - r_h @ (rest_m[:3, 3] - head)
+    grasp = wrist + r_h @ (tail - head)
+    frame = _HOLD_FRAME[prop.placement]
+    return frame, grasp - skeleton.rest_positions[skeleton.index(frame)], r_h, _HOLD_POLES[prop.placement]
+
+
+def _rest_parts(body, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """(body points less the right arm and hand, right-hand points), rest pose."""
+    mesh, regions = body_regions_of(body, skeleton)
+    pts = np.asarray(mesh.points)
+    counts = np.asarray(mesh.face_counts)
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    vid = np.asarray(mesh.face_indices)
+    arm = np.isin(regions, [L.REGION_ID[r] for r in ("rightUpperArm", "rightLowerArm", "rightHand")])
+    return pts[np.unique(vid[~arm[face_of]])], hand_points(pts, counts, vid, regions)
+
+
+def apply_hold(motion, skeleton: Skeleton, body, prop):
+    """``motion`` with the right arm holding ``prop`` (a held prop: phone read in front, phone at
+    the ear, bag by its handle) in every frame: two-bone IK of the right arm to the grasp point
+    and hand rotation of :func:`hold_targets`, fixed in the Hips' (front, bag) or the Head's
+    (ear) frame; the left arm keeps the motion's rotations."""
+    body_pts, hand_pts = _rest_parts(body, skeleton)
+    frame, grasp, r_h, pole = hold_targets(skeleton, body_pts, hand_pts, prop)
+    q = _solve_arms(
+        motion,
+        skeleton,
+        targets={"Right": grasp},
+        hand_dirs={"Right": r_h},
+        poles={"Right": pole},
+        sides=("Right",),
+        frame_joint=frame,
+    )
+    return dataclasses.replace(motion, local_rotations=q)

@@ -15,7 +15,8 @@ A tool declares ``READS``, a tuple of read paths:
   then, so a scene without clutter is not rebuilt for a new start time or weather;
 * ``"@puddles"`` -- the seed and whether it rained, when the ground has puddles (else None);
 * ``"@instanceId[{id}]"`` -- that person's instance id alone; ``"@carriesRifle[{id}]"`` -- whether
-  that person's clothing holds the rifle (the avatar's arms take the carry pose): a per-person
+  that person's clothing holds the rifle (the avatar's arms take the carry pose);
+  ``"@holds[{id}]"`` -- the prop held in the right hand (phone, phone_call, handbag) or None: a per-person
   layer that reads these instead of the whole entry is shared between scenarios that differ only
   in what it does not read (e.g. avatars across outfits).
 
@@ -35,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 from pxr import Sdf, UsdUtils
 
-from humv_usd.catalog.garments import LONG_GUNS
+from humv_usd.catalog.garments import HELD_PROPS, LONG_GUNS
 from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.places import scene_clutter
 from humv_usd.scenario.spec import SECTIONS
@@ -112,6 +113,13 @@ def _carries_rifle(scenario: Scenario, human_id: str) -> bool:
     return human is not None and any(g in LONG_GUNS for g in human.get("clothing") or ())
 
 
+def _holds(scenario: Scenario, human_id: str) -> str | None:
+    """The prop the person holds in the right hand (the arm's hold pose), or None: the first of
+    :data:`humv_usd.catalog.garments.HELD_PROPS` in the clothing."""
+    human = next((h for h in scenario["human"] if h["id"] == human_id), None)
+    return next((g for g in (human or {}).get("clothing") or () if g in HELD_PROPS), None)
+
+
 def _crowd(scenario: Scenario, human_id: str) -> list | None:
     """Where everybody starts and goes, for a person who avoids the others (placement
     ``avoidance``; None when they do not): their avoided path depends on all of these."""
@@ -133,7 +141,12 @@ def _crowd(scenario: Scenario, human_id: str) -> list | None:
 
 
 #: values derived for one person: ``"@name[{id}]"``
-DERIVED_PER_PERSON = {"@instanceId": _instance_id, "@carriesRifle": _carries_rifle, "@crowd": _crowd}
+DERIVED_PER_PERSON = {
+    "@instanceId": _instance_id,
+    "@carriesRifle": _carries_rifle,
+    "@holds": _holds,
+    "@crowd": _crowd,
+}
 
 
 def _file_keys(sections) -> frozenset[str]:
