@@ -103,6 +103,12 @@ def cloud_dni_factor(cloud_cover) -> np.ndarray:
     return (1.0 - 0.75 * n**3.4) * (1.0 - n * n)
 
 
+#: below this DNI / DNI_clear (:func:`cloud_dni_factor`: cover above ~0.97) the sky is overcast:
+#: no cloud gaps, the beam stays the layer's uniform value (the thermal tool's cloud shadows and
+#: the render's)
+OVERCAST_DNI_FACTOR = 0.05
+
+
 @functools.lru_cache(maxsize=1)
 def reference_solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
     """The reference sun of broadband solar absorptivities: (wavelengths [um] (0.28-4),

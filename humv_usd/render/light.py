@@ -21,9 +21,8 @@ import numpy as np
 from pxr import Usd
 
 from humv_usd.physics import clouds
-from humv_usd.physics.sun import cloud_dni_factor
+from humv_usd.physics.sun import OVERCAST_DNI_FACTOR, cloud_dni_factor
 from humv_usd.render.nightlight import NightSources, read_night_sources
-from humv_usd.thermal.surfaces import OVERCAST_DNI_FACTOR
 from humv_usd.usd import environment as usd_environment
 from humv_usd.usd import lights as usd_lights
 from humv_usd.usd.atmosphere import AtmosphereSpectra, atmosphere_spectra
@@ -83,7 +82,7 @@ class CloudShadows:
 def cloud_shadows(stage: Usd.Stage, time_code) -> CloudShadows | None:
     """The frame's :class:`CloudShadows` from the environment layer: ``humv:environment:cloudSize``
     (0 or unauthored: None), the cloud cover at the frame (0, or overcast, DNI / DNI_clear below
-    :data:`humv_usd.thermal.surfaces.OVERCAST_DNI_FACTOR`: None, the layer's uniform beam), the
+    :data:`humv_usd.physics.sun.OVERCAST_DNI_FACTOR`: None, the layer's uniform beam), the
     field of /World's ``humv:scenario:seed`` carried by the cloud-level wind of the frames 0 to
     this one (:func:`humv_usd.physics.clouds.cloud_displacement`) toward the opposite of frame 0's
     wind direction: the thermal tool's field, threshold and motion."""

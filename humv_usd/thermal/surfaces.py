@@ -81,7 +81,7 @@ from humv_usd.physics.sky import (
     hemispherical_irradiance,
     tilted_irradiance,
 )
-from humv_usd.physics.sun import cloud_dni_factor
+from humv_usd.physics.sun import OVERCAST_DNI_FACTOR, cloud_dni_factor
 from humv_usd.scenario.times import SPIN_UP_STEP_S
 from humv_usd.thermal.human import longwave_emissivity
 from humv_usd.thermal.views import VIEW_RAYS, ZENITH_BINS_DEG, face_views, orthonormal_frames, ray_samples
@@ -1026,11 +1026,6 @@ def with_water(forcing: SurfaceForcing, scenario) -> SurfaceForcing:
         rain_kg_m2_s=rain,
         soil_moisture=forcing.soil_moisture if moisture is None else float(moisture),
     )
-
-
-#: below this DNI / DNI_clear (Kasten & Czeplak, cover above ~0.97) the sky is overcast: no
-#: cloud gaps, the beam stays the layer's uniform value
-OVERCAST_DNI_FACTOR = 0.05
 
 
 def with_cloud_shadows(forcing: SurfaceForcing, scenario) -> SurfaceForcing:
