@@ -25,8 +25,16 @@ A GPU machine without the full set-up can split the work: ``render`` on the GPU 
 ``--export DIR`` (compact ``.npz`` per frame: radiance, its error, instance id, depth), then
 ``compare`` on any machine against a CPU render of the same stage and frames.
 
-Subcommands: ``check`` (default: render every backend, compare), ``render`` (one backend),
-``compare A B`` (two render folders or exports). Writes ``DIR/gpu_check.json``.
+Visible (EO) cameras are compared on their luminance Y with its error ``Y_stderr``; infrared,
+NIR and SWIR cameras on their band radiance.
+
+Before rendering it checks that this Python can import what the render needs
+(:data:`RENDER_PACKAGES`; a GPU machine without network gets them carried as wheels, see
+docs/user/gpu.md) and names the missing ones in one line (exit 2) instead of a traceback.
+
+Subcommands: ``check`` (default: render every backend, compare; exit 1 when a backend failed),
+``render`` (one backend), ``compare A B`` (two render folders or exports), ``needs`` (the
+packages the render imports and whether this Python has them). Writes ``DIR/gpu_check.json``.
 """
 
 from __future__ import annotations
@@ -50,6 +58,51 @@ STAGES = ("load_export", "render", "estimator", "labels", "write", "cpu")
 PERSON_LABEL = "person"
 #: The fraction of |z| > 4 for a standard normal variable (two-sided).
 NORMAL_TAIL_4 = 6.33e-5
+#: What a render needs beyond the standard library, as import name -> distribution. Measured
+#: (``python -X importtime -m humv_usd.cli.main render ...`` of stages with LWIR, EO, NIR and SWIR
+#: cameras, 2026-11-27): numpy, scipy, usd-core, OpenEXR, OpenImageIO and ephem on import,
+#: mitsuba and drjit when the variant is chosen, pycocotools for the COCO labels; pvlib only for
+#: its ASTM G173 table (``data/ASTMG173.csv``, read with numpy by
+#: :func:`humv_usd.physics.sun.reference_solar_spectrum`: a material's solar absorptivity).
+#: Optional: embreex (the labels' CPU ray caster; without it, and always on CUDA, Mitsuba casts
+#: them). ``tests/test_gpu_check.py`` checks that the render's modules import nothing else.
+RENDER_PACKAGES = {
+    "numpy": "numpy",
+    "scipy": "scipy",
+    "pxr": "usd-core",
+    "OpenEXR": "OpenEXR",
+    "OpenImageIO": "OpenImageIO",
+    "ephem": "ephem",
+    "mitsuba": "mitsuba",
+    "drjit": "drjit",
+    "pycocotools": "pycocotools",
+    "pvlib": "pvlib",
+}
+
+
+def missing_packages(packages: dict | None = None) -> list[str]:
+    """Distributions of :data:`RENDER_PACKAGES` this Python cannot import (found without
+    importing them)."""
+    import importlib.util
+
+    out = []
+    for module, dist in (RENDER_PACKAGES if packages is None else packages).items():
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            out.append(dist)
+    return out
+
+
+def _needs_line(missing: list[str]) -> str:
+    """One line naming what this Python lacks for the render."""
+    return (
+        f"gpu_check: this Python ({sys.version.split()[0]} at {sys.executable}) cannot import "
+        f"{', '.join(missing)}, which the render needs: install them, or on a machine without network "
+        "carry them as wheels for this Python (docs/user/gpu.md, 'Carrying the set-up')"
+    )
 
 
 def _parse_frames(text: str | None) -> list[int] | None:
@@ -124,11 +177,12 @@ def _export(render_dir: str, summary: dict, export_dir: str, frames=None) -> lis
             if frames is not None and frame not in frames:
                 continue
             ch = read_exr(os.path.join(render_dir, rel))
+            value, stderr = _measured(ch)
             path = os.path.join(export_dir, f"{summary['backend']}_{name}_{frame:04d}.npz")
             np.savez_compressed(
                 path,
-                radiance=ch["radiance"].astype(np.float32),
-                radiance_stderr=ch["radiance_stderr"].astype(np.float32),
+                radiance=value.astype(np.float32),
+                radiance_stderr=stderr.astype(np.float32),
                 instance_id=ch["instance_id"].astype(
                     np.int16 if ch["instance_id"].max() < 2**15 else np.int32
                 ),
@@ -138,6 +192,14 @@ def _export(render_dir: str, summary: dict, export_dir: str, frames=None) -> lis
     with open(os.path.join(export_dir, f"{summary['backend']}_summary.json"), "w") as f:
         json.dump(summary, f, indent=1)
     return written
+
+
+def _measured(ch: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(value, its Monte Carlo standard error) an image is compared on: the band radiance of an
+    infrared, NIR or SWIR image, the luminance Y of a visible (EO) one."""
+    if "radiance" in ch:
+        return ch["radiance"], ch["radiance_stderr"]
+    return ch["Y"], ch["Y_stderr"]
 
 
 def _frames_of(where: str) -> dict[tuple[str, int], dict]:
@@ -150,11 +212,14 @@ def _frames_of(where: str) -> dict[tuple[str, int], dict]:
 
         with open(manifest) as f:
             m = json.load(f)
-        for s in m["sensors"]:
+        for s in m["sensors"] + m.get("eo_sensors", []):
             for fr in s["frames"]:
                 ch = read_exr(os.path.join(where, fr["exr"]))
-                out[(s["name"], fr["frame"])] = {
-                    k: ch[k] for k in ("radiance", "radiance_stderr", "instance_id", "class_id", "depth")
+                value, stderr = _measured(ch)
+                out[(s.get("name", s.get("id")), fr["frame"])] = {
+                    "radiance": value,
+                    "radiance_stderr": stderr,
+                    **{k: ch[k] for k in ("instance_id", "class_id", "depth") if k in ch},
                 }
         return out
     for p in sorted(Path(where).glob("*_*_[0-9][0-9][0-9][0-9].npz")):
@@ -274,7 +339,19 @@ def main(argv=None) -> int:
     p = sub.add_parser("compare")
     p.add_argument("a")
     p.add_argument("b")
+    sub.add_parser("needs")
     args = ap.parse_args(argv)
+
+    if args.cmd == "needs":
+        missing = missing_packages()
+        for module, dist in RENDER_PACKAGES.items():
+            print(f"  {dist:14s} (import {module}): {'MISSING' if dist in missing else 'ok'}")
+        if missing:
+            print(_needs_line(missing))
+        return 2 if missing else 0
+    if args.cmd in ("render", "check") and (missing := missing_packages()):
+        print(_needs_line(missing), file=sys.stderr)
+        return 2
 
     if args.cmd == "render":
         if args.log:
@@ -301,7 +378,7 @@ def main(argv=None) -> int:
         ap.print_help()
         return 2
     backends = [b for b in args.backends.split(",") if b]
-    report = {"backends": {}, "agreement": {}}
+    report = {"backends": {}, "agreement": {}, "failed": {}}
     for backend in backends:
         cmd = [sys.executable, __file__, "render", args.stage, "--out", args.out, "--backend", backend]
         cmd += ["--frames", args.frames, "--seed", str(args.seed)] + (
@@ -311,9 +388,9 @@ def main(argv=None) -> int:
         run = subprocess.run(cmd, text=True, capture_output=True)
         sys.stdout.write(run.stdout)
         if run.returncode != 0:
-            print(
-                f"{backend}: failed ({run.stderr.strip().splitlines()[-1] if run.stderr.strip() else run.returncode})"
-            )
+            why = run.stderr.strip().splitlines()[-1] if run.stderr.strip() else f"exit {run.returncode}"
+            report["failed"][backend] = why
+            print(f"{backend}: failed ({why})")
             continue
         with open(os.path.join(args.out, f"{backend}_summary.json")) as f:
             report["backends"][backend] = json.load(f)
@@ -325,7 +402,7 @@ def main(argv=None) -> int:
             _print_compare(f"{a} vs {b}", res)
     with open(os.path.join(args.out, "gpu_check.json"), "w") as f:
         json.dump(report, f, indent=1)
-    return 0 if done else 1
+    return 1 if report["failed"] or not done else 0
 
 
 if __name__ == "__main__":
