@@ -17,6 +17,20 @@ from the fabric:
 The colour table is a design palette (linear reflectances of common garment colours chosen to
 match their sRGB appearance), not measured dye spectra; the NIR transparency is the stated
 assumption above.
+
+Prints. ``human.clothing_prints`` maps garment-name patterns to a print (:data:`PRINTS`:
+``stripes``, ``checks``, ``blobs``), ``human.clothing_print_colors`` to its second colour
+(default black); the first colour is the garment's (``clothing_colors``, or the undyed fabric,
+named ``<fabric>__fabric``). Each face of the garment takes one of the two dyes by the print
+evaluated at its centre in the garment's rest pose (so the print moves with the cloth):
+:func:`print_faces`. The two dyes are two materials of the same fabric (faces bound by
+GeomSubsets ``PrintA``/``PrintB``), so the render sees the print per face in every band; in the
+thermal infrared both keep the fabric's emissivity (the assumption above: a dye changes the
+visible, not the fibre's infrared absorption). The garment mesh itself is bound to the print's
+mix ``<fabric>__print_<a>_<b>`` (the two dyes' reflectance and transmittance spectra averaged
+half and half, the prints' design ratio; the solar absorptivity recomputed from them): the
+thermal tool, which reads one material per garment, absorbs sunlight as the print does on
+average (the measured share of each garment is recorded, customData ``humv:print``).
 """
 
 from __future__ import annotations
@@ -60,6 +74,104 @@ def dyed_name(fabric: str, colour: str) -> str:
     return f"{fabric}{SEPARATOR}{colour}"
 
 
+#: garment prints: kind -> period [m] (one stripe, square or blob and its gap). A print is per
+#: face and the catalogue's garment faces are 2-4 cm across, so its features are >= 8 cm (finer
+#: prints would need textures)
+PRINTS = {"stripes": 0.16, "checks": 0.20, "blobs": 0.30}
+#: the first colour of a print on an undyed garment: the fabric's own spectrum
+FABRIC_COLOUR = "fabric"
+#: the print's second colour when ``clothing_print_colors`` gives none
+DEFAULT_PRINT_COLOUR = "black"
+_PRINT = "print"
+
+
+def print_name(fabric: str, colour_a: str, colour_b: str) -> str:
+    """The mix material of a print: ``<fabric>__print_<a>_<b>`` (a USD name)."""
+    return f"{fabric}{SEPARATOR}{_PRINT}_{colour_a}_{colour_b}"
+
+
+def _dye(fabric: str, colour: str) -> str:
+    return fabric if colour == FABRIC_COLOUR else dyed_name(fabric, colour)
+
+
+def garment_materials(garment_name: str, colours=None, hair_color=None, prints=None, print_colours=None):
+    """Every material a garment's mesh binds: :func:`garment_material`, or with a print its two
+    dyes and their mix."""
+    printed = garment_print(garment_name, prints, print_colours, colours)
+    if printed is None:
+        return (garment_material(garment_name, colours, hair_color),)
+    return print_materials(garment(garment_name).fabric, printed)
+
+
+def garment_print(garment_name: str, prints=None, print_colours=None, colours=None):
+    """(kind, colour a, colour b) of a garment under ``human.clothing_prints`` /
+    ``clothing_print_colors`` / ``clothing_colors``, None when it has no print (first match wins)."""
+    kind = garment_colour(garment_name, prints)
+    if kind is None:
+        return None
+    a = garment_colour(garment_name, colours) or FABRIC_COLOUR
+    b = garment_colour(garment_name, print_colours) or DEFAULT_PRINT_COLOUR
+    return kind, a, b
+
+
+def print_faces(kind: str, points: np.ndarray, face_counts, face_indices, seed: int = 0) -> np.ndarray:
+    """(F,) bool: the faces that take the print's second colour, by the print evaluated at each
+    face's centre (rest pose, metres, z up) with period p = :data:`PRINTS` [kind]:
+
+    * ``stripes``: horizontal bands p/2 high, alternating (floor(2 z / p) odd);
+    * ``checks``: a 3-D checkerboard of p/2 cubes (so front, back and sides are checked);
+    * ``blobs``: camouflage-like blobs: the sign of a sum of 8 plane waves of wavelength p in
+      random directions with random phases (``seed``), about half the area each colour.
+    """
+    counts = np.asarray(face_counts)
+    idx = np.asarray(face_indices)
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    centre = np.zeros((len(counts), 3))
+    np.add.at(centre, face_of, np.asarray(points, dtype=float)[idx])
+    centre /= counts[:, None]
+    p = PRINTS[kind]
+    if kind == "stripes":
+        return np.floor(2.0 * centre[:, 2] / p).astype(np.int64) % 2 == 1
+    if kind == "checks":
+        return np.floor(2.0 * centre / p).astype(np.int64).sum(axis=1) % 2 == 1
+    if kind == "blobs":
+        rng = np.random.default_rng([int(seed), 29])
+        k = rng.standard_normal((8, 3))
+        k *= 2.0 * np.pi / p / np.linalg.norm(k, axis=1, keepdims=True)
+        phase = rng.uniform(0.0, 2.0 * np.pi, 8)
+        return np.cos(centre @ k.T + phase).sum(axis=1) > 0.0
+    raise ValueError(f"print = {kind!r}: allowed {', '.join(PRINTS)}")
+
+
+def print_materials(fabric: str, kind_a_b) -> tuple[str, str, str]:
+    """(material of colour a, of colour b, their half-and-half mix) of a print on ``fabric``."""
+    _, a, b = kind_a_b
+    return _dye(fabric, a), _dye(fabric, b), print_name(fabric, a, b)
+
+
+def _mixed(fabric: Material, a: str, b: str, name: str) -> Material:
+    ma, mb = material(_dye(fabric.name, a)), material(_dye(fabric.name, b))
+    w = np.union1d(ma.spectrum_wavelengths, mb.spectrum_wavelengths)
+    t = 0.5
+    refl = (1 - t) * ma.at(w, "reflectance") + t * mb.at(w, "reflectance")
+    trans = None
+    if fabric.spectrum_transmittance is not None:
+        trans = (1 - t) * ma.at(w, "transmittance") + t * mb.at(w, "transmittance")
+        trans = tuple(round(float(v), 4) for v in trans)
+    mixed = dataclasses.replace(
+        fabric,
+        name=name,
+        spectrum_wavelengths=tuple(round(float(v), 4) for v in w),
+        spectrum_reflectance=tuple(round(float(v), 4) for v in refl),
+        spectrum_transmittance=trans,
+    )
+    return dataclasses.replace(
+        mixed,
+        solar_absorptivity=round(mixed.spectral_solar_absorptivity, 4),
+        source=f"{fabric.name} printed {a} and {b}, half and half (humv_usd.catalog.dyes). {fabric.source}",
+    )
+
+
 #: wavelengths [µm] a dyed material has besides its fabric's (the colour needs visible nodes)
 VISIBLE_NODES = (0.40, 0.45, 0.50, 0.55, 0.60, 0.65, 0.70, 0.75, 0.80)
 
@@ -98,6 +210,11 @@ def material(name: str) -> Material:
     if snowy is not None:
         return snow_over(material(snowy[0]), snowy[1])
     base, sep, colour = name.rpartition(SEPARATOR)
+    if sep and base in LIBRARY and colour.startswith(_PRINT + "_") and colour.count("_") == 2:
+        _, a, b = colour.split("_")
+        if not {a, b} <= set(COLOURS) | {FABRIC_COLOUR}:
+            raise KeyError(name)
+        return _mixed(LIBRARY[base], a, b, name)
     if not sep or base not in LIBRARY or colour not in COLOURS:
         raise KeyError(name)
     fabric = LIBRARY[base]

@@ -60,10 +60,12 @@ rifle also the vertices nearer than the minimum gap to it before/after (``propBe
 
 from __future__ import annotations
 
-import numpy as np
-from pxr import Sdf, Usd, UsdGeom, Vt
+import zlib
 
-from humv_usd.catalog.dyes import garment_material
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom, UsdShade, Vt
+
+from humv_usd.catalog.dyes import garment_material, garment_print, print_faces, print_materials
 from humv_usd.catalog.garments import garment
 from humv_usd.clothing.collide import Simulation, dress, simulate
 from humv_usd.clothing.fit import prepare
@@ -78,7 +80,7 @@ from humv_usd.scenario.ids import instance_ids
 from humv_usd.scenario.inputs import FRAMES
 from humv_usd.usd.avatar import read_joint_transforms, write_air_gap, write_garment, write_garment_regions
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage
-from humv_usd.usd.mesh import define_mesh, label, write_class
+from humv_usd.usd.mesh import bind_material, define_mesh, label, triangle_areas, write_class
 from humv_usd.usd.paths import clothing_path, human_path, material_path, props_path, skeleton_path
 
 #: Scenario values read: frame count and fps, the person's own entry (its ``clothing`` list) and
@@ -87,7 +89,7 @@ from humv_usd.usd.paths import clothing_path, human_path, material_path, props_p
 NAME = "clothing_{id}"  # one layer per dressed [[human]]
 READS = (*FRAMES, "human[{id}]", "@ids")
 UPSTREAM = ("avatar_{id}",)
-VERSION = "6"  # 6: phone and the new phone_call and handbag held in the right hand, the palm on them (human/carry.held_rest_transform); 5: garments cut along smooth curves (level hems), footwear from the tights; 4: bodies with the fat axis (human/fat.py); 3: rebuilt with the avatar's proportions macro; 2: garments as a plain point cache (no skel binding)
+VERSION = "7"  # 7: garment prints (human.clothing_prints: PrintA/PrintB subsets, the mesh bound to their mix); 6: phone and the new phone_call and handbag held in the right hand, the palm on them (human/carry.held_rest_transform); 5: garments cut along smooth curves (level hems), footwear from the tights; 4: bodies with the fat axis (human/fat.py); 3: rebuilt with the avatar's proportions macro; 2: garments as a plain point cache (no skel binding)
 
 
 def layer_name(human_id: str) -> str:
@@ -150,7 +152,14 @@ def build_for_human(
     if simulation_out is not None:
         simulation_out.append(sim)
     return author(
-        human["id"], sim, fps, frame_count, prop_ids, human.get("clothing_colors"), human.get("hair_color")
+        human["id"],
+        sim,
+        fps,
+        frame_count,
+        prop_ids,
+        human.get("clothing_colors"),
+        human.get("hair_color"),
+        prints=(human.get("clothing_prints"), human.get("clothing_print_colors")),
     )
 
 
@@ -162,10 +171,14 @@ def author(
     prop_ids: dict[str, int] | None = None,
     colours=None,
     hair_color: str | None = None,
+    prints=(None, None),
 ) -> Sdf.Layer:
     """Write a :class:`Simulation` of one person's garments as a layer (see module doc);
     ``colours``: ``human.clothing_colors`` (garments bound to their fabric dyed that colour,
-    :func:`humv_usd.catalog.dyes.garment_material`); ``hair_color``: ``human.hair_color``."""
+    :func:`humv_usd.catalog.dyes.garment_material`); ``hair_color``: ``human.hair_color``;
+    ``prints``: (``human.clothing_prints``, ``human.clothing_print_colors``): a printed garment's
+    faces in GeomSubsets ``PrintA``/``PrintB`` bound to its two dyes, the mesh to their
+    area-weighted mix (:func:`humv_usd.catalog.dyes.print_faces`)."""
     names = ", ".join(a.name for a in sim.garments)
     stage = new_layer_stage(
         fps, frame_count, f"HumV-USD clothing layer for {human_id}: {names or 'no garments'}"
@@ -177,7 +190,7 @@ def author(
     if garments or not props:
         UsdGeom.Scope.Define(stage, clothing_path(human_id))
     for anim in garments:
-        _author_garment(stage, human_id, anim, colours, hair_color)
+        _author_garment(stage, human_id, anim, colours, hair_color, prints)
     if props:
         UsdGeom.Scope.Define(stage, props_path(human_id))
     for anim in props:
@@ -189,19 +202,42 @@ def author(
     return layer
 
 
-def _author_garment(stage: Usd.Stage, human_id: str, anim, colours=None, hair_color=None) -> None:
+def _author_garment(
+    stage: Usd.Stage, human_id: str, anim, colours=None, hair_color=None, prints=(None, None)
+) -> None:
     fitted = anim.fitted
     g = fitted.garment
     frames = anim.posed.shape[0]
     static = frames == 1
+    printed = garment_print(g.name, prints[0], prints[1], colours)
+    if printed is not None:  # two dyes per face, the mesh bound to their mix (catalog.dyes)
+        second = print_faces(
+            printed[0], fitted.points, fitted.face_counts, fitted.face_indices, zlib.crc32(g.name.encode())
+        )
+        area = triangle_areas(fitted.points, fitted.face_counts, fitted.face_indices)
+        share = float(area[second].sum()) / max(float(area.sum()), 1e-12)
+        dye_a, dye_b, mix = print_materials(g.fabric, printed)
     mesh = define_mesh(
         stage,
         garment_path(human_id, g.name),
         anim.posed[0],
         fitted.face_counts,
         fitted.face_indices,
-        material=material_path(garment_material(g.name, colours, hair_color)),
+        material=material_path(mix if printed else garment_material(g.name, colours, hair_color)),
     )
+    if printed is not None:
+        UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).SetMaterialBindSubsetsFamilyType(
+            UsdGeom.Tokens.nonOverlapping
+        )
+        for name, faces, dye in (("PrintA", ~second, dye_a), ("PrintB", second, dye_b)):
+            subset = UsdGeom.Subset.Define(stage, mesh.GetPath().AppendChild(name))
+            subset.CreateElementTypeAttr(UsdGeom.Tokens.face)
+            subset.CreateFamilyNameAttr(UsdShade.Tokens.materialBind)
+            subset.CreateIndicesAttr(Vt.IntArray([int(i) for i in np.flatnonzero(faces)]))
+            bind_material(subset.GetPrim(), material_path(dye))
+        mesh.GetPrim().SetCustomDataByKey(
+            "humv:print", {"kind": printed[0], "colours": list(printed[1:]), "shareB": round(share, 4)}
+        )
     # an open shell: seen through sleeves, collars and hems, its inside must render too
     mesh.GetDoubleSidedAttr().Set(True)
     prim = mesh.GetPrim()

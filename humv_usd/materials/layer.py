@@ -6,7 +6,7 @@ from pathlib import Path
 
 from pxr import Sdf, UsdGeom, UsdShade
 
-from humv_usd.catalog.dyes import garment_material
+from humv_usd.catalog.dyes import garment_materials
 from humv_usd.catalog.dyes import material as library_material
 from humv_usd.catalog.materials import LIBRARY
 from humv_usd.catalog.skin import skin_material_name
@@ -25,6 +25,8 @@ READS = (
     "human.*.clothing",
     "human.*.skin_tone",
     "human.*.clothing_colors",
+    "human.*.clothing_prints",
+    "human.*.clothing_print_colors",
     "human.*.hair_color",
     "scene.ground.material",
     "scene.ground.puddles",
@@ -58,9 +60,16 @@ def used_materials(scenario: Scenario) -> list[str]:
     if scenario["human"]:
         names.update(skin_material_name(h.get("skin_tone")) for h in scenario["human"])
         names.update(
-            garment_material(g, h.get("clothing_colors"), h.get("hair_color"))
+            name
             for h in scenario["human"]
             for g in h["clothing"]
+            for name in garment_materials(
+                g,
+                h.get("clothing_colors"),
+                h.get("hair_color"),
+                h.get("clothing_prints"),
+                h.get("clothing_print_colors"),
+            )
         )
     scene = scenario["scene"]
     if scene:

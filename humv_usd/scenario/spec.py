@@ -77,6 +77,8 @@ GARMENT_COLOURS = (
     "white", "black", "grey", "red", "orange", "yellow", "green", "olive", "khaki", "brown", "blue",
     "navy", "pink", "purple",
 )  # fmt: skip
+#: garment prints (= humv_usd.catalog.dyes.PRINTS)
+GARMENT_PRINTS = ("stripes", "checks", "blobs")
 #: Fitzpatrick skin types (= humv_usd.physics.skin_optics.FITZPATRICK_MELANIN)
 SKIN_TONES = ("I", "II", "III", "IV", "V", "VI")
 #: hair colours (= humv_usd.physics.hair_optics.HAIR_COLOURS)
@@ -284,6 +286,23 @@ HUMAN = Section(
             'garment names of clothing, the first match wins (e.g. {"tshirt*" = "red", '
             '"jeans" = "black"}): the fabric dyed that colour in the visible, unchanged in the '
             "infrared (humv_usd.catalog.dyes).",
+            default=[],
+            choices=GARMENT_COLOURS,
+        ),
+        "clothing_prints": Key(
+            "map",
+            "Garment prints: {pattern = print}, glob patterns as in clothing_colors: stripes "
+            "(horizontal, 8 cm), checks (10 cm squares) or blobs (camouflage-like, ~15 cm), two "
+            "dyes per face of the garment: its clothing_colors colour (or the undyed fabric) and "
+            "the clothing_print_colors one, each the fabric dyed that colour in the visible and "
+            "unchanged in the infrared; the thermal solve uses their area-weighted mix "
+            "(humv_usd.catalog.dyes).",
+            default=[],
+            choices=GARMENT_PRINTS,
+        ),
+        "clothing_print_colors": Key(
+            "map",
+            "Second colour of a garment's print: {pattern = colour} (default black).",
             default=[],
             choices=GARMENT_COLOURS,
         ),
