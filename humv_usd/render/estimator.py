@@ -780,7 +780,7 @@ def render_band_fast(
             lit = active & (dr.dot(nrm, sun_vec) > 0.0)
             if cloud_dev is not None:  # no sun under a cloud (the thermal tool's field)
                 lit &= _between_clouds(mi, dr, cloud_dev, p, lit)
-            blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * _offset(dr, p), sun_vec), lit)
+            blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * _offset(dr, p), sun_vec), True, lit)
             base = dr.select(lit & ~blocked, base + n, base)
         b1, b2 = uv.x, uv.y
         surf = []
@@ -827,7 +827,9 @@ def render_band_fast(
         fx = (mi.Float(pixel % w) + px) / w
         fy = (mi.Float(pixel // w) + py) / h
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(fx, fy), mi.Point2f(0.5, 0.5))
-        si = scene.scene.ray_intersect(ray)
+        # camera rays are coherent (a pixel's lanes are consecutive): Embree's coherent mode
+        # traces them ~3x faster on the CPU (same hits but for ties at shared edges)
+        si = scene.scene.ray_intersect(ray, mi.RayFlags.All, True)
         hit = si.is_valid()
         front = hit & (dr.dot(si.n, ray.d) < 0.0)
         back = hit & ~front
