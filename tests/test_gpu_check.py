@@ -41,12 +41,14 @@ def _render_folder(root: Path, ir_value: float, eo_value: float, moved_label: bo
     if moved_label:
         ids[0, 0], depth[0, 0] = 2.0, 10.5
     labels = {"instance_id": ids, "class_id": cls, "depth": depth}
+    ir_error = np.full((H, W), 0.1, np.float32)
+    ir_error[H - 1, W - 1] = 0.0  # a pixel that states no error (in both renders)
     for name, channels in (
         (
             "lwir",
             {
                 "radiance": np.full((H, W), ir_value, np.float32),
-                "radiance_stderr": np.full((H, W), 0.1, np.float32),
+                "radiance_stderr": ir_error,
             },
         ),
         ("eo", {"Y": np.full((H, W), eo_value, np.float32), "Y_stderr": np.full((H, W), 0.2, np.float32)}),
@@ -63,19 +65,23 @@ def _render_folder(root: Path, ir_value: float, eo_value: float, moved_label: bo
 
 
 def test_agreement_is_the_difference_in_units_of_the_combined_error(gc, tmp_path):
-    """Radiance 1.3 vs 1.0 with errors 0.1 each: z = 0.3 / sqrt(0.02) everywhere; luminance 2.0
-    vs 2.4 with errors 0.2: z = -0.4 / sqrt(0.08); one pixel's label and depth moved."""
+    """Radiance 1.3 vs 1.0 with errors 0.1 each: z = 0.3 / sqrt(0.02) per pixel, the image mean's
+    z sqrt(n) times that; one pixel without an error differs silently; luminance 2.0 vs 2.4 with
+    errors 0.2: z = -0.4 / sqrt(0.08); one pixel's label and depth moved."""
     a = _render_folder(tmp_path / "a", 1.3, 2.0, moved_label=True)
     b = _render_folder(tmp_path / "b", 1.0, 2.4, moved_label=False)
     res = {f["sensor"]: f for f in gc.compare(str(a), str(b))["frames"]}
     assert set(res) == {"lwir", "eo"}  # the visible camera is compared too
-    for name, z in (("lwir", 0.3 / math.sqrt(0.02)), ("eo", -0.4 / math.sqrt(0.08))):
+    n = H * W
+    for name, z, quiet in (("lwir", 0.3 / math.sqrt(0.02), 1), ("eo", -0.4 / math.sqrt(0.08), 0)):
         f = res[name]
-        assert f["all"]["pixels"] == H * W and f["people"]["pixels"] == H * W // 2
-        assert f["all"]["mean"] == pytest.approx(z, rel=1e-5) and f["all"]["std"] == pytest.approx(
-            0.0, abs=1e-5
-        )
-        assert f["all"]["beyond_4"] == 0.0
+        assert f["all"]["pixels"] == n and f["people"]["pixels"] == n // 2
+        assert f["all"]["mean"] == pytest.approx(z, rel=1e-5)
+        assert f["all"]["std"] == pytest.approx(0.0, abs=1e-5) and f["all"]["beyond_4"] == 0.0
+        # the image mean's difference over its standard error sqrt(sum s^2) / n
+        assert f["all"]["mean_z"] == pytest.approx(z * n / math.sqrt(n - quiet), rel=1e-5)
+        assert f["people"]["mean_z"] == pytest.approx(z * math.sqrt(n // 2), rel=1e-5)
+        assert f["all"]["silent"] == pytest.approx(quiet / n)
         assert f["label_pixels_differing"] == pytest.approx(1 / (H * W))
         assert f["depth_max_difference_m"] == pytest.approx(0.5)
     assert res["lwir"]["relative_mean_difference"] == pytest.approx(0.3, rel=1e-5)
