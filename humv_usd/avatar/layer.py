@@ -26,6 +26,7 @@ from pxr import Gf, Sdf, UsdGeom
 
 from humv_usd.catalog.garments import LONG_GUNS, garment
 from humv_usd.catalog.skin import skin_material_name
+from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.terrain import terrain_from_section
 from humv_usd.human import crowd, usdskel
 from humv_usd.human import labels as L
@@ -33,7 +34,9 @@ from humv_usd.human.basemesh import DEFAULT_FACING_DEG
 from humv_usd.human.body import Body, build_body
 from humv_usd.human.bvh import motion_from_bvh
 from humv_usd.human.carry import apply_rifle_carry
+from humv_usd.human.clearance import arm_body, clear_arms
 from humv_usd.human.motion import DEFAULT_SPEED, make_motion
+from humv_usd.human.sequence import make_sequence_motion
 from humv_usd.human.skeleton import (
     forward_kinematics,
     linear_blend_skinning,
@@ -82,6 +85,7 @@ READS = (
             "bvh_up_axis",
             "bvh_forward_axis",
             "speed_m_s",
+            "segment",
         )
     ),
     "placement[{id}].position_m",
@@ -94,6 +98,10 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 12: planted feet of BVH motion locked (human.contact.lock_feet; DeepMimic slip 7-43 -> 0.2-5 mm),
+#: human.segment (motion sequences, human/sequence.py);
+#: 11: the upper arms are abducted where they would enter the trunk (human/clearance.py), except
+#: in the box and rifle carries;
 #: 10: motions below 30 fps sampled from a 30 fps (or faster) simulation (a 2 fps walk sat on the ground);
 #: 9: standing arms 18 deg from the vertical, not 8 (the upper arm was inside the torso);
 #: 8: the rifle carry smooths and re-pushes its offsets twice (no step > 6 cm after the push);
@@ -101,7 +109,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "10"
+VERSION = "12"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -186,14 +194,20 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     activity (walk/run along the heading or the waypoints) on the terrain (:func:`avatar_ground`); with the arms in the
     rifle carry (:func:`humv_usd.human.carry.apply_rifle_carry`, kept clear of the body) if
     the human wears a long gun (:data:`humv_usd.catalog.garments.LONG_GUNS`: the rifle or
-    the shotgun; the first one listed is carried)."""
+    the shotgun; the first one listed is carried); otherwise, except in the box carry (hands
+    on the box), the upper arms abducted where they would enter the trunk
+    (:func:`humv_usd.human.clearance.clear_arms`)."""
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
     gun = next((g for g in human.get("clothing") or () if g in LONG_GUNS), None)
 
     def carry(motion):
-        return apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop) if gun else motion
+        if gun:
+            return apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop)
+        if human["activity"] == "carry" and not human.get("bvh"):
+            return motion
+        return clear_arms(motion, skeleton, avatar_arm_body(body, skeleton))
 
     if human.get("bvh"):
         motion = motion_from_bvh(
@@ -207,21 +221,26 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             body_points=body.points,
         )
         return carry(motion)
-    if human["activity"] in WALKING and place.get("avoidance", "none") != "none":
+    segments = human.get("segment")
+    if not segments and human["activity"] in WALKING and place.get("avoidance", "none") != "none":
         place = dict(place, waypoints_m=avoided_waypoints(scenario, human["id"]))
     # the motion model needs two frames at least; a one-frame scenario keeps the first
-    motion = make_motion(
-        human["activity"],
-        skeleton,
-        g["fps"],
-        max(frames, 2),
-        speed_m_s=human.get("speed_m_s"),
+    common = dict(
         path=waypoints_in_avatar_frame(place, skeleton.rest_positions[0]),
         mass_kg=human["mass_kg"],
         body_points=body.points,
         seed=g["seed"],
         ground=avatar_ground(scenario, place),
     )
+    if segments:  # a motion sequence: walk, stop, sit, get up, walk on ...
+        i = next(k for k, h in enumerate(scenario["human"]) if h["id"] == human["id"])
+        motion = make_sequence_motion(
+            segments, skeleton, g["fps"], max(frames, 2), where=f"human[{i}].segment", **common
+        )
+    else:
+        motion = make_motion(
+            human["activity"], skeleton, g["fps"], max(frames, 2), speed_m_s=human.get("speed_m_s"), **common
+        )
     if frames < 2:
         motion = dataclasses.replace(
             motion,
@@ -230,6 +249,15 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             metabolic_rate_w=motion.metabolic_rate_w[:frames],
         )
     return carry(motion)
+
+
+def avatar_arm_body(body: Body, skeleton):
+    """The body's :class:`humv_usd.human.clearance.ArmBody`: its mesh and skin binding as
+    :func:`author_rig` authors them."""
+    mesh = body.body_mesh()
+    indices, weights = skin_weights(skeleton, mesh.vertex_ids, usdskel.INFLUENCES)
+    triangles, _ = fan_triangulate(mesh.face_counts, mesh.face_indices)
+    return arm_body(skeleton, mesh.points, triangles, indices, weights)
 
 
 def avatar_ground(scenario: Scenario, place: dict):
@@ -303,7 +331,7 @@ def _avatar_attributes(prim, human: dict, body: Body) -> None:
         mass_kg=human["mass_kg"],
         build=float(body.build),  # the muscle value: the clothing tool rebuilds the body
         fitness=human["fitness"],
-        activity=human["activity"],
+        activity=(human.get("segment") or [human])[0]["activity"],
     )
     write_avatar(prim, person, round(body.body_surface_area_m2, 4))
     # how the request was met: measured values and the macro/scale fit (for reports and QA)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from humv_usd.assets import makehuman_file
 
@@ -199,3 +200,50 @@ def linear_blend_skinning(
     mats = skin[indices]  # (V, k, 4, 4)
     blended = np.einsum("vk,vkij->vij", weights.astype(np.float64), mats)
     return np.einsum("vij,vj->vi", blended[:, :3, :3], rest_points) + blended[:, :3, 3]
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of (..., 4) quaternions (w, x, y, z)."""
+    aw, av = a[..., :1], a[..., 1:]
+    bw, bv = b[..., :1], b[..., 1:]
+    return np.concatenate(
+        [aw * bw - np.sum(av * bv, -1, keepdims=True), aw * bv + bw * av + np.cross(av, bv)], -1
+    )
+
+
+def dual_quaternions(skin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(J, 4, 4) rigid skinning matrices -> unit dual quaternions: real parts (J, 4) (the
+    rotation, w >= 0) and dual parts (J, 4) = ½ (0, t) q (Kavan et al. 2008, eq. 1)."""
+    skin = np.asarray(skin, dtype=np.float64)
+    xyzw = Rotation.from_matrix(skin[..., :3, :3]).as_quat()
+    real = np.concatenate([xyzw[..., 3:], xyzw[..., :3]], -1)
+    real *= np.where(real[..., :1] < 0, -1.0, 1.0)
+    t = np.concatenate([np.zeros(skin.shape[:-2] + (1,)), skin[..., :3, 3]], -1)
+    return real, 0.5 * _quat_mul(t, real)
+
+
+def dual_quaternion_skinning(
+    rest_points: np.ndarray, indices: np.ndarray, weights: np.ndarray, skin: np.ndarray
+) -> np.ndarray:
+    """Dual quaternion skinning (Kavan, Collins, Žára & O'Sullivan 2008, "Geometric skinning
+    with approximate dual quaternion blending", ACM TOG 27(4) 105) of rest points for one frame.
+
+    Same arguments as :func:`linear_blend_skinning`. Each influence's dual quaternion enters the
+    blend with the sign of its real part's dot product with the largest influence's (the
+    shortest arc; Kavan et al. §4); the blend is divided by its real part's norm and applied as
+    a rotation plus translation.
+    """
+    real, dual = dual_quaternions(skin)
+    w = weights.astype(np.float64)
+    r, d = real[indices], dual[indices]  # (V, k, 4)
+    pivot = r[np.arange(len(w)), np.argmax(w, axis=1)]
+    w = w * np.where(np.einsum("vkc,vc->vk", r, pivot) < 0, -1.0, 1.0)
+    br = np.einsum("vk,vkc->vc", w, r)
+    bd = np.einsum("vk,vkc->vc", w, d)
+    norm = np.linalg.norm(br, axis=1, keepdims=True)
+    br, bd = br / norm, bd / norm
+    rw, rv = br[:, :1], br[:, 1:]
+    dw, dv = bd[:, :1], bd[:, 1:]
+    p = np.asarray(rest_points, dtype=np.float64)
+    rotated = p + 2 * np.cross(rv, np.cross(rv, p) + rw * p)
+    return rotated + 2 * (rw * dv - dw * rv + np.cross(rv, dv))
