@@ -37,8 +37,8 @@ LEVELS = [
     {"render", "groundtruth"},  # consumers of the stage
     {"pipeline"},  # graph, caching, the render's orchestration
     {"sweep"},  # datasets: drives pipeline.compose/render per variant on Dask, merges ground truth
-    {"bench"},  # benches: time and error of any of the above (issue 24: every bench here)
     {"editor"},  # the web editor: forms from the spec, checks sweep files, runs humv-usd as processes
+    {"bench"},  # benches: time and error of any of the above, the editor preview too (issue 24)
     {"cli"},
 ]
 LEVEL = {pkg: i for i, level in enumerate(LEVELS) for pkg in level}

@@ -649,8 +649,8 @@ def test_preview_bench_edits_are_valid_and_its_folder_is_its_own(humvvex, tmp_pa
     the bench never empties a folder it did not make, and names unknown edits (exit 2)."""
     from click.testing import CliRunner
 
+    from humv_usd.bench.preview import EDITS
     from humv_usd.cli.main import main
-    from humv_usd.editor.timing import EDITS
 
     doc = ScenarioDocument(humvvex)
     first = doc.scenario()

@@ -446,8 +446,8 @@ def bench_preview(
 ):
     """The editor's preview of SCENARIO after each kind of edit, as the page runs it: wall and
     CPU seconds per step and the layers compose rebuilt (issue 26, 7)."""
-    from humv_usd.editor.timing import EDITS
-    from humv_usd.editor.timing import bench_preview as run_bench
+    from humv_usd.bench.preview import EDITS
+    from humv_usd.bench.preview import bench_preview as run_bench
 
     names = [e.strip() for e in edits.split(",")] if edits else None
     unknown = sorted(set(names or []) - {e[0] for e in EDITS})
