@@ -1,5 +1,5 @@
 """Labels of people in the new poses (issue 29.6), end to end: a composed person lying on the
-side / sitting / kneeling, rendered, against an independent ray cast of the body skinned by
+side / sitting / kneeling / stopping mid-stride (a motion sequence's blend), rendered, against an independent ray cast of the body skinned by
 UsdSkel itself (``UsdSkel.BakeSkinning``) through pixel rays of the stage camera's own frustum
 (``Gf.Frustum.ComputePickRay``), with trimesh/embree; keypoints and boxes of the same frame."""
 
@@ -44,7 +44,7 @@ def _triangles(stage, frame):
     return np.array(tris), owner
 
 
-@pytest.mark.parametrize("activity", ["lieSide", "sit", "kneel"])
+@pytest.mark.parametrize("activity", ["lieSide", "sit", "kneel", "sequence"])
 def test_pose_labels_agree_with_an_independent_ray_cast(raw, tmp_path, activity):
     import trimesh
 
@@ -55,8 +55,13 @@ def test_pose_labels_agree_with_an_independent_ray_cast(raw, tmp_path, activity)
 
     fps = 2.0
     raw["general"]["fps"] = fps
-    raw["general"]["duration_s"] = float(np.ceil(sum(d for _, d in SEQUENCES[activity]) + 1.0))
-    raw["human"][0]["activity"] = activity
+    if activity == "sequence":  # a walk's stop blended into standing: t = 1 s is mid-blend
+        raw["general"]["duration_s"] = 1.0
+        raw["human"][0].pop("speed_m_s", None)
+        raw["human"][0]["segment"] = [{"activity": "walk", "distance_m": 1.0}, {"activity": "stand"}]
+    else:
+        raw["general"]["duration_s"] = float(np.ceil(sum(d for _, d in SEQUENCES[activity]) + 1.0))
+        raw["human"][0]["activity"] = activity
     raw["human"][0]["clothing"] = []
     raw["placement"][0]["heading_deg"] = 0.0
     raw["thermal"] = {"model": "fixed"}

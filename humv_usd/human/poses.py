@@ -270,6 +270,58 @@ SEQUENCES = {
 }
 
 
+def final_key(activity: str) -> Key:
+    """The key pose ``activity`` ends in (``stand`` and ``getUp``: standing)."""
+    return STAND if activity == "stand" else SEQUENCES[activity][-1][0]
+
+
+def _edges() -> dict:
+    """Undirected key graph of the designed transitions: name -> {name: duration [s]} (the
+    fall's fast collapse is left out: it is taken only when falling from standing)."""
+    out: dict = {}
+    for activity, seq in SEQUENCES.items():
+        if activity in ("fall", "sitChair"):
+            continue
+        for (a, _), (b, d) in zip(seq[:-1], seq[1:]):
+            for x, y in ((a.name, b.name), (b.name, a.name)):
+                out.setdefault(x, {})[y] = min(d, out.get(x, {}).get(y, np.inf))
+    return out
+
+
+KEYS = {k.name: k for seq in SEQUENCES.values() for k, _ in seq}
+
+
+def route(current: str, activity: str) -> list:
+    """[(key, duration [s]), ...]: the transitions from the key named ``current`` into
+    ``activity``'s final pose: from standing the activity's own :data:`SEQUENCES` entry
+    (e.g. a fall), else the quickest chain of designed transitions (Dijkstra over the key
+    graph: sit -> lie supine goes sit, hook lying, supine; prone -> standing reverses the
+    lying down). Empty when already there."""
+    goal = final_key(activity).name
+    if current == goal:
+        return []
+    if current == "stand" and activity not in ("stand", "getUp"):
+        return [(k, d) for k, d in SEQUENCES[activity][1:]]
+    edges = _edges()
+    best, prev, todo = {current: 0.0}, {}, {current}
+    while todo:
+        u = min(todo, key=best.get)
+        todo.discard(u)
+        if u == goal:
+            break
+        for v, d in edges.get(u, {}).items():
+            if best[u] + d < best.get(v, np.inf):
+                best[v], prev[v] = best[u] + d, u
+                todo.add(v)
+    if goal not in prev:
+        raise ValueError(f"no transition from {current!r} to {activity!r}")
+    chain, v = [], goal
+    while v != current:
+        chain.append((KEYS[v], edges[prev[v]][v]))
+        v = prev[v]
+    return chain[::-1]
+
+
 # ------------------------------------------------------------------------- body points
 @dataclass(frozen=True)
 class BodyPoints:
@@ -467,6 +519,7 @@ def make_pose_motion(
     feet: dict | None = None,
     points: BodyPoints | None = None,
     start_s: float | None = None,
+    plan=None,
 ) -> dict:
     """Root translations (F, 3), local rotations (F, J, 3, 3), per-frame contact masks and
     the contact report of a pose activity (one of :data:`POSE_ACTIVITIES`).
@@ -474,12 +527,15 @@ def make_pose_motion(
     start_xy: the Hips' ground position at the start (default: rest); heading [rad] about +Z;
     ground: :class:`contact.Ground` (default flat); feet: foot contact points
     (:func:`contact.foot_points_from_joints` by default); points: :func:`body_points`;
-    start_s: when the first transition starts (default min(0.5 s, 10 % of the clip)).
+    start_s: when the first transition starts (default min(0.5 s, 10 % of the clip));
+    plan: ((key, transition duration [s] into it), ...) instead of the activity's
+    :data:`SEQUENCES` entry (a key following itself is held for that time), e.g. from
+    :func:`route` (motion sequences, :mod:`humv_usd.human.sequence`).
     """
     ground = ground or C.Ground(None)
     feet = feet or C.foot_points_from_joints(skeleton)
     points = points or body_points(skeleton)
-    seq = SEQUENCES[activity]
+    seq = SEQUENCES[activity] if plan is None else tuple(plan)
     keys = [k for k, _ in seq]
     durations = [d for _, d in seq]
     if start_s is None:
@@ -491,8 +547,9 @@ def make_pose_motion(
     qloc = np.array([matrix_to_quat(loc) for _, loc in rots])
     root_q = quat_slerp(qroot[tl.k0], qroot[tl.k1], tl.s)
     loc_q = quat_slerp(qloc[tl.k0], qloc[tl.k1], tl.s[:, None])
-    if activity == "wave":
-        loc_q = _wave(skeleton, loc_q, tl, fps)
+    waving = np.array([k.name == "wave" for k in keys])
+    if waving.any():
+        loc_q = _wave(skeleton, loc_q, tl, fps, waving)
     root_rot = rot_z(heading) @ quat_to_matrix(root_q)
     local = quat_to_matrix(loc_q)
     zero = np.zeros((frames, 3))
@@ -554,10 +611,13 @@ def make_pose_motion(
     report.update(C.contact_report(ground, feet, wrot, wpos, pinned))
     report["body_max_penetration_m"] = report.pop("body_penetration_m")
     local[:, 0] = root_rot
+    held = np.array([k.name for k in keys])[tl.k0] == np.array([k.name for k in keys])[tl.k1]
     met = np.where(
         tl.s >= 1.0,
         np.array([MET_POSE.get(k.name, MET_TRANSITION) for k in keys])[tl.k1],
-        np.where(tl.s <= 0, np.array([MET_POSE.get(k.name, 1.3) for k in keys])[tl.k0], MET_TRANSITION),
+        np.where(
+            (tl.s <= 0) | held, np.array([MET_POSE.get(k.name, 1.3) for k in keys])[tl.k0], MET_TRANSITION
+        ),
     )
     return {
         "root": root_pos,
@@ -710,12 +770,13 @@ def _plant_feet(skeleton, ground, feet, local, root_rot, root_pos, pinned, swing
     return local, root_pos
 
 
-def _wave(skeleton: Skeleton, loc_q: np.ndarray, tl: Timeline, fps: float) -> np.ndarray:
-    """Swing the right forearm about the elbow once the arm is up (a hand wave)."""
+def _wave(skeleton: Skeleton, loc_q: np.ndarray, tl: Timeline, fps: float, waving) -> np.ndarray:
+    """Swing the right forearm about the elbow while the arm is up (a hand wave); ``waving``
+    marks the wave keys."""
     info = rig_info(skeleton)
     j = info.index["RightForeArm"]
     t = np.arange(len(tl.s)) / fps
-    up = (tl.k1 >= 1) * tl.s
+    up = waving[tl.k1] * tl.s + waving[tl.k0] * (1 - tl.s) * (tl.k1 > 0)
     swing = up**2 * np.radians(WAVE_AMPLITUDE_DEG) * np.sin(2 * np.pi * WAVE_HZ * (t - t[np.argmax(up > 0)]))
     extra = matrix_to_quat(axis_angle_matrix(info.elbow_axis["Right"], swing))
     out = loc_q.copy()

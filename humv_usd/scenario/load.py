@@ -368,7 +368,10 @@ def _cross_checks(data: dict, problems: list[str], netd_origin: list[str] | None
                     f"human[{i}].speed_m_s", hum["speed_m_s"], "not with bvh (the motion file sets the speed)"
                 )
             )
+        _check_segments(i, hum, problems)
         speed, activity = hum.get("speed_m_s"), hum.get("activity")
+        if hum.get("segment"):
+            activity = None  # the segments set the motion (checked above)
         if speed is not None and activity is not None:
             lo, hi = SPEED_RANGE_M_S.get(activity, (None, None))
             if lo is None:
@@ -405,6 +408,48 @@ def _cross_checks(data: dict, problems: list[str], netd_origin: list[str] | None
                 )
             )
         _check_rig(i, s, placed, problems)
+
+
+def _check_segments(i: int, hum: dict, problems: list[str]) -> None:
+    """A motion sequence (``[[human.segment]]``, humv_usd.human.sequence): what each segment
+    may combine (the transitions' own lengths are checked when the motion is built)."""
+    segs = hum.get("segment") or []
+    if not segs:
+        return
+    for key, why in (("bvh", "a BVH file is one motion"), ("speed_m_s", "give speed_m_s per segment")):
+        if hum.get(key) is not None:
+            problems.append(bad_value(f"human[{i}].{key}", hum[key], f"not with human[{i}].segment ({why})"))
+    for j, seg in enumerate(segs):
+        where = f"human[{i}].segment[{j}]"
+        act = seg.get("activity")
+        walking = act in SPEED_RANGE_M_S and act != "carry"
+        if seg.get("duration_s") is not None and seg.get("distance_m") is not None:
+            problems.append(
+                bad_value(f"{where}.distance_m", seg["distance_m"], "give duration_s or distance_m, not both")
+            )
+        for key in ("distance_m", "speed_m_s"):
+            if seg.get(key) is not None and act is not None and not walking:
+                problems.append(
+                    bad_value(f"{where}.{key}", seg[key], f"only for walk or run (activity is {act!r})")
+                )
+        speed = seg.get("speed_m_s")
+        if speed is not None and walking:
+            lo, hi = SPEED_RANGE_M_S[act]
+            if not lo <= speed <= hi:
+                problems.append(
+                    bad_value(f"{where}.speed_m_s", speed, f"allowed range for {act}: {lo}..{hi}")
+                )
+        if j < len(segs) - 1 and seg.get("duration_s") is None and seg.get("distance_m") is None:
+            problems.append(f"{where}.duration_s: missing (only the last segment may leave out its length)")
+        prev = segs[j - 1].get("activity") if j else None
+        if walking and prev in SPEED_RANGE_M_S:
+            problems.append(
+                bad_value(
+                    f"{where}.activity",
+                    act,
+                    f"follows {prev!r}: put a stationary segment (e.g. stand) between",
+                )
+            )
 
 
 def _check_rig(i: int, s: dict, placed: set[str], problems: list[str]) -> None:

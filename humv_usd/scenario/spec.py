@@ -234,6 +234,74 @@ GENERAL = Section(
     },
 )
 
+#: activities of a motion segment (= humv_usd.human.sequence.SEGMENT_ACTIVITIES)
+SEGMENT_ACTIVITIES = (
+    "walk",
+    "run",
+    "stand",
+    "crouch",
+    "sit",
+    "kneel",
+    "lieProne",
+    "lieSupine",
+    "lieSide",
+    "wave",
+    "fall",
+    "getUp",
+)
+#: transition window of a motion segment [s] (= humv_usd.human.sequence.TRANSITION_RANGE_S)
+SEGMENT_TRANSITION_S = (0.4, 3.0)
+
+SEGMENT = Section(
+    array=True,
+    doc="a motion segment: the person's motion as a sequence ([[human.segment]], in order)",
+    keys={
+        "activity": Key(
+            "choice",
+            "What the person does in this segment: walk or run along the placement's path "
+            "(waypoints_m; each walk goes on from where the last one stopped), or a stationary "
+            "activity where they stopped: stand, a pose (crouch, sit, kneel, lieProne, lieSupine, "
+            "lieSide, wave; entered from standing, held, and left by the quickest designed "
+            "transitions: back to standing before a walk), fall, or getUp (back to standing). "
+            "Two walks/runs in a row are not allowed (put a stand between). "
+            "(humv_usd.human.sequence)",
+            required=True,
+            choices=SEGMENT_ACTIVITIES,
+        ),
+        "duration_s": Key(
+            "float",
+            "How long the segment lasts [s], its transitions included (a pose's way down and, "
+            "before a walk, up: e.g. sit needs 2.6 s down and 2.6 s up). Unset: distance_m for a "
+            "walk, else the segment lasts to the end of the clip (last segment only).",
+            lo=0.1,
+            hi=86400.0,
+        ),
+        "distance_m": Key(
+            "float",
+            "Walk or run this far along the path [m] instead of a duration: the segment lasts "
+            "distance_m / speed_m_s (plus half its transition when it starts from standing); it "
+            "stops at the heel strike nearest that time.",
+            lo=0.1,
+            hi=1.0e5,
+        ),
+        "speed_m_s": Key(
+            "float",
+            "Walking (0.5-2) or running (2-5) speed of this segment [m/s]; default 1.4 / 3.5.",
+            lo=0.0,
+            hi=6.0,
+        ),
+        "transition_s": Key(
+            "float",
+            "Blend from the previous segment into this one [s], at the start of this segment: "
+            "joint rotations slerped, the root continuous, the feet planted (a stop takes one "
+            "closing step, a start one step off).",
+            default=0.8,
+            lo=SEGMENT_TRANSITION_S[0],
+            hi=SEGMENT_TRANSITION_S[1],
+        ),
+    },
+)
+
 HUMAN = Section(
     array=True,
     doc="(ii) Human/Clothing/Motion",
@@ -334,6 +402,7 @@ HUMAN = Section(
             default=[],
         ),
     },
+    subsections={"segment": SEGMENT},
 )
 
 PLACEMENT = Section(

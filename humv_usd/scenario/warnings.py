@@ -110,7 +110,8 @@ def suspicious(scenario) -> list[str]:
         for obj in objects:
             if _inside_box(pos + [0, 0, PERSON_CENTRE_M], obj, margin=PERSON_RADIUS_M):
                 out.append(f"{key}: person {hum['id']} intersects scene object {obj['id']!r}")
-        if place.get("waypoints_m") and hum.get("activity") not in ("walk", "run") and not hum.get("bvh"):
+        walks = {hum.get("activity")} | {seg.get("activity") for seg in hum.get("segment") or ()}
+        if place.get("waypoints_m") and not walks & {"walk", "run", "carry"} and not hum.get("bvh"):
             out.append(
                 f"placement[{k}].waypoints_m: ignored with activity {hum.get('activity')!r} "
                 "(waypoints are for walk and run)"

@@ -1,0 +1,178 @@
+"""Motion sequences (issue 29.4, ``[[human.segment]]``, humv_usd.human.sequence): a person who
+walks, stops, stands, sits down, gets up and walks on, with blended transitions, planted feet
+and the metabolic rate following the segments."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from humv_usd.assets import makehuman_dir
+from humv_usd.errors import InputError
+
+needs_rig = pytest.mark.skipif(
+    not (makehuman_dir() / "rigs").is_dir(), reason="MakeHuman data not fetched (make setup)"
+)
+FPS = 10.0
+MASS = 80.0
+STAND_S = 1.5
+SEGMENTS = [
+    {"activity": "walk", "distance_m": 2.0, "speed_m_s": 1.4},
+    {"activity": "stand", "duration_s": STAND_S},
+    {"activity": "sit", "duration_s": 6.0},
+    {"activity": "walk", "speed_m_s": 1.4},
+]
+
+
+@pytest.fixture(scope="module")
+def rig():
+    from humv_usd.human.body import build_body
+    from humv_usd.human.skeleton import skeleton_for
+
+    body = build_body("male", 30, 1.78, MASS)
+    return body, skeleton_for(body.points, body.groups)
+
+
+@pytest.fixture(scope="module")
+def seq(rig):
+    from humv_usd.human.sequence import make_sequence_motion
+
+    body, sk = rig
+    return make_sequence_motion(SEGMENTS, sk, FPS, int(12 * FPS) + 1, mass_kg=MASS, body_points=body.points)
+
+
+def _angles_deg(q):
+    return np.degrees(2 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], -1)), 0.0, 1.0)))
+
+
+@needs_rig
+def test_segments_follow_one_another_along_the_path(seq):
+    """Walk 2 m (along -Y, the default path), stop, stand, sit where they stopped, get up and
+    walk on along the same line; the root never jumps."""
+    from humv_usd.human.poses import SEQUENCES
+
+    r = seq.root_translation
+    t = np.arange(len(r)) / FPS
+    kinds = [k for k, _, _ in seq.gait["windows"]]
+    assert kinds == ["stop", "start"]
+    stop0 = seq.gait["windows"][0][1] / FPS
+    assert abs(stop0 - 2.0 / 1.4) < 0.45  # the heel strike nearest the segment's end
+    stand = (t > seq.gait["windows"][0][2] / FPS + 0.1) & (t < 2.0 / 1.4 + STAND_S)
+    assert np.ptp(r[stand, :2], axis=0).max() < 0.005  # standing still
+    travelled = -(r[stand][0, 1] - r[0, 1])
+    assert 1.8 < travelled < 2.7
+    # sitting (after stand -> crouch -> sit) on the ground, within half a metre of the stop
+    sat = int(round((2.0 / 1.4 + STAND_S + sum(d for _, d in SEQUENCES["sit"]) + 0.3) * FPS))
+    assert r[sat, 2] < 0.3 and np.linalg.norm(r[sat, :2] - r[stand][0, :2]) < 0.6
+    # on again along -Y at about the walking speed, and no step of the root is a jump
+    assert r[-1, 1] < r[stand][0, 1] - 1.0 and abs(r[-1, 0] - r[0, 0]) < 0.3
+    assert np.linalg.norm(np.diff(r, axis=0), axis=1).max() * FPS < 2.5
+
+
+@needs_rig
+def test_transitions_blend_joints_without_jumps(rig, seq):
+    """Per-frame joint rotation changes stay within the plain walk's own (toes aside: their
+    flick at toe-off is the gait's), so the blends add no pops."""
+    from humv_usd.human.motion import make_motion
+
+    body, sk = rig
+    walk = make_motion("walk", sk, FPS, 60, 1.4, mass_kg=MASS, body_points=body.points)
+    toes = [sk.index("LeftToeBase"), sk.index("RightToeBase")]
+
+    def worst(q):
+        a = _angles_deg(q)
+        a[:, toes] = 0.0
+        return a.max()
+
+    assert worst(seq.local_rotations) <= 1.1 * worst(walk.local_rotations)
+
+
+@needs_rig
+def test_feet_stay_planted_through_stop_and_start(rig, seq):
+    """The planted feet do not slide or sink over the whole sequence, the transitions included
+    (the walk's own level: slip <= 2 cm, penetration and gap <= 1 cm), and in the stop the
+    leading foot stands still from its foot-flat to the end of the blend."""
+    c = seq.contact
+    assert c["max_slip_m"] <= 0.02 and c["max_penetration_m"] <= 0.01 and c["max_gap_m"] <= 0.01
+    _, sk = rig
+    _, pos = seq.world(sk)
+    kind, w0, w1 = seq.gait["windows"][0]
+    a, b = int(np.ceil(w0)), int(np.floor(w1))
+    still = [
+        np.ptp(pos[(a + b) // 2 : b + 1, sk.index(f"{s}Foot"), :2], axis=0).max() for s in ("Left", "Right")
+    ]
+    assert min(still) < 0.003
+
+
+@needs_rig
+def test_metabolic_rate_follows_the_segments(seq):
+    """ACSM walking (3.5 + 0.1 v mL/kg/min, v in m/min) while walking, the Compendium's 1.3 MET
+    standing and sitting quietly, blended in between."""
+    t = np.arange(seq.frame_count) / FPS
+    per_met = 3.5 * MASS * 20.1 / 60.0
+    walking = (3.5 + 0.1 * 1.4 * 60.0) * MASS * 20.1 / 60.0
+    rate = seq.metabolic_rate_w
+    np.testing.assert_allclose(rate[t < 1.0], walking, rtol=1e-9)
+    sit_at = 2.0 / 1.4 + STAND_S  # the sit segment starts (it stands up 2.6 s before its end)
+    np.testing.assert_allclose(rate[(t > sit_at - 0.4) & (t < sit_at)], 1.3 * per_met, rtol=1e-9)  # standing
+    np.testing.assert_allclose(
+        rate[(t > sit_at + 2.8) & (t < sit_at + 3.3)], 1.3 * per_met, rtol=1e-9
+    )  # sitting
+    assert rate[(t > sit_at) & (t < sit_at + 2.6)].max() > 1.9 * per_met  # sitting down: 2 MET
+    np.testing.assert_allclose(rate[-5:], walking, rtol=1e-9)
+    assert rate.min() >= 1.3 * per_met - 1e-9 and rate.max() <= walking + 1e-9
+
+
+@needs_rig
+def test_a_segment_too_short_for_its_transitions_is_one_clear_error(rig):
+    from humv_usd.human.sequence import make_sequence_motion
+
+    body, sk = rig
+    segs = [
+        {"activity": "stand", "duration_s": 0.5},
+        {"activity": "sit", "duration_s": 3.0},
+        {"activity": "walk"},
+    ]
+    with pytest.raises(
+        InputError, match=r"human\[0\]\.segment\[1\]\.duration_s = 3\.0: 'sit' here needs at least 5\.2"
+    ):
+        make_sequence_motion(segs, sk, 10.0, 60, where="human[0].segment")
+
+
+@pytest.mark.parametrize(
+    "segments,message",
+    [
+        (
+            [{"activity": "walk", "distance_m": 3}, {"activity": "run"}],
+            r"segment\[1\]\.activity = 'run': follows 'walk'",
+        ),
+        ([{"activity": "sit", "distance_m": 3}], r"segment\[0\]\.distance_m = 3\.0: only for walk or run"),
+        (
+            [{"activity": "walk", "speed_m_s": 2.5}],
+            r"segment\[0\]\.speed_m_s = 2\.5: allowed range for walk: 0\.5\.\.2\.0",
+        ),
+        ([{"activity": "walk"}, {"activity": "stand"}], r"segment\[0\]\.duration_s: missing"),
+        (
+            [{"activity": "walk", "transition_s": 9}],
+            r"segment\[0\]\.transition_s = 9: allowed range 0\.4\.\.3\.0",
+        ),
+        ([{"activity": "swim"}], r"segment\[0\]\.activity = 'swim': allowed values"),
+    ],
+)
+def test_bad_segments_are_one_line_each(segments, message):
+    from humv_usd.scenario.load import validate
+
+    raw = {
+        "general": {
+            "name": "s",
+            "start": __import__("datetime").datetime(2020, 6, 1, 12),
+            "utc_offset_h": 0.0,
+            "latitude_deg": 40.0,
+            "longitude_deg": 0.0,
+        },
+        "human": [{"id": "p", "segment": segments}],
+        "placement": [{"human": "p", "position_m": [0.0, 0.0, 0.0]}],
+    }
+    with pytest.raises(InputError, match=message) as err:
+        validate(raw)
+    assert "\n" not in str(err.value).strip() or str(err.value).count("segment") >= 1
