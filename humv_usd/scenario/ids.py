@@ -21,7 +21,8 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
     scenario's then the place's, :mod:`humv_usd.scenario.places`), then the ground's terrain
     zones (``ground_zone:<index>``, :mod:`humv_usd.scene.ground`) and the puddles
     (``ground_puddles``, :mod:`humv_usd.scene.puddles`), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
-    each one's props in the order of its ``clothing`` list). Props come last so that adding
+    each one's props in the order of its ``clothing`` list, then ``prop:<human id>:chair`` when it
+    sits on a chair). Props come last so that adding
     or dropping one never renumbers a person or a scene object."""
     ids: dict[str, int] = {}
     for h in scenario["human"]:
@@ -48,7 +49,16 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
             g = garment(name)
             if g.is_prop:
                 ids[f"prop:{h['id']}:{g.name}"] = len(ids) + 1
+        if sits_on_chair(h):  # the chair the person sits on (humv_usd.human.chair)
+            ids[f"prop:{h['id']}:chair"] = len(ids) + 1
     return ids
+
+
+def sits_on_chair(human: dict) -> bool:
+    """Whether a ``[[human]]`` entry sits down on a chair (``sitChair``, itself or in a segment):
+    the avatar tool then authors the chair (:mod:`humv_usd.human.chair`)."""
+    acts = [human.get("activity")] + [s.get("activity") for s in human.get("segment") or ()]
+    return "sitChair" in acts
 
 
 #: where the prims of a ``[scene] layers`` file live

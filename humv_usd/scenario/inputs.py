@@ -16,7 +16,8 @@ A tool declares ``READS``, a tuple of read paths:
 * ``"@puddles"`` -- the seed and whether it rained, when the ground has puddles (else None);
 * ``"@instanceId[{id}]"`` -- that person's instance id alone; ``"@carriesRifle[{id}]"`` -- whether
   that person's clothing holds the rifle (the avatar's arms take the carry pose);
-  ``"@holds[{id}]"`` -- the prop held in the right hand (phone, phone_call, handbag) or None: a per-person
+  ``"@holds[{id}]"`` -- the prop held in the right hand (phone, phone_call, handbag) or None;
+  ``"@chairId[{id}]"`` -- the instance id of the chair the person sits on, or None: a per-person
   layer that reads these instead of the whole entry is shared between scenarios that differ only
   in what it does not read (e.g. avatars across outfits).
 
@@ -120,6 +121,11 @@ def _holds(scenario: Scenario, human_id: str) -> str | None:
     return next((g for g in (human or {}).get("clothing") or () if g in HELD_PROPS), None)
 
 
+def _chair_id(scenario: Scenario, human_id: str) -> int | None:
+    """The instance id of the chair the person sits on (``prop:<id>:chair``), or None."""
+    return instance_ids(scenario).get(f"prop:{human_id}:chair")
+
+
 def _crowd(scenario: Scenario, human_id: str) -> list | None:
     """Where everybody starts and goes, for a person who avoids the others (placement
     ``avoidance``; None when they do not): their avoided path depends on all of these."""
@@ -145,6 +151,7 @@ DERIVED_PER_PERSON = {
     "@instanceId": _instance_id,
     "@carriesRifle": _carries_rifle,
     "@holds": _holds,
+    "@chairId": _chair_id,
     "@crowd": _crowd,
 }
 
