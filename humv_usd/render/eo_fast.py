@@ -63,6 +63,12 @@ DEFAULT_EO_SPP = 2
 #: 8 bins, 2 spp: 1 split 0.29 % relative error in 8.9 CPU-s, 2 splits 0.22 % in 12.8, 4 splits
 #: 0.16 % in 19.2; the target is 1 %, and 2 spp is the fewest that estimate an error).
 DEFAULT_EO_SPLITS = 1
+#: Van Cittert steps of the smooth-shaded sun term toward each face's own mean
+#: (:func:`humv_usd.render.estimator.corner_table`): with the plain blend (0) the render bench
+#: person's Y was 0.78 % under the spectral path tracer (z -52; flat faces -0.10 %, Mitsuba's Y
+#: normalisation), with 2 steps -0.27 % (1: -0.35 %, 3: -0.23 %), continuous, a little more
+#: shading within the faces (measured: /work/notes/s6/eo-person.md).
+SUN_MEAN_STEPS = 2
 #: Automatic quality (one module, :mod:`humv_usd.render.quality`): the seed offset between the
 #: batches of one frame, the target (mean Y error away from edges <= this fraction of mean Y)
 #: and the sample cap.
@@ -254,5 +260,6 @@ def render_xyz_fast(
         splits=DEFAULT_EO_SPLITS if splits is None else int(splits),
         weights=bins.weights,
         tables=reflectance_tables(scene, reflectance_of, n),
+        sun_mean_steps=SUN_MEAN_STEPS,
     )
     return np.moveaxis(np.asarray(rad), 0, -1), np.moveaxis(np.asarray(err), 0, -1)

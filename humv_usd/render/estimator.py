@@ -154,10 +154,13 @@ SMOOTH_CREASE_DEG = shading.SMOOTH_CREASE_DEG
 #: Shade smooth when the caller does not say (issue 25; False: one value per flat face).
 SMOOTH_SHADING = True
 #: Van Cittert steps that sharpen the blended sun term back toward each face's own mean
-#: (:func:`corner_table`; 0: plain blend): 2 takes the render bench person's sun term from
-#: -1.5 % to -0.4 % against flat faces (1: -0.6 %, 3: -0.3 %) and raises the largest
-#: corner-to-corner differences within a face by a third (p90 0.22 -> 0.29 of the cosine).
-SUN_MEAN_STEPS = 2
+#: (:func:`corner_table`) when the caller does not say. 0 (the plain blend) for the thermal
+#: bands: 2 steps take the person's sun term from -1.5 % to -0.4 % against flat faces (render
+#: bench) and the humvvex MWIR person +23.5 mK (1 step: +20.2 mK) toward the flat faces' mean,
+#: but sharpen the sunlit white T-shirt's shading past the smooth-surface acceptance
+#: (``tests/test_person_surfaces.py``: d2 p90 0.102 -> 0.130 K against 0.119; 1 step 0.117).
+#: The EO estimator uses 2 (:data:`humv_usd.render.eo_fast.SUN_MEAN_STEPS`).
+SUN_MEAN_STEPS = 0
 #: Point lamps and spots traced each (a shadow ray per lamp per hit); with more, one lamp per hit
 #: is chosen by its unoccluded irradiance (:func:`_lamp_irradiance`; windows always so).
 MAX_LAMP_RAYS = 8
@@ -334,7 +337,7 @@ def cavity_table(tables: FaceTables) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def corner_table(surface: np.ndarray, blend) -> np.ndarray:
+def corner_table(surface: np.ndarray, blend, sun_mean_steps: int = 0) -> np.ndarray:
     """(T, 7 n) the estimator's per-triangle rows: per corner the surface term in shadow
     (:func:`surface_table`'s ``dark``: emission + rho G) and in the sun (``lit``), blended by
     ``blend`` (:func:`corner_blend`; None: flat, every corner its face's value), then rho.
@@ -351,11 +354,12 @@ def corner_table(surface: np.ndarray, blend) -> np.ndarray:
     -0.4 %) and loses the flat faces' covariance of projected area and cosine: 1.5 % of the sun's
     reflection off the render bench's person, its Y 0.8 % under the spectral path tracer (which
     shades flat faces; Loop subdivision of the person's meshes, the smooth surface they sample,
-    agrees with the flat faces within 0.2 %). So the blended values are sharpened back toward
-    the faces' own by :data:`SUN_MEAN_STEPS` Van Cittert steps, f' = f' + (f - A f'), A the
+    agrees with the flat faces within 0.2 %). So the blended values can be sharpened back toward
+    the faces' own by ``sun_mean_steps`` Van Cittert steps, f' = f' + (f - A f'), A the
     face mean of the blended corners (the linear interpolant's mean over each face), which
     leaves the field continuous and a linear field unchanged: the person's sun term -1.5 % ->
-    -0.4 % (issue 25). Van Cittert, Z. Phys. 69 (1931) 298; Jansson, *Deconvolution of Images and
+    -0.4 % at 2 steps (issue 25), at the price of more shading within the faces (the
+    covariance it restores lives on the faces' scale; see :data:`SUN_MEAN_STEPS`). Van Cittert, Z. Phys. 69 (1931) 298; Jansson, *Deconvolution of Images and
     Spectra*, 2nd ed., 1997, ch. 3."""
     t, _, n = surface.shape
     if blend is None:
@@ -373,7 +377,7 @@ def corner_table(surface: np.ndarray, blend) -> np.ndarray:
             return np.where(weight[..., None] > 0.0, c, values[:, None, :])
 
         lit_sun, sharp = spread(sun), sun
-        for _ in range(SUN_MEAN_STEPS):  # Van Cittert: the faces' means back toward their own
+        for _ in range(int(sun_mean_steps)):  # Van Cittert: the faces' means back toward their own
             sharp = sharp + (sun - lit_sun.mean(axis=1)) * facing[:, None]
             lit_sun = spread(sharp)
         lit_sun = np.maximum(lit_sun, 0.0)
@@ -645,6 +649,7 @@ def render_band_fast(
     info: dict | None = None,
     smooth: bool | None = None,
     boost_first=None,
+    sun_mean_steps: int | None = None,
 ):
     """At-sensor band radiance and its Monte Carlo standard error of one IR sensor at one frame.
 
@@ -675,6 +680,8 @@ def render_band_fast(
     as the path tracer (:func:`humv_usd.render.ir.render_band`) shades; None:
     :data:`SMOOTH_SHADING`. ``boost_first`` (H, W) bool: pixels whose boosts have budgets of
     their own, the other pixels as large ones (:func:`within_budget`; e.g. the people's).
+    ``sun_mean_steps``: Van Cittert steps of the smooth sun term toward each face's mean
+    (:func:`corner_table`; None: :data:`SUN_MEAN_STEPS`).
 
     Returns
     -------
@@ -722,7 +729,8 @@ def render_band_fast(
         sun_e = np.asarray(sun_e, float) * cloud.clear_factor
     surface = surface_table(scene, tables, g_tab, sun_dir, sun_e, normals)  # (T, 3, n)
     smooth = SMOOTH_SHADING if smooth is None else bool(smooth)
-    rows_7n = corner_table(surface, _smooth_blend(scene) if smooth else None)  # (T, 7n)
+    steps = SUN_MEAN_STEPS if sun_mean_steps is None else int(sun_mean_steps)
+    rows_7n = corner_table(surface, _smooth_blend(scene) if smooth else None, steps)  # (T, 7n)
     note("tables: %d triangles", len(surface))
 
     f32 = mi.Float
