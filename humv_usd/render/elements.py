@@ -155,6 +155,24 @@ def write_ply(path, vertices, triangles, face_attributes: dict[str, np.ndarray])
         f.write(faces.tobytes())
 
 
+#: Smallest value of a spectrum handed to Mitsuba (a zero would collapse it to a constant, whose
+#: values then cannot be updated per frame).
+SPECTRUM_FLOOR = 1e-12
+
+
+def regular_spectrum(wavelengths_nm, values) -> dict:
+    """A Mitsuba ``regular`` spectrum: ``values`` (floored at :data:`SPECTRUM_FLOOR`) evenly
+    spaced from the first to the last of ``wavelengths_nm`` [nm] (the sky, the sun, a lamp, a
+    reflectance in the spectral variant)."""
+    v = np.maximum(np.asarray(values, dtype=float), SPECTRUM_FLOOR)
+    return {
+        "type": "regular",
+        "wavelength_min": float(wavelengths_nm[0]),
+        "wavelength_max": float(wavelengths_nm[-1]),
+        "values": ", ".join(f"{x:.9g}" for x in v),
+    }
+
+
 def mesh(
     part, vertices, flip: bool, workdir, bsdf: dict, updates=(), emitter=None, face_attributes=None, prefix=""
 ) -> Element:

@@ -92,7 +92,7 @@ CIE_Y_INTEGRAL_NM = 106.856895
 KM_LM_PER_W = 683.0
 #: Spectra are never exactly zero in Mitsuba (its spectrum sampling needs probability mass);
 #: "off" emitters get this value and a sampling weight of 0.
-TINY = 1e-12
+TINY = el.SPECTRUM_FLOOR
 #: PNG preview exposure (without the sensor chain): this percentile of Y maps to PREVIEW_WHITE.
 PREVIEW_PERCENTILE = 99.0
 PREVIEW_WHITE = 0.9
@@ -101,13 +101,7 @@ PREVIEW_WHITE = 0.9
 def _spectrum(values_nm_grid) -> dict:
     """A Mitsuba ``regular`` spectrum on :data:`EO_WAVELENGTHS_NM` (never collapsed to a uniform
     one, so its values stay updatable per frame)."""
-    v = np.maximum(np.asarray(values_nm_grid, dtype=float), TINY)
-    return {
-        "type": "regular",
-        "wavelength_min": float(EO_WAVELENGTHS_NM[0]),
-        "wavelength_max": float(EO_WAVELENGTHS_NM[-1]),
-        "values": ", ".join(f"{x:.9g}" for x in v),
-    }
+    return el.regular_spectrum(EO_WAVELENGTHS_NM, values_nm_grid)
 
 
 def reflectance_spectrum(material) -> np.ndarray:

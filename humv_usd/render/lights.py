@@ -32,22 +32,9 @@ import numpy as np
 
 from humv_usd.catalog.lights import LAMPS
 from humv_usd.physics.nightsky import scale_to_photometric
-from humv_usd.render.elements import Element
+from humv_usd.render.elements import Element, regular_spectrum
 from humv_usd.render.nightlight import PHOTOPIC
 from humv_usd.usd.lights import Lamp
-
-#: Spectra are never exactly zero in Mitsuba's spectral sampling.
-TINY = 1e-12
-
-
-def _regular(wavelengths_nm, values) -> dict:
-    v = np.maximum(np.asarray(values, dtype=float), TINY)
-    return {
-        "type": "regular",
-        "wavelength_min": float(wavelengths_nm[0]),
-        "wavelength_max": float(wavelengths_nm[-1]),
-        "values": ", ".join(f"{x:.9g}" for x in v),
-    }
 
 
 def luminous_intensity_cd(lamp: Lamp) -> float:
@@ -88,14 +75,16 @@ def lamp_element(mi, lamp: Lamp, key: str, wavelengths_nm) -> Element:
                 "to_world": mi.ScalarTransform4f(m.tolist()),
                 "emitter": {
                     "type": "area",
-                    "radiance": _regular(
+                    "radiance": regular_spectrum(
                         wavelengths_nm, spectral_per_nm(lamp, lamp.luminance, wavelengths_nm)
                     ),
                 },
                 "bsdf": {"type": "diffuse", "reflectance": {"type": "uniform", "value": 0.0}},
             },
         )
-    intensity = _regular(wavelengths_nm, spectral_per_nm(lamp, luminous_intensity_cd(lamp), wavelengths_nm))
+    intensity = regular_spectrum(
+        wavelengths_nm, spectral_per_nm(lamp, luminous_intensity_cd(lamp), wavelengths_nm)
+    )
     if lamp.cone_angle_deg >= 180.0:
         return Element(key, {"type": "point", "position": [float(v) for v in origin], "intensity": intensity})
     d = -z
