@@ -176,3 +176,18 @@ def test_bad_segments_are_one_line_each(segments, message):
     with pytest.raises(InputError, match=message) as err:
         validate(raw)
     assert "\n" not in str(err.value).strip() or str(err.value).count("segment") >= 1
+
+
+@needs_rig
+def test_low_frame_rates_sample_the_same_sequence(rig, seq):
+    """Below 30 fps the sequence is simulated at k * fps >= 30 and decimated: at 5 fps it is the
+    10 fps clip's every other frame (both are the 30 fps simulation), feet still planted."""
+    from humv_usd.human.sequence import make_sequence_motion
+
+    body, sk = rig
+    m5 = make_sequence_motion(SEGMENTS, sk, 5.0, int(12 * 5) + 1, mass_kg=MASS, body_points=body.points)
+    np.testing.assert_allclose(m5.root_translation, seq.root_translation[::2], atol=1e-9)
+    np.testing.assert_allclose(
+        np.abs(np.sum(m5.local_rotations * seq.local_rotations[::2], -1)), 1.0, atol=1e-9
+    )
+    assert m5.contact["max_penetration_m"] <= 0.01
