@@ -71,7 +71,7 @@ MAX_ABDUCTION = np.radians(30.0)
 #: Test-and-abduct rounds per checked frame.
 ITERATIONS = 4
 #: Rate [Hz] at which frames are checked (the angles are interpolated between).
-CHECK_HZ = 10.0
+CHECK_HZ = 5.0
 SIDES = ("Left", "Right")
 
 
