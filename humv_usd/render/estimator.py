@@ -523,7 +523,14 @@ def _offset(dr, p):
 
 def _rotated_lattice(mi, dr, count: int, index, cell, seed: int):
     """Point ``index`` of a ``count``-point Fibonacci lattice shifted modulo 1 by a random vector
-    drawn once per ``cell`` (Cranley-Patterson rotation)."""
+    meant to be drawn once per ``cell`` (Cranley-Patterson rotation).
+
+    As written the shift is drawn per lane: drjit's ``PCG32(size=n, initseq=cell)`` adds
+    ``arange(n)`` to the state and the stream, so a cell's points are iid uniform, not a
+    shifted lattice (the same in :func:`_rotated_lattice_sized`). Found in issue 31.1 (s6
+    frame-speed note): a per-cell shift cut the walk person's mean error 12.1 -> 8.0 mK at the
+    same cost, but two replicas then often agree exactly at steps along the lattice's x axis
+    (stated error 0) and the boosts' allocation assumes 1/N; not switched yet."""
     lat = _fibonacci_lattice(count).astype(np.float32)
     x = dr.gather(mi.Float, mi.Float(lat[:, 0]), index)
     y = dr.gather(mi.Float, mi.Float(lat[:, 1]), index)
