@@ -34,7 +34,9 @@ How the pieces are made and joined (:func:`make_sequence_motion`):
 
 The metabolic rate follows the segments: ACSM walking/running for the walks, the Compendium
 values of :mod:`humv_usd.human.poses` for the poses and their transitions, blended linearly over
-a transition window. Below 30 fps the sequence is simulated at the smallest integer multiple of
+a transition window; after a walk the excess over standing decays as after exercise
+(:data:`humv_usd.human.motion.EPOC`: 0.9 exp(-t/40 s) + 0.1 exp(-t/600 s) from the stop, Ozyener
+et al. 2001, Borsheim & Bahr 2003), added to the poses' own rates. Below 30 fps the sequence is simulated at the smallest integer multiple of
 the frame rate at or above it and every k-th frame kept (as the single activities).
 
 Sources for the stop and start: gait termination takes one step after the decision to stop,
@@ -56,6 +58,8 @@ from humv_usd.human import poses as PO
 from humv_usd.human.gait import fk_matrices, gait_params, matrix_to_quat, quat_slerp, rot_z
 from humv_usd.human.motion import (
     DEFAULT_SPEED,
+    EPOC,
+    MET_STAND,
     SIM_FPS_MIN,
     SPEED_RANGE,
     Motion,
@@ -394,7 +398,16 @@ class _Sequence:
                 n = int(round(t_end * fps)) - s0 + 1
                 plan = self._plan(idxs, bounds, (ready - s0) / fps, s0 / fps, nxt is not None)
                 clip = self._still(s0, n, plan, start_xy, heading)
-                if stop:
+                if stop:  # after the walk the excess metabolic rate decays (EPOC, as postExercise)
+                    walk, g = stop[0], stop[1]
+                    cycle = int(round(fps / stop[6]))
+                    excess = float(np.mean(walk.met_w[walk.idx(np.arange(g - cycle, g))])) - met_to_watts(
+                        MET_STAND, self.mass
+                    )
+                    t_after = (np.arange(len(clip.root)) + clip.f0 - g) / fps
+                    clip.met_w = clip.met_w + max(excess, 0.0) * sum(
+                        a * np.exp(-t_after / tau) for a, tau in EPOC
+                    )
                     walk, g, w1, lead, mid_l, toe_off, _ = stop
                     trail = "Right" if lead == "Left" else "Left"
                     fr = np.arange(g, w1)

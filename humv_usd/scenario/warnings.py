@@ -110,6 +110,11 @@ def suspicious(scenario) -> list[str]:
         for obj in objects:
             if _inside_box(pos + [0, 0, PERSON_CENTRE_M], obj, margin=PERSON_RADIUS_M):
                 out.append(f"{key}: person {hum['id']} intersects scene object {obj['id']!r}")
+        if hum.get("segment") and place.get("avoidance", "none") != "none":
+            out.append(
+                f"placement[{k}].avoidance = {place['avoidance']!r}: ignored with human.segment "
+                "(a person with segments keeps to the path)"
+            )
         walks = {hum.get("activity")} | {seg.get("activity") for seg in hum.get("segment") or ()}
         if place.get("waypoints_m") and not walks & {"walk", "run", "carry"} and not hum.get("bvh"):
             out.append(
