@@ -24,7 +24,7 @@ import dataclasses
 import numpy as np
 from pxr import Gf, Sdf, UsdGeom
 
-from humv_usd.catalog.garments import LONG_GUNS, garment
+from humv_usd.catalog.garments import HELD_PROPS, LONG_GUNS, garment
 from humv_usd.catalog.skin import skin_material_name
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.geometry.terrain import terrain_from_section
@@ -33,7 +33,8 @@ from humv_usd.human import labels as L
 from humv_usd.human.basemesh import DEFAULT_FACING_DEG
 from humv_usd.human.body import Body, build_body
 from humv_usd.human.bvh import motion_from_bvh
-from humv_usd.human.carry import apply_rifle_carry
+from humv_usd.human.carry import apply_hold, apply_rifle_carry
+from humv_usd.human.chair import CHAIR, author_chair, posed_body_points
 from humv_usd.human.clearance import arm_body, clear_arms
 from humv_usd.human.motion import DEFAULT_SPEED, make_motion
 from humv_usd.human.sequence import make_sequence_motion
@@ -56,7 +57,7 @@ from humv_usd.usd.avatar import (
 )
 from humv_usd.usd.layers import SCOPES, finish, new_layer_stage, set_kind
 from humv_usd.usd.mesh import define_mesh, label
-from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, skeleton_path
+from humv_usd.usd.paths import body_path, human_path, material_path, motion_path, props_path, skeleton_path
 
 NAME = "avatar_{id}"  # one layer per [[human]]
 #: what changes the avatar, and nothing else: the body (sex, age, stature, mass, build), the
@@ -93,11 +94,15 @@ READS = (
     "placement[{id}].waypoints_m",
     "@instanceId[{id}]",
     "@carriesRifle[{id}]",
+    "@holds[{id}]",
+    "@chairId[{id}]",
     "@crowd[{id}]",
     "scene.terrain",
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 13: a prop held in the right hand poses the right arm (human.carry.apply_hold); the chair of a
+#: sitChair pose is authored (human.chair);
 #: 12: planted feet of BVH motion locked (human.contact.lock_feet; DeepMimic slip 7-43 -> 0.2-5 mm),
 #: human.segment (motion sequences, human/sequence.py);
 #: 11: the upper arms are abducted where they would enter the trunk (human/clearance.py), except
@@ -109,7 +114,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "12"
+VERSION = "13"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -147,6 +152,16 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     _motion_attributes(prim, motion)
     label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
     author_rig(stage, human["id"], body, motion, skin_material_name(human.get("skin_tone")))
+    chair = (getattr(motion, "gait", None) or {}).get("chair")
+    if chair is not None:  # the chair a sitChair pose sits on (humv_usd.human.chair)
+        skeleton = skeleton_for(body.points, body.groups)
+        author_chair(
+            stage,
+            props_path(human["id"]).AppendChild(CHAIR),
+            chair,
+            posed_body_points(body, skeleton, motion),
+            instance_ids(scenario).get(f"prop:{human['id']}:{CHAIR}"),
+        )
     _author_extents(stage, human_path(human["id"]), scenario.frame_count)
     return finish(stage)
 
@@ -196,18 +211,24 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     the human wears a long gun (:data:`humv_usd.catalog.garments.LONG_GUNS`: the rifle or
     the shotgun; the first one listed is carried); otherwise, except in the box carry (hands
     on the box), the upper arms abducted where they would enter the trunk
-    (:func:`humv_usd.human.clearance.clear_arms`)."""
+    (:func:`humv_usd.human.clearance.clear_arms`) and, with a prop held in the right hand
+    (:data:`humv_usd.catalog.garments.HELD_PROPS`: phone read in front, phone_call at the ear,
+    handbag by its handle; the first one listed), the right arm holding it
+    (:func:`humv_usd.human.carry.apply_hold`)."""
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
     gun = next((g for g in human.get("clothing") or () if g in LONG_GUNS), None)
+    held = next((g for g in human.get("clothing") or () if g in HELD_PROPS), None)
 
     def carry(motion):
         if gun:
             return apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop)
         if human["activity"] == "carry" and not human.get("bvh"):
             return motion
-        return clear_arms(motion, skeleton, avatar_arm_body(body, skeleton))
+        motion = clear_arms(motion, skeleton, avatar_arm_body(body, skeleton))
+        # a prop held in the right hand (phone, phone_call, handbag): the right arm holds it
+        return apply_hold(motion, skeleton, body, garment(held).prop) if held else motion
 
     if human.get("bvh"):
         motion = motion_from_bvh(
