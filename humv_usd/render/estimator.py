@@ -121,7 +121,7 @@ RAY_OFFSET = 2e-5
 #: Mitsuba's one-sided area lights and the path tracer).
 CAVITY_CLASSES = ("person",)
 #: Most pixel positions of the direct term per camera sample in one pixel where its own error is
-#: above the caller's target (:func:`pixel_direct_points`; issue 25: a person's pixels span faces
+#: above the caller's target (:func:`fresh_factors`; issue 25: a person's pixels span faces
 #: up to 17 K apart, whose sub-pixel mix the image-wide factor left 5-100x NETD/3).
 #: 1024: the direct term is cheap (a camera ray and a sun shadow ray per position) and a pixel
 #: over a step between two faces converges as N^-3/4 on the stratified lattice; at 64 the humvvex
@@ -369,28 +369,6 @@ def _smooth_blend(scene):
     :meth:`humv_usd.render.ir.IRScene.corner_blend`)."""
     cached = getattr(scene, "corner_blend", None)
     return cached() if cached is not None else corner_blend(scene)
-
-
-def pixel_direct_points(direct_var, target_var, factor_cap: int = MAX_PIXEL_DIRECT_FACTOR) -> np.ndarray:
-    r"""More pixel positions per camera sample for the direct term, per pixel (H, W) int.
-
-        ``direct_var`` (c, H, W): the variance of each pixel's direct-term mean from its replicas;
-        ``target_var`` (H, W): the variance the caller wants the pixel's direct term under (NaN or
-        <= 0: no target). The direct term's variance falls as 1/N with N positions, so a pixel
-        needs :math:`D = \lceil V_d / V_t
-    ceil - 1` more positions per camera sample, capped at
-        ``factor_cap`` and rounded up to a power of two (few passes). A pixel whose replicas
-        disagree only by chance less than the target still gets none: the caller's next batch
-        measures it again."""
-    v = np.nansum(np.asarray(direct_var, float), axis=0)
-    t = np.asarray(target_var, float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        need = np.where((t > 0) & np.isfinite(t) & np.isfinite(v), np.ceil(v / t) - 1.0, 0.0)
-    need = np.clip(need, 0, factor_cap)
-    out = np.zeros(need.shape, dtype=np.int64)
-    on = need > 0
-    out[on] = np.minimum(2 ** np.ceil(np.log2(need[on] + 1)).astype(np.int64) - 1, factor_cap)
-    return out
 
 
 def fresh_factors(var, target_var, factor_cap: int) -> np.ndarray:
@@ -668,13 +646,14 @@ def render_band_fast(
     ``direct_target``: ``fn(radiance (c, H, W), variance (c, H, W)) -> (H, W)`` the variance
     [W2 m-4 sr-2] under which the caller wants each pixel's direct term (e.g. a share of its
     error target in K times dL/dT), given the call's pixel means and their stated variance
-    before any boost (e.g. to boost only the regions that would miss their targets); pixels
-    above it get more pixel positions (:func:`pixel_direct_points`, one pass over those pixels
-    only, each with its own count: :class:`PixelLayout`). ``info``: a dict filled with
+    before any boost (e.g. to boost only the regions that would miss their targets); every
+    pixel with a target is estimated afresh from samples whose count this call's own (the
+    pilot) chose (:func:`fresh_factors`, two-stage sampling; one pass over those pixels only,
+    each with its own count: :class:`PixelLayout`). ``info``: a dict filled with
     ``back_face_fraction`` (H, W),
     the share of a pixel's camera samples that saw a one-sided face from behind (rendered as the
     cavity radiance, :func:`cavity_table`), ``pixel_direct_points`` and ``pixel_reflect_samples``
-    (H, W) (the boosts), and for diagnostics the variances (c, H, W) of each pixel's direct and
+    (H, W) (the fresh direct positions and camera samples per pilot camera sample), and for diagnostics the variances (c, H, W) of each pixel's direct and
     reflected means as the replicas give them (before the c4 correction): ``direct_var``,
     ``reflect_var`` (final), ``direct_var_before_boosts``, ``reflect_var_before_boosts`` and
     ``reflect_var_unfiltered`` (the call's own samples).
