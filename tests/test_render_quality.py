@@ -111,7 +111,11 @@ def test_boosts_within_budget_serve_the_largest_needs_first():
     assert (E.within_budget(need, 100) == np.array([[7, 0, 58], [1, 31, 3]])).all()
     assert (E.within_budget(need, 1000) == need).all()
     v = np.full((1, 2, 2), 4.0)
-    assert (E.pixel_direct_points(v, np.array([[4.0, 1.0], [0.5, np.nan]])) == [[0, 3], [7, 0]]).all()
+    # fresh samples alone within the target: ceil(V / Vt) rounded up to a power of two, none
+    # where the pilot is within it (4/4), none without a target; 4/0.3 -> 14 -> 16, capped at 8
+    got = E.fresh_factors(v, np.array([[4.0, 1.0], [0.3, np.nan]]), 1024)
+    assert (got == [[0, 4], [16, 0]]).all()
+    assert (E.fresh_factors(v, np.array([[4.0, 1.0], [0.3, np.nan]]), 8) == [[0, 4], [8, 0]]).all()
     # at the cap, the pixels furthest above their target first, not the first in raster order
     # (the humvvex LWIR view: ground above the shoes took the budget from shoe pixels)
     capped = np.array([[1024, 1024], [1024, 1024]])
