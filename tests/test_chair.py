@@ -9,7 +9,9 @@ import functools
 import numpy as np
 import pytest
 
+from humv_usd.catalog.garments import garment
 from humv_usd.human.body import build_body
+from humv_usd.human.carry import _rest_parts, hold_targets
 from humv_usd.human.chair import (
     BACK_CLEARANCE,
     CHAIR_MATERIAL,
@@ -21,6 +23,7 @@ from humv_usd.human.chair import (
 from humv_usd.human.motion import make_motion
 from humv_usd.human.skeleton import skeleton_for
 from humv_usd.scenario.ids import sits_on_chair
+from humv_usd.usd.avatar import read_joint_transforms
 
 
 @functools.lru_cache(maxsize=1)
@@ -80,3 +83,41 @@ def test_who_sits_on_a_chair():
     assert not sits_on_chair({"activity": "sit"})
     assert sits_on_chair({"activity": "walk", "segment": [{"activity": "walk"}, {"activity": "sitChair"}]})
     assert CHAIR_MATERIAL == "wood"
+
+
+def test_the_avatar_tool_authors_the_chair_and_holds_the_phone():
+    """End to end through the avatar tool (2 fps, 4 s): a seated person with a phone gets the
+    chair (wood, class prop, its own instance id, the body on it and not inside it) and the
+    right hand where the hold puts the phone."""
+    from pxr import Usd, UsdShade
+
+    from humv_usd.avatar.api import avatar_scenario_dict
+    from humv_usd.avatar.layer import build_one
+    from humv_usd.scenario.ids import instance_ids
+    from humv_usd.scenario.load import validate
+    from humv_usd.usd.paths import props_path
+
+    raw = avatar_scenario_dict(activity="sitChair", fps=2.0, duration_s=4.0)
+    raw["human"][0]["clothing"] = ["phone"]
+    scenario = validate(raw)
+    layer = build_one(scenario, scenario["human"][0])
+    stage = Usd.Stage.Open(layer)
+    chair = stage.GetPrimAtPath(props_path("p1").AppendChild("chair"))
+    assert chair.IsValid()
+    target = UsdShade.MaterialBindingAPI(chair).GetDirectBindingRel().GetTargets()[0]
+    assert target.name == CHAIR_MATERIAL
+    assert chair.GetAttribute("humv:label:class").Get() == "prop"
+    assert chair.GetAttribute("humv:label:instanceId").Get() == instance_ids(scenario)["prop:p1:chair"]
+    info = chair.GetCustomDataByKey("humv:chair")
+    assert 0.0 <= info["bodyMinDistance_m"] < 0.005
+    # the authored animation holds the phone: the right grasp point where apply_hold puts it
+    body = build_body("male", 30.0, 1.75, 75.0)
+    sk = skeleton_for(body.points, body.groups)
+    world = read_joint_transforms(stage, "p1", 9, 2.0)
+    rest, hand = _rest_parts(body, sk)
+    frame, grasp, _, _ = hold_targets(sk, rest, hand, garment("phone").prop)
+    j, fj = sk.index("RightHand"), sk.index(frame)
+    for f in (0, 8):
+        want = world[f, fj, :3, :3] @ grasp + world[f, fj, :3, 3]
+        got = world[f, j, :3, :3] @ (sk.tail_positions[j] - sk.rest_positions[j]) + world[f, j, :3, 3]
+        assert np.linalg.norm(want - got) < 0.005
