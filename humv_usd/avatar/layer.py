@@ -103,6 +103,8 @@ READS = (
 UPSTREAM = ()
 #: 13: a prop held in the right hand poses the right arm (human.carry.apply_hold); the chair of a
 #: sitChair pose is authored (human.chair);
+#: 13: the BVH foot lock finds a run's skating stance feet (speed test for the body's pace) and
+#: plants them at their mean place (DeepMimic run 77 -> 5 mm);
 #: 12: planted feet of BVH motion locked (human.contact.lock_feet; DeepMimic slip 7-43 -> 0.2-5 mm),
 #: human.segment (motion sequences, human/sequence.py);
 #: 11: the upper arms are abducted where they would enter the trunk (human/clearance.py), except

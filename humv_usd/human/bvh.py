@@ -30,7 +30,7 @@ Retargeting (:func:`motion_from_bvh`):
 * contact: the root settled so that planted feet touch the ground and nothing is under it,
   then the planted feet locked (:func:`humv_usd.human.contact.lock_feet`: heading frozen,
   rolling without slipping, legs re-posed by IK), so that a retargeted clip's skating feet
-  (DeepMimic walk 7 mm, get-up 43 mm) stand still (0.2-5 mm).
+  (DeepMimic walk 7 mm, run 77 mm, get-up 43 mm) stand still (2-6 mm).
 
 Errors in a file raise :class:`humv_usd.errors.InputError` with one line naming the file, the
 line number and what was expected.
@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
 from humv_usd.errors import InputError
@@ -670,8 +671,8 @@ def motion_from_bvh(
     the root vertically so planted feet (lowest point within 5 cm of the ground, moving
     < 0.25 m/s) touch the ground and no foot is under it (:func:`contact.settle_root`; the
     proportions of the two rigs differ, so scaled mocap floats or sinks by a few cm).
-    lock_feet: the feet planted after settling (the same test, runs shorter than 0.1 s
-    dropped) are locked by :func:`contact.lock_feet`: heading frozen, rolling without
+    lock_feet: the feet planted after settling (lowest point within 2 cm of the ground and
+    slower than 0.25 m/s or 0.3 x the body's pace, runs shorter than 0.1 s dropped) are locked by :func:`contact.lock_feet`: heading frozen, rolling without
     slipping, lowest point on the ground, legs re-posed by IK; below 30 fps this runs at the
     smallest integer multiple of ``fps`` >= 30 and every k-th frame is kept (as the built-in
     motions). False: the source's own sliding is kept and only reported. The metabolic rate
@@ -712,13 +713,22 @@ def motion_from_bvh(
         r[:, 2] += off
         wp[..., 2] += off[:, None]
     if lock_feet:
-        _, planted = C.settle_root(g, feet, wr, wp, sim_fps, near=C.LOCK_NEAR_M)
+        # a planted foot: near the ground and slow, for the body's pace (a run's skating
+        # stance foot moves faster than a walker's lifting one)
+        pace = np.linalg.norm(np.gradient(r[:, :2], axis=0), axis=1) * sim_fps
+        tol = np.maximum(
+            C.LOCK_SPEED_M_S, C.LOCK_SPEED_SHARE * gaussian_filter1d(pace, sim_fps / 2, mode="nearest")
+        )
+        _, planted = C.settle_root(g, feet, wr, wp, sim_fps, speed_tol=tol, near=C.LOCK_NEAR_M)
         stance = {s: C.clean_stance(m, sim_fps) for s, m in planted.items()}
-        rot, r, stance = C.lock_feet(skeleton, g, feet, rot, rot[:, 0], r, stance, sim_fps)
+        rot, r, locked = C.lock_feet(skeleton, g, feet, rot, rot[:, 0], r, stance, sim_fps)
         q = _continuous(matrix_to_quat(rot))
         wr, wp = fk_matrices(skeleton, rot, rot[:, 0], r)
+    else:
+        locked = {s: np.zeros_like(m) for s, m in stance.items()}
     keep = slice(0, None, k)
     q, r, wr, wp = _continuous(q[keep]), r[keep], wr[keep], wp[keep]
+    locked = {s: m[keep] for s, m in locked.items()}
     stance = {s: m[keep] for s, m in stance.items()}
     report = C.contact_report(g, feet, wr, wp, stance)
     speed = float(np.linalg.norm(r[-1, :2] - r[0, :2]) / max(times[-1], 1e-9)) if len(times) > 1 else 0.0
@@ -731,6 +741,7 @@ def motion_from_bvh(
         "scale_m_per_unit": rt.scale,
         "mapped": {skeleton.names[j]: src.joints[b].name for j, b in rt.source.items()},
         "stance": {s.lower(): m for s, m in stance.items()},
+        "locked": {s.lower(): m for s, m in locked.items()},  # the planted runs the lock kept
         "speed_m_s": speed,
     }
     return Motion(float(fps), r, q, activity, rate, report, info)

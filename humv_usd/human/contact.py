@@ -620,10 +620,15 @@ def contact_report(
 #: shortest planted run kept and longest gap bridged by :func:`clean_stance` [s]
 MIN_STANCE_S = 0.1
 MAX_STANCE_GAP_S = 0.07
-#: how far [m] the root may drop for a leg to reach its locked foot (:func:`lock_feet`)
-MAX_LOCK_DROP_M = 0.01
-#: a foot is locked where its lowest point is within this height [m] of the ground
+#: how far [m] the root may drop for a leg to reach its locked foot (:func:`lock_feet`; the
+#: DeepMimic run's stance feet skate 5 cm sideways: 1 cm to reach them planted at mid-skate)
+MAX_LOCK_DROP_M = 0.02
+#: a foot is locked where its lowest point is within this height [m] of the ground and moves
+#: slower than LOCK_SPEED_M_S or LOCK_SPEED_SHARE of the body's pace (mocap's skating stance
+#: feet move ~1 m/s in a 3.8 m/s run, a walker's lifting swing foot > 2 m/s)
 LOCK_NEAR_M = 0.02
+LOCK_SPEED_M_S = 0.25
+LOCK_SPEED_SHARE = 0.3
 
 
 def clean_stance(mask: np.ndarray, fps: float) -> np.ndarray:
@@ -791,6 +796,9 @@ def _locked_targets(skeleton, ground, feet, local, root_rot, root_pos, stance, m
             for f in range(a + 1, b):
                 k = int(np.argmin(h[f]))  # the pivot stays where it was in the frame before
                 off[f, :2] = off[f - 1, :2] - (pts[f, k, :2] - pts[f - 1, k, :2])
+            # planted where the clip has it on average over the run (not where it touched
+            # down): the legs reach half the skate each way
+            off[a:b, :2] -= off[a:b, :2].mean(axis=0)
             # the run's lowest moment on the ground (not every frame: a foot lifting off at the
             # end of its run is not pulled back down)
             off[a:b, 2] = -lowest.min()
