@@ -101,10 +101,10 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 14: the BVH foot lock finds a run's skating stance feet (speed test for the body's pace) and
+#: plants them at their mean place (DeepMimic run 77 -> 5 mm);
 #: 13: a prop held in the right hand poses the right arm (human.carry.apply_hold); the chair of a
 #: sitChair pose is authored (human.chair);
-#: 13: the BVH foot lock finds a run's skating stance feet (speed test for the body's pace) and
-#: plants them at their mean place (DeepMimic run 77 -> 5 mm);
 #: 12: planted feet of BVH motion locked (human.contact.lock_feet; DeepMimic slip 7-43 -> 0.2-5 mm),
 #: human.segment (motion sequences, human/sequence.py);
 #: 11: the upper arms are abducted where they would enter the trunk (human/clearance.py), except
@@ -116,7 +116,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "13"
+VERSION = "14"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
