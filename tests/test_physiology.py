@@ -425,6 +425,31 @@ def test_local_skin_sunlit_facet_held_at_the_core():
     assert t_b[0] <= 310.0 + 1e-9
 
 
+def test_local_skin_frames_together_equal_frame_by_frame():
+    """All frames in one call (the thermal tool's coupling) give exactly what each frame gives
+    alone: segment sums do not mix frames, and each (frame, segment) is bounded on its own
+    (frames with free, core-held and raised-conductance segments side by side)."""
+    rng = np.random.default_rng(7)
+    frames, faces = 5, 400
+    seg = np.concatenate([np.arange(17), rng.integers(0, 17, faces - 17)])
+    area = rng.uniform(1e-4, 1e-3, faces)
+    t_seg = rng.uniform(300.0, 309.0, (frames, 17))
+    core = t_seg + rng.uniform(-1.0, 3.0, (frames, 17))  # some segments above their core
+    k, latent = rng.uniform(5.0, 40.0, (frames, 17)), rng.uniform(0.0, 30.0, (frames, 17))
+    q0 = rng.normal(50.0, 150.0, (frames, faces))  # sunlit facets gain heat, others lose a lot
+    g, t0 = rng.uniform(-1.0, 20.0, (frames, faces)), rng.uniform(298.0, 310.0, (frames, faces))
+    for bound in (None, core):
+        both = P.local_skin_temperature(t_seg, k, latent, seg, area, q0, g, t0, segment_core_k=bound)
+        for f in range(frames):
+            alone = P.local_skin_temperature(
+                t_seg[f], k[f], latent[f], seg, area, q0[f], g[f], t0[f], None if bound is None else bound[f]
+            )
+            assert_array_equal(both[0][f], alone[0])
+            assert_array_equal(both[1][f], alone[1])
+    held = both[0] == core[:, seg]
+    assert held.any() and not held.all()
+
+
 def test_local_skin_hot_segment_left_unbounded():
     """Skin at or above the core (air above body temperature: heat flows in): the closed form."""
     seg = np.array([1, 1])

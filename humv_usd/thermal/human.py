@@ -386,13 +386,15 @@ def human_temperatures(
             wet = np.clip(np.asarray(result.wettedness)[:, seg], 0.0, 1.0)
             limit = np.maximum(np.asarray(result.segment_latent_w_m2)[:, seg], 0.0)
         args = (air, q_garment_all, wind, rh, transient, wet, limit)
-        t_out, q_in, worst = wardrobe.series(t_faces, *args)
+        # with the slope: the stacks at t_faces and t_faces + SLOPE_STEP_K in the same calls
+        t_out, q_in, worst, *q_in2 = wardrobe.series(
+            t_faces, *args, skin_step=SLOPE_STEP_K if slope else None
+        )
         covered = cover.garment >= 0
         cover_face = wardrobe.offset[cover.garment[covered]] + cover.face[covered]
         q[:, covered] = q_in[:, cover_face]
         if slope:
-            q_in2 = wardrobe.series(t_faces + SLOPE_STEP_K, *args)[1]
-            g[:, covered] = ((q_in2 - q_in) / SLOPE_STEP_K)[:, cover_face]
+            g[:, covered] = ((q_in2[0] - q_in) / SLOPE_STEP_K)[:, cover_face]
         return q, g, wardrobe.split(t_out), worst
 
     seg_area = np.bincount(body.segment, area, N_SEGMENTS)
@@ -426,17 +428,17 @@ def human_temperatures(
             t_lin = skin[:, body.segment]
             q_lin, g_lin, _, _ = fluxes(t_lin)
         t_face = skin[:, body.segment].copy()
-        for f in range(frames if settings.get("skin_detail", "facet") == "facet" else 0):
-            t_face[f] = local_skin_temperature(
-                skin[f],
-                result.segment_skin_conductance_w_m2_k[f],
-                result.segment_latent_w_m2[f],
+        if settings.get("skin_detail", "facet") == "facet":  # all frames in one call
+            t_face = local_skin_temperature(
+                skin,
+                result.segment_skin_conductance_w_m2_k,
+                result.segment_latent_w_m2,
                 body.segment,
                 area,
-                q_lin[f],
-                g_lin[f],
-                t_lin[f],
-                segment_core_k=result.segment_core_temperature_k[f],
+                q_lin,
+                g_lin,
+                t_lin,
+                segment_core_k=result.segment_core_temperature_k,
             )[0]
         if frames > 1 and settings.get("skin_detail", "facet") == "facet":
             t_face = lagged_skin(
@@ -862,7 +864,7 @@ class _Wardrobe:
         inner_top = np.concatenate([np.zeros((1, g.shape[1])), g[:-1] + self.thickness[layers[:-1]]])
         return np.maximum(g - inner_top, 0.0)
 
-    def series(self, skin, air, q_abs, wind, rh, transient: bool, wet=None, evap_limit=None):
+    def series(self, skin, air, q_abs, wind, rh, transient: bool, wet=None, evap_limit=None, skin_step=None):
         """(outer temperature, skin-side sensible flux, largest |residual|) per frame and
         garment face (frames, N) for the skin temperatures ``skin`` (frames, F_body): steady at
         frame 0, then implicit steps with every layer's heat capacity (or steady every frame).
@@ -870,41 +872,58 @@ class _Wardrobe:
         of a stack uses its own); ``wet``, ``evap_limit`` (frames, N): wetted fraction and
         largest evaporation [W m^-2] of a face worn directly on the skin with nothing over it
         (the sweat's latent heat at the fabric is the physiology's own latent loss, so it is
-        taken off the skin-side flux the physiology is matched to)."""
+        taken off the skin-side flux the physiology is matched to).
+
+        ``skin_step`` [K]: also the skin-side flux at ``skin + skin_step`` (a fourth item,
+        (frames, N)), solved in the same stack calls as the first (each facet twice along the
+        facet axis: every facet's arithmetic is a facet's own, so both equal two separate
+        calls, in half the calls)."""
         frames = len(skin)
         n = int(self.offset[-1])
         t_out, q_side, worst = np.zeros((frames, n)), np.zeros((frames, n)), 0.0
+        q_step = np.zeros((frames, n)) if skin_step is not None else None
         self.evaporation_max = 0.0
         prev = [None] * len(self.groups)
+        two = (lambda v: np.concatenate([v, v], axis=-1)) if skin_step is not None else (lambda v: v)  # noqa: E731
         for f in range(frames):
             h = convective_coefficient(wind[f], model=self.convection)
             for k, (members, layers, position) in enumerate(self.groups):
                 inner, outer = layers[0], layers[-1]
+                t_skin = skin[f][self.under[inner]]
+                if skin_step is not None:
+                    t_skin = np.concatenate([t_skin, (skin[f] + skin_step)[self.under[inner]]])
                 kw = dict(
-                    skin_temperature_k=skin[f][self.under[inner]],
+                    skin_temperature_k=t_skin,
                     air_temperature_k=air[f],
-                    absorbed_radiation=q_abs[f][outer],
+                    absorbed_radiation=two(q_abs[f][outer]),
                     h_forced=h,
-                    air_gaps_m=self.layer_gaps(f, layers),
-                    thicknesses_m=self.thickness[layers],
-                    conductivities=self.conductivity[layers],
-                    emissivities=self.eps[layers],
+                    air_gaps_m=two(self.layer_gaps(f, layers)),
+                    thicknesses_m=two(self.thickness[layers]),
+                    conductivities=two(self.conductivity[layers]),
+                    emissivities=two(self.eps[layers]),
                     relative_humidity=float(np.clip(rh[f], 0.0, 1.0)),
                     tol=GARMENT_TOLERANCE_W_M2,
                 )
                 if wet is not None and len(layers) == 1:
-                    kw.update(wetted_fraction=wet[f][outer], evaporation_limit=evap_limit[f][outer])
+                    kw.update(wetted_fraction=two(wet[f][outer]), evaporation_limit=two(evap_limit[f][outer]))
                 if f == 0 or not transient:
                     b = stack_steady_state(**kw)
                 else:
-                    b = stack_transient_step(prev[k], self.dt, self.capacity[layers], **kw)
+                    b = stack_transient_step(prev[k], self.dt, two(self.capacity[layers]), **kw)
                 prev[k] = b.outer_temperature_k
-                cols = np.arange(len(members))
+                m = len(members)
+                cols = np.arange(m)
                 t_out[f, members] = b.outer_temperature_k[position, cols]
-                q_side[f, members] = b.q_in - np.maximum(b.q_evap, 0.0)
-                if len(members):
-                    self.evaporation_max = max(self.evaporation_max, float(b.q_evap.max()))
-                worst = max(worst, float(np.abs(b.residual).max()) if len(members) else 0.0)
+                q = b.q_in - np.maximum(b.q_evap, 0.0)
+                q_side[f, members] = q[:m]
+                if skin_step is not None:
+                    q_step[f, members] = q[m:]
+                if m:
+                    # as a separate call at skin + skin_step would leave it (the last run's)
+                    self.evaporation_max = max(self.evaporation_max, float(b.q_evap[-m:].max()))
+                worst = max(worst, float(np.abs(b.residual[:m]).max()) if m else 0.0)
+        if skin_step is not None:
+            return t_out, q_side, worst, q_step
         return t_out, q_side, worst
 
     def split(self, values: np.ndarray) -> dict:

@@ -981,6 +981,10 @@ def local_skin_temperature(
     """Skin temperature per facet from each facet's own heat balance, bounded by the segment's
     core temperature (issue 14, deliverable 2; issue 25, deliverable 1).
 
+    Every per-segment and per-facet argument may carry a leading frame axis ((T, 17) and
+    (T, F)): the frames are then solved together, each exactly as alone (the same arithmetic,
+    with the sums over a segment's facets taken per frame), and the results are (T, F).
+
     Parameters
     ----------
     segment_skin_k : array_like
@@ -1057,28 +1061,43 @@ def local_skin_temperature(
     """
     seg = np.asarray(segment_ids)
     area = np.asarray(face_area_m2, dtype=float)
-    k = np.asarray(skin_conductance_w_m2_k, dtype=float)[seg]
-    e = np.asarray(latent_w_m2, dtype=float)[seg]
-    q0 = np.asarray(flux_w_m2, dtype=float)
-    g = np.maximum(np.asarray(flux_slope_w_m2_k, dtype=float), 0.0)
-    t0 = np.asarray(linearisation_k, dtype=float)
     target = np.asarray(segment_skin_k, dtype=float)
+    single = target.ndim == 1
+    frames = 1 if single else target.shape[0]
+
+    def per_frame(v, width):  # (width,) or (T, width) -> (T, width)
+        return np.broadcast_to(np.asarray(v, dtype=float), (frames, width))
+
+    target = per_frame(target, N_SEGMENTS)
+    k = per_frame(skin_conductance_w_m2_k, N_SEGMENTS)[:, seg]
+    e = per_frame(latent_w_m2, N_SEGMENTS)[:, seg]
+    q0 = per_frame(flux_w_m2, len(seg))
+    g = np.maximum(per_frame(flux_slope_w_m2_k, len(seg)), 0.0)
+    t0 = per_frame(linearisation_k, len(seg))
     a = k / (k + g)  # dT_f / dT_b
     b = (g * t0 - q0 - e) / (k + g)
     n = N_SEGMENTS
     w = np.bincount(seg, area, n)
     w_safe = np.maximum(w, 1e-300)
-    mean_a = np.bincount(seg, area * a, n) / w_safe
-    mean_b = np.bincount(seg, area * b, n) / w_safe
+    # a bin per (frame, segment): each bin sums its frame's facets in facet order, as one
+    # frame's bincount over ``seg`` does
+    bins = (np.arange(frames)[:, None] * n + seg).ravel()
+
+    def segment_mean(values):  # (T, F) -> (T, 17) area-weighted mean per frame and segment
+        return np.bincount(bins, (area * values).ravel(), frames * n).reshape(frames, n) / w_safe
+
+    mean_a = segment_mean(a)
+    mean_b = segment_mean(b)
     t_inner = (target - mean_b) / np.where(mean_a > 0, mean_a, 1.0)
-    t_face = a * t_inner[seg] + b
+    t_face = a * t_inner[:, seg] + b
     if segment_core_k is not None:
         t_face = _bounded_skin(
             t_face,
             t_inner,
             target,
-            np.asarray(segment_core_k, dtype=float),
+            per_frame(segment_core_k, N_SEGMENTS),
             seg,
+            bins,
             area,
             w_safe,
             k,
@@ -1087,7 +1106,8 @@ def local_skin_temperature(
             q0,
             e,
         )
-    return t_face, q0 + g * (t_face - t0)
+    q = q0 + g * (t_face - t0)
+    return (t_face[0], q[0]) if single else (t_face, q)
 
 
 #: Bisection steps of the bounded skin model (the brackets shrink by 2^-48: below 1e-12 K
@@ -1098,47 +1118,58 @@ _BISECTIONS = 48
 _MAX_CONDUCTANCE_FACTOR = 1e6
 
 
-def _bounded_skin(t_face, t_inner, target, core, seg, area, w, k, g, t0, q0, e):
-    """The core bound of :func:`local_skin_temperature` on the segments that need it."""
-    n = N_SEGMENTS
-    cap = core[seg]
+def _bounded_skin(t_face, t_inner, target, core, seg, bins, area, w, k, g, t0, q0, e):
+    """The core bound of :func:`local_skin_temperature` on the segments that need it: (T, F)
+    facet arrays, (T, 17) segment arrays, ``bins`` the flat (frame, segment) bin of every facet
+    of every frame; every (frame, segment) is bisected on its own."""
+    frames, n = target.shape
+    cap = core[:, seg]
     losing = target < core  # segments whose skin is below the core (heat leaves the body)
-    over = np.bincount(seg, (t_face > cap).astype(float), n) > 0
-    need = losing & ((t_inner > core) | over)
+    over = np.bincount(bins, (t_face > cap).ravel().astype(float), frames * n).reshape(frames, n) > 0
+    need = (losing & ((t_inner > core) | over)).ravel()
     if not need.any():
         return t_face
-    sel = need[seg]
-    s, ar, cf = seg[sel], area[sel], cap[sel]
-    a = k[sel] / (k[sel] + g[sel])
-    b = (g[sel] * t0[sel] - q0[sel] - e[sel]) / (k[sel] + g[sel])
+    sel = need[bins]
+    s, ar, cf = bins[sel], np.broadcast_to(area, t_face.shape).ravel()[sel], cap.ravel()[sel]
+    k, g, t0, q0, e = (v.ravel()[sel] for v in (k, g, t0, q0, e))
+    core, target, w = core.ravel(), target.ravel(), np.tile(w, frames)
+    a = k / (k + g)
+    b = (g * t0 - q0 - e) / (k + g)
 
-    def mean_clipped(values):
-        return np.bincount(s, ar * np.minimum(values, cf), n) / w
+    def mean_clipped(values, bins_, weights, caps):  # over whole segments' facets
+        return np.bincount(bins_, weights * np.minimum(values, caps), frames * n) / w
 
     # 1. the inner node below the core: T_b in [T_b free, T_c] (the clipped mean rises with T_b)
-    inner_ok = need & (mean_clipped(a * core[s] + b) >= target)
-    lo, hi = np.minimum(t_inner, core), core.copy()
-    for _ in range(_BISECTIONS):
+    inner_ok = need & (mean_clipped(a * core[s] + b, s, ar, cf) >= target)
+    # each segment is bisected on its own facets: 1. where it holds, 2. where it does not
+    one = inner_ok[s]
+    r1, r2 = np.flatnonzero(one), np.flatnonzero(~one)
+    s1, a1, b1, ar1, cf1 = s[r1], a[r1], b[r1], ar[r1], cf[r1]
+    lo, hi = np.minimum(t_inner.ravel(), core), core.copy()
+    for _ in range(_BISECTIONS if len(r1) else 0):
         mid = 0.5 * (lo + hi)
-        high = mean_clipped(a * mid[s] + b) > target
+        high = mean_clipped(a1 * mid[s1] + b1, s1, ar1, cf1) > target
         hi, lo = np.where(high, mid, hi), np.where(high, lo, mid)
     t_b = 0.5 * (lo + hi)
     # 2. inner node at the core, conductance raised: K' = K 10^x, x in [0, 6]
-    lo, hi = np.zeros(n), np.full(n, np.log10(_MAX_CONDUCTANCE_FACTOR))
-    ks, gs, es = k[sel], g[sel], g[sel] * t0[sel] - q0[sel] - e[sel]
+    lo, hi = np.zeros(frames * n), np.full(frames * n, np.log10(_MAX_CONDUCTANCE_FACTOR))
+    s2, k2, g2, ar2, cf2, core2 = s[r2], k[r2], g[r2], ar[r2], cf[r2], core[s[r2]]
+    es = (g * t0 - q0 - e)[r2]
 
     def at_factor(x):
-        kk = ks * 10.0 ** x[s]
-        return (kk * core[s] + es) / (kk + gs)
+        kk = k2 * (10.0**x)[s2]  # the power once per (frame, segment)
+        return (kk * core2 + es) / (kk + g2)
 
-    for _ in range(_BISECTIONS):
+    for _ in range(_BISECTIONS if len(r2) else 0):
         mid = 0.5 * (lo + hi)
-        high = mean_clipped(at_factor(mid)) > target
+        high = mean_clipped(at_factor(mid), s2, ar2, cf2) > target
         hi, lo = np.where(high, mid, hi), np.where(high, lo, mid)
-    raised = at_factor(hi)
-    out = t_face.copy()
-    out[sel] = np.minimum(np.where(inner_ok[s], a * t_b[s] + b, raised), cf)
-    return out
+    inside = np.empty(len(s))
+    inside[r1] = a1 * t_b[s1] + b1
+    inside[r2] = at_factor(hi)
+    out = t_face.copy().ravel()
+    out[sel] = np.minimum(inside, cf)
+    return out.reshape(t_face.shape)
 
 
 def lagged_skin(
