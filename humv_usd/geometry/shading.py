@@ -105,18 +105,23 @@ def corner_blend(meshes, crease_deg: float = SMOOTH_CREASE_DEG) -> csr_matrix:
     return csr_matrix((w, (r, c)), shape=(3 * total, total))
 
 
-def barycentric(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
+def barycentric(tri: np.ndarray, p: np.ndarray, index=None) -> np.ndarray:
     """(N, 3) barycentric coordinates of points ``p`` (N, 3) projected onto triangles
     ``tri`` (N, 3, 3) (least squares in the triangle's plane; a degenerate triangle: its first
-    corner)."""
+    corner). ``index`` (N,): point i lies on triangle ``index[i]`` of ``tri`` (T, 3, 3) (each
+    triangle's edges and their products computed once; the same numbers)."""
     tri = np.asarray(tri, dtype=float)
     e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    d = np.asarray(p, dtype=float) - tri[:, 0]
     a11, a12, a22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    r1, r2 = (d * e1).sum(1), (d * e2).sum(1)
     det = a11 * a22 - a12 * a12
     ok = det > 1e-30 * np.maximum(a11 * a22, 1e-300)
     safe = np.where(ok, det, 1.0)
+    v0 = tri[:, 0]
+    if index is not None:
+        at = np.asarray(index)
+        e1, e2, v0, a11, a12, a22, ok, safe = (x[at] for x in (e1, e2, v0, a11, a12, a22, ok, safe))
+    d = np.asarray(p, dtype=float) - v0
+    r1, r2 = (d * e1).sum(1), (d * e2).sum(1)
     b1 = np.where(ok, (a22 * r1 - a12 * r2) / safe, 0.0)
     b2 = np.where(ok, (a11 * r2 - a12 * r1) / safe, 0.0)
     return np.stack([1.0 - b1 - b2, b1, b2], axis=1)

@@ -164,12 +164,15 @@ class PartTables:
             return out
         corners = np.asarray(scene.corner_blend() @ self.temperature).reshape(-1, 3)
         p, t = part[hit], triangle[hit]
-        tri = np.empty((len(p), 3, 3))
-        for i in np.unique(p):
-            sel = p == i
+        seen = np.unique(p)  # the corners of the hit parts' triangles, once per triangle
+        first = np.zeros(len(scene.parts) + 1, dtype=np.int64)
+        tri = []
+        for i in seen:
             prt = scene.parts[i]
-            tri[sel] = np.asarray(scene.vertices(prt), float)[scene.face_corners(prt)[t[sel]]]
-        b = shading.barycentric(tri, np.asarray(position)[hit])
+            tri.append(np.asarray(scene.vertices(prt), float)[scene.face_corners(prt)])
+            first[i + 1] = len(tri[-1])
+        first = np.cumsum(first)[:-1]
+        b = shading.barycentric(np.concatenate(tri), np.asarray(position)[hit], index=first[p] + t)
         out[hit] = np.einsum("ij,ij->i", np.clip(b, 0.0, 1.0), corners[self.offset[p] + t])
         return out
 
