@@ -182,3 +182,18 @@ def test_carry_holds_a_box_while_walking(rig):
     mid = 0.5 * (grasp["Left"] + grasp["Right"])
     assert (mid[:, 1] < pos[:, 0, 1] - 0.2).all()
     assert (np.abs(mid[:, 2] - (pos[:, 0, 2] + 0.17)) < 0.08).all()
+
+
+def test_low_frame_rates_sample_the_same_pose_motion(rig):
+    """Below 30 fps a pose activity is the 30 fps motion at its times (it was simulated frame
+    to frame at the clip's own rate: a 2 fps fall ended ~30 cm from the 30 fps one)."""
+    from humv_usd.human.motion import make_motion
+
+    body, skel = rig
+    m30 = make_motion("fall", skel, 30.0, 91, body_points=body.points)
+    m2 = make_motion("fall", skel, 2.0, 7, body_points=body.points)
+    np.testing.assert_allclose(m2.root_translation, m30.root_translation[::15], atol=1e-9)
+    np.testing.assert_allclose(
+        np.abs(np.sum(m2.local_rotations * m30.local_rotations[::15], -1)), 1.0, atol=1e-9
+    )
+    assert m2.contact["body_max_penetration_m"] <= m30.contact["body_max_penetration_m"] + 1e-9

@@ -101,6 +101,7 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 16: pose activities below 30 fps sampled from a 30 fps simulation (a 2 fps fall ended 30 cm off);
 #: 14: the BVH foot lock finds a run's skating stance feet (speed test for the body's pace) and
 #: plants them at their mean place (DeepMimic run 77 -> 5 mm);
 #: 13: a prop held in the right hand poses the right arm (human.carry.apply_hold); the chair of a
@@ -116,7 +117,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "14"
+VERSION = "16"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:

@@ -28,9 +28,9 @@ Pipeline (walk/run):
 
 These steps work per frame (stance runs, finite differences of the stance pivots, flight
 between stance frames), which needs several frames per step: below ``SIM_FPS_MIN`` (30 fps)
-the walk, run, carry and standing activities are simulated at the smallest integer multiple
-of the frame rate at or above it and every k-th frame is kept, so that a clip at 1, 2, 3, 5,
-6, 10 or 15 fps is the 30 fps clip at its times.
+the walk, run, carry, standing and pose activities are simulated at the smallest integer
+multiple of the frame rate at or above it and every k-th frame is kept, so that a clip at 1,
+2, 3, 5, 6, 10 or 15 fps is the 30 fps clip at its times.
 
 Standing activities keep both feet planted (``standTurn`` steps them round a turn) and move
 the pelvis: quiet-standing sway (Winter 1995, *Gait & Posture* 3:193-214: CoM/CoP sway of a few
@@ -640,7 +640,27 @@ def _standing(
 # ------------------------------------------------------------------------- poses
 def _pose_motion(activity, skeleton, fps, frames, path, ground, feet, mass_kg, body_points) -> Motion:
     """A pose activity of :mod:`humv_usd.human.poses`, started at the path's first point and
-    facing its first segment (as the standing activities)."""
+    facing its first segment (as the standing activities); below ``SIM_FPS_MIN`` simulated at
+    k * fps and every k-th frame kept (the rolling root and the planted feet work frame to
+    frame: a 2 fps fall ended 30 cm from the 30 fps one)."""
+    k = max(int(np.ceil(SIM_FPS_MIN / fps - 1e-9)), 1)
+    if k > 1:
+        m = _pose_motion(
+            activity, skeleton, k * float(fps), (frames - 1) * k + 1, path, ground, feet, mass_kg, body_points
+        )
+        keep = slice(0, None, k)
+        quats, root = _continuous(m.local_rotations[keep]), m.root_translation[keep]
+        stance = {s: v[keep] for s, v in m.gait["stance"].items()}
+        rot = quat_to_matrix(quats)
+        wrot, wpos = fk_matrices(skeleton, rot, rot[:, 0], root)
+        pts = PO.body_points(skeleton, body_points)
+        chair = m.gait["chair"]
+        g = C.Ground(PO._with_box(ground, chair)) if chair is not None else ground
+        report = PO.body_contact_report(g, pts.posed(wrot, wpos, skeleton), float(fps))
+        report.update(C.contact_report(g, feet, wrot, wpos, {s: stance[s.lower()] for s in C.SIDES}))
+        report["body_max_penetration_m"] = report.pop("body_penetration_m")
+        info = dict(m.gait, stance=stance)
+        return Motion(float(fps), root, quats, activity, m.metabolic_rate_w[keep], report, info)
     start = skeleton.rest_positions[0, :2].copy()
     psi0 = 0.0
     if path is not None:
