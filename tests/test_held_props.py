@@ -10,7 +10,9 @@ import functools
 import numpy as np
 import pytest
 
+from humv_usd.avatar.api import avatar_scenario_dict
 from humv_usd.catalog.garments import GARMENTS, HELD_PROPS, garment
+from humv_usd.errors import InputError
 from humv_usd.human import labels as L
 from humv_usd.human.body import build_body
 from humv_usd.human.carry import (
@@ -28,6 +30,7 @@ from humv_usd.human.carry import (
 )
 from humv_usd.human.motion import make_motion
 from humv_usd.human.skeleton import forward_kinematics, skeleton_for, skin_weights, skinning_matrices
+from humv_usd.scenario.load import validate
 
 
 @functools.lru_cache(maxsize=2)
@@ -107,3 +110,21 @@ def test_hold_over_a_walk(name):
             EAR_GAP - 1e-4 if name == "phone_call" else (0.5 * BAG_CLEARANCE if name == "handbag" else 0.02)
         )
         assert d.min() > bound
+
+
+@pytest.mark.parametrize(
+    "clothing, line",
+    [
+        (["rifle", "phone"], "human[0].clothing[1] = 'phone': the right hand already holds 'rifle'"),
+        (
+            ["phone_call", "tshirt_white", "handbag"],
+            "human[0].clothing[2] = 'handbag': the right hand already holds 'phone_call'",
+        ),
+    ],
+)
+def test_one_thing_in_the_right_hand(clothing, line):
+    raw = avatar_scenario_dict()
+    raw["human"][0]["clothing"] = clothing
+    with pytest.raises(InputError) as info:
+        validate(raw)
+    assert line in info.value.problems

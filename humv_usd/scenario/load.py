@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from humv_usd.catalog.garments import ALIASES, GARMENTS
+from humv_usd.catalog.garments import ALIASES, GARMENTS, HELD_PROPS, LONG_GUNS
 from humv_usd.catalog.sensors import (
     netd_for_f_number,  # another aperture than the preset's
     netd_scaling_origin,
@@ -319,6 +319,11 @@ def _check_garments(data: dict, problems: list[str]) -> None:
                 )
             elif canonical in seen:
                 problems.append(bad_value(f"human[{i}].clothing[{k}]", name, "listed twice"))
+            elif canonical in LONG_GUNS + HELD_PROPS and seen & set(LONG_GUNS + HELD_PROPS):
+                held = next(g for g in seen if g in LONG_GUNS + HELD_PROPS)
+                problems.append(
+                    bad_value(f"human[{i}].clothing[{k}]", name, f"the right hand already holds {held!r}")
+                )
             seen.add(canonical)
 
 
