@@ -3,6 +3,8 @@ tool against an independent inside test (issue 25, deliverable 2: armpits)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -154,3 +156,54 @@ def test_clear_arms_takes_the_upper_arm_out_of_the_trunk(rigged):
     before, after = inside_counts(motion), inside_counts(cleared)
     assert min(before.values()) > 20  # the check can fail: arms down are in the trunk
     assert after == {"Left": 0, "Right": 0}
+
+
+@needs_makehuman
+def test_swivel_keeps_the_hands_and_takes_the_elbows_out_of_the_trunk(rigged):
+    """Hands that hold something (arms down, elbows bent 90 deg, hands in front): ``clear_arms``
+    in ``swivel`` mode turns each arm about its shoulder-wrist line, so the wrists stay where
+    they were (1e-12 m) and the hands keep their world rotation, the elbows move out to the
+    side, and the upper-arm test points below the armpit (skin + 4 mm, > 10 cm from the
+    shoulder and the elbow, > 4 cm from the line) inside the posed body by the independent
+    winding number drop from > 20 to at most 1 per side."""
+    from humv_usd.bench.skinning import winding_numbers
+    from humv_usd.geometry.mesh import vertex_normals
+    from humv_usd.human.clearance import arm_body, clear_arms
+    from humv_usd.human.skeleton import forward_kinematics, linear_blend_skinning, skinning_matrices
+
+    body, skel, mesh, tris, idx, w = rigged
+    arms = arm_body(skel, mesh.points, tris, idx, w)
+    motion = _arms_down(skel, 1, 0)
+    q = motion.local_rotations.copy()
+    for side in ("Left", "Right"):
+        q[0, skel.index(f"{side}ForeArm")] = (np.cos(np.pi / 4), -np.sin(np.pi / 4), 0.0, 0.0)
+    motion = dataclasses.replace(motion, local_rotations=q)
+    report = {}
+    cleared = clear_arms(motion, skel, arms, report, mode="swivel")
+    w0 = forward_kinematics(skel, motion.local_rotations, motion.root_translation)[0]
+    w1 = forward_kinematics(skel, cleared.local_rotations, cleared.root_translation)[0]
+
+    def inside(world, side):
+        """Upper-arm test points below the armpit inside the posed body (independent test)."""
+        p = linear_blend_skinning(mesh.points, idx, w, skinning_matrices(skel, world[None])[0])
+        n = vertex_normals(p, tris)
+        hand, elbow, sh = (skel.index(f"{side}{j}") for j in ("Hand", "ForeArm", "Arm"))
+        line = world[hand, :3, 3] - world[sh, :3, 3]
+        line /= np.linalg.norm(line)
+        ids = arms.arm[side]
+        test = p[ids] + 0.004 * n[ids]
+        rel = test - world[sh, :3, 3]
+        far = (np.linalg.norm(rel, axis=1) > 0.10) & (np.linalg.norm(np.cross(line, rel), axis=1) > 0.04)
+        # the upper arm only: the bent elbow's own crease folds into itself (not the trunk)
+        far &= np.linalg.norm(test - world[elbow, :3, 3], axis=1) > 0.10
+        return int(np.sum(winding_numbers(test[far], p, tris) > 0.5))
+
+    for side, out in (("Left", 1.0), ("Right", -1.0)):
+        hand, elbow = skel.index(f"{side}Hand"), skel.index(f"{side}ForeArm")
+        assert report[side]["max_deg"] > 1.0
+        np.testing.assert_allclose(w1[hand, :3, 3], w0[hand, :3, 3], atol=1e-12)
+        np.testing.assert_allclose(w1[hand, :3, :3], w0[hand, :3, :3], atol=1e-12)
+        assert out * (w1[elbow, 0, 3] - w0[elbow, 0, 3]) > 0.005  # the elbow moved out
+        # one point may stay: the back of the armpit (11 cm from the shoulder), which the swivel
+        # moves along the trunk rather than out of it
+        assert inside(w0, side) > 20 and inside(w1, side) <= 1

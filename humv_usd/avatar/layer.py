@@ -102,6 +102,8 @@ READS = (
 )
 UPSTREAM = ()
 #: 16: pose activities below 30 fps sampled from a 30 fps simulation (a 2 fps fall ended 30 cm off);
+#: 15: arms holding something (box and rifle carries, held props) swivel their elbows out of the
+#: trunk, hands kept in place (human.clearance.clear_arms mode "swivel");
 #: 14: the BVH foot lock finds a run's skating stance feet (speed test for the body's pace) and
 #: plants them at their mean place (DeepMimic run 77 -> 5 mm);
 #: 13: a prop held in the right hand poses the right arm (human.carry.apply_hold); the chair of a
@@ -212,12 +214,13 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     activity (walk/run along the heading or the waypoints) on the terrain (:func:`avatar_ground`); with the arms in the
     rifle carry (:func:`humv_usd.human.carry.apply_rifle_carry`, kept clear of the body) if
     the human wears a long gun (:data:`humv_usd.catalog.garments.LONG_GUNS`: the rifle or
-    the shotgun; the first one listed is carried); otherwise, except in the box carry (hands
-    on the box), the upper arms abducted where they would enter the trunk
-    (:func:`humv_usd.human.clearance.clear_arms`) and, with a prop held in the right hand
-    (:data:`humv_usd.catalog.garments.HELD_PROPS`: phone read in front, phone_call at the ear,
-    handbag by its handle; the first one listed), the right arm holding it
-    (:func:`humv_usd.human.carry.apply_hold`)."""
+    the shotgun; the first one listed is carried); otherwise the arms abducted where they would
+    enter the trunk (:func:`humv_usd.human.clearance.clear_arms`) and, with a prop held in the
+    right hand (:data:`humv_usd.catalog.garments.HELD_PROPS`: phone read in front, phone_call at
+    the ear, handbag by its handle; the first one listed), the right arm holding it
+    (:func:`humv_usd.human.carry.apply_hold`). Arms whose hands hold something (the gun, the
+    box of the ``carry`` activity, the held prop) are cleared by swivelling the elbow out
+    instead (``clear_arms(..., mode="swivel")``: the hands stay where they are)."""
     g = scenario["general"]
     frames = scenario.frame_count
     skeleton = skeleton_for(body.points, body.groups)
@@ -225,13 +228,18 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
     held = next((g for g in human.get("clothing") or () if g in HELD_PROPS), None)
 
     def carry(motion):
-        if gun:
-            return apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop)
-        if human["activity"] == "carry" and not human.get("bvh"):
+        arms = avatar_arm_body(body, skeleton)
+        if gun:  # hands on the gun: the elbows swing out of the trunk, the hands stay
+            motion = apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop)
+            return clear_arms(motion, skeleton, arms, mode="swivel")
+        if human["activity"] == "carry" and not human.get("bvh"):  # hands on the box: likewise
+            return clear_arms(motion, skeleton, arms, mode="swivel")
+        motion = clear_arms(motion, skeleton, arms)
+        if not held:
             return motion
-        motion = clear_arms(motion, skeleton, avatar_arm_body(body, skeleton))
         # a prop held in the right hand (phone, phone_call, handbag): the right arm holds it
-        return apply_hold(motion, skeleton, body, garment(held).prop) if held else motion
+        motion = apply_hold(motion, skeleton, body, garment(held).prop)
+        return clear_arms(motion, skeleton, arms, mode="swivel")
 
     if human.get("bvh"):
         motion = motion_from_bvh(

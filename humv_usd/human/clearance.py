@@ -17,7 +17,7 @@ What :func:`clear_arms` does, per checked frame and side:
 1. Test points: the skin vertices bound to the ``{side}Arm`` and ``{side}ForeArm`` joints by
    more than :data:`ARM_WEIGHT` (not the hand, which may rest on the body; not those inside the
    body at rest), each moved :data:`MARGIN` along its normal.
-2. A test point is inside the trunk when the first trunk surface along its abduction path is
+2. A test point is inside the trunk when the first trunk surface along its path is
    hit from inside (the ray leaves through an outward face). The trunk is the body's vertices
    bound to the trunk joints (:data:`TRUNK`) and to neither arm. The abduction path is the
    tangent ``a x (p - shoulder)``, where ``a`` is the forward axis of the parent
@@ -25,9 +25,16 @@ What :func:`clear_arms` does, per checked frame and side:
 3. The angle still needed is the largest hit distance over its lever ``|a x (p - shoulder)|``.
    Points nearer the axis than :data:`MIN_LEVER`, and hits farther than :data:`MAX_DEPTH` (the
    ray left through the trunk's opening at the shoulder), are ignored.
-4. The arm is abducted by that angle about ``a``, by premultiplying the ``{side}Arm`` joint's
-   local rotation, and the test repeats, at most :data:`ITERATIONS` times and up to
-   :data:`MAX_ABDUCTION`.
+4. The arm is abducted by that angle (at most :data:`MAX_STEP` per round) about ``a``, by
+   premultiplying the ``{side}Arm`` joint's local rotation, and the test repeats, at most
+   :data:`ITERATIONS` times and up to :data:`MAX_ABDUCTION`.
+
+Arms whose hands hold something (the box of the ``carry`` activity, the rifle carry, a held
+prop) are turned the same way about another axis (``mode="swivel"``): the shoulder-wrist line,
+signed so that the elbow moves out to the side. The ``{side}Hand`` joint's local rotation is
+turned back by the same angle, so the wrist stays where it was and the hand keeps its world
+rotation (the grip is exact; only the elbow swings out, as a person carrying a box holds the
+elbows off the sides).
 
 Frames are checked every ``1 / CHECK_HZ`` s. The angles are dilated by one checked frame on
 each side, interpolated linearly in time and applied to every frame, so the arm moves smoothly
@@ -39,8 +46,8 @@ Blender) skins the same arms with UsdSkel's linear blend.
 
 Not done:
 
-- Hands held on a prop (the box and rifle carries) keep their inverse kinematics, so those arms
-  are not cleared here.
+- Points the swivel moves along the trunk rather than out of it (the back of the armpit, near
+  the shoulder-wrist line) stay.
 - Flexion creases are contact that needs soft-tissue deformation (pose-space corrective shapes),
   not a joint angle: the belly against the thighs in a deep sit or crouch (1-5 cm deep), calf
   against thigh in a kneel, the inner elbow of a flexed arm, the armpit's own fold (< 2 mm).
@@ -81,9 +88,11 @@ TRUNK = ("Hips", "LowerBack", "Spine", "Spine1", "LeftShoulder", "RightShoulder"
 #: Upper-arm test points closer than this to the abduction axis [m] are not tested: the
 #: armpit's own fold turns about the joint, and abducting cannot open it.
 MIN_LEVER = 0.04
-#: A trunk surface farther than this along the abduction path [m] is not a penetration (the
-#: ray left through the trunk's opening at the shoulder).
-MAX_DEPTH = 0.06
+#: A trunk surface farther than this along the path [m] is not a penetration (the ray left
+#: through the trunk's opening at the shoulder; the arms measured go <= 1.5 cm deep).
+MAX_DEPTH = 0.03
+#: Largest angle added per round [rad]: one stray ray cannot swing the arm out at once.
+MAX_STEP = np.radians(10.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,10 +141,10 @@ def _descends(skeleton: Skeleton, k: int, j: int) -> bool:
     return False
 
 
-def _quat_y(angle: np.ndarray, axis_sign: float) -> np.ndarray:
-    """(n, 4) quaternions of rotations by ``angle`` about ``axis_sign`` * Y."""
-    h = 0.5 * np.asarray(angle, dtype=np.float64)
-    return np.stack([np.cos(h), np.zeros_like(h), axis_sign * np.sin(h), np.zeros_like(h)], -1)
+def _quat_axis(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(n, 4) quaternions of rotations by ``angle`` (n,) about unit ``axis`` (n, 3)."""
+    h = 0.5 * np.asarray(angle, dtype=np.float64)[:, None]
+    return np.concatenate([np.cos(h), np.sin(h) * axis], -1)
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -148,15 +157,47 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 #: Abduction axis sign per side: Left about -Y, Right about +Y (away from the midline).
 _AXIS = {"Left": -1.0, "Right": 1.0}
+#: How :func:`clear_arms` moves an arm: ``abduct`` (about the shoulder's forward axis: the hand
+#: moves out too) or ``swivel`` (about the shoulder-wrist line: the elbow swings out, the wrist
+#: stays where it is and the hand keeps its world orientation, for hands that hold something).
+MODES = ("abduct", "swivel")
 
 
-def _abducted(local: np.ndarray, skeleton: Skeleton, angles: dict) -> np.ndarray:
-    """``local`` (F, J, 4) with each side's Arm abducted by ``angles[side]`` (F,) [rad] about
-    its parent's forward (Y) axis, away from the midline."""
-    out = local.copy()
+def arm_axes(skeleton: Skeleton, world: np.ndarray, mode: str) -> dict:
+    """Per side the unit world axis (F, 3) about which a positive angle moves the arm away from
+    the trunk, for world joint transforms ``world`` (F, J, 4, 4) of the pose before clearing."""
+    out = {}
     for side, sign in _AXIS.items():
         j = skeleton.index(f"{side}Arm")
-        out[:, j] = _quat_mul(_quat_y(angles[side], sign), local[:, j])
+        parent = world[:, int(skeleton.parents[j]), :3, :3]
+        if mode == "abduct":
+            out[side] = sign * parent[:, :, 1]
+            continue
+        shoulder = world[:, j, :3, 3]
+        line = world[:, skeleton.index(f"{side}Hand"), :3, 3] - shoulder
+        axis = line / np.maximum(np.linalg.norm(line, axis=1, keepdims=True), 1e-9)
+        elbow = world[:, skeleton.index(f"{side}ForeArm"), :3, 3] - shoulder
+        outward = -sign * parent[:, :, 0]  # the side's lateral direction (Left: +X)
+        turn = np.einsum("fi,fi->f", np.cross(axis, elbow), outward)
+        out[side] = axis * np.where(turn < 0, -1.0, 1.0)[:, None]
+    return out
+
+
+def _rotated(local: np.ndarray, skeleton: Skeleton, world: np.ndarray, axes: dict, angles: dict, mode: str):
+    """``local`` (F, J, 4) with each side's arm turned by ``angles[side]`` (F,) about the world
+    axis ``axes[side]`` (F, 3) through the shoulder; ``world`` is the unturned pose's (F, J, 4, 4).
+    In ``swivel`` mode the hand's local rotation is turned back, so its world rotation stays."""
+    out = local.copy()
+    for side in SIDES:
+        j = skeleton.index(f"{side}Arm")
+        parent = world[:, int(skeleton.parents[j]), :3, :3]
+        in_parent = np.einsum("fji,fj->fi", parent, axes[side])
+        out[:, j] = _quat_mul(_quat_axis(in_parent, angles[side]), local[:, j])
+        if mode == "swivel":
+            h = skeleton.index(f"{side}Hand")
+            forearm = world[:, int(skeleton.parents[h]), :3, :3]
+            in_forearm = np.einsum("fji,fj->fi", forearm, axes[side])
+            out[:, h] = _quat_mul(_quat_axis(in_forearm, -angles[side]), local[:, h])
     return out
 
 
@@ -169,20 +210,19 @@ def _skin(body: ArmBody, ids: np.ndarray, skin: np.ndarray) -> tuple[np.ndarray,
     return p, n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
-def arm_penetration(body: ArmBody, skeleton: Skeleton, world: np.ndarray) -> dict:
-    """Per side for one frame's world joint transforms (J, 4, 4): the upper-arm test points
-    (skin + :data:`MARGIN` along the normal) inside the trunk, as (points, lever vectors
-    ``a x (p - shoulder)``, distance to the trunk's surface along them [m])."""
+def arm_penetration(body: ArmBody, skeleton: Skeleton, world: np.ndarray, axes: dict) -> dict:
+    """Per side for one frame's world joint transforms (J, 4, 4) and arm axes (side -> (3,),
+    :func:`arm_axes`): the arm's test points (skin + :data:`MARGIN` along the normal) inside the
+    trunk, as (points, lever vectors ``a x (p - shoulder)``, distance to the trunk's surface
+    along them [m])."""
     skin = skinning_matrices(skeleton, world[None])[0]
     tp, _ = _skin(body, body.trunk_vertices, skin)
     trunk = RayCaster(tp, body.trunk_triangles)
     out = {}
-    for side, sign in _AXIS.items():
+    for side in SIDES:
         p, n = _skin(body, body.arm[side], skin)
         test = p + MARGIN * n
-        parent = int(skeleton.parents[skeleton.index(f"{side}Arm")])
-        axis = sign * world[parent, :3, 1]
-        lever = np.cross(axis, test - world[skeleton.index(f"{side}Arm"), :3, 3])
+        lever = np.cross(axes[side], test - world[skeleton.index(f"{side}Arm"), :3, 3])
         r = np.linalg.norm(lever, axis=1)
         d = lever / np.maximum(r, 1e-9)[:, None]
         face = trunk.intersects_first(test, d)
@@ -198,24 +238,30 @@ def arm_penetration(body: ArmBody, skeleton: Skeleton, world: np.ndarray) -> dic
     return out
 
 
-def needed_abduction(body: ArmBody, skeleton: Skeleton, local: np.ndarray, root: np.ndarray) -> dict:
-    """Per side, the abduction [rad] each frame of (``local`` (F, J, 4), ``root`` (F, 3)) needs
-    for its upper arm to clear the trunk by :data:`MARGIN` (0 where it does)."""
+def needed_angles(
+    body: ArmBody, skeleton: Skeleton, local: np.ndarray, root: np.ndarray, mode: str = "abduct"
+) -> dict:
+    """Per side, the angle [rad] each frame of (``local`` (F, J, 4), ``root`` (F, 3)) needs its
+    arm turned (``mode``, :data:`MODES`) to clear the trunk by :data:`MARGIN` (0 where it does)."""
     frames = len(local)
+    world0 = forward_kinematics(skeleton, local, root)
+    axes = arm_axes(skeleton, world0, mode)
     out = {s: np.zeros(frames) for s in SIDES}
     for f in range(frames):
         angle = {s: np.zeros(1) for s in SIDES}
+        frame_axes = {s: axes[s][f : f + 1] for s in SIDES}
         for _ in range(ITERATIONS):
-            q = _abducted(local[f : f + 1], skeleton, angle)
+            q = _rotated(local[f : f + 1], skeleton, world0[f : f + 1], frame_axes, angle, mode)
             world = forward_kinematics(skeleton, q, root[f : f + 1])[0]
-            pen = arm_penetration(body, skeleton, world)
+            pen = arm_penetration(body, skeleton, world, {s: axes[s][f] for s in SIDES})
             more = False
             for side in SIDES:
                 _, lever, depth = pen[side]
                 if not len(depth) or angle[side][0] >= MAX_ABDUCTION:
                     continue
                 step = depth / np.linalg.norm(lever, axis=1)
-                angle[side] = np.minimum(angle[side] + step.max() + np.radians(0.25), MAX_ABDUCTION)
+                add = min(float(step.max()) + np.radians(0.25), MAX_STEP)
+                angle[side] = np.minimum(angle[side] + add, MAX_ABDUCTION)
                 more = True
             if not more:
                 break
@@ -224,17 +270,20 @@ def needed_abduction(body: ArmBody, skeleton: Skeleton, local: np.ndarray, root:
     return out
 
 
-def clear_arms(motion, skeleton: Skeleton, body: ArmBody, report: dict | None = None):
+def clear_arms(motion, skeleton: Skeleton, body: ArmBody, report: dict | None = None, mode: str = "abduct"):
     """``motion`` (``local_rotations`` (F, J, 4), ``root_translation`` (F, 3), ``fps``) with
-    each upper arm abducted where it would enter the trunk (see the module doc); frames that
-    clear it are unchanged. ``report`` (a dict) receives per side the largest angle added [deg]
-    and the number of frames changed."""
+    each arm turned out where it would enter the trunk (see the module doc): abducted (``mode``
+    "abduct") or, for hands that hold something, swivelled about the shoulder-wrist line with
+    the hand kept in place ("swivel"). Frames that clear the trunk are unchanged. ``report`` (a
+    dict) receives per side the largest angle added [deg] and the number of frames changed."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     local = np.asarray(motion.local_rotations, dtype=np.float64)
     root = np.asarray(motion.root_translation, dtype=np.float64)
     frames = len(local)
     step = max(int(round(float(getattr(motion, "fps", CHECK_HZ)) / CHECK_HZ)), 1)
     checked = np.unique(np.r_[np.arange(0, frames, step), frames - 1])
-    need = needed_abduction(body, skeleton, local[checked], root[checked])
+    need = needed_angles(body, skeleton, local[checked], root[checked], mode)
     angles = {}
     for side in SIDES:
         a = need[side]
@@ -248,7 +297,8 @@ def clear_arms(motion, skeleton: Skeleton, body: ArmBody, report: dict | None = 
             }
     if not any(np.any(a > 0) for a in angles.values()):
         return motion
-    out = _abducted(local, skeleton, angles)
+    world = forward_kinematics(skeleton, local, root)
+    out = _rotated(local, skeleton, world, arm_axes(skeleton, world, mode), angles, mode)
     keep = np.all([angles[s] == 0 for s in SIDES], axis=0)
     out[keep] = local[keep]
     if hasattr(motion, "local_rotations") and dataclasses.is_dataclass(motion):
