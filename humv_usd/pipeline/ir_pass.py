@@ -197,11 +197,14 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
     back_face = None
     replicas = E.replica_count(plan.spp_sub[s.name]) if plan.estimator == "fast" else None
     estimator_s = 0.0  # the estimator's share of "render" (the rest: conversions, edges, stats)
+    frame_tables: dict = {}  # the estimator's tables, shared by this frame's batches
+    estimator_cpu = 0.0  # process CPU (all threads, the background writer's too) in the estimator
     while True:
-        t_est = time.perf_counter()
+        t_est, c_est = time.perf_counter(), time.process_time()
         extra = {}
         if plan.estimator == "fast":
             extra["info"] = info = {}
+            extra["reuse"] = frame_tables  # the per-triangle tables, built in the first batch
             if fast_auto and Q.targets(netd) is not None:
                 extra["direct_target"] = direct_target
                 extra["boost_first"] = first_served
@@ -218,6 +221,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             **extra,
         )
         estimator_s += time.perf_counter() - t_est
+        estimator_cpu += time.process_time() - c_est
         pooled.add(batch[0], batch[1], replicas or plan.spp_sub[s.name])
         if plan.estimator == "fast":
             fraction = info["back_face_fraction"]
@@ -273,6 +277,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
     t = _tick(run, timings, "labels", t)  # the pixel-centre cast is the labels' (cached)
 
     rel = os.path.join(s.name, f"{frame:04d}")
+    c_labels = time.process_time()
     labels = plan.truth.annotate(
         scene,
         sensor_id,
@@ -283,6 +288,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         rel,
         write=run.write,
     )
+    labels_cpu = time.process_time() - c_labels
     t = _tick(run, timings, "labels", t)
 
     # sensor chain: the single call site for IR (depth and instances: the motion blur's velocity)
@@ -381,6 +387,8 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             "timings_s": {
                 **{k: timings[k] - before[k] for k in timings},
                 "estimator": estimator_s,
+                "estimator_cpu": estimator_cpu,
+                "labels_cpu": labels_cpu,
                 "cpu": time.process_time() - cpu0,
             },
         }
