@@ -24,8 +24,8 @@ BODY_SLIP_M = {
     "wave": 0.005,
     "lieSupine": 0.12,
     "lieSide": 0.12,
-    "lieProne": 0.25,
-    "fall": 0.25,
+    "lieProne": 0.01,  # the hands held while lowering from hands and knees (was 0.11 m)
+    "fall": 0.01,
     "getUp": 0.12,
 }
 #: the group that must rest on the ground (within 1 cm) in the held end pose

@@ -101,6 +101,7 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 17: hands on the ground held in the transitions out of and into hands-and-knees (poses._plant_hands);
 #: 16: pose activities below 30 fps sampled from a 30 fps simulation (a 2 fps fall ended 30 cm off);
 #: 15: arms holding something (box and rifle carries, held props) swivel their elbows out of the
 #: trunk, hands kept in place (human.clearance.clear_arms mode "swivel");
@@ -119,7 +120,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "16"
+VERSION = "17"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:

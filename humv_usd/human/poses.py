@@ -22,6 +22,11 @@ planted on the ground in it). :func:`make_pose_motion` turns the list into a cli
    posed on it by the analytic two-bone IK of :mod:`humv_usd.human.contact` (the root is
    lowered where a planted foot would be out of reach).
 
+Hands that rest on the ground in a key (hands and knees) stay where they are while the body
+moves in the transitions out of and into it: held for the part of the transition next to that
+key (wrist and hand frozen, the arm by two-bone IK with the elbow on the designed side), then
+lifted 4 cm and carried to the designed pose (:func:`_plant_hands`).
+
 Contact is measured (:func:`body_contact_report`) on skinned body points (the body mesh's
 vertices thinned to one per 3 cm cell, linear blend skinning with MakeHuman's weights): the
 deepest penetration of any point below the ground, and the slip of every point while it stays
@@ -605,6 +610,7 @@ def make_pose_motion(
     # on the linear time: the foot is off the ground before it moves along (minimum jerk)
     lift = STEP_LIFT_M * np.sin(np.pi * tl.u)
     local, root_pos = _plant_feet(skeleton, ground, feet, local, root_rot, root_pos, pinned, swing, lift)
+    local = _plant_hands(skeleton, keys, tl, local, root_rot, root_pos)
     wrot, wpos = fk_matrices(skeleton, local, root_rot, root_pos)
     posed = points.posed(wrot, wpos, skeleton)
     report = body_contact_report(ground, posed, fps)
@@ -768,6 +774,81 @@ def _plant_feet(skeleton, ground, feet, local, root_rot, root_pos, pinned, swing
         for j, r in ((chain.hip, hip), (chain.knee, knee), (chain.ankle, ankle), (chain.toe, toe)):
             local[m, j] = r[m]
     return local, root_pos
+
+
+#: share of a transition during which a hand that rests on the ground in one key stays planted
+#: (leaving: its first part; arriving: its last part), and its lift when it moves [m]
+HAND_PLANTED_SHARE = 0.35
+HAND_LIFT_M = 0.04
+
+
+def _plant_hands(skeleton, keys, tl: Timeline, local, root_rot, root_pos) -> np.ndarray:
+    """Hands that rest on the ground in a key (its support holds ``<side>Hand``) stay where
+    they are while the body moves: in a transition out of such a key the hand is held (wrist
+    and hand orientation frozen, the arm by two-bone IK, the elbow on the designed side) for
+    the first :data:`HAND_PLANTED_SHARE` of it, then lifted and carried to the designed pose;
+    into such a key it is put down early and held for the last share. (Lowering from hands
+    and knees to prone slid the hands 0.11 m over the ground.)"""
+    frames = len(root_pos)
+    names = skeleton.names
+    wrot, wpos = fk_matrices(skeleton, local, root_rot, root_pos)
+    rest = skeleton.rest_positions
+    out = local.copy()
+    for side in SIDES:
+        group = f"{side}Hand"
+        arm, fore, hand = (names.index(f"{side}{j}") for j in ("Arm", "ForeArm", "Hand"))
+        target = wpos[:, hand].copy()
+        hrot = wrot[:, hand].copy()
+        touched = np.zeros(frames, bool)
+        for i in range(1, len(keys)):
+            leave = group in keys[i - 1].support and group not in keys[i].support
+            arrive = group not in keys[i - 1].support and group in keys[i].support
+            if not (leave or arrive):
+                continue
+            rows = np.flatnonzero((tl.k1 == i) & (tl.u > 0) & (tl.u < 1))
+            if len(rows) < 2:
+                continue
+            u = tl.u[rows]
+            if leave:  # held from the transition's first frame, then carried off
+                anchor = rows[0] - 1 if rows[0] > 0 else rows[0]
+                w = _minjerk((u - HAND_PLANTED_SHARE) / (1 - HAND_PLANTED_SHARE))
+            else:  # carried to where the key puts it, then held
+                anchor = min(rows[-1] + 1, frames - 1)
+                w = 1 - _minjerk(u / (1 - HAND_PLANTED_SHARE))
+            # w: 0 = held at the anchor, 1 = the designed motion
+            q0 = matrix_to_quat(np.broadcast_to(wrot[anchor, hand], (len(rows), 3, 3)))
+            target[rows] = (1 - w)[:, None] * wpos[anchor, hand] + w[:, None] * wpos[rows, hand]
+            target[rows, 2] += HAND_LIFT_M * np.sin(np.pi * w)
+            hrot[rows] = quat_to_matrix(quat_slerp(q0, matrix_to_quat(wrot[rows, hand]), w))
+            touched[rows] = True
+        if not touched.any():
+            continue
+        rows = np.flatnonzero(touched)
+        shoulder = wpos[rows, arm]
+        l1 = np.linalg.norm(rest[fore] - rest[arm])
+        l2 = np.linalg.norm(rest[hand] - rest[fore])
+        d_vec = target[rows] - shoulder
+        d = np.clip(np.linalg.norm(d_vec, axis=1), abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
+        u_ = d_vec / np.linalg.norm(d_vec, axis=1, keepdims=True)
+        a = (l1**2 - l2**2 + d**2) / (2 * d)
+        h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
+        pole = wpos[rows, fore] - shoulder  # the designed elbow's side
+        v = pole - u_ * np.sum(pole * u_, axis=1, keepdims=True)
+        v /= np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
+        elbow = shoulder + a[:, None] * u_ + h[:, None] * v
+        to_hand = target[rows] - elbow
+        wrist = elbow + l2 * to_hand / np.maximum(np.linalg.norm(to_hand, axis=1, keepdims=True), 1e-9)
+        # world rotations: the upper arm turned onto the elbow, the elbow's own bend kept and
+        # the forearm turned onto the wrist, the hand as held
+        ra, rf = wrot[rows, arm], wrot[rows, fore]
+        arm_w = align_matrix(ra @ (rest[fore] - rest[arm]), elbow - shoulder) @ ra
+        fore_w = arm_w @ np.swapaxes(ra, 1, 2) @ rf
+        fore_w = align_matrix(fore_w @ (rest[hand] - rest[fore]), wrist - elbow) @ fore_w
+        parent = wrot[rows, skeleton.parents[arm]]
+        out[rows, arm] = np.swapaxes(parent, 1, 2) @ arm_w
+        out[rows, fore] = np.swapaxes(arm_w, 1, 2) @ fore_w
+        out[rows, hand] = np.swapaxes(fore_w, 1, 2) @ hrot[rows]
+    return out
 
 
 def _wave(skeleton: Skeleton, loc_q: np.ndarray, tl: Timeline, fps: float, waving) -> np.ndarray:
