@@ -487,3 +487,25 @@ def test_sample_interpolation_is_linear_between_samples():
     v = at(np.array([[0.0, 1.0], [10.0, 3.0], [40.0, 5.0]]))
     assert_allclose(v[:, 0], np.r_[np.arange(11.0), 10.0 + 3.0 * np.arange(1.0, 11.0), np.full(4, 40.0)])
     assert_allclose(v[5, 1], 2.0)
+
+
+def test_jos3_module_imports_jos3_alone_and_the_package_later():
+    """A fresh interpreter: jos3_module() loads JOS-3 without pythermalcomfort.models' other
+    models (the one-shot compose's import cost), and a later plain import of the package works
+    and holds the same module and class (the condensation guard patches that module)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from humv_usd.thermal.physiology import jos3_module\n"
+        "m = jos3_module()\n"
+        "assert 'pythermalcomfort.models' not in sys.modules\n"
+        "assert 'pythermalcomfort.models.utci' not in sys.modules\n"
+        "from pythermalcomfort.models import JOS3, jos3, utci\n"
+        "assert JOS3 is m.JOS3 and jos3 is m and callable(utci)\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "ok"

@@ -48,8 +48,12 @@ References
 
 from __future__ import annotations
 
+import _imp
 import contextlib
+import importlib
+import importlib.util
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -629,6 +633,31 @@ def jos3(
         )
 
 
+def jos3_module():
+    """pythermalcomfort's JOS-3 module (``pythermalcomfort.models.jos3``), imported without the
+    rest of ``pythermalcomfort.models``: that package's ``__init__`` imports its ~40 models
+    (heat indices, PMV, UTCI, ... with numba functions) for about 0.6 CPU-s of a one-shot compose
+    (issue 31), of which JOS-3 needs none but its own. If the package is already imported its
+    module is used; otherwise the submodule is loaded under a temporary package module that does
+    not run the package's ``__init__``, removed again at once, so a later ``import
+    pythermalcomfort.models`` runs the package as usual (and finds this same ``jos3``). The
+    interpreter's import lock is held meanwhile: no other thread sees the temporary package."""
+    name = "pythermalcomfort.models"
+    if name + ".jos3" in sys.modules:
+        return sys.modules[name + ".jos3"]
+    _imp.acquire_lock()
+    try:
+        if name in sys.modules:
+            return importlib.import_module(name + ".jos3")
+        sys.modules[name] = importlib.util.module_from_spec(importlib.util.find_spec(name))
+        try:
+            return importlib.import_module(name + ".jos3")
+        finally:
+            del sys.modules[name]
+    finally:
+        _imp.release_lock()
+
+
 #: pythermalcomfort's version whose JOS-3 evaporation :func:`condensation_guard` corrects
 #: (the guard checks the formula's behaviour, not the version: see :func:`guarded_evaporation`).
 PYTHERMALCOMFORT_CHECKED = "4.8.1"
@@ -681,7 +710,7 @@ class _GuardedThermoregulation:
 def condensation_guard():
     """While the block runs, pythermalcomfort's JOS-3 uses :func:`guarded_evaporation` (its
     module-level ``threg`` is swapped for a wrapper and restored afterwards)."""
-    from pythermalcomfort.models import jos3 as module
+    module = jos3_module()
 
     original = module.threg
     if isinstance(original, _GuardedThermoregulation):  # nested
@@ -738,7 +767,7 @@ def _jos3_state(model, bf_skin_l_h: np.ndarray, tissue_w_k: np.ndarray) -> dict:
     JOS-3's own formulas (``JOS3._run``): sensible (T_sk - T_o) / R_t, latent E_sk (guarded),
     h_c, h_r, R_t, and the core-skin conductance (tissue in series + blood heat capacity x skin
     blood flow) / segment area."""
-    from pythermalcomfort.models import jos3 as module
+    module = jos3_module()
 
     threg = module.threg
     tsk = np.asarray(model.t_skin, dtype=float)
@@ -828,7 +857,7 @@ def _jos3(
     spin_up_s,
     max_substep_s,
 ) -> PhysiologyResult:
-    from pythermalcomfort.models import JOS3  # numba compiles on the first call (~10 s)
+    JOS3 = jos3_module().JOS3  # noqa: N806 (pythermalcomfort's class)
 
     n = len(t)
     met = _series(metabolic_rate_w, n, "metabolic_rate_w")
