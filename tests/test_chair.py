@@ -121,3 +121,48 @@ def test_the_avatar_tool_authors_the_chair_and_holds_the_phone():
         want = world[f, fj, :3, :3] @ grasp + world[f, fj, :3, 3]
         got = world[f, j, :3, :3] @ (sk.tail_positions[j] - sk.rest_positions[j]) + world[f, j, :3, 3]
         assert np.linalg.norm(want - got) < 0.005
+
+
+def test_the_avatar_tool_authors_the_carried_box_between_the_palms():
+    """activity = "carry": the box is authored (wood, class prop, its own id, bound to the Hips)
+    and in the authored animation both palms touch its sides (closest hand vertex 2 mm off,
+    PALM_GAP) in every frame; nothing else of the body is inside it."""
+    from pxr import Usd, UsdShade
+
+    from humv_usd.avatar.api import avatar_scenario_dict
+    from humv_usd.avatar.layer import build_one
+    from humv_usd.human import labels as L
+    from humv_usd.human.carry import PALM_GAP, body_regions_of
+    from humv_usd.human.skeleton import skin_weights, skinning_matrices
+    from humv_usd.scenario.ids import instance_ids
+    from humv_usd.scenario.load import validate
+    from humv_usd.usd.paths import props_path
+
+    raw = avatar_scenario_dict(activity="carry", fps=2.0, duration_s=2.0)
+    scenario = validate(raw)
+    stage = Usd.Stage.Open(build_one(scenario, scenario["human"][0]))
+    box = stage.GetPrimAtPath(props_path("p1").AppendChild("box"))
+    assert UsdShade.MaterialBindingAPI(box).GetDirectBindingRel().GetTargets()[0].name == CHAIR_MATERIAL
+    assert box.GetAttribute("humv:label:instanceId").Get() == instance_ids(scenario)["prop:p1:box"]
+    body = build_body("male", 30.0, 1.75, 75.0)
+    sk = skeleton_for(body.points, body.groups)
+    assert set(box.GetAttribute("primvars:skel:jointIndices").Get()) == {sk.index("Hips")}
+    rest_box = np.asarray(box.GetAttribute("points").Get(), float)
+    lo, hi = rest_box.min(0), rest_box.max(0)
+    world = read_joint_transforms(stage, "p1", 5, 2.0)
+    skin = skinning_matrices(sk, world)
+    mesh, regions = body_regions_of(body, sk)
+    idx, w = skin_weights(sk, mesh.vertex_ids, 4)
+    counts = np.asarray(mesh.face_counts)
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    for f in range(len(skin)):
+        to_rest = np.linalg.inv(skin[f, sk.index("Hips")])  # the box's frame
+        blend = np.einsum("vk,vkab->vab", w.astype(float), skin[f][idx])
+        posed = np.einsum("vab,vb->va", blend[:, :3, :3], np.asarray(mesh.points)) + blend[:, :3, 3]
+        local = posed @ to_rest[:3, :3].T + to_rest[:3, 3]
+        q = np.abs(local - (lo + hi) / 2) - (hi - lo) / 2
+        d = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+        for side in ("rightHand", "leftHand"):
+            hand = np.unique(np.asarray(mesh.face_indices)[(regions == L.REGION_ID[side])[face_of]])
+            assert d[hand].min() == pytest.approx(PALM_GAP, abs=1e-3)
+        assert d.min() > 0.0

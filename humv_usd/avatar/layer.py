@@ -33,8 +33,8 @@ from humv_usd.human import labels as L
 from humv_usd.human.basemesh import DEFAULT_FACING_DEG
 from humv_usd.human.body import Body, build_body
 from humv_usd.human.bvh import motion_from_bvh
-from humv_usd.human.carry import apply_hold, apply_rifle_carry
-from humv_usd.human.chair import CHAIR, author_chair, posed_body_points
+from humv_usd.human.carry import apply_box_hold, apply_hold, apply_rifle_carry, carried_box
+from humv_usd.human.chair import BOX, CHAIR, author_box, author_chair, posed_body_points
 from humv_usd.human.clearance import arm_body, clear_arms
 from humv_usd.human.motion import DEFAULT_SPEED, make_motion
 from humv_usd.human.sequence import make_sequence_motion
@@ -96,11 +96,13 @@ READS = (
     "@carriesRifle[{id}]",
     "@holds[{id}]",
     "@chairId[{id}]",
+    "@boxId[{id}]",
     "@crowd[{id}]",
     "scene.terrain",
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 18: the carried box authored (human.carry.carried_box), the palms on its sides (apply_box_hold);
 #: 17: hands on the ground held in the transitions out of and into hands-and-knees (poses._plant_hands);
 #: 16: pose activities below 30 fps sampled from a 30 fps simulation (a 2 fps fall ended 30 cm off);
 #: 15: arms holding something (box and rifle carries, held props) swivel their elbows out of the
@@ -120,7 +122,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "17"
+VERSION = "18"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -167,6 +169,18 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
             chair,
             posed_body_points(body, skeleton, motion),
             instance_ids(scenario).get(f"prop:{human['id']}:{CHAIR}"),
+        )
+    if human["activity"] == "carry" and not human.get("bvh"):  # the box in both hands
+        skeleton = skeleton_for(body.points, body.groups)
+        centre, size = carried_box(skeleton, body)
+        author_box(
+            stage,
+            props_path(human["id"]).AppendChild(BOX),
+            centre,
+            size,
+            skeleton_path(human["id"]),
+            skeleton.index("Hips"),
+            instance_ids(scenario).get(f"prop:{human['id']}:{BOX}"),
         )
     _author_extents(stage, human_path(human["id"]), scenario.frame_count)
     return finish(stage)
@@ -234,6 +248,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
             motion = apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop)
             return clear_arms(motion, skeleton, arms, mode="swivel")
         if human["activity"] == "carry" and not human.get("bvh"):  # hands on the box: likewise
+            motion = apply_box_hold(motion, skeleton, body)  # the palms on the box's sides
             return clear_arms(motion, skeleton, arms, mode="swivel")
         motion = clear_arms(motion, skeleton, arms)
         if not held:

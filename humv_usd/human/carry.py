@@ -600,11 +600,12 @@ class Palm:
         return np.stack([self.normal, self.fingers, self.across], 1)
 
 
-def palm_frame(skeleton: Skeleton, hand_pts: np.ndarray) -> Palm:
-    """:class:`Palm` of the right hand: the normal is the least-variance axis of the hand's
-    points within 6 cm of the grasp point, signed towards the fingertips' curl (the fingers of
-    MakeHuman's rest hand flex a little towards the palm)."""
-    j = skeleton.index("RightHand")
+def palm_frame(skeleton: Skeleton, hand_pts: np.ndarray, side: str = "Right") -> Palm:
+    """:class:`Palm` of a hand (``side`` "Right" or "Left"; ``hand_pts`` that hand's rest
+    points): the normal is the least-variance axis of the hand's points within 6 cm of the grasp
+    point, signed towards the fingertips' curl (the fingers of MakeHuman's rest hand flex a
+    little towards the palm)."""
+    j = skeleton.index(f"{side}Hand")
     head, tail = skeleton.rest_positions[j], skeleton.tail_positions[j]
     near = hand_pts[np.linalg.norm(hand_pts - tail, axis=1) < 0.06]
     n = np.linalg.svd(near - near.mean(axis=0))[2][2]
@@ -743,5 +744,119 @@ def apply_hold(motion, skeleton: Skeleton, body, prop):
         poles={"Right": pole},
         sides=("Right",),
         frame_joint=frame,
+    )
+    return dataclasses.replace(motion, local_rotations=q)
+
+
+# ---------------------------------------------------------------------------- the carried box
+#: The box of the ``carry`` activity (authored by the avatar tool as a wooden crate, rigid on the
+#: Hips like the hands' grasp points): depth and height [m]; its width is set by the hands.
+BOX_DEPTH_M = 0.30
+BOX_HEIGHT_M = 0.25
+#: Its back face this far [m] in front of the trunk.
+BOX_BODY_CLEARANCE = 0.02
+
+
+def carried_box(skeleton: Skeleton, body) -> tuple[np.ndarray, np.ndarray]:
+    """(centre, size) [m] of the box carried in both hands, in rest coordinates (bound to the
+    Hips, it stays between the hands in every frame: the carry's grasp points are fixed in the
+    Hips' frame). Centred at :data:`BOX_CENTRE`; its width such that the closest vertex of either
+    hand in the carry pose is :data:`PALM_GAP` off its sides (bisection; no hand vertex inside);
+    its back face :data:`BOX_BODY_CLEARANCE` in front of the trunk within its width and height."""
+
+    @dataclasses.dataclass
+    class _Still:
+        local_rotations: np.ndarray
+        root_translation: np.ndarray
+
+    q = np.zeros((1, len(skeleton.names), 4))
+    q[..., 0] = 1.0
+    root = skeleton.rest_positions[:1].copy()
+    mesh, regions = body_regions_of(body, skeleton)
+    q = _solve_arms(
+        _Still(q, root),
+        skeleton,
+        targets=box_grasp_targets(skeleton),
+        hand_dirs=box_hand_rotations(skeleton, mesh, regions),
+        poles=_BOX_POLES,
+    )
+    skin = skinning_matrices(skeleton, forward_kinematics(skeleton, q, root))[0]
+    idx, w = skin_weights(skeleton, mesh.vertex_ids, 4)
+    blend = np.einsum("vk,vkab->vab", w.astype(float), skin[idx])
+    posed = np.einsum("vab,vb->va", blend[:, :3, :3], np.asarray(mesh.points, float)) + blend[:, :3, 3]
+    counts = np.asarray(mesh.face_counts)
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    vid = np.asarray(mesh.face_indices)
+
+    def verts(names):
+        sel = np.isin(regions, [L.REGION_ID[r] for r in names])
+        return posed[np.unique(vid[sel[face_of]])]
+
+    hands = verts(("rightHand", "leftHand"))  # in the carry pose with the palms on the box
+    trunk = verts(("chest", "abdomen", "pelvis", "back", "rightUpperLeg", "leftUpperLeg"))
+    centre = skeleton.rest_positions[0] + BOX_CENTRE * skeleton.rest_positions[0, 2]
+    half = np.array([0.0, BOX_DEPTH_M / 2, BOX_HEIGHT_M / 2])
+    # the back face in front of the trunk (the person faces -y)
+    near = trunk[
+        (np.abs(trunk[:, 0] - centre[0]) < BOX_WIDTH_M / 2) & (np.abs(trunk[:, 2] - centre[2]) < half[2])
+    ]
+    front_y = centre[1] - half[1]
+    back_y = (
+        min(centre[1] + half[1], float(near[:, 1].min()) - BOX_BODY_CLEARANCE)
+        if len(near)
+        else centre[1] + half[1]
+    )
+    centre[1], half[1] = (front_y + back_y) / 2, (back_y - front_y) / 2
+
+    def gap(hw: float) -> float:
+        h = half.copy()
+        h[0] = hw
+        d = np.abs(hands - centre) - h
+        return (
+            float((np.linalg.norm(np.maximum(d, 0.0), axis=1) + np.minimum(d.max(axis=1), 0.0)).min())
+            - PALM_GAP
+        )
+
+    lo, hi = 0.02, BOX_WIDTH_M
+    if gap(lo) < 0:
+        raise ValueError("the hands in the box carry are closer than the smallest box")
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if gap(mid) >= 0 else (lo, mid)
+    half[0] = lo
+    return centre, 2 * half
+
+
+#: The fingers' direction on the carried box's sides (forward, a little down), Hips' frame.
+_BOX_FINGERS = np.array([0.0, -1.0, -0.2])
+
+
+def box_hand_rotations(skeleton: Skeleton, mesh, regions) -> dict[str, np.ndarray]:
+    """Hand rotations (Hips' frame) of the box carry: each palm (:func:`palm_frame`) facing the
+    box (the right one +x, the left one -x), the fingers forward along its side."""
+    pts = np.asarray(mesh.points)
+    out = {}
+    for side, inward in (("Right", 1.0), ("Left", -1.0)):
+        palm = palm_frame(
+            skeleton,
+            hand_points(pts, mesh.face_counts, mesh.face_indices, regions, side.lower()),
+            side,
+        )
+        n = np.array([inward, 0.0, 0.0])
+        f = _unit(_BOX_FINGERS - n * (_BOX_FINGERS @ n))
+        out[side] = np.stack([n, f, np.cross(n, f)], 1) @ palm.rotation.T
+    return out
+
+
+def apply_box_hold(motion, skeleton: Skeleton, body):
+    """``motion`` with both palms on the carried box's sides in every frame (:func:`carried_box`;
+    the box carry of :func:`apply_box_carry` with the hands turned by :func:`box_hand_rotations`)."""
+    mesh, regions = body_regions_of(body, skeleton)
+    q = _solve_arms(
+        motion,
+        skeleton,
+        targets=box_grasp_targets(skeleton),
+        hand_dirs=box_hand_rotations(skeleton, mesh, regions),
+        poles=_BOX_POLES,
     )
     return dataclasses.replace(motion, local_rotations=q)

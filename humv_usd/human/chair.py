@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from humv_usd.human import usdskel
 from humv_usd.human.skeleton import forward_kinematics, skin_weights, skinning_matrices
 from humv_usd.usd.mesh import define_mesh, label, write_class
 from humv_usd.usd.paths import material_path
@@ -161,3 +162,28 @@ def author_chair(stage, path, chair: dict, body_points: np.ndarray | None, insta
     if body_points is not None:
         info["bodyMinDistance_m"] = round(float(inside_chair(chair, body_points, body_points).min()), 6)
     prim.SetCustomDataByKey("humv:chair", info)
+
+
+#: catalogue-like name of the carried box among a person's props (instance ids ``prop:<id>:box``)
+BOX = "box"
+
+
+def author_box(stage, path, centre, size, skeleton_path, joint_index: int, instance_id: int | None) -> None:
+    """Define the box carried in both hands at ``path`` (a child of the person's SkelRoot): a
+    closed wooden box (:data:`CHAIR_MATERIAL`) at ``centre``/``size`` in rest coordinates,
+    bound 100 % to the joint ``joint_index`` (the Hips: the carry's grasp points are fixed in
+    its frame), labelled class ``prop`` (its own instance id when given)."""
+    centre, size = np.asarray(centre, float), np.asarray(size, float)
+    pts, counts, idx = _box(centre - (0.0, 0.0, size[2] / 2), size)
+    mesh = define_mesh(stage, path, pts, counts, idx, material=material_path(CHAIR_MATERIAL))
+    prim = mesh.GetPrim()
+    joints = np.zeros((len(pts), 4), dtype=np.int32)
+    joints[:, 0] = joint_index
+    weights = np.zeros((len(pts), 4), dtype=np.float32)
+    weights[:, 0] = 1.0
+    usdskel.bind_mesh(prim, skeleton_path, joints, weights)
+    if instance_id is None:
+        write_class(prim, "prop")
+    else:
+        label(prim, int(instance_id), "prop")
+    prim.SetCustomDataByKey("humv:box", {"size_m": [round(float(v), 5) for v in size]})

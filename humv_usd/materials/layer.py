@@ -13,7 +13,7 @@ from humv_usd.catalog.skin import skin_material_name
 from humv_usd.catalog.snow import cover_name
 from humv_usd.human.chair import CHAIR_MATERIAL
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.ids import sits_on_chair
+from humv_usd.scenario.ids import carries_box, sits_on_chair
 from humv_usd.scenario.inputs import FRAMES
 from humv_usd.scenario.places import scene_materials, scene_objects
 from humv_usd.usd.layers import SCOPES, finish, library_layer_main, new_layer_stage
@@ -30,6 +30,7 @@ READS = (
     "human.*.clothing_prints",
     "human.*.clothing_print_colors",
     "human.*.activity",
+    "human.*.bvh",
     "human.*.hair_color",
     "scene.ground.material",
     "scene.ground.puddles",
@@ -46,10 +47,10 @@ READS = (
     "scene.place",
 )
 UPSTREAM = ()
-#: 9: garment prints (two dyes and their mix) and the wood of a sitChair chair;
 #: 3: /World/Materials a Scope; 4: warm clutter and generated places; 5: SWIR bands of fabrics;
 #: 6: water for puddles after rain; 7: snow on the ground (and the library snow's spectrum);
-#: 8: shallow snow over the ground's and the roofs' materials (<material>__snow<mm>)
+#: 8: shallow snow over the ground's and the roofs' materials (<material>__snow<mm>);
+#: 9: garment prints (two dyes and their mix) and the wood of a sitChair chair or a carried box
 VERSION = "9"
 #: material of the scene layer's puddles (humv_usd.scene.puddles.MATERIAL; tests/test_puddles.py)
 PUDDLE_MATERIAL = "water"
@@ -75,8 +76,8 @@ def used_materials(scenario: Scenario) -> list[str]:
                 h.get("clothing_print_colors"),
             )
         )
-        if any(sits_on_chair(h) for h in scenario["human"]):
-            names.add(CHAIR_MATERIAL)  # the chair the avatar tool authors (humv_usd.human.chair)
+        if any(sits_on_chair(h) or carries_box(h) for h in scenario["human"]):
+            names.add(CHAIR_MATERIAL)  # the chair or box the avatar tool authors (humv_usd.human.chair)
     scene = scenario["scene"]
     if scene:
         names.update(ground_materials(scenario))

@@ -22,7 +22,7 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
     zones (``ground_zone:<index>``, :mod:`humv_usd.scene.ground`) and the puddles
     (``ground_puddles``, :mod:`humv_usd.scene.puddles`), then the props people carry (``prop:<human id>:<catalogue name>``, people in file order,
     each one's props in the order of its ``clothing`` list, then ``prop:<human id>:chair`` when it
-    sits on a chair). Props come last so that adding
+    sits on a chair, ``prop:<human id>:box`` when it carries the box). Props come last so that adding
     or dropping one never renumbers a person or a scene object."""
     ids: dict[str, int] = {}
     for h in scenario["human"]:
@@ -51,6 +51,8 @@ def instance_ids(scenario: Scenario) -> dict[str, int]:
                 ids[f"prop:{h['id']}:{g.name}"] = len(ids) + 1
         if sits_on_chair(h):  # the chair the person sits on (humv_usd.human.chair)
             ids[f"prop:{h['id']}:chair"] = len(ids) + 1
+        if carries_box(h):  # the box carried in both hands (humv_usd.human.carry.carried_box)
+            ids[f"prop:{h['id']}:box"] = len(ids) + 1
     return ids
 
 
@@ -74,3 +76,9 @@ def site_layer_prims(file: str) -> list[str]:
         return []
     spec = layer.GetPrimAtPath(SITE_SCOPE) if layer is not None else None
     return [child.name for child in spec.nameChildren] if spec else []
+
+
+def carries_box(human: dict) -> bool:
+    """Whether a ``[[human]]`` entry carries the box in both hands (``activity = "carry"``, not a
+    BVH clip): the avatar tool then authors the box (:func:`humv_usd.human.carry.carried_box`)."""
+    return human.get("activity") == "carry" and not human.get("bvh")

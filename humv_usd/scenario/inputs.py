@@ -17,7 +17,8 @@ A tool declares ``READS``, a tuple of read paths:
 * ``"@instanceId[{id}]"`` -- that person's instance id alone; ``"@carriesRifle[{id}]"`` -- whether
   that person's clothing holds the rifle (the avatar's arms take the carry pose);
   ``"@holds[{id}]"`` -- the prop held in the right hand (phone, phone_call, handbag) or None;
-  ``"@chairId[{id}]"`` -- the instance id of the chair the person sits on, or None: a per-person
+  ``"@chairId[{id}]"``, ``"@boxId[{id}]"`` -- the instance id of the chair the person sits on,
+  of the box it carries, or None: a per-person
   layer that reads these instead of the whole entry is shared between scenarios that differ only
   in what it does not read (e.g. avatars across outfits).
 
@@ -126,6 +127,11 @@ def _chair_id(scenario: Scenario, human_id: str) -> int | None:
     return instance_ids(scenario).get(f"prop:{human_id}:chair")
 
 
+def _box_id(scenario: Scenario, human_id: str) -> int | None:
+    """The instance id of the box the person carries (``prop:<id>:box``), or None."""
+    return instance_ids(scenario).get(f"prop:{human_id}:box")
+
+
 def _crowd(scenario: Scenario, human_id: str) -> list | None:
     """Where everybody starts and goes, for a person who avoids the others (placement
     ``avoidance``; None when they do not): their avoided path depends on all of these."""
@@ -152,6 +158,7 @@ DERIVED_PER_PERSON = {
     "@carriesRifle": _carries_rifle,
     "@holds": _holds,
     "@chairId": _chair_id,
+    "@boxId": _box_id,
     "@crowd": _crowd,
 }
 
