@@ -1,5 +1,6 @@
-"""Labels of the chair and a held prop (issue 29.3/29.6), end to end: a person sitting down on
-the authored chair with a phone held in front, composed and rendered (2 fps, 64 x 48);
+"""Labels of the chair, the carried box and a held prop (issue 29.3/29.6), end to end: a person
+sitting down on the authored chair with a phone held in front, and one carrying the box,
+composed and rendered (2 fps, 64 x 48);
 each one's instance mask against an independent ray cast of the stage (UsdSkel's own skinning,
 the camera's frustum, embree), as tests/test_pose_labels.py does for the poses."""
 
@@ -22,7 +23,8 @@ pytestmark = [
 W, H = 64, 48
 
 
-def test_chair_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, tmp_path):
+@pytest.mark.parametrize("activity", ["sitChair", "carry"])
+def test_chair_box_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, tmp_path, activity):
     import trimesh
     from test_pose_labels import _triangles
 
@@ -32,11 +34,11 @@ def test_chair_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, tmp_
 
     fps = 2.0
     raw["general"]["fps"] = fps
-    raw["general"]["duration_s"] = 4.0
+    raw["general"]["duration_s"] = 4.0 if activity == "sitChair" else 0.5  # a walk leaves the view
     person = raw["human"][0]
-    person["activity"] = "sitChair"
+    person["activity"] = activity
     person.pop("speed_m_s", None)
-    person["clothing"] = ["tshirt_white", "jeans", "phone"]
+    person["clothing"] = ["tshirt_white", "jeans"] + (["phone"] if activity == "sitChair" else [])
     raw["placement"][0]["heading_deg"] = 0.0
     raw["placement"][0]["position_m"] = [0.0, 0.0, 0.0]
     raw["thermal"] = {"model": "fixed"}
@@ -49,7 +51,7 @@ def test_chair_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, tmp_
             "focal_length_mm": 3.0,
             "pixel_pitch_um": 17.0,
             "position_m": [3.5, -0.45, 1.3],
-            "look_at_m": [0.0, -0.45, 0.55],
+            "look_at_m": [0.0, -0.45, 0.55] if activity == "sitChair" else [0.0, -0.3, 0.9],
         }
     ]
     compose(validate(raw), tmp_path, yes=True)
@@ -78,12 +80,12 @@ def test_chair_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, tmp_
     hit = np.full(W * H, "", dtype=object)
     hit[ray_idx] = [owner[t] for t in tri_idx]
     props = f"/World/Humans/{pid}/Props/"
+    names = ("chair", "phone") if activity == "sitChair" else ("box",)
     cases = {
         f"/World/Humans/{pid}": np.array(
             [h.startswith(f"/World/Humans/{pid}") and not h.startswith(props) for h in hit]
         ),
-        props + "chair": np.array([h == props + "chair" for h in hit]),
-        props + "phone": np.array([h == props + "phone" for h in hit]),
+        **{props + n: np.array([h == props + n for h in hit]) for n in names},
     }
     for prim, expect in cases.items():
         expect = expect.reshape(H, W)
@@ -92,4 +94,4 @@ def test_chair_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, tmp_
         agree = (expect == got).mean()
         print(f"{prim}: mask agreement {agree:.4f}, {expect.sum()} px")
         assert agree >= 0.99
-    assert by_prim[props + "chair"]["class"] == "prop" and by_prim[props + "phone"]["class"] == "prop"
+    assert all(by_prim[props + n]["class"] == "prop" for n in names)
