@@ -40,8 +40,9 @@ def _stage_of(path: Path, workdir: str) -> Path:
 def bench_frames(path, sensor: str | None = None, frames: int = 8, spp: int | None = None) -> dict:
     """Render frames 0..``frames`` of ``sensor`` (default: the first IR sensor) and time them.
 
-    Returns a dict: ``per_frame`` (one row per timed frame: wall, cpu, estimator, conversions,
-    labels, write, load_export [s]), ``median`` of each, ``labels_fraction`` (median labels /
+    Returns a dict: ``per_frame`` (one row per timed frame: wall, cpu, estimator, estimator_cpu,
+    conversions, labels, labels_cpu, write, load_export [s]; the CPU columns are the process's CPU
+    time, all threads, the background writer's included), ``median`` of each, ``labels_fraction`` (median labels /
     median render), ``writer_s_per_frame`` (the background writer's wall time per frame),
     ``writer_cpu_s_per_frame`` (its CPU), ``sensor``, ``resolution``, ``frames_timed``, ``load_average``.
     """
@@ -73,15 +74,19 @@ def bench_frames(path, sensor: str | None = None, frames: int = 8, spp: int | No
                 "wall": ends[i] - ends[i - 1] if i < len(ends) else None,
                 "cpu": t["cpu"],
                 "estimator": est,
+                "estimator_cpu": t.get("estimator_cpu"),
                 "conversions": t["render"] - est,
                 "labels": t["labels"],
+                "labels_cpu": t.get("labels_cpu"),
                 "write": t["write"],
                 "load_export": t["load_export"],
                 "render": t["render"],
             }
         )
     keys = [k for k in rows[0] if k != "frame"] if rows else []
-    median = {k: statistics.median([r[k] for r in rows if r[k] is not None]) for k in keys}
+    median = {
+        k: statistics.median(v) if (v := [r[k] for r in rows if r[k] is not None]) else None for k in keys
+    }
     timings = manifest["timings_s"]
     return {
         "sensor": s["name"],

@@ -55,10 +55,11 @@ def bench_frame(scenario: Path, sensor: str | None, frames: int, spp: int | None
         f"spp used {out['spp_used']}, load average {' '.join(f'{v:.2f}' for v in out['load_average'])}"
     )
     click.echo(f"  wall per frame          {_s(m.get('wall'))} s   (CPU {_s(m.get('cpu'))} s)")
-    click.echo(f"    estimator             {_s(m.get('estimator'))} s")
+    click.echo(f"    estimator             {_s(m.get('estimator'))} s   (CPU {_s(m.get('estimator_cpu'))} s)")
     click.echo(f"    conversions           {_s(m.get('conversions'))} s   (BT, error in K, edges, stats)")
     click.echo(
-        f"    labels                {_s(m.get('labels'))} s   ({out['labels_fraction']:.3f} x the render)"
+        f"    labels                {_s(m.get('labels'))} s   (CPU {_s(m.get('labels_cpu'))} s; "
+        f"{out['labels_fraction']:.3f} x the render)"
     )
     click.echo(f"    writes (foreground)   {_s(m.get('write'))} s")
     click.echo(f"    scene update, export  {_s(m.get('load_export'))} s")
