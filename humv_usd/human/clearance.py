@@ -4,12 +4,13 @@ Why: the procedural motions hang the arms 9-12 deg (walk, run) or 18 deg (stand)
 vertical, the key poses and motion-capture clips have their own arm angles, and bodies differ
 (a heavy body's arm meets its trunk at a larger angle). Where the skeleton's upper arm passes
 close to the trunk, the skinned arm goes into it. ``humv-usd bench skinning``
-(:mod:`humv_usd.bench.skinning`) on the demo body over a 3 s walk: 101 body vertices (1 mm off
-their own skin) inside the body, 55 of them on the arms, and 37 T-shirt triangle centres inside
-the body. Dual quaternion skinning (Kavan et al. 2008; :func:`humv_usd.human.skeleton.
-dual_quaternion_skinning`) removes linear blending's volume loss but not this: 92 and 47 (the
-bench prints both for every activity; 0-15 % fewer everywhere), because the pose *places* the
-arm in the trunk; the blend does not collapse it there. A real arm rests against the trunk and
+(:mod:`humv_usd.bench.skinning`) on the demo body over a 3 s walk: 92 body vertices (1 mm off
+their own skin) inside the body, 52 of them on the arms, and 40 T-shirt triangle centres inside
+the body; after :func:`clear_arms` 28, 7 and 0. Dual quaternion skinning (Kavan et al. 2008;
+:func:`humv_usd.human.skeleton.dual_quaternion_skinning`) removes linear blending's volume loss
+but not this: 92 and 47 on the arms (the bench prints both for every activity; 0-20 % fewer,
+sitting more), because the pose *places* the arm in the trunk; the blend does not collapse it
+there. A real arm rests against the trunk and
 the soft tissue flattens. A surface model without contact deformation has to hold the arm off.
 
 What :func:`clear_arms` does, per checked frame and side:
