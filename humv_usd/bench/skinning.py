@@ -42,6 +42,7 @@ from humv_usd.clothing.fit import prepare
 from humv_usd.geometry.mesh import vertex_normals
 from humv_usd.human.body import build_body
 from humv_usd.human.bvh import motion_from_bvh
+from humv_usd.human.carry import apply_rifle_carry
 from humv_usd.human.clearance import arm_body, clear_arms
 from humv_usd.human.motion import make_motion
 from humv_usd.human.skeleton import (
@@ -51,13 +52,15 @@ from humv_usd.human.skeleton import (
     skinning_matrices,
 )
 
-#: built-in activities measured by default, then the motion-capture clips (``bvh:<name>``)
+#: built-in activities measured by default (``<activity>+rifle``: with the rifle carry), then
+#: the motion-capture clips (``bvh:<name>``)
 ACTIVITIES = (
     "stand",
     "standTurn",
     "walk",
     "run",
     "carry",
+    "walk+rifle",
     "sit",
     "sitChair",
     "crouch",
@@ -100,6 +103,9 @@ def _part(name: str) -> str:
 
 
 def _motion(activity: str, skeleton, body, fps: float, frames: int):
+    if activity.endswith("+rifle"):  # the activity with the two-handed rifle carry
+        motion = _motion(activity.removesuffix("+rifle"), skeleton, body, fps, frames)
+        return apply_rifle_carry(motion, skeleton, body)
     if activity.startswith("bvh:"):
         return motion_from_bvh(
             mocap_dir() / f"{activity[4:]}.bvh",
@@ -139,10 +145,9 @@ def bench_skinning(
         t0 = time.process_time()
         motion = _motion(activity, skeleton, body, fps, frames)
         report: dict = {}
-        # hands on the box keep their place: the avatar tool swivels those arms
-        cleared = clear_arms(
-            motion, skeleton, arms, report, mode="swivel" if activity == "carry" else "abduct"
-        )
+        # hands on the box or the rifle keep their place: the avatar tool swivels those arms
+        held = activity == "carry" or activity.endswith("+rifle")
+        cleared = clear_arms(motion, skeleton, arms, report, mode="swivel" if held else "abduct")
         t_clear = time.process_time() - t0
         # frames inside the clip, off the clearance's 5 Hz checks (what the interpolation gives)
         last = len(motion.root_translation) - 1
@@ -203,5 +208,7 @@ def table(result: dict) -> list[str]:
             garm = ", ".join(f"{k} {v}" for k, v in e.get("garment_inside", {}).items())
             lines.append(f"{activity:<28} {how:<8} {e['body_inside']:>4}  ({parts})  {garm}")
         add = ", ".join(f"{s} {v:.1f}" for s, v in row["arm_abduction_added_deg"].items())
-        lines.append(f"{'':<28} arms abducted by up to {add} deg; clear_arms {row['clear_cpu_s']} CPU-s")
+        lines.append(
+            f"{'':<28} arms turned out (abducted, or swivelled with the hands held) by up to {add} deg; clear_arms {row['clear_cpu_s']} CPU-s"
+        )
     return lines

@@ -17,7 +17,7 @@ from humv_usd.fileio import write_json
 @click.option(
     "--activities",
     default=None,
-    help="Comma-separated activities (built-in names or bvh:<clip>); default: all of "
+    help="Comma-separated activities (built-in names, <name>+rifle, or bvh:<clip>); default: all of "
     "humv_usd.bench.skinning.ACTIVITIES.",
 )
 @click.option(
@@ -46,9 +46,12 @@ def bench_skinning(
     from humv_usd.human.motion import ACTIVITIES as BUILT_IN
 
     names = ACTIVITIES if activities is None else tuple(a.strip() for a in activities.split(",") if a.strip())
-    bad = [a for a in names if not (a.startswith("bvh:") or a in BUILT_IN)]
+    bad = [a for a in names if not (a.startswith("bvh:") or a.removesuffix("+rifle") in BUILT_IN)]
     if bad:
-        raise InputError(f"--activities = {bad[0]!r}: allowed: {', '.join(BUILT_IN)} or bvh:<clip>")
+        raise InputError(
+            f"--activities = {bad[0]!r}: allowed: {', '.join(BUILT_IN)} (+rifle: with the rifle carry) "
+            "or bvh:<clip>"
+        )
     result = bench_skinning(names, seconds=seconds, samples=samples, garments=garments)
     click.echo("\n".join(table(result)))
     if json_out is not None:
