@@ -22,11 +22,11 @@ BODY_SLIP_M = {
     "crouch": 0.005,
     "kneel": 0.01,
     "wave": 0.005,
-    "lieSupine": 0.12,
-    "lieSide": 0.12,
+    "lieSupine": 0.025,  # the seat and back roll between sitting and lying (was 0.054 m)
+    "lieSide": 0.025,
     "lieProne": 0.01,  # the hands held while lowering from hands and knees (was 0.11 m)
     "fall": 0.01,
-    "getUp": 0.12,
+    "getUp": 0.025,
 }
 #: the group that must rest on the ground (within 1 cm) in the held end pose
 RESTS_ON = {

@@ -22,6 +22,10 @@ planted on the ground in it). :func:`make_pose_motion` turns the list into a cli
    posed on it by the analytic two-bone IK of :mod:`humv_usd.human.contact` (the root is
    lowered where a planted foot would be out of reach).
 
+Between sitting and hook lying (feet planted in both keys, the seat or back on the ground in
+both) the root follows the rolling rule of the seat and back alone, the legs reaching the planted
+feet: the buttocks no longer slide 5 cm as the back rolls down.
+
 Hands that rest on the ground in a key (hands and knees) stay where they are while the body
 moves in the transitions out of and into it: held for the part of the transition next to that
 key (wrist and hand frozen, the arm by two-bone IK with the elbow on the designed side), then
@@ -604,6 +608,16 @@ def make_pose_motion(
     if free.any():
         root_xy = _rolling_xy(ground, rel, root_xy, z, free)
         z = _root_heights(ground, keys, tl, points, rel, root_xy, pinned)
+    # the seat or back that rests on the ground in both keys while the feet stay planted (sitting
+    # <-> hook lying) rolls without sliding too; the legs reach the planted feet
+    seated = np.array([any(g in ("Seat", "Trunk") for g in k.support) for k in keys])
+    rolls = (tl.s > 0) & (tl.s < 1) & seated[tl.k0] & seated[tl.k1] & (pinned["Left"] | pinned["Right"])
+    if rolls.any():
+        feet_pts = np.zeros(len(points.rest), bool)
+        for g in ("LeftLeg", "RightLeg"):
+            feet_pts[points.groups[g]] = True
+        root_xy = _rolling_xy(ground, rel, root_xy, z, rolls, exclude=feet_pts)
+        z = _root_heights(ground, keys, tl, points, rel, root_xy, pinned)
     root_pos = np.column_stack([root_xy, z])
     # plant the pinned feet and pose the legs on them
     swing = {side: ~pinned[side] & (tl.s > 0) & (tl.s < 1) for side in SIDES}
@@ -705,13 +719,16 @@ def _root_heights(ground, keys, tl, points, rel, root_xy, pinned) -> np.ndarray:
     return z + np.maximum(lift, 0.0)
 
 
-def _rolling_xy(ground, rel, root_xy, z, free, tol=CONTACT_TOL) -> np.ndarray:
+def _rolling_xy(ground, rel, root_xy, z, free, tol=CONTACT_TOL, exclude=None) -> np.ndarray:
     """Root ground positions in which the body points that stay in contact from one frame to
     the next do not move horizontally on average (in the ``free`` frames: transitions with no
-    planted foot); elsewhere the given steps are kept."""
+    planted foot); elsewhere the given steps are kept. ``exclude``: points left out (e.g. the
+    planted legs, which the IK holds)."""
     steps = np.diff(root_xy, axis=0)
     pos = rel + np.column_stack([root_xy, z])[:, None, :]
     touch = pos[..., 2] - ground.height(pos[..., :2]) <= tol
+    if exclude is not None:
+        touch &= ~exclude
     for f in np.flatnonzero(free[1:]) + 1:
         common = touch[f - 1] & touch[f]
         if common.any():
