@@ -120,10 +120,14 @@ def test_hold_over_a_walk(name):
             ["phone_call", "tshirt_white", "handbag"],
             "human[0].clothing[2] = 'handbag': the right hand already holds 'phone_call'",
         ),
+        (
+            ["tshirt_white", "phone"],
+            "human[0].clothing[1] = 'phone': the hands carry the box (activity carry)",
+        ),
     ],
 )
 def test_one_thing_in_the_right_hand(clothing, line):
-    raw = avatar_scenario_dict()
+    raw = avatar_scenario_dict(activity="carry" if "carry" in line else "stand")
     raw["human"][0]["clothing"] = clothing
     with pytest.raises(InputError) as info:
         validate(raw)

@@ -324,6 +324,12 @@ def _check_garments(data: dict, problems: list[str]) -> None:
                 problems.append(
                     bad_value(f"human[{i}].clothing[{k}]", name, f"the right hand already holds {held!r}")
                 )
+            elif (
+                canonical in LONG_GUNS + HELD_PROPS and hum.get("activity") == "carry" and not hum.get("bvh")
+            ):
+                problems.append(
+                    bad_value(f"human[{i}].clothing[{k}]", name, "the hands carry the box (activity carry)")
+                )
             seen.add(canonical)
 
 
