@@ -48,3 +48,21 @@ def test_a_frame_short_of_its_quality_target_says_so(capsys):
     manifest["sensors"][0]["quality"] = {"met": True, "frames_not_met": [], "regions_not_met": []}
     echo_render_summary(manifest, "out", "fast")
     assert "quality target met" in capsys.readouterr().out
+
+
+def test_the_person_error_is_printed_with_the_thermal_layers_noise(capsys):
+    """Issue 25.3: the line names the person's mean error away from edges (the largest over the
+    frames) and, where larger, with the thermal layer's face noise, which the stopping rule does
+    not see; no person, nothing."""
+    manifest = _manifest(0.9, 0.05)
+    person = {"mean_k": 0.0114, "total_error_mean_k": 0.0372}
+    manifest["sensors"][0]["frames"] = [
+        {"quality": {"regions": {"person": person}}},
+        {"quality": {"regions": {"person": {"mean_k": 0.0090, "total_error_mean_k": 0.0301}}}},
+    ]
+    echo_render_summary(manifest, "out", "fast")
+    line = [x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("lwir:")][0]
+    assert "person 0.0114 K (0.0372 K with the thermal layer's noise)" in line
+    manifest["sensors"][0]["frames"] = [{"quality": {"regions": {"ground": person}}}]
+    echo_render_summary(manifest, "out", "fast")
+    assert "person" not in capsys.readouterr().out

@@ -336,13 +336,33 @@ def echo_render_summary(manifest: dict, out_dir, estimator: str) -> None:
                 )
             # NIR/SWIR (reflected light, no NETD): relative to the mean radiance, not in K
             unit = _percent if away.get("unit") else _kelvin
+            person = "" if away.get("unit") else _person_error(sensor)
             click.echo(
                 f"  {sensor['name']}: error away from edges mean {unit(away['mean_k'], 4)}, p99 "
                 f"{unit(away.get('p99_max_k'), 4)}; edge pixels {unit(away.get('edge_mean_k'), 3)} "
-                f"(footprint){per_frame}{verdict}"
+                f"(footprint){per_frame}{person}{verdict}"
             )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
+
+
+def _person_error(sensor: dict) -> str:
+    """ "; person 0.0114 K (0.0372 K with the thermal layer's noise)": the largest per-frame mean
+    error of the person's pixels away from edges, the render's alone and, where larger, with the
+    thermal layer's stated face noise (issue 25.3: the image's error hid the person's, and the
+    stopping rule sees the render's error only); "" without person pixels."""
+    rows = [
+        ((f.get("quality") or {}).get("regions") or {}).get("person")
+        for f in sensor.get("frames", [])
+        if isinstance(f, dict)
+    ]
+    rows = [r for r in rows if r and r.get("mean_k") is not None]
+    if not rows:
+        return ""
+    render = max(r["mean_k"] for r in rows)
+    total = max(r.get("total_error_mean_k") or r["mean_k"] for r in rows)
+    noise = f" ({total:.4f} K with the thermal layer's noise)" if total > render else ""
+    return f"; person {render:.4f} K{noise}"
 
 
 def _percent(value, digits: int) -> str:
