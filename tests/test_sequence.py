@@ -216,3 +216,20 @@ def test_low_frame_rates_sample_the_same_sequence(rig, seq):
         np.abs(np.sum(m5.local_rotations * seq.local_rotations[::2], -1)), 1.0, atol=1e-9
     )
     assert m5.contact["max_penetration_m"] <= 0.01
+
+
+@needs_rig
+def test_segments_after_the_clip_are_not_simulated(rig):
+    """A clip shorter than its segments keeps the ones that start inside it; the last of those
+    lasts to the end (a sit followed by a walk after the clip's end need not get up again)."""
+    from humv_usd.human.sequence import make_sequence_motion
+
+    body, sk = rig
+    segs = [
+        {"activity": "sit", "duration_s": 3.0},
+        {"activity": "walk", "distance_m": 4.0},
+        {"activity": "lieProne"},
+    ]
+    m = make_sequence_motion(segs, sk, 10.0, 31, body_points=body.points)
+    assert m.gait["windows"] == [] and m.frame_count == 31
+    assert m.root_translation[-1, 2] < 0.3  # still seated at 3 s

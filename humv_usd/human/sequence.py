@@ -297,6 +297,8 @@ class _Sequence:
         fps, F = self.fps, self.F
         bounds = self._bounds()
         blocks = self._blocks()
+        # segments that start after the clip's end are not simulated (the one before lasts)
+        blocks = [b for n, b in enumerate(blocks) if n == 0 or bounds[b[1][0]] < self.end_t]
         owners: list[tuple[int, _Clip]] = []  # (first global frame owned, clip)
         windows = []  # (kind, A, B, w0, w1, plans)
         prev: _Clip | None = None
