@@ -29,7 +29,8 @@ Monte Carlo noise for the same rays:
   samples are a Cranley-Patterson rotated 2-D Fibonacci lattice per pixel (one random shift per
   pixel and dimension pair); the standard error is estimated from ``replicas`` independent
   randomisations (the unbiased estimator for randomised quasi-Monte Carlo, Owen 1997), so the
-  stratification's gain is measured, not assumed.
+  stratification's gain is measured, not assumed. As written the shift is drawn per lane, so
+  the points are iid uniform (:func:`_rotated_lattice`; issue 31.1).
 - **Russian roulette** from the second bounce (survival :math:`\\min(0.95, \\max(\\beta, 0.1))`),
   so the estimator is unbiased for any reflectance (furnace test).
 
