@@ -71,6 +71,15 @@ def test_manifest_records_the_relative_error_and_the_samples_used(tmp_path):
     assert err["spp_used"] and min(err["spp_used"]) >= eo_fast.DEFAULT_EO_SPP
     frame = eo["frames"][0]
     assert frame["monte_carlo_error_relative"]["spp_used"] in err["spp_used"]
+    # the automatic quality as in every band (issue 25.3): at least 2 batches (>= 4 replicas per
+    # pixel), judged on the image and each labelled region, its verdict per frame and sensor
+    q = frame["quality"]
+    assert q["batches"] >= 2 and q["replicas_per_pixel"] >= 4 and q["error_dof"] >= 3
+    assert (
+        q["met"] is True and q["image_met"] is True and q["targets_k"]["mean_k"] == eo_fast.EO_TARGET_RELATIVE
+    )
+    assert all(r["mean_k"] <= eo_fast.EO_TARGET_RELATIVE for r in q["regions"].values() if r["met"])
+    assert eo["quality"]["met"] is True and eo["quality"]["frames_not_met"] == []
     assert {"render", "labels", "write", "cpu"} <= set(frame["timings_s"])
     # the plate under sun and sky: Y = rho (E_sun cos + pi L_sky) / pi, everywhere in view
     ch = read_exr(tmp_path / "auto" / "eo" / "0000.exr")
@@ -81,6 +90,7 @@ def test_manifest_records_the_relative_error_and_the_samples_used(tmp_path):
     # a given spp is used exactly; spp 1 renders and says the error is not estimable
     given = render_stage(stage, tmp_path / "four", spp=4)["eo_sensors"][0]
     assert given["monte_carlo_error_relative"]["spp_used"] == [4] and not given["spp_auto"]
+    assert given["frames"][0]["quality"]["met"] is None and given["quality"]["met"] is None
     one = render_stage(stage, tmp_path / "one", spp=1)["eo_sensors"][0]
     assert one["monte_carlo_error_relative"]["mean"] is None
     assert "not estimable" in one["monte_carlo_error_relative"]["not_estimable"]
