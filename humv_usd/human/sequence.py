@@ -167,12 +167,13 @@ def make_sequence_motion(
         segs, skeleton, k * float(fps), (frames - 1) * k + 1, path, ground, mass_kg, body_points, seed, where
     )
     local, root, met, stance, info = sim.run()
+    # the contact report on every simulated frame: on the kept ones a foot's stances a stride
+    # apart merged into one (a 1 fps walk reported metres of slip)
+    wrot, wpos = fk_matrices(skeleton, local, local[:, 0], root)
+    report = C.contact_report(sim.ground, sim.feet, wrot, wpos, stance)
     keep = slice(0, None, k)
     local, root, met = local[keep], root[keep], met[keep]
     stance = {s: m[keep] for s, m in stance.items()}
-    g = sim.ground
-    wrot, wpos = fk_matrices(skeleton, local, local[:, 0], root)
-    report = C.contact_report(g, sim.feet, wrot, wpos, stance)
     info["stance"] = {s.lower(): m for s, m in stance.items()}
     info["windows"] = [(kind, w0 / k, w1 / k) for kind, w0, w1 in info["windows"]]
     quats = _continuous(matrix_to_quat(local))
