@@ -14,6 +14,8 @@ A tool declares ``READS``, a tuple of read paths:
   (:data:`CLUTTER_AIR`), or None when the scene has no clutter: the scene layer reads them only
   then, so a scene without clutter is not rebuilt for a new start time or weather;
 * ``"@puddles"`` -- the seed and whether it rained, when the ground has puddles (else None);
+* ``"@wood"`` -- whether a person sits on a chair or carries a box (the props' wood): the
+  materials layer reads it instead of every person's activity, so it is shared across motions;
 * ``"@instanceId[{id}]"`` -- that person's instance id alone; ``"@carriesRifle[{id}]"`` -- whether
   that person's clothing holds the rifle (the avatar's arms take the carry pose);
   ``"@holds[{id}]"`` -- the prop held in the right hand (phone, phone_call, handbag) or None;
@@ -39,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 from pxr import Sdf, UsdUtils
 
 from humv_usd.catalog.garments import HELD_PROPS, LONG_GUNS
-from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.ids import carries_box, instance_ids, sits_on_chair
 from humv_usd.scenario.places import scene_clutter
 from humv_usd.scenario.spec import SECTIONS
 
@@ -95,11 +97,18 @@ def _netd_origin(scenario: Scenario) -> list[str]:
     return list(scenario.netd_origin)
 
 
+def _wood(scenario: Scenario) -> bool:
+    """Whether a person sits on a chair or carries a box (the wood the materials tool writes for
+    the props the avatar tool authors)."""
+    return any(sits_on_chair(h) or carries_box(h) for h in scenario["human"])
+
+
 DERIVED = {
     "@ids": instance_ids,
     "@clutterAir": _clutter_air,
     "@netdOrigin": _netd_origin,
     "@puddles": _puddles,
+    "@wood": _wood,
 }
 #: the garment that changes the avatar's pose (humv_usd.catalog.garments: carried in both hands)
 RIFLE = "rifle"
