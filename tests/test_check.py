@@ -146,3 +146,28 @@ def test_skinned_mesh_with_time_sampled_points_is_a_finding():
 
     UsdSkel.BindingAPI(stage.GetPrimAtPath("/Rig/Cloth")).GetJointIndicesPrimvar().GetAttr().Clear()
     assert rule_skinned_points(stage) == []
+
+
+def test_a_layer_rewritten_on_disk_is_read_again_in_the_same_process(tmp_path):
+    """A process that opened a folder and then sees it recomposed (tests, the editor's worker)
+    checks and renders the files as they are now, not the layers still held in memory."""
+    from humv_usd.usd.layers import open_stage
+
+    sub = tmp_path / "sub.usda"
+    root = tmp_path / "stage.usda"
+    layer = Sdf.Layer.CreateNew(str(sub))
+    prim = Sdf.PrimSpec(layer, "P", Sdf.SpecifierDef)
+    Sdf.AttributeSpec(prim, "v", Sdf.ValueTypeNames.Int).default = 1
+    layer.Save()
+    top = Sdf.Layer.CreateNew(str(root))
+    top.subLayerPaths.append("sub.usda")
+    top.Save()
+    held = open_stage(root)  # keeps the layers loaded
+    assert held.GetPrimAtPath("/P").GetAttribute("v").Get() == 1
+    # another writer replaces the file (compose's atomic rename)
+    text = sub.read_text().replace("int v = 1", "int v = 2")
+    assert "int v = 2" in text
+    tmp = tmp_path / ".sub.tmp"
+    tmp.write_text(text)
+    tmp.replace(sub)
+    assert open_stage(root).GetPrimAtPath("/P").GetAttribute("v").Get() == 2

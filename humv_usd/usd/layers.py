@@ -223,7 +223,7 @@ def broken_sublayers(root: Sdf.Layer, keep: list | None = None) -> list[str]:
                 problems.append(f"{where} not found")
                 continue
             try:
-                child = Sdf.Layer.FindOrOpen(file)
+                child = find_or_open_current(file)
             except Exception as exc:  # pxr raises Tf.ErrorException
                 problems.append(f"{where} does not load ({usd_error_text(exc)})")
                 continue
@@ -281,6 +281,20 @@ def unfinished_set(root: Sdf.Layer) -> list[str]:
     return out
 
 
+def find_or_open_current(file: str) -> Sdf.Layer | None:
+    """``Sdf.Layer.FindOrOpen`` that reads the file again when a layer of that path is still
+    loaded in this process and the file changed since (``Reload`` re-reads only then; a layer with
+    unsaved edits is left as it is): a long-lived process (tests, the editor's worker) that opened
+    a composed folder, then recomposed it, otherwise checked and rendered the old layers (a
+    thermal layer with the first body's face counts over the second body's garments)."""
+    layer = Sdf.Layer.Find(file)
+    if layer is None:
+        return Sdf.Layer.FindOrOpen(file)
+    if not layer.dirty:
+        layer.Reload()
+    return layer
+
+
 def open_root_layer(path) -> Sdf.Layer:
     """The root layer of the stage file at ``path``, or InputError naming the file and the reason."""
     path = Path(path)
@@ -290,7 +304,7 @@ def open_root_layer(path) -> Sdf.Layer:
     if not path.is_file():
         raise InputError(f"{path}: stage file not found")
     try:
-        layer = Sdf.Layer.FindOrOpen(str(path))
+        layer = find_or_open_current(str(path))
     except Exception as exc:  # pxr raises Tf.ErrorException
         raise InputError(f"{path}: cannot open as a USD stage ({usd_error_text(exc)})") from None
     if layer is None:
