@@ -27,9 +27,9 @@ Monte Carlo noise for the same rays:
   control variates in rendering: Lafortune & Willems 1994).
 - **Stratified samples.** The pixel position and the first bounce direction of a pixel's spp
   samples are a Cranley-Patterson rotated 2-D Fibonacci lattice per (pixel, replica) cell (one
-  random shift per cell and dimension pair, :func:`_cell_shift`); the standard error is estimated from ``replicas`` independent
-  randomisations (the unbiased estimator for randomised quasi-Monte Carlo, Owen 1997), so the
-  stratification's gain is measured, not assumed.
+  random shift per cell and dimension pair, :func:`_cell_shift`); the standard error is
+  estimated from ``replicas`` independent randomisations (the unbiased estimator for randomised
+  quasi-Monte Carlo, Owen 1997), so the stratification's gain is measured, not assumed.
 - **Russian roulette** from the second bounce (survival :math:`\\min(0.95, \\max(\\beta, 0.1))`),
   so the estimator is unbiased for any reflectance (furnace test).
 
