@@ -84,3 +84,16 @@ def test_bvh_path_errors(walk_raw, tmp_path):
         validate(raw, tmp_path / "scenario.toml")
     assert any("human[0].bvh = 'missing.bvh': file not found" in p for p in info.value.problems)
     assert any("human[0].speed_m_s = 1.4: not with bvh" in p for p in info.value.problems)
+
+
+def test_bvh_path_from_the_home_folder(walk_raw, tmp_path, monkeypatch):
+    """``bvh = "~/..."`` (the docs' way to name the set-up's clips) is the home folder's file."""
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    clip = tmp_path / "home" / "clips" / "walk.bvh"
+    clip.parent.mkdir(parents=True)
+    clip.write_text("HIERARCHY\n")
+    raw = copy.deepcopy(walk_raw)
+    del raw["human"][0]["speed_m_s"]
+    raw["human"][0]["bvh"] = "~/clips/walk.bvh"
+    s = validate(raw, tmp_path / "elsewhere" / "scenario.toml")
+    assert s["human"][0]["bvh"] == str(clip.resolve())

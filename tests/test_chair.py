@@ -166,3 +166,19 @@ def test_the_avatar_tool_authors_the_carried_box_between_the_palms():
             hand = np.unique(np.asarray(mesh.face_indices)[(regions == L.REGION_ID[side])[face_of]])
             assert d[hand].min() == pytest.approx(PALM_GAP, abs=1e-3)
         assert d.min() > 0.0
+    # every USD consumer skins it (UsdSkel prunes untyped parents: the box stood still)
+    from pxr import UsdGeom, UsdSkel
+
+    assert stage.GetPrimAtPath(props_path("p1")).IsA(UsdGeom.Scope)
+    cache = UsdSkel.Cache()
+    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath("/World/Humans/p1")), Usd.PrimDefaultPredicate)
+    query = cache.GetSkinningQuery(box)
+    assert query and query.HasJointInfluences()
+    skel = cache.GetSkelQuery(UsdSkel.BindingAPI(box).GetInheritedSkeleton())
+    for f in (0, len(skin) - 1):
+        pts = box.GetAttribute("points").Get()
+        assert query.ComputeSkinnedPoints(
+            skel.ComputeSkinningTransforms(Usd.TimeCode(f)), pts, Usd.TimeCode(f)
+        )
+        want = rest_box @ skin[f, sk.index("Hips"), :3, :3].T + skin[f, sk.index("Hips"), :3, 3]
+        np.testing.assert_allclose(np.asarray(pts, float), want, atol=1e-4)

@@ -8,6 +8,7 @@ import ast
 import importlib.util
 import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -147,3 +148,49 @@ def test_the_renders_modules_import_only_the_packages_a_gpu_machine_is_given(gc)
         if top not in sys.stdlib_module_names and top != "humv_usd" and top not in gc.RENDER_PACKAGES
     }
     assert not extra, f"the render imports packages outside gpu_check.RENDER_PACKAGES: {extra}"
+
+
+@pytest.fixture(scope="module")
+def bundle():
+    spec = importlib.util.spec_from_file_location("gpu_bundle", TOOL.parent / "gpu_bundle.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_gpu_bundle_keeps_every_mitsuba_plugin_the_render_names(bundle):
+    """tools/gpu_bundle.py strips Mitsuba to MITSUBA_PLUGINS: every plugin type the render's
+    scene dicts name must be among them (else the scene fails to load on the GPU machine), and
+    every carried package is pinned in requirements.lock."""
+    root = TOOL.parents[1] / "humv_usd"
+    named = set()
+    for path in [*(root / "render").glob("*.py"), root / "geometry" / "raycast.py"]:
+        named |= set(re.findall(r'"type": "([a-z_0-9]+)"', path.read_text()))
+    assert {"ply", "moment", "envmap", "spot", "point"} <= named  # the scan sees the scene dicts
+    assert named - {"scene"} <= set(bundle.MITSUBA_PLUGINS)
+    pinned = bundle.pinned_versions()
+    assert all(name.lower() in pinned for name in bundle.CARRY)
+
+
+def test_stripping_mitsuba_keeps_the_renders_variants_and_plugins(bundle, tmp_path):
+    m = tmp_path / "mitsuba"
+    (m / "plugins").mkdir(parents=True)
+    (m / "include").mkdir()
+    (m / "include" / "a.h").write_text("x" * 10)
+    names = ["cuda_ad_mono", "cuda_ad_rgb", "llvm_ad_spectral", "llvm_ad_mono_polarized", "scalar_rgb"]
+    for name in names:
+        (m / f"{name}.cpython-312-x86_64-linux-gnu.so").write_bytes(b"x" * 100)
+    for name in ("ply", "moment", "sphere", "bitmap"):
+        (m / "plugins" / f"{name}.so").write_bytes(b"x" * 1000)
+    (m / "libmitsuba.so").write_bytes(b"x")
+    removed = bundle.strip_mitsuba(tmp_path)
+    left = sorted(p.relative_to(m).as_posix() for p in m.rglob("*") if p.is_file())
+    assert left == [
+        "cuda_ad_mono.cpython-312-x86_64-linux-gnu.so",
+        "libmitsuba.so",
+        "llvm_ad_spectral.cpython-312-x86_64-linux-gnu.so",
+        "plugins/moment.so",
+        "plugins/ply.so",
+        "scalar_rgb.cpython-312-x86_64-linux-gnu.so",
+    ]
+    assert removed == 2 * 100 + 2 * 1000 + 10

@@ -205,14 +205,34 @@ def test_avoidance_is_said_to_be_ignored_with_segments():
 
 @needs_rig
 def test_low_frame_rates_sample_the_same_sequence(rig, seq):
-    """Below 30 fps the sequence is simulated at k * fps >= 30 and decimated: at 5 fps it is the
-    10 fps clip's every other frame (both are the 30 fps simulation), feet still planted."""
+    """Below 30 fps the sequence is simulated at k * fps >= 30 and decimated: at 1 fps it is the
+    10 fps clip's every tenth frame (both are the 30 fps simulation), feet still planted; the
+    contact report is the simulation's (measured on 1 fps frames, a foot's stances a stride
+    apart merged into one: metres of slip)."""
     from humv_usd.human.sequence import make_sequence_motion
 
     body, sk = rig
-    m5 = make_sequence_motion(SEGMENTS, sk, 5.0, int(12 * 5) + 1, mass_kg=MASS, body_points=body.points)
-    np.testing.assert_allclose(m5.root_translation, seq.root_translation[::2], atol=1e-9)
+    m1 = make_sequence_motion(SEGMENTS, sk, 1.0, 13, mass_kg=MASS, body_points=body.points)
+    np.testing.assert_allclose(m1.root_translation, seq.root_translation[::10], atol=1e-9)
     np.testing.assert_allclose(
-        np.abs(np.sum(m5.local_rotations * seq.local_rotations[::2], -1)), 1.0, atol=1e-9
+        np.abs(np.sum(m1.local_rotations * seq.local_rotations[::10], -1)), 1.0, atol=1e-9
     )
-    assert m5.contact["max_penetration_m"] <= 0.01
+    assert m1.contact["max_penetration_m"] <= 0.01
+    assert m1.contact["max_slip_m"] == seq.contact["max_slip_m"] < 0.02
+
+
+@needs_rig
+def test_segments_after_the_clip_are_not_simulated(rig):
+    """A clip shorter than its segments keeps the ones that start inside it; the last of those
+    lasts to the end (a sit followed by a walk after the clip's end need not get up again)."""
+    from humv_usd.human.sequence import make_sequence_motion
+
+    body, sk = rig
+    segs = [
+        {"activity": "sit", "duration_s": 3.0},
+        {"activity": "walk", "distance_m": 4.0},
+        {"activity": "lieProne"},
+    ]
+    m = make_sequence_motion(segs, sk, 10.0, 31, body_points=body.points)
+    assert m.gait["windows"] == [] and m.frame_count == 31
+    assert m.root_translation[-1, 2] < 0.3  # still seated at 3 s

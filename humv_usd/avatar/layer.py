@@ -102,6 +102,10 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 21: the Props scope of the chair and the carried box is a Scope (was typeless: UsdSkel never
+#: skinned the box, which stood at its rest place while the person walked on);
+#: 20: below 30 fps a walk/run/carry/standing clip's humv:contact is the simulated motion's (a 1 fps
+#: walk reported 3-4.6 m of slip: its kept frames merged a foot's stances);
 #: 19: the seat and back roll without sliding between sitting and hook lying (poses);
 #: 18: the carried box authored (human.carry.carried_box), the palms on its sides (apply_box_hold);
 #: 17: hands on the ground held in the transitions out of and into hands-and-knees (poses._plant_hands);
@@ -123,7 +127,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "19"
+VERSION = "21"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -162,6 +166,11 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
     author_rig(stage, human["id"], body, motion, skin_material_name(human.get("skin_tone")))
     chair = (getattr(motion, "gait", None) or {}).get("chair")
+    carries_box = human["activity"] == "carry" and not human.get("bvh")
+    if chair is not None or carries_box:
+        # a typed (imageable) parent: UsdSkel prunes untyped prims with their children, so a box
+        # under a typeless Props was never skinned (it stood at its rest place in every frame)
+        UsdGeom.Scope.Define(stage, props_path(human["id"]))
     if chair is not None:  # the chair a sitChair pose sits on (humv_usd.human.chair)
         skeleton = skeleton_for(body.points, body.groups)
         author_chair(
@@ -171,7 +180,7 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
             posed_body_points(body, skeleton, motion),
             instance_ids(scenario).get(f"prop:{human['id']}:{CHAIR}"),
         )
-    if human["activity"] == "carry" and not human.get("bvh"):  # the box in both hands
+    if carries_box:  # the box in both hands
         skeleton = skeleton_for(body.points, body.groups)
         centre, size = carried_box(skeleton, body)
         author_box(

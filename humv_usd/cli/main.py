@@ -342,6 +342,24 @@ def echo_render_summary(manifest: dict, out_dir, estimator: str) -> None:
                 f"{unit(away.get('p99_max_k'), 4)}; edge pixels {unit(away.get('edge_mean_k'), 3)} "
                 f"(footprint){per_frame}{person}{verdict}"
             )
+    for sensor in manifest.get("eo_sensors", []):  # EO: the error of Y relative to the mean Y
+        rel = sensor.get("monte_carlo_error_relative") or {}
+        quality = sensor.get("quality") or {}
+        if rel.get("mean") is None:
+            continue
+        verdict = ""
+        if quality.get("met") is True:
+            verdict = "; quality target met"
+        elif quality.get("met") is False:
+            verdict = (
+                f"; quality target NOT met in {len(quality['frames_not_met'])} frame(s) at the spp cap "
+                f"({', '.join(quality['regions_not_met']) or 'image'})"
+            )
+        p99 = rel.get("p99_max")
+        click.echo(
+            f"  {sensor['name']}: error of Y away from edges mean {100.0 * rel['mean']:.2f} %, p99 "
+            f"{'n/a' if p99 is None else f'{100.0 * p99:.2f} %'} of the mean Y{verdict}"
+        )
     for item in manifest.get("skipped_sensors", []):
         click.echo(f"  skipped sensor {item['name']} ({item['band']}): {item['reason']}")
 

@@ -167,12 +167,13 @@ def make_sequence_motion(
         segs, skeleton, k * float(fps), (frames - 1) * k + 1, path, ground, mass_kg, body_points, seed, where
     )
     local, root, met, stance, info = sim.run()
+    # the contact report on every simulated frame: on the kept ones a foot's stances a stride
+    # apart merged into one (a 1 fps walk reported metres of slip)
+    wrot, wpos = fk_matrices(skeleton, local, local[:, 0], root)
+    report = C.contact_report(sim.ground, sim.feet, wrot, wpos, stance)
     keep = slice(0, None, k)
     local, root, met = local[keep], root[keep], met[keep]
     stance = {s: m[keep] for s, m in stance.items()}
-    g = sim.ground
-    wrot, wpos = fk_matrices(skeleton, local, local[:, 0], root)
-    report = C.contact_report(g, sim.feet, wrot, wpos, stance)
     info["stance"] = {s.lower(): m for s, m in stance.items()}
     info["windows"] = [(kind, w0 / k, w1 / k) for kind, w0, w1 in info["windows"]]
     quats = _continuous(matrix_to_quat(local))
@@ -297,6 +298,8 @@ class _Sequence:
         fps, F = self.fps, self.F
         bounds = self._bounds()
         blocks = self._blocks()
+        # segments that start after the clip's end are not simulated (the one before lasts)
+        blocks = [b for n, b in enumerate(blocks) if n == 0 or bounds[b[1][0]] < self.end_t]
         owners: list[tuple[int, _Clip]] = []  # (first global frame owned, clip)
         windows = []  # (kind, A, B, w0, w1, plans)
         prev: _Clip | None = None

@@ -59,7 +59,7 @@ def _needs_more_samples(plan, sensor, noise: dict, batches: int, regions: dict |
 #: the per-pixel error relative to the mean radiance away from edges to the EO camera's target
 #: (mean <= :data:`humv_usd.render.quality.EO_TARGET_RELATIVE`) through the infrared rule with
 #: this "NETD" in relative units (mean <= it / AUTO_NETD_FRACTION; p99 <= AUTO_P99_K, i.e. 10 %)
-REFLECTIVE_PSEUDO_NETD = Q.EO_TARGET_RELATIVE * Q.AUTO_NETD_FRACTION
+REFLECTIVE_PSEUDO_NETD = Q.RELATIVE_NETD
 #: how the errors of a NIR/SWIR camera are expressed (the manifest's monte_carlo_error_k and
 #: quality regions hold these dimensionless numbers for such a camera)
 RELATIVE_UNIT = "relative to the mean radiance away from edges (no NETD: reflected light)"
@@ -205,6 +205,8 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
         if plan.estimator == "fast":
             extra["info"] = info = {}
             extra["reuse"] = frame_tables  # the per-triangle tables, built in the first batch
+            if s.is_reflective:  # NIR/SWIR: the sun term is the signal (its smooth shading kept unbiased)
+                extra["sun_mean_steps"] = E.REFLECTIVE_SUN_MEAN_STEPS
             if fast_auto and Q.targets(netd) is not None:
                 extra["direct_target"] = direct_target
                 extra["boost_first"] = first_served

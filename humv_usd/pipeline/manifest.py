@@ -121,28 +121,7 @@ def sensor_record(plan, run, s: SensorModel, done: list[dict]) -> dict:
         "timings_s": {**rec["timings"], "total": sum(rec["timings"].values())},
         "monte_carlo_error": R.merge_errors(mine),
         "monte_carlo_error_k": interior_summary([r["entry"].get("monte_carlo_error_k") or {} for r in mine]),
-        "quality": quality_summary([r["entry"] for r in mine]),
-    }
-
-
-def quality_summary(entries: list[dict]) -> dict:
-    """Per sensor: whether the automatic quality met its targets on every frame (False when a
-    frame stopped at the sample cap short of them, None when no frame was judged), the frames
-    that fell short and the regions that did."""
-    judged = [(e["frame"], e.get("quality") or {}) for e in entries]
-    short = [(f, q) for f, q in judged if q.get("met") is False]
-    verdicts = [q.get("met") for _, q in judged if q.get("met") is not None]
-    regions = sorted(
-        {name for _, q in short for name, rec in (q.get("regions") or {}).items() if rec.get("met") is False}
-        | {"image" for _, q in short if q.get("image_met") is False}
-    )
-    return {
-        "met": (all(verdicts) if verdicts else None),
-        "frames_not_met": [f for f, _ in short],
-        "regions_not_met": regions,
-        "definition": "automatic quality (humv_usd.render.quality): mean per-pixel error away from edges "
-        "<= NETD/3 and its p99 <= 0.1 K on the image and on every region class (label class of the "
-        "pixel-centre hit) with enough pixels; per frame in frames[].quality",
+        "quality": Q.quality_summary([r["entry"] for r in mine]),
     }
 
 

@@ -642,6 +642,9 @@ class EORender:
                     "luminance_mean_cd_m2": float(KM_LM_PER_W * CIE_Y_INTEGRAL_NM * np.mean(y)),
                     "Y_stderr_mean": float(np.nanmean(y_err)) if np.isfinite(y_err).any() else None,
                     "monte_carlo_error_relative": noise,
+                    # the automatic quality's verdict on the image and every region (None: the
+                    # path tracer or a given spp)
+                    "quality": noise.pop("quality", None),
                     "illumination": ran,
                     "atmosphere": path_ran,
                     "sensor_chain": chain_record,
@@ -654,22 +657,48 @@ class EORender:
 
     def _render_fast(self, scene, sid, state, reflectance_of, light, frame):
         """X, Y, Z, the standard error of Y and its summary with the fast estimator: the given
-        spp, or (automatic quality) batches of :data:`eo_fast.DEFAULT_EO_SPP` until the mean error
-        of Y away from edges is <= :data:`eo_fast.EO_TARGET_RELATIVE` of the mean Y there, at
-        most :data:`eo_fast.EO_MAX_SPP`."""
-        edges = E.geometric_edges(scene.hits(sid))
-        batches = []
+        spp, or (automatic quality) batches of :data:`eo_fast.DEFAULT_EO_SPP`, at least
+        :data:`humv_usd.render.quality.MIN_BATCHES` (each pixel's error from >= 4 replicas; one
+        batch's 2 replicas gave night frames whose pixels differed between seeds where both stated
+        no error), more until the error of Y relative to the mean Y away from edges is <=
+        :data:`eo_fast.EO_TARGET_RELATIVE` on average and its 99th percentile <= 10 % (the
+        infrared rule with :data:`humv_usd.render.quality.RELATIVE_NETD`) on the image
+        and on every labelled region class (people first; as NIR/SWIR), at most
+        :data:`eo_fast.EO_MAX_SPP`. ``noise`` carries the frame's ``quality`` record."""
+        hits = scene.hits(sid)
+        edges = E.geometric_edges(hits)
+        regions, names = Q.region_map(hits.part, [p.label_class for p in scene.parts])
+        pooled = Q.Batches()
+        replicas = E.replica_count(self.spp)
         while True:
-            seed = (self.seed + frame + eo_fast.SEED_STRIDE * len(batches)) % 2**32
-            batches.append(
-                eo_fast.render_xyz_fast(scene, sid, state, self.bins, reflectance_of, light, self.spp, seed)
+            seed = (self.seed + frame + eo_fast.SEED_STRIDE * pooled.count) % 2**32
+            batch = eo_fast.render_xyz_fast(
+                scene, sid, state, self.bins, reflectance_of, light, self.spp, seed
             )
-            xyz, err = Q.pool_equal_batches(batches)  # equal-spp batches
-            y_err = err[..., 1]
+            pooled.add(batch[0], batch[1], replicas)
+            xyz = pooled.mean()
+            # one batch: its estimator's error as it stands; more: replicas and batches pooled
+            y_err = (batch[1] if pooled.count == 1 else pooled.stderr())[..., 1]
             noise = Q.relative_noise(xyz[..., 1], y_err, edges)
-            if not Q.needs_more_relative(self.spp_auto, noise, self.spp, len(batches)):
+            relative = y_err / noise["mean_y"] if noise["mean_y"] > 0 else np.full(y_err.shape, np.nan)
+            per_region = Q.region_stats(relative, edges, regions, names)
+            image = E.noise_stats(relative, edges)
+            judged = Q.verdict(image, per_region, Q.RELATIVE_NETD if self.spp_auto else None)
+            if not (self.spp_auto and Q.needs_more(True, judged, pooled.count, self.spp)):
                 break
-        noise.update(spp_used=self.spp * len(batches), spp_rule=self.spp_rule)
+        for name, rec in per_region.items():
+            rec["met"] = judged["regions"].get(name)
+        noise.update(spp_used=self.spp * pooled.count, spp_rule=self.spp_rule)
+        noise["quality"] = {
+            "met": judged["met"],
+            "image_met": judged["regions"].get("image"),
+            "targets_k": Q.targets(Q.RELATIVE_NETD) if self.spp_auto else None,
+            "unit": "relative to the mean Y away from edges",
+            "regions": per_region,
+            "batches": pooled.count,
+            "replicas_per_pixel": pooled.count * replicas,
+            "error_dof": pooled.dof,
+        }
         return xyz, y_err, noise
 
     @property
@@ -677,8 +706,10 @@ class EORender:
         if not self.spp_auto:
             return f"given: {self.spp} spp"
         return (
-            f"automatic: batches of {self.spp} spp until the mean error of Y away from edges is <= "
-            f"{eo_fast.EO_TARGET_RELATIVE:g} x mean Y, or {eo_fast.EO_MAX_SPP} spp"
+            f"automatic: at least {Q.MIN_BATCHES} batches of {self.spp} spp, more until the error of Y "
+            f"away from edges is <= {eo_fast.EO_TARGET_RELATIVE:.0%} of the mean Y there on average and "
+            f"its 99th percentile <= {Q.targets(Q.RELATIVE_NETD)['p99_k']:.0%}, "
+            f"on the image and every region, or {eo_fast.EO_MAX_SPP} spp"
         )
 
     @property
@@ -728,9 +759,18 @@ class EORender:
                 "monte_carlo_error_relative": Q.relative_summary(
                     [f.get("monte_carlo_error_relative") or {} for f in frames_of.get(s.name, [])]
                 ),
+                "quality": Q.quality_summary(frames_of.get(s.name, []), EO_QUALITY_DEFINITION),
             }
             for s in self.sensors
         ]
+
+
+#: What an EO sensor's ``quality`` summary judges (:meth:`EORender.manifest`).
+EO_QUALITY_DEFINITION = (
+    "automatic quality (humv_usd.render.quality): the error of Y relative to the mean Y away from "
+    "edges, mean <= 1 % and p99 <= 10 %, on the image and on every region class (label class of the "
+    "pixel-centre hit) with enough pixels, at least 2 batches; per frame in frames[].quality"
+)
 
 
 def _eo_estimator(requested: str, max_depth: int) -> tuple[str, str]:

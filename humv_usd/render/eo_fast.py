@@ -64,11 +64,11 @@ DEFAULT_EO_SPP = 2
 #: 0.16 % in 19.2; the target is 1 %, and 2 spp is the fewest that estimate an error).
 DEFAULT_EO_SPLITS = 1
 #: Van Cittert steps of the smooth-shaded sun term toward each face's own mean
-#: (:func:`humv_usd.render.estimator.corner_table`): with the plain blend (0) the render bench
-#: person's Y was 0.78 % under the spectral path tracer (z -52; flat faces -0.10 %, Mitsuba's Y
-#: normalisation), with 2 steps -0.27 % (1: -0.35 %, 3: -0.23 %), continuous, a little more
-#: shading within the faces (measured: /work/notes/s6/eo-person.md).
-SUN_MEAN_STEPS = 2
+#: (:func:`humv_usd.render.estimator.corner_table`, the reflected-light bands' value): with the
+#: plain blend (0) the render bench person's Y was 0.78 % under the spectral path tracer (z -52;
+#: flat faces -0.10 %, Mitsuba's Y normalisation), with 2 steps -0.27 % on a close-up (1: -0.35 %,
+#: 3: -0.23 %), continuous, a little more shading within the faces.
+SUN_MEAN_STEPS = E.REFLECTIVE_SUN_MEAN_STEPS
 #: Automatic quality (one module, :mod:`humv_usd.render.quality`): the seed offset between the
 #: batches of one frame, the target (mean Y error away from edges <= this fraction of mean Y)
 #: and the sample cap.

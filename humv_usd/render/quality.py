@@ -328,6 +328,12 @@ def pool_equal_batches(batches) -> tuple[np.ndarray, np.ndarray]:
     return value, stderr
 
 
+#: The infrared rule's "NETD" for images of reflected light (EO, NIR, SWIR: no NETD), in units
+#: of the mean Y or radiance away from edges: their mean error <= it / AUTO_NETD_FRACTION =
+#: EO_TARGET_RELATIVE (1 %) and p99 <= AUTO_P99_K read as 10 %, on the image and every region.
+RELATIVE_NETD = EO_TARGET_RELATIVE * AUTO_NETD_FRACTION
+
+
 def needs_more_relative(auto: bool, noise: dict, spp_per_batch: int, batches: int) -> bool:
     """Another EO batch: automatic quality, the mean relative error (:func:`relative_noise`)
     above :data:`EO_TARGET_RELATIVE`, and the next batch within :data:`EO_MAX_SPP`."""
@@ -375,4 +381,26 @@ def relative_summary(per_frame: list[dict]) -> dict:
         else "spp < 2: one replica, the error is not estimable",
         "spp_used": s["spp_used"],
         "spp_rule": s["spp_rule"],
+    }
+
+
+def quality_summary(entries: list[dict], definition: str | None = None) -> dict:
+    """Per sensor: whether the automatic quality met its targets on every frame (False when a
+    frame stopped at the sample cap short of them, None when no frame was judged), the frames
+    that fell short and the regions that did."""
+    judged = [(e["frame"], e.get("quality") or {}) for e in entries]
+    short = [(f, q) for f, q in judged if q.get("met") is False]
+    verdicts = [q.get("met") for _, q in judged if q.get("met") is not None]
+    regions = sorted(
+        {name for _, q in short for name, rec in (q.get("regions") or {}).items() if rec.get("met") is False}
+        | {"image" for _, q in short if q.get("image_met") is False}
+    )
+    return {
+        "met": (all(verdicts) if verdicts else None),
+        "frames_not_met": [f for f, _ in short],
+        "regions_not_met": regions,
+        "definition": definition
+        or "automatic quality (humv_usd.render.quality): mean per-pixel error away from edges "
+        "<= NETD/3 and its p99 <= 0.1 K on the image and on every region class (label class of the "
+        "pixel-centre hit) with enough pixels; per frame in frames[].quality",
     }

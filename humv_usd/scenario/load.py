@@ -633,12 +633,13 @@ def _fill_sensor(i: int, s: dict, problems: list[str]) -> str:
 
 
 def _resolve_paths(data: dict, path: Path | None, problems: list[str]) -> None:
-    """File keys become absolute paths (relative ones are relative to the scenario file)."""
+    """File keys become absolute paths (relative ones are relative to the scenario file; a leading
+    ``~`` is the user's home, as the docs write the set-up's clips: ``~/.cache/humv-usd/mocap``)."""
     base = path.resolve().parent if path is not None else Path.cwd()
 
     def resolve(where: str, given: str) -> str:
         try:
-            resolved = (base / given).resolve()
+            resolved = (base / Path(given).expanduser()).resolve()
             found = resolved.is_file()
         except (OSError, ValueError) as exc:  # a name too long, a NUL byte: not a file either
             problems.append(

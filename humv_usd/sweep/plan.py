@@ -36,11 +36,15 @@ SECONDS_PER_IMAGE = 1.0
 #: parts raised 2026-11-27 to today's whole composes (`humv-usd bench compose --scenario ...`, CPU-s
 #: of a fresh child, after the garment-stack speed-up 08d73d8, /work/notes/s5/compose-speed.md): walk
 #: (31 frames) 27.9, Table 1 v0025 22.9, v0066 35.1, the one-frame demo 19.1, against which these
-#: constants give 27.3, 27.3, 27.3 and 16.2 (the rest: the child's start and imports); others 0.1 s
+#: constants give 27.3, 27.3, 27.3 and 16.2 (the rest: the child's start and imports); others 0.1 s.
+#: Thermal lowered 2026-11-27 (s6, 80569a7, 973f1fe: the local skin of all frames in one call, the
+#: slope's stacks in the same calls, JOS-3 imported alone) by the measured saving, the same bench
+#: before/after back to back at load 8-14: v0066 43.6 -> 41.0, v0025 24.8 -> 23.0, walk 30.2 ->
+#: 28.8, demo 19.7 -> 17.4 CPU-s (0.6 s of it the import, fixed; about 0.04 s per frame)
 COMPOSE_SECONDS = {
     "avatar": (0.5, 0.0),
     "clothing": (7.0, 0.15),
-    "thermal": (7.0, 0.22),
+    "thermal": (6.4, 0.18),
     "environment": (0.7, 0.0),
 }
 #: thermal seconds of a scene's surfaces (slab balance, refinement at shadow edges, the exchange

@@ -591,7 +591,11 @@ def _face_temperature_noise(q_var, parts, points, skin_g, visible, wardrobe, gar
         start += n_t
         n_f = len(part.counts)
         a_face = np.bincount(part.tri_face, tri, n_f)
-        var_face = np.bincount(part.tri_face, tri**2 * var_t, n_f) / np.maximum(a_face, 1e-300) ** 2
+        # a face of zero area (degenerate triangles) has no flux noise: 0/0 was NaN (and a warning)
+        area2 = a_face**2
+        var_face = np.divide(
+            np.bincount(part.tri_face, tri**2 * var_t, n_f), area2, out=np.zeros(n_f), where=area2 > 0
+        )
         if i == 0:
             sigma = np.sqrt(var_face) / np.maximum(skin_g, 1e-6)
         else:
