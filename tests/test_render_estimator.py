@@ -8,6 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 from test_render import add_camera, add_material, add_mesh, box, new_stage, read_exr, rect_y, rect_z
 
+from humv_usd import mode
 from humv_usd.physics import planck
 from humv_usd.pipeline.render import render_stage
 from humv_usd.render import estimator as E
@@ -159,7 +160,58 @@ def test_bench_render_sweeps_and_plots(tmp_path):
 
 
 def test_replica_count_uses_every_sample():
-    assert [E.replica_count(n) for n in (1, 2, 3, 4, 5, 9, 16)] == [1, 2, 3, 2, 5, 3, 2]
+    assert [E.replica_count(n, 2) for n in (1, 2, 3, 4, 5, 9, 16)] == [1, 2, 3, 2, 5, 3, 2]
+    # the default (4): 3 degrees of freedom from spp 4 on; the automatic quality's 2 spp: 2
+    assert [E.replica_count(n) for n in (1, 2, 3, 4, 5, 8, 9, 16, 32)] == [1, 2, 3, 4, 5, 4, 9, 4, 4]
+
+
+def _lanes(n: int, cells: int):
+    mi = mode.mitsuba()
+    import drjit as dr
+
+    idx = dr.arange(mi.UInt32, n * cells)
+    return mi, dr, idx % n, idx // n
+
+
+def test_each_cell_is_a_shifted_lattice():
+    """Each (pixel, replica) cell's points are a Fibonacci lattice shifted modulo 1 by one random
+    vector of the cell (Cranley-Patterson rotation): x evenly spaced 1/n apart (stratified), the
+    golden-ratio y column shifted by one y shift. Issue 31.1: drjit's ``PCG32(size=n,
+    initseq=cell)`` adds ``arange(n)`` to the stream, which gave every lane its own shift (iid
+    uniform points); this test fails on it."""
+    n, cells = 16, 500
+    mi, dr, j, cell = _lanes(n, cells)
+    for x, y in (
+        E._rotated_lattice(mi, dr, n, j, cell, 2**61 + 12345),
+        E._rotated_lattice_sized(mi, dr, mi.UInt32(n), j, cell, 77, n),
+    ):
+        x, y = np.asarray(x).reshape(cells, n), np.asarray(y).reshape(cells, n)
+        assert ((x >= 0) & (x < 1) & (y >= 0) & (y < 1)).all()
+        gaps = np.diff(np.sort(x, axis=1), axis=1)
+        assert_allclose(gaps, 1.0 / n, atol=1e-5)
+        golden = np.mod(np.arange(n) * 0.6180339887498949, 1.0)
+        shift = np.mod(y - golden[None, :], 1.0)
+        spread = np.abs(((shift - shift[:, :1]) + 0.5) % 1.0 - 0.5)
+        assert spread.max() < 1e-5
+
+
+def test_cell_shifts_are_independent_uniform_draws():
+    """The replicas' independence is what the stated error rests on: the cells' shifts are
+    uniform (Kolmogorov-Smirnov), uncorrelated between neighbouring cells (a pixel's replicas),
+    between the two coordinates and between seeds."""
+    from scipy import stats
+
+    mi = mode.mitsuba()
+    import drjit as dr
+
+    cells = 20000
+    sx, sy = (np.asarray(v, dtype=float) for v in E._cell_shift(mi, dr, dr.arange(mi.UInt32, cells), 3))
+    for s in (sx, sy):
+        assert stats.kstest(s, "uniform").pvalue > 1e-4
+    for a, b in ((sx[0::2], sx[1::2]), (sx[:-1], sx[1:]), (sx, sy)):
+        assert abs(np.corrcoef(a, b)[0, 1]) < 0.04
+    other = np.asarray(E._cell_shift(mi, dr, dr.arange(mi.UInt32, cells), 4)[0], dtype=float)
+    assert abs(np.corrcoef(sx, other)[0, 1]) < 0.04
 
 
 def test_channel_weights_split_and_sum_the_sub_bands(tmp_path):
