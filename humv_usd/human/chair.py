@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from humv_usd.geometry.mesh import closed_box
 from humv_usd.human import usdskel
 from humv_usd.human.skeleton import forward_kinematics, skin_weights, skinning_matrices
 from humv_usd.usd.mesh import define_mesh, label, write_class
@@ -51,22 +52,7 @@ def sits_on_chair(human: dict) -> bool:
 
 def _box(base, size):
     """A closed box (outward counter-clockwise quads): centre of its bottom face, size (x, y, z)."""
-    sx, sy, sz = (s / 2 for s in size)
-    corners = np.array(
-        [
-            [-sx, -sy, 0],
-            [sx, -sy, 0],
-            [sx, sy, 0],
-            [-sx, sy, 0],
-            [-sx, -sy, 2 * sz],
-            [sx, -sy, 2 * sz],
-            [sx, sy, 2 * sz],
-            [-sx, sy, 2 * sz],
-        ],
-        dtype=float,
-    )
-    quads = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
-    return corners + np.asarray(base, dtype=float), np.full(6, 4), quads.ravel()
+    return closed_box(base, size)
 
 
 def chair_frame(chair: dict) -> tuple[np.ndarray, np.ndarray]:

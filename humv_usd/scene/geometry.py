@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from humv_usd.geometry.mesh import closed_box
+
 
 def ground_grid(size_xy, cells: int = 16):
     """A z = 0 rectangle centred at the origin, ``cells`` x ``cells`` quads, normals +z."""
@@ -18,31 +20,8 @@ def ground_grid(size_xy, cells: int = 16):
     return points, np.full(len(quads), 4), quads.ravel()
 
 
-def box(center_base, size, heading_deg: float = 0.0):
-    """A closed box with outward counter-clockwise quads.
-
-    center_base: centre of the bottom face [m]; size: (x, y, z) extents before the rotation of
-    heading_deg (counter-clockwise about +z).
-    """
-    sx, sy, sz = (s / 2 for s in size)
-    corners = np.array(
-        [
-            [-sx, -sy, 0],
-            [sx, -sy, 0],
-            [sx, sy, 0],
-            [-sx, sy, 0],
-            [-sx, -sy, 2 * sz],
-            [sx, -sy, 2 * sz],
-            [sx, sy, 2 * sz],
-            [-sx, sy, 2 * sz],
-        ],
-        dtype=float,
-    )
-    quads = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
-    h = np.radians(heading_deg)
-    rot = np.array([[np.cos(h), -np.sin(h), 0], [np.sin(h), np.cos(h), 0], [0, 0, 1]])
-    points = corners @ rot.T + np.asarray(center_base, dtype=float)
-    return points, np.full(6, 4), quads.ravel()
+#: a closed box with outward counter-clockwise quads (:func:`humv_usd.geometry.mesh.closed_box`)
+box = closed_box
 
 
 #: growth of the half-width from one square ring of the ground beyond the rectangle to the next
