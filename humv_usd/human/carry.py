@@ -251,19 +251,27 @@ def apply_box_carry(motion, skeleton: Skeleton, width_m: float = BOX_WIDTH_M):
     return dataclasses.replace(motion, local_rotations=q)
 
 
+@dataclasses.dataclass
+class _Still:
+    """A one-frame motion (what :func:`_solve_arms` poses)."""
+
+    local_rotations: np.ndarray
+    root_translation: np.ndarray
+
+
+def _rest_frame(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """Identity joint rotations (1, J, 4) and the rest root position (1, 3) of one frame."""
+    q = np.zeros((1, len(skeleton.names), 4))
+    q[..., 0] = 1.0
+    return q, skeleton.rest_positions[:1].copy()
+
+
 def carry_rest_transform(skeleton: Skeleton) -> np.ndarray:
     """4x4 transform rifle frame -> rest pose such that, bound rigidly to RightHand, the rifle
     is at the carry pose's hands (computed on frame 0 of a standing rest motion; the rifle is
     then fixed in the Hips' frame in every frame of any motion)."""
 
-    @dataclasses.dataclass
-    class _Still:
-        local_rotations: np.ndarray
-        root_translation: np.ndarray
-
-    q = np.zeros((1, len(skeleton.names), 4))
-    q[..., 0] = 1.0
-    root = skeleton.rest_positions[:1].copy()
+    q, root = _rest_frame(skeleton)
     q = _solve_arms(_Still(q, root), skeleton)
     world = forward_kinematics(skeleton, q, root)[0]
     j = skeleton.index("RightHand")
@@ -764,14 +772,7 @@ def carried_box(skeleton: Skeleton, body) -> tuple[np.ndarray, np.ndarray]:
     hand in the carry pose is :data:`PALM_GAP` off its sides (bisection; no hand vertex inside);
     its back face :data:`BOX_BODY_CLEARANCE` in front of the trunk within its width and height."""
 
-    @dataclasses.dataclass
-    class _Still:
-        local_rotations: np.ndarray
-        root_translation: np.ndarray
-
-    q = np.zeros((1, len(skeleton.names), 4))
-    q[..., 0] = 1.0
-    root = skeleton.rest_positions[:1].copy()
+    q, root = _rest_frame(skeleton)
     mesh, regions = body_regions_of(body, skeleton)
     q = _solve_arms(
         _Still(q, root),

@@ -77,8 +77,8 @@ from humv_usd.human.gait import (
     set_ankles,
 )
 from humv_usd.human.skeleton import Skeleton, quat_to_matrix
+from humv_usd.scenario.spec import ACTIVITIES  # noqa: F401 (the activities make_motion builds)
 
-ACTIVITIES = ("stand", "standTurn", "walk", "run", "postExercise", "carry", *PO.POSE_ACTIVITIES)
 SPEED_RANGE = {"walk": (0.3, 2.2), "run": (1.8, 6.0), "carry": (0.3, 2.2)}
 DEFAULT_SPEED = {"walk": 1.4, "run": 3.5, "carry": 1.2}
 MET_ML_KG_MIN = 3.5

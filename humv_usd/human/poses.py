@@ -72,21 +72,10 @@ from humv_usd.human.gait import (
 )
 from humv_usd.human.macro import obj_data
 from humv_usd.human.skeleton import Skeleton, quat_to_matrix, skin_weights
+from humv_usd.scenario.spec import POSE_ACTIVITIES  # noqa: F401 (the activities built here; the scenario keys allow them)
 
 SIDES = C.SIDES
 #: activities made of key poses (see :data:`SEQUENCES`)
-POSE_ACTIVITIES = (
-    "sit",
-    "sitChair",
-    "crouch",
-    "kneel",
-    "lieProne",
-    "lieSupine",
-    "lieSide",
-    "wave",
-    "fall",
-    "getUp",
-)
 #: MET of each held pose and of transitions (see the module doc)
 MET_POSE = {
     "stand": 1.3,

@@ -69,14 +69,15 @@ from humv_usd.human.motion import (
     met_to_watts,
 )
 from humv_usd.human.skeleton import Skeleton, quat_to_matrix
+from humv_usd.scenario.spec import SEGMENT_ACTIVITIES, SEGMENT_TRANSITION_S
 
 #: activities a segment may have: walking and running along the path, and the stationary ones
+#: (the scenario's keys: humv_usd.scenario.spec.SEGMENT_ACTIVITIES)
 LOCOMOTION = ("walk", "run")
-STATIONARY = ("stand", "crouch", "sit", "kneel", "lieProne", "lieSupine", "lieSide", "wave", "fall", "getUp")
-SEGMENT_ACTIVITIES = LOCOMOTION + STATIONARY
-#: transition window [s]: default and allowed range
+STATIONARY = tuple(a for a in SEGMENT_ACTIVITIES if a not in LOCOMOTION)
+#: transition window [s]: default and allowed range (humv_usd.scenario.spec.SEGMENT_TRANSITION_S)
 DEFAULT_TRANSITION_S = 0.8
-TRANSITION_RANGE_S = (0.4, 3.0)
+TRANSITION_RANGE_S = SEGMENT_TRANSITION_S
 #: lift of the foot that swings in a stop or a start, at mid-swing [m]
 STEP_LIFT_M = 0.04
 

@@ -83,14 +83,8 @@ GARMENT_PRINTS = ("stripes", "checks", "blobs")
 SKIN_TONES = ("I", "II", "III", "IV", "V", "VI")
 #: hair colours (= humv_usd.physics.hair_optics.HAIR_COLOURS)
 HAIR_COLOURS = ("black", "dark_brown", "brown", "blond", "red", "grey")
-ACTIVITIES = (
-    "stand",
-    "standTurn",
-    "walk",
-    "run",
-    "postExercise",
-    "carry",  # walking with a box in both hands (humv_usd.human.carry.apply_box_carry)
-    # procedural poses and transitions (humv_usd.human.poses.POSE_ACTIVITIES)
+#: procedural poses and transitions (humv_usd.human.poses builds them)
+POSE_ACTIVITIES = (
     "sit",
     "sitChair",
     "crouch",
@@ -101,6 +95,15 @@ ACTIVITIES = (
     "wave",
     "fall",
     "getUp",
+)
+ACTIVITIES = (
+    "stand",
+    "standTurn",
+    "walk",
+    "run",
+    "postExercise",
+    "carry",  # walking with a box in both hands (humv_usd.human.carry.apply_box_carry)
+    *POSE_ACTIVITIES,
 )
 FITNESS = ("low", "average", "high", "athlete")
 OBJECT_KINDS = ("box", "panel", "tree", "bush", "hedge", "crop")
@@ -234,22 +237,10 @@ GENERAL = Section(
     },
 )
 
-#: activities of a motion segment (= humv_usd.human.sequence.SEGMENT_ACTIVITIES)
-SEGMENT_ACTIVITIES = (
-    "walk",
-    "run",
-    "stand",
-    "crouch",
-    "sit",
-    "kneel",
-    "lieProne",
-    "lieSupine",
-    "lieSide",
-    "wave",
-    "fall",
-    "getUp",
-)
-#: transition window of a motion segment [s] (= humv_usd.human.sequence.TRANSITION_RANGE_S)
+#: activities of a motion segment (humv_usd.human.sequence): walking and running along the path,
+#: standing and the poses but sitChair (its chair would stand on the path just walked)
+SEGMENT_ACTIVITIES = ("walk", "run", "stand", "crouch", "sit", *POSE_ACTIVITIES[3:])
+#: transition window of a motion segment [s] (humv_usd.human.sequence)
 SEGMENT_TRANSITION_S = (0.4, 3.0)
 
 SEGMENT = Section(
