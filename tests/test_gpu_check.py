@@ -86,6 +86,16 @@ def test_agreement_is_the_difference_in_units_of_the_combined_error(gc, tmp_path
         assert f["label_pixels_differing"] == pytest.approx(1 / (H * W))
         assert f["depth_max_difference_m"] == pytest.approx(0.5)
     assert res["lwir"]["relative_mean_difference"] == pytest.approx(0.3, rel=1e-5)
+    # the compact export (what comes back from a GPU machine) keeps the people's pixels (it
+    # dropped the class: "people (0 px)" against a real render, found on an H200)
+    summaries = {}
+    for name, root in (("x", a), ("y", b)):
+        frames = {"frames": [0], "exr": ["lwir/0000.exr"]}
+        summaries[name] = {"backend": name, "sensors": {"lwir": frames}}
+        gc._export(str(root), summaries[name], str(tmp_path / f"export_{name}"))
+    exported = gc.compare(str(tmp_path / "export_x"), str(tmp_path / "export_y"))["frames"]
+    assert [f["people"]["pixels"] for f in exported] == [n // 2]
+    assert exported[0]["people"]["mean_z"] == pytest.approx(res["lwir"]["people"]["mean_z"], rel=1e-5)
 
 
 def test_a_python_without_the_renders_packages_is_told_in_one_line(gc, tmp_path, monkeypatch, capsys):

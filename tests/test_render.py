@@ -604,7 +604,9 @@ def test_scalar_rgb_fallback_keeps_radiometry(tmp_path):
         "import json, sys; from humv_usd.pipeline.render import render_stage; "
         "m = render_stage(sys.argv[1], sys.argv[2], spp=16); print(json.dumps(m['mitsuba_variant']))"
     )
-    env = {**os.environ, "HUMV_USD_MITSUBA_VARIANT": "scalar_rgb", "PYTHONPATH": str(ROOT)}
+    # the project first, then whatever path the caller set up (a GPU machine's carried packages)
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "HUMV_USD_MITSUBA_VARIANT": "scalar_rgb", "PYTHONPATH": path}
     run = subprocess.run(
         [sys.executable, "-c", code, str(tmp_path / "stage.usda"), str(tmp_path / "out")],
         env=env,

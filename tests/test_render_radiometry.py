@@ -261,12 +261,17 @@ def test_sky_map_rows_match_mitsuba_envmap_lookup():
         }
     )
     emitter = scene.emitters()[0]
+    # On CUDA the envmap is a hardware texture, whose linear filtering weights are 9-bit fixed
+    # point with 8 fractional bits (NVIDIA, CUDA C++ Programming Guide, "Texture Fetching",
+    # linear filtering): a lerp between rows 90 apart is good to 90 / 256 there. A row in the
+    # wrong place is off by tens of degrees on either backend.
+    tolerance = 1e-3 + (90.0 / 256 if mi.variant().startswith("cuda") else 0.0)
     for z in (0.0, 0.3, 17.0, 63.4, 89.0, 89.9):
         th = np.radians(z)
         si = mi.SurfaceInteraction3f()
         si.wi = mi.Vector3f(float(-np.sin(th)), 0.0, float(-np.cos(th)))
         value = float(np.asarray(emitter.eval(si)).ravel()[0])
-        assert value == pytest.approx(z, abs=1e-3)
+        assert value == pytest.approx(z, abs=tolerance)
 
 
 def test_spectral_sky_envmap_on_a_mirror_plate(tmp_path):

@@ -194,6 +194,8 @@ def _export(render_dir: str, summary: dict, export_dir: str, frames=None) -> lis
                     np.int16 if ch["instance_id"].max() < 2**15 else np.int32
                 ),
                 depth=ch["depth"].astype(np.float32),
+                # the people's statistics need each pixel's class
+                **({"class_id": ch["class_id"].astype(np.int16)} if "class_id" in ch else {}),
             )
             written.append(path)
     with open(os.path.join(export_dir, f"{summary['backend']}_summary.json"), "w") as f:

@@ -125,6 +125,9 @@ FILTER_HALF_WIDTH_M = 0.2
 MAX_DIRECT_FACTOR = 16
 #: Ray origin offset along the normal, relative to the coordinates' magnitude (float32).
 RAY_OFFSET = 2e-5
+#: a leaving ray's least height above a large face's plane, in float32 units of the face's
+#: largest vertex coordinate (:func:`face_leave_offsets`)
+LEAVE_ULPS = 16
 #: Label classes whose faces seen from behind render as the cavity (:func:`cavity_table`): a
 #: person's closed body, shoes and garments, where a back side is seen only through a crack or
 #: an intersection; elsewhere a one-sided face stays black from behind (an open plate, as
@@ -537,6 +540,26 @@ def _offset(dr, p):
     return RAY_OFFSET * (1.0 + dr.maximum(dr.maximum(dr.abs(p.x), dr.abs(p.y)), dr.abs(p.z)))
 
 
+def face_leave_offsets(scene) -> np.ndarray:
+    """Per triangle (global order of :class:`FaceTables`) the height [m] above its plane that a
+    ray leaving it must start from so that the ray tracer cannot meet that plane again:
+    :data:`LEAVE_ULPS` float32 units of its largest vertex coordinate. A ray tracer computes a
+    triangle's intersection relative to the ray origin, so its error grows with the triangle's
+    vertices' distance from the origin, not with the hit point's coordinates (Woop, Benthin &
+    Wald 2013, watertight ray/triangle intersection, JCGT 2(1); Waechter & Binder 2019,
+    "A fast and robust method for avoiding self-intersection", Ray Tracing Gems ch. 6). OptiX on
+    a 10 km plate met the face a ray leaves with :func:`_offset` alone; for a person's or a
+    building's faces :func:`_offset` is the larger and nothing changes."""
+    out = []
+    for part in scene.parts:
+        v = np.abs(scene.vertices(part)).max(axis=1)
+        tris = part.triangles
+        out.append(v[tris].max(axis=1) if len(tris) else np.zeros(0))
+    if not out:
+        return np.zeros(0, dtype=np.float32)
+    return (LEAVE_ULPS * np.finfo(np.float32).eps * np.concatenate(out)).astype(np.float32)
+
+
 def _rotated_lattice(mi, dr, count: int, index, cell, seed: int):
     """Point ``index`` of a ``count``-point Fibonacci lattice shifted modulo 1 by one random vector
     per ``cell`` (Cranley-Patterson rotation, :func:`_cell_shift`): a cell's x coordinates are
@@ -794,15 +817,27 @@ def render_band_fast(
         offset_lookup = np.zeros(max(keys) + 1, dtype=np.uint32)
         offset_lookup[keys] = offs
         offset_dr = mi.UInt32(offset_lookup)
+        leave_dr = f32(face_leave_offsets(scene))
         sun_vec = None
         if sun_dir is not None:
             sun_vec = mi.Vector3f(*(dr.opaque(f32, float(v)) for v in sun_dir))
         lamps = _lamps_on_device(mi, dr, getattr(radiometry, "lamps", None), n)
         cloud_dev = None if cloud is None or sun_vec is None else _clouds_on_device(mi, dr, cloud)
-        built = (surf_dr, cavity_dr, mirrors, sky_dr, ground_k, offset_dr, sun_vec, lamps, cloud_dev)
+        built = (
+            surf_dr,
+            cavity_dr,
+            mirrors,
+            sky_dr,
+            ground_k,
+            offset_dr,
+            leave_dr,
+            sun_vec,
+            lamps,
+            cloud_dev,
+        )
         if reuse is not None:  # the next batch of this frame: the same tables
             reuse["device_tables"] = built
-    surf_dr, cavity_dr, mirrors, sky_dr, ground_k, offset_dr, sun_vec, lamps, cloud_dev = built
+    surf_dr, cavity_dr, mirrors, sky_dr, ground_k, offset_dr, leave_dr, sun_vec, lamps, cloud_dev = built
     lamp_calls = [0]  # a window's sample points: a new random sequence per call
 
     def sky_at(dz):
@@ -823,6 +858,11 @@ def render_band_fast(
         shape = dr.reinterpret_array(mi.UInt32, si.shape)
         return dr.gather(mi.UInt32, offset_dr, shape, active) + si.prim_index
 
+    def leave(p, tri, active=True):
+        """How far [m] a ray leaving face ``tri`` at ``p`` starts off it: :func:`_offset`, or
+        more on a large face (:func:`face_leave_offsets`)."""
+        return dr.maximum(_offset(dr, p), dr.gather(f32, leave_dr, tri, active))
+
     def surface_terms(p, nrm, tri, uv, active=True):
         """(surface-leaving radiance - the reflected sky/ground part sampled later, reflectance)
         per sub-band at front-facing vertices: emission + rho (G + sun if the sun is seen),
@@ -834,7 +874,7 @@ def render_band_fast(
             lit = active & (dr.dot(nrm, sun_vec) > 0.0)
             if cloud_dev is not None:  # no sun under a cloud (the thermal tool's field)
                 lit &= _between_clouds(mi, dr, cloud_dev, p, lit)
-            blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * _offset(dr, p), sun_vec), True, lit)
+            blocked = scene.scene.ray_test(mi.Ray3f(p + nrm * leave(p, tri, lit), sun_vec), True, lit)
             base = dr.select(lit & ~blocked, base + n, base)
         b1, b2 = uv.x, uv.y
         surf = []
@@ -1023,9 +1063,10 @@ def render_band_fast(
                 mirror_lane = dr.gather(mi.Bool, mirror, par)
                 incident = dr.gather(mi.Vector3f, ray_d, par)
                 d = dr.select(mirror_lane, incident - n0 * (2.0 * dr.dot(incident, n0)), d)
-            ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), d)
+            start = leave(p0, origin)
+            ray = mi.Ray3f(p0 + n0 * start, d)
             for depth in range(1, MAX_DEPTH):
-                si = _intersect_leaving(mi, dr, scene.scene, ray, origin, triangle)
+                si = _intersect_leaving(mi, dr, scene.scene, ray, n0, start, origin, triangle)
                 rays += dr.width(ray.d.z)
                 hit = si.is_valid()
                 front = hit & (dr.dot(si.n, ray.d) < 0.0)
@@ -1110,7 +1151,8 @@ def render_band_fast(
                 local = mi.warp.square_to_cosine_hemisphere(
                     mi.Point2f(dr.gather(f32, u1, keep), dr.gather(f32, u2, keep))
                 )
-                ray = mi.Ray3f(p0 + n0 * _offset(dr, p0), mi.Frame3f(n0).to_world(local))
+                start = leave(p0, origin)
+                ray = mi.Ray3f(p0 + n0 * start, mi.Frame3f(n0).to_world(local))
         if isinstance(points, PixelLayout):  # lanes -> camera samples -> cells (host, fixed order)
             return points.cell_sums(
                 np.stack([_lanes_to_cells(mi, dr, a, parent, splits, samples, 1) for a in acc])
@@ -1618,19 +1660,27 @@ def _between_clouds(mi, dr, clouds, p, active):
     return f <= clouds.threshold
 
 
-def _intersect_leaving(mi, dr, scene, ray, origin, triangle):
-    """First hit of rays leaving the flat faces ``origin``, never that face itself.
+def _intersect_leaving(mi, dr, scene, ray, n0, height, origin, triangle):
+    """First hit of rays leaving the flat faces ``origin`` (normals ``n0``; each ray starts
+    ``height`` [m] above its face), never that face itself nor a face in its plane.
 
-    A ray leaving a flat triangle into the hemisphere of its normal cannot meet that triangle
-    again; a hit on it is the ray tracer's rounding error (the origin's normal offset,
-    :func:`_offset`, is smaller than the error of a large triangle's intersection). OptiX
-    (the CUDA backend) reports such hits on large faces (a 10 km plate: reflected skies 15 %
-    low, measured on an H100); those rays are traced again from just past the false hit.
-    Embree reports none on the test scenes, so the CPU images do not change."""
+    A ray leaving a flat triangle into the hemisphere of its normal cannot meet that triangle,
+    or another in the same plane, again; such a hit is the ray tracer's rounding error. Ray
+    origins start above large faces by :func:`face_leave_offsets`; OptiX (the CUDA backend) was
+    seen to report such hits on a 10 km plate (reflected skies 15 % low, an H100) when rays
+    started at :func:`_offset` alone. What is left is caught here: a hit on the origin face, or
+    on a face parallel to it lower than twice the start height, is traced again from higher
+    along the ray, up to twice. Embree reports none on the test scenes (CPU images unchanged)."""
     si = scene.ray_intersect(ray)
-    again = si.is_valid() & (triangle(si, si.is_valid()) == origin)
-    past = mi.Ray3f(ray.o + ray.d * (si.t + _offset(dr, si.p)), ray.d)
-    return dr.select(again, scene.ray_intersect(past, again), si)
+    rise = dr.maximum(dr.dot(ray.d, n0), 0.05)  # height gained per metre along the ray
+    for _ in range(2):
+        valid = si.is_valid()
+        same_plane = (dr.abs(dr.dot(si.n, n0)) > 0.9999) & (si.t * rise < height)
+        again = valid & ((triangle(si, valid) == origin) | same_plane)
+        past = mi.Ray3f(ray.o + ray.d * (si.t + height / rise), ray.d)
+        si = dr.select(again, scene.ray_intersect(past, again), si)
+        ray = mi.Ray3f(dr.select(again, past.o, ray.o), ray.d)
+    return si
 
 
 def _filter_windows(hits, fov_x_deg: float, filter_radius: int) -> np.ndarray:
