@@ -46,7 +46,7 @@ from humv_usd.human.skeleton import (
     skinning_matrices,
 )
 from humv_usd.scenario import Scenario
-from humv_usd.scenario.ids import instance_ids
+from humv_usd.scenario.ids import carries_box, instance_ids
 from humv_usd.scenario.inputs import DERIVED_PER_PERSON, FRAMES
 from humv_usd.usd.avatar import (
     AvatarParameters,
@@ -102,6 +102,8 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 22: motion sequences may turn on the spot (segment turn), carry the box and sit on the chair
+#: (sitChair segments): the box and the chair authored for them;
 #: 21: the Props scope of the chair and the carried box is a Scope (was typeless: UsdSkel never
 #: skinned the box, which stood at its rest place while the person walked on);
 #: 20: below 30 fps a walk/run/carry/standing clip's humv:contact is the simulated motion's (a 1 fps
@@ -127,7 +129,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "21"
+VERSION = "22"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -166,8 +168,8 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
     label(prim, instance_ids(scenario)[f"human:{human['id']}"], "person")
     author_rig(stage, human["id"], body, motion, skin_material_name(human.get("skin_tone")))
     chair = (getattr(motion, "gait", None) or {}).get("chair")
-    carries_box = human["activity"] == "carry" and not human.get("bvh")
-    if chair is not None or carries_box:
+    box = carries_box(human)
+    if chair is not None or box:
         # a typed (imageable) parent: UsdSkel prunes untyped prims with their children, so a box
         # under a typeless Props was never skinned (it stood at its rest place in every frame)
         UsdGeom.Scope.Define(stage, props_path(human["id"]))
@@ -180,7 +182,7 @@ def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
             posed_body_points(body, skeleton, motion),
             instance_ids(scenario).get(f"prop:{human['id']}:{CHAIR}"),
         )
-    if carries_box:  # the box in both hands
+    if box:  # the box in both hands
         skeleton = skeleton_for(body.points, body.groups)
         centre, size = carried_box(skeleton, body)
         author_box(
@@ -257,7 +259,7 @@ def scenario_motion(scenario: Scenario, human: dict, place: dict, body: Body):
         if gun:  # hands on the gun: the elbows swing out of the trunk, the hands stay
             motion = apply_rifle_carry(motion, skeleton, body, prop=garment(gun).prop)
             return clear_arms(motion, skeleton, arms, mode="swivel")
-        if human["activity"] == "carry" and not human.get("bvh"):  # hands on the box: likewise
+        if carries_box(human):  # hands on the box (the activity or a sequence's carry): likewise
             motion = apply_box_hold(motion, skeleton, body)  # the palms on the box's sides
             return clear_arms(motion, skeleton, arms, mode="swivel")
         motion = clear_arms(motion, skeleton, arms)

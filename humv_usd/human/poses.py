@@ -275,10 +275,11 @@ def final_key(activity: str) -> Key:
 
 def _edges() -> dict:
     """Undirected key graph of the designed transitions: name -> {name: duration [s]} (the
-    fall's fast collapse is left out: it is taken only when falling from standing)."""
+    fall's fast collapse is left out: it is taken only when falling from standing; sitting on
+    the chair connects to standing only)."""
     out: dict = {}
     for activity, seq in SEQUENCES.items():
-        if activity in ("fall", "sitChair"):
+        if activity == "fall":
             continue
         for (a, _), (b, d) in zip(seq[:-1], seq[1:]):
             for x, y in ((a.name, b.name), (b.name, a.name)):
@@ -588,8 +589,11 @@ def make_pose_motion(
         prev_group = group
     pinned = _pinned_masks(keys, tl)
     chair = None
-    if activity == "sitChair":
-        chair = _chair_box(skeleton, keys[-1], points, rel[-1], root_xy[-1], heading, ground)
+    on_chair = np.flatnonzero(np.array([k.name == SIT_CHAIR.name for k in keys])[tl.k1])
+    if len(on_chair):  # sitChair (or a sequence's): the seat under the pose once it sits
+        seated = on_chair[tl.s[on_chair] >= 1.0]
+        f = int(seated[0] if len(seated) else on_chair[-1])
+        chair = _chair_box(skeleton, SIT_CHAIR, points, rel[f], root_xy[f], heading, ground)
         ground = C.Ground(_with_box(ground, chair))
     z = _root_heights(ground, keys, tl, points, rel, root_xy, pinned)
     # transitions without a planted foot: the body rolls over what touches the ground

@@ -55,6 +55,7 @@ import numpy as np
 from humv_usd.errors import InputError, bad_value
 from humv_usd.human import contact as C
 from humv_usd.human import poses as PO
+from humv_usd.human.carry import apply_box_carry
 from humv_usd.human.gait import fk_matrices, gait_params, matrix_to_quat, quat_slerp, rot_z
 from humv_usd.human.motion import (
     DEFAULT_SPEED,
@@ -69,11 +70,18 @@ from humv_usd.human.motion import (
     met_to_watts,
 )
 from humv_usd.human.skeleton import Skeleton, quat_to_matrix
-from humv_usd.scenario.spec import SEGMENT_ACTIVITIES, SEGMENT_TRANSITION_S
+from humv_usd.scenario.spec import SEGMENT_ACTIVITIES, SEGMENT_TRANSITION_S, SEGMENT_WITH_BOX
 
-#: activities a segment may have: walking and running along the path, and the stationary ones
-#: (the scenario's keys: humv_usd.scenario.spec.SEGMENT_ACTIVITIES)
-LOCOMOTION = ("walk", "run")
+#: activities a segment may have: walking, running and carrying along the path, and the
+#: stationary ones (the scenario's keys: humv_usd.scenario.spec.SEGMENT_ACTIVITIES)
+LOCOMOTION = ("walk", "run", "carry")
+#: what a sequence that carries the box may do between its carries (the arms hold the box)
+WITH_BOX = SEGMENT_WITH_BOX
+#: a turn on the spot: at most this angle per pair of steps [deg], each pair taking this long
+#: [s] (as the single activity standTurn: humv_usd.human.motion), the swinging foot lifted [m]
+TURN_STEP_DEG = 60.0
+TURN_PAIR_S = 1.0
+TURN_LIFT_M = 0.05
 STATIONARY = tuple(a for a in SEGMENT_ACTIVITIES if a not in LOCOMOTION)
 #: transition window [s]: default and allowed range (humv_usd.scenario.spec.SEGMENT_TRANSITION_S)
 DEFAULT_TRANSITION_S = 0.8
@@ -89,6 +97,7 @@ class Segment:
     distance_m: float | None = None
     speed_m_s: float | None = None
     transition_s: float = DEFAULT_TRANSITION_S
+    turn_deg: float | None = None
 
     @property
     def speed(self) -> float:
@@ -123,12 +132,17 @@ class _Clip:
 
 def segments_from(table: list) -> list[Segment]:
     """Segments from the scenario's ``human.segment`` tables (keys as :class:`Segment`)."""
-    keys = ("activity", "duration_s", "distance_m", "speed_m_s", "transition_s")
+    keys = ("activity", "duration_s", "distance_m", "speed_m_s", "transition_s", "turn_deg")
     out = []
     for t in table:
         kw = {k: t[k] for k in keys if t.get(k) is not None}
         out.append(Segment(**kw))
     return out
+
+
+def _gait_mode(activity: str) -> str:
+    """The gait a locomotion segment walks (carry: the walk; the arms hold the box)."""
+    return "walk" if activity == "carry" else activity
 
 
 def _minjerk(x) -> np.ndarray:
@@ -158,6 +172,16 @@ def make_sequence_motion(
     :func:`humv_usd.human.motion.make_motion`. ``where`` names the segments in error messages
     (a segment too short for its transitions is one :class:`InputError` line)."""
     segs = [s if isinstance(s, Segment) else segments_from([s])[0] for s in segments]
+    carries = any(s.activity == "carry" for s in segs)
+    for j, s in enumerate(segs):
+        if carries and s.activity not in WITH_BOX:
+            raise InputError(
+                bad_value(
+                    f"{where}[{j}].activity",
+                    s.activity,
+                    "the hands hold the box of this sequence's carry: only " + ", ".join(WITH_BOX),
+                )
+            )
     frames = int(frame_count)
     if frames < 2 or not fps > 0:
         raise InputError(
@@ -178,7 +202,9 @@ def make_sequence_motion(
     info["stance"] = {s.lower(): m for s, m in stance.items()}
     info["windows"] = [(kind, w0 / k, w1 / k) for kind, w0, w1 in info["windows"]]
     quats = _continuous(matrix_to_quat(local))
-    return Motion(float(fps), root, quats, "sequence", met, report, info)
+    motion = Motion(float(fps), root, quats, "sequence", met, report, info)
+    # a sequence with carry holds the box in both hands throughout (standing, turning too)
+    return apply_box_carry(motion, skeleton) if carries else motion
 
 
 class _Sequence:
@@ -201,6 +227,7 @@ class _Sequence:
         self.points = PO.body_points(skeleton, body_points)
         self.route = Path(path, skeleton.rest_positions[0, :2].copy())
         self.end_t = (frames - 1) / fps
+        self.chair = None  # the seat box of a sitChair segment (poses._chair_box)
 
     # ------------------------------------------------------------------ timing
     def _bounds(self) -> list[float]:
@@ -236,7 +263,7 @@ class _Sequence:
     # ------------------------------------------------------------------ pieces
     def _walk(self, seg: Segment, f0: int, n: int, waypoints, start_phase: float) -> _Clip:
         m = make_motion(
-            seg.activity,
+            _gait_mode(seg.activity),
             self.sk,
             self.fps,
             max(n, 2),
@@ -266,6 +293,8 @@ class _Sequence:
             start_s=0.0,
             plan=plan,
         )
+        if out["chair"] is not None and self.chair is None:
+            self.chair = out["chair"]
         return _Clip(
             f0, out["local"], out["root"], met_to_watts(out["met"], self.mass), out["pinned"], self.sk
         )
@@ -319,7 +348,7 @@ class _Sequence:
                             f"{seg.activity} speed must be in {lo}..{hi} m/s",
                         )
                     )
-                freq = gait_params(seg.activity, seg.speed, self.sk).frequency
+                freq = gait_params(_gait_mode(seg.activity), seg.speed, self.sk).frequency
                 t0 = bounds[i]
                 t_next = bounds[i + 1] if nxt else self.end_t
                 t_need = min(
@@ -400,8 +429,7 @@ class _Sequence:
                     (bounds[idxs[-1] + 1] + self.segs[idxs[-1] + 1].transition_s + 0.1) if nxt else self.end_t
                 )
                 n = int(round(t_end * fps)) - s0 + 1
-                plan = self._plan(idxs, bounds, (ready - s0) / fps, s0 / fps, nxt is not None)
-                clip = self._still(s0, n, plan, start_xy, heading)
+                clip = self._still_block(idxs, bounds, s0, ready, n, start_xy, heading, nxt is not None)
                 if stop:  # after the walk the excess metabolic rate decays (EPOC, as postExercise)
                     walk, g = stop[0], stop[1]
                     cycle = int(round(fps / stop[6]))
@@ -458,7 +486,137 @@ class _Sequence:
             "windows": info_windows,
             "source": "motion sequence (humv_usd.human.sequence)",
         }
+        if self.chair is not None:  # the avatar tool authors the chair (humv_usd.human.chair)
+            info["chair"] = self.chair
         return local, root, met, stance, info
+
+    def _still_block(self, idxs, bounds, s0, ready, n, start_xy, heading, before_walk) -> _Clip:
+        """The stationary segments ``idxs`` over frames s0 .. s0 + n - 1 as one clip: runs of poses
+        by the key-pose engine, split at each turn (the poses before a turn end standing, the
+        turn steps round on the spot, the poses after it start standing at the new heading)."""
+        fps = self.fps
+        groups: list[tuple[str, list[int]]] = []
+        for j in idxs:
+            if self.segs[j].activity == "turn":
+                groups.append(("turn", [j]))
+            elif groups and groups[-1][0] == "pose":
+                groups[-1][1].append(j)
+            else:
+                groups.append(("pose", [j]))
+        parts = []
+        f, xy, h, rdy = s0, np.asarray(start_xy, float), float(heading), ready
+        for gi, (kind, js) in enumerate(groups):
+            last = gi == len(groups) - 1
+            f_end = s0 + n if last else int(round(bounds[groups[gi + 1][1][0]] * fps))
+            m = max(f_end - f, 1)
+            if kind == "pose":
+                plan = self._plan(js, bounds, (rdy - f) / fps, f / fps, before_walk or not last)
+                clip = self._still(f, m + 1, plan, xy, h)
+            else:
+                j = js[0]
+                if f == s0 and rdy > f:  # after a stop: its closing step first, standing
+                    pre = self._still(f, rdy - f + 1, [(PO.STAND, 0.0)], xy, h)
+                    parts.append((pre, rdy - f))
+                    f, m = rdy, max(f_end - rdy, 1)
+                # the turn ends within its segment (a start or a pose follows it)
+                room = min(m, int(round(bounds[j + 1] * fps)) - f) if np.isfinite(bounds[j + 1]) else m
+                clip = self._turn(j, f, m + 1, xy, h, self._turn_angle(j, xy, h), room)
+                h += self._turn_angle(j, xy, h)
+            parts.append((clip, m))
+            xy = clip.root[min(m, len(clip.root) - 1), :2].copy()
+            f, rdy = f_end, f_end
+        if len(parts) == 1:
+            return parts[0][0]
+        cat = [(c, slice(0, k)) for c, k in parts[:-1]] + [(parts[-1][0], slice(0, None))]
+        return _Clip(
+            s0,
+            np.concatenate([c.local[sl] for c, sl in cat]),
+            np.concatenate([c.root[sl] for c, sl in cat]),
+            np.concatenate([c.met_w[sl] for c, sl in cat]),
+            {s: np.concatenate([c.stance[s][sl] for c, sl in cat]) for s in C.SIDES},
+            self.sk,
+        )
+
+    def _turn_angle(self, j: int, xy, heading: float) -> float:
+        """A turn segment's angle [rad]: its ``turn_deg``, else to face the rest of the path
+        (the direction to the path 1 m on from the nearest point), 180 deg at its end."""
+        seg = self.segs[j]
+        if seg.turn_deg is not None:
+            return float(np.radians(seg.turn_deg))
+        r = self.route
+        s0 = float(r.s[np.argmin(np.linalg.norm(r.xy - xy, axis=1))])
+        if float(r.s[-1]) - s0 < 0.5:
+            return float(np.pi)
+        ahead, _ = r.at(np.array([min(s0 + 1.0, float(r.s[-1]))]))
+        d = ahead[0] - xy
+        want = float(np.arctan2(d[0], -d[1]))
+        return float(np.mod(want - heading + np.pi, 2 * np.pi) - np.pi)
+
+    def _turn(self, j: int, f0: int, n: int, xy, heading: float, theta: float, room: int) -> _Clip:
+        """A turn on the spot by ``theta`` [rad] from the standing key pose at ``xy``/``heading``:
+        the body turns about the point between the ankles (minimum jerk) while the feet step
+        round it in pairs (the foot on the turn's side first, each lifted and set down turned
+        by up to :data:`TURN_STEP_DEG` about that point), legs by IK; then stands."""
+        fps, sk = self.fps, self.sk
+        pairs = max(int(np.ceil(abs(np.degrees(theta)) / TURN_STEP_DEG - 1e-9)), 1)
+        T = pairs * TURN_PAIR_S
+        if room / fps < T - 1e-6:  # room: frames the segment leaves for the turn
+            seg = self.segs[j]
+            raise InputError(
+                bad_value(
+                    f"{self.where}[{j}].duration_s",
+                    seg.duration_s,
+                    f"a turn of {np.degrees(theta):.0f} deg needs {T:.2f} s ({pairs} pair(s) of "
+                    f"steps) within the segment, after a stop's closing step: {T - room / fps:.2f} s more",
+                )
+            )
+        base = self._still(f0, n, [(PO.STAND, 0.0)], xy, heading)
+        local, root = base.local.copy(), base.root.copy()
+        wrot, wpos = base.world()
+        t = np.arange(n) / fps
+        psi = theta * _minjerk(t / T)
+        c = 0.5 * (wpos[0, self.feet["Left"].foot, :2] + wpos[0, self.feet["Right"].foot, :2])
+        R = rot_z(psi)
+        root[:, :2] = c + np.einsum("fij,j->fi", R[:, :2, :2], root[0, :2] - c)
+        local[:, 0] = R @ local[:, 0]
+        root_rot = local[:, 0]
+        lead, trail = ("Left", "Right") if theta >= 0 else ("Right", "Left")
+        ts = T / (2 * pairs)
+        yaw = {s: np.zeros(n) for s in C.SIDES}
+        lift = {s: np.zeros(n) for s in C.SIDES}
+        stance = {s: np.ones(n, bool) for s in C.SIDES}
+        done = {s: 0.0 for s in C.SIDES}
+        for i in range(2 * pairs):
+            side = lead if i % 2 == 0 else trail
+            target = theta * (i // 2 + 1) / pairs
+            a, b = (i + 0.15) * ts, (i + 0.85) * ts
+            sw = (t >= a) & (t < b)
+            u = (t[sw] - a) / (b - a)
+            yaw[side][sw] = done[side] + (target - done[side]) * _minjerk(u)
+            yaw[side][t >= b] = target
+            lift[side][sw] = np.sin(np.pi * u)
+            stance[side][sw] = False
+            done[side] = target
+        targets = {}
+        need = np.zeros(n)
+        for side in C.SIDES:
+            fp = self.feet[side]
+            Ry = rot_z(yaw[side])
+            a0 = wpos[0, fp.foot]
+            ankle = np.empty((n, 3))
+            ankle[:, :2] = c + np.einsum("fij,j->fi", Ry[:, :2, :2], a0[:2] - c)
+            g0 = float(np.asarray(self.ground.height(a0[None, :2]))[0])
+            ankle[:, 2] = a0[2] + np.asarray(self.ground.height(ankle[:, :2])) - g0 + TURN_LIFT_M * lift[side]
+            targets[side] = C.FootTargets(ankle, Ry @ wrot[0, fp.foot], Ry @ wrot[0, fp.toe], np.zeros(n))
+            need = np.maximum(need, C.reach_drop(C.leg_chain(sk, side), root, root_rot, ankle))
+        root[:, 2] -= C.smooth_drop(need, 1.0)
+        for side in C.SIDES:
+            chain = C.leg_chain(sk, side)
+            hip, knee, ankle, toe = C.leg_ik(chain, root, root_rot, local[:, chain.hip], targets[side])
+            local[:, chain.hip], local[:, chain.knee] = hip, knee
+            local[:, chain.ankle], local[:, chain.toe] = ankle, toe
+        met = np.where(t < T, met_to_watts(PO.MET_TRANSITION, self.mass), base.met_w)
+        return _Clip(f0, local, root, met, stance, sk)
 
     def _mid_before(self, clip: _Clip, side: str, f: int) -> int:
         """Middle frame (global) of ``side``'s last stance run starting at or before ``f``."""

@@ -80,5 +80,8 @@ def site_layer_prims(file: str) -> list[str]:
 
 def carries_box(human: dict) -> bool:
     """Whether a ``[[human]]`` entry carries the box in both hands (``activity = "carry"``, not a
-    BVH clip): the avatar tool then authors the box (:func:`humv_usd.human.carry.carried_box`)."""
+    BVH clip, or a ``carry`` segment): the avatar tool then authors the box
+    (:func:`humv_usd.human.carry.carried_box`)."""
+    if human.get("segment"):
+        return any(s.get("activity") == "carry" for s in human["segment"])
     return human.get("activity") == "carry" and not human.get("bvh")

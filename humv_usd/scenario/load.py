@@ -30,12 +30,14 @@ from humv_usd.catalog.sensors import (
 )
 from humv_usd.errors import InputError, bad_value, shown
 from humv_usd.geometry.rig import HANDHELD_SHAKE_RMS_DEG
+from humv_usd.scenario.ids import carries_box
 from humv_usd.scenario.spec import (
     ASSET_FORMATS,
     BAND_DEFAULT_UM,
     BANDS,
     BANDS_NOT_YET,
     SECTIONS,
+    SEGMENT_WITH_BOX,
     SENSOR_FALLBACK,
     SENSOR_PRESET_KEYS,
     SPEED_RANGE_M_S,
@@ -324,9 +326,7 @@ def _check_garments(data: dict, problems: list[str]) -> None:
                 problems.append(
                     bad_value(f"human[{i}].clothing[{k}]", name, f"the right hand already holds {held!r}")
                 )
-            elif (
-                canonical in LONG_GUNS + HELD_PROPS and hum.get("activity") == "carry" and not hum.get("bvh")
-            ):
+            elif canonical in LONG_GUNS + HELD_PROPS and carries_box(hum):
                 problems.append(
                     bad_value(f"human[{i}].clothing[{k}]", name, "the hands carry the box (activity carry)")
                 )
@@ -433,7 +433,7 @@ def _check_segments(i: int, hum: dict, problems: list[str]) -> None:
     for j, seg in enumerate(segs):
         where = f"human[{i}].segment[{j}]"
         act = seg.get("activity")
-        walking = act in SPEED_RANGE_M_S and act != "carry"
+        walking = act in SPEED_RANGE_M_S
         if seg.get("duration_s") is not None and seg.get("distance_m") is not None:
             problems.append(
                 bad_value(f"{where}.distance_m", seg["distance_m"], "give duration_s or distance_m, not both")
@@ -441,8 +441,26 @@ def _check_segments(i: int, hum: dict, problems: list[str]) -> None:
         for key in ("distance_m", "speed_m_s"):
             if seg.get(key) is not None and act is not None and not walking:
                 problems.append(
-                    bad_value(f"{where}.{key}", seg[key], f"only for walk or run (activity is {act!r})")
+                    bad_value(
+                        f"{where}.{key}", seg[key], f"only for walk, run or carry (activity is {act!r})"
+                    )
                 )
+        if seg.get("turn_deg") is not None and act is not None and act != "turn":
+            problems.append(
+                bad_value(f"{where}.turn_deg", seg["turn_deg"], f"only for turn (activity is {act!r})")
+            )
+        if act not in SEGMENT_WITH_BOX and any(s.get("activity") == "carry" for s in segs):
+            problems.append(
+                bad_value(
+                    f"{where}.activity",
+                    act,
+                    "the hands hold the box of this sequence's carry: only " + ", ".join(SEGMENT_WITH_BOX),
+                )
+            )
+        if act == "sitChair" and any(s.get("activity") == "sitChair" for s in segs[:j]):
+            problems.append(
+                bad_value(f"{where}.activity", act, "one sitChair per sequence (one chair is authored)")
+            )
         speed = seg.get("speed_m_s")
         if speed is not None and walking:
             lo, hi = SPEED_RANGE_M_S[act]

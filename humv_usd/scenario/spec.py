@@ -237,9 +237,13 @@ GENERAL = Section(
     },
 )
 
-#: activities of a motion segment (humv_usd.human.sequence): walking and running along the path,
-#: standing and the poses but sitChair (its chair would stand on the path just walked)
-SEGMENT_ACTIVITIES = ("walk", "run", "stand", "crouch", "sit", *POSE_ACTIVITIES[3:])
+#: activities of a motion segment (humv_usd.human.sequence): walking, running and carrying the box
+#: along the path, standing, turning on the spot and the poses
+SEGMENT_ACTIVITIES = ("walk", "run", "carry", "stand", "turn", *POSE_ACTIVITIES)
+#: what a sequence that carries the box may do (its arms hold the box throughout)
+SEGMENT_WITH_BOX = ("carry", "stand", "turn")
+#: a segment's turn on the spot [deg] (+ = to the left, counter-clockwise seen from above)
+SEGMENT_TURN_DEG = (-360.0, 360.0)
 #: transition window of a motion segment [s] (humv_usd.human.sequence)
 SEGMENT_TRANSITION_S = (0.4, 3.0)
 
@@ -249,13 +253,15 @@ SEGMENT = Section(
     keys={
         "activity": Key(
             "choice",
-            "What the person does in this segment: walk or run along the placement's path "
-            "(waypoints_m; each walk goes on from where the last one stopped), or a stationary "
-            "activity where they stopped: stand, a pose (crouch, sit, kneel, lieProne, lieSupine, "
-            "lieSide, wave; entered from standing, held, and left by the quickest designed "
-            "transitions: back to standing before a walk), fall, or getUp (back to standing). "
-            "Two walks/runs in a row are not allowed (put a stand between). "
-            "(humv_usd.human.sequence)",
+            "What the person does in this segment: walk, run or carry (walk with the box in "
+            "both hands) along the placement's path (waypoints_m; each walk goes on from where "
+            "the last one stopped), or a stationary activity where they stopped: stand, turn (on "
+            "the spot, stepping: turn_deg), a pose (crouch, sit, sitChair (on an authored chair), "
+            "kneel, lieProne, lieSupine, lieSide, wave; entered from standing, held, and left by "
+            "the quickest designed transitions: back to standing before a walk or a turn), fall, "
+            "or getUp (back to standing). Two walks/runs in a row are not allowed (put a stand "
+            "between); a sequence with carry holds the box throughout, so it may only stand and "
+            "turn between carries; one sitChair per sequence. (humv_usd.human.sequence)",
             required=True,
             choices=SEGMENT_ACTIVITIES,
         ),
@@ -280,6 +286,15 @@ SEGMENT = Section(
             "Walking (0.5-2) or running (2-5) speed of this segment [m/s]; default 1.4 / 3.5.",
             lo=0.0,
             hi=6.0,
+        ),
+        "turn_deg": Key(
+            "float",
+            "A turn segment's angle [deg], + to the left (counter-clockwise seen from above): "
+            "the person turns on the spot in steps of at most 60 deg per pair of steps, 1 s per "
+            "pair, then stands. Unset: to face the rest of the path (its next waypoint), or "
+            "180 deg at the path's end.",
+            lo=SEGMENT_TURN_DEG[0],
+            hi=SEGMENT_TURN_DEG[1],
         ),
         "transition_s": Key(
             "float",
