@@ -32,9 +32,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+from pxr import Usd, UsdGeom, UsdSkel
+from scipy.spatial import cKDTree
 
+from humv_usd.human.labels import BODY_REGION_NAMES
 from humv_usd.pipeline.compose import compose
 from humv_usd.scenario import load_scenario
+from humv_usd.usd.avatar import read_body_regions
+from humv_usd.usd.layers import SCOPES
+from humv_usd.usd.paths import body_path
 
 WALK_TOML = Path(__file__).resolve().parents[2] / "examples" / "walk.toml"
 
@@ -173,6 +179,168 @@ def bench_durations(
     return result
 
 
+#: a foot's vertex touches the ground while within this height [m] of the foot's lowest level
+#: over the clip (a swinging foot passed 4 mm above that level at 30 fps, s7, and must not
+#: count): a touching vertex should not move
+#: (rolling without slipping, :mod:`humv_usd.human.contact`; the motion code's own report counts
+#: its sole points within 1 cm, which a rolling heel or toe moves by rotation alone)
+CONTACT_TOL_M = 0.002
+#: people whose hips are nearer than this [m] get their surfaces' distance measured
+NEAR_M = 1.5
+
+
+def _people(stage: Usd.Stage) -> list[Usd.Prim]:
+    """The people: SkelRoots under /World/Humans with a Body mesh."""
+    humans = stage.GetPrimAtPath(SCOPES["humans"])
+    return [
+        p
+        for p in (humans.GetChildren() if humans else [])
+        if p.IsA(UsdSkel.Root) and p.GetChild(body_path("p").name).IsA(UsdGeom.Mesh)
+    ]
+
+
+def _stance_slip(xy: np.ndarray, h: np.ndarray, tol: float) -> float:
+    """Largest horizontal excursion [m] of a point while it stays in contact: for every point
+    (column of ``xy`` (F, n, 2) and ``h`` (F, n)) and every run of frames with ``h <= tol``, the
+    distance from where the run began."""
+    slip = 0.0
+    touch = h <= tol
+    for j in np.flatnonzero(touch.any(axis=0)):
+        t = np.r_[False, touch[:, j], False].astype(np.int8)
+        starts, ends = np.flatnonzero(np.diff(t) == 1), np.flatnonzero(np.diff(t) == -1)
+        for a, b in zip(starts, ends, strict=True):
+            if b - a > 1:
+                slip = max(slip, float(np.linalg.norm(xy[a:b, j] - xy[a, j], axis=1).max()))
+    return slip
+
+
+def motion_figures(stage_path: Path, stride: int = 1, near_m: float = NEAR_M) -> dict:
+    """Foot slip and closest approach of the people on a composed stage, measured on what the
+    stage holds (independent of the motion code's own ``humv:contact`` report): each Body posed
+    by UsdSkel (``SkinningQuery.ComputeSkinnedPoints``), garments from their point caches, all
+    in world space, every ``stride``-th frame.
+
+    * foot slip: the Body's ``leftFoot``/``rightFoot`` vertices; a vertex touches while it is
+      within :data:`CONTACT_TOL_M` of its foot's lowest level over the clip (the feet are in shoes, so that level is the sole's thickness above the ground);
+      slip: the largest horizontal excursion of a vertex during one run of touching frames,
+      max per person; beside it the motion's own report (the avatar's ``humv:contact``
+      customData, its sole points within 1 cm: :func:`humv_usd.human.contact.contact_report`);
+    * closest approach: the smallest horizontal distance between two people's root joints
+      (hips) at the same frame, and the smallest distance between their surfaces (Body and
+      garment vertices, a k-d tree) over the frames at which their hips are nearer than
+      ``near_m``;
+    * lowest points: the lowest Body vertex and the lowest garment vertex of any person [m], to
+      compare with the ground (z = 0 on flat ground).
+    """
+    stage = Usd.Stage.Open(str(stage_path))
+    fps = stage.GetTimeCodesPerSecond()
+    t0, t1 = int(stage.GetStartTimeCode()), int(stage.GetEndTimeCode())
+    frames = list(range(t0, t1 + 1, stride))
+    people = _people(stage)
+    cache = UsdSkel.Cache()
+    for p in people:
+        cache.Populate(UsdSkel.Root(p), Usd.PrimDefaultPredicate)
+    info = []
+    for p in people:
+        body = p.GetChild(body_path("p").name)
+        skel = UsdSkel.BindingAPI(body).GetInheritedSkeleton()
+        regions = read_body_regions(body)
+        names = list(BODY_REGION_NAMES)
+        mesh = UsdGeom.Mesh(body)
+        counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+        idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get())
+        face_of = np.repeat(np.arange(len(counts)), counts)
+        feet = {
+            side: np.unique(idx[regions[face_of] == names.index(side)]) for side in ("leftFoot", "rightFoot")
+        }
+        garments = [UsdGeom.Mesh(g) for g in Usd.PrimRange(p) if g.IsA(UsdGeom.Mesh) and g != body]
+        info.append(
+            {
+                "id": p.GetName(),
+                "body": body,
+                "query": cache.GetSkinningQuery(body),
+                "skel": cache.GetSkelQuery(skel),
+                "skel_prim": skel.GetPrim(),
+                "feet": feet,
+                "garments": garments,
+                "contact": dict(p.GetCustomDataByKey("humv:contact") or {}),
+            }
+        )
+    n, F = len(info), len(frames)
+    hips = np.zeros((n, F, 2))
+    feet_xyz = {(i, s): [] for i in range(n) for s in ("leftFoot", "rightFoot")}
+    lowest = {"body": np.inf, "garments": np.inf}
+    surface = {}  # (a, b) -> (distance, frame)
+    xcache = UsdGeom.XformCache()
+    for k, f in enumerate(frames):
+        t = Usd.TimeCode(f)
+        xcache.SetTime(t)
+        pts = []
+        for i, d in enumerate(info):
+            xforms = d["skel"].ComputeSkinningTransforms(t)
+            points = UsdGeom.Mesh(d["body"]).GetPointsAttr().Get(t)
+            if not d["query"].ComputeSkinnedPoints(xforms, points, t):
+                raise RuntimeError(f"UsdSkel could not skin {d['body'].GetPath()} at {f}")
+            m = np.asarray(xcache.GetLocalToWorldTransform(d["skel_prim"]))
+            body = np.asarray(points, dtype=np.float64) @ m[:3, :3] + m[3, :3]
+            root = np.asarray(d["skel"].ComputeJointSkelTransforms(t)[0])[3, :3] @ m[:3, :3] + m[3, :3]
+            hips[i, k] = root[:2]
+            for s, v in d["feet"].items():
+                feet_xyz[(i, s)].append(body[v])
+            parts = [body]
+            lowest["body"] = min(lowest["body"], float(body[:, 2].min()))
+            for g in d["garments"]:
+                gm = np.asarray(xcache.GetLocalToWorldTransform(g.GetPrim()))
+                gp = np.asarray(g.GetPointsAttr().Get(t), dtype=np.float64).reshape(-1, 3)
+                parts.append(gp @ gm[:3, :3] + gm[3, :3])
+            pts.append(np.concatenate(parts))
+            if len(parts) > 1:
+                lowest["garments"] = min(lowest["garments"], min(float(x[:, 2].min()) for x in parts[1:]))
+        for a in range(n):
+            for b in range(a + 1, n):
+                if np.linalg.norm(hips[a, k] - hips[b, k]) < near_m:
+                    dist = float(cKDTree(pts[a]).query(pts[b], k=1)[0].min())
+                    if dist < surface.get((a, b), (np.inf,))[0]:
+                        surface[(a, b)] = (dist, f)
+    per = []
+    for i, d in enumerate(info):
+        slip = 0.0
+        for s in ("leftFoot", "rightFoot"):
+            xyz = np.asarray(feet_xyz[(i, s)])  # (F, n, 3)
+            h = xyz[..., 2] - xyz[..., 2].min()
+            slip = max(slip, _stance_slip(xyz[..., :2], h, CONTACT_TOL_M))
+        per.append(
+            {
+                "id": d["id"],
+                "foot_slip_m": round(slip, 4),
+                "motion_report_slip_m": d["contact"].get("max_slip_m"),
+                "motion_report_penetration_m": d["contact"].get("max_penetration_m"),
+            }
+        )
+    pair_hips = [
+        (float(np.linalg.norm(hips[a] - hips[b], axis=1).min()), a, b)
+        for a in range(n)
+        for b in range(a + 1, n)
+    ]
+    best = min(pair_hips) if pair_hips else (float("nan"), 0, 0)
+    near = min(surface.items(), key=lambda kv: kv[1][0]) if surface else None
+    return {
+        "stage": str(stage_path),
+        "fps": fps,
+        "frames_measured": F,
+        "stride": stride,
+        "people": per,
+        "max_foot_slip_m": max((p["foot_slip_m"] for p in per), default=float("nan")),
+        "closest_hips_m": round(best[0], 4),
+        "closest_hips_pair": [info[best[1]]["id"], info[best[2]]["id"]] if pair_hips else [],
+        "closest_surfaces_m": None if near is None else round(near[1][0], 4),
+        "closest_surfaces_pair": None if near is None else [info[near[0][0]]["id"], info[near[0][1]]["id"]],
+        "closest_surfaces_frame": None if near is None else near[1][1],
+        "lowest_body_m": round(lowest["body"], 4),
+        "lowest_garment_m": round(lowest["garments"], 4),
+    }
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path)
@@ -187,9 +355,18 @@ def main(argv=None) -> None:
     )
     ap.add_argument("--fps", type=float, default=30.0)
     ap.add_argument("--thermal", default="fixed", choices=("fixed", "twoNode", "jos3"))
+    ap.add_argument(
+        "--figures",
+        action="store_true",
+        help="OUT is a composed stage: print its foot slip and closest approach (motion_figures)",
+    )
+    ap.add_argument("--stride", type=int, default=1, help="with --figures: every n-th frame")
     a = ap.parse_args(argv)
     if a.child is not None:  # the composing child (see the module doc)
         child_compose(a.child, a.out)
+        return
+    if a.figures:
+        sys.stdout.write(json.dumps(motion_figures(a.out, a.stride), indent=2) + "\n")
         return
     clothing = None if a.clothing == "none" else [c for c in a.clothing.split(",") if c]
     if a.durations:
