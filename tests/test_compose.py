@@ -37,6 +37,7 @@ def composed(tmp_path_factory, humvvex_raw):
 def test_one_layer_per_part_and_clean(composed):
     out, report, stage = composed
     assert layer_names(out) == ALL_LAYERS
+    assert not list((out / "layers").glob(".*"))  # no temp files left: staged, held (hold_layer)
     assert set(report.written) == ALL_LAYERS | {"stage"}
     assert check_stage(out / "stage.usda") == []
     assert UsdGeom.GetStageUpAxis(stage) == "Z"

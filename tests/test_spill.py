@@ -9,7 +9,7 @@ import tracemalloc
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
-from humv_usd.pipeline.compose import _sha, stage_layer
+from humv_usd.pipeline.compose import _sha, hold_layer, stage_layer
 from humv_usd.usd import spill as SP
 from humv_usd.usd.layers import finish, layer_text, new_layer_stage, relative_asset_paths
 from humv_usd.usd.thermal import spill_temperatures, write_surface_temperature
@@ -101,6 +101,24 @@ def test_compose_stages_a_layer_by_the_streaming_writer(tmp_path):
     staged, sha = stage_layer(tmp_path / "thermal.usda", layer)
     text = staged.tmp.read_text(encoding="utf-8")
     assert text == layer_text(layer) and sha == _sha(text)
+
+
+def test_a_held_layer_reads_back_every_spec_and_sample(tmp_path):
+    """compose holds a layer a later build reads as a crate file read back (hold_layer): the
+    same text, so the same values for every reader; a point cache and an asset path too."""
+    rng = np.random.default_rng(3)
+    layer = thermal_like_layer(series_set(rng))
+    stage = Usd.Stage.Open(layer)
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Humans/p0/Clothing/leggings")
+    for f in range(FRAMES):  # float32 points with digits a text round trip must keep
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rng.random((9, 3)).astype(np.float32)), f)
+    mesh.GetPrim().CreateAttribute("a", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(str(tmp_path / "x.exr")))
+    mesh.GetPrim().SetCustomDataByKey("humv:clothing:fix", {"airGapMin_m": 0.1 + 1e-17, "frames": FRAMES})
+    held, path = hold_layer(layer, tmp_path, "clothing_p0")
+    assert path.parent == tmp_path and ".tmp" in path.name and path.name.startswith(".")  # stale-temp name
+    assert layer_text(held) == layer_text(layer)
+    del held
+    path.unlink()
 
 
 def _spill_peak(tmp_path, frames: int, faces: int = 2000) -> int:

@@ -27,11 +27,13 @@ layer) they are absolute.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import hashlib
 import json
 import logging
 import re
+import secrets
 import time
 from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
@@ -277,6 +279,26 @@ def stage_layer(path: Path, layer: Sdf.Layer, spill: SampleSpill | None = None) 
     return staged, digest[0][:16]
 
 
+def hold_layer(layer: Sdf.Layer, folder: Path, name: str) -> tuple[Sdf.Layer, Path]:
+    """``layer`` read back from a scratch crate (usdc) file in ``folder``, and that file: the
+    same specs and values (crate stores them exactly), but a later build reads the samples it
+    asks for from the mapped file (page cache) instead of compose holding every frame of every
+    person in its own memory until the last reader is built (a crowd's clothing layers: ~55 kB
+    per person-frame, issue 29.5). The file has a temp name that :func:`remove_stale_temps`
+    removes after a kill; compose removes it when the layer is dropped."""
+    tmp = folder / f".{name}.held.{secrets.token_hex(4)}.tmp.usdc"
+    try:
+        ok = layer.Export(str(tmp))
+        held = Sdf.Layer.OpenAsAnonymous(str(tmp)) if ok else None
+    except Tf.ErrorException as exc:  # a full disk: an OSError, one line
+        tmp.unlink(missing_ok=True)
+        raise OSError(errno.EIO, usd_error_text(exc), str(tmp)) from None
+    if held is None:
+        tmp.unlink(missing_ok=True)
+        raise OSError(errno.EIO, "USD could not write or read back the layer", str(tmp))
+    return held, tmp
+
+
 def _previous(out: Path) -> dict:
     """The previous run's compose.json (empty when there is none or it is unreadable)."""
     try:
@@ -496,6 +518,7 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
     # last layer that reads it is built, so compose holds the layers a build needs, not the
     # texts of all of them (a crowd's avatar and clothing layers: issue 29)
     layers: dict[str, Sdf.Layer] = {}
+    held: dict[str, Path] = {}  # layers held for later builds: their scratch files (hold_layer)
     staged: dict[str, StagedText] = {}
     side: dict[Path, StagedText] = {}
     user_layers = [open_anonymous((out / u).resolve()) for u in user]
@@ -540,18 +563,24 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
             for file_name, write in getattr(node.tool.module, "side_files", lambda _: {})(layer).items():
                 side[layer_dir / file_name] = stage_file(layer_dir / file_name, write)
             state.ran = {k: dict(v) for k, v in dict(layer.customLayerData).items() if k.endswith(":ran")}
-            if last_use.get(name, -1) > i:
-                layers[name] = layer
+            if last_use.get(name, -1) > i:  # a later build reads it: held on disk
+                layers[name], held[name] = hold_layer(layer, layer_dir, name)
             del layer
             for u in node.upstream:  # no later layer reads it: drop it
                 if last_use.get(u) == i:
                     layers.pop(u, None)
                     states[u].loaded = None
+                    with contextlib.suppress(KeyError, OSError):
+                        held.pop(u).unlink()
             state.seconds = time.perf_counter() - t
     except BaseException:
         discard_staged([*staged.values(), *side.values()])
         raise
-    layers.clear()
+    finally:
+        layers.clear()
+        for path in held.values():
+            with contextlib.suppress(OSError):
+                path.unlink()
     if progress is not None:
         progress(len(to_build), len(to_build), "writing")
     root_text = layer_text(root_layer(scenario, strength, user, keys=keys))
