@@ -102,6 +102,7 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 23: BVH clips: hands that support the body (a crawl, a get-up) held on the ground (human.limbs);
 #: 22: motion sequences may turn on the spot (segment turn), carry the box and sit on the chair
 #: (sitChair segments): the box and the chair authored for them;
 #: 21: the Props scope of the chair and the carried box is a Scope (was typeless: UsdSkel never
@@ -129,7 +130,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "22"
+VERSION = "23"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:

@@ -51,8 +51,10 @@ from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
 from humv_usd.human import contact as C
 from humv_usd.human.gait import align_matrix, fk_matrices, matrix_to_quat, quat_slerp
+from humv_usd.human.limbs import lock_hands
 from humv_usd.human.macro import obj_data
 from humv_usd.human.motion import SIM_FPS_MIN, Motion, _continuous, metabolic_rate
+from humv_usd.human.poses import body_points as body_points_of
 from humv_usd.human.skeleton import (
     Skeleton,
     linear_blend_skinning,
@@ -712,6 +714,7 @@ def motion_from_bvh(
     if settle:
         r[:, 2] += off
         wp[..., 2] += off[:, None]
+    supports: dict = {}
     if lock_feet:
         # a planted foot: near the ground and slow, for the body's pace (a run's skating
         # stance foot moves faster than a walker's lifting one)
@@ -722,11 +725,16 @@ def motion_from_bvh(
         _, planted = C.settle_root(g, feet, wr, wp, sim_fps, speed_tol=tol, near=C.LOCK_NEAR_M)
         stance = {s: C.clean_stance(m, sim_fps) for s, m in planted.items()}
         rot, r, locked = C.lock_feet(skeleton, g, feet, rot, rot[:, 0], r, stance, sim_fps)
+        if body_points is not None:  # hands that support the body (a crawl) held on the ground too
+            rot, supports = lock_hands(
+                skeleton, g, body_points_of(skeleton, body_points), rot, rot[:, 0], r, sim_fps
+            )
         q = _continuous(matrix_to_quat(rot))
         wr, wp = fk_matrices(skeleton, rot, rot[:, 0], r)
     else:
         locked = {s: np.zeros_like(m) for s, m in stance.items()}
     keep = slice(0, None, k)
+    supports = {n: m[keep] for n, m in supports.items()}
     q, r, wr, wp = _continuous(q[keep]), r[keep], wr[keep], wp[keep]
     locked = {s: m[keep] for s, m in locked.items()}
     stance = {s: m[keep] for s, m in stance.items()}
@@ -742,6 +750,7 @@ def motion_from_bvh(
         "mapped": {skeleton.names[j]: src.joints[b].name for j, b in rt.source.items()},
         "stance": {s.lower(): m for s, m in stance.items()},
         "locked": {s.lower(): m for s, m in locked.items()},  # the planted runs the lock kept
+        "supports": supports,  # knee and hand support runs; the hands held (humv_usd.human.limbs)
         "speed_m_s": speed,
     }
     return Motion(float(fps), r, q, activity, rate, report, info)

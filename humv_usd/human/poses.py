@@ -802,7 +802,6 @@ def _plant_hands(skeleton, keys, tl: Timeline, local, root_rot, root_pos) -> np.
     frames = len(root_pos)
     names = skeleton.names
     wrot, wpos = fk_matrices(skeleton, local, root_rot, root_pos)
-    rest = skeleton.rest_positions
     out = local.copy()
     for side in SIDES:
         group = f"{side}Hand"
@@ -834,31 +833,42 @@ def _plant_hands(skeleton, keys, tl: Timeline, local, root_rot, root_pos) -> np.
         if not touched.any():
             continue
         rows = np.flatnonzero(touched)
-        shoulder = wpos[rows, arm]
-        l1 = np.linalg.norm(rest[fore] - rest[arm])
-        l2 = np.linalg.norm(rest[hand] - rest[fore])
-        d_vec = target[rows] - shoulder
-        d = np.clip(np.linalg.norm(d_vec, axis=1), abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
-        u_ = d_vec / np.linalg.norm(d_vec, axis=1, keepdims=True)
-        a = (l1**2 - l2**2 + d**2) / (2 * d)
-        h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
-        pole = wpos[rows, fore] - shoulder  # the designed elbow's side
-        v = pole - u_ * np.sum(pole * u_, axis=1, keepdims=True)
-        v /= np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
-        elbow = shoulder + a[:, None] * u_ + h[:, None] * v
-        to_hand = target[rows] - elbow
-        wrist = elbow + l2 * to_hand / np.maximum(np.linalg.norm(to_hand, axis=1, keepdims=True), 1e-9)
-        # world rotations: the upper arm turned onto the elbow, the elbow's own bend kept and
-        # the forearm turned onto the wrist, the hand as held
-        ra, rf = wrot[rows, arm], wrot[rows, fore]
-        arm_w = align_matrix(ra @ (rest[fore] - rest[arm]), elbow - shoulder) @ ra
-        fore_w = arm_w @ np.swapaxes(ra, 1, 2) @ rf
-        fore_w = align_matrix(fore_w @ (rest[hand] - rest[fore]), wrist - elbow) @ fore_w
-        parent = wrot[rows, skeleton.parents[arm]]
-        out[rows, arm] = np.swapaxes(parent, 1, 2) @ arm_w
-        out[rows, fore] = np.swapaxes(arm_w, 1, 2) @ fore_w
-        out[rows, hand] = np.swapaxes(fore_w, 1, 2) @ hrot[rows]
+        arm_ik(skeleton, side, wrot, wpos, out, rows, target[rows], hrot[rows])
     return out
+
+
+def arm_ik(skeleton: Skeleton, side: str, wrot, wpos, out: np.ndarray, rows, target, hand_rot) -> None:
+    """Two-bone IK of one arm on frames ``rows``: the wrist (``<side>Hand`` joint) on ``target``
+    (n, 3) with the hand's world rotation ``hand_rot`` (n, 3, 3), the elbow on the side the
+    motion had it; writes the Arm, ForeArm and Hand local rotations into ``out`` (F, J, 3, 3)
+    (``wrot``/``wpos``: the motion's world joint rotations and positions)."""
+    names = skeleton.names
+    rest = skeleton.rest_positions
+    arm, fore, hand = (names.index(f"{side}{j}") for j in ("Arm", "ForeArm", "Hand"))
+    shoulder = wpos[rows, arm]
+    l1 = np.linalg.norm(rest[fore] - rest[arm])
+    l2 = np.linalg.norm(rest[hand] - rest[fore])
+    d_vec = target - shoulder
+    d = np.clip(np.linalg.norm(d_vec, axis=1), abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
+    u_ = d_vec / np.linalg.norm(d_vec, axis=1, keepdims=True)
+    a = (l1**2 - l2**2 + d**2) / (2 * d)
+    h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
+    pole = wpos[rows, fore] - shoulder  # the designed elbow's side
+    v = pole - u_ * np.sum(pole * u_, axis=1, keepdims=True)
+    v /= np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
+    elbow = shoulder + a[:, None] * u_ + h[:, None] * v
+    to_hand = target - elbow
+    wrist = elbow + l2 * to_hand / np.maximum(np.linalg.norm(to_hand, axis=1, keepdims=True), 1e-9)
+    # world rotations: the upper arm turned onto the elbow, the elbow's own bend kept and
+    # the forearm turned onto the wrist, the hand as held
+    ra, rf = wrot[rows, arm], wrot[rows, fore]
+    arm_w = align_matrix(ra @ (rest[fore] - rest[arm]), elbow - shoulder) @ ra
+    fore_w = arm_w @ np.swapaxes(ra, 1, 2) @ rf
+    fore_w = align_matrix(fore_w @ (rest[hand] - rest[fore]), wrist - elbow) @ fore_w
+    parent = wrot[rows, skeleton.parents[arm]]
+    out[rows, arm] = np.swapaxes(parent, 1, 2) @ arm_w
+    out[rows, fore] = np.swapaxes(arm_w, 1, 2) @ fore_w
+    out[rows, hand] = np.swapaxes(fore_w, 1, 2) @ hand_rot
 
 
 def _wave(skeleton: Skeleton, loc_q: np.ndarray, tl: Timeline, fps: float, waving) -> np.ndarray:
