@@ -116,7 +116,8 @@ def test_points_are_makehuman_model(grid):
         lo, hi = p[body].min(axis=0), p[body].max(axis=0)
         p -= [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]
         p *= b.uniform_scale
-        p[:, :2] *= b.lateral_scale
+        p[:, 0] *= b.lateral_scale
+        p[:, 1] *= b.depth_scale
         np.testing.assert_allclose(b.points, p, atol=1e-9)
 
 
@@ -247,3 +248,19 @@ def test_density_siri_deurenberg(grid):
     bmi = 80 / 1.75**2
     assert b.body_fat_pct == pytest.approx(1.2 * bmi + 0.23 * 30 - 5.4)
     assert 1000 < b.density_kg_m3 < 1100
+
+
+def test_beyond_the_fat_axis_the_body_grows_more_in_depth_than_in_breadth():
+    """A BMI-48 woman is beyond the fat axis: her horizontal scale is split as ANSUR II's waist
+    depth grows against its breadth with BMI (elasticities 0.883 / 0.636: ln ky = 1.388 ln kx),
+    the product keeps the volume (mass met); the points are scaled so (test_points_are_makehuman_
+    model). Before, one scale served both axes."""
+    from humv_usd.human.body import DEPTH_PER_BREADTH, split_horizontal_scale
+
+    kx, ky = split_horizontal_scale(1.12, "male")
+    assert kx * ky == pytest.approx(1.12**2) and np.log(ky) == pytest.approx(0.854 / 0.622 * np.log(kx))
+    assert split_horizontal_scale(1.0, "female") == (1.0, 1.0)
+    b = build_body("female", 30, 1.5, 110.0)
+    assert b.lateral_scale > 1.0 and b.depth_scale > b.lateral_scale
+    assert np.log(b.depth_scale) == pytest.approx(DEPTH_PER_BREADTH["female"] * np.log(b.lateral_scale))
+    assert b.mass_kg == pytest.approx(110.0, rel=1e-4)

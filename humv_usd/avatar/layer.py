@@ -102,6 +102,8 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 24: bodies beyond the fat axis scaled more front to back than sideways (ANSUR II's waist depth
+#: against breadth: human.body.split_horizontal_scale), humv:fit depthScale;
 #: 23: BVH clips: hands that support the body (a crawl, a get-up) held on the ground (human.limbs);
 #: 22: motion sequences may turn on the spot (segment turn), carry the box and sit on the chair
 #: (sitChair segments): the box and the chair authored for them;
@@ -130,7 +132,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "23"
+VERSION = "24"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:
@@ -412,6 +414,7 @@ def _avatar_attributes(prim, human: dict, body: Body) -> None:
             "sittingHeightRatio": round(body.sitting_height_ratio, 6),
             "uniformScale": round(body.uniform_scale, 6),
             "lateralScale": round(body.lateral_scale, 6),
+            "depthScale": round(body.depth_scale, 6),
             "macros": {k: round(float(v), 6) for k, v in vars(body.macros).items()},
         },
     )

@@ -32,10 +32,16 @@ enter the trunk in the rest pose); two final scales are applied and reported (1 
 
 * ``uniform_scale`` -- all three axes, when the stature is outside the height macro's range
   (volume follows as the cube, so the weight solve targets ``volume / uniform_scale**3``);
-* ``lateral_scale`` -- x and y only, about the body's vertical axis, when the volume is
-  outside the fat axis's range (about BMI 40 and above: 1.12 for a BMI-45 man, 1.14 for a
-  BMI-45 woman; it was 1.48 before the fat axis); it keeps the stature and scales the volume
-  by its square, head and hands included.
+* ``lateral_scale`` (x, sideways) and ``depth_scale`` (y, front to back), about the body's
+  vertical axis, when the volume is outside the fat axis's range (about BMI 38-40 and above);
+  they keep the stature and scale the volume by their product r, head and hands included.
+  The product is split as in ANSUR II's public data (Gordon et al. 2014; the files of
+  :mod:`humv_usd.human.population`): regressing ln(dimension) on ln BMI and ln stature, waist
+  depth grows with elasticity 0.854 (men) / 0.883 (women) and waist breadth 0.622 / 0.636 (chest
+  depth 0.611 / 0.648 against breadth 0.270 / 0.317; the waist's values are used, where the extra
+  volume goes), so depth_scale = lateral_scale ** rho with rho = 1.373 / 1.388
+  (:data:`DEPTH_PER_BREADTH`): a BMI-45 man's equal horizontal scale 1.12 becomes 1.10 sideways
+  and 1.14 front to back. (Before: one scale on both axes, 1.48 before the fat axis.)
 
 So the measured stature and mesh mass match the request to the solver tolerance (~1e-6 %).
 
@@ -167,7 +173,8 @@ class Body:
     legs: float  # the leg axis L (humv_usd.human.proportions); 0 = MakeHuman's own legs
     sitting_height_m: float  # measured: stature - crotch height + ANSUR II's offset
     uniform_scale: float  # 1 unless the stature was outside the height macro's range
-    lateral_scale: float  # 1 unless the mass was outside the weight macro's range
+    lateral_scale: float  # sideways (x); 1 unless the mass was beyond the fat axis's range
+    depth_scale: float = 1.0  # front to back (y); likewise (DEPTH_PER_BREADTH)
     requested: dict = field(default_factory=dict)
 
     @property
@@ -184,7 +191,7 @@ class Body:
 
     @property
     def scaled(self) -> bool:
-        return self.uniform_scale != 1.0 or self.lateral_scale != 1.0
+        return self.uniform_scale != 1.0 or self.lateral_scale != 1.0 or self.depth_scale != 1.0
 
     def group(self, name: str) -> MeshPart:
         faces = self.groups[name]
@@ -337,6 +344,22 @@ def fit_macros(
     return macros, float(u - w), float(g), s, k
 
 
+#: ANSUR II (Gordon et al. 2014, public data files): elasticity of waist depth over that of waist
+#: breadth with BMI (ln-ln regressions on BMI and stature): men 0.854 / 0.622, women 0.883 / 0.636
+DEPTH_PER_BREADTH = {"male": 0.854 / 0.622, "female": 0.883 / 0.636}
+
+
+def split_horizontal_scale(k: float, sex: str) -> tuple[float, float]:
+    """(sideways, front-to-back) scales whose product is ``k**2`` (the horizontal area, hence
+    volume, factor of an equal scale ``k``), the depth growing as ANSUR II's waist depth against
+    its breadth: ln ky = :data:`DEPTH_PER_BREADTH` x ln kx."""
+    if k == 1.0:
+        return 1.0, 1.0
+    rho = DEPTH_PER_BREADTH[sex]
+    ln_r = 2.0 * np.log(k)
+    return float(np.exp(ln_r / (1.0 + rho))), float(np.exp(rho * ln_r / (1.0 + rho)))
+
+
 def to_usd(points_mh: np.ndarray) -> np.ndarray:
     """MakeHuman (dm, +Y up, facing +Z) -> metres, +Z up, facing -Y."""
     return points_mh @ _MH_TO_USD.T
@@ -384,7 +407,9 @@ def build_body(
     lo, hi = p[used].min(axis=0), p[used].max(axis=0)
     p -= np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
     p *= s
-    p[:, :2] *= k
+    kx, ky = split_horizontal_scale(k, sex)
+    p[:, 0] *= kx
+    p[:, 1] *= ky
 
     counts = np.full(len(body_faces), 4)
     flat = body_faces.ravel()
@@ -408,7 +433,8 @@ def build_body(
         legs=legs,
         sitting_height_m=sitting_height_m(p, used, sex),
         uniform_scale=s,
-        lateral_scale=k,
+        lateral_scale=kx,
+        depth_scale=ky,
         requested={
             "sex": sex,
             "age_yr": float(age_yr),
