@@ -23,7 +23,7 @@ pytestmark = [
 W, H = 64, 48
 
 
-@pytest.mark.parametrize("activity", ["sitChair", "carry"])
+@pytest.mark.parametrize("activity", ["sitChair", "carry", "turn+sitChair"])
 def test_chair_box_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, tmp_path, activity):
     import trimesh
     from test_pose_labels import _triangles
@@ -34,10 +34,18 @@ def test_chair_box_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, 
 
     fps = 2.0
     raw["general"]["fps"] = fps
-    raw["general"]["duration_s"] = 4.0 if activity == "sitChair" else 0.5  # a walk leaves the view
+    # a walk leaves the view; the sequence turns round (3 s) before it sits down on the chair
+    raw["general"]["duration_s"] = {"sitChair": 4.0, "carry": 0.5}.get(activity, 7.0)
     person = raw["human"][0]
-    person["activity"] = activity
     person.pop("speed_m_s", None)
+    if activity == "turn+sitChair":  # a motion sequence: the chair is authored there too
+        person.pop("activity", None)
+        person["segment"] = [
+            {"activity": "turn", "turn_deg": 180.0, "duration_s": 3.2},
+            {"activity": "sitChair"},
+        ]
+    else:
+        person["activity"] = activity
     person["clothing"] = ["tshirt_white", "jeans"] + (["phone"] if activity == "sitChair" else [])
     raw["placement"][0]["heading_deg"] = 0.0
     raw["placement"][0]["position_m"] = [0.0, 0.0, 0.0]
@@ -51,8 +59,11 @@ def test_chair_box_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, 
             "focal_length_mm": 3.0,
             "pixel_pitch_um": 17.0,
             "position_m": [3.5, -0.45, 1.3],
-            # the carrier at 0.5 s: hips ~0.6 m north, the box in front of them
-            "look_at_m": [0.0, -0.45, 0.55] if activity == "sitChair" else [0.0, 0.75, 0.9],
+            # the carrier at 0.5 s: hips ~0.6 m north, the box in front of them; turned round,
+            # the sitter's chair is on the other side
+            "look_at_m": {"sitChair": [0.0, -0.45, 0.55], "carry": [0.0, 0.75, 0.9]}.get(
+                activity, [0.0, 0.45, 0.55]
+            ),
         }
     ]
     compose(validate(raw), tmp_path, yes=True)
@@ -81,7 +92,7 @@ def test_chair_box_and_held_prop_labels_agree_with_an_independent_ray_cast(raw, 
     hit = np.full(W * H, "", dtype=object)
     hit[ray_idx] = [owner[t] for t in tri_idx]
     props = f"/World/Humans/{pid}/Props/"
-    names = ("chair", "phone") if activity == "sitChair" else ("box",)
+    names = {"sitChair": ("chair", "phone"), "carry": ("box",)}.get(activity, ("chair",))
     cases = {
         f"/World/Humans/{pid}": np.array(
             [h.startswith(f"/World/Humans/{pid}") and not h.startswith(props) for h in hit]
