@@ -111,6 +111,32 @@ def test_corner_blend_welds_split_vertices_and_survives_degenerate_faces():
     assert_allclose(corners[-1], 5.0)
 
 
+def test_a_kept_corner_blend_follows_moving_vertices_and_refits_when_a_weld_splits():
+    """:class:`shading.CornerBlend` (what a scene keeps between frames) gives the matrix that
+    :func:`corner_blend` builds from scratch, for moved vertices too (a bend that crosses the
+    crease angle on some vertices), and says it no longer fits when welded copies part."""
+    from humv_usd.geometry import shading
+
+    v, t = _grid(6)
+    seam = v[t].mean(axis=1)[:, 0] > 0.5
+    v2 = np.concatenate([v, v])
+    t2 = np.concatenate([np.where(seam[:, None], t + len(v), t), [[0, 0, 1]]])
+    kept = shading.CornerBlend([(v2, t2)])
+    for fold_deg in (0.0, 40.0, 75.0):  # fold the sheet about x = 0.5: blended, then a crease
+        moved = v2.astype(float).copy()
+        right = moved[:, 0] > 0.5
+        a = np.radians(fold_deg)
+        dx = moved[right, 0] - 0.5
+        moved[right, 0], moved[right, 2] = 0.5 + dx * np.cos(a), dx * np.sin(a)
+        moved = moved.astype(np.float32)
+        assert kept.fits([(moved, t2)])
+        fresh = shading.corner_blend([(moved, t2)])
+        assert abs(kept([(moved, t2)]) - fresh).max() < 1e-12
+    split = v2.copy()
+    split[len(v) + 3, 2] += 0.01  # one copy of a seam vertex moves off its twin
+    assert not kept.fits([(split, t2)]) and not kept.fits([(v2, t2[:-1])])
+
+
 def _prism_stage(tmp_path, sides: int = 12):
     """A vertical prism (radius 1 m, 12 sides) whose face temperatures follow
     T = 300 K + 10 K n_x, black (emissivity 1), seen side-on at 48 x 36 px."""

@@ -59,50 +59,97 @@ def corner_blend(meshes, crease_deg: float = SMOOTH_CREASE_DEG) -> csr_matrix:
     reproduced exactly at its interior vertices. A corner of a degenerate face keeps its own
     face's value. Each row sums to 1.
     """
-    cos_c = float(np.cos(np.radians(crease_deg)))
-    rows, cols, vals = [], [], []
-    first = 0
-    for vertices, triangles in meshes:
-        tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-        t = len(tris)
-        if t == 0:
-            continue
-        v = np.asarray(vertices)
-        _, weld = np.unique(v, axis=0, return_inverse=True)
-        inc_v = weld.reshape(-1)[tris].ravel()  # welded vertex of each corner (f * 3 + c)
-        inc_f = np.repeat(np.arange(t), 3)
-        order = np.argsort(inc_v, kind="stable")
-        sv = inc_v[order]
-        start = np.searchsorted(sv, sv, "left")
-        size = np.searchsorted(sv, sv, "right") - start
-        by_size = np.argsort(-size, kind="stable")  # entries with the most partners first
-        order_s, start_s, size_s = order[by_size], start[by_size], size[by_size]
-        corner_tri = v.astype(float)[tris]
-        n_f = triangle_normals(corner_tri)
-        angle = corner_angles(corner_tri).ravel()  # (3t,)
-        for k in range(int(size_s[0])):
-            m = int(np.searchsorted(-size_s, -k, "left"))  # the entries with more than k partners
-            i = order_s[:m]
-            j = order[start_s[:m] + k]
-            ok = np.einsum("ij,ij->i", n_f[inc_f[i]], n_f[inc_f[j]]) >= cos_c
-            rows.append(3 * first + i[ok])
-            cols.append(first + inc_f[j[ok]])
-            vals.append(angle[j[ok]])
-        first += t
-    total = first
-    if rows:
-        r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    else:
-        r = c = np.zeros(0, np.int64)
-        w = np.zeros(0)
-    weight = np.bincount(r, weights=w, minlength=3 * total)
-    keep = weight[r] > 0.0
-    r, c, w = r[keep], c[keep], w[keep] / weight[r[keep]]
-    own = np.flatnonzero(weight <= 0.0)  # degenerate: the face's own value
-    r = np.concatenate([r, own])
-    c = np.concatenate([c, own // 3])
-    w = np.concatenate([w, np.ones(len(own))])
-    return csr_matrix((w, (r, c)), shape=(3 * total, total))
+    return CornerBlend(meshes, crease_deg)(meshes)
+
+
+class CornerBlend:
+    """:func:`corner_blend` for meshes whose vertices move while their triangles and welds stay
+    (a skinned person, frame after frame): which corners meet at a welded vertex, and the
+    sparse matrix's pattern, are found once; a call computes the normals, the crease test and
+    the angle weights of the current vertices (the same numbers as :func:`corner_blend`).
+    :meth:`fits` says whether ``meshes`` still have these triangles and welds (two vertices
+    welded at the first geometry that have come apart: no; two that have come together stay
+    apart, as a vertex's copies along a seam never do)."""
+
+    def __init__(self, meshes, crease_deg: float = SMOOTH_CREASE_DEG):
+        self.cos_c = float(np.cos(np.radians(crease_deg)))
+        self.meshes = []  # per mesh: (triangles, first vertex of each weld group, group of each vertex)
+        pair_i, pair_j = [], []  # global corner indices: corner i takes face-of-j's value
+        first = 0
+        for vertices, triangles in meshes:
+            tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+            v = np.asarray(vertices)
+            t = len(tris)
+            if t == 0:
+                self.meshes.append((tris, None, None))
+                continue
+            _, rep, weld = np.unique(v, axis=0, return_index=True, return_inverse=True)
+            weld = weld.reshape(-1)
+            self.meshes.append((tris, rep, weld))
+            inc_v = weld[tris].ravel()  # welded vertex of each corner (f * 3 + c)
+            order = np.argsort(inc_v, kind="stable")
+            sv = inc_v[order]
+            start = np.searchsorted(sv, sv, "left")
+            size = np.searchsorted(sv, sv, "right") - start
+            by_size = np.argsort(-size, kind="stable")  # entries with the most partners first
+            order_s, start_s, size_s = order[by_size], start[by_size], size[by_size]
+            for k in range(int(size_s[0])):
+                m = int(np.searchsorted(-size_s, -k, "left"))  # the entries with more than k partners
+                pair_i.append(3 * first + order_s[:m])
+                pair_j.append(3 * first + order[start_s[:m] + k])
+            first += t
+        self.triangles = first
+        cat = lambda parts: np.concatenate(parts) if parts else np.zeros(0, np.int64)  # noqa: E731
+        self.pair_i, self.pair_j = cat(pair_i), cat(pair_j)
+        rows, cols = self.pair_i, self.pair_j // 3
+        key, self.slot = np.unique(rows * max(first, 1) + cols, return_inverse=True)
+        self.slot = self.slot.reshape(-1)
+        self.indices = (key % max(first, 1)).astype(np.int32)
+        self.indptr = np.zeros(3 * first + 1, dtype=np.int64)
+        np.cumsum(np.bincount(key // max(first, 1), minlength=3 * first), out=self.indptr[1:])
+        # each corner's pair with itself (its own face: the value of a degenerate corner)
+        own = np.full(3 * first, -1, dtype=np.int64)
+        same = self.pair_i == self.pair_j
+        own[self.pair_i[same]] = self.slot[same]
+        self.own_slot = own
+
+    def fits(self, meshes) -> bool:
+        """Whether ``meshes`` have this blend's triangles and welded vertices."""
+        if len(meshes) != len(self.meshes):
+            return False
+        for (vertices, triangles), (tris, rep, weld) in zip(meshes, self.meshes):
+            if not np.array_equal(np.asarray(triangles, dtype=np.int64).reshape(-1, 3), tris):
+                return False
+            if rep is not None:
+                v = np.asarray(vertices)
+                if len(v) != len(weld) or not np.array_equal(v[rep][weld], v):
+                    return False
+        return True
+
+    def __call__(self, meshes) -> csr_matrix:
+        """The (3T, T) matrix of :func:`corner_blend` at ``meshes``' current vertices."""
+        n_f, angle = [], []
+        for (vertices, _), (tris, _, _) in zip(meshes, self.meshes):
+            if len(tris) == 0:
+                continue
+            corner_tri = np.asarray(vertices).astype(float)[tris]
+            n_f.append(triangle_normals(corner_tri))
+            angle.append(corner_angles(corner_tri).ravel())
+        total = self.triangles
+        if not n_f:
+            return csr_matrix((0, 0))
+        n_f, angle = np.concatenate(n_f), np.concatenate(angle)
+        fi, fj = self.pair_i // 3, self.pair_j // 3
+        ok = np.einsum("ij,ij->i", n_f[fi], n_f[fj]) >= self.cos_c
+        w = np.where(ok, angle[self.pair_j], 0.0)
+        weight = np.bincount(self.pair_i, weights=w, minlength=3 * total)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            data = np.bincount(
+                self.slot, weights=np.where(ok, w / weight[self.pair_i], 0.0), minlength=len(self.indices)
+            )
+        degenerate = np.flatnonzero(weight <= 0.0)  # the face's own value
+        data[self.own_slot[degenerate]] = 1.0
+        return csr_matrix((data, self.indices, self.indptr), shape=(3 * total, total))
 
 
 def barycentric(tri: np.ndarray, p: np.ndarray, index=None) -> np.ndarray:

@@ -1692,7 +1692,9 @@ def _filter_windows(hits, fov_x_deg: float, filter_radius: int) -> np.ndarray:
         radius_px = np.where(np.isfinite(pixel_m), np.floor(FILTER_HALF_WIDTH_M / pixel_m), 0.0)
     radius_px = np.minimum(radius_px, filter_radius)
     if filter_radius > 0:
-        _windows(hits, np.minimum(radius_px, filter_radius))  # the cap of filter_reflected
+        windows = _windows(hits, np.minimum(radius_px, filter_radius))  # the cap of filter_reflected
+        for axis in (1, 0):
+            _window_plan(windows, axis)
     _cached_edges(hits)
     return radius_px
 
@@ -1870,13 +1872,32 @@ def filter_reflected(mean, var, hits, radius: int, radius_px=None):
     known = np.isfinite(out_v)
     both = np.concatenate([out_m.reshape((-1,) + shape), np.nan_to_num(out_v).reshape((-1,) + shape)])
     half = both.shape[0] // 2
-    for axis, (lo, hi) in zip((1, 0), _windows(hits, cap)):
-        both = _window_sum(both, lo, hi, axis)
-        count = (hi - lo + 1).astype(float)
-        both[:half] /= count
-        both[half:] /= count**2
+    windows = _windows(hits, cap)
+    for axis, (lo, hi) in zip((1, 0), windows[:2]):
+        first, last, inv_count, inv_count2 = _window_plan(windows, axis)
+        both = _window_sum(both, lo, hi, axis, (first, last))
+        both[:half] *= inv_count
+        both[half:] *= inv_count2
     out_m = both[:half].reshape(out_m.shape)
     return out_m, np.where(known, both[half:].reshape(out_m.shape), np.nan)
+
+
+def _window_plan(windows, axis: int):
+    """The flat running-sum indices of :func:`_window_sum` and 1 / count, 1 / count^2 of the
+    windows along ``axis`` (0 or 1), computed once per windows (a frame's batches share them)."""
+    plans = windows[2]
+    if axis not in plans:
+        lo, hi = windows[1 - axis]  # axis 1 (along rows): the row windows, windows[0]
+        h, w = lo.shape
+        if axis == 0:  # (k, H + 1, W): row index * W + column
+            col = np.arange(w)
+            first, last = (lo * w + col).ravel(), ((hi + 1) * w + col).ravel()
+        else:  # (k, H, W + 1): row * (W + 1) + column index
+            row = np.arange(h)[:, None] * (w + 1)
+            first, last = (row + lo).ravel(), (row + hi + 1).ravel()
+        count = (hi - lo + 1).astype(float)
+        plans[axis] = (first, last, 1.0 / count, 1.0 / count**2)
+    return plans[axis]
 
 
 #: Windows of the last few (hits, cap) pairs: the automatic quality renders a frame in batches.
@@ -1888,7 +1909,7 @@ def _windows(hits, cap):
     for cached_hits, cached_cap, windows in _WINDOWS:
         if cached_hits is hits and np.array_equal(cached_cap, cap):
             return windows
-    windows = (_window(hits, cap, 1), _window(hits, cap, 0))
+    windows = (_window(hits, cap, 1), _window(hits, cap, 0), {})  # rows, columns, plans
     _WINDOWS.insert(0, (hits, cap, windows))
     del _WINDOWS[3:]
     return windows
@@ -1955,24 +1976,29 @@ def _transposed(hits):
     return SimpleNamespace(part=hits.part.T, depth=hits.depth.T, normal=np.swapaxes(hits.normal, 0, 1))
 
 
-def _window_sum(values, lo, hi, axis: int):
+def _window_sum(values, lo, hi, axis: int, flat=None):
     """Sum over [lo, hi] along ``axis`` (0: columns, 1: rows) of (k, H, W) values, by running
-    sums (read by flat indices)."""
+    sums (read by flat indices; ``flat``: those indices, (first, last), if known)."""
     k, h, w = values.shape
     if axis == 0:
-        csum = np.zeros((k, h + 1, w))
+        csum = np.empty((k, h + 1, w))
+        csum[:, 0, :] = 0.0
         np.cumsum(values, axis=1, out=csum[:, 1:, :])
     else:
-        csum = np.zeros((k, h, w + 1))
+        csum = np.empty((k, h, w + 1))
+        csum[:, :, 0] = 0.0
         np.cumsum(values, axis=2, out=csum[:, :, 1:])
     csum = csum.reshape(k, -1)
-    if axis == 0:  # (k, H + 1, W): row index * W + column
-        col = np.arange(w)
-        first, last = lo * w + col, (hi + 1) * w + col
-    else:  # (k, H, W + 1): row * (W + 1) + column index
-        row = np.arange(h)[:, None] * (w + 1)
-        first, last = row + lo, row + hi + 1
-    return (np.take(csum, last.ravel(), axis=1) - np.take(csum, first.ravel(), axis=1)).reshape(k, h, w)
+    if flat is None:
+        if axis == 0:  # (k, H + 1, W): row index * W + column
+            col = np.arange(w)
+            flat = (lo * w + col).ravel(), ((hi + 1) * w + col).ravel()
+        else:  # (k, H, W + 1): row * (W + 1) + column index
+            row = np.arange(h)[:, None] * (w + 1)
+            flat = (row + lo).ravel(), (row + hi + 1).ravel()
+    out = np.take(csum, flat[1], axis=1)
+    out -= np.take(csum, flat[0], axis=1)
+    return out.reshape(k, h, w)
 
 
 def geometric_edges(hits) -> np.ndarray:

@@ -175,7 +175,11 @@ class IRScene:
         cached = getattr(self, "_blend", None)
         if cached is not None and cached[0] == self.geometry_version:
             return cached[1]
-        blend = corner_blend(self)
+        meshes = [(self.vertices(p), self.face_corners(p)) for p in self.parts]
+        blender = getattr(self, "_blender", None)  # the weld and pattern, kept while they fit
+        if blender is None or not blender.fits(meshes):
+            blender = self._blender = shading.CornerBlend(meshes)
+        blend = blender(meshes)
         self._blend = (self.geometry_version, blend)
         return blend
 
