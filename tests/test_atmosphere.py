@@ -12,6 +12,7 @@ from conftest import atmosphere_layer_of, atmosphere_layers_of, upstream_of
 from humv_usd.atmosphere import lowtran as lt
 from humv_usd.atmosphere import model as M
 from humv_usd.atmosphere import paths as paths_layer
+from humv_usd.compat import trapezoid
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.environment import layer as environment_layer
 from humv_usd.environment.sun import scenario_sun
@@ -33,7 +34,7 @@ needs_lowtran = pytest.mark.skipif(not lt.available(), reason="LOWTRAN7 not buil
 
 def _band_bt(wl, spectral, band=(8.0, 14.0)):
     m = (wl >= band[0]) & (wl <= band[1])
-    radiance = np.trapz(spectral[..., m], wl[m], axis=-1)
+    radiance = trapezoid(spectral[..., m], wl[m], axis=-1)
     return planck.brightness_temperature(radiance, [wl[m][0], wl[m][-1]])
 
 
@@ -129,7 +130,7 @@ def test_paths_fall_with_range_and_obey_kirchhoff(humvvex_lowtran):
     bb = planck.spectral_radiance(wl, sc["atmosphere"]["air_temperature_k"])
     ir = wl > 2.5
     np.testing.assert_allclose(
-        np.trapz(rad[:, ir], wl[ir], axis=1), np.trapz(((1 - tau) * bb)[:, ir], wl[ir], axis=1), rtol=0.02
+        trapezoid(rad[:, ir], wl[ir], axis=1), trapezoid(((1 - tau) * bb)[:, ir], wl[ir], axis=1), rtol=0.02
     )
     opaque = (tau[-1] < 1e-4) & ir
     assert opaque.sum() > 5  # CO2 4.3 um, 14 um edges
@@ -177,11 +178,11 @@ def test_direct_sun_in_mwir(humvvex_lowtran):
     ratio = e[mw] / toa[mw]
     assert np.all(ratio <= 1.1) and ratio.max() > 0.6  # 3.8 um window ~0.85 at 53 deg
     assert ratio[np.argmin(np.abs(wl[mw] - 4.3))] < 0.01  # CO2 band
-    band = np.trapz(e[mw], wl[mw])
+    band = trapezoid(e[mw], wl[mw])
     assert 3.0 < band < 25.0  # ~10.6 W m-2 at humvvex
     eo = (wl >= 0.4) & (wl <= 0.7)
     sun = scenario_sun(sc, [0.0])
-    assert 0.15 * sun.dni_w_m2[0] < np.trapz(e[eo], wl[eo]) < 0.6 * sun.dni_w_m2[0]
+    assert 0.15 * sun.dni_w_m2[0] < trapezoid(e[eo], wl[eo]) < 0.6 * sun.dni_w_m2[0]
 
 
 def test_lowtran_unavailable_falls_back_with_warning(humvvex_raw, monkeypatch, tmp_path, capsys):
@@ -211,7 +212,7 @@ def test_analytic_model_checks(humvvex_raw):
     # hemispherical integral of the angular law returns the Berdahl-Martin emissivity
     mu = np.linspace(0, 1, 2001)
     eps = directional_sky_emissivity(np.degrees(np.arccos(mu)), atm.sky_emissivity)
-    assert 2 * np.trapz(eps * mu, mu) == pytest.approx(atm.sky_emissivity, abs=2e-3)
+    assert 2 * trapezoid(eps * mu, mu) == pytest.approx(atm.sky_emissivity, abs=2e-3)
     assert atm.sky_emissivity == pytest.approx(
         float(effective_sky_temperature(a["air_temperature_k"], a["relative_humidity"])[1])
     )

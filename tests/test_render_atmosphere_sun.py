@@ -34,6 +34,7 @@ from test_render_radiometry import (
     within_noise,
 )
 
+from humv_usd.compat import trapezoid
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
 from humv_usd.pipeline.render import render_stage
@@ -95,10 +96,10 @@ def test_reduce_xyz_closed_form():
     red = radiometry.reduce_xyz(radiometry.PathTable("t", ranges, wl, tau, rad))
     assert_allclose(red.ranges_m, [0.0, 10.0, 50.0])
     assert_allclose(red.transmittance[0], 1.0) and assert_allclose(red.radiance[0], 0.0)
-    integrals = np.trapz(XYZ_BAR, LAM_NM, axis=0)
+    integrals = trapezoid(XYZ_BAR, LAM_NM, axis=0)
     assert_allclose(red.radiance[1:], 2.0 * np.tile(integrals / integrals[1], (2, 1)), rtol=2e-3)
     for j in range(2):
-        ref = np.trapz(XYZ_BAR * np.interp(LAM_NM / 1000, wl, tau[j])[:, None], LAM_NM, axis=0) / integrals
+        ref = trapezoid(XYZ_BAR * np.interp(LAM_NM / 1000, wl, tau[j])[:, None], LAM_NM, axis=0) / integrals
         assert_allclose(red.transmittance[j + 1], ref, rtol=2e-3)
     # halfway in range: linear interpolation
     t_mid, p_mid = red.at(np.array([30.0]))
@@ -138,13 +139,13 @@ def test_eo_path_per_pixel_closed_form(tmp_path):
     f = np.clip(rr / 1.0, 0.0, 1.0)[..., None]  # 0-1 m: from (1, 0) to the first table row
     tau_l = np.where(rr[..., None] >= 1.0, 1.0 - a_l * rr[..., None], 1.0 - f * a_l)
     p_l = p_l * rr[..., None]
-    integrals = np.trapz(XYZ_BAR, LAM_NM, axis=0)
+    integrals = trapezoid(XYZ_BAR, LAM_NM, axis=0)
     y_int = integrals[1]
     surface = e_um / 1000.0 / np.pi  # W m-2 sr-1 nm-1
     edge = silhouette(hit)
     inner = hit & ~edge
     for c, name in enumerate("XYZ"):
-        expected = np.trapz((tau_l * surface + p_l) * XYZ_BAR[:, c], LAM_NM, axis=-1) / y_int
+        expected = trapezoid((tau_l * surface + p_l) * XYZ_BAR[:, c], LAM_NM, axis=-1) / y_int
         expected = np.where(hit, expected, 0.0)
         assert (ch[name][~hit & ~edge] == 0).all()
         if name == "Y":  # per pixel against its Monte Carlo error (Mitsuba's CMF tables: 2e-3)
@@ -190,15 +191,15 @@ def test_reduce_xyz_airlight_closed_form():
     assert bare.airlight is None and bare.horizon_xyz is None
     l_h = np.array([90.0, 120.0, 100.0, 80.0, 40.0])  # per um
     red = radiometry.reduce_xyz(table, (wl, l_h))
-    integrals = np.trapz(XYZ_BAR, LAM_NM, axis=0)
+    integrals = trapezoid(XYZ_BAR, LAM_NM, axis=0)
     lh_nm = np.interp(LAM_NM / 1000, wl, l_h) / 1000.0
     assert_allclose(
-        red.horizon_xyz, np.trapz(XYZ_BAR * lh_nm[:, None], LAM_NM, axis=0) / integrals[1], rtol=2e-3
+        red.horizon_xyz, trapezoid(XYZ_BAR * lh_nm[:, None], LAM_NM, axis=0) / integrals[1], rtol=2e-3
     )
     assert_allclose(red.airlight[0], 0.0) and assert_allclose(red.radiance[0], 0.0)
     for j in range(2):
         one_minus = 1.0 - np.interp(LAM_NM / 1000, wl, tau[j])
-        ref = np.trapz(XYZ_BAR * (lh_nm * one_minus)[:, None], LAM_NM, axis=0) / integrals[1]
+        ref = trapezoid(XYZ_BAR * (lh_nm * one_minus)[:, None], LAM_NM, axis=0) / integrals[1]
         assert_allclose(red.airlight[j + 1], ref, rtol=2e-3)
         assert_allclose(red.radiance[j + 1], ref + bare.radiance[j + 1], rtol=2e-3)
     # flat horizon: Y = Y_h (1 - tau_Y), so a black object at 5 km is 55 % of the horizon sky
@@ -263,7 +264,7 @@ def test_eo_airlight_black_and_white_plate_closed_form(tmp_path):
         1.0 - np.interp(LAM_NM / 1000, wl, a) * r[..., None],
         1.0 - np.clip(r, 0, 1)[..., None] * np.interp(LAM_NM / 1000, wl, a),
     )
-    tau_y = np.trapz(tau_l * XYZ_BAR[:, 1], LAM_NM, axis=-1) / np.trapz(XYZ_BAR[:, 1], LAM_NM)
+    tau_y = trapezoid(tau_l * XYZ_BAR[:, 1], LAM_NM, axis=-1) / trapezoid(XYZ_BAR[:, 1], LAM_NM)
     y_h = 0.12  # flat 120 W m-2 sr-1 um-1 at zenith 85-89 deg
     l_sky = radiometry.hemisphere_mean(zen, sky_rows) / 1000.0  # the uniform sky that lights the plates
     inst = ch["instance_id"]
@@ -318,12 +319,12 @@ def test_eo_path_skipped_without_visible_table(tmp_path):
 def blackbody_sun_band(dni, band):
     """In-band irradiance of a 5772 K blackbody spectrum scaled to the DNI (fine trapezoid)."""
     x = np.linspace(band[0], band[1], 20001)
-    return dni * np.trapz(planck.spectral_radiance(x, T_SUN), x) * np.pi / (SIGMA * T_SUN**4)
+    return dni * trapezoid(planck.spectral_radiance(x, T_SUN), x) * np.pi / (SIGMA * T_SUN**4)
 
 
 def test_blackbody_sun_integrates_to_the_dni():
     x = np.geomspace(0.05, 1000.0, 200001)
-    assert_allclose(np.trapz(radiometry.blackbody_sun(x, 850.0), x), 850.0, rtol=1e-4)
+    assert_allclose(trapezoid(radiometry.blackbody_sun(x, 850.0), x), 850.0, rtol=1e-4)
 
 
 def mwir_white_plate(tmp_path, toward, dni=800.0):
@@ -377,7 +378,7 @@ def test_eo_sun_from_dni_without_solar_table(tmp_path):
     assert not manifest["skipped_sensors"]
     ch = read_exr(tmp_path / "out" / "eo" / "0000.exr")
     e_nm = 700.0 * np.pi * planck.spectral_radiance(LAM_NM / 1000, T_SUN) / (SIGMA * T_SUN**4) / 1000.0
-    expected = np.trapz(e_nm * XYZ_BAR[:, 1], LAM_NM) / np.trapz(XYZ_BAR[:, 1], LAM_NM) * np.cos(th) / np.pi
+    expected = trapezoid(e_nm * XYZ_BAR[:, 1], LAM_NM) / trapezoid(XYZ_BAR[:, 1], LAM_NM) * np.cos(th) / np.pi
     sigma = np.sqrt(np.mean(ch["Y_stderr"] ** 2) / ch["Y"].size)
     assert abs(ch["Y"].mean() - expected) < 4 * sigma + 3e-3 * expected
     assert "blackbody 5772 K" in manifest["eo_sensors"][0]["frames"][0]["illumination"]["sun"]

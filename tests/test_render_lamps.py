@@ -19,6 +19,7 @@ from test_render import add_camera, add_mesh, box, rect_y, rect_z
 from test_render_eo import reflective
 from test_render_radiometry import atmosphere_tables, new_stage, plate, read_exr, sun
 
+from humv_usd.compat import trapezoid
 from humv_usd.physics import nightsky
 from humv_usd.pipeline.render import render_stage
 from humv_usd.render import estimator as E
@@ -155,8 +156,8 @@ def test_swir_sees_the_sodium_lamps_lines_and_not_the_leds(tmp_path, spectrum, l
     full = np.linspace(0.36, 2.5, 4281)  # the photometric scale needs the visible
     i_um = lights.spectral_per_nm(lamp, 2000.0 / (4 * math.pi), full * 1000.0) * 1000.0  # W sr-1 um-1
     x = np.linspace(*band, 8001)
-    i_band = float(np.trapz(np.interp(x, full, i_um), x))
-    airglow = 0.5 * float(np.trapz(nightsky.night_sky_radiance(x), x))
+    i_band = float(trapezoid(np.interp(x, full, i_um), x))
+    airglow = 0.5 * float(trapezoid(nightsky.night_sky_radiance(x), x))
     expected = _footprint_mean(lambda u, v: 0.5 * i_band / (1.0 + u**2 + v**2) ** 1.5 / math.pi, 3.0, 90.0)
     if lit:
         assert i_band > 1e-3  # the line carries light

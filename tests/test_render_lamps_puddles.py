@@ -16,6 +16,7 @@ from test_render import add_camera, add_material, add_mesh, box, rect_z
 from test_render_eo import reflective
 from test_render_radiometry import atmosphere_tables, new_stage, read_exr, sun
 
+from humv_usd.compat import trapezoid
 from humv_usd.physics import planck, water_film
 from humv_usd.pipeline.render import render_stage
 from humv_usd.render.cie import CMF_WAVELENGTHS_NM, CMF_XYZ
@@ -135,10 +136,10 @@ def test_a_warm_puddle_mirrors_a_cold_sky_in_lwir(tmp_path):
     wl = np.linspace(*LWIR, 2001)
     r = water_film.fresnel_reflectance(math.cos(math.radians(80.0)), water_film.water_refractive_index(wl))
     expected = float(
-        np.trapz((1 - r) * planck.spectral_radiance(wl, 290.0) + r * planck.spectral_radiance(wl, 250.0), wl)
+        trapezoid((1 - r) * planck.spectral_radiance(wl, 290.0) + r * planck.spectral_radiance(wl, 250.0), wl)
     )
     lambertian = float(
-        np.trapz(0.98 * planck.spectral_radiance(wl, 290.0) + 0.02 * planck.spectral_radiance(wl, 250.0), wl)
+        trapezoid(0.98 * planck.spectral_radiance(wl, 290.0) + 0.02 * planck.spectral_radiance(wl, 250.0), wl)
     )
     assert expected < 0.9 * lambertian  # the mirror is what the test is about
     assert abs(float(np.mean(ch["radiance"])) / expected - 1) < 5e-3

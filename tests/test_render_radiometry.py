@@ -20,6 +20,7 @@ from test_render import add_material as material
 from test_render import new_stage as _new_stage
 from test_render import read_exr as _read_exr
 
+from humv_usd.compat import trapezoid
 from humv_usd.errors import InputError
 from humv_usd.physics import planck
 from humv_usd.pipeline.render import render_stage
@@ -316,7 +317,7 @@ def test_sun_reflected_in_mwir(tmp_path, toward, lit):
     ch = read_exr(tmp_path / "out" / "ir" / "0000.exr")
     d = np.asarray(toward, float) / np.linalg.norm(toward)
     x = np.linspace(*MWIR, 2001)
-    e_band = np.trapz(np.interp(x, wl, e_solar), x)
+    e_band = trapezoid(np.interp(x, wl, e_solar), x)
     expected = eps * planck.band_radiance(t, MWIR) + (1 - eps) * planck.band_radiance(t_sky, MWIR)
     if lit:
         expected += (1 - eps) * e_band * d[2] / np.pi

@@ -56,6 +56,9 @@ MITSUBA_PLUGINS = (
     "hdrfilm",
     "independent",
     "mesh_attribute",
+    # the scene loader's own shape-merging pass (not named by a scene dict: a scene of an
+    # envmap alone asked for it on an H200, 2026-11-27)
+    "merge",
     "moment",
     "path",
     "perspective",
