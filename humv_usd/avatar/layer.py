@@ -102,6 +102,7 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 25: the supporting hands of BVH clips laid flat, palm down (human.limbs);
 #: 24: bodies beyond the fat axis scaled more front to back than sideways (ANSUR II's waist depth
 #: against breadth: human.body.split_horizontal_scale), humv:fit depthScale;
 #: 23: BVH clips: hands that support the body (a crawl, a get-up) held on the ground (human.limbs);
@@ -132,7 +133,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "24"
+VERSION = "25"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:

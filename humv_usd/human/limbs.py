@@ -13,7 +13,8 @@ a hand where its lowest point is within :data:`HAND_NEAR_M` and the wrist moves 
 0.07 s bridged: :func:`humv_usd.human.contact.clean_stance`). Within a hand's run the hand *rolls
 without slipping*, as a locked foot does: from frame to frame its lowest point (the pivot) keeps
 its horizontal place, the run is planted at its mean place, and the lowest point is put on the
-ground in every frame; the corrections are blended in and out by minimum jerk
+ground in every frame; the hand is first laid flat, its palm (:func:`humv_usd.human.carry.palm_frame`)
+turned to face the ground by the least rotation; the corrections are blended in and out by minimum jerk
 (:func:`humv_usd.human.contact._bridge`, 0.25 s fades), never below the ground between runs, and
 reached by the two-bone arm IK (:func:`humv_usd.human.poses.arm_ik`, the hand's orientation and
 the elbow's side kept).
@@ -29,9 +30,10 @@ from __future__ import annotations
 import numpy as np
 
 from humv_usd.human import contact as C
-from humv_usd.human.gait import fk_matrices
+from humv_usd.human.carry import palm_frame
+from humv_usd.human.gait import align_matrix, fk_matrices, matrix_to_quat, quat_slerp
 from humv_usd.human.poses import BodyPoints, arm_ik
-from humv_usd.human.skeleton import Skeleton
+from humv_usd.human.skeleton import Skeleton, quat_to_matrix
 
 #: a knee rests on the ground where its lowest point is this close to it [m] (as a foot:
 #: contact.LOCK_NEAR_M)
@@ -65,7 +67,7 @@ def _pivot_offsets(
     fade, longest = C._fade_frames(fps)
     off = C._bridge(off, mask, fade, longest)
     # between runs lifted off the ground as it leaves and before it lands (LIFT_M within
-    # LIFT_S of a run, less where the clip's own part is lower), never below it
+    # LIFT_S of a run), never below it
     idx = np.arange(frames)
     on = np.flatnonzero(mask)
     since = np.min(np.abs(idx[:, None] - on[None, :]), axis=1) / fps if len(on) else np.full(frames, np.inf)
@@ -73,7 +75,7 @@ def _pivot_offsets(
     moved = pts + off[:, None, :]
     dip = np.max(ground.height(moved[..., :2]) - moved[..., 2], axis=1)
     own = np.max(ground.height(pts[..., :2]) - pts[..., 2], axis=1)
-    want = np.minimum(clear, np.maximum(-own, 0.0))  # the clearance the clip's own part has
+    want = clear
     off[:, 2] += np.where(mask, 0.0, np.maximum(dip + want, 0.0))
     if floor is not None:  # other points moved with the part (the forearm) kept off the ground
         moved = floor + off[:, None, :]
@@ -134,6 +136,23 @@ def lock_hands(
     wrot, wpos = fk_matrices(skeleton, out, root_rot, root_pos)
     posed = points.posed(wrot, wpos, skeleton)
     runs = support_runs(skeleton, ground, points, posed, wpos, fps)
+    # a supporting hand is laid flat, its palm facing the ground (the clip's hand turned by the
+    # least rotation that does it, blended in and out as the corrections are)
+    fade, longest = C._fade_frames(fps)
+    down = np.array([0.0, 0.0, -1.0])
+    for side in C.SIDES:
+        m = runs[f"{side}Hand"]
+        if not m.any():
+            continue
+        j = skeleton.index(f"{side}Hand")
+        normal = palm_frame(skeleton, points.rest[points.groups[f"{side}Hand"]], side).normal
+        w = C._bridge(np.ones(len(m)), m, fade, longest)
+        rows = np.flatnonzero(w > 0)
+        flat = align_matrix(wrot[rows, j] @ normal, np.broadcast_to(down, (len(rows), 3))) @ wrot[rows, j]
+        q = quat_slerp(matrix_to_quat(wrot[rows, j]), matrix_to_quat(flat), w[rows])
+        arm_ik(skeleton, side, wrot, wpos, out, rows, wpos[rows, j], quat_to_matrix(q))
+    wrot, wpos = fk_matrices(skeleton, out, root_rot, root_pos)
+    posed = points.posed(wrot, wpos, skeleton)
     # the wrist moved by the correction, the arm by IK, the hand's orientation kept; the
     # forearm's end turns with the IK, so each pass corrects what the one before left
     for _ in range(HAND_PASSES):
