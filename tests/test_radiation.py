@@ -248,6 +248,65 @@ def test_adaptive_rays_go_to_partly_occluded_facets():
     assert 0.0 < stats["rms_rel_error_estimate"] < 0.05 and stats["rays"] == counts.sum()
 
 
+def test_weighted_rays_spend_the_budget_where_the_weights_are():
+    """With ``importance`` the second-stage rays go ~ sqrt(w_i) s_i (the optimum of
+    sum_i w_i Var(q_i) for a fixed ray count, Cochran 1977 section 5.5), spending the whole
+    budget: facets weighed 4x get ~2x the rays of equal facets weighed 1x, and a few heavy
+    facets may take more than 1024 rays (the old cap left most of the budget unspent)."""
+    big = 50.0
+    wall = _quads([[[0.01, -big, -big], [0.01, -big, big], [0.01, big, big], [0.01, big, -big]]])
+    scene = SR.SceneSurfaces(wall, np.array([[0.0, 0.0], [160.0, 160.0]]))
+    env = SR.radiance_map([0, 0, 0.5], UniformSky((0.0, 100.0)), scene, 90)
+    # 40 facets at the foot of the wall (half the sky blocked: the same per-ray spread each)
+    facets = _facets(np.c_[np.zeros(40), np.linspace(-0.5, 0.5, 40), np.zeros(40)])
+    occ = Q._Occluders(facets, 2, None, scene)
+    table = RM.irradiance_table(env, 32)
+    alpha = np.ones((2, 40))
+    args = (env, facets.triangles_center, facets.face_normals, occ, 1e-6)
+    w = np.r_[np.ones(20), np.full(20, 4.0)]
+    _, _, counts = Q._diffuse_adaptive(*args, 256, 0, table, 16, alpha, 4096, importance=w)
+    ratio = (counts[20:] - 16).sum() / (counts[:20] - 16).sum()
+    assert 1.6 < ratio < 2.5, ratio
+    # four heavy facets among 40: their share of 256 x 40 rays is ~2,500 each
+    w = np.r_[np.full(4, 1e4), np.ones(36)]
+    _, _, counts = Q._diffuse_adaptive(*args, 256, 0, table, 16, alpha, 4096, importance=w)
+    assert counts[:4].min() > 1040 and counts.sum() > 0.75 * 256 * 40, counts
+    stats = {}
+    Q.absorbed_radiation(
+        facets, env, [1.0, 1.0], scene=scene, method="adaptive", rays=256, stats=stats, importance=w
+    )
+    assert stats["rays"] > 0.75 * 256 * 40  # the default cap lets them
+
+
+def test_replicates_measure_the_error_of_weighted_adaptive_rays():
+    """The adaptive method with importance weights (as a person's thermal layer calls it):
+    the stated per-facet error, measured by replicates, matches the spread over seeds."""
+    _, scene, sky, alpha, _ = BT.bench_scene(2000)
+    sphere = trimesh.creation.icosphere(2, radius=0.4)
+    sphere.apply_translation([0.0, 0.0, 0.6])
+    env = SR.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
+    w = sphere.area_faces / sphere.area_faces.mean()
+    runs, stated = [], []
+    for seed in range(8):
+        stats = {}
+        q = Q.absorbed_radiation(
+            sphere,
+            env,
+            alpha,
+            scene=scene,
+            method="adaptive",
+            rays=64,
+            seed=seed,
+            stats=stats,
+            replicate_facets=160,
+            importance=w,
+        )
+        runs.append(q.sum(axis=0))
+        stated.append(np.mean(stats["variance"]))
+    seeds = np.mean(np.var(np.array(runs), axis=0, ddof=1))
+    assert 0.75 < np.sqrt(np.mean(stated) / seeds) < 1.33, np.sqrt(np.mean(stated) / seeds)
+
+
 def test_error_estimate_bounds_the_actual_error():
     _, scene, sky, alpha, _ = BT.bench_scene(2000)
     sphere = trimesh.creation.icosphere(2, radius=0.4)

@@ -265,27 +265,36 @@ def human_temperatures(
             pts0 = pts
             cover = _coverage(body, garments, pts0, stage)  # once: the balance below uses it too
             seen = _visible_faces(cover, garments, pts0, stage)
+            # once, so that the visibility caches' keys (which hold it) stay valid
+            importance = _ray_importance(parts, pts0, seen)
         centre = centres[k] = pts[0].mean(axis=0)
         env = SR.radiance_map(centre, sky, scene, resolution=settings["radiation_resolution"])
         bare = _trimesh(pts[:1], parts[:1])
         normals[k] = _face_normals(body, bare)
         self_bare = _self_radiance([body], skin_guess, air_k)
         stats: dict = {}
+        # with garments the bare body's rays feed only the segments' mean radiant temperature
+        # (area means over hundreds of facets: their noise averages out); the face
+        # temperatures take the clothed call's, which gets the ray budget
+        bare_qrad = qrad if not garments or method == "brute" else dict(qrad, rays=BARE_MRT_RAYS)
         q = Q.absorbed_radiation(
             bare,
             env,
             absorb_body,
-            replicate_facets=_replicate_facets(parts[:1], seen[:1], g["seed"]) if k == 0 else 0,
+            replicate_facets=_replicate_facets(parts[:1], seen[:1], g["seed"])
+            if k == 0 and not garments
+            else 0,
             scene=scene,
             seed=g["seed"] + frame,
             mesh_radiance=self_bare,
             stats=stats,
             cache=cache_bare,
             cache_tolerance_m=VISIBILITY_REUSE_M,
-            **qrad,
+            importance=None if garments else importance,
+            **bare_qrad,
         )
         areas = bare.area_faces
-        if k == 0 and method != "brute":
+        if k == 0 and method != "brute" and not garments:
             # Monte Carlo error of the ray methods, measured by independent replicates on
             # random facets (qrad.absorbed_radiation's stats)
             diagnostics["qradRmsRelErrorEstimate"] = stats["rms_rel_error_estimate"]
@@ -312,16 +321,16 @@ def human_temperatures(
                 stats=stats_c if k == 0 and method != "brute" else None,
                 replicate_facets=_replicate_facets(parts, seen, g["seed"]) if k == 0 else 0,
                 # the rays go where the flux is used: bare skin and the outer garment layers
-                # (skin under a garment and inner layers take the stacks' balance instead)
-                importance=np.concatenate([seen_i[p.tri_face] for seen_i, p in zip(seen, parts)]).astype(
-                    float
-                ),
+                # (skin under a garment and inner layers take the stacks' balance instead),
+                # weighted by the faces' area and temperature response
+                importance=importance,
                 cache=cache_clothed,
                 cache_tolerance_m=VISIBILITY_REUSE_M,
                 **qrad,
             ).sum(axis=0)
             if k == 0 and method != "brute":
                 q_var = _part_variance(stats_c, parts)  # the skin and garments among the garments
+                diagnostics["qradRmsRelErrorEstimate"] = stats_c["rms_rel_error_estimate"]
             start = len(body.triangles)
             # bare skin among the garments: what it absorbs with the garments' shadows
             q_skin[k] = _face_mean(body, qc[:start], clothed.area_faces[:start])
@@ -504,6 +513,40 @@ def human_temperatures(
         diagnostics["garmentEvaporationMax_W_m2"] = float(wardrobe.evaporation_max)
     out = {body.path: t_face, **garment_temps}
     return out, diagnostics
+
+
+#: Rays per facet of a clothed person's bare-body q_rad, which feeds only the segments' mean
+#: radiant temperature (the adaptive method's pilot: no second stage).
+BARE_MRT_RAYS = 16
+
+#: Typical response dT/dq [K m^2 W^-1] of a visible face's temperature to its absorbed flux,
+#: only to spread the q_rad rays (:func:`_ray_importance`; the estimate and its stated error do
+#: not depend on it): bare skin 1 / (dq/dT + the skin's conductance to the core), a garment's
+#: outer face the stack's dT/dq (:func:`_garment_response`); medians over the demo person's
+#: visible faces 0.022 and 0.035 (cap 0.039, shoes 0.033).
+SKIN_RESPONSE_K_M2_W = 0.022
+GARMENT_RESPONSE_K_M2_W = 0.035
+
+
+def _ray_importance(parts, points, visible) -> np.ndarray:
+    """(triangles,) weight of each triangle's q_rad variance in the person's face-temperature
+    error (qrad.absorbed_radiation's ``importance``): a face f of area A_f made of triangles of
+    areas a_t has the temperature variance r^2 sum_t (a_t / A_f)^2 Var(q_t), r its response
+    (:data:`SKIN_RESPONSE_K_M2_W`, :data:`GARMENT_RESPONSE_K_M2_W`); its pixels in an image
+    are ~ A_f, so the area-weighted error that the rays should minimise is
+    sum_t r^2 a_t^2 / A_f Var(q_t). Hidden faces (``visible`` False) weigh 0. Scaled to a mean
+    of 1 over the weighted triangles."""
+    out = []
+    for part, pts, seen in zip(parts, points, visible):
+        a, b, c = (pts[part.triangles[:, i]] for i in range(3))
+        tri = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        face = np.bincount(part.tri_face, tri, len(part.counts))
+        r = SKIN_RESPONSE_K_M2_W if part.garment is None else GARMENT_RESPONSE_K_M2_W
+        w = r**2 * tri**2 / np.maximum(face[part.tri_face], 1e-300)
+        out.append(np.where(seen[part.tri_face], w, 0.0))
+    w = np.concatenate(out)
+    mean = float(w[w > 0].mean()) if np.any(w > 0) else 1.0
+    return w / mean
 
 
 #: triangles per part (body, each garment) whose q_rad is estimated a second time with

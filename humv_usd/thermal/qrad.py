@@ -597,7 +597,7 @@ def _diffuse_fast(
     return est, var
 
 
-_LEVELS = (16, 32, 64, 128, 256, 512, 1024)  # powers of two: Hammersley sets are (0, m, 2)-nets
+_LEVELS = (16, 32, 64, 128, 256, 512, 1024, 2048, 4096)  # powers of two: Hammersley sets are (0, m, 2)-nets
 
 
 def _diffuse_adaptive(
@@ -625,9 +625,11 @@ def _diffuse_adaptive(
     minimises sum_i Var(q_i) / q_i^2 for a fixed ray count (Neyman 1934; Cochran 1977,
     Sampling Techniques, section 5.5). Facets whose pilot rays all agree (typically: nothing in
     the way, or one uniform occluder everywhere) and whose neighbours' pilot rays agree too get
-    no more rays. ``importance`` (F,) >= 0 weighs each facet's term of that sum (the optimum
-    is then K_i ~ sqrt(w_i) s_i / q_i): 0 for a facet whose flux nobody uses (skin under a
-    garment, whose temperature the garment's balance sets) leaves it its pilot rays.
+    no more rays. ``importance`` (F,) >= 0, when given, replaces the relative objective by
+    sum_i w_i Var(q_i) with the caller's weights w_i (e.g. the variance of an area-weighted
+    face temperature per unit flux variance): the optimum is then K_i ~ sqrt(w_i) s_i; 0 for a
+    facet whose flux nobody uses (skin under a garment, whose temperature the garment's
+    balance sets) leaves it its pilot rays.
 
     Returns (per-band flux (bands, F), variance of the ``weight``-summed flux (F,), rays per
     facet (F,)).
@@ -643,8 +645,10 @@ def _diffuse_adaptive(
     w = np.asarray(weight, dtype=float)
     # pilot estimate of the facet's flux, floored at a quarter of the median so that facets
     # buried inside other geometry (q -> 0) do not take the whole budget
-    q1 = np.abs(np.broadcast_to(w, e1.shape) * e1).sum(axis=0)
-    score = np.sqrt(var1 * pilot) / np.maximum(q1, 0.25 * max(float(np.median(q1)), 1e-30))
+    score = np.sqrt(var1 * pilot)  # the per-ray standard deviation s_i
+    if importance is None:
+        q1 = np.abs(np.broadcast_to(w, e1.shape) * e1).sum(axis=0)
+        score = score / np.maximum(q1, 0.25 * max(float(np.median(q1)), 1e-30))
     # a facet's own pilot can miss a small opening (all rays hit one uniform occluder, zero
     # sample variance); its neighbours see nearly the same hemisphere, so each facet takes the
     # larger of its own score and the mean score of its 8 nearest facets
@@ -724,7 +728,7 @@ def absorbed_radiation(
     table_grid=64,
     offset=None,
     pilot=16,
-    max_rays=1024,
+    max_rays=4096,
     backend="embree",
     stats: dict | None = None,
     cache: dict | None = None,
@@ -773,7 +777,8 @@ def absorbed_radiation(
         'adaptive': first-stage rays per facet (a power of two keeps the Hammersley set a
         (0, m, 2)-net).
     max_rays : int
-        'adaptive': cap of the second-stage rays of one facet.
+        'adaptive': cap of the second-stage rays of one facet (4096: a few heavily weighted
+        facets may take several times the mean; 1024 left most of a weighted budget unspent).
     backend : {'embree', 'mitsuba'}
         Ray caster: embreex through trimesh (single-threaded) or Mitsuba's
         (:class:`humv_usd.geometry.raycast.MitsubaRayCaster`, multi-threaded, costs the Mitsuba import).
@@ -814,9 +819,13 @@ def absorbed_radiation(
         'smooth': faces around a vertex whose normals differ by more than this [deg] are not
         averaged (an edge that is meant to be sharp).
     importance : array (faces,), optional
-        'adaptive': the weight of each facet's error when the second-stage rays are spread
-        (default 1 everywhere); 0 keeps a facet at its ``pilot`` rays (a face whose flux no
-        one uses), so the budget of ``rays`` x facets goes to the others.
+        'adaptive': the weight w_i of each facet's flux variance in the error that the
+        second-stage rays minimise, sum_i w_i Var(q_i) (rays ~ sqrt(w_i) x the facet's per-ray
+        standard deviation; e.g. w_i = (dT/dq)^2 a_i^2 / A for a triangle of area a_i in a face
+        of area A whose temperature T responds to its flux by dT/dq, so that the error of the
+        area-weighted face temperatures is minimised). Default: the facets' relative errors
+        (w_i = 1 / q_i^2). 0 keeps a facet at its ``pilot`` rays (a face whose flux no one
+        uses), so the budget of ``rays`` x facets goes to the others.
     replicate_facets : int or array of int
         Facets re-estimated with independent rays to measure the error (only with ``stats``): a
         count drawn at random, or the facets' indices.
