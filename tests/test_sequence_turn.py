@@ -214,3 +214,17 @@ def _raw(segments):
         "human": [{"id": "p", "segment": segments}],
         "placement": [{"human": "p", "position_m": [0.0, 0.0, 0.0]}],
     }
+
+
+@needs_rig
+def test_a_chair_on_the_walked_path_is_refused(rig):
+    """Walk up and sit down on the chair without turning round: the chair (authored for the
+    whole clip) would stand where the person has just walked: one clear line."""
+    from humv_usd.human.sequence import make_sequence_motion
+
+    body, sk = rig
+    segs = [{"activity": "walk", "distance_m": 2.0}, {"activity": "sitChair"}]
+    with pytest.raises(
+        InputError, match=r"segment\[1\]\.activity = 'sitChair': its chair .* turn round first"
+    ):
+        make_sequence_motion(segs, sk, FPS, 81, body_points=body.points, where="human[0].segment")

@@ -140,6 +140,34 @@ def segments_from(table: list) -> list[Segment]:
     return out
 
 
+#: how deep [m] a body point may be inside the chair's seat box (the seated pose rests on it)
+CHAIR_TOLERANCE_M = 0.01
+
+
+def _check_chair(chair: dict, posed: np.ndarray, segs, where: str, fps: float) -> None:
+    """One :class:`InputError` line if a body point (``posed`` (F, n, 3)) is ever deeper than
+    :data:`CHAIR_TOLERANCE_M` inside the seat box of a sitChair segment's chair (authored for the
+    whole clip: e.g. a walk up to it without a turn would pass through it)."""
+    cx, cy, cz = chair["center_m"]
+    w, d, h = chair["size_m"]
+    c, s = np.cos(chair["yaw_rad"]), np.sin(chair["yaw_rad"])
+    dx, dy = posed[..., 0] - cx, posed[..., 1] - cy
+    u, v = c * dx + s * dy, -s * dx + c * dy
+    depth = np.min([w / 2 - np.abs(u), d / 2 - np.abs(v), h / 2 - np.abs(posed[..., 2] - cz)], axis=0)
+    inside = depth.max(axis=1) > CHAIR_TOLERANCE_M
+    if inside.any():
+        j = next(i for i, seg in enumerate(segs) if seg.activity == "sitChair")
+        t = float(np.argmax(inside)) / fps
+        raise InputError(
+            bad_value(
+                f"{where}[{j}].activity",
+                "sitChair",
+                f"its chair (there for the whole clip) stands where the body passes at {t:.1f} s: "
+                "turn round first (a turn segment before it), then sit down",
+            )
+        )
+
+
 def _gait_mode(activity: str) -> str:
     """The gait a locomotion segment walks (carry: the walk; the arms hold the box)."""
     return "walk" if activity == "carry" else activity
@@ -196,6 +224,8 @@ def make_sequence_motion(
     # apart merged into one (a 1 fps walk reported metres of slip)
     wrot, wpos = fk_matrices(skeleton, local, local[:, 0], root)
     report = C.contact_report(sim.ground, sim.feet, wrot, wpos, stance)
+    if "chair" in info:  # the chair stands for the whole clip: nothing else may pass through it
+        _check_chair(info["chair"], sim.points.posed(wrot, wpos, skeleton), segs, where, k * float(fps))
     keep = slice(0, None, k)
     local, root, met = local[keep], root[keep], met[keep]
     stance = {s: m[keep] for s, m in stance.items()}
