@@ -195,6 +195,25 @@ def test_each_cell_is_a_shifted_lattice():
         assert spread.max() < 1e-5
 
 
+def test_a_cells_lattice_integrates_a_step_with_error_variance_falling_as_n_to_the_minus_three_halves():
+    """The direct term's per-pixel count (:data:`E.DIRECT_LATTICE_EXPONENT`) rests on this: the
+    mean of a cell's shifted lattice over a step between two faces inside the pixel (half-planes
+    at oblique angles) has an error variance falling as about n^-3/2 (Mitchell, SIGGRAPH 1996),
+    against 1/n for independent points: the log-log slope over n = 16, 64, 256 (4096 cells'
+    shifts each), -1.6 to -2.1 on most edges, -1.4 at worst."""
+    cells, slopes = 4096, []
+    for angle_deg, offset in ((27.0, 0.13), (56.1, -0.046), (98.9, -0.283), (135.6, 0.023)):
+        normal = np.array([np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))])
+        var = []
+        for n in (16, 64, 256):
+            mi, dr, j, cell = _lanes(n, cells)
+            x, y = E._rotated_lattice_sized(mi, dr, mi.UInt32(n), j, cell, 4242, n)
+            p = np.stack([np.asarray(x), np.asarray(y)], axis=-1).reshape(cells, n, 2) - 0.5
+            var.append(((p @ normal) > offset).mean(axis=1).var())  # the share past the step
+        slopes.append(np.polyfit(np.log([16, 64, 256]), np.log(var), 1)[0])
+    assert np.mean(slopes) < -1.5 and max(slopes) < -1.3, slopes  # independent points: -1
+
+
 def test_cell_shifts_are_independent_uniform_draws():
     """The replicas' independence is what the stated error rests on: the cells' shifts are
     uniform (Kolmogorov-Smirnov), uncorrelated between neighbouring cells (a pixel's replicas),

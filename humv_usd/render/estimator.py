@@ -140,6 +140,10 @@ CAVITY_CLASSES = ("person",)
 #: over a step between two faces converges as N^-3/4 on the stratified lattice; at 64 the humvvex
 #: person kept 0.23 K mean per 2-spp batch (its reflected part 0.06 K).
 MAX_PIXEL_DIRECT_FACTOR = 1024
+#: how the direct term's per-pixel position count follows its variance ratio to the goal: a
+#: lattice's error variance at a step inside the pixel falls as n^-3/2 (Mitchell 1996), so the
+#: count is (V / goal)^(2/3) (1: the 1/n law of independent positions)
+DIRECT_LATTICE_EXPONENT = 2.0 / 3.0
 #: Most more camera samples (with their reflections) per camera sample in one pixel whose
 #: reflected part is above half the caller's target (small surfaces, e.g. a person's garments,
 #: where the filter's window is small): 64 (the humvvex person's reflected part, 0.06 K mean per
@@ -1287,10 +1291,24 @@ def render_band_fast(
             mix = mix.reshape(direct.shape)
         seen = positions + boost_reflect  # positions per camera sample in the two pilots
         floor = scale * step_variance(mix, hits.part, replicas * lattice_n)
-        per_position = np.maximum(per_position, floor)
         direct_goal = np.maximum(target - scale * np.nansum(reflect_var, axis=0), 0.5 * target)
         with np.errstate(invalid="ignore", divide="ignore"):
-            wanted = np.where(aimed, np.ceil(per_position / direct_goal), 0.0)
+            if lamps is None or not lamps.rects:
+                # The direct term is a function of the pixel position alone (emission, the sun
+                # behind one shadow ray, the path): each cell's lattice integrates it over the
+                # footprint, and the error variance of a lattice at a step between faces falls
+                # as n^-3/2, not 1/n (Mitchell, "Consequences of stratified sampling in
+                # graphics", SIGGRAPH 1996): from a pilot of n0 position sets with variance V0,
+                # n = n0 (V0 / goal)^(2/3) sets (the floor: V0 at one set). A lit window's random
+                # sample point is not a function of the position: with windows, 1/n.
+                e = DIRECT_LATTICE_EXPONENT
+                ratio = np.maximum(
+                    positions * (per_position / positions / direct_goal) ** e, (floor / direct_goal) ** e
+                )
+            else:
+                ratio = np.maximum(per_position, floor) / direct_goal  # independent positions: 1/n
+            wanted = np.where(aimed, np.ceil(ratio), 0.0)
+        per_position = np.maximum(per_position, floor)
         wanted = np.clip(np.nan_to_num(wanted, nan=0.0, posinf=0.0), 0, MAX_PIXEL_DIRECT_FACTOR)
         boost = within_budget(
             np.where(aimed, np.maximum(wanted, seen), 0).astype(np.int64),
