@@ -182,7 +182,13 @@ SUN_MEAN_STEPS = 0
 SUN_GAIN_STEPS = 1
 #: Largest one-ring gain (near the terminator both of its sums vanish).
 SUN_GAIN_CAP = 4.0
-#: Van Cittert steps of the blended shadowed term (emission + rho G) toward each face's mean.
+#: Van Cittert steps of the blended shadowed term (emission + rho G) toward each face's mean
+#: (:func:`corner_table`): 0, the plain blend. The blend of the faces' temperatures loses their
+#: covariance with the projected area as the sun term's did: the humvvex person reads about
+#: 90 mK under the flat-faced IR path tracer in MWIR and LWIR; 1 step: MWIR -92 -> -22 mK, LWIR
+#: -89 -> -5 mK, but the sunlit T-shirt's d2 p90 0.117 -> 0.121 K against the smooth-surface
+#: acceptance's 0.119 (issue 25, open). If set, ``groundtruth.labels.smooth_temperature``
+#: should follow the same field.
 DARK_MEAN_STEPS = 0
 #: ... and for the bands of reflected light (EO: :data:`humv_usd.render.eo_fast.SUN_MEAN_STEPS`;
 #: NIR, SWIR: ``pipeline.ir_pass``), where the sun term is the signal: with the plain blend the
