@@ -167,11 +167,11 @@ SMOOTH_SHADING = True
 #: bench) and the humvvex MWIR person +23.5 mK (1 step: +20.2 mK) toward the flat faces' mean,
 #: but sharpen the sunlit white T-shirt's shading past the smooth-surface acceptance
 #: (``tests/test_person_surfaces.py``: d2 p90 0.102 -> 0.130 K against 0.119; 1 step 0.117).
-#: The reflected-light bands use :data:`REFLECTIVE_SUN_MEAN_STEPS`; the thermal bands restore
-#: the faces' means by :data:`SUN_GAIN_STEPS` instead.
+#: The reflected-light bands use :data:`REFLECTIVE_SUN_MEAN_STEPS`; every band now restores the
+#: faces' means by one-ring gains instead (:data:`SUN_GAIN_STEPS`, :data:`REFLECTIVE_SUN_GAIN_STEPS`).
 SUN_MEAN_STEPS = 0
 #: One-ring gain steps of the blended sun term (:func:`corner_table`) when the caller does not
-#: say: 1 for the thermal bands. Each corner's sun term is scaled by the ratio of the blended
+#: say: 1 for the thermal bands (the reflective ones: :data:`REFLECTIVE_SUN_GAIN_STEPS`). Each corner's sun term is scaled by the ratio of the blended
 #: faces' own sun terms to the blended face means of the smooth field around it, so that every
 #: one-ring of faces reflects what its flat faces receive (the per-face energy balance of the
 #: thermal layer and of the flat-faced path tracer). Against the plain blend's -2.4 % (close-up)
@@ -193,10 +193,17 @@ DARK_MEAN_STEPS = 0
 #: ... and for the bands of reflected light (EO: :data:`humv_usd.render.eo_fast.SUN_MEAN_STEPS`;
 #: NIR, SWIR: ``pipeline.ir_pass``), where the sun term is the signal: with the plain blend the
 #: render bench's EO person was 0.78 % and a close-up NIR person 1.36 % under the path tracer
-#: (which shades flat faces), with 2 steps 0.19 % and 0.18 %.
-REFLECTIVE_SUN_MEAN_STEPS = 2
-#: ... with no one-ring gain steps (:data:`SUN_GAIN_STEPS`).
-REFLECTIVE_SUN_GAIN_STEPS = 0
+#: (which shades flat faces), with 2 steps 0.19 % and 0.18 % (s6). Now 0: the one-ring gain
+#: (:data:`REFLECTIVE_SUN_GAIN_STEPS`) instead.
+REFLECTIVE_SUN_MEAN_STEPS = 0
+#: ... and their one-ring gain steps (:data:`SUN_GAIN_STEPS`): 1, as the thermal bands. Against
+#: the path tracers (256 spp; fast 16 spp, 12 bins) the person: the render bench's close-up EO
+#: camera (360 x 270) Y -0.270 +- 0.015 % with 2 Van Cittert steps, -0.016 % with 1 gain step
+#: (flat faces -0.096 %; about -0.10 % is the reference's own Y normalisation); humvvex's EO
+#: camera (360 x 270) -0.414 +- 0.043 % and -0.418 % (flat -0.130 %); a close-up NIR person
+#: (nir_imx273 360 x 270, IR path tracer) -0.232 +- 0.009 % and -0.076 % (flat -0.019 %); at
+#: the roughness of 1 Van Cittert step instead of 2.
+REFLECTIVE_SUN_GAIN_STEPS = 1
 #: Point lamps and spots traced each (a shadow ray per lamp per hit); with more, one lamp per hit
 #: is chosen by its unoccluded irradiance (:func:`_lamp_irradiance`; windows always so).
 MAX_LAMP_RAYS = 8
@@ -398,7 +405,7 @@ def corner_table(surface: np.ndarray, blend, sun_mean_steps: int = 0, sun_gain_s
     covariance it restores lives on the faces' scale; see :data:`SUN_MEAN_STEPS`). Van Cittert, Z. Phys. 69 (1931) 298; Jansson, *Deconvolution of Images and
     Spectra*, 2nd ed., 1997, ch. 3.
 
-    Or (``sun_gain_steps``, the thermal bands) the blended sun term is scaled at each corner by
+    Or (``sun_gain_steps``, every band's default) the blended sun term is scaled at each corner by
     the one-ring gain g = sum_f w_f s_f / sum_f w_f mean_f(s'), the blend's weights w_f over the
     sunward faces f around the corner, s_f a face's own sun term and mean_f(s') the face mean of
     the smooth field: each corner's ring of faces then reflects what its flat faces receive,
