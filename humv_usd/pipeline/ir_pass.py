@@ -207,6 +207,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             extra["reuse"] = frame_tables  # the per-triangle tables, built in the first batch
             if s.is_reflective:  # NIR/SWIR: the sun term is the signal (its smooth shading kept unbiased)
                 extra["sun_mean_steps"] = E.REFLECTIVE_SUN_MEAN_STEPS
+                extra["sun_gain_steps"] = E.REFLECTIVE_SUN_GAIN_STEPS
             if fast_auto and Q.targets(netd) is not None:
                 extra["direct_target"] = direct_target
                 extra["boost_first"] = first_served

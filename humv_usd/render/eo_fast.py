@@ -67,7 +67,8 @@ DEFAULT_EO_SPLITS = 1
 #: (:func:`humv_usd.render.estimator.corner_table`, the reflected-light bands' value): with the
 #: plain blend (0) the render bench person's Y was 0.78 % under the spectral path tracer (z -52;
 #: flat faces -0.10 %, Mitsuba's Y normalisation), with 2 steps -0.27 % on a close-up (1: -0.35 %,
-#: 3: -0.23 %), continuous, a little more shading within the faces.
+#: 3: -0.23 %), continuous, a little more shading within the faces. Now 0: the one-ring gain
+#: (:data:`humv_usd.render.estimator.REFLECTIVE_SUN_GAIN_STEPS`) instead, -0.016 % there.
 SUN_MEAN_STEPS = E.REFLECTIVE_SUN_MEAN_STEPS
 #: Automatic quality (one module, :mod:`humv_usd.render.quality`): the seed offset between the
 #: batches of one frame, the target (mean Y error away from edges <= this fraction of mean Y)
@@ -261,5 +262,6 @@ def render_xyz_fast(
         weights=bins.weights,
         tables=reflectance_tables(scene, reflectance_of, n),
         sun_mean_steps=SUN_MEAN_STEPS,
+        sun_gain_steps=E.REFLECTIVE_SUN_GAIN_STEPS,
     )
     return np.moveaxis(np.asarray(rad), 0, -1), np.moveaxis(np.asarray(err), 0, -1)
