@@ -156,7 +156,10 @@ def test_a_segment_too_short_for_its_transitions_is_one_clear_error(rig):
             [{"activity": "walk", "distance_m": 3}, {"activity": "run"}],
             r"segment\[1\]\.activity = 'run': follows 'walk'",
         ),
-        ([{"activity": "sit", "distance_m": 3}], r"segment\[0\]\.distance_m = 3\.0: only for walk, run or carry"),
+        (
+            [{"activity": "sit", "distance_m": 3}],
+            r"segment\[0\]\.distance_m = 3\.0: only for walk, run or carry",
+        ),
         (
             [{"activity": "walk", "speed_m_s": 2.5}],
             r"segment\[0\]\.speed_m_s = 2\.5: allowed range for walk: 0\.5\.\.2\.0",
