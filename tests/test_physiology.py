@@ -509,28 +509,3 @@ def test_jos3_module_imports_jos3_alone_and_the_package_later():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "ok"
-
-
-def test_anderson_mixing_solves_a_linear_contraction_in_dimension_plus_one_steps():
-    """Walker & Ni (2011): on x = A x + b of dimension m, Anderson mixing with memory >= m
-    reaches the fixed point in m + 1 steps (plain iteration: error ratio ~0.9 per step here);
-    a step whose measure grew drops the history (a plain step, x = G(x))."""
-    from humv_usd.thermal.human import AndersonMixing
-
-    rng = np.random.default_rng(3)
-    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    a = q @ np.diag([0.9, 0.5, -0.7]) @ q.T
-    b = np.array([1.0, -2.0, 0.5])
-    exact = np.linalg.solve(np.eye(3) - a, b)
-    mix = AndersonMixing(3)
-    x = np.zeros(3)
-    for _ in range(4):
-        g = a @ x + b
-        x = mix.step(x, g, measure=float(np.abs(g - x).max()))
-    assert_allclose(x, exact, rtol=0, atol=1e-9)
-    plain = np.zeros(3)
-    for _ in range(4):
-        plain = a @ plain + b
-    assert np.abs(plain - exact).max() > 1.0
-    g = a @ x + b
-    assert_allclose(mix.step(x, g + 1.0, measure=1e9), g + 1.0, rtol=0, atol=0)

@@ -25,9 +25,8 @@ The chain, per person:
    loss) is compared with the physiology's own sensible loss; the segment's effective radiant
    temperature is set so that the physiology's dry exchange gives that flux
    (:func:`humv_usd.thermal.physiology.radiant_temperature_for_sensible_loss`) and 3-5 are
-   repeated, the radiant temperatures mixed with the earlier iterates' (Anderson acceleration,
-   :class:`AndersonMixing`), until they agree within :data:`COUPLING_TOLERANCE_W_M2` (the
-   residual and the iterations go to the layer's metadata). With the two-node model (one skin node) the
+   repeated until they agree within :data:`COUPLING_TOLERANCE_W_M2` (the residual and the
+   iterations go to the layer's metadata). With the two-node model (one skin node) the
    whole body's area-weighted flux is matched.
 
 The sky (weather and sun of the environment layer, :mod:`humv_usd.usd.environment`) and the
@@ -412,7 +411,6 @@ def human_temperatures(
     mrt = at_frames(mrt)
     tr_eff = np.where(np.isnan(mrt), air[:, None], mrt)
     t_lin = None
-    mixing = AndersonMixing(COUPLING_MEMORY)
     for iteration in range(1, COUPLING_MAX_ITERATIONS + 1):
         diagnostics["couplingIterations"] = iteration
         result = simulate_physiology(
@@ -474,7 +472,7 @@ def human_temperatures(
         residual = np.abs(q_seg - sensible)[:, present].max()
         if residual <= COUPLING_TOLERANCE_W_M2:
             break
-        tr_next = radiant_temperature_for_sensible_loss(
+        tr_eff = radiant_temperature_for_sensible_loss(
             skin,
             q_seg,
             air[:, None],
@@ -482,10 +480,6 @@ def human_temperatures(
             result.segment_hr_w_m2_k,
             result.segment_dry_resistance_m2_k_w,
         )
-        # the coupling's fixed point tr = G(tr) converges linearly (ratio ~0.5): Anderson
-        # mixing over the last iterates of the segments with skin (issue 31.2: 9 -> 5 iterations)
-        tr_next[:, present] = mixing.step(tr_eff[:, present], tr_next[:, present], residual)
-        tr_eff = tr_next
         t_lin, q_lin = t_face, q_face
     diagnostics["couplingMaxResidual_W_m2"] = float(residual)
     if q_var is not None:
@@ -665,46 +659,6 @@ def _face_temperature_noise(q_var, parts, points, skin_g, visible, wardrobe, gar
 #: at which the body-clothing coupling stops (issue 14: within 1 W m^-2).
 COUPLING_TOLERANCE_W_M2 = 0.5
 COUPLING_MAX_ITERATIONS = 20
-#: Earlier iterates the coupling's Anderson mixing keeps (:class:`AndersonMixing`).
-COUPLING_MEMORY = 3
-
-
-class AndersonMixing:
-    """Anderson acceleration of a fixed-point iteration x = G(x) (Walker & Ni 2011, SIAM J.
-    Numer. Anal. 49(4), 1715-1735, Algorithm AA with mixing 1): from the last ``memory``
-    differences of the iterates' residuals f_k = G(x_k) - x_k and of their images G(x_k), the
-    next iterate is G(x_k) - dG gamma, gamma the least-squares minimiser of |f_k - dF gamma|.
-    On a linear contraction x = A x + b of dimension m it reaches the fixed point in at most
-    m + 1 steps (with memory >= m; in exact arithmetic). ``step(x, g, measure)`` returns the
-    next iterate for x_k = ``x``, G(x_k) = ``g`` (any shape); ``measure``: the iteration's own
-    convergence measure at x_k: when it grew since the last step the history is dropped
-    (that step is a plain one, x_{k+1} = G(x_k))."""
-
-    def __init__(self, memory: int):
-        self.memory = int(memory)
-        self._f: list = []
-        self._g: list = []
-        self._measure = np.inf
-
-    def step(self, x, g, measure: float = 0.0) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        g = np.asarray(g, dtype=float)
-        f, gv = (g - x).ravel(), g.ravel()
-        if measure > self._measure:
-            self._f, self._g = [], []
-        self._measure = measure
-        self._f.append(f)
-        self._g.append(gv)
-        self._f, self._g = self._f[-(self.memory + 1) :], self._g[-(self.memory + 1) :]
-        if len(self._f) < 2 or not np.all(np.isfinite(f)):
-            return g.copy()
-        d_f = np.diff(np.stack(self._f), axis=0).T  # (n, m)
-        d_g = np.diff(np.stack(self._g), axis=0).T
-        gamma = np.linalg.lstsq(d_f, f, rcond=None)[0]
-        out = gv - d_g @ gamma
-        return (out if np.all(np.isfinite(out)) else gv).reshape(g.shape)
-
-
 #: Skin temperature step [K] of the finite-difference slope of the garments' skin-side flux.
 SLOPE_STEP_K = 0.25
 #: A body facet is under a garment when the nearest garment face centre is within that face's

@@ -98,12 +98,12 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 18: the garment stacks solved by Newton on all layer temperatures at once (every node
 #: balance to the tolerance; garmentMaxResidual_W_m2 0.073 -> 8e-8 on Table 1 v0066, whose
 #: temperatures move by <= 3e-5 K: 3 of 540,062 values by one float32 ulp); 19: the coupling's
-#: radiant temperatures by Anderson mixing (human.AndersonMixing): Table 1 v0066 9 -> 6
-#: iterations, walk 8 -> 6; within the coupling tolerance (<= 0.08 K from its fixed point), and
-#: closer to it than before (v0066 0.0175 -> 0.0044 K, walk 0.0154 -> 0.0065 K, v0025 0.076 -> 0.078 K);
+#: radiant temperatures by Anderson mixing (3bbd00e; withdrawn in 21);
 #: 20: q_rad's rays spread to minimise the area-weighted face-temperature error
 #: (human._ray_importance), a clothed person's bare-body (MRT) call at 16 rays, 192 rays by default
-VERSION = "20"
+#: 21: the coupling's plain chord iteration again (no Anderson mixing: stopped by the flux residual
+#: after an accelerated step, the demo person's facets were 0.23 K from the fixed point, 0.04 K before)
+VERSION = "21"
 #: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
 #: the layer's text is unchanged, so no VERSION bump)
 SPILLS = True
