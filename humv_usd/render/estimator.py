@@ -1354,14 +1354,15 @@ def render_band_fast(
         floor = scale * step_variance(mix, hits.part, replicas * lattice_n)
         direct_goal = np.maximum(target - scale * np.nansum(reflect_var, axis=0), 0.5 * target)
         with np.errstate(invalid="ignore", divide="ignore"):
-            if lamps is None or not lamps.rects:
+            if lamps is None or (not lamps.rects and len(lamps.points) <= MAX_LAMP_RAYS):
                 # The direct term is a function of the pixel position alone (emission, the sun
                 # behind one shadow ray, the path): each cell's lattice integrates it over the
                 # footprint, and the error variance of a lattice at a step between faces falls
                 # as n^-3/2, not 1/n (Mitchell, "Consequences of stratified sampling in
                 # graphics", SIGGRAPH 1996): from a pilot of n0 position sets with variance V0,
                 # n = n0 (V0 / goal)^(2/3) sets (the floor: V0 at one set). A lit window's random
-                # sample point is not a function of the position: with windows, 1/n.
+                # sample point, or one lamp drawn of many, is not a function of the position:
+                # with those, 1/n.
                 e = DIRECT_LATTICE_EXPONENT
                 ratio = np.maximum(
                     positions * (per_position / positions / direct_goal) ** e, (floor / direct_goal) ** e
