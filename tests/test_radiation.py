@@ -218,15 +218,19 @@ def test_irradiance_table_fft_equals_dense_sum_at_nodes():
 
 
 def test_adaptive_rays_go_to_partly_occluded_facets():
-    # facets at the foot of a wall (half the sky blocked) and far from it (nothing blocked)
+    # facets at the foot of a wall (half the sky blocked) and facets beside them facing away
+    # from it (nothing blocked; they see what the map shows: the sky. Facets 200 m away, as
+    # this test had, see sky where the map, centred at the wall, shows the wall: their rays
+    # disagree with the control variate since escaping rays see the sky)
     big = 50.0
     wall = _quads([[[0.01, -big, -big], [0.01, -big, big], [0.01, big, big], [0.01, big, -big]]])
     scene = SR.SceneSurfaces(wall, np.array([[0.0, 0.0], [160.0, 160.0]]))
     env = SR.radiance_map([0, 0, 0.5], UniformSky((0.0, 100.0)), scene, 90)
-    facets = _facets(
-        np.r_[
-            np.c_[np.zeros(50), np.linspace(-0.5, 0.5, 50), np.zeros(50)],
-            np.c_[-np.full(50, 200.0), np.linspace(-0.5, 0.5, 50), np.zeros(50)],
+    line = np.linspace(-0.5, 0.5, 50)
+    facets = trimesh.util.concatenate(
+        [
+            _facets(np.c_[np.zeros(50), line, np.zeros(50)]),
+            _facets(np.c_[np.full(50, -0.5), line, np.zeros(50)], normal=(-1.0, 0.0, 0.0)),
         ]
     )
     normals, centroids = facets.face_normals, facets.triangles_center
@@ -305,6 +309,25 @@ def test_replicates_measure_the_error_of_weighted_adaptive_rays():
         stated.append(np.mean(stats["variance"]))
     seeds = np.mean(np.var(np.array(runs), axis=0, ddof=1))
     assert 0.75 < np.sqrt(np.mean(stated) / seeds) < 1.33, np.sqrt(np.mean(stated) / seeds)
+
+
+@pytest.mark.parametrize("method", ["fast", "adaptive"])
+def test_rays_that_pass_over_a_wall_see_the_sky(method):
+    """A facet facing up just above the top of a long wall 1 m high, 1 m away, under a
+    uniform sky: the wall is below its horizon, so it absorbs pi L_sky exactly (closed form).
+    The map's centre on the ground sees the wall up to 45 deg; a ray from the facet that passes
+    over the wall sees the sky, not the map's wall (before: + pi (L_wall - L_sky) / 4, the
+    cosine-weighted share of the wall's directions in the map, 25 % high here)."""
+    wall = _quads([[[1.0, -1e3, 0.0], [1.0, 1e3, 0.0], [1.0, 1e3, 1.0], [1.0, -1e3, 1.0]]])
+    wall.invert()  # faces the facet (-x)
+    l_sky, l_wall = 100.0, 200.0
+    scene = SR.SceneSurfaces(wall, np.array([[0.0, 0.0], [l_wall, l_wall]]))
+    env = SR.radiance_map([0.0, 0.0, 0.0], UniformSky((0.0, l_sky)), scene, 90)
+    assert env.radiance[1].max() == l_wall  # the map shows the wall
+    facet = _facets([[0.0, 0.0, 1.001]])
+    stats = {}
+    q = Q.absorbed_radiation(facet, env, [1.0, 1.0], scene=scene, method=method, rays=256, stats=stats)
+    assert_allclose(q[1], np.pi * l_sky, rtol=0.03)  # the old rule: 25 % high
 
 
 def test_error_estimate_bounds_the_actual_error():

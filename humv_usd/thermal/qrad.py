@@ -385,7 +385,11 @@ def _latlong_index32(d, resolution) -> np.ndarray:
 def _ray_moments(env, radiance, d, hit, fc, k):
     """Per-facet sums of v = (x, y) and of v v^T over k consecutive rays per facet, with
     x_b = L_map,b(w) the map's radiance in the ray's direction and y_b the radiance the ray
-    actually sees (the hit face's, or x_b when it reaches the far field).
+    actually sees: the hit face's, or, when it misses every face, the far field's (the map's
+    ``sky_radiance``; x_b for a map without it). The map shows the scene as its centre sees it,
+    and a facet away from the centre sees past a roof line or wall edge that the map shows in
+    that direction: with x_b there, the cap of the demo person (0.64 m above the centre) took
+    the sunlit warehouse wall for the sky above its roof line, 0.14 K warm on average.
 
     Returns (S1 (fc, 2B), S2 (fc, 2B, 2B)) in float64."""
     nb, nr = env.n_bands, radiance.shape[1]
@@ -393,7 +397,11 @@ def _ray_moments(env, radiance, d, hit, fc, k):
     lookup = np.concatenate([env.flat(), np.asarray(radiance, dtype=float)], axis=1)
     v = np.empty((2 * nb, len(pix)))
     np.take(lookup, pix, axis=1, out=v[:nb])
-    np.take(lookup, np.where(hit >= 0, hit + len(lookup[0]) - nr, pix), axis=1, out=v[nb:])
+    if env.sky_radiance is None:
+        np.take(lookup, np.where(hit >= 0, hit + len(lookup[0]) - nr, pix), axis=1, out=v[nb:])
+    else:
+        far = np.concatenate([env.sky_radiance.reshape(nb, -1), np.asarray(radiance, dtype=float)], axis=1)
+        np.take(far, np.where(hit >= 0, hit + len(far[0]) - nr, pix), axis=1, out=v[nb:])
     v = v.reshape(2 * nb, fc, k)
     s2 = np.empty((fc, len(v), len(v)))
     for i in range(len(v)):

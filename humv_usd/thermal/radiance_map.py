@@ -94,6 +94,10 @@ class RadianceMap:
         Unit vector towards the sun (None: no sun, e.g. night or below the horizon).
     sun_irradiance : array (bands,)
         Normal beam irradiance per band [W m^-2].
+    sky_radiance : array (bands, rows, cols) or None
+        The far field alone (sky, and the sky model's ground below the horizon), without the
+        scene faces that ``radiance`` shows from ``center``: what a ray that misses every face
+        sees (:func:`humv_usd.thermal.qrad.absorbed_radiation`); None: as ``radiance``.
     """
 
     radiance: np.ndarray
@@ -101,9 +105,15 @@ class RadianceMap:
     bands: tuple = BANDS
     sun_direction: np.ndarray | None = None
     sun_irradiance: np.ndarray | None = None
+    #: (bands, rows, cols) the far field alone, without the scene faces that ``radiance``
+    #: shows from ``center`` [W m^-2 sr^-1]: what a ray that misses every face sees (None: as
+    #: ``radiance``)
+    sky_radiance: np.ndarray | None = None
 
     def __post_init__(self):
         self.radiance = np.asarray(self.radiance, dtype=float)
+        if self.sky_radiance is not None:
+            self.sky_radiance = np.asarray(self.sky_radiance, dtype=float).reshape(self.radiance.shape)
         if self.sun_irradiance is None:
             self.sun_irradiance = np.zeros(self.radiance.shape[0])
         self._geometry = None

@@ -120,6 +120,7 @@ def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360
     n_theta, n_phi = map_shape(resolution)
     d, _ = latlong_directions((n_theta, n_phi))
     rad = np.asarray(sky.radiance(d), dtype=float)
+    sky_only = rad.copy()
     if scene is not None and len(scene.mesh.faces):
         origins = np.broadcast_to(np.asarray(center, dtype=float), d.shape)
         hit = first_faces(mesh_caster(scene.mesh), np.ascontiguousarray(origins), d)
@@ -131,4 +132,5 @@ def radiance_map(center, sky, scene: SceneSurfaces | None = None, resolution=360
         tuple(sky.bands),
         None if sun is None else sun[0],
         np.zeros(rad.shape[0]) if sun is None else sun[1],
+        sky_only.reshape(-1, n_theta, n_phi),
     )
