@@ -25,7 +25,9 @@ log = logging.getLogger(__name__)
 #: compose: layer text per frame and clothed person [bytes] (avatar motion + garment points).
 #: Measured (issue 29, ``python -m humv_usd.bench.crowd``, 2026-11-27): 10 walkers in a
 #: T-shirt, leggings and shoes wrote 62 MB of layers at 16 frames and 142 MB at 46 frames,
-#: 265 kB per person and frame (clothing 257 kB, avatar 8 kB).
+#: 265 kB per person and frame (clothing 257 kB, avatar 8 kB); at 3,601 frames (s7) 180 kB
+#: (clothing 176 kB, avatar 3.6 kB) and, while compose runs, 57 kB of held scratch files
+#: (``compose.hold_layer``): 237 kB.
 PERSON_FRAME_BYTES = 270e3
 #: compose: per-face temperature text per frame and person of a thermal model that solves per
 #: frame (jos3, twoNode; "fixed" writes no per-frame samples). Measured (``python -m
@@ -50,9 +52,15 @@ SCENE_FRAME_BYTES = 2e3
 #: over the avatar phase: +29 / +34 / +43 / +65 MB, ~0.15 MB per frame); 10 walkers for 2 min at
 #: 1 fps (121 frames, ``--people 10 --fps 1 --duration 120``): 556 MB, the clothing phases
 #: growing from 502 (first person) to 556 MB (tenth): 50 kB per person and frame held.
-#: Rounded up: 1 MB per frame for the build, 50 kB per person and frame held.
-COMPOSE_BUILD_FRAME_BYTES = 1.0e6
-COMPOSE_HELD_PERSON_FRAME_BYTES = 50e3
+#: Since s7 compose holds those layers as scratch crate files read back on demand
+#: (``compose.hold_layer``): file pages, not compose's memory (a clothing layer of 3,601 frames,
+#: T-shirt, leggings and shoes: 199 MB of usdc, 202 MB when held in memory), so ``HELD`` is 0.
+#: The build: 10 walkers x 3,601 frames (2 min at 30 fps, ``--people 10 --fps 30 --duration
+#: 120``, s7, under load): the first clothing build peaked at 1,047 MB over 431 MB before it
+#: (0.17 MB per frame), the second at 1,011 MB. 0.5 MB
+#: per frame covers every measured point (the s3 ones held the layers' texts).
+COMPOSE_BUILD_FRAME_BYTES = 0.5e6
+COMPOSE_HELD_PERSON_FRAME_BYTES = 0.0
 #: per-frame thermal model: the one person's solve, fixed part and per frame. Measured (2 walkers,
 #: jos3, ``--durations 3 6`` at 10 fps): peak 840 MB at 31 frames (the thermal build over 421 MB
 #: held), 882 MB at 61: 1.37 MB per frame for the solve and both people's held layers (the code
@@ -138,7 +146,7 @@ def _duration(s: float) -> str:
 def compose_budget(scenario) -> Budget:
     """The estimate of a compose (see the constants above): disk = the layer texts and, while
     the thermal layer is written, its spilled samples once more; memory = the base + per frame
-    the one clothing build's working set and the people's layers held for the thermal tool + for
+    the one clothing build's working set (the layers later builds read are held on disk) + for
     a per-frame thermal model one person's solve (its layer goes to disk as it is made)."""
     frames = scenario.frame_count
     people = len(scenario["human"])
