@@ -18,6 +18,11 @@ allowed the per-layer peaks are left out.
 
 Memory against clip length (issue 29.5): ``--durations 2 4 8`` composes the same crowd at each
 duration and adds the peak's growth per frame (a least-squares line through the runs).
+
+Foot slip and closest approach of a composed stage (:func:`motion_figures`, measured on the
+stage's posed meshes)::
+
+    python -m humv_usd.bench.crowd --figures OUT/stage/stage.usda [--stride 2]
 """
 
 from __future__ import annotations
