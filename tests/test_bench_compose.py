@@ -79,8 +79,9 @@ def test_stage_cpu_seconds_finds_the_garment_stacks(tmp_path):
 
     prof = cProfile.Profile(time.process_time)
     prof.enable()
+    # enough facets for the batched Newton solver to take more than the 0.01 s the rows round to
     stack_steady_state(
-        306.0, 290.0, 300.0, 5.0, [[2e-3] * 200, [1e-3] * 200], [1e-3, 1e-3], [0.05, 0.05], [0.9, 0.9]
+        306.0, 290.0, 300.0, 5.0, [[2e-3] * 20000, [1e-3] * 20000], [1e-3, 1e-3], [0.05, 0.05], [0.9, 0.9]
     )
     prof.disable()
     prof.dump_stats(str(tmp_path / "p.prof"))

@@ -519,6 +519,7 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
     # texts of all of them (a crowd's avatar and clothing layers: issue 29)
     layers: dict[str, Sdf.Layer] = {}
     held: dict[str, Path] = {}  # layers held for later builds: their scratch files (hold_layer)
+    had_layer_dir = layer_dir.is_dir()
     staged: dict[str, StagedText] = {}
     side: dict[Path, StagedText] = {}
     user_layers = [open_anonymous((out / u).resolve()) for u in user]
@@ -581,6 +582,9 @@ def _compose_locked(scenario: Scenario, out: Path, force: bool, progress=None) -
         for path in held.values():
             with contextlib.suppress(OSError):
                 path.unlink()
+        if not had_layer_dir:  # the folder holding them, if this run made it and it is empty
+            with contextlib.suppress(OSError):
+                layer_dir.rmdir()
     if progress is not None:
         progress(len(to_build), len(to_build), "writing")
     root_text = layer_text(root_layer(scenario, strength, user, keys=keys))
