@@ -295,5 +295,12 @@ def test_sensor_tab_marks_preset_values_and_the_users(session):
         what="the preset's resolution as the placeholder",
     )
     assert _input(driver, "sensor[0].resolution").get_attribute("value") == ""  # not written into the file
-    assert "from preset atom1024_lwir" in _field_messages(driver, "sensor[0].resolution")
-    assert "your value (preset atom1024_lwir: 14)" in _field_messages(driver, "sensor[0].bit_depth")
+    # the hints render after the placeholder (a CI run read the resolution's while still empty)
+    _wait(
+        lambda: "from preset atom1024_lwir" in _field_messages(driver, "sensor[0].resolution"),
+        what="the resolution's hint: from preset atom1024_lwir",
+    )
+    _wait(
+        lambda: "your value (preset atom1024_lwir: 14)" in _field_messages(driver, "sensor[0].bit_depth"),
+        what="the bit depth's hint: your value (preset atom1024_lwir: 14)",
+    )
