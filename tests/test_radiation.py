@@ -282,23 +282,23 @@ def test_weighted_rays_spend_the_budget_where_the_weights_are():
     assert stats["rays"] > 0.75 * 256 * 40  # the default cap lets them
 
 
-def test_replicates_measure_the_error_of_weighted_adaptive_rays():
-    """The adaptive method with importance weights (as a person's thermal layer calls it):
-    the stated per-facet error, measured by replicates, matches the spread over seeds."""
+def _sphere_over_seeds(method: str, importance=None, seeds: int = 8):
+    """A sphere above the bench scene estimated with 8 seeds (64 rays, 160 replicate facets):
+    (the scene's pieces, the per-seed absorbed flux, and each seed's stats)."""
     _, scene, sky, alpha, _ = BT.bench_scene(2000)
     sphere = trimesh.creation.icosphere(2, radius=0.4)
     sphere.apply_translation([0.0, 0.0, 0.6])
     env = SR.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
-    w = sphere.area_faces / sphere.area_faces.mean()
-    runs, stated = [], []
-    for seed in range(8):
+    w = None if importance is None else importance(sphere)
+    runs, all_stats = [], []
+    for seed in range(seeds):
         stats = {}
         q = Q.absorbed_radiation(
             sphere,
             env,
             alpha,
             scene=scene,
-            method="adaptive",
+            method=method,
             rays=64,
             seed=seed,
             stats=stats,
@@ -306,7 +306,15 @@ def test_replicates_measure_the_error_of_weighted_adaptive_rays():
             importance=w,
         )
         runs.append(q.sum(axis=0))
-        stated.append(np.mean(stats["variance"]))
+        all_stats.append(stats)
+    return (sphere, env, alpha, scene), runs, all_stats
+
+
+def test_replicates_measure_the_error_of_weighted_adaptive_rays():
+    """The adaptive method with importance weights (as a person's thermal layer calls it):
+    the stated per-facet error, measured by replicates, matches the spread over seeds."""
+    _, runs, stats = _sphere_over_seeds("adaptive", lambda s: s.area_faces / s.area_faces.mean())
+    stated = [np.mean(st["variance"]) for st in stats]
     seeds = np.mean(np.var(np.array(runs), axis=0, ddof=1))
     assert 0.75 < np.sqrt(np.mean(stated) / seeds) < 1.33, np.sqrt(np.mean(stated) / seeds)
 
@@ -347,28 +355,11 @@ def test_replicates_measure_the_error_that_seeds_show():
     """The stated error is measured by independent replicates on random facets: its RMS
     matches the spread of the estimate over seeds, where the per-ray sample variance (which
     ignores the rays' stratification) overstates it."""
-    _, scene, sky, alpha, _ = BT.bench_scene(2000)
-    sphere = trimesh.creation.icosphere(2, radius=0.4)
-    sphere.apply_translation([0.0, 0.0, 0.6])
-    env = SR.radiance_map([0.0, 0.0, 0.6], sky, scene, 40)
-    runs, stated, per_ray = [], [], []
-    for seed in range(8):
-        stats = {}
-        q = Q.absorbed_radiation(
-            sphere,
-            env,
-            alpha,
-            scene=scene,
-            method="fast",
-            rays=64,
-            seed=seed,
-            stats=stats,
-            replicate_facets=160,
-        )
-        runs.append(q.sum(axis=0))
-        stated.append(np.mean(stats["variance"]))
-        per_ray.append(np.mean(stats["per_ray_variance"]))
-        assert len(stats["replicate_facets"]) == 160 and stats["stratification_ratio"] > 0.0
+    (sphere, env, alpha, scene), runs, stats = _sphere_over_seeds("fast")
+    stated = [np.mean(st["variance"]) for st in stats]
+    per_ray = [np.mean(st["per_ray_variance"]) for st in stats]
+    for st in stats:
+        assert len(st["replicate_facets"]) == 160 and st["stratification_ratio"] > 0.0
     seeds = np.mean(np.var(np.array(runs), axis=0, ddof=1))  # mean over facets of the variance
     stated_ratio, per_ray_ratio = np.sqrt(np.mean(stated) / seeds), np.sqrt(np.mean(per_ray) / seeds)
     assert 0.8 < stated_ratio < 1.25, (stated_ratio, per_ray_ratio)

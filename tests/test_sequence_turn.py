@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_sequence import _raw
 
 from humv_usd.assets import makehuman_dir
 from humv_usd.errors import InputError
@@ -198,22 +199,6 @@ def test_a_turn_too_short_is_one_clear_error(rig):
     segs = [{"activity": "turn", "turn_deg": 180.0, "duration_s": 2.0}, {"activity": "stand"}]
     with pytest.raises(InputError, match=r"segment\[0\]\.duration_s = 2\.0: a turn of 180 deg needs 3\.00 s"):
         make_sequence_motion(segs, sk, FPS, 41, where="human[0].segment")
-
-
-def _raw(segments):
-    import datetime
-
-    return {
-        "general": {
-            "name": "s",
-            "start": datetime.datetime(2020, 6, 1, 12),
-            "utc_offset_h": 0.0,
-            "latitude_deg": 40.0,
-            "longitude_deg": 0.0,
-        },
-        "human": [{"id": "p", "segment": segments}],
-        "placement": [{"human": "p", "position_m": [0.0, 0.0, 0.0]}],
-    }
 
 
 @needs_rig

@@ -1953,9 +1953,9 @@ def filter_reflected(mean, var, hits, radius: int, radius_px=None):
     both = np.concatenate([out_m.reshape((-1,) + shape), np.nan_to_num(out_v).reshape((-1,) + shape)])
     half = both.shape[0] // 2
     windows = _windows(hits, cap)
-    for axis, (lo, hi) in zip((1, 0), windows[:2]):
+    for axis in (1, 0):
         first, last, inv_count, inv_count2 = _window_plan(windows, axis)
-        both = _window_sum(both, lo, hi, axis, (first, last))
+        both = _window_sum(both, (first, last), axis)
         both[:half] *= inv_count
         both[half:] *= inv_count2
     out_m = both[:half].reshape(out_m.shape)
@@ -2056,9 +2056,9 @@ def _transposed(hits):
     return SimpleNamespace(part=hits.part.T, depth=hits.depth.T, normal=np.swapaxes(hits.normal, 0, 1))
 
 
-def _window_sum(values, lo, hi, axis: int, flat=None):
-    """Sum over [lo, hi] along ``axis`` (0: columns, 1: rows) of (k, H, W) values, by running
-    sums (read by flat indices; ``flat``: those indices, (first, last), if known)."""
+def _window_sum(values, flat, axis: int):
+    """Sum over each pixel's window along ``axis`` (0: columns, 1: rows) of (k, H, W) values,
+    by running sums read at the flat indices ``flat`` = (first, last) of :func:`_window_plan`."""
     k, h, w = values.shape
     if axis == 0:
         csum = np.empty((k, h + 1, w))
@@ -2069,13 +2069,6 @@ def _window_sum(values, lo, hi, axis: int, flat=None):
         csum[:, :, 0] = 0.0
         np.cumsum(values, axis=2, out=csum[:, :, 1:])
     csum = csum.reshape(k, -1)
-    if flat is None:
-        if axis == 0:  # (k, H + 1, W): row index * W + column
-            col = np.arange(w)
-            flat = (lo * w + col).ravel(), ((hi + 1) * w + col).ravel()
-        else:  # (k, H, W + 1): row * (W + 1) + column index
-            row = np.arange(h)[:, None] * (w + 1)
-            flat = (row + lo).ravel(), (row + hi + 1).ravel()
     out = np.take(csum, flat[1], axis=1)
     out -= np.take(csum, flat[0], axis=1)
     return out.reshape(k, h, w)
