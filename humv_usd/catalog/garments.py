@@ -575,6 +575,10 @@ LONG_GUNS = ("rifle", "shotgun")
 #: Props held in the right hand that pose the right arm (humv_usd.human.carry.apply_hold); a
 #: person holds at most one of these or a long gun.
 HELD_PROPS = ("phone", "phone_call", "handbag")
+#: Head and face hair (fabric ``hair_dark`` and its colours): a person's default clothing is
+#: one of these (:func:`humv_usd.scenario.load.default_hair`), and the thermal tool gives a
+#: wardrobe of hair alone its own cheaper q_rad path (:mod:`humv_usd.thermal.human`).
+HAIR_GARMENTS = ("hair_short", "hair_long", "hair_tied", "beard")
 #: Convenience aliases accepted by :func:`garment`.
 ALIASES = {"tshirt": "tshirt_white", "t-shirt": "tshirt_white"}
 #: The seed's Table 1 clothing options (HumV paper, sec. 4.1) as garment lists.

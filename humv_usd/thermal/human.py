@@ -43,6 +43,7 @@ import numpy as np
 import trimesh
 from pxr import Usd, UsdGeom
 
+from humv_usd.catalog.garments import HAIR_GARMENTS
 from humv_usd.constants import STEFAN_BOLTZMANN
 from humv_usd.geometry.mesh import fan_triangulate
 from humv_usd.human import labels as L
@@ -236,6 +237,10 @@ def human_temperatures(
         for child in clothing.GetChildren():
             garments.append(_part(stage, str(child.GetPath()), read_garment(child)))
     parts = [body, *garments]
+    # hair alone (no garment): the body keeps its own q_rad pass and the hair faces get theirs
+    # (:data:`HAIR_ONLY_PASS`), instead of a second pass over the whole clothed person
+    hair_only = HAIR_ONLY_PASS and bool(garments) and all(p.garment in HAIR_GARMENTS for p in garments)
+    own_pass = not garments or hair_only  # the body's pass takes the ray budget and the replicates
     diagnostics: dict = {}
     skin_guess = scenario["thermal"]["skin_temperature_k"]
     absorb_body = body.absorptivity()
@@ -275,25 +280,23 @@ def human_temperatures(
         # with garments the bare body's rays feed only the segments' mean radiant temperature
         # (area means over hundreds of facets: their noise averages out); the face
         # temperatures take the clothed call's, which gets the ray budget
-        bare_qrad = qrad if not garments or method == "brute" else dict(qrad, rays=BARE_MRT_RAYS)
+        bare_qrad = qrad if own_pass or method == "brute" else dict(qrad, rays=BARE_MRT_RAYS)
         q = Q.absorbed_radiation(
             bare,
             env,
             absorb_body,
-            replicate_facets=_replicate_facets(parts[:1], seen[:1], g["seed"])
-            if k == 0 and not garments
-            else 0,
+            replicate_facets=_replicate_facets(parts[:1], seen[:1], g["seed"]) if k == 0 and own_pass else 0,
             scene=scene,
             seed=g["seed"] + frame,
             mesh_radiance=self_bare,
             stats=stats,
             cache=cache_bare,
             cache_tolerance_m=VISIBILITY_REUSE_M,
-            importance=None if garments else importance,
+            importance=importance[: len(body.triangles)] if own_pass else None,
             **bare_qrad,
         )
         areas = bare.area_faces
-        if k == 0 and method != "brute" and not garments:
+        if k == 0 and method != "brute" and own_pass:
             # Monte Carlo error of the ray methods, measured by independent replicates on
             # random facets (qrad.absorbed_radiation's stats)
             diagnostics["qradRmsRelErrorEstimate"] = stats["rms_rel_error_estimate"]
@@ -302,7 +305,39 @@ def human_temperatures(
             diagnostics["absorbedShortwaveMean_W_m2"] = float(np.average(q[0], weights=areas))
         mrt[k] = Q.mean_radiant_temperature(q, areas, body.segment[body.tri_face], n_segments=N_SEGMENTS)
         q_skin[k] = _face_mean(body, q.sum(axis=0), areas)
-        if garments:
+        if hair_only:
+            q_hair = _hair_radiation(pts, parts, env, scene, bare, self_bare, skin_guess, air_k)
+            stats_h: dict = {}
+            qh = q_hair(
+                seed=g["seed"] + frame,
+                stats=stats_h if k == 0 and method != "brute" else None,
+                replicate_facets=_replicate_facets(garments, seen[1:], g["seed"]) if k == 0 else 0,
+                importance=importance[len(body.triangles) :],
+                cache=cache_clothed,
+                cache_tolerance_m=VISIBILITY_REUSE_M,
+                **qrad,
+            )
+            if k == 0 and method != "brute":
+                q_var = np.concatenate([q_var, _part_variance(stats_h, garments)])
+                # the RMS over all the person's facets (body and hair) of the two passes' errors
+                n_b, n_h = len(body.triangles), len(qh)
+                diagnostics["qradRmsRelErrorEstimate"] = float(
+                    np.sqrt(
+                        (
+                            n_b * diagnostics["qradRmsRelErrorEstimate"] ** 2
+                            + n_h * stats_h["rms_rel_error_estimate"] ** 2
+                        )
+                        / (n_b + n_h)
+                    )
+                )
+            start = 0
+            for p in garments:
+                qt, area = qh[start : start + len(p.triangles)], q_hair.area[start : start + len(p.triangles)]
+                start += len(p.triangles)
+                q_garment[p.path][k] = np.bincount(p.tri_face, qt * area, len(p.counts)) / np.maximum(
+                    np.bincount(p.tri_face, area, len(p.counts)), 1e-12
+                )
+        elif garments:
             clothed = _trimesh(pts, parts)
             absorb = np.concatenate(
                 [np.repeat(absorb_body[:, None], len(body.triangles), axis=1)]
@@ -507,6 +542,51 @@ def human_temperatures(
         diagnostics["garmentEvaporationMax_W_m2"] = float(wardrobe.evaporation_max)
     out = {body.path: t_face, **garment_temps}
     return out, diagnostics
+
+
+#: A wardrobe of hair alone (:data:`humv_usd.catalog.garments.HAIR_GARMENTS`, e.g. the default
+#: ``hair_short`` of a person with no ``clothing`` key) takes :func:`_hair_radiation` instead of
+#: the second q_rad pass over the whole clothed person (issue 29.2: that pass made hair cost
+#: +2.2 of 8.6 CPU-s of a 31-frame JOS-3 walker's thermal layer).
+HAIR_ONLY_PASS = True
+
+
+def _hair_radiation(pts, parts, env, scene, bare, self_bare, skin_k: float, air_k: float):
+    """q_rad of the hair faces alone (``parts[1:]``, all hair): a callable taking
+    :func:`humv_usd.thermal.qrad.absorbed_radiation`'s ray settings and returning (triangles,)
+    [W m^-2] summed over the bands, with ``.area`` the triangles' areas.
+
+    The hair's rays see the body (``bare``, at its first-guess leaving radiance ``self_bare``)
+    and the scene as occluders, the hair itself as the clothed pass does; the body's own pass
+    (the caller's) ignores the hair. Neglected against the full clothed pass: the hair's shadow
+    and long-wave exchange on the bare skin beside it (a fringe on the forehead, long hair on
+    the neck); skin under the hair takes the hair stack's balance either way. Measured on a
+    JOS-3 walker (``/work/notes/s8/people.md``)."""
+    hair = _trimesh(pts[1:], parts[1:])
+    garments = parts[1:]
+    if scene is not None and len(scene.mesh.faces):
+        occluders = SR.SceneSurfaces(
+            trimesh.util.concatenate([scene.mesh, bare]),
+            np.concatenate([np.asarray(scene.radiance, dtype=float), self_bare], axis=1),
+        )
+    else:
+        occluders = SR.SceneSurfaces(bare, self_bare)
+    absorb = np.concatenate(
+        [np.repeat(p.absorptivity()[:, None], len(p.triangles), axis=1) for p in garments], axis=1
+    )
+
+    def run(**settings) -> np.ndarray:
+        return Q.absorbed_radiation(
+            hair,
+            env,
+            absorb,
+            scene=occluders,
+            mesh_radiance=_self_radiance(garments, skin_k, air_k),
+            **settings,
+        ).sum(axis=0)
+
+    run.area = hair.area_faces
+    return run
 
 
 #: Rays per facet of a clothed person's bare-body q_rad, which feeds only the segments' mean

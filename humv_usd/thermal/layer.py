@@ -105,7 +105,9 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: after an accelerated step, the demo person's facets were 0.23 K from the fixed point, 0.04 K before)
 #: 22: q_rad's rays that miss every face see the sky, not the scene as the map's centre sees it
 #: (the demo's cap -0.14 K, shoes -0.04 K, skin and T-shirt -0.02 K on average)
-VERSION = "22"
+#: 23: a wardrobe of hair alone takes its own q_rad pass (human._hair_radiation) instead of a
+#: second pass over the clothed person (other rays: a walker's faces move by |d| p99 0.1-0.2 K)
+VERSION = "23"
 #: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
 #: the layer's text is unchanged, so no VERSION bump)
 SPILLS = True
