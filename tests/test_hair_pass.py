@@ -13,6 +13,8 @@ import trimesh
 from numpy.testing import assert_allclose
 
 from humv_usd.bench import thermal as BT
+from humv_usd.clothing.fit import fit_garment, prepare
+from humv_usd.human.body import build_body
 from humv_usd.thermal import human as H
 from humv_usd.thermal import qrad as Q
 from humv_usd.thermal import scene_radiance as SR
@@ -83,3 +85,12 @@ def test_hair_pass_sees_what_the_clothed_pass_sees():
         method="brute",
     ).sum(axis=0)
     assert np.abs(no_body - full).max() > 5.0
+
+
+def test_tied_hair_on_a_child_whose_hair_proxy_reaches_no_neck_keeps_the_scalp_layer():
+    """A drawn 5-yr-old (s8 contact sheet, seed 103): the tied tail's proxy faces lie on the head
+    and the back, none on the neck; the compose failed ("part 1 (hair) selects no faces")."""
+    rig = prepare(build_body("male", 5.23, 1.1121, 22.11, "muscular", 0.331))
+    tied, short = fit_garment(rig, "hair_tied"), fit_garment(rig, "hair_short")
+    assert set(np.unique(tied.part_of)) == {0}
+    assert len(tied.face_counts) == len(short.face_counts) > 100

@@ -11,7 +11,7 @@ import pytest
 from conftest import ROOT
 
 from humv_usd.scenario.ids import instance_ids
-from humv_usd.scenario.load import validate
+from humv_usd.scenario.load import default_hair, validate
 from humv_usd.sweep.spec import expand, load_sweep
 
 PEOPLE = ROOT / "examples" / "people"
@@ -43,3 +43,39 @@ def test_crowd_sweep_draws_valid_crowds():
             assert h["clothing"][0] in ("hair_short", "hair_long", "hair_tied")
             ages.append(h["age_yr"])
     assert min(ages) < 18.0 and max(ages) > 60.0
+
+
+HAIR = ("hair_short", "hair_long", "hair_tied")
+EXAMPLES = sorted(p for p in ROOT.glob("examples/**/*.toml") if "sweep" not in tomllib.loads(p.read_text()))
+
+
+def test_every_example_person_and_every_table1_person_wears_head_hair():
+    """Issue 25.5 / 29.2: hair on for the examples and the seed's Table 1 (a bald head reads as hot
+    as the face); Table 1's women wear the women's default style, its men the men's."""
+    people = 0
+    for path in EXAMPLES:
+        for h in validate(tomllib.loads(path.read_text()), path)["human"]:
+            assert any(g in HAIR for g in h["clothing"]), (path.name, h["id"], h["clothing"])
+            people += 1
+    assert people >= 20
+    table1 = load_sweep(ROOT / "examples" / "table1.toml")
+    for v in table1.variants:
+        h = v.scenario["human"][0]
+        assert [g for g in h["clothing"] if g in HAIR] == default_hair(h), (v.id, h["clothing"])
+
+
+def test_a_person_without_a_clothing_key_wears_hair_by_sex_and_an_empty_list_is_bald(raw):
+    man = dict(raw["human"][0], id="man")
+    man.pop("clothing")
+    woman = dict(man, id="woman", sex="female")
+    bald = dict(man, id="bald", clothing=[])
+    shirt = dict(man, id="shirt", clothing=["tshirt_white"])
+    raw["human"] = [man, woman, bald, shirt]
+    raw["placement"] = [
+        dict(raw["placement"][0], human=h["id"], position_m=[i, 0.0, 0.0]) for i, h in enumerate(raw["human"])
+    ]
+    clothing = {h["id"]: h["clothing"] for h in validate(raw)["human"]}
+    assert clothing == {"man": ["hair_short"], "woman": ["hair_tied"], "bald": [], "shirt": ["tshirt_white"]}
+    assert default_hair({"sex": "female"}) == ["hair_tied"] and default_hair({"sex": "male"}) == [
+        "hair_short"
+    ]

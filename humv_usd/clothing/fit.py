@@ -51,7 +51,17 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from humv_usd.catalog.garments import SIDED_BONES, SIDED_REGIONS, Cover, Garment, Part, Prop, Shape, garment
+from humv_usd.catalog.garments import (
+    HAIR_GARMENTS,
+    SIDED_BONES,
+    SIDED_REGIONS,
+    Cover,
+    Garment,
+    Part,
+    Prop,
+    Shape,
+    garment,
+)
 from humv_usd.geometry.mesh import Surface, fan_triangulate, vertex_normals
 from humv_usd.human import labels as L
 from humv_usd.human.body import Body, MeshPart
@@ -507,6 +517,10 @@ def fit_garment(rig: BodyRig, name: str, refined: bool = False) -> FittedGarment
     offset = 0
     for k, part in enumerate(g.parts):
         rest, f, i, w, r = _fit_part(rig, part)
+        if not len(f) and k > 0 and g.name in HAIR_GARMENTS:
+            # a tied tail on a body whose hair proxy reaches no neck face (a small child: the
+            # proxy's tail lies on the head and back): the scalp layer alone
+            continue
         if not len(f):
             raise ValueError(f"garment {g.name!r}: part {k} ({part.source}) selects no faces")
         pts.append(rest)

@@ -696,6 +696,9 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
                 f"{_allowed(name, SECTIONS, 'sections')}"
             )
     data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}
+    for hum, given in zip(data["human"], raw.get("human") or []):
+        if isinstance(given, dict) and "clothing" not in given:  # hair on by default (issue 29.2)
+            hum["clothing"] = default_hair(hum)
     _check_garments(data, problems)
     netd_origin: list[str] = []
     if not problems:
@@ -711,6 +714,18 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
         given_keys=_given_keys(raw),
         netd_origin=tuple(netd_origin),
     )
+
+
+def default_hair(human: dict) -> list[str]:
+    """The clothing of a ``[[human]]`` without a ``clothing`` key: head hair, a thermal layer
+    (issue 25.5: a bald head reads as hot as the face), chosen by the body's sex as the most
+    likely hair group of the population draw (:mod:`humv_usd.human.population`: long or tied
+    hair for 60 % of women, short hair for 90 % of men): ``hair_tied`` for a woman or girl (the
+    long group's style that stays on the head and neck, so the thermal tool's hair-only q_rad
+    pass holds), ``hair_short`` for a man or boy. A design choice, not a statistic. Bald heads
+    exist (male-pattern hair loss) and are not drawn: ``clothing = []`` is a bald, unclothed
+    person; any ``clothing`` list is worn as given (hair only when listed)."""
+    return ["hair_tied"] if human.get("sex") == "female" else ["hair_short"]
 
 
 def _given_keys(raw: dict) -> frozenset[str]:

@@ -404,7 +404,9 @@ HUMAN = Section(
         "clothing": Key(
             "strlist",
             "Garments worn, from humv_usd.catalog.garments.GARMENTS "
-            "(e.g. tshirt_white, shorts, leggings, trousers, jacket, robe, cap).",
+            "(e.g. tshirt_white, shorts, leggings, trousers, jacket, robe, cap), hair only when "
+            "listed; unset: head hair alone, hair_short for a male and hair_tied for a female body "
+            "(humv_usd.scenario.load.default_hair); [] for a bald, unclothed person.",
             default=[],
         ),
     },
