@@ -19,6 +19,12 @@ from scipy.sparse import csr_matrix
 #: (:mod:`humv_usd.thermal.qrad`), so a box's or a wall's 90 deg edges stay sharp while a
 #: garment's 7-30 deg facet steps (issue 25: median 7.4, p90 28.5 deg) blend.
 SMOOTH_CREASE_DEG = 60.0
+#: One-ring gain steps (:func:`ring_gains`) of a positive per-face field shaded smooth: the
+#: render's shadowed term (:data:`humv_usd.render.estimator.DARK_GAIN_STEPS`) and the ground
+#: truth's ``surface_temperature``, which follows the field the render shades.
+FIELD_GAIN_STEPS = 1
+#: Largest (and 1 / smallest) one-ring gain.
+FIELD_GAIN_CAP = 4.0
 
 
 def corner_angles(tri: np.ndarray) -> np.ndarray:
@@ -172,3 +178,34 @@ def barycentric(tri: np.ndarray, p: np.ndarray, index=None) -> np.ndarray:
     b1 = np.where(ok, (a22 * r1 - a12 * r2) / safe, 0.0)
     b2 = np.where(ok, (a11 * r2 - a12 * r1) / safe, 0.0)
     return np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+
+
+def ring_gains(
+    blend, face_values: np.ndarray, corners: np.ndarray, steps: int = FIELD_GAIN_STEPS
+) -> np.ndarray:
+    r"""Corner values (T, 3[, n]) of a positive per-face field ``face_values`` (T[, n]) shaded
+    smooth, ``corners`` (its :func:`corner_blend` ``blend``), after ``steps`` one-ring gain
+    steps: each corner is scaled by :math:`g = \sum_f w_f v_f / \sum_f w_f \bar c_f`, the
+    blend's weights w_f over the faces f around it, v_f a face's own value and
+    :math:`\bar c_f` the mean of its corners (the linear interpolant's mean over the face),
+    clipped to [1 / :data:`FIELD_GAIN_CAP`, :data:`FIELD_GAIN_CAP`].
+
+    Blending a per-face field to the corners loses its covariance with what weights the faces
+    (on a sunlit person the faces turned to the sun, which a camera near the sun's direction
+    sees face-on, are the hot ones); a gain step makes each corner's ring of faces keep the
+    mean of its flat faces, as each face's energy balance has it, while the gain varies
+    smoothly. The multiplicative counterpart of a Van Cittert step (Van Cittert, Z. Phys. 69
+    (1931) 298; Richardson, J. Opt. Soc. Am. 62 (1972) 55; Lucy, Astron. J. 79 (1974) 745):
+    positive, exact for a uniform field. Where ``blend @ mean`` is not positive the corner
+    keeps its value."""
+    v = np.asarray(face_values, dtype=float)
+    c = np.asarray(corners, dtype=float)
+    t = c.shape[0]
+    tail = c.shape[2:]
+    ring = np.asarray(blend @ v).reshape((t, 3) + tail)
+    for _ in range(int(steps)):
+        now = np.asarray(blend @ c.mean(axis=1)).reshape((t, 3) + tail)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            gain = np.where(now > 0.0, ring / now, 1.0)
+        c = c * np.clip(gain, 1.0 / FIELD_GAIN_CAP, FIELD_GAIN_CAP)
+    return c

@@ -154,15 +154,20 @@ class PartTables:
 
     def smooth_temperature(self, scene, part: np.ndarray, triangle: np.ndarray, position) -> np.ndarray:
         """Surface temperature [K] at the hits (NaN for sky) on the field the render shades:
-        the faces' temperatures blended to the corners and interpolated at the hit point
-        (:meth:`humv_usd.render.ir.IRScene.corner_blend`, Gouraud), not one value per flat
-        face. ``scene`` gives ``corner_blend()``, ``vertices(part)``, ``face_corners(part)``."""
+        the faces' temperatures blended to the corners (:meth:`humv_usd.render.ir.IRScene.corner_blend`,
+        Gouraud) with the render's one-ring gain steps of the shadowed term
+        (:func:`humv_usd.geometry.shading.ring_gains`, :data:`~humv_usd.geometry.shading.FIELD_GAIN_STEPS`)
+        and interpolated at the hit point, not one value per flat face. ``scene`` gives
+        ``corner_blend()``, ``vertices(part)``, ``face_corners(part)``."""
         part, triangle = np.asarray(part), np.asarray(triangle)
         out = np.full(part.shape, np.nan)
         hit = part >= 0
         if not self.temperature.size or not hit.any():
             return out
-        corners = np.asarray(scene.corner_blend() @ self.temperature).reshape(-1, 3)
+        blend = scene.corner_blend()
+        corners = shading.ring_gains(
+            blend, self.temperature, np.asarray(blend @ self.temperature).reshape(-1, 3)
+        )
         p, t = part[hit], triangle[hit]
         seen = np.flatnonzero(np.bincount(p))  # the hit parts (O(N), not a sort): their triangles' corners
         first = np.zeros(len(scene.parts) + 1, dtype=np.int64)

@@ -263,5 +263,6 @@ def render_xyz_fast(
         tables=reflectance_tables(scene, reflectance_of, n),
         sun_mean_steps=SUN_MEAN_STEPS,
         sun_gain_steps=E.REFLECTIVE_SUN_GAIN_STEPS,
+        dark_gain_steps=E.REFLECTIVE_DARK_GAIN_STEPS,
     )
     return np.moveaxis(np.asarray(rad), 0, -1), np.moveaxis(np.asarray(err), 0, -1)

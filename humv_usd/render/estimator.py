@@ -197,6 +197,9 @@ SUN_GAIN_CAP = 4.0
 #: acceptance's 0.119 (issue 25, open). If set, ``groundtruth.labels.smooth_temperature``
 #: should follow the same field.
 DARK_MEAN_STEPS = 0
+#: One-ring gain steps of the blended shadowed term (:func:`corner_table`) for the thermal bands
+#: when the caller does not say (the reflective ones: :data:`REFLECTIVE_DARK_GAIN_STEPS`).
+DARK_GAIN_STEPS = shading.FIELD_GAIN_STEPS
 #: ... and for the bands of reflected light (EO: :data:`humv_usd.render.eo_fast.SUN_MEAN_STEPS`;
 #: NIR, SWIR: ``pipeline.ir_pass``), where the sun term is the signal: with the plain blend the
 #: render bench's EO person was 0.78 % and a close-up NIR person 1.36 % under the path tracer
@@ -211,6 +214,9 @@ REFLECTIVE_SUN_MEAN_STEPS = 0
 #: (nir_imx273 360 x 270, IR path tracer) -0.232 +- 0.009 % and -0.076 % (flat -0.019 %); at
 #: the roughness of 1 Van Cittert step instead of 2.
 REFLECTIVE_SUN_GAIN_STEPS = 1
+#: ... and their shadowed term's gain steps (:data:`DARK_GAIN_STEPS`): 0, the plain blend (the
+#: reflected sky there is not measured against the path tracers yet).
+REFLECTIVE_DARK_GAIN_STEPS = 0
 #: Point lamps and spots traced each (a shadow ray per lamp per hit); with more, one lamp per hit
 #: is chosen by its unoccluded irradiance (:func:`_lamp_irradiance`; windows always so).
 MAX_LAMP_RAYS = 8
@@ -387,7 +393,9 @@ def cavity_table(tables: FaceTables) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def corner_table(surface: np.ndarray, blend, sun_mean_steps: int = 0, sun_gain_steps: int = 0) -> np.ndarray:
+def corner_table(
+    surface: np.ndarray, blend, sun_mean_steps: int = 0, sun_gain_steps: int = 0, dark_gain_steps: int = 0
+) -> np.ndarray:
     """(T, 7 n) the estimator's per-triangle rows: per corner the surface term in shadow
     (:func:`surface_table`'s ``dark``: emission + rho G) and in the sun (``lit``), blended by
     ``blend`` (:func:`corner_blend`; None: flat, every corner its face's value), then rho.
@@ -427,7 +435,18 @@ def corner_table(surface: np.ndarray, blend, sun_mean_steps: int = 0, sun_gain_s
     Interpolated (Phong) normals per hit (Phong, Commun. ACM 18 (1975) 311) keep the flat faces'
     projected area but not their covariance of area and cosine: -0.95 % (close-up), -0.13 %
     (humvvex; its T-shirt +0.28 %), a bias that depends on the view; they conserve no face's
-    reflection."""
+    reflection.
+
+    The shadowed term (emission + rho G: the faces' temperatures) loses the same covariance
+    when blended: on a sunlit person the faces turned to the sun, which the camera also sees
+    face-on, are the hot ones and their neighbours turned away the cold ones, so the plain
+    blend reads the humvvex person about 100 mK under flat faces in MWIR and LWIR (shorts and
+    shoes -340 mK). ``dark_gain_steps`` one-ring gain steps restore it as the sun term's do:
+    each corner's blended shadowed term is scaled by g = sum_f w_f d_f / sum_f w_f mean_f(d'),
+    over all the faces blended at the corner (the shadowed term is positive on every face), so
+    that each ring of faces emits and reflects the sky as its flat faces do (their per-face
+    energy balance); :data:`DARK_GAIN_STEPS`. (``DARK_MEAN_STEPS``: Van Cittert steps instead;
+    at the same roughness they leave more bias.)"""
     t, _, n = surface.shape
     if blend is None:
         corners = np.repeat(surface[:, None, :2, :], 3, axis=1)  # (T, 3, 2, n)
@@ -437,6 +456,8 @@ def corner_table(surface: np.ndarray, blend, sun_mean_steps: int = 0, sun_gain_s
         for _ in range(int(DARK_MEAN_STEPS)):  # Van Cittert: the faces' means back toward their own
             sharp_dark = sharp_dark + (own_dark - dark.mean(axis=1))
             dark = np.asarray(blend @ sharp_dark).reshape(t, 3, n)
+        # one-ring gains: each corner's ring leaves its flat faces' radiance
+        dark = shading.ring_gains(blend, own_dark, dark, dark_gain_steps)
         sun = surface[:, 1, :] - surface[:, 0, :]
         facing = (sun.sum(axis=1) > 0.0).astype(float)
         weight = np.asarray(blend @ facing).reshape(t, 3)
@@ -771,6 +792,7 @@ def render_band_fast(
     sun_mean_steps: int | None = None,
     reuse: dict | None = None,
     sun_gain_steps: int | None = None,
+    dark_gain_steps: int | None = None,
 ):
     """At-sensor band radiance and its Monte Carlo standard error of one IR sensor at one frame.
 
@@ -804,7 +826,8 @@ def render_band_fast(
     their own, the other pixels as large ones (:func:`within_budget`; e.g. the people's).
     ``sun_mean_steps``: Van Cittert steps of the smooth sun term toward each face's mean
     (:func:`corner_table`; None: :data:`SUN_MEAN_STEPS`); ``sun_gain_steps``: its one-ring
-    gain steps (None: :data:`SUN_GAIN_STEPS`).
+    gain steps (None: :data:`SUN_GAIN_STEPS`); ``dark_gain_steps``: the one-ring gain steps of
+    the smooth shadowed term (None: :data:`DARK_GAIN_STEPS`).
     ``reuse``: a dict the caller keeps across calls with the same scene geometry, state,
     sub-bands, emissivities, radiometry and options (the batches of one frame): the first call
     stores the per-triangle tables on the device there, the later ones read them (issue 31.1:
@@ -861,7 +884,10 @@ def render_band_fast(
         smooth = SMOOTH_SHADING if smooth is None else bool(smooth)
         steps = SUN_MEAN_STEPS if sun_mean_steps is None else int(sun_mean_steps)
         gains = SUN_GAIN_STEPS if sun_gain_steps is None else int(sun_gain_steps)
-        rows_7n = corner_table(surface, _smooth_blend(scene) if smooth else None, steps, gains)  # (T, 7n)
+        dark_gains = DARK_GAIN_STEPS if dark_gain_steps is None else int(dark_gain_steps)
+        rows_7n = corner_table(
+            surface, _smooth_blend(scene) if smooth else None, steps, gains, dark_gains
+        )  # (T, 7n)
         note("tables: %d triangles", len(surface))
 
         surf_dr = f32(rows_7n.astype(np.float32).ravel())
