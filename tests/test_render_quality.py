@@ -47,6 +47,29 @@ def test_pooled_error_is_unbiased_with_k_r_minus_1_degrees_of_freedom():
         assert_allclose(beyond, 2 * stats.t.sf(4, k * r - 1), rtol=0.1, atol=2e-4)
 
 
+def test_batches_aimed_at_the_batch_target_pool_to_the_target():
+    """Each batch's boosts aim at batch_target_factor x the pooled target T (issue 31: aimed at
+    T each, the MIN_BATCHES batches pooled to T / 2, the boosts' samples spent twice over): the
+    batches of a frame, each with that variance of its mean, pool to T, stated and actual; a
+    third batch (a target missed) aimed at its own factor keeps the pool within T."""
+    rng = np.random.default_rng(11)
+    target_var, r = 0.01, 2
+    k = Q.MIN_BATCHES
+    factor = Q.batch_target_factor(0)
+    assert [Q.batch_target_factor(b) for b in range(k)] == [factor] * k
+    sigma = np.sqrt(factor * target_var * r)  # a replica's sd: the batch mean's variance is factor T
+    pooled = _batches(rng, k, r, 200_000, sigma, mu=0.0)
+    assert_allclose(pooled.stderr().mean(), np.sqrt(target_var), rtol=0.01)  # stated (c4: unbiased sd)
+    assert_allclose(np.var(pooled.mean()), target_var, rtol=0.02)  # actual
+    # a third batch aimed at its factor, after two at theirs: the pool of three within T
+    third = Q.batch_target_factor(k)
+    assert third > factor
+    pooled_var = (k * factor + third) * target_var / (k + 1) ** 2
+    assert pooled_var <= target_var
+    lwir = Q.pixel_target_var(0.05, np.array([2.0]))
+    assert_allclose(Q.pixel_target_var(0.05, np.array([2.0]), batches_done=0), factor * lwir)
+
+
 def test_one_batch_of_two_replicas_has_one_degree_of_freedom():
     """The old rule's error: 1 degree of freedom, 7.8 % beyond 4 sigma (issue 25: 8-13 %)."""
     assert_allclose(2 * stats.t.sf(4, 1), 0.156, atol=1e-3)  # |t_1| > 4 (c4-free statistic)

@@ -191,7 +191,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             with np.errstate(invalid="ignore", divide="ignore"):
                 err_k = np.where(dl_dt > 0, np.sqrt(np.nansum(variance, axis=0)) / dl_dt, np.nan)
             where = where | Q.likely_to_miss(err_k, edges, regions, region_names, netd)
-        return Q.pixel_target_var(netd, dl_dt, where)
+        return Q.pixel_target_var(netd, dl_dt, where, batches_done=pooled.count)
 
     pooled = Q.Batches()
     back_face = None
