@@ -208,6 +208,7 @@ def render_sensor(run, s: SensorModel, state, frame, light: FrameLight) -> None:
             if s.is_reflective:  # NIR/SWIR: the sun term is the signal (its smooth shading kept unbiased)
                 extra["sun_mean_steps"] = E.REFLECTIVE_SUN_MEAN_STEPS
                 extra["sun_gain_steps"] = E.REFLECTIVE_SUN_GAIN_STEPS
+                extra["dark_gain_steps"] = E.REFLECTIVE_DARK_GAIN_STEPS
             if fast_auto and Q.targets(netd) is not None:
                 extra["direct_target"] = direct_target
                 extra["boost_first"] = first_served
