@@ -56,6 +56,11 @@ steps 1 and 2 when :func:`simulate` gets the frame rate. Props get their clearan
 body per frame (:func:`humv_usd.human.carry.rifle_clearance`: the closed-form distance of the
 body's non-holding vertices to the rifle's boxes and cylinders).
 
+Per frame the posed body's closest-point structure and ray caster are built once, on first
+need; a garment whose box lies near a small part of the body (hair, shoes on their own: at most
+:data:`LOCAL_SHARE` of its triangles) queries only that part, with the whole body's answers
+(:class:`humv_usd.geometry.mesh.LocalSurface`, :class:`_LocalCaster`).
+
 The fixed posed points are the garment's shape per frame; the clothing layer stores them as a
 time-sampled point cache (:mod:`humv_usd.clothing.layer`).
 """
@@ -71,7 +76,7 @@ from scipy.spatial import cKDTree
 from humv_usd.catalog.garments import garment
 from humv_usd.clothing.drape import Drape
 from humv_usd.clothing.fit import BodyRig, FittedGarment, fit_garment, refine
-from humv_usd.geometry.mesh import Surface, vertex_normals
+from humv_usd.geometry.mesh import LocalSurface, Surface, triangles_near_box, vertex_normals
 from humv_usd.geometry.raycast import RayCaster
 from humv_usd.human.carry import (
     carry_body_of,
@@ -107,6 +112,16 @@ PROP_PUSH_ITERATIONS = 8
 #: Rounds of the between-vertex pass (:func:`push_between`): check the samples, push the
 #: triangles of those too close, re-fix the moved vertices.
 BETWEEN_ROUNDS = 5
+#: A garment whose posed points' box lies within these [m] of at most :data:`LOCAL_SHARE`
+#: of the body's triangle centroids queries only those (hair: the head and neck): a
+#: :class:`humv_usd.geometry.mesh.LocalSurface` (the same answers as the whole body; points
+#: it cannot certify go to the whole body) and, for the air gap, ray casters over the
+#: triangles near its fixed points (:class:`_LocalCaster`: the same gaps).
+LOCAL_REACH = 0.05
+LOCAL_SHARE = 0.4
+#: Rays of the air gap are first cast over the body triangles within this [m] of the garment
+#: (:class:`_LocalCaster`).
+LOCAL_RAY = 0.05
 #: Samples deeper than this [m] are left (counted): a limb through a garment face (the robe's
 #: skirt between striding legs) needs a move around the limb, not a local push.
 BETWEEN_DEPTH = 0.02
@@ -554,6 +569,96 @@ def air_gap(caster: RayCaster, points: np.ndarray, triangles: np.ndarray, distan
     return np.clip(np.maximum(gap, fallback), 0.0, MAX_AIR_GAP)
 
 
+class _BodyFrame:
+    """The posed body of one frame for the garments' queries: the whole body's
+    :class:`Surface` and :class:`RayCaster` built on first need, or a garment's local part
+    (:data:`LOCAL_REACH`, :data:`LOCAL_SHARE`, :class:`_LocalCaster`)."""
+
+    def __init__(self, points: np.ndarray, triangles: np.ndarray):
+        self.points, self.triangles = points, triangles
+        self._surface: Surface | None = None
+        self._caster: RayCaster | None = None
+
+    def whole(self) -> Surface:
+        if self._surface is None:
+            self._surface = Surface(self.points, self.triangles)
+        return self._surface
+
+    def whole_caster(self) -> RayCaster:
+        if self._caster is None:
+            self._caster = RayCaster(self.points, self.triangles, normalize=False)
+        return self._caster
+
+    def surface_for(self, points: np.ndarray, local: bool = True):
+        """A Surface (or, with ``local``, a LocalSurface) answering closest-point queries
+        near ``points``."""
+        if self._surface is not None or not len(points) or not local:
+            return self.whole()
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        keep = triangles_near_box(self.points, self.triangles, lo, hi, LOCAL_REACH)
+        if len(keep) > LOCAL_SHARE * len(self.triangles):
+            return self.whole()
+        return LocalSurface(self.points, self.triangles, lo, hi, LOCAL_REACH, self.whole, keep)
+
+    def near_triangles(self, lo: np.ndarray, hi: np.ndarray, reach: float) -> np.ndarray:
+        """The triangles with a point within ``reach`` of the box [lo, hi] (their bounding
+        boxes that near): every triangle a ray from inside the box can hit within ``reach``."""
+        return triangles_near_box(self.points, self.triangles, lo, hi, reach, by_bounds=True)
+
+    def caster_for(self, points: np.ndarray):
+        """A ray caster whose hits within :data:`MAX_AIR_GAP` of ``points`` are the whole
+        body's (:class:`_LocalCaster`), or the whole body's."""
+        if self._caster is not None or not len(points):
+            return self.whole_caster()
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        # the second tier (most garments have rays that miss: hems, open ends) decides
+        if len(self.near_triangles(lo, hi, MAX_AIR_GAP)) > LOCAL_SHARE * len(self.triangles):
+            return self.whole_caster()
+        return _LocalCaster(self, lo, hi, self.near_triangles(lo, hi, LOCAL_RAY))
+
+
+def _compact_caster(points: np.ndarray, triangles: np.ndarray) -> RayCaster:
+    """A :class:`RayCaster` (metres, not normalised) over ``triangles`` and only their vertices."""
+    used = np.zeros(len(points), dtype=bool)
+    used[triangles.ravel()] = True
+    local = np.cumsum(used) - 1
+    return RayCaster(points[used], local[triangles], normalize=False)
+
+
+class _LocalCaster:
+    """:meth:`RayCaster.hit_distance` for rays from inside the box [lo, hi], the same as the
+    whole body's up to :data:`MAX_AIR_GAP` (the air gap uses no farther hit: beyond it, or on
+    a miss, it takes the closest-point distance either way).
+
+    First over the triangles within :data:`LOCAL_RAY` of the box: a hit there at t <=
+    LOCAL_RAY is the whole body's first hit (any nearer hit lies on a triangle that near,
+    which is kept). The other rays are cast again over the triangles within MAX_AIR_GAP of the
+    box (built only if some ray needs it; the whole body's caster if that is built): a hit
+    there at t <= MAX_AIR_GAP is the whole body's for the same reason, and a farther hit or
+    a miss means the whole body has none within MAX_AIR_GAP either. The casters hold only
+    the vertices of their triangles (Embree's build time grows with the vertex buffer), so
+    their float32 frames are shifted to their own centres: a distance may differ from the
+    whole body caster's in its float32 rounding (measured: 4 of 14,823 hair gaps, by
+    <= 7e-10 m)."""
+
+    def __init__(self, frame: _BodyFrame, lo: np.ndarray, hi: np.ndarray, near: np.ndarray):
+        self.frame, self.lo, self.hi = frame, lo, hi
+        self.near = _compact_caster(frame.points, frame.triangles[near])
+
+    def hit_distance(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        t = self.near.hit_distance(origins, directions)
+        again = np.flatnonzero(~(t <= LOCAL_RAY))
+        if len(again):
+            f = self.frame
+            if f._caster is not None:
+                wide = f._caster
+            else:
+                wide_tris = f.near_triangles(self.lo, self.hi, MAX_AIR_GAP)
+                wide = _compact_caster(f.points, f.triangles[wide_tris])
+            t[again] = wide.hit_distance(origins[again], directions[again])
+        return t
+
+
 def drapes_of(g: FittedGarment) -> list[Drape]:
     """A :class:`~humv_usd.clothing.drape.Drape` per loose part of ``g``."""
     out = []
@@ -616,11 +721,11 @@ def simulate(
         if g.garment.is_prop and g.garment.prop.placement == "between_hands":
             cb = carry_body_of(rig.mesh, rig.joint_indices, rig.joint_weights, rig.face_regions)
             anim.clearance, anim.body_inside, _ = rifle_clearance(cb, rig.skeleton, skin, g.garment.prop)
+    local_ok = [True] * len(outfit.garments)
     for f in range(frames):
         t0 = time.perf_counter()
         body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]), rig.mesh.points)
-        surface = Surface(body, rig.triangles)
-        caster = RayCaster(body, rig.triangles, normalize=False)
+        frame_body = _BodyFrame(body, rig.triangles)
         distances: list[np.ndarray] = []
         shells: list[tuple[Surface, np.ndarray, float]] = []  # posed body-like garments
         worn: list[tuple[Surface, np.ndarray, float]] = []  # all posed garments so far
@@ -629,6 +734,7 @@ def simulate(
             blended = blend_transforms(g.joint_indices, g.joint_weights, skin[f])
             skinned = apply(blended, g.points)
             posed = skinned
+            surface = frame_body.surface_for(skinned, local_ok[k])
             if drapes[k]:
                 posed = skinned.copy()
                 for drape in drapes[k]:
@@ -713,12 +819,14 @@ def simulate(
                     worn.append(
                         (Surface(fixed, g.triangles), _flat_normals(fixed, g.triangles), g.garment.thickness)
                     )
+            if isinstance(surface, LocalSurface) and surface.fallbacks:
+                local_ok[k] = False  # its queries reach beyond the local part: the whole body
             fix_s[f] += time.perf_counter() - t1
             fix_cpu[f] += time.process_time() - c1
             distances.append(dist)
             anim.posed[f] = fixed
             anim.counts.append(counts)
-            anim.air_gap[f] = air_gap(caster, fixed, g.triangles, dist)
+            anim.air_gap[f] = air_gap(frame_body.caster_for(fixed), fixed, g.triangles, dist)
             for drape in drapes[k]:
                 drape.settle(fixed[drape.vertices])
         frame_s[f] = time.perf_counter() - t0

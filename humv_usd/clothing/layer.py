@@ -89,7 +89,7 @@ from humv_usd.usd.paths import clothing_path, human_path, material_path, props_p
 NAME = "clothing_{id}"  # one layer per dressed [[human]]
 READS = (*FRAMES, "human[{id}]", "@ids")
 UPSTREAM = ("avatar_{id}",)
-VERSION = "7"  # 7: garment prints (human.clothing_prints: PrintA/PrintB subsets, the mesh bound to their mix); 6: phone and the new phone_call and handbag held in the right hand, the palm on them (human/carry.held_rest_transform); 5: garments cut along smooth curves (level hems), footwear from the tights; 4: bodies with the fat axis (human/fat.py); 3: rebuilt with the avatar's proportions macro; 2: garments as a plain point cache (no skel binding)
+VERSION = "8"  # 8: head-only and other small garments (hair, shoes alone) take their air gap from ray casters over the body near them (clothing.collide._LocalCaster: the same triangles hit, float32 frames of their own: gaps differ by <= 6e-8 m); points unchanged; 7: garment prints (human.clothing_prints: PrintA/PrintB subsets, the mesh bound to their mix); 6: phone and the new phone_call and handbag held in the right hand, the palm on them (human/carry.held_rest_transform); 5: garments cut along smooth curves (level hems), footwear from the tights; 4: bodies with the fat axis (human/fat.py); 3: rebuilt with the avatar's proportions macro; 2: garments as a plain point cache (no skel binding)
 
 
 def layer_name(human_id: str) -> str:

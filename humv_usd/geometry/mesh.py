@@ -198,7 +198,46 @@ def _closest_candidates(q, cand, tri, tri_normals):
     return point, triangle, bary, normal, signed
 
 
+def _triangles_near_box(points, triangles, lo, hi, reach, by_bounds):
+    """Mask of the triangles whose centroid (``by_bounds`` False) or bounding box (True) lies
+    within ``reach`` of the box [lo, hi] (compiled by numba, :func:`triangles_near_box`)."""
+    out = np.zeros(triangles.shape[0], dtype=np.bool_)
+    r2 = reach * reach
+    for t in range(triangles.shape[0]):
+        a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+        g2 = 0.0
+        for ax in range(3):
+            pa, pb, pc = points[a, ax], points[b, ax], points[c, ax]
+            if by_bounds:
+                low, high = min(pa, pb, pc), max(pa, pb, pc)
+            else:
+                low = high = (pa + pb + pc) / 3.0
+            gap = max(low - hi[ax], lo[ax] - high, 0.0)
+            g2 += gap * gap
+        out[t] = g2 <= r2
+    return out
+
+
 _COMPILED: list = []
+_NEAR_BOX: list = []
+
+
+def triangles_near_box(points, triangles, lo, hi, reach: float, by_bounds: bool = False) -> np.ndarray:
+    """Indices of the triangles whose centroid (or, ``by_bounds``, bounding box: then every
+    triangle with a point that near) lies within ``reach`` [m] of the box [lo, hi]."""
+    if not _NEAR_BOX:
+        import numba
+
+        _NEAR_BOX.append(numba.njit(cache=True, nogil=True)(_triangles_near_box))
+    mask = _NEAR_BOX[0](
+        np.ascontiguousarray(points, dtype=np.float64),
+        np.ascontiguousarray(triangles, dtype=np.int64),
+        np.asarray(lo, dtype=np.float64),
+        np.asarray(hi, dtype=np.float64),
+        float(reach),
+        bool(by_bounds),
+    )
+    return np.flatnonzero(mask)
 
 
 def _closest_kernel():
@@ -235,15 +274,20 @@ class Surface:
         self._tree = cKDTree(self._tri_points.mean(axis=1), balanced_tree=False)
 
     def closest(self, query: np.ndarray, k: int = CANDIDATES) -> Closest:
+        return self.closest_within(query, k)[0]
+
+    def closest_within(self, query: np.ndarray, k: int = CANDIDATES) -> tuple[Closest, np.ndarray]:
+        """:meth:`closest` and, per query point, the distance to the k-th nearest centroid
+        (the radius within which the candidates were taken)."""
         q = np.ascontiguousarray(query, dtype=np.float64).reshape(-1, 3)
         k = min(k, len(self.triangles))
         # threads only pay off for large queries (their start-up costs ~0.1 ms per call)
-        _, cand = self._tree.query(q, k=k, workers=-1 if len(q) > PARALLEL_QUERIES else 1)
+        dist, cand = self._tree.query(q, k=k, workers=-1 if len(q) > PARALLEL_QUERIES else 1)
         cand = np.ascontiguousarray(cand.reshape(len(q), k), dtype=np.int64)
         point, triangle, bary, normal, signed = _closest_kernel()(
             q, cand, self._tri_points, self._tri_normals
         )
-        return Closest(point, triangle, bary, normal, signed)
+        return Closest(point, triangle, bary, normal, signed), np.asarray(dist).reshape(len(q), k)[:, -1]
 
     def closest_reference(self, query: np.ndarray, k: int = CANDIDATES) -> Closest:
         """:meth:`closest` in plain numpy (:func:`closest_on_triangles` over the same
@@ -270,6 +314,63 @@ class Surface:
         side = np.einsum("ni,ni->n", offset, normal)
         signed = np.where(side < 0, -dist, dist)
         return Closest(point, triangle, bary, normal, signed)
+
+
+def box_distance(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Euclidean distance [m] of each point (n, 3) to the axis-aligned box [lo, hi] (0 inside)."""
+    out = np.maximum(np.maximum(lo - points, points - hi), 0.0)
+    return np.sqrt(np.einsum("ni,ni->n", out, out))
+
+
+class LocalSurface:
+    """The part of a mesh near a box, answering :meth:`Surface.closest` exactly as the whole
+    mesh's :class:`Surface` does (a garment that covers a small part of the body, such as
+    hair or shoes, then needs no KD-tree of the whole body).
+
+    Kept: the triangles whose centroids lie within ``reach`` of the box [lo, hi], with the
+    whole mesh's vertex normals (summed over every triangle at their vertices, in the same
+    order: the same numbers). A query point q whose k-th nearest kept centroid lies within
+    ``reach - box_distance(q)`` has the same k nearest centroids in the whole mesh (every
+    other centroid lies farther than ``reach`` from the box, so farther than that from q),
+    hence the same candidates and the same answer; the other query points are answered by
+    the whole mesh's Surface, which ``whole()`` returns (built on first need).
+    """
+
+    def __init__(self, points, triangles, lo, hi, reach: float, whole, keep=None):
+        self.lo, self.hi, self.reach = np.asarray(lo, float), np.asarray(hi, float), float(reach)
+        self._whole, self._total = whole, len(triangles)
+        if keep is None:  # (the caller may have selected them already)
+            keep = triangles_near_box(points, triangles, self.lo, self.hi, self.reach)
+        self.keep = keep
+        tris = triangles[self.keep]
+        used = np.zeros(len(points), dtype=bool)
+        used[tris.ravel()] = True
+        touching = triangles[used[triangles].any(axis=1)]
+        # compact: the vertices of the touching triangles, in the whole mesh's order (the
+        # normals' sums run over the same triangles in the same order: the same numbers)
+        used[touching.ravel()] = True
+        verts = np.flatnonzero(used)
+        local = np.full(len(points), -1, dtype=np.int64)
+        local[verts] = np.arange(len(verts))
+        normals = vertex_normals(points[verts], local[touching])
+        self.surface = Surface(points[verts], local[tris], normals) if len(tris) else None
+        #: query points the whole mesh answered (for benchmarks)
+        self.fallbacks = 0
+
+    def closest(self, query: np.ndarray, k: int = CANDIDATES) -> Closest:
+        q = np.ascontiguousarray(query, dtype=np.float64).reshape(-1, 3)
+        if self.surface is None or len(self.keep) < min(k, self._total):
+            self.fallbacks += len(q)
+            return self._whole().closest(q, k)
+        near, kth = self.surface.closest_within(q, k)
+        near.triangle = self.keep[near.triangle]
+        miss = np.flatnonzero(~(kth <= self.reach - box_distance(q, self.lo, self.hi)))
+        if len(miss):
+            self.fallbacks += len(miss)
+            other = self._whole().closest(q[miss], k)
+            for name in ("point", "triangle", "bary", "normal", "signed"):
+                getattr(near, name)[miss] = getattr(other, name)
+        return near
 
 
 def closed_box(center_base, size, heading_deg: float = 0.0):
