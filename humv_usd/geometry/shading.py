@@ -12,6 +12,7 @@ ground truth's ``surface_temperature`` follows the same field (:mod:`humv_usd.gr
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 from scipy.sparse import csr_matrix
 
 #: Largest angle [deg] between two faces' normals across which their values are blended at a
@@ -209,3 +210,61 @@ def ring_gains(
             gain = np.where(now > 0.0, ring / now, 1.0)
         c = c * np.clip(gain, 1.0 / FIELD_GAIN_CAP, FIELD_GAIN_CAP)
     return c
+
+
+def smooth_noise(
+    blend,
+    face_of: np.ndarray,
+    face_sigma: np.ndarray,
+    triangle: np.ndarray,
+    bary: np.ndarray,
+    steps: int = FIELD_GAIN_STEPS,
+) -> np.ndarray:
+    r"""Standard deviation (N,) of a per-face field shaded smooth, at N points, when each face's
+    value carries an independent error of standard deviation ``face_sigma`` (n_faces,) (e.g.
+    the thermal layer's face temperatures, from its q_rad rays).
+
+    ``blend`` (3T, T): :func:`corner_blend`; ``face_of`` (T,): the face of each triangle (the
+    triangles of one face share its value and its error); ``triangle`` (N,) and ``bary`` (N, 3):
+    the triangle of each point and its barycentric coordinates (the corners' order of
+    ``blend``); ``steps``: the one-ring gain steps (:func:`ring_gains`) of the shaded field.
+
+    The shaded value at a point is :math:`\sum_c b_c c_c` over its triangle's corners. A gain
+    step :math:`c \leftarrow c\, (B v) / (B \bar c)` (B the blend, :math:`\bar c = A c` the
+    faces' corner means), linearised about a locally uniform field (gain 1), maps an error
+    :math:`\epsilon` of the faces to :math:`dc \leftarrow dc + B\epsilon - B A\, dc`, from
+    :math:`dc = B\epsilon` without a step. With :math:`r_f` the point's resulting weight of face
+    f, the variance is :math:`\sum_f r_f^2 \sigma_f^2` (Gaussian error propagation, the faces'
+    errors independent; JCGM 100:2008, GUM, section 5.1). A flat face reads
+    :math:`\sigma_f` itself; blending averages the errors of the faces around each corner."""
+    b = sparse.csr_matrix(blend)
+    n_t = b.shape[1]
+    face_of = np.asarray(face_of, dtype=np.int64)
+    n_f = int(face_of.max()) + 1 if len(face_of) else 0
+    to_face = sparse.csr_matrix((np.ones(n_t), (np.arange(n_t), face_of)), shape=(n_t, max(n_f, 1)))
+    t = np.asarray(triangle, dtype=np.int64)
+    n = len(t)
+    pick = sparse.csr_matrix(
+        (
+            np.asarray(bary, dtype=float).ravel(),
+            (np.repeat(np.arange(n), 3), (3 * t[:, None] + np.arange(3)).ravel()),
+        ),
+        shape=(n, 3 * n_t),
+    )
+    pb = (pick @ b).tocsr()  # the points' rows of B
+    r = pb
+    if int(steps) > 0:
+        # M_{k+1} = M_k + B - B Q_k with Q_k = A M_k: Q_0 = A B, Q_{k+1} = Q_k + Q_0 - Q_0 Q_k
+        mean = sparse.csr_matrix(
+            (np.full(3 * n_t, 1.0 / 3.0), (np.repeat(np.arange(n_t), 3), np.arange(3 * n_t))),
+            shape=(n_t, 3 * n_t),
+        )
+        q0 = (mean @ b).tocsr()
+        q = q0
+        for k in range(int(steps)):
+            r = (r + pb - pb @ q).tocsr()
+            if k + 1 < int(steps):
+                q = (q + q0 - q0 @ q).tocsr()
+    r = (r @ to_face).tocsr()  # (N, faces) weight of each face's error at each point
+    s2 = np.asarray(face_sigma, dtype=float) ** 2
+    return np.sqrt(np.maximum(np.asarray(r.multiply(r) @ s2).ravel(), 0.0))
