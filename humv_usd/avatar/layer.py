@@ -102,6 +102,9 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 26: the supporting knees of BVH clips (the crawl) held on the ground, the root re-planned over
+#: them (human.limbs.lock_knees; knee slip 143 -> 0.3-2.3 mm per run); contact._bridge fades in
+#: before a first run that a bridge follows (it jumped in);
 #: 25: the supporting hands of BVH clips laid flat, palm down (human.limbs);
 #: 24: bodies beyond the fat axis scaled more front to back than sideways (ANSUR II's waist depth
 #: against breadth: human.body.split_horizontal_scale), humv:fit depthScale;
@@ -133,7 +136,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "25"
+VERSION = "26"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:

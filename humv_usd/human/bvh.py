@@ -51,7 +51,7 @@ from humv_usd.errors import InputError
 from humv_usd.fileio import write_text_atomic
 from humv_usd.human import contact as C
 from humv_usd.human.gait import align_matrix, fk_matrices, matrix_to_quat, quat_slerp
-from humv_usd.human.limbs import lock_hands
+from humv_usd.human.limbs import lock_supports
 from humv_usd.human.macro import obj_data
 from humv_usd.human.motion import SIM_FPS_MIN, Motion, _continuous, metabolic_rate
 from humv_usd.human.poses import body_points as body_points_of
@@ -725,9 +725,9 @@ def motion_from_bvh(
         _, planted = C.settle_root(g, feet, wr, wp, sim_fps, speed_tol=tol, near=C.LOCK_NEAR_M)
         stance = {s: C.clean_stance(m, sim_fps) for s, m in planted.items()}
         rot, r, locked = C.lock_feet(skeleton, g, feet, rot, rot[:, 0], r, stance, sim_fps)
-        if body_points is not None:  # hands that support the body (a crawl) held on the ground too
-            rot, supports = lock_hands(
-                skeleton, g, body_points_of(skeleton, body_points), rot, rot[:, 0], r, sim_fps
+        if body_points is not None:  # knees and hands that support the body (a crawl) held too
+            rot, r, supports = lock_supports(
+                skeleton, g, body_points_of(skeleton, body_points), rot, rot[:, 0], r, sim_fps, locked
             )
         q = _continuous(matrix_to_quat(rot))
         wr, wp = fk_matrices(skeleton, rot, rot[:, 0], r)

@@ -669,6 +669,12 @@ def _bridge(values: np.ndarray, mask: np.ndarray, fade: int, longest: int) -> np
     for a, b in runs:
         out[a:b] = values[a:b]
     for i, (a, b) in enumerate(runs):
+        # the fade in before a run that no bridge reaches (before s8 a first run followed by a
+        # bridge skipped it: the correction jumped in at the run's first frame)
+        prev = runs[i - 1][1] if i > 0 else None
+        if i == 0 or a - prev > longest:
+            n = min(fade, a - (prev or 0))
+            out[a - n : a] = ease(fade)[fade - n :] * values[a]
         nxt = runs[i + 1][0] if i + 1 < len(runs) else None
         if nxt is not None and nxt - b <= longest:
             s = ease(nxt - b)
@@ -676,10 +682,6 @@ def _bridge(values: np.ndarray, mask: np.ndarray, fade: int, longest: int) -> np
             continue
         n = min(fade, (nxt if nxt is not None else len(values)) - b)
         out[b : b + n] = (1 - ease(fade)[:n]) * values[b - 1]
-        prev = runs[i - 1][1] if i > 0 else None
-        if i == 0 or a - prev > longest:
-            n = min(fade, a - (prev or 0))
-            out[a - n : a] = ease(fade)[fade - n :] * values[a]
     return out
 
 
