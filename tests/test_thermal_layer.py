@@ -15,6 +15,7 @@ from humv_usd.scenario import validate
 from humv_usd.usd import avatar as UA
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import check_stage
+from humv_usd.usd.thermal import read_face_temperature_noise
 
 pytestmark = pytest.mark.slow
 
@@ -104,6 +105,13 @@ def test_jos3_skin_and_garments(jos3_stage):
     }
     assert all(0.0 < v < 0.5 for v in by_mesh.values())
     assert min(by_mesh.values()) <= diag["faceTemperatureNoiseRms_K"] <= max(by_mesh.values())
+    # and per face on each of them (the render propagates it through its smooth shading): one
+    # value per authored face, the mesh's RMS within the faces' range
+    for path, rms in by_mesh.items():
+        prim = stage.GetPrimAtPath(path)
+        sigma = read_face_temperature_noise(prim)
+        assert sigma is not None and len(sigma) == len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get())
+        assert np.all(np.isfinite(sigma) & (sigma >= 0.0)) and sigma.min() <= rms <= sigma.max()
     timings = json.loads((out / "compose.json").read_text())
     assert {x["name"] for x in timings["layers"]} >= {"thermal", "clothing_p1"}
 

@@ -111,10 +111,13 @@ def thermal_noise(run, s: SensorModel, state, hits) -> np.ndarray | None:
     replicates (:func:`humv_usd.thermal.qrad.absorbed_radiation`): on the demo person it is
     within 20 % of the seed-to-seed difference per mesh.
 
-    The fast estimator shades the faces smooth (corner blend and one-ring gain steps), which
-    averages the errors of the faces around each corner: each face then carries its mesh's
-    noise and the pixel the error of the shaded field at its hit point
-    (:func:`humv_usd.geometry.shading.smooth_noise`). Demo, two q_rad seeds, one render seed,
+    Each face carries its own noise where the layer states it per face
+    (:func:`humv_usd.usd.thermal.read_face_temperature_noise`; else its mesh's RMS). The fast
+    estimator shades the faces smooth (corner blend and one-ring gain steps), which averages
+    the errors of the faces around each corner, taken as independent (each face's rays are its
+    own): the pixel gets the error of the shaded field at its hit point
+    (:func:`humv_usd.geometry.shading.smooth_noise`); flat faces (the path estimator) their
+    face's. Demo, two q_rad seeds, one render seed,
     person pixels away from edges (lwir640 / mwir_insb): the images differ by 7.6 / 7.3 mK RMS
     (difference / sqrt 2), stated 12.6 / 12.4 mK mean (each face its mesh's RMS noise, an upper
     figure: the faces' noise is heavy-tailed); the flat faces' figure stated 22 mK."""
@@ -127,39 +130,62 @@ def thermal_noise(run, s: SensorModel, state, hits) -> np.ndarray | None:
     if not run._person_noise:
         return None
     parts = run.scene.parts
+    if not hasattr(run, "_face_noise"):
+        run._face_noise = {}
     per_part = np.zeros(len(parts) + 1)
+    per_face = [None] * len(parts)
     for i, part in enumerate(parts):
         for person, noise in run._person_noise.items():
             if part.mesh_path.startswith(str(human_path(person)) + "/"):
                 noise = run._mesh_noise.get(part.mesh_path, noise)
-                per_part[i] = bands.band_emissivity(run.band_eps, part.material, s) * noise
+                eps = bands.band_emissivity(run.band_eps, part.material, s)
+                per_part[i] = eps * noise
+                if part.mesh_path not in run._face_noise:
+                    run._face_noise[part.mesh_path] = usd_thermal.read_face_temperature_noise(
+                        run.plan.stage.GetPrimAtPath(part.mesh_path)
+                    )
+                face = run._face_noise[part.mesh_path]
+                per_face[i] = None if face is None else eps * face
     out = per_part[np.where(hits.part >= 0, hits.part, len(parts))]
-    if run.plan.estimator == "fast" and E.SMOOTH_SHADING:
-        out = _smooth_thermal_noise(run.scene, per_part, hits, out)
-    return out
+    return _face_thermal_noise(
+        run.scene, per_part, per_face, hits, out, run.plan.estimator == "fast" and E.SMOOTH_SHADING
+    )
 
 
-def _smooth_thermal_noise(scene, per_part, hits, flat):
-    """:func:`thermal_noise` at the pixels of parts with noise, through the fast estimator's
-    smooth shading of the faces' temperatures (each face its part's noise ``per_part``)."""
+def _face_thermal_noise(scene, per_part, per_face, hits, flat, smooth):
+    """:func:`thermal_noise` at the pixels of parts with noise from each face's own noise
+    (``per_face``: (faces,) per part or None for the part's ``per_part``), through the fast
+    estimator's smooth shading of the faces' temperatures when ``smooth``."""
     on = (hits.part >= 0) & (flat > 0)
-    if not on.any():
+    if not on.any() or (not smooth and all(f is None for f in per_face)):
         return flat
     parts = scene.parts
     n_tri = np.array([len(p.triangles) for p in parts], dtype=np.int64)
     n_face = np.array(
-        [int(p.triangle_face.max()) + 1 if len(p.triangle_face) else 0 for p in parts], dtype=np.int64
+        [
+            max(int(p.triangle_face.max()) + 1 if len(p.triangle_face) else 0, 0 if f is None else len(f))
+            for p, f in zip(parts, per_face)
+        ],
+        dtype=np.int64,
     )
     tri0 = np.concatenate([[0], np.cumsum(n_tri)[:-1]])
     face0 = np.concatenate([[0], np.cumsum(n_face)[:-1]])
     face_of = np.concatenate(
         [face0[i] + np.asarray(p.triangle_face, dtype=np.int64) for i, p in enumerate(parts)]
     )
-    face_sigma = np.repeat(per_part[: len(parts)], n_face)
+    face_sigma = np.concatenate(
+        [
+            np.full(n, per_part[i]) if per_face[i] is None else np.pad(per_face[i], (0, n - len(per_face[i])))
+            for i, n in enumerate(n_face)
+        ]
+    )
     p, t = hits.part[on], hits.triangle[on]
+    out = flat.copy()
+    if not smooth:
+        out[on] = face_sigma[face_of[tri0[p] + t]]
+        return out
     tri = np.concatenate([np.asarray(scene.vertices(q), float)[scene.face_corners(q)] for q in parts])
     bary = np.clip(shading.barycentric(tri, np.asarray(hits.position)[on], index=tri0[p] + t), 0.0, 1.0)
-    out = flat.copy()
     out[on] = shading.smooth_noise(
         scene.corner_blend(), face_of, face_sigma, tri0[p] + t, bary, E.DARK_GAIN_STEPS
     )

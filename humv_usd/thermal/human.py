@@ -692,6 +692,11 @@ def _garment_response(wardrobe, skin, air, q_abs, wind, rh, transient) -> np.nda
     return (t1 - t0) / RESPONSE_STEP_W_M2
 
 
+#: key of :func:`_face_temperature_noise`'s per-face arrays in the diagnostics (the layer takes
+#: them out of its report and writes them per mesh)
+FACE_NOISE = "_faceTemperatureNoise_K"
+
+
 def _face_temperature_noise(q_var, parts, points, skin_g, visible, wardrobe, garment_response=None) -> dict:
     """The faces' temperature noise from the q_rad rays' noise (issue 25: the render adds it to
     its stated error), at the first frame: per authored face the variance of its triangles'
@@ -702,8 +707,12 @@ def _face_temperature_noise(q_var, parts, points, skin_g, visible, wardrobe, gar
     another are not seen.
 
     Returns {faceTemperatureNoiseRms_K: area-weighted RMS over the visible faces of the
-    person, faceTemperatureNoiseRmsByMesh_K: {mesh path: RMS over its visible faces}}."""
+    person, faceTemperatureNoiseRmsByMesh_K: {mesh path: RMS over its visible faces},
+    FACE_NOISE: {mesh path: (faces,) sigma_T of every face [K]}} (the last for the layer's
+    per-face primvar, :func:`humv_usd.usd.thermal.write_face_temperature_noise`: the render
+    propagates each face's own noise through its smooth shading)."""
     by_mesh: dict[str, float] = {}
+    per_face: dict[str, np.ndarray] = {}
     sq, weights = [], []
     start = 0
     response = garment_response() if garment_response is not None else None
@@ -723,6 +732,7 @@ def _face_temperature_noise(q_var, parts, points, skin_g, visible, wardrobe, gar
             sigma = np.sqrt(var_face) / np.maximum(skin_g, 1e-6)
         else:
             sigma = np.sqrt(var_face) * np.abs(response[wardrobe.offset[i - 1] : wardrobe.offset[i]])
+        per_face[part.path] = sigma
         seen = visible[i]
         if not np.any(seen) or a_face[seen].sum() <= 0:
             continue
@@ -732,7 +742,11 @@ def _face_temperature_noise(q_var, parts, points, skin_g, visible, wardrobe, gar
     if not sq:
         return {}
     total = float(np.sqrt(np.average(np.concatenate(sq), weights=np.concatenate(weights))))
-    return {"faceTemperatureNoiseRms_K": total, "faceTemperatureNoiseRmsByMesh_K": by_mesh}
+    return {
+        "faceTemperatureNoiseRms_K": total,
+        "faceTemperatureNoiseRmsByMesh_K": by_mesh,
+        FACE_NOISE: per_face,
+    }
 
 
 #: Largest |skin-side garment + bare-skin flux - physiology sensible loss| per segment [W m^-2]

@@ -38,7 +38,7 @@ from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import scene_radiance as SR
-from humv_usd.thermal.human import Surroundings, human_temperatures, scenario_sky
+from humv_usd.thermal.human import FACE_NOISE, Surroundings, human_temperatures, scenario_sky
 from humv_usd.thermal.snow import author_snow_cover
 from humv_usd.thermal.surfaces import (
     air_at_frame0,
@@ -62,7 +62,7 @@ from humv_usd.usd.environment import read_weather
 from humv_usd.usd.layers import finish, new_layer_stage
 from humv_usd.usd.paths import body_path, human_path
 from humv_usd.usd.spill import SampleSpill
-from humv_usd.usd.thermal import spill_temperatures, write_surface_temperature
+from humv_usd.usd.thermal import spill_temperatures, write_face_temperature_noise, write_surface_temperature
 
 NAME = "thermal"
 #: the weather comes from the environment layer (UPSTREAM), not from [atmosphere]
@@ -107,7 +107,9 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: (the demo's cap -0.14 K, shoes -0.04 K, skin and T-shirt -0.02 K on average)
 #: 23: a wardrobe of hair alone takes its own q_rad pass (human._hair_radiation) instead of a
 #: second pass over the clothed person (other rays: a walker's faces move by |d| p99 0.1-0.2 K)
-VERSION = "23"
+#: 24: the people's meshes carry their faces' q_rad noise (primvars:humv:thermal:temperatureNoise,
+#: per face [K]; usd.thermal.FACE_NOISE_PRIMVAR), which the render propagates per pixel
+VERSION = "24"
 #: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
 #: the layer's text is unchanged, so no VERSION bump)
 SPILLS = True
@@ -176,6 +178,7 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
         }
         ground_k = sdiag["groundMeanTemperature_k"]
     solved: dict[str, np.ndarray] = {}
+    face_noise: dict[str, np.ndarray] = {}  # per-face q_rad noise [K] of the people's meshes
     for m in meshes:
         if m.path not in surf:
             solved[m.path] = np.full((1, m.n_faces), float(m.held_k))
@@ -247,6 +250,7 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
                 temps_h = {p: spill_temperatures(spill, v) for p, v in temps_h.items()}
             solved.update(temps_h)
             del temps_h
+            face_noise.update(diag.pop(FACE_NOISE, {}))
             report[h["id"]] = _rounded(diag)
     wet = sdiag.get("wetFraction") if slabs else None
     if wet:  # issue 30.4: faces wet after rain render with a wet variant of their material
@@ -282,6 +286,8 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
         else:
             kind = model if str(path).endswith("/Body") else "balance"
         write_surface_temperature(over, kind, series, spill)
+        if str(path) in face_noise:
+            write_face_temperature_noise(over, face_noise[str(path)])
     return finish(stage)
 
 

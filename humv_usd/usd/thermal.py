@@ -188,3 +188,35 @@ def face_temperature_noise(stage: Usd.Stage) -> dict[str, float]:
                 out[str(key)] = float(value[FACE_NOISE_KEY])
         return out
     return {}
+
+
+#: Per-face noise [K] of a person's face temperatures from the thermal layer's q_rad rays (the
+#: first radiation sample's, one value per authored face; uniform float[], custom: not in the
+#: HumvThermalAPI schema, like the avatar's label primvars): the render propagates it to each
+#: pixel through its smooth shading (:func:`humv_usd.pipeline.ir_pass.thermal_noise`).
+FACE_NOISE_PRIMVAR = "primvars:humv:thermal:temperatureNoise"
+
+
+def write_face_temperature_noise(prim: Usd.Prim, sigma_k) -> None:
+    """Author :data:`FACE_NOISE_PRIMVAR` (faces,) [K] on ``prim`` (a mesh or an over of one)."""
+    primvar = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+        FACE_NOISE_PRIMVAR.removeprefix("primvars:"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform
+    )
+    primvar.Set(Vt.FloatArray.FromNumpy(np.asarray(sigma_k, dtype=np.float32)))
+
+
+def read_face_temperature_noise(prim: Usd.Prim) -> np.ndarray | None:
+    """:data:`FACE_NOISE_PRIMVAR` of a mesh (faces,) [K], or None when absent, not one value
+    per authored face, or not finite and >= 0 (a layer without it: the mesh's RMS stands in)."""
+    attr = prim.GetAttribute(FACE_NOISE_PRIMVAR) if prim else None
+    if not attr or not attr.HasValue() or not prim.IsA(UsdGeom.Mesh):
+        return None
+    face_count = len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get() or [])
+    values = attr.Get()
+    try:
+        values = np.asarray(values, dtype=float).ravel()
+    except (TypeError, ValueError):
+        return None
+    if values.size != face_count or not np.all(np.isfinite(values) & (values >= 0.0)):
+        return None
+    return values
