@@ -109,7 +109,8 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: second pass over the clothed person (other rays: a walker's faces move by |d| p99 0.1-0.2 K)
 #: 24: the people's meshes carry their faces' q_rad noise (primvars:humv:thermal:temperatureNoise,
 #: per face [K]; usd.thermal.FACE_NOISE_PRIMVAR), which the render propagates per pixel
-VERSION = "24"
+#: 25: a hidden face's noise is its mesh's visible RMS (the render blends it into visible corners)
+VERSION = "25"
 #: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
 #: the layer's text is unchanged, so no VERSION bump)
 SPILLS = True
