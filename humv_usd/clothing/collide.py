@@ -605,6 +605,14 @@ class _BodyFrame:
         boxes that near): every triangle a ray from inside the box can hit within ``reach``."""
         return triangles_near_box(self.points, self.triangles, lo, hi, reach, by_bounds=True)
 
+    def small(self, points: np.ndarray) -> bool:
+        """Whether the body triangles within :data:`MAX_AIR_GAP` of the box of ``points`` are
+        at most :data:`LOCAL_SHARE` of them (a garment that local structures serve)."""
+        if not len(points):
+            return True
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        return len(self.near_triangles(lo, hi, MAX_AIR_GAP)) <= LOCAL_SHARE * len(self.triangles)
+
     def caster_for(self, points: np.ndarray):
         """A ray caster whose hits within :data:`MAX_AIR_GAP` of ``points`` are the whole
         body's (:class:`_LocalCaster`), or the whole body's."""
@@ -726,15 +734,20 @@ def simulate(
         t0 = time.perf_counter()
         body = apply(blend_transforms(rig.joint_indices, rig.joint_weights, skin[f]), rig.mesh.points)
         frame_body = _BodyFrame(body, rig.triangles)
+        skinned_all = [
+            apply(blend_transforms(g.joint_indices, g.joint_weights, skin[f]), g.points)
+            for g in outfit.garments
+        ]
+        # one garment near most of the body: the whole body's structures serve them all
+        small = all(frame_body.small(p) for p in skinned_all)
         distances: list[np.ndarray] = []
         shells: list[tuple[Surface, np.ndarray, float]] = []  # posed body-like garments
         worn: list[tuple[Surface, np.ndarray, float]] = []  # all posed garments so far
         for k, (g, anim) in enumerate(zip(outfit.garments, anims)):
             gap = g.garment.minimum_gap
-            blended = blend_transforms(g.joint_indices, g.joint_weights, skin[f])
-            skinned = apply(blended, g.points)
+            skinned = skinned_all[k]
             posed = skinned
-            surface = frame_body.surface_for(skinned, local_ok[k])
+            surface = frame_body.surface_for(skinned, small and local_ok[k])
             if drapes[k]:
                 posed = skinned.copy()
                 for drape in drapes[k]:
@@ -826,7 +839,8 @@ def simulate(
             distances.append(dist)
             anim.posed[f] = fixed
             anim.counts.append(counts)
-            anim.air_gap[f] = air_gap(frame_body.caster_for(fixed), fixed, g.triangles, dist)
+            caster = frame_body.caster_for(fixed) if small else frame_body.whole_caster()
+            anim.air_gap[f] = air_gap(caster, fixed, g.triangles, dist)
             for drape in drapes[k]:
                 drape.settle(fixed[drape.vertices])
         frame_s[f] = time.perf_counter() - t0
