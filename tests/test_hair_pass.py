@@ -15,6 +15,7 @@ from numpy.testing import assert_allclose
 from humv_usd.bench import thermal as BT
 from humv_usd.clothing.fit import fit_garment, prepare
 from humv_usd.human.body import build_body
+from humv_usd.scenario.load import default_hair
 from humv_usd.thermal import human as H
 from humv_usd.thermal import qrad as Q
 from humv_usd.thermal import scene_radiance as SR
@@ -94,3 +95,11 @@ def test_tied_hair_on_a_child_whose_hair_proxy_reaches_no_neck_keeps_the_scalp_l
     tied, short = fit_garment(rig, "hair_tied"), fit_garment(rig, "hair_short")
     assert set(np.unique(tied.part_of)) == {0}
     assert len(tied.face_counts) == len(short.face_counts) > 100
+
+
+def test_the_default_hair_takes_the_hair_only_pass_and_long_hair_does_not():
+    """Long hair hangs off the back and face and shades them: it keeps the full clothed pass; the
+    default styles of a person without a clothing key stay on the head and take the cheap one."""
+    assert "hair_long" not in H.CLOSE_HAIR
+    for sex in ("male", "female"):
+        assert set(default_hair({"sex": sex})) <= set(H.CLOSE_HAIR)

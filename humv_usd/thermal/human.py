@@ -239,7 +239,7 @@ def human_temperatures(
     parts = [body, *garments]
     # hair alone (no garment): the body keeps its own q_rad pass and the hair faces get theirs
     # (:data:`HAIR_ONLY_PASS`), instead of a second pass over the whole clothed person
-    hair_only = HAIR_ONLY_PASS and bool(garments) and all(p.garment in HAIR_GARMENTS for p in garments)
+    hair_only = HAIR_ONLY_PASS and bool(garments) and all(p.garment in CLOSE_HAIR for p in garments)
     own_pass = not garments or hair_only  # the body's pass takes the ray budget and the replicates
     diagnostics: dict = {}
     skin_guess = scenario["thermal"]["skin_temperature_k"]
@@ -549,6 +549,11 @@ def human_temperatures(
 #: the second q_rad pass over the whole clothed person (issue 29.2: that pass made hair cost
 #: +2.2 of 8.6 CPU-s of a 31-frame JOS-3 walker's thermal layer).
 HAIR_ONLY_PASS = True
+#: The hair styles that stay on the head and neck, for which :func:`_hair_radiation` holds;
+#: long hair alone takes the full clothed pass: it hangs 2-4 cm off the back, shoulders and face
+#: and shades them (without its shadow 86 of 13,378 body faces of a JOS-3 walker moved by more
+#: than 1 K, up to 6.7 K; hair_tied: 3 faces at the nape, up to 5.9 K; hair_short: none > 0.3 K)
+CLOSE_HAIR = tuple(g for g in HAIR_GARMENTS if g != "hair_long")
 
 
 def _hair_radiation(pts, parts, env, scene, bare, self_bare, skin_k: float, air_k: float):

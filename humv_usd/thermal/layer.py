@@ -110,7 +110,9 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 24: the people's meshes carry their faces' q_rad noise (primvars:humv:thermal:temperatureNoise,
 #: per face [K]; usd.thermal.FACE_NOISE_PRIMVAR), which the render propagates per pixel
 #: 25: a hidden face's noise is its mesh's visible RMS (the render blends it into visible corners)
-VERSION = "25"
+#: 26: long hair alone takes the full clothed q_rad pass again (human.CLOSE_HAIR: its shadow on the
+#: back and face matters); short or tied hair and beards keep the hair-only pass (23)
+VERSION = "26"
 #: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
 #: the layer's text is unchanged, so no VERSION bump)
 SPILLS = True
