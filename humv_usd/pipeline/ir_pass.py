@@ -155,37 +155,44 @@ def thermal_noise(run, s: SensorModel, state, hits) -> np.ndarray | None:
 def _face_thermal_noise(scene, per_part, per_face, hits, flat, smooth):
     """:func:`thermal_noise` at the pixels of parts with noise from each face's own noise
     (``per_face``: (faces,) per part or None for the part's ``per_part``), through the fast
-    estimator's smooth shading of the faces' temperatures when ``smooth``."""
+    estimator's smooth shading of the faces' temperatures when ``smooth``. Only the parts with
+    noise take faces of their own (the blend never mixes parts); every other triangle shares
+    one face of no noise."""
     on = (hits.part >= 0) & (flat > 0)
     if not on.any() or (not smooth and all(f is None for f in per_face)):
         return flat
     parts = scene.parts
+    noisy = [i for i in range(len(parts)) if per_part[i] > 0]
     n_tri = np.array([len(p.triangles) for p in parts], dtype=np.int64)
-    n_face = np.array(
-        [
-            max(int(p.triangle_face.max()) + 1 if len(p.triangle_face) else 0, 0 if f is None else len(f))
-            for p, f in zip(parts, per_face)
-        ],
-        dtype=np.int64,
-    )
     tri0 = np.concatenate([[0], np.cumsum(n_tri)[:-1]])
-    face0 = np.concatenate([[0], np.cumsum(n_face)[:-1]])
-    face_of = np.concatenate(
-        [face0[i] + np.asarray(p.triangle_face, dtype=np.int64) for i, p in enumerate(parts)]
-    )
-    face_sigma = np.concatenate(
-        [
-            np.full(n, per_part[i]) if per_face[i] is None else np.pad(per_face[i], (0, n - len(per_face[i])))
-            for i, n in enumerate(n_face)
-        ]
-    )
+    face_of = np.zeros(int(n_tri.sum()), dtype=np.int64)  # face 0: no noise
+    sigma = [np.zeros(1)]
+    first = 1
+    for i in noisy:
+        tf = np.asarray(parts[i].triangle_face, dtype=np.int64)
+        n_face = max(int(tf.max()) + 1 if len(tf) else 0, 0 if per_face[i] is None else len(per_face[i]))
+        face_of[tri0[i] : tri0[i] + n_tri[i]] = first + tf
+        f = (
+            np.full(n_face, per_part[i])
+            if per_face[i] is None
+            else np.pad(per_face[i], (0, n_face - len(per_face[i])))
+        )
+        sigma.append(f)
+        first += n_face
+    face_sigma = np.concatenate(sigma)
     p, t = hits.part[on], hits.triangle[on]
     out = flat.copy()
     if not smooth:
         out[on] = face_sigma[face_of[tri0[p] + t]]
         return out
-    tri = np.concatenate([np.asarray(scene.vertices(q), float)[scene.face_corners(q)] for q in parts])
-    bary = np.clip(shading.barycentric(tri, np.asarray(hits.position)[on], index=tri0[p] + t), 0.0, 1.0)
+    local0 = np.zeros(len(parts) + 1, dtype=np.int64)
+    tri = []
+    for i in noisy:
+        tri.append(np.asarray(scene.vertices(parts[i]), float)[scene.face_corners(parts[i])])
+        local0[i] = sum(len(x) for x in tri[:-1])
+    bary = np.clip(
+        shading.barycentric(np.concatenate(tri), np.asarray(hits.position)[on], index=local0[p] + t), 0.0, 1.0
+    )
     out[on] = shading.smooth_noise(
         scene.corner_blend(), face_of, face_sigma, tri0[p] + t, bary, E.DARK_GAIN_STEPS
     )
