@@ -65,8 +65,27 @@ def test_population_draws_ansur_ratios():
         assert -0.45 < np.corrcoef(r, h)[0, 1] < -0.2  # ANSUR II: -0.34 men, -0.37 women
         a, b, _ = ANSUR2_SITTING_HEIGHT_RATIO[sex]
         assert a + b * 1.7 == pytest.approx(mean, abs=0.01)
-    children = sample_people(20, seed=7, age_yr=(2.0, 15.0))
-    assert not any("sitting_height_ratio" in p for p in children)
+
+
+def test_children_draw_and_default_to_the_dutch_reference_ratio():
+    """s8, issue 29.1: children's legs against the trunk follow Fredriks et al. (2005)'s LMS
+    references (numbers typed from the paper's table: boys at 10 yr M 0.5204, S 0.0259; girls
+    0.5224, 0.0271), drawn with their own z; a child without the key gets the median, where
+    MakeHuman's age macro gave a 12-yr-old boy 0.538 (2 SD long in the trunk)."""
+    from humv_usd.human.proportions import child_sitting_height_ratio
+
+    people = sample_people(4000, seed=11, age_yr=(9.9, 10.1))
+    for sex, (m, s_) in {"male": (0.5204, 0.0259), "female": (0.5224, 0.0271)}.items():
+        r = np.array([p["sitting_height_ratio"] for p in people if p["sex"] == sex])
+        assert np.median(r) == pytest.approx(m, abs=0.001)
+        assert r.std() == pytest.approx(m * s_, rel=0.08)
+    # a toddler's median (0.648 at 1 yr) is clipped to the accepted range
+    assert child_sitting_height_ratio("female", 1.0) == 0.60
+    assert child_sitting_height_ratio("male", 12.0) == pytest.approx(0.5126, abs=1e-6)
+    boy = build_body("male", 12.0, 1.491, 41.0)
+    assert boy.sitting_height_ratio == pytest.approx(0.5126, abs=2e-3)
+    assert boy.requested["sitting_height_ratio"] is None  # the request stays the user's
+    assert build_body("male", 30.0, 1.78, 80.0).sitting_height_ratio > 0.52  # adults: MakeHuman's
 
 
 def test_population_hair_colours_grey_with_age():

@@ -102,6 +102,8 @@ READS = (
     "scene.ground.size_m",
 )
 UPSTREAM = ()
+#: 27: children (< 20 yr) without a sitting_height_ratio get the Dutch reference median for the
+#: sex and age (human.proportions.child_sitting_height_ratio; MakeHuman's macro: up to +0.025);
 #: 26: the supporting knees of BVH clips (the crawl) held on the ground, the root re-planned over
 #: them (human.limbs.lock_knees; knee slip 143 -> 0.3-2.3 mm per run); contact._bridge fades in
 #: before a first run that a bridge follows (it jumped in);
@@ -136,7 +138,7 @@ UPSTREAM = ()
 #: 6: bodies beyond the weight macro follow the fat axis (human/fat.py), not a lateral scale;
 #: 5: feet on the terrain (issue 30.1); 4: proportions and skin tone; 3: model kinds and extents
 #: (2: reads only what changes the avatar)
-VERSION = "26"
+VERSION = "27"
 
 
 def build_one(scenario: Scenario, human: dict, motion=None) -> Sdf.Layer:

@@ -77,9 +77,11 @@ from humv_usd.human.fat import DIRECTIONS as FAT_DIRECTIONS
 from humv_usd.human.fat import fat_delta, max_f
 from humv_usd.human.macro import MacroValues, age_to_macro, apply_macros, obj_data
 from humv_usd.human.proportions import (
+    CHILD_RATIO_MAX_AGE_YR,
     MAX_LEG,
     SITTING_MINUS_UPPER_BODY_M,
     check_sitting_height_ratio,
+    child_sitting_height_ratio,
     crotch_candidates,
     leg_delta,
     sitting_height_m,
@@ -380,7 +382,9 @@ def build_body(
     mass_kg [kg]; build 'slim'/'average'/'muscular' or a MakeHuman muscle value in [0, 1];
     proportions: MakeHuman's proportions macro in [0, 1] (0.5: none); sitting_height_ratio:
     sitting height / stature in [0.45, 0.60] reached with the leg axis of
-    :mod:`humv_usd.human.proportions` (None: MakeHuman's own for the sex and age).
+    :mod:`humv_usd.human.proportions` (None: below 20 yr the children's reference median,
+    :func:`humv_usd.human.proportions.child_sitting_height_ratio`; adults MakeHuman's own for
+    the sex and age).
     """
     sex = _sex(sex)
     if not (stature_m > 0 and mass_kg > 0):
@@ -394,8 +398,12 @@ def build_body(
         gender=SEX_GENDER[sex], age=age_to_macro(age_yr), muscle=muscle, proportions=float(proportions)
     )
     crotch_ratio = None
-    if sitting_height_ratio is not None:
-        ratio = check_sitting_height_ratio(sitting_height_ratio)
+    ratio_to_fit = sitting_height_ratio
+    if ratio_to_fit is None and float(age_yr) < CHILD_RATIO_MAX_AGE_YR:
+        # a child's legs against the trunk from the Dutch reference, not MakeHuman's age macro
+        ratio_to_fit = child_sitting_height_ratio(sex, float(age_yr))
+    if ratio_to_fit is not None:
+        ratio = check_sitting_height_ratio(ratio_to_fit)
         crotch_ratio = 1.0 - ratio + SITTING_MINUS_UPPER_BODY_M[sex] / stature_m
     macros, fat, legs, s, k = fit_macros(start, stature_m, mass_kg / density, crotch_ratio=crotch_ratio)
 

@@ -77,10 +77,13 @@ men          0.6402 - 0.0667 * stature            0.0127
 women        0.6588 - 0.0814 * stature            0.0131
 ===========  ==================================  ==========
 
-(mean ratio 0.5231 +- 0.0135 men, 0.5262 +- 0.0141 women.) Drawn for ages >= 20 yr only (children's
-ratio falls with age, from ~0.57 at 2 yr, and no table of it is at hand); the key is left out for
-children, whose legs stay MakeHuman's for their age. Drawn after the other traits, so adding it
-left every earlier draw of a seed unchanged.
+(mean ratio 0.5231 +- 0.0135 men, 0.5262 +- 0.0141 women.) Drawn for ages >= 20 yr. Children
+(< 20 yr) draw theirs from the Fourth Dutch Growth Study's LMS references (Fredriks et al. 2005,
+Arch Dis Child 90:807-812; :func:`humv_usd.human.proportions.child_sitting_height_ratio`: median
+0.604 at 2 yr, 0.546 at 5, 0.520 / 0.522 at 10 (boys / girls), 0.508 / 0.518 at 14), a z-score
+of its own, independent of stature; drawn last, after the hair colour. Each was drawn after the
+traits before it, so adding it left every earlier draw of a seed unchanged. (Between the two
+sources the median steps at 20 yr: Dutch 0.516 / 0.526, ANSUR II 0.523 / 0.526 at 1.75 / 1.63 m.)
 
 Other traits (no population statistic at hand; stated as design choices, not data):
 
@@ -101,6 +104,8 @@ Other traits (no population statistic at hand; stated as design choices, not dat
 from __future__ import annotations
 
 import numpy as np
+
+from humv_usd.human.proportions import child_sitting_height_ratio
 
 #: BMI range of drawn adults [kg m-2] (the issue's 16-45, with ANSUR II's 1st percentile).
 BMI_MIN, BMI_MAX = 15.0, 45.0
@@ -352,6 +357,9 @@ def sample_person(
         person["hair_color"] = "grey"
     else:
         person["hair_color"] = PIGMENTED_HAIR[int(rng.integers(len(PIGMENTED_HAIR)))]
+    if age < ADULT_AGE:  # drawn last: every earlier draw of a seed unchanged
+        z = float(rng.standard_normal())
+        person["sitting_height_ratio"] = round(child_sitting_height_ratio(sex, age, z), 4)
     return person
 
 

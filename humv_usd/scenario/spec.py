@@ -335,7 +335,9 @@ HUMAN = Section(
             "float",
             "Sitting height / stature (leg length against the trunk; ANSUR II adults 0.52 +- "
             "0.014), reached with MakeHuman's leg-height targets at the same stature "
-            "(humv_usd.human.proportions); unset: MakeHuman's own for the sex and age.",
+            "(humv_usd.human.proportions); unset: below 20 yr the children's reference median for "
+            "the sex and age (Fredriks et al. 2005, the Fourth Dutch Growth Study), adults "
+            "MakeHuman's own for the sex.",
             lo=0.45,
             hi=0.60,
         ),
