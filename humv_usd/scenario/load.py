@@ -696,7 +696,8 @@ def validate(raw: dict, path: Path | None = None) -> Scenario:
                 f"{_allowed(name, SECTIONS, 'sections')}"
             )
     data = {name: _check_section(name, raw.get(name), sec, problems) for name, sec in SECTIONS.items()}
-    for hum, given in zip(data["human"], raw.get("human") or []):
+    given_people = raw.get("human") if isinstance(raw.get("human"), list) else []  # else reported above
+    for hum, given in zip(data["human"], given_people):
         if isinstance(given, dict) and "clothing" not in given:  # hair on by default (issue 29.2)
             hum["clothing"] = default_hair(hum)
     _check_garments(data, problems)
