@@ -483,10 +483,9 @@ def test_fast_preview_is_a_cheaper_copy_in_its_own_folder(humvvex, tmp_path):
     checked = validate(pv, tmp_path / "elsewhere" / "preview.toml")  # valid wherever it lives
     assert checked.frame_count == 1 and list(checked["sensor"][1]["render_resolution"]) == [320, 256]
     notes = preview_notes(scenario)
-    rays = SECTIONS["thermal"].keys["radiation_rays"].default
+    assert SECTIONS["thermal"].keys["radiation_rays"].default is None  # automatic: from the cameras
     assert (
-        f"thermal.radiation_rays 8 (scenario: {rays})" in notes
-        and "frame 0 only (scenario: 61 frames)" in notes
+        "thermal.radiation_rays 8 (scenario: auto)" in notes and "frame 0 only (scenario: 61 frames)" in notes
     )
     assert not any("radiation_resolution" in n for n in notes)
     # the fixed model has no radiation balance: only the scene's cells are coarser

@@ -142,8 +142,9 @@ def preview_scenario(raw: dict, scenario: Scenario, folder: Path) -> dict:
     return out
 
 
-def _thermal_knobs(scenario: Scenario) -> list[tuple[str, float, float]]:
-    """(key, the scenario's value, the fast preview's) of :data:`PREVIEW_THERMAL`; the radiation
+def _thermal_knobs(scenario: Scenario) -> list[tuple[str, float | str, float]]:
+    """(key, the scenario's value ("auto" when left to the thermal tool), the fast preview's) of
+    :data:`PREVIEW_THERMAL`; the radiation
     knobs only where people have a radiation balance (not with the fixed model)."""
     th = scenario["thermal"] or {}
     out = []
@@ -151,6 +152,9 @@ def _thermal_knobs(scenario: Scenario) -> list[tuple[str, float, float]]:
         if key.startswith("radiation_") and th.get("model") == "fixed":
             continue
         own = th.get(key, SECTIONS["thermal"].keys[key].default)
+        if own is None:  # automatic (radiation_rays: from the cameras): the preview's value
+            out.append((key, "auto", value))
+            continue
         out.append((key, own, min(own, value) if how == "min" else max(own, value)))
     return out
 
@@ -159,7 +163,9 @@ def preview_notes(scenario: Scenario) -> list[str]:
     """What a fast preview lowers against ``scenario``, one short phrase each (the page and the
     preview scenario's description show them)."""
     notes = [
-        f"thermal.{k} {low:g} (scenario: {own:g})" for k, own, low in _thermal_knobs(scenario) if low != own
+        f"thermal.{k} {low:g} (scenario: {own if isinstance(own, str) else format(own, 'g')})"
+        for k, own, low in _thermal_knobs(scenario)
+        if low != own
     ]
     if scenario.frame_count > 1:
         notes.append(f"frame 0 only (scenario: {scenario.frame_count} frames)")

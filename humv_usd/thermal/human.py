@@ -73,6 +73,7 @@ from humv_usd.thermal.physiology import (
 from humv_usd.thermal.sky import ClearSky
 from humv_usd.usd.avatar import read_air_gap, read_body_regions, read_garment, read_metabolic_rate
 from humv_usd.usd.materials import StageMaterial, band_emissivity, mesh_material
+from humv_usd.usd.sensor import stage_sensors
 
 MODEL_NAMES = {"jos3": "jos3", "twoNode": "two_node"}
 
@@ -626,6 +627,50 @@ def _ray_importance(parts, points, visible) -> np.ndarray:
     w = np.concatenate(out)
     mean = float(w[w > 0].mean()) if np.any(w > 0) else 1.0
     return w / mean
+
+
+#: ``[thermal] radiation_rays`` when not given (:func:`auto_radiation_rays`): the rays of an
+#: LWIR camera's person (NETD 50 mK), and the fewest the rule gives
+AUTO_RAYS_BASE = 192
+#: the thermal layer's noise per person pixel at :data:`AUTO_RAYS_BASE` rays [K], as the render
+#: states it through its smooth shading (``geometry.shading.smooth_noise``): the demo person
+#: 8.8-9.3 mK in lwir640 and mwir_insb (measured by two q_rad seeds: 7.3-7.6 mK; s8 qrad-noise)
+AUTO_PIXEL_NOISE_K = 0.009
+#: the share of the person's target (NETD/3) that the render's own error takes at the automatic
+#: quality (demo: 11.9 / 16.7 mK lwir640, 3.9 / 6.7 mK mwir_insb; the boosts aim each pixel at the
+#: target, the person's mean lands at ~0.6-0.7 of it): the larger. With 0.6 the demo's mwir_insb
+#: got 547 rays and a person total of 6.663 mK against 6.667, too thin a margin
+AUTO_RENDER_SHARE = 0.7
+#: most rays per facet the rule asks for (the scenario key's upper bound)
+AUTO_RAYS_MAX = 4096
+
+
+def auto_radiation_rays(stage) -> tuple[int, float | None]:
+    """q_rad rays per facet for a scenario that does not give ``[thermal] radiation_rays``, from
+    the thermal cameras of ``stage`` (its sensors layer), and the NETD [K] that set them (None:
+    no thermal camera).
+
+    The person's total error per pixel is the render's and the thermal layer's in quadrature
+    (:func:`humv_usd.render.quality.combine_error`), and its target is NETD/3 (issue 25.3). With
+    the render taking :data:`AUTO_RENDER_SHARE` s of the target, the layer may add
+    sqrt(1 - s^2) NETD/3; its noise falls as 1/sqrt(rays) (Monte Carlo), from
+    :data:`AUTO_PIXEL_NOISE_K` at :data:`AUTO_RAYS_BASE` rays, so the most demanding camera (the
+    smallest NETD) needs AUTO_RAYS_BASE (AUTO_PIXEL_NOISE_K / (sqrt(1 - s^2) NETD/3))^2 rays, and
+    never fewer than AUTO_RAYS_BASE: 192 for LWIR cameras of NETD 50 mK (needing 110), 687 for a
+    cooled MWIR camera of NETD 20 mK (the demo's mwir_insb: 512 rays gave 6.5 mK against its
+    6.7, 547 gave 6.663). The noise per pixel is the demo's; another scene's differs, and the render states what
+    it is (``total_error_mean_k`` per region), so a miss shows."""
+    netds = [
+        float(s.netd_k)
+        for s in stage_sensors(stage)
+        if not s.skip_reason and s.kind != "EO" and not s.is_reflective and s.netd_k and s.netd_k > 0
+    ]
+    if not netds:
+        return AUTO_RAYS_BASE, None
+    netd = min(netds)
+    allowed = np.sqrt(1.0 - AUTO_RENDER_SHARE**2) * netd / 3.0
+    rays = AUTO_RAYS_BASE * (AUTO_PIXEL_NOISE_K / allowed) ** 2
+    return int(min(max(np.ceil(rays), AUTO_RAYS_BASE), AUTO_RAYS_MAX)), netd
 
 
 #: triangles per part (body, each garment) whose q_rad is estimated a second time with

@@ -38,7 +38,13 @@ from humv_usd.scenario import Scenario
 from humv_usd.scenario.inputs import CLOCK
 from humv_usd.scenario.times import spin_up_times
 from humv_usd.thermal import scene_radiance as SR
-from humv_usd.thermal.human import FACE_NOISE, Surroundings, human_temperatures, scenario_sky
+from humv_usd.thermal.human import (
+    FACE_NOISE,
+    Surroundings,
+    auto_radiation_rays,
+    human_temperatures,
+    scenario_sky,
+)
 from humv_usd.thermal.snow import author_snow_cover
 from humv_usd.thermal.surfaces import (
     air_at_frame0,
@@ -112,7 +118,9 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 25: a hidden face's noise is its mesh's visible RMS (the render blends it into visible corners)
 #: 26: long hair alone takes the full clothed q_rad pass again (human.CLOSE_HAIR: its shadow on the
 #: back and face matters); short or tied hair and beards keep the hair-only pass (23)
-VERSION = "26"
+#: 27: ``[thermal] radiation_rays`` left out follows the thermal cameras (human.auto_radiation_rays:
+#: 192 for LWIR cameras of NETD 50 mK, 547 with a cooled MWIR camera of 20 mK, e.g. the demo)
+VERSION = "27"
 #: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
 #: the layer's text is unchanged, so no VERSION bump)
 SPILLS = True
@@ -139,6 +147,10 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
     g = scenario["general"]
     th = scenario["thermal"]
     model = th["model"]
+    rays_netd = None
+    if th.get("radiation_rays") is None:  # not given: from the thermal cameras' NETD
+        rays, rays_netd = auto_radiation_rays(upstream)
+        th = {**th, "radiation_rays": rays}
     frames, fps = scenario.frame_count, g["fps"]
     stage = new_layer_stage(fps, frames, f"HumV-USD thermal layer: per-face temperatures ({model} model)")
     stage.RemovePrim("/World")  # this layer only adds opinions: overs, no defs
@@ -241,6 +253,11 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
             {
                 "qradMethod": th["radiation_method"],
                 "qradRays": th["radiation_rays"],
+                "qradRaysRule": "given"
+                if rays_netd is None and scenario["thermal"].get("radiation_rays") is not None
+                else f"automatic (the thermal cameras' smallest NETD: {rays_netd:g} K)"
+                if rays_netd is not None
+                else "automatic (no thermal camera)",
                 "mapResolution": th["radiation_resolution"],
                 "garmentBalance": th["garment_transient"],
             }
