@@ -1356,7 +1356,7 @@ THERMAL = Section(
             "the error falls as 1/sqrt(rays): 512 meet the demo's MWIR target, NETD/3 = 6.7 mK "
             "with the render's own error, for ~3 CPU-s more per radiation sample). Leave it out "
             "to have the rays follow the thermal cameras (thermal.human.auto_radiation_rays): "
-            "192 for LWIR cameras of NETD 50 mK, ~690 for a cooled MWIR camera of NETD 20 mK, "
+            "192 for LWIR cameras of NETD 50 mK, 800 for a cooled MWIR camera of NETD 20 mK, "
             "enough for the person's total error to stay within NETD/3 on the demo.",
             default=None,
             lo=1,

@@ -119,7 +119,7 @@ UPSTREAM = ("environment", "atmosphere", "materials", "scene", "avatar_*", "clot
 #: 26: long hair alone takes the full clothed q_rad pass again (human.CLOSE_HAIR: its shadow on the
 #: back and face matters); short or tied hair and beards keep the hair-only pass (23)
 #: 27: ``[thermal] radiation_rays`` left out follows the thermal cameras (human.auto_radiation_rays:
-#: 192 for LWIR cameras of NETD 50 mK, 547 with a cooled MWIR camera of 20 mK, e.g. the demo)
+#: 192 for LWIR cameras of NETD 50 mK, 800 with a cooled MWIR camera of 20 mK, e.g. the demo)
 VERSION = "27"
 #: compose hands this tool a :class:`~humv_usd.usd.spill.SampleSpill` (per-frame samples to disk;
 #: the layer's text is unchanged, so no VERSION bump)
