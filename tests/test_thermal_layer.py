@@ -12,6 +12,7 @@ from pxr import Sdf, Usd, UsdGeom
 from humv_usd.human import labels as L
 from humv_usd.pipeline.compose import compose
 from humv_usd.scenario import validate
+from humv_usd.thermal.human import auto_radiation_rays
 from humv_usd.usd import avatar as UA
 from humv_usd.usd import schemas as S
 from humv_usd.usd.check import check_stage
@@ -47,6 +48,7 @@ def jos3_stage(tmp_path_factory, humvvex_raw):
     raw["human"][0]["clothing"] = ["tshirt_white", "shorts", "cap"]  # barefoot: cold feet
     raw["scene"]["ground"]["temperature_k"] = 297.0  # held surfaces (the slab: below)
     raw["scene"]["object"][0]["temperature_k"] = 293.0
+    raw["thermal"]["radiation_rays"] = 192  # given: the physiology under test, not the rays (below)
     out = tmp_path_factory.mktemp("jos3")
     compose(validate(raw), out)
     return out, Usd.Stage.Open(str(out / "stage.usda")), raw
@@ -133,6 +135,11 @@ def test_two_node_at_night_with_slab_surfaces(humvvex_raw, tmp_path):
     report = Sdf.Layer.FindOrOpen(str(tmp_path / "layers" / "thermal.usda")).customLayerData
     assert report["humv:thermal"]["p1"]["absorbedShortwaveMean_W_m2"] == 0.0  # no sun at night
     assert report["humv:thermal"]["surfaces"]["slabMaxResidual_W_m2"] < 1e-6
+    # radiation_rays left out: the rays of the most demanding thermal camera (the cooled MWIR's
+    # NETD 20 mK), as the rule gives them for this stage's sensors
+    rays, netd = auto_radiation_rays(stage)
+    assert netd == pytest.approx(0.02) and report["humv:thermal"]["qradRays"] == rays > 192
+    assert "0.02 K" in report["humv:thermal"]["qradRaysRule"]
     ground = stage.GetPrimAtPath("/World/Scene/Ground")
     assert ground.GetAttribute(S.THERMAL_MODEL).Get() == "slab"
     t_ground = temperatures(stage, "/World/Scene/Ground")
