@@ -1353,11 +1353,10 @@ THERMAL = Section(
             "person's visible face temperatures. Their noise is measured and stated (demo, "
             "area-weighted RMS per mesh: ~20-25 mK at 192, cap ~60; ~27 mK at 128) and the "
             "render adds it per pixel through its smooth shading (demo person ~9 mK at 192; "
-            "the error falls as 1/sqrt(rays): 512 meet the demo's MWIR target, NETD/3 = 6.7 mK "
-            "with the render's own error, for ~3 CPU-s more per radiation sample). Leave it out "
-            "to have the rays follow the thermal cameras (thermal.human.auto_radiation_rays): "
-            "192 for LWIR cameras of NETD 50 mK, 800 for a cooled MWIR camera of NETD 20 mK, "
-            "enough for the person's total error to stay within NETD/3 on the demo.",
+            "the error falls as 1/sqrt(rays), the cost grows with them). Leave it out to have "
+            "the rays follow the thermal cameras (thermal.human.auto_radiation_rays): 192 for "
+            "LWIR cameras of NETD 50 mK, 800 for a cooled MWIR camera of NETD 20 mK (the demo: "
+            "its person's total error 6.1 mK against NETD/3 = 6.7, ~5 CPU-s more per compose).",
             default=None,
             lo=1,
             hi=4096,
