@@ -213,6 +213,26 @@ def test_smooth_shading_renders_a_faceted_surface_close_to_its_smooth_field(tmp_
     assert smooth[1] < 0.5 * flat[1] and smooth[2] < 0.5 * flat[2], (smooth, flat)
 
 
+def ball_frame(path):
+    """The saved stage at ``path`` (one camera seeing a ball, instance 1) as the render bench's
+    frame: (frame, sensor id, its setup (sub-bands, radiometry, emissivity, transmittance), the
+    pixel-centre hits, the ball's pixels away from geometric edges and two pixels inside its
+    outline)."""
+    from humv_usd.bench.render import _Frame
+
+    fr = _Frame(path)
+    cam = fr.rendered[0]
+    sid = fr.sensor_ids[cam.name]
+    setup = fr.setup(cam, 1)
+    hits = fr.scene.hits(sid)
+    inner = (hits.instance == 1) & ~E.geometric_edges(hits)
+    for _ in range(2):  # two pixels inside the outline
+        inner[1:-1, 1:-1] &= inner[:-2, 1:-1] & inner[2:, 1:-1] & inner[1:-1, :-2] & inner[1:-1, 2:]
+        inner[[0, -1], :] = inner[:, [0, -1]] = False
+    assert inner.sum() > 1500
+    return fr, sid, setup, hits, inner
+
+
 def test_smooth_shading_keeps_a_curved_surfaces_sunlit_mean_in_mwir(tmp_path):
     """A gray faceted sphere (eps 0.2, 48 x 24 segments, 7.5 deg between neighbouring normals,
     the garments' median) at 300 K in a 300 K blackbody surround (sky and ground), in a strong
@@ -223,8 +243,6 @@ def test_smooth_shading_keeps_a_curved_surfaces_sunlit_mean_in_mwir(tmp_path):
     faces' sun terms to the corners shrank it (about cos^2 of half the angle between
     neighbours; -0.53 % here): the close-up MWIR person 52 mK under the IR path tracer (issue 25;
     :func:`humv_usd.render.estimator.corner_table`, ``sun_gain_steps``)."""
-    from humv_usd.bench.render import _Frame
-
     t_k, eps, e_um = 300.0, 0.2, 500.0  # solar spectral irradiance [W m-2 um-1], flat over the band
     stage = sun_stage(tmp_path / "s.usda", sky_k=t_k)
     gray, black = add_material(stage, "gray", eps), add_material(stage, "black", 1.0)
@@ -240,16 +258,7 @@ def test_smooth_shading_keeps_a_curved_surfaces_sunlit_mean_in_mwir(tmp_path):
     s = np.array([0.3, 0.2, 0.9]) / np.linalg.norm([0.3, 0.2, 0.9])
     sun(stage, tuple(s))
     stage.Save()
-    fr = _Frame(tmp_path / "s.usda")
-    cam = fr.rendered[0]
-    sid = fr.sensor_ids[cam.name]
-    sub, rad, emissivity, trans = fr.setup(cam, 1)
-    hits = fr.scene.hits(sid)
-    inner = (hits.instance == 1) & ~E.geometric_edges(hits)
-    for _ in range(2):  # two pixels inside the outline
-        inner[1:-1, 1:-1] &= inner[:-2, 1:-1] & inner[2:, 1:-1] & inner[1:-1, :-2] & inner[1:-1, 2:]
-        inner[[0, -1], :] = inner[:, [0, -1]] = False
-    assert inner.sum() > 1500
+    fr, sid, (sub, rad, emissivity, trans), hits, inner = ball_frame(tmp_path / "s.usda")
     sun_term = (1.0 - eps) * e_um * (MWIR[1] - MWIR[0]) * np.maximum(hits.normal @ s, 0.0) / np.pi
     want_sun = sun_term[inner].mean()
     emitted = planck.band_radiance(t_k, MWIR)

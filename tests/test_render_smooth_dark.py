@@ -7,9 +7,9 @@ import numpy as np
 from test_render import add_camera, add_material, add_mesh, new_stage
 from test_render_eo_fast import _uv_sphere
 from test_render_radiometry import MWIR
+from test_render_smooth import ball_frame
 
 from humv_usd.bench import surface_steps as SS
-from humv_usd.bench.render import _Frame
 from humv_usd.physics import planck
 from humv_usd.render import estimator as E
 
@@ -44,16 +44,7 @@ def test_smooth_shading_keeps_a_curved_surfaces_emitted_mean(tmp_path):
         band_token="MWIR", up=(0, 1, 0),
     )  # fmt: skip
     stage.Save()
-    fr = _Frame(tmp_path / "s.usda")
-    cam = fr.rendered[0]
-    sid = fr.sensor_ids[cam.name]
-    sub, rad, emissivity, trans = fr.setup(cam, 1)
-    hits = fr.scene.hits(sid)
-    inner = (hits.instance == 1) & ~E.geometric_edges(hits)
-    for _ in range(2):  # two pixels inside the outline
-        inner[1:-1, 1:-1] &= inner[:-2, 1:-1] & inner[2:, 1:-1] & inner[1:-1, :-2] & inner[1:-1, 2:]
-        inner[[0, -1], :] = inner[:, [0, -1]] = False
-    assert inner.sum() > 1500
+    fr, sid, (sub, rad, emissivity, trans), hits, inner = ball_frame(tmp_path / "s.usda")
     want = planck.band_radiance(t0 + dt * (hits.normal[inner] @ view), MWIR).mean()
     errors = {}
     for gains in (None, 0):

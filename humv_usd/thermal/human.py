@@ -661,8 +661,9 @@ def auto_radiation_rays(stage) -> tuple[int, float | None]:
     smallest NETD) needs AUTO_RAYS_BASE (AUTO_PIXEL_NOISE_K / (sqrt(1 - s^2) NETD/3))^2 rays, and
     never fewer than AUTO_RAYS_BASE: 192 for LWIR cameras of NETD 50 mK (needing 128), 800 for a
     cooled MWIR camera of NETD 20 mK (the demo's mwir_insb: 547 rays gave a person total of
-    6.663 mK against its 6.667, 687 rays 6.64 mK). The noise per pixel is the demo's; another scene's differs, and the render states what
-    it is (``total_error_mean_k`` per region), so a miss shows."""
+    6.663 mK against its 6.667, 687 rays 6.64 mK, 800 rays 6.14 mK). The noise per pixel is the
+    demo's; another scene's differs, and the render states what it is (``total_error_mean_k``
+    per region), so a miss shows."""
     netds = [
         float(s.netd_k)
         for s in stage_sensors(stage)

@@ -147,10 +147,13 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
     g = scenario["general"]
     th = scenario["thermal"]
     model = th["model"]
-    rays_netd = None
+    rays_rule = "given"
     if th.get("radiation_rays") is None:  # not given: from the thermal cameras' NETD
-        rays, rays_netd = auto_radiation_rays(upstream)
+        rays, netd = auto_radiation_rays(upstream)
         th = {**th, "radiation_rays": rays}
+        rays_rule = "automatic " + (
+            "(no thermal camera)" if netd is None else f"(the thermal cameras' smallest NETD: {netd:g} K)"
+        )
     frames, fps = scenario.frame_count, g["fps"]
     stage = new_layer_stage(fps, frames, f"HumV-USD thermal layer: per-face temperatures ({model} model)")
     stage.RemovePrim("/World")  # this layer only adds opinions: overs, no defs
@@ -253,11 +256,7 @@ def _build(scenario: Scenario, upstream: Usd.Stage, spill: SampleSpill | None = 
             {
                 "qradMethod": th["radiation_method"],
                 "qradRays": th["radiation_rays"],
-                "qradRaysRule": "given"
-                if rays_netd is None and scenario["thermal"].get("radiation_rays") is not None
-                else f"automatic (the thermal cameras' smallest NETD: {rays_netd:g} K)"
-                if rays_netd is not None
-                else "automatic (no thermal camera)",
+                "qradRaysRule": rays_rule,
                 "mapResolution": th["radiation_resolution"],
                 "garmentBalance": th["garment_transient"],
             }
